@@ -1,0 +1,85 @@
+"""Configuration types and loading. Config types reject unknown fields, so a typo fails loudly.
+
+Files are TOML (``.toml``) or JSON (``.json``). Every error names the file and the field.
+"""
+
+from __future__ import annotations
+
+import json
+import tomllib
+from pathlib import Path
+from typing import Any, TypeVar
+
+from pydantic import BaseModel, ConfigDict, ValidationError
+
+
+class ConfigError(ValueError):
+    """A configuration, vessel, scenario or mission document is invalid; the text says where."""
+
+
+class ConfigModel(BaseModel):
+    """Base of every configuration type: unknown fields are errors, values finite, immutable."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, frozen=True)
+
+
+C = TypeVar("C", bound=ConfigModel)
+
+
+def describe_validation_error(err: ValidationError, where: str) -> str:
+    lines = [f"{where}: {len(err.errors())} problem(s)"]
+    for e in err.errors():
+        loc = ".".join(str(p) for p in e["loc"]) or "(document)"
+        msg = "unknown field (check the spelling)" if e["type"] == "extra_forbidden" else e["msg"]
+        lines.append(f"  {loc}: {msg}")
+    return "\n".join(lines)
+
+
+def read_document(path: str | Path) -> dict[str, Any]:
+    """Read a TOML or JSON file into a dict; errors name the file and the parse position."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except OSError as err:
+        raise ConfigError(f"{p}: cannot read: {err.strerror or err}") from None
+    try:
+        if p.suffix == ".toml":
+            return tomllib.loads(text)
+        if p.suffix == ".json":
+            doc = json.loads(text)
+            if not isinstance(doc, dict):
+                raise ConfigError(f"{p}: the top level must be an object")
+            return doc
+    except (tomllib.TOMLDecodeError, json.JSONDecodeError) as err:
+        raise ConfigError(f"{p}: not valid {p.suffix[1:].upper()}: {err}") from None
+    raise ConfigError(f"{p}: unknown file type {p.suffix!r}; use .toml or .json")
+
+
+def parse_config(doc: dict[str, Any], model: type[C], where: str = "config") -> C:
+    """Validate a document against a config type."""
+    try:
+        return model.model_validate(doc)
+    except ValidationError as err:
+        raise ConfigError(describe_validation_error(err, where)) from None
+
+
+def load_config(path: str | Path, model: type[C]) -> C:
+    """Read and validate a config file."""
+    return parse_config(read_document(path), model, str(path))
+
+
+def repo_root() -> Path | None:
+    """The checkout this package runs from (for default deploy/ files), or None if installed."""
+    here = Path(__file__).resolve()
+    for parent in here.parents:
+        if (parent / "deploy").is_dir() and (parent / "services").is_dir():
+            return parent
+    return None
+
+
+def deploy_path(*parts: str) -> Path:
+    """A file under the checkout's ``deploy/`` folder; raises ConfigError if there is none."""
+    root = repo_root()
+    if root is None:
+        raise ConfigError("cannot find the deploy/ folder: pass the file's path explicitly")
+    return root.joinpath("deploy", *parts)

@@ -1,0 +1,87 @@
+"""Frames and angles: WGS84 geodetic <-> local NED at an origin, and angle wrapping.
+
+Local NED (design.md): x north, y east, z down, metres, tangent plane at the origin. The conversion is
+exact (through ECEF), not a flat-earth approximation, so it holds over any lake or bay.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+WGS84_A_M = 6378137.0
+WGS84_F = 1.0 / 298.257223563
+WGS84_E2 = WGS84_F * (2.0 - WGS84_F)
+_TWO_PI = 2.0 * math.pi
+
+
+def wrap_pi(angle_rad: float) -> float:
+    """Wrap an angle to (-pi, pi] [rad]."""
+    a = math.fmod(angle_rad + math.pi, _TWO_PI)
+    if a <= 0.0:
+        a += _TWO_PI
+    return a - math.pi
+
+
+def wrap_2pi(angle_rad: float) -> float:
+    """Wrap an angle to [0, 2 pi) [rad]."""
+    a = math.fmod(angle_rad, _TWO_PI)
+    return a + _TWO_PI if a < 0.0 else a
+
+
+def geodetic_to_ecef(lat_rad: float, lon_rad: float, alt_m: float) -> tuple[float, float, float]:
+    sl, cl = math.sin(lat_rad), math.cos(lat_rad)
+    n = WGS84_A_M / math.sqrt(1.0 - WGS84_E2 * sl * sl)
+    return (
+        (n + alt_m) * cl * math.cos(lon_rad),
+        (n + alt_m) * cl * math.sin(lon_rad),
+        (n * (1.0 - WGS84_E2) + alt_m) * sl,
+    )
+
+
+def ecef_to_geodetic(x_m: float, y_m: float, z_m: float) -> tuple[float, float, float]:
+    """ECEF -> (lat_rad, lon_rad, alt_m); Bowring's start and fixed-point refinement (sub-mm)."""
+    lon = math.atan2(y_m, x_m)
+    p = math.hypot(x_m, y_m)
+    lat = math.atan2(z_m, p * (1.0 - WGS84_E2))
+    alt = 0.0
+    for _ in range(6):
+        sl = math.sin(lat)
+        n = WGS84_A_M / math.sqrt(1.0 - WGS84_E2 * sl * sl)
+        alt = p / math.cos(lat) - n if abs(lat) < math.radians(89.0) else z_m / sl - n * (1 - WGS84_E2)
+        lat = math.atan2(z_m, p * (1.0 - WGS84_E2 * n / (n + alt)))
+    return lat, lon, alt
+
+
+@dataclass(frozen=True)
+class GeoOrigin:
+    """The geodetic origin of a local NED frame."""
+
+    lat_rad: float
+    lon_rad: float
+    alt_m: float = 0.0
+
+    def _ecef0(self) -> tuple[float, float, float]:
+        return geodetic_to_ecef(self.lat_rad, self.lon_rad, self.alt_m)
+
+    def to_ned(self, lat_rad: float, lon_rad: float, alt_m: float = 0.0) -> tuple[float, float, float]:
+        """Geodetic -> (north_m, east_m, down_m) relative to this origin."""
+        x0, y0, z0 = self._ecef0()
+        x, y, z = geodetic_to_ecef(lat_rad, lon_rad, alt_m)
+        dx, dy, dz = x - x0, y - y0, z - z0
+        sl, cl = math.sin(self.lat_rad), math.cos(self.lat_rad)
+        so, co = math.sin(self.lon_rad), math.cos(self.lon_rad)
+        north = -sl * co * dx - sl * so * dy + cl * dz
+        east = -so * dx + co * dy
+        down = -cl * co * dx - cl * so * dy - sl * dz
+        return north, east, down
+
+    def to_geodetic(self, north_m: float, east_m: float, down_m: float = 0.0) -> tuple[float, float, float]:
+        """(north_m, east_m, down_m) relative to this origin -> (lat_rad, lon_rad, alt_m)."""
+        x0, y0, z0 = self._ecef0()
+        sl, cl = math.sin(self.lat_rad), math.cos(self.lat_rad)
+        so, co = math.sin(self.lon_rad), math.cos(self.lon_rad)
+        dx = -sl * co * north_m - so * east_m - cl * co * down_m
+        dy = -sl * so * north_m + co * east_m - cl * so * down_m
+        dz = cl * north_m - sl * down_m
+        return ecef_to_geodetic(x0 + dx, y0 + dy, z0 + dz)

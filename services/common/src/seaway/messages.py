@@ -1,0 +1,398 @@
+"""Every message that travels on Seaway's bus, defined once.
+
+Wire format: UTF-8 JSON of the model's fields. The same bytes go into MCAP recordings
+(``message_encoding=json``) with the JSON Schema generated from the type (``schema_encoding=jsonschema``).
+
+Rules every type here follows (design.md, "Messages, units, frames, time"):
+
+* a versioned schema name in ``SCHEMA`` (``seaway.v1.ThrustCommand``);
+* SI units, the unit in the field name (``_m``, ``_mps``, ``_rad``, ``_radps``, ``_n``, ``_nm``, ``_w``,
+  ``_j``, ``_s``, ``_ns``);
+* ``stamp_ns``: nanoseconds since the Unix epoch (wall clock, live) or since the simulation epoch
+  (simulation) at which the data is valid;
+* world frame: local NED at the published origin (x north, y east, psi from north, clockwise);
+  body frame: forward-right-down. Thruster 1 is the port (left) one, thruster 2 the starboard one, so
+  that the paper's yaw moment (T1 - T2) * l is positive (clockwise from above) as NED requires;
+* no NaN or infinity: refused at construction with an error that names the field; unknown is an
+  explicit ``None``;
+* decoding ignores unknown fields, so that an old reader survives a newer log.
+
+Instances are immutable: once validated, a message cannot become non-finite.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from typing import Any, ClassVar, Literal, Self
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+
+class MessageError(ValueError):
+    """A message could not be built, encoded or decoded; the text names the type and the field."""
+
+
+def _describe(err: ValidationError, type_name: str) -> str:
+    parts = []
+    for e in err.errors():
+        loc = ".".join(str(p) for p in e["loc"]) or "(message)"
+        parts.append(f"{type_name}.{loc}: {e['msg']}")
+    return "; ".join(parts)
+
+
+def _first_non_finite(value: Any, path: str) -> str | None:
+    """Path of the first NaN or infinity inside ``value`` (a dumped model), or None."""
+    if isinstance(value, float):
+        return None if math.isfinite(value) else path
+    if isinstance(value, dict):
+        for k, v in value.items():
+            found = _first_non_finite(v, f"{path}.{k}" if path else str(k))
+            if found:
+                return found
+    if isinstance(value, list | tuple):
+        for i, v in enumerate(value):
+            found = _first_non_finite(v, f"{path}[{i}]")
+            if found:
+                return found
+    return None
+
+
+class Message(BaseModel):
+    """Base of every bus message: immutable, finite, tolerant of unknown fields when decoded."""
+
+    model_config = ConfigDict(extra="ignore", allow_inf_nan=False, frozen=True, ser_json_inf_nan="constants")
+
+    SCHEMA: ClassVar[str]
+    stamp_ns: int = Field(ge=0, description="time the data is valid at [ns since epoch]")
+
+    @classmethod
+    def make(cls, **fields: Any) -> Self:
+        """Build and validate; a bad field raises MessageError naming it (e.g. a NaN)."""
+        try:
+            return cls(**fields)
+        except ValidationError as err:
+            raise MessageError(_describe(err, cls.__name__)) from None
+
+    def encode(self) -> bytes:
+        """JSON bytes for the wire. Refuses non-finite numbers, naming the field.
+
+        Instances built through the constructor are already finite; this also catches ones made with
+        ``model_construct`` (which skips validation). The substring test keeps the common path cheap.
+        """
+        data = self.model_dump_json().encode()
+        if b"NaN" in data or b"Infinity" in data:
+            bad = _first_non_finite(self.model_dump(), "")
+            if bad:
+                raise MessageError(f"{type(self).__name__}.{bad}: not finite; publishing refused")
+        return data
+
+    @classmethod
+    def decode(cls, data: bytes | bytearray | memoryview | str) -> Self:
+        """Parse and validate wire bytes; raises MessageError naming what is wrong."""
+        try:
+            return cls.model_validate_json(bytes(data) if not isinstance(data, str) else data)
+        except ValidationError as err:
+            raise MessageError(_describe(err, cls.__name__)) from None
+
+    @classmethod
+    def json_schema(cls) -> dict[str, Any]:
+        """JSON Schema (draft 2020-12) of the wire form, titled with the versioned schema name."""
+        schema = cls.model_json_schema(mode="serialization")
+        schema["title"] = cls.SCHEMA
+        schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"
+        return schema
+
+    @classmethod
+    def json_schema_text(cls) -> str:
+        return json.dumps(cls.json_schema(), sort_keys=True)
+
+
+# ---------------------------------------------------------------------------------------------
+# Sensors (producer: vehicle_io, from the autopilot; the sim reaches the bus through vehicle_io)
+# ---------------------------------------------------------------------------------------------
+
+
+class GnssFix(Message):
+    """GNSS fix from the autopilot. WGS84 geodetic position; velocity over ground in NED."""
+
+    SCHEMA: ClassVar[str] = "seaway.v1.GnssFix"
+    lat_rad: float = Field(ge=-math.pi / 2, le=math.pi / 2, description="WGS84 latitude [rad]")
+    lon_rad: float = Field(ge=-math.pi, le=math.pi, description="WGS84 longitude [rad]")
+    alt_m: float = Field(description="height above the WGS84 ellipsoid or MSL as the source says [m]")
+    fix_type: int = Field(ge=0, le=8, description="MAVLink GPS_FIX_TYPE (0 none, 3 3D, 6 RTK fixed)")
+    vel_n_mps: float | None = Field(default=None, description="velocity over ground, north [m/s]")
+    vel_e_mps: float | None = Field(default=None, description="velocity over ground, east [m/s]")
+    horizontal_std_m: float | None = Field(default=None, ge=0, description="1-sigma position [m]")
+    satellites: int | None = Field(default=None, ge=0)
+
+
+class Attitude(Message):
+    """Vehicle attitude and body rates. Angles NED/FRD (Fossen), yaw = heading from north."""
+
+    SCHEMA: ClassVar[str] = "seaway.v1.Attitude"
+    roll_rad: float
+    pitch_rad: float
+    yaw_rad: float = Field(ge=-math.pi, le=math.pi, description="heading, clockwise from north [rad]")
+    roll_rate_radps: float
+    pitch_rate_radps: float
+    yaw_rate_radps: float = Field(description="r, body z rate, positive clockwise from above [rad/s]")
+
+
+class LocalPosition(Message):
+    """The autopilot's own local position estimate (its NED origin, not necessarily ours)."""
+
+    SCHEMA: ClassVar[str] = "seaway.v1.LocalPosition"
+    x_m: float
+    y_m: float
+    z_m: float
+    vx_mps: float
+    vy_mps: float
+    vz_mps: float
+
+
+class VehicleStatus(Message):
+    """Link, arming, mode, failsafe and battery state of the autopilot as vehicle_io sees it."""
+
+    SCHEMA: ClassVar[str] = "seaway.v1.VehicleStatus"
+    autopilot: str = Field(description="'px4', 'ardupilot' or 'unknown'")
+    link_ok: bool
+    armed: bool
+    mode: str = Field(description="autopilot mode name, e.g. 'MANUAL'")
+    failsafe: str | None = Field(default=None, description="active failsafe, e.g. 'thrust_stale'")
+    battery_voltage_v: float | None = None
+    battery_remaining_frac: float | None = Field(default=None, ge=0, le=1)
+    heartbeat_age_s: float | None = Field(default=None, ge=0)
+    rates_hz: dict[str, float] = Field(default_factory=dict, description="received MAVLink rates")
+    dropped_messages: int = Field(default=0, ge=0, description="malformed MAVLink messages dropped")
+
+
+# ---------------------------------------------------------------------------------------------
+# Navigation (producer: estimator)
+# ---------------------------------------------------------------------------------------------
+
+
+class NavOrigin(Message):
+    """Geodetic origin of the local NED frame every position on the bus is expressed in."""
+
+    SCHEMA: ClassVar[str] = "seaway.v1.NavOrigin"
+    lat_rad: float = Field(ge=-math.pi / 2, le=math.pi / 2)
+    lon_rad: float = Field(ge=-math.pi, le=math.pi)
+    alt_m: float
+
+
+class StateEstimate(Message):
+    """Estimated state [u, v, r, x, y, psi] (paper eq. 1-2) and disturbance tau_d (body frame).
+
+    ``covariance`` is the row-major 9x9 covariance of [u, v, r, x, y, psi, tau_u, tau_v, tau_r]
+    in the units of those fields.
+    """
+
+    SCHEMA: ClassVar[str] = "seaway.v1.StateEstimate"
+    u_mps: float = Field(description="surge speed through the water [m/s]")
+    v_mps: float = Field(description="sway speed through the water [m/s]")
+    r_radps: float = Field(description="yaw rate [rad/s]")
+    x_m: float = Field(description="north of the origin [m]")
+    y_m: float = Field(description="east of the origin [m]")
+    psi_rad: float = Field(ge=-math.pi, le=math.pi, description="heading from north [rad]")
+    tau_d_surge_n: float = 0.0
+    tau_d_sway_n: float = 0.0
+    tau_d_yaw_nm: float = 0.0
+    covariance: list[float] | None = Field(default=None, min_length=81, max_length=81)
+    degraded: bool = False
+
+
+# ---------------------------------------------------------------------------------------------
+# Control and mission (producer: controller)
+# ---------------------------------------------------------------------------------------------
+
+
+class ThrustCommand(Message):
+    """Thrust per thruster in newtons (paper's T^1 port, T^2 starboard).
+
+    ``stamp_ns`` is the stamp of the state the command was computed from, so latency is measurable.
+    """
+
+    SCHEMA: ClassVar[str] = "seaway.v1.ThrustCommand"
+    thrust_port_n: float = Field(description="T^1, port thruster, positive ahead [N]")
+    thrust_starboard_n: float = Field(description="T^2, starboard thruster, positive ahead [N]")
+    source: str = Field(default="", description="who computed it: 'cc-empc', 'los', 'stop', ...")
+    seq: int = Field(default=0, ge=0)
+
+
+class SolveRecord(Message):
+    """One MPC solve: outcome, timing, prediction and the cost split by term (paper eq. 14)."""
+
+    SCHEMA: ClassVar[str] = "seaway.v1.SolveRecord"
+    controller: str
+    status: str
+    success: bool
+    iterations: int = Field(ge=0)
+    solve_time_s: float = Field(ge=0)
+    fallback_level: int = Field(default=0, ge=0, description="0 solver, 1 shifted plan, 2 LOS, 3 stop")
+    fallback_count: int = Field(default=0, ge=0)
+    cost_stage_j: float | None = None
+    cost_dynamic_j: float | None = Field(default=None, description="E_d = P_d * t_d [J]")
+    cost_static_j: float | None = Field(default=None, description="E_s = P_s * t_s [J]")
+    cost_track_j: float | None = Field(default=None, description="Y [J]")
+    t_d_s: float | None = None
+    t_s_s: float | None = None
+    energy_to_go_j: float | None = None
+    cross_track_m: float | None = None
+    predicted_x_m: list[float] = Field(default_factory=list)
+    predicted_y_m: list[float] = Field(default_factory=list)
+    predicted_psi_rad: list[float] = Field(default_factory=list)
+    predicted_thrust_port_n: list[float] = Field(default_factory=list)
+    predicted_thrust_starboard_n: list[float] = Field(default_factory=list)
+
+
+class MissionStatus(Message):
+    """Progress of the active mission."""
+
+    SCHEMA: ClassVar[str] = "seaway.v1.MissionStatus"
+    state: Literal["idle", "active", "paused", "complete", "aborted"]
+    mission_id: str = ""
+    active_leg: int = Field(default=0, ge=0, description="index i of the active waypoint P_i")
+    waypoint_count: int = Field(default=0, ge=0)
+    distance_to_waypoint_m: float | None = None
+    cross_track_m: float | None = None
+    energy_used_j: float | None = None
+    energy_to_go_j: float | None = None
+
+
+# ---------------------------------------------------------------------------------------------
+# Simulation (producer: sim)
+# ---------------------------------------------------------------------------------------------
+
+
+class SimTruth(Message):
+    """True state of the simulated vessel and the thrust actually applied (after saturation)."""
+
+    SCHEMA: ClassVar[str] = "seaway.v1.SimTruth"
+    u_mps: float
+    v_mps: float
+    r_radps: float
+    x_m: float
+    y_m: float
+    psi_rad: float
+    thrust_port_n: float
+    thrust_starboard_n: float
+    energy_j: float = Field(ge=0, description="propulsion energy sum alpha*T^2 dt since start [J]")
+
+
+class DisturbanceForce(Message):
+    """Disturbance acting on the simulated vessel now, body frame (paper's tau_d), and current."""
+
+    SCHEMA: ClassVar[str] = "seaway.v1.DisturbanceForce"
+    surge_n: float
+    sway_n: float
+    yaw_nm: float
+    current_n_mps: float = 0.0
+    current_e_mps: float = 0.0
+
+
+class ClockTick(Message):
+    """The simulator's clock: ``stamp_ns`` is simulated time now."""
+
+    SCHEMA: ClassVar[str] = "seaway.v1.ClockTick"
+    lockstep: bool
+    real_time_factor: float | None = Field(default=None, ge=0)
+
+
+# ---------------------------------------------------------------------------------------------
+# Requests and replies (queryables)
+# ---------------------------------------------------------------------------------------------
+
+
+class Reply(Message):
+    """The answer to every request: accepted, or refused with a reason a person can act on."""
+
+    SCHEMA: ClassVar[str] = "seaway.v1.Reply"
+    accepted: bool
+    reason: str = ""
+    detail: dict[str, Any] = Field(default_factory=dict)
+
+    @classmethod
+    def accept(cls, stamp_ns: int, reason: str = "", **detail: Any) -> Reply:
+        return cls.make(stamp_ns=stamp_ns, accepted=True, reason=reason, detail=detail)
+
+    @classmethod
+    def refuse(cls, stamp_ns: int, reason: str, **detail: Any) -> Reply:
+        return cls.make(stamp_ns=stamp_ns, accepted=False, reason=reason, detail=detail)
+
+
+class ArmRequest(Message):
+    """Arm or disarm the vehicle (MAV_CMD_COMPONENT_ARM_DISARM)."""
+
+    SCHEMA: ClassVar[str] = "seaway.v1.ArmRequest"
+    arm: bool
+    force: bool = False
+
+
+class ModeRequest(Message):
+    """Change the autopilot mode, by Seaway's mode name ('MANUAL', 'HOLD', ...)."""
+
+    SCHEMA: ClassVar[str] = "seaway.v1.ModeRequest"
+    mode: str = Field(min_length=1, max_length=32)
+
+
+class ScenarioRequest(Message):
+    """Load a scenario (the scenario document itself) or reset the current one."""
+
+    SCHEMA: ClassVar[str] = "seaway.v1.ScenarioRequest"
+    scenario: dict[str, Any] | None = Field(default=None, description="scenario document; None resets")
+
+
+class Waypoint(BaseModel):
+    """One waypoint: local NED metres, or WGS84 degrees converted through the published origin.
+
+    Degrees appear here because this is a human edge (mission files, the UI); the controller converts
+    them to NED before anything else sees them.
+    """
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, frozen=True)
+    x_m: float | None = Field(default=None, description="north of the origin [m]")
+    y_m: float | None = Field(default=None, description="east of the origin [m]")
+    lat_deg: float | None = Field(default=None, ge=-90, le=90)
+    lon_deg: float | None = Field(default=None, ge=-180, le=180)
+
+
+class MissionRequest(Message):
+    """A mission: ordered waypoints P_0..P_N, circle of acceptance, task power T^w, controller."""
+
+    SCHEMA: ClassVar[str] = "seaway.v1.MissionRequest"
+    mission_id: str = Field(default="", max_length=64)
+    waypoints: list[Waypoint]
+    coa_radius_m: float = Field(description="circle-of-acceptance radius r_COA [m]")
+    task_power_w: float = Field(ge=0, description="T^w, power of the task carried [W]")
+    controller: Literal["cc-empc", "eo-empc", "nmpc"] = "cc-empc"
+    speed_hint_mps: float | None = Field(default=None, gt=0, description="optional cruise hint")
+
+
+class MissionCommand(Message):
+    """Pause, resume or abort the active mission."""
+
+    SCHEMA: ClassVar[str] = "seaway.v1.MissionCommand"
+    command: Literal["pause", "resume", "abort"]
+
+
+ALL_MESSAGES: tuple[type[Message], ...] = (
+    GnssFix,
+    Attitude,
+    LocalPosition,
+    VehicleStatus,
+    NavOrigin,
+    StateEstimate,
+    ThrustCommand,
+    SolveRecord,
+    MissionStatus,
+    SimTruth,
+    DisturbanceForce,
+    ClockTick,
+    Reply,
+    ArmRequest,
+    ModeRequest,
+    ScenarioRequest,
+    MissionRequest,
+    MissionCommand,
+)

@@ -1,0 +1,98 @@
+"""What every service's thin loop shares: arguments, logging, signals, the bus and the health token.
+
+A service is a pure core (messages and time in, messages out) plus a loop like::
+
+    with run_service("estimator", args) as ctx:      # bus open, health token declared
+        while ctx.loop.wait():                          # drift-free, ends on SIGINT/SIGTERM
+            ...core.step(ctx.clock.now_ns(), inputs)...
+
+SIGINT and SIGTERM set ``ctx.stop``; the ``with`` block then closes the session, so the process exits
+promptly instead of hanging in Zenoh's threads.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import os
+import signal
+import sys
+import threading
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
+
+from seaway.bus import Bus
+from seaway.clock import Clock, WallClock
+
+DEFAULT_VESSEL = "vessel1"
+ENV_VESSEL = "SEAWAY_VESSEL"
+log = logging.getLogger("seaway.service")
+
+
+def configure_logging(name: str, level: str = "INFO") -> None:
+    """One line per record, prefixed with the service name (the launcher prefixes again per process)."""
+    logging.basicConfig(
+        level=getattr(logging, level.upper(), logging.INFO),
+        format=f"%(asctime)s {name} %(levelname)s %(name)s: %(message)s",
+        stream=sys.stderr,
+        force=True,
+    )
+
+
+def base_parser(name: str, description: str) -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog=f"seaway-{name.replace('_', '-')}", description=description)
+    p.add_argument("--vessel", default=os.environ.get(ENV_VESSEL, DEFAULT_VESSEL),
+                   help=f"vessel name, the key namespace seaway/<vessel>/... (default ${ENV_VESSEL} "
+                        f"or {DEFAULT_VESSEL})")
+    p.add_argument("--zenoh-config", default=None,
+                   help="Zenoh config file (default $SEAWAY_ZENOH_CONFIG or peers on loopback)")
+    p.add_argument("--log-level", default=os.environ.get("SEAWAY_LOG_LEVEL", "INFO"))
+    return p
+
+
+def install_stop_signals(stop: threading.Event) -> None:
+    """SIGINT and SIGTERM set ``stop``; a second SIGINT exits at once (a stuck process)."""
+
+    def handler(signum: int, _frame: object) -> None:
+        if stop.is_set() and signum == signal.SIGINT:
+            os._exit(130)
+        log.info("received %s, stopping", signal.Signals(signum).name)
+        stop.set()
+
+    signal.signal(signal.SIGINT, handler)
+    signal.signal(signal.SIGTERM, handler)
+
+
+@dataclass
+class ServiceContext:
+    name: str
+    vessel: str
+    bus: Bus
+    clock: Clock
+    stop: threading.Event
+
+
+@contextmanager
+def run_service(name: str, args: argparse.Namespace, clock: Clock | None = None,
+                declare_alive: bool = True) -> Iterator[ServiceContext]:
+    """Open the bus for ``name``, install the stop signals, declare health; close on exit."""
+    configure_logging(name, args.log_level)
+    stop = threading.Event()
+    install_stop_signals(stop)
+    bus = Bus.open(args.vessel, args.zenoh_config)
+    ctx = ServiceContext(name, args.vessel, bus, clock or WallClock(), stop)
+    try:
+        if declare_alive:
+            bus.declare_alive(name)
+        log.info("%s up on vessel %s", name, args.vessel)
+        yield ctx
+    finally:
+        stop.set()
+        bus.close()
+        log.info("%s stopped (published %d, received %d, malformed %d)", name,
+                 bus.stats.published, bus.stats.received, bus.stats.malformed)
+
+
+def parse(parser: argparse.ArgumentParser, argv: Sequence[str] | None) -> argparse.Namespace:
+    return parser.parse_args(list(argv) if argv is not None else None)
