@@ -1,0 +1,97 @@
+"""Shared test fixtures: isolated Zenoh sessions and real processes that are always cleaned up.
+
+Every test that starts processes gets its own rendezvous port (``SEAWAY_ZENOH_RENDEZVOUS``), so
+tests never hear each other or a stack the developer is running.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+PYTHON = sys.executable
+BIN = Path(PYTHON).parent
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture
+def zenoh_env(monkeypatch: pytest.MonkeyPatch) -> dict[str, str]:
+    """Environment for processes (and this test's own sessions) on a private rendezvous port."""
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    monkeypatch.setenv("SEAWAY_ZENOH_RENDEZVOUS", endpoint)
+    monkeypatch.delenv("SEAWAY_ZENOH_CONFIG", raising=False)
+    env = dict(os.environ)
+    env["PYTHONUNBUFFERED"] = "1"
+    return env
+
+
+class Procs:
+    """Starts real processes in their own process groups and kills whatever is left at the end."""
+
+    def __init__(self, tmp: Path) -> None:
+        self.tmp = tmp
+        self.procs: list[subprocess.Popen] = []
+
+    def start(self, args: list[str], env: dict[str, str], name: str | None = None) -> subprocess.Popen:
+        name = name or Path(args[0]).name
+        log = open(self.tmp / f"{name}.log", "wb")  # noqa: SIM115 - closed with the process
+        p = subprocess.Popen(args, env=env, stdout=log, stderr=subprocess.STDOUT,
+                             start_new_session=True, cwd=REPO)
+        p.log_path = self.tmp / f"{name}.log"  # type: ignore[attr-defined]
+        self.procs.append(p)
+        return p
+
+    @staticmethod
+    def log(p: subprocess.Popen) -> str:
+        return Path(p.log_path).read_text(errors="replace")  # type: ignore[attr-defined]
+
+    def stop(self, p: subprocess.Popen, sig: int = signal.SIGTERM, timeout_s: float = 5.0) -> float:
+        """Signal ``p`` and return how long it took to exit (raises if it did not)."""
+        t0 = time.monotonic()
+        if p.poll() is None:
+            p.send_signal(sig)
+            p.wait(timeout_s)
+        return time.monotonic() - t0
+
+    def cleanup(self) -> None:
+        for p in self.procs:
+            if p.poll() is None:
+                try:
+                    os.killpg(p.pid, signal.SIGKILL)
+                except ProcessLookupError:
+                    pass
+                p.wait(5)
+
+
+@pytest.fixture
+def procs(tmp_path: Path) -> Iterator[Procs]:
+    ps = Procs(tmp_path)
+    try:
+        yield ps
+    finally:
+        ps.cleanup()
+
+
+def wait_for(predicate, timeout_s: float, interval_s: float = 0.05, what: str = "condition"):
+    """Poll ``predicate`` until it returns a truthy value; fail the test with ``what`` on timeout."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        value = predicate()
+        if value:
+            return value
+        time.sleep(interval_s)
+    pytest.fail(f"timed out after {timeout_s} s waiting for {what}")
