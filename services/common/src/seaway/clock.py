@@ -9,8 +9,9 @@ clocks exist:
   whoever waits. In lockstep it advances only when the sim steps, so a service on a SimClock runs
   exactly as many periods as the simulation, however fast the machine.
 
-``RateLoop`` ticks at ``t0 + k * period`` (never ``last + period``, which drifts); when it falls behind
-it skips the missed ticks and counts them instead of running a burst.
+``RateLoop`` ticks at ``t0 + k * period`` (never ``last + period``, which drifts). When it falls behind
+by more than a period it skips the missed ticks (counted in ``skipped``), runs once at once (late),
+and continues on the original grid: never a burst of catch-up ticks, never a drift.
 """
 
 from __future__ import annotations
@@ -111,7 +112,8 @@ class RateLoop:
         self.tick += 1
         due = self._t0 + self.tick * self.period_ns
         if now > due + self.period_ns:
-            # Behind by more than one period: skip to the next future tick and count the gap.
+            # Behind by more than one period: drop the ticks that are wholly past, run the latest one
+            # now, and stay on the grid.
             behind = (now - due) // self.period_ns
             self.skipped += behind
             self.tick += behind

@@ -1,0 +1,145 @@
+"""Contract: every message type round-trips, validates against its generated schema, refuses NaN."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+import typing
+
+import jsonschema
+import pytest
+from pydantic import BaseModel
+
+from seaway import messages as m
+from seaway.config import ConfigError, parse_config
+from seaway.messages import ALL_MESSAGES, MessageError
+from seaway.model import VesselParams
+
+T = 1_700_000_000_000_000_000
+
+EXAMPLES: dict[type[m.Message], dict] = {
+    m.GnssFix: dict(lat_rad=0.82, lon_rad=0.14, alt_m=3.0, fix_type=3, vel_n_mps=0.5, vel_e_mps=-0.1,
+                    horizontal_std_m=0.3, satellites=12),
+    m.Attitude: dict(roll_rad=0.01, pitch_rad=-0.02, yaw_rad=1.5, roll_rate_radps=0.0,
+                     pitch_rate_radps=0.0, yaw_rate_radps=0.1),
+    m.LocalPosition: dict(x_m=1.0, y_m=2.0, z_m=0.0, vx_mps=0.5, vy_mps=0.0, vz_mps=0.0),
+    m.VehicleStatus: dict(autopilot="px4", link_ok=True, armed=False, mode="MANUAL", failsafe=None,
+                          battery_voltage_v=12.4, battery_remaining_frac=0.8, heartbeat_age_s=0.2,
+                          rates_hz={"ATTITUDE": 20.0}, dropped_messages=1),
+    m.NavOrigin: dict(lat_rad=0.82, lon_rad=0.14, alt_m=0.0),
+    m.StateEstimate: dict(u_mps=0.5, v_mps=0.01, r_radps=0.02, x_m=3.0, y_m=-1.0, psi_rad=0.3,
+                          tau_d_surge_n=0.01, covariance=[0.0] * 81, degraded=False),
+    m.ThrustCommand: dict(thrust_port_n=1.5, thrust_starboard_n=-0.5, source="cc-empc", seq=4),
+    m.SolveRecord: dict(controller="cc-empc", status="Solve_Succeeded", success=True, iterations=3,
+                        solve_time_s=0.0003, cost_stage_j=0.4, cost_dynamic_j=1.0, cost_static_j=30.0,
+                        cost_track_j=0.2, t_d_s=2.0, t_s_s=100.0, energy_to_go_j=31.0,
+                        cross_track_m=0.1, predicted_x_m=[0.0, 0.1], predicted_y_m=[0.0, 0.0],
+                        predicted_psi_rad=[0.0, 0.0], predicted_thrust_port_n=[1.0],
+                        predicted_thrust_starboard_n=[1.0]),
+    m.MissionStatus: dict(state="active", mission_id="m1", active_leg=1, waypoint_count=3,
+                          distance_to_waypoint_m=4.0, cross_track_m=0.2, energy_used_j=10.0),
+    m.SimTruth: dict(u_mps=0.5, v_mps=0.0, r_radps=0.0, x_m=1.0, y_m=0.0, psi_rad=0.0,
+                     thrust_port_n=1.0, thrust_starboard_n=1.0, energy_j=3.0),
+    m.DisturbanceForce: dict(surge_n=0.015, sway_n=0.015, yaw_nm=0.0),
+    m.ClockTick: dict(lockstep=True, real_time_factor=250.0),
+    m.Reply: dict(accepted=False, reason="no", detail={"field": "x"}),
+    m.ArmRequest: dict(arm=True),
+    m.ModeRequest: dict(mode="MANUAL"),
+    m.ScenarioRequest: dict(scenario={"name": "x"}),
+    m.MissionRequest: dict(waypoints=[{"x_m": 0.0, "y_m": 0.0}, {"lat_deg": 47.0, "lon_deg": 8.0}],
+                           coa_radius_m=1.0, task_power_w=0.49, controller="eo-empc"),
+    m.MissionCommand: dict(command="pause"),
+}
+
+
+def test_every_message_type_has_an_example() -> None:
+    assert set(EXAMPLES) == set(ALL_MESSAGES)
+
+
+@pytest.mark.parametrize("cls", ALL_MESSAGES, ids=lambda c: c.__name__)
+def test_round_trip_and_schema(cls: type[m.Message]) -> None:
+    msg = cls.make(stamp_ns=T, **EXAMPLES[cls])
+    wire = msg.encode()
+    assert cls.decode(wire) == msg
+    schema = cls.json_schema()
+    assert schema["title"] == cls.SCHEMA
+    jsonschema.Draft202012Validator.check_schema(schema)
+    jsonschema.Draft202012Validator(schema).validate(json.loads(wire))
+
+
+def test_schema_names_are_versioned_and_unique() -> None:
+    names = [c.SCHEMA for c in ALL_MESSAGES]
+    assert len(set(names)) == len(names)
+    for n in names:
+        assert re.fullmatch(r"seaway\.v\d+\.[A-Z][A-Za-z]+", n), n
+
+
+def test_schema_rejects_a_wrong_payload() -> None:
+    validator = jsonschema.Draft202012Validator(m.ThrustCommand.json_schema())
+    with pytest.raises(jsonschema.ValidationError):
+        validator.validate({"stamp_ns": T, "thrust_port_n": "fast", "thrust_starboard_n": 1.0})
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
+def test_non_finite_refused_naming_the_field(bad: float) -> None:
+    with pytest.raises(MessageError, match=r"ThrustCommand\.thrust_starboard_n"):
+        m.ThrustCommand.make(stamp_ns=T, thrust_port_n=1.0, thrust_starboard_n=bad)
+    with pytest.raises(MessageError, match=r"SolveRecord\.predicted_x_m\.1"):
+        m.SolveRecord.make(stamp_ns=T, **{**EXAMPLES[m.SolveRecord], "predicted_x_m": [0.0, bad]})
+
+
+def test_encode_refuses_non_finite_even_when_validation_was_skipped() -> None:
+    sneaky = m.ThrustCommand.model_construct(stamp_ns=T, thrust_port_n=math.nan, thrust_starboard_n=1.0,
+                                            source="", seq=0)
+    with pytest.raises(MessageError, match=r"ThrustCommand\.thrust_port_n: not finite"):
+        sneaky.encode()
+
+
+def test_text_that_mentions_nan_is_not_refused() -> None:
+    r = m.Reply.make(stamp_ns=T, accepted=False, reason="NaN input and Infinity refused")
+    assert m.Reply.decode(r.encode()).reason == r.reason
+
+
+def test_messages_are_immutable() -> None:
+    msg = m.ThrustCommand.make(stamp_ns=T, thrust_port_n=1.0, thrust_starboard_n=1.0)
+    with pytest.raises(Exception, match="frozen"):
+        msg.thrust_port_n = math.nan  # type: ignore[misc]
+
+
+def test_decode_tolerates_unknown_fields_and_names_missing_ones() -> None:
+    newer = {"stamp_ns": T, "thrust_port_n": 1.0, "thrust_starboard_n": 2.0, "added_in_v2": [1, 2]}
+    assert m.ThrustCommand.decode(json.dumps(newer)).thrust_starboard_n == 2.0
+    with pytest.raises(MessageError, match=r"ThrustCommand\.thrust_port_n: Field required"):
+        m.ThrustCommand.decode(b'{"stamp_ns": 1, "thrust_starboard_n": 2.0}')
+    with pytest.raises(MessageError):
+        m.ThrustCommand.decode(b"\xff not json")
+
+
+def test_config_types_reject_unknown_fields() -> None:
+    doc = dict(name="x", m11_kg=1, m22_kg=1, m33_kgm2=1, xu_kgps=1, yv_kgps=1, nr_kgm2ps=1, arm_m=0.1,
+               alpha_w_per_n2=0.4, thrust_max_n=10, thrust_maxn=12)
+    with pytest.raises(ConfigError, match=r"thrust_maxn: unknown field"):
+        parse_config(doc, VesselParams, "vessel.toml")
+
+
+UNIT_SUFFIXES = ("_m", "_mps", "_rad", "_radps", "_n", "_nm", "_w", "_j", "_s", "_ns", "_v", "_frac",
+                 "_hz", "_deg", "_factor")
+# Fields whose elements carry the units of other fields, as their docstring says.
+MIXED_UNITS = {"covariance"}
+
+
+def _float_fields(cls: type[BaseModel]) -> list[str]:
+    out = []
+    for name, f in cls.model_fields.items():
+        ann = f.annotation
+        args = set(typing.get_args(ann)) | {ann}
+        if float in args or list[float] in args:
+            out.append(name)
+    return out
+
+
+@pytest.mark.parametrize("cls", [*ALL_MESSAGES, m.Waypoint], ids=lambda c: c.__name__)
+def test_float_fields_name_their_unit(cls: type[BaseModel]) -> None:
+    for name in set(_float_fields(cls)) - MIXED_UNITS:
+        assert name.endswith(UNIT_SUFFIXES), f"{cls.__name__}.{name} does not end in a unit suffix"
