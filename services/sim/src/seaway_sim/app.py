@@ -1,0 +1,88 @@
+"""What both of the sim's loops share: the core behind a lock, scenario loading, truth outputs.
+
+The ``sim/scenario`` queryable runs on a Zenoh thread while a loop steps the core; the lock makes a
+scenario swap happen between two steps, never inside one. ``generation`` counts swaps, so a loop
+waiting on something (lockstep waits for a thrust command) can notice that the world changed.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections.abc import Callable
+from pathlib import Path
+
+from seaway import keys
+from seaway.bus import Bus
+from seaway.config import ConfigError, deploy_path
+from seaway.messages import ClockTick, Reply, ScenarioRequest
+from seaway.model import VesselParams, load_vessel
+from seaway.scenario import Scenario, load_scenario, parse_scenario
+
+from seaway_sim.core import SimCore
+
+log = logging.getLogger("seaway_sim")
+
+
+def load_world(name_or_path: str) -> tuple[Scenario, VesselParams]:
+    """A scenario by name (deploy/scenarios) or path, and the vessel file it names. ConfigError."""
+    scenario = load_scenario(name_or_path)
+    return scenario, load_vessel(scenario.vessel)
+
+
+def scenario_base() -> Path:
+    """Where ``file =`` entries of a scenario sent over the bus resolve: deploy/scenarios."""
+    try:
+        return deploy_path("scenarios")
+    except ConfigError:
+        return Path.cwd()
+
+
+class SimApp:
+    """The core, its lock, the truth publishers and the scenario request handler."""
+
+    def __init__(self, bus: Bus, core: SimCore, lockstep: bool) -> None:
+        self.bus = bus
+        self.core = core
+        self.lockstep = lockstep
+        self.lock = threading.Lock()
+        self.generation = 0
+        self.on_load: list[Callable[[Scenario, VesselParams], None]] = []
+        self.pub_truth = bus.publisher(keys.SIM_TRUTH)
+        self.pub_disturbance = bus.publisher(keys.SIM_DISTURBANCE)
+        self.pub_clock = bus.publisher(keys.SIM_CLOCK)
+        bus.queryable(keys.SIM_SCENARIO, self.handle_scenario)
+
+    def handle_scenario(self, request: ScenarioRequest) -> Reply:
+        """Load the scenario document in ``request`` (or restart the current one if it is None).
+
+        A document that does not validate, or names a vessel file that does not, is refused with
+        the validation text; the running scenario is then untouched.
+        """
+        try:
+            if request.scenario is None:
+                scenario, vessel = self.core.scenario, self.core.vessel
+            else:
+                scenario = parse_scenario(request.scenario, "scenario request", scenario_base())
+                vessel = load_vessel(scenario.vessel)
+        except ConfigError as err:
+            log.warning("scenario request refused: %s", err)
+            return Reply.refuse(self.core.stamp_ns, str(err))
+        with self.lock:
+            self.core.load(scenario, vessel)
+            self.generation += 1
+            for hook in self.on_load:
+                hook(scenario, vessel)
+            stamp = self.core.stamp_ns
+        what = "restarted" if request.scenario is None else "loaded"
+        log.info("scenario %s %s (seed %d, vessel %s)", scenario.name, what, scenario.seed,
+                 vessel.name)
+        return Reply.accept(stamp, f"scenario {scenario.name} {what}", name=scenario.name,
+                            seed=scenario.seed, vessel=vessel.name)
+
+    def publish_truth(self, real_time_factor: float | None) -> None:
+        """SIM_TRUTH, SIM_DISTURBANCE, then SIM_CLOCK, at the core's current time (lock held)."""
+        self.pub_truth.put(self.core.truth())
+        self.pub_disturbance.put(self.core.disturbance())
+        self.pub_clock.put(ClockTick(stamp_ns=self.core.stamp_ns, lockstep=self.lockstep,
+                                     real_time_factor=real_time_factor))

@@ -1,0 +1,465 @@
+"""A simulated PX4 autopilot (differential rover/boat) as vehicle_io sees it: the pure core.
+
+Decoded MAVLink messages and the time in, MAVLink messages to send and thrusts out; no socket, no
+clock. Time ``now_ns`` is nanoseconds since the simulated autopilot booted (the sim epoch), which is
+also what ``time_boot_ms`` reports. What it mimics, and where it differs from PX4, is tabled in
+services/sim/README.md; the sources are docs/autopilots.md, sections A.1-A.5.
+
+State machine:
+
+* modes (user intent): MANUAL (PX4 custom main mode 1) and HOLD (AUTO.LOITER, main 4 sub 3). Other
+  PX4 modes are refused with TEMPORARILY_REJECTED. It boots disarmed in MANUAL.
+* manual control is *lost* when no accepted MANUAL_CONTROL arrived within COM_RC_LOSS_T (PX4 default
+  0.5 s), or none ever did. Arming in MANUAL, or switching to MANUAL, is refused while it is lost.
+* failsafe: armed, manual control lost, and not armed-while-lost (PX4's
+  ``_manual_control_lost_at_arming``) -> Hold (zero thrust) for COM_FAIL_ACT_T, then NAV_RCL_ACT:
+  1 Hold, 2 Return, 3 Land (all zero thrust: the sim does not navigate), 5 Terminate (outputs off
+  until restart), 6 Disarm. Regaining manual control ends a Hold/Return/Land failsafe (the user
+  takes over again).
+* thrust: disarmed, terminated, in failsafe or not in MANUAL -> (0, 0); else the last accepted
+  MANUAL_CONTROL through ``px4_mixer`` (held until the loss timeout, as PX4's rover module does).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections import Counter
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from pymavlink.dialects.v20 import common as mavlink
+from seaway.frames import GeoOrigin
+from seaway.messages import Attitude, GnssFix
+from seaway.sensors import instants_in, period_ns
+
+from seaway_sim import px4_mixer
+from seaway_sim.px4_params import (
+    BY_NAME,
+    INDEX,
+    MAV_PARAM_TYPE_REAL32,
+    PARAMS,
+    ParamSpec,
+    ParamStore,
+    decode_value,
+    encode_value,
+    param_id_text,
+)
+
+log = logging.getLogger("seaway_sim.px4")
+
+NS_PER_S = 1_000_000_000
+NS_PER_MS = 1_000_000
+
+# PX4 custom modes (px4_custom_mode.h): main mode in bits 16-23, sub mode in bits 24-31.
+MAIN_MANUAL = 1
+MAIN_AUTO = 4
+SUB_AUTO_LOITER = 3
+SUB_AUTO_RTL = 5
+SUB_AUTO_LAND = 6
+MANUAL = (MAIN_MANUAL, 0)
+HOLD = (MAIN_AUTO, SUB_AUTO_LOITER)
+RTL = (MAIN_AUTO, SUB_AUTO_RTL)
+LAND = (MAIN_AUTO, SUB_AUTO_LAND)
+MODE_NAMES = {MANUAL: "MANUAL", HOLD: "HOLD", RTL: "RTL", LAND: "LAND"}
+
+# NAV_RCL_ACT values (PX4 v1.14+).
+RCL_HOLD, RCL_RETURN, RCL_LAND, RCL_TERMINATE, RCL_DISARM = 1, 2, 3, 5, 6
+# COM_RC_IN_MODE values under which a MAVLink MANUAL_CONTROL stream is not an input.
+RC_IN_MODE_RC_ONLY, RC_IN_MODE_DISABLED = 0, 4
+COM_RCL_EXCEPT_HOLD_BIT = 1 << 1
+FORCE_MAGIC = 21196  # MAV_CMD_COMPONENT_ARM_DISARM param2 that forces (disarm only, from MAVLink)
+
+# Telemetry rates [Hz] (docs/autopilots.md A.5); sensor-driven streams follow the scenario's rates.
+HEARTBEAT_HZ = 1.0
+SYS_STATUS_HZ = 1.0
+LOCAL_POSITION_HZ = 10.0
+
+# PX4 v1.16.0 release, FIRMWARE_VERSION_TYPE_OFFICIAL (0xFF) in the low byte.
+FLIGHT_SW_VERSION = (1 << 24) | (16 << 16) | (0 << 8) | 0xFF
+CAPABILITIES = (mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2
+                | mavlink.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE
+                | mavlink.MAV_PROTOCOL_CAPABILITY_COMMAND_INT)
+
+# A nominal 4S LiPo: the sim's battery drains with the propulsion energy only (no hotel load).
+BATTERY_FULL_V = 16.8
+BATTERY_EMPTY_V = 13.2
+BATTERY_CAPACITY_J = 10.0 * 3600.0 * 14.8  # 10 Ah at 14.8 V nominal
+
+SENSORS_PRESENT = (mavlink.MAV_SYS_STATUS_SENSOR_GPS | mavlink.MAV_SYS_STATUS_SENSOR_RC_RECEIVER
+                   | mavlink.MAV_SYS_STATUS_AHRS | mavlink.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
+                   | mavlink.MAV_SYS_STATUS_PREARM_CHECK)
+
+
+@dataclass(frozen=True)
+class Px4Config:
+    """What the simulated autopilot is told at start."""
+
+    thrust_max_n: float  # scale of normalised thrust [N] (vessel file)
+    sysid: int = 1
+    compid: int = mavlink.MAV_COMP_ID_AUTOPILOT1
+    param_overrides: tuple[tuple[str, float | int], ...] = ()
+
+
+def custom_mode(mode: tuple[int, int]) -> int:
+    """HEARTBEAT.custom_mode of a PX4 (main, sub) mode."""
+    return (mode[0] << 16) | (mode[1] << 24)
+
+
+def _finite(*values: float) -> bool:
+    return all(math.isfinite(v) for v in values)
+
+
+class Px4Autopilot:
+    """The simulated autopilot's state machine (see the module docstring)."""
+
+    def __init__(self, config: Px4Config) -> None:
+        self.config = config
+        self.params = ParamStore(dict(config.param_overrides))
+        self.thrust_max_n = config.thrust_max_n
+        self.armed = False
+        self.terminated = False
+        self.user_mode = MANUAL
+        self.failsafe_since_ns: int | None = None
+        self.failsafe_action: int | None = None  # NAV_RCL_ACT once the Hold delay is over
+        self.manual_lost_at_arming = False
+        self.last_manual_ns: int | None = None
+        self.last_manual_axes = (0, px4_mixer.Z_STOP)  # (y, z)
+        self.counters: Counter[str] = Counter()
+        self.last_fix: GnssFix | None = None  # for LOCAL_POSITION_NED
+        self._last_heading: float | None = None  # for GLOBAL_POSITION_INT.hdg
+        self._last_warn_ns: dict[str, int] = {}
+
+    # -- derived state -----------------------------------------------------------------------
+
+    @property
+    def rc_loss_timeout_ns(self) -> int:
+        return round(float(self.params.get("COM_RC_LOSS_T")) * NS_PER_S)
+
+    def manual_control_lost(self, now_ns: int) -> bool:
+        return self.last_manual_ns is None or now_ns - self.last_manual_ns > self.rc_loss_timeout_ns
+
+    def in_failsafe(self) -> bool:
+        return self.failsafe_since_ns is not None
+
+    def nav_mode(self) -> tuple[int, int]:
+        """The mode PX4 would report: the failsafe's while one is active, else the user's."""
+        if self.failsafe_since_ns is None:
+            return self.user_mode
+        return {RCL_RETURN: RTL, RCL_LAND: LAND}.get(self.failsafe_action or RCL_HOLD, HOLD)
+
+    def mode_name(self) -> str:
+        return MODE_NAMES.get(self.nav_mode(), "UNKNOWN")
+
+    # -- time ---------------------------------------------------------------------------------
+
+    def update(self, now_ns: int) -> None:
+        """Advance the failsafe state machine to ``now_ns`` (call before reading thrust)."""
+        lost = self.manual_control_lost(now_ns)
+        if not lost:
+            self.manual_lost_at_arming = False
+        if self.failsafe_since_ns is not None:
+            if not lost and self.failsafe_action not in (RCL_TERMINATE, RCL_DISARM):
+                log.info("manual control regained: failsafe cleared, back in %s",
+                         MODE_NAMES[self.user_mode])
+                self._clear_failsafe()
+                return
+            self._run_failsafe_action(now_ns)
+            return
+        exempt = (int(self.params.get("COM_RC_IN_MODE")) == RC_IN_MODE_DISABLED
+                  or (self.user_mode == HOLD
+                      and int(self.params.get("COM_RCL_EXCEPT")) & COM_RCL_EXCEPT_HOLD_BIT))
+        if self.armed and lost and not self.manual_lost_at_arming and not exempt:
+            self.failsafe_since_ns = now_ns
+            self.counters["failsafe_manual_control_lost"] += 1
+            log.warning("manual control lost (no MANUAL_CONTROL for %.2f s): failsafe Hold, "
+                        "NAV_RCL_ACT %d after %.1f s", self.rc_loss_timeout_ns / NS_PER_S,
+                        int(self.params.get("NAV_RCL_ACT")),
+                        float(self.params.get("COM_FAIL_ACT_T")))
+
+    def _run_failsafe_action(self, now_ns: int) -> None:
+        assert self.failsafe_since_ns is not None
+        if self.failsafe_action is not None:
+            return
+        delay_ns = round(float(self.params.get("COM_FAIL_ACT_T")) * NS_PER_S)
+        if now_ns - self.failsafe_since_ns < delay_ns:
+            return
+        action = int(self.params.get("NAV_RCL_ACT"))
+        self.failsafe_action = action
+        log.warning("failsafe action NAV_RCL_ACT=%d", action)
+        if action == RCL_DISARM:
+            self.armed = False
+            self._clear_failsafe()
+        elif action == RCL_TERMINATE:
+            self.terminated = True
+            self.armed = False
+
+    def _clear_failsafe(self) -> None:
+        self.failsafe_since_ns = None
+        self.failsafe_action = None
+
+    def thrust_n(self, now_ns: int) -> tuple[float, float]:
+        """(T1 port, T2 starboard) [N] the autopilot outputs at ``now_ns``."""
+        self.update(now_ns)
+        if (not self.armed or self.terminated or self.failsafe_since_ns is not None
+                or self.user_mode != MANUAL or self.manual_control_lost(now_ns)):
+            return 0.0, 0.0
+        y, z = self.last_manual_axes
+        return px4_mixer.manual_control_to_thrust_n(y, z, self.thrust_max_n)
+
+    # -- incoming -----------------------------------------------------------------------------
+
+    def handle(self, msg: Any, now_ns: int) -> list[Any]:
+        """Process one decoded message; returns the messages to send back."""
+        kind = msg.get_type()
+        self.counters[f"rx_{kind}"] += 1
+        handler = {
+            "MANUAL_CONTROL": self._on_manual_control,
+            "COMMAND_LONG": self._on_command_long,
+            "PARAM_REQUEST_READ": self._on_param_request_read,
+            "PARAM_REQUEST_LIST": self._on_param_request_list,
+            "PARAM_SET": self._on_param_set,
+        }.get(kind)
+        if handler is None:
+            return []  # HEARTBEAT and anything else: nothing to do (the link layer noted the peer)
+        return handler(msg, now_ns)
+
+    def _for_me(self, target_system: int) -> bool:
+        return target_system in (0, self.config.sysid)
+
+    def _reject(self, kind: str, now_ns: int, text: str) -> list[Any]:
+        """Count a dropped message and log it, at most once a second per kind (streams repeat)."""
+        self.counters[kind] += 1
+        last = self._last_warn_ns.get(kind)
+        if last is None or now_ns - last >= NS_PER_S:
+            self._last_warn_ns[kind] = now_ns
+            log.warning("dropped: %s (%s so far: %d)", text, kind, self.counters[kind])
+        return []
+
+    def _on_manual_control(self, msg: Any, now_ns: int) -> list[Any]:
+        if not self._for_me(msg.target):
+            self.counters["ignored_other_target"] += 1
+            return []
+        axes = {"x": msg.x, "y": msg.y, "z": msg.z, "r": msg.r}
+        bad = {k: v for k, v in axes.items() if not -px4_mixer.AXIS_MAX <= v <= px4_mixer.AXIS_MAX}
+        if bad:
+            # PX4 would zero the axis silently; a sender doing this is a bug we want to see.
+            return self._reject("manual_control_out_of_range", now_ns,
+                                f"MANUAL_CONTROL with axes outside [-1000, 1000]: {bad}")
+        if int(self.params.get("COM_RC_IN_MODE")) in (RC_IN_MODE_RC_ONLY, RC_IN_MODE_DISABLED):
+            self.counters["manual_control_ignored_rc_in_mode"] += 1
+            return []
+        if msg.z < px4_mixer.Z_MIN:
+            self._reject("manual_control_z_negative", now_ns,
+                         f"MANUAL_CONTROL z={msg.z} < 0: PX4 reads throttle 0 (stop), not reverse")
+        self.last_manual_ns = now_ns
+        self.last_manual_axes = (msg.y, msg.z)
+        return []
+
+    def _on_command_long(self, msg: Any, now_ns: int) -> list[Any]:
+        if not self._for_me(msg.target_system):
+            self.counters["ignored_other_target"] += 1
+            return []
+        params = (msg.param1, msg.param2, msg.param3, msg.param4, msg.param5, msg.param6,
+                  msg.param7)
+        if not _finite(*params):
+            return self._reject("command_garbage_fields", now_ns,
+                                f"COMMAND_LONG {msg.command} with non-finite params {params}")
+        if msg.command == mavlink.MAV_CMD_COMPONENT_ARM_DISARM:
+            result = self._arm_disarm(msg.param1, msg.param2, now_ns)
+        elif msg.command == mavlink.MAV_CMD_DO_SET_MODE:
+            result = self._set_mode(msg.param1, msg.param2, msg.param3, now_ns)
+        elif self._asks_version(msg):
+            return [self._ack(msg, mavlink.MAV_RESULT_ACCEPTED), self.autopilot_version()]
+        else:
+            self.counters["command_unsupported"] += 1
+            log.info("COMMAND_LONG %d not simulated: UNSUPPORTED", msg.command)
+            result = mavlink.MAV_RESULT_UNSUPPORTED
+        return [self._ack(msg, result)]
+
+    @staticmethod
+    def _asks_version(msg: Any) -> bool:
+        if msg.command == mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
+            return True
+        return (msg.command == mavlink.MAV_CMD_REQUEST_MESSAGE
+                and round(msg.param1) == mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
+
+    def _ack(self, msg: Any, result: int) -> Any:
+        return mavlink.MAVLink_command_ack_message(msg.command, result, 0, 0, msg.get_srcSystem(),
+                                                  msg.get_srcComponent())
+
+    def _arm_disarm(self, param1: float, param2: float, now_ns: int) -> int:
+        request = round(param1)
+        if request == 0:
+            if self.armed:
+                log.info("disarmed%s", " (forced)" if round(param2) == FORCE_MAGIC else "")
+            self.armed = False
+            self._clear_failsafe()
+            return mavlink.MAV_RESULT_ACCEPTED
+        if request != 1:
+            log.warning("Unsupported ARM_DISARM param %g", param1)
+            return mavlink.MAV_RESULT_DENIED
+        if self.armed:
+            return mavlink.MAV_RESULT_ACCEPTED
+        lost = self.manual_control_lost(now_ns)
+        # PX4 runs the preflight checks for every arm request from MAVLink, forced or not.
+        if self.terminated:
+            log.warning("arming refused: flight termination active (reboot the sim)")
+            return mavlink.MAV_RESULT_TEMPORARILY_REJECTED
+        if self.user_mode == MANUAL and lost:
+            log.warning("arming refused: No manual control input (mode MANUAL)")
+            return mavlink.MAV_RESULT_TEMPORARILY_REJECTED
+        self.armed = True
+        self.manual_lost_at_arming = lost
+        log.info("armed in %s", MODE_NAMES[self.user_mode])
+        return mavlink.MAV_RESULT_ACCEPTED
+
+    def _set_mode(self, param1: float, param2: float, param3: float, now_ns: int) -> int:
+        if not round(param1) & mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
+            log.warning("DO_SET_MODE without CUSTOM_MODE_ENABLED is not simulated")
+            return mavlink.MAV_RESULT_TEMPORARILY_REJECTED
+        mode = (round(param2), round(param3))
+        if mode[0] == MAIN_MANUAL:
+            mode = MANUAL  # PX4 ignores the sub mode of MANUAL
+        if mode not in (MANUAL, HOLD):
+            log.warning("mode %s (main %d, sub %d) is not simulated: refused", mode, *mode)
+            return mavlink.MAV_RESULT_TEMPORARILY_REJECTED
+        if mode == MANUAL and self.user_mode != MANUAL and self.manual_control_lost(now_ns):
+            log.warning("switch to MANUAL refused: No manual control input")
+            return mavlink.MAV_RESULT_TEMPORARILY_REJECTED
+        if mode != self.user_mode:
+            log.info("mode %s -> %s", MODE_NAMES[self.user_mode], MODE_NAMES[mode])
+        self.user_mode = mode
+        return mavlink.MAV_RESULT_ACCEPTED
+
+    def _param_value(self, spec: ParamSpec) -> Any:
+        return mavlink.MAVLink_param_value_message(
+            spec.name.encode("ascii"), encode_value(spec, self.params.get(spec.name)),
+            spec.param_type, len(PARAMS), INDEX[spec.name])
+
+    def _on_param_request_read(self, msg: Any, now_ns: int) -> list[Any]:
+        if not self._for_me(msg.target_system):
+            return []
+        if msg.param_index >= 0:
+            if msg.param_index >= len(PARAMS):
+                return self._reject("param_unknown", now_ns, f"param index {msg.param_index}")
+            return [self._param_value(PARAMS[msg.param_index])]
+        name = param_id_text(msg.param_id)
+        spec = BY_NAME.get(name)
+        if spec is None:
+            return self._reject("param_unknown", now_ns, f"unknown parameter {name!r}")
+        return [self._param_value(spec)]
+
+    def _on_param_request_list(self, msg: Any, now_ns: int) -> list[Any]:
+        if not self._for_me(msg.target_system):
+            return []
+        return [self._param_value(spec) for spec in PARAMS]
+
+    def _on_param_set(self, msg: Any, now_ns: int) -> list[Any]:
+        if not self._for_me(msg.target_system):
+            return []
+        name = param_id_text(msg.param_id)
+        if msg.param_type == MAV_PARAM_TYPE_REAL32 and not math.isfinite(msg.param_value):
+            return self._reject("param_garbage_fields", now_ns,
+                                f"PARAM_SET {name!r} with non-finite value {msg.param_value}")
+        value = decode_value(msg.param_type, msg.param_value)
+        error = self.params.set(name, msg.param_type, value)
+        if error:
+            return self._reject("param_set_refused", now_ns, f"PARAM_SET refused: {error}")
+        log.info("parameter %s = %s", name, value)
+        return [self._param_value(BY_NAME[name])]
+
+    # -- outgoing -----------------------------------------------------------------------------
+
+    def heartbeat(self) -> Any:
+        mode = self.nav_mode()
+        base = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+        if self.armed:
+            base |= mavlink.MAV_MODE_FLAG_SAFETY_ARMED
+        if mode == MANUAL:
+            base |= mavlink.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED
+        else:
+            base |= (mavlink.MAV_MODE_FLAG_AUTO_ENABLED | mavlink.MAV_MODE_FLAG_GUIDED_ENABLED
+                     | mavlink.MAV_MODE_FLAG_STABILIZE_ENABLED)
+        if self.terminated:
+            status = mavlink.MAV_STATE_FLIGHT_TERMINATION
+        elif self.failsafe_since_ns is not None:
+            status = mavlink.MAV_STATE_CRITICAL
+        elif self.armed:
+            status = mavlink.MAV_STATE_ACTIVE
+        else:
+            status = mavlink.MAV_STATE_STANDBY
+        return mavlink.MAVLink_heartbeat_message(int(self.params.get("MAV_TYPE")),
+                                                 mavlink.MAV_AUTOPILOT_PX4, base, custom_mode(mode),
+                                                 status, 3)
+
+    def sys_status(self, now_ns: int, energy_j: float, power_w: float, gnss_ok: bool,
+                   link_errors: int) -> Any:
+        """SYS_STATUS: RC_RECEIVER health is manual control, GPS health the fix, errors_comm the
+        count of garbage the link dropped; battery from the propulsion energy used."""
+        health = SENSORS_PRESENT
+        if self.manual_control_lost(now_ns):
+            health &= ~mavlink.MAV_SYS_STATUS_SENSOR_RC_RECEIVER
+        if not gnss_ok:
+            health &= ~mavlink.MAV_SYS_STATUS_SENSOR_GPS
+        if self.terminated or (self.user_mode == MANUAL and self.manual_control_lost(now_ns)):
+            health &= ~mavlink.MAV_SYS_STATUS_PREARM_CHECK
+        remaining = max(0.0, 1.0 - energy_j / BATTERY_CAPACITY_J)
+        volts = BATTERY_EMPTY_V + (BATTERY_FULL_V - BATTERY_EMPTY_V) * remaining
+        return mavlink.MAVLink_sys_status_message(
+            SENSORS_PRESENT, SENSORS_PRESENT, health, 0, round(volts * 1000),
+            min(32767, round(power_w / volts * 100)), round(remaining * 100), 0,
+            min(65535, link_errors), 0, 0, 0, 0)
+
+    def autopilot_version(self) -> Any:
+        return mavlink.MAVLink_autopilot_version_message(
+            CAPABILITIES, FLIGHT_SW_VERSION, 0, 0, 0, bytes(8), bytes(8), bytes(8), 0, 0, 0)
+
+    def sensor_telemetry(self, fixes: Sequence[GnssFix | None], attitudes: Sequence[Attitude],
+                         epoch_ns: int) -> list[Any]:
+        """GLOBAL_POSITION_INT per fix and ATTITUDE per attitude sample (time order kept per kind).
+
+        Stamps of the samples are ``epoch_ns + time since boot``.
+        """
+        out: list[Any] = []
+        heading = self._last_heading
+        for att in attitudes:
+            heading = att.yaw_rad
+            out.append(mavlink.MAVLink_attitude_message(
+                _boot_ms(att.stamp_ns - epoch_ns), att.roll_rad, att.pitch_rad, att.yaw_rad,
+                att.roll_rate_radps, att.pitch_rate_radps, att.yaw_rate_radps))
+        self._last_heading = heading
+        for fix in fixes:
+            if fix is None:
+                continue
+            self.last_fix = fix
+            hdg = round(math.degrees(heading) * 100) % 36000 if heading is not None else 65535
+            out.append(mavlink.MAVLink_global_position_int_message(
+                _boot_ms(fix.stamp_ns - epoch_ns), round(math.degrees(fix.lat_rad) * 1e7),
+                round(math.degrees(fix.lon_rad) * 1e7), round(fix.alt_m * 1000), 0,
+                round((fix.vel_n_mps or 0.0) * 100), round((fix.vel_e_mps or 0.0) * 100), 0, hdg))
+        return out
+
+    def periodic_telemetry(self, after_ns: int, upto_ns: int, origin: GeoOrigin, energy_j: float,
+                           power_w: float, gnss_ok: bool, link_errors: int) -> list[Any]:
+        """HEARTBEAT and SYS_STATUS (1 Hz), LOCAL_POSITION_NED (10 Hz) due in (after, upto]."""
+        out: list[Any] = []
+        if instants_in(period_ns(HEARTBEAT_HZ), after_ns, upto_ns):
+            out.append(self.heartbeat())
+        if instants_in(period_ns(SYS_STATUS_HZ), after_ns, upto_ns):
+            out.append(self.sys_status(upto_ns, energy_j, power_w, gnss_ok, link_errors))
+        fix = self.last_fix
+        local_due = instants_in(period_ns(LOCAL_POSITION_HZ), after_ns, upto_ns)
+        if fix is not None and gnss_ok and local_due:
+            # PX4's local origin is the sim's origin; its estimate here is the last GNSS fix.
+            north, east, down = origin.to_ned(fix.lat_rad, fix.lon_rad, fix.alt_m)
+            out.append(mavlink.MAVLink_local_position_ned_message(
+                _boot_ms(upto_ns), north, east, down, fix.vel_n_mps or 0.0, fix.vel_e_mps or 0.0,
+                0.0))
+        return out
+
+
+def _boot_ms(since_boot_ns: int) -> int:
+    """MAVLink time_boot_ms (uint32, wraps after 49.7 days) from time since boot [ns]."""
+    return (since_boot_ns // NS_PER_MS) & 0xFFFFFFFF

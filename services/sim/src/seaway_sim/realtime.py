@@ -1,0 +1,103 @@
+"""Real time: the sim runs on the wall clock and is driven through its PX4-like MAVLink endpoint.
+
+Two threads share the core under ``SimApp.lock``:
+
+* the link thread waits on the UDP socket and hands every decoded message to the autopilot core at
+  once (so a COMMAND_ACK does not wait for a tick), sending its answers back;
+* the main thread ticks every ``--step`` (10 ms) on a drift-free ``RateLoop``: it asks the autopilot
+  for the thrust, advances the plant to the tick (after missed ticks, by all of them: simulated time
+  never falls behind the wall clock), sends the sensor and periodic MAVLink telemetry that fell due,
+  and every ``--period`` publishes SIM_TRUTH, SIM_DISTURBANCE and SIM_CLOCK on the bus.
+
+Time: the autopilot's "time since boot" and the core's sim time are both nanoseconds since the sim
+started (monotonic); bus stamps are the wall clock at start plus that (``SimCore.epoch_ns``).
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+
+from seaway.clock import RateLoop, WallClock
+from seaway.model import VesselParams
+from seaway.scenario import Scenario
+from seaway.sensors import instants_in
+
+from seaway_sim.app import SimApp
+from seaway_sim.mavlink_link import MavlinkLink
+from seaway_sim.px4_autopilot import Px4Autopilot
+
+log = logging.getLogger("seaway_sim.realtime")
+
+_RECEIVE_POLL_S = 0.1  # the link thread's longest wait, bounding how late it notices a stop
+
+
+class Realtime:
+    """The real-time loop: plant on the wall clock, MAVLink in and out."""
+
+    def __init__(self, app: SimApp, autopilot: Px4Autopilot, link: MavlinkLink, step_s: float,
+                 period_s: float, stop: threading.Event, boot_monotonic_ns: int) -> None:
+        self.app = app
+        self.autopilot = autopilot
+        self.link = link
+        self.step_ns = round(step_s * 1e9)
+        self.publish_period_ns = round(period_s * 1e9)
+        self.stop = stop
+        self.boot_ns = boot_monotonic_ns
+        self.overrun_ticks = 0
+        app.on_load.append(self._on_load)
+
+    def _on_load(self, scenario: Scenario, vessel: VesselParams) -> None:
+        self.autopilot.thrust_max_n = vessel.thrust_max_n
+
+    def since_boot_ns(self) -> int:
+        return time.monotonic_ns() - self.boot_ns
+
+    def _link_thread(self) -> None:
+        while not self.stop.is_set():
+            msgs = self.link.receive(_RECEIVE_POLL_S)
+            if not msgs:
+                continue
+            with self.app.lock:
+                now = self.since_boot_ns()
+                for msg in msgs:
+                    self.link.send(self.autopilot.handle(msg, now))
+
+    def tick(self, ticks: int) -> None:
+        """Advance the world by ``ticks`` steps and send what fell due (lock held by the caller)."""
+        core, ap = self.app.core, self.autopilot
+        before = core.t_ns
+        thrust = ap.thrust_n(self.since_boot_ns())
+        core.advance(thrust, ticks * self.step_ns)
+        samples = core.take_samples()
+        gnss_ok = core.gnss_ok()
+        self.link.send(ap.sensor_telemetry(samples.gnss, samples.attitude, core.epoch_ns))
+        self.link.send(ap.periodic_telemetry(before, core.t_ns, core.origin,
+                                             core.plant.state.energy_j, core.propulsion_power_w(),
+                                             gnss_ok, self.link.garbage))
+        if instants_in(self.publish_period_ns, before, core.t_ns):
+            self.app.publish_truth(1.0)
+
+    def run(self) -> None:
+        log.info("real time: MAVLink on udpin:%s:%d, step %.3f s, truth every %.3f s",
+                 *self.link.address, self.step_ns / 1e9, self.publish_period_ns / 1e9)
+        receiver = threading.Thread(target=self._link_thread, name="mavlink-rx", daemon=True)
+        receiver.start()
+        loop = RateLoop(self.step_ns / 1e9, WallClock(), self.stop)
+        loop.wait()  # the first call only starts the schedule
+        done = 0
+        try:
+            while loop.wait():
+                ticks = loop.tick - done
+                if ticks > 1:
+                    self.overrun_ticks += ticks - 1
+                done = loop.tick
+                with self.app.lock:
+                    self.tick(ticks)
+        finally:
+            self.stop.set()
+            receiver.join(2 * _RECEIVE_POLL_S)
+            log.info("real time ended at t = %.3f s (%d overrun ticks caught up); link %s; "
+                     "autopilot %s", self.app.core.t_ns / 1e9, self.overrun_ticks,
+                     dict(self.link.counters), dict(self.autopilot.counters))
