@@ -10,7 +10,6 @@ import typing
 import jsonschema
 import pytest
 from pydantic import BaseModel
-
 from seaway import messages as m
 from seaway.config import ConfigError, parse_config
 from seaway.messages import ALL_MESSAGES, MessageError

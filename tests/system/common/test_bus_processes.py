@@ -9,10 +9,10 @@ import time
 from pathlib import Path
 
 import pytest
-
 from seaway import keys
 from seaway.bus import Bus
 from seaway.messages import ArmRequest, ThrustCommand
+
 from tests.conftest import wait_for
 
 pytestmark = pytest.mark.system

@@ -6,7 +6,6 @@ import math
 import threading
 
 import pytest
-
 from seaway.clock import RateLoop, SimClock
 from seaway.frames import GeoOrigin, wrap_2pi, wrap_pi
 

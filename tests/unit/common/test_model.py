@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 
 import pytest
-
 from seaway import model
 from seaway.model import load_vessel
 

@@ -154,7 +154,7 @@ class TypedSubscriber(Generic[M]):
         with self._cond:
             if not self._queue:
                 return None
-            key, msg = self._queue.pop()
+            _key, msg = self._queue.pop()
             self._queue.clear()
             return msg
 
@@ -233,7 +233,8 @@ class Bus:
         self._entities.append(sub)
         return sub
 
-    def queryable(self, spec: keys.KeySpec, handler: Callable[[Any], Reply], vessel: str | None = None) -> Any:
+    def queryable(self, spec: keys.KeySpec, handler: Callable[[Any], Reply],
+                  vessel: str | None = None) -> Any:
         """Serve requests on ``spec``: ``handler(request) -> Reply``. Bad requests are refused."""
         if spec.kind != "query" or spec.message is None:
             raise ValueError(f"{spec.suffix} is not a query key")
@@ -290,7 +291,8 @@ class Bus:
     def alive_services(self, vessel: str | None = None, timeout_s: float = 1.0) -> set[str]:
         """Services whose health token is present now."""
         out = set()
-        for r in self.session.liveliness().get(keys.health_wildcard(vessel or self.vessel), timeout=timeout_s):
+        selector = keys.health_wildcard(vessel or self.vessel)
+        for r in self.session.liveliness().get(selector, timeout=timeout_s):
             if r.ok is not None:
                 out.add(str(r.ok.key_expr).rsplit("/", 1)[-1])
         return out

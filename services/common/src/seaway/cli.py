@@ -1,7 +1,8 @@
 """The ``seaway`` command: one entry point for the tools.
 
-Built in: ``bench`` (benchmarks registered by any installed Seaway package), ``echo`` (print a key's
-messages), ``health`` (which services are alive), ``schemas`` (write every message's JSON Schema).
+Built in: ``launch`` (start a profile), ``bench`` (benchmarks registered by any installed Seaway
+package), ``echo`` (print a key's messages), ``health`` (which services are alive), ``schemas``
+(write every message's JSON Schema).
 Packages add subcommands (launch, record, replay, report, mission, ...) through the entry-point
 group ``seaway.commands``: a function ``main(argv: list[str]) -> int``.
 """
@@ -105,7 +106,14 @@ def cmd_schemas(argv: list[str]) -> int:
     return 0
 
 
-BUILTIN = {"bench": cmd_bench, "echo": cmd_echo, "health": cmd_health, "schemas": cmd_schemas}
+def cmd_launch(argv: list[str]) -> int:
+    from seaway.launch.main import main as launch_main
+
+    return launch_main(argv)
+
+
+BUILTIN = {"bench": cmd_bench, "echo": cmd_echo, "health": cmd_health, "schemas": cmd_schemas,
+           "launch": cmd_launch}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -23,6 +23,7 @@ World x/y are NED north/east, as the waypoints are (shared/reproduction.md).
 from __future__ import annotations
 
 import bisect
+import itertools
 import json
 import math
 from pathlib import Path
@@ -61,7 +62,7 @@ class WorldGrid(ConfigModel):
     @model_validator(mode="after")
     def _shape(self) -> WorldGrid:
         for name, axis in (("xs_m", self.xs_m), ("ys_m", self.ys_m)):
-            if any(b <= a for a, b in zip(axis, axis[1:], strict=False)):
+            if any(b <= a for a, b in itertools.pairwise(axis)):
                 raise ValueError(f"{name} must be strictly increasing")
         for name, table in (("north_n", self.north_n), ("east_n", self.east_n)):
             if len(table) != len(self.xs_m) or any(len(row) != len(self.ys_m) for row in table):

@@ -1,0 +1,1 @@
+"""``seaway launch PROFILE``: one command for the whole stack (profiles in ``deploy/profiles``)."""
