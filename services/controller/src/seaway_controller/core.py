@@ -1,0 +1,274 @@
+"""The controller's pure core: missions and commands in, replies out; a state in, a command out.
+
+``ControllerCore.step(now_ns, state)`` runs one control period: mission bookkeeping (switch, complete),
+one MPC solve for the active leg, and the fallback chain when the solve cannot be used:
+
+====  ==================  ==========================================================================
+lvl   source              when
+====  ==================  ==========================================================================
+0     the MPC             the solve succeeded within the period budget
+1     ``plan-reuse``      failed or late: the last good plan's next thrusts, for up to
+                          ``plan_reuse_steps`` consecutive failures (and while the plan lasts)
+2     ``los``             then line-of-sight guidance along the active leg, ``los_steps`` periods
+3     ``stop``            then zero thrust, reported, until a solve succeeds again
+====  ==================  ==========================================================================
+
+The MPC is tried every period whatever the level, so the chain unwinds as soon as it recovers.
+Every fallback period is counted (``SolveRecord.fallback_count``) and published.
+No clock, no bus: time comes in as ``now_ns`` (the state's stamp in lockstep).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from seaway.frames import GeoOrigin
+from seaway.messages import (
+    MissionCommand,
+    MissionRequest,
+    MissionStatus,
+    Reply,
+    SolveRecord,
+    StateEstimate,
+    ThrustCommand,
+)
+from seaway.model import VesselParams, propulsion_power_w
+from seaway_controller import costs
+from seaway_controller.guidance import LosGains, los_thrust
+from seaway_controller.mission import MissionError, MissionLimits, MissionManager
+from seaway_controller.mpc import MpcController, MpcOutcome
+from seaway_controller.ocp import CONTROLLER_KINDS, ControllerKind, Ocp, OcpSpec
+from seaway_controller.solvers import NlpSolver, make_solver
+
+log = logging.getLogger("seaway_controller.core")
+
+LEVEL_MPC, LEVEL_PLAN, LEVEL_LOS, LEVEL_STOP = 0, 1, 2, 3
+
+
+@dataclass(frozen=True)
+class ControllerConfig:
+    """The controller's settings (paper values by default: H = 10, dt = 0.1 s, n = 2)."""
+
+    horizon: int = 10
+    dt_s: float = 0.1
+    profile_n: float = 2.0
+    solver: str = "generated"
+    """'generated' (fast SQP, compiled C) or 'ipopt' (plain IPOPT, the reference)."""
+    plan_reuse_steps: int = 3
+    los_steps: int = 600
+    solve_budget_s: float | None = 0.1
+    """A solve slower than this is late and not applied (None: never late, for replayable runs)."""
+    predict_disturbance: bool = False
+    """Predict with the estimate's tau_d (beyond the paper, which predicts with tau_d = 0)."""
+    los: LosGains = LosGains()
+    limits: MissionLimits = MissionLimits()
+    nmpc: costs.NmpcWeights = field(default_factory=costs.NmpcWeights)
+
+    def spec(self, kind: ControllerKind) -> OcpSpec:
+        return OcpSpec(kind, self.horizon, self.dt_s, self.profile_n, nmpc=self.nmpc)
+
+
+SolverFactory = Callable[[Ocp], NlpSolver]
+
+
+def _finite_or_none(v: float | None) -> float | None:
+    return v if v is not None and math.isfinite(v) else None
+
+
+class ControllerCore:
+    """Missions, the three controllers and the fallback chain; see the module docstring."""
+
+    def __init__(self, vessel: VesselParams, config: ControllerConfig = ControllerConfig(),
+                 solver_factory: SolverFactory | None = None) -> None:
+        self.vessel, self.config = vessel, config
+        self.missions = MissionManager(config.limits)
+        self.origin: GeoOrigin | None = None
+        self._factory = solver_factory or (lambda ocp: make_solver(ocp, config.solver))
+        self._controllers: dict[str, MpcController] = {}
+        self._mission_serial = 0
+        self.seq = 0
+        self.fallback_count = 0
+        self.consecutive_failures = 0
+        self.level = LEVEL_MPC
+        self.energy_used_j = 0.0
+        self._last_step_ns: int | None = None
+        self._last_command = (0.0, 0.0)
+        self._energy_to_go_j: float | None = None
+
+    # -- set-up ---------------------------------------------------------------------------------
+
+    def controller(self, kind: ControllerKind) -> MpcController:
+        """The MPC of ``kind``, built (and its solver compiled or loaded) on first use."""
+        if kind not in self._controllers:
+            ocp = Ocp(self.config.spec(kind), self.vessel)
+            self._controllers[kind] = MpcController(ocp, self._factory(ocp))
+        return self._controllers[kind]
+
+    def prepare(self, kinds: tuple[ControllerKind, ...] = CONTROLLER_KINDS) -> None:
+        """Build every controller now, so that no mission waits for a compile."""
+        for k in kinds:
+            self.controller(k)
+
+    def set_origin(self, origin: GeoOrigin) -> None:
+        self.origin = origin
+
+    # -- requests -------------------------------------------------------------------------------
+
+    def handle_mission(self, now_ns: int, req: MissionRequest) -> Reply:
+        """Validate and start a mission (replacing the current one), or refuse with a reason."""
+        try:
+            mission = self.missions.start(req, self.origin)
+        except MissionError as err:
+            return Reply.refuse(now_ns, str(err))
+        ctrl = self.controller(mission.controller)
+        ctrl.reset()
+        self._mission_serial += 1
+        self.fallback_count = self.consecutive_failures = 0
+        self.level = LEVEL_MPC
+        self.energy_used_j = 0.0
+        self._energy_to_go_j = None
+        log.info("mission %r accepted: %d waypoints, r_COA %.2f m, T^w %.2f W, %s",
+                 mission.mission_id, len(mission.waypoints_m), mission.coa_radius_m,
+                 mission.task_power_w, mission.controller)
+        return Reply.accept(now_ns, "mission started", mission_id=mission.mission_id,
+                            waypoints_m=[list(p) for p in mission.waypoints_m],
+                            controller=mission.controller)
+
+    def handle_command(self, now_ns: int, cmd: MissionCommand) -> Reply:
+        try:
+            state = self.missions.command(cmd)
+        except MissionError as err:
+            return Reply.refuse(now_ns, str(err))
+        return Reply.accept(now_ns, f"mission {state}", state=state)
+
+    # -- the control period ---------------------------------------------------------------------
+
+    def step(self, now_ns: int, state: StateEstimate
+             ) -> tuple[ThrustCommand, SolveRecord | None, MissionStatus]:
+        """One period: a command for ``state`` (stamped with its stamp), the solve record (None
+        when no solve was needed: no mission, paused, complete, aborted) and the mission status."""
+        x0 = np.array([state.u_mps, state.v_mps, state.r_radps, state.x_m, state.y_m,
+                       state.psi_rad])
+        self._account_energy(now_ns)
+        mm = self.missions
+        mm.update(state.x_m, state.y_m)
+        self.seq += 1
+        if mm.state != "active" or mm.mission is None:
+            cmd = self._command(state.stamp_ns, (0.0, 0.0), mm.state)
+            return cmd, None, self._status(now_ns, state)
+        mission = mm.mission
+        wp_prev, wp_act = mm.leg()
+        ctrl = self.controller(mission.controller)
+        tau_d = ((state.tau_d_surge_n, state.tau_d_sway_n, state.tau_d_yaw_nm)
+                 if self.config.predict_disturbance else (0.0, 0.0, 0.0))
+        plan_age = ctrl.plan_age(now_ns)
+        reusable = ctrl.last_good if plan_age is not None else None
+        out = ctrl.solve(now_ns, x0, wp_prev, wp_act, mission.coa_radius_m, mission.task_power_w,
+                         (self._mission_serial, mm.active), tau_d)
+        res = out.result
+        budget = self.config.solve_budget_s
+        late = budget is not None and res.solve_time_s > budget
+        if res.success and not late:
+            ctrl.accept(out)
+            self.consecutive_failures = 0
+            thrust = (float(out.plan.thrusts_n[0, 0]), float(out.plan.thrusts_n[0, 1]))
+            self._set_level(LEVEL_MPC, res.status)
+            source, used = mission.controller, out
+            self._energy_to_go_j = _finite_or_none(out.costs.energy_to_go_j)
+        else:
+            self.consecutive_failures += 1
+            self.fallback_count += 1
+            used = None
+            reason = "late" if res.success else res.status
+            if (reusable is not None and plan_age is not None
+                    and self.consecutive_failures <= self.config.plan_reuse_steps):
+                row = reusable.thrusts_n[plan_age]
+                thrust, source = (float(row[0]), float(row[1])), "plan-reuse"
+                self._set_level(LEVEL_PLAN, reason)
+            elif self.consecutive_failures <= self.config.plan_reuse_steps + self.config.los_steps:
+                thrust = los_thrust(tuple(x0), wp_prev, wp_act, self.vessel, self.config.los,
+                                    mission.speed_hint_mps)
+                source = "los"
+                self._set_level(LEVEL_LOS, reason)
+            else:
+                thrust, source = (0.0, 0.0), "stop"
+                self._set_level(LEVEL_STOP, reason)
+        cmd = self._command(state.stamp_ns, thrust, source)
+        record = self._record(state.stamp_ns, mission.controller, out, late, used,
+                              reusable if self.level == LEVEL_PLAN else None)
+        return cmd, record, self._status(now_ns, state)
+
+    def zero_command(self, stamp_ns: int, source: str) -> ThrustCommand:
+        """A zero-thrust command outside the control period (e.g. the state went stale)."""
+        self.seq += 1
+        return self._command(stamp_ns, (0.0, 0.0), source)
+
+    # -- helpers --------------------------------------------------------------------------------
+
+    def _set_level(self, level: int, reason: str) -> None:
+        if level != self.level:
+            if level == LEVEL_MPC:
+                log.info("solver recovered; back to the MPC")
+            else:
+                names = {LEVEL_PLAN: "reusing the last plan", LEVEL_LOS: "line-of-sight guidance",
+                         LEVEL_STOP: "STOPPED (zero thrust)"}
+                log.warning("fallback level %d (%s): %s", level, names[level], reason)
+        self.level = level
+
+    def _account_energy(self, now_ns: int) -> None:
+        """Energy of the last command over the time since: alpha (T1^2 + T2^2) + T^w [J]."""
+        mm = self.missions
+        if self._last_step_ns is not None and mm.state == "active" and mm.mission is not None:
+            dt = max(0.0, (now_ns - self._last_step_ns) / 1e9)
+            power = propulsion_power_w(self._last_command, self.vessel) + mm.mission.task_power_w
+            self.energy_used_j += power * dt
+        self._last_step_ns = now_ns
+
+    def _command(self, stamp_ns: int, thrust: tuple[float, float], source: str) -> ThrustCommand:
+        self._last_command = thrust
+        return ThrustCommand.make(stamp_ns=stamp_ns, thrust_port_n=thrust[0],
+                                  thrust_starboard_n=thrust[1], source=source, seq=self.seq)
+
+    def _record(self, stamp_ns: int, kind: str, out: MpcOutcome, late: bool,
+                used: MpcOutcome | None, reused) -> SolveRecord:
+        res = out.result
+        c = used.costs if used is not None else None
+        plan = used.plan if used is not None else reused
+        fields: dict = {}
+        if plan is not None and np.all(np.isfinite(plan.states)):
+            fields = {"predicted_x_m": plan.states[:, 3].tolist(),
+                      "predicted_y_m": plan.states[:, 4].tolist(),
+                      "predicted_psi_rad": plan.states[:, 5].tolist(),
+                      "predicted_thrust_port_n": plan.thrusts_n[:, 0].tolist(),
+                      "predicted_thrust_starboard_n": plan.thrusts_n[:, 1].tolist()}
+        if c is not None:
+            fields.update(
+                cost_stage_j=_finite_or_none(c.stage_j), cost_dynamic_j=_finite_or_none(c.dynamic_j),
+                cost_static_j=_finite_or_none(c.static_j), cost_track_j=_finite_or_none(c.track_j),
+                t_d_s=_finite_or_none(c.t_d_s), t_s_s=_finite_or_none(c.t_s_s),
+                energy_to_go_j=_finite_or_none(c.energy_to_go_j),
+                cross_track_m=_finite_or_none(c.cross_track_m))
+        status = res.status + (f" (late: {res.solve_time_s * 1e3:.1f} ms)" if late else "")
+        return SolveRecord.make(stamp_ns=stamp_ns, controller=kind, status=status,
+                                success=res.success and not late, iterations=res.iterations,
+                                solve_time_s=max(res.solve_time_s, 0.0), fallback_level=self.level,
+                                fallback_count=self.fallback_count, **fields)
+
+    def _status(self, now_ns: int, state: StateEstimate) -> MissionStatus:
+        mm = self.missions
+        if mm.mission is None:
+            return MissionStatus.make(stamp_ns=state.stamp_ns, state="idle")
+        m = mm.mission
+        wp_prev, wp_act = mm.leg()
+        xte = costs.signed_cross_track_m(state.x_m, state.y_m, wp_prev, wp_act)
+        return MissionStatus.make(
+            stamp_ns=state.stamp_ns, state=mm.state, mission_id=m.mission_id, active_leg=mm.active,
+            waypoint_count=len(m.waypoints_m),
+            distance_to_waypoint_m=math.dist((state.x_m, state.y_m), wp_act),
+            cross_track_m=abs(xte), energy_used_j=self.energy_used_j,
+            energy_to_go_j=self._energy_to_go_j if mm.state == "active" else None)

@@ -1,0 +1,163 @@
+"""The mission manager: validation, the active leg, waypoint switching, completion, commands.
+
+Pure: no clock, no bus. A mission is the ordered waypoints P_0..P_N (local NED, metres), the circle of
+acceptance r_COA, the task power T^w and the controller. The vessel follows the leg P_{i-1} -> P_i
+(i starts at 1, as in the paper's runs which start at P_0); P_i is passed when the vessel enters its
+circle of acceptance (paper section III), and entering the last circle completes the mission.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+from seaway.frames import GeoOrigin
+from seaway.messages import MissionCommand, MissionRequest
+
+MissionState = Literal["idle", "active", "paused", "complete", "aborted"]
+Point = tuple[float, float]
+
+
+class MissionError(ValueError):
+    """A mission request was refused; the text names the problem."""
+
+
+@dataclass(frozen=True)
+class MissionLimits:
+    """Operating limits a mission must respect (configurable per deployment)."""
+
+    max_range_m: float = 5_000.0
+    """Every waypoint within this distance of the local origin [m]."""
+    min_leg_m: float = 0.01
+    """Consecutive waypoints closer than this are a zero-length leg [m]."""
+    max_waypoints: int = 1_000
+
+
+@dataclass(frozen=True)
+class Mission:
+    """A validated mission in local NED metres."""
+
+    mission_id: str
+    waypoints_m: tuple[Point, ...]
+    coa_radius_m: float
+    task_power_w: float
+    controller: Literal["cc-empc", "eo-empc", "nmpc"]
+    speed_hint_mps: float | None = None
+
+
+def _waypoint_ned(i: int, wp: object, origin: GeoOrigin | None) -> Point:
+    x, y = getattr(wp, "x_m", None), getattr(wp, "y_m", None)
+    lat, lon = getattr(wp, "lat_deg", None), getattr(wp, "lon_deg", None)
+    has_xy = x is not None or y is not None
+    has_ll = lat is not None or lon is not None
+    if has_xy and has_ll:
+        raise MissionError(f"waypoint {i}: give either x_m/y_m or lat_deg/lon_deg, not both")
+    if has_xy:
+        if x is None or y is None:
+            raise MissionError(f"waypoint {i}: needs both x_m and y_m")
+        return float(x), float(y)
+    if has_ll:
+        if lat is None or lon is None:
+            raise MissionError(f"waypoint {i}: needs both lat_deg and lon_deg")
+        if origin is None:
+            raise MissionError(f"waypoint {i}: given in lat/lon but no navigation origin is known yet "
+                               "(nav/origin not received); send local x_m/y_m or wait for the origin")
+        north, east, _ = origin.to_ned(math.radians(lat), math.radians(lon), origin.alt_m)
+        return north, east
+    raise MissionError(f"waypoint {i}: has no position (x_m/y_m or lat_deg/lon_deg)")
+
+
+def validate_mission(req: MissionRequest, origin: GeoOrigin | None,
+                     limits: MissionLimits = MissionLimits()) -> Mission:
+    """Check a request and convert it to local NED; raises MissionError naming the problem."""
+    n = len(req.waypoints)
+    if n < 2:
+        raise MissionError(f"a mission needs at least 2 waypoints (P_0 and one more), got {n}")
+    if n > limits.max_waypoints:
+        raise MissionError(f"too many waypoints: {n} > {limits.max_waypoints}")
+    if not (math.isfinite(req.coa_radius_m) and req.coa_radius_m > 0):
+        raise MissionError(f"coa_radius_m must be a finite number > 0, got {req.coa_radius_m}")
+    if not math.isfinite(req.task_power_w) or req.task_power_w < 0:
+        raise MissionError(f"task_power_w must be finite and >= 0, got {req.task_power_w}")
+    points = [_waypoint_ned(i, wp, origin) for i, wp in enumerate(req.waypoints)]
+    for i, (x, y) in enumerate(points):
+        if not (math.isfinite(x) and math.isfinite(y)):
+            raise MissionError(f"waypoint {i}: not finite ({x}, {y})")
+        r = math.hypot(x, y)
+        if r > limits.max_range_m:
+            raise MissionError(f"waypoint {i} at ({x:.1f}, {y:.1f}) m is {r:.0f} m from the origin, "
+                               f"outside the operating area (max {limits.max_range_m:.0f} m)")
+    for i in range(1, n):
+        leg = math.dist(points[i - 1], points[i])
+        if leg < limits.min_leg_m:
+            raise MissionError(f"leg {i - 1}->{i} has zero length ({leg:.3g} m < "
+                               f"{limits.min_leg_m} m): remove the duplicate waypoint")
+    return Mission(req.mission_id, tuple(points), float(req.coa_radius_m), float(req.task_power_w),
+                   req.controller, req.speed_hint_mps)
+
+
+class MissionManager:
+    """The active mission's state machine: idle -> active <-> paused -> complete | aborted."""
+
+    def __init__(self, limits: MissionLimits = MissionLimits()) -> None:
+        self.limits = limits
+        self.mission: Mission | None = None
+        self.state: MissionState = "idle"
+        self.active = 0  # index i of the active waypoint P_i
+        self.switches = 0  # legs changed since the mission started (warm starts re-guess on change)
+
+    def start(self, req: MissionRequest, origin: GeoOrigin | None) -> Mission:
+        """Validate and start ``req`` (replacing any mission); raises MissionError if refused."""
+        mission = validate_mission(req, origin, self.limits)
+        self.mission, self.state, self.active, self.switches = mission, "active", 1, 0
+        return mission
+
+    def command(self, cmd: MissionCommand) -> str:
+        """Apply pause/resume/abort; returns what happened, raises MissionError if refused."""
+        c = cmd.command
+        if self.mission is None:
+            raise MissionError(f"cannot {c}: no mission has been set")
+        if c == "pause":
+            if self.state != "active":
+                raise MissionError(f"cannot pause: the mission is {self.state}, not active")
+            self.state = "paused"
+        elif c == "resume":
+            if self.state != "paused":
+                raise MissionError(f"cannot resume: the mission is {self.state}, not paused")
+            self.state = "active"
+        elif c == "abort":
+            if self.state not in ("active", "paused"):
+                raise MissionError(f"cannot abort: the mission is already {self.state}")
+            self.state = "aborted"
+        return self.state
+
+    def leg(self) -> tuple[Point, Point]:
+        """(P_{i-1}, P_i) of the active leg."""
+        if self.mission is None:
+            raise MissionError("no mission")
+        wps = self.mission.waypoints_m
+        return wps[self.active - 1], wps[self.active]
+
+    def update(self, x_m: float, y_m: float) -> Literal["switched", "complete"] | None:
+        """Switch on entering P_i's circle of acceptance; complete on the last one."""
+        if self.mission is None or self.state != "active":
+            return None
+        wps, r_coa = self.mission.waypoints_m, self.mission.coa_radius_m
+        event: Literal["switched", "complete"] | None = None
+        # A loop: a vessel may be inside several consecutive circles at once.
+        while math.dist((x_m, y_m), wps[self.active]) <= r_coa:
+            if self.active == len(wps) - 1:
+                self.state = "complete"
+                return "complete"
+            self.active += 1
+            self.switches += 1
+            event = "switched"
+        return event
+
+    def inside_any_circle(self, x_m: float, y_m: float) -> bool:
+        """True inside any waypoint's circle of acceptance (cross-track samples skip these)."""
+        if self.mission is None:
+            return False
+        r = self.mission.coa_radius_m
+        return any(math.dist((x_m, y_m), wp) <= r for wp in self.mission.waypoints_m)

@@ -1,0 +1,154 @@
+"""One receding-horizon controller: parameters, warm start, the solve, and its numbers in SI units.
+
+Warm start (solver-notes.md, trap 5): the last good solution, primal and dual, shifted by the number
+of periods since it was computed; when the active waypoint changed, t_d and t_s are re-guessed from
+the new geometry and their multipliers cleared. Headings in the guess are moved by whole turns to
+match the measured heading (the estimate is wrapped to (-pi, pi], the prediction is continuous).
+
+The cross-track gate (reproduction.md item 2) is decided here, once per solve, from the previous
+plan's terminal position when there is one and from the measured position otherwise.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from seaway_controller import costs
+from seaway_controller.ocp import Ocp
+from seaway_controller.solvers import NlpSolver, SolveResult
+
+TWO_PI = 2.0 * math.pi
+
+
+@dataclass
+class Plan:
+    """A solved prediction, in SI units, with what the warm start needs."""
+
+    result: SolveResult
+    states: np.ndarray  # (H+1, 6)
+    thrusts_n: np.ndarray  # (H, 2)
+    leg_key: tuple
+    stamp_ns: int  # stamp of the state it was solved from
+
+
+@dataclass
+class Costs:
+    """The cost split of one prediction [J] (EMPC terms are None for the NMPC)."""
+
+    stage_j: float
+    dynamic_j: float | None
+    static_j: float | None
+    track_j: float | None
+    t_d_s: float | None
+    t_s_s: float | None
+    cross_track_m: float | None
+
+    @property
+    def energy_to_go_j(self) -> float | None:
+        """Predicted energy to reach the active waypoint: horizon + E_d + E_s [J]."""
+        if self.dynamic_j is None or self.static_j is None:
+            return None
+        return self.stage_j + self.dynamic_j + self.static_j
+
+
+@dataclass
+class MpcOutcome:
+    result: SolveResult
+    plan: Plan
+    costs: Costs
+    track_gate: bool
+
+
+class MpcController:
+    """Solves one OCP kind step after step, keeping its own warm start."""
+
+    def __init__(self, ocp: Ocp, solver: NlpSolver) -> None:
+        self.ocp, self.solver = ocp, solver
+        self.spec, self.vessel = ocp.spec, ocp.vessel
+        self.last_good: Plan | None = None
+        self.capture: list[tuple[np.ndarray, ...]] | None = None  # bench: record NLP instances
+
+    def reset(self) -> None:
+        self.last_good = None
+
+    def plan_age(self, now_ns: int) -> int | None:
+        """Periods since the last good plan was solved, or None if there is no usable one."""
+        if self.last_good is None:
+            return None
+        age = round((now_ns - self.last_good.stamp_ns) / (self.spec.dt_s * 1e9))
+        return age if 0 <= age < self.spec.horizon else None
+
+    def track_gate(self, now_ns: int, x0: np.ndarray, wp_prev: tuple[float, float],
+                   wp_active: tuple[float, float], coa_radius_m: float) -> bool:
+        """e counts only when the terminal position is outside both circles (item 2)."""
+        if self.plan_age(now_ns) is not None:
+            assert self.last_good is not None
+            pos = self.last_good.states[-1, 3:5]
+        else:
+            pos = x0[3:5]
+        r_f = min(math.dist(pos, wp_prev), math.dist(pos, wp_active))
+        return r_f > coa_radius_m
+
+    def _warm_start(self, now_ns: int, x0: np.ndarray, p: np.ndarray, leg_key: tuple
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        ocp = self.ocp
+        plan, age = self.last_good, self.plan_age(now_ns)
+        if plan is None or age is None:
+            return ocp.cold_guess(p), np.zeros(ocp.nw), np.zeros(ocp.ng)
+        r = plan.result
+        w, lx, lg = r.w, r.lam_x, r.lam_g
+        tau = p[12:15]
+        for _ in range(age):
+            w, lx, lg = ocp.shift(w, lx, lg, tau)
+        w = w.copy()
+        # Whole turns: align the guess's headings with the measured one.
+        turns = round((w[ocp.x_index(0)][5] - x0[5]) / TWO_PI)
+        if turns:
+            for k in range(self.spec.horizon + 1):
+                w[ocp.x_index(k).start + 5] -= turns * TWO_PI
+        w[ocp.x_index(0)] = x0
+        if self.spec.is_empc and leg_key != plan.leg_key:
+            ocp.guess_times(w, p)
+            lx[ocp.i_time:ocp.i_time + 2] = 0.0
+            lg[-1] = 0.0
+        return w, lx, lg
+
+    def solve(self, now_ns: int, x0: np.ndarray, wp_prev: tuple[float, float], wp_active: tuple[float, float],
+              coa_radius_m: float, task_power_w: float, leg_key: tuple,
+              tau_d: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> MpcOutcome:
+        """Solve from the measured state ``x0`` for the leg (P_{i-1}, P_i); ``leg_key`` names it."""
+        x0 = np.asarray(x0, dtype=float)
+        gate = self.track_gate(now_ns, x0, wp_prev, wp_active, coa_radius_m)
+        p = self.ocp.parameters(x0, wp_prev, wp_active, gate, task_power_w, tau_d)
+        w0, lx0, lg0 = self._warm_start(now_ns, x0, p, leg_key)
+        if self.capture is not None:
+            self.capture.append((w0.copy(), p.copy(), lx0.copy(), lg0.copy()))
+        result = self.solver.solve(w0, p, lx0, lg0)
+        plan = Plan(result, self.ocp.states(result.w), self.ocp.thrusts(result.w), leg_key, now_ns)
+        return MpcOutcome(result, plan, self.evaluate(result.w, p), gate)
+
+    def accept(self, outcome: MpcOutcome) -> None:
+        """Keep ``outcome`` as the plan to reuse and warm-start from (a good, timely solve)."""
+        self.last_good = outcome.plan
+
+    def evaluate(self, w: np.ndarray, p: np.ndarray) -> Costs:
+        """The cost split of a prediction, in joules, from the same formulas as the NLP."""
+        ocp, spec, vp = self.ocp, self.spec, self.vessel
+        task = float(p[11])
+        thrusts = ocp.thrusts(w)
+        stage = float(sum(costs.stage_cost_j(t1, t2, task, spec.dt_s, vp) for t1, t2 in thrusts))
+        times = ocp.times_s(w)
+        if times is None:
+            return Costs(stage, None, None, None, None, None, None)
+        t_d, t_s = times
+        gate = float(p[10]) if spec.kind == "cc-empc" else 0.0
+        x_h = [float(v) for v in w[ocp.x_index(spec.horizon)]]
+        if not x_h[0] > 0:  # an unconverged iterate may violate u_H > 0; no finite Y then
+            return Costs(stage, None, None, None, t_d, t_s, None)
+        term = costs.terminal_terms(x_h, t_d, t_s, p[6:8], p[8:10], task, gate, spec.profile_n, vp)
+        return Costs(stage, float(term.dynamic_j), float(term.static_j), float(term.track_j), t_d,
+                     t_s, float(term.cross_track_m))
+

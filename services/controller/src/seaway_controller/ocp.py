@@ -1,0 +1,259 @@
+"""The optimal control problems: CC-EMPC (paper eq. 15), EO-EMPC (eq. 15 without Y) and NMPC.
+
+Multiple shooting over H steps of dt with the gaps written ``X_{k+1} - F(X_k, U_k)`` (solver-notes.md,
+trap 5), F being the shared RK4 step of the vessel model (``seaway.model_casadi.rk4_discrete``)::
+
+    w = [X_0, U_0, X_1, U_1, ..., X_{H-1}, U_{H-1}, X_H, (t_d/100, t_s/100 for the EMPCs)]
+    p = [x_init(6), P_{i-1}(2), P_i(2), track_gate, T^w, tau_d(3)]
+    g = [X_0 - x_init, X_{k+1} - F(X_k, U_k, tau_d) for k < H, (terminal constraint, EMPCs)]
+
+X = [u, v, r, x, y, psi] (body speeds, NED position and heading), U = [T1 port, T2 starboard] [N].
+
+Scaling (solver-notes.md, trap 1): the EMPCs optimise t/100 instead of t for t_d and t_s, and minimise
+the objective times 0.01, so that the SQP meets its absolute tolerances; every number reported is
+unscaled. tau_d is zero unless the controller is told to predict with the estimated disturbance.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from dataclasses import asdict, dataclass, field
+from typing import Literal
+
+import casadi as ca
+import numpy as np
+
+from seaway import model
+from seaway.model import NU, NX, VesselParams
+from seaway.model_casadi import rk4_discrete
+from seaway_controller import costs
+
+ControllerKind = Literal["cc-empc", "eo-empc", "nmpc"]
+CONTROLLER_KINDS: tuple[ControllerKind, ...] = ("cc-empc", "eo-empc", "nmpc")
+
+TIME_SCALE_S = 100.0
+"""t_d and t_s enter the NLP as t / TIME_SCALE_S (solver-notes.md, trap 1)."""
+EMPC_OBJECTIVE_SCALE = 0.01
+"""The EMPC objective in the NLP is J [J] times this (solver-notes.md, trap 1)."""
+NP = 15
+"""Length of the parameter vector p (module docstring)."""
+P_X0, P_PREV, P_ACTIVE, P_GATE, P_TASK, P_TAU = 0, 6, 8, 10, 11, 12
+
+
+@dataclass(frozen=True)
+class OcpSpec:
+    """Everything that defines one problem; its hash names the generated solver.
+
+    Paper values (section V-A, reproduction.md): H = 10, dt = 0.1 s, n = 2, t_d in [1, 60] s
+    (solver-notes.md trap 2: t_d >= 1 s), u_k >= 1e-3 m/s on predicted steps.
+    """
+
+    kind: ControllerKind
+    horizon: int = 10
+    dt_s: float = 0.1
+    profile_n: float = 2.0
+    t_d_min_s: float = 1.0
+    t_d_max_s: float = 60.0
+    u_min_mps: float = 1e-3
+    nmpc: costs.NmpcWeights = field(default_factory=costs.NmpcWeights)
+
+    def __post_init__(self) -> None:
+        if self.kind not in CONTROLLER_KINDS:
+            raise ValueError(f"unknown controller {self.kind!r}; known: {', '.join(CONTROLLER_KINDS)}")
+        if self.horizon < 1 or not self.dt_s > 0:
+            raise ValueError("horizon must be >= 1 and dt_s > 0")
+        if not self.profile_n > 1:
+            raise ValueError("profile_n must be > 1 (r_max needs n > 1, reproduction.md item 4)")
+        if not 0 < self.t_d_min_s < self.t_d_max_s:
+            raise ValueError("need 0 < t_d_min_s < t_d_max_s")
+
+    @property
+    def is_empc(self) -> bool:
+        return self.kind != "nmpc"
+
+
+def spec_digest(spec: OcpSpec, vessel: VesselParams, extra: dict | None = None) -> str:
+    """A stable hash of the problem (spec, vessel, formulation code) and ``extra`` (solver options)."""
+    from pathlib import Path
+
+    here = Path(__file__).parent
+    code = "".join((here / f).read_text() for f in ("costs.py", "ocp.py"))
+    doc = {"spec": asdict(spec), "vessel": vessel.model_dump(), "extra": extra or {},
+           "casadi": ca.__version__, "code": hashlib.sha256(code.encode()).hexdigest()}
+    return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()[:20]
+
+
+class Ocp:
+    """One problem: the NLP, its bounds, and index helpers for guesses and warm starts."""
+
+    def __init__(self, spec: OcpSpec, vessel: VesselParams) -> None:
+        self.spec, self.vessel = spec, vessel
+        h = spec.horizon
+        self.stage = NX + NU
+        self.i_xh = h * self.stage
+        self.i_time = self.i_xh + NX
+        self.nw = self.i_time + (2 if spec.is_empc else 0)
+        self.ng = NX * (h + 1) + (1 if spec.is_empc else 0)
+        self.F = rk4_discrete(vessel, spec.dt_s, with_disturbance=True)
+        self._build()
+
+    # -- indices -------------------------------------------------------------------------------
+
+    def x_index(self, k: int) -> slice:
+        start = k * self.stage
+        return slice(start, start + NX)
+
+    def u_index(self, k: int) -> slice:
+        start = k * self.stage + NX
+        return slice(start, start + NU)
+
+    def states(self, w: np.ndarray) -> np.ndarray:
+        """(H+1, 6) predicted states."""
+        return np.stack([w[self.x_index(k)] for k in range(self.spec.horizon + 1)])
+
+    def thrusts(self, w: np.ndarray) -> np.ndarray:
+        """(H, 2) planned thrusts [N]."""
+        return np.stack([w[self.u_index(k)] for k in range(self.spec.horizon)])
+
+    def times_s(self, w: np.ndarray) -> tuple[float, float] | None:
+        """(t_d, t_s) [s], unscaled; None for the NMPC."""
+        if not self.spec.is_empc:
+            return None
+        return float(w[self.i_time] * TIME_SCALE_S), float(w[self.i_time + 1] * TIME_SCALE_S)
+
+    # -- the NLP -------------------------------------------------------------------------------
+
+    def _build(self) -> None:
+        s, vp = self.spec, self.vessel
+        w = ca.SX.sym("w", self.nw)
+        p = ca.SX.sym("p", NP)
+        x_init = p[P_X0:P_X0 + NX]
+        wp_prev, wp_act = p[P_PREV:P_PREV + 2], p[P_ACTIVE:P_ACTIVE + 2]
+        gate, task, tau = p[P_GATE], p[P_TASK], p[P_TAU:P_TAU + 3]
+        xs = [w[self.x_index(k)] for k in range(s.horizon + 1)]
+        us = [w[self.u_index(k)] for k in range(s.horizon)]
+        g = [xs[0] - x_init]
+        stage = 0
+        for k in range(s.horizon):
+            g.append(xs[k + 1] - self.F(xs[k], us[k], tau))
+            if s.is_empc:
+                stage += costs.stage_cost_j(us[k][0], us[k][1], task, s.dt_s, vp)
+            else:
+                stage += costs.nmpc_stage_cost(xs[k + 1], us[k], wp_act, s.nmpc, ca)
+        if s.is_empc:
+            t_d = w[self.i_time] * TIME_SCALE_S
+            t_s = w[self.i_time + 1] * TIME_SCALE_S
+            gate_used = gate if s.kind == "cc-empc" else 0.0
+            term = costs.terminal_terms(xs[-1], t_d, t_s, wp_prev, wp_act, task, gate_used,
+                                        s.profile_n, vp, ca)
+            objective = EMPC_OBJECTIVE_SCALE * (stage + term.dynamic_j + term.static_j + term.track_j)
+            g.append(term.constraint_m)
+        else:
+            objective = stage
+        self.nlp = {"x": w, "p": p, "f": objective, "g": ca.vertcat(*g)}
+        self.objective_fn = ca.Function("objective", [w, p], [objective])
+        self.constraint_fn = ca.Function("constraints", [w, p], [ca.vertcat(*g)])
+        # Bounds: thrust limits; u_k >= u_min for k >= 1 on the EMPCs (X_0 is the measured state,
+        # which may be at rest); t_d in [t_d_min, t_d_max]; t_s >= 0. All constraints g are equalities.
+        lbw = np.full(self.nw, -np.inf)
+        ubw = np.full(self.nw, np.inf)
+        for k in range(s.horizon):
+            lbw[self.u_index(k)] = -vp.reverse_max_n
+            ubw[self.u_index(k)] = vp.thrust_max_n
+        if s.is_empc:
+            for k in range(1, s.horizon + 1):
+                lbw[self.x_index(k).start] = s.u_min_mps
+            lbw[self.i_time], ubw[self.i_time] = s.t_d_min_s / TIME_SCALE_S, s.t_d_max_s / TIME_SCALE_S
+            lbw[self.i_time + 1] = 0.0
+        self.lbw, self.ubw = lbw, ubw
+        self.lbg = np.zeros(self.ng)
+        self.ubg = np.zeros(self.ng)
+
+    # -- parameters, guesses, warm starts ------------------------------------------------------
+
+    @staticmethod
+    def parameters(x0: np.ndarray, wp_prev: tuple[float, float], wp_active: tuple[float, float],
+                   track_gate: bool, task_power_w: float,
+                   tau_d: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> np.ndarray:
+        p = np.zeros(NP)
+        p[P_X0:P_X0 + NX] = x0
+        p[P_PREV:P_PREV + 2] = wp_prev
+        p[P_ACTIVE:P_ACTIVE + 2] = wp_active
+        p[P_GATE] = 1.0 if track_gate else 0.0
+        p[P_TASK] = task_power_w
+        p[P_TAU:P_TAU + 3] = tau_d
+        return p
+
+    def cruise_speed_mps(self, task_power_w: float) -> float:
+        """Energy-optimal cruise u* = sqrt(2 T^w / alpha) / Xu (reproduction.md, T^w row) [m/s].
+
+        Used only for initial guesses; bounded below so that a zero task power still gives a guess.
+        """
+        vp = self.vessel
+        u_star = math.sqrt(2.0 * max(task_power_w, 0.0) / vp.alpha_w_per_n2) / vp.xu_kgps
+        return max(u_star, 10.0 * self.spec.u_min_mps)
+
+    def cold_guess(self, p: np.ndarray) -> np.ndarray:
+        """A consistent first guess: hold the cruise thrust and roll the model out from x_init."""
+        s, vp = self.spec, self.vessel
+        w = np.zeros(self.nw)
+        x = [float(v) for v in p[P_X0:P_X0 + NX]]
+        if s.is_empc:
+            u_c = self.cruise_speed_mps(float(p[P_TASK]))
+            thrust = (vp.xu_kgps * u_c / 2.0,) * 2
+        else:
+            thrust = (0.5 * vp.thrust_max_n,) * 2
+        tau = tuple(float(v) for v in p[P_TAU:P_TAU + 3])
+        for k in range(s.horizon):
+            w[self.x_index(k)] = x
+            w[self.u_index(k)] = thrust
+            x = model.rk4_step(x, thrust, s.dt_s, vp, math, tau)
+        w[self.x_index(s.horizon)] = x
+        if s.is_empc:
+            self.guess_times(w, p)
+        return w
+
+    def guess_times(self, w: np.ndarray, p: np.ndarray) -> None:
+        """Set t_d, t_s in ``w`` from its terminal state: t_d from the turn left, t_s from eq. 15d."""
+        s = self.spec
+        x_h = w[self.x_index(s.horizon)]
+        wp_prev = p[P_PREV:P_PREV + 2]
+        wp_act = p[P_ACTIVE:P_ACTIVE + 2]
+        term = costs.terminal_terms(x_h, 1.0, 0.0, wp_prev, wp_act, 0.0, 0.0, s.profile_n,
+                                    self.vessel, math)
+        u_h = max(float(x_h[0]), s.u_min_mps)
+        # A turn of Delta psi takes roughly 10 s per radian at these speeds; clamp to the bounds.
+        t_d = min(max(1.0 + 10.0 * abs(term.delta_psi_rad), s.t_d_min_s), s.t_d_max_s)
+        t_s = max(0.0, term.distance_m / u_h - t_d * costs.smooth_sinc(term.delta_psi_rad))
+        w[self.i_time] = t_d / TIME_SCALE_S
+        w[self.i_time + 1] = t_s / TIME_SCALE_S
+
+    def shift(self, w: np.ndarray, lam_x: np.ndarray, lam_g: np.ndarray, tau_d: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Shift primal and dual solutions one stage for the next warm start (solver-notes trap 5).
+
+        Stage k takes stage k+1's values; the last control is held and the last state is propagated
+        with it. Times keep their values, t_s less one period (time has passed).
+        """
+        s = self.spec
+        h, st = s.horizon, self.stage
+        w2, lx2, lg2 = w.copy(), lam_x.copy(), lam_g.copy()
+        w2[: (h - 1) * st] = w[st: h * st]
+        lx2[: (h - 1) * st] = lam_x[st: h * st]
+        # X_{H-1} <- X_H, U_{H-1} held, X_H <- F(X_H, U_{H-1}).
+        x_last = w[self.x_index(h)]
+        u_last = w[self.u_index(h - 1)]
+        w2[self.x_index(h - 1)] = x_last
+        w2[self.u_index(h - 1)] = u_last
+        w2[self.x_index(h)] = model.rk4_step([float(v) for v in x_last], [float(v) for v in u_last],
+                                             s.dt_s, self.vessel, math,
+                                             tuple(float(v) for v in tau_d))
+        lx2[self.x_index(h - 1)] = lam_x[self.x_index(h)]
+        lx2[self.u_index(h - 1)] = lam_x[self.u_index(h - 1)]
+        # Costates: constraint block j (j = 0 initial state, j = k + 1 gap k) takes block j + 1.
+        lg2[: NX * h] = lam_g[NX: NX * (h + 1)]
+        if s.is_empc:
+            w2[self.i_time + 1] = max(0.0, w[self.i_time + 1] - s.dt_s / TIME_SCALE_S)
+        return w2, lx2, lg2
