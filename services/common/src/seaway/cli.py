@@ -112,8 +112,14 @@ def cmd_launch(argv: list[str]) -> int:
     return launch_main(argv)
 
 
+def cmd_router(argv: list[str]) -> int:
+    from seaway.router import main as router_main
+
+    return router_main(argv)
+
+
 BUILTIN = {"bench": cmd_bench, "echo": cmd_echo, "health": cmd_health, "schemas": cmd_schemas,
-           "launch": cmd_launch}
+           "launch": cmd_launch, "router": cmd_router}
 
 
 def main(argv: list[str] | None = None) -> int:
