@@ -112,6 +112,12 @@ def cmd_launch(argv: list[str]) -> int:
     return launch_main(argv)
 
 
+def cmd_mission(argv: list[str]) -> int:
+    from seaway.mission_cli import main as mission_main
+
+    return mission_main(argv)
+
+
 def cmd_router(argv: list[str]) -> int:
     from seaway.router import main as router_main
 
@@ -119,7 +125,8 @@ def cmd_router(argv: list[str]) -> int:
 
 
 BUILTIN = {"bench": cmd_bench, "echo": cmd_echo, "health": cmd_health, "schemas": cmd_schemas,
-           "launch": cmd_launch, "router": cmd_router}
+           "launch": cmd_launch, "router": cmd_router,
+           "mission": cmd_mission}
 
 
 def main(argv: list[str] | None = None) -> int:

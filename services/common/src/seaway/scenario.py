@@ -33,6 +33,7 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from seaway.config import ConfigError, ConfigModel, deploy_path, parse_config, read_document
+from seaway.messages import MissionRequest, Waypoint
 
 AIR_DENSITY_KGPM3 = 1.225
 
@@ -121,13 +122,51 @@ class Origin(ConfigModel):
     alt_m: float = 0.0
 
 
-class ScenarioMission(ConfigModel):
-    """The mission a scenario comes with (local NED metres)."""
+class MissionSpec(ConfigModel):
+    """A mission as written in a file: a scenario's ``[mission]`` table or a mission file.
 
-    waypoints_m: list[tuple[float, float]] = Field(min_length=2)
+    Waypoints are local NED metres (``waypoints_m``, [[north, east], ...]) or WGS84 degrees
+    (``waypoints_deg``, [[lat, lon], ...], converted by the controller through the published origin).
+    """
+
+    mission_id: str = Field(default="", max_length=64)
+    waypoints_m: list[tuple[float, float]] | None = Field(default=None, min_length=2)
+    waypoints_deg: list[tuple[float, float]] | None = Field(default=None, min_length=2)
     coa_radius_m: float = Field(gt=0)
     task_power_w: float = Field(ge=0)
     controller: Literal["cc-empc", "eo-empc", "nmpc"] = "cc-empc"
+
+    @model_validator(mode="after")
+    def _one_kind_of_waypoints(self) -> MissionSpec:
+        if (self.waypoints_m is None) == (self.waypoints_deg is None):
+            raise ValueError("give exactly one of waypoints_m and waypoints_deg")
+        return self
+
+    def to_request(self, stamp_ns: int, mission_id: str = "") -> MissionRequest:
+        """The bus request for this mission (the controller validates it again)."""
+        if self.waypoints_m is not None:
+            wps = [Waypoint(x_m=x, y_m=y) for x, y in self.waypoints_m]
+        else:
+            wps = [Waypoint(lat_deg=a, lon_deg=b) for a, b in self.waypoints_deg or []]
+        return MissionRequest.make(stamp_ns=stamp_ns, mission_id=self.mission_id or mission_id,
+                                   waypoints=wps, coa_radius_m=self.coa_radius_m,
+                                   task_power_w=self.task_power_w, controller=self.controller)
+
+
+def load_mission(path: str | Path) -> MissionSpec:
+    """A mission file, or the ``[mission]`` table of a scenario file (by path or scenario name)."""
+    p = Path(path)
+    if p.suffix not in (".toml", ".json"):
+        sc = load_scenario(path)
+        if sc.mission is None:
+            raise ConfigError(f"scenario {sc.name!r} has no [mission]")
+        return sc.mission.model_copy(update={"mission_id": sc.mission.mission_id or sc.name})
+    doc = read_document(p)
+    if "mission" in doc and isinstance(doc["mission"], dict):
+        sc = parse_scenario(doc, str(p), p.parent)
+        assert sc.mission is not None
+        return sc.mission.model_copy(update={"mission_id": sc.mission.mission_id or sc.name})
+    return parse_config(doc, MissionSpec, str(p))
 
 
 class Scenario(ConfigModel):
@@ -141,7 +180,7 @@ class Scenario(ConfigModel):
     sensors: SensorNoise = SensorNoise()
     dead_zone: bool = Field(default=False, description="apply the vessel file's thrust dead zone")
     thruster_lag: bool = Field(default=False, description="apply the vessel file's thruster lag")
-    mission: ScenarioMission | None = None
+    mission: MissionSpec | None = None
 
 
 def _resolve_grid_files(doc: dict, base: Path) -> dict:

@@ -24,7 +24,7 @@ from seaway.bus import ENV_CONFIG, Bus
 from seaway.config import ConfigError, deploy_path, repo_root
 from seaway.launch.profile import Profile, load_profile, substitute
 from seaway.launch.supervisor import Supervised, Supervisor, default_echo
-from seaway.messages import MissionRequest, MissionStatus, StateEstimate, Waypoint
+from seaway.messages import MissionRequest, MissionStatus, StateEstimate
 from seaway.scenario import load_scenario
 from seaway.service import DEFAULT_VESSEL, ENV_VESSEL, install_stop_signals
 
@@ -54,11 +54,7 @@ def _mission_request(scenario_name: str) -> MissionRequest | None:
     sc = load_scenario(scenario_name)
     if sc.mission is None:
         return None
-    return MissionRequest.make(
-        stamp_ns=time.time_ns(), mission_id=sc.name,
-        waypoints=[Waypoint(x_m=x, y_m=y) for x, y in sc.mission.waypoints_m],
-        coa_radius_m=sc.mission.coa_radius_m, task_power_w=sc.mission.task_power_w,
-        controller=sc.mission.controller)
+    return sc.mission.to_request(time.time_ns(), mission_id=sc.name)
 
 
 class StatusLine:

@@ -1,0 +1,63 @@
+"""Mission and scenario files: shipped ones load; bad ones fail naming the problem."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from seaway.config import ConfigError, deploy_path
+from seaway.scenario import load_mission, load_scenario
+
+
+def test_every_shipped_scenario_and_mission_loads() -> None:
+    for f in sorted(deploy_path("scenarios").glob("*.toml")):
+        sc = load_scenario(f)
+        assert sc.name == f.stem
+    for f in sorted(deploy_path("missions").glob("*.toml")):
+        req = load_mission(f).to_request(1)
+        assert len(req.waypoints) >= 2
+
+
+def test_paper_scenarios_follow_reproduction_md() -> None:
+    for n in range(1, 6):
+        m = load_mission(f"paper-c{n}")
+        assert m.waypoints_m == [(0.0, 0.0), (8.0, 0.0), (5.13, 8.57)]
+        assert (m.coa_radius_m, m.task_power_w) == (1.0, 0.49)
+        assert load_scenario(f"paper-c{n}").vessel == "paper-sim"
+
+
+def write(tmp: Path, text: str) -> Path:
+    p = tmp / "m.toml"
+    p.write_text(text)
+    return p
+
+
+@pytest.mark.parametrize(("text", "problem"), [
+    ("coa_radius_m = 1\ntask_power_w = 0\n", "exactly one of waypoints_m and waypoints_deg"),
+    ("waypoints_m = [[0,0],[1,1]]\nwaypoints_deg = [[1,1],[2,2]]\ncoa_radius_m = 1\ntask_power_w = 0\n",
+     "exactly one of"),
+    ("waypoints_m = [[0,0]]\ncoa_radius_m = 1\ntask_power_w = 0\n",
+     "waypoints_m: List should have at least 2"),
+    ("waypoints_m = [[0,0],[1,1]]\ncoa_radius_m = 0\ntask_power_w = 0\n",
+     "coa_radius_m: Input should be greater"),
+    ("waypoints_m = [[0,0],[1,1]]\ncoa_radius_m = 1\ntask_power_w = 0\ncontroler = 'nmpc'\n",
+     "controler: unknown field"),
+    ("waypoints_m = [[0,0],[1,nan]]\ncoa_radius_m = 1\ntask_power_w = 0\n", "finite number"),
+    ("waypoints_m = [[0,0],[1,1]\n", "not valid TOML"),
+])
+def test_bad_mission_files(tmp_path: Path, text: str, problem: str) -> None:
+    with pytest.raises(ConfigError, match=problem):
+        load_mission(write(tmp_path, text))
+
+
+def test_bad_scenario_names_the_field(tmp_path: Path) -> None:
+    p = tmp_path / "s.toml"
+    p.write_text('name = "x"\nseed = 1\nvessel = "paper-sim"\n[[disturbances]]\nkind = "tornado"\n')
+    with pytest.raises(ConfigError, match=r"disturbances\.0: Input tag 'tornado'"):
+        load_scenario(p)
+    p.write_text('name = "x"\nseed = 1\nvessel = "paper-sim"\n[[disturbances]]\nkind = "world_grid"\n'
+                 'file = "missing.json"\n')
+    with pytest.raises(ConfigError, match=r"missing\.json"):
+        load_scenario(p)
+    with pytest.raises(ConfigError, match=r"no-such-scenario\.toml: cannot read"):
+        load_scenario("no-such-scenario")
