@@ -1,0 +1,1 @@
+"""Seaway vehicle I/O: the only process that speaks MAVLink."""

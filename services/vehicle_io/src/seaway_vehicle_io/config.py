@@ -1,0 +1,104 @@
+"""vehicle_io's configuration file (TOML or JSON); unknown fields are errors.
+
+Every field has a safe default, so a file is needed only to change something. ``--mavlink`` and
+``--vessel`` on the command line override the file.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field, model_validator
+from seaway.config import ConfigModel
+
+AutopilotName = Literal["px4", "ardupilot"]
+
+
+class VehicleIoConfig(ConfigModel):
+    """How vehicle_io talks to the autopilot and how it guards the thrusters."""
+
+    mavlink: str = Field(
+        default="udpin:127.0.0.1:14540",
+        description="pymavlink connection URL: udpin:HOST:PORT (listen), udpout:HOST:PORT (send "
+                    "first), tcp:HOST:PORT, or a serial device /dev/ttyX (baud from 'baud')",
+    )
+    baud: int = Field(default=57600, gt=0, description="serial baud rate (serial URLs only)")
+    autopilot: Literal["auto", "px4", "ardupilot"] = Field(
+        default="auto",
+        description="expected autopilot; 'auto' takes it from the HEARTBEAT. A HEARTBEAT that "
+                    "contradicts a named autopilot is ignored (never commanded)",
+    )
+    vessel_file: str = Field(
+        default="paper-boat", description="vessel name (deploy/vessels/NAME.toml) or a file path"
+    )
+    source_system: int = Field(
+        default=255, ge=1, le=255,
+        description="our MAVLink system id; ArduPilot accepts MANUAL_CONTROL only from SYSID_MYGCS "
+                    "(default 255)",
+    )
+    source_component: int = Field(
+        default=191, ge=1, le=255, description="our component id (191 MAV_COMP_ID_ONBOARD_COMPUTER)"
+    )
+    target_system: int | None = Field(
+        default=None, ge=1, le=255,
+        description="autopilot system id to command; None learns it from the first autopilot "
+                    "HEARTBEAT after start or after a link loss",
+    )
+    heartbeat_timeout_s: float = Field(
+        default=3.0, gt=0, description="no autopilot HEARTBEAT for this long = link lost [s]"
+    )
+    heartbeat_period_s: float = Field(default=1.0, gt=0, description="our HEARTBEAT period [s]")
+    thrust_timeout_s: float = Field(
+        default=0.3, gt=0,
+        description="watchdog: no ThrustCommand received for this long -> neutral thrust [s]",
+    )
+    manual_control_rate_hz: float = Field(
+        default=20.0, ge=5.0, le=100.0,
+        description="MANUAL_CONTROL stream rate; >= 5 Hz keeps PX4 (COM_RC_LOSS_T 0.5 s) and "
+                    "ArduPilot (500 ms radio failsafe) from declaring manual control lost",
+    )
+    status_rate_hz: float = Field(default=2.0, gt=0, le=50, description="VehicleStatus rate [Hz]")
+    command_ack_timeout_s: float = Field(
+        default=1.0, gt=0, description="wait this long for COMMAND_ACK before resending [s]"
+    )
+    command_attempts: int = Field(
+        default=3, ge=1, le=10, description="COMMAND_LONG transmissions before giving up"
+    )
+    time_offset_window_s: float = Field(
+        default=10.0, gt=0,
+        description="window of the min filter that maps autopilot boot time to wall time [s]",
+    )
+    gps_raw_max_age_s: float = Field(
+        default=3.0, gt=0, description="GPS_RAW_INT older than this no longer qualifies a fix [s]"
+    )
+    fix_type_without_gps_raw: int = Field(
+        default=0, ge=0, le=8,
+        description="GnssFix.fix_type when no recent GPS_RAW_INT exists (0 = unknown/no GPS: the "
+                    "position is the autopilot's fused estimate, its quality unknown)",
+    )
+    check_failsafe_params: bool = Field(
+        default=True, description="read the autopilot's loss-failsafe parameters after connecting"
+    )
+    param_timeout_s: float = Field(
+        default=1.0, gt=0, description="wait this long for each PARAM_VALUE before asking again [s]"
+    )
+    param_attempts: int = Field(default=3, ge=1, le=10)
+    forward_thrust_only_when_armed: bool = Field(
+        default=True,
+        description="send neutral while the autopilot reports disarmed, so arming never starts "
+                    "the thrusters at a demand computed before it",
+    )
+
+    @model_validator(mode="after")
+    def _check_timing(self) -> VehicleIoConfig:
+        period = 1.0 / self.manual_control_rate_hz
+        if self.thrust_timeout_s < period:
+            raise ValueError(
+                f"thrust_timeout_s ({self.thrust_timeout_s}) must be at least one MANUAL_CONTROL "
+                f"period ({period:.3f} s)"
+            )
+        if self.heartbeat_timeout_s <= 1.0:
+            # PX4 and ArduPilot send HEARTBEAT at 1 Hz (docs/autopilots.md A.5): a shorter
+            # timeout would declare the link lost between two healthy heartbeats.
+            raise ValueError("heartbeat_timeout_s must exceed the autopilots' 1 s HEARTBEAT period")
+        return self

@@ -1,0 +1,617 @@
+"""vehicle_io's pure core: MAVLink messages, thrust commands and time in; messages to send out.
+
+Nothing here opens a socket, reads a clock or touches the bus. The service loop (``service.py``)
+feeds it:
+
+* ``on_mavlink(msg, now)`` for every decoded MAVLink message (the one receive loop);
+* ``on_thrust(cmd, now)`` for every ThrustCommand from the bus;
+* ``tick(now)`` whenever ``next_wake_ns(now)`` says something is due;
+
+and performs the returned outputs in order: ``Send*`` to the autopilot, ``Publish`` to the bus.
+Every method is called under one lock by the loop, so the core needs no locking of its own.
+
+Time: ``Now.wall_ns`` (Unix epoch) stamps messages; ``Now.mono_ns`` (monotonic) measures every
+timeout, so an NTP step never trips or delays a watchdog.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+from seaway.messages import Message, ThrustCommand, VehicleStatus
+
+from seaway_vehicle_io import ardupilot, px4
+from seaway_vehicle_io.commands import (
+    COMMAND_NAMES,
+    MAV_CMD_COMPONENT_ARM_DISARM,
+    MAV_CMD_DO_SET_MODE,
+    CommandTracker,
+)
+from seaway_vehicle_io.config import VehicleIoConfig
+from seaway_vehicle_io.conversions import (
+    BatteryReading,
+    FieldError,
+    GpsQuality,
+    NoDataError,
+    attitude_from_attitude,
+    battery_from_battery_status,
+    battery_from_sys_status,
+    gnss_from_global_position_int,
+    gps_quality_from_gps_raw_int,
+    local_position_from_local_position_ned,
+)
+from seaway_vehicle_io.profile import FailsafeAssessment, ManualControlAxes, Profile
+from seaway_vehicle_io.thrust import ThrusterLimits, normalise_pair
+from seaway_vehicle_io.timesync import BootTimeOffset
+from seaway_vehicle_io.watchdog import FAILSAFE_THRUST_STALE, ThrustWatchdog
+
+log = logging.getLogger("seaway.vehicle_io")
+
+PROFILES: dict[int, Profile] = {px4.MAV_AUTOPILOT_PX4: px4.PROFILE,
+                                ardupilot.MAV_AUTOPILOT_ARDUPILOTMEGA: ardupilot.PROFILE}
+PROFILES_BY_NAME: dict[str, Profile] = {p.name: p for p in PROFILES.values()}
+
+MAV_MODE_FLAG_SAFETY_ARMED = 128
+# HEARTBEAT.type values that are not a vehicle (GCS, onboard controller, gimbal, ADSB, camera...).
+NON_VEHICLE_TYPES = frozenset({6, 18, 26, 27, 30, 31})
+
+FAILSAFE_AUTOPILOT_CONFIG = "autopilot_config"
+FAILSAFE_NO_AUTOPILOT_LOSS_FAILSAFE = "no_autopilot_loss_failsafe"
+
+MAX_BOOT_TIME_LEAD_NS = 1_000_000_000  # a boot time > 1 s "ahead" of its receipt is corrupt
+LOG_EVERY_NS = 5_000_000_000  # at most one log line per (message, field) per 5 s
+RATE_WINDOW_S = 2.0  # receive rates are counted over windows of at least this length
+
+
+@dataclass(frozen=True)
+class Now:
+    """The two clocks the loop passes in [ns]."""
+
+    wall_ns: int
+    mono_ns: int
+
+
+# -- outputs ------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class SendHeartbeat:
+    """Our 1 Hz HEARTBEAT (as a GCS-type component)."""
+
+
+@dataclass(frozen=True)
+class SendManualControl:
+    target_system: int
+    axes: ManualControlAxes
+    neutral: bool
+
+
+@dataclass(frozen=True)
+class SendCommandLong:
+    target_system: int
+    target_component: int
+    command: int
+    confirmation: int
+    params: tuple[float, float, float, float, float, float, float]
+
+
+@dataclass(frozen=True)
+class SendParamRequestRead:
+    target_system: int
+    target_component: int
+    param_id: str
+
+
+@dataclass(frozen=True)
+class Publish:
+    message: Message
+
+
+Output = SendHeartbeat | SendManualControl | SendCommandLong | SendParamRequestRead | Publish
+
+
+# -- state pieces ---------------------------------------------------------------------------------
+
+
+@dataclass
+class LinkState:
+    """What we know about the autopilot we command."""
+
+    ok: bool = False
+    target_system: int | None = None
+    target_component: int | None = None
+    profile: Profile | None = None
+    last_heartbeat_mono_ns: int | None = None
+    armed: bool = False
+    mode: str = "UNKNOWN"
+    connects: int = 0
+    losses: int = 0
+
+
+@dataclass
+class ParamCheck:
+    """The start-up read of the autopilot's loss-failsafe parameters."""
+
+    wanted: tuple[str, ...] = ()
+    values: dict[str, float] = field(default_factory=dict)
+    attempts: dict[str, int] = field(default_factory=dict)
+    last_sent_mono_ns: int = 0
+    done: bool = False
+    assessment: FailsafeAssessment | None = None
+
+
+class VehicleIoCore:
+    """The whole of vehicle_io's logic. See the module docstring for how it is driven."""
+
+    def __init__(self, config: VehicleIoConfig, limits: ThrusterLimits, start: Now) -> None:
+        self.cfg = config
+        self.limits = limits
+        self.forced_profile = (PROFILES_BY_NAME[config.autopilot]
+                               if config.autopilot != "auto" else None)
+        self.link = LinkState(profile=self.forced_profile)
+        self.offset = BootTimeOffset(config.time_offset_window_s)
+        self.watchdog = ThrustWatchdog(config.thrust_timeout_s)
+        self.commands = CommandTracker()
+        self.params = ParamCheck()
+        self.gps_quality: GpsQuality | None = None
+        self.gps_quality_mono_ns = 0
+        self.battery = BatteryReading(None, None)
+        self.dropped = 0
+        self.counts: dict[str, int] = {}
+        self.rates_hz: dict[str, float] = {}
+        self.last_axes: ManualControlAxes | None = None
+        self.manual_control_sent = 0
+        self._rates_since_ns = start.mono_ns
+        self._period_mc_ns = round(1e9 / config.manual_control_rate_hz)
+        self._period_hb_ns = round(config.heartbeat_period_s * 1e9)
+        self._period_status_ns = round(1e9 / config.status_rate_hz)
+        self._next_mc_ns = start.mono_ns
+        self._next_hb_ns = start.mono_ns
+        self._next_status_ns = start.mono_ns
+        self._last_log_ns: dict[tuple[str, str], int] = {}
+        self._suppressed: dict[tuple[str, str], int] = {}
+
+    # ===========================================================================================
+    # Inputs
+    # ===========================================================================================
+
+    def on_mavlink(self, msg: Any, now: Now) -> list[Output]:
+        """Handle one decoded MAVLink message (any type, from anyone)."""
+        mtype = msg.get_type()
+        if mtype == "BAD_DATA":
+            self._drop(now, "BAD_DATA", "frame", getattr(msg, "reason", "unparseable bytes"))
+            return []
+        if mtype == "HEARTBEAT":
+            return self._on_heartbeat(msg, now)
+        link = self.link
+        if not link.ok or msg.get_srcSystem() != link.target_system:
+            return []  # not from the autopilot we command (or none yet): not ours to interpret
+        self.counts[mtype] = self.counts.get(mtype, 0) + 1
+        handler = self._HANDLERS.get(mtype)
+        if handler is None:
+            return []
+        try:
+            return handler(self, msg, now)
+        except FieldError as err:
+            self._drop(now, err.message_type, err.field, str(err))
+            return []
+        except NoDataError as err:
+            self._log_limited(now, mtype, "nodata", logging.INFO, str(err))
+            return []
+
+    def on_thrust(self, cmd: ThrustCommand, now: Now) -> list[Output]:
+        """A ThrustCommand arrived from the bus: becomes the latest, and goes out at once."""
+        out: list[Output] = []
+        event = self.watchdog.command(cmd, now.mono_ns)
+        if event is not None:
+            log.info("thrust commands fresh again (source %r): forwarding", cmd.source)
+            out.append(Publish(self.status(now)))
+        out.extend(self._manual_control(now))
+        return out
+
+    def tick(self, now: Now) -> list[Output]:
+        """Do whatever is due at ``now``: link check, watchdog, streams, retries, status."""
+        out: list[Output] = []
+        status_now = self._check_link(now)
+        event = self.watchdog.check(now.mono_ns)
+        if event is not None:
+            log.warning("no ThrustCommand for %.0f ms (timeout %.0f ms): thrust to neutral, "
+                        "failsafe %s", (event.silent_for_ns or 0) / 1e6,
+                        self.cfg.thrust_timeout_s * 1e3, FAILSAFE_THRUST_STALE)
+            out.extend(self._manual_control(now))  # neutral now, not at the next stream tick
+            status_now = True
+        if now.mono_ns >= self._next_hb_ns:
+            out.append(SendHeartbeat())
+            self._next_hb_ns = _next_after(self._next_hb_ns, self._period_hb_ns, now.mono_ns)
+        if now.mono_ns >= self._next_mc_ns:
+            out.extend(self._manual_control(now))
+            self._next_mc_ns = _next_after(self._next_mc_ns, self._period_mc_ns, now.mono_ns)
+        out.extend(self._param_requests(now))
+        if status_now or now.mono_ns >= self._next_status_ns:
+            self._update_rates(now)
+            out.append(Publish(self.status(now)))
+            self._next_status_ns = now.mono_ns + self._period_status_ns
+        return out
+
+    def next_wake_ns(self) -> int:
+        """The monotonic time at which ``tick`` next has something to do."""
+        due = [self._next_hb_ns, self._next_mc_ns, self._next_status_ns]
+        wd = self.watchdog.deadline_ns()
+        if wd is not None:
+            due.append(wd)
+        if self.link.ok and self.link.last_heartbeat_mono_ns is not None:
+            due.append(self.link.last_heartbeat_mono_ns + round(self.cfg.heartbeat_timeout_s * 1e9))
+        if self.link.ok and not self.params.done and self.params.wanted:
+            due.append(self.params.last_sent_mono_ns + round(self.cfg.param_timeout_s * 1e9))
+        return min(due)
+
+    # ===========================================================================================
+    # Requests (arm, mode): the loop sends the returned command and waits for the ACK
+    # ===========================================================================================
+
+    def arm_command(self, arm: bool, force: bool) -> SendCommandLong | str:
+        """The COMMAND_LONG for an arm/disarm request, or the reason it cannot be sent."""
+        problem = self._command_precondition()
+        if problem:
+            return problem
+        assert self.link.profile is not None
+        p1, p2 = self.link.profile.arm_params(arm, force)
+        return self._command_long(MAV_CMD_COMPONENT_ARM_DISARM, (p1, p2, 0, 0, 0, 0, 0))
+
+    def mode_command(self, mode: str) -> SendCommandLong | str:
+        """The COMMAND_LONG for a mode request, or the reason it cannot be sent."""
+        problem = self._command_precondition()
+        if problem:
+            return problem
+        assert self.link.profile is not None
+        try:
+            p1, p2, p3 = self.link.profile.encode_mode(mode)
+        except ValueError as err:
+            return str(err)
+        return self._command_long(MAV_CMD_DO_SET_MODE, (p1, p2, p3, 0, 0, 0, 0))
+
+    def command_accepted(self, command: int, params: tuple[float, ...], mode: str | None) -> None:
+        """An ACCEPTED ACK: take the new state now rather than at the next HEARTBEAT (<= 1 s)."""
+        if command == MAV_CMD_COMPONENT_ARM_DISARM:
+            self.link.armed = params[0] == 1.0
+        elif command == MAV_CMD_DO_SET_MODE and mode is not None:
+            self.link.mode = mode.strip().upper()
+
+    def _command_precondition(self) -> str:
+        if not self.link.ok or self.link.target_system is None or self.link.profile is None:
+            return "no autopilot link (no HEARTBEAT from an autopilot yet, or link lost)"
+        return ""
+
+    def _command_long(self, command: int, params: tuple[float, ...]) -> SendCommandLong:
+        assert self.link.target_system is not None and self.link.target_component is not None
+        p = tuple(float(v) for v in params)
+        return SendCommandLong(self.link.target_system, self.link.target_component, command, 0,
+                               (p[0], p[1], p[2], p[3], p[4], p[5], p[6]))
+
+    @staticmethod
+    def command_name(command: int) -> str:
+        return COMMAND_NAMES.get(command, str(command))
+
+    # ===========================================================================================
+    # Status
+    # ===========================================================================================
+
+    def failsafe(self, now: Now) -> str | None:
+        """The failsafe to report, most serious first."""
+        a = self.params.assessment
+        if a is not None and a.blocking:
+            return FAILSAFE_AUTOPILOT_CONFIG
+        if self.watchdog.active(now.mono_ns) is None:
+            return FAILSAFE_THRUST_STALE
+        if a is not None and a.verdict == "none":
+            return FAILSAFE_NO_AUTOPILOT_LOSS_FAILSAFE
+        return None
+
+    def status(self, now: Now) -> VehicleStatus:
+        link = self.link
+        hb_age = (None if link.last_heartbeat_mono_ns is None
+                  else max(0.0, (now.mono_ns - link.last_heartbeat_mono_ns) / 1e9))
+        return VehicleStatus.make(
+            stamp_ns=now.wall_ns,
+            autopilot=link.profile.name if link.profile else "unknown",
+            link_ok=link.ok,
+            armed=link.armed,
+            mode=link.mode,
+            failsafe=self.failsafe(now),
+            battery_voltage_v=self.battery.voltage_v,
+            battery_remaining_frac=self.battery.remaining_frac,
+            heartbeat_age_s=hb_age,
+            rates_hz=dict(self.rates_hz),
+            dropped_messages=self.dropped,
+        )
+
+    def _update_rates(self, now: Now) -> None:
+        dt = (now.mono_ns - self._rates_since_ns) / 1e9
+        if dt < RATE_WINDOW_S:  # a 1 Hz message needs a window of seconds to show a steady rate
+            return
+        self.rates_hz = {k: round(v / dt, 2) for k, v in sorted(self.counts.items())}
+        self.counts.clear()
+        self._rates_since_ns = now.mono_ns
+
+    # ===========================================================================================
+    # Link
+    # ===========================================================================================
+
+    def _on_heartbeat(self, msg: Any, now: Now) -> list[Output]:
+        src_sys, src_comp = msg.get_srcSystem(), msg.get_srcComponent()
+        if (src_sys, src_comp) == (self.cfg.source_system, self.cfg.source_component):
+            return []  # our own heartbeat echoed back (a broadcast or a router)
+        if msg.type in NON_VEHICLE_TYPES:
+            return []
+        profile = PROFILES.get(msg.autopilot)
+        link = self.link
+        if link.ok:
+            if src_sys != link.target_system or src_comp != link.target_component:
+                return []  # another vehicle or component: we command exactly one
+        else:
+            if self.cfg.target_system is not None and src_sys != self.cfg.target_system:
+                return []
+            if profile is None:
+                self._log_limited(now, "HEARTBEAT", "autopilot", logging.WARNING,
+                                  f"ignoring HEARTBEAT from {src_sys}/{src_comp}: autopilot "
+                                  f"{msg.autopilot} is neither PX4 (12) nor ArduPilot (3)")
+                return []
+            if self.forced_profile is not None and profile is not self.forced_profile:
+                self._log_limited(now, "HEARTBEAT", "mismatch", logging.ERROR,
+                                  f"ignoring {profile.name} HEARTBEAT from {src_sys}: configured "
+                                  f"for {self.forced_profile.name}")
+                return []
+            return self._connect(msg, profile, now)
+        self.counts["HEARTBEAT"] = self.counts.get("HEARTBEAT", 0) + 1
+        self._apply_heartbeat(msg, now)
+        return []
+
+    def _connect(self, msg: Any, profile: Profile, now: Now) -> list[Output]:
+        link = self.link
+        link.ok = True
+        link.target_system, link.target_component = msg.get_srcSystem(), msg.get_srcComponent()
+        link.profile = profile
+        link.connects += 1
+        self.counts["HEARTBEAT"] = self.counts.get("HEARTBEAT", 0) + 1
+        self._apply_heartbeat(msg, now, announce=False)  # the line below says it all
+        log.info("autopilot link up: %s system %d component %d, %s, %s (connection #%d)",
+                 profile.name, link.target_system, link.target_component,
+                 "ARMED" if link.armed else "disarmed", link.mode, link.connects)
+        self.params = ParamCheck(wanted=profile.failsafe_params if self.cfg.check_failsafe_params
+                                 else (), done=not self.cfg.check_failsafe_params)
+        out: list[Output] = [Publish(self.status(now))]
+        out.extend(self._manual_control(now))  # start the stream at once (PX4 arms only with it)
+        out.extend(self._param_requests(now))
+        return out
+
+    def _apply_heartbeat(self, msg: Any, now: Now, announce: bool = True) -> None:
+        link = self.link
+        assert link.profile is not None
+        armed = bool(msg.base_mode & MAV_MODE_FLAG_SAFETY_ARMED)
+        mode = link.profile.decode_mode(msg.base_mode, msg.custom_mode)
+        if announce and (armed != link.armed or mode != link.mode):
+            log.info("autopilot %s, mode %s", "ARMED" if armed else "disarmed", mode)
+        link.armed, link.mode = armed, mode
+        link.last_heartbeat_mono_ns = now.mono_ns
+
+    def _check_link(self, now: Now) -> bool:
+        """Declare the link lost after heartbeat_timeout_s of silence; True if it just was."""
+        link = self.link
+        if not link.ok or link.last_heartbeat_mono_ns is None:
+            return False
+        silent_ns = now.mono_ns - link.last_heartbeat_mono_ns
+        if silent_ns < round(self.cfg.heartbeat_timeout_s * 1e9):
+            return False
+        link.ok = False
+        link.losses += 1
+        log.warning("autopilot link LOST: no HEARTBEAT from system %s for %.1f s; waiting for an "
+                    "autopilot HEARTBEAT to reconnect", link.target_system, silent_ns / 1e9)
+        # Forget everything learnt from this autopilot: it may come back rebooted, with another
+        # id, or be a different autopilot altogether.
+        link.target_system = link.target_component = None
+        link.profile = self.forced_profile
+        link.armed = False
+        link.mode = "UNKNOWN"
+        self.offset.reset()
+        self.gps_quality = None
+        self.commands.abandon_all()
+        self.params = ParamCheck()
+        return True
+
+    # ===========================================================================================
+    # Thrust out
+    # ===========================================================================================
+
+    def axes_now(self, now: Now) -> tuple[ManualControlAxes, bool] | None:
+        """The MANUAL_CONTROL axes to send now and whether they are neutral; None if no target."""
+        link = self.link
+        if not link.ok or link.profile is None or link.target_system is None:
+            return None
+        profile = link.profile
+        cmd = self.watchdog.active(now.mono_ns)
+        blocked = self.params.assessment is not None and bool(self.params.assessment.blocking)
+        if (cmd is None or blocked
+                or (self.cfg.forward_thrust_only_when_armed and not link.armed)):
+            return profile.neutral(), True
+        left, right = normalise_pair(cmd.thrust_port_n, cmd.thrust_starboard_n, self.limits,
+                                     profile.quantisation_guard)
+        axes = profile.manual_control(left, right)
+        return axes, axes == profile.neutral()
+
+    def neutral_command(self) -> SendManualControl | None:
+        """Neutral MANUAL_CONTROL for the current target (None without one); used on shutdown."""
+        link = self.link
+        if not link.ok or link.profile is None or link.target_system is None:
+            return None
+        return SendManualControl(link.target_system, link.profile.neutral(), True)
+
+    def _manual_control(self, now: Now) -> list[Output]:
+        result = self.axes_now(now)
+        if result is None:
+            return []
+        axes, neutral = result
+        assert self.link.target_system is not None
+        self.last_axes = axes
+        self.manual_control_sent += 1
+        return [SendManualControl(self.link.target_system, axes, neutral)]
+
+    # ===========================================================================================
+    # Telemetry in
+    # ===========================================================================================
+
+    def _stamp(self, msg: Any, now: Now) -> int:
+        """Stamp for a message with time_boot_ms, validated before it may move the estimate."""
+        boot_ms = msg.time_boot_ms
+        if self.offset.lead_ns(boot_ms, now.wall_ns) > MAX_BOOT_TIME_LEAD_NS:
+            raise FieldError(msg.get_type(), "time_boot_ms", boot_ms,
+                             "jumps ahead of the autopilot's clock")
+        stamp = self.offset.peek(boot_ms, now.wall_ns)
+        if stamp < 0:
+            raise FieldError(msg.get_type(), "time_boot_ms", boot_ms, "gives a negative stamp")
+        return stamp
+
+    def _publish_stamped(self, msg: Any, now: Now, convert: Any) -> list[Output]:
+        stamp = self._stamp(msg, now)
+        message = convert(stamp)  # raises FieldError before the estimate is touched
+        self.offset.update(msg.time_boot_ms, now.wall_ns)
+        return [Publish(message)]
+
+    def _on_global_position_int(self, msg: Any, now: Now) -> list[Output]:
+        fresh = (self.gps_quality is not None and now.mono_ns - self.gps_quality_mono_ns
+                 <= round(self.cfg.gps_raw_max_age_s * 1e9))
+        quality = self.gps_quality if fresh else None
+        return self._publish_stamped(msg, now, lambda stamp: gnss_from_global_position_int(
+            msg, stamp, quality, self.cfg.fix_type_without_gps_raw))
+
+    def _on_attitude(self, msg: Any, now: Now) -> list[Output]:
+        return self._publish_stamped(msg, now, lambda stamp: attitude_from_attitude(msg, stamp))
+
+    def _on_local_position_ned(self, msg: Any, now: Now) -> list[Output]:
+        return self._publish_stamped(
+            msg, now, lambda stamp: local_position_from_local_position_ned(msg, stamp))
+
+    def _on_gps_raw_int(self, msg: Any, now: Now) -> list[Output]:
+        self.gps_quality = gps_quality_from_gps_raw_int(msg)
+        self.gps_quality_mono_ns = now.mono_ns
+        return []
+
+    def _on_sys_status(self, msg: Any, now: Now) -> list[Output]:
+        self._merge_battery(battery_from_sys_status(msg))
+        return []
+
+    def _on_battery_status(self, msg: Any, now: Now) -> list[Output]:
+        if msg.id != 0:
+            return []  # the first battery is the one SYS_STATUS also describes
+        self._merge_battery(battery_from_battery_status(msg))
+        return []
+
+    def _merge_battery(self, reading: BatteryReading) -> None:
+        # Both messages describe the same pack; a field one of them leaves unknown keeps the
+        # other's last value instead of flickering to None.
+        self.battery = BatteryReading(
+            reading.voltage_v if reading.voltage_v is not None else self.battery.voltage_v,
+            reading.remaining_frac if reading.remaining_frac is not None
+            else self.battery.remaining_frac,
+        )
+
+    def _on_command_ack(self, msg: Any, now: Now) -> list[Output]:
+        self.commands.on_ack(msg.command, msg.result, msg.get_srcSystem(),
+                             getattr(msg, "target_system", 0) or 0, self.cfg.source_system)
+        return []
+
+    # ===========================================================================================
+    # Failsafe parameters
+    # ===========================================================================================
+
+    def _on_param_value(self, msg: Any, now: Now) -> list[Output]:
+        pc = self.params
+        name = str(msg.param_id).rstrip("\x00")
+        if pc.done or name not in pc.wanted or self.link.profile is None:
+            return []
+        value = self.link.profile.decode_param(msg.param_value, msg.param_type)
+        if value != value or value in (float("inf"), float("-inf")):
+            raise FieldError("PARAM_VALUE", "param_value", msg.param_value, "not finite")
+        pc.values[name] = value
+        if len(pc.values) == len(pc.wanted):
+            self._finish_param_check()
+        return []
+
+    def _param_requests(self, now: Now) -> list[Output]:
+        pc, link = self.params, self.link
+        if pc.done or not pc.wanted or not link.ok or link.target_system is None:
+            return []
+        if pc.attempts and now.mono_ns < pc.last_sent_mono_ns + round(self.cfg.param_timeout_s * 1e9):
+            return []
+        missing = [p for p in pc.wanted if p not in pc.values]
+        exhausted = [p for p in missing if pc.attempts.get(p, 0) >= self.cfg.param_attempts]
+        if exhausted and len(exhausted) == len(missing):
+            self._finish_param_check()
+            return []
+        assert link.target_component is not None
+        out: list[Output] = []
+        for p in missing:
+            if pc.attempts.get(p, 0) < self.cfg.param_attempts:
+                pc.attempts[p] = pc.attempts.get(p, 0) + 1
+                out.append(SendParamRequestRead(link.target_system, link.target_component, p))
+        pc.last_sent_mono_ns = now.mono_ns
+        return out
+
+    def _finish_param_check(self) -> None:
+        pc = self.params
+        assert self.link.profile is not None
+        pc.done = True
+        missing = [p for p in pc.wanted if p not in pc.values]
+        a = self.link.profile.assess_failsafe(pc.values, self.cfg.source_system)
+        pc.assessment = a
+        level = logging.INFO if a.verdict in ("stops", "takes_over") else logging.WARNING
+        log.log(level, "if vehicle_io dies, the autopilot %s: %s", {
+            "stops": "STOPS the thrusters", "takes_over": "TAKES OVER (does not simply stop)",
+            "none": "DOES NOT STOP the thrusters", "unknown": "may or may not stop the thrusters",
+        }[a.verdict], a.summary)
+        if missing:
+            log.warning("parameters not reported by the autopilot: %s", ", ".join(missing))
+        for w in a.warnings:
+            log.warning("autopilot configuration: %s", w)
+        for b in a.blocking:
+            log.error("autopilot configuration BLOCKS thrust (neutral only): %s", b)
+
+    # ===========================================================================================
+    # Dropping and logging
+    # ===========================================================================================
+
+    def _drop(self, now: Now, mtype: str, fieldname: str, text: str) -> None:
+        self.dropped += 1
+        self._log_limited(now, mtype, fieldname, logging.WARNING,
+                          f"dropped {mtype} (field {fieldname}): {text}")
+
+    def _log_limited(self, now: Now, mtype: str, fieldname: str, level: int, text: str) -> None:
+        """Log, but at most once per (message, field) per 5 s, saying how many were suppressed."""
+        key = (mtype, fieldname)
+        last = self._last_log_ns.get(key)
+        if last is not None and now.mono_ns - last < LOG_EVERY_NS:
+            self._suppressed[key] = self._suppressed.get(key, 0) + 1
+            return
+        n = self._suppressed.pop(key, 0)
+        self._last_log_ns[key] = now.mono_ns
+        log.log(level, "%s%s", text, f" ({n} more like it since the last report)" if n else "")
+
+    _HANDLERS: ClassVar[dict[str, Any]] = {
+        "GLOBAL_POSITION_INT": _on_global_position_int,
+        "ATTITUDE": _on_attitude,
+        "LOCAL_POSITION_NED": _on_local_position_ned,
+        "GPS_RAW_INT": _on_gps_raw_int,
+        "SYS_STATUS": _on_sys_status,
+        "BATTERY_STATUS": _on_battery_status,
+        "COMMAND_ACK": _on_command_ack,
+        "PARAM_VALUE": _on_param_value,
+    }
+
+
+def _next_after(due_ns: int, period_ns: int, now_ns: int) -> int:
+    """The next tick of a fixed-rate schedule after ``now_ns`` (skips missed ticks, no burst)."""
+    nxt = due_ns + period_ns
+    if nxt <= now_ns:
+        nxt = now_ns + period_ns - (now_ns - due_ns) % period_ns
+    return nxt

@@ -1,0 +1,128 @@
+"""The MAVLink transport: one pymavlink connection, opened from a URL, reopened when it breaks.
+
+This is the only module that reads or writes MAVLink bytes. It turns the core's ``Send*`` outputs
+into packets and hands back every decoded message, of every type (there is no
+``recv_match(type=...)`` anywhere: the core sees all traffic, which is how it counts rates and
+garbage).
+
+URLs are pymavlink's: ``udpin:HOST:PORT`` (listen; we reply to whoever sent to us),
+``udpout:HOST:PORT`` (we send first; the autopilot replies to our source port), ``tcp:HOST:PORT``,
+or a serial device path with ``baud``.
+"""
+
+from __future__ import annotations
+
+import logging
+import select
+import socket
+from typing import Any
+
+from seaway_vehicle_io.core import (
+    Output,
+    SendCommandLong,
+    SendHeartbeat,
+    SendManualControl,
+    SendParamRequestRead,
+)
+from seaway_vehicle_io.mav import DIALECT, mavlink, mavutil
+
+log = logging.getLogger("seaway.vehicle_io.link")
+
+SUPPORTED_PREFIXES = ("udpin:", "udpout:", "tcp:", "/dev/", "COM")
+
+
+class LinkClosedError(ConnectionError):
+    """The transport ended (TCP EOF, serial unplugged); the loop reopens it."""
+
+
+def check_url(url: str) -> str:
+    """Refuse URLs we do not support, with a message that lists the ones we do."""
+    if not url.startswith(SUPPORTED_PREFIXES):
+        raise ValueError(f"unsupported MAVLink URL {url!r}: use udpin:HOST:PORT, udpout:HOST:PORT, "
+                         "tcp:HOST:PORT or a serial device (/dev/ttyX)")
+    return url
+
+
+class MavlinkLink:
+    """One open connection. Not thread-safe: the service serialises every call with its lock,
+    except ``wait_readable``, which only selects on the descriptor."""
+
+    def __init__(self, url: str, source_system: int, source_component: int, baud: int = 57600,
+                 udp_client_timeout_s: float = 3.0) -> None:
+        self.url = check_url(url)
+        self.conn: Any = mavutil.mavlink_connection(
+            url, baud=baud, source_system=source_system, source_component=source_component,
+            dialect=DIALECT, autoreconnect=False, retries=0, udp_timeout=udp_client_timeout_s,
+        )
+        # The heartbeat's `mavlink_version` and our framing are MAVLink 2 from the first packet.
+        self.conn.WIRE_PROTOCOL_VERSION = "2.0"
+        self.is_tcp = isinstance(self.conn, mavutil.mavtcp)
+        self.sent = 0
+
+    def fileno(self) -> int:
+        return self.conn.fd if self.conn.fd is not None else self.conn.port.fileno()
+
+    def wait_readable(self, timeout_s: float) -> bool:
+        try:
+            ready, _, _ = select.select([self.fileno()], [], [], timeout_s)
+        except (OSError, ValueError) as err:  # closed under us
+            raise LinkClosedError(f"{self.url}: {err}") from err
+        return bool(ready)
+
+    def read_available(self) -> list[Any]:
+        """Every message decodable from what has arrived, without blocking."""
+        if self.is_tcp:
+            try:
+                peek = self.conn.port.recv(1, socket.MSG_PEEK | socket.MSG_DONTWAIT)
+            except BlockingIOError:
+                return []
+            except OSError as err:
+                raise LinkClosedError(f"{self.url}: {err}") from err
+            if peek == b"":
+                raise LinkClosedError(f"{self.url}: connection closed by the autopilot")
+        out = []
+        try:
+            while True:
+                msg = self.conn.recv_msg()
+                if msg is None:
+                    break
+                out.append(msg)
+        except OSError as err:
+            raise LinkClosedError(f"{self.url}: {err}") from err
+        except Exception as err:  # pyserial's SerialException is not an OSError
+            if type(err).__name__ == "SerialException":
+                raise LinkClosedError(f"{self.url}: {err}") from err
+            raise
+        return out
+
+    def send(self, out: Output) -> None:
+        try:
+            self._send(out)
+        except OSError as err:  # TCP reset, serial gone (UDP errors are swallowed by pymavlink)
+            raise LinkClosedError(f"{self.url}: {err}") from err
+        self.sent += 1
+
+    def _send(self, out: Output) -> None:
+        mav = self.conn.mav
+        if isinstance(out, SendManualControl):
+            a = out.axes
+            mav.manual_control_send(out.target_system, a.x, a.y, a.z, a.r, 0)
+        elif isinstance(out, SendHeartbeat):
+            # GCS type: ArduPilot counts heartbeats from SYSID_MYGCS for its GCS failsafe, and PX4's
+            # Commander tracks MAV_TYPE_GCS heartbeats for its datalink-loss check (NAV_DLL_ACT).
+            mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
+                               mavlink.MAV_STATE_ACTIVE)
+        elif isinstance(out, SendCommandLong):
+            mav.command_long_send(out.target_system, out.target_component, out.command,
+                                  out.confirmation, *out.params)
+        elif isinstance(out, SendParamRequestRead):
+            mav.param_request_read_send(out.target_system, out.target_component,
+                                        out.param_id.encode("ascii"), -1)
+        else:
+            raise TypeError(f"not a MAVLink output: {out!r}")
+
+    def close(self) -> None:
+        try:
+            self.conn.close()
+        except OSError:
+            log.debug("close failed", exc_info=True)

@@ -1,0 +1,76 @@
+"""``seaway-vehicle-io``: the command line of the vehicle I/O service."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from collections.abc import Sequence
+
+from seaway.config import ConfigError, load_config, parse_config
+from seaway.model import load_vessel
+from seaway.service import base_parser, parse, run_service
+
+from seaway_vehicle_io.config import VehicleIoConfig
+from seaway_vehicle_io.link import check_url
+from seaway_vehicle_io.service import VehicleIoService
+from seaway_vehicle_io.thrust import ThrusterLimits
+
+log = logging.getLogger("seaway.vehicle_io")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = base_parser("vehicle_io", "The only MAVLink speaker: autopilot telemetry to the bus, "
+                                  "thrust commands to the autopilot, with a watchdog.")
+    p.add_argument("--config", default=None, help="vehicle_io config file (.toml or .json)")
+    p.add_argument("--mavlink", default=None,
+                   help="MAVLink URL (overrides the config): udpin:HOST:PORT, udpout:HOST:PORT, "
+                        "tcp:HOST:PORT or /dev/ttyX")
+    p.add_argument("--autopilot", choices=("auto", "px4", "ardupilot"), default=None,
+                   help="expected autopilot (overrides the config; default auto)")
+    p.add_argument("--vessel-file", default=None,
+                   help="vessel name in deploy/vessels or a file path (overrides the config)")
+    p.add_argument("--thrust-timeout", type=float, default=None, metavar="S",
+                   help="watchdog timeout [s] (overrides the config; default 0.3)")
+    return p
+
+
+def load(args: argparse.Namespace) -> tuple[VehicleIoConfig, ThrusterLimits]:
+    """Config file + command-line overrides, validated together; the vessel's thruster limits."""
+    cfg = load_config(args.config, VehicleIoConfig) if args.config else VehicleIoConfig()
+    overrides = {k: v for k, v in {
+        "mavlink": args.mavlink, "autopilot": args.autopilot, "vessel_file": args.vessel_file,
+        "thrust_timeout_s": args.thrust_timeout,
+    }.items() if v is not None}
+    if overrides:
+        cfg = parse_config({**cfg.model_dump(), **overrides}, VehicleIoConfig, "command line")
+    try:
+        check_url(cfg.mavlink)
+    except ValueError as err:
+        raise ConfigError(str(err)) from None
+    vessel = load_vessel(cfg.vessel_file)
+    try:
+        limits = ThrusterLimits.from_vessel(vessel)
+    except ValueError as err:
+        raise ConfigError(f"vessel {vessel.name}: {err}") from None
+    return cfg, limits
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = parse(build_parser(), argv)
+    try:
+        cfg, limits = load(args)
+    except ConfigError as err:
+        print(f"seaway-vehicle-io: {err}", file=sys.stderr)
+        return 2
+    with run_service("vehicle_io", args) as ctx:
+        log.info("config: mavlink %s, autopilot %s, thrust timeout %.0f ms, MANUAL_CONTROL %.0f Hz; "
+                 "vessel limits +%.1f/-%.1f N, dead zone %.1f N", cfg.mavlink, cfg.autopilot,
+                 cfg.thrust_timeout_s * 1e3, cfg.manual_control_rate_hz, limits.thrust_max_n,
+                 limits.reverse_max_n, limits.dead_zone_n)
+        VehicleIoService(cfg, limits, ctx.bus, ctx.stop).run()
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,143 @@
+"""PX4 profile: differential rover / boat in Manual mode (docs/autopilots.md, part A).
+
+MANUAL_CONTROL mapping (inverse of ``DifferentialActControl::computeInverseKinematics``, where
+``control[0]`` = right = thr - d and ``control[1]`` = left = thr + d; PX4 decodes ``y/1000`` as roll
+and ``z/500 - 1`` as throttle in ``MavlinkReceiver::handle_message_manual_control``)::
+
+    y = round(500 * (L - R))          in [-1000, 1000]
+    z = round(500 + 250 * (L + R))    in [0, 1000], 500 = stop
+    x = 0, r = 0                      (ignored by the rover's Manual mode)
+
+Reconstruction error of L or R after rounding: 0.5/1000 (y) + 0.5/500 (z) = 0.0015; the guard adds
+margin to 0.002.
+
+Modes: ``custom_mode = main << 16 | sub << 24`` (``px4_custom_mode.h``); DO_SET_MODE takes
+param1 = 1 (MAV_MODE_FLAG_CUSTOM_MODE_ENABLED), param2 = main, param3 = sub.
+"""
+
+from __future__ import annotations
+
+from seaway_vehicle_io.profile import (
+    FailsafeAssessment,
+    ManualControlAxes,
+    Profile,
+    UnknownModeError,
+    Verdict,
+    clamp_int,
+)
+
+MAV_AUTOPILOT_PX4 = 12
+CUSTOM_MODE_ENABLED = 1
+
+# Seaway name -> (main mode, sub mode). HOLD is PX4's AUTO.LOITER, which the rover implements as
+# a stop (docs/autopilots.md A.3).
+MODES: dict[str, tuple[int, int]] = {
+    "MANUAL": (1, 0),
+    "ALTCTL": (2, 0),
+    "POSCTL": (3, 0),
+    "READY": (4, 1),
+    "TAKEOFF": (4, 2),
+    "HOLD": (4, 3),
+    "MISSION": (4, 4),
+    "RTL": (4, 5),
+    "LAND": (4, 6),
+    "FOLLOW_TARGET": (4, 8),
+    "PRECLAND": (4, 9),
+    "ACRO": (5, 0),
+    "OFFBOARD": (6, 0),
+    "STABILIZED": (7, 0),
+}
+_DECODE = {v: k for k, v in MODES.items()}
+# Main modes whose sub mode does not change the name (POSCTL sub 1 is plain position control).
+_MAIN_ONLY = {1: "MANUAL", 2: "ALTCTL", 3: "POSCTL", 5: "ACRO", 6: "OFFBOARD", 7: "STABILIZED"}
+
+# NAV_RCL_ACT values (commander_params.c, v1.14+): what PX4 does when manual control is lost.
+NAV_RCL_ACT_VERDICT: dict[int, tuple[Verdict, str]] = {
+    0: ("none", "0 = disabled (pre-1.14 firmware): no action, last setpoint kept"),
+    1: ("stops", "1 = Hold"),
+    2: ("takes_over", "2 = Return (needs home and position, else falls through to Land/Terminate)"),
+    3: ("takes_over", "3 = Land"),
+    5: ("stops", "5 = Terminate"),
+    6: ("stops", "6 = Disarm"),
+}
+
+
+class Px4Profile(Profile):
+    name = "px4"
+    mav_autopilot = MAV_AUTOPILOT_PX4
+    quantisation_guard = 0.002
+    force_arm_magic = 21196  # Commander.cpp: forced = lroundf(param2) == 21196
+    failsafe_params = (
+        "COM_RC_IN_MODE", "COM_RC_LOSS_T", "NAV_RCL_ACT", "COM_FAIL_ACT_T", "NAV_DLL_ACT",
+        "CA_AIRFRAME", "RO_ACCEL_LIM", "RO_DECEL_LIM", "RO_MAX_THR_SPEED",
+    )
+
+    def manual_control(self, left: float, right: float) -> ManualControlAxes:
+        return ManualControlAxes(
+            x=0,
+            y=clamp_int(500.0 * (left - right), -1000, 1000),
+            z=clamp_int(500.0 + 250.0 * (left + right), 0, 1000),
+            r=0,
+        )
+
+    def mode_names(self) -> tuple[str, ...]:
+        return tuple(MODES)
+
+    def encode_mode(self, name: str) -> tuple[float, float, float]:
+        key = name.strip().upper()
+        if key not in MODES:
+            raise UnknownModeError(f"PX4 has no mode {name!r}; known: {', '.join(MODES)}")
+        main, sub = MODES[key]
+        return (float(CUSTOM_MODE_ENABLED), float(main), float(sub))
+
+    def decode_mode(self, base_mode: int, custom_mode: int) -> str:
+        if not base_mode & CUSTOM_MODE_ENABLED:
+            return f"UNKNOWN(base_mode={base_mode})"
+        main = (custom_mode >> 16) & 0xFF
+        sub = (custom_mode >> 24) & 0xFF
+        if main in _MAIN_ONLY:
+            return _MAIN_ONLY[main]
+        if main == 4 and sub == 0:
+            return "MISSION"  # Commander: AUTO with sub mode 0 runs the mission
+        return _DECODE.get((main, sub), f"UNKNOWN(main={main},sub={sub})")
+
+    def assess_failsafe(self, params: dict[str, float], our_sysid: int) -> FailsafeAssessment:
+        warnings: list[str] = []
+        missing = [p for p in ("COM_RC_IN_MODE", "COM_RC_LOSS_T", "NAV_RCL_ACT") if p not in params]
+        if missing:
+            return FailsafeAssessment("unknown", f"PX4 did not report {', '.join(missing)}",
+                                      params=dict(params))
+        in_mode = int(params["COM_RC_IN_MODE"])
+        loss_t = params["COM_RC_LOSS_T"]
+        act = int(params["NAV_RCL_ACT"])
+        if in_mode == 0:
+            warnings.append("COM_RC_IN_MODE=0 (RC only): PX4 ignores our MANUAL_CONTROL")
+        elif in_mode == 3:
+            warnings.append("COM_RC_IN_MODE=3 keeps the first manual source until reboot: an RC "
+                            "seen first locks MAVLink out (1, or 2/5/6 with an RC fitted, is safer)")
+        if in_mode == 4:
+            return FailsafeAssessment(
+                "none", "COM_RC_IN_MODE=4: manual control disabled, so no manual-control loss "
+                        "failsafe (and our MANUAL_CONTROL is ignored)",
+                tuple(warnings), params=dict(params))
+        if loss_t > 0.5:
+            warnings.append(f"COM_RC_LOSS_T={loss_t:g} s: the thrusters keep our last command that "
+                            "long after vehicle_io stops (0.5 s or less recommended)")
+        verdict, what = NAV_RCL_ACT_VERDICT.get(act, ("unknown", f"{act} = not a known action"))
+        if verdict == "takes_over":
+            warnings.append(f"NAV_RCL_ACT={what}; 1 (Hold) or 6 (Disarm) stops the boat instead")
+        fail_act_t = params.get("COM_FAIL_ACT_T")
+        delay = f", after a {fail_act_t:g} s Hold" if fail_act_t and verdict != "stops" else ""
+        if params.get("CA_AIRFRAME") is not None and int(params["CA_AIRFRAME"]) != 6:
+            warnings.append(f"CA_AIRFRAME={int(params['CA_AIRFRAME'])}, not 6 (Rover Differential): "
+                            "the MANUAL_CONTROL mapping assumes a differential rover")
+        for slew in ("RO_ACCEL_LIM", "RO_DECEL_LIM"):
+            if params.get(slew, 0.0) > 0 and params.get("RO_MAX_THR_SPEED", 0.0) > 0:
+                warnings.append(f"{slew}={params[slew]:g} with RO_MAX_THR_SPEED>0 slew-limits the "
+                                "throttle (L+R) part of every command")
+        summary = (f"manual-control loss after COM_RC_LOSS_T={loss_t:g} s -> NAV_RCL_ACT={what}"
+                   f"{delay}: {verdict}")
+        return FailsafeAssessment(verdict, summary, tuple(warnings), params=dict(params))
+
+
+PROFILE = Px4Profile()

@@ -1,0 +1,262 @@
+"""vehicle_io's thin loop: owns the bus, the MAVLink link, the threads and the one lock.
+
+Threads, and why:
+
+* **receive** (``_receive_loop``): the one MAVLink receive loop. It waits on the socket, decodes
+  every message and hands it to the core. It also reopens a transport that broke (TCP EOF,
+  serial unplugged).
+* **timer** (the main thread, ``_timer_loop``): calls ``core.tick`` when ``core.next_wake_ns``
+  says something is due (MANUAL_CONTROL stream, watchdog deadline, heartbeat, status, retries),
+  sleeping at most one stream period.
+* **Zenoh callbacks**: a ThrustCommand is handled on arrival (MANUAL_CONTROL goes out from the
+  callback itself, which is what keeps bus-to-wire latency in the sub-millisecond range); arm and
+  mode requests block their own callback thread while they wait for COMMAND_ACK.
+
+Every call into the core and every send happens under ``self.lock``; the condition on that lock
+wakes request handlers when an ACK has been processed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import threading
+import time
+from collections.abc import Callable
+
+from seaway import keys
+from seaway.bus import Bus, TypedPublisher
+from seaway.messages import (
+    ArmRequest,
+    Attitude,
+    GnssFix,
+    LocalPosition,
+    MessageError,
+    ModeRequest,
+    Reply,
+    ThrustCommand,
+    VehicleStatus,
+)
+
+from seaway_vehicle_io.commands import MAV_RESULT_ACCEPTED
+from seaway_vehicle_io.config import VehicleIoConfig
+from seaway_vehicle_io.core import Now, Output, Publish, SendCommandLong, VehicleIoCore
+from seaway_vehicle_io.link import LinkClosedError, MavlinkLink
+from seaway_vehicle_io.mav import result_name
+from seaway_vehicle_io.thrust import ThrusterLimits
+
+log = logging.getLogger("seaway.vehicle_io")
+
+REOPEN_DELAY_S = 1.0
+MAX_SLEEP_S = 0.05
+IN_PROGRESS_WAIT_FACTOR = 5  # an IN_PROGRESS ACK extends the wait to 5 ACK timeouts
+SHUTDOWN_NEUTRAL_PACKETS = 3
+
+
+def now() -> Now:
+    return Now(time.time_ns(), time.monotonic_ns())
+
+
+class VehicleIoService:
+    """vehicle_io running on one bus and one MAVLink URL until ``stop`` is set."""
+
+    def __init__(self, cfg: VehicleIoConfig, limits: ThrusterLimits, bus: Bus,
+                 stop: threading.Event) -> None:
+        self.cfg = cfg
+        self.bus = bus
+        self.stop = stop
+        self.lock = threading.Lock()
+        self.acks = threading.Condition(self.lock)
+        self.core = VehicleIoCore(cfg, limits, now())
+        self.link: MavlinkLink | None = None
+        self._requests_serial = threading.Lock()  # one COMMAND_LONG in flight at a time
+        self._publishers: dict[type, TypedPublisher] = {
+            GnssFix: bus.publisher(keys.GNSS),
+            Attitude: bus.publisher(keys.ATTITUDE),
+            LocalPosition: bus.publisher(keys.LOCAL_POSITION),
+            VehicleStatus: bus.publisher(keys.VEHICLE_STATUS),
+        }
+
+    # -- running ---------------------------------------------------------------------------------
+
+    def run(self) -> None:
+        self._open_link()
+        self.bus.subscribe(keys.THRUST, mode="latest", callback=self._on_thrust)
+        self.bus.queryable(keys.VEHICLE_ARM, self._on_arm)
+        self.bus.queryable(keys.VEHICLE_MODE, self._on_mode)
+        receiver = threading.Thread(target=self._receive_loop, name="mavlink-rx", daemon=True)
+        receiver.start()
+        try:
+            self._timer_loop()
+        finally:
+            self.stop.set()
+            self._shutdown()
+            receiver.join(2.0)
+
+    def _timer_loop(self) -> None:
+        while not self.stop.is_set():
+            with self.lock:
+                t = now()
+                self._perform(self.core.tick(t))
+                wake_ns = self.core.next_wake_ns()
+            delay = min(max(0.0, (wake_ns - time.monotonic_ns()) / 1e9), MAX_SLEEP_S)
+            self.stop.wait(delay)
+
+    def _shutdown(self) -> None:
+        """Leave the thrusters at neutral rather than at the last command until the autopilot's
+        loss failsafe notices the silence."""
+        with self.lock:
+            neutral = self.core.neutral_command()
+            if neutral is not None and self.link is not None:
+                self._perform([neutral] * SHUTDOWN_NEUTRAL_PACKETS)
+                log.info("sent neutral thrust before exiting")
+            if self.link is not None:
+                self.link.close()
+                self.link = None
+
+    # -- MAVLink in --------------------------------------------------------------------------------
+
+    def _open_link(self) -> bool:
+        try:
+            link = MavlinkLink(self.cfg.mavlink, self.cfg.source_system, self.cfg.source_component,
+                               self.cfg.baud, udp_client_timeout_s=self.cfg.heartbeat_timeout_s)
+        except (OSError, ValueError) as err:
+            log.error("cannot open MAVLink %s: %s (retrying every %.0f s)", self.cfg.mavlink, err,
+                      REOPEN_DELAY_S)
+            return False
+        except Exception as err:  # pyserial raises its own SerialException
+            log.error("cannot open MAVLink %s: %s: %s (retrying every %.0f s)", self.cfg.mavlink,
+                      type(err).__name__, err, REOPEN_DELAY_S)
+            return False
+        with self.lock:
+            self.link = link
+        log.info("MAVLink %s open (we are system %d component %d)", self.cfg.mavlink,
+                 self.cfg.source_system, self.cfg.source_component)
+        return True
+
+    def _receive_loop(self) -> None:
+        while not self.stop.is_set():
+            link = self.link
+            if link is None:
+                if not self._open_link():
+                    self.stop.wait(REOPEN_DELAY_S)
+                continue
+            try:
+                if not link.wait_readable(MAX_SLEEP_S):
+                    continue
+                messages = link.read_available()
+            except LinkClosedError as err:
+                if self.stop.is_set():
+                    return  # closed by the shutdown, not broken
+                self._drop_link(link, err)
+                continue
+            if not messages:
+                continue
+            with self.lock:
+                for msg in messages:
+                    t = now()
+                    try:
+                        self._perform(self.core.on_mavlink(msg, t))
+                    except Exception:  # a bug for one message must not end the receive loop
+                        log.exception("handling %s failed", msg.get_type())
+                self.acks.notify_all()
+
+    def _drop_link(self, link: MavlinkLink, err: Exception) -> None:
+        log.warning("MAVLink transport broke: %s; reopening", err)
+        with self.lock:
+            if self.link is link:
+                self.link = None
+        link.close()
+        self.stop.wait(REOPEN_DELAY_S)
+
+    # -- outputs ---------------------------------------------------------------------------------------
+
+    def _perform(self, outputs: list[Output]) -> None:
+        """Send and publish, in order. Called with ``self.lock`` held."""
+        for out in outputs:
+            if isinstance(out, Publish):
+                try:
+                    self._publishers[type(out.message)].put(out.message)
+                except MessageError as err:  # never happens for validated messages; never crash
+                    log.error("not published: %s", err)
+            elif self.link is not None:
+                try:
+                    self.link.send(out)
+                except LinkClosedError as err:
+                    log.warning("send failed: %s", err)
+
+    # -- bus in ------------------------------------------------------------------------------------------
+
+    def _on_thrust(self, _key: str, cmd: ThrustCommand) -> None:
+        with self.lock:
+            self._perform(self.core.on_thrust(cmd, now()))
+
+    def _on_arm(self, req: ArmRequest) -> Reply:
+        what = "arm" if req.arm else "disarm"
+        log.info("request: %s%s", what, " (forced)" if req.force else "")
+        return self._command(lambda: self.core.arm_command(req.arm, req.force), None)
+
+    def _on_mode(self, req: ModeRequest) -> Reply:
+        log.info("request: mode %s", req.mode)
+        return self._command(lambda: self.core.mode_command(req.mode), req.mode)
+
+    def _command(self, build: Callable[[], SendCommandLong | str], mode: str | None) -> Reply:
+        """Send a COMMAND_LONG, resend on timeout, and turn the COMMAND_ACK into a Reply."""
+        with self._requests_serial:
+            with self.lock:
+                cmd = build()
+                if isinstance(cmd, str):
+                    log.warning("request refused: %s", cmd)
+                    return Reply.refuse(time.time_ns(), cmd)
+                self.core.commands.begin(cmd.command, cmd.target_system)
+            name = self.core.command_name(cmd.command)
+            result, attempts = self._send_and_wait(cmd)
+            with self.lock:
+                self.core.commands.finish(cmd.command)
+                if result == MAV_RESULT_ACCEPTED:
+                    self.core.command_accepted(cmd.command, cmd.params, mode)
+                    self._perform([Publish(self.core.status(now()))])
+            detail = {"command": name, "attempts": attempts,
+                      "target_system": cmd.target_system}
+            if result is None:
+                reason = (f"no COMMAND_ACK for {name} after {attempts} attempt(s) of "
+                          f"{self.cfg.command_ack_timeout_s:g} s (or the link was lost)")
+                log.warning("request failed: %s", reason)
+                return Reply.refuse(time.time_ns(), reason, result="TIMEOUT", **detail)
+            rname = result_name(result)
+            if result == MAV_RESULT_ACCEPTED:
+                log.info("%s accepted by the autopilot", name)
+                return Reply.accept(time.time_ns(), f"{name} ACCEPTED", result=rname, **detail)
+            log.warning("%s refused by the autopilot: %s", name, rname)
+            return Reply.refuse(time.time_ns(), f"{name} refused by the autopilot: {rname}",
+                                result=rname, **detail)
+
+    def _send_and_wait(self, cmd: SendCommandLong) -> tuple[int | None, int]:
+        timeout_ns = round(self.cfg.command_ack_timeout_s * 1e9)
+        attempts = 0
+        for confirmation in range(self.cfg.command_attempts):
+            with self.acks:
+                pending = self.core.commands.state(cmd.command)
+                if pending is None or self.stop.is_set():
+                    return None, attempts  # abandoned: the link was lost meanwhile
+                self._perform([dataclasses.replace(cmd, confirmation=confirmation)])
+                attempts += 1
+                deadline = time.monotonic_ns() + timeout_ns
+                extended = False
+                while True:
+                    pending = self.core.commands.state(cmd.command)
+                    if pending is None:
+                        return None, attempts
+                    if pending.result is not None:
+                        return pending.result, attempts
+                    if pending.in_progress and not extended:
+                        # The autopilot is working on it: wait longer, and never resend meanwhile.
+                        deadline += (IN_PROGRESS_WAIT_FACTOR - 1) * timeout_ns
+                        extended = True
+                    remaining = (deadline - time.monotonic_ns()) / 1e9
+                    if remaining <= 0 or self.stop.is_set():
+                        break
+                    self.acks.wait(remaining)
+                if extended:
+                    return None, attempts
+        return None, attempts
