@@ -107,6 +107,11 @@ def custom_mode(mode: tuple[int, int]) -> int:
     return (mode[0] << 16) | (mode[1] << 24)
 
 
+def lround(value: float) -> int:
+    """C's lroundf, as PX4 rounds command params: halves away from zero (Python rounds to even)."""
+    return int(math.copysign(math.floor(abs(value) + 0.5), value))
+
+
 def _finite(*values: float) -> bool:
     return all(math.isfinite(v) for v in values)
 
@@ -171,7 +176,9 @@ class Px4Autopilot:
                   or (self.user_mode == HOLD
                       and int(self.params.get("COM_RCL_EXCEPT")) & COM_RCL_EXCEPT_HOLD_BIT))
         if self.armed and lost and not self.manual_lost_at_arming and not exempt:
-            self.failsafe_since_ns = now_ns
+            # The failsafe began when the timeout ran out, however late this call notices it.
+            self.failsafe_since_ns = (now_ns if self.last_manual_ns is None
+                                      else min(now_ns, self.last_manual_ns + self.rc_loss_timeout_ns))
             self.counters["failsafe_manual_control_lost"] += 1
             log.warning("manual control lost (no MANUAL_CONTROL for %.2f s): failsafe Hold, "
                         "NAV_RCL_ACT %d after %.1f s", self.rc_loss_timeout_ns / NS_PER_S,
@@ -283,17 +290,17 @@ class Px4Autopilot:
         if msg.command == mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
             return True
         return (msg.command == mavlink.MAV_CMD_REQUEST_MESSAGE
-                and round(msg.param1) == mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
+                and lround(msg.param1) == mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
 
     def _ack(self, msg: Any, result: int) -> Any:
         return mavlink.MAVLink_command_ack_message(msg.command, result, 0, 0, msg.get_srcSystem(),
                                                   msg.get_srcComponent())
 
     def _arm_disarm(self, param1: float, param2: float, now_ns: int) -> int:
-        request = round(param1)
+        request = lround(param1)
         if request == 0:
             if self.armed:
-                log.info("disarmed%s", " (forced)" if round(param2) == FORCE_MAGIC else "")
+                log.info("disarmed%s", " (forced)" if lround(param2) == FORCE_MAGIC else "")
             self.armed = False
             self._clear_failsafe()
             return mavlink.MAV_RESULT_ACCEPTED
@@ -316,10 +323,11 @@ class Px4Autopilot:
         return mavlink.MAV_RESULT_ACCEPTED
 
     def _set_mode(self, param1: float, param2: float, param3: float, now_ns: int) -> int:
-        if not round(param1) & mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
+        if not lround(param1) & mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
             log.warning("DO_SET_MODE without CUSTOM_MODE_ENABLED is not simulated")
             return mavlink.MAV_RESULT_TEMPORARILY_REJECTED
-        mode = (round(param2), round(param3))
+        # PX4 casts the mode params to uint8_t (truncation, not rounding).
+        mode = (int(param2), int(param3))
         if mode[0] == MAIN_MANUAL:
             mode = MANUAL  # PX4 ignores the sub mode of MANUAL
         if mode not in (MANUAL, HOLD):
@@ -441,9 +449,14 @@ class Px4Autopilot:
                 round((fix.vel_n_mps or 0.0) * 100), round((fix.vel_e_mps or 0.0) * 100), 0, hdg))
         return out
 
-    def periodic_telemetry(self, after_ns: int, upto_ns: int, origin: GeoOrigin, energy_j: float,
-                           power_w: float, gnss_ok: bool, link_errors: int) -> list[Any]:
-        """HEARTBEAT and SYS_STATUS (1 Hz), LOCAL_POSITION_NED (10 Hz) due in (after, upto]."""
+    def periodic_telemetry(self, after_ns: int, upto_ns: int, origin: GeoOrigin, epoch_ns: int,
+                           energy_j: float, power_w: float, gnss_ok: bool,
+                           link_errors: int) -> list[Any]:
+        """HEARTBEAT and SYS_STATUS (1 Hz), LOCAL_POSITION_NED (10 Hz) due in (after, upto].
+
+        Times are since boot; LOCAL_POSITION_NED carries the last fix, stamped with its own time
+        (fix stamp - ``epoch_ns``), as an estimator output would be.
+        """
         out: list[Any] = []
         if instants_in(period_ns(HEARTBEAT_HZ), after_ns, upto_ns):
             out.append(self.heartbeat())
@@ -453,10 +466,10 @@ class Px4Autopilot:
         local_due = instants_in(period_ns(LOCAL_POSITION_HZ), after_ns, upto_ns)
         if fix is not None and gnss_ok and local_due:
             # PX4's local origin is the sim's origin; its estimate here is the last GNSS fix.
-            north, east, down = origin.to_ned(fix.lat_rad, fix.lon_rad, fix.alt_m)
+            north, east, _ = origin.to_ned(fix.lat_rad, fix.lon_rad, fix.alt_m)
             out.append(mavlink.MAVLink_local_position_ned_message(
-                _boot_ms(upto_ns), north, east, down, fix.vel_n_mps or 0.0, fix.vel_e_mps or 0.0,
-                0.0))
+                _boot_ms(fix.stamp_ns - epoch_ns), north, east, 0.0,  # z: on the surface
+                fix.vel_n_mps or 0.0, fix.vel_e_mps or 0.0, 0.0))
         return out
 
 

@@ -73,7 +73,7 @@ class Realtime:
         samples = core.take_samples()
         gnss_ok = core.gnss_ok()
         self.link.send(ap.sensor_telemetry(samples.gnss, samples.attitude, core.epoch_ns))
-        self.link.send(ap.periodic_telemetry(before, core.t_ns, core.origin,
+        self.link.send(ap.periodic_telemetry(before, core.t_ns, core.origin, core.epoch_ns,
                                              core.plant.state.energy_j, core.propulsion_power_w(),
                                              gnss_ok, self.link.garbage))
         if instants_in(self.publish_period_ns, before, core.t_ns):

@@ -1,0 +1,282 @@
+"""The simulated PX4's state machine, with time passed in: arming, modes, failsafe, params, garbage."""
+
+from __future__ import annotations
+
+import math
+import struct
+
+import pytest
+from pymavlink.dialects.v20 import common as ml
+from seaway_sim import px4_params
+from seaway_sim.px4_autopilot import HOLD, MANUAL, Px4Autopilot, Px4Config, custom_mode
+
+MS = 1_000_000
+S = 1_000_000_000
+GCS = ml.MAVLink(None, 255, 190)  # the sender: src ids for the ACK's target fields
+
+
+def rx(msg):
+    """The message as the sim would receive it: packed and parsed (so header fields are set)."""
+    parser = ml.MAVLink(None)
+    return parser.parse_buffer(msg.pack(GCS))[0]
+
+
+def manual(y: int = 0, z: int = 500, x: int = 0, r: int = 0, target: int = 1):
+    return rx(ml.MAVLink_manual_control_message(target, x, y, z, r, 0))
+
+
+def command(cmd: int, *params: float, target: int = 1):
+    p = list(params) + [0.0] * (7 - len(params))
+    return rx(ml.MAVLink_command_long_message(target, 1, cmd, 0, *p))
+
+
+def arm(ap: Px4Autopilot, now_ns: int, value: float = 1.0, force: float = 0.0) -> int:
+    (ack,) = ap.handle(command(ml.MAV_CMD_COMPONENT_ARM_DISARM, value, force), now_ns)
+    assert ack.get_type() == "COMMAND_ACK" and ack.command == ml.MAV_CMD_COMPONENT_ARM_DISARM
+    assert (ack.target_system, ack.target_component) == (255, 190)
+    return ack.result
+
+
+def set_mode(ap: Px4Autopilot, now_ns: int, main: int, sub: int = 0) -> int:
+    (ack,) = ap.handle(command(ml.MAV_CMD_DO_SET_MODE, 1, main, sub), now_ns)
+    return ack.result
+
+
+def armed_driving(y: int = 200, z: int = 900, **params) -> Px4Autopilot:
+    """Armed in MANUAL at t = 1 s, streaming (y, z) since t = 0.9 s."""
+    ap = Px4Autopilot(Px4Config(thrust_max_n=10.0, param_overrides=tuple(params.items())))
+    ap.handle(manual(y, z), 900 * MS)
+    assert set_mode(ap, 950 * MS, 1) == ml.MAV_RESULT_ACCEPTED
+    assert arm(ap, 1 * S) == ml.MAV_RESULT_ACCEPTED
+    return ap
+
+
+def test_boots_disarmed_in_manual_with_zero_thrust_and_px4_heartbeat() -> None:
+    ap = Px4Autopilot(Px4Config(thrust_max_n=10.0))
+    hb = ap.heartbeat()
+    assert (hb.type, hb.autopilot) == (ml.MAV_TYPE_GROUND_ROVER, ml.MAV_AUTOPILOT_PX4)
+    assert hb.custom_mode == 0x00010000 and hb.system_status == ml.MAV_STATE_STANDBY
+    assert hb.base_mode & ml.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+    assert not hb.base_mode & ml.MAV_MODE_FLAG_SAFETY_ARMED
+    ap.handle(manual(0, 1000), 0)
+    assert ap.thrust_n(10 * MS) == (0.0, 0.0)  # disarmed: nothing, whatever the sticks say
+
+
+def test_arming_in_manual_is_refused_without_a_manual_control_stream() -> None:
+    ap = Px4Autopilot(Px4Config(thrust_max_n=10.0))
+    assert arm(ap, 1 * S) == ml.MAV_RESULT_TEMPORARILY_REJECTED
+    ap.handle(manual(), 1 * S)
+    assert arm(ap, 1 * S + 100 * MS) == ml.MAV_RESULT_ACCEPTED
+    assert ap.heartbeat().base_mode & ml.MAV_MODE_FLAG_SAFETY_ARMED
+    assert ap.heartbeat().system_status == ml.MAV_STATE_ACTIVE
+
+
+def test_arming_after_the_stream_went_stale_is_refused() -> None:
+    ap = Px4Autopilot(Px4Config(thrust_max_n=10.0))
+    ap.handle(manual(), 0)
+    assert arm(ap, 501 * MS) == ml.MAV_RESULT_TEMPORARILY_REJECTED
+
+
+def test_thrust_follows_the_px4_mapping_while_armed_in_manual() -> None:
+    ap = armed_driving(200, 900)
+    assert ap.thrust_n(1 * S + 10 * MS) == pytest.approx((10.0, 6.0))  # L 1.0 port, R 0.6 stbd
+    ap.handle(manual(-300, 500), 1100 * MS)
+    assert ap.thrust_n(1110 * MS) == pytest.approx((-3.0, 3.0))
+
+
+def test_loss_failsafe_zeroes_thrust_after_com_rc_loss_t_and_not_before() -> None:
+    ap = armed_driving()
+    ap.handle(manual(200, 900), 2 * S)  # the last message
+    assert ap.thrust_n(2 * S + 500 * MS) == pytest.approx((10.0, 6.0))  # held up to 0.5 s
+    assert not ap.in_failsafe()
+    assert ap.thrust_n(2 * S + 501 * MS) == (0.0, 0.0)
+    assert ap.in_failsafe()
+    hb = ap.heartbeat()
+    assert hb.system_status == ml.MAV_STATE_CRITICAL
+    assert hb.custom_mode == custom_mode(HOLD) == 0x03040000  # Hold first (COM_FAIL_ACT_T)
+    assert hb.base_mode & ml.MAV_MODE_FLAG_SAFETY_ARMED
+    status = ap.sys_status(2 * S + 600 * MS, 0.0, 0.0, True, 0)
+    assert not status.onboard_control_sensors_health & ml.MAV_SYS_STATUS_SENSOR_RC_RECEIVER
+    assert status.onboard_control_sensors_present & ml.MAV_SYS_STATUS_SENSOR_RC_RECEIVER
+
+
+def test_com_rc_loss_t_is_the_parameter_value() -> None:
+    ap = armed_driving(COM_RC_LOSS_T=1.5)
+    ap.handle(manual(200, 900), 2 * S)
+    assert ap.thrust_n(3 * S + 400 * MS) != (0.0, 0.0)
+    assert ap.thrust_n(3 * S + 501 * MS) == (0.0, 0.0)
+
+
+def test_default_action_after_the_hold_delay_is_return_shown_as_rtl() -> None:
+    ap = armed_driving()
+    ap.handle(manual(200, 900), 2 * S)
+    ap.update(2 * S + 600 * MS)
+    ap.update(2 * S + 500 * MS + 5 * S)  # COM_FAIL_ACT_T = 5 s after the loss
+    assert ap.heartbeat().custom_mode == 0x05040000  # AUTO.RTL
+    assert ap.armed and ap.thrust_n(8 * S) == (0.0, 0.0)
+
+
+def test_nav_rcl_act_disarm_disarms_after_the_hold_delay() -> None:
+    ap = armed_driving(NAV_RCL_ACT=6, COM_FAIL_ACT_T=1.0)
+    ap.handle(manual(200, 900), 2 * S)
+    ap.update(2 * S + 501 * MS)
+    assert ap.armed and ap.in_failsafe()
+    ap.update(3 * S + 400 * MS)
+    assert ap.armed
+    ap.update(3 * S + 502 * MS)
+    assert not ap.armed and not ap.in_failsafe()
+    assert ap.heartbeat().system_status == ml.MAV_STATE_STANDBY
+
+
+def test_nav_rcl_act_terminate_latches_until_restart() -> None:
+    ap = armed_driving(NAV_RCL_ACT=5, COM_FAIL_ACT_T=0.0)
+    ap.handle(manual(200, 900), 2 * S)
+    ap.update(2 * S + 501 * MS)
+    ap.update(2 * S + 502 * MS)
+    assert ap.terminated and ap.heartbeat().system_status == ml.MAV_STATE_FLIGHT_TERMINATION
+    ap.handle(manual(200, 900), 3 * S)
+    assert arm(ap, 3 * S) == ml.MAV_RESULT_TEMPORARILY_REJECTED
+    assert ap.thrust_n(3 * S) == (0.0, 0.0)
+
+
+def test_regaining_manual_control_ends_a_hold_failsafe() -> None:
+    ap = armed_driving()
+    ap.handle(manual(200, 900), 2 * S)
+    assert ap.thrust_n(2 * S + 600 * MS) == (0.0, 0.0)
+    ap.handle(manual(0, 750), 2 * S + 700 * MS)
+    assert ap.thrust_n(2 * S + 710 * MS) == pytest.approx((5.0, 5.0))
+    assert ap.heartbeat().system_status == ml.MAV_STATE_ACTIVE
+
+
+def test_no_failsafe_when_armed_while_already_lost_until_manual_control_is_seen() -> None:
+    ap = Px4Autopilot(Px4Config(thrust_max_n=10.0))
+    assert set_mode(ap, 0, 4, 3) == ml.MAV_RESULT_ACCEPTED  # HOLD needs no manual control
+    assert arm(ap, 1 * S) == ml.MAV_RESULT_ACCEPTED
+    ap.update(5 * S)
+    assert not ap.in_failsafe()  # PX4's _manual_control_lost_at_arming
+    ap.handle(manual(), 6 * S)
+    ap.update(6 * S + 100 * MS)
+    ap.update(7 * S)
+    assert ap.in_failsafe()  # seen once, then lost again: the failsafe is live
+
+
+def test_com_rc_in_mode_disabled_means_no_loss_failsafe() -> None:
+    ap = armed_driving()
+    ap.params.set("COM_RC_IN_MODE", px4_params.MAV_PARAM_TYPE_INT32, 4)
+    ap.update(10 * S)
+    assert not ap.in_failsafe()
+    assert ap.thrust_n(10 * S) == (0.0, 0.0)  # and no stream: nothing to drive with
+
+
+def test_com_rc_in_mode_rc_only_ignores_mavlink_manual_control() -> None:
+    ap = Px4Autopilot(Px4Config(thrust_max_n=10.0, param_overrides=(("COM_RC_IN_MODE", 0),)))
+    ap.handle(manual(), 0)
+    assert ap.manual_control_lost(10 * MS)
+    assert ap.counters["manual_control_ignored_rc_in_mode"] == 1
+
+
+def test_hold_mode_gives_zero_thrust_and_manual_needs_the_stream() -> None:
+    ap = armed_driving()
+    assert set_mode(ap, 1100 * MS, 4, 3) == ml.MAV_RESULT_ACCEPTED
+    assert ap.heartbeat().custom_mode == 0x03040000
+    assert ap.thrust_n(1110 * MS) == (0.0, 0.0)
+    # Back to MANUAL with the stream stale: refused, as PX4 refuses a mode it cannot run.
+    assert set_mode(ap, 3 * S, 1) == ml.MAV_RESULT_TEMPORARILY_REJECTED
+
+
+@pytest.mark.parametrize(("main", "sub"), [(2, 0), (3, 0), (5, 0), (6, 0), (7, 0), (4, 4), (4, 5)])
+def test_modes_not_simulated_are_temporarily_rejected(main: int, sub: int) -> None:
+    ap = armed_driving()
+    assert set_mode(ap, 1100 * MS, main, sub) == ml.MAV_RESULT_TEMPORARILY_REJECTED
+    assert ap.heartbeat().custom_mode == custom_mode(MANUAL)
+
+
+def test_disarm_is_accepted_and_zeroes_thrust_and_bad_arm_values_are_denied() -> None:
+    ap = armed_driving()
+    assert arm(ap, 1100 * MS, value=0.5) == ml.MAV_RESULT_ACCEPTED  # lroundf(0.5) = 1: arm, a no-op
+    assert ap.armed
+    assert arm(ap, 1100 * MS, value=3.0) == ml.MAV_RESULT_DENIED
+    assert ap.armed
+    assert arm(ap, 1100 * MS, value=0.0, force=21196) == ml.MAV_RESULT_ACCEPTED
+    assert not ap.armed and ap.thrust_n(1110 * MS) == (0.0, 0.0)
+
+
+def test_out_of_range_manual_control_is_rejected_whole_and_counted() -> None:
+    ap = armed_driving(200, 900)
+    for bad in (manual(1500, 900), manual(0, 2000), manual(0, 900, x=-1001), manual(0, 900, r=5000)):
+        assert ap.handle(bad, 1100 * MS) == []
+    assert ap.counters["manual_control_out_of_range"] == 4
+    assert ap.last_manual_ns == 900 * MS  # rejected messages do not feed the loss timer
+    assert ap.thrust_n(1110 * MS) == pytest.approx((10.0, 6.0))
+
+
+def test_negative_z_is_throttle_zero_as_in_px4() -> None:
+    ap = armed_driving()
+    ap.handle(manual(0, -400), 1100 * MS)
+    assert ap.counters["manual_control_z_negative"] == 1
+    assert ap.thrust_n(1110 * MS) == (0.0, 0.0)
+
+
+def test_messages_for_another_system_are_ignored() -> None:
+    ap = Px4Autopilot(Px4Config(thrust_max_n=10.0))
+    ap.handle(manual(target=7), 0)
+    assert ap.manual_control_lost(1 * MS)
+    assert ap.handle(command(ml.MAV_CMD_COMPONENT_ARM_DISARM, 1, target=7), 0) == []
+
+
+def test_non_finite_command_params_are_dropped_without_ack() -> None:
+    ap = armed_driving()
+    assert ap.handle(command(ml.MAV_CMD_COMPONENT_ARM_DISARM, math.nan), 1100 * MS) == []
+    assert ap.handle(command(ml.MAV_CMD_DO_SET_MODE, 1, math.inf), 1100 * MS) == []
+    assert ap.counters["command_garbage_fields"] == 2 and ap.armed
+
+
+def test_unknown_commands_are_unsupported_and_version_is_px4_bytewise() -> None:
+    ap = Px4Autopilot(Px4Config(thrust_max_n=10.0))
+    (ack,) = ap.handle(command(ml.MAV_CMD_NAV_TAKEOFF), 0)
+    assert ack.result == ml.MAV_RESULT_UNSUPPORTED
+    ack, version = ap.handle(command(ml.MAV_CMD_REQUEST_MESSAGE,
+                                     ml.MAVLINK_MSG_ID_AUTOPILOT_VERSION), 0)
+    assert ack.result == ml.MAV_RESULT_ACCEPTED
+    assert version.capabilities & ml.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE
+    assert version.flight_sw_version >> 24 == 1
+
+
+def decode(pv) -> float | int:
+    return px4_params.decode_value(pv.param_type, pv.param_value)
+
+
+def test_param_read_by_name_and_index_with_px4_defaults_bytewise() -> None:
+    ap = Px4Autopilot(Px4Config(thrust_max_n=10.0))
+    (pv,) = ap.handle(rx(ml.MAVLink_param_request_read_message(1, 1, b"COM_RC_LOSS_T", -1)), 0)
+    assert (pv.param_id, pv.param_type, decode(pv)) == ("COM_RC_LOSS_T", 9, 0.5)
+    (pv,) = ap.handle(rx(ml.MAVLink_param_request_read_message(1, 1, b"NAV_RCL_ACT", -1)), 0)
+    assert pv.param_type == px4_params.MAV_PARAM_TYPE_INT32 and decode(pv) == 2
+    # Bytewise: the float's four bytes are the int32's.
+    assert struct.pack("<f", pv.param_value) == struct.pack("<i", 2)
+    (pv,) = ap.handle(rx(ml.MAVLink_param_request_read_message(1, 1, b"", 0)), 0)
+    assert pv.param_id == "COM_RC_IN_MODE" and decode(pv) == 3 and pv.param_index == 0
+    assert ap.handle(rx(ml.MAVLink_param_request_read_message(1, 1, b"NO_SUCH", -1)), 0) == []
+
+
+def test_param_list_has_every_failsafe_param_vehicle_io_checks() -> None:
+    ap = Px4Autopilot(Px4Config(thrust_max_n=10.0))
+    values = {pv.param_id: decode(pv)
+              for pv in ap.handle(rx(ml.MAVLink_param_request_list_message(1, 1)), 0)}
+    assert values == {"COM_RC_IN_MODE": 3, "COM_RC_LOSS_T": 0.5, "NAV_RCL_ACT": 2,
+                      "COM_RCL_EXCEPT": 0, "COM_FAIL_ACT_T": 5.0, "NAV_DLL_ACT": 0,
+                      "COM_DL_LOSS_T": 10.0, "COM_OF_LOSS_T": 1.0, "COM_OBL_RC_ACT": 0,
+                      "MAV_TYPE": 10, "MAV_SYS_ID": 1, "CA_AIRFRAME": 6, "CA_R_REV": 3}
+
+
+def test_param_set_echoes_the_new_value_and_refuses_bad_ones() -> None:
+    ap = Px4Autopilot(Px4Config(thrust_max_n=10.0))
+    wire = px4_params.encode_value(px4_params.BY_NAME["NAV_RCL_ACT"], 6)
+    (pv,) = ap.handle(rx(ml.MAVLink_param_set_message(1, 1, b"NAV_RCL_ACT", wire, 6)), 0)
+    assert decode(pv) == 6 and ap.params.get("NAV_RCL_ACT") == 6
+    for bad in (ml.MAVLink_param_set_message(1, 1, b"COM_RC_LOSS_T", math.nan, 9),
+                ml.MAVLink_param_set_message(1, 1, b"COM_RC_LOSS_T", 99.0, 9),
+                ml.MAVLink_param_set_message(1, 1, b"COM_RC_LOSS_T", 1.0, 6),
+                ml.MAVLink_param_set_message(1, 1, b"NOPE", 1.0, 9)):
+        assert ap.handle(rx(bad), 0) == []
+    assert ap.params.get("COM_RC_LOSS_T") == 0.5
