@@ -1,0 +1,100 @@
+"""The estimator's configuration file (TOML or JSON); unknown fields are errors.
+
+Every standard deviation is 1-sigma in the unit its name carries. Process noise is given as the
+standard deviation a quantity accumulates over one second of white noise (``..._per_sqrt_s``), so
+``q = std**2`` is the continuous spectral density and ``Q = q * dt`` its discrete form.
+
+Gates are chi-square thresholds on the normalised innovation squared ``nu' S^-1 nu``; the defaults
+are the 0.9999 quantiles (2 degrees of freedom for position and velocity over ground, 1 for heading
+and yaw rate), so a healthy filter rejects about one good sample in 10,000.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Literal
+
+from pydantic import Field
+from seaway.config import ConfigModel, load_config
+
+CHI2_2DOF_9999 = 18.42
+CHI2_1DOF_9999 = 15.14
+
+
+class OriginConfig(ConfigModel):
+    """A fixed NED origin; without one the origin is the first good GNSS fix."""
+
+    lat_deg: float = Field(ge=-90, le=90)
+    lon_deg: float = Field(ge=-180, le=180)
+    alt_m: float = 0.0
+
+
+class EstimatorConfig(ConfigModel):
+    # -- model and inputs ----------------------------------------------------------------------
+    vessel: str = Field(default="paper-sim", description="vessel file name (deploy/vessels) or path")
+    apply_dead_zone: bool = Field(default=False, description="apply the vessel's thrust dead zone "
+                                  "to commanded thrust (the real boat's 10 N)")
+    thrust_timeout_s: float = Field(default=1.0, gt=0, description="a thrust command older than "
+                                    "this is assumed replaced by zero thrust (vehicle_io's watchdog)")
+    disturbance_frame: Literal["world", "body"] = Field(
+        default="world", description="frame of the random walk of the disturbance force: 'world' "
+        "(wind, current, conditions #3-#5) or 'body' (condition #2); yaw moment is always body. "
+        "Published values are always body frame")
+    max_step_s: float = Field(default=0.05, gt=0, le=1.0, description="prediction substep [s]")
+    # -- publishing ----------------------------------------------------------------------------
+    publish_rate_hz: float = Field(default=20.0, gt=0, le=200)
+    origin_rate_hz: float = Field(default=1.0, gt=0, le=50, description="NavOrigin repeat rate")
+    origin: OriginConfig | None = None
+    # -- measurement noise (used unless a message reports its own) ------------------------------
+    gnss_std_m: float = Field(default=0.3, gt=0, description="GNSS horizontal position std [m]")
+    use_reported_gnss_std: bool = Field(default=True, description="use GnssFix.horizontal_std_m "
+                                        "when present (floored at gnss_std_min_m)")
+    gnss_std_min_m: float = Field(default=0.02, gt=0)
+    min_fix_type: int = Field(default=3, ge=2, le=8, description="MAVLink GPS_FIX_TYPE accepted")
+    sog_std_mps: float = Field(default=0.05, gt=0, description="GNSS velocity over ground std "
+                               "per axis [m/s]")
+    heading_std_rad: float = Field(default=0.01745, gt=0, description="heading std [rad]")
+    yaw_rate_std_radps: float = Field(default=0.005, gt=0, description="yaw rate std [rad/s]")
+    # -- process noise ------------------------------------------------------------------------
+    accel_surge_std_per_sqrt_s: float = Field(default=0.02, gt=0, description="[m/s^2 sqrt(s)]")
+    accel_sway_std_per_sqrt_s: float = Field(default=0.02, gt=0, description="[m/s^2 sqrt(s)]")
+    accel_yaw_std_per_sqrt_s: float = Field(default=0.01, gt=0, description="[rad/s^2 sqrt(s)]")
+    position_std_per_sqrt_s: float = Field(default=0.005, gt=0, description="unmodelled drift "
+                                           "(e.g. current) [m/sqrt(s)]")
+    heading_std_per_sqrt_s: float = Field(default=0.001, gt=0, description="[rad/sqrt(s)]")
+    force_std_per_sqrt_s: float = Field(default=0.003, gt=0, description="disturbance force "
+                                        "random walk [N/sqrt(s)]")
+    moment_std_per_sqrt_s: float = Field(default=0.0005, gt=0, description="disturbance yaw "
+                                         "moment random walk [N m/sqrt(s)]")
+    # -- initial uncertainty -------------------------------------------------------------------
+    init_speed_std_mps: float = Field(default=0.3, gt=0, description="u, v when no SOG [m/s]")
+    init_yaw_rate_std_radps: float = Field(default=0.05, gt=0)
+    init_force_std_n: float = Field(default=0.3, gt=0)
+    init_moment_std_nm: float = Field(default=0.03, gt=0)
+    init_max_skew_s: float = Field(default=1.0, gt=0, description="the first fix and the first "
+                                   "heading must be this close in time to initialise")
+    # -- robustness ------------------------------------------------------------------------------
+    gate_gnss: float = Field(default=CHI2_2DOF_9999, gt=0, description="chi-square, 2 dof")
+    gate_sog: float = Field(default=CHI2_2DOF_9999, gt=0, description="chi-square, 2 dof")
+    gate_heading: float = Field(default=CHI2_1DOF_9999, gt=0, description="chi-square, 1 dof")
+    gate_yaw_rate: float = Field(default=CHI2_1DOF_9999, gt=0, description="chi-square, 1 dof")
+    gnss_reject_reinit_count: int = Field(default=25, ge=2, description="this many GNSS positions "
+                                          "rejected in a row means the filter, not the GNSS, is "
+                                          "wrong: re-initialise the position from the fix")
+    heading_reject_reinit_count: int = Field(default=40, ge=2, description="the same for heading")
+    gnss_timeout_s: float = Field(default=2.0, gt=0, description="no accepted GNSS position for "
+                                  "this long sets `degraded`")
+    heading_timeout_s: float = Field(default=1.0, gt=0, description="no accepted heading for this "
+                                     "long sets `degraded`")
+    late_tolerance_s: float = Field(default=0.5, ge=0, description="a measurement stamped up to "
+                                    "this much before the filter's time is applied with a "
+                                    "first-order delay correction; older ones are refused")
+    max_gap_s: float = Field(default=30.0, gt=0, description="a time step longer than this is not "
+                             "integrated: the filter re-initialises from the next measurements")
+    max_position_std_m: float = Field(default=1000.0, gt=0, description="beyond this the filter "
+                                      "drops its state and re-initialises")
+
+
+def load_estimator_config(path: str | Path | None) -> EstimatorConfig:
+    """The config file at ``path`` (TOML or JSON), or the defaults."""
+    return EstimatorConfig() if path is None else load_config(path, EstimatorConfig)

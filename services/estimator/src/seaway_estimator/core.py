@@ -1,0 +1,571 @@
+"""The estimator's pure core: an extended Kalman filter on the shared vessel model.
+
+State (9), in the units of ``StateEstimate``::
+
+    z = [u, v, r, x, y, psi, d1, d2, d3]
+
+``[u, v, r, x, y, psi]`` is the vessel state of ``seaway.model`` (body speeds through the water, NED
+position and heading). ``d`` is the disturbance (the paper's tau_d), a random walk: with
+``disturbance_frame = "world"`` (default) ``d1, d2`` are a world-frame force (north, east) [N] that
+``seaway.model.derivative`` rotates into the body frame (its ``force_ne``), otherwise ``d1, d2`` are
+body-frame surge and sway forces (its ``tau_body``); ``d3`` is always the body yaw moment [N m].
+Whatever the internal frame, ``StateEstimate`` carries the body-frame values and their covariance.
+
+Prediction: the mean with ``seaway.model.rk4_step`` (the model is never re-derived here), the
+commanded thrust held (saturated by ``seaway.plant.saturate``, optionally the dead zone), substeps of
+at most ``max_step_s``. The covariance with ``F = I + A h + (A h)^2 / 2``, where ``A`` is the exact
+Jacobian of ``seaway.model.derivative``, computed by complex-step differentiation (the model is
+evaluated with ``cmath`` as its ``ops``: derivatives exact to machine precision, no CasADi needed).
+
+Updates, each when it arrives and at its own rate, Joseph form and symmetrised:
+
+* GNSS position (x, y) from ``GnssFix`` lat/lon through the NED origin;
+* GNSS velocity over ground (north, east) = R(psi) [u, v];
+* heading psi (innovation wrapped to (-pi, pi]); yaw rate r.
+
+Every update is gated on its normalised innovation squared (chi-square threshold per measurement);
+a rejected sample is counted and ignored. Time is always passed in (``stamp_ns`` of the messages and
+``predict_to(t_ns)``); there is no clock and no randomness, so the same inputs give the same outputs
+bit for bit.
+"""
+
+from __future__ import annotations
+
+import cmath
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from seaway import model
+from seaway.frames import GeoOrigin, wrap_pi
+from seaway.messages import Attitude, GnssFix, MessageError, NavOrigin, StateEstimate, ThrustCommand
+from seaway.model import VesselParams
+from seaway.plant import apply_dead_zone, saturate
+
+from seaway_estimator.config import EstimatorConfig
+
+NZ = 9
+NS_PER_S = 1_000_000_000
+_I9 = np.eye(NZ)
+_CSTEP = 1e-30  # complex-step size: no subtraction, so no cancellation however small
+IU, IV, IR, IX, IY, IPSI, ID1, ID2, ID3 = range(NZ)
+_H_POS = np.zeros((2, NZ))
+_H_POS[0, IX] = _H_POS[1, IY] = 1.0
+
+COUNTERS = (
+    "gnss_accepted", "gnss_rejected", "gnss_no_fix", "gnss_reinit",
+    "sog_accepted", "sog_rejected",
+    "heading_accepted", "heading_rejected", "heading_reinit",
+    "yaw_rate_accepted", "yaw_rate_rejected",
+    "thrust_received", "late_applied", "too_old", "refused_non_finite",
+    "degraded_entered", "time_jumps", "divergence_resets", "resets", "published",
+    "publish_refused",
+)
+
+
+class EstimatorError(ValueError):
+    """An input the core refuses (non-finite value, bad time); the text names what and why."""
+
+
+@dataclass
+class _Pending:
+    """Measurements kept until the filter can initialise (a position and a heading)."""
+
+    fix: tuple[int, float, float, float | None, float | None, float] | None = None
+    attitude: tuple[int, float, float] | None = None
+
+
+@dataclass
+class Filter:
+    """The filter's state between calls (exposed for tests and diagnostics)."""
+
+    t_ns: int
+    z: np.ndarray
+    P: np.ndarray
+    last_gnss_ns: int
+    last_heading_ns: int
+    gnss_reject_run: int = 0
+    heading_reject_run: int = 0
+    degraded: bool = False
+
+
+@dataclass
+class Counters:
+    values: dict[str, int] = field(default_factory=lambda: dict.fromkeys(COUNTERS, 0))
+
+    def inc(self, name: str, n: int = 1) -> None:
+        self.values[name] += n
+
+    def __getitem__(self, name: str) -> int:
+        return self.values[name]
+
+
+def _finite(where: str, **values: float | None) -> None:
+    for name, v in values.items():
+        if v is not None and not math.isfinite(v):
+            raise EstimatorError(f"{where}.{name} = {v!r} is not finite; input refused")
+
+
+def _stamp(where: str, t_ns: object) -> int:
+    if isinstance(t_ns, bool) or not isinstance(t_ns, int | np.integer):
+        if isinstance(t_ns, float) and not math.isfinite(t_ns):
+            raise EstimatorError(f"{where}: time {t_ns!r} is not finite; input refused")
+        raise EstimatorError(f"{where}: time must be an integer number of ns, got {t_ns!r}")
+    if t_ns < 0:
+        raise EstimatorError(f"{where}: time {t_ns} ns is negative")
+    return int(t_ns)
+
+
+class EstimatorCore:
+    """Messages and time in, ``StateEstimate`` out. See the module docstring for the model."""
+
+    def __init__(self, config: EstimatorConfig | None = None, vessel: VesselParams | None = None,
+                 vessel_dir: Path | None = None) -> None:
+        self.config = config or EstimatorConfig()
+        c = self.config
+        if vessel is None:
+            name = c.vessel if vessel_dir is None else str(vessel_dir / f"{c.vessel}.toml")
+            vessel = model.load_vessel(name)
+        self.p = vessel
+        self._world = c.disturbance_frame == "world"
+        self._dead_zone_n = vessel.dead_zone_n if c.apply_dead_zone else 0.0
+        self._q = np.array([
+            c.accel_surge_std_per_sqrt_s, c.accel_sway_std_per_sqrt_s, c.accel_yaw_std_per_sqrt_s,
+            c.position_std_per_sqrt_s, c.position_std_per_sqrt_s, c.heading_std_per_sqrt_s,
+            c.force_std_per_sqrt_s, c.force_std_per_sqrt_s, c.moment_std_per_sqrt_s]) ** 2
+        self._max_step_ns = round(c.max_step_s * NS_PER_S)
+        self._fixed_origin = (None if c.origin is None else GeoOrigin(
+            math.radians(c.origin.lat_deg), math.radians(c.origin.lon_deg), c.origin.alt_m))
+        self.counters = Counters()
+        self.origin: GeoOrigin | None = self._fixed_origin
+        self.filter: Filter | None = None
+        self._pending = _Pending()
+        self._thrust: tuple[float, float] = (0.0, 0.0)
+        self._thrust_until_ns: int | None = None
+
+    # ------------------------------------------------------------------------------------------
+    # Public API
+    # ------------------------------------------------------------------------------------------
+
+    @property
+    def initialised(self) -> bool:
+        return self.filter is not None
+
+    def reset(self, keep_origin: bool = True) -> None:
+        """Forget the state (and the origin unless ``keep_origin`` or one is configured).
+
+        The filter re-initialises from the next position and heading, exactly as at start-up.
+        Counters are kept (``resets`` counts this); the last thrust command is kept, since the
+        thrusters do not stop because the estimator restarted.
+        """
+        self.filter = None
+        self._pending = _Pending()
+        if not keep_origin:
+            self.origin = self._fixed_origin
+        self.counters.inc("resets")
+
+    def nav_origin(self, stamp_ns: int) -> NavOrigin | None:
+        """The NED origin as a message, once fixed."""
+        o = self.origin
+        if o is None:
+            return None
+        return NavOrigin(stamp_ns=stamp_ns, lat_rad=o.lat_rad, lon_rad=o.lon_rad, alt_m=o.alt_m)
+
+    def on_thrust(self, msg: ThrustCommand) -> None:
+        """The commanded thrust, held from ``max(stamp, filter time)`` until replaced or stale."""
+        t = self._check(msg.stamp_ns, "ThrustCommand", thrust_port_n=msg.thrust_port_n,
+                        thrust_starboard_n=msg.thrust_starboard_n)
+        f = self.filter
+        if f is not None and t > f.t_ns:
+            self._advance(t)
+        t_apply = t if f is None else max(t, f.t_ns)
+        self._thrust = (apply_dead_zone(saturate(msg.thrust_port_n, self.p), self._dead_zone_n),
+                        apply_dead_zone(saturate(msg.thrust_starboard_n, self.p), self._dead_zone_n))
+        self._thrust_until_ns = t_apply + round(self.config.thrust_timeout_s * NS_PER_S)
+        self.counters.inc("thrust_received")
+
+    def on_gnss(self, msg: GnssFix) -> None:
+        """A GNSS fix: position (and velocity over ground when the fix has it)."""
+        t = self._check(msg.stamp_ns, "GnssFix", lat_rad=msg.lat_rad, lon_rad=msg.lon_rad,
+                        alt_m=msg.alt_m, vel_n_mps=msg.vel_n_mps, vel_e_mps=msg.vel_e_mps,
+                        horizontal_std_m=msg.horizontal_std_m)
+        if msg.fix_type < self.config.min_fix_type:
+            self.counters.inc("gnss_no_fix")
+            return
+        if self.origin is None:
+            self.origin = GeoOrigin(msg.lat_rad, msg.lon_rad, msg.alt_m)
+        north, east, _ = self.origin.to_ned(msg.lat_rad, msg.lon_rad, msg.alt_m)
+        std = self._gnss_std(msg)
+        sog = (msg.vel_n_mps, msg.vel_e_mps)
+        if self.filter is None:
+            self._pending.fix = (t, north, east, sog[0], sog[1], std)
+            self._try_initialise()
+            return
+        delay = self._to_time(t)
+        if delay is None:
+            return
+        self._update_position(north, east, std, delay, t)
+        if sog[0] is not None and sog[1] is not None:
+            self._update_sog(sog[0], sog[1], delay)
+
+    def on_attitude(self, msg: Attitude) -> None:
+        """Heading and yaw rate (roll and pitch are not used by a 3-DOF model)."""
+        t = self._check(msg.stamp_ns, "Attitude", yaw_rad=msg.yaw_rad,
+                        yaw_rate_radps=msg.yaw_rate_radps)
+        if self.filter is None:
+            self._pending.attitude = (t, msg.yaw_rad, msg.yaw_rate_radps)
+            self._try_initialise()
+            return
+        delay = self._to_time(t)
+        if delay is None:
+            return
+        self._update_heading(msg.yaw_rad, delay, t)
+        self._update_yaw_rate(msg.yaw_rate_radps, delay)
+
+    def predict_to(self, t_ns: int) -> StateEstimate | None:
+        """The estimate at ``t_ns`` (the filter advances to it), or None before initialisation.
+
+        A time before the filter's own (within ``late_tolerance_s``) gives a first-order
+        back-extrapolated estimate without moving the filter; further back gives None (counted).
+        Never returns a non-finite estimate: a filter that went non-finite is dropped (counted in
+        ``divergence_resets``) and re-initialises from the next measurements.
+        """
+        t = _stamp("predict_to", t_ns)
+        f = self.filter
+        if f is None:
+            return None
+        if t - f.t_ns > round(self.config.max_gap_s * NS_PER_S):
+            self._time_jump(t)
+            return None
+        if t >= f.t_ns:
+            self._advance(t)
+            z, delay = f.z, 0.0
+        else:
+            delay = (f.t_ns - t) / NS_PER_S
+            if delay > self.config.late_tolerance_s:
+                self.counters.inc("too_old")
+                return None
+            z = self._back(f.z, delay)
+        self._update_degraded(t)
+        return self._estimate(t, z, f.P, f.degraded)
+
+    step = predict_to
+
+    def degraded_reasons(self, t_ns: int) -> list[str]:
+        """Why the estimate at ``t_ns`` is degraded (empty if it is not)."""
+        f = self.filter
+        if f is None:
+            return ["not initialised"]
+        c, out = self.config, []
+        if t_ns - f.last_gnss_ns > c.gnss_timeout_s * NS_PER_S:
+            out.append(f"no GNSS position accepted for {(t_ns - f.last_gnss_ns) / NS_PER_S:.1f} s")
+        if t_ns - f.last_heading_ns > c.heading_timeout_s * NS_PER_S:
+            out.append(f"no heading accepted for {(t_ns - f.last_heading_ns) / NS_PER_S:.1f} s")
+        return out
+
+    def body_disturbance(self) -> tuple[float, float, float] | None:
+        """The disturbance estimate in the body frame now [N, N, N m]."""
+        f = self.filter
+        return None if f is None else self._body_d(f.z)[0]
+
+    # ------------------------------------------------------------------------------------------
+    # Input checks and time
+    # ------------------------------------------------------------------------------------------
+
+    def _check(self, t_ns: object, where: str, **values: float | None) -> int:
+        try:
+            t = _stamp(where, t_ns)
+            _finite(where, **values)
+        except EstimatorError:
+            self.counters.inc("refused_non_finite")
+            raise
+        return t
+
+    def _gnss_std(self, msg: GnssFix) -> float:
+        c = self.config
+        if c.use_reported_gnss_std and msg.horizontal_std_m is not None:
+            return max(msg.horizontal_std_m, c.gnss_std_min_m)
+        return c.gnss_std_m
+
+    def _to_time(self, t: int) -> float | None:
+        """Bring the filter to a measurement at ``t``: the delay to correct for [s], or None."""
+        f = self.filter
+        assert f is not None
+        if t >= f.t_ns:
+            if t - f.t_ns > round(self.config.max_gap_s * NS_PER_S):
+                self._time_jump(t)
+                return None
+            self._advance(t)
+            return 0.0
+        delay = (f.t_ns - t) / NS_PER_S
+        if delay > self.config.late_tolerance_s:
+            self.counters.inc("too_old")
+            return None
+        self.counters.inc("late_applied")
+        return delay
+
+    def _time_jump(self, t: int) -> None:
+        """A gap too long to integrate: drop the state; the next measurements re-initialise."""
+        self.counters.inc("time_jumps")
+        self.filter = None
+        self._pending = _Pending()
+
+    # ------------------------------------------------------------------------------------------
+    # Initialisation
+    # ------------------------------------------------------------------------------------------
+
+    def _try_initialise(self) -> None:
+        fix, att = self._pending.fix, self._pending.attitude
+        if fix is None or att is None:
+            return
+        t_fix, north, east, vn, ve, gstd = fix
+        t_att, psi, r = att
+        if abs(t_fix - t_att) > self.config.init_max_skew_s * NS_PER_S:
+            return  # keep the newer of each; the older one will be replaced
+        c = self.config
+        cps, sps = math.cos(psi), math.sin(psi)
+        if vn is not None and ve is not None:
+            u, v, sstd = cps * vn + sps * ve, -sps * vn + cps * ve, c.sog_std_mps
+        else:
+            u, v, sstd = 0.0, 0.0, c.init_speed_std_mps
+        z = np.array([u, v, r, north, east, psi, 0.0, 0.0, 0.0])
+        P = np.diag(np.array([sstd, sstd, max(c.yaw_rate_std_radps, 1e-4), gstd, gstd,
+                              c.heading_std_rad, c.init_force_std_n, c.init_force_std_n,
+                              c.init_moment_std_nm]) ** 2)
+        t0 = max(t_fix, t_att)
+        self.filter = Filter(t_ns=t0, z=z, P=P, last_gnss_ns=t_fix, last_heading_ns=t_att)
+        self._pending = _Pending()
+
+    # ------------------------------------------------------------------------------------------
+    # Model and prediction
+    # ------------------------------------------------------------------------------------------
+
+    def _deriv(self, z: list, thrust: tuple[float, float], ops: object) -> list:
+        """d/dt of the six vessel states with the disturbance in ``z[6:9]`` (shared model)."""
+        if self._world:
+            return model.derivative(z, thrust, self.p, ops, (0.0, 0.0, z[ID3]), (z[ID1], z[ID2]))
+        return model.derivative(z, thrust, self.p, ops, (z[ID1], z[ID2], z[ID3]))
+
+    def jacobian(self, z: np.ndarray, thrust: tuple[float, float]) -> np.ndarray:
+        """A = d f / d z (9x9; the disturbance rows are zero), exact by complex step."""
+        base = [complex(v) for v in z.tolist()]
+        cols = []
+        for j in range(NZ):
+            zj = base.copy()
+            zj[j] += 1j * _CSTEP
+            cols.append([d.imag / _CSTEP for d in self._deriv(zj, thrust, cmath)])
+        A = np.zeros((NZ, NZ))
+        A[:6, :] = np.array(cols).T
+        return A
+
+    def _thrust_at(self, t_ns: int) -> tuple[float, float]:
+        if self._thrust_until_ns is None or t_ns >= self._thrust_until_ns:
+            return (0.0, 0.0)
+        return self._thrust
+
+    def _advance(self, t: int) -> None:
+        """Integrate the filter from its time to ``t`` (later), through thrust expiry."""
+        f = self.filter
+        assert f is not None
+        while f.t_ns < t:
+            end = t
+            until = self._thrust_until_ns
+            if until is not None and f.t_ns < until < t:
+                end = until
+            thrust = self._thrust_at(f.t_ns)
+            n = -(-(end - f.t_ns) // self._max_step_ns)
+            t0 = f.t_ns
+            for k in range(n):
+                t1 = t0 + (end - t0) * (k + 1) // n
+                self._predict(f, thrust, (t1 - f.t_ns) / NS_PER_S)
+                f.t_ns = t1
+
+    def _predict(self, f: Filter, thrust: tuple[float, float], h: float) -> None:
+        z = f.z
+        A = self.jacobian(z, thrust) * h
+        F = _I9 + A + 0.5 * (A @ A)
+        zl = z.tolist()
+        if self._world:
+            xn = model.rk4_step(zl, thrust, h, self.p, math, (0.0, 0.0, zl[ID3]), (zl[ID1], zl[ID2]))
+        else:
+            xn = model.rk4_step(zl, thrust, h, self.p, math, (zl[ID1], zl[ID2], zl[ID3]))
+        xn[IPSI] = wrap_pi(xn[IPSI])
+        z[:6] = xn
+        P = F @ f.P @ F.T
+        P[np.diag_indices(NZ)] += self._q * h
+        f.P = 0.5 * (P + P.T)
+
+    def _back(self, z: np.ndarray, delay_s: float) -> np.ndarray:
+        """First-order estimate of the state ``delay_s`` earlier (for late measurements)."""
+        zl = z.tolist()
+        xd = self._deriv(zl, self._thrust_at(self.filter.t_ns if self.filter else 0), math)
+        out = z.copy()
+        out[:6] -= np.asarray(xd) * delay_s
+        out[IPSI] = wrap_pi(out[IPSI])
+        return out
+
+    # ------------------------------------------------------------------------------------------
+    # Updates
+    # ------------------------------------------------------------------------------------------
+
+    def _gated_update(self, nu: np.ndarray, H: np.ndarray, R: np.ndarray, gate: float) -> bool:
+        """Kalman update with a chi-square gate on the innovation; False if rejected."""
+        f = self.filter
+        assert f is not None
+        P = f.P
+        PHt = P @ H.T
+        S = H @ PHt + R
+        Sinv = np.linalg.inv(S)
+        nis = float(nu @ Sinv @ nu)
+        if not (math.isfinite(nis) and nis <= gate):
+            return False
+        K = PHt @ Sinv
+        f.z += K @ nu
+        f.z[IPSI] = wrap_pi(f.z[IPSI])
+        IKH = _I9 - K @ H
+        P = IKH @ P @ IKH.T + K @ R @ K.T
+        f.P = 0.5 * (P + P.T)
+        return True
+
+    def _gated_scalar(self, nu: float, i: int, var: float, gate: float) -> bool:
+        """``_gated_update`` for a measurement of one state ``i`` (H a unit row): no matrix products.
+
+        Joseph form with H = e_i expands to P - K p' - p K' + K K' S, p = P[:, i], K = p / S.
+        """
+        f = self.filter
+        assert f is not None
+        P = f.P
+        S = P[i, i] + var
+        if not (nu * nu <= gate * S):  # also false for NaN
+            return False
+        p = P[:, i].copy()
+        K = p / S
+        f.z += K * nu
+        f.z[IPSI] = wrap_pi(f.z[IPSI])
+        Kp = np.outer(K, p)
+        P = P - Kp - Kp.T + np.outer(K, K) * S
+        f.P = 0.5 * (P + P.T)
+        return True
+
+    def _update_position(self, north: float, east: float, std: float, delay: float, t: int) -> None:
+        f = self.filter
+        assert f is not None
+        zp = self._back(f.z, delay) if delay > 0 else f.z
+        nu = np.array([north - zp[IX], east - zp[IY]])
+        R = np.eye(2) * (std * std)
+        if self._gated_update(nu, _H_POS, R, self.config.gate_gnss):
+            self.counters.inc("gnss_accepted")
+            f.gnss_reject_run = 0
+            f.last_gnss_ns = max(f.last_gnss_ns, t)
+            return
+        self.counters.inc("gnss_rejected")
+        f.gnss_reject_run += 1
+        if f.gnss_reject_run >= self.config.gnss_reject_reinit_count:
+            # Consistently far from every fix: the filter is what is wrong. Take the fix.
+            self._reinit_block((IX, IY), (north - zp[IX], east - zp[IY]), std * std)
+            f.gnss_reject_run = 0
+            f.last_gnss_ns = max(f.last_gnss_ns, t)
+            self.counters.inc("gnss_reinit")
+
+    def _update_sog(self, vn: float, ve: float, delay: float) -> None:
+        f = self.filter
+        assert f is not None
+        zp = self._back(f.z, delay) if delay > 0 else f.z
+        u, v, psi = zp[IU], zp[IV], zp[IPSI]
+        c, s = math.cos(psi), math.sin(psi)
+        # h(z) = R(psi) [u, v]: the kinematic rows of the model (paper eq. 2) without current.
+        nu = np.array([vn - (u * c - v * s), ve - (u * s + v * c)])
+        H = np.zeros((2, NZ))
+        H[0, IU], H[0, IV], H[0, IPSI] = c, -s, -u * s - v * c
+        H[1, IU], H[1, IV], H[1, IPSI] = s, c, u * c - v * s
+        R = np.eye(2) * self.config.sog_std_mps ** 2
+        ok = self._gated_update(nu, H, R, self.config.gate_sog)
+        self.counters.inc("sog_accepted" if ok else "sog_rejected")
+
+    def _update_heading(self, psi_m: float, delay: float, t: int) -> None:
+        f = self.filter
+        assert f is not None
+        zp = self._back(f.z, delay) if delay > 0 else f.z
+        innov = wrap_pi(psi_m - zp[IPSI])
+        var = self.config.heading_std_rad ** 2
+        if self._gated_scalar(innov, IPSI, var, self.config.gate_heading):
+            self.counters.inc("heading_accepted")
+            f.heading_reject_run = 0
+            f.last_heading_ns = max(f.last_heading_ns, t)
+            return
+        self.counters.inc("heading_rejected")
+        f.heading_reject_run += 1
+        if f.heading_reject_run >= self.config.heading_reject_reinit_count:
+            self._reinit_block((IPSI,), (innov,), var)
+            f.heading_reject_run = 0
+            f.last_heading_ns = max(f.last_heading_ns, t)
+            self.counters.inc("heading_reinit")
+
+    def _update_yaw_rate(self, r_m: float, delay: float) -> None:
+        f = self.filter
+        assert f is not None
+        zp = self._back(f.z, delay) if delay > 0 else f.z
+        ok = self._gated_scalar(r_m - zp[IR], IR, self.config.yaw_rate_std_radps ** 2,
+                                self.config.gate_yaw_rate)
+        self.counters.inc("yaw_rate_accepted" if ok else "yaw_rate_rejected")
+
+    def _reinit_block(self, idx: tuple[int, ...], shift: tuple[float, ...], var: float) -> None:
+        """Move states ``idx`` by ``shift`` and decorrelate them with variance ``var``."""
+        f = self.filter
+        assert f is not None
+        for i, d in zip(idx, shift, strict=True):
+            f.z[i] += d
+            f.P[i, :] = 0.0
+            f.P[:, i] = 0.0
+            f.P[i, i] = var
+        f.z[IPSI] = wrap_pi(f.z[IPSI])
+
+    # ------------------------------------------------------------------------------------------
+    # Output
+    # ------------------------------------------------------------------------------------------
+
+    def _update_degraded(self, t: int) -> None:
+        f = self.filter
+        assert f is not None
+        c = self.config
+        now = (t - f.last_gnss_ns > c.gnss_timeout_s * NS_PER_S
+               or t - f.last_heading_ns > c.heading_timeout_s * NS_PER_S)
+        if now and not f.degraded:
+            self.counters.inc("degraded_entered")
+        f.degraded = now
+
+    def _body_d(self, z: np.ndarray) -> tuple[tuple[float, float, float], np.ndarray | None]:
+        """Body-frame disturbance and the Jacobian T taking the internal covariance to it."""
+        if not self._world:
+            return (float(z[ID1]), float(z[ID2]), float(z[ID3])), None
+        psi, dn, de = float(z[IPSI]), float(z[ID1]), float(z[ID2])
+        c, s = math.cos(psi), math.sin(psi)
+        du, dv = c * dn + s * de, -s * dn + c * de
+        T = _I9.copy()
+        T[ID1, ID1], T[ID1, ID2], T[ID1, IPSI] = c, s, dv
+        T[ID2, ID1], T[ID2, ID2], T[ID2, IPSI] = -s, c, -du
+        return (du, dv, float(z[ID3])), T
+
+    def _estimate(self, t: int, z: np.ndarray, P: np.ndarray, degraded: bool) -> StateEstimate | None:
+        d, T = self._body_d(z)
+        Pout = P if T is None else T @ P @ T.T
+        pos_std = math.sqrt(max(P[IX, IX], P[IY, IY])) if np.isfinite(P[IX, IX]) else math.inf
+        finite = bool(np.isfinite(z).all() and np.isfinite(Pout).all())
+        if not finite or pos_std > self.config.max_position_std_m:
+            self.counters.inc("publish_refused")
+            self.counters.inc("divergence_resets")
+            self.filter = None
+            self._pending = _Pending()
+            return None
+        try:
+            est = StateEstimate(
+                stamp_ns=t, u_mps=float(z[IU]), v_mps=float(z[IV]), r_radps=float(z[IR]),
+                x_m=float(z[IX]), y_m=float(z[IY]), psi_rad=wrap_pi(float(z[IPSI])),
+                tau_d_surge_n=d[0], tau_d_sway_n=d[1], tau_d_yaw_nm=d[2],
+                covariance=Pout.ravel().tolist(), degraded=degraded)
+        except (MessageError, ValueError):
+            self.counters.inc("publish_refused")
+            return None
+        self.counters.inc("published")
+        return est
