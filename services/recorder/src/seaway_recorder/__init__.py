@@ -1,0 +1,1 @@
+"""Seaway recorder, replay and report."""

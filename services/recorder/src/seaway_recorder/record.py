@@ -1,0 +1,262 @@
+"""``seaway record``: every sample on ``seaway/**`` into MCAP; ``seaway record recover IN OUT``.
+
+The process (also ``seaway-recorder``) subscribes to the bus; Zenoh's delivery threads only append
+``(key, bytes, encoding, receive time)`` to a bounded queue (a full queue drops the sample and counts
+it), and one writer thread drains the queue into ``RecordingWriter``. The writer flushes at least every
+``--flush-interval`` (default 50 ms: a SIGKILL loses less than 100 ms), rotates files on
+``--max-bytes`` / ``--max-seconds``, logs counts every ``--status-interval`` and, on SIGINT or SIGTERM,
+writes what is queued and finishes a fully indexed file. The last line on stdout is a JSON summary.
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import datetime as dt
+import json
+import logging
+import os
+import socket
+import sys
+import threading
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+from seaway.config import ConfigError
+from seaway.service import base_parser, configure_logging, run_service
+
+from seaway_recorder import runinfo
+from seaway_recorder.recover import recover
+from seaway_recorder.writer import LIBRARY, RUN_METADATA, RecordingWriter
+
+log = logging.getLogger("seaway.recorder")
+DEFAULT_FLUSH_S = 0.05
+
+
+def default_out() -> Path:
+    stamp = dt.datetime.now(dt.UTC).strftime("%Y%m%dT%H%M%SZ")
+    return Path("runs") / stamp / "recording.mcap"
+
+
+def out_path(text: str | None) -> Path:
+    if not text:
+        return default_out()
+    p = Path(text)
+    return p if p.suffix == ".mcap" else p / "recording.mcap"
+
+
+def parse_meta(items: Sequence[str]) -> dict[str, str]:
+    out = {}
+    for item in items:
+        k, sep, v = item.partition("=")
+        if not sep or not k:
+            raise SystemExit(f"seaway record: --meta wants KEY=VALUE, got {item!r}")
+        out[k] = v
+    return out
+
+
+def parse_size(text: str) -> int:
+    units = {"k": 1 << 10, "m": 1 << 20, "g": 1 << 30}
+    t = text.strip().lower().removesuffix("b").removesuffix("i")
+    mult = units.get(t[-1:], 1)
+    return int(float(t[:-1] if t[-1:] in units else t) * mult)
+
+
+def parser() -> argparse.ArgumentParser:
+    p = base_parser("recorder", "Record every sample on the bus to MCAP (bytes unchanged, with "
+                                "their JSON Schemas). 'seaway record recover IN OUT' repairs a "
+                                "truncated file.")
+    p.add_argument("--out", default=None,
+                   help="output folder or .mcap file (default runs/<UTC time>/recording.mcap)")
+    p.add_argument("--vessels", default="",
+                   help="comma-separated vessels to record (default: every vessel, seaway/**)")
+    p.add_argument("--key-expr", action="append", default=[],
+                   help="record this key expression instead (repeatable)")
+    p.add_argument("--scenario", default=None,
+                   help="scenario name or file: attached with its data files and vessel file")
+    p.add_argument("--vessel-file", default=None, help="vessel file to attach (overrides the scenario's)")
+    p.add_argument("--profile", default=None, help="launcher profile file to attach")
+    p.add_argument("--mission", default=None, help="mission file to attach (MissionRequest JSON or TOML)")
+    p.add_argument("--attach", action="append", default=[], metavar="[ROLE=]FILE",
+                   help=f"attach a file (repeatable); roles: {', '.join(runinfo.ROLES)} (default config)")
+    p.add_argument("--meta", action="append", default=[], metavar="KEY=VALUE",
+                   help="add to the seaway.run metadata record (repeatable)")
+    p.add_argument("--flush-interval", type=float, default=DEFAULT_FLUSH_S,
+                   help=f"seconds between flushes, at most 0.1 (default {DEFAULT_FLUSH_S})")
+    p.add_argument("--max-bytes", type=parse_size, default=None, help="rotate after this size (e.g. 512M)")
+    p.add_argument("--max-seconds", type=float, default=None, help="rotate after this many seconds")
+    p.add_argument("--compression", choices=["zstd", "lz4", "none"], default="zstd")
+    p.add_argument("--chunk-size", type=parse_size, default=4 << 20,
+                   help="end a chunk early past this many bytes (default 4M)")
+    p.add_argument("--queue", type=int, default=500_000,
+                   help="samples buffered between Zenoh and the writer before drops (default 500000)")
+    p.add_argument("--no-validate", action="store_true",
+                   help="do not check samples against their types (faster; nothing counts as malformed)")
+    p.add_argument("--no-foxglove", action="store_true", help="do not add foxglove.LocationFix channels")
+    p.add_argument("--status-interval", type=float, default=5.0, help="seconds between status lines")
+    return p
+
+
+class SampleQueue:
+    """Bounded hand-over from Zenoh's threads to the writer; overflow is counted, never blocks."""
+
+    def __init__(self, capacity: int) -> None:
+        self.capacity = capacity
+        self.items: collections.deque[tuple[str, bytes, str, int]] = collections.deque()
+        self.dropped = 0
+        self.accepting = True
+        self._lock = threading.Lock()
+
+    def on_sample(self, sample: object) -> None:
+        # Called on Zenoh's threads: keep it short. Bytes are copied out of Zenoh's buffer here.
+        if not self.accepting:
+            return
+        if len(self.items) >= self.capacity:
+            with self._lock:
+                self.dropped += 1
+            return
+        self.items.append((str(sample.key_expr), sample.payload.to_bytes(),  # type: ignore[attr-defined]
+                           str(sample.encoding), time.time_ns()))  # type: ignore[attr-defined]
+
+
+def key_exprs(args: argparse.Namespace) -> list[str]:
+    if args.key_expr:
+        return list(args.key_expr)
+    vessels = [v.strip() for v in args.vessels.split(",") if v.strip()]
+    return [f"seaway/{v}/**" for v in vessels] or ["seaway/**"]
+
+
+def build_run_info(args: argparse.Namespace, exprs: list[str]):
+    atts = []
+    origin = None
+    scenario_name = ""
+    if args.scenario:
+        s_atts, scenario = runinfo.scenario_attachments(args.scenario, with_vessel=not args.vessel_file)
+        atts += s_atts
+        origin = runinfo.scenario_origin(scenario)
+        scenario_name = scenario.name
+    if args.vessel_file:
+        atts.append(runinfo.attachment("vessel", runinfo.vessel_path(args.vessel_file)))
+    if args.profile:
+        atts.append(runinfo.attachment("profile", Path(args.profile)))
+    if args.mission:
+        atts.append(runinfo.attachment("mission", Path(args.mission)))
+    zcfg = args.zenoh_config or os.environ.get("SEAWAY_ZENOH_CONFIG")
+    if zcfg:
+        atts.append(runinfo.attachment("zenoh", Path(zcfg)))
+    atts += [runinfo.parse_attach_arg(a) for a in args.attach]
+    meta = {
+        "recorder": LIBRARY,
+        "started_utc": dt.datetime.now(dt.UTC).isoformat(timespec="milliseconds"),
+        "host": socket.gethostname(),
+        "key_exprs": ",".join(exprs),
+        "scenario": scenario_name,
+        "profile": Path(args.profile).stem if args.profile else "",
+        "flush_interval_s": f"{args.flush_interval:g}",
+        "command": " ".join(sys.argv),
+        "attachments": ",".join(a.name for a in atts),
+        **parse_meta(args.meta),
+    }
+    return atts, {RUN_METADATA: meta}, origin
+
+
+def run(argv: Sequence[str]) -> int:
+    args = parser().parse_args(list(argv))
+    if not 0 < args.flush_interval <= 0.1:
+        raise SystemExit("seaway record: --flush-interval must be in (0, 0.1] s")
+    exprs = key_exprs(args)
+    try:
+        atts, meta, origin = build_run_info(args, exprs)
+    except (ConfigError, ValueError, OSError) as err:
+        print(f"seaway record: {err}", file=sys.stderr)
+        return 2
+    writer = RecordingWriter(out_path(args.out), chunk_size=args.chunk_size, compression=args.compression,
+                             max_bytes=args.max_bytes, max_seconds=args.max_seconds, attachments=atts,
+                             metadata=meta, validate=not args.no_validate, foxglove=not args.no_foxglove,
+                             default_origin=origin)
+    queue = SampleQueue(args.queue)
+    with run_service("recorder", args) as ctx:
+        path = writer.open(time.time_ns())
+        print(f"recording {', '.join(exprs)} to {path}", flush=True)
+        for e in exprs:
+            ctx.bus.subscribe_raw(e, queue.on_sample)
+        print("READY", flush=True)
+        _loop(writer, queue, ctx.stop, args.flush_interval, args.status_interval)
+        queue.accepting = False
+        _drain(writer, queue, limit=None)
+        writer.count_dropped(queue.dropped - writer.stats.dropped)
+        files = writer.close()
+    summary = {"files": files, **writer.stats.as_metadata(), "by_topic": dict(writer.stats.by_topic)}
+    log.info("recorder finished: %s", writer.stats.line())
+    print(f"recording finished: {', '.join(files)}", flush=True)
+    print(json.dumps(summary), flush=True)
+    return 0
+
+
+def _drain(writer: RecordingWriter, queue: SampleQueue, limit: int | None) -> int:
+    n = 0
+    items = queue.items
+    while items and (limit is None or n < limit):
+        key, payload, encoding, t_ns = items.popleft()
+        writer.write(key, payload, encoding, t_ns)
+        n += 1
+    return n
+
+
+def _loop(writer: RecordingWriter, queue: SampleQueue, stop: threading.Event, flush_s: float,
+          status_s: float) -> None:
+    flush_ns = int(flush_s * 1e9)
+    next_flush = time.monotonic_ns() + flush_ns
+    next_status = time.monotonic_ns() + int(status_s * 1e9)
+    last_messages = 0
+    while not stop.is_set():
+        n = _drain(writer, queue, limit=2000)
+        now = time.monotonic_ns()
+        if now >= next_flush:
+            writer.count_dropped(queue.dropped - writer.stats.dropped)
+            writer.flush()
+            writer.maybe_rotate(time.time_ns())
+            next_flush = now + flush_ns
+        if now >= next_status:
+            rate = (writer.stats.messages - last_messages) / status_s
+            last_messages = writer.stats.messages
+            log.info("%s; %.0f msg/s; queue %d; file %s", writer.stats.line(), rate,
+                     len(queue.items), writer.path)
+            next_status = now + int(status_s * 1e9)
+        if n == 0:
+            # Nothing queued: sleep a little, never past the next flush.
+            stop.wait(min(0.005, max(0.0, (next_flush - time.monotonic_ns()) / 1e9)))
+
+
+def cmd_recover(argv: Sequence[str]) -> int:
+    p = argparse.ArgumentParser(prog="seaway record recover",
+                                description="Rebuild a fully indexed MCAP file from a truncated one.")
+    p.add_argument("input", type=Path)
+    p.add_argument("output", type=Path, nargs="?", default=None,
+                   help="default: INPUT with .recovered.mcap")
+    args = p.parse_args(list(argv))
+    out = args.output or args.input.with_suffix(".recovered.mcap")
+    try:
+        res = recover(args.input, out)
+    except (OSError, ValueError) as err:
+        print(f"seaway record recover: {err}", file=sys.stderr)
+        return 2
+    print(f"{res.line()}\nwrote {out}")
+    print(json.dumps({"output": str(out), "messages": res.messages, "chunks": res.chunks,
+                      "complete": res.complete, "reason": res.reason, "topics": res.topics}))
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv and argv[0] == "recover":
+        configure_logging("recorder")
+        return cmd_recover(argv[1:])
+    if argv and argv[0] == "run":
+        argv = argv[1:]
+    return run(argv)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,166 @@
+"""Rebuild a fully indexed MCAP file from a truncated one (a recorder killed with SIGKILL).
+
+The file is read record by record from the start. Every complete record is kept: the header,
+attachments, metadata, and each chunk whose bytes are all there and whose CRC matches (its schemas,
+channels and messages); the first record that is cut short or corrupt ends the data. The kept
+records are written again through the mcap Writer, which adds the chunk and message indexes, the
+statistics and the summary. Message times, sequence numbers, channel topics and metadata and schema
+bytes are kept unchanged; schema and channel ids may be renumbered.
+"""
+
+from __future__ import annotations
+
+import struct
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import BinaryIO
+
+from mcap.exceptions import EndOfFile, McapError
+from mcap.records import (
+    Attachment,
+    Channel,
+    Chunk,
+    DataEnd,
+    Footer,
+    Header,
+    Message,
+    Metadata,
+    Schema,
+)
+from mcap.stream_reader import StreamReader, breakup_chunk
+from mcap.writer import CompressionType, Writer
+
+RECOVER_METADATA = "seaway.recover"
+
+
+@dataclass
+class RecoverResult:
+    messages: int = 0
+    chunks: int = 0
+    attachments: int = 0
+    metadata: int = 0
+    bad_chunks: int = 0
+    complete: bool = False
+    stopped_at_offset: int = 0
+    reason: str = ""
+    topics: dict[str, int] = field(default_factory=dict)
+
+    def line(self) -> str:
+        tail = "the input was complete" if self.complete else f"input ends early: {self.reason}"
+        return (f"recovered {self.messages:,} messages in {self.chunks} chunks, "
+                f"{self.attachments} attachments, {self.metadata} metadata; {tail}")
+
+
+class _Copier:
+    def __init__(self, out: Writer) -> None:
+        self.out = out
+        self.schema_ids: dict[int, int] = {}
+        self.channel_ids: dict[int, int] = {}
+        self.topic_of: dict[int, str] = {}
+        self.topics: dict[str, int] = {}
+
+    def schema(self, s: Schema) -> None:
+        if s.id not in self.schema_ids:
+            self.schema_ids[s.id] = self.out.register_schema(s.name, s.encoding, s.data)
+
+    def channel(self, c: Channel) -> None:
+        if c.id not in self.channel_ids:
+            sid = self.schema_ids.get(c.schema_id, 0) if c.schema_id else 0
+            self.channel_ids[c.id] = self.out.register_channel(c.topic, c.message_encoding, sid,
+                                                               dict(c.metadata))
+            self.topic_of[c.id] = c.topic
+
+    def message(self, m: Message) -> bool:
+        cid = self.channel_ids.get(m.channel_id)
+        if cid is None:
+            return False
+        self.out.add_message(cid, m.log_time, m.data, m.publish_time, m.sequence)
+        topic = self.topic_of[m.channel_id]
+        self.topics[topic] = self.topics.get(topic, 0) + 1
+        return True
+
+
+class _Tracking:
+    """A file wrapper that turns a short read (the file ends inside a record) into ``EndOfFile``."""
+
+    def __init__(self, f: BinaryIO) -> None:
+        self.f = f
+
+    def read(self, n: int = -1) -> bytes:
+        data = self.f.read(n)
+        if n > 0 and len(data) < n:
+            raise EndOfFile(f"file ends inside a record ({len(data)} of {n} bytes)")
+        return data
+
+    def tell(self) -> int:
+        return self.f.tell()
+
+
+def recover(src: Path, dst: Path, compression: CompressionType = CompressionType.ZSTD,
+            chunk_size: int = 4 * 1024 * 1024) -> RecoverResult:
+    """Copy every complete record of ``src`` into a new, fully indexed ``dst``."""
+    src, dst = Path(src), Path(dst)
+    if src.resolve() == dst.resolve():
+        raise ValueError("recover writes a new file: OUT must differ from IN")
+    res = RecoverResult()
+    with open(src, "rb") as fin, open(dst, "wb") as fout:
+        tracked = _Tracking(fin)
+        reader = StreamReader(tracked, emit_chunks=True, record_size_limit=1 << 31)  # type: ignore[arg-type]
+        out = Writer(fout, chunk_size=chunk_size, compression=compression)
+        copier = _Copier(out)
+        started = False
+        try:
+            for record in reader.records:
+                res.stopped_at_offset = tracked.tell()
+                if isinstance(record, Header):
+                    out.start(profile=record.profile, library=record.library)
+                    started = True
+                elif not started:
+                    raise McapError("no header record")
+                elif isinstance(record, Chunk):
+                    try:
+                        inner = breakup_chunk(record, validate_crc=True)
+                    except Exception as err:  # corrupt compressed data or CRC mismatch
+                        res.bad_chunks += 1
+                        res.reason = f"chunk at offset {res.stopped_at_offset}: {err}"
+                        break
+                    res.chunks += 1
+                    for r in inner:
+                        _copy(copier, r, res)
+                elif isinstance(record, Schema | Channel | Message):
+                    _copy(copier, record, res)
+                elif isinstance(record, Attachment):
+                    out.add_attachment(record.create_time, record.log_time, record.name,
+                                       record.media_type, record.data)
+                    res.attachments += 1
+                elif isinstance(record, Metadata):
+                    out.add_metadata(record.name, dict(record.metadata))
+                    res.metadata += 1
+                elif isinstance(record, DataEnd):
+                    res.complete = True  # everything after is summary, which the Writer rebuilds
+                    break
+                elif isinstance(record, Footer):
+                    break
+        except (McapError, struct.error, EOFError, ValueError, UnicodeDecodeError) as err:
+            res.reason = res.reason or f"{type(err).__name__} after offset {res.stopped_at_offset}"
+        if not started:
+            raise ValueError(f"{src}: not an MCAP file (no complete header)")
+        if not res.complete and not res.reason:
+            res.reason = "no data-end record"
+        out.add_metadata(RECOVER_METADATA, {
+            "source": src.name, "complete": str(res.complete).lower(), "reason": res.reason,
+            "messages": str(res.messages), "chunks": str(res.chunks),
+            "stopped_at_offset": str(res.stopped_at_offset),
+        })
+        out.finish()
+    res.topics = dict(copier.topics)
+    return res
+
+
+def _copy(copier: _Copier, r: object, res: RecoverResult) -> None:
+    if isinstance(r, Schema):
+        copier.schema(r)
+    elif isinstance(r, Channel):
+        copier.channel(r)
+    elif isinstance(r, Message) and copier.message(r):
+        res.messages += 1

@@ -1,0 +1,165 @@
+"""``seaway replay FILE``: republish a recording on Zenoh, at its pace, faster, or as fast as possible.
+
+Only bus topics (``seaway/...``) are republished; the recorder's own channels (``foxglove/...``,
+``recorder/malformed``) are not. ``--only`` and ``--exclude`` take key expressions (``seaway/*/sim/truth``,
+or the short form ``sim/truth`` for every vessel) so that a live service can produce the keys left out:
+feed recorded sensors to a live estimator with ``--exclude nav/state``, recorded states to a live
+controller with ``--only nav/state``. Each sample goes out with its recorded bytes and Zenoh encoding,
+in recorded order; with ``--rate X`` the gaps between receive times are divided by X; ``--fast`` does not
+wait at all (publishers block rather than drop, so nothing is lost).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import threading
+import time
+from collections.abc import Iterable, Iterator, Sequence
+from dataclasses import dataclass, field
+
+import zenoh
+from seaway.bus import open_session
+from seaway.service import configure_logging, install_stop_signals
+
+from seaway_recorder import recording
+
+BUS_ROOT = "seaway/"
+
+
+def normalise(expr: str) -> str:
+    """``sim/truth`` -> ``seaway/*/sim/truth``; full key expressions are kept."""
+    return expr if expr.startswith(BUS_ROOT) or expr.startswith("**") else f"{BUS_ROOT}*/{expr}"
+
+
+class KeyFilter:
+    """Which recorded topics to republish: bus topics, within ``only`` (if any), outside ``exclude``."""
+
+    def __init__(self, only: Iterable[str] = (), exclude: Iterable[str] = ()) -> None:
+        self.only = [zenoh.KeyExpr(normalise(e)) for e in only]
+        self.exclude = [zenoh.KeyExpr(normalise(e)) for e in exclude]
+        self._cache: dict[str, bool] = {}
+
+    def __call__(self, topic: str) -> bool:
+        ok = self._cache.get(topic)
+        if ok is None:
+            ok = self._decide(topic)
+            self._cache[topic] = ok
+        return ok
+
+    def _decide(self, topic: str) -> bool:
+        if not topic.startswith(BUS_ROOT):
+            return False
+        try:
+            k = zenoh.KeyExpr(topic)
+        except Exception:  # not a valid key expression: it cannot have come from the bus
+            return False
+        if self.only and not any(e.intersects(k) for e in self.only):
+            return False
+        return not any(e.intersects(k) for e in self.exclude)
+
+
+@dataclass
+class ReplayStats:
+    published: int = 0
+    skipped: int = 0
+    by_topic: dict[str, int] = field(default_factory=dict)
+    max_late_s: float = 0.0
+    elapsed_s: float = 0.0
+    recorded_span_s: float = 0.0
+
+
+def replay(messages: Iterator[recording.RecordedMessage], session: zenoh.Session, keep: KeyFilter,
+           rate: float | None, stop: threading.Event, clock=time.monotonic) -> ReplayStats:
+    """Publish ``messages`` (in log-time order) paced by their log times; returns what was done."""
+    stats = ReplayStats()
+    pubs: dict[str, zenoh.Publisher] = {}
+    start_wall: float | None = None
+    t0_log: int | None = None
+    last_log = 0
+    for m in messages:
+        if stop.is_set():
+            break
+        if not keep(m.topic):
+            stats.skipped += 1
+            continue
+        if t0_log is None:
+            t0_log = m.log_time_ns
+            start_wall = clock()
+        last_log = m.log_time_ns
+        if rate is not None:
+            due = start_wall + (m.log_time_ns - t0_log) / 1e9 / rate  # type: ignore[operator]
+            delay = due - clock()
+            if delay > 0:
+                if stop.wait(delay):
+                    break
+            else:
+                stats.max_late_s = max(stats.max_late_s, -delay)
+        pub = pubs.get(m.topic)
+        if pub is None:
+            enc = m.channel_metadata.get("zenoh_encoding") or (
+                f"application/json;{m.schema_name}" if m.schema_name else "application/json")
+            pub = session.declare_publisher(m.topic, encoding=zenoh.Encoding(enc),
+                                            congestion_control=zenoh.CongestionControl.BLOCK)
+            pubs[m.topic] = pub
+        pub.put(m.data)
+        stats.published += 1
+        stats.by_topic[m.topic] = stats.by_topic.get(m.topic, 0) + 1
+    if start_wall is not None:
+        stats.elapsed_s = clock() - start_wall
+        stats.recorded_span_s = (last_log - (t0_log or last_log)) / 1e9
+    for p in pubs.values():
+        p.undeclare()
+    return stats
+
+
+def parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="seaway replay", description=__doc__.split("\n\n")[0])
+    p.add_argument("files", nargs="+", help="recording file(s) or folder(s)")
+    pace = p.add_mutually_exclusive_group()
+    pace.add_argument("--rate", type=float, default=1.0, help="speed-up factor (default 1: original pace)")
+    pace.add_argument("--fast", action="store_true", help="as fast as possible")
+    p.add_argument("--only", action="append", default=[], metavar="KEYEXPR",
+                   help="republish only these keys (repeatable; 'sim/truth' means seaway/*/sim/truth)")
+    p.add_argument("--exclude", action="append", default=[], metavar="KEYEXPR",
+                   help="do not republish these keys: a live service produces them (repeatable)")
+    p.add_argument("--wait", type=float, default=1.0,
+                   help="seconds to wait after joining the bus before the first sample (default 1)")
+    p.add_argument("--zenoh-config", default=None)
+    p.add_argument("--log-level", default="INFO")
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = parser().parse_args(list(sys.argv[1:] if argv is None else argv))
+    configure_logging("replay", args.log_level)
+    if not args.fast and not args.rate > 0:
+        print("seaway replay: --rate must be > 0", file=sys.stderr)
+        return 2
+    try:
+        files = recording.open_paths(args.files)
+        keep = KeyFilter(args.only, args.exclude)
+    except (FileNotFoundError, ValueError) as err:
+        print(f"seaway replay: {err}", file=sys.stderr)
+        return 2
+    stop = threading.Event()
+    install_stop_signals(stop)
+    session = open_session(args.zenoh_config)
+    try:
+        print(f"replaying {', '.join(map(str, files))}"
+              f" ({'as fast as possible' if args.fast else f'rate {args.rate:g}'})", flush=True)
+        stop.wait(args.wait)
+        stats = replay(recording.iter_messages(files), session, keep,
+                       None if args.fast else args.rate, stop)
+    finally:
+        session.close()
+    print(json.dumps({"published": stats.published, "skipped": stats.skipped,
+                      "elapsed_s": round(stats.elapsed_s, 3),
+                      "recorded_span_s": round(stats.recorded_span_s, 3),
+                      "max_late_s": round(stats.max_late_s, 4), "by_topic": stats.by_topic}), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

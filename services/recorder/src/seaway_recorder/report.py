@@ -1,0 +1,279 @@
+"""``seaway report FILE``: the paper's metrics of a recorded run, solve statistics, a table and plots.
+
+The mission comes from ``--scenario`` or ``--mission`` when given, else from the recording's
+``mission/*`` or ``scenario/*`` attachment. The vessel's alpha comes from ``--vessel-file``, else the
+``vessel/*`` attachment, else the vessel the scenario names. Positions and energy come from
+``sim/truth`` when it was recorded, else ``nav/state`` with the ``ctrl/thrust`` commands.
+
+Writes ``metrics.json`` and, unless ``--no-plots``, ``trajectory.png``, ``thrust.png``,
+``cross_track.png`` and ``energy.png`` into ``--out`` (default: ``report/`` beside the recording).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from seaway.config import ConfigError, load_config, read_document
+from seaway.frames import GeoOrigin
+from seaway.messages import MissionStatus, NavOrigin, SimTruth, SolveRecord, ThrustCommand
+from seaway.model import VesselParams
+from seaway.scenario import load_scenario
+
+from seaway_recorder import metrics as mx
+from seaway_recorder import recording, runinfo
+
+
+def parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="seaway report", description=__doc__.split("\n\n")[0])
+    p.add_argument("files", nargs="+", help="recording file(s) or folder(s)")
+    p.add_argument("--scenario", default=None, help="take the mission from this scenario (name or file)")
+    p.add_argument("--mission", default=None, help="take the mission from this file")
+    p.add_argument("--vessel-file", default=None, help="vessel file for alpha")
+    p.add_argument("--vessel", default=None, help="which vessel, if the recording has several")
+    p.add_argument("--out", type=Path, default=None, help="folder for metrics.json and plots")
+    p.add_argument("--sample-period", type=float, default=0.1, help="cross-track sample period [s]")
+    p.add_argument("--no-plots", action="store_true")
+    p.add_argument("--json", action="store_true", help="print the metrics JSON instead of the table")
+    return p
+
+
+def _origin(dec: recording.Decoded, scenario_origin: GeoOrigin | None) -> GeoOrigin | None:
+    origins = dec.get("nav/origin")
+    if origins:
+        o = origins[-1]
+        assert isinstance(o, NavOrigin)
+        return GeoOrigin(o.lat_rad, o.lon_rad, o.alt_m)
+    return scenario_origin
+
+
+def analyse(files: list[Path], *, scenario: str | None = None, mission_file: str | None = None,
+            vessel_file: str | None = None, vessel: str | None = None,
+            sample_period_s: float = 0.1) -> dict[str, Any]:
+    """Everything the report prints, as one JSON-able dict (plus the series for plots under '_')."""
+    info = recording.read_info(files)
+    dec = recording.decode_vessel(files, vessel)
+    scen = load_scenario(runinfo.scenario_path(scenario)) if scenario else \
+        runinfo.scenario_from_attachments(info.attachments)
+    scen_origin = runinfo.scenario_origin(scen) if scen is not None else None
+    origin = _origin(dec, scen_origin)
+
+    if mission_file:
+        mission = runinfo.mission_from_document(read_document(mission_file), origin, mission_file)
+    elif scenario:
+        if scen is None or scen.mission is None:
+            raise ConfigError(f"scenario {scenario} has no [mission]")
+        m = scen.mission
+        mission = runinfo.Mission(tuple(m.waypoints_m), m.coa_radius_m, m.task_power_w,
+                                  f"scenario {scenario}")
+    else:
+        mission = runinfo.mission_from_attachments(info.attachments, origin)
+        if mission is None:
+            raise ConfigError("the recording has no mission or scenario attachment: pass --scenario "
+                              "or --mission")
+
+    vp: VesselParams | None
+    if vessel_file:
+        vp = load_config(runinfo.vessel_path(vessel_file), VesselParams)
+    else:
+        vp = runinfo.vessel_from_attachments(info.attachments) or runinfo.load_vessel_for(scen)
+    alpha = vp.alpha_w_per_n2 if vp is not None else None
+
+    truth = sorted(dec.get("sim/truth"), key=lambda m: m.stamp_ns)
+    statuses = [m for m in dec.get("mission/status") if isinstance(m, MissionStatus)]
+    active = [s.stamp_ns for s in statuses if s.state == "active"]
+    if truth:
+        states: Sequence[Any] = truth
+        thrusts: Sequence[Any] = truth
+        energy = [t.energy_j for t in truth if isinstance(t, SimTruth)]
+        state_source, thrust_source = "sim/truth", "sim/truth"
+    else:
+        states = sorted(dec.get("nav/state"), key=lambda m: m.stamp_ns)
+        thrusts = sorted(dec.get("ctrl/thrust"), key=lambda m: m.stamp_ns)
+        energy = None
+        state_source, thrust_source = "nav/state", "ctrl/thrust"
+    met = mx.mission_metrics(states, mission.waypoints, mission.coa_radius_m, mission.task_power_w,
+                             alpha_w_per_n2=alpha, thrusts=thrusts, energy_j=energy,
+                             mission_start_ns=min(active) if active else None,
+                             sample_period_s=sample_period_s, state_source=state_source,
+                             thrust_source=thrust_source)
+    solves = [m for m in dec.get("ctrl/solve") if isinstance(m, SolveRecord)]
+    commands = sorted((m for m in dec.get("ctrl/thrust") if isinstance(m, ThrustCommand)),
+                      key=lambda m: m.stamp_ns)
+    live = _live(statuses)
+    out: dict[str, Any] = {
+        "files": [str(f) for f in files],
+        "vessel": sorted(dec.vessels)[0] if vessel is None and dec.vessels else vessel,
+        "mission": {"waypoints_m": [list(w) for w in mission.waypoints],
+                    "coa_radius_m": mission.coa_radius_m, "task_power_w": mission.task_power_w,
+                    "source": mission.source},
+        "alpha_w_per_n2": alpha,
+        "metrics": met.to_json(),
+        "solve": mx.solve_stats(solves).to_json(),
+        "controller_reported": live,
+        "recording": {"messages": info.message_count, "topics": info.topics,
+                      "duration_s": (info.end_ns - info.start_ns) / 1e9,
+                      "undecodable": dec.undecodable,
+                      "recorder_summary": info.metadata.get("seaway.recorder.summary", {}),
+                      "recovered": info.metadata.get("seaway.recover", {})},
+        "_": {"series": met.series, "commands": commands, "thrusts": thrusts, "states": states,
+              "solves": solves, "statuses": statuses, "start_ns": met.start_ns},
+    }
+    return out
+
+
+def _live(statuses: list[MissionStatus]) -> dict[str, Any]:
+    """What the controller itself reported last (MissionStatus), for comparison with the report."""
+    if not statuses:
+        return {}
+    last = statuses[-1]
+    return {"state": last.state, "mission_id": last.mission_id, "active_leg": last.active_leg,
+            "energy_used_j": last.energy_used_j, "energy_to_go_j": last.energy_to_go_j}
+
+
+def table(res: dict[str, Any]) -> str:
+    m, s = res["metrics"], res["solve"]
+
+    def f(v: Any, fmt: str = "{:.3f}") -> str:
+        return "-" if v is None else fmt.format(v)
+
+    rows = [
+        ("completed", "yes" if m["completed"] else "NO (metrics up to the last sample)", ""),
+        ("travel time", f(m["travel_time_s"], "{:.2f}"), "s"),
+        ("energy", f(m["energy_j"], "{:.2f}"), f"J ({m['energy_source']})"),
+        ("  propulsion", f(m["propulsion_energy_j"], "{:.2f}"), "J"),
+        ("  task (T^w * t)", f(m["task_energy_j"], "{:.2f}"), "J"),
+        ("  check", f(m["energy_check_j"], "{:.2f}"), f"J ({m['energy_check_source'] or 'none'})"),
+        ("avg cross-track error", f(m["avg_cross_track_m"], "{:.4f}"),
+         f"m ({m['cross_track_samples']} samples outside the circles)"),
+        ("max cross-track error", f(m["max_cross_track_m"], "{:.4f}"), "m"),
+        ("legs completed", str(m["legs_completed"]), f"of {len(res['mission']['waypoints_m']) - 1}"),
+        ("solves", str(s["count"]), f"{s['failures']} failed"),
+        ("solve time median / p95 / max", f"{f(s['solve_time_median_ms'], '{:.2f}')} / "
+         f"{f(s['solve_time_p95_ms'], '{:.2f}')} / {f(s['solve_time_max_ms'], '{:.2f}')}", "ms"),
+        ("fallbacks", str(s["fallbacks"]), f"by level {s['fallback_levels'] or '{}'}"),
+    ]
+    live = res["controller_reported"]
+    if live.get("energy_used_j") is not None:
+        rows.append(("controller's energy_used", f(live["energy_used_j"], "{:.2f}"), "J (MissionStatus)"))
+    w = max(len(r[0]) for r in rows)
+    v = max(len(r[1]) for r in rows)
+    head = (f"Run report: {', '.join(res['files'])}\nvessel {res['vessel']}, state from "
+            f"{m['state_source']}, mission from {res['mission']['source']}\n")
+    return head + "\n".join(f"{a.ljust(w)}  {b.rjust(v)}  {c}".rstrip() for a, b, c in rows)
+
+
+def plots(res: dict[str, Any], out: Path) -> list[Path]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    data = res["_"]
+    ser = data["series"]
+    t0 = data["start_ns"]
+    written = []
+
+    # Trajectory: NED, so north up (x) and east right (y).
+    fig, ax = plt.subplots(figsize=(6, 6))
+    wps = res["mission"]["waypoints_m"]
+    r = res["mission"]["coa_radius_m"]
+    ax.plot([p[1] for p in wps], [p[0] for p in wps], "k--", lw=1, label="path")
+    for i, (x, y) in enumerate(wps):
+        ax.add_patch(plt.Circle((y, x), r, fill=False, color="tab:green", lw=1))
+        ax.annotate(f"P{i}", (y, x), textcoords="offset points", xytext=(5, 5))
+    ax.plot(ser["y_m"], ser["x_m"], color="tab:blue", lw=1.5, label=res["metrics"]["state_source"])
+    ax.set_xlabel("east y [m]")
+    ax.set_ylabel("north x [m]")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.legend(loc="best")
+    ax.set_title("trajectory")
+    written.append(_save(fig, out / "trajectory.png"))
+
+    fig, ax = plt.subplots(figsize=(8, 4))
+    applied = data["thrusts"] if res["metrics"]["state_source"] == "sim/truth" else []
+    for label, seq in (("applied (sim/truth)", applied), ("commanded (ctrl/thrust)", data["commands"])):
+        if seq:
+            t = [(c.stamp_ns - t0) / 1e9 for c in seq]
+            ax.step(t, [c.thrust_port_n for c in seq], where="post", label=f"T1 port, {label}")
+            ax.step(t, [c.thrust_starboard_n for c in seq], where="post", label=f"T2 starboard, {label}")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("thrust [N]")
+    ax.legend(loc="best", fontsize="small")
+    ax.set_title("thrusts")
+    written.append(_save(fig, out / "thrust.png"))
+
+    fig, ax = plt.subplots(figsize=(8, 4))
+    ax.plot(ser["grid_t_s"], ser["cross_track_m"], lw=1)
+    avg = res["metrics"]["avg_cross_track_m"]
+    if avg is not None:
+        ax.axhline(avg, color="tab:red", ls="--", lw=1, label=f"average {avg:.3f} m")
+        ax.legend(loc="best")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("cross-track error [m] (gaps: inside a circle)")
+    ax.set_title("cross-track error")
+    written.append(_save(fig, out / "cross_track.png"))
+
+    fig, ax = plt.subplots(figsize=(8, 4))
+    ax.plot(ser["t_s"], ser["energy_used_j"], label="energy used (incl. T^w)")
+    togo = [(s.stamp_ns, s.energy_to_go_j) for s in data["solves"] if s.energy_to_go_j is not None]
+    if not togo:
+        togo = [(s.stamp_ns, s.energy_to_go_j) for s in data["statuses"] if s.energy_to_go_j is not None]
+    if togo:
+        ax.plot([(t - t0) / 1e9 for t, _ in togo], [e for _, e in togo], label="energy to go (controller)")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("energy [J]")
+    ax.legend(loc="best")
+    ax.set_title("energy")
+    written.append(_save(fig, out / "energy.png"))
+    return written
+
+
+def _save(fig: Any, path: Path) -> Path:
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def _clean(v: Any) -> Any:
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    if isinstance(v, dict):
+        return {k: _clean(x) for k, x in v.items()}
+    if isinstance(v, list):
+        return [_clean(x) for x in v]
+    return v
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = parser().parse_args(list(sys.argv[1:] if argv is None else argv))
+    try:
+        files = recording.open_paths(args.files)
+        res = analyse(files, scenario=args.scenario, mission_file=args.mission,
+                      vessel_file=args.vessel_file, vessel=args.vessel, sample_period_s=args.sample_period)
+    except (ConfigError, ValueError, FileNotFoundError) as err:
+        print(f"seaway report: {err}", file=sys.stderr)
+        return 2
+    out = args.out or files[0].parent / "report"
+    out.mkdir(parents=True, exist_ok=True)
+    doc = _clean({k: v for k, v in res.items() if k != "_"})
+    (out / "metrics.json").write_text(json.dumps(doc, indent=2) + "\n")
+    written = [] if args.no_plots else plots(res, out)
+    if args.json:
+        print(json.dumps(doc))
+    else:
+        print(table(res))
+        print(f"\nwrote {out / 'metrics.json'}" + "".join(f", {p.name}" for p in written))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

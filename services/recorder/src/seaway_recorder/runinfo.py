@@ -1,0 +1,181 @@
+"""The files and facts that let a recording rebuild its run: attachments in, mission and vessel out.
+
+Attachments are named ``<role>/<file name>``; the roles are ``scenario``, ``scenario-data`` (files a
+scenario refers to, by their path relative to it), ``vessel``, ``profile``, ``mission``, ``zenoh`` and
+``config``. The recorder writes them; the report and replay read them back:
+
+* the mission (waypoints, circle of acceptance, T^w): a ``mission/*`` attachment (a MissionRequest
+  JSON document, or a TOML/JSON file with the scenario's ``[mission]`` fields at its top level or under
+  ``mission``), else the ``[mission]`` table of the ``scenario/*`` attachment;
+* the vessel (alpha for the energy): the ``vessel/*`` attachment, else the vessel the scenario names.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from seaway.config import ConfigError, deploy_path, parse_config
+from seaway.frames import GeoOrigin
+from seaway.messages import MessageError, MissionRequest
+from seaway.model import VesselParams, load_vessel
+from seaway.scenario import Scenario, load_scenario, parse_scenario
+
+from seaway_recorder.writer import AttachmentSpec, media_type_for
+
+ROLES = ("scenario", "scenario-data", "vessel", "profile", "mission", "zenoh", "config")
+
+
+def attachment(role: str, path: Path, name: str | None = None) -> AttachmentSpec:
+    if role not in ROLES:
+        raise ValueError(f"attachment role {role!r}: use one of {', '.join(ROLES)}")
+    p = Path(path)
+    try:
+        data = p.read_bytes()
+        created = int(p.stat().st_mtime * 1e9)
+    except OSError as err:
+        raise ConfigError(f"cannot attach {p}: {err.strerror or err}") from None
+    return AttachmentSpec(f"{role}/{name or p.name}", media_type_for(p), data, created)
+
+
+def parse_attach_arg(text: str) -> AttachmentSpec:
+    """``ROLE=FILE`` or ``FILE`` (role ``config``)."""
+    role, sep, path = text.partition("=")
+    if sep and role in ROLES:
+        return attachment(role, Path(path))
+    return attachment("config", Path(text))
+
+
+def scenario_path(name_or_path: str) -> Path:
+    p = Path(name_or_path)
+    if p.suffix not in (".toml", ".json"):
+        p = deploy_path("scenarios", f"{name_or_path}.toml")
+    return p
+
+
+def vessel_path(name_or_path: str, relative_to: Path | None = None) -> Path:
+    p = Path(name_or_path)
+    if p.suffix in (".toml", ".json"):
+        return p if p.is_absolute() or relative_to is None else relative_to / p
+    return deploy_path("vessels", f"{name_or_path}.toml")
+
+
+def scenario_attachments(name_or_path: str, with_vessel: bool = True
+                         ) -> tuple[list[AttachmentSpec], Scenario]:
+    """The scenario file (validated), the data files it refers to and, optionally, its vessel file."""
+    path = scenario_path(name_or_path)
+    scenario = load_scenario(path)
+    out = [attachment("scenario", path)]
+    doc = tomllib.loads(path.read_text()) if path.suffix == ".toml" else json.loads(path.read_text())
+    for d in doc.get("disturbances", []) or []:
+        if isinstance(d, dict) and "file" in d:
+            out.append(attachment("scenario-data", path.parent / d["file"], name=str(d["file"])))
+    if with_vessel:
+        out.append(attachment("vessel", vessel_path(scenario.vessel, path.parent)))
+    return out, scenario
+
+
+# -- reading back -------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Mission:
+    """Waypoints P_0..P_N in local NED metres, r_COA and T^w."""
+
+    waypoints: tuple[tuple[float, float], ...]
+    coa_radius_m: float
+    task_power_w: float
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        if len(self.waypoints) < 2:
+            raise ValueError("a mission needs at least two waypoints (P_0 and P_1)")
+        if not self.coa_radius_m > 0:
+            raise ValueError("coa_radius_m must be > 0")
+
+
+def _decode(name: str, data: bytes) -> dict[str, Any]:
+    text = data.decode("utf-8")
+    if name.endswith(".toml"):
+        return tomllib.loads(text)
+    doc = json.loads(text)
+    if not isinstance(doc, dict):
+        raise ValueError(f"{name}: the top level must be an object")
+    return doc
+
+
+def mission_from_request(req: MissionRequest, origin: GeoOrigin | None, source: str) -> Mission:
+    pts = []
+    for i, w in enumerate(req.waypoints):
+        if w.x_m is not None and w.y_m is not None:
+            pts.append((w.x_m, w.y_m))
+        elif w.lat_deg is not None and w.lon_deg is not None:
+            if origin is None:
+                raise ValueError(f"{source}: waypoint {i} is geodetic and no origin is known")
+            n, e, _ = origin.to_ned(math.radians(w.lat_deg), math.radians(w.lon_deg), origin.alt_m)
+            pts.append((n, e))
+        else:
+            raise ValueError(f"{source}: waypoint {i} has neither x_m/y_m nor lat_deg/lon_deg")
+    return Mission(tuple(pts), req.coa_radius_m, req.task_power_w, source)
+
+
+def mission_from_document(doc: dict[str, Any], origin: GeoOrigin | None, source: str) -> Mission:
+    """A MissionRequest document, a scenario, or a ``[mission]``-style table."""
+    if "waypoints" in doc:
+        try:
+            req = MissionRequest.decode(json.dumps({"stamp_ns": 0, **doc}))
+        except MessageError as err:
+            raise ValueError(f"{source}: {err}") from None
+        return mission_from_request(req, origin, source)
+    table = doc.get("mission", doc)
+    if not isinstance(table, dict) or "waypoints_m" not in table:
+        raise ValueError(f"{source}: no mission (waypoints or waypoints_m) in it")
+    wps = tuple((float(x), float(y)) for x, y in table["waypoints_m"])
+    return Mission(wps, float(table["coa_radius_m"]), float(table.get("task_power_w", 0.0)), source)
+
+
+def scenario_from_attachments(atts: dict[str, bytes]) -> Scenario | None:
+    for name, data in atts.items():
+        if name.startswith("scenario/"):
+            doc = _decode(name, data)
+            # Grid files come along as scenario-data/ attachments; the report needs only the mission
+            # and origin, so the disturbances are dropped rather than resolved here.
+            doc = {k: v for k, v in doc.items() if k != "disturbances"}
+            return parse_scenario(doc, f"attachment {name}")
+    return None
+
+
+def mission_from_attachments(atts: dict[str, bytes], origin: GeoOrigin | None) -> Mission | None:
+    for name, data in atts.items():
+        if name.startswith("mission/"):
+            return mission_from_document(_decode(name, data), origin, f"attachment {name}")
+    for name, data in atts.items():
+        if name.startswith("scenario/"):
+            doc = _decode(name, data)
+            if doc.get("mission"):
+                return mission_from_document(doc, origin, f"attachment {name}")
+    return None
+
+
+def vessel_from_attachments(atts: dict[str, bytes]) -> VesselParams | None:
+    for name, data in atts.items():
+        if name.startswith("vessel/"):
+            return parse_config(_decode(name, data), VesselParams, f"attachment {name}")
+    return None
+
+
+def scenario_origin(s: Scenario) -> GeoOrigin:
+    return GeoOrigin(math.radians(s.origin.lat_deg), math.radians(s.origin.lon_deg), s.origin.alt_m)
+
+
+def load_vessel_for(scenario: Scenario | None) -> VesselParams | None:
+    if scenario is None:
+        return None
+    try:
+        return load_vessel(scenario.vessel)
+    except (ConfigError, OSError):
+        return None

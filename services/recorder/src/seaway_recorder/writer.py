@@ -1,0 +1,282 @@
+"""The recorder's core: bus samples in, MCAP files out. No Zenoh here; time is passed in.
+
+``RecordingWriter.write(key, payload, encoding, log_time_ns)`` stores the payload's bytes unchanged on
+the key's channel (with the key's JSON Schema), after checking that they decode as the key's message
+type. Bytes that do not decode go, unchanged, to ``recorder/malformed`` inside an envelope that says
+why, and are counted. ``flush()`` ends the chunk in progress and writes it with its message indexes;
+the recorder's loop calls it at least every flush interval, which bounds what a SIGKILL can lose.
+``close()`` writes the summary (statistics, chunk/attachment/metadata indexes) so the file is fully
+indexed. Rotation (``max_bytes``, ``max_seconds``) closes a file the same way and opens the next,
+numbered one; every file carries the attachments and run metadata again, so each stands alone.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO, Any
+
+from mcap.writer import CompressionType, Writer
+from seaway.frames import GeoOrigin
+from seaway.messages import MessageError
+
+from seaway_recorder import schemas
+
+log = logging.getLogger("seaway.recorder")
+
+PROFILE = ""  # MCAP profile: none of the well-known ones (ros1, ros2) applies to JSON channels
+LIBRARY = "seaway-recorder/0.1.0"
+SUMMARY_METADATA = "seaway.recorder.summary"
+RUN_METADATA = "seaway.run"
+COMPRESSIONS = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
+
+
+@dataclass(frozen=True)
+class AttachmentSpec:
+    """A file stored in every recording: ``name`` is ``<role>/<file name>`` (``scenario/paper-c1.toml``)."""
+
+    name: str
+    media_type: str
+    data: bytes
+    create_time_ns: int = 0
+
+
+@dataclass
+class RecorderStats:
+    """What the recorder has done; printed as it goes and stored in each file's summary metadata."""
+
+    messages: int = 0
+    bytes: int = 0
+    malformed: int = 0
+    unregistered: int = 0
+    derived: int = 0
+    dropped: int = 0
+    flushes: int = 0
+    files: list[str] = field(default_factory=list)
+    by_topic: Counter[str] = field(default_factory=Counter)
+    last_error: str = ""
+
+    def as_metadata(self) -> dict[str, str]:
+        out = {k: str(getattr(self, k)) for k in
+               ("messages", "bytes", "malformed", "unregistered", "derived", "dropped", "flushes")}
+        out["last_error"] = self.last_error
+        return out
+
+    def line(self) -> str:
+        return (f"messages {self.messages:,}, bytes {self.bytes:,}, malformed {self.malformed:,}, "
+                f"dropped {self.dropped:,}, unregistered {self.unregistered:,}, "
+                f"derived {self.derived:,}, files {len(self.files)}")
+
+
+def media_type_for(path: Path) -> str:
+    return {".toml": "application/toml", ".json": "application/json", ".json5": "application/json5",
+            ".yaml": "application/yaml", ".yml": "application/yaml", ".txt": "text/plain",
+            ".csv": "text/csv"}.get(path.suffix.lower(), "application/octet-stream")
+
+
+class _OpenFile:
+    """One MCAP file being written: the mcap Writer, its stream and its channel table."""
+
+    def __init__(self, path: Path, chunk_size: int, compression: CompressionType) -> None:
+        self.path = path
+        self.stream: IO[bytes] = open(path, "wb")  # noqa: SIM115 - closed in close()
+        self.writer = Writer(self.stream, chunk_size=chunk_size, compression=compression)
+        self.writer.start(profile=PROFILE, library=LIBRARY)
+        self.schemas: dict[tuple[str, bytes], int] = {}
+        self.channels: dict[str, int] = {}
+        self.sequence: Counter[int] = Counter()
+        self.messages = 0
+
+    def channel(self, spec: schemas.ChannelSpec) -> int:
+        cid = self.channels.get(spec.topic)
+        if cid is not None:
+            return cid
+        schema_id = 0
+        if spec.schema_encoding:
+            sk = (spec.schema_name, spec.schema_data)
+            schema_id = self.schemas.get(sk, 0)
+            if not schema_id:
+                schema_id = self.writer.register_schema(spec.schema_name, spec.schema_encoding,
+                                                        spec.schema_data)
+                self.schemas[sk] = schema_id
+        cid = self.writer.register_channel(spec.topic, spec.message_encoding, schema_id,
+                                           dict(spec.metadata))
+        self.channels[spec.topic] = cid
+        return cid
+
+    def add(self, cid: int, data: bytes, log_time_ns: int, publish_time_ns: int) -> None:
+        self.sequence[cid] += 1
+        self.writer.add_message(cid, log_time_ns, data, publish_time_ns, self.sequence[cid] & 0xFFFFFFFF)
+        self.messages += 1
+
+    def size(self) -> int:
+        return self.stream.tell()
+
+    def close(self) -> None:
+        self.writer.finish()
+        self.stream.flush()
+        self.stream.close()
+
+
+class RecordingWriter:
+    """Writes bus samples to one MCAP file, or a numbered series when rotating."""
+
+    def __init__(
+        self,
+        path: Path,
+        *,
+        chunk_size: int = 4 * 1024 * 1024,
+        compression: str = "zstd",
+        max_bytes: int | None = None,
+        max_seconds: float | None = None,
+        attachments: list[AttachmentSpec] | None = None,
+        metadata: dict[str, dict[str, str]] | None = None,
+        validate: bool = True,
+        foxglove: bool = True,
+        default_origin: GeoOrigin | None = None,
+    ) -> None:
+        if compression not in COMPRESSIONS:
+            raise ValueError(f"compression {compression!r}: use one of {', '.join(COMPRESSIONS)}")
+        self.base = Path(path)
+        self.rotating = bool(max_bytes or max_seconds)
+        self.chunk_size = chunk_size
+        self.compression = COMPRESSIONS[compression]
+        self.max_bytes = max_bytes
+        self.max_seconds = max_seconds
+        self.attachments = list(attachments or [])
+        self.metadata = dict(metadata or {})
+        self.validate = validate
+        self.stats = RecorderStats()
+        self._deriver = schemas.LocationFixDeriver(default_origin) if foxglove else None
+        self._file: _OpenFile | None = None
+        self._file_index = 0
+        self._file_opened_ns = 0
+        self._channel_specs: dict[str, schemas.ChannelSpec] = {}
+
+    # -- files ------------------------------------------------------------------------------
+
+    def _next_path(self) -> Path:
+        if not self.rotating:
+            return self.base
+        return self.base.with_name(f"{self.base.stem}-{self._file_index:03d}{self.base.suffix}")
+
+    def open(self, now_ns: int) -> Path:
+        """Open the next file and write the attachments and run metadata into it."""
+        path = self._next_path()
+        path.parent.mkdir(parents=True, exist_ok=True)
+        self._file = _OpenFile(path, self.chunk_size, self.compression)
+        self._file_opened_ns = now_ns
+        self._file_index += 1
+        for a in self.attachments:
+            self._file.writer.add_attachment(a.create_time_ns, now_ns, a.name, a.media_type, a.data)
+        for name, data in self.metadata.items():
+            meta = dict(data)
+            if name == RUN_METADATA and self.rotating:
+                meta["file_index"] = str(self._file_index - 1)
+            self._file.writer.add_metadata(name, meta)
+        self._file.writer.flush()
+        self.stats.files.append(str(path))
+        log.info("recording to %s", path)
+        return path
+
+    @property
+    def path(self) -> Path | None:
+        return self._file.path if self._file else None
+
+    def _close_file(self, now_ns: int) -> None:
+        f = self._file
+        if f is None:
+            return
+        summary = self.stats.as_metadata()
+        summary.update({"file_messages": str(f.messages), "closed_at_ns": str(now_ns)})
+        f.writer.add_metadata(SUMMARY_METADATA, summary)
+        f.close()
+        self._file = None
+
+    def maybe_rotate(self, now_ns: int) -> Path | None:
+        """Start the next file if this one is over its size or age; returns the new path."""
+        f = self._file
+        if f is None or not self.rotating or f.messages == 0:
+            return None
+        too_big = self.max_bytes is not None and f.size() >= self.max_bytes
+        too_old = (self.max_seconds is not None
+                   and (now_ns - self._file_opened_ns) >= self.max_seconds * 1e9)
+        if not (too_big or too_old):
+            return None
+        self._close_file(now_ns)
+        return self.open(now_ns)
+
+    def flush(self) -> None:
+        """End the chunk in progress (with its message index) and hand the bytes to the OS."""
+        if self._file is not None:
+            self._file.writer.flush()
+            self.stats.flushes += 1
+
+    def close(self, now_ns: int | None = None) -> list[str]:
+        """Finish the file (summary and indexes); returns every file written."""
+        self._close_file(time.time_ns() if now_ns is None else now_ns)
+        return list(self.stats.files)
+
+    # -- samples ----------------------------------------------------------------------------
+
+    def _spec(self, key: str, encoding: str) -> schemas.ChannelSpec:
+        spec = self._channel_specs.get(key)
+        if spec is None:
+            spec = schemas.channel_for_key(key, encoding)
+            self._channel_specs[key] = spec
+        return spec
+
+    def _put(self, spec: schemas.ChannelSpec, data: bytes, log_time_ns: int, publish_time_ns: int) -> None:
+        f = self._file
+        if f is None:
+            raise RuntimeError("RecordingWriter.write before open()")
+        f.add(f.channel(spec), data, log_time_ns, publish_time_ns)
+        self.stats.by_topic[spec.topic] += 1
+
+    def write(self, key: str, payload: bytes, encoding: str, log_time_ns: int,
+              publish_time_ns: int | None = None) -> bool:
+        """Record one sample; returns False if it was malformed (kept on the error channel)."""
+        publish = log_time_ns if publish_time_ns is None else publish_time_ns
+        spec = self._spec(key, encoding)
+        self.stats.bytes += len(payload)
+        msg: Any = None
+        if spec.message_type is not None and (self.validate or self._wants_decode(key)):
+            try:
+                msg = spec.message_type.decode(payload)
+            except MessageError as err:
+                self._put_malformed(key, spec.schema_name, str(err), encoding, payload, log_time_ns, publish)
+                return False
+        elif spec.message_type is None:
+            self.stats.unregistered += 1
+        self._put(spec, payload, log_time_ns, publish)
+        self.stats.messages += 1
+        if msg is not None and self._deriver is not None:
+            derived = self._deriver.feed(key, msg)
+            if derived is not None:
+                topic, data = derived
+                fspec = self._channel_specs.get(topic)
+                if fspec is None:
+                    fspec = schemas.location_fix_channel(topic, key)
+                    self._channel_specs[topic] = fspec
+                self._put(fspec, data, log_time_ns, publish)
+                self.stats.derived += 1
+        return True
+
+    def _wants_decode(self, key: str) -> bool:
+        return self._deriver is not None and key.endswith(("sim/truth", "nav/state", "nav/origin",
+                                                           "sensors/gnss"))
+
+    def _put_malformed(self, key: str, schema: str, error: str, encoding: str, payload: bytes,
+                       log_time_ns: int, publish_time_ns: int) -> None:
+        self.stats.malformed += 1
+        self.stats.last_error = f"{key}: {error}"[:500]
+        log.warning("malformed sample on %s kept on %s: %s", key, schemas.MALFORMED_TOPIC, error)
+        envelope = schemas.malformed_record(key, schema, error, encoding, payload, log_time_ns)
+        self._put(schemas.malformed_channel(), envelope, log_time_ns, publish_time_ns)
+
+    def count_dropped(self, n: int) -> None:
+        """Samples lost before they reached the writer (queue overflow); stored in the summary."""
+        self.stats.dropped += n
