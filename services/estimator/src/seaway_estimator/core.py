@@ -549,7 +549,11 @@ class EstimatorCore:
 
     def _estimate(self, t: int, z: np.ndarray, P: np.ndarray, degraded: bool) -> StateEstimate | None:
         d, T = self._body_d(z)
-        Pout = P if T is None else T @ P @ T.T
+        if T is not None:
+            Pout = T @ P @ T.T
+            Pout = 0.5 * (Pout + Pout.T)
+        else:
+            Pout = P
         pos_std = math.sqrt(max(P[IX, IX], P[IY, IY])) if np.isfinite(P[IX, IX]) else math.inf
         finite = bool(np.isfinite(z).all() and np.isfinite(Pout).all())
         if not finite or pos_std > self.config.max_position_std_m:

@@ -1,0 +1,236 @@
+"""The estimator process: the bus around ``EstimatorCore``.
+
+Inputs: ``sensors/gnss`` (GnssFix), ``sensors/attitude`` (Attitude), ``ctrl/thrust`` (ThrustCommand),
+and in ``--lockstep`` ``sim/clock`` (ClockTick). Outputs: ``nav/state`` (StateEstimate) and
+``nav/origin`` (NavOrigin, once fixed, then at ``origin_rate_hz`` for late joiners).
+
+* Realtime (default): every 1/``publish_rate_hz`` of wall time, the inputs that arrived are fed to
+  the core in stamp order and the state is predicted to now and published.
+* Lockstep: data-driven. On each ClockTick t_k, every sensor message stamped <= t_k is fed in stamp
+  order (later ones wait for their tick), the state is predicted to t_k and published stamped
+  exactly t_k. Thrust commands are fed as they arrive (the controller's answer to t_k applies from
+  t_k). A tick earlier than the previous one means the simulation restarted: the core resets.
+
+Re-initialisation: a request on ``seaway/<vessel>/nav/reset`` (``NavResetRequest``; the key is
+served here until the shared registry has it) or SIGUSR1 (keeps the origin).
+"""
+
+from __future__ import annotations
+
+import bisect
+import logging
+import signal
+import threading
+import time
+from collections.abc import Sequence
+from typing import Any, ClassVar
+
+from pydantic import Field
+from seaway import keys
+from seaway.clock import RateLoop
+from seaway.messages import ClockTick, Message, Reply
+from seaway.service import base_parser, parse, run_service
+
+from seaway_estimator.config import load_estimator_config
+from seaway_estimator.core import EstimatorCore, EstimatorError
+from seaway_estimator.replay import TraceWriter
+
+log = logging.getLogger("seaway.estimator")
+NS_PER_S = 1_000_000_000
+STATS_PERIOD_S = 10.0
+
+
+class NavResetRequest(Message):
+    """Re-initialise the estimator from the next measurements (proposed for seaway.messages)."""
+
+    SCHEMA: ClassVar[str] = "seaway.v1.NavResetRequest"
+    keep_origin: bool = Field(default=True, description="keep the NED origin (positions on the "
+                              "bus stay in the same frame)")
+    reason: str = Field(default="", max_length=200)
+
+
+NAV_RESET = keys.KeySpec("nav/reset", NavResetRequest, "estimator", "query",
+                         doc="re-initialise the estimator")
+
+_KIND_ORDER = {"gnss": 0, "attitude": 1, "thrust": 2}
+
+
+class Inbox:
+    """Messages from Zenoh's threads, in arrival order, for the main loop."""
+
+    def __init__(self) -> None:
+        self._items: list[tuple[str, Any]] = []
+        self._cond = threading.Condition()
+
+    def put(self, kind: str, msg: Any) -> None:
+        with self._cond:
+            self._items.append((kind, msg))
+            self._cond.notify_all()
+
+    def take(self, timeout_s: float) -> list[tuple[str, Any]]:
+        with self._cond:
+            if not self._items:
+                self._cond.wait(timeout_s)
+            out, self._items = self._items, []
+            return out
+
+
+class EstimatorLoop:
+    """Feeds the core, publishes, and serves resets; the bus-facing half of the service."""
+
+    def __init__(self, core: EstimatorCore, bus: Any, recorder: TraceWriter | None = None) -> None:
+        self.core = core
+        self.bus = bus
+        self.lock = threading.Lock()
+        self.recorder = recorder
+        self.pub_state = bus.publisher(keys.NAV_STATE)
+        self.pub_origin = bus.publisher(keys.NAV_ORIGIN)
+        self.pending: list[tuple[int, int, int, str, Any]] = []  # (stamp, kind order, seq, kind, msg)
+        self._seq = 0
+        self._origin_due = 0.0
+        self._last_tick: int | None = None
+        self.refused = 0
+
+    # -- inputs ----------------------------------------------------------------------------------
+
+    def queue(self, kind: str, msg: Any) -> None:
+        self._seq += 1
+        bisect.insort(self.pending, (msg.stamp_ns, _KIND_ORDER[kind], self._seq, kind, msg))
+
+    def feed(self, kind: str, msg: Any) -> None:
+        """One core call, recorded; a refused input is logged and counted, never fatal."""
+        if self.recorder is not None:
+            self.recorder.write(kind, msg)
+        try:
+            if kind == "gnss":
+                self.core.on_gnss(msg)
+            elif kind == "attitude":
+                self.core.on_attitude(msg)
+            else:
+                self.core.on_thrust(msg)
+        except EstimatorError as err:
+            self.refused += 1
+            log.warning("refused %s input: %s", kind, err)
+
+    def feed_pending(self, upto_ns: int | None) -> None:
+        """Feed queued messages stamped <= ``upto_ns`` (all if None) in stamp order."""
+        n = len(self.pending) if upto_ns is None else bisect.bisect_right(
+            self.pending, (upto_ns, 99, 1 << 62))
+        batch, self.pending = self.pending[:n], self.pending[n:]
+        for _, _, _, kind, msg in batch:
+            self.feed(kind, msg)
+
+    # -- outputs ---------------------------------------------------------------------------------
+
+    def publish(self, t_ns: int) -> None:
+        if self.recorder is not None:
+            self.recorder.write("tick", t_ns)
+        try:
+            est = self.core.predict_to(t_ns)
+        except EstimatorError as err:
+            log.warning("cannot publish at %d: %s", t_ns, err)
+            return
+        if est is not None:
+            self.pub_state.put(est)
+        now = time.monotonic()
+        origin = self.core.nav_origin(t_ns)
+        if origin is not None and now >= self._origin_due:
+            self.pub_origin.put(origin)
+            self._origin_due = now + 1.0 / self.core.config.origin_rate_hz
+
+    def reset(self, keep_origin: bool, why: str) -> None:
+        with self.lock:
+            if self.recorder is not None:
+                self.recorder.write("reset", keep_origin)
+            self.core.reset(keep_origin=keep_origin)
+            self.pending.clear()
+            if not keep_origin:
+                self._origin_due = 0.0
+        log.info("estimator re-initialised (%s, keep_origin=%s)", why, keep_origin)
+
+    def on_reset_request(self, req: NavResetRequest) -> Reply:
+        self.reset(req.keep_origin, f"request: {req.reason or 'no reason given'}")
+        return Reply.accept(time.time_ns(), "re-initialising from the next measurements",
+                            keep_origin=req.keep_origin)
+
+    # -- lockstep --------------------------------------------------------------------------------
+
+    def on_tick(self, tick: ClockTick) -> None:
+        t = tick.stamp_ns
+        if self._last_tick is not None and t < self._last_tick:
+            self.reset(keep_origin=False, why=f"simulation time went back to {t} ns")
+        self._last_tick = t
+        with self.lock:
+            self.feed_pending(t)
+            self.publish(t)
+
+
+def _stats_line(core: EstimatorCore) -> str:
+    c = core.counters.values
+    keys_ = ("gnss_accepted", "gnss_rejected", "heading_accepted", "heading_rejected",
+             "degraded_entered", "refused_non_finite", "too_old", "resets", "published")
+    return ", ".join(f"{k} {c[k]}" for k in keys_)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    ap = base_parser("estimator", "EKF state and disturbance estimator: sensors/* -> nav/state")
+    ap.add_argument("--config", default=None, help="estimator config file (TOML or JSON)")
+    ap.add_argument("--lockstep", action="store_true",
+                    help="publish on each sim/clock tick, stamped with it (batch simulation)")
+    ap.add_argument("--record-inputs", default=None, metavar="FILE",
+                    help="write every core call as JSON lines, for python -m seaway_estimator.replay")
+    args = parse(ap, argv)
+    cfg = load_estimator_config(args.config)
+    core = EstimatorCore(cfg)
+    recorder = TraceWriter(args.record_inputs) if args.record_inputs else None
+    reset_signal = threading.Event()
+    with run_service("estimator", args) as ctx:
+        loop = EstimatorLoop(core, ctx.bus, recorder)
+        inbox = Inbox()
+        for kind, spec in (("gnss", keys.GNSS), ("attitude", keys.ATTITUDE), ("thrust", keys.THRUST)):
+            ctx.bus.subscribe(spec, callback=lambda _k, m, kind=kind: inbox.put(kind, m))
+        if args.lockstep:
+            ctx.bus.subscribe(keys.SIM_CLOCK, callback=lambda _k, m: inbox.put("tick", m))
+        ctx.bus.queryable(NAV_RESET, loop.on_reset_request)
+        signal.signal(signal.SIGUSR1, lambda *_: reset_signal.set())
+        log.info("estimator %s, publishing %s, vessel file %s",
+                 "lockstep on sim/clock" if args.lockstep else "realtime",
+                 "per tick" if args.lockstep else f"at {cfg.publish_rate_hz:g} Hz", cfg.vessel)
+        stats_due = time.monotonic() + STATS_PERIOD_S
+        rate = None if args.lockstep else RateLoop(1.0 / cfg.publish_rate_hz, ctx.clock, ctx.stop)
+        try:
+            while not ctx.stop.is_set():
+                if reset_signal.is_set():
+                    reset_signal.clear()
+                    loop.reset(keep_origin=True, why="SIGUSR1")
+                if rate is not None:
+                    if not rate.wait():
+                        break
+                    items = inbox.take(0.0)
+                    with loop.lock:
+                        for kind, msg in items:
+                            loop.queue(kind, msg)
+                        loop.feed_pending(None)
+                        loop.publish(ctx.clock.now_ns())
+                else:
+                    for kind, msg in inbox.take(0.1):
+                        if kind == "tick":
+                            loop.on_tick(msg)
+                        elif kind == "thrust":
+                            with loop.lock:
+                                loop.feed(kind, msg)
+                        else:
+                            with loop.lock:
+                                loop.queue(kind, msg)
+                if time.monotonic() >= stats_due:
+                    stats_due += STATS_PERIOD_S
+                    log.info("estimator: %s", _stats_line(core))
+        finally:
+            if recorder is not None:
+                recorder.close()
+            log.info("estimator final: %s", _stats_line(core))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
