@@ -52,8 +52,8 @@ class MavlinkLink:
 
     @property
     def garbage(self) -> int:
-        """Datagrams or frames dropped as garbage so far (SYS_STATUS.errors_comm reports it)."""
-        return self.counters["bad_frames"] + self.counters["truncated_frames"]
+        """Datagrams that held garbage so far (SYS_STATUS.errors_comm reports it)."""
+        return self.counters["garbage_datagrams"]
 
     def receive(self, timeout_s: float) -> list[Any]:
         """Wait up to ``timeout_s`` for a datagram, then decode every one waiting."""
@@ -78,19 +78,21 @@ class MavlinkLink:
         try:
             msgs = parser.parse_buffer(data) or []
         except Exception as err:  # pymavlink raises on some malformed payloads even when robust
-            self._warn(f"undecodable datagram from {addr} ({len(data)} bytes): {err}")
-            self.counters["bad_frames"] += 1
+            self.counters["garbage_datagrams"] += 1
+            self._warn(f"garbage from {addr}: undecodable datagram ({len(data)} bytes): {err}")
             return []
-        good = []
-        for m in msgs:
-            if m.get_type() == "BAD_DATA":
-                self.counters["bad_frames"] += 1
-                self._warn(f"garbage from {addr}: {getattr(m, 'reason', 'bad data')}")
-            else:
-                good.append(m)
-        if parser.buf_len() > 0:
-            self.counters["truncated_frames"] += 1
-            self._warn(f"truncated frame from {addr}: {parser.buf_len()} trailing bytes")
+        good = [m for m in msgs if m.get_type() != "BAD_DATA"]
+        bad = len(msgs) - len(good)
+        trailing = parser.buf_len()
+        if bad or trailing:
+            # Good frames in the same datagram still count: garbage costs only itself.
+            self.counters["garbage_datagrams"] += 1
+            self.counters["bad_frames"] += bad
+            self.counters["truncated_frames"] += 1 if trailing else 0
+            reasons = sorted({getattr(m, "reason", "bad data") for m in msgs
+                              if m.get_type() == "BAD_DATA"})
+            self._warn(f"garbage from {addr}: {bad} bad frame(s) {reasons}, "
+                       f"{trailing} trailing byte(s) of an incomplete frame")
         if good:
             if addr != self.peer:
                 log.info("MAVLink peer is now %s:%d", *addr)

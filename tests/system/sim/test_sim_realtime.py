@@ -1,0 +1,181 @@
+"""The sim as a real process in real time, driven over MAVLink on UDP loopback like vehicle_io does.
+
+Scenario paper-c1: no disturbance and no sensor noise, so what the sim reports can be compared with
+an in-test integration of ``seaway.model`` for the same thrust (see the tolerance note below).
+"""
+
+from __future__ import annotations
+
+import math
+import signal
+import time
+
+import pytest
+from pymavlink.dialects.v20 import common as ml
+from seaway import keys, model
+from seaway.bus import Bus
+from seaway.messages import ScenarioRequest
+from seaway.model import load_vessel
+from sim_mav_client import MavClient, manual_control
+
+from tests.conftest import BIN, free_port, wait_for
+
+pytestmark = pytest.mark.system
+
+STEP_S = 0.01  # the sim's real-time tick and the plant's internal RK4 step
+PAPER = load_vessel("paper-sim")
+
+
+def free_udp_port() -> int:
+    import socket
+
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def start_sim(procs, env, *args: str):
+    port = free_udp_port()
+    p = procs.start([str(BIN / "seaway-sim"), "--mavlink", f"udpin:127.0.0.1:{port}", *args], env,
+                    "sim")
+    wait_for(lambda: "real time: MAVLink on" in procs.log(p), 20, what="sim up")
+    return p, port
+
+
+def model_table(thrust: tuple[float, float], seconds: float) -> list[list[float]]:
+    """States from rest every 10 ms under constant thrust: the same RK4 and step as the plant."""
+    x = [0.0] * 6
+    out = [x]
+    for _ in range(round(seconds / STEP_S)):
+        x = model.rk4_step(x, thrust, STEP_S, PAPER, math)
+        out.append(x)
+    return out
+
+
+def test_constant_thrust_moves_the_vessel_as_the_model_predicts_then_failsafe(procs, zenoh_env):
+    sim, port = start_sim(procs, zenoh_env, "--scenario", "paper-c1")
+    with Bus.open("vessel1") as bus:
+        truth = bus.subscribe(keys.SIM_TRUTH, mode="fifo")
+        mav = MavClient(port)
+        mav.send(ml.MAVLink_heartbeat_message(ml.MAV_TYPE_GCS, ml.MAV_AUTOPILOT_INVALID, 0, 0, 4, 3))
+        hb = mav.wait("HEARTBEAT")
+        assert (hb.type, hb.autopilot, hb.custom_mode) == (10, ml.MAV_AUTOPILOT_PX4, 0x00010000)
+
+        # PX4 refuses to arm in Manual without a manual control stream.
+        assert mav.command(ml.MAV_CMD_COMPONENT_ARM_DISARM, 1) == ml.MAV_RESULT_TEMPORARILY_REJECTED
+
+        # y = 200, z = 900: throttle 0.8, diff 0.2 -> L 1.0, R 0.6 -> T1 10 N, T2 6 N (paper-sim).
+        stick = manual_control(200, 900)
+        assert mav.command(ml.MAV_CMD_DO_SET_MODE, 1, 1, 0, keep_streaming=stick) == 0
+        assert mav.command(ml.MAV_CMD_COMPONENT_ARM_DISARM, 1, keep_streaming=stick) == 0
+        end = time.monotonic() + 3.0
+        while time.monotonic() < end:
+            mav.send(stick)
+            mav.pump(0.05)
+        last_send_wall = time.time()
+        mav.pump(1.2)  # silence: the failsafe must act
+
+        # -- motion against the model ------------------------------------------------------
+        table = model_table((10.0, 6.0), 10.0)
+        local = {m.time_boot_ms: m for m in mav.messages("LOCAL_POSITION_NED")}
+        yaw = {m.time_boot_ms: m.yaw for m in mav.messages("ATTITUDE")}
+        moving = sorted(t for t, m in local.items() if m.vx != 0.0)
+        assert len(moving) >= 10, "expected >= 10 position samples under way"
+        # Fixes are 200 ms apart, thrust starts on a 10 ms tick: find that tick from the first
+        # samples under way (the only unknown), then every sample must agree with the model.
+        usable = [t for t in moving if t <= moving[0] + 2400]
+        best = min(range(moving[0] - 200, moving[0], 10),
+                   key=lambda t0: sum((local[t].x - table[(t - t0) // 10][3]) ** 2 for t in usable))
+        # Tolerance: the sim and this test take the same RK4 steps from the same start, so the
+        # residue is float32 rounding in LOCAL_POSITION_NED (~1e-7 relative) and ATTITUDE: 1 mm,
+        # 1 mm/s and 1 mrad leave room for that and catch any wrong thrust, mapping or timing
+        # (one tick of offset alone moves x by ~6 mm at 0.6 m/s).
+        for t in usable:
+            want = table[(t - best) // 10]
+            m = local[t]
+            assert (m.x, m.y) == pytest.approx((want[3], want[4]), abs=1e-3), t
+            vn = want[0] * math.cos(want[5]) - want[1] * math.sin(want[5])
+            ve = want[0] * math.sin(want[5]) + want[1] * math.cos(want[5])
+            assert (m.vx, m.vy) == pytest.approx((vn, ve), abs=1e-3), t
+            assert yaw[t] == pytest.approx(want[5], abs=1e-3), t
+        # Port pushes harder: the vessel turns clockwise (to starboard, y east grows).
+        assert table[(usable[-1] - best) // 10][5] > 0.05 and local[usable[-1]].y > 0.0
+        gpi = mav.messages("GLOBAL_POSITION_INT")
+        assert len(gpi) >= 10 and gpi[-1].hdg != 65535
+
+        # -- loss failsafe: thrust to zero within COM_RC_LOSS_T (0.5 s) + one period -----------
+        samples = [(s.stamp_ns / 1e9, s.thrust_port_n, s.thrust_starboard_n) for s in truth.drain()]
+        assert any(p == pytest.approx(10.0) and s == pytest.approx(6.0) for _, p, s in samples)
+        after = [(t - last_send_wall, p, s) for t, p, s in samples if t > last_send_wall]
+        zero_at = next(dt for dt, p, s in after if p == 0.0 and s == 0.0)
+        # Truth is published every 0.1 s; stamps and this clock agree to a few ms.
+        assert 0.45 <= zero_at <= 0.5 + 0.1 + 0.05, zero_at
+        assert all(p > 0 for dt, p, _ in after if dt < 0.45)
+        hb = mav.messages("HEARTBEAT")[-1]
+        assert hb.system_status == ml.MAV_STATE_CRITICAL and hb.custom_mode == 0x03040000
+        assert hb.base_mode & ml.MAV_MODE_FLAG_SAFETY_ARMED
+        status = mav.messages("SYS_STATUS")[-1]
+        assert not status.onboard_control_sensors_health & ml.MAV_SYS_STATUS_SENSOR_RC_RECEIVER
+        mav.close()
+    assert procs.stop(sim, signal.SIGTERM) < 2.0
+    assert sim.returncode == 0
+    assert "manual control lost" in procs.log(sim)
+
+
+def test_garbage_and_bad_requests_are_dropped_and_the_sim_keeps_serving(procs, zenoh_env):
+    sim, port = start_sim(procs, zenoh_env, "--scenario", "paper-c1")
+    mav = MavClient(port)
+    mav.send(ml.MAVLink_heartbeat_message(ml.MAV_TYPE_GCS, ml.MAV_AUTOPILOT_INVALID, 0, 0, 4, 3))
+    mav.wait("HEARTBEAT")
+    good = manual_control(0, 500).pack(ml.MAVLink(None, 255, 190))
+    corrupted = bytearray(good)
+    corrupted[-1] ^= 0xFF
+    mav.send_raw(b"\x00\x01\x02 not mavlink at all \xfd\xfe")   # garbage
+    mav.send_raw(bytes(corrupted))                               # bad CRC
+    mav.send_raw(good[:9])                                      # truncated frame
+    mav.send(manual_control(0, 500, x=5000))                     # out-of-range axis
+    mav.send(ml.MAVLink_command_long_message(1, 1, ml.MAV_CMD_COMPONENT_ARM_DISARM, 0,
+                                             math.nan, 0, 0, 0, 0, 0, 0))  # NaN param
+    # Still answering, and reporting the garbage in SYS_STATUS.errors_comm.
+    mav.send(ml.MAVLink_param_request_read_message(1, 1, b"COM_RC_LOSS_T", -1))
+    pv = mav.wait("PARAM_VALUE")
+    assert (pv.param_id, pv.param_value) == ("COM_RC_LOSS_T", 0.5)
+    status = mav.wait("SYS_STATUS", timeout_s=3, where=lambda m: m.errors_comm >= 3)
+    assert status.errors_comm == 3  # one per datagram that held garbage
+    # The out-of-range stick did not count as a manual control stream: arming is still refused.
+    assert mav.command(ml.MAV_CMD_COMPONENT_ARM_DISARM, 1) == ml.MAV_RESULT_TEMPORARILY_REJECTED
+    log = procs.log(sim)
+    assert "MANUAL_CONTROL with axes outside [-1000, 1000]: {'x': 5000}" in log
+    assert "non-finite params" in log and "garbage from" in log
+
+    with Bus.open("vessel1") as bus:
+        bad_doc = {"name": "broken", "seed": -1, "vessel": "paper-sim", "sensors": {"gnss_std_m": -2}}
+        reply = bus.request(keys.SIM_SCENARIO, ScenarioRequest(stamp_ns=0, scenario=bad_doc), 5.0)
+        assert not reply.accepted
+        assert "seed" in reply.reason and "sensors.gnss_std_m" in reply.reason
+        no_vessel = {"name": "x", "seed": 1, "vessel": "no-such-boat"}
+        reply = bus.request(keys.SIM_SCENARIO, ScenarioRequest(stamp_ns=0, scenario=no_vessel), 5.0)
+        assert not reply.accepted and "no-such-boat" in reply.reason
+        good_doc = {"name": "push", "seed": 2, "vessel": "paper-sim",
+                    "disturbances": [{"kind": "world_constant", "north_n": 0.5}]}
+        reply = bus.request(keys.SIM_SCENARIO, ScenarioRequest(stamp_ns=0, scenario=good_doc), 5.0)
+        assert reply.accepted and reply.detail["name"] == "push"
+        dist = bus.subscribe(keys.SIM_DISTURBANCE)
+        d = wait_for(lambda: dist.latest(), 5, what="a disturbance sample")
+        assert d.surge_n == pytest.approx(0.5, abs=1e-9)  # heading north: the push is surge
+        reply = bus.request(keys.SIM_SCENARIO, ScenarioRequest(stamp_ns=0, scenario=None), 5.0)
+        assert reply.accepted and "restarted" in reply.reason
+    mav.wait("HEARTBEAT")  # MAVLink still served after all of it
+    mav.close()
+    assert sim.poll() is None
+    assert procs.stop(sim, signal.SIGTERM) < 2.0
+
+
+def test_bad_arguments_exit_with_a_message(procs, zenoh_env):
+    p = procs.start([str(BIN / "seaway-sim"), "--scenario", "no-such-scenario"], zenoh_env, "bad")
+    assert p.wait(20) == 2
+    assert "no-such-scenario" in procs.log(p)
+    p = procs.start([str(BIN / "seaway-sim"), "--mavlink", f"tcp:127.0.0.1:{free_port()}"],
+                    zenoh_env, "bad2")
+    assert p.wait(20) == 2
+    assert "expected udpin:HOST:PORT" in procs.log(p)
