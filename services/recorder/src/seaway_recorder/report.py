@@ -37,6 +37,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--vessel-file", default=None, help="vessel file for alpha")
     p.add_argument("--vessel", default=None, help="which vessel, if the recording has several")
     p.add_argument("--out", type=Path, default=None, help="folder for metrics.json and plots")
+    p.add_argument("--state", choices=["auto", "sim/truth", "nav/state"], default="auto",
+                   help="position source (default: sim/truth when recorded, else nav/state)")
     p.add_argument("--sample-period", type=float, default=0.1, help="cross-track sample period [s]")
     p.add_argument("--no-plots", action="store_true")
     p.add_argument("--json", action="store_true", help="print the metrics JSON instead of the table")
@@ -53,7 +55,7 @@ def _origin(dec: recording.Decoded, scenario_origin: GeoOrigin | None) -> GeoOri
 
 
 def analyse(files: list[Path], *, scenario: str | None = None, mission_file: str | None = None,
-            vessel_file: str | None = None, vessel: str | None = None,
+            vessel_file: str | None = None, vessel: str | None = None, state: str = "auto",
             sample_period_s: float = 0.1) -> dict[str, Any]:
     """Everything the report prints, as one JSON-able dict (plus the series for plots under '_')."""
     info = recording.read_info(files)
@@ -87,7 +89,9 @@ def analyse(files: list[Path], *, scenario: str | None = None, mission_file: str
     truth = sorted(dec.get("sim/truth"), key=lambda m: m.stamp_ns)
     statuses = [m for m in dec.get("mission/status") if isinstance(m, MissionStatus)]
     active = [s.stamp_ns for s in statuses if s.state == "active"]
-    if truth:
+    if state == "sim/truth" and not truth:
+        raise ValueError("no sim/truth in the recording")
+    if truth and state != "nav/state":
         states: Sequence[Any] = truth
         thrusts: Sequence[Any] = truth
         energy = [t.energy_j for t in truth if isinstance(t, SimTruth)]
@@ -258,7 +262,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         files = recording.open_paths(args.files)
         res = analyse(files, scenario=args.scenario, mission_file=args.mission,
-                      vessel_file=args.vessel_file, vessel=args.vessel, sample_period_s=args.sample_period)
+                      vessel_file=args.vessel_file, vessel=args.vessel, state=args.state,
+                      sample_period_s=args.sample_period)
     except (ConfigError, ValueError, FileNotFoundError) as err:
         print(f"seaway report: {err}", file=sys.stderr)
         return 2
