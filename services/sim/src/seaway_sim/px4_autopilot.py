@@ -79,8 +79,7 @@ LOCAL_POSITION_HZ = 10.0
 # PX4 v1.16.0 release, FIRMWARE_VERSION_TYPE_OFFICIAL (0xFF) in the low byte.
 FLIGHT_SW_VERSION = (1 << 24) | (16 << 16) | (0 << 8) | 0xFF
 CAPABILITIES = (mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2
-                | mavlink.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE
-                | mavlink.MAV_PROTOCOL_CAPABILITY_COMMAND_INT)
+                | mavlink.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE)
 
 # A nominal 4S LiPo: the sim's battery drains with the propulsion energy only (no hotel load).
 BATTERY_FULL_V = 16.8
