@@ -16,6 +16,8 @@ from seaway import keys, model
 from seaway.bus import Bus
 from seaway.messages import ScenarioRequest
 from seaway.model import load_vessel
+from seaway.scenario import load_scenario
+from seaway.sensors import origin_of
 from sim_mav_client import MavClient, manual_control
 
 from tests.conftest import BIN, free_port, wait_for
@@ -100,8 +102,14 @@ def test_constant_thrust_moves_the_vessel_as_the_model_predicts_then_failsafe(pr
             assert yaw[t] == pytest.approx(want[5], abs=1e-3), t
         # Port pushes harder: the vessel turns clockwise (to starboard, y east grows).
         assert table[(usable[-1] - best) // 10][5] > 0.05 and local[usable[-1]].y > 0.0
-        gpi = mav.messages("GLOBAL_POSITION_INT")
-        assert len(gpi) >= 10 and gpi[-1].hdg != 65535
+        # GLOBAL_POSITION_INT carries the same fixes in WGS84 (degE7: ~1 cm steps) at 5 Hz.
+        origin = origin_of(load_scenario("paper-c1").origin)
+        gpi = {m.time_boot_ms: m for m in mav.messages("GLOBAL_POSITION_INT")}
+        for t in usable:
+            n, e, _ = origin.to_ned(math.radians(gpi[t].lat / 1e7), math.radians(gpi[t].lon / 1e7))
+            assert (n, e) == pytest.approx((local[t].x, local[t].y), abs=0.02), t
+            assert gpi[t].hdg == round(math.degrees(yaw[t]) * 100) % 36000
+        assert mav.messages("BATTERY_STATUS")
 
         # -- loss failsafe: thrust to zero within COM_RC_LOSS_T (0.5 s) + one period -----------
         samples = [(s.stamp_ns / 1e9, s.thrust_port_n, s.thrust_starboard_n) for s in truth.drain()]

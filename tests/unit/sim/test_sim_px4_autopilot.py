@@ -7,8 +7,17 @@ import struct
 
 import pytest
 from pymavlink.dialects.v20 import common as ml
+from seaway.scenario import Origin
+from seaway.sensors import origin_of
 from seaway_sim import px4_params
-from seaway_sim.px4_autopilot import HOLD, MANUAL, Px4Autopilot, Px4Config, custom_mode
+from seaway_sim.px4_autopilot import (
+    BATTERY_CAPACITY_J,
+    HOLD,
+    MANUAL,
+    Px4Autopilot,
+    Px4Config,
+    custom_mode,
+)
 
 MS = 1_000_000
 S = 1_000_000_000
@@ -280,3 +289,20 @@ def test_param_set_echoes_the_new_value_and_refuses_bad_ones() -> None:
                 ml.MAVLink_param_set_message(1, 1, b"NOPE", 1.0, 9)):
         assert ap.handle(rx(bad), 0) == []
     assert ap.params.get("COM_RC_LOSS_T") == 0.5
+
+
+def test_periodic_telemetry_and_battery_drain() -> None:
+    ap = Px4Autopilot(Px4Config(thrust_max_n=10.0))
+    o = origin_of(Origin())
+    kinds = [m.get_type() for m in ap.periodic_telemetry(999 * MS, 1 * S, o, 0, 0.0, 0.0, True, 0)]
+    assert kinds == ["HEARTBEAT", "SYS_STATUS", "BATTERY_STATUS"]  # no fix yet: no local position
+    assert ap.periodic_telemetry(1 * S, 1090 * MS, o, 0, 0.0, 0.0, True, 0) == []
+    full = ap.battery_status(0.0, 0.0)
+    used = ap.battery_status(BATTERY_CAPACITY_J / 2, 148.0)
+    assert (full.voltages[0], full.battery_remaining) == (16800, 100)
+    assert (used.voltages[0], used.battery_remaining) == (15000, 50)
+    assert used.current_battery == round(148.0 / 15.0 * 100)  # cA
+    assert used.current_consumed == 5000  # mAh: half of 10 Ah
+    status = ap.sys_status(0, BATTERY_CAPACITY_J / 2, 148.0, False, 7)
+    assert (status.voltage_battery, status.battery_remaining, status.errors_comm) == (15000, 50, 7)
+    assert not status.onboard_control_sensors_health & ml.MAV_SYS_STATUS_SENSOR_GPS

@@ -20,7 +20,7 @@ from seaway_sim.app import SimApp, load_world
 from seaway_sim.core import SimCore
 from seaway_sim.lockstep import Lockstep
 from seaway_sim.mavlink_link import DEFAULT_ENDPOINT, MavlinkLink
-from seaway_sim.px4_autopilot import Px4Autopilot, Px4Config
+from seaway_sim.px4_autopilot import COMPID, Px4Autopilot, Px4Config
 from seaway_sim.realtime import Realtime
 
 log = logging.getLogger("seaway_sim")
@@ -70,7 +70,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     link = None
     if not args.lockstep:
         try:
-            link = MavlinkLink(args.mavlink, args.sysid, Px4Config(1.0).compid)
+            link = MavlinkLink(args.mavlink, args.sysid, COMPID)
         except (ValueError, OSError) as err:
             print(f"seaway-sim: --mavlink {args.mavlink}: {err}", file=sys.stderr)
             return 2

@@ -84,8 +84,18 @@ CAPABILITIES = (mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2
 # A nominal 4S LiPo: the sim's battery drains with the propulsion energy only (no hotel load).
 BATTERY_FULL_V = 16.8
 BATTERY_EMPTY_V = 13.2
-BATTERY_CAPACITY_J = 10.0 * 3600.0 * 14.8  # 10 Ah at 14.8 V nominal
+BATTERY_NOMINAL_V = 14.8
+BATTERY_CAPACITY_J = 10.0 * 3600.0 * BATTERY_NOMINAL_V  # 10 Ah
+BATTERY_STATUS_HZ = 1.0
+UINT16_UNKNOWN = 65535  # MAVLink's "not set" for unsigned 16-bit fields
 
+
+def battery(energy_j: float) -> tuple[float, float]:
+    """(volts, remaining fraction) of the nominal pack after ``energy_j`` of propulsion [V, 1]."""
+    remaining = max(0.0, 1.0 - energy_j / BATTERY_CAPACITY_J)
+    return BATTERY_EMPTY_V + (BATTERY_FULL_V - BATTERY_EMPTY_V) * remaining, remaining
+
+COMPID = mavlink.MAV_COMP_ID_AUTOPILOT1
 SENSORS_PRESENT = (mavlink.MAV_SYS_STATUS_SENSOR_GPS | mavlink.MAV_SYS_STATUS_SENSOR_RC_RECEIVER
                    | mavlink.MAV_SYS_STATUS_AHRS | mavlink.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
                    | mavlink.MAV_SYS_STATUS_PREARM_CHECK)
@@ -97,7 +107,7 @@ class Px4Config:
 
     thrust_max_n: float  # scale of normalised thrust [N] (vessel file)
     sysid: int = 1
-    compid: int = mavlink.MAV_COMP_ID_AUTOPILOT1
+    compid: int = COMPID
     param_overrides: tuple[tuple[str, float | int], ...] = ()
 
 
@@ -235,13 +245,17 @@ class Px4Autopilot:
         return target_system in (0, self.config.sysid)
 
     def _reject(self, kind: str, now_ns: int, text: str) -> list[Any]:
-        """Count a dropped message and log it, at most once a second per kind (streams repeat)."""
+        """Count a dropped message, log it (rate-limited) and answer nothing."""
+        self._count_and_warn(kind, now_ns, f"dropped: {text}")
+        return []
+
+    def _count_and_warn(self, kind: str, now_ns: int, text: str) -> None:
+        """Count an event of ``kind``; log it at most once a second per kind (streams repeat)."""
         self.counters[kind] += 1
         last = self._last_warn_ns.get(kind)
         if last is None or now_ns - last >= NS_PER_S:
             self._last_warn_ns[kind] = now_ns
-            log.warning("dropped: %s (%s so far: %d)", text, kind, self.counters[kind])
-        return []
+            log.warning("%s (%s so far: %d)", text, kind, self.counters[kind])
 
     def _on_manual_control(self, msg: Any, now_ns: int) -> list[Any]:
         if not self._for_me(msg.target):
@@ -257,7 +271,7 @@ class Px4Autopilot:
             self.counters["manual_control_ignored_rc_in_mode"] += 1
             return []
         if msg.z < px4_mixer.Z_MIN:
-            self._reject("manual_control_z_negative", now_ns,
+            self._count_and_warn("manual_control_z_negative", now_ns,
                          f"MANUAL_CONTROL z={msg.z} < 0: PX4 reads throttle 0 (stop), not reverse")
         self.last_manual_ns = now_ns
         self.last_manual_axes = (msg.y, msg.z)
@@ -412,12 +426,21 @@ class Px4Autopilot:
             health &= ~mavlink.MAV_SYS_STATUS_SENSOR_GPS
         if self.terminated or (self.user_mode == MANUAL and self.manual_control_lost(now_ns)):
             health &= ~mavlink.MAV_SYS_STATUS_PREARM_CHECK
-        remaining = max(0.0, 1.0 - energy_j / BATTERY_CAPACITY_J)
-        volts = BATTERY_EMPTY_V + (BATTERY_FULL_V - BATTERY_EMPTY_V) * remaining
+        volts, remaining = battery(energy_j)
         return mavlink.MAVLink_sys_status_message(
             SENSORS_PRESENT, SENSORS_PRESENT, health, 0, round(volts * 1000),
             min(32767, round(power_w / volts * 100)), round(remaining * 100), 0,
             min(65535, link_errors), 0, 0, 0, 0)
+
+    def battery_status(self, energy_j: float, power_w: float) -> Any:
+        """BATTERY_STATUS of the nominal pack: total voltage in voltages[0], as PX4 without cells."""
+        volts, remaining = battery(energy_j)
+        voltages = [round(volts * 1000)] + [UINT16_UNKNOWN] * 9
+        return mavlink.MAVLink_battery_status_message(
+            0, mavlink.MAV_BATTERY_FUNCTION_ALL, mavlink.MAV_BATTERY_TYPE_LIPO, 32767, voltages,
+            min(32767, round(power_w / volts * 100)),
+            round(energy_j / BATTERY_NOMINAL_V / 3.6),  # mAh = J / V / 3.6
+            round(energy_j / 100), round(remaining * 100))
 
     def autopilot_version(self) -> Any:
         return mavlink.MAVLink_autopilot_version_message(
@@ -451,7 +474,8 @@ class Px4Autopilot:
     def periodic_telemetry(self, after_ns: int, upto_ns: int, origin: GeoOrigin, epoch_ns: int,
                            energy_j: float, power_w: float, gnss_ok: bool,
                            link_errors: int) -> list[Any]:
-        """HEARTBEAT and SYS_STATUS (1 Hz), LOCAL_POSITION_NED (10 Hz) due in (after, upto].
+        """HEARTBEAT, SYS_STATUS, BATTERY_STATUS (1 Hz), LOCAL_POSITION_NED (10 Hz) due in
+        (after, upto].
 
         Times are since boot; LOCAL_POSITION_NED carries the last fix, stamped with its own time
         (fix stamp - ``epoch_ns``), as an estimator output would be.
@@ -461,6 +485,8 @@ class Px4Autopilot:
             out.append(self.heartbeat())
         if instants_in(period_ns(SYS_STATUS_HZ), after_ns, upto_ns):
             out.append(self.sys_status(upto_ns, energy_j, power_w, gnss_ok, link_errors))
+        if instants_in(period_ns(BATTERY_STATUS_HZ), after_ns, upto_ns):
+            out.append(self.battery_status(energy_j, power_w))
         fix = self.last_fix
         local_due = instants_in(period_ns(LOCAL_POSITION_HZ), after_ns, upto_ns)
         if fix is not None and gnss_ok and local_due:

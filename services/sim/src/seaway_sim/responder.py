@@ -20,11 +20,11 @@ log = logging.getLogger("seaway_sim.responder")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    p = base_parser("sim", "answer each lockstep clock tick with a constant thrust command")
+    p = base_parser("sim_responder", "answer each lockstep clock tick with a constant thrust command")
     p.add_argument("--port-n", type=float, default=0.0, help="T1, port thrust [N]")
     p.add_argument("--starboard-n", type=float, default=0.0, help="T2, starboard thrust [N]")
     args = parse(p, argv)
-    with run_service("sim", args, declare_alive=False) as ctx:
+    with run_service("sim-responder", args, declare_alive=False) as ctx:
         pub = ctx.bus.publisher(keys.THRUST)
         seq = 0
         lock = threading.Lock()
