@@ -81,6 +81,11 @@ FLIGHT_SW_VERSION = (1 << 24) | (16 << 16) | (0 << 8) | 0xFF
 CAPABILITIES = (mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2
                 | mavlink.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE)
 
+COMPID = mavlink.MAV_COMP_ID_AUTOPILOT1
+SENSORS_PRESENT = (mavlink.MAV_SYS_STATUS_SENSOR_GPS | mavlink.MAV_SYS_STATUS_SENSOR_RC_RECEIVER
+                   | mavlink.MAV_SYS_STATUS_AHRS | mavlink.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
+                   | mavlink.MAV_SYS_STATUS_PREARM_CHECK)
+
 # A nominal 4S LiPo: the sim's battery drains with the propulsion energy only (no hotel load).
 BATTERY_FULL_V = 16.8
 BATTERY_EMPTY_V = 13.2
@@ -94,11 +99,6 @@ def battery(energy_j: float) -> tuple[float, float]:
     """(volts, remaining fraction) of the nominal pack after ``energy_j`` of propulsion [V, 1]."""
     remaining = max(0.0, 1.0 - energy_j / BATTERY_CAPACITY_J)
     return BATTERY_EMPTY_V + (BATTERY_FULL_V - BATTERY_EMPTY_V) * remaining, remaining
-
-COMPID = mavlink.MAV_COMP_ID_AUTOPILOT1
-SENSORS_PRESENT = (mavlink.MAV_SYS_STATUS_SENSOR_GPS | mavlink.MAV_SYS_STATUS_SENSOR_RC_RECEIVER
-                   | mavlink.MAV_SYS_STATUS_AHRS | mavlink.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
-                   | mavlink.MAV_SYS_STATUS_PREARM_CHECK)
 
 
 @dataclass(frozen=True)
@@ -144,6 +144,13 @@ class Px4Autopilot:
         self.last_fix: GnssFix | None = None  # for LOCAL_POSITION_NED
         self._last_heading: float | None = None  # for GLOBAL_POSITION_INT.hdg
         self._last_warn_ns: dict[str, int] = {}
+        self._handlers = {
+            "MANUAL_CONTROL": self._on_manual_control,
+            "COMMAND_LONG": self._on_command_long,
+            "PARAM_REQUEST_READ": self._on_param_request_read,
+            "PARAM_REQUEST_LIST": self._on_param_request_list,
+            "PARAM_SET": self._on_param_set,
+        }
 
     # -- derived state -----------------------------------------------------------------------
 
@@ -230,13 +237,7 @@ class Px4Autopilot:
         """Process one decoded message; returns the messages to send back."""
         kind = msg.get_type()
         self.counters[f"rx_{kind}"] += 1
-        handler = {
-            "MANUAL_CONTROL": self._on_manual_control,
-            "COMMAND_LONG": self._on_command_long,
-            "PARAM_REQUEST_READ": self._on_param_request_read,
-            "PARAM_REQUEST_LIST": self._on_param_request_list,
-            "PARAM_SET": self._on_param_set,
-        }.get(kind)
+        handler = self._handlers.get(kind)
         if handler is None:
             return []  # HEARTBEAT and anything else: nothing to do (the link layer noted the peer)
         return handler(msg, now_ns)
@@ -272,7 +273,8 @@ class Px4Autopilot:
             return []
         if msg.z < px4_mixer.Z_MIN:
             self._count_and_warn("manual_control_z_negative", now_ns,
-                         f"MANUAL_CONTROL z={msg.z} < 0: PX4 reads throttle 0 (stop), not reverse")
+                                 f"MANUAL_CONTROL z={msg.z} < 0: PX4 reads throttle 0 (stop), "
+                                 "not reverse")
         self.last_manual_ns = now_ns
         self.last_manual_axes = (msg.y, msg.z)
         return []
