@@ -22,11 +22,26 @@ from seaway.messages import MissionRequest, StateEstimate, Waypoint
 from seaway.model import VesselParams, load_vessel
 from seaway.plant import Plant
 from seaway.scenario import Scenario, load_scenario
+
 from seaway_controller import costs
 from seaway_controller.core import ControllerConfig, ControllerCore
 from seaway_controller.ocp import ControllerKind
 
 DEFAULT_MAX_TIME_S = 900.0
+
+TABLE_I: dict[int, dict[str, tuple[float, float, float]]] = {
+    # The paper's Table I: condition -> controller -> (energy J, average cross-track m, time s).
+    1: {"nmpc": (2328.4, 1.686, 36.4), "eo-empc": (331.9, 0.531, 338.7),
+        "cc-empc": (332.0, 0.521, 345.1)},
+    2: {"nmpc": (2321.0, 1.680, 36.4), "eo-empc": (328.5, 0.542, 337.1),
+        "cc-empc": (328.7, 0.520, 343.6)},
+    3: {"nmpc": (2310.2, 1.672, 36.3), "eo-empc": (323.0, 0.685, 334.2),
+        "cc-empc": (323.2, 0.664, 342.7)},
+    4: {"nmpc": (2300.0, 1.623, 36.9), "eo-empc": (330.1, 0.507, 336.2),
+        "cc-empc": (330.3, 0.477, 343.0)},
+    5: {"nmpc": (2323.2, 1.655, 36.4), "eo-empc": (342.4, 0.376, 338.6),
+        "cc-empc": (342.6, 0.369, 343.4)},
+}
 
 
 @dataclass

@@ -26,7 +26,6 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-
 from seaway.frames import GeoOrigin
 from seaway.messages import (
     MissionCommand,
@@ -38,6 +37,7 @@ from seaway.messages import (
     ThrustCommand,
 )
 from seaway.model import VesselParams, propulsion_power_w
+
 from seaway_controller import costs
 from seaway_controller.guidance import LosGains, los_thrust
 from seaway_controller.mission import MissionError, MissionLimits, MissionManager
@@ -65,8 +65,8 @@ class ControllerConfig:
     """A solve slower than this is late and not applied (None: never late, for replayable runs)."""
     predict_disturbance: bool = False
     """Predict with the estimate's tau_d (beyond the paper, which predicts with tau_d = 0)."""
-    los: LosGains = LosGains()
-    limits: MissionLimits = MissionLimits()
+    los: LosGains = field(default_factory=LosGains)
+    limits: MissionLimits = field(default_factory=MissionLimits)
     nmpc: costs.NmpcWeights = field(default_factory=costs.NmpcWeights)
 
     def spec(self, kind: ControllerKind) -> OcpSpec:

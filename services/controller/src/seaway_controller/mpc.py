@@ -104,12 +104,11 @@ class MpcController:
         for _ in range(age):
             w, lx, lg = ocp.shift(w, lx, lg, tau)
         w = w.copy()
-        # Whole turns: align the guess's headings with the measured one.
-        turns = round((w[ocp.x_index(0)][5] - x0[5]) / TWO_PI)
+        # Whole turns: align the guess's headings with the measured one (X_1 follows X_0 closely).
+        turns = round((w[ocp.x_index(1)][5] - x0[5]) / TWO_PI)
         if turns:
-            for k in range(self.spec.horizon + 1):
+            for k in range(1, self.spec.horizon + 1):
                 w[ocp.x_index(k).start + 5] -= turns * TWO_PI
-        w[ocp.x_index(0)] = x0
         if self.spec.is_empc and leg_key != plan.leg_key:
             ocp.guess_times(w, p)
             lx[ocp.i_time:ocp.i_time + 2] = 0.0
@@ -127,7 +126,8 @@ class MpcController:
         if self.capture is not None:
             self.capture.append((w0.copy(), p.copy(), lx0.copy(), lg0.copy()))
         result = self.solver.solve(w0, p, lx0, lg0)
-        plan = Plan(result, self.ocp.states(result.w), self.ocp.thrusts(result.w), leg_key, now_ns)
+        plan = Plan(result, self.ocp.states(result.w, x0), self.ocp.thrusts(result.w), leg_key,
+                    now_ns)
         return MpcOutcome(result, plan, self.evaluate(result.w, p), gate)
 
     def accept(self, outcome: MpcOutcome) -> None:

@@ -1,11 +1,13 @@
 """The optimal control problems: CC-EMPC (paper eq. 15), EO-EMPC (eq. 15 without Y) and NMPC.
 
 Multiple shooting over H steps of dt with the gaps written ``X_{k+1} - F(X_k, U_k)`` (solver-notes.md,
-trap 5), F being the shared RK4 step of the vessel model (``seaway.model_casadi.rk4_discrete``)::
+trap 5), F being the shared RK4 step of the vessel model (``seaway.model_casadi.rk4_discrete``).
+X_0 is the measured state, a parameter (not a variable pinned by an equality), which keeps the QP
+that the SQP factorises at every iteration smaller::
 
-    w = [X_0, U_0, X_1, U_1, ..., X_{H-1}, U_{H-1}, X_H, (t_d/100, t_s/100 for the EMPCs)]
+    w = [U_0, X_1, U_1, X_2, ..., U_{H-1}, X_H, (t_d/100, t_s/100 for the EMPCs)]
     p = [x_init(6), P_{i-1}(2), P_i(2), track_gate, T^w, tau_d(3)]
-    g = [X_0 - x_init, X_{k+1} - F(X_k, U_k, tau_d) for k < H, (terminal constraint, EMPCs)]
+    g = [X_{k+1} - F(X_k, U_k, tau_d) for k < H (X_0 = x_init), (terminal constraint, EMPCs)]
 
 X = [u, v, r, x, y, psi] (body speeds, NED position and heading), U = [T1 port, T2 starboard] [N].
 
@@ -24,10 +26,10 @@ from typing import Literal
 
 import casadi as ca
 import numpy as np
-
 from seaway import model
 from seaway.model import NU, NX, VesselParams
 from seaway.model_casadi import rk4_discrete
+
 from seaway_controller import costs
 
 ControllerKind = Literal["cc-empc", "eo-empc", "nmpc"]
@@ -91,27 +93,30 @@ class Ocp:
     def __init__(self, spec: OcpSpec, vessel: VesselParams) -> None:
         self.spec, self.vessel = spec, vessel
         h = spec.horizon
-        self.stage = NX + NU
-        self.i_xh = h * self.stage
-        self.i_time = self.i_xh + NX
+        self.stage = NU + NX  # block k = [U_k, X_{k+1}]
+        self.i_time = h * self.stage
         self.nw = self.i_time + (2 if spec.is_empc else 0)
-        self.ng = NX * (h + 1) + (1 if spec.is_empc else 0)
+        self.ng = NX * h + (1 if spec.is_empc else 0)
         self.F = rk4_discrete(vessel, spec.dt_s, with_disturbance=True)
         self._build()
 
     # -- indices -------------------------------------------------------------------------------
 
     def x_index(self, k: int) -> slice:
-        start = k * self.stage
+        """Where X_k (k = 1..H) sits in w; X_0 is the parameter x_init."""
+        if not 1 <= k <= self.spec.horizon:
+            raise IndexError(f"X_{k} is not a decision variable (k must be 1..{self.spec.horizon})")
+        start = (k - 1) * self.stage + NU
         return slice(start, start + NX)
 
     def u_index(self, k: int) -> slice:
-        start = k * self.stage + NX
+        start = k * self.stage
         return slice(start, start + NU)
 
-    def states(self, w: np.ndarray) -> np.ndarray:
-        """(H+1, 6) predicted states."""
-        return np.stack([w[self.x_index(k)] for k in range(self.spec.horizon + 1)])
+    def states(self, w: np.ndarray, x0: np.ndarray) -> np.ndarray:
+        """(H+1, 6) predicted states, X_0 = x0 first."""
+        return np.stack([np.asarray(x0, dtype=float)]
+                        + [w[self.x_index(k)] for k in range(1, self.spec.horizon + 1)])
 
     def thrusts(self, w: np.ndarray) -> np.ndarray:
         """(H, 2) planned thrusts [N]."""
@@ -132,9 +137,9 @@ class Ocp:
         x_init = p[P_X0:P_X0 + NX]
         wp_prev, wp_act = p[P_PREV:P_PREV + 2], p[P_ACTIVE:P_ACTIVE + 2]
         gate, task, tau = p[P_GATE], p[P_TASK], p[P_TAU:P_TAU + 3]
-        xs = [w[self.x_index(k)] for k in range(s.horizon + 1)]
+        xs = [x_init] + [w[self.x_index(k)] for k in range(1, s.horizon + 1)]
         us = [w[self.u_index(k)] for k in range(s.horizon)]
-        g = [xs[0] - x_init]
+        g = []
         stage = 0
         for k in range(s.horizon):
             g.append(xs[k + 1] - self.F(xs[k], us[k], tau))
@@ -155,8 +160,8 @@ class Ocp:
         self.nlp = {"x": w, "p": p, "f": objective, "g": ca.vertcat(*g)}
         self.objective_fn = ca.Function("objective", [w, p], [objective])
         self.constraint_fn = ca.Function("constraints", [w, p], [ca.vertcat(*g)])
-        # Bounds: thrust limits; u_k >= u_min for k >= 1 on the EMPCs (X_0 is the measured state,
-        # which may be at rest); t_d in [t_d_min, t_d_max]; t_s >= 0. All constraints g are equalities.
+        # Bounds: thrust limits; u_k >= u_min for k >= 1 on the EMPCs (not on X_0, the measured
+        # state, which may be at rest); t_d in [t_d_min, t_d_max]; t_s >= 0. All constraints g are equalities.
         lbw = np.full(self.nw, -np.inf)
         ubw = np.full(self.nw, np.inf)
         for k in range(s.horizon):
@@ -207,10 +212,9 @@ class Ocp:
             thrust = (0.5 * vp.thrust_max_n,) * 2
         tau = tuple(float(v) for v in p[P_TAU:P_TAU + 3])
         for k in range(s.horizon):
-            w[self.x_index(k)] = x
             w[self.u_index(k)] = thrust
             x = model.rk4_step(x, thrust, s.dt_s, vp, math, tau)
-        w[self.x_index(s.horizon)] = x
+            w[self.x_index(k + 1)] = x
         if s.is_empc:
             self.guess_times(w, p)
         return w
@@ -234,26 +238,21 @@ class Ocp:
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Shift primal and dual solutions one stage for the next warm start (solver-notes trap 5).
 
-        Stage k takes stage k+1's values; the last control is held and the last state is propagated
-        with it. Times keep their values, t_s less one period (time has passed).
+        Block k = [U_k, X_{k+1}] takes block k+1's values; the last control is held and the last
+        state propagated with it (multipliers kept). Times keep their values, t_s less one period.
         """
         s = self.spec
         h, st = s.horizon, self.stage
         w2, lx2, lg2 = w.copy(), lam_x.copy(), lam_g.copy()
         w2[: (h - 1) * st] = w[st: h * st]
         lx2[: (h - 1) * st] = lam_x[st: h * st]
-        # X_{H-1} <- X_H, U_{H-1} held, X_H <- F(X_H, U_{H-1}).
         x_last = w[self.x_index(h)]
         u_last = w[self.u_index(h - 1)]
-        w2[self.x_index(h - 1)] = x_last
-        w2[self.u_index(h - 1)] = u_last
         w2[self.x_index(h)] = model.rk4_step([float(v) for v in x_last], [float(v) for v in u_last],
                                              s.dt_s, self.vessel, math,
                                              tuple(float(v) for v in tau_d))
-        lx2[self.x_index(h - 1)] = lam_x[self.x_index(h)]
-        lx2[self.u_index(h - 1)] = lam_x[self.u_index(h - 1)]
-        # Costates: constraint block j (j = 0 initial state, j = k + 1 gap k) takes block j + 1.
-        lg2[: NX * h] = lam_g[NX: NX * (h + 1)]
+        # Costates: gap k takes gap k+1's multipliers; the last gap keeps its own.
+        lg2[: NX * (h - 1)] = lam_g[NX: NX * h]
         if s.is_empc:
             w2[self.i_time + 1] = max(0.0, w[self.i_time + 1] - s.dt_s / TIME_SCALE_S)
         return w2, lx2, lg2

@@ -33,6 +33,7 @@ from seaway.messages import MissionCommand, MissionRequest, NavOrigin, Reply, St
 from seaway.model import load_vessel
 from seaway.scenario import load_scenario
 from seaway.service import ServiceContext, base_parser, parse, run_service
+
 from seaway_controller.closed_loop import scenario_mission_request
 from seaway_controller.core import ControllerConfig, ControllerCore
 from seaway_controller.mission import MissionLimits

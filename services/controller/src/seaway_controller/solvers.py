@@ -23,15 +23,16 @@ import os
 import shutil
 import subprocess
 import tempfile
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Protocol
+from typing import Any, Protocol
 
 import casadi as ca
 import numpy as np
 
-from seaway_controller.ocp import Ocp, spec_digest
+from seaway_controller.ocp import NP, Ocp, spec_digest
 
 log = logging.getLogger("seaway_controller.solvers")
 
@@ -146,34 +147,65 @@ def build_shared_object(ocp: Ocp, options: dict, directory: Path | None = None) 
     return target
 
 
+@dataclass
+class _Library:
+    """One loaded solver library: its entry point, its memory slot and its statistics array.
+
+    The generated code keeps static memory (one slot: CASADI_MAX_NUM_THREADS is 1), and dlopen
+    returns the same handle for the same file, so each file is loaded and checked out once per
+    process and shared by every solver object on it, calls serialised by ``lock``.
+    """
+
+    fn: Any
+    mem: int
+    stats: Any
+    sizes: tuple[int, int, int, int]
+    lock: threading.Lock
+
+
+_LIBRARIES: dict[str, _Library] = {}
+_LIBRARIES_LOCK = threading.Lock()
+
+
+def _load_library(path: Path) -> _Library:
+    with _LIBRARIES_LOCK:
+        key = str(path.resolve())
+        if key in _LIBRARIES:
+            return _LIBRARIES[key]
+        lib = ctypes.CDLL(key)
+        fn = getattr(lib, SYMBOL)
+        fn.restype = ctypes.c_int
+        fn.argtypes = [ctypes.c_void_p] * 4 + [ctypes.c_int]
+        sizes = [ctypes.c_longlong() for _ in range(4)]
+        if getattr(lib, f"{SYMBOL}_work")(*(ctypes.byref(s) for s in sizes)) != 0:
+            raise RuntimeError(f"{path.name}: work-size query failed")
+        getattr(lib, f"{SYMBOL}_incref")()
+        checkout = getattr(lib, f"{SYMBOL}_checkout")
+        checkout.restype = ctypes.c_int
+        mem = checkout()
+        if mem < 0:
+            raise RuntimeError(f"{path.name}: no memory slot available")
+        stats = lib.seaway_solver_stats
+        stats.restype = ctypes.POINTER(ctypes.c_double)
+        loaded = _Library(fn, mem, stats(), tuple(s.value for s in sizes),  # type: ignore[arg-type]
+                          threading.Lock())
+        _LIBRARIES[key] = loaded
+        return loaded
+
+
 class GeneratedSqpSolver:
     """The compiled SQP, called through ctypes with preallocated buffers."""
 
-    def __init__(self, ocp: Ocp, options: dict | None = None, directory: Path | None = None) -> None:
+    def __init__(self, ocp: Ocp, options: dict | None = None,
+                 directory: Path | None = None) -> None:
         self.ocp = ocp
         self.options = dict(SQP_OPTIONS if options is None else options)
         self.name = f"{ocp.spec.kind}/sqp-qrqp-generated"
         self.path = build_shared_object(ocp, self.options, directory)
-        lib = ctypes.CDLL(str(self.path))
-        self._lib = lib
-        nw, ng, npar = ocp.nw, ocp.ng, len(ocp.parameters(np.zeros(6), (0, 0), (1, 0), False, 0.0))
-        self._fn = getattr(lib, SYMBOL)
-        self._fn.restype = ctypes.c_int
-        self._fn.argtypes = [ctypes.c_void_p] * 4 + [ctypes.c_int]
-        sizes = [ctypes.c_longlong() for _ in range(4)]
-        work = getattr(lib, f"{SYMBOL}_work")
-        if work(*(ctypes.byref(s) for s in sizes)) != 0:
-            raise RuntimeError("generated solver: work-size query failed")
-        sz_arg, sz_res, sz_iw, sz_w = (s.value for s in sizes)
-        getattr(lib, f"{SYMBOL}_incref")()
-        checkout = getattr(lib, f"{SYMBOL}_checkout")
-        checkout.restype = ctypes.c_int
-        self._mem = checkout()
-        if self._mem < 0:
-            raise RuntimeError("generated solver: no memory slot available")
-        stats = lib.seaway_solver_stats
-        stats.restype = ctypes.POINTER(ctypes.c_double)
-        self._stats = stats()
+        self._lib = _load_library(self.path)
+        self._fn, self._stats = self._lib.fn, self._lib.stats
+        sz_arg, sz_res, sz_iw, sz_w = self._lib.sizes
+        nw, ng, npar = ocp.nw, ocp.ng, NP
         # Input and output buffers, in the order of nlpsol's scheme.
         self._in = [np.zeros(n) for n in (nw, npar, nw, nw, ng, ng, nw, ng)]
         self._out = [np.zeros(n) for n in (nw, 1, ng, nw, ng, npar)]
@@ -189,7 +221,7 @@ class GeneratedSqpSolver:
         self._w = np.zeros(max(sz_w, 1))
         self._call_args = (ctypes.cast(self._arg, ctypes.c_void_p),
                            ctypes.cast(self._res, ctypes.c_void_p),
-                           self._iw.ctypes.data, self._w.ctypes.data, self._mem)
+                           self._iw.ctypes.data, self._w.ctypes.data, self._lib.mem)
         self.tol_pr = float(self.options.get("tol_pr", SQP_TOL))
         self.tol_du = float(self.options.get("tol_du", SQP_TOL))
 
@@ -199,12 +231,13 @@ class GeneratedSqpSolver:
         self._in[1][:] = p
         self._in[6][:] = lam_x0
         self._in[7][:] = lam_g0
-        for i in range(3):
-            self._stats[i] = -1.0
-        t0 = time.perf_counter()
-        flag = self._fn(*self._call_args)
-        elapsed = time.perf_counter() - t0
-        iters, pr_inf, du_inf = (self._stats[i] for i in range(3))
+        with self._lib.lock:
+            for i in range(3):
+                self._stats[i] = -1.0
+            t0 = time.perf_counter()
+            flag = self._fn(*self._call_args)
+            elapsed = time.perf_counter() - t0
+            iters, pr_inf, du_inf = (self._stats[i] for i in range(3))
         finite = bool(np.all(np.isfinite(self._out[0])))
         converged = 0 <= pr_inf < self.tol_pr and 0 <= du_inf < self.tol_du
         success = flag == 0 and finite and converged

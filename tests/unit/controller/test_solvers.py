@@ -1,0 +1,80 @@
+"""The generated SQP solver: agreement with IPOPT, an honest success flag, the cache, the C patch."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+from seaway.model import load_vessel
+from seaway_controller.ocp import Ocp, OcpSpec
+from seaway_controller.solvers import (
+    SQP_OPTIONS,
+    GeneratedSqpSolver,
+    IpoptSolver,
+    build_shared_object,
+    patch_generated_source,
+)
+
+VP = load_vessel("paper-sim")
+
+
+def start_problem(ocp: Ocp) -> tuple[np.ndarray, np.ndarray]:
+    p = ocp.parameters(np.array([0.03, 0.0, 0.0, 0.5, 0.4, 0.2]), (0.0, 0.0), (8.0, 0.0), True, 0.49)
+    return ocp.cold_guess(p), p
+
+
+@pytest.mark.parametrize("kind", ["cc-empc", "nmpc"])
+def test_generated_solver_agrees_with_ipopt(kind):
+    ocp = Ocp(OcpSpec(kind), VP)
+    w0, p = start_problem(ocp)
+    z = (np.zeros(ocp.nw), np.zeros(ocp.ng))
+    fast = GeneratedSqpSolver(ocp).solve(w0, p, *z)
+    ref = IpoptSolver(ocp).solve(w0, p, *z)
+    assert fast.success and ref.success, (fast.status, ref.status)
+    assert fast.objective == pytest.approx(ref.objective, rel=1e-6)
+    np.testing.assert_allclose(ocp.thrusts(fast.w), ocp.thrusts(ref.w), atol=1e-3)
+    g = np.asarray(ocp.constraint_fn(fast.w, p)).ravel()
+    assert np.max(np.abs(g)) < 1e-6
+
+
+def test_iteration_limit_is_reported_as_failure_not_stale_success(tmp_path):
+    # A solver limited to one SQP iteration cannot converge from a cold start; its flag must say
+    # so even right after a successful call of another solver (no stale status).
+    ocp = Ocp(OcpSpec("cc-empc", horizon=3), VP)
+    w0, p = start_problem(ocp)
+    z = (np.zeros(ocp.nw), np.zeros(ocp.ng))
+    good = GeneratedSqpSolver(ocp, directory=tmp_path)
+    assert good.solve(w0, p, *z).success
+    capped = GeneratedSqpSolver(ocp, {**SQP_OPTIONS, "max_iter": 1}, directory=tmp_path)
+    res = capped.solve(w0, p, *z)
+    assert not res.success
+    assert res.status == "Maximum_Iterations_Exceeded" and res.iterations == 1
+    assert good.solve(w0, p, *z).success  # and the good one still succeeds afterwards
+
+
+def test_shared_object_is_cached_by_problem_and_options(tmp_path):
+    ocp = Ocp(OcpSpec("eo-empc", horizon=3), VP)
+    first = build_shared_object(ocp, SQP_OPTIONS, tmp_path)
+    mtime = first.stat().st_mtime_ns
+    assert build_shared_object(ocp, SQP_OPTIONS, tmp_path) == first
+    assert first.stat().st_mtime_ns == mtime  # not rebuilt
+    other = Ocp(OcpSpec("eo-empc", horizon=3, t_d_max_s=50.0), VP)
+    assert build_shared_object(other, SQP_OPTIONS, tmp_path) != first
+    assert not [f for f in os.listdir(tmp_path) if f.startswith(".build-")]  # temp dirs cleaned
+
+
+def test_patch_refuses_unknown_code_shapes():
+    with pytest.raises(RuntimeError, match="unexpected shape"):
+        patch_generated_source("int main(void) { return 0; }\n")
+
+
+def test_two_solvers_on_the_same_library_in_one_process():
+    # The generated code has one static memory slot; a second object on the same file shares it.
+    ocp = Ocp(OcpSpec("cc-empc"), VP)
+    w0, p = start_problem(ocp)
+    z = (np.zeros(ocp.nw), np.zeros(ocp.ng))
+    a, b = GeneratedSqpSolver(ocp), GeneratedSqpSolver(ocp)
+    ra, rb = a.solve(w0, p, *z), b.solve(w0, p, *z)
+    assert ra.success and rb.success
+    np.testing.assert_array_equal(ra.w, rb.w)
