@@ -5,8 +5,10 @@ and sends everything to the address of the last datagram that carried at least o
 message; a datagram of garbage never moves the link. Nothing is sent before a peer is heard.
 
 Each datagram is parsed on its own (a fresh parser per datagram), so garbage or a truncated frame in
-one datagram can never swallow the start of the next. Bad frames (CRC, length, unknown id) and
-trailing partial frames are counted and logged, at most once a second, and the sim goes on.
+one datagram can never swallow the start of the next. Bad frames (prefix, CRC, length), frames of a
+message id outside the common dialect (which cannot be CRC-checked) and trailing partial frames are
+dropped; each datagram holding any is counted once and logged (at most once a second), and the sim
+goes on. Valid frames in the same datagram are still used.
 """
 
 from __future__ import annotations
@@ -81,16 +83,19 @@ class MavlinkLink:
             self.counters["garbage_datagrams"] += 1
             self._warn(f"garbage from {addr}: undecodable datagram ({len(data)} bytes): {err}")
             return []
-        good = [m for m in msgs if m.get_type() != "BAD_DATA"]
-        bad = len(msgs) - len(good)
+        # Frames of an id outside the dialect cannot be CRC-checked (no CRC_EXTRA): garbage too.
+        good, dropped = [], []
+        for m in msgs:
+            unusable = m.get_type() == "BAD_DATA" or isinstance(m, mavlink.MAVLink_unknown)
+            (dropped if unusable else good).append(m)
+        bad = len(dropped)
         trailing = parser.buf_len()
         if bad or trailing:
             # Good frames in the same datagram still count: garbage costs only itself.
             self.counters["garbage_datagrams"] += 1
             self.counters["bad_frames"] += bad
             self.counters["truncated_frames"] += 1 if trailing else 0
-            reasons = sorted({getattr(m, "reason", "bad data") for m in msgs
-                              if m.get_type() == "BAD_DATA"})
+            reasons = sorted({getattr(m, "reason", None) or m.get_type() for m in dropped})
             self._warn(f"garbage from {addr}: {bad} bad frame(s) {reasons}, "
                        f"{trailing} trailing byte(s) of an incomplete frame")
         if good:

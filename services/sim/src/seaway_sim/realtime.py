@@ -50,6 +50,7 @@ class Realtime:
 
     def _on_load(self, scenario: Scenario, vessel: VesselParams) -> None:
         self.autopilot.thrust_max_n = vessel.thrust_max_n
+        self.autopilot.last_fix = None  # never report the old world's position after a swap
 
     def since_boot_ns(self) -> int:
         return time.monotonic_ns() - self.boot_ns
