@@ -15,6 +15,7 @@ from __future__ import annotations
 import logging
 import select
 import socket
+import time
 from typing import Any
 
 from seaway_vehicle_io.core import (
@@ -57,7 +58,9 @@ class MavlinkLink:
         # The heartbeat's `mavlink_version` and our framing are MAVLink 2 from the first packet.
         self.conn.WIRE_PROTOCOL_VERSION = "2.0"
         self.is_tcp = isinstance(self.conn, mavutil.mavtcp)
+        self.is_udp = isinstance(self.conn, mavutil.mavudp)
         self.sent = 0
+        self.truncated_datagrams = 0
 
     def fileno(self) -> int:
         return self.conn.fd if self.conn.fd is not None else self.conn.port.fileno()
@@ -71,6 +74,8 @@ class MavlinkLink:
 
     def read_available(self) -> list[Any]:
         """Every message decodable from what has arrived, without blocking."""
+        if self.is_udp:
+            return self._read_datagrams()
         if self.is_tcp:
             try:
                 peek = self.conn.port.recv(1, socket.MSG_PEEK | socket.MSG_DONTWAIT)
@@ -93,6 +98,44 @@ class MavlinkLink:
             if type(err).__name__ == "SerialException":
                 raise LinkClosedError(f"{self.url}: {err}") from err
             raise
+        return out
+
+    def _read_datagrams(self) -> list[Any]:
+        """UDP: parse each datagram on its own.
+
+        pymavlink's own UDP path keeps one parser buffer across datagrams, so a datagram of
+        garbage that happens to contain a frame start (0xFD) followed by a large length byte makes
+        the parser wait for that many bytes and swallow the *next* datagrams' real messages
+        (heartbeats included). A datagram is a unit: whatever partial frame is left at its end is
+        reported as bad data and discarded, and the next datagram starts clean.
+        """
+        conn, mav = self.conn, self.conn.mav
+        out: list[Any] = []
+        while True:
+            try:
+                data, addr = conn.port.recvfrom(mavutil.UDP_MAX_PACKET_LEN)
+            except (BlockingIOError, InterruptedError):
+                break
+            except ConnectionRefusedError:
+                continue  # ICMP port unreachable for an earlier send (autopilot not up): harmless
+            except OSError as err:
+                raise LinkClosedError(f"{self.url}: {err}") from err
+            if conn.udp_server:  # udpin: reply to whoever talks to us (pymavlink's bookkeeping)
+                conn.clients.add(addr)
+                conn.clients_last_alive[addr] = time.time()
+            msgs = mav.parse_buffer(data) or []
+            leftover = mav.buf_len()
+            if leftover:
+                self.truncated_datagrams += 1
+                bad = bytes(mav.buf[mav.buf_index:])
+                mav.buf = bytearray()
+                mav.buf_index = 0
+                mav.expected_length = mavlink.HEADER_LEN_V1 + 2
+                msgs.append(mavlink.MAVLink_bad_data(
+                    bytearray(bad), f"{leftover} bytes of an incomplete frame at datagram end"))
+            for m in msgs:
+                conn.post_message(m)  # keeps pymavlink's per-system state coherent
+            out.extend(msgs)
         return out
 
     def send(self, out: Output) -> None:
