@@ -38,7 +38,8 @@ def _positive(text: str) -> float:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = base_parser("sim", __doc__.splitlines()[0])
+    p = base_parser("sim", "The Seaway simulator: vessel plant, disturbances, sensor noise and a "
+                           "PX4-like MAVLink endpoint (real time), or lockstep on the bus.")
     p.add_argument("--scenario", default="lake",
                    help="scenario name in deploy/scenarios, or a .toml/.json path (default lake)")
     p.add_argument("--lockstep", action="store_true",
