@@ -18,7 +18,7 @@ class VehicleIoConfig(ConfigModel):
     """How vehicle_io talks to the autopilot and how it guards the thrusters."""
 
     mavlink: str = Field(
-        default="udpin:127.0.0.1:14540",
+        default="udpout:127.0.0.1:14580",
         description="pymavlink connection URL: udpin:HOST:PORT (listen), udpout:HOST:PORT (send "
                     "first), tcp:HOST:PORT, or a serial device /dev/ttyX (baud from 'baud')",
     )
