@@ -108,12 +108,18 @@ class Decoded:
         return self.by_suffix.get(suffix, [])
 
 
-def decode_vessel(files: list[Path], vessel: str | None = None) -> Decoded:
-    """Decode the registered topics of one vessel (the only one, or the one named)."""
+def decode_vessel(files: list[Path], vessel: str | None = None,
+                  suffixes: Iterable[str] | None = None) -> Decoded:
+    """Decode the registered topics of one vessel (the only one, or the one named), all of them or
+    only those whose key ends in one of ``suffixes`` (``sim/truth``)."""
     out = Decoded()
+    wanted = None if suffixes is None else set(suffixes)
     for m in iter_messages(files):
         spec = keys.spec_for_key(m.topic)
         if spec is None or spec.message is None:
+            continue
+        if wanted is not None and spec.suffix not in wanted:
+            out.vessels.add(m.topic.split("/", 2)[1])
             continue
         v = m.topic.split("/", 2)[1]
         out.vessels.add(v)

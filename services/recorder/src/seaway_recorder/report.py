@@ -28,6 +28,8 @@ from seaway.scenario import load_scenario
 from seaway_recorder import metrics as mx
 from seaway_recorder import recording, runinfo
 
+REPORT_TOPICS = ("sim/truth", "nav/state", "nav/origin", "ctrl/thrust", "ctrl/solve", "mission/status")
+
 
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="seaway report", description=__doc__.split("\n\n")[0])
@@ -59,7 +61,7 @@ def analyse(files: list[Path], *, scenario: str | None = None, mission_file: str
             sample_period_s: float = 0.1) -> dict[str, Any]:
     """Everything the report prints, as one JSON-able dict (plus the series for plots under '_')."""
     info = recording.read_info(files)
-    dec = recording.decode_vessel(files, vessel)
+    dec = recording.decode_vessel(files, vessel, REPORT_TOPICS)
     scen = load_scenario(runinfo.scenario_path(scenario)) if scenario else \
         runinfo.scenario_from_attachments(info.attachments)
     scen_origin = runinfo.scenario_origin(scen) if scen is not None else None
@@ -225,9 +227,13 @@ def plots(res: dict[str, Any], out: Path) -> list[Path]:
 
     fig, ax = plt.subplots(figsize=(8, 4))
     ax.plot(ser["t_s"], ser["energy_used_j"], label="energy used (incl. T^w)")
-    togo = [(s.stamp_ns, s.energy_to_go_j) for s in data["solves"] if s.energy_to_go_j is not None]
-    if not togo:
-        togo = [(s.stamp_ns, s.energy_to_go_j) for s in data["statuses"] if s.energy_to_go_j is not None]
+    t_end = res["metrics"]["end_ns"]
+
+    def to_go(seq: list[Any]) -> list[tuple[int, float]]:
+        return [(s.stamp_ns, s.energy_to_go_j) for s in seq
+                if s.energy_to_go_j is not None and t0 <= s.stamp_ns <= t_end]
+
+    togo = to_go(data["solves"]) or to_go(data["statuses"])
     if togo:
         ax.plot([(t - t0) / 1e9 for t, _ in togo], [e for _, e in togo], label="energy to go (controller)")
     ax.set_xlabel("time [s]")
