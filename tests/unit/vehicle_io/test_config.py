@@ -1,0 +1,46 @@
+"""The example configs load, and bad configs fail loudly naming the field."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from seaway.config import ConfigError, load_config, parse_config
+from seaway_vehicle_io.config import VehicleIoConfig
+from seaway_vehicle_io.link import check_url
+from seaway_vehicle_io.main import build_parser, load
+
+CONFIGS = sorted((Path(__file__).resolve().parents[3] / "services/vehicle_io/config").glob("*.toml"))
+
+
+def test_there_are_example_configs():
+    assert len(CONFIGS) >= 4
+
+
+@pytest.mark.parametrize("path", CONFIGS, ids=lambda p: p.name)
+def test_example_configs_load(path):
+    cfg = load_config(path, VehicleIoConfig)
+    check_url(cfg.mavlink)
+
+
+@pytest.mark.parametrize(("doc", "field"), [
+    ({"thrust_timout_s": 0.3}, "thrust_timout_s"),  # a typo is an error, not a default
+    ({"thrust_timeout_s": 0.01}, "thrust_timeout_s"),  # shorter than one stream period
+    ({"manual_control_rate_hz": 2.0}, "manual_control_rate_hz"),  # too slow for PX4's 0.5 s
+    ({"heartbeat_timeout_s": 0.5}, "heartbeat_timeout_s"),
+    ({"autopilot": "inav"}, "autopilot"),
+    ({"source_system": 0}, "source_system"),
+])
+def test_bad_configs_name_the_field(doc, field):
+    with pytest.raises(ConfigError, match=field if field != "thrust_timeout_s" else "thrust_timeout"):
+        parse_config(doc, VehicleIoConfig, "test")
+
+
+def test_command_line_overrides_and_url_check(tmp_path):
+    args = build_parser().parse_args(["--mavlink", "udpin:0.0.0.0:14540", "--thrust-timeout", "0.5"])
+    cfg, limits = load(args)
+    assert cfg.mavlink == "udpin:0.0.0.0:14540" and cfg.thrust_timeout_s == 0.5
+    assert limits.thrust_max_n == 75.0
+    with pytest.raises(ConfigError, match="unsupported MAVLink URL"):
+        load(build_parser().parse_args(["--mavlink", "http://boat"]))
