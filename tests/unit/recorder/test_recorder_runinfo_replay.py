@@ -1,0 +1,135 @@
+"""Run information (attachments in, mission and vessel back out) and replay's key filter and pacing."""
+
+from __future__ import annotations
+
+import json
+import math
+import threading
+from pathlib import Path
+
+import pytest
+from seaway.frames import GeoOrigin
+from seaway_recorder import runinfo
+from seaway_recorder.recording import RecordedMessage
+from seaway_recorder.replay import KeyFilter, normalise, replay
+
+
+def test_scenario_attachments_bring_the_vessel_and_data_files() -> None:
+    atts, scen = runinfo.scenario_attachments("paper-c5")
+    names = [a.name for a in atts]
+    assert names == ["scenario/paper-c5.toml", "scenario-data/data/condition5_grid.json",
+                     "vessel/paper-sim.toml"]
+    assert scen.name == "paper-c5"
+    by = {a.name: a.data for a in atts}
+    mission = runinfo.mission_from_attachments(by, None)
+    assert mission.waypoints == ((0.0, 0.0), (8.0, 0.0), (5.13, 8.57))
+    assert (mission.coa_radius_m, mission.task_power_w) == (1.0, 0.49)
+    assert runinfo.vessel_from_attachments(by).alpha_w_per_n2 == pytest.approx(0.4364)
+    assert runinfo.scenario_from_attachments(by).origin.lat_deg == scen.origin.lat_deg
+
+
+def test_mission_attachment_wins_and_geodetic_waypoints_use_the_origin() -> None:
+    origin = GeoOrigin(math.radians(47.0), math.radians(8.0), 0.0)
+    lat, lon, _ = origin.to_geodetic(10.0, -5.0)
+    geo = {"lat_deg": math.degrees(lat), "lon_deg": math.degrees(lon)}
+    doc = {"waypoints": [{"x_m": 0.0, "y_m": 0.0}, geo], "coa_radius_m": 2.0, "task_power_w": 1.5}
+    atts = {"mission/m.json": json.dumps(doc).encode(),
+            "scenario/s.toml": b'[mission]\nwaypoints_m = [[0, 0], [1, 1]]\ncoa_radius_m = 1.0\n'}
+    m = runinfo.mission_from_attachments(atts, origin)
+    assert m.coa_radius_m == 2.0 and m.task_power_w == 1.5 and m.source == "attachment mission/m.json"
+    assert m.waypoints[1] == pytest.approx((10.0, -5.0), abs=1e-6)
+    with pytest.raises(ValueError, match="no origin"):
+        runinfo.mission_from_attachments(atts, None)
+    assert runinfo.mission_from_attachments({"config/x.toml": b"a = 1"}, None) is None
+
+
+def test_attach_roles(tmp_path: Path) -> None:
+    f = tmp_path / "profile.toml"
+    f.write_text("x = 1\n")
+    assert runinfo.parse_attach_arg(f"profile={f}").name == "profile/profile.toml"
+    a = runinfo.parse_attach_arg(str(f))
+    assert (a.name, a.media_type, a.data) == ("config/profile.toml", "application/toml", b"x = 1\n")
+    with pytest.raises(Exception, match="cannot attach"):
+        runinfo.parse_attach_arg(str(tmp_path / "missing.toml"))
+
+
+def test_key_filter() -> None:
+    assert normalise("sim/truth") == "seaway/*/sim/truth"
+    everything = KeyFilter()
+    assert everything("seaway/v1/sim/truth")
+    assert not everything("foxglove/v1/sim-truth") and not everything("recorder/malformed")
+    f = KeyFilter(exclude=["nav/state"])
+    assert f("seaway/v1/sensors/gnss") and not f("seaway/v2/nav/state")
+    f = KeyFilter(only=["seaway/v1/**"], exclude=["seaway/*/ctrl/*"])
+    assert f("seaway/v1/nav/state") and not f("seaway/v2/nav/state") and not f("seaway/v1/ctrl/thrust")
+
+
+class FakePub:
+    def __init__(self, log: list, key: str) -> None:
+        self.log, self.key = log, key
+
+    def put(self, data: bytes) -> None:
+        self.log.append((self.key, data))
+
+    def undeclare(self) -> None:
+        pass
+
+
+class FakeSession:
+    def __init__(self) -> None:
+        self.log: list = []
+        self.encodings: dict = {}
+
+    def declare_publisher(self, key, encoding, congestion_control):
+        self.encodings[key] = str(encoding)
+        return FakePub(self.log, key)
+
+
+class FakeClock:
+    """Time that moves only when the replay waits: sleeps are exact, so pacing is checkable."""
+
+    def __init__(self) -> None:
+        self.t = 100.0
+        self.waits: list[float] = []
+
+    def __call__(self) -> float:
+        return self.t
+
+
+class FakeStop(threading.Event):
+    def __init__(self, clock: FakeClock) -> None:
+        super().__init__()
+        self.clock = clock
+
+    def wait(self, timeout=None) -> bool:
+        self.clock.waits.append(timeout)
+        self.clock.t += timeout
+        return False
+
+
+def msg(topic: str, t_ns: int, data: bytes = b"{}") -> RecordedMessage:
+    return RecordedMessage(topic, t_ns, t_ns, 0, data, "seaway.v1.X", "json",
+                           {"zenoh_encoding": "application/json;seaway.v1.X"})
+
+
+def test_replay_paces_by_log_time_divided_by_rate() -> None:
+    clock = FakeClock()
+    stop = FakeStop(clock)
+    session = FakeSession()
+    msgs = [msg("seaway/v/a", 1_000_000_000), msg("foxglove/v/a", 1_100_000_000),
+            msg("seaway/v/b", 1_500_000_000, b"B"), msg("seaway/v/a", 3_000_000_000, b"A")]
+    stats = replay(iter(msgs), session, KeyFilter(), 2.0, stop, clock=clock)
+    assert session.log == [("seaway/v/a", b"{}"), ("seaway/v/b", b"B"), ("seaway/v/a", b"A")]
+    assert clock.waits == pytest.approx([0.25, 0.75])  # (0.5 s, then 1.5 s more) / 2
+    assert (stats.published, stats.skipped) == (3, 1)
+    assert stats.elapsed_s == pytest.approx(1.0) and stats.recorded_span_s == pytest.approx(2.0)
+    assert session.encodings["seaway/v/a"] == "application/json;seaway.v1.X"
+
+
+def test_replay_as_fast_as_possible_never_waits() -> None:
+    clock = FakeClock()
+    stop = FakeStop(clock)
+    session = FakeSession()
+    msgs = [msg("seaway/v/a", k * 1_000_000_000) for k in range(5)]
+    stats = replay(iter(msgs), session, KeyFilter(only=["seaway/v/a"]), None, stop, clock=clock)
+    assert clock.waits == [] and stats.published == 5

@@ -1,0 +1,192 @@
+"""RecordingWriter and recover on real MCAP files (no bus): channels, schemas, errors, rotation, repair."""
+
+from __future__ import annotations
+
+import base64
+import json
+from pathlib import Path
+
+import jsonschema
+import pytest
+from mcap.reader import make_reader
+from seaway import keys
+from seaway.frames import GeoOrigin
+from seaway.messages import NavOrigin, SimTruth, ThrustCommand
+from seaway_recorder.recording import iter_messages, open_paths, read_info
+from seaway_recorder.recover import recover
+from seaway_recorder.writer import AttachmentSpec, RecordingWriter
+
+V = "v1"
+ENC = "application/json;seaway.v1.SimTruth"
+
+
+def truth(i: int) -> bytes:
+    return SimTruth.make(stamp_ns=i * 100_000_000, u_mps=0.5, v_mps=0.0, r_radps=0.0, x_m=0.1 * i,
+                         y_m=0.0, psi_rad=0.0, thrust_port_n=1.0, thrust_starboard_n=1.0,
+                         energy_j=0.1 * i).encode()
+
+
+def thrust(i: int) -> bytes:
+    return ThrustCommand.make(stamp_ns=i, thrust_port_n=1.0, thrust_starboard_n=-1.0, seq=i).encode()
+
+
+def read_all(path: Path) -> list[tuple[str, str, bytes, int]]:
+    with open(path, "rb") as fh:
+        return [(c.topic, s.name if s else "", bytes(m.data), m.sequence)
+                for s, c, m in make_reader(fh).iter_messages(log_time_order=True)]
+
+
+def test_bytes_unchanged_with_schemas_metadata_and_attachments(tmp_path: Path) -> None:
+    att = AttachmentSpec("scenario/s.toml", "application/toml", b"name = 's'")
+    w = RecordingWriter(tmp_path / "r.mcap", attachments=[att], metadata={"seaway.run": {"scenario": "s"}},
+                        foxglove=False)
+    w.open(0)
+    for i in range(50):
+        assert w.write(keys.SIM_TRUTH.key(V), truth(i), ENC, 1000 + i)
+        assert w.write(keys.THRUST.key(V), thrust(i), "application/json", 1000 + i)
+    files = w.close(2000)
+    assert files == [str(tmp_path / "r.mcap")]
+    got = read_all(tmp_path / "r.mcap")
+    assert [d for t, _, d, _ in got if t.endswith("sim/truth")] == [truth(i) for i in range(50)]
+    assert [d for t, _, d, _ in got if t.endswith("ctrl/thrust")] == [thrust(i) for i in range(50)]
+    assert [q for t, _, _, q in got if t.endswith("sim/truth")] == list(range(1, 51))
+    with open(tmp_path / "r.mcap", "rb") as fh:
+        r = make_reader(fh)
+        summary = r.get_summary()
+        schemas = {s.name: json.loads(s.data) for s in summary.schemas.values()}
+        assert set(schemas) == {"seaway.v1.SimTruth", "seaway.v1.ThrustCommand"}
+        assert schemas["seaway.v1.SimTruth"] == SimTruth.json_schema()
+        assert all(s.encoding == "jsonschema" for s in summary.schemas.values())
+        assert {c.metadata["producer"] for c in summary.channels.values()} == {"sim", "controller"}
+        assert [(a.name, a.data) for a in r.iter_attachments()] == [("scenario/s.toml", b"name = 's'")]
+        meta = {m.name: m.metadata for m in r.iter_metadata()}
+    assert meta["seaway.run"] == {"scenario": "s"}
+    assert meta["seaway.recorder.summary"]["messages"] == "100"
+
+
+def test_malformed_and_unregistered_samples_are_kept_and_counted(tmp_path: Path) -> None:
+    w = RecordingWriter(tmp_path / "r.mcap", foxglove=False)
+    w.open(0)
+    bad = b'{"stamp_ns": 1, "u_mps": "fast"}'
+    assert not w.write(keys.SIM_TRUTH.key(V), bad, ENC, 10)
+    assert w.write("seaway/v1/custom/thing", b"\x00\x01raw", "zenoh/bytes", 11)
+    assert w.write(keys.SIM_TRUTH.key(V), truth(1), ENC, 12)
+    w.close(20)
+    assert (w.stats.malformed, w.stats.unregistered, w.stats.messages) == (1, 1, 2)
+    with open(tmp_path / "r.mcap", "rb") as fh:
+        msgs = {c.topic: (s, c, m) for s, c, m in make_reader(fh).iter_messages()}
+    s, c, m = msgs["recorder/malformed"]
+    env = json.loads(m.data)
+    jsonschema.validate(env, json.loads(s.data))
+    assert base64.b64decode(env["payload_base64"]) == bad
+    assert env["key"] == keys.SIM_TRUTH.key(V) and env["schema"] == "seaway.v1.SimTruth"
+    assert "u_mps" in env["error"]
+    s, c, m = msgs["seaway/v1/custom/thing"]
+    assert s is None and c.schema_id == 0 and bytes(m.data) == b"\x00\x01raw"
+    assert c.metadata["registered"] == "false"
+
+
+def test_no_validate_stores_even_malformed_bytes_on_the_key(tmp_path: Path) -> None:
+    w = RecordingWriter(tmp_path / "r.mcap", foxglove=False, validate=False)
+    w.open(0)
+    w.write(keys.THRUST.key(V), b"nonsense", "application/json", 1)
+    w.close(2)
+    assert w.stats.malformed == 0
+    assert [(t, d) for t, _, d, _ in read_all(tmp_path / "r.mcap")] == [(keys.THRUST.key(V), b"nonsense")]
+
+
+def test_location_fix_from_truth_needs_an_origin(tmp_path: Path) -> None:
+    w = RecordingWriter(tmp_path / "r.mcap")
+    w.open(0)
+    w.write(keys.SIM_TRUTH.key(V), truth(0), ENC, 1)  # no origin yet: nothing derived
+    w.write(keys.NAV_ORIGIN.key(V), NavOrigin.make(stamp_ns=0, lat_rad=0.8, lon_rad=0.1, alt_m=0).encode(),
+            "application/json", 2)
+    w.write(keys.SIM_TRUTH.key(V), truth(10), ENC, 3)  # x = 1 m north of the origin
+    w.close(4)
+    fixes = [json.loads(d) for t, n, d, _ in read_all(tmp_path / "r.mcap") if n == "foxglove.LocationFix"]
+    assert len(fixes) == 1
+    lat, lon, _ = GeoOrigin(0.8, 0.1).to_geodetic(1.0, 0.0)
+    assert fixes[0]["latitude"] == pytest.approx(lat * 57.29577951308232)
+    assert fixes[0]["longitude"] == pytest.approx(lon * 57.29577951308232)
+    assert fixes[0]["timestamp"] == {"sec": 1, "nsec": 0}
+
+
+def test_rotation_by_size_gives_whole_files_in_order(tmp_path: Path) -> None:
+    w = RecordingWriter(tmp_path / "rec.mcap", max_bytes=20_000, compression="none", foxglove=False,
+                        metadata={"seaway.run": {"k": "v"}})
+    w.open(0)
+    for i in range(600):
+        w.write(keys.SIM_TRUTH.key(V), truth(i), ENC, i)
+        if i % 20 == 19:
+            w.flush()
+            w.maybe_rotate(i)
+    files = w.close(1000)
+    assert len(files) >= 3
+    assert [Path(f).name for f in files] == [f"rec-{k:03d}.mcap" for k in range(len(files))]
+    paths = open_paths([tmp_path])
+    assert [str(p) for p in paths] == files
+    info = read_info(paths)
+    assert info.message_count == 600
+    assert [m.data for m in iter_messages(paths)] == [truth(i) for i in range(600)]
+    for f in files:
+        with open(f, "rb") as fh:
+            meta = {m.name: m.metadata for m in make_reader(fh).iter_metadata()}
+        assert meta["seaway.run"]["k"] == "v" and "file_index" in meta["seaway.run"]
+
+
+def _write_flushed(path: Path, n: int, flush_every: int) -> None:
+    w = RecordingWriter(path, foxglove=False, metadata={"seaway.run": {"a": "b"}},
+                        attachments=[AttachmentSpec("vessel/x.toml", "application/toml", b"x = 1")])
+    w.open(0)
+    for i in range(n):
+        w.write(keys.SIM_TRUTH.key(V), truth(i), ENC, i)
+        if i % flush_every == flush_every - 1:
+            w.flush()
+    w.close(n)
+
+
+@pytest.mark.parametrize("cut_fraction", [0.999, 0.9, 0.6, 0.35])
+def test_recover_keeps_every_whole_chunk_of_a_truncated_file(tmp_path: Path, cut_fraction: float) -> None:
+    src = tmp_path / "full.mcap"
+    _write_flushed(src, 400, 25)  # 16 chunks of 25 messages
+    data = src.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: int(len(data) * cut_fraction)])
+    fixed = tmp_path / "fixed.mcap"
+    res = recover(cut, fixed)
+    # A cut in the summary section leaves the data whole (data-end record read); any other cut does not.
+    assert res.complete == (res.messages == 400)
+    assert res.complete or res.reason
+    got = [m.data for m in iter_messages([fixed])]
+    # A prefix of whole chunks: a multiple of 25 messages, in order, and nothing invented.
+    assert got == [truth(i) for i in range(len(got))]
+    assert len(got) % 25 == 0 and res.messages == len(got)
+    # At least everything that was wholly written before the cut point survives.
+    with open(src, "rb") as fh:
+        whole = sum(25 for ci in make_reader(fh).get_summary().chunk_indexes
+                    if ci.chunk_start_offset + ci.chunk_length + 200 < len(data) * cut_fraction)
+    assert len(got) >= whole
+    with open(fixed, "rb") as fh:
+        r = make_reader(fh)
+        assert r.get_summary().statistics.message_count == len(got)
+        assert [a.name for a in r.iter_attachments()] == ["vessel/x.toml"]
+        meta = {m.name: m.metadata for m in r.iter_metadata()}
+    assert meta["seaway.run"] == {"a": "b"}
+    assert meta["seaway.recover"]["complete"] == str(res.complete).lower()
+
+
+def test_recover_of_a_complete_file_keeps_everything(tmp_path: Path) -> None:
+    src = tmp_path / "full.mcap"
+    _write_flushed(src, 100, 30)
+    res = recover(src, tmp_path / "same.mcap")
+    assert res.complete and res.messages == 100
+    assert [m.data for m in iter_messages([tmp_path / "same.mcap"])] == [truth(i) for i in range(100)]
+
+
+def test_recover_refuses_what_is_not_mcap(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.mcap"
+    bad.write_bytes(b"hello, this is not an mcap file at all")
+    with pytest.raises(ValueError, match="not an MCAP file"):
+        recover(bad, tmp_path / "out.mcap")
+    with pytest.raises(ValueError, match="must differ"):
+        recover(bad, bad)
