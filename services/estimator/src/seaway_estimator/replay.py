@@ -106,7 +106,8 @@ class TraceWriter:
     """Appends core calls to a JSON-lines file as they are made (the service's --record-inputs)."""
 
     def __init__(self, path: str | Path) -> None:
-        self._f: IO[str] = open(path, "w", encoding="utf-8")  # noqa: SIM115 - closed in close()
+        # Line-buffered: a process that is killed leaves every complete line it fed.
+        self._f: IO[str] = open(path, "w", encoding="utf-8", buffering=1)  # noqa: SIM115
 
     def write(self, kind: str, value: Any) -> None:
         self._f.write(encode_entry(kind, value) + "\n")

@@ -9,7 +9,10 @@ and in ``--lockstep`` ``sim/clock`` (ClockTick). Outputs: ``nav/state`` (StateEs
 * Lockstep: data-driven. On each ClockTick t_k, every sensor message stamped <= t_k is fed in stamp
   order (later ones wait for their tick), the state is predicted to t_k and published stamped
   exactly t_k. Thrust commands are fed as they arrive (the controller's answer to t_k applies from
-  t_k). A tick earlier than the previous one means the simulation restarted: the core resets.
+  t_k). Zenoh does not order messages across keys, so a tick may overtake what it closes: the tick
+  waits (at most ``LOCKSTEP_WAIT_S``) for the thrust command answering the previous tick, once a
+  controller has been heard, and for any sensor sample its own period says is due. A tick earlier
+  than the previous one means the simulation restarted: the core resets.
 
 Re-initialisation: a request on ``seaway/<vessel>/nav/reset`` (``NavResetRequest``; the key is
 served here until the shared registry has it) or SIGUSR1 (keeps the origin).
@@ -18,6 +21,7 @@ served here until the shared registry has it) or SIGUSR1 (keeps the origin).
 from __future__ import annotations
 
 import bisect
+import collections
 import logging
 import signal
 import threading
@@ -38,6 +42,7 @@ from seaway_estimator.replay import TraceWriter
 log = logging.getLogger("seaway.estimator")
 NS_PER_S = 1_000_000_000
 STATS_PERIOD_S = 10.0
+LOCKSTEP_WAIT_S = 0.2  # longest wait for a thrust command or sensor sample a tick lacks
 
 
 class NavResetRequest(Message):
@@ -89,11 +94,23 @@ class EstimatorLoop:
         self._seq = 0
         self._origin_due = 0.0
         self._last_tick: int | None = None
+        self.last_thrust_ns: int | None = None
         self.refused = 0
+        self.thrust_waits_timed_out = 0
+        self.sensor_waits_timed_out = 0
+        # Per sensor: [last stamp, shortest period seen] (ns), to know what a tick still lacks.
+        self.schedule: dict[str, list[Any]] = {}
 
     # -- inputs ----------------------------------------------------------------------------------
 
     def queue(self, kind: str, msg: Any) -> None:
+        sched = self.schedule.get(kind)
+        if sched is None:
+            self.schedule[kind] = [msg.stamp_ns, None]
+        elif msg.stamp_ns > sched[0]:
+            sched[1] = msg.stamp_ns - sched[0] if sched[1] is None else min(sched[1],
+                                                                             msg.stamp_ns - sched[0])
+            sched[0] = msg.stamp_ns
         self._seq += 1
         bisect.insort(self.pending, (msg.stamp_ns, _KIND_ORDER[kind], self._seq, kind, msg))
 
@@ -108,6 +125,7 @@ class EstimatorLoop:
                 self.core.on_attitude(msg)
             else:
                 self.core.on_thrust(msg)
+                self.last_thrust_ns = max(msg.stamp_ns, self.last_thrust_ns or 0)
         except EstimatorError as err:
             self.refused += 1
             log.warning("refused %s input: %s", kind, err)
@@ -155,6 +173,32 @@ class EstimatorLoop:
 
     # -- lockstep --------------------------------------------------------------------------------
 
+    def awaits_thrust(self, tick: ClockTick) -> bool:
+        """Whether the command answering the previous tick is still on its way.
+
+        The sim steps from t_k only once it has a command stamped >= t_k, but that command reaches
+        us on another path than the sim's next tick, so it can arrive after it. Once a controller
+        has been heard, the tick waits for it (bounded by ``LOCKSTEP_WAIT_S``).
+        """
+        return (self.last_thrust_ns is not None and self._last_tick is not None
+                and tick.stamp_ns > self._last_tick and self.last_thrust_ns < self._last_tick)
+
+    def awaits_sensor(self, tick: ClockTick) -> str | None:
+        """A sensor whose next sample (by its own period) is due by this tick but not here yet.
+
+        Messages on different keys may arrive in a different order than they were published, so a
+        tick can overtake the samples it closes. Samples never sent (a simulated dropout) cost
+        one bounded wait each: ``skip_expected`` moves the expectation on.
+        """
+        for kind, (last, period) in self.schedule.items():
+            if period is not None and last + period <= tick.stamp_ns:
+                return kind
+        return None
+
+    def skip_expected(self, kind: str) -> None:
+        last, period = self.schedule[kind]
+        self.schedule[kind] = [last + period, period]
+
     def on_tick(self, tick: ClockTick) -> None:
         t = tick.stamp_ns
         if self._last_tick is not None and t < self._last_tick:
@@ -197,6 +241,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                  "lockstep on sim/clock" if args.lockstep else "realtime",
                  "per tick" if args.lockstep else f"at {cfg.publish_rate_hz:g} Hz", cfg.vessel)
         stats_due = time.monotonic() + STATS_PERIOD_S
+        ticks: collections.deque[tuple[ClockTick, float]] = collections.deque()
         rate = None if args.lockstep else RateLoop(1.0 / cfg.publish_rate_hz, ctx.clock, ctx.stop)
         try:
             while not ctx.stop.is_set():
@@ -213,15 +258,33 @@ def main(argv: Sequence[str] | None = None) -> int:
                         loop.feed_pending(None)
                         loop.publish(ctx.clock.now_ns())
                 else:
-                    for kind, msg in inbox.take(0.1):
+                    for kind, msg in inbox.take(0.01 if ticks else 0.1):
                         if kind == "tick":
-                            loop.on_tick(msg)
-                        elif kind == "thrust":
-                            with loop.lock:
+                            ticks.append((msg, time.monotonic() + LOCKSTEP_WAIT_S))
+                        with loop.lock:
+                            if kind == "thrust":
                                 loop.feed(kind, msg)
-                        else:
-                            with loop.lock:
+                            elif kind != "tick":
                                 loop.queue(kind, msg)
+                    while ticks:
+                        tick, deadline = ticks[0]
+                        late = time.monotonic() >= deadline
+                        if loop.awaits_thrust(tick):
+                            if not late:
+                                break
+                            loop.thrust_waits_timed_out += 1
+                            log.warning("no thrust command for t = %d ns within %.1f s; "
+                                        "predicting with the last one", loop._last_tick,
+                                        LOCKSTEP_WAIT_S)
+                        sensor = loop.awaits_sensor(tick)
+                        while sensor is not None and late:
+                            loop.sensor_waits_timed_out += 1
+                            loop.skip_expected(sensor)
+                            sensor = loop.awaits_sensor(tick)
+                        if sensor is not None:
+                            break
+                        ticks.popleft()
+                        loop.on_tick(tick)
                 if time.monotonic() >= stats_due:
                     stats_due += STATS_PERIOD_S
                     log.info("estimator: %s", _stats_line(core))
