@@ -15,7 +15,6 @@ import sys
 from pathlib import Path
 
 from seaway.scenario import load_scenario
-
 from seaway_estimator.core import EstimatorCore
 from seaway_estimator.harness import REALISTIC_NOISE, run_closed_loop
 from seaway_estimator.replay import decode_entry, encode_entry, read_trace, replay, write_trace
