@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-
 from seaway.config import ConfigError, load_config, parse_config
 from seaway_vehicle_io.config import VehicleIoConfig
 from seaway_vehicle_io.link import check_url

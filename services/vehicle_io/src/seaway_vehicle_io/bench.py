@@ -10,7 +10,7 @@ the old value). Commands go one at a time, with a few milliseconds between them.
 Baselines, measured in the same run on the same machine:
 
 * ``zenoh``: put -> subscriber callback between two Zenoh sessions of this process (loopback TCP,
-  the same transport the two processes use);
+  the same transport the two processes use, the callback on Zenoh's thread as in vehicle_io);
 * ``udp``: one datagram between two loopback sockets of this process.
 
 What vehicle_io itself adds is roughly the end-to-end figure minus the two baselines (decode,
@@ -20,6 +20,7 @@ watchdog, mapping, MAVLink packing, and the wake-up of its Zenoh callback thread
 from __future__ import annotations
 
 import argparse
+import gc
 import os
 import random
 import socket
@@ -29,6 +30,7 @@ import threading
 import time
 from collections.abc import Sequence
 
+import zenoh
 from seaway import keys
 from seaway.bench import BenchResult, median, percentile
 from seaway.bus import Bus
@@ -87,16 +89,19 @@ def _udp_baseline(n: int) -> list[int]:
 
 
 def _zenoh_baseline(n: int, vessel: str) -> list[int]:
+    """Put -> callback between two sessions, the callback on Zenoh's receive thread, as
+    vehicle_io's thrust subscriber is (``indirect=False``)."""
     got = threading.Event()
     arrival = [0]
 
-    def on_thrust(_key: str, _msg: ThrustCommand) -> None:
+    def on_sample(_sample: zenoh.Sample) -> None:
         arrival[0] = time.monotonic_ns()
         got.set()
 
     out = []
     with Bus.open(vessel) as a, Bus.open(vessel) as b:
-        b.subscribe(keys.THRUST, callback=on_thrust, vessel=f"{vessel}-baseline")
+        key = keys.THRUST.key(f"{vessel}-baseline")
+        b.session.declare_subscriber(key, zenoh.handlers.Callback(on_sample, indirect=False))
         pub = a.publisher(keys.THRUST, vessel=f"{vessel}-baseline")
         time.sleep(1.0)  # let the two sessions find each other
         for i in range(n):
@@ -157,6 +162,10 @@ def run(argv: list[str]) -> BenchResult:
             if not peer.manual_controls:
                 raise RuntimeError("vehicle_io never streamed MANUAL_CONTROL to the bench peer")
             time.sleep(1.0)  # Zenoh discovery between the bench and vehicle_io
+            # The bench's own garbage collector must not stamp its pauses onto vehicle_io.
+            gc.collect()
+            gc.freeze()
+            gc.disable()
             for i in range(args.count + 20):
                 t_n = 12.0 + (i % 40) * 1.4  # consecutive commands always differ
                 cmd = ThrustCommand.make(stamp_ns=time.time_ns(), thrust_port_n=t_n,
@@ -174,6 +183,7 @@ def run(argv: list[str]) -> BenchResult:
                     lost += 1
                 time.sleep(random.uniform(0.001, 0.004))
     finally:
+        gc.enable()
         peer.stop()
         if proc.poll() is None:
             proc.terminate()
@@ -183,8 +193,13 @@ def run(argv: list[str]) -> BenchResult:
                 proc.kill()
                 proc.wait(5)
 
-    zenoh_ns = _zenoh_baseline(args.baseline_count, vessel)
-    udp_ns = _udp_baseline(args.baseline_count)
+    gc.collect()
+    gc.disable()  # as for the main measurement
+    try:
+        zenoh_ns = _zenoh_baseline(args.baseline_count, vessel)
+        udp_ns = _udp_baseline(args.baseline_count)
+    finally:
+        gc.enable()
     e2e = _ms(latencies)
     p99 = percentile(e2e, 99)
     result.add("e2e_median_ms", median(e2e))

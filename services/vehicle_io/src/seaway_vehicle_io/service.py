@@ -19,11 +19,13 @@ wakes request handlers when an ACK has been processed.
 from __future__ import annotations
 
 import dataclasses
+import gc
 import logging
 import threading
 import time
 from collections.abc import Callable
 
+import zenoh
 from seaway import keys
 from seaway.bus import Bus, TypedPublisher
 from seaway.messages import (
@@ -80,8 +82,13 @@ class VehicleIoService:
     # -- running ---------------------------------------------------------------------------------
 
     def run(self) -> None:
+        # Everything allocated so far (pymavlink's dialect alone is tens of thousands of objects)
+        # lives for the whole run: move it out of the collector's reach, so that a full
+        # collection cannot pause a thrust command for milliseconds.
+        gc.collect()
+        gc.freeze()
         self._open_link()
-        self.bus.subscribe(keys.THRUST, mode="latest", callback=self._on_thrust)
+        self._subscribe_thrust()
         self.bus.queryable(keys.VEHICLE_ARM, self._on_arm)
         self.bus.queryable(keys.VEHICLE_MODE, self._on_mode)
         receiver = threading.Thread(target=self._receive_loop, name="mavlink-rx", daemon=True)
@@ -186,6 +193,34 @@ class VehicleIoService:
                     log.warning("send failed: %s", err)
 
     # -- bus in ------------------------------------------------------------------------------------------
+
+    def _subscribe_thrust(self) -> None:
+        """ThrustCommand handled on Zenoh's own receive thread (``indirect=False``).
+
+        Bus.subscribe hands each sample to a Python thread of its own first; that extra wake-up is
+        most of the tail latency from bus to wire on a loaded machine. The handler is short (decode,
+        map, one sendto) and takes only ``self.lock``, which nobody holds for long. Latest-only by
+        construction: each command replaces the previous one in the core. Malformed payloads are
+        counted in the bus's stats and dropped, as Bus.subscribe does.
+        """
+        key = self.bus.key(keys.THRUST)
+        stats = self.bus.stats
+
+        def on_sample(sample: zenoh.Sample) -> None:
+            try:
+                cmd = ThrustCommand.decode(sample.payload.to_bytes())
+            except MessageError as err:
+                stats.count_malformed(key, str(err))
+                log.warning("dropped malformed ThrustCommand: %s", err)
+                return
+            stats.received += 1
+            try:
+                self._on_thrust(key, cmd)
+            except Exception:  # never let an exception escape into Zenoh's network thread
+                log.exception("thrust command handling failed")
+
+        self._thrust_sub = self.bus.session.declare_subscriber(
+            key, zenoh.handlers.Callback(on_sample, indirect=False))
 
     def _on_thrust(self, _key: str, cmd: ThrustCommand) -> None:
         with self.lock:
