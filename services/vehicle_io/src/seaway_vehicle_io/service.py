@@ -8,12 +8,14 @@ Threads, and why:
 * **timer** (the main thread, ``_timer_loop``): calls ``core.tick`` when ``core.next_wake_ns``
   says something is due (MANUAL_CONTROL stream, watchdog deadline, heartbeat, status, retries),
   sleeping at most one stream period.
-* **Zenoh callbacks**: a ThrustCommand is handled on arrival (MANUAL_CONTROL goes out from the
-  callback itself, which is what keeps bus-to-wire latency in the sub-millisecond range); arm and
-  mode requests block their own callback thread while they wait for COMMAND_ACK.
+* **Zenoh callbacks**: a ThrustCommand is handled on arrival, on Zenoh's receive thread
+  (MANUAL_CONTROL goes out from the callback itself, which is what keeps bus-to-wire latency in the
+  sub-millisecond range); arm and mode requests block their own callback thread while they wait
+  for COMMAND_ACK.
 
-Every call into the core and every send happens under ``self.lock``; the condition on that lock
-wakes request handlers when an ACK has been processed.
+Every call into the core and every MAVLink send happens under ``self.lock``; the condition on that
+lock wakes request handlers when an ACK has been processed. Bus publications are made after the
+lock is released (no thread calls into Zenoh while holding it).
 """
 
 from __future__ import annotations
@@ -103,9 +105,9 @@ class VehicleIoService:
     def _timer_loop(self) -> None:
         while not self.stop.is_set():
             with self.lock:
-                t = now()
-                self._perform(self.core.tick(t))
+                publish = self._send(self.core.tick(now()))
                 wake_ns = self.core.next_wake_ns()
+            self._publish(publish)
             delay = min(max(0.0, (wake_ns - time.monotonic_ns()) / 1e9), MAX_SLEEP_S)
             self.stop.wait(delay)
 
@@ -115,7 +117,7 @@ class VehicleIoService:
         with self.lock:
             neutral = self.core.neutral_command()
             if neutral is not None and self.link is not None:
-                self._perform([neutral] * SHUTDOWN_NEUTRAL_PACKETS)
+                self._send([neutral] * SHUTDOWN_NEUTRAL_PACKETS)
                 log.info("sent neutral thrust before exiting")
             if self.link is not None:
                 self.link.close()
@@ -159,14 +161,15 @@ class VehicleIoService:
                 continue
             if not messages:
                 continue
+            publish: list[Publish] = []
             with self.lock:
                 for msg in messages:
-                    t = now()
                     try:
-                        self._perform(self.core.on_mavlink(msg, t))
+                        publish += self._send(self.core.on_mavlink(msg, now()))
                     except Exception:  # a bug for one message must not end the receive loop
                         log.exception("handling %s failed", msg.get_type())
                 self.acks.notify_all()
+            self._publish(publish)
 
     def _drop_link(self, link: MavlinkLink, err: Exception) -> None:
         log.warning("MAVLink transport broke: %s; reopening", err)
@@ -178,19 +181,30 @@ class VehicleIoService:
 
     # -- outputs ---------------------------------------------------------------------------------------
 
-    def _perform(self, outputs: list[Output]) -> None:
-        """Send and publish, in order. Called with ``self.lock`` held."""
+    def _send(self, outputs: list[Output]) -> list[Publish]:
+        """Send the MAVLink outputs in order; return the publications for ``_publish``.
+
+        Called with ``self.lock`` held. Publishing happens after the lock is released, so that no
+        thread ever calls into Zenoh while holding the lock that Zenoh's own receive thread takes
+        in the thrust callback.
+        """
+        publish: list[Publish] = []
         for out in outputs:
             if isinstance(out, Publish):
-                try:
-                    self._publishers[type(out.message)].put(out.message)
-                except MessageError as err:  # never happens for validated messages; never crash
-                    log.error("not published: %s", err)
+                publish.append(out)
             elif self.link is not None:
                 try:
                     self.link.send(out)
                 except LinkClosedError as err:
                     log.warning("send failed: %s", err)
+        return publish
+
+    def _publish(self, publish: list[Publish]) -> None:
+        for out in publish:
+            try:
+                self._publishers[type(out.message)].put(out.message)
+            except MessageError as err:  # never happens for validated messages; never crash
+                log.error("not published: %s", err)
 
     # -- bus in ------------------------------------------------------------------------------------------
 
@@ -224,7 +238,8 @@ class VehicleIoService:
 
     def _on_thrust(self, _key: str, cmd: ThrustCommand) -> None:
         with self.lock:
-            self._perform(self.core.on_thrust(cmd, now()))
+            publish = self._send(self.core.on_thrust(cmd, now()))
+        self._publish(publish)
 
     def _on_arm(self, req: ArmRequest) -> Reply:
         what = "arm" if req.arm else "disarm"
@@ -248,9 +263,12 @@ class VehicleIoService:
             result, attempts = self._send_and_wait(cmd)
             with self.lock:
                 self.core.commands.finish(cmd.command)
+                status = None
                 if result == MAV_RESULT_ACCEPTED:
                     self.core.command_accepted(cmd.command, cmd.params, mode)
-                    self._perform([Publish(self.core.status(now()))])
+                    status = Publish(self.core.status(now()))
+            if status is not None:
+                self._publish([status])
             detail = {"command": name, "attempts": attempts,
                       "target_system": cmd.target_system}
             if result is None:
@@ -274,7 +292,7 @@ class VehicleIoService:
                 pending = self.core.commands.state(cmd.command)
                 if pending is None or self.stop.is_set():
                     return None, attempts  # abandoned: the link was lost meanwhile
-                self._perform([dataclasses.replace(cmd, confirmation=confirmation)])
+                self._send([dataclasses.replace(cmd, confirmation=confirmation)])
                 attempts += 1
                 deadline = time.monotonic_ns() + timeout_ns
                 extended = False
