@@ -76,7 +76,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--scenario", default=None,
                    help="scenario name or file: attached with its data files and vessel file")
     p.add_argument("--vessel-file", default=None, help="vessel file to attach (overrides the scenario's)")
-    p.add_argument("--profile", default=None, help="launcher profile file to attach")
+    p.add_argument("--profile", default=None, help="launcher profile (name or file) to attach")
     p.add_argument("--mission", default=None, help="mission file to attach (MissionRequest JSON or TOML)")
     p.add_argument("--attach", action="append", default=[], metavar="[ROLE=]FILE",
                    help=f"attach a file (repeatable); roles: {', '.join(runinfo.ROLES)} (default config)")
@@ -89,8 +89,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--compression", choices=["zstd", "lz4", "none"], default="zstd")
     p.add_argument("--chunk-size", type=parse_size, default=4 << 20,
                    help="end a chunk early past this many bytes (default 4M)")
-    p.add_argument("--queue", type=int, default=500_000,
-                   help="samples buffered between Zenoh and the writer before drops (default 500000)")
+    p.add_argument("--queue", type=int, default=200_000,
+                   help="samples buffered between Zenoh and the writer before drops (default 200000)")
     p.add_argument("--no-validate", action="store_true",
                    help="do not check samples against their types (faster; nothing counts as malformed)")
     p.add_argument("--no-foxglove", action="store_true", help="do not add foxglove.LocationFix channels")
@@ -139,7 +139,7 @@ def build_run_info(args: argparse.Namespace, exprs: list[str]):
     if args.vessel_file:
         atts.append(runinfo.attachment("vessel", runinfo.vessel_path(args.vessel_file)))
     if args.profile:
-        atts.append(runinfo.attachment("profile", Path(args.profile)))
+        atts.append(runinfo.attachment("profile", runinfo.profile_path(args.profile)))
     if args.mission:
         atts.append(runinfo.attachment("mission", Path(args.mission)))
     zcfg = args.zenoh_config or os.environ.get("SEAWAY_ZENOH_CONFIG")
@@ -182,16 +182,27 @@ def run(argv: Sequence[str]) -> int:
         for e in exprs:
             ctx.bus.subscribe_raw(e, queue.on_sample)
         print("READY", flush=True)
-        _loop(writer, queue, ctx.stop, args.flush_interval, args.status_interval)
-        queue.accepting = False
-        _drain(writer, queue, limit=None)
+        try:
+            _loop(writer, queue, ctx.stop, args.flush_interval, args.status_interval)
+            queue.accepting = False
+            _drain(writer, queue, limit=None)
+        except OSError as err:  # disk full, file removed, ...: finish what can be finished
+            log.error("writing failed: %s; finishing the file", err)
+            queue.accepting = False
+            failed = True
+        else:
+            failed = False
         writer.count_dropped(queue.dropped - writer.stats.dropped)
-        files = writer.close()
+        try:
+            files = writer.close()
+        except OSError as err:
+            log.error("could not finish %s: %s (try 'seaway record recover')", writer.path, err)
+            return 1
     summary = {"files": files, **writer.stats.as_metadata(), "by_topic": dict(writer.stats.by_topic)}
     log.info("recorder finished: %s", writer.stats.line())
     print(f"recording finished: {', '.join(files)}", flush=True)
     print(json.dumps(summary), flush=True)
-    return 0
+    return 1 if failed else 0
 
 
 def _drain(writer: RecordingWriter, queue: SampleQueue, limit: int | None) -> int:

@@ -57,6 +57,11 @@ def scenario_path(name_or_path: str) -> Path:
     return p
 
 
+def profile_path(name_or_path: str) -> Path:
+    p = Path(name_or_path)
+    return p if p.suffix in (".toml", ".json") else deploy_path("profiles", f"{name_or_path}.toml")
+
+
 def vessel_path(name_or_path: str, relative_to: Path | None = None) -> Path:
     p = Path(name_or_path)
     if p.suffix in (".toml", ".json"):
