@@ -10,13 +10,13 @@ import time
 import pytest
 from seaway import keys, model
 from seaway.bus import Bus
-from seaway.messages import ClockTick, ThrustCommand
+from seaway.keys import NAV_RESET
+from seaway.messages import ClockTick, NavResetRequest, ThrustCommand
 from seaway.plant import Plant
 from seaway.scenario import load_scenario
 from seaway.sensors import SensorSuite, instants_in, origin_of
 from seaway_estimator.harness import REALISTIC_NOISE
 from seaway_estimator.replay import read_trace, replay
-from seaway_estimator.service import NAV_RESET, NavResetRequest
 
 from tests.conftest import BIN, wait_for
 

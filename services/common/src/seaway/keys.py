@@ -65,6 +65,7 @@ VEHICLE_ARM = KeySpec("vehicle/arm", m.ArmRequest, "vehicle_io", "query")
 VEHICLE_MODE = KeySpec("vehicle/mode", m.ModeRequest, "vehicle_io", "query")
 NAV_STATE = KeySpec("nav/state", m.StateEstimate, "estimator")
 NAV_ORIGIN = KeySpec("nav/origin", m.NavOrigin, "estimator")
+NAV_RESET = KeySpec("nav/reset", m.NavResetRequest, "estimator", "query", doc="re-initialise")
 THRUST = KeySpec("ctrl/thrust", m.ThrustCommand, "controller")
 SOLVE = KeySpec("ctrl/solve", m.SolveRecord, "controller")
 MISSION_STATUS = KeySpec("mission/status", m.MissionStatus, "controller")
@@ -84,6 +85,7 @@ REGISTRY: tuple[KeySpec, ...] = (
     VEHICLE_MODE,
     NAV_STATE,
     NAV_ORIGIN,
+    NAV_RESET,
     THRUST,
     SOLVE,
     MISSION_STATUS,

@@ -343,6 +343,15 @@ class ScenarioRequest(Message):
     scenario: dict[str, Any] | None = Field(default=None, description="scenario document; None resets")
 
 
+class NavResetRequest(Message):
+    """Re-initialise the estimator from the next measurements."""
+
+    SCHEMA: ClassVar[str] = "seaway.v1.NavResetRequest"
+    keep_origin: bool = Field(default=True, description="keep the NED origin (positions on the "
+                              "bus stay in the same frame)")
+    reason: str = Field(default="", max_length=200)
+
+
 class Waypoint(BaseModel):
     """One waypoint: local NED metres, or WGS84 degrees converted through the published origin.
 
@@ -395,4 +404,5 @@ ALL_MESSAGES: tuple[type[Message], ...] = (
     ScenarioRequest,
     MissionRequest,
     MissionCommand,
+    NavResetRequest,
 )

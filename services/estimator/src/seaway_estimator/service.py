@@ -14,8 +14,8 @@ and in ``--lockstep`` ``sim/clock`` (ClockTick). Outputs: ``nav/state`` (StateEs
   controller has been heard, and for any sensor sample its own period says is due. A tick earlier
   than the previous one means the simulation restarted: the core resets.
 
-Re-initialisation: a request on ``seaway/<vessel>/nav/reset`` (``NavResetRequest``; the key is
-served here until the shared registry has it) or SIGUSR1 (keeps the origin).
+Re-initialisation: a request on ``seaway/<vessel>/nav/reset`` (``NavResetRequest``) or SIGUSR1
+(keeps the origin).
 """
 
 from __future__ import annotations
@@ -27,12 +27,11 @@ import signal
 import threading
 import time
 from collections.abc import Sequence
-from typing import Any, ClassVar
+from typing import Any
 
-from pydantic import Field
 from seaway import keys
 from seaway.clock import RateLoop
-from seaway.messages import ClockTick, Message, Reply
+from seaway.messages import ClockTick, NavResetRequest, Reply
 from seaway.service import base_parser, parse, run_service
 
 from seaway_estimator.config import load_estimator_config
@@ -44,18 +43,6 @@ NS_PER_S = 1_000_000_000
 STATS_PERIOD_S = 10.0
 LOCKSTEP_WAIT_S = 0.2  # longest wait for a thrust command or sensor sample a tick lacks
 
-
-class NavResetRequest(Message):
-    """Re-initialise the estimator from the next measurements (proposed for seaway.messages)."""
-
-    SCHEMA: ClassVar[str] = "seaway.v1.NavResetRequest"
-    keep_origin: bool = Field(default=True, description="keep the NED origin (positions on the "
-                              "bus stay in the same frame)")
-    reason: str = Field(default="", max_length=200)
-
-
-NAV_RESET = keys.KeySpec("nav/reset", NavResetRequest, "estimator", "query",
-                         doc="re-initialise the estimator")
 
 _KIND_ORDER = {"gnss": 0, "attitude": 1, "thrust": 2}
 
@@ -235,7 +222,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             ctx.bus.subscribe(spec, callback=lambda _k, m, kind=kind: inbox.put(kind, m))
         if args.lockstep:
             ctx.bus.subscribe(keys.SIM_CLOCK, callback=lambda _k, m: inbox.put("tick", m))
-        ctx.bus.queryable(NAV_RESET, loop.on_reset_request)
+        ctx.bus.queryable(keys.NAV_RESET, loop.on_reset_request)
         signal.signal(signal.SIGUSR1, lambda *_: reset_signal.set())
         log.info("estimator %s, publishing %s, vessel file %s",
                  "lockstep on sim/clock" if args.lockstep else "realtime",
