@@ -18,6 +18,7 @@ import os
 import signal
 import socket
 import subprocess
+import threading
 import time
 from pathlib import Path
 
@@ -371,3 +372,68 @@ def test_peer_garbage_and_out_of_range_fields_are_counted_and_dropped(zenoh_env,
     assert "dropped GLOBAL_POSITION_INT (field lat)" in log
     assert "dropped ATTITUDE (field rollspeed)" in log
     assert "dropped BAD_DATA" in log
+
+
+class TcpAutopilot:
+    """One accepted TCP connection playing a PX4: heartbeats out, MANUAL_CONTROL counted in."""
+
+    def __init__(self, server: socket.socket, sysid: int = 1) -> None:
+        server.settimeout(15.0)
+        self.conn, _ = server.accept()
+        self.conn.settimeout(0.1)
+        self.mav = mavlink.MAVLink(None, srcSystem=sysid, srcComponent=1)
+        self.parser = mavlink.MAVLink(None)
+        self.parser.robust_parsing = True
+        self.manual_controls = 0
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        next_hb = 0.0
+        while not self._stop.is_set():
+            if time.monotonic() >= next_hb:
+                hb = mavlink.MAVLink_heartbeat_message(10, 12, 1, 1 << 16, 4, 3)
+                try:
+                    self.conn.sendall(hb.pack(self.mav))
+                except OSError:
+                    return
+                next_hb = time.monotonic() + 0.5
+            try:
+                data = self.conn.recv(4096)
+            except TimeoutError:
+                continue
+            except OSError:
+                return
+            if not data:
+                return
+            for m in self.parser.parse_buffer(data) or []:
+                if m.get_type() == "MANUAL_CONTROL":
+                    self.manual_controls += 1
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(2.0)
+        self.conn.close()
+
+
+def test_tcp_transport_reopened_after_the_autopilot_closes_it(zenoh_env, procs, bus, tmp_path):
+    server = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    server.bind(("127.0.0.1", 0))
+    server.listen(1)
+    port = server.getsockname()[1]
+    vio = start_vio(procs, zenoh_env, tmp_path, f"tcp:127.0.0.1:{port}")
+    status = Watch(bus, keys.VEHICLE_STATUS)
+    try:
+        first = TcpAutopilot(server)
+        status.wait(lambda s: s.link_ok, 15, "link over TCP")
+        wait_for(lambda: first.manual_controls > 0, 3, what="MANUAL_CONTROL over TCP")
+        first.close()  # the autopilot end goes away (EOF for vehicle_io)
+        second = TcpAutopilot(server)  # vehicle_io connects again by itself
+        wait_for(lambda: second.manual_controls > 0, 5, what="MANUAL_CONTROL on the new connection")
+        second.close()
+    finally:
+        server.close()
+    alive(vio, procs)
+    assert "MAVLink transport broke" in procs.log(vio)
