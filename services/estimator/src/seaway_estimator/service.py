@@ -32,9 +32,10 @@ from typing import Any
 from seaway import keys
 from seaway.clock import RateLoop
 from seaway.messages import ClockTick, NavResetRequest, Reply
+from seaway.scenario import Scenario, load_scenario
 from seaway.service import base_parser, parse, run_service
 
-from seaway_estimator.config import load_estimator_config
+from seaway_estimator.config import EstimatorConfig, OriginConfig, load_estimator_config
 from seaway_estimator.core import EstimatorCore, EstimatorError
 from seaway_estimator.replay import TraceWriter
 
@@ -203,6 +204,12 @@ def _stats_line(core: EstimatorCore) -> str:
     return ", ".join(f"{k} {c[k]}" for k in keys_)
 
 
+def with_scenario(cfg: EstimatorConfig, sc: Scenario) -> EstimatorConfig:
+    """The config with the scenario's vessel, dead zone and geodetic origin (simulation only)."""
+    origin = OriginConfig(lat_deg=sc.origin.lat_deg, lon_deg=sc.origin.lon_deg, alt_m=sc.origin.alt_m)
+    return cfg.model_copy(update={"vessel": sc.vessel, "apply_dead_zone": sc.dead_zone, "origin": origin})
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     ap = base_parser("estimator", "EKF state and disturbance estimator: sensors/* -> nav/state")
     ap.add_argument("--config", default=None, help="estimator config file (TOML or JSON)")
@@ -210,8 +217,13 @@ def main(argv: Sequence[str] | None = None) -> int:
                     help="publish on each sim/clock tick, stamped with it (batch simulation)")
     ap.add_argument("--record-inputs", default=None, metavar="FILE",
                     help="write every core call as JSON lines, for python -m seaway_estimator.replay")
+    ap.add_argument("--scenario", default=None,
+                    help="simulation: take the vessel file, dead zone and NED origin from this scenario "
+                         "(name or path), so positions share the simulator's frame")
     args = parse(ap, argv)
     cfg = load_estimator_config(args.config)
+    if args.scenario:
+        cfg = with_scenario(cfg, load_scenario(args.scenario))
     core = EstimatorCore(cfg)
     recorder = TraceWriter(args.record_inputs) if args.record_inputs else None
     reset_signal = threading.Event()
