@@ -204,6 +204,7 @@ def plots(res: dict[str, Any], out: Path) -> list[Path]:
     fig, ax = plt.subplots(figsize=(8, 4))
     applied = data["thrusts"] if res["metrics"]["state_source"] == "sim/truth" else []
     for label, seq in (("applied (sim/truth)", applied), ("commanded (ctrl/thrust)", data["commands"])):
+        seq = [c for c in seq if t0 <= c.stamp_ns <= res["metrics"]["end_ns"]]  # the mission only
         if seq:
             t = [(c.stamp_ns - t0) / 1e9 for c in seq]
             ax.step(t, [c.thrust_port_n for c in seq], where="post", label=f"T1 port, {label}")
