@@ -296,6 +296,7 @@ def test_peer_watchdog_zero_thrust_within_timeout_plus_one_period(zenoh_env, pro
         before = [r for r in recs if r.arrival_mono_ns < first_neutral.arrival_mono_ns]
         assert before and all((r.y, r.z) == commanded for r in before)  # held until the timeout
         latency_s = (first_neutral.arrival_mono_ns - t_last) / 1e9
+        print(f"watchdog: first neutral MANUAL_CONTROL {latency_s * 1e3:.1f} ms after the last put")
         assert TIMEOUT_S <= latency_s <= TIMEOUT_S + PERIOD_S, latency_s
         s = status.wait(lambda s: s.failsafe == "thrust_stale", 2, "failsafe thrust_stale")
         assert s.armed

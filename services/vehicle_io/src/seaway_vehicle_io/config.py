@@ -11,8 +11,6 @@ from typing import Literal
 from pydantic import Field, model_validator
 from seaway.config import ConfigModel
 
-AutopilotName = Literal["px4", "ardupilot"]
-
 
 class VehicleIoConfig(ConfigModel):
     """How vehicle_io talks to the autopilot and how it guards the thrusters."""
