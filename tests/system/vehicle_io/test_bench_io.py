@@ -1,0 +1,31 @@
+"""``seaway bench io`` smoke run through the CLI: the figures come out, consistent with each other.
+
+The p99 target (< 2 ms) is machine- and load-dependent, so it is reported, not asserted, here.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+
+import pytest
+
+from tests.conftest import BIN
+
+pytestmark = [pytest.mark.system, pytest.mark.bench]
+
+
+def test_bench_io_smoke(zenoh_env) -> None:
+    out = subprocess.run([str(BIN / "seaway"), "bench", "io", "--json", "--count", "100",
+                          "--baseline-count", "50"], env=zenoh_env, capture_output=True,
+                         text=True, timeout=120, check=True)
+    res = json.loads(out.stdout.strip().splitlines()[-1])
+    f = res["figures"]
+    assert res["bench"] == "io"
+    assert f["commands_timed"] == 100 and f["commands_lost"] == 0
+    assert 0 < f["e2e_median_ms"] <= f["e2e_p99_ms"] <= f["e2e_max_ms"]
+    assert f["baseline_udp_median_ms"] > 0
+    assert f["baseline_zenoh_median_ms"] > 0
+    # end to end includes one Zenoh hop and one UDP hop, so it cannot beat the UDP hop alone
+    assert f["e2e_median_ms"] > f["baseline_udp_median_ms"]
+    assert res["targets"]["e2e_p99_ms"]["target"] == "< 2"
