@@ -31,7 +31,8 @@ def test_lockstep_mission_recorded_and_reported(procs, zenoh_env, tmp_path) -> N
         bus.subscribe(keys.MISSION_STATUS, mode="fifo", callback=lambda _k, m: statuses.append(m))
         stack = [procs.start([str(BIN / "seaway-sim"), "--lockstep", "--scenario", "paper-c1"],
                              zenoh_env, "sim"),
-                 procs.start([str(BIN / "seaway-estimator"), "--lockstep"], zenoh_env, "estimator"),
+                 procs.start([str(BIN / "seaway-estimator"), "--lockstep", "--scenario", "paper-c1"],
+                             zenoh_env, "estimator"),
                  procs.start([str(BIN / "seaway-controller"), "--lockstep", "--scenario", "paper-c1"],
                              zenoh_env, "controller")]
         wait_for(lambda: any(s.state == "complete" for s in statuses), 150, interval_s=0.2,
