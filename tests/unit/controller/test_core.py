@@ -145,3 +145,25 @@ def test_energy_used_integrates_commands():
     p = VP.alpha_w_per_n2 * (c0.thrust_port_n ** 2 + c0.thrust_starboard_n ** 2) + 0.49
     assert status.energy_used_j == pytest.approx(p * 0.1)
     assert np.isfinite(status.energy_used_j)
+
+
+class CapturingSolver(ScriptedSolver):
+    def __init__(self):
+        super().__init__()
+        self.params = []
+
+    def solve(self, w0, p, lam_x0, lam_g0):
+        self.params.append(p.copy())
+        return super().solve(w0, p, lam_x0, lam_g0)
+
+
+@pytest.mark.parametrize("enabled", [False, True])
+def test_disturbance_estimate_is_predicted_only_when_enabled(enabled):
+    solver = CapturingSolver()
+    core = make_core(solver, predict_disturbance=enabled)
+    core.handle_mission(0, mission())
+    s = StateEstimate.make(stamp_ns=7, u_mps=0.05, v_mps=0.0, r_radps=0.0, x_m=2.0, y_m=0.5,
+                           psi_rad=0.3, tau_d_surge_n=0.015, tau_d_sway_n=0.02, tau_d_yaw_nm=0.001)
+    core.step(7, s)
+    want = [0.015, 0.02, 0.001] if enabled else [0.0, 0.0, 0.0]
+    assert solver.params[0][12:15].tolist() == want

@@ -184,3 +184,15 @@ def test_bounds_follow_the_paper():
     assert ocp.lbw[ocp.i_time] * TIME_SCALE_S == pytest.approx(1.0)
     assert ocp.ubw[ocp.i_time] * TIME_SCALE_S == pytest.approx(60.0)
     assert ocp.lbw[ocp.i_time + 1] == 0.0 and ocp.ubw[ocp.i_time + 1] == np.inf
+
+
+def test_prediction_uses_the_disturbance_parameter():
+    ocp = Ocp(OcpSpec("eo-empc"), VP)
+    tau = (0.015, 0.02, 0.001)
+    x0 = [0.05, 0.0, 0.0, 1.0, 0.3, 0.05]
+    p = ocp.parameters(np.array(x0), PREV, ACT, True, TW, tau)
+    w = ocp.cold_guess(p)  # rolled out with tau
+    g = np.asarray(ocp.constraint_fn(w, p)).ravel()
+    assert np.max(np.abs(g[:-1])) < 1e-12
+    p0 = ocp.parameters(np.array(x0), PREV, ACT, True, TW)
+    assert np.max(np.abs(np.asarray(ocp.constraint_fn(w, p0)).ravel()[:-1])) > 1e-6
