@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -78,3 +80,21 @@ def test_two_solvers_on_the_same_library_in_one_process():
     ra, rb = a.solve(w0, p, *z), b.solve(w0, p, *z)
     assert ra.success and rb.success
     np.testing.assert_array_equal(ra.w, rb.w)
+
+
+def test_concurrent_builds_of_one_solver_leave_one_complete_file(tmp_path):
+    # Two processes compiling the same solver into the same cache: both load a working library.
+    code = ("import sys, numpy as np; from pathlib import Path; from seaway.model import load_vessel;"
+            "from seaway_controller.ocp import Ocp, OcpSpec;"
+            "from seaway_controller.solvers import GeneratedSqpSolver;"
+            "ocp = Ocp(OcpSpec('eo-empc', horizon=2), load_vessel('paper-sim'));"
+            "s = GeneratedSqpSolver(ocp, directory=Path(sys.argv[1]));"
+            "p = ocp.parameters(np.array([0.05, 0, 0, 0, 0.2, 0]), (0, 0), (8, 0), True, 0.49);"
+            "r = s.solve(ocp.cold_guess(p), p, np.zeros(ocp.nw), np.zeros(ocp.ng));"
+            "print(s.path.name, r.success)")
+    procs = [subprocess.Popen([sys.executable, "-c", code, str(tmp_path)], stdout=subprocess.PIPE,
+                              text=True) for _ in range(2)]
+    outs = [p.communicate(timeout=120)[0].split() for p in procs]
+    assert all(p.returncode == 0 for p in procs)
+    assert outs[0] == outs[1] and outs[0][1] == "True"
+    assert sorted(os.listdir(tmp_path)) == [outs[0][0]]

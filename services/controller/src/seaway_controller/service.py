@@ -100,8 +100,14 @@ class ControllerService:
             self.core.set_origin(GeoOrigin(msg.lat_rad, msg.lon_rad, msg.alt_m))
 
     def step(self, now_ns: int, state: StateEstimate) -> None:
-        with self.lock:
-            cmd, record, status = self.core.step(now_ns, state)
+        try:
+            with self.lock:
+                cmd, record, status = self.core.step(now_ns, state)
+        except Exception:  # a bug must not leave the vessel (or a lockstep sim) without a command
+            log.exception("control step failed; commanding zero thrust")
+            with self.lock:
+                self.pub_thrust.put(self.core.zero_command(state.stamp_ns, "error"))
+            return
         self.pub_thrust.put(cmd)
         if record is not None:
             self.pub_solve.put(record)

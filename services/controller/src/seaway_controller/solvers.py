@@ -127,14 +127,9 @@ def build_shared_object(ocp: Ocp, options: dict, directory: Path | None = None) 
     t0 = time.perf_counter()
     solver = ca.nlpsol(SYMBOL, "sqpmethod", ocp.nlp, options)
     with tempfile.TemporaryDirectory(dir=directory, prefix=".build-") as tmp:
-        cwd = os.getcwd()
-        try:
-            os.chdir(tmp)  # CodeGenerator writes into the working directory
-            gen = ca.CodeGenerator("solver.c", {"with_header": False})
-            gen.add(solver)
-            gen.generate()
-        finally:
-            os.chdir(cwd)
+        gen = ca.CodeGenerator("solver.c", {"with_header": False})
+        gen.add(solver)
+        gen.generate(f"{tmp}{os.sep}")  # the prefix is the folder: no chdir, thread-safe
         c_file = Path(tmp) / "solver.c"
         c_file.write_text(patch_generated_source(c_file.read_text()))
         so_tmp = Path(tmp) / "solver.so"
