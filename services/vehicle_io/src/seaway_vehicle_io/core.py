@@ -215,19 +215,21 @@ class VehicleIoCore:
         """Do whatever is due at ``now``: link check, watchdog, streams, retries, status."""
         out: list[Output] = []
         status_now = self._check_link(now)
+        stream_due = now.mono_ns >= self._next_mc_ns
         event = self.watchdog.check(now.mono_ns)
         if event is not None:
             log.warning("no ThrustCommand for %.0f ms (timeout %.0f ms): thrust to neutral, "
                         "failsafe %s", (event.silent_for_ns or 0) / 1e6,
                         self.cfg.thrust_timeout_s * 1e3, FAILSAFE_THRUST_STALE)
-            out.extend(self._manual_control(now))  # neutral now, not at the next stream tick
+            stream_due = True  # neutral now, not at the next stream tick
             status_now = True
         if now.mono_ns >= self._next_hb_ns:
             out.append(SendHeartbeat())
             self._next_hb_ns = _next_after(self._next_hb_ns, self._period_hb_ns, now.mono_ns)
-        if now.mono_ns >= self._next_mc_ns:
+        if stream_due:
             out.extend(self._manual_control(now))
-            self._next_mc_ns = _next_after(self._next_mc_ns, self._period_mc_ns, now.mono_ns)
+            if now.mono_ns >= self._next_mc_ns:
+                self._next_mc_ns = _next_after(self._next_mc_ns, self._period_mc_ns, now.mono_ns)
         out.extend(self._param_requests(now))
         if status_now or now.mono_ns >= self._next_status_ns:
             self._update_rates(now)
