@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 from pathlib import Path
 
 import pytest
@@ -20,7 +21,11 @@ def test_there_are_example_configs():
 @pytest.mark.parametrize("path", CONFIGS, ids=lambda p: p.name)
 def test_example_configs_load(path):
     cfg = load_config(path, VehicleIoConfig)
-    check_url(cfg.mavlink)
+    if cfg.mavlink.startswith("/dev/") and importlib.util.find_spec("serial") is None:
+        with pytest.raises(ValueError, match="pyserial"):  # refused up front, not in a loop
+            check_url(cfg.mavlink)
+    else:
+        check_url(cfg.mavlink)
 
 
 @pytest.mark.parametrize(("doc", "field"), [
@@ -43,3 +48,14 @@ def test_command_line_overrides_and_url_check(tmp_path):
     assert limits.thrust_max_n == 75.0
     with pytest.raises(ConfigError, match="unsupported MAVLink URL"):
         load(build_parser().parse_args(["--mavlink", "http://boat"]))
+
+
+def test_serial_url_needs_pyserial(monkeypatch):
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec",
+                        lambda name, *a: None if name == "serial" else real(name, *a))
+    with pytest.raises(ValueError, match="pyserial"):
+        check_url("/dev/ttyAMA0")
+    assert check_url("udpin:0.0.0.0:14540") == "udpin:0.0.0.0:14540"  # others unaffected
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: object())
+    assert check_url("/dev/ttyAMA0") == "/dev/ttyAMA0"

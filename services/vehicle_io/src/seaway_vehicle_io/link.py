@@ -12,6 +12,7 @@ or a serial device path with ``baud``.
 
 from __future__ import annotations
 
+import importlib.util
 import logging
 import select
 import socket
@@ -29,7 +30,8 @@ from seaway_vehicle_io.mav import DIALECT, mavlink, mavutil
 
 log = logging.getLogger("seaway.vehicle_io.link")
 
-SUPPORTED_PREFIXES = ("udpin:", "udpout:", "tcp:", "/dev/", "COM")
+SERIAL_PREFIXES = ("/dev/", "COM")
+SUPPORTED_PREFIXES = ("udpin:", "udpout:", "tcp:", *SERIAL_PREFIXES)
 
 
 class LinkClosedError(ConnectionError):
@@ -37,10 +39,17 @@ class LinkClosedError(ConnectionError):
 
 
 def check_url(url: str) -> str:
-    """Refuse URLs we do not support, with a message that lists the ones we do."""
+    """Refuse URLs we do not support, with a message that lists the ones we do.
+
+    A serial URL needs pyserial, which pymavlink imports only when it opens the port: checked here
+    so that a missing package fails at start-up rather than as an endless reopen loop.
+    """
     if not url.startswith(SUPPORTED_PREFIXES):
         raise ValueError(f"unsupported MAVLink URL {url!r}: use udpin:HOST:PORT, udpout:HOST:PORT, "
                          "tcp:HOST:PORT or a serial device (/dev/ttyX)")
+    if url.startswith(SERIAL_PREFIXES) and importlib.util.find_spec("serial") is None:
+        raise ValueError(f"MAVLink URL {url!r} is a serial port, which needs the pyserial package; "
+                         "it is not installed (pip install 'pyserial>=3.5')")
     return url
 
 
