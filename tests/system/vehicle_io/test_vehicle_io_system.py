@@ -35,7 +35,7 @@ from seaway.messages import (
     ThrustCommand,
 )
 from seaway_vehicle_io.mav import mavlink
-from seaway_vehicle_io.peer import FakeAutopilot
+from seaway_vehicle_io.peer import ARDUPILOT_DEFAULT_PARAMS, FakeAutopilot
 
 from tests.conftest import BIN, PYTHON, Procs, wait_for
 
@@ -438,3 +438,35 @@ def test_tcp_transport_reopened_after_the_autopilot_closes_it(zenoh_env, procs, 
         server.close()
     alive(vio, procs)
     assert "MAVLink transport broke" in procs.log(vio)
+
+
+def test_peer_ardupilot_mapping_and_a_blocking_parameter(zenoh_env, procs, bus, tmp_path):
+    """ArduPilot over the wire: Two-Paddles axes; then an autopilot whose PILOT_STEER_TYPE would
+    turn those axes into steering/throttle gets neutral only, and the status says why."""
+    port = udp_port()
+    vio = start_vio(procs, zenoh_env, tmp_path, f"udpin:127.0.0.1:{port}")
+    status = Watch(bus, keys.VEHICLE_STATUS)
+    pub = bus.publisher(keys.THRUST)
+    with FakeAutopilot(("127.0.0.1", port), autopilot="ardupilot", armed=True) as peer:
+        status.wait(lambda s: s.link_ok and s.autopilot == "ardupilot" and s.mode == "MANUAL", 15,
+                    "link to ArduPilot")
+        t0 = time.monotonic_ns()
+        pub.put(thrust(30.0, -20.0))  # L = 0.4, R = -0.2667
+        wait_for(lambda: any((r.y, r.z) == (400, -267) for r in peer.manual_controls_since(t0)),
+                 2, what="y = 1000 L, z = 1000 R on the wire")
+        assert mode(bus, "AUTO").accepted and peer.mode == "MISSION"  # AUTO is Seaway's MISSION
+    status.clear()
+    status.wait(lambda s: not s.link_ok, HEARTBEAT_TIMEOUT_S + 2.5, "link lost")
+    bad = {**ARDUPILOT_DEFAULT_PARAMS, "PILOT_STEER_TYPE": (0, 2)}
+    with FakeAutopilot(("127.0.0.1", port), autopilot="ardupilot", sysid=2, armed=True,
+                       params=bad) as peer:
+        status.wait(lambda s: s.link_ok and s.failsafe == "autopilot_config", 15,
+                    "failsafe autopilot_config")
+        t0 = time.monotonic_ns()
+        for _ in range(6):
+            pub.put(thrust(30.0, -20.0))
+            time.sleep(PERIOD_S)
+        recs = peer.manual_controls_since(t0)
+        assert recs and all((r.y, r.z) == (0, 0) for r in recs)
+    alive(vio, procs)
+    assert "PILOT_STEER_TYPE=0" in procs.log(vio)
