@@ -189,8 +189,9 @@ class LinkLogger:
         self.up: dict[str, str] = {}  # zid -> whatami of sessions alive now
         self.events = 0
         self._listeners = [
-            session.info.declare_transport_events_listener(self._on_transport),
-            session.info.declare_link_events_listener(self._on_link),
+            # history: sessions that came while zenoh.open was still returning count too
+            session.info.declare_transport_events_listener(self._on_transport, history=True),
+            session.info.declare_link_events_listener(self._on_link, history=True),
         ]
 
     @staticmethod
