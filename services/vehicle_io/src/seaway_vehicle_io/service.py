@@ -52,6 +52,7 @@ from seaway_vehicle_io.thrust import ThrusterLimits
 log = logging.getLogger("seaway.vehicle_io")
 
 REOPEN_DELAY_S = 1.0
+OPEN_FAILURES_PER_LOG = 30
 MAX_SLEEP_S = 0.05
 IN_PROGRESS_WAIT_FACTOR = 5  # an IN_PROGRESS ACK extends the wait to 5 ACK timeouts
 SHUTDOWN_NEUTRAL_PACKETS = 3
@@ -74,6 +75,7 @@ class VehicleIoService:
         self.core = VehicleIoCore(cfg, limits, now())
         self.link: MavlinkLink | None = None
         self._requests_serial = threading.Lock()  # one COMMAND_LONG in flight at a time
+        self._open_failures = 0
         self._publishers: dict[type, TypedPublisher] = {
             GnssFix: bus.publisher(keys.GNSS),
             Attitude: bus.publisher(keys.ATTITUDE),
@@ -129,16 +131,16 @@ class VehicleIoService:
         try:
             link = MavlinkLink(self.cfg.mavlink, self.cfg.source_system, self.cfg.source_component,
                                self.cfg.baud, udp_client_timeout_s=self.cfg.heartbeat_timeout_s)
-        except (OSError, ValueError) as err:
-            log.error("cannot open MAVLink %s: %s (retrying every %.0f s)", self.cfg.mavlink, err,
-                      REOPEN_DELAY_S)
-            return False
-        except Exception as err:  # pyserial raises its own SerialException
-            log.error("cannot open MAVLink %s: %s: %s (retrying every %.0f s)", self.cfg.mavlink,
-                      type(err).__name__, err, REOPEN_DELAY_S)
+        except Exception as err:  # OSError, or pyserial's own SerialException
+            self._open_failures += 1
+            if self._open_failures % OPEN_FAILURES_PER_LOG == 1:  # the first, then every 30 s
+                log.error("cannot open MAVLink %s: %s: %s (attempt %d; retrying every %.0f s)",
+                          self.cfg.mavlink, type(err).__name__, err, self._open_failures,
+                          REOPEN_DELAY_S)
             return False
         with self.lock:
             self.link = link
+        self._open_failures = 0
         log.info("MAVLink %s open (we are system %d component %d)", self.cfg.mavlink,
                  self.cfg.source_system, self.cfg.source_component)
         return True
@@ -157,6 +159,10 @@ class VehicleIoService:
             except LinkClosedError as err:
                 if self.stop.is_set():
                     return  # closed by the shutdown, not broken
+                self._drop_link(link, err)
+                continue
+            except Exception as err:  # anything unexpected from the transport: reopen, never die
+                log.exception("MAVLink receive failed")
                 self._drop_link(link, err)
                 continue
             if not messages:
