@@ -121,9 +121,14 @@ def test_lockstep_ignores_stale_commands_and_holds_without_commands(procs, zenoh
         def command(stamp_ns: int) -> None:
             pub.put(ThrustCommand(stamp_ns=stamp_ns, thrust_port_n=5.0, thrust_starboard_n=5.0))
 
-        # t_0: nobody answered, so the sim holds and republishes the tick every 0.3 s.
+        # t_0: nobody answered, so the sim holds and republishes the period every 0.3 s.
         wait_for(lambda: len(rec.of("sim/clock")) >= 2, 10, what="the tick republished")
         assert {d["stamp_ns"] for d in rec.of("sim/clock")} == {0}
+        # The held period is republished whole (for late joiners): the same samples, same stamps.
+        wait_for(lambda: sum(d["stamp_ns"] == 0 for d in rec.of("sensors/gnss")) >= 2, 5,
+                 what="the t_0 GNSS sample republished")
+        first_fixes = [d for d in rec.of("sensors/gnss") if d["stamp_ns"] == 0]
+        assert all(d == first_fixes[0] for d in first_fixes)
         command(0)
         wait_for(lambda: any(d["stamp_ns"] == PERIOD_NS for d in rec.of("sim/truth")), 10,
                  what="the step to t_1")

@@ -84,6 +84,7 @@ class EstimatorLoop:
         self._last_tick: int | None = None
         self.last_thrust_ns: int | None = None
         self.refused = 0
+        self.repeats = 0
         self.thrust_waits_timed_out = 0
         self.sensor_waits_timed_out = 0
         # Per sensor: [last stamp, shortest period seen] (ns), to know what a tick still lacks.
@@ -93,6 +94,11 @@ class EstimatorLoop:
 
     def queue(self, kind: str, msg: Any) -> None:
         sched = self.schedule.get(kind)
+        if kind != "thrust" and sched is not None and msg.stamp_ns == sched[0]:
+            # The same sample again (a lockstep sim republishes a held period): using it twice
+            # would count one measurement as two.
+            self.repeats += 1
+            return
         if sched is None:
             self.schedule[kind] = [msg.stamp_ns, None]
         elif msg.stamp_ns > sched[0]:

@@ -13,8 +13,11 @@ each k, from one Zenoh session and in this order:
       with the stamp of the nav/state it was computed from; the estimator stamps nav/state with the
       sim time it has processed up to, t_k). Commands stamped before t_k are stale: ignored and
       counted.
-      If none arrives within ``--lockstep-timeout`` (5 s wall) the sim logs, republishes the clock
-      tick (so late joiners can start) and keeps waiting: it never steps on its own;
+      If none arrives within ``--lockstep-timeout`` (5 s wall) the sim logs, republishes the whole
+      period of (a) unchanged -- the same sensor samples with the same stamps, truth and the tick --
+      so that a process that joined late (or missed the first samples of a new connection) can
+      start, and keeps waiting: it never steps on its own. Receivers treat a sample whose stamp
+      equals the last one on its key as a repeat;
   (c) apply that command (T1 port, T2 starboard, N; the plant saturates) for one period, so the
       state goes to t_{k+1}; back to (a).
 
@@ -30,7 +33,7 @@ import time
 from dataclasses import dataclass
 
 from seaway import keys
-from seaway.messages import ClockTick, ThrustCommand
+from seaway.messages import ThrustCommand
 
 from seaway_sim.app import SimApp
 
@@ -61,19 +64,31 @@ class Lockstep:
         self.pub_gnss = app.bus.publisher(keys.GNSS)
         self.pub_attitude = app.bus.publisher(keys.ATTITUDE)
         self.commands = app.bus.subscribe(keys.THRUST, mode="fifo")
+        self._last_samples: tuple[list, list] = ([], [])
 
     def publish_period(self) -> tuple[int, int]:
         """Step (a); returns (t_k, scenario generation) it published for."""
         app = self.app
         with app.lock:
             samples = app.core.take_samples()
-            for fix in samples.gnss:
-                if fix is not None:
-                    self.pub_gnss.put(fix)
-            for att in samples.attitude:
-                self.pub_attitude.put(att)
+            self._last_samples = ([f for f in samples.gnss if f is not None], list(samples.attitude))
+            self._publish_samples()
             app.publish_truth(None)
             return app.core.stamp_ns, app.generation
+
+    def _publish_samples(self) -> None:
+        gnss, attitude = self._last_samples
+        for fix in gnss:
+            self.pub_gnss.put(fix)
+        for att in attitude:
+            self.pub_attitude.put(att)
+
+    def republish_period(self, generation: int) -> None:
+        """Step (a) again, unchanged, for late joiners (the hold of step (b))."""
+        with self.app.lock:
+            if self.app.generation == generation:
+                self._publish_samples()
+                self.app.publish_truth(None)
 
     def wait_command(self, t_k: int, generation: int) -> ThrustCommand | None:
         """Step (b): the first command stamped >= t_k; None if stopped or the scenario changed."""
@@ -91,9 +106,8 @@ class Lockstep:
             if time.monotonic() >= deadline:
                 self.stats.timeouts += 1
                 log.warning("lockstep: no thrust command stamped >= %d ns (t = %.3f s) for %.1f s; "
-                            "holding and republishing the clock tick", t_k, t_k / 1e9,
-                            self.timeout_s)
-                self.app.pub_clock.put(ClockTick(stamp_ns=t_k, lockstep=True))
+                            "holding and republishing the period", t_k, t_k / 1e9, self.timeout_s)
+                self.republish_period(generation)
                 deadline = time.monotonic() + self.timeout_s
         return None
 
