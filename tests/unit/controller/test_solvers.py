@@ -98,3 +98,17 @@ def test_concurrent_builds_of_one_solver_leave_one_complete_file(tmp_path):
     assert all(p.returncode == 0 for p in procs)
     assert outs[0] == outs[1] and outs[0][1] == "True"
     assert sorted(os.listdir(tmp_path)) == [outs[0][0]]
+
+
+def test_patch_tags_every_error_return_of_the_real_generated_code(tmp_path):
+    import casadi as ca
+
+    ocp = Ocp(OcpSpec("eo-empc", horizon=2), VP)
+    gen = ca.CodeGenerator("solver.c", {"with_header": False})
+    gen.add(ca.nlpsol("seaway_nlp", "sqpmethod", ocp.nlp, SQP_OPTIONS))
+    gen.generate(f"{tmp_path}{os.sep}")
+    patched = patch_generated_source((tmp_path / "solver.c").read_text())
+    assert patched.count("seaway_stats[3] = 2.0; return 1;") == 1  # eigen-clip
+    assert patched.count("seaway_stats[3] = 1.0; return 1;") >= 3  # f/g, Hessian, final eval
+    assert "seaway_stats[0] = (casadi_real) iter_count" in patched
+    assert patched.rstrip().endswith("{ return seaway_stats; }")

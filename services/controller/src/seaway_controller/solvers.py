@@ -18,8 +18,10 @@ Reference: ``nlpsol('ipopt')`` with default options, the configuration most exam
 from __future__ import annotations
 
 import ctypes
+import hashlib
 import logging
 import os
+import re
 import shutil
 import subprocess
 import tempfile
@@ -58,7 +60,7 @@ SQP_OPTIONS: dict = {
     "error_on_fail": True,
 }
 
-_STATS_DECL = "static casadi_real seaway_stats[3] = {-1.0, -1.0, -1.0};\n"
+_STATS_DECL = "static casadi_real seaway_stats[4] = {-1.0, -1.0, -1.0, 0.0};\n"
 _STATS_SET = ("\n  seaway_stats[0] = (casadi_real) iter_count; seaway_stats[1] = pr_inf;"
               " seaway_stats[2] = du_inf;")
 _STATS_EXPORT = ("\nCASADI_SYMBOL_EXPORT casadi_real* seaway_solver_stats(void) "
@@ -93,8 +95,19 @@ def cache_dir() -> Path:
     return Path(env) if env else Path.home() / ".cache" / "seaway" / "solvers"
 
 
+ERROR_EVALUATION, ERROR_CONVEXIFY = 1.0, 2.0
+"""Codes in seaway_stats[3]: which step made the generated SQP return 1 (0: none)."""
+_FAIL_RETURN = re.compile(r"if \((casadi_(f\d+|convexify_eval)\([^;]*\))\) return 1;")
+
+
+def _tag_failure(match: re.Match[str]) -> str:
+    code = ERROR_CONVEXIFY if match.group(2) == "convexify_eval" else ERROR_EVALUATION
+    return f"if ({match.group(1)}) {{ seaway_stats[3] = {code}; return 1; }}"
+
+
 def patch_generated_source(src: str) -> str:
-    """Export the SQP's iteration count and final residuals; fail loudly if CasADi changed shape."""
+    """Export the SQP's iteration count, final residuals and failing step; fail loudly if CasADi
+    changed the code's shape."""
     if src.count(_SQP_ANCHOR) != 1:
         raise RuntimeError("generated sqpmethod code has an unexpected shape (iteration counter not "
                            f"found once); CasADi {ca.__version__} is not supported by this patch")
@@ -104,7 +117,10 @@ def patch_generated_source(src: str) -> str:
     if fn_start < 0 or end < 0 or "pr_inf" not in src[at:end] or "du_inf" not in src[at:end]:
         raise RuntimeError("generated sqpmethod code has an unexpected shape (no final return or "
                            "residuals); cannot export solver statistics")
-    src = src[:end] + _STATS_SET + src[end:]
+    body, n_tagged = _FAIL_RETURN.subn(_tag_failure, src[at:end])
+    if n_tagged == 0:
+        raise RuntimeError("generated sqpmethod code has an unexpected shape (no error returns)")
+    src = src[:at] + body + _STATS_SET + src[end:]
     src = src[:fn_start + 1] + _STATS_DECL + src[fn_start + 1:]
     return src + _STATS_EXPORT
 
@@ -116,7 +132,9 @@ def build_shared_object(ocp: Ocp, options: dict, directory: Path | None = None) 
     place with an atomic rename; whoever finishes last replaces an identical file.
     """
     directory = directory or cache_dir()
-    digest = spec_digest(ocp.spec, ocp.vessel, {"options": options, "cc": CC_FLAGS})
+    # This module's source is hashed too: the patch above is part of what gets compiled.
+    this = hashlib.sha256(Path(__file__).read_bytes()).hexdigest()
+    digest = spec_digest(ocp.spec, ocp.vessel, {"options": options, "cc": CC_FLAGS, "patch": this})
     target = directory / f"{ocp.spec.kind}-{digest}.so"
     if target.is_file():
         return target
@@ -229,15 +247,22 @@ class GeneratedSqpSolver:
         with self._lib.lock:
             for i in range(3):
                 self._stats[i] = -1.0
+            self._stats[3] = 0.0
             t0 = time.perf_counter()
             flag = self._fn(*self._call_args)
             elapsed = time.perf_counter() - t0
-            iters, pr_inf, du_inf = (self._stats[i] for i in range(3))
+            iters, pr_inf, du_inf, failed_at = (self._stats[i] for i in range(4))
         finite = bool(np.all(np.isfinite(self._out[0])))
         converged = 0 <= pr_inf < self.tol_pr and 0 <= du_inf < self.tol_du
         success = flag == 0 and finite and converged
         if success:
             status = "Solve_Succeeded"
+        elif flag == -1000:
+            status = "qp_failed"
+        elif flag != 0 and failed_at == ERROR_CONVEXIFY:
+            status = "convexify_failed"  # eigen-clip's eigenvalue iteration did not converge
+        elif flag != 0 and failed_at == ERROR_EVALUATION:
+            status = "evaluation_failed"  # f, g or a derivative was not finite
         elif flag != 0:
             status = f"solver_error_flag_{flag}"
         elif not finite:
