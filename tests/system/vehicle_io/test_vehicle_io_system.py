@@ -75,16 +75,24 @@ def thrust(t1: float, t2: float) -> ThrustCommand:
 
 
 class Watch:
-    """The newest message of one key, and a wait for one that satisfies a condition."""
+    """Messages of one key, in arrival order, and a wait for the first one that satisfies a
+    condition.
+
+    ``wait`` looks only at messages that arrive after it is called, unless ``keep=True``: then it
+    also looks at everything since the last ``clear()`` (for a message that may already be in).
+    """
 
     def __init__(self, bus: Bus, spec: keys.KeySpec) -> None:
         self.sub = bus.subscribe(spec, mode="fifo")
         self.seen: list = []
 
-    def wait(self, pred, timeout_s: float, what: str):
+    def wait(self, pred, timeout_s: float, what: str, keep: bool = False):
+        if not keep:
+            self.clear()
+
         def check():
             self.seen.extend(self.sub.drain())
-            return next((m for m in reversed(self.seen) if pred(m)), None)
+            return next((m for m in self.seen if pred(m)), None)
         return wait_for(check, timeout_s, what=what)
 
     def clear(self) -> None:
@@ -158,7 +166,8 @@ def test_sim_arm_mode_thrust_out_and_telemetry_in(zenoh_env, procs, bus, tmp_pat
     while time.monotonic() < deadline:
         pub.put(thrust(30.0, -20.0))
         time.sleep(PERIOD_S)
-    t = truth.wait(lambda m: abs(m.thrust_port_n - 30.0) < 0.3, 3, "port thrust 30 N at the plant")
+    t = truth.wait(lambda m: abs(m.thrust_port_n - 30.0) < 0.3, 3, "port thrust 30 N at the plant",
+                   keep=True)
     assert t.thrust_starboard_n == pytest.approx(-20.0, abs=0.3)
 
     # mode changes only on request, answered from the COMMAND_ACK
@@ -185,15 +194,17 @@ def test_sim_watchdog_stops_the_thrusters_and_commands_resume(zenoh_env, procs, 
     status.wait(lambda s: s.link_ok, 15, "link")
     assert arm(bus).accepted
     pub = bus.publisher(keys.THRUST)
+    truth.clear()
+    status.clear()
     for _ in range(20):
         pub.put(thrust(25.0, 25.0))
         time.sleep(PERIOD_S)
-    truth.wait(lambda m: m.thrust_port_n > 24.0, 3, "thrust applied")
-    status.wait(lambda s: s.failsafe is None, 2, "no failsafe while commands flow")
+    truth.wait(lambda m: m.thrust_port_n > 24.0, 3, "thrust applied", keep=True)
+    status.wait(lambda s: s.failsafe is None, 2, "no failsafe while commands flow", keep=True)
     t_stop = time.time_ns()
     truth.clear()
     stopped: SimTruth = truth.wait(lambda m: m.thrust_port_n == 0.0 and m.thrust_starboard_n == 0.0,
-                                   3, "zero thrust at the plant")
+                                   3, "zero thrust at the plant", keep=True)
     # sim truth is published every 0.1 s: allow that on top of timeout + one period
     assert (stopped.stamp_ns - t_stop) / 1e9 <= TIMEOUT_S + PERIOD_S + 0.1 + 0.05
     s = status.wait(lambda s: s.failsafe == "thrust_stale", 2, "failsafe thrust_stale")
@@ -203,11 +214,12 @@ def test_sim_watchdog_stops_the_thrusters_and_commands_resume(zenoh_env, procs, 
     assert s.armed and s.mode == "MANUAL"
     # commands return: thrust resumes, failsafe cleared
     truth.clear()
+    status.clear()
     for _ in range(10):
         pub.put(thrust(25.0, 25.0))
         time.sleep(PERIOD_S)
-    truth.wait(lambda m: m.thrust_port_n > 24.0, 3, "thrust resumed")
-    status.wait(lambda s: s.failsafe is None, 2, "failsafe cleared")
+    truth.wait(lambda m: m.thrust_port_n > 24.0, 3, "thrust resumed", keep=True)
+    status.wait(lambda s: s.failsafe is None, 2, "failsafe cleared", keep=True)
     alive(vio, procs)
 
 
@@ -305,12 +317,13 @@ def test_peer_watchdog_zero_thrust_within_timeout_plus_one_period(zenoh_env, pro
         later = peer.manual_controls_since(first_neutral.arrival_mono_ns + 100_000_000)
         assert len(later) >= 5 and all((r.y, r.z) == neutral for r in later)
         # commands resume: thrust resumes at once
+        status.clear()
         t_resume = time.monotonic_ns()
         pub.put(thrust(30.0, 30.0))
         rec = wait_for(lambda: next((r for r in peer.manual_controls_since(t_resume)
                                      if (r.y, r.z) == commanded), None), 1, what="resumed thrust")
         assert (rec.arrival_mono_ns - t_resume) / 1e9 < PERIOD_S
-        status.wait(lambda s: s.failsafe is None, 2, "failsafe cleared")
+        status.wait(lambda s: s.failsafe is None, 2, "failsafe cleared", keep=True)
     alive(vio, procs)
 
 
@@ -364,7 +377,7 @@ def test_peer_garbage_and_out_of_range_fields_are_counted_and_dropped(zenoh_env,
         # nothing from the bad messages was published; a good one still is
         att.clear()
         peer.send(mavlink.MAVLink_attitude_message(peer.time_boot_ms(), 0.0, 0.0, 1.25, 0, 0, 0))
-        good = att.wait(lambda m: True, 3, "a good Attitude after the garbage")
+        good = att.wait(lambda m: True, 3, "a good Attitude after the garbage", keep=True)
         assert good.yaw_rad == pytest.approx(1.25) and good.roll_rate_radps == 0.0
         assert all(m.yaw_rad == pytest.approx(1.25) for m in att.seen)
     alive(vio, procs)
