@@ -13,7 +13,8 @@ network namespace on the machine, so the test can line events up with the moment
                   ``--probe-s`` seconds tries what the boat router must allow or refuse: a put on
                   ctrl/thrust (seq >= 1e9, refused), a put on shore/heartbeat (allowed), a
                   vehicle/arm request (allowed) and a sim/scenario request (refused), printing each
-                  reply. No health token (the boat must not see one from the shore).
+                  reply (``--no-requests``: only the puts). No health token (the boat must not see
+                  one from the shore). mission/status samples also carry ``state``, ``energy_used_j``.
 """
 
 from __future__ import annotations
@@ -39,18 +40,24 @@ def emit(**fields: object) -> None:
         print(line, flush=True)
 
 
-def _seq_of(payload: bytes) -> int | None:
+def _fields(payload: bytes) -> dict:
+    """``seq`` (if any), and for mission/status its ``state`` and ``energy_used_j``."""
     try:
         doc = json.loads(payload)
     except ValueError:
-        return None
-    seq = doc.get("seq") if isinstance(doc, dict) else None
-    return seq if isinstance(seq, int) else None
+        return {"seq": None}
+    if not isinstance(doc, dict):
+        return {"seq": None}
+    seq = doc.get("seq")
+    out = {"seq": seq if isinstance(seq, int) else None}
+    if "state" in doc and "active_leg" in doc:
+        out |= {"state": doc["state"], "energy_used_j": doc.get("energy_used_j")}
+    return out
 
 
 def watch_all(ctx) -> None:
     def on_sample(sample: zenoh.Sample) -> None:
-        emit(key=str(sample.key_expr), seq=_seq_of(sample.payload.to_bytes()))
+        emit(key=str(sample.key_expr), **_fields(sample.payload.to_bytes()))
 
     ctx.bus.subscribe_raw(f"{keys.ROOT}/**", on_sample)
 
@@ -84,7 +91,7 @@ def boat_recorder(ctx) -> None:
     ctx.stop.wait()
 
 
-def shore_watch(ctx, probe_s: float) -> None:
+def shore_watch(ctx, probe_s: float, requests: bool) -> None:
     watch_all(ctx)
     thrust = ctx.bus.publisher(keys.THRUST)
     heartbeat_key = f"{keys.ROOT}/{ctx.vessel}/shore/heartbeat"
@@ -95,6 +102,8 @@ def shore_watch(ctx, probe_s: float) -> None:
         thrust.put(ThrustCommand.make(stamp_ns=time.time_ns(), thrust_port_n=99.0,
                                       thrust_starboard_n=99.0, source="shore", seq=FORBIDDEN_SEQ0 + i))
         ctx.bus.session.put(heartbeat_key, json.dumps({"seq": i}))
+        if not requests:
+            continue
         arm = ctx.bus.request(keys.VEHICLE_ARM, ArmRequest.make(stamp_ns=time.time_ns(), arm=True),
                               timeout_s=probe_s / 2)
         emit(probe=i, request="vehicle/arm", accepted=arm.accepted, reason=arm.reason)
@@ -109,15 +118,19 @@ def main() -> None:
     parser.add_argument("role", choices=["boat-control", "boat-recorder", "shore-watch"])
     parser.add_argument("--rate-hz", type=float, default=50.0)
     parser.add_argument("--probe-s", type=float, default=1.0)
+    parser.add_argument("--no-requests", action="store_true",
+                        help="shore-watch: no vehicle/arm and sim/scenario probes (a real vehicle_io)")
     args = parser.parse_args()
     health = {"boat-control": "controller", "boat-recorder": "recorder"}.get(args.role)
-    with run_service(health or "launcher", args, declare_alive=health is not None) as ctx:
+    with run_service(health or "launcher", args) as ctx:
+        if health is not None:
+            ctx.ready()  # (its roles declare what they need before their loops)
         if args.role == "boat-control":
             boat_control(ctx, args.rate_hz)
         elif args.role == "boat-recorder":
             boat_recorder(ctx)
         else:
-            shore_watch(ctx, args.probe_s)
+            shore_watch(ctx, args.probe_s, not args.no_requests)
 
 
 if __name__ == "__main__":
