@@ -7,7 +7,8 @@ solves the same problem: the noise-filtered time of step i is its minimum over t
 
 Plain IPOPT (default options) solves the same NLP instances in the same run: every ``--ipopt-every``-th
 step's instance (initial guess, parameters, multipliers) is captured from the first repeat and solved
-again by IPOPT. Speed-up = IPOPT's median / the generated solver's filtered median on those steps.
+by IPOPT ``--repeats`` times, filtered the same way (minimum per instance). Speed-up = IPOPT's filtered
+median / the generated solver's filtered median on the same steps.
 
 Targets (CC-EMPC, filtered, all five missions pooled): median <= 0.3 ms, p99 <= 1 ms, zero unconverged,
 >= 30x faster than IPOPT's median. The closed-loop energy, cross-track error and travel time of each
@@ -66,7 +67,7 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     ap.add_argument("--conditions", default="1,2,3,4,5", help="paper conditions, e.g. 1,4")
     ap.add_argument("--controllers", default=",".join(CONTROLLER_KINDS))
     ap.add_argument("--repeats", type=int, default=3, help="runs per mission for the noise filter")
-    ap.add_argument("--ipopt-every", type=int, default=1,
+    ap.add_argument("--ipopt-every", type=int, default=3,
                     help="solve every N-th step's NLP with IPOPT too (1: every step)")
     ap.add_argument("--quick", action="store_true",
                     help="condition 1 only, 1 repeat, IPOPT on every 20th step")
@@ -102,7 +103,7 @@ def run(argv: list[str]) -> BenchResult:
     nondeterministic: list[str] = []
     for kind in args.controllers:
         acc = pooled.setdefault(kind, {"raw": [], "filtered": [], "fast_sampled": [], "ipopt": [],
-                                       "unconverged": [], "ipopt_failed": []})
+                                       "ipopt_raw": [], "unconverged": [], "ipopt_failed": []})
         for cond in args.conditions:
             sc = load_scenario(f"paper-c{cond}")
             vp = load_vessel(sc.vessel)
@@ -131,9 +132,10 @@ def run(argv: list[str]) -> BenchResult:
             picks = list(range(0, len(captured), args.ipopt_every))
             for j, i in enumerate(picks):
                 progress.show(f"c{cond} {kind} IPOPT: {j + 1}/{len(picks)} instances")
-                out = ipopt.solve(*captured[i])
-                acc["ipopt"].append(out.solve_time_s)
-                acc["ipopt_failed"].append(0 if out.success else 1)
+                outs = [ipopt.solve(*captured[i]) for _ in range(args.repeats)]
+                acc["ipopt_raw"].append(outs[0].solve_time_s)
+                acc["ipopt"].append(min(o.solve_time_s for o in outs))
+                acc["ipopt_failed"].append(0 if outs[0].success else 1)
                 acc["fast_sampled"].append(filtered[i] if i < n else first.solve_times_s[i])
     progress.done()
     for kind, acc in pooled.items():
@@ -152,11 +154,14 @@ def run(argv: list[str]) -> BenchResult:
                 p99_f <= TARGET_P99_MS if is_cc else None)
         res.add(pre + "filtered_max_ms", 1e3 * max(acc["filtered"]))
         res.add(pre + "unconverged", unconv, "0" if is_cc else None, unconv == 0 if is_cc else None)
-        res.add(pre + "ipopt_median_ms", _ms(acc["ipopt"]), note=f"{len(acc['ipopt'])} instances")
-        res.add(pre + "ipopt_p99_ms", _ms(acc["ipopt"], 99))
+        res.add(pre + "ipopt_raw_median_ms", _ms(acc["ipopt_raw"]),
+                note=f"{len(acc['ipopt'])} instances")
+        res.add(pre + "ipopt_filtered_median_ms", _ms(acc["ipopt"]))
+        res.add(pre + "ipopt_filtered_p99_ms", _ms(acc["ipopt"], 99))
         res.add(pre + "ipopt_unconverged", sum(acc["ipopt_failed"]))
         res.add(pre + "speedup_vs_ipopt", speedup, f">= {TARGET_SPEEDUP:g}" if is_cc else None,
-                speedup >= TARGET_SPEEDUP if is_cc else None, "median ratio, same instances")
+                speedup >= TARGET_SPEEDUP if is_cc else None,
+                "filtered medians, same instances")
     for (cond, kind), r in sorted(runs.items()):
         e_ref, x_ref, t_ref = TABLE_I[cond][kind]
         pre = f"c{cond}/{kind}/"

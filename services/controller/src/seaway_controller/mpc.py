@@ -7,6 +7,9 @@ match the measured heading (the estimate is wrapped to (-pi, pi], the prediction
 
 The cross-track gate (reproduction.md item 2) is decided here, once per solve, from the previous
 plan's terminal position when there is one and from the measured position otherwise.
+
+``solve`` does not keep its result: the caller ``accept``s it when it is good and on time, so that a
+failed or late solve never becomes the plan that is reused or warm-started from.
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from seaway_controller import costs
-from seaway_controller.ocp import Ocp
+from seaway_controller.ocp import P_ACTIVE, P_GATE, P_PREV, P_TASK, P_TAU, Ocp
 from seaway_controller.solvers import NlpSolver, SolveResult
 
 TWO_PI = 2.0 * math.pi
@@ -100,7 +103,7 @@ class MpcController:
             return ocp.cold_guess(p), np.zeros(ocp.nw), np.zeros(ocp.ng)
         r = plan.result
         w, lx, lg = r.w, r.lam_x, r.lam_g
-        tau = p[12:15]
+        tau = p[P_TAU:P_TAU + 3]
         for _ in range(age):
             w, lx, lg = ocp.shift(w, lx, lg, tau)
         w = w.copy()
@@ -115,8 +118,8 @@ class MpcController:
             lg[-1] = 0.0
         return w, lx, lg
 
-    def solve(self, now_ns: int, x0: np.ndarray, wp_prev: tuple[float, float], wp_active: tuple[float, float],
-              coa_radius_m: float, task_power_w: float, leg_key: tuple,
+    def solve(self, now_ns: int, x0: np.ndarray, wp_prev: tuple[float, float],
+              wp_active: tuple[float, float], coa_radius_m: float, task_power_w: float, leg_key: tuple,
               tau_d: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> MpcOutcome:
         """Solve from the measured state ``x0`` for the leg (P_{i-1}, P_i); ``leg_key`` names it."""
         x0 = np.asarray(x0, dtype=float)
@@ -137,18 +140,19 @@ class MpcController:
     def evaluate(self, w: np.ndarray, p: np.ndarray) -> Costs:
         """The cost split of a prediction, in joules, from the same formulas as the NLP."""
         ocp, spec, vp = self.ocp, self.spec, self.vessel
-        task = float(p[11])
+        task = float(p[P_TASK])
         thrusts = ocp.thrusts(w)
         stage = float(sum(costs.stage_cost_j(t1, t2, task, spec.dt_s, vp) for t1, t2 in thrusts))
         times = ocp.times_s(w)
         if times is None:
             return Costs(stage, None, None, None, None, None, None)
         t_d, t_s = times
-        gate = float(p[10]) if spec.kind == "cc-empc" else 0.0
+        gate = float(p[P_GATE]) if spec.kind == "cc-empc" else 0.0
         x_h = [float(v) for v in w[ocp.x_index(spec.horizon)]]
         if not x_h[0] > 0:  # an unconverged iterate may violate u_H > 0; no finite Y then
             return Costs(stage, None, None, None, t_d, t_s, None)
-        term = costs.terminal_terms(x_h, t_d, t_s, p[6:8], p[8:10], task, gate, spec.profile_n, vp)
+        term = costs.terminal_terms(x_h, t_d, t_s, p[P_PREV:P_PREV + 2], p[P_ACTIVE:P_ACTIVE + 2],
+                                    task, gate, spec.profile_n, vp)
         return Costs(stage, float(term.dynamic_j), float(term.static_j), float(term.track_j), t_d,
                      t_s, float(term.cross_track_m))
 

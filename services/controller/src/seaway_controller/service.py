@@ -70,8 +70,10 @@ def build_parser() -> argparse.ArgumentParser:
 class ControllerService:
     """Owns the core, its lock and the bus endpoints; the loops are ``run_lockstep``/``run_rate``."""
 
-    def __init__(self, ctx: ServiceContext, core: ControllerCore) -> None:
+    def __init__(self, ctx: ServiceContext, core: ControllerCore, lockstep: bool) -> None:
         self.ctx, self.core = ctx, core
+        # Lockstep answers every state in order; real time acts on the newest.
+        self.states = ctx.bus.subscribe(keys.NAV_STATE, mode="fifo" if lockstep else "latest")
         self.lock = threading.Lock()
         bus = ctx.bus
         self.pub_thrust = bus.publisher(keys.THRUST)
@@ -114,14 +116,14 @@ class ControllerService:
         self.pub_status.put(status)
 
     def run_lockstep(self) -> None:
-        sub = self.ctx.bus.subscribe(keys.NAV_STATE, mode="fifo")
+        sub = self.states
         while not self.ctx.stop.is_set():
             state = sub.get(0.1)
             if state is not None:
                 self.step(state.stamp_ns, state)
 
     def run_rate(self, rate_hz: float, max_state_age_s: float) -> None:
-        sub = self.ctx.bus.subscribe(keys.NAV_STATE, mode="latest")
+        sub = self.states
         loop = RateLoop(1.0 / rate_hz, self.ctx.clock, self.ctx.stop)
         last_stamp: int | None = None
         stale_reported = False
@@ -164,7 +166,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             if not reply.accepted:
                 log.error("scenario %s mission refused: %s", scenario.name, reply.reason)
                 return 2
-        svc = ControllerService(ctx, core)
+        svc = ControllerService(ctx, core, args.lockstep)
+        ctx.ready()
         if args.lockstep:
             svc.run_lockstep()
         else:
