@@ -24,6 +24,7 @@ def responder(ctx) -> None:
 
     ctx.bus.queryable(keys.VEHICLE_ARM, on_arm)
     sub = ctx.bus.subscribe(keys.THRUST, mode="fifo")
+    ctx.ready()
     print("READY", flush=True)
     while not ctx.stop.is_set():
         msg = sub.get(0.05)
@@ -53,6 +54,6 @@ if __name__ == "__main__":
     parser = base_parser("test_peer", "bus test peer")
     parser.add_argument("role", choices=["responder", "talker"])
     args = parser.parse_args()
-    with run_service("launcher", args, declare_alive=args.role == "responder") as ctx:
+    with run_service("launcher", args) as ctx:
         (responder if args.role == "responder" else talker)(ctx)
     sys.exit(0)

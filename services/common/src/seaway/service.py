@@ -2,9 +2,15 @@
 
 A service is a pure core (messages and time in, messages out) plus a loop like::
 
-    with run_service("estimator", args) as ctx:      # bus open, health token declared
-        while ctx.loop.wait():                          # drift-free, ends on SIGINT/SIGTERM
+    with run_service("estimator", args) as ctx:      # bus open, signals installed
+        ...declare publishers, subscribers, queryables...
+        ctx.ready()                                     # health token: "I can serve now"
+        while loop.wait():                              # drift-free, ends on SIGINT/SIGTERM
             ...core.step(ctx.clock.now_ns(), inputs)...
+
+The health token ``seaway/<vessel>/health/<service>`` means *ready to serve*: it is declared by
+``ctx.ready()`` once every subscriber and queryable exists, because the launcher starts the next
+process, or sends the first request, the moment it sees it.
 
 SIGINT and SIGTERM set ``ctx.stop``; the ``with`` block then closes the session, so the process exits
 promptly instead of hanging in Zenoh's threads.
@@ -71,21 +77,29 @@ class ServiceContext:
     bus: Bus
     clock: Clock
     stop: threading.Event
+    is_ready: bool = False
+
+    def ready(self) -> None:
+        """Declare the health token: call once every subscriber and queryable is in place."""
+        if not self.is_ready:
+            self.bus.declare_alive(self.name)
+            self.is_ready = True
+            log.info("%s ready on vessel %s", self.name, self.vessel)
 
 
 @contextmanager
-def run_service(name: str, args: argparse.Namespace, clock: Clock | None = None,
-                declare_alive: bool = True) -> Iterator[ServiceContext]:
-    """Open the bus for ``name``, install the stop signals, declare health; close on exit."""
+def run_service(name: str, args: argparse.Namespace, clock: Clock | None = None) -> Iterator[ServiceContext]:
+    """Open the bus for ``name`` and install the stop signals; close on exit.
+
+    The service declares its health token with ``ctx.ready()`` when it can serve.
+    """
     configure_logging(name, args.log_level)
     stop = threading.Event()
     install_stop_signals(stop)
     bus = Bus.open(args.vessel, args.zenoh_config)
     ctx = ServiceContext(name, args.vessel, bus, clock or WallClock(), stop)
     try:
-        if declare_alive:
-            bus.declare_alive(name)
-        log.info("%s up on vessel %s", name, args.vessel)
+        log.info("%s starting on vessel %s", name, args.vessel)
         yield ctx
     finally:
         stop.set()

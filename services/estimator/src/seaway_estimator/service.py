@@ -241,6 +241,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.lockstep:
             ctx.bus.subscribe(keys.SIM_CLOCK, callback=lambda _k, m: inbox.put("tick", m))
         ctx.bus.queryable(keys.NAV_RESET, loop.on_reset_request)
+        ctx.ready()
         signal.signal(signal.SIGUSR1, lambda *_: reset_signal.set())
         log.info("estimator %s, publishing %s, vessel file %s",
                  "lockstep on sim/clock" if args.lockstep else "realtime",

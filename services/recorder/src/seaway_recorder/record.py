@@ -181,6 +181,7 @@ def run(argv: Sequence[str]) -> int:
         print(f"recording {', '.join(exprs)} to {path}", flush=True)
         for e in exprs:
             ctx.bus.subscribe_raw(e, queue.on_sample)
+        ctx.ready()
         print("READY", flush=True)
         try:
             _loop(writer, queue, ctx.stop, args.flush_interval, args.status_interval)

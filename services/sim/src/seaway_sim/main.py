@@ -82,11 +82,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         log.info("scenario %s (seed %d), vessel %s, %s", scenario.name, scenario.seed, vessel.name,
                  "lockstep" if args.lockstep else "real time")
         if link is None:
-            Lockstep(app, args.period, args.lockstep_timeout, ctx.stop).run()
+            lockstep = Lockstep(app, args.period, args.lockstep_timeout, ctx.stop)
+            ctx.ready()
+            lockstep.run()
         else:
             autopilot = Px4Autopilot(Px4Config(thrust_max_n=vessel.thrust_max_n, sysid=args.sysid))
             try:
-                Realtime(app, autopilot, link, args.step, args.period, ctx.stop, boot_ns).run()
+                realtime = Realtime(app, autopilot, link, args.step, args.period, ctx.stop, boot_ns)
+                ctx.ready()
+                realtime.run()
             finally:
                 link.close()
     return 0

@@ -68,7 +68,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                  "vessel limits +%.1f/-%.1f N, dead zone %.1f N", cfg.mavlink, cfg.autopilot,
                  cfg.thrust_timeout_s * 1e3, cfg.manual_control_rate_hz, limits.thrust_max_n,
                  limits.reverse_max_n, limits.dead_zone_n)
-        VehicleIoService(cfg, limits, ctx.bus, ctx.stop).run()
+        service = VehicleIoService(cfg, limits, ctx.bus, ctx.stop)
+        ctx.ready()
+        service.run()
     return 0
 
 

@@ -24,7 +24,7 @@ from seaway.bus import ENV_CONFIG, Bus
 from seaway.config import ConfigError, deploy_path, repo_root
 from seaway.launch.profile import Profile, load_profile, substitute
 from seaway.launch.supervisor import Supervised, Supervisor, default_echo
-from seaway.messages import MissionRequest, MissionStatus, StateEstimate
+from seaway.messages import ArmRequest, MissionRequest, MissionStatus, ModeRequest, StateEstimate
 from seaway.scenario import load_scenario
 from seaway.service import DEFAULT_VESSEL, ENV_VESSEL, install_stop_signals
 
@@ -39,6 +39,7 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--no-mission", action="store_true", help="do not send the scenario's mission")
     ap.add_argument("--stay", action="store_true", help="keep running after the mission completes")
     ap.add_argument("--verbose", action="store_true", help="show every process's output")
+    ap.add_argument("--recording", type=Path, default=None, help="recording for the replay profile")
     ap.add_argument("--check", action="store_true", help="validate the profile and exit")
     return ap
 
@@ -94,6 +95,24 @@ class StatusLine:
             self._last_print = now
 
 
+def _operator_requests(bus: Bus, profile: Profile) -> bool:
+    """The profile's start-up mode and arming, as explicit requests with their replies shown."""
+    if profile.mode_on_start:
+        reply = bus.request(keys.VEHICLE_MODE, ModeRequest.make(stamp_ns=time.time_ns(),
+                                                                mode=profile.mode_on_start), timeout_s=10.0)
+        print(f"mode {profile.mode_on_start}: {'accepted' if reply.accepted else 'REFUSED: ' + reply.reason}",
+              flush=True)
+        if not reply.accepted:
+            return False
+    if profile.arm_on_start:
+        reply = bus.request(keys.VEHICLE_ARM, ArmRequest.make(stamp_ns=time.time_ns(), arm=True),
+                            timeout_s=10.0)
+        print(f"arm: {'accepted' if reply.accepted else 'REFUSED: ' + reply.reason}", flush=True)
+        if not reply.accepted:
+            return False
+    return True
+
+
 def main(argv: list[str]) -> int:
     args = parser().parse_args(argv)
     try:
@@ -103,8 +122,14 @@ def main(argv: list[str]) -> int:
         return 2
     scenario = args.scenario or profile.scenario or ""
     run_dir = _run_dir(args)
+    try:
+        vessel_file = load_scenario(scenario).vessel if scenario else "paper-sim"
+    except ConfigError as err:
+        print(f"seaway launch: {err}", file=sys.stderr)
+        return 2
     values = {"vessel": args.vessel, "scenario": scenario, "run_dir": str(run_dir),
-              "profile": profile.name}
+              "profile": profile.name, "vessel_file": vessel_file,
+              "recording": str(args.recording or "")}
     try:
         procs = [Supervised(p, substitute(p.command, values)) for p in profile.processes]
         mission = (_mission_request(scenario) if profile.mission_on_start and scenario
@@ -143,6 +168,9 @@ def main(argv: list[str]) -> int:
             return code
         print(sup.status_table(), flush=True)
         print(f"all ready in {time.monotonic() - t0:.1f} s", flush=True)
+        if not _operator_requests(bus, profile):
+            code = 1
+            return code
         if mission is not None:
             reply = bus.request(keys.MISSION_SET, mission, timeout_s=10.0)
             print(f"mission {mission.mission_id}: "
@@ -184,7 +212,7 @@ def _final_report(run_dir: Path, scenario: str) -> None:
         return
     print(f"recording: {', '.join(str(r) for r in recordings)}")
     seaway = shutil.which("seaway", path=str(Path(sys.executable).parent)) or "seaway"
-    cmd = [seaway, "report", str(recordings[-1]), "--out", str(run_dir / "report")]
+    cmd = [seaway, "report", str(run_dir), "--out", str(run_dir / "report")]
     if scenario:
         cmd += ["--scenario", scenario]
     try:
