@@ -306,3 +306,19 @@ def test_periodic_telemetry_and_battery_drain() -> None:
     status = ap.sys_status(0, BATTERY_CAPACITY_J / 2, 148.0, False, 7)
     assert (status.voltage_battery, status.battery_remaining, status.errors_comm) == (15000, 50, 7)
     assert not status.onboard_control_sensors_health & ml.MAV_SYS_STATUS_SENSOR_GPS
+
+
+def test_each_fix_goes_out_as_gps_raw_int_then_global_position_int() -> None:
+    from seaway.messages import GnssFix
+
+    ap = Px4Autopilot(Px4Config(thrust_max_n=10.0))
+    fix = GnssFix(stamp_ns=1_200 * MS, lat_rad=math.radians(47.0), lon_rad=math.radians(8.0),
+                  alt_m=3.0, fix_type=3, vel_n_mps=0.3, vel_e_mps=0.4, horizontal_std_m=0.3,
+                  satellites=12)
+    out = ap.sensor_telemetry([fix, None], [], epoch_ns=200 * MS)
+    assert [m.get_type() for m in out] == ["GPS_RAW_INT", "GLOBAL_POSITION_INT"]
+    raw, pos = (rx(m) for m in out)
+    assert (raw.fix_type, raw.satellites_visible, raw.h_acc) == (3, 12, 300)
+    assert raw.time_usec == 1_000_000 and pos.time_boot_ms == 1000  # since boot = stamp - epoch
+    assert (raw.lat, raw.lon) == (pos.lat, pos.lon) == (470000000, 80000000)
+    assert raw.vel == 50 and raw.cog == round(math.degrees(math.atan2(0.4, 0.3)) * 100)

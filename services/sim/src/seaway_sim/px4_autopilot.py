@@ -93,6 +93,7 @@ BATTERY_NOMINAL_V = 14.8
 BATTERY_CAPACITY_J = 10.0 * 3600.0 * BATTERY_NOMINAL_V  # 10 Ah
 BATTERY_STATUS_HZ = 1.0
 UINT16_UNKNOWN = 65535  # MAVLink's "not set" for unsigned 16-bit fields
+GPS_EPH_CDOP = 100  # GPS_RAW_INT.eph: HDOP x 100; a simulated open-sky receiver reports 1.0
 
 
 def battery(energy_j: float) -> tuple[float, float]:
@@ -450,7 +451,9 @@ class Px4Autopilot:
 
     def sensor_telemetry(self, fixes: Sequence[GnssFix | None], attitudes: Sequence[Attitude],
                          epoch_ns: int) -> list[Any]:
-        """GLOBAL_POSITION_INT per fix and ATTITUDE per attitude sample (time order kept per kind).
+        """GPS_RAW_INT and GLOBAL_POSITION_INT per fix, ATTITUDE per attitude sample (time order kept
+        per kind). GPS_RAW_INT carries what only the receiver knows (fix type, accuracy, satellites):
+        a companion needs it to trust a fix, and PX4 streams it by default.
 
         Stamps of the samples are ``epoch_ns + time since boot``.
         """
@@ -467,6 +470,15 @@ class Px4Autopilot:
                 continue
             self.last_fix = fix
             hdg = round(math.degrees(heading) * 100) % 36000 if heading is not None else 65535
+            vel_n, vel_e = fix.vel_n_mps or 0.0, fix.vel_e_mps or 0.0
+            h_acc_mm = round((fix.horizontal_std_m or 0.0) * 1000)
+            out.append(mavlink.MAVLink_gps_raw_int_message(
+                (fix.stamp_ns - epoch_ns) // 1000, fix.fix_type, round(math.degrees(fix.lat_rad) * 1e7),
+                round(math.degrees(fix.lon_rad) * 1e7), round(fix.alt_m * 1000), GPS_EPH_CDOP,
+                UINT16_UNKNOWN, round(math.hypot(vel_n, vel_e) * 100),
+                round(math.degrees(math.atan2(vel_e, vel_n)) * 100) % 36000,
+                fix.satellites if fix.satellites is not None else 255,
+                h_acc=h_acc_mm))
             out.append(mavlink.MAVLink_global_position_int_message(
                 _boot_ms(fix.stamp_ns - epoch_ns), round(math.degrees(fix.lat_rad) * 1e7),
                 round(math.degrees(fix.lon_rad) * 1e7), round(fix.alt_m * 1000), 0,
