@@ -267,7 +267,10 @@ def test_param_check_reports_the_verdict():
     a = core.params.assessment
     assert a is not None and a.verdict == "none"  # NAV_RCL_ACT 0: the boat would keep going
     core.on_thrust(thrust(20.0, 20.0), at(2 * S + 30 * MS))
-    assert core.status(at(2 * S + 40 * MS)).failsafe == "no_autopilot_loss_failsafe"
+    status = core.status(at(2 * S + 40 * MS))
+    assert status.failsafe is None  # commands are fresh: no failsafe is acting
+    assert status.autopilot_loss_failsafe == "none"
+    assert "NAV_RCL_ACT" in status.autopilot_loss_failsafe_summary
 
 
 def test_ardupilot_config_that_breaks_the_mapping_blocks_thrust():

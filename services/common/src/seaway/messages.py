@@ -165,6 +165,12 @@ class VehicleStatus(Message):
     heartbeat_age_s: float | None = Field(default=None, ge=0)
     rates_hz: dict[str, float] = Field(default_factory=dict, description="received MAVLink rates")
     dropped_messages: int = Field(default=0, ge=0, description="malformed MAVLink messages dropped")
+    autopilot_loss_failsafe: Literal["stops", "takes_over", "none", "unknown"] | None = Field(
+        default=None,
+        description="what the autopilot does if vehicle_io stops streaming commands, judged from its "
+                    "parameters at connection; None until they have been read")
+    autopilot_loss_failsafe_summary: str = Field(
+        default="", description="the parameters and the action behind that verdict, one line")
 
 
 # ---------------------------------------------------------------------------------------------

@@ -58,7 +58,6 @@ MAV_MODE_FLAG_SAFETY_ARMED = 128
 NON_VEHICLE_TYPES = frozenset({6, 18, 26, 27, 30, 31})
 
 FAILSAFE_AUTOPILOT_CONFIG = "autopilot_config"
-FAILSAFE_NO_AUTOPILOT_LOSS_FAILSAFE = "no_autopilot_loss_failsafe"
 
 MAX_BOOT_TIME_LEAD_NS = 1_000_000_000  # a boot time > 1 s "ahead" of its receipt is corrupt
 LOG_EVERY_NS = 5_000_000_000  # at most one log line per (message, field) per 5 s
@@ -307,8 +306,6 @@ class VehicleIoCore:
             return FAILSAFE_AUTOPILOT_CONFIG
         if self.watchdog.active(now.mono_ns) is None:
             return FAILSAFE_THRUST_STALE
-        if a is not None and a.verdict == "none":
-            return FAILSAFE_NO_AUTOPILOT_LOSS_FAILSAFE
         return None
 
     def status(self, now: Now) -> VehicleStatus:
@@ -327,6 +324,11 @@ class VehicleIoCore:
             heartbeat_age_s=hb_age,
             rates_hz=dict(self.rates_hz),
             dropped_messages=self.dropped,
+            # A standing hazard, not an event: reported beside the failsafe, not as one.
+            autopilot_loss_failsafe=None if self.params.assessment is None
+            else self.params.assessment.verdict,
+            autopilot_loss_failsafe_summary="" if self.params.assessment is None
+            else self.params.assessment.summary,
         )
 
     def _update_rates(self, now: Now) -> None:
