@@ -63,6 +63,8 @@ class Profile(ConfigModel):
     description: str = ""
     zenoh_config: str | None = Field(default=None, description="path relative to deploy/zenoh")
     scenario: str | None = Field(default=None, description="default scenario name or path")
+    mode_on_start: str | None = Field(default=None, description="request this autopilot mode when ready")
+    arm_on_start: bool = Field(default=False, description="request arming when ready (after the mode)")
     mission_on_start: bool = Field(default=False, description="send the scenario's mission")
     stop_when_complete: bool = Field(default=False, description="stop the run when it completes")
     backoff: BackoffPolicy = BackoffPolicy()
