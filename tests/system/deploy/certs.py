@@ -47,12 +47,14 @@ def make_cert(folder: Path, name: str, cn: str, ca: str = "ca",
     return folder / f"{name}.pem", folder / f"{name}-key.pem"
 
 
-def make_deployment_certs(folder: Path) -> Path:
+def make_deployment_certs(folder: Path, boat_ips: tuple[str, ...] = ()) -> Path:
     """The files the TLS router configs name (ca.pem, boat.pem, boat-key.pem, shore.pem,
     shore-key.pem), plus ``intruder`` (right CA, unknown CN) and ``rogue`` (CN seaway-shore from
-    another CA, ``rogue-ca.pem``) for the negative tests. Returns ``folder``."""
+    another CA, ``rogue-ca.pem``) for the negative tests. ``boat_ips``: more addresses the boat's
+    certificate names (the shore connects by address). Returns ``folder``."""
     make_ca(folder)
-    make_cert(folder, "boat", "seaway-boat", dns=("seaway-boat", "localhost"), ips=("127.0.0.1",))
+    make_cert(folder, "boat", "seaway-boat", dns=("seaway-boat", "localhost"),
+              ips=("127.0.0.1", *boat_ips))
     make_cert(folder, "shore", "seaway-shore")
     make_cert(folder, "intruder", "seaway-intruder")
     make_ca(folder, "rogue-ca", "Not the Seaway CA")

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import re
 import sys
 import time
 from collections.abc import Iterator
@@ -22,6 +23,7 @@ from pathlib import Path
 import pytest
 
 from tests.conftest import wait_for
+from tests.system.deploy.certs import have_openssl, make_deployment_certs
 from tests.system.deploy.netns import NetnsPair
 from tests.system.deploy.standin import FORBIDDEN_SEQ0
 
@@ -75,13 +77,26 @@ def first_after(times: list[float], t: float) -> float | None:
     return next((x for x in times if x > t), None)
 
 
-def test_link_cut_standins(netns: NetnsPair) -> None:
+@pytest.mark.parametrize(("link", "outage_s"), [("tcp", OUTAGE_S), ("tls", 5.0)])
+def test_link_cut_standins(netns: NetnsPair, tmp_path: Path, link: str, outage_s: float) -> None:
+    """``tcp``: boat-router.json5 / shore-router.json5; ``tls``: the mTLS configs with throwaway
+    certificates (the boat's names its veth address), the access control by certificate name."""
     py = sys.executable
     boat_env = {"SEAWAY_ZENOH_CONFIG": str(ZENOH_DIR / "boat-client.json5")}
     shore_env = {"SEAWAY_ZENOH_CONFIG": str(ZENOH_DIR / "shore-client.json5")}
-    boat_router = netns.start(netns.boat_ns, [py, "-m", "seaway.router", "--role", "boat"], "boat-router")
-    shore_router = netns.start(netns.shore_ns, [py, "-m", "seaway.router", "--role", "shore", "--connect",
-                                                f"tcp/{netns.boat_ip}:7447"], "shore-router")
+    router = [py, "-m", "seaway.router"]
+    if link == "tcp":
+        boat_args, shore_args = ["--role", "boat"], ["--role", "shore", "--connect",
+                                                     f"tcp/{netns.boat_ip}:7447"]
+    else:
+        if not have_openssl():
+            pytest.skip("the openssl command is not installed (needed to make throwaway certificates)")
+        certs = make_deployment_certs(tmp_path / "tls", boat_ips=(netns.boat_ip,))
+        boat_args = ["--config", "boat-router-tls.json5", "--tls-dir", str(certs)]
+        shore_args = ["--config", "shore-router-tls.json5", "--tls-dir", str(certs),
+                      "--connect", f"tls/{netns.boat_ip}:7449"]
+    boat_router = netns.start(netns.boat_ns, [*router, *boat_args], "boat-router")
+    shore_router = netns.start(netns.shore_ns, [*router, *shore_args], "shore-router")
     recorder = netns.start(netns.boat_ns, [py, STANDIN, "boat-recorder"], "recorder", boat_env)
     wait_for(lambda: '"ready"' in netns.out("recorder"), 20, what="the boat recorder stand-in")
     control = netns.start(netns.boat_ns, [py, STANDIN, "boat-control", "--rate-hz", str(RATE_HZ)],
@@ -94,14 +109,14 @@ def test_link_cut_standins(netns: NetnsPair) -> None:
                 and any(r.get("accepted") for r in rec))
 
     wait_for(shore_ready, 30, interval_s=0.2, what="boat data and a vehicle/arm reply on the shore")
-    time.sleep(2.0)
+    time.sleep(1.5)
     t_cut = netns.cut()
-    time.sleep(OUTAGE_S)
+    time.sleep(outage_s)
     t_back = netns.restore()
     wait_for(lambda: first_after([r["t"] for r in samples(lines(netns.out("shore")), THRUST)
                                   if r["seq"] < FORBIDDEN_SEQ0], t_back),
              15, interval_s=0.1, what="boat data on the shore after the link came back")
-    time.sleep(3.0)
+    time.sleep(2.0)
     for p in (shore, control):
         assert NetnsPair.stop(p) == 0, netns.err(p.name)
     time.sleep(0.5)
@@ -118,7 +133,7 @@ def test_link_cut_standins(netns: NetnsPair) -> None:
         f"boat recording lost ctrl/thrust: {published} published, {len(seqs)} recorded, "
         f"missing {sorted(set(range(1, published + 1)) - set(seqs))[:20]}")
     during = [r for r in boat_thrust if t_cut < r["t"] < t_back]
-    assert len(during) >= 0.9 * RATE_HZ * OUTAGE_S, f"only {len(during)} commands during the outage"
+    assert len(during) >= 0.9 * RATE_HZ * outage_s, f"only {len(during)} commands during the outage"
     heartbeats = [r["t"] for r in samples(rec, HEARTBEAT)]
     assert any(t < t_cut for t in heartbeats) and any(t > t_back for t in heartbeats), \
         "the shore's allowed heartbeat did not reach the boat before and after the outage"
@@ -140,7 +155,11 @@ def test_link_cut_standins(netns: NetnsPair) -> None:
     assert not any(r["accepted"] for r in shore_rec if r.get("request") == "sim/scenario")
     router_log = netns.err("shore-router")
     assert router_log.count("disconnected") >= 1 and router_log.count(" connected") >= 2
-    print(f"\nlink cut {OUTAGE_S:.0f} s: shore gap {gap_end - gap_start:.2f} s, "
+    if link == "tls":  # the shore came in over TLS with its certificate, before and after the cut
+        tls_links = re.findall(rf"link up: tls/{re.escape(netns.boat_ip)}:7449 <-> tls/\S+ .*"
+                               r"authenticated as seaway-shore\)", netns.err("boat-router"))
+        assert len(tls_links) >= 2, netns.err("boat-router")
+    print(f"\n{link} link cut {outage_s:.0f} s: shore gap {gap_end - gap_start:.2f} s, "
           f"shore received again {reconnect_s:.2f} s after the link returned; boat recorded "
           f"{len(seqs)}/{published} ctrl/thrust, {len(during)} during the outage")
 
