@@ -89,6 +89,10 @@ def test_a_tls_endpoint_without_a_ca_is_refused(tmp_path: Path) -> None:
 def test_cfg_overrides(tmp_path: Path) -> None:
     conf, s = build_config(ZENOH_DIR / "boat-router.json5", overrides=["transport/link/tx/lease=2000"])
     assert get(conf, "transport/link/tx/lease") == 2000 and s.lease_ms == 2000
+    (tmp_path / "other-ca.pem").write_text("x")
+    conf, s = build_config(ZENOH_DIR / "shore-router-tls.json5", check_files=False,
+                           overrides=[f"transport/link/tls/root_ca_certificate='{tmp_path}/other-ca.pem'"])
+    assert s.tls_files["root_ca_certificate"] == f"{tmp_path}/other-ca.pem"
     with pytest.raises(RouterConfigError, match="KEY=JSON5_VALUE"):
         build_config(ZENOH_DIR / "boat-router.json5", overrides=["lease"])
     with pytest.raises(RouterConfigError, match="no/such/key"):

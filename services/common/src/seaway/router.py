@@ -16,7 +16,8 @@ else ``<role>-router.json5``. Then, in order: ``--connect`` / ``$SEAWAY_ROUTER_C
 ``--tls-dir`` / ``$SEAWAY_TLS_DIR`` moves every TLS file the config names into that folder (same
 file names); ``--cfg KEY=JSON5`` sets any other Zenoh key.
 
-The router logs every session and link that comes and goes (``router ... connected via tls/...``),
+The router logs every session and link that comes and goes (``router <zid> connected``,
+``link up: tls/... <-> tls/... (..., authenticated as seaway-shore)``),
 optionally declares a health token (``--health launcher``, so ``seaway launch`` can wait for it),
 and exits 0 within a second or two on SIGINT/SIGTERM. Exit 1: the router could not start (a port
 in use, an unreadable certificate); 2: a bad config or argument, or a TLS file missing.
@@ -154,10 +155,13 @@ def build_config(config_path: Path, connect: list[str] | None = None, listen: li
             conf.insert_json5(key.strip(), value)
         except Exception as err:
             raise RouterConfigError(f"--cfg {item!r}: {err}") from None
-        if key.strip().startswith("transport/link/tls/"):
-            short = key.strip().rsplit("/", 1)[-1]
-            if short in TLS_FILE_KEYS:
-                tls_files[short] = json.loads(value)
+        short = key.strip().rsplit("/", 1)[-1]
+        if key.strip().startswith("transport/link/tls/") and short in TLS_FILE_KEYS:
+            path = _get(conf, key.strip())  # as Zenoh parsed it (JSON5 allows 'single quotes')
+            if path:
+                tls_files[short] = path
+            else:
+                tls_files.pop(short, None)
     settings = RouterSettings(
         config_path=config_path,
         listen=_endpoints(_get(conf, "listen/endpoints")),
