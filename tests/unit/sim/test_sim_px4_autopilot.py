@@ -275,7 +275,8 @@ def test_param_list_has_every_failsafe_param_vehicle_io_checks() -> None:
     assert values == {"COM_RC_IN_MODE": 3, "COM_RC_LOSS_T": 0.5, "NAV_RCL_ACT": 2,
                       "COM_RCL_EXCEPT": 0, "COM_FAIL_ACT_T": 5.0, "NAV_DLL_ACT": 0,
                       "COM_DL_LOSS_T": 10.0, "COM_OF_LOSS_T": 1.0, "COM_OBL_RC_ACT": 0,
-                      "MAV_TYPE": 10, "MAV_SYS_ID": 1, "CA_AIRFRAME": 6, "CA_R_REV": 3}
+                      "MAV_TYPE": 10, "MAV_SYS_ID": 1, "CA_AIRFRAME": 6, "CA_R_REV": 3,
+                      "RO_ACCEL_LIM": -1.0, "RO_DECEL_LIM": -1.0, "RO_MAX_THR_SPEED": -1.0}
 
 
 def test_param_set_echoes_the_new_value_and_refuses_bad_ones() -> None:

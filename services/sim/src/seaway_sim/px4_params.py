@@ -54,6 +54,14 @@ PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec("MAV_SYS_ID", MAV_PARAM_TYPE_INT32, 1, 1, 250, False, "MAVLink system id"),
     ParamSpec("CA_AIRFRAME", MAV_PARAM_TYPE_INT32, 6, 0, 15, False, "6 = Rover (Differential)"),
     ParamSpec("CA_R_REV", MAV_PARAM_TYPE_INT32, 3, 0, 255, False, "reversible motors bitmask"),
+    # The rover throttle slew limits: the sim does not model them, so it reports them off (-1:
+    # disabled), which is what a companion streaming MANUAL_CONTROL for direct thrust wants.
+    ParamSpec("RO_ACCEL_LIM", MAV_PARAM_TYPE_REAL32, -1.0, -1.0, 100.0, False,
+              "throttle acceleration limit [m/s^2]; -1 disabled (not simulated)"),
+    ParamSpec("RO_DECEL_LIM", MAV_PARAM_TYPE_REAL32, -1.0, -1.0, 100.0, False,
+              "throttle deceleration limit [m/s^2]; -1 disabled (not simulated)"),
+    ParamSpec("RO_MAX_THR_SPEED", MAV_PARAM_TYPE_REAL32, -1.0, -1.0, 100.0, False,
+              "speed at full throttle [m/s]; -1 disabled (not simulated)"),
 )
 BY_NAME: dict[str, ParamSpec] = {p.name: p for p in PARAMS}
 INDEX: dict[str, int] = {p.name: i for i, p in enumerate(PARAMS)}
