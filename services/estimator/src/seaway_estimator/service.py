@@ -86,6 +86,7 @@ class EstimatorLoop:
         self.refused = 0
         self.repeats = 0
         self.thrust_waits_timed_out = 0
+        self.thrust_warn_due = 0.0
         self.sensor_waits_timed_out = 0
         # Per sensor: [last stamp, shortest period seen] (ns), to know what a tick still lacks.
         self.schedule: dict[str, list[Any]] = {}
@@ -279,9 +280,12 @@ def main(argv: Sequence[str] | None = None) -> int:
                             if not late:
                                 break
                             loop.thrust_waits_timed_out += 1
-                            log.warning("no thrust command for t = %d ns within %.1f s; "
-                                        "predicting with the last one", loop._last_tick,
-                                        LOCKSTEP_WAIT_S)
+                            if time.monotonic() >= loop.thrust_warn_due:  # one line, not a flood
+                                loop.thrust_warn_due = time.monotonic() + STATS_PERIOD_S
+                                log.warning("no thrust command for t = %d ns within %.1f s; "
+                                            "predicting with the last one (%d times so far)",
+                                            loop._last_tick, LOCKSTEP_WAIT_S,
+                                            loop.thrust_waits_timed_out)
                         sensor = loop.awaits_sensor(tick)
                         while sensor is not None and late:
                             loop.sensor_waits_timed_out += 1

@@ -187,6 +187,10 @@ def main(argv: list[str]) -> int:
                 code = 1
                 break
             status.show(time.monotonic() - t_run)
+            if profile.stop_after and sup.procs[profile.stop_after].state == "exited":
+                status.show(time.monotonic() - t_run, final=True)
+                print(f"{profile.stop_after} finished", flush=True)
+                break
             if (profile.stop_when_complete and not args.stay and status.mission is not None
                     and status.mission.state == "complete"):
                 status.show(time.monotonic() - t_run, final=True)

@@ -67,6 +67,7 @@ class Profile(ConfigModel):
     arm_on_start: bool = Field(default=False, description="request arming when ready (after the mode)")
     mission_on_start: bool = Field(default=False, description="send the scenario's mission")
     stop_when_complete: bool = Field(default=False, description="stop the run when it completes")
+    stop_after: str | None = Field(default=None, description="stop the run when this process exits 0")
     backoff: BackoffPolicy = BackoffPolicy()
     processes: list[ProcessSpec] = Field(min_length=1)
 
@@ -76,6 +77,8 @@ class Profile(ConfigModel):
         dup = {n for n in names if names.count(n) > 1}
         if dup:
             raise ValueError(f"process names used twice: {', '.join(sorted(dup))}")
+        if self.stop_after is not None and self.stop_after not in names:
+            raise ValueError(f"stop_after names unknown process {self.stop_after!r}")
         for p in self.processes:
             unknown = [a for a in p.after if a not in names]
             if unknown:
