@@ -21,6 +21,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from seaway.launch.profile import load_profile
 
 from tests.conftest import wait_for
 from tests.system.deploy.certs import have_openssl, make_deployment_certs
@@ -204,17 +205,29 @@ def test_link_cut_real_stack(netns: NetnsPair, tmp_path: Path) -> None:
 
     wait_for(lambda: ready(boat, "boat") and ready(shore, "shore"), 60, interval_s=0.25,
              what="seaway launch boat and seaway launch shore ready")
-    # The controller declares health first and then compiles or loads its solvers (seconds with a
-    # warm cache in ~/.cache/seaway/solvers, minutes when its code changed); missions wait for them.
+    # The controller compiles or loads its solvers (seconds with a warm cache in
+    # ~/.cache/seaway/solvers, minutes when its code changed); missions wait for them. Then the boat
+    # launcher makes the profile's start-up requests (mode, arm); it stops everything if refused.
     controller_log = boat_run / "logs" / "controller.log"
     wait_for(lambda: ready(boat, "boat") and "solvers ready" in controller_log.read_text(errors="replace"),
              SOLVER_WAIT_S, interval_s=0.5, what="the controller's solvers")
+    profile = load_profile("boat")
+    last_request = "arm:" if profile.arm_on_start else "mode " if profile.mode_on_start else None
+    if last_request is not None:
+        wait_for(lambda: last_request in netns.out("boat") or "stopping..." in netns.out("boat"), 30,
+                 interval_s=0.2, what="the boat launcher's start-up requests")
+        assert "REFUSED" not in netns.out("boat") and "stopping..." not in netns.out("boat"), \
+            f"seaway launch boat refused its start-up requests:\n{netns.out('boat')[-1500:]}"
     watch = netns.start(netns.shore_ns, [sys.executable, STANDIN, "shore-watch", "--no-requests"],
                         "watch", shore_env)
     # The mission comes from the shore, over the link, through the boat router's access control.
     mission = netns.start(netns.shore_ns, [seaway, "mission", "lake", "--timeout", "10"], "mission",
                           shore_env)
-    assert mission.wait(30) == 0, f"{netns.out('mission')}{netns.err('mission')}"
+    code = mission.wait(30)
+    if "stopping..." in netns.out("boat"):
+        pytest.fail(f"seaway launch boat stopped by itself before the mission; its output:\n"
+                    f"{netns.out('boat')[-1500:]}")
+    assert code == 0, f"{netns.out('mission')}{netns.err('mission')}"
 
     def shore_lines() -> list[dict]:
         return lines(netns.out("watch"))
