@@ -99,6 +99,7 @@ class ControllerCore:
         self._last_step_ns: int | None = None
         self._last_command = (0.0, 0.0)
         self._energy_to_go_j: float | None = None
+        self.mission_request: MissionRequest | None = None
 
     # -- set-up ---------------------------------------------------------------------------------
 
@@ -132,12 +133,37 @@ class ControllerCore:
         self.level = LEVEL_MPC
         self.energy_used_j = 0.0
         self._energy_to_go_j = None
+        self.mission_request = req
         log.info("mission %r accepted: %d waypoints, r_COA %.2f m, T^w %.2f W, %s",
                  mission.mission_id, len(mission.waypoints_m), mission.coa_radius_m,
                  mission.task_power_w, mission.controller)
         return Reply.accept(now_ns, "mission started", mission_id=mission.mission_id,
                             waypoints_m=[list(p) for p in mission.waypoints_m],
                             controller=mission.controller)
+
+    def progress(self) -> tuple[MissionRequest, int, str, float] | None:
+        """(request, active leg, state, energy used [J]) of the current mission, or None."""
+        mm = self.missions
+        if self.mission_request is None or mm.mission is None:
+            return None
+        return self.mission_request, mm.active, mm.state, self.energy_used_j
+
+    def restore(self, now_ns: int, req: MissionRequest, active_leg: int, state: str,
+                energy_used_j: float) -> Reply:
+        """Resume a checkpointed mission at ``active_leg`` (after a restart), or refuse."""
+        reply = self.handle_mission(now_ns, req)
+        if not reply.accepted:
+            return reply
+        mm = self.missions
+        assert mm.mission is not None
+        if not 1 <= active_leg < len(mm.mission.waypoints_m):
+            mm.state = "idle"
+            return Reply.refuse(now_ns, f"checkpoint's active leg {active_leg} is not a leg of the "
+                                        f"mission ({len(mm.mission.waypoints_m)} waypoints)")
+        mm.active, mm.state = active_leg, state  # type: ignore[assignment]
+        mm.switches += 1  # the warm start re-guesses t_d and t_s as on a waypoint switch
+        self.energy_used_j = energy_used_j
+        return Reply.accept(now_ns, f"mission resumed at leg {active_leg} ({state})")
 
     def handle_command(self, now_ns: int, cmd: MissionCommand) -> Reply:
         try:

@@ -15,6 +15,10 @@ Two ways to run:
 
 ``--scenario NAME`` starts the scenario's mission at once (batch runs) and takes its vessel file and
 geodetic origin.
+
+``--state-file PATH`` keeps a mission checkpoint (``checkpoint.py``): written whenever the mission's
+progress changes and once a second, read at start, so that a controller restarted mid-mission (the
+launcher restarts a crashed one) resumes the same mission at the same leg instead of idling.
 """
 
 from __future__ import annotations
@@ -25,6 +29,7 @@ import math
 import threading
 import time
 from collections.abc import Sequence
+from pathlib import Path
 
 from seaway import keys
 from seaway.clock import RateLoop
@@ -34,6 +39,7 @@ from seaway.model import load_vessel
 from seaway.scenario import load_scenario
 from seaway.service import ServiceContext, base_parser, parse, run_service
 
+from seaway_controller import checkpoint
 from seaway_controller.closed_loop import scenario_mission_request
 from seaway_controller.core import ControllerConfig, ControllerCore
 from seaway_controller.mission import MissionLimits
@@ -42,6 +48,7 @@ from seaway_controller.solvers import SOLVER_KINDS
 
 log = logging.getLogger("seaway_controller.service")
 NAME = "controller"
+CHECKPOINT_PERIOD_S = 1.0  # an unchanged mission is re-saved this often, for the energy count
 DEFAULT_VESSEL_FILE = "paper-sim"
 
 
@@ -62,6 +69,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="real time: older states give zero thrust")
     p.add_argument("--plan-reuse-steps", type=int, default=3)
     p.add_argument("--los-steps", type=int, default=600)
+    p.add_argument("--state-file", type=Path, default=None,
+                   help="mission checkpoint: resume from it at start, keep it up to date")
     p.add_argument("--max-range-m", type=float, default=5000.0,
                    help="operating area: waypoints within this distance of the origin")
     return p
@@ -70,8 +79,12 @@ def build_parser() -> argparse.ArgumentParser:
 class ControllerService:
     """Owns the core, its lock and the bus endpoints; the loops are ``run_lockstep``/``run_rate``."""
 
-    def __init__(self, ctx: ServiceContext, core: ControllerCore, lockstep: bool) -> None:
+    def __init__(self, ctx: ServiceContext, core: ControllerCore, lockstep: bool,
+                 state_file: Path | None = None) -> None:
         self.ctx, self.core = ctx, core
+        self.state_file = state_file
+        self._saved: tuple[str, int, str] | None = None  # (mission id, leg, state) last written
+        self._saved_at = 0.0
         # Lockstep answers every state in order; real time acts on the newest.
         self.states = ctx.bus.subscribe(keys.NAV_STATE, mode="fifo" if lockstep else "latest")
         self.lock = threading.Lock()
@@ -88,6 +101,7 @@ class ControllerService:
             reply = self.core.handle_mission(self.ctx.clock.now_ns(), req)
         log.info("mission/set %r: %s %s", req.mission_id,
                  "accepted" if reply.accepted else "REFUSED", reply.reason)
+        self.save_checkpoint(force=True)
         return reply
 
     def on_command(self, cmd: MissionCommand) -> Reply:
@@ -95,7 +109,30 @@ class ControllerService:
             reply = self.core.handle_command(self.ctx.clock.now_ns(), cmd)
         log.info("mission/command %s: %s %s", cmd.command,
                  "accepted" if reply.accepted else "REFUSED", reply.reason)
+        self.save_checkpoint(force=True)
         return reply
+
+    def save_checkpoint(self, force: bool = False) -> None:
+        """Write the checkpoint if the progress changed (or a second passed, for the energy)."""
+        if self.state_file is None:
+            return
+        with self.lock:
+            progress = self.core.progress()
+        if progress is None:
+            return
+        req, leg, state, energy = progress
+        key = (req.mission_id, leg, state)
+        now = time.monotonic()
+        if not force and key == self._saved and now - self._saved_at < CHECKPOINT_PERIOD_S:
+            return
+        try:
+            checkpoint.save(self.state_file, checkpoint.MissionCheckpoint(
+                request=req.model_dump(mode="json"), active_leg=leg, state=state,  # type: ignore[arg-type]
+                energy_used_j=energy, saved_unix_ns=time.time_ns()))
+        except OSError as err:  # the vessel keeps being controlled; only a restart would suffer
+            log.error("cannot write the mission checkpoint %s: %s", self.state_file, err)
+            return
+        self._saved, self._saved_at = key, now
 
     def on_origin(self, _key: str, msg: NavOrigin) -> None:
         with self.lock:
@@ -114,6 +151,7 @@ class ControllerService:
         if record is not None:
             self.pub_solve.put(record)
         self.pub_status.put(status)
+        self.save_checkpoint()
 
     def run_lockstep(self) -> None:
         sub = self.states
@@ -145,6 +183,28 @@ class ControllerService:
                 self.pub_thrust.put(self.core.zero_command(last_stamp, "stale-state"))
 
 
+def resume(core: ControllerCore, path: Path, now_ns: int) -> None:
+    """Resume the checkpointed mission, if there is one in progress; never fatal."""
+    try:
+        cp = checkpoint.load(path)
+        if cp is None:
+            return
+        if cp.state not in ("active", "paused"):
+            log.info("checkpoint %s: mission %s was %s; starting idle", path,
+                     cp.request.get("mission_id", "?"), cp.state)
+            return
+        req = cp.mission_request()
+    except checkpoint.CheckpointError as err:
+        log.error("ignoring the mission checkpoint: %s", err)
+        return
+    reply = core.restore(now_ns, req, cp.active_leg, cp.state, cp.energy_used_j)
+    if reply.accepted:
+        log.warning("resumed mission %r from %s at leg %d (%s), %.1f J used before the restart",
+                    req.mission_id, path, cp.active_leg, cp.state, cp.energy_used_j)
+    else:
+        log.error("could not resume mission %r from %s: %s", req.mission_id, path, reply.reason)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = parse(build_parser(), argv)
     scenario = load_scenario(args.scenario) if args.scenario else None
@@ -166,7 +226,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             if not reply.accepted:
                 log.error("scenario %s mission refused: %s", scenario.name, reply.reason)
                 return 2
-        svc = ControllerService(ctx, core, args.lockstep)
+        if args.state_file is not None:
+            resume(core, args.state_file, ctx.clock.now_ns())
+        svc = ControllerService(ctx, core, args.lockstep, args.state_file)
         ctx.ready()
         if args.lockstep:
             svc.run_lockstep()

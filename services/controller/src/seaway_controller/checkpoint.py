@@ -1,0 +1,69 @@
+"""The controller's mission checkpoint: what a restarted controller needs to carry on.
+
+A controller killed mid-mission (a crash, the OOM killer, a launcher restart) must not forget the
+mission nor start it again from P_0. The service writes this small JSON file atomically (temporary
+file, fsync, rename) whenever the mission's progress changes and once a second for the energy
+count; a new process given the same file resumes the mission at the same leg. A checkpoint that
+cannot be read is reported and ignored: the controller then starts idle, as it would without one.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import Field, ValidationError
+from seaway.config import ConfigModel, describe_validation_error
+from seaway.messages import MessageError, MissionRequest
+
+
+class CheckpointError(ValueError):
+    """The checkpoint file exists but cannot be used; the text says why."""
+
+
+class MissionCheckpoint(ConfigModel):
+    """Mission progress as saved: the accepted request, the active leg, the state, the energy."""
+
+    request: dict[str, Any] = Field(description="the accepted MissionRequest, as on the wire")
+    active_leg: int = Field(ge=1, description="index i of the active waypoint P_i")
+    state: Literal["active", "paused", "complete", "aborted"]
+    energy_used_j: float = Field(ge=0)
+    saved_unix_ns: int = Field(ge=0)
+
+    def mission_request(self) -> MissionRequest:
+        try:
+            return MissionRequest.decode(json.dumps(self.request))
+        except MessageError as err:
+            raise CheckpointError(f"saved mission request is invalid: {err}") from None
+
+
+def save(path: Path, checkpoint: MissionCheckpoint) -> None:
+    """Write ``checkpoint`` so that a reader sees the old file or the new one, never a mix."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w") as f:
+            f.write(checkpoint.model_dump_json())
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def load(path: Path) -> MissionCheckpoint | None:
+    """The checkpoint at ``path``; None if there is none; CheckpointError if it is unusable."""
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        return None
+    except OSError as err:
+        raise CheckpointError(f"{path}: cannot read: {err}") from None
+    try:
+        return MissionCheckpoint.model_validate_json(text)
+    except ValidationError as err:
+        raise CheckpointError(describe_validation_error(err, str(path))) from None

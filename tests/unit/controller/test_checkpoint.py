@@ -1,0 +1,57 @@
+"""Mission checkpoints: a restarted controller resumes the same mission at the same leg."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from seaway_controller import checkpoint
+from seaway_controller.service import resume
+
+from tests.unit.controller.test_core import ScriptedSolver, make_core, mission, state
+
+
+def run_to_second_leg():
+    core = make_core(ScriptedSolver())
+    assert core.handle_mission(0, mission()).accepted
+    for k in range(5):
+        core.step(k * 100_000_000, state(k, x=2.0 + k))
+    core.step(6 * 100_000_000, state(6, x=7.5, y=0.0))  # inside P1's circle: leg 2 now
+    return core
+
+
+def test_progress_round_trips_through_the_file(tmp_path: Path) -> None:
+    core = run_to_second_leg()
+    req, leg, st, energy = core.progress()
+    assert (leg, st) == (2, "active") and energy > 0
+    path = tmp_path / "cp.json"
+    checkpoint.save(path, checkpoint.MissionCheckpoint(request=req.model_dump(mode="json"),
+                                                       active_leg=leg, state=st, energy_used_j=energy,
+                                                       saved_unix_ns=1))
+    fresh = make_core(ScriptedSolver())
+    resume(fresh, path, 10)
+    assert fresh.progress()[1:] == (2, "active", energy)
+    assert fresh.missions.leg() == ((8.0, 0.0), (5.13, 8.57))
+    assert not list(tmp_path.glob(".cp.json.*"))  # no temporary file left behind
+
+
+def test_finished_or_unreadable_checkpoints_start_idle(tmp_path: Path, caplog) -> None:
+    path = tmp_path / "cp.json"
+    core = make_core(ScriptedSolver())
+    resume(core, path, 0)  # no file: idle, silently
+    assert core.progress() is None
+    path.write_text("{ half a file")
+    resume(core, path, 0)
+    assert core.progress() is None and "ignoring the mission checkpoint" in caplog.text
+    good = dict(request=mission().model_dump(mode="json"), active_leg=2, state="complete",
+                energy_used_j=3.0, saved_unix_ns=1)
+    path.write_text(json.dumps(good))
+    resume(core, path, 0)
+    assert core.progress() is None  # a complete mission is not restarted
+    path.write_text(json.dumps({**good, "state": "active", "active_leg": 7}))
+    resume(core, path, 0)
+    assert core.missions.state == "idle" and "active leg 7 is not a leg" in caplog.text
+    path.write_text(json.dumps({**good, "state": "active", "activ_leg": 2}))
+    with pytest.raises(checkpoint.CheckpointError, match="activ_leg: unknown field"):
+        checkpoint.load(path)
