@@ -34,6 +34,23 @@ RUN_METADATA = "seaway.run"
 COMPRESSIONS = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
 
 
+def free_path(path: Path) -> Path:
+    """``path``, or ``<stem>.restart-<k>.mcap`` with the first free k: a recorder never overwrites a
+    file. The name sorts right after ``path`` (and before the next rotated file), so reading a run
+    folder in name order stays in time order.
+
+    A recorder restarted into the same run folder (the launcher restarts a crashed one) must leave
+    the earlier, possibly truncated, recording for ``seaway record recover``.
+    """
+    if not path.exists():
+        return path
+    for k in range(1, 100_000):
+        candidate = path.with_name(f"{path.stem}.restart-{k:03d}{path.suffix}")
+        if not candidate.exists():
+            return candidate
+    raise FileExistsError(f"no free file name next to {path}")
+
+
 @dataclass(frozen=True)
 class AttachmentSpec:
     """A file stored in every recording: ``name`` is ``<role>/<file name>`` (``scenario/paper-c1.toml``)."""
@@ -159,9 +176,9 @@ class RecordingWriter:
     # -- files ------------------------------------------------------------------------------
 
     def _next_path(self) -> Path:
-        if not self.rotating:
-            return self.base
-        return self.base.with_name(f"{self.base.stem}-{self._file_index:03d}{self.base.suffix}")
+        path = (self.base if not self.rotating else
+                self.base.with_name(f"{self.base.stem}-{self._file_index:03d}{self.base.suffix}"))
+        return free_path(path)
 
     def open(self, now_ns: int) -> Path:
         """Open the next file and write the attachments and run metadata into it."""
