@@ -70,11 +70,11 @@ def test_router_starts_declares_health_and_stops_quickly(procs: Procs, tmp_path:
     port = free_port()
     for sig in (signal.SIGINT, signal.SIGTERM):
         p = procs.start(router_cmd("--role", "boat", "--listen", f"tcp/127.0.0.1:{port}",
-                                   "--health", "launcher", "--vessel", VESSEL),
+                                   "--health", "router", "--vessel", VESSEL),
                         env=None, name=f"router-{sig.name}")
         s = peer("boat-client.json5", port)
         try:
-            health = f"seaway/{VESSEL}/health/launcher"
+            health = f"seaway/{VESSEL}/health/router"
             wait_for(lambda s=s, health=health: any(r.ok is not None
                                                     for r in s.liveliness().get(health, timeout=0.5)),
                      15, what="the router's health token")

@@ -234,7 +234,7 @@ def test_profile_starts_its_router_first(role: str) -> None:
     assert (ZENOH_DIR / profile.zenoh_config).is_file()
     router, *others = profile.processes
     assert router.command[:4] == ["seaway", "router", "--role", role]
-    assert router.service == "launcher"
+    assert router.service == "router"
     assert router.command[router.command.index("--health") + 1] == router.service
     assert router.restart == "on-failure" and router.required
     by_name = {p.name: p for p in profile.processes}

@@ -19,7 +19,8 @@ from typing import Literal
 from seaway import messages as m
 
 ROOT = "seaway"
-SERVICES = ("sim", "vehicle_io", "estimator", "controller", "groundstation", "recorder", "launcher")
+SERVICES = ("sim", "vehicle_io", "estimator", "controller", "groundstation", "recorder", "launcher",
+            "router")
 
 # A vessel name is one key chunk: no wildcards, separators or verbatim markers.
 _VESSEL_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")

@@ -18,7 +18,7 @@ file names); ``--cfg KEY=JSON5`` sets any other Zenoh key.
 
 The router logs every session and link that comes and goes (``router <zid> connected``,
 ``link up: tls/... <-> tls/... (..., authenticated as seaway-shore)``),
-optionally declares a health token (``--health launcher``, so ``seaway launch`` can wait for it),
+optionally declares a health token (``--health router``, so ``seaway launch`` can wait for it),
 and exits 0 within a second or two on SIGINT/SIGTERM. Exit 1: the router could not start (a port
 in use, an unreadable certificate); 2: a bad config or argument, or a TLS file missing.
 ``RUST_LOG=debug`` shows Zenoh's own log (why a TLS handshake was refused, for instance).

@@ -206,7 +206,7 @@ class EstimatorLoop:
 
 def _stats_line(core: EstimatorCore) -> str:
     c = core.counters.values
-    keys_ = ("gnss_accepted", "gnss_rejected", "heading_accepted", "heading_rejected",
+    keys_ = ("gnss_accepted", "gnss_rejected", "gnss_no_fix", "heading_accepted", "heading_rejected",
              "degraded_entered", "refused_non_finite", "too_old", "resets", "published")
     return ", ".join(f"{k} {c[k]}" for k in keys_)
 

@@ -95,8 +95,28 @@ class StatusLine:
             self._last_print = now
 
 
+LINK_WAIT_S = 20.0  # how long the start-up requests wait for vehicle_io's autopilot link
+
+
 def _operator_requests(bus: Bus, profile: Profile) -> bool:
-    """The profile's start-up mode and arming, as explicit requests with their replies shown."""
+    """The profile's start-up mode and arming, as explicit requests with their replies shown.
+
+    vehicle_io is ready when it serves requests, which can be before it has heard the autopilot;
+    so the requests wait for a VehicleStatus with the link up, as an operator would.
+    """
+    if not (profile.mode_on_start or profile.arm_on_start):
+        return True
+    status = bus.subscribe(keys.VEHICLE_STATUS, mode="latest")
+    deadline = time.monotonic() + LINK_WAIT_S
+    while True:
+        msg = status.get(0.5)
+        if msg is not None and msg.link_ok:
+            break
+        if time.monotonic() > deadline:
+            print(f"no autopilot link reported by vehicle_io within {LINK_WAIT_S:g} s; "
+                  "not sending mode or arming", flush=True)
+            return False
+    status.undeclare()
     if profile.mode_on_start:
         reply = bus.request(keys.VEHICLE_MODE, ModeRequest.make(stamp_ns=time.time_ns(),
                                                                 mode=profile.mode_on_start), timeout_s=10.0)
