@@ -23,6 +23,11 @@ PYTHON = sys.executable
 BIN = Path(PYTHON).parent
 
 
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addoption("--regen", action="store_true",
+                     help="re-record tests/replay/data/*.mcap from the live stack, then test against them")
+
+
 def free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
