@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from seaway.model import load_vessel, rk4_step
 from seaway_controller import costs
-from seaway_controller.ocp import EMPC_OBJECTIVE_SCALE, TIME_SCALE_S, Ocp, OcpSpec
+from seaway_controller.ocp import SCALE_LENGTH_M, TERMINAL_PENALTY, TIME_SCALE_S, Ocp, OcpSpec
 
 VP = load_vessel("paper-sim")
 ALPHA, XU, M33, NR, ARM = VP.alpha_w_per_n2, VP.xu_kgps, VP.m33_kgm2, VP.nr_kgm2ps, VP.arm_m
@@ -144,7 +144,13 @@ def test_nlp_objective_is_the_sum_of_the_terms(kind):
     x_h = list(w[ocp.x_index(ocp.spec.horizon)])
     hand = hand_terms(x_h, T_D, T_S, PREV, ACT, gate=1.0 if kind == "cc-empc" else 0.0)
     stage = sum((ALPHA * (a * a + b * b) + TW) * 0.1 for a, b in thrusts)
-    want = EMPC_OBJECTIVE_SCALE * (stage + hand["E_d"] + hand["E_s"] + hand["Y"])
+    # Scaled by E* = P* L* / u*, the energy to sail L* at the economic cruise u* (P* = 2 T^w there),
+    # plus the penalty on the terminal residual c, (rho / 2) (c / L*)^2.
+    u_star = math.sqrt(2 * TW / ALPHA) / XU
+    e_star = 2 * TW * SCALE_LENGTH_M / u_star
+    assert e_star == pytest.approx(98.8, abs=0.1)  # the former fixed scale 0.01 on this vessel
+    c = hand["constraint"] / SCALE_LENGTH_M
+    want = (stage + hand["E_d"] + hand["E_s"] + hand["Y"]) / e_star + 0.5 * TERMINAL_PENALTY * c * c
     assert float(ocp.objective_fn(w, p)) == pytest.approx(want, rel=1e-6)
     g = np.asarray(ocp.constraint_fn(w, p)).ravel()
     assert np.max(np.abs(g[:-1])) < 1e-12  # every gap closed (X_0 = x_init)

@@ -25,7 +25,27 @@ from seaway.model import VesselParams
 SINC_EPS = 1e-8
 """sinc(x) = sin(s)/s with s = sqrt(x^2 + SINC_EPS) [rad^2]: smooth and finite at 0."""
 ABS_EPS_M2 = 1e-6
-"""|e| = sqrt(e^2 + ABS_EPS_M2) [m^2] for the cross-track error."""
+"""|e| = sqrt(e^2 + eps) [m^2] for the cross-track error: eps = ABS_EPS_M2 on the paper's vessel."""
+ABS_EPS_REF_SPEED_MPS = 0.045
+"""The paper's economic cruise (reproduction.md, T^w row). Faster, the smoothing width sqrt(eps)
+(1 mm) grows with the cruise speed u*: ``abs_eps_m2``."""
+
+
+def abs_eps_m2(cruise_speed_mps: Any, ops: ModuleType = math) -> Any:
+    """The |e| smoothing eps [m^2] for a vessel cruising at ``cruise_speed_mps``.
+
+    1 mm wide (ABS_EPS_M2) up to the paper's cruise speed, proportionally wider above it: the
+    terminal position moves u* H dt per horizon, and a kink much narrower than the SQP's steps in it
+    makes the iterates oscillate across the line (measured on the lake scenario: 1 m/s cruise,
+    16 SQP iterations per step instead of 3-5).
+    """
+    ratio = cruise_speed_mps / ABS_EPS_REF_SPEED_MPS
+    return ABS_EPS_M2 * getattr(ops, "fmax", max)(1.0, ratio * ratio)
+
+
+def cruise_speed_mps(task_power_w: Any, p: VesselParams, ops: ModuleType = math) -> Any:
+    """The economic cruise u* = sqrt(T^w / (alpha Xu^2 / 2)) [m/s]: P^sur(u*) = T^w."""
+    return ops.sqrt(2.0 * task_power_w / p.alpha_w_per_n2) / p.xu_kgps
 DIST_EPS_M2 = 1e-6
 """distance = sqrt(dx^2 + dy^2 + DIST_EPS_M2) [m^2]."""
 
@@ -127,12 +147,13 @@ class TerminalTerms:
 
 def terminal_terms(x_h: Sequence[Any], t_d_s: Any, t_s_s: Any, wp_prev: Sequence[Any],
                    wp_active: Sequence[Any], task_power_w: Any, track_gate: Any, n: float,
-                   p: VesselParams, ops: ModuleType = math) -> TerminalTerms:
+                   p: VesselParams, ops: ModuleType = math, abs_eps: Any = None) -> TerminalTerms:
     """E_d = P_d t_d, E_s = P_s t_s, Y = e / u_H P^sur and the terminal constraint (section IV).
 
     ``x_h`` = [u, v, r, x, y, psi] at the end of the horizon; ``t_d_s``, ``t_s_s`` the dynamic and
     static times [s]; ``track_gate`` is 1 when the track cost applies (r_f > r_COA, decided once per
-    solve, reproduction.md item 2) and 0 otherwise.
+    solve, reproduction.md item 2) and 0 otherwise. ``abs_eps`` [m^2] smooths |e|; by default
+    ``abs_eps_m2`` at the task power's cruise speed.
     """
     u_h, v_h, r_h, x_m, y_m, psi = (x_h[i] for i in range(6))
     bearing = ops.atan2(wp_active[1] - y_m, wp_active[0] - x_m)
@@ -140,7 +161,9 @@ def terminal_terms(x_h: Sequence[Any], t_d_s: Any, t_s_s: Any, wp_prev: Sequence
     delta_psi = wrap_angle(bearing - ops.atan2(v_h, u_h) - psi, ops)
     dist = smooth_distance(wp_active[0] - x_m, wp_active[1] - y_m, ops)
     e_signed = signed_cross_track_m(x_m, y_m, wp_prev, wp_active, ops)
-    e_abs = ops.sqrt(e_signed * e_signed + ABS_EPS_M2)
+    if abs_eps is None:
+        abs_eps = abs_eps_m2(cruise_speed_mps(task_power_w, p, ops), ops)
+    e_abs = ops.sqrt(e_signed * e_signed + abs_eps)
     p_sur = surge_power_w(u_h, p)
     p_static = p_sur + task_power_w
     p_dyn = dynamic_power_w(u_h, r_h, delta_psi, t_d_s, task_power_w, n, p)

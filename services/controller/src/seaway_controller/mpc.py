@@ -100,7 +100,10 @@ class MpcController:
         ocp = self.ocp
         plan, age = self.last_good, self.plan_age(now_ns)
         if plan is None or age is None:
-            return ocp.cold_guess(p), np.zeros(ocp.nw), np.zeros(ocp.ng)
+            w, lg = ocp.cold_guess(p), np.zeros(ocp.ng)
+            if self.spec.is_empc:
+                lg[-1] = ocp.terminal_multiplier_guess(w, p)
+            return w, np.zeros(ocp.nw), lg
         r = plan.result
         w, lx, lg = r.w, r.lam_x, r.lam_g
         tau = p[P_TAU:P_TAU + 3]
@@ -115,7 +118,7 @@ class MpcController:
         if self.spec.is_empc and leg_key != plan.leg_key:
             ocp.guess_times(w, p)
             lx[ocp.i_time:ocp.i_time + 2] = 0.0
-            lg[-1] = 0.0
+            lg[-1] = ocp.terminal_multiplier_guess(w, p)
         return w, lx, lg
 
     def solve(self, now_ns: int, x0: np.ndarray, wp_prev: tuple[float, float],

@@ -11,9 +11,17 @@ that the SQP factorises at every iteration smaller::
 
 X = [u, v, r, x, y, psi] (body speeds, NED position and heading), U = [T1 port, T2 starboard] [N].
 
-Scaling (solver-notes.md, trap 1): the EMPCs optimise t/100 instead of t for t_d and t_s, and minimise
-the objective times 0.01, so that the SQP meets its absolute tolerances; every number reported is
-unscaled. tau_d is zero unless the controller is told to predict with the estimated disturbance.
+Scaling (solver-notes.md, trap 1), from the vessel and the mission's task power so that one NLP shape
+serves a 0.045 m/s lab model and a 1 m/s boat alike (``empc_scales``): the EMPCs optimise t/100
+instead of t for t_d and t_s, and minimise J / E* + (rho/2) (c / L*)^2, E* = P* L* / u* being the
+energy to sail L* = 4.5 m at the economic cruise u* (P* = T^w + P^sur(u*) = 2 T^w; E* = 98.8 J on the
+paper's vessel, where this is the former fixed 0.01, and 2232 J on the lake boat) and c the terminal
+constraint's residual. The penalty is zero, with a zero gradient, at every feasible point, so the
+optimum and its multipliers are those of the paper's problem; it makes the terminal block of the
+Hessian (bilinear in u_H and t_s) positive definite, so that eigen-clip leaves it alone instead of
+clipping a negative eigenvalue (linear convergence at rate ~0.8, measured on the lake). Every number
+reported is unscaled. tau_d is zero unless the controller is told to predict with the estimated
+disturbance.
 """
 
 from __future__ import annotations
@@ -37,8 +45,25 @@ CONTROLLER_KINDS: tuple[ControllerKind, ...] = ("cc-empc", "eo-empc", "nmpc")
 
 TIME_SCALE_S = 100.0
 """t_d and t_s enter the NLP as t / TIME_SCALE_S (solver-notes.md, trap 1)."""
-EMPC_OBJECTIVE_SCALE = 0.01
-"""The EMPC objective in the NLP is J [J] times this (solver-notes.md, trap 1)."""
+SCALE_LENGTH_M = 4.5
+"""L*: the EMPC objective's energy unit is the energy to sail this far at cruise (module docstring)."""
+TERMINAL_PENALTY = 1.0
+"""rho: weight of (c / L*)^2 / 2 in the scaled EMPC objective (zero at feasible points)."""
+MIN_SCALE_SPEED_MPS = 0.01
+"""u* used for scaling is at least this, so that a zero task power still gives finite scales."""
+
+
+def empc_scales(task_power_w, vessel: VesselParams, ops=math):
+    """(u* [m/s], E* [J]) for the EMPC scaling; numbers with ``math``, expressions with ``casadi``."""
+    u_star = getattr(ops, "fmax", max)(costs.cruise_speed_mps(task_power_w, vessel, ops),
+                                       MIN_SCALE_SPEED_MPS)
+    p_star = task_power_w + costs.surge_power_w(u_star, vessel)
+    return u_star, p_star * SCALE_LENGTH_M / u_star
+
+
+def empc_objective_scale(task_power_w: float, vessel: VesselParams) -> float:
+    """1 / E*: the scaled NLP objective is J times this, plus the (zero when feasible) penalty."""
+    return 1.0 / empc_scales(task_power_w, vessel)[1]
 NP = 15
 """Length of the parameter vector p (module docstring)."""
 P_X0, P_PREV, P_ACTIVE, P_GATE, P_TASK, P_TAU = 0, 6, 8, 10, 11, 12
@@ -90,8 +115,11 @@ def spec_digest(spec: OcpSpec, vessel: VesselParams, extra: dict | None = None) 
 class Ocp:
     """One problem: the NLP, its bounds, and index helpers for guesses and warm starts."""
 
-    def __init__(self, spec: OcpSpec, vessel: VesselParams) -> None:
-        self.spec, self.vessel = spec, vessel
+    def __init__(self, spec: OcpSpec, vessel: VesselParams, scaled: bool = True) -> None:
+        """``scaled=False`` builds the paper's problem as written (J in joules, times in seconds, no
+        penalty): the same optimum, badly conditioned; the tests solve it with IPOPT as a reference."""
+        self.spec, self.vessel, self.scaled = spec, vessel, scaled
+        self.time_scale_s = TIME_SCALE_S if scaled else 1.0
         h = spec.horizon
         self.stage = NU + NX  # block k = [U_k, X_{k+1}]
         self.i_time = h * self.stage
@@ -126,7 +154,8 @@ class Ocp:
         """(t_d, t_s) [s], unscaled; None for the NMPC."""
         if not self.spec.is_empc:
             return None
-        return float(w[self.i_time] * TIME_SCALE_S), float(w[self.i_time + 1] * TIME_SCALE_S)
+        ts = self.time_scale_s
+        return float(w[self.i_time] * ts), float(w[self.i_time + 1] * ts)
 
     # -- the NLP -------------------------------------------------------------------------------
 
@@ -148,12 +177,18 @@ class Ocp:
             else:
                 stage += costs.nmpc_stage_cost(xs[k + 1], us[k], wp_act, s.nmpc, ca)
         if s.is_empc:
-            t_d = w[self.i_time] * TIME_SCALE_S
-            t_s = w[self.i_time + 1] * TIME_SCALE_S
+            t_d = w[self.i_time] * self.time_scale_s
+            t_s = w[self.i_time + 1] * self.time_scale_s
             gate_used = gate if s.kind == "cc-empc" else 0.0
             term = costs.terminal_terms(xs[-1], t_d, t_s, wp_prev, wp_act, task, gate_used,
                                         s.profile_n, vp, ca)
-            objective = EMPC_OBJECTIVE_SCALE * (stage + term.dynamic_j + term.static_j + term.track_j)
+            energy = stage + term.dynamic_j + term.static_j + term.track_j
+            if self.scaled:
+                _, e_star = empc_scales(task, vp, ca)
+                c_rel = term.constraint_m / SCALE_LENGTH_M
+                objective = energy / e_star + 0.5 * TERMINAL_PENALTY * c_rel * c_rel
+            else:
+                objective = energy
             g.append(term.constraint_m)
         else:
             objective = stage
@@ -170,7 +205,8 @@ class Ocp:
         if s.is_empc:
             for k in range(1, s.horizon + 1):
                 lbw[self.x_index(k).start] = s.u_min_mps
-            lbw[self.i_time], ubw[self.i_time] = s.t_d_min_s / TIME_SCALE_S, s.t_d_max_s / TIME_SCALE_S
+            lbw[self.i_time] = s.t_d_min_s / self.time_scale_s
+            ubw[self.i_time] = s.t_d_max_s / self.time_scale_s
             lbw[self.i_time + 1] = 0.0
         self.lbw, self.ubw = lbw, ubw
         self.lbg = np.zeros(self.ng)
@@ -220,19 +256,41 @@ class Ocp:
         return w
 
     def guess_times(self, w: np.ndarray, p: np.ndarray) -> None:
-        """Set t_d, t_s in ``w`` from its terminal state: t_d from the turn left, t_s from eq. 15d."""
-        s = self.spec
-        x_h = w[self.x_index(s.horizon)]
-        wp_prev = p[P_PREV:P_PREV + 2]
-        wp_act = p[P_ACTIVE:P_ACTIVE + 2]
-        term = costs.terminal_terms(x_h, 1.0, 0.0, wp_prev, wp_act, 0.0, 0.0, s.profile_n,
-                                    self.vessel, math)
-        u_h = max(float(x_h[0]), s.u_min_mps)
-        # A turn of Delta psi takes roughly 10 s per radian at these speeds; clamp to the bounds.
-        t_d = min(max(1.0 + 10.0 * abs(term.delta_psi_rad), s.t_d_min_s), s.t_d_max_s)
-        t_s = max(0.0, term.distance_m / u_h - t_d * costs.smooth_sinc(term.delta_psi_rad))
-        w[self.i_time] = t_d / TIME_SCALE_S
-        w[self.i_time + 1] = t_s / TIME_SCALE_S
+        """Set t_d, t_s in ``w`` from its terminal state, by the terminal cost itself.
+
+        t_d minimises E_d + E_s = P_d(t_d) t_d + P_s t_s over a log grid of [t_d_min, t_d_max], t_s
+        following from eq. 15d (t_s = d / u_H - t_d sinc(Delta psi) >= 0): a turn's best duration
+        depends on the vessel and its speed (about 5 s on the paper's 0.045 m/s model, 1.5 s on the
+        1 m/s lake boat), so no fixed seconds-per-radian rule fits both.
+        """
+        s, vp = self.spec, self.vessel
+        task = float(p[P_TASK])
+        x_h = [float(v) for v in w[self.x_index(s.horizon)]]
+        term = costs.terminal_terms(x_h, 1.0, 0.0, p[P_PREV:P_PREV + 2], p[P_ACTIVE:P_ACTIVE + 2],
+                                    task, 0.0, s.profile_n, vp, math)
+        u_h = max(x_h[0], s.u_min_mps)
+        sinc = costs.smooth_sinc(term.delta_psi_rad)
+        reach_s = term.distance_m / u_h
+        grid = np.geomspace(s.t_d_min_s, s.t_d_max_s, 48)
+        t_s = reach_s - grid * sinc
+        energy = (costs.dynamic_power_w(u_h, x_h[2], term.delta_psi_rad, grid, task, s.profile_n, vp)
+                  * grid + (costs.surge_power_w(u_h, vp) + task) * np.maximum(t_s, 0.0))
+        energy[t_s < 0.0] = np.inf  # eq. 15d needs t_s >= 0
+        t_d = float(grid[int(np.argmin(energy))]) if np.isfinite(energy).any() else s.t_d_min_s
+        w[self.i_time] = t_d / self.time_scale_s
+        w[self.i_time + 1] = max(0.0, reach_s - t_d * sinc) / self.time_scale_s
+
+    def terminal_multiplier_guess(self, w: np.ndarray, p: np.ndarray) -> float:
+        """The terminal constraint's multiplier at the guess ``w``: stationarity in t_s (interior).
+
+        d/dt_s [J / E* + lambda c] = P_s / E* + lambda u_H = 0 (the penalty's gradient is zero at a
+        feasible point), so lambda = -P_s / (E* u_H); a better start than 0 after a waypoint switch.
+        """
+        task = float(p[P_TASK])
+        u_h = max(float(w[self.x_index(self.spec.horizon).start]), self.spec.u_min_mps)
+        p_static = costs.surge_power_w(u_h, self.vessel) + task
+        scale = empc_objective_scale(task, self.vessel) if self.scaled else 1.0
+        return -p_static * scale / u_h
 
     def shift(self, w: np.ndarray, lam_x: np.ndarray, lam_g: np.ndarray, tau_d: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -254,5 +312,5 @@ class Ocp:
         # Costates: gap k takes gap k+1's multipliers; the last gap keeps its own.
         lg2[: NX * (h - 1)] = lam_g[NX: NX * h]
         if s.is_empc:
-            w2[self.i_time + 1] = max(0.0, w[self.i_time + 1] - s.dt_s / TIME_SCALE_S)
+            w2[self.i_time + 1] = max(0.0, w[self.i_time + 1] - s.dt_s / self.time_scale_s)
         return w2, lx2, lg2

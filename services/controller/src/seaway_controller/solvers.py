@@ -134,7 +134,8 @@ def build_shared_object(ocp: Ocp, options: dict, directory: Path | None = None) 
     directory = directory or cache_dir()
     # This module's source is hashed too: the patch above is part of what gets compiled.
     this = hashlib.sha256(Path(__file__).read_bytes()).hexdigest()
-    digest = spec_digest(ocp.spec, ocp.vessel, {"options": options, "cc": CC_FLAGS, "patch": this})
+    digest = spec_digest(ocp.spec, ocp.vessel, {"options": options, "cc": CC_FLAGS, "patch": this,
+                                                "scaled": ocp.scaled})
     target = directory / f"{ocp.spec.kind}-{digest}.so"
     if target.is_file():
         return target
