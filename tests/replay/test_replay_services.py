@@ -107,7 +107,8 @@ def test_estimator_reproduces_every_recorded_state_exactly(golden) -> None:
 def test_controller_reproduces_every_recorded_command(golden) -> None:
     _, scenario, rec = golden
     sc = load_scenario(scenario)
-    core = ControllerCore(load_vessel(sc.vessel), ControllerConfig(solver="generated"))
+    # Pinned: the generated solver, and no wall-clock lateness (as the lockstep service runs).
+    core = ControllerCore(load_vessel(sc.vessel), ControllerConfig(solver="generated", solve_budget_s=None))
     o = sc.origin
     core.set_origin(GeoOrigin(math.radians(o.lat_deg), math.radians(o.lon_deg), o.alt_m))
     assert core.handle_mission(0, scenario_mission_request(sc)).accepted

@@ -213,6 +213,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                               los_steps=args.los_steps,
                               predict_disturbance=args.predict_disturbance,
                               dt_s=1.0 / args.rate_hz,
+                              # Lockstep waits for every command, so a slow solve is never late,
+                              # and a batch run must not depend on how busy the machine was.
+                              solve_budget_s=None if args.lockstep else 1.0 / args.rate_hz,
                               limits=MissionLimits(max_range_m=args.max_range_m))
     core = ControllerCore(vessel, config)
     with run_service(NAME, args) as ctx:
