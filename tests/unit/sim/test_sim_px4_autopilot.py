@@ -323,3 +323,17 @@ def test_each_fix_goes_out_as_gps_raw_int_then_global_position_int() -> None:
     assert raw.time_usec == 1_000_000 and pos.time_boot_ms == 1000  # since boot = stamp - epoch
     assert (raw.lat, raw.lon) == (pos.lat, pos.lon) == (470000000, 80000000)
     assert raw.vel == 50 and raw.cog == round(math.degrees(math.atan2(0.4, 0.3)) * 100)
+
+
+def test_boot_parameters_from_the_command_line() -> None:
+    from seaway_sim.main import parse_params
+
+    ap = Px4Autopilot(Px4Config(thrust_max_n=10.0,
+                                param_overrides=parse_params(["NAV_RCL_ACT=1", "COM_RC_LOSS_T=0.3"])))
+    assert (ap.params.get("NAV_RCL_ACT"), ap.params.get("COM_RC_LOSS_T")) == (1, 0.3)
+    with pytest.raises(ValueError, match="unknown parameter 'BOGUS'"):
+        Px4Autopilot(Px4Config(thrust_max_n=10.0, param_overrides=parse_params(["BOGUS=1"])))
+    with pytest.raises(ValueError, match=r"NAV_RCL_ACT: 9(\.0)? outside \[1, 6\]"):
+        Px4Autopilot(Px4Config(thrust_max_n=10.0, param_overrides=parse_params(["NAV_RCL_ACT=9"])))
+    with pytest.raises(ValueError, match="NAME=VALUE"):
+        parse_params(["NAV_RCL_ACT"])

@@ -55,7 +55,23 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--step", type=_positive, default=DEFAULT_STEP_S,
                    help="real time: plant and MAVLink tick [s] (default 0.01)")
     p.add_argument("--sysid", type=int, default=1, help="real time: MAVLink system id (default 1)")
+    p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
+                   help="real time: set a simulated PX4 parameter at boot (repeatable), e.g. NAV_RCL_ACT=1")
     return p
+
+
+def parse_params(items: Sequence[str]) -> tuple[tuple[str, float], ...]:
+    """``NAME=VALUE`` items -> overrides; the autopilot's ParamStore checks names, types, ranges."""
+    out = []
+    for item in items:
+        name, sep, value = item.partition("=")
+        try:
+            if not sep:
+                raise ValueError
+            out.append((name.strip(), float(value)))
+        except ValueError:
+            raise ConfigError(f"--param wants NAME=VALUE with a number, got {item!r}") from None
+    return tuple(out)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -63,6 +79,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         scenario, vessel = load_world(args.scenario)
     except ConfigError as err:
+        print(f"seaway-sim: {err}", file=sys.stderr)
+        return 2
+    try:
+        params = parse_params(args.param)
+        Px4Autopilot(Px4Config(thrust_max_n=1.0, param_overrides=params))  # validates them now
+    except (ConfigError, ValueError) as err:
         print(f"seaway-sim: {err}", file=sys.stderr)
         return 2
     if not 1 <= args.sysid <= 255:
@@ -86,7 +108,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             ctx.ready()
             lockstep.run()
         else:
-            autopilot = Px4Autopilot(Px4Config(thrust_max_n=vessel.thrust_max_n, sysid=args.sysid))
+            autopilot = Px4Autopilot(Px4Config(thrust_max_n=vessel.thrust_max_n, sysid=args.sysid,
+                                               param_overrides=params))
             try:
                 realtime = Realtime(app, autopilot, link, args.step, args.period, ctx.stop, boot_ns)
                 ctx.ready()
