@@ -78,6 +78,11 @@ def load_vessel(name_or_path: str | Path) -> VesselParams:
     return load_config(p, VesselParams)
 
 
+def world_to_body(north: Any, east: Any, cos_psi: Any, sin_psi: Any) -> tuple[Any, Any]:
+    """A world-frame (NED) horizontal vector in the body frame: R(psi)^T [north, east] (eq. 2)."""
+    return cos_psi * north + sin_psi * east, -sin_psi * north + cos_psi * east
+
+
 def derivative(
     x: Sequence[Any],
     thrust: Sequence[Any],
@@ -94,10 +99,8 @@ def derivative(
     u, v, r, _, _, psi = (x[i] for i in range(NX))
     t1, t2 = thrust[0], thrust[1]
     c, s = ops.cos(psi), ops.sin(psi)
-    # World-frame force into the body frame: R(psi)^T [Fx, Fy].
-    fu = tau_body[0] + c * force_ne[0] + s * force_ne[1]
-    fv = tau_body[1] - s * force_ne[0] + c * force_ne[1]
-    fr = tau_body[2]
+    wu, wv = world_to_body(force_ne[0], force_ne[1], c, s)
+    fu, fv, fr = tau_body[0] + wu, tau_body[1] + wv, tau_body[2]
     m11, m22, m33 = p.m11_kg, p.m22_kg, p.m33_kgm2
     u_dot = (t1 + t2 + m22 * v * r - p.xu_kgps * u + fu) / m11
     v_dot = (-m11 * u * r - p.yv_kgps * v + fv) / m22

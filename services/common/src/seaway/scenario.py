@@ -34,6 +34,7 @@ from pydantic import Field, model_validator
 
 from seaway.config import ConfigError, ConfigModel, deploy_path, parse_config, read_document
 from seaway.messages import MissionRequest, Waypoint
+from seaway.model import world_to_body
 
 AIR_DENSITY_KGPM3 = 1.225
 
@@ -308,7 +309,5 @@ class DisturbanceModel:
 def body_force(tau_body: tuple[float, float, float], force_ne: tuple[float, float],
                psi_rad: float) -> tuple[float, float, float]:
     """Total disturbance in the body frame at heading ``psi`` (what ``sim/disturbance`` reports)."""
-    c, s = math.cos(psi_rad), math.sin(psi_rad)
-    return (tau_body[0] + c * force_ne[0] + s * force_ne[1],
-            tau_body[1] - s * force_ne[0] + c * force_ne[1],
-            tau_body[2])
+    wu, wv = world_to_body(force_ne[0], force_ne[1], math.cos(psi_rad), math.sin(psi_rad))
+    return tau_body[0] + wu, tau_body[1] + wv, tau_body[2]
