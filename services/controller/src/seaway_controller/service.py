@@ -28,8 +28,9 @@ import logging
 import math
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any
 
 from seaway import keys
 from seaway.clock import RateLoop
@@ -97,18 +98,16 @@ class ControllerService:
         bus.subscribe(keys.NAV_ORIGIN, callback=self.on_origin)
 
     def on_mission(self, req: MissionRequest) -> Reply:
-        with self.lock:
-            reply = self.core.handle_mission(self.ctx.clock.now_ns(), req)
-        log.info("mission/set %r: %s %s", req.mission_id,
-                 "accepted" if reply.accepted else "REFUSED", reply.reason)
-        self.save_checkpoint(force=True)
-        return reply
+        return self._serve(f"mission/set {req.mission_id!r}", self.core.handle_mission, req)
 
     def on_command(self, cmd: MissionCommand) -> Reply:
+        return self._serve(f"mission/command {cmd.command}", self.core.handle_command, cmd)
+
+    def _serve(self, what: str, handle: Callable[[int, Any], Reply], request: Any) -> Reply:
+        """One mission request: the core decides under the lock, the reply is logged, progress saved."""
         with self.lock:
-            reply = self.core.handle_command(self.ctx.clock.now_ns(), cmd)
-        log.info("mission/command %s: %s %s", cmd.command,
-                 "accepted" if reply.accepted else "REFUSED", reply.reason)
+            reply = handle(self.ctx.clock.now_ns(), request)
+        log.info("%s: %s %s", what, "accepted" if reply.accepted else "REFUSED", reply.reason)
         self.save_checkpoint(force=True)
         return reply
 
