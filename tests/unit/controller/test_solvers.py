@@ -14,6 +14,7 @@ from seaway_controller.solvers import (
     SQP_OPTIONS,
     GeneratedSqpSolver,
     IpoptSolver,
+    _patch_kkt_reuse,
     build_shared_object,
     patch_generated_source,
 )
@@ -112,3 +113,34 @@ def test_patch_tags_every_error_return_of_the_real_generated_code(tmp_path):
     assert patched.count("seaway_stats[3] = 1.0; return 1;") >= 3  # f/g, Hessian, final eval
     assert "seaway_stats[0] = (casadi_real) iter_count" in patched
     assert patched.rstrip().endswith("{ return seaway_stats; }")
+
+
+def test_kkt_reuse_patch_refuses_unknown_code_shapes():
+    with pytest.raises(RuntimeError, match="KKT reuse patch"):
+        _patch_kkt_reuse("int main(void) { return 0; }\n", 10)
+
+
+def test_kkt_reuse_gives_bit_identical_solves_and_skips_factorisations(tmp_path):
+    # A short closed loop on the paper's first leg, every solve warm-started from the previous one
+    # as the controller does: the patched and the unpatched qrqp must agree bit for bit, and the
+    # patched one must actually have skipped factorisations (else the patch is dead code).
+    ocp = Ocp(OcpSpec("cc-empc"), VP)
+    reuse = GeneratedSqpSolver(ocp, directory=tmp_path)
+    plain = GeneratedSqpSolver(ocp, directory=tmp_path, kkt_reuse=False)
+    assert reuse.path != plain.path and plain.kkt_counts() is None
+    done0, reused0 = reuse.kkt_counts()
+    x0 = np.array([0.03, 0.0, 0.0, 0.5, 0.4, 0.2])
+    p = ocp.parameters(x0, (0.0, 0.0), (8.0, 0.0), True, 0.49)
+    w, lam_x, lam_g = ocp.cold_guess(p), np.zeros(ocp.nw), np.zeros(ocp.ng)
+    for _ in range(15):
+        a, b = reuse.solve(w, p, lam_x, lam_g), plain.solve(w, p, lam_x, lam_g)
+        assert a.success and b.success, (a.status, b.status)
+        assert a.iterations == b.iterations
+        np.testing.assert_array_equal(a.w, b.w)
+        np.testing.assert_array_equal(a.lam_g, b.lam_g)
+        np.testing.assert_array_equal(a.lam_x, b.lam_x)
+        x0 = ocp.states(a.w, x0)[1]  # the plan's next state becomes the measured one
+        p = ocp.parameters(x0, (0.0, 0.0), (8.0, 0.0), True, 0.49)
+        w, lam_x, lam_g = ocp.shift(a.w, a.lam_x, a.lam_g, np.zeros(3))
+    done, reused = reuse.kkt_counts()
+    assert done > done0 and reused > reused0

@@ -6,6 +6,13 @@ it stops silently at waypoint turns), generated as C, compiled once with ``gcc -
 hash of the problem and the options, then called through ctypes so that the outputs survive a
 failed solve and the call costs microseconds.
 
+qrqp re-forms and re-factorises its KKT matrix at every active-set iteration, also when the active
+set did not change, so that a QP which converges in one step pays for two sparse QR factorisations.
+The generated C is patched to keep the last factorisation while the QP's active pattern is unchanged
+(``_patch_kkt_reuse``): the same matrix gives the same factors, so the results are bit for bit those of
+the unpatched code, and a CC-EMPC step costs about 25 % less (measured: 0.170 -> 0.127 ms median on
+paper condition #1, identical closed loop).
+
 Success is decided from this call's own results, never from a stale status (trap 3): the generated
 function's return flag, plus the primal and dual infeasibilities of the returned point as the
 solver's own convergence test computed them. CasADi 3.8's generated ``sqpmethod`` returns 0 at its
@@ -39,7 +46,10 @@ from seaway_controller.ocp import NP, Ocp, spec_digest
 log = logging.getLogger("seaway_controller.solvers")
 
 ENV_CACHE_DIR = "SEAWAY_CACHE_DIR"
-CC_FLAGS = ("-O3", "-fPIC", "-shared")
+CC_FLAGS = ("-O3", "-fPIC", "-shared", "-fno-semantic-interposition")
+"""-fno-semantic-interposition: the generated helpers (casadi_qr, casadi_cvx, ...) are global symbols;
+without it every call between them goes through the PLT and none is inlined (measured: 4 % of a
+CC-EMPC step, identical results)."""
 SYMBOL = "seaway_nlp"
 N_IN, N_OUT = 8, 6  # x0, p, lbx, ubx, lbg, ubg, lam_x0, lam_g0 -> x, f, g, lam_x, lam_g, lam_p
 
@@ -125,8 +135,79 @@ def patch_generated_source(src: str) -> str:
     return src + _STATS_EXPORT
 
 
-def build_shared_object(ocp: Ocp, options: dict, directory: Path | None = None) -> Path:
+_FACTORIZE_BODY = """  casadi_qrqp_kkt(d);
+  casadi_qr(p->sp_kkt, d->nz_kkt, d->w, p->sp_v, d->nz_v, p->sp_r,
+            d->nz_r, d->beta, p->prinv, p->pc);
+  d->sing = casadi_qr_singular(&d->mina, &d->imina, d->nz_r, p->sp_r, p->pc, 1e-12);
+}"""
+_RESET_HEAD = "int casadi_qrqp_reset(struct casadi_qrqp_data* d) {\n  casadi_int i;\n"
+_SINGULAR_HEAD = ("int casadi_qrqp_singular_step(struct casadi_qrqp_data* d) {\n"
+                  "  casadi_real tau_test, tau;\n"
+                  "  casadi_int nnz_kkt, nk, k, i, best_k, best_neg, neg;\n"
+                  "  const struct casadi_qrqp_prob* p = d->prob;\n")
+_KKT_CACHE_DECL = """/* seaway: the active pattern (lam != 0) of the last KKT factorisation in this QP,
+   and what the factorisation computed besides the factors; counts: factorised, reused. */
+#define SEAWAY_KKT_NZ {nz}
+static int seaway_kkt_valid = 0;
+static char seaway_kkt_active[SEAWAY_KKT_NZ];
+static int seaway_kkt_sing;
+static casadi_real seaway_kkt_mina;
+static casadi_int seaway_kkt_imina;
+static casadi_real seaway_kkt_counts[2] = {{0.0, 0.0}};
+"""
+_KKT_CACHED_FACTORIZE = """  /* seaway: the KKT matrix depends on H, A (fixed within one QP) and on which
+     lam are zero; if that pattern was factorised last, d still holds its factors. */
+  if (seaway_kkt_valid && p->qp->nz <= SEAWAY_KKT_NZ) {
+    casadi_int i_;
+    for (i_ = 0; i_ < p->qp->nz; ++i_) if (seaway_kkt_active[i_] != (d->lam[i_] != 0)) break;
+    if (i_ == p->qp->nz) {
+      d->sing = seaway_kkt_sing;
+      d->mina = seaway_kkt_mina;
+      d->imina = seaway_kkt_imina;
+      seaway_kkt_counts[1] += 1.0;
+      return;
+    }
+  }
+""" + _FACTORIZE_BODY[:-2] + """
+  seaway_kkt_counts[0] += 1.0;
+  if (p->qp->nz <= SEAWAY_KKT_NZ) {
+    casadi_int i_;
+    for (i_ = 0; i_ < p->qp->nz; ++i_) seaway_kkt_active[i_] = d->lam[i_] != 0;
+    seaway_kkt_sing = d->sing;
+    seaway_kkt_mina = d->mina;
+    seaway_kkt_imina = d->imina;
+    seaway_kkt_valid = 1;
+  }
+}"""
+_KKT_EXPORT = ("\nCASADI_SYMBOL_EXPORT casadi_real* seaway_kkt_stats(void) "
+               "{ return seaway_kkt_counts; }\n")
+
+
+def _patch_kkt_reuse(src: str, nz: int) -> str:
+    """Make qrqp skip re-factorising an unchanged KKT matrix (see the module docstring).
+
+    The cache is invalidated where the QP data change (``casadi_qrqp_reset``, once per QP) and where
+    the factors are overwritten (``casadi_qrqp_singular_step`` factorises the transposed matrix).
+    ``nz`` = variables + constraints; a larger QP is never cached (the guard in C).
+    """
+    for anchor, what in ((_FACTORIZE_BODY, "KKT factorisation"), (_RESET_HEAD, "QP reset"),
+                         (_SINGULAR_HEAD, "singular step")):
+        if src.count(anchor) != 1:
+            raise RuntimeError(f"generated qrqp code has an unexpected shape ({what} not found once); "
+                               f"CasADi {ca.__version__} is not supported by the KKT reuse patch")
+    src = src.replace(_FACTORIZE_BODY, _KKT_CACHED_FACTORIZE)
+    src = src.replace(_RESET_HEAD, _RESET_HEAD + "  seaway_kkt_valid = 0;\n")
+    src = src.replace(_SINGULAR_HEAD, _SINGULAR_HEAD + "  seaway_kkt_valid = 0;\n")
+    at = src.index(_RESET_HEAD)
+    src = src[:at] + _KKT_CACHE_DECL.format(nz=nz) + src[at:]
+    return src + _KKT_EXPORT
+
+
+def build_shared_object(ocp: Ocp, options: dict, directory: Path | None = None,
+                        kkt_reuse: bool = True) -> Path:
     """Generate, patch and compile the SQP solver for ``ocp``; cached by a hash of both.
+
+    ``kkt_reuse=False`` leaves qrqp as CasADi generates it (the tests compare the two).
 
     Safe with concurrent processes: each builds in its own temporary folder and moves the result into
     place with an atomic rename; whoever finishes last replaces an identical file.
@@ -135,7 +216,8 @@ def build_shared_object(ocp: Ocp, options: dict, directory: Path | None = None) 
     # This module's source is hashed too: the patch above is part of what gets compiled.
     this = hashlib.sha256(Path(__file__).read_bytes()).hexdigest()
     digest = spec_digest(ocp.spec, ocp.vessel, {"options": options, "cc": CC_FLAGS, "patch": this,
-                                                "scaled": ocp.scaled})
+                                                "scaled": ocp.scaled, "kkt_reuse": kkt_reuse,
+                                                "graph": ocp.graph})
     target = directory / f"{ocp.spec.kind}-{digest}.so"
     if target.is_file():
         return target
@@ -150,7 +232,10 @@ def build_shared_object(ocp: Ocp, options: dict, directory: Path | None = None) 
         gen.add(solver)
         gen.generate(f"{tmp}{os.sep}")  # the prefix is the folder: no chdir, thread-safe
         c_file = Path(tmp) / "solver.c"
-        c_file.write_text(patch_generated_source(c_file.read_text()))
+        src = patch_generated_source(c_file.read_text())
+        if kkt_reuse:
+            src = _patch_kkt_reuse(src, ocp.nw + ocp.ng)
+        c_file.write_text(src)
         so_tmp = Path(tmp) / "solver.so"
         proc = subprocess.run([cc, *CC_FLAGS, str(c_file), "-o", str(so_tmp), "-lm"],
                               capture_output=True, text=True, check=False)
@@ -173,6 +258,7 @@ class _Library:
     fn: Any
     mem: int
     stats: Any
+    kkt_stats: Any  # [factorised, reused] since loading, or None without the KKT reuse patch
     sizes: tuple[int, int, int, int]
     lock: threading.Lock
 
@@ -201,7 +287,11 @@ def _load_library(path: Path) -> _Library:
             raise RuntimeError(f"{path.name}: no memory slot available")
         stats = lib.seaway_solver_stats
         stats.restype = ctypes.POINTER(ctypes.c_double)
-        loaded = _Library(fn, mem, stats(), tuple(s.value for s in sizes),  # type: ignore[arg-type]
+        kkt_stats = getattr(lib, "seaway_kkt_stats", None)
+        if kkt_stats is not None:
+            kkt_stats.restype = ctypes.POINTER(ctypes.c_double)
+        loaded = _Library(fn, mem, stats(), kkt_stats() if kkt_stats is not None else None,
+                          tuple(s.value for s in sizes),  # type: ignore[arg-type]
                           threading.Lock())
         _LIBRARIES[key] = loaded
         return loaded
@@ -211,11 +301,11 @@ class GeneratedSqpSolver:
     """The compiled SQP, called through ctypes with preallocated buffers."""
 
     def __init__(self, ocp: Ocp, options: dict | None = None,
-                 directory: Path | None = None) -> None:
+                 directory: Path | None = None, kkt_reuse: bool = True) -> None:
         self.ocp = ocp
         self.options = dict(SQP_OPTIONS if options is None else options)
         self.name = f"{ocp.spec.kind}/sqp-qrqp-generated"
-        self.path = build_shared_object(ocp, self.options, directory)
+        self.path = build_shared_object(ocp, self.options, directory, kkt_reuse)
         self._lib = _load_library(self.path)
         self._fn, self._stats = self._lib.fn, self._lib.stats
         sz_arg, sz_res, sz_iw, sz_w = self._lib.sizes
@@ -238,6 +328,11 @@ class GeneratedSqpSolver:
                            self._iw.ctypes.data, self._w.ctypes.data, self._lib.mem)
         self.tol_pr = float(self.options.get("tol_pr", SQP_TOL))
         self.tol_du = float(self.options.get("tol_du", SQP_TOL))
+
+    def kkt_counts(self) -> tuple[int, int] | None:
+        """(KKT factorisations done, reused) by this library since it was loaded; None if unpatched."""
+        k = self._lib.kkt_stats
+        return None if k is None else (int(k[0]), int(k[1]))
 
     def solve(self, w0: np.ndarray, p: np.ndarray, lam_x0: np.ndarray,
               lam_g0: np.ndarray) -> SolveResult:
