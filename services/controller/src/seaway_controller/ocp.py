@@ -120,10 +120,20 @@ def spec_digest(spec: OcpSpec, vessel: VesselParams, extra: dict | None = None) 
 class Ocp:
     """One problem: the NLP, its bounds, and index helpers for guesses and warm starts."""
 
-    def __init__(self, spec: OcpSpec, vessel: VesselParams, scaled: bool = True) -> None:
+    def __init__(self, spec: OcpSpec, vessel: VesselParams, scaled: bool = True,
+                 graph: str = "SX") -> None:
         """``scaled=False`` builds the paper's problem as written (J in joules, times in seconds, no
-        penalty): the same optimum, badly conditioned; the tests solve it with IPOPT as a reference."""
-        self.spec, self.vessel, self.scaled = spec, vessel, scaled
+        penalty): the same optimum, badly conditioned; the tests solve it with IPOPT as a reference.
+
+        ``graph``: "SX" (default) builds the NLP as one scalar expression graph, which is what the
+        generated solver needs and what ``nlpsol``'s ``expand`` option would produce. "MX" builds
+        the same expressions as a matrix graph that calls the RK4 step function once per stage, the
+        way CasADi's Opti stack and its multiple-shooting examples do: the baseline that
+        ``seaway bench controller`` calls plain IPOPT (solver-notes.md counts expanding to SX as a
+        tuning step)."""
+        if graph not in ("SX", "MX"):
+            raise ValueError(f"graph must be 'SX' or 'MX', not {graph!r}")
+        self.spec, self.vessel, self.scaled, self.graph = spec, vessel, scaled, graph
         self.time_scale_s = TIME_SCALE_S if scaled else 1.0
         h = spec.horizon
         self.stage = NU + NX  # block k = [U_k, X_{k+1}]
@@ -166,8 +176,9 @@ class Ocp:
 
     def _build(self) -> None:
         s, vp = self.spec, self.vessel
-        w = ca.SX.sym("w", self.nw)
-        p = ca.SX.sym("p", NP)
+        sym = ca.MX.sym if self.graph == "MX" else ca.SX.sym
+        w = sym("w", self.nw)
+        p = sym("p", NP)
         x_init = p[P_X0:P_X0 + NX]
         wp_prev, wp_act = p[P_PREV:P_PREV + 2], p[P_ACTIVE:P_ACTIVE + 2]
         gate, task, tau = p[P_GATE], p[P_TASK], p[P_TAU:P_TAU + 3]
