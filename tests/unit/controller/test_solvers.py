@@ -144,3 +144,21 @@ def test_kkt_reuse_gives_bit_identical_solves_and_skips_factorisations(tmp_path)
         w, lam_x, lam_g = ocp.shift(a.w, a.lam_x, a.lam_g, np.zeros(3))
     done, reused = reuse.kkt_counts()
     assert done > done0 and reused > reused0
+
+
+@pytest.mark.parametrize("kind", ["cc-empc", "nmpc"])
+def test_mx_graph_builds_the_same_nlp_as_the_sx_graph(kind):
+    # The bench's plain-IPOPT reference is the MX graph; it must be the NLP the fast path solves.
+    sx, mx = Ocp(OcpSpec(kind), VP), Ocp(OcpSpec(kind), VP, graph="MX")
+    assert (mx.nw, mx.ng) == (sx.nw, sx.ng)
+    np.testing.assert_array_equal(mx.lbw, sx.lbw)
+    np.testing.assert_array_equal(mx.ubw, sx.ubw)
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        w0, p = start_problem(sx)
+        w = w0 + 0.1 * rng.standard_normal(sx.nw)
+        assert float(mx.objective_fn(w, p)) == pytest.approx(float(sx.objective_fn(w, p)), rel=1e-12)
+        np.testing.assert_allclose(np.asarray(mx.constraint_fn(w, p)).ravel(),
+                                   np.asarray(sx.constraint_fn(w, p)).ravel(), rtol=1e-12, atol=1e-12)
+    with pytest.raises(ValueError, match="graph"):
+        Ocp(OcpSpec(kind), VP, graph="QX")
