@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 import zenoh
-from seaway import keys
+from seaway.contract import keys
 
 REPO = Path(__file__).resolve().parents[2]
 

@@ -10,10 +10,10 @@ import typing
 import jsonschema
 import pytest
 from pydantic import BaseModel
-from seaway import messages as m
-from seaway.config import ConfigError, parse_config
-from seaway.messages import ALL_MESSAGES, MessageError
-from seaway.model import VesselParams
+from seaway.contract import messages as m
+from seaway.contract.config import ConfigError, parse_config
+from seaway.contract.messages import ALL_MESSAGES, MessageError
+from seaway.vessel.model import VesselParams
 
 T = 1_700_000_000_000_000_000
 

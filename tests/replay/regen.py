@@ -18,8 +18,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from seaway import keys
-from seaway.bus import Bus
+from seaway.contract import keys
+from seaway.runtime.bus import Bus
 
 DATA = Path(__file__).with_name("data")
 VESSEL = "replay1"

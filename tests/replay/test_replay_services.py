@@ -18,15 +18,15 @@ import math
 from pathlib import Path
 
 import pytest
-from seaway.frames import GeoOrigin
-from seaway.messages import Attitude, ClockTick, GnssFix, StateEstimate, ThrustCommand
-from seaway.model import load_vessel
-from seaway.scenario import load_scenario
-from seaway_controller.closed_loop import scenario_mission_request
+from seaway.contract.messages import Attitude, ClockTick, GnssFix, StateEstimate, ThrustCommand
+from seaway.simkit.scenario import load_scenario
+from seaway.vessel.frames import GeoOrigin
+from seaway.vessel.model import load_vessel
 from seaway_controller.core import ControllerConfig, ControllerCore
 from seaway_estimator.config import load_estimator_config
 from seaway_estimator.core import EstimatorCore
 from seaway_estimator.service import EstimatorLoop, with_scenario
+from seaway_lab.closed_loop import scenario_mission_request
 from seaway_recorder.recording import iter_messages
 
 from tests.replay.regen import GOLDENS

@@ -11,9 +11,9 @@ import json
 import sys
 import time
 
-from seaway import keys
-from seaway.messages import ArmRequest, Reply, ThrustCommand
-from seaway.service import base_parser, run_service
+from seaway.contract import keys
+from seaway.contract.messages import ArmRequest, Reply, ThrustCommand
+from seaway.runtime.service import base_parser, run_service
 
 
 def responder(ctx) -> None:

@@ -9,9 +9,9 @@ import time
 from pathlib import Path
 
 import pytest
-from seaway import keys
-from seaway.bus import Bus
-from seaway.messages import ArmRequest, ThrustCommand
+from seaway.contract import keys
+from seaway.contract.messages import ArmRequest, ScenarioRequest, ThrustCommand
+from seaway.runtime.bus import Bus
 
 from tests.conftest import wait_for
 
@@ -76,7 +76,7 @@ def test_wrong_type_refused_before_the_wire(zenoh_env) -> None:
         pub = bus.publisher(keys.NAV_STATE)
         with pytest.raises(TypeError, match="carries StateEstimate, not ThrustCommand"):
             pub.put(ThrustCommand.make(stamp_ns=1, thrust_port_n=0.0, thrust_starboard_n=0.0))
-        r = bus.request(keys.SIM_SCENARIO, __import__("seaway.messages").messages.ScenarioRequest.make(
+        r = bus.request(keys.SIM_SCENARIO, ScenarioRequest.make(
             stamp_ns=1), timeout_s=0.3)
         assert not r.accepted and "no reply" in r.reason
     time.sleep(0)

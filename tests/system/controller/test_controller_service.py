@@ -10,12 +10,12 @@ import signal
 import time
 
 import pytest
-from seaway import keys
-from seaway.bus import Bus
-from seaway.messages import MissionCommand, MissionRequest, StateEstimate, Waypoint
-from seaway.model import load_vessel
-from seaway.plant import Plant
-from seaway.scenario import load_scenario
+from seaway.contract import keys
+from seaway.contract.messages import MissionCommand, MissionRequest, StateEstimate, Waypoint
+from seaway.runtime.bus import Bus
+from seaway.simkit.plant import Plant
+from seaway.simkit.scenario import load_scenario
+from seaway.vessel.model import load_vessel
 
 from tests.conftest import BIN, wait_for
 

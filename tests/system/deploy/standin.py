@@ -26,9 +26,9 @@ import threading
 import time
 
 import zenoh
-from seaway import keys
-from seaway.messages import ArmRequest, Reply, ScenarioRequest, ThrustCommand
-from seaway.service import base_parser, run_service
+from seaway.contract import keys
+from seaway.contract.messages import ArmRequest, Reply, ScenarioRequest, ThrustCommand
+from seaway.runtime.service import base_parser, run_service
 
 FORBIDDEN_SEQ0 = 1_000_000_000
 _print_lock = threading.Lock()

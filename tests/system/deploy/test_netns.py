@@ -21,7 +21,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from seaway.launch.profile import load_profile
+from seaway.tools.launch.profile import load_profile
 
 from tests.conftest import wait_for
 from tests.system.deploy.certs import have_openssl, make_deployment_certs
@@ -85,7 +85,7 @@ def test_link_cut_standins(netns: NetnsPair, tmp_path: Path, link: str, outage_s
     py = sys.executable
     boat_env = {"SEAWAY_ZENOH_CONFIG": str(ZENOH_DIR / "boat-client.json5")}
     shore_env = {"SEAWAY_ZENOH_CONFIG": str(ZENOH_DIR / "shore-client.json5")}
-    router = [py, "-m", "seaway.router"]
+    router = [py, "-m", "seaway.tools.router"]
     if link == "tcp":
         boat_args, shore_args = ["--role", "boat"], ["--role", "shore", "--connect",
                                                      f"tcp/{netns.boat_ip}:7447"]
@@ -267,7 +267,7 @@ def test_link_cut_real_stack(netns: NetnsPair, tmp_path: Path) -> None:
     assert NetnsPair.stop(boat, timeout_s=90) == 0, netns.out("boat") + netns.err("boat")
 
     # The boat's own recording: every ctrl/thrust, in order, through the outage; the mission went on.
-    from seaway.messages import MissionStatus, ThrustCommand
+    from seaway.contract.messages import MissionStatus, ThrustCommand
 
     thrust = [ThrustCommand.decode(m.data) for m in _recorded(boat_run, THRUST)]
     assert thrust, "no ctrl/thrust in the boat recording"

@@ -40,7 +40,8 @@ def test_boat_loop_survives_its_router(procs: Procs, tmp_path: Path) -> None:
     client.write_text(text.replace("tcp/127.0.0.1:7447", f"tcp/127.0.0.1:{port}"))
     env = {k: v for k, v in os.environ.items() if k != "SEAWAY_ZENOH_RENDEZVOUS"}
     env |= {"SEAWAY_ZENOH_CONFIG": str(client), "PYTHONUNBUFFERED": "1"}
-    router = [sys.executable, "-m", "seaway.router", "--role", "boat", "--listen", f"tcp/127.0.0.1:{port}"]
+    router = [sys.executable, "-m", "seaway.tools.router", "--role", "boat",
+              "--listen", f"tcp/127.0.0.1:{port}"]
     r1 = procs.start(router, env=None, name="router1")
     rec = procs.start([sys.executable, STANDIN, "boat-recorder"], env=env, name="recorder")
     wait_for(lambda: '"ready"' in Procs.log(rec), 20, what="recorder stand-in")

@@ -30,7 +30,7 @@ VESSEL = "vessel1"
 
 
 def router_cmd(*args: str) -> list[str]:
-    return [sys.executable, "-m", "seaway.router", *args]
+    return [sys.executable, "-m", "seaway.tools.router", *args]
 
 
 def peer(client_config: str, port: int) -> zenoh.Session:

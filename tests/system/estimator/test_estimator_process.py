@@ -8,15 +8,16 @@ import math
 import time
 
 import pytest
-from seaway import keys, model
-from seaway.bus import Bus
-from seaway.keys import NAV_RESET
-from seaway.messages import ClockTick, NavResetRequest, ThrustCommand
-from seaway.plant import Plant
-from seaway.scenario import load_scenario
-from seaway.sensors import SensorSuite, instants_in, origin_of
-from seaway_estimator.harness import REALISTIC_NOISE
+from seaway.contract import keys
+from seaway.contract.keys import NAV_RESET
+from seaway.contract.messages import ClockTick, NavResetRequest, ThrustCommand
+from seaway.runtime.bus import Bus
+from seaway.simkit.plant import Plant
+from seaway.simkit.scenario import load_scenario
+from seaway.simkit.sensors import SensorSuite, instants_in, origin_of
+from seaway.vessel import model
 from seaway_estimator.replay import read_trace, replay
+from seaway_lab.estimator_loop import REALISTIC_NOISE
 
 from tests.conftest import BIN, wait_for
 

@@ -15,7 +15,7 @@ import sys
 import threading
 import time
 
-from seaway.bus import Bus
+from seaway.runtime.bus import Bus
 
 ap = argparse.ArgumentParser()
 ap.add_argument("--service", required=True)

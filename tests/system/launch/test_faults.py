@@ -24,8 +24,8 @@ import time
 from pathlib import Path
 
 import pytest
-from seaway import keys
-from seaway.bus import Bus
+from seaway.contract import keys
+from seaway.runtime.bus import Bus
 from seaway_recorder.recording import iter_messages, open_paths
 
 from tests.conftest import wait_for
@@ -71,7 +71,7 @@ def gaps(files: list[Path], suffix: str) -> list[float]:
 
 def test_services_killed_mid_mission_are_restarted_and_the_mission_completes(procs, zenoh_env, tmp_path):
     run = tmp_path / "run"
-    la = procs.start([sys.executable, "-m", "seaway.cli", "launch", "sim", "--run-dir", str(run)],
+    la = procs.start([sys.executable, "-m", "seaway.tools.cli", "launch", "sim", "--run-dir", str(run)],
                      zenoh_env, "launcher")
     with Bus.open("vessel1") as bus:
         w = Watch(bus)
@@ -128,7 +128,7 @@ def test_services_killed_mid_mission_are_restarted_and_the_mission_completes(pro
 
 def test_ctrl_c_stops_the_real_sim_profile_within_5_s_without_orphans(procs, zenoh_env, tmp_path):
     run = tmp_path / "run"
-    la = procs.start([sys.executable, "-m", "seaway.cli", "launch", "sim", "--run-dir", str(run)],
+    la = procs.start([sys.executable, "-m", "seaway.tools.cli", "launch", "sim", "--run-dir", str(run)],
                      zenoh_env, "launcher")
     wait_for(lambda: "mission lake: accepted" in procs.log(la), 60, what="the mission under way")
     time.sleep(3.0)

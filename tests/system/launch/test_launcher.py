@@ -41,7 +41,7 @@ def alive(pid: int) -> bool:
 
 
 def launch(procs, zenoh_env, profile: Path, tmp: Path):
-    return procs.start([sys.executable, "-m", "seaway.cli", "launch", str(profile),
+    return procs.start([sys.executable, "-m", "seaway.tools.cli", "launch", str(profile),
                         "--run-dir", str(tmp / "run"), "--verbose"], zenoh_env, "launcher")
 
 

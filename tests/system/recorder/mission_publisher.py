@@ -22,9 +22,8 @@ import json
 import math
 import time
 
-from seaway import keys
-from seaway.frames import GeoOrigin
-from seaway.messages import (
+from seaway.contract import keys
+from seaway.contract.messages import (
     GnssFix,
     MissionStatus,
     NavOrigin,
@@ -33,6 +32,7 @@ from seaway.messages import (
     StateEstimate,
     ThrustCommand,
 )
+from seaway.vessel.frames import GeoOrigin
 
 WAYPOINTS = [(0.0, 0.0), (8.0, 0.0), (5.13, 8.57)]
 COA_M = 1.0
@@ -180,7 +180,7 @@ def _wait_matching(pubs) -> None:
 
 def main() -> int:
     import zenoh
-    from seaway.bus import open_session
+    from seaway.runtime.bus import open_session
 
     ap = argparse.ArgumentParser()
     ap.add_argument("--vessel", default="vessel1")

@@ -10,8 +10,8 @@ import subprocess
 import jsonschema
 import pytest
 from mcap.reader import make_reader
-from seaway import keys
-from seaway.bus import Bus
+from seaway.contract import keys
+from seaway.runtime.bus import Bus
 
 from tests.conftest import BIN, wait_for
 

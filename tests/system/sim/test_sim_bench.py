@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import pytest
-from seaway_sim.bench import run
+from seaway_lab.bench.sim import run
 
 pytestmark = [pytest.mark.system, pytest.mark.bench]
 

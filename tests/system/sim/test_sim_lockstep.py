@@ -9,9 +9,9 @@ import sys
 import threading
 
 import pytest
-from seaway import keys
-from seaway.bus import Bus
-from seaway.messages import ClockTick, ThrustCommand
+from seaway.contract import keys
+from seaway.contract.messages import ClockTick, ThrustCommand
+from seaway.runtime.bus import Bus
 
 from tests.conftest import BIN, wait_for
 
@@ -52,7 +52,7 @@ def start_lockstep(procs, env, name: str, *args: str):
 
 
 def start_responder(procs, env, name: str):
-    p = procs.start([sys.executable, "-m", "seaway_sim.responder", "--port-n", "30",
+    p = procs.start([sys.executable, "-m", "seaway_lab.responder", "--port-n", "30",
                      "--starboard-n", "20"], env, name)
     wait_for(lambda: "READY" in procs.log(p), 20, what=f"{name} ready")
     return p

@@ -1,7 +1,7 @@
 """The sim as a real process in real time, driven over MAVLink on UDP loopback like vehicle_io does.
 
 Scenario paper-c1: no disturbance and no sensor noise, so what the sim reports can be compared with
-an in-test integration of ``seaway.model`` for the same thrust (see the tolerance note below).
+an in-test integration of ``seaway.vessel.model`` for the same thrust (see the tolerance note below).
 """
 
 from __future__ import annotations
@@ -15,12 +15,13 @@ from typing import Any
 
 import pytest
 from pymavlink.dialects.v20 import common as ml
-from seaway import keys, model
-from seaway.bus import Bus
-from seaway.messages import ScenarioRequest
-from seaway.model import load_vessel
-from seaway.scenario import load_scenario
-from seaway.sensors import origin_of
+from seaway.contract import keys
+from seaway.contract.messages import ScenarioRequest
+from seaway.runtime.bus import Bus
+from seaway.simkit.scenario import load_scenario
+from seaway.simkit.sensors import origin_of
+from seaway.vessel import model
+from seaway.vessel.model import load_vessel
 
 from tests.conftest import BIN, free_port, wait_for
 

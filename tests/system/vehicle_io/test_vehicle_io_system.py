@@ -5,7 +5,7 @@ Two kinds of autopilot on the other end of the UDP link:
 * ``seaway-sim`` (the project's simulator, PX4-like, real time): the end-to-end criteria. Its
   ``sim/truth`` says what thrust the plant actually got, so thrust is checked in newtons at the
   vessel, not only as MAVLink numbers. Skipped, saying why, if ``seaway-sim`` is not installed.
-* ``seaway_vehicle_io.peer.FakeAutopilot`` (a scripted MAVLink peer, in this process or as its own
+* ``seaway_lab.fake_autopilot.FakeAutopilot`` (a scripted MAVLink peer, in this process or as its own
   process): it records each MANUAL_CONTROL's arrival time, so the watchdog is measured at the
   MAVLink side, and it can send garbage and out-of-range fields.
 """
@@ -23,9 +23,8 @@ import time
 from pathlib import Path
 
 import pytest
-from seaway import keys
-from seaway.bus import Bus
-from seaway.messages import (
+from seaway.contract import keys
+from seaway.contract.messages import (
     ArmRequest,
     Attitude,
     GnssFix,
@@ -34,8 +33,9 @@ from seaway.messages import (
     SimTruth,
     ThrustCommand,
 )
+from seaway.runtime.bus import Bus
+from seaway_lab.fake_autopilot import ARDUPILOT_DEFAULT_PARAMS, FakeAutopilot
 from seaway_vehicle_io.mav import mavlink
-from seaway_vehicle_io.peer import ARDUPILOT_DEFAULT_PARAMS, FakeAutopilot
 
 from tests.conftest import BIN, PYTHON, Procs, wait_for
 
@@ -333,7 +333,7 @@ def test_peer_process_killed_and_restarted(zenoh_env, procs, bus, tmp_path):
     status = Watch(bus, keys.VEHICLE_STATUS)
 
     def start_peer(sysid: int, record: Path):
-        return procs.start([PYTHON, "-m", "seaway_vehicle_io.peer", "--to", f"127.0.0.1:{port}",
+        return procs.start([PYTHON, "-m", "seaway_lab.fake_autopilot", "--to", f"127.0.0.1:{port}",
                             "--sysid", str(sysid), "--record", str(record)], zenoh_env,
                            name=f"peer-{sysid}")
 

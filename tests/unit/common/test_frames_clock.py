@@ -6,8 +6,8 @@ import math
 import threading
 
 import pytest
-from seaway.clock import RateLoop, SimClock
-from seaway.frames import GeoOrigin, wrap_2pi, wrap_pi
+from seaway.runtime.clock import RateLoop, SimClock
+from seaway.vessel.frames import GeoOrigin, wrap_2pi, wrap_pi
 
 
 @pytest.mark.parametrize(("a", "w"), [(0.0, 0.0), (math.pi, math.pi), (-math.pi, math.pi),

@@ -5,8 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from seaway.config import ConfigError, deploy_path
-from seaway.scenario import load_mission, load_scenario
+from seaway.contract.config import ConfigError, deploy_path
+from seaway.simkit.scenario import load_mission, load_scenario
 
 
 def test_every_shipped_scenario_and_mission_loads() -> None:

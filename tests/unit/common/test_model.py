@@ -5,8 +5,8 @@ from __future__ import annotations
 import math
 
 import pytest
-from seaway import model
-from seaway.model import load_vessel
+from seaway.vessel import model
+from seaway.vessel.model import load_vessel
 
 P = load_vessel("paper-sim")
 
@@ -78,7 +78,7 @@ def test_wrench_inverse() -> None:
 
 def test_casadi_form_is_the_same_model() -> None:
     ca = pytest.importorskip("casadi")
-    from seaway.model_casadi import continuous_dynamics, rk4_discrete
+    from seaway.vessel.model_casadi import continuous_dynamics, rk4_discrete
 
     x = [0.4, 0.05, 0.1, 1.0, -2.0, 0.3]
     f = continuous_dynamics(P)

@@ -9,8 +9,8 @@ Energies and times are also checked against Table I within the tolerances reprod
 from __future__ import annotations
 
 import pytest
-from seaway.scenario import parse_scenario
-from seaway_controller.closed_loop import TABLE_I, ClosedLoopResult, run_closed_loop
+from seaway.simkit.scenario import parse_scenario
+from seaway_lab.closed_loop import TABLE_I, ClosedLoopResult, run_closed_loop
 
 TABLE_I_C1 = TABLE_I[1]  # controller -> (energy J, cross-track m, time s)
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from seaway.messages import MissionCommand, MissionRequest, StateEstimate, Waypoint
-from seaway.model import load_vessel
+from seaway.contract.messages import MissionCommand, MissionRequest, StateEstimate, Waypoint
+from seaway.vessel.model import load_vessel
 from seaway_controller.core import ControllerConfig, ControllerCore
 from seaway_controller.guidance import los_thrust
 from seaway_controller.solvers import SolveResult

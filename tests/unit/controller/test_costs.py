@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 import pytest
-from seaway.model import load_vessel, rk4_step
+from seaway.vessel.model import load_vessel, rk4_step
 from seaway_controller import costs
 from seaway_controller.ocp import SCALE_LENGTH_M, TERMINAL_PENALTY, TIME_SCALE_S, Ocp, OcpSpec
 

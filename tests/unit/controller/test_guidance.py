@@ -5,11 +5,11 @@ from __future__ import annotations
 import math
 
 import pytest
-from seaway.model import load_vessel
-from seaway_controller.closed_loop import run_closed_loop
+from seaway.vessel.model import load_vessel
 from seaway_controller.core import ControllerConfig, ControllerCore
 from seaway_controller.guidance import los_heading_rad, los_thrust
 from seaway_controller.solvers import SolveResult
+from seaway_lab.closed_loop import run_closed_loop
 
 VP = load_vessel("paper-sim")
 

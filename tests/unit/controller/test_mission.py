@@ -5,8 +5,8 @@ from __future__ import annotations
 import math
 
 import pytest
-from seaway.frames import GeoOrigin
-from seaway.messages import MissionCommand, MissionRequest, Waypoint
+from seaway.contract.messages import MissionCommand, MissionRequest, Waypoint
+from seaway.vessel.frames import GeoOrigin
 from seaway_controller.mission import MissionError, MissionLimits, MissionManager, validate_mission
 
 ORIGIN = GeoOrigin(math.radians(47.0), math.radians(8.0), 0.0)

@@ -14,10 +14,10 @@ import math
 
 import numpy as np
 import pytest
-from seaway.model import load_vessel
-from seaway_controller.closed_loop import run_closed_loop
+from seaway.vessel.model import load_vessel
 from seaway_controller.ocp import TIME_SCALE_S, Ocp, OcpSpec, empc_scales
 from seaway_controller.solvers import GeneratedSqpSolver, IpoptSolver
+from seaway_lab.closed_loop import run_closed_loop
 
 CASES = {  # vessel, task power [W], legs
     "paper": ("paper-sim", 0.49, [((0.0, 0.0), (8.0, 0.0)), ((8.0, 0.0), (5.13, 8.57))]),

@@ -8,7 +8,7 @@ import sys
 
 import numpy as np
 import pytest
-from seaway.model import load_vessel
+from seaway.vessel.model import load_vessel
 from seaway_controller.ocp import Ocp, OcpSpec
 from seaway_controller.solvers import (
     SQP_OPTIONS,
@@ -85,7 +85,7 @@ def test_two_solvers_on_the_same_library_in_one_process():
 
 def test_concurrent_builds_of_one_solver_leave_one_complete_file(tmp_path):
     # Two processes compiling the same solver into the same cache: both load a working library.
-    code = ("import sys, numpy as np; from pathlib import Path; from seaway.model import load_vessel;"
+    code = ("import sys, numpy as np; from pathlib import Path; from seaway.vessel.model import load_vessel;"
             "from seaway_controller.ocp import Ocp, OcpSpec;"
             "from seaway_controller.solvers import GeneratedSqpSolver;"
             "ocp = Ocp(OcpSpec('eo-empc', horizon=2), load_vessel('paper-sim'));"

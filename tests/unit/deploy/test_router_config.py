@@ -6,8 +6,8 @@ import json
 from pathlib import Path
 
 import pytest
-from seaway import router
-from seaway.router import RouterConfigError, build_config, resolve_config
+from seaway.tools import router
+from seaway.tools.router import RouterConfigError, build_config, resolve_config
 
 REPO = Path(__file__).resolve().parents[3]
 ZENOH_DIR = REPO / "deploy" / "zenoh"

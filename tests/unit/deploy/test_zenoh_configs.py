@@ -14,8 +14,8 @@ from pathlib import Path
 
 import pytest
 import zenoh
-from seaway import keys
-from seaway.launch.profile import load_profile
+from seaway.contract import keys
+from seaway.tools.launch.profile import load_profile
 
 REPO = Path(__file__).resolve().parents[3]
 ZENOH_DIR = REPO / "deploy" / "zenoh"

@@ -1,4 +1,4 @@
-"""The estimator in a seeded in-process closed loop (plant + seaway.sensors): outliers, dropouts,
+"""The estimator in a seeded in-process closed loop (plant + seaway.simkit.sensors): outliers, dropouts,
 and accuracy and disturbance convergence on the paper's conditions #3 and #4."""
 
 from __future__ import annotations
@@ -9,10 +9,10 @@ import statistics
 from functools import cache
 
 import pytest
-from seaway.frames import GeoOrigin
-from seaway.scenario import load_scenario
+from seaway.simkit.scenario import load_scenario
+from seaway.vessel.frames import GeoOrigin
 from seaway_estimator.core import IX, NZ, EstimatorCore
-from seaway_estimator.harness import (
+from seaway_lab.estimator_loop import (
     REALISTIC_NOISE,
     Run,
     convergence,

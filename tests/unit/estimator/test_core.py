@@ -7,10 +7,10 @@ import math
 
 import numpy as np
 import pytest
-from seaway import model
-from seaway.config import ConfigError, parse_config
-from seaway.frames import GeoOrigin, wrap_pi
-from seaway.messages import Attitude, GnssFix, ThrustCommand
+from seaway.contract.config import ConfigError, parse_config
+from seaway.contract.messages import Attitude, GnssFix, ThrustCommand
+from seaway.vessel import model
+from seaway.vessel.frames import GeoOrigin, wrap_pi
 from seaway_estimator.config import EstimatorConfig, OriginConfig
 from seaway_estimator.core import IPSI, IX, IY, NZ, EstimatorCore, EstimatorError
 

@@ -14,10 +14,10 @@ import math
 import sys
 from pathlib import Path
 
-from seaway.scenario import load_scenario
+from seaway.simkit.scenario import load_scenario
 from seaway_estimator.core import EstimatorCore
-from seaway_estimator.harness import REALISTIC_NOISE, run_closed_loop
 from seaway_estimator.replay import decode_entry, encode_entry, read_trace, replay, write_trace
+from seaway_lab.estimator_loop import REALISTIC_NOISE, run_closed_loop
 
 DATA = Path(__file__).with_name("data")
 TRACE = DATA / "trace_c4.jsonl"

@@ -1,6 +1,6 @@
 """``seaway-estimator --scenario``: the simulator's vessel, dead zone and origin, nothing else."""
 
-from seaway.scenario import load_scenario
+from seaway.simkit.scenario import load_scenario
 from seaway_estimator.config import load_estimator_config
 from seaway_estimator.service import with_scenario
 
@@ -16,7 +16,7 @@ def test_scenario_sets_vessel_dead_zone_and_origin_only() -> None:
 
 
 def test_a_repeated_sample_is_used_once() -> None:
-    from seaway.messages import Attitude
+    from seaway.contract.messages import Attitude
     from seaway_estimator.core import EstimatorCore
     from seaway_estimator.service import EstimatorLoop
 

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import pytest
-from seaway.config import ConfigError, parse_config
-from seaway.launch.profile import (
+from seaway.contract.config import ConfigError, parse_config
+from seaway.tools.launch.profile import (
     BackoffPolicy,
     Profile,
     load_profile,
@@ -72,7 +72,7 @@ def test_placeholders() -> None:
 
 
 def test_shipped_profiles_are_valid() -> None:
-    from seaway.config import deploy_path
+    from seaway.contract.config import deploy_path
 
     names = sorted(x.stem for x in deploy_path("profiles").glob("*.toml"))
     assert "sim" in names

@@ -6,7 +6,7 @@ import math
 from types import SimpleNamespace as S
 
 import pytest
-from seaway.messages import SolveRecord
+from seaway.contract.messages import SolveRecord
 from seaway_recorder.metrics import cross_track_m, mission_metrics, solve_stats
 
 NS = 1_000_000_000

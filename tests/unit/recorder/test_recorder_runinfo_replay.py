@@ -8,7 +8,7 @@ import threading
 from pathlib import Path
 
 import pytest
-from seaway.frames import GeoOrigin
+from seaway.vessel.frames import GeoOrigin
 from seaway_recorder import runinfo
 from seaway_recorder.recording import RecordedMessage
 from seaway_recorder.replay import KeyFilter, normalise, replay

@@ -9,9 +9,9 @@ from pathlib import Path
 import jsonschema
 import pytest
 from mcap.reader import make_reader
-from seaway import keys
-from seaway.frames import GeoOrigin
-from seaway.messages import NavOrigin, SimTruth, ThrustCommand
+from seaway.contract import keys
+from seaway.contract.messages import NavOrigin, SimTruth, ThrustCommand
+from seaway.vessel.frames import GeoOrigin
 from seaway_recorder.recording import iter_messages, open_paths, read_info
 from seaway_recorder.recover import recover
 from seaway_recorder.writer import AttachmentSpec, RecordingWriter

@@ -5,8 +5,8 @@ from __future__ import annotations
 import math
 
 import pytest
-from seaway.model import load_vessel
-from seaway.scenario import load_scenario
+from seaway.simkit.scenario import load_scenario
+from seaway.vessel.model import load_vessel
 from seaway_sim.core import SimCore
 
 PERIOD_NS = 100_000_000  # the paper's 0.1 s control period

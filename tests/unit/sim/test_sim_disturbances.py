@@ -11,9 +11,9 @@ import json
 import math
 
 import pytest
-from seaway.config import deploy_path
-from seaway.model import load_vessel
-from seaway.scenario import WorldGrid, bilinear, load_scenario
+from seaway.contract.config import deploy_path
+from seaway.simkit.scenario import WorldGrid, bilinear, load_scenario
+from seaway.vessel.model import load_vessel
 from seaway_sim.core import SimCore
 
 S2 = math.sqrt(0.5)

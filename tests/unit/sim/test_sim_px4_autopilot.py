@@ -7,8 +7,8 @@ import struct
 
 import pytest
 from pymavlink.dialects.v20 import common as ml
-from seaway.scenario import Origin
-from seaway.sensors import origin_of
+from seaway.simkit.scenario import Origin
+from seaway.simkit.sensors import origin_of
 from seaway_sim import px4_params
 from seaway_sim.px4_autopilot import (
     BATTERY_CAPACITY_J,
@@ -310,7 +310,7 @@ def test_periodic_telemetry_and_battery_drain() -> None:
 
 
 def test_each_fix_goes_out_as_gps_raw_int_then_global_position_int() -> None:
-    from seaway.messages import GnssFix
+    from seaway.contract.messages import GnssFix
 
     ap = Px4Autopilot(Px4Config(thrust_max_n=10.0))
     fix = GnssFix(stamp_ns=1_200 * MS, lat_rad=math.radians(47.0), lon_rad=math.radians(8.0),

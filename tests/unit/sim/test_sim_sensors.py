@@ -1,4 +1,4 @@
-"""seaway.sensors: noise statistics, SOG, dropouts, schedule and bit-exact reproducibility."""
+"""seaway.simkit.sensors: noise statistics, SOG, dropouts, schedule and bit-exact reproducibility."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ import math
 import statistics
 
 import pytest
-from seaway.scenario import Origin, SensorNoise
-from seaway.sensors import GnssDropouts, SensorSuite, instants_in, origin_of
+from seaway.simkit.scenario import Origin, SensorNoise
+from seaway.simkit.sensors import GnssDropouts, SensorSuite, instants_in, origin_of
 
 ORIGIN = Origin(lat_deg=28.18, lon_deg=112.94, alt_m=30.0)
 STATE = [1.0, 0.2, 0.05, 12.0, -7.0, math.pi / 2]  # u, v, r, x north, y east, psi (heading east)

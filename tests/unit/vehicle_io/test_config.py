@@ -6,7 +6,7 @@ import importlib.util
 from pathlib import Path
 
 import pytest
-from seaway.config import ConfigError, load_config, parse_config
+from seaway.contract.config import ConfigError, load_config, parse_config
 from seaway_vehicle_io.config import VehicleIoConfig
 from seaway_vehicle_io.link import check_url
 from seaway_vehicle_io.main import build_parser, load

@@ -6,7 +6,7 @@ import struct
 from typing import Any
 
 import pytest
-from seaway.messages import Attitude, GnssFix, ThrustCommand, VehicleStatus
+from seaway.contract.messages import Attitude, GnssFix, ThrustCommand, VehicleStatus
 from seaway_vehicle_io.config import VehicleIoConfig
 from seaway_vehicle_io.core import (
     Now,

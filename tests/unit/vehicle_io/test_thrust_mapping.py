@@ -6,7 +6,7 @@ from __future__ import annotations
 import itertools
 
 import pytest
-from seaway.model import load_vessel
+from seaway.vessel.model import load_vessel
 from seaway_vehicle_io.ardupilot import PROFILE as AP
 from seaway_vehicle_io.profile import ManualControlAxes, clamp_int
 from seaway_vehicle_io.px4 import PROFILE as PX4
@@ -129,7 +129,7 @@ def ardupilot_decode(axes: ManualControlAxes) -> tuple[float, float]:
 
 
 def produced(u: float, lim: ThrusterLimits) -> float:
-    """The plant's thrust for a normalised command (seaway.plant: scale, then dead zone)."""
+    """The plant's thrust for a normalised command (seaway.simkit.plant: scale, then dead zone)."""
     t = u * (lim.thrust_max_n if u >= 0 else lim.reverse_max_n)
     return 0.0 if abs(t) < lim.dead_zone_n else t
 

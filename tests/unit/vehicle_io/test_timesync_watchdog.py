@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import pytest
-from seaway.messages import ThrustCommand
+from seaway.contract.messages import ThrustCommand
 from seaway_vehicle_io.timesync import BootTimeOffset
 from seaway_vehicle_io.watchdog import ThrustWatchdog
 

@@ -16,8 +16,8 @@ from pathlib import Path
 from typing import Any, Literal
 
 from pydantic import Field, ValidationError
-from seaway.config import ConfigModel, describe_validation_error
-from seaway.messages import MessageError, MissionRequest
+from seaway.contract.config import ConfigModel, describe_validation_error
+from seaway.contract.messages import MessageError, MissionRequest
 
 
 class CheckpointError(ValueError):

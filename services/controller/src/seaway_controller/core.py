@@ -26,8 +26,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-from seaway.frames import GeoOrigin
-from seaway.messages import (
+from seaway.contract.messages import (
     MissionCommand,
     MissionRequest,
     MissionStatus,
@@ -36,7 +35,8 @@ from seaway.messages import (
     StateEstimate,
     ThrustCommand,
 )
-from seaway.model import VesselParams, propulsion_power_w
+from seaway.vessel.frames import GeoOrigin
+from seaway.vessel.model import VesselParams, propulsion_power_w
 
 from seaway_controller import costs
 from seaway_controller.guidance import LosGains, los_thrust

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from types import ModuleType
 from typing import Any
 
-from seaway.model import VesselParams
+from seaway.vessel.model import VesselParams
 
 SINC_EPS = 1e-8
 """sinc(x) = sin(s)/s with s = sqrt(x^2 + SINC_EPS) [rad^2]: smooth and finite at 0."""

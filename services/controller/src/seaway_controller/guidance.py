@@ -14,8 +14,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from seaway.frames import wrap_pi
-from seaway.model import VesselParams, thrusts_for_wrench
+from seaway.vessel.frames import wrap_pi
+from seaway.vessel.model import VesselParams, thrusts_for_wrench
 
 
 @dataclass(frozen=True)

@@ -12,8 +12,8 @@ import math
 from dataclasses import dataclass
 from typing import Literal
 
-from seaway.frames import GeoOrigin
-from seaway.messages import MissionCommand, MissionRequest
+from seaway.contract.messages import MissionCommand, MissionRequest
+from seaway.vessel.frames import GeoOrigin
 
 MissionState = Literal["idle", "active", "paused", "complete", "aborted"]
 Point = tuple[float, float]

@@ -1,7 +1,7 @@
 """The optimal control problems: CC-EMPC (paper eq. 15), EO-EMPC (eq. 15 without Y) and NMPC.
 
 Multiple shooting over H steps of dt with the gaps written ``X_{k+1} - F(X_k, U_k)`` (solver-notes.md,
-trap 5), F being the shared RK4 step of the vessel model (``seaway.model_casadi.rk4_discrete``).
+trap 5), F being the shared RK4 step of the vessel model (``seaway.vessel.model_casadi.rk4_discrete``).
 X_0 is the measured state, a parameter (not a variable pinned by an equality), which keeps the QP
 that the SQP factorises at every iteration smaller::
 
@@ -34,9 +34,9 @@ from typing import Literal
 
 import casadi as ca
 import numpy as np
-from seaway import model
-from seaway.model import NU, NX, VesselParams
-from seaway.model_casadi import rk4_discrete
+from seaway.vessel import model
+from seaway.vessel.model import NU, NX, VesselParams
+from seaway.vessel.model_casadi import rk4_discrete
 
 from seaway_controller import costs
 

@@ -32,16 +32,15 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from seaway import keys
-from seaway.clock import RateLoop
-from seaway.frames import GeoOrigin
-from seaway.messages import MissionCommand, MissionRequest, NavOrigin, Reply, StateEstimate
-from seaway.model import load_vessel
-from seaway.scenario import load_scenario
-from seaway.service import ServiceContext, base_parser, parse, run_service
+from seaway.contract import keys
+from seaway.contract.messages import MissionCommand, MissionRequest, NavOrigin, Reply, StateEstimate
+from seaway.runtime.clock import RateLoop
+from seaway.runtime.service import ServiceContext, base_parser, parse, run_service
+from seaway.simkit.scenario import load_scenario
+from seaway.vessel.frames import GeoOrigin
+from seaway.vessel.model import load_vessel
 
 from seaway_controller import checkpoint
-from seaway_controller.closed_loop import scenario_mission_request
 from seaway_controller.core import ControllerConfig, ControllerCore
 from seaway_controller.mission import MissionLimits
 from seaway_controller.ocp import CONTROLLER_KINDS
@@ -224,7 +223,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         if scenario is not None:
             o = scenario.origin
             core.set_origin(GeoOrigin(math.radians(o.lat_deg), math.radians(o.lon_deg), o.alt_m))
-            reply = core.handle_mission(ctx.clock.now_ns(), scenario_mission_request(scenario))
+            if scenario.mission is None:
+                log.error("scenario %s has no [mission] to start", scenario.name)
+                return 2
+            reply = core.handle_mission(ctx.clock.now_ns(),
+                                        scenario.mission.to_request(0, mission_id=scenario.name))
             if not reply.accepted:
                 log.error("scenario %s mission refused: %s", scenario.name, reply.reason)
                 return 2

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Literal
 
 from pydantic import Field
-from seaway.config import ConfigModel, load_config
+from seaway.contract.config import ConfigModel, load_config
 
 CHI2_2DOF_9999 = 18.42
 CHI2_1DOF_9999 = 15.14

@@ -4,17 +4,17 @@ State (9), in the units of ``StateEstimate``::
 
     z = [u, v, r, x, y, psi, d1, d2, d3]
 
-``[u, v, r, x, y, psi]`` is the vessel state of ``seaway.model`` (body speeds through the water, NED
+``[u, v, r, x, y, psi]`` is the vessel state of ``seaway.vessel.model`` (body speeds through the water, NED
 position and heading). ``d`` is the disturbance (the paper's tau_d), a random walk: with
 ``disturbance_frame = "world"`` (default) ``d1, d2`` are a world-frame force (north, east) [N] that
-``seaway.model.derivative`` rotates into the body frame (its ``force_ne``), otherwise ``d1, d2`` are
+``seaway.vessel.model.derivative`` rotates into the body frame (its ``force_ne``), otherwise ``d1, d2`` are
 body-frame surge and sway forces (its ``tau_body``); ``d3`` is always the body yaw moment [N m].
 Whatever the internal frame, ``StateEstimate`` carries the body-frame values and their covariance.
 
-Prediction: the mean with ``seaway.model.rk4_step`` (the model is never re-derived here), the
-commanded thrust held (saturated by ``seaway.plant.saturate``, optionally the dead zone), substeps of
+Prediction: the mean with ``seaway.vessel.model.rk4_step`` (the model is never re-derived here), the
+commanded thrust held (saturated by ``seaway.simkit.plant.saturate``, optionally the dead zone), substeps of
 at most ``max_step_s``. The covariance with ``F = I + A h + (A h)^2 / 2``, where ``A`` is the exact
-Jacobian of ``seaway.model.derivative``, computed by complex-step differentiation (the model is
+Jacobian of ``seaway.vessel.model.derivative``, computed by complex-step differentiation (the model is
 evaluated with ``cmath`` as its ``ops``: derivatives exact to machine precision, no CasADi needed).
 
 Updates, each when it arrives and at its own rate, Joseph form and symmetrised:
@@ -37,11 +37,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from seaway import model
-from seaway.frames import GeoOrigin, wrap_pi
-from seaway.messages import Attitude, GnssFix, MessageError, NavOrigin, StateEstimate, ThrustCommand
-from seaway.model import VesselParams
-from seaway.plant import apply_dead_zone, saturate
+from seaway.contract.messages import Attitude, GnssFix, MessageError, NavOrigin, StateEstimate, ThrustCommand
+from seaway.simkit.plant import apply_dead_zone, saturate
+from seaway.vessel import model
+from seaway.vessel.frames import GeoOrigin, wrap_pi
+from seaway.vessel.model import VesselParams
 
 from seaway_estimator.config import EstimatorConfig
 

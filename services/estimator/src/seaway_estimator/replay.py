@@ -23,7 +23,7 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import IO, Any
 
-from seaway.messages import Attitude, GnssFix, Message, ThrustCommand
+from seaway.contract.messages import Attitude, GnssFix, Message, ThrustCommand
 
 from seaway_estimator.config import EstimatorConfig, load_estimator_config
 from seaway_estimator.core import EstimatorCore

@@ -29,11 +29,11 @@ import time
 from collections.abc import Sequence
 from typing import Any
 
-from seaway import keys
-from seaway.clock import RateLoop
-from seaway.messages import ClockTick, NavResetRequest, Reply
-from seaway.scenario import Scenario, load_scenario
-from seaway.service import base_parser, parse, run_service
+from seaway.contract import keys
+from seaway.contract.messages import ClockTick, NavResetRequest, Reply
+from seaway.runtime.clock import RateLoop
+from seaway.runtime.service import base_parser, parse, run_service
+from seaway.simkit.scenario import Scenario, load_scenario
 
 from seaway_estimator.config import EstimatorConfig, OriginConfig, load_estimator_config
 from seaway_estimator.core import EstimatorCore, EstimatorError

@@ -24,7 +24,7 @@ from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any, Protocol
 
-from seaway.bench import median, percentile
+from seaway.vessel.metrics import median, percentile
 
 NS = 1_000_000_000
 

@@ -23,8 +23,8 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from seaway.config import ConfigError
-from seaway.service import base_parser, configure_logging, run_service
+from seaway.contract.config import ConfigError
+from seaway.runtime.service import base_parser, configure_logging, run_service
 
 from seaway_recorder import runinfo
 from seaway_recorder.recover import recover

@@ -13,8 +13,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from mcap.reader import make_reader
-from seaway import keys
-from seaway.messages import Message, MessageError
+from seaway.contract import keys
+from seaway.contract.messages import Message, MessageError
 
 
 @dataclass(frozen=True)

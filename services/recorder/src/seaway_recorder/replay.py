@@ -20,8 +20,8 @@ from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 
 import zenoh
-from seaway.bus import open_session
-from seaway.service import configure_logging, install_stop_signals
+from seaway.runtime.bus import open_session
+from seaway.runtime.service import configure_logging, install_stop_signals
 
 from seaway_recorder import recording
 

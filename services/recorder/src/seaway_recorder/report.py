@@ -19,11 +19,11 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from seaway.config import ConfigError, load_config, read_document
-from seaway.frames import GeoOrigin
-from seaway.messages import MissionStatus, NavOrigin, SimTruth, SolveRecord, ThrustCommand
-from seaway.model import VesselParams
-from seaway.scenario import load_scenario
+from seaway.contract.config import ConfigError, load_config, read_document
+from seaway.contract.messages import MissionStatus, NavOrigin, SimTruth, SolveRecord, ThrustCommand
+from seaway.simkit.scenario import load_scenario
+from seaway.vessel.frames import GeoOrigin
+from seaway.vessel.model import VesselParams
 
 from seaway_recorder import metrics as mx
 from seaway_recorder import recording, runinfo

@@ -19,11 +19,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from seaway.config import ConfigError, deploy_path, parse_config
-from seaway.frames import GeoOrigin
-from seaway.messages import MessageError, MissionRequest
-from seaway.model import VesselParams, load_vessel
-from seaway.scenario import Scenario, load_scenario, parse_scenario
+from seaway.contract.config import ConfigError, deploy_path, parse_config
+from seaway.contract.messages import MessageError, MissionRequest
+from seaway.simkit.scenario import Scenario, load_scenario, parse_scenario
+from seaway.vessel.frames import GeoOrigin
+from seaway.vessel.model import VesselParams, load_vessel
 
 from seaway_recorder.writer import AttachmentSpec, media_type_for
 

@@ -20,9 +20,9 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from seaway import keys
-from seaway.frames import GeoOrigin
-from seaway.messages import GnssFix, Message, NavOrigin, SimTruth, StateEstimate
+from seaway.contract import keys
+from seaway.contract.messages import GnssFix, Message, NavOrigin, SimTruth, StateEstimate
+from seaway.vessel.frames import GeoOrigin
 
 JSON = "json"
 JSONSCHEMA = "jsonschema"

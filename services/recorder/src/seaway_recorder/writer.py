@@ -20,8 +20,8 @@ from pathlib import Path
 from typing import IO, Any
 
 from mcap.writer import CompressionType, Writer
-from seaway.frames import GeoOrigin
-from seaway.messages import MessageError
+from seaway.contract.messages import MessageError
+from seaway.vessel.frames import GeoOrigin
 
 from seaway_recorder import schemas
 

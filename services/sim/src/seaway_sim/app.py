@@ -12,12 +12,12 @@ import threading
 from collections.abc import Callable
 from pathlib import Path
 
-from seaway import keys
-from seaway.bus import Bus
-from seaway.config import ConfigError, deploy_path
-from seaway.messages import ClockTick, Reply, ScenarioRequest
-from seaway.model import VesselParams, load_vessel
-from seaway.scenario import Scenario, load_scenario, parse_scenario
+from seaway.contract import keys
+from seaway.contract.config import ConfigError, deploy_path
+from seaway.contract.messages import ClockTick, Reply, ScenarioRequest
+from seaway.runtime.bus import Bus
+from seaway.simkit.scenario import Scenario, load_scenario, parse_scenario
+from seaway.vessel.model import VesselParams, load_vessel
 
 from seaway_sim.core import SimCore
 

@@ -5,9 +5,9 @@ reads the outputs. Time ``t_ns`` is nanoseconds since the sim epoch (0 when the 
 messages are stamped ``epoch_ns + t_ns`` (``epoch_ns`` = 0 in lockstep, the wall clock at start
 in real time).
 
-* the plant is ``seaway.plant.Plant`` (paper eq. 1-2, RK4 at 100 Hz inside, saturation, optional
+* the plant is ``seaway.simkit.plant.Plant`` (paper eq. 1-2, RK4 at 100 Hz inside, saturation, optional
   dead zone and thruster lag from the scenario flags);
-* the sensors are ``seaway.sensors.SensorSuite``; a step is split at each sensor sample instant, so
+* the sensors are ``seaway.simkit.sensors.SensorSuite``; a step is split at each sensor sample instant, so
   a sample is taken of the state at its own instant whatever step the caller takes. The split does
   not change the command (held over the whole step) and keeps the 10 ms internal grid when the
   sample instants lie on it (they do for every rate dividing 100 Hz).
@@ -21,13 +21,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from seaway import model
-from seaway.frames import GeoOrigin
-from seaway.messages import Attitude, DisturbanceForce, GnssFix, SimTruth
-from seaway.model import VesselParams
-from seaway.plant import Plant
-from seaway.scenario import Scenario, body_force
-from seaway.sensors import SensorSuite, instants_in, origin_of
+from seaway.contract.messages import Attitude, DisturbanceForce, GnssFix, SimTruth
+from seaway.simkit.plant import Plant
+from seaway.simkit.scenario import Scenario, body_force
+from seaway.simkit.sensors import SensorSuite, instants_in, origin_of
+from seaway.vessel import model
+from seaway.vessel.frames import GeoOrigin
+from seaway.vessel.model import VesselParams
 
 NS_PER_S = 1_000_000_000
 

@@ -32,8 +32,8 @@ import threading
 import time
 from dataclasses import dataclass
 
-from seaway import keys
-from seaway.messages import ThrustCommand
+from seaway.contract import keys
+from seaway.contract.messages import ThrustCommand
 
 from seaway_sim.app import SimApp
 

@@ -13,8 +13,8 @@ import sys
 import time
 from collections.abc import Sequence
 
-from seaway.config import ConfigError
-from seaway.service import base_parser, parse, run_service
+from seaway.contract.config import ConfigError
+from seaway.runtime.service import base_parser, parse, run_service
 
 from seaway_sim.app import SimApp, load_world
 from seaway_sim.core import SimCore

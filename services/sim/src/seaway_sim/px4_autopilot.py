@@ -30,9 +30,9 @@ from dataclasses import dataclass
 from typing import Any
 
 from pymavlink.dialects.v20 import common as mavlink
-from seaway.frames import GeoOrigin
-from seaway.messages import Attitude, GnssFix
-from seaway.sensors import instants_in, period_ns
+from seaway.contract.messages import Attitude, GnssFix
+from seaway.simkit.sensors import instants_in, period_ns
+from seaway.vessel.frames import GeoOrigin
 
 from seaway_sim import px4_mixer
 from seaway_sim.px4_params import (

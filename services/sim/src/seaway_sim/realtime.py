@@ -19,10 +19,10 @@ import logging
 import threading
 import time
 
-from seaway.clock import RateLoop, WallClock
-from seaway.model import VesselParams
-from seaway.scenario import Scenario
-from seaway.sensors import instants_in
+from seaway.runtime.clock import RateLoop, WallClock
+from seaway.simkit.scenario import Scenario
+from seaway.simkit.sensors import instants_in
+from seaway.vessel.model import VesselParams
 
 from seaway_sim.app import SimApp
 from seaway_sim.mavlink_link import MavlinkLink

@@ -9,7 +9,7 @@ from __future__ import annotations
 from typing import Literal
 
 from pydantic import Field, model_validator
-from seaway.config import ConfigModel
+from seaway.contract.config import ConfigModel
 
 
 class VehicleIoConfig(ConfigModel):

@@ -21,7 +21,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from seaway.messages import Attitude, GnssFix, LocalPosition
+from seaway.contract.messages import Attitude, GnssFix, LocalPosition
 
 UINT16_MAX = 65535
 DEG_E7_TO_RAD = math.pi / 180.0 / 1e7

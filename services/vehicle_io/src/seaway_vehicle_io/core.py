@@ -20,7 +20,7 @@ import logging
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
-from seaway.messages import Message, ThrustCommand, VehicleStatus
+from seaway.contract.messages import Message, ThrustCommand, VehicleStatus
 
 from seaway_vehicle_io import ardupilot, px4
 from seaway_vehicle_io.commands import (

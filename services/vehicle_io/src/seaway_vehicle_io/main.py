@@ -7,9 +7,9 @@ import logging
 import sys
 from collections.abc import Sequence
 
-from seaway.config import ConfigError, load_config, parse_config
-from seaway.model import load_vessel
-from seaway.service import base_parser, parse, run_service
+from seaway.contract.config import ConfigError, load_config, parse_config
+from seaway.runtime.service import base_parser, parse, run_service
+from seaway.vessel.model import load_vessel
 
 from seaway_vehicle_io.config import VehicleIoConfig
 from seaway_vehicle_io.link import check_url

@@ -28,9 +28,8 @@ import time
 from collections.abc import Callable
 
 import zenoh
-from seaway import keys
-from seaway.bus import Bus, TypedPublisher
-from seaway.messages import (
+from seaway.contract import keys
+from seaway.contract.messages import (
     ArmRequest,
     Attitude,
     GnssFix,
@@ -41,6 +40,7 @@ from seaway.messages import (
     ThrustCommand,
     VehicleStatus,
 )
+from seaway.runtime.bus import Bus, TypedPublisher
 
 from seaway_vehicle_io.commands import MAV_RESULT_ACCEPTED
 from seaway_vehicle_io.config import VehicleIoConfig

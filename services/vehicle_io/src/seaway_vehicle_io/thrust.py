@@ -3,7 +3,7 @@
 This is the autopilot-independent half of the command path; the profiles (px4.py, ardupilot.py)
 turn the normalised pair (L = port = T1, R = starboard = T2) into MANUAL_CONTROL axes.
 
-Model of the thruster behind the autopilot (the same as the simulator's plant, seaway.plant): a
+Model of the thruster behind the autopilot (the same as the simulator's plant, seaway.simkit.plant): a
 normalised command ``u`` produces ``u * thrust_max_n`` ahead for ``u >= 0`` and
 ``u * reverse_max_n`` astern for ``u < 0``, and any demand whose magnitude is below
 ``dead_zone_n`` produces nothing.
@@ -29,7 +29,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from seaway.model import VesselParams
+from seaway.vessel.model import VesselParams
 
 
 @dataclass(frozen=True)

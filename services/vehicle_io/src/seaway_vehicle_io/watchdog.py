@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from seaway.messages import ThrustCommand
+from seaway.contract.messages import ThrustCommand
 
 FAILSAFE_THRUST_STALE = "thrust_stale"
 

@@ -1,0 +1,1 @@
+"""Every ``seaway bench NAME`` (registered as entry points in ``lab/pyproject.toml``)."""

@@ -1,0 +1,121 @@
+"""The one registry of Seaway's key expressions: each key with its message type and producer.
+
+Keys say what the data is, not who made it (design.md): the sim, a real vessel or a replay can each
+produce ``seaway/<vessel>/sensors/gnss``; a launcher profile has exactly one producer per key. The
+``producer`` here is the service that produces the key in a normal run.
+
+Kinds:
+* ``topic``: publish/subscribe of ``message`` values;
+* ``query``: a queryable taking ``message`` as its request and answering ``Reply``;
+* ``liveliness``: a Zenoh liveliness token (no payload), ``health/<service>``.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from typing import Literal
+
+from seaway.contract import messages as m
+
+ROOT = "seaway"
+SERVICES = ("sim", "vehicle_io", "estimator", "controller", "groundstation", "recorder", "launcher",
+            "router")
+
+# A vessel name is one key chunk: no wildcards, separators or verbatim markers.
+_VESSEL_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
+
+
+class KeyNameError(ValueError):
+    """A vessel or service name that cannot form a valid key expression."""
+
+
+@dataclass(frozen=True)
+class KeySpec:
+    """One registered key: ``seaway/<vessel>/<suffix>``."""
+
+    suffix: str
+    message: type[m.Message] | None
+    producer: str
+    kind: Literal["topic", "query", "liveliness"] = "topic"
+    doc: str = ""
+
+    def key(self, vessel: str) -> str:
+        """The concrete key expression for one vessel."""
+        return f"{ROOT}/{check_vessel(vessel)}/{self.suffix}"
+
+    def wildcard(self) -> str:
+        """The key expression matching this key on every vessel."""
+        return f"{ROOT}/*/{self.suffix}"
+
+
+def check_vessel(vessel: str) -> str:
+    if not _VESSEL_RE.match(vessel):
+        raise KeyNameError(
+            f"vessel name {vessel!r} is not valid: use 1-64 letters, digits, '_', '.' or '-', "
+            "starting with a letter or digit"
+        )
+    return vessel
+
+
+GNSS = KeySpec("sensors/gnss", m.GnssFix, "vehicle_io", doc="GNSS fix")
+ATTITUDE = KeySpec("sensors/attitude", m.Attitude, "vehicle_io", doc="attitude and rates")
+LOCAL_POSITION = KeySpec("sensors/local_position", m.LocalPosition, "vehicle_io")
+VEHICLE_STATUS = KeySpec("vehicle/status", m.VehicleStatus, "vehicle_io")
+VEHICLE_ARM = KeySpec("vehicle/arm", m.ArmRequest, "vehicle_io", "query")
+VEHICLE_MODE = KeySpec("vehicle/mode", m.ModeRequest, "vehicle_io", "query")
+NAV_STATE = KeySpec("nav/state", m.StateEstimate, "estimator")
+NAV_ORIGIN = KeySpec("nav/origin", m.NavOrigin, "estimator")
+NAV_RESET = KeySpec("nav/reset", m.NavResetRequest, "estimator", "query", doc="re-initialise")
+THRUST = KeySpec("ctrl/thrust", m.ThrustCommand, "controller")
+SOLVE = KeySpec("ctrl/solve", m.SolveRecord, "controller")
+MISSION_STATUS = KeySpec("mission/status", m.MissionStatus, "controller")
+MISSION_SET = KeySpec("mission/set", m.MissionRequest, "controller", "query")
+MISSION_COMMAND = KeySpec("mission/command", m.MissionCommand, "controller", "query")
+SIM_TRUTH = KeySpec("sim/truth", m.SimTruth, "sim")
+SIM_DISTURBANCE = KeySpec("sim/disturbance", m.DisturbanceForce, "sim")
+SIM_CLOCK = KeySpec("sim/clock", m.ClockTick, "sim")
+SIM_SCENARIO = KeySpec("sim/scenario", m.ScenarioRequest, "sim", "query")
+
+REGISTRY: tuple[KeySpec, ...] = (
+    GNSS,
+    ATTITUDE,
+    LOCAL_POSITION,
+    VEHICLE_STATUS,
+    VEHICLE_ARM,
+    VEHICLE_MODE,
+    NAV_STATE,
+    NAV_ORIGIN,
+    NAV_RESET,
+    THRUST,
+    SOLVE,
+    MISSION_STATUS,
+    MISSION_SET,
+    MISSION_COMMAND,
+    SIM_TRUTH,
+    SIM_DISTURBANCE,
+    SIM_CLOCK,
+    SIM_SCENARIO,
+)
+
+
+def health_key(vessel: str, service: str) -> str:
+    """Liveliness token key of one service on one vessel."""
+    if service not in SERVICES:
+        raise KeyNameError(f"unknown service {service!r}; known: {', '.join(SERVICES)}")
+    return f"{ROOT}/{check_vessel(vessel)}/health/{service}"
+
+
+def health_wildcard(vessel: str = "*") -> str:
+    return f"{ROOT}/{vessel}/health/*"
+
+
+def spec_for_key(key: str) -> KeySpec | None:
+    """The registered spec a concrete key belongs to (``seaway/<vessel>/<suffix>``), or None."""
+    parts = key.split("/", 2)
+    if len(parts) != 3 or parts[0] != ROOT:
+        return None
+    for spec in REGISTRY:
+        if spec.suffix == parts[2]:
+            return spec
+    return None

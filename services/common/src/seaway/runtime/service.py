@@ -1,0 +1,112 @@
+"""What every service's thin loop shares: arguments, logging, signals, the bus and the health token.
+
+A service is a pure core (messages and time in, messages out) plus a loop like::
+
+    with run_service("estimator", args) as ctx:      # bus open, signals installed
+        ...declare publishers, subscribers, queryables...
+        ctx.ready()                                     # health token: "I can serve now"
+        while loop.wait():                              # drift-free, ends on SIGINT/SIGTERM
+            ...core.step(ctx.clock.now_ns(), inputs)...
+
+The health token ``seaway/<vessel>/health/<service>`` means *ready to serve*: it is declared by
+``ctx.ready()`` once every subscriber and queryable exists, because the launcher starts the next
+process, or sends the first request, the moment it sees it.
+
+SIGINT and SIGTERM set ``ctx.stop``; the ``with`` block then closes the session, so the process exits
+promptly instead of hanging in Zenoh's threads.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import os
+import signal
+import sys
+import threading
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
+
+from seaway.runtime.bus import Bus
+from seaway.runtime.clock import Clock, WallClock
+
+DEFAULT_VESSEL = "vessel1"
+ENV_VESSEL = "SEAWAY_VESSEL"
+log = logging.getLogger("seaway.runtime.service")
+
+
+def configure_logging(name: str, level: str = "INFO") -> None:
+    """One line per record, prefixed with the service name (the launcher prefixes again per process)."""
+    logging.basicConfig(
+        level=getattr(logging, level.upper(), logging.INFO),
+        format=f"%(asctime)s {name} %(levelname)s %(name)s: %(message)s",
+        stream=sys.stderr,
+        force=True,
+    )
+
+
+def base_parser(name: str, description: str) -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog=f"seaway-{name.replace('_', '-')}", description=description)
+    p.add_argument("--vessel", default=os.environ.get(ENV_VESSEL, DEFAULT_VESSEL),
+                   help=f"vessel name, the key namespace seaway/<vessel>/... (default ${ENV_VESSEL} "
+                        f"or {DEFAULT_VESSEL})")
+    p.add_argument("--zenoh-config", default=None,
+                   help="Zenoh config file (default $SEAWAY_ZENOH_CONFIG or peers on loopback)")
+    p.add_argument("--log-level", default=os.environ.get("SEAWAY_LOG_LEVEL", "INFO"))
+    return p
+
+
+def install_stop_signals(stop: threading.Event) -> None:
+    """SIGINT and SIGTERM set ``stop``; a second SIGINT exits at once (a stuck process)."""
+
+    def handler(signum: int, _frame: object) -> None:
+        if stop.is_set() and signum == signal.SIGINT:
+            os._exit(130)
+        log.info("received %s, stopping", signal.Signals(signum).name)
+        stop.set()
+
+    signal.signal(signal.SIGINT, handler)
+    signal.signal(signal.SIGTERM, handler)
+
+
+@dataclass
+class ServiceContext:
+    name: str
+    vessel: str
+    bus: Bus
+    clock: Clock
+    stop: threading.Event
+    is_ready: bool = False
+
+    def ready(self) -> None:
+        """Declare the health token: call once every subscriber and queryable is in place."""
+        if not self.is_ready:
+            self.bus.declare_alive(self.name)
+            self.is_ready = True
+            log.info("%s ready on vessel %s", self.name, self.vessel)
+
+
+@contextmanager
+def run_service(name: str, args: argparse.Namespace, clock: Clock | None = None) -> Iterator[ServiceContext]:
+    """Open the bus for ``name`` and install the stop signals; close on exit.
+
+    The service declares its health token with ``ctx.ready()`` when it can serve.
+    """
+    configure_logging(name, args.log_level)
+    stop = threading.Event()
+    install_stop_signals(stop)
+    bus = Bus.open(args.vessel, args.zenoh_config)
+    ctx = ServiceContext(name, args.vessel, bus, clock or WallClock(), stop)
+    try:
+        log.info("%s starting on vessel %s", name, args.vessel)
+        yield ctx
+    finally:
+        stop.set()
+        bus.close()
+        log.info("%s stopped (published %d, received %d, malformed %d)", name,
+                 bus.stats.published, bus.stats.received, bus.stats.malformed)
+
+
+def parse(parser: argparse.ArgumentParser, argv: Sequence[str] | None) -> argparse.Namespace:
+    return parser.parse_args(list(argv) if argv is not None else None)

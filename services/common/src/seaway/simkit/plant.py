@@ -1,0 +1,106 @@
+"""The simulated plant: the vessel model integrated with its actuators and disturbances.
+
+A pure core used by the simulator service and by every in-process closed loop (benchmarks, the
+paper's table): no clock, no bus, no randomness of its own (the scenario's seeded disturbance model
+is the only source). ``step(command, dt)`` holds the commanded thrusts over ``dt`` and integrates with
+RK4 at ``internal_dt_s`` (default 10 ms, 100 Hz), sampling the disturbance at each internal step.
+
+Actuator model, applied in this order to each thruster's command [N]:
+
+1. saturation: ``-reverse_max_n <= T <= thrust_max_n`` (vessel file);
+2. dead zone (if enabled): ``|T| < dead_zone_n`` gives 0 (the real boat's 10 N);
+3. first-order lag (if enabled): ``T' = (T_cmd - T) / thruster_time_constant_s``, exact per step.
+
+Energy: the paper's metric integrates ``alpha (T1^2 + T2^2)`` over the run (eq. 3); ``energy_j`` here is
+that integral of the thrust actually produced, by the trapezoid rule over internal steps. The task
+power T^w is a mission property and is added by whoever reports mission energy.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from seaway.simkit.scenario import DisturbanceModel, Scenario, body_force
+from seaway.vessel import model
+from seaway.vessel.model import VesselParams
+
+
+def saturate(thrust_n: float, p: VesselParams) -> float:
+    """Clamp one thruster's command to the vessel's ahead/astern bounds [N]."""
+    return min(max(thrust_n, -p.reverse_max_n), p.thrust_max_n)
+
+
+def apply_dead_zone(thrust_n: float, dead_zone_n: float) -> float:
+    """Commands below the dead zone produce no thrust [N]."""
+    return 0.0 if abs(thrust_n) < dead_zone_n else thrust_n
+
+
+@dataclass
+class PlantState:
+    """Everything the plant carries between steps."""
+
+    t_s: float
+    x: list[float]  # [u, v, r, x, y, psi]
+    thrust_n: tuple[float, float] = (0.0, 0.0)  # produced by the thrusters now
+    energy_j: float = 0.0
+    last_disturbance_body: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    last_current_ne: tuple[float, float] = (0.0, 0.0)
+    history: list[tuple[float, ...]] = field(default_factory=list)
+
+
+class Plant:
+    """One simulated vessel in one scenario."""
+
+    def __init__(self, scenario: Scenario, vessel: VesselParams, internal_dt_s: float = 0.01) -> None:
+        if not internal_dt_s > 0:
+            raise ValueError("internal_dt_s must be > 0")
+        self.scenario = scenario
+        self.p = vessel
+        self.internal_dt_s = internal_dt_s
+        self.dead_zone_n = vessel.dead_zone_n if scenario.dead_zone else 0.0
+        tc = vessel.thruster_time_constant_s if scenario.thruster_lag else 0.0
+        self.lag_tc_s = tc
+        self.reset()
+
+    def reset(self) -> None:
+        s = self.scenario.start
+        self.disturbance = DisturbanceModel(self.scenario.disturbances, self.scenario.seed)
+        self.state = PlantState(t_s=0.0, x=[s.u_mps, 0.0, 0.0, s.x_m, s.y_m, s.psi_rad])
+
+    def actuate(self, command_n: tuple[float, float]) -> tuple[float, float]:
+        """Commanded thrusts after saturation and dead zone (before the lag) [N]."""
+        return (apply_dead_zone(saturate(command_n[0], self.p), self.dead_zone_n),
+                apply_dead_zone(saturate(command_n[1], self.p), self.dead_zone_n))
+
+    def step(self, command_n: tuple[float, float], dt_s: float) -> PlantState:
+        """Hold ``command_n`` (T1 port, T2 starboard) [N] for ``dt_s`` and integrate."""
+        if not (math.isfinite(command_n[0]) and math.isfinite(command_n[1])):
+            raise ValueError(f"thrust command must be finite, got {command_n}")
+        st = self.state
+        target = self.actuate(command_n)
+        n = max(1, round(dt_s / self.internal_dt_s))
+        h = dt_s / n
+        decay = math.exp(-h / self.lag_tc_s) if self.lag_tc_s > 0 else 0.0
+        p = self.p
+        x = st.x
+        thrust = st.thrust_n
+        for _ in range(n):
+            tau_body, force_ne, current_ne = self.disturbance.sample(st.t_s, x[3], x[4])
+            if self.lag_tc_s > 0:
+                new = (target[0] + (thrust[0] - target[0]) * decay,
+                       target[1] + (thrust[1] - target[1]) * decay)
+                held = ((thrust[0] + new[0]) / 2.0, (thrust[1] + new[1]) / 2.0)
+            else:
+                new = held = target
+            p_before = model.propulsion_power_w(thrust if self.lag_tc_s > 0 else target, p)
+            x = model.rk4_step(x, held, h, p, math, tau_body, force_ne, current_ne)
+            st.energy_j += 0.5 * (p_before + model.propulsion_power_w(new, p)) * h
+            thrust = new
+            st.t_s += h
+            st.last_disturbance_body = body_force(tau_body, force_ne, x[5])
+            st.last_current_ne = current_ne
+        x[5] = math.remainder(x[5], 2.0 * math.pi)  # keep psi in [-pi, pi] without changing the state
+        st.x = x
+        st.thrust_n = thrust
+        return st

@@ -1,0 +1,313 @@
+"""Scenario files (``deploy/scenarios/*.toml``) and the disturbance fields they describe.
+
+A scenario fixes everything a simulated run depends on: the vessel file, the start pose, the
+disturbances, the sensor noise, the seed and, optionally, the mission. The same scenario and seed give
+the same run, bit for bit: every random draw comes from ``numpy.random.Generator(PCG64(seed))``
+streams derived from the seed in a fixed order.
+
+Disturbances (summed when several are given):
+
+* ``body_constant``: a constant force/moment in the body frame (paper condition #2);
+* ``world_constant``: a constant force in the world frame, rotated into the body frame with the
+  heading (conditions #3, #4);
+* ``world_grid``: a world-frame force field on a rectilinear grid, bilinear inside, clamped to the
+  edge values outside (condition #5, ``shared/reproduction/condition5_grid.json``);
+* ``current``: a water current (uniform) that carries the vessel (it enters the kinematics, not the
+  forces; see ``seaway.vessel.model``);
+* ``wind``: a mean wind with seeded gusts (a first-order Gauss-Markov process on speed and
+  direction), turned into a world-frame force by a quadratic drag law.
+
+World x/y are NED north/east, as the waypoints are (shared/reproduction.md).
+"""
+
+from __future__ import annotations
+
+import bisect
+import itertools
+import json
+import math
+from pathlib import Path
+from typing import Annotated, Literal
+
+import numpy as np
+from pydantic import Field, model_validator
+
+from seaway.contract.config import ConfigError, ConfigModel, deploy_path, parse_config, read_document
+from seaway.contract.messages import MissionRequest, Waypoint
+from seaway.vessel.model import world_to_body
+
+AIR_DENSITY_KGPM3 = 1.225
+
+
+class BodyConstant(ConfigModel):
+    kind: Literal["body_constant"]
+    surge_n: float = 0.0
+    sway_n: float = 0.0
+    yaw_nm: float = 0.0
+
+
+class WorldConstant(ConfigModel):
+    kind: Literal["world_constant"]
+    north_n: float = 0.0
+    east_n: float = 0.0
+
+
+class WorldGrid(ConfigModel):
+    """Force field on a grid: ``north_n[i][j]``, ``east_n[i][j]`` at (xs_m[i], ys_m[j])."""
+
+    kind: Literal["world_grid"]
+    xs_m: list[float] = Field(min_length=2)
+    ys_m: list[float] = Field(min_length=2)
+    north_n: list[list[float]]
+    east_n: list[list[float]]
+
+    @model_validator(mode="after")
+    def _shape(self) -> WorldGrid:
+        for name, axis in (("xs_m", self.xs_m), ("ys_m", self.ys_m)):
+            if any(b <= a for a, b in itertools.pairwise(axis)):
+                raise ValueError(f"{name} must be strictly increasing")
+        for name, table in (("north_n", self.north_n), ("east_n", self.east_n)):
+            if len(table) != len(self.xs_m) or any(len(row) != len(self.ys_m) for row in table):
+                raise ValueError(f"{name} must be {len(self.xs_m)} rows of {len(self.ys_m)} values "
+                                 "(one row per xs_m, one value per ys_m)")
+        return self
+
+
+class Current(ConfigModel):
+    kind: Literal["current"]
+    north_mps: float = 0.0
+    east_mps: float = 0.0
+
+
+class Wind(ConfigModel):
+    """Wind from ``from_rad`` (meteorological: the direction it blows from, clockwise from north)."""
+
+    kind: Literal["wind"]
+    speed_mps: float = Field(ge=0)
+    from_rad: float
+    drag_area_m2: float = Field(default=0.05, ge=0, description="Cd * A, above-water [m^2]")
+    gust_std_mps: float = Field(default=0.0, ge=0, description="gust speed std [m/s]")
+    gust_direction_std_rad: float = Field(default=0.0, ge=0)
+    gust_time_constant_s: float = Field(default=5.0, gt=0)
+
+
+Disturbance = Annotated[BodyConstant | WorldConstant | WorldGrid | Current | Wind,
+                        Field(discriminator="kind")]
+
+
+class SensorNoise(ConfigModel):
+    """Sensor models of the simulated autopilot; std values are 1-sigma, white, seeded."""
+
+    gnss_rate_hz: float = Field(default=5.0, gt=0, le=100)
+    gnss_std_m: float = Field(default=0.0, ge=0)
+    gnss_dropout_rate_per_s: float = Field(default=0.0, ge=0, description="Poisson dropout starts")
+    gnss_dropout_duration_s: float = Field(default=0.0, ge=0)
+    heading_std_rad: float = Field(default=0.0, ge=0)
+    yaw_rate_std_radps: float = Field(default=0.0, ge=0)
+    sog_std_mps: float = Field(default=0.0, ge=0)
+    attitude_rate_hz: float = Field(default=20.0, gt=0, le=250)
+
+
+class StartPose(ConfigModel):
+    x_m: float = 0.0
+    y_m: float = 0.0
+    psi_rad: float = 0.0
+    u_mps: float = 0.0
+
+
+class Origin(ConfigModel):
+    """Geodetic origin of the simulated world (the local NED origin at x = y = 0)."""
+
+    lat_deg: float = Field(default=47.0, ge=-90, le=90)
+    lon_deg: float = Field(default=8.0, ge=-180, le=180)
+    alt_m: float = 0.0
+
+
+class MissionSpec(ConfigModel):
+    """A mission as written in a file: a scenario's ``[mission]`` table or a mission file.
+
+    Waypoints are local NED metres (``waypoints_m``, [[north, east], ...]) or WGS84 degrees
+    (``waypoints_deg``, [[lat, lon], ...], converted by the controller through the published origin).
+    """
+
+    mission_id: str = Field(default="", max_length=64)
+    waypoints_m: list[tuple[float, float]] | None = Field(default=None, min_length=2)
+    waypoints_deg: list[tuple[float, float]] | None = Field(default=None, min_length=2)
+    coa_radius_m: float = Field(gt=0)
+    task_power_w: float = Field(ge=0)
+    controller: Literal["cc-empc", "eo-empc", "nmpc"] = "cc-empc"
+
+    @model_validator(mode="after")
+    def _one_kind_of_waypoints(self) -> MissionSpec:
+        if (self.waypoints_m is None) == (self.waypoints_deg is None):
+            raise ValueError("give exactly one of waypoints_m and waypoints_deg")
+        return self
+
+    def to_request(self, stamp_ns: int, mission_id: str = "") -> MissionRequest:
+        """The bus request for this mission (the controller validates it again)."""
+        if self.waypoints_m is not None:
+            wps = [Waypoint(x_m=x, y_m=y) for x, y in self.waypoints_m]
+        else:
+            wps = [Waypoint(lat_deg=a, lon_deg=b) for a, b in self.waypoints_deg or []]
+        return MissionRequest.make(stamp_ns=stamp_ns, mission_id=self.mission_id or mission_id,
+                                   waypoints=wps, coa_radius_m=self.coa_radius_m,
+                                   task_power_w=self.task_power_w, controller=self.controller)
+
+
+def load_mission(path: str | Path) -> MissionSpec:
+    """A mission file, or the ``[mission]`` table of a scenario file (by path or scenario name)."""
+    p = Path(path)
+    if p.suffix not in (".toml", ".json"):
+        sc = load_scenario(path)
+        if sc.mission is None:
+            raise ConfigError(f"scenario {sc.name!r} has no [mission]")
+        return sc.mission.model_copy(update={"mission_id": sc.mission.mission_id or sc.name})
+    doc = read_document(p)
+    if "mission" in doc and isinstance(doc["mission"], dict):
+        sc = parse_scenario(doc, str(p), p.parent)
+        assert sc.mission is not None
+        return sc.mission.model_copy(update={"mission_id": sc.mission.mission_id or sc.name})
+    return parse_config(doc, MissionSpec, str(p))
+
+
+class Scenario(ConfigModel):
+    name: str = Field(min_length=1)
+    description: str = ""
+    seed: int = Field(ge=0)
+    vessel: str = Field(min_length=1, description="vessel file name (deploy/vessels) or path")
+    start: StartPose = StartPose()
+    origin: Origin = Origin()
+    disturbances: list[Disturbance] = Field(default_factory=list)
+    sensors: SensorNoise = SensorNoise()
+    dead_zone: bool = Field(default=False, description="apply the vessel file's thrust dead zone")
+    thruster_lag: bool = Field(default=False, description="apply the vessel file's thruster lag")
+    mission: MissionSpec | None = None
+
+
+def _resolve_grid_files(doc: dict, base: Path) -> dict:
+    """``{kind = "world_grid", file = "x.json"}`` -> the grid inline (xs, ys, tx, ty as in shared/)."""
+    out = dict(doc)
+    dists = []
+    for d in doc.get("disturbances", []) or []:
+        if isinstance(d, dict) and d.get("kind") == "world_grid" and "file" in d:
+            path = (base / d["file"]).resolve()
+            try:
+                grid = json.loads(path.read_text())
+            except (OSError, json.JSONDecodeError) as err:
+                raise ConfigError(f"world_grid file {path}: {err}") from None
+            rest = {k: v for k, v in d.items() if k != "file"}
+            scale = rest.pop("scale", 1.0)
+            try:
+                d = {**rest, "xs_m": grid["xs"], "ys_m": grid["ys"],
+                     "north_n": [[scale * v for v in row] for row in grid["tx"]],
+                     "east_n": [[scale * v for v in row] for row in grid["ty"]]}
+            except (KeyError, TypeError) as err:
+                raise ConfigError(f"world_grid file {path}: needs xs, ys, tx, ty ({err})") from None
+        dists.append(d)
+    if "disturbances" in doc:
+        out["disturbances"] = dists
+    return out
+
+
+def parse_scenario(doc: dict, where: str = "scenario", base: Path | None = None) -> Scenario:
+    """Validate a scenario document; grid ``file`` entries resolve relative to ``base``."""
+    if not isinstance(doc, dict):
+        raise ConfigError(f"{where}: a scenario must be a table/object")
+    return parse_config(_resolve_grid_files(doc, base or Path.cwd()), Scenario, where)
+
+
+def load_scenario(name_or_path: str | Path) -> Scenario:
+    """Load ``deploy/scenarios/<name>.toml`` or a path."""
+    p = Path(name_or_path)
+    if p.suffix not in (".toml", ".json"):
+        p = deploy_path("scenarios", f"{name_or_path}.toml")
+    return parse_scenario(read_document(p), str(p), p.parent)
+
+
+# ---------------------------------------------------------------------------------------------
+# Evaluating the fields
+# ---------------------------------------------------------------------------------------------
+
+
+def bilinear(grid: WorldGrid, x_m: float, y_m: float) -> tuple[float, float]:
+    """World force (north, east) [N] at (x, y): bilinear inside the grid, clamped outside."""
+    xs, ys = grid.xs_m, grid.ys_m
+    x = min(max(x_m, xs[0]), xs[-1])
+    y = min(max(y_m, ys[0]), ys[-1])
+    i = min(max(bisect.bisect_right(xs, x) - 1, 0), len(xs) - 2)
+    j = min(max(bisect.bisect_right(ys, y) - 1, 0), len(ys) - 2)
+    tx = (x - xs[i]) / (xs[i + 1] - xs[i])
+    ty = (y - ys[j]) / (ys[j + 1] - ys[j])
+
+    def interp(t: list[list[float]]) -> float:
+        return ((1 - tx) * (1 - ty) * t[i][j] + tx * (1 - ty) * t[i + 1][j]
+                + (1 - tx) * ty * t[i][j + 1] + tx * ty * t[i + 1][j + 1])
+
+    return interp(grid.north_n), interp(grid.east_n)
+
+
+class DisturbanceModel:
+    """The disturbances of one scenario, evaluated along a run.
+
+    ``sample(t_s, x_m, y_m)`` is called once per simulator step in time order; it advances the gust
+    processes (seeded) and returns what acts over the step::
+
+        (tau_body (surge N, sway N, yaw N m), force_ne (north N, east N), current_ne (m/s, m/s))
+
+    World-frame forces are returned in the world frame: ``seaway.vessel.model`` rotates them with the heading
+    of each RK4 stage.
+    """
+
+    def __init__(self, disturbances: list, seed: int) -> None:
+        self.items = list(disturbances)
+        self._rng = np.random.Generator(np.random.PCG64([seed, 0xD157]))
+        self._gust = [(0.0, 0.0) for _ in self.items]
+        self._t_last: float | None = None
+
+    def sample(self, t_s: float, x_m: float, y_m: float) -> tuple[
+            tuple[float, float, float], tuple[float, float], tuple[float, float]]:
+        dt = 0.0 if self._t_last is None else max(0.0, t_s - self._t_last)
+        self._t_last = t_s
+        su = sv = sr = fn = fe = cn = ce = 0.0
+        for k, d in enumerate(self.items):
+            if isinstance(d, BodyConstant):
+                su += d.surge_n
+                sv += d.sway_n
+                sr += d.yaw_nm
+            elif isinstance(d, WorldConstant):
+                fn += d.north_n
+                fe += d.east_n
+            elif isinstance(d, WorldGrid):
+                gn, ge = bilinear(d, x_m, y_m)
+                fn += gn
+                fe += ge
+            elif isinstance(d, Current):
+                cn += d.north_mps
+                ce += d.east_mps
+            elif isinstance(d, Wind):
+                wn, we = self._wind_force(k, d, dt)
+                fn += wn
+                fe += we
+        return (su, sv, sr), (fn, fe), (cn, ce)
+
+    def _wind_force(self, k: int, d: Wind, dt: float) -> tuple[float, float]:
+        gs, gd = self._gust[k]
+        if dt > 0 and (d.gust_std_mps > 0 or d.gust_direction_std_rad > 0):
+            # Exact discretisation of an Ornstein-Uhlenbeck process with stationary std sigma.
+            a = math.exp(-dt / d.gust_time_constant_s)
+            b = math.sqrt(1.0 - a * a)
+            n1, n2 = self._rng.standard_normal(2)
+            gs = a * gs + b * d.gust_std_mps * float(n1)
+            gd = a * gd + b * d.gust_direction_std_rad * float(n2)
+            self._gust[k] = (gs, gd)
+        speed = max(0.0, d.speed_mps + gs)
+        towards = d.from_rad + gd + math.pi  # the air moves away from where it blows from
+        q = 0.5 * AIR_DENSITY_KGPM3 * d.drag_area_m2 * speed * speed
+        return q * math.cos(towards), q * math.sin(towards)
+
+
+def body_force(tau_body: tuple[float, float, float], force_ne: tuple[float, float],
+               psi_rad: float) -> tuple[float, float, float]:
+    """Total disturbance in the body frame at heading ``psi`` (what ``sim/disturbance`` reports)."""
+    wu, wv = world_to_body(force_ne[0], force_ne[1], math.cos(psi_rad), math.sin(psi_rad))
+    return tau_body[0] + wu, tau_body[1] + wv, tau_body[2]

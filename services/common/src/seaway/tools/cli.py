@@ -1,0 +1,149 @@
+"""The ``seaway`` command: one entry point for the tools.
+
+Built in: ``launch`` (start a profile), ``bench`` (benchmarks registered by any installed Seaway
+package), ``echo`` (print a key's messages), ``health`` (which services are alive), ``schemas``
+(write every message's JSON Schema).
+Packages add subcommands (launch, record, replay, report, mission, ...) through the entry-point
+group ``seaway.commands``: a function ``main(argv: list[str]) -> int``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import threading
+import time
+from importlib.metadata import entry_points
+from pathlib import Path
+
+from seaway.contract import keys
+from seaway.contract.messages import ALL_MESSAGES
+
+
+def _plugins(group: str) -> dict[str, object]:
+    return {ep.name: ep for ep in entry_points(group=group)}
+
+
+def cmd_bench(argv: list[str]) -> int:
+    benches = _plugins("seaway.benchmarks")
+    if not argv or argv[0] in ("-h", "--help"):
+        print("usage: seaway bench NAME [--json] [options]\n\nbenchmarks installed: "
+              + (", ".join(sorted(benches)) or "none"))
+        return 0 if argv else 2
+    name, rest = argv[0], argv[1:]
+    if name not in benches:
+        print(f"seaway bench: no benchmark {name!r}; installed: {', '.join(sorted(benches))}",
+              file=sys.stderr)
+        return 2
+    as_json = "--json" in rest
+    rest = [a for a in rest if a != "--json"]
+    result = benches[name].load()(rest)  # type: ignore[attr-defined]
+    print(result.dumps() if as_json else result.table())
+    return 0
+
+
+def _spec_by_suffix(suffix: str) -> keys.KeySpec:
+    for spec in keys.REGISTRY:
+        if spec.suffix == suffix:
+            return spec
+    known = ", ".join(s.suffix for s in keys.REGISTRY if s.kind == "topic")
+    raise SystemExit(f"seaway: unknown key {suffix!r}; topics: {known}")
+
+
+def cmd_echo(argv: list[str]) -> int:
+    from seaway.runtime.bus import Bus
+    from seaway.runtime.service import DEFAULT_VESSEL, install_stop_signals
+
+    ap = argparse.ArgumentParser(prog="seaway echo", description="print the messages of one key")
+    ap.add_argument("key", help="registered key suffix, e.g. nav/state")
+    ap.add_argument("--vessel", default=DEFAULT_VESSEL, help="vessel name or * for all")
+    ap.add_argument("--count", type=int, default=0, help="stop after N messages (0: never)")
+    ap.add_argument("--zenoh-config", default=None)
+    args = ap.parse_args(argv)
+    spec = _spec_by_suffix(args.key)
+    stop = threading.Event()
+    install_stop_signals(stop)
+    n = 0
+    with Bus.open(args.vessel if args.vessel != "*" else DEFAULT_VESSEL, args.zenoh_config) as bus:
+        sub = bus.subscribe(spec, mode="fifo", vessel=args.vessel)
+        while not stop.is_set():
+            msg = sub.get(0.1)
+            if msg is None:
+                continue
+            print(msg.model_dump_json(), flush=True)
+            n += 1
+            if args.count and n >= args.count:
+                break
+    return 0
+
+
+def cmd_health(argv: list[str]) -> int:
+    from seaway.runtime.bus import Bus
+    from seaway.runtime.service import DEFAULT_VESSEL
+
+    ap = argparse.ArgumentParser(prog="seaway health", description="list the services alive")
+    ap.add_argument("--vessel", default=DEFAULT_VESSEL)
+    ap.add_argument("--wait", type=float, default=1.0, help="seconds to wait for peers first")
+    ap.add_argument("--zenoh-config", default=None)
+    args = ap.parse_args(argv)
+    with Bus.open(args.vessel, args.zenoh_config) as bus:
+        time.sleep(args.wait)
+        alive = sorted(bus.alive_services())
+    for s in keys.SERVICES:
+        print(f"{s:15s} {'alive' if s in alive else '-'}")
+    return 0
+
+
+def cmd_schemas(argv: list[str]) -> int:
+    ap = argparse.ArgumentParser(prog="seaway schemas", description="write every JSON Schema")
+    ap.add_argument("out", type=Path, help="folder to write <schema name>.json into")
+    args = ap.parse_args(argv)
+    args.out.mkdir(parents=True, exist_ok=True)
+    for m in ALL_MESSAGES:
+        (args.out / f"{m.SCHEMA}.json").write_text(json.dumps(m.json_schema(), indent=2) + "\n")
+    print(f"wrote {len(ALL_MESSAGES)} schemas to {args.out}")
+    return 0
+
+
+def cmd_launch(argv: list[str]) -> int:
+    from seaway.tools.launch.main import main as launch_main
+
+    return launch_main(argv)
+
+
+def cmd_mission(argv: list[str]) -> int:
+    from seaway.tools.mission_cli import main as mission_main
+
+    return mission_main(argv)
+
+
+def cmd_router(argv: list[str]) -> int:
+    from seaway.tools.router import main as router_main
+
+    return router_main(argv)
+
+
+BUILTIN = {"bench": cmd_bench, "echo": cmd_echo, "health": cmd_health, "schemas": cmd_schemas,
+           "launch": cmd_launch, "router": cmd_router,
+           "mission": cmd_mission}
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    plugins = _plugins("seaway.commands")
+    commands = sorted({*BUILTIN, *plugins})
+    if not argv or argv[0] in ("-h", "--help"):
+        print("usage: seaway COMMAND [args]\n\ncommands: " + ", ".join(commands))
+        return 0 if argv else 2
+    name, rest = argv[0], argv[1:]
+    if name in BUILTIN:
+        return BUILTIN[name](rest)
+    if name in plugins:
+        return int(plugins[name].load()(rest) or 0)  # type: ignore[attr-defined]
+    print(f"seaway: unknown command {name!r}; commands: {', '.join(commands)}", file=sys.stderr)
+    return 2
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,245 @@
+"""``seaway launch PROFILE``: start a profile, show a live status line, stop everything on Ctrl-C.
+
+    seaway launch sim                      # the default: the simulated vessel and every service
+    seaway launch sim --scenario paper-c1  # another scenario
+    seaway launch boat --vessel boat1      # on the boat's computer
+
+Exit code: 0 after a clean stop (Ctrl-C, SIGTERM, or the mission completed with
+``stop_when_complete``); 1 when a required process failed or could not start; 2 for a bad profile.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+from seaway.contract import keys
+from seaway.contract.config import ConfigError, deploy_path, repo_root
+from seaway.contract.messages import ArmRequest, MissionRequest, MissionStatus, ModeRequest, StateEstimate
+from seaway.runtime.bus import ENV_CONFIG, Bus
+from seaway.runtime.service import DEFAULT_VESSEL, ENV_VESSEL, install_stop_signals
+from seaway.simkit.scenario import load_scenario
+from seaway.tools.launch.profile import Profile, load_profile, substitute
+from seaway.tools.launch.supervisor import Supervised, Supervisor, default_echo
+
+
+def parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="seaway launch", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("profile", help="profile name (deploy/profiles/<name>.toml) or path")
+    ap.add_argument("--vessel", default=os.environ.get(ENV_VESSEL, DEFAULT_VESSEL))
+    ap.add_argument("--scenario", default=None, help="scenario name or path (profile's default)")
+    ap.add_argument("--run-dir", type=Path, default=None, help="default runs/<time>-<profile>")
+    ap.add_argument("--no-mission", action="store_true", help="do not send the scenario's mission")
+    ap.add_argument("--stay", action="store_true", help="keep running after the mission completes")
+    ap.add_argument("--verbose", action="store_true", help="show every process's output")
+    ap.add_argument("--recording", type=Path, default=None, help="recording for the replay profile")
+    ap.add_argument("--check", action="store_true", help="validate the profile and exit")
+    return ap
+
+
+def _run_dir(args: argparse.Namespace) -> Path:
+    if args.run_dir is not None:
+        return args.run_dir
+    base = (repo_root() or Path.cwd()) / "runs"
+    return base / f"{time.strftime('%Y%m%d-%H%M%S')}-{Path(args.profile).stem}"
+
+
+def _mission_request(scenario_name: str) -> MissionRequest | None:
+    sc = load_scenario(scenario_name)
+    if sc.mission is None:
+        return None
+    return sc.mission.to_request(time.time_ns(), mission_id=sc.name)
+
+
+class StatusLine:
+    """The live line: vessel, leg, speed, cross-track error, energy used and energy-to-go."""
+
+    def __init__(self, vessel: str) -> None:
+        self.vessel = vessel
+        self.mission: MissionStatus | None = None
+        self.state: StateEstimate | None = None
+        self.tty = sys.stdout.isatty()
+        self._last_print = 0.0
+
+    def text(self, t_s: float) -> str:
+        m, s = self.mission, self.state
+        parts = [self.vessel, f"t {t_s:5.0f} s"]
+        if m is not None:
+            parts.append(f"{m.state} leg {m.active_leg}/{max(m.waypoint_count - 1, 0)}")
+            if m.cross_track_m is not None:
+                parts.append(f"xte {m.cross_track_m:5.2f} m")
+            if m.energy_used_j is not None:
+                parts.append(f"energy {m.energy_used_j:7.1f} J")
+            if m.energy_to_go_j is not None:
+                parts.append(f"to go {m.energy_to_go_j:7.1f} J")
+        else:
+            parts.append("no mission status yet")
+        if s is not None:
+            parts.append(f"speed {(s.u_mps ** 2 + s.v_mps ** 2) ** 0.5:4.2f} m/s")
+        return " | ".join(parts)
+
+    def show(self, t_s: float, final: bool = False) -> None:
+        now = time.monotonic()
+        if self.tty:
+            sys.stdout.write("\r\x1b[2K" + self.text(t_s) + ("\n" if final else ""))
+            sys.stdout.flush()
+        elif final or now - self._last_print >= 5.0:
+            print(self.text(t_s), flush=True)
+            self._last_print = now
+
+
+LINK_WAIT_S = 20.0  # how long the start-up requests wait for vehicle_io's autopilot link
+
+
+def _operator_requests(bus: Bus, profile: Profile) -> bool:
+    """The profile's start-up mode and arming, as explicit requests with their replies shown.
+
+    vehicle_io is ready when it serves requests, which can be before it has heard the autopilot;
+    so the requests wait for a VehicleStatus with the link up, as an operator would.
+    """
+    if not (profile.mode_on_start or profile.arm_on_start):
+        return True
+    status = bus.subscribe(keys.VEHICLE_STATUS, mode="latest")
+    deadline = time.monotonic() + LINK_WAIT_S
+    while True:
+        msg = status.get(0.5)
+        if msg is not None and msg.link_ok:
+            break
+        if time.monotonic() > deadline:
+            print(f"no autopilot link reported by vehicle_io within {LINK_WAIT_S:g} s; "
+                  "not sending mode or arming", flush=True)
+            return False
+    status.undeclare()
+    if profile.mode_on_start:
+        reply = bus.request(keys.VEHICLE_MODE, ModeRequest.make(stamp_ns=time.time_ns(),
+                                                                mode=profile.mode_on_start), timeout_s=10.0)
+        print(f"mode {profile.mode_on_start}: {'accepted' if reply.accepted else 'REFUSED: ' + reply.reason}",
+              flush=True)
+        if not reply.accepted:
+            return False
+    if profile.arm_on_start:
+        reply = bus.request(keys.VEHICLE_ARM, ArmRequest.make(stamp_ns=time.time_ns(), arm=True),
+                            timeout_s=10.0)
+        print(f"arm: {'accepted' if reply.accepted else 'REFUSED: ' + reply.reason}", flush=True)
+        if not reply.accepted:
+            return False
+    return True
+
+
+def main(argv: list[str]) -> int:
+    args = parser().parse_args(argv)
+    try:
+        profile: Profile = load_profile(args.profile)
+    except ConfigError as err:
+        print(f"seaway launch: {err}", file=sys.stderr)
+        return 2
+    scenario = args.scenario or profile.scenario or ""
+    run_dir = _run_dir(args)
+    try:
+        vessel_file = load_scenario(scenario).vessel if scenario else "paper-sim"
+    except ConfigError as err:
+        print(f"seaway launch: {err}", file=sys.stderr)
+        return 2
+    values = {"vessel": args.vessel, "scenario": scenario, "run_dir": str(run_dir),
+              "profile": profile.name, "vessel_file": vessel_file,
+              "recording": str(args.recording or "")}
+    try:
+        procs = [Supervised(p, substitute(p.command, values)) for p in profile.processes]
+        mission = (_mission_request(scenario) if profile.mission_on_start and scenario
+                   and not args.no_mission else None)
+    except ConfigError as err:
+        print(f"seaway launch: {err}", file=sys.stderr)
+        return 2
+    if args.check:
+        print(f"profile {profile.name}: {len(procs)} processes, valid")
+        return 0
+
+    env = dict(os.environ)
+    env[ENV_VESSEL] = args.vessel
+    # Children find their commands next to the interpreter running the launcher (the venv).
+    env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env.get('PATH', '')}"
+    if profile.zenoh_config:
+        env[ENV_CONFIG] = str(deploy_path("zenoh", profile.zenoh_config))
+    run_dir.mkdir(parents=True, exist_ok=True)
+    sup = Supervisor(procs, run_dir, env, profile.backoff, default_echo, args.verbose)
+    stop = threading.Event()
+    install_stop_signals(stop)
+    print(f"seaway launch {profile.name}: vessel {args.vessel}, run folder {run_dir}", flush=True)
+
+    bus = Bus.open(args.vessel, env.get(ENV_CONFIG))
+    code = 0
+    t0 = time.monotonic()
+    try:
+        bus.watch_health(sup.on_health)
+        status = StatusLine(args.vessel)
+        bus.subscribe(keys.MISSION_STATUS, callback=lambda _k, m: setattr(status, "mission", m))
+        bus.subscribe(keys.NAV_STATE, callback=lambda _k, m: setattr(status, "state", m))
+        error = sup.start_all(stop)
+        if error:
+            print(f"seaway launch: {error}", file=sys.stderr)
+            code = 1 if not stop.is_set() else 0
+            return code
+        print(sup.status_table(), flush=True)
+        print(f"all ready in {time.monotonic() - t0:.1f} s", flush=True)
+        if not _operator_requests(bus, profile):
+            code = 1
+            return code
+        if mission is not None:
+            reply = bus.request(keys.MISSION_SET, mission, timeout_s=10.0)
+            print(f"mission {mission.mission_id}: "
+                  f"{'accepted' if reply.accepted else 'REFUSED: ' + reply.reason}", flush=True)
+        t_run = time.monotonic()
+        while not stop.wait(0.2):
+            sup.poll()
+            failed = sup.failed_required()
+            if failed:
+                print(f"\nseaway launch: required process(es) failed: {', '.join(failed)}",
+                      file=sys.stderr)
+                for name in failed:
+                    print(sup.log_tail(name), file=sys.stderr)
+                code = 1
+                break
+            status.show(time.monotonic() - t_run)
+            if profile.stop_after and sup.procs[profile.stop_after].state == "exited":
+                status.show(time.monotonic() - t_run, final=True)
+                print(f"{profile.stop_after} finished", flush=True)
+                break
+            if (profile.stop_when_complete and not args.stay and status.mission is not None
+                    and status.mission.state == "complete"):
+                status.show(time.monotonic() - t_run, final=True)
+                print("mission complete", flush=True)
+                break
+        else:
+            status.show(time.monotonic() - t_run, final=True)
+    finally:
+        print("stopping...", flush=True)
+        t_stop = time.monotonic()
+        sup.stop_all()
+        bus.close()
+        print(sup.status_table())
+        print(f"stopped in {time.monotonic() - t_stop:.1f} s; logs in {run_dir / 'logs'}")
+        _final_report(run_dir, scenario)
+    return code
+
+
+def _final_report(run_dir: Path, scenario: str) -> None:
+    """The run's metrics (from its recording, by ``seaway report``) and where the recording is."""
+    recordings = sorted(run_dir.glob("*.mcap"))
+    if not recordings:
+        return
+    print(f"recording: {', '.join(str(r) for r in recordings)}")
+    seaway = shutil.which("seaway", path=str(Path(sys.executable).parent)) or "seaway"
+    cmd = [seaway, "report", str(run_dir), "--out", str(run_dir / "report")]
+    if scenario:
+        cmd += ["--scenario", scenario]
+    try:
+        subprocess.run(cmd, timeout=120, check=False)
+    except (OSError, subprocess.TimeoutExpired) as err:
+        print(f"(no report: {err})")
