@@ -7,17 +7,17 @@ import math
 
 import numpy as np
 import pytest
-from seaway.contract.config import ConfigError, parse_config
+from seaway.contract.config import ConfigError, Origin, parse_config
 from seaway.contract.messages import Attitude, GnssFix, ThrustCommand
 from seaway.vessel import model
 from seaway.vessel.frames import GeoOrigin, wrap_pi
-from seaway_estimator.config import EstimatorConfig, OriginConfig
+from seaway_estimator.config import EstimatorConfig
 from seaway_estimator.core import IPSI, IX, IY, NZ, EstimatorCore, EstimatorError
 
 MS = 1_000_000
 S = 1_000_000_000
 ORIGIN = GeoOrigin(math.radians(47.0), math.radians(8.0), 0.0)
-FIXED = EstimatorConfig(origin=OriginConfig(lat_deg=47.0, lon_deg=8.0))
+FIXED = EstimatorConfig(origin=Origin(lat_deg=47.0, lon_deg=8.0))
 
 
 def fix(t_ns: int, north: float, east: float, vn: float | None = 0.0, ve: float | None = 0.0,

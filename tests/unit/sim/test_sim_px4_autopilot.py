@@ -7,7 +7,7 @@ import struct
 
 import pytest
 from pymavlink.dialects.v20 import common as ml
-from seaway.simkit.scenario import Origin
+from seaway.contract.config import Origin
 from seaway.simkit.sensors import origin_of
 from seaway_sim import px4_params
 from seaway_sim.px4_autopilot import (

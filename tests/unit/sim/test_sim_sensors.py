@@ -7,7 +7,8 @@ import math
 import statistics
 
 import pytest
-from seaway.simkit.scenario import Origin, SensorNoise
+from seaway.contract.config import Origin
+from seaway.simkit.scenario import SensorNoise
 from seaway.simkit.sensors import GnssDropouts, SensorSuite, instants_in, origin_of
 
 ORIGIN = Origin(lat_deg=28.18, lon_deg=112.94, alt_m=30.0)

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import argparse
 import logging
-import math
 import threading
 import time
 from collections.abc import Callable, Sequence
@@ -222,7 +221,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         log.info("solvers ready (%s) in %.1f s", args.solver, time.perf_counter() - t0)
         if scenario is not None:
             o = scenario.origin
-            core.set_origin(GeoOrigin(math.radians(o.lat_deg), math.radians(o.lon_deg), o.alt_m))
+            core.set_origin(GeoOrigin.from_degrees(o.lat_deg, o.lon_deg, o.alt_m))
             if scenario.mission is None:
                 log.error("scenario %s has no [mission] to start", scenario.name)
                 return 2

@@ -15,18 +15,10 @@ from pathlib import Path
 from typing import Literal
 
 from pydantic import Field
-from seaway.contract.config import ConfigModel, load_config
+from seaway.contract.config import ConfigModel, Origin, load_config
 
 CHI2_2DOF_9999 = 18.42
 CHI2_1DOF_9999 = 15.14
-
-
-class OriginConfig(ConfigModel):
-    """A fixed NED origin; without one the origin is the first good GNSS fix."""
-
-    lat_deg: float = Field(ge=-90, le=90)
-    lon_deg: float = Field(ge=-180, le=180)
-    alt_m: float = 0.0
 
 
 class EstimatorConfig(ConfigModel):
@@ -44,7 +36,7 @@ class EstimatorConfig(ConfigModel):
     # -- publishing ----------------------------------------------------------------------------
     publish_rate_hz: float = Field(default=20.0, gt=0, le=200)
     origin_rate_hz: float = Field(default=1.0, gt=0, le=50, description="NavOrigin repeat rate")
-    origin: OriginConfig | None = None
+    origin: Origin | None = Field(default=None, description="fixed NED origin; None: the first good GNSS fix")
     # -- measurement noise (used unless a message reports its own) ------------------------------
     gnss_std_m: float = Field(default=0.3, gt=0, description="GNSS horizontal position std [m]")
     use_reported_gnss_std: bool = Field(default=True, description="use GnssFix.horizontal_std_m "

@@ -135,8 +135,8 @@ class EstimatorCore:
             c.position_std_per_sqrt_s, c.position_std_per_sqrt_s, c.heading_std_per_sqrt_s,
             c.force_std_per_sqrt_s, c.force_std_per_sqrt_s, c.moment_std_per_sqrt_s]) ** 2
         self._max_step_ns = round(c.max_step_s * NS_PER_S)
-        self._fixed_origin = (None if c.origin is None else GeoOrigin(
-            math.radians(c.origin.lat_deg), math.radians(c.origin.lon_deg), c.origin.alt_m))
+        self._fixed_origin = (None if c.origin is None else GeoOrigin.from_degrees(
+            c.origin.lat_deg, c.origin.lon_deg, c.origin.alt_m))
         self.counters = Counters()
         self.origin: GeoOrigin | None = self._fixed_origin
         self.filter: Filter | None = None

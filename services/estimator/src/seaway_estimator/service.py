@@ -35,7 +35,7 @@ from seaway.runtime.clock import RateLoop
 from seaway.runtime.service import base_parser, parse, run_service
 from seaway.simkit.scenario import Scenario, load_scenario
 
-from seaway_estimator.config import EstimatorConfig, OriginConfig, load_estimator_config
+from seaway_estimator.config import EstimatorConfig, load_estimator_config
 from seaway_estimator.core import EstimatorCore, EstimatorError
 from seaway_estimator.replay import TraceWriter
 
@@ -213,7 +213,7 @@ def _stats_line(core: EstimatorCore) -> str:
 
 def with_scenario(cfg: EstimatorConfig, sc: Scenario) -> EstimatorConfig:
     """The config with the scenario's vessel, dead zone and geodetic origin (simulation only)."""
-    origin = OriginConfig(lat_deg=sc.origin.lat_deg, lon_deg=sc.origin.lon_deg, alt_m=sc.origin.alt_m)
+    origin = sc.origin
     return cfg.model_copy(update={"vessel": sc.vessel, "apply_dead_zone": sc.dead_zone, "origin": origin})
 
 

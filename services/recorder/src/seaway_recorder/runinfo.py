@@ -174,7 +174,7 @@ def vessel_from_attachments(atts: dict[str, bytes]) -> VesselParams | None:
 
 
 def scenario_origin(s: Scenario) -> GeoOrigin:
-    return GeoOrigin(math.radians(s.origin.lat_deg), math.radians(s.origin.lon_deg), s.origin.alt_m)
+    return GeoOrigin.from_degrees(s.origin.lat_deg, s.origin.lon_deg, s.origin.alt_m)
 
 
 def load_vessel_for(scenario: Scenario | None) -> VesselParams | None:

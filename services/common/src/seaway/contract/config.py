@@ -10,7 +10,7 @@ import tomllib
 from pathlib import Path
 from typing import Any, TypeVar
 
-from pydantic import BaseModel, ConfigDict, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 
 class ConfigError(ValueError):
@@ -21,6 +21,15 @@ class ConfigModel(BaseModel):
     """Base of every configuration type: unknown fields are errors, values finite, immutable."""
 
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False, frozen=True)
+
+
+class Origin(ConfigModel):
+    """A geodetic origin in WGS84 degrees: the local NED frame's x = y = 0 (scenarios, runs, configs)."""
+
+    lat_deg: float = Field(default=47.0, ge=-90, le=90)
+    lon_deg: float = Field(default=8.0, ge=-180, le=180)
+    alt_m: float = 0.0
+
 
 
 C = TypeVar("C", bound=ConfigModel)

@@ -32,8 +32,8 @@ from typing import Annotated, Literal
 import numpy as np
 from pydantic import Field, model_validator
 
-from seaway.contract.config import ConfigError, ConfigModel, deploy_path, parse_config, read_document
-from seaway.contract.messages import MissionRequest, Waypoint
+from seaway.contract.config import ConfigError, ConfigModel, Origin, deploy_path, parse_config, read_document
+from seaway.contract.missions import MissionSpec
 from seaway.vessel.model import world_to_body
 
 AIR_DENSITY_KGPM3 = 1.225
@@ -113,45 +113,6 @@ class StartPose(ConfigModel):
     y_m: float = 0.0
     psi_rad: float = 0.0
     u_mps: float = 0.0
-
-
-class Origin(ConfigModel):
-    """Geodetic origin of the simulated world (the local NED origin at x = y = 0)."""
-
-    lat_deg: float = Field(default=47.0, ge=-90, le=90)
-    lon_deg: float = Field(default=8.0, ge=-180, le=180)
-    alt_m: float = 0.0
-
-
-class MissionSpec(ConfigModel):
-    """A mission as written in a file: a scenario's ``[mission]`` table or a mission file.
-
-    Waypoints are local NED metres (``waypoints_m``, [[north, east], ...]) or WGS84 degrees
-    (``waypoints_deg``, [[lat, lon], ...], converted by the controller through the published origin).
-    """
-
-    mission_id: str = Field(default="", max_length=64)
-    waypoints_m: list[tuple[float, float]] | None = Field(default=None, min_length=2)
-    waypoints_deg: list[tuple[float, float]] | None = Field(default=None, min_length=2)
-    coa_radius_m: float = Field(gt=0)
-    task_power_w: float = Field(ge=0)
-    controller: Literal["cc-empc", "eo-empc", "nmpc"] = "cc-empc"
-
-    @model_validator(mode="after")
-    def _one_kind_of_waypoints(self) -> MissionSpec:
-        if (self.waypoints_m is None) == (self.waypoints_deg is None):
-            raise ValueError("give exactly one of waypoints_m and waypoints_deg")
-        return self
-
-    def to_request(self, stamp_ns: int, mission_id: str = "") -> MissionRequest:
-        """The bus request for this mission (the controller validates it again)."""
-        if self.waypoints_m is not None:
-            wps = [Waypoint(x_m=x, y_m=y) for x, y in self.waypoints_m]
-        else:
-            wps = [Waypoint(lat_deg=a, lon_deg=b) for a, b in self.waypoints_deg or []]
-        return MissionRequest.make(stamp_ns=stamp_ns, mission_id=self.mission_id or mission_id,
-                                   waypoints=wps, coa_radius_m=self.coa_radius_m,
-                                   task_power_w=self.task_power_w, controller=self.controller)
 
 
 def load_mission(path: str | Path) -> MissionSpec:

@@ -27,8 +27,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from seaway.contract.config import Origin
 from seaway.contract.messages import Attitude, GnssFix
-from seaway.simkit.scenario import Origin, SensorNoise
+from seaway.simkit.scenario import SensorNoise
 from seaway.vessel.frames import GeoOrigin, wrap_pi
 
 NS_PER_S = 1_000_000_000
@@ -54,7 +55,7 @@ def instants_in(period: int, after_ns: int, upto_ns: int) -> list[int]:
 
 def origin_of(origin: Origin) -> GeoOrigin:
     """The scenario's geodetic origin as a ``GeoOrigin`` (degrees -> radians)."""
-    return GeoOrigin(math.radians(origin.lat_deg), math.radians(origin.lon_deg), origin.alt_m)
+    return GeoOrigin.from_degrees(origin.lat_deg, origin.lon_deg, origin.alt_m)
 
 
 class _Normal:

@@ -61,6 +61,11 @@ class GeoOrigin:
     lon_rad: float
     alt_m: float = 0.0
 
+    @classmethod
+    def from_degrees(cls, lat_deg: float, lon_deg: float, alt_m: float = 0.0) -> GeoOrigin:
+        """The origin at WGS84 latitude/longitude [deg] and altitude [m] (files and configs say degrees)."""
+        return cls(math.radians(lat_deg), math.radians(lon_deg), alt_m)
+
     def _ecef0(self) -> tuple[float, float, float]:
         return geodetic_to_ecef(self.lat_rad, self.lon_rad, self.alt_m)
 

@@ -1,0 +1,42 @@
+"""Mission documents: a scenario's ``[mission]`` table or a mission file, and the bus request each
+becomes. The controller validates the request again (range, waypoints, legs)."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field, model_validator
+
+from seaway.contract.config import ConfigModel
+from seaway.contract.messages import MissionRequest, Waypoint
+
+
+class MissionSpec(ConfigModel):
+    """A mission as written in a file: a scenario's ``[mission]`` table or a mission file.
+
+    Waypoints are local NED metres (``waypoints_m``, [[north, east], ...]) or WGS84 degrees
+    (``waypoints_deg``, [[lat, lon], ...], converted by the controller through the published origin).
+    """
+
+    mission_id: str = Field(default="", max_length=64)
+    waypoints_m: list[tuple[float, float]] | None = Field(default=None, min_length=2)
+    waypoints_deg: list[tuple[float, float]] | None = Field(default=None, min_length=2)
+    coa_radius_m: float = Field(gt=0)
+    task_power_w: float = Field(ge=0)
+    controller: Literal["cc-empc", "eo-empc", "nmpc"] = "cc-empc"
+
+    @model_validator(mode="after")
+    def _one_kind_of_waypoints(self) -> MissionSpec:
+        if (self.waypoints_m is None) == (self.waypoints_deg is None):
+            raise ValueError("give exactly one of waypoints_m and waypoints_deg")
+        return self
+
+    def to_request(self, stamp_ns: int, mission_id: str = "") -> MissionRequest:
+        """The bus request for this mission (the controller validates it again)."""
+        if self.waypoints_m is not None:
+            wps = [Waypoint(x_m=x, y_m=y) for x, y in self.waypoints_m]
+        else:
+            wps = [Waypoint(lat_deg=a, lon_deg=b) for a, b in self.waypoints_deg or []]
+        return MissionRequest.make(stamp_ns=stamp_ns, mission_id=self.mission_id or mission_id,
+                                   waypoints=wps, coa_radius_m=self.coa_radius_m,
+                                   task_power_w=self.task_power_w, controller=self.controller)
