@@ -66,7 +66,7 @@ class MpcOutcome:
 
 
 class MpcController:
-    """Solves one OCP kind step after step, keeping its own warm start."""
+    """Solves one controller's OCP step after step, keeping its own warm start."""
 
     def __init__(self, ocp: Ocp, solver: NlpSolver) -> None:
         self.ocp, self.solver = ocp, solver
@@ -146,16 +146,17 @@ class MpcController:
         task = float(p[P_TASK])
         thrusts = ocp.thrusts(w)
         stage = float(sum(costs.stage_cost_j(t1, t2, task, spec.dt_s, vp) for t1, t2 in thrusts))
-        times = ocp.times_s(w)
-        if times is None:
+        times, terminal = ocp.times_s(w), ocp.controller.terminal
+        if times is None or terminal is None:  # no terminal terms (the NMPC)
             return Costs(stage, None, None, None, None, None, None)
         t_d, t_s = times
-        gate = float(p[P_GATE]) if spec.kind == "cc-empc" else 0.0
         x_h = [float(v) for v in w[ocp.x_index(spec.horizon)]]
         if not x_h[0] > 0:  # an unconverged iterate may violate u_H > 0; no finite Y then
             return Costs(stage, None, None, None, t_d, t_s, None)
-        term = costs.terminal_terms(x_h, t_d, t_s, p[P_PREV:P_PREV + 2], p[P_ACTIVE:P_ACTIVE + 2],
-                                    task, gate, spec.profile_n, vp)
+        # The controller's own terminal terms, with numbers: the gate counts only where its NLP
+        # uses it (CC-EMPC's Y), so the split reported is the one the solver minimised.
+        term = terminal(x_h, t_d, t_s, p[P_PREV:P_PREV + 2], p[P_ACTIVE:P_ACTIVE + 2], task,
+                        float(p[P_GATE]), spec, vp, math)
         return Costs(stage, float(term.dynamic_j), float(term.static_j), float(term.track_j), t_d,
                      t_s, float(term.cross_track_m))
 

@@ -1,5 +1,8 @@
 """The optimal control problems: CC-EMPC (paper eq. 15), EO-EMPC (eq. 15 without Y) and NMPC.
 
+This module is the skeleton every controller shares; what differs (stage cost, terminal terms, cold
+guess) comes from the controller registered under ``OcpSpec.kind`` (``seaway_controller.controllers``).
+
 Multiple shooting over H steps of dt with the gaps written ``X_{k+1} - F(X_k, U_k)`` (solver-notes.md,
 trap 5), F being the shared RK4 step of the vessel model (``seaway.vessel.model_casadi.rk4_discrete``).
 X_0 is the measured state, a parameter (not a variable pinned by an equality), which keeps the QP
@@ -30,18 +33,20 @@ import hashlib
 import json
 import math
 from dataclasses import asdict, dataclass, field
-from typing import Literal
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
+from seaway.contract.messages import ControllerName
 from seaway.vessel import model
 from seaway.vessel.model import NU, NX, VesselParams
 from seaway.vessel.model_casadi import rk4_discrete
 
-from seaway_controller import costs
+from seaway_controller import controllers, costs
 
-ControllerKind = Literal["cc-empc", "eo-empc", "nmpc"]
-CONTROLLER_KINDS: tuple[ControllerKind, ...] = ("cc-empc", "eo-empc", "nmpc")
+ControllerKind = ControllerName
+"""A controller's name (the wire's closed set, ``seaway.contract.messages.ControllerName``)."""
+CONTROLLER_KINDS: tuple[ControllerKind, ...] = controllers.NAMES
 
 TIME_SCALE_S = 100.0
 """t_d and t_s enter the NLP as t / TIME_SCALE_S (solver-notes.md, trap 1)."""
@@ -92,8 +97,7 @@ class OcpSpec:
     nmpc: costs.NmpcWeights = field(default_factory=costs.NmpcWeights)
 
     def __post_init__(self) -> None:
-        if self.kind not in CONTROLLER_KINDS:
-            raise ValueError(f"unknown controller {self.kind!r}; known: {', '.join(CONTROLLER_KINDS)}")
+        controllers.get(self.kind)  # ValueError naming the known controllers
         if self.horizon < 1 or not self.dt_s > 0:
             raise ValueError("horizon must be >= 1 and dt_s > 0")
         if not self.profile_n > 1:
@@ -102,16 +106,28 @@ class OcpSpec:
             raise ValueError("need 0 < t_d_min_s < t_d_max_s")
 
     @property
+    def controller(self) -> controllers.Controller:
+        """The registered controller this problem is built from."""
+        return controllers.get(self.kind)
+
+    @property
     def is_empc(self) -> bool:
-        return self.kind != "nmpc"
+        """An economic MPC: t_d, t_s and the terminal constraint are part of the problem."""
+        return self.controller.economic
 
 
 def spec_digest(spec: OcpSpec, vessel: VesselParams, extra: dict | None = None) -> str:
-    """A stable hash of the problem (spec, vessel, formulation code) and ``extra`` (solver options)."""
-    from pathlib import Path
+    """A stable hash of the problem (spec, vessel, formulation code) and ``extra`` (solver options).
+
+    The code hashed is every file the NLP is built from: this one, the cost terms, the controller
+    definitions (``controllers/*.py``) and the shared vessel maths they call (``seaway.vessel``'s
+    model and path geometry), so that editing any of them rebuilds the cached solver."""
+    from seaway.vessel import model, model_casadi, path
 
     here = Path(__file__).parent
-    code = "".join((here / f).read_text() for f in ("costs.py", "ocp.py"))
+    files = [here / "costs.py", here / "ocp.py", *sorted((here / "controllers").glob("*.py")),
+             *(Path(m.__file__) for m in (model, model_casadi, path))]
+    code = "".join(f.read_text() for f in files)
     doc = {"spec": asdict(spec), "vessel": vessel.model_dump(), "extra": extra or {},
            "casadi": ca.__version__, "code": hashlib.sha256(code.encode()).hexdigest()}
     return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()[:20]
@@ -134,6 +150,7 @@ class Ocp:
         if graph not in ("SX", "MX"):
             raise ValueError(f"graph must be 'SX' or 'MX', not {graph!r}")
         self.spec, self.vessel, self.scaled, self.graph = spec, vessel, scaled, graph
+        self.controller = spec.controller
         self.time_scale_s = TIME_SCALE_S if scaled else 1.0
         h = spec.horizon
         self.stage = NU + NX  # block k = [U_k, X_{k+1}]
@@ -184,20 +201,16 @@ class Ocp:
         gate, task, tau = p[P_GATE], p[P_TASK], p[P_TAU:P_TAU + 3]
         xs = [x_init] + [w[self.x_index(k)] for k in range(1, s.horizon + 1)]
         us = [w[self.u_index(k)] for k in range(s.horizon)]
+        ctl = self.controller
         g = []
         stage = 0
         for k in range(s.horizon):
             g.append(xs[k + 1] - self.F(xs[k], us[k], tau))
-            if s.is_empc:
-                stage += costs.stage_cost_j(us[k][0], us[k][1], task, s.dt_s, vp)
-            else:
-                stage += costs.nmpc_stage_cost(xs[k + 1], us[k], wp_act, s.nmpc, ca)
-        if s.is_empc:
+            stage += ctl.stage_cost(xs[k + 1], us[k], wp_act, task, s, vp, ca)
+        if ctl.terminal is not None:
             t_d = w[self.i_time] * self.time_scale_s
             t_s = w[self.i_time + 1] * self.time_scale_s
-            gate_used = gate if s.kind == "cc-empc" else 0.0
-            term = costs.terminal_terms(xs[-1], t_d, t_s, wp_prev, wp_act, task, gate_used,
-                                        s.profile_n, vp, ca)
+            term = ctl.terminal(xs[-1], t_d, t_s, wp_prev, wp_act, task, gate, s, vp, ca)
             energy = stage + term.dynamic_j + term.static_j + term.track_j
             if self.scaled:
                 _, e_star = empc_scales(task, vp, ca)
@@ -257,11 +270,7 @@ class Ocp:
         s, vp = self.spec, self.vessel
         w = np.zeros(self.nw)
         x = [float(v) for v in p[P_X0:P_X0 + NX]]
-        if s.is_empc:
-            u_c = self.cruise_speed_mps(float(p[P_TASK]))
-            thrust = (vp.xu_kgps * u_c / 2.0,) * 2
-        else:
-            thrust = (0.5 * vp.thrust_max_n,) * 2
+        thrust = self.controller.guess_thrust(self, float(p[P_TASK]))
         tau = tuple(float(v) for v in p[P_TAU:P_TAU + 3])
         for k in range(s.horizon):
             w[self.u_index(k)] = thrust

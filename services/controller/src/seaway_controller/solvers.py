@@ -34,6 +34,7 @@ import subprocess
 import tempfile
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
@@ -396,13 +397,18 @@ class IpoptSolver:
 
 
 SolverKind = str
-SOLVER_KINDS = ("generated", "ipopt")
+SOLVERS: dict[SolverKind, Callable[[Ocp], NlpSolver]] = {
+    "generated": GeneratedSqpSolver,  # the fast path
+    "ipopt": IpoptSolver,  # the reference
+}
+"""Every solver by name; the command line's choices and the config's values come from here."""
+SOLVER_KINDS: tuple[SolverKind, ...] = tuple(SOLVERS)
 
 
 def make_solver(ocp: Ocp, kind: SolverKind = "generated") -> NlpSolver:
     """The solver named ``kind`` for ``ocp``: 'generated' (fast SQP) or 'ipopt' (reference)."""
-    if kind == "generated":
-        return GeneratedSqpSolver(ocp)
-    if kind == "ipopt":
-        return IpoptSolver(ocp)
-    raise ValueError(f"unknown solver {kind!r}; known: {', '.join(SOLVER_KINDS)}")
+    try:
+        factory = SOLVERS[kind]
+    except KeyError:
+        raise ValueError(f"unknown solver {kind!r}; known: {', '.join(SOLVER_KINDS)}") from None
+    return factory(ocp)

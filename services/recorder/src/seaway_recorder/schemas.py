@@ -22,6 +22,7 @@ from typing import Any
 
 from seaway.contract import keys
 from seaway.contract.messages import GnssFix, Message, NavOrigin, SimTruth, StateEstimate
+from seaway.contract.units import NS_PER_S
 from seaway.vessel.frames import GeoOrigin
 
 JSON = "json"
@@ -137,7 +138,7 @@ def location_fix(stamp_ns: int, frame_id: str, lat_rad: float, lon_rad: float, a
     """A ``foxglove.LocationFix`` JSON document (degrees, as Foxglove wants them)."""
     var = std_m * std_m if std_m is not None else 0.0
     doc: dict[str, Any] = {
-        "timestamp": {"sec": stamp_ns // 1_000_000_000, "nsec": stamp_ns % 1_000_000_000},
+        "timestamp": {"sec": stamp_ns // NS_PER_S, "nsec": stamp_ns % NS_PER_S},
         "frame_id": frame_id,
         "latitude": math.degrees(lat_rad),
         "longitude": math.degrees(lon_rad),
@@ -159,6 +160,9 @@ class LocationFixDeriver:
     Local NED positions need the geodetic origin: ``nav/origin`` from the bus, else the one given
     (the scenario's). Positions before any origin is known produce nothing.
     """
+
+    SOURCES: tuple[keys.KeySpec, ...] = (keys.SIM_TRUTH, keys.NAV_STATE, keys.NAV_ORIGIN, keys.GNSS)
+    """The keys ``feed`` uses; the writer decodes only these for it."""
 
     def __init__(self, default_origin: GeoOrigin | None = None) -> None:
         self._default = default_origin

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from mcap.writer import CompressionType, Writer
+from seaway.contract import keys
 from seaway.contract.messages import MessageError
 from seaway.vessel.frames import GeoOrigin
 
@@ -283,8 +284,7 @@ class RecordingWriter:
         return True
 
     def _wants_decode(self, key: str) -> bool:
-        return self._deriver is not None and key.endswith(("sim/truth", "nav/state", "nav/origin",
-                                                           "sensors/gnss"))
+        return self._deriver is not None and keys.spec_for_key(key) in self._deriver.SOURCES
 
     def _put_malformed(self, key: str, schema: str, error: str, encoding: str, payload: bytes,
                        log_time_ns: int, publish_time_ns: int) -> None:

@@ -28,6 +28,7 @@ from seaway_vehicle_io.profile import (
     Profile,
     UnknownModeError,
     clamp_int,
+    register,
 )
 
 MAV_AUTOPILOT_ARDUPILOTMEGA = 3
@@ -140,4 +141,4 @@ class ArduPilotProfile(Profile):
         return FailsafeAssessment(verdict, summary, tuple(warnings), tuple(blocking), dict(p))
 
 
-PROFILE = ArduPilotProfile()
+PROFILE = register(ArduPilotProfile())

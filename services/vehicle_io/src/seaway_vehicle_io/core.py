@@ -22,7 +22,7 @@ from typing import Any, ClassVar
 
 from seaway.contract.messages import Message, ThrustCommand, VehicleStatus
 
-from seaway_vehicle_io import ardupilot, px4
+from seaway_vehicle_io import profile as profiles
 from seaway_vehicle_io.commands import (
     COMMAND_NAMES,
     MAV_CMD_COMPONENT_ARM_DISARM,
@@ -48,10 +48,6 @@ from seaway_vehicle_io.timesync import BootTimeOffset
 from seaway_vehicle_io.watchdog import FAILSAFE_THRUST_STALE, ThrustWatchdog
 
 log = logging.getLogger("seaway.vehicle_io")
-
-PROFILES: dict[int, Profile] = {px4.MAV_AUTOPILOT_PX4: px4.PROFILE,
-                                ardupilot.MAV_AUTOPILOT_ARDUPILOTMEGA: ardupilot.PROFILE}
-PROFILES_BY_NAME: dict[str, Profile] = {p.name: p for p in PROFILES.values()}
 
 MAV_MODE_FLAG_SAFETY_ARMED = 128
 # HEARTBEAT.type values that are not a vehicle (GCS, onboard controller, gimbal, ADSB, camera...).
@@ -147,8 +143,8 @@ class VehicleIoCore:
     def __init__(self, config: VehicleIoConfig, limits: ThrusterLimits, start: Now) -> None:
         self.cfg = config
         self.limits = limits
-        self.forced_profile = (PROFILES_BY_NAME[config.autopilot]
-                               if config.autopilot != "auto" else None)
+        self.forced_profile = (profiles.by_name(config.autopilot)
+                               if config.autopilot != profiles.AUTO else None)
         self.link = LinkState(profile=self.forced_profile)
         self.offset = BootTimeOffset(config.time_offset_window_s)
         self.watchdog = ThrustWatchdog(config.thrust_timeout_s)
@@ -349,7 +345,7 @@ class VehicleIoCore:
             return []  # our own heartbeat echoed back (a broadcast or a router)
         if msg.type in NON_VEHICLE_TYPES:
             return []
-        profile = PROFILES.get(msg.autopilot)
+        profile = profiles.by_mav_autopilot(msg.autopilot)
         link = self.link
         if link.ok:
             if src_sys != link.target_system or src_comp != link.target_component:
@@ -360,7 +356,7 @@ class VehicleIoCore:
             if profile is None:
                 self._log_limited(now, "HEARTBEAT", "autopilot", logging.WARNING,
                                   f"ignoring HEARTBEAT from {src_sys}/{src_comp}: autopilot "
-                                  f"{msg.autopilot} is neither PX4 (12) nor ArduPilot (3)")
+                                  f"{msg.autopilot} is none of {profiles.describe()}")
                 return []
             if self.forced_profile is not None and profile is not self.forced_profile:
                 self._log_limited(now, "HEARTBEAT", "mismatch", logging.ERROR,

@@ -4,6 +4,11 @@ A profile is everything that differs between PX4 and ArduPilot: the MANUAL_CONTR
 mode numbers, the arming "force" magic numbers, how PARAM_VALUE encodes integers, and which
 parameters decide what the autopilot does when our MANUAL_CONTROL stream stops. The rest of
 vehicle_io never tests which autopilot it talks to.
+
+Each autopilot is one module (``px4.py``, ``ardupilot.py``) that ``register``s its profile here; the
+package imports them all (``__init__.py``), so the registry is complete whenever any part of
+vehicle_io runs. The config's ``autopilot`` values and the command line's ``--autopilot`` choices
+are ``choices()``: ``auto`` and the registered names.
 """
 
 from __future__ import annotations
@@ -117,3 +122,59 @@ def clamp_int(value: float, lo: int, hi: int) -> int:
     """Round half away from zero, then clamp: the axis value on the wire."""
     rounded = int(value + 0.5) if value >= 0 else -int(-value + 0.5)
     return min(max(rounded, lo), hi)
+
+
+# -- the registry ---------------------------------------------------------------------------------
+
+AUTO = "auto"
+"""The autopilot setting that takes the profile from the first autopilot HEARTBEAT."""
+
+_REGISTERED: dict[str, Profile] = {}
+
+
+def register(profile: Profile) -> Profile:
+    """Add ``profile`` (once per name and per HEARTBEAT autopilot number); its module calls this."""
+    if profile.name == AUTO or profile.name in _REGISTERED:
+        raise ValueError(f"autopilot profile name {profile.name!r} is taken")
+    for other in _REGISTERED.values():
+        if other.mav_autopilot == profile.mav_autopilot:
+            raise ValueError(f"{profile.name} and {other.name} both claim MAV_AUTOPILOT "
+                             f"{profile.mav_autopilot}")
+    _REGISTERED[profile.name] = profile
+    return profile
+
+
+def profiles() -> tuple[Profile, ...]:
+    """Every registered profile, in registration order."""
+    return tuple(_REGISTERED.values())
+
+
+def names() -> tuple[str, ...]:
+    """The registered autopilot names ('px4', 'ardupilot', ...)."""
+    return tuple(_REGISTERED)
+
+
+def by_name(name: str) -> Profile:
+    """The profile registered as ``name``; ValueError naming the known ones otherwise."""
+    try:
+        return _REGISTERED[name]
+    except KeyError:
+        raise ValueError(f"unknown autopilot {name!r}; known: {', '.join(_REGISTERED)}") from None
+
+
+def by_mav_autopilot(number: int) -> Profile | None:
+    """The profile of a HEARTBEAT's ``autopilot`` field (MAV_AUTOPILOT), or None if none is."""
+    for profile in _REGISTERED.values():
+        if profile.mav_autopilot == number:
+            return profile
+    return None
+
+
+def choices() -> tuple[str, ...]:
+    """What the ``autopilot`` setting may be: ``auto``, then every registered name."""
+    return (AUTO, *_REGISTERED)
+
+
+def describe() -> str:
+    """The registered autopilots with their MAV_AUTOPILOT numbers, for messages: 'px4 (12), ...'."""
+    return ", ".join(f"{p.name} ({p.mav_autopilot})" for p in _REGISTERED.values())

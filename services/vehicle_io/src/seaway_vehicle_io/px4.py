@@ -24,6 +24,7 @@ from seaway_vehicle_io.profile import (
     UnknownModeError,
     Verdict,
     clamp_int,
+    register,
 )
 
 MAV_AUTOPILOT_PX4 = 12
@@ -140,4 +141,4 @@ class Px4Profile(Profile):
         return FailsafeAssessment(verdict, summary, tuple(warnings), params=dict(params))
 
 
-PROFILE = Px4Profile()
+PROFILE = register(Px4Profile())

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import json
 import math
-from typing import Any, ClassVar, Literal, Self
+from typing import Any, ClassVar, Literal, Self, get_args
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
@@ -252,11 +252,15 @@ class SolveRecord(Message):
     predicted_thrust_starboard_n: list[float] = Field(default_factory=list)
 
 
+MissionState = Literal["idle", "active", "paused", "complete", "aborted"]
+"""A mission's state: idle -> active <-> paused -> complete | aborted (the controller's machine)."""
+
+
 class MissionStatus(Message):
     """Progress of the active mission."""
 
     SCHEMA: ClassVar[str] = "seaway.v1.MissionStatus"
-    state: Literal["idle", "active", "paused", "complete", "aborted"]
+    state: MissionState
     mission_id: str = ""
     active_leg: int = Field(default=0, ge=0, description="index i of the active waypoint P_i")
     waypoint_count: int = Field(default=0, ge=0)
@@ -349,13 +353,12 @@ class ScenarioRequest(Message):
     scenario: dict[str, Any] | None = Field(default=None, description="scenario document; None resets")
 
 
-class NavResetRequest(Message):
-    """Re-initialise the estimator from the next measurements."""
-
-    SCHEMA: ClassVar[str] = "seaway.v1.NavResetRequest"
-    keep_origin: bool = Field(default=True, description="keep the NED origin (positions on the "
-                              "bus stay in the same frame)")
-    reason: str = Field(default="", max_length=200)
+ControllerName = Literal["cc-empc", "eo-empc", "nmpc"]
+"""The controllers a mission can ask for: the paper's CC-EMPC and its two baselines, EO-EMPC and
+NMPC (section V). The one spelling of the closed set: the controller service registers exactly these
+names (``seaway_controller.controllers`` checks it at import)."""
+CONTROLLER_NAMES: tuple[ControllerName, ...] = get_args(ControllerName)
+DEFAULT_CONTROLLER: ControllerName = "cc-empc"
 
 
 class Waypoint(BaseModel):
@@ -380,7 +383,7 @@ class MissionRequest(Message):
     waypoints: list[Waypoint]
     coa_radius_m: float = Field(description="circle-of-acceptance radius r_COA [m]")
     task_power_w: float = Field(ge=0, description="T^w, power of the task carried [W]")
-    controller: Literal["cc-empc", "eo-empc", "nmpc"] = "cc-empc"
+    controller: ControllerName = DEFAULT_CONTROLLER
     speed_hint_mps: float | None = Field(default=None, gt=0, description="optional cruise hint")
 
 
@@ -391,24 +394,17 @@ class MissionCommand(Message):
     command: Literal["pause", "resume", "abort"]
 
 
-ALL_MESSAGES: tuple[type[Message], ...] = (
-    GnssFix,
-    Attitude,
-    LocalPosition,
-    VehicleStatus,
-    NavOrigin,
-    StateEstimate,
-    ThrustCommand,
-    SolveRecord,
-    MissionStatus,
-    SimTruth,
-    DisturbanceForce,
-    ClockTick,
-    Reply,
-    ArmRequest,
-    ModeRequest,
-    ScenarioRequest,
-    MissionRequest,
-    MissionCommand,
-    NavResetRequest,
+class NavResetRequest(Message):
+    """Re-initialise the estimator from the next measurements."""
+
+    SCHEMA: ClassVar[str] = "seaway.v1.NavResetRequest"
+    keep_origin: bool = Field(default=True, description="keep the NED origin (positions on the "
+                              "bus stay in the same frame)")
+    reason: str = Field(default="", max_length=200)
+
+
+ALL_MESSAGES: tuple[type[Message], ...] = tuple(
+    v for v in list(globals().values())
+    if isinstance(v, type) and issubclass(v, Message) and "SCHEMA" in vars(v)
 )
+"""Every message type, in the order defined above: each class with its own ``SCHEMA``."""
