@@ -1,32 +1,60 @@
-"""In-process closed loop: the simulated plant and the controller core, the paper's setting.
+"""The in-process closed loop: one loop for every benchmark and test that needs one.
 
-Every ``dt`` the core gets the plant's TRUE state (as the paper's simulations do), its command is held
-by the plant for ``dt``. Metrics as reproduction.md ("Metrics") defines them:
+It is built from the services' own pure cores, so it simulates what the lockstep stack runs:
 
-* energy: integral of alpha (T1^2 + T2^2) + T^w over the run [J] (the plant integrates the first
-  term; T^w times the travel time is added);
-* average cross-track error: mean over the 0.1 s samples of the distance from the active leg's line,
-  counting only samples outside every circle of acceptance [m];
-* travel time: from the start until the last circle of acceptance is entered [s].
+* the vessel, its disturbances and its sensors are the simulator's core, ``seaway_sim.core.SimCore``
+  (``seaway.simkit``'s plant and sensors; RK4 at 100 Hz, the command held over each tick);
+* the estimator, when given, is ``seaway_estimator.core.EstimatorCore``, fed every sensor sample and
+  every command in the order the lockstep protocol defines (services/sim/README.md): the samples
+  up to tick t (attitude, then GNSS), then its estimate at t, then the command computed at t;
+* the steering is either the controller's core, ``ControllerCore``, from the TRUE state as the
+  paper's simulations do (``run_closed_loop``: the paper's table, ``seaway bench controller``), or the
+  shared line-of-sight guidance (``seaway.vessel.guidance``) round the mission's waypoints, also
+  from the true state, so that the estimator is the only thing measured and its errors cannot feed
+  back into the trajectory (``run_estimator_loop``: ``seaway bench estimator``).
 
-Used by the tests and by ``seaway bench controller``.
+Time is the simulator's integer nanoseconds (``SimCore.t_ns``, epoch 0); every command is held for
+one tick. The paper's metrics (energy, average cross-track error, travel time: reproduction.md,
+"Metrics") are ``seaway.vessel.metrics.mission_metrics`` of the simulator's ``SimTruth`` at every
+tick, the same function the report applies to a recording.
+
+With an estimator, the loop records every input it gives it (``Run.trace``), so a run can be saved as
+JSON lines and replayed (``seaway_estimator.replay``).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Protocol
 
-from seaway.contract.messages import MissionRequest, StateEstimate, Waypoint
-from seaway.simkit.plant import Plant
-from seaway.simkit.scenario import Scenario, load_scenario
+from seaway.contract import keys
+from seaway.contract.messages import GnssFix, Message, SimTruth, StateEstimate, ThrustCommand
+from seaway.contract.units import NS_PER_S, s_to_ns
+from seaway.simkit.scenario import Scenario, SensorNoise, load_scenario
+from seaway.vessel.frames import GeoOrigin, wrap_pi
+from seaway.vessel.guidance import LosGains, los_thrust
+from seaway.vessel.metrics import MissionMetrics, mission_metrics
 from seaway.vessel.model import VesselParams, load_vessel
-from seaway_controller import costs
 from seaway_controller.core import ControllerConfig, ControllerCore
+from seaway_controller.mission import validate_mission
 from seaway_controller.ocp import ControllerKind
+from seaway_estimator.core import EstimatorCore
+from seaway_sim.core import Samples, SimCore
 
 DEFAULT_MAX_TIME_S = 900.0
+ESTIMATOR_TICK_NS = 50_000_000
+"""The estimator benchmark's tick: every sensor instant of ``REALISTIC_NOISE`` falls on it, and the
+estimator publishes at 20 Hz."""
+CONTROL_PERIOD_NS = 100_000_000
+"""10 Hz, the controller's rate: the line-of-sight steering's period too."""
+
+# Realistic sensors (issue 5): GNSS 0.3 m at 5 Hz, heading 1 deg and a MEMS gyro at 20 Hz, and a
+# GNSS velocity over ground of 0.05 m/s (a typical receiver's Doppler speed accuracy).
+REALISTIC_NOISE = SensorNoise(gnss_rate_hz=5.0, gnss_std_m=0.3, heading_std_rad=math.radians(1.0),
+                              yaw_rate_std_radps=0.005, sog_std_mps=0.05, attitude_rate_hz=20.0)
 
 TABLE_I: dict[int, dict[str, tuple[float, float, float]]] = {
     # The paper's Table I: condition -> controller -> (energy J, average cross-track m, time s).
@@ -42,95 +70,321 @@ TABLE_I: dict[int, dict[str, tuple[float, float, float]]] = {
         "cc-empc": (342.6, 0.369, 343.4)},
 }
 
+Point = tuple[float, float]
+
+
+# -- what a run records -----------------------------------------------------------------------------
+
+
+@dataclass
+class Sample:
+    """One published estimate against the truth at the same instant (truth frame = scenario's)."""
+
+    t_s: float
+    pos_err_m: float
+    psi_err_rad: float
+    tau_true: tuple[float, float, float]
+    """The simulator's disturbance now, body frame (surge N, sway N, yaw N m): ``sim/disturbance``."""
+    tau_est: tuple[float, float, float]
+    degraded: bool
+    est: StateEstimate
+
+
+@dataclass
+class Run:
+    """What the loop saw: the truth at every tick and, with an estimator, its estimates and costs."""
+
+    truth: list[SimTruth] = field(default_factory=list)
+    """The simulator's truth at every tick, the last one at the end of the last command's tick."""
+    samples: list[Sample] = field(default_factory=list)
+    gnss_err_m: list[float] = field(default_factory=list)
+    """2D error of each GNSS fix fed to the estimator against the truth at its tick [m]."""
+    cost_ns: dict[str, list[int]] = field(default_factory=lambda: {
+        "gnss": [], "attitude": [], "thrust": [], "publish": []})
+    """Wall time of each estimator call, by kind [ns]."""
+    trace: list[tuple[str, Message | int]] = field(default_factory=list)
+    core: EstimatorCore | None = None
+
 
 @dataclass
 class ClosedLoopResult:
+    """A mission flown by the controller: the paper's metrics, the solves and the trajectory."""
+
     scenario: str
     controller: str
     reached: bool
     travel_time_s: float
+    """NaN when the mission did not complete."""
     energy_j: float
     cross_track_mean_m: float
     steps: int
+    """Control periods simulated (commands held)."""
     solve_times_s: list[float] = field(default_factory=list)
     successes: list[bool] = field(default_factory=list)
     iterations: list[int] = field(default_factory=list)
     fallback_count: int = 0
     trajectory: list[tuple[float, float, float, float, float]] = field(default_factory=list)
-    """(t, x, y, T1, T2) per step."""
+    """(t, x, y, T1, T2) per step [s, m, m, N, N]."""
+    metrics: MissionMetrics | None = None
+    run: Run | None = None
 
     @property
     def unconverged(self) -> int:
         return sum(1 for ok in self.successes if not ok)
 
 
-def scenario_mission_request(scenario: Scenario, controller: ControllerKind | None = None,
-                             mission_id: str | None = None) -> MissionRequest:
-    """The scenario's mission as a request (optionally with another controller)."""
-    if scenario.mission is None:
-        raise ValueError(f"scenario {scenario.name!r} has no mission section")
-    m = scenario.mission
-    return MissionRequest.make(
-        stamp_ns=0, mission_id=mission_id or scenario.name,
-        waypoints=[Waypoint(x_m=x, y_m=y) for x, y in m.waypoints_m],
-        coa_radius_m=m.coa_radius_m, task_power_w=m.task_power_w,
-        controller=controller or m.controller)
+# -- steering ---------------------------------------------------------------------------------------
+
+
+class Steering(Protocol):
+    def command(self, truth: SimTruth) -> ThrustCommand | None:
+        """The command for the true state ``truth`` (stamped with its stamp); None ends the run."""
+        ...
+
+
+def _state(truth: SimTruth) -> tuple[float, float, float, float, float, float]:
+    return truth.u_mps, truth.v_mps, truth.r_radps, truth.x_m, truth.y_m, truth.psi_rad
+
+
+class MissionSteering:
+    """The controller's core on the TRUE state (the paper's setting), until its mission is over."""
+
+    def __init__(self, core: ControllerCore) -> None:
+        self.core = core
+        self.state = "idle"
+        self.solve_times_s: list[float] = []
+        self.successes: list[bool] = []
+        self.iterations: list[int] = []
+        self.trajectory: list[tuple[float, float, float, float, float]] = []
+
+    def command(self, truth: SimTruth) -> ThrustCommand | None:
+        t = truth.stamp_ns
+        state = StateEstimate.make(stamp_ns=t, u_mps=truth.u_mps, v_mps=truth.v_mps,
+                                   r_radps=truth.r_radps, x_m=truth.x_m, y_m=truth.y_m,
+                                   psi_rad=max(-math.pi, min(math.pi, truth.psi_rad)))
+        cmd, record, status = self.core.step(t, state)
+        self.state = status.state
+        if status.state != "active":
+            return None
+        if record is not None:
+            self.solve_times_s.append(record.solve_time_s)
+            self.successes.append(record.success)
+            self.iterations.append(record.iterations)
+        self.trajectory.append((t / NS_PER_S, truth.x_m, truth.y_m, cmd.thrust_port_n,
+                                cmd.thrust_starboard_n))
+        return cmd
+
+
+@dataclass
+class LosPatrol:
+    """Line-of-sight guidance (``seaway.vessel.guidance``) round the waypoints, cycling back to the
+    first after the last; P_i is passed on entering its circle of acceptance."""
+
+    waypoints: Sequence[Point]
+    vessel: VesselParams
+    gains: LosGains
+    coa_radius_m: float
+    target: int = 1
+
+    def command(self, truth: SimTruth) -> ThrustCommand:
+        wps, n = self.waypoints, len(self.waypoints)
+        b = wps[self.target % n]
+        if math.hypot(b[0] - truth.x_m, b[1] - truth.y_m) <= self.coa_radius_m:
+            self.target += 1
+        a, b = wps[(self.target - 1) % n], wps[self.target % n]
+        t1, t2 = los_thrust(_state(truth), a, b, self.vessel, self.gains)
+        return ThrustCommand(stamp_ns=truth.stamp_ns, thrust_port_n=t1, thrust_starboard_n=t2,
+                             source="los")
+
+
+# -- the loop ---------------------------------------------------------------------------------------
+
+
+def fly(sim: SimCore, steering: Steering, ticks: int, tick_ns: int, *, control_every: int = 1,
+        estimator: EstimatorCore | None = None, publish_every: int = 1,
+        gnss_filter: Callable[[int, GnssFix], GnssFix | None] | None = None,
+        record_trace: bool = False, progress: Callable[[float], None] | None = None) -> Run:
+    """Run ticks 0..``ticks`` of ``tick_ns``, or until ``steering`` ends the run.
+
+    At each tick t: the simulator advances to t holding the last command; the estimator (if any) gets
+    the samples taken since the last tick, then publishes (every ``publish_every`` ticks); every
+    ``control_every`` ticks ``steering`` commands from the truth at t. After the last tick, its command
+    is held for one tick as every command is. ``gnss_filter(stamp_ns, fix)`` may replace or drop
+    (None) each fix before the estimator sees it (outliers, dropouts in tests).
+    """
+    run = Run(core=estimator)
+    thrust = (0.0, 0.0)
+    for k in range(ticks + 1):
+        if k > 0:
+            sim.advance(thrust, tick_ns)
+        truth = sim.truth()
+        run.truth.append(truth)
+        samples = sim.take_samples()
+        if estimator is not None:
+            _sense(run, estimator, sim, samples, truth, gnss_filter, record_trace)
+            if k % publish_every == 0:
+                _publish(run, estimator, sim, truth, record_trace)
+        if k % control_every == 0:
+            cmd = steering.command(truth)
+            if cmd is None:
+                return run
+            thrust = (cmd.thrust_port_n, cmd.thrust_starboard_n)
+            if estimator is not None:
+                t0 = time.perf_counter_ns()
+                estimator.on_thrust(cmd)
+                run.cost_ns["thrust"].append(time.perf_counter_ns() - t0)
+                if record_trace:
+                    run.trace.append(("thrust", cmd))
+        if progress is not None:
+            progress(sim.t_ns / NS_PER_S)
+    sim.advance(thrust, tick_ns)
+    run.truth.append(sim.truth())
+    return run
+
+
+def _sense(run: Run, core: EstimatorCore, sim: SimCore, samples: Samples, truth: SimTruth,
+           gnss_filter: Callable[[int, GnssFix], GnssFix | None] | None, record_trace: bool) -> None:
+    clock = time.perf_counter_ns
+    for att in samples.attitude:
+        t0 = clock()
+        core.on_attitude(att)
+        run.cost_ns["attitude"].append(clock() - t0)
+        if record_trace:
+            run.trace.append(("attitude", att))
+    for sampled in samples.gnss:
+        fix = sampled
+        if fix is not None and gnss_filter is not None:
+            fix = gnss_filter(fix.stamp_ns, fix)
+        if fix is None:
+            continue
+        n, e, _ = sim.origin.to_ned(fix.lat_rad, fix.lon_rad, fix.alt_m)
+        run.gnss_err_m.append(math.hypot(n - truth.x_m, e - truth.y_m))
+        t0 = clock()
+        core.on_gnss(fix)
+        run.cost_ns["gnss"].append(clock() - t0)
+        if record_trace:
+            run.trace.append(("gnss", fix))
+
+
+def _publish(run: Run, core: EstimatorCore, sim: SimCore, truth: SimTruth, record_trace: bool) -> None:
+    t = truth.stamp_ns
+    t0 = time.perf_counter_ns()
+    est = core.predict_to(t)
+    run.cost_ns["publish"].append(time.perf_counter_ns() - t0)
+    if record_trace:
+        run.trace.append(("tick", t))
+    if est is not None and core.origin is not None:
+        d = sim.disturbance()
+        run.samples.append(_sample(est, truth, (d.surge_n, d.sway_n, d.yaw_nm), core.origin, sim.origin))
+
+
+def _sample(est: StateEstimate, truth: SimTruth, tau_true: tuple[float, float, float],
+            est_origin: GeoOrigin, truth_origin: GeoOrigin) -> Sample:
+    # Compare positions as geodetic points: the estimator's origin (the first fix) need not be the
+    # scenario's, and a frame offset is not an estimation error.
+    if est_origin == truth_origin:
+        n, e = est.x_m, est.y_m
+    else:
+        lat, lon, alt = est_origin.to_geodetic(est.x_m, est.y_m, 0.0)
+        n, e, _ = truth_origin.to_ned(lat, lon, alt)
+    return Sample(
+        t_s=truth.stamp_ns / NS_PER_S,
+        pos_err_m=math.hypot(n - truth.x_m, e - truth.y_m),
+        psi_err_rad=wrap_pi(est.psi_rad - truth.psi_rad),
+        tau_true=tau_true,
+        tau_est=(est.tau_d_surge_n, est.tau_d_sway_n, est.tau_d_yaw_nm),
+        degraded=est.degraded,
+        est=est,
+    )
+
+
+# -- the two ways it is used ------------------------------------------------------------------------
 
 
 def run_closed_loop(scenario: str | Scenario, controller: ControllerKind,
                     core: ControllerCore | None = None, config: ControllerConfig | None = None,
                     vessel: VesselParams | None = None, max_time_s: float = DEFAULT_MAX_TIME_S,
-                    progress: Callable[[float], None] | None = None) -> ClosedLoopResult:
-    """Fly ``scenario``'s mission with ``controller``; stops on completion or at ``max_time_s``.
+                    progress: Callable[[float], None] | None = None,
+                    estimator: EstimatorCore | None = None) -> ClosedLoopResult:
+    """Fly ``scenario``'s mission with ``controller`` from the true state, one control period per
+    tick; stops on completion or after ``max_time_s``.
 
-    Pass ``core`` to reuse compiled solvers across runs (its mission is replaced).
+    Pass ``core`` to reuse compiled solvers across runs (its origin and mission are replaced).
+    ``estimator``, if given, runs alongside on the scenario's sensors (``ClosedLoopResult.run``);
+    it does not steer.
     """
     sc = load_scenario(scenario) if isinstance(scenario, str) else scenario
+    if sc.mission is None:
+        raise ValueError(f"scenario {sc.name!r} has no mission section")
     vp = vessel or load_vessel(sc.vessel)
-    cfg = config or ControllerConfig()
-    core = core or ControllerCore(vp, cfg)
-    dt = core.config.dt_s
-    reply = core.handle_mission(0, scenario_mission_request(sc, controller))
+    core = core or ControllerCore(vp, config or ControllerConfig())
+    sim = SimCore(sc, vp)
+    core.set_origin(sim.origin)
+    reply = core.handle_mission(0, sc.mission.to_request(0, mission_id=sc.name, controller=controller))
     if not reply.accepted:
         raise ValueError(f"mission refused: {reply.reason}")
     mission = core.missions.mission
     assert mission is not None
-    plant = Plant(sc, vp)
-    result = ClosedLoopResult(sc.name, controller, False, math.nan, math.nan, math.nan, 0)
-    xte_sum, xte_n = 0.0, 0
-    n_max = round(max_time_s / dt)
-    for k in range(n_max + 1):
-        t = k * dt
-        u, v, r, x, y, psi = plant.state.x
-        stamp = round(t * 1e9)
-        state = StateEstimate.make(stamp_ns=stamp, u_mps=u, v_mps=v, r_radps=r, x_m=x, y_m=y,
-                                   psi_rad=max(-math.pi, min(math.pi, psi)))
-        leg_before = core.missions.active
-        cmd, record, status = core.step(stamp, state)
-        if status.state == "complete":
-            result.reached = True
-            result.travel_time_s = t
+    steering = MissionSteering(core)
+    dt_s = core.config.dt_s
+    run = fly(sim, steering, round(max_time_s / dt_s), s_to_ns(dt_s), estimator=estimator,
+              progress=progress)
+    m = mission_metrics(run.truth, mission.waypoints_m, mission.coa_radius_m, mission.task_power_w,
+                        energy_j=[s.energy_j for s in run.truth], state_source=keys.SIM_TRUTH.suffix)
+    reached = steering.state == "complete"
+    return ClosedLoopResult(
+        scenario=sc.name, controller=controller, reached=reached,
+        travel_time_s=m.travel_time_s if reached and m.travel_time_s is not None else math.nan,
+        energy_j=m.energy_j,
+        cross_track_mean_m=m.avg_cross_track_m if m.avg_cross_track_m is not None else math.nan,
+        steps=len(run.truth) - 1, solve_times_s=steering.solve_times_s, successes=steering.successes,
+        iterations=steering.iterations, fallback_count=core.fallback_count,
+        trajectory=steering.trajectory, metrics=m, run=run if estimator is not None else None)
+
+
+def run_estimator_loop(scenario: Scenario, core: EstimatorCore, duration_s: float,
+                       noise: SensorNoise | None = None, speed_mps: float = 0.25,
+                       publish_every: int = 1,
+                       gnss_filter: Callable[[int, GnssFix], GnssFix | None] | None = None,
+                       record_trace: bool = False) -> Run:
+    """Run ``duration_s`` of ``scenario`` with ``core`` estimating, steered by line-of-sight guidance
+    round the mission's waypoints at ``speed_mps``; return its errors and timings.
+
+    Ticks of ``ESTIMATOR_TICK_NS``, a command every ``CONTROL_PERIOD_NS``. ``noise`` replaces the
+    scenario's sensors section; ``gnss_filter(stamp_ns, fix)`` may replace or drop (None) each fix
+    before the estimator sees it (outliers, dropouts in tests).
+    """
+    sc = scenario if noise is None else scenario.model_copy(update={"sensors": noise})
+    vp = load_vessel(sc.vessel)
+    sim = SimCore(sc, vp)
+    if sc.mission is not None:
+        spec = sc.mission
+        wps: Sequence[Point] = validate_mission(spec.to_request(0, sc.name), sim.origin).waypoints_m
+        coa = spec.coa_radius_m
+    else:
+        wps, coa = [(0.0, 0.0), (10.0, 0.0)], 1.0
+    steering = LosPatrol(wps, vp, LosGains(speed_mps=speed_mps), coa)
+    return fly(sim, steering, round(duration_s * NS_PER_S / ESTIMATOR_TICK_NS), ESTIMATOR_TICK_NS,
+               control_every=CONTROL_PERIOD_NS // ESTIMATOR_TICK_NS, estimator=core,
+               publish_every=publish_every, gnss_filter=gnss_filter, record_trace=record_trace)
+
+
+# -- estimator figures ------------------------------------------------------------------------------
+
+
+def force_error_ratio(s: Sample) -> float:
+    """|est - true| / |true| of the body-frame force (surge, sway) as a vector."""
+    de = math.hypot(s.tau_est[0] - s.tau_true[0], s.tau_est[1] - s.tau_true[1])
+    mag = math.hypot(s.tau_true[0], s.tau_true[1])
+    return de / mag if mag > 0 else math.inf
+
+
+def convergence(samples: list[Sample], tol: float = 0.2) -> tuple[float | None, float | None]:
+    """(first time within ``tol``, time from which it stays within ``tol`` to the end) [s]."""
+    first = next((s.t_s for s in samples if force_error_ratio(s) <= tol), None)
+    settled = None
+    for s in reversed(samples):
+        if force_error_ratio(s) > tol:
             break
-        if status.state != "active":
-            break
-        # Cross-track sample of this instant, against the leg active when it was taken.
-        if not core.missions.inside_any_circle(x, y):
-            wps = mission.waypoints_m
-            i = leg_before
-            xte_sum += abs(costs.signed_cross_track_m(x, y, wps[i - 1], wps[i]))
-            xte_n += 1
-        if record is not None:
-            result.solve_times_s.append(record.solve_time_s)
-            result.successes.append(record.success)
-            result.iterations.append(record.iterations)
-        thrust = (cmd.thrust_port_n, cmd.thrust_starboard_n)
-        result.trajectory.append((t, x, y, thrust[0], thrust[1]))
-        plant.step(thrust, dt)
-        result.steps += 1
-        if progress is not None:
-            progress(t)
-    end_t = result.travel_time_s if result.reached else result.steps * dt
-    result.energy_j = plant.state.energy_j + mission.task_power_w * end_t
-    result.cross_track_mean_m = xte_sum / xte_n if xte_n else math.nan
-    result.fallback_count = core.fallback_count
-    return result
+        settled = s.t_s
+    return first, settled

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from seaway.contract.messages import MissionCommand, MissionRequest, StateEstimate, Waypoint
+from seaway.vessel.guidance import los_thrust
 from seaway.vessel.model import load_vessel
 from seaway_controller.core import ControllerConfig, ControllerCore
-from seaway_controller.guidance import los_thrust
 from seaway_controller.solvers import SolveResult
 
 VP = load_vessel("paper-sim")

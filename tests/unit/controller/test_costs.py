@@ -72,15 +72,6 @@ def test_track_cost_gated_off_and_positive_when_on():
     assert off.dynamic_j == on.dynamic_j and off.static_j == on.static_j
 
 
-def test_cross_track_is_point_to_line_distance_on_a_diagonal_leg():
-    # Item 1: the printed numerator mixes x and y; the point-to-line distance does not.
-    prev, act = (1.0, 1.0), (4.0, 5.0)
-    assert abs(costs.signed_cross_track_m(4.0, 1.0, prev, act)) == pytest.approx(2.4, rel=1e-12)
-    assert costs.signed_cross_track_m(2.5, 3.0, prev, act) == pytest.approx(0.0, abs=1e-12)
-    printed = abs((prev[0] - act[1]) * 4.0 + (prev[1] - act[0]) * 1.0) / 5.0
-    assert printed != pytest.approx(2.4)
-
-
 def test_dynamic_power_weights_sum_to_one():
     # Item 3: with no turn left (psi_d = 0, r_H = 0) the profile is flat and P_d must equal P_s.
     u = 0.07

@@ -1,5 +1,5 @@
-"""The estimator in a seeded in-process closed loop (plant + seaway.simkit.sensors): outliers, dropouts,
-and accuracy and disturbance convergence on the paper's conditions #3 and #4."""
+"""The estimator in the seeded in-process closed loop (the simulator's core, line-of-sight steering):
+outliers, dropouts, and accuracy and disturbance convergence on the paper's conditions #3 and #4."""
 
 from __future__ import annotations
 
@@ -9,19 +9,20 @@ import statistics
 from functools import cache
 
 import pytest
+from seaway.contract.units import NS_PER_S
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.frames import GeoOrigin
+from seaway.vessel.metrics import rms
 from seaway_estimator.core import IX, NZ, EstimatorCore
-from seaway_lab.estimator_loop import (
+from seaway_lab.closed_loop import (
     REALISTIC_NOISE,
     Run,
     convergence,
     force_error_ratio,
-    rms,
-    run_closed_loop,
+    run_estimator_loop,
 )
 
-S = 1_000_000_000
+S = NS_PER_S
 
 
 def shifted(fix, north_m: float):
@@ -43,8 +44,8 @@ def test_a_20_m_gnss_jump_is_rejected_counted_and_changes_nothing() -> None:
     def dropped(t, fix):
         return None if t == jump_at else fix
 
-    a = run_closed_loop(sc, EstimatorCore(), 20.0, REALISTIC_NOISE, gnss_filter=outlier)
-    b = run_closed_loop(sc, EstimatorCore(), 20.0, REALISTIC_NOISE, gnss_filter=dropped)
+    a = run_estimator_loop(sc, EstimatorCore(), 20.0, REALISTIC_NOISE, gnss_filter=outlier)
+    b = run_estimator_loop(sc, EstimatorCore(), 20.0, REALISTIC_NOISE, gnss_filter=dropped)
     assert a.core.counters["gnss_rejected"] == 1 and b.core.counters["gnss_rejected"] == 0
     assert a.core.counters["gnss_reinit"] == 0
     # Ignored means ignored: every estimate equals the run that never saw that fix, bit for bit.
@@ -58,7 +59,7 @@ def test_gnss_dropout_sets_degraded_grows_covariance_and_recovers() -> None:
     def outage(t, fix):
         return None if 15 * S <= t < 25 * S else fix
 
-    run = run_closed_loop(sc, EstimatorCore(), 40.0, REALISTIC_NOISE, gnss_filter=outage)
+    run = run_estimator_loop(sc, EstimatorCore(), 40.0, REALISTIC_NOISE, gnss_filter=outage)
     by_t = {round(s.t_s, 2): s for s in run.samples}
     timeout = run.core.config.gnss_timeout_s
     # The last fix before the outage is at 14.8 s: degraded exactly once the timeout has passed.
@@ -77,7 +78,7 @@ def test_gnss_dropout_sets_degraded_grows_covariance_and_recovers() -> None:
 
 @cache
 def realistic(name: str) -> Run:
-    return run_closed_loop(load_scenario(name), EstimatorCore(), 180.0, REALISTIC_NOISE)
+    return run_estimator_loop(load_scenario(name), EstimatorCore(), 180.0, REALISTIC_NOISE)
 
 
 @pytest.mark.parametrize("name", ["paper-c3", "paper-c4"])
@@ -99,6 +100,6 @@ def test_disturbance_converges_with_realistic_noise(name: str) -> None:
 
 @pytest.mark.parametrize("name", ["paper-c3", "paper-c4"])
 def test_disturbance_converges_within_30_s_with_the_papers_noise_free_sensors(name: str) -> None:
-    run = run_closed_loop(load_scenario(name), EstimatorCore(), 60.0)  # the scenario's sensors
+    run = run_estimator_loop(load_scenario(name), EstimatorCore(), 60.0)  # the scenario's sensors
     _, settled = convergence(run.samples)
     assert settled is not None and settled <= 30.0

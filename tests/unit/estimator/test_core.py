@@ -9,13 +9,14 @@ import numpy as np
 import pytest
 from seaway.contract.config import ConfigError, Origin, parse_config
 from seaway.contract.messages import Attitude, GnssFix, ThrustCommand
+from seaway.contract.units import NS_PER_S
 from seaway.vessel import model
 from seaway.vessel.frames import GeoOrigin, wrap_pi
 from seaway_estimator.config import EstimatorConfig
 from seaway_estimator.core import IPSI, IX, IY, NZ, EstimatorCore, EstimatorError
 
 MS = 1_000_000
-S = 1_000_000_000
+S = NS_PER_S
 ORIGIN = GeoOrigin(math.radians(47.0), math.radians(8.0), 0.0)
 FIXED = EstimatorConfig(origin=Origin(lat_deg=47.0, lon_deg=8.0))
 

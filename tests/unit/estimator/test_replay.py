@@ -14,15 +14,16 @@ import math
 import sys
 from pathlib import Path
 
+from seaway.contract.units import NS_PER_S
 from seaway.simkit.scenario import load_scenario
 from seaway_estimator.core import EstimatorCore
 from seaway_estimator.replay import decode_entry, encode_entry, read_trace, replay, write_trace
-from seaway_lab.estimator_loop import REALISTIC_NOISE, run_closed_loop
+from seaway_lab.closed_loop import REALISTIC_NOISE, run_estimator_loop
 
 DATA = Path(__file__).with_name("data")
 TRACE = DATA / "trace_c4.jsonl"
 EXPECTED = DATA / "trace_c4_expected.json"
-S = 1_000_000_000
+S = NS_PER_S
 
 
 def record() -> tuple[list, list[bytes]]:
@@ -34,8 +35,8 @@ def record() -> tuple[list, list[bytes]]:
             return fix.model_copy(update={"lat_rad": fix.lat_rad + 20.0 / 6.37e6})  # ~20 m north
         return fix
 
-    run = run_closed_loop(load_scenario("paper-c4"), EstimatorCore(), 15.0, REALISTIC_NOISE,
-                          gnss_filter=gnss, record_trace=True)
+    run = run_estimator_loop(load_scenario("paper-c4"), EstimatorCore(), 15.0, REALISTIC_NOISE,
+                             gnss_filter=gnss, record_trace=True)
     # The re-initialisation request is part of the recording: split the run's entries at 12 s.
     entries = []
     for kind, value in run.trace:
@@ -60,8 +61,8 @@ def summary(outputs: list[bytes]) -> list:
 
 
 def test_replaying_a_recording_reproduces_the_live_outputs_exactly() -> None:
-    run = run_closed_loop(load_scenario("paper-c4"), EstimatorCore(), 8.0, REALISTIC_NOISE,
-                          record_trace=True)
+    run = run_estimator_loop(load_scenario("paper-c4"), EstimatorCore(), 8.0, REALISTIC_NOISE,
+                             record_trace=True)
     live = [s.est.encode() for s in run.samples]
     # Through the JSON-lines form, as a file would carry it.
     entries = [decode_entry(encode_entry(k, v)) for k, v in run.trace]

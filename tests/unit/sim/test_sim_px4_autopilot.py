@@ -8,6 +8,7 @@ import struct
 import pytest
 from pymavlink.dialects.v20 import common as ml
 from seaway.contract.config import Origin
+from seaway.contract.units import NS_PER_S
 from seaway.simkit.sensors import origin_of
 from seaway_sim import px4_params
 from seaway_sim.px4_autopilot import (
@@ -20,7 +21,7 @@ from seaway_sim.px4_autopilot import (
 )
 
 MS = 1_000_000
-S = 1_000_000_000
+S = NS_PER_S
 GCS = ml.MAVLink(None, 255, 190)  # the sender: src ids for the ACK's target fields
 
 

@@ -7,10 +7,11 @@ import itertools
 
 import pytest
 from seaway.vessel.model import load_vessel
+from seaway.vessel.thrusters import apply_dead_zone, compensate_dead_zone
 from seaway_vehicle_io.ardupilot import PROFILE as AP
 from seaway_vehicle_io.profile import ManualControlAxes, clamp_int
 from seaway_vehicle_io.px4 import PROFILE as PX4
-from seaway_vehicle_io.thrust import ThrusterLimits, compensate_dead_zone, normalise, normalise_pair
+from seaway_vehicle_io.thrust import ThrusterLimits, normalise, normalise_pair
 
 # Asymmetric on purpose: 75 N ahead, 50 N astern, 10 N dead zone.
 LIM = ThrusterLimits(thrust_max_n=75.0, reverse_max_n=50.0, dead_zone_n=10.0)
@@ -129,9 +130,8 @@ def ardupilot_decode(axes: ManualControlAxes) -> tuple[float, float]:
 
 
 def produced(u: float, lim: ThrusterLimits) -> float:
-    """The plant's thrust for a normalised command (seaway.simkit.plant: scale, then dead zone)."""
-    t = u * (lim.thrust_max_n if u >= 0 else lim.reverse_max_n)
-    return 0.0 if abs(t) < lim.dead_zone_n else t
+    """The plant's thrust for a normalised command (scale, then the dead zone, as the plant does)."""
+    return apply_dead_zone(u * (lim.thrust_max_n if u >= 0 else lim.reverse_max_n), lim.dead_zone_n)
 
 
 DEMANDS = [-80.0, -50.0, -30.0, -10.0, -7.0, -5.0, -2.0, 0.0, 3.0, 5.1, 9.9, 10.0, 10.05, 25.0,

@@ -1,22 +1,24 @@
 """``seaway bench estimator``: accuracy against sim truth and the per-update cost, in one run.
 
-Each of the paper's five conditions (and the lake scenario) runs in-process (``harness``): the true
-vessel (``seaway.simkit.plant``) steered by line-of-sight along the scenario's waypoints from its TRUE state,
-sensors from ``seaway.simkit.sensors`` with the scenario's sensors section replaced by realistic noise (GNSS
-0.3 m at 5 Hz with SOG 0.05 m/s, heading 1 deg and yaw rate 0.005 rad/s at 20 Hz), the estimator with
-its default configuration publishing at 20 Hz. Every published estimate is compared with the truth at
-the same instant.
+Each of the paper's five conditions (and the lake scenario) runs in-process
+(``seaway_lab.closed_loop.run_estimator_loop``): the simulator's core (plant, disturbances and sensors,
+``seaway_sim.core.SimCore``) steered by the shared line-of-sight guidance (``seaway.vessel.guidance``)
+round the scenario's waypoints from its TRUE state, with the scenario's sensors section replaced by
+realistic noise (GNSS 0.3 m at 5 Hz with SOG 0.05 m/s, heading 1 deg and yaw rate 0.005 rad/s at
+20 Hz), the estimator with its default configuration publishing at 20 Hz. Every published estimate is
+compared with the truth at the same instant.
 
 Figures:
 
 * position RMS error (2D) over the run vs the RMS error of the raw GNSS fixes (ratio, target <= 0.5);
 * heading RMS error (target < 1 deg);
 * disturbance, conditions #3 and #4: "within 20 %" means ``|d_est - d_true| <= 0.2 |d_true|`` for the
-  body-frame force vector (surge, sway) [N] against ``sim`` truth's body-frame force. ``first`` is the
-  first instant it holds; ``settled`` the instant from which it holds at every later sample to the end
-  of the run (target <= 30 s). Beside them, the information bound at 30 s: the posterior std of the
-  force from the same data with a perfect model (process noise ~0), which no estimator can beat,
-  and the settling time with the scenario's own noise-free sensors (the paper's simulation);
+  body-frame force vector (surge, sway) [N] against the simulator's body-frame force at the same
+  instant (``sim/disturbance``). ``first`` is the first instant it holds; ``settled`` the instant from
+  which it holds at every later sample to the end of the run (target <= 30 s). Beside them, the
+  information bound at 30 s: the posterior std of the force from the same data with a perfect model
+  (process noise ~0), which no estimator can beat, and the settling time with the scenario's own
+  noise-free sensors (the paper's simulation);
 * per-update cost (median, p99) of each kind of call, with one bare RK4 step of the model as a
   baseline measured in the same run (target: median update < 0.2 ms).
 """
@@ -29,18 +31,17 @@ import time
 
 from seaway.simkit.scenario import Scenario, load_scenario
 from seaway.vessel import model
-from seaway.vessel.metrics import median, percentile
+from seaway.vessel.metrics import median, percentile, rms
 from seaway_estimator.config import EstimatorConfig, load_estimator_config
 from seaway_estimator.core import EstimatorCore
 
 from seaway_lab.bench.common import BenchResult, pin_to_one_core
-from seaway_lab.estimator_loop import (
+from seaway_lab.closed_loop import (
     REALISTIC_NOISE,
     Run,
     convergence,
     force_error_ratio,
-    rms,
-    run_closed_loop,
+    run_estimator_loop,
 )
 
 CONDITIONS = ("paper-c1", "paper-c2", "paper-c3", "paper-c4", "paper-c5")
@@ -61,7 +62,7 @@ def _short(name: str) -> str:
 
 
 def _run(sc: Scenario, cfg: EstimatorConfig, duration_s: float, speed_mps: float) -> Run:
-    return run_closed_loop(sc, EstimatorCore(cfg), duration_s, REALISTIC_NOISE, speed_mps=speed_mps)
+    return run_estimator_loop(sc, EstimatorCore(cfg), duration_s, REALISTIC_NOISE, speed_mps=speed_mps)
 
 
 def _accuracy(res: BenchResult, tag: str, run: Run) -> None:
@@ -142,7 +143,7 @@ def run(argv: list[str]) -> BenchResult:
         if name in ("paper-c3", "paper-c4"):
             bound = _run(sc, cfg.model_copy(update=PERFECT_MODEL), TARGET_CONVERGE_S + 1, args.speed)
             _disturbance(res, tag, r, bound, args.duration)
-            clean = run_closed_loop(sc, EstimatorCore(cfg), 60.0, speed_mps=args.speed)
+            clean = run_estimator_loop(sc, EstimatorCore(cfg), 60.0, speed_mps=args.speed)
             _, settled = convergence(clean.samples)
             res.add(f"{tag}_tau_d_settled_noise_free_s", -1.0 if settled is None else settled,
                     note="the same, with the scenario's own (noise-free) sensors, as in the paper")
@@ -154,7 +155,8 @@ def run(argv: list[str]) -> BenchResult:
         _accuracy(res, "lake", r)
     _costs(res, runs, cfg.vessel)
     res.meta["sensors"] = REALISTIC_NOISE.model_dump()
-    res.meta["excitation"] = (f"LOS along the mission waypoints (cycled) from the true state, "
+    res.meta["excitation"] = ("line-of-sight guidance (seaway.vessel.guidance) along the mission "
+                              "waypoints (cycled) from the true state, "
                               f"{args.speed} m/s (lake 0.8 m/s)")
     res.meta["disturbance_frame"] = cfg.disturbance_frame
     res.meta["lake"] = ("wind gusts + current; the current is kinematic, so the disturbance "

@@ -32,6 +32,7 @@ from mcap.reader import make_reader
 from mcap.writer import CompressionType, Writer
 from seaway.contract import keys
 from seaway.contract.messages import ThrustCommand
+from seaway.contract.units import NS_PER_S
 from seaway.vessel.metrics import median, percentile
 from seaway_recorder.writer import RecordingWriter
 
@@ -131,7 +132,7 @@ def bench_end_to_end(rate: float, seconds: float, tmp: Path) -> dict:
     recorded = 0
     with open(out, "rb") as fh:
         for _schema, _channel, msg in make_reader(fh).iter_messages(topics=[keys.THRUST.key(BENCH_VESSEL)]):
-            per_second[msg.log_time // 1_000_000_000] += 1
+            per_second[msg.log_time // NS_PER_S] += 1
             recorded += 1
     secs = sorted(per_second)
     whole = [per_second[s] for s in secs[1:-1]] or [per_second[s] for s in secs]
@@ -146,7 +147,7 @@ def bench_end_to_end(rate: float, seconds: float, tmp: Path) -> dict:
 def publish(argv: list[str]) -> int:
     """The publisher process: ThrustCommand samples of 300 bytes at a steady rate."""
     import zenoh
-    from seaway.runtime.bus import open_session
+    from seaway.runtime.zenoh_bus import open_session
 
     ap = argparse.ArgumentParser(prog="seaway_lab.bench.recorder publish")
     ap.add_argument("--rate", type=float, required=True)

@@ -23,7 +23,8 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 
-from seaway.runtime.bus import ENV_CONFIG, ENV_RENDEZVOUS, Bus
+from seaway.runtime.bus import Bus
+from seaway.runtime.zenoh_bus import ENV_CONFIG, ENV_RENDEZVOUS
 from seaway.vessel.metrics import median, percentile
 from seaway_sim.app import SimApp, load_world
 from seaway_sim.core import SimCore

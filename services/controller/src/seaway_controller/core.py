@@ -35,11 +35,12 @@ from seaway.contract.messages import (
     StateEstimate,
     ThrustCommand,
 )
+from seaway.vessel import path
 from seaway.vessel.frames import GeoOrigin
+from seaway.vessel.guidance import LosGains, los_thrust
 from seaway.vessel.model import VesselParams, propulsion_power_w
 
 from seaway_controller import costs
-from seaway_controller.guidance import LosGains, los_thrust
 from seaway_controller.mission import MissionError, MissionLimits, MissionManager
 from seaway_controller.mpc import MpcController, MpcOutcome
 from seaway_controller.ocp import CONTROLLER_KINDS, ControllerKind, Ocp, OcpSpec
@@ -291,7 +292,7 @@ class ControllerCore:
             return MissionStatus.make(stamp_ns=state.stamp_ns, state="idle")
         m = mm.mission
         wp_prev, wp_act = mm.leg()
-        xte = costs.signed_cross_track_m(state.x_m, state.y_m, wp_prev, wp_act)
+        xte = path.signed_cross_track_m(state.x_m, state.y_m, wp_prev, wp_act)
         return MissionStatus.make(
             stamp_ns=state.stamp_ns, state=mm.state, mission_id=m.mission_id, active_leg=mm.active,
             waypoint_count=len(m.waypoints_m),

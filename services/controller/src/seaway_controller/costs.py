@@ -6,7 +6,9 @@ numbers it reports therefore come from the same lines.
 
 Equations follow the paper as corrected by shared/reproduction.md ("Equations as they should be
 read", items 1-8). Units: thrust [N], speed [m/s], yaw rate [rad/s], power [W], time [s], energy [J].
-Positions are in the world frame (local NED: x north, y east), angles from north, clockwise.
+Positions are in the world frame (local NED: x north, y east), angles from north, clockwise. The
+cross-track error e (item 1) is the path's own, ``seaway.vessel.path.signed_cross_track_m``, the one
+the report and the closed loop measure.
 
 Smoothing (solver-notes.md, trap 4): sinc, the absolute cross-track error and distances are smooth
 so that the exact Hessian exists everywhere; the epsilons below are the only ones used.
@@ -21,6 +23,7 @@ from types import ModuleType
 from typing import Any
 
 from seaway.vessel.model import VesselParams
+from seaway.vessel.path import signed_cross_track_m
 
 SINC_EPS = 1e-8
 """sinc(x) = sin(s)/s with s = sqrt(x^2 + SINC_EPS) [rad^2]: smooth and finite at 0."""
@@ -64,16 +67,6 @@ def wrap_angle(a: Any, ops: ModuleType = math) -> Any:
 def smooth_distance(dx: Any, dy: Any, ops: ModuleType = math) -> Any:
     """sqrt(dx^2 + dy^2 + DIST_EPS_M2) [m]."""
     return ops.sqrt(dx * dx + dy * dy + DIST_EPS_M2)
-
-
-def signed_cross_track_m(x_m: Any, y_m: Any, wp_prev: Sequence[Any], wp_active: Sequence[Any],
-                         ops: ModuleType = math) -> Any:
-    """Signed distance of (x, y) from the line P_{i-1} -> P_i (reproduction.md item 1) [m].
-
-    ``cross(P_i - P_{i-1}, p - P_{i-1}) / |P_i - P_{i-1}|``; positive to the right of the leg in NED.
-    """
-    lx, ly = wp_active[0] - wp_prev[0], wp_active[1] - wp_prev[1]
-    return (lx * (y_m - wp_prev[1]) - ly * (x_m - wp_prev[0])) / ops.sqrt(lx * lx + ly * ly)
 
 
 def stage_cost_j(thrust_port_n: Any, thrust_starboard_n: Any, task_power_w: Any, dt_s: float,

@@ -12,10 +12,11 @@ import math
 from dataclasses import dataclass
 from typing import Literal
 
-from seaway.contract.messages import MissionCommand, MissionRequest
+from seaway.contract import keys
+from seaway.contract.messages import ControllerName, MissionCommand, MissionRequest, MissionState
+from seaway.vessel import path
 from seaway.vessel.frames import GeoOrigin
 
-MissionState = Literal["idle", "active", "paused", "complete", "aborted"]
 Point = tuple[float, float]
 
 
@@ -42,7 +43,7 @@ class Mission:
     waypoints_m: tuple[Point, ...]
     coa_radius_m: float
     task_power_w: float
-    controller: Literal["cc-empc", "eo-empc", "nmpc"]
+    controller: ControllerName
     speed_hint_mps: float | None = None
 
 
@@ -62,7 +63,8 @@ def _waypoint_ned(i: int, wp: object, origin: GeoOrigin | None) -> Point:
             raise MissionError(f"waypoint {i}: needs both lat_deg and lon_deg")
         if origin is None:
             raise MissionError(f"waypoint {i}: given in lat/lon but no navigation origin is known yet "
-                               "(nav/origin not received); send local x_m/y_m or wait for the origin")
+                               f"({keys.NAV_ORIGIN.suffix} not received); send local x_m/y_m or wait "
+                               "for the origin")
         north, east, _ = origin.to_ned(math.radians(lat), math.radians(lon), origin.alt_m)
         return north, east
     raise MissionError(f"waypoint {i}: has no position (x_m/y_m or lat_deg/lon_deg)")
@@ -143,21 +145,21 @@ class MissionManager:
         """Switch on entering P_i's circle of acceptance; complete on the last one."""
         if self.mission is None or self.state != "active":
             return None
-        wps, r_coa = self.mission.waypoints_m, self.mission.coa_radius_m
-        event: Literal["switched", "complete"] | None = None
-        # A loop: a vessel may be inside several consecutive circles at once.
-        while math.dist((x_m, y_m), wps[self.active]) <= r_coa:
-            if self.active == len(wps) - 1:
-                self.state = "complete"
-                return "complete"
-            self.active += 1
-            self.switches += 1
-            event = "switched"
-        return event
+        wps = self.mission.waypoints_m
+        # Several circles may be entered at once; the last one keeps its leg active, complete.
+        passed = path.advance_leg(self.active, x_m, y_m, wps, self.mission.coa_radius_m)
+        if passed == self.active:
+            return None
+        last = len(wps) - 1
+        self.switches += min(passed, last) - self.active
+        self.active = min(passed, last)
+        if passed > last:
+            self.state = "complete"
+            return "complete"
+        return "switched"
 
     def inside_any_circle(self, x_m: float, y_m: float) -> bool:
         """True inside any waypoint's circle of acceptance (cross-track samples skip these)."""
         if self.mission is None:
             return False
-        r = self.mission.coa_radius_m
-        return any(math.dist((x_m, y_m), wp) <= r for wp in self.mission.waypoints_m)
+        return path.inside_any_circle(x_m, y_m, self.mission.waypoints_m, self.mission.coa_radius_m)

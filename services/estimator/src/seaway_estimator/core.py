@@ -12,9 +12,9 @@ body-frame surge and sway forces (its ``tau_body``); ``d3`` is always the body y
 Whatever the internal frame, ``StateEstimate`` carries the body-frame values and their covariance.
 
 Prediction: the mean with ``seaway.vessel.model.rk4_step`` (the model is never re-derived here), the
-commanded thrust held (saturated by ``seaway.simkit.plant.saturate``, optionally the dead zone), substeps of
-at most ``max_step_s``. The covariance with ``F = I + A h + (A h)^2 / 2``, where ``A`` is the exact
-Jacobian of ``seaway.vessel.model.derivative``, computed by complex-step differentiation (the model is
+commanded thrust held (saturated by ``seaway.vessel.thrusters.saturate``, optionally the dead zone),
+substeps of at most ``max_step_s``. The covariance with ``F = I + A h + (A h)^2 / 2``, where ``A`` is the
+exact Jacobian of ``seaway.vessel.model.derivative``, computed by complex-step differentiation (the model is
 evaluated with ``cmath`` as its ``ops``: derivatives exact to machine precision, no CasADi needed).
 
 Updates, each when it arrives and at its own rate, Joseph form and symmetrised:
@@ -37,16 +37,22 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from seaway.contract import keys
 from seaway.contract.messages import Attitude, GnssFix, MessageError, NavOrigin, StateEstimate, ThrustCommand
-from seaway.simkit.plant import apply_dead_zone, saturate
+from seaway.contract.units import NS_PER_S
 from seaway.vessel import model
 from seaway.vessel.frames import GeoOrigin, wrap_pi
 from seaway.vessel.model import VesselParams
+from seaway.vessel.thrusters import apply_dead_zone, saturate
 
 from seaway_estimator.config import EstimatorConfig
 
+INPUT_KEYS: dict[str, keys.KeySpec] = {"gnss": keys.GNSS, "attitude": keys.ATTITUDE,
+                                      "thrust": keys.THRUST}
+"""The estimator's measurement inputs by kind: the key each comes from (and so its message type),
+under the name an input trace gives it (``replay.py``). In the order same-stamp inputs are applied."""
+
 NZ = 9
-NS_PER_S = 1_000_000_000
 _I9 = np.eye(NZ)
 _CSTEP = 1e-30  # complex-step size: no subtraction, so no cancellation however small
 IU, IV, IR, IX, IY, IPSI, ID1, ID2, ID3 = range(NZ)

@@ -1,79 +1,16 @@
-"""The paper's metrics of one run, as a pure function of its messages (shared/reproduction.md, "Metrics").
-
-* **Travel time**: from the start (the first state sample at or after the mission became active, else
-  the first state sample) until the last circle of acceptance is entered. The active leg starts at
-  P_0 -> P_1 and moves on each time the position enters the circle of the active waypoint P_i; entering
-  the last waypoint's circle ends the run.
-* **Energy**: integral over [start, end] of ``alpha (T1^2 + T2^2) + T^w``. The propulsion part is the
-  difference of ``SimTruth.energy_j`` (the simulator's own integral) when truth is recorded; otherwise
-  the thrusts, each held from its stamp until the next one (zero-order hold), integrated with the
-  vessel's alpha. The task part is ``T^w * travel time``. The other estimate is reported as a check.
-* **Average cross-track error**: the mean, over samples every ``sample_period_s`` (0.1 s) from the start,
-  of the distance from the line P_{i-1} -> P_i of the active leg, counting only samples outside every
-  circle of acceptance. A sample is the newest state at or before the grid time.
-
-Everything here takes the messages (or anything with the same fields) and returns numbers; nothing
-reads a clock or a file, so regression tests and the launcher can call it directly.
+"""The controller's solve statistics of a recording (the paper's metrics are
+``seaway.vessel.metrics.mission_metrics``, shared with the in-process closed loop). Nothing here reads
+a clock or a file.
 """
 
 from __future__ import annotations
 
 import math
-from bisect import bisect_right
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field
-from typing import Any, Protocol
+from dataclasses import asdict, dataclass
+from typing import Any
 
 from seaway.vessel.metrics import median, percentile
-
-NS = 1_000_000_000
-
-
-class Pose(Protocol):
-    stamp_ns: int
-    x_m: float
-    y_m: float
-
-
-class Thrust(Protocol):
-    stamp_ns: int
-    thrust_port_n: float
-    thrust_starboard_n: float
-
-
-def cross_track_m(p_prev: tuple[float, float], p_next: tuple[float, float], x: float, y: float) -> float:
-    """Distance of (x, y) from the line through p_prev and p_next (reproduction.md, item 1)."""
-    dx, dy = p_next[0] - p_prev[0], p_next[1] - p_prev[1]
-    norm = math.hypot(dx, dy)
-    if norm == 0.0:
-        return math.hypot(x - p_prev[0], y - p_prev[1])
-    return abs(dx * (y - p_prev[1]) - dy * (x - p_prev[0])) / norm
-
-
-@dataclass
-class MissionMetrics:
-    completed: bool
-    start_ns: int
-    end_ns: int
-    travel_time_s: float | None
-    energy_j: float
-    propulsion_energy_j: float
-    task_energy_j: float
-    energy_source: str
-    energy_check_j: float | None
-    energy_check_source: str
-    avg_cross_track_m: float | None
-    max_cross_track_m: float | None
-    cross_track_samples: int
-    legs_completed: int
-    state_source: str
-    state_samples: int
-    series: dict[str, list[float]] = field(default_factory=dict, repr=False)
-
-    def to_json(self) -> dict[str, Any]:
-        d = asdict(self)
-        d.pop("series")
-        return d
 
 
 @dataclass
@@ -94,149 +31,6 @@ class SolveStats:
 
     def to_json(self) -> dict[str, Any]:
         return asdict(self)
-
-
-def _legs(states: Sequence[Pose], start: int, waypoints: Sequence[tuple[float, float]], r: float
-          ) -> tuple[list[int], int | None]:
-    """Active leg index (i of P_i) after each state sample from ``start``; index of the final entry."""
-    active = 1
-    legs = [1] * len(states)
-    end = None
-    for k in range(start, len(states)):
-        s = states[k]
-        while active < len(waypoints) and math.hypot(s.x_m - waypoints[active][0],
-                                                     s.y_m - waypoints[active][1]) <= r:
-            active += 1
-        legs[k] = min(active, len(waypoints) - 1)
-        if active >= len(waypoints):
-            end = k
-            break
-    return legs, end
-
-
-def mission_metrics(
-    states: Sequence[Pose],
-    waypoints: Sequence[tuple[float, float]],
-    coa_radius_m: float,
-    task_power_w: float,
-    *,
-    alpha_w_per_n2: float | None = None,
-    thrusts: Sequence[Thrust] | None = None,
-    energy_j: Sequence[float] | None = None,
-    mission_start_ns: int | None = None,
-    sample_period_s: float = 0.1,
-    state_source: str = "",
-    thrust_source: str = "",
-) -> MissionMetrics:
-    """The paper's metrics of one run.
-
-    ``states``: positions in stamp order (SimTruth or StateEstimate). ``energy_j``: cumulative propulsion
-    energy per state sample (SimTruth.energy_j), if known. ``thrusts``: thrust samples in stamp order
-    (SimTruth itself, or ThrustCommand). ``alpha_w_per_n2`` is needed for the thrust integral.
-    """
-    if len(waypoints) < 2:
-        raise ValueError("need at least two waypoints")
-    if not states:
-        raise ValueError("no state samples (sim/truth or nav/state) in the recording")
-    if energy_j is not None and len(energy_j) != len(states):
-        raise ValueError("energy_j needs one value per state sample")
-    wps = [(float(x), float(y)) for x, y in waypoints]
-    stamps = [s.stamp_ns for s in states]
-    start = 0 if mission_start_ns is None else bisect_right(stamps, mission_start_ns - 1)
-    if start >= len(states):
-        raise ValueError("no state sample after the mission started")
-    legs, end = _legs(states, start, wps, coa_radius_m)
-    last = end if end is not None else len(states) - 1
-    t0, t1 = stamps[start], stamps[last]
-    duration_s = (t1 - t0) / NS
-
-    # Cross-track error on the sample grid.
-    period_ns = round(sample_period_s * NS)
-    xte: list[float] = []
-    grid_t: list[float] = []
-    grid_xte: list[float] = []
-    k = start
-    g = t0
-    while g <= t1:
-        while k + 1 <= last and stamps[k + 1] <= g:
-            k += 1
-        s, leg = states[k], legs[k]
-        inside = any(math.hypot(s.x_m - wx, s.y_m - wy) <= coa_radius_m for wx, wy in wps)
-        e = cross_track_m(wps[leg - 1], wps[leg], s.x_m, s.y_m)
-        grid_t.append((g - t0) / NS)
-        grid_xte.append(math.nan if inside else e)
-        if not inside:
-            xte.append(e)
-        g += period_ns
-
-    # Energy: the simulator's integral when present, the thrust integral otherwise (and as a check).
-    thrust_j = None
-    thrust_curve: list[float] = []
-    if thrusts and alpha_w_per_n2 is not None:
-        thrust_j, thrust_curve = _thrust_energy(thrusts, alpha_w_per_n2, t0, t1, stamps[start:last + 1])
-    if energy_j is not None:
-        propulsion = energy_j[last] - energy_j[start]
-        source = f"{state_source} energy_j".strip()
-        check, check_source = thrust_j, f"{thrust_source} thrust, zero-order hold".strip()
-        curve = [energy_j[i] - energy_j[start] for i in range(start, last + 1)]
-    elif thrust_j is not None:
-        propulsion = thrust_j
-        source = f"{thrust_source} thrust, zero-order hold".strip()
-        check, check_source = None, ""
-        curve = thrust_curve
-    else:
-        raise ValueError("cannot compute the energy: no energy_j and no thrusts with a known alpha "
-                         "(give the vessel file)")
-    task = task_power_w * duration_s
-    series = {
-        "t_s": [(stamps[i] - t0) / NS for i in range(start, last + 1)],
-        "x_m": [states[i].x_m for i in range(start, last + 1)],
-        "y_m": [states[i].y_m for i in range(start, last + 1)],
-        "energy_used_j": [curve[i] + task_power_w * (stamps[start + i] - t0) / NS
-                          for i in range(len(curve))],
-        "grid_t_s": grid_t,
-        "cross_track_m": grid_xte,
-    }
-    return MissionMetrics(
-        completed=end is not None,
-        start_ns=t0,
-        end_ns=t1,
-        travel_time_s=duration_s if end is not None else None,
-        energy_j=propulsion + task,
-        propulsion_energy_j=propulsion,
-        task_energy_j=task,
-        energy_source=source,
-        energy_check_j=None if check is None else check + task,
-        energy_check_source=check_source,
-        avg_cross_track_m=(sum(xte) / len(xte)) if xte else None,
-        max_cross_track_m=max(xte) if xte else None,
-        cross_track_samples=len(xte),
-        legs_completed=(legs[last] - 1) + (1 if end is not None else 0),
-        state_source=state_source,
-        state_samples=last - start + 1,
-        series=series,
-    )
-
-
-def _thrust_energy(thrusts: Sequence[Thrust], alpha: float, t0: int, t1: int, at: Sequence[int]
-                   ) -> tuple[float, list[float]]:
-    """Integral of alpha (T1^2 + T2^2) over [t0, t1], each thrust held until the next one; also the
-    running integral at the times ``at``."""
-    ts = [c.stamp_ns for c in thrusts]
-    power = [alpha * (c.thrust_port_n ** 2 + c.thrust_starboard_n ** 2) for c in thrusts]
-    curve: list[float] = []
-    total = 0.0
-    t_prev = t0
-    j = bisect_right(ts, t0) - 1  # the thrust in force at t0, if any
-    p_cur = power[j] if j >= 0 else 0.0
-    i = j + 1
-    for t in [*at, t1]:
-        while i < len(ts) and ts[i] <= t:
-            total += p_cur * (ts[i] - t_prev) / NS
-            t_prev, p_cur = ts[i], power[i]
-            i += 1
-        curve.append(total + p_cur * (t - t_prev) / NS)
-    return curve[-1], curve[:-1]
 
 
 def solve_stats(records: Sequence[Any]) -> SolveStats:

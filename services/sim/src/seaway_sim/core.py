@@ -22,14 +22,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from seaway.contract.messages import Attitude, DisturbanceForce, GnssFix, SimTruth
+from seaway.contract.units import NS_PER_S
 from seaway.simkit.plant import Plant
 from seaway.simkit.scenario import Scenario, body_force
 from seaway.simkit.sensors import SensorSuite, instants_in, origin_of
 from seaway.vessel import model
 from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.model import VesselParams
-
-NS_PER_S = 1_000_000_000
 
 
 @dataclass

@@ -31,6 +31,7 @@ from typing import Any
 
 from pymavlink.dialects.v20 import common as mavlink
 from seaway.contract.messages import Attitude, GnssFix
+from seaway.contract.units import NS_PER_S
 from seaway.simkit.sensors import instants_in, period_ns
 from seaway.vessel.frames import GeoOrigin
 
@@ -49,7 +50,6 @@ from seaway_sim.px4_params import (
 
 log = logging.getLogger("seaway_sim.px4")
 
-NS_PER_S = 1_000_000_000
 NS_PER_MS = 1_000_000
 
 # PX4 custom modes (px4_custom_mode.h): main mode in bits 16-23, sub mode in bits 24-31.

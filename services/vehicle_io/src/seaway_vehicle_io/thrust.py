@@ -3,18 +3,19 @@
 This is the autopilot-independent half of the command path; the profiles (px4.py, ardupilot.py)
 turn the normalised pair (L = port = T1, R = starboard = T2) into MANUAL_CONTROL axes.
 
-Model of the thruster behind the autopilot (the same as the simulator's plant, seaway.simkit.plant): a
-normalised command ``u`` produces ``u * thrust_max_n`` ahead for ``u >= 0`` and
+Model of the thruster behind the autopilot (``seaway.vessel.thrusters``, as the simulator's plant
+applies it): a normalised command ``u`` produces ``u * thrust_max_n`` ahead for ``u >= 0`` and
 ``u * reverse_max_n`` astern for ``u < 0``, and any demand whose magnitude is below
 ``dead_zone_n`` produces nothing.
 
 Per thruster, in this order:
 
-1. **saturation** to ``[-reverse_max_n, thrust_max_n]`` (the vessel file);
-2. **dead-zone compensation**: a demand ``0 < |T| < dead_zone_n`` cannot be produced. We send the
-   achievable value nearest to it: ``sign(T) * dead_zone_n`` when ``|T| > dead_zone_n / 2``, else 0.
-   That keeps the error at most ``dead_zone_n / 2`` and keeps a small demand from being silently
-   lost (a controller asking for 6 N of a 10 N dead zone gets 10 N, one asking for 4 N gets 0);
+1. **saturation** to ``[-reverse_max_n, thrust_max_n]`` (the vessel file; ``thrusters.saturate``);
+2. **dead-zone compensation** (``thrusters.compensate_dead_zone``): a demand ``0 < |T| < dead_zone_n``
+   cannot be produced. We send the achievable value nearest to it: ``sign(T) * dead_zone_n`` when
+   ``|T| > dead_zone_n / 2``, else 0. That keeps the error at most ``dead_zone_n / 2`` and keeps a
+   small demand from being silently lost (a controller asking for 6 N of a 10 N dead zone gets
+   10 N, one asking for 4 N gets 0);
 3. **normalisation** by the bound of the demand's direction (asymmetric reverse);
 4. **quantisation guard**: the wire encoding rounds (PX4's z has a step of 0.002), which could put a
    value at the dead-zone edge back inside it. A non-zero output is therefore never smaller than
@@ -30,6 +31,7 @@ import math
 from dataclasses import dataclass
 
 from seaway.vessel.model import VesselParams
+from seaway.vessel.thrusters import compensate_dead_zone, saturate
 
 
 @dataclass(frozen=True)
@@ -51,20 +53,11 @@ class ThrusterLimits:
         return cls(p.thrust_max_n, p.reverse_max_n, p.dead_zone_n)
 
 
-def compensate_dead_zone(thrust_n: float, dead_zone_n: float) -> float:
-    """Nearest producible thrust to a demand inside the dead zone; outside it, unchanged [N]."""
-    mag = abs(thrust_n)
-    if mag >= dead_zone_n or thrust_n == 0.0:
-        return thrust_n
-    return math.copysign(dead_zone_n, thrust_n) if mag > dead_zone_n / 2.0 else 0.0
-
-
 def normalise(thrust_n: float, limits: ThrusterLimits, guard: float = 0.0) -> float:
     """One thruster's demand [N] -> normalised command in [-1, 1] (steps 1-5 above)."""
     if not math.isfinite(thrust_n):
         raise ValueError(f"thrust must be finite, got {thrust_n}")
-    t = min(max(thrust_n, -limits.reverse_max_n), limits.thrust_max_n)
-    t = compensate_dead_zone(t, limits.dead_zone_n)
+    t = compensate_dead_zone(saturate(thrust_n, limits), limits.dead_zone_n)
     if t == 0.0:
         return 0.0
     scale = limits.thrust_max_n if t > 0 else limits.reverse_max_n

@@ -1,14 +1,15 @@
 """The simulated plant: the vessel model integrated with its actuators and disturbances.
 
-A pure core used by the simulator service and by every in-process closed loop (benchmarks, the
-paper's table): no clock, no bus, no randomness of its own (the scenario's seeded disturbance model
-is the only source). ``step(command, dt)`` holds the commanded thrusts over ``dt`` and integrates with
-RK4 at ``internal_dt_s`` (default 10 ms, 100 Hz), sampling the disturbance at each internal step.
+A pure core, stepped by the simulator's core (``seaway_sim.core.SimCore``), which the service and the
+in-process closed loop (``seaway_lab.closed_loop``: benchmarks, the paper's table) share: no clock,
+no bus, no randomness of its own (the scenario's seeded disturbance model is the only source).
+``step(command, dt)`` holds the commanded thrusts over ``dt`` and integrates with RK4 at
+``internal_dt_s`` (default 10 ms, 100 Hz), sampling the disturbance at each internal step.
 
 Actuator model, applied in this order to each thruster's command [N]:
 
-1. saturation: ``-reverse_max_n <= T <= thrust_max_n`` (vessel file);
-2. dead zone (if enabled): ``|T| < dead_zone_n`` gives 0 (the real boat's 10 N);
+1. saturation: ``-reverse_max_n <= T <= thrust_max_n`` (vessel file; ``seaway.vessel.thrusters``);
+2. dead zone (if enabled): ``|T| < dead_zone_n`` gives 0 (the real boat's 10 N; the same module);
 3. first-order lag (if enabled): ``T' = (T_cmd - T) / thruster_time_constant_s``, exact per step.
 
 Energy: the paper's metric integrates ``alpha (T1^2 + T2^2)`` over the run (eq. 3); ``energy_j`` here is
@@ -24,16 +25,7 @@ from dataclasses import dataclass, field
 from seaway.simkit.scenario import DisturbanceModel, Scenario, body_force
 from seaway.vessel import model
 from seaway.vessel.model import VesselParams
-
-
-def saturate(thrust_n: float, p: VesselParams) -> float:
-    """Clamp one thruster's command to the vessel's ahead/astern bounds [N]."""
-    return min(max(thrust_n, -p.reverse_max_n), p.thrust_max_n)
-
-
-def apply_dead_zone(thrust_n: float, dead_zone_n: float) -> float:
-    """Commands below the dead zone produce no thrust [N]."""
-    return 0.0 if abs(thrust_n) < dead_zone_n else thrust_n
+from seaway.vessel.thrusters import apply_dead_zone, saturate
 
 
 @dataclass

@@ -1,8 +1,8 @@
 """Sensor synthesis for simulated runs: GNSS, heading and yaw rate from the true state, seeded.
 
-Pure (no clock, no bus, no global randomness), so the simulator service and every in-process closed
-loop (benchmarks, the paper's table) produce the same samples from the same scenario and seed,
-bit for bit. Every random draw comes from its own stream,
+Pure (no clock, no bus, no global randomness), so the simulator's core (``seaway_sim.core.SimCore``,
+stepped by the service and by the in-process closed loop) produces the same samples from the same
+scenario and seed, bit for bit. Every random draw comes from its own stream,
 ``numpy.random.Generator(PCG64([seed, STREAM, k]))``, one per quantity, so that changing one
 noise level never shifts another's draws.
 
@@ -29,10 +29,10 @@ import numpy as np
 
 from seaway.contract.config import Origin
 from seaway.contract.messages import Attitude, GnssFix
+from seaway.contract.units import NS_PER_S
 from seaway.simkit.scenario import SensorNoise
 from seaway.vessel.frames import GeoOrigin, wrap_pi
 
-NS_PER_S = 1_000_000_000
 GPS_FIX_TYPE_3D = 3  # MAVLink GPS_FIX_TYPE_3D_FIX
 SIMULATED_SATELLITES = 12
 

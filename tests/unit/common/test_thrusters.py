@@ -1,0 +1,47 @@
+"""seaway.vessel.thrusters: saturation bounds (asymmetric), the dead zone and its compensation."""
+
+from __future__ import annotations
+
+import pytest
+from seaway.vessel.model import load_vessel
+from seaway.vessel.thrusters import apply_dead_zone, compensate_dead_zone, saturate
+
+BOAT = load_vessel("paper-boat")  # 75 N ahead, 10 N dead zone
+
+
+@pytest.mark.parametrize(("demand", "want"), [(200.0, 75.0), (75.0, 75.0), (30.0, 30.0), (0.0, 0.0),
+                                              (-49.0, -49.0), (-1e6, -50.0)])
+def test_saturation_bounds_are_the_vessels_and_reverse_may_be_weaker(demand, want):
+    class Bounds:
+        thrust_max_n, reverse_max_n = 75.0, 50.0
+
+    assert saturate(demand, Bounds()) == want
+
+
+def test_saturation_uses_the_vessel_file():
+    assert saturate(1e6, BOAT) == BOAT.thrust_max_n
+    assert saturate(-1e6, BOAT) == -BOAT.reverse_max_n
+
+
+def test_dead_zone_produces_nothing_below_and_everything_from_its_edge():
+    dz = BOAT.dead_zone_n
+    assert dz > 0
+    assert apply_dead_zone(0.999 * dz, dz) == 0.0
+    assert apply_dead_zone(-0.999 * dz, dz) == 0.0
+    assert apply_dead_zone(dz, dz) == dz  # the edge is producible
+    assert apply_dead_zone(-dz, dz) == -dz
+    assert apply_dead_zone(3.0, 0.0) == 3.0  # no dead zone (the paper's vessel): unchanged
+
+
+def test_compensation_sends_the_nearest_producible_thrust():
+    assert compensate_dead_zone(6.0, 10.0) == 10.0
+    assert compensate_dead_zone(-6.0, 10.0) == -10.0
+    assert compensate_dead_zone(4.0, 10.0) == 0.0
+    assert compensate_dead_zone(5.0, 10.0) == 0.0  # exactly half: rounds to zero
+    assert compensate_dead_zone(12.0, 10.0) == 12.0
+    assert compensate_dead_zone(0.0, 10.0) == 0.0
+    # Whatever is sent survives the thruster's dead zone unchanged (or is exactly zero).
+    for demand in (-9.0, -5.1, 0.3, 5.1, 9.99, 10.0, 40.0):
+        sent = compensate_dead_zone(demand, 10.0)
+        assert apply_dead_zone(sent, 10.0) == sent
+        assert abs(sent - demand) <= 5.0
