@@ -19,14 +19,14 @@ from pathlib import Path
 
 import pytest
 from seaway.contract.messages import Attitude, ClockTick, GnssFix, StateEstimate, ThrustCommand
+from seaway.runtime import run as runs
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.model import load_vessel
 from seaway_controller.core import ControllerConfig, ControllerCore
 from seaway_estimator.config import load_estimator_config
 from seaway_estimator.core import EstimatorCore
-from seaway_estimator.service import EstimatorLoop, with_scenario
-from seaway_lab.closed_loop import scenario_mission_request
+from seaway_estimator.service import EstimatorLoop, with_run
 from seaway_recorder.recording import iter_messages
 
 from tests.replay.regen import GOLDENS
@@ -82,7 +82,8 @@ def test_golden_is_small_and_complete(golden) -> None:
 def test_estimator_reproduces_every_recorded_state_exactly(golden) -> None:
     _, scenario, rec = golden
     inputs = [(msg.stamp_ns, RANK[k], i, k, msg) for k in RANK for i, (_, msg) in enumerate(rec[k])]
-    cfg = with_scenario(load_estimator_config(None), load_scenario(scenario))
+    cfg = with_run(load_estimator_config(None),
+                   runs.for_scenario(load_scenario(scenario), scenario, vessel="vessel1", run_id="golden"))
     cap = Capture()
     loop = EstimatorLoop(EstimatorCore(cfg), cap)
     recorded_states = {}
@@ -111,7 +112,7 @@ def test_controller_reproduces_every_recorded_command(golden) -> None:
     core = ControllerCore(load_vessel(sc.vessel), ControllerConfig(solver="generated", solve_budget_s=None))
     o = sc.origin
     core.set_origin(GeoOrigin(math.radians(o.lat_deg), math.radians(o.lon_deg), o.alt_m))
-    assert core.handle_mission(0, scenario_mission_request(sc)).accepted
+    assert core.handle_mission(0, sc.mission.to_request(0, mission_id=sc.name)).accepted
     commands = {}
     for _data, cmd in rec["ctrl/thrust"]:
         commands.setdefault(cmd.stamp_ns, cmd)

@@ -62,7 +62,10 @@ def start_vio(procs: Procs, env: dict[str, str], tmp: Path, url: str, **cfg: obj
     lines += [f"{k} = {json.dumps(v)}" for k, v in cfg.items()]
     path = tmp / f"vio-{len(procs.procs)}.toml"
     path.write_text("\n".join(lines) + "\n")
-    return procs.start([str(VIO), "--config", str(path)], env, name=f"vio-{len(procs.procs)}")
+    # The same run as the simulator's default (the lake scenario: paper-boat's 75 N thrusters), so the
+    # two processes agree on the run (seaway.runtime.run) and the thrust mapping is the boat's.
+    return procs.start([str(VIO), "--config", str(path), "--scenario", "lake"], env,
+                       name=f"vio-{len(procs.procs)}")
 
 
 def start_sim(procs: Procs, env: dict[str, str], port: int, name: str = "sim"):

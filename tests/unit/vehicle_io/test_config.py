@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 from seaway.contract.config import ConfigError, load_config, parse_config
+from seaway.runtime.run import resolve
 from seaway_vehicle_io.config import VehicleIoConfig
 from seaway_vehicle_io.link import check_url
 from seaway_vehicle_io.main import build_parser, load
@@ -42,12 +43,14 @@ def test_bad_configs_name_the_field(doc, field):
 
 
 def test_command_line_overrides_and_url_check(tmp_path):
-    args = build_parser().parse_args(["--mavlink", "udpin:0.0.0.0:14540", "--thrust-timeout", "0.5"])
-    cfg, limits = load(args)
+    args = build_parser().parse_args(["--mavlink", "udpin:0.0.0.0:14540", "--thrust-timeout", "0.5",
+                                      "--vessel-file", "paper-boat"])
+    cfg, limits = load(args, resolve(args, "vehicle_io"))
     assert cfg.mavlink == "udpin:0.0.0.0:14540" and cfg.thrust_timeout_s == 0.5
-    assert limits.thrust_max_n == 75.0
+    assert limits.thrust_max_n == 75.0  # the run's vessel file, paper-boat
+    bad = build_parser().parse_args(["--mavlink", "http://boat"])
     with pytest.raises(ConfigError, match="unsupported MAVLink URL"):
-        load(build_parser().parse_args(["--mavlink", "http://boat"]))
+        load(bad, resolve(bad, "vehicle_io"))
 
 
 def test_serial_url_needs_pyserial(monkeypatch):

@@ -7,14 +7,16 @@ Outputs: ``ctrl/thrust`` (ThrustCommand, stamped with the state's stamp), ``ctrl
 
 Two ways to run:
 
-* real time (default): ticks at ``--rate-hz`` (10 Hz) on the wall clock; each tick uses the newest
-  state if a new one arrived; a state older than ``--max-state-age-s`` gives zero thrust;
-* ``--lockstep``: exactly one command per received state, whatever the wall clock does, and a
+* real time (the run's clock ``wall``): ticks every control period of the run on the wall clock;
+  each tick uses the newest state if a new one arrived; a state older than ``--max-state-age-s``
+  gives zero thrust;
+* lockstep: exactly one command per received state, whatever the wall clock does, and a
   command for every state (zero when idle), so that a lockstep simulator waiting for the command of
   its tick t_k (the estimator stamps nav/state with t_k) never stalls.
 
-``--scenario NAME`` starts the scenario's mission at once (batch runs) and takes its vessel file and
-geodetic origin.
+The vessel model, the control period (which is also the OCP's dt) and the origin come from the run
+(``seaway.runtime.run``). ``--scenario NAME`` given as a flag (not through ``--run``) also starts
+the scenario's mission at once (batch runs without a launcher).
 
 ``--state-file PATH`` keeps a mission checkpoint (``checkpoint.py``): written whenever the mission's
 progress changes and once a second, read at start, so that a controller restarted mid-mission (the
@@ -25,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import sys
 import threading
 import time
 from collections.abc import Callable, Sequence
@@ -32,9 +35,10 @@ from pathlib import Path
 from typing import Any
 
 from seaway.contract import keys
+from seaway.contract.config import ConfigError
 from seaway.contract.messages import MissionCommand, MissionRequest, NavOrigin, Reply, StateEstimate
 from seaway.runtime.clock import RateLoop
-from seaway.runtime.service import ServiceContext, base_parser, parse, run_service
+from seaway.runtime.service import ServiceContext, base_parser, parse, resolve_run, run_service
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.model import load_vessel
@@ -48,22 +52,14 @@ from seaway_controller.solvers import SOLVER_KINDS
 log = logging.getLogger("seaway_controller.service")
 NAME = "controller"
 CHECKPOINT_PERIOD_S = 1.0  # an unchanged mission is re-saved this often, for the energy count
-DEFAULT_VESSEL_FILE = "paper-sim"
 
 
 def build_parser() -> argparse.ArgumentParser:
     p = base_parser(NAME, "Mission manager and CC-EMPC / EO-EMPC / NMPC controller.")
-    p.add_argument("--lockstep", action="store_true",
-                   help="one command per received nav/state instead of the wall-clock rate")
-    p.add_argument("--scenario", default=None, help="start this scenario's mission at once")
-    p.add_argument("--vessel-file", default=None,
-                   help=f"vessel parameters (deploy/vessels name or path; default: the scenario's "
-                        f"or {DEFAULT_VESSEL_FILE})")
     p.add_argument("--solver", choices=SOLVER_KINDS, default="generated",
                    help="generated: compiled SQP (fast); ipopt: plain IPOPT (reference)")
     p.add_argument("--predict-disturbance", action="store_true",
                    help="predict with the estimator's tau_d instead of tau_d = 0 (the paper's)")
-    p.add_argument("--rate-hz", type=float, default=10.0)
     p.add_argument("--max-state-age-s", type=float, default=0.5,
                    help="real time: older states give zero thrust")
     p.add_argument("--plan-reuse-steps", type=int, default=3)
@@ -96,10 +92,10 @@ class ControllerService:
         bus.subscribe(keys.NAV_ORIGIN, callback=self.on_origin)
 
     def on_mission(self, req: MissionRequest) -> Reply:
-        return self._serve(f"mission/set {req.mission_id!r}", self.core.handle_mission, req)
+        return self._serve(f"{keys.MISSION_SET.suffix} {req.mission_id!r}", self.core.handle_mission, req)
 
     def on_command(self, cmd: MissionCommand) -> Reply:
-        return self._serve(f"mission/command {cmd.command}", self.core.handle_command, cmd)
+        return self._serve(f"{keys.MISSION_COMMAND.suffix} {cmd.command}", self.core.handle_command, cmd)
 
     def _serve(self, what: str, handle: Callable[[int, Any], Reply], request: Any) -> Reply:
         """One mission request: the core decides under the lock, the reply is logged, progress saved."""
@@ -174,8 +170,8 @@ class ControllerService:
             if last_stamp is not None and (now - last_stamp) / 1e9 > max_state_age_s:
                 # No fresh state: hold still rather than act on old information.
                 if not stale_reported:
-                    log.warning("nav/state older than %.2f s: commanding zero thrust",
-                                max_state_age_s)
+                    log.warning("%s older than %.2f s: commanding zero thrust",
+                                keys.NAV_STATE.suffix, max_state_age_s)
                     stale_reported = True
                 self.pub_thrust.put(self.core.zero_command(last_stamp, "stale-state"))
 
@@ -204,24 +200,33 @@ def resume(core: ControllerCore, path: Path, now_ns: int) -> None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = parse(build_parser(), argv)
-    scenario = load_scenario(args.scenario) if args.scenario else None
-    vessel = load_vessel(args.vessel_file or (scenario.vessel if scenario else DEFAULT_VESSEL_FILE))
+    run = resolve_run(args, NAME, load_scenario)
+    # A scenario named by flag (a batch run without a launcher) also starts its mission at once.
+    scenario = load_scenario(args.scenario) if args.scenario and not args.run else None
+    try:
+        vessel = load_vessel(run.model_vessel_file)
+    except ConfigError as err:
+        print(f"seaway-controller: {err}", file=sys.stderr)
+        return 2
+    period_s = run.control_period_s
     config = ControllerConfig(solver=args.solver, plan_reuse_steps=args.plan_reuse_steps,
                               los_steps=args.los_steps,
                               predict_disturbance=args.predict_disturbance,
-                              dt_s=1.0 / args.rate_hz,
+                              dt_s=period_s,
                               # Lockstep waits for every command, so a slow solve is never late,
                               # and a batch run must not depend on how busy the machine was.
-                              solve_budget_s=None if args.lockstep else 1.0 / args.rate_hz,
+                              solve_budget_s=None if run.lockstep else period_s,
                               limits=MissionLimits(max_range_m=args.max_range_m))
     core = ControllerCore(vessel, config)
-    with run_service(NAME, args) as ctx:
+    with run_service(NAME, args, run=run) as ctx:
         t0 = time.perf_counter()
         core.prepare(CONTROLLER_KINDS)  # compile or load every solver before serving missions
-        log.info("solvers ready (%s) in %.1f s", args.solver, time.perf_counter() - t0)
-        if scenario is not None:
-            o = scenario.origin
+        log.info("solvers ready (%s) in %.1f s; model %s, control period (OCP dt) %g s, %s clock",
+                 args.solver, time.perf_counter() - t0, run.model_vessel_file, period_s, run.clock)
+        if run.origin is not None:
+            o = run.origin
             core.set_origin(GeoOrigin.from_degrees(o.lat_deg, o.lon_deg, o.alt_m))
+        if scenario is not None:
             if scenario.mission is None:
                 log.error("scenario %s has no [mission] to start", scenario.name)
                 return 2
@@ -232,12 +237,12 @@ def main(argv: Sequence[str] | None = None) -> int:
                 return 2
         if args.state_file is not None:
             resume(core, args.state_file, ctx.clock.now_ns())
-        svc = ControllerService(ctx, core, args.lockstep, args.state_file)
+        svc = ControllerService(ctx, core, run.lockstep, args.state_file)
         ctx.ready()
-        if args.lockstep:
+        if run.lockstep:
             svc.run_lockstep()
         else:
-            svc.run_rate(args.rate_hz, args.max_state_age_s)
+            svc.run_rate(1.0 / period_s, args.max_state_age_s)
     return 0
 
 

@@ -16,6 +16,7 @@ from typing import Literal
 
 from pydantic import Field
 from seaway.contract.config import ConfigModel, Origin, load_config
+from seaway.runtime.run import DEFAULT_VESSEL_FILE
 
 CHI2_2DOF_9999 = 18.42
 CHI2_1DOF_9999 = 15.14
@@ -23,7 +24,8 @@ CHI2_1DOF_9999 = 15.14
 
 class EstimatorConfig(ConfigModel):
     # -- model and inputs ----------------------------------------------------------------------
-    vessel: str = Field(default="paper-sim", description="vessel file name (deploy/vessels) or path")
+    vessel: str = Field(default=DEFAULT_VESSEL_FILE, description="vessel file name (deploy/vessels) or "
+                        "path; the service takes it from the run")
     apply_dead_zone: bool = Field(default=False, description="apply the vessel's thrust dead zone "
                                   "to commanded thrust (the real boat's 10 N)")
     thrust_timeout_s: float = Field(default=1.0, gt=0, description="a thrust command older than "

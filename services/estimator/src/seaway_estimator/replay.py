@@ -23,13 +23,14 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import IO, Any
 
-from seaway.contract.messages import Attitude, GnssFix, Message, ThrustCommand
+from seaway.contract.messages import Message
 
 from seaway_estimator.config import EstimatorConfig, load_estimator_config
-from seaway_estimator.core import EstimatorCore
+from seaway_estimator.core import INPUT_KEYS, EstimatorCore
 
 Entry = tuple[str, Any]
-_TYPES: dict[str, type[Message]] = {"gnss": GnssFix, "attitude": Attitude, "thrust": ThrustCommand}
+_TYPES: dict[str, type[Message]] = {kind: spec.message for kind, spec in INPUT_KEYS.items()
+                                    if spec.message is not None}
 
 
 def encode_entry(kind: str, value: Any) -> str:

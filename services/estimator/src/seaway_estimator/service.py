@@ -24,28 +24,30 @@ import bisect
 import collections
 import logging
 import signal
+import sys
 import threading
 import time
 from collections.abc import Sequence
 from typing import Any
 
 from seaway.contract import keys
+from seaway.contract.config import ConfigError
 from seaway.contract.messages import ClockTick, NavResetRequest, Reply
 from seaway.runtime.clock import RateLoop
-from seaway.runtime.service import base_parser, parse, run_service
-from seaway.simkit.scenario import Scenario, load_scenario
+from seaway.runtime.run import RunDescription
+from seaway.runtime.service import base_parser, parse, resolve_run, run_service
+from seaway.simkit.scenario import load_scenario
 
 from seaway_estimator.config import EstimatorConfig, load_estimator_config
-from seaway_estimator.core import EstimatorCore, EstimatorError
+from seaway_estimator.core import INPUT_KEYS, EstimatorCore, EstimatorError
 from seaway_estimator.replay import TraceWriter
 
 log = logging.getLogger("seaway.estimator")
-NS_PER_S = 1_000_000_000
 STATS_PERIOD_S = 10.0
 LOCKSTEP_WAIT_S = 0.2  # longest wait for a thrust command or sensor sample a tick lacks
 
 
-_KIND_ORDER = {"gnss": 0, "attitude": 1, "thrust": 2}
+_KIND_ORDER = {kind: i for i, kind in enumerate(INPUT_KEYS)}
 
 
 class Inbox:
@@ -211,45 +213,56 @@ def _stats_line(core: EstimatorCore) -> str:
     return ", ".join(f"{k} {c[k]}" for k in keys_)
 
 
-def with_scenario(cfg: EstimatorConfig, sc: Scenario) -> EstimatorConfig:
-    """The config with the scenario's vessel, dead zone and geodetic origin (simulation only)."""
-    origin = sc.origin
-    return cfg.model_copy(update={"vessel": sc.vessel, "apply_dead_zone": sc.dead_zone, "origin": origin})
+RUN_WIDE_CONFIG = ("vessel", "apply_dead_zone", "origin")  # what the run says, not the config file
+
+
+def with_run(cfg: EstimatorConfig, run: RunDescription) -> EstimatorConfig:
+    """The config with the run's model vessel, dead zone and NED origin.
+
+    Those are run-wide facts (the controller and simulator must agree on them): a config file that
+    sets them is refused, naming the fields, rather than silently overridden.
+    """
+    clash = sorted(set(RUN_WIDE_CONFIG) & cfg.model_fields_set)
+    if clash:
+        raise ConfigError(f"estimator config sets {', '.join(clash)}: these come from the run "
+                          "(--run, or --vessel-file/--origin/--dead-zone/--scenario)")
+    return cfg.model_copy(update={"vessel": run.model_vessel_file, "apply_dead_zone": run.dead_zone,
+                                  "origin": run.origin})
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    ap = base_parser("estimator", "EKF state and disturbance estimator: sensors/* -> nav/state")
+    ap = base_parser("estimator", f"EKF state and disturbance estimator: {keys.GNSS.suffix}, "
+                                  f"{keys.ATTITUDE.suffix} -> {keys.NAV_STATE.suffix}")
     ap.add_argument("--config", default=None, help="estimator config file (TOML or JSON)")
-    ap.add_argument("--lockstep", action="store_true",
-                    help="publish on each sim/clock tick, stamped with it (batch simulation)")
     ap.add_argument("--record-inputs", default=None, metavar="FILE",
                     help="write every core call as JSON lines, for python -m seaway_estimator.replay")
-    ap.add_argument("--scenario", default=None,
-                    help="simulation: take the vessel file, dead zone and NED origin from this scenario "
-                         "(name or path), so positions share the simulator's frame")
     args = parse(ap, argv)
-    cfg = load_estimator_config(args.config)
-    if args.scenario:
-        cfg = with_scenario(cfg, load_scenario(args.scenario))
+    run = resolve_run(args, "estimator", load_scenario)
+    try:
+        cfg = with_run(load_estimator_config(args.config), run)
+    except ConfigError as err:
+        print(f"seaway-estimator: {err}", file=sys.stderr)
+        return 2
+    lockstep = run.lockstep
     core = EstimatorCore(cfg)
     recorder = TraceWriter(args.record_inputs) if args.record_inputs else None
     reset_signal = threading.Event()
-    with run_service("estimator", args) as ctx:
+    with run_service("estimator", args, run=run) as ctx:
         loop = EstimatorLoop(core, ctx.bus, recorder)
         inbox = Inbox()
-        for kind, spec in (("gnss", keys.GNSS), ("attitude", keys.ATTITUDE), ("thrust", keys.THRUST)):
+        for kind, spec in INPUT_KEYS.items():
             ctx.bus.subscribe(spec, callback=lambda _k, m, kind=kind: inbox.put(kind, m))
-        if args.lockstep:
+        if lockstep:
             ctx.bus.subscribe(keys.SIM_CLOCK, callback=lambda _k, m: inbox.put("tick", m))
         ctx.bus.queryable(keys.NAV_RESET, loop.on_reset_request)
         ctx.ready()
         signal.signal(signal.SIGUSR1, lambda *_: reset_signal.set())
         log.info("estimator %s, publishing %s, vessel file %s",
-                 "lockstep on sim/clock" if args.lockstep else "realtime",
-                 "per tick" if args.lockstep else f"at {cfg.publish_rate_hz:g} Hz", cfg.vessel)
+                 f"lockstep on {keys.SIM_CLOCK.suffix}" if lockstep else "realtime",
+                 "per tick" if lockstep else f"at {cfg.publish_rate_hz:g} Hz", cfg.vessel)
         stats_due = time.monotonic() + STATS_PERIOD_S
         ticks: collections.deque[tuple[ClockTick, float]] = collections.deque()
-        rate = None if args.lockstep else RateLoop(1.0 / cfg.publish_rate_hz, ctx.clock, ctx.stop)
+        rate = None if lockstep else RateLoop(1.0 / cfg.publish_rate_hz, ctx.clock, ctx.stop)
         try:
             while not ctx.stop.is_set():
                 if reset_signal.is_set():

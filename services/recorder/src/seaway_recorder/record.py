@@ -23,12 +23,18 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
+from seaway.contract import keys
 from seaway.contract.config import ConfigError
-from seaway.runtime.service import base_parser, configure_logging, run_service
+from seaway.runtime.bus import RawSample
+from seaway.runtime.run import RunDescription
+from seaway.runtime.service import base_parser, configure_logging, resolve_run, run_service
+from seaway.runtime.zenoh_bus import ENV_CONFIG
+from seaway.simkit.scenario import load_scenario
+from seaway.vessel.frames import GeoOrigin
 
 from seaway_recorder import runinfo
 from seaway_recorder.recover import recover
-from seaway_recorder.writer import LIBRARY, RUN_METADATA, RecordingWriter
+from seaway_recorder.writer import LIBRARY, RUN_METADATA, AttachmentSpec, RecordingWriter
 
 log = logging.getLogger("seaway.recorder")
 DEFAULT_FLUSH_S = 0.05
@@ -73,9 +79,6 @@ def parser() -> argparse.ArgumentParser:
                    help="comma-separated vessels to record (default: every vessel, seaway/**)")
     p.add_argument("--key-expr", action="append", default=[],
                    help="record this key expression instead (repeatable)")
-    p.add_argument("--scenario", default=None,
-                   help="scenario name or file: attached with its data files and vessel file")
-    p.add_argument("--vessel-file", default=None, help="vessel file to attach (overrides the scenario's)")
     p.add_argument("--profile", default=None, help="launcher profile (name or file) to attach")
     p.add_argument("--mission", default=None, help="mission file to attach (MissionRequest JSON or TOML)")
     p.add_argument("--attach", action="append", default=[], metavar="[ROLE=]FILE",
@@ -99,7 +102,7 @@ def parser() -> argparse.ArgumentParser:
 
 
 class SampleQueue:
-    """Bounded hand-over from Zenoh's threads to the writer; overflow is counted, never blocks."""
+    """Bounded hand-over from the bus's threads to the writer; overflow is counted, never blocks."""
 
     def __init__(self, capacity: int) -> None:
         self.capacity = capacity
@@ -108,41 +111,43 @@ class SampleQueue:
         self.accepting = True
         self._lock = threading.Lock()
 
-    def on_sample(self, sample: object) -> None:
-        # Called on Zenoh's threads: keep it short. Bytes are copied out of Zenoh's buffer here.
+    def on_sample(self, sample: RawSample) -> None:
+        # Called on the bus's delivery threads: keep it short (the bytes are already our own copy).
         if not self.accepting:
             return
         if len(self.items) >= self.capacity:
             with self._lock:
                 self.dropped += 1
             return
-        self.items.append((str(sample.key_expr), sample.payload.to_bytes(),  # type: ignore[attr-defined]
-                           str(sample.encoding), time.time_ns()))  # type: ignore[attr-defined]
+        self.items.append((sample.key, sample.payload, sample.encoding, time.time_ns()))
 
 
 def key_exprs(args: argparse.Namespace) -> list[str]:
     if args.key_expr:
         return list(args.key_expr)
     vessels = [v.strip() for v in args.vessels.split(",") if v.strip()]
-    return [f"seaway/{v}/**" for v in vessels] or ["seaway/**"]
+    return [keys.vessel_wildcard(v) for v in vessels] or [keys.vessel_wildcard()]
 
 
-def build_run_info(args: argparse.Namespace, exprs: list[str]):
-    atts = []
+def build_run_info(args: argparse.Namespace, exprs: list[str], run: RunDescription):
+    """Attachments (the run description, its scenario, vessel files, ...) and metadata of a recording."""
+    atts = [AttachmentSpec(runinfo.RUN_ATTACHMENT, "application/json", run.encode(), time.time_ns())]
     origin = None
     scenario_name = ""
-    if args.scenario:
-        s_atts, scenario = runinfo.scenario_attachments(args.scenario, with_vessel=not args.vessel_file)
+    if run.scenario:
+        s_atts, scenario = runinfo.scenario_attachments(run.scenario, with_vessel=False)
         atts += s_atts
-        origin = runinfo.scenario_origin(scenario)
         scenario_name = scenario.name
-    if args.vessel_file:
-        atts.append(runinfo.attachment("vessel", runinfo.vessel_path(args.vessel_file)))
+    if run.origin is not None:
+        origin = GeoOrigin.from_degrees(run.origin.lat_deg, run.origin.lon_deg, run.origin.alt_m)
+    atts.append(runinfo.attachment("vessel", runinfo.vessel_path(run.model_vessel_file)))
+    if run.plant_vessel_file is not None:
+        atts.append(runinfo.attachment("plant-vessel", runinfo.vessel_path(run.plant_vessel_file)))
     if args.profile:
         atts.append(runinfo.attachment("profile", runinfo.profile_path(args.profile)))
     if args.mission:
         atts.append(runinfo.attachment("mission", Path(args.mission)))
-    zcfg = args.zenoh_config or os.environ.get("SEAWAY_ZENOH_CONFIG")
+    zcfg = args.zenoh_config or os.environ.get(ENV_CONFIG)
     if zcfg:
         atts.append(runinfo.attachment("zenoh", Path(zcfg)))
     atts += [runinfo.parse_attach_arg(a) for a in args.attach]
@@ -152,6 +157,9 @@ def build_run_info(args: argparse.Namespace, exprs: list[str]):
         "host": socket.gethostname(),
         "key_exprs": ",".join(exprs),
         "scenario": scenario_name,
+        "run_id": run.run_id,
+        "control_period_s": f"{run.control_period_s:g}",
+        "clock": run.clock,
         "profile": Path(args.profile).stem if args.profile else "",
         "flush_interval_s": f"{args.flush_interval:g}",
         "command": " ".join(sys.argv),
@@ -166,8 +174,9 @@ def run(argv: Sequence[str]) -> int:
     if not 0 < args.flush_interval <= 0.1:
         raise SystemExit("seaway record: --flush-interval must be in (0, 0.1] s")
     exprs = key_exprs(args)
+    run = resolve_run(args, "recorder", load_scenario)
     try:
-        atts, meta, origin = build_run_info(args, exprs)
+        atts, meta, origin = build_run_info(args, exprs, run)
     except (ConfigError, ValueError, OSError) as err:
         print(f"seaway record: {err}", file=sys.stderr)
         return 2
@@ -176,7 +185,9 @@ def run(argv: Sequence[str]) -> int:
                              metadata=meta, validate=not args.no_validate, foxglove=not args.no_foxglove,
                              default_origin=origin)
     queue = SampleQueue(args.queue)
-    with run_service("recorder", args) as ctx:
+    # The recorder records whatever runs (a shore recorder sees a boat launched elsewhere), so it
+    # does not take part in the run agreement; its run only describes the recording.
+    with run_service("recorder", args, run=run, agree=False) as ctx:
         path = writer.open(time.time_ns())
         print(f"recording {', '.join(exprs)} to {path}", flush=True)
         for e in exprs:

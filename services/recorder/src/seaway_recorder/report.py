@@ -19,16 +19,22 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from seaway.contract import keys
 from seaway.contract.config import ConfigError, load_config, read_document
 from seaway.contract.messages import MissionStatus, NavOrigin, SimTruth, SolveRecord, ThrustCommand
+from seaway.runtime.run import CONTROL_PERIOD_S
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.frames import GeoOrigin
+from seaway.vessel.metrics import mission_metrics
 from seaway.vessel.model import VesselParams
 
 from seaway_recorder import metrics as mx
 from seaway_recorder import recording, runinfo
 
-REPORT_TOPICS = ("sim/truth", "nav/state", "nav/origin", "ctrl/thrust", "ctrl/solve", "mission/status")
+TRUTH, STATE, ORIGIN = keys.SIM_TRUTH.suffix, keys.NAV_STATE.suffix, keys.NAV_ORIGIN.suffix
+COMMANDS, SOLVES, STATUS = keys.THRUST.suffix, keys.SOLVE.suffix, keys.MISSION_STATUS.suffix
+REPORT_TOPICS = (TRUTH, STATE, ORIGIN, COMMANDS, SOLVES, STATUS)
+"""The keys a report reads (suffixes, ``sim/truth``)."""
 
 
 def parser() -> argparse.ArgumentParser:
@@ -39,16 +45,17 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--vessel-file", default=None, help="vessel file for alpha")
     p.add_argument("--vessel", default=None, help="which vessel, if the recording has several")
     p.add_argument("--out", type=Path, default=None, help="folder for metrics.json and plots")
-    p.add_argument("--state", choices=["auto", "sim/truth", "nav/state"], default="auto",
-                   help="position source (default: sim/truth when recorded, else nav/state)")
-    p.add_argument("--sample-period", type=float, default=0.1, help="cross-track sample period [s]")
+    p.add_argument("--state", choices=["auto", TRUTH, STATE], default="auto",
+                   help=f"position source (default: {TRUTH} when recorded, else {STATE})")
+    p.add_argument("--sample-period", type=float, default=None,
+                   help="cross-track sample period [s] (default: the recorded run's control period)")
     p.add_argument("--no-plots", action="store_true")
     p.add_argument("--json", action="store_true", help="print the metrics JSON instead of the table")
     return p
 
 
 def _origin(dec: recording.Decoded, scenario_origin: GeoOrigin | None) -> GeoOrigin | None:
-    origins = dec.get("nav/origin")
+    origins = dec.get(ORIGIN)
     if origins:
         o = origins[-1]
         assert isinstance(o, NavOrigin)
@@ -58,7 +65,7 @@ def _origin(dec: recording.Decoded, scenario_origin: GeoOrigin | None) -> GeoOri
 
 def analyse(files: list[Path], *, scenario: str | None = None, mission_file: str | None = None,
             vessel_file: str | None = None, vessel: str | None = None, state: str = "auto",
-            sample_period_s: float = 0.1) -> dict[str, Any]:
+            sample_period_s: float | None = None) -> dict[str, Any]:
     """Everything the report prints, as one JSON-able dict (plus the series for plots under '_')."""
     info = recording.read_info(files)
     dec = recording.decode_vessel(files, vessel, REPORT_TOPICS)
@@ -88,28 +95,32 @@ def analyse(files: list[Path], *, scenario: str | None = None, mission_file: str
         vp = runinfo.vessel_from_attachments(info.attachments) or runinfo.load_vessel_for(scen)
     alpha = vp.alpha_w_per_n2 if vp is not None else None
 
-    truth = sorted(dec.get("sim/truth"), key=lambda m: m.stamp_ns)
-    statuses = [m for m in dec.get("mission/status") if isinstance(m, MissionStatus)]
+    truth = sorted(dec.get(TRUTH), key=lambda m: m.stamp_ns)
+    statuses = [m for m in dec.get(STATUS) if isinstance(m, MissionStatus)]
     active = [s.stamp_ns for s in statuses if s.state == "active"]
-    if state == "sim/truth" and not truth:
-        raise ValueError("no sim/truth in the recording")
-    if truth and state != "nav/state":
+    if state == TRUTH and not truth:
+        raise ValueError(f"no {TRUTH} in the recording")
+    if truth and state != STATE:
         states: Sequence[Any] = truth
         thrusts: Sequence[Any] = truth
         energy = [t.energy_j for t in truth if isinstance(t, SimTruth)]
-        state_source, thrust_source = "sim/truth", "sim/truth"
+        state_source, thrust_source = TRUTH, TRUTH
     else:
-        states = sorted(dec.get("nav/state"), key=lambda m: m.stamp_ns)
-        thrusts = sorted(dec.get("ctrl/thrust"), key=lambda m: m.stamp_ns)
+        states = sorted(dec.get(STATE), key=lambda m: m.stamp_ns)
+        thrusts = sorted(dec.get(COMMANDS), key=lambda m: m.stamp_ns)
         energy = None
-        state_source, thrust_source = "nav/state", "ctrl/thrust"
-    met = mx.mission_metrics(states, mission.waypoints, mission.coa_radius_m, mission.task_power_w,
+        state_source, thrust_source = STATE, COMMANDS
+    # Cross-track samples are taken once per control period: the recording's run says which.
+    run = runinfo.run_from_attachments(info.attachments)
+    if sample_period_s is None:
+        sample_period_s = run.control_period_s if run is not None else CONTROL_PERIOD_S
+    met = mission_metrics(states, mission.waypoints, mission.coa_radius_m, mission.task_power_w,
                              alpha_w_per_n2=alpha, thrusts=thrusts, energy_j=energy,
                              mission_start_ns=min(active) if active else None,
                              sample_period_s=sample_period_s, state_source=state_source,
                              thrust_source=thrust_source)
-    solves = [m for m in dec.get("ctrl/solve") if isinstance(m, SolveRecord)]
-    commands = sorted((m for m in dec.get("ctrl/thrust") if isinstance(m, ThrustCommand)),
+    solves = [m for m in dec.get(SOLVES) if isinstance(m, SolveRecord)]
+    commands = sorted((m for m in dec.get(COMMANDS) if isinstance(m, ThrustCommand)),
                       key=lambda m: m.stamp_ns)
     live = _live(statuses)
     out: dict[str, Any] = {
@@ -119,6 +130,8 @@ def analyse(files: list[Path], *, scenario: str | None = None, mission_file: str
                     "coa_radius_m": mission.coa_radius_m, "task_power_w": mission.task_power_w,
                     "source": mission.source},
         "alpha_w_per_n2": alpha,
+        "run": run.model_dump(mode="json") if run is not None else None,
+        "control_period_s": sample_period_s,
         "metrics": met.to_json(),
         "solve": mx.solve_stats(solves).to_json(),
         "controller_reported": live,
@@ -202,8 +215,8 @@ def plots(res: dict[str, Any], out: Path) -> list[Path]:
     written.append(_save(fig, out / "trajectory.png"))
 
     fig, ax = plt.subplots(figsize=(8, 4))
-    applied = data["thrusts"] if res["metrics"]["state_source"] == "sim/truth" else []
-    for label, seq in (("applied (sim/truth)", applied), ("commanded (ctrl/thrust)", data["commands"])):
+    applied = data["thrusts"] if res["metrics"]["state_source"] == TRUTH else []
+    for label, seq in ((f"applied ({TRUTH})", applied), (f"commanded ({COMMANDS})", data["commands"])):
         seq = [c for c in seq if t0 <= c.stamp_ns <= res["metrics"]["end_ns"]]  # the mission only
         if seq:
             t = [(c.stamp_ns - t0) / 1e9 for c in seq]

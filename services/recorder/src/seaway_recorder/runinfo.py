@@ -21,13 +21,16 @@ from typing import Any
 
 from seaway.contract.config import ConfigError, deploy_path, parse_config
 from seaway.contract.messages import MessageError, MissionRequest
+from seaway.runtime.run import RunDescription
 from seaway.simkit.scenario import Scenario, load_scenario, parse_scenario
 from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.model import VesselParams, load_vessel
 
 from seaway_recorder.writer import AttachmentSpec, media_type_for
 
-ROLES = ("scenario", "scenario-data", "vessel", "profile", "mission", "zenoh", "config")
+ROLES = ("run", "scenario", "scenario-data", "vessel", "plant-vessel", "profile", "mission", "zenoh",
+         "config")
+RUN_ATTACHMENT = "run/run.json"  # the run description (seaway.runtime.run) every recording carries
 
 
 def attachment(role: str, path: Path, name: str | None = None) -> AttachmentSpec:
@@ -164,6 +167,13 @@ def mission_from_attachments(atts: dict[str, bytes], origin: GeoOrigin | None) -
             if doc.get("mission"):
                 return mission_from_document(doc, origin, f"attachment {name}")
     return None
+
+
+def run_from_attachments(atts: dict[str, bytes]) -> RunDescription | None:
+    """The run description the recording was made under (None for recordings made before it)."""
+    data = atts.get(RUN_ATTACHMENT)
+    return None if data is None else parse_config(_decode(RUN_ATTACHMENT, data), RunDescription,
+                                                 f"attachment {RUN_ATTACHMENT}")
 
 
 def vessel_from_attachments(atts: dict[str, bytes]) -> VesselParams | None:

@@ -16,6 +16,7 @@ from seaway.contract import keys
 from seaway.contract.config import ConfigError, deploy_path
 from seaway.contract.messages import ClockTick, Reply, ScenarioRequest
 from seaway.runtime.bus import Bus
+from seaway.runtime.run import RunDescription
 from seaway.simkit.scenario import Scenario, load_scenario, parse_scenario
 from seaway.vessel.model import VesselParams, load_vessel
 
@@ -25,9 +26,9 @@ log = logging.getLogger("seaway_sim")
 
 
 def load_world(name_or_path: str) -> tuple[Scenario, VesselParams]:
-    """A scenario by name (deploy/scenarios) or path, and the vessel file it names. ConfigError."""
+    """A scenario by name (deploy/scenarios) or path, and its plant's vessel file. ConfigError."""
     scenario = load_scenario(name_or_path)
-    return scenario, load_vessel(scenario.vessel)
+    return scenario, load_vessel(scenario.plant_vessel or scenario.vessel)
 
 
 def scenario_base() -> Path:
@@ -41,8 +42,9 @@ def scenario_base() -> Path:
 class SimApp:
     """The core, its lock, the truth publishers and the scenario request handler."""
 
-    def __init__(self, bus: Bus, core: SimCore, lockstep: bool) -> None:
+    def __init__(self, bus: Bus, core: SimCore, lockstep: bool, run: RunDescription | None = None) -> None:
         self.bus = bus
+        self.run = run
         self.core = core
         self.lockstep = lockstep
         self.lock = threading.Lock()
@@ -64,7 +66,8 @@ class SimApp:
                 scenario, vessel = self.core.scenario, self.core.vessel
             else:
                 scenario = parse_scenario(request.scenario, "scenario request", scenario_base())
-                vessel = load_vessel(scenario.vessel)
+                vessel = load_vessel(scenario.plant_vessel or scenario.vessel)
+                self._check_model(scenario)
         except ConfigError as err:
             log.warning("scenario request refused: %s", err)
             return Reply.refuse(self.core.stamp_ns, str(err))
@@ -79,6 +82,14 @@ class SimApp:
                  vessel.name)
         return Reply.accept(stamp, f"scenario {scenario.name} {what}", name=scenario.name,
                             seed=scenario.seed, vessel=vessel.name)
+
+    def _check_model(self, scenario: Scenario) -> None:
+        """A scenario must keep the run's model: the estimator and controller cannot change theirs."""
+        if self.run is None:
+            return
+        if load_vessel(scenario.vessel) != load_vessel(self.run.model_vessel_file):
+            raise ConfigError(f"scenario {scenario.name} models vessel {scenario.vessel!r} but this run's "
+                              f"services model {self.run.model_vessel_file!r}: start a new run for it")
 
     def publish_truth(self, real_time_factor: float | None) -> None:
         """SIM_TRUTH, SIM_DISTURBANCE, then SIM_CLOCK, at the core's current time (lock held)."""

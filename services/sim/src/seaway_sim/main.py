@@ -1,8 +1,11 @@
 """``seaway-sim``: the simulator (plant, disturbances, sensors, a PX4-like MAVLink endpoint).
 
-Real time (default): wall clock, driven over MAVLink on ``--mavlink`` (``udpin:127.0.0.1:14580``).
-Lockstep (``--lockstep``): sim time, driven by ThrustCommand on the bus (``seaway_sim.lockstep``).
+Real time (the run's clock ``wall``): driven over MAVLink on ``--mavlink`` (``udpin:127.0.0.1:14580``).
+Lockstep (``lockstep``): sim time, driven by ThrustCommand on the bus (``seaway_sim.lockstep``).
 Both publish sim/truth, sim/disturbance and sim/clock and serve sim/scenario.
+
+The run description (``--run`` or the run flags) says which scenario to run (default ``lake``), which
+vessel file the plant integrates (``plant_vessel_file``, else the model's) and the control period.
 """
 
 from __future__ import annotations
@@ -14,9 +17,11 @@ import time
 from collections.abc import Sequence
 
 from seaway.contract.config import ConfigError
-from seaway.runtime.service import base_parser, parse, run_service
+from seaway.runtime.service import base_parser, parse, resolve_run, run_service
+from seaway.simkit.scenario import load_scenario
+from seaway.vessel.model import load_vessel
 
-from seaway_sim.app import SimApp, load_world
+from seaway_sim.app import SimApp
 from seaway_sim.core import SimCore
 from seaway_sim.lockstep import Lockstep
 from seaway_sim.mavlink_link import DEFAULT_ENDPOINT, MavlinkLink
@@ -25,7 +30,7 @@ from seaway_sim.realtime import Realtime
 
 log = logging.getLogger("seaway_sim")
 
-DEFAULT_PERIOD_S = 0.1  # the paper's control period dt
+DEFAULT_SCENARIO = "lake"  # the simulator's own default: only it runs a scenario
 DEFAULT_LOCKSTEP_TIMEOUT_S = 5.0
 DEFAULT_STEP_S = 0.01  # real-time tick: the plant's internal RK4 step, 100 Hz
 
@@ -40,12 +45,6 @@ def _positive(text: str) -> float:
 def build_parser() -> argparse.ArgumentParser:
     p = base_parser("sim", "The Seaway simulator: vessel plant, disturbances, sensor noise and a "
                            "PX4-like MAVLink endpoint (real time), or lockstep on the bus.")
-    p.add_argument("--scenario", default="lake",
-                   help="scenario name in deploy/scenarios, or a .toml/.json path (default lake)")
-    p.add_argument("--lockstep", action="store_true",
-                   help="own the time: advance one period per ThrustCommand (no MAVLink)")
-    p.add_argument("--period", type=_positive, default=DEFAULT_PERIOD_S,
-                   help="control period [s]: lockstep step; truth publishing period in real time")
     p.add_argument("--lockstep-timeout", type=_positive, default=DEFAULT_LOCKSTEP_TIMEOUT_S,
                    help="wall seconds to wait for a command before logging and republishing "
                         "the tick")
@@ -76,11 +75,19 @@ def parse_params(items: Sequence[str]) -> tuple[tuple[str, float], ...]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = parse(build_parser(), argv)
+    if not args.run and args.scenario is None:
+        args.scenario = DEFAULT_SCENARIO
+    run = resolve_run(args, "sim", load_scenario)
+    if run.scenario is None:
+        print(f"seaway-sim: the run {run.run_id} names no scenario to simulate", file=sys.stderr)
+        return 2
     try:
-        scenario, vessel = load_world(args.scenario)
+        scenario = load_scenario(run.scenario)
+        vessel = load_vessel(run.plant_vessel)
     except ConfigError as err:
         print(f"seaway-sim: {err}", file=sys.stderr)
         return 2
+    lockstep, period_s = run.lockstep, run.control_period_s
     try:
         params = parse_params(args.param)
         Px4Autopilot(Px4Config(thrust_max_n=1.0, param_overrides=params))  # validates them now
@@ -91,27 +98,28 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"seaway-sim: --sysid must be 1..255, got {args.sysid}", file=sys.stderr)
         return 2
     link = None
-    if not args.lockstep:
+    if not lockstep:
         try:
             link = MavlinkLink(args.mavlink, args.sysid, COMPID)
         except (ValueError, OSError) as err:
             print(f"seaway-sim: --mavlink {args.mavlink}: {err}", file=sys.stderr)
             return 2
-    with run_service("sim", args) as ctx:
+    with run_service("sim", args, run=run) as ctx:
         boot_ns = time.monotonic_ns()
-        core = SimCore(scenario, vessel, epoch_ns=0 if args.lockstep else time.time_ns())
-        app = SimApp(ctx.bus, core, lockstep=args.lockstep)
-        log.info("scenario %s (seed %d), vessel %s, %s", scenario.name, scenario.seed, vessel.name,
-                 "lockstep" if args.lockstep else "real time")
+        core = SimCore(scenario, vessel, epoch_ns=0 if lockstep else time.time_ns())
+        app = SimApp(ctx.bus, core, lockstep=lockstep, run=run)
+        log.info("scenario %s (seed %d), plant vessel %s, model vessel %s, period %g s, %s",
+                 scenario.name, scenario.seed, vessel.name, run.model_vessel_file, period_s,
+                 "lockstep" if lockstep else "real time")
         if link is None:
-            lockstep = Lockstep(app, args.period, args.lockstep_timeout, ctx.stop)
+            stepper = Lockstep(app, period_s, args.lockstep_timeout, ctx.stop)
             ctx.ready()
-            lockstep.run()
+            stepper.run()
         else:
             autopilot = Px4Autopilot(Px4Config(thrust_max_n=vessel.thrust_max_n, sysid=args.sysid,
                                                param_overrides=params))
             try:
-                realtime = Realtime(app, autopilot, link, args.step, args.period, ctx.stop, boot_ns)
+                realtime = Realtime(app, autopilot, link, args.step, period_s, ctx.stop, boot_ns)
                 ctx.ready()
                 realtime.run()
             finally:

@@ -1,7 +1,8 @@
 """vehicle_io's configuration file (TOML or JSON); unknown fields are errors.
 
 Every field has a safe default, so a file is needed only to change something. ``--mavlink`` and
-``--vessel`` on the command line override the file.
+``--autopilot`` on the command line override the file. The vessel file (thruster limits, dead zone)
+is a run-wide fact: it comes from the run description (``seaway.runtime.run``), not from here.
 """
 
 from __future__ import annotations
@@ -10,6 +11,12 @@ from typing import Literal
 
 from pydantic import Field, model_validator
 from seaway.contract.config import ConfigModel
+
+from seaway_vehicle_io import profile
+
+AUTOPILOT_CHOICES: tuple[str, ...] = profile.choices()
+"""``auto`` and every registered autopilot profile's name (``profile.py``)."""
+AutopilotChoice = Literal[AUTOPILOT_CHOICES]  # type: ignore[valid-type]  # built from the registry
 
 
 class VehicleIoConfig(ConfigModel):
@@ -21,13 +28,11 @@ class VehicleIoConfig(ConfigModel):
                     "first), tcp:HOST:PORT, or a serial device /dev/ttyX (baud from 'baud')",
     )
     baud: int = Field(default=57600, gt=0, description="serial baud rate (serial URLs only)")
-    autopilot: Literal["auto", "px4", "ardupilot"] = Field(
-        default="auto",
-        description="expected autopilot; 'auto' takes it from the HEARTBEAT. A HEARTBEAT that "
-                    "contradicts a named autopilot is ignored (never commanded)",
-    )
-    vessel_file: str = Field(
-        default="paper-boat", description="vessel name (deploy/vessels/NAME.toml) or a file path"
+    autopilot: AutopilotChoice = Field(
+        default=profile.AUTO,
+        description=f"expected autopilot, one of {', '.join(AUTOPILOT_CHOICES)}; "
+                    f"'{profile.AUTO}' takes it from the HEARTBEAT. A HEARTBEAT that contradicts a "
+                    "named autopilot is ignored (never commanded)",
     )
     source_system: int = Field(
         default=255, ge=1, le=255,

@@ -8,10 +8,12 @@ import sys
 from collections.abc import Sequence
 
 from seaway.contract.config import ConfigError, load_config, parse_config
-from seaway.runtime.service import base_parser, parse, run_service
+from seaway.runtime.run import RunDescription
+from seaway.runtime.service import base_parser, parse, resolve_run, run_service
+from seaway.simkit.scenario import load_scenario
 from seaway.vessel.model import load_vessel
 
-from seaway_vehicle_io.config import VehicleIoConfig
+from seaway_vehicle_io.config import AUTOPILOT_CHOICES, VehicleIoConfig
 from seaway_vehicle_io.link import check_url
 from seaway_vehicle_io.service import VehicleIoService
 from seaway_vehicle_io.thrust import ThrusterLimits
@@ -26,20 +28,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--mavlink", default=None,
                    help="MAVLink URL (overrides the config): udpin:HOST:PORT, udpout:HOST:PORT, "
                         "tcp:HOST:PORT or /dev/ttyX")
-    p.add_argument("--autopilot", choices=("auto", "px4", "ardupilot"), default=None,
+    p.add_argument("--autopilot", choices=AUTOPILOT_CHOICES, default=None,
                    help="expected autopilot (overrides the config; default auto)")
-    p.add_argument("--vessel-file", default=None,
-                   help="vessel name in deploy/vessels or a file path (overrides the config)")
     p.add_argument("--thrust-timeout", type=float, default=None, metavar="S",
                    help="watchdog timeout [s] (overrides the config; default 0.3)")
     return p
 
 
-def load(args: argparse.Namespace) -> tuple[VehicleIoConfig, ThrusterLimits]:
-    """Config file + command-line overrides, validated together; the vessel's thruster limits."""
+def load(args: argparse.Namespace, run: RunDescription) -> tuple[VehicleIoConfig, ThrusterLimits]:
+    """Config file + command-line overrides, validated together; the run's vessel's thruster limits."""
     cfg = load_config(args.config, VehicleIoConfig) if args.config else VehicleIoConfig()
     overrides = {k: v for k, v in {
-        "mavlink": args.mavlink, "autopilot": args.autopilot, "vessel_file": args.vessel_file,
+        "mavlink": args.mavlink, "autopilot": args.autopilot,
         "thrust_timeout_s": args.thrust_timeout,
     }.items() if v is not None}
     if overrides:
@@ -48,7 +48,7 @@ def load(args: argparse.Namespace) -> tuple[VehicleIoConfig, ThrusterLimits]:
         check_url(cfg.mavlink)
     except ValueError as err:
         raise ConfigError(str(err)) from None
-    vessel = load_vessel(cfg.vessel_file)
+    vessel = load_vessel(run.model_vessel_file)
     try:
         limits = ThrusterLimits.from_vessel(vessel)
     except ValueError as err:
@@ -58,12 +58,13 @@ def load(args: argparse.Namespace) -> tuple[VehicleIoConfig, ThrusterLimits]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = parse(build_parser(), argv)
+    run = resolve_run(args, "vehicle_io", load_scenario)
     try:
-        cfg, limits = load(args)
+        cfg, limits = load(args, run)
     except ConfigError as err:
         print(f"seaway-vehicle-io: {err}", file=sys.stderr)
         return 2
-    with run_service("vehicle_io", args) as ctx:
+    with run_service("vehicle_io", args, run=run) as ctx:
         log.info("config: mavlink %s, autopilot %s, thrust timeout %.0f ms, MANUAL_CONTROL %.0f Hz; "
                  "vessel limits +%.1f/-%.1f N, dead zone %.1f N", cfg.mavlink, cfg.autopilot,
                  cfg.thrust_timeout_s * 1e3, cfg.manual_control_rate_hz, limits.thrust_max_n,

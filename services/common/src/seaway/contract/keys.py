@@ -77,26 +77,11 @@ SIM_DISTURBANCE = KeySpec("sim/disturbance", m.DisturbanceForce, "sim")
 SIM_CLOCK = KeySpec("sim/clock", m.ClockTick, "sim")
 SIM_SCENARIO = KeySpec("sim/scenario", m.ScenarioRequest, "sim", "query")
 
-REGISTRY: tuple[KeySpec, ...] = (
-    GNSS,
-    ATTITUDE,
-    LOCAL_POSITION,
-    VEHICLE_STATUS,
-    VEHICLE_ARM,
-    VEHICLE_MODE,
-    NAV_STATE,
-    NAV_ORIGIN,
-    NAV_RESET,
-    THRUST,
-    SOLVE,
-    MISSION_STATUS,
-    MISSION_SET,
-    MISSION_COMMAND,
-    SIM_TRUTH,
-    SIM_DISTURBANCE,
-    SIM_CLOCK,
-    SIM_SCENARIO,
-)
+REGISTRY: tuple[KeySpec, ...] = tuple(v for v in list(globals().values()) if isinstance(v, KeySpec))
+"""Every key defined above, in that order: defining a ``KeySpec`` here registers it."""
+_BY_SUFFIX: dict[str, KeySpec] = {spec.suffix: spec for spec in REGISTRY}
+if len(_BY_SUFFIX) != len(REGISTRY):
+    raise RuntimeError("a key suffix is registered twice")  # two names for one key: one place each
 
 
 def health_key(vessel: str, service: str) -> str:
@@ -106,8 +91,30 @@ def health_key(vessel: str, service: str) -> str:
     return f"{ROOT}/{check_vessel(vessel)}/health/{service}"
 
 
+def vessel_wildcard(vessel: str | None = None) -> str:
+    """Every key of one vessel (``seaway/<vessel>/**``), or of every vessel (``seaway/**``)."""
+    return f"{ROOT}/**" if vessel is None else f"{ROOT}/{vessel}/**"
+
+
 def health_wildcard(vessel: str = "*") -> str:
     return f"{ROOT}/{vessel}/health/*"
+
+
+def run_description_key(vessel: str, service: str) -> str:
+    """Where one service answers with its run description (``seaway.runtime.run``)."""
+    if service not in SERVICES:
+        raise KeyNameError(f"unknown service {service!r}; known: {', '.join(SERVICES)}")
+    return f"{ROOT}/{check_vessel(vessel)}/run/{service}"
+
+
+def run_description_wildcard(vessel: str) -> str:
+    """Every service's run description on one vessel."""
+    return f"{ROOT}/{check_vessel(vessel)}/run/*"
+
+
+def spec_for_suffix(suffix: str) -> KeySpec | None:
+    """The registered spec of a suffix (``nav/state``), or None."""
+    return _BY_SUFFIX.get(suffix)
 
 
 def spec_for_key(key: str) -> KeySpec | None:
@@ -115,7 +122,4 @@ def spec_for_key(key: str) -> KeySpec | None:
     parts = key.split("/", 2)
     if len(parts) != 3 or parts[0] != ROOT:
         return None
-    for spec in REGISTRY:
-        if spec.suffix == parts[2]:
-            return spec
-    return None
+    return spec_for_suffix(parts[2])

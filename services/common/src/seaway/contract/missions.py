@@ -3,12 +3,10 @@ becomes. The controller validates the request again (range, waypoints, legs)."""
 
 from __future__ import annotations
 
-from typing import Literal
-
 from pydantic import Field, model_validator
 
 from seaway.contract.config import ConfigModel
-from seaway.contract.messages import MissionRequest, Waypoint
+from seaway.contract.messages import DEFAULT_CONTROLLER, ControllerName, MissionRequest, Waypoint
 
 
 class MissionSpec(ConfigModel):
@@ -23,7 +21,7 @@ class MissionSpec(ConfigModel):
     waypoints_deg: list[tuple[float, float]] | None = Field(default=None, min_length=2)
     coa_radius_m: float = Field(gt=0)
     task_power_w: float = Field(ge=0)
-    controller: Literal["cc-empc", "eo-empc", "nmpc"] = "cc-empc"
+    controller: ControllerName = DEFAULT_CONTROLLER
 
     @model_validator(mode="after")
     def _one_kind_of_waypoints(self) -> MissionSpec:
@@ -31,12 +29,18 @@ class MissionSpec(ConfigModel):
             raise ValueError("give exactly one of waypoints_m and waypoints_deg")
         return self
 
-    def to_request(self, stamp_ns: int, mission_id: str = "") -> MissionRequest:
-        """The bus request for this mission (the controller validates it again)."""
+    def to_request(self, stamp_ns: int, mission_id: str = "",
+                   controller: ControllerName | None = None) -> MissionRequest:
+        """The bus request for this mission (the controller validates it again).
+
+        ``mission_id`` names it when the mission has no id of its own; ``controller`` flies it with
+        another controller than the mission's.
+        """
         if self.waypoints_m is not None:
             wps = [Waypoint(x_m=x, y_m=y) for x, y in self.waypoints_m]
         else:
             wps = [Waypoint(lat_deg=a, lon_deg=b) for a, b in self.waypoints_deg or []]
         return MissionRequest.make(stamp_ns=stamp_ns, mission_id=self.mission_id or mission_id,
                                    waypoints=wps, coa_radius_m=self.coa_radius_m,
-                                   task_power_w=self.task_power_w, controller=self.controller)
+                                   task_power_w=self.task_power_w,
+                                   controller=controller or self.controller)

@@ -12,6 +12,10 @@ The health token ``seaway/<vessel>/health/<service>`` means *ready to serve*: it
 ``ctx.ready()`` once every subscriber and queryable exists, because the launcher starts the next
 process, or sends the first request, the moment it sees it.
 
+Every service belongs to a run (``seaway.runtime.run``): ``ctx.run`` is its description, from
+``--run FILE`` (the launcher's) or the service's own flags. ``ctx.ready()`` first checks it against
+the services already running and refuses to start on a difference (``RunMismatchError``).
+
 SIGINT and SIGTERM set ``ctx.stop``; the ``with`` block then closes the session, so the process exits
 promptly instead of hanging in Zenoh's threads.
 """
@@ -28,6 +32,8 @@ from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 
+from seaway.contract.config import ConfigError
+from seaway.runtime import run as runs
 from seaway.runtime.bus import Bus
 from seaway.runtime.clock import Clock, WallClock
 
@@ -54,7 +60,17 @@ def base_parser(name: str, description: str) -> argparse.ArgumentParser:
     p.add_argument("--zenoh-config", default=None,
                    help="Zenoh config file (default $SEAWAY_ZENOH_CONFIG or peers on loopback)")
     p.add_argument("--log-level", default=os.environ.get("SEAWAY_LOG_LEVEL", "INFO"))
+    runs.add_run_arguments(p)
     return p
+
+
+def resolve_run(args: argparse.Namespace, name: str, load_scenario: object = None) -> runs.RunDescription:
+    """The run of this service (``--run`` or its flags); exits with status 2 and the reason if bad."""
+    try:
+        return runs.resolve(args, name, load_scenario)
+    except ConfigError as err:
+        print(f"seaway-{name.replace('_', '-')}: {err}", file=sys.stderr)
+        raise SystemExit(2) from None
 
 
 def install_stop_signals(stop: threading.Event) -> None:
@@ -77,30 +93,48 @@ class ServiceContext:
     bus: Bus
     clock: Clock
     stop: threading.Event
+    run: runs.RunDescription
+    agree: bool = True
     is_ready: bool = False
+    _run_answer: object = None
 
     def ready(self) -> None:
-        """Declare the health token: call once every subscriber and queryable is in place."""
+        """Check the run against the running services, then declare the health token.
+
+        Call once every subscriber and queryable is in place. A run-wide difference with a service
+        already running raises RunMismatchError (``run_service`` turns it into exit status 2).
+        """
         if not self.is_ready:
+            session = getattr(self.bus, "session", None)
+            if session is not None and self.agree:
+                self._run_answer = runs.announce(session, self.run, self.name)
             self.bus.declare_alive(self.name)
             self.is_ready = True
-            log.info("%s ready on vessel %s", self.name, self.vessel)
+            log.info("%s ready on vessel %s (run %s)", self.name, self.vessel, self.run.run_id)
 
 
 @contextmanager
-def run_service(name: str, args: argparse.Namespace, clock: Clock | None = None) -> Iterator[ServiceContext]:
+def run_service(name: str, args: argparse.Namespace, clock: Clock | None = None,
+                run: runs.RunDescription | None = None, agree: bool = True) -> Iterator[ServiceContext]:
     """Open the bus for ``name`` and install the stop signals; close on exit.
 
-    The service declares its health token with ``ctx.ready()`` when it can serve.
+    ``run`` is the service's run description (``resolve_run``), resolved here from ``args`` when not
+    given; ``agree=False`` keeps a service that only observes (the recorder) out of the run
+    agreement. The service declares its health token with ``ctx.ready()`` when it can serve; a run that
+    disagrees with the running services ends the process with status 2 and the reason.
     """
     configure_logging(name, args.log_level)
+    run = run or resolve_run(args, name)
     stop = threading.Event()
     install_stop_signals(stop)
     bus = Bus.open(args.vessel, args.zenoh_config)
-    ctx = ServiceContext(name, args.vessel, bus, clock or WallClock(), stop)
+    ctx = ServiceContext(name, args.vessel, bus, clock or WallClock(), stop, run, agree)
     try:
-        log.info("%s starting on vessel %s", name, args.vessel)
+        log.info("%s starting on vessel %s, run %s", name, args.vessel, run.run_id)
         yield ctx
+    except runs.RunMismatchError as err:
+        log.error("%s", err)
+        raise SystemExit(2) from None
     finally:
         stop.set()
         bus.close()

@@ -135,7 +135,10 @@ class Scenario(ConfigModel):
     name: str = Field(min_length=1)
     description: str = ""
     seed: int = Field(ge=0)
-    vessel: str = Field(min_length=1, description="vessel file name (deploy/vessels) or path")
+    vessel: str = Field(min_length=1, description="vessel file name (deploy/vessels) or path: the "
+                        "model the estimator and controller use, and the plant unless plant_vessel")
+    plant_vessel: str | None = Field(default=None, description="vessel file the simulator integrates "
+                                     "when it differs from the model (robustness runs); default vessel")
     start: StartPose = StartPose()
     origin: Origin = Origin()
     disturbances: list[Disturbance] = Field(default_factory=list)

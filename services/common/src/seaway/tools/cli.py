@@ -44,9 +44,9 @@ def cmd_bench(argv: list[str]) -> int:
 
 
 def _spec_by_suffix(suffix: str) -> keys.KeySpec:
-    for spec in keys.REGISTRY:
-        if spec.suffix == suffix:
-            return spec
+    spec = keys.spec_for_suffix(suffix)
+    if spec is not None:
+        return spec
     known = ", ".join(s.suffix for s in keys.REGISTRY if s.kind == "topic")
     raise SystemExit(f"seaway: unknown key {suffix!r}; topics: {known}")
 
@@ -56,7 +56,7 @@ def cmd_echo(argv: list[str]) -> int:
     from seaway.runtime.service import DEFAULT_VESSEL, install_stop_signals
 
     ap = argparse.ArgumentParser(prog="seaway echo", description="print the messages of one key")
-    ap.add_argument("key", help="registered key suffix, e.g. nav/state")
+    ap.add_argument("key", help=f"registered key suffix, e.g. {keys.NAV_STATE.suffix}")
     ap.add_argument("--vessel", default=DEFAULT_VESSEL, help="vessel name or * for all")
     ap.add_argument("--count", type=int, default=0, help="stop after N messages (0: never)")
     ap.add_argument("--zenoh-config", default=None)

@@ -47,7 +47,8 @@ def main(argv: list[str]) -> int:
             sub = bus.subscribe(keys.MISSION_STATUS)
             msg = sub.get(args.timeout)
             if msg is None:
-                print(f"no mission/status from vessel {args.vessel} within {args.timeout:g} s",
+                print(f"no {keys.MISSION_STATUS.suffix} from vessel {args.vessel} within "
+                      f"{args.timeout:g} s",
                       file=sys.stderr)
                 return 1
             print(msg.model_dump_json(indent=2))

@@ -258,8 +258,9 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--vessel", default=os.environ.get(ENV_VESSEL, DEFAULT_VESSEL),
                     help="vessel name for the health token")
     ap.add_argument("--health", default=None, choices=keys.SERVICES, metavar="SERVICE",
-                    help="declare the health token seaway/<vessel>/health/SERVICE once the router is up "
-                         "(the profiles use 'launcher')")
+                    help="declare the health token "
+                         f"{keys.health_wildcard('<vessel>').replace('*', 'SERVICE')} once the router "
+                         "is up (the profiles use 'launcher')")
     ap.add_argument("--check", action="store_true", help="check the config, print what it does, exit")
     ap.add_argument("--log-level", default=os.environ.get("SEAWAY_LOG_LEVEL", "INFO"))
     return ap

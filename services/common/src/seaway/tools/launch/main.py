@@ -20,10 +20,12 @@ import time
 from pathlib import Path
 
 from seaway.contract import keys
-from seaway.contract.config import ConfigError, deploy_path, repo_root
+from seaway.contract.config import ConfigError, deploy_path, parse_config, repo_root
 from seaway.contract.messages import ArmRequest, MissionRequest, MissionStatus, ModeRequest, StateEstimate
-from seaway.runtime.bus import ENV_CONFIG, Bus
+from seaway.runtime import run as runs
+from seaway.runtime.bus import Bus
 from seaway.runtime.service import DEFAULT_VESSEL, ENV_VESSEL, install_stop_signals
+from seaway.runtime.zenoh_bus import ENV_CONFIG
 from seaway.simkit.scenario import load_scenario
 from seaway.tools.launch.profile import Profile, load_profile, substitute
 from seaway.tools.launch.supervisor import Supervised, Supervisor, default_echo
@@ -40,8 +42,38 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--stay", action="store_true", help="keep running after the mission completes")
     ap.add_argument("--verbose", action="store_true", help="show every process's output")
     ap.add_argument("--recording", type=Path, default=None, help="recording for the replay profile")
+    ap.add_argument("--control-period-s", type=float, default=None,
+                    help=f"the run's control period [s] (default {runs.CONTROL_PERIOD_S})")
     ap.add_argument("--check", action="store_true", help="validate the profile and exit")
     return ap
+
+
+def profile_path(name_or_path: str) -> Path:
+    """The profile file the launcher runs (what ``{profile}`` stands for in a command)."""
+    p = Path(name_or_path)
+    return p if p.suffix in (".toml", ".json") else deploy_path("profiles", f"{name_or_path}.toml")
+
+
+def resolve_run(args: argparse.Namespace, profile: Profile, scenario: str,
+                run_id: str) -> runs.RunDescription:
+    """The run description, resolved once here and handed to every process as ``--run``.
+
+    A simulated run takes the model and plant vessel files, origin and dead zone from the scenario;
+    the profile's ``vessel_file`` replaces the model, and ``origin_from_scenario = false`` (a boat)
+    leaves the origin to the estimator's first GNSS fix. ConfigError on a bad scenario or value.
+    """
+    period = args.control_period_s if args.control_period_s is not None else runs.CONTROL_PERIOD_S
+    if scenario:
+        run = runs.for_scenario(load_scenario(scenario), scenario, vessel=args.vessel, run_id=run_id,
+                                clock=profile.clock, control_period_s=period,
+                                model_vessel_file=profile.vessel_file)
+        if not profile.origin_from_scenario:
+            run = run.model_copy(update={"origin": None})
+        return run
+    fields = {"run_id": run_id, "vessel": args.vessel, "clock": profile.clock, "control_period_s": period}
+    if profile.vessel_file:
+        fields["model_vessel_file"] = profile.vessel_file
+    return parse_config(fields, runs.RunDescription, "launch")
 
 
 def _run_dir(args: argparse.Namespace) -> Path:
@@ -143,12 +175,13 @@ def main(argv: list[str]) -> int:
     scenario = args.scenario or profile.scenario or ""
     run_dir = _run_dir(args)
     try:
-        vessel_file = load_scenario(scenario).vessel if scenario else "paper-sim"
-    except ConfigError as err:
+        run = resolve_run(args, profile, scenario, run_dir.name)
+    except (ConfigError, ValueError) as err:
         print(f"seaway launch: {err}", file=sys.stderr)
         return 2
+    run_file = run_dir / "run.json"
     values = {"vessel": args.vessel, "scenario": scenario, "run_dir": str(run_dir),
-              "profile": profile.name, "vessel_file": vessel_file,
+              "profile": str(profile_path(args.profile)), "run": str(run_file),
               "recording": str(args.recording or "")}
     try:
         procs = [Supervised(p, substitute(p.command, values)) for p in profile.processes]
@@ -168,10 +201,15 @@ def main(argv: list[str]) -> int:
     if profile.zenoh_config:
         env[ENV_CONFIG] = str(deploy_path("zenoh", profile.zenoh_config))
     run_dir.mkdir(parents=True, exist_ok=True)
+    run.write(run_file)
     sup = Supervisor(procs, run_dir, env, profile.backoff, default_echo, args.verbose)
     stop = threading.Event()
     install_stop_signals(stop)
     print(f"seaway launch {profile.name}: vessel {args.vessel}, run folder {run_dir}", flush=True)
+    print(f"run {run.run_id}: model {run.model_vessel_file}"
+          + (f", plant {run.plant_vessel_file}" if run.plant_vessel_file else "")
+          + f", period {run.control_period_s:g} s, clock {run.clock}"
+          + (f", scenario {run.scenario}" if run.scenario else ""), flush=True)
 
     bus = Bus.open(args.vessel, env.get(ENV_CONFIG))
     code = 0

@@ -2,8 +2,9 @@
 
 A profile is pure data, validated here before anything starts:
 
-* every process names its command (argv; ``{vessel}``, ``{scenario}``, ``{run_dir}`` and ``{profile}``
-  are substituted), its restart policy (``never`` or ``on-failure`` with exponential back-off) and
+* every process names its command (argv; ``{vessel}``, ``{run}`` (the run description file),
+  ``{run_dir}``, ``{profile}`` (the profile file), ``{scenario}`` and ``{recording}`` are
+  substituted), its restart policy (``never`` or ``on-failure`` with exponential back-off) and
   whether the run fails without it (``required``);
 * readiness is the process's Zenoh liveliness token ``seaway/<vessel>/health/<service>``;
 * start order follows ``after``; stop order is the reverse, with the recorder always last;
@@ -63,6 +64,12 @@ class Profile(ConfigModel):
     description: str = ""
     zenoh_config: str | None = Field(default=None, description="path relative to deploy/zenoh")
     scenario: str | None = Field(default=None, description="default scenario name or path")
+    clock: Literal["wall", "lockstep"] = Field(default="wall", description="the run's clock: 'wall' "
+                                               "(real time) or 'lockstep' (the simulator owns time)")
+    vessel_file: str | None = Field(default=None, description="vessel file the services model; "
+                                    "default: the scenario's")
+    origin_from_scenario: bool = Field(default=True, description="the services share the simulator's "
+                                       "NED origin; false on a boat (the first GNSS fix)")
     mode_on_start: str | None = Field(default=None, description="request this autopilot mode when ready")
     arm_on_start: bool = Field(default=False, description="request arming when ready (after the mode)")
     mission_on_start: bool = Field(default=False, description="send the scenario's mission")

@@ -1,0 +1,42 @@
+"""The boat installs what it runs: the onboard services and the shared library, not the simulator,
+the laboratory (benchmarks, harnesses, fake autopilot) or the test tools (docs/deployment.md)."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.system
+ROOT = Path(__file__).resolve().parents[3]
+BOAT_PACKAGES = ("seaway-vehicle-io", "seaway-estimator", "seaway-controller", "seaway-recorder")
+
+
+def _uv() -> str:
+    found = shutil.which("uv") or str(ROOT / ".tools" / "bin" / "uv")
+    if not Path(found).exists():
+        pytest.skip("uv is not installed (./test installs it into .tools/)")
+    return found
+
+
+def test_boat_install_has_the_onboard_services_and_nothing_else(tmp_path) -> None:
+    venv = tmp_path / "boat"
+    cmd = [_uv(), "sync", "--locked", "--no-default-groups", "-q"]
+    for pkg in BOAT_PACKAGES:
+        cmd += ["--package", pkg]
+    env = {**os.environ, "UV_PROJECT_ENVIRONMENT": str(venv)}
+    out = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]
+    py = venv / "bin" / "python"
+    for present in ("seaway.contract.messages", "seaway.runtime.run", "seaway_controller.service",
+                    "seaway_estimator.service", "seaway_vehicle_io.main", "seaway_recorder.record"):
+        r = subprocess.run([str(py), "-c", f"import {present}"], capture_output=True, text=True)
+        assert r.returncode == 0, f"{present}: {r.stderr[-500:]}"
+    for absent in ("seaway_lab", "seaway_sim", "pytest"):
+        r = subprocess.run([str(py), "-c", f"import {absent}"], capture_output=True, text=True)
+        assert r.returncode != 0 and "No module named" in r.stderr, f"{absent} is installed on the boat"
+    bench = subprocess.run([str(venv / "bin" / "seaway"), "bench", "--help"], capture_output=True, text=True)
+    assert "installed: none" in bench.stdout
