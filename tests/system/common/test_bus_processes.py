@@ -1,4 +1,8 @@
-"""Bus: separate processes exchange typed messages and requests over Zenoh on loopback."""
+"""Bus: separate processes exchange typed messages and requests over Zenoh on loopback.
+
+The behaviour both bus transports share is in tests/contract/test_bus_contract.py; here it is
+checked across real processes (the raw calls send what a typed publisher would refuse).
+"""
 
 from __future__ import annotations
 
@@ -49,11 +53,12 @@ def test_two_processes_exchange_messages_and_requests(procs, zenoh_env) -> None:
     with Bus.open("vessel1") as bus:
         r = bus.request(keys.VEHICLE_ARM, ArmRequest.make(stamp_ns=1, arm=False), timeout_s=3)
         assert (r.accepted, r.reason) == (False, "disarm refused by test responder")
-        bad = bus.session.get(keys.VEHICLE_ARM.key("vessel1"), payload=b"{not json", timeout=3)
-        refused = [x for x in bad if x.ok is not None]
-        assert refused and b"malformed request" in refused[0].ok.payload.to_bytes()
-        bus.session.put(keys.THRUST.key("vessel1"), b'{"stamp_ns": 1, "thrust_port_n": NaN}')
-        bus.session.put(keys.THRUST.key("vessel1"), b"\x00\x01garbage")
+        bad = bus.query_raw(keys.VEHICLE_ARM.key("vessel1"), b"{not json", timeout_s=3)
+        refused = [x for x in bad if x.error is None]
+        assert refused and b"malformed request" in refused[0].payload
+        raw = bus.raw_publisher(keys.THRUST.key("vessel1"))
+        raw.put(b'{"stamp_ns": 1, "thrust_port_n": NaN}')
+        raw.put(b"\x00\x01garbage")
         n_before = len(lines(procs, resp))
         wait_for(lambda: any(d.get("malformed", 0) >= 2 for d in lines(procs, resp)[n_before:]), 10,
                  what="responder to count 2 malformed and keep receiving")

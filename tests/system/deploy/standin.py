@@ -25,9 +25,9 @@ import signal
 import threading
 import time
 
-import zenoh
 from seaway.contract import keys
 from seaway.contract.messages import ArmRequest, Reply, ScenarioRequest, ThrustCommand
+from seaway.runtime.bus import RawSample
 from seaway.runtime.service import base_parser, run_service
 
 FORBIDDEN_SEQ0 = 1_000_000_000
@@ -56,8 +56,8 @@ def _fields(payload: bytes) -> dict:
 
 
 def watch_all(ctx) -> None:
-    def on_sample(sample: zenoh.Sample) -> None:
-        emit(key=str(sample.key_expr), **_fields(sample.payload.to_bytes()))
+    def on_sample(sample: RawSample) -> None:
+        emit(key=sample.key, **_fields(sample.payload))
 
     ctx.bus.subscribe_raw(f"{keys.ROOT}/**", on_sample)
 

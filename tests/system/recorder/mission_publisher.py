@@ -180,7 +180,7 @@ def _wait_matching(pubs) -> None:
 
 def main() -> int:
     import zenoh
-    from seaway.runtime.bus import open_session
+    from seaway.runtime.zenoh_bus import open_session
 
     ap = argparse.ArgumentParser()
     ap.add_argument("--vessel", default="vessel1")

@@ -30,11 +30,11 @@ class Recorder:
         bus.subscribe_raw(f"seaway/{VESSEL}/**", self._on)
 
     def _on(self, sample) -> None:
-        suffix = str(sample.key_expr).split("/", 2)[2]
+        suffix = sample.key.split("/", 2)[2]
         if suffix.startswith("health/"):
             return
         with self._lock:
-            self.samples.append((suffix, json.loads(sample.payload.to_bytes())))
+            self.samples.append((suffix, json.loads(sample.payload)))
 
     def of(self, suffix: str) -> list[dict]:
         with self._lock:

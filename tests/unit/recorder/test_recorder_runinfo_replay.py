@@ -8,6 +8,8 @@ import threading
 from pathlib import Path
 
 import pytest
+from seaway.runtime.bus import RawSample
+from seaway.runtime.memory_bus import MemoryBus, MemoryHub
 from seaway.vessel.frames import GeoOrigin
 from seaway_recorder import runinfo
 from seaway_recorder.recording import RecordedMessage
@@ -64,25 +66,12 @@ def test_key_filter() -> None:
     assert f("seaway/v1/nav/state") and not f("seaway/v2/nav/state") and not f("seaway/v1/ctrl/thrust")
 
 
-class FakePub:
-    def __init__(self, log: list, key: str) -> None:
-        self.log, self.key = log, key
-
-    def put(self, data: bytes) -> None:
-        self.log.append((self.key, data))
-
-    def undeclare(self) -> None:
-        pass
-
-
-class FakeSession:
-    def __init__(self) -> None:
-        self.log: list = []
-        self.encodings: dict = {}
-
-    def declare_publisher(self, key, encoding, congestion_control):
-        self.encodings[key] = str(encoding)
-        return FakePub(self.log, key)
+def listening_bus() -> tuple[MemoryBus, list[RawSample]]:
+    """A bus to replay on, and everything that appears on it (as another process would hear it)."""
+    hub = MemoryHub()
+    heard: list[RawSample] = []
+    hub.bus().subscribe_raw("**", heard.append)
+    return hub.bus(), heard
 
 
 class FakeClock:
@@ -115,21 +104,22 @@ def msg(topic: str, t_ns: int, data: bytes = b"{}") -> RecordedMessage:
 def test_replay_paces_by_log_time_divided_by_rate() -> None:
     clock = FakeClock()
     stop = FakeStop(clock)
-    session = FakeSession()
+    bus, heard = listening_bus()
     msgs = [msg("seaway/v/a", 1_000_000_000), msg("foxglove/v/a", 1_100_000_000),
             msg("seaway/v/b", 1_500_000_000, b"B"), msg("seaway/v/a", 3_000_000_000, b"A")]
-    stats = replay(iter(msgs), session, KeyFilter(), 2.0, stop, clock=clock)
-    assert session.log == [("seaway/v/a", b"{}"), ("seaway/v/b", b"B"), ("seaway/v/a", b"A")]
+    stats = replay(iter(msgs), bus, KeyFilter(), 2.0, stop, clock=clock)
+    assert [(s.key, s.payload) for s in heard] == [("seaway/v/a", b"{}"), ("seaway/v/b", b"B"),
+                                                   ("seaway/v/a", b"A")]
     assert clock.waits == pytest.approx([0.25, 0.75])  # (0.5 s, then 1.5 s more) / 2
     assert (stats.published, stats.skipped) == (3, 1)
     assert stats.elapsed_s == pytest.approx(1.0) and stats.recorded_span_s == pytest.approx(2.0)
-    assert session.encodings["seaway/v/a"] == "application/json;seaway.v1.X"
+    assert {s.encoding for s in heard} == {"application/json;seaway.v1.X"}
 
 
 def test_replay_as_fast_as_possible_never_waits() -> None:
     clock = FakeClock()
     stop = FakeStop(clock)
-    session = FakeSession()
+    bus, heard = listening_bus()
     msgs = [msg("seaway/v/a", k * 1_000_000_000) for k in range(5)]
-    stats = replay(iter(msgs), session, KeyFilter(only=["seaway/v/a"]), None, stop, clock=clock)
-    assert clock.waits == [] and stats.published == 5
+    stats = replay(iter(msgs), bus, KeyFilter(only=["seaway/v/a"]), None, stop, clock=clock)
+    assert clock.waits == [] and stats.published == 5 and len(heard) == 5

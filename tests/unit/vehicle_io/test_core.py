@@ -7,6 +7,7 @@ from typing import Any
 
 import pytest
 from seaway.contract.messages import Attitude, GnssFix, ThrustCommand, VehicleStatus
+from seaway.contract.units import NS_PER_S
 from seaway_vehicle_io.config import VehicleIoConfig
 from seaway_vehicle_io.core import (
     Now,
@@ -21,7 +22,7 @@ from seaway_vehicle_io.mav import mavlink
 from seaway_vehicle_io.profile import ManualControlAxes
 from seaway_vehicle_io.thrust import ThrusterLimits
 
-S = 1_000_000_000
+S = NS_PER_S
 MS = 1_000_000
 WALL0 = 1_800_000_000 * S
 LIM = ThrusterLimits(75.0, 75.0, 10.0)

@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import pytest
 from seaway.contract.messages import ThrustCommand
+from seaway.contract.units import NS_PER_S
 from seaway_vehicle_io.timesync import BootTimeOffset
 from seaway_vehicle_io.watchdog import ThrustWatchdog
 
-S = 1_000_000_000
+S = NS_PER_S
 MS = 1_000_000
 EPOCH = 1_700_000_000 * S  # wall time at the autopilot's boot
 

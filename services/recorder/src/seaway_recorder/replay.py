@@ -4,7 +4,7 @@ Only bus topics (``seaway/...``) are republished; the recorder's own channels (`
 ``recorder/malformed``) are not. ``--only`` and ``--exclude`` take key expressions (``seaway/*/sim/truth``,
 or the short form ``sim/truth`` for every vessel) so that a live service can produce the keys left out:
 feed recorded sensors to a live estimator with ``--exclude nav/state``, recorded states to a live
-controller with ``--only nav/state``. Each sample goes out with its recorded bytes and Zenoh encoding,
+controller with ``--only nav/state``. Each sample goes out with its recorded bytes and encoding,
 in recorded order; with ``--rate X`` the gaps between receive times are divided by X; ``--fast`` does not
 wait at all (publishers block rather than drop, so nothing is lost).
 """
@@ -20,12 +20,13 @@ from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 
 import zenoh
-from seaway.runtime.bus import open_session
-from seaway.runtime.service import configure_logging, install_stop_signals
+from seaway.contract import keys
+from seaway.runtime.bus import JSON_ENCODING, Bus, RawPublisher
+from seaway.runtime.service import DEFAULT_VESSEL, configure_logging, install_stop_signals
 
 from seaway_recorder import recording
 
-BUS_ROOT = "seaway/"
+BUS_ROOT = f"{keys.ROOT}/"
 
 
 def normalise(expr: str) -> str:
@@ -70,11 +71,12 @@ class ReplayStats:
     recorded_span_s: float = 0.0
 
 
-def replay(messages: Iterator[recording.RecordedMessage], session: zenoh.Session, keep: KeyFilter,
+def replay(messages: Iterator[recording.RecordedMessage], bus: Bus, keep: KeyFilter,
            rate: float | None, stop: threading.Event, clock=time.monotonic) -> ReplayStats:
-    """Publish ``messages`` (in log-time order) paced by their log times; returns what was done."""
+    """Publish ``messages`` (in log-time order) on ``bus``, paced by their log times; returns what
+    was done. Bytes and encodings go out as recorded: nothing is decoded or validated here."""
     stats = ReplayStats()
-    pubs: dict[str, zenoh.Publisher] = {}
+    pubs: dict[str, RawPublisher] = {}
     start_wall: float | None = None
     t0_log: int | None = None
     last_log = 0
@@ -99,9 +101,8 @@ def replay(messages: Iterator[recording.RecordedMessage], session: zenoh.Session
         pub = pubs.get(m.topic)
         if pub is None:
             enc = m.channel_metadata.get("zenoh_encoding") or (
-                f"application/json;{m.schema_name}" if m.schema_name else "application/json")
-            pub = session.declare_publisher(m.topic, encoding=zenoh.Encoding(enc),
-                                            congestion_control=zenoh.CongestionControl.BLOCK)
+                f"{JSON_ENCODING};{m.schema_name}" if m.schema_name else JSON_ENCODING)
+            pub = bus.raw_publisher(m.topic, enc, block=True)
             pubs[m.topic] = pub
         pub.put(m.data)
         stats.published += 1
@@ -121,7 +122,8 @@ def parser() -> argparse.ArgumentParser:
     pace.add_argument("--rate", type=float, default=1.0, help="speed-up factor (default 1: original pace)")
     pace.add_argument("--fast", action="store_true", help="as fast as possible")
     p.add_argument("--only", action="append", default=[], metavar="KEYEXPR",
-                   help="republish only these keys (repeatable; 'sim/truth' means seaway/*/sim/truth)")
+                   help=f"republish only these keys (repeatable; '{keys.SIM_TRUTH.suffix}' means "
+                        f"{keys.SIM_TRUTH.wildcard()})")
     p.add_argument("--exclude", action="append", default=[], metavar="KEYEXPR",
                    help="do not republish these keys: a live service produces them (repeatable)")
     p.add_argument("--wait", type=float, default=1.0,
@@ -145,15 +147,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     stop = threading.Event()
     install_stop_signals(stop)
-    session = open_session(args.zenoh_config)
+    # Raw publishing ignores the bus's vessel (recorded keys name their own); any valid name does.
+    bus = Bus.open(DEFAULT_VESSEL, args.zenoh_config)
     try:
         print(f"replaying {', '.join(map(str, files))}"
               f" ({'as fast as possible' if args.fast else f'rate {args.rate:g}'})", flush=True)
         stop.wait(args.wait)
-        stats = replay(recording.iter_messages(files), session, keep,
+        stats = replay(recording.iter_messages(files), bus, keep,
                        None if args.fast else args.rate, stop)
     finally:
-        session.close()
+        bus.close()
     print(json.dumps({"published": stats.published, "skipped": stats.skipped,
                       "elapsed_s": round(stats.elapsed_s, 3),
                       "recorded_span_s": round(stats.recorded_span_s, 3),

@@ -8,14 +8,14 @@ Threads, and why:
 * **timer** (the main thread, ``_timer_loop``): calls ``core.tick`` when ``core.next_wake_ns``
   says something is due (MANUAL_CONTROL stream, watchdog deadline, heartbeat, status, retries),
   sleeping at most one stream period.
-* **Zenoh callbacks**: a ThrustCommand is handled on arrival, on Zenoh's receive thread
-  (MANUAL_CONTROL goes out from the callback itself, which is what keeps bus-to-wire latency in the
-  sub-millisecond range); arm and mode requests block their own callback thread while they wait
-  for COMMAND_ACK.
+* **bus callbacks**: a ThrustCommand is handled on arrival, on the transport's receive thread
+  (``inline``; MANUAL_CONTROL goes out from the callback itself, which is what keeps bus-to-wire
+  latency in the sub-millisecond range); arm and mode requests block their own callback thread
+  while they wait for COMMAND_ACK.
 
 Every call into the core and every MAVLink send happens under ``self.lock``; the condition on that
 lock wakes request handlers when an ACK has been processed. Bus publications are made after the
-lock is released (no thread calls into Zenoh while holding it).
+lock is released (no thread calls into the bus while holding it).
 """
 
 from __future__ import annotations
@@ -27,7 +27,6 @@ import threading
 import time
 from collections.abc import Callable
 
-import zenoh
 from seaway.contract import keys
 from seaway.contract.messages import (
     ArmRequest,
@@ -191,8 +190,8 @@ class VehicleIoService:
         """Send the MAVLink outputs in order; return the publications for ``_publish``.
 
         Called with ``self.lock`` held. Publishing happens after the lock is released, so that no
-        thread ever calls into Zenoh while holding the lock that Zenoh's own receive thread takes
-        in the thrust callback.
+        thread ever calls into the bus while holding the lock that the bus's receive thread takes
+        in the thrust callback (and the in-memory bus delivers in the publishing thread itself).
         """
         publish: list[Publish] = []
         for out in outputs:
@@ -215,32 +214,15 @@ class VehicleIoService:
     # -- bus in ------------------------------------------------------------------------------------------
 
     def _subscribe_thrust(self) -> None:
-        """ThrustCommand handled on Zenoh's own receive thread (``indirect=False``).
+        """ThrustCommand handled on the transport's own receive thread (``inline``).
 
-        Bus.subscribe hands each sample to a Python thread of its own first; that extra wake-up is
-        most of the tail latency from bus to wire on a loaded machine. The handler is short (decode,
-        map, one sendto) and takes only ``self.lock``, which nobody holds for long. Latest-only by
-        construction: each command replaces the previous one in the core. Malformed payloads are
-        counted in the bus's stats and dropped, as Bus.subscribe does.
+        A plain callback subscription hands each sample to a Python thread of its own first; that
+        extra wake-up is most of the tail latency from bus to wire on a loaded machine. The handler
+        is short (map, one sendto) and takes only ``self.lock``, which nobody holds for long.
+        Latest-only by construction: each command replaces the previous one in the core. Malformed
+        payloads are counted in the bus's stats and dropped, as on every typed subscription.
         """
-        key = self.bus.key(keys.THRUST)
-        stats = self.bus.stats
-
-        def on_sample(sample: zenoh.Sample) -> None:
-            try:
-                cmd = ThrustCommand.decode(sample.payload.to_bytes())
-            except MessageError as err:
-                stats.count_malformed(key, str(err))
-                log.warning("dropped malformed ThrustCommand: %s", err)
-                return
-            stats.received += 1
-            try:
-                self._on_thrust(key, cmd)
-            except Exception:  # never let an exception escape into Zenoh's network thread
-                log.exception("thrust command handling failed")
-
-        self._thrust_sub = self.bus.session.declare_subscriber(
-            key, zenoh.handlers.Callback(on_sample, indirect=False))
+        self._thrust_sub = self.bus.subscribe(keys.THRUST, callback=self._on_thrust, inline=True)
 
     def _on_thrust(self, _key: str, cmd: ThrustCommand) -> None:
         with self.lock:

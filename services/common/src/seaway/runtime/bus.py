@@ -1,7 +1,13 @@
-"""A thin typed layer over zenoh-python: sessions, publishers, subscribers, requests, liveliness.
+"""The bus interface: typed access to one vessel's keys, over a transport that moves bytes.
 
-* ``open_session``: a Zenoh session from a config file (default: the packaged peer-on-loopback
-  config, multicast scouting off; ``SEAWAY_ZENOH_CONFIG`` names another file).
+``Bus`` is what a service loop talks to. Two transports implement it:
+
+* ``seaway.runtime.zenoh_bus.ZenohBus``: the real one, a Zenoh session (``Bus.open``);
+* ``seaway.runtime.memory_bus.MemoryBus``: in process, no network, for unit tests of service loops.
+
+The typed layer is written once, here, over a handful of byte-level primitives each transport
+provides, so both transports encode, validate, refuse and count exactly the same way:
+
 * ``Bus.publisher(spec)``: typed; refuses a message of the wrong type or with a non-finite field.
 * ``Bus.subscribe(spec, mode=...)``: ``latest`` keeps only the newest sample (a controller wants the
   freshest state), ``fifo`` keeps every sample in order up to a bound (a recorder, an estimator), or a
@@ -9,64 +15,75 @@
 * ``Bus.queryable`` / ``Bus.request``: a request is answered by a ``Reply`` that accepts or refuses
   with a reason; a malformed request is refused, never crashes the server; no answer is a refusal
   that says so.
-* liveliness tokens under ``seaway/<vessel>/health/<service>``.
+* liveliness tokens under ``seaway/<vessel>/health/<service>``: ``declare_alive``,
+  ``alive_services``, ``watch_health``.
+* raw bytes on any key, for tools that keep bytes unchanged (the recorder, replay) and for tests
+  that send what a typed publisher would refuse: ``raw_publisher``, ``subscribe_raw``,
+  ``queryable_raw``, ``query_raw``.
 """
 
 from __future__ import annotations
 
+import abc
 import collections
-import json
 import logging
-import os
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
-from importlib import resources
 from pathlib import Path
-from typing import Any, Generic, Literal, TypeVar
-
-import zenoh
+from typing import TYPE_CHECKING, Any, Generic, Literal, NamedTuple, Protocol, TypeVar
 
 from seaway.contract import keys
 from seaway.contract.messages import Message, MessageError, Reply
 
+if TYPE_CHECKING:
+    from seaway.runtime.zenoh_bus import ZenohBus
+
 log = logging.getLogger("seaway.runtime.bus")
 
 M = TypeVar("M", bound=Message)
-ENV_CONFIG = "SEAWAY_ZENOH_CONFIG"
-ENV_RENDEZVOUS = "SEAWAY_ZENOH_RENDEZVOUS"
-DEFAULT_RENDEZVOUS = "tcp/127.0.0.1:7447"
+
+JSON_ENCODING = "application/json"
+"""Encoding of every typed message and reply; a typed topic adds its schema name after ``;``."""
+
+RAW_ENCODING = "zenoh/bytes"
+"""Encoding of raw bytes published without one (Zenoh's default, so both transports report it)."""
 
 
-def default_config_text() -> str:
-    return resources.files("seaway.runtime").joinpath("zenoh/peer-loopback.json5").read_text()
+def message_encoding(message: type[Message]) -> str:
+    """The encoding a typed publisher declares: JSON with the versioned schema name."""
+    return f"{JSON_ENCODING};{message.SCHEMA}"
 
 
-def load_zenoh_config(path: str | Path | None = None) -> zenoh.Config:
-    """Zenoh config from ``path``, else ``$SEAWAY_ZENOH_CONFIG``, else the packaged default.
+class RawSample(NamedTuple):
+    """One sample as the transport delivered it: bytes unchanged, with their key and encoding."""
 
-    ``$SEAWAY_ZENOH_RENDEZVOUS`` replaces the rendezvous endpoint of the packaged default only.
-    """
-    path = path or os.environ.get(ENV_CONFIG) or None
-    if path is not None:
-        p = Path(path)
-        if not p.is_file():
-            raise FileNotFoundError(f"Zenoh config {p} does not exist")
-        try:
-            return zenoh.Config.from_file(str(p))
-        except Exception as err:  # zenoh raises its own ZError with the parse position
-            raise ValueError(f"Zenoh config {p} is invalid: {err}") from None
-    conf = zenoh.Config.from_json5(default_config_text())
-    rendezvous = os.environ.get(ENV_RENDEZVOUS)
-    if rendezvous:
-        conf.insert_json5("listen/endpoints", json.dumps([rendezvous, "tcp/127.0.0.1:0"]))
-        conf.insert_json5("connect/endpoints", json.dumps([rendezvous]))
-    return conf
+    key: str
+    payload: bytes
+    encoding: str
 
 
-def open_session(config_path: str | Path | None = None) -> zenoh.Session:
-    return zenoh.open(load_zenoh_config(config_path))
+class RawReply(NamedTuple):
+    """One answer to ``query_raw``: the replier's key and bytes, or an error reply's text."""
+
+    key: str
+    payload: bytes
+    error: str | None = None  # set for an error reply (which has no key; ``key`` is then "")
+
+
+class RawPublisher(Protocol):
+    """Publishes bytes on one key with the encoding it was declared with."""
+
+    def put(self, payload: bytes) -> None: ...
+
+    def undeclare(self) -> None: ...
+
+
+class Declared(Protocol):
+    """Anything declared on a bus (subscriber, queryable, token): undeclare to withdraw it."""
+
+    def undeclare(self) -> None: ...
 
 
 @dataclass
@@ -92,8 +109,7 @@ class TypedPublisher(Generic[M]):
         assert spec.message is not None
         self.spec, self.key, self._bus = spec, key, bus
         self._type = spec.message
-        encoding = zenoh.Encoding.APPLICATION_JSON.with_schema(spec.message.SCHEMA)
-        self._pub = bus.session.declare_publisher(key, encoding=encoding)
+        self._pub = bus.raw_publisher(key, message_encoding(spec.message))
 
     def put(self, msg: M) -> None:
         if type(msg) is not self._type:
@@ -116,6 +132,7 @@ class TypedSubscriber(Generic[M]):
         mode: Literal["latest", "fifo"],
         capacity: int,
         callback: Callable[[str, M], None] | None,
+        inline: bool = False,
     ) -> None:
         assert spec.message is not None
         self.spec, self.keyexpr, self._bus = spec, keyexpr, bus
@@ -126,12 +143,12 @@ class TypedSubscriber(Generic[M]):
         )
         self._cond = threading.Condition()
         self.dropped_overflow = 0
-        self._sub = bus.session.declare_subscriber(keyexpr, self._on_sample)
+        self._sub = bus.subscribe_raw(keyexpr, self._on_sample, inline=inline)
 
-    def _on_sample(self, sample: zenoh.Sample) -> None:
-        key = str(sample.key_expr)
+    def _on_sample(self, sample: RawSample) -> None:
+        key = sample.key
         try:
-            msg = self._type.decode(sample.payload.to_bytes())
+            msg = self._type.decode(sample.payload)
         except MessageError as err:
             self._bus.stats.count_malformed(key, str(err))
             log.warning("dropped malformed payload on %s: %s", key, err)
@@ -140,7 +157,7 @@ class TypedSubscriber(Generic[M]):
         if self._callback is not None:
             try:
                 self._callback(key, msg)
-            except Exception:  # a bug in a handler must not kill Zenoh's delivery thread
+            except Exception:  # a bug in a handler must not kill the transport's delivery thread
                 log.exception("handler for %s failed", key)
             return
         with self._cond:
@@ -186,30 +203,40 @@ class TypedSubscriber(Generic[M]):
         self._sub.undeclare()
 
 
-class Bus:
-    """One service's Zenoh session with typed access to the registered keys of one vessel."""
+def _service_of(health_key: str) -> str:
+    """``seaway/<vessel>/health/<service>`` -> ``<service>``."""
+    return health_key.rsplit("/", 1)[-1]
 
-    def __init__(self, session: zenoh.Session, vessel: str) -> None:
-        self.session = session
+
+class Bus(abc.ABC):
+    """One service's typed access to the registered keys of one vessel, over some transport.
+
+    Subclasses provide the byte-level primitives (the ``raw`` methods, the three token methods and
+    ``_close_transport``); everything typed is implemented here, once.
+    """
+
+    def __init__(self, vessel: str) -> None:
         self.vessel = keys.check_vessel(vessel)
         self.stats = BusStats()
-        self._tokens: list[Any] = []
-        self._entities: list[Any] = []
+        self._tokens: list[Declared] = []
         self._closed = False
 
     @classmethod
-    def open(cls, vessel: str, config_path: str | Path | None = None) -> Bus:
-        return cls(open_session(config_path), vessel)
+    def open(cls, vessel: str, config_path: str | Path | None = None) -> ZenohBus:
+        """The production bus: a Zenoh session from ``config_path`` (see ``zenoh_bus``)."""
+        from seaway.runtime.zenoh_bus import ZenohBus  # the interface itself needs no Zenoh
+
+        return ZenohBus.connect(vessel, config_path)
 
     def key(self, spec: keys.KeySpec, vessel: str | None = None) -> str:
         return spec.key(vessel or self.vessel)
 
+    # -- typed topics ------------------------------------------------------------------------------
+
     def publisher(self, spec: keys.KeySpec, vessel: str | None = None) -> TypedPublisher[Any]:
         if spec.kind != "topic":
             raise ValueError(f"{spec.suffix} is a {spec.kind}, not a topic")
-        pub: TypedPublisher[Any] = TypedPublisher(self, spec, self.key(spec, vessel))
-        self._entities.append(pub)
-        return pub
+        return TypedPublisher(self, spec, self.key(spec, vessel))
 
     def subscribe(
         self,
@@ -218,35 +245,35 @@ class Bus:
         capacity: int = 10_000,
         callback: Callable[[str, Any], None] | None = None,
         vessel: str | None = None,
+        inline: bool = False,
     ) -> TypedSubscriber[Any]:
-        """Subscribe to ``spec`` on this vessel (or ``vessel``, which may be ``*``)."""
+        """Subscribe to ``spec`` on this vessel (or ``vessel``, which may be ``*``).
+
+        ``inline``: run ``callback`` on the transport's own receive thread, with no hand-off to a
+        Python thread of its own first: the lowest latency, for short handlers that take no lock
+        anybody holds for long (vehicle_io's thrust path).
+        """
         if spec.kind != "topic":
             raise ValueError(f"{spec.suffix} is a {spec.kind}, not a topic")
         keyexpr = spec.wildcard() if vessel == "*" else self.key(spec, vessel)
-        sub: TypedSubscriber[Any] = TypedSubscriber(self, spec, keyexpr, mode, capacity, callback)
-        self._entities.append(sub)
-        return sub
+        return TypedSubscriber(self, spec, keyexpr, mode, capacity, callback, inline)
 
-    def subscribe_raw(self, keyexpr: str, callback: Callable[[zenoh.Sample], None]) -> Any:
-        """Untyped subscriber for tools that keep bytes unchanged (the recorder)."""
-        sub = self.session.declare_subscriber(keyexpr, callback)
-        self._entities.append(sub)
-        return sub
+    # -- typed requests ----------------------------------------------------------------------------
 
     def queryable(self, spec: keys.KeySpec, handler: Callable[[Any], Reply],
-                  vessel: str | None = None) -> Any:
+                  vessel: str | None = None) -> Declared:
         """Serve requests on ``spec``: ``handler(request) -> Reply``. Bad requests are refused."""
         if spec.kind != "query" or spec.message is None:
             raise ValueError(f"{spec.suffix} is not a query key")
         req_type = spec.message
         key = self.key(spec, vessel)
 
-        def on_query(query: zenoh.Query) -> None:
+        def serve(payload: bytes | None) -> bytes:
             now = time.time_ns()
             try:
-                if query.payload is None:
+                if payload is None:
                     raise MessageError(f"{req_type.__name__}: empty request")
-                request = req_type.decode(query.payload.to_bytes())
+                request = req_type.decode(payload)
             except MessageError as err:
                 self.stats.count_malformed(key, str(err))
                 log.warning("refused malformed request on %s: %s", key, err)
@@ -257,11 +284,9 @@ class Bus:
                 except Exception as err:  # the server keeps running; the caller learns why
                     log.exception("request handler for %s failed", key)
                     reply = Reply.refuse(now, f"internal error: {type(err).__name__}: {err}")
-            query.reply(key, reply.encode(), encoding=zenoh.Encoding.APPLICATION_JSON)
+            return reply.encode()
 
-        q = self.session.declare_queryable(key, on_query)
-        self._entities.append(q)
-        return q
+        return self.queryable_raw(key, serve)
 
     def request(self, spec: keys.KeySpec, request: Message, timeout_s: float = 2.0,
                 vessel: str | None = None) -> Reply:
@@ -271,47 +296,36 @@ class Bus:
         if type(request) is not spec.message:
             raise TypeError(f"{spec.suffix} takes {spec.message.__name__}, not {type(request).__name__}")
         key = self.key(spec, vessel)
-        replies = self.session.get(key, payload=request.encode(), timeout=timeout_s)
-        for r in replies:
-            if r.ok is not None:
+        for r in self.query_raw(key, request.encode(), timeout_s):
+            if r.error is None:
                 try:
-                    return Reply.decode(r.ok.payload.to_bytes())
+                    return Reply.decode(r.payload)
                 except MessageError as err:
                     return Reply.refuse(time.time_ns(), f"malformed reply from {key}: {err}")
-            return Reply.refuse(time.time_ns(), f"error reply from {key}: {r.err.payload.to_string()}")
+            return Reply.refuse(time.time_ns(), f"error reply from {key}: {r.error}")
         return Reply.refuse(time.time_ns(), f"no reply from {key} within {timeout_s:g} s "
                                             "(is the service running?)")
 
-    # -- liveliness ---------------------------------------------------------------------------
+    # -- liveliness ---------------------------------------------------------------------------------
 
     def declare_alive(self, service: str) -> None:
         """Declare this process's health token ``seaway/<vessel>/health/<service>``."""
-        self._tokens.append(self.session.liveliness().declare_token(keys.health_key(self.vessel, service)))
+        self._tokens.append(self._declare_token(keys.health_key(self.vessel, service)))
 
     def alive_services(self, vessel: str | None = None, timeout_s: float = 1.0) -> set[str]:
         """Services whose health token is present now."""
-        out = set()
         selector = keys.health_wildcard(vessel or self.vessel)
-        for r in self.session.liveliness().get(selector, timeout=timeout_s):
-            if r.ok is not None:
-                out.add(str(r.ok.key_expr).rsplit("/", 1)[-1])
-        return out
+        return {_service_of(k) for k in self._live_tokens(selector, timeout_s)}
 
-    def watch_health(self, callback: Callable[[str, bool], None], vessel: str | None = None) -> Any:
+    def watch_health(self, callback: Callable[[str, bool], None], vessel: str | None = None) -> Declared:
         """``callback(service, alive)`` on every health change; starts with the current set."""
+        return self._watch_tokens(keys.health_wildcard(vessel or self.vessel),
+                                  lambda key, alive: callback(_service_of(key), alive))
 
-        def on_sample(sample: zenoh.Sample) -> None:
-            service = str(sample.key_expr).rsplit("/", 1)[-1]
-            callback(service, sample.kind == zenoh.SampleKind.PUT)
-
-        sub = self.session.liveliness().declare_subscriber(
-            keys.health_wildcard(vessel or self.vessel), on_sample, history=True
-        )
-        self._entities.append(sub)
-        return sub
+    # -- closing ------------------------------------------------------------------------------------
 
     def close(self) -> None:
-        """Undeclare everything and close the session. Idempotent."""
+        """Withdraw the health tokens and close the transport. Idempotent."""
         if self._closed:
             return
         self._closed = True
@@ -320,13 +334,55 @@ class Bus:
                 t.undeclare()
             except Exception:
                 log.debug("token undeclare failed", exc_info=True)
-        self.session.close()
+        self._close_transport()
 
     def __enter__(self) -> Bus:
         return self
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+    # -- what a transport provides ------------------------------------------------------------------
+
+    @abc.abstractmethod
+    def raw_publisher(self, key: str, encoding: str = RAW_ENCODING, *, block: bool = False) -> RawPublisher:
+        """Publish bytes on ``key`` with ``encoding``. ``block``: wait rather than drop when the
+        network is congested (replay, which must lose nothing)."""
+
+    @abc.abstractmethod
+    def subscribe_raw(self, keyexpr: str, callback: Callable[[RawSample], None], *,
+                      inline: bool = False) -> Declared:
+        """``callback(sample)`` for every sample on ``keyexpr`` (wildcards allowed), bytes unchanged."""
+
+    @abc.abstractmethod
+    def queryable_raw(self, key: str, serve: Callable[[bytes | None], bytes],
+                      encoding: str = JSON_ENCODING) -> Declared:
+        """Answer every query on ``key`` with ``serve(request payload or None)``."""
+
+    @abc.abstractmethod
+    def query_raw(self, selector: str, payload: bytes | None = None, timeout_s: float = 2.0, *,
+                  every: bool = False) -> Iterator[RawReply]:
+        """Send a query now; iterate its answers as they come, until all came or ``timeout_s``.
+
+        ``every``: ask every matching queryable and keep every answer (a census of services);
+        otherwise the transport's default (the best-matching queryable).
+        """
+
+    @abc.abstractmethod
+    def _declare_token(self, key: str) -> Declared:
+        """A liveliness token on ``key``, present until undeclared or the bus closes."""
+
+    @abc.abstractmethod
+    def _live_tokens(self, selector: str, timeout_s: float) -> Iterable[str]:
+        """Keys of the tokens present now on ``selector``."""
+
+    @abc.abstractmethod
+    def _watch_tokens(self, selector: str, callback: Callable[[str, bool], None]) -> Declared:
+        """``callback(key, alive)`` for the tokens present now, then on every change."""
+
+    @abc.abstractmethod
+    def _close_transport(self) -> None:
+        """Release everything this bus declared (the health tokens are already withdrawn)."""
 
 
 def iterate(sub: TypedSubscriber[M], stop: threading.Event, poll_s: float = 0.1) -> Iterator[M]:

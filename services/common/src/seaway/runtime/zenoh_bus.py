@@ -1,0 +1,141 @@
+"""The bus on Zenoh: sessions from config files, and ``ZenohBus``, the transport of every process.
+
+* ``open_session``: a Zenoh session from a config file (default: the packaged peer-on-loopback
+  config, multicast scouting off; ``SEAWAY_ZENOH_CONFIG`` names another file,
+  ``SEAWAY_ZENOH_RENDEZVOUS`` moves the default's rendezvous port).
+* ``ZenohBus``: the byte-level primitives of ``seaway.runtime.bus.Bus`` on one session; the typed
+  layer (validation, refusals, counters) is the interface's own, shared with the in-memory bus.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+from collections.abc import Callable, Iterator
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import zenoh
+
+from seaway.runtime.bus import JSON_ENCODING, RAW_ENCODING, Bus, Declared, RawPublisher, RawReply, RawSample
+
+log = logging.getLogger("seaway.runtime.bus")
+
+ENV_CONFIG = "SEAWAY_ZENOH_CONFIG"
+ENV_RENDEZVOUS = "SEAWAY_ZENOH_RENDEZVOUS"
+DEFAULT_RENDEZVOUS = "tcp/127.0.0.1:7447"
+
+
+def default_config_text() -> str:
+    return resources.files("seaway.runtime").joinpath("zenoh/peer-loopback.json5").read_text()
+
+
+def load_zenoh_config(path: str | Path | None = None) -> zenoh.Config:
+    """Zenoh config from ``path``, else ``$SEAWAY_ZENOH_CONFIG``, else the packaged default.
+
+    ``$SEAWAY_ZENOH_RENDEZVOUS`` replaces the rendezvous endpoint of the packaged default only.
+    """
+    path = path or os.environ.get(ENV_CONFIG) or None
+    if path is not None:
+        p = Path(path)
+        if not p.is_file():
+            raise FileNotFoundError(f"Zenoh config {p} does not exist")
+        try:
+            return zenoh.Config.from_file(str(p))
+        except Exception as err:  # zenoh raises its own ZError with the parse position
+            raise ValueError(f"Zenoh config {p} is invalid: {err}") from None
+    conf = zenoh.Config.from_json5(default_config_text())
+    rendezvous = os.environ.get(ENV_RENDEZVOUS)
+    if rendezvous:
+        conf.insert_json5("listen/endpoints", json.dumps([rendezvous, "tcp/127.0.0.1:0"]))
+        conf.insert_json5("connect/endpoints", json.dumps([rendezvous]))
+    return conf
+
+
+def open_session(config_path: str | Path | None = None) -> zenoh.Session:
+    return zenoh.open(load_zenoh_config(config_path))
+
+
+def _replies(handler: Iterator[Any]) -> Iterator[RawReply]:
+    for r in handler:
+        if r.ok is not None:
+            yield RawReply(str(r.ok.key_expr), r.ok.payload.to_bytes())
+        else:
+            yield RawReply("", r.err.payload.to_bytes(), r.err.payload.to_string())
+
+
+class ZenohBus(Bus):
+    """One process's Zenoh session, typed by ``Bus``. ``session`` is there for Zenoh-only tools."""
+
+    def __init__(self, session: zenoh.Session, vessel: str) -> None:
+        super().__init__(vessel)
+        self.session = session
+        # Zenoh keeps callback entities alive by itself; holding them too makes that explicit.
+        self._entities: list[Any] = []
+
+    @classmethod
+    def connect(cls, vessel: str, config_path: str | Path | None = None) -> ZenohBus:
+        """A new session from ``config_path`` (see ``load_zenoh_config``)."""
+        return cls(open_session(config_path), vessel)
+
+    def raw_publisher(self, key: str, encoding: str = RAW_ENCODING, *, block: bool = False) -> RawPublisher:
+        # Only a blocking publisher names its congestion control: the others keep Zenoh's default.
+        extra = {"congestion_control": zenoh.CongestionControl.BLOCK} if block else {}
+        pub = self.session.declare_publisher(key, encoding=zenoh.Encoding(encoding), **extra)
+        self._entities.append(pub)
+        return pub
+
+    def subscribe_raw(self, keyexpr: str, callback: Callable[[RawSample], None], *,
+                      inline: bool = False) -> Declared:
+        def on_sample(sample: zenoh.Sample) -> None:
+            callback(RawSample(str(sample.key_expr), sample.payload.to_bytes(), str(sample.encoding)))
+
+        # A plain callable is run by zenoh-python on a Python thread of its own (one hand-off per
+        # sample); ``indirect=False`` runs it on Zenoh's receive thread itself.
+        handler: Any = zenoh.handlers.Callback(on_sample, indirect=False) if inline else on_sample
+        sub = self.session.declare_subscriber(keyexpr, handler)
+        self._entities.append(sub)
+        return sub
+
+    def queryable_raw(self, key: str, serve: Callable[[bytes | None], bytes],
+                      encoding: str = JSON_ENCODING) -> Declared:
+        enc = zenoh.Encoding(encoding)
+
+        def on_query(query: zenoh.Query) -> None:
+            # ``with``: finalise the query as soon as it is answered. Left to Python's finalizer, it
+            # waits for the last reference to go, and a traceback kept by a log handler (a handler
+            # bug logged with its stack) holds one: the caller then hears nothing until its timeout.
+            with query:
+                payload = None if query.payload is None else query.payload.to_bytes()
+                query.reply(key, serve(payload), encoding=enc)
+
+        q = self.session.declare_queryable(key, on_query)
+        self._entities.append(q)
+        return q
+
+    def query_raw(self, selector: str, payload: bytes | None = None, timeout_s: float = 2.0, *,
+                  every: bool = False) -> Iterator[RawReply]:
+        extra = ({"target": zenoh.QueryTarget.ALL, "consolidation": zenoh.ConsolidationMode.NONE}
+                 if every else {})
+        return _replies(iter(self.session.get(selector, payload=payload, timeout=timeout_s, **extra)))
+
+    def _declare_token(self, key: str) -> Declared:
+        return self.session.liveliness().declare_token(key)
+
+    def _live_tokens(self, selector: str, timeout_s: float) -> Iterator[str]:
+        for r in self.session.liveliness().get(selector, timeout=timeout_s):
+            if r.ok is not None:
+                yield str(r.ok.key_expr)
+
+    def _watch_tokens(self, selector: str, callback: Callable[[str, bool], None]) -> Declared:
+        def on_sample(sample: zenoh.Sample) -> None:
+            callback(str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT)
+
+        sub = self.session.liveliness().declare_subscriber(selector, on_sample, history=True)
+        self._entities.append(sub)
+        return sub
+
+    def _close_transport(self) -> None:
+        self.session.close()
