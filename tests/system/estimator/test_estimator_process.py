@@ -17,7 +17,7 @@ from seaway.simkit.scenario import load_scenario
 from seaway.simkit.sensors import SensorSuite, instants_in, origin_of
 from seaway.vessel import model
 from seaway_estimator.replay import read_trace, replay
-from seaway_lab.estimator_loop import REALISTIC_NOISE
+from seaway_lab.closed_loop import REALISTIC_NOISE
 
 from tests.conftest import BIN, wait_for
 
@@ -129,8 +129,10 @@ def origin_of_msg(sub, first_fix) -> tuple[float, float, float]:
 
 def test_realtime_process_publishes_at_the_configured_rate(procs, zenoh_env, tmp_path) -> None:
     cfg = tmp_path / "estimator.toml"
-    cfg.write_text("publish_rate_hz = 10.0\n[origin]\nlat_deg = 47.0\nlon_deg = 8.0\n")
-    est = procs.start([str(BIN / "seaway-estimator"), "--config", str(cfg)], zenoh_env, "est-rt")
+    cfg.write_text("publish_rate_hz = 10.0\n")
+    # The origin is a run-wide fact (seaway.runtime.run): given to the run, not the estimator config.
+    est = procs.start([str(BIN / "seaway-estimator"), "--config", str(cfg), "--origin", "47.0,8.0"],
+                      zenoh_env, "est-rt")
     wait_for(lambda: "estimator realtime" in procs.log(est), 20, what="estimator up")
     sc = load_scenario("paper-c1")
     sensors = SensorSuite(REALISTIC_NOISE, sc.origin, sc.seed)

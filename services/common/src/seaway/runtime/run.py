@@ -254,26 +254,17 @@ def check_peers(run: RunDescription, service: str, peers: list[tuple[str, bytes]
                                f"running on vessel {run.vessel}: " + " | ".join(problems))
 
 
-def announce(session: Any, run: RunDescription, service: str, timeout_s: float = 2.0) -> Any:
-    """Check ``run`` against the services already running, then answer for this one.
+def announce(bus: Any, run: RunDescription, service: str, timeout_s: float = 2.0) -> Any:
+    """Check ``run`` against the services already running on ``bus``, then answer for this one.
 
-    Asks ``seaway/<vessel>/run/*`` (every running service answers at once; the query ends when all
-    have, so nothing waits on a timeout unless a peer hangs) and raises RunMismatchError on a
-    difference. Then declares this service's own answer and returns the queryable (keep it).
+    Asks ``seaway/<vessel>/run/*`` of every running service (the query ends when all have answered,
+    so nothing waits on a timeout unless a peer hangs) and raises RunMismatchError on a difference.
+    Then declares this service's own answer and returns it (keep it: undeclared when the bus closes).
+    ``bus`` is a ``seaway.runtime.bus.Bus`` (Zenoh or in-memory).
     """
-    import zenoh
-
-    peers = []
-    replies = session.get(keys.run_description_wildcard(run.vessel), timeout=timeout_s,
-                          target=zenoh.QueryTarget.ALL, consolidation=zenoh.ConsolidationMode.NONE)
-    for r in replies:
-        if r.ok is not None:
-            peers.append((str(r.ok.key_expr), r.ok.payload.to_bytes()))
+    peers = [(r.key, r.payload) for r in bus.query_raw(keys.run_description_wildcard(run.vessel),
+                                                        timeout_s=timeout_s, every=True)
+             if r.error is None]
     check_peers(run, service, peers)
     payload = run.encode()
-    key = keys.run_description_key(run.vessel, service)
-
-    def on_query(query: Any) -> None:
-        query.reply(key, payload, encoding=zenoh.Encoding.APPLICATION_JSON)
-
-    return session.declare_queryable(key, on_query)
+    return bus.queryable_raw(keys.run_description_key(run.vessel, service), lambda _request: payload)

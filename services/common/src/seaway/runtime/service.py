@@ -105,9 +105,8 @@ class ServiceContext:
         already running raises RunMismatchError (``run_service`` turns it into exit status 2).
         """
         if not self.is_ready:
-            session = getattr(self.bus, "session", None)
-            if session is not None and self.agree:
-                self._run_answer = runs.announce(session, self.run, self.name)
+            if self.agree:
+                self._run_answer = runs.announce(self.bus, self.run, self.name)
             self.bus.declare_alive(self.name)
             self.is_ready = True
             log.info("%s ready on vessel %s (run %s)", self.name, self.vessel, self.run.run_id)
