@@ -78,3 +78,33 @@ def test_shipped_profiles_are_valid() -> None:
     assert "sim" in names
     for name in names:
         assert load_profile(name).name == name
+
+
+def _launch_args(*argv: str):
+    from seaway.tools.launch.main import parser
+
+    return parser().parse_args(["sim", "--vessel", "boat1", *argv])
+
+
+def test_a_boat_run_needs_no_scenario_and_takes_the_first_fix_as_origin() -> None:
+    from seaway.tools.launch.main import resolve_run
+    from seaway.tools.launch.profile import load_profile
+
+    boat = load_profile("boat")
+    run = resolve_run(_launch_args(), boat, "", "r1")  # no scenario at all: a real boat
+    assert (run.model_vessel_file, run.origin, run.scenario, run.clock) == ("paper-boat", None, None, "wall")
+    # With the shipped stand-in simulator's scenario, the model and origin are still the boat's own.
+    bench = resolve_run(_launch_args(), boat, boat.scenario or "", "r2")
+    assert bench.model_vessel_file == "paper-boat" and bench.origin is None and bench.scenario == "lake"
+
+
+def test_a_simulated_run_shares_the_scenario_frame_and_the_period_is_one_option() -> None:
+    from seaway.tools.launch.main import resolve_run
+    from seaway.tools.launch.profile import load_profile
+
+    batch = load_profile("sim-batch")
+    run = resolve_run(_launch_args("--control-period-s", "0.25"), batch, "paper-c4-perturbed", "r3")
+    assert run.clock == "lockstep" and run.control_period_s == 0.25 and run.origin is not None
+    assert (run.model_vessel_file, run.plant_vessel_file) == ("paper-sim", "paper-sim-perturbed")
+    with pytest.raises(ConfigError, match="control_period_s"):
+        resolve_run(_launch_args("--control-period-s", "-1"), batch, "paper-c1", "r4")
