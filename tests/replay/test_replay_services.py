@@ -83,7 +83,8 @@ def test_estimator_reproduces_every_recorded_state_exactly(golden) -> None:
     _, scenario, rec = golden
     inputs = [(msg.stamp_ns, RANK[k], i, k, msg) for k in RANK for i, (_, msg) in enumerate(rec[k])]
     cfg = with_run(load_estimator_config(None),
-                   runs.for_scenario(load_scenario(scenario), scenario, vessel="vessel1", run_id="golden"))
+                   runs.describe(scenario=load_scenario(scenario), scenario_ref=scenario, vessel="vessel1",
+                                 run_id="golden"))
     cap = Capture()
     loop = EstimatorLoop(EstimatorCore(cfg), cap)
     recorded_states = {}

@@ -56,8 +56,8 @@ def test_bad_origins_are_refused_by_the_parser(origin: str) -> None:
 
 
 def test_a_run_file_says_it_all(tmp_path) -> None:
-    path = runs.for_scenario(load_scenario("paper-c1"), "paper-c1", vessel="v1", run_id="r1",
-                             clock="lockstep").write(tmp_path / "run.json")
+    path = runs.describe(scenario=load_scenario("paper-c1"), scenario_ref="paper-c1", vessel="v1",
+                         run_id="r1", clock="lockstep").write(tmp_path / "run.json")
     run = runs.resolve(_args("--run", str(path)), "controller")
     assert run.run_id == "r1" and run.lockstep and run.scenario == "paper-c1"
     with pytest.raises(ConfigError, match="--lockstep given beside --run"):
@@ -79,3 +79,20 @@ def test_check_peers_names_the_field_both_values_and_the_service() -> None:
     assert "model_vessel_file: 'paper-sim' here, 'paper-boat' there" in text
     with pytest.raises(runs.RunMismatchError, match="unreadable"):
         runs.check_peers(mine, "sim", [("seaway/v1/run/controller", b"{not json")])
+
+
+def test_a_model_override_keeps_the_scenarios_vessel_as_the_plant() -> None:
+    # The simulator integrates the scenario's vessel whatever the services are told to model.
+    run = runs.describe(scenario=load_scenario("lake"), vessel="v1", run_id="r",
+                        model_vessel_file="paper-sim")
+    assert (run.model_vessel_file, run.plant_vessel) == ("paper-sim", "paper-boat")
+    assert run.scenario == "lake"  # named by the scenario's own name when no reference is given
+
+
+@pytest.mark.parametrize("text", ['{"run_id": "r", "vessel": "v1", "control_period_s": NaN}', "{not json",
+                                  '{"run_id": "r", "vessel": "v1", "tempo": 2}'])
+def test_a_bad_run_file_is_refused_naming_the_problem(tmp_path, text: str) -> None:
+    path = tmp_path / "run.json"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=r"run\.json"):
+        runs.resolve(_args("--run", str(path)), "sim")

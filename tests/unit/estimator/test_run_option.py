@@ -9,7 +9,7 @@ from seaway_estimator.service import with_run
 
 
 def _run(scenario: str) -> runs.RunDescription:
-    return runs.for_scenario(load_scenario(scenario), scenario, vessel="v1", run_id="t")
+    return runs.describe(scenario=load_scenario(scenario), scenario_ref=scenario, vessel="v1", run_id="t")
 
 
 def test_run_sets_vessel_dead_zone_and_origin_only() -> None:

@@ -31,6 +31,7 @@ from pydantic import Field, model_validator
 
 from seaway.contract import keys
 from seaway.contract.config import ConfigError, ConfigModel, Origin, load_config, parse_config
+from seaway.contract.units import s_to_ns
 
 log = logging.getLogger("seaway.run")
 
@@ -41,10 +42,7 @@ period. The only place this number is written; everything else takes it from the
 DEFAULT_VESSEL_FILE = "paper-sim"
 """The vessel file every service models when nothing names one (deploy/vessels/paper-sim.toml)."""
 
-ENV_RUN = "SEAWAY_RUN"
-"""Environment variable naming a run description file (the launcher also passes ``--run``)."""
-
-Clock = Literal["wall", "lockstep"]
+ClockMode = Literal["wall", "lockstep"]
 
 # The fields every process of a run must agree on; ``run_id`` and ``scenario`` are informative.
 RUN_WIDE_FIELDS = ("vessel", "model_vessel_file", "plant_vessel_file", "control_period_s", "origin",
@@ -68,7 +66,7 @@ class RunDescription(ConfigModel):
         "control period [s]: one controller step, one lockstep period, the report's sample period"))
     origin: Origin | None = Field(default=None, description=(
         "local NED origin; None: the estimator takes its first good GNSS fix (a real boat)"))
-    clock: Clock = Field(default="wall", description="'wall' (real time) or 'lockstep' (sim time)")
+    clock: ClockMode = Field(default="wall", description="'wall' (real time) or 'lockstep' (sim time)")
     dead_zone: bool = Field(default=False, description=(
         "the thrusters have the vessel file's dead zone (the estimator predicts with it)"))
     scenario: str | None = Field(default=None, description=(
@@ -90,7 +88,7 @@ class RunDescription(ConfigModel):
 
     @property
     def control_period_ns(self) -> int:
-        return round(self.control_period_s * 1e9)
+        return s_to_ns(self.control_period_s)
 
     def run_wide(self) -> dict[str, Any]:
         """The fields every process must agree on, as plain JSON values."""
@@ -116,23 +114,34 @@ def new_run_id(label: str) -> str:
     return f"{time.strftime('%Y%m%d-%H%M%S')}-{label}"
 
 
-def for_scenario(scenario: Any, ref: str, *, vessel: str, run_id: str, clock: Clock = "wall",
-                 control_period_s: float = CONTROL_PERIOD_S,
-                 model_vessel_file: str | None = None) -> RunDescription:
-    """The description of a simulated run of ``scenario`` (a ``seaway.simkit.scenario.Scenario``),
-    named ``ref`` (its name in deploy/scenarios or its path, as the simulator will load it).
+def describe(*, vessel: str, run_id: str, clock: ClockMode = "wall", scenario: Any = None,
+             scenario_ref: str | None = None, origin_from_scenario: bool = True,
+             model_vessel_file: str | None = None, plant_vessel_file: str | None = None,
+             control_period_s: float | None = None, origin: Origin | None = None,
+             dead_zone: bool = False, where: str = "run") -> RunDescription:
+    """The one way a run description is made: by the launcher, and from a service's own flags.
 
-    The model is the scenario's ``vessel`` (unless ``model_vessel_file`` overrides it), the plant its
-    ``plant_vessel`` when it names one, the origin and dead zone the scenario's: the estimator then
-    shares the simulator's frame.
+    A ``scenario`` (a ``seaway.simkit.scenario.Scenario``, named ``scenario_ref`` as the simulator
+    will load it) supplies the model vessel (its ``vessel``), the plant (its ``plant_vessel``, else
+    ``vessel``), the dead zone and, unless ``origin_from_scenario`` is false (a boat), the origin, so
+    the estimator shares the simulator's frame. Explicit values override it; None keeps the default.
+    A plant equal to the model is stored as None (no second model). ConfigError names a bad field.
     """
-    model = model_vessel_file or scenario.vessel
-    plant = scenario.plant_vessel or scenario.vessel
-    fields = {"run_id": run_id, "vessel": vessel, "model_vessel_file": model,
-              "plant_vessel_file": None if plant == model else plant,
-              "control_period_s": control_period_s, "origin": scenario.origin.model_dump(),
-              "clock": clock, "dead_zone": scenario.dead_zone, "scenario": ref}
-    return parse_config(fields, RunDescription, f"run of scenario {ref}")
+    fields: dict[str, Any] = {"run_id": run_id, "vessel": vessel, "clock": clock}
+    if scenario is not None:
+        fields.update(model_vessel_file=scenario.vessel,
+                      plant_vessel_file=scenario.plant_vessel or scenario.vessel,
+                      dead_zone=scenario.dead_zone, scenario=scenario_ref or scenario.name)
+        if origin_from_scenario:
+            fields["origin"] = scenario.origin
+    overrides = {"model_vessel_file": model_vessel_file, "plant_vessel_file": plant_vessel_file,
+                 "control_period_s": control_period_s, "origin": origin}
+    fields.update({k: v for k, v in overrides.items() if v is not None})
+    if dead_zone:
+        fields["dead_zone"] = True
+    if fields.get("plant_vessel_file") == fields.get("model_vessel_file", DEFAULT_VESSEL_FILE):
+        fields["plant_vessel_file"] = None
+    return parse_config(fields, RunDescription, where)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -156,8 +165,8 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     """The flags every service takes to learn its run (the launcher passes only ``--run``)."""
     g = p.add_argument_group("run (what every process of the run must agree on)")
     g.add_argument("--run", default=None, metavar="FILE",
-                   help=f"run description file written by the launcher (or ${ENV_RUN}); "
-                        "the flags below are then not allowed")
+                   help="run description file written by the launcher; the flags below are then "
+                        "not allowed")
     g.add_argument("--scenario", default=None,
                    help="simulation: take the vessel files, origin and dead zone from this scenario "
                         "(name in deploy/scenarios or a path)")
@@ -177,52 +186,38 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                    help="the thrusters have the vessel file's dead zone (default: the scenario's flag)")
 
 
-_FLAG_FIELDS = ("scenario", "vessel_file", "plant_vessel_file", "control_period_s", "origin")
-
-
 def resolve(args: argparse.Namespace, service: str,
             load_scenario: Any = None) -> RunDescription:
-    """The run this process belongs to: ``--run FILE`` (or ``$SEAWAY_RUN``), else its own flags.
+    """The run this process belongs to: ``--run FILE``, else its own flags (``add_run_arguments``).
 
     ``load_scenario`` (``seaway.simkit.scenario.load_scenario``) is passed by services that accept
     ``--scenario``; the runtime itself does not depend on the simulation kit. ConfigError on a bad
     file, a bad value, or flags given beside ``--run``.
     """
-    import os
-
-    run_file = getattr(args, "run", None) or os.environ.get(ENV_RUN) or None
-    if run_file:
-        given = [f"--{f.replace('_', '-')}" for f in _FLAG_FIELDS if getattr(args, f, None) is not None]
-        given += ["--lockstep"] if getattr(args, "lockstep", False) else []
-        given += ["--dead-zone"] if getattr(args, "dead_zone", False) else []
+    flags = {"--scenario": args.scenario, "--vessel-file": args.vessel_file,
+             "--plant-vessel-file": args.plant_vessel_file, "--control-period-s": args.control_period_s,
+             "--origin": args.origin, "--lockstep": args.lockstep or None,
+             "--dead-zone": args.dead_zone or None}
+    if args.run:
+        given = [flag for flag, value in flags.items() if value is not None]
         if given:
-            raise ConfigError(f"{', '.join(given)} given beside --run {run_file}: the run description "
+            raise ConfigError(f"{', '.join(given)} given beside --run {args.run}: the run description "
                               "says it all (edit the run file or drop --run)")
-        run = load_config(run_file, RunDescription)
+        run = load_config(args.run, RunDescription)
         if run.vessel != args.vessel:
-            raise RunMismatchError(f"--vessel {args.vessel!r} but the run {run_file} is for vessel "
+            raise RunMismatchError(f"--vessel {args.vessel!r} but the run {args.run} is for vessel "
                                    f"{run.vessel!r}")
         return run
-    clock: Clock = "lockstep" if getattr(args, "lockstep", False) else "wall"
-    run_id = new_run_id(service)
-    fields: dict[str, Any] = {"run_id": run_id, "vessel": args.vessel, "clock": clock}
-    if getattr(args, "scenario", None):
+    scenario = None
+    if args.scenario:
         if load_scenario is None:
             raise ConfigError(f"{service} takes no --scenario")
-        sc = load_scenario(args.scenario)
-        fields.update(for_scenario(sc, args.scenario, vessel=args.vessel, run_id=run_id,
-                                   clock=clock).model_dump(
-            exclude={"control_period_s"}))
-    for flag, field in (("vessel_file", "model_vessel_file"), ("plant_vessel_file", "plant_vessel_file"),
-                        ("control_period_s", "control_period_s"), ("origin", "origin")):
-        value = getattr(args, flag, None)
-        if value is not None:
-            fields[field] = value
-    if getattr(args, "dead_zone", False):
-        fields["dead_zone"] = True
-    if fields.get("plant_vessel_file") == fields.get("model_vessel_file", DEFAULT_VESSEL_FILE):
-        fields["plant_vessel_file"] = None
-    return parse_config(fields, RunDescription, f"{service} run flags")
+        scenario = load_scenario(args.scenario)
+    return describe(vessel=args.vessel, run_id=new_run_id(service),
+                    clock="lockstep" if args.lockstep else "wall", scenario=scenario,
+                    scenario_ref=args.scenario, model_vessel_file=args.vessel_file,
+                    plant_vessel_file=args.plant_vessel_file, control_period_s=args.control_period_s,
+                    origin=args.origin, dead_zone=args.dead_zone, where=f"{service} run flags")
 
 
 # ---------------------------------------------------------------------------------------------

@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 
 from seaway.contract import keys
-from seaway.contract.config import ConfigError, deploy_path, parse_config, repo_root
+from seaway.contract.config import ConfigError, deploy_path, repo_root
 from seaway.contract.messages import ArmRequest, MissionRequest, MissionStatus, ModeRequest, StateEstimate
 from seaway.runtime import run as runs
 from seaway.runtime.bus import Bus
@@ -62,18 +62,12 @@ def resolve_run(args: argparse.Namespace, profile: Profile, scenario: str,
     the profile's ``vessel_file`` replaces the model, and ``origin_from_scenario = false`` (a boat)
     leaves the origin to the estimator's first GNSS fix. ConfigError on a bad scenario or value.
     """
-    period = args.control_period_s if args.control_period_s is not None else runs.CONTROL_PERIOD_S
-    if scenario:
-        run = runs.for_scenario(load_scenario(scenario), scenario, vessel=args.vessel, run_id=run_id,
-                                clock=profile.clock, control_period_s=period,
-                                model_vessel_file=profile.vessel_file)
-        if not profile.origin_from_scenario:
-            run = run.model_copy(update={"origin": None})
-        return run
-    fields = {"run_id": run_id, "vessel": args.vessel, "clock": profile.clock, "control_period_s": period}
-    if profile.vessel_file:
-        fields["model_vessel_file"] = profile.vessel_file
-    return parse_config(fields, runs.RunDescription, "launch")
+    return runs.describe(vessel=args.vessel, run_id=run_id, clock=profile.clock,
+                         scenario=load_scenario(scenario) if scenario else None,
+                         scenario_ref=scenario or None,
+                         origin_from_scenario=profile.origin_from_scenario,
+                         model_vessel_file=profile.vessel_file,
+                         control_period_s=args.control_period_s, where="launch")
 
 
 def _run_dir(args: argparse.Namespace) -> Path:
