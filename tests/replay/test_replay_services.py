@@ -5,8 +5,10 @@ rewrites them). The inputs are ordered as the lockstep protocol defines them (se
 for each tick t_k, the sensor samples stamped <= t_k, then the tick, then the command computed from
 the state t_k. With that order:
 
-* the estimator (its service glue ``EstimatorLoop`` and its core) reproduces every recorded
-  ``nav/state`` byte for byte;
+* the estimator (its service glue ``EstimatorLoop`` and its core, on the in-memory bus) reproduces
+  every recorded ``nav/state``, integers and flags exactly and every float to 1e-9 relative: another
+  CPU's libm and BLAS differ in the last bit (4.4e-16 seen), while a real change does not hide
+  under that (dropping one GNSS fix moves the estimate by orders of magnitude more: tested);
 * the controller core (generated solver, its pinned options) reproduces every recorded ``ctrl/thrust``
   to 1e-6 N: the same compiled solver on the same inputs, so in practice exactly, with room for
   a different CPU's floating-point code paths.
@@ -18,8 +20,10 @@ import math
 from pathlib import Path
 
 import pytest
+from seaway.contract import keys
 from seaway.contract.messages import Attitude, ClockTick, GnssFix, StateEstimate, ThrustCommand
 from seaway.runtime import run as runs
+from seaway.runtime.memory_bus import MemoryHub
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.model import load_vessel
@@ -32,6 +36,7 @@ from seaway_recorder.recording import iter_messages
 from tests.replay.regen import GOLDENS
 
 DATA = Path(__file__).with_name("data")
+VESSEL = "vessel1"
 THRUST_TOLERANCE_N = 1e-6
 TYPES = {"sensors/gnss": GnssFix, "sensors/attitude": Attitude, "sim/clock": ClockTick,
          "nav/state": StateEstimate, "ctrl/thrust": ThrustCommand}
@@ -48,21 +53,46 @@ def recorded(name: str) -> dict[str, list[tuple[bytes, object]]]:
     return out
 
 
-class Capture:
-    """The estimator's publishers, keeping what it would have put on the bus."""
+STATE_RTOL, STATE_ATOL = 1e-9, 1e-12
+KIND_OF = {keys.GNSS.suffix: "gnss", keys.ATTITUDE.suffix: "attitude", keys.THRUST.suffix: "thrust"}
 
-    def __init__(self) -> None:
-        self.states: list[bytes] = []
 
-    def publisher(self, spec):
-        capture = self
+def close(a: object, b: object) -> bool:
+    """Equal, but floats (at any depth) only to STATE_RTOL / STATE_ATOL."""
+    if isinstance(a, float) and isinstance(b, float):
+        return math.isclose(a, b, rel_tol=STATE_RTOL, abs_tol=STATE_ATOL)
+    if isinstance(a, dict) and isinstance(b, dict):
+        return a.keys() == b.keys() and all(close(a[k], b[k]) for k in a)
+    if isinstance(a, list | tuple) and isinstance(b, list | tuple):
+        return len(a) == len(b) and all(close(x, y) for x, y in zip(a, b, strict=True))
+    return a == b
 
-        class _Pub:
-            def put(self, msg) -> None:
-                if isinstance(msg, StateEstimate):
-                    capture.states.append(msg.encode())
 
-        return _Pub()
+def replay_estimator(scenario: str, rec: dict, skip_gnss: int | None = None) -> dict[int, dict]:
+    """Every state the estimator publishes when fed ``rec``'s inputs (without GNSS fix ``skip_gnss``)."""
+    cfg = with_run(load_estimator_config(None),
+                   runs.describe(scenario=load_scenario(scenario), scenario_ref=scenario, vessel=VESSEL,
+                                 run_id="golden"))
+    hub = MemoryHub()
+    states = hub.bus(VESSEL).subscribe(keys.NAV_STATE, mode="fifo", capacity=1_000_000)
+    loop = EstimatorLoop(EstimatorCore(cfg), hub.bus(VESSEL))
+    inputs = [(msg.stamp_ns, RANK[k], i, k, msg) for k in RANK for i, (_, msg) in enumerate(rec[k])
+              if not (k == keys.GNSS.suffix and i == skip_gnss)]
+    for _stamp, _rank, _i, kind, msg in sorted(inputs, key=lambda e: e[:3]):
+        if kind == keys.SIM_CLOCK.suffix:
+            loop.on_tick(msg)
+        else:
+            loop.queue(KIND_OF[kind], msg)
+    return {s.stamp_ns: s.model_dump() for s in states.drain()}
+
+
+def mismatched_states(rec: dict, replayed: dict[int, dict]) -> list[int]:
+    """Stamps of recorded states the replay does not reproduce (a held tick may be recorded twice)."""
+    recorded_states: dict[int, list[dict]] = {}
+    for _data, msg in rec[keys.NAV_STATE.suffix]:
+        recorded_states.setdefault(msg.stamp_ns, []).append(msg.model_dump())
+    assert set(recorded_states) <= set(replayed), "a recorded state has no replayed counterpart"
+    return [t for t, outs in recorded_states.items() if not any(close(replayed[t], o) for o in outs)]
 
 
 @pytest.fixture(scope="module", params=sorted(GOLDENS))
@@ -79,31 +109,17 @@ def test_golden_is_small_and_complete(golden) -> None:
     assert all(len(v) > 50 for v in rec.values()), {k: len(v) for k, v in rec.items()}
 
 
-def test_estimator_reproduces_every_recorded_state_exactly(golden) -> None:
+def test_estimator_reproduces_every_recorded_state(golden) -> None:
     _, scenario, rec = golden
-    inputs = [(msg.stamp_ns, RANK[k], i, k, msg) for k in RANK for i, (_, msg) in enumerate(rec[k])]
-    cfg = with_run(load_estimator_config(None),
-                   runs.describe(scenario=load_scenario(scenario), scenario_ref=scenario, vessel="vessel1",
-                                 run_id="golden"))
-    cap = Capture()
-    loop = EstimatorLoop(EstimatorCore(cfg), cap)
-    recorded_states = {}
-    for data, msg in rec["nav/state"]:
-        recorded_states.setdefault(msg.stamp_ns, set()).add(data)
-    replayed: dict[int, bytes] = {}
-    for _stamp, _rank, _i, kind, msg in sorted(inputs, key=lambda e: e[:3]):
-        if kind == "sim/clock":
-            n = len(cap.states)
-            loop.on_tick(msg)
-            for out in cap.states[n:]:
-                replayed[StateEstimate.decode(out).stamp_ns] = out
-        else:
-            loop.queue({"sensors/gnss": "gnss", "sensors/attitude": "attitude",
-                        "ctrl/thrust": "thrust"}[kind], msg)
-    assert set(recorded_states) <= set(replayed), "a recorded state has no replayed counterpart"
-    mismatched = [t for t, outs in recorded_states.items() if replayed[t] not in outs]
-    assert not mismatched, (f"{len(mismatched)} of {len(recorded_states)} states differ, "
+    mismatched = mismatched_states(rec, replay_estimator(scenario, rec))
+    assert not mismatched, (f"{len(mismatched)} of {len(rec[keys.NAV_STATE.suffix])} states differ, "
                             f"first at {min(mismatched)} ns")
+
+
+def test_the_state_tolerance_still_catches_one_missing_gnss_fix(golden) -> None:
+    _, scenario, rec = golden
+    middle = len(rec[keys.GNSS.suffix]) // 2
+    assert mismatched_states(rec, replay_estimator(scenario, rec, skip_gnss=middle))
 
 
 def test_controller_reproduces_every_recorded_command(golden) -> None:
@@ -112,7 +128,7 @@ def test_controller_reproduces_every_recorded_command(golden) -> None:
     # Pinned: the generated solver, and no wall-clock lateness (as the lockstep service runs).
     core = ControllerCore(load_vessel(sc.vessel), ControllerConfig(solver="generated", solve_budget_s=None))
     o = sc.origin
-    core.set_origin(GeoOrigin(math.radians(o.lat_deg), math.radians(o.lon_deg), o.alt_m))
+    core.set_origin(GeoOrigin.from_degrees(o.lat_deg, o.lon_deg, o.alt_m))
     assert core.handle_mission(0, sc.mission.to_request(0, mission_id=sc.name)).accepted
     commands = {}
     for _data, cmd in rec["ctrl/thrust"]:
