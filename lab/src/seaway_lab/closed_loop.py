@@ -33,6 +33,7 @@ from typing import Protocol
 from seaway.contract import keys
 from seaway.contract.messages import GnssFix, Message, SimTruth, StateEstimate, ThrustCommand
 from seaway.contract.units import NS_PER_S, s_to_ns
+from seaway.runtime.run import CONTROL_PERIOD_S
 from seaway.simkit.scenario import Scenario, SensorNoise, load_scenario
 from seaway.vessel.frames import GeoOrigin, wrap_pi
 from seaway.vessel.guidance import LosGains, los_thrust
@@ -48,8 +49,8 @@ DEFAULT_MAX_TIME_S = 900.0
 ESTIMATOR_TICK_NS = 50_000_000
 """The estimator benchmark's tick: every sensor instant of ``REALISTIC_NOISE`` falls on it, and the
 estimator publishes at 20 Hz."""
-CONTROL_PERIOD_NS = 100_000_000
-"""10 Hz, the controller's rate: the line-of-sight steering's period too."""
+CONTROL_PERIOD_NS = s_to_ns(CONTROL_PERIOD_S)
+"""The run's default control period (``seaway.runtime.run``): the line-of-sight steering's too."""
 
 # Realistic sensors (issue 5): GNSS 0.3 m at 5 Hz, heading 1 deg and a MEMS gyro at 20 Hz, and a
 # GNSS velocity over ground of 0.05 m/s (a typical receiver's Doppler speed accuracy).
@@ -318,7 +319,8 @@ def run_closed_loop(scenario: str | Scenario, controller: ControllerKind,
         raise ValueError(f"scenario {sc.name!r} has no mission section")
     vp = vessel or load_vessel(sc.vessel)
     core = core or ControllerCore(vp, config or ControllerConfig())
-    sim = SimCore(sc, vp)
+    # The plant is the scenario's (it may differ from the model: a robustness run), as in the sim.
+    sim = SimCore(sc, vp if vessel is not None else load_vessel(sc.plant_vessel_file))
     core.set_origin(sim.origin)
     reply = core.handle_mission(0, sc.mission.to_request(0, mission_id=sc.name, controller=controller))
     if not reply.accepted:
@@ -356,7 +358,7 @@ def run_estimator_loop(scenario: Scenario, core: EstimatorCore, duration_s: floa
     """
     sc = scenario if noise is None else scenario.model_copy(update={"sensors": noise})
     vp = load_vessel(sc.vessel)
-    sim = SimCore(sc, vp)
+    sim = SimCore(sc, load_vessel(sc.plant_vessel_file))
     if sc.mission is not None:
         spec = sc.mission
         wps: Sequence[Point] = validate_mission(spec.to_request(0, sc.name), sim.origin).waypoints_m

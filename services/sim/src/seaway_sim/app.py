@@ -28,7 +28,7 @@ log = logging.getLogger("seaway_sim")
 def load_world(name_or_path: str) -> tuple[Scenario, VesselParams]:
     """A scenario by name (deploy/scenarios) or path, and its plant's vessel file. ConfigError."""
     scenario = load_scenario(name_or_path)
-    return scenario, load_vessel(scenario.plant_vessel or scenario.vessel)
+    return scenario, load_vessel(scenario.plant_vessel_file)
 
 
 def scenario_base() -> Path:
@@ -66,7 +66,7 @@ class SimApp:
                 scenario, vessel = self.core.scenario, self.core.vessel
             else:
                 scenario = parse_scenario(request.scenario, "scenario request", scenario_base())
-                vessel = load_vessel(scenario.plant_vessel or scenario.vessel)
+                vessel = load_vessel(scenario.plant_vessel_file)
                 self._check_model(scenario)
         except ConfigError as err:
             log.warning("scenario request refused: %s", err)

@@ -130,7 +130,7 @@ def describe(*, vessel: str, run_id: str, clock: ClockMode = "wall", scenario: A
     fields: dict[str, Any] = {"run_id": run_id, "vessel": vessel, "clock": clock}
     if scenario is not None:
         fields.update(model_vessel_file=scenario.vessel,
-                      plant_vessel_file=scenario.plant_vessel or scenario.vessel,
+                      plant_vessel_file=scenario.plant_vessel_file,
                       dead_zone=scenario.dead_zone, scenario=scenario_ref or scenario.name)
         if origin_from_scenario:
             fields["origin"] = scenario.origin

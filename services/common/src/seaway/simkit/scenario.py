@@ -147,6 +147,11 @@ class Scenario(ConfigModel):
     thruster_lag: bool = Field(default=False, description="apply the vessel file's thruster lag")
     mission: MissionSpec | None = None
 
+    @property
+    def plant_vessel_file(self) -> str:
+        """The vessel file the simulator integrates: ``plant_vessel``, else the model's ``vessel``."""
+        return self.plant_vessel or self.vessel
+
 
 def _resolve_grid_files(doc: dict, base: Path) -> dict:
     """``{kind = "world_grid", file = "x.json"}`` -> the grid inline (xs, ys, tx, ty as in shared/)."""
