@@ -65,7 +65,8 @@ class ControllerConfig:
     solve_budget_s: float | None = 0.1
     """A solve slower than this is late and not applied (None: never late, for replayable runs)."""
     predict_disturbance: bool = False
-    """Predict with the estimate's tau_d (beyond the paper, which predicts with tau_d = 0)."""
+    """Make every mission predict with the estimate's tau_d (beyond the paper, which predicts with
+    tau_d = 0), whatever its request says; False leaves it to each mission's ``predict_disturbance``."""
     los: LosGains = field(default_factory=LosGains)
     limits: MissionLimits = field(default_factory=MissionLimits)
     nmpc: costs.NmpcWeights = field(default_factory=costs.NmpcWeights)
@@ -135,12 +136,21 @@ class ControllerCore:
         self.energy_used_j = 0.0
         self._energy_to_go_j = None
         self.mission_request = req
-        log.info("mission %r accepted: %d waypoints, r_COA %.2f m, T^w %.2f W, %s",
+        log.info("mission %r accepted: %d waypoints, r_COA %.2f m, T^w %.2f W, %s, %s",
                  mission.mission_id, len(mission.waypoints_m), mission.coa_radius_m,
-                 mission.task_power_w, mission.controller)
+                 mission.task_power_w, mission.controller,
+                 "predicting the estimated tau_d" if self.predict_disturbance else "tau_d = 0")
         return Reply.accept(now_ns, "mission started", mission_id=mission.mission_id,
                             waypoints_m=[list(p) for p in mission.waypoints_m],
-                            controller=mission.controller)
+                            controller=mission.controller,
+                            predict_disturbance=self.predict_disturbance)
+
+    @property
+    def predict_disturbance(self) -> bool:
+        """Whether the current mission predicts with the estimate's tau_d: its request asks for it
+        (``MissionRequest.predict_disturbance``), or the process flag makes every mission do so."""
+        req = self.mission_request
+        return self.config.predict_disturbance or (req is not None and req.predict_disturbance)
 
     def progress(self) -> tuple[MissionRequest, int, str, float] | None:
         """(request, active leg, state, energy used [J]) of the current mission, or None."""
@@ -192,7 +202,7 @@ class ControllerCore:
         wp_prev, wp_act = mm.leg()
         ctrl = self.controller(mission.controller)
         tau_d = ((state.tau_d_surge_n, state.tau_d_sway_n, state.tau_d_yaw_nm)
-                 if self.config.predict_disturbance else (0.0, 0.0, 0.0))
+                 if self.predict_disturbance else (0.0, 0.0, 0.0))
         plan_age = ctrl.plan_age(now_ns)
         reusable = ctrl.last_good if plan_age is not None else None
         out = ctrl.solve(now_ns, x0, wp_prev, wp_act, mission.coa_radius_m, mission.task_power_w,

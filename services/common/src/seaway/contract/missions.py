@@ -22,6 +22,8 @@ class MissionSpec(ConfigModel):
     coa_radius_m: float = Field(gt=0)
     task_power_w: float = Field(ge=0)
     controller: ControllerName = DEFAULT_CONTROLLER
+    predict_disturbance: bool = Field(default=False, description="predict with the estimator's tau_d "
+                                      "instead of tau_d = 0 (the paper's)")
 
     @model_validator(mode="after")
     def _one_kind_of_waypoints(self) -> MissionSpec:
@@ -30,17 +32,24 @@ class MissionSpec(ConfigModel):
         return self
 
     def to_request(self, stamp_ns: int, mission_id: str = "",
-                   controller: ControllerName | None = None) -> MissionRequest:
+                   controller: ControllerName | None = None, *,
+                   predict_disturbance: bool | None = None,
+                   task_power_w: float | None = None) -> MissionRequest:
         """The bus request for this mission (the controller validates it again).
 
-        ``mission_id`` names it when the mission has no id of its own; ``controller`` flies it with
-        another controller than the mission's.
+        ``mission_id`` names it when the mission has no id of its own. The others, when not None,
+        replace the mission's own value: ``controller`` flies it with another controller,
+        ``predict_disturbance`` switches the disturbance prediction on or off, ``task_power_w``
+        carries another task power T^w (MessageError if negative or not finite).
         """
         if self.waypoints_m is not None:
             wps = [Waypoint(x_m=x, y_m=y) for x, y in self.waypoints_m]
         else:
             wps = [Waypoint(lat_deg=a, lon_deg=b) for a, b in self.waypoints_deg or []]
-        return MissionRequest.make(stamp_ns=stamp_ns, mission_id=self.mission_id or mission_id,
-                                   waypoints=wps, coa_radius_m=self.coa_radius_m,
-                                   task_power_w=self.task_power_w,
-                                   controller=controller or self.controller)
+        return MissionRequest.make(
+            stamp_ns=stamp_ns, mission_id=self.mission_id or mission_id, waypoints=wps,
+            coa_radius_m=self.coa_radius_m,
+            task_power_w=self.task_power_w if task_power_w is None else task_power_w,
+            controller=controller or self.controller,
+            predict_disturbance=(self.predict_disturbance if predict_disturbance is None
+                                 else predict_disturbance))

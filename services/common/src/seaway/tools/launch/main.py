@@ -3,6 +3,14 @@
     seaway launch sim                      # the default: the simulated vessel and every service
     seaway launch sim --scenario paper-c1  # another scenario
     seaway launch boat --vessel boat1      # on the boat's computer
+    seaway launch sim-batch --controller nmpc --predict-disturbance --task-power-w 2
+
+The mission options (--controller, --predict-disturbance, --task-power-w) change the scenario's
+mission that the launcher sends; with no mission to send they are refused. The run folder is
+``--run-dir``, else ``runs/<time>-<profile>``, and when a mission is sent
+``runs/<time>-<profile>-<scenario>-<controller>[-tauD]`` (``-tauD``: the mission predicts with the
+estimated disturbance), with ``-2``, ``-3``, ... added if that folder exists already. The mission sent
+is written to ``mission.json`` in the run folder, and the final report takes it from there.
 
 Exit code: 0 after a clean stop (Ctrl-C, SIGTERM, or the mission completed with
 ``stop_when_complete``); 1 when a required process failed or could not start; 2 for a bad profile.
@@ -11,7 +19,9 @@ Exit code: 0 after a clean stop (Ctrl-C, SIGTERM, or the mission completed with
 from __future__ import annotations
 
 import argparse
+import math
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -21,7 +31,15 @@ from pathlib import Path
 
 from seaway.contract import keys
 from seaway.contract.config import ConfigError, deploy_path, repo_root
-from seaway.contract.messages import ArmRequest, MissionRequest, MissionStatus, ModeRequest, StateEstimate
+from seaway.contract.messages import (
+    CONTROLLER_NAMES,
+    ArmRequest,
+    MessageError,
+    MissionRequest,
+    MissionStatus,
+    ModeRequest,
+    StateEstimate,
+)
 from seaway.runtime import run as runs
 from seaway.runtime.bus import Bus
 from seaway.runtime.service import DEFAULT_VESSEL, ENV_VESSEL, install_stop_signals
@@ -37,8 +55,17 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("profile", help="profile name (deploy/profiles/<name>.toml) or path")
     ap.add_argument("--vessel", default=os.environ.get(ENV_VESSEL, DEFAULT_VESSEL))
     ap.add_argument("--scenario", default=None, help="scenario name or path (profile's default)")
-    ap.add_argument("--run-dir", type=Path, default=None, help="default runs/<time>-<profile>")
+    ap.add_argument("--run-dir", type=Path, default=None,
+                    help="default runs/<time>-<profile>, or runs/<time>-<profile>-<scenario>-"
+                         "<controller>[-tauD] when a mission is sent")
     ap.add_argument("--no-mission", action="store_true", help="do not send the scenario's mission")
+    ap.add_argument("--controller", choices=CONTROLLER_NAMES, default=None,
+                    help="fly the mission with this controller (default: the mission's)")
+    ap.add_argument("--predict-disturbance", action=argparse.BooleanOptionalAction, default=None,
+                    help="the mission predicts with the estimator's tau_d instead of tau_d = 0 "
+                         "(the paper's); default: the mission's")
+    ap.add_argument("--task-power-w", type=_task_power, default=None, metavar="W",
+                    help="the mission's task power T^w [W], finite and >= 0 (default: the mission's)")
     ap.add_argument("--stay", action="store_true", help="keep running after the mission completes")
     ap.add_argument("--verbose", action="store_true", help="show every process's output")
     ap.add_argument("--recording", type=Path, default=None, help="recording for the replay profile")
@@ -46,6 +73,20 @@ def parser() -> argparse.ArgumentParser:
                     help=f"the run's control period [s] (default {runs.CONTROL_PERIOD_S})")
     ap.add_argument("--check", action="store_true", help="validate the profile and exit")
     return ap
+
+
+def _task_power(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of watts") from None
+    if not math.isfinite(value) or value < 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: the task power must be finite and >= 0 W")
+    return value
+
+
+MISSION_OPTIONS = ("controller", "predict_disturbance", "task_power_w")
+"""The launch options that change the mission sent (refused when no mission is sent)."""
 
 
 def profile_path(name_or_path: str) -> Path:
@@ -70,18 +111,51 @@ def resolve_run(args: argparse.Namespace, profile: Profile, scenario: str,
                          control_period_s=args.control_period_s, where="launch")
 
 
-def _run_dir(args: argparse.Namespace) -> Path:
+def run_dir_name(profile: str, scenario: str, mission: MissionRequest | None,
+                 stamp: str | None = None) -> str:
+    """``<time>-<profile>``, and ``-<scenario>-<controller>[-tauD]`` after it when a mission is sent
+    (``-tauD``: the mission predicts with the estimated disturbance)."""
+    parts = [stamp or time.strftime("%Y%m%d-%H%M%S"), Path(profile).stem]
+    if mission is not None:
+        parts += [Path(scenario).stem[:40] or "mission", mission.controller]
+        if mission.predict_disturbance:
+            parts.append("tauD")
+    return re.sub(r"[^A-Za-z0-9._-]", "_", "-".join(parts))
+
+
+def _run_dir(args: argparse.Namespace, scenario: str = "", mission: MissionRequest | None = None,
+             stamp: str | None = None) -> Path:
+    """``--run-dir``, else a new folder under ``runs/`` named by ``run_dir_name`` (made unique)."""
     if args.run_dir is not None:
         return args.run_dir
     base = (repo_root() or Path.cwd()) / "runs"
-    return base / f"{time.strftime('%Y%m%d-%H%M%S')}-{Path(args.profile).stem}"
+    name = run_dir_name(args.profile, scenario, mission, stamp)
+    path, n = base / name, 1
+    while path.exists():
+        n += 1
+        path = base / f"{name}-{n}"
+    return path
 
 
-def _mission_request(scenario_name: str) -> MissionRequest | None:
+def _mission_request(scenario_name: str, args: argparse.Namespace | None = None
+                     ) -> MissionRequest | None:
+    """The scenario's mission as the launcher sends it, with the launch's mission options applied;
+    None if the scenario has none. ConfigError if the options make it invalid."""
     sc = load_scenario(scenario_name)
     if sc.mission is None:
         return None
-    return sc.mission.to_request(time.time_ns(), mission_id=sc.name)
+    try:
+        return sc.mission.to_request(time.time_ns(), mission_id=sc.name,
+                                     controller=getattr(args, "controller", None),
+                                     predict_disturbance=getattr(args, "predict_disturbance", None),
+                                     task_power_w=getattr(args, "task_power_w", None))
+    except MessageError as err:
+        raise ConfigError(f"scenario {sc.name}: mission: {err}") from None
+
+
+def _mission_options(args: argparse.Namespace) -> list[str]:
+    """The mission options given on the command line, spelled as flags."""
+    return [f"--{o.replace('_', '-')}" for o in MISSION_OPTIONS if getattr(args, o) is not None]
 
 
 class StatusLine:
@@ -167,7 +241,22 @@ def main(argv: list[str]) -> int:
         print(f"seaway launch: {err}", file=sys.stderr)
         return 2
     scenario = args.scenario or profile.scenario or ""
-    run_dir = _run_dir(args)
+    try:
+        mission = (_mission_request(scenario, args) if profile.mission_on_start and scenario
+                   and not args.no_mission else None)
+    except ConfigError as err:
+        print(f"seaway launch: {err}", file=sys.stderr)
+        return 2
+    given = _mission_options(args)
+    if mission is None and given:
+        why = ("--no-mission was given" if args.no_mission
+               else f"profile {profile.name} sends no mission" if not profile.mission_on_start
+               else "the profile names no scenario and --scenario was not given" if not scenario
+               else f"scenario {scenario} has no [mission]")
+        print(f"seaway launch: {', '.join(given)}: option(s) of the mission sent, but this launch "
+              f"sends no mission ({why})", file=sys.stderr)
+        return 2
+    run_dir = _run_dir(args, scenario, mission)
     try:
         run = resolve_run(args, profile, scenario, run_dir.name)
     except (ConfigError, ValueError) as err:
@@ -179,13 +268,13 @@ def main(argv: list[str]) -> int:
               "recording": str(args.recording or "")}
     try:
         procs = [Supervised(p, substitute(p.command, values)) for p in profile.processes]
-        mission = (_mission_request(scenario) if profile.mission_on_start and scenario
-                   and not args.no_mission else None)
     except ConfigError as err:
         print(f"seaway launch: {err}", file=sys.stderr)
         return 2
     if args.check:
-        print(f"profile {profile.name}: {len(procs)} processes, valid")
+        print(f"profile {profile.name}: {len(procs)} processes, valid"
+              + (f"; mission {mission.mission_id} ({_describe_mission(mission)})"
+                 if mission is not None else ""))
         return 0
 
     env = dict(os.environ)
@@ -196,6 +285,10 @@ def main(argv: list[str]) -> int:
         env[ENV_CONFIG] = str(deploy_path("zenoh", profile.zenoh_config))
     run_dir.mkdir(parents=True, exist_ok=True)
     run.write(run_file)
+    mission_file = None
+    if mission is not None:
+        mission_file = run_dir / "mission.json"
+        mission_file.write_text(mission.model_dump_json(indent=2) + "\n")
     sup = Supervisor(procs, run_dir, env, profile.backoff, default_echo, args.verbose)
     stop = threading.Event()
     install_stop_signals(stop)
@@ -226,7 +319,8 @@ def main(argv: list[str]) -> int:
         if mission is not None:
             reply = bus.request(keys.MISSION_SET, mission, timeout_s=10.0)
             print(f"mission {mission.mission_id}: "
-                  f"{'accepted' if reply.accepted else 'REFUSED: ' + reply.reason}", flush=True)
+                  f"{'accepted' if reply.accepted else 'REFUSED: ' + reply.reason} "
+                  f"({_describe_mission(mission)})", flush=True)
         t_run = time.monotonic()
         while not stop.wait(0.2):
             sup.poll()
@@ -257,12 +351,22 @@ def main(argv: list[str]) -> int:
         bus.close()
         print(sup.status_table())
         print(f"stopped in {time.monotonic() - t_stop:.1f} s; logs in {run_dir / 'logs'}")
-        _final_report(run_dir, scenario)
+        _final_report(run_dir, scenario, mission_file)
     return code
 
 
-def _final_report(run_dir: Path, scenario: str) -> None:
-    """The run's metrics (from its recording, by ``seaway report``) and where the recording is."""
+def _describe_mission(mission: MissionRequest) -> str:
+    """What the mission options chose, e.g. ``nmpc, predicting the estimated tau_d, T^w 1 W``."""
+    return (f"{mission.controller}, "
+            + ("predicting the estimated tau_d" if mission.predict_disturbance else "tau_d = 0")
+            + f", T^w {mission.task_power_w:g} W")
+
+
+def _final_report(run_dir: Path, scenario: str, mission_file: Path | None = None) -> None:
+    """The run's metrics (from its recording, by ``seaway report``) and where the recording is.
+
+    The report takes the mission from ``mission_file`` (what the launcher sent, options applied)
+    when there is one, else from the scenario."""
     recordings = sorted(run_dir.glob("*.mcap"))
     if not recordings:
         return
@@ -271,6 +375,8 @@ def _final_report(run_dir: Path, scenario: str) -> None:
     cmd = [seaway, "report", str(run_dir), "--out", str(run_dir / "report")]
     if scenario:
         cmd += ["--scenario", scenario]
+    if mission_file is not None:
+        cmd += ["--mission", str(mission_file)]
     try:
         subprocess.run(cmd, timeout=120, check=False)
     except (OSError, subprocess.TimeoutExpired) as err:

@@ -1,0 +1,118 @@
+"""``seaway launch``'s mission options (--controller, --predict-disturbance, --task-power-w) and the
+default run folder's name. Nothing here starts a process: the refusals come before any start."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import pytest
+from seaway.contract.config import deploy_path
+from seaway.contract.messages import MissionRequest, Waypoint
+from seaway.tools.launch import main as launch
+
+STAMP = "20260102-030405"
+
+
+def parse(*argv: str):
+    return launch.parser().parse_args(["sim-batch", *argv])
+
+
+def test_mission_options_parse() -> None:
+    args = parse()
+    assert (args.controller, args.predict_disturbance, args.task_power_w) == (None, None, None)
+    args = parse("--controller", "nmpc", "--predict-disturbance", "--task-power-w", "2.5")
+    assert (args.controller, args.predict_disturbance, args.task_power_w) == ("nmpc", True, 2.5)
+    assert parse("--no-predict-disturbance").predict_disturbance is False
+    assert parse("--task-power-w", "0").task_power_w == 0.0
+
+
+@pytest.mark.parametrize(("argv", "problem"), [
+    (["--controller", "pid"], "argument --controller: invalid choice: 'pid'"),
+    (["--task-power-w", "-1"], "--task-power-w: '-1': the task power must be finite and >= 0 W"),
+    (["--task-power-w=-0.5"], "--task-power-w: '-0.5': the task power must be finite and >= 0 W"),
+    (["--task-power-w", "nan"], "'nan': the task power must be finite"),
+    (["--task-power-w", "inf"], "'inf': the task power must be finite"),
+    (["--task-power-w", "two"], "'two' is not a number of watts"),
+])
+def test_bad_options_exit_2_naming_the_problem(argv, problem, capsys) -> None:
+    with pytest.raises(SystemExit) as exc:
+        parse(*argv)
+    assert exc.value.code == 2
+    assert problem in capsys.readouterr().err
+
+
+def test_the_options_change_the_mission_sent() -> None:
+    plain = launch._mission_request("paper-c1", parse())
+    assert (plain.mission_id, plain.controller, plain.predict_disturbance, plain.task_power_w) == (
+        "paper-c1", "cc-empc", False, 0.49)
+    req = launch._mission_request("paper-c1", parse("--controller", "eo-empc", "--predict-disturbance",
+                                                    "--task-power-w", "0"))
+    assert (req.controller, req.predict_disturbance, req.task_power_w) == ("eo-empc", True, 0.0)
+    assert req.waypoints == plain.waypoints and req.coa_radius_m == plain.coa_radius_m
+
+
+def _no_mission_scenario(tmp_path: Path) -> Path:
+    text = deploy_path("scenarios", "paper-c1.toml").read_text()
+    p = tmp_path / "quiet.toml"
+    p.write_text(text[:text.index("[mission]")])
+    return p
+
+
+@pytest.mark.parametrize(("argv", "flags", "why"), [
+    (["sim-batch", "--no-mission", "--controller", "nmpc"], "--controller", "(--no-mission was given)"),
+    (["boat", "--predict-disturbance"], "--predict-disturbance", "(profile boat sends no mission)"),
+    (["sim-batch", "--scenario", "{quiet}", "--task-power-w", "1", "--no-predict-disturbance"],
+     "--predict-disturbance, --task-power-w", "quiet.toml has no [mission])"),
+])
+def test_mission_options_without_a_mission_exit_2(argv, flags, why, tmp_path, capsys) -> None:
+    argv = [a.format(quiet=_no_mission_scenario(tmp_path)) for a in argv]
+    run_dir = tmp_path / "run"
+    assert launch.main([*argv, "--run-dir", str(run_dir)]) == 2
+    err = capsys.readouterr().err
+    assert f"seaway launch: {flags}: option(s) of the mission sent, but this launch sends no mission" in err
+    assert why in err
+    assert not run_dir.exists()
+
+
+def test_check_shows_the_mission_that_would_be_sent(tmp_path, capsys) -> None:
+    argv = ["sim-batch", "--controller", "nmpc", "--predict-disturbance", "--task-power-w", "2",
+            "--run-dir", str(tmp_path / "run"), "--check"]
+    assert launch.main(argv) == 0
+    out = capsys.readouterr().out
+    assert "mission paper-c1 (nmpc, predicting the estimated tau_d, T^w 2 W)" in out
+    assert launch.main(["sim-batch", "--no-mission", "--check", "--run-dir", str(tmp_path)]) == 0
+    assert "mission" not in capsys.readouterr().out
+
+
+def _req(controller: str, predict: bool) -> MissionRequest:
+    return MissionRequest.make(stamp_ns=0, waypoints=[Waypoint(x_m=0, y_m=0), Waypoint(x_m=1, y_m=0)],
+                               coa_radius_m=1.0, task_power_w=0.0, controller=controller,
+                               predict_disturbance=predict)
+
+
+def test_run_folder_names() -> None:
+    name = launch.run_dir_name
+    assert name("sim", "lake", None, STAMP) == f"{STAMP}-sim"  # no mission sent: as before
+    assert name("sim-batch", "paper-c1", _req("nmpc", False), STAMP) == f"{STAMP}-sim-batch-paper-c1-nmpc"
+    assert name("sim-batch", "paper-c4", _req("cc-empc", True), STAMP) == (
+        f"{STAMP}-sim-batch-paper-c4-cc-empc-tauD")
+    # Profiles and scenarios given as paths are named by their file; odd characters are replaced.
+    assert name("/x/deploy/my.toml", "/tmp/a b/storm #2.toml", _req("eo-empc", False), STAMP) == (
+        f"{STAMP}-my-storm__2-eo-empc")
+    assert time.strftime("%Y%m%d-") in name("sim", "", None)
+
+
+def test_the_default_run_folder_is_new_and_says_what_was_flown(tmp_path, monkeypatch) -> None:
+    monkeypatch.setattr(launch, "repo_root", lambda: tmp_path)
+    args = parse("--controller", "nmpc", "--predict-disturbance")
+    req = launch._mission_request("paper-c1", args)
+    first = launch._run_dir(args, "paper-c1", req, STAMP)
+    assert first == tmp_path / "runs" / f"{STAMP}-sim-batch-paper-c1-nmpc-tauD"
+    first.mkdir(parents=True)
+    second = launch._run_dir(args, "paper-c1", req, STAMP)  # same second: a new folder all the same
+    assert second == tmp_path / "runs" / f"{STAMP}-sim-batch-paper-c1-nmpc-tauD-2"
+    second.mkdir()
+    assert launch._run_dir(args, "paper-c1", req, STAMP).name.endswith("-tauD-3")
+    given = parse("--run-dir", str(first))
+    assert launch._run_dir(given, "paper-c1", req) == first  # --run-dir is taken as given
