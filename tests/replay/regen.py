@@ -24,7 +24,7 @@ from seaway.runtime.bus import Bus
 DATA = Path(__file__).with_name("data")
 VESSEL = "replay1"
 RECORDED = ("sensors/gnss", "sensors/attitude", "sim/clock", "nav/state", "nav/origin", "ctrl/thrust",
-            "sim/truth")
+            "sim/truth", "lockstep/sim")
 GOLDENS = {"lake-30s": ("lake", 30.0)}  # name: (scenario, simulated seconds)
 
 
@@ -45,8 +45,8 @@ def record(name: str, scenario: str, seconds: float) -> Path:
     key_args = [a for k in RECORDED for a in ("--key-expr", f"seaway/{VESSEL}/{k}")]
     cmds = [
         [bin_ / "seaway-recorder", *common, "--out", str(out), "--scenario", scenario, *key_args,
-         "--no-foxglove"],
-        [bin_ / "seaway-sim", *common, "--scenario", scenario, "--lockstep", "--lockstep-timeout", "1"],
+         "--no-foxglove", "--lockstep"],
+        [bin_ / "seaway-sim", *common, "--scenario", scenario, "--lockstep"],
         [bin_ / "seaway-estimator", *common, "--scenario", scenario, "--lockstep"],
         [bin_ / "seaway-controller", *common, "--scenario", scenario, "--lockstep"],
     ]

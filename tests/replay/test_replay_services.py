@@ -1,14 +1,15 @@
 """Replay regression: each service's core, fed a recording's inputs in order, reproduces its outputs.
 
 The goldens in ``data/`` are recordings of the real lockstep stack (``regen.py``; only ``--regen``
-rewrites them). The inputs are ordered as the lockstep protocol defines them (services/sim/README.md):
-for each tick t_k, the sensor samples stamped <= t_k, then the tick, then the command computed from
-the state t_k. With that order:
+rewrites them). The order comes from the recording itself: the sim's lockstep answers
+(``seaway.runtime.lockstep``) say, period by period, which samples and which command belong to it.
+With that order:
 
-* the estimator (its service glue ``EstimatorLoop`` and its core, on the in-memory bus) reproduces
-  every recorded ``nav/state``, integers and flags exactly and every float to 1e-9 relative: another
-  CPU's libm and BLAS differ in the last bit (4.4e-16 seen), while a real change does not hide
-  under that (dropping one GNSS fix moves the estimate by orders of magnitude more: tested);
+* the estimator (its service glue ``EstimatorLoop`` answering each period, and its core, on the
+  in-memory bus) reproduces every recorded ``nav/state``, integers and flags exactly and every float
+  to 1e-9 relative: another CPU's libm and BLAS differ in the last bit (4.4e-16 seen), while a real
+  change does not hide under that (dropping one GNSS fix moves the estimate by orders of magnitude
+  more: tested);
 * the controller core (generated solver, its pinned options) reproduces every recorded ``ctrl/thrust``
   to 1e-6 N: the same compiled solver on the same inputs, so in practice exactly, with room for
   a different CPU's floating-point code paths.
@@ -21,8 +22,9 @@ from pathlib import Path
 
 import pytest
 from seaway.contract import keys
-from seaway.contract.messages import Attitude, ClockTick, GnssFix, StateEstimate, ThrustCommand
+from seaway.contract.messages import Attitude, GnssFix, PeriodDone, StateEstimate, ThrustCommand
 from seaway.runtime import run as runs
+from seaway.runtime.lockstep import Member, Period
 from seaway.runtime.memory_bus import MemoryHub
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.frames import GeoOrigin
@@ -38,10 +40,8 @@ from tests.replay.regen import GOLDENS
 DATA = Path(__file__).with_name("data")
 VESSEL = "vessel1"
 THRUST_TOLERANCE_N = 1e-6
-TYPES = {"sensors/gnss": GnssFix, "sensors/attitude": Attitude, "sim/clock": ClockTick,
+TYPES = {"sensors/gnss": GnssFix, "sensors/attitude": Attitude, "lockstep/sim": PeriodDone,
          "nav/state": StateEstimate, "ctrl/thrust": ThrustCommand}
-# Within one stamp: samples, then the tick, then the command answering the state of that tick.
-RANK = {"sensors/gnss": 0, "sensors/attitude": 0, "sim/clock": 1, "ctrl/thrust": 2}
 
 
 def recorded(name: str) -> dict[str, list[tuple[bytes, object]]]:
@@ -69,20 +69,32 @@ def close(a: object, b: object) -> bool:
 
 
 def replay_estimator(scenario: str, rec: dict, skip_gnss: int | None = None) -> dict[int, dict]:
-    """Every state the estimator publishes when fed ``rec``'s inputs (without GNSS fix ``skip_gnss``)."""
+    """Every state the estimator publishes when fed ``rec``'s inputs (without GNSS fix ``skip_gnss``).
+
+    Period by period as the recorded sim answered them (a repeated answer once): the samples and
+    the command it lists are queued, then the estimator's loop answers the period."""
     cfg = with_run(load_estimator_config(None),
                    runs.describe(scenario=load_scenario(scenario), scenario_ref=scenario, vessel=VESSEL,
                                  run_id="golden"))
     hub = MemoryHub()
     states = hub.bus(VESSEL).subscribe(keys.NAV_STATE, mode="fifo", capacity=1_000_000)
     loop = EstimatorLoop(EstimatorCore(cfg), hub.bus(VESSEL))
-    inputs = [(msg.stamp_ns, RANK[k], i, k, msg) for k in RANK for i, (_, msg) in enumerate(rec[k])
-              if not (k == keys.GNSS.suffix and i == skip_gnss)]
-    for _stamp, _rank, _i, kind, msg in sorted(inputs, key=lambda e: e[:3]):
-        if kind == keys.SIM_CLOCK.suffix:
-            loop.on_tick(msg)
-        else:
-            loop.queue(KIND_OF[kind], msg)
+    member = Member(hub.bus(VESSEL), "estimator", watched=(), subscribe=False)
+    by_stamp = {(k, msg.stamp_ns): msg for k in KIND_OF for i, (_, msg) in enumerate(rec[k])
+                if not (k == keys.GNSS.suffix and i == skip_gnss)}
+    last: Period | None = None
+    for _data, tick in rec[keys.LOCKSTEP_SIM.suffix]:
+        period = Period.of(tick)
+        if period == last:
+            continue
+        last = period
+        for listing in (tick.published, tick.consumed):
+            for suffix, stamps in listing.items():
+                for stamp in stamps if suffix in KIND_OF else ():
+                    msg = by_stamp.get((suffix, stamp))
+                    if msg is not None:
+                        loop.queue(KIND_OF[suffix], msg)
+        loop.on_period(member, period, tick.period_ns)
     return {s.stamp_ns: s.model_dump() for s in states.drain()}
 
 

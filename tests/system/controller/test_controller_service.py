@@ -11,8 +11,9 @@ import time
 
 import pytest
 from seaway.contract import keys
-from seaway.contract.messages import MissionCommand, MissionRequest, StateEstimate, Waypoint
+from seaway.contract.messages import MissionCommand, MissionRequest, PeriodDone, StateEstimate, Waypoint
 from seaway.runtime.bus import Bus
+from seaway.runtime.lockstep import Member, Period
 from seaway.simkit.plant import Plant
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.model import load_vessel
@@ -39,13 +40,25 @@ def test_lockstep_commands_missions_and_shutdown(zenoh_env, procs):
         thrust = bus.subscribe(keys.THRUST, mode="fifo")
         solve = bus.subscribe(keys.SOLVE, mode="fifo")
         status = bus.subscribe(keys.MISSION_STATUS, mode="fifo")
-        nav = bus.publisher(keys.NAV_STATE)
+        answers = bus.subscribe(keys.LOCKSTEP_CONTROLLER, mode="fifo")
+        # This test is the sim and the estimator of the lockstep protocol (seaway.runtime.lockstep).
+        sim, est = Member(bus, "sim", watched=()), Member(bus, "estimator", watched=())
         time.sleep(0.5)  # let the peers match publishers and subscribers
+
+        def period(k: int, x) -> PeriodDone:
+            p = Period(0, k * DT_NS)
+            sim.answer(p, DT_NS)
+            est.answer(p, DT_NS, [(keys.NAV_STATE, state_msg(k * DT_NS, x))])
+            ans = answers.get(timeout_s=5.0)
+            assert ans is not None, f"no answer for state {k}\n{procs.log(proc)}"
+            assert ans.stamp_ns == k * DT_NS
+            return ans
 
         sc = load_scenario("paper-c1")
         plant = Plant(sc, load_vessel(sc.vessel))
         for k in range(30):
-            nav.put(state_msg(k * DT_NS, plant.state.x))
+            ans = period(k, plant.state.x)
+            assert not ans.hold and ans.published[keys.THRUST.suffix] == [k * DT_NS]
             cmd = thrust.get(timeout_s=5.0)
             assert cmd is not None, f"no command for state {k}\n{procs.log(proc)}"
             assert cmd.stamp_ns == k * DT_NS and cmd.source == "cc-empc"
@@ -64,10 +77,10 @@ def test_lockstep_commands_missions_and_shutdown(zenoh_env, procs):
         reply = bus.request(keys.MISSION_COMMAND, MissionCommand.make(stamp_ns=0, command="pause"),
                             timeout_s=5.0)
         assert reply.accepted, reply.reason
-        nav.put(state_msg(30 * DT_NS, plant.state.x))
-        cmd = thrust.get(timeout_s=5.0)
-        assert cmd is not None and cmd.stamp_ns == 30 * DT_NS
-        assert (cmd.thrust_port_n, cmd.thrust_starboard_n, cmd.source) == (0.0, 0.0, "paused")
+        # Paused: nothing to fly, so the answer holds simulated time, and no command goes out.
+        ans = period(30, plant.state.x)
+        assert ans.hold and keys.THRUST.suffix not in ans.published
+        assert thrust.drain() == []
 
     assert procs.stop(proc, signal.SIGTERM, timeout_s=10.0) < 10.0
     assert proc.returncode == 0, procs.log(proc)

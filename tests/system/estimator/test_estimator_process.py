@@ -10,8 +10,9 @@ import time
 import pytest
 from seaway.contract import keys
 from seaway.contract.keys import NAV_RESET
-from seaway.contract.messages import ClockTick, NavResetRequest, ThrustCommand
+from seaway.contract.messages import NavResetRequest, ThrustCommand
 from seaway.runtime.bus import Bus
+from seaway.runtime.lockstep import Member, Period
 from seaway.simkit.plant import Plant
 from seaway.simkit.scenario import load_scenario
 from seaway.simkit.sensors import SensorSuite, instants_in, origin_of
@@ -42,10 +43,13 @@ def _state_for(sub, t_ns: int, timeout_s: float = 5.0):
 
 def test_lockstep_process_publishes_state_and_origin_and_replays_exactly(procs, zenoh_env,
                                                                           tmp_path) -> None:
+    """The test is the sim of the lockstep protocol (``seaway.runtime.lockstep``): it answers each
+    period listing the samples it published and the command it applied; the estimator answers each
+    period with the state it lists, never waiting on a timeout."""
     trace = tmp_path / "inputs.jsonl"
     est = procs.start([str(BIN / "seaway-estimator"), "--lockstep", "--record-inputs", str(trace)],
                       zenoh_env, "estimator")
-    wait_for(lambda: "estimator lockstep on sim/clock" in procs.log(est), 20, what="estimator up")
+    wait_for(lambda: "estimator lockstep" in procs.log(est), 20, what="estimator up")
     sc = load_scenario("paper-c4")
     plant = Plant(sc, model.load_vessel(sc.vessel))
     sensors = SensorSuite(REALISTIC_NOISE, sc.origin, sc.seed)
@@ -54,63 +58,79 @@ def test_lockstep_process_publishes_state_and_origin_and_replays_exactly(procs, 
         wait_for(lambda: _ready(bus), 20, what="the reset queryable (subscriptions declared)")
         states = bus.subscribe(keys.NAV_STATE, mode="fifo")
         origins = bus.subscribe(keys.NAV_ORIGIN, mode="fifo")
-        pub = {k: bus.publisher(s) for k, s in (("gnss", keys.GNSS), ("att", keys.ATTITUDE),
-                                               ("clock", keys.SIM_CLOCK), ("thrust", keys.THRUST))}
+        answers = bus.subscribe(keys.LOCKSTEP_ESTIMATOR, mode="fifo")
+        sim = Member(bus, "sim", watched=())
+        thrust = bus.publisher(keys.THRUST)
         time.sleep(0.3)  # let our subscriptions reach the estimator's session
         received, first_fix = [], None
+        applied: list[int] = []  # the stamp of the command applied over the last period
 
-        def period(k: int, with_sensors: bool = True) -> int:
+        def period(k: int, with_sensors: bool = True):
+            """Sim period t_k, then the estimator's answer and the state it lists (or None)."""
             nonlocal first_fix
             t = k * TICK_NS
             if k > 0:
                 plant.step((3.0, 2.5), TICK_NS / 1e9)
             x = plant.state.x
             after = t - TICK_NS if k > 0 else -1  # instants in (after, t]; t = 0 included
+            out = []
             if with_sensors:
-                for ts in instants_in(sensors.attitude_period_ns, after, t):
-                    pub["att"].put(sensors.attitude(ts, x))
+                out += [(keys.ATTITUDE, sensors.attitude(ts, x))
+                        for ts in instants_in(sensors.attitude_period_ns, after, t)]
                 for ts in instants_in(sensors.gnss_period_ns, after, t):
                     fix = sensors.gnss(ts, x, (0.0, 0.0))
                     first_fix = first_fix or fix
-                    pub["gnss"].put(fix)
-            pub["clock"].put(ClockTick(stamp_ns=t, lockstep=True))
-            return t
+                    out.append((keys.GNSS, fix))
+            sim.answer(Period(0, t), TICK_NS, out,
+                       consumed={keys.THRUST.suffix: applied[-1:]} if applied else {})
+            ans = None
+            for _ in range(5):  # a repeat if our first samples were lost while Zenoh matched
+                ans = answers.get(2.0)
+                while ans is not None and ans.stamp_ns != t:
+                    ans = answers.get(2.0)
+                if ans is not None:
+                    break
+                sim.repeat()
+            assert ans is not None, f"no answer from the estimator for t = {t}"
+            if keys.NAV_STATE.suffix not in ans.published:
+                return None
+            assert ans.published[keys.NAV_STATE.suffix] == [t]
+            return _state_for(states, t)
 
-        # The first samples on a new route can be lost while Zenoh matches it: start over until
-        # the estimator has initialised, then demand one state per tick.
-        k0 = 0
-        while (first := _state_for(states, period(k0), timeout_s=1.0)) is None:
-            k0 += 1
-            assert k0 < 10, "the estimator never initialised"
+        def command(t: int) -> None:
+            thrust.put(ThrustCommand(stamp_ns=t, thrust_port_n=3.0, thrust_starboard_n=2.5,
+                                     source="test"))
+            applied.append(t)
+
+        first = period(0)
+        assert first is not None, "no state at t = 0 (a GNSS fix and a heading are due then)"
         received.append(first)
-        pub["thrust"].put(ThrustCommand(stamp_ns=first.stamp_ns, thrust_port_n=3.0,
-                                        thrust_starboard_n=2.5, source="test"))
-        for k in range(k0 + 1, 40):  # 4 s of lockstep, 10 Hz
-            t = period(k)
-            msg = _state_for(states, t)
-            assert msg is not None, f"no nav/state for tick {t}"
+        command(0)
+        for k in range(1, 40):  # 4 s of lockstep, 10 Hz
+            msg = period(k)
+            assert msg is not None, f"no nav/state for tick {k}"
             received.append(msg)
-            pub["thrust"].put(ThrustCommand(stamp_ns=t, thrust_port_n=3.0, thrust_starboard_n=2.5,
-                                            source="test"))
+            command(k * TICK_NS)
         # Stamped exactly with each tick, one per tick, finite, near the truth.
-        assert [m.stamp_ns for m in received] == [k * TICK_NS for k in range(k0, 40)]
+        assert [m.stamp_ns for m in received] == [k * TICK_NS for k in range(40)]
         last = received[-1]
         lat, lon, _ = truth_origin.to_ned(*origin_of_msg(origins, first_fix))
         assert math.hypot(last.x_m + lat - plant.state.x[3], last.y_m + lon - plant.state.x[4]) < 0.3
         assert not last.degraded and len(last.covariance) == 81
 
-        # Re-initialise on request: no state until a position and a heading arrive again.
+        # Re-initialise on request: the answers list no state until a position and a heading
+        # arrive again (known at once from the answer, not by waiting).
         reply = bus.request(NAV_RESET, NavResetRequest(stamp_ns=1, reason="test"), timeout_s=3)
         assert reply.accepted and reply.detail == {"keep_origin": True}
-        period(40, with_sensors=False)
-        assert _state_for(states, 40 * TICK_NS, timeout_s=1.0) is None
-        period(41)  # a heading but the next GNSS fix is due at 4.2 s
-        assert _state_for(states, 41 * TICK_NS, timeout_s=1.0) is None
+        assert period(40, with_sensors=False) is None
+        command(40 * TICK_NS)
+        assert period(41) is None  # a heading but the next GNSS fix is due at 4.2 s
+        command(41 * TICK_NS)
         for k in range(42, 46):
-            t = period(k)
-            msg = _state_for(states, t)
+            msg = period(k)
             assert msg is not None
             received.append(msg)
+            command(k * TICK_NS)
     assert procs.stop(est) < 5.0
     log = procs.log(est)
     assert "re-initialised (request: test" in log and "Traceback" not in log

@@ -1,8 +1,9 @@
-"""The controller's real loop (``ControllerService.run_lockstep``) on the in-memory bus, end to end.
+"""The controller's real lockstep loop (``ControllerService.run_lockstep``) on the in-memory bus.
 
-No network and no hand-written fake: the estimator, the operator and the observers are other buses on
-the same ``MemoryHub``, as they would be other processes on Zenoh. The core has an injected solver
-(test_core's ``ScriptedSolver``), so nothing is compiled.
+No network and no hand-written fake: the sim, the estimator, the operator and the observers are
+other buses on the same ``MemoryHub``, as they would be other processes on Zenoh, and they speak the
+lockstep protocol (``seaway.runtime.lockstep``) with real ``PeriodDone`` answers. The core has an
+injected solver (test_core's ``ScriptedSolver``), so nothing is compiled.
 """
 
 from __future__ import annotations
@@ -13,15 +14,17 @@ from typing import NamedTuple
 
 import pytest
 from seaway.contract import keys
-from seaway.contract.messages import MissionCommand, MissionStatus, SolveRecord, ThrustCommand
+from seaway.contract.messages import MissionCommand, PeriodDone, StateEstimate
+from seaway.runtime.bus import TypedSubscriber
 from seaway.runtime.clock import WallClock
+from seaway.runtime.lockstep import Member, Period
 from seaway.runtime.memory_bus import MemoryBus, MemoryHub
 from seaway.runtime.run import RunDescription
 from seaway.runtime.service import ServiceContext
 from seaway_controller.service import ControllerService
 
 from tests.conftest import wait_for
-from tests.unit.controller.test_core import ScriptedSolver, make_core, mission, state
+from tests.unit.controller.test_core import DT_NS, ScriptedSolver, make_core, mission, state
 
 VESSEL = "vessel1"
 
@@ -52,43 +55,84 @@ def controller() -> Iterator[Running]:
     assert not loop.is_alive()
 
 
-def test_one_command_per_state_and_mission_requests_answered(controller: Running) -> None:
+class World:
+    """The sim and the estimator of the protocol, driven by the test one period at a time."""
+
+    def __init__(self, hub: MemoryHub) -> None:
+        self.sim = Member(hub.bus(VESSEL), "sim", watched=(), seq_start=100)
+        self.est = Member(hub.bus(VESSEL), "estimator", watched=(), seq_start=200)
+        observer = hub.bus(VESSEL)
+        self.answers: TypedSubscriber = observer.subscribe(keys.LOCKSTEP_CONTROLLER, mode="fifo")
+        self.thrust: TypedSubscriber = observer.subscribe(keys.THRUST, mode="fifo")
+        self.status: TypedSubscriber = observer.subscribe(keys.MISSION_STATUS, mode="fifo")
+
+    def period(self, k: int, st: StateEstimate | None, episode: int = 0) -> PeriodDone:
+        """Sim and estimator answer t_k (with ``st`` stamped t_k, or no state); the controller's answer."""
+        p = Period(episode, k * DT_NS)
+        self.sim.answer(p, DT_NS)
+        if st is not None:
+            st = st.model_copy(update={"stamp_ns": p.stamp_ns})
+        self.est.answer(p, DT_NS, [(keys.NAV_STATE, st)] if st is not None else [])
+        return self.next_answer(p)
+
+    def next_answer(self, p: Period) -> PeriodDone:
+        ans = wait_for(lambda: self.answers.get(0.05), 5, what=f"the controller's answer to {p}")
+        assert Period.of(ans) == p
+        return ans
+
+
+def test_answers_each_period_holds_when_idle_and_restarts_with_the_world(controller: Running) -> None:
     hub = controller.hub
-    estimator, operator, observer = hub.bus(VESSEL), hub.bus(VESSEL), hub.bus(VESSEL)
-    thrust = observer.subscribe(keys.THRUST, mode="fifo")
-    solves = observer.subscribe(keys.SOLVE, mode="fifo")
-    status = observer.subscribe(keys.MISSION_STATUS, mode="fifo")
-    assert operator.alive_services() == {"controller"}  # ctx.ready() declared the health token
-    states = estimator.publisher(keys.NAV_STATE)
+    world = World(hub)
+    operator = hub.bus(VESSEL)
 
-    # Idle: a zero command for the state, stamped with it, and no solve.
-    states.put(state(0))
-    idle: ThrustCommand = wait_for(lambda: thrust.get(0.05), 5, what="the idle command")
-    assert (idle.stamp_ns, idle.thrust_port_n, idle.thrust_starboard_n) == (state(0).stamp_ns, 0.0, 0.0)
-    assert status.get(1.0).state == "idle" and solves.drain() == []
+    # Idle: the answer is "hold" (nothing to fly), with the status and no command.
+    idle = world.period(0, state(0))
+    assert idle.hold and keys.THRUST.suffix not in idle.published
+    assert world.status.get(1.0).state == "idle" and world.thrust.drain() == []
 
-    # A mission over the bus, answered with a Reply; then one solved command per state, in order.
+    # A mission: the held period is answered again, now with a command stamped t_0.
     reply = operator.request(keys.MISSION_SET, mission(), timeout_s=2.0)
     assert reply.accepted, reply.reason
+    again = world.next_answer(Period(0, 0))
+    assert not again.hold and again.published[keys.THRUST.suffix] == [0] and again.seq > idle.seq
+    assert world.thrust.get(1.0).source == "cc-empc"
+
+    # One answer per period, listing what it published, in order.
     for k in range(1, 6):
-        states.put(state(k))
-    commands = [thrust.get(5.0) for _ in range(5)]
-    assert [c.stamp_ns for c in commands if c is not None] == [state(k).stamp_ns for k in range(1, 6)]
-    assert {c.source for c in commands if c is not None} == {"cc-empc"}
-    records: list[SolveRecord] = solves.drain()
-    assert len(records) == 5 and all(r.success for r in records)
-    last: MissionStatus = status.drain()[-1]
-    assert (last.state, last.mission_id, last.active_leg) == ("active", "m1", 1)
+        ans = world.period(k, state(k))
+        assert ans.published == {keys.THRUST.suffix: [k * DT_NS], keys.SOLVE.suffix: [k * DT_NS],
+                                 keys.MISSION_STATUS.suffix: [k * DT_NS]}
+    assert [c.stamp_ns for c in world.thrust.drain()] == [k * DT_NS for k in range(1, 6)]
+
+    # The estimator has no state (re-initialising): zero thrust, so that time goes on.
+    blind = world.period(6, None)
+    assert not blind.hold
+    cmd = world.thrust.get(1.0)
+    assert (cmd.source, cmd.thrust_port_n, cmd.thrust_starboard_n) == ("no-state", 0.0, 0.0)
+
+    # The sim repeats t_6 for a newcomer: the controller repeats its answer, not a second solve.
+    world.sim.repeat()
+    rep = world.next_answer(Period(0, 6 * DT_NS))
+    assert rep.published == blind.published and rep.seq > blind.seq
+    assert world.thrust.get(1.0).source == "no-state"
 
     # A malformed state is counted and dropped by the controller's bus; the loop goes on.
-    estimator.raw_publisher(keys.NAV_STATE.key(VESSEL)).put(b'{"stamp_ns": 1, "x_m": NaN}')
+    operator.raw_publisher(keys.NAV_STATE.key(VESSEL)).put(b'{"stamp_ns": 1, "x_m": NaN}')
     paused = operator.request(keys.MISSION_COMMAND, MissionCommand.make(stamp_ns=0, command="pause"))
     assert paused.accepted, paused.reason
-    states.put(state(6))
-    held = thrust.get(5.0)
-    assert held is not None and held.stamp_ns == state(6).stamp_ns and held.thrust_port_n == 0.0
+    assert world.period(7, state(7)).hold  # paused: nothing to fly, time stops
     assert controller.bus.stats.malformed_by_key == {keys.NAV_STATE.key(VESSEL): 1}
+    resumed = operator.request(keys.MISSION_COMMAND, MissionCommand.make(stamp_ns=0, command="resume"))
+    assert resumed.accepted, resumed.reason
+    assert not world.next_answer(Period(0, 7 * DT_NS)).hold
+    world.status.drain()
+
+    # The world restarts (time goes back to 0 in a new episode): the mission starts again.
+    world.period(0, state(0), episode=1)
+    restarted = world.status.drain()[-1]
+    assert (restarted.state, restarted.active_leg, restarted.energy_used_j) == ("active", 1, 0.0)
 
     # A request the core refuses comes back refused, with its reason.
-    refused = operator.request(keys.MISSION_COMMAND, MissionCommand.make(stamp_ns=0, command="pause"))
+    refused = operator.request(keys.MISSION_COMMAND, MissionCommand.make(stamp_ns=0, command="resume"))
     assert not refused.accepted and refused.reason

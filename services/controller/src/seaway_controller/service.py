@@ -10,9 +10,11 @@ Two ways to run:
 * real time (the run's clock ``wall``): ticks every control period of the run on the wall clock;
   each tick uses the newest state if a new one arrived; a state older than ``--max-state-age-s``
   gives zero thrust;
-* lockstep: exactly one command per received state, whatever the wall clock does, and a
-  command for every state (zero when idle), so that a lockstep simulator waiting for the command of
-  its tick t_k (the estimator stamps nav/state with t_k) never stalls.
+* lockstep (``seaway.runtime.lockstep``): one answer per period of the sim, once the estimator's
+  answer and the state it lists are in: the command for that state (zero thrust if the estimator
+  has no state yet), or "hold" when there is nothing to fly (no mission, paused, over), which stops
+  simulated time until a mission request makes the controller answer the period again. A new
+  episode (the sim restarted or loaded a scenario) restarts a mission in progress from its first leg.
 
 The vessel model, the control period (which is also the OCP's dt) and the origin come from the run
 (``seaway.runtime.run``). ``--scenario NAME`` given as a flag (not through ``--run``) also starts
@@ -36,8 +38,16 @@ from typing import Any
 
 from seaway.contract import keys
 from seaway.contract.config import ConfigError
-from seaway.contract.messages import MissionCommand, MissionRequest, NavOrigin, Reply, StateEstimate
+from seaway.contract.messages import (
+    MissionCommand,
+    MissionRequest,
+    NavOrigin,
+    PeriodDone,
+    Reply,
+    StateEstimate,
+)
 from seaway.runtime.clock import RateLoop
+from seaway.runtime.lockstep import Member, Period
 from seaway.runtime.service import ServiceContext, base_parser, parse, resolve_run, run_service
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.frames import GeoOrigin
@@ -80,10 +90,16 @@ class ControllerService:
         self.state_file = state_file
         self._saved: tuple[str, int, str] | None = None  # (mission id, leg, state) last written
         self._saved_at = 0.0
-        # Lockstep answers every state in order; real time acts on the newest.
-        self.states = ctx.bus.subscribe(keys.NAV_STATE, mode="fifo" if lockstep else "latest")
         self.lock = threading.Lock()
         bus = ctx.bus
+        self.member: Member | None = None
+        self._states: dict[int, StateEstimate] = {}  # lockstep: the states of recent periods by stamp
+        self._rethink = False  # lockstep: a mission request came while the current answer was hold
+        if lockstep:
+            self.member = Member(bus, NAME, watched={keys.NAV_STATE.suffix})
+            bus.subscribe(keys.NAV_STATE, callback=self._on_state, inline=True)
+        else:  # real time acts on the newest state
+            self.states = bus.subscribe(keys.NAV_STATE, mode="latest")
         self.pub_thrust = bus.publisher(keys.THRUST)
         self.pub_solve = bus.publisher(keys.SOLVE)
         self.pub_status = bus.publisher(keys.MISSION_STATUS)
@@ -98,12 +114,27 @@ class ControllerService:
         return self._serve(f"{keys.MISSION_COMMAND.suffix} {cmd.command}", self.core.handle_command, cmd)
 
     def _serve(self, what: str, handle: Callable[[int, Any], Reply], request: Any) -> Reply:
-        """One mission request: the core decides under the lock, the reply is logged, progress saved."""
+        """One mission request: the core decides under the lock, the reply is logged, progress saved.
+
+        In lockstep the request is taken at the current period, whose answer is then thought again
+        if it was "hold" (nothing to fly until now)."""
         with self.lock:
-            reply = handle(self.ctx.clock.now_ns(), request)
+            reply = handle(self._now_ns(), request)
         log.info("%s: %s %s", what, "accepted" if reply.accepted else "REFUSED", reply.reason)
         self.save_checkpoint(force=True)
+        if self.member is not None and reply.accepted:
+            with self.member.changed:
+                self._rethink = True
+                self.member.version += 1
+                self.member.changed.notify_all()
         return reply
+
+    def _now_ns(self) -> int:
+        """Wall time live; the current period in lockstep (the sim does not move without us)."""
+        if self.member is None:
+            return self.ctx.clock.now_ns()
+        period = self.member.ledger.period
+        return period.stamp_ns if period is not None else 0
 
     def save_checkpoint(self, force: bool = False) -> None:
         """Write the checkpoint if the progress changed (or a second passed, for the energy)."""
@@ -146,12 +177,91 @@ class ControllerService:
         self.pub_status.put(status)
         self.save_checkpoint()
 
+    # -- lockstep (seaway.runtime.lockstep) ------------------------------------------------------
+
+    def _on_state(self, _key: str, state: StateEstimate) -> None:
+        member = self.member
+        assert member is not None
+        with member.changed:
+            self._states[state.stamp_ns] = state
+            if len(self._states) > 16:
+                del self._states[min(self._states)]
+        member.saw(keys.NAV_STATE.suffix, state.stamp_ns)
+
     def run_lockstep(self) -> None:
-        sub = self.states
+        """Answer each period once the estimator has (with the state it lists, if any)."""
+        member = self.member
+        assert member is not None
+        restarts: list[Period] = []
+        member.on_restart = lambda _before, now: restarts.append(now)
+        answered: PeriodDone | None = None
+        version = 0
         while not self.ctx.stop.is_set():
-            state = sub.get(0.1)
-            if state is not None:
-                self.step(state.stamp_ns, state)
+            version = member.wait(version, 0.1)
+            with member.changed:
+                period = member.ledger.period
+                est = member.ledger.answer("estimator")
+                complete = member.ledger.complete(est)
+                restart = bool(restarts)
+                restarts.clear()
+                rethink, self._rethink = self._rethink, False
+            if restart and period is not None:
+                self.new_episode(period)
+                answered = None
+            if est is None or not complete or period is None:
+                continue
+            if answered is not None and Period.of(answered) == period and not (
+                    answered.hold and rethink):
+                continue
+            stamps = est.published.get(keys.NAV_STATE.suffix, [])
+            state = self._states.get(stamps[-1]) if stamps else None
+            answered = self.answer_period(member, period, est.period_ns, state)
+
+    def answer_period(self, member: Member, period: Period, period_ns: int,
+                      state: StateEstimate | None) -> PeriodDone:
+        """Period t_k's answer: the command for the state, or hold when there is nothing to fly.
+
+        Without a state (the estimator is not initialised) an active mission gets zero thrust, so
+        that time goes on to the next measurements; idle, paused or over, the answer is hold."""
+        t = period.stamp_ns
+        out: list[tuple[keys.KeySpec, Any]] = []
+        try:
+            with self.lock:
+                active = self.core.missions.state == "active"
+                if state is None:
+                    if active:
+                        out.append((keys.THRUST, self.core.zero_command(t, "no-state")))
+                else:
+                    cmd, record, status = self.core.step(t, state)
+                    active = status.state == "active"
+                    if active:
+                        out.append((keys.THRUST, cmd))
+                    if record is not None:
+                        out.append((keys.SOLVE, record))
+                    out.append((keys.MISSION_STATUS, status))
+        except Exception:  # a bug must not leave a lockstep sim without a command
+            log.exception("control step failed; commanding zero thrust")
+            with self.lock:
+                out = [(keys.THRUST, self.core.zero_command(t, "error"))]
+            active = True
+        done = member.answer(period, period_ns, out, hold=not active)
+        self.save_checkpoint()
+        return done
+
+    def new_episode(self, period: Period) -> None:
+        """The sim restarted, or loaded a scenario: a mission in progress starts again from its first
+        leg (the vessel is back at its start); one that is over stays over."""
+        with self.lock:
+            progress = self.core.progress()
+            if progress is None or progress[2] not in ("active", "paused"):
+                return
+            req = progress[0]
+            reply = self.core.handle_mission(period.stamp_ns, req)
+        with self.member.changed:  # type: ignore[union-attr]
+            self._states = {k: v for k, v in self._states.items() if k <= period.stamp_ns}
+        log.warning("lockstep episode %d (time back to %.3f s): mission %r restarted: %s",
+                    period.episode, period.stamp_ns / 1e9, req.mission_id, reply.reason)
+        self.save_checkpoint(force=True)
 
     def run_rate(self, rate_hz: float, max_state_age_s: float) -> None:
         sub = self.states
@@ -239,6 +349,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             resume(core, args.state_file, ctx.clock.now_ns())
         svc = ControllerService(ctx, core, run.lockstep, args.state_file)
         ctx.ready()
+        if svc.member is not None:
+            svc.member.join()
         if run.lockstep:
             svc.run_lockstep()
         else:

@@ -1,18 +1,17 @@
 """The estimator process: the bus around ``EstimatorCore``.
 
 Inputs: ``sensors/gnss`` (GnssFix), ``sensors/attitude`` (Attitude), ``ctrl/thrust`` (ThrustCommand),
-and in ``--lockstep`` ``sim/clock`` (ClockTick). Outputs: ``nav/state`` (StateEstimate) and
+and in lockstep the sim's answers (``lockstep/sim``). Outputs: ``nav/state`` (StateEstimate) and
 ``nav/origin`` (NavOrigin, once fixed, then at ``origin_rate_hz`` for late joiners).
 
 * Realtime (default): every 1/``publish_rate_hz`` of wall time, the inputs that arrived are fed to
   the core in stamp order and the state is predicted to now and published.
-* Lockstep: data-driven. On each ClockTick t_k, every sensor message stamped <= t_k is fed in stamp
-  order (later ones wait for their tick), the state is predicted to t_k and published stamped
-  exactly t_k. Thrust commands are fed as they arrive (the controller's answer to t_k applies from
-  t_k). Zenoh does not order messages across keys, so a tick may overtake what it closes: the tick
-  waits (at most ``LOCKSTEP_WAIT_S``) for the thrust command answering the previous tick, once a
-  controller has been heard, and for any sensor sample its own period says is due. A tick earlier
-  than the previous one means the simulation restarted: the core resets.
+* Lockstep (``seaway.runtime.lockstep``): the estimator answers each period t_k of the sim once the
+  sim's answer and every message it lists have arrived (the samples due in (t_{k-1}, t_k] and the
+  thrust command the sim applied): the queued inputs stamped <= t_k are fed in stamp order, the
+  state is predicted to t_k and published stamped exactly t_k, then the answer lists it. Nothing
+  waits on a timeout. A new episode (the sim restarted, or loaded a scenario) re-initialises the
+  core; a restarted estimator catches up from the sim's repeat of the current period.
 
 Re-initialisation: a request on ``seaway/<vessel>/nav/reset`` (``NavResetRequest``) or SIGUSR1
 (keeps the origin).
@@ -21,19 +20,19 @@ Re-initialisation: a request on ``seaway/<vessel>/nav/reset`` (``NavResetRequest
 from __future__ import annotations
 
 import bisect
-import collections
 import logging
 import signal
 import sys
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from seaway.contract import keys
 from seaway.contract.config import ConfigError
-from seaway.contract.messages import ClockTick, NavResetRequest, Reply
+from seaway.contract.messages import NavResetRequest, Reply
 from seaway.runtime.clock import RateLoop
+from seaway.runtime.lockstep import Member, Period
 from seaway.runtime.run import RunDescription
 from seaway.runtime.service import base_parser, parse, resolve_run, run_service
 from seaway.simkit.scenario import load_scenario
@@ -44,7 +43,6 @@ from seaway_estimator.replay import TraceWriter
 
 log = logging.getLogger("seaway.estimator")
 STATS_PERIOD_S = 10.0
-LOCKSTEP_WAIT_S = 0.2  # longest wait for a thrust command or sensor sample a tick lacks
 
 
 _KIND_ORDER = {kind: i for i, kind in enumerate(INPUT_KEYS)}
@@ -82,32 +80,31 @@ class EstimatorLoop:
         self.pub_origin = bus.publisher(keys.NAV_ORIGIN)
         self.pending: list[tuple[int, int, int, str, Any]] = []  # (stamp, kind order, seq, kind, msg)
         self._seq = 0
-        self._origin_due = 0.0
-        self._last_tick: int | None = None
+        self._origin_due_s = 0.0
         self.last_thrust_ns: int | None = None
         self.refused = 0
         self.repeats = 0
-        self.thrust_waits_timed_out = 0
-        self.thrust_warn_due = 0.0
-        self.sensor_waits_timed_out = 0
-        # Per sensor: [last stamp, shortest period seen] (ns), to know what a tick still lacks.
-        self.schedule: dict[str, list[Any]] = {}
+        self.last_stamp: dict[str, int] = {}  # per input kind, the newest stamp queued
 
     # -- inputs ----------------------------------------------------------------------------------
 
-    def queue(self, kind: str, msg: Any) -> None:
-        sched = self.schedule.get(kind)
-        if kind != "thrust" and sched is not None and msg.stamp_ns == sched[0]:
-            # The same sample again (a lockstep sim republishes a held period): using it twice
-            # would count one measurement as two.
+    def queue(self, kind: str, msg: Any, lockstep: bool = True) -> None:
+        """Queue an input for ``feed_pending``; a sample stamped as the last on its key is a repeat.
+
+        A lockstep period repeated for a newcomer carries the same samples and command again:
+        using one twice would count one measurement as two. In lockstep a command stamped at or
+        before the last is a repeat too; live, a controller may send a zero command with the stamp
+        of its last state (the state went stale), which must count.
+        """
+        last = self.last_stamp.get(kind)
+        if kind == "thrust":
+            dup = lockstep and last is not None and msg.stamp_ns <= last
+        else:
+            dup = msg.stamp_ns == last
+        if dup:
             self.repeats += 1
             return
-        if sched is None:
-            self.schedule[kind] = [msg.stamp_ns, None]
-        elif msg.stamp_ns > sched[0]:
-            sched[1] = msg.stamp_ns - sched[0] if sched[1] is None else min(sched[1],
-                                                                             msg.stamp_ns - sched[0])
-            sched[0] = msg.stamp_ns
+        self.last_stamp[kind] = msg.stamp_ns if last is None else max(last, msg.stamp_ns)
         self._seq += 1
         bisect.insort(self.pending, (msg.stamp_ns, _KIND_ORDER[kind], self._seq, kind, msg))
 
@@ -137,21 +134,29 @@ class EstimatorLoop:
 
     # -- outputs ---------------------------------------------------------------------------------
 
-    def publish(self, t_ns: int) -> None:
+    def outputs(self, t_ns: int, now_s: float) -> list[tuple[keys.KeySpec, Any]]:
+        """The state predicted to ``t_ns`` (once initialised) and, at ``origin_rate_hz`` of
+        ``now_s`` (wall seconds live, sim seconds in lockstep), the origin. Lock held."""
         if self.recorder is not None:
             self.recorder.write("tick", t_ns)
+        out: list[tuple[keys.KeySpec, Any]] = []
         try:
             est = self.core.predict_to(t_ns)
         except EstimatorError as err:
             log.warning("cannot publish at %d: %s", t_ns, err)
-            return
+            return out
         if est is not None:
-            self.pub_state.put(est)
-        now = time.monotonic()
+            out.append((keys.NAV_STATE, est))
         origin = self.core.nav_origin(t_ns)
-        if origin is not None and now >= self._origin_due:
-            self.pub_origin.put(origin)
-            self._origin_due = now + 1.0 / self.core.config.origin_rate_hz
+        if origin is not None and now_s >= self._origin_due_s:
+            out.append((keys.NAV_ORIGIN, origin))
+            self._origin_due_s = now_s + 1.0 / self.core.config.origin_rate_hz
+        return out
+
+    def publish(self, t_ns: int, now_s: float) -> None:
+        pubs = {keys.NAV_STATE: self.pub_state, keys.NAV_ORIGIN: self.pub_origin}
+        for spec, msg in self.outputs(t_ns, now_s):
+            pubs[spec].put(msg)
 
     def reset(self, keep_origin: bool, why: str) -> None:
         with self.lock:
@@ -160,8 +165,24 @@ class EstimatorLoop:
             self.core.reset(keep_origin=keep_origin)
             self.pending.clear()
             if not keep_origin:
-                self._origin_due = 0.0
+                self._origin_due_s = 0.0
         log.info("estimator re-initialised (%s, keep_origin=%s)", why, keep_origin)
+
+    def restart(self, t_ns: int) -> None:
+        """A new lockstep episode at ``t_ns``: a fresh core, as in a freshly started estimator.
+
+        Inputs already queued for the new episode (stamped <= ``t_ns``; the old one's are later)
+        stay queued.
+        """
+        with self.lock:
+            self.core = EstimatorCore(self.core.config)
+            self.pending = [p for p in self.pending if p[0] <= t_ns]
+            self.last_stamp = {}
+            for stamp, _, _, kind, _ in self.pending:
+                self.last_stamp[kind] = max(stamp, self.last_stamp.get(kind, stamp))
+            self._origin_due_s = 0.0
+            self.last_thrust_ns = None
+        log.info("new lockstep episode at t = %.3f s: estimator started afresh", t_ns / 1e9)
 
     def on_reset_request(self, req: NavResetRequest) -> Reply:
         self.reset(req.keep_origin, f"request: {req.reason or 'no reason given'}")
@@ -170,40 +191,79 @@ class EstimatorLoop:
 
     # -- lockstep --------------------------------------------------------------------------------
 
-    def awaits_thrust(self, tick: ClockTick) -> bool:
-        """Whether the command answering the previous tick is still on its way.
-
-        The sim steps from t_k only once it has a command stamped >= t_k, but that command reaches
-        us on another path than the sim's next tick, so it can arrive after it. Once a controller
-        has been heard, the tick waits for it (bounded by ``LOCKSTEP_WAIT_S``).
-        """
-        return (self.last_thrust_ns is not None and self._last_tick is not None
-                and tick.stamp_ns > self._last_tick and self.last_thrust_ns < self._last_tick)
-
-    def awaits_sensor(self, tick: ClockTick) -> str | None:
-        """A sensor whose next sample (by its own period) is due by this tick but not here yet.
-
-        Messages on different keys may arrive in a different order than they were published, so a
-        tick can overtake the samples it closes. Samples never sent (a simulated dropout) cost
-        one bounded wait each: ``skip_expected`` moves the expectation on.
-        """
-        for kind, (last, period) in self.schedule.items():
-            if period is not None and last + period <= tick.stamp_ns:
-                return kind
-        return None
-
-    def skip_expected(self, kind: str) -> None:
-        last, period = self.schedule[kind]
-        self.schedule[kind] = [last + period, period]
-
-    def on_tick(self, tick: ClockTick) -> None:
-        t = tick.stamp_ns
-        if self._last_tick is not None and t < self._last_tick:
-            self.reset(keep_origin=False, why=f"simulation time went back to {t} ns")
-        self._last_tick = t
+    def on_period(self, member: Member, period: Period, period_ns: int) -> None:
+        """Answer the lockstep period ``period``: inputs up to t_k fed, the state at t_k published."""
         with self.lock:
-            self.feed_pending(t)
-            self.publish(t)
+            self.feed_pending(period.stamp_ns)
+            out = self.outputs(period.stamp_ns, period.stamp_ns / 1e9)
+        member.answer(period, period_ns, out)
+
+
+def run_lockstep(loop: EstimatorLoop, bus: Any, inbox: Inbox, stop: threading.Event,
+                 reset_signal: threading.Event, ready: Callable[[], None]) -> None:
+    """The lockstep loop (``seaway.runtime.lockstep``): answer each period of the sim once complete.
+
+    ``ready`` is called once the subscriptions are in place (it declares the health token, which
+    makes the sim repeat its period for this newcomer)."""
+    watched = {spec.suffix: kind for kind, spec in INPUT_KEYS.items()}
+    member = Member(bus, "estimator", watched=watched)
+    restarts: list[Period] = []
+    member.on_restart = lambda _before, now: restarts.append(now)
+    for kind, spec in INPUT_KEYS.items():
+        def on_input(_key: str, msg: Any, kind: str = kind, suffix: str = spec.suffix) -> None:
+            inbox.put(kind, msg)  # first: what the ledger has seen is in the inbox
+            member.saw(suffix, msg.stamp_ns)
+        bus.subscribe(spec, callback=on_input, inline=True)
+    ready()
+    member.join()
+    answered: Period | None = None
+    version = 0
+    stats_due = time.monotonic() + STATS_PERIOD_S
+    while not stop.is_set():
+        version = member.wait(version, 0.1)
+        if reset_signal.is_set():
+            reset_signal.clear()
+            loop.reset(keep_origin=True, why="SIGUSR1")
+        with member.changed:
+            period = member.ledger.period
+            tick = member.ledger.answer("sim")
+            ready = member.ledger.complete(tick) and period != answered
+            restart = restarts[-1] if restarts else None
+            restarts.clear()
+        # After the ledger: everything it counted as seen is in the inbox by now.
+        items = inbox.take(0.0)
+        if restart is not None:
+            loop.restart(restart.stamp_ns)
+            answered = None
+        with loop.lock:
+            for kind, msg in items:
+                loop.queue(kind, msg)
+        if ready and tick is not None and period is not None:
+            loop.on_period(member, period, tick.period_ns)
+            answered = period
+        if time.monotonic() >= stats_due:
+            stats_due += STATS_PERIOD_S
+            log.info("estimator: %s", _stats_line(loop.core))
+
+
+def run_realtime(loop: EstimatorLoop, inbox: Inbox, ctx: Any, rate_hz: float,
+                 reset_signal: threading.Event) -> None:
+    """Real time: every 1/``rate_hz`` of wall time, feed what arrived in stamp order, publish now."""
+    rate = RateLoop(1.0 / rate_hz, ctx.clock, ctx.stop)
+    stats_due = time.monotonic() + STATS_PERIOD_S
+    while rate.wait():
+        if reset_signal.is_set():
+            reset_signal.clear()
+            loop.reset(keep_origin=True, why="SIGUSR1")
+        items = inbox.take(0.0)
+        with loop.lock:
+            for kind, msg in items:
+                loop.queue(kind, msg, lockstep=False)
+            loop.feed_pending(None)
+            loop.publish(ctx.clock.now_ns(), time.monotonic())
+        if time.monotonic() >= stats_due:
+            stats_due += STATS_PERIOD_S
+            log.info("estimator: %s", _stats_line(loop.core))
 
 
 def _stats_line(core: EstimatorCore) -> str:
@@ -250,71 +310,22 @@ def main(argv: Sequence[str] | None = None) -> int:
     with run_service("estimator", args, run=run) as ctx:
         loop = EstimatorLoop(core, ctx.bus, recorder)
         inbox = Inbox()
-        for kind, spec in INPUT_KEYS.items():
-            ctx.bus.subscribe(spec, callback=lambda _k, m, kind=kind: inbox.put(kind, m))
-        if lockstep:
-            ctx.bus.subscribe(keys.SIM_CLOCK, callback=lambda _k, m: inbox.put("tick", m))
         ctx.bus.queryable(keys.NAV_RESET, loop.on_reset_request)
-        ctx.ready()
         signal.signal(signal.SIGUSR1, lambda *_: reset_signal.set())
-        log.info("estimator %s, publishing %s, vessel file %s",
-                 f"lockstep on {keys.SIM_CLOCK.suffix}" if lockstep else "realtime",
-                 "per tick" if lockstep else f"at {cfg.publish_rate_hz:g} Hz", cfg.vessel)
-        stats_due = time.monotonic() + STATS_PERIOD_S
-        ticks: collections.deque[tuple[ClockTick, float]] = collections.deque()
-        rate = None if lockstep else RateLoop(1.0 / cfg.publish_rate_hz, ctx.clock, ctx.stop)
+        log.info("estimator %s, vessel file %s", "lockstep" if lockstep
+                 else f"realtime, publishing at {cfg.publish_rate_hz:g} Hz", cfg.vessel)
         try:
-            while not ctx.stop.is_set():
-                if reset_signal.is_set():
-                    reset_signal.clear()
-                    loop.reset(keep_origin=True, why="SIGUSR1")
-                if rate is not None:
-                    if not rate.wait():
-                        break
-                    items = inbox.take(0.0)
-                    with loop.lock:
-                        for kind, msg in items:
-                            loop.queue(kind, msg)
-                        loop.feed_pending(None)
-                        loop.publish(ctx.clock.now_ns())
-                else:
-                    for kind, msg in inbox.take(0.01 if ticks else 0.1):
-                        if kind == "tick":
-                            ticks.append((msg, time.monotonic() + LOCKSTEP_WAIT_S))
-                        with loop.lock:
-                            if kind == "thrust":
-                                loop.feed(kind, msg)
-                            elif kind != "tick":
-                                loop.queue(kind, msg)
-                    while ticks:
-                        tick, deadline = ticks[0]
-                        late = time.monotonic() >= deadline
-                        if loop.awaits_thrust(tick):
-                            if not late:
-                                break
-                            loop.thrust_waits_timed_out += 1
-                            if time.monotonic() >= loop.thrust_warn_due:  # one line, not a flood
-                                loop.thrust_warn_due = time.monotonic() + STATS_PERIOD_S
-                                log.warning("no thrust command for t = %d ns within %.1f s; "
-                                            "predicting with the last one (%d times so far)",
-                                            loop._last_tick, LOCKSTEP_WAIT_S,
-                                            loop.thrust_waits_timed_out)
-                        sensor = loop.awaits_sensor(tick)
-                        while sensor is not None and late:
-                            loop.sensor_waits_timed_out += 1
-                            loop.skip_expected(sensor)
-                            sensor = loop.awaits_sensor(tick)
-                        if sensor is not None:
-                            break
-                        ticks.popleft()
-                        loop.on_tick(tick)
-                if time.monotonic() >= stats_due:
-                    stats_due += STATS_PERIOD_S
-                    log.info("estimator: %s", _stats_line(core))
+            if lockstep:
+                run_lockstep(loop, ctx.bus, inbox, ctx.stop, reset_signal, ready=ctx.ready)
+            else:
+                for kind, spec in INPUT_KEYS.items():
+                    ctx.bus.subscribe(spec, callback=lambda _k, m, kind=kind: inbox.put(kind, m))
+                ctx.ready()
+                run_realtime(loop, inbox, ctx, cfg.publish_rate_hz, reset_signal)
         finally:
             if recorder is not None:
                 recorder.close()
-            log.info("estimator final: %s", _stats_line(core))
+            log.info("estimator final: %s", _stats_line(loop.core))
     return 0
 
 

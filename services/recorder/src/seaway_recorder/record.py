@@ -16,6 +16,7 @@ import datetime as dt
 import json
 import logging
 import os
+import re
 import socket
 import sys
 import threading
@@ -25,7 +26,9 @@ from pathlib import Path
 
 from seaway.contract import keys
 from seaway.contract.config import ConfigError
-from seaway.runtime.bus import RawSample
+from seaway.contract.messages import LOCKSTEP_SERVICES, MessageError, PeriodDone
+from seaway.runtime.bus import Bus, RawSample
+from seaway.runtime.lockstep import Member, Period
 from seaway.runtime.run import RunDescription
 from seaway.runtime.service import base_parser, configure_logging, resolve_run, run_service
 from seaway.runtime.zenoh_bus import ENV_CONFIG
@@ -109,6 +112,7 @@ class SampleQueue:
         self.items: collections.deque[tuple[str, bytes, str, int]] = collections.deque()
         self.dropped = 0
         self.accepting = True
+        self.arrived = threading.Event()  # wakes a lockstep writer at once (no polling delay)
         self._lock = threading.Lock()
 
     def on_sample(self, sample: RawSample) -> None:
@@ -120,6 +124,123 @@ class SampleQueue:
                 self.dropped += 1
             return
         self.items.append((sample.key, sample.payload, sample.encoding, time.time_ns()))
+        self.arrived.set()
+
+
+def recorded_suffixes(exprs: Sequence[str], vessel: str) -> set[str]:
+    """The registered key suffixes of ``vessel`` that the key expressions ``exprs`` record."""
+    out = set()
+    for spec in keys.REGISTRY:
+        key = spec.key(vessel)
+        for e in exprs:
+            head, _, tail = e.partition("**")
+            if (e == key or (tail == "" and key.startswith(head))
+                    or (e.startswith(f"{keys.ROOT}/*/") and e[len(keys.ROOT) + 3:] == spec.suffix)):
+                out.add(spec.suffix)
+    return out
+
+
+def lockstep_exprs(exprs: list[str], vessel: str) -> list[str]:
+    """``exprs`` plus the lockstep answers of ``vessel`` if they do not record them already: a
+    recorder in lockstep must hear them to take part."""
+    answers = {keys.lockstep_spec(s).suffix for s in LOCKSTEP_SERVICES}
+    if answers <= recorded_suffixes(exprs, vessel):
+        return exprs
+    return [*exprs, f"{keys.ROOT}/{vessel}/lockstep/*"]
+
+
+_STAMP = re.compile(rb'"stamp_ns":\s*(\d+)')
+
+
+class LockstepWitness:
+    """The recorder as a lockstep member (``seaway.runtime.lockstep``): it answers a period once
+    every member's answer for it, and every message those list, is written and flushed to disk.
+
+    So a SIGKILL never loses a period the sim has moved past; a restarted recorder catches up from the
+    repeat its arrival causes. Repeats (the same bytes again on a key) are not written twice.
+    """
+
+    def __init__(self, bus: Bus, vessel: str, exprs: Sequence[str]) -> None:
+        # Only keys it records can make an answer incomplete for it.
+        self.member = Member(bus, "recorder", watched=recorded_suffixes(exprs, vessel),
+                             subscribe=False)
+        self.answer_keys = {keys.lockstep_spec(s).key(vessel) for s in LOCKSTEP_SERVICES if s != "recorder"}
+        self.prefix = f"{keys.ROOT}/{vessel}/"
+        self._recent: dict[str, collections.deque[bytes]] = collections.defaultdict(
+            lambda: collections.deque(maxlen=32))
+        self._covered: dict[str, int] | None = None
+        self.repeats_skipped = 0
+
+    def admit(self, key: str, payload: bytes) -> bool:
+        """Whether to write this sample: not when it repeats bytes just written on its key."""
+        if not key.startswith(self.prefix):
+            return True
+        recent = self._recent[key]
+        if payload in recent:
+            self.repeats_skipped += 1
+            return False
+        recent.append(payload)
+        return True
+
+    def written(self, batch: list[tuple[str, bytes]]) -> None:
+        """Count the stamps of what was just written (this vessel's keys only)."""
+        seen = []
+        for key, payload in batch:
+            if key in self.answer_keys:  # after what it lists was written (it was published after)
+                try:
+                    ans = PeriodDone.decode(payload)
+                    before = self.member.ledger.period
+                    self.member.on_answer(key, ans)
+                    if ans.service == "sim" and before == Period.of(ans):
+                        self._explain_repeat()
+                except MessageError as err:
+                    log.warning("lockstep answer on %s ignored: %s", key, err)
+            elif key.startswith(self.prefix):
+                m = _STAMP.search(payload, 0, 64)
+                if m is not None:
+                    seen.append((key[len(self.prefix):], int(m.group(1))))
+        if seen:
+            self.member.saw_many(seen)
+
+    def _explain_repeat(self) -> None:
+        """The sim repeated its period: say what this recorder still lacks, if anything."""
+        ledger = self.member.ledger
+        lacking = {s: ledger.missing(a) for s, a in ledger.answers.items()
+                   if Period.of(a) == ledger.period and ledger.missing(a)}
+        absent = [m for m in (ledger.answers.get("sim") or PeriodDone.model_construct(members=[])).members
+                  if m != "recorder" and ledger.answer(m) is None]
+        if lacking or absent:
+            log.warning("lockstep t = %s: still lacking %s; no answer yet from %s", ledger.period,
+                        lacking, absent)
+
+    def covers(self) -> tuple[Period, int, dict[str, int]] | None:
+        """(period, period_ns, covers) when the current period is all written, else None."""
+        member = self.member
+        with member.changed:
+            ledger = member.ledger
+            tick = ledger.answer("sim")
+            if tick is None or not ledger.complete(tick):
+                return None
+            covers = {"sim": tick.seq}
+            for m in tick.members:
+                if m == "recorder":
+                    continue
+                ans = ledger.answer(m)
+                if ans is None or not ledger.complete(ans):
+                    return None
+                covers[m] = ans.seq
+            return Period.of(tick), tick.period_ns, covers
+
+    def maybe_answer(self, writer: RecordingWriter) -> bool:
+        """Flush and answer if the current period is complete and not yet answered as it is."""
+        ready = self.covers()
+        if ready is None or ready[2] == self._covered:
+            return False
+        period, period_ns, covers = ready
+        writer.flush()  # on disk (the OS has it) before we say so
+        self.member.answer(period, period_ns, covers=covers)
+        self._covered = covers
+        return True
 
 
 def key_exprs(args: argparse.Namespace) -> list[str]:
@@ -190,12 +311,19 @@ def run(argv: Sequence[str]) -> int:
     with run_service("recorder", args, run=run, agree=False) as ctx:
         path = writer.open(time.time_ns())
         print(f"recording {', '.join(exprs)} to {path}", flush=True)
+        # In lockstep the recorder is a member: the sim does not move on until it is on disk.
+        witness = None
+        if run.lockstep:
+            exprs = lockstep_exprs(exprs, args.vessel)
+            witness = LockstepWitness(ctx.bus, args.vessel, exprs)
         for e in exprs:
-            ctx.bus.subscribe_raw(e, queue.on_sample)
+            ctx.bus.subscribe_raw(e, queue.on_sample, inline=run.lockstep)
         ctx.ready()
+        if witness is not None:
+            witness.member.join()
         print("READY", flush=True)
         try:
-            _loop(writer, queue, ctx.stop, args.flush_interval, args.status_interval)
+            _loop(writer, queue, ctx.stop, args.flush_interval, args.status_interval, witness)
             queue.accepting = False
             _drain(writer, queue, limit=None)
         except OSError as err:  # disk full, file removed, ...: finish what can be finished
@@ -217,24 +345,33 @@ def run(argv: Sequence[str]) -> int:
     return 1 if failed else 0
 
 
-def _drain(writer: RecordingWriter, queue: SampleQueue, limit: int | None) -> int:
+def _drain(writer: RecordingWriter, queue: SampleQueue, limit: int | None,
+           witness: LockstepWitness | None = None) -> int:
     n = 0
     items = queue.items
+    batch: list[tuple[str, bytes]] = []
     while items and (limit is None or n < limit):
         key, payload, encoding, t_ns = items.popleft()
-        writer.write(key, payload, encoding, t_ns)
         n += 1
+        if witness is not None and not witness.admit(key, payload):
+            continue
+        writer.write(key, payload, encoding, t_ns)
+        batch.append((key, payload))
+    if witness is not None:
+        witness.written(batch)
+        witness.maybe_answer(writer)
     return n
 
 
 def _loop(writer: RecordingWriter, queue: SampleQueue, stop: threading.Event, flush_s: float,
-          status_s: float) -> None:
+          status_s: float, witness: LockstepWitness | None = None) -> None:
     flush_ns = int(flush_s * 1e9)
     next_flush = time.monotonic_ns() + flush_ns
     next_status = time.monotonic_ns() + int(status_s * 1e9)
     last_messages = 0
     while not stop.is_set():
-        n = _drain(writer, queue, limit=2000)
+        queue.arrived.clear()
+        n = _drain(writer, queue, limit=2000, witness=witness)
         now = time.monotonic_ns()
         if now >= next_flush:
             writer.count_dropped(queue.dropped - writer.stats.dropped)
@@ -248,8 +385,13 @@ def _loop(writer: RecordingWriter, queue: SampleQueue, stop: threading.Event, fl
                      len(queue.items), writer.path)
             next_status = now + int(status_s * 1e9)
         if n == 0:
-            # Nothing queued: sleep a little, never past the next flush.
-            stop.wait(min(0.005, max(0.0, (next_flush - time.monotonic_ns()) / 1e9)))
+            # Nothing queued: wait for a sample (lockstep answers at once) or a little, never past
+            # the next flush.
+            timeout = min(0.005, max(0.0, (next_flush - time.monotonic_ns()) / 1e9))
+            if witness is not None:
+                queue.arrived.wait(timeout)
+            else:
+                stop.wait(timeout)
 
 
 def cmd_recover(argv: Sequence[str]) -> int:

@@ -14,7 +14,7 @@ from pathlib import Path
 
 from seaway.contract import keys
 from seaway.contract.config import ConfigError, deploy_path
-from seaway.contract.messages import ClockTick, Reply, ScenarioRequest
+from seaway.contract.messages import ClockTick, Message, Reply, ScenarioRequest
 from seaway.runtime.bus import Bus
 from seaway.runtime.run import RunDescription
 from seaway.simkit.scenario import Scenario, load_scenario, parse_scenario
@@ -72,7 +72,8 @@ class SimApp:
             log.warning("scenario request refused: %s", err)
             return Reply.refuse(self.core.stamp_ns, str(err))
         with self.lock:
-            self.core.load(scenario, vessel)
+            # Lockstep: a new episode, time restarts at 0 (seaway.runtime.lockstep); real time goes on.
+            self.core.load(scenario, vessel, restart_time=self.lockstep)
             self.generation += 1
             for hook in self.on_load:
                 hook(scenario, vessel)
@@ -91,9 +92,15 @@ class SimApp:
             raise ConfigError(f"scenario {scenario.name} models vessel {scenario.vessel!r} but this run's "
                               f"services model {self.run.model_vessel_file!r}: start a new run for it")
 
+    def truth_outputs(self, real_time_factor: float | None) -> list[tuple[keys.KeySpec, Message]]:
+        """SIM_TRUTH, SIM_DISTURBANCE and SIM_CLOCK at the core's current time (lock held)."""
+        return [(keys.SIM_TRUTH, self.core.truth()), (keys.SIM_DISTURBANCE, self.core.disturbance()),
+                (keys.SIM_CLOCK, ClockTick(stamp_ns=self.core.stamp_ns, lockstep=self.lockstep,
+                                           real_time_factor=real_time_factor))]
+
     def publish_truth(self, real_time_factor: float | None) -> None:
-        """SIM_TRUTH, SIM_DISTURBANCE, then SIM_CLOCK, at the core's current time (lock held)."""
-        self.pub_truth.put(self.core.truth())
-        self.pub_disturbance.put(self.core.disturbance())
-        self.pub_clock.put(ClockTick(stamp_ns=self.core.stamp_ns, lockstep=self.lockstep,
-                                     real_time_factor=real_time_factor))
+        """Publish ``truth_outputs`` in that order (lock held)."""
+        pubs = {keys.SIM_TRUTH: self.pub_truth, keys.SIM_DISTURBANCE: self.pub_disturbance,
+                keys.SIM_CLOCK: self.pub_clock}
+        for spec, msg in self.truth_outputs(real_time_factor):
+            pubs[spec].put(msg)

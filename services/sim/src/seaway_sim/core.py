@@ -47,12 +47,15 @@ class SimCore:
         self.t_ns = 0
         self.load(scenario, vessel)
 
-    def load(self, scenario: Scenario, vessel: VesselParams) -> None:
+    def load(self, scenario: Scenario, vessel: VesselParams, restart_time: bool = False) -> None:
         """Start ``scenario`` afresh (vessel at its start pose, seeded streams restarted).
 
-        Simulated time goes on: listeners' clocks never run backwards. Sensors sample now, so the
-        new scenario's first outputs describe its start pose.
+        Simulated time goes on (listeners' clocks never run backwards) unless ``restart_time``: a
+        lockstep episode starts at t = 0, so that it runs exactly as in a fresh sim. Sensors sample
+        now, so the new scenario's first outputs describe its start pose.
         """
+        if restart_time:
+            self.t_ns = 0
         self.scenario = scenario
         self.vessel = vessel
         self.plant = Plant(scenario, vessel)

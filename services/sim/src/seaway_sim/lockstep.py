@@ -1,28 +1,21 @@
-"""Lockstep: the sim owns time and advances one control period per thrust command (no MAVLink).
+"""Lockstep: the sim is the clock of ``seaway.runtime.lockstep`` (the protocol is stated there).
 
-THE LOCKSTEP PROTOCOL (services/sim/README.md says the same):
-
-Sim time starts at t_0 = 0 ns (the sim epoch) and t_{k+1} = t_k + period (``--period``, 0.1 s). For
-each k, from one Zenoh session and in this order:
+For each period t_k of the current episode, from one Zenoh session and in this order:
 
   (a) publish the sensor samples due in (t_{k-1}, t_k] (at k = 0: those at t = 0) on GNSS and
-      ATTITUDE, each stamped with its own sample instant (GnssFix carries vel_n/vel_e as SOG; a fix
-      due inside a dropout is not published); then SIM_TRUTH and SIM_DISTURBANCE stamped t_k; and
-      LAST ``ClockTick(stamp_ns=t_k, lockstep=True)``;
-  (b) wait for a ThrustCommand on THRUST with ``stamp_ns >= t_k`` (the controller stamps a command
-      with the stamp of the nav/state it was computed from; the estimator stamps nav/state with the
-      sim time it has processed up to, t_k). Commands stamped before t_k are stale: ignored and
-      counted.
-      If none arrives within ``--lockstep-timeout`` (5 s wall) the sim logs, republishes the whole
-      period of (a) unchanged -- the same sensor samples with the same stamps, truth and the tick --
-      so that a process that joined late (or missed the first samples of a new connection) can
-      start, and keeps waiting: it never steps on its own. Receivers treat a sample whose stamp
-      equals the last one on its key as a repeat;
+      ATTITUDE, each stamped with its own sample instant (a fix due inside a dropout is not
+      published); SIM_TRUTH, SIM_DISTURBANCE and SIM_CLOCK stamped t_k; then the sim's answer on
+      ``lockstep/sim`` listing them, the thrust command applied over (t_{k-1}, t_k] and the members
+      it waits for;
+  (b) wait until every member has answered t_k (``ready``): the controller with a command stamped
+      t_k that the sim holds, the recorder covering everyone's latest answer. A member joining (its
+      member token appears) makes the sim repeat (a); so does a stall of ``STALL_REPEAT_S``;
   (c) apply that command (T1 port, T2 starboard, N; the plant saturates) for one period, so the
       state goes to t_{k+1}; back to (a).
 
-A scenario loaded through ``sim/scenario`` while (b) waits restarts the vessel at the same t_k: the
-sim goes back to (a) and publishes the new scenario's first outputs, still stamped t_k.
+Without a controller among the members (a test's responder), (b) takes any command stamped >= t_k.
+A scenario loaded through ``sim/scenario`` starts a new episode: time restarts at 0 and every member
+starts afresh (the estimator re-initialises, the controller waits for a new mission).
 """
 
 from __future__ import annotations
@@ -30,106 +23,200 @@ from __future__ import annotations
 import logging
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 from seaway.contract import keys
-from seaway.contract.messages import ThrustCommand
+from seaway.contract.messages import Message, ThrustCommand
+from seaway.runtime.lockstep import MEMBERS, STALL_REPEAT_S, Member, Period
 
 from seaway_sim.app import SimApp
 
 log = logging.getLogger("seaway_sim.lockstep")
-
-_POLL_S = 0.05  # how often a wait looks at the stop flag and the scenario generation
 
 
 @dataclass
 class LockstepStats:
     periods: int = 0
     stale_commands: int = 0
-    timeouts: int = 0
+    repeats: int = 0
+    holds: int = 0
 
 
 class Lockstep:
     """The lockstep loop over one ``SimApp``."""
 
-    def __init__(self, app: SimApp, period_s: float, timeout_s: float,
-                 stop: threading.Event) -> None:
-        if not period_s > 0 or not timeout_s > 0:
-            raise ValueError("period and timeout must be > 0")
+    def __init__(self, app: SimApp, period_s: float, stop: threading.Event,
+                 stall_s: float = STALL_REPEAT_S) -> None:
+        if not period_s > 0 or not stall_s > 0:
+            raise ValueError("period and stall time must be > 0")
         self.app = app
         self.period_ns = round(period_s * 1e9)
-        self.timeout_s = timeout_s
+        self.stall_s = stall_s
         self.stop = stop
         self.stats = LockstepStats()
-        self.pub_gnss = app.bus.publisher(keys.GNSS)
-        self.pub_attitude = app.bus.publisher(keys.ATTITUDE)
-        self.commands = app.bus.subscribe(keys.THRUST, mode="fifo")
-        self._last_samples: tuple[list, list] = ([], [])
+        self.member = Member(app.bus, "sim", watched={keys.THRUST.suffix})
+        self.members: set[str] = set()
+        self._joined = False
+        self._commands: dict[int, ThrustCommand] = {}  # stamp -> latest command with that stamp
+        self._applied: int | None = None  # stamp of the command applied over the last period
+        app.bus.subscribe(keys.THRUST, callback=self._on_thrust, inline=True)
+        app.bus.watch_lockstep_members(self._on_member)
 
-    def publish_period(self) -> tuple[int, int]:
-        """Step (a); returns (t_k, scenario generation) it published for."""
+    # -- bus threads --------------------------------------------------------------------------------
+
+    def _on_thrust(self, _key: str, cmd: ThrustCommand) -> None:
+        with self.member.changed:
+            self._commands[cmd.stamp_ns] = cmd
+            if len(self._commands) > 64:  # commands for periods long gone (stale or repeated)
+                for stamp in sorted(self._commands)[:-8]:
+                    del self._commands[stamp]
+        self.member.saw(keys.THRUST.suffix, cmd.stamp_ns)
+
+    def _on_member(self, service: str, alive: bool) -> None:
+        if alive and service in MEMBERS:
+            with self.member.changed:
+                if service not in self.members:
+                    log.info("lockstep: %s joined; waiting for it every period from now on", service)
+                self.members.add(service)
+                self._joined = True
+                self.member.version += 1
+                self.member.changed.notify_all()
+        elif not alive and service in self.members:
+            log.warning("lockstep: %s is gone; holding until it is back", service)
+
+    # -- the period -----------------------------------------------------------------------------------
+
+    @property
+    def period(self) -> Period:
+        return Period(self.app.generation, self.app.core.stamp_ns)
+
+    def publish_period(self) -> Period:
+        """Step (a); the period it published."""
         app = self.app
         with app.lock:
             samples = app.core.take_samples()
-            self._last_samples = ([f for f in samples.gnss if f is not None], list(samples.attitude))
-            self._publish_samples()
-            app.publish_truth(None)
-            return app.core.stamp_ns, app.generation
+            out: list[tuple[keys.KeySpec, Message]] = [(keys.GNSS, f) for f in samples.gnss
+                                                       if f is not None]
+            out += [(keys.ATTITUDE, a) for a in samples.attitude]
+            out += app.truth_outputs(None)
+            period = self.period
+            with self.member.changed:
+                members = sorted(self.members)
+                self._joined = False
+            consumed = ({keys.THRUST.suffix: [self._applied]}
+                        if self._applied is not None and period.stamp_ns > 0 else {})
+            self.member.answer(period, self.period_ns, out, consumed=consumed, members=members)
+            return period
 
-    def _publish_samples(self) -> None:
-        gnss, attitude = self._last_samples
-        for fix in gnss:
-            self.pub_gnss.put(fix)
-        for att in attitude:
-            self.pub_attitude.put(att)
+    def repeat_period(self, period: Period, why: str) -> None:
+        """Step (a) again, unchanged (the same messages), for a newcomer or after a stall."""
+        with self.member.changed:
+            members = sorted(self.members)
+            self._joined = False
+        log.info("lockstep: repeating t = %.3f s (%s)", period.stamp_ns / 1e9, why)
+        self.stats.repeats += 1
+        self.member.repeat(members)
 
-    def republish_period(self, generation: int) -> None:
-        """Step (a) again, unchanged, for late joiners (the hold of step (b))."""
-        with self.app.lock:
-            if self.app.generation == generation:
-                self._publish_samples()
-                self.app.publish_truth(None)
-
-    def wait_command(self, t_k: int, generation: int) -> ThrustCommand | None:
-        """Step (b): the first command stamped >= t_k; None if stopped or the scenario changed."""
-        deadline = time.monotonic() + self.timeout_s
-        while not self.stop.is_set():
-            if self.app.generation != generation:
+    def command(self, period: Period) -> ThrustCommand | None:
+        """The command to apply over period t_k, once the controller (or, without one, anybody)
+        has answered with it; under ``member.changed``."""
+        if "controller" in self.members:
+            ans = self.member.ledger.answer("controller", period)
+            if ans is None or ans.hold:
                 return None
-            cmd = self.commands.get(_POLL_S)
-            if cmd is not None:
-                if cmd.stamp_ns >= t_k:
-                    return cmd
-                self.stats.stale_commands += 1
-                log.debug("ignored stale thrust command stamped %d < t_k %d", cmd.stamp_ns, t_k)
+            return self._commands.get(period.stamp_ns)
+        stamps = [s for s in self._commands if s >= period.stamp_ns]
+        return self._commands[min(stamps)] if stamps else None
+
+    def answered(self, period: Period) -> bool:
+        """Whether every member has answered t_k, the recorder covering everyone's latest answer;
+        under ``member.changed``."""
+        ledger = self.member.ledger
+        for m in self.members:
+            if ledger.answer(m, period) is None:
+                return False
+        if "recorder" in self.members:
+            covers = ledger.answer("recorder", period).covers  # type: ignore[union-attr]
+            latest = {"sim": self.member.last_answer.seq}  # type: ignore[union-attr]
+            latest.update({m: ledger.answers[m].seq for m in self.members if m != "recorder"})
+            if any(covers.get(m) != seq for m, seq in latest.items()):
+                return False
+        return True
+
+    def wait_for(self, period: Period, test: Callable[[Period], Any]) -> Any:
+        """Step (b): block until ``test(period)`` is truthy (its value), repeating the period for
+        newcomers and after stalls; None if stopped or the scenario changed."""
+        member = self.member
+        version = -1
+        stalled_since = time.monotonic()
+        held = False
+        while not self.stop.is_set():
+            if self.app.generation != period.episode:
+                return None
+            with member.changed:
+                value = test(period)
+                joined = self._joined
+                if not value and not joined and member.version == version:
+                    member.changed.wait(min(self.stall_s, 0.25))
+                version = member.version
+            if value:
+                return value
+            if joined:
+                self.repeat_period(period, "a member joined")
+                stalled_since = time.monotonic()
                 continue
-            if time.monotonic() >= deadline:
-                self.stats.timeouts += 1
-                log.warning("lockstep: no thrust command stamped >= %d ns (t = %.3f s) for %.1f s; "
-                            "holding and republishing the period", t_k, t_k / 1e9, self.timeout_s)
-                self.republish_period(generation)
-                deadline = time.monotonic() + self.timeout_s
+            ans = member.ledger.answer("controller", period)
+            if ans is not None and ans.hold:
+                if not held:
+                    self.stats.holds += 1
+                    log.info("lockstep: holding at t = %.3f s (the controller has nothing to fly)",
+                             period.stamp_ns / 1e9)
+                held = True
+                stalled_since = time.monotonic()  # holding is not stalling
+                continue
+            if time.monotonic() - stalled_since >= self.stall_s:
+                self.repeat_period(period, self._waiting_for(period))
+                stalled_since = time.monotonic()
         return None
 
-    def step(self, cmd: ThrustCommand, generation: int) -> bool:
+    def _waiting_for(self, period: Period) -> str:
+        ledger = self.member.ledger
+        lacking = [m for m in sorted(self.members) if ledger.answer(m, period) is None]
+        if not lacking:
+            return "stalled: waiting for the recorder to cover every answer, or for the command"
+        return f"stalled: no answer yet from {', '.join(lacking)}"
+
+    def step(self, cmd: ThrustCommand, period: Period) -> bool:
         """Step (c); False (nothing done) if the scenario changed since step (a)."""
         with self.app.lock:
-            if self.app.generation != generation:
+            if self.period != period:
                 return False
             self.app.core.advance((cmd.thrust_port_n, cmd.thrust_starboard_n), self.period_ns)
+            self._applied = cmd.stamp_ns
+        if cmd.stamp_ns != period.stamp_ns:
+            self.stats.stale_commands += 1
         self.stats.periods += 1
         return True
 
     def run(self, max_periods: int | None = None) -> LockstepStats:
-        """Run until stopped (or ``max_periods`` commands applied)."""
-        log.info("lockstep: period %.3f s, timeout %.1f s; waiting for commands on %s",
-                 self.period_ns / 1e9, self.timeout_s, self.app.bus.key(keys.THRUST))
+        """Run until stopped (or ``max_periods`` commands applied).
+
+        The plant steps as soon as the command is in; the next period is published once every
+        member (the recorder last) has answered this one, so integrating overlaps the recorder's
+        write."""
+        log.info("lockstep: period %.3f s; members join as their health tokens appear",
+                 self.period_ns / 1e9)
         while not self.stop.is_set() and (max_periods is None or self.stats.periods < max_periods):
-            t_k, generation = self.publish_period()
-            cmd = self.wait_command(t_k, generation)
-            if cmd is not None:
-                self.step(cmd, generation)
-        log.info("lockstep ended at t = %.3f s: %d periods, %d stale commands ignored, %d timeouts",
-                 self.app.core.t_ns / 1e9, self.stats.periods, self.stats.stale_commands,
-                 self.stats.timeouts)
+            period = self.publish_period()
+            cmd = self.wait_for(period, self.command)
+            if cmd is not None and self.step(cmd, period) and self.wait_for(period, self.answered):
+                continue
+            if self.app.generation != period.episode:  # a new episode: time restarts at 0
+                self._applied = None
+                with self.member.changed:
+                    self._commands.clear()
+        log.info("lockstep ended at t = %.3f s: %d periods, %d repeats, %d holds",
+                 self.app.core.t_ns / 1e9, self.stats.periods, self.stats.repeats, self.stats.holds)
         return self.stats

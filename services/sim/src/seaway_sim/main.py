@@ -17,6 +17,7 @@ import time
 from collections.abc import Sequence
 
 from seaway.contract.config import ConfigError
+from seaway.runtime.lockstep import STALL_REPEAT_S
 from seaway.runtime.service import base_parser, parse, resolve_run, run_service
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.model import load_vessel
@@ -31,7 +32,6 @@ from seaway_sim.realtime import Realtime
 log = logging.getLogger("seaway_sim")
 
 DEFAULT_SCENARIO = "lake"  # the simulator's own default: only it runs a scenario
-DEFAULT_LOCKSTEP_TIMEOUT_S = 5.0
 DEFAULT_STEP_S = 0.01  # real-time tick: the plant's internal RK4 step, 100 Hz
 
 
@@ -45,9 +45,9 @@ def _positive(text: str) -> float:
 def build_parser() -> argparse.ArgumentParser:
     p = base_parser("sim", "The Seaway simulator: vessel plant, disturbances, sensor noise and a "
                            "PX4-like MAVLink endpoint (real time), or lockstep on the bus.")
-    p.add_argument("--lockstep-timeout", type=_positive, default=DEFAULT_LOCKSTEP_TIMEOUT_S,
-                   help="wall seconds to wait for a command before logging and republishing "
-                        "the tick")
+    p.add_argument("--stall-repeat-s", type=_positive, default=STALL_REPEAT_S,
+                   help="lockstep: wall seconds without progress after which the sim repeats its "
+                        f"period, a safety net (default {STALL_REPEAT_S:g})")
     p.add_argument("--mavlink", default=DEFAULT_ENDPOINT,
                    help=f"real time: where the simulated autopilot listens "
                         f"(default {DEFAULT_ENDPOINT})")
@@ -112,7 +112,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                  scenario.name, scenario.seed, vessel.name, run.model_vessel_file, period_s,
                  "lockstep" if lockstep else "real time")
         if link is None:
-            stepper = Lockstep(app, period_s, args.lockstep_timeout, ctx.stop)
+            stepper = Lockstep(app, period_s, ctx.stop, args.stall_repeat_s)
             ctx.ready()
             stepper.run()
         else:

@@ -76,6 +76,10 @@ SIM_TRUTH = KeySpec("sim/truth", m.SimTruth, "sim")
 SIM_DISTURBANCE = KeySpec("sim/disturbance", m.DisturbanceForce, "sim")
 SIM_CLOCK = KeySpec("sim/clock", m.ClockTick, "sim")
 SIM_SCENARIO = KeySpec("sim/scenario", m.ScenarioRequest, "sim", "query")
+LOCKSTEP_SIM = KeySpec("lockstep/sim", m.PeriodDone, "sim", doc="lockstep: the period's tick")
+LOCKSTEP_ESTIMATOR = KeySpec("lockstep/estimator", m.PeriodDone, "estimator")
+LOCKSTEP_CONTROLLER = KeySpec("lockstep/controller", m.PeriodDone, "controller")
+LOCKSTEP_RECORDER = KeySpec("lockstep/recorder", m.PeriodDone, "recorder")
 
 REGISTRY: tuple[KeySpec, ...] = tuple(v for v in list(globals().values()) if isinstance(v, KeySpec))
 """Every key defined above, in that order: defining a ``KeySpec`` here registers it."""
@@ -110,6 +114,15 @@ def run_description_key(vessel: str, service: str) -> str:
 def run_description_wildcard(vessel: str) -> str:
     """Every service's run description on one vessel."""
     return f"{ROOT}/{check_vessel(vessel)}/run/*"
+
+
+def lockstep_spec(service: str) -> KeySpec:
+    """``lockstep/<service>``: where a lockstep member answers each period (``PeriodDone``)."""
+    spec = _BY_SUFFIX.get(f"lockstep/{service}")
+    if spec is None:
+        raise KeyNameError(f"{service!r} takes no part in lockstep; "
+                           f"members: {', '.join(m.LOCKSTEP_SERVICES)}")
+    return spec
 
 
 def spec_for_suffix(suffix: str) -> KeySpec | None:

@@ -24,9 +24,9 @@ from __future__ import annotations
 
 import json
 import math
-from typing import Any, ClassVar, Literal, Self, get_args
+from typing import Annotated, Any, ClassVar, Literal, Self, get_args
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, StringConstraints, ValidationError
 
 
 class MessageError(ValueError):
@@ -309,6 +309,39 @@ class ClockTick(Message):
     real_time_factor: float | None = Field(default=None, ge=0)
 
 
+LOCKSTEP_SERVICES = ("sim", "estimator", "controller", "recorder")
+"""The services that take part in lockstep (``seaway.runtime.lockstep``), each on ``lockstep/<service>``."""
+LockstepService = Literal["sim", "estimator", "controller", "recorder"]
+_MAX_LISTED = 1000  # stamps listed per key in one period: far above any sensor rate x period
+StampLists = dict[Annotated[str, StringConstraints(pattern=r"^[a-z_]+/[a-z_]+$", max_length=64)],
+                  Annotated[list[Annotated[int, Field(ge=0)]], Field(max_length=_MAX_LISTED)]]
+
+
+class PeriodDone(Message):
+    """One lockstep member's answer to period ``stamp_ns`` (t_k) of episode ``episode``.
+
+    It says what the member published for the period (``published``: key suffix -> the stamps of
+    those messages) and, for the sim, what it consumed (``consumed``: the thrust command it applied
+    over (t_{k-1}, t_k]), so a receiver knows exactly which messages to wait for and never waits on a
+    timeout (``seaway.runtime.lockstep`` states the protocol). ``seq`` numbers a member's answers
+    (unique across its restarts); ``covers`` (the recorder) names, per member, the ``seq`` of the
+    answer whose messages it has written to disk. ``hold`` (the controller): nothing to fly, so the
+    sim does not step until another answer comes (a mission is set).
+    """
+
+    SCHEMA: ClassVar[str] = "seaway.v1.PeriodDone"
+    service: LockstepService
+    episode: int = Field(ge=0, description="counts the sim's scenario (re)starts; time restarts at 0")
+    seq: int = Field(ge=0)
+    period_ns: int = Field(gt=0, le=60 * 10**9, description="the run's control period [ns]")
+    published: StampLists = Field(default_factory=dict)
+    consumed: StampLists = Field(default_factory=dict)
+    hold: bool = False
+    covers: dict[LockstepService, Annotated[int, Field(ge=0)]] = Field(default_factory=dict)
+    members: list[LockstepService] = Field(default_factory=list, max_length=len(LOCKSTEP_SERVICES),
+                                           description="sim: the members it waits for")
+
+
 # ---------------------------------------------------------------------------------------------
 # Requests and replies (queryables)
 # ---------------------------------------------------------------------------------------------
@@ -376,7 +409,8 @@ class Waypoint(BaseModel):
 
 
 class MissionRequest(Message):
-    """A mission: ordered waypoints P_0..P_N, circle of acceptance, task power T^w, controller."""
+    """A mission: ordered waypoints P_0..P_N, circle of acceptance, task power T^w, controller, and
+    whether the controller predicts with the estimated disturbance."""
 
     SCHEMA: ClassVar[str] = "seaway.v1.MissionRequest"
     mission_id: str = Field(default="", max_length=64)
@@ -384,6 +418,8 @@ class MissionRequest(Message):
     coa_radius_m: float = Field(description="circle-of-acceptance radius r_COA [m]")
     task_power_w: float = Field(ge=0, description="T^w, power of the task carried [W]")
     controller: ControllerName = DEFAULT_CONTROLLER
+    predict_disturbance: bool = Field(default=False, description="predict with the estimator's tau_d "
+                                      "instead of tau_d = 0 (the paper's)")
     speed_hint_mps: float | None = Field(default=None, gt=0, description="optional cruise hint")
 
 

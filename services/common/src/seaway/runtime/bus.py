@@ -105,11 +105,12 @@ class BusStats:
 class TypedPublisher(Generic[M]):
     """Publishes one message type on one key."""
 
-    def __init__(self, bus: Bus, spec: keys.KeySpec, key: str) -> None:
+    def __init__(self, bus: Bus, spec: keys.KeySpec, key: str, lockstep: bool = False) -> None:
         assert spec.message is not None
         self.spec, self.key, self._bus = spec, key, bus
         self._type = spec.message
-        self._pub = bus.raw_publisher(key, message_encoding(spec.message))
+        self._pub = bus.raw_publisher(key, message_encoding(spec.message), block=lockstep,
+                                      express=lockstep)
 
     def put(self, msg: M) -> None:
         if type(msg) is not self._type:
@@ -233,10 +234,14 @@ class Bus(abc.ABC):
 
     # -- typed topics ------------------------------------------------------------------------------
 
-    def publisher(self, spec: keys.KeySpec, vessel: str | None = None) -> TypedPublisher[Any]:
+    def publisher(self, spec: keys.KeySpec, vessel: str | None = None,
+                  lockstep: bool = False) -> TypedPublisher[Any]:
+        """A publisher of ``spec``. ``lockstep``: every message counts and every microsecond is
+        waited for, so it is never dropped under congestion (the publisher blocks instead) and is
+        sent at once, not batched with others (Zenoh's ``express``)."""
         if spec.kind != "topic":
             raise ValueError(f"{spec.suffix} is a {spec.kind}, not a topic")
-        return TypedPublisher(self, spec, self.key(spec, vessel))
+        return TypedPublisher(self, spec, self.key(spec, vessel), lockstep)
 
     def subscribe(
         self,
@@ -322,6 +327,17 @@ class Bus(abc.ABC):
         return self._watch_tokens(keys.health_wildcard(vessel or self.vessel),
                                   lambda key, alive: callback(_service_of(key), alive))
 
+    def declare_lockstep_member(self, service: str) -> None:
+        """Declare ``service`` a lockstep member: a liveliness token on its ``lockstep/<service>``
+        key, present while this bus is open (``seaway.runtime.lockstep``)."""
+        self._tokens.append(self._declare_token(keys.lockstep_spec(service).key(self.vessel)))
+
+    def watch_lockstep_members(self, callback: Callable[[str, bool], None]) -> Declared:
+        """``callback(service, present)`` for every lockstep member token of this vessel; starts
+        with the current set."""
+        return self._watch_tokens(f"{keys.ROOT}/{self.vessel}/lockstep/*",
+                                  lambda key, alive: callback(_service_of(key), alive))
+
     # -- closing ------------------------------------------------------------------------------------
 
     def close(self) -> None:
@@ -345,7 +361,8 @@ class Bus(abc.ABC):
     # -- what a transport provides ------------------------------------------------------------------
 
     @abc.abstractmethod
-    def raw_publisher(self, key: str, encoding: str = RAW_ENCODING, *, block: bool = False) -> RawPublisher:
+    def raw_publisher(self, key: str, encoding: str = RAW_ENCODING, *, block: bool = False,
+                      express: bool = False) -> RawPublisher:
         """Publish bytes on ``key`` with ``encoding``. ``block``: wait rather than drop when the
         network is congested (replay, which must lose nothing)."""
 

@@ -216,7 +216,8 @@ class MemoryBus(Bus):
         if self._closed:
             raise RuntimeError("the bus is closed")
 
-    def raw_publisher(self, key: str, encoding: str = RAW_ENCODING, *, block: bool = False) -> RawPublisher:
+    def raw_publisher(self, key: str, encoding: str = RAW_ENCODING, *, block: bool = False,
+                      express: bool = False) -> RawPublisher:
         self._check_open()
         _keyexpr(key)
         return _Publisher(self, key, encoding)

@@ -80,9 +80,12 @@ class ZenohBus(Bus):
         """A new session from ``config_path`` (see ``load_zenoh_config``)."""
         return cls(open_session(config_path), vessel)
 
-    def raw_publisher(self, key: str, encoding: str = RAW_ENCODING, *, block: bool = False) -> RawPublisher:
+    def raw_publisher(self, key: str, encoding: str = RAW_ENCODING, *, block: bool = False,
+                      express: bool = False) -> RawPublisher:
         # Only a blocking publisher names its congestion control: the others keep Zenoh's default.
-        extra = {"congestion_control": zenoh.CongestionControl.BLOCK} if block else {}
+        extra: dict[str, Any] = {"congestion_control": zenoh.CongestionControl.BLOCK} if block else {}
+        if express:
+            extra["express"] = True
         pub = self.session.declare_publisher(key, encoding=zenoh.Encoding(encoding), **extra)
         self._entities.append(pub)
         return pub

@@ -1,0 +1,269 @@
+"""Lockstep: how the sim, the estimator, the controller and the recorder share simulated time.
+
+One mechanism, in one place; each service's loop only says when a period is ready for it and what it
+publishes (``docs/lockstep.md`` draws the exchange).
+
+THE PROTOCOL
+
+* Time is split into episodes (``episode`` counts the sim's scenario starts; a restarted sim starts
+  at 0 again) and, within one, into periods t_k = k * period (the run's control period), t_0 = 0.
+* Each member answers each period with a ``PeriodDone`` on ``lockstep/<service>``, published AFTER
+  the messages it lists: ``published`` names them by key suffix and stamp. So a receiver knows what
+  is coming and waits for exactly that; it never waits on a timeout to learn that something is not.
+* The sim answers first (its answer is the period's tick): the sensor samples due in (t_{k-1}, t_k],
+  truth, disturbance and clock, and in ``consumed`` the thrust command it applied over
+  (t_{k-1}, t_k]. It steps to t_{k+1} once every member has answered t_k: the controller with a
+  command the sim holds (an answer with ``hold`` means "nothing to fly": no step until another
+  answer), the recorder covering (``covers``) the latest answer of every member.
+* The estimator answers t_k once it has the sim's answer and every message it lists (so also the
+  thrust command the sim applied); the controller once it has the estimator's answer and the state
+  it lists; the recorder once every member's latest answer for t_k and all they list is on disk.
+* Members are the services whose member token (a liveliness token on ``lockstep/<service>``,
+  ``Member.join``) has appeared since the sim started. Once a member, always a member: a member
+  that dies is waited for until it is back (the launcher restarts it), so nothing happens without
+  it and nothing is lost.
+* A member that (re)joins makes the sim repeat its answer (same messages, same stamps, new ``seq``);
+  on a repeat every member repeats its last answer (the same bytes), so the newcomer finds the
+  period complete and catches up from it. Receivers drop what they have already seen.
+* An answer from another episode, or from earlier in the same one, means the world restarted (a sim
+  restart or a scenario load): members start afresh from that answer.
+
+``Ledger`` is the pure bookkeeping (which answers, which stamps seen), ``Member`` the bus side a
+service's loop uses. Both are passed time, never read it.
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+import threading
+import time
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+from typing import Any, Literal
+
+from seaway.contract import keys
+from seaway.contract.messages import LOCKSTEP_SERVICES, Message, PeriodDone
+from seaway.runtime.bus import Bus, TypedPublisher
+
+log = logging.getLogger("seaway.lockstep")
+
+MEMBERS = tuple(s for s in LOCKSTEP_SERVICES if s != "sim")
+"""The services the sim waits for, once their member token has appeared."""
+STALL_REPEAT_S = 2.0
+"""A safety net, not a protocol step: a sim that has made no progress for this long (wall seconds)
+repeats its answer, in case a newcomer's subscriptions reached the bus after the repeat it caused."""
+
+Change = Literal["first", "next", "repeat", "restart", "stale"]
+
+
+@dataclass(frozen=True, order=True)
+class Period:
+    """(episode, t_k [ns]): the identity of one lockstep period."""
+
+    episode: int
+    stamp_ns: int
+
+    @classmethod
+    def of(cls, answer: PeriodDone) -> Period:
+        return cls(answer.episode, answer.stamp_ns)
+
+
+def classify(current: Period | None, incoming: Period) -> Change:
+    """How a sim answer for ``incoming`` relates to the period a member is at."""
+    if current is None:
+        return "first"
+    if incoming.episode != current.episode or incoming.stamp_ns < current.stamp_ns:
+        return "restart"
+    if incoming.stamp_ns == current.stamp_ns:
+        return "repeat"
+    return "next"
+
+
+class Ledger:
+    """What one member knows: the latest answer of each member, and the stamps it has seen per key.
+
+    ``watched`` are the key suffixes whose messages this member receives: only those can make an
+    answer incomplete (a member never waits for a key it does not subscribe to).
+    """
+
+    def __init__(self, watched: Iterable[str] | None) -> None:
+        self.watched = None if watched is None else frozenset(watched)  # None: every key
+        self.answers: dict[str, PeriodDone] = {}
+        self.seen: dict[str, set[int]] = {}
+        self.period: Period | None = None
+        self.period_ns = 0
+
+    def see(self, suffix: str, stamp_ns: int) -> None:
+        self.seen.setdefault(suffix, set()).add(stamp_ns)
+
+    def has(self, suffix: str, stamp_ns: int) -> bool:
+        return stamp_ns in self.seen.get(suffix, ())
+
+    def on_answer(self, answer: PeriodDone) -> Change | None:
+        """Note an answer; for the sim's, say how its period relates to the current one."""
+        self.answers[answer.service] = answer
+        if answer.service != "sim":
+            return None
+        incoming = Period.of(answer)
+        change = classify(self.period, incoming)
+        if change == "restart":
+            # Keep what already belongs to the new episode (its first stamps are <= t_k); messages
+            # of the old one are later than that, except for a sim that died in its first period.
+            for stamps in self.seen.values():
+                stamps.difference_update([s for s in stamps if s > incoming.stamp_ns])
+            self.answers = {"sim": answer}
+        self.period, self.period_ns = incoming, answer.period_ns
+        if change == "next":
+            self._prune(incoming.stamp_ns - 2 * answer.period_ns)
+        return change
+
+    def _prune(self, before_ns: int) -> None:
+        for stamps in self.seen.values():
+            if stamps and min(stamps) < before_ns:
+                stamps.difference_update([s for s in stamps if s < before_ns])
+
+    def answer(self, service: str, period: Period | None = None) -> PeriodDone | None:
+        """``service``'s latest answer if it is for ``period`` (default: the current one)."""
+        a = self.answers.get(service)
+        period = period or self.period
+        return a if a is not None and period is not None and Period.of(a) == period else None
+
+    def missing(self, answer: PeriodDone) -> list[tuple[str, int]]:
+        """The (key suffix, stamp) an answer lists, on watched keys, that have not been seen."""
+        out = []
+        for listing in (answer.published, answer.consumed):
+            for suffix, stamps in listing.items():
+                if self.watched is not None and suffix not in self.watched:
+                    continue
+                seen = self.seen.get(suffix, set())
+                out.extend((suffix, s) for s in stamps if s not in seen)
+        return out
+
+    def complete(self, answer: PeriodDone | None) -> bool:
+        return answer is not None and not self.missing(answer)
+
+
+def listing(messages: Iterable[tuple[keys.KeySpec, Message]]) -> dict[str, list[int]]:
+    """``published`` of an answer: key suffix -> stamps, in publishing order."""
+    out: dict[str, list[int]] = {}
+    for spec, msg in messages:
+        out.setdefault(spec.suffix, []).append(msg.stamp_ns)
+    return out
+
+
+class Member:
+    """A lockstep member's side of the bus: its ledger fed from the bus, its answers and repeats.
+
+    The service subscribes to its own inputs as usual and calls ``saw`` for each message it wants
+    counted; ``changed`` wakes its loop whenever the ledger moved (an answer or a message arrived).
+    ``answer`` publishes the period's messages then the ``PeriodDone``; a repeat of the sim's answer
+    republishes the last one (``on_repeat`` lets the service add to that, e.g. to nothing).
+    """
+
+    def __init__(self, bus: Bus, service: str, watched: Iterable[str] | None,
+                 seq_start: int | None = None, subscribe: bool = True) -> None:
+        self.bus = bus
+        self.service = service
+        self.ledger = Ledger(watched)
+        self.changed = threading.Condition()
+        self.version = 0  # bumped on every ledger change, under ``changed``
+        self.restarts: list[tuple[Period | None, Period]] = []
+        self.repeats = 0
+        self._seq = itertools.count(time.time_ns() if seq_start is None else seq_start)
+        self._pub = bus.publisher(keys.lockstep_spec(service), lockstep=True)
+        self._last: tuple[list[tuple[TypedPublisher[Any], Message]], PeriodDone] | None = None
+        self._publishers: dict[str, TypedPublisher[Any]] = {}
+        self.on_restart: Callable[[Period | None, Period], None] | None = None
+        if subscribe:  # else the service feeds ``on_answer`` itself (the recorder, from its stream)
+            for other in LOCKSTEP_SERVICES:
+                if other != service:
+                    bus.subscribe(keys.lockstep_spec(other), callback=self.on_answer, inline=True)
+
+    # -- from the bus's threads -------------------------------------------------------------------
+
+    def saw(self, suffix: str, stamp_ns: int) -> None:
+        with self.changed:
+            self.ledger.see(suffix, stamp_ns)
+            self.version += 1
+            self.changed.notify_all()
+
+    def saw_many(self, seen: Iterable[tuple[str, int]]) -> None:
+        with self.changed:
+            for suffix, stamp_ns in seen:
+                self.ledger.see(suffix, stamp_ns)
+            self.version += 1
+            self.changed.notify_all()
+
+    def on_answer(self, _key: str, answer: PeriodDone) -> None:
+        repeat = False
+        with self.changed:
+            before = self.ledger.period
+            change = self.ledger.on_answer(answer)
+            if change == "restart":
+                self.restarts.append((before, Period.of(answer)))
+                if self.on_restart is not None:
+                    self.on_restart(before, Period.of(answer))
+            repeat = change == "repeat"
+            self.version += 1
+            self.changed.notify_all()
+        if repeat:
+            self.repeat()
+
+    # -- from the service's loop ------------------------------------------------------------------
+
+    def wait(self, version: int, timeout_s: float) -> int:
+        """Block until the ledger moved past ``version`` (or ``timeout_s``); the new version."""
+        with self.changed:
+            if self.version == version:
+                self.changed.wait(timeout_s)
+            return self.version
+
+    def publisher(self, spec: keys.KeySpec) -> TypedPublisher[Any]:
+        pub = self._publishers.get(spec.suffix)
+        if pub is None:
+            pub = self._publishers[spec.suffix] = self.bus.publisher(spec, lockstep=True)
+        return pub
+
+    def answer(self, period: Period, period_ns: int,
+               messages: Sequence[tuple[keys.KeySpec, Message]] = (), *, hold: bool = False,
+               consumed: dict[str, list[int]] | None = None, covers: dict[str, int] | None = None,
+               members: Sequence[str] = ()) -> PeriodDone:
+        """Publish ``messages`` in order, then this member's answer for ``period`` listing them."""
+        outs = [(self.publisher(spec), msg) for spec, msg in messages]
+        for pub, msg in outs:
+            pub.put(msg)
+        done = PeriodDone(stamp_ns=period.stamp_ns, service=self.service,  # type: ignore[arg-type]
+                          episode=period.episode, seq=next(self._seq), period_ns=period_ns,
+                          published=listing(messages), consumed=consumed or {}, hold=hold,
+                          covers=covers or {}, members=list(members))  # type: ignore[arg-type]
+        self._pub.put(done)
+        self._last = (outs, done)
+        return done
+
+    def repeat(self, members: Sequence[str] | None = None) -> PeriodDone | None:
+        """Publish the last answer again (same messages, new ``seq``), for a newcomer; the sim's
+        names the members it now waits for."""
+        last = self._last
+        if last is None:
+            return None
+        outs, done = last
+        for pub, msg in outs:
+            pub.put(msg)
+        update: dict[str, Any] = {"seq": next(self._seq)}
+        if members is not None:
+            update["members"] = list(members)
+        again = done.model_copy(update=update)
+        self._pub.put(again)
+        self._last = (outs, again)
+        self.repeats += 1
+        return again
+
+    def join(self) -> None:
+        """Declare this member's token; call once its subscriptions are in place (the sim then
+        repeats its period for it)."""
+        self.bus.declare_lockstep_member(self.service)
+
+    @property
+    def last_answer(self) -> PeriodDone | None:
+        return self._last[1] if self._last is not None else None
