@@ -163,13 +163,16 @@ class LockstepWitness:
     def __init__(self, bus: Bus, vessel: str, exprs: Sequence[str]) -> None:
         # Only keys it records can make an answer incomplete for it.
         self.member = Member(bus, "recorder", watched=recorded_suffixes(exprs, vessel),
-                             subscribe=False)
+                             subscribe=False, consumed=False)
         self.answer_keys = {keys.lockstep_spec(s).key(vessel) for s in LOCKSTEP_SERVICES if s != "recorder"}
         self.prefix = f"{keys.ROOT}/{vessel}/"
         self._recent: dict[str, collections.deque[bytes]] = collections.defaultdict(
             lambda: collections.deque(maxlen=32))
         self._covered: dict[str, int] | None = None
         self.repeats_skipped = 0
+        # A new episode repeats the old one's first messages byte for byte (deterministic): those
+        # are new messages, to be written again.
+        self.member.on_restart = lambda _before, _now: self._recent.clear()
 
     def admit(self, key: str, payload: bytes) -> bool:
         """Whether to write this sample: not when it repeats bytes just written on its key."""
@@ -183,7 +186,8 @@ class LockstepWitness:
         return True
 
     def written(self, batch: list[tuple[str, bytes]]) -> None:
-        """Count the stamps of what was just written (this vessel's keys only)."""
+        """Count the stamps of what was just written, or skipped as a repeat of what was (this
+        vessel's keys only)."""
         seen = []
         for key, payload in batch:
             if key in self.answer_keys:  # after what it lists was written (it was published after)
@@ -353,10 +357,10 @@ def _drain(writer: RecordingWriter, queue: SampleQueue, limit: int | None,
     while items and (limit is None or n < limit):
         key, payload, encoding, t_ns = items.popleft()
         n += 1
+        batch.append((key, payload))  # a repeat not written again is on disk all the same
         if witness is not None and not witness.admit(key, payload):
             continue
         writer.write(key, payload, encoding, t_ns)
-        batch.append((key, payload))
     if witness is not None:
         witness.written(batch)
         witness.maybe_answer(writer)

@@ -40,12 +40,40 @@ class RecordingInfo:
     topics: dict[str, int] = field(default_factory=dict)
 
 
+MCAP_MAGIC = b"\x89MCAP0\r\n"
+
+
+def finished(path: Path) -> bool:
+    """Whether an MCAP file ends as a finished one does (a recorder killed mid-write leaves none)."""
+    with open(path, "rb") as fh:
+        fh.seek(0, 2)
+        if fh.tell() < 2 * len(MCAP_MAGIC):
+            return False
+        fh.seek(-len(MCAP_MAGIC), 2)
+        return fh.read() == MCAP_MAGIC
+
+
+def readable(path: Path) -> Path:
+    """``path``, or for a truncated file its repaired copy ``<stem>.recovered.mcap`` (made once,
+    next to it; the original is left as it is)."""
+    if finished(path):
+        return path
+    fixed = path.with_name(f"{path.stem}.recovered.mcap")
+    if not fixed.exists() or fixed.stat().st_mtime < path.stat().st_mtime:
+        from seaway_recorder.recover import recover  # the repair only when one is needed
+
+        recover(path, fixed)
+    return fixed
+
+
 def open_paths(paths: Iterable[str | Path]) -> list[Path]:
-    """Files named, and every ``*.mcap`` in folders named, in name order; raises if none."""
+    """Files named, and every ``*.mcap`` in folders named, in name order; raises if none. A file in a
+    folder that a crash left truncated is read through its repaired copy (``readable``)."""
     out: list[Path] = []
     for p in map(Path, paths):
         if p.is_dir():
-            out += sorted(q for q in p.glob("*.mcap") if not q.name.endswith(".recovered.mcap"))
+            out += [readable(q) for q in sorted(p.glob("*.mcap"))
+                    if not q.name.endswith(".recovered.mcap")]
         elif p.is_file():
             out.append(p)
         else:
@@ -98,14 +126,30 @@ def iter_messages(files: list[Path], topics: list[str] | None = None) -> Iterato
 
 @dataclass
 class Decoded:
-    """Typed bus messages by key suffix (``sim/truth``), each list in log-time order."""
+    """Typed bus messages by key suffix (``sim/truth``), each list in log-time order, with their
+    log times (``log_ns``, the same order)."""
 
     by_suffix: dict[str, list[Message]] = field(default_factory=dict)
+    log_ns: dict[str, list[int]] = field(default_factory=dict)
     vessels: set[str] = field(default_factory=set)
     undecodable: int = 0
+    duplicates: int = 0
+    """Messages recorded twice (the same bytes on the same topic): a lockstep period repeated for a
+    restarted recorder can sit in the file it left and in the one it started. Read once."""
 
     def get(self, suffix: str) -> list[Message]:
         return self.by_suffix.get(suffix, [])
+
+    def between(self, start_ns: int, end_ns: int | None) -> Decoded:
+        """The messages logged in [start_ns, end_ns) (to the end if None)."""
+        out = Decoded(vessels=set(self.vessels), undecodable=self.undecodable,
+                      duplicates=self.duplicates)
+        for suffix, msgs in self.by_suffix.items():
+            logs = self.log_ns[suffix]
+            keep = [i for i, t in enumerate(logs) if t >= start_ns and (end_ns is None or t < end_ns)]
+            out.by_suffix[suffix] = [msgs[i] for i in keep]
+            out.log_ns[suffix] = [logs[i] for i in keep]
+        return out
 
 
 def decode_vessel(files: list[Path], vessel: str | None = None,
@@ -114,6 +158,7 @@ def decode_vessel(files: list[Path], vessel: str | None = None,
     only those whose key ends in one of ``suffixes`` (``sim/truth``)."""
     out = Decoded()
     wanted = None if suffixes is None else set(suffixes)
+    seen: set[tuple[str, int]] = set()
     for m in iter_messages(files):
         spec = keys.spec_for_key(m.topic)
         if spec is None or spec.message is None:
@@ -125,12 +170,19 @@ def decode_vessel(files: list[Path], vessel: str | None = None,
         out.vessels.add(v)
         if vessel is not None and v != vessel:
             continue
+        if len(files) > 1:
+            ident = (m.topic, hash(m.data))
+            if ident in seen:
+                out.duplicates += 1
+                continue
+            seen.add(ident)
         try:
             msg = spec.message.decode(m.data)
         except MessageError:
             out.undecodable += 1
             continue
         out.by_suffix.setdefault(spec.suffix, []).append(msg)
+        out.log_ns.setdefault(spec.suffix, []).append(m.log_time_ns)
     if vessel is None and len(out.vessels) > 1:
         raise ValueError(f"the recording has several vessels ({', '.join(sorted(out.vessels))}): "
                          "choose one with --vessel")

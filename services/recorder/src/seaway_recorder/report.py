@@ -49,6 +49,9 @@ def parser() -> argparse.ArgumentParser:
                    help=f"position source (default: {TRUTH} when recorded, else {STATE})")
     p.add_argument("--sample-period", type=float, default=None,
                    help="cross-track sample period [s] (default: the recorded run's control period)")
+    p.add_argument("--episode", type=int, default=None,
+                   help="which episode (simulated time went back between two: a sim restart or a "
+                        "scenario load); 0 is the first, -1 the last (the default)")
     p.add_argument("--no-plots", action="store_true")
     p.add_argument("--json", action="store_true", help="print the metrics JSON instead of the table")
     return p
@@ -63,12 +66,35 @@ def _origin(dec: recording.Decoded, scenario_origin: GeoOrigin | None) -> GeoOri
     return scenario_origin
 
 
+def episodes(dec: recording.Decoded) -> list[tuple[int, int | None]]:
+    """The recording's episodes as [start, end) log-time spans: a new one wherever simulated time
+    went back (``sim/truth``): the sim restarted, or loaded a scenario (a lockstep episode)."""
+    truth, logs = dec.get(TRUTH), dec.log_ns.get(TRUTH, [])
+    starts = [0]
+    for i in range(1, len(truth)):
+        if truth[i].stamp_ns < truth[i - 1].stamp_ns:
+            starts.append(logs[i])
+    return [(a, b) for a, b in zip(starts, [*starts[1:], None], strict=True)]
+
+
 def analyse(files: list[Path], *, scenario: str | None = None, mission_file: str | None = None,
             vessel_file: str | None = None, vessel: str | None = None, state: str = "auto",
-            sample_period_s: float | None = None) -> dict[str, Any]:
-    """Everything the report prints, as one JSON-able dict (plus the series for plots under '_')."""
+            sample_period_s: float | None = None, episode: int | None = None) -> dict[str, Any]:
+    """Everything the report prints, as one JSON-able dict (plus the series for plots under '_').
+
+    The metrics are those of one episode (default the last): where simulated time went back, the
+    episodes before are reported as such, not mixed in."""
     info = recording.read_info(files)
     dec = recording.decode_vessel(files, vessel, REPORT_TOPICS)
+    bounds = episodes(dec)
+    if episode is None:
+        episode = len(bounds) - 1
+    if not -len(bounds) <= episode < len(bounds):
+        raise ValueError(f"--episode {episode}: the recording has {len(bounds)} episode(s), "
+                         f"0..{len(bounds) - 1}")
+    episode %= len(bounds)
+    start, end = bounds[episode]
+    dec = dec.between(start, end)
     scen = load_scenario(runinfo.scenario_path(scenario)) if scenario else \
         runinfo.scenario_from_attachments(info.attachments)
     scen_origin = runinfo.scenario_origin(scen) if scen is not None else None
@@ -132,12 +158,14 @@ def analyse(files: list[Path], *, scenario: str | None = None, mission_file: str
         "alpha_w_per_n2": alpha,
         "run": run.model_dump(mode="json") if run is not None else None,
         "control_period_s": sample_period_s,
+        "episodes": {"count": len(bounds), "reported": episode,
+                     "time_went_back": len(bounds) - 1},
         "metrics": met.to_json(),
         "solve": mx.solve_stats(solves).to_json(),
         "controller_reported": live,
         "recording": {"messages": info.message_count, "topics": info.topics,
                       "duration_s": (info.end_ns - info.start_ns) / 1e9,
-                      "undecodable": dec.undecodable,
+                      "undecodable": dec.undecodable, "duplicates": dec.duplicates,
                       "recorder_summary": info.metadata.get("seaway.recorder.summary", {}),
                       "recovered": info.metadata.get("seaway.recover", {})},
         "_": {"series": met.series, "commands": commands, "thrusts": thrusts, "states": states,
@@ -184,6 +212,11 @@ def table(res: dict[str, Any]) -> str:
     v = max(len(r[1]) for r in rows)
     head = (f"Run report: {', '.join(res['files'])}\nvessel {res['vessel']}, state from "
             f"{m['state_source']}, mission from {res['mission']['source']}\n")
+    ep = res["episodes"]
+    if ep["time_went_back"]:
+        head += (f"simulated time went back {ep['time_went_back']} time(s) (a sim restart or a new "
+                 f"scenario): {ep['count']} episodes; these metrics are episode {ep['reported']}'s "
+                 "(--episode N for another)\n")
     return head + "\n".join(f"{a.ljust(w)}  {b.rjust(v)}  {c}".rstrip() for a, b, c in rows)
 
 
@@ -283,7 +316,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         files = recording.open_paths(args.files)
         res = analyse(files, scenario=args.scenario, mission_file=args.mission,
                       vessel_file=args.vessel_file, vessel=args.vessel, state=args.state,
-                      sample_period_s=args.sample_period)
+                      sample_period_s=args.sample_period, episode=args.episode)
     except (ConfigError, ValueError, FileNotFoundError) as err:
         print(f"seaway report: {err}", file=sys.stderr)
         return 2

@@ -87,8 +87,12 @@ class Ledger:
     answer incomplete (a member never waits for a key it does not subscribe to).
     """
 
-    def __init__(self, watched: Iterable[str] | None) -> None:
+    def __init__(self, watched: Iterable[str] | None, consumed: bool = True) -> None:
         self.watched = None if watched is None else frozenset(watched)  # None: every key
+        # Whether an answer's ``consumed`` list counts: it does for the estimator (it must apply the
+        # command the sim applied), not for the recorder (that command was written, and answered
+        # for, in the period it was published; a restarted recorder finds it in the file it left).
+        self.consumed = consumed
         self.answers: dict[str, PeriodDone] = {}
         self.seen: dict[str, set[int]] = {}
         self.period: Period | None = None
@@ -132,7 +136,7 @@ class Ledger:
     def missing(self, answer: PeriodDone) -> list[tuple[str, int]]:
         """The (key suffix, stamp) an answer lists, on watched keys, that have not been seen."""
         out = []
-        for listing in (answer.published, answer.consumed):
+        for listing in (answer.published, answer.consumed) if self.consumed else (answer.published,):
             for suffix, stamps in listing.items():
                 if self.watched is not None and suffix not in self.watched:
                     continue
@@ -162,10 +166,11 @@ class Member:
     """
 
     def __init__(self, bus: Bus, service: str, watched: Iterable[str] | None,
-                 seq_start: int | None = None, subscribe: bool = True) -> None:
+                 seq_start: int | None = None, subscribe: bool = True,
+                 consumed: bool = True) -> None:
         self.bus = bus
         self.service = service
-        self.ledger = Ledger(watched)
+        self.ledger = Ledger(watched, consumed)
         self.changed = threading.Condition()
         self.version = 0  # bumped on every ledger change, under ``changed``
         self.restarts: list[tuple[Period | None, Period]] = []

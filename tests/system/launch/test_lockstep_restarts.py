@@ -1,0 +1,196 @@
+"""Lockstep survives its members: SIGKILL of each process mid-mission, a ``nav/reset``, and two
+missions back to back in one stack (``seaway.runtime.lockstep``).
+
+Each run is a real ``seaway launch sim-batch`` (sim, estimator, controller and recorder as separate
+processes on their own Zenoh rendezvous; the launcher restarts a process that dies), a real MCAP
+recording and the real report. The mission is paper condition #1 flown by NMPC: 36 s of simulated
+time, a few hundred periods, so every run is short. Each disturbed run must finish with the
+energy of an undisturbed one within 1 %, and its recording must have every period of simulated time.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from seaway.contract import keys
+from seaway.contract.messages import MissionStatus, NavResetRequest, ScenarioRequest, SimTruth
+from seaway.runtime.bus import Bus
+from seaway.simkit.scenario import load_scenario
+from seaway_recorder import recording
+from seaway_recorder.report import episodes
+
+from tests.conftest import free_port, wait_for
+
+pytestmark = pytest.mark.system
+BIN = Path(sys.executable).parent
+SCENARIO, CONTROLLER = "paper-c1", "nmpc"
+PERIOD_NS = 100_000_000
+KILL_AT_NS = 12 * 10**9  # a third of the way
+
+
+def _env() -> dict[str, str]:
+    env = dict(os.environ, PYTHONUNBUFFERED="1",
+               SEAWAY_ZENOH_RENDEZVOUS=f"tcp/127.0.0.1:{free_port()}")
+    env.pop("SEAWAY_ZENOH_CONFIG", None)
+    return env
+
+
+class Stack:
+    """One ``seaway launch sim-batch`` in the background, and a bus on its rendezvous."""
+
+    def __init__(self, run_dir: Path, *extra: str) -> None:
+        self.run_dir = run_dir
+        self.env = _env()
+        os.environ["SEAWAY_ZENOH_RENDEZVOUS"] = self.env["SEAWAY_ZENOH_RENDEZVOUS"]
+        self.log = open(run_dir.parent / f"{run_dir.name}-launch.log", "w")  # noqa: SIM115
+        self.proc = subprocess.Popen(
+            [str(BIN / "seaway"), "launch", "sim-batch", "--scenario", SCENARIO, "--controller",
+             CONTROLLER, "--run-dir", str(run_dir), *extra],
+            env=self.env, stdout=self.log, stderr=subprocess.STDOUT, start_new_session=True)
+        self.bus = Bus.open("vessel1")
+        self.clock = self.bus.subscribe(keys.SIM_CLOCK, mode="latest")
+        self.status = self.bus.subscribe(keys.MISSION_STATUS, mode="latest")
+
+    def sim_time_reaches(self, t_ns: int, timeout_s: float = 120.0) -> None:
+        def reached() -> bool:
+            tick = self.clock.latest()
+            return tick is not None and tick.stamp_ns >= t_ns
+        wait_for(reached, timeout_s, interval_s=0.002, what=f"simulated time {t_ns / 1e9:g} s")
+
+    def pid_of(self, service: str) -> int:
+        out = subprocess.run(["pgrep", "-f", f"seaway-{service} .*{self.run_dir}"],
+                             capture_output=True, text=True, check=False).stdout.split()
+        assert len(out) == 1, f"seaway-{service} of {self.run_dir}: pids {out}"
+        return int(out[0])
+
+    def kill(self, service: str) -> None:
+        os.kill(self.pid_of(service), signal.SIGKILL)
+
+    def finish(self, timeout_s: float = 180.0) -> None:
+        try:
+            rc = self.proc.wait(timeout_s)
+        finally:
+            if self.proc.poll() is None:
+                os.killpg(self.proc.pid, signal.SIGKILL)
+            self.bus.close()
+            self.log.close()
+        assert rc == 0, (self.run_dir.parent / f"{self.run_dir.name}-launch.log").read_text()[-4000:]
+
+    def stop(self) -> None:
+        self.proc.send_signal(signal.SIGINT)
+        self.finish()
+
+
+def report(run_dir: Path, episode: int | None = None) -> dict:
+    args = [str(BIN / "seaway"), "report", str(run_dir), "--json", "--no-plots"]
+    if episode is not None:
+        args += ["--episode", str(episode)]
+    out = subprocess.run(args, capture_output=True, text=True, check=False, timeout=120)
+    assert out.returncode == 0, out.stderr
+    return json.loads(out.stdout)
+
+
+def truth_episodes(run_dir: Path) -> list[list[int]]:
+    """The sim/truth stamps of each episode, every recording file of the run read (and repaired)."""
+    files = recording.open_paths([run_dir])
+    dec = recording.decode_vessel(files, None, [keys.SIM_TRUTH.suffix])
+    out = []
+    for start, end in episodes(dec):
+        part = dec.between(start, end)
+        out.append(sorted({m.stamp_ns for m in part.get(keys.SIM_TRUTH.suffix)
+                           if isinstance(m, SimTruth)}))
+    return out
+
+
+def assert_no_hole(stamps: list[int]) -> None:
+    """Every period from 0 to the end, none missing."""
+    assert stamps[0] == 0
+    gaps = [(a, b) for a, b in itertools.pairwise(stamps) if b - a != PERIOD_NS]
+    assert not gaps, f"simulated time missing from the recording: {gaps[:5]}"
+
+
+@pytest.fixture(scope="module")
+def undisturbed(tmp_path_factory) -> dict:
+    run_dir = tmp_path_factory.mktemp("undisturbed") / "run"
+    Stack(run_dir).finish()
+    rep = report(run_dir)
+    assert rep["metrics"]["completed"] and rep["episodes"]["count"] == 1
+    assert_no_hole(truth_episodes(run_dir)[0])
+    return rep["metrics"]
+
+
+def _same_energy(rep: dict, undisturbed: dict, rel: float = 0.01) -> None:
+    m = rep["metrics"]
+    assert m["completed"]
+    assert m["energy_j"] == pytest.approx(undisturbed["energy_j"], rel=rel), (m, undisturbed)
+
+
+@pytest.mark.parametrize("victim", ["estimator", "controller", "recorder", "sim"])
+def test_a_member_killed_mid_mission_comes_back_and_the_run_finishes(victim, tmp_path,
+                                                                     undisturbed) -> None:
+    stack = Stack(tmp_path / "run")
+    stack.sim_time_reaches(KILL_AT_NS)
+    stack.kill(victim)
+    stack.finish()
+    log = (stack.run_dir / "logs" / f"{victim}.log").read_text()
+    assert log.count(" starting on vessel") == 2, f"{victim} was not restarted"
+    rep = report(stack.run_dir)
+    _same_energy(rep, undisturbed)
+    eps = truth_episodes(stack.run_dir)
+    if victim == "sim":
+        # A new sim starts the world again: the report says time went back and reports the
+        # second episode, which the controller flew from its first leg.
+        assert rep["episodes"] == {"count": 2, "reported": 1, "time_went_back": 1}
+        assert eps[0][-1] >= KILL_AT_NS - PERIOD_NS
+    else:
+        assert rep["episodes"]["count"] == 1
+        if victim == "recorder":
+            assert len(recording.open_paths([stack.run_dir])) == 2  # the file it left, a new one
+    assert_no_hole(eps[-1])
+    assert eps[-1][-1] >= undisturbed["end_ns"] - PERIOD_NS
+
+
+def test_a_nav_reset_mid_mission(tmp_path, undisturbed) -> None:
+    stack = Stack(tmp_path / "run")
+    stack.sim_time_reaches(KILL_AT_NS)
+    reply = stack.bus.request(keys.NAV_RESET, NavResetRequest(stamp_ns=0, reason="test"), 5.0)
+    assert reply.accepted, reply.reason
+    stack.finish()
+    _same_energy(report(stack.run_dir), undisturbed)
+    assert "re-initialised (request: test" in (stack.run_dir / "logs" / "estimator.log").read_text()
+    assert_no_hole(truth_episodes(stack.run_dir)[0])
+
+
+def test_two_missions_back_to_back_in_one_stack_equal_two_fresh_stacks(tmp_path,
+                                                                       undisturbed) -> None:
+    stack = Stack(tmp_path / "run", "--stay")
+    done = lambda: (s := stack.status.latest()) is not None and s.state == "complete"  # noqa: E731
+    wait_for(done, 120, interval_s=0.01, what="the first mission complete")
+    # The same scenario again (a new episode from t = 0), then its mission again.
+    reply = stack.bus.request(keys.SIM_SCENARIO, ScenarioRequest(stamp_ns=0, scenario=None), 10.0)
+    assert reply.accepted, reply.reason
+    sc = load_scenario(SCENARIO)
+    mission = sc.mission.to_request(0, mission_id="second", controller=CONTROLLER)
+    reply = stack.bus.request(keys.MISSION_SET, mission, 10.0)
+    assert reply.accepted, reply.reason
+
+    def second_done() -> bool:
+        s: MissionStatus | None = stack.status.latest()
+        return s is not None and s.mission_id == "second" and s.state == "complete"
+    wait_for(second_done, 120, interval_s=0.01, what="the second mission complete")
+    stack.stop()
+    first, second = report(stack.run_dir, episode=0), report(stack.run_dir, episode=1)
+    assert first["episodes"]["count"] == 2
+    for rep in (first, second):
+        m = rep["metrics"]
+        for key in ("energy_j", "travel_time_s", "avg_cross_track_m"):
+            assert m[key] == pytest.approx(undisturbed[key], rel=1e-6), (key, m, undisturbed)
+    for stamps in truth_episodes(stack.run_dir):
+        assert_no_hole(stamps)
