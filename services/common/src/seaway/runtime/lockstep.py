@@ -1,7 +1,7 @@
 """Lockstep: how the sim, the estimator, the controller and the recorder share simulated time.
 
 One mechanism, in one place; each service's loop only says when a period is ready for it and what it
-publishes (``docs/lockstep.md`` draws the exchange).
+publishes (services/sim/README.md, "The lockstep protocol", walks one period through).
 
 THE PROTOCOL
 
