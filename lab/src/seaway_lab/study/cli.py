@@ -1,0 +1,228 @@
+"""``seaway study NAME``: run a study's runs through the real processes in lockstep, tabulate, draw.
+
+    seaway study table1                      # the paper's Table I: 5 conditions x 3 controllers
+    seaway study table1 --rows '#1' --json   # one condition, the result as one JSON object
+    seaway study tw-sweep --workers 1
+    seaway study lake --dask tcp://127.0.0.1:8786
+    seaway study --list
+
+Each run is ``seaway launch sim-batch --scenario S --controller C [--predict-disturbance]
+[--task-power-w W] --run-dir OUT/runs/KEY`` on its own Zenoh rendezvous port, then the report of
+its recording. ``--workers N`` runs N at a time on this machine; ``--dask ADDRESS`` submits each run to
+a Dask scheduler instead (each worker starts the stack of the run it takes). Writes into ``--out``
+(default ``runs/study-NAME-<time>/``): ``results.md``, ``results.csv``, ``results.json``,
+``series.json`` (what the figures are drawn from), ``figures/*.png`` and ``runs/<key>/`` (each run's
+folder: recording, logs, launch.log). ``--redraw OUT`` draws the tables and figures of a finished
+study again without running anything.
+
+Exit code: 0 when every run completed, 1 otherwise, 2 for bad arguments, 130 when interrupted
+(Ctrl-C starts no more runs and stops the running ones).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from seaway.contract.config import repo_root
+
+from seaway_lab.study import definitions as defs
+from seaway_lab.study import results as res
+from seaway_lab.study.execute import DEFAULT_TIMEOUT_S, RunOutcome, run_dask, run_local
+
+DEFAULT_WORKERS = 2
+
+
+def parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="seaway study", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("name", nargs="?", help=f"the study: {', '.join(defs.STUDIES)}")
+    ap.add_argument("--list", action="store_true", help="list the studies and their runs")
+    ap.add_argument("--workers", type=int, default=DEFAULT_WORKERS,
+                    help=f"runs at a time on this machine (default {DEFAULT_WORKERS})")
+    ap.add_argument("--dask", metavar="ADDRESS", default=None,
+                    help="submit the runs to this Dask scheduler (tcp://host:port) instead")
+    ap.add_argument("--out", type=Path, default=None, help="output folder (default runs/study-NAME-<time>)")
+    ap.add_argument("--rows", nargs="+", default=None, help="only these rows (e.g. '#1' '#4')")
+    ap.add_argument("--columns", nargs="+", default=None, help="only these columns (e.g. cc-empc nmpc)")
+    ap.add_argument("--timeout-s", type=float, default=DEFAULT_TIMEOUT_S, help="wall time limit of one run")
+    ap.add_argument("--no-figures", action="store_true")
+    ap.add_argument("--redraw", type=Path, metavar="OUT", default=None,
+                    help="draw the tables and figures of the study in OUT again, without running")
+    ap.add_argument("--json", action="store_true", help="print the results as one JSON object")
+    return ap
+
+
+def list_studies() -> str:
+    out = []
+    for s in defs.STUDIES.values():
+        out.append(f"{s.name}: {s.title} ({len(s.runs)} runs)")
+        out += [f"  {r.row:>6}  {r.column:14s} seaway launch sim-batch {' '.join(r.launch_options())}"
+                for r in s.runs]
+    return "\n".join(out)
+
+
+def default_out(name: str) -> Path:
+    return (repo_root() or Path.cwd()) / "runs" / f"study-{name}-{time.strftime('%Y%m%d-%H%M%S')}"
+
+
+def _progress(total: int, quiet: bool) -> Any:
+    from tqdm import tqdm
+
+    # On a terminal only: a pipe or a log gets the table at the end, not a bar's every redraw.
+    return tqdm(total=total, unit="run", file=sys.stderr, disable=None if not quiet else True,
+                dynamic_ncols=True, bar_format="{l_bar}{bar}| {n_fmt}/{total_fmt} runs "
+                "[{elapsed}<{remaining}]{postfix}")
+
+
+def run_study(study: defs.Study, out: Path, *, workers: int, dask: str | None, timeout_s: float,
+              progress: bool = True) -> tuple[dict[str, RunOutcome], float, dict[str, Any], str]:
+    """Run every run of ``study`` into ``out/runs``; (outcomes by key, wall s, executor, start time)."""
+    jobs = [(spec, out / "runs" / spec.key) for spec in study.runs]
+    outcomes: dict[str, RunOutcome] = {}
+    bar = _progress(len(jobs), not progress)
+
+    def done(o: RunOutcome) -> None:
+        outcomes[o.spec.key] = o
+        state = "ok" if o.ok else "FAILED"
+        bar.set_postfix_str(f"{o.spec.key} {state} {o.timing.get('wall_s', 0):.0f} s", refresh=False)
+        bar.update(1)
+        if not bar.disable:
+            return
+        if progress:  # no bar (not a terminal): one line per run on stderr
+            print(f"[{len(outcomes)}/{len(jobs)}] {o.spec.key} {state} "
+                  f"{o.timing.get('wall_s', 0):.1f} s", file=sys.stderr, flush=True)
+
+    started = time.strftime("%Y-%m-%dT%H:%M:%S%z")
+    t0 = time.monotonic()
+    try:
+        if dask:
+            executor: dict[str, Any] = {"kind": "dask", "address": dask}
+            executor.update(run_dask(dask, jobs, done, timeout_s=timeout_s))
+        else:
+            executor = {"kind": "local", "address": None}
+            run_local(jobs, workers, done, timeout_s=timeout_s)
+    finally:
+        bar.close()
+    return outcomes, time.monotonic() - t0, executor, started
+
+
+def workers_of(executor: dict[str, Any], workers: int, runs: int) -> int:
+    """Runs at a time: the local pool's size, or the Dask cluster's worker threads (at most ``runs``)."""
+    if executor.get("kind") == "dask":
+        workers = sum(int(w.get("nthreads") or 1) for w in executor.get("workers", {}).values()) or 1
+    return max(1, min(workers, runs))
+
+
+def write_outputs(study: defs.Study, out: Path, outcomes: dict[str, RunOutcome], wall_s: float,
+                  workers: int, executor: dict[str, Any], started: str, host: dict[str, Any],
+                  figures: bool = True) -> tuple[dict[str, Any], list[res.Row]]:
+    """The tables (Markdown, CSV, JSON), series.json and the figures; returns the JSON document."""
+    timings = {k: {**o.timing, **{f"cpu_{n}_s": v for n, v in o.cpu_s.items()}} for k, o in outcomes.items()}
+    rows = res.table_rows(study, {k: res.metrics_of(o.report) for k, o in outcomes.items()}, timings,
+                          {k: o.error for k, o in outcomes.items() if o.error})
+    runs = [outcomes[s.key].to_json() for s in study.runs if s.key in outcomes]
+    doc = res.document(study, rows, wall_s=wall_s, workers=workers, executor=executor, started=started,
+                       host=host, runs=runs)
+    out.mkdir(parents=True, exist_ok=True)
+    ok = {r.key for r in rows if r.ok}
+    series = {k: o.series for k, o in outcomes.items() if o.series and k in ok}
+    if figures:
+        t0 = time.monotonic()
+        from seaway_lab.study import figures as fig
+
+        written = fig.draw(study, rows, series, out / "figures")
+        doc["figures"] = [str(p.relative_to(out)) for p in written]
+        doc["timing"]["figures_s"] = time.monotonic() - t0
+    (out / "results.json").write_text(json.dumps(doc, indent=1) + "\n")
+    (out / "results.csv").write_text(res.csv_text(rows))
+    md = res.markdown(doc, study, rows)
+    if doc.get("figures"):
+        md += "\n" + "\n".join(f"![{Path(p).stem}]({p})" for p in doc["figures"]) + "\n"
+    (out / "results.md").write_text(md)
+    if series:
+        (out / "series.json").write_text(json.dumps(series) + "\n")
+    return doc, rows
+
+
+def _redraw(args: argparse.Namespace) -> int:
+    out: Path = args.redraw
+    try:
+        doc = json.loads((out / "results.json").read_text())
+        series = json.loads((out / "series.json").read_text()) if (out / "series.json").is_file() else {}
+        study = defs.get_study(doc["study"])
+        study = defs.only(study, sorted({r["row"] for r in doc.get("runs", [])}, key=study.rows.index),
+                          sorted({r["column"] for r in doc.get("runs", [])}, key=study.columns.index))
+    except (OSError, KeyError, ValueError) as err:
+        print(f"seaway study: cannot redraw {out}: {err}", file=sys.stderr)
+        return 2
+    outcomes = {}
+    for r in doc.get("runs", []):
+        spec = next((s for s in study.runs if s.key == r["key"]), None)
+        if spec is None:  # a run the study no longer defines
+            continue
+        outcomes[spec.key] = RunOutcome(spec, r["run_dir"], ok=r["ok"], error=r["error"], host=r["host"],
+                                        port=r["port"], command=r["command"], returncode=r["returncode"],
+                                        report=r["report"], series=series.get(spec.key), timing=r["timing"],
+                                        cpu_s=r.get("cpu_s", {}))
+    new, rows = write_outputs(study, out, outcomes, doc["wall_s"], doc["workers"], doc["executor"],
+                              doc["started"], doc["machine"], figures=not args.no_figures)
+    print(json.dumps(_printed(new)) if args.json else res.text(new, study, rows), end="" if not args.json
+          else "\n")
+    return 0
+
+
+def _printed(doc: dict[str, Any]) -> dict[str, Any]:
+    """What ``--json`` prints: the document without the per-run details (they are in results.json)."""
+    return {k: v for k, v in doc.items() if k != "runs"}
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parser().parse_args(list(sys.argv[1:] if argv is None else argv))
+    if args.list:
+        print(list_studies())
+        return 0
+    if args.redraw is not None:
+        return _redraw(args)
+    if not args.name:
+        parser().print_usage(sys.stderr)
+        print(f"seaway study: name a study: {', '.join(defs.STUDIES)}", file=sys.stderr)
+        return 2
+    try:
+        study = defs.only(defs.get_study(args.name), args.rows, args.columns)
+    except KeyError as err:
+        print(f"seaway study: {err.args[0]}", file=sys.stderr)
+        return 2
+    if not study.runs:
+        print(f"seaway study: {args.name} has no run in those rows and columns", file=sys.stderr)
+        return 2
+    if args.workers < 1:
+        print("seaway study: --workers must be at least 1", file=sys.stderr)
+        return 2
+    out = args.out or default_out(study.name)
+    out.mkdir(parents=True, exist_ok=True)
+    try:
+        outcomes, wall_s, executor, started = run_study(study, out, workers=args.workers, dask=args.dask,
+                                                        timeout_s=args.timeout_s)
+    except KeyboardInterrupt:
+        print(f"\nseaway study: interrupted; the runs so far are in {out / 'runs'}", file=sys.stderr)
+        return 130
+    workers = workers_of(executor, args.workers, len(study.runs))
+    doc, rows = write_outputs(study, out, outcomes, wall_s, workers, executor, started, res.machine(),
+                              figures=not args.no_figures)
+    if args.json:
+        print(json.dumps(_printed(doc)))
+    else:
+        print(res.text(doc, study, rows), end="")
+        figs = doc.get("figures", [])
+        print(f"wrote {out}/results.md, results.csv, results.json"
+              + (f", {len(figs)} figures in {out / 'figures'}" if figs else ""))
+    return 0 if all(o.ok for o in outcomes.values()) and len(outcomes) == len(study.runs) else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,519 @@
+"""Running a study's runs: one run through the real processes, and many of them at once.
+
+One run (``run_one``) is ``seaway launch sim-batch <the run's options> --run-dir DIR`` as a
+subprocess on its own Zenoh rendezvous port (``SEAWAY_ZENOH_RENDEZVOUS``), so that stacks running
+side by side never meet, followed by the report of its recording: ``seaway_recorder.report.analyse``
+called in-process, which gives the same JSON as ``seaway report DIR --mission DIR/mission.json
+--json --no-plots`` (the mission the launcher sent, so with the run's own T^w) from one decode of the
+recording instead of a second process, and from the same decode the trajectory and thrusts the
+figures need. The launcher's output is kept in ``DIR/launch.log`` and timed line by line, so the
+wall time of a run splits into the stack's start-up, the mission, the stop and the launcher's own
+final report.
+
+Many runs: ``run_local`` (a pool of threads, each waiting on one launcher subprocess: ``--workers``)
+or ``run_dask`` (each run submitted to a Dask cluster, whose worker starts the stack: ``--dask``).
+``run_one`` is the function submitted, so a worker needs the same installation (``seaway`` next to
+its Python). The worker reads its run's recording itself and sends back the numbers and the series,
+so tables and figures need no shared file system; the run folders stay where the workers wrote them.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+import random
+import re
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable, Iterable
+from concurrent.futures import ThreadPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from seaway.contract import keys
+from seaway.runtime.zenoh_bus import ENV_CONFIG, ENV_RENDEZVOUS
+from seaway.simkit.scenario import load_mission
+
+from seaway_lab.study.definitions import RunSpec, scenario_task_power_w
+
+PROFILE = "sim-batch"
+OPTIONAL_FLAGS = ("--no-report",)
+"""Launcher flags passed when the launcher has them: its own final report (with plots) is work the
+study does not use, since it reads each recording itself."""
+DEFAULT_TIMEOUT_S = 300.0
+"""Wall time one run may take before its launcher is stopped (start-up, mission, stop, report): the
+longest run of the studies (T^w = 0.25 W, ~500 s simulated) takes well under a minute; a mission
+that never completes records ~0.7 MB per wall second."""
+
+# The launcher's lines that mark the phases of a run (seaway.tools.launch.main).
+_MILESTONES: dict[str, re.Pattern[str]] = {
+    "ready": re.compile(r"^all ready in ([0-9.]+) s"),
+    "accepted": re.compile(r"^mission .*\baccepted\b"),
+    "refused": re.compile(r"^mission .*\bREFUSED\b"),
+    "complete": re.compile(r"^mission complete"),
+    "stopping": re.compile(r"^stopping\.\.\."),
+    "stopped": re.compile(r"^stopped in ([0-9.]+) s"),
+}
+
+
+# -- isolation: a rendezvous port per stack -------------------------------------------------------
+
+_ports_lock = threading.Lock()
+_ports_given: set[int] = set()
+
+
+def _ephemeral_low() -> int:
+    try:
+        return int(Path("/proc/sys/net/ipv4/ip_local_port_range").read_text().split()[0])
+    except (OSError, ValueError, IndexError):
+        return 32768
+
+
+def free_port(rng: random.Random | None = None) -> int:
+    """A loopback TCP port that is free now, below the ephemeral range and not given out before.
+
+    Below the ephemeral range, no process of another stack can be handed the port by the kernel
+    (each Zenoh process also listens on an ephemeral port) between this check and its first use.
+    """
+    rng = rng or random.Random()
+    low, high = 20000, max(20001, min(_ephemeral_low(), 32768))
+    with _ports_lock:
+        for _ in range(200):
+            port = rng.randrange(low, high)
+            if port in _ports_given:
+                continue
+            with socket.socket() as s:
+                try:
+                    s.bind(("127.0.0.1", port))
+                except OSError:
+                    continue
+            _ports_given.add(port)
+            return port
+    raise RuntimeError(f"no free loopback port in {low}..{high}")
+
+
+def stack_env(port: int, base: dict[str, str] | None = None) -> dict[str, str]:
+    """The environment of one stack: its own rendezvous port, the packaged Zenoh config."""
+    env = dict(os.environ if base is None else base)
+    env[ENV_RENDEZVOUS] = f"tcp/127.0.0.1:{port}"
+    env.pop(ENV_CONFIG, None)
+    env["PYTHONUNBUFFERED"] = "1"
+    return env
+
+
+# -- the launcher's options -----------------------------------------------------------------------
+
+
+def seaway_command() -> list[str]:
+    """The ``seaway`` command of this installation (next to this interpreter)."""
+    exe = shutil.which("seaway", path=str(Path(sys.executable).parent))
+    return [exe] if exe else [sys.executable, "-m", "seaway.tools.cli"]
+
+
+_help_lock = threading.Lock()
+_launch_options: set[str] | None = None
+
+
+def launcher_options() -> set[str]:
+    """The options ``seaway launch`` accepts (from its ``--help``), asked once per process."""
+    global _launch_options
+    with _help_lock:
+        if _launch_options is None:
+            out = subprocess.run([*seaway_command(), "launch", "--help"], capture_output=True, text=True,
+                                 timeout=60, check=False).stdout
+            _launch_options = set(re.findall(r"(?<![\w-])(--[a-z][a-z0-9-]*)", out))
+        return _launch_options
+
+
+def fit_options(spec: RunSpec, supported: set[str]) -> list[str]:
+    """The run's launcher options, less those the launcher lacks where they change nothing.
+
+    An option the launcher does not have is left out only when the run asks for what the scenario
+    flies anyway (``--controller`` naming the scenario's own); otherwise ValueError, naming it.
+    """
+    opts = spec.launch_options()
+    out: list[str] = []
+    i = 0
+    while i < len(opts):
+        opt = opts[i]
+        takes_value = i + 1 < len(opts) and not opts[i + 1].startswith("--")
+        value = opts[i + 1] if takes_value else None
+        i += 2 if takes_value else 1
+        if opt in supported:
+            out += [opt] if value is None else [opt, value]
+        elif opt == "--controller" and value == load_mission(spec.scenario).controller:
+            continue
+        else:
+            raise ValueError(f"seaway launch has no {opt} option, which run {spec.key} needs")
+    return out
+
+
+# -- one run --------------------------------------------------------------------------------------
+
+
+def process_name(cmdline: list[str]) -> str:
+    """``sim`` for ``python .../seaway-sim ...``, ``launch`` for ``seaway launch``, else the program."""
+    for i, arg in enumerate(cmdline[:3]):
+        base = Path(arg).name
+        if base == "seaway" and i + 1 < len(cmdline):
+            return cmdline[i + 1]
+        if base.startswith("seaway-"):
+            return base[len("seaway-"):]
+    return Path(cmdline[0]).name if cmdline else "?"
+
+
+class CpuMonitor:
+    """CPU seconds (user + system) of the launcher and each process under it, polled while they run.
+
+    Each figure is the last value seen before the process ended (at most ``interval_s`` short).
+    """
+
+    def __init__(self, pid: int, interval_s: float = 0.5) -> None:
+        self.pid = pid
+        self.interval_s = interval_s
+        self.cpu_s: dict[str, float] = {}
+        self._seen: dict[tuple[int, float], tuple[str, float]] = {}
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="cpu-monitor", daemon=True)
+
+    def __enter__(self) -> CpuMonitor:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        self._thread.join(5.0)
+        totals: dict[str, float] = {}
+        for name, cpu in self._seen.values():
+            totals[name] = totals.get(name, 0.0) + cpu
+        self.cpu_s = totals
+
+    def _sample(self, proc: Any, name: str | None = None) -> None:
+        import psutil
+
+        try:
+            with proc.oneshot():
+                key = (proc.pid, proc.create_time())
+                t = proc.cpu_times()
+                name = name or process_name(proc.cmdline())
+        except psutil.Error:
+            return
+        self._seen[key] = (name, t.user + t.system)
+
+    def _run(self) -> None:
+        import psutil
+
+        try:
+            root = psutil.Process(self.pid)
+        except psutil.Error:
+            return
+        while True:
+            self._sample(root, "launch")
+            try:
+                children = root.children(recursive=True)
+            except psutil.Error:
+                children = []
+            for c in children:
+                self._sample(c)
+            if self._stop.wait(self.interval_s):
+                return
+
+
+@dataclass
+class RunOutcome:
+    """What one run gave: the report's JSON, the series for the figures, and where the time went."""
+
+    spec: RunSpec
+    run_dir: str
+    ok: bool = False
+    error: str = ""
+    host: str = field(default_factory=socket.gethostname)
+    port: int | None = None
+    command: list[str] = field(default_factory=list)
+    returncode: int | None = None
+    report: dict[str, Any] | None = None
+    """The JSON ``seaway report DIR --json --no-plots`` prints."""
+    series: dict[str, Any] | None = None
+    """The mission's trajectory and thrusts: t_s, x_m, y_m; thrust_t_s, thrust_port_n, thrust_starboard_n."""
+    cpu_s: dict[str, float] = field(default_factory=dict)
+    """CPU seconds by process: ``launch``, ``recorder``, ``sim``, ``estimator``, ``controller``,
+    ``report`` (the launcher's own)."""
+    timing: dict[str, float] = field(default_factory=dict)
+    """Wall seconds: ``wall_s`` (all), ``startup_s`` (spawn to every service ready), ``ready_reported_s``
+    (the launcher's own figure), ``mission_s`` (ready to complete), ``stop_s``, ``launcher_report_s``
+    (the launcher's final report and exit), ``report_s`` (this report), ``sim_per_wall`` (simulated s
+    per wall s over the mission phase)."""
+
+    def metric(self, name: str) -> float | None:
+        if self.report is None:
+            return None
+        v = self.report.get("metrics", {}).get(name)
+        return None if v is None else float(v)
+
+    def to_json(self, with_series: bool = False) -> dict[str, Any]:
+        d: dict[str, Any] = {**self.spec.to_json(), "run_dir": self.run_dir, "ok": self.ok,
+                             "error": self.error, "host": self.host, "port": self.port,
+                             "command": self.command, "returncode": self.returncode,
+                             "timing": self.timing, "cpu_s": self.cpu_s, "report": self.report}
+        if with_series:
+            d["series"] = self.series
+        return d
+
+
+def _stop_group(p: subprocess.Popen[str], grace_s: float = 15.0) -> None:
+    """SIGINT to the launcher's process group (it stops its services), SIGKILL if it lingers.
+
+    The services run in sessions of their own, so a launcher killed outright would leave them: they
+    are looked up first and killed with it.
+    """
+    import psutil
+
+    try:
+        children = psutil.Process(p.pid).children(recursive=True)
+    except psutil.Error:
+        children = []
+    with contextlib.suppress(ProcessLookupError):
+        os.killpg(p.pid, signal.SIGINT)
+    try:
+        p.wait(grace_s)
+    except subprocess.TimeoutExpired:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(p.pid, signal.SIGKILL)
+        p.wait()
+    for c in children:
+        with contextlib.suppress(psutil.Error):
+            c.kill()
+
+
+_running_lock = threading.Lock()
+_running: set[subprocess.Popen[str]] = set()
+"""The launchers this process has started and not yet seen exit (``stop_all`` on Ctrl-C)."""
+
+
+def stop_all() -> None:
+    """Stop every launcher this process started that is still running (each stops its services)."""
+    with _running_lock:
+        running = list(_running)
+    threads = [threading.Thread(target=_stop_group, args=(p,), daemon=True) for p in running]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+
+
+def run_one(spec: RunSpec, run_dir: str | Path, *, profile: str = PROFILE,
+            timeout_s: float = DEFAULT_TIMEOUT_S, keep_series: bool = True) -> RunOutcome:
+    """One run through the real processes, its report, and its timing. Never raises for a failed run:
+    the outcome says what went wrong (``ok``, ``error``, the launcher's log in ``run_dir``)."""
+    run_dir = Path(run_dir)
+    out = RunOutcome(spec, str(run_dir))
+    t0 = time.monotonic()
+    try:
+        supported = launcher_options()
+        opts = fit_options(spec, supported) + [f for f in OPTIONAL_FLAGS if f in supported]
+    except ValueError as err:
+        out.error = str(err)
+        return out
+    out.port = free_port()
+    out.command = [*seaway_command(), "launch", profile, *opts, "--run-dir", str(run_dir)]
+    run_dir.mkdir(parents=True, exist_ok=True)
+    seen: dict[str, float] = {}
+    lines: list[str] = []
+    stopping = False
+    p = subprocess.Popen(out.command, env=stack_env(out.port), stdout=subprocess.PIPE,
+                         stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, text=True,
+                         start_new_session=True)
+    with _running_lock:
+        _running.add(p)
+    timed_out = threading.Event()
+
+    def on_timeout() -> None:
+        timed_out.set()
+        _stop_group(p)
+
+    watchdog = threading.Timer(timeout_s, on_timeout)
+    watchdog.daemon = True
+    watchdog.start()
+    assert p.stdout is not None
+    with CpuMonitor(p.pid) as cpu, open(run_dir / "launch.log", "w", buffering=1) as log:
+        for line in p.stdout:
+            now = time.monotonic() - t0
+            log.write(f"{now:8.3f} {line}")
+            lines.append(line.rstrip())
+            for name, pat in _MILESTONES.items():
+                m = pat.search(line.strip())
+                if m and name not in seen:
+                    seen[name] = now
+                    if name == "ready":
+                        out.timing["ready_reported_s"] = float(m.group(1))
+            if "refused" in seen and not stopping:  # it would wait for a mission forever
+                stopping = True
+                threading.Thread(target=_stop_group, args=(p,), daemon=True).start()
+        out.returncode = p.wait()
+    with _running_lock:
+        _running.discard(p)
+    watchdog.cancel()
+    out.cpu_s = cpu.cpu_s
+    t_exit = time.monotonic() - t0
+    out.timing.update(_phases(seen, t_exit))
+    if timed_out.is_set():
+        out.error = f"timed out after {timeout_s:g} s"
+    elif "refused" in seen:
+        out.error = "mission refused: " + next((x for x in lines if "REFUSED" in x), "")
+    elif out.returncode != 0 or "complete" not in seen:
+        out.error = f"launcher exited {out.returncode} before the mission completed"
+    if out.error:
+        out.error += "\n" + "\n".join(lines[-20:])
+    t1 = time.monotonic()
+    try:
+        if not timed_out.is_set():  # a runaway's recording is large, and its numbers are not shown
+            out.report, series = report_json(run_dir)
+            if keep_series:
+                out.series = series
+    except Exception as err:  # a missing or broken recording is the run's failure, reported
+        out.error = (out.error + "\n" if out.error else "") + f"report: {type(err).__name__}: {err}"
+    out.timing["report_s"] = time.monotonic() - t1
+    out.timing["wall_s"] = time.monotonic() - t0
+    travel = out.metric("travel_time_s")
+    if travel and out.timing.get("mission_s"):
+        out.timing["sim_per_wall"] = travel / out.timing["mission_s"]
+    completed = bool(out.report and out.report.get("metrics", {}).get("completed"))
+    if not out.error and not completed:
+        out.error = "the recording shows the mission not completed"
+    out.ok = not out.error
+    return out
+
+
+def _phases(seen: dict[str, float], t_exit: float) -> dict[str, float]:
+    ph: dict[str, float] = {}
+    if "ready" in seen:
+        ph["startup_s"] = seen["ready"]
+        if "complete" in seen:
+            ph["mission_s"] = seen["complete"] - seen["ready"]
+    if "stopping" in seen and "stopped" in seen:
+        ph["stop_s"] = seen["stopped"] - seen["stopping"]
+    if "stopped" in seen:
+        ph["launcher_report_s"] = t_exit - seen["stopped"]
+    ph["launch_s"] = t_exit
+    return ph
+
+
+MISSION_FILE = "mission.json"
+"""The mission the launcher sent, in the run folder: the launcher's own report takes it from there."""
+
+
+def report_args(run_dir: str | Path) -> list[str]:
+    """The ``seaway report`` arguments of a run folder: the mission sent, when the launcher wrote it.
+
+    Without it the report takes the mission from the recording's scenario attachment, whose T^w is
+    the scenario's, not the ``--task-power-w`` the run flew.
+    """
+    mission = Path(run_dir) / MISSION_FILE
+    return [str(run_dir), *(["--mission", str(mission)] if mission.is_file() else [])]
+
+
+def report_json(run_dir: str | Path) -> tuple[dict[str, Any], dict[str, Any]]:
+    """(what ``seaway report <report_args> --json --no-plots`` prints, the series for the figures)."""
+    from seaway_recorder import recording
+    from seaway_recorder import report as rep
+
+    mission = Path(run_dir) / MISSION_FILE
+    res = rep.analyse(recording.open_paths([run_dir]),
+                      mission_file=str(mission) if mission.is_file() else None)
+    doc = rep._clean({k: v for k, v in res.items() if k != "_"})  # exactly what --json prints
+    data = res["_"]
+    ser = data["series"]
+    start, end = data["start_ns"], res["metrics"]["end_ns"]
+    thrusts = [c for c in data["thrusts"] if start <= c.stamp_ns <= end]
+    series = {"t_s": ser["t_s"], "x_m": ser["x_m"], "y_m": ser["y_m"],
+              "thrust_source": keys.SIM_TRUTH.suffix if res["metrics"]["state_source"] ==
+              keys.SIM_TRUTH.suffix else keys.THRUST.suffix,
+              "thrust_t_s": [(c.stamp_ns - start) / 1e9 for c in thrusts],
+              "thrust_port_n": [c.thrust_port_n for c in thrusts],
+              "thrust_starboard_n": [c.thrust_starboard_n for c in thrusts],
+              "waypoints_m": res["mission"]["waypoints_m"], "coa_radius_m": res["mission"]["coa_radius_m"]}
+    return doc, rep._clean(series)
+
+
+# -- many runs ------------------------------------------------------------------------------------
+
+Done = Callable[[RunOutcome], None]
+
+
+def expected_cost(spec: RunSpec) -> float:
+    """A rough guess of a run's length, to start the long ones first (and not end on one alone).
+
+    NMPC flies the paper's path in ~36 s of simulated time, the economic controllers in ~340 s at the
+    paper's T^w; their cruise speed grows as sqrt(T^w), so their time falls as 1/sqrt(T^w).
+    """
+    if spec.controller == "nmpc":
+        return 1.0
+    base = scenario_task_power_w(spec.scenario)
+    w = spec.task_power_w if spec.task_power_w is not None else base
+    return 10.0 * math.sqrt(base / w) if w > 0 and base > 0 else 10.0
+
+
+def longest_first(jobs: Iterable[tuple[RunSpec, Path]]) -> list[tuple[RunSpec, Path]]:
+    return sorted(jobs, key=lambda j: -expected_cost(j[0]))
+
+
+def run_local(jobs: Iterable[tuple[RunSpec, Path]], workers: int, on_done: Done,
+              timeout_s: float = DEFAULT_TIMEOUT_S) -> None:
+    """Run the jobs ``workers`` at a time on this machine; ``on_done`` as each finishes."""
+    jobs = longest_first(jobs)
+    launcher_options()  # once, before the threads
+    pool = ThreadPoolExecutor(max_workers=max(1, workers), thread_name_prefix="study")
+    try:
+        futures = {pool.submit(run_one, spec, d, timeout_s=timeout_s): (spec, d) for spec, d in jobs}
+        for fut in as_completed(futures):
+            spec, d = futures[fut]
+            try:
+                on_done(fut.result())
+            except Exception as err:
+                on_done(RunOutcome(spec, str(d), error=f"{type(err).__name__}: {err}"))
+    except BaseException:  # Ctrl-C: start no more runs, stop the running ones
+        pool.shutdown(wait=False, cancel_futures=True)
+        stop_all()
+        raise
+    finally:
+        pool.shutdown(wait=True)
+
+
+def run_dask(address: str, jobs: Iterable[tuple[RunSpec, Path]], on_done: Done,
+             timeout_s: float = DEFAULT_TIMEOUT_S) -> dict[str, Any]:
+    """Submit every run to the Dask scheduler at ``address``; each worker thread launches one stack.
+
+    Returns what the cluster was (scheduler address, workers and their threads).
+    """
+    from distributed import Client
+    from distributed import as_completed as dask_completed
+
+    jobs = longest_first(jobs)
+    with Client(address, timeout="30s") as client:
+        info = client.scheduler_info()
+        workers = {w: {"nthreads": v.get("nthreads"), "host": v.get("host")}
+                   for w, v in info.get("workers", {}).items()}
+        futures = {}
+        for spec, d in jobs:
+            fut = client.submit(run_one, spec, str(d), timeout_s=timeout_s, pure=False,
+                                priority=round(expected_cost(spec)),
+                                key=f"seaway-study-{spec.key}-{time.time_ns()}")
+            futures[fut] = (spec, d)
+        try:
+            for fut in dask_completed(list(futures)):
+                spec, d = futures[fut]
+                try:
+                    on_done(fut.result())
+                except Exception as err:
+                    on_done(RunOutcome(spec, str(d), error=f"{type(err).__name__}: {err}"))
+        except BaseException:  # Ctrl-C: the runs not started are cancelled; a started one finishes
+            client.cancel(list(futures))
+            raise
+    return {"scheduler": address, "workers": workers}

@@ -1,0 +1,65 @@
+"""`seaway study`: the files and figures of a study, from synthetic runs (no stack started)."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import pytest
+from seaway_lab.study import cli
+from seaway_lab.study import definitions as defs
+from seaway_lab.study.execute import RunOutcome
+
+WPS = [[0.0, 0.0], [8.0, 0.0], [5.13, 8.57]]
+
+
+def outcome(spec: defs.RunSpec, out: Path, energy: float, ok: bool = True) -> RunOutcome:
+    n = 50
+    t = [i * 0.1 for i in range(n)]
+    series = {"t_s": t, "x_m": [8.0 * i / n for i in range(n)], "y_m": [0.1 * math.sin(i) for i in range(n)],
+              "thrust_source": "sim/truth", "thrust_t_s": t, "thrust_port_n": [1.0] * n,
+              "thrust_starboard_n": [0.9] * n, "waypoints_m": WPS, "coa_radius_m": 1.0}
+    report = {"metrics": {"energy_j": energy, "avg_cross_track_m": 0.2, "travel_time_s": 300.0,
+                          "completed": ok}, "mission": {"waypoints_m": WPS}}
+    return RunOutcome(spec, str(out / "runs" / spec.key), ok=ok, error="" if ok else "launcher exited 1",
+                      port=20001, command=["seaway", "launch"], returncode=0 if ok else 1, report=report,
+                      series=series, timing={"wall_s": 10.0, "startup_s": 3.0}, cpu_s={"sim": 1.0})
+
+
+def test_a_study_writes_its_tables_and_figures_and_redraws_them(tmp_path: Path,
+                                                                  capsys: pytest.CaptureFixture) -> None:
+    study = defs.only(defs.get_study("table1"), ["#1", "#2"])
+    outs = {s.key: outcome(s, tmp_path, 300.0 + i, ok=s.key != "paper-c2-nmpc")
+            for i, s in enumerate(study.runs)}
+    doc, _ = cli.write_outputs(study, tmp_path, outs, 12.5, 2, {"kind": "local"}, "t0", {"cores": 2})
+    for name in ("results.md", "results.csv", "results.json", "series.json"):
+        assert (tmp_path / name).is_file(), name
+    assert sorted(doc["figures"]) == ["figures/thrusts-paper-c1.png", "figures/trajectories.png",
+                                      "figures/trajectory-paper-c1.png", "figures/trajectory-paper-c2.png"]
+    assert all((tmp_path / f).stat().st_size > 5000 for f in doc["figures"])
+    assert "paper-c2-nmpc" not in json.loads((tmp_path / "series.json").read_text())  # a failed run
+    assert doc["failures"] == {"paper-c2-nmpc": "launcher exited 1"}
+    assert doc["results"]["#1"]["cc-empc"]["energy_j"] == 302.0
+    assert "![thrusts-paper-c1](figures/thrusts-paper-c1.png)" in (tmp_path / "results.md").read_text()
+
+    assert cli.main(["--redraw", str(tmp_path), "--json"]) == 0
+    again = json.loads(capsys.readouterr().out)
+    assert again["results"] == doc["results"] and again["wall_s"] == 12.5
+    assert "runs" not in again  # --json prints the document without the per-run details
+
+
+def test_the_tw_sweep_figure(tmp_path: Path) -> None:
+    study = defs.get_study("tw-sweep")
+    outs = {s.key: outcome(s, tmp_path, 100.0 * (s.task_power_w or 1.0)) for s in study.runs}
+    doc, _ = cli.write_outputs(study, tmp_path, outs, 1.0, 2, {"kind": "local"}, "t0", {"cores": 2})
+    assert "figures/tw-sweep.png" in doc["figures"]
+    assert doc["results"]["0.49"]["cc-empc"]["paper"]["energy_j"] == 332.0
+
+
+def test_bad_arguments() -> None:
+    assert cli.main(["table9"]) == 2
+    assert cli.main(["table1", "--rows", "#9"]) == 2
+    assert cli.main(["table1", "--workers", "0"]) == 2
+    assert cli.main([]) == 2
+    assert cli.main(["--list"]) == 0
