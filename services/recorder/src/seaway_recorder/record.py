@@ -211,7 +211,8 @@ class LockstepWitness:
         ledger = self.member.ledger
         lacking = {s: ledger.missing(a) for s, a in ledger.answers.items()
                    if Period.of(a) == ledger.period and ledger.missing(a)}
-        absent = [m for m in (ledger.answers.get("sim") or PeriodDone.model_construct(members=[])).members
+        tick = ledger.answer("sim")
+        absent = [m for m in (tick.members if tick is not None else ())
                   if m != "recorder" and ledger.answer(m) is None]
         if lacking or absent:
             log.warning("lockstep t = %s: still lacking %s; no answer yet from %s", ledger.period,

@@ -200,7 +200,10 @@ class Member:
             self.version += 1
             self.changed.notify_all()
 
-    def on_answer(self, _key: str, answer: PeriodDone) -> None:
+    def on_answer(self, key: str, answer: PeriodDone) -> None:
+        if not key.endswith(f"/lockstep/{answer.service}"):  # valid, but not who may say it there
+            log.warning("lockstep answer on %s claims to be %s's: ignored", key, answer.service)
+            return
         repeat = False
         with self.changed:
             before = self.ledger.period

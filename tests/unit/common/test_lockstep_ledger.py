@@ -1,0 +1,59 @@
+"""The lockstep bookkeeping (``seaway.runtime.lockstep``): pure logic, no bus."""
+
+from __future__ import annotations
+
+from seaway.contract.messages import PeriodDone
+from seaway.runtime.lockstep import Ledger, Member, Period, classify
+from seaway.runtime.memory_bus import MemoryHub
+
+P = 100_000_000
+
+
+def answer(service: str, k: int, episode: int = 0, seq: int = 1, **kw) -> PeriodDone:
+    return PeriodDone(stamp_ns=k * P, service=service, episode=episode, seq=seq, period_ns=P, **kw)
+
+
+def test_classify_orders_periods_and_sees_restarts() -> None:
+    now = Period(0, 5 * P)
+    assert classify(None, now) == "first"
+    assert classify(now, Period(0, 6 * P)) == "next"
+    assert classify(now, Period(0, 5 * P)) == "repeat"
+    assert classify(now, Period(0, 0)) == "restart"  # a restarted sim: time went back
+    assert classify(now, Period(1, 9 * P)) == "restart"  # a new episode, even if later
+
+
+def test_an_answer_is_complete_once_every_listed_message_on_a_watched_key_was_seen() -> None:
+    ledger = Ledger(watched={"sensors/gnss", "ctrl/thrust"})
+    tick = answer("sim", 3, published={"sensors/gnss": [3 * P], "sim/truth": [3 * P]},
+                  consumed={"ctrl/thrust": [2 * P]})
+    assert ledger.on_answer(tick) == "first"
+    assert ledger.missing(tick) == [("sensors/gnss", 3 * P), ("ctrl/thrust", 2 * P)]
+    ledger.see("sensors/gnss", 3 * P)
+    assert not ledger.complete(tick)
+    ledger.see("ctrl/thrust", 2 * P)
+    assert ledger.complete(tick)  # sim/truth is not watched: never waited for
+    # The recorder does not count what the sim consumed (it was answered for when published).
+    rec = Ledger(watched=None, consumed=False)
+    rec.on_answer(tick)
+    rec.see("sensors/gnss", 3 * P)
+    assert rec.missing(tick) == [("sim/truth", 3 * P)]
+
+
+def test_a_restart_keeps_the_new_episodes_first_stamps_and_drops_the_old_ones() -> None:
+    ledger = Ledger(watched=None)
+    ledger.on_answer(answer("sim", 40))
+    ledger.on_answer(answer("estimator", 40))
+    ledger.see("nav/state", 40 * P)
+    ledger.see("sensors/gnss", 0)  # the new episode's first fix arrived before the sim's answer
+    assert ledger.on_answer(answer("sim", 0, episode=1)) == "restart"
+    assert ledger.has("sensors/gnss", 0) and not ledger.has("nav/state", 40 * P)
+    assert ledger.answer("estimator") is None  # answers of the old episode are forgotten
+
+
+def test_an_answer_on_another_members_key_is_ignored() -> None:
+    hub = MemoryHub()
+    member = Member(hub.bus("v1"), "estimator", watched=())
+    member.on_answer("seaway/v1/lockstep/controller", answer("sim", 7))  # says "sim", on controller's
+    assert member.ledger.period is None
+    member.on_answer("seaway/v1/lockstep/sim", answer("sim", 7))
+    assert member.ledger.period == Period(0, 7 * P)
