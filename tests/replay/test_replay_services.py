@@ -94,7 +94,7 @@ def replay_estimator(scenario: str, rec: dict, skip_gnss: int | None = None) -> 
                     msg = by_stamp.get((suffix, stamp))
                     if msg is not None:
                         loop.queue(KIND_OF[suffix], msg)
-        loop.on_period(member, period, tick.period_ns)
+        loop.on_period(member, period, tick.period_ns, tick.consumed.get(keys.THRUST.suffix, []))
     return {s.stamp_ns: s.model_dump() for s in states.drain()}
 
 

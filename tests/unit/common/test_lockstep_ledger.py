@@ -57,3 +57,13 @@ def test_an_answer_on_another_members_key_is_ignored() -> None:
     assert member.ledger.period is None
     member.on_answer("seaway/v1/lockstep/sim", answer("sim", 7))
     assert member.ledger.period == Period(0, 7 * P)
+
+
+def test_a_late_message_of_an_earlier_episode_does_not_count_in_the_next() -> None:
+    ledger = Ledger(watched={"nav/state"})
+    ledger.on_answer(answer("sim", 0, episode=1))
+    ledger.see("nav/state", 3 * P)  # stamped ahead of the episode: the old one's, arriving late
+    ledger.on_answer(answer("sim", 1, episode=1))
+    assert not ledger.has("nav/state", 3 * P)
+    ledger.on_answer(answer("sim", 3, episode=1))
+    assert not ledger.complete(answer("estimator", 3, episode=1, published={"nav/state": [3 * P]}))

@@ -213,6 +213,8 @@ class ControllerService:
             if answered is not None and Period.of(answered) == period and not (
                     answered.hold and rethink):
                 continue
+            with member.changed:  # later states can only be late ones of an earlier episode
+                self._states = {k: v for k, v in self._states.items() if k <= period.stamp_ns}
             stamps = est.published.get(keys.NAV_STATE.suffix, [])
             state = self._states.get(stamps[-1]) if stamps else None
             answered = self.answer_period(member, period, est.period_ns, state)

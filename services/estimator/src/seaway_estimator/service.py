@@ -85,23 +85,23 @@ class EstimatorLoop:
         self.refused = 0
         self.repeats = 0
         self.last_stamp: dict[str, int] = {}  # per input kind, the newest stamp queued
+        self.commands: dict[int, Any] = {}  # lockstep: commands by stamp, until a period uses one
 
     # -- inputs ----------------------------------------------------------------------------------
 
     def queue(self, kind: str, msg: Any, lockstep: bool = True) -> None:
         """Queue an input for ``feed_pending``; a sample stamped as the last on its key is a repeat.
 
-        A lockstep period repeated for a newcomer carries the same samples and command again:
-        using one twice would count one measurement as two. In lockstep a command stamped at or
-        before the last is a repeat too; live, a controller may send a zero command with the stamp
-        of its last state (the state went stale), which must count.
+        A lockstep period repeated for a newcomer carries the same samples again: using one twice
+        would count one measurement as two. In lockstep a command is held aside (the latest one per
+        stamp) until a period says which one the sim applied (``on_period``); live, every command
+        counts (a controller may send a zero command with the stamp of its last state).
         """
+        if kind == "thrust" and lockstep:
+            self.commands[msg.stamp_ns] = msg
+            return
         last = self.last_stamp.get(kind)
-        if kind == "thrust":
-            dup = lockstep and last is not None and msg.stamp_ns <= last
-        else:
-            dup = msg.stamp_ns == last
-        if dup:
+        if kind != "thrust" and msg.stamp_ns == last:
             self.repeats += 1
             return
         self.last_stamp[kind] = msg.stamp_ns if last is None else max(last, msg.stamp_ns)
@@ -177,6 +177,7 @@ class EstimatorLoop:
         with self.lock:
             self.core = EstimatorCore(self.core.config)
             self.pending = [p for p in self.pending if p[0] <= t_ns]
+            self.commands.clear()
             self.last_stamp = {}
             for stamp, _, _, kind, _ in self.pending:
                 self.last_stamp[kind] = max(stamp, self.last_stamp.get(kind, stamp))
@@ -191,9 +192,20 @@ class EstimatorLoop:
 
     # -- lockstep --------------------------------------------------------------------------------
 
-    def on_period(self, member: Member, period: Period, period_ns: int) -> None:
-        """Answer the lockstep period ``period``: inputs up to t_k fed, the state at t_k published."""
+    def on_period(self, member: Member, period: Period, period_ns: int,
+                  applied: Sequence[int] = ()) -> None:
+        """Answer the lockstep period ``period``: the command the sim applied (its stamps in
+        ``applied``) and the samples up to t_k fed in stamp order, the state at t_k published.
+
+        Any other command held is dropped: an older one was never applied, and one stamped t_k or
+        later cannot exist yet in this episode (it is a late one of an earlier episode)."""
         with self.lock:
+            for stamp in applied:
+                cmd = self.commands.get(stamp)
+                if cmd is not None:
+                    self._seq += 1
+                    bisect.insort(self.pending, (stamp, _KIND_ORDER["thrust"], self._seq, "thrust", cmd))
+            self.commands.clear()
             self.feed_pending(period.stamp_ns)
             out = self.outputs(period.stamp_ns, period.stamp_ns / 1e9)
         member.answer(period, period_ns, out)
@@ -239,7 +251,8 @@ def run_lockstep(loop: EstimatorLoop, bus: Any, inbox: Inbox, stop: threading.Ev
             for kind, msg in items:
                 loop.queue(kind, msg)
         if ready and tick is not None and period is not None:
-            loop.on_period(member, period, tick.period_ns)
+            loop.on_period(member, period, tick.period_ns,
+                           tick.consumed.get(keys.THRUST.suffix, []))
             answered = period
         if time.monotonic() >= stats_due:
             stats_due += STATS_PERIOD_S

@@ -105,6 +105,10 @@ class Lockstep:
             with self.member.changed:
                 members = sorted(self.members)
                 self._joined = False
+                # A command for t_k can only come after this answer: one here already is a late
+                # one from an earlier episode (stamps repeat across episodes).
+                for stamp in [s for s in self._commands if s >= period.stamp_ns]:
+                    del self._commands[stamp]
             consumed = ({keys.THRUST.suffix: [self._applied]}
                         if self._applied is not None and period.stamp_ns > 0 else {})
             self.member.answer(period, self.period_ns, out, consumed=consumed, members=members)

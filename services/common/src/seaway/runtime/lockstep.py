@@ -26,7 +26,9 @@ THE PROTOCOL
   on a repeat every member repeats its last answer (the same bytes), so the newcomer finds the
   period complete and catches up from it. Receivers drop what they have already seen.
 * An answer from another episode, or from earlier in the same one, means the world restarted (a sim
-  restart or a scenario load): members start afresh from that answer.
+  restart or a scenario load): members start afresh from that answer. Stamps repeat from one
+  episode to the next, so at each new period a member forgets anything stamped after it: that can
+  only be a late message of an earlier episode (the services' own caches do the same).
 
 ``Ledger`` is the pure bookkeeping (which answers, which stamps seen), ``Member`` the bus side a
 service's loop uses. Both are passed time, never read it.
@@ -111,11 +113,14 @@ class Ledger:
             return None
         incoming = Period.of(answer)
         change = classify(self.period, incoming)
-        if change == "restart":
-            # Keep what already belongs to the new episode (its first stamps are <= t_k); messages
-            # of the old one are later than that, except for a sim that died in its first period.
+        if change != "repeat":
+            # Nothing of this episode is stamped after t_k yet: what is, is a late message of an
+            # earlier episode (stamps repeat from one episode to the next), not to be counted when
+            # this one gets there. What belongs to t_k (the first stamps of a new episode) stays;
+            # only a sim that died in its very first period can blur the two.
             for stamps in self.seen.values():
                 stamps.difference_update([s for s in stamps if s > incoming.stamp_ns])
+        if change == "restart":
             self.answers = {"sim": answer}
         self.period, self.period_ns = incoming, answer.period_ns
         if change == "next":
