@@ -35,11 +35,20 @@ def free_port() -> int:
 
 
 @pytest.fixture
-def zenoh_env(monkeypatch: pytest.MonkeyPatch) -> dict[str, str]:
-    """Environment for processes (and this test's own sessions) on a private rendezvous port."""
+def zenoh_env(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> dict[str, str]:
+    """Environment for processes (and this test's own sessions) on a private rendezvous port, with
+    the test's own credentials: every service is its own identity, this test (and any process it
+    starts that is not a service) is the harness, which may do everything; a launcher started
+    here uses them too. Stacks register in the test's own folder."""
+    from seaway.runtime import credentials
+
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     monkeypatch.setenv("SEAWAY_ZENOH_RENDEZVOUS", endpoint)
     monkeypatch.delenv("SEAWAY_ZENOH_CONFIG", raising=False)
+    folder = credentials.create(tmp_path / "credentials", harness=True).folder
+    monkeypatch.setenv(credentials.ENV_CREDENTIALS, str(folder))
+    monkeypatch.setenv(credentials.ENV_IDENTITY, "harness")
+    monkeypatch.setenv("SEAWAY_STACKS_DIR", str(tmp_path / "stacks"))
     env = dict(os.environ)
     env["PYTHONUNBUFFERED"] = "1"
     return env

@@ -24,7 +24,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--port-n", type=float, default=0.0, help="T1, port thrust [N]")
     p.add_argument("--starboard-n", type=float, default=0.0, help="T2, starboard thrust [N]")
     args = parse(p, argv)
-    with run_service("sim-responder", args) as ctx:
+    # It stands in for the controller: that is the identity allowed to publish ctrl/thrust.
+    with run_service("sim-responder", args, identity="controller") as ctx:
         pub = ctx.bus.publisher(keys.THRUST)
         seq = 0
         lock = threading.Lock()

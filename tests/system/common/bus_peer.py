@@ -54,6 +54,6 @@ if __name__ == "__main__":
     parser = base_parser("test_peer", "bus test peer")
     parser.add_argument("role", choices=["responder", "talker"])
     args = parser.parse_args()
-    with run_service("launcher", args) as ctx:
+    with run_service("launcher", args, identity="harness") as ctx:
         (responder if args.role == "responder" else talker)(ctx)
     sys.exit(0)

@@ -39,6 +39,14 @@ class KeySpec:
     producer: str
     kind: Literal["topic", "query", "liveliness"] = "topic"
     doc: str = ""
+    also: tuple[str, ...] = ()
+    """Other services that may stand in for ``producer`` in some profile (the sim or a replay
+    producing the sensor keys); a profile narrows each key to exactly one (``contract.access``)."""
+
+    @property
+    def producers(self) -> tuple[str, ...]:
+        """Every identity that may produce this key in some profile: ``producer`` first."""
+        return (self.producer, *self.also)
 
     def key(self, vessel: str) -> str:
         """The concrete key expression for one vessel."""
@@ -58,9 +66,14 @@ def check_vessel(vessel: str) -> str:
     return vessel
 
 
-GNSS = KeySpec("sensors/gnss", m.GnssFix, "vehicle_io", doc="GNSS fix")
-ATTITUDE = KeySpec("sensors/attitude", m.Attitude, "vehicle_io", doc="attitude and rates")
-LOCAL_POSITION = KeySpec("sensors/local_position", m.LocalPosition, "vehicle_io")
+# The sensors come from vehicle_io on a real or MAVLink-simulated vessel; the lockstep sim and a
+# replay publish them themselves.
+SENSOR_STAND_INS = ("sim", "replay")
+GNSS = KeySpec("sensors/gnss", m.GnssFix, "vehicle_io", doc="GNSS fix", also=SENSOR_STAND_INS)
+ATTITUDE = KeySpec("sensors/attitude", m.Attitude, "vehicle_io", doc="attitude and rates",
+                   also=SENSOR_STAND_INS)
+LOCAL_POSITION = KeySpec("sensors/local_position", m.LocalPosition, "vehicle_io",
+                         also=SENSOR_STAND_INS)
 VEHICLE_STATUS = KeySpec("vehicle/status", m.VehicleStatus, "vehicle_io")
 VEHICLE_ARM = KeySpec("vehicle/arm", m.ArmRequest, "vehicle_io", "query")
 VEHICLE_MODE = KeySpec("vehicle/mode", m.ModeRequest, "vehicle_io", "query")
@@ -72,11 +85,12 @@ SOLVE = KeySpec("ctrl/solve", m.SolveRecord, "controller")
 MISSION_STATUS = KeySpec("mission/status", m.MissionStatus, "controller")
 MISSION_SET = KeySpec("mission/set", m.MissionRequest, "controller", "query")
 MISSION_COMMAND = KeySpec("mission/command", m.MissionCommand, "controller", "query")
-SIM_TRUTH = KeySpec("sim/truth", m.SimTruth, "sim")
-SIM_DISTURBANCE = KeySpec("sim/disturbance", m.DisturbanceForce, "sim")
-SIM_CLOCK = KeySpec("sim/clock", m.ClockTick, "sim")
+SIM_TRUTH = KeySpec("sim/truth", m.SimTruth, "sim", also=("replay",))
+SIM_DISTURBANCE = KeySpec("sim/disturbance", m.DisturbanceForce, "sim", also=("replay",))
+SIM_CLOCK = KeySpec("sim/clock", m.ClockTick, "sim", also=("replay",))
 SIM_SCENARIO = KeySpec("sim/scenario", m.ScenarioRequest, "sim", "query")
-LOCKSTEP_SIM = KeySpec("lockstep/sim", m.PeriodDone, "sim", doc="lockstep: the period's tick")
+LOCKSTEP_SIM = KeySpec("lockstep/sim", m.PeriodDone, "sim", doc="lockstep: the period's tick",
+                      also=("replay",))
 LOCKSTEP_ESTIMATOR = KeySpec("lockstep/estimator", m.PeriodDone, "estimator")
 LOCKSTEP_CONTROLLER = KeySpec("lockstep/controller", m.PeriodDone, "controller")
 LOCKSTEP_RECORDER = KeySpec("lockstep/recorder", m.PeriodDone, "recorder")
@@ -88,11 +102,20 @@ if len(_BY_SUFFIX) != len(REGISTRY):
     raise RuntimeError("a key suffix is registered twice")  # two names for one key: one place each
 
 
+HEALTH = "health"
+"""``seaway/<vessel>/health/<service>``: liveliness tokens, one per ready service."""
+RUN = "run"
+"""``seaway/<vessel>/run/<service>``: each service's run description (a queryable)."""
+REFUSALS = "refusals"
+"""``seaway/<vessel>/refusals/<identity>``: what one process's access control refused (a queryable
+answering, and a topic published on change, ``Refusals``)."""
+
+
 def health_key(vessel: str, service: str) -> str:
     """Liveliness token key of one service on one vessel."""
     if service not in SERVICES:
         raise KeyNameError(f"unknown service {service!r}; known: {', '.join(SERVICES)}")
-    return f"{ROOT}/{check_vessel(vessel)}/health/{service}"
+    return f"{ROOT}/{check_vessel(vessel)}/{HEALTH}/{service}"
 
 
 def vessel_wildcard(vessel: str | None = None) -> str:
@@ -101,19 +124,29 @@ def vessel_wildcard(vessel: str | None = None) -> str:
 
 
 def health_wildcard(vessel: str = "*") -> str:
-    return f"{ROOT}/{vessel}/health/*"
+    return f"{ROOT}/{vessel}/{HEALTH}/*"
 
 
 def run_description_key(vessel: str, service: str) -> str:
     """Where one service answers with its run description (``seaway.runtime.run``)."""
     if service not in SERVICES:
         raise KeyNameError(f"unknown service {service!r}; known: {', '.join(SERVICES)}")
-    return f"{ROOT}/{check_vessel(vessel)}/run/{service}"
+    return f"{ROOT}/{check_vessel(vessel)}/{RUN}/{service}"
 
 
 def run_description_wildcard(vessel: str) -> str:
     """Every service's run description on one vessel."""
-    return f"{ROOT}/{check_vessel(vessel)}/run/*"
+    return f"{ROOT}/{check_vessel(vessel)}/{RUN}/*"
+
+
+def refusals_key(vessel: str, identity: str) -> str:
+    """Where one process reports what its access control refused (``seaway.runtime.refusals``)."""
+    return f"{ROOT}/{check_vessel(vessel)}/{REFUSALS}/{check_vessel(identity)}"
+
+
+def refusals_wildcard(vessel: str) -> str:
+    """Every process's refusal report on one vessel."""
+    return f"{ROOT}/{check_vessel(vessel)}/{REFUSALS}/*"
 
 
 def lockstep_spec(service: str) -> KeySpec:

@@ -165,6 +165,10 @@ class VehicleStatus(Message):
     heartbeat_age_s: float | None = Field(default=None, ge=0)
     rates_hz: dict[str, float] = Field(default_factory=dict, description="received MAVLink rates")
     dropped_messages: int = Field(default=0, ge=0, description="malformed MAVLink messages dropped")
+    refused_messages: dict[str, int] = Field(
+        default_factory=dict,
+        description="MAVLink messages refused, by reason: 'foreign_source' (not the autopilot the "
+                    "link is locked to), 'unsigned', 'bad_signature', 'replayed' (signing on)")
     autopilot_loss_failsafe: Literal["stops", "takes_over", "none", "unknown"] | None = Field(
         default=None,
         description="what the autopilot does if vehicle_io stops streaming commands, judged from its "

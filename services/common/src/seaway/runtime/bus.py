@@ -223,11 +223,13 @@ class Bus(abc.ABC):
         self._closed = False
 
     @classmethod
-    def open(cls, vessel: str, config_path: str | Path | None = None) -> ZenohBus:
-        """The production bus: a Zenoh session from ``config_path`` (see ``zenoh_bus``)."""
+    def open(cls, vessel: str, config_path: str | Path | None = None, identity: str | None = None,
+             credentials: Any = None) -> ZenohBus:
+        """The production bus: a Zenoh session from ``config_path`` as ``identity`` of the stack
+        (``credentials``: a ``seaway.runtime.credentials.Credentials``; see ``zenoh_bus``)."""
         from seaway.runtime.zenoh_bus import ZenohBus  # the interface itself needs no Zenoh
 
-        return ZenohBus.connect(vessel, config_path)
+        return ZenohBus.connect(vessel, config_path, identity, credentials)
 
     def key(self, spec: keys.KeySpec, vessel: str | None = None) -> str:
         return spec.key(vessel or self.vessel)

@@ -31,11 +31,13 @@ import threading
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
+from pathlib import Path
 
 from seaway.contract.config import ConfigError
 from seaway.runtime import run as runs
 from seaway.runtime.bus import Bus
 from seaway.runtime.clock import Clock, WallClock
+from seaway.runtime.credentials import NONE, Credentials, CredentialsError
 
 DEFAULT_VESSEL = "vessel1"
 ENV_VESSEL = "SEAWAY_VESSEL"
@@ -59,9 +61,19 @@ def base_parser(name: str, description: str) -> argparse.ArgumentParser:
                         f"or {DEFAULT_VESSEL})")
     p.add_argument("--zenoh-config", default=None,
                    help="Zenoh config file (default $SEAWAY_ZENOH_CONFIG or peers on loopback)")
+    p.add_argument("--credentials", default=None, metavar="DIR",
+                   help="the stack's credentials folder (default $SEAWAY_CREDENTIALS, else those of "
+                        "the stack on the rendezvous port; 'none' runs without authentication)")
     p.add_argument("--log-level", default=os.environ.get("SEAWAY_LOG_LEVEL", "INFO"))
     runs.add_run_arguments(p)
     return p
+
+
+def credentials_arg(value: str | None) -> Credentials | str | None:
+    """``--credentials``: a folder, ``none`` (opt out), or None (the default lookup)."""
+    if not value:
+        return None
+    return NONE if value.strip().lower() == NONE else Credentials(Path(value).expanduser())
 
 
 def resolve_run(args: argparse.Namespace, name: str, load_scenario: object = None) -> runs.RunDescription:
@@ -114,7 +126,8 @@ class ServiceContext:
 
 @contextmanager
 def run_service(name: str, args: argparse.Namespace, clock: Clock | None = None,
-                run: runs.RunDescription | None = None, agree: bool = True) -> Iterator[ServiceContext]:
+                run: runs.RunDescription | None = None, agree: bool = True,
+                identity: str | None = None) -> Iterator[ServiceContext]:
     """Open the bus for ``name`` and install the stop signals; close on exit.
 
     ``run`` is the service's run description (``resolve_run``), resolved here from ``args`` when not
@@ -126,7 +139,14 @@ def run_service(name: str, args: argparse.Namespace, clock: Clock | None = None,
     run = run or resolve_run(args, name)
     stop = threading.Event()
     install_stop_signals(stop)
-    bus = Bus.open(args.vessel, args.zenoh_config)
+    try:
+        # A service is its own identity (its certificate's name is the service's), whatever
+        # $SEAWAY_IDENTITY says; ``identity`` is for test peers that play another part.
+        bus = Bus.open(args.vessel, args.zenoh_config, identity=identity or name,
+                       credentials=credentials_arg(getattr(args, "credentials", None)))
+    except CredentialsError as err:
+        log.error("%s", err)
+        raise SystemExit(2) from None
     ctx = ServiceContext(name, args.vessel, bus, clock or WallClock(), stop, run, agree)
     try:
         log.info("%s starting on vessel %s, run %s", name, args.vessel, run.run_id)

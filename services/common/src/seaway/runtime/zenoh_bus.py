@@ -2,7 +2,11 @@
 
 * ``open_session``: a Zenoh session from a config file (default: the packaged peer-on-loopback
   config, multicast scouting off; ``SEAWAY_ZENOH_CONFIG`` names another file,
-  ``SEAWAY_ZENOH_RENDEZVOUS`` moves the default's rendezvous port).
+  ``SEAWAY_ZENOH_RENDEZVOUS`` moves the default's rendezvous port), as one identity of the stack:
+  mutual TLS with that identity's certificate and the stack's access rules
+  (``seaway.runtime.credentials``). The credentials come from the caller, else
+  ``$SEAWAY_CREDENTIALS``, else the stack registered on the rendezvous endpoint
+  (``seaway.runtime.stacks``); none at all is an error, ``$SEAWAY_CREDENTIALS=none`` opts out.
 * ``ZenohBus``: the byte-level primitives of ``seaway.runtime.bus.Bus`` on one session; the typed
   layer (validation, refusals, counters) is the interface's own, shared with the in-memory bus.
 """
@@ -19,6 +23,8 @@ from typing import Any
 
 import zenoh
 
+from seaway.runtime import credentials as creds
+from seaway.runtime import stacks
 from seaway.runtime.bus import JSON_ENCODING, RAW_ENCODING, Bus, Declared, RawPublisher, RawReply, RawSample
 
 log = logging.getLogger("seaway.runtime.bus")
@@ -32,30 +38,91 @@ def default_config_text() -> str:
     return resources.files("seaway.runtime").joinpath("zenoh/peer-loopback.json5").read_text()
 
 
-def load_zenoh_config(path: str | Path | None = None) -> zenoh.Config:
-    """Zenoh config from ``path``, else ``$SEAWAY_ZENOH_CONFIG``, else the packaged default.
+def rendezvous_endpoint() -> str:
+    """The default config's rendezvous endpoint (``$SEAWAY_ZENOH_RENDEZVOUS`` or port 7447), as TCP."""
+    return os.environ.get(ENV_RENDEZVOUS) or DEFAULT_RENDEZVOUS
 
-    ``$SEAWAY_ZENOH_RENDEZVOUS`` replaces the rendezvous endpoint of the packaged default only.
+
+def resolve_credentials(given: creds.Credentials | str | None = None) -> creds.Credentials | None:
+    """The credentials a session uses: ``given``, else ``$SEAWAY_CREDENTIALS``, else those of the
+    stack registered on the rendezvous endpoint; None only when opted out (``none``).
+
+    Raises ``CredentialsError`` when there are none, naming the ways to get some.
     """
+    found = given if given is not None else creds.from_env()
+    if found is None:
+        entry = stacks.lookup(rendezvous_endpoint())
+        if entry is not None:
+            found = (creds.NONE if entry.credentials == creds.NONE
+                     else creds.Credentials(Path(entry.credentials)))
+    if found is None:
+        raise creds.CredentialsError(
+            f"no credentials: no stack runs on {rendezvous_endpoint()} and ${creds.ENV_CREDENTIALS} "
+            "is not set. Start the stack with `seaway launch` (it creates the run's credentials), "
+            f"or set ${creds.ENV_CREDENTIALS} to a folder made by `seaway credentials create`, or "
+            f"to '{creds.NONE}' to run without authentication")
+    return None if found == creds.NONE else found  # type: ignore[return-value]
+
+
+def _secure_endpoints(conf: zenoh.Config) -> None:
+    # The packaged default speaks plain TCP on loopback; with credentials the same ports speak TLS.
+    for where in ("listen/endpoints", "connect/endpoints"):
+        eps = json.loads(conf.get_json(where))
+        conf.insert_json5(where, json.dumps([e.replace("tcp/", "tls/", 1) if e.startswith("tcp/") else e
+                                             for e in eps]))
+
+
+def load_zenoh_config(path: str | Path | None = None, identity: str | None = None,
+                      credentials: creds.Credentials | str | None = None) -> zenoh.Config:
+    """Zenoh config from ``path``, else ``$SEAWAY_ZENOH_CONFIG``, else the packaged default, made
+    ``identity``'s session of the stack (``resolve_credentials``).
+
+    ``identity``: else ``$SEAWAY_IDENTITY``, else ``operator``. ``$SEAWAY_ZENOH_RENDEZVOUS``
+    replaces the rendezvous endpoint of the packaged default only; with credentials the default's
+    endpoints are TLS (a file's endpoints are used as written).
+    """
+    identity = identity or os.environ.get(creds.ENV_IDENTITY) or "operator"
     path = path or os.environ.get(ENV_CONFIG) or None
     if path is not None:
         p = Path(path)
         if not p.is_file():
             raise FileNotFoundError(f"Zenoh config {p} does not exist")
         try:
-            return zenoh.Config.from_file(str(p))
+            conf = zenoh.Config.from_file(str(p))
         except Exception as err:  # zenoh raises its own ZError with the parse position
             raise ValueError(f"Zenoh config {p} is invalid: {err}") from None
-    conf = zenoh.Config.from_json5(default_config_text())
-    rendezvous = os.environ.get(ENV_RENDEZVOUS)
-    if rendezvous:
-        conf.insert_json5("listen/endpoints", json.dumps([rendezvous, "tcp/127.0.0.1:0"]))
-        conf.insert_json5("connect/endpoints", json.dumps([rendezvous]))
+    else:
+        conf = zenoh.Config.from_json5(default_config_text())
+        rendezvous = os.environ.get(ENV_RENDEZVOUS)
+        if rendezvous:
+            conf.insert_json5("listen/endpoints", json.dumps([rendezvous, "tcp/127.0.0.1:0"]))
+            conf.insert_json5("connect/endpoints", json.dumps([rendezvous]))
+    if path is not None and not _speaks_tls(conf):
+        # A deployment file that links its processes over plain TCP has no certificate to match:
+        # the access rules would refuse everything. Its own rules (or none) stand; say so.
+        log.warning("Zenoh config %s links over plain TCP: the stack's credentials are not used "
+                    "(use a TLS config for authentication)", path)
+        return conf
+    found = resolve_credentials(credentials)
+    if found is None:
+        log.warning("authentication OFF ($%s=%s): any process on this machine may publish and "
+                    "command on this stack", creds.ENV_CREDENTIALS, creds.NONE)
+        return conf
+    for key, value in found.zenoh_settings(identity).items():
+        conf.insert_json5(key, json.dumps(value))
+    if path is None:
+        _secure_endpoints(conf)
     return conf
 
 
-def open_session(config_path: str | Path | None = None) -> zenoh.Session:
-    return zenoh.open(load_zenoh_config(config_path))
+def _speaks_tls(conf: zenoh.Config) -> bool:
+    eps = [*json.loads(conf.get_json("listen/endpoints")), *json.loads(conf.get_json("connect/endpoints"))]
+    return any(str(e).startswith("tls/") for e in eps)
+
+
+def open_session(config_path: str | Path | None = None, identity: str | None = None,
+                 credentials: creds.Credentials | str | None = None) -> zenoh.Session:
+    return zenoh.open(load_zenoh_config(config_path, identity, credentials))
 
 
 def _replies(handler: Iterator[Any]) -> Iterator[RawReply]:
@@ -76,9 +143,10 @@ class ZenohBus(Bus):
         self._entities: list[Any] = []
 
     @classmethod
-    def connect(cls, vessel: str, config_path: str | Path | None = None) -> ZenohBus:
-        """A new session from ``config_path`` (see ``load_zenoh_config``)."""
-        return cls(open_session(config_path), vessel)
+    def connect(cls, vessel: str, config_path: str | Path | None = None, identity: str | None = None,
+                credentials: creds.Credentials | str | None = None) -> ZenohBus:
+        """A new session from ``config_path`` as ``identity`` (see ``load_zenoh_config``)."""
+        return cls(open_session(config_path, identity, credentials), vessel)
 
     def raw_publisher(self, key: str, encoding: str = RAW_ENCODING, *, block: bool = False,
                       express: bool = False) -> RawPublisher:

@@ -30,6 +30,7 @@ import time
 from pathlib import Path
 
 from seaway.contract import keys
+from seaway.contract.access import AccessError
 from seaway.contract.config import ConfigError, deploy_path, repo_root
 from seaway.contract.messages import (
     CONTROLLER_NAMES,
@@ -42,9 +43,11 @@ from seaway.contract.messages import (
 )
 from seaway.runtime import run as runs
 from seaway.runtime.bus import Bus
+from seaway.runtime.credentials import ENV_CREDENTIALS, NONE, CredentialsError
 from seaway.runtime.service import DEFAULT_VESSEL, ENV_VESSEL, install_stop_signals
 from seaway.runtime.zenoh_bus import ENV_CONFIG
 from seaway.simkit.scenario import load_scenario
+from seaway.tools.launch import authority
 from seaway.tools.launch.profile import Profile, load_profile, substitute
 from seaway.tools.launch.supervisor import Supervised, Supervisor, default_echo
 
@@ -277,8 +280,32 @@ def main(argv: list[str]) -> int:
                  if mission is not None else ""))
         return 0
 
+    try:
+        auth = authority.credentials_for(profile, run_dir.name)
+        if not profile.zenoh_config:
+            # The default peer config meets on one rendezvous endpoint: one stack per endpoint.
+            # A deployment config (boat, shore) names its own endpoints, in its own namespace.
+            authority.claim(auth, profile, run_dir, args.vessel)
+    except (authority.StackInUseError, CredentialsError, AccessError) as err:
+        if "auth" in locals():
+            auth.release()
+        print(f"seaway launch: {err}", file=sys.stderr)
+        return 2
+    try:
+        return _launch(args, profile, scenario, mission, run_dir, run, procs, auth)
+    finally:
+        auth.release()
+
+
+def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: MissionRequest | None,
+            run_dir: Path, run: runs.RunDescription, procs: list[Supervised],
+            auth: authority.Authority) -> int:
+    """Start the stack, make the profile's requests, watch it until done; stop it."""
+    run_file = run_dir / "run.json"
     env = dict(os.environ)
     env[ENV_VESSEL] = args.vessel
+    # Every child is a process of this stack: the stack's credentials (or the explicit opt-out).
+    env[ENV_CREDENTIALS] = str(auth.credentials.folder) if auth.credentials else NONE
     # Children find their commands next to the interpreter running the launcher (the venv).
     env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env.get('PATH', '')}"
     if profile.zenoh_config:
@@ -297,8 +324,11 @@ def main(argv: list[str]) -> int:
           + (f", plant {run.plant_vessel_file}" if run.plant_vessel_file else "")
           + f", period {run.control_period_s:g} s, clock {run.clock}"
           + (f", scenario {run.scenario}" if run.scenario else ""), flush=True)
+    for note in auth.notes:
+        print(note, flush=True)
 
-    bus = Bus.open(args.vessel, env.get(ENV_CONFIG))
+    bus = Bus.open(args.vessel, env.get(ENV_CONFIG), identity="launcher",
+                   credentials=auth.credentials or NONE)
     code = 0
     t0 = time.monotonic()
     try:
@@ -337,8 +367,11 @@ def main(argv: list[str]) -> int:
                 status.show(time.monotonic() - t_run, final=True)
                 print(f"{profile.stop_after} finished", flush=True)
                 break
+            # Completion counts only for the mission this launcher sent (and, by the access rules,
+            # only from the controller): a status of some other mission stops nothing.
             if (profile.stop_when_complete and not args.stay and status.mission is not None
-                    and status.mission.state == "complete"):
+                    and status.mission.state == "complete"
+                    and (mission is None or status.mission.mission_id == mission.mission_id)):
                 status.show(time.monotonic() - t_run, final=True)
                 print("mission complete", flush=True)
                 break

@@ -20,7 +20,7 @@ from typing import Literal
 
 from pydantic import Field, model_validator
 
-from seaway.contract import keys
+from seaway.contract import access, keys
 from seaway.contract.config import ConfigError, ConfigModel, deploy_path, load_config
 
 
@@ -41,6 +41,11 @@ class ProcessSpec(ConfigModel):
         if self.service is not None and self.service not in keys.SERVICES:
             raise ValueError(f"service {self.service!r} unknown; known: {', '.join(keys.SERVICES)}")
         return self
+
+    @property
+    def identity(self) -> str:
+        """Who this process is on the bus (its certificate's name): its service, else its name."""
+        return self.service or self.name
 
     def produced_keys(self) -> list[str]:
         if self.produces is not None:
@@ -101,7 +106,16 @@ class Profile(ConfigModel):
                                      "a profile has one producer per key")
                 producers[k] = p.name
         start_order(self.processes)  # raises on a cycle
+        try:
+            access.producers(self.producers())
+        except access.AccessError as err:
+            raise ValueError(str(err)) from None
         return self
+
+    def producers(self) -> dict[str, str]:
+        """Each key this profile produces and the identity producing it: the access rules narrow
+        every such key to that one process (``contract.access``)."""
+        return {k: p.identity for p in self.processes for k in p.produced_keys()}
 
 
 def start_order(processes: list[ProcessSpec]) -> list[ProcessSpec]:

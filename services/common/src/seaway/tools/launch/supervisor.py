@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO
 
+from seaway.runtime.credentials import ENV_IDENTITY
 from seaway.tools.launch.profile import BackoffPolicy, ProcessSpec, start_order, stop_order
 
 _libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
@@ -113,7 +114,8 @@ class Supervisor:
             raise FileNotFoundError(f"process {sp.spec.name!r}: command {sp.argv[0]!r} not found")
         log = open(self.logs / f"{sp.spec.name}.log", "ab")  # noqa: SIM115 - closed by the pump
         log.write(f"--- start {time.strftime('%Y-%m-%dT%H:%M:%S')} {' '.join(sp.argv)}\n".encode())
-        env = {**self.env, **sp.spec.env, "PYTHONUNBUFFERED": "1"}
+        # A service is its own identity; another process (a replay) is named by the profile.
+        env = {**self.env, **sp.spec.env, "PYTHONUNBUFFERED": "1", ENV_IDENTITY: sp.spec.identity}
         sp.popen = subprocess.Popen([exe, *sp.argv[1:]], stdout=subprocess.PIPE,
                                     stderr=subprocess.STDOUT, env=env, start_new_session=True,
                                     preexec_fn=_child_setup)

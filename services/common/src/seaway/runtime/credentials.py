@@ -1,0 +1,180 @@
+"""A stack's credentials: its own certificate authority and one certificate per identity.
+
+Each process proves who it is with Zenoh's mutual TLS: its certificate's common name is its
+identity (``seaway.contract.access``), signed by the stack's authority; every process trusts only
+that authority. Zenoh's access control then matches each remote process by that name, in both
+directions of every link (user/password authentication identifies only the side that connects, so
+it cannot protect a peer-to-peer mesh where either side may connect first).
+
+A credentials folder (mode 0700, keys 0600; refused otherwise)::
+
+    ca.pem ca-key.pem            the authority (its key issues certificates for hand-started processes)
+    <identity>.pem               a certificate per identity (common name = identity)
+    <identity>-key.pem
+    access.json                  the stack's access rules (contract.access.acl), the same for everyone
+
+The launcher creates one per run (``create``) unless ``$SEAWAY_CREDENTIALS`` names one (a boat's
+long-lived set, ``seaway credentials create``). ``$SEAWAY_CREDENTIALS=none`` runs without
+authentication (benchmarks' baseline): every process on the machine may then do anything.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import ipaddress
+import json
+import os
+import stat
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from cryptography import x509
+from cryptography.hazmat.primitives import hashes, serialization
+from cryptography.hazmat.primitives.asymmetric import ec
+from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
+
+from seaway.contract import access
+
+ENV_CREDENTIALS = "SEAWAY_CREDENTIALS"
+ENV_IDENTITY = "SEAWAY_IDENTITY"
+NONE = "none"
+"""``$SEAWAY_CREDENTIALS=none``: no authentication, no access control (explicit opt-out)."""
+ACCESS_FILE = "access.json"
+CA_NAME = "seaway-stack-ca"
+DEFAULT_DAYS = 30
+
+
+class CredentialsError(ValueError):
+    """Credentials that are missing, unsafe or unusable, with what to do in words."""
+
+
+def _key_pem(key: ec.EllipticCurvePrivateKey) -> bytes:
+    return key.private_bytes(serialization.Encoding.PEM, serialization.PrivateFormat.PKCS8,
+                             serialization.NoEncryption())
+
+
+def _write_private(path: Path, data: bytes) -> None:
+    # Created 0600 from the start: never a moment where another user could read the key.
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+    with os.fdopen(fd, "wb") as f:
+        f.write(data)
+
+
+def _name(cn: str) -> x509.Name:
+    return x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, cn)])
+
+
+def _issue(identity: str, ca_key: ec.EllipticCurvePrivateKey, ca_cert: x509.Certificate,
+           days: int) -> tuple[bytes, bytes]:
+    key = ec.generate_private_key(ec.SECP256R1())
+    now = dt.datetime.now(dt.UTC)
+    cert = (x509.CertificateBuilder().subject_name(_name(identity)).issuer_name(ca_cert.subject)
+            .public_key(key.public_key()).serial_number(x509.random_serial_number())
+            .not_valid_before(now - dt.timedelta(hours=1)).not_valid_after(now + dt.timedelta(days=days))
+            .add_extension(x509.BasicConstraints(ca=False, path_length=None), critical=True)
+            # Every process both listens and connects on loopback: it is a TLS server and client.
+            .add_extension(x509.SubjectAlternativeName([x509.DNSName("localhost"),
+                                                        x509.IPAddress(ipaddress.ip_address("127.0.0.1"))]),
+                           critical=False)
+            .add_extension(x509.ExtendedKeyUsage([ExtendedKeyUsageOID.SERVER_AUTH,
+                                                  ExtendedKeyUsageOID.CLIENT_AUTH]), critical=False)
+            .sign(ca_key, hashes.SHA256()))
+    return cert.public_bytes(serialization.Encoding.PEM), _key_pem(key)
+
+
+def create(folder: Path, identities: Iterable[str] = access.IDENTITIES, *,
+           producers: Mapping[str, str] | None = None, harness: bool = False,
+           days: int = DEFAULT_DAYS) -> Credentials:
+    """A new authority and a certificate for each identity in ``folder`` (created 0700).
+
+    ``producers``: the profile's producer of each key it narrows (``access.producers``);
+    ``harness``: also the test harness identity, with every right. An existing authority in
+    ``folder`` is replaced: certificates of the old one stop working.
+    """
+    folder = Path(folder)
+    folder.mkdir(mode=0o700, parents=True, exist_ok=True)
+    os.chmod(folder, 0o700)
+    ca_key = ec.generate_private_key(ec.SECP256R1())
+    now = dt.datetime.now(dt.UTC)
+    ca_cert = (x509.CertificateBuilder().subject_name(_name(CA_NAME)).issuer_name(_name(CA_NAME))
+               .public_key(ca_key.public_key()).serial_number(x509.random_serial_number())
+               .not_valid_before(now - dt.timedelta(hours=1)).not_valid_after(now + dt.timedelta(days=days))
+               .add_extension(x509.BasicConstraints(ca=True, path_length=0), critical=True)
+               .add_extension(x509.KeyUsage(digital_signature=False, content_commitment=False,
+                                            key_encipherment=False, data_encipherment=False,
+                                            key_agreement=False, key_cert_sign=True, crl_sign=True,
+                                            encipher_only=False, decipher_only=False), critical=True)
+               .sign(ca_key, hashes.SHA256()))
+    _write_private(folder / "ca-key.pem", _key_pem(ca_key))
+    (folder / "ca.pem").write_bytes(ca_cert.public_bytes(serialization.Encoding.PEM))
+    names = list(dict.fromkeys([*identities, *([access.HARNESS] if harness else [])]))
+    for ident in names:
+        cert, key = _issue(ident, ca_key, ca_cert, days)
+        (folder / f"{ident}.pem").write_bytes(cert)
+        _write_private(folder / f"{ident}-key.pem", key)
+    rules = access.acl(producers, harness=harness)
+    (folder / ACCESS_FILE).write_text(json.dumps(rules, indent=1))
+    return Credentials(folder)
+
+
+@dataclass(frozen=True)
+class Credentials:
+    """A credentials folder, checked before use."""
+
+    folder: Path
+
+    def check(self, identity: str) -> None:
+        """Raise ``CredentialsError`` unless ``identity`` can use this folder safely."""
+        f = self.folder
+        if not f.is_dir():
+            raise CredentialsError(f"credentials folder {f} does not exist (create one with "
+                                   f"`seaway credentials create {f}`, or start the stack with "
+                                   "`seaway launch`, which creates its own)")
+        mode = stat.S_IMODE(f.stat().st_mode)
+        if mode & 0o077:
+            raise CredentialsError(f"credentials folder {f} is open to other users (mode "
+                                   f"{mode:04o}); allowed: owner only, `chmod 700 {f}`")
+        for need in ("ca.pem", f"{identity}.pem", f"{identity}-key.pem", ACCESS_FILE):
+            if not (f / need).is_file():
+                have = sorted(p.name[:-4] for p in f.glob("*.pem")
+                              if not p.name.endswith("-key.pem") and p.name != "ca.pem")
+                raise CredentialsError(f"credentials folder {f} has no {need} for identity "
+                                       f"{identity!r}; identities there: {', '.join(have) or 'none'}")
+        kmode = stat.S_IMODE((f / f"{identity}-key.pem").stat().st_mode)
+        if kmode & 0o077:
+            raise CredentialsError(f"{f / (identity + '-key.pem')} is readable by other users "
+                                   f"(mode {kmode:04o}); allowed: 0600")
+
+    def access_rules(self) -> dict[str, Any]:
+        try:
+            return json.loads((self.folder / ACCESS_FILE).read_text())
+        except (OSError, ValueError) as err:
+            raise CredentialsError(f"{self.folder / ACCESS_FILE} is unreadable: {err}") from None
+
+    def zenoh_settings(self, identity: str) -> dict[str, Any]:
+        """The Zenoh settings (key -> value) that make a session ``identity`` of this stack."""
+        self.check(identity)
+        f = self.folder
+        cert, key = str(f / f"{identity}.pem"), str(f / f"{identity}-key.pem")
+        return {
+            "transport/link/tls": {
+                "root_ca_certificate": str(f / "ca.pem"),
+                "listen_certificate": cert, "listen_private_key": key,
+                "connect_certificate": cert, "connect_private_key": key,
+                "enable_mtls": True,
+                "close_link_on_expiration": True,
+            },
+            "access_control": self.access_rules(),
+        }
+
+
+def from_env(environ: Mapping[str, str] | None = None) -> Credentials | str | None:
+    """``$SEAWAY_CREDENTIALS``: a ``Credentials``, ``None`` if unset, ``NONE`` if opted out."""
+    value = (os.environ if environ is None else environ).get(ENV_CREDENTIALS, "").strip()
+    if not value:
+        return None
+    if value.lower() == NONE:
+        return NONE
+    return Credentials(Path(value).expanduser())

@@ -1,0 +1,95 @@
+"""The launcher's side of authority: the run's credentials and its claim on the rendezvous endpoint.
+
+* ``credentials_for``: the stack's credentials: ``$SEAWAY_CREDENTIALS`` if it names a folder (a
+  boat's long-lived set), else a new authority for this run only, in a private folder that is
+  removed when the launcher exits; the access rules narrow each key to the process the profile
+  runs for it.
+* ``claim``: register this stack on its rendezvous endpoint, or refuse with the name of the stack
+  already there (two stacks on one endpoint would otherwise fight over it: with different
+  credentials neither can reach the other, so the second would wait for its own processes forever).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import socket
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from seaway.runtime import credentials as creds
+from seaway.runtime import stacks
+from seaway.runtime.zenoh_bus import rendezvous_endpoint
+from seaway.tools.launch.profile import Profile
+
+
+class StackInUseError(RuntimeError):
+    """Another stack (or another program) holds the rendezvous endpoint."""
+
+
+@dataclass
+class Authority:
+    """What a launch runs with; ``release`` undoes ``claim`` and removes per-run credentials."""
+
+    credentials: creds.Credentials | None
+    rendezvous: str
+    owned_folder: Path | None = None
+    registered: bool = False
+    notes: list[str] = field(default_factory=list)
+
+    def release(self) -> None:
+        if self.registered:
+            stacks.unregister(self.rendezvous, os.getpid())
+            self.registered = False
+        if self.owned_folder is not None:
+            shutil.rmtree(self.owned_folder, ignore_errors=True)
+            self.owned_folder = None
+
+
+def credentials_for(profile: Profile, run_name: str) -> Authority:
+    """The credentials of this launch (see the module docstring)."""
+    rendezvous = rendezvous_endpoint()
+    given = creds.from_env()
+    if given == creds.NONE:
+        return Authority(None, rendezvous, notes=[
+            f"authentication OFF (${creds.ENV_CREDENTIALS}={creds.NONE}): any local process may "
+            "command this stack"])
+    if isinstance(given, creds.Credentials):
+        given.check("launcher")
+        return Authority(given, rendezvous, notes=[f"credentials {given.folder}"])
+    folder = stacks.stacks_dir() / f"{run_name}.credentials"
+    made = creds.create(folder, producers=profile.producers())
+    return Authority(made, rendezvous, owned_folder=folder,
+                     notes=[f"credentials: a new authority for this run ({folder})"])
+
+
+def _port_in_use(endpoint: str) -> bool:
+    host, _, port = endpoint.split("/", 1)[-1].rpartition(":")
+    with contextlib.suppress(ValueError), socket.socket() as s:
+        s.settimeout(0.5)
+        return s.connect_ex((host.strip("[]"), int(port))) == 0
+    return False
+
+
+def claim(auth: Authority, profile: Profile, run_dir: Path, vessel: str) -> None:
+    """Register this stack on its rendezvous endpoint; ``StackInUseError`` if it is taken.
+
+    For the default peer config only: its first process (the launcher) listens on the rendezvous
+    port itself, so a port already open there belongs to someone else.
+    """
+    other = stacks.lookup(auth.rendezvous)
+    if other is not None:
+        raise StackInUseError(
+            f"another Seaway stack runs on {auth.rendezvous}: {other.describe()}. Stop it "
+            f"(kill -INT {other.pid}) or start this one on another port, e.g. "
+            f"SEAWAY_ZENOH_RENDEZVOUS=tcp/127.0.0.1:7450")
+    if _port_in_use(auth.rendezvous):
+        raise StackInUseError(
+            f"{auth.rendezvous} is in use by a program that is not a Seaway stack started by "
+            "`seaway launch` (a service started by hand, or another program): stop it or set "
+            "SEAWAY_ZENOH_RENDEZVOUS to a free port")
+    stacks.register(stacks.StackEntry(
+        rendezvous=auth.rendezvous, pid=os.getpid(), profile=profile.name, run_dir=str(run_dir),
+        credentials=str(auth.credentials.folder) if auth.credentials else creds.NONE, vessel=vessel))
+    auth.registered = True

@@ -1,0 +1,209 @@
+"""Authority on a live stack: intruders move nothing and stop nothing; the operator still can.
+
+The real ``sim`` profile (simulated PX4 over MAVLink, vehicle_io, estimator, controller, recorder)
+runs the lake mission with the credentials the launcher makes for the run. Three intruders attack
+it while it runs, each with every attack of issue #15 (forged thrust at 50 Hz, disarm and
+force-disarm, mode HOLD, a mission 4.9 km away, abort, navigation reset, a forged "complete"):
+
+* ``no credential``: a plain session on the stack's rendezvous port;
+* ``another authority``: a certificate from another stack's authority (the harness identity, which
+  may do everything in its own stack);
+* ``insider``: the stack's own estimator certificate (a compromised process of the stack that is
+  not an operator and does not produce ``ctrl/thrust``).
+
+Nothing they send arrives: no forged thrust is seen by any process of the stack (nor recorded),
+the vehicle stays armed in MANUAL, the mission stays the launcher's, the launcher does not stop
+early, and every request goes unanswered. The operator identity's requests (pause, resume) are
+answered. A lockstep run with a forging insider ends with the undisturbed run's energy.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+from seaway.contract import keys
+from seaway.contract.messages import (
+    ArmRequest,
+    MissionCommand,
+    MissionRequest,
+    MissionStatus,
+    ModeRequest,
+    NavResetRequest,
+    ThrustCommand,
+    Waypoint,
+)
+from seaway.runtime import credentials, stacks
+from seaway.runtime.bus import Bus
+from seaway_recorder.recording import iter_messages, open_paths
+
+from tests.conftest import wait_for
+
+pytestmark = pytest.mark.system
+VESSEL = "vessel1"
+FORGED_N = (61.5, -61.5)  # a spin on the spot: valid, and unmistakable if it ever arrived
+
+
+def _stack_env(zenoh_env: dict[str, str], monkeypatch: pytest.MonkeyPatch) -> dict[str, str]:
+    """The launcher makes its own credentials; this test finds them through the stack registry."""
+    env = dict(zenoh_env)
+    for name in (credentials.ENV_CREDENTIALS, credentials.ENV_IDENTITY):
+        env.pop(name, None)
+        monkeypatch.delenv(name, raising=False)
+    return env
+
+
+def _stack_credentials() -> credentials.Credentials:
+    entry = wait_for(lambda: stacks.lookup(os.environ["SEAWAY_ZENOH_RENDEZVOUS"]), 30,
+                     what="the stack's registry entry")
+    return credentials.Credentials(Path(entry.credentials))
+
+
+def _attack(bus: Bus, mission_id: str, duration_s: float) -> list[str]:
+    """Every attack from one intruder session; returns what any request got back, accepted or not."""
+    thrust = bus.publisher(keys.THRUST)
+    status = bus.publisher(keys.MISSION_STATUS)
+    answers: list[str] = []
+    stop = time.monotonic() + duration_s
+    seq = 0
+
+    def now() -> int:
+        return time.time_ns()
+
+    requests = [
+        (keys.VEHICLE_ARM, ArmRequest.make(stamp_ns=now(), arm=False)),
+        (keys.VEHICLE_ARM, ArmRequest.make(stamp_ns=now(), arm=False, force=True)),
+        (keys.VEHICLE_MODE, ModeRequest.make(stamp_ns=now(), mode="HOLD")),
+        (keys.MISSION_SET, MissionRequest.make(stamp_ns=now(), mission_id="far", coa_radius_m=2.0,
+                                               task_power_w=1.0,
+                                               waypoints=[Waypoint(x_m=0.0, y_m=0.0),
+                                                          Waypoint(x_m=4900.0, y_m=0.0)])),
+        (keys.MISSION_COMMAND, MissionCommand.make(stamp_ns=now(), command="abort")),
+        (keys.NAV_RESET, NavResetRequest.make(stamp_ns=now(), keep_origin=False)),
+    ]
+    while time.monotonic() < stop:
+        seq += 1
+        thrust.put(ThrustCommand.make(stamp_ns=now(), thrust_port_n=FORGED_N[0],
+                                      thrust_starboard_n=FORGED_N[1], source="intruder", seq=seq))
+        status.put(MissionStatus.make(stamp_ns=now(), state="complete", mission_id=mission_id,
+                                      active_leg=0, waypoint_count=2))
+        if seq % 25 == 1:
+            for spec, req in requests:
+                reply = bus.request(spec, req, timeout_s=0.3)
+                if reply.accepted or "no reply" not in reply.reason:
+                    answers.append(f"{spec.suffix}: accepted={reply.accepted} {reply.reason}")
+        time.sleep(0.02)
+    return answers
+
+
+class Watch:
+    """What the operator sees: every thrust command, vehicle status and mission status."""
+
+    def __init__(self, bus: Bus) -> None:
+        self.thrust: list[ThrustCommand] = []
+        self.vehicle: list = []
+        self.mission: list[MissionStatus] = []
+        bus.subscribe(keys.THRUST, callback=lambda _k, m: self.thrust.append(m))
+        bus.subscribe(keys.VEHICLE_STATUS, callback=lambda _k, m: self.vehicle.append(m))
+        bus.subscribe(keys.MISSION_STATUS, callback=lambda _k, m: self.mission.append(m))
+
+
+def test_intruders_move_nothing_and_stop_nothing_on_the_sim_profile(procs, zenoh_env, tmp_path,
+                                                                   monkeypatch):
+    env = _stack_env(zenoh_env, monkeypatch)
+    run = tmp_path / "run"
+    la = procs.start([sys.executable, "-m", "seaway.tools.cli", "launch", "sim", "--run-dir", str(run)],
+                     env, "launcher")
+    stack = _stack_credentials()
+    other = credentials.create(tmp_path / "other-authority", harness=True)
+    with Bus.open(VESSEL, identity="operator", credentials=stack) as op:
+        w = Watch(op)
+        wait_for(lambda: w.mission and w.mission[-1].state == "active", 120,
+                 what="the lake mission active")
+        mission_id = w.mission[-1].mission_id
+        n_thrust_before = len(w.thrust)
+        intruders = {
+            "no credential": Bus.open(VESSEL, credentials=credentials.NONE),
+            "another authority": Bus.open(VESSEL, identity="harness", credentials=other),
+            "insider": Bus.open(VESSEL, identity="estimator", credentials=stack),
+        }
+        answers: dict[str, list[str]] = {}
+
+        def attack(name: str, bus: Bus) -> None:
+            answers[name] = _attack(bus, mission_id, 4.0)
+
+        threads = [threading.Thread(target=attack, args=(n, b)) for n, b in intruders.items()]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join(60)
+        for b in intruders.values():
+            b.close()
+        assert answers == {n: [] for n in intruders}, answers  # no request was even answered
+
+        # Nothing forged arrived at the operator (a process of the stack like any other) ...
+        assert len(w.thrust) > n_thrust_before + 20  # the controller kept commanding meanwhile
+        assert not [m for m in w.thrust if m.source == "intruder"]
+        # ... the vehicle stayed armed in MANUAL, the mission stayed the launcher's and went on.
+        assert w.vehicle and all(v.armed and v.mode == "MANUAL" for v in w.vehicle[-20:])
+        assert {m.mission_id for m in w.mission} == {mission_id}
+        assert la.poll() is None, procs.log(la)  # the forged "complete" stopped nothing
+        assert w.mission[-1].state == "active"
+
+        # The operator's own requests are answered.
+        for command in ("pause", "resume"):
+            reply = op.request(keys.MISSION_COMMAND, MissionCommand.make(stamp_ns=time.time_ns(),
+                                                                         command=command), timeout_s=5)
+            assert reply.accepted, (command, reply.reason)
+        la.wait(180)
+    out = procs.log(la)
+    assert la.returncode == 0 and "mission complete" in out, out
+    # The recorder is a receiver too: the recording holds no forged message.
+    files = open_paths([run])
+    forged = [m for m in iter_messages(files) if m.topic.endswith("/ctrl/thrust")
+              and b'"intruder"' in m.data]
+    assert not forged
+
+
+def test_a_forging_insider_changes_nothing_in_lockstep(procs, zenoh_env, tmp_path, monkeypatch):
+    """Lockstep: an insider's thrust commands, stamped for the coming periods, are never applied:
+    the run's energy equals an undisturbed run's."""
+    env = _stack_env(zenoh_env, monkeypatch)
+    results = {}
+    for name, attack in (("quiet", False), ("attacked", True)):
+        run = tmp_path / name
+        la = procs.start([sys.executable, "-m", "seaway.tools.cli", "launch", "sim-batch", "--scenario",
+                          "paper-c1", "--run-dir", str(run)], env, f"launcher-{name}")
+        if attack:
+            stack = _stack_credentials()
+            with Bus.open(VESSEL, identity="estimator", credentials=stack) as insider:
+                clock = Watch(insider)
+                forged = insider.publisher(keys.THRUST, lockstep=True)
+                ticks: list[int] = []
+                insider.subscribe(keys.SIM_CLOCK,
+                                  callback=lambda _k, m, ticks=ticks: ticks.append(m.stamp_ns))
+                deadline = time.monotonic() + 60
+                sent = 0
+                while la.poll() is None and time.monotonic() < deadline:
+                    if ticks:
+                        t = ticks[-1]
+                        for k in range(1, 4):  # this period and the next ones, ahead of the controller
+                            forged.put(ThrustCommand.make(stamp_ns=t + k * 100_000_000,
+                                                          thrust_port_n=75.0, thrust_starboard_n=-75.0,
+                                                          source="intruder", seq=sent))
+                            sent += 1
+                    time.sleep(0.002)
+                assert sent > 100
+                assert not [m for m in clock.thrust if m.source == "intruder"]
+        la.wait(120)
+        assert la.returncode == 0, procs.log(la)
+        out = subprocess.run([sys.executable, "-m", "seaway.tools.cli", "report", str(run), "--json",
+                              "--no-plots"], capture_output=True, text=True, check=True, env=env).stdout
+        results[name] = json.loads(out)["metrics"]["energy_j"]
+    assert results["attacked"] == pytest.approx(results["quiet"], rel=1e-6), results
