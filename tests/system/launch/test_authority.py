@@ -20,7 +20,6 @@ answered. A lockstep run with a forging insider ends with the undisturbed run's 
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
 import threading
@@ -43,7 +42,7 @@ from seaway.runtime import credentials, stacks
 from seaway.runtime.bus import Bus
 from seaway_recorder.recording import iter_messages, open_paths
 
-from tests.conftest import wait_for
+from tests.conftest import stack_credentials, wait_for
 
 pytestmark = pytest.mark.system
 VESSEL = "vessel1"
@@ -57,12 +56,6 @@ def _stack_env(zenoh_env: dict[str, str], monkeypatch: pytest.MonkeyPatch) -> di
         env.pop(name, None)
         monkeypatch.delenv(name, raising=False)
     return env
-
-
-def _stack_credentials() -> credentials.Credentials:
-    entry = wait_for(lambda: stacks.lookup(os.environ["SEAWAY_ZENOH_RENDEZVOUS"]), 30,
-                     what="the stack's registry entry")
-    return credentials.Credentials(Path(entry.credentials))
 
 
 def _attack(bus: Bus, mission_id: str, duration_s: float) -> list[str]:
@@ -120,7 +113,7 @@ def test_intruders_move_nothing_and_stop_nothing_on_the_sim_profile(procs, zenoh
     run = tmp_path / "run"
     la = procs.start([sys.executable, "-m", "seaway.tools.cli", "launch", "sim", "--run-dir", str(run)],
                      env, "launcher")
-    stack = _stack_credentials()
+    stack = stack_credentials()
     other = credentials.create(tmp_path / "other-authority", harness=True)
     with Bus.open(VESSEL, identity="operator", credentials=stack) as op:
         w = Watch(op)
@@ -181,9 +174,11 @@ def test_a_forging_insider_changes_nothing_in_lockstep(procs, zenoh_env, tmp_pat
         la = procs.start([sys.executable, "-m", "seaway.tools.cli", "launch", "sim-batch", "--scenario",
                           "paper-c1", "--run-dir", str(run)], env, f"launcher-{name}")
         if attack:
-            stack = _stack_credentials()
-            with Bus.open(VESSEL, identity="estimator", credentials=stack) as insider:
-                clock = Watch(insider)
+            stack = stack_credentials()
+            # The operator watches from its own session: a session hears its own publications.
+            with (Bus.open(VESSEL, identity="estimator", credentials=stack) as insider,
+                  Bus.open(VESSEL, identity="operator", credentials=stack) as op):
+                clock = Watch(op)
                 forged = insider.publisher(keys.THRUST, lockstep=True)
                 ticks: list[int] = []
                 insider.subscribe(keys.SIM_CLOCK,
@@ -207,3 +202,44 @@ def test_a_forging_insider_changes_nothing_in_lockstep(procs, zenoh_env, tmp_pat
                               "--no-plots"], capture_output=True, text=True, check=True, env=env).stdout
         results[name] = json.loads(out)["metrics"]["energy_j"]
     assert results["attacked"] == pytest.approx(results["quiet"], rel=1e-6), results
+
+
+def _mission_ids(run: Path) -> set[str]:
+    ids = set()
+    for m in iter_messages(open_paths([run])):
+        if m.topic.endswith("/mission/status"):
+            ids.add(json.loads(m.data)["mission_id"] or "(idle)")
+    return ids
+
+
+def test_two_stacks_on_one_machine_never_mix(procs, zenoh_env, tmp_path, monkeypatch):
+    """Same rendezvous: the second launch refuses, naming the first. Different rendezvous: both run
+    their missions to the end, each recording only its own (the vessel name is the same)."""
+    from tests.conftest import free_port
+
+    env = _stack_env(zenoh_env, monkeypatch)
+    launch = [sys.executable, "-m", "seaway.tools.cli", "launch", "sim-batch"]
+    a = procs.start([*launch, "--scenario", "paper-c1", "--stay", "--run-dir", str(tmp_path / "a")],
+                    env, "launcher-a")
+    entry = wait_for(lambda: stacks.lookup(env["SEAWAY_ZENOH_RENDEZVOUS"]), 30, what="stack a registered")
+    second = subprocess.run([*launch, "--scenario", "paper-c2", "--run-dir", str(tmp_path / "b0")],
+                            env=env, capture_output=True, text=True, timeout=60)
+    assert second.returncode == 2, second.stdout + second.stderr
+    assert (f"another Seaway stack runs on {env['SEAWAY_ZENOH_RENDEZVOUS']}" in second.stderr
+            and f"launcher pid {entry.pid}" in second.stderr and "sim-batch" in second.stderr), second.stderr
+    assert not (tmp_path / "b0" / "recording.mcap").exists()
+    a.terminate()
+    a.wait(30)
+
+    # Different rendezvous ports, both at once, each with the credentials its launcher made.
+    runs = {}
+    for name, scenario in (("c1", "paper-c1"), ("c2", "paper-c2")):
+        e = dict(env, SEAWAY_ZENOH_RENDEZVOUS=f"tcp/127.0.0.1:{free_port()}")
+        runs[name] = (procs.start([*launch, "--scenario", scenario, "--run-dir", str(tmp_path / name)],
+                                  e, f"launcher-{name}"), scenario)
+    for p, _ in runs.values():
+        p.wait(180)
+        assert p.returncode == 0, procs.log(p)
+    for name, (_, scenario) in runs.items():
+        ids = _mission_ids(tmp_path / name)
+        assert ids <= {scenario, "(idle)"} and scenario in ids, (name, ids)  # none of the other stack

@@ -26,7 +26,7 @@ from seaway.simkit.scenario import load_scenario
 from seaway_recorder import recording
 from seaway_recorder.report import episodes
 
-from tests.conftest import free_port, wait_for
+from tests.conftest import free_port, stack_credentials, wait_for
 
 pytestmark = pytest.mark.system
 BIN = Path(sys.executable).parent
@@ -54,7 +54,8 @@ class Stack:
             [str(BIN / "seaway"), "launch", "sim-batch", "--scenario", SCENARIO, "--controller",
              CONTROLLER, "--run-dir", str(run_dir), *extra],
             env=self.env, stdout=self.log, stderr=subprocess.STDOUT, start_new_session=True)
-        self.bus = Bus.open("vessel1")
+        # The operator, with the credentials the launcher made for this run.
+        self.bus = Bus.open("vessel1", identity="operator", credentials=stack_credentials())
         self.clock = self.bus.subscribe(keys.SIM_CLOCK, mode="latest")
         self.status = self.bus.subscribe(keys.MISSION_STATUS, mode="latest")
 

@@ -118,6 +118,12 @@ def cmd_mission(argv: list[str]) -> int:
     return mission_main(argv)
 
 
+def cmd_credentials(argv: list[str]) -> int:
+    from seaway.tools.credentials_cli import main as credentials_main
+
+    return credentials_main(argv)
+
+
 def cmd_router(argv: list[str]) -> int:
     from seaway.tools.router import main as router_main
 
@@ -125,7 +131,7 @@ def cmd_router(argv: list[str]) -> int:
 
 
 BUILTIN = {"bench": cmd_bench, "echo": cmd_echo, "health": cmd_health, "schemas": cmd_schemas,
-           "launch": cmd_launch, "router": cmd_router,
+           "launch": cmd_launch, "router": cmd_router, "credentials": cmd_credentials,
            "mission": cmd_mission}
 
 
