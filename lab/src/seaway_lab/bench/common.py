@@ -3,14 +3,23 @@
 A benchmark is a function ``run(argv: list[str]) -> BenchResult`` registered under the entry-point
 group ``seaway.benchmarks`` by the package that owns it. Figures carry their unit in their name, and
 an optional target with whether it was met, so the table and the JSON say the same thing.
+
+Authentication (issue 15): a benchmark that crosses Zenoh measures with the stack's mutual TLS and
+access control on and off in the same run, alternating, and reports both with ``compare_auth``:
+the ratios on / off are figures (target ``<= 1.1``), and the JSON also carries ``auth_on``,
+``auth_off`` and ``auth_overhead_ratio`` (figure name -> value) beside ``figures``.
 """
 
 from __future__ import annotations
 
 import json
 import os
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
+
+AUTH_TARGET_RATIO = 1.1
+"""Issue 15: with authentication on, within 10 % of the figures without it."""
 
 
 @dataclass(frozen=True)
@@ -28,6 +37,8 @@ class BenchResult:
     title: str
     figures: list[Figure] = field(default_factory=list)
     meta: dict[str, Any] = field(default_factory=dict)
+    sections: dict[str, dict[str, float]] = field(default_factory=dict)
+    """Named groups of figures, each a top-level JSON key beside ``figures`` (``compare_auth``)."""
 
     def add(self, name: str, value: float | int | str, target: str | None = None,
             ok: bool | None = None, note: str = "") -> None:
@@ -44,6 +55,7 @@ class BenchResult:
             "targets": {f.name: {"target": f.target, "ok": f.ok} for f in self.figures if f.target},
             "passed": self.passed,
             "meta": self.meta,
+            **self.sections,
         }
 
     def table(self) -> str:
@@ -68,6 +80,19 @@ class BenchResult:
         return json.dumps(self.to_json())
 
 
+def compare_auth(result: BenchResult, on: dict[str, float], off: dict[str, float],
+                 ratio_name: Callable[[str], str] = lambda k: f"auth on / off: {k}") -> dict[str, float]:
+    """Report figures measured with authentication ``on`` and ``off`` (same names, same units): a
+    ratio figure on / off for each (named ``ratio_name(name)``, with the issue-15 target) and the
+    JSON sections ``auth_on``, ``auth_off`` and ``auth_overhead_ratio``. Returns the ratios."""
+    ratios = {k: on[k] / off[k] if off[k] else float("nan") for k in on}
+    result.sections.update(auth_on=dict(on), auth_off=dict(off), auth_overhead_ratio=ratios)
+    for k, r in ratios.items():
+        result.add(ratio_name(k), r, f"<= {AUTH_TARGET_RATIO:g}", r <= AUTH_TARGET_RATIO,
+                   note=f"on {on[k]:.4g}, off {off[k]:.4g}")
+    return ratios
+
+
 def pin_to_one_core() -> int | None:
     """Pin this process to one CPU so 'per core' figures mean that; returns the CPU or None."""
     try:
@@ -76,3 +101,20 @@ def pin_to_one_core() -> int | None:
         return cpu
     except (AttributeError, OSError):
         return None
+
+
+def bench_credentials() -> dict[str, str]:
+    """Environment entries that make this process and its children one stack with credentials of
+    their own (a fresh authority in a temporary folder, removed at exit; this process and any
+    non-service child are the harness identity, which may do everything)."""
+    import atexit
+    import shutil
+    import tempfile
+    from pathlib import Path
+
+    from seaway.runtime import credentials
+
+    tmp = Path(tempfile.mkdtemp(prefix="seaway-bench-"))
+    atexit.register(shutil.rmtree, tmp, True)
+    folder = credentials.create(tmp / "credentials", harness=True).folder
+    return {credentials.ENV_CREDENTIALS: str(folder), credentials.ENV_IDENTITY: "harness"}

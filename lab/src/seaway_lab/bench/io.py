@@ -15,6 +15,14 @@ Baselines, measured in the same run on the same machine:
 
 What vehicle_io itself adds is roughly the end-to-end figure minus the two baselines (decode,
 watchdog, mapping, MAVLink packing, and the wake-up of its Zenoh callback thread).
+
+Authentication (issue 15): the Zenoh part (the end-to-end path and the ``zenoh`` baseline) is
+measured with the stack's authentication on (mutual TLS and access control, a temporary
+credentials folder: vehicle_io is itself, this process is the harness) and off
+(``SEAWAY_CREDENTIALS=none``), in alternating rounds (on, off, on, off...; each round a fresh
+vehicle_io on a fresh port), so drift hits both. The headline figures are those with
+authentication on, as a stack runs; the ``auth_off`` ones and the ratios on / off (target: within
+10 %) follow. The MAVLink side is unsigned in both (MAVLink signing is vehicle_io's own option).
 """
 
 from __future__ import annotations
@@ -26,23 +34,29 @@ import random
 import socket
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 from collections.abc import Sequence
+from pathlib import Path
 
 import zenoh
 from seaway.contract import keys
+from seaway.contract.access import HARNESS
 from seaway.contract.messages import ThrustCommand
+from seaway.runtime import credentials
 from seaway.runtime.bus import Bus
 from seaway.vessel.metrics import median, percentile
 from seaway.vessel.model import load_vessel
 from seaway_vehicle_io.px4 import PROFILE
 from seaway_vehicle_io.thrust import ThrusterLimits, normalise_pair
 
-from seaway_lab.bench.common import BenchResult
+from seaway_lab.bench.common import BenchResult, compare_auth
 from seaway_lab.fake_autopilot import FakeAutopilot, ManualControlRecord
 
 TARGET_P99_MS = 2.0
+WARMUP = 20  # commands per round not timed: the first few warm up the paths
+Auth = credentials.Credentials | str  # a credentials folder, or credentials.NONE
 
 
 def _free_port(kind: int) -> int:
@@ -89,9 +103,16 @@ def _udp_baseline(n: int) -> list[int]:
     return out
 
 
-def _zenoh_baseline(n: int, vessel: str) -> list[int]:
-    """Put -> callback between two sessions, the callback on Zenoh's receive thread, as
-    vehicle_io's thrust subscriber is (``indirect=False``)."""
+def _use_fresh_rendezvous() -> None:
+    """A free rendezvous port for the next sessions (each round its own: TLS and plain TCP never
+    meet on one port, and a closing round never leaks into the next)."""
+    os.environ["SEAWAY_ZENOH_RENDEZVOUS"] = f"tcp/127.0.0.1:{_free_port(socket.SOCK_STREAM)}"
+
+
+def _zenoh_baseline(n: int, vessel: str, auth: Auth) -> list[int]:
+    """Put -> callback [ns] between two sessions, the callback on Zenoh's receive thread, as
+    vehicle_io's thrust subscriber is (``indirect=False``); both sessions are the harness of
+    ``auth``."""
     got = threading.Event()
     arrival = [0]
 
@@ -100,7 +121,9 @@ def _zenoh_baseline(n: int, vessel: str) -> list[int]:
         got.set()
 
     out = []
-    with Bus.open(vessel) as a, Bus.open(vessel) as b:
+    _use_fresh_rendezvous()
+    with (Bus.open(vessel, identity=HARNESS, credentials=auth) as a,
+          Bus.open(vessel, identity=HARNESS, credentials=auth) as b):
         key = keys.THRUST.key(f"{vessel}-baseline")
         b.session.declare_subscriber(key, zenoh.handlers.Callback(on_sample, indirect=False))
         pub = a.publisher(keys.THRUST, vessel=f"{vessel}-baseline")
@@ -117,27 +140,20 @@ def _zenoh_baseline(n: int, vessel: str) -> list[int]:
     return out
 
 
-def run(argv: list[str]) -> BenchResult:
-    ap = argparse.ArgumentParser(prog="seaway bench io", description=__doc__.splitlines()[0])
-    ap.add_argument("--count", type=int, default=2000, help="commands to time (default 2000)")
-    ap.add_argument("--baseline-count", type=int, default=1000)
-    ap.add_argument("--vessel-file", default="paper-boat")
-    args = ap.parse_args(argv)
-
-    zenoh_port, udp_port = _free_port(socket.SOCK_STREAM), _free_port(socket.SOCK_DGRAM)
-    os.environ["SEAWAY_ZENOH_RENDEZVOUS"] = f"tcp/127.0.0.1:{zenoh_port}"
-    os.environ.pop("SEAWAY_ZENOH_CONFIG", None)
-    vessel = "bench-io"
-    limits = ThrusterLimits.from_vessel(load_vessel(args.vessel_file))
-
-    result = BenchResult("io", "vehicle_io: ThrustCommand put on Zenoh -> MANUAL_CONTROL on the "
-                               "autopilot's UDP socket (vehicle_io as a subprocess)")
+def _end_to_end(count: int, vessel: str, vessel_file: str, auth: Auth) -> tuple[list[int], int]:
+    """One round: a fresh vehicle_io (identity ``vehicle_io`` of ``auth``), ``count`` commands
+    timed after the warm-up; the latencies [ns] put -> MANUAL_CONTROL and the commands lost."""
+    _use_fresh_rendezvous()
+    udp_port = _free_port(socket.SOCK_DGRAM)
+    limits = ThrusterLimits.from_vessel(load_vessel(vessel_file))
+    folder = str(auth.folder) if isinstance(auth, credentials.Credentials) else auth
     proc = subprocess.Popen(
         [sys.executable, "-m", "seaway_vehicle_io.main", "--vessel", vessel,
-         "--mavlink", f"udpin:127.0.0.1:{udp_port}", "--vessel-file", args.vessel_file,
+         "--mavlink", f"udpin:127.0.0.1:{udp_port}", "--vessel-file", vessel_file,
          "--log-level", "WARNING"],
-        env={**os.environ, "PYTHONUNBUFFERED": "1"}, stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE, start_new_session=True)
+        env={**os.environ, "PYTHONUNBUFFERED": "1", credentials.ENV_CREDENTIALS: folder,
+             credentials.ENV_IDENTITY: "vehicle_io"},
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True)
     expected: list[tuple[int, int]] = [(0, 0)]
     arrival = [0]
     matched = threading.Event()
@@ -153,7 +169,7 @@ def run(argv: list[str]) -> BenchResult:
     peer.on_manual_control = on_mc
     try:
         peer.start()
-        with Bus.open(vessel) as bus:
+        with Bus.open(vessel, identity=HARNESS, credentials=auth) as bus:
             pub = bus.publisher(keys.THRUST)
             deadline = time.monotonic() + 30.0
             while not peer.manual_controls and time.monotonic() < deadline:
@@ -167,7 +183,7 @@ def run(argv: list[str]) -> BenchResult:
             gc.collect()
             gc.freeze()
             gc.disable()
-            for i in range(args.count + 20):
+            for i in range(count + WARMUP):
                 t_n = 12.0 + (i % 40) * 1.4  # consecutive commands always differ
                 cmd = ThrustCommand.make(stamp_ns=time.time_ns(), thrust_port_n=t_n,
                                          thrust_starboard_n=t_n, seq=i, source="bench")
@@ -178,9 +194,9 @@ def run(argv: list[str]) -> BenchResult:
                 t0 = time.monotonic_ns()
                 pub.put(cmd)
                 if matched.wait(0.25):
-                    if i >= 20:  # the first few warm up the paths
+                    if i >= WARMUP:
                         latencies.append(arrival[0] - t0)
-                elif i >= 20:
+                elif i >= WARMUP:
                     lost += 1
                 time.sleep(random.uniform(0.001, 0.004))
     finally:
@@ -193,30 +209,79 @@ def run(argv: list[str]) -> BenchResult:
             except subprocess.TimeoutExpired:
                 proc.kill()
                 proc.wait(5)
+    return latencies, lost
 
+
+def _split(total: int, parts: int) -> list[int]:
+    """``total`` in ``parts`` near-equal shares that add up to it."""
+    return [total // parts + (1 if k < total % parts else 0) for k in range(parts)]
+
+
+def run(argv: list[str]) -> BenchResult:
+    ap = argparse.ArgumentParser(prog="seaway bench io", description=__doc__.splitlines()[0])
+    ap.add_argument("--count", type=int, default=2000,
+                    help="commands to time with authentication on, and as many off (default 2000)")
+    ap.add_argument("--baseline-count", type=int, default=1000, help="per authentication setting")
+    ap.add_argument("--rounds", type=int, default=2,
+                    help="rounds per authentication setting, alternating on and off (default 2)")
+    ap.add_argument("--vessel-file", default="paper-boat")
+    args = ap.parse_args(argv)
+    rounds = max(1, args.rounds)
+    os.environ.pop("SEAWAY_ZENOH_CONFIG", None)
+    vessel = "bench-io"
+
+    result = BenchResult("io", "vehicle_io: ThrustCommand put on Zenoh -> MANUAL_CONTROL on the "
+                               "autopilot's UDP socket (vehicle_io as a subprocess)")
+    e2e_ns: dict[bool, list[int]] = {True: [], False: []}
+    zenoh_ns: dict[bool, list[int]] = {True: [], False: []}
+    lost = {True: 0, False: 0}
+    with tempfile.TemporaryDirectory(prefix="seaway-bench-io-") as tmp:
+        made = credentials.create(Path(tmp) / "credentials", harness=True)
+        settings: dict[bool, Auth] = {True: made, False: credentials.NONE}
+        for count, base_count in zip(_split(args.count, rounds), _split(args.baseline_count, rounds),
+                                     strict=True):
+            for on in (True, False):  # alternate, so drift in the machine's load hits both
+                latencies, n_lost = _end_to_end(count, vessel, args.vessel_file, settings[on])
+                e2e_ns[on] += latencies
+                lost[on] += n_lost
+                gc.collect()
+                gc.disable()  # as for the main measurement
+                try:
+                    zenoh_ns[on] += _zenoh_baseline(base_count, vessel, settings[on])
+                finally:
+                    gc.enable()
     gc.collect()
-    gc.disable()  # as for the main measurement
+    gc.disable()
     try:
-        zenoh_ns = _zenoh_baseline(args.baseline_count, vessel)
         udp_ns = _udp_baseline(args.baseline_count)
     finally:
         gc.enable()
-    e2e = _ms(latencies)
+    e2e, e2e_off = _ms(e2e_ns[True]), _ms(e2e_ns[False])
+    zen, zen_off = _ms(zenoh_ns[True]), _ms(zenoh_ns[False])
     p99 = percentile(e2e, 99)
-    result.add("e2e_median_ms", median(e2e))
+    result.add("e2e_median_ms", median(e2e), note="auth on")
     result.add("e2e_p99_ms", p99, target=f"< {TARGET_P99_MS:g}", ok=p99 < TARGET_P99_MS)
     result.add("e2e_max_ms", max(e2e) if e2e else float("nan"))
     result.add("commands_timed", len(e2e))
-    result.add("commands_lost", lost, target="0", ok=lost == 0,
+    result.add("commands_lost", lost[True], target="0", ok=lost[True] == 0,
                note="no MANUAL_CONTROL within 250 ms")
-    result.add("baseline_zenoh_median_ms", median(_ms(zenoh_ns)),
-               note="put -> callback, two sessions, loopback")
-    result.add("baseline_zenoh_p99_ms", percentile(_ms(zenoh_ns), 99))
+    result.add("baseline_zenoh_median_ms", median(zen),
+               note="put -> callback, two sessions, loopback, auth on")
+    result.add("baseline_zenoh_p99_ms", percentile(zen, 99))
     result.add("baseline_udp_median_ms", median(_ms(udp_ns)), note="one datagram, loopback")
     result.add("baseline_udp_p99_ms", percentile(_ms(udp_ns), 99))
-    result.add("vehicle_io_added_median_ms",
-               median(e2e) - median(_ms(zenoh_ns)) - median(_ms(udp_ns)),
+    result.add("vehicle_io_added_median_ms", median(e2e) - median(zen) - median(_ms(udp_ns)),
                note="e2e minus both baselines")
+    on_fig, off_fig = ({"e2e_median_ms": median(v), "e2e_p99_ms": percentile(v, 99),
+                        "baseline_zenoh_median_ms": median(b),
+                        "baseline_zenoh_p99_ms": percentile(b, 99)}
+                       for v, b in ((e2e, zen), (e2e_off, zen_off)))
+    for name, value in off_fig.items():
+        result.add(name.replace("_ms", "_auth_off_ms"), value)
+    result.add("commands_timed_auth_off", len(e2e_off))
+    result.add("commands_lost_auth_off", lost[False], target="0", ok=lost[False] == 0)
+    compare_auth(result, on_fig, off_fig, lambda k: f"auth_ratio_{k.removesuffix('_ms')}")
     result.meta.update({"cpus": os.cpu_count(), "load_avg_1m": round(os.getloadavg()[0], 2),
-                        "vessel_file": args.vessel_file, "python": sys.version.split()[0]})
+                        "vessel_file": args.vessel_file, "rounds_per_auth_setting": rounds,
+                        "python": sys.version.split()[0]})
     return result

@@ -36,7 +36,7 @@ from seaway.contract.units import NS_PER_S
 from seaway.vessel.metrics import median, percentile
 from seaway_recorder.writer import RecordingWriter
 
-from seaway_lab.bench.common import BenchResult
+from seaway_lab.bench.common import BenchResult, bench_credentials
 
 TARGET_MSG_S = 50_000
 MESSAGE_BYTES = 300
@@ -103,7 +103,8 @@ def _wait_line(p: subprocess.Popen, text: str, timeout_s: float) -> None:
 
 
 def bench_end_to_end(rate: float, seconds: float, tmp: Path) -> dict:
-    env = dict(os.environ, SEAWAY_ZENOH_RENDEZVOUS=f"tcp/127.0.0.1:{_free_port()}", PYTHONUNBUFFERED="1")
+    env = dict(os.environ, SEAWAY_ZENOH_RENDEZVOUS=f"tcp/127.0.0.1:{_free_port()}", PYTHONUNBUFFERED="1",
+               **bench_credentials())
     env.pop("SEAWAY_ZENOH_CONFIG", None)
     out = tmp / "e2e.mcap"
     rec = subprocess.Popen([sys.executable, "-m", "seaway_recorder.record", "--out", str(out),

@@ -30,7 +30,7 @@ from seaway_sim.app import SimApp, load_world
 from seaway_sim.core import SimCore
 from seaway_sim.lockstep import Lockstep
 
-from seaway_lab.bench.common import BenchResult
+from seaway_lab.bench.common import BenchResult, bench_credentials
 
 TARGET_REAL_TIME_FACTOR = 200.0
 READY_TIMEOUT_S = 30.0
@@ -45,9 +45,11 @@ def _free_tcp_port() -> int:
 @contextmanager
 def _private_zenoh() -> Iterator[dict[str, str]]:
     """This process and its children on a private rendezvous port (restored afterwards)."""
-    saved = {k: os.environ.get(k) for k in (ENV_RENDEZVOUS, ENV_CONFIG)}
+    extra = bench_credentials()
+    saved = {k: os.environ.get(k) for k in (ENV_RENDEZVOUS, ENV_CONFIG, *extra)}
     os.environ[ENV_RENDEZVOUS] = f"tcp/127.0.0.1:{_free_tcp_port()}"
     os.environ.pop(ENV_CONFIG, None)
+    os.environ.update(extra)
     try:
         yield dict(os.environ)
     finally:

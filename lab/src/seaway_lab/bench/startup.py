@@ -21,7 +21,7 @@ from pathlib import Path
 
 from seaway.vessel.metrics import median
 
-from seaway_lab.bench.common import BenchResult
+from seaway_lab.bench.common import BenchResult, bench_credentials
 
 TARGET_READY_S = 5.0
 _READY = re.compile(r"all ready in ([0-9.]+) s")
@@ -34,7 +34,7 @@ def _free_port() -> int:
 
 
 def _env() -> dict[str, str]:
-    env = dict(os.environ)
+    env = dict(os.environ, **bench_credentials())
     env["SEAWAY_ZENOH_RENDEZVOUS"] = f"tcp/127.0.0.1:{_free_port()}"
     env.pop("SEAWAY_ZENOH_CONFIG", None)
     return env
