@@ -20,6 +20,7 @@ from seaway.contract.config import ConfigError
 from seaway.runtime.lockstep import STALL_REPEAT_S
 from seaway.runtime.service import base_parser, parse, resolve_run, run_service
 from seaway.simkit.scenario import load_scenario
+from seaway.vessel.mavlink_signing import KeyFileError, read_key
 from seaway.vessel.model import load_vessel
 
 from seaway_sim.app import SimApp
@@ -54,6 +55,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--step", type=_positive, default=DEFAULT_STEP_S,
                    help="real time: plant and MAVLink tick [s] (default 0.01)")
     p.add_argument("--sysid", type=int, default=1, help="real time: MAVLink system id (default 1)")
+    p.add_argument("--signing-key-file", default=None, metavar="PATH",
+                   help="real time: MAVLink 2 signing key file (64 hex characters): sign everything "
+                        "sent and reject unsigned or wrongly signed messages, as PX4 with a key "
+                        "does. Create one with: python -m seaway.vessel.mavlink_signing PATH")
     p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                    help="real time: set a simulated PX4 parameter at boot (repeatable), e.g. NAV_RCL_ACT=1")
     return p
@@ -97,10 +102,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not 1 <= args.sysid <= 255:
         print(f"seaway-sim: --sysid must be 1..255, got {args.sysid}", file=sys.stderr)
         return 2
+    try:
+        key = read_key(args.signing_key_file) if args.signing_key_file else None
+    except KeyFileError as err:
+        print(f"seaway-sim: --signing-key-file: {err}", file=sys.stderr)
+        return 2
     link = None
+    if lockstep and key is not None:
+        log.warning("--signing-key-file ignored: lockstep does not speak MAVLink")
     if not lockstep:
         try:
-            link = MavlinkLink(args.mavlink, args.sysid, COMPID)
+            link = MavlinkLink(args.mavlink, args.sysid, COMPID, signing_key=key)
         except (ValueError, OSError) as err:
             print(f"seaway-sim: --mavlink {args.mavlink}: {err}", file=sys.stderr)
             return 2
@@ -110,7 +122,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         app = SimApp(ctx.bus, core, lockstep=lockstep, run=run)
         log.info("scenario %s (seed %d), plant vessel %s, model vessel %s, period %g s, %s",
                  scenario.name, scenario.seed, vessel.name, run.model_vessel_file, period_s,
-                 "lockstep" if lockstep else "real time")
+                 "lockstep" if lockstep else "real time, MAVLink signing "
+                 + (f"on (key file {args.signing_key_file})" if key is not None else "off"))
         if link is None:
             stepper = Lockstep(app, period_s, ctx.stop, args.stall_repeat_s)
             ctx.ready()

@@ -1,16 +1,19 @@
 """vehicle_io's configuration file (TOML or JSON); unknown fields are errors.
 
-Every field has a safe default, so a file is needed only to change something. ``--mavlink`` and
-``--autopilot`` on the command line override the file. The vessel file (thruster limits, dead zone)
+Every field has a safe default, so a file is needed only to change something. ``--mavlink``,
+``--autopilot``, ``--thrust-timeout`` and ``--signing-key-file`` on the command line override the
+file. The vessel file (thruster limits, dead zone)
 is a run-wide fact: it comes from the run description (``seaway.runtime.run``), not from here.
 """
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Literal
 
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 from seaway.contract.config import ConfigModel
+from seaway.vessel.mavlink_signing import read_key
 
 from seaway_vehicle_io import profile
 
@@ -91,6 +94,20 @@ class VehicleIoConfig(ConfigModel):
         description="send neutral while the autopilot reports disarmed, so arming never starts "
                     "the thrusters at a demand computed before it",
     )
+    signing_key_file: Path | None = Field(
+        default=None,
+        description="MAVLink 2 signing: a file holding the 32-byte secret key as 64 hex characters "
+                    "(python -m seaway.vessel.mavlink_signing PATH writes one; a relative path is "
+                    "from the working directory). Set: everything we send is signed, and unsigned or "
+                    "wrongly signed incoming messages are refused (counted). None: no signing",
+    )
+
+    @field_validator("signing_key_file")
+    @classmethod
+    def _check_key_file(cls, path: Path | None) -> Path | None:
+        if path is not None:
+            read_key(path)  # KeyFileError (a ValueError) names the file and what it must hold
+        return path
 
     @model_validator(mode="after")
     def _check_timing(self) -> VehicleIoConfig:

@@ -3,7 +3,8 @@
 Nothing here opens a socket, reads a clock or touches the bus. The service loop (``service.py``)
 feeds it:
 
-* ``on_mavlink(msg, now)`` for every decoded MAVLink message (the one receive loop);
+* ``on_mavlink(msg, now, address)`` for every decoded MAVLink message (the one receive loop), with
+  the peer address it came from, and ``on_refused_datagrams`` for what the link refused unread;
 * ``on_thrust(cmd, now)`` for every ThrustCommand from the bus;
 * ``tick(now)`` whenever ``next_wake_ns(now)`` says something is due;
 
@@ -12,6 +13,14 @@ Every method is called under one lock by the loop, so the core needs no locking 
 
 Time: ``Now.wall_ns`` (Unix epoch) stamps messages; ``Now.mono_ns`` (monotonic) measures every
 timeout, so an NTP step never trips or delays a watchdog.
+
+Authority: the first valid autopilot HEARTBEAT locks the link to its source (system id, component
+id, peer address); from then on a message from any other address or system id is refused and
+counted (``authority.Refusals``), never interpreted: a forged "disarmed, HOLD" HEARTBEAT from the
+autopilot's own system id but another socket changes nothing. With a signing key, every message
+must also carry a valid MAVLink 2 signature (``seaway.vessel.mavlink_signing``). A link loss
+releases the lock (``LockPeer(None)``) and the next autopilot HEARTBEAT locks again, within what
+``SourcePolicy`` allows.
 """
 
 from __future__ import annotations
@@ -21,8 +30,17 @@ from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 from seaway.contract.messages import Message, ThrustCommand, VehicleStatus
+from seaway.vessel.mavlink_signing import ACCEPTED, SignatureVerifier, signing_timestamp
 
 from seaway_vehicle_io import profile as profiles
+from seaway_vehicle_io.authority import (
+    FOREIGN_SOURCE,
+    Address,
+    Refusals,
+    Source,
+    SourcePolicy,
+    address_key,
+)
 from seaway_vehicle_io.commands import (
     COMMAND_NAMES,
     MAV_CMD_COMPONENT_ARM_DISARM,
@@ -104,7 +122,17 @@ class Publish:
     message: Message
 
 
-Output = SendHeartbeat | SendManualControl | SendCommandLong | SendParamRequestRead | Publish
+@dataclass(frozen=True)
+class LockPeer:
+    """Tell the link which peer address the autopilot is at (None: the lock is released), so it can
+    refuse other datagrams before parsing them (cheap enough to outrun a flood) and, listening
+    (udpin), answer the autopilot only."""
+
+    address: Address
+
+
+Output = (SendHeartbeat | SendManualControl | SendCommandLong | SendParamRequestRead | Publish
+          | LockPeer)
 
 
 # -- state pieces ---------------------------------------------------------------------------------
@@ -117,6 +145,7 @@ class LinkState:
     ok: bool = False
     target_system: int | None = None
     target_component: int | None = None
+    target_address: Address = None  # the peer the locking HEARTBEAT came from (None: serial)
     profile: Profile | None = None
     last_heartbeat_mono_ns: int | None = None
     armed: bool = False
@@ -140,8 +169,13 @@ class ParamCheck:
 class VehicleIoCore:
     """The whole of vehicle_io's logic. See the module docstring for how it is driven."""
 
-    def __init__(self, config: VehicleIoConfig, limits: ThrusterLimits, start: Now) -> None:
+    def __init__(self, config: VehicleIoConfig, limits: ThrusterLimits, start: Now,
+                 signing_key: bytes | None = None) -> None:
         self.cfg = config
+        # With a key, every incoming message must be signed with it (checked before anything else).
+        self.verifier = SignatureVerifier(signing_key) if signing_key is not None else None
+        self.refusals = Refusals()
+        self.policy = SourcePolicy()
         self.limits = limits
         self.forced_profile = (profiles.by_name(config.autopilot)
                                if config.autopilot != profiles.AUTO else None)
@@ -172,17 +206,41 @@ class VehicleIoCore:
     # Inputs
     # ===========================================================================================
 
-    def on_mavlink(self, msg: Any, now: Now) -> list[Output]:
-        """Handle one decoded MAVLink message (any type, from anyone)."""
+    def set_source_policy(self, policy: SourcePolicy) -> None:
+        """What the transport says about where the autopilot is (set by the loop on each open)."""
+        self.policy = policy
+
+    def on_mavlink(self, msg: Any, now: Now, address: Address = None) -> list[Output]:
+        """Handle one decoded MAVLink message (any type, from anyone) that arrived from ``address``
+        (the UDP/TCP peer; None on a serial link)."""
         mtype = msg.get_type()
+        link = self.link
         if mtype == "BAD_DATA":
-            self._drop(now, "BAD_DATA", "frame", getattr(msg, "reason", "unparseable bytes"))
+            if link.ok and address != link.target_address:
+                self.refusals.add(FOREIGN_SOURCE, (None, None, address), 1, now.mono_ns)
+            else:
+                self._drop(now, "BAD_DATA", "frame", getattr(msg, "reason", "unparseable bytes"))
+            return []
+        sysid, compid = msg.get_srcSystem(), msg.get_srcComponent()
+        source: Source = (sysid, compid, address)
+        if self.verifier is not None:
+            verdict = self.verifier.check(msg.get_msgbuf(), signing_timestamp(now.wall_ns))
+            if verdict != ACCEPTED:
+                self.refusals.add(verdict, source, 1, now.mono_ns)
+                return []
+        if (sysid, compid) == (self.cfg.source_system, self.cfg.source_component):
+            return []  # our own messages echoed back (a broadcast or a router)
+        if link.ok:
+            if address != link.target_address or sysid != link.target_system:
+                self.refusals.add(FOREIGN_SOURCE, source, 1, now.mono_ns)
+                return []
+        elif mtype == "HEARTBEAT" and not self.policy.may_lock(address):
+            self.refusals.add(FOREIGN_SOURCE, source, 1, now.mono_ns)
             return []
         if mtype == "HEARTBEAT":
-            return self._on_heartbeat(msg, now)
-        link = self.link
-        if not link.ok or msg.get_srcSystem() != link.target_system:
-            return []  # not from the autopilot we command (or none yet): not ours to interpret
+            return self._on_heartbeat(msg, now, address)
+        if not link.ok:
+            return []  # no autopilot locked yet: nothing else is ours to interpret
         self.counts[mtype] = self.counts.get(mtype, 0) + 1
         handler = self._HANDLERS.get(mtype)
         if handler is None:
@@ -195,6 +253,12 @@ class VehicleIoCore:
         except NoDataError as err:
             self._log_limited(now, mtype, "nodata", logging.INFO, str(err))
             return []
+
+    def on_refused_datagrams(self, tally: dict[Source, int], now: Now) -> None:
+        """Count datagrams the link refused unparsed (from an address other than the locked peer;
+        the ids are what their first header claims)."""
+        for source, count in tally.items():
+            self.refusals.add(FOREIGN_SOURCE, source, count, now.mono_ns)
 
     def on_thrust(self, cmd: ThrustCommand, now: Now) -> list[Output]:
         """A ThrustCommand arrived from the bus: becomes the latest, and goes out at once."""
@@ -210,6 +274,8 @@ class VehicleIoCore:
         """Do whatever is due at ``now``: link check, watchdog, streams, retries, status."""
         out: list[Output] = []
         status_now = self._check_link(now)
+        if status_now:
+            out.append(LockPeer(None))  # released: the next autopilot HEARTBEAT locks again
         stream_due = now.mono_ns >= self._next_mc_ns
         event = self.watchdog.check(now.mono_ns)
         if event is not None:
@@ -226,6 +292,7 @@ class VehicleIoCore:
             if now.mono_ns >= self._next_mc_ns:
                 self._next_mc_ns = _next_after(self._next_mc_ns, self._period_mc_ns, now.mono_ns)
         out.extend(self._param_requests(now))
+        self.refusals.flush(now.mono_ns)  # a refused source held back by the log's rate limit
         if status_now or now.mono_ns >= self._next_status_ns:
             self._update_rates(now)
             out.append(Publish(self.status(now)))
@@ -320,6 +387,7 @@ class VehicleIoCore:
             heartbeat_age_s=hb_age,
             rates_hz=dict(self.rates_hz),
             dropped_messages=self.dropped,
+            refused_messages=dict(self.refusals.by_reason),
             # A standing hazard, not an event: reported beside the failsafe, not as one.
             autopilot_loss_failsafe=None if self.params.assessment is None
             else self.params.assessment.verdict,
@@ -339,10 +407,10 @@ class VehicleIoCore:
     # Link
     # ===========================================================================================
 
-    def _on_heartbeat(self, msg: Any, now: Now) -> list[Output]:
+    def _on_heartbeat(self, msg: Any, now: Now, address: Address) -> list[Output]:
+        """A HEARTBEAT already admitted by ``on_mavlink`` (from the locked source, or one allowed to
+        lock): locks the link to its source if none is locked, else refreshes it."""
         src_sys, src_comp = msg.get_srcSystem(), msg.get_srcComponent()
-        if (src_sys, src_comp) == (self.cfg.source_system, self.cfg.source_component):
-            return []  # our own heartbeat echoed back (a broadcast or a router)
         if msg.type in NON_VEHICLE_TYPES:
             return []
         profile = profiles.by_mav_autopilot(msg.autopilot)
@@ -363,25 +431,28 @@ class VehicleIoCore:
                                   f"ignoring {profile.name} HEARTBEAT from {src_sys}: configured "
                                   f"for {self.forced_profile.name}")
                 return []
-            return self._connect(msg, profile, now)
+            return self._connect(msg, profile, now, address)
         self.counts["HEARTBEAT"] = self.counts.get("HEARTBEAT", 0) + 1
         self._apply_heartbeat(msg, now)
         return []
 
-    def _connect(self, msg: Any, profile: Profile, now: Now) -> list[Output]:
+    def _connect(self, msg: Any, profile: Profile, now: Now, address: Address) -> list[Output]:
         link = self.link
         link.ok = True
         link.target_system, link.target_component = msg.get_srcSystem(), msg.get_srcComponent()
+        link.target_address = address
         link.profile = profile
         link.connects += 1
         self.counts["HEARTBEAT"] = self.counts.get("HEARTBEAT", 0) + 1
         self._apply_heartbeat(msg, now, announce=False)  # the line below says it all
-        log.info("autopilot link up: %s system %d component %d, %s, %s (connection #%d)",
-                 profile.name, link.target_system, link.target_component,
-                 "ARMED" if link.armed else "disarmed", link.mode, link.connects)
+        log.info("autopilot link up: %s system %d component %d at %s, %s, %s (connection #%d); "
+                 "locked to that source: MAVLink from any other is refused%s", profile.name,
+                 link.target_system, link.target_component, address_key(address),
+                 "ARMED" if link.armed else "disarmed", link.mode, link.connects,
+                 ", signing on" if self.verifier is not None else "")
         self.params = ParamCheck(wanted=profile.failsafe_params if self.cfg.check_failsafe_params
                                  else (), done=not self.cfg.check_failsafe_params)
-        out: list[Output] = [Publish(self.status(now))]
+        out: list[Output] = [LockPeer(address), Publish(self.status(now))]
         out.extend(self._manual_control(now))  # start the stream at once (PX4 arms only with it)
         out.extend(self._param_requests(now))
         return out
@@ -406,11 +477,15 @@ class VehicleIoCore:
             return False
         link.ok = False
         link.losses += 1
-        log.warning("autopilot link LOST: no HEARTBEAT from system %s for %.1f s; waiting for an "
-                    "autopilot HEARTBEAT to reconnect", link.target_system, silent_ns / 1e9)
+        log.warning("autopilot link LOST: no HEARTBEAT from system %s for %.1f s; source lock "
+                    "released, waiting for an autopilot HEARTBEAT to reconnect%s",
+                    link.target_system, silent_ns / 1e9,
+                    "" if self.policy.expected_address is None
+                    else f" (from {address_key(self.policy.expected_address)} only)")
         # Forget everything learnt from this autopilot: it may come back rebooted, with another
-        # id, or be a different autopilot altogether.
+        # id, from another port (udpin), or be a different autopilot altogether.
         link.target_system = link.target_component = None
+        link.target_address = None
         link.profile = self.forced_profile
         link.armed = False
         link.mode = "UNKNOWN"

@@ -8,6 +8,18 @@ garbage).
 URLs are pymavlink's: ``udpin:HOST:PORT`` (listen; we reply to whoever sent to us),
 ``udpout:HOST:PORT`` (we send first; the autopilot replies to our source port), ``tcp:HOST:PORT``,
 or a serial device path with ``baud``.
+
+Every message comes with the peer address it arrived from (plain data for the core's source lock).
+Once the core has locked to the autopilot (``LockPeer``), a UDP datagram from any other address is
+refused *before parsing* and only tallied by the ids its header claims: parsing costs tens of
+microseconds a datagram, a refusal about one, which is what lets the receive thread drain a flood
+as fast as a sender can produce it, so that the kernel's socket buffer does not overflow and drop
+the autopilot's datagrams with the flood's. Each read is bounded (``MAX_DATAGRAMS_PER_READ``), so a
+flood can never keep the receive thread from handing what it has to the core.
+
+Signing: our messages are packed by our own ``MAVLink`` object (``_tx``), which signs them when a key
+is given. pymavlink's ``conn.mav`` only parses, without a key: signatures are checked by the core
+(``seaway.vessel.mavlink_signing``), not by pymavlink's parser, whose check can be poisoned.
 """
 
 from __future__ import annotations
@@ -17,8 +29,12 @@ import logging
 import select
 import socket
 import time
+from dataclasses import dataclass, field
 from typing import Any
 
+from seaway.vessel.mavlink_signing import frame_ids, signing_timestamp
+
+from seaway_vehicle_io.authority import Address, Source, SourcePolicy
 from seaway_vehicle_io.core import (
     Output,
     SendCommandLong,
@@ -33,9 +49,25 @@ log = logging.getLogger("seaway.vehicle_io.link")
 SERIAL_PREFIXES = ("/dev/", "COM")
 SUPPORTED_PREFIXES = ("udpin:", "udpout:", "tcp:", *SERIAL_PREFIXES)
 
+MAX_DATAGRAMS_PER_READ = 256  # UDP: at most this many datagrams per read (refused ones included)
+MAX_MESSAGES_PER_READ = 256  # TCP / serial: at most this many messages per read
+# Asked of the kernel for UDP (it caps this at net.core.rmem_max): room for a few milliseconds of
+# a flood while the receive thread is descheduled, so the autopilot's datagrams are not dropped.
+RECEIVE_BUFFER_BYTES = 1 << 20
+SIGNING_LINK_ID = 1  # our signing link id (one link per vehicle_io)
+
 
 class LinkClosedError(ConnectionError):
     """The transport ended (TCP EOF, serial unplugged); the loop reopens it."""
+
+
+@dataclass
+class Received:
+    """One bounded read: the messages with the address each came from, and what was refused
+    unparsed (datagrams from an address other than the locked peer) by claimed source."""
+
+    messages: list[tuple[Any, Address]] = field(default_factory=list)
+    refused: dict[Source, int] = field(default_factory=dict)
 
 
 def check_url(url: str) -> str:
@@ -58,7 +90,7 @@ class MavlinkLink:
     except ``wait_readable``, which only selects on the descriptor."""
 
     def __init__(self, url: str, source_system: int, source_component: int, baud: int = 57600,
-                 udp_client_timeout_s: float = 3.0) -> None:
+                 udp_client_timeout_s: float = 3.0, signing_key: bytes | None = None) -> None:
         self.url = check_url(url)
         self.conn: Any = mavutil.mavlink_connection(
             url, baud=baud, source_system=source_system, source_component=source_component,
@@ -68,8 +100,60 @@ class MavlinkLink:
         self.conn.WIRE_PROTOCOL_VERSION = "2.0"
         self.is_tcp = isinstance(self.conn, mavutil.mavtcp)
         self.is_udp = isinstance(self.conn, mavutil.mavudp)
+        self._tx = mavlink.MAVLink(self.conn, srcSystem=source_system, srcComponent=source_component)
+        self.signing = signing_key is not None
+        if signing_key is not None:
+            sig = self._tx.signing
+            sig.secret_key, sig.sign_outgoing, sig.link_id = signing_key, True, SIGNING_LINK_ID
+            # Wall-clock based, so it is ahead of what the autopilot saw from our last run.
+            sig.timestamp = signing_timestamp(time.time_ns())
+        self.peer: Address = None  # UDP: the locked autopilot's address; None hears everyone
+        self.stream_address: Address = None  # TCP: the connected peer; serial: None
+        if self.is_tcp:
+            self.stream_address = _address(self.conn.port.getpeername())
+        if self.is_udp:
+            try:
+                self.conn.port.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RECEIVE_BUFFER_BYTES)
+            except OSError:
+                log.debug("SO_RCVBUF not set", exc_info=True)
+            if self.conn.port.getsockname()[1] == 0:
+                # udpout: the port the first send would pick, picked now so the log can name it.
+                self.conn.port.bind(("0.0.0.0", 0))
+        self.policy = SourcePolicy(self._expected_address())
         self.sent = 0
         self.truncated_datagrams = 0
+
+    def _expected_address(self) -> Address:
+        """Where the autopilot must be, if the URL says: udpout's destination, TCP's peer."""
+        if self.is_tcp:
+            return self.stream_address
+        if self.is_udp and not self.conn.udp_server:
+            host, port = self.conn.destination_addr
+            try:
+                ip = socket.gethostbyname(host)
+            except OSError:
+                return None
+            # A wildcard or broadcast destination answers from an address we cannot predict.
+            return None if ip in ("0.0.0.0", "255.255.255.255") else (ip, int(port))
+        return None
+
+    def local_address(self) -> str:
+        """Our end of the link (host:port) for the log; the device for serial."""
+        if self.is_udp or self.is_tcp:
+            host, port = self.conn.port.getsockname()[:2]
+            return f"{host}:{port}"
+        return self.url
+
+    def lock_peer(self, address: Address) -> None:
+        """Refuse UDP datagrams from anywhere but ``address`` unparsed (None: hear everyone again).
+        Listening (udpin), answer only the autopilot from now on, not every address ever heard."""
+        if not self.is_udp:
+            return
+        self.peer = address
+        if address is not None and self.conn.udp_server:
+            # Rebound, not mutated: pymavlink's write iterates these on another thread.
+            self.conn.clients_last_alive = {address: time.time()}
+            self.conn.clients = {address}
 
     def fileno(self) -> int:
         return self.conn.fd if self.conn.fd is not None else self.conn.port.fileno()
@@ -81,10 +165,14 @@ class MavlinkLink:
             raise LinkClosedError(f"{self.url}: {err}") from err
         return bool(ready)
 
-    def read_available(self) -> list[Any]:
-        """Every message decodable from what has arrived, without blocking."""
+    def read_available(self) -> Received:
+        """What has arrived, decoded, without blocking and bounded per call (see the module)."""
         if self.is_udp:
             return self._read_datagrams()
+        return self._read_stream()
+
+    def _read_stream(self) -> Received:
+        """TCP or serial: one peer, so nothing to refuse by address."""
         if self.is_tcp:
             try:
                 peek = self.conn.port.recv(1, socket.MSG_PEEK | socket.MSG_DONTWAIT)
@@ -94,22 +182,22 @@ class MavlinkLink:
                 raise LinkClosedError(f"{self.url}: {err}") from err
             if peek == b"":
                 raise LinkClosedError(f"{self.url}: connection closed by the autopilot")
-        out = []
+        got = Received()
         try:
-            while True:
+            for _ in range(MAX_MESSAGES_PER_READ):
                 msg = self.conn.recv_msg()
                 if msg is None:
-                    break
-                out.append(msg)
+                    return got
+                got.messages.append((msg, self.stream_address))
         except OSError as err:
             raise LinkClosedError(f"{self.url}: {err}") from err
         except Exception as err:  # pyserial's SerialException is not an OSError
             if type(err).__name__ == "SerialException":
                 raise LinkClosedError(f"{self.url}: {err}") from err
             raise
-        return out
+        return got
 
-    def _read_datagrams(self) -> list[Any]:
+    def _read_datagrams(self) -> Received:
         """UDP: parse each datagram on its own.
 
         pymavlink's own UDP path keeps one parser buffer across datagrams, so a datagram of
@@ -117,20 +205,29 @@ class MavlinkLink:
         the parser wait for that many bytes and swallow the *next* datagrams' real messages
         (heartbeats included). A datagram is a unit: whatever partial frame is left at its end is
         reported as bad data and discarded, and the next datagram starts clean.
+
+        At most ``MAX_DATAGRAMS_PER_READ`` datagrams; from a locked peer's other addresses they are
+        tallied by claimed source and not parsed.
         """
         conn, mav = self.conn, self.conn.mav
-        out: list[Any] = []
-        while True:
+        got = Received()
+        peer = self.peer
+        for _ in range(MAX_DATAGRAMS_PER_READ):
             try:
                 data, addr = conn.port.recvfrom(mavutil.UDP_MAX_PACKET_LEN)
             except (BlockingIOError, InterruptedError):
-                break
+                return got
             except ConnectionRefusedError:
                 continue  # ICMP port unreachable for an earlier send (autopilot not up): harmless
             except OSError as err:
                 raise LinkClosedError(f"{self.url}: {err}") from err
+            if peer is not None and addr != peer:
+                source = (*frame_ids(data), addr)
+                got.refused[source] = got.refused.get(source, 0) + 1
+                continue
             if conn.udp_server:  # udpin: reply to whoever talks to us (pymavlink's bookkeeping)
-                conn.clients.add(addr)
+                if addr not in conn.clients:
+                    conn.clients = conn.clients | {addr}  # rebound: write() iterates it elsewhere
                 conn.clients_last_alive[addr] = time.time()
             msgs = mav.parse_buffer(data) or []
             leftover = mav.buf_len()
@@ -144,8 +241,8 @@ class MavlinkLink:
                     bytearray(bad), f"{leftover} bytes of an incomplete frame at datagram end"))
             for m in msgs:
                 conn.post_message(m)  # keeps pymavlink's per-system state coherent
-            out.extend(msgs)
-        return out
+                got.messages.append((m, addr))
+        return got
 
     def send(self, out: Output) -> None:
         try:
@@ -155,7 +252,7 @@ class MavlinkLink:
         self.sent += 1
 
     def _send(self, out: Output) -> None:
-        mav = self.conn.mav
+        mav = self._tx
         if isinstance(out, SendManualControl):
             a = out.axes
             mav.manual_control_send(out.target_system, a.x, a.y, a.z, a.r, 0)
@@ -178,3 +275,8 @@ class MavlinkLink:
             self.conn.close()
         except OSError:
             log.debug("close failed", exc_info=True)
+
+
+def _address(sockaddr: Any) -> Address:
+    """(host, port) of a socket address (IPv6 addresses carry two more fields)."""
+    return (str(sockaddr[0]), int(sockaddr[1]))

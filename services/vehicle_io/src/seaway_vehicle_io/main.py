@@ -11,6 +11,7 @@ from seaway.contract.config import ConfigError, load_config, parse_config
 from seaway.runtime.run import RunDescription
 from seaway.runtime.service import base_parser, parse, resolve_run, run_service
 from seaway.simkit.scenario import load_scenario
+from seaway.vessel.mavlink_signing import KeyFileError, read_key
 from seaway.vessel.model import load_vessel
 
 from seaway_vehicle_io.config import AUTOPILOT_CHOICES, VehicleIoConfig
@@ -32,6 +33,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="expected autopilot (overrides the config; default auto)")
     p.add_argument("--thrust-timeout", type=float, default=None, metavar="S",
                    help="watchdog timeout [s] (overrides the config; default 0.3)")
+    p.add_argument("--signing-key-file", default=None, metavar="PATH",
+                   help="MAVLink 2 signing key file, 64 hex characters (overrides the config's "
+                        "signing_key_file): sign everything sent, refuse unsigned or wrongly signed "
+                        "messages. Create one with: python -m seaway.vessel.mavlink_signing PATH")
     return p
 
 
@@ -40,7 +45,7 @@ def load(args: argparse.Namespace, run: RunDescription) -> tuple[VehicleIoConfig
     cfg = load_config(args.config, VehicleIoConfig) if args.config else VehicleIoConfig()
     overrides = {k: v for k, v in {
         "mavlink": args.mavlink, "autopilot": args.autopilot,
-        "thrust_timeout_s": args.thrust_timeout,
+        "thrust_timeout_s": args.thrust_timeout, "signing_key_file": args.signing_key_file,
     }.items() if v is not None}
     if overrides:
         cfg = parse_config({**cfg.model_dump(), **overrides}, VehicleIoConfig, "command line")
@@ -56,20 +61,30 @@ def load(args: argparse.Namespace, run: RunDescription) -> tuple[VehicleIoConfig
     return cfg, limits
 
 
+def signing_key(cfg: VehicleIoConfig) -> bytes | None:
+    """The MAVLink signing key the config names (None: no signing). ConfigError."""
+    try:
+        return read_key(cfg.signing_key_file) if cfg.signing_key_file is not None else None
+    except KeyFileError as err:  # changed since the config was validated
+        raise ConfigError(str(err)) from None
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = parse(build_parser(), argv)
     run = resolve_run(args, "vehicle_io", load_scenario)
     try:
         cfg, limits = load(args, run)
+        key = signing_key(cfg)
     except ConfigError as err:
         print(f"seaway-vehicle-io: {err}", file=sys.stderr)
         return 2
     with run_service("vehicle_io", args, run=run) as ctx:
         log.info("config: mavlink %s, autopilot %s, thrust timeout %.0f ms, MANUAL_CONTROL %.0f Hz; "
-                 "vessel limits +%.1f/-%.1f N, dead zone %.1f N", cfg.mavlink, cfg.autopilot,
-                 cfg.thrust_timeout_s * 1e3, cfg.manual_control_rate_hz, limits.thrust_max_n,
-                 limits.reverse_max_n, limits.dead_zone_n)
-        service = VehicleIoService(cfg, limits, ctx.bus, ctx.stop)
+                 "vessel limits +%.1f/-%.1f N, dead zone %.1f N; MAVLink signing %s", cfg.mavlink,
+                 cfg.autopilot, cfg.thrust_timeout_s * 1e3, cfg.manual_control_rate_hz,
+                 limits.thrust_max_n, limits.reverse_max_n, limits.dead_zone_n,
+                 f"on (key file {cfg.signing_key_file})" if key is not None else "off")
+        service = VehicleIoService(cfg, limits, ctx.bus, ctx.stop, signing_key=key)
         ctx.ready()
         service.run()
     return 0

@@ -3,8 +3,9 @@
 Threads, and why:
 
 * **receive** (``_receive_loop``): the one MAVLink receive loop. It waits on the socket, decodes
-  every message and hands it to the core. It also reopens a transport that broke (TCP EOF,
-  serial unplugged).
+  what arrived (a bounded batch per cycle, so a flood cannot keep it from handing heartbeats to
+  the core, nor hold the lock for long) and hands each message, with the address it came from, to
+  the core. It also reopens a transport that broke (TCP EOF, serial unplugged).
 * **timer** (the main thread, ``_timer_loop``): calls ``core.tick`` when ``core.next_wake_ns``
   says something is due (MANUAL_CONTROL stream, watchdog deadline, heartbeat, status, retries),
   sleeping at most one stream period.
@@ -43,7 +44,7 @@ from seaway.runtime.bus import Bus, TypedPublisher
 
 from seaway_vehicle_io.commands import MAV_RESULT_ACCEPTED
 from seaway_vehicle_io.config import VehicleIoConfig
-from seaway_vehicle_io.core import Now, Output, Publish, SendCommandLong, VehicleIoCore
+from seaway_vehicle_io.core import LockPeer, Now, Output, Publish, SendCommandLong, VehicleIoCore
 from seaway_vehicle_io.link import LinkClosedError, MavlinkLink
 from seaway_vehicle_io.mav import result_name
 from seaway_vehicle_io.thrust import ThrusterLimits
@@ -65,13 +66,14 @@ class VehicleIoService:
     """vehicle_io running on one bus and one MAVLink URL until ``stop`` is set."""
 
     def __init__(self, cfg: VehicleIoConfig, limits: ThrusterLimits, bus: Bus,
-                 stop: threading.Event) -> None:
+                 stop: threading.Event, signing_key: bytes | None = None) -> None:
         self.cfg = cfg
         self.bus = bus
         self.stop = stop
+        self.signing_key = signing_key
         self.lock = threading.Lock()
         self.acks = threading.Condition(self.lock)
-        self.core = VehicleIoCore(cfg, limits, now())
+        self.core = VehicleIoCore(cfg, limits, now(), signing_key)
         self.link: MavlinkLink | None = None
         self._requests_serial = threading.Lock()  # one COMMAND_LONG in flight at a time
         self._open_failures = 0
@@ -123,13 +125,17 @@ class VehicleIoService:
             if self.link is not None:
                 self.link.close()
                 self.link = None
+            if self.core.refusals.total:
+                log.info("MAVLink refused during the run: %s (busiest: %s)",
+                         self.core.refusals.by_reason, self.core.refusals.summary())
 
     # -- MAVLink in --------------------------------------------------------------------------------
 
     def _open_link(self) -> bool:
         try:
             link = MavlinkLink(self.cfg.mavlink, self.cfg.source_system, self.cfg.source_component,
-                               self.cfg.baud, udp_client_timeout_s=self.cfg.heartbeat_timeout_s)
+                               self.cfg.baud, udp_client_timeout_s=self.cfg.heartbeat_timeout_s,
+                               signing_key=self.signing_key)
         except Exception as err:  # OSError, or pyserial's own SerialException
             self._open_failures += 1
             if self._open_failures % OPEN_FAILURES_PER_LOG == 1:  # the first, then every 30 s
@@ -139,9 +145,17 @@ class VehicleIoService:
             return False
         with self.lock:
             self.link = link
+            self.core.set_source_policy(link.policy)
+            # A reopened transport keeps the lock the core holds (TCP: the same peer).
+            locked = self.core.link
+            link.lock_peer(locked.target_address if locked.ok else None)
         self._open_failures = 0
-        log.info("MAVLink %s open (we are system %d component %d)", self.cfg.mavlink,
-                 self.cfg.source_system, self.cfg.source_component)
+        expected = link.policy.expected_address
+        log.info("MAVLink %s open on %s (we are system %d component %d%s); the autopilot may "
+                 "speak from %s", self.cfg.mavlink, link.local_address(), self.cfg.source_system,
+                 self.cfg.source_component, ", signing" if link.signing else "",
+                 "any address until its first HEARTBEAT locks the link" if expected is None
+                 else f"{expected[0]}:{expected[1]} only")
         return True
 
     def _receive_loop(self) -> None:
@@ -154,7 +168,7 @@ class VehicleIoService:
             try:
                 if not link.wait_readable(MAX_SLEEP_S):
                     continue
-                messages = link.read_available()
+                received = link.read_available()
             except LinkClosedError as err:
                 if self.stop.is_set():
                     return  # closed by the shutdown, not broken
@@ -164,13 +178,15 @@ class VehicleIoService:
                 log.exception("MAVLink receive failed")
                 self._drop_link(link, err)
                 continue
-            if not messages:
+            if not received.messages and not received.refused:
                 continue
             publish: list[Publish] = []
             with self.lock:
-                for msg in messages:
+                if received.refused:
+                    self.core.on_refused_datagrams(received.refused, now())
+                for msg, address in received.messages:
                     try:
-                        publish += self._send(self.core.on_mavlink(msg, now()))
+                        publish += self._send(self.core.on_mavlink(msg, now(), address))
                     except Exception:  # a bug for one message must not end the receive loop
                         log.exception("handling %s failed", msg.get_type())
                 self.acks.notify_all()
@@ -197,6 +213,9 @@ class VehicleIoService:
         for out in outputs:
             if isinstance(out, Publish):
                 publish.append(out)
+            elif isinstance(out, LockPeer):
+                if self.link is not None:
+                    self.link.lock_peer(out.address)
             elif self.link is not None:
                 try:
                     self.link.send(out)

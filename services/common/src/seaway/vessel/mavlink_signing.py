@@ -23,14 +23,11 @@ from __future__ import annotations
 
 import hashlib
 import hmac
-import logging
 import os
 import secrets
 import stat
 import sys
 from pathlib import Path
-
-log = logging.getLogger("seaway.mavlink_signing")
 
 KEY_BYTES = 32
 KEY_HEX_CHARS = 2 * KEY_BYTES
@@ -62,13 +59,14 @@ class KeyFileError(ValueError):
 def read_key(path: str | Path) -> bytes:
     """The 32-byte secret key in ``path`` (64 hexadecimal characters). Raises KeyFileError.
 
-    A key of all zeros is refused: SETUP_SIGNING with a zero key *disables* signing on PX4 and
-    ArduPilot, so such a file is a mistake, not a key. A file that group or others may read is
-    accepted with a warning (git does not keep mode 0600, and the key is only as secret as the file).
+    Refused as well: a key of all zeros (SETUP_SIGNING with a zero key *disables* signing on PX4
+    and ArduPilot, so such a file is a mistake, not a key), and, on POSIX, a file group or others
+    have any access to (the key is only as secret as the file; as the stack's credentials, 0600).
     """
     p = Path(path)
     try:
         raw = p.read_bytes()
+        mode = stat.S_IMODE(p.stat().st_mode)
     except OSError as err:
         raise KeyFileError(f"signing key file {p}: cannot read: {err.strerror or err}") from None
     try:
@@ -84,13 +82,9 @@ def read_key(path: str | Path) -> bytes:
     if not any(key):
         raise KeyFileError(f"signing key file {p}: the key is all zeros, which means 'signing off' "
                            "to PX4 and ArduPilot; write a random key")
-    try:
-        mode = p.stat().st_mode
-    except OSError:
-        mode = 0
     if os.name == "posix" and mode & (stat.S_IRWXG | stat.S_IRWXO):
-        log.warning("signing key file %s is readable by others (mode %o): chmod 600 it", p,
-                    stat.S_IMODE(mode))
+        raise KeyFileError(f"signing key file {p}: mode {mode:o} lets others read it; only its "
+                           f"owner may (chmod 600 {p})")
     return key
 
 
