@@ -75,8 +75,8 @@ def _port_in_use(endpoint: str) -> bool:
 def claim(auth: Authority, profile: Profile, run_dir: Path, vessel: str) -> None:
     """Register this stack on its rendezvous endpoint; ``StackInUseError`` if it is taken.
 
-    For the default peer config only: its first process (the launcher) listens on the rendezvous
-    port itself, so a port already open there belongs to someone else.
+    For the default peer config only. A port already open without a registered stack is a session
+    opened before the launch (noted, not refused: without this stack's credentials it cannot link).
     """
     other = stacks.lookup(auth.rendezvous)
     if other is not None:
@@ -85,10 +85,10 @@ def claim(auth: Authority, profile: Profile, run_dir: Path, vessel: str) -> None
             f"(kill -INT {other.pid}) or start this one on another port, e.g. "
             f"SEAWAY_ZENOH_RENDEZVOUS=tcp/127.0.0.1:7450")
     if _port_in_use(auth.rendezvous):
-        raise StackInUseError(
-            f"{auth.rendezvous} is in use by a program that is not a Seaway stack started by "
-            "`seaway launch` (a service started by hand, or another program): stop it or set "
-            "SEAWAY_ZENOH_RENDEZVOUS to a free port")
+        # Not a stack (none is registered): a session opened before the launch (a `seaway echo`
+        # waiting, a test) holds the port. It joins only if it has this stack's credentials.
+        auth.notes.append(f"{auth.rendezvous} is already held by a session that is not a stack; "
+                          "it takes part only if it has this stack's credentials")
     stacks.register(stacks.StackEntry(
         rendezvous=auth.rendezvous, pid=os.getpid(), profile=profile.name, run_dir=str(run_dir),
         credentials=str(auth.credentials.folder) if auth.credentials else creds.NONE, vessel=vessel))
