@@ -14,7 +14,8 @@ force-disarm, mode HOLD, a mission 4.9 km away, abort, navigation reset, a forge
 Nothing they send arrives: no forged thrust is seen by any process of the stack (nor recorded),
 the vehicle stays armed in MANUAL, the mission stays the launcher's, the launcher does not stop
 early, and every request goes unanswered. The operator identity's requests (pause, resume) are
-answered. A lockstep run with a forging insider ends with the undisturbed run's energy.
+answered. The run's MAVLink is signed, and the signed run completes the mission. A lockstep run
+with a forging insider ends with the undisturbed run's energy.
 """
 
 from __future__ import annotations
@@ -158,6 +159,9 @@ def test_intruders_move_nothing_and_stop_nothing_on_the_sim_profile(procs, zenoh
         la.wait(180)
     out = procs.log(la)
     assert la.returncode == 0 and "mission complete" in out, out
+    # The whole run was MAVLink-signed (the sim profile's key, made by the launcher for the run).
+    for service in ("sim", "vehicle_io"):
+        assert "MAVLink signing on" in (run / "logs" / f"{service}.log").read_text(), service
     # The recorder is a receiver too: the recording holds no forged message.
     files = open_paths([run])
     forged = [m for m in iter_messages(files) if m.topic.endswith("/ctrl/thrust")

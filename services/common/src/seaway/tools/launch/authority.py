@@ -22,6 +22,7 @@ from seaway.runtime import credentials as creds
 from seaway.runtime import stacks
 from seaway.runtime.zenoh_bus import rendezvous_endpoint
 from seaway.tools.launch.profile import Profile
+from seaway.vessel import mavlink_signing
 
 
 class StackInUseError(RuntimeError):
@@ -35,6 +36,7 @@ class Authority:
     credentials: creds.Credentials | None
     rendezvous: str
     owned_folder: Path | None = None
+    mavlink_key: Path | None = None
     registered: bool = False
     notes: list[str] = field(default_factory=list)
 
@@ -45,10 +47,29 @@ class Authority:
         if self.owned_folder is not None:
             shutil.rmtree(self.owned_folder, ignore_errors=True)
             self.owned_folder = None
+        if self.mavlink_key is not None:
+            self.mavlink_key.unlink(missing_ok=True)
+            self.mavlink_key = None
+
+
+def mavlink_key_path(run_name: str) -> Path:
+    """Where this run's MAVLink signing key is (``{mavlink_key}`` in a profile's commands): a new
+    random key per run, in the private stacks folder, removed when the launcher exits."""
+    return stacks.stacks_dir() / f"{run_name}.mavlink.key"
 
 
 def credentials_for(profile: Profile, run_name: str) -> Authority:
-    """The credentials of this launch (see the module docstring)."""
+    """The credentials of this launch (see the module docstring), and its MAVLink signing key."""
+    auth = _zenoh_credentials(profile, run_name)
+    key = mavlink_key_path(run_name)
+    key.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
+    key.unlink(missing_ok=True)  # a leftover of a killed launcher with the same run name
+    mavlink_signing.write_key(key)
+    auth.mavlink_key = key
+    return auth
+
+
+def _zenoh_credentials(profile: Profile, run_name: str) -> Authority:
     rendezvous = rendezvous_endpoint()
     given = creds.from_env()
     if given == creds.NONE:

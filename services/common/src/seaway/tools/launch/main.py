@@ -268,7 +268,8 @@ def main(argv: list[str]) -> int:
     run_file = run_dir / "run.json"
     values = {"vessel": args.vessel, "scenario": scenario, "run_dir": str(run_dir),
               "profile": str(profile_path(args.profile)), "run": str(run_file),
-              "recording": str(args.recording or "")}
+              "recording": str(args.recording or ""),
+              "mavlink_key": str(authority.mavlink_key_path(run_dir.name))}
     try:
         procs = [Supervised(p, substitute(p.command, values)) for p in profile.processes]
     except ConfigError as err:
