@@ -156,15 +156,6 @@ class Controller:
         self._thread.join(2.0)
 
 
-@pytest.fixture
-def bus(zenoh_env):
-    b = Bus.open("vessel1")
-    try:
-        yield b
-    finally:
-        b.close()
-
-
 def applied(t) -> bool:
     """The plant got the controller's thrust (within the wire's resolution)."""
     return abs(t.thrust_port_n - THRUST_N) < 0.5 and abs(t.thrust_starboard_n - THRUST_N) < 0.5

@@ -103,15 +103,6 @@ class Watch:
         self.seen.clear()
 
 
-@pytest.fixture
-def bus(zenoh_env):
-    b = Bus.open("vessel1")
-    try:
-        yield b
-    finally:
-        b.close()
-
-
 def arm(bus: Bus, on: bool = True):
     return bus.request(keys.VEHICLE_ARM, ArmRequest.make(stamp_ns=time.time_ns(), arm=on),
                        timeout_s=REQUEST_TIMEOUT_S)
