@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import threading
 import time
@@ -22,6 +23,7 @@ from dataclasses import dataclass, field
 import zenoh
 from seaway.contract import keys
 from seaway.runtime.bus import JSON_ENCODING, Bus, RawPublisher
+from seaway.runtime.credentials import ENV_IDENTITY
 from seaway.runtime.service import DEFAULT_VESSEL, configure_logging, install_stop_signals
 
 from seaway_recorder import recording
@@ -148,7 +150,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     stop = threading.Event()
     install_stop_signals(stop)
     # Raw publishing ignores the bus's vessel (recorded keys name their own); any valid name does.
-    bus = Bus.open(DEFAULT_VESSEL, args.zenoh_config)
+    # A replay publishes what the recorded producers did: its own identity, which the access rules
+    # let stand in for them (a launcher profile may name it otherwise through the environment).
+    bus = Bus.open(DEFAULT_VESSEL, args.zenoh_config,
+                   identity=os.environ.get(ENV_IDENTITY) or "replay")
     try:
         print(f"replaying {', '.join(map(str, files))}"
               f" ({'as fast as possible' if args.fast else f'rate {args.rate:g}'})", flush=True)

@@ -101,14 +101,13 @@ def acl(overrides: Mapping[str, str] | None = None, *, harness: bool = False) ->
             rules.append(_rule(f"all-{ident}", _EVERYTHING, [f"{keys.ROOT}/**"]))
             policies.append({"id": ident, "rules": [f"all-{ident}"], "subjects": [ident]})
             continue
-        topics = [_wild(s) for s, ids in who.items() if ident in ids
-                  and keys.spec_for_suffix(s).kind == "topic"]  # type: ignore[union-attr]
+        mine_specs = [spec for spec in keys.REGISTRY if ident in who[spec.suffix]]
+        topics = [_wild(spec.suffix) for spec in mine_specs if spec.kind == "topic"]
         topics.append(_wild(f"{keys.REFUSALS}/{ident}"))
-        served = [_wild(s) for s, ids in who.items() if ident in ids
-                  and keys.spec_for_suffix(s).kind == "query"]  # type: ignore[union-attr]
+        served = [_wild(spec.suffix) for spec in mine_specs if spec.kind == "query"]
         served += [_wild(f"{keys.RUN}/{ident}"), _wild(f"{keys.REFUSALS}/{ident}")]
-        tokens = [_wild(f"{keys.HEALTH}/{ident}")] + [_wild(s) for s, ids in who.items()
-                                               if ident in ids and s.startswith("lockstep/")]
+        tokens = [_wild(f"{keys.HEALTH}/{ident}")] + [_wild(spec.suffix) for spec in mine_specs
+                                                       if spec.suffix.startswith("lockstep/")]
         mine = [f"pub-{ident}", f"serve-{ident}", f"alive-{ident}"]
         rules.append(_rule(mine[1], ["declare_queryable", "reply"], served))
         rules.append(_rule(mine[2], ["liveliness_token"], tokens))

@@ -143,10 +143,16 @@ def main(argv: list[str] | None = None) -> int:
         print("usage: seaway COMMAND [args]\n\ncommands: " + ", ".join(commands))
         return 0 if argv else 2
     name, rest = argv[0], argv[1:]
-    if name in BUILTIN:
-        return BUILTIN[name](rest)
-    if name in plugins:
-        return int(plugins[name].load()(rest) or 0)  # type: ignore[attr-defined]
+    from seaway.runtime.credentials import CredentialsError
+
+    try:
+        if name in BUILTIN:
+            return BUILTIN[name](rest)
+        if name in plugins:
+            return int(plugins[name].load()(rest) or 0)  # type: ignore[attr-defined]
+    except CredentialsError as err:  # any command that opens the bus: say how to get credentials
+        print(f"seaway {name}: {err}", file=sys.stderr)
+        return 2
     print(f"seaway: unknown command {name!r}; commands: {', '.join(commands)}", file=sys.stderr)
     return 2
 
