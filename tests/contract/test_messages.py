@@ -53,6 +53,9 @@ EXAMPLES: dict[type[m.Message], dict] = {
                            coa_radius_m=1.0, task_power_w=0.49, controller="eo-empc"),
     m.MissionCommand: dict(command="pause"),
     m.NavResetRequest: dict(keep_origin=False, reason="operator"),
+    m.Refusals: dict(identity="vehicle_io", total=3, overflow=0,
+                     counts=[{"identity": "estimator", "action": "put", "key": "seaway/v1/ctrl/thrust",
+                              "count": 3, "last_ns": 5}]),
 }
 
 

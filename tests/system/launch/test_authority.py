@@ -36,6 +36,7 @@ from seaway.contract.messages import (
     MissionStatus,
     ModeRequest,
     NavResetRequest,
+    Refusals,
     ThrustCommand,
     Waypoint,
 )
@@ -156,17 +157,43 @@ def test_intruders_move_nothing_and_stop_nothing_on_the_sim_profile(procs, zenoh
             reply = op.request(keys.MISSION_COMMAND, MissionCommand.make(stamp_ns=time.time_ns(),
                                                                          command=command), timeout_s=5)
             assert reply.accepted, (command, reply.reason)
+
+        # Every attack was counted where it was refused, and `seaway health` shows it.
+        time.sleep(1.5)  # a changed count is reported within a second
+        health = json.loads(subprocess.run(
+            [sys.executable, "-m", "seaway.tools.cli", "health", "--json", "--wait", "0.5"],
+            capture_output=True, text=True, check=True, env=env).stdout)
+        counts = {(r["identity"], c["identity"], c["action"], c["key"].split("/", 2)[-1]): c["count"]
+                  for r in health["refusals"] for c in r["counts"]}
+        insider = {  # reporter, what the insider (the estimator's certificate) did
+            ("vehicle_io", "put", "ctrl/thrust"), ("recorder", "put", "ctrl/thrust"),
+            ("recorder", "put", "mission/status"), ("launcher", "put", "mission/status"),
+            ("vehicle_io", "query", "vehicle/arm"), ("vehicle_io", "query", "vehicle/mode"),
+            ("controller", "query", "mission/set"), ("controller", "query", "mission/command"),
+            ("estimator", "query", "nav/reset")}
+        missing = {t for t in insider if counts.get((t[0], "estimator", t[1], t[2]), 0) < 1}
+        assert not missing, (missing, counts)
+        assert counts[("vehicle_io", "estimator", "put", "ctrl/thrust")] > 100  # 50 Hz for 4 s
+        # The two without a certificate of the stack were refused at the link, by the rendezvous.
+        links = sum(c["count"] for r in health["refusals"] for c in r["counts"]
+                    if c["identity"] == "unauthenticated" and c["action"] == "connect")
+        assert links >= 2, health
+        # The operator's requests were not refused anywhere.
+        assert not [k for k in counts if k[1] == "operator"], counts
         la.wait(180)
     out = procs.log(la)
     assert la.returncode == 0 and "mission complete" in out, out
     # The whole run was MAVLink-signed (the sim profile's key, made by the launcher for the run).
     for service in ("sim", "vehicle_io"):
         assert "MAVLink signing on" in (run / "logs" / f"{service}.log").read_text(), service
-    # The recorder is a receiver too: the recording holds no forged message.
+    # The recorder is a receiver too: the recording holds no forged message, and it holds the
+    # refusal reports (with their schema).
     files = open_paths([run])
-    forged = [m for m in iter_messages(files) if m.topic.endswith("/ctrl/thrust")
-              and b'"intruder"' in m.data]
+    messages = list(iter_messages(files))
+    forged = [m for m in messages if m.topic.endswith("/ctrl/thrust") and b'"intruder"' in m.data]
     assert not forged
+    reports = [m for m in messages if m.topic == keys.refusals_key(VESSEL, "vehicle_io")]
+    assert reports and b'"estimator"' in reports[-1].data
 
 
 def test_a_forging_insider_changes_nothing_in_lockstep(procs, zenoh_env, tmp_path, monkeypatch):
@@ -206,6 +233,12 @@ def test_a_forging_insider_changes_nothing_in_lockstep(procs, zenoh_env, tmp_pat
         out = subprocess.run([sys.executable, "-m", "seaway.tools.cli", "report", str(run), "--json",
                               "--no-plots"], capture_output=True, text=True, check=True, env=env).stdout
         results[name] = json.loads(out)["metrics"]["energy_j"]
+        # The recorder names every forged publication, also in lockstep, and records its count.
+        reports = [Refusals.decode(m.data) for m in iter_messages(open_paths([run]))
+                   if m.topic == keys.refusals_key(VESSEL, "recorder")]
+        forged = sum(c.count for r in reports[-1:] for c in r.counts
+                     if (c.identity, c.action, c.key) == ("estimator", "put", keys.THRUST.key(VESSEL)))
+        assert (forged > 100) if attack else (not reports or reports[-1].total == 0), reports[-1:]
     assert results["attacked"] == pytest.approx(results["quiet"], rel=1e-6), results
 
 

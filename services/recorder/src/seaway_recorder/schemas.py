@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from seaway.contract import keys
-from seaway.contract.messages import GnssFix, Message, NavOrigin, SimTruth, StateEstimate
+from seaway.contract.messages import GnssFix, Message, NavOrigin, Refusals, SimTruth, StateEstimate
 from seaway.contract.units import NS_PER_S
 from seaway.vessel.frames import GeoOrigin
 
@@ -105,6 +105,11 @@ def channel_for_key(key: str, zenoh_encoding: str = "") -> ChannelSpec:
     """The channel a bus key is recorded on (registered keys get their JSON Schema)."""
     spec = keys.spec_for_key(key)
     meta = {"zenoh_encoding": zenoh_encoding} if zenoh_encoding else {}
+    reporter = keys.refusals_identity(key)
+    if reporter is not None:  # one key per identity: a family, not one registered key
+        meta.update({"registered": "true", "producer": reporter, "vessel": key.split("/", 2)[1]})
+        return ChannelSpec(key, Refusals.SCHEMA, JSONSCHEMA, Refusals.json_schema_text().encode(),
+                           JSON, Refusals, meta)
     if spec is None or spec.message is None or spec.kind != "topic":
         meta["registered"] = "false"
         return ChannelSpec(key, "", "", b"", JSON if "json" in zenoh_encoding else "", None, meta)

@@ -144,6 +144,14 @@ def refusals_key(vessel: str, identity: str) -> str:
     return f"{ROOT}/{check_vessel(vessel)}/{REFUSALS}/{check_vessel(identity)}"
 
 
+def refusals_identity(key: str) -> str | None:
+    """The identity a concrete ``seaway/<vessel>/refusals/<identity>`` key reports, else None."""
+    parts = key.split("/")
+    if len(parts) == 4 and parts[0] == ROOT and parts[2] == REFUSALS and _VESSEL_RE.match(parts[3]):
+        return parts[3]
+    return None
+
+
 def refusals_wildcard(vessel: str) -> str:
     """Every process's refusal report on one vessel."""
     return f"{ROOT}/{check_vessel(vessel)}/{REFUSALS}/*"

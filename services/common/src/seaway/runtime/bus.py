@@ -354,6 +354,10 @@ class Bus(abc.ABC):
                 log.debug("token undeclare failed", exc_info=True)
         self._close_transport()
 
+    @property
+    def closed(self) -> bool:
+        return self._closed
+
     def __enter__(self) -> Bus:
         return self
 

@@ -34,6 +34,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from seaway.contract.config import ConfigError
+from seaway.runtime import refusals
 from seaway.runtime import run as runs
 from seaway.runtime.bus import Bus
 from seaway.runtime.clock import Clock, WallClock
@@ -139,14 +140,19 @@ def run_service(name: str, args: argparse.Namespace, clock: Clock | None = None,
     run = run or resolve_run(args, name)
     stop = threading.Event()
     install_stop_signals(stop)
+    # A service is its own identity (its certificate's name is the service's), whatever
+    # $SEAWAY_IDENTITY says; ``identity`` is for test peers that play another part.
+    identity = identity or name
+    # Before the session opens: it counts from Zenoh's log. In lockstep only the recorder, which
+    # hears every publication, names each refusal (the cost: seaway.runtime.refusals).
+    refusals.watch(identity, full=not run.lockstep or name == "recorder")
     try:
-        # A service is its own identity (its certificate's name is the service's), whatever
-        # $SEAWAY_IDENTITY says; ``identity`` is for test peers that play another part.
-        bus = Bus.open(args.vessel, args.zenoh_config, identity=identity or name,
+        bus = Bus.open(args.vessel, args.zenoh_config, identity=identity,
                        credentials=credentials_arg(getattr(args, "credentials", None)))
     except CredentialsError as err:
         log.error("%s", err)
         raise SystemExit(2) from None
+    refusals.serve(bus, identity)
     ctx = ServiceContext(name, args.vessel, bus, clock or WallClock(), stop, run, agree)
     try:
         log.info("%s starting on vessel %s, run %s", name, args.vessel, run.run_id)

@@ -79,19 +79,54 @@ def cmd_echo(argv: list[str]) -> int:
 
 
 def cmd_health(argv: list[str]) -> int:
+    from seaway.contract.messages import Refusals, VehicleStatus
     from seaway.runtime.bus import Bus
     from seaway.runtime.service import DEFAULT_VESSEL
 
-    ap = argparse.ArgumentParser(prog="seaway health", description="list the services alive")
+    ap = argparse.ArgumentParser(
+        prog="seaway health",
+        description="list the services alive and what each one refused: access control (per "
+                    "identity, action and key) and vehicle_io's MAVLink link (per reason)")
     ap.add_argument("--vessel", default=DEFAULT_VESSEL)
     ap.add_argument("--wait", type=float, default=1.0, help="seconds to wait for peers first")
+    ap.add_argument("--json", action="store_true", help="one JSON object instead of the table")
     ap.add_argument("--zenoh-config", default=None)
     args = ap.parse_args(argv)
     with Bus.open(args.vessel, args.zenoh_config) as bus:
+        status = bus.subscribe(keys.VEHICLE_STATUS)
         time.sleep(args.wait)
         alive = sorted(bus.alive_services())
+        reports: list[Refusals] = []
+        for reply in bus.query_raw(keys.refusals_wildcard(args.vessel), timeout_s=2.0, every=True):
+            if reply.error is not None:
+                print(f"seaway health: a refusal report failed: {reply.error}", file=sys.stderr)
+                continue
+            try:
+                reports.append(Refusals.decode(reply.payload))
+            except ValueError as err:
+                print(f"seaway health: {reply.key} answered a malformed report: {err}", file=sys.stderr)
+        latest: VehicleStatus | None = status.latest()
+    mavlink = dict(latest.refused_messages) if latest is not None else {}
+    reports.sort(key=lambda r: r.identity)
+    if args.json:
+        print(json.dumps({"alive": alive, "refusals": [r.model_dump(mode="json") for r in reports],
+                          "mavlink_refused": mavlink}))
+        return 0
     for s in keys.SERVICES:
         print(f"{s:15s} {'alive' if s in alive else '-'}")
+    print("\nrefused by access control (since each process started):")
+    if not reports:
+        print("  no process answered (none running, or started without authentication)")
+    for r in reports:
+        print(f"  {r.identity:13s} {r.total:8d}" + ("" if r.total else "  none"))
+        for c in sorted(r.counts, key=lambda c: -c.count)[:10]:
+            print(f"  {'':13s} {c.count:8d}  {c.identity} {c.action} {c.key}".rstrip())
+        if len(r.counts) > 10 or r.overflow:
+            print(f"  {'':13s} ... {len(r.counts) - 10 if len(r.counts) > 10 else 0} more kinds, "
+                  f"{r.overflow} refusals beyond those listed")
+    if latest is not None:
+        what = ", ".join(f"{k} {v}" for k, v in sorted(mavlink.items())) or "none"
+        print(f"\nMAVLink messages refused by vehicle_io: {what}")
     return 0
 
 

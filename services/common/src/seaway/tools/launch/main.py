@@ -41,6 +41,7 @@ from seaway.contract.messages import (
     ModeRequest,
     StateEstimate,
 )
+from seaway.runtime import refusals
 from seaway.runtime import run as runs
 from seaway.runtime.bus import Bus
 from seaway.runtime.credentials import ENV_CREDENTIALS, NONE, CredentialsError
@@ -328,8 +329,12 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
     for note in auth.notes:
         print(note, flush=True)
 
+    # The launcher holds the rendezvous port first: links refused there are counted here. It hears
+    # the navigation state every period, so in lockstep it counts drops alone (refusals module).
+    refusals.watch("launcher", full=not run.lockstep)
     bus = Bus.open(args.vessel, env.get(ENV_CONFIG), identity="launcher",
                    credentials=auth.credentials or NONE)
+    refusals.serve(bus, "launcher")
     code = 0
     t0 = time.monotonic()
     try:
