@@ -329,6 +329,17 @@ class Bus(abc.ABC):
         return self._watch_tokens(keys.health_wildcard(vessel or self.vessel),
                                   lambda key, alive: callback(_service_of(key), alive))
 
+    def watch_fleet_health(self, callback: Callable[[str, str, bool], None]) -> Declared:
+        """``callback(vessel, service, alive)`` for every vessel's health tokens, now and on change
+        (a ground station watching several vessels)."""
+
+        def on_token(key: str, alive: bool) -> None:
+            parts = key.split("/")
+            if len(parts) == 4 and parts[0] == keys.ROOT and parts[2] == keys.HEALTH:
+                callback(parts[1], parts[3], alive)
+
+        return self._watch_tokens(keys.health_wildcard("*"), on_token)
+
     def declare_lockstep_member(self, service: str) -> None:
         """Declare ``service`` a lockstep member: a liveliness token on its ``lockstep/<service>``
         key, present while this bus is open (``seaway.runtime.lockstep``)."""

@@ -1,0 +1,196 @@
+"""Request bodies of the ground station's API and the bus messages they become (pure).
+
+Waypoints are local NED metres (``x_m`` north, ``y_m`` east of the published origin) or WGS84
+degrees (``lat_deg``, ``lon_deg``); the controller converts degrees through the origin. Every body
+refuses unknown fields and non-finite numbers, so a typo is an error, not a silent default.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+from seaway.contract import keys
+from seaway.contract.messages import (
+    DEFAULT_CONTROLLER,
+    ControllerName,
+    MessageError,
+    MissionRequest,
+    NavOrigin,
+    Waypoint,
+)
+from seaway.vessel.frames import GeoOrigin
+
+from seaway_groundstation.plans import MAX_WAYPOINTS, ImportedPath
+
+
+class _Body(BaseModel):
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+
+class WaypointIn(_Body):
+    """One waypoint: ``x_m``/``y_m`` (local NED [m]) or ``lat_deg``/``lon_deg`` (WGS84 [deg])."""
+
+    x_m: float | None = Field(default=None, description="north of the origin [m]")
+    y_m: float | None = Field(default=None, description="east of the origin [m]")
+    lat_deg: float | None = Field(default=None, ge=-90, le=90, description="WGS84 latitude [deg]")
+    lon_deg: float | None = Field(default=None, ge=-180, le=180, description="WGS84 longitude [deg]")
+
+    @model_validator(mode="after")
+    def _one_pair(self) -> WaypointIn:
+        xy = (self.x_m is not None, self.y_m is not None)
+        ll = (self.lat_deg is not None, self.lon_deg is not None)
+        if any(xy) and any(ll):
+            raise ValueError("give either x_m/y_m or lat_deg/lon_deg, not both")
+        if xy == (True, True) or ll == (True, True):
+            return self
+        if any(xy):
+            raise ValueError("needs both x_m and y_m")
+        if any(ll):
+            raise ValueError("needs both lat_deg and lon_deg")
+        raise ValueError("has no position: give x_m/y_m or lat_deg/lon_deg")
+
+    def to_waypoint(self) -> Waypoint:
+        return Waypoint(x_m=self.x_m, y_m=self.y_m, lat_deg=self.lat_deg, lon_deg=self.lon_deg)
+
+
+class MissionParams(_Body):
+    """A mission's parameters: circle of acceptance r_COA, task power T^w, controller."""
+
+    mission_id: str = Field(default="", max_length=64)
+    coa_radius_m: float = Field(gt=0, le=10_000, description="circle-of-acceptance radius r_COA [m]")
+    task_power_w: float = Field(ge=0, le=1e6, description="T^w, power of the task carried [W]")
+    controller: ControllerName = Field(default=DEFAULT_CONTROLLER,
+                                       description="CC-EMPC (the paper's) or a baseline")
+    predict_disturbance: bool = Field(default=False, description="predict with the estimator's tau_d "
+                                      "(disturbance-aware) instead of tau_d = 0 (the paper's)")
+    speed_hint_mps: float | None = Field(default=None, gt=0, le=50, description="cruise hint [m/s]")
+
+
+class MissionBody(MissionParams):
+    """A mission to send: at least two waypoints, in metres or degrees, and its parameters."""
+
+    waypoints: list[WaypointIn] = Field(min_length=2, max_length=MAX_WAYPOINTS)
+
+
+class ImportParams(_Body):
+    """Parameters of an imported mission; each one not given is taken from the file (a plan's
+    acceptance radius, a GeoJSON Feature's properties), and ``coa_radius_m`` and ``task_power_w``
+    must come from one or the other."""
+
+    mission_id: str | None = Field(default=None, max_length=64)
+    coa_radius_m: float | None = Field(default=None, gt=0, le=10_000, description="r_COA [m]")
+    task_power_w: float | None = Field(default=None, ge=0, le=1e6, description="T^w [W]")
+    controller: ControllerName | None = None
+    predict_disturbance: bool | None = None
+    speed_hint_mps: float | None = Field(default=None, gt=0, le=50, description="[m/s]")
+    skip_unsupported: bool = Field(default=False, description="leave out items that are not "
+                                   "waypoints (takeoff, loiter, survey, ...) instead of refusing")
+
+
+class ImportBody(ImportParams):
+    """A mission file given as JSON: ``document`` is the .plan or GeoJSON object itself."""
+
+    document: dict[str, Any] = Field(description="a QGroundControl .plan or a GeoJSON object")
+
+
+class ParseBody(_Body):
+    """A mission file to read without sending it."""
+
+    document: dict[str, Any]
+    skip_unsupported: bool = False
+
+
+class ArmBody(_Body):
+    force: bool = Field(default=False, description="arm or disarm even if the autopilot's checks fail")
+
+
+class ModeBody(_Body):
+    mode: str = Field(min_length=1, max_length=32, pattern=r"^[A-Za-z0-9_]+$",
+                      description="Seaway's autopilot mode name, e.g. 'MANUAL' or 'HOLD'")
+
+
+class ScenarioBody(_Body):
+    """Load a scenario by name (``deploy/scenarios/<name>.toml``) or as a document, or restart the
+    current one: exactly one of ``name``, ``scenario`` and ``restart``."""
+
+    name: str | None = Field(default=None, pattern=r"^[A-Za-z0-9][A-Za-z0-9_-]{0,63}$")
+    scenario: dict[str, Any] | None = Field(default=None, description="a scenario document")
+    restart: bool = False
+
+    @model_validator(mode="after")
+    def _exactly_one(self) -> ScenarioBody:
+        given = [self.name is not None, self.scenario is not None, self.restart]
+        if sum(given) != 1:
+            raise ValueError("give exactly one of name, scenario and restart: true")
+        return self
+
+
+class MissionBuildError(ValueError):
+    """Parameters that do not make a valid mission; the text names the field."""
+
+
+def mission_from_body(body: MissionBody, stamp_ns: int) -> MissionRequest:
+    """The bus request for a mission body."""
+    return _make(stamp_ns, body.mission_id, [w.to_waypoint() for w in body.waypoints],
+                 body.model_dump(exclude={"mission_id", "waypoints"}))
+
+
+def mission_from_import(path: ImportedPath, params: ImportParams, stamp_ns: int) -> MissionRequest:
+    """The bus request for an imported path: ``params`` first, then the file's hints."""
+    given = params.model_dump(exclude={"skip_unsupported", "document"}, exclude_none=True)
+    merged = {**path.hints, **given}
+    for needed in ("coa_radius_m", "task_power_w"):
+        if needed not in merged:
+            raise MissionBuildError(f"{needed} is required: the {path.source} file does not give it")
+    mission_id = str(merged.pop("mission_id", "") or "")
+    wps = [Waypoint(lat_deg=lat, lon_deg=lon) for lat, lon in path.points_deg]
+    return _make(stamp_ns, mission_id, wps, merged)
+
+
+def _make(stamp_ns: int, mission_id: str, waypoints: list[Waypoint],
+          params: dict[str, Any]) -> MissionRequest:
+    try:
+        return MissionRequest.make(stamp_ns=stamp_ns, mission_id=mission_id, waypoints=waypoints,
+                                   **params)
+    except MessageError as err:
+        raise MissionBuildError(str(err)) from None
+    except TypeError as err:  # an unexpected hint name cannot reach here; keep the text if it does
+        raise MissionBuildError(str(err)) from None
+
+
+class ExportError(ValueError):
+    """A mission that cannot be written as lat/lon (metres with no origin known)."""
+
+
+def geo_origin(origin: NavOrigin | None) -> GeoOrigin | None:
+    return None if origin is None else GeoOrigin(origin.lat_rad, origin.lon_rad, origin.alt_m)
+
+
+def mission_points_deg(waypoints: Sequence[Waypoint], origin: GeoOrigin | None) -> list[tuple[float, float]]:
+    """Each waypoint as (lat_deg, lon_deg): degrees as given, metres through ``origin``."""
+    out = []
+    for i, wp in enumerate(waypoints):
+        if wp.lat_deg is not None and wp.lon_deg is not None:
+            out.append((wp.lat_deg, wp.lon_deg))
+        elif wp.x_m is not None and wp.y_m is not None:
+            if origin is None:
+                raise ExportError(f"waypoint {i} is in local metres and no NED origin is known for "
+                                  f"this vessel yet ({keys.NAV_ORIGIN.suffix} not received)")
+            lat, lon, _ = origin.to_geodetic(wp.x_m, wp.y_m, 0.0)
+            out.append((math.degrees(lat), math.degrees(lon)))
+        else:
+            raise ExportError(f"waypoint {i} has no position")
+    return out
+
+
+def mission_properties(req: MissionRequest) -> dict[str, Any]:
+    """The mission's parameters as GeoJSON properties (read back as hints on import)."""
+    props: dict[str, Any] = {"mission_id": req.mission_id, "coa_radius_m": req.coa_radius_m,
+                             "task_power_w": req.task_power_w, "controller": req.controller,
+                             "predict_disturbance": req.predict_disturbance}
+    if req.speed_hint_mps is not None:
+        props["speed_hint_mps"] = req.speed_hint_mps
+    return props

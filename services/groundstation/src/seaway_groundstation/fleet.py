@@ -1,0 +1,202 @@
+"""The fleet as the ground station knows it, built from bus messages (pure: time is passed in).
+
+Inputs, each with the receive time ``now_s`` (a monotonic clock [s]):
+
+* ``on_health(vessel, service, alive)``: health tokens ``seaway/<vessel>/health/<service>``;
+* ``on_message(vessel, kind, msg)``: the latest state, solve record, mission status, vehicle status
+  and NED origin of each vessel (``KINDS``);
+* ``record_mission(vessel, request)``: the last mission this ground station sent and had accepted.
+
+Outputs: ``view`` / ``views`` (``VesselView`` with the age of each message, for GET requests) and
+``changes`` (the stream's JSON frames: what changed since a client's last frame, latest only).
+
+A vessel is known once a service other than the ground station itself declares health on it or it
+publishes a message; it stays known (and goes stale) after its services stop. Thread-safe: bus
+callbacks write from transport threads while the web server reads.
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+from seaway.contract.messages import Message, MissionRequest, NavOrigin
+
+from seaway_groundstation.views import FleetView, Timed, VesselView
+
+Kind = Literal["state", "solve", "mission", "vehicle", "origin"]
+KINDS: tuple[Kind, ...] = ("state", "solve", "mission", "vehicle", "origin")
+HEALTH = "health"
+"""The stream's pseudo-kind for a change of a vessel's services."""
+IGNORED_SERVICES = ("groundstation",)
+"""Services whose health token alone does not make a vessel: the ground station's own."""
+
+
+class Entry:
+    """One latest message with its receive time and change number; its JSON is made once."""
+
+    __slots__ = ("_json", "message", "received_s", "seq")
+
+    def __init__(self, message: Message, received_s: float, seq: int) -> None:
+        self.message, self.received_s, self.seq = message, received_s, seq
+        self._json: str | None = None
+
+    def json(self) -> str:
+        if self._json is None:  # a benign race: two threads may both compute the same text
+            self._json = self.message.model_dump_json()
+        return self._json
+
+
+@dataclass
+class _Vessel:
+    services: set[str] = field(default_factory=set)
+    entries: dict[str, Entry] = field(default_factory=dict)
+    heard_s: float | None = None
+    health_seq: int = 0
+    last_mission: MissionRequest | None = None
+
+    @property
+    def known(self) -> bool:
+        return bool(self.services - set(IGNORED_SERVICES)) or bool(self.entries)
+
+
+class Fleet:
+    """Latest messages per vessel and kind; see the module's description."""
+
+    def __init__(self, stale_after_s: float = 2.0) -> None:
+        if stale_after_s <= 0:
+            raise ValueError(f"stale_after_s must be > 0, got {stale_after_s}")
+        self.stale_after_s = stale_after_s
+        self._lock = threading.Lock()
+        self._vessels: dict[str, _Vessel] = {}
+        self._seq = 0
+
+    # -- inputs -------------------------------------------------------------------------------------
+
+    def _vessel(self, vessel: str) -> _Vessel:
+        v = self._vessels.get(vessel)
+        if v is None:
+            v = self._vessels[vessel] = _Vessel()
+        return v
+
+    def on_health(self, vessel: str, service: str, alive: bool, now_s: float) -> bool:
+        """A health token appeared or went away; True if the vessel's services changed."""
+        with self._lock:
+            v = self._vessel(vessel)
+            before = set(v.services)
+            (v.services.add if alive else v.services.discard)(service)
+            if v.services == before:
+                return False
+            self._seq += 1
+            v.health_seq, v.heard_s = self._seq, now_s
+            return True
+
+    def on_message(self, vessel: str, kind: Kind, msg: Message, now_s: float) -> None:
+        """The latest message of ``kind`` from ``vessel``, received at ``now_s``."""
+        if kind not in KINDS:
+            raise ValueError(f"unknown kind {kind!r}; known: {', '.join(KINDS)}")
+        with self._lock:
+            v = self._vessel(vessel)
+            self._seq += 1
+            v.entries[kind] = Entry(msg, now_s, self._seq)
+            v.heard_s = now_s
+
+    def record_mission(self, vessel: str, request: MissionRequest) -> None:
+        """Remember the mission sent to ``vessel`` (for export and the view)."""
+        with self._lock:
+            self._vessel(vessel).last_mission = request
+
+    # -- queries ------------------------------------------------------------------------------------
+
+    def knows(self, vessel: str) -> bool:
+        with self._lock:
+            v = self._vessels.get(vessel)
+            return v is not None and v.known
+
+    def vessels(self) -> list[str]:
+        """The known vessels, sorted by name."""
+        with self._lock:
+            return sorted(name for name, v in self._vessels.items() if v.known)
+
+    def services(self, vessel: str) -> set[str]:
+        with self._lock:
+            v = self._vessels.get(vessel)
+            return set(v.services) if v else set()
+
+    def last_mission(self, vessel: str) -> MissionRequest | None:
+        with self._lock:
+            v = self._vessels.get(vessel)
+            return v.last_mission if v else None
+
+    def origin(self, vessel: str) -> NavOrigin | None:
+        """The vessel's published NED origin, if one was received."""
+        with self._lock:
+            v = self._vessels.get(vessel)
+            e = v.entries.get("origin") if v else None
+            return e.message if e is not None else None  # type: ignore[return-value]
+
+    def _timed(self, e: Entry | None, now_s: float) -> Timed[Any] | None:
+        if e is None:
+            return None
+        age = max(0.0, now_s - e.received_s)
+        return Timed[type(e.message)](age_s=age, stale=age > self.stale_after_s,  # type: ignore[misc]
+                                      message=e.message)
+
+    def view(self, vessel: str, now_s: float) -> VesselView | None:
+        """The vessel's view at ``now_s``, or None if it is not known."""
+        with self._lock:
+            v = self._vessels.get(vessel)
+            if v is None or not v.known:
+                return None
+            entries, services = dict(v.entries), sorted(v.services)
+            heard, last_mission = v.heard_s, v.last_mission
+        heard_age = None if heard is None else max(0.0, now_s - heard)
+        return VesselView(
+            vessel=vessel, services=services, simulated="sim" in services,
+            last_heard_age_s=heard_age,
+            stale=heard_age is None or heard_age > self.stale_after_s,
+            last_mission=last_mission,
+            **{kind: self._timed(entries.get(kind), now_s) for kind in KINDS},
+        )
+
+    def views(self, now_s: float) -> FleetView:
+        out = [v for v in (self.view(name, now_s) for name in self.vessels()) if v is not None]
+        return FleetView(stale_after_s=self.stale_after_s, vessels=out)
+
+    # -- the stream ---------------------------------------------------------------------------------
+
+    def changes(self, seen: dict[tuple[str, str], int], vessels: frozenset[str] | None,
+                now_s: float) -> list[str]:
+        """JSON frames, one per vessel with something new since ``seen`` (updated in place).
+
+        ``vessels``: only these (None: every known vessel). A frame is
+        ``{"vessel", "services", "stale_after_s", "updates": {kind: {"age_s", "stale", "message"}}}``
+        with only the kinds that changed; ``updates`` is empty when only the services changed.
+        Only the latest message of each kind is ever sent, never a backlog.
+        """
+        picked: list[tuple[str, list[str], list[tuple[str, Entry]]]] = []
+        with self._lock:
+            for name, v in self._vessels.items():
+                if not v.known or (vessels is not None and name not in vessels):
+                    continue
+                new = [(k, e) for k, e in v.entries.items() if e.seq > seen.get((name, k), 0)]
+                health_new = v.health_seq > seen.get((name, HEALTH), 0)
+                if not new and not health_new:
+                    continue
+                for k, e in new:
+                    seen[(name, k)] = e.seq
+                seen[(name, HEALTH)] = v.health_seq
+                picked.append((name, sorted(v.services), new))
+        frames = []
+        for name, services, new in picked:
+            parts = []
+            for kind, e in new:
+                age = max(0.0, now_s - e.received_s)
+                parts.append(f'{json.dumps(kind)}:{{"age_s":{age:.4f},'
+                             f'"stale":{"true" if age > self.stale_after_s else "false"},'
+                             f'"message":{e.json()}}}')
+            frames.append(f'{{"vessel":{json.dumps(name)},"services":{json.dumps(services)},'
+                          f'"stale_after_s":{self.stale_after_s},"updates":{{{",".join(parts)}}}}}')
+        return frames

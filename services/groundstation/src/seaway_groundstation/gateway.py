@@ -1,0 +1,107 @@
+"""The ground station's side of the bus: what it hears (into the ``Fleet``) and what it asks.
+
+* ``BusLink.attach`` subscribes to every vessel's state, solve record, mission status, vehicle status
+  and NED origin, and watches every vessel's health tokens; each arrival updates the ``Fleet`` and
+  calls ``on_change(vessel)`` (the stream's wake-up). Callbacks run on the transport's threads and
+  do O(1) work: they never wait for a web client.
+* ``ask`` sends one request and tells apart an answer (accepted or refused), no answer in time, and
+  an error reply from the transport, which ``Bus.request`` folds into one refusal.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable
+from typing import Any
+
+from seaway.contract import keys
+from seaway.contract.messages import Message, MessageError, Reply
+from seaway.runtime.bus import Bus, Declared
+
+from seaway_groundstation.fleet import Fleet, Kind
+from seaway_groundstation.views import CommandReply, Outcome
+
+log = logging.getLogger("seaway_groundstation.gateway")
+
+TOPICS: dict[Kind, keys.KeySpec] = {
+    "state": keys.NAV_STATE,
+    "solve": keys.SOLVE,
+    "mission": keys.MISSION_STATUS,
+    "vehicle": keys.VEHICLE_STATUS,
+    "origin": keys.NAV_ORIGIN,
+}
+"""What the ground station shows of each vessel, by the fleet's kind."""
+
+
+def vessel_of(key: str) -> str | None:
+    """``seaway/<vessel>/...`` -> ``<vessel>`` (None for a key outside Seaway's namespace)."""
+    parts = key.split("/", 2)
+    return parts[1] if len(parts) >= 2 and parts[0] == keys.ROOT else None
+
+
+class BusLink:
+    """Feeds the ``Fleet`` from the bus; see the module's description."""
+
+    def __init__(self, bus: Bus, fleet: Fleet, clock: Callable[[], float] = time.monotonic,
+                 on_change: Callable[[str], None] | None = None) -> None:
+        self.bus, self.fleet, self.clock = bus, fleet, clock
+        self.on_change = on_change or (lambda _vessel: None)
+        self._declared: list[Declared] = []
+
+    def attach(self) -> None:
+        """Declare the subscriptions and the health watch (call once, before serving)."""
+        for kind, spec in TOPICS.items():
+            self._declared.append(self.bus.subscribe(spec, callback=self._on_message(kind),
+                                                     vessel="*"))
+        self._declared.append(self.bus.watch_fleet_health(self._on_health))
+
+    def _on_message(self, kind: Kind) -> Callable[[str, Any], None]:
+        def handle(key: str, msg: Message) -> None:
+            vessel = vessel_of(key)
+            if vessel is None:
+                return
+            self.fleet.on_message(vessel, kind, msg, self.clock())
+            self.on_change(vessel)
+
+        return handle
+
+    def _on_health(self, vessel: str, service: str, alive: bool) -> None:
+        if self.fleet.on_health(vessel, service, alive, self.clock()):
+            self.on_change(vessel)
+
+    def close(self) -> None:
+        for d in self._declared:
+            try:
+                d.undeclare()
+            except Exception:
+                log.debug("undeclare failed", exc_info=True)
+        self._declared.clear()
+
+
+def ask(bus: Bus, spec: keys.KeySpec, request: Message, vessel: str, timeout_s: float) -> CommandReply:
+    """Send ``request`` on ``spec`` of ``vessel`` and wait up to ``timeout_s`` [s] for the reply.
+
+    Blocking (call it from a worker thread). The outcome says whether the service answered
+    (``accepted``/``refused``), nobody did (``no_reply``), or the transport answered with an error
+    (``error_reply``, e.g. a reply refused by access control).
+    """
+    if spec.kind != "query" or type(request) is not spec.message:
+        raise TypeError(f"{spec.suffix} does not take {type(request).__name__}")
+    key = spec.key(vessel)
+    outcome: Outcome = "no_reply"
+    reply = Reply.refuse(time.time_ns(), f"no reply from {key} within {timeout_s:g} s "
+                                         "(is the service running?)")
+    for r in bus.query_raw(key, request.encode(), timeout_s):
+        if r.error is not None:
+            outcome, reply = "error_reply", Reply.refuse(time.time_ns(), f"error reply from {key}: {r.error}")
+            break
+        try:
+            reply = Reply.decode(r.payload)
+        except MessageError as err:
+            outcome, reply = "error_reply", Reply.refuse(time.time_ns(), f"malformed reply from {key}: {err}")
+            break
+        outcome = "accepted" if reply.accepted else "refused"
+        break
+    return CommandReply(vessel=vessel, request=spec.suffix, outcome=outcome, accepted=reply.accepted,
+                        reason=reply.reason, detail=reply.detail)

@@ -1,0 +1,365 @@
+"""Mission files the ground station reads and writes: QGroundControl ``.plan`` and GeoJSON.
+
+Pure functions over parsed JSON documents (no bus, no web framework). Both formats carry a path as
+WGS84 latitude/longitude in degrees; Seaway's ``MissionRequest`` takes the same (``Waypoint.lat_deg``
+/ ``lon_deg``) and the controller converts them to local NED through the published origin.
+
+* ``.plan`` (QGroundControl's JSON plan, ``fileType: "Plan"``, mission ``version`` 2): each mission
+  item is a ``SimpleItem`` with a MAVLink ``command`` and seven ``params``; a NAV_WAYPOINT (16) in a
+  global frame has latitude and longitude in ``params[4]`` and ``params[5]`` [deg] and its
+  acceptance radius in ``params[1]`` [m]. Anything else (takeoff, loiter, speed changes, survey
+  ``ComplexItem`` s) is refused naming the item, or skipped and listed with ``skip_unsupported``.
+* GeoJSON (RFC 7946): a ``LineString`` as a bare geometry, a ``Feature`` or a
+  ``FeatureCollection`` with exactly one; positions are ``[lon, lat]`` or ``[lon, lat, alt]``
+  (longitude first). A Feature's ``properties`` may carry Seaway's mission parameters, which an
+  export writes and an import offers as defaults.
+
+Every refusal is a ``PlanError`` whose text names the file kind and the item at fault.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+NAV_WAYPOINT = 16
+"""MAV_CMD_NAV_WAYPOINT: the only mission item that becomes a Seaway waypoint."""
+MAV_CMD_NAMES: dict[int, str] = {
+    16: "NAV_WAYPOINT", 17: "NAV_LOITER_UNLIM", 18: "NAV_LOITER_TURNS", 19: "NAV_LOITER_TIME",
+    20: "NAV_RETURN_TO_LAUNCH", 21: "NAV_LAND", 22: "NAV_TAKEOFF", 31: "NAV_LOITER_TO_ALT",
+    82: "NAV_SPLINE_WAYPOINT", 93: "NAV_DELAY", 112: "CONDITION_DELAY", 177: "DO_JUMP",
+    178: "DO_CHANGE_SPEED", 179: "DO_SET_HOME", 183: "DO_SET_SERVO", 189: "DO_LAND_START",
+    201: "DO_SET_ROI", 203: "DO_DIGICAM_CONTROL", 205: "DO_MOUNT_CONTROL",
+    206: "DO_SET_CAM_TRIGG_DIST", 530: "SET_CAMERA_MODE", 2000: "IMAGE_START_CAPTURE",
+    2001: "IMAGE_STOP_CAPTURE", 2500: "VIDEO_START_CAPTURE", 2501: "VIDEO_STOP_CAPTURE",
+}
+"""Names of the MAV_CMD values met in QGroundControl plans, for error messages."""
+GLOBAL_FRAMES: dict[int, str] = {
+    0: "GLOBAL", 3: "GLOBAL_RELATIVE_ALT", 5: "GLOBAL_INT", 6: "GLOBAL_RELATIVE_ALT_INT",
+    10: "GLOBAL_TERRAIN_ALT", 11: "GLOBAL_TERRAIN_ALT_INT",
+}
+"""MAV_FRAME values whose x/y (params[4], params[5]) are WGS84 latitude/longitude [deg]."""
+PLAN_MISSION_VERSION = 2
+"""The mission ``version`` QGroundControl writes (items with a ``params`` array)."""
+MAV_TYPE_SURFACE_BOAT = 11
+MAV_AUTOPILOT_GENERIC = 0
+MAX_WAYPOINTS = 1000
+"""Default bound on the waypoints one file may give (the API passes its own)."""
+MissionFormat = Literal["plan", "geojson"]
+
+
+class PlanError(ValueError):
+    """A mission file that cannot become a mission; the text names the file kind and the item."""
+
+
+class _UnsupportedError(PlanError):
+    """A well-formed item of a kind Seaway does not fly: refused, or skipped on request."""
+
+
+@dataclass(frozen=True)
+class ImportedPath:
+    """A path read from a file: WGS84 points [deg], what was skipped, and the file's own hints.
+
+    ``hints`` holds mission parameters the file states (``coa_radius_m`` from a plan's acceptance
+    radius, or a GeoJSON Feature's Seaway properties); a request's own values take precedence.
+    """
+
+    source: MissionFormat
+    points_deg: tuple[tuple[float, float], ...]
+    """(lat_deg, lon_deg) of each waypoint, in order."""
+    skipped: tuple[str, ...] = ()
+    hints: dict[str, Any] = field(default_factory=dict)
+
+
+# ---------------------------------------------------------------------------------------------
+# Reading
+# ---------------------------------------------------------------------------------------------
+
+
+def load_json(data: bytes | str, what: str = "mission file") -> Any:
+    """Parse JSON text, refusing NaN/Infinity literals, with the position of a syntax error."""
+
+    def no_constants(name: str) -> float:
+        raise PlanError(f"{what}: {name} is not a number JSON allows")
+
+    try:
+        text = data.decode("utf-8-sig") if isinstance(data, bytes) else data
+        return json.loads(text, parse_constant=no_constants)
+    except UnicodeDecodeError as err:
+        raise PlanError(f"{what}: not UTF-8 text ({err.reason} at byte {err.start})") from None
+    except json.JSONDecodeError as err:
+        raise PlanError(f"{what}: not JSON: {err.msg} at line {err.lineno} column {err.colno}") from None
+
+
+def detect_format(doc: Any) -> MissionFormat:
+    """``plan`` for a QGroundControl plan, ``geojson`` for a GeoJSON object; PlanError otherwise."""
+    if isinstance(doc, dict):
+        if doc.get("fileType") == "Plan" or "mission" in doc:
+            return "plan"
+        if isinstance(doc.get("type"), str):
+            return "geojson"
+    raise PlanError("mission file: neither a QGroundControl plan (fileType \"Plan\") nor a GeoJSON "
+                    "object (a \"type\" member)")
+
+
+def parse_document(doc: Any, *, skip_unsupported: bool = False,
+                   max_waypoints: int = MAX_WAYPOINTS) -> ImportedPath:
+    """Read a plan or GeoJSON document, whichever it is (``detect_format``)."""
+    if detect_format(doc) == "plan":
+        return parse_plan(doc, skip_unsupported=skip_unsupported, max_waypoints=max_waypoints)
+    return parse_geojson(doc, skip_unsupported=skip_unsupported, max_waypoints=max_waypoints)
+
+
+def _number(value: Any, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise PlanError(f"{where}: expected a finite number, got {json.dumps(value)}")
+    return float(value)
+
+
+def _lat_lon(lat: Any, lon: Any, where: str) -> tuple[float, float]:
+    lat_deg, lon_deg = _number(lat, f"{where} latitude"), _number(lon, f"{where} longitude")
+    if not -90.0 <= lat_deg <= 90.0:
+        raise PlanError(f"{where}: latitude {lat_deg} deg is outside [-90, 90]")
+    if not -180.0 <= lon_deg <= 180.0:
+        raise PlanError(f"{where}: longitude {lon_deg} deg is outside [-180, 180]")
+    return lat_deg, lon_deg
+
+
+def _check_count(kind: str, points: Sequence[tuple[float, float]], skipped: Sequence[str],
+                 max_waypoints: int) -> None:
+    if len(points) < 2:
+        extra = f" ({len(skipped)} item(s) skipped: {'; '.join(skipped)})" if skipped else ""
+        raise PlanError(f"{kind}: a mission needs at least 2 waypoints, the file gives "
+                        f"{len(points)}{extra}")
+    if len(points) > max_waypoints:
+        raise PlanError(f"{kind}: {len(points)} waypoints, more than the {max_waypoints} allowed")
+
+
+def _item_name(i: int, item: Any) -> str:
+    jump = item.get("doJumpId") if isinstance(item, dict) else None
+    return f"plan mission.items[{i}]" + (f" (doJumpId {jump})" if jump is not None else "")
+
+
+def _plan_item(i: int, item: Any) -> tuple[float, float, float | None]:
+    """(lat_deg, lon_deg, acceptance radius [m] or None) of one NAV_WAYPOINT SimpleItem.
+
+    Raises PlanError naming the item when it is anything else; ``_UnsupportedError`` when it is a
+    well-formed item Seaway cannot fly (a skip candidate)."""
+    name = _item_name(i, item)
+    if not isinstance(item, dict):
+        raise PlanError(f"{name}: expected an object, got {type(item).__name__}")
+    kind = item.get("type")
+    if kind == "ComplexItem":
+        raise _UnsupportedError(f"{name}: a ComplexItem ({item.get('complexItemType', 'unknown')}) is not "
+                           "supported; only SimpleItem NAV_WAYPOINT (command 16) items are")
+    if kind != "SimpleItem":
+        raise PlanError(f"{name}: type {json.dumps(kind)} is not a QGroundControl mission item "
+                        "(SimpleItem)")
+    command = item.get("command")
+    if isinstance(command, bool) or not isinstance(command, int):
+        raise PlanError(f"{name}: command {json.dumps(command)} is not a MAVLink command number")
+    if command != NAV_WAYPOINT:
+        label = MAV_CMD_NAMES.get(command, "unknown")
+        raise _UnsupportedError(f"{name}: command {command} ({label}) is not a waypoint; only NAV_WAYPOINT "
+                           "(command 16) items can be imported")
+    frame = item.get("frame")
+    if frame not in GLOBAL_FRAMES:
+        frames = ", ".join(f"{k} {v}" for k, v in GLOBAL_FRAMES.items())
+        raise PlanError(f"{name}: frame {json.dumps(frame)} has no latitude/longitude; Seaway reads "
+                        f"waypoints in a global frame ({frames})")
+    params = item.get("params")
+    if not isinstance(params, list) or len(params) != 7:
+        raise PlanError(f"{name}: params must be a list of 7 values, got {json.dumps(params)[:80]}")
+    lat, lon = _lat_lon(params[4], params[5], name)
+    radius = params[1]
+    radius_m = float(radius) if isinstance(radius, int | float) and not isinstance(radius, bool) \
+        and math.isfinite(radius) and radius > 0 else None
+    return lat, lon, radius_m
+
+
+def parse_plan(doc: Any, *, skip_unsupported: bool = False,
+               max_waypoints: int = MAX_WAYPOINTS) -> ImportedPath:
+    """Read a QGroundControl plan: its NAV_WAYPOINT items in order, as WGS84 points [deg].
+
+    ``skip_unsupported``: leave out items Seaway cannot fly (takeoff, loiter, speed changes,
+    ComplexItems) and list them in ``skipped``, instead of refusing the file. A malformed item is
+    refused either way. Hint: ``coa_radius_m`` when every waypoint gives the same acceptance radius
+    (not ``cruiseSpeed``: QGroundControl writes its aircraft default there, 15 m/s).
+    """
+    if not isinstance(doc, dict):
+        raise PlanError("plan: expected a JSON object")
+    if doc.get("fileType") != "Plan":
+        raise PlanError(f"plan: fileType is {json.dumps(doc.get('fileType'))}, not \"Plan\"")
+    mission = doc.get("mission")
+    if not isinstance(mission, dict):
+        raise PlanError("plan: no mission object")
+    version = mission.get("version", PLAN_MISSION_VERSION)
+    if version != PLAN_MISSION_VERSION:
+        raise PlanError(f"plan: mission version {json.dumps(version)} is not supported (QGroundControl "
+                        f"writes {PLAN_MISSION_VERSION})")
+    items = mission.get("items")
+    if not isinstance(items, list):
+        raise PlanError("plan: mission.items must be a list")
+    points: list[tuple[float, float]] = []
+    radii: list[float | None] = []
+    skipped: list[str] = []
+    for i, item in enumerate(items):
+        try:
+            lat, lon, radius_m = _plan_item(i, item)
+        except _UnsupportedError as err:
+            if not skip_unsupported:
+                raise PlanError(f"{err} (import with skip_unsupported to leave such items out)") from None
+            skipped.append(str(err))
+            continue
+        points.append((lat, lon))
+        radii.append(radius_m)
+    _check_count("plan", points, skipped, max_waypoints)
+    hints: dict[str, Any] = {}
+    if radii and radii[0] is not None and all(r == radii[0] for r in radii):
+        hints["coa_radius_m"] = radii[0]
+    return ImportedPath("plan", tuple(points), tuple(skipped), hints)
+
+
+_HINT_PROPERTIES = ("mission_id", "coa_radius_m", "task_power_w", "controller", "predict_disturbance",
+                    "speed_hint_mps")
+"""GeoJSON Feature properties read back as mission parameters (what ``to_geojson`` writes)."""
+
+
+def _geojson_line(geometry: Any, where: str) -> list[tuple[float, float]]:
+    if not isinstance(geometry, dict):
+        raise PlanError(f"{where}: expected a geometry object, got {json.dumps(geometry)[:60]}")
+    if geometry.get("type") != "LineString":
+        raise _UnsupportedError(f"{where}: geometry type {json.dumps(geometry.get('type'))} is not a "
+                           "LineString")
+    coords = geometry.get("coordinates")
+    if not isinstance(coords, list):
+        raise PlanError(f"{where}: coordinates must be a list of positions")
+    out = []
+    for k, pos in enumerate(coords):
+        if not isinstance(pos, list) or len(pos) not in (2, 3):
+            raise PlanError(f"{where}: coordinates[{k}] must be [lon, lat] or [lon, lat, alt], got "
+                            f"{json.dumps(pos)[:60]}")
+        lon, lat = pos[0], pos[1]  # RFC 7946: longitude first
+        out.append(_lat_lon(lat, lon, f"{where} coordinates[{k}]"))
+    return out
+
+
+def _check_crs(doc: dict[str, Any]) -> None:
+    crs = doc.get("crs")
+    if crs is None:
+        return
+    name = str(((crs or {}).get("properties") or {}).get("name", "")) if isinstance(crs, dict) else ""
+    if not (name.endswith("CRS84") or name.endswith("4326")):
+        raise PlanError(f"geojson: crs {json.dumps(crs)[:80]} is not WGS84 longitude/latitude "
+                        "(RFC 7946 positions are WGS84 degrees)")
+
+
+def parse_geojson(doc: Any, *, skip_unsupported: bool = False,
+                  max_waypoints: int = MAX_WAYPOINTS) -> ImportedPath:
+    """Read one LineString (bare, a Feature, or the only one of a FeatureCollection) as WGS84 points.
+
+    ``skip_unsupported``: features of other geometry types in a collection (e.g. Point markers) are
+    left out and listed in ``skipped`` instead of refusing the file. Hints: the Feature's Seaway
+    properties (``coa_radius_m``, ``task_power_w``, ``controller``, ...).
+    """
+    if not isinstance(doc, dict):
+        raise PlanError("geojson: expected a JSON object")
+    _check_crs(doc)
+    kind = doc.get("type")
+    skipped: list[str] = []
+    properties: Any = None
+    if kind == "FeatureCollection":
+        features = doc.get("features")
+        if not isinstance(features, list):
+            raise PlanError("geojson: FeatureCollection.features must be a list")
+        lines: list[tuple[int, Any]] = []
+        for i, feature in enumerate(features):
+            where = f"geojson features[{i}]"
+            if not isinstance(feature, dict) or feature.get("type") != "Feature":
+                raise PlanError(f"{where}: not a Feature")
+            geometry = feature.get("geometry")
+            if isinstance(geometry, dict) and geometry.get("type") == "LineString":
+                lines.append((i, feature))
+                continue
+            gtype = geometry.get("type") if isinstance(geometry, dict) else None
+            msg = f"{where}: geometry type {json.dumps(gtype)} is not a LineString"
+            if not skip_unsupported:
+                raise PlanError(f"{msg}; the collection must hold exactly one LineString (import "
+                                "with skip_unsupported to leave other features out)")
+            skipped.append(msg)
+        if len(lines) != 1:
+            raise PlanError(f"geojson: the FeatureCollection holds {len(lines)} LineString features "
+                            f"(at {', '.join(f'features[{i}]' for i, _ in lines) or 'none'}); "
+                            "a mission is exactly one")
+        i, feature = lines[0]
+        points = _geojson_line(feature.get("geometry"), f"geojson features[{i}]")
+        properties = feature.get("properties")
+    elif kind == "Feature":
+        try:
+            points = _geojson_line(doc.get("geometry"), "geojson Feature")
+        except _UnsupportedError as err:
+            raise PlanError(f"{err}; a mission is one LineString") from None
+        properties = doc.get("properties")
+    elif kind == "LineString":
+        points = _geojson_line(doc, "geojson LineString")
+    else:
+        raise PlanError(f"geojson: type {json.dumps(kind)} is not supported; give a LineString, a "
+                        "Feature with a LineString geometry, or a FeatureCollection with one")
+    _check_count("geojson", points, skipped, max_waypoints)
+    hints = {k: properties[k] for k in _HINT_PROPERTIES
+             if isinstance(properties, dict) and properties.get(k) is not None}
+    return ImportedPath("geojson", tuple(points), tuple(skipped), hints)
+
+
+# ---------------------------------------------------------------------------------------------
+# Writing
+# ---------------------------------------------------------------------------------------------
+
+
+def _check_points(points_deg: Sequence[tuple[float, float]]) -> None:
+    for i, (lat, lon) in enumerate(points_deg):
+        _lat_lon(lat, lon, f"waypoint {i}")
+
+
+def to_plan(points_deg: Sequence[tuple[float, float]], *, coa_radius_m: float | None = None,
+            cruise_speed_mps: float | None = None) -> dict[str, Any]:
+    """A QGroundControl plan (``fileType: "Plan"``, mission version 2) with one NAV_WAYPOINT per
+    point [deg], in frame GLOBAL_RELATIVE_ALT at altitude 0 m; ``coa_radius_m`` goes into each
+    item's acceptance radius (params[1]) and ``cruise_speed_mps`` into ``cruiseSpeed``."""
+    _check_points(points_deg)
+    items = []
+    for i, (lat, lon) in enumerate(points_deg):
+        items.append({
+            "AMSLAltAboveTerrain": None, "Altitude": 0, "AltitudeMode": 1, "autoContinue": True,
+            "command": NAV_WAYPOINT, "doJumpId": i + 1, "frame": 3,
+            "params": [0, coa_radius_m or 0, 0, None, lat, lon, 0], "type": "SimpleItem",
+        })
+    home = [points_deg[0][0], points_deg[0][1], 0] if points_deg else [0, 0, 0]
+    return {
+        "fileType": "Plan",
+        "geoFence": {"circles": [], "polygons": [], "version": 2},
+        "groundStation": "Seaway",
+        "mission": {
+            "cruiseSpeed": cruise_speed_mps or 1.0, "firmwareType": MAV_AUTOPILOT_GENERIC,
+            "globalPlanAltitudeMode": 1, "hoverSpeed": cruise_speed_mps or 1.0, "items": items,
+            "plannedHomePosition": home, "vehicleType": MAV_TYPE_SURFACE_BOAT,
+            "version": PLAN_MISSION_VERSION,
+        },
+        "rallyPoints": {"points": [], "version": 2},
+        "version": 1,
+    }
+
+
+def to_geojson(points_deg: Sequence[tuple[float, float]],
+               properties: dict[str, Any] | None = None) -> dict[str, Any]:
+    """A GeoJSON Feature with one LineString of the points ([lon, lat] positions, RFC 7946) and
+    ``properties`` (Seaway writes the mission's parameters there, read back as hints)."""
+    _check_points(points_deg)
+    return {
+        "type": "Feature",
+        "geometry": {"type": "LineString", "coordinates": [[lon, lat] for lat, lon in points_deg]},
+        "properties": dict(properties or {}),
+    }

@@ -1,0 +1,99 @@
+"""What the ground station's API answers with: typed views of the fleet and of request outcomes.
+
+Pydantic models only (no web framework), so the pure core builds them and the OpenAPI schema
+documents them. Ages are seconds since the ground station received a message (its own monotonic
+clock), not since the message's ``stamp_ns`` (which is simulated time in a simulation).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Generic, Literal, TypeVar
+
+from pydantic import BaseModel, Field
+from seaway.contract import keys
+from seaway.contract.messages import (
+    Message,
+    MissionRequest,
+    MissionStatus,
+    NavOrigin,
+    SolveRecord,
+    StateEstimate,
+    VehicleStatus,
+)
+
+M = TypeVar("M", bound=Message)
+
+
+class Timed(BaseModel, Generic[M]):
+    """The latest message of one kind from one vessel, with how old it is."""
+
+    age_s: float = Field(ge=0, description="time since the ground station received it [s]")
+    stale: bool = Field(description="older than the ground station's stale threshold")
+    message: M
+
+
+class VesselView(BaseModel):
+    """One vessel as the ground station sees it: its services and the latest of each message."""
+
+    vessel: str
+    services: list[str] = Field(description="services whose health token is present now")
+    simulated: bool = Field(description="a sim service runs for this vessel (scenarios can be loaded)")
+    last_heard_age_s: float | None = Field(
+        description="time since the last message or health change from this vessel [s]")
+    stale: bool = Field(description="nothing heard for longer than the stale threshold")
+    state: Timed[StateEstimate] | None = None
+    vehicle: Timed[VehicleStatus] | None = None
+    mission: Timed[MissionStatus] | None = None
+    solve: Timed[SolveRecord] | None = Field(
+        default=None, description="the controller's latest solve, with its predicted trajectory "
+                                  "(predicted_x_m/predicted_y_m, local NED [m])")
+    origin: Timed[NavOrigin] | None = Field(default=None, description="the local NED frame's origin")
+    last_mission: MissionRequest | None = Field(
+        default=None, description="the last mission this ground station sent and the vessel accepted")
+
+
+class FleetView(BaseModel):
+    """Every vessel seen, from health tokens and messages."""
+
+    stale_after_s: float = Field(description="age beyond which a message is shown as stale [s]")
+    vessels: list[VesselView]
+
+
+Outcome = Literal["accepted", "refused", "no_reply", "error_reply"]
+
+
+class CommandReply(BaseModel):
+    """The vessel's answer to one request: accepted, or refused with a reason a person can act on."""
+
+    vessel: str
+    request: str = Field(description="the bus request it became: its key suffix, e.g. "
+                                     f"{keys.VEHICLE_ARM.suffix!r}")
+    outcome: Outcome = Field(description="'accepted', 'refused' (by the service), 'no_reply' (nobody "
+                                         "answered in time) or 'error_reply' (the transport failed)")
+    accepted: bool
+    reason: str = ""
+    detail: dict[str, Any] = Field(default_factory=dict)
+
+
+class MissionReply(CommandReply):
+    """The answer to a mission upload, with the mission as sent."""
+
+    mission: MissionRequest
+    skipped: list[str] = Field(default_factory=list,
+                               description="items of an imported file left out (skip_unsupported)")
+
+
+class ParsedMission(BaseModel):
+    """A mission file read into waypoints, without sending anything."""
+
+    source: Literal["plan", "geojson"]
+    waypoints: list[dict[str, float]] = Field(description="[{lat_deg, lon_deg}, ...] in order")
+    skipped: list[str] = Field(default_factory=list)
+    hints: dict[str, Any] = Field(default_factory=dict,
+                                  description="mission parameters the file states")
+
+
+class ErrorBody(BaseModel):
+    """An error that is not a vessel's reply (unknown vessel, bad token, rate limit, size)."""
+
+    detail: str

@@ -1,0 +1,362 @@
+"""The ground station's API with FastAPI's test client over the in-memory bus: a responder plays the
+vessel's services (vehicle_io, controller, sim), answering the requests the API turns into."""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import pytest
+from fastapi.testclient import TestClient
+from seaway.contract import keys
+from seaway.contract.messages import (
+    MissionStatus,
+    NavOrigin,
+    Reply,
+    SolveRecord,
+    StateEstimate,
+    VehicleStatus,
+)
+from seaway.runtime.memory_bus import MemoryBus, MemoryHub
+from seaway_groundstation.app import create_app
+from seaway_groundstation.settings import Settings
+
+DATA = Path(__file__).parent / "data"
+TOKEN = "test-token-0123456789abcdef"
+AUTH = {"Authorization": f"Bearer {TOKEN}"}
+SQUARE_M = [{"x_m": 0, "y_m": 0}, {"x_m": 20, "y_m": 0}, {"x_m": 20, "y_m": 20}]
+
+
+@dataclass
+class Vessel:
+    """The vessel's side: services alive on ``v1`` that answer and remember each request."""
+
+    bus: MemoryBus
+    requests: dict[str, list[Any]] = field(default_factory=dict)
+
+    def serve(self, spec: keys.KeySpec, refuse: str | None = None) -> None:
+        def handle(req: Any) -> Reply:
+            self.requests.setdefault(spec.suffix, []).append(req)
+            if refuse:
+                return Reply.refuse(1, refuse)
+            return Reply.accept(1, f"{spec.suffix} done")
+
+        self.bus.queryable(spec, handle)
+
+    def publish(self, spec: keys.KeySpec, msg: Any) -> None:
+        self.bus.publisher(spec).put(msg)
+
+
+@pytest.fixture
+def hub() -> MemoryHub:
+    return MemoryHub()
+
+
+@pytest.fixture
+def vessel(hub: MemoryHub) -> Iterator[Vessel]:
+    bus = hub.bus("v1")
+    for service in ("vehicle_io", "controller", "estimator"):
+        bus.declare_alive(service)
+    v = Vessel(bus)
+    for spec in (keys.VEHICLE_ARM, keys.MISSION_SET, keys.MISSION_COMMAND):
+        v.serve(spec)
+    yield v
+    bus.close()
+
+
+def client_for(hub: MemoryHub, **overrides: Any) -> TestClient:
+    settings = Settings(token=TOKEN, request_timeout_s=2.0, **overrides)
+    return TestClient(create_app(hub.bus("gs"), settings))
+
+
+@pytest.fixture
+def client(hub: MemoryHub, vessel: Vessel) -> Iterator[TestClient]:
+    with client_for(hub) as c:
+        yield c
+
+
+def state(x_m: float) -> StateEstimate:
+    return StateEstimate(stamp_ns=5, u_mps=1.0, v_mps=0.0, r_radps=0.0, x_m=x_m, y_m=2.0, psi_rad=0.1)
+
+
+def mission(**extra: Any) -> dict[str, Any]:
+    return {"waypoints": SQUARE_M, "coa_radius_m": 2.0, "task_power_w": 10.0, **extra}
+
+
+# -- reading --------------------------------------------------------------------------------------
+
+
+def test_fleet_shows_vessels_from_health_with_their_latest_messages(client: TestClient,
+                                                                     vessel: Vessel) -> None:
+    vessel.publish(keys.NAV_STATE, state(1.0))
+    vessel.publish(keys.NAV_STATE, state(4.0))
+    vessel.publish(keys.VEHICLE_STATUS, VehicleStatus(stamp_ns=5, autopilot="px4", link_ok=True,
+                                                      armed=False, mode="MANUAL"))
+    vessel.publish(keys.MISSION_STATUS, MissionStatus(stamp_ns=5, state="idle"))
+    vessel.publish(keys.SOLVE, SolveRecord(stamp_ns=5, controller="cc-empc", status="ok", success=True,
+                                           iterations=3, solve_time_s=1e-4,
+                                           predicted_x_m=[0.0, 1.0], predicted_y_m=[0.0, 0.5]))
+    r = client.get("/api/vessels")
+    assert r.status_code == 200
+    (v1,) = r.json()["vessels"]
+    assert v1["vessel"] == "v1" and v1["services"] == ["controller", "estimator", "vehicle_io"]
+    assert v1["state"]["message"]["x_m"] == 4.0 and v1["state"]["age_s"] >= 0
+    assert v1["vehicle"]["message"]["mode"] == "MANUAL" and v1["mission"]["message"]["state"] == "idle"
+    assert v1["solve"]["message"]["predicted_y_m"] == [0.0, 0.5]
+    assert not v1["simulated"] and v1["origin"] is None
+    one = client.get("/api/vessels/v1")
+    assert one.status_code == 200 and one.json()["state"]["message"]["x_m"] == 4.0
+
+
+def test_unknown_vessel_is_404_naming_those_seen(client: TestClient) -> None:
+    r = client.get("/api/vessels/ghost")
+    assert r.status_code == 404 and "ghost" in r.json()["detail"] and "v1" in r.json()["detail"]
+    r = client.post("/api/vessels/ghost/arm", headers=AUTH)
+    assert r.status_code == 404
+    assert client.get("/api/vessels/bad%20name").status_code == 422
+
+
+# -- authority and bounds -------------------------------------------------------------------------
+
+
+def test_commands_need_the_operator_token(client: TestClient, vessel: Vessel) -> None:
+    r = client.post("/api/vessels/v1/arm")
+    assert r.status_code == 401 and r.headers["www-authenticate"] == "Bearer"
+    assert "Authorization: Bearer" in r.json()["detail"]
+    r = client.post("/api/vessels/v1/arm", headers={"Authorization": "Bearer not-the-token"})
+    assert r.status_code == 403 and r.json()["detail"] == "wrong operator token"
+    r = client.post("/api/vessels/v1/arm", headers={"Authorization": f"Basic {TOKEN}"})
+    assert r.status_code == 401
+    assert "vehicle/arm" not in vessel.requests  # nothing reached the vessel
+
+
+def test_oversize_bodies_are_413_declared_or_chunked(hub: MemoryHub, vessel: Vessel) -> None:
+    with client_for(hub, max_body_bytes=1000) as c:
+        big = json.dumps(mission(mission_id="x" * 10), indent=1) + " " * 2000
+        json_auth = {**AUTH, "content-type": "application/json"}
+        r = c.post("/api/vessels/v1/mission", content=big, headers=json_auth)
+        assert r.status_code == 413 and "1000 bytes" in r.json()["detail"]
+
+        def chunks() -> Iterator[bytes]:
+            for _ in range(20):
+                yield b" " * 100
+
+        r = c.post("/api/vessels/v1/mission", content=chunks(), headers=json_auth)
+        assert r.status_code == 413
+        assert c.post("/api/vessels/v1/mission", json=mission(), headers=AUTH).status_code == 200
+    assert len(vessel.requests["mission/set"]) == 1
+
+
+def test_command_rate_limit_is_429_with_retry_after(hub: MemoryHub, vessel: Vessel) -> None:
+    with client_for(hub, rate_limit_per_s=0.0, rate_limit_burst=2) as c:
+        assert [c.post("/api/vessels/v1/arm", headers=AUTH).status_code for _ in range(2)] == [200, 200]
+        r = c.post("/api/vessels/v1/arm", headers=AUTH)
+        assert r.status_code == 429 and int(r.headers["retry-after"]) >= 1
+        assert c.get("/api/vessels").status_code == 200  # reading is not limited
+    assert len(vessel.requests["vehicle/arm"]) == 2
+
+
+# -- vehicle and mission commands -----------------------------------------------------------------
+
+
+def test_arm_disarm_and_mode_become_their_bus_requests(client: TestClient, vessel: Vessel) -> None:
+    r = client.post("/api/vessels/v1/arm", headers=AUTH)
+    assert r.status_code == 200
+    assert r.json() == {"vessel": "v1", "request": "vehicle/arm", "outcome": "accepted", "accepted": True,
+                        "reason": "vehicle/arm done", "detail": {}}
+    assert client.post("/api/vessels/v1/disarm", json={"force": True}, headers=AUTH).status_code == 200
+    arm, disarm = vessel.requests["vehicle/arm"]
+    assert (arm.arm, arm.force, disarm.arm, disarm.force) == (True, False, False, True)
+    # nobody serves vehicle/mode here: no reply is a 504 that says so
+    r = client.post("/api/vessels/v1/mode", json={"mode": "HOLD"}, headers=AUTH)
+    assert r.status_code == 504 and r.json()["outcome"] == "no_reply" and "no reply" in r.json()["reason"]
+    assert client.post("/api/vessels/v1/mode", json={"mode": "a b"}, headers=AUTH).status_code == 422
+
+
+def test_refusal_is_409_with_the_reason(hub: MemoryHub) -> None:
+    bus = hub.bus("v2")
+    bus.declare_alive("controller")
+    Vessel(bus).serve(keys.MISSION_SET, refuse="waypoint 2 at (9000.0, 0.0) m is outside the operating area")
+    with client_for(hub) as c:
+        r = c.post("/api/vessels/v2/mission", json=mission(), headers=AUTH)
+    assert r.status_code == 409
+    body = r.json()
+    assert body["outcome"] == "refused" and not body["accepted"] and "operating area" in body["reason"]
+    assert body["mission"]["coa_radius_m"] == 2.0
+
+
+def test_mission_send_start_pause_resume_abort(client: TestClient, vessel: Vessel) -> None:
+    assert client.post("/api/vessels/v1/mission/start", headers=AUTH).status_code == 404  # none sent yet
+    r = client.post("/api/vessels/v1/mission", headers=AUTH,
+                    json=mission(controller="nmpc", predict_disturbance=True, mission_id="box"))
+    assert r.status_code == 200 and r.json()["mission"]["controller"] == "nmpc"
+    sent = vessel.requests["mission/set"][0]
+    assert [(w.x_m, w.y_m) for w in sent.waypoints] == [(0, 0), (20, 0), (20, 20)]
+    assert sent.predict_disturbance and sent.task_power_w == 10.0
+    for cmd in ("pause", "resume", "abort"):
+        r = client.post(f"/api/vessels/v1/mission/{cmd}", headers=AUTH)
+        assert r.status_code == 200 and r.json()["request"] == "mission/command"
+    assert [c.command for c in vessel.requests["mission/command"]] == ["pause", "resume", "abort"]
+    r = client.post("/api/vessels/v1/mission/start", headers=AUTH)
+    assert r.status_code == 200 and len(vessel.requests["mission/set"]) == 2
+    assert client.get("/api/vessels/v1").json()["last_mission"]["mission_id"] == "box"
+
+
+@pytest.mark.parametrize("body, field_name", [
+    ({"waypoints": SQUARE_M[:1], "coa_radius_m": 2, "task_power_w": 0}, "waypoints"),
+    ({"waypoints": [{"x_m": 0, "y_m": 0, "lat_deg": 1, "lon_deg": 2}, {"x_m": 1, "y_m": 1}],
+      "coa_radius_m": 2, "task_power_w": 0}, "waypoints"),
+    ({"waypoints": [{"x_m": 0}, {"x_m": 1, "y_m": 1}], "coa_radius_m": 2, "task_power_w": 0}, "waypoints"),
+    (mission(coa_radius_m=0), "coa_radius_m"),
+    (mission(task_power_w=-1), "task_power_w"),
+    (mission(controller="pid"), "controller"),
+    (mission(colour="red"), "colour"),
+])
+def test_bad_missions_are_422_naming_the_field(client: TestClient, vessel: Vessel, body: dict,
+                                               field_name: str) -> None:
+    r = client.post("/api/vessels/v1/mission", json=body, headers=AUTH)
+    assert r.status_code == 422
+    assert any(field_name in [str(p) for p in e["loc"]] for e in r.json()["detail"]), r.json()
+    assert "mission/set" not in vessel.requests
+
+
+# -- import and export ------------------------------------------------------------------------------
+
+
+def test_import_real_plan_upload_refused_then_skipped(client: TestClient, vessel: Vessel) -> None:
+    data = (DATA / "simple_square.plan").read_bytes()
+    files = {"file": ("simple_square.plan", data, "application/octet-stream")}
+    r = client.post("/api/vessels/v1/mission/import", headers=AUTH, files=files,
+                    data={"coa_radius_m": "3", "task_power_w": "10"})
+    assert r.status_code == 422 and "items[0] (doJumpId 1): command 22 (NAV_TAKEOFF)" in r.json()["detail"]
+    r = client.post("/api/vessels/v1/mission/import", headers=AUTH, files=files,
+                    data={"coa_radius_m": "3", "task_power_w": "10", "skip_unsupported": "true",
+                          "controller": "eo-empc"})
+    assert r.status_code == 200, r.text
+    assert len(r.json()["skipped"]) == 1
+    sent = vessel.requests["mission/set"][0]
+    assert (sent.waypoints[0].lat_deg, sent.waypoints[0].lon_deg) == (47.398742, 8.546594)
+    assert (sent.coa_radius_m, sent.controller, len(sent.waypoints)) == (3.0, "eo-empc", 4)
+
+
+def test_import_geojson_as_json_body_and_refusals(client: TestClient, vessel: Vessel) -> None:
+    doc = json.loads((DATA / "rfc7946-example.geojson").read_text())
+    r = client.post("/api/vessels/v1/mission/import", headers=AUTH,
+                    json={"document": doc, "coa_radius_m": 2.0, "task_power_w": 0.0,
+                          "skip_unsupported": True})
+    assert r.status_code == 200 and r.json()["mission"]["waypoints"][0] == {
+        "x_m": None, "y_m": None, "lat_deg": 0.0, "lon_deg": 102.0}
+    # not a mission file, missing parameters, unknown parameters, not JSON, wrong content type
+    bad = client.post("/api/vessels/v1/mission/import", headers=AUTH,
+                      json={"document": {"type": "Point", "coordinates": [1, 2]}, "coa_radius_m": 1,
+                            "task_power_w": 0})
+    assert bad.status_code == 422 and "\"Point\" is not supported" in bad.json()["detail"]
+    no_radius = client.post("/api/vessels/v1/mission/import", headers=AUTH,
+                            json={"document": doc, "task_power_w": 0, "skip_unsupported": True})
+    assert no_radius.status_code == 422 and "coa_radius_m is required" in no_radius.json()["detail"]
+    extra = client.post("/api/vessels/v1/mission/import", headers=AUTH,
+                        files={"file": ("a.geojson", b"{}")}, data={"colour": "red"})
+    assert extra.status_code == 422 and extra.json()["detail"][0]["loc"] == ["colour"]
+    garbage = client.post("/api/vessels/v1/mission/import", headers=AUTH,
+                          files={"file": ("a.plan", b"not json")}, data={"coa_radius_m": "1"})
+    assert garbage.status_code == 422 and "uploaded a.plan: not JSON" in garbage.json()["detail"]
+    text = client.post("/api/vessels/v1/mission/import", headers={**AUTH, "content-type": "text/plain"},
+                       content=b"hello")
+    assert text.status_code == 415
+    assert len(vessel.requests["mission/set"]) == 1
+
+
+def test_parse_reads_a_file_without_sending(client: TestClient, vessel: Vessel) -> None:
+    doc = json.loads((DATA / "PX4SITL-ArduRover.plan").read_text())
+    r = client.post("/api/missions/parse", json={"document": doc, "skip_unsupported": True})
+    assert r.status_code == 200 and r.json()["source"] == "plan" and len(r.json()["waypoints"]) == 5
+    assert client.post("/api/missions/parse", json={"document": doc}).status_code == 422
+    assert "mission/set" not in vessel.requests
+
+
+def test_export_last_mission_as_plan_and_geojson(client: TestClient, vessel: Vessel) -> None:
+    assert client.get("/api/vessels/v1/mission/export").status_code == 404  # nothing sent yet
+    sent = client.post("/api/vessels/v1/mission", json=mission(mission_id="box"), headers=AUTH)
+    assert sent.status_code == 200
+    r = client.get("/api/vessels/v1/mission/export?format=geojson")
+    assert r.status_code == 409 and "no NED origin" in r.json()["detail"]
+    vessel.publish(keys.NAV_ORIGIN, NavOrigin(stamp_ns=1, lat_rad=math.radians(47.0),
+                                              lon_rad=math.radians(8.0), alt_m=0.0))
+    geo = client.get("/api/vessels/v1/mission/export?format=geojson")
+    assert geo.status_code == 200 and geo.headers["content-type"].startswith("application/geo+json")
+    assert 'filename="v1-box.geojson"' in geo.headers["content-disposition"]
+    coords = geo.json()["geometry"]["coordinates"]
+    assert coords[0] == pytest.approx([8.0, 47.0]) and coords[1][1] > 47.0
+    assert geo.json()["properties"]["coa_radius_m"] == 2.0
+    plan = client.get("/api/vessels/v1/mission/export")
+    assert plan.status_code == 200 and plan.json()["fileType"] == "Plan"
+    assert plan.json()["mission"]["items"][1]["params"][4] == pytest.approx(coords[1][1])
+    # the exported file imports back to the same path
+    r = client.post("/api/vessels/v1/mission/import", headers=AUTH,
+                    files={"file": ("v1-box.plan", plan.content)}, data={"task_power_w": "10"})
+    assert r.status_code == 200 and r.json()["mission"]["coa_radius_m"] == 2.0
+    assert client.get("/api/vessels/v1/mission/export?format=kml").status_code == 422
+
+
+# -- simulation -------------------------------------------------------------------------------------
+
+
+def test_scenario_only_for_simulated_vessels(client: TestClient, hub: MemoryHub, vessel: Vessel) -> None:
+    r = client.post("/api/vessels/v1/scenario", json={"restart": True}, headers=AUTH)
+    assert r.status_code == 409 and "not simulated" in r.json()["reason"]
+    vessel.bus.declare_alive("sim")
+    vessel.serve(keys.SIM_SCENARIO)
+    assert client.get("/api/vessels/v1").json()["simulated"]
+    assert client.post("/api/vessels/v1/scenario", json={"name": "lake"}, headers=AUTH).status_code == 200
+    assert client.post("/api/vessels/v1/scenario", json={"restart": True}, headers=AUTH).status_code == 200
+    loaded, restarted = vessel.requests["sim/scenario"]
+    assert loaded.scenario["name"] == "lake" and restarted.scenario is None
+    assert client.post("/api/vessels/v1/scenario", json={"name": "no-such"}, headers=AUTH).status_code == 404
+    assert client.post("/api/vessels/v1/scenario", json={"name": "../etc"}, headers=AUTH).status_code == 422
+    assert client.post("/api/vessels/v1/scenario", json={}, headers=AUTH).status_code == 422
+
+
+# -- the stream and the schema -----------------------------------------------------------------------
+
+
+def test_stream_sends_the_latest_and_never_a_backlog(client: TestClient, vessel: Vessel) -> None:
+    vessel.publish(keys.NAV_STATE, state(0.0))
+    with client.websocket_connect("/api/stream?vessel=v1") as ws:
+        first = ws.receive_json()
+        assert first["vessel"] == "v1" and first["updates"]["state"]["message"]["x_m"] == 0.0
+        n = 200
+        for k in range(1, n + 1):  # far faster than 20 Hz: the client gets the latest, not 200
+            vessel.publish(keys.NAV_STATE, state(float(k)))
+        frames = 0
+        while True:
+            frame = ws.receive_json()
+            frames += 1
+            if frame["updates"].get("state", {}).get("message", {}).get("x_m") == float(n):
+                break
+        assert frames < n
+
+
+def test_stream_refuses_a_bad_vessel_name(client: TestClient) -> None:
+    from starlette.websockets import WebSocketDisconnect
+
+    with pytest.raises(WebSocketDisconnect), client.websocket_connect("/api/stream?vessel=a/b") as ws:
+        ws.receive_json()
+
+
+def test_openapi_documents_every_endpoint_with_tags_and_refusals(client: TestClient) -> None:
+    schema = client.get("/openapi.json").json()
+    assert {t["name"] for t in schema["tags"]} == {"fleet", "mission", "vehicle", "sim"}
+    commands = [(p, op) for p, ops in schema["paths"].items() for m, op in ops.items()
+                if m == "post" and p.startswith("/api/vessels/")]
+    assert len(commands) == 10
+    for path, op in commands:
+        assert op["tags"] and op["summary"], path
+        assert {"401", "403", "404", "409", "429", "504"} <= set(op["responses"]), path
+        assert op.get("security"), path
+    imp = schema["paths"]["/api/vessels/{vessel}/mission/import"]["post"]["requestBody"]["content"]
+    assert {"multipart/form-data", "application/json"} <= set(imp)
+    assert "VesselView" in schema["components"]["schemas"]
