@@ -14,6 +14,8 @@ from seaway.contract import keys
 from seaway.contract import messages as m
 from seaway.runtime.refusals import _ANSI, LOG_INTERVAL_S, UNAUTHENTICATED, UNKNOWN, RefusalCounter
 
+from tests.conftest import wait_for
+
 EST = "c8716696cd321eb2dfcf5f7c8e0e624a"
 SUBJECT = f"{EST} on Interface(lo)+CertCommonName(estimator)+Transport(Tls)+{EST}"
 ACL = "\x1b[2mzenoh::net::routing::interceptor::access_control\x1b[0m\x1b[2m:\x1b[0m"
@@ -123,3 +125,37 @@ def test_the_recorder_records_reports_with_their_schema():
     ch = channel_for_key(keys.refusals_key("v1", "sim"), "application/json")
     assert ch.message_type is m.Refusals and ch.schema_name == m.Refusals.SCHEMA
     assert ch.metadata["producer"] == "sim" and ch.metadata["registered"] == "true"
+
+
+def test_the_reader_counts_from_the_pipe_and_forwards_only_other_lines_when_asked():
+    """The reader thread on a real pipe: refusals counted; with $RUST_LOG set by the user, Zenoh's
+    other lines reach stdout and the interceptor's own lines do not."""
+    import os
+    import threading
+
+    from seaway.runtime.refusals import _Watch
+
+    log_r, log_w = os.pipe()
+    out_r, out_w = os.pipe()
+    counter = RefusalCounter("vehicle_io")
+    _Watch(counter, log_r, out_w, forward=True)
+    other = "2026-11-23T06:16:26Z  WARN zenoh_transport::unicast::manager: something else"
+    os.write(log_w, ("\n".join([*FILL, *CACHED_PUT, other, *QUERY]) + "\n").encode())
+    os.close(log_w)
+    done = threading.Event()
+    got = bytearray()
+
+    def drain() -> None:
+        while b"something else" not in got:
+            chunk = os.read(out_r, 1 << 16)
+            if not chunk:
+                break
+            got.extend(chunk)
+        done.set()
+
+    threading.Thread(target=drain, daemon=True).start()
+    assert done.wait(30)
+    wait_for(lambda: counter.total == 2, 30, what="both refusals counted")
+    assert got.decode().strip() == other
+    os.close(out_w)
+    os.close(out_r)
