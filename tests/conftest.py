@@ -26,6 +26,20 @@ BIN = Path(PYTHON).parent
 def pytest_addoption(parser: pytest.Parser) -> None:
     parser.addoption("--regen", action="store_true",
                      help="re-record tests/replay/data/*.mcap from the live stack, then test against them")
+    parser.addoption("--slow", action="store_true",
+                     help="also run the tests marked slow (long system tests: browser, fleet, real "
+                          "autopilot firmware); CI runs them, the default ./test does not")
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Tests marked ``slow`` run only with ``--slow`` (or when ``-m`` names them), so the default
+    ``./test`` stays under about 15 minutes on a 2-core machine."""
+    if config.getoption("--slow") or "slow" in (config.getoption("-m") or ""):
+        return
+    skip = pytest.mark.skip(reason="slow: run with ./test --slow")
+    for item in items:
+        if "slow" in item.keywords:
+            item.add_marker(skip)
 
 
 def free_port() -> int:
