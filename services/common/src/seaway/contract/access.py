@@ -17,14 +17,31 @@ Zenoh before any Seaway code sees it:
 
 What leaves a process (``egress``) is not restricted: the receiver decides. An identity without a
 certificate from the stack's authority cannot connect at all.
+
+**A boat and a shore** (``docs/deployment.md``) are two stacks of one authority, each with a Zenoh
+router (identity :data:`RELAY`) that carries traffic over the link. Zenoh's access control sees only
+the last hop, so whatever crosses the link arrives from the router. The rules of each side
+(:func:`acl` with ``side``) give the router the rights of the *other side as a whole*:
+
+* on the boat, the router may do what the shore may do there (:func:`_shore_rights`): read, ask the
+  open requests and the actuating ones; never publish a key, serve a request or declare a token.
+  The shore router checks the shore's own processes by name first (only its operators may actuate),
+  so the chain is: shore operator -> shore router -> boat router -> boat service.
+* on the shore, the router may publish and serve what the boat says; towards the router, the shore
+  sends only what the boat accepts (the same :func:`_shore_rights`, as ``egress``), so nothing the
+  boat would refuse crosses the link.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
-from typing import Any
+from typing import Any, Literal
 
 from seaway.contract import keys
+
+Side = Literal["local", "boat", "shore"]
+SIDES: tuple[str, ...] = ("local", "boat", "shore")
+"""``local``: one stack on one machine (no router); ``boat``/``shore``: the two halves of a deployment."""
 
 OPERATORS: tuple[str, ...] = ("launcher", "operator", "groundstation")
 """Identities whose requests move the vessel or reset the stack: the launcher, the ``seaway``
@@ -33,6 +50,10 @@ TOOLS: tuple[str, ...] = ("operator", "replay")
 """Identities that are not services: the operator commands and ``seaway replay``."""
 IDENTITIES: tuple[str, ...] = (*keys.SERVICES, *TOOLS)
 """Every identity a stack's authority issues a certificate to."""
+RELAY = "router"
+"""The identity of a side's Zenoh router (``seaway router``), the only process that crosses the link."""
+SHORE_IDENTITIES: tuple[str, ...] = ("launcher", "recorder", RELAY, "operator", "groundstation")
+"""The identities a shore computer runs (profile ``shore``, the operator commands, the ground station)."""
 HARNESS = "harness"
 """The test harness: may do everything. Issued only when asked for (tests, benchmarks); the
 launcher never issues it."""
@@ -76,26 +97,66 @@ def _rule(rid: str, messages: list[str], exprs: Iterable[str],
             "key_exprs": sorted(set(exprs))}
 
 
-def acl(overrides: Mapping[str, str] | None = None, *, harness: bool = False) -> dict[str, Any]:
+def _actuating() -> list[str]:
+    return [_wild(s.suffix) for s in keys.REGISTRY if s.kind == "query"]
+
+
+def _open_requests() -> list[str]:
+    return [_wild(f"{keys.RUN}/*"), _wild(f"{keys.REFUSALS}/*")]
+
+
+def _shore_rights(rid: str, flow: str) -> list[dict[str, Any]]:
+    """What the shore may do on the boat: read, ask the open and the actuating requests."""
+    return [_rule(f"{rid}-read", _READ, [f"{keys.ROOT}/**"], [flow]),
+            _rule(f"{rid}-ask", ["query"], [*_open_requests(), *_actuating()], [flow])]
+
+
+def side_identities(side: Side) -> tuple[str, ...]:
+    """The identities a side's authority issues: every one on a boat or a single machine, the
+    operator's few on a shore."""
+    return SHORE_IDENTITIES if side == "shore" else IDENTITIES
+
+
+def acl(overrides: Mapping[str, str] | None = None, *, harness: bool = False,
+        side: Side = "local") -> dict[str, Any]:
     """The ``access_control`` section of every process's Zenoh config in one stack.
 
     ``overrides``: the profile's producers (:func:`producers`); ``harness``: admit the test
-    harness identity with every right.
+    harness identity with every right; ``side``: ``local`` for a stack alone on its machine, or the
+    ``boat``/``shore`` half of a deployment, where the router (:data:`RELAY`) carries the other
+    side (module docstring). The same document serves every process of a side, router included.
     """
+    if side not in SIDES:
+        raise AccessError(f"side {side!r} unknown; allowed: {', '.join(SIDES)}")
     who = producers(overrides)
-    identities = [*IDENTITIES, *([HARNESS] if harness else [])]
+    identities = [*side_identities(side), *([HARNESS] if harness else [])]
+    senders = [i for i in identities if not (side == "shore" and i == RELAY)]
     rules = [
         _rule("read", _READ, [f"{keys.ROOT}/**"], ["ingress", "egress"]),
         # Open requests: the run descriptions and the refusal counts (read-only answers).
-        _rule("ask-open", ["query"], [_wild(f"{keys.RUN}/*"), _wild(f"{keys.REFUSALS}/*")]),
+        _rule("ask-open", ["query"], _open_requests()),
         _rule("send", _EVERYTHING, ["**"], ["egress"]),
-        _rule("ask-actuate", ["query"], [_wild(s.suffix) for s in keys.REGISTRY if s.kind == "query"]),
+        _rule("ask-actuate", ["query"], _actuating()),
     ]
     policies = [
-        {"id": "stack", "rules": ["read", "ask-open", "send"], "subjects": identities},
+        {"id": "stack", "rules": ["read", "ask-open"], "subjects": identities},
+        {"id": "send", "rules": ["send"], "subjects": senders},
         {"id": "operators", "rules": ["ask-actuate"],
-         "subjects": [*OPERATORS, *([HARNESS] if harness else [])]},
+         "subjects": [i for i in (*OPERATORS, HARNESS) if i in identities]},
     ]
+    if side == "boat":
+        # What arrives from the router came from the shore: the shore's rights, nothing more.
+        relay = _shore_rights("from-shore", "ingress")
+        rules += relay
+        policies.append({"id": "from-shore", "rules": [r["id"] for r in relay], "subjects": [RELAY]})
+    elif side == "shore":
+        # What arrives from the router is the boat speaking; what goes to it, only what the boat
+        # accepts from the shore (so nothing it would refuse crosses the link).
+        relay = [_rule("from-boat", ["put", "delete", "reply", "declare_queryable", "liveliness_token"],
+                       [f"{keys.ROOT}/**"]),
+                 *_shore_rights("to-boat", "egress")]
+        rules += relay
+        policies.append({"id": "boat-via-router", "rules": [r["id"] for r in relay], "subjects": [RELAY]})
     for ident in identities:
         if ident == HARNESS:
             rules.append(_rule(f"all-{ident}", _EVERYTHING, [f"{keys.ROOT}/**"]))

@@ -8,7 +8,8 @@ it cannot protect a peer-to-peer mesh where either side may connect first).
 
 A credentials folder (mode 0700, keys 0600; refused otherwise)::
 
-    ca.pem ca-key.pem            the authority (its key issues certificates for hand-started processes)
+    ca.pem ca-key.pem            the authority (its key issues certificates; not in a deployment's
+                                 boat/ and shore/ folders, which ``create_deployment`` makes)
     <identity>.pem               a certificate per identity (common name = identity)
     <identity>-key.pem
     access.json                  the stack's access rules (contract.access.acl), the same for everyone
@@ -66,8 +67,18 @@ def _name(cn: str) -> x509.Name:
     return x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, cn)])
 
 
+def _san(hosts: Iterable[str]) -> x509.SubjectAlternativeName:
+    names: list[x509.GeneralName] = []
+    for h in dict.fromkeys(["localhost", "127.0.0.1", *hosts]):
+        try:
+            names.append(x509.IPAddress(ipaddress.ip_address(h)))
+        except ValueError:
+            names.append(x509.DNSName(h))
+    return x509.SubjectAlternativeName(names)
+
+
 def _issue(identity: str, ca_key: ec.EllipticCurvePrivateKey, ca_cert: x509.Certificate,
-           days: int) -> tuple[bytes, bytes]:
+           days: int, hosts: Iterable[str] = ()) -> tuple[bytes, bytes]:
     key = ec.generate_private_key(ec.SECP256R1())
     now = dt.datetime.now(dt.UTC)
     cert = (x509.CertificateBuilder().subject_name(_name(identity)).issuer_name(ca_cert.subject)
@@ -75,27 +86,22 @@ def _issue(identity: str, ca_key: ec.EllipticCurvePrivateKey, ca_cert: x509.Cert
             .not_valid_before(now - dt.timedelta(hours=1)).not_valid_after(now + dt.timedelta(days=days))
             .add_extension(x509.BasicConstraints(ca=False, path_length=None), critical=True)
             # Every process both listens and connects on loopback: it is a TLS server and client.
-            .add_extension(x509.SubjectAlternativeName([x509.DNSName("localhost"),
-                                                        x509.IPAddress(ipaddress.ip_address("127.0.0.1"))]),
-                           critical=False)
+            # A boat router is also reached over the link by the names in ``hosts``.
+            .add_extension(_san(hosts), critical=False)
             .add_extension(x509.ExtendedKeyUsage([ExtendedKeyUsageOID.SERVER_AUTH,
                                                   ExtendedKeyUsageOID.CLIENT_AUTH]), critical=False)
             .sign(ca_key, hashes.SHA256()))
     return cert.public_bytes(serialization.Encoding.PEM), _key_pem(key)
 
 
-def create(folder: Path, identities: Iterable[str] = access.IDENTITIES, *,
-           producers: Mapping[str, str] | None = None, harness: bool = False,
-           days: int = DEFAULT_DAYS) -> Credentials:
-    """A new authority and a certificate for each identity in ``folder`` (created 0700).
-
-    ``producers``: the profile's producer of each key it narrows (``access.producers``);
-    ``harness``: also the test harness identity, with every right. An existing authority in
-    ``folder`` is replaced: certificates of the old one stop working.
-    """
+def _private_folder(folder: Path) -> Path:
     folder = Path(folder)
     folder.mkdir(mode=0o700, parents=True, exist_ok=True)
     os.chmod(folder, 0o700)
+    return folder
+
+
+def _authority(days: int) -> tuple[ec.EllipticCurvePrivateKey, x509.Certificate]:
     ca_key = ec.generate_private_key(ec.SECP256R1())
     now = dt.datetime.now(dt.UTC)
     ca_cert = (x509.CertificateBuilder().subject_name(_name(CA_NAME)).issuer_name(_name(CA_NAME))
@@ -107,16 +113,76 @@ def create(folder: Path, identities: Iterable[str] = access.IDENTITIES, *,
                                             key_agreement=False, key_cert_sign=True, crl_sign=True,
                                             encipher_only=False, decipher_only=False), critical=True)
                .sign(ca_key, hashes.SHA256()))
-    _write_private(folder / "ca-key.pem", _key_pem(ca_key))
+    return ca_key, ca_cert
+
+
+def _write_authority(folder: Path, ca_key: ec.EllipticCurvePrivateKey, ca_cert: x509.Certificate,
+                     with_key: bool) -> None:
+    if with_key:
+        _write_private(folder / "ca-key.pem", _key_pem(ca_key))
     (folder / "ca.pem").write_bytes(ca_cert.public_bytes(serialization.Encoding.PEM))
-    names = list(dict.fromkeys([*identities, *([access.HARNESS] if harness else [])]))
+
+
+def _populate(folder: Path, ca_key: ec.EllipticCurvePrivateKey, ca_cert: x509.Certificate,
+              names: Iterable[str], rules: dict[str, Any], days: int,
+              router_hosts: Iterable[str] = ()) -> None:
     for ident in names:
-        cert, key = _issue(ident, ca_key, ca_cert, days)
+        hosts = router_hosts if ident == access.RELAY else ()
+        cert, key = _issue(ident, ca_key, ca_cert, days, hosts)
         (folder / f"{ident}.pem").write_bytes(cert)
         _write_private(folder / f"{ident}-key.pem", key)
-    rules = access.acl(producers, harness=harness)
     (folder / ACCESS_FILE).write_text(json.dumps(rules, indent=1))
+
+
+def create(folder: Path, identities: Iterable[str] | None = None, *,
+           producers: Mapping[str, str] | None = None, harness: bool = False,
+           days: int = DEFAULT_DAYS) -> Credentials:
+    """A new authority and a certificate for each identity in ``folder`` (created 0700).
+
+    ``producers``: the profile's producer of each key it narrows (``access.producers``);
+    ``harness``: also the test harness identity, with every right. An existing authority in
+    ``folder`` is replaced: certificates of the old one stop working.
+    """
+    folder = _private_folder(folder)
+    ca_key, ca_cert = _authority(days)
+    _write_authority(folder, ca_key, ca_cert, with_key=True)
+    base = access.IDENTITIES if identities is None else identities
+    names = list(dict.fromkeys([*base, *([access.HARNESS] if harness else [])]))
+    _populate(folder, ca_key, ca_cert, names, access.acl(producers, harness=harness), days)
     return Credentials(folder)
+
+
+DEPLOYMENT_SIDES = ("boat", "shore")
+DEFAULT_BOAT_HOSTS = ("seaway-boat",)
+"""The names the shore reaches the boat router by, in its certificate (docs/deployment.md)."""
+
+
+def create_deployment(folder: Path, *, boat_hosts: Iterable[str] = DEFAULT_BOAT_HOSTS,
+                      producers: Mapping[str, str] | None = None, harness: bool = False,
+                      days: int = DEFAULT_DAYS) -> dict[str, Credentials]:
+    """One authority for a boat and its shore: ``folder/boat`` and ``folder/shore``, each a
+    credentials folder with that side's identities and rules (``access.acl(side=...)``).
+
+    The authority's key stays in ``folder`` (``ca-key.pem``), on neither machine's folder: copy
+    ``boat/`` to the boat and ``shore/`` to the shore. The routers' certificates carry
+    ``boat_hosts`` (names or addresses the shore dials) besides localhost and 127.0.0.1.
+    ``producers`` narrows the boat's keys as its profile runs them. Creating again replaces the
+    authority (rotation): every earlier certificate stops working.
+    """
+    root = _private_folder(folder)
+    ca_key, ca_cert = _authority(days)
+    _write_authority(root, ca_key, ca_cert, with_key=True)
+    made = {}
+    for side in DEPLOYMENT_SIDES:
+        sub = _private_folder(root / side)
+        for old in sub.glob("*.pem"):
+            old.unlink()
+        _write_authority(sub, ca_key, ca_cert, with_key=False)
+        names = [*access.side_identities(side), *([access.HARNESS] if harness else [])]
+        rules = access.acl(producers if side == "boat" else None, harness=harness, side=side)
+        _populate(sub, ca_key, ca_cert, names, rules, days, router_hosts=boat_hosts)
+        made[side] = Credentials(sub)
+    return made
 
 
 @dataclass(frozen=True)

@@ -104,6 +104,11 @@ def load_zenoh_config(path: str | Path | None = None, identity: str | None = Non
                     "(use a TLS config for authentication)", path)
         return conf
     found = resolve_credentials(credentials)
+    if found is None and path is not None:
+        raise creds.CredentialsError(
+            f"Zenoh config {path} links over TLS: it needs the side's credentials, not "
+            f"${creds.ENV_CREDENTIALS}={creds.NONE} (make them with `seaway credentials create DIR "
+            "--deployment`, docs/deployment.md)")
     if found is None:
         log.warning("authentication OFF ($%s=%s): any process on this machine may publish and "
                     "command on this stack", creds.ENV_CREDENTIALS, creds.NONE)

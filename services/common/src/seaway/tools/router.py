@@ -1,9 +1,8 @@
 """``seaway router``: the Zenoh router of one side of a boat-shore deployment.
 
-    seaway router --role boat                      # deploy/zenoh/boat-router.json5
-    seaway router --role shore --connect tcp/10.0.0.2:7447
-    SEAWAY_ROUTER_CONFIG=boat-router-tls.json5 seaway router --role boat
-    seaway router --config my-router.json5 --tls-dir /srv/seaway/tls --check
+    SEAWAY_CREDENTIALS=/etc/seaway/credentials seaway router --role boat   # deploy/zenoh/boat-router.json5
+    seaway router --role shore --connect tls/10.0.0.2:7449 --credentials ~/seaway-credentials/shore
+    seaway router --config my-router.json5 --check
 
 Each side runs one router; that side's processes are Zenoh peers that connect to it on loopback
 and mesh directly with each other, so the boat's control loop never depends on the router or the
@@ -13,8 +12,11 @@ the shore is back without a restart. See docs/deployment.md.
 Which config: ``--config`` (a path, or a file name in deploy/zenoh/), else ``$SEAWAY_ROUTER_CONFIG``,
 else ``<role>-router.json5``. Then, in order: ``--connect`` / ``$SEAWAY_ROUTER_CONNECT`` and
 ``--listen`` / ``$SEAWAY_ROUTER_LISTEN`` (comma-separated endpoints) replace the file's endpoints;
-``--tls-dir`` / ``$SEAWAY_TLS_DIR`` moves every TLS file the config names into that folder (same
-file names); ``--cfg KEY=JSON5`` sets any other Zenoh key.
+``--cfg KEY=JSON5`` sets any other Zenoh key. A config that speaks TLS (the shipped ones) needs the
+side's credentials (``--credentials DIR`` or ``$SEAWAY_CREDENTIALS``: a folder made by ``seaway
+credentials create DIR --deployment``): the router is their identity ``router`` and enforces their
+access rules, generated from the key registry (``seaway.contract.access``). Its refusals are
+counted and answered on ``refusals/router`` like every service's (``seaway health``).
 
 The router logs every session and link that comes and goes (``router <zid> connected``,
 ``link up: tls/... <-> tls/... (..., authenticated as seaway-shore)``),
@@ -39,17 +41,20 @@ from typing import Any
 
 import zenoh
 
-from seaway.contract import keys
+from seaway.contract import access, keys
 from seaway.contract.config import ConfigError, deploy_path
+from seaway.runtime import credentials as creds
+from seaway.runtime import refusals
 from seaway.runtime.service import DEFAULT_VESSEL, ENV_VESSEL, configure_logging, install_stop_signals
+from seaway.runtime.zenoh_bus import ZenohBus
 
 log = logging.getLogger("seaway.tools.router")
 
 ENV_ROUTER_CONFIG = "SEAWAY_ROUTER_CONFIG"
 ENV_ROUTER_CONNECT = "SEAWAY_ROUTER_CONNECT"
 ENV_ROUTER_LISTEN = "SEAWAY_ROUTER_LISTEN"
-ENV_TLS_DIR = "SEAWAY_TLS_DIR"
 ROLES = ("boat", "shore")
+IDENTITY = access.RELAY
 # The TLS settings that name files (zenoh 1.x, transport/link/tls/...).
 TLS_FILE_KEYS = ("root_ca_certificate", "listen_certificate", "listen_private_key",
                  "connect_certificate", "connect_private_key")
@@ -120,9 +125,13 @@ class RouterSettings:
 
 
 def build_config(config_path: Path, connect: list[str] | None = None, listen: list[str] | None = None,
-                 tls_dir: Path | None = None, overrides: list[str] | None = None,
+                 credentials: creds.Credentials | None = None, overrides: list[str] | None = None,
                  check_files: bool = True) -> tuple[zenoh.Config, RouterSettings]:
-    """The router's Zenoh config from a file plus the command-line replacements, checked."""
+    """The router's Zenoh config from a file plus the command-line replacements, checked.
+
+    ``credentials``: the side's folder; its certificate for :data:`IDENTITY` and its access rules
+    are added to the config (a ``tls/`` endpoint needs them).
+    """
     try:
         conf = zenoh.Config.from_file(str(config_path))
     except Exception as err:  # zenoh's ZError carries the parse position
@@ -137,15 +146,13 @@ def build_config(config_path: Path, connect: list[str] | None = None, listen: li
         conf.insert_json5("connect/endpoints", json.dumps(connect))
     if listen:
         conf.insert_json5("listen/endpoints", json.dumps(listen))
-    tls_files: dict[str, str] = {}
-    for key in TLS_FILE_KEYS:
-        value = _get(conf, f"transport/link/tls/{key}")
-        if not value:
-            continue
-        if tls_dir is not None:
-            value = str(tls_dir / Path(value).name)
-            conf.insert_json5(f"transport/link/tls/{key}", json.dumps(value))
-        tls_files[key] = value
+    if credentials is not None:
+        try:
+            settings_of = credentials.zenoh_settings(IDENTITY)
+        except creds.CredentialsError as err:
+            raise RouterConfigError(str(err)) from None
+        for key, value in settings_of.items():
+            conf.insert_json5(key, json.dumps(value))
     for item in overrides or []:
         key, sep, value = item.partition("=")
         if not sep or not key:
@@ -155,13 +162,7 @@ def build_config(config_path: Path, connect: list[str] | None = None, listen: li
             conf.insert_json5(key.strip(), value)
         except Exception as err:
             raise RouterConfigError(f"--cfg {item!r}: {err}") from None
-        short = key.strip().rsplit("/", 1)[-1]
-        if key.strip().startswith("transport/link/tls/") and short in TLS_FILE_KEYS:
-            path = _get(conf, key.strip())  # as Zenoh parsed it (JSON5 allows 'single quotes')
-            if path:
-                tls_files[short] = path
-            else:
-                tls_files.pop(short, None)
+    tls_files = {k: v for k in TLS_FILE_KEYS if (v := _get(conf, f"transport/link/tls/{k}"))}
     settings = RouterSettings(
         config_path=config_path,
         listen=_endpoints(_get(conf, "listen/endpoints")),
@@ -172,15 +173,15 @@ def build_config(config_path: Path, connect: list[str] | None = None, listen: li
         lease_ms=_get(conf, "transport/link/tx/lease"),
     )
     uses_tls = any(e.startswith("tls/") for e in settings.listen + settings.connect)
-    if uses_tls and "root_ca_certificate" not in tls_files:
-        raise RouterConfigError(f"{config_path}: a tls/ endpoint needs transport/link/tls/"
-                                "root_ca_certificate (see docs/deployment.md, 'TLS')")
+    if uses_tls and credentials is None and "root_ca_certificate" not in tls_files:
+        raise RouterConfigError(
+            f"{config_path} links over TLS: give the side's credentials (--credentials DIR or "
+            f"${creds.ENV_CREDENTIALS}; make them with `seaway credentials create DIR --deployment`, "
+            "docs/deployment.md)")
     if check_files:
         missing = [f"{k} {v}" for k, v in tls_files.items() if not Path(v).is_file()]
         if missing:
-            raise RouterConfigError("TLS file(s) missing: " + "; ".join(missing)
-                                    + f" (put them there, or pass --tls-dir / ${ENV_TLS_DIR}; "
-                                    "see docs/deployment.md, 'TLS')")
+            raise RouterConfigError("TLS file(s) missing: " + "; ".join(missing))
     return conf, settings
 
 
@@ -250,9 +251,9 @@ def parser() -> argparse.ArgumentParser:
                          f"${ENV_ROUTER_CONNECT}, comma-separated)")
     ap.add_argument("--listen", action="append", default=None, metavar="ENDPOINT",
                     help=f"replace the config's listen endpoints (repeatable; default ${ENV_ROUTER_LISTEN})")
-    ap.add_argument("--tls-dir", type=Path, default=None,
-                    help=f"folder holding the TLS files the config names (default ${ENV_TLS_DIR}, else the "
-                         "config's own paths)")
+    ap.add_argument("--credentials", type=Path, default=None, metavar="DIR",
+                    help=f"the side's credentials folder (default ${creds.ENV_CREDENTIALS}; made by "
+                         "`seaway credentials create DIR --deployment`)")
     ap.add_argument("--cfg", action="append", default=[], metavar="KEY=JSON5",
                     help="set one Zenoh config key, e.g. --cfg transport/link/tx/lease=3000")
     ap.add_argument("--vessel", default=os.environ.get(ENV_VESSEL, DEFAULT_VESSEL),
@@ -273,8 +274,12 @@ def config_from_args(args: argparse.Namespace) -> tuple[zenoh.Config, RouterSett
         raise RouterConfigError(f"name a config: --role boat|shore, --config FILE or ${ENV_ROUTER_CONFIG}")
     connect = args.connect or _split(os.environ.get(ENV_ROUTER_CONNECT)) or None
     listen = args.listen or _split(os.environ.get(ENV_ROUTER_LISTEN)) or None
-    tls_dir = args.tls_dir or (Path(os.environ[ENV_TLS_DIR]) if os.environ.get(ENV_TLS_DIR) else None)
-    return build_config(resolve_config(name), connect, listen, tls_dir, args.cfg)
+    given: creds.Credentials | str | None = (creds.Credentials(args.credentials.expanduser())
+                                             if args.credentials else creds.from_env())
+    if given == creds.NONE:
+        given = None
+    return build_config(resolve_config(name), connect, listen, given,  # type: ignore[arg-type]
+                        args.cfg)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -282,7 +287,7 @@ def main(argv: list[str] | None = None) -> int:
     configure_logging("router", args.log_level)
     try:
         conf, settings = config_from_args(args)
-    except (RouterConfigError, ConfigError) as err:
+    except (RouterConfigError, ConfigError, creds.CredentialsError) as err:
         print(f"seaway router: {err}", file=sys.stderr)
         return 2
     if args.check:
@@ -290,8 +295,10 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     stop = threading.Event()
     install_stop_signals(stop)
-    # Zenoh's own log (RUST_LOG=debug shows, e.g., why a TLS handshake was refused).
-    zenoh.init_log_from_env_or("error")
+    # Zenoh's own log (RUST_LOG=debug shows, e.g., why a TLS handshake was refused), read for
+    # the refusals of the access rules when there are any.
+    if not (settings.access_control and refusals.watch(IDENTITY)):
+        zenoh.init_log_from_env_or("error")
     log.info("starting: %s", settings.summary())
     t0 = time.monotonic()
     try:
@@ -301,6 +308,8 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     links = LinkLogger(session)
     token = None
+    if settings.access_control:
+        refusals.serve(ZenohBus(session, args.vessel), IDENTITY)
     try:
         if args.health:
             token = session.liveliness().declare_token(keys.health_key(args.vessel, args.health))

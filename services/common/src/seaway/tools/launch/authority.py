@@ -1,7 +1,8 @@
 """The launcher's side of authority: the run's credentials and its claim on the rendezvous endpoint.
 
 * ``credentials_for``: the stack's credentials: ``$SEAWAY_CREDENTIALS`` if it names a folder (a
-  boat's long-lived set), else a new authority for this run only, in a private folder that is
+  boat's long-lived set; required for a profile that is one side of a deployment), else a new
+  authority for this run only, in a private folder that is
   removed when the launcher exits; the access rules narrow each key to the process the profile
   runs for it.
 * ``claim``: register this stack on its rendezvous endpoint, or refuse with the name of the stack
@@ -79,6 +80,12 @@ def _zenoh_credentials(profile: Profile, run_name: str) -> Authority:
     if isinstance(given, creds.Credentials):
         given.check("launcher")
         return Authority(given, rendezvous, notes=[f"credentials {given.folder}"])
+    if profile.side != "local":
+        raise creds.CredentialsError(
+            f"profile {profile.name} is the {profile.side} half of a deployment: it needs that side's "
+            f"credentials in ${creds.ENV_CREDENTIALS} (one command makes both sides': `seaway "
+            f"credentials create DIR --deployment --boat-host <boat address>`, then "
+            f"{creds.ENV_CREDENTIALS}=DIR/{profile.side}; docs/deployment.md)")
     folder = stacks.stacks_dir() / f"{run_name}.credentials"
     made = creds.create(folder, producers=profile.producers())
     return Authority(made, rendezvous, owned_folder=folder,

@@ -68,6 +68,10 @@ class Profile(ConfigModel):
     name: str
     description: str = ""
     zenoh_config: str | None = Field(default=None, description="path relative to deploy/zenoh")
+    side: Literal["local", "boat", "shore"] = Field(
+        default="local", description="'local': a stack alone on its machine, with a new authority per "
+        "run unless $SEAWAY_CREDENTIALS names one; 'boat'/'shore': one half of a deployment, which "
+        "needs the deployment's credentials for that side (seaway credentials create DIR --deployment)")
     scenario: str | None = Field(default=None, description="default scenario name or path")
     clock: Literal["wall", "lockstep"] = Field(default="wall", description="the run's clock: 'wall' "
                                                "(real time) or 'lockstep' (the simulator owns time)")
