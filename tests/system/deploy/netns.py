@@ -75,8 +75,11 @@ class NetnsPair:
     def start(self, ns: str, args: list[str], name: str, env: dict[str, str] | None = None,
               ) -> subprocess.Popen:
         """Run ``args`` inside ``ns``; stdout to ``<name>.out``, stderr to ``<name>.err``."""
-        full_env = {**os.environ, "PYTHONUNBUFFERED": "1", **(env or {})}
-        full_env.pop("SEAWAY_ZENOH_RENDEZVOUS", None)
+        # Nothing of the caller's own stack leaks in: each side says what it runs with in ``env``.
+        inherited = {k: v for k, v in os.environ.items()
+                     if not k.startswith(("SEAWAY_ZENOH_", "SEAWAY_ROUTER_", "SEAWAY_CREDENTIALS",
+                                          "SEAWAY_IDENTITY", "SEAWAY_STACKS_DIR"))}
+        full_env = {**inherited, "PYTHONUNBUFFERED": "1", **(env or {})}
         out = open(self.tmp / f"{name}.out", "wb")  # noqa: SIM115 - closed with the process
         err = open(self.tmp / f"{name}.err", "wb")  # noqa: SIM115
         p = subprocess.Popen(["ip", "netns", "exec", ns, *args], stdout=out, stderr=err, env=full_env,

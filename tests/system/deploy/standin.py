@@ -3,18 +3,23 @@
 Every line printed is one JSON object with ``t`` = CLOCK_MONOTONIC seconds (one clock for every
 network namespace on the machine, so the test can line events up with the moment it cut the link).
 
-``boat-control``  the onboard loop: publishes ctrl/thrust at ``--rate-hz`` with seq 1, 2, 3, ...
-                  (from when a subscriber, the recorder, is known);
-                  serves vehicle/arm (accepts) and sim/scenario (accepts; the shore may not ask it);
-                  health token ``controller``.
-``boat-recorder`` counts everything under ``seaway/**`` on the boat: prints ``{"key", "seq"}`` per
-                  sample (seq from the JSON payload, if any); health token ``recorder``.
-``shore-watch``   the shore: prints every sample under ``seaway/**`` like the recorder, and every
-                  ``--probe-s`` seconds tries what the boat router must allow or refuse: a put on
-                  ctrl/thrust (seq >= 1e9, refused), a put on shore/heartbeat (allowed), a
-                  vehicle/arm request (allowed) and a sim/scenario request (refused), printing each
-                  reply (``--no-requests``: only the puts). No health token (the boat must not see
-                  one from the shore). mission/status samples also carry ``state``, ``energy_used_j``.
+Each is one identity of its side (``$SEAWAY_CREDENTIALS`` names the side's folder, made by
+``seaway credentials create DIR --deployment``), so the side's access rules apply to it as to the
+service it stands in for.
+
+``boat-control``  the onboard loop, identity ``controller``: publishes ctrl/thrust at ``--rate-hz``
+                  with seq 1, 2, 3, ... (from when a subscriber, the recorder, is known); serves
+                  mission/command (accepts) and prints ``{"served": "mission/command"}`` for each
+                  request it answers; health token ``controller``.
+``boat-recorder`` identity ``recorder``: counts everything under ``seaway/**`` on the boat: prints
+                  ``{"key", "seq"}`` per sample (seq from the JSON payload, if any); health token
+                  ``recorder``.
+``shore-watch``   the shore, identity ``operator``: prints every sample under ``seaway/**`` like the
+                  recorder, and every ``--probe-s`` seconds tries what the chain must refuse or carry:
+                  a put on ctrl/thrust (seq >= 1e9: the shore never publishes a boat key) and a
+                  mission/command request (an operator's: answered by the boat), printing each reply
+                  (``--no-requests``: only the put). No health token (the boat must not see one from
+                  the shore). mission/status samples also carry ``state``, ``energy_used_j``.
 """
 
 from __future__ import annotations
@@ -26,7 +31,7 @@ import threading
 import time
 
 from seaway.contract import keys
-from seaway.contract.messages import ArmRequest, Reply, ScenarioRequest, ThrustCommand
+from seaway.contract.messages import MissionCommand, Reply, ThrustCommand
 from seaway.runtime.bus import RawSample
 from seaway.runtime.service import base_parser, run_service
 
@@ -63,15 +68,22 @@ def watch_all(ctx) -> None:
 
 
 def boat_control(ctx, rate_hz: float) -> None:
-    ctx.bus.queryable(keys.VEHICLE_ARM, lambda req: Reply.accept(time.time_ns(), "armed by boat"))
-    ctx.bus.queryable(keys.SIM_SCENARIO, lambda req: Reply.accept(time.time_ns(), "scenario set"))
+    def on_command(req: MissionCommand) -> Reply:
+        emit(served=keys.MISSION_COMMAND.suffix, command=req.command)
+        return Reply.accept(time.time_ns(), f"{req.command} by the boat")
+
+    ctx.bus.queryable(keys.MISSION_COMMAND, on_command)
     pub = ctx.bus.publisher(keys.THRUST)
-    # Publish from the first command on only once the recorder's subscription is known here, so the
-    # recording can be checked for "every seq from 1" (what happens before discovery is not the test).
-    deadline = time.monotonic() + 10.0
-    while not pub._pub.matching_status.matching and time.monotonic() < deadline:
-        if ctx.stop.wait(0.02):
-            return
+    # Publish from the first command on only once the recorder is linked to us directly, so the
+    # recording can be checked for "every seq from 1" (what happens before discovery is not the
+    # test). Its subscription is known earlier through the router, but on the boat what the router
+    # relays is the shore's and a put from it is refused: the recorder's health token, which only
+    # its own direct link may carry, says the direct link (and the subscription declared on it
+    # before the token) is there.
+    deadline = time.monotonic() + 20.0
+    while not (pub._pub.matching_status.matching and "recorder" in ctx.bus.alive_services(timeout_s=0.5)):
+        if ctx.stop.wait(0.05) or time.monotonic() > deadline:
+            break
     emit(event="ready")
     period = 1.0 / rate_hz
     seq = 0
@@ -88,28 +100,25 @@ def boat_control(ctx, rate_hz: float) -> None:
 def boat_recorder(ctx) -> None:
     watch_all(ctx)
     emit(event="ready")
-    ctx.stop.wait()
+    while not ctx.stop.wait(0.25):  # not one blocking wait: a signal may land on another thread
+        pass
 
 
 def shore_watch(ctx, probe_s: float, requests: bool) -> None:
     watch_all(ctx)
     thrust = ctx.bus.publisher(keys.THRUST)
-    heartbeat_key = f"{keys.ROOT}/{ctx.vessel}/shore/heartbeat"
     emit(event="ready")
     i = 0
     while not ctx.stop.wait(probe_s):
         i += 1
         thrust.put(ThrustCommand.make(stamp_ns=time.time_ns(), thrust_port_n=99.0,
                                       thrust_starboard_n=99.0, source="shore", seq=FORBIDDEN_SEQ0 + i))
-        ctx.bus.session.put(heartbeat_key, json.dumps({"seq": i}))
         if not requests:
             continue
-        arm = ctx.bus.request(keys.VEHICLE_ARM, ArmRequest.make(stamp_ns=time.time_ns(), arm=True),
-                              timeout_s=probe_s / 2)
-        emit(probe=i, request="vehicle/arm", accepted=arm.accepted, reason=arm.reason)
-        sc = ctx.bus.request(keys.SIM_SCENARIO, ScenarioRequest.make(stamp_ns=time.time_ns()),
-                             timeout_s=probe_s / 2)
-        emit(probe=i, request="sim/scenario", accepted=sc.accepted, reason=sc.reason)
+        reply = ctx.bus.request(keys.MISSION_COMMAND,
+                                MissionCommand.make(stamp_ns=time.time_ns(), command="resume"),
+                                timeout_s=probe_s)
+        emit(probe=i, request=keys.MISSION_COMMAND.suffix, accepted=reply.accepted, reason=reply.reason)
 
 
 def main() -> None:
@@ -119,10 +128,11 @@ def main() -> None:
     parser.add_argument("--rate-hz", type=float, default=50.0)
     parser.add_argument("--probe-s", type=float, default=1.0)
     parser.add_argument("--no-requests", action="store_true",
-                        help="shore-watch: no vehicle/arm and sim/scenario probes (a real vehicle_io)")
+                        help="shore-watch: no mission/command probes (a real controller)")
     args = parser.parse_args()
     health = {"boat-control": "controller", "boat-recorder": "recorder"}.get(args.role)
-    with run_service(health or "launcher", args) as ctx:
+    # shore-watch: the launcher's part (no health token, no run agreement), the operator's identity
+    with run_service(health or "launcher", args, identity=health or "operator") as ctx:
         if health is not None:
             ctx.ready()  # (its roles declare what they need before their loops)
         if args.role == "boat-control":

@@ -1,5 +1,6 @@
 """The boat installs what it runs: the onboard services and the shared library, not the simulator,
-the laboratory (benchmarks, harnesses, fake autopilot) or the test tools (docs/deployment.md)."""
+the laboratory (benchmarks, harnesses, fake autopilot) or the test tools (docs/deployment.md); and
+that installation makes a deployment's credentials and runs its router authenticated."""
 
 from __future__ import annotations
 
@@ -38,5 +39,17 @@ def test_boat_install_has_the_onboard_services_and_nothing_else(tmp_path) -> Non
     for absent in ("seaway_lab", "seaway_sim", "pytest"):
         r = subprocess.run([str(py), "-c", f"import {absent}"], capture_output=True, text=True)
         assert r.returncode != 0 and "No module named" in r.stderr, f"{absent} is installed on the boat"
-    bench = subprocess.run([str(venv / "bin" / "seaway"), "bench", "--help"], capture_output=True, text=True)
+    seaway = str(venv / "bin" / "seaway")
+    bench = subprocess.run([seaway, "bench", "--help"], capture_output=True, text=True)
     assert "installed: none" in bench.stdout
+    # Authenticated as shipped: the boat's own installation makes the deployment's credentials and
+    # its router takes the boat's half with the shipped (mutual TLS) config.
+    creds = tmp_path / "creds"
+    made = subprocess.run([seaway, "credentials", "create", str(creds), "--deployment", "--boat-host",
+                           "192.168.8.2"], capture_output=True, text=True, timeout=120)
+    assert made.returncode == 0, made.stderr[-2000:]
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("SEAWAY_ROUTER_", "SEAWAY_ZENOH_"))}
+    check = subprocess.run([seaway, "router", "--role", "boat", "--check"], cwd=ROOT, capture_output=True,
+                           text=True, timeout=120, env={**env, "SEAWAY_CREDENTIALS": str(creds / "boat")})
+    assert check.returncode == 0, check.stderr[-2000:]
+    assert f"{creds / 'boat' / 'router.pem'}" in check.stdout and "access control on" in check.stdout

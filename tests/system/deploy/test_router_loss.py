@@ -1,7 +1,9 @@
 """The boat's control loop does not depend on the boat router: the peers mesh directly, so killing
 the router (SIGKILL) loses nothing between them, and a restarted router is rejoined by itself.
 
-Runs the shipped boat-client.json5 with only its router port moved (a copy in tmp), on loopback.
+Runs the shipped boat-client.json5 with only its router port moved (a copy in tmp), on loopback,
+every process an identity of the boat's credentials (``seaway credentials create --deployment``):
+mutual TLS between the peers and the boat's access rules, as on the water.
 """
 
 from __future__ import annotations
@@ -16,10 +18,10 @@ from pathlib import Path
 import pytest
 
 from tests.conftest import Procs, free_port, wait_for
+from tests.system.deploy import deployment
 from tests.system.deploy.standin import FORBIDDEN_SEQ0
 
 pytestmark = pytest.mark.system
-REPO = Path(__file__).resolve().parents[3]
 STANDIN = str(Path(__file__).with_name("standin.py"))
 THRUST = "seaway/vessel1/ctrl/thrust"
 
@@ -34,15 +36,16 @@ def records(p) -> list[dict]:
 
 def test_boat_loop_survives_its_router(procs: Procs, tmp_path: Path) -> None:
     port = free_port()
-    text = (REPO / "deploy" / "zenoh" / "boat-client.json5").read_text()
-    assert "tcp/127.0.0.1:7447" in text
-    client = tmp_path / "boat-client.json5"
-    client.write_text(text.replace("tcp/127.0.0.1:7447", f"tcp/127.0.0.1:{port}"))
-    env = {k: v for k, v in os.environ.items() if k != "SEAWAY_ZENOH_RENDEZVOUS"}
-    env |= {"SEAWAY_ZENOH_CONFIG": str(client), "PYTHONUNBUFFERED": "1"}
+    dep = deployment.create(tmp_path / "creds")
+    client = deployment.client_file("boat", tmp_path, port)
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("SEAWAY_ZENOH_RENDEZVOUS", "SEAWAY_ZENOH_CONFIG", "SEAWAY_IDENTITY")}
+    env |= {"SEAWAY_CREDENTIALS": str(dep / "boat"), "PYTHONUNBUFFERED": "1"}
+    router_env = dict(env)
+    env["SEAWAY_ZENOH_CONFIG"] = str(client)
     router = [sys.executable, "-m", "seaway.tools.router", "--role", "boat",
-              "--listen", f"tcp/127.0.0.1:{port}"]
-    r1 = procs.start(router, env=None, name="router1")
+              "--listen", f"tls/127.0.0.1:{port}"]
+    r1 = procs.start(router, env=router_env, name="router1")
     rec = procs.start([sys.executable, STANDIN, "boat-recorder"], env=env, name="recorder")
     wait_for(lambda: '"ready"' in Procs.log(rec), 20, what="recorder stand-in")
     ctl = procs.start([sys.executable, STANDIN, "boat-control", "--rate-hz", "50"], env=env, name="control")
@@ -52,7 +55,7 @@ def test_boat_loop_survives_its_router(procs: Procs, tmp_path: Path) -> None:
     r1.wait(5)
     t_kill = time.monotonic()
     time.sleep(3.0)
-    r2 = procs.start(router, env=None, name="router2")
+    r2 = procs.start(router, env=router_env, name="router2")
     wait_for(lambda: Procs.log(r2).count("peer ") >= 2 and "connected" in Procs.log(r2), 15,
              what="the peers back on the restarted router")
     time.sleep(1.0)

@@ -27,6 +27,10 @@ the last hop, so whatever crosses the link arrives from the router. The rules of
   open requests and the actuating ones; never publish a key, serve a request or declare a token.
   The shore router checks the shore's own processes by name first (only its operators may actuate),
   so the chain is: shore operator -> shore router -> boat router -> boat service.
+  Both routers are identity :data:`RELAY`, so the boat router's own rights (its health token, its
+  refusal counts) and every other boat identity hold only over :data:`LOOPBACK`: over the link, a
+  certificate of the authority is the shore's router or nothing (the shore could otherwise forge
+  the boat router's health and refusals, or speak on the boat router as a boat service).
 * on the shore, the router may publish and serve what the boat says; towards the router, the shore
   sends only what the boat accepts (the same :func:`_shore_rights`, as ``egress``), so nothing the
   boat would refuse crosses the link.
@@ -54,6 +58,8 @@ RELAY = "router"
 """The identity of a side's Zenoh router (``seaway router``), the only process that crosses the link."""
 SHORE_IDENTITIES: tuple[str, ...] = ("launcher", "recorder", RELAY, "operator", "groundstation")
 """The identities a shore computer runs (profile ``shore``, the operator commands, the ground station)."""
+LOOPBACK = "lo"
+"""The interface a boat's own processes link over (``boat-client.json5``): Linux's loopback."""
 HARNESS = "harness"
 """The test harness: may do everything. Issued only when asked for (tests, benchmarks); the
 launcher never issues it."""
@@ -175,6 +181,15 @@ def acl(overrides: Mapping[str, str] | None = None, *, harness: bool = False,
         rules.append(_rule(mine[0], ["put", "delete"], topics))
         policies.append({"id": ident, "rules": mine, "subjects": [ident]})
     subjects = [{"id": i, "cert_common_names": [i]} for i in identities]
+    if side == "boat":
+        # Zenoh matches a subject by certificate name AND interface: only the router arrives over
+        # the link, and there it is the shore (its own rights are the onboard router's, on loopback).
+        onboard = f"{RELAY}-onboard"
+        subjects = [s if s["id"] == RELAY else {**s, "interfaces": [LOOPBACK]} for s in subjects]
+        subjects.append({"id": onboard, "cert_common_names": [RELAY], "interfaces": [LOOPBACK]})
+        for policy in policies:
+            if policy["id"] == RELAY:
+                policy["subjects"] = [onboard]
     # A policy names subjects by id: the stack-wide policies list every identity's subject.
     return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects,
             "policies": policies}

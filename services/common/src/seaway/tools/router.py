@@ -19,7 +19,7 @@ access rules, generated from the key registry (``seaway.contract.access``). Its 
 counted and answered on ``refusals/router`` like every service's (``seaway health``).
 
 The router logs every session and link that comes and goes (``router <zid> connected``,
-``link up: tls/... <-> tls/... (..., authenticated as seaway-shore)``),
+``link up: tls/... <-> tls/... (..., authenticated as router)``),
 optionally declares a health token (``--health router``, so ``seaway launch`` can wait for it),
 and exits 0 within a second or two on SIGINT/SIGTERM. Exit 1: the router could not start (a port
 in use, an unreadable certificate); 2: a bad config or argument, or a TLS file missing.
@@ -315,7 +315,10 @@ def main(argv: list[str] | None = None) -> int:
             token = session.liveliness().declare_token(keys.health_key(args.vessel, args.health))
         log.info("router %s up in %.2f s%s", session.info.zid(), time.monotonic() - t0,
                  f", health token {keys.health_key(args.vessel, args.health)}" if args.health else "")
-        stop.wait()
+        # Not one blocking wait: a signal may land on any of Zenoh's threads, and Python runs its
+        # handler only when the main thread does (a SIGINT then went unanswered, 1 stop in ~30).
+        while not stop.wait(0.25):
+            pass
     finally:
         t_stop = time.monotonic()
         links.undeclare()
