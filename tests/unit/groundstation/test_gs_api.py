@@ -207,10 +207,10 @@ def test_mission_send_start_pause_resume_abort(client: TestClient, vessel: Vesse
 
 
 @pytest.mark.parametrize("body, field_name", [
-    ({"waypoints": SQUARE_M[:1], "coa_radius_m": 2, "task_power_w": 0}, "waypoints"),
+    ({"waypoints": SQUARE_M[:1], "coa_radius_m": 2, "task_power_w": 0.49}, "waypoints"),
     ({"waypoints": [{"x_m": 0, "y_m": 0, "lat_deg": 1, "lon_deg": 2}, {"x_m": 1, "y_m": 1}],
-      "coa_radius_m": 2, "task_power_w": 0}, "waypoints"),
-    ({"waypoints": [{"x_m": 0}, {"x_m": 1, "y_m": 1}], "coa_radius_m": 2, "task_power_w": 0}, "waypoints"),
+      "coa_radius_m": 2, "task_power_w": 0.49}, "waypoints"),
+    ({"waypoints": [{"x_m": 0}, {"x_m": 1, "y_m": 1}], "coa_radius_m": 2, "task_power_w": 0.49}, "waypoints"),
     (mission(coa_radius_m=0), "coa_radius_m"),
     (mission(task_power_w=-1), "task_power_w"),
     (mission(controller="pid"), "controller"),
@@ -246,17 +246,17 @@ def test_import_real_plan_upload_refused_then_skipped(client: TestClient, vessel
 def test_import_geojson_as_json_body_and_refusals(client: TestClient, vessel: Vessel) -> None:
     doc = json.loads((DATA / "rfc7946-example.geojson").read_text())
     r = client.post("/api/vessels/v1/mission/import", headers=AUTH,
-                    json={"document": doc, "coa_radius_m": 2.0, "task_power_w": 0.0,
+                    json={"document": doc, "coa_radius_m": 2.0, "task_power_w": 0.49,
                           "skip_unsupported": True})
     assert r.status_code == 200 and r.json()["mission"]["waypoints"][0] == {
         "x_m": None, "y_m": None, "lat_deg": 0.0, "lon_deg": 102.0}
     # not a mission file, missing parameters, unknown parameters, not JSON, wrong content type
     bad = client.post("/api/vessels/v1/mission/import", headers=AUTH,
                       json={"document": {"type": "Point", "coordinates": [1, 2]}, "coa_radius_m": 1,
-                            "task_power_w": 0})
+                            "task_power_w": 0.49})
     assert bad.status_code == 422 and "\"Point\" is not supported" in bad.json()["detail"]
     no_radius = client.post("/api/vessels/v1/mission/import", headers=AUTH,
-                            json={"document": doc, "task_power_w": 0, "skip_unsupported": True})
+                            json={"document": doc, "task_power_w": 0.49, "skip_unsupported": True})
     assert no_radius.status_code == 422 and "coa_radius_m is required" in no_radius.json()["detail"]
     extra = client.post("/api/vessels/v1/mission/import", headers=AUTH,
                         files={"file": ("a.geojson", b"{}")}, data={"colour": "red"})
@@ -349,7 +349,7 @@ def test_stream_refuses_a_bad_vessel_name(client: TestClient) -> None:
 
 def test_openapi_documents_every_endpoint_with_tags_and_refusals(client: TestClient) -> None:
     schema = client.get("/openapi.json").json()
-    assert {t["name"] for t in schema["tags"]} == {"fleet", "mission", "vehicle", "sim"}
+    assert {t["name"] for t in schema["tags"]} == {"fleet", "mission", "vehicle", "sim", "replay", "page"}
     commands = [(p, op) for p, ops in schema["paths"].items() for m, op in ops.items()
                 if m == "post" and p.startswith("/api/vessels/")]
     assert len(commands) == 10

@@ -7,9 +7,10 @@ import asyncio
 import json
 from typing import Any
 
-from seaway.contract.messages import StateEstimate
+import pytest
+from seaway.contract.messages import SolveRecord, StateEstimate
 from seaway_groundstation.fleet import Fleet
-from seaway_groundstation.stream import StreamHub
+from seaway_groundstation.stream import StreamClient, StreamHub
 
 
 class FakeSocket:
@@ -93,3 +94,51 @@ def test_notifications_from_other_threads_are_coalesced_and_survive_a_closed_loo
     loop.close()
     hub.bind(loop)
     hub.notify("v3")  # the loop closed under it: no exception reaches the bus thread
+
+
+def solve(stamp_ns: int) -> SolveRecord:
+    return SolveRecord(stamp_ns=stamp_ns, controller="cc-empc", status="ok", success=True, iterations=3,
+                       solve_time_s=0.01)
+
+
+def kinds(frames: list[str]) -> list[list[str]]:
+    return [sorted(json.loads(f)["updates"]) for f in frames]
+
+
+def test_the_rate_bound_is_per_kind_so_a_state_never_waits_behind_a_solve() -> None:
+    """Times are passed in: 20 Hz (0.05 s) per vessel and kind, bursts of two."""
+    fleet, client, period = Fleet(), StreamClient(None), 0.05
+    fleet.on_message("v1", "state", state(1.0), 0.0)
+    frames, release = client.take(fleet, 0.000, period, 0.0)
+    assert kinds(frames) == [["state"]] and release is None  # nothing held back
+    # The solve of the same period, 10 ms later: out at once (a whole-stream bound would hold it).
+    fleet.on_message("v1", "solve", solve(1), 0.01)
+    frames, _ = client.take(fleet, 0.010, period, 0.01)
+    assert kinds(frames) == [["solve"]]
+    # A state 20 ms after the last one still has a token (a late one must not delay the next)...
+    fleet.on_message("v1", "state", state(2.0), 0.02)
+    frames, _ = client.take(fleet, 0.020, period, 0.02)
+    assert kinds(frames) == [["state"]]
+    # ...but faster than that they are held back, and the one that goes is the latest.
+    fleet.on_message("v1", "state", state(3.0), 0.025)
+    fleet.on_message("v1", "state", state(4.0), 0.03)
+    frames, release = client.take(fleet, 0.030, period, 0.03)
+    assert frames == [] and release == pytest.approx(0.02)
+    frames, _ = client.take(fleet, 0.050, period, 0.05)
+    (frame,) = [json.loads(f) for f in frames]
+    assert list(frame["updates"]) == ["state"] and frame["updates"]["state"]["message"]["x_m"] == 4.0
+    # Nothing new: nothing sent, nothing held.
+    assert client.take(fleet, 1.0, period, 1.0) == ([], None)
+
+
+def test_a_flood_of_one_kind_reaches_a_client_at_the_stream_rate() -> None:
+    fleet, client, period = Fleet(), StreamClient(None), 0.05
+    sent, t, due = 0, 0.0, None
+    for k in range(10_000):  # a state every millisecond for 10 s
+        t = k * 0.001
+        fleet.on_message("v1", "state", state(float(k)), t)
+        if due is None or t >= due:
+            frames, release = client.take(fleet, t, period, t)
+            sent += len(frames)
+            due = None if release is None else t + release
+    assert 200 <= sent <= 203  # 20 per second, plus the first burst

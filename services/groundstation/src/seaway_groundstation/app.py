@@ -21,19 +21,23 @@ backlog; ``stream.py`` says how a slow client is kept from slowing the others).
 
 import asyncio
 import contextlib
+import importlib.resources
 import json
 import math
 import secrets
 import time
 from collections.abc import AsyncIterator, Callable
+from pathlib import Path
 from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Depends, FastAPI, HTTPException, Query, Request
 from fastapi import Path as PathParam
 from fastapi.exceptions import RequestValidationError
-from fastapi.responses import HTMLResponse, JSONResponse, Response
+from fastapi.middleware.gzip import GZipMiddleware
+from fastapi.responses import FileResponse, JSONResponse, Response
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
-from pydantic import BaseModel, ValidationError
+from fastapi.staticfiles import StaticFiles
+from pydantic import BaseModel, Field, ValidationError
 from seaway.contract import keys
 from seaway.contract.config import ConfigError, deploy_path, read_document
 from seaway.contract.messages import (
@@ -49,10 +53,21 @@ from starlette.concurrency import run_in_threadpool
 from starlette.datastructures import UploadFile
 from starlette.websockets import WebSocket
 
-from seaway_groundstation import bodies, plans
+from seaway_groundstation import bodies, geo, plans, replay
 from seaway_groundstation.fleet import Fleet
 from seaway_groundstation.gateway import BusLink, ask
+from seaway_groundstation.journal import RequestJournal
 from seaway_groundstation.limits import BodyLimit, RateLimiter
+from seaway_groundstation.progress import MetricsView
+from seaway_groundstation.recordings import (
+    Library,
+    RecordingDetail,
+    RecordingEntry,
+    RecordingError,
+    RecordingList,
+    RunsFolder,
+    UploadStore,
+)
 from seaway_groundstation.settings import Settings
 from seaway_groundstation.stream import StreamHub
 from seaway_groundstation.views import (
@@ -61,23 +76,37 @@ from seaway_groundstation.views import (
     FleetView,
     MissionReply,
     ParsedMission,
+    UnprocessableBody,
     VesselView,
 )
 
 API_VERSION = "1"
 STATUS_OF_OUTCOME = {"accepted": 200, "refused": 409, "no_reply": 504, "error_reply": 502}
-VesselName = Annotated[str, PathParam(pattern=r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$",
+VesselName = Annotated[str, PathParam(pattern=r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$", examples=["vessel1"],
                                       description="vessel name (the key namespace seaway/<vessel>/...)")]
 TAGS = [
     {"name": "fleet", "description": "The vessels seen (health tokens) and their latest messages."},
     {"name": "mission", "description": "Send, import, export, start, pause, resume and abort missions."},
     {"name": "vehicle", "description": "Arm, disarm and change the autopilot's mode."},
     {"name": "sim", "description": "Load or restart the simulated scenario (simulated vessels only)."},
+    {"name": "replay", "description": "Recordings under the runs folder (or uploaded) as the live "
+                                      "stream's frames, for the page's replay view."},
+    {"name": "page", "description": "What the page needs to know about this ground station."},
 ]
+STATIC = importlib.resources.files("seaway_groundstation") / "static"
+"""The page: plain HTML, CSS and ES modules shipped in the package (no build step, no CDN)."""
+UPLOAD_PATH = "/api/recordings/upload"
+RecordingId = Annotated[str, Query(
+    min_length=1, max_length=600, examples=["20260101-120000-sim-lake-cc-empc"],
+    description="a recording's id from GET /api/recordings: its path under the runs folder, or upload:...")]
 
 
 def _errors(description: str) -> dict[str, Any]:
     return {"model": ErrorBody, "description": description}
+
+
+def _unprocessable(description: str) -> dict[str, Any]:
+    return {"model": UnprocessableBody, "description": description}
 
 
 def _command_responses(reply_model: type[BaseModel]) -> dict[int | str, dict[str, Any]]:
@@ -98,11 +127,43 @@ class GroundStation:
 
     def __init__(self, bus: Bus, settings: Settings) -> None:
         self.bus, self.settings = bus, settings
-        self.fleet = Fleet(settings.stale_after_s)
+        self.fleet = Fleet(settings.stale_after_s, settings.default_origin)
         self.hub = StreamHub(self.fleet, settings.stream_rate_hz, settings.max_stream_clients,
                              settings.clock)
         self.link = BusLink(bus, self.fleet, settings.clock, self.hub.notify)
         self.limiter = RateLimiter(settings.rate_limit_per_s, settings.rate_limit_burst)
+        self.journal = RequestJournal(settings.run_dir)
+        self.library = Library(RunsFolder(settings.runs_dir),
+                               UploadStore(settings.upload_dir, settings.max_uploads,
+                                           settings.max_upload_bytes),
+                               settings.replay_rate_hz, settings.stale_after_s)
+        self._launcher_mission: tuple[int, MissionRequest | None] | None = None
+
+    def learn_mission(self, vessel: str) -> None:
+        """If the vessel flies a mission this ground station did not send, look for it in the run
+        folder's ``mission.json`` (the launcher's), so the map can draw it."""
+        mission_id = self.fleet.active_mission_id(vessel)
+        if mission_id is None or self.fleet.mission(vessel, mission_id) is not None:
+            return
+        req = self._read_launcher_mission()
+        if req is not None and req.mission_id == mission_id:
+            self.fleet.record_mission(vessel, req, source="launcher")
+
+    def _read_launcher_mission(self) -> MissionRequest | None:
+        run_dir = self.settings.run_dir
+        path = None if run_dir is None else Path(run_dir) / "mission.json"
+        try:
+            mtime = path.stat().st_mtime_ns if path is not None else None
+        except OSError:
+            mtime = None
+        if path is None or mtime is None:
+            return None
+        if self._launcher_mission is None or self._launcher_mission[0] != mtime:
+            try:
+                self._launcher_mission = (mtime, MissionRequest.decode(path.read_bytes()))
+            except (OSError, ValueError):
+                self._launcher_mission = (mtime, None)
+        return self._launcher_mission[1]
 
     def known(self, vessel: str) -> None:
         if not self.fleet.knows(vessel):
@@ -112,7 +173,10 @@ class GroundStation:
 
     async def send(self, spec: keys.KeySpec, msg: Message, vessel: str) -> CommandReply:
         self.known(vessel)
-        return await run_in_threadpool(ask, self.bus, spec, msg, vessel, self.settings.request_timeout_s)
+        reply = await run_in_threadpool(ask, self.bus, spec, msg, vessel, self.settings.request_timeout_s)
+        await run_in_threadpool(self.journal.record, vessel, spec.suffix, reply.outcome, reply.reason,
+                                msg.model_dump(mode="json"))
+        return reply
 
     async def send_mission(self, vessel: str, req: MissionRequest,
                            skipped: tuple[str, ...] = ()) -> JSONResponse:
@@ -191,15 +255,25 @@ def create_app(bus_like: Bus, settings: Settings | None = None,
         finally:
             gs.link.close()
             gs.hub.bind(None)
+            gs.library.uploads.close()
 
     app = FastAPI(title="Seaway ground station", version=API_VERSION, lifespan=lifespan,
-                  description=__doc__, openapi_tags=TAGS, docs_url=None, redoc_url=None)
+                  description=__doc__, openapi_tags=TAGS, docs_url=None, redoc_url=None,
+                  responses={400: _errors("a malformed request: a body that does not parse as JSON "
+                                          "(or UTF-8), a Content-Length that is not a number"),
+                             422: {"model": UnprocessableBody, "description": "an invalid request: "
+                                   "the fields at fault, or what in the content is wrong"}})
     app.state.groundstation = gs
-    app.add_middleware(BodyLimit, max_bytes=settings.max_body_bytes)
+    # Outermost first on the way in: the body bound before anything reads a body; replay frames
+    # (megabytes of JSON for a long run) go out compressed.
+    app.add_middleware(GZipMiddleware, minimum_size=4096)
+    app.add_middleware(BodyLimit, max_bytes=settings.max_body_bytes,
+                       streamed={UPLOAD_PATH: settings.max_upload_bytes})
     command = [Depends(_rate_dependency(gs)), Depends(_operator_dependency(gs))]
     app.include_router(_read_router(gs), prefix="/api")
     app.include_router(_mission_router(gs, command), prefix="/api")
     app.include_router(_vehicle_router(gs, command), prefix="/api")
+    app.include_router(_replay_router(gs, command), prefix="/api")
 
     @app.websocket("/api/stream")
     async def stream(websocket: WebSocket, vessel: Annotated[list[str] | None, Query()] = None) -> None:
@@ -212,31 +286,80 @@ def create_app(bus_like: Bus, settings: Settings | None = None,
                 return
         await gs.hub.serve(websocket, wanted)
 
+    with importlib.resources.as_file(STATIC) as static_dir:
+        index_html = Path(static_dir) / "index.html"
+        app.mount("/static", StaticFiles(directory=static_dir), name="static")
+
     @app.get("/", include_in_schema=False)
-    async def index() -> HTMLResponse:
-        return HTMLResponse("<!doctype html><title>Seaway ground station</title>"
-                            "<h1>Seaway ground station</h1><p>API: <a href='/api/vessels'>/api/vessels"
-                            "</a>, schema: <a href='/openapi.json'>/openapi.json</a>, live stream: "
-                            "WebSocket /api/stream.</p>")
+    async def index() -> FileResponse:
+        # no-cache: a ground station updated in place serves its new page at the next load
+        return FileResponse(index_html, headers={"Cache-Control": "no-cache"})
+
+    if settings.tiles is not None and not settings.tiles.startswith(("http://", "https://")):
+        tiles_dir = Path(settings.tiles).resolve()
+
+        @app.get("/tiles/{z}/{x}/{y}.png", include_in_schema=False)
+        async def tile(z: Annotated[int, PathParam(ge=0, le=24)], x: Annotated[int, PathParam(ge=0)],
+                       y: Annotated[int, PathParam(ge=0)]) -> FileResponse:
+            path = tiles_dir / str(z) / str(x) / f"{y}.png"
+            if x >= 2 ** z or y >= 2 ** z or not path.is_file():
+                raise HTTPException(404, f"no tile {z}/{x}/{y} in the tiles folder")
+            return FileResponse(path, media_type="image/png")
 
     return app
+
+
+class PageConfig(BaseModel):
+    """What the page needs to know about this ground station."""
+
+    api_version: str
+    stale_after_s: float = Field(description="age beyond which a figure is shown as stale [s]")
+    stream_rate_hz: float
+    tiles_url: str | None = Field(description="map tile URL template with {z}/{x}/{y}; None: no tiles")
+    controllers: list[str]
+    max_upload_bytes: int
+    runs_dir: str
 
 
 def _read_router(gs: GroundStation) -> APIRouter:
     r = APIRouter(tags=["fleet"])
 
+    @r.get("/config", response_model=PageConfig, tags=["page"], summary="The page's settings")
+    async def config() -> PageConfig:
+        from seaway.contract.messages import CONTROLLER_NAMES
+
+        s = gs.settings
+        return PageConfig(api_version=API_VERSION, stale_after_s=s.stale_after_s,
+                          stream_rate_hz=s.stream_rate_hz, tiles_url=s.tiles_url,
+                          controllers=list(CONTROLLER_NAMES), max_upload_bytes=s.max_upload_bytes,
+                          runs_dir=str(s.runs_dir))
+
     @r.get("/vessels", response_model=FleetView, summary="Every vessel seen, with its latest messages")
     async def vessels() -> FleetView:
+        for name in gs.fleet.vessels():
+            gs.learn_mission(name)
         return gs.fleet.views(gs.settings.clock())
 
     @r.get("/vessels/{vessel}", response_model=VesselView, summary="One vessel",
            responses={404: _errors("vessel never seen")})
     async def one_vessel(vessel: VesselName) -> VesselView:
+        gs.known(vessel)
+        gs.learn_mission(vessel)
         view = gs.fleet.view(vessel, gs.settings.clock())
-        if view is None:
-            gs.known(vessel)
-        assert view is not None
+        assert view is not None  # known vessels have a view
         return view
+
+    @r.get("/vessels/{vessel}/metrics", response_model=MetricsView | None,
+           summary="The paper's metrics of the current mission so far",
+           responses={404: _errors("vessel never seen")})
+    async def metrics(vessel: VesselName) -> MetricsView | None:
+        """Travel time, energy and average cross-track error as ``seaway report`` defines them,
+        from the states and thrust commands heard since the mission became active. ``null`` when
+        the vessel flies no mission whose waypoints this ground station knows."""
+        gs.known(vessel)
+        gs.learn_mission(vessel)
+        return await run_in_threadpool(gs.fleet.metrics, vessel, gs.settings.alpha_w_per_n2,
+                                       gs.settings.control_period_s)
 
     return r
 
@@ -262,7 +385,11 @@ def _mission_router(gs: GroundStation, command: list[Any]) -> APIRouter:
     async def send_mission(vessel: VesselName, body: bodies.MissionBody) -> JSONResponse:
         """Waypoints in local metres or latitude/longitude; the controller validates the mission
         again and starts it from P_0 (``mission/set``)."""
-        return await gs.send_mission(vessel, bodies.mission_from_body(body, time.time_ns()))
+        try:
+            req = bodies.mission_from_body(body, time.time_ns())
+        except bodies.MissionBuildError as err:
+            raise HTTPException(422, str(err)) from None
+        return await gs.send_mission(vessel, req)
 
     @r.post("/vessels/{vessel}/mission/import", response_model=MissionReply, dependencies=command,
             responses={**_command_responses(MissionReply), 415: _errors("neither multipart nor JSON")},
@@ -282,16 +409,49 @@ def _mission_router(gs: GroundStation, command: list[Any]) -> APIRouter:
         return await gs.send_mission(vessel, req, path.skipped)
 
     @r.post("/missions/parse", response_model=ParsedMission,
-            responses={413: _errors("request body over the bound"), 422: _errors("not a mission file")},
+            responses={404: _errors("the vessel named is not known"),
+                       413: _errors("request body over the bound"),
+                       422: _unprocessable("not a mission file")},
             summary="Read a .plan or GeoJSON document into waypoints, sending nothing")
-    async def parse_mission(body: bodies.ParseBody) -> ParsedMission:
+    async def parse_mission(body: bodies.ParseBody,
+                            vessel: Annotated[str | None, Query(
+                                pattern=r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$",
+                                description="also give the waypoints in this vessel's local metres")] = None
+                            ) -> ParsedMission:
+        if vessel is not None:
+            gs.known(vessel)
         try:
             path = plans.parse_document(body.document, skip_unsupported=body.skip_unsupported,
                                         max_waypoints=gs.settings.max_waypoints)
         except plans.PlanError as err:
             raise HTTPException(422, str(err)) from None
+        metres = None if vessel is None else geo.points_m(path.points_deg, gs.fleet.geo_origin(vessel))
         return ParsedMission(source=path.source, skipped=list(path.skipped), hints=path.hints,
-                             waypoints=[{"lat_deg": a, "lon_deg": b} for a, b in path.points_deg])
+                             waypoints=[{"lat_deg": a, "lon_deg": b} for a, b in path.points_deg],
+                             waypoints_m=None if metres is None else [{"x_m": x, "y_m": y}
+                                                                      for x, y in metres])
+
+    @r.post("/missions/export", summary="Write a mission (not sent) as a .plan or GeoJSON file",
+            responses={200: {"content": {"application/json": {}, "application/geo+json": {}},
+                             "description": "a QGroundControl .plan or a GeoJSON Feature"},
+                       404: _errors("vessel never seen"),
+                       409: _errors("waypoints in metres and no NED origin known"),
+                       413: _errors("request body over the bound")})
+    async def export_draft(body: bodies.MissionBody,
+                           vessel: Annotated[str | None, Query(
+                               pattern=r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$",
+                               description="whose NED origin converts waypoints in metres")] = None,
+                           format: Annotated[Literal["plan", "geojson"], Query()] = "plan") -> Response:
+        """The page's mission being edited, as a file, sending nothing. Metres go through the
+        vessel's origin (else the run's)."""
+        if vessel is not None:
+            gs.known(vessel)
+        origin = gs.fleet.geo_origin(vessel) if vessel is not None else gs.settings.default_origin
+        try:
+            req = bodies.mission_from_body(body, time.time_ns())
+        except bodies.MissionBuildError as err:
+            raise HTTPException(422, str(err)) from None
+        return _mission_file(req, origin, vessel or "mission", format)
 
     @r.get("/vessels/{vessel}/mission/export", summary="The last mission sent, as a file",
            responses={200: {"content": {"application/json": {}, "application/geo+json": {}},
@@ -304,20 +464,7 @@ def _mission_router(gs: GroundStation, command: list[Any]) -> APIRouter:
         req = gs.fleet.last_mission(vessel)
         if req is None:
             raise HTTPException(404, f"no mission has been sent to {vessel} from this ground station")
-        origin = bodies.geo_origin(gs.fleet.origin(vessel)) or gs.settings.default_origin
-        try:
-            points = bodies.mission_points_deg(req.waypoints, origin)
-        except bodies.ExportError as err:
-            raise HTTPException(409, str(err)) from None
-        if format == "plan":
-            doc, media, ext = plans.to_plan(points, coa_radius_m=req.coa_radius_m,
-                                            cruise_speed_mps=req.speed_hint_mps), "application/json", "plan"
-        else:
-            doc, media, ext = plans.to_geojson(points, bodies.mission_properties(req)), \
-                "application/geo+json", "geojson"
-        name = f"{vessel}-{req.mission_id or 'mission'}".replace('"', "")
-        return Response(json.dumps(doc, indent=2), media_type=media,
-                        headers={"Content-Disposition": f'attachment; filename="{name}.{ext}"'})
+        return _mission_file(req, gs.fleet.geo_origin(vessel), vessel, format)
 
     @r.post("/vessels/{vessel}/mission/start", response_model=MissionReply, dependencies=command,
             responses=_command_responses(MissionReply),
@@ -341,6 +488,24 @@ def _mission_router(gs: GroundStation, command: list[Any]) -> APIRouter:
     for name in ("pause", "resume", "abort"):
         mission_command(name)  # type: ignore[arg-type]
     return r
+
+
+def _mission_file(req: MissionRequest, origin: Any, vessel: str,
+                  format: Literal["plan", "geojson"]) -> Response:
+    """``req`` as a .plan or GeoJSON download (metres through ``origin``); 409 without one."""
+    try:
+        points = bodies.mission_points_deg(req.waypoints, origin)
+    except bodies.ExportError as err:
+        raise HTTPException(409, str(err)) from None
+    if format == "plan":
+        doc, media, ext = plans.to_plan(points, coa_radius_m=req.coa_radius_m,
+                                        cruise_speed_mps=req.speed_hint_mps), "application/json", "plan"
+    else:
+        doc, media, ext = plans.to_geojson(points, bodies.mission_properties(req)), \
+            "application/geo+json", "geojson"
+    name = f"{vessel}-{req.mission_id or 'mission'}".replace('"', "")
+    return Response(json.dumps(doc, indent=2), media_type=media,
+                    headers={"Content-Disposition": f'attachment; filename="{name}.{ext}"'})
 
 
 async def _read_import(request: Request, max_bytes: int) -> tuple[bodies.ImportParams, Any]:
@@ -369,7 +534,7 @@ async def _read_import(request: Request, max_bytes: int) -> tuple[bodies.ImportP
         except plans.PlanError as err:
             raise HTTPException(422, str(err)) from None
         try:
-            body = bodies.ImportBody.model_validate(raw)
+            body = bodies.ImportBody.model_validate(raw, strict=True)
         except ValidationError as err:
             raise _validation_error(err) from None
         return body, body.document
@@ -411,8 +576,85 @@ def _vehicle_router(gs: GroundStation, command: list[Any]) -> APIRouter:
                 reason=f"vessel {vessel} is not simulated (no sim service is alive on it): "
                        "scenarios apply to simulated vessels only"))
         doc = gs.scenario_document(body.name) if body.name is not None else body.scenario
-        msg = ScenarioRequest.make(stamp_ns=time.time_ns(), scenario=doc)
+        msg = ScenarioRequest.make(stamp_ns=time.time_ns(), action="restart" if doc is None else "load",
+                                   scenario=doc)
         return _reply(await gs.send(keys.SIM_SCENARIO, msg, vessel))
+
+    return r
+
+
+def _recording_error(err: RecordingError) -> HTTPException:
+    return HTTPException(err.status, err.detail)
+
+
+def _replay_router(gs: GroundStation, command: list[Any]) -> APIRouter:
+    r = APIRouter(tags=["replay"])
+
+    @r.get("/recordings", response_model=RecordingList, summary="The recordings the replay view can open")
+    async def recordings() -> RecordingList:
+        """Uploads first, then the runs folder's recordings, newest first."""
+        return await run_in_threadpool(gs.library.listing)
+
+    @r.post(UPLOAD_PATH.removeprefix("/api"), response_model=RecordingEntry, dependencies=command,
+            summary="Upload an .mcap recording to replay",
+            responses={401: _errors("no operator token"), 403: _errors("wrong operator token"),
+                       413: _errors("larger than the upload bound"), 415: _errors("not a raw body"),
+                       422: _unprocessable("not an MCAP recording that reads"),
+                       429: _errors("too many command requests from this client")},
+            openapi_extra={"requestBody": {"required": True, "content": {
+                "application/octet-stream": {"schema": {"type": "string", "format": "binary"}}}}})
+    async def upload(request: Request, name: Annotated[str, Query(
+            min_length=1, max_length=200, description="the file's name, ending .mcap")] = "recording.mcap"
+                     ) -> RecordingEntry:
+        """The file as the raw request body (``application/octet-stream``), streamed to the ground
+        station's upload folder; it needs the operator token because it writes to this machine's
+        disk. Kept while the ground station runs (the last few)."""
+        ctype = request.headers.get("content-type", "").split(";")[0].strip().lower()
+        if ctype != "application/octet-stream":
+            raise HTTPException(415, "send the recording as the raw body with Content-Type: "
+                                     f"application/octet-stream, not {ctype or 'nothing'}")
+        try:
+            ref, path = await gs.library.uploads.save(name, request.stream())
+            detail = await run_in_threadpool(gs.library.open, ref)
+        except RecordingError as err:
+            if err.status == 422 and "path" in locals():
+                from seaway_groundstation.recordings import remove_upload
+
+                remove_upload(path)
+            raise _recording_error(err) from None
+        return RecordingEntry(**detail.detail.model_dump(include=set(RecordingEntry.model_fields)))
+
+    @r.get("/recording", response_model=RecordingDetail, summary="Open a recording",
+           responses={404: _errors("no such recording"),
+                      422: _unprocessable("a name outside the runs folder, or a file that does not read")})
+    async def recording(id: RecordingId) -> RecordingDetail:
+        """Its span, vessels and number of frames, the missions flown (in metres), each vessel's
+        origin and the run's report; the frames themselves come from ``/api/recording/frames``."""
+        try:
+            return (await run_in_threadpool(gs.library.open, id)).detail
+        except RecordingError as err:
+            raise _recording_error(err) from None
+
+    @r.get("/recording/frames", summary="A recording's frames over a span of its time",
+           responses={200: {"description": "{id, start_s, end_s, duration_s, count, frames: "
+                                           "[{t_s, frame}]}, each frame as the live stream sends it"},
+                      404: _errors("no such recording"), 422: _unprocessable("a bad name or span")})
+    async def frames(id: RecordingId,
+                     start_s: Annotated[float, Query(ge=0, le=1e7, description="from [s]")] = 0.0,
+                     end_s: Annotated[float, Query(gt=0, le=1e7, description="until [s], excluded")] = 60.0
+                     ) -> Response:
+        """The frames with ``start_s <= t_s < end_s`` (seconds since the recording's start), each
+        exactly what the live stream would have sent then: the page feeds both to the same code."""
+        if end_s <= start_s:
+            raise HTTPException(422, f"end_s ({end_s}) must be after start_s ({start_s})")
+        try:
+            loaded = await run_in_threadpool(gs.library.open, id)
+        except RecordingError as err:
+            raise _recording_error(err) from None
+        text, count = replay.window(loaded.frames, start_s, end_s, loaded.times)
+        head = json.dumps({"id": id, "start_s": start_s, "end_s": end_s,
+                           "duration_s": loaded.detail.duration_s, "count": count})
+        return Response(head[:-1] + ',"frames":' + text + "}", media_type="application/json")
 
     return r
 

@@ -15,10 +15,10 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from seaway.contract import keys
 from seaway.contract.messages import (
     DEFAULT_CONTROLLER,
+    MAX_TASK_POWER_W,
     ControllerName,
     MessageError,
     MissionRequest,
-    NavOrigin,
     Waypoint,
 )
 from seaway.vessel.frames import GeoOrigin
@@ -27,16 +27,47 @@ from seaway_groundstation.plans import MAX_WAYPOINTS, ImportedPath
 
 
 class _Body(BaseModel):
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+    # Strict: JSON types as the schema states them (no "1" for 1, no false for 0), so what the
+    # schema calls invalid is refused (the fuzz checks both ways).
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, strict=True)
+
+
+def _refuse_nulls(data: Any) -> Any:
+    """An explicit null where a value or nothing is meant is refused (the schema has no nulls)."""
+    if isinstance(data, dict):
+        nulls = [k for k, v in data.items() if v is None]
+        if nulls:
+            raise ValueError(f"{', '.join(nulls)}: null; give a value or leave it out")
+    return data
+
+
+def _one_position_pair(schema: dict[str, Any]) -> None:
+    """The JSON Schema says what the validator checks: exactly one complete pair, no nulls."""
+    props = schema["properties"]
+    for name in ("x_m", "y_m", "lat_deg", "lon_deg"):
+        number = next(s for s in props[name].pop("anyOf") if s.get("type") == "number")
+        props[name].update(number)
+        props[name].pop("default", None)
+    schema["oneOf"] = [
+        {"required": ["x_m", "y_m"], "properties": {"lat_deg": False, "lon_deg": False}},
+        {"required": ["lat_deg", "lon_deg"], "properties": {"x_m": False, "y_m": False}},
+    ]
 
 
 class WaypointIn(_Body):
     """One waypoint: ``x_m``/``y_m`` (local NED [m]) or ``lat_deg``/``lon_deg`` (WGS84 [deg])."""
 
+    model_config = ConfigDict(json_schema_extra=_one_position_pair)
+
     x_m: float | None = Field(default=None, description="north of the origin [m]")
     y_m: float | None = Field(default=None, description="east of the origin [m]")
     lat_deg: float | None = Field(default=None, ge=-90, le=90, description="WGS84 latitude [deg]")
     lon_deg: float | None = Field(default=None, ge=-180, le=180, description="WGS84 longitude [deg]")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _no_nulls(cls, data: Any) -> Any:
+        return _refuse_nulls(data)
 
     @model_validator(mode="after")
     def _one_pair(self) -> WaypointIn:
@@ -61,7 +92,7 @@ class MissionParams(_Body):
 
     mission_id: str = Field(default="", max_length=64)
     coa_radius_m: float = Field(gt=0, le=10_000, description="circle-of-acceptance radius r_COA [m]")
-    task_power_w: float = Field(ge=0, le=1e6, description="T^w, power of the task carried [W]")
+    task_power_w: float = Field(gt=0, le=MAX_TASK_POWER_W, description="T^w, power of the task carried [W]")
     controller: ControllerName = Field(default=DEFAULT_CONTROLLER,
                                        description="CC-EMPC (the paper's) or a baseline")
     predict_disturbance: bool = Field(default=False, description="predict with the estimator's tau_d "
@@ -80,9 +111,12 @@ class ImportParams(_Body):
     acceptance radius, a GeoJSON Feature's properties), and ``coa_radius_m`` and ``task_power_w``
     must come from one or the other."""
 
+    # Lax: multipart form fields are text ("2.5", "true"); a JSON body is validated strictly.
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, strict=False)
+
     mission_id: str | None = Field(default=None, max_length=64)
     coa_radius_m: float | None = Field(default=None, gt=0, le=10_000, description="r_COA [m]")
-    task_power_w: float | None = Field(default=None, ge=0, le=1e6, description="T^w [W]")
+    task_power_w: float | None = Field(default=None, gt=0, le=MAX_TASK_POWER_W, description="T^w [W]")
     controller: ControllerName | None = None
     predict_disturbance: bool | None = None
     speed_hint_mps: float | None = Field(default=None, gt=0, le=50, description="[m/s]")
@@ -112,13 +146,34 @@ class ModeBody(_Body):
                       description="Seaway's autopilot mode name, e.g. 'MANUAL' or 'HOLD'")
 
 
+def _one_of_three(schema: dict[str, Any]) -> None:
+    """The JSON Schema says what the validator checks: exactly one of the three, no nulls."""
+    props = schema["properties"]
+    for name in ("name", "scenario"):
+        props[name].update(next(s for s in props[name].pop("anyOf") if s.get("type") != "null"))
+        props[name].pop("default", None)
+    schema["oneOf"] = [
+        {"required": ["name"], "properties": {"scenario": False, "restart": {"const": False}}},
+        {"required": ["scenario"], "properties": {"name": False, "restart": {"const": False}}},
+        {"required": ["restart"], "properties": {"name": False, "scenario": False,
+                                                 "restart": {"const": True}}},
+    ]
+
+
 class ScenarioBody(_Body):
     """Load a scenario by name (``deploy/scenarios/<name>.toml``) or as a document, or restart the
     current one: exactly one of ``name``, ``scenario`` and ``restart``."""
 
+    model_config = ConfigDict(json_schema_extra=_one_of_three)
+
     name: str | None = Field(default=None, pattern=r"^[A-Za-z0-9][A-Za-z0-9_-]{0,63}$")
     scenario: dict[str, Any] | None = Field(default=None, description="a scenario document")
     restart: bool = False
+
+    @model_validator(mode="before")
+    @classmethod
+    def _no_nulls(cls, data: Any) -> Any:
+        return _refuse_nulls(data)
 
     @model_validator(mode="after")
     def _exactly_one(self) -> ScenarioBody:
@@ -163,10 +218,6 @@ def _make(stamp_ns: int, mission_id: str, waypoints: list[Waypoint],
 
 class ExportError(ValueError):
     """A mission that cannot be written as lat/lon (metres with no origin known)."""
-
-
-def geo_origin(origin: NavOrigin | None) -> GeoOrigin | None:
-    return None if origin is None else GeoOrigin(origin.lat_rad, origin.lon_rad, origin.alt_m)
 
 
 def mission_points_deg(waypoints: Sequence[Waypoint], origin: GeoOrigin | None) -> list[tuple[float, float]]:

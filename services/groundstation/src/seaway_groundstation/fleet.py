@@ -3,12 +3,15 @@
 Inputs, each with the receive time ``now_s`` (a monotonic clock [s]):
 
 * ``on_health(vessel, service, alive)``: health tokens ``seaway/<vessel>/health/<service>``;
-* ``on_message(vessel, kind, msg)``: the latest state, solve record, mission status, vehicle status
-  and NED origin of each vessel (``KINDS``);
-* ``record_mission(vessel, request)``: the last mission this ground station sent and had accepted.
+* ``on_message(vessel, kind, msg)``: the latest state, solve record, mission status, vehicle status,
+  NED origin and thrust command of each vessel (``KINDS``); states, thrusts and statuses also feed
+  the vessel's ``MissionTrack`` (the paper's metrics of its current mission, ``progress.py``);
+* ``record_mission(vessel, request, source)``: a mission this ground station sent and had accepted
+  (or learned from the launcher), kept by id so the map can draw the one the vessel flies.
 
-Outputs: ``view`` / ``views`` (``VesselView`` with the age of each message, for GET requests) and
-``changes`` (the stream's JSON frames: what changed since a client's last frame, latest only).
+Outputs: ``view`` / ``views`` (``VesselView`` with the age of each message, for GET requests),
+``changes`` (the stream's JSON frames: what changed since a client's last frame, latest only) and
+``metrics`` (the current mission's metrics so far).
 
 A vessel is known once a service other than the ground station itself declares health on it or it
 publishes a message; it stays known (and goes stale) after its services stop. Thread-safe: bus
@@ -22,12 +25,24 @@ import threading
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
-from seaway.contract.messages import Message, MissionRequest, NavOrigin
+from seaway.contract.messages import (
+    Message,
+    MissionRequest,
+    MissionStatus,
+    NavOrigin,
+    StateEstimate,
+    ThrustCommand,
+)
+from seaway.vessel.frames import GeoOrigin
 
+from seaway_groundstation import geo
+from seaway_groundstation.progress import MetricsView, MissionTrack
 from seaway_groundstation.views import FleetView, Timed, VesselView
 
-Kind = Literal["state", "solve", "mission", "vehicle", "origin"]
-KINDS: tuple[Kind, ...] = ("state", "solve", "mission", "vehicle", "origin")
+Kind = Literal["state", "solve", "mission", "vehicle", "origin", "thrust"]
+KINDS: tuple[Kind, ...] = ("state", "solve", "mission", "vehicle", "origin", "thrust")
+MAX_MISSIONS = 32
+"""Missions remembered per vessel (by id), the most recent kept."""
 HEALTH = "health"
 """The stream's pseudo-kind for a change of a vessel's services."""
 IGNORED_SERVICES = ("groundstation",)
@@ -56,6 +71,8 @@ class _Vessel:
     heard_s: float | None = None
     health_seq: int = 0
     last_mission: MissionRequest | None = None
+    missions: dict[str, tuple[MissionRequest, str]] = field(default_factory=dict)
+    track: MissionTrack = field(default_factory=MissionTrack)
 
     @property
     def known(self) -> bool:
@@ -65,10 +82,12 @@ class _Vessel:
 class Fleet:
     """Latest messages per vessel and kind; see the module's description."""
 
-    def __init__(self, stale_after_s: float = 2.0) -> None:
+    def __init__(self, stale_after_s: float = 2.0, default_origin: GeoOrigin | None = None) -> None:
         if stale_after_s <= 0:
             raise ValueError(f"stale_after_s must be > 0, got {stale_after_s}")
         self.stale_after_s = stale_after_s
+        self.default_origin = default_origin
+        """The NED origin for a vessel that has published none (the run's)."""
         self._lock = threading.Lock()
         self._vessels: dict[str, _Vessel] = {}
         self._seq = 0
@@ -102,11 +121,24 @@ class Fleet:
             self._seq += 1
             v.entries[kind] = Entry(msg, now_s, self._seq)
             v.heard_s = now_s
+            if isinstance(msg, StateEstimate):
+                v.track.on_state(msg)
+            elif isinstance(msg, ThrustCommand):
+                v.track.on_thrust(msg)
+            elif isinstance(msg, MissionStatus):
+                v.track.on_status(msg)
 
-    def record_mission(self, vessel: str, request: MissionRequest) -> None:
-        """Remember the mission sent to ``vessel`` (for export and the view)."""
+    def record_mission(self, vessel: str, request: MissionRequest, source: str = "groundstation") -> None:
+        """Remember a mission of ``vessel``: sent from here (the last one, for export and start
+        again) or learned elsewhere (``source``, e.g. the launcher's), by its id for the map."""
         with self._lock:
-            self._vessel(vessel).last_mission = request
+            v = self._vessel(vessel)
+            if source == "groundstation":
+                v.last_mission = request
+            v.missions.pop(request.mission_id, None)
+            v.missions[request.mission_id] = (request, source)
+            while len(v.missions) > MAX_MISSIONS:
+                v.missions.pop(next(iter(v.missions)))
 
     # -- queries ------------------------------------------------------------------------------------
 
@@ -137,6 +169,49 @@ class Fleet:
             e = v.entries.get("origin") if v else None
             return e.message if e is not None else None  # type: ignore[return-value]
 
+    def geo_origin(self, vessel: str) -> GeoOrigin | None:
+        """The vessel's NED origin: published, else the run's (``default_origin``), else None."""
+        return geo.geo_origin(self.origin(vessel)) or self.default_origin
+
+    def active_mission_id(self, vessel: str) -> str | None:
+        """The mission id the vessel's latest status names (None: no status, or idle)."""
+        with self._lock:
+            v = self._vessels.get(vessel)
+            e = v.entries.get("mission") if v else None
+        if e is None or not isinstance(e.message, MissionStatus) or e.message.state == "idle":
+            return None
+        return e.message.mission_id
+
+    def mission(self, vessel: str, mission_id: str) -> tuple[MissionRequest, str] | None:
+        """A remembered mission of ``vessel`` by id, with where it was learned."""
+        with self._lock:
+            v = self._vessels.get(vessel)
+            return v.missions.get(mission_id) if v else None
+
+    def active_plan(self, vessel: str) -> geo.MissionPlanView | None:
+        """The mission the vessel flies, in metres, if the ground station knows its waypoints."""
+        mission_id = self.active_mission_id(vessel)
+        known = None if mission_id is None else self.mission(vessel, mission_id)
+        if known is None:
+            return None
+        try:
+            return geo.mission_plan(known[0], self.geo_origin(vessel), known[1])
+        except geo.NoOriginError:
+            return None
+
+    def metrics(self, vessel: str, alpha_w_per_n2: float | None,
+                sample_period_s: float = 0.1) -> MetricsView | None:
+        """The paper's metrics of the vessel's current mission so far (None: no mission known with
+        its waypoints, or no sample yet)."""
+        plan = self.active_plan(vessel)
+        with self._lock:
+            v = self._vessels.get(vessel)
+            if v is None or plan is None or v.track.mission_id != plan.mission_id:
+                return None
+            track = v.track.copy()  # bus threads go on appending to the original
+        return track.metrics(plan.waypoints_m, plan.coa_radius_m, plan.task_power_w, alpha_w_per_n2,
+                                sample_period_s)
+
     def _timed(self, e: Entry | None, now_s: float) -> Timed[Any] | None:
         if e is None:
             return None
@@ -157,7 +232,8 @@ class Fleet:
             vessel=vessel, services=services, simulated="sim" in services,
             last_heard_age_s=heard_age,
             stale=heard_age is None or heard_age > self.stale_after_s,
-            last_mission=last_mission,
+            last_mission=last_mission, active_mission=self.active_plan(vessel),
+            geo=geo.frame_view(self.geo_origin(vessel)),
             **{kind: self._timed(entries.get(kind), now_s) for kind in KINDS},
         )
 

@@ -2,8 +2,10 @@
 
 ``BodyLimit`` reads a request's body before the application sees it and answers 413 past
 ``max_bytes`` (by ``Content-Length`` at once, or by counting a chunked body), so no endpoint ever
-holds more. ``RateLimiter`` is a token bucket per client (pure: time passed in), bounded in the
-number of clients it remembers.
+holds more. Paths in ``streamed`` (a recording upload) have their own, larger bound: a declared
+length over it is refused at once, and the body is passed on unbuffered for the endpoint to write
+to disk, counting it itself. ``RateLimiter`` is a token bucket per client (pure: time passed in),
+bounded in the number of clients it remembers.
 """
 
 from __future__ import annotations
@@ -25,15 +27,16 @@ class BodyLimit:
     """ASGI middleware: HTTP request bodies over ``max_bytes`` are answered 413 and never reach
     the application; smaller ones are buffered and replayed to it unchanged."""
 
-    def __init__(self, app: ASGIApp, max_bytes: int) -> None:
+    def __init__(self, app: ASGIApp, max_bytes: int, streamed: dict[str, int] | None = None) -> None:
         if max_bytes <= 0:
             raise ValueError(f"max_bytes must be > 0, got {max_bytes}")
-        self.app, self.max_bytes = app, max_bytes
+        self.app, self.max_bytes, self.streamed = app, max_bytes, dict(streamed or {})
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http":
             await self.app(scope, receive, send)
             return
+        bound = self.streamed.get(scope.get("path", "")) if scope.get("method") == "POST" else None
         length = dict(scope.get("headers") or []).get(b"content-length")
         if length is not None:
             try:
@@ -41,9 +44,12 @@ class BodyLimit:
             except ValueError:
                 await self._refuse(send, 400, "Content-Length is not a number")
                 return
-            if declared > self.max_bytes:
-                await self._too_large(send)
+            if declared > (bound or self.max_bytes):
+                await self._too_large(send, bound or self.max_bytes)
                 return
+        if bound is not None:
+            await self.app(scope, receive, send)  # the endpoint counts while it writes
+            return
         chunks: list[bytes] = []
         size = 0
         while True:
@@ -53,7 +59,7 @@ class BodyLimit:
             chunk = message.get("body", b"")
             size += len(chunk)
             if size > self.max_bytes:
-                await self._too_large(send)
+                await self._too_large(send, self.max_bytes)
                 return
             chunks.append(chunk)
             if not message.get("more_body", False):
@@ -70,8 +76,8 @@ class BodyLimit:
 
         await self.app(scope, replay, send)
 
-    async def _too_large(self, send: Send) -> None:
-        await self._refuse(send, 413, f"request body larger than {self.max_bytes} bytes")
+    async def _too_large(self, send: Send, bound: int) -> None:
+        await self._refuse(send, 413, f"request body larger than {bound} bytes")
 
     @staticmethod
     async def _refuse(send: Send, status: int, detail: str) -> None:

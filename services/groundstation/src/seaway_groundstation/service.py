@@ -5,13 +5,25 @@ address and the operator token once it serves:
     groundstation: http://127.0.0.1:8321/ token <token>
 
 The ground station observes every vessel (``seaway/*/...``) and asks for what the operator does;
-like the recorder it takes no part in the run agreement (it computes nothing from the run), but a
-launcher's ``--run`` gives it the run's NED origin for exporting missions given in metres.
+like the recorder it takes no part in the run agreement, but a launcher's ``--run`` gives it the
+run's NED origin (for exporting and drawing missions given in metres) and the model's vessel file
+(alpha, for the energy of the live metrics).
+
+With ``--run-dir`` (the launcher's run folder) it writes ``<run_dir>/groundstation/address.json``
+(mode 0600: it holds the token) once it serves, for a launcher or a person to read the page's
+address from::
+
+    {"url": "http://127.0.0.1:8321/", "token": "...", "page": "http://127.0.0.1:8321/#token=...",
+     "pid": 1234}
+
+and its requests journal beside it (``journal.py``); the replay view lists the recordings of the
+folder above it unless ``--runs-dir`` says otherwise.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import logging
 import os
 import socket
@@ -21,11 +33,21 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import uvicorn
+from seaway.contract.config import ConfigError
 from seaway.runtime.service import base_parser, parse, resolve_run, run_service
 from seaway.vessel.frames import GeoOrigin
+from seaway.vessel.model import load_vessel
 
 from seaway_groundstation.app import create_app
-from seaway_groundstation.settings import DEFAULT_HOST, DEFAULT_PORT, ENV_TOKEN, Settings, new_token
+from seaway_groundstation.journal import FOLDER
+from seaway_groundstation.settings import (
+    DEFAULT_HOST,
+    DEFAULT_PORT,
+    DEFAULT_RUNS_DIR,
+    ENV_TOKEN,
+    Settings,
+    new_token,
+)
 
 NAME = "groundstation"
 LOOPBACK = ("127.0.0.1", "::1", "localhost")
@@ -39,6 +61,9 @@ def parser() -> argparse.ArgumentParser:
                     help=f"address to listen on (default {DEFAULT_HOST}: this machine only)")
     ap.add_argument("--port", type=int, default=DEFAULT_PORT, help=f"TCP port (default {DEFAULT_PORT}; "
                                                                    "0: any free port)")
+    ap.add_argument("--port-fallback", action="store_true",
+                    help="if --port is taken, listen on any free port instead of failing (the "
+                         "address is printed and written to the address file)")
     ap.add_argument("--token-file", default=None, metavar="FILE",
                     help=f"read the operator token from FILE (default ${ENV_TOKEN}, else a new one "
                          "each start)")
@@ -50,7 +75,47 @@ def parser() -> argparse.ArgumentParser:
                     help="command requests a client may make at once")
     ap.add_argument("--request-timeout-s", type=float, default=Settings.request_timeout_s,
                     help="how long a request waits for the vessel's reply [s]")
+    ap.add_argument("--run-dir", type=Path, default=None, metavar="DIR",
+                    help="the run folder: write groundstation/address.json (0600) and the requests "
+                         "journal there, read the launcher's mission.json")
+    ap.add_argument("--runs-dir", type=Path, default=None, metavar="DIR",
+                    help=f"where the replay view lists recordings (default: the folder holding "
+                         f"--run-dir, else {DEFAULT_RUNS_DIR}/ here)")
+    ap.add_argument("--tiles", default=None, metavar="URL|DIR",
+                    help="map tiles: a URL template with {z}/{x}/{y}, or a folder <z>/<x>/<y>.png "
+                         "(default: none, a metric grid)")
+    ap.add_argument("--max-upload-bytes", type=int, default=Settings.max_upload_bytes,
+                    help="largest recording that may be uploaded for replay [bytes]")
     return ap
+
+
+ADDRESS_FILE = "address.json"
+
+
+def write_address(run_dir: Path, page_url: str, token: str) -> Path:
+    """``<run_dir>/groundstation/address.json``, readable by its owner only (it holds the token)."""
+    folder = run_dir / FOLDER
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / ADDRESS_FILE
+    doc = {"url": page_url, "token": token, "page": f"{page_url}#token={token}", "pid": os.getpid()}
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+    with os.fdopen(fd, "w", encoding="utf-8") as fh:
+        os.fchmod(fh.fileno(), 0o600)  # an older file may have been created with other bits
+        json.dump(doc, fh, indent=2)
+        fh.write("\n")
+    return path
+
+
+def vessel_alpha(model_vessel_file: str | None) -> float | None:
+    """The model's alpha [W/N^2] for the live metrics' energy (None if the file does not load)."""
+    if not model_vessel_file:
+        return None
+    try:
+        return load_vessel(model_vessel_file).alpha_w_per_n2
+    except (ConfigError, OSError) as err:
+        log.warning("vessel file %s does not load (%s): the live metrics give no energy",
+                    model_vessel_file, err)
+        return None
 
 
 def resolve_token(args: argparse.Namespace) -> str:
@@ -79,20 +144,27 @@ def main(argv: Sequence[str] | None = None) -> int:
     token = resolve_token(args)
     run = resolve_run(args, NAME)
     origin = run.origin
+    runs_dir = args.runs_dir or (args.run_dir.parent if args.run_dir is not None else DEFAULT_RUNS_DIR)
     try:
         settings = Settings(
             token=token, max_body_bytes=args.max_body_bytes, rate_limit_per_s=args.rate_limit_per_s,
             rate_limit_burst=args.rate_limit_burst, request_timeout_s=args.request_timeout_s,
             default_origin=None if origin is None else GeoOrigin.from_degrees(
-                origin.lat_deg, origin.lon_deg, origin.alt_m))
+                origin.lat_deg, origin.lon_deg, origin.alt_m),
+            runs_dir=runs_dir, run_dir=args.run_dir, tiles=args.tiles,
+            max_upload_bytes=args.max_upload_bytes, control_period_s=run.control_period_s,
+            alpha_w_per_n2=vessel_alpha(run.model_vessel_file))
     except ValueError as err:
         print(f"seaway-groundstation: {err}", file=sys.stderr)
         return 2
     try:
         sock = bind(args.host, args.port)
     except OSError as err:
-        print(f"seaway-groundstation: cannot listen on {args.host}:{args.port}: {err}", file=sys.stderr)
-        return 2
+        if not (args.port_fallback and args.port != 0):
+            print(f"seaway-groundstation: cannot listen on {args.host}:{args.port}: {err}", file=sys.stderr)
+            return 2
+        log.warning("port %d is taken (%s): listening on any free port instead", args.port, err)
+        sock = bind(args.host, 0)
     port = sock.getsockname()[1]
     with sock, run_service(NAME, args, run=run, agree=False) as ctx:
         if args.host not in LOOPBACK:
@@ -100,8 +172,14 @@ def main(argv: Sequence[str] | None = None) -> int:
                         "operator token", args.host)
 
         def ready() -> None:
+            page = url(args.host, port)
+            if args.run_dir is not None:
+                try:
+                    log.info("address and token in %s", write_address(args.run_dir, page, settings.token))
+                except OSError as err:
+                    log.error("cannot write the address file in %s: %s", args.run_dir, err)
             ctx.ready()
-            print(f"groundstation: {url(args.host, port)} token {settings.token}", flush=True)
+            print(f"groundstation: {page} token {settings.token}", flush=True)
 
         app = create_app(ctx.bus, settings, on_ready=ready)
         server = uvicorn.Server(uvicorn.Config(app, log_level=args.log_level.lower(), log_config=None,

@@ -8,11 +8,14 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from seaway.runtime.run import CONTROL_PERIOD_S
 from seaway.vessel.frames import GeoOrigin
 
 DEFAULT_HOST = "127.0.0.1"
 DEFAULT_PORT = 8321
 ENV_TOKEN = "SEAWAY_GROUNDSTATION_TOKEN"
+DEFAULT_RUNS_DIR = Path("runs")
+"""Where recordings are listed for replay: ``runs/`` under the working directory (the launcher's)."""
 
 
 def new_token() -> str:
@@ -48,9 +51,48 @@ class Settings:
     """NED origin for exporting metre waypoints when a vessel has published none (the run's)."""
     scenario_dir: Path | None = None
     """Where scenarios named in a request are read (None: the checkout's deploy/scenarios)."""
+    runs_dir: Path = DEFAULT_RUNS_DIR
+    """The folder whose recordings (``<run>/*.mcap``, ``*.mcap``) the replay view lists; nothing
+    outside it is ever opened, except uploads."""
+    max_upload_bytes: int = 256 << 20
+    """Largest recording that may be uploaded for replay (413 beyond)."""
+    upload_dir: Path | None = None
+    """Where uploaded recordings are kept (None: a private temporary folder, removed at exit)."""
+    max_uploads: int = 8
+    """Uploaded recordings kept at once; the oldest is removed first."""
+    replay_rate_hz: float = 20.0
+    """Frames per second of recorded time a replay is cut into (the live stream's rate)."""
+    tiles: str | None = None
+    """Map tiles: a URL template with {z}, {x}, {y} (http(s)://...), or a local folder laid out
+    ``<z>/<x>/<y>.png`` served at ``/tiles/``; None: no tiles (the map is a metric grid)."""
+    run_dir: Path | None = None
+    """The run folder of the stack this ground station belongs to: it writes its requests log
+    there and reads the launcher's ``mission.json`` (None: neither)."""
+    control_period_s: float = CONTROL_PERIOD_S
+    """The run's control period [s]: the cross-track sample period of the live metrics (the report's)."""
+    alpha_w_per_n2: float | None = None
+    """The run's vessel model's alpha [W/N^2], for the paper's energy in the live metrics (None:
+    the live metrics give no energy)."""
     clock: Callable[[], float] = time.monotonic
     """Monotonic clock [s] for ages and the rate limit (tests pass their own)."""
 
     def __post_init__(self) -> None:
         if len(self.token) < 16:
             raise ValueError("the operator token must be at least 16 characters")
+        for name in ("max_body_bytes", "max_upload_bytes", "max_uploads", "stream_rate_hz",
+                     "replay_rate_hz", "stale_after_s", "request_timeout_s", "control_period_s"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        if self.tiles is not None and not self.tiles.startswith(("http://", "https://")) \
+                and not Path(self.tiles).is_dir():
+            raise ValueError(f"tiles {self.tiles!r}: neither an http(s) URL template nor a folder")
+        if self.tiles is not None and self.tiles.startswith(("http://", "https://")) \
+                and not all(f"{{{k}}}" in self.tiles for k in "zxy"):
+            raise ValueError(f"tiles {self.tiles!r}: a URL template needs {{z}}, {{x}} and {{y}}")
+
+    @property
+    def tiles_url(self) -> str | None:
+        """The template the page loads tiles from (a local folder is served at ``/tiles/``)."""
+        if self.tiles is None:
+            return None
+        return self.tiles if self.tiles.startswith(("http://", "https://")) else "/tiles/{z}/{x}/{y}.png"

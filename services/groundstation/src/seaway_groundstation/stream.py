@@ -5,9 +5,13 @@ Design (a slow client never slows the others or the bus, and gets the latest, no
 * the bus threads only update the ``Fleet`` and call ``notify(vessel)``, which marks the vessel
   dirty and schedules one wake-up on the event loop however many messages arrive meanwhile;
 * each client has one small slot: an ``asyncio.Event`` ("something you watch changed") and the
-  change numbers it has already been sent; its own sender task waits on the event, keeps at least
-  ``1 / rate_hz`` between frames, then takes what changed since its last frame from the fleet
-  (only the latest message of each kind) and sends it;
+  change numbers it has already been sent; its own sender task waits on the event, then takes what
+  changed since its last frame from the fleet (only the latest message of each kind) and sends it
+  at once. The rate bound is per vessel and kind, a token bucket of ``rate_hz`` with a burst of
+  ``KIND_BURST``: a kind over its budget is held back (its latest goes out when a token comes), so
+  the state is never delayed behind the solve that came a few milliseconds after it, a flood of any
+  kind reaches a client at ``rate_hz``, and a message held once does not push every later one back
+  (a plain "at least 1 / rate_hz since the last send" would keep a 20 Hz source late for good);
 * a client whose socket is slow is held up in its own ``send`` only; whatever arrives meanwhile
   replaces what it would have been sent, so its next frame is current and nothing queues up.
 
@@ -19,6 +23,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -30,6 +35,10 @@ from seaway_groundstation.fleet import Fleet
 log = logging.getLogger("seaway_groundstation.stream")
 
 
+KIND_BURST = 2.0
+"""Frames of one vessel and kind a client may get back to back before ``rate_hz`` applies."""
+
+
 class StreamClient:
     """One client's latest-value slot and its sender."""
 
@@ -39,6 +48,8 @@ class StreamClient:
         self.wake = asyncio.Event()
         self.wake.set()  # the first frame: everything known now
         self.frames_sent = 0
+        self.budget: dict[tuple[str, str], tuple[float, float]] = {}
+        """Per (vessel, kind): tokens left and when they were counted [s, the event loop's clock]."""
 
     def wants(self, dirty: set[str]) -> bool:
         return self.vessels is None or not self.vessels.isdisjoint(dirty)
@@ -47,18 +58,33 @@ class StreamClient:
                   clock: Callable[[], float]) -> None:
         """Send frames until the socket closes or the task is cancelled."""
         loop = asyncio.get_running_loop()
-        next_ok = loop.time()
         while True:
             await self.wake.wait()
-            delay = next_ok - loop.time()
-            if delay > 0:
-                await asyncio.sleep(delay)
-            self.wake.clear()  # what arrived during the wait is in this frame
-            frames = fleet.changes(self.seen, self.vessels, clock())
-            next_ok = loop.time() + period_s
+            self.wake.clear()  # what arrives from now on wakes the next frame
+            now = loop.time()
+            frames, release_s = self.take(fleet, now, period_s, clock())
+            if release_s is not None:  # a kind held back: look again when it may go
+                loop.call_later(release_s, self.wake.set)
             for frame in frames:
                 await websocket.send_text(frame)
                 self.frames_sent += 1
+
+    def take(self, fleet: Fleet, now: float, period_s: float,
+             clock_s: float) -> tuple[list[str], float | None]:
+        """The frames due at ``now`` (kinds out of tokens held back) and, if any kind was held back,
+        how long until the first of them has a token again [s]."""
+        tokens = {k: min(KIND_BURST, left + (now - at) / period_s) for k, (left, at) in self.budget.items()}
+        # (a microsecond's grace: a wake-up set for exactly the next token must find it there)
+        held = {k: left for k, left in tokens.items() if left < 1.0 - 1e-6}
+        # Held kinds look already seen to the fleet; their true change numbers are kept.
+        view = {**self.seen, **dict.fromkeys(held, sys.maxsize)}
+        frames = fleet.changes(view, self.vessels, clock_s)
+        for k, seq in view.items():
+            if k not in held and seq != self.seen.get(k):
+                self.seen[k] = seq
+                self.budget[k] = (tokens.get(k, KIND_BURST) - 1.0, now)
+        release = min(((1.0 - left) * period_s for left in held.values()), default=None)
+        return frames, release
 
 
 class StreamHub:

@@ -18,8 +18,11 @@ from seaway.contract.messages import (
     NavOrigin,
     SolveRecord,
     StateEstimate,
+    ThrustCommand,
     VehicleStatus,
 )
+
+from seaway_groundstation.geo import GeoFrameView, MissionPlanView
 
 M = TypeVar("M", bound=Message)
 
@@ -48,8 +51,15 @@ class VesselView(BaseModel):
         default=None, description="the controller's latest solve, with its predicted trajectory "
                                   "(predicted_x_m/predicted_y_m, local NED [m])")
     origin: Timed[NavOrigin] | None = Field(default=None, description="the local NED frame's origin")
+    thrust: Timed[ThrustCommand] | None = Field(default=None, description="the controller's latest "
+                                                                          "thrust command [N]")
     last_mission: MissionRequest | None = Field(
         default=None, description="the last mission this ground station sent and the vessel accepted")
+    active_mission: MissionPlanView | None = Field(
+        default=None, description="the mission the vessel's status names, in local metres, when the "
+                                  "ground station knows its waypoints (sent from here, or the run's)")
+    geo: GeoFrameView | None = Field(
+        default=None, description="the NED origin (published, else the run's) and metres per degree")
 
 
 class FleetView(BaseModel):
@@ -88,6 +98,9 @@ class ParsedMission(BaseModel):
 
     source: Literal["plan", "geojson"]
     waypoints: list[dict[str, float]] = Field(description="[{lat_deg, lon_deg}, ...] in order")
+    waypoints_m: list[dict[str, float]] | None = Field(
+        default=None, description="[{x_m, y_m}, ...] through the NED origin of the vessel named in "
+                                  "the request (None: no vessel named, or no origin known)")
     skipped: list[str] = Field(default_factory=list)
     hints: dict[str, Any] = Field(default_factory=dict,
                                   description="mission parameters the file states")
@@ -97,3 +110,19 @@ class ErrorBody(BaseModel):
     """An error that is not a vessel's reply (unknown vessel, bad token, rate limit, size)."""
 
     detail: str
+
+
+class FieldError(BaseModel):
+    """One field at fault in a request (FastAPI's validation error)."""
+
+    loc: list[str | int] = Field(description="where: body/query/path, then the field's path")
+    msg: str
+    type: str
+
+
+class UnprocessableBody(BaseModel):
+    """422: the fields at fault (a request that does not fit the schema), or one sentence for
+    content the schema cannot describe (a mission file that is not a plan, a recording that does
+    not read, parameters that do not make a mission)."""
+
+    detail: list[FieldError] | str

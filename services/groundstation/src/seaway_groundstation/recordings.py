@@ -1,0 +1,423 @@
+"""Recordings for the replay view: the runs folder, uploads, and a recording opened as frames.
+
+* ``RunsFolder``: the recordings under one folder (``<run>/*.mcap`` up to two levels down, and
+  ``*.mcap`` in it), named by their path relative to it. A name is refused unless it stays inside
+  the folder once resolved (no ``..``, no absolute path, no symbolic link out).
+* ``UploadStore``: uploaded ``.mcap`` files in a private folder, a bounded number of them, each
+  checked to be MCAP and to read; named ``upload:<id>-<name>.mcap``.
+* ``Library``: opens a recording with the recorder's own reading code (``seaway_recorder``:
+  series, crash-truncated files, duplicates), cuts it into the live stream's frames (``replay.py``)
+  and keeps the last few opened (a recording still being written is opened again when it grew).
+  Also what the page needs beside the frames: the missions flown (from the ground station's
+  journal, the launcher's ``mission.json``, or the recording's attachments) in local metres, each
+  vessel's NED origin, and the run's ``report/metrics.json`` when there is one.
+
+Every refusal is a ``RecordingError`` with the HTTP status it stands for and a text naming the
+recording and what is wrong.
+"""
+
+from __future__ import annotations
+
+import collections
+import contextlib
+import heapq
+import json
+import logging
+import os
+import re
+import secrets
+import shutil
+import tempfile
+import threading
+from collections.abc import AsyncIterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import BaseModel, Field
+from seaway.contract import keys
+from seaway.contract.messages import MessageError, MissionRequest
+from seaway.vessel.frames import GeoOrigin
+
+from seaway_groundstation import geo, journal, replay
+from seaway_groundstation.gateway import TOPICS
+from seaway_groundstation.geo import GeoFrameView, MissionPlanView
+
+log = logging.getLogger("seaway_groundstation.recordings")
+
+MCAP_MAGIC = b"\x89MCAP0\r\n"
+UPLOAD_PREFIX = "upload:"
+MAX_LISTED = 500
+"""Recordings listed at most (the newest first)."""
+MAX_SCANNED_DIRS = 5000
+"""Folders looked into at most when listing (a runs folder is not a whole disk)."""
+MAX_REPORT_BYTES = 256 << 10
+_REF_RE = re.compile(r"^[A-Za-z0-9_.][A-Za-z0-9_./-]{0,511}$")
+_NAME_RE = re.compile(r"[^A-Za-z0-9_.-]+")
+
+
+class RecordingError(Exception):
+    """A recording that cannot be listed, opened or stored; ``status`` is the HTTP status."""
+
+    def __init__(self, status: int, detail: str) -> None:
+        super().__init__(detail)
+        self.status, self.detail = status, detail
+
+
+class RecordingEntry(BaseModel):
+    """One recording the replay view can open."""
+
+    id: str = Field(description="what to pass as ?id=: the path under the runs folder, or upload:...")
+    name: str
+    source: Literal["runs", "upload"]
+    files: int = Field(description="MCAP files (a rotated series has several)")
+    size_bytes: int
+    modified_s: float = Field(description="newest file's modification time [s since epoch]")
+    has_report: bool = Field(description="the run folder has report/metrics.json")
+
+
+class RecordingList(BaseModel):
+    runs_dir: str = Field(description="the folder recordings are listed from")
+    recordings: list[RecordingEntry]
+
+
+class RecordingDetail(RecordingEntry):
+    """An opened recording: its span, vessels, frames, missions, origins and report."""
+
+    start_ns: int = Field(description="log time of its first message [ns]")
+    duration_s: float = Field(description="from its first to its last message [s]")
+    message_count: int
+    vessels: list[str]
+    topics: dict[str, int]
+    frame_count: int
+    rate_hz: float = Field(description="frames per second of recorded time")
+    missions: list[MissionPlanView] = Field(description="missions known to have been flown, "
+                                                            "in local metres (match by mission_id)")
+    geo: dict[str, GeoFrameView] = Field(description="each vessel's NED origin and scale")
+    report: dict[str, Any] | None = Field(description="the run's report/metrics.json, if any")
+    notes: list[str] = Field(default_factory=list, description="what could not be read, and why")
+
+
+def _entry_stats(files: list[Path]) -> tuple[int, float]:
+    size, newest = 0, 0.0
+    for f in files:
+        st = f.stat()
+        size, newest = size + st.st_size, max(newest, st.st_mtime)
+    return size, newest
+
+
+def _mcaps(folder: Path) -> list[Path]:
+    return sorted(p for p in folder.glob("*.mcap")
+                  if p.is_file() and not p.name.endswith(".recovered.mcap"))
+
+
+class RunsFolder:
+    """Recordings under ``root``; see the module's description."""
+
+    def __init__(self, root: Path) -> None:
+        self.root = Path(root)
+
+    def _real_root(self) -> Path:
+        return self.root.resolve()
+
+    def entries(self) -> list[RecordingEntry]:
+        root = self._real_root()
+        if not root.is_dir():
+            return []
+        found: list[tuple[str, list[Path], bool]] = []
+        scanned = 0
+        queue: collections.deque[tuple[Path, int]] = collections.deque([(root, 0)])
+        while queue and scanned < MAX_SCANNED_DIRS:
+            folder, depth = queue.popleft()
+            scanned += 1
+            try:
+                children = sorted(folder.iterdir())
+            except OSError:
+                continue
+            if depth == 0:
+                found += [(p.name, [p], False) for p in children
+                          if p.suffix == ".mcap" and p.is_file() and not p.name.endswith(".recovered.mcap")]
+            for child in children:
+                if not child.is_dir() or child.is_symlink():
+                    continue
+                mcaps = _mcaps(child)
+                if mcaps:
+                    rel = child.relative_to(root).as_posix()
+                    found.append((rel, mcaps, (child / "report" / "metrics.json").is_file()))
+                elif depth < 1:
+                    queue.append((child, depth + 1))
+        out = []
+        for rel, files, has_report in found:
+            try:
+                size, newest = _entry_stats(files)
+            except OSError:
+                continue
+            out.append(RecordingEntry(id=rel, name=rel, source="runs", files=len(files), size_bytes=size,
+                                      modified_s=newest, has_report=has_report))
+        out.sort(key=lambda e: e.modified_s, reverse=True)
+        return out[:MAX_LISTED]
+
+    def resolve(self, ref: str) -> tuple[Path, list[Path]]:
+        """The folder or file ``ref`` names under the root and its MCAP files; RecordingError if the
+        name is malformed (422), leaves the folder (422) or names no recording (404)."""
+        if not _REF_RE.match(ref) or "\\" in ref:
+            raise RecordingError(422, f"recording {ref!r}: a path under the runs folder, of letters, "
+                                      "digits, '_', '.', '-' and '/'")
+        parts = ref.split("/")
+        if any(p in ("", ".", "..") for p in parts):
+            raise RecordingError(422, f"recording {ref!r}: no empty, '.' or '..' parts")
+        root = self._real_root()
+        path = (root / ref).resolve()
+        if not path.is_relative_to(root):
+            raise RecordingError(422, f"recording {ref!r} is outside the runs folder")
+        if path.is_dir():
+            files = _mcaps(path)
+            if not files:
+                raise RecordingError(404, f"recording {ref!r}: no .mcap file in that folder")
+            return path, files
+        if path.is_file() and path.suffix == ".mcap":
+            return path, [path]
+        raise RecordingError(404, f"no recording {ref!r} in the runs folder")
+
+
+class UploadStore:
+    """Uploaded recordings in ``folder`` (None: a private temporary folder, removed by ``close``)."""
+
+    def __init__(self, folder: Path | None, max_uploads: int, max_bytes: int) -> None:
+        self.owned = folder is None
+        self._folder = None if folder is None else Path(folder)
+        self.max_uploads, self.max_bytes = max_uploads, max_bytes
+        self._lock = threading.Lock()
+
+    @property
+    def folder(self) -> Path:
+        """The upload folder; a private temporary one is made at the first use."""
+        with self._lock:
+            if self._folder is None:
+                self._folder = Path(tempfile.mkdtemp(prefix="seaway-gs-uploads-"))
+            return self._folder
+
+    def _files(self) -> list[Path]:
+        if self._folder is None or not self._folder.is_dir():
+            return []
+        return sorted(_mcaps(self._folder), key=lambda p: p.stat().st_mtime)
+
+    def entries(self) -> list[RecordingEntry]:
+        out = []
+        for p in reversed(self._files()):
+            with contextlib.suppress(OSError):
+                st = p.stat()
+                out.append(RecordingEntry(id=UPLOAD_PREFIX + p.name, name=p.name.split("-", 1)[-1],
+                                          source="upload", files=1, size_bytes=st.st_size,
+                                          modified_s=st.st_mtime, has_report=False))
+        return out
+
+    def resolve(self, ref: str) -> tuple[Path, list[Path]]:
+        name = ref[len(UPLOAD_PREFIX):]
+        if not re.fullmatch(r"[0-9a-f]{8}-[A-Za-z0-9_.-]{1,128}\.mcap", name):
+            raise RecordingError(422, f"recording {ref!r}: not an upload name (upload:<id>-<name>.mcap)")
+        path = self.folder / name
+        if not path.is_file():
+            raise RecordingError(404, f"no uploaded recording {ref!r} (uploads are kept while the "
+                                      f"ground station runs, the last {self.max_uploads})")
+        return path, [path]
+
+    async def save(self, filename: str, chunks: AsyncIterator[bytes]) -> tuple[str, Path]:
+        """Write an upload from ``chunks``; (id, path). RecordingError: over ``max_bytes`` (413),
+        not named .mcap or not MCAP (422). The oldest uploads beyond ``max_uploads`` are removed."""
+        stem = _NAME_RE.sub("_", Path(filename or "recording.mcap").name)[-100:].lstrip(".") or "recording"
+        if not stem.endswith(".mcap"):
+            raise RecordingError(422, f"upload {filename!r}: name an .mcap file (a Seaway recording)")
+        self.folder.mkdir(mode=0o700, parents=True, exist_ok=True)
+        name = f"{secrets.token_hex(4)}-{stem}"
+        path = self.folder / name
+        part = path.with_suffix(".part")
+        size = 0
+        head = b""
+        try:
+            with open(part, "wb") as fh:
+                async for chunk in chunks:
+                    size += len(chunk)
+                    if size > self.max_bytes:
+                        raise RecordingError(413, f"upload {filename!r} is larger than "
+                                                  f"{self.max_bytes} bytes")
+                    if len(head) < len(MCAP_MAGIC):
+                        head += chunk[:len(MCAP_MAGIC)]
+                    fh.write(chunk)
+            if not head.startswith(MCAP_MAGIC):
+                raise RecordingError(422, f"upload {filename!r} is not an MCAP file (it does not start "
+                                          "with the MCAP magic bytes)")
+            os.replace(part, path)
+        finally:
+            with contextlib.suppress(OSError):
+                part.unlink()
+        with self._lock:
+            files = self._files()
+            for old in files[:max(0, len(files) - self.max_uploads)]:
+                remove_upload(old)
+        return UPLOAD_PREFIX + name, path
+
+    def close(self) -> None:
+        if self.owned and self._folder is not None:
+            shutil.rmtree(self._folder, ignore_errors=True)
+
+
+def remove_upload(path: Path) -> None:
+    for p in (path, path.with_name(f"{path.stem}.recovered.mcap")):
+        with contextlib.suppress(OSError):
+            p.unlink()
+
+
+@dataclass
+class Loaded:
+    """An opened recording: its detail and frames (with their times, for windows)."""
+
+    detail: RecordingDetail
+    frames: list[replay.ReplayFrame]
+    times: list[float]
+
+
+class Library:
+    """The runs folder and the uploads, and the last ``cache_size`` recordings opened."""
+
+    def __init__(self, runs: RunsFolder, uploads: UploadStore, rate_hz: float, stale_after_s: float,
+                 cache_size: int = 2) -> None:
+        self.runs, self.uploads = runs, uploads
+        self.rate_hz, self.stale_after_s, self.cache_size = rate_hz, stale_after_s, cache_size
+        self._cache: collections.OrderedDict[tuple[Any, ...], Loaded] = collections.OrderedDict()
+        self._lock = threading.Lock()
+
+    def listing(self) -> RecordingList:
+        return RecordingList(runs_dir=str(self.runs.root),
+                             recordings=self.uploads.entries() + self.runs.entries())
+
+    def resolve(self, ref: str) -> tuple[Path, list[Path], Literal["runs", "upload"]]:
+        if ref.startswith(UPLOAD_PREFIX):
+            return (*self.uploads.resolve(ref), "upload")
+        return (*self.runs.resolve(ref), "runs")
+
+    def open(self, ref: str) -> Loaded:
+        """The recording ``ref``, opened (blocking: call from a worker thread)."""
+        where, files, source = self.resolve(ref)
+        try:
+            key = (ref, *((f.name, f.stat().st_size, f.stat().st_mtime_ns) for f in files))
+        except OSError as err:
+            raise RecordingError(404, f"recording {ref!r}: {err}") from None
+        with self._lock:
+            hit = self._cache.get(key)
+            if hit is not None:
+                self._cache.move_to_end(key)
+                return hit
+        loaded = self._load(ref, where, files, source)
+        with self._lock:
+            self._cache[key] = loaded
+            while len(self._cache) > self.cache_size:
+                self._cache.popitem(last=False)
+        return loaded
+
+    def _load(self, ref: str, where: Path, files: list[Path], source: Literal["runs", "upload"]) -> Loaded:
+        from seaway_recorder import recording  # the recorder's reader: only the replay view needs it
+
+        try:
+            readable = recording.open_paths([where]) if where.is_dir() else [recording.readable(where)]
+            info = recording.read_info(readable)
+        except Exception as err:  # mcap raises its own errors for damaged files; say which file
+            raise RecordingError(422, f"recording {ref!r} does not read as MCAP: {err}") from None
+        vessels = sorted({t.split("/", 2)[1] for t in info.topics
+                          if t.startswith(keys.ROOT + "/") and keys.spec_for_key(t) is not None})
+        suffix_kind = {spec.suffix: kind for kind, spec in TOPICS.items()}
+        streams: list[list[tuple[int, str, Any, Any]]] = []
+        notes: list[str] = []
+        origins: dict[str, GeoOrigin | None] = {}
+        for v in vessels:
+            dec = recording.decode_vessel(readable, v, suffix_kind)
+            if dec.undecodable:
+                notes.append(f"{v}: {dec.undecodable} message(s) that do not decode were left out")
+            for suffix, kind in suffix_kind.items():
+                msgs, logs = dec.get(suffix), dec.log_ns.get(suffix, [])
+                streams.append([(t, v, kind, m) for t, m in zip(logs, msgs, strict=True)])
+            recorded = dec.get(keys.NAV_ORIGIN.suffix)
+            origins[v] = geo.geo_origin(recorded[-1]) if recorded else None  # type: ignore[arg-type]
+        scenario_name, scenario_origin = _scenario(info.attachments, notes)
+        for v in vessels:
+            origins[v] = origins[v] or scenario_origin
+        frames = replay.cut_frames(heapq.merge(*streams, key=lambda s: s[0]), info.start_ns,
+                                   self.rate_hz, self.stale_after_s)
+        size, newest = _entry_stats(files)
+        run_folder = where if where.is_dir() else None
+        detail = RecordingDetail(
+            id=ref, name=ref.removeprefix(UPLOAD_PREFIX), source=source, files=len(files),
+            size_bytes=size, modified_s=newest,
+            has_report=run_folder is not None and (run_folder / "report" / "metrics.json").is_file(),
+            start_ns=info.start_ns, duration_s=max(0.0, (info.end_ns - info.start_ns) / 1e9),
+            message_count=info.message_count, vessels=vessels, topics=info.topics,
+            frame_count=len(frames), rate_hz=self.rate_hz,
+            missions=_missions(run_folder, info.attachments, origins, scenario_name, notes),
+            geo={v: fv for v, o in origins.items() if (fv := geo.frame_view(o)) is not None},
+            report=_report(run_folder, notes), notes=notes)
+        return Loaded(detail, frames, [f.t_s for f in frames])
+
+
+def _scenario(attachments: dict[str, bytes], notes: list[str]) -> tuple[str | None, GeoOrigin | None]:
+    from seaway_recorder import runinfo
+
+    try:
+        sc = runinfo.scenario_from_attachments(attachments)
+    except Exception as err:  # a damaged attachment only costs the scenario's origin
+        notes.append(f"the scenario attachment does not read: {err}")
+        return None, None
+    return (None, None) if sc is None else (sc.name, runinfo.scenario_origin(sc))
+
+
+def _missions(run_folder: Path | None, attachments: dict[str, bytes],
+              origins: dict[str, GeoOrigin | None], scenario_name: str | None,
+              notes: list[str]) -> list[geo.MissionPlanView]:
+    """The missions flown, by id: sent from the ground station (its journal), sent by the launcher
+    (``mission.json``), else the recording's mission or scenario attachment."""
+    from seaway_recorder import runinfo
+
+    any_origin = next((o for o in origins.values() if o is not None), None)
+    found: dict[str, geo.MissionPlanView] = {}
+
+    def add(req: MissionRequest, origin: GeoOrigin | None, source: str) -> None:
+        try:
+            found.setdefault(req.mission_id, geo.mission_plan(req, origin, source))
+        except geo.NoOriginError as err:
+            notes.append(f"mission {req.mission_id!r} is not drawn: {err}")
+
+    if run_folder is not None:
+        for vessel, req in journal.accepted_missions(run_folder):
+            add(req, origins.get(vessel) or any_origin, "groundstation")
+        launcher = run_folder / "mission.json"
+        if launcher.is_file():
+            try:
+                add(MissionRequest.decode(launcher.read_bytes()), any_origin, "launcher")
+            except (OSError, MessageError) as err:
+                notes.append(f"mission.json does not read: {err}")
+    try:
+        m = runinfo.mission_from_attachments(attachments, any_origin)
+    except Exception as err:
+        notes.append(f"the recording's mission attachment does not read: {err}")
+        m = None
+    if m is not None:
+        # The launcher names a scenario's mission after the scenario; a mission file has its own id.
+        mission_id = scenario_name or ""
+        found.setdefault(mission_id, geo.MissionPlanView(
+            mission_id=mission_id, waypoints_m=list(m.waypoints), coa_radius_m=m.coa_radius_m,
+            task_power_w=m.task_power_w, controller="", predict_disturbance=False, source="recording"))
+    return list(found.values())
+
+
+def _report(run_folder: Path | None, notes: list[str]) -> dict[str, Any] | None:
+    path = None if run_folder is None else run_folder / "report" / "metrics.json"
+    if path is None or not path.is_file():
+        return None
+    try:
+        if path.stat().st_size > MAX_REPORT_BYTES:
+            notes.append("report/metrics.json is too large to show")
+            return None
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as err:
+        notes.append(f"report/metrics.json does not read: {err}")
+        return None
+    return doc if isinstance(doc, dict) else None

@@ -1,0 +1,600 @@
+// The page: live view and replay view over the same store, map and plots.
+//
+// Live: the WebSocket stream feeds `live.store`; GET /api/vessels (every 2 s) gives what frames do
+// not carry (the mission flown in metres, the NED origin's scale, simulated or not) and tells when
+// the ground station itself is unreachable; GET .../metrics gives the paper's metrics so far.
+// Replay: `Player` feeds its own store from the recording's frames at the recording's time.
+// Every command goes through `run()`, which asks for the token when needed and shows the answer.
+
+import { ApiError, command, get, getToken, request, setToken, takeTokenFromFragment } from "./api.js";
+import { LiveStream } from "./live.js";
+import { MapView } from "./map.js";
+import { TimePlot } from "./plot.js";
+import { Player } from "./replay.js";
+import { Store } from "./store.js";
+import { $, fmt, markStale, say, setText, stickySay } from "./ui.js";
+
+const POLL_MS = 2000;
+const METRICS_MS = 1500;
+const VESSEL_KEY = "seaway.groundstation.vessel";
+
+const app = {
+  mode: "live",
+  config: { stale_after_s: 2, controllers: ["cc-empc", "eo-empc", "nmpc"], tiles_url: null },
+  live: new Store(),
+  fleet: new Map(),        // vessel -> VesselView from GET /api/vessels
+  metrics: null,           // MetricsView of the selected vessel, or null
+  linkUp: false,
+  apiUp: true,
+  selected: sessionStorage.getItem(VESSEL_KEY) || "",
+  draft: [],
+  lastMissionId: null,
+};
+
+// -- setup ----------------------------------------------------------------------------------------
+
+takeTokenFromFragment();
+
+const map = new MapView($("map"), {
+  onDraftChange: (draft, done) => {
+    app.draft = draft;
+    renderDraftTable();
+    if (done) map.setDraft(app.draft, coa());
+  },
+  onReadout: (n, e, ll, gridM) => {
+    const pos = `N ${n.toFixed(2)} m  E ${e.toFixed(2)} m`;
+    const geo = ll ? `  ${ll[0].toFixed(6)}°, ${ll[1].toFixed(6)}°` : "  (no origin: lat/lon unknown)";
+    setText("map-readout", `${pos}${geo}  · grid ${gridM} m`);
+  },
+});
+
+const plots = {
+  thrust: new TimePlot($("plot-thrust"), { title: "Thrust", unit: "N", digits: 1, zeroBased: true,
+    lines: [{ key: "port", label: "port", colour: "port" }, { key: "starboard", label: "stbd", colour: "starboard" }] }),
+  speed: new TimePlot($("plot-speed"), { title: "Speed", unit: "m/s", digits: 2, zeroBased: true,
+    lines: [{ key: "speed", label: "", colour: "vessel" }] }),
+  xte: new TimePlot($("plot-xte"), { title: "Cross-track error", unit: "m", digits: 2, zeroBased: true,
+    lines: [{ key: "xte", label: "", colour: "pred" }] }),
+  energy: new TimePlot($("plot-energy"), { title: "Energy", unit: "J", digits: 0, zeroBased: true,
+    lines: [{ key: "used", label: "used", colour: "accent" }, { key: "togo", label: "to go", colour: "draft" }] }),
+};
+
+const stream = new LiveStream({
+  onFrame: (frame) => {
+    const name = app.live.ingest(frame, clockLive());
+    if (name && !app.selected) selectVessel(name);
+    schedule();
+  },
+  onLink: (state, why) => {
+    app.linkUp = state === "up";
+    updateLinkPill();
+    if (state === "down") stickySay("link", true, `Link to the ground station lost (${why}); reconnecting…`, "error");
+    if (state === "up") stickySay("link", false);
+    schedule();
+  },
+});
+
+const player = new Player({
+  onUpdate: () => schedule(),
+  onProgress: (f) => { $("load-progress").firstElementChild.style.width = `${(f * 100).toFixed(0)}%`; },
+  onState: () => updateTransport(),
+});
+
+const clockLive = () => performance.now() / 1000;
+const now = () => (app.mode === "live" ? clockLive() : player.t);
+const store = () => (app.mode === "live" ? app.live : player.store);
+const coa = () => Number($("coa").value) || 0;
+
+// -- rendering ------------------------------------------------------------------------------------
+
+let scheduled = false;
+let lastRender = 0;
+function schedule() {
+  if (scheduled) return;
+  scheduled = true;
+  const wait = Math.max(0, 100 - (performance.now() - lastRender)); // at most ten renders a second
+  setTimeout(() => requestAnimationFrame(() => {
+    scheduled = false;
+    lastRender = performance.now();
+    render();
+  }), wait);
+}
+
+function vesselNames() {
+  if (app.mode === "replay") return player.detail ? player.detail.vessels : [];
+  return [...new Set([...app.fleet.keys(), ...app.live.names()])].sort();
+}
+
+function updatePicker() {
+  const pick = $("vessel-picker");
+  const names = vesselNames();
+  if (app.selected && !names.includes(app.selected) && app.mode === "live") names.push(app.selected);
+  const current = [...pick.options].map((o) => o.value).join("|");
+  if (current !== names.join("|")) {
+    pick.replaceChildren(...names.map((n) => new Option(n, n)));
+  }
+  if (!names.includes(app.selected) && names.length) selectVessel(names[0]);
+  pick.value = app.selected;
+}
+
+function selectVessel(name) {
+  if (name === app.selected) return;
+  app.selected = name;
+  app.metrics = null;
+  sessionStorage.setItem(VESSEL_KEY, name);
+  if (app.mode === "live") pollMetrics();
+  schedule();
+}
+
+function currentPlan(v, mission) {
+  if (app.mode === "live") return app.fleet.get(app.selected)?.active_mission ?? null;
+  const missions = player.detail?.missions || [];
+  const id = mission?.mission_id;
+  return missions.find((m) => m.mission_id === id) || (missions.length === 1 ? missions[0] : null)
+    || missions.find((m) => m.mission_id === "") || null;
+}
+
+function render() {
+  updatePicker();
+  const t = now();
+  const v = store().vessels.get(app.selected) || null;
+  const view = app.mode === "live" ? app.fleet.get(app.selected) : null;
+  const staleAll = app.mode === "live" && !(app.linkUp && app.apiUp);
+  const stale = (kind) => staleAll || !v || v.stale(kind, t);
+  const msg = (kind) => (v ? v.message(kind) : null);
+  const state = msg("state"), mission = msg("mission"), vehicle = msg("vehicle"), solve = msg("solve");
+
+  // Vehicle.
+  if (app.mode === "live") {
+    setText("v-link", vehicle ? (vehicle.link_ok ? "up" : "DOWN") : "–", vehicle ? (vehicle.link_ok ? "good" : "bad") : "");
+    setText("v-armed", vehicle ? (vehicle.armed ? "armed" : "disarmed") : "–", vehicle?.armed ? "warn" : "");
+    setText("v-mode", vehicle?.mode ?? "–");
+    setText("v-failsafe", vehicle ? vehicle.failsafe || "none" : "–", vehicle?.failsafe ? "bad" : "");
+    setText("v-services", (view?.services || v?.services || []).join(", ") || "–");
+    document.querySelector(".sim-only").hidden = !view?.simulated;
+    markStale("vehicle", stale("vehicle"));
+  }
+
+  // Mission progress.
+  const legs = mission ? Math.max(mission.waypoint_count - 1, 0) : 0;
+  setText("p-state", mission?.state ?? "–", mission?.state === "complete" ? "good" : mission?.state === "aborted" ? "bad" : "");
+  setText("p-id", mission?.mission_id || "–");
+  setText("p-leg", mission && mission.state !== "idle" ? `${mission.active_leg} / ${legs}` : "–");
+  setText("p-dist", fmt(mission?.distance_to_waypoint_m, 1, "m"));
+  setText("p-xte", fmt(mission?.cross_track_m, 2, "m"));
+  setText("m-energy-used", fmt(mission?.energy_used_j, 1, "J"));
+  setText("p-togo", fmt(mission?.energy_to_go_j, 1, "J"));
+  setText("p-dist-est", state ? `surge ${fmt(state.tau_d_surge_n, 2)} N, sway ${fmt(state.tau_d_sway_n, 2)} N, yaw ${fmt(state.tau_d_yaw_nm, 2)} N·m` : "–");
+  let frac = 0;
+  if (mission?.state === "complete") frac = 1;
+  else if (mission && legs > 0) frac = Math.max(0, mission.active_leg - 1) / legs;
+  $("p-bar").style.width = `${(frac * 100).toFixed(0)}%`;
+  markStale("mission", stale("mission"));
+  renderMetrics(mission);
+
+  // Map.
+  const plan = currentPlan(v, mission);
+  map.tilesUrl = app.config.tiles_url;
+  const others = [];
+  for (const [name, o] of store().vessels) {
+    const s = o.message("state");
+    if (name !== app.selected && s) others.push({ name, ...s });
+  }
+  map.setModel({
+    geo: app.mode === "live" ? view?.geo ?? null : player.detail?.geo?.[app.selected] ?? null,
+    plan, activeLeg: mission && mission.state !== "idle" ? mission.active_leg : -1,
+    trail: v?.trail || [], state, solve, others,
+    stale: { state: stale("state"), solve: stale("solve") },
+  });
+  $("map-stale").hidden = !(stale("state") && state);
+  if (plan && app.lastMissionId !== plan.mission_id && app.mode === "live" && !app.draft.length) {
+    app.lastMissionId = plan.mission_id;
+    map.fit();
+  }
+
+  // Plots.
+  const cursor = null;
+  const s = v?.series;
+  plots.thrust.draw(s?.thrust, { stale: stale("thrust"), cursorT: cursor });
+  plots.speed.draw(s?.speed, { stale: stale("state"), cursorT: cursor });
+  plots.xte.draw(s?.xte, { stale: stale("mission"), cursorT: cursor, empty: "no mission yet" });
+  plots.energy.draw(s?.energy, { stale: stale("mission"), cursorT: cursor, empty: "no mission yet" });
+  if (app.mode === "replay") updateTransport();
+}
+
+function renderMetrics(mission) {
+  let m = null, source = "";
+  if (app.mode === "live") {
+    m = app.metrics && mission && app.metrics.mission_id === mission.mission_id ? app.metrics : null;
+    source = m ? `From nav/state and ctrl/thrust as heard here, mission ${m.mission_id} (${m.state_samples} states)`
+      + (m.energy_j === null ? "; no energy: the vessel's alpha is not known here" : "")
+      : mission && mission.state !== "idle" ? "The ground station does not know this mission's waypoints." : "";
+  } else if (player.detail?.report?.metrics) {
+    m = player.detail.report.metrics;
+    source = `From the run's report (${m.energy_source || "report"}), whole run`;
+  } else if (player.detail) {
+    source = "This recording's run has no report/metrics.json.";
+  }
+  setText("m-travel-time", fmt(m?.travel_time_s, 1, "s"));
+  setText("m-energy", fmt(m?.energy_j, 1, "J"));
+  setText("m-xte-avg", fmt(m?.avg_cross_track_m, 3, "m"));
+  setText("m-xte-max", fmt(m?.max_cross_track_m, 2, "m"));
+  setText("metrics-source", source);
+}
+
+function updateLinkPill() {
+  const pill = $("link");
+  if (app.mode === "replay") {
+    pill.textContent = "replay";
+    pill.className = "pill";
+    return;
+  }
+  const up = app.linkUp && app.apiUp;
+  pill.textContent = up ? "live" : "link lost";
+  pill.className = `pill ${up ? "ok" : "bad"}`;
+}
+
+// -- polling --------------------------------------------------------------------------------------
+
+async function pollFleet() {
+  if (app.mode === "live") {
+    try {
+      const fleet = await get("/api/vessels");
+      app.fleet = new Map(fleet.vessels.map((v) => [v.vessel, v]));
+      if (!app.apiUp) stickySay("api", false);
+      app.apiUp = true;
+    } catch (err) {
+      app.apiUp = false;
+      const why = err.status ? `it answers HTTP ${err.status}: ${err.message}` : err.message;
+      stickySay("api", true, err.status ? `The ground station's fleet view fails (${why})`
+        : why.charAt(0).toUpperCase() + why.slice(1), "error");
+    }
+    updateLinkPill();
+    schedule();
+  }
+  setTimeout(pollFleet, POLL_MS);
+}
+
+async function pollMetrics() {
+  const v = app.live.vessels.get(app.selected);
+  const mission = v?.message("mission");
+  if (app.mode === "live" && app.selected && mission && mission.state !== "idle") {
+    try {
+      app.metrics = await get(`/api/vessels/${encodeURIComponent(app.selected)}/metrics`);
+      schedule();
+    } catch {
+      /* the fleet poll reports an unreachable ground station */
+    }
+  }
+}
+setInterval(pollMetrics, METRICS_MS);
+setInterval(() => schedule(), 500); // ages grow without news: staleness shows up by itself
+
+// -- commands -------------------------------------------------------------------------------------
+
+/** Ask for the token in the dialog; resolves true if one was given. */
+function askToken(why) {
+  const dlg = $("token-dialog");
+  if (why) dlg.querySelector("p").dataset.why = why;
+  $("token-input").value = getToken();
+  dlg.showModal();
+  return new Promise((resolve) => {
+    dlg.addEventListener("close", () => {
+      if (dlg.returnValue === "save") setToken($("token-input").value);
+      if (dlg.returnValue === "forget") setToken("");
+      resolve(Boolean(getToken()) && dlg.returnValue === "save");
+    }, { once: true });
+  });
+}
+
+/** Run one command: token first, then the request; say what the vessel answered. */
+async function run(label, path, body) {
+  if (!app.selected) {
+    say(`${label}: no vessel selected`, "error");
+    return null;
+  }
+  if (!getToken() && !(await askToken())) {
+    say(`${label}: not sent — commands need the operator token`, "warn");
+    return null;
+  }
+  try {
+    const reply = await command(path, body);
+    say(`${label}: accepted${reply.reason ? ` — ${reply.reason}` : ""}`, "ok");
+    return reply;
+  } catch (err) {
+    if (!(err instanceof ApiError)) throw err;
+    if (err.status === 401 || err.status === 403) {
+      if (err.status === 403) setToken("");
+      say(`${label}: ${err.status === 403 ? "wrong operator token" : "the operator token is needed"} — enter it and try again`, "error");
+      askToken();
+    } else if (err.status === 409) {
+      say(`${label} refused by ${app.selected}: ${err.message}`, "error");
+    } else if (err.status === 0) {
+      say(`${label}: ${err.message}`, "error");
+    } else {
+      say(`${label} failed (HTTP ${err.status}): ${err.message}`, "error");
+    }
+    return null;
+  }
+}
+
+const vpath = (suffix) => `/api/vessels/${encodeURIComponent(app.selected)}/${suffix}`;
+
+const COMMANDS = {
+  arm: () => run("Arm", vpath("arm"), { force: false }),
+  disarm: () => run("Disarm", vpath("disarm"), { force: false }),
+  mode: () => run(`Mode ${$("mode-select").value}`, vpath("mode"), { mode: $("mode-select").value.trim() }),
+  scenario: () => run(`Scenario ${$("scenario-name").value}`, vpath("scenario"), { name: $("scenario-name").value.trim() }),
+  restart: () => run("Restart the simulation", vpath("scenario"), { restart: true }),
+  pause: () => run("Pause", vpath("mission/pause")),
+  resume: () => run("Resume", vpath("mission/resume")),
+  abort: () => confirm(`Abort the mission of ${app.selected}?`) && run("Abort", vpath("mission/abort")),
+  start: () => run("Start again", vpath("mission/start")),
+};
+for (const b of document.querySelectorAll("[data-cmd]")) b.addEventListener("click", () => COMMANDS[b.dataset.cmd]());
+
+// -- the mission editor ---------------------------------------------------------------------------
+
+function renderDraftTable() {
+  const body = $("wp-table").tBodies[0];
+  body.replaceChildren(...app.draft.map((p, i) => {
+    const tr = document.createElement("tr");
+    tr.innerHTML = `<td>${i}</td><td><input type="number" step="0.1" aria-label="north ${i}"></td>`
+      + `<td><input type="number" step="0.1" aria-label="east ${i}"></td><td><button title="remove">×</button></td>`;
+    const [n, e] = tr.querySelectorAll("input");
+    n.value = p.x_m.toFixed(2);
+    e.value = p.y_m.toFixed(2);
+    const edit = () => {
+      app.draft[i] = { x_m: Number(n.value), y_m: Number(e.value) };
+      map.setDraft(app.draft, coa());
+    };
+    n.onchange = edit;
+    e.onchange = edit;
+    tr.querySelector("button").onclick = () => {
+      app.draft.splice(i, 1);
+      renderDraftTable();
+      map.setDraft(app.draft, coa());
+    };
+    return tr;
+  }));
+  setText("draft-count", app.draft.length ? `${app.draft.length} waypoint(s)` : "click “Add waypoints”, then the map");
+}
+
+function draftBody() {
+  const id = $("mission-id").value.trim()
+    || `gs-${new Date().toISOString().replace(/[-:]/g, "").replace("T", "-").slice(0, 15)}`;
+  return {
+    mission_id: id,
+    waypoints: app.draft.map((p) => (p.lat_deg !== undefined && p.lon_deg !== undefined
+      ? { lat_deg: p.lat_deg, lon_deg: p.lon_deg } : { x_m: p.x_m, y_m: p.y_m })),
+    coa_radius_m: coa(),
+    task_power_w: Number($("task-power").value),
+    controller: $("controller").value,
+    predict_disturbance: $("predict").checked,
+  };
+}
+
+$("send-mission").onclick = async () => {
+  if (app.draft.length < 2) {
+    say("A mission needs at least two waypoints: click “Add waypoints”, then the map.", "warn");
+    return;
+  }
+  const body = draftBody();
+  const reply = await run(`Mission ${body.mission_id}`, vpath("mission"), body);
+  if (reply) {
+    $("mission-id").value = "";
+    app.draft = [];
+    renderDraftTable();
+    map.setDraft(app.draft, coa());
+    setAdding(false);
+    setTimeout(pollFleet, 200);
+  }
+};
+$("clear-draft").onclick = () => {
+  app.draft = [];
+  renderDraftTable();
+  map.setDraft(app.draft, coa());
+};
+$("draft-from-active").onclick = () => {
+  const plan = app.fleet.get(app.selected)?.active_mission;
+  if (!plan) {
+    say("The ground station does not know the waypoints of the mission this vessel flies.", "warn");
+    return;
+  }
+  app.draft = plan.waypoints_m.map(([x, y]) => ({ x_m: x, y_m: y }));
+  $("coa").value = plan.coa_radius_m;
+  $("task-power").value = plan.task_power_w;
+  renderDraftTable();
+  map.setDraft(app.draft, coa());
+};
+$("coa").oninput = () => map.setDraft(app.draft, coa());
+
+function setAdding(on) {
+  map.adding = on;
+  $("add-mode").setAttribute("aria-pressed", String(on));
+  $("map").classList.toggle("adding", on);
+}
+$("add-mode").onclick = () => setAdding(!map.adding);
+$("fit").onclick = () => map.fit();
+$("follow").onchange = (ev) => { map.follow = ev.target.checked; map.invalidate(); };
+
+$("import-file").onchange = async (ev) => {
+  const file = ev.target.files[0];
+  ev.target.value = "";
+  if (!file) return;
+  let doc;
+  try {
+    doc = JSON.parse(await file.text());
+  } catch (err) {
+    say(`${file.name} is not JSON: ${err.message}`, "error");
+    return;
+  }
+  try {
+    const q = app.selected ? `?vessel=${encodeURIComponent(app.selected)}` : "";
+    const parsed = await request("POST", `/api/missions/parse${q}`, { body: { document: doc, skip_unsupported: true } });
+    if (!parsed.waypoints_m) {
+      say(`${file.name}: read, but no NED origin is known for ${app.selected || "any vessel"} to place it on the map`, "error");
+      return;
+    }
+    // Keep the file's latitude/longitude (sent as they are); metres are for drawing and editing.
+    app.draft = parsed.waypoints_m.map((p, i) => ({ ...p, ...parsed.waypoints[i] }));
+    if (parsed.hints?.coa_radius_m) $("coa").value = parsed.hints.coa_radius_m;
+    if (parsed.hints?.task_power_w !== undefined) $("task-power").value = parsed.hints.task_power_w;
+    renderDraftTable();
+    map.setDraft(app.draft, coa());
+    map.fit();
+    say(`${file.name}: ${parsed.waypoints.length} waypoints (${parsed.source})`
+      + (parsed.skipped.length ? `; left out: ${parsed.skipped.join(", ")}` : ""), "ok");
+  } catch (err) {
+    say(`${file.name}: ${err.message}`, "error");
+  }
+};
+
+async function exportDraft(format) {
+  const useDraft = app.draft.length >= 2;
+  const q = `format=${format}${app.selected ? `&vessel=${encodeURIComponent(app.selected)}` : ""}`;
+  const url = useDraft ? `/api/missions/export?${q}` : `${vpath("mission/export")}?format=${format}`;
+  const resp = await fetch(url, useDraft
+    ? { method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(draftBody()) }
+    : {});
+  if (!resp.ok) {
+    let reason = `HTTP ${resp.status}`;
+    try { reason = (await resp.json()).detail; } catch { /* keep the status */ }
+    say(`Export: ${typeof reason === "string" ? reason : JSON.stringify(reason)}`, "error");
+    return;
+  }
+  const name = /filename="([^"]+)"/.exec(resp.headers.get("Content-Disposition") || "")?.[1] || `mission.${format}`;
+  const a = document.createElement("a");
+  a.href = URL.createObjectURL(await resp.blob());
+  a.download = name;
+  a.click();
+  setTimeout(() => URL.revokeObjectURL(a.href), 1000);
+}
+$("export-plan").onclick = () => exportDraft("plan");
+$("export-geojson").onclick = () => exportDraft("geojson");
+
+// -- replay ---------------------------------------------------------------------------------------
+
+async function loadRecordings(select) {
+  try {
+    const list = await get("/api/recordings");
+    setText("runs-dir", list.runs_dir);
+    const sel = $("recording-select");
+    sel.replaceChildren(...list.recordings.map((r) => new Option(
+      `${r.name}  (${(r.size_bytes / 1e6).toFixed(1)} MB${r.has_report ? ", report" : ""})`, r.id)));
+    if (!list.recordings.length) sel.replaceChildren(new Option("no recordings in the runs folder", ""));
+    if (select) sel.value = select;
+  } catch (err) {
+    say(`Recordings: ${err.message}`, "error");
+  }
+}
+
+async function openRecording(id) {
+  if (!id) return;
+  setText("recording-info", "opening…");
+  try {
+    const done = player.open(id);
+    await waitFor(() => player.detail);
+    const d = player.detail;
+    setText("recording-info", `${d.name}: ${d.duration_s.toFixed(1)} s, ${d.vessels.join(", ") || "no vessel"}, `
+      + `${d.message_count} messages, ${d.frame_count} frames`
+      + (d.notes.length ? ` — ${d.notes.join("; ")}` : ""));
+    if (d.vessels.length && !d.vessels.includes(app.selected)) selectVessel(d.vessels[0]);
+    setTimeout(() => map.fit(), 300);
+    await done;
+  } catch (err) {
+    setText("recording-info", "");
+    say(`Recording ${id}: ${err.message}`, "error");
+  }
+}
+
+function waitFor(pred) {
+  return new Promise((resolve) => {
+    const check = () => (pred() ? resolve() : setTimeout(check, 30));
+    check();
+  });
+}
+
+function updateTransport() {
+  const d = player.detail;
+  $("play").disabled = !d;
+  $("scrub").disabled = !d;
+  $("play").textContent = player.playing ? "❚❚ Pause" : "▶ Play";
+  if (d) {
+    $("scrub").max = d.duration_s.toFixed(2);
+    if (document.activeElement !== $("scrub")) $("scrub").value = player.t;
+    setText("replay-time", `${player.t.toFixed(1)} / ${d.duration_s.toFixed(1)} s`);
+  }
+}
+
+$("recording-open").onclick = () => openRecording($("recording-select").value);
+$("recording-refresh").onclick = () => loadRecordings($("recording-select").value);
+$("play").onclick = () => (player.playing ? player.pause() : player.play());
+$("speed").onchange = (ev) => { player.speed = Number(ev.target.value); };
+$("scrub").oninput = (ev) => player.seek(Number(ev.target.value));
+$("recording-upload").onchange = async (ev) => {
+  const file = ev.target.files[0];
+  ev.target.value = "";
+  if (!file) return;
+  if (file.size > app.config.max_upload_bytes) {
+    say(`${file.name} is larger than the ground station accepts (${(app.config.max_upload_bytes / 2 ** 20).toFixed(0)} MiB)`, "error");
+    return;
+  }
+  if (!getToken() && !(await askToken())) return;
+  setText("recording-info", `uploading ${file.name}…`);
+  try {
+    const entry = await request("POST", `/api/recordings/upload?name=${encodeURIComponent(file.name)}`,
+      { body: file, raw: true, command: true, headers: { "Content-Type": "application/octet-stream" } });
+    await loadRecordings(entry.id);
+    await openRecording(entry.id);
+  } catch (err) {
+    setText("recording-info", "");
+    say(`Upload ${file.name}: ${err.message}`, "error");
+  }
+};
+
+// -- modes and start ------------------------------------------------------------------------------
+
+function setMode(mode) {
+  app.mode = mode;
+  document.body.classList.toggle("replay", mode === "replay");
+  $("replay-panel").hidden = mode !== "replay";
+  for (const [id, m] of [["mode-live", "live"], ["mode-replay", "replay"]]) {
+    $(id).classList.toggle("active", m === mode);
+    $(id).setAttribute("aria-selected", String(m === mode));
+  }
+  setText("metrics-title", "");
+  $("metrics-title").innerHTML = mode === "live"
+    ? "Paper's metrics <small>(as <code>seaway report</code> computes them, live)</small>"
+    : "Run's report <small>(<code>seaway report</code>)</small>";
+  if (mode === "replay") {
+    player.pause();
+    loadRecordings($("recording-select").value);
+  } else {
+    player.pause();
+  }
+  updateLinkPill();
+  schedule();
+}
+$("mode-live").onclick = () => setMode("live");
+$("mode-replay").onclick = () => setMode("replay");
+$("vessel-picker").onchange = (ev) => selectVessel(ev.target.value);
+$("token-button").onclick = () => askToken();
+
+async function start() {
+  try {
+    app.config = await get("/api/config");
+  } catch (err) {
+    say(`Cannot read the ground station's settings: ${err.message}`, "error");
+  }
+  $("controller").replaceChildren(...app.config.controllers.map((c) => new Option(c, c)));
+  renderDraftTable();
+  setMode(new URLSearchParams(location.search).get("view") === "replay" ? "replay" : "live");
+  stream.start();
+  pollFleet();
+  map.fit();
+}
+start();
+
+// For tests and the curious: the page's state, read-only by convention.
+window.seaway = { app, map, player, plots };
