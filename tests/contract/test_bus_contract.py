@@ -131,7 +131,7 @@ def test_requests_are_answered_refused_or_reported_missing(buses) -> None:
     assert a.request(keys.VEHICLE_ARM, ArmRequest.make(stamp_ns=1, arm=True), timeout_s=3).accepted
 
     # Nobody serving: a refusal that says so, never an exception.
-    r = a.request(keys.SIM_SCENARIO, ScenarioRequest.make(stamp_ns=1), timeout_s=0.3)
+    r = a.request(keys.SIM_SCENARIO, ScenarioRequest.make(stamp_ns=1, action="restart"), timeout_s=0.3)
     assert not r.accepted and r.reason == ("no reply from seaway/vessel1/sim/scenario within 0.3 s "
                                            "(is the service running?)")
 

@@ -55,6 +55,14 @@ def _service_packages() -> dict[str, Path]:
     return out
 
 
+# Known exception, to be removed by moving the recording reader into the shared library: the ground
+# station's replay view reads recordings with the recorder's reader (seaway_recorder.recording and
+# the attachment readers of seaway_recorder.runinfo) rather than a second copy of them. Only these
+# modules, only from the ground station (a shore process; the boat's install is unaffected).
+ALLOWED_IMPORTS = {("seaway_groundstation", "seaway_recorder.recording"),
+                   ("seaway_groundstation", "seaway_recorder.runinfo")}
+
+
 def test_no_service_imports_another() -> None:
     pkgs = _service_packages()
     assert "seaway" in pkgs
@@ -68,6 +76,10 @@ def test_no_service_imports_another() -> None:
                     mods = [a.name for a in node.names]
                 elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
                     mods = [node.module]
+                if isinstance(node, ast.ImportFrom) and node.module in pkgs and node.level == 0:
+                    mods = [f"{node.module}.{a.name}" for a in node.names]  # from pkg import module
                 for mod in mods:
                     top = mod.split(".")[0]
+                    if (name, mod) in ALLOWED_IMPORTS:
+                        continue
                     assert not (top in services and top != name), f"{py} imports {mod}"

@@ -48,7 +48,7 @@ EXAMPLES: dict[type[m.Message], dict] = {
     m.Reply: dict(accepted=False, reason="no", detail={"field": "x"}),
     m.ArmRequest: dict(arm=True),
     m.ModeRequest: dict(mode="MANUAL"),
-    m.ScenarioRequest: dict(scenario={"name": "x"}),
+    m.ScenarioRequest: dict(action="load", scenario={"name": "x"}),
     m.MissionRequest: dict(waypoints=[{"x_m": 0.0, "y_m": 0.0}, {"lat_deg": 47.0, "lon_deg": 8.0}],
                            coa_radius_m=1.0, task_power_w=0.49, controller="eo-empc"),
     m.MissionCommand: dict(command="pause"),

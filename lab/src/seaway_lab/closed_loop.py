@@ -318,7 +318,9 @@ def run_closed_loop(scenario: str | Scenario, controller: ControllerKind,
     if sc.mission is None:
         raise ValueError(f"scenario {sc.name!r} has no mission section")
     vp = vessel or load_vessel(sc.vessel)
-    core = core or ControllerCore(vp, config or ControllerConfig())
+    # A simulation in process, like lockstep: a slow solve is never late, so that the result does
+    # not depend on how busy the machine was (issue 14: load made solves "unconverged").
+    core = core or ControllerCore(vp, config or ControllerConfig(solve_budget_s=None))
     # The plant is the scenario's (it may differ from the model: a robustness run), as in the sim.
     sim = SimCore(sc, vp if vessel is not None else load_vessel(sc.plant_vessel_file))
     core.set_origin(sim.origin)

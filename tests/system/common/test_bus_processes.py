@@ -82,6 +82,6 @@ def test_wrong_type_refused_before_the_wire(zenoh_env) -> None:
         with pytest.raises(TypeError, match="carries StateEstimate, not ThrustCommand"):
             pub.put(ThrustCommand.make(stamp_ns=1, thrust_port_n=0.0, thrust_starboard_n=0.0))
         r = bus.request(keys.SIM_SCENARIO, ScenarioRequest.make(
-            stamp_ns=1), timeout_s=0.3)
+            stamp_ns=1, action="restart"), timeout_s=0.3)
         assert not r.accepted and "no reply" in r.reason
     time.sleep(0)

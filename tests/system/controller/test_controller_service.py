@@ -51,6 +51,9 @@ def test_lockstep_commands_missions_and_shutdown(zenoh_env, procs):
             est.answer(p, DT_NS, [(keys.NAV_STATE, state_msg(k * DT_NS, x))])
             ans = answers.get(timeout_s=5.0)
             assert ans is not None, f"no answer for state {k}\n{procs.log(proc)}"
+            if k == 0 and ans.hold:  # its solver is being made (a first compile): held, then
+                ans = answers.get(timeout_s=300.0)  # answered again once it is ready
+                assert ans is not None, f"no answer once the solver was made\n{procs.log(proc)}"
             assert ans.stamp_ns == k * DT_NS
             return ans
 

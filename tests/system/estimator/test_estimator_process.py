@@ -27,7 +27,7 @@ TICK_NS = 100_000_000
 
 
 def _ready(bus: Bus) -> bool:
-    return bus.request(NAV_RESET, NavResetRequest(stamp_ns=0, reason="test: ready?"),
+    return bus.request(NAV_RESET, NavResetRequest(stamp_ns=0, keep_origin=True, reason="test: ready?"),
                        timeout_s=1.0).accepted
 
 
@@ -120,7 +120,8 @@ def test_lockstep_process_publishes_state_and_origin_and_replays_exactly(procs, 
 
         # Re-initialise on request: the answers list no state until a position and a heading
         # arrive again (known at once from the answer, not by waiting).
-        reply = bus.request(NAV_RESET, NavResetRequest(stamp_ns=1, reason="test"), timeout_s=3)
+        reply = bus.request(NAV_RESET, NavResetRequest(stamp_ns=1, keep_origin=True, reason="test"),
+                            timeout_s=3)
         assert reply.accepted and reply.detail == {"keep_origin": True}
         assert period(40, with_sensors=False) is None
         command(40 * TICK_NS)

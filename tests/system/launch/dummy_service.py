@@ -4,6 +4,9 @@
 --ignore-sigint           ignore SIGINT (the launcher must escalate to SIGKILL)
 --ready-after S           declare the health token only after S seconds
 --marker FILE             append this process's pid to FILE (the test checks none survive)
+--publish-thrust HZ       publish zero ctrl/thrust commands at HZ (what a controller must publish)
+--quiet-after S           stop publishing after S seconds, but keep running (a hung loop)
+--drop-token-after S      withdraw the health token after S seconds, but keep running
 """
 
 from __future__ import annotations
@@ -15,6 +18,8 @@ import sys
 import threading
 import time
 
+from seaway.contract import keys
+from seaway.contract.messages import ThrustCommand
 from seaway.runtime.bus import Bus
 
 ap = argparse.ArgumentParser()
@@ -25,6 +30,9 @@ ap.add_argument("--code", type=int, default=0)
 ap.add_argument("--ignore-sigint", action="store_true")
 ap.add_argument("--ready-after", type=float, default=0.0)
 ap.add_argument("--marker", default=None)
+ap.add_argument("--publish-thrust", type=float, default=None)
+ap.add_argument("--quiet-after", type=float, default=None)
+ap.add_argument("--drop-token-after", type=float, default=None)
 args = ap.parse_args()
 
 stop = threading.Event()
@@ -41,10 +49,19 @@ time.sleep(args.ready_after)
 bus.declare_alive(args.service)
 print(f"{args.service} up pid {os.getpid()}", flush=True)
 t0 = time.monotonic()
-while not stop.wait(0.05):
-    if args.exit_after is not None and time.monotonic() - t0 > args.exit_after:
+thrust = bus.publisher(keys.THRUST) if args.publish_thrust else None
+period_s = 1.0 / args.publish_thrust if args.publish_thrust else 0.05
+while not stop.wait(period_s):
+    up_s = time.monotonic() - t0
+    if args.exit_after is not None and up_s > args.exit_after:
         print(f"{args.service} exiting with {args.code}", flush=True)
         bus.close()
         sys.exit(args.code)
+    if thrust is not None and (args.quiet_after is None or up_s < args.quiet_after):
+        thrust.put(ThrustCommand.make(stamp_ns=time.time_ns(), thrust_port_n=0.0,
+                                      thrust_starboard_n=0.0, source="dummy"))
+    if args.drop_token_after is not None and up_s > args.drop_token_after and bus._tokens:
+        bus._tokens.pop().undeclare()
+        print(f"{args.service} withdrew its health token", flush=True)
 bus.close()
 print(f"{args.service} stopped cleanly", flush=True)

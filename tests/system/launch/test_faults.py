@@ -7,7 +7,8 @@ One run of the lake mission (about a minute), three faults:
    and the new controller resumes the same mission at the same leg from its checkpoint;
 2. the estimator is killed: restarted; the recording shows the gap in nav/state and its recovery;
 3. vehicle_io is killed: restarted; the recording shows the gap in the sensor keys and their
-   recovery; the autopilot's own loss failsafe held the boat meanwhile.
+   recovery; the autopilot's own loss failsafe held the boat meanwhile, so the controller paused the
+   mission (the thrust did not reach the thrusters) and the operator resumes it.
 
 The mission then completes, and the launcher exits 0.
 """
@@ -25,6 +26,7 @@ from pathlib import Path
 
 import pytest
 from seaway.contract import keys
+from seaway.contract.messages import MissionCommand
 from seaway.runtime.bus import Bus
 from seaway_recorder.recording import iter_messages, open_paths
 
@@ -33,6 +35,7 @@ from tests.conftest import wait_for
 pytestmark = pytest.mark.system
 WATCHDOG_S = 0.3
 TRUTH_PERIOD_S = 0.1  # the sim publishes sim/truth at the control period
+LOAD_SLACK_S = 0.3  # delivery and scheduling between the processes on a busy machine
 
 
 def starts(run: Path, name: str) -> list[dict]:
@@ -51,12 +54,17 @@ class Watch:
         self.thrust_rx: list[float] = []
         self.truth: list[tuple[float, float, float]] = []
         self.status = None
+        self.vehicle = None
         self.failsafes: list[str | None] = []
         bus.subscribe(keys.THRUST, callback=lambda _k, m: self._add(self.thrust_rx, time.monotonic()))
         bus.subscribe(keys.SIM_TRUTH, callback=lambda _k, m: self._add(
             self.truth, (time.monotonic(), m.thrust_port_n, m.thrust_starboard_n)))
         bus.subscribe(keys.MISSION_STATUS, callback=lambda _k, m: setattr(self, "status", m))
-        bus.subscribe(keys.VEHICLE_STATUS, callback=lambda _k, m: self._add(self.failsafes, m.failsafe))
+        bus.subscribe(keys.VEHICLE_STATUS, callback=self._on_vehicle)
+
+    def _on_vehicle(self, _key: str, msg) -> None:
+        self.vehicle = msg
+        self._add(self.failsafes, msg.failsafe)
 
     def _add(self, seq: list, item: object) -> None:
         with self.lock:
@@ -87,8 +95,11 @@ def test_services_killed_mid_mission_are_restarted_and_the_mission_completes(pro
                             time.monotonic() - w.thrust_rx[-1] > 0.2 else None, 5, what="commands stop")
         zero = wait_for(lambda: next((t for t, a, b in list(w.truth) if t > last_cmd and a == b == 0.0),
                                      None), 5, what="zero thrust at the vessel")
-        # The watchdog's 300 ms, plus the sim applying it and publishing truth at its 0.1 s period.
-        assert zero - last_cmd <= WATCHDOG_S + TRUTH_PERIOD_S + 0.1, zero - last_cmd
+        # The watchdog's 300 ms, plus the sim applying it and publishing truth at its 0.1 s period,
+        # plus what a busy 2-core machine adds between processes (0.39 s seen with the other core
+        # busy). Without the watchdog the last thrust stays on until the new controller commands,
+        # seconds later: this still bites.
+        assert zero - last_cmd <= WATCHDOG_S + TRUTH_PERIOD_S + LOAD_SLACK_S, zero - last_cmd
         print(f"controller killed: zero thrust at the vessel {zero - last_cmd:.3f} s after its last command")
         wait_for(lambda: "thrust_stale" in w.failsafes, 3, what="vehicle_io reporting thrust_stale")
         wait_for(lambda: len(starts(run, "controller")) == 2, 15, what="the controller restarted")
@@ -107,6 +118,16 @@ def test_services_killed_mid_mission_are_restarted_and_the_mission_completes(pro
         (vio,) = starts(run, "vehicle_io")
         os.kill(vio["pid"], signal.SIGKILL)
         wait_for(lambda: len(starts(run, "vehicle_io")) == 2, 15, what="vehicle_io restarted")
+        # Meanwhile the thrust did not reach the thrusters (no link, then the failsafe's HOLD): the
+        # controller paused the mission, saying why; it resumes when the operator asks, once the
+        # vehicle applies the thrust again (issue 14, item 2).
+        wait_for(lambda: w.status.state == "paused" and "paused by the controller" in w.status.reason,
+                 15, what="the mission paused by the controller")
+        wait_for(lambda: w.vehicle is not None and w.vehicle.thrust_withheld is None, 15,
+                 what="the vehicle applying thrust again")
+        resumed = bus.request(keys.MISSION_COMMAND, MissionCommand.make(
+            stamp_ns=time.time_ns(), command="resume"), 10.0)
+        assert resumed.accepted, resumed.reason
 
         la.wait(120)
     out = procs.log(la)

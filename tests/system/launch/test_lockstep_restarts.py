@@ -161,7 +161,8 @@ def test_a_member_killed_mid_mission_comes_back_and_the_run_finishes(victim, tmp
 def test_a_nav_reset_mid_mission(tmp_path, undisturbed) -> None:
     stack = Stack(tmp_path / "run")
     stack.sim_time_reaches(KILL_AT_NS)
-    reply = stack.bus.request(keys.NAV_RESET, NavResetRequest(stamp_ns=0, reason="test"), 5.0)
+    reply = stack.bus.request(keys.NAV_RESET,
+                              NavResetRequest(stamp_ns=0, keep_origin=True, reason="test"), 5.0)
     assert reply.accepted, reply.reason
     stack.finish()
     _same_energy(report(stack.run_dir), undisturbed)
@@ -175,7 +176,7 @@ def test_two_missions_back_to_back_in_one_stack_equal_two_fresh_stacks(tmp_path,
     done = lambda: (s := stack.status.latest()) is not None and s.state == "complete"  # noqa: E731
     wait_for(done, 120, interval_s=0.01, what="the first mission complete")
     # The same scenario again (a new episode from t = 0), then its mission again.
-    reply = stack.bus.request(keys.SIM_SCENARIO, ScenarioRequest(stamp_ns=0, scenario=None), 10.0)
+    reply = stack.bus.request(keys.SIM_SCENARIO, ScenarioRequest(stamp_ns=0, action="restart"), 10.0)
     assert reply.accepted, reply.reason
     sc = load_scenario(SCENARIO)
     mission = sc.mission.to_request(0, mission_id="second", controller=CONTROLLER)
@@ -195,3 +196,20 @@ def test_two_missions_back_to_back_in_one_stack_equal_two_fresh_stacks(tmp_path,
             assert m[key] == pytest.approx(undisturbed[key], rel=1e-6), (key, m, undisturbed)
     for stamps in truth_episodes(stack.run_dir):
         assert_no_hole(stamps)
+
+
+def test_a_member_stopped_mid_mission_is_found_hung_and_restarted(tmp_path, undisturbed) -> None:
+    """SIGSTOP (a hung process, not a dead one): its exit never comes, and its health token stays
+    until Zenoh gives up on it. The launcher finds it hung, kills and restarts it like a dead one,
+    and the run finishes as an undisturbed one (issue 14, item 3)."""
+    stack = Stack(tmp_path / "run")
+    stack.sim_time_reaches(KILL_AT_NS)
+    os.kill(stack.pid_of("controller"), signal.SIGSTOP)
+    stack.finish(timeout_s=240.0)
+    events = [json.loads(x) for x in (stack.run_dir / "events.jsonl").read_text().splitlines()]
+    (hung,) = [e for e in events if e["event"] == "hung"]
+    assert hung["process"] == "controller", hung
+    assert [e["event"] for e in events if e["process"] == "controller"][:4] == [
+        "start", "hung", "exit", "start"]
+    _same_energy(report(stack.run_dir), undisturbed)
+    assert_no_hole(truth_episodes(stack.run_dir)[0])

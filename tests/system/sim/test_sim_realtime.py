@@ -225,20 +225,23 @@ def test_garbage_and_bad_requests_are_dropped_and_the_sim_keeps_serving(procs, z
 
     with Bus.open("vessel1") as bus:
         bad_doc = {"name": "broken", "seed": -1, "vessel": "paper-sim", "sensors": {"gnss_std_m": -2}}
-        reply = bus.request(keys.SIM_SCENARIO, ScenarioRequest(stamp_ns=0, scenario=bad_doc), 5.0)
+        reply = bus.request(keys.SIM_SCENARIO,
+                            ScenarioRequest(stamp_ns=0, action="load", scenario=bad_doc), 5.0)
         assert not reply.accepted
         assert "seed" in reply.reason and "sensors.gnss_std_m" in reply.reason
         no_vessel = {"name": "x", "seed": 1, "vessel": "no-such-boat"}
-        reply = bus.request(keys.SIM_SCENARIO, ScenarioRequest(stamp_ns=0, scenario=no_vessel), 5.0)
+        reply = bus.request(keys.SIM_SCENARIO,
+                            ScenarioRequest(stamp_ns=0, action="load", scenario=no_vessel), 5.0)
         assert not reply.accepted and "no-such-boat" in reply.reason
         good_doc = {"name": "push", "seed": 2, "vessel": "paper-sim",
                     "disturbances": [{"kind": "world_constant", "north_n": 0.5}]}
-        reply = bus.request(keys.SIM_SCENARIO, ScenarioRequest(stamp_ns=0, scenario=good_doc), 5.0)
+        reply = bus.request(keys.SIM_SCENARIO,
+                            ScenarioRequest(stamp_ns=0, action="load", scenario=good_doc), 5.0)
         assert reply.accepted and reply.detail["name"] == "push"
         dist = bus.subscribe(keys.SIM_DISTURBANCE)
         d = wait_for(lambda: dist.latest(), 5, what="a disturbance sample")
         assert d.surge_n == pytest.approx(0.5, abs=1e-9)  # heading north: the push is surge
-        reply = bus.request(keys.SIM_SCENARIO, ScenarioRequest(stamp_ns=0, scenario=None), 5.0)
+        reply = bus.request(keys.SIM_SCENARIO, ScenarioRequest(stamp_ns=0, action="restart"), 5.0)
         assert reply.accepted and "restarted" in reply.reason
     mav.wait("HEARTBEAT")  # MAVLink still served after all of it
     mav.close()

@@ -33,17 +33,26 @@ def write(tmp: Path, text: str) -> Path:
 
 
 @pytest.mark.parametrize(("text", "problem"), [
-    ("coa_radius_m = 1\ntask_power_w = 0\n", "exactly one of waypoints_m and waypoints_deg"),
-    ("waypoints_m = [[0,0],[1,1]]\nwaypoints_deg = [[1,1],[2,2]]\ncoa_radius_m = 1\ntask_power_w = 0\n",
+    ("coa_radius_m = 1\ntask_power_w = 0.49\n", "exactly one of waypoints_m and waypoints_deg"),
+    ("waypoints_m = [[0,0],[1,1]]\nwaypoints_deg = [[1,1],[2,2]]\ncoa_radius_m = 1\ntask_power_w = 0.49\n",
      "exactly one of"),
-    ("waypoints_m = [[0,0]]\ncoa_radius_m = 1\ntask_power_w = 0\n",
+    ("waypoints_m = [[0,0]]\ncoa_radius_m = 1\ntask_power_w = 0.49\n",
      "waypoints_m: List should have at least 2"),
-    ("waypoints_m = [[0,0],[1,1]]\ncoa_radius_m = 0\ntask_power_w = 0\n",
+    ("waypoints_m = [[0,0],[1,1]]\ncoa_radius_m = 0\ntask_power_w = 0.49\n",
      "coa_radius_m: Input should be greater"),
-    ("waypoints_m = [[0,0],[1,1]]\ncoa_radius_m = 1\ntask_power_w = 0\ncontroler = 'nmpc'\n",
+    ("waypoints_m = [[0,0],[1,1]]\ncoa_radius_m = 1\ntask_power_w = 0.49\ncontroler = 'nmpc'\n",
      "controler: unknown field"),
-    ("waypoints_m = [[0,0],[1,nan]]\ncoa_radius_m = 1\ntask_power_w = 0\n", "finite number"),
+    ("waypoints_m = [[0,0],[1,nan]]\ncoa_radius_m = 1\ntask_power_w = 0.49\n", "finite number"),
     ("waypoints_m = [[0,0],[1,1]\n", "not valid TOML"),
+    # Out of range: the error names the field and the allowed range (issue 14, item 11).
+    ("waypoints_m = [[0,0],[1,1]]\ncoa_radius_m = 1\ntask_power_w = 0\n",
+     r"task_power_w: Value error, 0 W is outside the allowed range \(0, 10000\] W"),
+    ("waypoints_m = [[0,0],[1,1]]\ncoa_radius_m = 1\ntask_power_w = 1e300\n",
+     r"task_power_w: Value error, 1e\+300 W is outside the allowed range \(0, 10000\] W"),
+    ("waypoints_deg = [[95,8],[47,8]]\ncoa_radius_m = 1\ntask_power_w = 1\n",
+     r"waypoints_deg.0.0: Value error, 95 deg is outside the allowed range \[-90, 90\] deg"),
+    ("waypoints_deg = [[47,8],[47,200]]\ncoa_radius_m = 1\ntask_power_w = 1\n",
+     r"waypoints_deg.1.1: Value error, 200 deg is outside the allowed range \[-180, 180\] deg"),
 ])
 def test_bad_mission_files(tmp_path: Path, text: str, problem: str) -> None:
     with pytest.raises(ConfigError, match=problem):

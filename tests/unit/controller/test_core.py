@@ -122,7 +122,7 @@ def test_nmpc_record_has_no_empc_terms():
 def test_completion_pause_and_refusals():
     core = make_core(ScriptedSolver())
     refused = core.handle_mission(0, MissionRequest.make(
-        stamp_ns=0, waypoints=[Waypoint(x_m=0, y_m=0)], coa_radius_m=1, task_power_w=0))
+        stamp_ns=0, waypoints=[Waypoint(x_m=0, y_m=0)], coa_radius_m=1, task_power_w=0.49))
     assert not refused.accepted and "at least 2 waypoints" in refused.reason
     assert not core.handle_command(0, MissionCommand.make(stamp_ns=0, command="resume")).accepted
     core.handle_mission(0, mission())

@@ -42,7 +42,7 @@ def test_unknown_controller_is_refused_naming_the_known_ones():
         OcpSpec("lqr")  # type: ignore[arg-type]
     with pytest.raises(ValueError):
         MissionRequest.make(stamp_ns=0, waypoints=[Waypoint(x_m=0, y_m=0), Waypoint(x_m=1, y_m=0)],
-                            coa_radius_m=1, task_power_w=0, controller="lqr")
+                            coa_radius_m=1, task_power_w=0.49, controller="lqr")
 
 
 def test_economic_controllers_have_times_and_the_terminal_constraint():

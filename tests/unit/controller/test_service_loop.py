@@ -8,8 +8,10 @@ injected solver (test_core's ``ScriptedSolver``), so nothing is compiled.
 
 from __future__ import annotations
 
+import contextlib
 import threading
 from collections.abc import Iterator
+from pathlib import Path
 from typing import NamedTuple
 
 import pytest
@@ -21,6 +23,7 @@ from seaway.runtime.lockstep import Member, Period
 from seaway.runtime.memory_bus import MemoryBus, MemoryHub
 from seaway.runtime.run import RunDescription
 from seaway.runtime.service import ServiceContext
+from seaway_controller import checkpoint
 from seaway_controller.service import ControllerService
 
 from tests.conftest import wait_for
@@ -34,15 +37,15 @@ class Running(NamedTuple):
     bus: MemoryBus  # the controller's bus (its stats)
 
 
-@pytest.fixture
-def controller() -> Iterator[Running]:
+@contextlib.contextmanager
+def running_controller(state_file: Path | None = None) -> Iterator[Running]:
     """A controller running its lockstep loop on a thread, as its process would."""
     hub = MemoryHub()
     bus = hub.bus(VESSEL)
     stop = threading.Event()
     ctx = ServiceContext(name="controller", vessel=VESSEL, bus=bus, clock=WallClock(), stop=stop,
                          run=RunDescription(run_id="unit", vessel=VESSEL, clock="lockstep"))
-    svc = ControllerService(ctx, make_core(ScriptedSolver()), lockstep=True)
+    svc = ControllerService(ctx, make_core(ScriptedSolver()), lockstep=True, state_file=state_file)
     ctx.ready()
     loop = threading.Thread(target=svc.run_lockstep, name="controller-loop", daemon=True)
     loop.start()
@@ -53,6 +56,12 @@ def controller() -> Iterator[Running]:
         loop.join(2.0)
         bus.close()
     assert not loop.is_alive()
+
+
+@pytest.fixture
+def controller() -> Iterator[Running]:
+    with running_controller() as running:
+        yield running
 
 
 class World:
@@ -136,3 +145,26 @@ def test_answers_each_period_holds_when_idle_and_restarts_with_the_world(control
     # A request the core refuses comes back refused, with its reason.
     refused = operator.request(keys.MISSION_COMMAND, MissionCommand.make(stamp_ns=0, command="resume"))
     assert not refused.accepted and refused.reason
+
+
+def test_lockstep_checkpoint_follows_simulated_time(tmp_path: Path) -> None:
+    """The checkpoint's energy count is re-saved every simulated second, not every wall second: in
+    lockstep a wall second is many simulated ones, which a restart would lose (issue 14, item 9)."""
+    path = tmp_path / "controller-state.json"
+    with running_controller(path) as controller:
+        world = World(controller.hub)
+        operator = controller.hub.bus(VESSEL)
+        world.period(0, state(0))
+        assert operator.request(keys.MISSION_SET, mission(), timeout_s=2.0).accepted
+        world.next_answer(Period(0, 0))
+        statuses = []
+        for k in range(1, 26):  # 2.5 s of simulated time, in a small fraction of a wall second
+            world.period(k, state(k))
+            statuses.append(wait_for(lambda: world.status.get(0.05), 5, what=f"status {k}"))
+    saved = checkpoint.load(path)
+    assert saved is not None and saved.state == "active"
+    # Saved at t = 2.0 s of simulated time (every 1 s), so it holds the count of period 20, not the
+    # zero written when the mission was accepted.
+    at_20 = next(s.energy_used_j for s in statuses if s.stamp_ns == 20 * DT_NS)
+    assert at_20 > 0
+    assert saved.energy_used_j == pytest.approx(at_20, rel=1e-12)

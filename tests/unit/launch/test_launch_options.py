@@ -24,13 +24,15 @@ def test_mission_options_parse() -> None:
     args = parse("--controller", "nmpc", "--predict-disturbance", "--task-power-w", "2.5")
     assert (args.controller, args.predict_disturbance, args.task_power_w) == ("nmpc", True, 2.5)
     assert parse("--no-predict-disturbance").predict_disturbance is False
-    assert parse("--task-power-w", "0").task_power_w == 0.0
+    assert parse("--task-power-w", "10000").task_power_w == 10_000.0
 
 
 @pytest.mark.parametrize(("argv", "problem"), [
     (["--controller", "pid"], "argument --controller: invalid choice: 'pid'"),
-    (["--task-power-w", "-1"], "--task-power-w: '-1': the task power must be finite and >= 0 W"),
-    (["--task-power-w=-0.5"], "--task-power-w: '-0.5': the task power must be finite and >= 0 W"),
+    (["--task-power-w", "-1"], "--task-power-w: '-1': the task power must be finite, in (0, 10000] W"),
+    (["--task-power-w=-0.5"], "--task-power-w: '-0.5': the task power must be finite, in (0, 10000] W"),
+    (["--task-power-w", "0"], "'0': the task power must be finite, in (0, 10000] W"),
+    (["--task-power-w", "1e300"], "'1e300': the task power must be finite, in (0, 10000] W"),
     (["--task-power-w", "nan"], "'nan': the task power must be finite"),
     (["--task-power-w", "inf"], "'inf': the task power must be finite"),
     (["--task-power-w", "two"], "'two' is not a number of watts"),
@@ -47,8 +49,8 @@ def test_the_options_change_the_mission_sent() -> None:
     assert (plain.mission_id, plain.controller, plain.predict_disturbance, plain.task_power_w) == (
         "paper-c1", "cc-empc", False, 0.49)
     req = launch._mission_request("paper-c1", parse("--controller", "eo-empc", "--predict-disturbance",
-                                                    "--task-power-w", "0"))
-    assert (req.controller, req.predict_disturbance, req.task_power_w) == ("eo-empc", True, 0.0)
+                                                    "--task-power-w", "2.5"))
+    assert (req.controller, req.predict_disturbance, req.task_power_w) == ("eo-empc", True, 2.5)
     assert req.waypoints == plain.waypoints and req.coa_radius_m == plain.coa_radius_m
 
 
@@ -87,7 +89,7 @@ def test_check_shows_the_mission_that_would_be_sent(tmp_path, capsys) -> None:
 
 def _req(controller: str, predict: bool) -> MissionRequest:
     return MissionRequest.make(stamp_ns=0, waypoints=[Waypoint(x_m=0, y_m=0), Waypoint(x_m=1, y_m=0)],
-                               coa_radius_m=1.0, task_power_w=0.0, controller=controller,
+                               coa_radius_m=1.0, task_power_w=0.49, controller=controller,
                                predict_disturbance=predict)
 
 

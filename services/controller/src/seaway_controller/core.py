@@ -15,6 +15,15 @@ lvl   source              when
 
 The MPC is tried every period whatever the level, so the chain unwinds as soon as it recovers.
 Every fallback period is counted (``SolveRecord.fallback_count``) and published.
+
+The vehicle (``on_vehicle_status``): while the autopilot does not apply the commanded thrust
+(``VehicleStatus.thrust_withheld``: disarmed, no link, a mode such as HOLD after a failsafe), flying
+the mission only pretends: the boat does not move, the energy count rises. So an active mission is
+paused, with the reason in ``MissionStatus.reason``, and resumes only on the operator's request once
+the vehicle applies the thrust again (a rebooted autopilot must not drive off on its own when
+someone re-arms it). Only statuses stamped from the mission's start on count: the one before may
+predate the arming its sender just did.
+
 No clock, no bus: time comes in as ``now_ns`` (the state's stamp in lockstep).
 """
 
@@ -34,7 +43,9 @@ from seaway.contract.messages import (
     SolveRecord,
     StateEstimate,
     ThrustCommand,
+    VehicleStatus,
 )
+from seaway.runtime.ratelog import RateLimitedLog
 from seaway.vessel import path
 from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.guidance import LosGains, los_thrust
@@ -102,6 +113,9 @@ class ControllerCore:
         self._last_command = (0.0, 0.0)
         self._energy_to_go_j: float | None = None
         self.mission_request: MissionRequest | None = None
+        self.vehicle: VehicleStatus | None = None  # the latest status heard (None: no vehicle_io)
+        self._ratelog = RateLimitedLog(log)
+        self._mission_start_ns = 0
 
     # -- set-up ---------------------------------------------------------------------------------
 
@@ -136,6 +150,7 @@ class ControllerCore:
         self.energy_used_j = 0.0
         self._energy_to_go_j = None
         self.mission_request = req
+        self._mission_start_ns = now_ns
         log.info("mission %r accepted: %d waypoints, r_COA %.2f m, T^w %.2f W, %s, %s",
                  mission.mission_id, len(mission.waypoints_m), mission.coa_radius_m,
                  mission.task_power_w, mission.controller,
@@ -177,11 +192,46 @@ class ControllerCore:
         return Reply.accept(now_ns, f"mission resumed at leg {active_leg} ({state})")
 
     def handle_command(self, now_ns: int, cmd: MissionCommand) -> Reply:
+        withheld = self.withheld_reason()
+        if cmd.command == "resume" and self.missions.state == "paused" and withheld:
+            return Reply.refuse(now_ns, f"cannot resume: {withheld}; the mission stays paused")
         try:
             state = self.missions.command(cmd)
         except MissionError as err:
             return Reply.refuse(now_ns, str(err))
         return Reply.accept(now_ns, f"mission {state}", state=state)
+
+    # -- the vehicle ----------------------------------------------------------------------------
+
+    def on_vehicle_status(self, status: VehicleStatus) -> str | None:
+        """The vehicle's status, in the order vehicle_io published them: pauses an active mission
+        while the autopilot does not apply the commanded thrust (see the module docstring). The
+        reason if it paused it now, else None."""
+        self.vehicle = status  # the latest, whatever its stamp says (a stamp cannot pin an old one)
+        if status.stamp_ns < self._mission_start_ns:
+            return None  # from before this mission: perhaps before the arming that preceded it
+        why = self.withheld_reason()
+        if why is None or not self.missions.hold(f"paused by the controller: {why}; resume with "
+                                                 "'seaway mission resume' once it applies it again"):
+            return None
+        log.warning("mission %r paused: %s (resumes only on request)",
+                    self.missions.mission.mission_id if self.missions.mission else "", why)
+        return self.missions.reason
+
+    def withheld_reason(self) -> str | None:
+        """Why the vehicle does not apply the commanded thrust now, for a person (None: it does,
+        or no vehicle status was heard)."""
+        v = self.vehicle
+        if v is None or v.thrust_withheld is None:
+            return None
+        return {
+            "no_link": "vehicle_io has no link to the autopilot (lost, or the autopilot rebooted)",
+            "disarmed": "the vehicle is disarmed (the autopilot rebooted, or was disarmed)",
+            "mode": f"the autopilot is in mode {v.mode}, in which it does not apply the commanded "
+                    "thrust (a failsafe, or another mode was set)",
+            "autopilot_config": "vehicle_io sends neutral only: the autopilot's configuration "
+                                "blocks thrust (see vehicle_io's log)",
+        }[v.thrust_withheld]
 
     # -- the control period ---------------------------------------------------------------------
 
@@ -254,7 +304,9 @@ class ControllerCore:
             else:
                 names = {LEVEL_PLAN: "reusing the last plan", LEVEL_LOS: "line-of-sight guidance",
                          LEVEL_STOP: "STOPPED (zero thrust)"}
-                log.warning("fallback level %d (%s): %s", level, names[level], reason)
+                # A solver failing every other period flips levels 5 times a second: rate-limited.
+                self._ratelog.warning(("fallback", level), "fallback level %d (%s): %s", level,
+                                      names[level], reason)
         self.level = level
 
     def _account_energy(self, now_ns: int) -> None:
@@ -308,4 +360,5 @@ class ControllerCore:
             waypoint_count=len(m.waypoints_m),
             distance_to_waypoint_m=math.dist((state.x_m, state.y_m), wp_act),
             cross_track_m=abs(xte), energy_used_j=self.energy_used_j,
-            energy_to_go_j=self._energy_to_go_j if mm.state == "active" else None)
+            energy_to_go_j=self._energy_to_go_j if mm.state == "active" else None,
+            reason=mm.reason)

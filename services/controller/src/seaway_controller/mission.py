@@ -13,7 +13,14 @@ from dataclasses import dataclass
 from typing import Literal
 
 from seaway.contract import keys
-from seaway.contract.messages import ControllerName, MissionCommand, MissionRequest, MissionState
+from seaway.contract.messages import (
+    MAX_REASON_CHARS,
+    MAX_TASK_POWER_W,
+    ControllerName,
+    MissionCommand,
+    MissionRequest,
+    MissionState,
+)
 from seaway.vessel import path
 from seaway.vessel.frames import GeoOrigin
 
@@ -80,8 +87,9 @@ def validate_mission(req: MissionRequest, origin: GeoOrigin | None,
         raise MissionError(f"too many waypoints: {n} > {limits.max_waypoints}")
     if not (math.isfinite(req.coa_radius_m) and req.coa_radius_m > 0):
         raise MissionError(f"coa_radius_m must be a finite number > 0, got {req.coa_radius_m}")
-    if not math.isfinite(req.task_power_w) or req.task_power_w < 0:
-        raise MissionError(f"task_power_w must be finite and >= 0, got {req.task_power_w}")
+    if not (math.isfinite(req.task_power_w) and 0 < req.task_power_w <= MAX_TASK_POWER_W):
+        raise MissionError(f"task_power_w {req.task_power_w:g} W is outside the allowed range "
+                           f"(0, {MAX_TASK_POWER_W:g}] W (seaway.contract.messages.MAX_TASK_POWER_W)")
     points = [_waypoint_ned(i, wp, origin) for i, wp in enumerate(req.waypoints)]
     for i, (x, y) in enumerate(points):
         if not (math.isfinite(x) and math.isfinite(y)):
@@ -100,12 +108,18 @@ def validate_mission(req: MissionRequest, origin: GeoOrigin | None,
 
 
 class MissionManager:
-    """The active mission's state machine: idle -> active <-> paused -> complete | aborted."""
+    """The active mission's state machine: idle -> active <-> paused -> complete | aborted.
+
+    A mission is paused by the operator (``command``) or by the controller itself (``hold``: the
+    vehicle stopped applying the thrust); either way it resumes only on the operator's request.
+    ``reason`` says why it is in its state when the operator did not ask for it ("" otherwise).
+    """
 
     def __init__(self, limits: MissionLimits = MissionLimits()) -> None:
         self.limits = limits
         self.mission: Mission | None = None
         self.state: MissionState = "idle"
+        self.reason = ""
         self.active = 0  # index i of the active waypoint P_i
         self.switches = 0  # legs changed since the mission started (warm starts re-guess on change)
 
@@ -113,13 +127,27 @@ class MissionManager:
         """Validate and start ``req`` (replacing any mission); raises MissionError if refused."""
         mission = validate_mission(req, origin, self.limits)
         self.mission, self.state, self.active, self.switches = mission, "active", 1, 0
+        self.reason = ""
         return mission
+
+    def hold(self, reason: str) -> bool:
+        """Pause the active mission for ``reason`` (not the operator's request); True if it was
+        active. Only ``command(resume)`` makes it active again."""
+        if self.mission is None or self.state != "active":
+            return False
+        self.state, self.reason = "paused", reason[:MAX_REASON_CHARS]
+        return True
 
     def command(self, cmd: MissionCommand) -> str:
         """Apply pause/resume/abort; returns what happened, raises MissionError if refused."""
         c = cmd.command
         if self.mission is None:
             raise MissionError(f"cannot {c}: no mission has been set")
+        self._command(c)
+        self.reason = ""  # the operator's doing from now on
+        return self.state
+
+    def _command(self, c: str) -> None:
         if c == "pause":
             if self.state != "active":
                 raise MissionError(f"cannot pause: the mission is {self.state}, not active")
@@ -132,7 +160,6 @@ class MissionManager:
             if self.state not in ("active", "paused"):
                 raise MissionError(f"cannot abort: the mission is already {self.state}")
             self.state = "aborted"
-        return self.state
 
     def leg(self) -> tuple[Point, Point]:
         """(P_{i-1}, P_i) of the active leg."""

@@ -20,9 +20,18 @@ The vessel model, the control period (which is also the OCP's dt) and the origin
 (``seaway.runtime.run``). ``--scenario NAME`` given as a flag (not through ``--run``) also starts
 the scenario's mission at once (batch runs without a launcher).
 
+Solvers (``solvers.SolverBuilds``): the service is up, and serves requests, at once. The fast
+solver a mission needs (its controller's, and no other) is made when the mission is accepted, on a
+thread of its own: loaded from the cache, or compiled the first time on a machine (seconds to
+minutes). Until it is ready, real time flies with the reference IPOPT and lockstep answers "hold"
+(simulated time waits, so the run is the one a warm start gives); the mission/set reply and
+``MissionStatus.reason`` say so, and the log says how far it got.
+
 ``--state-file PATH`` keeps a mission checkpoint (``checkpoint.py``): written whenever the mission's
-progress changes and once a second, read at start, so that a controller restarted mid-mission (the
-launcher restarts a crashed one) resumes the same mission at the same leg instead of idling.
+progress changes and once a second of the service's own clock (simulated time in lockstep, where a
+wall second can be a hundred periods), read at start, so that a controller restarted mid-mission (the
+launcher restarts a crashed one) resumes the same mission at the same leg, with its energy count,
+instead of idling.
 """
 
 from __future__ import annotations
@@ -41,14 +50,18 @@ from seaway.contract.config import ConfigError
 from seaway.contract.messages import (
     MissionCommand,
     MissionRequest,
+    MissionStatus,
     NavOrigin,
     PeriodDone,
     Reply,
     StateEstimate,
+    VehicleStatus,
 )
 from seaway.runtime.clock import RateLoop
 from seaway.runtime.lockstep import Member, Period
+from seaway.runtime.ratelog import RateLimitedLog
 from seaway.runtime.service import ServiceContext, base_parser, parse, resolve_run, run_service
+from seaway.runtime.stamps import StampBounds, StampGate
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.model import load_vessel
@@ -56,12 +69,18 @@ from seaway.vessel.model import load_vessel
 from seaway_controller import checkpoint
 from seaway_controller.core import ControllerConfig, ControllerCore
 from seaway_controller.mission import MissionLimits
-from seaway_controller.ocp import CONTROLLER_KINDS
-from seaway_controller.solvers import SOLVER_KINDS
+from seaway_controller.solvers import SOLVER_KINDS, SolverBuilds, StagedSolver
 
 log = logging.getLogger("seaway_controller.service")
 NAME = "controller"
-CHECKPOINT_PERIOD_S = 1.0  # an unchanged mission is re-saved this often, for the energy count
+CHECKPOINT_PERIOD_NS = 1_000_000_000
+"""An unchanged mission is re-saved this often (for its energy count), on the service's clock:
+wall time live, simulated time in lockstep. What a restart can lose is the energy of this long."""
+
+
+SOLVER_REPLY_WAIT_S = 2.0
+"""How long a mission's reply waits for its solver: enough to load a cached one, so that only a
+compile still under way is worth a word in the reply."""
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -85,11 +104,15 @@ class ControllerService:
     """Owns the core, its lock and the bus endpoints; the loops are ``run_lockstep``/``run_rate``."""
 
     def __init__(self, ctx: ServiceContext, core: ControllerCore, lockstep: bool,
-                 state_file: Path | None = None) -> None:
+                 state_file: Path | None = None, builds: SolverBuilds | None = None) -> None:
         self.ctx, self.core = ctx, core
         self.state_file = state_file
+        # The fast solvers being made in the background (None: the core makes its own at once).
+        self.builds = builds
+        if builds is not None:
+            builds.on_done = self.on_solver_done
         self._saved: tuple[str, int, str] | None = None  # (mission id, leg, state) last written
-        self._saved_at = 0.0
+        self._saved_at_ns: int | None = None  # when, on the service's clock
         self.lock = threading.Lock()
         bus = ctx.bus
         self.member: Member | None = None
@@ -106,9 +129,40 @@ class ControllerService:
         bus.queryable(keys.MISSION_SET, self.on_mission)
         bus.queryable(keys.MISSION_COMMAND, self.on_command)
         bus.subscribe(keys.NAV_ORIGIN, callback=self.on_origin)
+        self.stamps = StampGate(NAME, log, StampBounds.live())  # real time: states not ahead of now
+        self.ratelog = RateLimitedLog(log)  # a step failing every period: a traceback now and then
+        bus.subscribe(keys.VEHICLE_STATUS, callback=self.on_vehicle_status)  # pauses a mission
 
     def on_mission(self, req: MissionRequest) -> Reply:
-        return self._serve(f"{keys.MISSION_SET.suffix} {req.mission_id!r}", self.core.handle_mission, req)
+        reply = self._serve(f"{keys.MISSION_SET.suffix} {req.mission_id!r}", self.core.handle_mission,
+                            req)
+        if reply.accepted and self.builds is not None:  # a cached solver is loaded in a moment
+            self.builds.wait(req.controller, SOLVER_REPLY_WAIT_S)
+        making = self.solver_progress(req.controller) if reply.accepted else ""
+        if making:  # the mission is on; say how it is flown until its solver is there
+            meanwhile = ("simulated time holds until it is ready" if self.member is not None
+                         else "flying with the reference IPOPT meanwhile")
+            reply = reply.model_copy(update={"reason": f"{reply.reason}; {making}: {meanwhile}"})
+        return reply
+
+    def solver_progress(self, kind: str) -> str:
+        """'' when ``kind``'s fast solver is ready (or not made in the background), else where it is."""
+        return self.builds.describe(kind) if self.builds is not None else ""
+
+    def solver_pending(self) -> str | None:
+        """The active mission's controller while its fast solver is still being made, else None."""
+        mission = self.core.missions.mission
+        if self.builds is None or mission is None or self.core.missions.state != "active":
+            return None
+        return mission.controller if self.builds.pending(mission.controller) else None
+
+    def on_solver_done(self, kind: str) -> None:
+        """A fast solver is ready (or failed): lockstep answers a period held for it again."""
+        if self.member is not None:
+            with self.member.changed:
+                self._rethink = True
+                self.member.version += 1
+                self.member.changed.notify_all()
 
     def on_command(self, cmd: MissionCommand) -> Reply:
         return self._serve(f"{keys.MISSION_COMMAND.suffix} {cmd.command}", self.core.handle_command, cmd)
@@ -137,7 +191,8 @@ class ControllerService:
         return period.stamp_ns if period is not None else 0
 
     def save_checkpoint(self, force: bool = False) -> None:
-        """Write the checkpoint if the progress changed (or a second passed, for the energy)."""
+        """Write the checkpoint if the progress changed, or ``CHECKPOINT_PERIOD_NS`` passed on the
+        service's clock (for the energy count; time going back is a new episode: saved too)."""
         if self.state_file is None:
             return
         with self.lock:
@@ -146,8 +201,10 @@ class ControllerService:
             return
         req, leg, state, energy = progress
         key = (req.mission_id, leg, state)
-        now = time.monotonic()
-        if not force and key == self._saved and now - self._saved_at < CHECKPOINT_PERIOD_S:
+        now_ns = self._now_ns()
+        last = self._saved_at_ns
+        due = last is None or not 0 <= now_ns - last < CHECKPOINT_PERIOD_NS
+        if not force and key == self._saved and not due:
             return
         try:
             checkpoint.save(self.state_file, checkpoint.MissionCheckpoint(
@@ -156,7 +213,16 @@ class ControllerService:
         except OSError as err:  # the vessel keeps being controlled; only a restart would suffer
             log.error("cannot write the mission checkpoint %s: %s", self.state_file, err)
             return
-        self._saved, self._saved_at = key, now
+        self._saved, self._saved_at_ns = key, now_ns
+
+    def on_vehicle_status(self, _key: str, msg: VehicleStatus) -> None:
+        if self.member is None and not self.stamps.admit(keys.VEHICLE_STATUS.suffix, msg.stamp_ns,
+                                                         self.ctx.clock.now_ns()):
+            return  # stamped ahead of now: wrong (seaway.runtime.stamps)
+        with self.lock:
+            paused = self.core.on_vehicle_status(msg)
+        if paused:
+            self.save_checkpoint(force=True)
 
     def on_origin(self, _key: str, msg: NavOrigin) -> None:
         with self.lock:
@@ -166,8 +232,12 @@ class ControllerService:
         try:
             with self.lock:
                 cmd, record, status = self.core.step(now_ns, state)
+                making = self.solver_pending()
+            if making is not None and not status.reason:  # flown by the reference meanwhile
+                status = status.model_copy(update={
+                    "reason": f"flying with the reference IPOPT: {self.solver_progress(making)}"})
         except Exception:  # a bug must not leave the vessel (or a lockstep sim) without a command
-            log.exception("control step failed; commanding zero thrust")
+            self.ratelog.exception("step", "control step failed; commanding zero thrust")
             with self.lock:
                 self.pub_thrust.put(self.core.zero_command(state.stamp_ns, "error"))
             return
@@ -182,6 +252,8 @@ class ControllerService:
     def _on_state(self, _key: str, state: StateEstimate) -> None:
         member = self.member
         assert member is not None
+        if not member.admit(keys.NAV_STATE.suffix, state.stamp_ns):
+            return  # beyond any period to come soon: counted and logged by the member
         with member.changed:
             self._states[state.stamp_ns] = state
             if len(self._states) > 16:
@@ -224,13 +296,20 @@ class ControllerService:
         """Period t_k's answer: the command for the state, or hold when there is nothing to fly.
 
         Without a state (the estimator is not initialised) an active mission gets zero thrust, so
-        that time goes on to the next measurements; idle, paused or over, the answer is hold."""
+        that time goes on to the next measurements; idle, paused or over, the answer is hold; so it
+        is while the mission's solver is still being made (answered again once it is ready)."""
         t = period.stamp_ns
         out: list[tuple[keys.KeySpec, Any]] = []
         try:
             with self.lock:
                 active = self.core.missions.state == "active"
-                if state is None:
+                waiting = self.solver_pending() if state is not None else None
+                if waiting is not None:
+                    # Its solver is being made: hold (no step, so the run is the one a warm start
+                    # gives), and answer this period again once it is ready (on_solver_done).
+                    out.append((keys.MISSION_STATUS, self._held_status(t, waiting)))
+                    active = False
+                elif state is None:
                     if active:
                         out.append((keys.THRUST, self.core.zero_command(t, "no-state")))
                 else:
@@ -242,13 +321,22 @@ class ControllerService:
                         out.append((keys.SOLVE, record))
                     out.append((keys.MISSION_STATUS, status))
         except Exception:  # a bug must not leave a lockstep sim without a command
-            log.exception("control step failed; commanding zero thrust")
+            self.ratelog.exception("step", "control step failed; commanding zero thrust")
             with self.lock:
                 out = [(keys.THRUST, self.core.zero_command(t, "error"))]
             active = True
         done = member.answer(period, period_ns, out, hold=not active)
         self.save_checkpoint()
         return done
+
+    def _held_status(self, t_ns: int, kind: str) -> MissionStatus:
+        """The status of an active mission held while its solver is being made (under the lock)."""
+        mm, core = self.core.missions, self.core
+        assert mm.mission is not None
+        return MissionStatus.make(stamp_ns=t_ns, state="active", mission_id=mm.mission.mission_id,
+                                  active_leg=mm.active, waypoint_count=len(mm.mission.waypoints_m),
+                                  energy_used_j=core.energy_used_j,
+                                  reason=f"simulated time holds: {self.solver_progress(kind)}")
 
     def new_episode(self, period: Period) -> None:
         """The sim restarted, or loaded a scenario: a mission in progress starts again from its first
@@ -273,6 +361,8 @@ class ControllerService:
         while loop.wait():
             now = self.ctx.clock.now_ns()
             state = sub.latest()
+            if state is not None and not self.stamps.admit(keys.NAV_STATE.suffix, state.stamp_ns, now):
+                state = None  # stamped ahead of now: wrong, never acted on (seaway.runtime.stamps)
             if state is not None and state.stamp_ns != last_stamp:
                 last_stamp = state.stamp_ns
                 if (now - state.stamp_ns) / 1e9 <= max_state_age_s:
@@ -329,12 +419,17 @@ def main(argv: Sequence[str] | None = None) -> int:
                               # and a batch run must not depend on how busy the machine was.
                               solve_budget_s=None if run.lockstep else period_s,
                               limits=MissionLimits(max_range_m=args.max_range_m))
-    core = ControllerCore(vessel, config)
     with run_service(NAME, args, run=run) as ctx:
-        t0 = time.perf_counter()
-        core.prepare(CONTROLLER_KINDS)  # compile or load every solver before serving missions
-        log.info("solvers ready (%s) in %.1f s; model %s, control period (OCP dt) %g s, %s clock",
-                 args.solver, time.perf_counter() - t0, run.model_vessel_file, period_s, run.clock)
+        # Only the solver a mission needs is made, when the mission comes, in the background: the
+        # service is up (and answers requests) at once, also while a first compile takes minutes.
+        builds = None
+        factory = None
+        if args.solver == "generated":
+            builds = SolverBuilds(stopping=ctx.stop)
+            factory = lambda ocp: StagedSolver(ocp, builds, wait=run.lockstep)  # noqa: E731
+        core = ControllerCore(vessel, config, solver_factory=factory)
+        log.info("solver %s, made per mission; model %s, control period (OCP dt) %g s, %s clock",
+                 args.solver, run.model_vessel_file, period_s, run.clock)
         if run.origin is not None:
             o = run.origin
             core.set_origin(GeoOrigin.from_degrees(o.lat_deg, o.lon_deg, o.alt_m))
@@ -349,7 +444,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 return 2
         if args.state_file is not None:
             resume(core, args.state_file, ctx.clock.now_ns())
-        svc = ControllerService(ctx, core, run.lockstep, args.state_file)
+        svc = ControllerService(ctx, core, run.lockstep, args.state_file, builds)
         ctx.ready()
         if svc.member is not None:
             svc.member.join()

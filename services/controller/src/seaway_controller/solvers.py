@@ -17,7 +17,7 @@ Success is decided from this call's own results, never from a stale status (trap
 function's return flag, plus the primal and dual infeasibilities of the returned point as the
 solver's own convergence test computed them. CasADi 3.8's generated ``sqpmethod`` returns 0 at its
 iteration limit, so the flag alone is not enough; the C is patched (checked, anchored edits) to export
-the iteration count and those two residuals.
+the iteration count and those two residuals. The cache key covers the patch's code (``_patch_digest``).
 
 Reference: ``nlpsol('ipopt')`` with default options, the configuration most examples use.
 """
@@ -26,16 +26,18 @@ from __future__ import annotations
 
 import ctypes
 import hashlib
+import inspect
 import logging
 import os
 import re
 import shutil
+import signal
 import subprocess
 import tempfile
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -204,22 +206,44 @@ def _patch_kkt_reuse(src: str, nz: int) -> str:
     return src + _KKT_EXPORT
 
 
+class CompileInterruptedError(RuntimeError):
+    """The C compiler was stopped by a signal before it finished: the process building the solver
+    is being stopped (a launcher's stop, Ctrl-C), which says nothing about the generated code."""
+
+
+def _patch_digest() -> str:
+    """A hash of the code that edits the generated C (it is part of what gets compiled), and of
+    nothing else in this module, so that editing the rest does not discard every cached solver."""
+    parts = [inspect.getsource(f) for f in (patch_generated_source, _tag_failure, _patch_kkt_reuse)]
+    parts += [_STATS_DECL, _STATS_SET, _STATS_EXPORT, _SQP_ANCHOR, _FAIL_RETURN.pattern,
+              _FACTORIZE_BODY, _RESET_HEAD, _SINGULAR_HEAD, _KKT_CACHE_DECL, _KKT_CACHED_FACTORIZE,
+              _KKT_EXPORT, repr((ERROR_EVALUATION, ERROR_CONVEXIFY))]
+    return hashlib.sha256("\0".join(parts).encode()).hexdigest()
+
+
+def shared_object_path(ocp: Ocp, options: dict, directory: Path | None = None,
+                       kkt_reuse: bool = True) -> Path:
+    """Where the compiled solver for ``ocp`` is cached: named by its kind and a hash of the
+    problem, the options, the compiler flags and the patch."""
+    digest = spec_digest(ocp.spec, ocp.vessel, {"options": options, "cc": CC_FLAGS,
+                                                "patch": _patch_digest(), "scaled": ocp.scaled,
+                                                "kkt_reuse": kkt_reuse, "graph": ocp.graph})
+    return (directory or cache_dir()) / f"{ocp.spec.kind}-{digest}.so"
+
+
 def build_shared_object(ocp: Ocp, options: dict, directory: Path | None = None,
                         kkt_reuse: bool = True) -> Path:
-    """Generate, patch and compile the SQP solver for ``ocp``; cached by a hash of both.
+    """Generate, patch and compile the SQP solver for ``ocp``; cached (``shared_object_path``).
 
     ``kkt_reuse=False`` leaves qrqp as CasADi generates it (the tests compare the two).
 
     Safe with concurrent processes: each builds in its own temporary folder and moves the result into
-    place with an atomic rename; whoever finishes last replaces an identical file.
+    place with an atomic rename; whoever finishes last replaces an identical file. A compiler
+    stopped by a signal raises ``CompileInterruptedError``, a compiler that fails ``RuntimeError``
+    with its messages.
     """
-    directory = directory or cache_dir()
-    # This module's source is hashed too: the patch above is part of what gets compiled.
-    this = hashlib.sha256(Path(__file__).read_bytes()).hexdigest()
-    digest = spec_digest(ocp.spec, ocp.vessel, {"options": options, "cc": CC_FLAGS, "patch": this,
-                                                "scaled": ocp.scaled, "kkt_reuse": kkt_reuse,
-                                                "graph": ocp.graph})
-    target = directory / f"{ocp.spec.kind}-{digest}.so"
+    target = shared_object_path(ocp, options, directory, kkt_reuse)
+    directory = target.parent
     if target.is_file():
         return target
     directory.mkdir(parents=True, exist_ok=True)
@@ -240,6 +264,11 @@ def build_shared_object(ocp: Ocp, options: dict, directory: Path | None = None,
         so_tmp = Path(tmp) / "solver.so"
         proc = subprocess.run([cc, *CC_FLAGS, str(c_file), "-o", str(so_tmp), "-lm"],
                               capture_output=True, text=True, check=False)
+        if proc.returncode < 0:  # killed (the launcher stopping us), not an error of the code
+            raise CompileInterruptedError(
+                f"compiling the {ocp.spec.kind} solver was interrupted: the C compiler was stopped "
+                f"by {signal.Signals(-proc.returncode).name} before it finished (this process is "
+                "being stopped); not a compile error")
         if proc.returncode != 0:
             raise RuntimeError(f"compiling the {ocp.spec.kind} solver failed:\n{proc.stderr[-2000:]}")
         os.replace(so_tmp, target)
@@ -403,6 +432,148 @@ SOLVERS: dict[SolverKind, Callable[[Ocp], NlpSolver]] = {
 }
 """Every solver by name; the command line's choices and the config's values come from here."""
 SOLVER_KINDS: tuple[SolverKind, ...] = tuple(SOLVERS)
+
+
+PROGRESS_LOG_S = 15.0
+"""While a build runs, say so this often (a first compile on a loaded machine can take minutes)."""
+
+
+@dataclass
+class _Build:
+    kind: str
+    started_s: float
+    done: threading.Event = field(default_factory=threading.Event)
+    solver: NlpSolver | None = None
+    error: str = ""
+    seconds: float = 0.0
+
+
+class SolverBuilds:
+    """The fast solvers of one process, each made the first time a mission needs it (compiled, or
+    loaded from the cache) on a thread of its own, so that the process serves meanwhile.
+
+    Only what is asked for is built: a mission's controller, when the mission is accepted. ``build``
+    makes one solver (default ``GeneratedSqpSolver``); ``on_done(kind)`` is called, on the build's
+    thread, once it is ready or has failed. ``describe`` says where each one is, for people.
+    A compiler killed because the process is stopping is said to be that, not a compile error.
+    """
+
+    def __init__(self, build: Callable[[Ocp], NlpSolver] = GeneratedSqpSolver,
+                 on_done: Callable[[str], None] | None = None,
+                 stopping: threading.Event | None = None) -> None:
+        self._build_fn = build
+        self.on_done = on_done
+        self._stopping = stopping or threading.Event()
+        self._builds: dict[str, _Build] = {}
+        self._lock = threading.Lock()
+        self._monitor: threading.Thread | None = None
+
+    def request(self, ocp: Ocp) -> None:
+        """Start making ``ocp``'s solver unless it is made or being made."""
+        kind = ocp.spec.kind
+        with self._lock:
+            if kind in self._builds:
+                return
+            b = self._builds[kind] = _Build(kind, time.monotonic())
+            if self._monitor is None:
+                self._monitor = threading.Thread(target=self._report, name="solver-builds",
+                                                 daemon=True)
+                self._monitor.start()
+        log.info("making the %s solver in the background (compiled on first use on this machine, "
+                 "then loaded from %s)", kind, cache_dir())
+        threading.Thread(target=self._run, args=(b, ocp), name=f"build-{kind}", daemon=True).start()
+
+    def _run(self, b: _Build, ocp: Ocp) -> None:
+        try:
+            b.solver = self._build_fn(ocp)
+        except CompileInterruptedError as err:
+            b.error = str(err)
+            log.info("%s", err)
+        except Exception as err:  # the process keeps serving (with the reference solver)
+            b.error = f"{type(err).__name__}: {err}"
+            if self._stopping.is_set():
+                log.info("making the %s solver stopped with the process: %s", b.kind, b.error)
+            else:
+                log.error("could not make the %s solver: %s", b.kind, b.error)
+        b.seconds = time.monotonic() - b.started_s
+        if b.solver is not None:
+            log.info("%s solver ready in %.1f s", b.kind, b.seconds)
+        b.done.set()
+        if self.on_done is not None:
+            self.on_done(b.kind)
+
+    def _report(self) -> None:
+        while not self._stopping.wait(PROGRESS_LOG_S):
+            with self._lock:
+                pending = [b for b in self._builds.values() if not b.done.is_set()]
+            for b in pending:
+                log.info("still making the %s solver (%.0f s so far)", b.kind,
+                         time.monotonic() - b.started_s)
+
+    def ready(self, kind: str) -> NlpSolver | None:
+        """The made solver of ``kind``, or None (not asked for, being made, or failed)."""
+        b = self._builds.get(kind)
+        return b.solver if b is not None and b.done.is_set() else None
+
+    def pending(self, kind: str) -> bool:
+        """Whether ``kind``'s solver is being made now."""
+        b = self._builds.get(kind)
+        return b is not None and not b.done.is_set()
+
+    def failed(self, kind: str) -> str | None:
+        """Why ``kind``'s solver could not be made, or None."""
+        b = self._builds.get(kind)
+        return b.error if b is not None and b.done.is_set() and b.solver is None else None
+
+    def wait(self, kind: str, timeout_s: float | None = None) -> bool:
+        b = self._builds.get(kind)
+        return b is None or b.done.wait(timeout_s)
+
+    def describe(self, kind: str) -> str:
+        """Where ``kind``'s solver is, in a few words ('' when it is ready or was never asked for)."""
+        b = self._builds.get(kind)
+        if b is None or b.solver is not None:
+            return ""
+        if not b.done.is_set():
+            return f"its {kind} solver is being made ({time.monotonic() - b.started_s:.0f} s so far)"
+        return f"its {kind} solver could not be made ({b.error[:120]})"
+
+    @property
+    def kinds(self) -> list[str]:
+        """Every kind asked for so far, in order."""
+        return list(self._builds)
+
+
+class StagedSolver:
+    """One OCP's solver in a process that makes its fast solvers in the background
+    (``SolverBuilds``): the fast one once it is ready; until then, or if it cannot be made, the
+    reference (``reference``, plain IPOPT), whose results say so in their status. ``wait``
+    (lockstep, where results must not depend on how long a compile took): wait for the fast one
+    instead, and use the reference only if it cannot be made. The caller usually asks
+    ``SolverBuilds.pending`` first and does not solve meanwhile."""
+
+    def __init__(self, ocp: Ocp, builds: SolverBuilds,
+                 reference: Callable[[Ocp], NlpSolver] = IpoptSolver, wait: bool = False) -> None:
+        self.ocp, self.builds, self.wait = ocp, builds, wait
+        self.kind = ocp.spec.kind
+        self.name = f"{self.kind}/staged"
+        self._make_reference = reference
+        self._reference: NlpSolver | None = None
+        builds.request(ocp)
+
+    def solve(self, w0: np.ndarray, p: np.ndarray, lam_x0: np.ndarray,
+              lam_g0: np.ndarray) -> SolveResult:
+        fast = self.builds.ready(self.kind)
+        if fast is None and self.wait:
+            self.builds.wait(self.kind)
+            fast = self.builds.ready(self.kind)
+        if fast is not None:
+            return fast.solve(w0, p, lam_x0, lam_g0)
+        if self._reference is None:
+            self._reference = self._make_reference(self.ocp)
+        res = self._reference.solve(w0, p, lam_x0, lam_g0)
+        why = "being made" if self.builds.pending(self.kind) else "unavailable"
+        return replace(res, status=f"{res.status} (reference IPOPT: the generated solver is {why})")
 
 
 def make_solver(ocp: Ocp, kind: SolverKind = "generated") -> NlpSolver:

@@ -12,9 +12,10 @@ body-frame surge and sway forces (its ``tau_body``); ``d3`` is always the body y
 Whatever the internal frame, ``StateEstimate`` carries the body-frame values and their covariance.
 
 Prediction: the mean with ``seaway.vessel.model.rk4_step`` (the model is never re-derived here), the
-commanded thrust held (saturated by ``seaway.vessel.thrusters.saturate``, optionally the dead zone),
-substeps of at most ``max_step_s``. The covariance with ``F = I + A h + (A h)^2 / 2``, where ``A`` is the
-exact Jacobian of ``seaway.vessel.model.derivative``, computed by complex-step differentiation (the model is
+commanded thrust held (saturated by ``seaway.vessel.thrusters.saturate``, optionally the dead zone;
+zero while the autopilot's status says it withholds the thrust), substeps of at most
+``max_step_s``. The covariance with ``F = I + A h + (A h)^2 / 2``, where ``A`` is the exact Jacobian
+of ``seaway.vessel.model.derivative``, computed by complex-step differentiation (the model is
 evaluated with ``cmath`` as its ``ops``: derivatives exact to machine precision, no CasADi needed).
 
 Updates, each when it arrives and at its own rate, Joseph form and symmetrised:
@@ -38,7 +39,15 @@ from pathlib import Path
 
 import numpy as np
 from seaway.contract import keys
-from seaway.contract.messages import Attitude, GnssFix, MessageError, NavOrigin, StateEstimate, ThrustCommand
+from seaway.contract.messages import (
+    Attitude,
+    GnssFix,
+    MessageError,
+    NavOrigin,
+    StateEstimate,
+    ThrustCommand,
+    VehicleStatus,
+)
 from seaway.contract.units import NS_PER_S
 from seaway.vessel import model
 from seaway.vessel.frames import GeoOrigin, wrap_pi
@@ -51,6 +60,10 @@ INPUT_KEYS: dict[str, keys.KeySpec] = {"gnss": keys.GNSS, "attitude": keys.ATTIT
                                       "thrust": keys.THRUST}
 """The estimator's measurement inputs by kind: the key each comes from (and so its message type),
 under the name an input trace gives it (``replay.py``). In the order same-stamp inputs are applied."""
+STATUS_KEY = keys.VEHICLE_STATUS
+"""Whether the autopilot applies the commanded thrust (``VehicleStatus.thrust_withheld``): an input
+in real time only (in lockstep the sim applies exactly the command it says it consumed); traced as
+kind ``"status"``, applied after the inputs of the same stamp."""
 
 NZ = 9
 _I9 = np.eye(NZ)
@@ -64,7 +77,8 @@ COUNTERS = (
     "sog_accepted", "sog_rejected",
     "heading_accepted", "heading_rejected", "heading_reinit",
     "yaw_rate_accepted", "yaw_rate_rejected",
-    "thrust_received", "late_applied", "too_old", "refused_non_finite",
+    "thrust_received", "late_applied", "too_old", "too_new", "refused_non_finite",
+    "status_received",
     "degraded_entered", "time_jumps", "divergence_resets", "resets", "published",
     "publish_refused",
 )
@@ -149,6 +163,9 @@ class EstimatorCore:
         self._pending = _Pending()
         self._thrust: tuple[float, float] = (0.0, 0.0)
         self._thrust_until_ns: int | None = None
+        self.thrust_withheld: str | None = None
+        """Why the autopilot does not apply the commanded thrust now (the last ``VehicleStatus``
+        said so: disarmed, no link, another mode); None: it does, or nobody said otherwise."""
 
     # ------------------------------------------------------------------------------------------
     # Public API
@@ -179,17 +196,41 @@ class EstimatorCore:
         return NavOrigin(stamp_ns=stamp_ns, lat_rad=o.lat_rad, lon_rad=o.lon_rad, alt_m=o.alt_m)
 
     def on_thrust(self, msg: ThrustCommand) -> None:
-        """The commanded thrust, held from ``max(stamp, filter time)`` until replaced or stale."""
+        """The commanded thrust, held from ``max(stamp, filter time)`` until replaced or stale.
+
+        The filter is first brought to the stamp with the thrust held until then, at most
+        ``max_gap_s`` ahead: a command stamped further ahead is refused (counted in ``too_new``),
+        since integrating to it would take unbounded time and leave the filter in the future.
+        """
         t = self._check(msg.stamp_ns, "ThrustCommand", thrust_port_n=msg.thrust_port_n,
                         thrust_starboard_n=msg.thrust_starboard_n)
         f = self.filter
-        if f is not None and t > f.t_ns:
-            self._advance(t)
+        if not self._bring_to(t):
+            return
         t_apply = t if f is None else max(t, f.t_ns)
         self._thrust = (apply_dead_zone(saturate(msg.thrust_port_n, self.p), self._dead_zone_n),
                         apply_dead_zone(saturate(msg.thrust_starboard_n, self.p), self._dead_zone_n))
         self._thrust_until_ns = t_apply + round(self.config.thrust_timeout_s * NS_PER_S)
         self.counters.inc("thrust_received")
+
+    def on_vehicle_status(self, msg: VehicleStatus) -> None:
+        """Whether the autopilot applies the commanded thrust (``VehicleStatus.thrust_withheld``).
+
+        From the status's stamp on, while it says the thrust is withheld (disarmed, no link, a mode
+        in which manual control does not drive the thrusters), the filter predicts with zero thrust
+        whatever is commanded: a rebooted autopilot comes back disarmed with the boat still, and
+        dead-reckoning on the commands would run away from it. A status stamped more than
+        ``max_gap_s`` ahead of the filter is refused (``too_new``), as a thrust command is.
+        """
+        t = self._check(msg.stamp_ns, "VehicleStatus")
+        withheld = msg.thrust_withheld
+        if withheld == self.thrust_withheld:
+            self.counters.inc("status_received")
+            return
+        if not self._bring_to(t):
+            return
+        self.thrust_withheld = withheld
+        self.counters.inc("status_received")
 
     def on_gnss(self, msg: GnssFix) -> None:
         """A GNSS fix: position (and velocity over ground when the fix has it)."""
@@ -311,6 +352,19 @@ class EstimatorCore:
         self.counters.inc("late_applied")
         return delay
 
+    def _bring_to(self, t: int) -> bool:
+        """Integrate the filter to ``t`` for an input that changes the thrust from then on (a
+        command, a status): False, counted in ``too_new``, if ``t`` is more than ``max_gap_s``
+        ahead of the filter. A stamp at or before the filter's time changes it from now."""
+        f = self.filter
+        if f is None or t <= f.t_ns:
+            return True
+        if t - f.t_ns > round(self.config.max_gap_s * NS_PER_S):
+            self.counters.inc("too_new")
+            return False
+        self._advance(t)
+        return True
+
     def _time_jump(self, t: int) -> None:
         """A gap too long to integrate: drop the state; the next measurements re-initialise."""
         self.counters.inc("time_jumps")
@@ -366,7 +420,8 @@ class EstimatorCore:
         return A
 
     def _thrust_at(self, t_ns: int) -> tuple[float, float]:
-        if self._thrust_until_ns is None or t_ns >= self._thrust_until_ns:
+        if (self.thrust_withheld is not None or self._thrust_until_ns is None
+                or t_ns >= self._thrust_until_ns):
             return (0.0, 0.0)
         return self._thrust
 

@@ -5,6 +5,7 @@ One line per core call, in the order the calls were made::
     {"kind": "gnss", "msg": {...GnssFix fields...}}
     {"kind": "attitude", "msg": {...}}
     {"kind": "thrust", "msg": {...}}
+    {"kind": "status", "msg": {...VehicleStatus fields...}}   # real time only
     {"kind": "tick", "t_ns": 1234}          # predict_to(t_ns): one output line
     {"kind": "reset", "keep_origin": true}
 
@@ -26,10 +27,11 @@ from typing import IO, Any
 from seaway.contract.messages import Message
 
 from seaway_estimator.config import EstimatorConfig, load_estimator_config
-from seaway_estimator.core import INPUT_KEYS, EstimatorCore
+from seaway_estimator.core import INPUT_KEYS, STATUS_KEY, EstimatorCore
 
 Entry = tuple[str, Any]
-_TYPES: dict[str, type[Message]] = {kind: spec.message for kind, spec in INPUT_KEYS.items()
+_TYPES: dict[str, type[Message]] = {kind: spec.message
+                                    for kind, spec in [*INPUT_KEYS.items(), ("status", STATUS_KEY)]
                                     if spec.message is not None}
 
 
@@ -80,6 +82,8 @@ def apply(core: EstimatorCore, kind: str, value: Any) -> bytes | None:
         core.on_attitude(value)
     elif kind == "thrust":
         core.on_thrust(value)
+    elif kind == "status":
+        core.on_vehicle_status(value)
     elif kind == "reset":
         core.reset(keep_origin=value)
     elif kind == "tick":

@@ -13,6 +13,15 @@ and in lockstep the sim's answers (``lockstep/sim``). Outputs: ``nav/state`` (St
   waits on a timeout. A new episode (the sim restarted, or loaded a scenario) re-initialises the
   core; a restarted estimator catches up from the sim's repeat of the current period.
 
+In real time ``vehicle/status`` is an input too: while it says the autopilot withholds the thrust
+(disarmed, no link, another mode), the core predicts with zero thrust.
+
+Stamps (``seaway.runtime.stamps``): an input stamped further ahead of the service's time than the
+bounds allow (a second ahead of the wall clock in real time; two periods ahead of t_k in lockstep),
+or in real time older than ``max_gap_s``, is dropped before it reaches the core, counted, and
+logged once: a stamp cannot make the core integrate into the future, nor hold an input for a time
+that never comes.
+
 Re-initialisation: a request on ``seaway/<vessel>/nav/reset`` (``NavResetRequest``) or SIGUSR1
 (keeps the origin).
 """
@@ -33,19 +42,22 @@ from seaway.contract.config import ConfigError
 from seaway.contract.messages import NavResetRequest, Reply
 from seaway.runtime.clock import RateLoop
 from seaway.runtime.lockstep import Member, Period
+from seaway.runtime.ratelog import RateLimitedLog
 from seaway.runtime.run import RunDescription
 from seaway.runtime.service import base_parser, parse, resolve_run, run_service
+from seaway.runtime.stamps import StampBounds, StampGate
 from seaway.simkit.scenario import load_scenario
 
 from seaway_estimator.config import EstimatorConfig, load_estimator_config
-from seaway_estimator.core import INPUT_KEYS, EstimatorCore, EstimatorError
+from seaway_estimator.core import INPUT_KEYS, STATUS_KEY, EstimatorCore, EstimatorError
 from seaway_estimator.replay import TraceWriter
 
 log = logging.getLogger("seaway.estimator")
 STATS_PERIOD_S = 10.0
 
 
-_KIND_ORDER = {kind: i for i, kind in enumerate(INPUT_KEYS)}
+_KIND_ORDER = {kind: i for i, kind in enumerate([*INPUT_KEYS, "status"])}
+_SUFFIX = {**{kind: spec.suffix for kind, spec in INPUT_KEYS.items()}, "status": STATUS_KEY.suffix}
 
 
 class Inbox:
@@ -86,17 +98,26 @@ class EstimatorLoop:
         self.repeats = 0
         self.last_stamp: dict[str, int] = {}  # per input kind, the newest stamp queued
         self.commands: dict[int, Any] = {}  # lockstep: commands by stamp, until a period uses one
+        # Real time: a second ahead of the wall clock at most; no older than the filter can use.
+        self.stamps = StampGate("estimator", log, StampBounds.live(core.config.max_gap_s))
+        self.ratelog = RateLimitedLog(log)
 
     # -- inputs ----------------------------------------------------------------------------------
 
-    def queue(self, kind: str, msg: Any, lockstep: bool = True) -> None:
+    def queue(self, kind: str, msg: Any, lockstep: bool = True, now_ns: int | None = None) -> None:
         """Queue an input for ``feed_pending``; a sample stamped as the last on its key is a repeat.
+
+        ``now_ns`` (real time: the wall clock) bounds the stamp (``seaway.runtime.stamps``): an input
+        outside the bounds is dropped here, counted and logged once. In lockstep the member admits
+        inputs as they arrive (``Member.admit``) and ``on_period`` drops what is left too far ahead.
 
         A lockstep period repeated for a newcomer carries the same samples again: using one twice
         would count one measurement as two. In lockstep a command is held aside (the latest one per
         stamp) until a period says which one the sim applied (``on_period``); live, every command
         counts (a controller may send a zero command with the stamp of its last state).
         """
+        if not self.stamps.admit(_SUFFIX[kind], msg.stamp_ns, now_ns):
+            return
         if kind == "thrust" and lockstep:
             self.commands[msg.stamp_ns] = msg
             return
@@ -117,12 +138,21 @@ class EstimatorLoop:
                 self.core.on_gnss(msg)
             elif kind == "attitude":
                 self.core.on_attitude(msg)
+            elif kind == "status":
+                before = self.core.thrust_withheld
+                self.core.on_vehicle_status(msg)
+                if self.core.thrust_withheld != before:
+                    log.info("the autopilot %s: predicting with %s", "applies the commanded thrust"
+                             if self.core.thrust_withheld is None else
+                             f"withholds the thrust ({self.core.thrust_withheld})",
+                             "the commanded thrust" if self.core.thrust_withheld is None
+                             else "zero thrust")
             else:
                 self.core.on_thrust(msg)
                 self.last_thrust_ns = max(msg.stamp_ns, self.last_thrust_ns or 0)
         except EstimatorError as err:
             self.refused += 1
-            log.warning("refused %s input: %s", kind, err)
+            self.ratelog.warning(("refused", kind), "refused %s input: %s", kind, err)
 
     def feed_pending(self, upto_ns: int | None) -> None:
         """Feed queued messages stamped <= ``upto_ns`` (all if None) in stamp order."""
@@ -143,7 +173,7 @@ class EstimatorLoop:
         try:
             est = self.core.predict_to(t_ns)
         except EstimatorError as err:
-            log.warning("cannot publish at %d: %s", t_ns, err)
+            self.ratelog.warning("publish", "cannot publish at %d: %s", t_ns, err)
             return out
         if est is not None:
             out.append((keys.NAV_STATE, est))
@@ -207,6 +237,10 @@ class EstimatorLoop:
                     bisect.insort(self.pending, (stamp, _KIND_ORDER["thrust"], self._seq, "thrust", cmd))
             self.commands.clear()
             self.feed_pending(period.stamp_ns)
+            # What is left waits for its period, unless no period can come for it this episode soon
+            # enough (queued before the member knew its period, e.g. at start): dropped, counted.
+            self.pending = [p for p in self.pending
+                            if member.admit(_SUFFIX[p[3]], p[0], period.stamp_ns, period_ns)]
             out = self.outputs(period.stamp_ns, period.stamp_ns / 1e9)
         member.answer(period, period_ns, out)
 
@@ -219,10 +253,13 @@ def run_lockstep(loop: EstimatorLoop, bus: Any, inbox: Inbox, stop: threading.Ev
     makes the sim repeat its period for this newcomer)."""
     watched = {spec.suffix: kind for kind, spec in INPUT_KEYS.items()}
     member = Member(bus, "estimator", watched=watched)
+    member.stamps = loop.stamps  # one count of dropped stamps (the stats line's), lockstep bounds
     restarts: list[Period] = []
     member.on_restart = lambda _before, now: restarts.append(now)
     for kind, spec in INPUT_KEYS.items():
         def on_input(_key: str, msg: Any, kind: str = kind, suffix: str = spec.suffix) -> None:
+            if not member.admit(suffix, msg.stamp_ns):
+                return  # stamped beyond any period to come soon: counted and logged by the member
             inbox.put(kind, msg)  # first: what the ledger has seen is in the inbox
             member.saw(suffix, msg.stamp_ns)
         bus.subscribe(spec, callback=on_input, inline=True)
@@ -256,7 +293,7 @@ def run_lockstep(loop: EstimatorLoop, bus: Any, inbox: Inbox, stop: threading.Ev
             answered = period
         if time.monotonic() >= stats_due:
             stats_due += STATS_PERIOD_S
-            log.info("estimator: %s", _stats_line(loop.core))
+            log.info("estimator: %s", _stats_line(loop.core, loop))
 
 
 def run_realtime(loop: EstimatorLoop, inbox: Inbox, ctx: Any, rate_hz: float,
@@ -269,21 +306,24 @@ def run_realtime(loop: EstimatorLoop, inbox: Inbox, ctx: Any, rate_hz: float,
             reset_signal.clear()
             loop.reset(keep_origin=True, why="SIGUSR1")
         items = inbox.take(0.0)
+        now_ns = ctx.clock.now_ns()
         with loop.lock:
             for kind, msg in items:
-                loop.queue(kind, msg, lockstep=False)
+                loop.queue(kind, msg, lockstep=False, now_ns=now_ns)
             loop.feed_pending(None)
-            loop.publish(ctx.clock.now_ns(), time.monotonic())
+            loop.publish(now_ns, time.monotonic())
         if time.monotonic() >= stats_due:
             stats_due += STATS_PERIOD_S
-            log.info("estimator: %s", _stats_line(loop.core))
+            log.info("estimator: %s", _stats_line(loop.core, loop))
 
 
-def _stats_line(core: EstimatorCore) -> str:
+def _stats_line(core: EstimatorCore, loop: EstimatorLoop | None = None) -> str:
     c = core.counters.values
     keys_ = ("gnss_accepted", "gnss_rejected", "gnss_no_fix", "heading_accepted", "heading_rejected",
-             "degraded_entered", "refused_non_finite", "too_old", "resets", "published")
-    return ", ".join(f"{k} {c[k]}" for k in keys_)
+             "degraded_entered", "refused_non_finite", "too_old", "too_new", "resets", "published")
+    line = ", ".join(f"{k} {c[k]}" for k in keys_)
+    dropped = loop.stamps.summary() if loop is not None else ""
+    return line + (f"; stamps dropped: {dropped}" if dropped else "")
 
 
 RUN_WIDE_CONFIG = ("vessel", "apply_dead_zone", "origin")  # what the run says, not the config file
@@ -331,14 +371,14 @@ def main(argv: Sequence[str] | None = None) -> int:
             if lockstep:
                 run_lockstep(loop, ctx.bus, inbox, ctx.stop, reset_signal, ready=ctx.ready)
             else:
-                for kind, spec in INPUT_KEYS.items():
+                for kind, spec in [*INPUT_KEYS.items(), ("status", STATUS_KEY)]:
                     ctx.bus.subscribe(spec, callback=lambda _k, m, kind=kind: inbox.put(kind, m))
                 ctx.ready()
                 run_realtime(loop, inbox, ctx, cfg.publish_rate_hz, reset_signal)
         finally:
             if recorder is not None:
                 recorder.close()
-            log.info("estimator final: %s", _stats_line(loop.core))
+            log.info("estimator final: %s", _stats_line(loop.core, loop))
     return 0
 
 

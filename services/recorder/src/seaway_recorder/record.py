@@ -101,7 +101,31 @@ def parser() -> argparse.ArgumentParser:
                    help="do not check samples against their types (faster; nothing counts as malformed)")
     p.add_argument("--no-foxglove", action="store_true", help="do not add foxglove.LocationFix channels")
     p.add_argument("--status-interval", type=float, default=5.0, help="seconds between status lines")
+    p.add_argument("--events", type=Path, default=None, metavar="FILE",
+                   help="a launcher's events log (events.jsonl) to copy into the recording as it "
+                        "grows, on launcher/events")
     return p
+
+
+class EventsTail:
+    """The lines appended to a file since the last look (the launcher's events log): whole lines
+    only, a line still being written waits for the next look; a missing file is an empty one."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.offset = 0
+        self._partial = b""
+
+    def poll(self) -> list[bytes]:
+        try:
+            with open(self.path, "rb") as f:
+                f.seek(self.offset)
+                data = f.read()
+        except FileNotFoundError:
+            return []
+        self.offset += len(data)
+        *lines, self._partial = (self._partial + data).split(b"\n")
+        return [line for line in lines if line.strip()]
 
 
 class SampleQueue:
@@ -198,7 +222,8 @@ class LockstepWitness:
                     if ans.service == "sim" and before == Period.of(ans):
                         self._explain_repeat()
                 except MessageError as err:
-                    log.warning("lockstep answer on %s ignored: %s", key, err)
+                    self.member.ratelog.warning(("malformed answer", key),
+                                                "lockstep answer on %s ignored: %s", key, err)
             elif key.startswith(self.prefix):
                 m = _STAMP.search(payload, 0, 64)
                 if m is not None:
@@ -214,9 +239,9 @@ class LockstepWitness:
         tick = ledger.answer("sim")
         absent = [m for m in (tick.members if tick is not None else ())
                   if m != "recorder" and ledger.answer(m) is None]
-        if lacking or absent:
-            log.warning("lockstep t = %s: still lacking %s; no answer yet from %s", ledger.period,
-                        lacking, absent)
+        if lacking or absent:  # expected while members start or restart: the sim repeats for them
+            log.info("lockstep t = %s: still lacking %s; no answer yet from %s", ledger.period,
+                     lacking, absent)
 
     def covers(self) -> tuple[Period, int, dict[str, int]] | None:
         """(period, period_ns, covers) when the current period is all written, else None."""
@@ -327,10 +352,12 @@ def run(argv: Sequence[str]) -> int:
         if witness is not None:
             witness.member.join()
         print("READY", flush=True)
+        events = EventsTail(args.events) if args.events else None
         try:
-            _loop(writer, queue, ctx.stop, args.flush_interval, args.status_interval, witness)
+            _loop(writer, queue, ctx.stop, args.flush_interval, args.status_interval, witness, events)
             queue.accepting = False
             _drain(writer, queue, limit=None)
+            _copy_events(writer, events)
         except OSError as err:  # disk full, file removed, ...: finish what can be finished
             log.error("writing failed: %s; finishing the file", err)
             queue.accepting = False
@@ -368,8 +395,15 @@ def _drain(writer: RecordingWriter, queue: SampleQueue, limit: int | None,
     return n
 
 
+def _copy_events(writer: RecordingWriter, events: EventsTail | None) -> None:
+    if events is not None:
+        for line in events.poll():
+            writer.write_event(line)
+
+
 def _loop(writer: RecordingWriter, queue: SampleQueue, stop: threading.Event, flush_s: float,
-          status_s: float, witness: LockstepWitness | None = None) -> None:
+          status_s: float, witness: LockstepWitness | None = None,
+          events: EventsTail | None = None) -> None:
     flush_ns = int(flush_s * 1e9)
     next_flush = time.monotonic_ns() + flush_ns
     next_status = time.monotonic_ns() + int(status_s * 1e9)
@@ -380,6 +414,7 @@ def _loop(writer: RecordingWriter, queue: SampleQueue, stop: threading.Event, fl
         now = time.monotonic_ns()
         if now >= next_flush:
             writer.count_dropped(queue.dropped - writer.stats.dropped)
+            _copy_events(writer, events)
             writer.flush()
             writer.maybe_rotate(time.time_ns())
             next_flush = now + flush_ns

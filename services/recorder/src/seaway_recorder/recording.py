@@ -12,9 +12,12 @@ from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from mcap.exceptions import McapError
 from mcap.reader import make_reader
 from seaway.contract import keys
 from seaway.contract.messages import Message, MessageError
+
+from seaway_recorder.recover import RECOVER_METADATA, recover
 
 
 @dataclass(frozen=True)
@@ -38,6 +41,8 @@ class RecordingInfo:
     start_ns: int = 0
     end_ns: int = 0
     topics: dict[str, int] = field(default_factory=dict)
+    recovered: dict[str, dict[str, str]] = field(default_factory=dict)
+    """Per repaired copy read (its path): its ``seaway.recover`` metadata (source, reason, ...)."""
 
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
@@ -53,34 +58,73 @@ def finished(path: Path) -> bool:
         return fh.read() == MCAP_MAGIC
 
 
+RECOVER_HINT = "`seaway record recover IN OUT` rebuilds what is readable of a cut file"
+
+
+class UnreadableRecordingError(ValueError):
+    """A recording that cannot be read, even through a repaired copy; the text says why and how."""
+
+
 def readable(path: Path) -> Path:
     """``path``, or for a truncated file its repaired copy ``<stem>.recovered.mcap`` (made once,
-    next to it; the original is left as it is)."""
+    next to it, or in a temporary folder when its own cannot be written; the original is left as
+    it is). The copy carries a ``seaway.recover`` metadata record saying what was kept.
+
+    Raises ``UnreadableRecordingError`` when nothing can be rebuilt from it.
+    """
+    path = Path(path)
     if finished(path):
         return path
     fixed = path.with_name(f"{path.stem}.recovered.mcap")
-    if not fixed.exists() or fixed.stat().st_mtime < path.stat().st_mtime:
-        from seaway_recorder.recover import recover  # the repair only when one is needed
+    try:
+        if not fixed.exists() or fixed.stat().st_mtime < path.stat().st_mtime:
+            recover(path, fixed)
+        return fixed
+    except ValueError as err:  # not an MCAP file at all: nothing to rebuild
+        raise UnreadableRecordingError(f"{path}: not finished, and nothing can be rebuilt from it: "
+                                  f"{err}") from None
+    except OSError:
+        pass  # its folder is read-only (an archive): repair into a temporary folder instead
+    import tempfile
 
+    fixed = Path(tempfile.mkdtemp(prefix="seaway-recovered-")) / fixed.name
+    try:
         recover(path, fixed)
+    except (OSError, ValueError) as err:
+        raise UnreadableRecordingError(f"{path}: not finished (cut short by a crash?) and it could not "
+                                  f"be repaired: {err}; {RECOVER_HINT}") from None
     return fixed
 
 
 def open_paths(paths: Iterable[str | Path]) -> list[Path]:
-    """Files named, and every ``*.mcap`` in folders named, in name order; raises if none. A file in a
-    folder that a crash left truncated is read through its repaired copy (``readable``)."""
+    """Files named, and every ``*.mcap`` in folders named, in name order; raises if none. A file
+    that a crash left truncated is read through its repaired copy (``readable``); ``repaired``
+    says which were."""
     out: list[Path] = []
     for p in map(Path, paths):
         if p.is_dir():
             out += [readable(q) for q in sorted(p.glob("*.mcap"))
                     if not q.name.endswith(".recovered.mcap")]
         elif p.is_file():
-            out.append(p)
+            out.append(readable(p))
         else:
             raise FileNotFoundError(f"{p}: no such file or folder")
     if not out:
         raise FileNotFoundError("no .mcap files in " + ", ".join(map(str, paths)))
     return out
+
+
+def repaired(info: RecordingInfo) -> list[str]:
+    """One line per file of ``info`` read through a repaired copy: what was cut and what was kept."""
+    lines = []
+    for name, meta in info.recovered.items():
+        kept = f"{int(meta.get('messages', 0)):,} messages kept"
+        why = ("the input was complete" if meta.get("complete") == "true"
+               else f"it ends early: {meta.get('reason') or 'no data-end record'}")
+        lines.append(f"{meta.get('source', '?')} was not finished (its recorder was killed or is "
+                     f"still writing): read through the repaired copy {name} ({kept}; {why}); "
+                     f"{RECOVER_HINT}")
+    return lines
 
 
 def read_info(files: list[Path]) -> RecordingInfo:
@@ -93,9 +137,15 @@ def read_info(files: list[Path]) -> RecordingInfo:
                 info.attachments.setdefault(a.name, bytes(a.data))
             for m in reader.iter_metadata():
                 info.metadata.setdefault(m.name, dict(m.metadata))
-            summary = reader.get_summary()
+                if m.name == RECOVER_METADATA:
+                    info.recovered[str(f)] = dict(m.metadata)
+            try:
+                summary = reader.get_summary()
+            except McapError as err:
+                raise UnreadableRecordingError(f"{f}: cannot read its summary ({type(err).__name__}: "
+                                          f"{err}); {RECOVER_HINT}") from None
             if summary is None or summary.statistics is None:
-                raise ValueError(f"{f}: no summary (not finished? try 'seaway record recover')")
+                raise UnreadableRecordingError(f"{f}: no summary (not finished?); {RECOVER_HINT}")
             st = summary.statistics
             info.message_count += st.message_count
             if st.message_count:

@@ -144,9 +144,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         files = recording.open_paths(args.files)
         keep = KeyFilter(args.only, args.exclude)
+        notes = recording.repaired(recording.read_info(files))
     except (FileNotFoundError, ValueError) as err:
         print(f"seaway replay: {err}", file=sys.stderr)
         return 2
+    for note in notes:
+        print(f"seaway replay: NOTE: {note}", file=sys.stderr)
     stop = threading.Event()
     install_stop_signals(stop)
     # Raw publishing ignores the bus's vessel (recorded keys name their own); any valid name does.

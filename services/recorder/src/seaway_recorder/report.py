@@ -21,7 +21,14 @@ from typing import Any
 
 from seaway.contract import keys
 from seaway.contract.config import ConfigError, load_config, read_document
-from seaway.contract.messages import MissionStatus, NavOrigin, SimTruth, SolveRecord, ThrustCommand
+from seaway.contract.messages import (
+    MissionStatus,
+    NavOrigin,
+    SimTruth,
+    SolveRecord,
+    StateEstimate,
+    ThrustCommand,
+)
 from seaway.runtime.run import CONTROL_PERIOD_S
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.frames import GeoOrigin
@@ -29,7 +36,7 @@ from seaway.vessel.metrics import mission_metrics
 from seaway.vessel.model import VesselParams
 
 from seaway_recorder import metrics as mx
-from seaway_recorder import recording, runinfo
+from seaway_recorder import missions, recording, runinfo
 
 TRUTH, STATE, ORIGIN = keys.SIM_TRUTH.suffix, keys.NAV_STATE.suffix, keys.NAV_ORIGIN.suffix
 COMMANDS, SOLVES, STATUS = keys.THRUST.suffix, keys.SOLVE.suffix, keys.MISSION_STATUS.suffix
@@ -100,20 +107,7 @@ def analyse(files: list[Path], *, scenario: str | None = None, mission_file: str
     scen_origin = runinfo.scenario_origin(scen) if scen is not None else None
     origin = _origin(dec, scen_origin)
 
-    if mission_file:
-        mission = runinfo.mission_from_document(read_document(mission_file), origin, mission_file)
-    elif scenario:
-        if scen is None or scen.mission is None:
-            raise ConfigError(f"scenario {scenario} has no [mission]")
-        m = scen.mission
-        mission = runinfo.Mission(tuple(m.waypoints_m), m.coa_radius_m, m.task_power_w,
-                                  f"scenario {scenario}")
-    else:
-        mission = runinfo.mission_from_attachments(info.attachments, origin)
-        if mission is None:
-            raise ConfigError("the recording has no mission or scenario attachment: pass --scenario "
-                              "or --mission")
-
+    candidates = _candidates(scenario, scen, mission_file, info.attachments, origin)
     vp: VesselParams | None
     if vessel_file:
         vp = load_config(runinfo.vessel_path(vessel_file), VesselParams)
@@ -122,17 +116,18 @@ def analyse(files: list[Path], *, scenario: str | None = None, mission_file: str
     alpha = vp.alpha_w_per_n2 if vp is not None else None
 
     truth = sorted(dec.get(TRUTH), key=lambda m: m.stamp_ns)
-    statuses = [m for m in dec.get(STATUS) if isinstance(m, MissionStatus)]
-    active = [s.stamp_ns for s in statuses if s.state == "active"]
+    statuses = sorted((m for m in dec.get(STATUS) if isinstance(m, MissionStatus)),
+                      key=lambda m: m.stamp_ns)
+    nav = sorted((m for m in dec.get(STATE) if isinstance(m, StateEstimate)), key=lambda m: m.stamp_ns)
     if state == TRUTH and not truth:
         raise ValueError(f"no {TRUTH} in the recording")
     if truth and state != STATE:
         states: Sequence[Any] = truth
         thrusts: Sequence[Any] = truth
-        energy = [t.energy_j for t in truth if isinstance(t, SimTruth)]
+        energy: list[float] | None = [t.energy_j for t in truth if isinstance(t, SimTruth)]
         state_source, thrust_source = TRUTH, TRUTH
     else:
-        states = sorted(dec.get(STATE), key=lambda m: m.stamp_ns)
+        states = nav
         thrusts = sorted(dec.get(COMMANDS), key=lambda m: m.stamp_ns)
         energy = None
         state_source, thrust_source = STATE, COMMANDS
@@ -140,87 +135,164 @@ def analyse(files: list[Path], *, scenario: str | None = None, mission_file: str
     run = runinfo.run_from_attachments(info.attachments)
     if sample_period_s is None:
         sample_period_s = run.control_period_s if run is not None else CONTROL_PERIOD_S
-    met = mission_metrics(states, mission.waypoints, mission.coa_radius_m, mission.task_power_w,
-                             alpha_w_per_n2=alpha, thrusts=thrusts, energy_j=energy,
-                             mission_start_ns=min(active) if active else None,
-                             sample_period_s=sample_period_s, state_source=state_source,
-                             thrust_source=thrust_source)
+
+    def metrics_of(mission: runinfo.Mission, start_ns: int | None, end_ns: int | None):
+        """The paper's metrics of ``mission`` over the states from start_ns to end_ns (the next
+        mission's first status, computed from the state that may complete this one: included)."""
+        keep = [i for i, x in enumerate(states) if end_ns is None or x.stamp_ns <= end_ns]
+        return mission_metrics([states[i] for i in keep], mission.waypoints, mission.coa_radius_m,
+                               mission.task_power_w, alpha_w_per_n2=alpha, thrusts=thrusts,
+                               energy_j=None if energy is None else [energy[i] for i in keep],
+                               mission_start_ns=start_ns, sample_period_s=sample_period_s,
+                               state_source=state_source, thrust_source=thrust_source)
+
+    # The missions flown (the controller's statuses), each with the document that fits it.
+    flown = []
+    for r in missions.mission_runs(statuses):
+        doc, how = missions.match(r, candidates, nav)
+        active = [x.stamp_ns for x in r.statuses if x.state == "active"]
+        met = metrics_of(doc, min(active), r.end_ns) if doc is not None else None
+        flown.append({"mission_id": r.mission_id, "start_ns": r.start_ns, "end_ns": r.end_ns,
+                      "source": doc.source if doc is not None else None, "fit": how,
+                      "mission": _mission_json(doc), "metrics": met,
+                      "controller_reported": r.controller_reported()})
+    if flown:
+        primary = flown[-1]
+        mission_doc, met = primary["mission"], primary["metrics"]
+        live = primary["controller_reported"]
+    else:  # no controller recorded: the mission document given or attached, as it is
+        if not candidates:
+            raise ConfigError("the recording has no mission or scenario attachment: pass "
+                              "--scenario or --mission")
+        mission_doc = _mission_json(candidates[0].mission)
+        met = metrics_of(candidates[0].mission, None, None)
+        live = {}
     solves = [m for m in dec.get(SOLVES) if isinstance(m, SolveRecord)]
     commands = sorted((m for m in dec.get(COMMANDS) if isinstance(m, ThrustCommand)),
                       key=lambda m: m.stamp_ns)
-    live = _live(statuses)
     out: dict[str, Any] = {
         "files": [str(f) for f in files],
         "vessel": sorted(dec.vessels)[0] if vessel is None and dec.vessels else vessel,
-        "mission": {"waypoints_m": [list(w) for w in mission.waypoints],
-                    "coa_radius_m": mission.coa_radius_m, "task_power_w": mission.task_power_w,
-                    "source": mission.source},
+        "mission": mission_doc,
+        "missions": [{k: (v.to_json() if k == "metrics" and v is not None else v)
+                      for k, v in m.items()} for m in flown],
         "alpha_w_per_n2": alpha,
         "run": run.model_dump(mode="json") if run is not None else None,
         "control_period_s": sample_period_s,
         "episodes": {"count": len(bounds), "reported": episode,
                      "time_went_back": len(bounds) - 1},
-        "metrics": met.to_json(),
+        "metrics": met.to_json() if met is not None else None,
         "solve": mx.solve_stats(solves).to_json(),
         "controller_reported": live,
         "recording": {"messages": info.message_count, "topics": info.topics,
                       "duration_s": (info.end_ns - info.start_ns) / 1e9,
                       "undecodable": dec.undecodable, "duplicates": dec.duplicates,
                       "recorder_summary": info.metadata.get("seaway.recorder.summary", {}),
-                      "recovered": info.metadata.get("seaway.recover", {})},
-        "_": {"series": met.series, "commands": commands, "thrusts": thrusts, "states": states,
-              "solves": solves, "statuses": statuses, "start_ns": met.start_ns},
+                      "recovered": info.metadata.get("seaway.recover", {}),
+                      "repaired": recording.repaired(info)},
+        "_": {"series": met.series if met is not None else None, "commands": commands,
+              "thrusts": thrusts, "states": states, "solves": solves, "statuses": statuses,
+              "start_ns": met.start_ns if met is not None else None},
     }
     return out
 
 
-def _live(statuses: list[MissionStatus]) -> dict[str, Any]:
-    """What the controller itself reported last (MissionStatus), for comparison with the report."""
-    if not statuses:
-        return {}
-    last = statuses[-1]
-    return {"state": last.state, "mission_id": last.mission_id, "active_leg": last.active_leg,
-            "energy_used_j": last.energy_used_j, "energy_to_go_j": last.energy_to_go_j}
+def _mission_json(m: runinfo.Mission | None) -> dict[str, Any] | None:
+    if m is None:
+        return None
+    return {"waypoints_m": [list(w) for w in m.waypoints], "coa_radius_m": m.coa_radius_m,
+            "task_power_w": m.task_power_w, "source": m.source}
+
+
+def _candidates(scenario: str | None, scen: Any, mission_file: str | None,
+                atts: dict[str, bytes], origin: GeoOrigin | None) -> list[missions.Candidate]:
+    """The mission documents a report may use, in order of preference: ``--mission``, the
+    ``--scenario``'s ``[mission]``, then the recording's attachments."""
+    out = []
+    if mission_file:
+        doc = read_document(mission_file)
+        out.append(missions.Candidate(runinfo.mission_from_document(doc, origin, mission_file),
+                                      runinfo.mission_id_of(doc)))
+    if scenario:
+        if scen is None or scen.mission is None:
+            raise ConfigError(f"scenario {scenario} has no [mission]")
+        m = scen.mission
+        out.append(missions.Candidate(
+            runinfo.Mission(tuple(m.waypoints_m), m.coa_radius_m, m.task_power_w,
+                            f"scenario {scenario}"), m.mission_id or scen.name))
+    out += [missions.Candidate(m, mid) for m, mid in runinfo.missions_from_attachments(atts, origin)]
+    return out
+
+
+def _f(v: Any, fmt: str = "{:.3f}") -> str:
+    return "-" if v is None else fmt.format(v)
 
 
 def table(res: dict[str, Any]) -> str:
-    m, s = res["metrics"], res["solve"]
-
-    def f(v: Any, fmt: str = "{:.3f}") -> str:
-        return "-" if v is None else fmt.format(v)
-
-    rows = [
-        ("completed", "yes" if m["completed"] else "NO (metrics up to the last sample)", ""),
-        ("travel time", f(m["travel_time_s"], "{:.2f}"), "s"),
-        ("energy", f(m["energy_j"], "{:.2f}"), f"J ({m['energy_source']})"),
-        ("  propulsion", f(m["propulsion_energy_j"], "{:.2f}"), "J"),
-        ("  task (T^w * t)", f(m["task_energy_j"], "{:.2f}"), "J"),
-        ("  check", f(m["energy_check_j"], "{:.2f}"), f"J ({m['energy_check_source'] or 'none'})"),
-        ("avg cross-track error", f(m["avg_cross_track_m"], "{:.4f}"),
-         f"m ({m['cross_track_samples']} samples outside the circles)"),
-        ("max cross-track error", f(m["max_cross_track_m"], "{:.4f}"), "m"),
-        ("legs completed", str(m["legs_completed"]), f"of {len(res['mission']['waypoints_m']) - 1}"),
+    m, s, live = res["metrics"], res["solve"], res["controller_reported"]
+    flown = res["missions"]
+    if m is not None:
+        rows = [
+            ("completed", "yes" if m["completed"] else "NO (metrics up to the last sample)", ""),
+            ("travel time", _f(m["travel_time_s"], "{:.2f}"), "s"),
+            ("energy", _f(m["energy_j"], "{:.2f}"), f"J ({m['energy_source']})"),
+            ("  propulsion", _f(m["propulsion_energy_j"], "{:.2f}"), "J"),
+            ("  task (T^w * t)", _f(m["task_energy_j"], "{:.2f}"), "J"),
+            ("  check", _f(m["energy_check_j"], "{:.2f}"),
+             f"J ({m['energy_check_source'] or 'none'})"),
+            ("avg cross-track error", _f(m["avg_cross_track_m"], "{:.4f}"),
+             f"m ({m['cross_track_samples']} samples outside the circles)"),
+            ("max cross-track error", _f(m["max_cross_track_m"], "{:.4f}"), "m"),
+            ("legs completed", str(m["legs_completed"]),
+             f"of {len(res['mission']['waypoints_m']) - 1}"),
+        ]
+    else:  # the mission flown is not described by any document: the controller's own word
+        rows = [("state (controller)", str(live.get("state")), ""),
+                ("active leg (controller)", str(live.get("active_leg")),
+                 f"of {max(int(live.get('waypoint_count') or 0) - 1, 0)}")]
+    rows += [
         ("solves", str(s["count"]), f"{s['failures']} failed"),
-        ("solve time median / p95 / max", f"{f(s['solve_time_median_ms'], '{:.2f}')} / "
-         f"{f(s['solve_time_p95_ms'], '{:.2f}')} / {f(s['solve_time_max_ms'], '{:.2f}')}", "ms"),
+        ("solve time median / p95 / max", f"{_f(s['solve_time_median_ms'], '{:.2f}')} / "
+         f"{_f(s['solve_time_p95_ms'], '{:.2f}')} / {_f(s['solve_time_max_ms'], '{:.2f}')}", "ms"),
         ("fallbacks", str(s["fallbacks"]), f"by level {s['fallback_levels'] or '{}'}"),
     ]
-    live = res["controller_reported"]
     if live.get("energy_used_j") is not None:
-        rows.append(("controller's energy_used", f(live["energy_used_j"], "{:.2f}"), "J (MissionStatus)"))
+        rows.append(("controller's energy_used", _f(live["energy_used_j"], "{:.2f}"),
+                     "J (MissionStatus)"))
     w = max(len(r[0]) for r in rows)
     v = max(len(r[1]) for r in rows)
-    head = (f"Run report: {', '.join(res['files'])}\nvessel {res['vessel']}, state from "
-            f"{m['state_source']}, mission from {res['mission']['source']}\n")
+    head = f"Run report: {', '.join(res['files'])}\nvessel {res['vessel']}"
+    if m is not None:
+        head += f", state from {m['state_source']}, mission from {res['mission']['source']}\n"
+    else:
+        last = flown[-1]
+        head += (f"\nmission {last['mission_id']!r}: its waypoints are not in the recording, so the "
+                 f"paper's metrics cannot be computed ({last['fit']}); pass --mission FILE with "
+                 "the mission sent\n")
+    if flown and m is not None:
+        head += f"mission {flown[-1]['mission_id']!r}: {flown[-1]['fit']}\n"
+    head += "".join(f"NOTE: {line}\n" for line in res["recording"]["repaired"])
     ep = res["episodes"]
     if ep["time_went_back"]:
         head += (f"simulated time went back {ep['time_went_back']} time(s) (a sim restart or a new "
                  f"scenario): {ep['count']} episodes; these metrics are episode {ep['reported']}'s "
                  "(--episode N for another)\n")
+    if len(flown) > 1:
+        head += f"{len(flown)} missions flown in this episode; the report is about the last:\n"
+        for x in flown:
+            mm, rep = x["metrics"], x["controller_reported"]
+            figures = (f"completed {'yes' if mm['completed'] else 'NO'}, {_f(mm['energy_j'], '{:.2f}')}"
+                       f" J, XTE {_f(mm['avg_cross_track_m'], '{:.4f}')} m, from {x['source']}"
+                       if mm is not None else
+                       f"{rep['state']} at leg {rep['active_leg']}, {_f(rep['energy_used_j'], '{:.2f}')}"
+                       " J (controller's), waypoints not in the recording")
+            head += f"  {x['mission_id']!r}: {figures}\n"
     return head + "\n".join(f"{a.ljust(w)}  {b.rjust(v)}  {c}".rstrip() for a, b, c in rows)
 
 
 def plots(res: dict[str, Any], out: Path) -> list[Path]:
+    if res["metrics"] is None:
+        return []  # no mission document for what was flown: nothing to draw it against
     import matplotlib
 
     matplotlib.use("Agg")

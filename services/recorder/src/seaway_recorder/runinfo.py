@@ -146,6 +146,34 @@ def mission_from_document(doc: dict[str, Any], origin: GeoOrigin | None, source:
     return Mission(wps, float(table["coa_radius_m"]), float(table.get("task_power_w", 0.0)), source)
 
 
+def mission_id_of(doc: dict[str, Any], default: str | None = None) -> str | None:
+    """The ``mission_id`` a mission document names: a MissionRequest's, a ``[mission]`` table's,
+    else a scenario's name (the launcher sends a scenario's mission under it); else ``default``."""
+    table = doc.get("mission") if isinstance(doc.get("mission"), dict) else doc
+    mid = table.get("mission_id") or (doc.get("name") if table is not doc else None)
+    return str(mid) if mid else default
+
+
+def missions_from_attachments(atts: dict[str, bytes], origin: GeoOrigin | None
+                              ) -> list[tuple[Mission, str | None]]:
+    """Every mission document attached (``mission/*``, then the ``scenario/*`` ``[mission]``),
+    each with the id it names; documents that are not missions are left out."""
+    out = []
+    for prefix in ("mission/", "scenario/"):
+        for name, data in atts.items():
+            if not name.startswith(prefix):
+                continue
+            doc = _decode(name, data)
+            if prefix == "scenario/" and not doc.get("mission"):
+                continue
+            try:
+                out.append((mission_from_document(doc, origin, f"attachment {name}"),
+                            mission_id_of(doc)))
+            except (ValueError, KeyError, TypeError):
+                continue
+    return out
+
+
 def scenario_from_attachments(atts: dict[str, bytes]) -> Scenario | None:
     for name, data in atts.items():
         if name.startswith("scenario/"):

@@ -9,7 +9,9 @@
   ``recorder/malformed`` as a ``seaway.recorder.v1.MalformedSample`` (key, error, the bytes in base64),
   so the file still validates against its schemas and the bytes are kept;
 * Foxglove's well-known ``foxglove.LocationFix`` is derived from ``sim/truth``, ``nav/state`` (through
-  the last ``nav/origin``) and ``sensors/gnss``, on ``foxglove/<vessel>/<source>``, for the Map panel.
+  the last ``nav/origin``) and ``sensors/gnss``, on ``foxglove/<vessel>/<source>``, for the Map panel;
+* the launcher's process events (started, exited, hung, stopped), read from its ``events.jsonl``, go
+  to ``launcher/events`` as ``seaway.launcher.v1.ProcessEvent``.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from typing import Any
 from seaway.contract import keys
 from seaway.contract.messages import GnssFix, Message, NavOrigin, Refusals, SimTruth, StateEstimate
 from seaway.contract.units import NS_PER_S
+from seaway.tools.launch.events import EVENTS_TOPIC, ProcessEvent
 from seaway.vessel.frames import GeoOrigin
 
 JSON = "json"
@@ -122,6 +125,13 @@ def malformed_channel() -> ChannelSpec:
     return ChannelSpec(MALFORMED_TOPIC, MALFORMED_SCHEMA_NAME, JSONSCHEMA,
                        json.dumps(MALFORMED_SCHEMA, sort_keys=True).encode(), JSON, None,
                        {"role": "errors"})
+
+
+def events_channel() -> ChannelSpec:
+    """The launcher's process events (``seaway.tools.launch.events``), copied from its log."""
+    return ChannelSpec(EVENTS_TOPIC, ProcessEvent.SCHEMA, JSONSCHEMA,
+                       ProcessEvent.json_schema_text().encode(), JSON, None,
+                       {"role": "events", "source": "launcher"})
 
 
 def location_fix_channel(topic: str, derived_from: str) -> ChannelSpec:

@@ -13,15 +13,23 @@ numbered one; every file carries the attachments and run metadata again, so each
 from __future__ import annotations
 
 import logging
+import struct
+import tempfile
 import time
 from collections import Counter
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
+import mcap
+from mcap.data_stream import RecordBuilder
+from mcap.records import ChunkIndex
 from mcap.writer import CompressionType, Writer
 from seaway.contract import keys
 from seaway.contract.messages import MessageError
+from seaway.runtime.ratelog import RateLimitedLog
+from seaway.tools.launch.events import ProcessEvent
 from seaway.vessel.frames import GeoOrigin
 
 from seaway_recorder import schemas
@@ -71,6 +79,7 @@ class RecorderStats:
     malformed: int = 0
     unregistered: int = 0
     derived: int = 0
+    events: int = 0
     dropped: int = 0
     flushes: int = 0
     files: list[str] = field(default_factory=list)
@@ -79,7 +88,8 @@ class RecorderStats:
 
     def as_metadata(self) -> dict[str, str]:
         out = {k: str(getattr(self, k)) for k in
-               ("messages", "bytes", "malformed", "unregistered", "derived", "dropped", "flushes")}
+               ("messages", "bytes", "malformed", "unregistered", "derived", "events", "dropped",
+                "flushes")}
         out["last_error"] = self.last_error
         return out
 
@@ -95,6 +105,71 @@ def media_type_for(path: Path) -> str:
             ".csv": "text/csv"}.get(path.suffix.lower(), "application/octet-stream")
 
 
+class _RawRecord:
+    """One record's bytes, written as they are into the summary (see ``SpilledChunkIndexes``)."""
+
+    __slots__ = ("data",)
+
+    def __init__(self, data: bytes) -> None:
+        self.data = data
+
+    def write(self, stream: RecordBuilder) -> None:
+        stream.write(self.data)
+
+
+class SpilledChunkIndexes:
+    """The mcap Writer's list of chunk indexes, kept in an anonymous temporary file, not in memory.
+
+    The Writer keeps one ``ChunkIndex`` per chunk (about 500 bytes of Python objects) until it
+    writes them into the file's summary at ``finish``. A lockstep recorder ends a chunk every period
+    (the sim moves on only once a period is on disk), so that list grew with every message: 19 MB
+    over a 600 s soak. Here each index is appended as its record bytes to a temporary file, and read
+    back, record by record, when the Writer writes the summary: the recorder's memory stays flat;
+    the file gets the same bytes.
+    """
+
+    def __init__(self) -> None:
+        self._file = tempfile.TemporaryFile()  # noqa: SIM115 - closed in close()
+        self._count = 0
+
+    def append(self, index: ChunkIndex) -> None:
+        builder = RecordBuilder()
+        index.write(builder)
+        self._file.write(builder.end())
+        self._count += 1
+
+    def __len__(self) -> int:
+        return self._count
+
+    def __iter__(self) -> Iterator[_RawRecord]:
+        self._file.flush()
+        self._file.seek(0)
+        for _ in range(self._count):
+            head = self._file.read(9)  # opcode (1 byte) and length (8 bytes, little-endian)
+            (length,) = struct.unpack("<Q", head[1:])
+            yield _RawRecord(head + self._file.read(length))
+        self._file.seek(0, 2)
+
+    def close(self) -> None:
+        self._file.close()
+
+
+_CHUNK_INDEXES = "_Writer__chunk_indices"
+"""The mcap Writer's (private) list of chunk indexes that ``SpilledChunkIndexes`` stands in for."""
+
+
+def spill_chunk_indexes(writer: Writer) -> SpilledChunkIndexes | None:
+    """Make ``writer`` keep its chunk indexes on disk; None (and a warning) if this mcap version
+    keeps them otherwise (then they stay in memory, as before)."""
+    if getattr(writer, _CHUNK_INDEXES, None) != []:
+        log.warning("mcap %s keeps its chunk indexes differently: they stay in memory (the "
+                    "recorder's memory then grows with the number of chunks)", mcap.__version__)
+        return None
+    spilled = SpilledChunkIndexes()
+    setattr(writer, _CHUNK_INDEXES, spilled)
+    return spilled
+
+
 class _OpenFile:
     """One MCAP file being written: the mcap Writer, its stream and its channel table."""
 
@@ -102,6 +177,7 @@ class _OpenFile:
         self.path = path
         self.stream: IO[bytes] = open(path, "wb")  # noqa: SIM115 - closed in close()
         self.writer = Writer(self.stream, chunk_size=chunk_size, compression=compression)
+        self.chunk_indexes = spill_chunk_indexes(self.writer)
         self.writer.start(profile=PROFILE, library=LIBRARY)
         self.schemas: dict[tuple[str, bytes], int] = {}
         self.channels: dict[str, int] = {}
@@ -137,6 +213,8 @@ class _OpenFile:
         self.writer.finish()
         self.stream.flush()
         self.stream.close()
+        if self.chunk_indexes is not None:
+            self.chunk_indexes.close()
 
 
 class RecordingWriter:
@@ -173,6 +251,8 @@ class RecordingWriter:
         self._file_index = 0
         self._file_opened_ns = 0
         self._channel_specs: dict[str, schemas.ChannelSpec] = {}
+        self._ratelog = RateLimitedLog(log)  # a flood of malformed samples: counted, not echoed
+        self._events_spec = schemas.events_channel()
 
     # -- files ------------------------------------------------------------------------------
 
@@ -283,6 +363,19 @@ class RecordingWriter:
                 self.stats.derived += 1
         return True
 
+    def write_event(self, line: bytes) -> bool:
+        """Record one line of a launcher's events log on ``launcher/events`` at its own time;
+        False (and a warning) for a line that is not a ``ProcessEvent``."""
+        try:
+            ev = ProcessEvent.model_validate_json(line)
+        except ValueError as err:
+            log.warning("events log line ignored (not a process event): %s", str(err)[:200])
+            return False
+        t_ns = int(ev.t_unix_s * 1e9)
+        self._put(self._events_spec, line.rstrip(b"\n"), t_ns, t_ns)
+        self.stats.events += 1
+        return True
+
     def _wants_decode(self, key: str) -> bool:
         return self._deriver is not None and keys.spec_for_key(key) in self._deriver.SOURCES
 
@@ -290,7 +383,8 @@ class RecordingWriter:
                        log_time_ns: int, publish_time_ns: int) -> None:
         self.stats.malformed += 1
         self.stats.last_error = f"{key}: {error}"[:500]
-        log.warning("malformed sample on %s kept on %s: %s", key, schemas.MALFORMED_TOPIC, error)
+        self._ratelog.warning(("malformed", key), "malformed sample on %s kept on %s: %s", key,
+                              schemas.MALFORMED_TOPIC, error)
         envelope = schemas.malformed_record(key, schema, error, encoding, payload, log_time_ns)
         self._put(schemas.malformed_channel(), envelope, log_time_ns, publish_time_ns)
 

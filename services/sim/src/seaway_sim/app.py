@@ -56,15 +56,17 @@ class SimApp:
         bus.queryable(keys.SIM_SCENARIO, self.handle_scenario)
 
     def handle_scenario(self, request: ScenarioRequest) -> Reply:
-        """Load the scenario document in ``request`` (or restart the current one if it is None).
+        """Load the scenario document in ``request`` (action ``load``), or restart the current
+        scenario (action ``restart``): the request says which (``ScenarioRequest``).
 
         A document that does not validate, or names a vessel file that does not, is refused with
         the validation text; the running scenario is then untouched.
         """
         try:
-            if request.scenario is None:
+            if request.action == "restart":
                 scenario, vessel = self.core.scenario, self.core.vessel
             else:
+                assert request.scenario is not None  # ScenarioRequest checks it
                 scenario = parse_scenario(request.scenario, "scenario request", scenario_base())
                 vessel = load_vessel(scenario.plant_vessel_file)
                 self._check_model(scenario)
@@ -78,7 +80,7 @@ class SimApp:
             for hook in self.on_load:
                 hook(scenario, vessel)
             stamp = self.core.stamp_ns
-        what = "restarted" if request.scenario is None else "loaded"
+        what = "restarted" if request.action == "restart" else "loaded"
         log.info("scenario %s %s (seed %d, vessel %s)", scenario.name, what, scenario.seed,
                  vessel.name)
         return Reply.accept(stamp, f"scenario {scenario.name} {what}", name=scenario.name,

@@ -67,12 +67,20 @@ class Lockstep:
     # -- bus threads --------------------------------------------------------------------------------
 
     def _on_thrust(self, _key: str, cmd: ThrustCommand) -> None:
+        # A command answers a period the sim has published; one stamped further ahead of the sim's
+        # time is wrong (or a late one of an earlier episode): dropped, counted, logged once.
+        if not self.member.admit(keys.THRUST.suffix, cmd.stamp_ns, self.app.core.stamp_ns,
+                                 self.period_ns):
+            return
         with self.member.changed:
             self._commands[cmd.stamp_ns] = cmd
             if len(self._commands) > 64:  # commands for periods long gone (stale or repeated)
                 for stamp in sorted(self._commands)[:-8]:
                     del self._commands[stamp]
-        self.member.saw(keys.THRUST.suffix, cmd.stamp_ns)
+            # Wake the loop. Not ``member.saw``: the sim's ledger never learns a period of its own
+            # (it does not hear its own answers), so nothing would ever prune what it noted there.
+            self.member.version += 1
+            self.member.changed.notify_all()
 
     def _on_member(self, service: str, alive: bool) -> None:
         if alive and service in MEMBERS:
@@ -84,7 +92,9 @@ class Lockstep:
                 self.member.version += 1
                 self.member.changed.notify_all()
         elif not alive and service in self.members:
-            log.warning("lockstep: %s is gone; holding until it is back", service)
+            # Expected at every stop (the launcher stops the members first); after a crash the
+            # launcher restarts it and says so. Nothing for the user to do here.
+            log.info("lockstep: %s is gone; holding until it is back", service)
 
     # -- the period -----------------------------------------------------------------------------------
 

@@ -29,6 +29,7 @@ from collections.abc import Iterable
 from typing import Any
 
 from pymavlink.dialects.v20 import common as mavlink
+from seaway.runtime.ratelog import RateLimitedLog
 from seaway.vessel.mavlink_signing import (
     ACCEPTED,
     UNSIGNED,
@@ -84,7 +85,7 @@ class MavlinkLink:
         # (reason, address, sysid, compid) -> messages refused; each new key logged once.
         self.refused: dict[tuple[str, tuple[str, int], int, int], int] = {}
         self._unlogged: list[tuple[tuple[str, tuple[str, int], int, int], str]] = []
-        self._last_warn = 0.0
+        self._warnings = RateLimitedLog(log, every_s=_WARN_INTERVAL_S)
         self._last_refusal_log: float | None = None
 
     @property
@@ -193,10 +194,7 @@ class MavlinkLink:
         return {k: v for k, v in self.counters.items() if k.startswith("refused_")}
 
     def _warn(self, text: str) -> None:
-        now = time.monotonic()
-        if now - self._last_warn >= _WARN_INTERVAL_S:
-            self._last_warn = now
-            log.warning("%s (dropped so far: %d)", text, self.garbage)
+        self._warnings.warning("garbage", "%s (dropped so far: %d)", text, self.garbage)
 
     def send(self, msgs: Iterable[Any]) -> None:
         """Send each message to the peer (a no-op until one has been heard)."""

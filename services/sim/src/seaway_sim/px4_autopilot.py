@@ -32,6 +32,7 @@ from typing import Any
 from pymavlink.dialects.v20 import common as mavlink
 from seaway.contract.messages import Attitude, GnssFix
 from seaway.contract.units import NS_PER_S
+from seaway.runtime.ratelog import RateLimitedLog
 from seaway.simkit.sensors import instants_in, period_ns
 from seaway.vessel.frames import GeoOrigin
 
@@ -144,7 +145,7 @@ class Px4Autopilot:
         self.counters: Counter[str] = Counter()
         self.last_fix: GnssFix | None = None  # for LOCAL_POSITION_NED
         self._last_heading: float | None = None  # for GLOBAL_POSITION_INT.hdg
-        self._last_warn_ns: dict[str, int] = {}
+        self._warnings = RateLimitedLog(log, every_s=1.0)  # streams repeat: once a second per kind
         self._handlers = {
             "MANUAL_CONTROL": self._on_manual_control,
             "COMMAND_LONG": self._on_command_long,
@@ -254,10 +255,8 @@ class Px4Autopilot:
     def _count_and_warn(self, kind: str, now_ns: int, text: str) -> None:
         """Count an event of ``kind``; log it at most once a second per kind (streams repeat)."""
         self.counters[kind] += 1
-        last = self._last_warn_ns.get(kind)
-        if last is None or now_ns - last >= NS_PER_S:
-            self._last_warn_ns[kind] = now_ns
-            log.warning("%s (%s so far: %d)", text, kind, self.counters[kind])
+        self._warnings.warning(kind, "%s (%s so far: %d)", text, kind, self.counters[kind],
+                               now_ns=now_ns)
 
     def _on_manual_control(self, msg: Any, now_ns: int) -> list[Any]:
         if not self._for_me(msg.target):

@@ -29,7 +29,8 @@ import logging
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
-from seaway.contract.messages import Message, ThrustCommand, VehicleStatus
+from seaway.contract.messages import Message, ThrustCommand, ThrustWithheld, VehicleStatus
+from seaway.runtime.ratelog import RateLimitedLog
 from seaway.vessel.mavlink_signing import ACCEPTED, SignatureVerifier, signing_timestamp
 
 from seaway_vehicle_io import profile as profiles
@@ -74,7 +75,7 @@ NON_VEHICLE_TYPES = frozenset({6, 18, 26, 27, 30, 31})
 FAILSAFE_AUTOPILOT_CONFIG = "autopilot_config"
 
 MAX_BOOT_TIME_LEAD_NS = 1_000_000_000  # a boot time > 1 s "ahead" of its receipt is corrupt
-LOG_EVERY_NS = 5_000_000_000  # at most one log line per (message, field) per 5 s
+LOG_EVERY_S = 5.0  # at most one log line per (message, field) per 5 s
 RATE_WINDOW_S = 2.0  # receive rates are counted over windows of at least this length
 
 
@@ -199,8 +200,8 @@ class VehicleIoCore:
         self._next_mc_ns = start.mono_ns
         self._next_hb_ns = start.mono_ns
         self._next_status_ns = start.mono_ns
-        self._last_log_ns: dict[tuple[str, str], int] = {}
-        self._suppressed: dict[tuple[str, str], int] = {}
+        self._ratelog = RateLimitedLog(log, LOG_EVERY_S)
+        self._withheld: ThrustWithheld | None = self.thrust_withheld()  # as last published
 
     # ===========================================================================================
     # Inputs
@@ -279,11 +280,21 @@ class VehicleIoCore:
         stream_due = now.mono_ns >= self._next_mc_ns
         event = self.watchdog.check(now.mono_ns)
         if event is not None:
-            log.warning("no ThrustCommand for %.0f ms (timeout %.0f ms): thrust to neutral, "
-                        "failsafe %s", (event.silent_for_ns or 0) / 1e6,
-                        self.cfg.thrust_timeout_s * 1e3, FAILSAFE_THRUST_STALE)
+            # Worth a warning only if it changed what the thrusters do: commands that stop after a
+            # zero one (a mission over, a controller stopping in order), or while the autopilot
+            # withholds the thrust anyway, are the expected end of a run.
+            last = self.watchdog.latest
+            cut = (last is not None and (last.thrust_port_n, last.thrust_starboard_n) != (0.0, 0.0)
+                   and self.thrust_withheld() is None)
+            log.log(logging.WARNING if cut else logging.INFO,
+                    "no ThrustCommand for %.0f ms (timeout %.0f ms): thrust to neutral, failsafe "
+                    "%s%s", (event.silent_for_ns or 0) / 1e6, self.cfg.thrust_timeout_s * 1e3,
+                    FAILSAFE_THRUST_STALE, "" if cut else " (the thrusters were not driven: the "
+                    "last command was zero thrust, or the autopilot withheld it)")
             stream_due = True  # neutral now, not at the next stream tick
             status_now = True
+        if self.thrust_withheld() != self._withheld:
+            status_now = True  # e.g. a link loss: say so at once, not at the next status tick
         if now.mono_ns >= self._next_hb_ns:
             out.append(SendHeartbeat())
             self._next_hb_ns = _next_after(self._next_hb_ns, self._period_hb_ns, now.mono_ns)
@@ -371,8 +382,27 @@ class VehicleIoCore:
             return FAILSAFE_THRUST_STALE
         return None
 
+    def thrust_withheld(self) -> ThrustWithheld | None:
+        """Why the commanded thrust does not reach the thrusters now, whatever is commanded (None:
+        it does): no autopilot link, a configuration under which vehicle_io sends neutral only,
+        disarmed, or a mode in which manual control does not drive the thrusters
+        (``Profile.thrust_modes``). The watchdog's staleness is not one of these: that is the
+        commands stopping, which their sender knows."""
+        link = self.link
+        if not link.ok or link.profile is None:
+            return "no_link"
+        a = self.params.assessment
+        if a is not None and a.blocking:
+            return "autopilot_config"
+        if not link.armed:
+            return "disarmed"
+        if link.mode not in link.profile.thrust_modes:
+            return "mode"
+        return None
+
     def status(self, now: Now) -> VehicleStatus:
         link = self.link
+        self._withheld = self.thrust_withheld()
         hb_age = (None if link.last_heartbeat_mono_ns is None
                   else max(0.0, (now.mono_ns - link.last_heartbeat_mono_ns) / 1e9))
         return VehicleStatus.make(
@@ -393,6 +423,7 @@ class VehicleIoCore:
             else self.params.assessment.verdict,
             autopilot_loss_failsafe_summary="" if self.params.assessment is None
             else self.params.assessment.summary,
+            thrust_withheld=self._withheld,
         )
 
     def _update_rates(self, now: Now) -> None:
@@ -434,6 +465,8 @@ class VehicleIoCore:
             return self._connect(msg, profile, now, address)
         self.counts["HEARTBEAT"] = self.counts.get("HEARTBEAT", 0) + 1
         self._apply_heartbeat(msg, now)
+        if self.thrust_withheld() != self._withheld:  # armed, disarmed, another mode: say so now
+            return [Publish(self.status(now))]
         return []
 
     def _connect(self, msg: Any, profile: Profile, now: Now, address: Address) -> list[Output]:
@@ -663,14 +696,7 @@ class VehicleIoCore:
 
     def _log_limited(self, now: Now, mtype: str, fieldname: str, level: int, text: str) -> None:
         """Log, but at most once per (message, field) per 5 s, saying how many were suppressed."""
-        key = (mtype, fieldname)
-        last = self._last_log_ns.get(key)
-        if last is not None and now.mono_ns - last < LOG_EVERY_NS:
-            self._suppressed[key] = self._suppressed.get(key, 0) + 1
-            return
-        n = self._suppressed.pop(key, 0)
-        self._last_log_ns[key] = now.mono_ns
-        log.log(level, "%s%s", text, f" ({n} more like it since the last report)" if n else "")
+        self._ratelog.log((mtype, fieldname), level, "%s", text, now_ns=now.mono_ns)
 
     _HANDLERS: ClassVar[dict[str, Any]] = {
         "GLOBAL_POSITION_INT": _on_global_position_int,

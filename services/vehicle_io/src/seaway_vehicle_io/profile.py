@@ -84,6 +84,10 @@ class Profile(ABC):
     failsafe_params: tuple[str, ...]
     force_arm_magic: int
     force_disarm_magic: int = 21196  # both autopilots: MAV_CMD_COMPONENT_ARM_DISARM param2
+    thrust_modes: tuple[str, ...] = ("MANUAL",)
+    """Modes in which the autopilot drives the thrusters from MANUAL_CONTROL as ``manual_control``
+    maps it. In any other (HOLD after a failsafe, an AUTO mode, ACRO's rate control) the commanded
+    thrust is not what the thrusters do: ``VehicleStatus.thrust_withheld`` says ``mode``."""
 
     @abstractmethod
     def manual_control(self, left: float, right: float) -> ManualControlAxes:

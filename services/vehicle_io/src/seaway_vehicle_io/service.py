@@ -41,6 +41,7 @@ from seaway.contract.messages import (
     VehicleStatus,
 )
 from seaway.runtime.bus import Bus, TypedPublisher
+from seaway.runtime.ratelog import RateLimitedLog
 
 from seaway_vehicle_io.commands import MAV_RESULT_ACCEPTED
 from seaway_vehicle_io.config import VehicleIoConfig
@@ -76,6 +77,7 @@ class VehicleIoService:
         self.core = VehicleIoCore(cfg, limits, now(), signing_key)
         self.link: MavlinkLink | None = None
         self._requests_serial = threading.Lock()  # one COMMAND_LONG in flight at a time
+        self._ratelog = RateLimitedLog(log)
         self._open_failures = 0
         self._publishers: dict[type, TypedPublisher] = {
             GnssFix: bus.publisher(keys.GNSS),
@@ -188,7 +190,8 @@ class VehicleIoService:
                     try:
                         publish += self._send(self.core.on_mavlink(msg, now(), address))
                     except Exception:  # a bug for one message must not end the receive loop
-                        log.exception("handling %s failed", msg.get_type())
+                        self._ratelog.exception(("handling", msg.get_type()), "handling %s failed",
+                                                msg.get_type())
                 self.acks.notify_all()
             self._publish(publish)
 
@@ -220,7 +223,7 @@ class VehicleIoService:
                 try:
                     self.link.send(out)
                 except LinkClosedError as err:
-                    log.warning("send failed: %s", err)
+                    self._ratelog.warning("send", "send failed: %s", err)
         return publish
 
     def _publish(self, publish: list[Publish]) -> None:

@@ -8,9 +8,11 @@ from __future__ import annotations
 import json
 import tomllib
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Annotated, Any, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from seaway.contract.units import in_range
 
 
 class ConfigError(ValueError):
@@ -26,8 +28,8 @@ class ConfigModel(BaseModel):
 class Origin(ConfigModel):
     """A geodetic origin in WGS84 degrees: the local NED frame's x = y = 0 (scenarios, runs, configs)."""
 
-    lat_deg: float = Field(default=47.0, ge=-90, le=90)
-    lon_deg: float = Field(default=8.0, ge=-180, le=180)
+    lat_deg: Annotated[float, in_range(-90, 90, "deg")] = Field(default=47.0, ge=-90, le=90)
+    lon_deg: Annotated[float, in_range(-180, 180, "deg")] = Field(default=8.0, ge=-180, le=180)
     alt_m: float = 0.0
 
 

@@ -15,7 +15,9 @@ Rules every type here follows (design.md, "Messages, units, frames, time"):
   that the paper's yaw moment (T1 - T2) * l is positive (clockwise from above) as NED requires;
 * no NaN or infinity: refused at construction with an error that names the field; unknown is an
   explicit ``None``;
-* decoding ignores unknown fields, so that an old reader survives a newer log.
+* decoding ignores unknown fields, so that an old reader survives a newer log; except requests
+  (``Request``: they change what a service does), which refuse unknown fields, and each of which
+  says what it asks for in a required field (``ArmRequest.arm``, ``ScenarioRequest.action``, ...).
 
 Instances are immutable: once validated, a message cannot become non-finite.
 """
@@ -26,7 +28,9 @@ import json
 import math
 from typing import Annotated, Any, ClassVar, Literal, Self, get_args
 
-from pydantic import BaseModel, ConfigDict, Field, StringConstraints, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, StringConstraints, ValidationError, model_validator
+
+from seaway.contract.units import in_range
 
 
 class MessageError(ValueError):
@@ -37,7 +41,9 @@ def _describe(err: ValidationError, type_name: str) -> str:
     parts = []
     for e in err.errors():
         loc = ".".join(str(p) for p in e["loc"]) or "(message)"
-        parts.append(f"{type_name}.{loc}: {e['msg']}")
+        msg = ("unknown field, refused (a request takes only the fields it defines)"
+               if e["type"] == "extra_forbidden" else e["msg"])
+        parts.append(f"{type_name}.{loc}: {msg}")
     return "; ".join(parts)
 
 
@@ -151,6 +157,10 @@ class LocalPosition(Message):
     vz_mps: float
 
 
+ThrustWithheld = Literal["no_link", "disarmed", "mode", "autopilot_config"]
+"""Why the autopilot does not apply the commanded thrust (``VehicleStatus.thrust_withheld``)."""
+
+
 class VehicleStatus(Message):
     """Link, arming, mode, failsafe and battery state of the autopilot as vehicle_io sees it."""
 
@@ -175,6 +185,12 @@ class VehicleStatus(Message):
                     "parameters at connection; None until they have been read")
     autopilot_loss_failsafe_summary: str = Field(
         default="", description="the parameters and the action behind that verdict, one line")
+    thrust_withheld: ThrustWithheld | None = Field(
+        default=None,
+        description="why the commanded thrust does not reach the thrusters now, whatever the "
+                    "controller commands: 'no_link' (no autopilot), 'disarmed', 'mode' (a mode in "
+                    "which manual control does not drive the thrusters, e.g. HOLD after a "
+                    "failsafe), 'autopilot_config' (vehicle_io sends neutral only); None: it does")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -260,6 +276,10 @@ MissionState = Literal["idle", "active", "paused", "complete", "aborted"]
 """A mission's state: idle -> active <-> paused -> complete | aborted (the controller's machine)."""
 
 
+MAX_REASON_CHARS = 300
+"""Longest ``MissionStatus.reason``."""
+
+
 class MissionStatus(Message):
     """Progress of the active mission."""
 
@@ -272,6 +292,10 @@ class MissionStatus(Message):
     cross_track_m: float | None = None
     energy_used_j: float | None = None
     energy_to_go_j: float | None = None
+    reason: str = Field(default="", max_length=MAX_REASON_CHARS, description="what the operator "
+                        "did not ask for but should know about the mission's state: why the "
+                        "controller paused it (e.g. the vehicle was disarmed), or how it is flown "
+                        "meanwhile; empty otherwise")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -368,7 +392,17 @@ class Reply(Message):
         return cls.make(stamp_ns=stamp_ns, accepted=False, reason=reason, detail=detail)
 
 
-class ArmRequest(Message):
+class Request(Message):
+    """Base of every request (a queryable's input): what it asks for changes what a service does, so
+    a request says so in a required field, and an unknown field is refused rather than ignored (a
+    typo, or a sender that expects something this service does not do, must not become a default
+    action: ``{"stamp_ns": 1, "junk": 2}`` is no scenario restart)."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, frozen=True,
+                              ser_json_inf_nan="constants")
+
+
+class ArmRequest(Request):
     """Arm or disarm the vehicle (MAV_CMD_COMPONENT_ARM_DISARM)."""
 
     SCHEMA: ClassVar[str] = "seaway.v1.ArmRequest"
@@ -376,18 +410,30 @@ class ArmRequest(Message):
     force: bool = False
 
 
-class ModeRequest(Message):
+class ModeRequest(Request):
     """Change the autopilot mode, by Seaway's mode name ('MANUAL', 'HOLD', ...)."""
 
     SCHEMA: ClassVar[str] = "seaway.v1.ModeRequest"
     mode: str = Field(min_length=1, max_length=32)
 
 
-class ScenarioRequest(Message):
-    """Load a scenario (the scenario document itself) or reset the current one."""
+class ScenarioRequest(Request):
+    """Load a scenario (the scenario document itself) or restart the current one."""
 
     SCHEMA: ClassVar[str] = "seaway.v1.ScenarioRequest"
-    scenario: dict[str, Any] | None = Field(default=None, description="scenario document; None resets")
+    action: Literal["load", "restart"] = Field(description="'load' the document in 'scenario', or "
+                                               "'restart' the current scenario from its start")
+    scenario: dict[str, Any] | None = Field(default=None, description="the scenario document to "
+                                            "load (action 'load' only)")
+
+    @model_validator(mode="after")
+    def _document_matches_action(self) -> ScenarioRequest:
+        if self.action == "load" and self.scenario is None:
+            raise ValueError("action 'load' needs the scenario document in 'scenario'")
+        if self.action == "restart" and self.scenario is not None:
+            raise ValueError("action 'restart' restarts the current scenario: leave 'scenario' out "
+                             "(or use action 'load')")
+        return self
 
 
 ControllerName = Literal["cc-empc", "eo-empc", "nmpc"]
@@ -408,11 +454,22 @@ class Waypoint(BaseModel):
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False, frozen=True)
     x_m: float | None = Field(default=None, description="north of the origin [m]")
     y_m: float | None = Field(default=None, description="east of the origin [m]")
-    lat_deg: float | None = Field(default=None, ge=-90, le=90)
-    lon_deg: float | None = Field(default=None, ge=-180, le=180)
+    lat_deg: Annotated[float | None, in_range(-90, 90, "deg")] = Field(default=None, ge=-90, le=90)
+    lon_deg: Annotated[float | None, in_range(-180, 180, "deg")] = Field(default=None, ge=-180,
+                                                                         le=180)
 
 
-class MissionRequest(Message):
+MAX_TASK_POWER_W = 10_000.0
+"""Upper bound of a mission's task power T^w [W]. T^w is the power a payload carried by a small
+surface vessel draws: the paper's 0.49 W, the lake boat's 250 W. 10 kW is far above any such
+payload and above the full-thrust propulsion power of every vessel file here (4.9 kW for
+paper-boat), past which the economic speed is the top speed anyway; beyond it nothing changes for
+the boat, only the cost terms' scale, which at 1e300 W overflows (every step a math domain error).
+The lower bound is > 0: with no task power the economic controllers' best speed is zero, and the
+boat would never arrive."""
+
+
+class MissionRequest(Request):
     """A mission: ordered waypoints P_0..P_N, circle of acceptance, task power T^w, controller, and
     whether the controller predicts with the estimated disturbance."""
 
@@ -420,26 +477,27 @@ class MissionRequest(Message):
     mission_id: str = Field(default="", max_length=64)
     waypoints: list[Waypoint]
     coa_radius_m: float = Field(description="circle-of-acceptance radius r_COA [m]")
-    task_power_w: float = Field(ge=0, description="T^w, power of the task carried [W]")
+    task_power_w: Annotated[float, in_range(0, MAX_TASK_POWER_W, "W", lo_open=True)] = Field(
+        gt=0, le=MAX_TASK_POWER_W, description="T^w, power of the task carried [W], (0, 10 kW]")
     controller: ControllerName = DEFAULT_CONTROLLER
     predict_disturbance: bool = Field(default=False, description="predict with the estimator's tau_d "
                                       "instead of tau_d = 0 (the paper's)")
     speed_hint_mps: float | None = Field(default=None, gt=0, description="optional cruise hint")
 
 
-class MissionCommand(Message):
+class MissionCommand(Request):
     """Pause, resume or abort the active mission."""
 
     SCHEMA: ClassVar[str] = "seaway.v1.MissionCommand"
     command: Literal["pause", "resume", "abort"]
 
 
-class NavResetRequest(Message):
+class NavResetRequest(Request):
     """Re-initialise the estimator from the next measurements."""
 
     SCHEMA: ClassVar[str] = "seaway.v1.NavResetRequest"
-    keep_origin: bool = Field(default=True, description="keep the NED origin (positions on the "
-                              "bus stay in the same frame)")
+    keep_origin: bool = Field(description="keep the NED origin (positions on the bus stay in the "
+                              "same frame), or forget it too (true or false: a reset says which)")
     reason: str = Field(default="", max_length=200)
 
 

@@ -3,10 +3,25 @@ becomes. The controller validates the request again (range, waypoints, legs)."""
 
 from __future__ import annotations
 
-from pydantic import Field, model_validator
+from typing import Annotated
+
+from pydantic import Field, ValidationError, model_validator
 
 from seaway.contract.config import ConfigModel
-from seaway.contract.messages import DEFAULT_CONTROLLER, ControllerName, MissionRequest, Waypoint
+from seaway.contract.messages import (
+    DEFAULT_CONTROLLER,
+    MAX_TASK_POWER_W,
+    ControllerName,
+    MessageError,
+    MissionRequest,
+    Waypoint,
+)
+from seaway.contract.units import in_range
+
+LatDeg = Annotated[float, in_range(-90, 90, "deg"), Field(ge=-90, le=90,
+                                                          description="WGS84 latitude [deg]")]
+LonDeg = Annotated[float, in_range(-180, 180, "deg"), Field(ge=-180, le=180,
+                                                            description="WGS84 longitude [deg]")]
 
 
 class MissionSpec(ConfigModel):
@@ -18,9 +33,11 @@ class MissionSpec(ConfigModel):
 
     mission_id: str = Field(default="", max_length=64)
     waypoints_m: list[tuple[float, float]] | None = Field(default=None, min_length=2)
-    waypoints_deg: list[tuple[float, float]] | None = Field(default=None, min_length=2)
+    waypoints_deg: list[tuple[LatDeg, LonDeg]] | None = Field(default=None, min_length=2)
     coa_radius_m: float = Field(gt=0)
-    task_power_w: float = Field(ge=0)
+    task_power_w: Annotated[float, in_range(0, MAX_TASK_POWER_W, "W", lo_open=True)] = Field(
+        gt=0, le=MAX_TASK_POWER_W, description="T^w [W], (0, 10 kW] "
+        "(seaway.contract.messages.MAX_TASK_POWER_W says why)")
     controller: ControllerName = DEFAULT_CONTROLLER
     predict_disturbance: bool = Field(default=False, description="predict with the estimator's tau_d "
                                       "instead of tau_d = 0 (the paper's)")
@@ -40,12 +57,16 @@ class MissionSpec(ConfigModel):
         ``mission_id`` names it when the mission has no id of its own. The others, when not None,
         replace the mission's own value: ``controller`` flies it with another controller,
         ``predict_disturbance`` switches the disturbance prediction on or off, ``task_power_w``
-        carries another task power T^w (MessageError if negative or not finite).
+        carries another task power T^w. MessageError, naming the field and its allowed range, if
+        the result is not a valid request (e.g. T^w outside (0, 10 kW]).
         """
-        if self.waypoints_m is not None:
-            wps = [Waypoint(x_m=x, y_m=y) for x, y in self.waypoints_m]
-        else:
-            wps = [Waypoint(lat_deg=a, lon_deg=b) for a, b in self.waypoints_deg or []]
+        try:
+            if self.waypoints_m is not None:
+                wps = [Waypoint(x_m=x, y_m=y) for x, y in self.waypoints_m]
+            else:
+                wps = [Waypoint(lat_deg=a, lon_deg=b) for a, b in self.waypoints_deg or []]
+        except ValidationError as err:  # a spec built without validation (model_construct)
+            raise MessageError(f"MissionRequest.waypoints: {err.errors()[0]['msg']}") from None
         return MissionRequest.make(
             stamp_ns=stamp_ns, mission_id=self.mission_id or mission_id, waypoints=wps,
             coa_radius_m=self.coa_radius_m,

@@ -12,6 +12,8 @@ provides, so both transports encode, validate, refuse and count exactly the same
 * ``Bus.subscribe(spec, mode=...)``: ``latest`` keeps only the newest sample (a controller wants the
   freshest state), ``fifo`` keeps every sample in order up to a bound (a recorder, an estimator), or a
   ``callback``. A malformed payload is logged with its key, counted and dropped; the process goes on.
+  Logged once per key and then at most every few seconds with a count (``seaway.runtime.ratelog``):
+  a flood of bad samples is counted, not echoed line by line.
 * ``Bus.queryable`` / ``Bus.request``: a request is answered by a ``Reply`` that accepts or refuses
   with a reason; a malformed request is refused, never crashes the server; no answer is a refusal
   that says so.
@@ -36,6 +38,7 @@ from typing import TYPE_CHECKING, Any, Generic, Literal, NamedTuple, Protocol, T
 
 from seaway.contract import keys
 from seaway.contract.messages import Message, MessageError, Reply
+from seaway.runtime.ratelog import RateLimitedLog
 
 if TYPE_CHECKING:
     from seaway.runtime.zenoh_bus import ZenohBus
@@ -152,14 +155,15 @@ class TypedSubscriber(Generic[M]):
             msg = self._type.decode(sample.payload)
         except MessageError as err:
             self._bus.stats.count_malformed(key, str(err))
-            log.warning("dropped malformed payload on %s: %s", key, err)
+            self._bus.ratelog.warning(("malformed", key), "dropped malformed payload on %s: %s "
+                                      "(counted in the bus stats)", key, err)
             return
         self._bus.stats.received += 1
         if self._callback is not None:
             try:
                 self._callback(key, msg)
             except Exception:  # a bug in a handler must not kill the transport's delivery thread
-                log.exception("handler for %s failed", key)
+                self._bus.ratelog.exception(("handler", key), "handler for %s failed", key)
             return
         with self._cond:
             if len(self._queue) == self._queue.maxlen and self._queue.maxlen != 1:
@@ -219,6 +223,8 @@ class Bus(abc.ABC):
     def __init__(self, vessel: str) -> None:
         self.vessel = keys.check_vessel(vessel)
         self.stats = BusStats()
+        self.ratelog = RateLimitedLog(log)
+        """The bus's repeated warnings (malformed samples and requests, failing handlers), per key."""
         self._tokens: list[Declared] = []
         self._closed = False
 
@@ -283,13 +289,15 @@ class Bus(abc.ABC):
                 request = req_type.decode(payload)
             except MessageError as err:
                 self.stats.count_malformed(key, str(err))
-                log.warning("refused malformed request on %s: %s", key, err)
+                self.ratelog.warning(("request", key), "refused malformed request on %s: %s",
+                                     key, err)
                 reply = Reply.refuse(now, f"malformed request: {err}")
             else:
                 try:
                     reply = handler(request)
                 except Exception as err:  # the server keeps running; the caller learns why
-                    log.exception("request handler for %s failed", key)
+                    self.ratelog.exception(("request handler", key), "request handler for %s "
+                                           "failed", key)
                     reply = Reply.refuse(now, f"internal error: {type(err).__name__}: {err}")
             return reply.encode()
 

@@ -47,6 +47,8 @@ from typing import Any, Literal
 from seaway.contract import keys
 from seaway.contract.messages import LOCKSTEP_SERVICES, Message, PeriodDone
 from seaway.runtime.bus import Bus, TypedPublisher
+from seaway.runtime.ratelog import RateLimitedLog
+from seaway.runtime.stamps import StampBounds, StampGate
 
 log = logging.getLogger("seaway.lockstep")
 
@@ -100,8 +102,22 @@ class Ledger:
         self.period: Period | None = None
         self.period_ns = 0
 
-    def see(self, suffix: str, stamp_ns: int) -> None:
+    def see(self, suffix: str, stamp_ns: int) -> bool:
+        """Note a message seen; False (not noted) if it is stamped further ahead of the current
+        period than any answer can list before the next period forgets it (``bounds``)."""
+        if not self.within(stamp_ns):
+            return False
         self.seen.setdefault(suffix, set()).add(stamp_ns)
+        return True
+
+    def bounds(self) -> StampBounds | None:
+        """How far ahead of the current period a stamp may be (``seaway.runtime.stamps``); None
+        before the first answer of the sim."""
+        return StampBounds.lockstep(self.period_ns) if self.period is not None else None
+
+    def within(self, stamp_ns: int) -> bool:
+        b = self.bounds()
+        return b is None or b.judge(stamp_ns, self.period.stamp_ns) is None  # type: ignore[union-attr]
 
     def has(self, suffix: str, stamp_ns: int) -> bool:
         return stamp_ns in self.seen.get(suffix, ())
@@ -185,12 +201,28 @@ class Member:
         self._last: tuple[list[tuple[TypedPublisher[Any], Message]], PeriodDone] | None = None
         self._publishers: dict[str, TypedPublisher[Any]] = {}
         self.on_restart: Callable[[Period | None, Period], None] | None = None
+        self.stamps = StampGate(f"{service} (lockstep)", log)
+        self.ratelog = RateLimitedLog(log)  # repeated warnings, per kind and key
         if subscribe:  # else the service feeds ``on_answer`` itself (the recorder, from its stream)
             for other in LOCKSTEP_SERVICES:
                 if other != service:
                     bus.subscribe(keys.lockstep_spec(other), callback=self.on_answer, inline=True)
 
     # -- from the bus's threads -------------------------------------------------------------------
+
+    def admit(self, suffix: str, stamp_ns: int, ref_ns: int | None = None,
+              period_ns: int | None = None) -> bool:
+        """Whether a message on ``suffix`` stamped ``stamp_ns`` may be kept for a period: not when
+        it lies further ahead of the current period than ``StampBounds.lockstep`` allows (counted,
+        dropped, logged once). The sim, whose own answers never reach its ledger, passes its time
+        and period (``ref_ns``, ``period_ns``)."""
+        with self.changed:
+            period, known_ns = self.ledger.period, self.ledger.period_ns
+        if ref_ns is None and period is not None:
+            ref_ns = period.stamp_ns
+        period_ns = period_ns or known_ns
+        bounds = StampBounds.lockstep(period_ns) if period_ns else None
+        return self.stamps.admit(suffix, stamp_ns, ref_ns, bounds)
 
     def saw(self, suffix: str, stamp_ns: int) -> None:
         with self.changed:
@@ -207,7 +239,8 @@ class Member:
 
     def on_answer(self, key: str, answer: PeriodDone) -> None:
         if not key.endswith(f"/lockstep/{answer.service}"):  # valid, but not who may say it there
-            log.warning("lockstep answer on %s claims to be %s's: ignored", key, answer.service)
+            self.ratelog.warning(("impostor", key), "lockstep answer on %s claims to be %s's: "
+                                  "ignored", key, answer.service)
             return
         repeat = False
         with self.changed:

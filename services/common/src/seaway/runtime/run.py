@@ -32,6 +32,7 @@ from pydantic import Field, model_validator
 from seaway.contract import keys
 from seaway.contract.config import ConfigError, ConfigModel, Origin, load_config, parse_config
 from seaway.contract.units import s_to_ns
+from seaway.vessel.model import check_vessel_files
 
 log = logging.getLogger("seaway.run")
 
@@ -125,7 +126,9 @@ def describe(*, vessel: str, run_id: str, clock: ClockMode = "wall", scenario: A
     will load it) supplies the model vessel (its ``vessel``), the plant (its ``plant_vessel``, else
     ``vessel``), the dead zone and, unless ``origin_from_scenario`` is false (a boat), the origin, so
     the estimator shares the simulator's frame. Explicit values override it; None keeps the default.
-    A plant equal to the model is stored as None (no second model). ConfigError names a bad field.
+    A plant equal to the model is stored as None (no second model). ConfigError names a bad field,
+    also of a vessel file (each is loaded here, so a bad one stops a launch, ``--check`` included,
+    before any process starts).
     """
     fields: dict[str, Any] = {"run_id": run_id, "vessel": vessel, "clock": clock}
     if scenario is not None:
@@ -141,7 +144,12 @@ def describe(*, vessel: str, run_id: str, clock: ClockMode = "wall", scenario: A
         fields["dead_zone"] = True
     if fields.get("plant_vessel_file") == fields.get("model_vessel_file", DEFAULT_VESSEL_FILE):
         fields["plant_vessel_file"] = None
-    return parse_config(fields, RunDescription, where)
+    run = parse_config(fields, RunDescription, where)
+    try:
+        check_vessel_files(model=run.model_vessel_file, plant=run.plant_vessel_file)
+    except ConfigError as err:
+        raise ConfigError(f"{where}: {err}") from None
+    return run
 
 
 # ---------------------------------------------------------------------------------------------

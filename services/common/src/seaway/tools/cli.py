@@ -18,6 +18,7 @@ from importlib.metadata import entry_points
 from pathlib import Path
 
 from seaway.contract import keys
+from seaway.contract.config import ConfigError
 from seaway.contract.messages import ALL_MESSAGES
 
 
@@ -38,7 +39,11 @@ def cmd_bench(argv: list[str]) -> int:
         return 2
     as_json = "--json" in rest
     rest = [a for a in rest if a != "--json"]
-    result = benches[name].load()(rest)  # type: ignore[attr-defined]
+    try:
+        result = benches[name].load()(rest)  # type: ignore[attr-defined]
+    except ConfigError as err:  # a bad vessel, scenario or config file: say which, no traceback
+        print(f"seaway bench {name}: {err}", file=sys.stderr)
+        return 2
     print(result.dumps() if as_json else result.table())
     return 0
 

@@ -33,9 +33,9 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-from pydantic import Field
+from pydantic import Field, model_validator
 
-from seaway.contract.config import ConfigModel, deploy_path, load_config
+from seaway.contract.config import ConfigError, ConfigModel, deploy_path, load_config
 
 STATE_NAMES = ("u_mps", "v_mps", "r_radps", "x_m", "y_m", "psi_rad")
 NX = 6
@@ -65,6 +65,14 @@ class VesselParams(ConfigModel):
     dead_zone_n: float = Field(default=0.0, ge=0, description="|T| below this gives no thrust [N]")
     thruster_time_constant_s: float = Field(default=0.0, ge=0, description="first-order lag [s]")
 
+    @model_validator(mode="after")
+    def _dead_zone_below_the_bounds(self) -> VesselParams:
+        if self.dead_zone_n >= min(self.thrust_max_n, self.reverse_max_n):
+            raise ValueError(f"dead_zone_n {self.dead_zone_n:g} N must be below the thrust bounds "
+                             f"(thrust_max_n {self.thrust_max_n:g} N, reverse {self.reverse_max_n:g} N):"
+                             " the thrusters could never produce any thrust")
+        return self
+
     @property
     def reverse_max_n(self) -> float:
         return self.thrust_max_n if self.reverse_thrust_max_n is None else self.reverse_thrust_max_n
@@ -76,6 +84,19 @@ def load_vessel(name_or_path: str | Path) -> VesselParams:
     if p.suffix not in (".toml", ".json"):
         p = deploy_path("vessels", f"{name_or_path}.toml")
     return load_config(p, VesselParams)
+
+
+def check_vessel_files(**files: str | Path | None) -> None:
+    """Load each vessel file given (``role=name or path``; None is skipped), so that a bad one is
+    refused before anything uses it: ConfigError naming the role, the file and each bad field with
+    its allowed range (e.g. ``model vessel file x.toml: m11_kg: Input should be greater than 0``)."""
+    for role, name in files.items():
+        if name is None:
+            continue
+        try:
+            load_vessel(name)
+        except ConfigError as err:
+            raise ConfigError(f"{role.replace('_', ' ')} vessel file: {err}") from None
 
 
 def world_to_body(north: Any, east: Any, cos_psi: Any, sin_psi: Any) -> tuple[Any, Any]:

@@ -12,6 +12,11 @@ mission that the launcher sends; with no mission to send they are refused. The r
 estimated disturbance), with ``-2``, ``-3``, ... added if that folder exists already. The mission sent
 is written to ``mission.json`` in the run folder, and the final report takes it from there.
 
+Ctrl-C (or SIGTERM) stops every process in order, the recorder last, then prints the status table
+and the run's report. A second Ctrl-C shortens each process's grace before SIGKILL, but still stops
+them in order and lets the recorder finish its file; one during the report skips the report (and
+says how to make it later).
+
 Exit code: 0 after a clean stop (Ctrl-C, SIGTERM, or the mission completed with
 ``stop_when_complete``); 1 when a required process failed or could not start; 2 for a bad profile.
 """
@@ -23,6 +28,7 @@ import math
 import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
 import threading
@@ -34,6 +40,7 @@ from seaway.contract.access import AccessError
 from seaway.contract.config import ConfigError, deploy_path, repo_root
 from seaway.contract.messages import (
     CONTROLLER_NAMES,
+    MAX_TASK_POWER_W,
     ArmRequest,
     MessageError,
     MissionRequest,
@@ -45,7 +52,7 @@ from seaway.runtime import refusals
 from seaway.runtime import run as runs
 from seaway.runtime.bus import Bus
 from seaway.runtime.credentials import ENV_CREDENTIALS, NONE, CredentialsError
-from seaway.runtime.service import DEFAULT_VESSEL, ENV_VESSEL, install_stop_signals
+from seaway.runtime.service import DEFAULT_VESSEL, ENV_VESSEL
 from seaway.runtime.zenoh_bus import ENV_CONFIG
 from seaway.simkit.scenario import load_scenario
 from seaway.tools.launch import authority
@@ -84,8 +91,10 @@ def _task_power(text: str) -> float:
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is not a number of watts") from None
-    if not math.isfinite(value) or value < 0:
-        raise argparse.ArgumentTypeError(f"{text!r}: the task power must be finite and >= 0 W")
+    if not math.isfinite(value) or not 0 < value <= MAX_TASK_POWER_W:
+        # The mission's own bound (contract.messages), said before anything starts.
+        raise argparse.ArgumentTypeError(f"{text!r}: the task power must be finite, in (0, "
+                                         f"{MAX_TASK_POWER_W:g}] W")
     return value
 
 
@@ -202,7 +211,7 @@ class StatusLine:
 LINK_WAIT_S = 20.0  # how long the start-up requests wait for vehicle_io's autopilot link
 
 
-def _operator_requests(bus: Bus, profile: Profile) -> bool:
+def _operator_requests(bus: Bus, profile: Profile, stop: threading.Event) -> bool:
     """The profile's start-up mode and arming, as explicit requests with their replies shown.
 
     vehicle_io is ready when it serves requests, which can be before it has heard the autopilot;
@@ -216,6 +225,8 @@ def _operator_requests(bus: Bus, profile: Profile) -> bool:
         msg = status.get(0.5)
         if msg is not None and msg.link_ok:
             break
+        if stop.is_set():
+            return True  # stopping anyway: not a failure of the start
         if time.monotonic() > deadline:
             print(f"no autopilot link reported by vehicle_io within {LINK_WAIT_S:g} s; "
                   "not sending mode or arming", flush=True)
@@ -318,9 +329,9 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
     if mission is not None:
         mission_file = run_dir / "mission.json"
         mission_file.write_text(mission.model_dump_json(indent=2) + "\n")
-    sup = Supervisor(procs, run_dir, env, profile.backoff, default_echo, args.verbose)
+    sup = Supervisor(procs, run_dir, env, profile.backoff, default_echo, args.verbose, run.clock)
     stop = threading.Event()
-    install_stop_signals(stop)
+    _install_stop_signals(stop, sup)
     print(f"seaway launch {profile.name}: vessel {args.vessel}, run folder {run_dir}", flush=True)
     print(f"run {run.run_id}: model {run.model_vessel_file}"
           + (f", plant {run.plant_vessel_file}" if run.plant_vessel_file else "")
@@ -339,6 +350,13 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
     t0 = time.monotonic()
     try:
         bus.watch_health(sup.on_health)
+        # What the processes must keep publishing (liveness): heard here, so a hung one is seen.
+        for suffix in sorted(sup.watched_keys()):
+            spec = keys.spec_for_suffix(suffix)
+            assert spec is not None
+            # inline: on Zenoh's own receive thread (a short handler; hundreds a second in lockstep)
+            bus.subscribe_raw(spec.key(args.vessel),
+                              lambda sample, s=suffix: sup.on_sample(s, sample.payload), inline=True)
         status = StatusLine(args.vessel)
         bus.subscribe(keys.MISSION_STATUS, callback=lambda _k, m: setattr(status, "mission", m))
         bus.subscribe(keys.NAV_STATE, callback=lambda _k, m: setattr(status, "state", m))
@@ -349,14 +367,17 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
             return code
         print(sup.status_table(), flush=True)
         print(f"all ready in {time.monotonic() - t0:.1f} s", flush=True)
-        if not _operator_requests(bus, profile):
+        if not _operator_requests(bus, profile, stop):
             code = 1
             return code
-        if mission is not None:
+        if mission is not None and not stop.is_set():
             reply = bus.request(keys.MISSION_SET, mission, timeout_s=10.0)
-            print(f"mission {mission.mission_id}: "
-                  f"{'accepted' if reply.accepted else 'REFUSED: ' + reply.reason} "
-                  f"({_describe_mission(mission)})", flush=True)
+            # An acceptance can carry news too (its solver is still being made, say).
+            said = ("accepted" + ("" if reply.reason in ("", "mission started")
+                                  else f" ({reply.reason})")
+                    if reply.accepted else "REFUSED: " + reply.reason)
+            print(f"mission {mission.mission_id}: {said} ({_describe_mission(mission)})",
+                  flush=True)
         t_run = time.monotonic()
         while not stop.wait(0.2):
             sup.poll()
@@ -389,9 +410,25 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
         sup.stop_all()
         bus.close()
         print(sup.status_table())
-        print(f"stopped in {time.monotonic() - t_stop:.1f} s; logs in {run_dir / 'logs'}")
-        _final_report(run_dir, scenario, mission_file)
+        print(f"stopped in {time.monotonic() - t_stop:.1f} s; logs in {run_dir / 'logs'}",
+              flush=True)
+        _final_report(run_dir, scenario, mission_file, sup)
     return code
+
+
+def _install_stop_signals(stop: threading.Event, sup: Supervisor) -> None:
+    """SIGINT or SIGTERM stops the run (``stop``); every further Ctrl-C hurries the stop: shorter
+    graces, the same order, the recorder's file finished, and the report skipped if it is running."""
+
+    def handler(signum: int, _frame: object) -> None:
+        if not stop.is_set():
+            stop.set()
+            return
+        if signum == signal.SIGINT:
+            sup.hurry()  # no printing here: the main thread may be inside a write to the terminal
+
+    signal.signal(signal.SIGINT, handler)
+    signal.signal(signal.SIGTERM, handler)
 
 
 def _describe_mission(mission: MissionRequest) -> str:
@@ -401,22 +438,41 @@ def _describe_mission(mission: MissionRequest) -> str:
             + f", T^w {mission.task_power_w:g} W")
 
 
-def _final_report(run_dir: Path, scenario: str, mission_file: Path | None = None) -> None:
+def _final_report(run_dir: Path, scenario: str, mission_file: Path | None = None,
+                  sup: Supervisor | None = None) -> None:
     """The run's metrics (from its recording, by ``seaway report``) and where the recording is.
 
     The report takes the mission from ``mission_file`` (what the launcher sent, options applied)
-    when there is one, else from the scenario."""
+    when there is one, else from the scenario. It runs in a session of its own, so that a Ctrl-C
+    reaches only the launcher, which then stops it and says how to make it later."""
     recordings = sorted(run_dir.glob("*.mcap"))
     if not recordings:
         return
-    print(f"recording: {', '.join(str(r) for r in recordings)}")
+    print(f"recording: {', '.join(str(r) for r in recordings)}", flush=True)
     seaway = shutil.which("seaway", path=str(Path(sys.executable).parent)) or "seaway"
     cmd = [seaway, "report", str(run_dir), "--out", str(run_dir / "report")]
     if scenario:
         cmd += ["--scenario", scenario]
     if mission_file is not None:
         cmd += ["--mission", str(mission_file)]
+    hurried = sup.hurried if sup is not None else 0
     try:
-        subprocess.run(cmd, timeout=120, check=False)
-    except (OSError, subprocess.TimeoutExpired) as err:
+        # Its output to this process's real stdout: fd 1 itself is the refusal counter's pipe
+        # (seaway.runtime.refusals), which would swallow the report.
+        sys.stdout.flush()
+        proc = subprocess.Popen(cmd, start_new_session=True, stdout=sys.stdout.fileno())
+    except OSError as err:
         print(f"(no report: {err})")
+        return
+    deadline = time.monotonic() + 120.0
+    while proc.poll() is None:
+        skipped = sup is not None and sup.hurried > hurried
+        if skipped:
+            sup.note_hurry()
+        if skipped or time.monotonic() > deadline:
+            proc.kill()
+            proc.wait()
+            why = "Ctrl-C" if skipped else "it took over 120 s"
+            print(f"(report skipped: {why}; make it with: {' '.join(cmd)})", flush=True)
+            return
+        time.sleep(0.05)

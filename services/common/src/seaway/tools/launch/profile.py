@@ -10,7 +10,9 @@ A profile is pure data, validated here before anything starts:
 * start order follows ``after``; stop order is the reverse, with the recorder always last;
 * each key has at most one producer in a profile: by default a process produces the registry keys
   whose producer is its service; ``produces`` overrides that (the lockstep sim produces the sensor
-  keys itself). Two producers of one key are refused, naming both.
+  keys itself). Two producers of one key are refused, naming both;
+* what a process must keep publishing, or be restarted as hung, is its service's
+  (``liveness.DUTIES``); ``must_publish`` replaces that list (``[]``: only its health token counts).
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from pydantic import Field, model_validator
 
 from seaway.contract import access, keys
 from seaway.contract.config import ConfigError, ConfigModel, deploy_path, load_config
+from seaway.tools.launch.liveness import Duty, duties_for
 
 
 class ProcessSpec(ConfigModel):
@@ -35,6 +38,9 @@ class ProcessSpec(ConfigModel):
     ready_timeout_s: float = Field(default=30.0, gt=0)
     stop_timeout_s: float = Field(default=3.0, gt=0, description="SIGINT, then SIGKILL after this")
     env: dict[str, str] = Field(default_factory=dict)
+    must_publish: list[Duty] | None = Field(default=None, description="what it must keep "
+                                            "publishing or be restarted as hung; default: its "
+                                            "service's (liveness.DUTIES)")
 
     @model_validator(mode="after")
     def _service_known(self) -> ProcessSpec:
@@ -51,6 +57,10 @@ class ProcessSpec(ConfigModel):
         if self.produces is not None:
             return list(self.produces)
         return [s.suffix for s in keys.REGISTRY if s.producer == self.service and s.kind == "topic"]
+
+    def duties(self, clock: str) -> tuple[Duty, ...]:
+        """What this process must keep publishing under the run's ``clock``."""
+        return duties_for(self.service, clock, self.must_publish)
 
 
 class BackoffPolicy(ConfigModel):
@@ -109,6 +119,12 @@ class Profile(ConfigModel):
                     raise ValueError(f"key {k!r} has two producers: {producers[k]!r} and {p.name!r}; "
                                      "a profile has one producer per key")
                 producers[k] = p.name
+        for p in self.processes:
+            produced = set(p.produced_keys())
+            for d in p.duties(self.clock):
+                if d.key not in produced:
+                    raise ValueError(f"process {p.name!r} must publish {d.key!r} (must_publish), "
+                                     "but does not produce it in this profile")
         start_order(self.processes)  # raises on a cycle
         try:
             access.producers(self.producers())

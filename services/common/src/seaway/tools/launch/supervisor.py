@@ -2,8 +2,16 @@
 
 Processes run in sessions of their own, so a Ctrl-C at the terminal reaches only the launcher, which
 then stops them in order: SIGINT to each process group in stop order (recorder last), SIGKILL after
-the process's ``stop_timeout_s``. Each child also gets ``PR_SET_PDEATHSIG`` = SIGTERM, so that even a
-SIGKILLed launcher leaves no orphans behind on Linux.
+the process's ``stop_timeout_s``. A second Ctrl-C (``hurry``) shortens that grace to
+``HURRY_GRACE_S`` for every process but the recorder, which keeps its own to finish the recording:
+the stop stays in order and the file stays whole. Each child also gets ``PR_SET_PDEATHSIG`` =
+SIGTERM, so that even a SIGKILLed launcher leaves no orphans behind on Linux.
+
+A process that exits with a failure is restarted after its back-off (``restart = "on-failure"``).
+So is one that hangs (``liveness``): its health token gone for ``TOKEN_GRACE_S`` while it still
+runs, or overdue on what its service must publish; it is SIGKILLed (a stopped or deadlocked process
+cannot stop itself) and then restarted as a dead one. Each start, exit, hang and stop is a line of
+``<run_dir>/events.jsonl``, which the recorder puts into the recording (``seaway-recorder --events``).
 
 Every line a process prints goes to ``<run_dir>/logs/<name>.log``; warnings and errors (or everything,
 with ``echo_all``) are also shown on the terminal prefixed with the process name.
@@ -28,7 +36,12 @@ from pathlib import Path
 from typing import IO
 
 from seaway.runtime.credentials import ENV_IDENTITY
+from seaway.tools.launch.events import EVENTS_FILE, ProcessEvent
+from seaway.tools.launch.liveness import TOKEN_GRACE_S, Watch
 from seaway.tools.launch.profile import BackoffPolicy, ProcessSpec, start_order, stop_order
+
+HURRY_GRACE_S = 0.5
+"""After a second Ctrl-C: how long a process (but the recorder) gets between SIGINT and SIGKILL."""
 
 _libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
 _prctl = _libc.prctl
@@ -43,7 +56,7 @@ def _child_setup() -> None:  # runs in the child between fork and exec: keep it 
 class Supervised:
     spec: ProcessSpec
     argv: list[str]
-    state: str = "pending"  # pending, starting, ready, running, backoff, exited, failed, stopped
+    state: str = "pending"  # pending, starting, ready, running, hung, backoff, exited, failed, stopped
     popen: subprocess.Popen | None = None
     restarts: int = 0
     last_exit: int | None = None
@@ -59,7 +72,8 @@ class Supervised:
 
 class Supervisor:
     def __init__(self, procs: list[Supervised], run_dir: Path, env: dict[str, str],
-                 backoff: BackoffPolicy, echo: Callable[[str], None], echo_all: bool = False) -> None:
+                 backoff: BackoffPolicy, echo: Callable[[str], None], echo_all: bool = False,
+                 clock: str = "wall") -> None:
         self.procs = {p.spec.name: p for p in procs}
         self.run_dir = run_dir
         self.logs = run_dir / "logs"
@@ -71,7 +85,16 @@ class Supervisor:
         self.alive_services: set[str] = set()
         self._health_cond = threading.Condition()
         self.stopping = False
+        self.hurried = 0  # Ctrl-Cs after the first: the stop's grace is short (HURRY_GRACE_S)
+        self._hurry_noted = 0
         self._events: list[dict] = []
+        # Hang detection (liveness): the duties of each process under the run's clock, what the
+        # launcher hears of them, and since when each service's token has been missing.
+        self.duties = {name: sp.spec.duties(clock) for name, sp in self.procs.items()}
+        self.watch = Watch()
+        self._watch_lock = threading.Lock()
+        self._token_lost: dict[str, float] = {}
+        self._own_link_noted = False
 
     # -- health ---------------------------------------------------------------------------------
 
@@ -79,7 +102,34 @@ class Supervisor:
         """Liveliness callback (from the launcher's Zenoh session)."""
         with self._health_cond:
             (self.alive_services.add if alive else self.alive_services.discard)(service)
+            if alive:
+                self._token_lost.pop(service, None)
+            else:
+                self._token_lost.setdefault(service, time.monotonic())
             self._health_cond.notify_all()
+
+    def watched_keys(self) -> set[str]:
+        """The key suffixes the launcher must hear to watch every process's duties."""
+        return Watch.keys_of(d for duties in self.duties.values() for d in duties)
+
+    def on_sample(self, suffix: str, payload: bytes) -> None:
+        """A sample on a watched key (from the launcher's Zenoh session, on its threads)."""
+        period, hold = None, False
+        if suffix.startswith("lockstep/"):
+            # Hundreds a second in lockstep: only the three fields needed, read as plainly as can be
+            # (each member validates the answers it acts on; a malformed one is no answer here).
+            try:
+                ans = json.loads(payload)
+                period, hold = (int(ans["episode"]), int(ans["stamp_ns"])), bool(ans.get("hold"))
+            except (ValueError, TypeError, KeyError):
+                return
+        with self._watch_lock:
+            self.watch.heard(suffix, time.monotonic(), period, hold)
+
+    def _mark_ready(self, sp: Supervised, now: float) -> None:
+        sp.state, sp.ready_at = "ready", now
+        with self._watch_lock:
+            self.watch.arm(sp.spec.name, self.duties[sp.spec.name], now)
 
     def _wait_ready(self, sp: Supervised, stop: threading.Event) -> bool:
         service = sp.spec.service
@@ -92,8 +142,7 @@ class Supervisor:
                 if remaining <= 0:
                     return False
                 self._health_cond.wait(min(remaining, 0.1))
-        sp.ready_at = time.monotonic()
-        sp.state = "ready"
+        self._mark_ready(sp, time.monotonic())
         return True
 
     # -- starting -------------------------------------------------------------------------------
@@ -122,6 +171,8 @@ class Supervisor:
         sp.started_at = time.monotonic()
         sp.ready_at = None
         sp.state = "starting" if sp.spec.service else "running"
+        with self._watch_lock:
+            self.watch.disarm(sp.spec.name)
         threading.Thread(target=self._pump, args=(sp.spec.name, sp.popen.stdout, log),
                          daemon=True).start()
         self._event(sp, "start", pid=sp.popen.pid)
@@ -164,11 +215,13 @@ class Supervisor:
             if sp.popen is None or sp.state in ("exited", "failed", "stopped", "backoff"):
                 continue
             if sp.state == "starting" and sp.spec.service in self.alive_services:
-                sp.state, sp.ready_at = "ready", now
+                self._mark_ready(sp, now)
             code = sp.popen.poll()
             if code is None:
                 continue
             sp.last_exit = code
+            with self._watch_lock:
+                self.watch.disarm(sp.spec.name)
             self._event(sp, "exit", code=code)
             if self.stopping:
                 sp.state = "stopped"
@@ -181,13 +234,92 @@ class Supervisor:
                 sp.state = "exited" if code == 0 else "failed"
                 self.echo(f"launcher: {sp.spec.name} {sp.state} (code {code})")
 
+        if not self.stopping:
+            self._check_hung(now)
+
+    def hung(self, now: float) -> dict[str, str]:
+        """Running processes that hang, each with the reason (see the module docstring)."""
+        out: dict[str, str] = {}
+        ready = [sp for sp in self.procs.values() if sp.state in ("ready", "running")
+                 and sp.popen is not None and sp.popen.poll() is None]
+        with self._health_cond:
+            lost = dict(self._token_lost)
+            any_alive = bool(self.alive_services)
+        watched = [sp for sp in ready if sp.spec.service]
+        # Every token gone at once is this launcher losing sight of the stack, not them all hanging.
+        if any_alive or len(watched) < 2:
+            for sp in watched:
+                since = lost.get(sp.spec.service)  # type: ignore[arg-type]
+                if since is not None and sp.ready_at is not None and now - since > TOKEN_GRACE_S:
+                    out[sp.spec.name] = (f"its health token has been gone for {now - since:.1f} s "
+                                         "while the process still runs")
+        with self._watch_lock:
+            late = {n: why for n, why in self.watch.overdue(now).items()
+                    if n in {sp.spec.name for sp in ready}}
+            armed = sum(1 for sp in ready if self.watch.armed(sp.spec.name) and self.duties[sp.spec.name])
+        if len(late) >= 2 and 2 * len(late) > armed:
+            # Most of the stack silent at once: more likely this launcher's own view than them all.
+            if not self._own_link_noted:
+                self.echo(f"launcher: hearing nothing from {', '.join(sorted(late))} at once; "
+                          "not restarting them (is the launcher's own link down?)")
+                self._own_link_noted = True
+            late = {}
+        else:
+            self._own_link_noted = False
+        return {**late, **out}
+
+    def _check_hung(self, now: float) -> None:
+        for name, reason in self.hung(now).items():
+            sp = self.procs[name]
+            self._event(sp, "hung", reason=reason)
+            self.echo(f"launcher: {name} is hung: {reason}; SIGKILL, then a restart as for a "
+                      "dead process")
+            with self._watch_lock:
+                self.watch.disarm(name)
+            with self._health_cond:
+                if sp.spec.service:
+                    self._token_lost.pop(sp.spec.service, None)
+            sp.state = "hung"
+            assert sp.popen is not None
+            _signal_group(sp.popen, signal.SIGKILL)
+
     def failed_required(self) -> list[str]:
         return [n for n, sp in self.procs.items() if sp.spec.required and sp.state == "failed"]
 
     # -- stopping -------------------------------------------------------------------------------
 
+    def hurry(self) -> None:
+        """Shorten the stop: every process but the recorder gets ``HURRY_GRACE_S`` (a second
+        Ctrl-C); the order stays, and the recorder keeps its grace to finish its file. Safe in a
+        signal handler (it only counts; ``note_hurry`` says so later, from the stopping thread)."""
+        self.hurried += 1
+
+    def note_hurry(self) -> None:
+        """Say, once per Ctrl-C, that the stop was hurried."""
+        if self.hurried > self._hurry_noted:
+            self._hurry_noted = self.hurried
+            self.echo(f"launcher: Ctrl-C again: stopping faster (each process gets "
+                      f"{HURRY_GRACE_S:g} s before SIGKILL; the recorder still finishes its file)")
+
+    def grace_s(self, spec: ProcessSpec) -> float:
+        """How long ``spec``'s process gets between SIGINT and SIGKILL, now."""
+        if self.hurried and spec.service != "recorder":
+            return min(spec.stop_timeout_s, HURRY_GRACE_S)
+        return spec.stop_timeout_s
+
+    def _wait_stopped(self, sp: Supervised) -> bool:
+        """Wait for ``sp`` to exit within its grace (which a Ctrl-C meanwhile may shorten)."""
+        assert sp.popen is not None
+        t0 = time.monotonic()
+        while sp.popen.poll() is None:
+            self.note_hurry()
+            if time.monotonic() - t0 >= self.grace_s(sp.spec):
+                return False
+            time.sleep(0.02)
+        return True
+
     def stop_all(self) -> None:
-        """SIGINT each process group in stop order; SIGKILL what is still alive after its timeout."""
+        """SIGINT each process group in stop order; SIGKILL what is still alive after its grace."""
         self.stopping = True
         for spec in stop_order([p.spec for p in self.procs.values()]):
             sp = self.procs[spec.name]
@@ -196,10 +328,8 @@ class Supervisor:
                     sp.state = "stopped"
                 continue
             _signal_group(sp.popen, signal.SIGINT)
-            try:
-                sp.popen.wait(spec.stop_timeout_s)
-            except subprocess.TimeoutExpired:
-                self.echo(f"launcher: {spec.name} ignored SIGINT for {spec.stop_timeout_s:g} s; SIGKILL")
+            if not self._wait_stopped(sp):
+                self.echo(f"launcher: {spec.name} ignored SIGINT for {self.grace_s(spec):g} s; SIGKILL")
                 _signal_group(sp.popen, signal.SIGKILL)
                 sp.popen.wait(5)
             sp.last_exit = sp.popen.returncode
@@ -214,8 +344,8 @@ class Supervisor:
         rows = [("process", "state", "pid", "restarts", "last exit", "up")]
         now = time.monotonic()
         for sp in self.procs.values():
-            up = f"{now - sp.started_at:.0f} s" if sp.started_at and sp.state in ("ready", "running",
-                                                                                   "starting") else ""
+            up = f"{now - sp.started_at:.0f} s" if sp.started_at and sp.state in (
+                "ready", "running", "starting", "hung") else ""
             rows.append((sp.spec.name, sp.state, str(sp.pid or ""), str(sp.restarts),
                          "" if sp.last_exit is None else str(sp.last_exit), up))
         widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
@@ -228,11 +358,12 @@ class Supervisor:
         return "\n".join(f"    {line}" for line in lines[-n:]) or "    (no output)"
 
     def _event(self, sp: Supervised, what: str, **kw: object) -> None:
-        ev = {"t_unix_s": time.time(), "process": sp.spec.name, "event": what, **kw}
-        sp.history.append(ev)
-        self._events.append(ev)
-        with open(self.run_dir / "events.jsonl", "a") as f:
-            f.write(json.dumps(ev) + "\n")
+        ev = ProcessEvent(t_unix_s=time.time(), process=sp.spec.name, event=what, **kw)  # type: ignore[arg-type]
+        data = ev.model_dump(exclude_defaults=True)
+        sp.history.append(data)
+        self._events.append(data)
+        with open(self.run_dir / EVENTS_FILE, "a") as f:
+            f.write(ev.line())
 
 
 def _signal_group(p: subprocess.Popen, sig: int) -> None:

@@ -1,0 +1,126 @@
+"""Which missions a recording ran, and which document describes each: the report's missions.
+
+A report must be about the mission actually flown, not the one the scenario names: an operator
+may have sent another one to the live stack (``seaway mission FILE``), or several in a row. The
+controller's ``mission/status`` messages say which missions ran (their ``mission_id``), when, and
+how far each got; a mission's waypoints are not on the bus, so they come from a document (the
+``--mission`` file, the run's ``mission.json``, the recording's ``mission/*`` or ``scenario/*``
+attachment). A document is used for a mission only if it fits what the controller reported while
+flying it: the same number of waypoints, and the controller's distance to the active waypoint
+(``MissionStatus.distance_to_waypoint_m``, from the state it acted on) found again from the
+document's waypoints. A mission with no fitting document is reported from the controller's own
+figures, and the report says that its waypoints are not in the recording.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+import statistics
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+from seaway.contract.messages import MissionStatus, StateEstimate
+
+from seaway_recorder.runinfo import Mission
+
+FIT_MEDIAN_M = 0.25
+"""A document fits a flown mission when the median |distance to the active waypoint from the
+document - the controller's| over the mission's statuses is at most this: exact in lockstep (the
+same state), within a period's travel in real time (the state a status was computed from is the
+newest before it)."""
+
+
+@dataclass
+class MissionRun:
+    """One mission the controller flew: a stretch of statuses with one ``mission_id`` that went
+    active, from its first status to the next mission's first (stamps, ns)."""
+
+    mission_id: str
+    start_ns: int
+    end_ns: int | None
+    statuses: list[MissionStatus] = field(default_factory=list)
+
+    @property
+    def last(self) -> MissionStatus:
+        return self.statuses[-1]
+
+    def controller_reported(self) -> dict[str, object]:
+        """What the controller itself said last about this mission."""
+        s = self.last
+        return {"state": s.state, "mission_id": s.mission_id, "active_leg": s.active_leg,
+                "waypoint_count": s.waypoint_count, "energy_used_j": s.energy_used_j,
+                "energy_to_go_j": s.energy_to_go_j, "reason": getattr(s, "reason", "")}
+
+
+def mission_runs(statuses: Sequence[MissionStatus]) -> list[MissionRun]:
+    """The missions flown, in order, from statuses in stamp order (an id that never went active
+    is not a mission flown: the idle controller's statuses; nor is one active at one instant only,
+    unless there is no other)."""
+    runs: list[MissionRun] = []
+    current: MissionRun | None = None
+    for s in statuses:
+        if current is None or s.mission_id != current.mission_id:
+            if current is not None:
+                current.end_ns = s.stamp_ns
+            current = MissionRun(s.mission_id, s.stamp_ns, None)
+            runs.append(current)
+        current.statuses.append(s)
+    flown = [r for r in runs if any(s.state == "active" for s in r.statuses)]
+    # A mission accepted in the last, held period of an episode (the world restarted before time
+    # moved on) was not flown in it: it has one active stamp. Such a one counts only if alone.
+    moved = [r for r in flown if len({s.stamp_ns for s in r.statuses if s.state == "active"}) > 1]
+    return moved or flown
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """A mission document and the id it names (None: a document without one)."""
+
+    mission: Mission
+    mission_id: str | None
+
+
+def fit(doc: Mission, run: MissionRun, states: Sequence[StateEstimate]) -> tuple[bool, str]:
+    """Whether ``doc`` describes ``run`` (see the module docstring), and how that was judged."""
+    counts = {s.waypoint_count for s in run.statuses if s.waypoint_count}
+    if counts and counts != {len(doc.waypoints)}:
+        return False, (f"{len(doc.waypoints)} waypoints, the controller flew "
+                       f"{', '.join(map(str, sorted(counts)))}")
+    stamps = [s.stamp_ns for s in states]
+    diffs = []
+    for s in run.statuses:
+        if s.state != "active" or s.distance_to_waypoint_m is None:
+            continue
+        if not 0 <= s.active_leg < len(doc.waypoints):
+            return False, f"the controller flew to waypoint {s.active_leg}, which it does not have"
+        i = bisect.bisect_right(stamps, s.stamp_ns) - 1  # the newest state at the status
+        if i < 0:
+            continue
+        x, y = doc.waypoints[s.active_leg]
+        d = math.hypot(states[i].x_m - x, states[i].y_m - y)
+        diffs.append(abs(d - s.distance_to_waypoint_m))
+    if not diffs:
+        return True, "no distances to check it against"
+    med = statistics.median(diffs)
+    if med > FIT_MEDIAN_M:
+        return False, (f"its waypoints are {med:.2f} m (median) off the controller's distances to "
+                       "the active waypoint")
+    return True, f"checked against the controller's distances ({len(diffs)} statuses)"
+
+
+def match(run: MissionRun, candidates: Sequence[Candidate], states: Sequence[StateEstimate]
+          ) -> tuple[Mission | None, str]:
+    """The document for ``run`` and why: one with its id that fits, else any that fits (the same
+    mission sent under another id), else None with what was tried."""
+    tried = []
+    ordered = sorted(candidates, key=lambda c: c.mission_id != run.mission_id)
+    for c in ordered:
+        ok, how = fit(c.mission, run, states)
+        if ok:
+            same = c.mission_id in (None, run.mission_id)
+            note = how if same else f"{how}; its id is {c.mission_id!r}, not {run.mission_id!r}"
+            return c.mission, note
+        tried.append(f"{c.mission.source}: {how}")
+    why = "; ".join(tried) if tried else "no mission document given or attached"
+    return None, why

@@ -1,0 +1,165 @@
+"""Solvers made in the background, only those a mission needs (issue 14, item 12).
+
+The builds here are fakes gated by the test (``GatedBuild``), so nothing is compiled and nothing
+depends on how long a compile takes: the test decides when a build finishes. One test runs the
+real code generation with a C compiler that gets killed, as the launcher's stop kills it.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import signal
+import stat
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+from seaway.contract import keys
+from seaway.runtime.clock import WallClock
+from seaway.runtime.lockstep import Period
+from seaway.runtime.memory_bus import MemoryHub
+from seaway.runtime.run import RunDescription
+from seaway.runtime.service import ServiceContext
+from seaway.vessel.model import load_vessel
+from seaway_controller.core import ControllerConfig, ControllerCore
+from seaway_controller.ocp import Ocp, OcpSpec
+from seaway_controller.service import ControllerService
+from seaway_controller.solvers import (
+    SQP_OPTIONS,
+    CompileInterruptedError,
+    SolverBuilds,
+    StagedSolver,
+    build_shared_object,
+)
+
+from tests.conftest import wait_for
+from tests.unit.controller.test_core import ScriptedSolver, mission, state
+from tests.unit.controller.test_service_loop import VESSEL, World
+
+VP = load_vessel("paper-sim")
+
+
+class GatedBuild:
+    """A solver 'build' that finishes when the test says (``release``), recording what was asked."""
+
+    def __init__(self, fail: bool = False) -> None:
+        self.asked: list[str] = []
+        self.gates: dict[str, threading.Event] = {}
+        self.fail = fail
+        self.made: dict[str, ScriptedSolver] = {}
+
+    def __call__(self, ocp: Ocp) -> ScriptedSolver:
+        kind = ocp.spec.kind
+        self.asked.append(kind)
+        self.gates.setdefault(kind, threading.Event()).wait(10)
+        if self.fail:
+            raise RuntimeError("compiling the solver failed: (a fake error)")
+        self.made[kind] = ScriptedSolver()
+        return self.made[kind]
+
+    def release(self, kind: str) -> None:
+        self.gates.setdefault(kind, threading.Event()).set()
+
+
+def problem(kind: str = "cc-empc") -> tuple[Ocp, tuple[np.ndarray, ...]]:
+    ocp = Ocp(OcpSpec(kind, horizon=3), VP)
+    p = ocp.parameters(np.array([0.03, 0.0, 0.0, 0.5, 0.4, 0.2]), (0.0, 0.0), (8.0, 0.0), True, 0.49)
+    return ocp, (ocp.cold_guess(p), p, np.zeros(ocp.nw), np.zeros(ocp.ng))
+
+
+def test_real_time_flies_with_the_reference_until_the_fast_solver_is_made() -> None:
+    build, reference = GatedBuild(), ScriptedSolver()
+    builds = SolverBuilds(build)
+    ocp, args = problem()
+    staged = StagedSolver(ocp, builds, reference=lambda _ocp: reference)
+    wait_for(lambda: build.asked, 5, what="the build to start")
+    res = staged.solve(*args)
+    assert reference.calls == 1 and res.success
+    assert res.status == "Solve_Succeeded (reference IPOPT: the generated solver is being made)"
+    assert "its cc-empc solver is being made" in builds.describe("cc-empc")
+    build.release("cc-empc")
+    wait_for(lambda: builds.ready("cc-empc") is not None, 5, what="the build to finish")
+    assert staged.solve(*args).status == "Solve_Succeeded" and reference.calls == 1
+    assert build.made["cc-empc"].calls == 1 and builds.describe("cc-empc") == ""
+
+
+def test_a_solver_that_cannot_be_made_leaves_the_reference_flying(caplog) -> None:
+    build, reference = GatedBuild(fail=True), ScriptedSolver()
+    builds = SolverBuilds(build)
+    ocp, args = problem()
+    staged = StagedSolver(ocp, builds, reference=lambda _ocp: reference, wait=True)
+    build.release("cc-empc")
+    with caplog.at_level(logging.ERROR, "seaway_controller.solvers"):
+        res = staged.solve(*args)  # lockstep waits for the build, then falls back as it failed
+    assert res.status.endswith("(reference IPOPT: the generated solver is unavailable)")
+    assert "could not make the cc-empc solver" in caplog.text
+    assert "could not be made" in builds.describe("cc-empc")
+
+
+def lockstep_controller(build: GatedBuild):
+    """A lockstep controller on the in-memory bus whose fast solvers are made by ``build``."""
+    hub = MemoryHub()
+    bus = hub.bus(VESSEL)
+    stop = threading.Event()
+    ctx = ServiceContext(name="controller", vessel=VESSEL, bus=bus, clock=WallClock(), stop=stop,
+                         run=RunDescription(run_id="unit", vessel=VESSEL, clock="lockstep"))
+    builds = SolverBuilds(build, stopping=stop)
+    core = ControllerCore(VP, ControllerConfig(solve_budget_s=None),
+                          solver_factory=lambda ocp: StagedSolver(ocp, builds, wait=True))
+    svc = ControllerService(ctx, core, lockstep=True, builds=builds)
+    ctx.ready()
+    loop = threading.Thread(target=svc.run_lockstep, daemon=True)
+    loop.start()
+    return hub, stop, loop
+
+
+def test_lockstep_holds_while_the_missions_solver_is_made_and_only_that_one() -> None:
+    build = GatedBuild()
+    hub, stop, loop = lockstep_controller(build)
+    try:
+        world = World(hub)
+        operator = hub.bus(VESSEL)
+        world.period(0, state(0))  # idle: hold
+        reply = operator.request(keys.MISSION_SET, mission("nmpc"), timeout_s=10.0)
+        assert reply.accepted, reply.reason
+        assert "its nmpc solver is being made" in reply.reason
+        assert "simulated time holds until it is ready" in reply.reason
+        # The held period is thought again for the mission: still held, for its solver.
+        held = world.next_answer(Period(0, 0))
+        assert held.hold and keys.THRUST.suffix not in held.published
+        status = world.status.drain()[-1]
+        assert status.state == "active" and status.reason.startswith(
+            "simulated time holds: its nmpc solver is being made")
+        assert world.thrust.drain() == []
+        build.release("nmpc")
+        # Once made, the same period is answered again, now with the command.
+        flown = world.next_answer(Period(0, 0))
+        assert not flown.hold and flown.published[keys.THRUST.suffix] == [0]
+        assert world.thrust.get(1.0).source == "nmpc"
+        for k in range(1, 4):
+            assert not world.period(k, state(k)).hold
+        assert build.asked == ["nmpc"]  # only what the mission needs
+        assert build.made["nmpc"].calls == 4
+    finally:
+        stop.set()
+        loop.join(2.0)
+    assert not loop.is_alive()
+
+
+def test_a_compiler_killed_by_a_stop_is_not_a_compile_error(tmp_path: Path, monkeypatch) -> None:
+    """The launcher stops a controller by SIGINT to its process group, gcc included: that is an
+    interrupted build, which must not be reported as the compiler failing."""
+    fake = tmp_path / "bin" / "gcc"
+    fake.parent.mkdir()
+    fake.write_text("#!/bin/sh\nkill -INT $$\nsleep 5\n")
+    fake.chmod(fake.stat().st_mode | stat.S_IXUSR)
+    monkeypatch.setenv("PATH", f"{fake.parent}{os.pathsep}{os.environ['PATH']}")
+    ocp = Ocp(OcpSpec("eo-empc", horizon=3), VP)
+    with pytest.raises(CompileInterruptedError) as err:
+        build_shared_object(ocp, SQP_OPTIONS, tmp_path / "cache")
+    text = str(err.value)
+    assert f"stopped by {signal.SIGINT.name}" in text and "not a compile error" in text
+    assert "failed" not in text
+    assert not list((tmp_path / "cache").glob("*.so"))

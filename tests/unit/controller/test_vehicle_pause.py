@@ -1,0 +1,112 @@
+"""Issue 14, item 2: no phantom mission. While the vehicle does not apply the commanded thrust
+(disarmed after an autopilot reboot, link lost, HOLD after a failsafe), the controller pauses the
+mission, says why in ``mission/status``, stops counting energy, and resumes only on request (and
+only once the vehicle applies thrust again). Pure core, injected solver, time passed in."""
+
+from __future__ import annotations
+
+import pytest
+from seaway.contract.messages import MissionCommand, VehicleStatus
+
+from tests.unit.controller.test_core import DT_NS, ScriptedSolver, make_core, mission, state
+
+START_NS = 1_000 * DT_NS
+
+
+def status(t_ns: int, withheld: str | None, mode: str = "MANUAL") -> VehicleStatus:
+    return VehicleStatus(stamp_ns=t_ns, autopilot="px4", link_ok=withheld != "no_link",
+                         armed=withheld != "disarmed", mode=mode,
+                         thrust_withheld=withheld)  # type: ignore[arg-type]
+
+
+def resume(core, t_ns: int):
+    return core.handle_command(t_ns, MissionCommand.make(stamp_ns=t_ns, command="resume"))
+
+
+def flying():
+    core = make_core(ScriptedSolver())
+    assert core.handle_mission(START_NS, mission()).accepted
+    core.on_vehicle_status(status(START_NS + 1, None))
+    _, _, st = core.step(START_NS + DT_NS, state(1))
+    _, _, st = core.step(START_NS + 2 * DT_NS, state(2))
+    assert st.state == "active" and st.reason == "" and st.energy_used_j > 0
+    return core
+
+
+def test_a_rebooted_autopilot_pauses_the_mission_with_the_reason() -> None:
+    core = flying()
+    t = START_NS + 3 * DT_NS
+    why = core.on_vehicle_status(status(t, "disarmed"))
+    assert why is not None and "disarmed" in why
+    cmd, record, st = core.step(t + DT_NS, state(3))
+    assert st.state == "paused" and "the vehicle is disarmed" in st.reason
+    assert "resume" in st.reason and record is None
+    assert (cmd.thrust_port_n, cmd.thrust_starboard_n) == (0.0, 0.0) and cmd.source == "paused"
+    # No energy counted while paused (before: it kept rising with the commanded thrust).
+    energy = st.energy_used_j
+    for k in range(4, 20):
+        _, _, st = core.step(t + k * DT_NS, state(k))
+    assert st.state == "paused" and st.energy_used_j == pytest.approx(energy)
+
+
+def test_it_resumes_only_on_request_and_only_once_thrust_applies_again() -> None:
+    core = flying()
+    t = START_NS + 3 * DT_NS
+    core.on_vehicle_status(status(t, "no_link"))
+    core.on_vehicle_status(status(t + 1, "disarmed"))
+    refused = resume(core, t + 2)
+    assert not refused.accepted and "cannot resume: the vehicle is disarmed" in refused.reason
+    core.on_vehicle_status(status(t + 3, None))  # armed again (by the operator)
+    _, _, st = core.step(t + DT_NS, state(3))
+    assert st.state == "paused"  # not by itself
+    accepted = resume(core, t + DT_NS + 1)
+    assert accepted.accepted
+    _, record, st = core.step(t + 2 * DT_NS, state(4))
+    assert st.state == "active" and st.reason == "" and record is not None
+
+
+@pytest.mark.parametrize(("withheld", "mode", "text"), [
+    ("mode", "HOLD", "in mode HOLD"),
+    ("no_link", "UNKNOWN", "no link to the autopilot"),
+    ("autopilot_config", "MANUAL", "configuration blocks thrust"),
+])
+def test_every_reason_pauses(withheld: str, mode: str, text: str) -> None:
+    core = flying()
+    t = START_NS + 3 * DT_NS
+    core.on_vehicle_status(status(t, withheld, mode))
+    _, _, st = core.step(t + DT_NS, state(3))
+    assert st.state == "paused" and text in st.reason
+
+
+def test_a_status_from_before_the_mission_does_not_pause_it() -> None:
+    """The launcher arms, then sends the mission: a status published before the arm (disarmed) can
+    arrive after the mission; it says nothing about this mission."""
+    core = make_core(ScriptedSolver())
+    core.handle_mission(START_NS, mission())
+    assert core.on_vehicle_status(status(START_NS - 1, "disarmed")) is None
+    _, _, st = core.step(START_NS + DT_NS, state(1))
+    assert st.state == "active"
+    # A newer one that still says disarmed does.
+    assert core.on_vehicle_status(status(START_NS + 2, "disarmed"))
+
+
+def test_the_operators_own_pause_has_no_reason_and_no_vehicle_means_no_pause() -> None:
+    core = make_core(ScriptedSolver())  # no vehicle status ever (lockstep: no vehicle_io)
+    core.handle_mission(START_NS, mission())
+    _, _, st = core.step(START_NS + DT_NS, state(1))
+    assert st.state == "active"
+    core.handle_command(START_NS, MissionCommand.make(stamp_ns=0, command="pause"))
+    _, _, st = core.step(START_NS + 2 * DT_NS, state(2))
+    assert st.state == "paused" and st.reason == ""
+    assert resume(core, START_NS).accepted
+
+
+def test_a_stamp_cannot_pin_an_old_status() -> None:
+    """Statuses count in the order they come (one publisher, in order): one stamped absurdly far
+    ahead must not hide every later one (the service also drops it: ``seaway.runtime.stamps``)."""
+    core = flying()
+    t = START_NS + 3 * DT_NS
+    core.on_vehicle_status(status(10**4000, None))
+    assert core.on_vehicle_status(status(t, "disarmed")) is not None
+    _, _, st = core.step(t + DT_NS, state(3))
+    assert st.state == "paused"

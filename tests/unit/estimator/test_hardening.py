@@ -1,0 +1,137 @@
+"""Issue 14 in the estimator: absurd stamps (item 1) and the thrust the autopilot actually applies
+(item 2), in the pure core and in the loop around it (in-memory bus, time passed in)."""
+
+from __future__ import annotations
+
+import logging
+import time
+
+import pytest
+from seaway.contract.messages import ThrustCommand, VehicleStatus
+from seaway.runtime.memory_bus import MemoryHub
+from seaway_estimator.config import EstimatorConfig
+from seaway_estimator.core import EstimatorCore
+from seaway_estimator.service import EstimatorLoop
+
+from tests.unit.estimator.test_core import FIXED, MS, S, att, fix, started
+
+WALL = 1_800_000_000 * S
+
+
+def status(t_ns: int, withheld: str | None, armed: bool = True) -> VehicleStatus:
+    return VehicleStatus(stamp_ns=t_ns, autopilot="px4", link_ok=withheld != "no_link",
+                         armed=armed and withheld != "disarmed", mode="MANUAL",
+                         thrust_withheld=withheld)  # type: ignore[arg-type]
+
+
+def cmd(t_ns: int, thrust_n: float = 5.0) -> ThrustCommand:
+    return ThrustCommand(stamp_ns=t_ns, thrust_port_n=thrust_n, thrust_starboard_n=thrust_n)
+
+
+# -- item 1: absurd stamps ---------------------------------------------------------------------
+
+
+@pytest.mark.timeout(20)
+@pytest.mark.parametrize("ahead_ns", [10**4000, 10**15, 31 * S])
+def test_a_thrust_command_stamped_absurdly_ahead_is_refused_at_once(ahead_ns: int) -> None:
+    """Before: ``on_thrust`` integrated the filter up to the stamp (10^4000 ns: for ever, inside the
+    service's lock). Now a stamp more than ``max_gap_s`` ahead of the filter is refused, counted,
+    and the filter stays where it was."""
+    core = started()
+    core.predict_to(1 * S)
+    t0 = time.perf_counter()
+    core.on_thrust(cmd(1 * S + ahead_ns))
+    assert time.perf_counter() - t0 < 1.0
+    assert core.counters["too_new"] == 1 and core.counters["thrust_received"] == 0
+    assert core.filter is not None and core.filter.t_ns == 1 * S
+    est = core.predict_to(1 * S + 100 * MS)
+    assert est is not None and est.u_mps == pytest.approx(0.0, abs=1e-9)  # the command was not taken
+
+
+def test_a_status_stamped_absurdly_ahead_is_refused_too() -> None:
+    core = started()
+    core.on_vehicle_status(status(10**4000, "disarmed"))
+    assert core.counters["too_new"] == 1 and core.thrust_withheld is None
+    assert core.filter is not None and core.filter.t_ns == 0
+
+
+def _loop() -> EstimatorLoop:
+    bus = MemoryHub().bus("vessel1")
+    return EstimatorLoop(EstimatorCore(FIXED), bus)
+
+
+def test_the_loop_drops_inputs_stamped_ahead_of_its_clock_before_the_core(caplog) -> None:
+    """Real time: a command stamped +10 s of the wall clock would move the filter 10 s into the
+    future (every later sample too old, nav/state stopped for 10 s). Dropped at the loop, counted,
+    logged once."""
+    caplog.set_level(logging.INFO, "seaway.estimator")
+    loop = _loop()
+    for k, msg in enumerate([cmd(WALL + 10 * S), cmd(WALL + 10**4000), cmd(WALL + 11 * S)]):
+        loop.queue("thrust", msg, lockstep=False, now_ns=WALL + k * MS)
+    loop.queue("gnss", fix(WALL - 60 * S, 0.0, 0.0), lockstep=False, now_ns=WALL)  # older than 30 s
+    loop.queue("thrust", cmd(WALL - 5 * MS), lockstep=False, now_ns=WALL)  # fine
+    assert [p[3] for p in loop.pending] == ["thrust"] and loop.pending[0][0] == WALL - 5 * MS
+    assert loop.stamps.dropped == {("ctrl/thrust", "ahead"): 3, ("sensors/gnss", "behind"): 1}
+    warnings = [r for r in caplog.records if "dropped a message" in r.getMessage()]
+    assert len(warnings) == 2  # once per key and direction
+
+
+def test_lockstep_leftovers_too_far_ahead_are_dropped_at_the_period() -> None:
+    """Lockstep: inputs queued before the member knew its period (at start) wait for their period;
+    one stamped beyond any period to come soon would wait for ever (memory): dropped."""
+    from seaway.runtime.lockstep import Member, Period
+
+    hub = MemoryHub()
+    loop = EstimatorLoop(EstimatorCore(FIXED), hub.bus("vessel1"))
+    member = Member(hub.bus("vessel1"), "estimator", watched=())
+    loop.queue("gnss", fix(0, 0.0, 0.0))
+    loop.queue("attitude", att(0, 0.0))
+    loop.queue("attitude", att(50 * MS, 0.0))  # the next period's: waits
+    loop.queue("gnss", fix(10**4000, 0.0, 0.0))
+    loop.on_period(member, Period(0, 0), 100 * MS)
+    assert [(p[0], p[3]) for p in loop.pending] == [(50 * MS, "attitude")]
+    assert member.stamps.dropped == {("sensors/gnss", "ahead"): 1}
+
+
+# -- item 2: the thrust the autopilot applies ----------------------------------------------------
+
+
+def _surge_after_5_s(statuses: list[VehicleStatus]) -> float:
+    core = started(EstimatorConfig(origin=FIXED.origin, thrust_timeout_s=100.0))
+    core.on_thrust(cmd(0))
+    for s in statuses:
+        core.on_vehicle_status(s)
+    est = core.predict_to(5 * S)
+    assert est is not None
+    return est.u_mps
+
+
+@pytest.mark.parametrize("why", ["disarmed", "no_link", "mode", "autopilot_config"])
+def test_withheld_thrust_is_predicted_as_zero(why: str) -> None:
+    """An autopilot that rebooted comes back disarmed, the boat still: before, the filter
+    dead-reckoned on the commanded 5 N a side (about 0.3 m/s here) and ran away from it."""
+    assert _surge_after_5_s([]) > 0.25
+    assert _surge_after_5_s([status(0, why)]) == pytest.approx(0.0, abs=1e-12)
+
+
+def test_thrust_applies_again_from_the_status_that_says_so() -> None:
+    # Withheld for the first 2 s, applied from then: the same as a command that starts at 2 s.
+    withheld_then_applied = _surge_after_5_s([status(0, "disarmed"), status(2 * S, None)])
+    core = started(EstimatorConfig(origin=FIXED.origin, thrust_timeout_s=100.0))
+    core.predict_to(2 * S)
+    core.on_thrust(cmd(2 * S))
+    late_start = core.predict_to(5 * S).u_mps
+    assert withheld_then_applied == pytest.approx(late_start, rel=1e-12)
+    assert withheld_then_applied > 0.1
+
+
+def test_the_loop_feeds_vehicle_status_in_real_time(caplog) -> None:
+    caplog.set_level(logging.INFO, "seaway.estimator")
+    loop = _loop()
+    loop.queue("gnss", fix(WALL, 0.0, 0.0), lockstep=False, now_ns=WALL)
+    loop.queue("attitude", att(WALL, 0.0), lockstep=False, now_ns=WALL)
+    loop.queue("status", status(WALL, "disarmed"), lockstep=False, now_ns=WALL)
+    loop.feed_pending(None)
+    assert loop.core.thrust_withheld == "disarmed"
+    assert any("withholds the thrust (disarmed): predicting with zero thrust" in r.getMessage()
+               for r in caplog.records)

@@ -1,0 +1,143 @@
+"""The launcher's hang detection (``seaway.tools.launch.liveness``): samples and time in, who is
+overdue out. No processes, no clock: every time is given."""
+
+from __future__ import annotations
+
+import re
+
+import pytest
+from seaway.contract.config import ConfigError, parse_config
+from seaway.tools.launch.liveness import DUTIES, LOCKSTEP_WITHIN_S, Duty, Watch, duties_for
+from seaway.tools.launch.profile import Profile, load_profile
+
+SIM, EST, CTL, REC = "lockstep/sim", "lockstep/estimator", "lockstep/controller", "lockstep/recorder"
+W = LOCKSTEP_WITHIN_S
+
+
+def lockstep_watch() -> Watch:
+    w = Watch()
+    for process, service in (("sim", "sim"), ("est", "estimator"), ("ctl", "controller"),
+                             ("rec", "recorder")):
+        w.arm(process, duties_for(service, "lockstep"), 0.0)
+    return w
+
+
+def period(w: Watch, t: float, k: int, *, hold: bool = False, episode: int = 0,
+           skip: tuple[str, ...] = ()) -> None:
+    """One lockstep period k heard in protocol order at time t (``skip``: who does not answer)."""
+    p = (episode, k * 100_000_000)
+    for suffix in (SIM, EST, CTL, REC):
+        if suffix not in skip:
+            w.heard(suffix, t, p, hold=hold and suffix == CTL)
+
+
+def test_a_stream_counts_from_its_first_sample_and_is_overdue_after_its_time() -> None:
+    w = Watch()
+    w.arm("ctl", (Duty(key="ctrl/thrust", within_s=5.0),), 0.0)
+    assert w.overdue(100.0) == {}  # never published since its start: nothing to miss yet
+    w.heard("ctrl/thrust", 10.0)
+    assert w.overdue(14.9) == {}
+    (why,) = w.overdue(15.1).values()
+    assert why.startswith("published no ctrl/thrust for 5.1 s")
+    w.heard("ctrl/thrust", 15.2)
+    assert w.overdue(16.0) == {}
+    w.disarm("ctl")
+    assert w.overdue(1000.0) == {}
+
+
+def test_lockstep_members_answer_each_period_in_chain() -> None:
+    w = lockstep_watch()
+    for k in range(5):
+        period(w, float(k), k)
+    assert w.overdue(4.5) == {}
+    # The estimator stops answering: it alone is overdue (the others have nothing to answer yet).
+    period(w, 10.0, 5, skip=(EST, CTL, REC))
+    assert w.overdue(10.0 + W - 0.1) == {}
+    late = w.overdue(10.0 + W + 0.1)
+    assert set(late) == {"est"} and "no lockstep/estimator for period 0.500 s" in late["est"]
+
+
+def test_a_hold_stops_time_without_anybody_being_overdue() -> None:
+    w = lockstep_watch()
+    period(w, 0.0, 0)
+    period(w, 1.0, 1, hold=True)  # nothing to fly: the sim does not move on, and need not
+    assert w.overdue(1.0 + 10 * W) == {}
+    # A mission: the controller answers the held period again (no hold): now the sim must move on.
+    w.heard(CTL, 500.0, (0, 100_000_000))
+    assert w.overdue(500.0 + W - 0.1) == {}
+    assert "sim" in w.overdue(500.0 + W + 0.1)
+    w.heard(SIM, 500.0 + W + 0.2, (0, 200_000_000))
+    assert w.overdue(500.0 + W + 0.3) == {}
+
+
+def test_a_stalled_sim_repeating_its_period_is_not_hung() -> None:
+    w = lockstep_watch()
+    period(w, 0.0, 0)
+    period(w, 1.0, 1, skip=(REC,))  # the recorder is not answering: the sim waits, and repeats
+    for i in range(1, 40):
+        w.heard(SIM, 1.0 + 2.0 * i, (0, 100_000_000))
+        w.heard(EST, 1.0 + 2.0 * i, (0, 100_000_000))
+        w.heard(CTL, 1.0 + 2.0 * i, (0, 100_000_000))
+    assert set(w.overdue(80.0)) == {"rec"}
+
+
+def test_a_repeat_heard_after_the_answer_it_would_need_is_met() -> None:
+    """On a repeat every member repeats its answer, in no particular order across members: the
+    controller's may arrive before the estimator's it follows; it still answers that period."""
+    w = lockstep_watch()
+    period(w, 0.0, 3)
+    w.heard(SIM, 1.0, (0, 300_000_000))
+    w.heard(CTL, 1.0, (0, 300_000_000), hold=True)
+    w.heard(REC, 1.0, (0, 300_000_000))
+    w.heard(EST, 1.1, (0, 300_000_000))  # after the controller's repeat
+    assert w.overdue(1.0 + 10 * W) == {}
+
+
+def test_a_member_that_skips_ahead_meets_the_periods_it_skipped() -> None:
+    w = lockstep_watch()
+    w.heard(SIM, 0.0, (0, 0))
+    w.heard(SIM, 0.1, (0, 100_000_000))  # a fast replay: the estimator answers only the latest
+    w.heard(EST, 0.2, (0, 100_000_000))
+    assert "est" not in w.overdue(1.0 + W)
+
+
+def test_a_new_episode_moves_the_sim_on() -> None:
+    w = lockstep_watch()
+    period(w, 0.0, 50)
+    w.heard(SIM, 1.0, (1, 0))  # a scenario load: time back to 0 in episode 1
+    assert "sim" not in w.overdue(1.0 + 2 * W)
+
+
+def test_rearming_a_restarted_process_forgets_its_old_duties() -> None:
+    w = lockstep_watch()
+    period(w, 0.0, 1, skip=(EST, CTL, REC))
+    w.disarm("est")
+    w.arm("est", duties_for("estimator", "lockstep"), 5.0)
+    assert "est" not in w.overdue(5.0 + W + 1)  # the period before its start is not its debt
+    w.heard(SIM, 6.0, (0, 100_000_000))  # the repeat its arrival causes
+    assert "est" in w.overdue(6.0 + W + 1)
+
+
+def test_every_listed_service_and_key_is_real_and_the_default_profiles_agree() -> None:
+    for clock in DUTIES.values():
+        for service, duties in clock.items():
+            assert duties and all(isinstance(d, Duty) for d in duties), service
+    for name in ("sim", "sim-batch", "boat", "replay"):
+        profile = load_profile(name)  # validates that each process produces what it must publish
+        for p in profile.processes:
+            assert p.duties(profile.clock) == duties_for(p.service, profile.clock)
+
+
+@pytest.mark.parametrize(("duty", "message"), [
+    ({"key": "ctrl/thrus", "within_s": 1}, "'ctrl/thrus' is not a registered topic"),
+    ({"key": "ctrl/thrust", "within_s": 1, "after": "nav/state"}, "pairs lockstep answers"),
+    ({"key": "lockstep/sim", "within_s": 1, "moves_on": True}, "moves_on needs 'after'"),
+    ({"key": "ctrl/thrust", "within_s": 0}, "within_s"),
+    ({"key": "nav/state", "within_s": 1}, "must publish 'nav/state' (must_publish), but does not "
+                                          "produce it"),
+])
+def test_a_bad_must_publish_is_refused_naming_it(duty: dict, message: str) -> None:
+    doc = {"name": "t", "processes": [{"name": "ctl", "command": ["x"], "service": "controller",
+                                       "must_publish": [duty]}]}
+    with pytest.raises(ConfigError, match=re.escape(message)):
+        parse_config(doc, Profile, "t.toml")

@@ -1,0 +1,114 @@
+"""``seaway report`` reports the missions actually flown, not the scenario's (issue 14, item 5).
+
+A run of the lake scenario in which the operator sent another mission to the live stack used to be
+reported against the scenario's mission ("completed NO, XTE 13.6 m, 159 kJ"). The report now takes
+the missions from the controller's recorded statuses, uses a document for one only if it fits what
+the controller reported while flying it, and says so when the waypoints flown are not known.
+
+The recordings are written here with the real writer: a boat sailing north along x at 1 m/s, the
+controller's statuses for the mission it flew, and the lake scenario attached as a launch does.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import pytest
+from seaway.contract import keys
+from seaway.contract.messages import MissionRequest, MissionStatus, SimTruth, StateEstimate, Waypoint
+from seaway_recorder import missions, report, runinfo
+from seaway_recorder.writer import RecordingWriter
+
+V = "vessel1"
+DT_NS = 100_000_000
+PROBE = [(0.0, 0.0), (20.0, 0.0)]  # the mission flown: 20 m north (not the lake's 62 m box)
+
+
+def status(k: int, mission_id: str, wps: list[tuple[float, float]], x: float,
+           state: str = "active") -> MissionStatus:
+    return MissionStatus.make(stamp_ns=k * DT_NS, state=state, mission_id=mission_id, active_leg=1,
+                              waypoint_count=len(wps), energy_used_j=1.0 * k,
+                              distance_to_waypoint_m=math.dist((x, 0.0), wps[1]),
+                              cross_track_m=0.0)
+
+
+def write(path: Path, flights: list[tuple[str, list[tuple[float, float]], int]]) -> Path:
+    """One episode: each flight (mission id, waypoints, periods) after the other, the boat at
+    1 m/s north, restarting from x = 0 for each; the controller's status every period."""
+    atts, _ = runinfo.scenario_attachments("lake")
+    w = RecordingWriter(path, attachments=atts, foxglove=False)
+    w.open(0)
+    k = 0
+    for mission_id, wps, periods in flights:
+        for i in range(periods):
+            x = 0.1 * i
+            t = k * DT_NS
+            w.write(keys.SIM_TRUTH.key(V), SimTruth.make(
+                stamp_ns=t, u_mps=1.0, v_mps=0.0, r_radps=0.0, x_m=x, y_m=0.0, psi_rad=0.0,
+                thrust_port_n=10.0, thrust_starboard_n=10.0, energy_j=2.0 * k).encode(), "", t)
+            w.write(keys.NAV_STATE.key(V), StateEstimate.make(
+                stamp_ns=t, u_mps=1.0, v_mps=0.0, r_radps=0.0, x_m=x, y_m=0.0,
+                psi_rad=0.0).encode(), "", t)
+            done = math.dist((x, 0.0), wps[-1]) < 1.0
+            w.write(keys.MISSION_STATUS.key(V),
+                    status(k, mission_id, wps, x, "complete" if done else "active").encode(), "", t)
+            k += 1
+    w.close(k * DT_NS)
+    return path
+
+
+def probe_file(tmp_path: Path, mission_id: str = "probe") -> Path:
+    req = MissionRequest.make(stamp_ns=0, mission_id=mission_id, coa_radius_m=1.0,
+                              task_power_w=250.0, waypoints=[Waypoint(x_m=x, y_m=y) for x, y in PROBE])
+    path = tmp_path / "probe.json"
+    path.write_text(req.model_dump_json())
+    return path
+
+
+def test_a_mission_sent_to_the_live_stack_is_not_reported_as_the_scenarios(tmp_path, capsys) -> None:
+    rec = write(tmp_path / "r.mcap", [("probe", PROBE, 200)])
+    assert report.main([str(rec), "--no-plots", "--out", str(tmp_path / "rep")]) == 0
+    out = capsys.readouterr().out
+    assert "mission 'probe': its waypoints are not in the recording" in out
+    assert "pass --mission FILE" in out and "state (controller)" in out
+    doc = json.loads((tmp_path / "rep" / "metrics.json").read_text())
+    assert doc["metrics"] is None  # no made-up figures from the lake's mission
+    (flown,) = doc["missions"]
+    assert flown["mission_id"] == "probe" and flown["controller_reported"]["state"] == "complete"
+    assert "4 waypoints, the controller flew 2" in flown["fit"]
+
+    # Given the mission that was sent, the report computes its metrics.
+    assert report.main([str(rec), "--no-plots", "--json", "--mission",
+                        str(probe_file(tmp_path))]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["mission"]["waypoints_m"] == [list(p) for p in PROBE]
+    assert doc["metrics"]["completed"] and doc["metrics"]["travel_time_s"] == pytest.approx(19.0, abs=0.15)
+
+
+def test_each_mission_flown_is_reported_and_a_document_must_fit_it(tmp_path, capsys) -> None:
+    # The same waypoints under another id fit (checked against the controller's distances); a
+    # different mission with as many waypoints does not.
+    other = [(0.0, 0.0), (0.0, 20.0)]  # 20 m east: the controller's distances say otherwise
+    rec = write(tmp_path / "r.mcap", [("first", PROBE, 200), ("second", other, 100)])
+    assert report.main([str(rec), "--no-plots", "--json", "--mission",
+                        str(probe_file(tmp_path, "sent-as-probe"))]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    first, second = doc["missions"]
+    assert first["mission_id"] == "first" and first["metrics"]["completed"]
+    assert "its id is 'sent-as-probe', not 'first'" in first["fit"]
+    assert second["mission_id"] == "second" and second["metrics"] is None
+    assert "off the controller's distances" in second["fit"]
+    assert doc["metrics"] is None  # the report is about the last mission flown
+
+
+def test_a_mission_accepted_as_the_world_restarts_was_not_flown_in_that_episode() -> None:
+    """Lockstep: a mission sent after the first completed is taken at the held last period; the
+    world then restarts (a new episode) and it is flown there. In the first episode it is one
+    status at one instant, not the mission flown."""
+    first = [status(k, "first", PROBE, 0.1 * k) for k in range(5)]
+    second = [status(5, "second", PROBE, 0.5), status(5, "second", PROBE, 0.5)]
+    runs = missions.mission_runs(first + second)
+    assert [r.mission_id for r in runs] == ["first"] and runs[0].end_ns == 5 * DT_NS
+    assert [r.mission_id for r in missions.mission_runs(second)] == ["second"]  # alone: it counts

@@ -1,0 +1,48 @@
+"""Issue 14, item 1, in the lockstep sim: what a command's stamp can make the sim keep is bounded.
+A command stamped beyond the next periods is dropped (counted, logged once); nothing the sim keeps
+grows with the number of commands. In memory, no step taken."""
+
+from __future__ import annotations
+
+import threading
+
+from seaway.contract import keys
+from seaway.contract.messages import ThrustCommand
+from seaway.runtime.memory_bus import MemoryHub
+from seaway.simkit.scenario import load_scenario
+from seaway.vessel.model import load_vessel
+from seaway_sim.app import SimApp
+from seaway_sim.core import SimCore
+from seaway_sim.lockstep import Lockstep
+
+PERIOD_NS = 100_000_000
+
+
+def lockstep() -> Lockstep:
+    sc = load_scenario("paper-c1")
+    app = SimApp(MemoryHub().bus("vessel1"), SimCore(sc, load_vessel(sc.vessel)), lockstep=True)
+    return Lockstep(app, PERIOD_NS / 1e9, threading.Event())
+
+
+def cmd(stamp_ns: int) -> ThrustCommand:
+    return ThrustCommand(stamp_ns=stamp_ns, thrust_port_n=1.0, thrust_starboard_n=1.0)
+
+
+def test_commands_stamped_beyond_the_next_periods_are_dropped() -> None:
+    ls = lockstep()
+    key = keys.THRUST.key("vessel1")
+    ls._on_thrust(key, cmd(0))
+    ls._on_thrust(key, cmd(10 * 10**9))  # +10 s
+    ls._on_thrust(key, cmd(10**4000))
+    assert set(ls._commands) == {0}
+    assert ls.member.stamps.dropped == {(keys.THRUST.suffix, "ahead"): 2}
+
+
+def test_nothing_kept_grows_with_the_commands() -> None:
+    ls = lockstep()
+    key = keys.THRUST.key("vessel1")
+    for k in range(5000):
+        ls.app.core.t_ns = k * PERIOD_NS  # as if the sim had stepped to t_k
+        ls._on_thrust(key, cmd(k * PERIOD_NS))
+    assert len(ls._commands) <= 64
+    assert sum(len(s) for s in ls.member.ledger.seen.values()) == 0  # it noted 5000 before
