@@ -81,5 +81,8 @@ def test_a_mission_out_of_range_is_refused_by_launch_and_mission(tmp_path, missi
 
 
 def test_a_task_power_option_out_of_range_is_refused(tmp_path) -> None:
+    # Refused by the option's own parser, with the mission model's bound (MAX_TASK_POWER_W).
     refused(run("launch", "sim-batch", "--task-power-w", "1e300", "--check"),
-            "task_power_w", "1e+300 W is outside the allowed range (0, 10000] W")
+            "--task-power-w", "'1e300': the task power must be finite, in (0, 10000] W")
+    refused(run("launch", "sim-batch", "--task-power-w", "0", "--check"),
+            "--task-power-w", "'0': the task power must be finite, in (0, 10000] W")
