@@ -27,7 +27,7 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     parser.addoption("--regen", action="store_true",
                      help="re-record tests/replay/data/*.mcap from the live stack, then test against them")
     parser.addoption("--slow", action="store_true",
-                     help="also run the tests marked slow (long system tests: browser, fleet, real "
+                     help="also run the tests marked slow (long system tests: browser, soak, real "
                           "autopilot firmware); CI runs them, the default ./test does not")
 
 

@@ -6,6 +6,7 @@
 --marker FILE             append this process's pid to FILE (the test checks none survive)
 --publish-thrust HZ       publish zero ctrl/thrust commands at HZ (what a controller must publish)
 --quiet-after S           stop publishing after S seconds, but keep running (a hung loop)
+--quiet-vessel V          with --quiet-after: only if this process's vessel is V (one of a fleet's)
 --drop-token-after S      withdraw the health token after S seconds, but keep running
 """
 
@@ -32,8 +33,11 @@ ap.add_argument("--ready-after", type=float, default=0.0)
 ap.add_argument("--marker", default=None)
 ap.add_argument("--publish-thrust", type=float, default=None)
 ap.add_argument("--quiet-after", type=float, default=None)
+ap.add_argument("--quiet-vessel", default=None)
 ap.add_argument("--drop-token-after", type=float, default=None)
 args = ap.parse_args()
+if args.quiet_vessel is not None and args.quiet_vessel != args.vessel:
+    args.quiet_after = None
 
 stop = threading.Event()
 if args.ignore_sigint:

@@ -23,10 +23,10 @@ from typing import Any
 
 from seaway.contract import keys
 from seaway.contract.messages import MessageError, MissionRequest
+from seaway.tools.launch.address import FOLDER
 
 log = logging.getLogger("seaway_groundstation.journal")
 
-FOLDER = "groundstation"
 REQUESTS = "requests.jsonl"
 
 

@@ -4,14 +4,17 @@ address and the operator token once it serves:
 
     groundstation: http://127.0.0.1:8321/ token <token>
 
+With ``--run-dir`` (a launched ground station, whose output is the run's log) the token goes only
+into the address file below, and the line says where it is instead.
+
 The ground station observes every vessel (``seaway/*/...``) and asks for what the operator does;
 like the recorder it takes no part in the run agreement, but a launcher's ``--run`` gives it the
 run's NED origin (for exporting and drawing missions given in metres) and the model's vessel file
 (alpha, for the energy of the live metrics).
 
 With ``--run-dir`` (the launcher's run folder) it writes ``<run_dir>/groundstation/address.json``
-(mode 0600: it holds the token) once it serves, for a launcher or a person to read the page's
-address from::
+(mode 0600: it holds the token; ``seaway.tools.launch.address``) once it serves and before it
+declares itself ready, for the launcher (which prints the page's address) or a person to read::
 
     {"url": "http://127.0.0.1:8321/", "token": "...", "page": "http://127.0.0.1:8321/#token=...",
      "pid": 1234}
@@ -23,7 +26,6 @@ folder above it unless ``--runs-dir`` says otherwise.
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 import os
 import socket
@@ -35,11 +37,11 @@ from pathlib import Path
 import uvicorn
 from seaway.contract.config import ConfigError
 from seaway.runtime.service import base_parser, parse, resolve_run, run_service
+from seaway.tools.launch import address
 from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.model import load_vessel
 
 from seaway_groundstation.app import create_app
-from seaway_groundstation.journal import FOLDER
 from seaway_groundstation.settings import (
     DEFAULT_HOST,
     DEFAULT_PORT,
@@ -89,21 +91,10 @@ def parser() -> argparse.ArgumentParser:
     return ap
 
 
-ADDRESS_FILE = "address.json"
-
-
 def write_address(run_dir: Path, page_url: str, token: str) -> Path:
-    """``<run_dir>/groundstation/address.json``, readable by its owner only (it holds the token)."""
-    folder = run_dir / FOLDER
-    folder.mkdir(parents=True, exist_ok=True)
-    path = folder / ADDRESS_FILE
-    doc = {"url": page_url, "token": token, "page": f"{page_url}#token={token}", "pid": os.getpid()}
-    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
-    with os.fdopen(fd, "w", encoding="utf-8") as fh:
-        os.fchmod(fh.fileno(), 0o600)  # an older file may have been created with other bits
-        json.dump(doc, fh, indent=2)
-        fh.write("\n")
-    return path
+    """``<run_dir>/groundstation/address.json`` for this process, readable by its owner only (it
+    holds the token): ``seaway.tools.launch.address``, which the launcher reads it with."""
+    return address.write(run_dir, page_url, token, os.getpid())
 
 
 def vessel_alpha(model_vessel_file: str | None) -> float | None:
@@ -173,13 +164,18 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         def ready() -> None:
             page = url(args.host, port)
+            written = None
             if args.run_dir is not None:
                 try:
-                    log.info("address and token in %s", write_address(args.run_dir, page, settings.token))
+                    written = write_address(args.run_dir, page, settings.token)
                 except OSError as err:
                     log.error("cannot write the address file in %s: %s", args.run_dir, err)
             ctx.ready()
-            print(f"groundstation: {page} token {settings.token}", flush=True)
+            # A launched ground station's output is the run's log (logs/groundstation.log): the
+            # token goes only into the owner-only address file then; started by hand, to the
+            # terminal that started it.
+            where = f"the operator token is in {written}" if written else f"token {settings.token}"
+            print(f"groundstation: {page} {where}", flush=True)
 
         app = create_app(ctx.bus, settings, on_ready=ready)
         server = uvicorn.Server(uvicorn.Config(app, log_level=args.log_level.lower(), log_config=None,

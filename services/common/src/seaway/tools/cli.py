@@ -2,7 +2,8 @@
 
 Built in: ``launch`` (start a profile), ``bench`` (benchmarks registered by any installed Seaway
 package), ``echo`` (print a key's messages), ``health`` (which services are alive), ``schemas``
-(write every message's JSON Schema).
+(write every message's JSON Schema), ``mission`` and ``vehicle`` (the operator's requests to a
+running vessel), ``credentials``, ``router``.
 Packages add subcommands (launch, record, replay, report, mission, ...) through the entry-point
 group ``seaway.commands``: a function ``main(argv: list[str]) -> int``.
 """
@@ -158,6 +159,12 @@ def cmd_mission(argv: list[str]) -> int:
     return mission_main(argv)
 
 
+def cmd_vehicle(argv: list[str]) -> int:
+    from seaway.tools.vehicle_cli import main as vehicle_main
+
+    return vehicle_main(argv)
+
+
 def cmd_credentials(argv: list[str]) -> int:
     from seaway.tools.credentials_cli import main as credentials_main
 
@@ -172,7 +179,7 @@ def cmd_router(argv: list[str]) -> int:
 
 BUILTIN = {"bench": cmd_bench, "echo": cmd_echo, "health": cmd_health, "schemas": cmd_schemas,
            "launch": cmd_launch, "router": cmd_router, "credentials": cmd_credentials,
-           "mission": cmd_mission}
+           "mission": cmd_mission, "vehicle": cmd_vehicle}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -4,6 +4,20 @@
     seaway launch sim --scenario paper-c1  # another scenario
     seaway launch boat --vessel boat1      # on the boat's computer
     seaway launch sim-batch --controller nmpc --predict-disturbance --task-power-w 2
+    seaway launch fleet                    # several simulated vessels and one ground station
+    seaway launch fleet --vessels a,b,c    # these three
+
+A profile that lists ``vessels`` (a fleet, ``deploy/profiles/fleet.toml``) runs each of its
+per-vessel processes once per vessel (``profile.instances``), ``--vessels`` choosing them; every
+other profile runs one vessel, ``--vessel``. The launcher makes the start-up requests (mode,
+arming, the mission), watches readiness and liveness, shows the status and writes the run
+description, the mission sent, the recording and the report per vessel: in the run folder for one
+vessel, in ``<run folder>/<vessel>/`` for several (``vessel_dir``).
+
+When a ground station is among the processes, the launcher prints its page's address once all are
+ready (``ground station: http://127.0.0.1:8321/#token=...``, from ``<run
+folder>/groundstation/address.json``, ``seaway.tools.launch.address``), and again if it restarts:
+open it in a browser on this machine. The token is in that line and in the address file only.
 
 The mission options (--controller, --predict-disturbance, --task-power-w) change the scenario's
 mission that the launcher sends; with no mission to send they are refused. The run folder is
@@ -29,6 +43,7 @@ import os
 import re
 import shutil
 import signal
+import socket
 import subprocess
 import sys
 import threading
@@ -55,8 +70,8 @@ from seaway.runtime.credentials import ENV_CREDENTIALS, NONE, CredentialsError
 from seaway.runtime.service import DEFAULT_VESSEL, ENV_VESSEL
 from seaway.runtime.zenoh_bus import ENV_CONFIG
 from seaway.simkit.scenario import load_scenario
-from seaway.tools.launch import authority
-from seaway.tools.launch.profile import Profile, load_profile, substitute
+from seaway.tools.launch import address, authority
+from seaway.tools.launch.profile import Instance, Profile, instances, load_profile, substitute
 from seaway.tools.launch.supervisor import Supervised, Supervisor, default_echo
 
 
@@ -64,7 +79,11 @@ def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="seaway launch", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("profile", help="profile name (deploy/profiles/<name>.toml) or path")
-    ap.add_argument("--vessel", default=os.environ.get(ENV_VESSEL, DEFAULT_VESSEL))
+    ap.add_argument("--vessel", default=None,
+                    help=f"the vessel of a one-vessel profile (default ${ENV_VESSEL} or "
+                         f"{DEFAULT_VESSEL})")
+    ap.add_argument("--vessels", type=_vessel_list, default=None, metavar="V1,V2,...",
+                    help="a fleet profile's vessels (default: the profile's 'vessels')")
     ap.add_argument("--scenario", default=None, help="scenario name or path (profile's default)")
     ap.add_argument("--run-dir", type=Path, default=None,
                     help="default runs/<time>-<profile>, or runs/<time>-<profile>-<scenario>-"
@@ -98,6 +117,67 @@ def _task_power(text: str) -> float:
     return value
 
 
+def _vessel_list(text: str) -> list[str]:
+    names = [v.strip() for v in text.split(",")]
+    if not all(names):
+        raise argparse.ArgumentTypeError(f"{text!r}: vessel names separated by commas, none empty")
+    return names
+
+
+def launch_vessels(args: argparse.Namespace, profile: Profile) -> list[str]:
+    """The vessels this launch runs: a fleet profile's (``--vessels``, else its list), else the one
+    of ``--vessel`` (else ``$SEAWAY_VESSEL``, else the default). ConfigError for the option that
+    does not fit the profile."""
+    if profile.vessels is None:
+        if args.vessels is not None:
+            raise ConfigError(f"--vessels: profile {profile.name} runs one vessel (--vessel); "
+                              "--vessels is for a fleet profile (one that lists 'vessels', e.g. "
+                              "fleet)")
+        return [args.vessel or os.environ.get(ENV_VESSEL) or DEFAULT_VESSEL]
+    if args.vessel is not None:
+        raise ConfigError(f"--vessel: profile {profile.name} runs the vessels it lists "
+                          f"({', '.join(profile.vessels)}); choose them with --vessels V1,V2")
+    return list(args.vessels or profile.vessels)
+
+
+def vessel_dir(run_dir: Path, vessel: str, vessels: list[str]) -> Path:
+    """A vessel's folder in the run folder: the run folder itself for a launch of one vessel,
+    ``<run_dir>/<vessel>`` for several (its run.json, mission.json, recording, report, events)."""
+    return run_dir if len(vessels) == 1 else run_dir / vessel
+
+
+def free_udp_ports(n: int) -> list[int]:
+    """``n`` distinct UDP ports free on loopback now (``{mavlink_port}``: each simulated
+    autopilot of a fleet listens on its own)."""
+    socks = []
+    try:
+        for _ in range(n):
+            s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            socks.append(s)
+            s.bind(("127.0.0.1", 0))
+        return [s.getsockname()[1] for s in socks]
+    finally:
+        for s in socks:
+            s.close()
+
+
+def supervised(plan: list[Instance], vessels: list[str], run_dir: Path,
+               common: dict[str, str]) -> list[Supervised]:
+    """The processes of ``plan`` with their commands' placeholders filled in: ``common`` (the
+    launch's) and each one's vessel's ``{vessel}``, ``{run}``, ``{vessel_dir}`` and
+    ``{mavlink_port}`` (a free UDP port per vessel). ConfigError for an unknown placeholder."""
+    ports = dict(zip(vessels, free_udp_ports(len(vessels)), strict=True))
+    out = []
+    for inst in plan:
+        folder = vessel_dir(run_dir, inst.vessel, vessels)
+        values = {**common, "vessel": inst.vessel, "run": str(folder / "run.json"),
+                  "vessel_dir": str(folder if inst.per_vessel or len(vessels) == 1 else run_dir),
+                  "mavlink_port": str(ports[inst.vessel])}
+        out.append(Supervised(inst.spec, substitute(inst.spec.command, values), inst.vessel,
+                              folder if inst.per_vessel else None))
+    return out
+
+
 MISSION_OPTIONS = ("controller", "predict_disturbance", "task_power_w")
 """The launch options that change the mission sent (refused when no mission is sent)."""
 
@@ -109,14 +189,16 @@ def profile_path(name_or_path: str) -> Path:
 
 
 def resolve_run(args: argparse.Namespace, profile: Profile, scenario: str,
-                run_id: str) -> runs.RunDescription:
-    """The run description, resolved once here and handed to every process as ``--run``.
+                run_id: str, vessel: str | None = None) -> runs.RunDescription:
+    """The run description of ``vessel`` (default: the launch's one vessel), resolved once here
+    and handed to its processes as ``--run``; a fleet's vessels differ only in their name.
 
     A simulated run takes the model and plant vessel files, origin and dead zone from the scenario;
     the profile's ``vessel_file`` replaces the model, and ``origin_from_scenario = false`` (a boat)
     leaves the origin to the estimator's first GNSS fix. ConfigError on a bad scenario or value.
     """
-    return runs.describe(vessel=args.vessel, run_id=run_id, clock=profile.clock,
+    vessel = vessel or launch_vessels(args, profile)[0]
+    return runs.describe(vessel=vessel, run_id=run_id, clock=profile.clock,
                          scenario=load_scenario(scenario) if scenario else None,
                          scenario_ref=scenario or None,
                          origin_from_scenario=profile.origin_from_scenario,
@@ -172,18 +254,37 @@ def _mission_options(args: argparse.Namespace) -> list[str]:
 
 
 class StatusLine:
-    """The live line: vessel, leg, speed, cross-track error, energy used and energy-to-go."""
+    """The live line: per vessel, leg, speed, cross-track error, energy used and energy-to-go."""
 
-    def __init__(self, vessel: str) -> None:
-        self.vessel = vessel
-        self.mission: MissionStatus | None = None
-        self.state: StateEstimate | None = None
+    def __init__(self, vessels: list[str]) -> None:
+        self.vessels = list(vessels)
+        self.mission: dict[str, MissionStatus | None] = dict.fromkeys(self.vessels)
+        self.state: dict[str, StateEstimate | None] = dict.fromkeys(self.vessels)
         self.tty = sys.stdout.isatty()
         self._last_print = 0.0
 
+    def watch(self, bus: Bus) -> None:
+        """Keep the latest mission status and state of every vessel (on the bus's threads)."""
+        for v in self.vessels:
+            bus.subscribe(keys.MISSION_STATUS, vessel=v,
+                          callback=lambda _k, m, v=v: self.mission.__setitem__(v, m))
+            bus.subscribe(keys.NAV_STATE, vessel=v,
+                          callback=lambda _k, m, v=v: self.state.__setitem__(v, m))
+
+    def complete(self, mission: MissionRequest | None) -> bool:
+        """Whether every vessel's mission is complete: the one this launcher sent, if it sent one
+        (a status of some other mission stops nothing)."""
+        return all(m is not None and m.state == "complete"
+                   and (mission is None or m.mission_id == mission.mission_id)
+                   for m in self.mission.values())
+
     def text(self, t_s: float) -> str:
-        m, s = self.mission, self.state
-        parts = [self.vessel, f"t {t_s:5.0f} s"]
+        """One line for every vessel (a fleet's vessels joined by ``||``)."""
+        return " || ".join(self.vessel_text(v, t_s) for v in self.vessels)
+
+    def vessel_text(self, vessel: str, t_s: float) -> str:
+        m, s = self.mission[vessel], self.state[vessel]
+        parts = [vessel, f"t {t_s:5.0f} s"]
         if m is not None:
             parts.append(f"{m.state} leg {m.active_leg}/{max(m.waypoint_count - 1, 0)}")
             if m.cross_track_m is not None:
@@ -204,22 +305,25 @@ class StatusLine:
             sys.stdout.write("\r\x1b[2K" + self.text(t_s) + ("\n" if final else ""))
             sys.stdout.flush()
         elif final or now - self._last_print >= 5.0:
-            print(self.text(t_s), flush=True)
+            for v in self.vessels:
+                print(self.vessel_text(v, t_s), flush=True)
             self._last_print = now
 
 
 LINK_WAIT_S = 20.0  # how long the start-up requests wait for vehicle_io's autopilot link
 
 
-def _operator_requests(bus: Bus, profile: Profile, stop: threading.Event) -> bool:
-    """The profile's start-up mode and arming, as explicit requests with their replies shown.
+def _operator_requests(bus: Bus, profile: Profile, stop: threading.Event, vessel: str,
+                       label: str = "") -> bool:
+    """The profile's start-up mode and arming of ``vessel``, as explicit requests with their
+    replies shown (each line begins with ``label``: a fleet's ``<vessel>: ``).
 
     vehicle_io is ready when it serves requests, which can be before it has heard the autopilot;
     so the requests wait for a VehicleStatus with the link up, as an operator would.
     """
     if not (profile.mode_on_start or profile.arm_on_start):
         return True
-    status = bus.subscribe(keys.VEHICLE_STATUS, mode="latest")
+    status = bus.subscribe(keys.VEHICLE_STATUS, mode="latest", vessel=vessel)
     deadline = time.monotonic() + LINK_WAIT_S
     while True:
         msg = status.get(0.5)
@@ -228,24 +332,46 @@ def _operator_requests(bus: Bus, profile: Profile, stop: threading.Event) -> boo
         if stop.is_set():
             return True  # stopping anyway: not a failure of the start
         if time.monotonic() > deadline:
-            print(f"no autopilot link reported by vehicle_io within {LINK_WAIT_S:g} s; "
+            print(f"{label}no autopilot link reported by vehicle_io within {LINK_WAIT_S:g} s; "
                   "not sending mode or arming", flush=True)
             return False
     status.undeclare()
     if profile.mode_on_start:
         reply = bus.request(keys.VEHICLE_MODE, ModeRequest.make(stamp_ns=time.time_ns(),
-                                                                mode=profile.mode_on_start), timeout_s=10.0)
-        print(f"mode {profile.mode_on_start}: {'accepted' if reply.accepted else 'REFUSED: ' + reply.reason}",
-              flush=True)
+                                                                mode=profile.mode_on_start),
+                            timeout_s=10.0, vessel=vessel)
+        print(f"{label}mode {profile.mode_on_start}: "
+              f"{'accepted' if reply.accepted else 'REFUSED: ' + reply.reason}", flush=True)
         if not reply.accepted:
             return False
     if profile.arm_on_start:
         reply = bus.request(keys.VEHICLE_ARM, ArmRequest.make(stamp_ns=time.time_ns(), arm=True),
-                            timeout_s=10.0)
-        print(f"arm: {'accepted' if reply.accepted else 'REFUSED: ' + reply.reason}", flush=True)
+                            timeout_s=10.0, vessel=vessel)
+        print(f"{label}arm: {'accepted' if reply.accepted else 'REFUSED: ' + reply.reason}",
+              flush=True)
         if not reply.accepted:
             return False
     return True
+
+
+def show_groundstations(sup: Supervisor, run_dir: Path, shown: dict[str, int]) -> None:
+    """Print the page's address of each ground station that became ready since the last call
+    (``shown``: process name -> the pid whose address was printed), read from the address file it
+    wrote before it declared itself ready. A file of another pid is a leftover, not its address."""
+    for name, sp in sup.procs.items():
+        if sp.spec.service != "groundstation" or sp.state != "ready" or shown.get(name) == sp.pid:
+            continue
+        shown[name] = sp.pid or 0
+        try:
+            where = address.read(run_dir)
+        except address.AddressError as err:
+            print(f"ground station: no address ({err}); see {sup.logs / f'{name}.log'}", flush=True)
+            continue
+        if where.pid != sp.pid:
+            print(f"ground station: {address.address_path(run_dir)} is from process {where.pid}, "
+                  f"not the running {sp.pid} (was it started with --run-dir {run_dir}?)", flush=True)
+            continue
+        print(f"ground station: {where.page}", flush=True)
 
 
 def main(argv: list[str]) -> int:
@@ -273,22 +399,23 @@ def main(argv: list[str]) -> int:
         return 2
     run_dir = _run_dir(args, scenario, mission)
     try:
-        run = resolve_run(args, profile, scenario, run_dir.name)
+        vessels = launch_vessels(args, profile)
+        plan = instances(profile, vessels)
+        runs_of = {v: resolve_run(args, profile, scenario, run_dir.name, v) for v in vessels}
     except (ConfigError, ValueError) as err:
         print(f"seaway launch: {err}", file=sys.stderr)
         return 2
-    run_file = run_dir / "run.json"
-    values = {"vessel": args.vessel, "scenario": scenario, "run_dir": str(run_dir),
-              "profile": str(profile_path(args.profile)), "run": str(run_file),
-              "recording": str(args.recording or ""),
+    common = {"scenario": scenario, "run_dir": str(run_dir),
+              "profile": str(profile_path(args.profile)), "recording": str(args.recording or ""),
               "mavlink_key": str(authority.mavlink_key_path(run_dir.name))}
     try:
-        procs = [Supervised(p, substitute(p.command, values)) for p in profile.processes]
+        procs = supervised(plan, vessels, run_dir, common)
     except ConfigError as err:
         print(f"seaway launch: {err}", file=sys.stderr)
         return 2
     if args.check:
-        print(f"profile {profile.name}: {len(procs)} processes, valid"
+        print(f"profile {profile.name}: {len(procs)} processes"
+              + (f" for vessels {', '.join(vessels)}" if len(vessels) > 1 else "") + ", valid"
               + (f"; mission {mission.mission_id} ({_describe_mission(mission)})"
                  if mission is not None else ""))
         return 0
@@ -298,41 +425,46 @@ def main(argv: list[str]) -> int:
         if not profile.zenoh_config:
             # The default peer config meets on one rendezvous endpoint: one stack per endpoint.
             # A deployment config (boat, shore) names its own endpoints, in its own namespace.
-            authority.claim(auth, profile, run_dir, args.vessel)
+            authority.claim(auth, profile, run_dir, ",".join(vessels))
     except (authority.StackInUseError, CredentialsError, AccessError) as err:
         if "auth" in locals():
             auth.release()
         print(f"seaway launch: {err}", file=sys.stderr)
         return 2
     try:
-        return _launch(args, profile, scenario, mission, run_dir, run, procs, auth)
+        return _launch(args, profile, scenario, mission, run_dir, runs_of, procs, auth)
     finally:
         auth.release()
 
 
 def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: MissionRequest | None,
-            run_dir: Path, run: runs.RunDescription, procs: list[Supervised],
+            run_dir: Path, runs_of: dict[str, runs.RunDescription], procs: list[Supervised],
             auth: authority.Authority) -> int:
     """Start the stack, make the profile's requests, watch it until done; stop it."""
-    run_file = run_dir / "run.json"
+    vessels = list(runs_of)
+    run = runs_of[vessels[0]]  # the run-wide facts, the same for every vessel of the launch
     env = dict(os.environ)
-    env[ENV_VESSEL] = args.vessel
+    env[ENV_VESSEL] = vessels[0]  # each process gets its own vessel's (Supervisor.spawn)
     # Every child is a process of this stack: the stack's credentials (or the explicit opt-out).
     env[ENV_CREDENTIALS] = str(auth.credentials.folder) if auth.credentials else NONE
     # Children find their commands next to the interpreter running the launcher (the venv).
     env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env.get('PATH', '')}"
     if profile.zenoh_config:
         env[ENV_CONFIG] = str(deploy_path("zenoh", profile.zenoh_config))
-    run_dir.mkdir(parents=True, exist_ok=True)
-    run.write(run_file)
-    mission_file = None
-    if mission is not None:
-        mission_file = run_dir / "mission.json"
-        mission_file.write_text(mission.model_dump_json(indent=2) + "\n")
+    folders = {v: vessel_dir(run_dir, v, vessels) for v in vessels}
+    mission_files: dict[str, Path | None] = dict.fromkeys(vessels)
+    for v, folder in folders.items():
+        folder.mkdir(parents=True, exist_ok=True)
+        runs_of[v].write(folder / "run.json")
+        if mission is not None:
+            mission_files[v] = folder / "mission.json"
+            mission_files[v].write_text(mission.model_dump_json(indent=2) + "\n")
     sup = Supervisor(procs, run_dir, env, profile.backoff, default_echo, args.verbose, run.clock)
     stop = threading.Event()
     _install_stop_signals(stop, sup)
-    print(f"seaway launch {profile.name}: vessel {args.vessel}, run folder {run_dir}", flush=True)
+    label = {v: f"{v}: " if len(vessels) > 1 else "" for v in vessels}
+    print(f"seaway launch {profile.name}: vessel{'s' if len(vessels) > 1 else ''} "
+          f"{', '.join(vessels)}, run folder {run_dir}", flush=True)
     print(f"run {run.run_id}: model {run.model_vessel_file}"
           + (f", plant {run.plant_vessel_file}" if run.plant_vessel_file else "")
           + f", period {run.control_period_s:g} s, clock {run.clock}"
@@ -343,23 +475,22 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
     # The launcher holds the rendezvous port first: links refused there are counted here. It hears
     # the navigation state every period, so in lockstep it counts drops alone (refusals module).
     refusals.watch("launcher", full=not run.lockstep)
-    bus = Bus.open(args.vessel, env.get(ENV_CONFIG), identity="launcher",
+    bus = Bus.open(vessels[0], env.get(ENV_CONFIG), identity="launcher",
                    credentials=auth.credentials or NONE)
     refusals.serve(bus, "launcher")
     code = 0
     t0 = time.monotonic()
     try:
-        bus.watch_health(sup.on_health)
+        bus.watch_fleet_health(sup.on_health)
         # What the processes must keep publishing (liveness): heard here, so a hung one is seen.
-        for suffix in sorted(sup.watched_keys()):
+        for vessel, suffix in sorted(sup.watched_keys()):
             spec = keys.spec_for_suffix(suffix)
             assert spec is not None
             # inline: on Zenoh's own receive thread (a short handler; hundreds a second in lockstep)
-            bus.subscribe_raw(spec.key(args.vessel),
-                              lambda sample, s=suffix: sup.on_sample(s, sample.payload), inline=True)
-        status = StatusLine(args.vessel)
-        bus.subscribe(keys.MISSION_STATUS, callback=lambda _k, m: setattr(status, "mission", m))
-        bus.subscribe(keys.NAV_STATE, callback=lambda _k, m: setattr(status, "state", m))
+            bus.subscribe_raw(spec.key(vessel), lambda sample, v=vessel, s=suffix:
+                              sup.on_sample(v, s, sample.payload), inline=True)
+        status = StatusLine(vessels)
+        status.watch(bus)
         error = sup.start_all(stop)
         if error:
             print(f"seaway launch: {error}", file=sys.stderr)
@@ -367,20 +498,26 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
             return code
         print(sup.status_table(), flush=True)
         print(f"all ready in {time.monotonic() - t0:.1f} s", flush=True)
-        if not _operator_requests(bus, profile, stop):
-            code = 1
-            return code
-        if mission is not None and not stop.is_set():
-            reply = bus.request(keys.MISSION_SET, mission, timeout_s=10.0)
+        shown: dict[str, int] = {}
+        show_groundstations(sup, run_dir, shown)
+        for v in vessels:
+            if not _operator_requests(bus, profile, stop, v, label[v]):
+                code = 1
+                return code
+        for v in vessels:
+            if mission is None or stop.is_set():
+                break
+            reply = bus.request(keys.MISSION_SET, mission, timeout_s=10.0, vessel=v)
             # An acceptance can carry news too (its solver is still being made, say).
             said = ("accepted" + ("" if reply.reason in ("", "mission started")
                                   else f" ({reply.reason})")
                     if reply.accepted else "REFUSED: " + reply.reason)
-            print(f"mission {mission.mission_id}: {said} ({_describe_mission(mission)})",
+            print(f"{label[v]}mission {mission.mission_id}: {said} ({_describe_mission(mission)})",
                   flush=True)
         t_run = time.monotonic()
         while not stop.wait(0.2):
             sup.poll()
+            show_groundstations(sup, run_dir, shown)  # again after a restart: a new address
             failed = sup.failed_required()
             if failed:
                 print(f"\nseaway launch: required process(es) failed: {', '.join(failed)}",
@@ -395,10 +532,9 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
                 print(f"{profile.stop_after} finished", flush=True)
                 break
             # Completion counts only for the mission this launcher sent (and, by the access rules,
-            # only from the controller): a status of some other mission stops nothing.
-            if (profile.stop_when_complete and not args.stay and status.mission is not None
-                    and status.mission.state == "complete"
-                    and (mission is None or status.mission.mission_id == mission.mission_id)):
+            # only from the controller), on every vessel: a status of some other mission stops
+            # nothing.
+            if profile.stop_when_complete and not args.stay and status.complete(mission):
                 status.show(time.monotonic() - t_run, final=True)
                 print("mission complete", flush=True)
                 break
@@ -412,7 +548,14 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
         print(sup.status_table())
         print(f"stopped in {time.monotonic() - t_stop:.1f} s; logs in {run_dir / 'logs'}",
               flush=True)
-        _final_report(run_dir, scenario, mission_file, sup)
+        hurried = sup.hurried
+        for v in vessels:
+            if len(vessels) > 1:
+                print(f"\n{v}:", flush=True)
+            if sup.hurried > hurried:  # a Ctrl-C during an earlier vessel's report skips the rest
+                print(f"(report skipped: Ctrl-C; make it with: seaway report {folders[v]})")
+                continue
+            _final_report(folders[v], scenario, mission_files[v], sup)
     return code
 
 

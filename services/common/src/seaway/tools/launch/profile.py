@@ -13,10 +13,21 @@ A profile is pure data, validated here before anything starts:
   keys itself). Two producers of one key are refused, naming both;
 * what a process must keep publishing, or be restarted as hung, is its service's
   (``liveness.DUTIES``); ``must_publish`` replaces that list (``[]``: only its health token counts).
+
+**Several vessels** (a fleet, ``deploy/profiles/fleet.toml``): ``vessels`` lists them, and each
+process marked ``per_vessel`` runs once per vessel (``instances``): named ``<name>-<vessel>``, with
+that vessel's ``{vessel}``, ``{run}`` (its own run description), ``{vessel_dir}`` (its folder in
+the run folder) and ``{mavlink_port}`` (a UDP port of its own); its ``after`` names the same
+vessel's copies. A process not marked runs once for the launch, on its first vessel (``{vessel}``,
+``{run}`` are the first vessel's; ``{vessel_dir}`` is the run folder), after every copy of what it
+names in ``after``. One producer per key holds per vessel: the copies produce the same keys, each
+under its own ``seaway/<vessel>/``. A launch of one vessel runs every process once, under its own
+name, whether it is marked or not.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
@@ -41,6 +52,8 @@ class ProcessSpec(ConfigModel):
     must_publish: list[Duty] | None = Field(default=None, description="what it must keep "
                                             "publishing or be restarted as hung; default: its "
                                             "service's (liveness.DUTIES)")
+    per_vessel: bool = Field(default=False, description="one copy per vessel of the launch "
+                             "(<name>-<vessel>); else one process for the launch, on its first vessel")
 
     @model_validator(mode="after")
     def _service_known(self) -> ProcessSpec:
@@ -94,11 +107,17 @@ class Profile(ConfigModel):
     mission_on_start: bool = Field(default=False, description="send the scenario's mission")
     stop_when_complete: bool = Field(default=False, description="stop the run when it completes")
     stop_after: str | None = Field(default=None, description="stop the run when this process exits 0")
+    vessels: list[str] | None = Field(default=None, min_length=1, description="a fleet: the "
+                                      "vessels it runs, each with its own copy of every per_vessel "
+                                      "process (launch --vessels replaces the list); None: the one "
+                                      "vessel of launch --vessel")
     backoff: BackoffPolicy = BackoffPolicy()
     processes: list[ProcessSpec] = Field(min_length=1)
 
     @model_validator(mode="after")
     def _consistent(self) -> Profile:
+        if self.vessels is not None:
+            check_vessels(self.vessels, self.clock)
         names = [p.name for p in self.processes]
         dup = {n for n in names if names.count(n) > 1}
         if dup:
@@ -136,6 +155,71 @@ class Profile(ConfigModel):
         """Each key this profile produces and the identity producing it: the access rules narrow
         every such key to that one process (``contract.access``)."""
         return {k: p.identity for p in self.processes for k in p.produced_keys()}
+
+
+def check_vessels(vessels: list[str], clock: str) -> list[str]:
+    """``vessels`` if they can run as one launch: valid key names, each once; several only in real
+    time (a lockstep simulator steps one vessel's stack). ValueError naming the problem."""
+    for v in vessels:
+        keys.check_vessel(v)
+    dup = sorted({v for v in vessels if vessels.count(v) > 1})
+    if dup:
+        raise ValueError(f"vessels listed twice: {', '.join(dup)}")
+    if len(vessels) > 1 and clock != "wall":
+        raise ValueError(f"{len(vessels)} vessels with clock {clock!r}: a lockstep run has one "
+                         "vessel (its simulator steps that vessel's stack); a fleet runs in real "
+                         "time (clock 'wall')")
+    return vessels
+
+
+@dataclass(frozen=True)
+class Instance:
+    """One process of a launch: its spec (named as the launch names it, ``after`` naming instances)
+    and the vessel it runs for (a process for the whole launch: the launch's first vessel)."""
+
+    spec: ProcessSpec
+    vessel: str
+    per_vessel: bool
+    """One of the copies of a ``per_vessel`` process in a launch of several vessels."""
+
+
+def instance_name(name: str, vessel: str) -> str:
+    """What a launch of several vessels calls ``vessel``'s copy of the per-vessel process ``name``."""
+    return f"{name}-{vessel}"
+
+
+def instances(profile: Profile, vessels: list[str]) -> list[Instance]:
+    """The processes a launch of ``profile`` for ``vessels`` runs (module docstring), in the
+    profile's order, each per-vessel process's copies in the order of ``vessels``. ConfigError if
+    the vessels cannot run together or two instances would share a name."""
+    try:
+        check_vessels(vessels, profile.clock)
+    except ValueError as err:
+        raise ConfigError(f"profile {profile.name}: {err}") from None
+    if len(vessels) == 1:
+        return [Instance(p, vessels[0], False) for p in profile.processes]
+    per = {p.name for p in profile.processes if p.per_vessel}
+    if profile.stop_after in per:
+        raise ConfigError(f"profile {profile.name}: stop_after names {profile.stop_after!r}, which "
+                          f"runs once per vessel; with {len(vessels)} vessels it must name a "
+                          "process of the whole launch")
+    out: list[Instance] = []
+    for p in profile.processes:
+        if p.per_vessel:
+            for v in vessels:
+                after = [instance_name(a, v) if a in per else a for a in p.after]
+                out.append(Instance(p.model_copy(update={"name": instance_name(p.name, v),
+                                                         "after": after}), v, True))
+        else:
+            after = [n for a in p.after
+                     for n in ([instance_name(a, v) for v in vessels] if a in per else [a])]
+            out.append(Instance(p.model_copy(update={"after": after}), vessels[0], False))
+    names = [i.spec.name for i in out]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise ConfigError(f"profile {profile.name}: with vessels {', '.join(vessels)} two processes "
+                          f"would be named {', '.join(dup)}; rename the process")
+    return out
 
 
 def start_order(processes: list[ProcessSpec]) -> list[ProcessSpec]:

@@ -15,6 +15,12 @@ cannot stop itself) and then restarted as a dead one. Each start, exit, hang and
 
 Every line a process prints goes to ``<run_dir>/logs/<name>.log``; warnings and errors (or everything,
 with ``echo_all``) are also shown on the terminal prefixed with the process name.
+
+Each process runs for one vessel (``Supervised.vessel``; a fleet's, ``profile.instances``): its
+readiness is that vessel's health token of its service, and what it must publish is heard on that
+vessel's keys, so the same service on two vessels is watched twice, apart. A copy of a per-vessel
+process in a fleet also has its events written to its vessel's folder (``vessel_dir``), which that
+vessel's recorder copies into its recording.
 """
 
 from __future__ import annotations
@@ -36,6 +42,7 @@ from pathlib import Path
 from typing import IO
 
 from seaway.runtime.credentials import ENV_IDENTITY
+from seaway.runtime.service import ENV_VESSEL
 from seaway.tools.launch.events import EVENTS_FILE, ProcessEvent
 from seaway.tools.launch.liveness import TOKEN_GRACE_S, Watch
 from seaway.tools.launch.profile import BackoffPolicy, ProcessSpec, start_order, stop_order
@@ -56,6 +63,10 @@ def _child_setup() -> None:  # runs in the child between fork and exec: keep it 
 class Supervised:
     spec: ProcessSpec
     argv: list[str]
+    vessel: str
+    """The vessel it runs for: its health token is ``seaway/<vessel>/health/<service>``."""
+    vessel_dir: Path | None = None
+    """A fleet's per-vessel copy: its vessel's folder, where its events are written too."""
     state: str = "pending"  # pending, starting, ready, running, hung, backoff, exited, failed, stopped
     popen: subprocess.Popen | None = None
     restarts: int = 0
@@ -82,7 +93,9 @@ class Supervisor:
         self.backoff = backoff
         self.echo = echo
         self.echo_all = echo_all
-        self.alive_services: set[str] = set()
+        self.vessels = {sp.vessel for sp in procs}
+        self.alive_services: set[tuple[str, str]] = set()
+        """(vessel, service) of every health token present, on the launch's vessels."""
         self._health_cond = threading.Condition()
         self.stopping = False
         self.hurried = 0  # Ctrl-Cs after the first: the stop's grace is short (HURRY_GRACE_S)
@@ -91,29 +104,36 @@ class Supervisor:
         # Hang detection (liveness): the duties of each process under the run's clock, what the
         # launcher hears of them, and since when each service's token has been missing.
         self.duties = {name: sp.spec.duties(clock) for name, sp in self.procs.items()}
-        self.watch = Watch()
+        self.watches = {v: Watch() for v in self.vessels}
+        """One per vessel: what a process must publish is heard on its own vessel's keys."""
         self._watch_lock = threading.Lock()
-        self._token_lost: dict[str, float] = {}
+        self._token_lost: dict[tuple[str, str], float] = {}
         self._own_link_noted = False
 
     # -- health ---------------------------------------------------------------------------------
 
-    def on_health(self, service: str, alive: bool) -> None:
-        """Liveliness callback (from the launcher's Zenoh session)."""
+    def on_health(self, vessel: str, service: str, alive: bool) -> None:
+        """Liveliness callback (from the launcher's Zenoh session, every vessel's tokens): those of
+        the launch's vessels count."""
+        if vessel not in self.vessels:
+            return
+        token = (vessel, service)
         with self._health_cond:
-            (self.alive_services.add if alive else self.alive_services.discard)(service)
+            (self.alive_services.add if alive else self.alive_services.discard)(token)
             if alive:
-                self._token_lost.pop(service, None)
+                self._token_lost.pop(token, None)
             else:
-                self._token_lost.setdefault(service, time.monotonic())
+                self._token_lost.setdefault(token, time.monotonic())
             self._health_cond.notify_all()
 
-    def watched_keys(self) -> set[str]:
-        """The key suffixes the launcher must hear to watch every process's duties."""
-        return Watch.keys_of(d for duties in self.duties.values() for d in duties)
+    def watched_keys(self) -> set[tuple[str, str]]:
+        """(vessel, key suffix) the launcher must hear to watch every process's duties."""
+        return {(sp.vessel, k) for name, sp in self.procs.items()
+                for k in Watch.keys_of(self.duties[name])}
 
-    def on_sample(self, suffix: str, payload: bytes) -> None:
-        """A sample on a watched key (from the launcher's Zenoh session, on its threads)."""
+    def on_sample(self, vessel: str, suffix: str, payload: bytes) -> None:
+        """A sample on a watched key of ``vessel`` (from the launcher's Zenoh session, on its
+        threads)."""
         period, hold = None, False
         if suffix.startswith("lockstep/"):
             # Hundreds a second in lockstep: only the three fields needed, read as plainly as can be
@@ -124,18 +144,18 @@ class Supervisor:
             except (ValueError, TypeError, KeyError):
                 return
         with self._watch_lock:
-            self.watch.heard(suffix, time.monotonic(), period, hold)
+            self.watches[vessel].heard(suffix, time.monotonic(), period, hold)
 
     def _mark_ready(self, sp: Supervised, now: float) -> None:
         sp.state, sp.ready_at = "ready", now
         with self._watch_lock:
-            self.watch.arm(sp.spec.name, self.duties[sp.spec.name], now)
+            self.watches[sp.vessel].arm(sp.spec.name, self.duties[sp.spec.name], now)
 
     def _wait_ready(self, sp: Supervised, stop: threading.Event) -> bool:
-        service = sp.spec.service
+        token = (sp.vessel, sp.spec.service)
         deadline = time.monotonic() + sp.spec.ready_timeout_s
         with self._health_cond:
-            while service not in self.alive_services:
+            while token not in self.alive_services:
                 if stop.is_set() or sp.popen is None or sp.popen.poll() is not None:
                     return False
                 remaining = deadline - time.monotonic()
@@ -164,7 +184,8 @@ class Supervisor:
         log = open(self.logs / f"{sp.spec.name}.log", "ab")  # noqa: SIM115 - closed by the pump
         log.write(f"--- start {time.strftime('%Y-%m-%dT%H:%M:%S')} {' '.join(sp.argv)}\n".encode())
         # A service is its own identity; another process (a replay) is named by the profile.
-        env = {**self.env, **sp.spec.env, "PYTHONUNBUFFERED": "1", ENV_IDENTITY: sp.spec.identity}
+        env = {**self.env, ENV_VESSEL: sp.vessel, **sp.spec.env, "PYTHONUNBUFFERED": "1",
+               ENV_IDENTITY: sp.spec.identity}
         sp.popen = subprocess.Popen([exe, *sp.argv[1:]], stdout=subprocess.PIPE,
                                     stderr=subprocess.STDOUT, env=env, start_new_session=True,
                                     preexec_fn=_child_setup)
@@ -172,7 +193,7 @@ class Supervisor:
         sp.ready_at = None
         sp.state = "starting" if sp.spec.service else "running"
         with self._watch_lock:
-            self.watch.disarm(sp.spec.name)
+            self.watches[sp.vessel].disarm(sp.spec.name)
         threading.Thread(target=self._pump, args=(sp.spec.name, sp.popen.stdout, log),
                          daemon=True).start()
         self._event(sp, "start", pid=sp.popen.pid)
@@ -214,14 +235,14 @@ class Supervisor:
                 continue
             if sp.popen is None or sp.state in ("exited", "failed", "stopped", "backoff"):
                 continue
-            if sp.state == "starting" and sp.spec.service in self.alive_services:
+            if sp.state == "starting" and (sp.vessel, sp.spec.service) in self.alive_services:
                 self._mark_ready(sp, now)
             code = sp.popen.poll()
             if code is None:
                 continue
             sp.last_exit = code
             with self._watch_lock:
-                self.watch.disarm(sp.spec.name)
+                self.watches[sp.vessel].disarm(sp.spec.name)
             self._event(sp, "exit", code=code)
             if self.stopping:
                 sp.state = "stopped"
@@ -249,14 +270,15 @@ class Supervisor:
         # Every token gone at once is this launcher losing sight of the stack, not them all hanging.
         if any_alive or len(watched) < 2:
             for sp in watched:
-                since = lost.get(sp.spec.service)  # type: ignore[arg-type]
+                since = lost.get((sp.vessel, sp.spec.service))  # type: ignore[arg-type]
                 if since is not None and sp.ready_at is not None and now - since > TOKEN_GRACE_S:
                     out[sp.spec.name] = (f"its health token has been gone for {now - since:.1f} s "
                                          "while the process still runs")
         with self._watch_lock:
-            late = {n: why for n, why in self.watch.overdue(now).items()
-                    if n in {sp.spec.name for sp in ready}}
-            armed = sum(1 for sp in ready if self.watch.armed(sp.spec.name) and self.duties[sp.spec.name])
+            overdue = {n: why for w in self.watches.values() for n, why in w.overdue(now).items()}
+            late = {n: why for n, why in overdue.items() if n in {sp.spec.name for sp in ready}}
+            armed = sum(1 for sp in ready if self.watches[sp.vessel].armed(sp.spec.name)
+                        and self.duties[sp.spec.name])
         if len(late) >= 2 and 2 * len(late) > armed:
             # Most of the stack silent at once: more likely this launcher's own view than them all.
             if not self._own_link_noted:
@@ -275,10 +297,10 @@ class Supervisor:
             self.echo(f"launcher: {name} is hung: {reason}; SIGKILL, then a restart as for a "
                       "dead process")
             with self._watch_lock:
-                self.watch.disarm(name)
+                self.watches[sp.vessel].disarm(name)
             with self._health_cond:
                 if sp.spec.service:
-                    self._token_lost.pop(sp.spec.service, None)
+                    self._token_lost.pop((sp.vessel, sp.spec.service), None)
             sp.state = "hung"
             assert sp.popen is not None
             _signal_group(sp.popen, signal.SIGKILL)
@@ -362,8 +384,11 @@ class Supervisor:
         data = ev.model_dump(exclude_defaults=True)
         sp.history.append(data)
         self._events.append(data)
-        with open(self.run_dir / EVENTS_FILE, "a") as f:
-            f.write(ev.line())
+        for folder in (self.run_dir, sp.vessel_dir):
+            if folder is not None:
+                folder.mkdir(parents=True, exist_ok=True)
+                with open(folder / EVENTS_FILE, "a") as f:
+                    f.write(ev.line())
 
 
 def _signal_group(p: subprocess.Popen, sig: int) -> None:
