@@ -10,15 +10,52 @@ from types import SimpleNamespace
 import pytest
 from seaway_lab.bench import lockstep
 
+# One period's marks, as offsets [ns] from the sim's answer: each stage's duration is distinct, so a
+# stage measured between the wrong marks shows.
+OFFSETS = {("sim", "sent", ""): 0, ("estimator", "heard", "sim"): 100_000,
+           ("estimator", "work", ""): 130_000, ("estimator", "sent", ""): 430_000,
+           ("controller", "heard", "estimator"): 530_000, ("controller", "work", ""): 570_000,
+           ("controller", "sent", ""): 1_070_000, ("sim", "heard", "controller"): 1_170_000,
+           ("recorder", "heard", "controller"): 1_250_000, ("recorder", "sent", ""): 1_650_000,
+           ("sim", "heard", "recorder"): 1_700_000}
+
+
+def marks(period_ns: int, n: int = 50) -> dict[tuple[str, str, str], dict[int, int]]:
+    """Marks of ``n`` periods of ``period_ns`` wall time each (stamps 0.1 s apart)."""
+    out: dict[tuple[str, str, str], dict[int, int]] = {}
+    for k in range(n):
+        for mark, off in OFFSETS.items():
+            out.setdefault(mark, {})[k * 100_000_000] = 10**12 + k * period_ns + off
+    return out
+
+
+def test_breakdown_measures_each_stage_between_its_own_marks() -> None:
+    got = {name: {round(x, 9) for x in v} for name, v in lockstep.breakdown(marks(2_000_000)).items()}
+    assert got["sim -> estimator: transport"] == {0.1}
+    assert got["estimator: wake-up"] == {0.03}
+    assert got["estimator: filter and publish"] == {0.3}
+    assert got["controller: solve and publish"] == {0.5}
+    assert got["controller -> recorder: transport"] == {0.18}
+    assert got["recorder: write and flush"] == {0.4}
+    assert got["sim: waiting for the recorder"] == {0.53}
+    assert got["sim: step and publish after the last answer"] == {0.3}
+    assert got["period"] == {2.0}
+    # 48 periods: the first (start) and the last (hold) are left out.
+    assert all(len(v) == 48 for v in lockstep.breakdown(marks(2_000_000)).values())
+
+
+def test_a_period_some_member_did_not_mark_is_left_out() -> None:
+    m = marks(2_000_000)
+    del m[("recorder", "sent", "")][10 * 100_000_000]
+    assert len(lockstep.breakdown(m)["recorder: write and flush"]) == 47
+
 
 def test_lockstep_alternates_auth_and_reports_both(monkeypatch: pytest.MonkeyPatch) -> None:
     order: list[bool] = []
 
-    def fake_run(run_dir: Path, auth: bool = True) -> dict[str, list[int]]:
+    def fake_run(run_dir: Path, auth: bool = True) -> dict[tuple[str, str, str], dict[int, int]]:
         order.append(auth)
-        period_ns = 5_000_000 if auth else 4_000_000  # on costs 25 % more here
-        return {s: [k * period_ns + i * 100_000 for k in range(50)]
-                for i, s in enumerate(lockstep.STAGES)}
+        return marks(5_000_000 if auth else 4_000_000)  # on costs 25 % more here
 
     monkeypatch.setattr(lockstep, "through_processes", fake_run)
     monkeypatch.setattr(lockstep, "run_closed_loop",
@@ -32,6 +69,7 @@ def test_lockstep_alternates_auth_and_reports_both(monkeypatch: pytest.MonkeyPat
         assert set(out[section]) == names
         assert all(math.isfinite(v) and v > 0 for v in out[section].values())
     assert out["auth_on"]["period_median_ms"] == pytest.approx(5.0)
+    assert out["figures"]["through the processes, warm [s]"] == pytest.approx(48 * 0.005)
     assert out["auth_off"]["period_median_ms"] == pytest.approx(4.0)
     assert out["auth_overhead_ratio"]["wall_time_s"] == pytest.approx(1.25)
     ratio = out["targets"]["auth on / off, wall time"]

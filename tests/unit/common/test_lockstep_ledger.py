@@ -67,3 +67,30 @@ def test_a_late_message_of_an_earlier_episode_does_not_count_in_the_next() -> No
     assert not ledger.has("nav/state", 3 * P)
     ledger.on_answer(answer("sim", 3, episode=1))
     assert not ledger.complete(answer("estimator", 3, episode=1, published={"nav/state": [3 * P]}))
+
+
+def test_a_message_wakes_the_loop_only_when_an_answer_of_the_period_may_wait_for_it() -> None:
+    hub = MemoryHub()
+    member = Member(hub.bus("v1"), "estimator", watched=("sensors/attitude",), hears=("sim",))
+    member.on_answer("seaway/v1/lockstep/sim", answer("sim", 1, published={"sensors/attitude": [P]}))
+    member.saw("sensors/attitude", P)  # t_1 complete (the loop answers it)
+    v = member.version
+    member.saw("sensors/attitude", 2 * P)  # t_2's sample, before t_2's answer: nothing to do yet
+    assert member.version == v
+    member.on_answer("seaway/v1/lockstep/sim",
+                     answer("sim", 2, seq=2, published={"sensors/attitude": [2 * P, 2 * P - 5]}))
+    v = member.version
+    assert not member.ledger.complete(member.ledger.answer("sim"))
+    member.saw("sensors/attitude", 2 * P - 5)  # after its answer: the loop must look again
+    assert member.version == v + 1 and member.ledger.complete(member.ledger.answer("sim"))
+
+
+def test_a_member_hears_only_the_answers_it_asked_for() -> None:
+    hub = MemoryHub()
+    bus = hub.bus("v1")
+    member = Member(bus, "estimator", watched=(), hears=("sim",))
+    other = Member(hub.bus("v1"), "controller", watched=())
+    other.answer(Period(0, P), P)
+    assert member.ledger.answers == {}
+    Member(hub.bus("v1"), "sim", watched=()).answer(Period(0, P), P)
+    assert set(member.ledger.answers) == {"sim"}

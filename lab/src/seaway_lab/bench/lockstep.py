@@ -7,9 +7,11 @@ rendezvous); the figure is the WARM stack's wall time, from the sim's first step
 end, read from the recording (the recorder's receive time of each ``lockstep/*`` answer). In process:
 ``seaway_lab.closed_loop.run_closed_loop`` (the same cores and the same solver, no bus), warm.
 
-Where a period's time goes comes from the same receive times: sim answer -> estimator answer
-(transport and the estimator), -> controller answer (transport, the solve and its records),
--> recorder answer (transport and the write), -> the sim's next answer (transport and the plant).
+Where a period's time goes comes from the members' own marks (``seaway.runtime.timeline``, on the
+clock every process shares): for each period, each hand-over (transport: Zenoh, the decode, the hand
+to Python), each loop's wake-up, and each member's work (the estimator's filter, the controller's
+solve and records, the recorder's write and flush, the sim's step and publication); the sum along
+the critical path is the period.
 Targets (issue 13): through the processes at most 2x the in-process loop, and at least 100x real time.
 
 Authentication (issue 15): the stack runs with authentication on (the launcher's per-run
@@ -32,20 +34,19 @@ import tempfile
 import time
 from pathlib import Path
 
-from seaway.contract import keys
-from seaway.contract.messages import PeriodDone
+from seaway.runtime import timeline
 from seaway.runtime.credentials import ENV_CREDENTIALS, ENV_IDENTITY, NONE
 from seaway.runtime.stacks import ENV_STACKS_DIR
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.metrics import median, percentile
-from seaway_recorder import recording
+from seaway_estimator.config import EstimatorConfig
+from seaway_estimator.core import EstimatorCore
 
 from seaway_lab.bench.common import BenchResult, compare_auth
 from seaway_lab.closed_loop import run_closed_loop
 
 SCENARIO, CONTROLLER = "paper-c1", "cc-empc"
 TARGET_RATIO, TARGET_REAL_TIME = 2.0, 100.0
-STAGES = ("sim", "estimator", "controller", "recorder")
 AUTH_FIGURES = {"wall_time_s": "wall time", "period_median_ms": "period median",
                 "period_p99_ms": "period p99"}
 """The figures compared with authentication on and off (JSON name: table label)."""
@@ -57,8 +58,8 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-def through_processes(run_dir: Path, auth: bool = True) -> dict[str, list[int]]:
-    """Run the stack once; per stage, the receive times [ns] of each period's answer (by period).
+def through_processes(run_dir: Path, auth: bool = True) -> dict[tuple[str, str, str], dict[int, int]]:
+    """Run the stack once, its members marking their timelines; the marks (``timeline.first_marks``).
 
     ``auth``: the launcher makes the run's credentials (authentication on), else
     ``SEAWAY_CREDENTIALS=none`` (off). The stack registers next to ``run_dir``, not with the user's
@@ -68,6 +69,7 @@ def through_processes(run_dir: Path, auth: bool = True) -> dict[str, list[int]]:
     env.pop("SEAWAY_ZENOH_CONFIG", None)
     env.pop(ENV_IDENTITY, None)  # the launcher names each of its processes
     env[ENV_STACKS_DIR] = str(run_dir.parent / "stacks")
+    env[timeline.ENV_TRACE] = str(run_dir.parent / "timeline")
     if auth:
         env.pop(ENV_CREDENTIALS, None)
     else:
@@ -75,24 +77,52 @@ def through_processes(run_dir: Path, auth: bool = True) -> dict[str, list[int]]:
     subprocess.run([str(Path(sys.executable).parent / "seaway"), "launch", "sim-batch", "--scenario",
                     SCENARIO, "--controller", CONTROLLER, "--run-dir", str(run_dir)],
                    env=env, check=True, capture_output=True, timeout=600)
-    first: dict[str, dict[int, int]] = {s: {} for s in STAGES}
-    topics = [keys.lockstep_spec(s).key("vessel1") for s in STAGES]
-    for m in recording.iter_messages(recording.open_paths([run_dir]), topics):
-        ans = PeriodDone.decode(m.data)
-        first[ans.service].setdefault(ans.stamp_ns, m.log_time_ns)  # a repeat is not a new period
-    return {s: [first[s][t] for t in sorted(first[s])] for s in STAGES}
+    return timeline.first_marks(timeline.read(run_dir.parent / "timeline"))
 
 
-def _stages(times: dict[str, list[int]], stage_ms: dict[str, list[float]]) -> None:
-    """Add one run's per-period stage durations [ms] (see the module docstring) to ``stage_ms``."""
-    n = min(len(v) for v in times.values() if v)
-    chain = [(s, times[s][:n]) for s in STAGES if times[s]]
-    for (sa, a), (sb, b) in itertools.pairwise(chain):
-        stage_ms.setdefault(f"{sa} -> {sb}", []).extend(
-            (y - x) / 1e6 for x, y in zip(a[1:], b[1:], strict=True))
-    last, first = chain[-1], chain[0]
-    stage_ms.setdefault(f"{last[0]} -> next {first[0]}", []).extend(
-        (first[1][i + 1] - last[1][i]) / 1e6 for i in range(1, n - 1))
+STAGES: tuple[tuple[str, tuple[str, str, str], tuple[str, str, str]], ...] = (
+    # (label, from mark, to mark) per period k; a mark is (service, what, of)
+    ("sim -> estimator: transport", ("sim", "sent", ""), ("estimator", "heard", "sim")),
+    ("estimator: wake-up", ("estimator", "heard", "sim"), ("estimator", "work", "")),
+    ("estimator: filter and publish", ("estimator", "work", ""), ("estimator", "sent", "")),
+    ("estimator -> controller: transport", ("estimator", "sent", ""), ("controller", "heard", "estimator")),
+    ("controller: wake-up", ("controller", "heard", "estimator"), ("controller", "work", "")),
+    ("controller: solve and publish", ("controller", "work", ""), ("controller", "sent", "")),
+    ("controller -> sim: transport", ("controller", "sent", ""), ("sim", "heard", "controller")),
+    ("controller -> recorder: transport", ("controller", "sent", ""), ("recorder", "heard", "controller")),
+    ("recorder: write and flush", ("recorder", "heard", "controller"), ("recorder", "sent", "")),
+    ("recorder -> sim: transport", ("recorder", "sent", ""), ("sim", "heard", "recorder")),
+)
+"""The hand-overs and the work of one period, in the order of the protocol (services/sim/README.md)."""
+
+
+def breakdown(marks: dict[tuple[str, str, str], dict[int, int]]) -> dict[str, list[float]]:
+    """Per stage, its duration in each period [ms]; also the sim's wait for the recorder after the
+    controller's answer, its step and publication after the last answer, and the period itself.
+
+    Periods are those every member marked, the first and the last left out (start and hold)."""
+    def get(mark: tuple[str, str, str]) -> dict[int, int]:
+        return marks.get(mark, {})
+
+    sent = get(("sim", "sent", ""))
+    ticks = sorted(sent)
+    need = [get(m) for _, a, b in STAGES for m in (a, b)]
+    periods = [k for k in ticks[1:-1] if all(k in m for m in need)]
+    out: dict[str, list[float]] = {label: [(get(b)[k] - get(a)[k]) / 1e6 for k in periods]
+                                   for label, a, b in STAGES}
+    nxt = dict(itertools.pairwise(ticks))
+    heard_ctl, heard_rec = get(("sim", "heard", "controller")), get(("sim", "heard", "recorder"))
+    out["sim: waiting for the recorder"] = [max(0, heard_rec[k] - heard_ctl[k]) / 1e6 for k in periods]
+    out["sim: step and publish after the last answer"] = [
+        (sent[nxt[k]] - max(heard_ctl[k], heard_rec[k])) / 1e6 for k in periods if k in nxt]
+    out["period"] = [(sent[nxt[k]] - sent[k]) / 1e6 for k in periods if k in nxt]
+    return out
+
+
+def wall_s(marks: dict[tuple[str, str, str], dict[int, int]]) -> float:
+    """From the sim's first step to its hold at the end [s] (its answers' marks)."""
+    ticks = sorted(marks.get(("sim", "sent", ""), {}).items())
+    return (ticks[-1][1] - ticks[1][1]) / 1e9
 
 
 def _auth_figures(walls_s: list[float], periods_ms: list[float]) -> dict[str, float]:
@@ -114,23 +144,28 @@ def run(argv: list[str]) -> BenchResult:
     run_closed_loop(sc, CONTROLLER)  # warm: solvers loaded
     t0 = time.perf_counter()
     inproc = run_closed_loop(sc, CONTROLLER)
+    bare_s = time.perf_counter() - t0
+    # The same parts as the stack: the estimator runs alongside on the sim's sensors (it does not
+    # steer in process: the controller flies the true state, as the paper's simulations do).
+    cfg = EstimatorConfig().model_copy(update={"vessel": sc.vessel, "apply_dead_zone": sc.dead_zone})
+    t0 = time.perf_counter()
+    run_closed_loop(sc, CONTROLLER, estimator=EstimatorCore(cfg))
     inproc_s = time.perf_counter() - t0
 
     walls: dict[bool, list[float]] = {True: [], False: []}
-    periods_ms: dict[bool, list[float]] = {True: [], False: []}
     stage_ms: dict[bool, dict[str, list[float]]] = {True: {}, False: {}}
     for _ in range(args.repeat):
         for auth in (True, False):  # alternate, so drift in the machine's load hits both
             with tempfile.TemporaryDirectory(prefix="seaway-bench-lockstep-") as tmp:
-                times = through_processes(Path(tmp) / "run", auth)
-            sim = times["sim"]
-            walls[auth].append((sim[-1] - sim[1]) / 1e9)  # from the first step to the hold at the end
-            periods_ms[auth].extend((b - a) / 1e6 for a, b in itertools.pairwise(sim[1:]))
-            _stages(times, stage_ms[auth])
+                marks = through_processes(Path(tmp) / "run", auth)
+            walls[auth].append(wall_s(marks))
+            for name, values in breakdown(marks).items():
+                stage_ms[auth].setdefault(name, []).extend(values)
     wall, wall_off = median(walls[True]), median(walls[False])
     sim_s = inproc.travel_time_s
     ratio = wall / inproc_s
-    res.add("in-process loop wall time [s]", inproc_s, note=f"{inproc.steps} periods")
+    res.add("in-process loop wall time [s]", inproc_s,
+            note=f"{inproc.steps} periods, estimator alongside; without it {bare_s:.3f} s")
     res.add("through the processes, warm [s]", wall, note=f"median of {args.repeat}, auth on")
     res.add("ratio processes / in process", ratio, f"<= {TARGET_RATIO:g}", ratio <= TARGET_RATIO)
     res.add("real-time factor through the processes", sim_s / wall, f">= {TARGET_REAL_TIME:g}",
@@ -138,14 +173,12 @@ def run(argv: list[str]) -> BenchResult:
     res.add("per period through the processes [ms]", 1e3 * wall / max(1, inproc.steps))
     for name, values in stage_ms[True].items():
         v_off = stage_ms[False].get(name, [])
-        res.add(f"{name} median [ms]", median(values), note=f"p99 {percentile(values, 99):.3f} ms"
+        res.add(f"{name}, median [ms]", median(values), note=f"p99 {percentile(values, 99):.3f} ms"
                 + (f"; auth off: median {median(v_off):.3f}, p99 {percentile(v_off, 99):.3f} ms"
                    if v_off else ""))
-    on, off = _auth_figures(walls[True], periods_ms[True]), _auth_figures(walls[False], periods_ms[False])
+    on = _auth_figures(walls[True], stage_ms[True]["period"])
+    off = _auth_figures(walls[False], stage_ms[False]["period"])
     res.add("through the processes, auth off [s]", wall_off, note=f"median of {args.repeat}")
-    for label, fig in (("on", on), ("off", off)):
-        res.add(f"period, auth {label}, median [ms]", fig["period_median_ms"],
-                note=f"p99 {fig['period_p99_ms']:.3f} ms")
     compare_auth(res, on, off, lambda k: f"auth on / off, {AUTH_FIGURES[k]}")
     res.meta = {"cpus": os.cpu_count(), "scenario": SCENARIO, "controller": CONTROLLER}
     return res

@@ -119,7 +119,7 @@ class ControllerService:
         self._states: dict[int, StateEstimate] = {}  # lockstep: the states of recent periods by stamp
         self._rethink = False  # lockstep: a mission request came while the current answer was hold
         if lockstep:
-            self.member = Member(bus, NAME, watched={keys.NAV_STATE.suffix})
+            self.member = Member(bus, NAME, watched={keys.NAV_STATE.suffix}, hears=("sim", "estimator"))
             bus.subscribe(keys.NAV_STATE, callback=self._on_state, inline=True)
         else:  # real time acts on the newest state
             self.states = bus.subscribe(keys.NAV_STATE, mode="latest")
@@ -299,6 +299,7 @@ class ControllerService:
         that time goes on to the next measurements; idle, paused or over, the answer is hold; so it
         is while the mission's solver is still being made (answered again once it is ready)."""
         t = period.stamp_ns
+        member.working(period)
         out: list[tuple[keys.KeySpec, Any]] = []
         try:
             with self.lock:

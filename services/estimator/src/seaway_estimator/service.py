@@ -229,6 +229,7 @@ class EstimatorLoop:
 
         Any other command held is dropped: an older one was never applied, and one stamped t_k or
         later cannot exist yet in this episode (it is a late one of an earlier episode)."""
+        member.working(period)
         with self.lock:
             for stamp in applied:
                 cmd = self.commands.get(stamp)
@@ -252,7 +253,7 @@ def run_lockstep(loop: EstimatorLoop, bus: Any, inbox: Inbox, stop: threading.Ev
     ``ready`` is called once the subscriptions are in place (it declares the health token, which
     makes the sim repeat its period for this newcomer)."""
     watched = {spec.suffix: kind for kind, spec in INPUT_KEYS.items()}
-    member = Member(bus, "estimator", watched=watched)
+    member = Member(bus, "estimator", watched=watched, hears=("sim",))
     member.stamps = loop.stamps  # one count of dropped stamps (the stats line's), lockstep bounds
     restarts: list[Period] = []
     member.on_restart = lambda _before, now: restarts.append(now)

@@ -31,6 +31,7 @@ from seaway.runtime.bus import Bus, RawSample
 from seaway.runtime.lockstep import Member, Period
 from seaway.runtime.run import RunDescription
 from seaway.runtime.service import base_parser, configure_logging, resolve_run, run_service
+from seaway.runtime.timeline import Timeline
 from seaway.runtime.zenoh_bus import ENV_CONFIG
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.frames import GeoOrigin
@@ -138,6 +139,7 @@ class SampleQueue:
         self.accepting = True
         self.arrived = threading.Event()  # wakes a lockstep writer at once (no polling delay)
         self._lock = threading.Lock()
+        self.timeline: Timeline | None = None  # a lockstep recorder's, when tracing
 
     def on_sample(self, sample: RawSample) -> None:
         # Called on the bus's delivery threads: keep it short (the bytes are already our own copy).
@@ -148,6 +150,11 @@ class SampleQueue:
                 self.dropped += 1
             return
         self.items.append((sample.key, sample.payload, sample.encoding, time.time_ns()))
+        if self.timeline is not None and "/lockstep/" in sample.key:
+            # Its arrival, not when it is written (seaway.runtime.timeline: the recorder's "heard").
+            m = _STAMP.search(sample.payload, 0, 64)
+            if m is not None:
+                self.timeline.mark("heard", int(m.group(1)), sample.key.rsplit("/", 1)[1])
         self.arrived.set()
 
 
@@ -346,6 +353,8 @@ def run(argv: Sequence[str]) -> int:
         if run.lockstep:
             exprs = lockstep_exprs(exprs, args.vessel)
             witness = LockstepWitness(ctx.bus, args.vessel, exprs)
+            if witness.member.timeline.marks is not None:
+                queue.timeline = witness.member.timeline
         for e in exprs:
             ctx.bus.subscribe_raw(e, queue.on_sample, inline=run.lockstep)
         ctx.ready()

@@ -204,6 +204,7 @@ class Lockstep:
 
     def step(self, cmd: ThrustCommand, period: Period) -> bool:
         """Step (c); False (nothing done) if the scenario changed since step (a)."""
+        self.member.working(period)
         with self.app.lock:
             if self.period != period:
                 return False

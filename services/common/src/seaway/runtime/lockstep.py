@@ -49,6 +49,7 @@ from seaway.contract.messages import LOCKSTEP_SERVICES, Message, PeriodDone
 from seaway.runtime.bus import Bus, TypedPublisher
 from seaway.runtime.ratelog import RateLimitedLog
 from seaway.runtime.stamps import StampBounds, StampGate
+from seaway.runtime.timeline import Timeline
 
 log = logging.getLogger("seaway.lockstep")
 
@@ -188,7 +189,11 @@ class Member:
 
     def __init__(self, bus: Bus, service: str, watched: Iterable[str] | None,
                  seq_start: int | None = None, subscribe: bool = True,
-                 consumed: bool = True) -> None:
+                 consumed: bool = True, hears: Iterable[str] | None = None) -> None:
+        """``hears``: the members whose answers this one needs (default: every other). Only the
+        sim's classify a period; an answer nobody waits for still costs every receiver a decode
+        on the period's critical path, so the estimator hears only the sim, the controller the
+        sim and the estimator."""
         self.bus = bus
         self.service = service
         self.ledger = Ledger(watched, consumed)
@@ -197,14 +202,15 @@ class Member:
         self.restarts: list[tuple[Period | None, Period]] = []
         self.repeats = 0
         self._seq = itertools.count(time.time_ns() if seq_start is None else seq_start)
-        self._pub = bus.publisher(keys.lockstep_spec(service), lockstep=True)
+        self._pub = bus.publisher(keys.lockstep_spec(service), lockstep=True, express=True)
         self._last: tuple[list[tuple[TypedPublisher[Any], Message]], PeriodDone] | None = None
         self._publishers: dict[str, TypedPublisher[Any]] = {}
         self.on_restart: Callable[[Period | None, Period], None] | None = None
         self.stamps = StampGate(f"{service} (lockstep)", log)
         self.ratelog = RateLimitedLog(log)  # repeated warnings, per kind and key
+        self.timeline = Timeline.from_env(service)  # seaway.runtime.timeline: off unless asked
         if subscribe:  # else the service feeds ``on_answer`` itself (the recorder, from its stream)
-            for other in LOCKSTEP_SERVICES:
+            for other in LOCKSTEP_SERVICES if hears is None else hears:
                 if other != service:
                     bus.subscribe(keys.lockstep_spec(other), callback=self.on_answer, inline=True)
 
@@ -225,17 +231,23 @@ class Member:
         return self.stamps.admit(suffix, stamp_ns, ref_ns, bounds)
 
     def saw(self, suffix: str, stamp_ns: int) -> None:
-        with self.changed:
-            self.ledger.see(suffix, stamp_ns)
-            self.version += 1
-            self.changed.notify_all()
+        self.saw_many(((suffix, stamp_ns),))
 
     def saw_many(self, seen: Iterable[tuple[str, int]]) -> None:
+        """Note messages seen; wake the loop only if an answer of the current period lacked some.
+
+        A member publishes its messages before its answer, so they almost always arrive first,
+        with nothing to do yet: waking the loop for each (2-3 a period) cost a thread hand-over on
+        the period's critical path. A member that follows no period (the sim) is always woken."""
         with self.changed:
+            ledger = self.ledger
+            waiting = ledger.period is None or any(
+                Period.of(a) == ledger.period and ledger.missing(a) for a in ledger.answers.values())
             for suffix, stamp_ns in seen:
-                self.ledger.see(suffix, stamp_ns)
-            self.version += 1
-            self.changed.notify_all()
+                ledger.see(suffix, stamp_ns)
+            if waiting:
+                self.version += 1
+                self.changed.notify_all()
 
     def on_answer(self, key: str, answer: PeriodDone) -> None:
         if not key.endswith(f"/lockstep/{answer.service}"):  # valid, but not who may say it there
@@ -243,6 +255,7 @@ class Member:
                                   "ignored", key, answer.service)
             return
         repeat = False
+        self.timeline.mark("heard", answer.stamp_ns, answer.service)
         with self.changed:
             before = self.ledger.period
             change = self.ledger.on_answer(answer)
@@ -283,9 +296,14 @@ class Member:
                           episode=period.episode, seq=next(self._seq), period_ns=period_ns,
                           published=listing(messages), consumed=consumed or {}, hold=hold,
                           covers=covers or {}, members=list(members))  # type: ignore[arg-type]
+        self.timeline.mark("sent", period.stamp_ns)  # its messages are out; the answer leaves now
         self._pub.put(done)
         self._last = (outs, done)
         return done
+
+    def working(self, period: Period) -> None:
+        """The service's loop starts on ``period`` (``seaway.runtime.timeline``)."""
+        self.timeline.mark("work", period.stamp_ns)
 
     def repeat(self, members: Sequence[str] | None = None) -> PeriodDone | None:
         """Publish the last answer again (same messages, new ``seq``), for a newcomer; the sim's
