@@ -75,13 +75,14 @@ def _ms(values: list[float], q: float | None = None) -> float:
 def parse_args(argv: list[str]) -> argparse.Namespace:
     ap = argparse.ArgumentParser(prog="seaway bench controller", description=__doc__.split("\n")[0])
     ap.add_argument("--conditions", default="1,2,3,4,5", help="paper conditions, e.g. 1,4")
-    ap.add_argument("--controllers", default=",".join(CONTROLLER_KINDS))
+    ap.add_argument("--controllers", default=",".join(CONTROLLER_KINDS),
+                    help=f"comma-separated controllers (default {','.join(CONTROLLER_KINDS)})")
     ap.add_argument("--repeats", type=int, default=3, help="runs per mission for the noise filter")
     ap.add_argument("--ipopt-every", type=int, default=3,
                     help="solve every N-th step's NLP with IPOPT too (1: every step)")
     ap.add_argument("--quick", action="store_true",
                     help="condition 1 only, 1 repeat, IPOPT on every 20th step")
-    ap.add_argument("--no-progress", action="store_true")
+    ap.add_argument("--no-progress", action="store_true", help="no progress bar (for logs)")
     args = ap.parse_args(argv)
     if args.quick:
         args.conditions, args.repeats, args.ipopt_every = "1", 1, 20

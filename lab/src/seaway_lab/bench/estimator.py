@@ -119,7 +119,7 @@ def _costs(res: BenchResult, runs: list[Run], vessel: str) -> None:
 
 
 def run(argv: list[str]) -> BenchResult:
-    ap = argparse.ArgumentParser(prog="seaway bench estimator")
+    ap = argparse.ArgumentParser(prog="seaway bench estimator", description=__doc__.split("\n\n")[0])
     ap.add_argument("--duration", type=float, default=180.0, help="simulated seconds per condition")
     ap.add_argument("--conditions", default=",".join(CONDITIONS),
                     help="comma-separated scenario names")

@@ -224,7 +224,8 @@ def run(argv: list[str]) -> BenchResult:
     ap.add_argument("--baseline-count", type=int, default=1000, help="per authentication setting")
     ap.add_argument("--rounds", type=int, default=2,
                     help="rounds per authentication setting, alternating on and off (default 2)")
-    ap.add_argument("--vessel-file", default="paper-boat")
+    ap.add_argument("--vessel-file", default="paper-boat",
+                    help="vessel file (name or path) for the thrust mapping (default paper-boat)")
     args = ap.parse_args(argv)
     rounds = max(1, args.rounds)
     os.environ.pop("SEAWAY_ZENOH_CONFIG", None)

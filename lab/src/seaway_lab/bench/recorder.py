@@ -184,10 +184,11 @@ def publish(argv: list[str]) -> int:
 
 
 def run(argv: list[str]) -> BenchResult:
-    ap = argparse.ArgumentParser(prog="seaway bench recorder")
+    ap = argparse.ArgumentParser(prog="seaway bench recorder", description=__doc__.split("\n\n")[0])
     ap.add_argument("--rate", type=float, default=TARGET_MSG_S, help="publisher rate [msg/s]")
     ap.add_argument("--seconds", type=float, default=6.0, help="publishing time [s]")
-    ap.add_argument("--baseline-messages", type=int, default=200_000)
+    ap.add_argument("--baseline-messages", type=int, default=200_000,
+                    help="messages written straight to a file, the baseline of the same run")
     args = ap.parse_args(argv)
     flush_every = max(1, int(args.rate * 0.05))  # what a 50 ms flush interval means at this rate
     res = BenchResult("recorder", f"Recorder throughput, {MESSAGE_BYTES}-byte messages")

@@ -95,7 +95,7 @@ def _plant_only(scenario_name: str, period_ns: int, periods: int) -> list[float]
 
 
 def run(argv: list[str]) -> BenchResult:
-    ap = argparse.ArgumentParser(prog="seaway bench sim")
+    ap = argparse.ArgumentParser(prog="seaway bench sim", description=__doc__.split("\n\n")[0])
     ap.add_argument("--scenario", default="lake", help="scenario name or path (default lake)")
     ap.add_argument("--period", type=float, default=0.1, help="control period [s]")
     ap.add_argument("--periods", type=int, default=3000, help="timed lockstep periods")

@@ -178,8 +178,10 @@ def run(argv: list[str]) -> BenchResult:
     ap = argparse.ArgumentParser(prog="seaway bench soak", description=__doc__.split("\n\n")[0])
     ap.add_argument("--duration", type=float, default=600.0,
                     help="wall seconds of missions back to back after the first (default 600)")
-    ap.add_argument("--scenario", default="paper-c1")
-    ap.add_argument("--controller", default="cc-empc")
+    ap.add_argument("--scenario", default="paper-c1",
+                    help="scenario flown again and again (default paper-c1)")
+    ap.add_argument("--controller", default="cc-empc", choices=["cc-empc", "eo-empc", "nmpc"],
+                    help="controller (default cc-empc)")
     ap.add_argument("--keep", type=Path, default=None,
                     help="run folder to keep (default: a temporary one, removed)")
     args = ap.parse_args(argv)

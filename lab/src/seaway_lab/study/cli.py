@@ -50,7 +50,8 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--rows", nargs="+", default=None, help="only these rows (e.g. '#1' '#4')")
     ap.add_argument("--columns", nargs="+", default=None, help="only these columns (e.g. cc-empc nmpc)")
     ap.add_argument("--timeout-s", type=float, default=DEFAULT_TIMEOUT_S, help="wall time limit of one run")
-    ap.add_argument("--no-figures", action="store_true")
+    ap.add_argument("--no-figures", action="store_true",
+                    help="tables only: do not draw the figures from the recordings (faster)")
     ap.add_argument("--redraw", type=Path, metavar="OUT", default=None,
                     help="draw the tables and figures of the study in OUT again, without running")
     ap.add_argument("--json", action="store_true", help="print the results as one JSON object")

@@ -74,9 +74,13 @@ def parse_size(text: str) -> int:
 
 
 def parser() -> argparse.ArgumentParser:
-    p = base_parser("recorder", "Record every sample on the bus to MCAP (bytes unchanged, with "
-                                "their JSON Schemas). 'seaway record recover IN OUT' repairs a "
-                                "truncated file.")
+    p = base_parser(
+        "recorder", prog="seaway record [run]",
+        description="Two commands. 'seaway record [run] [options]' (the default) records every "
+                    "sample on the bus to MCAP until Ctrl-C: bytes unchanged, with their JSON "
+                    "Schemas, flushed at least every --flush-interval so a crash loses little; the "
+                    "launcher starts it as the recorder. 'seaway record recover IN [OUT]' rebuilds a "
+                    "fully indexed file from one a crash cut short (seaway record recover --help).")
     p.add_argument("--out", default=None,
                    help="output folder or .mcap file (default runs/<UTC time>/recording.mcap)")
     p.add_argument("--vessels", default="",
@@ -93,7 +97,8 @@ def parser() -> argparse.ArgumentParser:
                    help=f"seconds between flushes, at most 0.1 (default {DEFAULT_FLUSH_S})")
     p.add_argument("--max-bytes", type=parse_size, default=None, help="rotate after this size (e.g. 512M)")
     p.add_argument("--max-seconds", type=float, default=None, help="rotate after this many seconds")
-    p.add_argument("--compression", choices=["zstd", "lz4", "none"], default="zstd")
+    p.add_argument("--compression", choices=["zstd", "lz4", "none"], default="zstd",
+                   help="chunk compression (default zstd; none writes fastest, files are larger)")
     p.add_argument("--chunk-size", type=parse_size, default=4 << 20,
                    help="end a chunk early past this many bytes (default 4M)")
     p.add_argument("--queue", type=int, default=200_000,
@@ -446,9 +451,9 @@ def _loop(writer: RecordingWriter, queue: SampleQueue, stop: threading.Event, fl
 def cmd_recover(argv: Sequence[str]) -> int:
     p = argparse.ArgumentParser(prog="seaway record recover",
                                 description="Rebuild a fully indexed MCAP file from a truncated one.")
-    p.add_argument("input", type=Path)
+    p.add_argument("input", type=Path, help="the truncated .mcap file (it is not changed)")
     p.add_argument("output", type=Path, nargs="?", default=None,
-                   help="default: INPUT with .recovered.mcap")
+                   help="where to write the repaired file (default: INPUT with .recovered.mcap)")
     args = p.parse_args(list(argv))
     out = args.output or args.input.with_suffix(".recovered.mcap")
     try:

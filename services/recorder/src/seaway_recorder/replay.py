@@ -24,7 +24,13 @@ import zenoh
 from seaway.contract import keys
 from seaway.runtime.bus import JSON_ENCODING, Bus, RawPublisher
 from seaway.runtime.credentials import ENV_IDENTITY
-from seaway.runtime.service import DEFAULT_VESSEL, configure_logging, install_stop_signals
+from seaway.runtime.service import (
+    DEFAULT_VESSEL,
+    add_log_level_option,
+    add_zenoh_config_option,
+    configure_logging,
+    install_stop_signals,
+)
 
 from seaway_recorder import recording
 
@@ -130,8 +136,8 @@ def parser() -> argparse.ArgumentParser:
                    help="do not republish these keys: a live service produces them (repeatable)")
     p.add_argument("--wait", type=float, default=1.0,
                    help="seconds to wait after joining the bus before the first sample (default 1)")
-    p.add_argument("--zenoh-config", default=None)
-    p.add_argument("--log-level", default="INFO")
+    add_zenoh_config_option(p)
+    add_log_level_option(p)
     return p
 
 

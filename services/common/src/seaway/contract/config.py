@@ -94,3 +94,18 @@ def deploy_path(*parts: str) -> Path:
     if root is None:
         raise ConfigError("cannot find the deploy/ folder: pass the file's path explicitly")
     return root.joinpath("deploy", *parts)
+
+
+def deploy_named(folder: str, name_or_path: str | Path, what: str) -> Path:
+    """``name_or_path`` if it is a file's path (it ends in .toml or .json), else
+    ``deploy/<folder>/<name>.toml``; a name with no such file raises ConfigError listing the names
+    there are (``what``: "scenario", "vessel", ... for the message)."""
+    p = Path(name_or_path)
+    if p.suffix in (".toml", ".json"):
+        return p
+    p = deploy_path(folder, f"{name_or_path}.toml")
+    if not p.is_file():
+        names = sorted(q.stem for q in p.parent.glob("*.toml"))
+        raise ConfigError(f"no {what} {str(name_or_path)!r} (deploy/{folder}/); there are: "
+                          + (", ".join(names) or "none") + "; or give a file's path")
+    return p

@@ -55,17 +55,36 @@ def configure_logging(name: str, level: str = "INFO") -> None:
     )
 
 
-def base_parser(name: str, description: str) -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog=f"seaway-{name.replace('_', '-')}", description=description)
+def add_vessel_option(p: argparse.ArgumentParser, wildcard: bool = False) -> None:
+    """``--vessel``: the key namespace seaway/<vessel>/... (``wildcard``: ``*`` for every vessel)."""
     p.add_argument("--vessel", default=os.environ.get(ENV_VESSEL, DEFAULT_VESSEL),
-                   help=f"vessel name, the key namespace seaway/<vessel>/... (default ${ENV_VESSEL} "
-                        f"or {DEFAULT_VESSEL})")
-    p.add_argument("--zenoh-config", default=None,
-                   help="Zenoh config file (default $SEAWAY_ZENOH_CONFIG or peers on loopback)")
+                   help=f"vessel name, the key namespace seaway/<vessel>/... "
+                        f"{'(* for every vessel) ' if wildcard else ''}(default ${ENV_VESSEL} or "
+                        f"{DEFAULT_VESSEL})")
+
+
+def add_zenoh_config_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--zenoh-config", default=None, metavar="FILE",
+                   help="Zenoh config file (default $SEAWAY_ZENOH_CONFIG, else peers on loopback)")
+
+
+def add_log_level_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--log-level", default=os.environ.get("SEAWAY_LOG_LEVEL", "INFO"),
+                   choices=["DEBUG", "INFO", "WARNING", "ERROR"], type=str.upper,
+                   help="what the log shows (default $SEAWAY_LOG_LEVEL or INFO)")
+
+
+def base_parser(name: str, description: str, prog: str | None = None) -> argparse.ArgumentParser:
+    """A service's command line: vessel, bus, credentials, log level and the run's description.
+    ``prog``: the name it is called by (default ``seaway-<name>``, the service's own script)."""
+    p = argparse.ArgumentParser(prog=prog or f"seaway-{name.replace('_', '-')}",
+                                description=description)
+    add_vessel_option(p)
+    add_zenoh_config_option(p)
     p.add_argument("--credentials", default=None, metavar="DIR",
                    help="the stack's credentials folder (default $SEAWAY_CREDENTIALS, else those of "
                         "the stack on the rendezvous port; 'none' runs without authentication)")
-    p.add_argument("--log-level", default=os.environ.get("SEAWAY_LOG_LEVEL", "INFO"))
+    add_log_level_option(p)
     runs.add_run_arguments(p)
     return p
 

@@ -32,7 +32,7 @@ from typing import Annotated, Literal
 import numpy as np
 from pydantic import Field, model_validator
 
-from seaway.contract.config import ConfigError, ConfigModel, Origin, deploy_path, parse_config, read_document
+from seaway.contract.config import ConfigError, ConfigModel, Origin, deploy_named, parse_config, read_document
 from seaway.contract.missions import MissionSpec
 from seaway.vessel.model import world_to_body
 
@@ -187,9 +187,7 @@ def parse_scenario(doc: dict, where: str = "scenario", base: Path | None = None)
 
 def load_scenario(name_or_path: str | Path) -> Scenario:
     """Load ``deploy/scenarios/<name>.toml`` or a path."""
-    p = Path(name_or_path)
-    if p.suffix not in (".toml", ".json"):
-        p = deploy_path("scenarios", f"{name_or_path}.toml")
+    p = deploy_named("scenarios", name_or_path, "scenario")
     return parse_scenario(read_document(p), str(p), p.parent)
 
 

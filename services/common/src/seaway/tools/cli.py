@@ -27,11 +27,38 @@ def _plugins(group: str) -> dict[str, object]:
     return {ep.name: ep for ep in entry_points(group=group)}
 
 
+def summary(doc: str | None) -> str:
+    """A docstring's first sentence without its ````seaway NAME ...``:`` heading: one help line."""
+    text = " ".join((doc or "").strip().split("\n\n")[0].split())
+    if text.startswith("``") and "``:" in text:
+        text = text.split("``:", 1)[1].strip()
+    end = text.find(". ")
+    return (text[:end] if end >= 0 else text).rstrip(".").replace("``", "")
+
+
+def _plugin_summary(ep: object) -> str:
+    """The one-line summary of a plugin command or benchmark: its module's docstring."""
+    import importlib
+
+    try:
+        return summary(importlib.import_module(ep.module).__doc__)  # type: ignore[attr-defined]
+    except Exception as err:  # a broken plugin must not break the help of the others
+        return f"(cannot load: {err})"
+
+
+def _listing(items: dict[str, str]) -> str:
+    width = max(map(len, items), default=0) + 2
+    return "\n".join(f"  {name.ljust(width)}{text}" for name, text in sorted(items.items()))
+
+
 def cmd_bench(argv: list[str]) -> int:
     benches = _plugins("seaway.benchmarks")
     if not argv or argv[0] in ("-h", "--help"):
-        print("usage: seaway bench NAME [--json] [options]\n\nbenchmarks installed: "
-              + (", ".join(sorted(benches)) or "none"))
+        print("usage: seaway bench NAME [--json] [options]\n\n"
+              "Run one benchmark: a table of its figures, with its targets; --json prints the same "
+              "figures as one JSON object. `seaway bench NAME --help` gives its options.\n\n"
+              "benchmarks:\n" + (_listing({n: _plugin_summary(ep) for n, ep in benches.items()})
+                                  or "  none installed"))
         return 0 if argv else 2
     name, rest = argv[0], argv[1:]
     if name not in benches:
@@ -49,54 +76,88 @@ def cmd_bench(argv: list[str]) -> int:
     return 0
 
 
-def _spec_by_suffix(suffix: str) -> keys.KeySpec:
-    spec = keys.spec_for_suffix(suffix)
-    if spec is not None:
-        return spec
+def _spec_by_key(key: str) -> tuple[keys.KeySpec, str | None]:
+    """The registered topic a key names, by suffix (``nav/state``) or in full
+    (``seaway/vessel1/nav/state``, ``seaway/*/nav/state``), and the vessel a full key names."""
+    vessel = None
+    if key.startswith(f"{keys.ROOT}/"):
+        parts = key.split("/", 2)
+        if len(parts) < 3:
+            raise SystemExit(f"seaway echo: {key!r} names no key; e.g. "
+                             f"{keys.NAV_STATE.key('vessel1')}")
+        vessel, key = parts[1], parts[2]
+    spec = keys.spec_for_suffix(key)
+    if spec is not None and spec.kind == "topic":
+        return spec, vessel
     known = ", ".join(s.suffix for s in keys.REGISTRY if s.kind == "topic")
-    raise SystemExit(f"seaway: unknown key {suffix!r}; topics: {known}")
+    raise SystemExit(f"seaway echo: {key!r} is not a registered topic; topics: {known} (a suffix, or "
+                     f"in full: {keys.NAV_STATE.key('vessel1')})")
+
+
+ECHO_LOOK_S = 3.0
+"""How long ``seaway echo`` waits for a first message before saying which vessels are on the bus."""
 
 
 def cmd_echo(argv: list[str]) -> int:
     from seaway.runtime.bus import Bus
-    from seaway.runtime.service import DEFAULT_VESSEL, install_stop_signals
+    from seaway.runtime.service import (
+        DEFAULT_VESSEL,
+        add_vessel_option,
+        add_zenoh_config_option,
+        install_stop_signals,
+    )
 
-    ap = argparse.ArgumentParser(prog="seaway echo", description="print the messages of one key")
-    ap.add_argument("key", help=f"registered key suffix, e.g. {keys.NAV_STATE.suffix}")
-    ap.add_argument("--vessel", default=DEFAULT_VESSEL, help="vessel name or * for all")
+    ap = argparse.ArgumentParser(
+        prog="seaway echo", description="print the messages of one key as JSON lines, until Ctrl-C "
+                                        "or --count; says which vessels are on the bus if none "
+                                        "publishes it")
+    ap.add_argument("key", help=f"a registered topic: its suffix ({keys.NAV_STATE.suffix}) or the "
+                                f"full key ({keys.NAV_STATE.key('vessel1')})")
+    add_vessel_option(ap, wildcard=True)
     ap.add_argument("--count", type=int, default=0, help="stop after N messages (0: never)")
-    ap.add_argument("--zenoh-config", default=None)
+    add_zenoh_config_option(ap)
     args = ap.parse_args(argv)
-    spec = _spec_by_suffix(args.key)
+    spec, named = _spec_by_key(args.key)
+    vessel = named or args.vessel
     stop = threading.Event()
     install_stop_signals(stop)
     n = 0
-    with Bus.open(args.vessel if args.vessel != "*" else DEFAULT_VESSEL, args.zenoh_config) as bus:
-        sub = bus.subscribe(spec, mode="fifo", vessel=args.vessel)
+    with Bus.open(vessel if vessel != "*" else DEFAULT_VESSEL, args.zenoh_config) as bus:
+        seen: set[str] = set()
+        watch = bus.watch_fleet_health(lambda v, _service, alive: seen.add(v) if alive else None)
+        sub = bus.subscribe(spec, mode="fifo", vessel=vessel)
+        look_until = time.monotonic() + ECHO_LOOK_S
         while not stop.is_set():
             msg = sub.get(0.1)
             if msg is None:
+                if look_until and time.monotonic() >= look_until:
+                    look_until = 0.0
+                    if vessel != "*" and vessel not in seen:
+                        print(f"seaway echo: no service of vessel {vessel!r} on the bus; vessels "
+                              f"seen: {', '.join(sorted(seen)) or 'none'} (still listening; "
+                              "Ctrl-C stops)", file=sys.stderr, flush=True)
                 continue
             print(msg.model_dump_json(), flush=True)
             n += 1
             if args.count and n >= args.count:
                 break
+        watch.undeclare()
     return 0
 
 
 def cmd_health(argv: list[str]) -> int:
     from seaway.contract.messages import Refusals, VehicleStatus
     from seaway.runtime.bus import Bus
-    from seaway.runtime.service import DEFAULT_VESSEL
+    from seaway.runtime.service import add_vessel_option, add_zenoh_config_option
 
     ap = argparse.ArgumentParser(
         prog="seaway health",
         description="list the services alive and what each one refused: access control (per "
                     "identity, action and key) and vehicle_io's MAVLink link (per reason)")
-    ap.add_argument("--vessel", default=DEFAULT_VESSEL)
+    add_vessel_option(ap)
     ap.add_argument("--wait", type=float, default=1.0, help="seconds to wait for peers first")
     ap.add_argument("--json", action="store_true", help="one JSON object instead of the table")
-    ap.add_argument("--zenoh-config", default=None)
+    add_zenoh_config_option(ap)
     args = ap.parse_args(argv)
     with Bus.open(args.vessel, args.zenoh_config) as bus:
         status = bus.subscribe(keys.VEHICLE_STATUS)
@@ -180,14 +241,46 @@ def cmd_router(argv: list[str]) -> int:
 BUILTIN = {"bench": cmd_bench, "echo": cmd_echo, "health": cmd_health, "schemas": cmd_schemas,
            "launch": cmd_launch, "router": cmd_router, "credentials": cmd_credentials,
            "mission": cmd_mission, "vehicle": cmd_vehicle}
+SUMMARIES = {
+    "bench": "run a benchmark (seaway bench --help lists them)",
+    "echo": "print the messages of one key as they come",
+    "health": "which services are alive, and what access control and vehicle_io refused",
+    "schemas": "write every message's JSON Schema to a folder",
+    "launch": "start a profile (sim, sim-batch, fleet, boat, shore, ...): every process, in order",
+    "router": "the Zenoh router of a boat or shore deployment, with the side's credentials",
+    "credentials": "make and show the credentials of a stack or a boat/shore deployment",
+    "mission": "send a mission (or start, pause, resume, abort) to a running vessel",
+    "vehicle": "arm, disarm, set the mode of, or read the status of a running vessel",
+}
+"""One line per built-in command for ``seaway --help``; plugins' come from their module docstring."""
+
+
+def version_text() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    def v(dist: str) -> str:
+        try:
+            return version(dist)
+        except PackageNotFoundError:
+            return "not installed"
+
+    return (f"seaway {v('seaway')} (Python {sys.version.split()[0]}, eclipse-zenoh {v('eclipse-zenoh')}, "
+            f"casadi {v('casadi')})")
 
 
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     plugins = _plugins("seaway.commands")
     commands = sorted({*BUILTIN, *plugins})
+    if argv and argv[0] == "--version":
+        print(version_text())
+        return 0
     if not argv or argv[0] in ("-h", "--help"):
-        print("usage: seaway COMMAND [args]\n\ncommands: " + ", ".join(commands))
+        lines = {n: SUMMARIES.get(n) or _plugin_summary(plugins[n]) for n in commands}
+        print("usage: seaway COMMAND [args]   (seaway COMMAND --help for its options)\n\n"
+              "Seaway: economic MPC for twin-thruster surface vessels, as processes on Zenoh.\n\n"
+              "commands:\n" + _listing(lines) + "\n\n  --version   the versions of Seaway and "
+              "its core packages")
         return 0 if argv else 2
     name, rest = argv[0], argv[1:]
     from seaway.runtime.credentials import CredentialsError

@@ -26,9 +26,10 @@ from seaway.runtime import credentials
 
 def main(argv: list[str]) -> int:
     ap = argparse.ArgumentParser(prog="seaway credentials", description=__doc__.split("\n\n")[0])
-    sub = ap.add_subparsers(dest="action", required=True)
+    sub = ap.add_subparsers(dest="action", required=True, metavar="ACTION",
+                            help="create: new credentials; show: what a folder holds")
     c = sub.add_parser("create", help="a new authority and a certificate per identity")
-    c.add_argument("folder", type=Path)
+    c.add_argument("folder", type=Path, help="folder to create (it must not hold credentials yet)")
     c.add_argument("--profile", default=None,
                    help="narrow each key to the process this launcher profile runs for it")
     c.add_argument("--days", type=int, default=credentials.DEFAULT_DAYS,
@@ -43,7 +44,7 @@ def main(argv: list[str]) -> int:
     c.add_argument("--harness", action="store_true",
                    help="also the test harness identity, which may do everything (tests only)")
     s = sub.add_parser("show", help="the identities in a folder and when they expire")
-    s.add_argument("folder", type=Path)
+    s.add_argument("folder", type=Path, help="a credentials folder")
     args = ap.parse_args(argv)
     if args.action == "create":
         producers = None

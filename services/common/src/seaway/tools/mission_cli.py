@@ -1,6 +1,6 @@
 """``seaway mission``: send a mission to a running vessel, or pause, resume or abort it.
 
-    seaway mission deploy/missions/square.toml      # a mission file
+    seaway mission deploy/missions/lake-square.toml # a mission file
     seaway mission paper-c1                          # the [mission] of a scenario
     seaway mission pause | resume | abort
     seaway mission status                            # the next mission/status message

@@ -15,7 +15,6 @@ refused or not delivered, 2 a bad command line (argparse's own code too).
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import threading
 import time
@@ -24,7 +23,7 @@ from dataclasses import dataclass
 from seaway.contract import keys
 from seaway.contract.messages import Message, MessageError, Reply
 from seaway.runtime.bus import Bus
-from seaway.runtime.service import DEFAULT_VESSEL, ENV_VESSEL
+from seaway.runtime.service import add_vessel_option, add_zenoh_config_option
 
 RETRY_PAUSE_S = 0.2
 """Between two attempts whose query found no queryable (the mesh is still forming)."""
@@ -47,14 +46,11 @@ class Outcome:
 
 def add_request_arguments(ap: argparse.ArgumentParser, waits_for: str) -> None:
     """``--vessel``, ``--timeout`` (for ``waits_for``, the answering service) and ``--zenoh-config``."""
-    ap.add_argument("--vessel", default=os.environ.get(ENV_VESSEL, DEFAULT_VESSEL),
-                    help=f"the vessel (key namespace seaway/<vessel>/...; default ${ENV_VESSEL} or "
-                         f"{DEFAULT_VESSEL})")
+    add_vessel_option(ap)
     ap.add_argument("--timeout", type=float, default=DEFAULT_TIMEOUT_S, metavar="S",
                     help=f"seconds to wait for the {waits_for} and its reply, in all (default "
                          f"{DEFAULT_TIMEOUT_S:g})")
-    ap.add_argument("--zenoh-config", default=None, metavar="FILE",
-                    help="Zenoh config (default $SEAWAY_ZENOH_CONFIG, else the local peer config)")
+    add_zenoh_config_option(ap)
 
 
 def timeout_error(args: argparse.Namespace) -> str | None:

@@ -45,7 +45,13 @@ from seaway.contract import access, keys
 from seaway.contract.config import ConfigError, deploy_path
 from seaway.runtime import credentials as creds
 from seaway.runtime import refusals
-from seaway.runtime.service import DEFAULT_VESSEL, ENV_VESSEL, configure_logging, install_stop_signals
+from seaway.runtime.service import (
+    DEFAULT_VESSEL,
+    ENV_VESSEL,
+    add_log_level_option,
+    configure_logging,
+    install_stop_signals,
+)
 from seaway.runtime.zenoh_bus import ZenohBus
 
 log = logging.getLogger("seaway.tools.router")
@@ -263,7 +269,7 @@ def parser() -> argparse.ArgumentParser:
                          f"{keys.health_wildcard('<vessel>').replace('*', 'SERVICE')} once the router "
                          "is up (the profiles use 'launcher')")
     ap.add_argument("--check", action="store_true", help="check the config, print what it does, exit")
-    ap.add_argument("--log-level", default=os.environ.get("SEAWAY_LOG_LEVEL", "INFO"))
+    add_log_level_option(ap)
     return ap
 
 

@@ -35,7 +35,7 @@ from typing import Any
 
 from pydantic import Field, model_validator
 
-from seaway.contract.config import ConfigError, ConfigModel, deploy_path, load_config
+from seaway.contract.config import ConfigError, ConfigModel, deploy_named, load_config
 
 STATE_NAMES = ("u_mps", "v_mps", "r_radps", "x_m", "y_m", "psi_rad")
 NX = 6
@@ -80,10 +80,7 @@ class VesselParams(ConfigModel):
 
 def load_vessel(name_or_path: str | Path) -> VesselParams:
     """Load a vessel file by path, or by name from ``deploy/vessels/<name>.toml``."""
-    p = Path(name_or_path)
-    if p.suffix not in (".toml", ".json"):
-        p = deploy_path("vessels", f"{name_or_path}.toml")
-    return load_config(p, VesselParams)
+    return load_config(deploy_named("vessels", name_or_path, "vessel file"), VesselParams)
 
 
 def check_vessel_files(**files: str | Path | None) -> None:

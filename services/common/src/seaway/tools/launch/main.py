@@ -46,9 +46,12 @@ import signal
 import socket
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 from pathlib import Path
+
+from rich.console import Console
 
 from seaway.contract import keys
 from seaway.contract.access import AccessError
@@ -254,14 +257,20 @@ def _mission_options(args: argparse.Namespace) -> list[str]:
 
 
 class StatusLine:
-    """The live line: per vessel, leg, speed, cross-track error, energy used and energy-to-go."""
+    """The live line: per vessel, leg, speed, cross-track error, energy used and energy-to-go.
 
-    def __init__(self, vessels: list[str]) -> None:
+    ``t`` is the run's time: the wall time since the start in real time; in lockstep the simulated
+    time (the latest state's stamp) and, beside it, how many times faster than real time it goes
+    (simulated over wall seconds since the first state)."""
+
+    def __init__(self, vessels: list[str], lockstep: bool = False) -> None:
+        self.lockstep = lockstep
         self.vessels = list(vessels)
         self.mission: dict[str, MissionStatus | None] = dict.fromkeys(self.vessels)
         self.state: dict[str, StateEstimate | None] = dict.fromkeys(self.vessels)
         self.tty = sys.stdout.isatty()
         self._last_print = 0.0
+        self._first: tuple[float, float] | None = None  # lockstep: (sim s, wall s) of the first state
 
     def watch(self, bus: Bus) -> None:
         """Keep the latest mission status and state of every vessel (on the bus's threads)."""
@@ -283,8 +292,9 @@ class StatusLine:
         return " || ".join(self.vessel_text(v, t_s) for v in self.vessels)
 
     def vessel_text(self, vessel: str, t_s: float) -> str:
+        """``t_s``: wall seconds since the run started."""
         m, s = self.mission[vessel], self.state[vessel]
-        parts = [vessel, f"t {t_s:5.0f} s"]
+        parts = [vessel, self.time_text(s, t_s)]
         if m is not None:
             parts.append(f"{m.state} leg {m.active_leg}/{max(m.waypoint_count - 1, 0)}")
             if m.cross_track_m is not None:
@@ -299,6 +309,17 @@ class StatusLine:
             parts.append(f"speed {(s.u_mps ** 2 + s.v_mps ** 2) ** 0.5:4.2f} m/s")
         return " | ".join(parts)
 
+    def time_text(self, state: StateEstimate | None, wall_s: float) -> str:
+        if not self.lockstep:
+            return f"t {wall_s:5.0f} s"
+        if state is None:
+            return "sim t     - s"
+        sim_s = state.stamp_ns / 1e9
+        if self._first is None or sim_s < self._first[0]:  # the first state, or a new episode
+            self._first = (sim_s, wall_s)
+        d_sim, d_wall = sim_s - self._first[0], wall_s - self._first[1]
+        return f"sim t {sim_s:5.0f} s" + (f" ({d_sim / d_wall:4.0f}x real time)" if d_wall > 0.5 else "")
+
     def show(self, t_s: float, final: bool = False) -> None:
         now = time.monotonic()
         if self.tty:
@@ -310,6 +331,7 @@ class StatusLine:
             self._last_print = now
 
 
+REPORT_TIMEOUT_S = 120.0  # the final report is skipped (with the command to make it) past this
 LINK_WAIT_S = 20.0  # how long the start-up requests wait for vehicle_io's autopilot link
 
 
@@ -489,7 +511,7 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
             # inline: on Zenoh's own receive thread (a short handler; hundreds a second in lockstep)
             bus.subscribe_raw(spec.key(vessel), lambda sample, v=vessel, s=suffix:
                               sup.on_sample(v, s, sample.payload), inline=True)
-        status = StatusLine(vessels)
+        status = StatusLine(vessels, lockstep=run.lockstep)
         status.watch(bus)
         error = sup.start_all(stop)
         if error:
@@ -599,23 +621,33 @@ def _final_report(run_dir: Path, scenario: str, mission_file: Path | None = None
     if mission_file is not None:
         cmd += ["--mission", str(mission_file)]
     hurried = sup.hurried if sup is not None else 0
-    try:
-        # Its output to this process's real stdout: fd 1 itself is the refusal counter's pipe
-        # (seaway.runtime.refusals), which would swallow the report.
-        sys.stdout.flush()
-        proc = subprocess.Popen(cmd, start_new_session=True, stdout=sys.stdout.fileno())
-    except OSError as err:
-        print(f"(no report: {err})")
-        return
-    deadline = time.monotonic() + 120.0
-    while proc.poll() is None:
-        skipped = sup is not None and sup.hurried > hurried
-        if skipped:
-            sup.note_hurry()
-        if skipped or time.monotonic() > deadline:
-            proc.kill()
-            proc.wait()
-            why = "Ctrl-C" if skipped else "it took over 120 s"
-            print(f"(report skipped: {why}; make it with: {' '.join(cmd)})", flush=True)
+    console = Console(file=sys.stdout)  # the real stdout: fd 1 is the refusal counter's pipe
+    # (seaway.runtime.refusals). The report's output is kept until it is done, then shown whole, so
+    # that the progress line and the report's table do not tear each other.
+    with tempfile.TemporaryFile("w+") as out:
+        try:
+            sys.stdout.flush()
+            proc = subprocess.Popen(cmd, start_new_session=True, stdout=out, stderr=subprocess.STDOUT)
+        except OSError as err:
+            print(f"(no report: {err})")
             return
-        time.sleep(0.05)
+        t0 = time.monotonic()
+        if not console.is_terminal:
+            print("making the report (metrics, plots) ...", flush=True)
+        with console.status("making the report (metrics, plots) ...") as shown:
+            while proc.poll() is None:
+                skipped = sup is not None and sup.hurried > hurried
+                if skipped:
+                    sup.note_hurry()
+                if skipped or time.monotonic() - t0 > REPORT_TIMEOUT_S:
+                    proc.kill()
+                    proc.wait()
+                    shown.stop()
+                    why = "Ctrl-C" if skipped else f"it took over {REPORT_TIMEOUT_S:g} s"
+                    print(f"(report skipped: {why}; make it with: {' '.join(cmd)})", flush=True)
+                    return
+                shown.update(f"making the report (metrics, plots): {time.monotonic() - t0:4.0f} s")
+                time.sleep(0.05)
+        out.seek(0)
+        sys.stdout.write(out.read())
+        sys.stdout.flush()
