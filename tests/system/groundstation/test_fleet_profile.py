@@ -16,8 +16,6 @@ import signal
 import subprocess
 import sys
 import threading
-import urllib.error
-import urllib.request
 from collections import defaultdict
 from typing import Any
 
@@ -27,6 +25,7 @@ from seaway.runtime.bus import Bus
 from seaway.runtime.credentials import ENV_IDENTITY
 
 from tests.conftest import BIN, wait_for
+from tests.system.groundstation.helpers import http
 
 pytestmark = pytest.mark.system  # about 37 s on a busy 2-core machine: not slow
 A, B = "vessel1", "vessel2"
@@ -40,18 +39,6 @@ PARAMS = {"coa_radius_m": 2.0, "task_power_w": 250.0, "controller": "cc-empc"}
 PAGE_LINE = re.compile(r"^ground station: (http://127\.0\.0\.1:\d+/)#token=(\S+)$", re.MULTILINE)
 
 
-def http(method: str, url: str, body: Any = None, token: str | None = None) -> tuple[int, Any]:
-    data = None if body is None else json.dumps(body).encode()
-    req = urllib.request.Request(url, data=data, method=method)
-    if data is not None:
-        req.add_header("Content-Type", "application/json")
-    if token:
-        req.add_header("Authorization", f"Bearer {token}")
-    try:
-        with urllib.request.urlopen(req, timeout=60) as r:
-            return r.status, json.loads(r.read())
-    except urllib.error.HTTPError as err:
-        return err.code, json.loads(err.read())
 
 
 class Heard:

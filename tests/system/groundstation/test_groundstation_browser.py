@@ -20,7 +20,6 @@ import os
 import re
 import shutil
 import signal
-import socket
 import subprocess
 import sys
 from pathlib import Path
@@ -28,6 +27,7 @@ from pathlib import Path
 import pytest
 
 from tests.conftest import BIN, wait_for
+from tests.system.groundstation.helpers import udp_port_free
 
 pytestmark = [pytest.mark.system, pytest.mark.slow]
 
@@ -44,13 +44,6 @@ SIM_MAVLINK_PORT = 14580
 """The sim profile's simulated PX4 listens here (one such stack per machine at a time)."""
 
 
-def udp_port_free(port: int) -> bool:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        try:
-            s.bind(("127.0.0.1", port))
-        except OSError:
-            return False
-    return True
 
 
 def number(text: str) -> float:

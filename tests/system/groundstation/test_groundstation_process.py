@@ -7,8 +7,6 @@ from __future__ import annotations
 import json
 import re
 import signal
-import urllib.error
-import urllib.request
 from typing import Any
 
 import pytest
@@ -18,23 +16,12 @@ from seaway.runtime.bus import Bus
 from websockets.sync.client import connect
 
 from tests.conftest import BIN, wait_for
+from tests.system.groundstation.helpers import http
 
 pytestmark = pytest.mark.system
 VESSEL = "gs-test-boat"
 
 
-def http(method: str, url: str, body: Any = None, token: str | None = None) -> tuple[int, Any]:
-    data = None if body is None else json.dumps(body).encode()
-    req = urllib.request.Request(url, data=data, method=method)
-    if data is not None:
-        req.add_header("Content-Type", "application/json")
-    if token:
-        req.add_header("Authorization", f"Bearer {token}")
-    try:
-        with urllib.request.urlopen(req, timeout=10) as r:
-            return r.status, json.loads(r.read())
-    except urllib.error.HTTPError as err:
-        return err.code, json.loads(err.read())
 
 
 def test_groundstation_process_serves_the_fleet_and_guards_commands(procs, zenoh_env) -> None:

@@ -8,16 +8,14 @@ from __future__ import annotations
 import json
 import re
 import signal
-import socket
 import sys
-import urllib.error
-import urllib.request
 from pathlib import Path
-from typing import Any
 
 import pytest
 
 from tests.conftest import wait_for
+from tests.system.groundstation.helpers import http_raw as http
+from tests.system.groundstation.helpers import udp_port_free
 
 pytestmark = pytest.mark.system
 SIM_MAVLINK_PORT = 14580
@@ -25,27 +23,8 @@ SIM_MAVLINK_PORT = 14580
 PAGE_LINE = re.compile(r"^ground station: (http://127\.0\.0\.1:(\d+)/)#token=(\S+)$", re.MULTILINE)
 
 
-def udp_port_free(port: int) -> bool:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        try:
-            s.bind(("127.0.0.1", port))
-        except OSError:
-            return False
-    return True
 
 
-def http(method: str, url: str, body: Any = None, token: str | None = None) -> tuple[int, bytes]:
-    data = None if body is None else json.dumps(body).encode()
-    req = urllib.request.Request(url, data=data, method=method)
-    if data is not None:
-        req.add_header("Content-Type", "application/json")
-    if token:
-        req.add_header("Authorization", f"Bearer {token}")
-    try:
-        with urllib.request.urlopen(req, timeout=30) as r:
-            return r.status, r.read()
-    except urllib.error.HTTPError as err:
-        return err.code, err.read()
 
 
 def test_the_launcher_prints_the_page_address_and_the_token_stays_out_of_the_run(

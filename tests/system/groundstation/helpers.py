@@ -1,0 +1,43 @@
+"""What the ground station's system tests share: HTTP to the real server, and waiting for a port."""
+
+from __future__ import annotations
+
+import json
+import socket
+import urllib.error
+import urllib.request
+from typing import Any
+
+
+def http_raw(method: str, url: str, body: Any = None, token: str | None = None,
+             timeout_s: float = 60.0) -> tuple[int, bytes]:
+    """One request (``body`` sent as JSON, ``token`` as the bearer); the status and the raw body,
+    an HTTP error included (a refusal is an answer, not an exception)."""
+    data = None if body is None else json.dumps(body).encode()
+    req = urllib.request.Request(url, data=data, method=method)
+    if data is not None:
+        req.add_header("Content-Type", "application/json")
+    if token:
+        req.add_header("Authorization", f"Bearer {token}")
+    try:
+        with urllib.request.urlopen(req, timeout=timeout_s) as r:
+            return r.status, r.read()
+    except urllib.error.HTTPError as err:
+        return err.code, err.read()
+
+
+def http(method: str, url: str, body: Any = None, token: str | None = None,
+         timeout_s: float = 60.0) -> tuple[int, Any]:
+    """``http_raw`` with the body decoded from JSON."""
+    status, raw = http_raw(method, url, body, token, timeout_s)
+    return status, json.loads(raw)
+
+
+def udp_port_free(port: int) -> bool:
+    """Whether ``port`` can be bound on loopback (the sim profile's fixed MAVLink port is free)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        try:
+            s.bind(("127.0.0.1", port))
+        except OSError:
+            return False
+    return True
