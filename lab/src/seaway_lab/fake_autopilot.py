@@ -43,6 +43,10 @@ ARDUPILOT_DEFAULT_PARAMS: dict[str, tuple[float, int]] = {
     "RC_OVERRIDE_TIME": (3.0, 9), "RC_OPTIONS": (0, 4), "PILOT_STEER_TYPE": (1, 2),
     "SYSID_MYGCS": (255, 4), "FRAME_CLASS": (2, 2), "MOT_SLEWRATE": (0, 4),
     "MOT_THST_ASYM": (1.0, 9), "RC1_DZ": (0, 4), "RC3_DZ": (0, 4),
+    # the RC calibration vehicle_io inverts (no dead zone, trim mid-range: the plain mapping)
+    "RCMAP_ROLL": (1, 1), "RCMAP_THROTTLE": (3, 1),
+    **{f"RC{ch}_{f}": (v, 4) for ch in (1, 3)
+       for f, v in (("MIN", 1000), ("TRIM", 1500), ("MAX", 2000), ("REVERSED", 0))},
 }
 
 

@@ -125,29 +125,48 @@ def test_px4_failsafe_assessment(changes, verdict, warns):
     assert not a.blocking
 
 
+AP_RC = {f"RC{ch}_{f}": v for ch in (1, 3)
+         for f, v in {"MIN": 1000, "TRIM": 1500, "MAX": 2000, "DZ": 30, "REVERSED": 0}.items()}
 AP_OK = {"FS_THR_ENABLE": 1, "FS_ACTION": 2, "FS_TIMEOUT": 1.5, "FS_GCS_ENABLE": 0,
          "RC_OVERRIDE_TIME": 3.0, "RC_OPTIONS": 0, "PILOT_STEER_TYPE": 1, "SYSID_MYGCS": 255,
-         "FRAME_CLASS": 2, "MOT_SLEWRATE": 0, "MOT_THST_ASYM": 1.0, "RC1_DZ": 0, "RC3_DZ": 0}
+         "FRAME_CLASS": 2, "MOT_SLEWRATE": 0, "MOT_THST_ASYM": 1.0, "RCMAP_ROLL": 1,
+         "RCMAP_THROTTLE": 3, **AP_RC}
+GCS_HOLD = {"FS_THR_ENABLE": 0, "FS_GCS_ENABLE": 1}
 
 
-@pytest.mark.parametrize(("changes", "verdict", "warns", "blocks"), [
-    ({}, "stops", 0, 0),
-    ({"FS_THR_ENABLE": 0, "FS_GCS_ENABLE": 1}, "stops", 0, 0),  # GCS failsafe -> Hold
-    ({"FS_THR_ENABLE": 0, "FS_GCS_ENABLE": 1, "FS_ACTION": 1}, "takes_over", 0, 0),  # RTL
-    ({"FS_THR_ENABLE": 0, "FS_GCS_ENABLE": 1, "FS_ACTION": 0}, "none", 0, 0),
-    ({"FS_THR_ENABLE": 0}, "unknown", 0, 0),
-    ({"FS_THR_ENABLE": 0, "RC_OVERRIDE_TIME": -1}, "none", 0, 0),  # overrides never expire
-    ({"PILOT_STEER_TYPE": 0}, "stops", 0, 1),  # our mapping would be wrong: blocks thrust
-    ({"SYSID_MYGCS": 254}, "stops", 1, 0),
-    ({"RC_OPTIONS": 2}, "stops", 1, 0),
-    ({"MOT_SLEWRATE": 100}, "stops", 1, 0),
-    ({"MOT_THST_ASYM": 0.7}, "stops", 1, 0),
-    ({"RC1_DZ": 30, "RC3_DZ": 30}, "stops", 2, 0),
-    ({"FS_GCS_ENABLE": None}, "unknown", 0, 0),
+@pytest.mark.parametrize(("changes", "receiver", "verdict", "warns", "blocks"), [
+    ({}, "absent", "stops", 0, 0),  # radio failsafe 0.5 s after the overrides stop
+    ({}, "present", "takes_over", 0, 0),  # held RC_OVERRIDE_TIME, then the sticks
+    ({}, "unknown", "unknown", 0, 0),  # the two cases differ: vehicle_io cannot know
+    ({"RC_OVERRIDE_TIME": -1}, "present", "none", 0, 0),  # overrides never expire
+    (GCS_HOLD, "unknown", "stops", 0, 0),  # GCS failsafe -> Hold either way
+    ({**GCS_HOLD, "FS_ACTION": 1}, "absent", "takes_over", 0, 0),  # RTL
+    ({**GCS_HOLD, "FS_ACTION": 0}, "absent", "none", 0, 0),
+    ({"FS_THR_ENABLE": 0}, "absent", "none", 0, 0),  # the last override stays in radio_in
+    ({"PILOT_STEER_TYPE": 0}, "absent", "stops", 0, 1),  # our mapping would be wrong
+    ({"SYSID_MYGCS": 254}, "absent", "stops", 1, 0),
+    ({"RC_OPTIONS": 2}, "absent", "stops", 0, 1),  # overrides ignored: we cannot drive
+    ({"RC_OVERRIDE_TIME": 0}, "absent", "stops", 0, 1),  # overrides disabled
+    ({"MOT_SLEWRATE": 100}, "absent", "stops", 1, 0),
+    ({"MOT_THST_ASYM": 0.7}, "absent", "stops", 1, 0),
+    ({"RCMAP_THROTTLE": 2}, "absent", "stops", 1, 0),
+    ({"RC3_MIN": None}, "absent", "stops", 1, 0),  # compensation assumes the default
+    ({"RC1_DZ": 600}, "absent", "stops", 0, 1),  # a calibration that cannot be inverted
+    ({"FS_GCS_ENABLE": None}, "absent", "unknown", 0, 0),
 ])
-def test_ardupilot_failsafe_assessment(changes, verdict, warns, blocks):
+def test_ardupilot_failsafe_assessment(changes, receiver, verdict, warns, blocks):
     params = {k: float(v) for k, v in {**AP_OK, **changes}.items() if v is not None}
-    a = AP.assess_failsafe(params, 255)
+    a = AP.assess_failsafe(params, 255, receiver)
     assert a.verdict == verdict, a.summary
     assert len(a.warnings) == warns, a.warnings
     assert len(a.blocking) == blocks, a.blocking
+
+
+def test_ardupilot_failsafe_summary_states_the_timing_with_and_without_a_receiver():
+    params = {k: float(v) for k, v in AP_OK.items()}
+    absent = AP.assess_failsafe(params, 255, "absent").summary
+    assert "held 0.5 s" in absent and "FS_ACTION=Hold" in absent and "FS_TIMEOUT=1.5 s" in absent
+    present = AP.assess_failsafe(params, 255, "present").summary
+    assert "held for RC_OVERRIDE_TIME=3 s" in present and "sticks" in present
+    both = AP.assess_failsafe(params, 255, "unknown").summary
+    assert "held 0.5 s" in both and "RC_OVERRIDE_TIME=3 s" in both

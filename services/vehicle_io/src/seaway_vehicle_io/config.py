@@ -15,7 +15,7 @@ from pydantic import Field, field_validator, model_validator
 from seaway.contract.config import ConfigModel
 from seaway.vessel.mavlink_signing import read_key
 
-from seaway_vehicle_io import profile
+from seaway_vehicle_io import profile, rates
 
 AUTOPILOT_CHOICES: tuple[str, ...] = profile.choices()
 """``auto`` and every registered autopilot profile's name (``profile.py``)."""
@@ -89,6 +89,26 @@ class VehicleIoConfig(ConfigModel):
         default=1.0, gt=0, description="wait this long for each PARAM_VALUE before asking again [s]"
     )
     param_attempts: int = Field(default=3, ge=1, le=10)
+    message_rates_hz: dict[str, float] = Field(
+        default_factory=lambda: dict(rates.DEFAULT_RATES_HZ),
+        description="telemetry rates asked of the autopilot at each connection (ArduPilot: "
+                    "SET_MESSAGE_INTERVAL, REQUEST_DATA_STREAM as the fallback) and checked at "
+                    f"start-up (>= {rates.TOLERANCE:.0%} of each); message name -> Hz. Names: "
+                    f"{', '.join(sorted(rates.TELEMETRY))}; empty: ask for nothing",
+    )
+    rc_receiver: profile.RcReceiver = Field(
+        default="unknown",
+        description="is an RC receiver wired to the autopilot? 'absent', 'present' or 'unknown'. "
+                    "MAVLink cannot tell, and it decides what ArduPilot does when vehicle_io dies: "
+                    "without one its radio failsafe stops the thrusters 0.5 s after our last "
+                    "command; with one the last command is held for RC_OVERRIDE_TIME, then the "
+                    "sticks drive",
+    )
+    statustext_grace_s: float = Field(
+        default=0.5, ge=0, le=5,
+        description="after a refused arm, wait up to this long for the autopilot's STATUSTEXT "
+                    "saying why (ArduPilot sends it with or just after the ACK) [s]",
+    )
     forward_thrust_only_when_armed: bool = Field(
         default=True,
         description="send neutral while the autopilot reports disarmed, so arming never starts "
@@ -108,6 +128,12 @@ class VehicleIoConfig(ConfigModel):
         if path is not None:
             read_key(path)  # KeyFileError (a ValueError) names the file and what it must hold
         return path
+
+    @field_validator("message_rates_hz")
+    @classmethod
+    def _check_rates(cls, value: dict[str, float]) -> dict[str, float]:
+        rates.plan(value)  # ValueError names the message or the rate and what is allowed
+        return value
 
     @model_validator(mode="after")
     def _check_timing(self) -> VehicleIoConfig:

@@ -34,6 +34,7 @@ from seaway.runtime.ratelog import RateLimitedLog
 from seaway.vessel.mavlink_signing import ACCEPTED, SignatureVerifier, signing_timestamp
 
 from seaway_vehicle_io import profile as profiles
+from seaway_vehicle_io import rates as telemetry_rates
 from seaway_vehicle_io.authority import (
     FOREIGN_SOURCE,
     Address,
@@ -62,6 +63,8 @@ from seaway_vehicle_io.conversions import (
     local_position_from_local_position_ned,
 )
 from seaway_vehicle_io.profile import FailsafeAssessment, ManualControlAxes, Profile
+from seaway_vehicle_io.rates import MAV_CMD_SET_MESSAGE_INTERVAL, RateCheck
+from seaway_vehicle_io.statustext import StatusTexts, matching
 from seaway_vehicle_io.thrust import ThrusterLimits, normalise_pair
 from seaway_vehicle_io.timesync import BootTimeOffset
 from seaway_vehicle_io.watchdog import FAILSAFE_THRUST_STALE, ThrustWatchdog
@@ -119,6 +122,16 @@ class SendParamRequestRead:
 
 
 @dataclass(frozen=True)
+class SendRequestDataStream:
+    """REQUEST_DATA_STREAM (start): the stream-rate fallback of the rate request (``rates.py``)."""
+
+    target_system: int
+    target_component: int
+    stream_id: int
+    rate_hz: int
+
+
+@dataclass(frozen=True)
 class Publish:
     message: Message
 
@@ -132,8 +145,8 @@ class LockPeer:
     address: Address
 
 
-Output = (SendHeartbeat | SendManualControl | SendCommandLong | SendParamRequestRead | Publish
-          | LockPeer)
+Output = (SendHeartbeat | SendManualControl | SendCommandLong | SendParamRequestRead
+          | SendRequestDataStream | Publish | LockPeer)
 
 
 # -- state pieces ---------------------------------------------------------------------------------
@@ -157,14 +170,29 @@ class LinkState:
 
 @dataclass
 class ParamCheck:
-    """The start-up read of the autopilot's loss-failsafe parameters."""
+    """The start-up read of the autopilot's loss-failsafe parameters.
+
+    ``wanted`` are the names the assessment uses; ``alternatives`` the names each is asked under
+    (a parameter renamed between firmware versions is asked under all its names at once, and the
+    first answer settles it: no waiting for a name the firmware does not have)."""
 
     wanted: tuple[str, ...] = ()
+    alternatives: dict[str, tuple[str, ...]] = field(default_factory=dict)
     values: dict[str, float] = field(default_factory=dict)
+    answered_as: dict[str, str] = field(default_factory=dict)
     attempts: dict[str, int] = field(default_factory=dict)
     last_sent_mono_ns: int = 0
     done: bool = False
     assessment: FailsafeAssessment | None = None
+
+    def names_for(self, wanted: str) -> tuple[str, ...]:
+        return self.alternatives.get(wanted, (wanted,))
+
+    def wanted_for(self, name: str) -> str | None:
+        """The assessment's name for a PARAM_VALUE's ``name`` (None: not asked for)."""
+        if name in self.wanted:
+            return name
+        return next((w for w, names in self.alternatives.items() if name in names), None)
 
 
 class VehicleIoCore:
@@ -185,6 +213,9 @@ class VehicleIoCore:
         self.watchdog = ThrustWatchdog(config.thrust_timeout_s)
         self.commands = CommandTracker()
         self.params = ParamCheck()
+        self.rate_check: RateCheck | None = None
+        self.texts = StatusTexts()
+        self.mapper: Any = None  # (L, R) -> axes for this autopilot's parameters; None: not yet
         self.gps_quality: GpsQuality | None = None
         self.gps_quality_mono_ns = 0
         self.battery = BatteryReading(None, None)
@@ -243,6 +274,8 @@ class VehicleIoCore:
         if not link.ok:
             return []  # no autopilot locked yet: nothing else is ours to interpret
         self.counts[mtype] = self.counts.get(mtype, 0) + 1
+        if self.rate_check is not None:
+            self.rate_check.count(mtype, now.mono_ns)
         handler = self._HANDLERS.get(mtype)
         if handler is None:
             return []
@@ -303,6 +336,10 @@ class VehicleIoCore:
             if now.mono_ns >= self._next_mc_ns:
                 self._next_mc_ns = _next_after(self._next_mc_ns, self._period_mc_ns, now.mono_ns)
         out.extend(self._param_requests(now))
+        rates_out = self._rate_check_tick(now)
+        if rates_out is not None:
+            out.extend(rates_out)
+            status_now = True
         self.refusals.flush(now.mono_ns)  # a refused source held back by the log's rate limit
         if status_now or now.mono_ns >= self._next_status_ns:
             self._update_rates(now)
@@ -320,6 +357,10 @@ class VehicleIoCore:
             due.append(self.link.last_heartbeat_mono_ns + round(self.cfg.heartbeat_timeout_s * 1e9))
         if self.link.ok and not self.params.done and self.params.wanted:
             due.append(self.params.last_sent_mono_ns + round(self.cfg.param_timeout_s * 1e9))
+        if self.link.ok and self.rate_check is not None:
+            rc_due = self.rate_check.next_due_ns()
+            if rc_due is not None:
+                due.append(rc_due)
         return min(due)
 
     # ===========================================================================================
@@ -423,6 +464,8 @@ class VehicleIoCore:
             else self.params.assessment.verdict,
             autopilot_loss_failsafe_summary="" if self.params.assessment is None
             else self.params.assessment.summary,
+            telemetry_rates_short=None if self.rate_check is None or self.rate_check.result is None
+            else dict(self.rate_check.result),
             thrust_withheld=self._withheld,
         )
 
@@ -483,11 +526,13 @@ class VehicleIoCore:
                  link.target_system, link.target_component, address_key(address),
                  "ARMED" if link.armed else "disarmed", link.mode, link.connects,
                  ", signing on" if self.verifier is not None else "")
-        self.params = ParamCheck(wanted=profile.failsafe_params if self.cfg.check_failsafe_params
-                                 else (), done=not self.cfg.check_failsafe_params)
+        self._start_param_check(profile)
+        self.mapper = None if self.cfg.check_failsafe_params else profile.mapper({})
+        self.texts.clear()
         out: list[Output] = [LockPeer(address), Publish(self.status(now))]
         out.extend(self._manual_control(now))  # start the stream at once (PX4 arms only with it)
         out.extend(self._param_requests(now))
+        out.extend(self._request_rates(profile, now))
         return out
 
     def _apply_heartbeat(self, msg: Any, now: Now, announce: bool = True) -> None:
@@ -497,6 +542,13 @@ class VehicleIoCore:
         mode = link.profile.decode_mode(msg.base_mode, msg.custom_mode)
         if announce and (armed != link.armed or mode != link.mode):
             log.info("autopilot %s, mode %s", "ARMED" if armed else "disarmed", mode)
+        if (link.mode in link.profile.booting_modes and mode not in link.profile.booting_modes
+                and self.cfg.check_failsafe_params):
+            # Read during start-up, some values were not final yet (measured: Rover answered
+            # RC1_DZ = 0 before setting its 30 us default): read them all again now.
+            log.info("autopilot finished starting (%s -> %s): reading its parameters again",
+                     link.mode, mode)
+            self._start_param_check(link.profile)
         link.armed, link.mode = armed, mode
         link.last_heartbeat_mono_ns = now.mono_ns
 
@@ -526,6 +578,8 @@ class VehicleIoCore:
         self.gps_quality = None
         self.commands.abandon_all()
         self.params = ParamCheck()
+        self.rate_check = None
+        self.mapper = None
         return True
 
     # ===========================================================================================
@@ -540,12 +594,14 @@ class VehicleIoCore:
         profile = link.profile
         cmd = self.watchdog.active(now.mono_ns)
         blocked = self.params.assessment is not None and bool(self.params.assessment.blocking)
-        if (cmd is None or blocked
+        # A mapping that depends on parameters (ArduPilot's RC calibration) waits for them.
+        unmapped = self.mapper is None and profile.mapping_needs_params
+        if (cmd is None or blocked or unmapped
                 or (self.cfg.forward_thrust_only_when_armed and not link.armed)):
             return profile.neutral(), True
         left, right = normalise_pair(cmd.thrust_port_n, cmd.thrust_starboard_n, self.limits,
                                      profile.quantisation_guard)
-        axes = profile.manual_control(left, right)
+        axes = (self.mapper or profile.manual_control)(left, right)
         return axes, axes == profile.neutral()
 
     def neutral_command(self) -> SendManualControl | None:
@@ -625,9 +681,84 @@ class VehicleIoCore:
         )
 
     def _on_command_ack(self, msg: Any, now: Now) -> list[Output]:
+        if msg.command == MAV_CMD_SET_MESSAGE_INTERVAL:
+            if self.rate_check is not None and (getattr(msg, "target_system", 0) or 0) in (
+                    0, self.cfg.source_system):
+                self.rate_check.on_ack(msg.result)
+            return []
         self.commands.on_ack(msg.command, msg.result, msg.get_srcSystem(),
                              getattr(msg, "target_system", 0) or 0, self.cfg.source_system)
         return []
+
+    def _on_statustext(self, msg: Any, now: Now) -> list[Output]:
+        item = self.texts.add(msg.severity, msg.text, now.mono_ns, getattr(msg, "id", 0) or 0,
+                              getattr(msg, "chunk_seq", 0) or 0)
+        if item is not None:
+            # MAV_SEVERITY <= 4 is a warning or worse (PreArm failures are 2, CRITICAL)
+            self._log_limited(now, "STATUSTEXT", item.text, logging.WARNING if item.severity <= 4
+                              else logging.INFO, f"autopilot says: {item.text}")
+        return []
+
+    def refusal_texts(self, since_mono_ns: int) -> list[str]:
+        """The autopilot's texts since ``since_mono_ns`` that say why it refused to arm."""
+        profile = self.link.profile
+        if profile is None or not profile.arming_refusal_prefixes:
+            return []
+        return matching(self.texts.since(since_mono_ns), profile.arming_refusal_prefixes)
+
+    def explains_refusals(self) -> bool:
+        """Whether this autopilot says in STATUSTEXT why it refused (worth waiting for)."""
+        return self.link.profile is not None and bool(self.link.profile.arming_refusal_prefixes)
+
+    # ===========================================================================================
+    # Telemetry rates (rates.py)
+    # ===========================================================================================
+
+    def _request_rates(self, profile: Profile, now: Now) -> list[Output]:
+        """At connection: SET_MESSAGE_INTERVAL for every message at its configured rate."""
+        self.rate_check = None
+        if not profile.requests_message_rates or not self.cfg.message_rates_hz:
+            return []
+        requests = telemetry_rates.plan(self.cfg.message_rates_hz)
+        self.rate_check = RateCheck(requests, now.mono_ns)
+        link = self.link
+        assert link.target_system is not None and link.target_component is not None
+        return [SendCommandLong(link.target_system, link.target_component,
+                                MAV_CMD_SET_MESSAGE_INTERVAL, 0,
+                                (float(r.msg_id), r.interval_us, 0.0, 0.0, 0.0, 0.0, 0.0))
+                for r in requests]
+
+    def _rate_check_tick(self, now: Now) -> list[Output] | None:
+        """Advance the rate check; None when nothing changed, else what to send (maybe nothing)."""
+        rc, link = self.rate_check, self.link
+        if rc is None or not link.ok or link.profile is None or link.target_system is None:
+            return None
+        if rc.all_accepted():
+            rc.start_measuring(now.mono_ns, fallback=False)
+            return []
+        if rc.needs_fallback(now.mono_ns):
+            streams = telemetry_rates.fallback_streams(rc.requests, link.profile.data_streams)
+            log.warning("autopilot did not take SET_MESSAGE_INTERVAL (%d of %d accepted, refused "
+                        "with %s): asking with REQUEST_DATA_STREAM (streams %s)", rc.accepted,
+                        len(rc.requests), rc.refused or "no ACK", streams)
+            rc.start_measuring(now.mono_ns, fallback=True)
+            assert link.target_component is not None
+            return [SendRequestDataStream(link.target_system, link.target_component, sid, hz)
+                    for sid, hz in sorted(streams.items())]
+        if rc.phase == "measuring" and now.mono_ns >= rc.window_end_ns():
+            short = rc.finish()
+            asked = ", ".join(f"{r.message} {r.rate_hz:g}" for r in rc.requests)
+            how = "REQUEST_DATA_STREAM" if rc.fallback_used else "SET_MESSAGE_INTERVAL"
+            if short:
+                want = {r.message: r.rate_hz for r in rc.requests}
+                log.warning("telemetry BELOW the requested rate (asked with %s): %s; the estimator "
+                            "may time out. Check the link's bandwidth and its stream-rate "
+                            "parameters (ArduPilot SRn_*/MAVn_*)", how, ", ".join(
+                                f"{m} {hz:g} Hz of {want[m]:g} Hz" for m, hz in short.items()))
+            else:
+                log.info("telemetry at the requested rates (Hz: %s; asked with %s)", asked, how)
+            return []
+        return None
 
     # ===========================================================================================
     # Failsafe parameters
@@ -636,15 +767,24 @@ class VehicleIoCore:
     def _on_param_value(self, msg: Any, now: Now) -> list[Output]:
         pc = self.params
         name = str(msg.param_id).rstrip("\x00")
-        if pc.done or name not in pc.wanted or self.link.profile is None:
+        wanted = pc.wanted_for(name)
+        if pc.done or wanted is None or self.link.profile is None:
             return []
         value = self.link.profile.decode_param(msg.param_value, msg.param_type)
         if value != value or value in (float("inf"), float("-inf")):
             raise FieldError("PARAM_VALUE", "param_value", msg.param_value, "not finite")
-        pc.values[name] = value
+        pc.values[wanted] = value
+        pc.answered_as[wanted] = name
         if len(pc.values) == len(pc.wanted):
             self._finish_param_check()
         return []
+
+    def _start_param_check(self, profile: Profile) -> None:
+        """(Re)start the parameter read; the mapping in use stays until the new one is made."""
+        self.params = ParamCheck(
+            wanted=profile.failsafe_params if self.cfg.check_failsafe_params else (),
+            alternatives=dict(profile.param_alternatives),
+            done=not self.cfg.check_failsafe_params)
 
     def _param_requests(self, now: Now) -> list[Output]:
         pc, link = self.params, self.link
@@ -662,7 +802,8 @@ class VehicleIoCore:
         for p in missing:
             if pc.attempts.get(p, 0) < self.cfg.param_attempts:
                 pc.attempts[p] = pc.attempts.get(p, 0) + 1
-                out.append(SendParamRequestRead(link.target_system, link.target_component, p))
+                out.extend(SendParamRequestRead(link.target_system, link.target_component, name)
+                           for name in pc.names_for(p))
         pc.last_sent_mono_ns = now.mono_ns
         return out
 
@@ -670,9 +811,11 @@ class VehicleIoCore:
         pc = self.params
         assert self.link.profile is not None
         pc.done = True
-        missing = [p for p in pc.wanted if p not in pc.values]
-        a = self.link.profile.assess_failsafe(pc.values, self.cfg.source_system)
+        missing = ["/".join(pc.names_for(p)) for p in pc.wanted if p not in pc.values]
+        a = self.link.profile.assess_failsafe(pc.values, self.cfg.source_system,
+                                              self.cfg.rc_receiver)
         pc.assessment = a
+        self.mapper = self.link.profile.mapper(pc.values)
         level = logging.INFO if a.verdict in ("stops", "takes_over") else logging.WARNING
         log.log(level, "if vehicle_io dies, the autopilot %s: %s", {
             "stops": "STOPS the thrusters", "takes_over": "TAKES OVER (does not simply stop)",
@@ -707,6 +850,7 @@ class VehicleIoCore:
         "BATTERY_STATUS": _on_battery_status,
         "COMMAND_ACK": _on_command_ack,
         "PARAM_VALUE": _on_param_value,
+        "STATUSTEXT": _on_statustext,
     }
 
 

@@ -41,6 +41,7 @@ from seaway_vehicle_io.core import (
     SendHeartbeat,
     SendManualControl,
     SendParamRequestRead,
+    SendRequestDataStream,
 )
 from seaway_vehicle_io.mav import DIALECT, mavlink, mavutil
 
@@ -264,6 +265,9 @@ class MavlinkLink:
         elif isinstance(out, SendCommandLong):
             mav.command_long_send(out.target_system, out.target_component, out.command,
                                   out.confirmation, *out.params)
+        elif isinstance(out, SendRequestDataStream):
+            mav.request_data_stream_send(out.target_system, out.target_component, out.stream_id,
+                                         out.rate_hz, 1)
         elif isinstance(out, SendParamRequestRead):
             mav.param_request_read_send(out.target_system, out.target_component,
                                         out.param_id.encode("ascii"), -1)

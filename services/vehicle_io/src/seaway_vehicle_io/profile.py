@@ -15,10 +15,15 @@ from __future__ import annotations
 
 import struct
 from abc import ABC, abstractmethod
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Literal
 
 Verdict = Literal["stops", "takes_over", "none", "unknown"]
+RcReceiver = Literal["absent", "present", "unknown"]
+"""Whether an RC receiver is wired to the autopilot (the operator says so in the config: MAVLink
+cannot tell a receiver's input from our overrides). It decides what ArduPilot does when our
+stream stops: see ``ardupilot.ArduPilotProfile.assess_failsafe``."""
 
 # MAV_PARAM_TYPE values of the integer types (UINT8=1 ... INT32=6); REAL32 = 9.
 INT_PARAM_TYPES = frozenset({1, 2, 3, 4, 5, 6})
@@ -84,6 +89,23 @@ class Profile(ABC):
     failsafe_params: tuple[str, ...]
     force_arm_magic: int
     force_disarm_magic: int = 21196  # both autopilots: MAV_CMD_COMPONENT_ARM_DISARM param2
+    param_alternatives: Mapping[str, tuple[str, ...]] = {}
+    """Parameters known under more than one name (a rename between firmware versions): the name the
+    assessment uses -> every name to ask for. The first that answers is the value; the others are
+    not waited for (ArduPilot never answers a name it does not have)."""
+    requests_message_rates: bool = False
+    """Ask for ``message_rates_hz`` at connection and check they arrive (``rates.py``)."""
+    data_streams: Mapping[str, int] = {}
+    """Message -> REQUEST_DATA_STREAM stream id holding it: the fallback when the autopilot does not
+    take SET_MESSAGE_INTERVAL."""
+    arming_refusal_prefixes: tuple[str, ...] = ()
+    """STATUSTEXT prefixes in which the autopilot says why it refused to arm."""
+    booting_modes: tuple[str, ...] = ()
+    """Modes in which the autopilot is still starting: parameters read then may still change (Rover
+    sets its RC dead zones during start-up), so they are read again once it leaves them."""
+    mapping_needs_params: bool = False
+    """The MANUAL_CONTROL mapping depends on parameters read at connection (``mapper``): neutral is
+    sent until they have been read."""
     thrust_modes: tuple[str, ...] = ("MANUAL",)
     """Modes in which the autopilot drives the thrusters from MANUAL_CONTROL as ``manual_control``
     maps it. In any other (HOLD after a failsafe, an AUTO mode, ACRO's rate control) the commanded
@@ -95,6 +117,11 @@ class Profile(ABC):
 
     def neutral(self) -> ManualControlAxes:
         return self.manual_control(0.0, 0.0)
+
+    def mapper(self, params: Mapping[str, float]) -> Callable[[float, float], ManualControlAxes]:
+        """The (L, R) -> axes mapping for an autopilot with these parameters (the ones read at
+        connection; absent ones are missing). Default: ``manual_control``, whatever the params."""
+        return self.manual_control
 
     @abstractmethod
     def mode_names(self) -> tuple[str, ...]:
@@ -118,8 +145,10 @@ class Profile(ABC):
         return decode_param_value(value, param_type)
 
     @abstractmethod
-    def assess_failsafe(self, params: dict[str, float], our_sysid: int) -> FailsafeAssessment:
-        """Judge the parameters read (absent ones are missing from ``params``)."""
+    def assess_failsafe(self, params: dict[str, float], our_sysid: int,
+                        rc_receiver: RcReceiver = "unknown") -> FailsafeAssessment:
+        """Judge the parameters read (absent ones are missing from ``params``; renamed ones under
+        their ``param_alternatives`` key)."""
 
 
 def clamp_int(value: float, lo: int, hi: int) -> int:

@@ -21,6 +21,7 @@ from seaway_vehicle_io.profile import (
     FailsafeAssessment,
     ManualControlAxes,
     Profile,
+    RcReceiver,
     UnknownModeError,
     Verdict,
     clamp_int,
@@ -102,7 +103,8 @@ class Px4Profile(Profile):
             return "MISSION"  # Commander: AUTO with sub mode 0 runs the mission
         return _DECODE.get((main, sub), f"UNKNOWN(main={main},sub={sub})")
 
-    def assess_failsafe(self, params: dict[str, float], our_sysid: int) -> FailsafeAssessment:
+    def assess_failsafe(self, params: dict[str, float], our_sysid: int,
+                        rc_receiver: RcReceiver = "unknown") -> FailsafeAssessment:
         warnings: list[str] = []
         missing = [p for p in ("COM_RC_IN_MODE", "COM_RC_LOSS_T", "NAV_RCL_ACT") if p not in params]
         if missing:

@@ -43,7 +43,7 @@ from seaway.contract.messages import (
 from seaway.runtime.bus import Bus, TypedPublisher
 from seaway.runtime.ratelog import RateLimitedLog
 
-from seaway_vehicle_io.commands import MAV_RESULT_ACCEPTED
+from seaway_vehicle_io.commands import MAV_CMD_COMPONENT_ARM_DISARM, MAV_RESULT_ACCEPTED
 from seaway_vehicle_io.config import VehicleIoConfig
 from seaway_vehicle_io.core import LockPeer, Now, Output, Publish, SendCommandLong, VehicleIoCore
 from seaway_vehicle_io.link import LinkClosedError, MavlinkLink
@@ -270,7 +270,12 @@ class VehicleIoService:
                     return Reply.refuse(time.time_ns(), cmd)
                 self.core.commands.begin(cmd.command, cmd.target_system)
             name = self.core.command_name(cmd.command)
+            sent_mono_ns = time.monotonic_ns()
             result, attempts = self._send_and_wait(cmd)
+            why: list[str] = []
+            if (result is not None and result != MAV_RESULT_ACCEPTED
+                    and cmd.command == MAV_CMD_COMPONENT_ARM_DISARM):
+                why = self._refusal_texts(sent_mono_ns)
             with self.lock:
                 self.core.commands.finish(cmd.command)
                 status = None
@@ -290,9 +295,26 @@ class VehicleIoService:
             if result == MAV_RESULT_ACCEPTED:
                 log.info("%s accepted by the autopilot", name)
                 return Reply.accept(time.time_ns(), f"{name} ACCEPTED", result=rname, **detail)
-            log.warning("%s refused by the autopilot: %s", name, rname)
-            return Reply.refuse(time.time_ns(), f"{name} refused by the autopilot: {rname}",
+            said = f" ({'; '.join(why)})" if why else ""
+            log.warning("%s refused by the autopilot: %s%s", name, rname, said)
+            if why:
+                detail["autopilot_text"] = why
+            return Reply.refuse(time.time_ns(), f"{name} refused by the autopilot: {rname}{said}",
                                 result=rname, **detail)
+
+    def _refusal_texts(self, since_mono_ns: int) -> list[str]:
+        """The autopilot's own reason for a refused arm (ArduPilot: STATUSTEXT "PreArm: ..."),
+        waiting up to ``statustext_grace_s`` for it: it may arrive just after the ACK."""
+        deadline = time.monotonic_ns() + round(self.cfg.statustext_grace_s * 1e9)
+        with self.acks:  # the receive loop notifies after each batch of messages
+            if not self.core.explains_refusals():
+                return []
+            while True:
+                texts = self.core.refusal_texts(since_mono_ns)
+                remaining = (deadline - time.monotonic_ns()) / 1e9
+                if texts or remaining <= 0 or self.stop.is_set():
+                    return texts
+                self.acks.wait(remaining)
 
     def _send_and_wait(self, cmd: SendCommandLong) -> tuple[int | None, int]:
         timeout_ns = round(self.cfg.command_ack_timeout_s * 1e9)

@@ -185,6 +185,11 @@ class VehicleStatus(Message):
                     "parameters at connection; None until they have been read")
     autopilot_loss_failsafe_summary: str = Field(
         default="", description="the parameters and the action behind that verdict, one line")
+    telemetry_rates_short: dict[str, float] | None = Field(
+        default=None,
+        description="the start-up rate check: each telemetry message vehicle_io asked for that "
+                    "arrives below its requested rate, with the rate measured [Hz]; {} all arrive "
+                    "at their rates; None not checked (yet, or the autopilot is not asked)")
     thrust_withheld: ThrustWithheld | None = Field(
         default=None,
         description="why the commanded thrust does not reach the thrusters now, whatever the "
