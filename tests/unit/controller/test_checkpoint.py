@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 import pytest
+from seaway.contract.messages import MissionRequest
 from seaway_controller import checkpoint
 from seaway_controller.service import resume
 
@@ -55,3 +56,20 @@ def test_finished_or_unreadable_checkpoints_start_idle(tmp_path: Path, caplog) -
     path.write_text(json.dumps({**good, "state": "active", "activ_leg": 2}))
     with pytest.raises(checkpoint.CheckpointError, match="activ_leg: unknown field"):
         checkpoint.load(path)
+
+
+def test_only_a_durable_save_waits_for_the_disk(tmp_path: Path, monkeypatch) -> None:
+    """Real time fsyncs each checkpoint (a power loss keeps it); lockstep does not (a simulation:
+    a crash loses nothing the OS has), and both replace the file whole."""
+    synced: list[int] = []
+    monkeypatch.setattr(checkpoint.os, "fsync", lambda fd: synced.append(fd))
+    req = MissionRequest.make(stamp_ns=0, waypoints=[{"x_m": 0.0, "y_m": 0.0}, {"x_m": 5.0, "y_m": 0.0}],
+                              coa_radius_m=1.0, task_power_w=0.49)
+    cp = checkpoint.MissionCheckpoint(request=req.model_dump(mode="json"), active_leg=1,
+                                      state="active", energy_used_j=3.0, saved_unix_ns=1)
+    path = tmp_path / "mission.json"
+    checkpoint.save(path, cp, durable=False)
+    assert synced == [] and checkpoint.load(path).energy_used_j == 3.0
+    checkpoint.save(path, cp.model_copy(update={"energy_used_j": 4.0}))
+    assert len(synced) == 1 and checkpoint.load(path).energy_used_j == 4.0
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["mission.json"]  # no temporary left
