@@ -52,6 +52,10 @@ EXAMPLES: dict[type[m.Message], dict] = {
     m.MissionRequest: dict(waypoints=[{"x_m": 0.0, "y_m": 0.0}, {"lat_deg": 47.0, "lon_deg": 8.0}],
                            coa_radius_m=1.0, task_power_w=0.49, controller="eo-empc"),
     m.MissionCommand: dict(command="pause"),
+    m.MissionAccepted: dict(accepted_ns=T, mission_id="m1", coa_radius_m=1.0, task_power_w=0.49,
+                            waypoints=[{"x_m": 0.0, "y_m": 0.0}, {"x_m": 8.0, "y_m": 0.0}],
+                            controller="cc-empc", predict_disturbance=False,
+                            controller_settings={"horizon_steps": 10.0, "dt_s": 0.1}),
     m.NavResetRequest: dict(keep_origin=False, reason="operator"),
     m.Refusals: dict(identity="vehicle_io", total=3, overflow=0,
                      counts=[{"identity": "estimator", "action": "put", "key": "seaway/v1/ctrl/thrust",
@@ -131,8 +135,9 @@ def test_config_types_reject_unknown_fields() -> None:
 
 UNIT_SUFFIXES = ("_m", "_mps", "_rad", "_radps", "_n", "_nm", "_w", "_j", "_s", "_ns", "_v", "_frac",
                  "_hz", "_deg", "_factor")
-# Fields whose elements carry the units of other fields, as their docstring says.
-MIXED_UNITS = {"covariance"}
+# Fields whose elements carry the units of other fields, or name their own (a dict's keys), as
+# their docstring says.
+MIXED_UNITS = {"covariance", "controller_settings"}
 
 
 def _float_fields(cls: type[BaseModel]) -> list[str]:

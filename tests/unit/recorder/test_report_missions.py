@@ -17,7 +17,14 @@ from pathlib import Path
 
 import pytest
 from seaway.contract import keys
-from seaway.contract.messages import MissionRequest, MissionStatus, SimTruth, StateEstimate, Waypoint
+from seaway.contract.messages import (
+    MissionAccepted,
+    MissionRequest,
+    MissionStatus,
+    SimTruth,
+    StateEstimate,
+    Waypoint,
+)
 from seaway_recorder import missions, report, runinfo
 from seaway_recorder.writer import RecordingWriter
 
@@ -34,9 +41,21 @@ def status(k: int, mission_id: str, wps: list[tuple[float, float]], x: float,
                               cross_track_m=0.0)
 
 
-def write(path: Path, flights: list[tuple[str, list[tuple[float, float]], int]]) -> Path:
+def accepted(k: int, mission_id: str, wps: list[tuple[float, float]], accepted_k: int | None = None,
+             task_power_w: float = 250.0) -> MissionAccepted:
+    """The controller's ``mission/accepted`` published at period k (accepted at ``accepted_k``)."""
+    return MissionAccepted.make(stamp_ns=k * DT_NS, accepted_ns=(k if accepted_k is None else
+                                                                 accepted_k) * DT_NS,
+                                mission_id=mission_id, coa_radius_m=1.0, task_power_w=task_power_w,
+                                waypoints=[Waypoint(x_m=x, y_m=y) for x, y in wps],
+                                controller="eo-empc", predict_disturbance=False)
+
+
+def write(path: Path, flights: list[tuple[str, list[tuple[float, float]], int]],
+          announced: list[MissionAccepted] = ()) -> Path:
     """One episode: each flight (mission id, waypoints, periods) after the other, the boat at
-    1 m/s north, restarting from x = 0 for each; the controller's status every period."""
+    1 m/s north, restarting from x = 0 for each; the controller's status every period; each of
+    ``announced`` (``mission/accepted``) at its stamp, before that period's status."""
     atts, _ = runinfo.scenario_attachments("lake")
     w = RecordingWriter(path, attachments=atts, foxglove=False)
     w.open(0)
@@ -51,6 +70,9 @@ def write(path: Path, flights: list[tuple[str, list[tuple[float, float]], int]])
             w.write(keys.NAV_STATE.key(V), StateEstimate.make(
                 stamp_ns=t, u_mps=1.0, v_mps=0.0, r_radps=0.0, x_m=x, y_m=0.0,
                 psi_rad=0.0).encode(), "", t)
+            for a in announced:
+                if a.stamp_ns == t:
+                    w.write(keys.MISSION_ACCEPTED.key(V), a.encode(), "", t)
             done = math.dist((x, 0.0), wps[-1]) < 1.0
             w.write(keys.MISSION_STATUS.key(V),
                     status(k, mission_id, wps, x, "complete" if done else "active").encode(), "", t)
@@ -112,3 +134,71 @@ def test_a_mission_accepted_as_the_world_restarts_was_not_flown_in_that_episode(
     runs = missions.mission_runs(first + second)
     assert [r.mission_id for r in runs] == ["first"] and runs[0].end_ns == 5 * DT_NS
     assert [r.mission_id for r in missions.mission_runs(second)] == ["second"]  # alone: it counts
+
+
+# -- the controller's own record of the mission (mission/accepted) comes first -------------------
+
+
+def test_the_recorded_acceptance_gives_the_metrics_of_a_mission_sent_live(tmp_path, capsys) -> None:
+    """The probe mission sent to the live stack, recorded as the controller accepted it (and
+    re-published every second, as real time does): full metrics with no document given, even
+    with the scenario's mission attached and another document passed."""
+    announced = [accepted(k, "probe", PROBE, accepted_k=0) for k in range(0, 200, 10)]
+    rec = write(tmp_path / "r.mcap", [("probe", PROBE, 200)], announced)
+    assert report.main([str(rec), "--no-plots", "--json", "--scenario", "lake"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    (flown,) = doc["missions"]
+    assert flown["source"] == f"recorded {keys.MISSION_ACCEPTED.suffix}"
+    assert "the controller's own record of it (checked against the controller's distances" \
+        in flown["fit"]
+    assert doc["mission"] == {"waypoints_m": [list(p) for p in PROBE], "coa_radius_m": 1.0,
+                              "task_power_w": 250.0, "source": flown["source"],
+                              "controller": "eo-empc", "predict_disturbance": False}
+    m = doc["metrics"]
+    assert m["completed"] and m["legs_completed"] == 1
+    assert m["travel_time_s"] == pytest.approx(19.0, abs=0.15)
+    assert m["avg_cross_track_m"] == pytest.approx(0.0, abs=1e-9)  # along the sent path, x axis
+    assert m["task_energy_j"] == pytest.approx(250.0 * m["travel_time_s"], rel=1e-9)
+
+    # A document that also fits (same path, other T^w) does not replace the controller's record.
+    other = MissionRequest.make(stamp_ns=0, mission_id="probe", coa_radius_m=1.0, task_power_w=1.0,
+                                waypoints=[Waypoint(x_m=x, y_m=y) for x, y in PROBE])
+    (tmp_path / "other.json").write_text(other.model_dump_json())
+    assert report.main([str(rec), "--no-plots", "--json", "--mission",
+                        str(tmp_path / "other.json")]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["mission"]["task_power_w"] == 250.0
+    assert doc["metrics"]["task_energy_j"] == pytest.approx(250.0 * 19.0, abs=250.0 * 0.15)
+
+
+def test_an_acceptance_counts_only_for_its_own_id_before_the_flight_ended() -> None:
+    run = missions.mission_runs([status(k, "probe", PROBE, 0.1 * k) for k in range(50)] +
+                                [status(50, "next", PROBE, 0.0)])[0]
+    docs = [missions.Candidate(runinfo.Mission(tuple(PROBE), 1.0, 2.0, "a document"), "probe")]
+    # Another id's acceptance, or one after the flight ended, is not this flight's: the document.
+    for wrong in (accepted(0, "other", PROBE), accepted(51, "probe", PROBE)):
+        got = missions.choose(run, missions.acceptances([wrong]), docs, [])
+        assert got.mission is not None and got.mission.source == "a document"
+        assert got.start_ns == 0
+    # Its own: preferred over the document; re-publications are one acceptance.
+    mine = [accepted(k, "probe", PROBE, accepted_k=0) for k in (0, 10, 20)]
+    assert len(missions.acceptances(mine)) == 1
+    got = missions.choose(run, missions.acceptances(mine), docs, [])
+    assert got.mission is not None and got.mission.source.startswith("recorded")
+    assert (got.mission.waypoints, got.mission.task_power_w, got.start_ns) == (tuple(PROBE), 250.0, 0)
+    # Nothing recorded and no document: nothing describes it, and the reason says what was tried.
+    none = missions.choose(run, [], [], [])
+    assert none.mission is None and "no mission document" in none.how
+
+
+def test_the_same_id_sent_again_while_it_flew_is_measured_from_its_last_acceptance() -> None:
+    """The operator re-sent 'probe' (now 10 m east) 3 s into the flight: the controller restarted it
+    under the same id, so the statuses are one stretch; the last acceptance is the path flown."""
+    east = [(0.0, 0.0), (0.0, 10.0)]
+    statuses = [status(k, "probe", PROBE, 0.1 * k) for k in range(30)] + \
+               [status(k, "probe", east, 0.0) for k in range(30, 60)]
+    (run,) = missions.mission_runs(statuses)
+    got = missions.choose(run, missions.acceptances([accepted(0, "probe", PROBE),
+                                                     accepted(30, "probe", east)]), [], [])
+    assert got.mission is not None and got.mission.waypoints == tuple(east)
+    assert got.start_ns == 30 * DT_NS and "sent again at 3.000 s" in got.how

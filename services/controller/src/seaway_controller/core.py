@@ -24,6 +24,12 @@ the vehicle applies the thrust again (a rebooted autopilot must not drive off on
 someone re-arms it). Only statuses stamped from the mission's start on count: the one before may
 predate the arming its sender just did.
 
+The mission accepted (``accepted_due``, ``take_accepted``): every accepted mission becomes a
+``MissionAccepted`` (its waypoints in local NED, its controller's settings) for ``mission/accepted``,
+so that a recording holds the path actually flown. Lockstep takes it once, into the answer of the
+period that follows the acceptance; real time sends it at once and again every
+``ACCEPTED_REPUBLISH_NS``, for a recorder or ground station that joins late.
+
 No clock, no bus: time comes in as ``now_ns`` (the state's stamp in lockstep).
 """
 
@@ -36,6 +42,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from seaway.contract.messages import (
+    MissionAccepted,
     MissionCommand,
     MissionRequest,
     MissionStatus,
@@ -44,6 +51,7 @@ from seaway.contract.messages import (
     StateEstimate,
     ThrustCommand,
     VehicleStatus,
+    Waypoint,
 )
 from seaway.runtime.ratelog import RateLimitedLog
 from seaway.vessel import path
@@ -52,7 +60,7 @@ from seaway.vessel.guidance import LosGains, los_thrust
 from seaway.vessel.model import VesselParams, propulsion_power_w
 
 from seaway_controller import costs
-from seaway_controller.mission import MissionError, MissionLimits, MissionManager
+from seaway_controller.mission import Mission, MissionError, MissionLimits, MissionManager
 from seaway_controller.mpc import MpcController, MpcOutcome
 from seaway_controller.ocp import CONTROLLER_KINDS, ControllerKind, Ocp, OcpSpec
 from seaway_controller.solvers import NlpSolver, make_solver
@@ -60,6 +68,9 @@ from seaway_controller.solvers import NlpSolver, make_solver
 log = logging.getLogger("seaway_controller.core")
 
 LEVEL_MPC, LEVEL_PLAN, LEVEL_LOS, LEVEL_STOP = 0, 1, 2, 3
+ACCEPTED_REPUBLISH_NS = 1_000_000_000
+"""Real time: the current mission's ``MissionAccepted`` is sent again this often [ns], so that a
+recorder or ground station that joins late learns it within a second."""
 
 
 @dataclass(frozen=True)
@@ -116,6 +127,9 @@ class ControllerCore:
         self.vehicle: VehicleStatus | None = None  # the latest status heard (None: no vehicle_io)
         self._ratelog = RateLimitedLog(log)
         self._mission_start_ns = 0
+        self.accepted: MissionAccepted | None = None  # the current mission, as accepted
+        self._accepted_pending = False  # accepted since it was last taken or sent
+        self._accepted_sent_ns: int | None = None  # real time: when it was last sent
 
     # -- set-up ---------------------------------------------------------------------------------
 
@@ -151,6 +165,8 @@ class ControllerCore:
         self._energy_to_go_j = None
         self.mission_request = req
         self._mission_start_ns = now_ns
+        self.accepted = self._accepted_message(now_ns, mission)
+        self._accepted_pending = True
         log.info("mission %r accepted: %d waypoints, r_COA %.2f m, T^w %.2f W, %s, %s",
                  mission.mission_id, len(mission.waypoints_m), mission.coa_radius_m,
                  mission.task_power_w, mission.controller,
@@ -184,12 +200,50 @@ class ControllerCore:
         assert mm.mission is not None
         if not 1 <= active_leg < len(mm.mission.waypoints_m):
             mm.state = "idle"
+            self.accepted, self._accepted_pending = None, False  # not flown after all
             return Reply.refuse(now_ns, f"checkpoint's active leg {active_leg} is not a leg of the "
                                         f"mission ({len(mm.mission.waypoints_m)} waypoints)")
         mm.active, mm.state = active_leg, state  # type: ignore[assignment]
         mm.switches += 1  # the warm start re-guesses t_d and t_s as on a waypoint switch
         self.energy_used_j = energy_used_j
         return Reply.accept(now_ns, f"mission resumed at leg {active_leg} ({state})")
+
+    def _accepted_message(self, now_ns: int, mission: Mission) -> MissionAccepted:
+        """``mission`` as accepted: its NED waypoints and the settings its controller flies it with."""
+        spec = self.controller(mission.controller).spec
+        settings = {"horizon_steps": float(spec.horizon), "dt_s": spec.dt_s,
+                    "profile_n": spec.profile_n, "u_min_mps": spec.u_min_mps}
+        if spec.is_empc:  # the decision time t_d's bounds (paper eq. 15)
+            settings |= {"t_d_min_s": spec.t_d_min_s, "t_d_max_s": spec.t_d_max_s}
+        else:  # the position-tracking NMPC: its cost's weights
+            w = spec.nmpc
+            settings |= {"q_position_per_m2": w.q_position_per_m2, "q_heading": w.q_heading,
+                         "r_thrust_per_n2": w.r_thrust_per_n2}
+        return MissionAccepted.make(
+            stamp_ns=now_ns, accepted_ns=now_ns, mission_id=mission.mission_id,
+            waypoints=[Waypoint(x_m=x, y_m=y) for x, y in mission.waypoints_m],
+            coa_radius_m=mission.coa_radius_m, task_power_w=mission.task_power_w,
+            controller=mission.controller, predict_disturbance=self.predict_disturbance,
+            speed_hint_mps=mission.speed_hint_mps, controller_settings=settings)
+
+    def take_accepted(self, stamp_ns: int) -> MissionAccepted | None:
+        """Lockstep: the mission accepted since the last call, stamped ``stamp_ns`` (the period
+        whose answer carries it), once; else None."""
+        if not self._accepted_pending or self.accepted is None:
+            return None
+        self._accepted_pending = False
+        return self.accepted.model_copy(update={"stamp_ns": stamp_ns})
+
+    def accepted_due(self, now_ns: int) -> MissionAccepted | None:
+        """Real time: the current mission's ``MissionAccepted`` stamped ``now_ns`` if it was just
+        accepted or last sent ``ACCEPTED_REPUBLISH_NS`` ago (or the clock went back), else None."""
+        if self.accepted is None:
+            return None
+        last = self._accepted_sent_ns
+        if not self._accepted_pending and last is not None and 0 <= now_ns - last < ACCEPTED_REPUBLISH_NS:
+            return None
+        self._accepted_pending, self._accepted_sent_ns = False, now_ns
+        return self.accepted.model_copy(update={"stamp_ns": now_ns})
 
     def handle_command(self, now_ns: int, cmd: MissionCommand) -> Reply:
         withheld = self.withheld_reason()

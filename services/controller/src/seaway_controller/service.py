@@ -3,7 +3,9 @@
 Inputs: ``nav/state`` (StateEstimate), ``nav/origin`` (NavOrigin), queryables ``mission/set``
 (MissionRequest) and ``mission/command`` (MissionCommand), each answered with a Reply.
 Outputs: ``ctrl/thrust`` (ThrustCommand, stamped with the state's stamp), ``ctrl/solve``
-(SolveRecord, one per solve) and ``mission/status`` (MissionStatus).
+(SolveRecord, one per solve), ``mission/status`` (MissionStatus) and ``mission/accepted``
+(MissionAccepted: the mission accepted, in local NED; real time: at once and every second, lockstep:
+in the answer of the period that follows the acceptance).
 
 Two ways to run:
 
@@ -126,6 +128,7 @@ class ControllerService:
         self.pub_thrust = bus.publisher(keys.THRUST)
         self.pub_solve = bus.publisher(keys.SOLVE)
         self.pub_status = bus.publisher(keys.MISSION_STATUS)
+        self.pub_accepted = bus.publisher(keys.MISSION_ACCEPTED)
         bus.queryable(keys.MISSION_SET, self.on_mission)
         bus.queryable(keys.MISSION_COMMAND, self.on_command)
         bus.subscribe(keys.NAV_ORIGIN, callback=self.on_origin)
@@ -209,7 +212,8 @@ class ControllerService:
         try:
             checkpoint.save(self.state_file, checkpoint.MissionCheckpoint(
                 request=req.model_dump(mode="json"), active_leg=leg, state=state,  # type: ignore[arg-type]
-                energy_used_j=energy, saved_unix_ns=time.time_ns()))
+                energy_used_j=energy, saved_unix_ns=time.time_ns()),
+                durable=self.member is None)  # lockstep: a simulation (checkpoint.save says why)
         except OSError as err:  # the vessel keeps being controlled; only a restart would suffer
             log.error("cannot write the mission checkpoint %s: %s", self.state_file, err)
             return
@@ -301,6 +305,9 @@ class ControllerService:
         t = period.stamp_ns
         member.working(period)
         out: list[tuple[keys.KeySpec, Any]] = []
+        with self.lock:  # a mission accepted since the last answer: first of this period's messages
+            accepted = self.core.take_accepted(t)
+        announce = [] if accepted is None else [(keys.MISSION_ACCEPTED, accepted)]
         try:
             with self.lock:
                 active = self.core.missions.state == "active"
@@ -326,7 +333,7 @@ class ControllerService:
             with self.lock:
                 out = [(keys.THRUST, self.core.zero_command(t, "error"))]
             active = True
-        done = member.answer(period, period_ns, out, hold=not active)
+        done = member.answer(period, period_ns, announce + out, hold=not active)
         self.save_checkpoint()
         return done
 
@@ -361,6 +368,7 @@ class ControllerService:
         stale_reported = False
         while loop.wait():
             now = self.ctx.clock.now_ns()
+            self.announce(now)
             state = sub.latest()
             if state is not None and not self.stamps.admit(keys.NAV_STATE.suffix, state.stamp_ns, now):
                 state = None  # stamped ahead of now: wrong, never acted on (seaway.runtime.stamps)
@@ -377,6 +385,14 @@ class ControllerService:
                                 keys.NAV_STATE.suffix, max_state_age_s)
                     stale_reported = True
                 self.pub_thrust.put(self.core.zero_command(last_stamp, "stale-state"))
+
+    def announce(self, now_ns: int) -> None:
+        """Real time: the mission just accepted, or the current one again once a second (for a
+        recorder or ground station that joins late), on ``mission/accepted``."""
+        with self.lock:
+            accepted = self.core.accepted_due(now_ns)
+        if accepted is not None:
+            self.pub_accepted.put(accepted)
 
 
 def resume(core: ControllerCore, path: Path, now_ns: int) -> None:

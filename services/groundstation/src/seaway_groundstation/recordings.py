@@ -8,9 +8,10 @@
 * ``Library``: opens a recording with the recorder's own reading code (``seaway_recorder``:
   series, crash-truncated files, duplicates), cuts it into the live stream's frames (``replay.py``)
   and keeps the last few opened (a recording still being written is opened again when it grew).
-  Also what the page needs beside the frames: the missions flown (from the ground station's
-  journal, the launcher's ``mission.json``, or the recording's attachments) in local metres, each
-  vessel's NED origin, and the run's ``report/metrics.json`` when there is one.
+  Also what the page needs beside the frames: the missions flown (the controller's recorded
+  ``mission/accepted``, else the ground station's journal, the launcher's ``mission.json`` or the
+  recording's attachments) in local metres, each vessel's NED origin, and the run's
+  ``report/metrics.json`` when there is one.
 
 Every refusal is a ``RecordingError`` with the HTTP status it stands for and a text naming the
 recording and what is wrong.
@@ -29,14 +30,14 @@ import secrets
 import shutil
 import tempfile
 import threading
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
 from pydantic import BaseModel, Field
 from seaway.contract import keys
-from seaway.contract.messages import MessageError, MissionRequest
+from seaway.contract.messages import MessageError, MissionAccepted, MissionRequest
 from seaway.vessel.frames import GeoOrigin
 
 from seaway_groundstation import geo, journal, replay
@@ -329,8 +330,11 @@ class Library:
         streams: list[list[tuple[int, str, Any, Any]]] = []
         notes: list[str] = []
         origins: dict[str, GeoOrigin | None] = {}
+        accepted: list[tuple[str, MissionAccepted]] = []  # (vessel, acceptance), as recorded
         for v in vessels:
-            dec = recording.decode_vessel(readable, v, suffix_kind)
+            dec = recording.decode_vessel(readable, v, [*suffix_kind, keys.MISSION_ACCEPTED.suffix])
+            accepted += [(v, m) for m in dec.get(keys.MISSION_ACCEPTED.suffix)
+                         if isinstance(m, MissionAccepted)]
             if dec.undecodable:
                 notes.append(f"{v}: {dec.undecodable} message(s) that do not decode were left out")
             for suffix, kind in suffix_kind.items():
@@ -352,7 +356,8 @@ class Library:
             start_ns=info.start_ns, duration_s=max(0.0, (info.end_ns - info.start_ns) / 1e9),
             message_count=info.message_count, vessels=vessels, topics=info.topics,
             frame_count=len(frames), rate_hz=self.rate_hz,
-            missions=_missions(run_folder, info.attachments, origins, scenario_name, notes),
+            missions=_missions(run_folder, info.attachments, origins, scenario_name, notes,
+                               accepted),
             geo={v: fv for v, o in origins.items() if (fv := geo.frame_view(o)) is not None},
             report=_report(run_folder, notes), notes=notes)
         return Loaded(detail, frames, [f.t_s for f in frames])
@@ -369,15 +374,32 @@ def _scenario(attachments: dict[str, bytes], notes: list[str]) -> tuple[str | No
     return (None, None) if sc is None else (sc.name, runinfo.scenario_origin(sc))
 
 
+def _journal_folders(run_folder: Path, vessels: Iterable[str]) -> list[Path]:
+    """Where the ground station's journal of a recording's run may be: its own folder, and for a
+    fleet's vessel (``<run>/<vessel>/``, the launcher's layout) the run folder above, where the
+    fleet's one ground station keeps it."""
+    folders = [run_folder]
+    if run_folder.name in set(vessels) and run_folder.parent != run_folder:
+        folders.append(run_folder.parent)
+    return folders
+
+
 def _missions(run_folder: Path | None, attachments: dict[str, bytes],
               origins: dict[str, GeoOrigin | None], scenario_name: str | None,
-              notes: list[str]) -> list[geo.MissionPlanView]:
-    """The missions flown, by id: sent from the ground station (its journal), sent by the launcher
-    (``mission.json``), else the recording's mission or scenario attachment."""
+              notes: list[str], accepted: Sequence[tuple[str, MissionAccepted]] = ()
+              ) -> list[geo.MissionPlanView]:
+    """The missions flown, by id: what the controller recorded accepting (``mission/accepted``, in
+    local metres; the latest of an id sent twice), else sent from the ground station (its journal),
+    sent by the launcher (``mission.json``), else the recording's mission or scenario attachment."""
     from seaway_recorder import runinfo
 
     any_origin = next((o for o in origins.values() if o is not None), None)
     found: dict[str, geo.MissionPlanView] = {}
+    for _vessel, a in sorted(accepted, key=lambda va: va[1].accepted_ns, reverse=True):
+        found.setdefault(a.mission_id, geo.MissionPlanView(
+            mission_id=a.mission_id, waypoints_m=a.waypoints_m(), coa_radius_m=a.coa_radius_m,
+            task_power_w=a.task_power_w, controller=a.controller,
+            predict_disturbance=a.predict_disturbance, source="recording"))
 
     def add(req: MissionRequest, origin: GeoOrigin | None, source: str) -> None:
         try:
@@ -386,8 +408,11 @@ def _missions(run_folder: Path | None, attachments: dict[str, bytes],
             notes.append(f"mission {req.mission_id!r} is not drawn: {err}")
 
     if run_folder is not None:
-        for vessel, req in journal.accepted_missions(run_folder):
-            add(req, origins.get(vessel) or any_origin, "groundstation")
+        for folder in _journal_folders(run_folder, origins):
+            for vessel, req in journal.accepted_missions(folder):
+                if folder != run_folder and vessel not in origins:
+                    continue  # the fleet's journal: another vessel's mission, not in this recording
+                add(req, origins.get(vessel) or any_origin, "groundstation")
         launcher = run_folder / "mission.json"
         if launcher.is_file():
             try:

@@ -1,15 +1,18 @@
-"""Which missions a recording ran, and which document describes each: the report's missions.
+"""Which missions a recording ran, and what describes each: the report's missions.
 
 A report must be about the mission actually flown, not the one the scenario names: an operator
-may have sent another one to the live stack (``seaway mission FILE``), or several in a row. The
-controller's ``mission/status`` messages say which missions ran (their ``mission_id``), when, and
-how far each got; a mission's waypoints are not on the bus, so they come from a document (the
-``--mission`` file, the run's ``mission.json``, the recording's ``mission/*`` or ``scenario/*``
-attachment). A document is used for a mission only if it fits what the controller reported while
-flying it: the same number of waypoints, and the controller's distance to the active waypoint
+may have sent another one to the live stack (``seaway mission FILE``, the ground station), or
+several in a row. The controller's ``mission/status`` messages say which missions ran (their
+``mission_id``), when, and how far each got. Its ``mission/accepted`` messages say what each one
+was: the waypoints in local NED, r_COA, T^w and the controller, as it accepted them. They are the
+first source of a mission's waypoints (``choose``); a recording made before the controller
+published them (or one that missed them) falls back to a document: the ``--mission`` file, the
+run's ``mission.json``, the recording's ``mission/*`` or ``scenario/*`` attachment. A document is
+used for a mission only if it fits what the controller reported while flying it: the same number
+of waypoints, and the controller's distance to the active waypoint
 (``MissionStatus.distance_to_waypoint_m``, from the state it acted on) found again from the
-document's waypoints. A mission with no fitting document is reported from the controller's own
-figures, and the report says that its waypoints are not in the recording.
+document's waypoints. A mission with neither is reported from the controller's own figures, and the
+report says that its waypoints are not in the recording.
 """
 
 from __future__ import annotations
@@ -20,15 +23,23 @@ import statistics
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-from seaway.contract.messages import MissionStatus, StateEstimate
+from seaway.contract import keys
+from seaway.contract.messages import MissionAccepted, MissionStatus, StateEstimate
 
-from seaway_recorder.runinfo import Mission
+from seaway_recorder.runinfo import Mission, mission_from_accepted
 
 FIT_MEDIAN_M = 0.25
 """A document fits a flown mission when the median |distance to the active waypoint from the
 document - the controller's| over the mission's statuses is at most this: exact in lockstep (the
 same state), within a period's travel in real time (the state a status was computed from is the
 newest before it)."""
+
+
+RESENT_AFTER_NS = 1_000_000_000
+"""An acceptance of a mission's id this long after its first active status is the same id sent
+again while it flew (the controller restarts it): its metrics are measured from that acceptance.
+Shorter gaps are the same acceptance seen through real time's lag (a status is stamped with the
+state it was computed from, which may predate the acceptance by a period or two)."""
 
 
 @dataclass
@@ -107,6 +118,53 @@ def fit(doc: Mission, run: MissionRun, states: Sequence[StateEstimate]) -> tuple
         return False, (f"its waypoints are {med:.2f} m (median) off the controller's distances to "
                        "the active waypoint")
     return True, f"checked against the controller's distances ({len(diffs)} statuses)"
+
+
+def acceptances(msgs: Sequence[MissionAccepted]) -> list[MissionAccepted]:
+    """Each acceptance once (real time re-publishes it every second: the same ``accepted_ns``), in
+    the order accepted."""
+    seen: dict[tuple[str, int], MissionAccepted] = {}
+    for a in msgs:
+        seen.setdefault((a.mission_id, a.accepted_ns), a)
+    return sorted(seen.values(), key=lambda a: a.accepted_ns)
+
+
+@dataclass(frozen=True)
+class Choice:
+    """What describes a flown mission: the mission (None: nothing does), how that was decided, and
+    from which status stamp its metrics are measured [ns]."""
+
+    mission: Mission | None
+    how: str
+    start_ns: int
+
+
+def choose(run: MissionRun, accepted: Sequence[MissionAccepted], candidates: Sequence[Candidate],
+           states: Sequence[StateEstimate]) -> Choice:
+    """The mission ``run`` flew: the controller's recorded acceptance of its id (the last one
+    before the run ended), else a fitting document (``match``). ``accepted`` as ``acceptances``
+    returns them. The recorded mission is what the controller flew by construction; it is still
+    checked against the controller's distances, and the check is reported."""
+    active = [s.stamp_ns for s in run.statuses if s.state == "active"]
+    start = min(active) if active else run.start_ns
+    mine = [a for a in accepted if a.mission_id == run.mission_id
+            and (run.end_ns is None or a.accepted_ns <= run.end_ns)]
+    if not mine:
+        doc, how = match(run, candidates, states)
+        return Choice(doc, how, start)
+    chosen = mine[-1]
+    mission = mission_from_accepted(chosen, f"recorded {keys.MISSION_ACCEPTED.suffix}")
+    notes = []
+    if chosen.accepted_ns > start + RESENT_AFTER_NS:  # sent again while it flew: the last flight
+        start = min((t for t in active if t >= chosen.accepted_ns), default=chosen.accepted_ns)
+        notes.append(f"sent again at {chosen.accepted_ns / 1e9:.3f} s under the same id: "
+                     "measured from then")
+    flight = MissionRun(run.mission_id, start, run.end_ns,
+                        [s for s in run.statuses if s.stamp_ns >= start])
+    ok, how = fit(mission, flight, states)
+    notes.insert(0, f"the controller's own record of it ({how})" if ok else
+                 f"the controller's own record of it, although it does not fit its statuses: {how}")
+    return Choice(mission, "; ".join(notes), start)
 
 
 def match(run: MissionRun, candidates: Sequence[Candidate], states: Sequence[StateEstimate]

@@ -1,7 +1,10 @@
 """``seaway report FILE``: the paper's metrics of a recorded run, solve statistics, a table and plots.
 
-The mission comes from ``--scenario`` or ``--mission`` when given, else from the recording's
-``mission/*`` or ``scenario/*`` attachment. The vessel's alpha comes from ``--vessel-file``, else the
+Each mission flown (the controller's ``mission/status``) is measured against the mission the
+controller recorded accepting (``mission/accepted``: what was actually flown, however it was sent);
+a mission without one (a recording made before the controller published it) against a document that
+fits it: ``--mission``, ``--scenario``, else the recording's ``mission/*`` or ``scenario/*``
+attachment (``missions.py``). The vessel's alpha comes from ``--vessel-file``, else the
 ``vessel/*`` attachment, else the vessel the scenario names. Positions and energy come from
 ``sim/truth`` when it was recorded, else ``nav/state`` with the ``ctrl/thrust`` commands.
 
@@ -22,6 +25,7 @@ from typing import Any
 from seaway.contract import keys
 from seaway.contract.config import ConfigError, load_config, read_document
 from seaway.contract.messages import (
+    MissionAccepted,
     MissionStatus,
     NavOrigin,
     SimTruth,
@@ -40,15 +44,19 @@ from seaway_recorder import missions, recording, runinfo
 
 TRUTH, STATE, ORIGIN = keys.SIM_TRUTH.suffix, keys.NAV_STATE.suffix, keys.NAV_ORIGIN.suffix
 COMMANDS, SOLVES, STATUS = keys.THRUST.suffix, keys.SOLVE.suffix, keys.MISSION_STATUS.suffix
-REPORT_TOPICS = (TRUTH, STATE, ORIGIN, COMMANDS, SOLVES, STATUS)
+ACCEPTED = keys.MISSION_ACCEPTED.suffix
+REPORT_TOPICS = (TRUTH, STATE, ORIGIN, COMMANDS, SOLVES, STATUS, ACCEPTED)
 """The keys a report reads (suffixes, ``sim/truth``)."""
 
 
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="seaway report", description=__doc__.split("\n\n")[0])
     p.add_argument("files", nargs="+", help="recording file(s) or folder(s)")
-    p.add_argument("--scenario", default=None, help="take the mission from this scenario (name or file)")
-    p.add_argument("--mission", default=None, help="take the mission from this file")
+    p.add_argument("--scenario", default=None,
+                   help=f"take a mission the recording has no {ACCEPTED} for from this scenario "
+                        "(name or file)")
+    p.add_argument("--mission", default=None,
+                   help=f"take a mission the recording has no {ACCEPTED} for from this file")
     p.add_argument("--vessel-file", default=None, help="vessel file for alpha")
     p.add_argument("--vessel", default=None, help="which vessel, if the recording has several")
     p.add_argument("--out", type=Path, default=None, help="folder for metrics.json and plots")
@@ -59,7 +67,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--episode", type=int, default=None,
                    help="which episode (simulated time went back between two: a sim restart or a "
                         "scenario load); 0 is the first, -1 the last (the default)")
-    p.add_argument("--no-plots", action="store_true")
+    p.add_argument("--no-plots", action="store_true", help="metrics only: draw no plots (faster)")
     p.add_argument("--json", action="store_true", help="print the metrics JSON instead of the table")
     return p
 
@@ -146,26 +154,32 @@ def analyse(files: list[Path], *, scenario: str | None = None, mission_file: str
                                mission_start_ns=start_ns, sample_period_s=sample_period_s,
                                state_source=state_source, thrust_source=thrust_source)
 
-    # The missions flown (the controller's statuses), each with the document that fits it.
+    # The missions flown (the controller's statuses), each with what the controller recorded
+    # accepting, else the document that fits it.
+    accepted = missions.acceptances([m for m in dec.get(ACCEPTED) if isinstance(m, MissionAccepted)])
     flown = []
     for r in missions.mission_runs(statuses):
-        doc, how = missions.match(r, candidates, nav)
-        active = [x.stamp_ns for x in r.statuses if x.state == "active"]
-        met = metrics_of(doc, min(active), r.end_ns) if doc is not None else None
+        chosen = missions.choose(r, accepted, candidates, nav)
+        doc = chosen.mission
+        met = metrics_of(doc, chosen.start_ns, r.end_ns) if doc is not None else None
         flown.append({"mission_id": r.mission_id, "start_ns": r.start_ns, "end_ns": r.end_ns,
-                      "source": doc.source if doc is not None else None, "fit": how,
+                      "source": doc.source if doc is not None else None, "fit": chosen.how,
                       "mission": _mission_json(doc), "metrics": met,
                       "controller_reported": r.controller_reported()})
     if flown:
         primary = flown[-1]
         mission_doc, met = primary["mission"], primary["metrics"]
         live = primary["controller_reported"]
-    else:  # no controller recorded: the mission document given or attached, as it is
-        if not candidates:
+    else:  # no status recorded: the last mission accepted, else the document given or attached
+        if accepted:
+            only = runinfo.mission_from_accepted(accepted[-1], f"recorded {ACCEPTED}")
+        elif candidates:
+            only = candidates[0].mission
+        else:
             raise ConfigError("the recording has no mission or scenario attachment: pass "
                               "--scenario or --mission")
-        mission_doc = _mission_json(candidates[0].mission)
-        met = metrics_of(candidates[0].mission, None, None)
+        mission_doc = _mission_json(only)
+        met = metrics_of(only, None, None)
         live = {}
     solves = [m for m in dec.get(SOLVES) if isinstance(m, SolveRecord)]
     commands = sorted((m for m in dec.get(COMMANDS) if isinstance(m, ThrustCommand)),
@@ -200,8 +214,11 @@ def analyse(files: list[Path], *, scenario: str | None = None, mission_file: str
 def _mission_json(m: runinfo.Mission | None) -> dict[str, Any] | None:
     if m is None:
         return None
-    return {"waypoints_m": [list(w) for w in m.waypoints], "coa_radius_m": m.coa_radius_m,
-            "task_power_w": m.task_power_w, "source": m.source}
+    out = {"waypoints_m": [list(w) for w in m.waypoints], "coa_radius_m": m.coa_radius_m,
+           "task_power_w": m.task_power_w, "source": m.source}
+    if m.controller is not None:  # known when the controller recorded it
+        out |= {"controller": m.controller, "predict_disturbance": m.predict_disturbance}
+    return out
 
 
 def _candidates(scenario: str | None, scen: Any, mission_file: str | None,

@@ -6,7 +6,9 @@ scenario refers to, by their path relative to it), ``vessel``, ``profile``, ``mi
 
 * the mission (waypoints, circle of acceptance, T^w): a ``mission/*`` attachment (a MissionRequest
   JSON document, or a TOML/JSON file with the scenario's ``[mission]`` fields at its top level or under
-  ``mission``), else the ``[mission]`` table of the ``scenario/*`` attachment;
+  ``mission``), else the ``[mission]`` table of the ``scenario/*`` attachment. These are documents,
+  the fallback: a recording of a controller that publishes ``mission/accepted`` holds each mission
+  it flew (``mission_from_accepted``; ``missions.choose`` prefers those);
 * the vessel (alpha for the energy): the ``vessel/*`` attachment, else the vessel the scenario names.
 """
 
@@ -20,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from seaway.contract.config import ConfigError, deploy_path, parse_config
-from seaway.contract.messages import MessageError, MissionRequest
+from seaway.contract.messages import MessageError, MissionAccepted, MissionRequest
 from seaway.runtime.run import RunDescription
 from seaway.simkit.scenario import Scenario, load_scenario, parse_scenario
 from seaway.vessel.frames import GeoOrigin
@@ -98,6 +100,9 @@ class Mission:
     coa_radius_m: float
     task_power_w: float
     source: str = ""
+    controller: str | None = None
+    """The controller that flew it, when the source says (a recorded ``mission/accepted``)."""
+    predict_disturbance: bool | None = None
 
     def __post_init__(self) -> None:
         if len(self.waypoints) < 2:
@@ -129,6 +134,12 @@ def mission_from_request(req: MissionRequest, origin: GeoOrigin | None, source: 
         else:
             raise ValueError(f"{source}: waypoint {i} has neither x_m/y_m nor lat_deg/lon_deg")
     return Mission(tuple(pts), req.coa_radius_m, req.task_power_w, source)
+
+
+def mission_from_accepted(msg: MissionAccepted, source: str) -> Mission:
+    """The mission a controller accepted (``mission/accepted``): already in local NED metres."""
+    return Mission(tuple(msg.waypoints_m()), msg.coa_radius_m, msg.task_power_w, source,
+                   msg.controller, msg.predict_disturbance)
 
 
 def mission_from_document(doc: dict[str, Any], origin: GeoOrigin | None, source: str) -> Mission:

@@ -83,6 +83,8 @@ NAV_RESET = KeySpec("nav/reset", m.NavResetRequest, "estimator", "query", doc="r
 THRUST = KeySpec("ctrl/thrust", m.ThrustCommand, "controller")
 SOLVE = KeySpec("ctrl/solve", m.SolveRecord, "controller")
 MISSION_STATUS = KeySpec("mission/status", m.MissionStatus, "controller")
+MISSION_ACCEPTED = KeySpec("mission/accepted", m.MissionAccepted, "controller",
+                            doc="the mission accepted, in local NED: on acceptance, and 1 Hz live")
 MISSION_SET = KeySpec("mission/set", m.MissionRequest, "controller", "query")
 MISSION_COMMAND = KeySpec("mission/command", m.MissionCommand, "controller", "query")
 SIM_TRUTH = KeySpec("sim/truth", m.SimTruth, "sim", also=("replay",))

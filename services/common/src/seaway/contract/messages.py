@@ -497,6 +497,51 @@ class MissionCommand(Request):
     command: Literal["pause", "resume", "abort"]
 
 
+class MissionAccepted(Message):
+    """The mission the controller accepted and flies (``mission/accepted``): a ``MissionRequest``
+    as the controller validated it, with its waypoints in local NED metres (converted through the
+    origin if they were sent in degrees) and the controller's settings it is flown with.
+
+    Requests are queries, which a recording does not hold; this is how a report, a replay or a
+    ground station that joins late learns the path actually flown. Published when the controller
+    accepts a mission (a request, a resumed checkpoint, a lockstep episode restarting it), and in
+    real time again once a second while it is the controller's mission, the same but for
+    ``stamp_ns`` (the time of publication): ``accepted_ns`` tells a re-publication from a new
+    acceptance. In lockstep it is one of the messages of the period that answers the acceptance,
+    stamped with that period.
+    """
+
+    SCHEMA: ClassVar[str] = "seaway.v1.MissionAccepted"
+    accepted_ns: int = Field(ge=0, description="when the controller accepted it, on its clock "
+                             "(the stamp of the period in lockstep) [ns]")
+    mission_id: str = Field(default="", max_length=64)
+    waypoints: list[Waypoint] = Field(min_length=2, description="P_0..P_N in local NED metres "
+                                      "(x_m, y_m) at the published origin")
+    coa_radius_m: float = Field(gt=0, description="circle-of-acceptance radius r_COA [m]")
+    task_power_w: Annotated[float, in_range(0, MAX_TASK_POWER_W, "W", lo_open=True)] = Field(
+        gt=0, le=MAX_TASK_POWER_W, description="T^w, power of the task carried [W], (0, 10 kW]")
+    controller: ControllerName
+    predict_disturbance: bool = Field(description="flown predicting with the estimator's tau_d "
+                                      "(asked by the mission or the controller's flag), else tau_d = 0")
+    speed_hint_mps: float | None = Field(default=None, gt=0, description="the request's cruise hint")
+    controller_settings: dict[Annotated[str, StringConstraints(max_length=64)], float] = Field(
+        default_factory=dict, max_length=32,
+        description="the controller's settings it is flown with, each named with its unit "
+                    "(horizon_steps, dt_s, profile_n, ...; the NMPC's weights for nmpc)")
+
+    @model_validator(mode="after")
+    def _local_metres(self) -> MissionAccepted:
+        for i, w in enumerate(self.waypoints):
+            if w.x_m is None or w.y_m is None or w.lat_deg is not None or w.lon_deg is not None:
+                raise ValueError(f"waypoint {i}: an accepted mission's waypoints are local x_m/y_m "
+                                 "only (the controller converts degrees before it accepts)")
+        return self
+
+    def waypoints_m(self) -> list[tuple[float, float]]:
+        """P_0..P_N as (x_m north, y_m east) [m]."""
+        return [(float(w.x_m), float(w.y_m)) for w in self.waypoints]  # type: ignore[arg-type]
+
+
 class NavResetRequest(Request):
     """Re-initialise the estimator from the next measurements."""
 
