@@ -40,8 +40,10 @@ def test_the_launch_options_choose_the_controller_and_the_prediction(tmp_path, z
     assert sources.count("nmpc") > 0.9 * len(solves)
     assert not {"cc-empc", "eo-empc"} & set(sources)
 
-    # The report takes the mission that was sent (T^w = 1 W, not the scenario's 0.49 W).
+    # The report takes the mission the controller accepted and recorded (T^w = 1 W, not the
+    # scenario's 0.49 W; nmpc, predicting tau_d).
     report = json.loads((run_dir / "report" / "metrics.json").read_text())
     assert report["mission"]["task_power_w"] == 1.0
-    assert report["mission"]["source"].endswith("mission.json")
+    assert report["mission"]["source"] == f"recorded {keys.MISSION_ACCEPTED.suffix}", report["mission"]
+    assert (report["mission"]["controller"], report["mission"]["predict_disturbance"]) == ("nmpc", True)
     assert report["metrics"]["completed"] and report["metrics"]["legs_completed"] == 2

@@ -16,6 +16,7 @@ import pytest
 from mcap.reader import make_reader
 
 from tests.conftest import BIN, wait_for
+from tests.unit.recorder.foxglove_check import foxglove_messages
 
 pytestmark = pytest.mark.system
 HERE = Path(__file__).parent
@@ -99,9 +100,11 @@ def test_mission_recorded_read_back_validated_and_reported(procs, zenoh_env, tmp
         assert all(ci.message_index_offsets for ci in summ.chunk_indexes)
         got: dict[str, list[bytes]] = {}
         malformed = []
-        foxglove = []
         validators: dict[int, object] = {}
         for schema, channel, m in reader.iter_messages(log_time_order=False):
+            if channel.topic.startswith("foxglove/"):  # protobuf, foxglove-sdk's schemas: below
+                assert channel.message_encoding == "protobuf"
+                continue
             # Every message, the error channel's included, validates against its channel's JSON Schema.
             assert schema is not None and schema.encoding == "jsonschema", channel.topic
             assert channel.message_encoding == "json"
@@ -114,11 +117,7 @@ def test_mission_recorded_read_back_validated_and_reported(procs, zenoh_env, tmp
             if channel.topic == "recorder/malformed":
                 malformed.append(json.loads(m.data))
                 continue
-            if channel.topic.startswith("foxglove/"):
-                assert schema.name == "foxglove.LocationFix"
-                foxglove.append((channel.topic, json.loads(m.data)))
-            else:
-                got.setdefault(channel.topic, []).append(bytes(m.data))
+            got.setdefault(channel.topic, []).append(bytes(m.data))
         attachments = {a.name for a in reader.iter_attachments()}
         metadata = {md.name: md.metadata for md in reader.iter_metadata()}
     expected: dict[str, list[bytes]] = {}
@@ -129,12 +128,14 @@ def test_mission_recorded_read_back_validated_and_reported(procs, zenoh_env, tmp
         sorted(p for _, p in mp.MALFORMED)
     assert {r["key"].rsplit("/", 2)[-2] + "/" + r["key"].rsplit("/", 1)[-1] for r in malformed} == \
         {s for s, _ in mp.MALFORMED}
-    # Foxglove's map: truth, state and GNSS positions as LocationFix, at the right place.
+    # Foxglove's map: truth, state and GNSS positions as LocationFix (foxglove-sdk's schema), at the
+    # right place.
+    foxglove = [(t, d) for t, name, _, d in foxglove_messages(path) if name == "foxglove.LocationFix"]
     topics = {t for t, _ in foxglove}
     assert topics == {f"foxglove/vessel1/{s}" for s in ("sim-truth", "nav-state", "sensors-gnss")}
     first_truth = next(d for t, d in foxglove if t.endswith("sim-truth"))
-    assert math.isclose(first_truth["latitude"], 47.0, abs_tol=1e-9)
-    assert math.isclose(first_truth["longitude"], 8.0, abs_tol=1e-9)
+    assert math.isclose(first_truth.latitude, 47.0, abs_tol=1e-9)
+    assert math.isclose(first_truth.longitude, 8.0, abs_tol=1e-9)
     # The run can be rebuilt from the file alone.
     assert {"scenario/paper-c1.toml", "vessel/paper-sim.toml"} <= attachments
     assert metadata["seaway.run"]["scenario"] == "paper-c1"

@@ -68,5 +68,5 @@ def test_bad_scenario_names_the_field(tmp_path: Path) -> None:
                  'file = "missing.json"\n')
     with pytest.raises(ConfigError, match=r"missing\.json"):
         load_scenario(p)
-    with pytest.raises(ConfigError, match=r"no-such-scenario\.toml: cannot read"):
+    with pytest.raises(ConfigError, match=r"no scenario .no-such-scenario. .deploy/scenarios/.; there"):
         load_scenario("no-such-scenario")

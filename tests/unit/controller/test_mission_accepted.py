@@ -38,7 +38,8 @@ def test_the_accepted_mission_is_in_local_metres_with_its_controller_settings() 
     north, east, _ = ORIGIN.to_ned(math.radians(lat), math.radians(lon), 0.0)
     assert got.waypoints_m() == [(0.0, 0.0), pytest.approx((north, east), abs=1e-9)]
     assert 10.0 < north < 12.0 and 7.0 < east < 8.5
-    assert (got.stamp_ns, got.accepted_ns, got.mission_id) == (500, 123, "geo")
+    assert (got.stamp_ns, got.accepted_ns, got.mission_id) == (500, 500, "geo")
+    # (lockstep: accepted_ns is the period that carries it)
     assert (got.coa_radius_m, got.task_power_w, got.controller, got.speed_hint_mps) == \
         (1.5, 2.0, "nmpc", 0.7)
     assert got.predict_disturbance  # the process flag applies to every mission

@@ -16,6 +16,8 @@ from seaway_recorder.recording import iter_messages, open_paths, read_info
 from seaway_recorder.recover import recover
 from seaway_recorder.writer import AttachmentSpec, RecordingWriter
 
+from tests.unit.recorder.foxglove_check import foxglove_messages, t_ns
+
 V = "v1"
 ENC = "application/json;seaway.v1.SimTruth"
 
@@ -103,12 +105,15 @@ def test_location_fix_from_truth_needs_an_origin(tmp_path: Path) -> None:
             "application/json", 2)
     w.write(keys.SIM_TRUTH.key(V), truth(10), ENC, 3)  # x = 1 m north of the origin
     w.close(4)
-    fixes = [json.loads(d) for t, n, d, _ in read_all(tmp_path / "r.mcap") if n == "foxglove.LocationFix"]
+    fixes = [(t, msg) for _, name, t, msg in foxglove_messages(tmp_path / "r.mcap")
+             if name == "foxglove.LocationFix"]
     assert len(fixes) == 1
     lat, lon, _ = GeoOrigin(0.8, 0.1).to_geodetic(1.0, 0.0)
-    assert fixes[0]["latitude"] == pytest.approx(lat * 57.29577951308232)
-    assert fixes[0]["longitude"] == pytest.approx(lon * 57.29577951308232)
-    assert fixes[0]["timestamp"] == {"sec": 1, "nsec": 0}
+    log_time, fix = fixes[0]
+    assert fix.latitude == pytest.approx(lat * 57.29577951308232)
+    assert fix.longitude == pytest.approx(lon * 57.29577951308232)
+    assert t_ns(fix.timestamp) == 1_000_000_000  # real time: the source's stamp, unchanged
+    assert log_time == 3  # real time: the receive time
 
 
 def test_rotation_by_size_gives_whole_files_in_order(tmp_path: Path) -> None:

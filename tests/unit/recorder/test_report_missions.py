@@ -202,3 +202,13 @@ def test_the_same_id_sent_again_while_it_flew_is_measured_from_its_last_acceptan
                                                      accepted(30, "probe", east)]), [], [])
     assert got.mission is not None and got.mission.waypoints == tuple(east)
     assert got.start_ns == 30 * DT_NS and "sent again at 3.000 s" in got.how
+
+
+def test_a_restarted_controllers_resumption_is_the_same_flight() -> None:
+    """The controller was killed 3 s in and resumed 'probe' from its checkpoint: it announces the
+    mission again (marked ``resumed``), and the flight is still measured from its start."""
+    (run,) = missions.mission_runs([status(k, "probe", PROBE, 0.1 * k) for k in range(60)])
+    again = accepted(30, "probe", PROBE).model_copy(update={"resumed": True})
+    got = missions.choose(run, missions.acceptances([accepted(0, "probe", PROBE), again]), [], [])
+    assert got.mission is not None and got.mission.source.startswith("recorded")
+    assert got.start_ns == 0 and "sent again" not in got.how

@@ -206,6 +206,8 @@ class ControllerCore:
         mm.active, mm.state = active_leg, state  # type: ignore[assignment]
         mm.switches += 1  # the warm start re-guesses t_d and t_s as on a waypoint switch
         self.energy_used_j = energy_used_j
+        if self.accepted is not None:  # the same flight going on, not a new one (the report)
+            self.accepted = self.accepted.model_copy(update={"resumed": True})
         return Reply.accept(now_ns, f"mission resumed at leg {active_leg} ({state})")
 
     def _accepted_message(self, now_ns: int, mission: Mission) -> MissionAccepted:
@@ -228,11 +230,14 @@ class ControllerCore:
 
     def take_accepted(self, stamp_ns: int) -> MissionAccepted | None:
         """Lockstep: the mission accepted since the last call, stamped ``stamp_ns`` (the period
-        whose answer carries it), once; else None."""
+        whose answer carries it), once; else None. Its ``accepted_ns`` is that period too: a
+        mission accepted before the first period (the scenario's, at start) was accepted on the
+        wall clock, which is not the run's clock in lockstep."""
         if not self._accepted_pending or self.accepted is None:
             return None
         self._accepted_pending = False
-        return self.accepted.model_copy(update={"stamp_ns": stamp_ns})
+        self.accepted = self.accepted.model_copy(update={"stamp_ns": stamp_ns, "accepted_ns": stamp_ns})
+        return self.accepted
 
     def accepted_due(self, now_ns: int) -> MissionAccepted | None:
         """Real time: the current mission's ``MissionAccepted`` stamped ``now_ns`` if it was just

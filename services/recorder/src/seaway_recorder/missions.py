@@ -155,7 +155,11 @@ def choose(run: MissionRun, accepted: Sequence[MissionAccepted], candidates: Seq
     chosen = mine[-1]
     mission = mission_from_accepted(chosen, f"recorded {keys.MISSION_ACCEPTED.suffix}")
     notes = []
-    if chosen.accepted_ns > start + RESENT_AFTER_NS:  # sent again while it flew: the last flight
+    # Sent again while it flew: measured from the last flight. A restarted controller's resumption
+    # of its checkpoint is the same flight going on.
+    sent = [a for a in mine if not a.resumed]
+    if sent and sent[-1].accepted_ns > start + RESENT_AFTER_NS:
+        chosen = sent[-1]
         start = min((t for t in active if t >= chosen.accepted_ns), default=chosen.accepted_ns)
         notes.append(f"sent again at {chosen.accepted_ns / 1e9:.3f} s under the same id: "
                      "measured from then")

@@ -6,6 +6,8 @@ it), and one writer thread drains the queue into ``RecordingWriter``. The writer
 ``--flush-interval`` (default 50 ms: a SIGKILL loses less than 100 ms), rotates files on
 ``--max-bytes`` / ``--max-seconds``, logs counts every ``--status-interval`` and, on SIGINT or SIGTERM,
 writes what is queued and finishes a fully indexed file. The last line on stdout is a JSON summary.
+It also copies the launcher's events (``--events``) and the run's log files (``--logs``) into the
+recording as they grow. Log times follow ``timebase`` (sim time on the run's epoch in lockstep).
 """
 
 from __future__ import annotations
@@ -16,7 +18,6 @@ import datetime as dt
 import json
 import logging
 import os
-import re
 import socket
 import sys
 import threading
@@ -37,7 +38,9 @@ from seaway.simkit.scenario import load_scenario
 from seaway.vessel.frames import GeoOrigin
 
 from seaway_recorder import runinfo
+from seaway_recorder.logtail import FileTail, LogTail
 from seaway_recorder.recover import recover
+from seaway_recorder.timebase import RecordingTime, parse_epoch, stamp_of
 from seaway_recorder.writer import LIBRARY, RUN_METADATA, AttachmentSpec, RecordingWriter
 
 log = logging.getLogger("seaway.recorder")
@@ -105,33 +108,22 @@ def parser() -> argparse.ArgumentParser:
                    help="samples buffered between Zenoh and the writer before drops (default 200000)")
     p.add_argument("--no-validate", action="store_true",
                    help="do not check samples against their types (faster; nothing counts as malformed)")
-    p.add_argument("--no-foxglove", action="store_true", help="do not add foxglove.LocationFix channels")
+    p.add_argument("--no-foxglove", action="store_true",
+                   help="do not add the derived Foxglove channels (map positions, mission, frames, "
+                        "3D scene); log lines (--logs) are still recorded")
     p.add_argument("--status-interval", type=float, default=5.0, help="seconds between status lines")
     p.add_argument("--events", type=Path, default=None, metavar="FILE",
                    help="a launcher's events log (events.jsonl) to copy into the recording as it "
                         "grows, on launcher/events")
+    p.add_argument("--logs", action="append", default=[], metavar="GLOB|DIR",
+                   help="log files to copy into the recording as they grow, each line a "
+                        "foxglove.Log on foxglove/log (repeatable; a folder means its *.log; the "
+                        "launcher's profiles pass '<run>/logs/*.log')")
+    p.add_argument("--sim-epoch", default=None, metavar="TIME",
+                   help="lockstep: the wall-clock time simulated time 0 is logged at, ISO 8601 "
+                        "(2026-05-01T09:00:00Z) or Unix seconds (default: when the run started, "
+                        "i.e. the --run file was written, else now; whole seconds)")
     return p
-
-
-class EventsTail:
-    """The lines appended to a file since the last look (the launcher's events log): whole lines
-    only, a line still being written waits for the next look; a missing file is an empty one."""
-
-    def __init__(self, path: Path) -> None:
-        self.path = path
-        self.offset = 0
-        self._partial = b""
-
-    def poll(self) -> list[bytes]:
-        try:
-            with open(self.path, "rb") as f:
-                f.seek(self.offset)
-                data = f.read()
-        except FileNotFoundError:
-            return []
-        self.offset += len(data)
-        *lines, self._partial = (self._partial + data).split(b"\n")
-        return [line for line in lines if line.strip()]
 
 
 class SampleQueue:
@@ -157,9 +149,9 @@ class SampleQueue:
         self.items.append((sample.key, sample.payload, sample.encoding, time.time_ns()))
         if self.timeline is not None and "/lockstep/" in sample.key:
             # Its arrival, not when it is written (seaway.runtime.timeline: the recorder's "heard").
-            m = _STAMP.search(sample.payload, 0, 64)
-            if m is not None:
-                self.timeline.mark("heard", int(m.group(1)), sample.key.rsplit("/", 1)[1])
+            stamp = stamp_of(sample.payload)
+            if stamp is not None:
+                self.timeline.mark("heard", stamp, sample.key.rsplit("/", 1)[1])
         self.arrived.set()
 
 
@@ -183,9 +175,6 @@ def lockstep_exprs(exprs: list[str], vessel: str) -> list[str]:
     if answers <= recorded_suffixes(exprs, vessel):
         return exprs
     return [*exprs, f"{keys.ROOT}/{vessel}/lockstep/*"]
-
-
-_STAMP = re.compile(rb'"stamp_ns":\s*(\d+)')
 
 
 class LockstepWitness:
@@ -237,9 +226,9 @@ class LockstepWitness:
                     self.member.ratelog.warning(("malformed answer", key),
                                                 "lockstep answer on %s ignored: %s", key, err)
             elif key.startswith(self.prefix):
-                m = _STAMP.search(payload, 0, 64)
-                if m is not None:
-                    seen.append((key[len(self.prefix):], int(m.group(1))))
+                stamp = stamp_of(payload)
+                if stamp is not None:
+                    seen.append((key[len(self.prefix):], stamp))
         if seen:
             self.member.saw_many(seen)
 
@@ -332,6 +321,22 @@ def build_run_info(args: argparse.Namespace, exprs: list[str], run: RunDescripti
     return atts, {RUN_METADATA: meta}, origin
 
 
+def recording_time(args: argparse.Namespace, run: RunDescription, now_ns: int) -> RecordingTime:
+    """The recording's time convention (``timebase``): the run's clock and, in lockstep, its epoch:
+    ``--sim-epoch``, else when the run started (the launcher writes ``--run`` then, and a restarted
+    recorder reads the same file), else ``now_ns``; whole seconds."""
+    if not run.lockstep:
+        return RecordingTime.real_time()
+    if args.sim_epoch:
+        epoch_ns, source = parse_epoch(args.sim_epoch), "--sim-epoch"
+    elif args.run:
+        epoch_ns, source = Path(args.run).stat().st_mtime_ns, f"run started ({args.run} written)"
+    else:
+        epoch_ns, source = now_ns, "recorder started"
+    return RecordingTime(lockstep=True, epoch_ns=epoch_ns - epoch_ns % 1_000_000_000,
+                         epoch_source=source, gap_ns=run.control_period_ns)
+
+
 def run(argv: Sequence[str]) -> int:
     args = parser().parse_args(list(argv))
     if not 0 < args.flush_interval <= 0.1:
@@ -340,13 +345,14 @@ def run(argv: Sequence[str]) -> int:
     run = resolve_run(args, "recorder", load_scenario)
     try:
         atts, meta, origin = build_run_info(args, exprs, run)
+        rec_time = recording_time(args, run, time.time_ns())
     except (ConfigError, ValueError, OSError) as err:
         print(f"seaway record: {err}", file=sys.stderr)
         return 2
     writer = RecordingWriter(out_path(args.out), chunk_size=args.chunk_size, compression=args.compression,
                              max_bytes=args.max_bytes, max_seconds=args.max_seconds, attachments=atts,
                              metadata=meta, validate=not args.no_validate, foxglove=not args.no_foxglove,
-                             default_origin=origin)
+                             default_origin=origin, time=rec_time)
     queue = SampleQueue(args.queue)
     # The recorder records whatever runs (a shore recorder sees a boat launched elsewhere), so it
     # does not take part in the run agreement; its run only describes the recording.
@@ -366,12 +372,13 @@ def run(argv: Sequence[str]) -> int:
         if witness is not None:
             witness.member.join()
         print("READY", flush=True)
-        events = EventsTail(args.events) if args.events else None
+        tails = Tails(FileTail(args.events) if args.events else None,
+                      LogTail(args.logs) if args.logs else None)
         try:
-            _loop(writer, queue, ctx.stop, args.flush_interval, args.status_interval, witness, events)
+            _loop(writer, queue, ctx.stop, args.flush_interval, args.status_interval, witness, tails)
             queue.accepting = False
             _drain(writer, queue, limit=None)
-            _copy_events(writer, events)
+            tails.copy(writer)
         except OSError as err:  # disk full, file removed, ...: finish what can be finished
             log.error("writing failed: %s; finishing the file", err)
             queue.accepting = False
@@ -409,15 +416,25 @@ def _drain(writer: RecordingWriter, queue: SampleQueue, limit: int | None,
     return n
 
 
-def _copy_events(writer: RecordingWriter, events: EventsTail | None) -> None:
-    if events is not None:
-        for line in events.poll():
-            writer.write_event(line)
+class Tails:
+    """The files copied into the recording as they grow: the launcher's events, the run's logs."""
+
+    def __init__(self, events: FileTail | None, logs: LogTail | None) -> None:
+        self.events = events
+        self.logs = logs
+
+    def copy(self, writer: RecordingWriter) -> None:
+        if self.events is not None:
+            for line in self.events.poll():
+                writer.write_event(line)
+        if self.logs is not None:
+            for process, line in self.logs.poll(time.time_ns()):
+                writer.write_log(process, line)
 
 
 def _loop(writer: RecordingWriter, queue: SampleQueue, stop: threading.Event, flush_s: float,
           status_s: float, witness: LockstepWitness | None = None,
-          events: EventsTail | None = None) -> None:
+          tails: Tails | None = None) -> None:
     flush_ns = int(flush_s * 1e9)
     next_flush = time.monotonic_ns() + flush_ns
     next_status = time.monotonic_ns() + int(status_s * 1e9)
@@ -428,7 +445,8 @@ def _loop(writer: RecordingWriter, queue: SampleQueue, stop: threading.Event, fl
         now = time.monotonic_ns()
         if now >= next_flush:
             writer.count_dropped(queue.dropped - writer.stats.dropped)
-            _copy_events(writer, events)
+            if tails is not None:
+                tails.copy(writer)
             writer.flush()
             writer.maybe_rotate(time.time_ns())
             next_flush = now + flush_ns

@@ -1,9 +1,14 @@
 """The recorder's core: bus samples in, MCAP files out. No Zenoh here; time is passed in.
 
-``RecordingWriter.write(key, payload, encoding, log_time_ns)`` stores the payload's bytes unchanged on
+``RecordingWriter.write(key, payload, encoding, receive_ns)`` stores the payload's bytes unchanged on
 the key's channel (with the key's JSON Schema), after checking that they decode as the key's message
-type. Bytes that do not decode go, unchanged, to ``recorder/malformed`` inside an envelope that says
-why, and are counted. ``flush()`` ends the chunk in progress and writes it with its message indexes;
+type, at the log time the recording's time convention gives (``timebase.RecordingTime``: the receive
+time in real time, the sim time on the run's epoch in lockstep). Bytes that do not decode go,
+unchanged, to ``recorder/malformed`` inside an envelope that says why, and are counted. Derived
+Foxglove channels (``derive.py``) are written next to their source, at its log time; ``write_log``
+and ``write_event`` add the run's log lines and the launcher's events.
+
+``flush()`` ends the chunk in progress and writes it with its message indexes;
 the recorder's loop calls it at least every flush interval, which bounds what a SIGKILL can lose.
 ``close()`` writes the summary (statistics, chunk/attachment/metadata indexes) so the file is fully
 indexed. Rotation (``max_bytes``, ``max_seconds``) closes a file the same way and opens the next,
@@ -26,13 +31,14 @@ import mcap
 from mcap.data_stream import RecordBuilder
 from mcap.records import ChunkIndex
 from mcap.writer import CompressionType, Writer
-from seaway.contract import keys
 from seaway.contract.messages import MessageError
 from seaway.runtime.ratelog import RateLimitedLog
 from seaway.tools.launch.events import ProcessEvent
 from seaway.vessel.frames import GeoOrigin
 
-from seaway_recorder import schemas
+from seaway_recorder import derive, schemas
+from seaway_recorder.logtail import LogLine
+from seaway_recorder.timebase import EPISODE_METADATA, TIME_METADATA, RecordingTime, stamp_of
 
 log = logging.getLogger("seaway.recorder")
 
@@ -80,6 +86,7 @@ class RecorderStats:
     unregistered: int = 0
     derived: int = 0
     events: int = 0
+    logs: int = 0
     dropped: int = 0
     flushes: int = 0
     files: list[str] = field(default_factory=list)
@@ -88,8 +95,8 @@ class RecorderStats:
 
     def as_metadata(self) -> dict[str, str]:
         out = {k: str(getattr(self, k)) for k in
-               ("messages", "bytes", "malformed", "unregistered", "derived", "events", "dropped",
-                "flushes")}
+               ("messages", "bytes", "malformed", "unregistered", "derived", "events", "logs",
+                "dropped", "flushes")}
         out["last_error"] = self.last_error
         return out
 
@@ -233,6 +240,7 @@ class RecordingWriter:
         validate: bool = True,
         foxglove: bool = True,
         default_origin: GeoOrigin | None = None,
+        time: RecordingTime | None = None,
     ) -> None:
         if compression not in COMPRESSIONS:
             raise ValueError(f"compression {compression!r}: use one of {', '.join(COMPRESSIONS)}")
@@ -246,7 +254,10 @@ class RecordingWriter:
         self.metadata = dict(metadata or {})
         self.validate = validate
         self.stats = RecorderStats()
-        self._deriver = schemas.LocationFixDeriver(default_origin) if foxglove else None
+        self.time = time or RecordingTime.real_time()
+        self._deriver = (derive.FoxgloveDeriver(default_origin, self.time.foxglove_ns) if foxglove
+                         else None)
+        self._derived_sources = {s.suffix for s in derive.FoxgloveDeriver.SOURCES}
         self._file: _OpenFile | None = None
         self._file_index = 0
         self._file_opened_ns = 0
@@ -275,6 +286,7 @@ class RecordingWriter:
             if name == RUN_METADATA and self.rotating:
                 meta["file_index"] = str(self._file_index - 1)
             self._file.writer.add_metadata(name, meta)
+        self._file.writer.add_metadata(TIME_METADATA, self.time.metadata())
         self._file.writer.flush()
         self.stats.files.append(str(path))
         log.info("recording to %s", path)
@@ -334,10 +346,9 @@ class RecordingWriter:
         f.add(f.channel(spec), data, log_time_ns, publish_time_ns)
         self.stats.by_topic[spec.topic] += 1
 
-    def write(self, key: str, payload: bytes, encoding: str, log_time_ns: int,
-              publish_time_ns: int | None = None) -> bool:
-        """Record one sample; returns False if it was malformed (kept on the error channel)."""
-        publish = log_time_ns if publish_time_ns is None else publish_time_ns
+    def write(self, key: str, payload: bytes, encoding: str, receive_ns: int) -> bool:
+        """Record one sample received at ``receive_ns`` (wall clock; the publish time); returns
+        False if it was malformed (kept on the error channel)."""
         spec = self._spec(key, encoding)
         self.stats.bytes += len(payload)
         msg: Any = None
@@ -345,23 +356,41 @@ class RecordingWriter:
             try:
                 msg = spec.message_type.decode(payload)
             except MessageError as err:
-                self._put_malformed(key, spec.schema_name, str(err), encoding, payload, log_time_ns, publish)
+                self._put_malformed(key, spec.schema_name, str(err), encoding, payload,
+                                    self.time.wall(receive_ns), receive_ns)
                 return False
         elif spec.message_type is None:
             self.stats.unregistered += 1
-        self._put(spec, payload, log_time_ns, publish)
+        stamp = None
+        if self.time.lockstep:
+            stamp = msg.stamp_ns if msg is not None else stamp_of(payload)
+        log_ns = self.time.bus(key, stamp, receive_ns)
+        self._put(spec, payload, log_ns, receive_ns)
         self.stats.messages += 1
+        if self.time.new_episodes:
+            self._write_episodes()
         if msg is not None and self._deriver is not None:
-            derived = self._deriver.feed(key, msg)
-            if derived is not None:
-                topic, data = derived
-                fspec = self._channel_specs.get(topic)
-                if fspec is None:
-                    fspec = schemas.location_fix_channel(topic, key)
-                    self._channel_specs[topic] = fspec
-                self._put(fspec, data, log_time_ns, publish)
+            for d in self._deriver.feed(key, msg):
+                self._put(derive.channel_spec(d), d.payload(), log_ns, receive_ns)
                 self.stats.derived += 1
         return True
+
+    def _write_episodes(self) -> None:
+        """A new lockstep episode continues the timeline: say at which offset, in the file."""
+        for meta in self.time.new_episodes:
+            if self._file is not None:
+                self._file.writer.add_metadata(EPISODE_METADATA.format(index=meta["episode"]), meta)
+        self.time.new_episodes.clear()
+
+    def write_log(self, process: str, line: LogLine) -> None:
+        """Record one line of a process's log on ``foxglove/log`` (``foxglove.Log``), at the time
+        it was logged (``line.wall_ns``; in lockstep the sim time reached then)."""
+        wall_ns = line.wall_ns or 0
+        log_ns = self.time.wall(wall_ns)
+        text = f"{line.logger}: {line.message}" if line.logger else line.message
+        d = derive.log_message(log_ns, line.level, process, text)
+        self._put(derive.channel_spec(d), d.payload(), log_ns, wall_ns)
+        self.stats.logs += 1
 
     def write_event(self, line: bytes) -> bool:
         """Record one line of a launcher's events log on ``launcher/events`` at its own time;
@@ -372,12 +401,12 @@ class RecordingWriter:
             log.warning("events log line ignored (not a process event): %s", str(err)[:200])
             return False
         t_ns = int(ev.t_unix_s * 1e9)
-        self._put(self._events_spec, line.rstrip(b"\n"), t_ns, t_ns)
+        self._put(self._events_spec, line.rstrip(b"\n"), self.time.wall(t_ns), t_ns)
         self.stats.events += 1
         return True
 
     def _wants_decode(self, key: str) -> bool:
-        return self._deriver is not None and keys.spec_for_key(key) in self._deriver.SOURCES
+        return self._deriver is not None and key.split("/", 2)[-1] in self._derived_sources
 
     def _put_malformed(self, key: str, schema: str, error: str, encoding: str, payload: bytes,
                        log_time_ns: int, publish_time_ns: int) -> None:

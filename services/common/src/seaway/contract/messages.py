@@ -524,6 +524,8 @@ class MissionAccepted(Message):
     predict_disturbance: bool = Field(description="flown predicting with the estimator's tau_d "
                                       "(asked by the mission or the controller's flag), else tau_d = 0")
     speed_hint_mps: float | None = Field(default=None, gt=0, description="the request's cruise hint")
+    resumed: bool = Field(default=False, description="re-announced by a restarted controller that "
+                          "resumed it from its checkpoint: the same flight going on, not a new one")
     controller_settings: dict[Annotated[str, StringConstraints(max_length=64)], float] = Field(
         default_factory=dict, max_length=32,
         description="the controller's settings it is flown with, each named with its unit "
