@@ -57,8 +57,8 @@ def cmd_bench(argv: list[str]) -> int:
         print("usage: seaway bench NAME [--json] [options]\n\n"
               "Run one benchmark: a table of its figures, with its targets; --json prints the same "
               "figures as one JSON object. `seaway bench NAME --help` gives its options.\n\n"
-              "benchmarks:\n" + (_listing({n: _plugin_summary(ep) for n, ep in benches.items()})
-                                  or "  none installed"))
+              + ("benchmarks:\n" + _listing({n: _plugin_summary(ep) for n, ep in benches.items()})
+                 if benches else "benchmarks installed: none (they come with the seaway-lab package)"))
         return 0 if argv else 2
     name, rest = argv[0], argv[1:]
     if name not in benches:
