@@ -32,7 +32,7 @@ EXAMPLES: dict[type[m.Message], dict] = {
     m.ThrustCommand: dict(thrust_port_n=1.5, thrust_starboard_n=-0.5, source="cc-empc", seq=4),
     m.SolveRecord: dict(controller="cc-empc", status="Solve_Succeeded", success=True, iterations=3,
                         solve_time_s=0.0003, cost_stage_j=0.4, cost_dynamic_j=1.0, cost_static_j=30.0,
-                        cost_track_j=0.2, t_d_s=2.0, t_s_s=100.0, energy_to_go_j=31.0,
+                        cost_track_j=0.2, t_d_s=2.0, t_s_s=100.0, leg_energy_to_go_j=31.0,
                         cross_track_m=0.1, predicted_x_m=[0.0, 0.1], predicted_y_m=[0.0, 0.0],
                         predicted_psi_rad=[0.0, 0.0], predicted_thrust_port_n=[1.0],
                         predicted_thrust_starboard_n=[1.0]),
@@ -56,6 +56,16 @@ EXAMPLES: dict[type[m.Message], dict] = {
                             waypoints=[{"x_m": 0.0, "y_m": 0.0}, {"x_m": 8.0, "y_m": 0.0}],
                             controller="cc-empc", predict_disturbance=False,
                             controller_settings={"horizon_steps": 10.0, "dt_s": 0.1}),
+    m.BatteryState: dict(source="autopilot", voltage_v=15.2, current_a=3.1, power_w=47.1,
+                         consumed_j=1200.0, remaining_j=400_000.0, remaining_frac=0.75,
+                         capacity_j=532_800.0, reserve_j=106_560.0),
+    m.EnergyBudget: dict(mission_id="m1", active_leg=1, energy_used_j=10.0, leg_energy_to_go_j=5.0,
+                         energy_to_go_j=20.0, energy_to_go_low_j=18.0, energy_to_go_high_j=23.0,
+                         energy_to_home_j=9.0, home_x_m=0.0, home_y_m=0.0,
+                         battery_remaining_j=100.0, battery_stamp_ns=T, reserve_j=20.0,
+                         margin_j=71.0, finish_margin_j=60.0, no_return_x_m=3.0,
+                         no_return_y_m=1.0, no_return_along_m=4.0, policy="return",
+                         decision="none"),
     m.NavResetRequest: dict(keep_origin=False, reason="operator"),
     m.Refusals: dict(identity="vehicle_io", total=3, overflow=0,
                      counts=[{"identity": "estimator", "action": "put", "key": "seaway/v1/ctrl/thrust",
@@ -134,7 +144,7 @@ def test_config_types_reject_unknown_fields() -> None:
 
 
 UNIT_SUFFIXES = ("_m", "_mps", "_rad", "_radps", "_n", "_nm", "_w", "_j", "_s", "_ns", "_v", "_frac",
-                 "_hz", "_deg", "_factor")
+                 "_hz", "_deg", "_factor", "_a")
 # Fields whose elements carry the units of other fields, or name their own (a dict's keys), as
 # their docstring says.
 MIXED_UNITS = {"covariance", "controller_settings"}

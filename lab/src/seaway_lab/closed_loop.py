@@ -31,7 +31,15 @@ from dataclasses import dataclass, field
 from typing import Protocol
 
 from seaway.contract import keys
-from seaway.contract.messages import GnssFix, Message, SimTruth, StateEstimate, ThrustCommand
+from seaway.contract.messages import (
+    BatteryState,
+    EnergyBudget,
+    GnssFix,
+    Message,
+    SimTruth,
+    StateEstimate,
+    ThrustCommand,
+)
 from seaway.contract.units import NS_PER_S, s_to_ns
 from seaway.runtime.run import CONTROL_PERIOD_S
 from seaway.simkit.scenario import Scenario, SensorNoise, load_scenario
@@ -126,6 +134,10 @@ class ClosedLoopResult:
     fallback_count: int = 0
     trajectory: list[tuple[float, float, float, float, float]] = field(default_factory=list)
     """(t, x, y, T1, T2) per step [s, m, m, N, N]."""
+    budgets: list[EnergyBudget] = field(default_factory=list)
+    """The controller's energy budget of each active period (``seaway_controller.energy``)."""
+    truth: list[SimTruth] = field(default_factory=list)
+    """The simulator's truth at every tick."""
     metrics: MissionMetrics | None = None
     run: Run | None = None
 
@@ -150,22 +162,42 @@ def _state(truth: SimTruth) -> tuple[float, float, float, float, float, float]:
 class MissionSteering:
     """The controller's core on the TRUE state (the paper's setting), until its mission is over."""
 
-    def __init__(self, core: ControllerCore) -> None:
+    def __init__(self, core: ControllerCore,
+                 battery: Callable[[SimTruth], BatteryState] | None = None) -> None:
         self.core = core
+        self.battery = battery  # the pack's report at each true state (None: no battery)
         self.state = "idle"
         self.solve_times_s: list[float] = []
         self.successes: list[bool] = []
         self.iterations: list[int] = []
         self.trajectory: list[tuple[float, float, float, float, float]] = []
+        self.budgets: list[EnergyBudget] = []
+        self.estimate: StateEstimate | None = None  # the estimator's latest, when one runs alongside
+
+    def observe(self, est: StateEstimate) -> None:
+        """The estimator's estimate: its disturbance and covariance go with the true state (the
+        energy budget predicts under the estimated disturbance; the MPC only if asked to)."""
+        self.estimate = est
 
     def command(self, truth: SimTruth) -> ThrustCommand | None:
         t = truth.stamp_ns
+        est = self.estimate
+        tau = ({"tau_d_surge_n": est.tau_d_surge_n, "tau_d_sway_n": est.tau_d_sway_n,
+                "tau_d_yaw_nm": est.tau_d_yaw_nm, "covariance": est.covariance}
+               if est is not None else {})
         state = StateEstimate.make(stamp_ns=t, u_mps=truth.u_mps, v_mps=truth.v_mps,
                                    r_radps=truth.r_radps, x_m=truth.x_m, y_m=truth.y_m,
-                                   psi_rad=max(-math.pi, min(math.pi, truth.psi_rad)))
+                                   psi_rad=max(-math.pi, min(math.pi, truth.psi_rad)), **tau)
+        if self.battery is not None:
+            self.core.on_battery(self.battery(truth))
         cmd, record, status = self.core.step(t, state)
+        budget = self.core.take_budget()
+        if budget is not None:
+            self.budgets.append(budget)
         self.state = status.state
         if status.state != "active":
+            if self.battery is not None and status.state == "paused":
+                return cmd  # held by the energy budget: the run goes on, stopped
             return None
         if record is not None:
             self.solve_times_s.append(record.solve_time_s)
@@ -224,7 +256,10 @@ def fly(sim: SimCore, steering: Steering, ticks: int, tick_ns: int, *, control_e
         if estimator is not None:
             _sense(run, estimator, sim, samples, truth, gnss_filter, record_trace)
             if k % publish_every == 0:
-                _publish(run, estimator, sim, truth, record_trace)
+                est = _publish(run, estimator, sim, truth, record_trace)
+                observe = getattr(steering, "observe", None)
+                if est is not None and observe is not None:
+                    observe(est)
         if k % control_every == 0:
             cmd = steering.command(truth)
             if cmd is None:
@@ -267,7 +302,8 @@ def _sense(run: Run, core: EstimatorCore, sim: SimCore, samples: Samples, truth:
             run.trace.append(("gnss", fix))
 
 
-def _publish(run: Run, core: EstimatorCore, sim: SimCore, truth: SimTruth, record_trace: bool) -> None:
+def _publish(run: Run, core: EstimatorCore, sim: SimCore, truth: SimTruth, record_trace: bool
+             ) -> StateEstimate | None:
     t = truth.stamp_ns
     t0 = time.perf_counter_ns()
     est = core.predict_to(t)
@@ -277,6 +313,7 @@ def _publish(run: Run, core: EstimatorCore, sim: SimCore, truth: SimTruth, recor
     if est is not None and core.origin is not None:
         d = sim.disturbance()
         run.samples.append(_sample(est, truth, (d.surge_n, d.sway_n, d.yaw_nm), core.origin, sim.origin))
+    return est
 
 
 def _sample(est: StateEstimate, truth: SimTruth, tau_true: tuple[float, float, float],
@@ -306,13 +343,18 @@ def run_closed_loop(scenario: str | Scenario, controller: ControllerKind,
                     core: ControllerCore | None = None, config: ControllerConfig | None = None,
                     vessel: VesselParams | None = None, max_time_s: float = DEFAULT_MAX_TIME_S,
                     progress: Callable[[float], None] | None = None,
-                    estimator: EstimatorCore | None = None) -> ClosedLoopResult:
+                    estimator: EstimatorCore | None = None,
+                    battery_j: float | None = None) -> ClosedLoopResult:
     """Fly ``scenario``'s mission with ``controller`` from the true state, one control period per
     tick; stops on completion or after ``max_time_s``.
 
     Pass ``core`` to reuse compiled solvers across runs (its origin and mission are replaced).
     ``estimator``, if given, runs alongside on the scenario's sensors (``ClosedLoopResult.run``);
-    it does not steer.
+    it does not steer. ``battery_j``: the pack starts with this much usable energy [J] and the
+    controller hears it every period, drained by the simulator's propulsion energy and the
+    scenario's hotel power (``Scenario.hotel_power_w``), reserve from the vessel file (the
+    lockstep simulator's report, in process); the run then goes on while the energy budget holds
+    the mission, until ``max_time_s``.
     """
     sc = load_scenario(scenario) if isinstance(scenario, str) else scenario
     if sc.mission is None:
@@ -329,7 +371,17 @@ def run_closed_loop(scenario: str | Scenario, controller: ControllerKind,
         raise ValueError(f"mission refused: {reply.reason}")
     mission = core.missions.mission
     assert mission is not None
-    steering = MissionSteering(core)
+    pack = vp.battery
+    hotel_w = sc.hotel_power_w
+
+    def report(truth: SimTruth) -> BatteryState:
+        used = truth.energy_j + hotel_w * truth.stamp_ns / NS_PER_S
+        assert battery_j is not None
+        return BatteryState.make(stamp_ns=truth.stamp_ns, source="sim",
+                                 remaining_j=max(0.0, battery_j - used), consumed_j=used,
+                                 reserve_j=pack.reserve_energy_j if pack is not None else None)
+
+    steering = MissionSteering(core, report if battery_j is not None else None)
     dt_s = core.config.dt_s
     run = fly(sim, steering, round(max_time_s / dt_s), s_to_ns(dt_s), estimator=estimator,
               progress=progress)
@@ -343,7 +395,8 @@ def run_closed_loop(scenario: str | Scenario, controller: ControllerKind,
         cross_track_mean_m=m.avg_cross_track_m if m.avg_cross_track_m is not None else math.nan,
         steps=len(run.truth) - 1, solve_times_s=steering.solve_times_s, successes=steering.successes,
         iterations=steering.iterations, fallback_count=core.fallback_count,
-        trajectory=steering.trajectory, metrics=m, run=run if estimator is not None else None)
+        trajectory=steering.trajectory, metrics=m, budgets=steering.budgets, truth=run.truth,
+        run=run if estimator is not None else None)
 
 
 def run_estimator_loop(scenario: Scenario, core: EstimatorCore, duration_s: float,

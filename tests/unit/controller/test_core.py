@@ -104,12 +104,15 @@ def test_record_carries_the_cost_split_in_joules():
     assert len(rec.predicted_x_m) == 11 and len(rec.predicted_thrust_port_n) == 10
     assert rec.cost_stage_j > 0 and rec.cost_dynamic_j > 0 and rec.cost_static_j > 0
     assert rec.cost_track_j > 0  # terminal point 0.5 m off the leg, outside both circles
-    assert rec.energy_to_go_j == pytest.approx(rec.cost_stage_j + rec.cost_dynamic_j
-                                               + rec.cost_static_j)
+    assert rec.leg_energy_to_go_j == pytest.approx(rec.cost_stage_j + rec.cost_dynamic_j
+                                                   + rec.cost_static_j)
     assert 1.0 <= rec.t_d_s <= 60.0 and rec.t_s_s >= 0.0
     assert status.state == "active" and status.active_leg == 1
     assert status.cross_track_m == pytest.approx(0.5)
-    assert status.energy_to_go_j == pytest.approx(rec.energy_to_go_j)
+    assert status.leg_energy_to_go_j == pytest.approx(rec.leg_energy_to_go_j)
+    # The mission's energy to go is the budget's (seaway_controller.energy), not the leg's.
+    budget = core.take_budget()
+    assert budget is not None and status.energy_to_go_j == pytest.approx(budget.energy_to_go_j)
 
 
 def test_nmpc_record_has_no_empc_terms():

@@ -111,7 +111,8 @@ def test_answers_each_period_holds_when_idle_and_restarts_with_the_world(control
     for k in range(1, 6):
         ans = world.period(k, state(k))
         assert ans.published == {keys.THRUST.suffix: [k * DT_NS], keys.SOLVE.suffix: [k * DT_NS],
-                                 keys.MISSION_STATUS.suffix: [k * DT_NS]}
+                                 keys.MISSION_STATUS.suffix: [k * DT_NS],
+                                 keys.MISSION_ENERGY.suffix: [k * DT_NS]}
     assert [c.stamp_ns for c in world.thrust.drain()] == [k * DT_NS for k in range(1, 6)]
 
     # The estimator has no state (re-initialising): zero thrust, so that time goes on.

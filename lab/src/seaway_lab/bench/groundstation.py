@@ -106,7 +106,7 @@ class Vessel:
             if now >= next_solve:
                 self._solve.put(SolveRecord(
                     stamp_ns=seq, controller="cc-empc", status="Solve_Succeeded", success=True,
-                    iterations=12, solve_time_s=0.004, energy_to_go_j=900.0, cross_track_m=0.2,
+                    iterations=12, solve_time_s=0.004, leg_energy_to_go_j=900.0, cross_track_m=0.2,
                     predicted_x_m=xs, predicted_y_m=xs, predicted_psi_rad=xs,
                     predicted_thrust_port_n=xs, predicted_thrust_starboard_n=xs))
                 next_solve += 1.0 / self.solve_hz

@@ -42,6 +42,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from seaway.contract.messages import (
+    BatteryState,
+    EnergyBudget,
     MissionAccepted,
     MissionCommand,
     MissionRequest,
@@ -60,6 +62,7 @@ from seaway.vessel.guidance import LosGains, los_thrust
 from seaway.vessel.model import VesselParams, propulsion_power_w
 
 from seaway_controller import costs
+from seaway_controller.energy import BatteryTrack, Budget, EnergyModel
 from seaway_controller.mission import Mission, MissionError, MissionLimits, MissionManager
 from seaway_controller.mpc import MpcController, MpcOutcome
 from seaway_controller.ocp import CONTROLLER_KINDS, ControllerKind, Ocp, OcpSpec
@@ -130,6 +133,13 @@ class ControllerCore:
         self.accepted: MissionAccepted | None = None  # the current mission, as accepted
         self._accepted_pending = False  # accepted since it was last taken or sent
         self._accepted_sent_ns: int | None = None  # real time: when it was last sent
+        # The energy budget (seaway_controller.energy): the battery's last report, the energy
+        # counted since the process started (propulsion + T^w, whatever the mission's state: the
+        # battery feeds the task while paused too), the current mission's budget, its last message.
+        self.battery = BatteryTrack()
+        self.energy_counted_j = 0.0
+        self.budget: Budget | None = None
+        self._budget_msg: EnergyBudget | None = None
 
     # -- set-up ---------------------------------------------------------------------------------
 
@@ -150,8 +160,9 @@ class ControllerCore:
 
     # -- requests -------------------------------------------------------------------------------
 
-    def handle_mission(self, now_ns: int, req: MissionRequest) -> Reply:
-        """Validate and start a mission (replacing the current one), or refuse with a reason."""
+    def handle_mission(self, now_ns: int, req: MissionRequest, returning: bool = False) -> Reply:
+        """Validate and start a mission (replacing the current one), or refuse with a reason.
+        ``returning``: the return home the energy budget decided (``_return_home``)."""
         try:
             mission = self.missions.start(req, self.origin)
         except MissionError as err:
@@ -164,6 +175,11 @@ class ControllerCore:
         self.energy_used_j = 0.0
         self._energy_to_go_j = None
         self.mission_request = req
+        previous = self.budget
+        self.budget = self._new_budget(mission, returning)
+        if returning and previous is not None:  # the decision stays with the flight
+            self.budget.decision, self.budget.decided_ns = previous.decision, previous.decided_ns
+            self.budget.reason = previous.reason
         self._mission_start_ns = now_ns
         self.accepted = self._accepted_message(now_ns, mission)
         self._accepted_pending = True
@@ -175,6 +191,16 @@ class ControllerCore:
                             waypoints_m=[list(p) for p in mission.waypoints_m],
                             controller=mission.controller,
                             predict_disturbance=self.predict_disturbance)
+
+    def _new_budget(self, mission: Mission, returning: bool) -> Budget:
+        spec = self.controller(mission.controller).spec
+        req = self.mission_request
+        model = EnergyModel(
+            self.vessel, mission.task_power_w, mission.coa_radius_m, spec.is_empc,
+            self.config.predict_disturbance or (req is not None and req.predict_disturbance),
+            spec.profile_n, spec.t_d_min_s, spec.t_d_max_s)
+        return Budget(model, list(mission.waypoints_m), mission.home, mission.on_low_energy,
+                      mission.mission_id, returning)
 
     @property
     def predict_disturbance(self) -> bool:
@@ -226,7 +252,9 @@ class ControllerCore:
             waypoints=[Waypoint(x_m=x, y_m=y) for x, y in mission.waypoints_m],
             coa_radius_m=mission.coa_radius_m, task_power_w=mission.task_power_w,
             controller=mission.controller, predict_disturbance=self.predict_disturbance,
-            speed_hint_mps=mission.speed_hint_mps, controller_settings=settings)
+            speed_hint_mps=mission.speed_hint_mps, controller_settings=settings,
+            on_low_energy=mission.on_low_energy, home_x_m=mission.home[0],
+            home_y_m=mission.home[1])
 
     def take_accepted(self, stamp_ns: int) -> MissionAccepted | None:
         """Lockstep: the mission accepted since the last call, stamped ``stamp_ns`` (the period
@@ -347,7 +375,81 @@ class ControllerCore:
         cmd = self._command(state.stamp_ns, thrust, source)
         record = self._record(state.stamp_ns, mission.controller, out, late, used,
                               reusable if self.level == LEVEL_PLAN else None)
+        self._update_budget(now_ns, state, used)
         return cmd, record, self._status(now_ns, state)
+
+    # -- the energy budget (seaway_controller.energy) -------------------------------------------
+
+    def on_battery(self, report: BatteryState) -> None:
+        """The battery's latest report: what is left is counted down from it until the next."""
+        self.battery.report = report
+        self.battery.counted_at_report_j = self._counted_at(report.stamp_ns)
+
+    def _counted_at(self, t_ns: int) -> float:
+        """The energy counted up to ``t_ns`` [J]: the count at the last step, plus (or minus) the
+        last command's power over the time from that step."""
+        if self._last_step_ns is None:
+            return self.energy_counted_j
+        # The same expression as _account_energy's, so that a report stamped at the next step
+        # counts exactly nothing since (lockstep: the decision is bit-for-bit replayable).
+        return self.energy_counted_j + self._power_w() * ((t_ns - self._last_step_ns) / 1e9)
+
+    def _power_w(self) -> float:
+        """What the battery feeds now by the controller's count: the last command and T^w [W]."""
+        m = self.missions.mission
+        return propulsion_power_w(self._last_command, self.vessel) + (m.task_power_w if m else 0.0)
+
+    def battery_remaining_j(self) -> float | None:
+        """The battery's usable energy left now: its last report less what was counted since [J]."""
+        return self.battery.remaining_j(self.energy_counted_j)
+
+    def _reserve_j(self) -> float | None:
+        r = self.battery.report
+        if r is not None and r.reserve_j is not None:
+            return r.reserve_j
+        return self.vessel.battery.reserve_energy_j if self.vessel.battery is not None else None
+
+    def _update_budget(self, now_ns: int, state: StateEstimate, used: MpcOutcome | None) -> None:
+        """This period's budget, and the policy's action the period the margin reaches 0."""
+        budget, mm = self.budget, self.missions
+        if budget is None or mm.mission is None or mm.state != "active":
+            return
+        leg_j = _finite_or_none(used.costs.energy_to_go_j) if used is not None else None
+        report = self.battery.report
+        taken = budget.update(now_ns, state, mm.active, leg_j, self.energy_used_j,
+                              self.battery_remaining_j(),
+                              report.stamp_ns if report is not None else None, self._reserve_j())
+        self._budget_msg = budget.last
+        if taken is None:
+            return
+        log.warning("energy budget: %s; the mission's policy: %s", budget.reason, taken)
+        if taken == "hold":
+            mm.hold(f"held by the energy budget: {budget.reason}")
+        elif taken == "return":
+            self._return_home(now_ns, state)
+
+    def _return_home(self, now_ns: int, state: StateEstimate) -> None:
+        """Replace the mission by the straight run home, flown the same way (same controller, T^w,
+        r_COA); its own budget only warns."""
+        req, mission = self.mission_request, self.missions.mission
+        assert req is not None and mission is not None
+        home = mission.home
+        if math.dist((state.x_m, state.y_m), home) <= mission.coa_radius_m:
+            self.missions.hold("home reached on the energy budget's return")
+            return
+        back = req.model_copy(update={
+            "mission_id": f"{mission.mission_id}/return"[-64:],
+            "waypoints": [Waypoint(x_m=state.x_m, y_m=state.y_m),
+                          Waypoint(x_m=home[0], y_m=home[1])],
+            "home": Waypoint(x_m=home[0], y_m=home[1]), "on_low_energy": "warn"})
+        reply = self.handle_mission(now_ns, back, returning=True)
+        if not reply.accepted:  # cannot happen with a home inside the area; stop rather than fly on
+            self.missions.hold(f"the return home was refused: {reply.reason}")
+
+    def take_budget(self) -> EnergyBudget | None:
+        """The budget of the last step, once (None: no active mission was stepped)."""
+        msg, self._budget_msg = self._budget_msg, None
+        return msg
 
     def zero_command(self, stamp_ns: int, source: str) -> ThrustCommand:
         """A zero-thrust command outside the control period (e.g. the state went stale)."""
@@ -369,12 +471,15 @@ class ControllerCore:
         self.level = level
 
     def _account_energy(self, now_ns: int) -> None:
-        """Energy of the last command over the time since: alpha (T1^2 + T2^2) + T^w [J]."""
+        """Energy of the last command over the time since: alpha (T1^2 + T2^2) + T^w [J], to the
+        mission's count while it is active and to the battery's count always."""
         mm = self.missions
-        if self._last_step_ns is not None and mm.state == "active" and mm.mission is not None:
+        if self._last_step_ns is not None:
             dt = max(0.0, (now_ns - self._last_step_ns) / 1e9)
-            power = propulsion_power_w(self._last_command, self.vessel) + mm.mission.task_power_w
-            self.energy_used_j += power * dt
+            energy = self._power_w() * dt
+            self.energy_counted_j += energy
+            if mm.state == "active" and mm.mission is not None:
+                self.energy_used_j += energy
         self._last_step_ns = now_ns
 
     def _command(self, stamp_ns: int, thrust: tuple[float, float], source: str) -> ThrustCommand:
@@ -399,7 +504,7 @@ class ControllerCore:
                 cost_stage_j=_finite_or_none(c.stage_j), cost_dynamic_j=_finite_or_none(c.dynamic_j),
                 cost_static_j=_finite_or_none(c.static_j), cost_track_j=_finite_or_none(c.track_j),
                 t_d_s=_finite_or_none(c.t_d_s), t_s_s=_finite_or_none(c.t_s_s),
-                energy_to_go_j=_finite_or_none(c.energy_to_go_j),
+                leg_energy_to_go_j=_finite_or_none(c.energy_to_go_j),
                 cross_track_m=_finite_or_none(c.cross_track_m))
         status = res.status + (f" (late: {res.solve_time_s * 1e3:.1f} ms)" if late else "")
         return SolveRecord.make(stamp_ns=stamp_ns, controller=kind, status=status,
@@ -419,5 +524,7 @@ class ControllerCore:
             waypoint_count=len(m.waypoints_m),
             distance_to_waypoint_m=math.dist((state.x_m, state.y_m), wp_act),
             cross_track_m=abs(xte), energy_used_j=self.energy_used_j,
-            energy_to_go_j=self._energy_to_go_j if mm.state == "active" else None,
+            energy_to_go_j=(self.budget.last.energy_to_go_j if mm.state == "active" and self.budget
+                            and self.budget.last else None),
+            leg_energy_to_go_j=self._energy_to_go_j if mm.state == "active" else None,
             reason=mm.reason)

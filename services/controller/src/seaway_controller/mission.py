@@ -17,6 +17,7 @@ from seaway.contract.messages import (
     MAX_REASON_CHARS,
     MAX_TASK_POWER_W,
     ControllerName,
+    LowEnergyPolicy,
     MissionCommand,
     MissionRequest,
     MissionState,
@@ -52,9 +53,16 @@ class Mission:
     task_power_w: float
     controller: ControllerName
     speed_hint_mps: float | None = None
+    home_m: Point | None = None
+    """Where a return goes (the request's home, else P_0) [m]."""
+    on_low_energy: LowEnergyPolicy = "return"
+
+    @property
+    def home(self) -> Point:
+        return self.home_m if self.home_m is not None else self.waypoints_m[0]
 
 
-def _waypoint_ned(i: int, wp: object, origin: GeoOrigin | None) -> Point:
+def _waypoint_ned(i: int | str, wp: object, origin: GeoOrigin | None) -> Point:
     x, y = getattr(wp, "x_m", None), getattr(wp, "y_m", None)
     lat, lon = getattr(wp, "lat_deg", None), getattr(wp, "lon_deg", None)
     has_xy = x is not None or y is not None
@@ -103,8 +111,15 @@ def validate_mission(req: MissionRequest, origin: GeoOrigin | None,
         if leg < limits.min_leg_m:
             raise MissionError(f"leg {i - 1}->{i} has zero length ({leg:.3g} m < "
                                f"{limits.min_leg_m} m): remove the duplicate waypoint")
+    home = None
+    if req.home is not None:
+        home = _waypoint_ned("home", req.home, origin)
+        r = math.hypot(*home)
+        if not all(map(math.isfinite, home)) or r > limits.max_range_m:
+            raise MissionError(f"home at ({home[0]:.1f}, {home[1]:.1f}) m is outside the operating "
+                               f"area (max {limits.max_range_m:.0f} m from the origin)")
     return Mission(req.mission_id, tuple(points), float(req.coa_radius_m), float(req.task_power_w),
-                   req.controller, req.speed_hint_mps)
+                   req.controller, req.speed_hint_mps, home, req.on_low_energy)
 
 
 class MissionManager:

@@ -50,6 +50,7 @@ from typing import Any
 from seaway.contract import keys
 from seaway.contract.config import ConfigError
 from seaway.contract.messages import (
+    BatteryState,
     MissionCommand,
     MissionRequest,
     MissionStatus,
@@ -121,7 +122,11 @@ class ControllerService:
         self._states: dict[int, StateEstimate] = {}  # lockstep: the states of recent periods by stamp
         self._rethink = False  # lockstep: a mission request came while the current answer was hold
         if lockstep:
-            self.member = Member(bus, NAME, watched={keys.NAV_STATE.suffix}, hears=("sim", "estimator"))
+            # The state comes with the estimator's answer, the battery with the sim's (the energy
+            # budget decides from the battery of the same period: exact, so replayable).
+            self.member = Member(bus, NAME, watched={keys.NAV_STATE.suffix,
+                                                     keys.VEHICLE_BATTERY.suffix},
+                                 hears=("sim", "estimator"))
             bus.subscribe(keys.NAV_STATE, callback=self._on_state, inline=True)
         else:  # real time acts on the newest state
             self.states = bus.subscribe(keys.NAV_STATE, mode="latest")
@@ -129,6 +134,8 @@ class ControllerService:
         self.pub_solve = bus.publisher(keys.SOLVE)
         self.pub_status = bus.publisher(keys.MISSION_STATUS)
         self.pub_accepted = bus.publisher(keys.MISSION_ACCEPTED)
+        self.pub_energy = bus.publisher(keys.MISSION_ENERGY)
+        bus.subscribe(keys.VEHICLE_BATTERY, callback=self.on_battery, inline=lockstep)
         bus.queryable(keys.MISSION_SET, self.on_mission)
         bus.queryable(keys.MISSION_COMMAND, self.on_command)
         bus.subscribe(keys.NAV_ORIGIN, callback=self.on_origin)
@@ -228,6 +235,22 @@ class ControllerService:
         if paused:
             self.save_checkpoint(force=True)
 
+    def on_battery(self, _key: str, msg: BatteryState) -> None:
+        """The battery's report: the energy budget counts down from it (``ControllerCore.on_battery``)."""
+        member = self.member
+        if member is None:
+            if not self.stamps.admit(keys.VEHICLE_BATTERY.suffix, msg.stamp_ns,
+                                     self.ctx.clock.now_ns()):
+                return  # stamped ahead of now: wrong (seaway.runtime.stamps)
+            with self.lock:
+                self.core.on_battery(msg)
+            return
+        if not member.admit(keys.VEHICLE_BATTERY.suffix, msg.stamp_ns):
+            return
+        with self.lock:
+            self.core.on_battery(msg)
+        member.saw(keys.VEHICLE_BATTERY.suffix, msg.stamp_ns)
+
     def on_origin(self, _key: str, msg: NavOrigin) -> None:
         with self.lock:
             self.core.set_origin(GeoOrigin(msg.lat_rad, msg.lon_rad, msg.alt_m))
@@ -236,6 +259,7 @@ class ControllerService:
         try:
             with self.lock:
                 cmd, record, status = self.core.step(now_ns, state)
+                budget = self.core.take_budget()
                 making = self.solver_pending()
             if making is not None and not status.reason:  # flown by the reference meanwhile
                 status = status.model_copy(update={
@@ -249,6 +273,8 @@ class ControllerService:
         if record is not None:
             self.pub_solve.put(record)
         self.pub_status.put(status)
+        if budget is not None:
+            self.pub_energy.put(budget)
         self.save_checkpoint()
 
     # -- lockstep (seaway.runtime.lockstep) ------------------------------------------------------
@@ -277,7 +303,8 @@ class ControllerService:
             with member.changed:
                 period = member.ledger.period
                 est = member.ledger.answer("estimator")
-                complete = member.ledger.complete(est)
+                complete = member.ledger.complete(est) and member.ledger.complete(
+                    member.ledger.answer("sim"))
                 restart = bool(restarts)
                 restarts.clear()
                 rethink, self._rethink = self._rethink, False
@@ -328,6 +355,9 @@ class ControllerService:
                     if record is not None:
                         out.append((keys.SOLVE, record))
                     out.append((keys.MISSION_STATUS, status))
+                    budget = self.core.take_budget()
+                    if budget is not None:
+                        out.append((keys.MISSION_ENERGY, budget))
         except Exception:  # a bug must not leave a lockstep sim without a command
             self.ratelog.exception("step", "control step failed; commanding zero thrust")
             with self.lock:

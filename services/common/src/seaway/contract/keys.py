@@ -75,6 +75,8 @@ ATTITUDE = KeySpec("sensors/attitude", m.Attitude, "vehicle_io", doc="attitude a
 LOCAL_POSITION = KeySpec("sensors/local_position", m.LocalPosition, "vehicle_io",
                          also=SENSOR_STAND_INS)
 VEHICLE_STATUS = KeySpec("vehicle/status", m.VehicleStatus, "vehicle_io")
+VEHICLE_BATTERY = KeySpec("vehicle/battery", m.BatteryState, "vehicle_io",
+                          doc="the propulsion battery in SI units", also=SENSOR_STAND_INS)
 VEHICLE_ARM = KeySpec("vehicle/arm", m.ArmRequest, "vehicle_io", "query")
 VEHICLE_MODE = KeySpec("vehicle/mode", m.ModeRequest, "vehicle_io", "query")
 NAV_STATE = KeySpec("nav/state", m.StateEstimate, "estimator")
@@ -85,6 +87,8 @@ SOLVE = KeySpec("ctrl/solve", m.SolveRecord, "controller")
 MISSION_STATUS = KeySpec("mission/status", m.MissionStatus, "controller")
 MISSION_ACCEPTED = KeySpec("mission/accepted", m.MissionAccepted, "controller",
                             doc="the mission accepted, in local NED: on acceptance, and 1 Hz live")
+MISSION_ENERGY = KeySpec("mission/energy", m.EnergyBudget, "controller",
+                         doc="energy to finish and to get home against the battery; the decision")
 MISSION_SET = KeySpec("mission/set", m.MissionRequest, "controller", "query")
 MISSION_COMMAND = KeySpec("mission/command", m.MissionCommand, "controller", "query")
 SIM_TRUTH = KeySpec("sim/truth", m.SimTruth, "sim", also=("replay",))

@@ -198,6 +198,35 @@ class VehicleStatus(Message):
                     "failsafe), 'autopilot_config' (vehicle_io sends neutral only); None: it does")
 
 
+BatterySource = Literal["autopilot", "sim"]
+"""Who measured a ``BatteryState``: the autopilot's battery monitor (through vehicle_io; also the
+MAVLink-speaking simulator), or the lockstep simulator itself."""
+
+
+class BatteryState(Message):
+    """The propulsion battery as the autopilot (or the lockstep simulator) reports it, in SI units.
+
+    Measured figures (voltage, current, energy drawn) are the autopilot's; the energies it does not
+    report are completed from the vessel file's ``[battery]`` (``seaway.vessel.battery``):
+    ``remaining_j`` = remaining fraction x usable energy when the autopilot gives a fraction, else
+    usable energy - energy drawn. None: neither the autopilot nor the vessel file says.
+    """
+
+    SCHEMA: ClassVar[str] = "seaway.v1.BatteryState"
+    source: BatterySource
+    voltage_v: float | None = Field(default=None, ge=0, description="pack voltage [V]")
+    current_a: float | None = Field(default=None, description="current drawn [A], positive discharging")
+    power_w: float | None = Field(default=None, description="power drawn [W]: voltage x current "
+                                  "where the autopilot measures both")
+    consumed_j: float | None = Field(default=None, ge=0, description="energy drawn since the pack "
+                                     "was full (or the autopilot's count started) [J]")
+    remaining_j: float | None = Field(default=None, ge=0, description="usable energy left [J]")
+    remaining_frac: float | None = Field(default=None, ge=0, le=1,
+                                         description="remaining_j over the usable energy")
+    capacity_j: float | None = Field(default=None, gt=0, description="usable energy full to empty [J]")
+    reserve_j: float | None = Field(default=None, ge=0, description="what a return home must leave [J]")
+
+
 # ---------------------------------------------------------------------------------------------
 # Navigation (producer: estimator)
 # ---------------------------------------------------------------------------------------------
@@ -268,7 +297,8 @@ class SolveRecord(Message):
     cost_track_j: float | None = Field(default=None, description="Y [J]")
     t_d_s: float | None = None
     t_s_s: float | None = None
-    energy_to_go_j: float | None = None
+    leg_energy_to_go_j: float | None = Field(default=None, description="predicted energy to reach "
+                                             "the active waypoint: horizon + E_d + E_s [J]")
     cross_track_m: float | None = None
     predicted_x_m: list[float] = Field(default_factory=list)
     predicted_y_m: list[float] = Field(default_factory=list)
@@ -296,11 +326,67 @@ class MissionStatus(Message):
     distance_to_waypoint_m: float | None = None
     cross_track_m: float | None = None
     energy_used_j: float | None = None
-    energy_to_go_j: float | None = None
+    energy_to_go_j: float | None = Field(default=None, description="predicted energy to finish the "
+                                         "mission (``EnergyBudget.energy_to_go_j``) [J]")
+    leg_energy_to_go_j: float | None = Field(default=None, description="predicted energy to reach "
+                                             "the active waypoint (the MPC's plan) [J]")
     reason: str = Field(default="", max_length=MAX_REASON_CHARS, description="what the operator "
                         "did not ask for but should know about the mission's state: why the "
                         "controller paused it (e.g. the vehicle was disarmed), or how it is flown "
                         "meanwhile; empty otherwise")
+
+
+LowEnergyPolicy = Literal["warn", "return", "hold"]
+"""What a mission does when the energy to get home plus the reserve reaches the battery's remaining
+energy: ``warn`` (say so, fly on), ``return`` (fly straight home, the default), ``hold`` (stop)."""
+EnergyDecision = Literal["none", "warn", "return", "hold"]
+
+
+class EnergyBudget(Message):
+    """Will it make it back: the energy to finish and to get home against the battery, each control
+    period of an active mission (``mission/energy``; ``seaway_controller.energy``).
+
+    Predictions come from the controller's own model and cost at its economic cruise under the
+    estimated disturbance; ``*_low_j``/``*_high_j`` are the band from the estimate's disturbance
+    covariance (one standard deviation each way). Frames: local NED [m].
+    """
+
+    SCHEMA: ClassVar[str] = "seaway.v1.EnergyBudget"
+    mission_id: str = ""
+    active_leg: int = Field(default=0, ge=0)
+    returning: bool = Field(default=False, description="the mission is the return home")
+    energy_used_j: float = Field(ge=0, description="energy used since the mission started [J]")
+    leg_energy_to_go_j: float | None = Field(default=None, description="to the active waypoint, "
+                                             "from the MPC's plan [J]")
+    energy_to_go_j: float | None = Field(default=None, description="to finish the mission [J]")
+    energy_to_go_low_j: float | None = None
+    energy_to_go_high_j: float | None = None
+    energy_to_home_j: float | None = Field(default=None, description="from here straight home [J]")
+    energy_to_home_low_j: float | None = None
+    energy_to_home_high_j: float | None = None
+    home_x_m: float
+    home_y_m: float
+    battery_remaining_j: float | None = Field(default=None, description="the battery's usable "
+                                              "energy left now: its last report less what the "
+                                              "controller counted since [J]")
+    battery_stamp_ns: int | None = Field(default=None, ge=0, description="stamp of that report")
+    reserve_j: float | None = Field(default=None, ge=0)
+    margin_j: float | None = Field(default=None, description="remaining - (to home + reserve): the "
+                                   "decision is due when it reaches 0 [J]")
+    finish_margin_j: float | None = Field(default=None, description="remaining - (to finish + "
+                                          "reserve): below 0 the mission cannot end with the "
+                                          "reserve left [J]")
+    no_return_x_m: float | None = Field(default=None, description="point of no return along the "
+                                        "path ahead: where margin_j is predicted to reach 0 [m]")
+    no_return_y_m: float | None = None
+    no_return_along_m: float | None = Field(default=None, ge=0, description="how far along the "
+                                            "path ahead that point is [m]")
+    policy: LowEnergyPolicy
+    decision: EnergyDecision = Field(description="'none' until the margin reached 0, then what "
+                                     "the policy did, from that period on")
+    decided_ns: int | None = Field(default=None, ge=0, description="the period it was decided")
+    reason: str = Field(default="", max_length=MAX_REASON_CHARS)
+
 
 
 # ---------------------------------------------------------------------------------------------
@@ -488,6 +574,11 @@ class MissionRequest(Request):
     predict_disturbance: bool = Field(default=False, description="predict with the estimator's tau_d "
                                       "instead of tau_d = 0 (the paper's)")
     speed_hint_mps: float | None = Field(default=None, gt=0, description="optional cruise hint")
+    on_low_energy: LowEnergyPolicy = Field(default="return", description="when the energy to get "
+                                           "home plus the battery's reserve reaches what is left: "
+                                           "'warn', 'return' home (default) or 'hold'")
+    home: Waypoint | None = Field(default=None, description="where home is; default the first "
+                                  "waypoint P_0")
 
 
 class MissionCommand(Request):
@@ -524,6 +615,10 @@ class MissionAccepted(Message):
     predict_disturbance: bool = Field(description="flown predicting with the estimator's tau_d "
                                       "(asked by the mission or the controller's flag), else tau_d = 0")
     speed_hint_mps: float | None = Field(default=None, gt=0, description="the request's cruise hint")
+    on_low_energy: LowEnergyPolicy = Field(default="return", description="the request's policy")
+    home_x_m: float | None = Field(default=None, description="home, local NED north [m]: the "
+                                   "request's, or P_0 (None only in recordings made before it)")
+    home_y_m: float | None = Field(default=None, description="home, local NED east [m]")
     resumed: bool = Field(default=False, description="re-announced by a restarted controller that "
                           "resumed it from its checkpoint: the same flight going on, not a new one")
     controller_settings: dict[Annotated[str, StringConstraints(max_length=64)], float] = Field(

@@ -12,6 +12,7 @@ from seaway.contract.messages import (
     DEFAULT_CONTROLLER,
     MAX_TASK_POWER_W,
     ControllerName,
+    LowEnergyPolicy,
     MessageError,
     MissionRequest,
     Waypoint,
@@ -41,6 +42,11 @@ class MissionSpec(ConfigModel):
     controller: ControllerName = DEFAULT_CONTROLLER
     predict_disturbance: bool = Field(default=False, description="predict with the estimator's tau_d "
                                       "instead of tau_d = 0 (the paper's)")
+    on_low_energy: LowEnergyPolicy = Field(default="return", description="when the energy to get "
+                                           "home plus the reserve reaches what the battery has "
+                                           "left: 'warn', 'return' (default) or 'hold'")
+    home_m: tuple[float, float] | None = Field(default=None, description="home [north, east] in "
+                                               "local NED metres; default the first waypoint")
 
     @model_validator(mode="after")
     def _one_kind_of_waypoints(self) -> MissionSpec:
@@ -73,4 +79,6 @@ class MissionSpec(ConfigModel):
             task_power_w=self.task_power_w if task_power_w is None else task_power_w,
             controller=controller or self.controller,
             predict_disturbance=(self.predict_disturbance if predict_disturbance is None
-                                 else predict_disturbance))
+                                 else predict_disturbance),
+            on_low_energy=self.on_low_energy,
+            home=None if self.home_m is None else Waypoint(x_m=self.home_m[0], y_m=self.home_m[1]))

@@ -131,6 +131,17 @@ def load_mission(path: str | Path) -> MissionSpec:
     return parse_config(doc, MissionSpec, str(p))
 
 
+class ScenarioBattery(ConfigModel):
+    """A scenario's ``[battery]``: how the simulated pack starts and what else draws from it. The
+    pack itself is the plant vessel file's ``[battery]`` (``seaway.vessel.battery``)."""
+
+    initial_energy_j: float | None = Field(default=None, ge=0, description="usable energy in the "
+                                           "pack at the start [J]; default full")
+    hotel_power_w: float | None = Field(default=None, ge=0, description="power drawn besides the "
+                                        "thrusters [W]; default the scenario mission's task power "
+                                        "T^w (0 without a mission)")
+
+
 class Scenario(ConfigModel):
     name: str = Field(min_length=1)
     description: str = ""
@@ -146,6 +157,14 @@ class Scenario(ConfigModel):
     dead_zone: bool = Field(default=False, description="apply the vessel file's thrust dead zone")
     thruster_lag: bool = Field(default=False, description="apply the vessel file's thruster lag")
     mission: MissionSpec | None = None
+    battery: ScenarioBattery = ScenarioBattery()
+
+    @property
+    def hotel_power_w(self) -> float:
+        """What the simulated pack feeds besides the thrusters [W] (``ScenarioBattery``)."""
+        if self.battery.hotel_power_w is not None:
+            return self.battery.hotel_power_w
+        return self.mission.task_power_w if self.mission is not None else 0.0
 
     @property
     def plant_vessel_file(self) -> str:

@@ -247,3 +247,61 @@ def _thrust_energy(thrusts: Sequence[Thrust], alpha: float, t0: int, t1: int, at
             i += 1
         curve.append(total + p_cur * (t - t_prev) / NS_PER_S)
     return curve[-1], curve[:-1]
+
+
+# -- how good the energy-to-finish prediction was (issue #17) -----------------------------------------
+
+
+@dataclass(frozen=True)
+class PredictionPoint:
+    """One prediction of the energy to finish against what finishing actually took [s, J]."""
+
+    t_s: float
+    predicted_j: float
+    actual_j: float
+
+    @property
+    def error_frac(self) -> float:
+        """(predicted - actual) / actual; NaN when nothing was left to use."""
+        return (self.predicted_j - self.actual_j) / self.actual_j if self.actual_j > 0 else math.nan
+
+
+@dataclass(frozen=True)
+class PredictionCheck:
+    """The energy to finish as predicted along a mission against the energy actually used.
+
+    ``start``: the first prediction; ``half``: the first at or after half the mission's time;
+    ``last_half_max_abs_error_frac``: the worst |error| of every prediction from there until a
+    tenth of the mission is left (closer to the end, a few joules of misprediction are a large
+    fraction of what is left, and nothing depends on them)."""
+
+    points: list[PredictionPoint]
+    start: PredictionPoint | None
+    half: PredictionPoint | None
+    last_half_max_abs_error_frac: float
+
+
+def energy_prediction_check(predicted: Sequence[tuple[int, float]],
+                            used: Sequence[tuple[int, float]], end_ns: int) -> PredictionCheck:
+    """Compare predictions (stamp [ns], energy to finish [J]) with the energy actually used from
+    each stamp to ``end_ns`` [ns], from ``used``: (stamp [ns], energy used since the start [J]),
+    in time order, read as the newest sample at or before a time (the report's energy integral,
+    or the simulator's ``energy_j`` plus T^w t)."""
+    stamps = [s for s, _ in used]
+
+    def at(t_ns: int) -> float:
+        i = bisect_right(stamps, t_ns) - 1
+        return used[max(i, 0)][1]
+
+    preds = [(s, p) for s, p in predicted if s <= end_ns and math.isfinite(p)]
+    if not preds or not used:
+        return PredictionCheck([], None, None, math.nan)
+    t0 = preds[0][0]
+    total = at(end_ns)
+    points = [PredictionPoint((s - t0) / NS_PER_S, p, total - at(s)) for s, p in preds]
+    half_ns = t0 + (end_ns - t0) / 2
+    tail_ns = end_ns - (end_ns - t0) / 10
+    half = next((pt for (s, _), pt in zip(preds, points, strict=True) if s >= half_ns), None)
+    errs = [abs(pt.error_frac) for (s, _), pt in zip(preds, points, strict=True)
+            if half_ns <= s <= tail_ns and math.isfinite(pt.error_frac)]
+    return PredictionCheck(points, points[0], half, max(errs) if errs else math.nan)

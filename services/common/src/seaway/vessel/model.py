@@ -36,6 +36,7 @@ from typing import Any
 from pydantic import Field, model_validator
 
 from seaway.contract.config import ConfigError, ConfigModel, deploy_named, load_config
+from seaway.vessel.battery import BatteryParams
 
 STATE_NAMES = ("u_mps", "v_mps", "r_radps", "x_m", "y_m", "psi_rad")
 NX = 6
@@ -64,6 +65,8 @@ class VesselParams(ConfigModel):
     )
     dead_zone_n: float = Field(default=0.0, ge=0, description="|T| below this gives no thrust [N]")
     thruster_time_constant_s: float = Field(default=0.0, ge=0, description="first-order lag [s]")
+    battery: BatteryParams | None = Field(default=None, description="the propulsion battery "
+                                          "(seaway.vessel.battery); None: not known")
 
     @model_validator(mode="after")
     def _dead_zone_below_the_bounds(self) -> VesselParams:

@@ -1,0 +1,474 @@
+"""The energy budget (issue #17): energy to finish the mission and to get home, from the controller's
+own model and cost at its economic cruise under the estimated disturbance; the point of no return;
+the return decision. Pure: states, battery reports and plans in, ``EnergyBudget`` out.
+
+All energies count what the paper's energy counts (eq. 3): propulsion alpha (T1^2 + T2^2) plus the
+task power T^w, integrated over time [J]. Positions are local NED [m], angles from north [rad].
+
+THE PREDICTION
+
+* **The active leg** is the MPC's own: horizon stage cost + E_d + E_s (``Costs.energy_to_go_j``).
+  Two corrections make it the energy the leg really takes: E_s prices the distance to the waypoint
+  itself while the leg ends on its circle of acceptance (r_COA less, at the cruise's energy per
+  metre), and the terminal cost is the paper's, disturbance-free, while the cruise below is not.
+* **Each later leg** starts where the vessel enters the previous circle and ends on its own: a turn
+  by the change of course, priced by the paper's terminal cost (the least E_d + E_s over t_d minus
+  the straight run it replaces, ``turn_extra_j``), plus the straight run at the economic cruise.
+* **The cruise** under a disturbance force (``cruise``): the estimator's tau_d, a body-frame force,
+  is taken as the world-frame force it is now (wind, or a current seen through the GNSS) and turned
+  into each leg's body frame. The economic controllers hold the model's surge speed at u*, where
+  P^sur(u*) = T^w (their terminal cost has no disturbance): predicting with tau_d they pay for the
+  disturbance in thrust (T1 + T2 = Xu u* - F_u); predicting with tau_d = 0 (the paper's) they keep
+  the thrust and the speed changes (u = u* + F_u / Xu). The sway force is met by crabbing into it
+  (v = F_v / Yv, heading off the course so the track is made good), its Munk and yaw moments by
+  differential thrust. The NMPC has no economic cruise: it is taken at its present speed.
+* **Home** is straight from here to the home point's circle: a turn from the present heading and
+  one straight run, the same way (the return mission is exactly that path, ``return_request``).
+* **The band** is the prediction at the disturbance one standard deviation away along each
+  principal axis of the estimate's tau_d covariance: the lowest and highest of those, and the
+  nominal.
+
+THE DECISION
+
+The battery's remaining energy now is its last report less the energy the controller counted since
+that report's stamp (reports come at ~1 Hz from an autopilot, each period in lockstep). The margin
+is remaining - (energy to home + reserve); the period it first reaches 0 the mission's policy acts:
+``warn`` (flag it, fly on), ``return`` (fly home), ``hold`` (stop). The decision stays with the
+mission; its inputs are all on the bus (state, battery, solve record, mission), so a replay of the
+recording decides the same at the same period (``replay_budget`` is that replay).
+
+The point of no return is where along the path ahead the margin is predicted to reach 0: the
+remaining energy less the energy to get there, against the energy home from there.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import numpy as np
+from seaway.contract.messages import (
+    BatteryState,
+    EnergyBudget,
+    EnergyDecision,
+    LowEnergyPolicy,
+    MissionAccepted,
+    MissionStatus,
+    SolveRecord,
+    StateEstimate,
+)
+from seaway.vessel.model import VesselParams
+
+from seaway_controller import costs
+
+TURN_TABLE_POINTS = 91
+"""Turn angles [0, pi] at which the turn's extra energy is tabulated (2 deg apart), interpolated."""
+PNR_SAMPLES = 200
+"""Points along the path ahead at which the margin is predicted for the point of no return."""
+MIN_SPEED_FRAC = 0.05
+"""A predicted ground speed below this fraction of u* means the vessel cannot make way against the
+disturbance on that course: the leg's energy is then unbounded (reported as such)."""
+
+
+# -- the cruise ----------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Cruise:
+    """A steady straight run along a course [m/s, W, N]."""
+
+    ground_speed_mps: float
+    power_w: float
+    thrust_port_n: float
+    thrust_starboard_n: float
+
+    @property
+    def j_per_m(self) -> float:
+        """Energy per metre made good [J/m]; inf when the vessel makes no way."""
+        return self.power_w / self.ground_speed_mps if self.ground_speed_mps > 0 else math.inf
+
+
+def cruise(vessel: VesselParams, task_power_w: float, speed_mps: float, course_rad: float,
+           force_ne: tuple[float, float] = (0.0, 0.0), yaw_nm: float = 0.0,
+           pay_in_thrust: bool = True) -> Cruise:
+    """The steady run along ``course_rad`` at model surge speed ``speed_mps`` under a world-frame
+    force ``force_ne`` [N north, N east] and a yaw moment ``yaw_nm`` [N m] (module docstring).
+
+    ``pay_in_thrust``: the controller knows the force and holds its speed with thrust; else it
+    keeps the thrust of the undisturbed cruise and the speed changes. Thrusts are bounded by the
+    vessel's limits (a cruise beyond them is flown at the bound, and the speed follows)."""
+    p = vessel
+    beta = 0.0  # crab angle: heading - course
+    u, v, t_sum = speed_mps, 0.0, p.xu_kgps * speed_mps
+    for _ in range(4):  # the crab angle and the forces it sees agree within 1e-6 rad in 3
+        psi = course_rad + beta
+        c, s = math.cos(psi), math.sin(psi)
+        f_u = c * force_ne[0] + s * force_ne[1]
+        f_v = -s * force_ne[0] + c * force_ne[1]
+        if pay_in_thrust:
+            u, t_sum = speed_mps, p.xu_kgps * speed_mps - f_u
+        else:
+            u, t_sum = speed_mps + f_u / p.xu_kgps, p.xu_kgps * speed_mps
+        t_sum = min(max(t_sum, -2 * p.reverse_max_n), 2 * p.thrust_max_n)
+        u = (t_sum + f_u) / p.xu_kgps
+        v = f_v / p.yv_kgps
+        beta = -math.atan2(v, u) if u > 0 else 0.0
+    t_diff = ((p.m22_kg - p.m11_kg) * u * v - yaw_nm) / p.arm_m
+    t1 = min(max((t_sum + t_diff) / 2.0, -p.reverse_max_n), p.thrust_max_n)
+    t2 = min(max((t_sum - t_diff) / 2.0, -p.reverse_max_n), p.thrust_max_n)
+    ground = math.hypot(u, v) if u > 0 else 0.0
+    power = p.alpha_w_per_n2 * (t1 * t1 + t2 * t2) + task_power_w
+    return Cruise(ground, power, t1, t2)
+
+
+def _turn_extra_j(vessel: VesselParams, task_power_w: float, speed_mps: float, delta_psi: float,
+                  n: float, t_d_min_s: float, t_d_max_s: float) -> float:
+    """Extra energy of turning by ``delta_psi`` on the way: the least E_d + E_s over t_d (paper
+    eq. 15, t_s from the terminal constraint) minus the straight run E_s would be alone [J]."""
+    p_static = costs.surge_power_w(speed_mps, vessel) + task_power_w
+    sinc = costs.smooth_sinc(delta_psi)
+
+    def extra(t_d: float) -> float:
+        p_dyn = costs.dynamic_power_w(speed_mps, 0.0, delta_psi, t_d, task_power_w, n, vessel)
+        return t_d * (p_dyn - p_static * sinc)
+
+    # Golden-section search on [t_d_min, t_d_max] (extra(t_d) is unimodal: a turning cost falling
+    # as 1/t_d against a straight-line cost growing with t_d).
+    a, b = t_d_min_s, t_d_max_s
+    g = (math.sqrt(5.0) - 1.0) / 2.0
+    c, d = b - g * (b - a), a + g * (b - a)
+    fc, fd = extra(c), extra(d)
+    for _ in range(60):
+        if fc < fd:
+            b, d, fd = d, c, fc
+            c = b - g * (b - a)
+            fc = extra(c)
+        else:
+            a, c, fc = c, d, fd
+            d = a + g * (b - a)
+            fd = extra(d)
+    return max(0.0, min(fc, fd))
+
+
+@lru_cache(maxsize=64)
+def _turn_table(vessel: VesselParams, task_power_w: float, speed_mps: float, n: float,
+                t_d_min_s: float, t_d_max_s: float) -> np.ndarray:
+    angles = np.linspace(0.0, math.pi, TURN_TABLE_POINTS)
+    return np.array([_turn_extra_j(vessel, task_power_w, speed_mps, float(a), n, t_d_min_s,
+                                   t_d_max_s) for a in angles])
+
+
+def _wrap(a: float) -> float:
+    return math.atan2(math.sin(a), math.cos(a))
+
+
+# -- the model of one mission ------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Disturbance:
+    """The estimated disturbance as the prediction uses it: a world-frame force and a yaw moment."""
+
+    force_ne: tuple[float, float] = (0.0, 0.0)
+    yaw_nm: float = 0.0
+
+    @classmethod
+    def from_body(cls, tau: Sequence[float], psi_rad: float) -> Disturbance:
+        """tau_d = (surge [N], sway [N], yaw [N m]) at heading ``psi_rad``, as a world force."""
+        c, s = math.cos(psi_rad), math.sin(psi_rad)
+        return cls((c * tau[0] - s * tau[1], s * tau[0] + c * tau[1]), tau[2])
+
+
+ZERO = Disturbance()
+
+
+@dataclass(frozen=True)
+class EnergyModel:
+    """What a mission is flown with that the prediction needs."""
+
+    vessel: VesselParams
+    task_power_w: float
+    coa_radius_m: float
+    economic: bool
+    predict_disturbance: bool
+    profile_n: float = 2.0
+    t_d_min_s: float = 1.0
+    t_d_max_s: float = 60.0
+
+    @classmethod
+    def from_accepted(cls, accepted: MissionAccepted, vessel: VesselParams) -> EnergyModel:
+        """The model of a mission as recorded (``mission/accepted`` carries its settings)."""
+        cs = accepted.controller_settings
+        return cls(vessel, accepted.task_power_w, accepted.coa_radius_m,
+                   "t_d_min_s" in cs, accepted.predict_disturbance, cs.get("profile_n", 2.0),
+                   cs.get("t_d_min_s", 1.0), cs.get("t_d_max_s", 60.0))
+
+    @property
+    def cruise_speed_mps(self) -> float:
+        """u*: P^sur(u*) = T^w (the economic controllers' cruise) [m/s]."""
+        return costs.cruise_speed_mps(self.task_power_w, self.vessel)
+
+    def speed_mps(self, state: StateEstimate | None) -> float:
+        """The model surge speed the controller holds: u*, or the NMPC's present speed."""
+        u_star = self.cruise_speed_mps
+        if self.economic or state is None:
+            return u_star
+        return max(state.u_mps, MIN_SPEED_FRAC * u_star)
+
+    def turn_j(self, delta_psi: float, speed_mps: float) -> float:
+        table = _turn_table(self.vessel, self.task_power_w, round(speed_mps, 6), self.profile_n,
+                            self.t_d_min_s, self.t_d_max_s)
+        return float(np.interp(abs(_wrap(delta_psi)), np.linspace(0.0, math.pi, len(table)), table))
+
+    def cruise(self, course_rad: float, speed_mps: float, dist: Disturbance) -> Cruise:
+        return cruise(self.vessel, self.task_power_w, speed_mps, course_rad, dist.force_ne,
+                      dist.yaw_nm, pay_in_thrust=self.predict_disturbance)
+
+    def run_j(self, start: tuple[float, float], end: tuple[float, float], heading_rad: float,
+              speed_mps: float, dist: Disturbance, shorten_m: float) -> tuple[float, float]:
+        """(energy [J], course [rad]) of turning from ``heading_rad`` towards ``end`` and running
+        there from ``start``, stopping ``shorten_m`` before it (on its circle)."""
+        dx, dy = end[0] - start[0], end[1] - start[1]
+        course = math.atan2(dy, dx)
+        length = max(0.0, math.hypot(dx, dy) - shorten_m)
+        if length == 0.0:
+            return 0.0, course
+        c = self.cruise(course, speed_mps, dist)
+        if c.ground_speed_mps < MIN_SPEED_FRAC * speed_mps:
+            return math.inf, course
+        return self.turn_j(course - heading_rad, speed_mps) + c.j_per_m * length, course
+
+
+@dataclass(frozen=True)
+class Prediction:
+    """One prediction of the energy to finish and to get home [J]."""
+
+    to_go_j: float
+    to_home_j: float
+
+
+def predict(model: EnergyModel, state: StateEstimate, waypoints: Sequence[tuple[float, float]],
+            active: int, home: tuple[float, float], leg_mpc_j: float | None,
+            dist: Disturbance) -> Prediction:
+    """Energy to finish (from the active leg ``active`` on) and straight home, from ``state``.
+
+    ``leg_mpc_j`` is the MPC's energy to the active waypoint (None: no plan; the active leg is then
+    priced like the later ones)."""
+    pos, heading = (state.x_m, state.y_m), state.psi_rad
+    speed = model.speed_mps(state)
+    r = model.coa_radius_m
+    target = waypoints[active]
+    leg_j, course = model.run_j(pos, target, heading, speed, dist, r)
+    if leg_mpc_j is not None and math.isfinite(leg_j):
+        # The MPC's figure, corrected to the circle and to the disturbed cruise (module docstring).
+        remaining = max(0.0, math.dist(pos, target) - r)
+        undisturbed = model.cruise(course, speed, ZERO).j_per_m
+        disturbed = model.cruise(course, speed, dist).j_per_m
+        leg_j = leg_mpc_j - undisturbed * min(r, math.dist(pos, target)) + (
+            disturbed - undisturbed) * remaining
+    total = leg_j
+    # Later legs start where the vessel enters the previous circle, on its way in.
+    entry = _entry(pos, target, r)
+    for nxt in waypoints[active + 1:]:
+        j, course = model.run_j(entry, nxt, course, speed, dist, r)
+        total += j
+        entry = _entry(entry, nxt, r)
+    home_j, _ = model.run_j(pos, home, heading, speed, dist, r)
+    return Prediction(total, home_j)
+
+
+def _entry(start: tuple[float, float], target: tuple[float, float], r: float) -> tuple[float, float]:
+    """Where a run from ``start`` to ``target`` enters the circle of radius r around it."""
+    d = math.dist(start, target)
+    if d <= r:
+        return start
+    f = (d - r) / d
+    return (start[0] + f * (target[0] - start[0]), start[1] + f * (target[1] - start[1]))
+
+
+def disturbance_sigma_points(state: StateEstimate, predict_disturbance: bool
+                             ) -> tuple[Disturbance, list[Disturbance]]:
+    """The nominal disturbance and the ones a standard deviation away along each principal axis of
+    the estimate's tau_d covariance (none without a covariance)."""
+    tau = np.array([state.tau_d_surge_n, state.tau_d_sway_n, state.tau_d_yaw_nm])
+    nominal = Disturbance.from_body(tau, state.psi_rad)
+    if state.covariance is None:
+        return nominal, []
+    cov = np.asarray(state.covariance, dtype=float).reshape(9, 9)[6:, 6:]
+    cov = 0.5 * (cov + cov.T)
+    vals, vecs = np.linalg.eigh(cov)
+    out = []
+    for k in range(3):
+        if vals[k] <= 0:
+            continue
+        step = math.sqrt(vals[k]) * vecs[:, k]
+        out += [Disturbance.from_body(tau + step, state.psi_rad),
+                Disturbance.from_body(tau - step, state.psi_rad)]
+    return nominal, out
+
+
+# -- the point of no return ---------------------------------------------------------------------------
+
+
+def no_return_point(model: EnergyModel, state: StateEstimate,
+                    waypoints: Sequence[tuple[float, float]], active: int,
+                    home: tuple[float, float], remaining_j: float, reserve_j: float,
+                    dist: Disturbance) -> tuple[float, float, float] | None:
+    """(x [m], y [m], distance along the path [m]) where the margin is predicted to reach 0 along
+    the path ahead, or None if it does not before the mission ends (or already has)."""
+    speed = model.speed_mps(state)
+    r = model.coa_radius_m
+    pts = [(state.x_m, state.y_m)]
+    start = pts[0]
+    for wp in waypoints[active:]:
+        end = _entry(start, wp, r)
+        pts.append(end)
+        start = end
+    seg_len = [math.dist(a, b) for a, b in itertools.pairwise(pts)]
+    total_len = sum(seg_len)
+    if total_len <= 0:
+        return None
+    step = total_len / PNR_SAMPLES
+    heading, used, along = state.psi_rad, 0.0, 0.0
+    prev_margin: float | None = None
+    prev_pt = pts[0]
+    for (a, b), length in zip(itertools.pairwise(pts), seg_len, strict=True):
+        if length <= 0:
+            continue
+        course = math.atan2(b[1] - a[1], b[0] - a[0])
+        c = model.cruise(course, speed, dist)
+        used += model.turn_j(course - heading, speed)
+        heading = course
+        n = max(1, math.ceil(length / step))
+        for i in range(1, n + 1):
+            s = length * i / n
+            q = (a[0] + (b[0] - a[0]) * s / length, a[1] + (b[1] - a[1]) * s / length)
+            spent = used + c.j_per_m * s
+            home_j, _ = model.run_j(q, home, course, speed, dist, r)
+            margin = remaining_j - spent - home_j - reserve_j
+            if margin <= 0:
+                if prev_margin is None or not math.isfinite(margin):
+                    return (q[0], q[1], along + s)
+                f = prev_margin / (prev_margin - margin)
+                return (prev_pt[0] + f * (q[0] - prev_pt[0]), prev_pt[1] + f * (q[1] - prev_pt[1]),
+                        along + s - (1 - f) * length / n)
+            prev_margin, prev_pt = margin, q
+        used += c.j_per_m * length
+        along += length
+    return None
+
+
+# -- the budget of one mission, period after period --------------------------------------------------
+
+
+@dataclass
+class BatteryTrack:
+    """The battery's last report and the energy the controller counted since its stamp."""
+
+    report: BatteryState | None = None
+    counted_at_report_j: float = 0.0
+
+    def remaining_j(self, counted_now_j: float) -> float | None:
+        r = self.report
+        if r is None or r.remaining_j is None:
+            return None
+        return max(0.0, r.remaining_j - max(0.0, counted_now_j - self.counted_at_report_j))
+
+
+@dataclass
+class Budget:
+    """The energy budget of one mission: ``update`` each period, ``message`` to publish."""
+
+    model: EnergyModel
+    waypoints: list[tuple[float, float]]
+    home: tuple[float, float]
+    policy: LowEnergyPolicy
+    mission_id: str = ""
+    returning: bool = False
+    decision: EnergyDecision = "none"
+    decided_ns: int | None = None
+    reason: str = ""
+    last: EnergyBudget | None = field(default=None, repr=False)
+
+    def update(self, now_ns: int, state: StateEstimate, active: int, leg_mpc_j: float | None,
+               energy_used_j: float, battery_remaining_j: float | None, battery_stamp_ns: int | None,
+               reserve_j: float | None) -> EnergyDecision | None:
+        """This period's budget (``last``); the decision if it was taken now, else None."""
+        nominal, sigmas = disturbance_sigma_points(state, self.model.predict_disturbance)
+        pred = predict(self.model, state, self.waypoints, active, self.home, leg_mpc_j, nominal)
+        spread = [predict(self.model, state, self.waypoints, active, self.home, leg_mpc_j, d)
+                  for d in sigmas]
+        to_go = [p.to_go_j for p in spread] + [pred.to_go_j]
+        to_home = [p.to_home_j for p in spread] + [pred.to_home_j]
+        reserve = reserve_j or 0.0
+        margin = finish_margin = None
+        pnr = None
+        taken: EnergyDecision | None = None
+        if battery_remaining_j is not None:
+            margin = battery_remaining_j - pred.to_home_j - reserve
+            finish_margin = battery_remaining_j - pred.to_go_j - reserve
+            if not self.returning:
+                pnr = no_return_point(self.model, state, self.waypoints, active, self.home,
+                                      battery_remaining_j, reserve, nominal)
+            if margin <= 0 and self.decision == "none" and not self.returning:
+                taken = self.decision = self.policy
+                self.decided_ns = now_ns
+                self.reason = (f"energy to get home {pred.to_home_j:.0f} J + reserve {reserve:.0f} J "
+                               f"reached the battery's {battery_remaining_j:.0f} J left")
+        self.last = EnergyBudget.make(
+            stamp_ns=state.stamp_ns, mission_id=self.mission_id, active_leg=active,
+            returning=self.returning, energy_used_j=max(0.0, energy_used_j),
+            leg_energy_to_go_j=_finite(leg_mpc_j), energy_to_go_j=_finite(pred.to_go_j),
+            energy_to_go_low_j=_finite(min(to_go)), energy_to_go_high_j=_finite(max(to_go)),
+            energy_to_home_j=_finite(pred.to_home_j), energy_to_home_low_j=_finite(min(to_home)),
+            energy_to_home_high_j=_finite(max(to_home)), home_x_m=self.home[0],
+            home_y_m=self.home[1], battery_remaining_j=battery_remaining_j,
+            battery_stamp_ns=battery_stamp_ns, reserve_j=reserve_j, margin_j=_finite(margin),
+            finish_margin_j=_finite(finish_margin),
+            no_return_x_m=None if pnr is None else pnr[0],
+            no_return_y_m=None if pnr is None else pnr[1],
+            no_return_along_m=None if pnr is None else pnr[2], policy=self.policy,
+            decision=self.decision, decided_ns=self.decided_ns, reason=self.reason[:300])
+        return taken
+
+
+def _finite(v: float | None) -> float | None:
+    return v if v is not None and math.isfinite(v) else None
+
+
+def decisions(budgets: Iterable[EnergyBudget]) -> list[tuple[int, EnergyDecision]]:
+    """(period stamp, decision) each time a budget's decision changed from 'none'."""
+    out, seen = [], set()
+    for b in budgets:
+        if b.decision != "none" and b.decided_ns is not None and (b.mission_id, b.decided_ns) not in seen:
+            seen.add((b.mission_id, b.decided_ns))
+            out.append((b.decided_ns, b.decision))
+    return out
+
+
+def replay_decision(accepted: MissionAccepted, vessel: VesselParams,
+                    periods: Iterable[tuple[StateEstimate, BatteryState | None, SolveRecord | None,
+                                            MissionStatus]]) -> tuple[int | None, EnergyDecision]:
+    """Decide again from a recording: the mission as accepted, and per control period of it (in
+    order) the state the controller stepped, the battery report of that period (lockstep: stamped
+    with it), the solve record and the mission status it published. (period, decision) of the
+    first decision, or (None, 'none'). Lockstep recordings decide the same, to the period."""
+    model = EnergyModel.from_accepted(accepted, vessel)
+    assert accepted.home_x_m is not None and accepted.home_y_m is not None
+    budget = Budget(model, accepted.waypoints_m(), (accepted.home_x_m, accepted.home_y_m),
+                    accepted.on_low_energy, accepted.mission_id)
+    for state, battery, solve, status in periods:
+        leg = solve.leg_energy_to_go_j if solve is not None and solve.success else None
+        remaining = battery.remaining_j if battery is not None else None
+        reserve = battery.reserve_j if battery is not None else None
+        if reserve is None and vessel.battery is not None:
+            reserve = vessel.battery.reserve_energy_j
+        taken = budget.update(state.stamp_ns, state, status.active_leg, leg,
+                              status.energy_used_j or 0.0, remaining,
+                              battery.stamp_ns if battery is not None else None, reserve)
+        if taken is not None:
+            return state.stamp_ns, taken
+    return None, "none"

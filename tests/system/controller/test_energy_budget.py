@@ -1,0 +1,71 @@
+"""The energy budget's return decision in the closed loop (issue #17), on the controller's,
+simulator's and estimator's own cores in process (``seaway_lab.closed_loop``): a battery too small
+for the lake mission, and a current against the way home. The same through the real processes in
+lockstep, with its replay, is tests/system/launch/test_energy_return.py."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from seaway.simkit.scenario import Current, load_scenario
+from seaway.vessel.model import load_vessel
+from seaway_estimator.core import EstimatorCore
+from seaway_lab.closed_loop import run_closed_loop
+
+LAKE = load_scenario("lake")
+BOAT = load_vessel(LAKE.vessel)
+RESERVE_J = BOAT.battery.reserve_energy_j  # type: ignore[union-attr]
+PERIOD_J = 2 * 520.0 * 0.1  # two control periods' energy at the lake cruise, ~500 W [J]
+
+
+def _fly(sc, battery_j: float, max_time_s: float = 300.0):
+    return run_closed_loop(sc, "cc-empc", estimator=EstimatorCore(vessel=BOAT),
+                           battery_j=battery_j, max_time_s=max_time_s)
+
+
+def _left_over_reserve_j(out, battery_j: float, hotel_w: float) -> float:
+    last = out.truth[-1]
+    return battery_j - (last.energy_j + hotel_w * last.stamp_ns / 1e9) - RESERVE_J
+
+
+def test_too_small_a_battery_returns_home_at_the_point_of_no_return():
+    battery_j = RESERVE_J + 20_000.0  # the lake mission takes ~30 kJ
+    out = _fly(LAKE, battery_j)
+    budgets = out.budgets
+    k = next(i for i, b in enumerate(budgets) if b.decision != "none")
+    before, at = budgets[k - 1], budgets[k]
+    assert at.decision == "return" and at.decided_ns == at.stamp_ns and not at.returning
+    # Energy to home + reserve reached what is left within one control period.
+    assert before.margin_j > 0 >= at.margin_j
+    assert abs(at.margin_j) <= PERIOD_J
+    assert at.battery_remaining_j == pytest.approx(at.energy_to_home_j + at.reserve_j,
+                                                   abs=PERIOD_J)
+    # The point of no return predicted at the start is where the decision came.
+    start = budgets[0]
+    truth_at = next(t for t in out.truth if t.stamp_ns == at.stamp_ns)
+    assert math.dist((start.no_return_x_m, start.no_return_y_m),
+                     (truth_at.x_m, truth_at.y_m)) < 3.0
+    # Then home, flown as a mission of its own, with at least the reserve left.
+    after = budgets[k + 1:]
+    assert after and all(b.returning and b.decision == "return" for b in after)
+    last = out.truth[-1]
+    assert math.dist((last.x_m, last.y_m), (0.0, 0.0)) <= LAKE.mission.coa_radius_m + 0.05
+    assert _left_over_reserve_j(out, battery_j, LAKE.hotel_power_w) >= 0.0
+
+
+def test_a_current_against_the_way_home_brings_the_decision_forward():
+    # Out 60 m north; home 40 m to the west of the start: a current towards the east is across
+    # the way out and against the way home.
+    mission = LAKE.mission.model_copy(update={"waypoints_m": [(0.0, 0.0), (60.0, 0.0)],
+                                              "home_m": (0.0, -40.0)})
+    battery_j = RESERVE_J + 60_000.0
+    decided = {}
+    for east_mps in (0.0, 0.2):
+        current = [Current(kind="current", north_mps=0.0, east_mps=east_mps)] if east_mps else []
+        sc = LAKE.model_copy(update={"disturbances": current, "mission": mission})
+        out = _fly(sc, battery_j)
+        at = next(b for b in out.budgets if b.decision != "none")
+        decided[east_mps] = at.decided_ns
+        assert _left_over_reserve_j(out, battery_j, sc.hotel_power_w) >= 0.0
+    assert decided[0.2] < decided[0.0] - 5_000_000_000  # > 5 s earlier (measured ~11 s)

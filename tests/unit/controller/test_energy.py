@@ -1,0 +1,135 @@
+"""The energy budget's model (seaway_controller.energy): cruise, turns, predictions, the band, the
+point of no return and the decision, on hand-checkable cases."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from seaway.contract.messages import StateEstimate
+from seaway.vessel.model import load_vessel
+from seaway_controller import costs
+from seaway_controller.energy import (
+    Budget,
+    Disturbance,
+    EnergyModel,
+    cruise,
+    disturbance_sigma_points,
+    no_return_point,
+    predict,
+)
+
+BOAT = load_vessel("paper-boat")
+TW = 250.0
+
+
+def model(predict_disturbance: bool = True) -> EnergyModel:
+    return EnergyModel(BOAT, TW, 2.0, True, predict_disturbance)
+
+
+def state(x: float = 0.0, y: float = 0.0, psi: float = 0.0, **kw) -> StateEstimate:
+    return StateEstimate.make(stamp_ns=0, u_mps=1.0, v_mps=0.0, r_radps=0.0, x_m=x, y_m=y,
+                              psi_rad=psi, **kw)
+
+
+def test_undisturbed_cruise_is_the_economic_one():
+    u = costs.cruise_speed_mps(TW, BOAT)
+    c = cruise(BOAT, TW, u, 0.3)
+    # P^sur(u*) = T^w: twice the task power, at u* over ground, equal thrusts.
+    assert c.power_w == pytest.approx(2 * TW, rel=1e-9)
+    assert c.ground_speed_mps == pytest.approx(u, rel=1e-9)
+    assert c.thrust_port_n == pytest.approx(c.thrust_starboard_n)
+
+
+def test_a_head_force_costs_thrust_or_speed():
+    u = costs.cruise_speed_mps(TW, BOAT)
+    head = (-5.0, 0.0)  # against a course due north
+    paid = cruise(BOAT, TW, u, 0.0, head, pay_in_thrust=True)
+    kept = cruise(BOAT, TW, u, 0.0, head, pay_in_thrust=False)
+    assert paid.ground_speed_mps == pytest.approx(u, rel=1e-9)
+    assert paid.thrust_port_n + paid.thrust_starboard_n == pytest.approx(BOAT.xu_kgps * u + 5.0)
+    assert kept.ground_speed_mps == pytest.approx(u - 5.0 / BOAT.xu_kgps, rel=1e-9)
+    assert paid.j_per_m > 2 * TW / u and kept.j_per_m > 2 * TW / u
+
+
+def test_a_cross_force_is_met_by_crabbing_and_differential_thrust():
+    u = costs.cruise_speed_mps(TW, BOAT)
+    c = cruise(BOAT, TW, u, 0.0, (0.0, 4.0))
+    assert c.thrust_port_n != pytest.approx(c.thrust_starboard_n)  # Munk moment of the sway
+    assert c.power_w > 2 * TW
+
+
+def test_energy_to_finish_adds_the_legs_and_turns_and_home_is_straight():
+    m = model()
+    wps = [(0.0, 0.0), (30.0, 0.0), (30.0, 30.0)]
+    st = state()
+    straight = predict(m, st, wps[:2], 1, (0.0, 0.0), None, Disturbance())
+    turned = predict(m, st, wps, 1, (0.0, 0.0), None, Disturbance())
+    u = m.cruise_speed_mps
+    assert straight.to_go_j == pytest.approx(2 * TW / u * 28.0, rel=1e-6)  # to the circle
+    # The second leg runs from the first circle's entry (28, 0) to 2 m short of (30, 30), after a
+    # turn of nearly 90 degrees that costs something.
+    second = math.hypot(2.0, 30.0) - 2.0
+    assert turned.to_go_j > straight.to_go_j + 2 * TW / u * second
+    assert turned.to_go_j < straight.to_go_j + 2 * TW / u * second + 2000.0
+    far = state(x=20.0, psi=0.0)
+    home = predict(m, far, wps, 1, (0.0, 0.0), None, Disturbance()).to_home_j
+    assert home > 2 * TW / u * 18.0  # a half turn first, then 18 m
+
+
+def test_the_mpc_leg_figure_is_taken_to_the_circle():
+    m = model()
+    wps = [(0.0, 0.0), (30.0, 0.0)]
+    u = m.cruise_speed_mps
+    mpc = 2 * TW / u * 30.0  # priced to the waypoint itself
+    p = predict(m, state(), wps, 1, (0.0, 0.0), mpc, Disturbance())
+    assert p.to_go_j == pytest.approx(2 * TW / u * 28.0, rel=1e-9)
+
+
+def test_band_widens_with_the_disturbance_covariance():
+    cov = [0.0] * 81
+    for i, var in ((6, 1.0), (7, 1.0), (8, 0.01)):
+        cov[i * 9 + i] = var
+    st = state(covariance=cov)
+    nominal, sigmas = disturbance_sigma_points(st, True)
+    assert nominal == Disturbance.from_body((0.0, 0.0, 0.0), 0.0) and len(sigmas) == 6
+    assert disturbance_sigma_points(state(), True)[1] == []
+    b = Budget(model(), [(0.0, 0.0), (30.0, 0.0)], (0.0, 0.0), "return")
+    b.update(0, st, 1, None, 0.0, None, None, None)
+    msg = b.last
+    assert msg.energy_to_go_low_j < msg.energy_to_go_j < msg.energy_to_go_high_j
+
+
+def test_point_of_no_return_is_where_the_margin_reaches_zero():
+    m = model()
+    wps = [(0.0, 0.0), (100.0, 0.0)]
+    u = m.cruise_speed_mps
+    per_m = 2 * TW / u
+    reserve = 1000.0
+    remaining = reserve + per_m * 80.0  # out 40 m and back 40 m, less the turn
+    pnr = no_return_point(m, state(), wps, 1, (0.0, 0.0), remaining, reserve, Disturbance())
+    assert pnr is not None
+    x, y, along = pnr
+    assert y == pytest.approx(0.0, abs=1e-9) and x == pytest.approx(along)
+    assert 36.0 < x < 40.0  # the half turn home costs a little of the 40 m
+    assert no_return_point(m, state(), wps, 1, (0.0, 0.0), 1e9, reserve, Disturbance()) is None
+
+
+@pytest.mark.parametrize("policy", ["warn", "return", "hold"])
+def test_the_decision_is_taken_once_when_the_margin_reaches_zero(policy):
+    b = Budget(model(), [(0.0, 0.0), (100.0, 0.0)], (0.0, 0.0), policy)
+    reserve = 1000.0
+    taken, margins = [], []
+    for k in range(60):
+        x = 1.0 * k
+        t = k * 100_000_000
+        st = StateEstimate.make(stamp_ns=t, u_mps=1.0, v_mps=0.0, r_radps=0.0, x_m=x, y_m=0.0,
+                                psi_rad=0.0)
+        got = b.update(t, st, 1, None, 500.0 * x, 30_000.0 - 500.0 * x, t, reserve)
+        if got is not None:
+            taken.append((k, got))
+        margins.append(b.last.margin_j)
+    assert len(taken) == 1 and taken[0][1] == policy
+    k = taken[0][0]
+    assert margins[k] <= 0 < margins[k - 1]  # the first period the margin reached zero
+    assert b.last.decided_ns == k * 100_000_000 and b.last.decision == policy
