@@ -351,14 +351,16 @@ def run_closed_loop(scenario: str | Scenario, controller: ControllerKind,
     Pass ``core`` to reuse compiled solvers across runs (its origin and mission are replaced).
     ``estimator``, if given, runs alongside on the scenario's sensors (``ClosedLoopResult.run``);
     it does not steer. ``battery_j``: the pack starts with this much usable energy [J] and the
-    controller hears it every period, drained by the simulator's propulsion energy and the
-    scenario's hotel power (``Scenario.hotel_power_w``), reserve from the vessel file (the
-    lockstep simulator's report, in process); the run then goes on while the energy budget holds
-    the mission, until ``max_time_s``.
+    controller hears the simulator's report (``SimCore.battery``, what the lockstep sim
+    publishes) every period; the run then goes on while the energy budget holds the mission, until
+    ``max_time_s``.
     """
     sc = load_scenario(scenario) if isinstance(scenario, str) else scenario
     if sc.mission is None:
         raise ValueError(f"scenario {sc.name!r} has no mission section")
+    if battery_j is not None:
+        sc = sc.model_copy(update={"battery": sc.battery.model_copy(
+            update={"initial_energy_j": battery_j})})
     vp = vessel or load_vessel(sc.vessel)
     # A simulation in process, like lockstep: a slow solve is never late, so that the result does
     # not depend on how busy the machine was (issue 14: load made solves "unconverged").
@@ -371,17 +373,7 @@ def run_closed_loop(scenario: str | Scenario, controller: ControllerKind,
         raise ValueError(f"mission refused: {reply.reason}")
     mission = core.missions.mission
     assert mission is not None
-    pack = vp.battery
-    hotel_w = sc.hotel_power_w
-
-    def report(truth: SimTruth) -> BatteryState:
-        used = truth.energy_j + hotel_w * truth.stamp_ns / NS_PER_S
-        assert battery_j is not None
-        return BatteryState.make(stamp_ns=truth.stamp_ns, source="sim",
-                                 remaining_j=max(0.0, battery_j - used), consumed_j=used,
-                                 reserve_j=pack.reserve_energy_j if pack is not None else None)
-
-    steering = MissionSteering(core, report if battery_j is not None else None)
+    steering = MissionSteering(core, (lambda _truth: sim.battery()) if battery_j is not None else None)
     dt_s = core.config.dt_s
     run = fly(sim, steering, round(max_time_s / dt_s), s_to_ns(dt_s), estimator=estimator,
               progress=progress)

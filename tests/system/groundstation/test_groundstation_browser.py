@@ -31,9 +31,6 @@ from tests.system.groundstation.helpers import udp_port_free
 
 pytestmark = [pytest.mark.system, pytest.mark.slow]
 
-CHROMIUM = Path("/usr/bin/chromium")
-CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-                 "--disable-background-networking", "--disable-component-update", "--disable-sync"]
 BOX_M = [(0.0, 0.0), (16.0, 0.0), (16.0, 12.0), (2.0, 12.0)]
 """The mission clicked on the map: local NED (north, east) [m], from where the vessel starts."""
 CLICK_TOLERANCE_M = 0.25
@@ -50,20 +47,6 @@ def number(text: str) -> float:
     m = re.search(r"-?\d+(?:\.\d+)?", text)
     assert m, f"no number in {text!r}"
     return float(m.group())
-
-
-@pytest.fixture
-def browser():
-    if not CHROMIUM.exists():
-        pytest.skip("Debian's chromium is not installed (apt-get install chromium; .ci/run does)")
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as p:
-        b = p.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
-        try:
-            yield b
-        finally:
-            b.close()
 
 
 def test_plan_fly_check_and_replay_a_mission_from_the_page(procs, zenoh_env, tmp_path, browser) -> None:
@@ -125,6 +108,11 @@ def test_plan_fly_check_and_replay_a_mission_from_the_page(procs, zenoh_env, tmp
     page.wait_for_function("document.getElementById('p-id').textContent === 'browser-box'")
     page.wait_for_timeout(15_000)
     page.screenshot(path=str(shots / "3-live-flying.png"))
+    # The controller's energy budget (mission/energy) while it flies: to finish and to get home.
+    page.wait_for_function("document.getElementById('e-source').textContent === 'mission/energy'",
+                           timeout=30_000)
+    assert number(page.locator("#e-finish").text_content() or "") > 0
+    assert number(page.locator("#e-home").text_content() or "") > 0
 
     # Watch it reach the last waypoint.
     page.wait_for_function("document.getElementById('p-state').textContent === 'complete'", timeout=240_000)
@@ -202,6 +190,17 @@ def test_plan_fly_check_and_replay_a_mission_from_the_page(procs, zenoh_env, tmp
     replay_energy = number(page.locator("#m-energy").text_content() or "")
     assert replay_energy == pytest.approx(truth["energy_j"], abs=0.1)  # the report's, as shown
     assert page.locator("#p-id").text_content() == "browser-box"
+    # The energy budget replays too: the last one recorded for the mission is the one shown.
+    from seaway.contract import keys
+    from seaway_recorder import recording
+
+    dec = recording.decode_vessel(recording.open_paths([run]), None, [keys.MISSION_ENERGY.suffix])
+    last = [b for b in dec.get(keys.MISSION_ENERGY.suffix) if b.mission_id == "browser-box"][-1]
+    assert page.locator("#e-source").text_content() == "mission/energy"
+    assert number(page.locator("#e-finish").text_content() or "") == pytest.approx(
+        last.energy_to_go_j, abs=0.051)
+    assert number(page.locator("#e-home").text_content() or "") == pytest.approx(
+        last.energy_to_home_j, abs=0.051)
     plan = page.evaluate("window.seaway.map.model.plan")
     assert plan["mission_id"] == "browser-box" and len(plan["waypoints_m"]) == len(BOX_M)
     assert not errors, errors

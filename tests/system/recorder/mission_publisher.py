@@ -7,7 +7,10 @@ thrusts that vary with time and with the turn, leg switching on entering each ci
 and 1.5 s after completion. Every 0.1 s (sim time) it emits sim/truth, ctrl/thrust (stamped with the
 state it follows), ctrl/solve (known solve times, a few failures with fallbacks), mission/status
 (with the live energy used, computed as a controller would), nav/state, and sensors/gnss at 5 Hz;
-nav/origin once at the start.
+nav/origin once at the start. With ``with_energy`` (``--energy``) also mission/energy each active step
+and vehicle/battery at 1 Hz: a budget whose prediction of the energy to finish is off by a known
+fraction (``prediction_bias``) of what finishing actually takes, a battery that takes the 'warn'
+decision part way (``BATTERY_START_J``), and its point of no return (``energy_budget``).
 
 Run as a process: publishes every message of ``generate()`` in order (``--pace`` seconds apart; 0 for
 as fast as the bus takes them), after ``--malformed N`` malformed samples; prints ``READY`` once the
@@ -24,6 +27,8 @@ import time
 
 from seaway.contract import keys
 from seaway.contract.messages import (
+    BatteryState,
+    EnergyBudget,
     GnssFix,
     MissionStatus,
     NavOrigin,
@@ -44,15 +49,29 @@ IDLE_STEPS = 10
 TAIL_STEPS = 15
 ORIGIN = GeoOrigin(math.radians(47.0), math.radians(8.0), 0.0)
 FAILED_SOLVES = {37, 38, 90}  # step indices after the start whose solve fails
+BATTERY_START_J = 160.0
+"""The battery's remaining energy when the mission starts [J] (--energy)."""
+RESERVE_J = 20.0
+HOME_J_PER_M = 3.0
+"""The budget's energy to get home: this much per metre from P0 [J/m]."""
+
+
+def prediction_bias(frac: float) -> float:
+    """(predicted - actual) / actual of the energy to finish, at ``frac`` of the mission's time."""
+    return 0.10 - 0.15 * frac
 
 
 def _wrap(a: float) -> float:
     return math.atan2(math.sin(a), math.cos(a))
 
 
-def generate(vessel: str = "vessel1") -> tuple[list[tuple[str, bytes]], dict]:
-    """The run's messages ``(key, bytes)`` in publication order, and the live metrics."""
-    out: list[tuple[str, bytes]] = []
+def generate(vessel: str = "vessel1", with_energy: bool = False) -> tuple[list[tuple[str, bytes]], dict]:
+    """The run's messages ``(key, bytes)`` in publication order, and the live metrics (with
+    ``with_energy``, the budget's too: ``live["energy_budget"]``)."""
+    out: list[tuple[str, bytes] | None] = []
+    # (slot in out, stamp, energy used since the start, x, y) of each active step: the budget's
+    # figures need the whole run, so they are filled in once it is known.
+    slots: list[tuple[int, int, float, float, float]] = []
 
     def put(spec, msg) -> None:
         out.append((spec.key(vessel), msg.encode()))
@@ -111,7 +130,7 @@ def generate(vessel: str = "vessel1") -> tuple[list[tuple[str, bytes]], dict]:
                 stamp_ns=t_ns, controller="cc-empc", status="Solve_Succeeded" if ok else "Maximum_Iterations",
                 success=ok, iterations=10 + step % 7, solve_time_s=0.004 + 0.001 * (step % 10),
                 fallback_level=0 if ok else 2, fallback_count=sum(1 for f in FAILED_SOLVES if f <= step),
-                energy_to_go_j=max(0.0, 100.0 - 0.5 * step)))
+                leg_energy_to_go_j=max(0.0, 100.0 - 0.5 * step)))
         # The live metric a controller would report: energy since the mission started, incl. T^w,
         # frozen when the mission completes.
         if state == "active":
@@ -119,6 +138,14 @@ def generate(vessel: str = "vessel1") -> tuple[list[tuple[str, bytes]], dict]:
         put(keys.MISSION_STATUS, MissionStatus.make(
             stamp_ns=t_ns, state=state, mission_id="test", active_leg=min(leg, 2), waypoint_count=3,
             energy_used_j=None if state == "idle" else live_energy))
+        if with_energy and state != "idle":
+            if state == "active":
+                slots.append((len(out), t_ns, live_energy, x, y))
+                out.append(None)
+            if k % 10 == 0:
+                put(keys.VEHICLE_BATTERY, BatteryState.make(
+                    stamp_ns=t_ns, source="sim", remaining_j=BATTERY_START_J - live_energy,
+                    reserve_j=RESERVE_J))
         if complete_step is not None and k >= complete_step + TAIL_STEPS:
             break
         # Advance to the next sample.
@@ -140,7 +167,46 @@ def generate(vessel: str = "vessel1") -> tuple[list[tuple[str, bytes]], dict]:
             raise RuntimeError("the test boat never finished the mission")
     live = {"energy_j": live_energy, "travel_time_s": (complete_t_ns - mission_start_ns) / 1e9,
             "mission_start_ns": mission_start_ns, "complete_ns": complete_t_ns}
-    return out, live
+    if with_energy:
+        live["energy_budget"] = _fill_budgets(out, slots, vessel, live_energy, mission_start_ns,
+                                              complete_t_ns)
+    assert all(m is not None for m in out)
+    return out, live  # type: ignore[return-value]
+
+
+def _fill_budgets(out: list, slots: list[tuple[int, int, float, float, float]], vessel: str,
+                  total_j: float, start_ns: int, end_ns: int) -> dict:
+    """Put each active step's EnergyBudget into its slot; what the budget said, for the test."""
+    def margin(used: float, x: float, y: float) -> float:
+        return BATTERY_START_J - used - HOME_J_PER_M * math.hypot(x, y) - RESERVE_J
+
+    decided = next((i for i, (_, _, e, x, y) in enumerate(slots) if margin(e, x, y) <= 0), None)
+    if decided is None:
+        raise RuntimeError("the test battery never takes its decision: lower BATTERY_START_J")
+    decided_ns = slots[decided][1]
+    reason = "energy to get home + reserve reached the battery's energy left (test)"
+    for i, (at, t_ns, used, x, y) in enumerate(slots):
+        actual = total_j - used
+        predicted = actual * (1 + prediction_bias((t_ns - start_ns) / (end_ns - start_ns)))
+        home = HOME_J_PER_M * math.hypot(x, y)
+        pnr: dict = {}
+        if i < decided:  # where the margin reaches 0: the decision's position, along the track
+            track = sum(math.dist(slots[j][3:], slots[j + 1][3:]) for j in range(i, decided))
+            pnr = dict(no_return_x_m=slots[decided][3], no_return_y_m=slots[decided][4],
+                       no_return_along_m=track)
+        out[at] = (keys.MISSION_ENERGY.key(vessel), EnergyBudget.make(
+            stamp_ns=t_ns, mission_id="test", active_leg=1, energy_used_j=used,
+            leg_energy_to_go_j=None, energy_to_go_j=predicted, energy_to_go_low_j=0.9 * predicted,
+            energy_to_go_high_j=1.1 * predicted, energy_to_home_j=home,
+            energy_to_home_low_j=0.9 * home, energy_to_home_high_j=1.1 * home,
+            home_x_m=WAYPOINTS[0][0], home_y_m=WAYPOINTS[0][1],
+            battery_remaining_j=BATTERY_START_J - used, battery_stamp_ns=t_ns, reserve_j=RESERVE_J,
+            margin_j=margin(used, x, y), finish_margin_j=BATTERY_START_J - used - predicted - RESERVE_J,
+            policy="warn", decision="warn" if i >= decided else "none",
+            decided_ns=decided_ns if i >= decided else None,
+            reason=reason if i >= decided else "", **pnr).encode())
+    return {"decided_ns": decided_ns, "reason": reason, "first_no_return": slots[decided][3:],
+            "last_used_j": slots[-1][2], "last_home_j": HOME_J_PER_M * math.hypot(*slots[-1][3:])}
 
 
 MALFORMED = [
@@ -186,6 +252,7 @@ def main() -> int:
     ap.add_argument("--vessel", default="vessel1")
     ap.add_argument("--pace", type=float, default=0.0, help="seconds between samples (0: no wait)")
     ap.add_argument("--malformed", type=int, default=0)
+    ap.add_argument("--energy", action="store_true", help="also mission/energy and vehicle/battery")
     ap.add_argument("--steady", type=float, default=0.0,
                     help="instead: ThrustCommand at this rate [Hz] until killed")
     args = ap.parse_args()
@@ -193,7 +260,7 @@ def main() -> int:
     if args.steady:
         steady(session, args.vessel, args.steady)
         return 0
-    msgs, live = generate(args.vessel)
+    msgs, live = generate(args.vessel, with_energy=args.energy)
     pubs = {}
     for key, _ in msgs:
         if key not in pubs:

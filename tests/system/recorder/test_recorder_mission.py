@@ -158,6 +158,9 @@ def test_mission_recorded_read_back_validated_and_reported(procs, zenoh_env, tmp
     assert m["energy_j"] == pytest.approx(ind["energy_j"], rel=1e-9)
     assert m["energy_j"] == pytest.approx(live["energy_j"], rel=1e-9)
     assert doc["controller_reported"]["energy_used_j"] == pytest.approx(live["energy_j"], rel=1e-9)
+    # A recording made without mission/energy (before the budget existed) says so and still works.
+    assert doc["energy_budget"] == {"recorded": False, "note": "no energy budget recorded"}
+    assert "no energy budget recorded" in rep.stdout
     # The zero-order-hold thrust integral agrees with the sim's energy integral.
     assert m["energy_check_j"] == pytest.approx(m["energy_j"], rel=1e-9)
     assert m["avg_cross_track_m"] == pytest.approx(ind["avg_cross_track_m"], rel=1e-9)

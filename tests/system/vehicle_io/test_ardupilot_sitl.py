@@ -30,8 +30,15 @@ from pathlib import Path
 
 import pytest
 from seaway.contract import keys
-from seaway.contract.messages import ArmRequest, ModeRequest, ThrustCommand, VehicleStatus
+from seaway.contract.messages import (
+    ArmRequest,
+    BatteryState,
+    ModeRequest,
+    ThrustCommand,
+    VehicleStatus,
+)
 from seaway.runtime.bus import Bus
+from seaway.vessel.model import load_vessel
 from seaway_vehicle_io.mav import mavlink, mavutil
 
 from tests.conftest import BIN, REPO, Procs, wait_for
@@ -314,6 +321,47 @@ def test_link_verdict_and_telemetry_rates_within_5_s(zenoh_env, procs, bus, tmp_
         # status windows are >= 2 s, not aligned to arrivals: a 1 Hz message may count 2 in 2.5 s
         assert later.rates_hz[name] >= (0.75 if hz > 1 else 0.5) * hz, (name, later.rates_hz)
     print(f"verdict {t_verdict - t_link:.2f} s after the link; rates {later.rates_hz}")
+
+
+@needs_sitl
+def test_battery_from_ardupilots_own_monitor(zenoh_env, procs, bus, tmp_path, sitl):
+    """ArduPilot's battery monitor reaches the bus as a BatteryState in SI units, completed from the
+    vessel file (paper-boat, the lake scenario's). The monitor is on in SITL by default
+    (``BATT_MONITOR 4``, analog voltage and current, in Rover's default rover.parm) and measures
+    the simulated pack, ``SIM_BATT_VOLTAGE`` (12.6 V): a change of it on the firmware is followed."""
+    pack = load_vessel("paper-boat").battery
+    assert pack is not None
+    batteries = bus.subscribe(keys.VEHICLE_BATTERY, mode="fifo")
+    vio = start_vio(procs, zenoh_env, tmp_path, sitl.vio_url)
+    seen: list[BatteryState] = []
+
+    def first(pred):
+        seen.extend(batteries.drain())
+        return next((b for b in seen if pred(b)), None)
+
+    b = wait_for(lambda: first(lambda b: b.voltage_v is not None and b.remaining_frac is not None
+                               and b.consumed_j is not None), 90,
+                 what="vehicle_io's first BatteryState from the SITL after its BATTERY_STATUS")
+    alive(vio, procs, sitl)
+    assert b.source == "autopilot" and abs(b.stamp_ns - time.time_ns()) < 30e9
+    assert b.voltage_v == pytest.approx(12.6, abs=0.05)  # SIM_BATT_VOLTAGE's default
+    assert 0.0 <= b.remaining_frac <= 1.0
+    assert b.current_a is not None and b.current_a >= 0.0  # measured (0 A: disarmed)
+    assert b.power_w == pytest.approx(b.voltage_v * b.current_a)
+    assert b.consumed_j >= 0.0  # ArduPilot's energy count (hJ)
+    assert b.remaining_j == pytest.approx(b.remaining_frac * pack.energy_j)
+    assert (b.capacity_j, b.reserve_j) == (pack.energy_j, pack.reserve_energy_j)
+    print(f"ArduPilot's battery: {b.voltage_v:.3f} V, {b.current_a:.2f} A, "
+          f"{b.remaining_frac:.0%}, {b.consumed_j:.0f} J drawn")
+
+    obs = sitl.observe()
+    obs.set_param("SIM_BATT_VOLTAGE", 15.3)
+    t_set = time.time_ns()
+    changed = wait_for(lambda: first(lambda b: b.stamp_ns > t_set and b.voltage_v is not None
+                                     and abs(b.voltage_v - 15.3) < 0.05), 20,
+                       what="the new SIM_BATT_VOLTAGE in vehicle_io's BatteryState")
+    print(f"SIM_BATT_VOLTAGE 15.3 V seen after {(changed.stamp_ns - t_set) / 1e9:.2f} s")
+    alive(vio, procs, sitl)
 
 
 @needs_sitl

@@ -3,8 +3,8 @@ times faster than real time the run goes; in real time the wall time."""
 
 from __future__ import annotations
 
-from seaway.contract.messages import StateEstimate
-from seaway.tools.launch.main import StatusLine
+from seaway.contract.messages import EnergyBudget, MissionStatus, StateEstimate
+from seaway.tools.launch.main import StatusLine, energy_text
 
 
 def state(t_s: float) -> StateEstimate:
@@ -27,3 +27,73 @@ def test_real_time_shows_wall_time() -> None:
     assert line.time_text(state(500.0), 12.4) == "t    12 s"
     line.state["v1"] = state(3.0)
     assert line.vessel_text("v1", 7.0).startswith("v1 | t     7 s | no mission status yet")
+
+
+# -- the energy budget (issue #17 item 5) ----------------------------------------------------------
+
+
+def budget(**fields) -> EnergyBudget:
+    base = dict(stamp_ns=1, mission_id="box", energy_used_j=1234.0, energy_to_go_j=45_600.0,
+                energy_to_home_j=3210.0, home_x_m=0.0, home_y_m=0.0, battery_remaining_j=150_000.0,
+                reserve_j=106_000.0, margin_j=40_790.0, policy="return", decision="none")
+    return EnergyBudget(**(base | fields))
+
+
+def status(state: str = "active", mission_id: str = "box") -> MissionStatus:
+    return MissionStatus(stamp_ns=1, state=state, mission_id=mission_id, active_leg=1,
+                         waypoint_count=4, energy_used_j=7.0, energy_to_go_j=8.0)
+
+
+def test_energy_text_keeps_three_figures_in_j_kj_mj() -> None:
+    assert [energy_text(j) for j in (0.5, 45.61, 330.4, 12_300.0, 106_000.0, 2.5e6, None)] == [
+        "0.50 J", "45.6 J", "330 J", "12.3 kJ", "106 kJ", "2.50 MJ", "-"]
+
+
+def test_the_line_shows_the_budget_of_the_mission_flown() -> None:
+    line = StatusLine(["v1"])
+    line.mission["v1"] = status()
+    # Before any budget: the mission status's own figures.
+    assert line.energy_parts("v1") == ["used 7.00 J", "to finish 8.00 J"]
+    line.on_energy("v1", budget())
+    text = line.vessel_text("v1", 3.0)
+    assert text.endswith("used 1.23 kJ | to finish 45.6 kJ | to home 3.21 kJ | "
+                         "battery 150 kJ (reserve 106 kJ)"), text
+    assert "\n" not in text and "RETURN" not in text
+    # Another mission's budget (the previous one's last) is not shown against this one.
+    line.mission["v1"] = status(mission_id="next")
+    assert line.energy_parts("v1") == ["used 7.00 J", "to finish 8.00 J"]
+
+
+def test_the_decision_says_what_reached_what_at_the_period_it_was_taken() -> None:
+    line = StatusLine(["v1"])
+    line.mission["v1"] = status()
+    reason = "energy to get home 12300 J + reserve 106000 J reached the battery's 118000 J left"
+    line.on_energy("v1", budget(energy_to_home_j=12_300.0, battery_remaining_j=118_000.0,
+                                margin_j=-300.0, decision="return", decided_ns=50, reason=reason))
+    # The return flight's budgets carry the decision on, with figures of their own.
+    line.mission["v1"] = status(mission_id="box/return")
+    line.on_energy("v1", budget(mission_id="box/return", returning=True, energy_to_home_j=9000.0,
+                                battery_remaining_j=117_000.0, decision="return", decided_ns=50,
+                                reason=reason))
+    text = line.vessel_text("v1", 3.0)
+    assert text.endswith("| to home 9.00 kJ | battery 117 kJ (reserve 106 kJ) | RETURNING: energy "
+                         "to home 12.3 kJ + reserve 106 kJ reached 118 kJ left"), text
+    line.mission["v1"] = status("complete", "box/return")
+    assert line.energy_parts("v1")[-1].startswith("RETURNED: energy to home 12.3 kJ")
+
+
+def test_the_decisions_figures_are_those_of_its_own_period() -> None:
+    line = StatusLine(["v1"])
+    line.mission["v1"] = status()
+    line.on_energy("v1", budget(decision="hold", decided_ns=70))
+    line.on_energy("v1", budget(decision="hold", decided_ns=70, energy_to_home_j=1.0))
+    assert line.energy_parts("v1")[-1] == ("HOLDING: energy to home 3.21 kJ + reserve 106 kJ "
+                                           "reached 150 kJ left")
+
+
+def test_a_decision_whose_period_was_not_heard_shows_the_controllers_reason() -> None:
+    line = StatusLine(["v1"])
+    line.mission["v1"] = status()
+    line.on_energy("v1", budget(decision="warn", decided_ns=1))
+    line.energy["v1"] = budget(decision="warn", decided_ns=2, reason="the controller's words")
+    assert line.energy_parts("v1")[-1] == "LOW ENERGY: the controller's words"

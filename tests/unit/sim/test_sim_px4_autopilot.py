@@ -11,8 +11,8 @@ from seaway.contract.config import Origin
 from seaway.contract.units import NS_PER_S
 from seaway.simkit.sensors import origin_of
 from seaway_sim import px4_params
+from seaway_sim.battery import NOMINAL_PACK, SimPack
 from seaway_sim.px4_autopilot import (
-    BATTERY_CAPACITY_J,
     HOLD,
     MANUAL,
     Px4Autopilot,
@@ -105,7 +105,8 @@ def test_loss_failsafe_zeroes_thrust_after_com_rc_loss_t_and_not_before() -> Non
     assert hb.system_status == ml.MAV_STATE_CRITICAL
     assert hb.custom_mode == custom_mode(HOLD) == 0x03040000  # Hold first (COM_FAIL_ACT_T)
     assert hb.base_mode & ml.MAV_MODE_FLAG_SAFETY_ARMED
-    status = ap.sys_status(2 * S + 600 * MS, 0.0, 0.0, True, 0)
+    full = SimPack(NOMINAL_PACK, NOMINAL_PACK.energy_j, hotel_power_w=0.0).reading(0.0, 0, 0.0)
+    status = ap.sys_status(2 * S + 600 * MS, full, True, 0)
     assert not status.onboard_control_sensors_health & ml.MAV_SYS_STATUS_SENSOR_RC_RECEIVER
     assert status.onboard_control_sensors_present & ml.MAV_SYS_STATUS_SENSOR_RC_RECEIVER
 
@@ -296,17 +297,20 @@ def test_param_set_echoes_the_new_value_and_refuses_bad_ones() -> None:
 def test_periodic_telemetry_and_battery_drain() -> None:
     ap = Px4Autopilot(Px4Config(thrust_max_n=10.0))
     o = origin_of(Origin())
-    kinds = [m.get_type() for m in ap.periodic_telemetry(999 * MS, 1 * S, o, 0, 0.0, 0.0, True, 0)]
+    pack = SimPack(NOMINAL_PACK, NOMINAL_PACK.energy_j, hotel_power_w=0.0)
+    full = pack.reading(0.0, 0, 0.0)
+    kinds = [m.get_type() for m in ap.periodic_telemetry(999 * MS, 1 * S, o, 0, full, True, 0)]
     assert kinds == ["HEARTBEAT", "SYS_STATUS", "BATTERY_STATUS"]  # no fix yet: no local position
-    assert ap.periodic_telemetry(1 * S, 1090 * MS, o, 0, 0.0, 0.0, True, 0) == []
-    full = ap.battery_status(0.0, 0.0)
-    used = ap.battery_status(BATTERY_CAPACITY_J / 2, 148.0)
-    assert (full.voltages[0], full.battery_remaining) == (16800, 100)
-    assert (used.voltages[0], used.battery_remaining) == (15000, 50)
-    assert used.current_battery == round(148.0 / 15.0 * 100)  # cA
-    assert used.current_consumed == 5000  # mAh: half of 10 Ah
-    status = ap.sys_status(0, BATTERY_CAPACITY_J / 2, 148.0, False, 7)
-    assert (status.voltage_battery, status.battery_remaining, status.errors_comm) == (15000, 50, 7)
+    assert ap.periodic_telemetry(1 * S, 1090 * MS, o, 0, full, True, 0) == []
+    half = pack.reading(NOMINAL_PACK.energy_j / 2, 0, 148.0)
+    full_msg, used = ap.battery_status(full), ap.battery_status(half)
+    assert (full_msg.voltages[0], full_msg.battery_remaining) == (16800, 100)
+    assert abs(used.voltages[0] - 15000) <= 1 and used.battery_remaining == 50
+    assert used.current_battery == int(148.0 / 15.0 * 100)  # cA, truncated as PX4
+    assert abs(used.current_consumed - 5000) <= 1  # mAh: half of 10 Ah
+    status = ap.sys_status(0, half, False, 7)
+    assert (status.battery_remaining, status.errors_comm) == (50, 7)
+    assert abs(status.voltage_battery - 15000) <= 1
     assert not status.onboard_control_sensors_health & ml.MAV_SYS_STATUS_SENSOR_GPS
 
 

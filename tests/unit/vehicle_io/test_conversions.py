@@ -154,7 +154,8 @@ def test_local_position_passthrough_and_rejects():
     ],
 )
 def test_sys_status_battery(voltage_mv, remaining_pct, expect_v, expect_frac):
-    b = battery_from_sys_status(Ns(voltage_battery=voltage_mv, battery_remaining=remaining_pct))
+    b = battery_from_sys_status(Ns(voltage_battery=voltage_mv, battery_remaining=remaining_pct,
+                                   current_battery=-1))
     assert b.voltage_v == (pytest.approx(expect_v) if expect_v is not None else None)
     assert b.remaining_frac == (pytest.approx(expect_frac) if expect_frac is not None else None)
 
@@ -162,7 +163,8 @@ def test_sys_status_battery(voltage_mv, remaining_pct, expect_v, expect_frac):
 @pytest.mark.parametrize("remaining", [101, -2, 127])
 def test_sys_status_rejects_remaining(remaining):
     with pytest.raises(FieldError) as err:
-        battery_from_sys_status(Ns(voltage_battery=12_000, battery_remaining=remaining))
+        battery_from_sys_status(Ns(voltage_battery=12_000, battery_remaining=remaining,
+                                   current_battery=-1))
     assert err.value.field == "battery_remaining"
 
 
@@ -177,7 +179,9 @@ def test_sys_status_rejects_remaining(remaining):
     ],
 )
 def test_battery_status_voltage(cells, ext, expect_v):
-    b = battery_from_battery_status(Ns(voltages=cells, voltages_ext=ext, battery_remaining=50))
+    b = battery_from_battery_status(Ns(voltages=cells, voltages_ext=ext, battery_remaining=50,
+                                       current_battery=-1, current_consumed=-1,
+                                       energy_consumed=-1))
     assert b.voltage_v == (pytest.approx(expect_v) if expect_v is not None else None)
     assert b.remaining_frac == pytest.approx(0.5)
 

@@ -54,6 +54,7 @@ from seaway.contract.messages import (
     ThrustCommand,
     VehicleStatus,
     Waypoint,
+    return_mission_id,
 )
 from seaway.runtime.ratelog import RateLimitedLog
 from seaway.vessel import path
@@ -438,7 +439,7 @@ class ControllerCore:
             self.missions.hold("home reached on the energy budget's return")
             return
         back = req.model_copy(update={
-            "mission_id": f"{mission.mission_id}/return"[-64:],
+            "mission_id": return_mission_id(mission.mission_id),
             "waypoints": [Waypoint(x_m=state.x_m, y_m=state.y_m),
                           Waypoint(x_m=home[0], y_m=home[1])],
             "home": Waypoint(x_m=home[0], y_m=home[1]), "on_low_energy": "warn"})

@@ -35,7 +35,7 @@ that report's stamp (reports come at ~1 Hz from an autopilot, each period in loc
 is remaining - (energy to home + reserve); the period it first reaches 0 the mission's policy acts:
 ``warn`` (flag it, fly on), ``return`` (fly home), ``hold`` (stop). The decision stays with the
 mission; its inputs are all on the bus (state, battery, solve record, mission), so a replay of the
-recording decides the same at the same period (``replay_budget`` is that replay).
+recording decides the same at the same period (``seaway_controller.replay`` is that replay).
 
 The point of no return is where along the path ahead the margin is predicted to reach 0: the
 remaining energy less the energy to get there, against the energy home from there.
@@ -56,8 +56,6 @@ from seaway.contract.messages import (
     EnergyDecision,
     LowEnergyPolicy,
     MissionAccepted,
-    MissionStatus,
-    SolveRecord,
     StateEstimate,
 )
 from seaway.vessel.model import VesselParams
@@ -448,27 +446,3 @@ def decisions(budgets: Iterable[EnergyBudget]) -> list[tuple[int, EnergyDecision
             out.append((b.decided_ns, b.decision))
     return out
 
-
-def replay_decision(accepted: MissionAccepted, vessel: VesselParams,
-                    periods: Iterable[tuple[StateEstimate, BatteryState | None, SolveRecord | None,
-                                            MissionStatus]]) -> tuple[int | None, EnergyDecision]:
-    """Decide again from a recording: the mission as accepted, and per control period of it (in
-    order) the state the controller stepped, the battery report of that period (lockstep: stamped
-    with it), the solve record and the mission status it published. (period, decision) of the
-    first decision, or (None, 'none'). Lockstep recordings decide the same, to the period."""
-    model = EnergyModel.from_accepted(accepted, vessel)
-    assert accepted.home_x_m is not None and accepted.home_y_m is not None
-    budget = Budget(model, accepted.waypoints_m(), (accepted.home_x_m, accepted.home_y_m),
-                    accepted.on_low_energy, accepted.mission_id)
-    for state, battery, solve, status in periods:
-        leg = solve.leg_energy_to_go_j if solve is not None and solve.success else None
-        remaining = battery.remaining_j if battery is not None else None
-        reserve = battery.reserve_j if battery is not None else None
-        if reserve is None and vessel.battery is not None:
-            reserve = vessel.battery.reserve_energy_j
-        taken = budget.update(state.stamp_ns, state, status.active_leg, leg,
-                              status.energy_used_j or 0.0, remaining,
-                              battery.stamp_ns if battery is not None else None, reserve)
-        if taken is not None:
-            return state.stamp_ns, taken
-    return None, "none"

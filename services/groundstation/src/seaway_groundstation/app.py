@@ -13,7 +13,9 @@ per vessel with news, at most ``stream_rate_hz`` per client::
      "updates": {"state": {"age_s": 0.01, "stale": false, "message": {StateEstimate}},
                  "solve": {... SolveRecord, with predicted_x_m/predicted_y_m ...},
                  "mission": {... MissionStatus ...}, "vehicle": {... VehicleStatus ...},
-                 "origin": {... NavOrigin ...}}}
+                 "origin": {... NavOrigin ...}, "thrust": {... ThrustCommand ...},
+                 "energy": {... EnergyBudget: energy used, to finish, to home, battery, margin,
+                            point of no return (local NED), decision ...}}}
 
 with only the kinds that changed since the client's last frame (the latest of each, never a
 backlog; ``stream.py`` says how a slow client is kept from slowing the others).

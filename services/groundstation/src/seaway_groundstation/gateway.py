@@ -1,9 +1,9 @@
 """The ground station's side of the bus: what it hears (into the ``Fleet``) and what it asks.
 
 * ``BusLink.attach`` subscribes to every vessel's state, solve record, mission status, vehicle status,
-  NED origin and thrust command, and watches every vessel's health tokens; each arrival updates the
-  ``Fleet`` and calls ``on_change(vessel)`` (the stream's wake-up). Callbacks run on the
-  transport's threads and do O(1) work: they never wait for a web client.
+  NED origin, thrust command and energy budget, and watches every vessel's health tokens; each
+  arrival updates the ``Fleet`` and calls ``on_change(vessel)`` (the stream's wake-up). Callbacks
+  run on the transport's threads and do O(1) work: they never wait for a web client.
 * ``ask`` sends one request and tells apart an answer (accepted or refused), no answer in time, and
   an error reply from the transport, which ``Bus.request`` folds into one refusal.
 """
@@ -31,6 +31,7 @@ TOPICS: dict[Kind, keys.KeySpec] = {
     "vehicle": keys.VEHICLE_STATUS,
     "origin": keys.NAV_ORIGIN,
     "thrust": keys.THRUST,
+    "energy": keys.MISSION_ENERGY,
 }
 """What the ground station shows of each vessel, by the fleet's kind."""
 

@@ -12,6 +12,7 @@ from typing import Any, Generic, Literal, TypeVar
 from pydantic import BaseModel, Field
 from seaway.contract import keys
 from seaway.contract.messages import (
+    EnergyBudget,
     Message,
     MissionRequest,
     MissionStatus,
@@ -53,6 +54,11 @@ class VesselView(BaseModel):
     origin: Timed[NavOrigin] | None = Field(default=None, description="the local NED frame's origin")
     thrust: Timed[ThrustCommand] | None = Field(default=None, description="the controller's latest "
                                                                           "thrust command [N]")
+    energy: Timed[EnergyBudget] | None = Field(
+        default=None, description="the controller's energy budget of the active mission: energy "
+                                  "used, to finish and to get home (with their bands), the battery "
+                                  "left, reserve and margin, the point of no return (local NED [m]) "
+                                  "and the decision ('none' until the margin reached 0) [J]")
     last_mission: MissionRequest | None = Field(
         default=None, description="the last mission this ground station sent and the vessel accepted")
     active_mission: MissionPlanView | None = Field(

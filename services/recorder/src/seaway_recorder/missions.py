@@ -61,7 +61,8 @@ class MissionRun:
         s = self.last
         return {"state": s.state, "mission_id": s.mission_id, "active_leg": s.active_leg,
                 "waypoint_count": s.waypoint_count, "energy_used_j": s.energy_used_j,
-                "energy_to_go_j": s.energy_to_go_j, "reason": getattr(s, "reason", "")}
+                "energy_to_go_j": s.energy_to_go_j, "leg_energy_to_go_j": s.leg_energy_to_go_j,
+                "reason": getattr(s, "reason", "")}
 
 
 def mission_runs(statuses: Sequence[MissionStatus]) -> list[MissionRun]:

@@ -6,7 +6,10 @@ a mission without one (a recording made before the controller published it) agai
 fits it: ``--mission``, ``--scenario``, else the recording's ``mission/*`` or ``scenario/*``
 attachment (``missions.py``). The vessel's alpha comes from ``--vessel-file``, else the
 ``vessel/*`` attachment, else the vessel the scenario names. Positions and energy come from
-``sim/truth`` when it was recorded, else ``nav/state`` with the ``ctrl/thrust`` commands.
+``sim/truth`` when it was recorded, else ``nav/state`` with the ``ctrl/thrust`` commands. The
+energy section (``budget.py``) is the controller's energy budget (``mission/energy``) along each
+mission: its prediction of the energy to finish against the energy the report integrates, the
+energy to home, the battery and the decision; a recording without it says so.
 
 Writes ``metrics.json`` and, unless ``--no-plots``, ``trajectory.png``, ``thrust.png``,
 ``cross_track.png`` and ``energy.png`` into ``--out`` (default: ``report/`` beside the recording).
@@ -25,6 +28,8 @@ from typing import Any
 from seaway.contract import keys
 from seaway.contract.config import ConfigError, load_config, read_document
 from seaway.contract.messages import (
+    BatteryState,
+    EnergyBudget,
     MissionAccepted,
     MissionStatus,
     NavOrigin,
@@ -39,13 +44,14 @@ from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.metrics import mission_metrics
 from seaway.vessel.model import VesselParams
 
+from seaway_recorder import budget, missions, recording, runinfo
 from seaway_recorder import metrics as mx
-from seaway_recorder import missions, recording, runinfo
 
 TRUTH, STATE, ORIGIN = keys.SIM_TRUTH.suffix, keys.NAV_STATE.suffix, keys.NAV_ORIGIN.suffix
 COMMANDS, SOLVES, STATUS = keys.THRUST.suffix, keys.SOLVE.suffix, keys.MISSION_STATUS.suffix
-ACCEPTED = keys.MISSION_ACCEPTED.suffix
-REPORT_TOPICS = (TRUTH, STATE, ORIGIN, COMMANDS, SOLVES, STATUS, ACCEPTED)
+ACCEPTED, ENERGY = keys.MISSION_ACCEPTED.suffix, keys.MISSION_ENERGY.suffix
+BATTERY = keys.VEHICLE_BATTERY.suffix
+REPORT_TOPICS = (TRUTH, STATE, ORIGIN, COMMANDS, SOLVES, STATUS, ACCEPTED, ENERGY, BATTERY)
 """The keys a report reads (suffixes, ``sim/truth``)."""
 
 
@@ -157,19 +163,29 @@ def analyse(files: list[Path], *, scenario: str | None = None, mission_file: str
     # The missions flown (the controller's statuses), each with what the controller recorded
     # accepting, else the document that fits it.
     accepted = missions.acceptances([m for m in dec.get(ACCEPTED) if isinstance(m, MissionAccepted)])
+    budgets = sorted((m for m in dec.get(ENERGY) if isinstance(m, EnergyBudget)),
+                     key=lambda m: m.stamp_ns)
+    batteries = sorted((m for m in dec.get(BATTERY) if isinstance(m, BatteryState)),
+                       key=lambda m: m.stamp_ns)
     flown = []
+    sections = []
     for r in missions.mission_runs(statuses):
         chosen = missions.choose(r, accepted, candidates, nav)
         doc = chosen.mission
         met = metrics_of(doc, chosen.start_ns, r.end_ns) if doc is not None else None
+        sections.append(budget.energy_section(
+            budget.mission_budgets(budgets, r.mission_id, chosen.start_ns, r.end_ns), met,
+            chosen.start_ns, batteries))
         flown.append({"mission_id": r.mission_id, "start_ns": r.start_ns, "end_ns": r.end_ns,
                       "source": doc.source if doc is not None else None, "fit": chosen.how,
                       "mission": _mission_json(doc), "metrics": met,
-                      "controller_reported": r.controller_reported()})
+                      "controller_reported": r.controller_reported(),
+                      "energy_budget": sections[-1].to_json()})
     if flown:
         primary = flown[-1]
         mission_doc, met = primary["mission"], primary["metrics"]
         live = primary["controller_reported"]
+        energy = sections[-1]
     else:  # no status recorded: the last mission accepted, else the document given or attached
         if accepted:
             only = runinfo.mission_from_accepted(accepted[-1], f"recorded {ACCEPTED}")
@@ -181,6 +197,9 @@ def analyse(files: list[Path], *, scenario: str | None = None, mission_file: str
         mission_doc = _mission_json(only)
         met = metrics_of(only, None, None)
         live = {}
+        # No status says which mission flew: the budgets of the last one that published any.
+        mine = [b for b in budgets if b.mission_id == budgets[-1].mission_id]
+        energy = budget.energy_section(mine, met, met.start_ns, batteries)
     solves = [m for m in dec.get(SOLVES) if isinstance(m, SolveRecord)]
     commands = sorted((m for m in dec.get(COMMANDS) if isinstance(m, ThrustCommand)),
                       key=lambda m: m.stamp_ns)
@@ -196,6 +215,7 @@ def analyse(files: list[Path], *, scenario: str | None = None, mission_file: str
         "episodes": {"count": len(bounds), "reported": episode,
                      "time_went_back": len(bounds) - 1},
         "metrics": met.to_json() if met is not None else None,
+        "energy_budget": energy.to_json(),
         "solve": mx.solve_stats(solves).to_json(),
         "controller_reported": live,
         "recording": {"messages": info.message_count, "topics": info.topics,
@@ -206,7 +226,7 @@ def analyse(files: list[Path], *, scenario: str | None = None, mission_file: str
                       "repaired": recording.repaired(info)},
         "_": {"series": met.series if met is not None else None, "commands": commands,
               "thrusts": thrusts, "states": states, "solves": solves, "statuses": statuses,
-              "start_ns": met.start_ns if met is not None else None},
+              "start_ns": met.start_ns if met is not None else None, "energy": energy},
     }
     return out
 
@@ -267,6 +287,7 @@ def table(res: dict[str, Any]) -> str:
         rows = [("state (controller)", str(live.get("state")), ""),
                 ("active leg (controller)", str(live.get("active_leg")),
                  f"of {max(int(live.get('waypoint_count') or 0) - 1, 0)}")]
+    rows += budget.table_rows(res["energy_budget"])
     rows += [
         ("solves", str(s["count"]), f"{s['failures']} failed"),
         ("solve time median / p95 / max", f"{_f(s['solve_time_median_ms'], '{:.2f}')} / "
@@ -303,6 +324,9 @@ def table(res: dict[str, Any]) -> str:
                        if mm is not None else
                        f"{rep['state']} at leg {rep['active_leg']}, {_f(rep['energy_used_j'], '{:.2f}')}"
                        " J (controller's), waypoints not in the recording")
+            eb = x["energy_budget"]
+            if eb.get("recorded") and eb["decision"] != "none":
+                figures += f"; energy budget: {eb['decision']} at {_f(eb['decided_t_s'], '{:.1f}')} s"
             head += f"  {x['mission_id']!r}: {figures}\n"
     return head + "\n".join(f"{a.ljust(w)}  {b.rjust(v)}  {c}".rstrip() for a, b, c in rows)
 
@@ -361,23 +385,65 @@ def plots(res: dict[str, Any], out: Path) -> list[Path]:
     ax.set_title("cross-track error")
     written.append(_save(fig, out / "cross_track.png"))
 
-    fig, ax = plt.subplots(figsize=(8, 4))
-    ax.plot(ser["t_s"], ser["energy_used_j"], label="energy used (incl. T^w)")
-    t_end = res["metrics"]["end_ns"]
-
-    def to_go(seq: list[Any]) -> list[tuple[int, float]]:
-        return [(s.stamp_ns, s.energy_to_go_j) for s in seq
-                if s.energy_to_go_j is not None and t0 <= s.stamp_ns <= t_end]
-
-    togo = to_go(data["solves"]) or to_go(data["statuses"])
-    if togo:
-        ax.plot([(t - t0) / 1e9 for t, _ in togo], [e for _, e in togo], label="energy to go (controller)")
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("energy [J]")
-    ax.legend(loc="best")
-    ax.set_title("energy")
-    written.append(_save(fig, out / "energy.png"))
+    written.append(_save(energy_plot(plt, res), out / "energy.png"))
     return written
+
+
+def energy_plot(plt: Any, res: dict[str, Any]) -> Any:
+    """Energy used (the report's integral) with the controller's energy to the active waypoint
+    above; below, the energy to finish as the controller's budget predicted it along the mission
+    (its band shaded) against what finishing actually took from each instant."""
+    data, ser = res["_"], res["_"]["series"]
+    t0, t_end = data["start_ns"], res["metrics"]["end_ns"]
+    section: budget.EnergySection = data["energy"]
+    with_budget = bool(section.budgets)
+    fig, axes = plt.subplots(2 if with_budget else 1, 1, figsize=(8, 7 if with_budget else 4),
+                             sharex=True, squeeze=False)
+    ax = axes[0][0]
+    ax.plot(ser["t_s"], ser["energy_used_j"], label="energy used (incl. T^w)")
+
+    def rel(stamp_ns: int) -> float:
+        return (stamp_ns - t0) / 1e9
+
+    # The active leg's figure: SolveRecord.leg_energy_to_go_j (None in recordings made before it
+    # was named so), else the status's; the status's energy_to_go_j is the mission's now, and the
+    # active leg's only in recordings without a budget.
+    def during(seq: list[Any], field: str) -> list[tuple[int, float]]:
+        return sorted((s.stamp_ns, getattr(s, field)) for s in seq
+                      if getattr(s, field) is not None and t0 <= s.stamp_ns <= t_end)
+
+    leg = during(data["solves"], "leg_energy_to_go_j") or during(data["statuses"], "leg_energy_to_go_j")
+    if not leg and not with_budget:
+        leg = during(data["statuses"], "energy_to_go_j")
+    if leg:
+        ax.plot([rel(t) for t, _ in leg], [e for _, e in leg], lw=1,
+                label="to the active waypoint (controller)")
+    ax.set_ylabel("energy [J]")
+    ax.legend(loc="best", fontsize="small")
+    ax.set_title("energy")
+    if with_budget:
+        ax = axes[1][0]
+        pts = [b for b in section.budgets if b.energy_to_go_j is not None and t0 <= b.stamp_ns <= t_end]
+        t = [rel(b.stamp_ns) for b in pts]
+        low = [b.energy_to_go_low_j for b in pts]
+        high = [b.energy_to_go_high_j for b in pts]
+        if pts and all(v is not None for v in (*low, *high)):
+            ax.fill_between(t, low, high, color="tab:orange", alpha=0.25, lw=0,
+                            label="predicted band (disturbance +-1 sd)")
+        ax.plot(t, [b.energy_to_go_j for b in pts], color="tab:orange",
+                label=f"predicted ({keys.MISSION_ENERGY.suffix})")
+        check = section.check
+        if check is not None and check.points:
+            ax.plot([rel(s) for s in section.check_stamps_ns], [p.actual_j for p in check.points],
+                    color="black", lw=1.2, ls="--", label="actual (energy used from then to the end)")
+        summary = section.summary
+        if summary.get("decided_ns") is not None and summary["decision"] != "none":
+            ax.axvline(rel(summary["decided_ns"]), color="tab:red", lw=1,
+                       label=f"decision: {summary['decision']}")
+        ax.set_ylabel("energy to finish [J]")
+        ax.legend(loc="best", fontsize="small")
+    axes[-1][0].set_xlabel("time [s]")
+    return fig
 
 
 def _save(fig: Any, path: Path) -> Path:

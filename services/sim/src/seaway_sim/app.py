@@ -20,6 +20,7 @@ from seaway.runtime.run import RunDescription
 from seaway.simkit.scenario import Scenario, load_scenario, parse_scenario
 from seaway.vessel.model import VesselParams, load_vessel
 
+from seaway_sim.battery import SimPack
 from seaway_sim.core import SimCore
 
 log = logging.getLogger("seaway_sim")
@@ -50,9 +51,8 @@ class SimApp:
         self.lock = threading.Lock()
         self.generation = 0
         self.on_load: list[Callable[[Scenario, VesselParams], None]] = []
-        self.pub_truth = bus.publisher(keys.SIM_TRUTH)
-        self.pub_disturbance = bus.publisher(keys.SIM_DISTURBANCE)
-        self.pub_clock = bus.publisher(keys.SIM_CLOCK)
+        self.pubs = {spec: bus.publisher(spec)
+                     for spec in (keys.SIM_TRUTH, keys.SIM_DISTURBANCE, keys.SIM_CLOCK)}
         bus.queryable(keys.SIM_SCENARIO, self.handle_scenario)
 
     def handle_scenario(self, request: ScenarioRequest) -> Reply:
@@ -70,6 +70,7 @@ class SimApp:
                 scenario = parse_scenario(request.scenario, "scenario request", scenario_base())
                 vessel = load_vessel(scenario.plant_vessel_file)
                 self._check_model(scenario)
+                SimPack.of(scenario, vessel)  # its [battery] must fit the vessel's pack
         except ConfigError as err:
             log.warning("scenario request refused: %s", err)
             return Reply.refuse(self.core.stamp_ns, str(err))
@@ -95,14 +96,23 @@ class SimApp:
                               f"services model {self.run.model_vessel_file!r}: start a new run for it")
 
     def truth_outputs(self, real_time_factor: float | None) -> list[tuple[keys.KeySpec, Message]]:
-        """SIM_TRUTH, SIM_DISTURBANCE and SIM_CLOCK at the core's current time (lock held)."""
-        return [(keys.SIM_TRUTH, self.core.truth()), (keys.SIM_DISTURBANCE, self.core.disturbance()),
-                (keys.SIM_CLOCK, ClockTick(stamp_ns=self.core.stamp_ns, lockstep=self.lockstep,
-                                           real_time_factor=real_time_factor))]
+        """SIM_TRUTH, SIM_DISTURBANCE, in lockstep VEHICLE_BATTERY, and SIM_CLOCK last, at the
+        core's current time (lock held).
+
+        The battery is the sim's own only in lockstep, where no autopilot speaks: in real time the
+        simulated PX4 reports it over MAVLink and vehicle_io publishes it, as on a boat."""
+        out: list[tuple[keys.KeySpec, Message]] = [(keys.SIM_TRUTH, self.core.truth()),
+                                                   (keys.SIM_DISTURBANCE, self.core.disturbance())]
+        if self.lockstep:
+            out.append((keys.VEHICLE_BATTERY, self.core.battery()))
+        out.append((keys.SIM_CLOCK, ClockTick(stamp_ns=self.core.stamp_ns, lockstep=self.lockstep,
+                                              real_time_factor=real_time_factor)))
+        return out
 
     def publish_truth(self, real_time_factor: float | None) -> None:
         """Publish ``truth_outputs`` in that order (lock held)."""
-        pubs = {keys.SIM_TRUTH: self.pub_truth, keys.SIM_DISTURBANCE: self.pub_disturbance,
-                keys.SIM_CLOCK: self.pub_clock}
         for spec, msg in self.truth_outputs(real_time_factor):
-            pubs[spec].put(msg)
+            pub = self.pubs.get(spec)
+            if pub is None:
+                pub = self.pubs[spec] = self.bus.publisher(spec)
+            pub.put(msg)

@@ -12,6 +12,10 @@ in real time).
   not change the command (held over the whole step) and keeps the 10 ms internal grid when the
   sample instants lie on it (they do for every rate dividing 100 Hz).
 
+The battery (``seaway_sim.battery``) is the plant vessel's pack: drained by the plant's propulsion
+energy plus the scenario's hotel power over the simulated time since the scenario (re)started, and
+refilled by every ``load``.
+
 The disturbance reported "now" is evaluated at the plant's current time. Evaluating it draws the
 wind gust that the plant's next internal step would draw at the same instant anyway (the
 disturbance model draws only when time has moved), so reporting never changes the trajectory.
@@ -21,7 +25,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from seaway.contract.messages import Attitude, DisturbanceForce, GnssFix, SimTruth
+from seaway.contract.messages import Attitude, BatteryState, DisturbanceForce, GnssFix, SimTruth
 from seaway.contract.units import NS_PER_S
 from seaway.simkit.plant import Plant
 from seaway.simkit.scenario import Scenario, body_force
@@ -29,6 +33,8 @@ from seaway.simkit.sensors import SensorSuite, instants_in, origin_of
 from seaway.vessel import model
 from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.model import VesselParams
+
+from seaway_sim.battery import PackReading, SimPack
 
 
 @dataclass
@@ -52,10 +58,15 @@ class SimCore:
 
         Simulated time goes on (listeners' clocks never run backwards) unless ``restart_time``: a
         lockstep episode starts at t = 0, so that it runs exactly as in a fresh sim. Sensors sample
-        now, so the new scenario's first outputs describe its start pose.
+        now, so the new scenario's first outputs describe its start pose. The pack is refilled to
+        the scenario's initial energy. ConfigError (nothing changed) if the scenario's battery does
+        not fit the vessel's pack.
         """
+        pack = SimPack.of(scenario, vessel)
         if restart_time:
             self.t_ns = 0
+        self.pack = pack
+        self.pack_since_ns = self.t_ns  # the hotel load counts from here
         self.scenario = scenario
         self.vessel = vessel
         self.plant = Plant(scenario, vessel)
@@ -117,6 +128,16 @@ class SimCore:
         (su, sv, sr), (cn, ce) = self._disturbance_now()
         return DisturbanceForce(stamp_ns=self.stamp_ns, surge_n=su, sway_n=sv, yaw_nm=sr,
                                 current_n_mps=cn, current_e_mps=ce)
+
+    def pack_reading(self) -> PackReading:
+        """The battery now (``seaway_sim.battery``)."""
+        return self.pack.reading(self.plant.state.energy_j, self.t_ns - self.pack_since_ns,
+                                 self.propulsion_power_w())
+
+    def battery(self) -> BatteryState:
+        """The battery now as the lockstep sim reports it on ``vehicle/battery``: its remaining
+        energy is the scenario's initial energy less exactly ``truth().energy_j`` + hotel x t."""
+        return self.pack_reading().message(self.stamp_ns)
 
     def propulsion_power_w(self) -> float:
         return model.propulsion_power_w(self.plant.state.thrust_n, self.vessel)

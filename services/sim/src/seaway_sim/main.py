@@ -2,7 +2,8 @@
 
 Real time (the run's clock ``wall``): driven over MAVLink on ``--mavlink`` (``udpin:127.0.0.1:14580``).
 Lockstep (``lockstep``): sim time, driven by ThrustCommand on the bus (``seaway_sim.lockstep``).
-Both publish sim/truth, sim/disturbance and sim/clock and serve sim/scenario.
+Both publish sim/truth, sim/disturbance and sim/clock and serve sim/scenario; lockstep also publishes
+the battery (vehicle/battery), which in real time the simulated PX4 reports over MAVLink.
 
 The run description (``--run`` or the run flags) says which scenario to run (default ``lake``), which
 vessel file the plant integrates (``plant_vessel_file``, else the model's) and the control period.
@@ -24,6 +25,7 @@ from seaway.vessel.mavlink_signing import KeyFileError, read_key
 from seaway.vessel.model import load_vessel
 
 from seaway_sim.app import SimApp
+from seaway_sim.battery import SimPack
 from seaway_sim.core import SimCore
 from seaway_sim.lockstep import Lockstep
 from seaway_sim.mavlink_link import DEFAULT_ENDPOINT, MavlinkLink
@@ -89,6 +91,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         scenario = load_scenario(run.scenario)
         vessel = load_vessel(run.plant_vessel)
+        SimPack.of(scenario, vessel)  # the scenario's [battery] must fit the vessel's pack
     except ConfigError as err:
         print(f"seaway-sim: {err}", file=sys.stderr)
         return 2

@@ -37,6 +37,7 @@ from seaway.simkit.sensors import instants_in, period_ns
 from seaway.vessel.frames import GeoOrigin
 
 from seaway_sim import px4_mixer
+from seaway_sim.battery import PackReading
 from seaway_sim.px4_params import (
     BY_NAME,
     INDEX,
@@ -87,20 +88,39 @@ SENSORS_PRESENT = (mavlink.MAV_SYS_STATUS_SENSOR_GPS | mavlink.MAV_SYS_STATUS_SE
                    | mavlink.MAV_SYS_STATUS_AHRS | mavlink.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
                    | mavlink.MAV_SYS_STATUS_PREARM_CHECK)
 
-# A nominal 4S LiPo: the sim's battery drains with the propulsion energy only (no hotel load).
-BATTERY_FULL_V = 16.8
-BATTERY_EMPTY_V = 13.2
-BATTERY_NOMINAL_V = 14.8
-BATTERY_CAPACITY_J = 10.0 * 3600.0 * BATTERY_NOMINAL_V  # 10 Ah
-BATTERY_STATUS_HZ = 1.0
+BATTERY_STATUS_HZ = 1.0  # PX4 streams it at 0.5 Hz on its onboard link; 1 Hz here
 UINT16_UNKNOWN = 65535  # MAVLink's "not set" for unsigned 16-bit fields
+INT16_MAX = 32767
 GPS_EPH_CDOP = 100  # GPS_RAW_INT.eph: HDOP x 100; a simulated open-sky receiver reports 1.0
 
 
-def battery(energy_j: float) -> tuple[float, float]:
-    """(volts, remaining fraction) of the nominal pack after ``energy_j`` of propulsion [V, 1]."""
-    remaining = max(0.0, 1.0 - energy_j / BATTERY_CAPACITY_J)
-    return BATTERY_EMPTY_V + (BATTERY_FULL_V - BATTERY_EMPTY_V) * remaining, remaining
+@dataclass(frozen=True)
+class BatteryFields:
+    """The pack in MAVLink's units, filled as PX4's mavlink streams fill SYS_STATUS and
+    BATTERY_STATUS (src/modules/mavlink/streams/SYS_STATUS.hpp, BATTERY_STATUS.hpp): the float
+    figures converted to integers by C's truncation, the remaining percentage rounded up (ceilf)."""
+
+    voltage_mv: int  # SYS_STATUS.voltage_battery, BATTERY_STATUS.voltages[0]
+    current_ca: int  # current_battery [cA]
+    consumed_mah: int  # BATTERY_STATUS.current_consumed [mA h]
+    consumed_hj: int  # BATTERY_STATUS.energy_consumed [hJ]; PX4 sends -1 (see battery_fields)
+    remaining_pct: int  # battery_remaining [%]
+
+
+def battery_fields(pack: PackReading) -> BatteryFields:
+    """``pack`` as PX4 puts it on the wire.
+
+    **Differs** from PX4 in one field: PX4 sends ``energy_consumed`` = -1 (its battery_status has no
+    energy count); the sim fills it with the energy drawn, so that vehicle_io's energy path (as
+    ArduPilot fills it) is exercised too. Each is at most one unit below the true value (the
+    truncation): 1 mV, 10 mA, 1 mA h, 100 J; the percentage at most 1 above.
+    """
+    return BatteryFields(
+        voltage_mv=min(UINT16_UNKNOWN - 1, int(pack.voltage_v * 1000.0)),
+        current_ca=max(-INT16_MAX, min(INT16_MAX, int(pack.current_a * 100.0))),
+        consumed_mah=int(pack.consumed_mah),
+        consumed_hj=int(pack.consumed_j / 100.0),
+        remaining_pct=math.ceil(pack.remaining_frac * 100.0))
 
 
 @dataclass(frozen=True)
@@ -417,10 +437,9 @@ class Px4Autopilot:
                                                  mavlink.MAV_AUTOPILOT_PX4, base, custom_mode(mode),
                                                  status, 3)
 
-    def sys_status(self, now_ns: int, energy_j: float, power_w: float, gnss_ok: bool,
-                   link_errors: int) -> Any:
+    def sys_status(self, now_ns: int, pack: PackReading, gnss_ok: bool, link_errors: int) -> Any:
         """SYS_STATUS: RC_RECEIVER health is manual control, GPS health the fix, errors_comm the
-        count of garbage the link dropped; battery from the propulsion energy used."""
+        count of garbage the link dropped; the battery is ``pack`` (``battery_fields``)."""
         health = SENSORS_PRESENT
         if self.manual_control_lost(now_ns):
             health &= ~mavlink.MAV_SYS_STATUS_SENSOR_RC_RECEIVER
@@ -428,21 +447,19 @@ class Px4Autopilot:
             health &= ~mavlink.MAV_SYS_STATUS_SENSOR_GPS
         if self.terminated or (self.user_mode == MANUAL and self.manual_control_lost(now_ns)):
             health &= ~mavlink.MAV_SYS_STATUS_PREARM_CHECK
-        volts, remaining = battery(energy_j)
+        b = battery_fields(pack)
         return mavlink.MAVLink_sys_status_message(
-            SENSORS_PRESENT, SENSORS_PRESENT, health, 0, round(volts * 1000),
-            min(32767, round(power_w / volts * 100)), round(remaining * 100), 0,
-            min(65535, link_errors), 0, 0, 0, 0)
+            SENSORS_PRESENT, SENSORS_PRESENT, health, 0, b.voltage_mv, b.current_ca,
+            b.remaining_pct, 0, min(65535, link_errors), 0, 0, 0, 0)
 
-    def battery_status(self, energy_j: float, power_w: float) -> Any:
-        """BATTERY_STATUS of the nominal pack: total voltage in voltages[0], as PX4 without cells."""
-        volts, remaining = battery(energy_j)
-        voltages = [round(volts * 1000)] + [UINT16_UNKNOWN] * 9
+    def battery_status(self, pack: PackReading) -> Any:
+        """BATTERY_STATUS id 0 of ``pack``: the total voltage in voltages[0] and the other cells
+        UINT16_MAX, as PX4 without cell voltages; temperature unknown (INT16_MAX)."""
+        b = battery_fields(pack)
+        voltages = [b.voltage_mv] + [UINT16_UNKNOWN] * 9
         return mavlink.MAVLink_battery_status_message(
-            0, mavlink.MAV_BATTERY_FUNCTION_ALL, mavlink.MAV_BATTERY_TYPE_LIPO, 32767, voltages,
-            min(32767, round(power_w / volts * 100)),
-            round(energy_j / BATTERY_NOMINAL_V / 3.6),  # mAh = J / V / 3.6
-            round(energy_j / 100), round(remaining * 100))
+            0, mavlink.MAV_BATTERY_FUNCTION_ALL, mavlink.MAV_BATTERY_TYPE_LIPO, INT16_MAX, voltages,
+            b.current_ca, b.consumed_mah, b.consumed_hj, b.remaining_pct)
 
     def autopilot_version(self) -> Any:
         return mavlink.MAVLink_autopilot_version_message(
@@ -485,10 +502,9 @@ class Px4Autopilot:
         return out
 
     def periodic_telemetry(self, after_ns: int, upto_ns: int, origin: GeoOrigin, epoch_ns: int,
-                           energy_j: float, power_w: float, gnss_ok: bool,
-                           link_errors: int) -> list[Any]:
+                           pack: PackReading, gnss_ok: bool, link_errors: int) -> list[Any]:
         """HEARTBEAT, SYS_STATUS, BATTERY_STATUS (1 Hz), LOCAL_POSITION_NED (10 Hz) due in
-        (after, upto].
+        (after, upto]; the battery messages describe ``pack`` (the battery at ``upto_ns``).
 
         Times are since boot; LOCAL_POSITION_NED carries the last fix, stamped with its own time
         (fix stamp - ``epoch_ns``), as an estimator output would be.
@@ -497,9 +513,9 @@ class Px4Autopilot:
         if instants_in(period_ns(HEARTBEAT_HZ), after_ns, upto_ns):
             out.append(self.heartbeat())
         if instants_in(period_ns(SYS_STATUS_HZ), after_ns, upto_ns):
-            out.append(self.sys_status(upto_ns, energy_j, power_w, gnss_ok, link_errors))
+            out.append(self.sys_status(upto_ns, pack, gnss_ok, link_errors))
         if instants_in(period_ns(BATTERY_STATUS_HZ), after_ns, upto_ns):
-            out.append(self.battery_status(energy_j, power_w))
+            out.append(self.battery_status(pack))
         fix = self.last_fix
         local_due = instants_in(period_ns(LOCAL_POSITION_HZ), after_ns, upto_ns)
         if fix is not None and gnss_ok and local_due:

@@ -75,8 +75,7 @@ class Realtime:
         gnss_ok = core.gnss_ok()
         self.link.send(ap.sensor_telemetry(samples.gnss, samples.attitude, core.epoch_ns))
         self.link.send(ap.periodic_telemetry(before, core.t_ns, core.origin, core.epoch_ns,
-                                             core.plant.state.energy_j, core.propulsion_power_w(),
-                                             gnss_ok, self.link.garbage))
+                                             core.pack_reading(), gnss_ok, self.link.garbage))
         if instants_in(self.publish_period_ns, before, core.t_ns):
             self.app.publish_truth(1.0)
 

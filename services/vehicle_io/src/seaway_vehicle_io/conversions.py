@@ -1,10 +1,10 @@
 """MAVLink telemetry -> Seaway messages: unit conversions and range checks, as pure functions.
 
 MAVLink's scaled integers stop here (design.md): degrees*1e7 become radians, millimetres metres,
-centimetres per second metres per second, millivolts volts, percent a fraction. Each function takes
-a decoded pymavlink message (only its attributes are read, so tests may pass any object with those
-attributes) and the stamp the caller computed, and either returns a validated Seaway message or
-raises:
+centimetres per second metres per second, millivolts volts, centiamperes amperes, hectojoules
+joules, percent a fraction. Each function takes a decoded pymavlink message (only its attributes
+are read, so tests may pass any object with those attributes) and the stamp the caller computed,
+and either returns a validated Seaway message or raises:
 
 * ``FieldError`` when a field is non-finite or outside the physically possible range; the caller
   counts the message as dropped and logs ``err.field``. Nothing partial is ever published.
@@ -17,11 +17,13 @@ unusual but real values.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Any
 
-from seaway.contract.messages import Attitude, GnssFix, LocalPosition
+from seaway.contract.messages import Attitude, BatteryState, GnssFix, LocalPosition
+from seaway.vessel.battery import BatteryParams
 
 UINT16_MAX = 65535
 DEG_E7_TO_RAD = math.pi / 180.0 / 1e7
@@ -179,14 +181,39 @@ def attitude_from_attitude(msg: Any, stamp_ns: int) -> Attitude:
 # ---------------------------------------------------------------------------------------------
 # Battery
 # ---------------------------------------------------------------------------------------------
+#
+# What PX4 and ArduPilot put in the two battery messages (docs/autopilots.md C.9):
+#   voltage      SYS_STATUS.voltage_battery [mV], BATTERY_STATUS.voltages[] [mV]; UINT16_MAX unknown
+#   current      current_battery [cA], -1 unknown (other negative values: charging)
+#   remaining    battery_remaining [%], -1 unknown; PX4 rounds up (ceilf), ArduPilot from its mA h count
+#   charge drawn BATTERY_STATUS.current_consumed [mA h], -1 unknown (both fill it)
+#   energy drawn BATTERY_STATUS.energy_consumed [hJ], -1 unknown (ArduPilot fills it; PX4 sends -1)
 
 
 @dataclass(frozen=True)
 class BatteryReading:
-    """Battery voltage [V] and remaining charge [0..1]; None where the autopilot says unknown."""
+    """What SYS_STATUS and BATTERY_STATUS say about the pack; None where the autopilot says unknown.
 
-    voltage_v: float | None
-    remaining_frac: float | None
+    voltage [V], remaining charge [0..1], current [A] (positive discharging), charge drawn [mA h],
+    energy drawn [J]."""
+
+    voltage_v: float | None = None
+    remaining_frac: float | None = None
+    current_a: float | None = None
+    consumed_mah: float | None = None
+    consumed_j: float | None = None
+
+    def merged(self, newer: BatteryReading) -> BatteryReading:
+        """``newer``'s figures, this one's where ``newer`` says unknown: both messages describe the
+        same pack, and a field one of them leaves unknown must not flicker to None."""
+        return BatteryReading(*(new if new is not None else old for new, old in zip(
+            dataclasses.astuple(newer), dataclasses.astuple(self), strict=True)))
+
+
+HJ_TO_J = 100.0
+CA_TO_A = 1e-2
+INT16_MAX = 32767
+INT32_MAX = 2_147_483_647
 
 
 def _remaining(t: str, value: Any) -> float | None:
@@ -194,23 +221,42 @@ def _remaining(t: str, value: Any) -> float | None:
     return None if pct == -1 else pct / 100.0
 
 
+def _current(t: str, value: Any) -> float | None:
+    """current_battery [cA -> A]: -1 unknown; other negative values are charging, allowed."""
+    ca = _within(t, "current_battery", value, -INT16_MAX, INT16_MAX)
+    return None if ca == -1 else ca * CA_TO_A
+
+
+def _count(t: str, field: str, value: Any) -> float | None:
+    """A consumed count (mA h, hJ): -1 unknown, else >= 0 (the pack cannot have given less than
+    nothing since the count started)."""
+    v = _within(t, field, value, -1, INT32_MAX)
+    if -1 < v < 0:
+        raise FieldError(t, field, value, "negative (only -1, unknown, is allowed below 0)")
+    return None if v == -1 else v
+
+
 def battery_from_sys_status(msg: Any) -> BatteryReading:
-    """SYS_STATUS (#1): voltage_battery [mV -> V] (UINT16_MAX unknown), battery_remaining [% -> 0..1]
-    (-1 unknown)."""
+    """SYS_STATUS (#1): voltage_battery [mV -> V] (UINT16_MAX unknown), current_battery [cA -> A]
+    (-1 unknown), battery_remaining [% -> 0..1] (-1 unknown)."""
     t = "SYS_STATUS"
     mv = int(_within(t, "voltage_battery", msg.voltage_battery, 0, UINT16_MAX))
     return BatteryReading(
         voltage_v=None if mv == UINT16_MAX else mv * MV_TO_V,
         remaining_frac=_remaining(t, msg.battery_remaining),
+        current_a=_current(t, msg.current_battery),
     )
 
 
 def battery_from_battery_status(msg: Any) -> BatteryReading:
-    """BATTERY_STATUS (#147): pack voltage = sum of the cell entries that are not UINT16_MAX [mV -> V].
+    """BATTERY_STATUS (#147): pack voltage = sum of the cell entries that are not UINT16_MAX [mV -> V];
+    current_battery [cA -> A], current_consumed [mA h], energy_consumed [hJ -> J] (each -1 unknown);
+    battery_remaining [% -> 0..1] (-1 unknown).
 
     The MAVLink definition fills unused cells with UINT16_MAX, puts the whole pack in cell 0 when cells
     are not measured, and splits a pack above 65534 mV over cells 0 and 1; summing the valid entries
-    is right in all three cases. ``voltages_ext`` (cells 11-14, MAVLink 2) uses 0 for unused.
+    is right in all three cases. ``voltages_ext`` (cells 11-14, MAVLink 2) is 0 (ArduPilot) or
+    UINT16_MAX (PX4) for unused.
     """
     t = "BATTERY_STATUS"
     cells = [int(_within(t, f"voltages[{i}]", v, 0, UINT16_MAX)) for i, v in enumerate(msg.voltages)]
@@ -220,4 +266,42 @@ def battery_from_battery_status(msg: Any) -> BatteryReading:
     voltage_v = sum(valid) * MV_TO_V if valid else None
     if voltage_v is not None and voltage_v > VOLTAGE_MAX_V:
         raise FieldError(t, "voltages", list(msg.voltages), f"pack voltage {voltage_v:g} V implausible")
-    return BatteryReading(voltage_v=voltage_v, remaining_frac=_remaining(t, msg.battery_remaining))
+    hj = _count(t, "energy_consumed", msg.energy_consumed)
+    return BatteryReading(
+        voltage_v=voltage_v,
+        remaining_frac=_remaining(t, msg.battery_remaining),
+        current_a=_current(t, msg.current_battery),
+        consumed_mah=_count(t, "current_consumed", msg.current_consumed),
+        consumed_j=None if hj is None else hj * HJ_TO_J,
+    )
+
+
+def battery_state(reading: BatteryReading, pack: BatteryParams | None, stamp_ns: int) -> BatteryState:
+    """The autopilot's battery in SI units (``BatteryState``, source ``autopilot``), completed from
+    the vessel file's ``[battery]`` (``pack``; None: only what the autopilot measured).
+
+    * power = voltage x current where the autopilot measures both [W];
+    * energy drawn: the autopilot's energy count [J]; else its charge count at the pack's nominal
+      voltage (``BatteryParams.joules_from_mah``);
+    * remaining energy: the autopilot's remaining fraction x the usable energy; else usable energy
+      minus the energy drawn (never below 0); the fraction, if the autopilot gives none, is that
+      over the usable energy;
+    * capacity (usable energy) and reserve: the vessel file's.
+    """
+    v, i = reading.voltage_v, reading.current_a
+    consumed = reading.consumed_j
+    frac = reading.remaining_frac
+    capacity = reserve = remaining = None
+    if pack is not None:
+        capacity, reserve = pack.energy_j, pack.reserve_energy_j
+        if consumed is None and reading.consumed_mah is not None:
+            consumed = pack.joules_from_mah(reading.consumed_mah)
+        if frac is not None:
+            remaining = frac * capacity
+        elif consumed is not None:
+            remaining = max(0.0, capacity - consumed)
+            frac = remaining / capacity
+    return BatteryState.make(
+        stamp_ns=stamp_ns, source="autopilot", voltage_v=v, current_a=i,
+        power_w=v * i if v is not None and i is not None else None, consumed_j=consumed,
+        remaining_j=remaining, remaining_frac=frac, capacity_j=capacity, reserve_j=reserve)

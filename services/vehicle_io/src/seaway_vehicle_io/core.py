@@ -31,6 +31,7 @@ from typing import Any, ClassVar
 
 from seaway.contract.messages import Message, ThrustCommand, ThrustWithheld, VehicleStatus
 from seaway.runtime.ratelog import RateLimitedLog
+from seaway.vessel.battery import BatteryParams
 from seaway.vessel.mavlink_signing import ACCEPTED, SignatureVerifier, signing_timestamp
 
 from seaway_vehicle_io import profile as profiles
@@ -58,6 +59,7 @@ from seaway_vehicle_io.conversions import (
     attitude_from_attitude,
     battery_from_battery_status,
     battery_from_sys_status,
+    battery_state,
     gnss_from_global_position_int,
     gps_quality_from_gps_raw_int,
     local_position_from_local_position_ned,
@@ -199,8 +201,11 @@ class VehicleIoCore:
     """The whole of vehicle_io's logic. See the module docstring for how it is driven."""
 
     def __init__(self, config: VehicleIoConfig, limits: ThrusterLimits, start: Now,
-                 signing_key: bytes | None = None) -> None:
+                 signing_key: bytes | None = None, battery: BatteryParams | None = None) -> None:
         self.cfg = config
+        # The vessel file's [battery] completes the autopilot's battery figures (None: it has none,
+        # and only the measured figures are published).
+        self.battery_params = battery
         # With a key, every incoming message must be signed with it (checked before anything else).
         self.verifier = SignatureVerifier(signing_key) if signing_key is not None else None
         self.refusals = Refusals()
@@ -218,7 +223,7 @@ class VehicleIoCore:
         self.mapper: Any = None  # (L, R) -> axes for this autopilot's parameters; None: not yet
         self.gps_quality: GpsQuality | None = None
         self.gps_quality_mono_ns = 0
-        self.battery = BatteryReading(None, None)
+        self.battery = BatteryReading()
         self.dropped = 0
         self.counts: dict[str, int] = {}
         self.rates_hz: dict[str, float] = {}
@@ -576,6 +581,7 @@ class VehicleIoCore:
         link.mode = "UNKNOWN"
         self.offset.reset()
         self.gps_quality = None
+        self.battery = BatteryReading()
         self.commands.abandon_all()
         self.params = ParamCheck()
         self.rate_check = None
@@ -662,23 +668,19 @@ class VehicleIoCore:
         return []
 
     def _on_sys_status(self, msg: Any, now: Now) -> list[Output]:
-        self._merge_battery(battery_from_sys_status(msg))
-        return []
+        return self._on_battery(battery_from_sys_status(msg), now)
 
     def _on_battery_status(self, msg: Any, now: Now) -> list[Output]:
         if msg.id != 0:
             return []  # the first battery is the one SYS_STATUS also describes
-        self._merge_battery(battery_from_battery_status(msg))
-        return []
+        return self._on_battery(battery_from_battery_status(msg), now)
 
-    def _merge_battery(self, reading: BatteryReading) -> None:
-        # Both messages describe the same pack; a field one of them leaves unknown keeps the
-        # other's last value instead of flickering to None.
-        self.battery = BatteryReading(
-            reading.voltage_v if reading.voltage_v is not None else self.battery.voltage_v,
-            reading.remaining_frac if reading.remaining_frac is not None
-            else self.battery.remaining_frac,
-        )
+    def _on_battery(self, reading: BatteryReading, now: Now) -> list[Output]:
+        """A battery message converted (refused before this if a field is absurd): the pack's
+        state, completed from the vessel file, on ``vehicle/battery`` at once. Stamped at receipt
+        (wall clock), as VehicleStatus: neither message carries the autopilot's time."""
+        self.battery = self.battery.merged(reading)
+        return [Publish(battery_state(self.battery, self.battery_params, now.wall_ns))]
 
     def _on_command_ack(self, msg: Any, now: Now) -> list[Output]:
         if msg.command == MAV_CMD_SET_MESSAGE_INTERVAL:

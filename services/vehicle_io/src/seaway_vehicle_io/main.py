@@ -11,6 +11,7 @@ from seaway.contract.config import ConfigError, load_config, parse_config
 from seaway.runtime.run import RunDescription
 from seaway.runtime.service import base_parser, parse, resolve_run, run_service
 from seaway.simkit.scenario import load_scenario
+from seaway.vessel.battery import BatteryParams
 from seaway.vessel.mavlink_signing import KeyFileError, read_key
 from seaway.vessel.model import load_vessel
 
@@ -61,6 +62,12 @@ def load(args: argparse.Namespace, run: RunDescription) -> tuple[VehicleIoConfig
     return cfg, limits
 
 
+def battery_of(run: RunDescription) -> BatteryParams | None:
+    """The propulsion battery of the run's vessel file (its ``[battery]``; None: it names none), which
+    completes what the autopilot measures (``conversions.battery_state``). ConfigError."""
+    return load_vessel(run.model_vessel_file).battery
+
+
 def signing_key(cfg: VehicleIoConfig) -> bytes | None:
     """The MAVLink signing key the config names (None: no signing). ConfigError."""
     try:
@@ -75,16 +82,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         cfg, limits = load(args, run)
         key = signing_key(cfg)
+        battery = battery_of(run)
     except ConfigError as err:
         print(f"seaway-vehicle-io: {err}", file=sys.stderr)
         return 2
     with run_service("vehicle_io", args, run=run) as ctx:
         log.info("config: mavlink %s, autopilot %s, thrust timeout %.0f ms, MANUAL_CONTROL %.0f Hz; "
-                 "vessel limits +%.1f/-%.1f N, dead zone %.1f N; MAVLink signing %s", cfg.mavlink,
-                 cfg.autopilot, cfg.thrust_timeout_s * 1e3, cfg.manual_control_rate_hz,
-                 limits.thrust_max_n, limits.reverse_max_n, limits.dead_zone_n,
+                 "vessel limits +%.1f/-%.1f N, dead zone %.1f N; battery %s; MAVLink signing %s",
+                 cfg.mavlink, cfg.autopilot, cfg.thrust_timeout_s * 1e3,
+                 cfg.manual_control_rate_hz, limits.thrust_max_n, limits.reverse_max_n,
+                 limits.dead_zone_n, "none in the vessel file (measured figures only)"
+                 if battery is None else f"{battery.energy_j / 1e3:.1f} kJ usable, reserve "
+                 f"{battery.reserve_energy_j / 1e3:.1f} kJ, nominal {battery.nominal_voltage_v:g} V",
                  f"on (key file {cfg.signing_key_file})" if key is not None else "off")
-        service = VehicleIoService(cfg, limits, ctx.bus, ctx.stop, signing_key=key)
+        service = VehicleIoService(cfg, limits, ctx.bus, ctx.stop, signing_key=key,
+                                   battery=battery)
         ctx.ready()
         service.run()
     return 0

@@ -32,6 +32,7 @@ from seaway.contract import keys
 from seaway.contract.messages import (
     ArmRequest,
     Attitude,
+    BatteryState,
     GnssFix,
     LocalPosition,
     MessageError,
@@ -42,6 +43,7 @@ from seaway.contract.messages import (
 )
 from seaway.runtime.bus import Bus, TypedPublisher
 from seaway.runtime.ratelog import RateLimitedLog
+from seaway.vessel.battery import BatteryParams
 
 from seaway_vehicle_io.commands import MAV_CMD_COMPONENT_ARM_DISARM, MAV_RESULT_ACCEPTED
 from seaway_vehicle_io.config import VehicleIoConfig
@@ -67,14 +69,15 @@ class VehicleIoService:
     """vehicle_io running on one bus and one MAVLink URL until ``stop`` is set."""
 
     def __init__(self, cfg: VehicleIoConfig, limits: ThrusterLimits, bus: Bus,
-                 stop: threading.Event, signing_key: bytes | None = None) -> None:
+                 stop: threading.Event, signing_key: bytes | None = None,
+                 battery: BatteryParams | None = None) -> None:
         self.cfg = cfg
         self.bus = bus
         self.stop = stop
         self.signing_key = signing_key
         self.lock = threading.Lock()
         self.acks = threading.Condition(self.lock)
-        self.core = VehicleIoCore(cfg, limits, now(), signing_key)
+        self.core = VehicleIoCore(cfg, limits, now(), signing_key, battery)
         self.link: MavlinkLink | None = None
         self._requests_serial = threading.Lock()  # one COMMAND_LONG in flight at a time
         self._ratelog = RateLimitedLog(log)
@@ -84,6 +87,7 @@ class VehicleIoService:
             Attitude: bus.publisher(keys.ATTITUDE),
             LocalPosition: bus.publisher(keys.LOCAL_POSITION),
             VehicleStatus: bus.publisher(keys.VEHICLE_STATUS),
+            BatteryState: bus.publisher(keys.VEHICLE_BATTERY),
         }
 
     # -- running ---------------------------------------------------------------------------------

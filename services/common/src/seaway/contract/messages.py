@@ -342,6 +342,12 @@ energy: ``warn`` (say so, fly on), ``return`` (fly straight home, the default), 
 EnergyDecision = Literal["none", "warn", "return", "hold"]
 
 
+def return_mission_id(mission_id: str) -> str:
+    """The id of the return home the energy budget flies in place of ``mission_id`` (64 chars at
+    most, the end kept)."""
+    return f"{mission_id}/return"[-64:]
+
+
 class EnergyBudget(Message):
     """Will it make it back: the energy to finish and to get home against the battery, each control
     period of an active mission (``mission/energy``; ``seaway_controller.energy``).

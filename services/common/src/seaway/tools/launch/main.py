@@ -60,11 +60,13 @@ from seaway.contract.messages import (
     CONTROLLER_NAMES,
     MAX_TASK_POWER_W,
     ArmRequest,
+    EnergyBudget,
     MessageError,
     MissionRequest,
     MissionStatus,
     ModeRequest,
     StateEstimate,
+    return_mission_id,
 )
 from seaway.runtime import refusals
 from seaway.runtime import run as runs
@@ -256,8 +258,24 @@ def _mission_options(args: argparse.Namespace) -> list[str]:
     return [f"--{o.replace('_', '-')}" for o in MISSION_OPTIONS if getattr(args, o) is not None]
 
 
+DECISION_LABELS = {"warn": "LOW ENERGY", "return": "RETURNING", "hold": "HOLDING"}
+"""How the status line names an energy budget's decision (``EnergyBudget.decision``, not 'none')."""
+
+
+def energy_text(j: float | None) -> str:
+    """An energy for the status line, three significant figures in J, kJ or MJ ('-' for none)."""
+    if j is None or not math.isfinite(j):
+        return "-"
+    unit, v = next((u, j / k) for u, k in (("MJ", 1e6), ("kJ", 1e3), ("J", 1.0))
+                   if abs(j) >= k or u == "J")
+    digits = 0 if abs(v) >= 99.95 else 1 if abs(v) >= 9.995 else 2
+    return f"{v:.{digits}f} {unit}"
+
+
 class StatusLine:
-    """The live line: per vessel, leg, speed, cross-track error, energy used and energy-to-go.
+    """The live line: per vessel, leg, speed, cross-track error and the energy budget: energy used,
+    to finish the mission, to get home, the battery's remaining energy against its reserve and,
+    once taken, the decision (``mission/energy``; the mission status's figures before any budget).
 
     ``t`` is the run's time: the wall time since the start in real time; in lockstep the simulated
     time (the latest state's stamp) and, beside it, how many times faster than real time it goes
@@ -268,24 +286,48 @@ class StatusLine:
         self.vessels = list(vessels)
         self.mission: dict[str, MissionStatus | None] = dict.fromkeys(self.vessels)
         self.state: dict[str, StateEstimate | None] = dict.fromkeys(self.vessels)
+        self.energy: dict[str, EnergyBudget | None] = dict.fromkeys(self.vessels)
+        self.decided: dict[str, EnergyBudget | None] = dict.fromkeys(self.vessels)
+        """The budget of the period each vessel's decision was taken (its figures say why)."""
         self.tty = sys.stdout.isatty()
         self._last_print = 0.0
         self._first: tuple[float, float] | None = None  # lockstep: (sim s, wall s) of the first state
 
     def watch(self, bus: Bus) -> None:
-        """Keep the latest mission status and state of every vessel (on the bus's threads)."""
+        """Keep the latest mission status, state and energy budget of every vessel (on the bus's
+        threads)."""
         for v in self.vessels:
             bus.subscribe(keys.MISSION_STATUS, vessel=v,
                           callback=lambda _k, m, v=v: self.mission.__setitem__(v, m))
             bus.subscribe(keys.NAV_STATE, vessel=v,
                           callback=lambda _k, m, v=v: self.state.__setitem__(v, m))
+            bus.subscribe(keys.MISSION_ENERGY, vessel=v,
+                          callback=lambda _k, m, v=v: self.on_energy(v, m))
+
+    def on_energy(self, vessel: str, budget: EnergyBudget) -> None:
+        """The vessel's latest budget; the first one of a decision is kept for its figures."""
+        self.energy[vessel] = budget
+        before = self.decided[vessel]
+        if budget.decision != "none" and (before is None or before.decided_ns != budget.decided_ns):
+            self.decided[vessel] = budget
 
     def complete(self, mission: MissionRequest | None) -> bool:
         """Whether every vessel's mission is complete: the one this launcher sent, if it sent one
         (a status of some other mission stops nothing)."""
-        return all(m is not None and m.state == "complete"
-                   and (mission is None or m.mission_id == mission.mission_id)
-                   for m in self.mission.values())
+        return all(self._over(v, m, mission) for v, m in self.mission.items())
+
+    def _over(self, vessel: str, m: MissionStatus | None, sent: MissionRequest | None) -> bool:
+        """The mission sent is complete, or its return home that the energy budget decided
+        (``return_mission_id``) is, or the budget held it (policy 'hold': nothing more to fly)."""
+        if m is None:
+            return False
+        ids = None if sent is None else (sent.mission_id, return_mission_id(sent.mission_id))
+        if ids is not None and m.mission_id not in ids:
+            return False
+        budget = self.energy.get(vessel)
+        held = (m.state == "paused" and budget is not None and budget.decision == "hold"
+                and budget.mission_id == m.mission_id)
+        return m.state == "complete" or held
 
     def text(self, t_s: float) -> str:
         """One line for every vessel (a fleet's vessels joined by ``||``)."""
@@ -299,15 +341,41 @@ class StatusLine:
             parts.append(f"{m.state} leg {m.active_leg}/{max(m.waypoint_count - 1, 0)}")
             if m.cross_track_m is not None:
                 parts.append(f"xte {m.cross_track_m:5.2f} m")
-            if m.energy_used_j is not None:
-                parts.append(f"energy {m.energy_used_j:7.1f} J")
-            if m.energy_to_go_j is not None:
-                parts.append(f"to go {m.energy_to_go_j:7.1f} J")
         else:
             parts.append("no mission status yet")
         if s is not None:
             parts.append(f"speed {(s.u_mps ** 2 + s.v_mps ** 2) ** 0.5:4.2f} m/s")
+        parts += self.energy_parts(vessel)
         return " | ".join(parts)
+
+    def energy_parts(self, vessel: str) -> list[str]:
+        """Energy used, to finish, to home, battery vs reserve, and the decision once taken: from
+        the budget of the mission the status names, else the status's own figures."""
+        m, b = self.mission[vessel], self.energy[vessel]
+        if b is None or (m is not None and m.mission_id != b.mission_id):
+            if m is None:
+                return []
+            return ([f"used {energy_text(m.energy_used_j)}"] if m.energy_used_j is not None else []) + (
+                [f"to finish {energy_text(m.energy_to_go_j)}"] if m.energy_to_go_j is not None else [])
+        parts = [f"used {energy_text(b.energy_used_j)}", f"to finish {energy_text(b.energy_to_go_j)}",
+                 f"to home {energy_text(b.energy_to_home_j)}"]
+        if b.battery_remaining_j is not None:
+            parts.append(f"battery {energy_text(b.battery_remaining_j)}"
+                         + (f" (reserve {energy_text(b.reserve_j)})" if b.reserve_j is not None else ""))
+        if b.decision != "none":
+            parts.append(self.decision_text(vessel, b, m))
+        return parts
+
+    def decision_text(self, vessel: str, b: EnergyBudget, m: MissionStatus | None) -> str:
+        label = DECISION_LABELS[b.decision]
+        if b.decision == "return" and b.returning and m is not None and m.state == "complete":
+            label = "RETURNED"
+        d = self.decided[vessel]
+        if d is None or d.decided_ns != b.decided_ns or None in (
+                d.energy_to_home_j, d.battery_remaining_j):
+            return f"{label}: {b.reason}" if b.reason else label  # its period was not heard
+        return (f"{label}: energy to home {energy_text(d.energy_to_home_j)} + reserve "
+                f"{energy_text(d.reserve_j or 0.0)} reached {energy_text(d.battery_remaining_j)} left")
 
     def time_text(self, state: StateEstimate | None, wall_s: float) -> str:
         if not self.lockstep:

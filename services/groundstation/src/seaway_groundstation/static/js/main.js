@@ -56,7 +56,8 @@ const plots = {
   xte: new TimePlot($("plot-xte"), { title: "Cross-track error", unit: "m", digits: 2, zeroBased: true,
     lines: [{ key: "xte", label: "", colour: "pred" }] }),
   energy: new TimePlot($("plot-energy"), { title: "Energy", unit: "J", digits: 0, zeroBased: true,
-    lines: [{ key: "used", label: "used", colour: "accent" }, { key: "togo", label: "to go", colour: "draft" }] }),
+    lines: [{ key: "used", label: "used", colour: "accent" }, { key: "finish", label: "to finish", colour: "draft" },
+      { key: "home", label: "to home", colour: "home" }] }),
 };
 
 const stream = new LiveStream({
@@ -162,8 +163,6 @@ function render() {
   setText("p-leg", mission && mission.state !== "idle" ? `${mission.active_leg} / ${legs}` : "–");
   setText("p-dist", fmt(mission?.distance_to_waypoint_m, 1, "m"));
   setText("p-xte", fmt(mission?.cross_track_m, 2, "m"));
-  setText("m-energy-used", fmt(mission?.energy_used_j, 1, "J"));
-  setText("p-togo", fmt(mission?.energy_to_go_j, 1, "J"));
   setText("p-dist-est", state ? `surge ${fmt(state.tau_d_surge_n, 2)} N, sway ${fmt(state.tau_d_sway_n, 2)} N, yaw ${fmt(state.tau_d_yaw_nm, 2)} N·m` : "–");
   let frac = 0;
   if (mission?.state === "complete") frac = 1;
@@ -171,6 +170,8 @@ function render() {
   $("p-bar").style.width = `${(frac * 100).toFixed(0)}%`;
   markStale("mission", stale("mission"));
   renderMetrics(mission);
+  const budget = v ? v.budget() : null;
+  renderEnergy(budget, mission, stale("energy"));
 
   // Map.
   const plan = currentPlan(v, mission);
@@ -183,8 +184,8 @@ function render() {
   map.setModel({
     geo: app.mode === "live" ? view?.geo ?? null : player.detail?.geo?.[app.selected] ?? null,
     plan, activeLeg: mission && mission.state !== "idle" ? mission.active_leg : -1,
-    trail: v?.trail || [], state, solve, others,
-    stale: { state: stale("state"), solve: stale("solve") },
+    trail: v?.trail || [], state, solve, others, budget,
+    stale: { state: stale("state"), solve: stale("solve"), energy: stale("energy") },
   });
   $("map-stale").hidden = !(stale("state") && state);
   if (plan && app.lastMissionId !== plan.mission_id && app.mode === "live" && !app.draft.length) {
@@ -198,7 +199,7 @@ function render() {
   plots.thrust.draw(s?.thrust, { stale: stale("thrust"), cursorT: cursor });
   plots.speed.draw(s?.speed, { stale: stale("state"), cursorT: cursor });
   plots.xte.draw(s?.xte, { stale: stale("mission"), cursorT: cursor, empty: "no mission yet" });
-  plots.energy.draw(s?.energy, { stale: stale("mission"), cursorT: cursor, empty: "no mission yet" });
+  plots.energy.draw(v?.energySeries(), { stale: stale("mission"), cursorT: cursor, empty: "no mission yet" });
   if (app.mode === "replay") updateTransport();
 }
 
@@ -220,6 +221,60 @@ function renderMetrics(mission) {
   setText("m-xte-avg", fmt(m?.avg_cross_track_m, 3, "m"));
   setText("m-xte-max", fmt(m?.max_cross_track_m, 2, "m"));
   setText("metrics-source", source);
+}
+
+const DECISIONS = { warn: ["LOW ENERGY", "warn"], return: ["RETURNING HOME", "bad"], hold: ["HOLDING", "bad"] };
+
+/** An energy [J] with its band, "45.6 J (40.1–50.2)". */
+function withBand(j, low, high) {
+  const band = Number.isFinite(low) && Number.isFinite(high) && (low !== j || high !== j)
+    ? ` (${low.toFixed(1)}–${high.toFixed(1)})` : "";
+  return fmt(j, 1, "J") + (Number.isFinite(j) ? band : "");
+}
+
+/** The energy budget's figures (mission/energy; the status's before any), and its decision shown
+ *  prominently once taken: on the map and at the top of the energy panel. */
+function renderEnergy(b, mission, isStale) {
+  setText("e-source", b ? "mission/energy" : mission?.energy_used_j != null ? "mission status" : "");
+  // The controller's count either way; the status's goes on to the completion (the budget's stops
+  // with the last active period).
+  setText("m-energy-used", fmt(mission?.energy_used_j ?? b?.energy_used_j, 1, "J"));
+  setText("e-finish", b ? withBand(b.energy_to_go_j, b.energy_to_go_low_j, b.energy_to_go_high_j)
+    : fmt(mission?.energy_to_go_j, 1, "J"));
+  setText("e-home", b ? withBand(b.energy_to_home_j, b.energy_to_home_low_j, b.energy_to_home_high_j) : "–");
+  setText("e-battery", b && b.battery_remaining_j == null ? "not reported" : fmt(b?.battery_remaining_j, 1, "J"));
+  setText("e-reserve", fmt(b?.reserve_j, 1, "J"));
+  setText("e-margin", fmt(b?.margin_j, 1, "J"), Number.isFinite(b?.margin_j) && b.margin_j <= 0 ? "bad" : "");
+  let pnr = "–";
+  if (b && Number.isFinite(b.no_return_along_m)) {
+    const ll = map.latLon(b.no_return_x_m, b.no_return_y_m);
+    pnr = `in ${b.no_return_along_m.toFixed(1)} m, at N ${b.no_return_x_m.toFixed(1)} E ${b.no_return_y_m.toFixed(1)} m`
+      + (ll ? ` (${ll[0].toFixed(6)}°, ${ll[1].toFixed(6)}°)` : "");
+  } else if (b && b.returning) {
+    pnr = "returning home";
+  } else if (b && Number.isFinite(b.margin_j) && b.margin_j <= 0) {
+    pnr = "reached: the margin is gone";
+  } else if (b && b.battery_remaining_j != null) {
+    pnr = "not before the end";
+  } else if (b) {
+    pnr = "no battery report";
+  }
+  setText("e-pnr", pnr);
+  let decided = b && b.decision !== "none" ? DECISIONS[b.decision] : null;
+  if (decided && b.decision === "return" && b.returning && mission?.state === "complete") {
+    decided = ["RETURNED HOME", "warn"];
+  }
+  setText("e-decision", b ? (decided ? decided[0] : "none") + (b.policy ? ` (policy: ${b.policy})` : "") : "–",
+    decided ? decided[1] : "");
+  for (const id of ["map-decision", "e-decision-banner"]) {
+    const el = $(id);
+    el.hidden = !decided;
+    if (!decided) continue;
+    el.textContent = `${decided[0]}${b.reason ? ` — ${b.reason}` : ""}`;
+    el.classList.toggle("warn", decided[1] === "warn");
+  }
+  // Budgets come while the mission is active only: after it they are the last, not stale news.
+  markStale("energy", Boolean(b) && isStale && mission?.state === "active");
 }
 
 function updateLinkPill() {

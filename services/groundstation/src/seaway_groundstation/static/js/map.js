@@ -2,8 +2,8 @@
 //
 // Layers, bottom to top: optional tiles, the metric grid, the mission flown (path, circles of
 // acceptance, the active waypoint), the draft being edited (dashed, draggable handles), the trail,
-// the MPC's predicted trajectory, other vessels, the vessel with its heading and the disturbance
-// estimate as an arrow in its body frame. Wheel zooms at the cursor, dragging the background pans;
+// the MPC's predicted trajectory, the energy budget's home and point of no return, other vessels,
+// the vessel with its heading and the disturbance estimate as an arrow in its body frame. Wheel zooms at the cursor, dragging the background pans;
 // in "add" mode a click adds a waypoint; dragging a handle moves it, right-click removes it.
 //
 // Latitude/longitude appear only where the ground station gave the frame's origin and scale
@@ -50,7 +50,7 @@ export class MapView {
     this.tilesUrl = null;
     this.dirty = true;
     this.layers = {};
-    for (const name of ["tiles", "grid", "mission", "draft", "trail", "pred", "others", "vessel", "handles"]) {
+    for (const name of ["tiles", "grid", "mission", "draft", "trail", "pred", "energy", "others", "vessel", "handles"]) {
       this.layers[name] = el("g", { class: `layer-${name}` }, svg);
     }
     this.bind();
@@ -200,8 +200,31 @@ export class MapView {
     this.renderPolyline("trail", m.trail || [], "var(--trail)", 1.5, m.stale?.state);
     const pred = m.solve ? m.solve.predicted_x_m.map((x, i) => [x, m.solve.predicted_y_m[i]]) : [];
     this.renderPolyline("pred", pred, "var(--pred)", 2.2, m.stale?.solve, true);
+    this.renderEnergy(m.budget, m.stale?.energy);
     this.renderOthers(m.others || []);
     this.renderVessel(m.state, m.stale?.state);
+  }
+
+  /** The energy budget (mission/energy, local NED like the rest of the map): home, and the point
+   *  of no return ahead on the path, where the margin is predicted to reach 0. */
+  renderEnergy(budget, stale) {
+    const g = this.layers.energy;
+    g.replaceChildren();
+    if (!budget) return;
+    const [hx, hy] = this.toScreen(budget.home_x_m, budget.home_y_m);
+    const home = el("g", { id: "home-marker", "data-n": budget.home_x_m, "data-e": budget.home_y_m }, g);
+    el("rect", { x: hx - 6, y: hy - 6, width: 12, height: 12, fill: "#fff", stroke: "var(--home)", "stroke-width": 2 }, home);
+    el("text", { x: hx, y: hy + 4, "font-size": 9, "font-weight": 700, "text-anchor": "middle", fill: "var(--home)" }, home)
+      .textContent = "H";
+    if (!Number.isFinite(budget.no_return_x_m) || !Number.isFinite(budget.no_return_y_m)) return;
+    const [sx, sy] = this.toScreen(budget.no_return_x_m, budget.no_return_y_m);
+    const colour = stale ? "var(--stale)" : "var(--pnr)";
+    const pnr = el("g", { id: "no-return-marker", "data-n": budget.no_return_x_m, "data-e": budget.no_return_y_m,
+      transform: `translate(${sx},${sy})` }, g);
+    const along = Number.isFinite(budget.no_return_along_m) ? `${budget.no_return_along_m.toFixed(1)} m ahead` : "ahead";
+    el("title", {}, pnr).textContent = `point of no return: ${along}`;
+    el("path", { d: "M0,-9 L9,0 L0,9 L-9,0 Z", fill: colour, stroke: "#fff", "stroke-width": 1.5 }, pnr);
+    el("text", { x: 11, y: -8, "font-size": 11, "font-weight": 700, fill: colour }, pnr).textContent = "no return";
   }
 
   renderTiles() {

@@ -4,7 +4,7 @@
 // time in replay. Ages and staleness follow from it the same way in both.
 //
 // A frame: {vessel, services, stale_after_s, updates: {kind: {age_s, stale, message}}}, with kinds
-// state, solve, mission, vehicle, origin, thrust (the ground station's app.py documents it).
+// state, solve, mission, vehicle, origin, thrust, energy (the ground station's app.py documents it).
 
 const MAX_POINTS = 20000;   // per series; beyond, every other point is dropped (the shape stays)
 const MAX_TRAIL = 8000;
@@ -46,7 +46,10 @@ export class VesselData {
       thrust: series("port", "starboard"),
       speed: series("speed"),
       xte: series("xte"),
-      energy: series("used", "togo"),
+      // Energy: the controller's budget (mission/energy) once it publishes one for the mission;
+      // until then the mission status's figures (used, and its energy to finish).
+      energy: series("used", "finish", "home"),
+      budget: series("used", "finish", "home"),
     };
     this.trail = [];
   }
@@ -92,8 +95,22 @@ export class VesselData {
       this.missionOver = m.state === "complete" || m.state === "aborted";
       const t = this.t(m.stamp_ns);
       push(s.xte, t, { xte: m.cross_track_m });
-      push(s.energy, t, { used: m.energy_used_j, togo: m.energy_to_go_j });
+      push(s.energy, t, { used: m.energy_used_j, finish: m.energy_to_go_j, home: null });
+    } else if (kind === "energy" && m.mission_id === this.missionId) {
+      push(s.budget, this.t(m.stamp_ns), { used: m.energy_used_j, finish: m.energy_to_go_j,
+        home: m.energy_to_home_j });
     }
+  }
+
+  /** The energy budget of the mission the status names (null: none published for it). */
+  budget() {
+    const b = this.message("energy"), m = this.message("mission");
+    return b && m && b.mission_id === m.mission_id ? b : null;
+  }
+
+  /** The energy series to plot: the budget's once it has any, else the status's. */
+  energySeries() {
+    return this.series.budget.t.length ? this.series.budget : this.series.energy;
   }
 
   message(kind) {

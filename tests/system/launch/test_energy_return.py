@@ -1,0 +1,102 @@
+"""The energy budget's return decision through the real processes (issue #17): a lockstep
+``seaway launch sim-batch`` of the lake with a battery too small for its mission. The sim drains
+its pack and publishes it on ``vehicle/battery`` each period; the controller decides the return the
+period the energy to get home plus the reserve reaches what is left, flies home, and the mission
+ends there with at least the reserve left. The recording holds every input of the decision, and a
+replay of them through a fresh controller core (``seaway_controller.replay``) decides the same
+at the same period.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import pytest
+from seaway.contract import keys
+from seaway.contract.messages import (
+    BatteryState,
+    EnergyBudget,
+    MissionAccepted,
+    MissionStatus,
+    StateEstimate,
+)
+from seaway.vessel.model import load_vessel
+from seaway_controller.replay import replay
+from seaway_recorder import recording
+
+from tests.conftest import free_port
+
+pytestmark = pytest.mark.system
+BIN = Path(sys.executable).parent
+REPO = Path(__file__).resolve().parents[3]
+EXTRA_J = 20_000.0  # above the reserve: the lake mission needs ~30 kJ
+
+
+def _scenario(tmp_path: Path) -> tuple[Path, float]:
+    """The lake, its pack starting with the reserve and 20 kJ more."""
+    vessel = load_vessel("paper-boat")
+    assert vessel.battery is not None
+    reserve = vessel.battery.reserve_energy_j
+    text = (REPO / "deploy/scenarios/lake.toml").read_text()
+    text = text.replace('name = "lake"', 'name = "lake-low-battery"', 1)
+    text += f"\n[battery]\ninitial_energy_j = {reserve + EXTRA_J}\n"
+    tomllib.loads(text)  # still a valid document
+    path = tmp_path / "lake-low-battery.toml"
+    path.write_text(text)
+    return path, reserve
+
+
+def test_a_low_battery_returns_home_and_a_replay_decides_the_same(tmp_path):
+    scenario, reserve = _scenario(tmp_path)
+    run_dir = tmp_path / "run"
+    env = dict(os.environ, PYTHONUNBUFFERED="1",
+               SEAWAY_ZENOH_RENDEZVOUS=f"tcp/127.0.0.1:{free_port()}")
+    env.pop("SEAWAY_ZENOH_CONFIG", None)
+    out = subprocess.run([str(BIN / "seaway"), "launch", "sim-batch", "--scenario", str(scenario),
+                          "--run-dir", str(run_dir)], env=env, capture_output=True, text=True,
+                         timeout=600, check=False)
+    assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
+
+    files = recording.open_paths([run_dir])
+    suffixes = [keys.MISSION_ENERGY.suffix, keys.NAV_STATE.suffix, keys.VEHICLE_BATTERY.suffix,
+                keys.SOLVE.suffix, keys.MISSION_STATUS.suffix, keys.MISSION_ACCEPTED.suffix,
+                keys.SIM_TRUTH.suffix]
+    dec = recording.decode_vessel(files, None, suffixes)
+    budgets = [b for b in dec.get(keys.MISSION_ENERGY.suffix) if isinstance(b, EnergyBudget)]
+    assert budgets, "no mission/energy recorded"
+    k = next(i for i, b in enumerate(budgets) if b.decision != "none")
+    before, at = budgets[k - 1], budgets[k]
+    assert at.decision == "return" and at.decided_ns == at.stamp_ns
+    # Energy to home + reserve = remaining, within one control period.
+    assert before.margin_j > 0 >= at.margin_j
+    assert at.reserve_j == pytest.approx(reserve)
+
+    # The battery each period is the sim's own integral: remaining = initial - used.
+    batteries = {b.stamp_ns: b for b in dec.get(keys.VEHICLE_BATTERY.suffix)
+                 if isinstance(b, BatteryState)}
+    assert at.battery_remaining_j == pytest.approx(batteries[at.stamp_ns].remaining_j, abs=1e-6)
+
+    # Home, with at least the reserve left.
+    accepted = [a for a in dec.get(keys.MISSION_ACCEPTED.suffix) if isinstance(a, MissionAccepted)]
+    assert [a.mission_id for a in accepted][-1].endswith("/return")
+    statuses = [s for s in dec.get(keys.MISSION_STATUS.suffix) if isinstance(s, MissionStatus)]
+    assert statuses[-1].state == "complete" and statuses[-1].mission_id.endswith("/return")
+    truth = dec.get(keys.SIM_TRUTH.suffix)[-1]
+    assert math.dist((truth.x_m, truth.y_m), (0.0, 0.0)) <= accepted[-1].coa_radius_m + 0.1
+    last_battery = batteries[max(batteries)]
+    assert last_battery.remaining_j >= reserve
+
+    # The replay: a fresh controller core fed the recorded states and battery reports from the
+    # start decides the same, at the same period.
+    first = next(a for a in accepted if a.mission_id == at.mission_id)
+    states = sorted((s for s in dec.get(keys.NAV_STATE.suffix) if isinstance(s, StateEstimate)),
+                    key=lambda s: s.stamp_ns)
+    again = replay(first, load_vessel("paper-boat"), states, batteries.values())
+    assert again.decision() == (at.decided_ns, "return")
+    replayed = {b.stamp_ns: b for b in again.budgets}
+    assert replayed[at.stamp_ns].margin_j == pytest.approx(at.margin_j, abs=1e-6)
