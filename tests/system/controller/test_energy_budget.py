@@ -69,3 +69,21 @@ def test_a_current_against_the_way_home_brings_the_decision_forward():
         decided[east_mps] = at.decided_ns
         assert _left_over_reserve_j(out, battery_j, sc.hotel_power_w) >= 0.0
     assert decided[0.2] < decided[0.0] - 5_000_000_000  # > 5 s earlier (measured ~11 s)
+
+
+def test_bench_energy_prints_the_prediction_against_the_energy_used():
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    seaway = Path(sys.executable).parent / "seaway"
+    out = subprocess.run([str(seaway), "bench", "energy", "--scenario", "paper-c1", "--json"],
+                         capture_output=True, text=True, timeout=600, check=True)
+    doc = json.loads(out.stdout)
+    c1 = doc["scenarios"]["paper-c1"]
+    # Table I's condition #1: ~330 J used; the prediction within the targets.
+    assert c1["actual_start_j"] == pytest.approx(330.4, rel=0.02)
+    assert abs(c1["error_start_pct"]) <= 5 and abs(c1["error_half_pct"]) <= 2
+    assert c1["band_start_low_j"] < c1["predicted_start_j"] < c1["band_start_high_j"]
+    assert doc["passed"] is True
