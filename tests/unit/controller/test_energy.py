@@ -91,9 +91,9 @@ def test_band_widens_with_the_disturbance_covariance():
     for i, var in ((6, 1.0), (7, 1.0), (8, 0.01)):
         cov[i * 9 + i] = var
     st = state(covariance=cov)
-    nominal, sigmas = disturbance_sigma_points(st, True)
+    nominal, sigmas = disturbance_sigma_points(st)
     assert nominal == Disturbance.from_body((0.0, 0.0, 0.0), 0.0) and len(sigmas) == 6
-    assert disturbance_sigma_points(state(), True)[1] == []
+    assert disturbance_sigma_points(state())[1] == []
     b = Budget(model(), [(0.0, 0.0), (30.0, 0.0)], (0.0, 0.0), "return")
     b.update(0, st, 1, None, 0.0, None, None, None)
     msg = b.last

@@ -43,7 +43,6 @@ remaining energy less the energy to get there, against the energy home from ther
 
 from __future__ import annotations
 
-import itertools
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
@@ -64,8 +63,10 @@ from seaway_controller import costs
 
 TURN_TABLE_POINTS = 91
 """Turn angles [0, pi] at which the turn's extra energy is tabulated (2 deg apart), interpolated."""
-PNR_SAMPLES = 200
-"""Points along the path ahead at which the margin is predicted for the point of no return."""
+PNR_SCAN = 32
+"""Points along the path ahead at which the margin is first predicted for the point of no return."""
+PNR_BISECTIONS = 16
+"""Halvings of the first scan interval where the margin reaches 0 (a 100 m path: to 0.1 mm)."""
 MIN_SPEED_FRAC = 0.05
 """A predicted ground speed below this fraction of u* means the vessel cannot make way against the
 disturbance on that course: the leg's energy is then unbounded (reported as such)."""
@@ -101,7 +102,7 @@ def cruise(vessel: VesselParams, task_power_w: float, speed_mps: float, course_r
     p = vessel
     beta = 0.0  # crab angle: heading - course
     u, v, t_sum = speed_mps, 0.0, p.xu_kgps * speed_mps
-    for _ in range(4):  # the crab angle and the forces it sees agree within 1e-6 rad in 3
+    for _ in range(6):  # the crab angle and the forces it sees agree within 1e-6 rad in 3
         psi = course_rad + beta
         c, s = math.cos(psi), math.sin(psi)
         f_u = c * force_ne[0] + s * force_ne[1]
@@ -113,7 +114,9 @@ def cruise(vessel: VesselParams, task_power_w: float, speed_mps: float, course_r
         t_sum = min(max(t_sum, -2 * p.reverse_max_n), 2 * p.thrust_max_n)
         u = (t_sum + f_u) / p.xu_kgps
         v = f_v / p.yv_kgps
-        beta = -math.atan2(v, u) if u > 0 else 0.0
+        before, beta = beta, -math.atan2(v, u) if u > 0 else 0.0
+        if abs(beta - before) < 1e-9:
+            break
     t_diff = ((p.m22_kg - p.m11_kg) * u * v - yaw_nm) / p.arm_m
     t1 = min(max((t_sum + t_diff) / 2.0, -p.reverse_max_n), p.thrust_max_n)
     t2 = min(max((t_sum - t_diff) / 2.0, -p.reverse_max_n), p.thrust_max_n)
@@ -153,10 +156,11 @@ def _turn_extra_j(vessel: VesselParams, task_power_w: float, speed_mps: float, d
 
 @lru_cache(maxsize=64)
 def _turn_table(vessel: VesselParams, task_power_w: float, speed_mps: float, n: float,
-                t_d_min_s: float, t_d_max_s: float) -> np.ndarray:
-    angles = np.linspace(0.0, math.pi, TURN_TABLE_POINTS)
-    return np.array([_turn_extra_j(vessel, task_power_w, speed_mps, float(a), n, t_d_min_s,
-                                   t_d_max_s) for a in angles])
+                t_d_min_s: float, t_d_max_s: float) -> tuple[float, ...]:
+    """``_turn_extra_j`` at ``TURN_TABLE_POINTS`` angles evenly over [0, pi] [J]."""
+    step = math.pi / (TURN_TABLE_POINTS - 1)
+    return tuple(_turn_extra_j(vessel, task_power_w, speed_mps, i * step, n, t_d_min_s, t_d_max_s)
+                 for i in range(TURN_TABLE_POINTS))
 
 
 def _wrap(a: float) -> float:
@@ -217,9 +221,14 @@ class EnergyModel:
         return max(state.u_mps, MIN_SPEED_FRAC * u_star)
 
     def turn_j(self, delta_psi: float, speed_mps: float) -> float:
+        """The turn's extra energy [J], interpolated in the table for this speed (per mission at
+        u*; the NMPC's changes with its speed, hence the cache by speed)."""
         table = _turn_table(self.vessel, self.task_power_w, round(speed_mps, 6), self.profile_n,
                             self.t_d_min_s, self.t_d_max_s)
-        return float(np.interp(abs(_wrap(delta_psi)), np.linspace(0.0, math.pi, len(table)), table))
+        x = abs(_wrap(delta_psi)) / math.pi * (len(table) - 1)
+        i = min(int(x), len(table) - 2)
+        f = x - i
+        return table[i] * (1.0 - f) + table[i + 1] * f
 
     def cruise(self, course_rad: float, speed_mps: float, dist: Disturbance) -> Cruise:
         return cruise(self.vessel, self.task_power_w, speed_mps, course_rad, dist.force_ne,
@@ -287,8 +296,7 @@ def _entry(start: tuple[float, float], target: tuple[float, float], r: float) ->
     return (start[0] + f * (target[0] - start[0]), start[1] + f * (target[1] - start[1]))
 
 
-def disturbance_sigma_points(state: StateEstimate, predict_disturbance: bool
-                             ) -> tuple[Disturbance, list[Disturbance]]:
+def disturbance_sigma_points(state: StateEstimate) -> tuple[Disturbance, list[Disturbance]]:
     """The nominal disturbance and the ones a standard deviation away along each principal axis of
     the estimate's tau_d covariance (none without a covariance)."""
     tau = np.array([state.tau_d_surge_n, state.tau_d_sway_n, state.tau_d_yaw_nm])
@@ -316,47 +324,60 @@ def no_return_point(model: EnergyModel, state: StateEstimate,
                     home: tuple[float, float], remaining_j: float, reserve_j: float,
                     dist: Disturbance) -> tuple[float, float, float] | None:
     """(x [m], y [m], distance along the path [m]) where the margin is predicted to reach 0 along
-    the path ahead, or None if it does not before the mission ends (or already has)."""
+    the path ahead, or None if it does not before the mission ends (or already has).
+
+    The margin is scanned at ``PNR_SCAN`` points along the path and the first crossing bisected to
+    ``PNR_BISECTIONS`` halvings: the controller does this every period, so it stays at ~50 margin
+    evaluations however long the path."""
     speed = model.speed_mps(state)
     r = model.coa_radius_m
-    pts = [(state.x_m, state.y_m)]
-    start = pts[0]
+    # The path ahead as segments: (start, unit direction, length, energy at its start, j/m, course).
+    segments = []
+    start, heading, spent, total = (state.x_m, state.y_m), state.psi_rad, 0.0, 0.0
     for wp in waypoints[active:]:
         end = _entry(start, wp, r)
-        pts.append(end)
+        length = math.dist(start, end)
+        if length > 0:
+            course = math.atan2(end[1] - start[1], end[0] - start[0])
+            spent += model.turn_j(course - heading, speed)
+            j_per_m = model.cruise(course, speed, dist).j_per_m
+            unit = ((end[0] - start[0]) / length, (end[1] - start[1]) / length)
+            segments.append((start, unit, length, total, spent, j_per_m, course))
+            spent += j_per_m * length
+            total += length
+            heading = course
         start = end
-    seg_len = [math.dist(a, b) for a, b in itertools.pairwise(pts)]
-    total_len = sum(seg_len)
-    if total_len <= 0:
+    if total <= 0:
         return None
-    step = total_len / PNR_SAMPLES
-    heading, used, along = state.psi_rad, 0.0, 0.0
-    prev_margin: float | None = None
-    prev_pt = pts[0]
-    for (a, b), length in zip(itertools.pairwise(pts), seg_len, strict=True):
-        if length <= 0:
-            continue
-        course = math.atan2(b[1] - a[1], b[0] - a[0])
-        c = model.cruise(course, speed, dist)
-        used += model.turn_j(course - heading, speed)
-        heading = course
-        n = max(1, math.ceil(length / step))
-        for i in range(1, n + 1):
-            s = length * i / n
-            q = (a[0] + (b[0] - a[0]) * s / length, a[1] + (b[1] - a[1]) * s / length)
-            spent = used + c.j_per_m * s
-            home_j, _ = model.run_j(q, home, course, speed, dist, r)
-            margin = remaining_j - spent - home_j - reserve_j
-            if margin <= 0:
-                if prev_margin is None or not math.isfinite(margin):
-                    return (q[0], q[1], along + s)
-                f = prev_margin / (prev_margin - margin)
-                return (prev_pt[0] + f * (q[0] - prev_pt[0]), prev_pt[1] + f * (q[1] - prev_pt[1]),
-                        along + s - (1 - f) * length / n)
-            prev_margin, prev_pt = margin, q
-        used += c.j_per_m * length
-        along += length
-    return None
+
+    def at(s: float) -> tuple[float, tuple[float, float]]:
+        """(margin [J], point) at ``s`` metres along the path."""
+        seg = segments[0]
+        for candidate in segments:
+            if candidate[3] <= s:
+                seg = candidate
+        p0, unit, _, s0, e0, j_per_m, course = seg
+        q = (p0[0] + unit[0] * (s - s0), p0[1] + unit[1] * (s - s0))
+        home_j, _ = model.run_j(q, home, course, speed, dist, r)
+        return remaining_j - (e0 + j_per_m * (s - s0)) - home_j - reserve_j, q
+
+    lo, hi = 0.0, None
+    for i in range(1, PNR_SCAN + 1):
+        s = total * i / PNR_SCAN
+        if not at(s)[0] > 0:  # NaN-safe: a path home that cannot be made counts as reached
+            hi = s
+            break
+        lo = s
+    if hi is None:
+        return None
+    for _ in range(PNR_BISECTIONS):
+        mid = 0.5 * (lo + hi)
+        if at(mid)[0] > 0:
+            lo = mid
+        else:
+            hi = mid
+    _, q = at(hi)
+    return q[0], q[1], hi
 
 
 # -- the budget of one mission, period after period --------------------------------------------------
@@ -395,7 +416,7 @@ class Budget:
                energy_used_j: float, battery_remaining_j: float | None, battery_stamp_ns: int | None,
                reserve_j: float | None) -> EnergyDecision | None:
         """This period's budget (``last``); the decision if it was taken now, else None."""
-        nominal, sigmas = disturbance_sigma_points(state, self.model.predict_disturbance)
+        nominal, sigmas = disturbance_sigma_points(state)
         pred = predict(self.model, state, self.waypoints, active, self.home, leg_mpc_j, nominal)
         spread = [predict(self.model, state, self.waypoints, active, self.home, leg_mpc_j, d)
                   for d in sigmas]
