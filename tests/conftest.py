@@ -48,6 +48,16 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
+def udp_port_free(port: int) -> bool:
+    """Whether UDP ``port`` can be bound on loopback (a fixed MAVLink port is not taken)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        try:
+            s.bind(("127.0.0.1", port))
+        except OSError:
+            return False
+    return True
+
+
 @pytest.fixture
 def zenoh_env(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> dict[str, str]:
     """Environment for processes (and this test's own sessions) on a private rendezvous port, with

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import socket
 import urllib.error
 import urllib.request
 from typing import Any
@@ -33,11 +32,3 @@ def http(method: str, url: str, body: Any = None, token: str | None = None,
     return status, json.loads(raw)
 
 
-def udp_port_free(port: int) -> bool:
-    """Whether ``port`` can be bound on loopback (the sim profile's fixed MAVLink port is free)."""
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        try:
-            s.bind(("127.0.0.1", port))
-        except OSError:
-            return False
-    return True

@@ -26,8 +26,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.conftest import BIN, wait_for
-from tests.system.groundstation.helpers import udp_port_free
+from tests.conftest import BIN, udp_port_free, wait_for
 
 pytestmark = [pytest.mark.system, pytest.mark.slow]
 

@@ -13,9 +13,8 @@ from pathlib import Path
 
 import pytest
 
-from tests.conftest import wait_for
+from tests.conftest import udp_port_free, wait_for
 from tests.system.groundstation.helpers import http_raw as http
-from tests.system.groundstation.helpers import udp_port_free
 
 pytestmark = pytest.mark.system
 SIM_MAVLINK_PORT = 14580

@@ -184,10 +184,15 @@ def test_unanswered_interval_falls_back_after_the_ack_timeout():
     assert [s.stream_id for s in of(core.tick(at(1 * S)), SendRequestDataStream)] == [10]
 
 
-def test_px4_is_not_asked_for_rates():
+def test_px4_is_asked_for_rates_and_has_no_stream_fallback():
+    """PX4's links stream at their mode's rates (a radio's "Normal" mode sends GPS_RAW_INT at
+    1 Hz), so PX4 is asked too; it takes SET_MESSAGE_INTERVAL and has no REQUEST_DATA_STREAM."""
     core = make()
-    assert not rate_commands(core.on_mavlink(px4_heartbeat(), at(0)))
-    assert core.status(at(5 * S)).telemetry_rates_short is None
+    asked = rate_commands(core.on_mavlink(px4_heartbeat(), at(0)))
+    assert {round(c.params[0]) for c in asked} == {
+        getattr(mavlink, f"MAVLINK_MSG_ID_{m}") for m in rates.DEFAULT_RATES_HZ}
+    out = core.tick(at(int(rates.ACK_TIMEOUT_S * S) + MS))  # no ACK at all: no fallback to send
+    assert not [o for o in out if type(o).__name__ == "SendRequestDataStream"]
 
 
 # -- both names of the GCS system id, verdict without waiting ---------------------------------------
@@ -306,10 +311,11 @@ def test_core_keeps_the_refusal_texts_sent_since_the_request():
     core.on_mavlink(statustext("Arm: Gyros inconsistent"), at(30 * MS))
     core.on_mavlink(statustext("Field Elevation Set: 30m", severity=6), at(31 * MS))
     assert core.explains_refusals()
-    assert core.refusal_texts(20 * MS) == ["Arm: Gyros inconsistent"]
+    assert core.refusal_texts(20 * MS) == (["Arm: Gyros inconsistent"], True)
+    assert core.refusal_texts(40 * MS) == ([], False)  # nothing said yet: worth waiting for
     px4 = make()
     px4.on_mavlink(px4_heartbeat(), at(0))
-    assert not px4.explains_refusals()
+    assert not px4.explains_refusals()  # PX4 says it in EVENTs: not before their catalog arrives
 
 
 def test_parameters_read_while_the_autopilot_starts_are_read_again_after():

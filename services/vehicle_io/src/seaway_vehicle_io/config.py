@@ -105,9 +105,17 @@ class VehicleIoConfig(ConfigModel):
                     "sticks drive",
     )
     statustext_grace_s: float = Field(
-        default=0.5, ge=0, le=5,
-        description="after a refused arm, wait up to this long for the autopilot's STATUSTEXT "
-                    "saying why (ArduPilot sends it with or just after the ACK) [s]",
+        default=1.5, ge=0, le=5,
+        description="after a refused arm, wait up to this long for the autopilot to say why "
+                    "(ArduPilot's STATUSTEXT comes with or just after the ACK; PX4's arming-check "
+                    "report about 1 s after it); the reply goes as soon as the reason is complete "
+                    "[s]",
+    )
+    autopilot_events: bool = Field(
+        default=True,
+        description="at each connection to an autopilot that speaks the MAVLink events protocol "
+                    "(PX4), fetch its events metadata over MAVLink FTP and decode its EVENTs: "
+                    "its reasons for refusing to arm reach the reply and the log",
     )
     forward_thrust_only_when_armed: bool = Field(
         default=True,

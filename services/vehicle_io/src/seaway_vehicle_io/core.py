@@ -50,6 +50,11 @@ from seaway_vehicle_io.commands import (
     MAV_CMD_DO_SET_MODE,
     CommandTracker,
 )
+from seaway_vehicle_io.component_metadata import (
+    MAV_CMD_REQUEST_MESSAGE,
+    SendFileTransfer,
+    SendRequestMessage,
+)
 from seaway_vehicle_io.config import VehicleIoConfig
 from seaway_vehicle_io.conversions import (
     BatteryReading,
@@ -64,6 +69,8 @@ from seaway_vehicle_io.conversions import (
     gps_quality_from_gps_raw_int,
     local_position_from_local_position_ned,
 )
+from seaway_vehicle_io.events_channel import EventsChannel
+from seaway_vehicle_io.mav import mavlink
 from seaway_vehicle_io.profile import FailsafeAssessment, ManualControlAxes, Profile
 from seaway_vehicle_io.rates import MAV_CMD_SET_MESSAGE_INTERVAL, RateCheck
 from seaway_vehicle_io.statustext import StatusTexts, matching
@@ -78,6 +85,7 @@ MAV_MODE_FLAG_SAFETY_ARMED = 128
 NON_VEHICLE_TYPES = frozenset({6, 18, 26, 27, 30, 31})
 
 FAILSAFE_AUTOPILOT_CONFIG = "autopilot_config"
+UNKNOWN_MESSAGES = "UNKNOWN"  # counts[] key of messages the dialect does not define
 
 MAX_BOOT_TIME_LEAD_NS = 1_000_000_000  # a boot time > 1 s "ahead" of its receipt is corrupt
 LOG_EVERY_S = 5.0  # at most one log line per (message, field) per 5 s
@@ -148,7 +156,7 @@ class LockPeer:
 
 
 Output = (SendHeartbeat | SendManualControl | SendCommandLong | SendParamRequestRead
-          | SendRequestDataStream | Publish | LockPeer)
+          | SendRequestDataStream | SendRequestMessage | SendFileTransfer | Publish | LockPeer)
 
 
 # -- state pieces ---------------------------------------------------------------------------------
@@ -166,6 +174,7 @@ class LinkState:
     last_heartbeat_mono_ns: int | None = None
     armed: bool = False
     mode: str = "UNKNOWN"
+    custom_mode: int | None = None  # the HEARTBEAT's, as sent (the events protocol names modes so)
     connects: int = 0
     losses: int = 0
 
@@ -220,6 +229,7 @@ class VehicleIoCore:
         self.params = ParamCheck()
         self.rate_check: RateCheck | None = None
         self.texts = StatusTexts()
+        self.events = EventsChannel()  # the events protocol (PX4's arming reasons), per connection
         self.mapper: Any = None  # (L, R) -> axes for this autopilot's parameters; None: not yet
         self.gps_quality: GpsQuality | None = None
         self.gps_quality_mono_ns = 0
@@ -257,6 +267,14 @@ class VehicleIoCore:
                 self.refusals.add(FOREIGN_SOURCE, (None, None, address), 1, now.mono_ns)
             else:
                 self._drop(now, "BAD_DATA", "frame", getattr(msg, "reason", "unparseable bytes"))
+            return []
+        if msg.get_msgId() == mavlink.MAVLINK_MSG_ID_UNKNOWN:
+            # A message our dialect does not define (PX4 1.18 sends CURRENT_MODE, AVAILABLE_MODES
+            # and others): pymavlink keeps neither its header ids (it says 0/0) nor its whole frame
+            # (no signature to check), so it is neither refused as foreign nor interpreted; only
+            # counted when it came from the locked peer.
+            if link.ok and address == link.target_address:
+                self.counts[UNKNOWN_MESSAGES] = self.counts.get(UNKNOWN_MESSAGES, 0) + 1
             return []
         sysid, compid = msg.get_srcSystem(), msg.get_srcComponent()
         source: Source = (sysid, compid, address)
@@ -341,6 +359,10 @@ class VehicleIoCore:
             if now.mono_ns >= self._next_mc_ns:
                 self._next_mc_ns = _next_after(self._next_mc_ns, self._period_mc_ns, now.mono_ns)
         out.extend(self._param_requests(now))
+        if self.link.ok:
+            sends, ended = self.events.tick(now.mono_ns)
+            out.extend(sends)
+            self._events_fetch_ended(ended)
         rates_out = self._rate_check_tick(now)
         if rates_out is not None:
             out.extend(rates_out)
@@ -362,6 +384,9 @@ class VehicleIoCore:
             due.append(self.link.last_heartbeat_mono_ns + round(self.cfg.heartbeat_timeout_s * 1e9))
         if self.link.ok and not self.params.done and self.params.wanted:
             due.append(self.params.last_sent_mono_ns + round(self.cfg.param_timeout_s * 1e9))
+        events_due = self.events.next_due_ns() if self.link.ok else None
+        if events_due is not None:
+            due.append(events_due)
         if self.link.ok and self.rate_check is not None:
             rc_due = self.rate_check.next_due_ns()
             if rc_due is not None:
@@ -538,6 +563,9 @@ class VehicleIoCore:
         out.extend(self._manual_control(now))  # start the stream at once (PX4 arms only with it)
         out.extend(self._param_requests(now))
         out.extend(self._request_rates(profile, now))
+        if profile.events_protocol and self.cfg.autopilot_events:
+            assert link.target_system is not None and link.target_component is not None
+            out.extend(self.events.connect(link.target_system, link.target_component, now.mono_ns))
         return out
 
     def _apply_heartbeat(self, msg: Any, now: Now, announce: bool = True) -> None:
@@ -555,6 +583,7 @@ class VehicleIoCore:
                      link.mode, mode)
             self._start_param_check(link.profile)
         link.armed, link.mode = armed, mode
+        link.custom_mode = int(msg.custom_mode)
         link.last_heartbeat_mono_ns = now.mono_ns
 
     def _check_link(self, now: Now) -> bool:
@@ -579,6 +608,8 @@ class VehicleIoCore:
         link.profile = self.forced_profile
         link.armed = False
         link.mode = "UNKNOWN"
+        link.custom_mode = None
+        self.events = EventsChannel()  # another firmware may answer next: fetch its catalog anew
         self.offset.reset()
         self.gps_quality = None
         self.battery = BatteryReading()
@@ -688,6 +719,9 @@ class VehicleIoCore:
                     0, self.cfg.source_system):
                 self.rate_check.on_ack(msg.result)
             return []
+        if msg.command == MAV_CMD_REQUEST_MESSAGE:  # only ever sent for COMPONENT_METADATA
+            self._events_fetch_ended(self.events.on_request_ack(msg.result, now.mono_ns))
+            return []
         self.commands.on_ack(msg.command, msg.result, msg.get_srcSystem(),
                              getattr(msg, "target_system", 0) or 0, self.cfg.source_system)
         return []
@@ -701,16 +735,59 @@ class VehicleIoCore:
                               else logging.INFO, f"autopilot says: {item.text}")
         return []
 
-    def refusal_texts(self, since_mono_ns: int) -> list[str]:
-        """The autopilot's texts since ``since_mono_ns`` that say why it refused to arm."""
+    def refusal_texts(self, since_mono_ns: int) -> tuple[list[str], bool]:
+        """Why the autopilot refused an arm sent at ``since_mono_ns``, in its own words: its
+        STATUSTEXTs with the profile's prefixes (ArduPilot), its EVENTs (PX4: the denial and each
+        failing check for the current mode); and whether that is all it will say (no use waiting
+        longer)."""
         profile = self.link.profile
-        if profile is None or not profile.arming_refusal_prefixes:
-            return []
-        return matching(self.texts.since(since_mono_ns), profile.arming_refusal_prefixes)
+        if profile is None:
+            return [], True
+        texts = matching(self.texts.since(since_mono_ns), profile.arming_refusal_prefixes) \
+            if profile.arming_refusal_prefixes else []
+        complete = bool(texts)
+        if profile.events_protocol and self.events.catalog is not None:
+            said, events_complete = self.events.tracker.refusal(since_mono_ns, self.link.custom_mode)
+            texts += [t for t in said if t not in texts]
+            complete = complete or events_complete
+        return texts, complete
 
     def explains_refusals(self) -> bool:
-        """Whether this autopilot says in STATUSTEXT why it refused (worth waiting for)."""
-        return self.link.profile is not None and bool(self.link.profile.arming_refusal_prefixes)
+        """Whether this autopilot says why it refused (worth waiting for): in STATUSTEXT, or in
+        EVENTs once their descriptions are known."""
+        profile = self.link.profile
+        if profile is None:
+            return False
+        return bool(profile.arming_refusal_prefixes) or (
+            profile.events_protocol and self.events.catalog is not None)
+
+    def _on_event(self, msg: Any, now: Now) -> list[Output]:
+        if self.link.profile is None or not self.link.profile.events_protocol:
+            return []
+        ev = self.events.on_event(msg, now.mono_ns)
+        if ev is not None and ev.level <= 6 and not ev.name.endswith("_summary"):
+            # warning or worse (arming-check failures are error, 3) as a warning, notices and
+            # info as info; debug and protocol chatter not at all
+            self._log_limited(now, "EVENT", ev.text, logging.WARNING if ev.level <= 4
+                              else logging.INFO, f"autopilot says: {ev.text}")
+        return []
+
+    def _on_component_metadata(self, msg: Any, now: Now) -> list[Output]:
+        return list(self.events.on_component_metadata(msg, now.mono_ns))
+
+    def _on_file_transfer_protocol(self, msg: Any, now: Now) -> list[Output]:
+        if (msg.target_system, msg.target_component) not in (
+                (self.cfg.source_system, self.cfg.source_component), (0, 0)):
+            return []  # another client's transfer
+        sends, ended = self.events.on_ftp(bytes(msg.payload), now.mono_ns)
+        self._events_fetch_ended(ended)
+        return list(sends)
+
+    def _events_fetch_ended(self, line: str | None) -> None:
+        if line is not None:
+            # an autopilot that says it has no metadata (Seaway's own simulator) is no news
+            quiet = self.events.catalog is not None or self.events.unsupported
+            log.log(logging.INFO if quiet else logging.WARNING, "%s", line)
 
     # ===========================================================================================
     # Telemetry rates (rates.py)
@@ -741,8 +818,9 @@ class VehicleIoCore:
         if rc.needs_fallback(now.mono_ns):
             streams = telemetry_rates.fallback_streams(rc.requests, link.profile.data_streams)
             log.warning("autopilot did not take SET_MESSAGE_INTERVAL (%d of %d accepted, refused "
-                        "with %s): asking with REQUEST_DATA_STREAM (streams %s)", rc.accepted,
-                        len(rc.requests), rc.refused or "no ACK", streams)
+                        "with %s): %s", rc.accepted, len(rc.requests), rc.refused or "no ACK",
+                        f"asking with REQUEST_DATA_STREAM (streams {streams})" if streams else
+                        f"{link.profile.name} has no stream-rate fallback: measuring what it sends")
             rc.start_measuring(now.mono_ns, fallback=True)
             assert link.target_component is not None
             return [SendRequestDataStream(link.target_system, link.target_component, sid, hz)
@@ -853,6 +931,9 @@ class VehicleIoCore:
         "COMMAND_ACK": _on_command_ack,
         "PARAM_VALUE": _on_param_value,
         "STATUSTEXT": _on_statustext,
+        "EVENT": _on_event,
+        "COMPONENT_METADATA": _on_component_metadata,
+        "FILE_TRANSFER_PROTOCOL": _on_file_transfer_protocol,
     }
 
 

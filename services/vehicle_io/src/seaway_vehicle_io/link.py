@@ -35,6 +35,11 @@ from typing import Any
 from seaway.vessel.mavlink_signing import frame_ids, signing_timestamp
 
 from seaway_vehicle_io.authority import Address, Source, SourcePolicy
+from seaway_vehicle_io.component_metadata import (
+    MAV_CMD_REQUEST_MESSAGE,
+    SendFileTransfer,
+    SendRequestMessage,
+)
 from seaway_vehicle_io.core import (
     Output,
     SendCommandLong,
@@ -44,6 +49,8 @@ from seaway_vehicle_io.core import (
     SendRequestDataStream,
 )
 from seaway_vehicle_io.mav import DIALECT, mavlink, mavutil
+
+FTP_PAYLOAD_LEN = 251  # FILE_TRANSFER_PROTOCOL.payload
 
 log = logging.getLogger("seaway.vehicle_io.link")
 
@@ -268,6 +275,12 @@ class MavlinkLink:
         elif isinstance(out, SendRequestDataStream):
             mav.request_data_stream_send(out.target_system, out.target_component, out.stream_id,
                                          out.rate_hz, 1)
+        elif isinstance(out, SendRequestMessage):
+            mav.command_long_send(out.target_system, out.target_component, MAV_CMD_REQUEST_MESSAGE,
+                                  0, float(out.message_id), 0, 0, 0, 0, 0, 0)
+        elif isinstance(out, SendFileTransfer):
+            mav.file_transfer_protocol_send(0, out.target_system, out.target_component,
+                                            list(out.payload.ljust(FTP_PAYLOAD_LEN, b"\0")))
         elif isinstance(out, SendParamRequestRead):
             mav.param_request_read_send(out.target_system, out.target_component,
                                         out.param_id.encode("ascii"), -1)

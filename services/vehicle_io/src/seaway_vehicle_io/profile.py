@@ -100,6 +100,9 @@ class Profile(ABC):
     take SET_MESSAGE_INTERVAL."""
     arming_refusal_prefixes: tuple[str, ...] = ()
     """STATUSTEXT prefixes in which the autopilot says why it refused to arm."""
+    events_protocol: bool = False
+    """The autopilot says why it refused to arm (and most else) in EVENT messages, described by
+    events metadata it serves over MAVLink FTP (``events_channel.py``)."""
     booting_modes: tuple[str, ...] = ()
     """Modes in which the autopilot is still starting: parameters read then may still change (Rover
     sets its RC dead zones during start-up), so they are read again once it leaves them."""

@@ -69,6 +69,12 @@ class Px4Profile(Profile):
     mav_autopilot = MAV_AUTOPILOT_PX4
     quantisation_guard = 0.002
     force_arm_magic = 21196  # Commander.cpp: forced = lroundf(param2) == 21196
+    # PX4 1.13+ reports arming-check failures as EVENTs, not STATUSTEXT (measured on 1.18 SITL: the
+    # refusal's ACK comes with no text at all).
+    events_protocol = True
+    # PX4 takes SET_MESSAGE_INTERVAL (MavlinkReceiver::handle_message_command_long); it has no
+    # REQUEST_DATA_STREAM fallback, and needs none.
+    requests_message_rates = True
     failsafe_params = (
         "COM_RC_IN_MODE", "COM_RC_LOSS_T", "NAV_RCL_ACT", "COM_FAIL_ACT_T", "NAV_DLL_ACT",
         "CA_AIRFRAME", "RO_ACCEL_LIM", "RO_DECEL_LIM", "RO_MAX_THR_SPEED",

@@ -307,16 +307,17 @@ class VehicleIoService:
                                 result=rname, **detail)
 
     def _refusal_texts(self, since_mono_ns: int) -> list[str]:
-        """The autopilot's own reason for a refused arm (ArduPilot: STATUSTEXT "PreArm: ..."),
-        waiting up to ``statustext_grace_s`` for it: it may arrive just after the ACK."""
+        """The autopilot's own reason for a refused arm (ArduPilot: STATUSTEXT "PreArm: ...";
+        PX4: EVENTs), waiting up to ``statustext_grace_s`` for it to be complete: it may arrive
+        after the ACK."""
         deadline = time.monotonic_ns() + round(self.cfg.statustext_grace_s * 1e9)
         with self.acks:  # the receive loop notifies after each batch of messages
             if not self.core.explains_refusals():
                 return []
             while True:
-                texts = self.core.refusal_texts(since_mono_ns)
+                texts, complete = self.core.refusal_texts(since_mono_ns)
                 remaining = (deadline - time.monotonic_ns()) / 1e9
-                if texts or remaining <= 0 or self.stop.is_set():
+                if complete or remaining <= 0 or self.stop.is_set():
                     return texts
                 self.acks.wait(remaining)
 

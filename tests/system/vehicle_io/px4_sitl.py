@@ -1,0 +1,220 @@
+"""PX4 SITL (SIH, differential rover airframe 10046) for system tests: start, observe, stop.
+
+The firmware is the build in ``../shared/sitl/px4`` (``SEAWAY_PX4_SITL`` to use another folder; its
+README says what it is). That copy's ``bin/px4-*`` command links arrived as 3-byte text files
+(``px4``) instead of symlinks, and PX4's start-up script runs every module through them, so the
+binary is copied into the test's folder next to real links (3 MB, milliseconds); ``etc`` and
+``test_data`` are used where they are. Each instance binds only 127.0.0.1 (the build's patch):
+
+- vehicle_io: the onboard/API link, PX4 on 14580 + N sending to ``udpin:127.0.0.1:14540 + N``;
+- the observer: the SIH display link, PX4 on 19450 + N sending HEARTBEAT, HIL_ACTUATOR_CONTROLS
+  (the motor outputs in [-1, 1], Motor1 = right, Motor2 = left) and HIL_STATE_QUATERNION (the
+  simulated truth) to 19410 + N. (The GCS link always sends to 14550, shared by every instance, so
+  it is left alone.)
+
+Skipped, saying why, only when the binary is absent.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import signal
+import struct
+import subprocess
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+from seaway_vehicle_io.mav import mavutil
+from seaway_vehicle_io.profile import decode_param_value
+
+from tests.conftest import REPO, udp_port_free, wait_for
+
+PX4_DIR = Path(os.environ.get("SEAWAY_PX4_SITL", REPO.parent / "shared" / "sitl" / "px4"))
+PX4_BIN = PX4_DIR / "bin" / "px4"
+needs_px4 = pytest.mark.skipif(
+    not (PX4_BIN.exists() and (PX4_DIR / "etc").is_dir()),
+    reason=f"PX4 SITL not found at {PX4_DIR} (bin/px4, etc/): build it (docs/autopilots.md) or "
+           "set SEAWAY_PX4_SITL to its folder")
+BOAT_PARAMS = REPO / "services" / "vehicle_io" / "config" / "px4-boat.params"
+MODEL = "sihsim_rover_differential"  # airframe 10046: PX4's rover_differential, two motors
+BOOT_MODE_HOLD = 0x03040000  # AUTO/LOITER: PX4 boots in Hold
+
+
+def boat_params(path: Path = BOAT_PARAMS) -> dict[str, float]:
+    """The parameters Seaway expects on a PX4 boat (``NAME VALUE`` lines, ``#`` comments)."""
+    out: dict[str, float] = {}
+    for line in path.read_text().splitlines():
+        line = line.split("#", 1)[0].strip()
+        if line:
+            name, value = line.split()
+            out[name] = float(value)
+    return out
+
+
+def runnable_bin(into: Path) -> Path:
+    """A bin folder PX4 can run from: the binary and a ``px4-<module>`` symlink per module."""
+    into.mkdir(parents=True, exist_ok=True)
+    exe = into / "px4"
+    shutil.copy2(PX4_BIN, exe)
+    exe.chmod(0o755)
+    for entry in (PX4_DIR / "bin").iterdir():
+        if entry.name.startswith("px4-") and entry.suffix != ".sh":
+            (into / entry.name).symlink_to("px4")
+        elif entry.suffix == ".sh":
+            shutil.copy2(entry, into / entry.name)
+    return exe
+
+
+def free_instance() -> int:
+    """An instance number whose ports (PX4's and the ones it sends to) are free."""
+    for n in range(3, 40):
+        if all(udp_port_free(p + n) for p in (18570, 14580, 14540, 19450, 19410, 14280, 13030)):
+            return n
+    pytest.fail("no free PX4 SITL instance number in 3..39")
+
+
+@dataclass(frozen=True)
+class Motors:
+    """One HIL_ACTUATOR_CONTROLS: the motor outputs PX4's control allocation produced."""
+
+    mono_s: float
+    right: float  # Motor1, [-1, 1]
+    left: float  # Motor2
+
+    @property
+    def neutral(self) -> bool:
+        return abs(self.right) < 0.02 and abs(self.left) < 0.02
+
+
+class Px4Sitl:
+    """One PX4 SITL process (its own process group) with an observer on the GCS and SIH links."""
+
+    def __init__(self, tmp: Path, params: dict[str, float] | None = None) -> None:
+        self.instance = free_instance()
+        self.run_dir = tmp / f"px4-{self.instance}"
+        self.run_dir.mkdir(parents=True)
+        exe = runnable_bin(tmp / "px4-bin")
+        self.log_path = tmp / f"px4-{self.instance}.log"
+        env = dict(os.environ, PX4_SIM_MODEL=MODEL, PX4_RUNTIME_DIR=str(self.run_dir),
+                   PX4_MAVLINK_BIND_ADDR="127.0.0.1")
+        with open(self.log_path, "wb") as log:
+            self.proc = subprocess.Popen(
+                [str(exe), "-d", "-i", str(self.instance), "-w", str(self.run_dir),
+                 "-t", str(PX4_DIR / "test_data"), str(PX4_DIR / "etc")],
+                cwd=self.run_dir, env=env, stdout=log, stderr=subprocess.STDOUT,
+                start_new_session=True)
+        self.observer = Observer(self.instance)
+        self.observer.start()
+        self.boot_mono_s = time.monotonic()
+        if params:
+            wait_for(lambda: self.observer.heartbeats, 30, what="PX4's first HEARTBEAT")
+            for name, value in params.items():
+                self.observer.set_param(name, value)
+
+    @property
+    def vio_url(self) -> str:
+        return f"udpin:127.0.0.1:{14540 + self.instance}"
+
+    def kill(self) -> None:
+        self.observer.close()
+        if self.proc.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(self.proc.pid, signal.SIGKILL)
+        self.proc.wait(10)
+
+    def log(self) -> str:
+        return self.log_path.read_text(errors="replace")
+
+
+class Observer:
+    """The test's own view of the firmware on the SIH link: reads, never commands thrust."""
+
+    def __init__(self, instance: int) -> None:
+        self.sih = mavutil.mavlink_connection(f"udpin:127.0.0.1:{19410 + instance}",
+                                              source_system=250, source_component=191)
+        self.instance = instance
+        self.motors: deque[Motors] = deque(maxlen=20000)
+        self.yaw_rates: deque[tuple[float, float]] = deque(maxlen=20000)  # (mono_s, rad/s)
+        self.speeds: deque[tuple[float, float, float]] = deque(maxlen=20000)  # (mono_s, vx, vy)
+        self.heartbeats: deque[tuple[float, int, bool]] = deque(maxlen=5000)  # custom_mode, armed
+        self.texts: deque[tuple[float, str]] = deque(maxlen=500)
+        self.params: dict[str, tuple[float, int]] = {}  # name -> (value as sent, type)
+        self._stop = threading.Event()
+        self._threads = [threading.Thread(target=self._run, args=(self.sih,), daemon=True)]
+
+    def start(self) -> None:
+        for t in self._threads:
+            t.start()
+
+    def _run(self, conn) -> None:
+        while not self._stop.is_set():
+            try:
+                msg = conn.recv_msg()
+            except OSError:
+                return
+            if msg is None:
+                time.sleep(0.001)
+                continue
+            now = time.monotonic()
+            kind = msg.get_type()
+            if kind == "HIL_ACTUATOR_CONTROLS":
+                self.motors.append(Motors(now, msg.controls[0], msg.controls[1]))
+            elif kind == "HIL_STATE_QUATERNION":
+                self.yaw_rates.append((now, msg.yawspeed))
+                self.speeds.append((now, msg.vx / 100.0, msg.vy / 100.0))
+            elif kind == "HEARTBEAT" and msg.autopilot == 12 and msg.get_srcComponent() == 1:
+                self.heartbeats.append((now, msg.custom_mode, bool(msg.base_mode & 128)))
+            elif kind == "STATUSTEXT":
+                self.texts.append((now, msg.text))
+            elif kind == "PARAM_VALUE":
+                self.params[msg.param_id] = (msg.param_value, msg.param_type)
+
+    def set_param(self, name: str, value: float, timeout_s: float = 10.0) -> None:
+        """PARAM_SET on the SIH link, in the type PX4 declares (it ignores a set of another type:
+        INT32 goes bytewise), confirmed by PX4's PARAM_VALUE echo."""
+
+        def echo() -> tuple[float, int] | None:
+            return self.params.get(name)
+
+        self.params.pop(name, None)
+        deadline = time.monotonic() + timeout_s
+        while echo() is None:
+            assert time.monotonic() < deadline, f"PX4 never reported parameter {name}"
+            self.sih.mav.param_request_read_send(self.instance + 1, 1, name.encode(), -1)
+            time.sleep(0.2)
+        ptype = echo()[1]  # type: ignore[index]
+        raw = float(value)
+        if ptype != 9:  # an integer type: PX4 copies the bytes
+            raw = struct.unpack("<f", struct.pack("<i", int(value)))[0]
+        self.params.pop(name, None)
+        while True:
+            got = echo()
+            if got is not None and decode_param_value(got[0], got[1]) == float(value):
+                return
+            assert time.monotonic() < deadline, f"PX4 did not take {name} = {value} (has {got})"
+            self.sih.mav.param_set_send(self.instance + 1, 1, name.encode(), raw, ptype)
+            time.sleep(0.2)
+
+    def motors_since(self, t: float) -> list[Motors]:
+        return [m for m in list(self.motors) if m.mono_s >= t]
+
+    def mean_yaw_rate_since(self, t: float) -> float:
+        values = [w for (m, w) in list(self.yaw_rates) if m >= t]
+        assert values, "no HIL_STATE_QUATERNION from the SITL"
+        return sum(values) / len(values)
+
+    def modes_since(self, t: float) -> list[tuple[float, int, bool]]:
+        return [h for h in list(self.heartbeats) if h[0] >= t]
+
+    def close(self) -> None:
+        self._stop.set()
+        for t in self._threads:
+            t.join(2)
+        with contextlib.suppress(OSError):
+            self.sih.close()
