@@ -141,9 +141,10 @@ def test_link_verdict_rates_and_arming_reason(zenoh_env, procs, bus, tmp_path, p
 @needs_px4
 @pytest.mark.slow
 def test_directions_neutral_and_sigkill_failsafe_on_px4(zenoh_env, procs, bus, tmp_path, px4):
-    """Forward thrust drives both motors forward; port > starboard turns clockwise (and the
-    mirror); neutral at the motors within 0.4 s of the last command; SIGKILL of vehicle_io ends in
-    PX4's own Hold after COM_RC_LOSS_T and Return after COM_FAIL_ACT_T, as the verdict said."""
+    """Each motor at the commanded share of full thrust within 3 %, ahead and astern; port >
+    starboard turns clockwise (and the mirror); neutral at the motors within 0.4 s of the last
+    command; SIGKILL of vehicle_io ends in PX4's own Hold after COM_RC_LOSS_T and Return after
+    COM_FAIL_ACT_T, as the verdict said."""
     obs = px4.observer
     status = StatusWatch(bus)
     vio = start_vio(procs, zenoh_env, tmp_path, px4.vio_url)
@@ -154,15 +155,19 @@ def test_directions_neutral_and_sigkill_failsafe_on_px4(zenoh_env, procs, bus, t
     status.wait(lambda s: s.armed and s.mode == "MANUAL" and s.thrust_withheld is None, 10,
                 "armed in MANUAL, thrust forwarded", fresh=True)
 
-    # -- forward: both motors forward, equal --------------------------------------------------
-    hold_thrust(bus, 30.0, 30.0, 1.0)
-    t = time.monotonic()
-    hold_thrust(bus, 30.0, 30.0, 1.0)
-    got = obs.motors_since(t)
-    assert len(got) >= 5, "too few HIL_ACTUATOR_CONTROLS"
-    m = got[-1]
-    print(f"forward 30 N each: right {m.right:+.3f}, left {m.left:+.3f}")
-    assert m.right > 0.1 and m.left > 0.1 and abs(m.right - m.left) < 0.05, got[-5:]
+    # -- forward and astern: each motor at the commanded share of full thrust, within 3 % ---------
+    errors = {}
+    for force in (12.0, 30.0, 60.0, 75.0, -20.0, -75.0):
+        hold_thrust(bus, force, force, 0.6)
+        t = time.monotonic()
+        hold_thrust(bus, force, force, 0.4)
+        got = obs.motors_since(t)
+        assert len(got) >= 5, "too few HIL_ACTUATOR_CONTROLS"
+        want = force / THRUST_MAX_N
+        errors[force] = max(abs(v - want) / abs(want) for m in got for v in (m.right, m.left))
+        assert errors[force] <= 0.03, (force, got[-3:])
+    print("worst relative motor error per command [N]: "
+          + ", ".join(f"{f:g}: {e:.2%}" for f, e in errors.items()))
 
     # -- direction: port > starboard turns clockwise (yaw rate > 0), and the mirror -----------
     hold_thrust(bus, 40.0, 10.0, 1.5)
@@ -198,7 +203,7 @@ def test_directions_neutral_and_sigkill_failsafe_on_px4(zenoh_env, procs, bus, t
                                  if mode == custom_mode("RTL")), None), 15,
                    what="PX4's Return after COM_FAIL_ACT_T")
     print(f"SIGKILL -> Hold after {hold - kill_at:.2f} s, Return after {ret - kill_at:.2f} s")
-    assert hold - kill_at <= 0.5 + 1.5  # COM_RC_LOSS_T, and the commander's 1 s-ish checks
+    assert hold - kill_at <= 0.5 + 2.5  # COM_RC_LOSS_T, then the commander (1.2-1.7 s measured)
     assert 5.0 - 0.5 <= ret - hold <= 5.0 + 1.5  # COM_FAIL_ACT_T Hold first
     assert px4.proc.poll() is None
 
