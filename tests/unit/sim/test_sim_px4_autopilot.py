@@ -15,6 +15,7 @@ from seaway_sim.battery import NOMINAL_PACK, SimPack
 from seaway_sim.px4_autopilot import (
     HOLD,
     MANUAL,
+    RTL,
     Px4Autopilot,
     Px4Config,
     custom_mode,
@@ -65,6 +66,7 @@ def test_boots_disarmed_in_manual_with_zero_thrust_and_px4_heartbeat() -> None:
     ap = Px4Autopilot(Px4Config(thrust_max_n=10.0))
     hb = ap.heartbeat()
     assert (hb.type, hb.autopilot) == (ml.MAV_TYPE_GROUND_ROVER, ml.MAV_AUTOPILOT_PX4)
+    # PX4 boots in Hold: a known difference (px4_autopilot.BOOT_MODE says why)
     assert hb.custom_mode == 0x00010000 and hb.system_status == ml.MAV_STATE_STANDBY
     assert hb.base_mode & ml.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
     assert not hb.base_mode & ml.MAV_MODE_FLAG_SAFETY_ARMED
@@ -74,6 +76,8 @@ def test_boots_disarmed_in_manual_with_zero_thrust_and_px4_heartbeat() -> None:
 
 def test_arming_in_manual_is_refused_without_a_manual_control_stream() -> None:
     ap = Px4Autopilot(Px4Config(thrust_max_n=10.0))
+    # Disarmed, MANUAL is taken without manual control (PX4 refuses the arming instead).
+    assert set_mode(ap, 0, 1) == ml.MAV_RESULT_ACCEPTED
     assert arm(ap, 1 * S) == ml.MAV_RESULT_TEMPORARILY_REJECTED
     ap.handle(manual(), 1 * S)
     assert arm(ap, 1 * S + 100 * MS) == ml.MAV_RESULT_ACCEPTED
@@ -84,7 +88,20 @@ def test_arming_in_manual_is_refused_without_a_manual_control_stream() -> None:
 def test_arming_after_the_stream_went_stale_is_refused() -> None:
     ap = Px4Autopilot(Px4Config(thrust_max_n=10.0))
     ap.handle(manual(), 0)
+    assert set_mode(ap, 0, 1) == ml.MAV_RESULT_ACCEPTED
     assert arm(ap, 501 * MS) == ml.MAV_RESULT_TEMPORARILY_REJECTED
+
+
+def test_arming_in_hold_needs_no_manual_control_but_manual_then_does() -> None:
+    ap = Px4Autopilot(Px4Config(thrust_max_n=10.0))
+    assert set_mode(ap, 0, 4, 3) == ml.MAV_RESULT_ACCEPTED
+    assert arm(ap, 1 * S) == ml.MAV_RESULT_ACCEPTED  # in Hold: as PX4
+    # Armed, a switch to MANUAL without manual control is refused (PX4: TEMPORARILY_REJECTED).
+    assert set_mode(ap, 2 * S, 1) == ml.MAV_RESULT_TEMPORARILY_REJECTED
+    assert ap.heartbeat().custom_mode == custom_mode(HOLD)
+    assert arm(ap, 3 * S, 0.0) == ml.MAV_RESULT_ACCEPTED
+    assert set_mode(ap, 3 * S, 1) == ml.MAV_RESULT_ACCEPTED  # disarmed: taken
+    assert ap.heartbeat().custom_mode == custom_mode(MANUAL)
 
 
 def test_thrust_follows_the_px4_mapping_while_armed_in_manual() -> None:
@@ -125,6 +142,68 @@ def test_default_action_after_the_hold_delay_is_return_shown_as_rtl() -> None:
     ap.update(2 * S + 500 * MS + 5 * S)  # COM_FAIL_ACT_T = 5 s after the loss
     assert ap.heartbeat().custom_mode == 0x05040000  # AUTO.RTL
     assert ap.armed and ap.thrust_n(8 * S) == (0.0, 0.0)
+
+
+def _fix_at(north_m: float, stamp_ns: int = 0):
+    from seaway.contract.messages import GnssFix
+
+    lat, lon, _ = HOME.to_geodetic(north_m, 0.0)
+    return GnssFix(stamp_ns=stamp_ns, lat_rad=lat, lon_rad=lon, alt_m=0.0, fix_type=3)
+
+
+HOME = origin_of(Origin())
+
+
+def _texts(ap: Px4Autopilot, now_ns: int) -> list[tuple[int, str]]:
+    pack = SimPack(NOMINAL_PACK, NOMINAL_PACK.energy_j, hotel_power_w=0.0).reading(0.0, 0, 0.0)
+    return [(m.severity, m.text) for m in ap.periodic_telemetry(now_ns, now_ns, HOME, 0, pack,
+                                                                 True, 0)
+            if m.get_type() == "STATUSTEXT"]
+
+
+@pytest.mark.parametrize("disarm_land_s", [2.0, 0.7])
+def test_a_return_that_begins_at_home_lands_and_disarms_after_com_disarm_land(
+        disarm_land_s: float) -> None:
+    # Measured on PX4 1.18 SITL: Hold ~0.7 s after the last MANUAL_CONTROL, Return 5 s later,
+    # "Landing detected" with it (the rover is home), "Disarmed by landing" COM_DISARM_LAND later,
+    # then the mode shown is the user's again (MANUAL, disarmed).
+    ap = Px4Autopilot(Px4Config(thrust_max_n=10.0,
+                                param_overrides=(("COM_DISARM_LAND", disarm_land_s),)))
+    ap.sensor_telemetry([_fix_at(0.0)], [], epoch_ns=0)
+    ap.handle(manual(), 900 * MS)
+    assert set_mode(ap, 950 * MS, 1) == ml.MAV_RESULT_ACCEPTED
+    assert arm(ap, 1 * S) == ml.MAV_RESULT_ACCEPTED  # home: here
+    ap.sensor_telemetry([_fix_at(0.3)], [], epoch_ns=0)  # within NAV_ACC_RAD (0.5 m)
+    ap.handle(manual(), 2 * S)
+    ap.update(2 * S + 501 * MS)
+    assert _texts(ap, 2 * S + 501 * MS) == [
+        (ml.MAV_SEVERITY_CRITICAL, "Failsafe activated: entering Hold for 5 seconds")]
+    ap.update(7 * S + 501 * MS)
+    assert ap.heartbeat().custom_mode == custom_mode(RTL) and ap.armed
+    assert _texts(ap, 7 * S + 501 * MS) == [(ml.MAV_SEVERITY_CRITICAL, "Failsafe activated"),
+                                            (ml.MAV_SEVERITY_INFO, "Landing detected")]
+    landed_ns = 7 * S + 501 * MS
+    ap.update(landed_ns + round(disarm_land_s * S) - MS)
+    assert ap.armed
+    ap.update(landed_ns + round(disarm_land_s * S))
+    assert not ap.armed and not ap.in_failsafe()
+    assert ap.heartbeat().custom_mode == custom_mode(MANUAL)
+    assert _texts(ap, 10 * S) == [(ml.MAV_SEVERITY_INFO, "Disarmed by landing")]
+
+
+def test_a_return_that_begins_away_from_home_stays_in_return_armed() -> None:
+    ap = Px4Autopilot(Px4Config(thrust_max_n=10.0))
+    ap.sensor_telemetry([_fix_at(0.0)], [], epoch_ns=0)
+    ap.handle(manual(), 900 * MS)
+    set_mode(ap, 950 * MS, 1)
+    assert arm(ap, 1 * S) == ml.MAV_RESULT_ACCEPTED
+    ap.sensor_telemetry([_fix_at(0.6)], [], epoch_ns=0)  # beyond NAV_ACC_RAD: the sim cannot drive back
+    ap.handle(manual(), 2 * S)
+    ap.update(2 * S + 501 * MS)
+    ap.update(7 * S + 501 * MS)
+    ap.update(60 * S)
+    assert ap.armed and ap.heartbeat().custom_mode == custom_mode(RTL)
+    assert ap.thrust_n(60 * S) == (0.0, 0.0)
 
 
 def test_nav_rcl_act_disarm_disarms_after_the_hold_delay() -> None:
@@ -191,7 +270,7 @@ def test_hold_mode_gives_zero_thrust_and_manual_needs_the_stream() -> None:
     assert set_mode(ap, 1100 * MS, 4, 3) == ml.MAV_RESULT_ACCEPTED
     assert ap.heartbeat().custom_mode == 0x03040000
     assert ap.thrust_n(1110 * MS) == (0.0, 0.0)
-    # Back to MANUAL with the stream stale: refused, as PX4 refuses a mode it cannot run.
+    # Back to MANUAL, armed, with the stream stale: refused, as PX4 refuses (measured).
     assert set_mode(ap, 3 * S, 1) == ml.MAV_RESULT_TEMPORARILY_REJECTED
 
 
@@ -272,11 +351,16 @@ def test_param_read_by_name_and_index_with_px4_defaults_bytewise() -> None:
 
 def test_param_list_has_every_failsafe_param_vehicle_io_checks() -> None:
     ap = Px4Autopilot(Px4Config(thrust_max_n=10.0))
-    values = {pv.param_id: decode(pv)
-              for pv in ap.handle(rx(ml.MAVLink_param_request_list_message(1, 1)), 0)}
+    answers = ap.handle(rx(ml.MAVLink_param_request_list_message(1, 1)), 0)
+    values = {pv.param_id: decode(pv) for pv in answers}
+    # Types as the 1.18 SITL reports them (COM_DL_LOSS_T is an INT32 there).
+    assert {pv.param_id for pv in answers if pv.param_type == px4_params.MAV_PARAM_TYPE_REAL32} \
+        == {"COM_RC_LOSS_T", "COM_FAIL_ACT_T", "COM_OF_LOSS_T", "COM_DISARM_LAND", "NAV_ACC_RAD",
+            "RO_ACCEL_LIM", "RO_DECEL_LIM", "RO_MAX_THR_SPEED"}
     assert values == {"COM_RC_IN_MODE": 3, "COM_RC_LOSS_T": 0.5, "NAV_RCL_ACT": 2,
                       "COM_RCL_EXCEPT": 0, "COM_FAIL_ACT_T": 5.0, "NAV_DLL_ACT": 0,
-                      "COM_DL_LOSS_T": 10.0, "COM_OF_LOSS_T": 1.0, "COM_OBL_RC_ACT": 0,
+                      "COM_DL_LOSS_T": 10, "COM_OF_LOSS_T": 1.0, "COM_OBL_RC_ACT": 0,
+                      "COM_DISARM_LAND": 2.0, "NAV_ACC_RAD": 0.5,
                       "MAV_TYPE": 10, "MAV_SYS_ID": 1, "CA_AIRFRAME": 6, "CA_R_REV": 3,
                       "RO_ACCEL_LIM": -1.0, "RO_DECEL_LIM": -1.0, "RO_MAX_THR_SPEED": -1.0}
 

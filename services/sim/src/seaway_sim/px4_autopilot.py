@@ -5,19 +5,33 @@ clock. Time ``now_ns`` is nanoseconds since the simulated autopilot booted (the 
 also what ``time_boot_ms`` reports. What it mimics, and where it differs from PX4, is tabled in
 services/sim/README.md; the sources are docs/autopilots.md, sections A.1-A.5.
 
-State machine:
+State machine (held against the real PX4 1.18 SITL, SIH rover 10046, by
+tests/system/sim/test_px4_imitation.py, which prints the two side by side):
 
 * modes (user intent): MANUAL (PX4 custom main mode 1) and HOLD (AUTO.LOITER, main 4 sub 3). Other
-  PX4 modes are refused with TEMPORARILY_REJECTED. It boots disarmed in MANUAL.
+  PX4 modes are refused with TEMPORARILY_REJECTED (**differs**: PX4's rover accepts POSCTL, ACRO,
+  STABILIZED, OFFBOARD, MISSION and RTL; the imitation cannot fly them); an unknown main mode is
+  TEMPORARILY_REJECTED as in PX4. It boots disarmed in MANUAL (**differs**: PX4 boots in HOLD;
+  ``BOOT_MODE`` says why).
 * manual control is *lost* when no accepted MANUAL_CONTROL arrived within COM_RC_LOSS_T (PX4 default
-  0.5 s), or none ever did. Arming in MANUAL, or switching to MANUAL, is refused while it is lost.
+  0.5 s), or none ever did. While it is lost, arming in MANUAL is refused (TEMPORARILY_REJECTED) and
+  so is a switch to MANUAL while armed; disarmed, the switch is taken, and arming in HOLD is
+  accepted, as in PX4.
 * failsafe: armed, manual control lost, and not armed-while-lost (PX4's
   ``_manual_control_lost_at_arming``) -> Hold (zero thrust) for COM_FAIL_ACT_T, then NAV_RCL_ACT:
   1 Hold, 2 Return, 3 Land (all zero thrust: the sim does not navigate), 5 Terminate (outputs off
-  until restart), 6 Disarm. Regaining manual control ends a Hold/Return/Land failsafe (the user
-  takes over again).
+  until restart), 6 Disarm. A Return that begins within NAV_ACC_RAD of home (the fix at arming)
+  has arrived: "Landing detected", and COM_DISARM_LAND later "Disarmed by landing", after which the
+  user's mode shows again (PX4's sequence, measured); one farther away stays in Return, armed.
+  Each step is announced in a STATUSTEXT worded as PX4's. Regaining manual control ends a
+  Hold/Return/Land failsafe (the user takes over again).
 * thrust: disarmed, terminated, in failsafe or not in MANUAL -> (0, 0); else the last accepted
   MANUAL_CONTROL through ``px4_mixer`` (held until the loss timeout, as PX4's rover module does).
+
+Measured against the SITL (same request sequence, loopback UDP): every COMMAND_ACK result equal
+except the modes above; parameters equal except those the SITL's start-up scripts tune
+(COM_RC_IN_MODE, RO_*); the failsafe Hold 0.50 s after the last MANUAL_CONTROL here, 0.69 s in PX4;
+Return 5 s and the disarm 2 s later on both.
 """
 
 from __future__ import annotations
@@ -65,6 +79,11 @@ HOLD = (MAIN_AUTO, SUB_AUTO_LOITER)
 RTL = (MAIN_AUTO, SUB_AUTO_RTL)
 LAND = (MAIN_AUTO, SUB_AUTO_LAND)
 MODE_NAMES = {MANUAL: "MANUAL", HOLD: "HOLD", RTL: "RTL", LAND: "LAND"}
+# **Differs**: PX4 boots in Hold (AUTO.LOITER; measured on the 1.18 SITL,
+# tests/system/sim/test_px4_imitation.py). The imitation still boots in Manual because Seaway's
+# vehicle_io system tests wait for MANUAL at link-up before asking for any mode; HOLD here once
+# they ask for it (the launcher's profiles already request MANUAL before arming).
+BOOT_MODE = MANUAL
 
 # NAV_RCL_ACT values (PX4 v1.14+).
 RCL_HOLD, RCL_RETURN, RCL_LAND, RCL_TERMINATE, RCL_DISARM = 1, 2, 3, 5, 6
@@ -84,6 +103,8 @@ CAPABILITIES = (mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2
                 | mavlink.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE)
 
 COMPID = mavlink.MAV_COMP_ID_AUTOPILOT1
+SEVERITY_CRITICAL = mavlink.MAV_SEVERITY_CRITICAL
+SEVERITY_INFO = mavlink.MAV_SEVERITY_INFO
 SENSORS_PRESENT = (mavlink.MAV_SYS_STATUS_SENSOR_GPS | mavlink.MAV_SYS_STATUS_SENSOR_RC_RECEIVER
                    | mavlink.MAV_SYS_STATUS_AHRS | mavlink.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
                    | mavlink.MAV_SYS_STATUS_PREARM_CHECK)
@@ -156,9 +177,12 @@ class Px4Autopilot:
         self.thrust_max_n = config.thrust_max_n
         self.armed = False
         self.terminated = False
-        self.user_mode = MANUAL
+        self.user_mode = BOOT_MODE
         self.failsafe_since_ns: int | None = None
         self.failsafe_action: int | None = None  # NAV_RCL_ACT once the Hold delay is over
+        self.landed_since_ns: int | None = None  # a Return that ended at home: when it "landed"
+        self.home: tuple[float, float] | None = None  # (lat, lon) [rad] of the fix at arming
+        self._texts: list[tuple[int, str]] = []  # STATUSTEXT (severity, text) not yet sent
         self.manual_lost_at_arming = False
         self.last_manual_ns: int | None = None
         self.last_manual_axes = (0, px4_mixer.Z_STOP)  # (y, z)
@@ -218,6 +242,8 @@ class Px4Autopilot:
             self.failsafe_since_ns = (now_ns if self.last_manual_ns is None
                                       else min(now_ns, self.last_manual_ns + self.rc_loss_timeout_ns))
             self.counters["failsafe_manual_control_lost"] += 1
+            self._text(SEVERITY_CRITICAL, "Failsafe activated: entering Hold for "
+                       f"{float(self.params.get('COM_FAIL_ACT_T')):g} seconds")
             log.warning("manual control lost (no MANUAL_CONTROL for %.2f s): failsafe Hold, "
                         "NAV_RCL_ACT %d after %.1f s", self.rc_loss_timeout_ns / NS_PER_S,
                         int(self.params.get("NAV_RCL_ACT")),
@@ -225,24 +251,49 @@ class Px4Autopilot:
 
     def _run_failsafe_action(self, now_ns: int) -> None:
         assert self.failsafe_since_ns is not None
-        if self.failsafe_action is not None:
-            return
-        delay_ns = round(float(self.params.get("COM_FAIL_ACT_T")) * NS_PER_S)
-        if now_ns - self.failsafe_since_ns < delay_ns:
-            return
-        action = int(self.params.get("NAV_RCL_ACT"))
-        self.failsafe_action = action
-        log.warning("failsafe action NAV_RCL_ACT=%d", action)
-        if action == RCL_DISARM:
+        if self.failsafe_action is None:
+            delay_ns = round(float(self.params.get("COM_FAIL_ACT_T")) * NS_PER_S)
+            if now_ns - self.failsafe_since_ns < delay_ns:
+                return
+            action = int(self.params.get("NAV_RCL_ACT"))
+            self.failsafe_action = action
+            self._text(SEVERITY_CRITICAL, "Failsafe activated")
+            log.warning("failsafe action NAV_RCL_ACT=%d", action)
+            if action == RCL_DISARM:
+                self.armed = False
+                self._clear_failsafe()
+            elif action == RCL_TERMINATE:
+                self.terminated = True
+                self.armed = False
+            elif action == RCL_RETURN and self._at_home():
+                # PX4's rover Return from home "lands" at once; the land detector then disarms
+                # after COM_DISARM_LAND (measured on the 1.18 SITL: ~2 s after Return).
+                self.landed_since_ns = now_ns
+                self._text(SEVERITY_INFO, "Landing detected")
+        disarm_land_s = float(self.params.get("COM_DISARM_LAND"))
+        if (self.landed_since_ns is not None and disarm_land_s > 0
+                and now_ns - self.landed_since_ns >= round(disarm_land_s * NS_PER_S)):
             self.armed = False
+            self._text(SEVERITY_INFO, "Disarmed by landing")
+            log.warning("Return ended at home: disarmed by landing")
             self._clear_failsafe()
-        elif action == RCL_TERMINATE:
-            self.terminated = True
-            self.armed = False
+
+    def _at_home(self) -> bool:
+        """Whether the last fix is within NAV_ACC_RAD of home (the fix at arming). The sim does
+        not navigate, so a Return that begins farther away never arrives."""
+        if self.home is None or self.last_fix is None:
+            return False
+        north, east, _ = GeoOrigin(*self.home).to_ned(self.last_fix.lat_rad, self.last_fix.lon_rad)
+        return math.hypot(north, east) <= float(self.params.get("NAV_ACC_RAD"))
 
     def _clear_failsafe(self) -> None:
         self.failsafe_since_ns = None
         self.failsafe_action = None
+        self.landed_since_ns = None
+
+    def _text(self, severity: int, text: str) -> None:
+        """Queue a STATUSTEXT, worded as PX4 words it; sent with the next telemetry."""
+        self._texts.append((severity, text))
 
     def thrust_n(self, now_ns: int) -> tuple[float, float]:
         """(T1 port, T2 starboard) [N] the autopilot outputs at ``now_ns``."""
@@ -354,6 +405,8 @@ class Px4Autopilot:
             return mavlink.MAV_RESULT_TEMPORARILY_REJECTED
         self.armed = True
         self.manual_lost_at_arming = lost
+        fix = self.last_fix
+        self.home = None if fix is None else (fix.lat_rad, fix.lon_rad)  # PX4 sets home at arming
         log.info("armed in %s", MODE_NAMES[self.user_mode])
         return mavlink.MAV_RESULT_ACCEPTED
 
@@ -368,8 +421,10 @@ class Px4Autopilot:
         if mode not in (MANUAL, HOLD):
             log.warning("mode %s (main %d, sub %d) is not simulated: refused", mode, *mode)
             return mavlink.MAV_RESULT_TEMPORARILY_REJECTED
-        if mode == MANUAL and self.user_mode != MANUAL and self.manual_control_lost(now_ns):
-            log.warning("switch to MANUAL refused: No manual control input")
+        if (mode == MANUAL and self.user_mode != MANUAL and self.armed
+                and self.manual_control_lost(now_ns)):
+            # Disarmed, PX4 takes the mode and refuses the arming instead (measured).
+            log.warning("switch to MANUAL refused while armed: No manual control input")
             return mavlink.MAV_RESULT_TEMPORARILY_REJECTED
         if mode != self.user_mode:
             log.info("mode %s -> %s", MODE_NAMES[self.user_mode], MODE_NAMES[mode])
@@ -509,7 +564,9 @@ class Px4Autopilot:
         Times are since boot; LOCAL_POSITION_NED carries the last fix, stamped with its own time
         (fix stamp - ``epoch_ns``), as an estimator output would be.
         """
-        out: list[Any] = []
+        out: list[Any] = [mavlink.MAVLink_statustext_message(severity, text.encode()[:50])
+                          for severity, text in self._texts]
+        self._texts.clear()
         if instants_in(period_ns(HEARTBEAT_HZ), after_ns, upto_ns):
             out.append(self.heartbeat())
         if instants_in(period_ns(SYS_STATUS_HZ), after_ns, upto_ns):

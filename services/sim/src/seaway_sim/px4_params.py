@@ -44,8 +44,15 @@ PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec("COM_FAIL_ACT_T", MAV_PARAM_TYPE_REAL32, 5.0, 0.0, 25.0, True,
               "delay in Hold before the failsafe action [s]"),
     ParamSpec("NAV_DLL_ACT", MAV_PARAM_TYPE_INT32, 0, 0, 6, False, "data link loss action"),
-    ParamSpec("COM_DL_LOSS_T", MAV_PARAM_TYPE_REAL32, 10.0, 5.0, 300.0, False,
+    # INT32 in PX4 (commander_params.c), as the 1.18 SITL reports it.
+    ParamSpec("COM_DL_LOSS_T", MAV_PARAM_TYPE_INT32, 10, 5, 300, False,
               "data link loss timeout [s]"),
+    ParamSpec("COM_DISARM_LAND", MAV_PARAM_TYPE_REAL32, 2.0, -1.0, 20.0, True,
+              "disarm this long after landing is detected (a Return that ends at home) [s]; "
+              "<= 0: never"),
+    ParamSpec("NAV_ACC_RAD", MAV_PARAM_TYPE_REAL32, 0.5, 0.05, 200.0, True,
+              "acceptance radius [m]: a Return that begins this close to home has arrived "
+              "(PX4's rover default, rc.rover_differential_defaults)"),
     ParamSpec("COM_OF_LOSS_T", MAV_PARAM_TYPE_REAL32, 1.0, 0.0, 60.0, False,
               "offboard loss timeout [s]"),
     ParamSpec("COM_OBL_RC_ACT", MAV_PARAM_TYPE_INT32, 0, 0, 7, False, "offboard loss action"),
