@@ -342,10 +342,6 @@ PARAM_TYPE_NAMES = {px4_params.MAV_PARAM_TYPE_INT32: "INT32",
 # Where the imitation differs from the 1.18 SITL on purpose: step -> (sim, PX4, why). The test
 # asserts each is still exactly this (a fix on either side must update it).
 KNOWN_DIFFERENCES: dict[str, tuple[str, str, str]] = {
-    "first HEARTBEAT": (
-        "MANUAL disarmed", "HOLD disarmed",
-        "PX4 boots in Hold; the imitation in Manual, which vehicle_io's system tests wait for "
-        "(px4_autopilot.BOOT_MODE)"),
     "param COM_RC_IN_MODE": (
         "3 INT32", "1 INT32",
         "3 is PX4's firmware default, which the imitation reports; SITL's rcS sets 1 "

@@ -128,9 +128,10 @@ def test_constant_thrust_moves_the_vessel_as_the_model_predicts_then_failsafe(pr
         mav = MavClient(port)
         mav.send(ml.MAVLink_heartbeat_message(ml.MAV_TYPE_GCS, ml.MAV_AUTOPILOT_INVALID, 0, 0, 4, 3))
         hb = mav.wait("HEARTBEAT")
-        assert (hb.type, hb.autopilot, hb.custom_mode) == (10, ml.MAV_AUTOPILOT_PX4, 0x00010000)
+        assert (hb.type, hb.autopilot, hb.custom_mode) == (10, ml.MAV_AUTOPILOT_PX4, 0x03040000)
 
-        # PX4 refuses to arm in Manual without a manual control stream.
+        # PX4 boots in Hold; Manual is taken disarmed without a stream, but arming in it is not.
+        assert mav.command(ml.MAV_CMD_DO_SET_MODE, 1, 1, 0) == ml.MAV_RESULT_ACCEPTED
         assert mav.command(ml.MAV_CMD_COMPONENT_ARM_DISARM, 1) == ml.MAV_RESULT_TEMPORARILY_REJECTED
 
         # y = 200, z = 900: throttle 0.8, diff 0.2 -> L 1.0, R 0.6 -> T1 10 N, T2 6 N (paper-sim).
@@ -202,6 +203,7 @@ def test_garbage_and_bad_requests_are_dropped_and_the_sim_keeps_serving(procs, z
     mav = MavClient(port)
     mav.send(ml.MAVLink_heartbeat_message(ml.MAV_TYPE_GCS, ml.MAV_AUTOPILOT_INVALID, 0, 0, 4, 3))
     mav.wait("HEARTBEAT")
+    assert mav.command(ml.MAV_CMD_DO_SET_MODE, 1, 1, 0) == ml.MAV_RESULT_ACCEPTED  # boots in Hold
     good = manual_control(0, 500).pack(ml.MAVLink(None, 255, 190))
     corrupted = bytearray(good)
     corrupted[-1] ^= 0xFF

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import pytest
 from seaway.contract import keys
-from seaway.contract.messages import ArmRequest, ThrustCommand
+from seaway.contract.messages import ArmRequest, ModeRequest, ThrustCommand
 from seaway.runtime.bus import Bus
 from seaway.vessel.mavlink_signing import signing_timestamp, write_key
 from seaway_vehicle_io.mav import mavlink
@@ -162,7 +162,10 @@ def applied(t) -> bool:
 
 
 def armed_and_thrusting(bus: Bus, status: Watch, truth: Watch) -> None:
-    status.wait(lambda s: s.link_ok and s.mode == "MANUAL", 20, "vehicle_io linked to the sim")
+    status.wait(lambda s: s.link_ok, 20, "vehicle_io linked to the sim")
+    reply = bus.request(keys.VEHICLE_MODE, ModeRequest.make(stamp_ns=time.time_ns(), mode="MANUAL"),
+                        timeout_s=REQUEST_TIMEOUT_S)  # the sim, like PX4, boots in Hold
+    assert reply.accepted, reply.reason
     reply = bus.request(keys.VEHICLE_ARM, ArmRequest.make(stamp_ns=time.time_ns(), arm=True),
                         timeout_s=REQUEST_TIMEOUT_S)
     assert reply.accepted, reply.reason

@@ -130,8 +130,8 @@ def test_sim_arm_mode_thrust_out_and_telemetry_in(zenoh_env, procs, bus, tmp_pat
     status = Watch(bus, keys.VEHICLE_STATUS)
     truth = Watch(bus, keys.SIM_TRUTH)
     gnss, att, lpos = (Watch(bus, k) for k in (keys.GNSS, keys.ATTITUDE, keys.LOCAL_POSITION))
-    status.wait(lambda s: s.link_ok and s.autopilot == "px4" and s.mode == "MANUAL", 15,
-                "vehicle_io to see the sim's PX4 heartbeat")
+    status.wait(lambda s: s.link_ok and s.autopilot == "px4" and s.mode == "HOLD", 15,
+                "vehicle_io to see the sim's PX4 heartbeat (PX4 boots in Hold)")
 
     # telemetry in: the sim's sensors reach the bus only through vehicle_io, in SI units
     fix: GnssFix = gnss.wait(lambda m: True, 5, "a GnssFix")
@@ -149,6 +149,7 @@ def test_sim_arm_mode_thrust_out_and_telemetry_in(zenoh_env, procs, bus, tmp_pat
         time.sleep(PERIOD_S)
     t = truth.wait(lambda m: True, 3, "sim truth")
     assert (t.thrust_port_n, t.thrust_starboard_n) == (0.0, 0.0)
+    assert mode(bus, "MANUAL").accepted  # from Hold, where the thrusters would be withheld
     reply = arm(bus)
     assert reply.accepted, reply.reason
     assert reply.detail["result"] == "ACCEPTED"
@@ -186,6 +187,7 @@ def test_sim_watchdog_stops_the_thrusters_and_commands_resume(zenoh_env, procs, 
     status = Watch(bus, keys.VEHICLE_STATUS)
     truth = Watch(bus, keys.SIM_TRUTH)
     status.wait(lambda s: s.link_ok, 15, "link")
+    assert mode(bus, "MANUAL").accepted  # the sim, like PX4, boots in Hold
     assert arm(bus).accepted
     pub = bus.publisher(keys.THRUST)
     truth.clear()

@@ -62,12 +62,12 @@ def armed_driving(y: int = 200, z: int = 900, **params) -> Px4Autopilot:
     return ap
 
 
-def test_boots_disarmed_in_manual_with_zero_thrust_and_px4_heartbeat() -> None:
+def test_boots_disarmed_in_hold_with_zero_thrust_and_px4_heartbeat() -> None:
     ap = Px4Autopilot(Px4Config(thrust_max_n=10.0))
     hb = ap.heartbeat()
     assert (hb.type, hb.autopilot) == (ml.MAV_TYPE_GROUND_ROVER, ml.MAV_AUTOPILOT_PX4)
-    # PX4 boots in Hold: a known difference (px4_autopilot.BOOT_MODE says why)
-    assert hb.custom_mode == 0x00010000 and hb.system_status == ml.MAV_STATE_STANDBY
+    # PX4 boots in Hold (AUTO.LOITER), as measured on the 1.18 SITL
+    assert hb.custom_mode == 0x03040000 and hb.system_status == ml.MAV_STATE_STANDBY
     assert hb.base_mode & ml.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
     assert not hb.base_mode & ml.MAV_MODE_FLAG_SAFETY_ARMED
     ap.handle(manual(0, 1000), 0)
@@ -426,3 +426,29 @@ def test_boot_parameters_from_the_command_line() -> None:
         Px4Autopilot(Px4Config(thrust_max_n=10.0, param_overrides=parse_params(["NAV_RCL_ACT=9"])))
     with pytest.raises(ValueError, match="NAME=VALUE"):
         parse_params(["NAV_RCL_ACT"])
+
+
+def test_set_message_interval_thins_a_stream_as_px4_takes_it() -> None:
+    """PX4 ACCEPTs SET_MESSAGE_INTERVAL for its telemetry and FAILs it for HEARTBEAT (1.18 SITL);
+    the sim thins its stream to the interval, turns it off at -1 and back to its rate at 0."""
+    ap = Px4Autopilot(Px4Config(thrust_max_n=10.0))
+    interval = ml.MAV_CMD_SET_MESSAGE_INTERVAL
+    gpi = ml.MAVLINK_MSG_ID_GLOBAL_POSITION_INT
+
+    def count(kind: str, seconds: int) -> int:
+        n = 0
+        for k in range(seconds * 10):  # the sim's fixes at 10 Hz
+            n += sum(m.get_type() == kind for m in ap.sensor_telemetry(
+                [_fix_at(0.0, stamp_ns=k * 100 * MS)], [], epoch_ns=0))
+        return n
+
+    assert count("GLOBAL_POSITION_INT", 2) == 20
+    (ack,) = ap.handle(command(interval, gpi, 200_000), 0)  # 5 Hz
+    assert ack.result == ml.MAV_RESULT_ACCEPTED
+    assert count("GLOBAL_POSITION_INT", 2) == 10 and count("GPS_RAW_INT", 2) == 20
+    (ack,) = ap.handle(command(interval, gpi, -1), 0)
+    assert ack.result == ml.MAV_RESULT_ACCEPTED and count("GLOBAL_POSITION_INT", 1) == 0
+    ap.handle(command(interval, gpi, 0), 0)
+    assert count("GLOBAL_POSITION_INT", 1) == 10
+    (ack,) = ap.handle(command(interval, ml.MAVLINK_MSG_ID_HEARTBEAT, 1e6), 0)
+    assert ack.result == ml.MAV_RESULT_FAILED

@@ -11,8 +11,8 @@ tests/system/sim/test_px4_imitation.py, which prints the two side by side):
 * modes (user intent): MANUAL (PX4 custom main mode 1) and HOLD (AUTO.LOITER, main 4 sub 3). Other
   PX4 modes are refused with TEMPORARILY_REJECTED (**differs**: PX4's rover accepts POSCTL, ACRO,
   STABILIZED, OFFBOARD, MISSION and RTL; the imitation cannot fly them); an unknown main mode is
-  TEMPORARILY_REJECTED as in PX4. It boots disarmed in MANUAL (**differs**: PX4 boots in HOLD;
-  ``BOOT_MODE`` says why).
+  TEMPORARILY_REJECTED as in PX4. It boots disarmed in HOLD, as PX4 does.
+* SET_MESSAGE_INTERVAL thins the telemetry streams (``StreamIntervals``).
 * manual control is *lost* when no accepted MANUAL_CONTROL arrived within COM_RC_LOSS_T (PX4 default
   0.5 s), or none ever did. While it is lost, arming in MANUAL is refused (TEMPORARILY_REJECTED) and
   so is a switch to MANUAL while armed; disarmed, the switch is taken, and arming in HOLD is
@@ -79,11 +79,9 @@ HOLD = (MAIN_AUTO, SUB_AUTO_LOITER)
 RTL = (MAIN_AUTO, SUB_AUTO_RTL)
 LAND = (MAIN_AUTO, SUB_AUTO_LAND)
 MODE_NAMES = {MANUAL: "MANUAL", HOLD: "HOLD", RTL: "RTL", LAND: "LAND"}
-# **Differs**: PX4 boots in Hold (AUTO.LOITER; measured on the 1.18 SITL,
-# tests/system/sim/test_px4_imitation.py). The imitation still boots in Manual because Seaway's
-# vehicle_io system tests wait for MANUAL at link-up before asking for any mode; HOLD here once
-# they ask for it (the launcher's profiles already request MANUAL before arming).
-BOOT_MODE = MANUAL
+# PX4 boots in Hold (AUTO.LOITER; measured on the 1.18 SITL, tests/system/sim/test_px4_imitation.py),
+# so an operator (the launcher's profiles: mode_on_start) asks for MANUAL before arming.
+BOOT_MODE = HOLD
 
 # NAV_RCL_ACT values (PX4 v1.14+).
 RCL_HOLD, RCL_RETURN, RCL_LAND, RCL_TERMINATE, RCL_DISARM = 1, 2, 3, 5, 6
@@ -168,6 +166,51 @@ def _finite(*values: float) -> bool:
     return all(math.isfinite(v) for v in values)
 
 
+MAV_CMD_SET_MESSAGE_INTERVAL = 511
+STREAM_SLACK = 0.1  # a sample up to 10 % of the interval early still goes (no beating)
+
+
+class StreamIntervals:
+    """MAV_CMD_SET_MESSAGE_INTERVAL (511) as PX4 takes it, for the messages the sim streams:
+    param1 = message id, param2 = interval [us] (-1: stop it, 0: back to the default). A stream is
+    thinned to the interval, never sent faster than the sim produces it (its sensor rates). PX4
+    answered ACCEPTED for each telemetry message and FAILED for HEARTBEAT (1.18 SITL); a message
+    the sim does not stream is FAILED here too. Pure: times are since boot [ns]."""
+
+    STREAMED = frozenset({
+        mavlink.MAVLINK_MSG_ID_ATTITUDE, mavlink.MAVLINK_MSG_ID_GPS_RAW_INT,
+        mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED,
+        mavlink.MAVLINK_MSG_ID_SYS_STATUS, mavlink.MAVLINK_MSG_ID_BATTERY_STATUS})
+
+    def __init__(self) -> None:
+        self.interval_ns: dict[int, int] = {}  # message id -> interval (-1: off)
+        self._last_ns: dict[int, int] = {}
+
+    def set(self, param1: float, param2: float) -> int:
+        msg_id = lround(param1)
+        if msg_id not in self.STREAMED or not (param2 == -1 or param2 >= 0):
+            return mavlink.MAV_RESULT_FAILED
+        if param2 == 0:
+            self.interval_ns.pop(msg_id, None)
+        else:
+            self.interval_ns[msg_id] = -1 if param2 == -1 else round(param2 * 1000)
+        self._last_ns.pop(msg_id, None)
+        return mavlink.MAV_RESULT_ACCEPTED
+
+    def keep(self, msg_id: int, t_ns: int) -> bool:
+        """Whether a sample of ``msg_id`` at ``t_ns`` goes out (and, if so, it is counted sent)."""
+        interval = self.interval_ns.get(msg_id)
+        if interval is None:
+            return True
+        if interval < 0:
+            return False
+        last = self._last_ns.get(msg_id)
+        if last is not None and t_ns - last < interval * (1.0 - STREAM_SLACK):
+            return False
+        self._last_ns[msg_id] = t_ns
+        return True
+
+
 class Px4Autopilot:
     """The simulated autopilot's state machine (see the module docstring)."""
 
@@ -190,6 +233,7 @@ class Px4Autopilot:
         self.last_fix: GnssFix | None = None  # for LOCAL_POSITION_NED
         self._last_heading: float | None = None  # for GLOBAL_POSITION_INT.hdg
         self._warnings = RateLimitedLog(log, every_s=1.0)  # streams repeat: once a second per kind
+        self.streams = StreamIntervals()
         self._handlers = {
             "MANUAL_CONTROL": self._on_manual_control,
             "COMMAND_LONG": self._on_command_long,
@@ -363,6 +407,8 @@ class Px4Autopilot:
             result = self._arm_disarm(msg.param1, msg.param2, now_ns)
         elif msg.command == mavlink.MAV_CMD_DO_SET_MODE:
             result = self._set_mode(msg.param1, msg.param2, msg.param3, now_ns)
+        elif msg.command == MAV_CMD_SET_MESSAGE_INTERVAL:
+            result = self.streams.set(msg.param1, msg.param2)
         elif self._asks_version(msg):
             return [self._ack(msg, mavlink.MAV_RESULT_ACCEPTED), self.autopilot_version()]
         else:
@@ -530,11 +576,13 @@ class Px4Autopilot:
         """
         out: list[Any] = []
         heading = self._last_heading
+        keep = self.streams.keep
         for att in attitudes:
             heading = att.yaw_rad
-            out.append(mavlink.MAVLink_attitude_message(
-                _boot_ms(att.stamp_ns - epoch_ns), att.roll_rad, att.pitch_rad, att.yaw_rad,
-                att.roll_rate_radps, att.pitch_rate_radps, att.yaw_rate_radps))
+            if keep(mavlink.MAVLINK_MSG_ID_ATTITUDE, att.stamp_ns - epoch_ns):
+                out.append(mavlink.MAVLink_attitude_message(
+                    _boot_ms(att.stamp_ns - epoch_ns), att.roll_rad, att.pitch_rad, att.yaw_rad,
+                    att.roll_rate_radps, att.pitch_rate_radps, att.yaw_rate_radps))
         self._last_heading = heading
         for fix in fixes:
             if fix is None:
@@ -543,17 +591,21 @@ class Px4Autopilot:
             hdg = round(math.degrees(heading) * 100) % 36000 if heading is not None else 65535
             vel_n, vel_e = fix.vel_n_mps or 0.0, fix.vel_e_mps or 0.0
             h_acc_mm = round((fix.horizontal_std_m or 0.0) * 1000)
-            out.append(mavlink.MAVLink_gps_raw_int_message(
-                (fix.stamp_ns - epoch_ns) // 1000, fix.fix_type, round(math.degrees(fix.lat_rad) * 1e7),
-                round(math.degrees(fix.lon_rad) * 1e7), round(fix.alt_m * 1000), GPS_EPH_CDOP,
-                UINT16_UNKNOWN, round(math.hypot(vel_n, vel_e) * 100),
-                round(math.degrees(math.atan2(vel_e, vel_n)) * 100) % 36000,
-                fix.satellites if fix.satellites is not None else 255,
-                h_acc=h_acc_mm))
-            out.append(mavlink.MAVLink_global_position_int_message(
-                _boot_ms(fix.stamp_ns - epoch_ns), round(math.degrees(fix.lat_rad) * 1e7),
-                round(math.degrees(fix.lon_rad) * 1e7), round(fix.alt_m * 1000), 0,
-                round((fix.vel_n_mps or 0.0) * 100), round((fix.vel_e_mps or 0.0) * 100), 0, hdg))
+            t_ns = fix.stamp_ns - epoch_ns
+            if keep(mavlink.MAVLINK_MSG_ID_GPS_RAW_INT, t_ns):
+                out.append(mavlink.MAVLink_gps_raw_int_message(
+                    t_ns // 1000, fix.fix_type, round(math.degrees(fix.lat_rad) * 1e7),
+                    round(math.degrees(fix.lon_rad) * 1e7), round(fix.alt_m * 1000), GPS_EPH_CDOP,
+                    UINT16_UNKNOWN, round(math.hypot(vel_n, vel_e) * 100),
+                    round(math.degrees(math.atan2(vel_e, vel_n)) * 100) % 36000,
+                    fix.satellites if fix.satellites is not None else 255,
+                    h_acc=h_acc_mm))
+            if keep(mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, t_ns):
+                out.append(mavlink.MAVLink_global_position_int_message(
+                    _boot_ms(t_ns), round(math.degrees(fix.lat_rad) * 1e7),
+                    round(math.degrees(fix.lon_rad) * 1e7), round(fix.alt_m * 1000), 0,
+                    round((fix.vel_n_mps or 0.0) * 100), round((fix.vel_e_mps or 0.0) * 100), 0,
+                    hdg))
         return out
 
     def periodic_telemetry(self, after_ns: int, upto_ns: int, origin: GeoOrigin, epoch_ns: int,
@@ -569,12 +621,16 @@ class Px4Autopilot:
         self._texts.clear()
         if instants_in(period_ns(HEARTBEAT_HZ), after_ns, upto_ns):
             out.append(self.heartbeat())
-        if instants_in(period_ns(SYS_STATUS_HZ), after_ns, upto_ns):
+        keep = self.streams.keep
+        if (instants_in(period_ns(SYS_STATUS_HZ), after_ns, upto_ns)
+                and keep(mavlink.MAVLINK_MSG_ID_SYS_STATUS, upto_ns)):
             out.append(self.sys_status(upto_ns, pack, gnss_ok, link_errors))
-        if instants_in(period_ns(BATTERY_STATUS_HZ), after_ns, upto_ns):
+        if (instants_in(period_ns(BATTERY_STATUS_HZ), after_ns, upto_ns)
+                and keep(mavlink.MAVLINK_MSG_ID_BATTERY_STATUS, upto_ns)):
             out.append(self.battery_status(pack))
         fix = self.last_fix
-        local_due = instants_in(period_ns(LOCAL_POSITION_HZ), after_ns, upto_ns)
+        local_due = (instants_in(period_ns(LOCAL_POSITION_HZ), after_ns, upto_ns)
+                     and keep(mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED, upto_ns))
         if fix is not None and gnss_ok and local_due:
             # PX4's local origin is the sim's origin; its estimate here is the last GNSS fix.
             north, east, _ = origin.to_ned(fix.lat_rad, fix.lon_rad, fix.alt_m)
