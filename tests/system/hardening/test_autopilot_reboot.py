@@ -16,7 +16,7 @@ import time
 
 import pytest
 from seaway.contract import keys
-from seaway.contract.messages import ArmRequest, MissionCommand
+from seaway.contract.messages import ArmRequest, MissionCommand, ModeRequest
 from seaway.runtime.bus import Bus
 
 from tests.conftest import wait_for
@@ -73,7 +73,11 @@ def test_an_autopilot_reboot_pauses_the_mission_until_resumed(procs, zenoh_env, 
         refused = bus.request(keys.MISSION_COMMAND, MissionCommand.make(
             stamp_ns=time.time_ns(), command="resume"), 10.0)
         assert not refused.accepted and "disarmed" in refused.reason, refused.reason
-        # The operator arms it again: the mission stays paused until asked.
+        # The operator puts it in MANUAL (a rebooted PX4 comes up in Hold) and arms it again: the
+        # mission stays paused until asked.
+        manual = bus.request(keys.VEHICLE_MODE, ModeRequest.make(stamp_ns=time.time_ns(),
+                                                                 mode="MANUAL"), 10.0)
+        assert manual.accepted, manual.reason
         armed = bus.request(keys.VEHICLE_ARM, ArmRequest.make(stamp_ns=time.time_ns(), arm=True), 10.0)
         assert armed.accepted, armed.reason
         wait_for(lambda: w.vehicle is not None and w.vehicle.thrust_withheld is None, 10,
