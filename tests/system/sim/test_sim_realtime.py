@@ -141,8 +141,8 @@ def test_constant_thrust_moves_the_vessel_as_the_model_predicts_then_failsafe(pr
         end = time.monotonic() + 3.0
         while time.monotonic() < end:
             mav.send(stick)
+            last_send_wall = time.time()  # of the last stick sent, not of the loop's end
             mav.pump(0.05)
-        last_send_wall = time.time()
         mav.pump(1.2)  # silence: the failsafe must act
 
         # -- motion against the model ------------------------------------------------------
