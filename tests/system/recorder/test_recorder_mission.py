@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import base64
-import importlib.util
 import json
 import math
 import signal
@@ -16,21 +15,13 @@ import pytest
 from mcap.reader import make_reader
 
 from tests.conftest import BIN, wait_for
+from tests.system.recorder import mission_publisher as mp
 from tests.unit.recorder.foxglove_check import foxglove_messages
 
 pytestmark = pytest.mark.system
 HERE = Path(__file__).parent
 PUBLISHER = str(HERE / "mission_publisher.py")
 
-
-def _load_publisher():
-    spec = importlib.util.spec_from_file_location("recorder_mission_publisher", PUBLISHER)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
-mp = _load_publisher()
 
 
 def json_lines(text: str) -> list[dict]:

@@ -6,7 +6,6 @@ decision and its time, the battery and the energy to home, and draw them."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
 import signal
@@ -17,19 +16,11 @@ from pathlib import Path
 import pytest
 
 from tests.conftest import BIN, wait_for
+from tests.system.recorder import mission_publisher as mp
 
 pytestmark = pytest.mark.system
 PUBLISHER = str(Path(__file__).parent / "mission_publisher.py")
 
-
-def _load_publisher():
-    spec = importlib.util.spec_from_file_location("recorder_mission_publisher_energy", PUBLISHER)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
-mp = _load_publisher()
 
 
 def test_report_compares_the_budgets_predictions_with_the_energy_used(procs, zenoh_env, tmp_path) -> None:

@@ -255,12 +255,6 @@ class EventTracker:
             self.report.failures.append(ev)
         return ev
 
-    def reset(self) -> None:
-        """A new connection (or a reboot): nothing said before counts."""
-        self.recent.clear()
-        self.report = None
-        self.last_sequence = None
-
     def denials_since(self, mono_ns: int) -> list[str]:
         """What the autopilot said about an arm request since ``mono_ns``: its denials."""
         out: list[str] = []

@@ -32,11 +32,8 @@ class EventsChannel:
         return self.tracker.catalog
 
     def connect(self, target_system: int, target_component: int, now_ns: int) -> list[Request]:
-        """A new connection: forget what was said, and fetch the catalog unless this autopilot's
-        was fetched already (the same firmware: a link loss and reconnection, not a reboot)."""
-        self.tracker.reset()
-        if self.tracker.catalog is not None:
-            return []
+        """A new connection (the core makes a fresh channel at each link loss: the firmware may
+        have changed): fetch the catalog from it."""
         self.fetch = MetadataFetch(target_system, target_component)
         self.fetch_started_ns = now_ns
         return self.fetch.start(now_ns)
