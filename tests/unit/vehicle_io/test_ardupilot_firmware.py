@@ -331,3 +331,36 @@ def test_parameters_read_while_the_autopilot_starts_are_read_again_after():
     assert "RC1_DZ" in asked and not core.params.done
     answer_params(core, SITL_PARAMS, 1100 * MS)
     assert core.params.done and core.mapper(0.16, 0.16).y == 211  # now compensated
+
+
+def test_the_mapping_parameters_are_read_again_when_the_vessel_arms():
+    """Measured on SITL: even after INITIALISING, RC1_DZ could still read 0 (its default came with
+    the first RC input); the port paddle lost 30 us and the boat turned steadily to port. Arming
+    reads them again, and the mapping in use stays until the new one is made."""
+    core = make(message_rates_hz={})
+    core.on_mavlink(ardupilot_heartbeat(armed=False), at(0))
+    answer_params(core, {**SITL_PARAMS, "RC1_DZ": 0.0}, 10 * MS)
+    assert core.params.done and core.mapper(0.16, 0.16).y == 160
+    core.on_mavlink(ardupilot_heartbeat(armed=False), at(1 * S))  # no change: nothing read
+    assert not of(core.tick(at(1 * S + MS)), SendParamRequestRead)
+    core.on_mavlink(ardupilot_heartbeat(armed=True), at(2 * S))
+    asked = [o.param_id for o in of(core.tick(at(2 * S + MS)), SendParamRequestRead)]
+    assert "RC1_DZ" in asked and "RC3_DZ" in asked
+    assert core.mapper(0.16, 0.16).y == 160  # the old mapping until the answers are in
+    answer_params(core, SITL_PARAMS, 2100 * MS)
+    assert core.params.done and core.mapper(0.16, 0.16).y == 211
+    core.on_mavlink(ardupilot_heartbeat(armed=True), at(3 * S))  # still armed: not again
+    assert not of(core.tick(at(3 * S + MS)), SendParamRequestRead)
+
+
+def test_an_accepted_arm_request_reads_the_mapping_parameters_again_before_the_heartbeat_says_so():
+    core = make(message_rates_hz={})
+    core.on_mavlink(ardupilot_heartbeat(armed=False), at(0))
+    answer_params(core, {**SITL_PARAMS, "RC1_DZ": 0.0}, 10 * MS)
+    core.command_accepted(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, (1.0, 0, 0, 0, 0, 0, 0), None)
+    asked = [o.param_id for o in of(core.tick(at(1 * S)), SendParamRequestRead)]
+    assert "RC1_DZ" in asked
+    answer_params(core, SITL_PARAMS, 1100 * MS)
+    core.on_mavlink(ardupilot_heartbeat(armed=True), at(2 * S))  # the HEARTBEAT after: not again
+    assert not of(core.tick(at(2 * S + MS)), SendParamRequestRead)
+    assert core.mapper(0.16, 0.16).y == 211

@@ -421,6 +421,8 @@ class VehicleIoCore:
     def command_accepted(self, command: int, params: tuple[float, ...], mode: str | None) -> None:
         """An ACCEPTED ACK: take the new state now rather than at the next HEARTBEAT (<= 1 s)."""
         if command == MAV_CMD_COMPONENT_ARM_DISARM:
+            if params[0] == 1.0 and not self.link.armed:
+                self._armed_now()
             self.link.armed = params[0] == 1.0
         elif command == MAV_CMD_DO_SET_MODE and mode is not None:
             self.link.mode = mode.strip().upper()
@@ -582,6 +584,8 @@ class VehicleIoCore:
             log.info("autopilot finished starting (%s -> %s): reading its parameters again",
                      link.mode, mode)
             self._start_param_check(link.profile)
+        elif armed and not link.armed:
+            self._armed_now()
         link.armed, link.mode = armed, mode
         link.custom_mode = int(msg.custom_mode)
         link.last_heartbeat_mono_ns = now.mono_ns
@@ -858,6 +862,22 @@ class VehicleIoCore:
         if len(pc.values) == len(pc.wanted):
             self._finish_param_check()
         return []
+
+    def _armed_now(self) -> None:
+        """The vessel just armed (its ACK or HEARTBEAT, whichever came first): read the thrust
+        mapping's parameters again before thrust matters.
+
+        Read after start-up, a value can still be a boot-time one: measured on Rover SITL, RC1_DZ
+        read 0 even after the mode left INITIALISING (its 30 us default came with the first RC
+        input, seconds later), so the port paddle lost its dead-zone compensation, 30 us or about
+        1 N in 25, and the boat turned steadily to port. The mapping in use stays until the new one
+        is made."""
+        profile = self.link.profile
+        if (profile is None or not profile.mapping_needs_params or not self.cfg.check_failsafe_params
+                or not self.params.done):
+            return
+        log.info("autopilot armed: reading its parameters again (the thrust mapping's)")
+        self._start_param_check(profile)
 
     def _start_param_check(self, profile: Profile) -> None:
         """(Re)start the parameter read; the mapping in use stays until the new one is made."""
