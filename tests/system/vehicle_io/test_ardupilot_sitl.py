@@ -42,18 +42,12 @@ from seaway.vessel.model import load_vessel
 from seaway_vehicle_io.mav import mavlink, mavutil
 
 from tests.conftest import BIN, REPO, Procs, wait_for
+from tests.system.vehicle_io.ardupilot_sitl import START, needs_sitl, sitl_instance
 
 pytestmark = pytest.mark.system
 
-SITL_DIR = Path(os.environ.get("SEAWAY_ARDUPILOT_SITL", REPO.parent / "shared" / "sitl" / "ardupilot"))
-ARDUROVER = SITL_DIR / "ardurover"
-START = SITL_DIR / "start-motorboat.sh"
 BOAT_PARM = REPO / "services" / "vehicle_io" / "config" / "ardupilot-boat.parm"
 VIO = BIN / "seaway-vehicle-io"
-needs_sitl = pytest.mark.skipif(
-    not (ARDUROVER.exists() and START.exists()),
-    reason=f"ArduPilot Rover SITL not found at {SITL_DIR} (ardurover, start-motorboat.sh): build "
-           "it (docs/autopilots.md) or set SEAWAY_ARDUPILOT_SITL to its folder")
 
 THRUST_MAX_N = 75.0  # paper-boat (the lake scenario's vessel), MOT_THST_ASYM = 1: same astern
 SERVO_TRIM_US, SERVO_HALF_SPAN_US = 1500, 500
@@ -63,33 +57,6 @@ FS_TIMEOUT_S = 1.5  # Rover default
 MODE_HOLD = 4
 REQUEST_TIMEOUT_S = 5.0
 EKF_READY_TIMEOUT_S = 180.0  # ~40 s on an idle machine; generous for a busy 2-core one
-
-
-# -- SITL instances -------------------------------------------------------------------------------
-
-_used_instances: set[int] = set()
-
-
-def _ports_free(instance: int) -> bool:
-    for port in (5760 + 10 * instance + k for k in range(3)):
-        with socket.socket() as s:
-            try:
-                s.bind(("127.0.0.1", port))
-            except OSError:
-                return False
-    return True
-
-
-def sitl_instance() -> int:
-    """An instance number of our own: per pytest-xdist worker a block of 20, skipping numbers in
-    use (in this process, or by anything holding its ports)."""
-    worker = os.environ.get("PYTEST_XDIST_WORKER", "gw0")
-    base = 40 + 20 * int("".join(c for c in worker if c.isdigit()) or 0)
-    for instance in range(base, base + 20):
-        if instance not in _used_instances and _ports_free(instance):
-            _used_instances.add(instance)
-            return instance
-    pytest.fail(f"no free ArduPilot SITL instance number in {base}..{base + 19}")
 
 
 class Sitl:

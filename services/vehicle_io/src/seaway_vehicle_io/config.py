@@ -2,8 +2,10 @@
 
 Every field has a safe default, so a file is needed only to change something. ``--mavlink``,
 ``--autopilot``, ``--thrust-timeout`` and ``--signing-key-file`` on the command line override the
-file. The vessel file (thruster limits, dead zone)
-is a run-wide fact: it comes from the run description (``seaway.runtime.run``), not from here.
+file. ``--config`` takes a path, or the name of a file shipped in ``services/vehicle_io/config/``
+(``ardupilot-sitl``, ``px4-sitl``, ``boat-serial``, ...: ``config_path``). The vessel file
+(thruster limits, dead zone) is a run-wide fact: it comes from the run description
+(``seaway.runtime.run``), not from here.
 """
 
 from __future__ import annotations
@@ -12,13 +14,31 @@ from pathlib import Path
 from typing import Literal
 
 from pydantic import Field, field_validator, model_validator
-from seaway.contract.config import ConfigModel
+from seaway.contract.config import ConfigError, ConfigModel
 from seaway.vessel.mavlink_signing import read_key
 
 from seaway_vehicle_io import profile, rates
 
 AUTOPILOT_CHOICES: tuple[str, ...] = profile.choices()
 """``auto`` and every registered autopilot profile's name (``profile.py``)."""
+CONFIG_DIR = Path(__file__).resolve().parents[2] / "config"
+"""The shipped configs and autopilot parameter files (``ardupilot-boat.parm``, ``px4-boat.params``)."""
+
+
+def config_path(name_or_path: str) -> Path:
+    """``name_or_path`` if it names a .toml/.json file, else ``CONFIG_DIR/<name>.toml``; ConfigError
+    listing the shipped names if there is no such file."""
+    p = Path(name_or_path)
+    if p.suffix in (".toml", ".json"):
+        return p
+    named = CONFIG_DIR / f"{name_or_path}.toml"
+    if not named.is_file():
+        shipped = ", ".join(sorted(f.stem for f in CONFIG_DIR.glob("*.toml")))
+        raise ConfigError(f"vehicle_io config {name_or_path!r}: not a .toml/.json path and not a "
+                          f"shipped config; shipped: {shipped}")
+    return named
+
+
 AutopilotChoice = Literal[AUTOPILOT_CHOICES]  # type: ignore[valid-type]  # built from the registry
 
 

@@ -15,7 +15,7 @@ from seaway.vessel.battery import BatteryParams
 from seaway.vessel.mavlink_signing import KeyFileError, read_key
 from seaway.vessel.model import load_vessel
 
-from seaway_vehicle_io.config import AUTOPILOT_CHOICES, VehicleIoConfig
+from seaway_vehicle_io.config import AUTOPILOT_CHOICES, VehicleIoConfig, config_path
 from seaway_vehicle_io.link import check_url
 from seaway_vehicle_io.service import VehicleIoService
 from seaway_vehicle_io.thrust import ThrusterLimits
@@ -26,7 +26,8 @@ log = logging.getLogger("seaway.vehicle_io")
 def build_parser() -> argparse.ArgumentParser:
     p = base_parser("vehicle_io", "The only MAVLink speaker: autopilot telemetry to the bus, "
                                   "thrust commands to the autopilot, with a watchdog.")
-    p.add_argument("--config", default=None, help="vehicle_io config file (.toml or .json)")
+    p.add_argument("--config", default=None, help="vehicle_io config file (.toml or .json), or the "
+                   "name of one in services/vehicle_io/config (e.g. ardupilot-sitl)")
     p.add_argument("--mavlink", default=None,
                    help="MAVLink URL (overrides the config): udpin:HOST:PORT, udpout:HOST:PORT, "
                         "tcp:HOST:PORT or /dev/ttyX")
@@ -43,7 +44,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def load(args: argparse.Namespace, run: RunDescription) -> tuple[VehicleIoConfig, ThrusterLimits]:
     """Config file + command-line overrides, validated together; the run's vessel's thruster limits."""
-    cfg = load_config(args.config, VehicleIoConfig) if args.config else VehicleIoConfig()
+    cfg = load_config(config_path(args.config), VehicleIoConfig) if args.config else VehicleIoConfig()
     overrides = {k: v for k, v in {
         "mavlink": args.mavlink, "autopilot": args.autopilot,
         "thrust_timeout_s": args.thrust_timeout, "signing_key_file": args.signing_key_file,
