@@ -3,7 +3,7 @@ times faster than real time the run goes; in real time the wall time."""
 
 from __future__ import annotations
 
-from seaway.contract.messages import EnergyBudget, MissionStatus, StateEstimate
+from seaway.contract.messages import EnergyBudget, MissionStatus, StateEstimate, ThrustCommand
 from seaway.tools.launch.main import StatusLine, energy_text
 
 
@@ -27,6 +27,19 @@ def test_real_time_shows_wall_time() -> None:
     assert line.time_text(state(500.0), 12.4) == "t    12 s"
     line.state["v1"] = state(3.0)
     assert line.vessel_text("v1", 7.0).startswith("v1 | t     7 s | no mission status yet")
+
+
+def test_a_run_without_a_mission_shows_the_latest_thrust_command() -> None:
+    line = StatusLine(["v1"], commands=True)
+    assert "no mission status yet" in line.vessel_text("v1", 1.0)  # nothing commanded yet
+    line.thrust["v1"] = ThrustCommand(stamp_ns=1, thrust_port_n=2.4, thrust_starboard_n=-0.6,
+                                      source="identify")
+    assert line.vessel_text("v1", 9.0) == "v1 | t     9 s | thrust +2.40 / -0.60 N (identify)"
+    line.mission["v1"] = status()  # a mission's status, once there is one, says more
+    assert "leg 1/3" in line.vessel_text("v1", 9.0) and "thrust" not in line.vessel_text("v1", 9.0)
+    plain = StatusLine(["v1"])  # a run that sends a mission does not show commands before it
+    plain.thrust["v1"] = line.thrust["v1"]
+    assert "no mission status yet" in plain.vessel_text("v1", 1.0)
 
 
 # -- the energy budget (issue #17 item 5) ----------------------------------------------------------

@@ -49,6 +49,7 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from rich.console import Console
@@ -66,6 +67,7 @@ from seaway.contract.messages import (
     MissionStatus,
     ModeRequest,
     StateEstimate,
+    ThrustCommand,
     return_mission_id,
 )
 from seaway.runtime import refusals
@@ -281,12 +283,17 @@ class StatusLine:
     time (the latest state's stamp) and, beside it, how many times faster than real time it goes
     (simulated over wall seconds since the first state)."""
 
-    def __init__(self, vessels: list[str], lockstep: bool = False) -> None:
+    def __init__(self, vessels: list[str], lockstep: bool = False, commands: bool = False) -> None:
         self.lockstep = lockstep
+        self.commands = commands
+        """Show the latest thrust command while there is no mission status (a run that sends no
+        mission: ``seaway identify fly`` flying its manoeuvre, say)."""
         self.vessels = list(vessels)
         self.mission: dict[str, MissionStatus | None] = dict.fromkeys(self.vessels)
         self.state: dict[str, StateEstimate | None] = dict.fromkeys(self.vessels)
         self.energy: dict[str, EnergyBudget | None] = dict.fromkeys(self.vessels)
+        self.thrust: dict[str, ThrustCommand | None] = dict.fromkeys(self.vessels)
+        """The latest command: shown while there is no mission (``seaway identify fly``, say)."""
         self.decided: dict[str, EnergyBudget | None] = dict.fromkeys(self.vessels)
         """The budget of the period each vessel's decision was taken (its figures say why)."""
         self.tty = sys.stdout.isatty()
@@ -303,6 +310,8 @@ class StatusLine:
                           callback=lambda _k, m, v=v: self.state.__setitem__(v, m))
             bus.subscribe(keys.MISSION_ENERGY, vessel=v,
                           callback=lambda _k, m, v=v: self.on_energy(v, m))
+            bus.subscribe(keys.THRUST, vessel=v,
+                          callback=lambda _k, m, v=v: self.thrust.__setitem__(v, m))
 
     def on_energy(self, vessel: str, budget: EnergyBudget) -> None:
         """The vessel's latest budget; the first one of a decision is kept for its figures."""
@@ -341,6 +350,8 @@ class StatusLine:
             parts.append(f"{m.state} leg {m.active_leg}/{max(m.waypoint_count - 1, 0)}")
             if m.cross_track_m is not None:
                 parts.append(f"xte {m.cross_track_m:5.2f} m")
+        elif self.commands and (c := self.thrust[vessel]) is not None:
+            parts.append(f"thrust {c.thrust_port_n:+.2f} / {c.thrust_starboard_n:+.2f} N ({c.source})")
         else:
             parts.append("no mission status yet")
         if s is not None:
@@ -403,13 +414,25 @@ REPORT_TIMEOUT_S = 120.0  # the final report is skipped (with the command to mak
 LINK_WAIT_S = 20.0  # how long the start-up requests wait for vehicle_io's autopilot link
 
 
+def _required_failure(sup: Supervisor) -> str | None:
+    """Notice exits now; the failure of a required process, with its log's tail, else None."""
+    sup.poll()
+    failed = sup.failed_required()
+    if not failed:
+        return None
+    return (f"required process(es) failed: {', '.join(failed)}\n"
+            + "\n".join(sup.log_tail(name) for name in failed))
+
+
 def _operator_requests(bus: Bus, profile: Profile, stop: threading.Event, vessel: str,
-                       label: str = "") -> bool:
+                       label: str = "", failure: Callable[[], str | None] = lambda: None) -> bool:
     """The profile's start-up mode and arming of ``vessel``, as explicit requests with their
     replies shown (each line begins with ``label``: a fleet's ``<vessel>: ``).
 
     vehicle_io is ready when it serves requests, which can be before it has heard the autopilot;
-    so the requests wait for a VehicleStatus with the link up, as an operator would.
+    so the requests wait for a VehicleStatus with the link up, as an operator would. ``failure``
+    is asked while waiting: a required process that failed meanwhile (the autopilot's SITL, say)
+    ends the wait with its reason instead of a timeout.
     """
     if not (profile.mode_on_start or profile.arm_on_start):
         return True
@@ -421,6 +444,10 @@ def _operator_requests(bus: Bus, profile: Profile, stop: threading.Event, vessel
             break
         if stop.is_set():
             return True  # stopping anyway: not a failure of the start
+        failed = failure()
+        if failed:
+            print(f"\nseaway launch: {failed}", file=sys.stderr, flush=True)
+            return False
         if time.monotonic() > deadline:
             print(f"{label}no autopilot link reported by vehicle_io within {LINK_WAIT_S:g} s; "
                   "not sending mode or arming", flush=True)
@@ -435,13 +462,40 @@ def _operator_requests(bus: Bus, profile: Profile, stop: threading.Event, vessel
         if not reply.accepted:
             return False
     if profile.arm_on_start:
+        return _arm(bus, profile.arm_wait_s, stop, vessel, label, failure)
+    return True
+
+
+ARM_RETRY_S = 5.0  # between arming requests while the autopilot refuses (profile.arm_wait_s)
+
+
+def _arm(bus: Bus, wait_s: float, stop: threading.Event, vessel: str, label: str,
+         failure: Callable[[], str | None]) -> bool:
+    """Ask to arm; while refused, ask again every ``ARM_RETRY_S`` for up to ``wait_s``, printing each
+    new reason once (an autopilot still converging says why, and the reason changes as it does)."""
+    t0 = time.monotonic()
+    said = ""
+    while True:
         reply = bus.request(keys.VEHICLE_ARM, ArmRequest.make(stamp_ns=time.time_ns(), arm=True),
                             timeout_s=10.0, vessel=vessel)
-        print(f"{label}arm: {'accepted' if reply.accepted else 'REFUSED: ' + reply.reason}",
-              flush=True)
-        if not reply.accepted:
+        waited = time.monotonic() - t0
+        if reply.accepted:
+            print(f"{label}arm: accepted" + (f" after {waited:.0f} s" if said else ""), flush=True)
+            return True
+        if stop.is_set() or waited + ARM_RETRY_S > wait_s:
+            print(f"{label}arm: REFUSED: {reply.reason}"
+                  + (f" (asked for {waited:.0f} s)" if wait_s else ""), flush=True)
+            return stop.is_set()
+        failed = failure()
+        if failed:
+            print(f"\nseaway launch: {failed}", file=sys.stderr, flush=True)
             return False
-    return True
+        if reply.reason != said:
+            print(f"{label}arm: not yet ({reply.reason}); asking again every {ARM_RETRY_S:g} s for "
+                  f"up to {wait_s:g} s", flush=True)
+            said = reply.reason
+        if stop.wait(ARM_RETRY_S):
+            return True
 
 
 def show_groundstations(sup: Supervisor, run_dir: Path, shown: dict[str, int]) -> None:
@@ -579,7 +633,7 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
             # inline: on Zenoh's own receive thread (a short handler; hundreds a second in lockstep)
             bus.subscribe_raw(spec.key(vessel), lambda sample, v=vessel, s=suffix:
                               sup.on_sample(v, s, sample.payload), inline=True)
-        status = StatusLine(vessels, lockstep=run.lockstep)
+        status = StatusLine(vessels, lockstep=run.lockstep, commands=mission is None)
         status.watch(bus)
         error = sup.start_all(stop)
         if error:
@@ -591,7 +645,7 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
         shown: dict[str, int] = {}
         show_groundstations(sup, run_dir, shown)
         for v in vessels:
-            if not _operator_requests(bus, profile, stop, v, label[v]):
+            if not _operator_requests(bus, profile, stop, v, label[v], lambda: _required_failure(sup)):
                 code = 1
                 return code
         for v in vessels:

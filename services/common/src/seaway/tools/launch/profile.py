@@ -104,6 +104,10 @@ class Profile(ConfigModel):
                                        "NED origin; false on a boat (the first GNSS fix)")
     mode_on_start: str | None = Field(default=None, description="request this autopilot mode when ready")
     arm_on_start: bool = Field(default=False, description="request arming when ready (after the mode)")
+    arm_wait_s: float = Field(default=0.0, ge=0, le=600, description="while the autopilot refuses to "
+                              "arm, ask again every few seconds for this long (an autopilot whose "
+                              "position estimate is still converging: ArduPilot ~40 s after boot); "
+                              "0: one request")
     mission_on_start: bool = Field(default=False, description="send the scenario's mission")
     stop_when_complete: bool = Field(default=False, description="stop the run when it completes")
     stop_after: str | None = Field(default=None, description="stop the run when this process exits 0")
