@@ -77,4 +77,4 @@ def test_a_recording_that_is_not_there_or_not_a_recording_is_a_usage_error(tmp_p
     res = _seaway("identify", "fit", str(bad))
     assert res.returncode == 2 and "bad.mcap" in res.stderr and "Traceback" not in res.stderr
     run = _seaway("identify", "run")
-    assert run.returncode == 2 and "only --sim is built" in run.stderr
+    assert run.returncode == 2 and "seaway identify fly" in run.stderr

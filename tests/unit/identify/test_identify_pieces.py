@@ -166,5 +166,17 @@ def test_the_vessel_file_loads_with_the_fit_and_the_base_vessels_bounds(tmp_path
     v = parse_config(read_document(path), VesselParams, str(path))
     assert (v.name, v.m11_kg, v.yv_kgps, v.arm_m, v.dead_zone_n) == ("my-boat", 12.0, 45.0, 0.1, 1.5)
     assert (v.thrust_max_n, v.alpha_w_per_n2) == (base.thrust_max_n, base.alpha_w_per_n2)
+    assert base.battery is not None and v.battery == base.battery  # the pack is not in the motion
     text = path.read_text()
     assert "+- 0.12 kg (1.00 %)" in text and "# note: a note" in text and "held-out part" in text
+
+
+def test_the_fits_parameter_vector_keeps_every_time_constant_above_the_floor() -> None:
+    theta = np.array([2.0, 3.0, 0.01, 1.0, 20.0, 1.0])  # yaw time constant 0.01 s: below the floor
+    z, raised = ft.z_of(theta)
+    assert raised == ["m33_kgm2"]
+    back = ft.theta_of(z)[0]
+    assert back[[0, 1, 3, 4, 5]] == pytest.approx(theta[[0, 1, 3, 4, 5]], rel=1e-12)
+    assert back[2] / back[5] == pytest.approx(1.01 * ft.TAU_MIN_S)  # raised just above it
+    wild = ft.theta_of(np.array([[-50.0, -50.0, -50.0, 3.0, -3.0, 0.0]]))[0]
+    assert all(wild[i] / wild[i + 3] >= ft.TAU_MIN_S for i in range(3))  # any z stays above it

@@ -1,14 +1,19 @@
 """``seaway identify``: fly the identification manoeuvre, and fit a vessel model to a recording.
 
     seaway identify run --sim --vessel paper-sim --out runs/identify/paper-sim.mcap
+    seaway launch identify-ardupilot     # flies it on ArduPilot SITL through vehicle_io (identify fly)
     seaway identify fit runs/identify/paper-sim.mcap --base paper-sim --compare paper-sim
     seaway identify fit runs/<run>/recording.mcap --base paper-boat --arm-m 0.1025 --name my-boat
 
 ``run --sim`` flies the manoeuvre (surge steps, turns both ways, spins, weaving, coasting:
 ``seaway_lab.identify.manoeuvre``) on the simulator's core in process, with realistic sensor noise
-by default, and records it (MCAP: ctrl/thrust, sensors/gnss, sensors/attitude, sim/truth). Flying it
-on a vessel through vehicle_io is not built yet: record a run in which the manoeuvre's commands
-were sent on ctrl/thrust instead.
+by default, and records it (MCAP: ctrl/thrust, sensors/gnss, sensors/attitude, sim/truth).
+
+``fly`` flies it on a running vessel through vehicle_io, in the controller's place (a launcher
+profile runs it as the controller, e.g. ``identify-ardupilot``; on a real boat, a copy of the
+``boat`` profile with the controller's command replaced): it waits until the vessel is armed in a
+manual mode, publishes the manoeuvre on ctrl/thrust in real time and ends when it is flown; the
+run's recording is what ``fit`` reads (``seaway_lab.identify.live_run``).
 
 ``fit`` reads the commands and the raw sensors of a recording (not the estimator's state: it
 predicts with the model being replaced), fits m11, m22, m33, Xu, Yv, Nr and the dead zone with the
@@ -28,12 +33,14 @@ import json
 import sys
 from pathlib import Path
 
+import numpy as np
 from seaway.contract.config import ConfigError
+from seaway.runtime import service
 from seaway.simkit.scenario import SensorNoise, load_scenario
 from seaway.vessel.model import VesselParams, load_vessel
 
 from seaway_lab.identify import fit as fitmod
-from seaway_lab.identify import output, sim_run
+from seaway_lab.identify import live_run, output, sim_run
 from seaway_lab.identify import trace as tracemod
 from seaway_lab.identify.manoeuvre import Manoeuvre
 from seaway_lab.identify.trace import IdentifyError
@@ -49,7 +56,7 @@ def parser() -> argparse.ArgumentParser:
     run = sub.add_parser("run", prog="seaway identify run", help="fly the manoeuvre and record it",
                          description="Fly the identification manoeuvre and record it (MCAP).")
     run.add_argument("--sim", action="store_true",
-                     help="on the simulator's core in process (the only way built so far)")
+                     help="on the simulator's core in process (on a running vessel: seaway identify fly)")
     run.add_argument("--vessel", default="paper-sim",
                      help="the vessel file the simulator integrates (name in deploy/vessels or path; "
                           "default paper-sim)")
@@ -68,6 +75,12 @@ def parser() -> argparse.ArgumentParser:
     run.add_argument("--out", type=Path, default=Path("runs/identify/identify.mcap"),
                      help="the recording to write (default runs/identify/identify.mcap; a file "
                           "there already is kept and the next free name used)")
+    fly = service.base_parser("controller", "Fly the identification manoeuvre on a running "
+                              "vessel through vehicle_io, in the controller's place.",
+                              prog="seaway identify fly")
+    live_run.add_arguments(fly)
+    sub.add_parser("fly", parents=[fly], add_help=False, help="fly the manoeuvre on a running vessel "
+                   "through vehicle_io (as the run's controller)", description=fly.description)
     fit = sub.add_parser("fit", prog="seaway identify fit", help="fit a vessel model to a recording",
                          description="Fit the paper's vessel model to a recording of the manoeuvre "
                                      "and write it as a vessel file, with a held-out plot.")
@@ -102,9 +115,9 @@ def parser() -> argparse.ArgumentParser:
 
 def _run(args: argparse.Namespace) -> int:
     if not args.sim:
-        print("seaway identify run: only --sim is built so far (the manoeuvre on the simulator in "
-              "process); on a vessel, send the manoeuvre's commands on ctrl/thrust and record the run",
-              file=sys.stderr)
+        print("seaway identify run: only --sim (the manoeuvre on the simulator in process); on a "
+              "vessel use 'seaway identify fly' in the controller's place (seaway launch "
+              "identify-ardupilot does that on ArduPilot SITL)", file=sys.stderr)
         return 2
     plant = load_vessel(args.vessel)
     level = args.level_n if args.level_n is not None else plant.thrust_max_n
@@ -156,7 +169,8 @@ def _fit(args: argparse.Namespace) -> int:
     tracemod.check(trace)
     result = fitmod.fit(trace, arm, fit_dead_zone=args.dead_zone_n is None,
                         dead_zone_n=args.dead_zone_n or 0.0, fit_lag=args.fit_lag,
-                        lag_s=base.thruster_time_constant_s, holdout_fraction=args.holdout)
+                        lag_s=base.thruster_time_constant_s, holdout_fraction=args.holdout,
+                        start_theta=np.array([getattr(base, p) for p in fitmod.PARAMS]))
     text = output.vessel_toml(result, base, name, str(rec))
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(text)
@@ -194,6 +208,8 @@ def _errors(fitted: VesselParams, truth: VesselParams) -> dict[str, float]:
 def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(list(sys.argv[1:] if argv is None else argv))
     try:
+        if args.action == "fly":
+            return live_run.fly(args)
         return _run(args) if args.action == "run" else _fit(args)
     except IdentifyError as err:
         print(f"seaway identify {args.action}: {err}", file=sys.stderr)

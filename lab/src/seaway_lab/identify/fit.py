@@ -33,8 +33,9 @@ weighted linear least squares over all windows. It is biased (noise in the regre
 gives the output-error fit its start and the dead-zone profile.
 
 Output error: the model is simulated (RK4 on a grid of ``DT_S``) from a fitted initial state, with the
-commanded thrusts, and the masses, dampings (as logarithms: they stay positive), the water current
-and the initial state are found by Levenberg-Marquardt on the weighted residuals of the measured
+commanded thrusts, and the dampings (as logarithms: they stay positive), the time constants m/d of
+surge, sway and yaw (as the logarithm of their excess over ``TAU_MIN_S``: they stay above it), the
+water current and the initial state are found by Levenberg-Marquardt on the weighted residuals of the measured
 velocity over ground and yaw rate, each channel weighted by its residual RMS. Noise is then only in
 the outputs, so the estimates are unbiased; standard errors come from the Gauss-Newton covariance
 s^2 (J^T J)^-1 (they assume white residuals: with unmodelled wind they are optimistic).
@@ -54,8 +55,36 @@ PARAMS = ("m11_kg", "m22_kg", "m33_kgm2", "xu_kgps", "yv_kgps", "nr_kgm2ps")
 DT_S = 0.1
 """The simulation grid of the output-error fit [s]: RK4 on it is accurate to about 1e-3 for a
 surge or sway time constant of 0.2 s."""
+TAU_MIN_S = 0.1
+"""The shortest time constant m/d (surge m11/Xu, sway m22/Yv, yaw m33/Nr) a fit may give [s]: the
+control period. The controller integrates the model with RK4 at that period, which diverges for a
+time constant below 0.036 s (h lambda > 2.8) and, measured on ArduPilot SITL with 0.05 s in yaw,
+made its solver fail to converge in turns; this fit's own integrator on ``DT_S`` is the same; and a
+response faster than one period is neither resolved by 5-10 Hz sensors nor something a command
+every period can shape. A vessel that is quicker (ArduPilot SITL's boat sets its yaw rate
+instantly) gets this floor, and the note says so."""
 WINDOW_S = 1.0
 """The equation error's integration window [s]."""
+
+
+def theta_of(z: np.ndarray) -> np.ndarray:
+    """PARAMS values (P, 6) of the fit's parameter vectors (P, >= 6): dampings as logarithms, the
+    masses through their time constants, ``m = d (TAU_MIN_S + exp(z))``, so every time constant
+    stays above ``TAU_MIN_S``."""
+    z = np.atleast_2d(z)
+    d = np.exp(z[:, 3:6])
+    m = d * (TAU_MIN_S + np.exp(z[:, 0:3]))
+    return np.concatenate([m, d], axis=1)
+
+
+def z_of(theta: np.ndarray) -> tuple[np.ndarray, list[str]]:
+    """The parameter vector of PARAMS values ``theta`` (6,); a time constant at or below
+    ``TAU_MIN_S`` is raised just above it (its mass with it), and named in the second value."""
+    d = theta[3:6]
+    excess = theta[0:3] / d - TAU_MIN_S
+    raised = [PARAMS[i] for i in range(3) if excess[i] <= 0.01 * TAU_MIN_S]
+    excess = np.maximum(excess, 0.01 * TAU_MIN_S)
+    return np.concatenate([np.log(excess), np.log(d)]), raised
 HOLDOUT_FRACTION = 0.25
 
 
@@ -286,7 +315,7 @@ class _OutputError:
     def predict(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(P, nz) -> predicted (vel_n, vel_e) (P, ng, 2), r (P, na), body (u, v) (P, ng, 2)."""
         z = np.atleast_2d(z)
-        theta = np.exp(z[:, :6])
+        theta = theta_of(z)
         x = simulate(theta, self.thrust[:self.n], self.arm_m, z[:, 8:11])
         tg = self.t_grid[:self.n]
         u = np.stack([np.interp(self.gnss_t, tg, x[:, 0, p]) for p in range(z.shape[0])])
@@ -356,11 +385,13 @@ def levenberg_marquardt(prob: _OutputError, z: np.ndarray, max_iter: int = 40,
 
 def fit(trace: Trace, arm_m: float, *, fit_dead_zone: bool = True, dead_zone_n: float = 0.0,
         lag_s: float = 0.0, fit_lag: bool = False,
-        holdout_fraction: float = HOLDOUT_FRACTION) -> FitResult:
+        holdout_fraction: float = HOLDOUT_FRACTION,
+        start_theta: np.ndarray | None = None) -> FitResult:
     """Fit ``PARAMS`` to ``trace`` with the arm ``arm_m`` fixed (see the module docstring).
 
     ``dead_zone_n`` and ``lag_s`` are used as given unless ``fit_dead_zone`` / ``fit_lag``. The
-    last ``holdout_fraction`` of the run is held out: not fitted, only predicted.
+    last ``holdout_fraction`` of the run is held out: not fitted, only predicted. ``start_theta``
+    (PARAMS values, e.g. the base vessel file's) is tried as the start beside the equation error's.
     """
     if not arm_m > 0:
         raise IdentifyError(f"the thruster arm must be > 0 m (the vessel drawing's distance from the "
@@ -394,23 +425,59 @@ def fit(trace: Trace, arm_m: float, *, fit_dead_zone: bool = True, dead_zone_n: 
     uv0 = trace.body_velocity()
     x0 = np.array([np.interp(t0, trace.gnss_t_s, uv0[:, 0]), np.interp(t0, trace.gnss_t_s, uv0[:, 1]),
                    np.interp(t0, trace.att_t_s, trace.r_radps)])
-    z = np.concatenate([np.log(theta0), [0.0, 0.0], x0])
+    # The start: the equation error's values, or the base vessel's if they predict the run better
+    # (the equation error is biased, and on a vessel far from the model's form it can start the
+    # simulation somewhere it cannot recover from).
+    starts = [("the equation error", theta0)]
+    if start_theta is not None:
+        starts.append(("the base vessel file", np.asarray(start_theta, dtype=float)))
+    best: tuple[float, str, np.ndarray, list[str]] | None = None
+    for label, th in starts:
+        zs, raised = z_of(th)
+        cand = np.concatenate([zs, [0.0, 0.0], x0])
+        with np.errstate(all="ignore"):
+            e0 = prob.residuals(cand)[0]
+        cost = float(e0 @ e0)
+        if math.isfinite(cost) and (best is None or cost < best[0]):
+            best = (cost, label, cand, raised)
+    if best is None:
+        raise IdentifyError("the model cannot follow this run from any start (its simulation "
+                            "diverges): check that the commands reached the thrusters")
+    _, label, z, raised = best
+    if label != "the equation error":
+        notes.append(f"started from {label} (it predicts the run better than the equation error)")
+    if raised:
+        notes.append(f"the start's time constants of {', '.join(raised)} were below "
+                     f"{TAU_MIN_S:g} s: raised to it")
     iters = 0
-    for _ in range(3):  # re-weight each channel by its residual RMS, then refit
-        z, jac, it = levenberg_marquardt(prob, z)
-        iters += it
-        prob.sigma = np.maximum(np.array(prob.channel_rms(z)), 1e-9)
+    with np.errstate(all="ignore"):  # a trial step may diverge: LM refuses it (non-finite cost)
+        for _ in range(3):  # re-weight each channel by its residual RMS, then refit
+            z, jac, it = levenberg_marquardt(prob, z)
+            iters += it
+            prob.sigma = np.maximum(np.array(prob.channel_rms(z)), 1e-9)
     e = prob.residuals(z)[0]
     _, jac = _jacobian(prob, z)
     dof = max(1, len(e) - len(z))
     s2 = float(e @ e) / dof
+    # The pseudo-inverse: a time constant pressed to its floor leaves its column of J near zero (the
+    # data say nothing more about it), which must not turn every other standard error into NaN.
     try:
-        cov = np.linalg.inv(jac.T @ jac) * s2
+        cov = np.linalg.pinv(jac.T @ jac) * s2
     except np.linalg.LinAlgError:
         cov = np.full((len(z), len(z)), np.inf)
-    theta = np.exp(z[:6])
-    params = {p: Estimate(float(theta[i]), float(theta[i] * math.sqrt(abs(cov[i, i]))))
-              for i, p in enumerate(PARAMS)}
+    theta = theta_of(z)[0]
+    # Standard errors by the delta method through theta_of (masses depend on two entries of z).
+    grad = np.empty((6, 6))
+    for j in range(6):
+        dz = np.zeros_like(z)
+        dz[j] = 1e-6
+        grad[:, j] = (theta_of(z + dz)[0] - theta) / 1e-6
+    var = np.einsum("ij,jk,ik->i", grad, cov[:6, :6], grad)
+    params = {p: Estimate(float(theta[i]), float(math.sqrt(abs(var[i])))) for i, p in enumerate(PARAMS)}
+    at_floor = [PARAMS[i] for i in range(3) if theta[i] / theta[i + 3] < 1.05 * TAU_MIN_S]
+    if at_floor:
+        notes.append(f"time constant of {', '.join(at_floor)} at the {TAU_MIN_S:g} s floor: this "
+                     "vessel responds faster than the model can be integrated at the control period")
 
     # Prediction over the whole run with the fitted model, compared on both parts.
     full = _OutputError(trace, arm_m, thrust, t_grid, t_end)

@@ -52,6 +52,9 @@ def vessel_toml(result: FitResult, base: VesselParams, name: str, source: str) -
               "# residual RMS, fitted part:   " + _rms(r.rms_fit),
               "# residual RMS, held-out part: " + _rms(r.rms_holdout)]
     lines += [f"# note: {n}" for n in r.notes]
+    if base.battery is not None:  # not in the motion either: the base vessel's pack, as given
+        lines += ["", f"# the propulsion battery, from {base.name}", "[battery]"]
+        lines += [f"{k} = {_f(v)}" for k, v in base.battery.model_dump(exclude_none=True).items()]
     return "\n".join(lines) + "\n"
 
 
