@@ -108,3 +108,16 @@ def test_a_simulated_run_shares_the_scenario_frame_and_the_period_is_one_option(
     assert (run.model_vessel_file, run.plant_vessel_file) == ("paper-sim", "paper-sim-perturbed")
     with pytest.raises(ConfigError, match="control_period_s"):
         resolve_run(_launch_args("--control-period-s", "-1"), batch, "paper-c1", "r4")
+
+
+def test_a_run_on_the_autopilots_own_sitl_has_the_identified_model_and_no_plant_of_ours() -> None:
+    from seaway.tools.launch.main import resolve_run
+    from seaway.tools.launch.profile import load_profile
+
+    sitl = load_profile("sitl-ardupilot")
+    run = resolve_run(_launch_args(), sitl, sitl.scenario or "", "r1")
+    assert (run.model_vessel_file, run.plant_vessel_file, run.dead_zone) == (
+        "ardupilot-sitl-motorboat", None, False)
+    assert run.origin is not None and run.scenario == "lake"  # SITL's home is the lake's origin
+    sim = resolve_run(_launch_args(), load_profile("sim"), "lake", "r2")
+    assert sim.dead_zone and sim.model_vessel_file == "paper-boat"  # our simulator keeps both

@@ -119,22 +119,25 @@ def describe(*, vessel: str, run_id: str, clock: ClockMode = "wall", scenario: A
              scenario_ref: str | None = None, origin_from_scenario: bool = True,
              model_vessel_file: str | None = None, plant_vessel_file: str | None = None,
              control_period_s: float | None = None, origin: Origin | None = None,
-             dead_zone: bool = False, where: str = "run") -> RunDescription:
+             dead_zone: bool = False, simulated: bool = True, where: str = "run") -> RunDescription:
     """The one way a run description is made: by the launcher, and from a service's own flags.
 
     A ``scenario`` (a ``seaway.simkit.scenario.Scenario``, named ``scenario_ref`` as the simulator
     will load it) supplies the model vessel (its ``vessel``), the plant (its ``plant_vessel``, else
     ``vessel``), the dead zone and, unless ``origin_from_scenario`` is false (a boat), the origin, so
     the estimator shares the simulator's frame. Explicit values override it; None keeps the default.
+    ``simulated=False`` (no simulator of ours in the run: ArduPilot's or PX4's SITL is the boat)
+    takes only the model, origin and name from the scenario: its plant and dead-zone flag describe
+    our simulator's hull, which is not there.
     A plant equal to the model is stored as None (no second model). ConfigError names a bad field,
     also of a vessel file (each is loaded here, so a bad one stops a launch, ``--check`` included,
     before any process starts).
     """
     fields: dict[str, Any] = {"run_id": run_id, "vessel": vessel, "clock": clock}
     if scenario is not None:
-        fields.update(model_vessel_file=scenario.vessel,
-                      plant_vessel_file=scenario.plant_vessel_file,
-                      dead_zone=scenario.dead_zone, scenario=scenario_ref or scenario.name)
+        fields.update(model_vessel_file=scenario.vessel, scenario=scenario_ref or scenario.name)
+        if simulated:
+            fields.update(plant_vessel_file=scenario.plant_vessel_file, dead_zone=scenario.dead_zone)
         if origin_from_scenario:
             fields["origin"] = scenario.origin
     overrides = {"model_vessel_file": model_vessel_file, "plant_vessel_file": plant_vessel_file,
