@@ -13,7 +13,7 @@ import time
 import pytest
 from seaway.runtime.credentials import ENV_IDENTITY
 
-from tests.conftest import BIN, wait_for
+from tests.conftest import BIN, REPO, wait_for
 
 pytestmark = pytest.mark.system
 
@@ -47,14 +47,13 @@ def test_echo_refuses_an_unknown_key_listing_the_topics(zenoh_env) -> None:
         assert "nav/state" in out.stderr and "seaway/vessel1/nav/state" in out.stderr, out.stderr
 
 
-@pytest.mark.parametrize(("args", "text"), [
-    (["launch", "sim-batch", "--scenario", "nope", "--check"],
-     "no scenario 'nope' (deploy/scenarios/); there are: lake, paper-c1"),
-    (["bench", "model", "--vessel", "nope"],
-     "no vessel file 'nope' (deploy/vessels/); there are: paper-boat, paper-sim"),
+@pytest.mark.parametrize(("args", "what", "folder"), [
+    (["launch", "sim-batch", "--scenario", "nope", "--check"], "scenario", "scenarios"),
+    (["bench", "model", "--vessel", "nope"], "vessel file", "vessels"),
 ])
-def test_a_missing_scenario_or_vessel_lists_those_there_are(args, text) -> None:
+def test_a_missing_scenario_or_vessel_lists_those_there_are(args, what, folder) -> None:
     out = subprocess.run([str(BIN / "seaway"), *args], capture_output=True, text=True, timeout=120,
                          check=False)
     assert out.returncode == 2 and "Traceback" not in out.stderr, out.stderr
-    assert text in out.stderr, out.stderr
+    there = ", ".join(sorted(p.stem for p in (REPO / "deploy" / folder).glob("*.toml")))
+    assert f"no {what} 'nope' (deploy/{folder}/); there are: {there}" in out.stderr, out.stderr
