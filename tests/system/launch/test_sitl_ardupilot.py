@@ -49,6 +49,17 @@ def launch(profile: Path, run_dir: Path, env: dict[str, str], timeout_s: float
                           env=env, capture_output=True, text=True, timeout=timeout_s, check=False)
 
 
+def launch_on_sitl(name: str, tmp: Path, env: dict[str, str], timeout_s: float
+                   ) -> tuple[Path, str, str]:
+    """The shipped profile ``name`` on a SITL instance of this test's own, which must end well:
+    (run folder, stdout, the tail of both streams for assertion messages)."""
+    run_dir = tmp / "run"
+    out = launch(profile_copy(name, tmp, sitl_instance()), run_dir, env, timeout_s)
+    log = out.stdout[-4000:] + out.stderr[-3000:]
+    assert out.returncode == 0, log
+    return run_dir, out.stdout, log
+
+
 def test_a_missing_firmware_fails_the_launch_saying_how_to_get_it(tmp_path, zenoh_env) -> None:
     env = dict(zenoh_env, SEAWAY_ARDUPILOT_SITL=str(tmp_path / "no-sitl-here"))
     out = launch(PROFILES / "sitl-ardupilot.toml", tmp_path / "run", env, 120)
@@ -63,13 +74,10 @@ def test_a_missing_firmware_fails_the_launch_saying_how_to_get_it(tmp_path, zeno
 @pytest.mark.slow
 @pytest.mark.timeout(660)
 def test_the_lake_mission_on_ardupilot_sitl_with_the_identified_model(tmp_path, zenoh_env) -> None:
-    run_dir = tmp_path / "run"
-    out = launch(profile_copy("sitl-ardupilot", tmp_path, sitl_instance()), run_dir, zenoh_env, 600)
-    log = out.stdout[-4000:] + out.stderr[-3000:]
-    assert out.returncode == 0, log
+    run_dir, stdout, log = launch_on_sitl("sitl-ardupilot", tmp_path, zenoh_env, 600)
     # The launcher waited for the EKF by asking to arm until ArduPilot agreed.
-    assert re.search(r"^arm: accepted", out.stdout, re.M), log
-    assert "mission complete" in out.stdout, log
+    assert re.search(r"^arm: accepted", stdout, re.M), log
+    assert "mission complete" in stdout, log
     run = json.loads((run_dir / "run.json").read_text())
     assert run["model_vessel_file"] == "ardupilot-sitl-motorboat" and run["plant_vessel_file"] is None
 
@@ -101,11 +109,8 @@ def test_the_lake_mission_on_ardupilot_sitl_with_the_identified_model(tmp_path, 
 @pytest.mark.slow
 @pytest.mark.timeout(1260)
 def test_identify_flies_the_manoeuvre_on_ardupilot_sitl_and_fits_its_boat(tmp_path, zenoh_env) -> None:
-    run_dir = tmp_path / "run"
-    out = launch(profile_copy("identify-ardupilot", tmp_path, sitl_instance()), run_dir, zenoh_env, 900)
-    log = out.stdout[-4000:] + out.stderr[-3000:]
-    assert out.returncode == 0, log
-    assert "identify finished" in out.stdout, log
+    run_dir, stdout, log = launch_on_sitl("identify-ardupilot", tmp_path, zenoh_env, 900)
+    assert "identify finished" in stdout, log
     fitted = tmp_path / "fitted.toml"
     fit = subprocess.run([str(BIN / "seaway"), "identify", "fit", str(run_dir / "recording.mcap"),
                           "--base", "ardupilot-sitl-base", "--name", "sitl-refit", "--out", str(fitted),

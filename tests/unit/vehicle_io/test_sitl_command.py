@@ -116,5 +116,6 @@ def test_the_cli_prints_the_command_it_would_run(tmp_path: Path, capsys, monkeyp
 def test_vehicle_io_configs_are_named_or_given_by_path(tmp_path: Path) -> None:
     assert config_path("ardupilot-sitl").name == "ardupilot-sitl.toml"
     assert config_path(str(tmp_path / "mine.toml")) == tmp_path / "mine.toml"
-    with pytest.raises(ConfigError, match=r"not a shipped config; shipped: .*ardupilot-sitl"):
+    with pytest.raises(ConfigError, match=r"no vehicle_io config 'no-such-config' "
+                       r"\(services/vehicle_io/config/\); there are: .*ardupilot-sitl"):
         config_path("no-such-config")

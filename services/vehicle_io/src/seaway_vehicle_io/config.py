@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Literal
 
 from pydantic import Field, field_validator, model_validator
-from seaway.contract.config import ConfigError, ConfigModel
+from seaway.contract.config import ConfigModel, named_file
 from seaway.vessel.mavlink_signing import read_key
 
 from seaway_vehicle_io import profile, rates
@@ -26,17 +26,8 @@ CONFIG_DIR = Path(__file__).resolve().parents[2] / "config"
 
 
 def config_path(name_or_path: str) -> Path:
-    """``name_or_path`` if it names a .toml/.json file, else ``CONFIG_DIR/<name>.toml``; ConfigError
-    listing the shipped names if there is no such file."""
-    p = Path(name_or_path)
-    if p.suffix in (".toml", ".json"):
-        return p
-    named = CONFIG_DIR / f"{name_or_path}.toml"
-    if not named.is_file():
-        shipped = ", ".join(sorted(f.stem for f in CONFIG_DIR.glob("*.toml")))
-        raise ConfigError(f"vehicle_io config {name_or_path!r}: not a .toml/.json path and not a "
-                          f"shipped config; shipped: {shipped}")
-    return named
+    """A config's path, or ``CONFIG_DIR/<name>.toml``; ConfigError listing the shipped names."""
+    return named_file(CONFIG_DIR, name_or_path, "vehicle_io config", "services/vehicle_io/config/")
 
 
 AutopilotChoice = Literal[AUTOPILOT_CHOICES]  # type: ignore[valid-type]  # built from the registry

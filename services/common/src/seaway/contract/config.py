@@ -96,16 +96,24 @@ def deploy_path(*parts: str) -> Path:
     return root.joinpath("deploy", *parts)
 
 
-def deploy_named(folder: str, name_or_path: str | Path, what: str) -> Path:
+def named_file(folder: Path, name_or_path: str | Path, what: str, shown: str) -> Path:
     """``name_or_path`` if it is a file's path (it ends in .toml or .json), else
-    ``deploy/<folder>/<name>.toml``; a name with no such file raises ConfigError listing the names
-    there are (``what``: "scenario", "vessel", ... for the message)."""
+    ``<folder>/<name>.toml``; a name with no such file raises ConfigError listing the names there
+    are (``what``: "scenario", "vessel file", ... and ``shown``: the folder, for the message)."""
     p = Path(name_or_path)
     if p.suffix in (".toml", ".json"):
         return p
-    p = deploy_path(folder, f"{name_or_path}.toml")
+    p = folder / f"{name_or_path}.toml"
     if not p.is_file():
-        names = sorted(q.stem for q in p.parent.glob("*.toml"))
-        raise ConfigError(f"no {what} {str(name_or_path)!r} (deploy/{folder}/); there are: "
+        names = sorted(q.stem for q in folder.glob("*.toml"))
+        raise ConfigError(f"no {what} {str(name_or_path)!r} ({shown}); there are: "
                           + (", ".join(names) or "none") + "; or give a file's path")
     return p
+
+
+def deploy_named(folder: str, name_or_path: str | Path, what: str) -> Path:
+    """``named_file`` in ``deploy/<folder>/``."""
+    p = Path(name_or_path)
+    if p.suffix in (".toml", ".json"):
+        return p
+    return named_file(deploy_path(folder), name_or_path, what, f"deploy/{folder}/")

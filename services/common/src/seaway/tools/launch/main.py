@@ -295,7 +295,6 @@ class StatusLine:
         self.state: dict[str, StateEstimate | None] = dict.fromkeys(self.vessels)
         self.energy: dict[str, EnergyBudget | None] = dict.fromkeys(self.vessels)
         self.thrust: dict[str, ThrustCommand | None] = dict.fromkeys(self.vessels)
-        """The latest command: shown while there is no mission (``seaway identify fly``, say)."""
         self.decided: dict[str, EnergyBudget | None] = dict.fromkeys(self.vessels)
         """The budget of the period each vessel's decision was taken (its figures say why)."""
         self.tty = sys.stdout.isatty()
@@ -312,8 +311,9 @@ class StatusLine:
                           callback=lambda _k, m, v=v: self.state.__setitem__(v, m))
             bus.subscribe(keys.MISSION_ENERGY, vessel=v,
                           callback=lambda _k, m, v=v: self.on_energy(v, m))
-            bus.subscribe(keys.THRUST, vessel=v,
-                          callback=lambda _k, m, v=v: self.thrust.__setitem__(v, m))
+            if self.commands:  # not otherwise: in lockstep the commands come hundreds a second
+                bus.subscribe(keys.THRUST, vessel=v,
+                              callback=lambda _k, m, v=v: self.thrust.__setitem__(v, m))
 
     def on_energy(self, vessel: str, budget: EnergyBudget) -> None:
         """The vessel's latest budget; the first one of a decision is kept for its figures."""
