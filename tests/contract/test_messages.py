@@ -67,6 +67,8 @@ EXAMPLES: dict[type[m.Message], dict] = {
                          no_return_y_m=1.0, no_return_along_m=4.0, policy="return",
                          decision="none"),
     m.NavResetRequest: dict(keep_origin=False, reason="operator"),
+    m.LogRecord: dict(process="controller", level="INFO", logger="seaway_controller.core",
+                      message="mission accepted"),
     m.Refusals: dict(identity="vehicle_io", total=3, overflow=0,
                      counts=[{"identity": "estimator", "action": "put", "key": "seaway/v1/ctrl/thrust",
                               "count": 3, "last_ns": 5}]),

@@ -24,7 +24,6 @@ from collections import Counter, defaultdict
 from pathlib import Path
 
 import foxglove.messages as fg
-import jsonschema
 import pytest
 from seaway.contract import keys
 
@@ -35,6 +34,7 @@ from tests.system.foxglove.wsclient import (
     channel_schema_bytes,
     decode_protobuf,
 )
+from tests.unit.recorder.foxglove_check import contract_validator
 
 pytestmark = pytest.mark.system
 VESSEL = "vessel1"
@@ -49,9 +49,11 @@ WANTED = {
 }
 """What the reading client must receive many of: bus topics of every producer and derived channels."""
 ONCE = {f"foxglove/{VESSEL}/mission", f"foxglove/{VESSEL}/scene/mission", f"foxglove/{VESSEL}/tf/ned",
-        f"foxglove/{VESSEL}/scene/vessel", keys.MISSION_ACCEPTED.key(VESSEL)}
+        f"foxglove/{VESSEL}/scene/vessel", keys.MISSION_ACCEPTED.key(VESSEL),
+        keys.LOG_LINE.key(VESSEL), "foxglove/log"}
 """Published once, before any client could subscribe to them (a channel is advertised with its
-first message): they arrive only because a subscriber gets each channel's latest message."""
+first message): they arrive only because a subscriber gets each channel's latest message. The log
+(the lines the recorder tails, put on the bus, served as foxglove.Log) comes in bursts."""
 BACKLOG = 4096
 """The server's queue per client (``--backlog``): 0.8 s of this run's ~5,000 messages/s."""
 
@@ -127,14 +129,14 @@ def test_a_foxglove_client_receives_the_live_stack_with_valid_messages(zenoh_env
             assert spec is not None and spec.message is not None, topic
             assert ch["schemaName"] == spec.message.SCHEMA, ch
             assert ch["encoding"] == "json" and ch["schemaEncoding"] == "jsonschema", ch
-            validator = jsonschema.Draft202012Validator(json.loads(schema))
+            validator = contract_validator(ch["schemaName"], schema)
             for m in msgs:
                 errors = [e.message for e in validator.iter_errors(json.loads(m.data))]
                 assert not errors, f"{topic}: {errors[:3]}"
                 spec.message.decode(m.data)
             continue
         # A derived channel: protobuf with foxglove-sdk's schema, read as Foxglove reads it.
-        assert topic.startswith(f"foxglove/{VESSEL}/"), topic
+        assert topic.startswith(f"foxglove/{VESSEL}/") or topic == "foxglove/log", topic
         assert ch["encoding"] == "protobuf" and ch["schemaEncoding"] == "protobuf", ch
         name = ch["schemaName"]
         assert name.startswith("foxglove."), ch
@@ -143,6 +145,11 @@ def test_a_foxglove_client_receives_the_live_stack_with_valid_messages(zenoh_env
             assert schema == bytes(fg.LocationFix.get_schema().data)
             for doc in docs:  # within 0.001 deg (~100 m) of the origin: paper-c1's path spans 10 m
                 assert abs(doc["latitude"] - lat0) < 1e-3 and abs(doc["longitude"] - lon0) < 1e-3, doc
+        if name == "foxglove.Log":  # the run's processes, named; the lines as their logs have them
+            assert schema == bytes(fg.Log.get_schema().data)
+            assert {doc["name"] for doc in docs} <= {"sim", "estimator", "controller", "recorder",
+                                                    "launcher"}, docs[:3]
+            assert all(doc["message"] for doc in docs), docs[:3]
 
     # The reading client lost nothing while the other one stalled: sim/truth every period.
     stamps = [json.loads(m.data)["stamp_ns"] for m in got[keys.SIM_TRUTH.key(VESSEL)]]

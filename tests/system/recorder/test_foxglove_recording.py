@@ -20,13 +20,12 @@ import sys
 import time
 from pathlib import Path
 
-import jsonschema
 import pytest
 from mcap.reader import make_reader
 from seaway.contract import keys
 from seaway.contract.messages import MissionStatus
 
-from tests.unit.recorder.foxglove_check import foxglove_messages, t_ns
+from tests.unit.recorder.foxglove_check import contract_validator, foxglove_messages, t_ns
 
 pytestmark = pytest.mark.system
 BIN = Path(sys.executable).parent
@@ -92,7 +91,7 @@ def test_lockstep_recording_is_on_sim_time_and_every_foxglove_channel_is_valid(t
 
     # Every bus message is logged at the epoch plus its own sim stamp, exactly; published (received)
     # at the wall time, which in lockstep runs far ahead of it.
-    n_bus = 0
+    n_bus = n_logs = 0
     last_stamp = 0
     ahead = []
     validators: dict[int, object] = {}
@@ -104,10 +103,13 @@ def test_lockstep_recording_is_on_sim_time_and_every_foxglove_channel_is_valid(t
             if schema is not None:
                 v = validators.get(schema.id)
                 if v is None:
-                    s = json.loads(schema.data)
-                    v = validators[schema.id] = jsonschema.validators.validator_for(s)(s)
+                    v = validators[schema.id] = contract_validator(schema.name, schema.data)
                 v.validate(doc)
-            if channel.topic.startswith(f"seaway/{V}/"):
+            if channel.topic == keys.LOG_LINE.key(V):  # a log line: wall-stamped, placed like one
+                assert doc["stamp_ns"] > 10**17
+                assert epoch_ns <= m.log_time <= epoch_ns + last_stamp + 10**9, doc
+                n_logs += 1
+            elif channel.topic.startswith(f"seaway/{V}/"):
                 assert m.log_time == epoch_ns + doc["stamp_ns"], (channel.topic, m.log_time, doc)
                 n_bus += 1
                 last_stamp = max(last_stamp, doc["stamp_ns"])
@@ -116,6 +118,7 @@ def test_lockstep_recording_is_on_sim_time_and_every_foxglove_channel_is_valid(t
                 assert channel.topic == "launcher/events"
                 assert epoch_ns <= m.log_time <= epoch_ns + last_stamp + 10**9
     assert n_bus > 1000
+    assert n_logs > 10  # the recorder put the lines it tails on the bus, and recorded them
     assert last_stamp > 20 * 10**9  # a 30 m leg at about 1 m/s
     assert max(ahead) > 0, "publish times are the wall-clock receive times"
 

@@ -7,14 +7,13 @@ import json
 import signal
 import subprocess
 
-import jsonschema
 import pytest
 from mcap.reader import make_reader
 from seaway.contract import keys
 from seaway.runtime.bus import Bus
 
 from tests.conftest import BIN, wait_for
-from tests.unit.recorder.foxglove_check import foxglove_messages
+from tests.unit.recorder.foxglove_check import contract_validator, foxglove_messages
 
 pytestmark = pytest.mark.system
 SERVICES = ("seaway-sim", "seaway-estimator", "seaway-controller")
@@ -58,8 +57,7 @@ def test_lockstep_mission_recorded_and_reported(procs, zenoh_env, tmp_path) -> N
             assert schema is not None and channel.message_encoding == "json", channel.topic
             v = validators.get(schema.id)
             if v is None:
-                doc = json.loads(schema.data)
-                v = validators[schema.id] = jsonschema.validators.validator_for(doc)(doc)
+                v = validators[schema.id] = contract_validator(schema.name, schema.data)
             v.validate(json.loads(m.data))
     assert n == stats.message_count > 1000
     assert foxglove_messages(path), "the derived Foxglove channels, against foxglove-sdk's schemas"

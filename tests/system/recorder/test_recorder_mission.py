@@ -9,14 +9,13 @@ import signal
 import sys
 from pathlib import Path
 
-import jsonschema
 import numpy as np
 import pytest
 from mcap.reader import make_reader
 
 from tests.conftest import BIN, wait_for
 from tests.system.recorder import mission_publisher as mp
-from tests.unit.recorder.foxglove_check import foxglove_messages
+from tests.unit.recorder.foxglove_check import contract_validator, foxglove_messages
 
 pytestmark = pytest.mark.system
 HERE = Path(__file__).parent
@@ -101,9 +100,7 @@ def test_mission_recorded_read_back_validated_and_reported(procs, zenoh_env, tmp
             assert channel.message_encoding == "json"
             validator = validators.get(schema.id)
             if validator is None:
-                doc = json.loads(schema.data)
-                jsonschema.validators.validator_for(doc).check_schema(doc)
-                validator = validators[schema.id] = jsonschema.validators.validator_for(doc)(doc)
+                validator = validators[schema.id] = contract_validator(schema.name, schema.data)
             validator.validate(json.loads(m.data))
             if channel.topic == "recorder/malformed":
                 malformed.append(json.loads(m.data))

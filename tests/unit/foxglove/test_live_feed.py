@@ -13,15 +13,16 @@ import math
 import socket
 from pathlib import Path
 
-import jsonschema
 import pytest
 from mcap.reader import make_reader
 from seaway.contract import keys
 from seaway.contract.messages import GnssFix, NavOrigin, SimTruth, StateEstimate, ThrustCommand
 from seaway_recorder import live, schemas
+from seaway_recorder.logtail import log_record, parse_line
 from seaway_recorder.writer import RecordingWriter
 
 from tests.system.foxglove.wsclient import decode_protobuf
+from tests.unit.recorder.foxglove_check import contract_validator
 
 V = "v1"
 ORIGIN = NavOrigin.make(stamp_ns=0, lat_rad=math.radians(47.0), lon_rad=math.radians(8.0), alt_m=400.0)
@@ -101,7 +102,7 @@ def test_every_message_reads_with_its_channels_schema() -> None:
             decode_protobuf(name, data, payload)
         else:
             assert encoding == "jsonschema" and msg_enc == "json", topic
-            jsonschema.Draft202012Validator(json.loads(data)).validate(json.loads(payload))
+            contract_validator(name, data).validate(json.loads(payload))
 
 
 def test_a_location_fix_is_where_the_vessel_is() -> None:
@@ -151,3 +152,27 @@ def test_a_port_in_use_is_refused_with_a_hint(capsys: pytest.CaptureFixture[str]
     err = capsys.readouterr().err
     assert f"cannot serve on 127.0.0.1:{port}" in err and "Address already in use" in err
     assert "--port" in err
+
+
+def test_a_log_line_on_the_bus_is_served_as_the_recordings_log(tmp_path: Path) -> None:
+    # The recorder tails a process's log: into its file (write_log) and onto the bus (LogRecord);
+    # the live feed makes of the bus message the same foxglove.Log, at the same time.
+    line = parse_line("2026-11-24 01:02:03,456 controller WARNING seaway_controller.core: slow solve")
+    record = log_record("controller", line, now_ns=1)
+    assert record.stamp_ns == line.wall_ns and record.level == "WARNING"
+    w = RecordingWriter(tmp_path / "r.mcap", foxglove=True)
+    w.open(0)
+    w.write_log("controller", line)
+    w.close(10**19)
+    with open(tmp_path / "r.mcap", "rb") as fh:
+        (s, _c, m), = make_reader(fh).iter_messages(topics=["foxglove/log"])
+    feed = live.LiveFeed()
+    got = feed.feed(keys.LOG_LINE.key(V), record.encode(), "application/json", 5)
+    assert [g.channel.topic for g in got] == [keys.LOG_LINE.key(V), "foxglove/log"]
+    log_msg = got[1]
+    assert (log_msg.channel.schema_name, log_msg.channel.schema_data) == (s.name, s.data)
+    assert (log_msg.payload, log_msg.log_time_ns) == (bytes(m.data), m.log_time)
+    decoded = decode_protobuf(s.name, s.data, log_msg.payload)
+    assert decoded["name"] == "controller" and decoded["message"] == "seaway_controller.core: slow solve"
+    # A line without a time of its own carries the time it was read.
+    assert log_record("sim", parse_line("Traceback (most recent call last):"), now_ns=42).stamp_ns == 42

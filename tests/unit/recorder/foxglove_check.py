@@ -62,3 +62,71 @@ def foxglove_messages(path: Path) -> list[tuple[str, str, int, Any]]:
 def t_ns(stamp: Any) -> int:
     """A decoded ``google.protobuf.Timestamp`` in ns."""
     return stamp.seconds * 1_000_000_000 + stamp.nanos
+
+
+# -- JSON Schema channels as Foxglove reads them ------------------------------------------------
+
+_FOXGLOVE_FIELD_TYPES = {"boolean", "string", "number", "integer", "object", "array"}
+
+
+def foxglove_json_problems(schema: dict[str, Any], path: str = "") -> list[str]:
+    """What Foxglove's (and Lichtblick's) JSON Schema reader would refuse in ``schema``: the rules of
+    ``parseJsonSchema`` in ``@foxglove/mcap-support`` (an object with ``properties``; each field one
+    type of boolean/string/number/integer/object/array, an array's items one of those but array;
+    ``oneOf`` only as numeric constants; no ``$ref`` followed). One refused field fails the channel.
+    The browser test (tests/system/foxglove/test_foxglove_studio.py) checks the same in Foxglove."""
+    out: list[str] = []
+    if schema.get("type") != "object":
+        return [f"{path or 'root'}: type {schema.get('type')!r}, not 'object'"]
+    props = schema.get("properties")
+    if not isinstance(props, dict):
+        return [f"{path or 'root'}: an object without properties"]
+    for name, field in props.items():
+        where = f"{path}.{name}" if path else name
+        if isinstance(field.get("oneOf"), list):
+            if not all(isinstance(a.get("const"), int | float) for a in field["oneOf"]):
+                out.append(f"{where}: oneOf other than numeric constants")
+            continue
+        kind = field.get("type")
+        if kind not in _FOXGLOVE_FIELD_TYPES:
+            out.append(f"{where}: type {kind!r}")
+        elif kind == "object":
+            out.extend(foxglove_json_problems(field, where))
+        elif kind == "array":
+            items = field.get("items") or {}
+            if items.get("type") not in _FOXGLOVE_FIELD_TYPES - {"array"}:
+                out.append(f"{where}[]: item type {items.get('type')!r}")
+            elif items["type"] == "object":
+                out.extend(foxglove_json_problems(items, f"{where}[]"))
+        elif kind == "string" and field.get("contentEncoding") not in (None, "base64"):
+            out.append(f"{where}: contentEncoding {field['contentEncoding']!r}")
+    return out
+
+
+def contract_validator(schema_name: str, schema_data: bytes) -> Any:
+    """A validator of a JSON channel's messages. A bus topic's channel (``seaway.v1.*``) carries the
+    Foxglove form of its type's schema, which names a nullable field's type alone: its messages are
+    validated against the contract's own schema (``Message.json_schema``), after checking the
+    channel's schema is exactly that schema's Foxglove form. Any other channel: its own schema."""
+    import json
+
+    import jsonschema
+    from seaway.contract.messages import Message
+    from seaway_recorder.schemas import foxglove_json_schema
+
+    doc = json.loads(schema_data)
+    contract = _contract_types().get(schema_name)
+    if contract is not None:
+        assert doc == foxglove_json_schema(contract.json_schema()), schema_name
+        assert not foxglove_json_problems(doc), (schema_name, foxglove_json_problems(doc))
+        doc = contract.json_schema()
+    assert isinstance(contract, type | None) and (contract is None or issubclass(contract, Message))
+    cls = jsonschema.validators.validator_for(doc)
+    cls.check_schema(doc)
+    return cls(doc)
+
+
+def _contract_types() -> dict[str, Any]:
+    from seaway.contract.messages import ALL_MESSAGES
+
+    return {cls.SCHEMA: cls for cls in ALL_MESSAGES}

@@ -163,7 +163,9 @@ def test_prediction_is_drawn_and_removed_when_a_step_has_none() -> None:
 def test_log_message_levels() -> None:
     for level, want in (("DEBUG", 1), ("INFO", 2), ("WARNING", 3), ("ERROR", 4), ("CRITICAL", 5),
                         ("", 0)):
-        name, msg = decode(log_message(7_000_000_001, level, "controller", "text"))
+        name, msg = decode(log_message(7_000_000_001, level, "controller", "", "text"))
         assert name == "foxglove.Log"
         assert (msg.level, msg.name, msg.message, t_ns(msg.timestamp)) == (want, "controller", "text",
                                                                           7_000_000_001)
+    _, msg = decode(log_message(1, "INFO", "sim", "seaway_sim.core", "stepped"))
+    assert msg.message == "seaway_sim.core: stepped"  # the logger's name leads, as in the text log

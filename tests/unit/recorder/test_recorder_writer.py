@@ -14,6 +14,7 @@ from seaway.contract.messages import NavOrigin, SimTruth, ThrustCommand
 from seaway.vessel.frames import GeoOrigin
 from seaway_recorder.recording import iter_messages, open_paths, read_info
 from seaway_recorder.recover import recover
+from seaway_recorder.schemas import foxglove_json_schema
 from seaway_recorder.writer import AttachmentSpec, RecordingWriter
 
 from tests.unit.recorder.foxglove_check import foxglove_messages, t_ns
@@ -57,7 +58,7 @@ def test_bytes_unchanged_with_schemas_metadata_and_attachments(tmp_path: Path) -
         summary = r.get_summary()
         schemas = {s.name: json.loads(s.data) for s in summary.schemas.values()}
         assert set(schemas) == {"seaway.v1.SimTruth", "seaway.v1.ThrustCommand"}
-        assert schemas["seaway.v1.SimTruth"] == SimTruth.json_schema()
+        assert schemas["seaway.v1.SimTruth"] == foxglove_json_schema(SimTruth.json_schema())
         assert all(s.encoding == "jsonschema" for s in summary.schemas.values())
         assert {c.metadata["producer"] for c in summary.channels.values()} == {"sim", "controller"}
         assert [(a.name, a.data) for a in r.iter_attachments()] == [("scenario/s.toml", b"name = 's'")]

@@ -192,10 +192,12 @@ def mission_geojson(msg: MissionAccepted, origin: GeoOrigin) -> str:
     return json.dumps({"type": "FeatureCollection", "features": features})
 
 
-def log_message(t_ns: int, level: str, name: str, message: str) -> Derived:
-    """A ``foxglove.Log`` on ``LOG_TOPIC``; ``level`` is Python's name (``INFO``, ...)."""
+def log_message(t_ns: int, level: str, name: str, logger: str, message: str) -> Derived:
+    """A ``foxglove.Log`` on ``LOG_TOPIC`` of one line of process ``name``'s log; ``level`` is
+    Python's name (``INFO``, ...); the text is ``logger: message`` (the message alone without one)."""
+    text = f"{logger}: {message}" if logger else message
     return Derived(LOG_TOPIC, fg.Log(timestamp=timestamp(t_ns), level=LOG_LEVELS.get(level.upper(),
-                                     fg.LogLevel.Unknown), message=message, name=name))
+                                     fg.LogLevel.Unknown), message=text, name=name))
 
 
 LOG_LEVELS = {"DEBUG": fg.LogLevel.Debug, "INFO": fg.LogLevel.Info, "WARNING": fg.LogLevel.Warning,

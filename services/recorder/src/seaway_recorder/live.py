@@ -4,8 +4,10 @@ The same channels as a recording (``writer.py``): every bus topic of the vessel
 (``seaway/<vessel>/...``, the bytes unchanged, ``json`` with its message's JSON Schema), a malformed
 sample on ``recorder/malformed``, and the derived Foxglove channels of ``derive.py`` (LocationFix,
 GeoJSON, FrameTransform, SceneUpdate on ``foxglove/<vessel>/...``: protobuf, foxglove-sdk's
-schemas), served by foxglove-sdk's WebSocket server (``foxglove.start_server``). Not served: the
-run's log lines and the launcher's events, which the recorder reads from the run folder's files.
+schemas), served by foxglove-sdk's WebSocket server (``foxglove.start_server``); and the run's log
+as ``foxglove.Log`` on ``foxglove/log``, from the lines the recorder tails and puts on the bus
+(``logs/line``). Not served: the launcher's events, which only the recorder reads (from the run
+folder's ``events.jsonl``).
 It only reads the bus: it publishes nothing, answers no request and offers the viewer no way to
 send one (no capabilities: no client publish, services or parameters).
 
@@ -45,7 +47,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from seaway.contract import keys
-from seaway.contract.messages import MessageError
+from seaway.contract.messages import LogRecord, MessageError
 from seaway.runtime.service import (
     DEFAULT_VESSEL,
     add_log_level_option,
@@ -151,7 +153,14 @@ class LiveFeed:
             stamp = msg.stamp_ns if msg is not None else stamp_of(payload)
         log_ns = self.time.bus(key, stamp, receive_ns)
         out = [LiveMessage(spec, payload, log_ns)]
-        if msg is not None:
+        if isinstance(msg, LogRecord):
+            # The run's log, as the recorder put it on the bus from the files it tails: the same
+            # foxglove.Log the recording has (writer.write_log), at the line's own time.
+            line_ns = self.time.wall(msg.stamp_ns)
+            d = derive.log_message(line_ns, msg.level, msg.process, msg.logger, msg.message)
+            out.append(LiveMessage(derive.channel_spec(d), d.payload(), line_ns))
+            self.stats.derived += 1
+        elif msg is not None:
             derived = self._deriver.feed(key, msg)
             out += [LiveMessage(derive.channel_spec(d), d.payload(), log_ns) for d in derived]
             self.stats.derived += len(derived)

@@ -19,10 +19,13 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
+from seaway.contract.messages import MAX_LOG_MESSAGE_CHARS, LogRecord
+
 _RECORD = re.compile(r"^(\d{4}-\d\d-\d\d \d\d:\d\d:\d\d),(\d{3}) \S+ "
                      r"(DEBUG|INFO|WARNING|ERROR|CRITICAL) (\S+?): (.*)$")
 MAX_LINE_CHARS = 8192
 """A longer line is cut (and says so): a log panel is not the place for a megabyte of text."""
+assert MAX_LINE_CHARS + 60 <= MAX_LOG_MESSAGE_CHARS  # the cut line and its note fit a LogRecord
 
 
 @dataclass(frozen=True)
@@ -47,6 +50,12 @@ def parse_line(text: str) -> LogLine:
     local = dt.datetime.strptime(m.group(1), "%Y-%m-%d %H:%M:%S").astimezone()
     wall_ns = int(local.timestamp()) * 1_000_000_000 + int(m.group(2)) * 1_000_000
     return LogLine(wall_ns, m.group(3), m.group(4), m.group(5))
+
+
+def log_record(process: str, line: LogLine, now_ns: int) -> LogRecord:
+    """The bus message of one line (``keys.LOG_LINE``): at its own time, else ``now_ns``."""
+    return LogRecord(stamp_ns=line.wall_ns or now_ns, process=process[:64] or "?",
+                     level=line.level[:16], logger=line.logger[:200], message=line.message)
 
 
 class FileTail:

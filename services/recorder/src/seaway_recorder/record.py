@@ -22,12 +22,12 @@ import socket
 import sys
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from seaway.contract import keys
 from seaway.contract.config import ConfigError
-from seaway.contract.messages import LOCKSTEP_SERVICES, MessageError, PeriodDone
+from seaway.contract.messages import LOCKSTEP_SERVICES, LogRecord, MessageError, PeriodDone
 from seaway.runtime.bus import Bus, RawSample
 from seaway.runtime.lockstep import Member, Period
 from seaway.runtime.run import RunDescription
@@ -38,7 +38,7 @@ from seaway.simkit.scenario import load_scenario
 from seaway.vessel.frames import GeoOrigin
 
 from seaway_recorder import runinfo
-from seaway_recorder.logtail import FileTail, LogTail
+from seaway_recorder.logtail import FileTail, LogTail, log_record
 from seaway_recorder.recover import recover
 from seaway_recorder.timebase import RecordingTime, parse_epoch, stamp_of
 from seaway_recorder.writer import LIBRARY, RUN_METADATA, AttachmentSpec, RecordingWriter
@@ -373,7 +373,8 @@ def run(argv: Sequence[str]) -> int:
             witness.member.join()
         print("READY", flush=True)
         tails = Tails(FileTail(args.events) if args.events else None,
-                      LogTail(args.logs) if args.logs else None)
+                      LogTail(args.logs) if args.logs else None,
+                      ctx.bus.publisher(keys.LOG_LINE).put if args.logs else None)
         try:
             _loop(writer, queue, ctx.stop, args.flush_interval, args.status_interval, witness, tails)
             queue.accepting = False
@@ -417,19 +418,31 @@ def _drain(writer: RecordingWriter, queue: SampleQueue, limit: int | None,
 
 
 class Tails:
-    """The files copied into the recording as they grow: the launcher's events, the run's logs."""
+    """The files copied into the recording as they grow: the launcher's events, the run's logs.
 
-    def __init__(self, events: FileTail | None, logs: LogTail | None) -> None:
+    ``publish``: also put each log line on the bus (``keys.LOG_LINE``), for a viewer that is not
+    on this machine (``seaway foxglove`` on the shore). A line that cannot be published (the
+    session closing) is still recorded."""
+
+    def __init__(self, events: FileTail | None, logs: LogTail | None,
+                 publish: Callable[[LogRecord], None] | None = None) -> None:
         self.events = events
         self.logs = logs
+        self.publish = publish
 
     def copy(self, writer: RecordingWriter) -> None:
         if self.events is not None:
             for line in self.events.poll():
                 writer.write_event(line)
         if self.logs is not None:
-            for process, line in self.logs.poll(time.time_ns()):
+            now_ns = time.time_ns()
+            for process, line in self.logs.poll(now_ns):
                 writer.write_log(process, line)
+                if self.publish is not None:
+                    try:
+                        self.publish(log_record(process, line, now_ns))
+                    except Exception as err:
+                        log.debug("log line not published: %s", err)
 
 
 def _loop(writer: RecordingWriter, queue: SampleQueue, stop: threading.Event, flush_s: float,

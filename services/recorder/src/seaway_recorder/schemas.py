@@ -2,7 +2,8 @@
 
 * every registered key ``seaway/<vessel>/<suffix>`` becomes an MCAP channel whose topic is the key,
   ``message_encoding="json"`` and a ``jsonschema`` schema named with the message's versioned name
-  (``seaway.v1.SimTruth``), the JSON Schema its type generates;
+  (``seaway.v1.SimTruth``): the JSON Schema its type generates, in the form Foxglove and Lichtblick
+  read (``foxglove_json_schema``);
 * a key the registry does not know is still recorded, unchanged, on a channel without a schema
   (schema id 0), so nothing on the bus is lost;
 * a sample whose bytes do not decode as its key's type goes to the error channel
@@ -59,6 +60,84 @@ class ChannelSpec:
     metadata: dict[str, str]
 
 
+_FOXGLOVE_TYPES = ("boolean", "string", "number", "integer", "object", "array")
+_NULLABLE_NOTE = ("Foxglove's form of the schema: a field whose value may be absent is null then, "
+                  "though its type is named alone (the contract: seaway.contract.messages)")
+
+
+def foxglove_json_schema(schema: dict[str, Any]) -> dict[str, Any]:
+    """``schema`` (pydantic's JSON Schema of a message) in the form Foxglove and Lichtblick read.
+
+    Their reader (``parseJsonSchema`` of ``@foxglove/mcap-support``, copied by Lichtblick) takes
+    one ``type`` per field from boolean, string, number, integer, object (with ``properties``) and
+    array (of those, not of arrays), and follows no ``$ref``; any other field fails the whole
+    channel ("Unsupported type undefined for cross_track_m"), and with it every plot of the topic.
+    So: ``$ref`` is inlined from ``$defs``; ``anyOf``/``oneOf``/a type list with null becomes the
+    one type besides null (the value is null when absent: the one thing this form does not say,
+    noted in the root's ``description``); an object without ``properties`` (a map) gets empty ones;
+    a field with no single type left is dropped from ``properties`` (its values stay in every
+    message). The rest (titles, descriptions, bounds, enums, ``required``) is kept.
+    """
+    defs: dict[str, Any] = schema.get("$defs", {})
+
+    def resolve(node: dict[str, Any], seen: tuple[str, ...]) -> dict[str, Any] | None:
+        node = dict(node)
+        ref = node.pop("$ref", None)
+        if isinstance(ref, str):
+            name = ref.rsplit("/", 1)[-1]
+            if name in seen or name not in defs:  # a recursive type has no finite form here
+                return None
+            node = {**defs[name], **node}
+            seen = (*seen, name)
+        for alt_key in ("anyOf", "oneOf"):
+            alts = node.get(alt_key)
+            if not isinstance(alts, list):
+                continue
+            if alt_key == "oneOf" and all(isinstance(a.get("const"), int | float) for a in alts):
+                return node  # Foxglove's own numeric enum form
+            rest = [a for a in alts if a.get("type") != "null"]
+            if len(rest) != 1:
+                return None
+            del node[alt_key]
+            inner = resolve(rest[0], seen)
+            if inner is None:
+                return None
+            node = {**inner, **{k: v for k, v in node.items() if k != "type"}}
+        kind = node.get("type")
+        if isinstance(kind, list):
+            kinds = [k for k in kind if k != "null"]
+            if len(kinds) != 1:
+                return None
+            node["type"] = kind = kinds[0]
+        if kind not in _FOXGLOVE_TYPES:
+            return None
+        if kind == "object":
+            props = {}
+            for name, sub in node.get("properties", {}).items():
+                done = resolve(sub, seen)
+                if done is not None:
+                    props[name] = done
+            node["properties"] = props
+        elif kind == "array":
+            items = resolve(node.get("items", {}), seen)
+            if items is None or items["type"] == "array":
+                return None
+            node["items"] = items
+        return node
+
+    out = resolve({k: v for k, v in schema.items() if k != "$defs"}, ())
+    if out is None:
+        raise ValueError(f"schema {schema.get('title')!r} has no object form Foxglove reads")
+    out["description"] = f"{out['description']} ({_NULLABLE_NOTE})" if out.get("description") \
+        else _NULLABLE_NOTE
+    return out
+
+
+def foxglove_schema_text(schema: dict[str, Any]) -> bytes:
+    """``foxglove_json_schema`` as the bytes of an MCAP schema record."""
+    return json.dumps(foxglove_json_schema(schema), sort_keys=True).encode()
+
+
 def channel_for_key(key: str, zenoh_encoding: str = "") -> ChannelSpec:
     """The channel a bus key is recorded on (registered keys get their JSON Schema)."""
     spec = keys.spec_for_key(key)
@@ -66,14 +145,14 @@ def channel_for_key(key: str, zenoh_encoding: str = "") -> ChannelSpec:
     reporter = keys.refusals_identity(key)
     if reporter is not None:  # one key per identity: a family, not one registered key
         meta.update({"registered": "true", "producer": reporter, "vessel": key.split("/", 2)[1]})
-        return ChannelSpec(key, Refusals.SCHEMA, JSONSCHEMA, Refusals.json_schema_text().encode(),
-                           JSON, Refusals, meta)
+        return ChannelSpec(key, Refusals.SCHEMA, JSONSCHEMA,
+                           foxglove_schema_text(Refusals.json_schema()), JSON, Refusals, meta)
     if spec is None or spec.message is None or spec.kind != "topic":
         meta["registered"] = "false"
         return ChannelSpec(key, "", "", b"", JSON if "json" in zenoh_encoding else "", None, meta)
     meta.update({"registered": "true", "producer": spec.producer, "vessel": key.split("/", 2)[1]})
-    return ChannelSpec(key, spec.message.SCHEMA, JSONSCHEMA, spec.message.json_schema_text().encode(),
-                       JSON, spec.message, meta)
+    return ChannelSpec(key, spec.message.SCHEMA, JSONSCHEMA,
+                       foxglove_schema_text(spec.message.json_schema()), JSON, spec.message, meta)
 
 
 def malformed_channel() -> ChannelSpec:
@@ -85,7 +164,7 @@ def malformed_channel() -> ChannelSpec:
 def events_channel() -> ChannelSpec:
     """The launcher's process events (``seaway.tools.launch.events``), copied from its log."""
     return ChannelSpec(EVENTS_TOPIC, ProcessEvent.SCHEMA, JSONSCHEMA,
-                       ProcessEvent.json_schema_text().encode(), JSON, None,
+                       foxglove_schema_text(ProcessEvent.model_json_schema()), JSON, None,
                        {"role": "events", "source": "launcher"})
 
 

@@ -387,8 +387,7 @@ class RecordingWriter:
         it was logged (``line.wall_ns``; in lockstep the sim time reached then)."""
         wall_ns = line.wall_ns or 0
         log_ns = self.time.wall(wall_ns)
-        text = f"{line.logger}: {line.message}" if line.logger else line.message
-        d = derive.log_message(log_ns, line.level, process, text)
+        d = derive.log_message(log_ns, line.level, process, line.logger, line.message)
         self._put(derive.channel_spec(d), d.payload(), log_ns, wall_ns)
         self.stats.logs += 1
 

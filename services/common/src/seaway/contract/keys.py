@@ -100,6 +100,8 @@ LOCKSTEP_SIM = KeySpec("lockstep/sim", m.PeriodDone, "sim", doc="lockstep: the p
 LOCKSTEP_ESTIMATOR = KeySpec("lockstep/estimator", m.PeriodDone, "estimator")
 LOCKSTEP_CONTROLLER = KeySpec("lockstep/controller", m.PeriodDone, "controller")
 LOCKSTEP_RECORDER = KeySpec("lockstep/recorder", m.PeriodDone, "recorder")
+LOG_LINE = KeySpec("logs/line", m.LogRecord, "recorder",
+                   doc="each line of the run's process logs, as the recorder tails them")
 
 REGISTRY: tuple[KeySpec, ...] = tuple(v for v in list(globals().values()) if isinstance(v, KeySpec))
 """Every key defined above, in that order: defining a ``KeySpec`` here registers it."""

@@ -8,7 +8,6 @@ what happened to the processes as well as what they said.
 
 from __future__ import annotations
 
-import json
 from typing import ClassVar, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
@@ -32,7 +31,3 @@ class ProcessEvent(BaseModel):
 
     def line(self) -> str:
         return self.model_dump_json(exclude_defaults=True) + "\n"
-
-    @classmethod
-    def json_schema_text(cls) -> str:
-        return json.dumps(cls.model_json_schema(), sort_keys=True)
