@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import signal
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -85,3 +86,29 @@ def test_wrong_type_refused_before_the_wire(zenoh_env) -> None:
             stamp_ns=1, action="restart"), timeout_s=0.3)
         assert not r.accepted and "no reply" in r.reason
     time.sleep(0)
+
+
+LEAVES_OPEN = """
+import sys
+from seaway.contract import keys
+from seaway.runtime.bus import Bus
+bus = Bus.open("vessel1")
+bus.subscribe(keys.SIM_CLOCK, callback=lambda key, msg: None)
+bus.subscribe(keys.MISSION_STATUS, mode="latest")
+print("OPEN", flush=True)
+if sys.argv[1] == "raise":
+    raise RuntimeError("a service bug")
+"""
+
+
+@pytest.mark.parametrize("how", ["return", "raise"])
+def test_a_process_that_leaves_its_bus_open_still_exits(zenoh_env, how) -> None:
+    """zenoh-python serves callbacks on non-daemon threads that end only with their session: an
+    open bus once kept a crashed service (so the launcher never restarted it) and a failed test's
+    pytest (so CI ran out of time) alive for ever."""
+    out = subprocess.run([sys.executable, "-c", LEAVES_OPEN, how], env=zenoh_env,
+                         capture_output=True, text=True, timeout=60, check=False)
+    assert "OPEN" in out.stdout, out.stderr
+    assert out.returncode == (0 if how == "return" else 1), out.stderr
+    if how == "raise":
+        assert "RuntimeError: a service bug" in out.stderr

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import zenoh
 from seaway.runtime import credentials
-from seaway.runtime.zenoh_bus import load_zenoh_config
+from seaway.runtime.zenoh_bus import close_at_exit, load_zenoh_config
 
 REPO = Path(__file__).resolve().parents[3]
 ZENOH_DIR = REPO / "deploy" / "zenoh"
@@ -74,7 +74,7 @@ def session(side: str, identity: str, folder: Path, endpoint: str, *, rules: boo
     if mode is not None:
         conf.insert_json5("mode", json.dumps(mode))
         conf.insert_json5("listen/endpoints", "[]")
-    return zenoh.open(conf)
+    return close_at_exit(zenoh.open(conf))
 
 
 def bare_tls_client(endpoint: str, ca: Path, cert: Path | None = None, key: Path | None = None,
@@ -90,7 +90,7 @@ def bare_tls_client(endpoint: str, ca: Path, cert: Path | None = None, key: Path
         "scouting": {"multicast": {"enabled": False}},
         "transport": {"link": {"tls": tls}},
     }))
-    return zenoh.open(conf)
+    return close_at_exit(zenoh.open(conf))
 
 
 def link_address() -> str | None:

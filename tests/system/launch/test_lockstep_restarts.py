@@ -42,6 +42,17 @@ def _env() -> dict[str, str]:
     return env
 
 
+_started: list[Stack] = []
+
+
+@pytest.fixture(autouse=True)
+def _no_stack_outlives_its_test():
+    """A test that fails before ``finish`` leaves no launcher, member or session behind."""
+    yield
+    while _started:
+        _started.pop().abandon()
+
+
 class Stack:
     """One ``seaway launch sim-batch`` in the background, and a bus on its rendezvous."""
 
@@ -58,12 +69,23 @@ class Stack:
         self.bus = Bus.open("vessel1", identity="operator", credentials=stack_credentials())
         self.clock = self.bus.subscribe(keys.SIM_CLOCK, mode="latest")
         self.status = self.bus.subscribe(keys.MISSION_STATUS, mode="latest")
+        _started.append(self)
 
     def sim_time_reaches(self, t_ns: int, timeout_s: float = 120.0) -> None:
         def reached() -> bool:
             tick = self.clock.latest()
             return tick is not None and tick.stamp_ns >= t_ns
-        wait_for(reached, timeout_s, interval_s=0.002, what=f"simulated time {t_ns / 1e9:g} s")
+        try:
+            wait_for(reached, timeout_s, interval_s=0.002, what=f"simulated time {t_ns / 1e9:g} s")
+        except BaseException:
+            tick = self.clock.latest()
+            print(f"last tick: {tick}\n--- launch log ---\n{self.launch_log()[-6000:]}")
+            for f in sorted((self.run_dir / "logs").glob("*.log")):
+                print(f"--- {f.name} ---\n{f.read_text()[-3000:]}")
+            raise
+
+    def launch_log(self) -> str:
+        return (self.run_dir.parent / f"{self.run_dir.name}-launch.log").read_text()
 
     def pid_of(self, service: str) -> int:
         out = subprocess.run(["pgrep", "-f", f"seaway-{service} .*{self.run_dir}"],
@@ -82,7 +104,15 @@ class Stack:
                 os.killpg(self.proc.pid, signal.SIGKILL)
             self.bus.close()
             self.log.close()
-        assert rc == 0, (self.run_dir.parent / f"{self.run_dir.name}-launch.log").read_text()[-4000:]
+        assert rc == 0, self.launch_log()[-4000:]
+
+    def abandon(self) -> None:
+        """Kill the launcher and every process it started (one session), close the bus."""
+        if self.proc.poll() is None:
+            os.killpg(self.proc.pid, signal.SIGKILL)
+            self.proc.wait(10)
+        self.bus.close()
+        self.log.close()
 
     def stop(self) -> None:
         self.proc.send_signal(signal.SIGINT)

@@ -7,6 +7,10 @@
   (``seaway.runtime.credentials``). The credentials come from the caller, else
   ``$SEAWAY_CREDENTIALS``, else the stack registered on the rendezvous endpoint
   (``seaway.runtime.stacks``); none at all is an error, ``$SEAWAY_CREDENTIALS=none`` opts out.
+* Every session opened here is closed before the interpreter joins its threads at exit
+  (``close_at_exit``): zenoh-python serves each subscriber callback on a non-daemon thread that ends
+  only when its session closes, so one session left open (a service that raised, a test that failed
+  before its cleanup) kept the process alive for ever.
 * ``ZenohBus``: the byte-level primitives of ``seaway.runtime.bus.Bus`` on one session; the typed
   layer (validation, refusals, counters) is the interface's own, shared with the in-memory bus.
 """
@@ -16,6 +20,7 @@ from __future__ import annotations
 import json
 import logging
 import os
+import threading
 from collections.abc import Callable, Iterator
 from importlib import resources
 from pathlib import Path
@@ -127,7 +132,41 @@ def _speaks_tls(conf: zenoh.Config) -> bool:
 
 def open_session(config_path: str | Path | None = None, identity: str | None = None,
                  credentials: creds.Credentials | str | None = None) -> zenoh.Session:
-    return zenoh.open(load_zenoh_config(config_path, identity, credentials))
+    return close_at_exit(zenoh.open(load_zenoh_config(config_path, identity, credentials)))
+
+
+# Strong references (a Session takes no weak one); closed sessions are dropped at each new open.
+_open_sessions: list[zenoh.Session] = []
+_exit_hook_lock = threading.Lock()
+_exit_hook_registered = False
+
+
+def close_at_exit(session: zenoh.Session) -> zenoh.Session:
+    """``session``, to be closed when the interpreter exits, before it joins non-daemon threads.
+
+    ``atexit`` is too late: it runs after that join, which waits for ever on the callback threads of
+    an open session. ``threading._register_atexit`` (CPython 3.9+, what ``concurrent.futures`` uses
+    for its workers) runs before it.
+    """
+    global _exit_hook_registered
+    with _exit_hook_lock:
+        _open_sessions[:] = [s for s in _open_sessions if not s.is_closed()]
+        _open_sessions.append(session)
+        if not _exit_hook_registered:
+            threading._register_atexit(_close_open_sessions)  # type: ignore[attr-defined]
+            _exit_hook_registered = True
+    return session
+
+
+def _close_open_sessions() -> None:
+    with _exit_hook_lock:
+        sessions = list(_open_sessions)
+    for session in sessions:
+        try:
+            if not session.is_closed():
+                session.close()
+        except Exception:  # exiting anyway: one session's error must not keep the others open
+            log.debug("closing a Zenoh session at exit failed", exc_info=True)
 
 
 def _replies(handler: Iterator[Any]) -> Iterator[RawReply]:

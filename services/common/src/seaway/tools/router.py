@@ -52,7 +52,7 @@ from seaway.runtime.service import (
     configure_logging,
     install_stop_signals,
 )
-from seaway.runtime.zenoh_bus import ZenohBus
+from seaway.runtime.zenoh_bus import ZenohBus, close_at_exit
 
 log = logging.getLogger("seaway.tools.router")
 
@@ -308,7 +308,7 @@ def main(argv: list[str] | None = None) -> int:
     log.info("starting: %s", settings.summary())
     t0 = time.monotonic()
     try:
-        session = zenoh.open(conf)
+        session = close_at_exit(zenoh.open(conf))
     except Exception as err:  # a port in use, an unreadable certificate, ...
         log.error("could not start the router: %s", err)
         return 1
