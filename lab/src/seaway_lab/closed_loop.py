@@ -344,7 +344,7 @@ def run_closed_loop(scenario: str | Scenario, controller: ControllerKind,
                     vessel: VesselParams | None = None, max_time_s: float = DEFAULT_MAX_TIME_S,
                     progress: Callable[[float], None] | None = None,
                     estimator: EstimatorCore | None = None,
-                    battery_j: float | None = None) -> ClosedLoopResult:
+                    battery_j: float | None = None, battery: bool = False) -> ClosedLoopResult:
     """Fly ``scenario``'s mission with ``controller`` from the true state, one control period per
     tick; stops on completion or after ``max_time_s``.
 
@@ -353,7 +353,8 @@ def run_closed_loop(scenario: str | Scenario, controller: ControllerKind,
     it does not steer. ``battery_j``: the pack starts with this much usable energy [J] and the
     controller hears the simulator's report (``SimCore.battery``, what the lockstep sim
     publishes) every period; the run then goes on while the energy budget holds the mission, until
-    ``max_time_s``.
+    ``max_time_s``. ``battery``: the same reports from the scenario's own pack (as a lockstep stack
+    runs: the controller's budget then prices its point of no return every period).
     """
     sc = load_scenario(scenario) if isinstance(scenario, str) else scenario
     if sc.mission is None:
@@ -373,7 +374,8 @@ def run_closed_loop(scenario: str | Scenario, controller: ControllerKind,
         raise ValueError(f"mission refused: {reply.reason}")
     mission = core.missions.mission
     assert mission is not None
-    steering = MissionSteering(core, (lambda _truth: sim.battery()) if battery_j is not None else None)
+    reports = battery or battery_j is not None
+    steering = MissionSteering(core, (lambda _truth: sim.battery()) if reports else None)
     dt_s = core.config.dt_s
     run = fly(sim, steering, round(max_time_s / dt_s), s_to_ns(dt_s), estimator=estimator,
               progress=progress)

@@ -3,8 +3,10 @@ point of no return and the decision, on hand-checkable cases."""
 
 from __future__ import annotations
 
+import itertools
 import math
 
+import numpy as np
 import pytest
 from seaway.contract.messages import StateEstimate
 from seaway.vessel.model import load_vessel
@@ -14,9 +16,11 @@ from seaway_controller.energy import (
     Disturbance,
     EnergyModel,
     cruise,
+    cruise_courses,
     disturbance_sigma_points,
     no_return_point,
     predict,
+    predict_many,
 )
 
 BOAT = load_vessel("paper-boat")
@@ -113,6 +117,91 @@ def test_point_of_no_return_is_where_the_margin_reaches_zero():
     assert y == pytest.approx(0.0, abs=1e-9) and x == pytest.approx(along)
     assert 36.0 < x < 40.0  # the half turn home costs a little of the 40 m
     assert no_return_point(m, state(), wps, 1, (0.0, 0.0), 1e9, reserve, Disturbance()) is None
+
+
+@pytest.mark.parametrize("pay", [True, False])
+@pytest.mark.parametrize("force", [(0.0, 0.0), (-30.0, 12.0), (400.0, -350.0)])
+def test_cruise_along_many_courses_is_cruise_along_each(force, pay):
+    """The array form the point of no return uses: the same fixed point, element by element,
+    including thrusts at their bounds (the 400 N force) and courses the vessel cannot make."""
+    courses = np.linspace(-math.pi, math.pi, 73)
+    ground, power = cruise_courses(BOAT, TW, 1.1, courses, force[0], force[1], 3.0,
+                                   pay_in_thrust=pay)
+    for k, c in enumerate(courses):
+        one = cruise(BOAT, TW, 1.1, float(c), force, 3.0, pay_in_thrust=pay)
+        assert ground[k] == pytest.approx(one.ground_speed_mps, rel=1e-9, abs=1e-12)
+        assert power[k] == pytest.approx(one.power_w, rel=1e-9)
+
+
+def test_predictions_under_several_disturbances_are_the_runs_priced_one_by_one():
+    """predict_many prices every leg under all disturbances at once: against run_j leg by leg
+    (the figure to finish, with the MPC's leg and without, and home), one of the disturbances so
+    strong against the last leg that the vessel cannot make way there (inf)."""
+    m = model()
+    wps = [(0.0, 0.0), (50.0, 5.0), (70.0, 60.0), (0.0, 80.0)]
+    st = state(x=3.0, y=-2.0, psi=0.4)
+    dists = [Disturbance(), Disturbance((6.0, -9.0), 1.0), Disturbance((-2.0, 30.0), -0.5),
+             Disturbance((200.0, -900.0), 0.0)]
+    r, speed = m.coa_radius_m, m.cruise_speed_mps
+    for leg_mpc_j in (None, 4321.0):
+        got = predict_many(m, st, wps, 1, (0.0, 0.0), leg_mpc_j, dists)
+        for d, pred in zip(dists, got, strict=True):
+            pos = (st.x_m, st.y_m)
+            total, course = m.run_j(pos, wps[1], st.psi_rad, speed, d, r)
+            if leg_mpc_j is not None and math.isfinite(total):
+                left = math.dist(pos, wps[1])
+                und = m.cruise(course, speed, Disturbance()).j_per_m
+                total = leg_mpc_j - und * r + (m.cruise(course, speed, d).j_per_m - und) * (left - r)
+            entry = pos
+            for a, b in itertools.pairwise(wps[1:]):
+                f = (math.dist(entry, a) - r) / math.dist(entry, a)
+                entry = (entry[0] + f * (a[0] - entry[0]), entry[1] + f * (a[1] - entry[1]))
+                j, course = m.run_j(entry, b, course, speed, d, r)
+                total += j
+            home, _ = m.run_j(pos, (0.0, 0.0), st.psi_rad, speed, d, r)
+            assert pred.to_go_j == pytest.approx(total, rel=1e-9), (d, leg_mpc_j)
+            assert pred.to_home_j == pytest.approx(home, rel=1e-9), d
+    assert math.isinf(got[-1].to_go_j) and math.isfinite(got[1].to_go_j)
+
+
+def test_point_of_no_return_is_the_first_zero_of_the_margin_on_a_disturbed_path():
+    """Against the margin priced one run at a time on a fine grid: a three-leg path that turns
+    back past home, under a cross current, so the margin is not monotone along it."""
+    m = model()
+    wps = [(0.0, 0.0), (60.0, 0.0), (60.0, 40.0), (-30.0, 40.0)]
+    home, reserve, dist = (0.0, 0.0), 500.0, Disturbance((5.0, -8.0), 0.5)
+    st = state(x=2.0, y=1.0, psi=0.1)
+    speed = m.cruise_speed_mps
+
+    def margin_along(remaining: float, step: float) -> tuple[float, float] | None:
+        pos, heading, spent, done = (st.x_m, st.y_m), st.psi_rad, 0.0, 0.0
+        for wp in wps[1:]:
+            end = (wp[0] - pos[0], wp[1] - pos[1])
+            d = math.hypot(*end)
+            length = d - m.coa_radius_m
+            course = math.atan2(end[1], end[0])
+            spent += m.turn_j(course - heading, speed)
+            per_m = m.cruise(course, speed, dist).j_per_m
+            for a in np.arange(0.0, length, step):
+                q = (pos[0] + end[0] / d * a, pos[1] + end[1] / d * a)
+                home_j, _ = m.run_j(q, home, course, speed, dist, m.coa_radius_m)
+                if not remaining - (spent + per_m * a) - home_j - reserve > 0:
+                    return done + a, q
+            spent += per_m * length
+            done += length
+            pos = (pos[0] + end[0] / d * length, pos[1] + end[1] / d * length)
+            heading = course
+        return None
+
+    for remaining in (30_000.0, 75_000.0, 90_000.0, 200_000.0):  # legs 1, 2, 3; none
+        expected = margin_along(remaining, 0.01)
+        got = no_return_point(m, st, wps, 1, home, remaining, reserve, dist)
+        if expected is None:
+            assert got is None
+            continue
+        assert got is not None, remaining
+        assert got[2] == pytest.approx(expected[0], abs=0.02), remaining
+        assert math.dist(got[:2], expected[1]) < 0.02
 
 
 @pytest.mark.parametrize("policy", ["warn", "return", "hold"])

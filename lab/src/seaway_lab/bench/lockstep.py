@@ -5,7 +5,8 @@ The mission is paper condition #1 flown by CC-EMPC (333 s of simulated time, 333
 the processes: ``seaway launch sim-batch`` (sim, estimator, controller, recorder on a private Zenoh
 rendezvous); the figure is the WARM stack's wall time, from the sim's first step to its hold at the
 end, read from the recording (the recorder's receive time of each ``lockstep/*`` answer). In process:
-``seaway_lab.closed_loop.run_closed_loop`` (the same cores and the same solver, no bus), warm.
+``seaway_lab.closed_loop.run_closed_loop`` (the same cores and the same solver, no bus), warm,
+with the sim's battery report every period as in the stack.
 
 Where a period's time goes comes from the members' own marks (``seaway.runtime.timeline``, on the
 clock every process shares): for each period, each hand-over (transport: Zenoh, the decode, the hand
@@ -141,15 +142,17 @@ def run(argv: list[str]) -> BenchResult:
     res = BenchResult("lockstep", "Lockstep: paper condition #1, CC-EMPC, through the processes vs "
                                   "in process")
     sc = load_scenario(SCENARIO)
-    run_closed_loop(sc, CONTROLLER)  # warm: solvers loaded
+    run_closed_loop(sc, CONTROLLER, battery=True)  # warm: solvers loaded
     t0 = time.perf_counter()
-    inproc = run_closed_loop(sc, CONTROLLER)
+    inproc = run_closed_loop(sc, CONTROLLER, battery=True)
     bare_s = time.perf_counter() - t0
-    # The same parts as the stack: the estimator runs alongside on the sim's sensors (it does not
-    # steer in process: the controller flies the true state, as the paper's simulations do).
+    # The same parts as the stack: the controller hears the sim's battery every period (its budget
+    # prices the point of no return, as in the stack), and the estimator runs alongside on the
+    # sim's sensors (it does not steer in process: the controller flies the true state, as the
+    # paper's simulations do, so its budget has no disturbance band to price).
     cfg = EstimatorConfig().model_copy(update={"vessel": sc.vessel, "apply_dead_zone": sc.dead_zone})
     t0 = time.perf_counter()
-    run_closed_loop(sc, CONTROLLER, estimator=EstimatorCore(cfg))
+    run_closed_loop(sc, CONTROLLER, estimator=EstimatorCore(cfg), battery=True)
     inproc_s = time.perf_counter() - t0
 
     walls: dict[bool, list[float]] = {True: [], False: []}

@@ -65,8 +65,9 @@ TURN_TABLE_POINTS = 91
 """Turn angles [0, pi] at which the turn's extra energy is tabulated (2 deg apart), interpolated."""
 PNR_SCAN = 32
 """Points along the path ahead at which the margin is first predicted for the point of no return."""
-PNR_BISECTIONS = 16
-"""Halvings of the first scan interval where the margin reaches 0 (a 100 m path: to 0.1 mm)."""
+PNR_REFINE, PNR_REFINE_ROUNDS = 16, 4
+"""The scan interval where the margin reaches 0 is cut in 16, four times: 2^-16 of it (a 100 m
+path: to 0.05 mm)."""
 MIN_SPEED_FRAC = 0.05
 """A predicted ground speed below this fraction of u* means the vessel cannot make way against the
 disturbance on that course: the leg's energy is then unbounded (reported as such)."""
@@ -123,6 +124,50 @@ def cruise(vessel: VesselParams, task_power_w: float, speed_mps: float, course_r
     ground = math.hypot(u, v) if u > 0 else 0.0
     power = p.alpha_w_per_n2 * (t1 * t1 + t2 * t2) + task_power_w
     return Cruise(ground, power, t1, t2)
+
+
+def cruise_courses(vessel: VesselParams, task_power_w: float, speed_mps: float,
+                   courses_rad: np.ndarray | float, force_n: np.ndarray | float = 0.0,
+                   force_e: np.ndarray | float = 0.0, yaw_nm: np.ndarray | float = 0.0,
+                   pay_in_thrust: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """``cruise`` for arrays at once: (ground speeds [m/s], powers [W]), broadcast over the courses
+    [rad] and the world-frame disturbances (force north and east [N], yaw moment [N m]).
+
+    The same fixed point, run on every element until all agree, so the figures are ``cruise``'s
+    within its tolerance; for the budget, which prices its legs under seven disturbances and ~50
+    runs home a period."""
+    p = vessel
+    courses, fn, fe, yaw = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in
+                                                 (courses_rad, force_n, force_e, yaw_nm)))
+    lo, hi = -2 * p.reverse_max_n, 2 * p.thrust_max_n
+    beta = np.zeros(courses.shape)
+    for _ in range(6):
+        psi = courses + beta
+        c, s = np.cos(psi), np.sin(psi)
+        f_u = c * fn + s * fe
+        if pay_in_thrust:
+            t_sum = np.clip(p.xu_kgps * speed_mps - f_u, lo, hi)
+        else:
+            t_sum = np.full(courses.shape, min(max(p.xu_kgps * speed_mps, lo), hi))
+        u = (t_sum + f_u) / p.xu_kgps
+        v = (c * fe - s * fn) / p.yv_kgps
+        before, beta = beta, np.where(u > 0, -np.arctan2(v, u), 0.0)
+        # Every element on until the last agrees: one that agreed earlier only moves closer to
+        # its fixed point (within 1e-9 rad of where cruise stops), and the arrays stay whole.
+        if np.abs(beta - before).max(initial=0.0) < 1e-9:
+            break
+    t_diff = ((p.m22_kg - p.m11_kg) * u * v - yaw) / p.arm_m
+    t1 = np.clip((t_sum + t_diff) / 2.0, -p.reverse_max_n, p.thrust_max_n)
+    t2 = np.clip((t_sum - t_diff) / 2.0, -p.reverse_max_n, p.thrust_max_n)
+    ground = np.where(u > 0, np.hypot(u, v), 0.0)
+    power = p.alpha_w_per_n2 * (t1 * t1 + t2 * t2) + task_power_w
+    return ground, power
+
+
+def _per_m(ground_mps: np.ndarray, power_w: np.ndarray) -> np.ndarray:
+    """``Cruise.j_per_m`` of arrays [J/m]: inf where the vessel makes no way."""
+    moving = ground_mps > 0
+    return np.where(moving, power_w / np.where(moving, ground_mps, 1.0), np.inf)
 
 
 def _turn_extra_j(vessel: VesselParams, task_power_w: float, speed_mps: float, delta_psi: float,
@@ -199,6 +244,10 @@ class EnergyModel:
     profile_n: float = 2.0
     t_d_min_s: float = 1.0
     t_d_max_s: float = 60.0
+    # This model's turn tables by speed: the shared cache's key hashes the whole vessel (a pydantic
+    # model), which cost more than the lookup itself at ~100 lookups a period.
+    _tables: dict[float, tuple[float, ...]] = field(default_factory=dict, init=False,
+                                                    compare=False, hash=False, repr=False)
 
     @classmethod
     def from_accepted(cls, accepted: MissionAccepted, vessel: VesselParams) -> EnergyModel:
@@ -220,15 +269,52 @@ class EnergyModel:
             return u_star
         return max(state.u_mps, MIN_SPEED_FRAC * u_star)
 
+    def _table(self, speed_mps: float) -> tuple[float, ...]:
+        key = round(speed_mps, 6)
+        table = self._tables.get(key)
+        if table is None:
+            table = self._tables[key] = _turn_table(self.vessel, self.task_power_w, key,
+                                                    self.profile_n, self.t_d_min_s, self.t_d_max_s)
+        return table
+
     def turn_j(self, delta_psi: float, speed_mps: float) -> float:
         """The turn's extra energy [J], interpolated in the table for this speed (per mission at
         u*; the NMPC's changes with its speed, hence the cache by speed)."""
-        table = _turn_table(self.vessel, self.task_power_w, round(speed_mps, 6), self.profile_n,
-                            self.t_d_min_s, self.t_d_max_s)
+        table = self._table(speed_mps)
         x = abs(_wrap(delta_psi)) / math.pi * (len(table) - 1)
         i = min(int(x), len(table) - 2)
         f = x - i
         return table[i] * (1.0 - f) + table[i + 1] * f
+
+    def turn_j_many(self, delta_psi: np.ndarray, speed_mps: float) -> np.ndarray:
+        """``turn_j`` of each angle in ``delta_psi`` [J]."""
+        table = np.asarray(self._table(speed_mps))
+        x = np.abs(np.arctan2(np.sin(delta_psi), np.cos(delta_psi))) / math.pi * (len(table) - 1)
+        i = np.minimum(x.astype(int), len(table) - 2)
+        f = x - i
+        return table[i] * (1.0 - f) + table[i + 1] * f
+
+    def run_j_many(self, starts: np.ndarray, end: tuple[float, float], headings_rad: np.ndarray,
+                   speed_mps: float, dist: Disturbance, shorten_m: float) -> np.ndarray:
+        """``run_j``'s energy from each of ``starts`` (n x 2) [m] at ``headings_rad`` to ``end``."""
+        dx, dy = end[0] - starts[:, 0], end[1] - starts[:, 1]
+        courses = np.arctan2(dy, dx)
+        lengths = np.maximum(0.0, np.hypot(dx, dy) - shorten_m)
+        ground, power = self.cruise_many(courses, speed_mps, [dist])
+        with np.errstate(invalid="ignore"):  # inf J/m x 0 m: a run of no length, 0 J below
+            j = self.turn_j_many(courses - headings_rad, speed_mps) + _per_m(ground[0], power[0]) * lengths
+        j = np.where(ground[0] < MIN_SPEED_FRAC * speed_mps, np.inf, j)
+        return np.where(lengths == 0.0, 0.0, j)
+
+    def cruise_many(self, courses_rad: np.ndarray, speed_mps: float,
+                    dists: Sequence[Disturbance]) -> tuple[np.ndarray, np.ndarray]:
+        """(ground speeds [m/s], powers [W]) of the cruise along each course under each
+        disturbance: arrays of len(dists) x len(courses)."""
+        fn = np.array([[d.force_ne[0]] for d in dists])
+        fe = np.array([[d.force_ne[1]] for d in dists])
+        yaw = np.array([[d.yaw_nm] for d in dists])
+        return cruise_courses(self.vessel, self.task_power_w, speed_mps, np.asarray(courses_rad),
+                              fn, fe, yaw, pay_in_thrust=self.predict_disturbance)
 
     def cruise(self, course_rad: float, speed_mps: float, dist: Disturbance) -> Cruise:
         return cruise(self.vessel, self.task_power_w, speed_mps, course_rad, dist.force_ne,
@@ -264,27 +350,55 @@ def predict(model: EnergyModel, state: StateEstimate, waypoints: Sequence[tuple[
 
     ``leg_mpc_j`` is the MPC's energy to the active waypoint (None: no plan; the active leg is then
     priced like the later ones)."""
+    return predict_many(model, state, waypoints, active, home, leg_mpc_j, [dist])[0]
+
+
+def predict_many(model: EnergyModel, state: StateEstimate,
+                 waypoints: Sequence[tuple[float, float]], active: int,
+                 home: tuple[float, float], leg_mpc_j: float | None,
+                 dists: Sequence[Disturbance]) -> list[Prediction]:
+    """``predict`` under each of ``dists``. The runs' geometry (courses, lengths, turns) does not
+    depend on the disturbance; only their cruise does, priced for all at once."""
     pos, heading = (state.x_m, state.y_m), state.psi_rad
     speed = model.speed_mps(state)
     r = model.coa_radius_m
+    # The runs: the active leg, the later ones (each from where the vessel enters the previous
+    # circle, on its way in), and straight home; each as (course, length, turn energy).
+    runs: list[tuple[float, float, float]] = []
+
+    def run(start: tuple[float, float], end: tuple[float, float], from_rad: float) -> float:
+        dx, dy = end[0] - start[0], end[1] - start[1]
+        course = math.atan2(dy, dx)
+        length = max(0.0, math.hypot(dx, dy) - r)
+        runs.append((course, length, model.turn_j(course - from_rad, speed) if length else 0.0))
+        return course
+
     target = waypoints[active]
-    leg_j, course = model.run_j(pos, target, heading, speed, dist, r)
-    if leg_mpc_j is not None and math.isfinite(leg_j):
-        # The MPC's figure, corrected to the circle and to the disturbed cruise (module docstring).
-        remaining = max(0.0, math.dist(pos, target) - r)
-        undisturbed = model.cruise(course, speed, ZERO).j_per_m
-        disturbed = model.cruise(course, speed, dist).j_per_m
-        leg_j = leg_mpc_j - undisturbed * min(r, math.dist(pos, target)) + (
-            disturbed - undisturbed) * remaining
-    total = leg_j
-    # Later legs start where the vessel enters the previous circle, on its way in.
+    course = run(pos, target, heading)
     entry = _entry(pos, target, r)
     for nxt in waypoints[active + 1:]:
-        j, course = model.run_j(entry, nxt, course, speed, dist, r)
-        total += j
+        course = run(entry, nxt, course)
         entry = _entry(entry, nxt, r)
-    home_j, _ = model.run_j(pos, home, heading, speed, dist, r)
-    return Prediction(total, home_j)
+    run(pos, home, heading)
+    courses = np.array([c for c, _, _ in runs])
+    lengths = np.array([n for _, n, _ in runs])
+    turns = np.array([t for _, _, t in runs])
+    ground, power = model.cruise_many(courses, speed, dists)
+    with np.errstate(invalid="ignore"):  # inf J/m x 0 m: a run of no length, 0 J just below
+        energy = turns + _per_m(ground, power) * lengths
+    energy = np.where(ground < MIN_SPEED_FRAC * speed, np.inf, energy)
+    energy = np.where(lengths == 0.0, 0.0, energy)  # (D x runs) [J]
+    if leg_mpc_j is not None:
+        # The MPC's figure for the active leg, corrected to the circle and to the disturbed cruise
+        # (module docstring).
+        remaining = max(0.0, math.dist(pos, target) - r)
+        undisturbed = model.cruise(runs[0][0], speed, ZERO).j_per_m
+        near = undisturbed * min(r, math.dist(pos, target))
+        disturbed = _per_m(ground[:, 0], power[:, 0])
+        mpc = leg_mpc_j - near + (disturbed - undisturbed) * remaining
+        energy[:, 0] = np.where(np.isfinite(energy[:, 0]), mpc, energy[:, 0])
+    to_go, to_home = energy[:, :-1].sum(axis=1), energy[:, -1]
+    return [Prediction(float(g), float(h)) for g, h in zip(to_go, to_home, strict=True)]
 
 
 def _entry(start: tuple[float, float], target: tuple[float, float], r: float) -> tuple[float, float]:
@@ -326,13 +440,15 @@ def no_return_point(model: EnergyModel, state: StateEstimate,
     """(x [m], y [m], distance along the path [m]) where the margin is predicted to reach 0 along
     the path ahead, or None if it does not before the mission ends (or already has).
 
-    The margin is scanned at ``PNR_SCAN`` points along the path and the first crossing bisected to
-    ``PNR_BISECTIONS`` halvings: the controller does this every period, so it stays at ~50 margin
-    evaluations however long the path."""
+    The margin is scanned at ``PNR_SCAN`` points along the path, then the first interval where it
+    reaches 0 is cut in ``PNR_REFINE`` parts ``PNR_REFINE_ROUNDS`` times. Each scan prices all its
+    runs home at once (``EnergyModel.run_j_many``): the controller does this every period, and one
+    run at a time it cost more than the MPC's solve."""
     speed = model.speed_mps(state)
     r = model.coa_radius_m
-    # The path ahead as segments: (start, unit direction, length, energy at its start, j/m, course).
-    segments = []
+    # The path ahead as segments: start point, unit direction, course, and the distance along the
+    # path, the energy spent and the energy per metre at the segment's start.
+    starts, units, courses, s0s, e0s, per_ms = [], [], [], [], [], []
     start, heading, spent, total = (state.x_m, state.y_m), state.psi_rad, 0.0, 0.0
     for wp in waypoints[active:]:
         end = _entry(start, wp, r)
@@ -341,43 +457,50 @@ def no_return_point(model: EnergyModel, state: StateEstimate,
             course = math.atan2(end[1] - start[1], end[0] - start[0])
             spent += model.turn_j(course - heading, speed)
             j_per_m = model.cruise(course, speed, dist).j_per_m
-            unit = ((end[0] - start[0]) / length, (end[1] - start[1]) / length)
-            segments.append((start, unit, length, total, spent, j_per_m, course))
+            starts.append(start)
+            units.append(((end[0] - start[0]) / length, (end[1] - start[1]) / length))
+            courses.append(course)
+            s0s.append(total)
+            e0s.append(spent)
+            per_ms.append(j_per_m)
             spent += j_per_m * length
             total += length
             heading = course
         start = end
     if total <= 0:
         return None
+    seg_start, seg_unit = np.array(starts), np.array(units)
+    seg_course, seg_s0 = np.array(courses), np.array(s0s)
+    seg_e0, seg_per_m = np.array(e0s), np.array(per_ms)
 
-    def at(s: float) -> tuple[float, tuple[float, float]]:
-        """(margin [J], point) at ``s`` metres along the path."""
-        seg = segments[0]
-        for candidate in segments:
-            if candidate[3] <= s:
-                seg = candidate
-        p0, unit, _, s0, e0, j_per_m, course = seg
-        q = (p0[0] + unit[0] * (s - s0), p0[1] + unit[1] * (s - s0))
-        home_j, _ = model.run_j(q, home, course, speed, dist, r)
-        return remaining_j - (e0 + j_per_m * (s - s0)) - home_j - reserve_j, q
+    def at(s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(margins [J], points (n x 2) [m]) at distances ``s`` [m] along the path."""
+        k = np.maximum(np.searchsorted(seg_s0, s, side="right") - 1, 0)
+        along = (s - seg_s0[k])[:, None]
+        q = seg_start[k] + seg_unit[k] * along
+        home_j = model.run_j_many(q, home, seg_course[k], speed, dist, r)
+        return remaining_j - (seg_e0[k] + seg_per_m[k] * along[:, 0]) - home_j - reserve_j, q
 
-    lo, hi = 0.0, None
-    for i in range(1, PNR_SCAN + 1):
-        s = total * i / PNR_SCAN
-        if not at(s)[0] > 0:  # NaN-safe: a path home that cannot be made counts as reached
-            hi = s
-            break
-        lo = s
-    if hi is None:
+    def first_reached(s: np.ndarray) -> int | None:
+        """Index of the first of ``s`` where the margin is not above 0 (NaN-safe: a path home that
+        cannot be made counts as reached), or None."""
+        hit = np.flatnonzero(~(at(s)[0] > 0))
+        return int(hit[0]) if hit.size else None
+
+    scan = total * np.arange(1, PNR_SCAN + 1) / PNR_SCAN
+    i = first_reached(scan)
+    if i is None:
         return None
-    for _ in range(PNR_BISECTIONS):
-        mid = 0.5 * (lo + hi)
-        if at(mid)[0] > 0:
-            lo = mid
+    lo, hi = (scan[i - 1] if i > 0 else 0.0), scan[i]
+    for _ in range(PNR_REFINE_ROUNDS):
+        inner = lo + (hi - lo) * np.arange(1, PNR_REFINE) / PNR_REFINE
+        j = first_reached(inner)
+        if j is None:
+            lo = inner[-1]
         else:
-            hi = mid
-    _, q = at(hi)
-    return q[0], q[1], hi
+            lo, hi = (inner[j - 1] if j > 0 else lo), inner[j]
+    q = at(np.array([hi]))[1][0]
+    return float(q[0]), float(q[1]), float(hi)
 
 
 # -- the budget of one mission, period after period --------------------------------------------------
@@ -417,9 +540,8 @@ class Budget:
                reserve_j: float | None) -> EnergyDecision | None:
         """This period's budget (``last``); the decision if it was taken now, else None."""
         nominal, sigmas = disturbance_sigma_points(state)
-        pred = predict(self.model, state, self.waypoints, active, self.home, leg_mpc_j, nominal)
-        spread = [predict(self.model, state, self.waypoints, active, self.home, leg_mpc_j, d)
-                  for d in sigmas]
+        pred, *spread = predict_many(self.model, state, self.waypoints, active, self.home,
+                                     leg_mpc_j, [nominal, *sigmas])
         to_go = [p.to_go_j for p in spread] + [pred.to_go_j]
         to_home = [p.to_home_j for p in spread] + [pred.to_home_j]
         reserve = reserve_j or 0.0
