@@ -12,6 +12,7 @@ from seaway.contract.messages import StateEstimate
 from seaway.vessel.model import load_vessel
 from seaway_controller import costs
 from seaway_controller.energy import (
+    MIN_SPEED_FRAC,
     Budget,
     Disturbance,
     EnergyModel,
@@ -122,15 +123,31 @@ def test_point_of_no_return_is_where_the_margin_reaches_zero():
 @pytest.mark.parametrize("pay", [True, False])
 @pytest.mark.parametrize("force", [(0.0, 0.0), (-30.0, 12.0), (400.0, -350.0)])
 def test_cruise_along_many_courses_is_cruise_along_each(force, pay):
-    """The array form the point of no return uses: the same fixed point, element by element,
-    including thrusts at their bounds (the 400 N force) and courses the vessel cannot make."""
+    """Priced in one array, each course is what it is priced alone, though the fixed point runs
+    on every element until the last agrees: thrusts at their bounds (the 400 N force) and courses
+    the vessel cannot make included."""
     courses = np.linspace(-math.pi, math.pi, 73)
-    ground, power = cruise_courses(BOAT, TW, 1.1, courses, force[0], force[1], 3.0,
-                                   pay_in_thrust=pay)
+    ground, power, _, _ = cruise_courses(BOAT, TW, 1.1, courses, force[0], force[1], 3.0,
+                                         pay_in_thrust=pay)
     for k, c in enumerate(courses):
         one = cruise(BOAT, TW, 1.1, float(c), force, 3.0, pay_in_thrust=pay)
         assert ground[k] == pytest.approx(one.ground_speed_mps, rel=1e-9, abs=1e-12)
         assert power[k] == pytest.approx(one.power_w, rel=1e-9)
+
+
+def run_j(m: EnergyModel, start, end, heading: float, speed: float, d: Disturbance,
+          shorten: float) -> tuple[float, float]:
+    """(energy [J], course [rad]) of one run, one scalar at a time from the module's definition:
+    the turn, then the cruise's energy per metre over the run to the circle; inf if the vessel
+    cannot make way."""
+    course = math.atan2(end[1] - start[1], end[0] - start[0])
+    length = max(0.0, math.dist(start, end) - shorten)
+    if length == 0.0:
+        return 0.0, course
+    c = m.cruise(course, speed, d)
+    if c.ground_speed_mps < MIN_SPEED_FRAC * speed:
+        return math.inf, course
+    return m.turn_j(course - heading, speed) + c.j_per_m * length, course
 
 
 def test_predictions_under_several_disturbances_are_the_runs_priced_one_by_one():
@@ -147,7 +164,7 @@ def test_predictions_under_several_disturbances_are_the_runs_priced_one_by_one()
         got = predict_many(m, st, wps, 1, (0.0, 0.0), leg_mpc_j, dists)
         for d, pred in zip(dists, got, strict=True):
             pos = (st.x_m, st.y_m)
-            total, course = m.run_j(pos, wps[1], st.psi_rad, speed, d, r)
+            total, course = run_j(m, pos, wps[1], st.psi_rad, speed, d, r)
             if leg_mpc_j is not None and math.isfinite(total):
                 left = math.dist(pos, wps[1])
                 und = m.cruise(course, speed, Disturbance()).j_per_m
@@ -156,9 +173,9 @@ def test_predictions_under_several_disturbances_are_the_runs_priced_one_by_one()
             for a, b in itertools.pairwise(wps[1:]):
                 f = (math.dist(entry, a) - r) / math.dist(entry, a)
                 entry = (entry[0] + f * (a[0] - entry[0]), entry[1] + f * (a[1] - entry[1]))
-                j, course = m.run_j(entry, b, course, speed, d, r)
+                j, course = run_j(m, entry, b, course, speed, d, r)
                 total += j
-            home, _ = m.run_j(pos, (0.0, 0.0), st.psi_rad, speed, d, r)
+            home, _ = run_j(m, pos, (0.0, 0.0), st.psi_rad, speed, d, r)
             assert pred.to_go_j == pytest.approx(total, rel=1e-9), (d, leg_mpc_j)
             assert pred.to_home_j == pytest.approx(home, rel=1e-9), d
     assert math.isinf(got[-1].to_go_j) and math.isfinite(got[1].to_go_j)
@@ -184,7 +201,7 @@ def test_point_of_no_return_is_the_first_zero_of_the_margin_on_a_disturbed_path(
             per_m = m.cruise(course, speed, dist).j_per_m
             for a in np.arange(0.0, length, step):
                 q = (pos[0] + end[0] / d * a, pos[1] + end[1] / d * a)
-                home_j, _ = m.run_j(q, home, course, speed, dist, m.coa_radius_m)
+                home_j, _ = run_j(m, q, home, course, speed, dist, m.coa_radius_m)
                 if not remaining - (spent + per_m * a) - home_j - reserve > 0:
                     return done + a, q
             spent += per_m * length

@@ -95,53 +95,34 @@ def cruise(vessel: VesselParams, task_power_w: float, speed_mps: float, course_r
            force_ne: tuple[float, float] = (0.0, 0.0), yaw_nm: float = 0.0,
            pay_in_thrust: bool = True) -> Cruise:
     """The steady run along ``course_rad`` at model surge speed ``speed_mps`` under a world-frame
-    force ``force_ne`` [N north, N east] and a yaw moment ``yaw_nm`` [N m] (module docstring).
-
-    ``pay_in_thrust``: the controller knows the force and holds its speed with thrust; else it
-    keeps the thrust of the undisturbed cruise and the speed changes. Thrusts are bounded by the
-    vessel's limits (a cruise beyond them is flown at the bound, and the speed follows)."""
-    p = vessel
-    beta = 0.0  # crab angle: heading - course
-    u, v, t_sum = speed_mps, 0.0, p.xu_kgps * speed_mps
-    for _ in range(6):  # the crab angle and the forces it sees agree within 1e-6 rad in 3
-        psi = course_rad + beta
-        c, s = math.cos(psi), math.sin(psi)
-        f_u = c * force_ne[0] + s * force_ne[1]
-        f_v = -s * force_ne[0] + c * force_ne[1]
-        if pay_in_thrust:
-            u, t_sum = speed_mps, p.xu_kgps * speed_mps - f_u
-        else:
-            u, t_sum = speed_mps + f_u / p.xu_kgps, p.xu_kgps * speed_mps
-        t_sum = min(max(t_sum, -2 * p.reverse_max_n), 2 * p.thrust_max_n)
-        u = (t_sum + f_u) / p.xu_kgps
-        v = f_v / p.yv_kgps
-        before, beta = beta, -math.atan2(v, u) if u > 0 else 0.0
-        if abs(beta - before) < 1e-9:
-            break
-    t_diff = ((p.m22_kg - p.m11_kg) * u * v - yaw_nm) / p.arm_m
-    t1 = min(max((t_sum + t_diff) / 2.0, -p.reverse_max_n), p.thrust_max_n)
-    t2 = min(max((t_sum - t_diff) / 2.0, -p.reverse_max_n), p.thrust_max_n)
-    ground = math.hypot(u, v) if u > 0 else 0.0
-    power = p.alpha_w_per_n2 * (t1 * t1 + t2 * t2) + task_power_w
-    return Cruise(ground, power, t1, t2)
+    force ``force_ne`` [N north, N east] and a yaw moment ``yaw_nm`` [N m] (module docstring;
+    ``cruise_courses`` for many at once, which this is one of)."""
+    g, pw, t1, t2 = cruise_courses(vessel, task_power_w, speed_mps, course_rad, force_ne[0],
+                                   force_ne[1], yaw_nm, pay_in_thrust)
+    return Cruise(float(g), float(pw), float(t1), float(t2))
 
 
 def cruise_courses(vessel: VesselParams, task_power_w: float, speed_mps: float,
                    courses_rad: np.ndarray | float, force_n: np.ndarray | float = 0.0,
                    force_e: np.ndarray | float = 0.0, yaw_nm: np.ndarray | float = 0.0,
-                   pay_in_thrust: bool = True) -> tuple[np.ndarray, np.ndarray]:
-    """``cruise`` for arrays at once: (ground speeds [m/s], powers [W]), broadcast over the courses
-    [rad] and the world-frame disturbances (force north and east [N], yaw moment [N m]).
+                   pay_in_thrust: bool = True
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Steady runs at model surge speed ``speed_mps``: (ground speeds [m/s], powers [W], port and
+    starboard thrusts [N]), broadcast over the courses [rad] and the world-frame disturbances
+    (force north and east [N], yaw moment [N m]) (module docstring).
 
-    The same fixed point, run on every element until all agree, so the figures are ``cruise``'s
-    within its tolerance; for the budget, which prices its legs under seven disturbances and ~50
-    runs home a period."""
+    ``pay_in_thrust``: the controller knows the force and holds its speed with thrust; else it
+    keeps the thrust of the undisturbed cruise and the speed changes. Thrusts are bounded by the
+    vessel's limits (a cruise beyond them is flown at the bound, and the speed follows).
+
+    Arrays because the budget prices its legs under seven disturbances and ~50 runs home a period:
+    one at a time, that cost more than the MPC's solve."""
     p = vessel
     courses, fn, fe, yaw = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in
                                                  (courses_rad, force_n, force_e, yaw_nm)))
     lo, hi = -2 * p.reverse_max_n, 2 * p.thrust_max_n
-    beta = np.zeros(courses.shape)
-    for _ in range(6):
+    beta = np.zeros(courses.shape)  # crab angle: heading - course
+    for _ in range(6):  # the crab angle and the forces it sees agree within 1e-6 rad in 3
         psi = courses + beta
         c, s = np.cos(psi), np.sin(psi)
         f_u = c * fn + s * fe
@@ -161,7 +142,7 @@ def cruise_courses(vessel: VesselParams, task_power_w: float, speed_mps: float,
     t2 = np.clip((t_sum - t_diff) / 2.0, -p.reverse_max_n, p.thrust_max_n)
     ground = np.where(u > 0, np.hypot(u, v), 0.0)
     power = p.alpha_w_per_n2 * (t1 * t1 + t2 * t2) + task_power_w
-    return ground, power
+    return ground, power, t1, t2
 
 
 def _per_m(ground_mps: np.ndarray, power_w: np.ndarray) -> np.ndarray:
@@ -206,10 +187,6 @@ def _turn_table(vessel: VesselParams, task_power_w: float, speed_mps: float, n: 
     step = math.pi / (TURN_TABLE_POINTS - 1)
     return tuple(_turn_extra_j(vessel, task_power_w, speed_mps, i * step, n, t_d_min_s, t_d_max_s)
                  for i in range(TURN_TABLE_POINTS))
-
-
-def _wrap(a: float) -> float:
-    return math.atan2(math.sin(a), math.cos(a))
 
 
 # -- the model of one mission ------------------------------------------------------------------------
@@ -280,11 +257,7 @@ class EnergyModel:
     def turn_j(self, delta_psi: float, speed_mps: float) -> float:
         """The turn's extra energy [J], interpolated in the table for this speed (per mission at
         u*; the NMPC's changes with its speed, hence the cache by speed)."""
-        table = self._table(speed_mps)
-        x = abs(_wrap(delta_psi)) / math.pi * (len(table) - 1)
-        i = min(int(x), len(table) - 2)
-        f = x - i
-        return table[i] * (1.0 - f) + table[i + 1] * f
+        return float(self.turn_j_many(np.array([delta_psi]), speed_mps)[0])
 
     def turn_j_many(self, delta_psi: np.ndarray, speed_mps: float) -> np.ndarray:
         """``turn_j`` of each angle in ``delta_psi`` [J]."""
@@ -296,7 +269,8 @@ class EnergyModel:
 
     def run_j_many(self, starts: np.ndarray, end: tuple[float, float], headings_rad: np.ndarray,
                    speed_mps: float, dist: Disturbance, shorten_m: float) -> np.ndarray:
-        """``run_j``'s energy from each of ``starts`` (n x 2) [m] at ``headings_rad`` to ``end``."""
+        """Energy [J] of turning from each of ``headings_rad`` towards ``end`` and running there
+        from each of ``starts`` (n x 2) [m], stopping ``shorten_m`` before it (on its circle)."""
         dx, dy = end[0] - starts[:, 0], end[1] - starts[:, 1]
         courses = np.arctan2(dy, dx)
         lengths = np.maximum(0.0, np.hypot(dx, dy) - shorten_m)
@@ -313,26 +287,14 @@ class EnergyModel:
         fn = np.array([[d.force_ne[0]] for d in dists])
         fe = np.array([[d.force_ne[1]] for d in dists])
         yaw = np.array([[d.yaw_nm] for d in dists])
-        return cruise_courses(self.vessel, self.task_power_w, speed_mps, np.asarray(courses_rad),
-                              fn, fe, yaw, pay_in_thrust=self.predict_disturbance)
+        ground, power, _, _ = cruise_courses(self.vessel, self.task_power_w, speed_mps,
+                                             np.asarray(courses_rad), fn, fe, yaw,
+                                             pay_in_thrust=self.predict_disturbance)
+        return ground, power
 
     def cruise(self, course_rad: float, speed_mps: float, dist: Disturbance) -> Cruise:
         return cruise(self.vessel, self.task_power_w, speed_mps, course_rad, dist.force_ne,
                       dist.yaw_nm, pay_in_thrust=self.predict_disturbance)
-
-    def run_j(self, start: tuple[float, float], end: tuple[float, float], heading_rad: float,
-              speed_mps: float, dist: Disturbance, shorten_m: float) -> tuple[float, float]:
-        """(energy [J], course [rad]) of turning from ``heading_rad`` towards ``end`` and running
-        there from ``start``, stopping ``shorten_m`` before it (on its circle)."""
-        dx, dy = end[0] - start[0], end[1] - start[1]
-        course = math.atan2(dy, dx)
-        length = max(0.0, math.hypot(dx, dy) - shorten_m)
-        if length == 0.0:
-            return 0.0, course
-        c = self.cruise(course, speed_mps, dist)
-        if c.ground_speed_mps < MIN_SPEED_FRAC * speed_mps:
-            return math.inf, course
-        return self.turn_j(course - heading_rad, speed_mps) + c.j_per_m * length, course
 
 
 @dataclass(frozen=True)
@@ -363,14 +325,13 @@ def predict_many(model: EnergyModel, state: StateEstimate,
     speed = model.speed_mps(state)
     r = model.coa_radius_m
     # The runs: the active leg, the later ones (each from where the vessel enters the previous
-    # circle, on its way in), and straight home; each as (course, length, turn energy).
+    # circle, on its way in), and straight home; each as (course, length, heading before it).
     runs: list[tuple[float, float, float]] = []
 
     def run(start: tuple[float, float], end: tuple[float, float], from_rad: float) -> float:
         dx, dy = end[0] - start[0], end[1] - start[1]
         course = math.atan2(dy, dx)
-        length = max(0.0, math.hypot(dx, dy) - r)
-        runs.append((course, length, model.turn_j(course - from_rad, speed) if length else 0.0))
+        runs.append((course, max(0.0, math.hypot(dx, dy) - r), from_rad))
         return course
 
     target = waypoints[active]
@@ -380,22 +341,22 @@ def predict_many(model: EnergyModel, state: StateEstimate,
         course = run(entry, nxt, course)
         entry = _entry(entry, nxt, r)
     run(pos, home, heading)
-    courses = np.array([c for c, _, _ in runs])
-    lengths = np.array([n for _, n, _ in runs])
-    turns = np.array([t for _, _, t in runs])
-    ground, power = model.cruise_many(courses, speed, dists)
+    courses, lengths, before = (np.array(col) for col in zip(*runs, strict=True))
+    turns = model.turn_j_many(courses - before, speed)
+    # Row 0 undisturbed (the MPC's figure is corrected from it), then one row per disturbance.
+    ground, power = model.cruise_many(courses, speed, [ZERO, *dists])
+    per_m = _per_m(ground, power)
     with np.errstate(invalid="ignore"):  # inf J/m x 0 m: a run of no length, 0 J just below
-        energy = turns + _per_m(ground, power) * lengths
-    energy = np.where(ground < MIN_SPEED_FRAC * speed, np.inf, energy)
+        energy = turns + per_m[1:] * lengths
+    energy = np.where(ground[1:] < MIN_SPEED_FRAC * speed, np.inf, energy)
     energy = np.where(lengths == 0.0, 0.0, energy)  # (D x runs) [J]
     if leg_mpc_j is not None:
         # The MPC's figure for the active leg, corrected to the circle and to the disturbed cruise
         # (module docstring).
         remaining = max(0.0, math.dist(pos, target) - r)
-        undisturbed = model.cruise(runs[0][0], speed, ZERO).j_per_m
+        undisturbed = per_m[0, 0]
         near = undisturbed * min(r, math.dist(pos, target))
-        disturbed = _per_m(ground[:, 0], power[:, 0])
-        mpc = leg_mpc_j - near + (disturbed - undisturbed) * remaining
+        mpc = leg_mpc_j - near + (per_m[1:, 0] - undisturbed) * remaining
         energy[:, 0] = np.where(np.isfinite(energy[:, 0]), mpc, energy[:, 0])
     to_go, to_home = energy[:, :-1].sum(axis=1), energy[:, -1]
     return [Prediction(float(g), float(h)) for g, h in zip(to_go, to_home, strict=True)]
@@ -446,32 +407,32 @@ def no_return_point(model: EnergyModel, state: StateEstimate,
     run at a time it cost more than the MPC's solve."""
     speed = model.speed_mps(state)
     r = model.coa_radius_m
-    # The path ahead as segments: start point, unit direction, course, and the distance along the
-    # path, the energy spent and the energy per metre at the segment's start.
-    starts, units, courses, s0s, e0s, per_ms = [], [], [], [], [], []
-    start, heading, spent, total = (state.x_m, state.y_m), state.psi_rad, 0.0, 0.0
+    # The path ahead as segments: start point, unit direction, course, length, and the heading
+    # before it (its turn); then the distance along the path and the energy spent at each start.
+    starts, units, courses, lengths, before = [], [], [], [], []
+    start, heading = (state.x_m, state.y_m), state.psi_rad
     for wp in waypoints[active:]:
         end = _entry(start, wp, r)
         length = math.dist(start, end)
         if length > 0:
             course = math.atan2(end[1] - start[1], end[0] - start[0])
-            spent += model.turn_j(course - heading, speed)
-            j_per_m = model.cruise(course, speed, dist).j_per_m
             starts.append(start)
             units.append(((end[0] - start[0]) / length, (end[1] - start[1]) / length))
             courses.append(course)
-            s0s.append(total)
-            e0s.append(spent)
-            per_ms.append(j_per_m)
-            spent += j_per_m * length
-            total += length
+            lengths.append(length)
+            before.append(heading)
             heading = course
         start = end
-    if total <= 0:
+    if not lengths:
         return None
-    seg_start, seg_unit = np.array(starts), np.array(units)
-    seg_course, seg_s0 = np.array(courses), np.array(s0s)
-    seg_e0, seg_per_m = np.array(e0s), np.array(per_ms)
+    seg_start, seg_unit, seg_course = np.array(starts), np.array(units), np.array(courses)
+    seg_len = np.array(lengths)
+    seg_per_m = _per_m(*model.cruise_many(seg_course, speed, [dist]))[0]
+    turns = model.turn_j_many(seg_course - np.array(before), speed)
+    seg_s0 = np.concatenate(([0.0], np.cumsum(seg_len)[:-1]))
+    # Energy spent at each segment's start, its turn included: the turns and runs before it.
+    seg_e0 = np.cumsum(turns) + np.concatenate(([0.0], np.cumsum(seg_per_m * seg_len)[:-1]))
+    total = float(seg_len.sum())
 
     def at(s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(margins [J], points (n x 2) [m]) at distances ``s`` [m] along the path."""
