@@ -10,18 +10,21 @@ energy of an undisturbed one within 1 %, and its recording must have every perio
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import json
 import os
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
 from seaway.contract import keys
 from seaway.contract.messages import MissionStatus, NavResetRequest, ScenarioRequest, SimTruth
 from seaway.runtime.bus import Bus
+from seaway.runtime.service import STACKS_SIGNAL
 from seaway.simkit.scenario import load_scenario
 from seaway_recorder import recording
 from seaway_recorder.report import episodes
@@ -75,14 +78,28 @@ class Stack:
         def reached() -> bool:
             tick = self.clock.latest()
             return tick is not None and tick.stamp_ns >= t_ns
+        self.wait(reached, timeout_s, f"simulated time {t_ns / 1e9:g} s", interval_s=0.002)
+
+    def wait(self, predicate, timeout_s: float, what: str, interval_s: float = 0.01):
+        """``wait_for``; on a timeout, every process of the stack prints its threads' stacks
+        (``seaway.runtime.service.dump_stacks_on_signal``) and the logs are shown."""
         try:
-            wait_for(reached, timeout_s, interval_s=0.002, what=f"simulated time {t_ns / 1e9:g} s")
+            return wait_for(predicate, timeout_s, interval_s=interval_s, what=what)
         except BaseException:
-            tick = self.clock.latest()
-            print(f"last tick: {tick}\n--- launch log ---\n{self.launch_log()[-6000:]}")
-            for f in sorted((self.run_dir / "logs").glob("*.log")):
-                print(f"--- {f.name} ---\n{f.read_text()[-3000:]}")
+            self.diagnose()
             raise
+
+    def diagnose(self) -> None:
+        pids = subprocess.run(["pgrep", "-f", f"seaway.* {self.run_dir}"], capture_output=True,
+                              text=True, check=False).stdout.split()
+        for pid in pids:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(int(pid), STACKS_SIGNAL)
+        time.sleep(2.0)  # the launcher copies its members' stderr into their logs
+        print(f"last tick: {self.clock.latest()}\nlast status: {self.status.latest()}")
+        print(f"--- launch log ---\n{self.launch_log()[-12000:]}")
+        for f in sorted((self.run_dir / "logs").glob("*.log")):
+            print(f"--- {f.name} ---\n{f.read_text()[-8000:]}")
 
     def launch_log(self) -> str:
         return (self.run_dir.parent / f"{self.run_dir.name}-launch.log").read_text()
@@ -204,7 +221,7 @@ def test_two_missions_back_to_back_in_one_stack_equal_two_fresh_stacks(tmp_path,
                                                                        undisturbed) -> None:
     stack = Stack(tmp_path / "run", "--stay")
     done = lambda: (s := stack.status.latest()) is not None and s.state == "complete"  # noqa: E731
-    wait_for(done, 120, interval_s=0.01, what="the first mission complete")
+    stack.wait(done, 120, "the first mission complete")
     # The same scenario again (a new episode from t = 0), then its mission again.
     stack.clock.latest()  # forget the first episode's ticks
     reply = stack.bus.request(keys.SIM_SCENARIO, ScenarioRequest(stamp_ns=0, action="restart"), 10.0)
@@ -212,8 +229,8 @@ def test_two_missions_back_to_back_in_one_stack_equal_two_fresh_stacks(tmp_path,
     # The mission is for the new episode: sent once its first tick is out. Sent at once, it can
     # reach the controller before the new episode does, and be flown for a period of the old one
     # (the controller answers the held period with it); seen 1 in 3 runs.
-    wait_for(lambda: (c := stack.clock.latest()) is not None and c.stamp_ns < PERIOD_NS, 60,
-             interval_s=0.01, what="the new episode's first tick")
+    stack.wait(lambda: (c := stack.clock.latest()) is not None and c.stamp_ns < PERIOD_NS, 60,
+               "the new episode's first tick")
     sc = load_scenario(SCENARIO)
     mission = sc.mission.to_request(0, mission_id="second", controller=CONTROLLER)
     reply = stack.bus.request(keys.MISSION_SET, mission, 10.0)
@@ -222,7 +239,7 @@ def test_two_missions_back_to_back_in_one_stack_equal_two_fresh_stacks(tmp_path,
     def second_done() -> bool:
         s: MissionStatus | None = stack.status.latest()
         return s is not None and s.mission_id == "second" and s.state == "complete"
-    wait_for(second_done, 120, interval_s=0.01, what="the second mission complete")
+    stack.wait(second_done, 120, "the second mission complete")
     stack.stop()
     first, second = report(stack.run_dir, episode=0), report(stack.run_dir, episode=1)
     assert first["episodes"]["count"] == 2

@@ -23,6 +23,8 @@ promptly instead of hanging in Zenoh's threads.
 from __future__ import annotations
 
 import argparse
+import faulthandler
+import io
 import logging
 import os
 import signal
@@ -46,13 +48,30 @@ log = logging.getLogger("seaway.runtime.service")
 
 
 def configure_logging(name: str, level: str = "INFO") -> None:
-    """One line per record, prefixed with the service name (the launcher prefixes again per process)."""
+    """One line per record, prefixed with the service name (the launcher prefixes again per process).
+    Also ``dump_stacks_on_signal``."""
     logging.basicConfig(
         level=getattr(logging, level.upper(), logging.INFO),
         format=f"%(asctime)s {name} %(levelname)s %(name)s: %(message)s",
         stream=sys.stderr,
         force=True,
     )
+    dump_stacks_on_signal()
+
+
+STACKS_SIGNAL = signal.SIGUSR2  # SIGUSR1 re-initialises the estimator
+
+
+def dump_stacks_on_signal() -> None:
+    """``kill -USR2 PID`` prints every thread's Python stack to stderr (the process's log under the
+    launcher) and the process goes on: where a process that seems hung is waiting."""
+    err = sys.__stderr__  # the file descriptor itself (faulthandler writes from the signal)
+    if err is None:
+        return
+    try:
+        faulthandler.register(STACKS_SIGNAL, file=err, all_threads=True)
+    except (io.UnsupportedOperation, ValueError):  # no descriptor (an embedding host's stderr)
+        log.debug("no stack dumps on %s: stderr has no file descriptor", STACKS_SIGNAL.name)
 
 
 def add_vessel_option(p: argparse.ArgumentParser, wildcard: bool = False) -> None:

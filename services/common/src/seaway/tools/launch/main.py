@@ -74,7 +74,7 @@ from seaway.runtime import refusals
 from seaway.runtime import run as runs
 from seaway.runtime.bus import Bus
 from seaway.runtime.credentials import ENV_CREDENTIALS, NONE, CredentialsError
-from seaway.runtime.service import DEFAULT_VESSEL, ENV_VESSEL
+from seaway.runtime.service import DEFAULT_VESSEL, ENV_VESSEL, dump_stacks_on_signal
 from seaway.runtime.zenoh_bus import ENV_CONFIG
 from seaway.simkit.scenario import load_scenario
 from seaway.tools.launch import address, authority
@@ -522,6 +522,7 @@ def show_groundstations(sup: Supervisor, run_dir: Path, shown: dict[str, int]) -
 
 def main(argv: list[str]) -> int:
     args = parser().parse_args(argv)
+    dump_stacks_on_signal()
     try:
         profile: Profile = load_profile(args.profile)
     except ConfigError as err:
