@@ -113,3 +113,18 @@ def test_process_that_never_gets_ready_fails_the_start(procs, zenoh_env, tmp_pat
     assert la.returncode == 1
     assert "'sim' not ready within 1 s" in procs.log(la)
     assert time.monotonic() - t0 < 10
+
+
+def test_a_launcher_killed_with_sigkill_leaves_no_process_running(procs, zenoh_env, tmp_path):
+    """The parent-death signal (setpriv --pdeathsig): nothing of a SIGKILLed launcher survives it,
+    processes ignoring SIGINT included (SIGTERM ends them)."""
+    marker = tmp_path / "pids"
+    m = f', "--marker", "{marker}"'
+    profile = write_profile(tmp_path, proc("rec", "recorder", m)
+                            + proc("est", "estimator", m + ', "--ignore-sigint"', after='["rec"]'))
+    la = launch(procs, zenoh_env, profile, tmp_path)
+    wait_for(lambda: "all ready" in procs.log(la), 20, what="all ready")
+    pids = [int(x) for x in marker.read_text().split()]
+    assert len(pids) == 2 and all(alive(p) for p in pids)
+    os.kill(la.pid, signal.SIGKILL)
+    wait_for(lambda: not any(alive(p) for p in pids), 10, what="no orphan processes")

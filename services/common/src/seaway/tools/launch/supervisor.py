@@ -5,7 +5,10 @@ then stops them in order: SIGINT to each process group in stop order (recorder l
 the process's ``stop_timeout_s``. A second Ctrl-C (``hurry``) shortens that grace to
 ``HURRY_GRACE_S`` for every process but the recorder, which keeps its own to finish the recording:
 the stop stays in order and the file stays whole. Each child also gets ``PR_SET_PDEATHSIG`` =
-SIGTERM, so that even a SIGKILLed launcher leaves no orphans behind on Linux.
+SIGTERM, so that even a SIGKILLed launcher leaves no orphans behind on Linux: set by util-linux's
+``setpriv --pdeathsig`` before it execs the command, not by Python code between fork and exec
+(``preexec_fn``), which in a process with Zenoh's threads could deadlock the child before its exec
+and the launcher with it (seen in CI: a stack whose controller never started).
 
 A process that exits with a failure is restarted after its back-off (``restart = "on-failure"``).
 So is one that hangs (``liveness``): its health token gone for ``TOKEN_GRACE_S`` while it still
@@ -26,8 +29,6 @@ vessel's recorder copies into its recording.
 from __future__ import annotations
 
 import contextlib
-import ctypes
-import ctypes.util
 import json
 import os
 import shutil
@@ -50,13 +51,13 @@ from seaway.tools.launch.profile import BackoffPolicy, ProcessSpec, start_order,
 HURRY_GRACE_S = 0.5
 """After a second Ctrl-C: how long a process (but the recorder) gets between SIGINT and SIGKILL."""
 
-_libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
-_prctl = _libc.prctl
-PR_SET_PDEATHSIG = 1
+SETPRIV = shutil.which("setpriv")
+"""util-linux's setpriv (every Debian and Ubuntu has it): sets the child's parent-death signal."""
 
 
-def _child_setup() -> None:  # runs in the child between fork and exec: keep it minimal
-    _prctl(PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
+def with_parent_death_signal(argv: list[str]) -> list[str]:
+    """``argv`` run so that it gets SIGTERM when the launcher dies (as is, without setpriv)."""
+    return [SETPRIV, "--pdeathsig", "TERM", "--", *argv] if SETPRIV else argv
 
 
 @dataclass
@@ -186,9 +187,9 @@ class Supervisor:
         # A service is its own identity; another process (a replay) is named by the profile.
         env = {**self.env, ENV_VESSEL: sp.vessel, **sp.spec.env, "PYTHONUNBUFFERED": "1",
                ENV_IDENTITY: sp.spec.identity}
-        sp.popen = subprocess.Popen([exe, *sp.argv[1:]], stdout=subprocess.PIPE,
-                                    stderr=subprocess.STDOUT, env=env, start_new_session=True,
-                                    preexec_fn=_child_setup)
+        sp.popen = subprocess.Popen(with_parent_death_signal([exe, *sp.argv[1:]]),
+                                    stdout=subprocess.PIPE, stderr=subprocess.STDOUT, env=env,
+                                    start_new_session=True)
         sp.started_at = time.monotonic()
         sp.ready_at = None
         sp.state = "starting" if sp.spec.service else "running"
@@ -200,6 +201,9 @@ class Supervisor:
 
     def start_all(self, stop: threading.Event) -> str | None:
         """Start in order, waiting for each one's readiness. Returns an error text, or None."""
+        if SETPRIV is None:
+            self.echo("launcher: util-linux's setpriv is not installed: a launcher killed with "
+                      "SIGKILL leaves its processes running (apt install util-linux)")
         for spec in start_order([p.spec for p in self.procs.values()]):
             sp = self.procs[spec.name]
             try:
