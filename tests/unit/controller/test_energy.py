@@ -13,6 +13,7 @@ from seaway.vessel.model import load_vessel
 from seaway_controller import costs
 from seaway_controller.energy import (
     MIN_SPEED_FRAC,
+    TABLES_PER_MODEL,
     Budget,
     Disturbance,
     EnergyModel,
@@ -239,3 +240,13 @@ def test_the_decision_is_taken_once_when_the_margin_reaches_zero(policy):
     k = taken[0][0]
     assert margins[k] <= 0 < margins[k - 1]  # the first period the margin reached zero
     assert b.last.decided_ns == k * 100_000_000 and b.last.decision == policy
+
+
+def test_a_model_keeps_a_bounded_number_of_turn_tables() -> None:
+    """The NMPC's speed differs every period: its model must not keep a table for each."""
+    m = EnergyModel(BOAT, TW, 2.0, False, False)
+    for k in range(40):
+        m.turn_j(0.5, 0.8 + 0.001 * k)
+    assert 0 < len(m._tables) <= TABLES_PER_MODEL
+    again = m.turn_j(0.5, 0.8 + 0.001 * 39)  # the latest speed is still kept, and priced the same
+    assert again == EnergyModel(BOAT, TW, 2.0, False, False).turn_j(0.5, 0.8 + 0.001 * 39)

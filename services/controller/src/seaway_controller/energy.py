@@ -63,6 +63,8 @@ from seaway_controller import costs
 
 TURN_TABLE_POINTS = 91
 """Turn angles [0, pi] at which the turn's extra energy is tabulated (2 deg apart), interpolated."""
+TABLES_PER_MODEL = 8
+"""Turn tables a model keeps (one per speed): an economic mission needs one, at u*."""
 PNR_SCAN = 32
 """Points along the path ahead at which the margin is first predicted for the point of no return."""
 PNR_REFINE, PNR_REFINE_ROUNDS = 16, 4
@@ -250,6 +252,8 @@ class EnergyModel:
         key = round(speed_mps, 6)
         table = self._tables.get(key)
         if table is None:
+            if len(self._tables) >= TABLES_PER_MODEL:  # the NMPC's speed is new every period
+                self._tables.clear()
             table = self._tables[key] = _turn_table(self.vessel, self.task_power_w, key,
                                                     self.profile_n, self.t_d_min_s, self.t_d_max_s)
         return table
