@@ -6,24 +6,29 @@ or the short form ``sim/truth`` for every vessel) so that a live service can pro
 feed recorded sensors to a live estimator with ``--exclude nav/state``, recorded states to a live
 controller with ``--only nav/state``. Each sample goes out with its recorded bytes and encoding,
 in recorded order; with ``--rate X`` the gaps between receive times are divided by X; ``--fast`` does not
-wait at all (publishers block rather than drop, so nothing is lost).
+wait at all (publishers block rather than drop, so nothing is lost). ``--lockstep`` replays a lockstep
+recording as its sim would: each period waits for the live members' answers
+(``seaway_recorder.replay_lockstep``), so live services get every period, as fast as they go.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import logging
 import os
 import sys
 import threading
 import time
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 
 import zenoh
 from seaway.contract import keys
+from seaway.contract.messages import MessageError, PeriodDone
 from seaway.runtime.bus import JSON_ENCODING, Bus, RawPublisher
 from seaway.runtime.credentials import ENV_IDENTITY
+from seaway.runtime.lockstep import Period
 from seaway.runtime.service import (
     DEFAULT_VESSEL,
     add_log_level_option,
@@ -33,8 +38,11 @@ from seaway.runtime.service import (
 )
 
 from seaway_recorder import recording
+from seaway_recorder.replay_lockstep import SIM_ANSWER_SUFFIX, LockstepPacer
 
 BUS_ROOT = f"{keys.ROOT}/"
+
+log = logging.getLogger("seaway_recorder.replay")
 
 
 def normalise(expr: str) -> str:
@@ -77,17 +85,44 @@ class ReplayStats:
     max_late_s: float = 0.0
     elapsed_s: float = 0.0
     recorded_span_s: float = 0.0
+    periods: int = 0
+    """Lockstep: recorded periods every live member answered."""
 
 
 def replay(messages: Iterator[recording.RecordedMessage], bus: Bus, keep: KeyFilter,
-           rate: float | None, stop: threading.Event, clock=time.monotonic) -> ReplayStats:
-    """Publish ``messages`` (in log-time order) on ``bus``, paced by their log times; returns what
-    was done. Bytes and encodings go out as recorded: nothing is decoded or validated here."""
+           rate: float | None, stop: threading.Event, clock=time.monotonic,
+           pacer: LockstepPacer | None = None) -> ReplayStats:
+    """Publish ``messages`` (in log-time order) on ``bus``, paced by their log times (``rate``; None:
+    no waiting) or, with ``pacer``, by the live lockstep members' answers to each recorded sim answer
+    of ``bus.vessel`` (which the pacer sends, naming the live members); returns what was done. Bytes
+    and encodings go out as recorded: nothing else is decoded here."""
     stats = ReplayStats()
     pubs: dict[str, RawPublisher] = {}
     start_wall: float | None = None
     t0_log: int | None = None
     last_log = 0
+    clock_key = f"{BUS_ROOT}{bus.vessel}/{SIM_ANSWER_SUFFIX}"
+    period: list[recording.RecordedMessage] = []  # lockstep: kept since the last sim answer
+    pending: tuple[PeriodDone, Callable[[], None]] | None = None  # lockstep: the answer to play next
+
+    def put(m: recording.RecordedMessage) -> None:
+        pub = pubs.get(m.topic)
+        if pub is None:
+            enc = m.channel_metadata.get("zenoh_encoding") or (
+                f"{JSON_ENCODING};{m.schema_name}" if m.schema_name else JSON_ENCODING)
+            pub = bus.raw_publisher(m.topic, enc, block=True)
+            pubs[m.topic] = pub
+        pub.put(m.data)
+
+    def publish(batch: list[recording.RecordedMessage]) -> None:
+        for m in batch:
+            put(m)
+
+    def count(batch: list[recording.RecordedMessage]) -> None:
+        for m in batch:
+            stats.published += 1
+            stats.by_topic[m.topic] = stats.by_topic.get(m.topic, 0) + 1
+
     for m in messages:
         if stop.is_set():
             break
@@ -98,6 +133,32 @@ def replay(messages: Iterator[recording.RecordedMessage], bus: Bus, keep: KeyFil
             t0_log = m.log_time_ns
             start_wall = clock()
         last_log = m.log_time_ns
+        if pacer is not None:
+            period.append(m)
+            if m.topic != clock_key:
+                continue
+            batch, period = period, []
+            count(batch)
+            try:
+                answer = PeriodDone.decode(m.data)
+            except MessageError as err:  # a damaged answer closes no period: sent as it is
+                log.warning("recorded lockstep answer at log time %d is malformed (%s): sent "
+                            "without waiting for the members", m.log_time_ns, err)
+                answer = None
+            # A period is played once the recording's next answer is known: the controller's hold
+            # (no mission yet) is waited past only where the recording goes on to a later period;
+            # where it repeats the period or ends, the hold is the mission's end.
+            if pending is not None:
+                repeated = answer is not None and Period.of(answer) == Period.of(pending[0])
+                if not pacer.play(*pending, hold_ends=repeated):
+                    pending = None
+                    break
+            pending = None
+            if answer is None:
+                publish(batch)
+            else:
+                pending = (answer, lambda b=batch[:-1]: publish(b))
+            continue
         if rate is not None:
             due = start_wall + (m.log_time_ns - t0_log) / 1e9 / rate  # type: ignore[operator]
             delay = due - clock()
@@ -106,15 +167,15 @@ def replay(messages: Iterator[recording.RecordedMessage], bus: Bus, keep: KeyFil
                     break
             else:
                 stats.max_late_s = max(stats.max_late_s, -delay)
-        pub = pubs.get(m.topic)
-        if pub is None:
-            enc = m.channel_metadata.get("zenoh_encoding") or (
-                f"{JSON_ENCODING};{m.schema_name}" if m.schema_name else JSON_ENCODING)
-            pub = bus.raw_publisher(m.topic, enc, block=True)
-            pubs[m.topic] = pub
-        pub.put(m.data)
-        stats.published += 1
-        stats.by_topic[m.topic] = stats.by_topic.get(m.topic, 0) + 1
+        put(m)
+        count([m])
+    if pending is not None and not stop.is_set():
+        pacer.play(*pending, hold_ends=True)  # type: ignore[union-attr]
+    if period and not stop.is_set():  # after the last answer: nothing waits for these
+        publish(period)
+        count(period)
+    if pacer is not None:
+        stats.periods = pacer.periods
     if start_wall is not None:
         stats.elapsed_s = clock() - start_wall
         stats.recorded_span_s = (last_log - (t0_log or last_log)) / 1e9
@@ -123,12 +184,34 @@ def replay(messages: Iterator[recording.RecordedMessage], bus: Bus, keep: KeyFil
     return stats
 
 
+def lockstep_vessel(info: recording.RecordingInfo, keep: KeyFilter) -> str:
+    """The one vessel whose recorded sim answers are kept: the lockstep replay's clock.
+
+    Raises ValueError when there is none (not a lockstep recording, or the answers filtered out) or
+    several (a fleet recording: pick one with ``--only seaway/<vessel>/...``)."""
+    vessels = sorted({t.split("/")[1] for t in info.topics
+                      if t.startswith(BUS_ROOT) and t.endswith(f"/{SIM_ANSWER_SUFFIX}") and keep(t)
+                      and t.count("/") == 3})
+    if not vessels:
+        raise ValueError(f"--lockstep needs the sim's lockstep answers ({SIM_ANSWER_SUFFIX}), and "
+                         "none are kept: the recording was not made in lockstep, or --only/--exclude "
+                         "leave them out (use --rate or --fast)")
+    if len(vessels) > 1:
+        raise ValueError(f"--lockstep paces one vessel, and the recording has lockstep answers of "
+                         f"{', '.join(vessels)}: keep one with --only {BUS_ROOT}<vessel>/...")
+    return vessels[0]
+
+
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="seaway replay", description=__doc__.split("\n\n")[0])
     p.add_argument("files", nargs="+", help="recording file(s) or folder(s)")
     pace = p.add_mutually_exclusive_group()
     pace.add_argument("--rate", type=float, default=1.0, help="speed-up factor (default 1: original pace)")
     pace.add_argument("--fast", action="store_true", help="as fast as possible")
+    pace.add_argument("--lockstep", action="store_true",
+                      help="a lockstep recording, each period held until the live estimator, "
+                           "controller and recorder have answered it (as fast as they go; nothing "
+                           "lost)")
     p.add_argument("--only", action="append", default=[], metavar="KEYEXPR",
                    help=f"republish only these keys (repeatable; '{keys.SIM_TRUTH.suffix}' means "
                         f"{keys.SIM_TRUTH.wildcard()})")
@@ -147,10 +230,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not args.fast and not args.rate > 0:
         print("seaway replay: --rate must be > 0", file=sys.stderr)
         return 2
+    vessel = DEFAULT_VESSEL
     try:
         files = recording.open_paths(args.files)
         keep = KeyFilter(args.only, args.exclude)
-        notes = recording.repaired(recording.read_info(files))
+        info = recording.read_info(files)
+        notes = recording.repaired(info)
+        if args.lockstep:
+            vessel = lockstep_vessel(info, keep)
     except (FileNotFoundError, ValueError) as err:
         print(f"seaway replay: {err}", file=sys.stderr)
         return 2
@@ -158,20 +245,24 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"seaway replay: NOTE: {note}", file=sys.stderr)
     stop = threading.Event()
     install_stop_signals(stop)
-    # Raw publishing ignores the bus's vessel (recorded keys name their own); any valid name does.
-    # A replay publishes what the recorded producers did: its own identity, which the access rules
-    # let stand in for them (a launcher profile may name it otherwise through the environment).
-    bus = Bus.open(DEFAULT_VESSEL, args.zenoh_config,
-                   identity=os.environ.get(ENV_IDENTITY) or "replay")
+    # Raw publishing ignores the bus's vessel (recorded keys name their own); in lockstep it is the
+    # vessel whose members pace the replay. A replay publishes what the recorded producers did: its
+    # own identity, which the access rules let stand in for them (a launcher profile may name it
+    # otherwise through the environment).
+    bus = Bus.open(vessel, args.zenoh_config, identity=os.environ.get(ENV_IDENTITY) or "replay")
     try:
-        print(f"replaying {', '.join(map(str, files))}"
-              f" ({'as fast as possible' if args.fast else f'rate {args.rate:g}'})", flush=True)
+        pacer = LockstepPacer(bus, stop) if args.lockstep else None
+        pace = ("in lockstep with the live members of " + vessel if args.lockstep
+                else "as fast as possible" if args.fast else f"rate {args.rate:g}")
+        print(f"replaying {', '.join(map(str, files))} ({pace})", flush=True)
         stop.wait(args.wait)
         stats = replay(recording.iter_messages(files), bus, keep,
-                       None if args.fast else args.rate, stop)
+                       None if args.fast or args.lockstep else args.rate, stop, pacer=pacer)
     finally:
         bus.close()
-    print(json.dumps({"published": stats.published, "skipped": stats.skipped,
+    lockstep = ({"periods": stats.periods, "repeats": pacer.repeats, "holds": pacer.holds}
+                if pacer is not None else {})
+    print(json.dumps({"published": stats.published, "skipped": stats.skipped, **lockstep,
                       "elapsed_s": round(stats.elapsed_s, 3),
                       "recorded_span_s": round(stats.recorded_span_s, 3),
                       "max_late_s": round(stats.max_late_s, 4), "by_topic": stats.by_topic}), flush=True)

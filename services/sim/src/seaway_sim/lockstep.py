@@ -147,17 +147,8 @@ class Lockstep:
     def answered(self, period: Period) -> bool:
         """Whether every member has answered t_k, the recorder covering everyone's latest answer;
         under ``member.changed``."""
-        ledger = self.member.ledger
-        for m in self.members:
-            if ledger.answer(m, period) is None:
-                return False
-        if "recorder" in self.members:
-            covers = ledger.answer("recorder", period).covers  # type: ignore[union-attr]
-            latest = {"sim": self.member.last_answer.seq}  # type: ignore[union-attr]
-            latest.update({m: ledger.answers[m].seq for m in self.members if m != "recorder"})
-            if any(covers.get(m) != seq for m, seq in latest.items()):
-                return False
-        return True
+        return self.member.ledger.all_answered(period, self.members,
+                                               self.member.last_answer.seq)  # type: ignore[union-attr]
 
     def wait_for(self, period: Period, test: Callable[[Period], Any]) -> Any:
         """Step (b): block until ``test(period)`` is truthy (its value), repeating the period for
@@ -181,8 +172,7 @@ class Lockstep:
                 self.repeat_period(period, "a member joined")
                 stalled_since = time.monotonic()
                 continue
-            ans = member.ledger.answer("controller", period)
-            if ans is not None and ans.hold:
+            if member.ledger.held(period):
                 if not held:
                     self.stats.holds += 1
                     log.info("lockstep: holding at t = %.3f s (the controller has nothing to fly)",

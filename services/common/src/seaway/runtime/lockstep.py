@@ -169,6 +169,27 @@ class Ledger:
     def complete(self, answer: PeriodDone | None) -> bool:
         return answer is not None and not self.missing(answer)
 
+    def all_answered(self, period: Period, members: Iterable[str], sim_seq: int) -> bool:
+        """Whether every one of ``members`` has answered ``period``, the recorder (if a member)
+        covering the latest answer of each other member and the sim's (``sim_seq``): what the clock
+        of a lockstep run (the sim, or ``seaway replay --lockstep``) waits for before the next period.
+        """
+        members = list(members)
+        if any(self.answer(m, period) is None for m in members):
+            return False
+        if "recorder" in members:
+            covers = self.answer("recorder", period).covers  # type: ignore[union-attr]
+            latest = {"sim": sim_seq, **{m: self.answers[m].seq for m in members if m != "recorder"}}
+            if any(covers.get(m) != seq for m, seq in latest.items()):
+                return False
+        return True
+
+    def held(self, period: Period) -> bool:
+        """Whether the controller answered ``period`` with ``hold`` (nothing to fly): the clock waits
+        for another answer, and that wait is not a stall."""
+        ans = self.answer("controller", period)
+        return ans is not None and ans.hold
+
 
 def listing(messages: Iterable[tuple[keys.KeySpec, Message]]) -> dict[str, list[int]]:
     """``published`` of an answer: key suffix -> stamps, in publishing order."""

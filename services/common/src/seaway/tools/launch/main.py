@@ -203,7 +203,8 @@ def resolve_run(args: argparse.Namespace, profile: Profile, scenario: str,
     A simulated run takes the model and plant vessel files, origin and dead zone from the scenario;
     the profile's ``vessel_file`` replaces the model, and ``origin_from_scenario = false`` (a boat)
     leaves the origin to the estimator's first GNSS fix. A profile without our simulator (the
-    autopilot's own SITL) has no plant vessel file. ConfigError on a bad scenario or value.
+    autopilot's own SITL) has no plant vessel file; a replay (``--recording``) of our simulator's
+    run is described as that run was. ConfigError on a bad scenario or value.
     """
     vessel = vessel or launch_vessels(args, profile)[0]
     return runs.describe(vessel=vessel, run_id=run_id, clock=profile.clock,
@@ -211,7 +212,10 @@ def resolve_run(args: argparse.Namespace, profile: Profile, scenario: str,
                          scenario_ref=scenario or None,
                          origin_from_scenario=profile.origin_from_scenario,
                          model_vessel_file=profile.vessel_file,
-                         simulated=any(p.service == "sim" for p in profile.processes),
+                         # A replay's sensors were made by our simulator on the scenario's hull
+                         # (its dead zone, which the estimator predicts with), as in the recording.
+                         simulated=(any(p.service == "sim" for p in profile.processes)
+                                    or getattr(args, "recording", None) is not None),
                          control_period_s=args.control_period_s, where="launch")
 
 
