@@ -10,12 +10,16 @@ from __future__ import annotations
 import itertools
 import threading
 from collections.abc import Callable
+from pathlib import Path
 
+import pytest
 from seaway.contract import keys
 from seaway.contract.messages import PeriodDone
 from seaway.runtime.bus import Bus
 from seaway.runtime.lockstep import Ledger, Member, Period
 from seaway.runtime.memory_bus import MemoryHub
+from seaway_recorder.recording import RecordingInfo
+from seaway_recorder.replay import KeyFilter, lockstep_vessel
 from seaway_recorder.replay_lockstep import LockstepPacer
 
 V = "v1"
@@ -157,3 +161,18 @@ def test_an_answer_on_another_members_key_is_not_counted() -> None:
     impostor = hub.bus(V).publisher(keys.lockstep_spec("estimator"))
     impostor.put(PeriodDone(stamp_ns=0, service="controller", episode=0, seq=1, period_ns=P_NS))
     assert pacer.ledger.answers == {}
+
+
+def test_the_lockstep_replay_needs_one_vessels_kept_sim_answers() -> None:
+    def info(*topics: str) -> RecordingInfo:
+        return RecordingInfo(files=[Path("x.mcap")], topics=dict.fromkeys(topics, 1))
+
+    assert lockstep_vessel(info("seaway/a/lockstep/sim", "seaway/a/nav/state"), KeyFilter()) == "a"
+    with pytest.raises(ValueError, match="not made in lockstep"):
+        lockstep_vessel(info("seaway/a/nav/state"), KeyFilter())
+    with pytest.raises(ValueError, match="leave them out"):
+        lockstep_vessel(info("seaway/a/lockstep/sim"), KeyFilter(exclude=["lockstep/sim"]))
+    fleet = info("seaway/a/lockstep/sim", "seaway/b/lockstep/sim")
+    with pytest.raises(ValueError, match="a, b: keep one"):
+        lockstep_vessel(fleet, KeyFilter())
+    assert lockstep_vessel(fleet, KeyFilter(only=["seaway/b/**"])) == "b"
