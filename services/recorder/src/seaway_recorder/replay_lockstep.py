@@ -30,6 +30,7 @@ from seaway.contract import keys
 from seaway.contract.messages import PeriodDone
 from seaway.runtime.bus import Bus
 from seaway.runtime.lockstep import MEMBERS, STALL_REPEAT_S, Ledger, Period
+from seaway.runtime.ratelog import RateLimitedLog
 
 log = logging.getLogger("seaway_recorder.replay")
 
@@ -53,6 +54,7 @@ class LockstepPacer:
         self.periods = 0
         self.repeats = 0
         self.holds = 0
+        self.ratelog = RateLimitedLog(log)  # a flood of impostor answers is counted, not echoed
         self._joined = False
         self._version = 0
         self._pub = bus.publisher(keys.lockstep_spec("sim"), lockstep=True, express=True)
@@ -64,7 +66,8 @@ class LockstepPacer:
 
     def _on_answer(self, key: str, answer: PeriodDone) -> None:
         if not key.endswith(f"/lockstep/{answer.service}") or answer.service == "sim":
-            log.warning("lockstep answer on %s claims to be %s's: ignored", key, answer.service)
+            self.ratelog.warning(("impostor", key), "lockstep answer on %s claims to be %s's: "
+                                 "ignored", key, answer.service)
             return
         with self.changed:
             self.ledger.on_answer(answer)

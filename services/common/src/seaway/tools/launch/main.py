@@ -215,7 +215,7 @@ def resolve_run(args: argparse.Namespace, profile: Profile, scenario: str,
                          # A replay's sensors were made by our simulator on the scenario's hull
                          # (its dead zone, which the estimator predicts with), as in the recording.
                          simulated=(any(p.service == "sim" for p in profile.processes)
-                                    or getattr(args, "recording", None) is not None),
+                                    or args.recording is not None),
                          control_period_s=args.control_period_s, where="launch")
 
 
