@@ -47,6 +47,8 @@ def test_condition_1_shows_the_papers_relations(tmp_path: Path, zenoh_env: dict[
         assert (out / name).is_file(), name
     for key in ("paper-c1-nmpc", "paper-c1-eo-empc", "paper-c1-cc-empc"):
         assert (out / "runs" / key / "recording.mcap").is_file()
+        # the launcher was told --no-report: the study reads the recording itself
+        assert not (out / "runs" / key / "report").exists(), key
     saved = json.loads((out / "results.json").read_text())
     assert saved["results"] == doc["results"]
     ports = {r["port"] for r in saved["runs"]}

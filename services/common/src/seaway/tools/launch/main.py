@@ -105,6 +105,9 @@ def parser() -> argparse.ArgumentParser:
                     help="the mission's task power T^w [W], finite and >= 0 (default: the mission's)")
     ap.add_argument("--stay", action="store_true", help="keep running after the mission completes")
     ap.add_argument("--verbose", action="store_true", help="show every process's output")
+    ap.add_argument("--no-report", action="store_true",
+                    help="skip the final report (metrics, plots) after the stop; make it later with "
+                         "'seaway report RUN_DIR' (a study reads each recording itself)")
     ap.add_argument("--recording", type=Path, default=None, help="recording for the replay profile")
     ap.add_argument("--control-period-s", type=float, default=None,
                     help=f"the run's control period [s] (default {runs.CONTROL_PERIOD_S})")
@@ -706,7 +709,7 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
             if sup.hurried > hurried:  # a Ctrl-C during an earlier vessel's report skips the rest
                 print(f"(report skipped: Ctrl-C; make it with: seaway report {folders[v]})")
                 continue
-            _final_report(folders[v], scenario, mission_files[v], sup)
+            _final_report(folders[v], scenario, mission_files[v], sup, make=not args.no_report)
     return code
 
 
@@ -733,8 +736,9 @@ def _describe_mission(mission: MissionRequest) -> str:
 
 
 def _final_report(run_dir: Path, scenario: str, mission_file: Path | None = None,
-                  sup: Supervisor | None = None) -> None:
-    """The run's metrics (from its recording, by ``seaway report``) and where the recording is.
+                  sup: Supervisor | None = None, make: bool = True) -> None:
+    """The run's metrics (from its recording, by ``seaway report``) and where the recording is;
+    with ``make`` False (``--no-report``) only where the recording is, and how to make the report.
 
     The report takes the mission from ``mission_file`` (what the launcher sent, options applied)
     when there is one, else from the scenario. It runs in a session of its own, so that a Ctrl-C
@@ -749,6 +753,9 @@ def _final_report(run_dir: Path, scenario: str, mission_file: Path | None = None
         cmd += ["--scenario", scenario]
     if mission_file is not None:
         cmd += ["--mission", str(mission_file)]
+    if not make:
+        print(f"(report skipped: --no-report; make it with: {' '.join(cmd)})", flush=True)
+        return
     hurried = sup.hurried if sup is not None else 0
     console = Console(file=sys.stdout)  # the real stdout: fd 1 is the refusal counter's pipe
     # (seaway.runtime.refusals). The report's output is kept until it is done, then shown whole, so
