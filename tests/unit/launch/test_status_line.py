@@ -17,6 +17,10 @@ def test_lockstep_shows_sim_time_and_speed_up() -> None:
     assert line.time_text(None, 0.2) == "sim t     - s"
     assert line.time_text(state(1.0), 2.0) == "sim t     1 s"  # the first state: no rate yet
     assert line.time_text(state(121.0), 4.0) == "sim t   121 s (  60x real time)"  # 120 s in 2 s
+    # The sim holding (the mission complete): the rate stays that of the run, not falling with
+    # every wall second that passes.
+    assert line.time_text(state(121.0), 30.0) == "sim t   121 s (  60x real time)"
+    assert line.time_text(state(151.0), 31.0) == "sim t   151 s (   5x real time)"  # 150 s in 29 s
     # A new episode (sim time went back) starts the rate afresh.
     assert line.time_text(state(0.5), 10.0) == "sim t     0 s"
     assert line.time_text(state(20.5), 11.0) == "sim t    20 s (  20x real time)"

@@ -307,6 +307,7 @@ class StatusLine:
         self.tty = sys.stdout.isatty()
         self._last_print = 0.0
         self._first: tuple[float, float] | None = None  # lockstep: (sim s, wall s) of the first state
+        self._moved: tuple[float, float] | None = None  # lockstep: (sim s, wall s) when it last moved
 
     def watch(self, bus: Bus) -> None:
         """Keep the latest mission status, state and energy budget of every vessel (on the bus's
@@ -404,8 +405,13 @@ class StatusLine:
             return "sim t     - s"
         sim_s = state.stamp_ns / 1e9
         if self._first is None or sim_s < self._first[0]:  # the first state, or a new episode
-            self._first = (sim_s, wall_s)
-        d_sim, d_wall = sim_s - self._first[0], wall_s - self._first[1]
+            self._first = self._moved = (sim_s, wall_s)
+        elif self._moved is None or sim_s != self._moved[0]:
+            self._moved = (sim_s, wall_s)
+        # The rate up to when simulated time last moved: a sim holding (the mission complete, no
+        # command) is not a run going slower.
+        assert self._moved is not None
+        d_sim, d_wall = self._moved[0] - self._first[0], self._moved[1] - self._first[1]
         return f"sim t {sim_s:5.0f} s" + (f" ({d_sim / d_wall:4.0f}x real time)" if d_wall > 0.5 else "")
 
     def show(self, t_s: float, final: bool = False) -> None:
