@@ -158,26 +158,33 @@ def test_intruders_move_nothing_and_stop_nothing_on_the_sim_profile(procs, zenoh
                                                                          command=command), timeout_s=5)
             assert reply.accepted, (command, reply.reason)
 
-        # Every attack was counted where it was refused, and `seaway health` shows it.
-        time.sleep(1.5)  # a changed count is reported within a second
-        health = json.loads(subprocess.run(
-            [sys.executable, "-m", "seaway.tools.cli", "health", "--json", "--wait", "0.5"],
-            capture_output=True, text=True, check=True, env=env).stdout)
-        counts = {(r["identity"], c["identity"], c["action"], c["key"].split("/", 2)[-1]): c["count"]
-                  for r in health["refusals"] for c in r["counts"]}
+        # Every attack was counted where it was refused, and `seaway health` shows it. A count is
+        # current within a second on a quiet machine; once (CI beside a study on the 2 cores) the
+        # link refusals were not yet in 1.5 s after the attack, so ask until every count is in
+        # (the deadline, well inside the 60 s mission, only bounds a failure).
         insider = {  # reporter, what the insider (the estimator's certificate) did
             ("vehicle_io", "put", "ctrl/thrust"), ("recorder", "put", "ctrl/thrust"),
             ("recorder", "put", "mission/status"), ("launcher", "put", "mission/status"),
             ("vehicle_io", "query", "vehicle/arm"), ("vehicle_io", "query", "vehicle/mode"),
             ("controller", "query", "mission/set"), ("controller", "query", "mission/command"),
             ("estimator", "query", "nav/reset")}
-        missing = {t for t in insider if counts.get((t[0], "estimator", t[1], t[2]), 0) < 1}
+        deadline = time.monotonic() + 30.0
+        while True:
+            health = json.loads(subprocess.run(
+                [sys.executable, "-m", "seaway.tools.cli", "health", "--json", "--wait", "0.5"],
+                capture_output=True, text=True, check=True, env=env).stdout)
+            counts = {(r["identity"], c["identity"], c["action"], c["key"].split("/", 2)[-1]): c["count"]
+                      for r in health["refusals"] for c in r["counts"]}
+            missing = {t for t in insider if counts.get((t[0], "estimator", t[1], t[2]), 0) < 1}
+            # The two without a certificate of the stack are refused at the link, by the rendezvous.
+            links = sum(c["count"] for r in health["refusals"] for c in r["counts"]
+                        if c["identity"] == "unauthenticated" and c["action"] == "connect")
+            if (not missing and links >= 2) or time.monotonic() > deadline:
+                break
+            time.sleep(1.0)
         assert not missing, (missing, counts)
         assert counts[("vehicle_io", "estimator", "put", "ctrl/thrust")] > 100  # 50 Hz for 4 s
-        # The two without a certificate of the stack were refused at the link, by the rendezvous.
-        links = sum(c["count"] for r in health["refusals"] for c in r["counts"]
-                    if c["identity"] == "unauthenticated" and c["action"] == "connect")
-        assert links >= 2, health
+        assert links >= 2, (health, procs.log(la)[-4000:])
         # The operator's requests were not refused anywhere.
         assert not [k for k in counts if k[1] == "operator"], counts
         la.wait(180)
