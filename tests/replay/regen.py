@@ -19,6 +19,7 @@ import time
 from pathlib import Path
 
 from seaway.contract import keys
+from seaway.runtime import credentials
 from seaway.runtime.bus import Bus
 
 DATA = Path(__file__).with_name("data")
@@ -36,10 +37,15 @@ def _free_port() -> int:
 
 def record(name: str, scenario: str, seconds: float) -> Path:
     """Run the lockstep stack on ``scenario`` for ``seconds`` of sim time; the recording's path."""
-    env = dict(os.environ, SEAWAY_ZENOH_RENDEZVOUS=f"tcp/127.0.0.1:{_free_port()}", PYTHONUNBUFFERED="1")
-    os.environ["SEAWAY_ZENOH_RENDEZVOUS"] = env["SEAWAY_ZENOH_RENDEZVOUS"]
-    bin_ = Path(sys.executable).parent
     tmp = Path(tempfile.mkdtemp(prefix="seaway-regen-"))
+    # The stack's own credentials (no launcher makes them here): every service its own identity,
+    # this process the harness, as the system tests run (tests/conftest.py's zenoh_env).
+    folder = credentials.create(tmp / "credentials", harness=True).folder
+    env = dict(os.environ, SEAWAY_ZENOH_RENDEZVOUS=f"tcp/127.0.0.1:{_free_port()}", PYTHONUNBUFFERED="1")
+    env[credentials.ENV_CREDENTIALS], env[credentials.ENV_IDENTITY] = str(folder), "harness"
+    for name_ in ("SEAWAY_ZENOH_RENDEZVOUS", credentials.ENV_CREDENTIALS, credentials.ENV_IDENTITY):
+        os.environ[name_] = env[name_]
+    bin_ = Path(sys.executable).parent
     out = tmp / f"{name}.mcap"
     common = ["--vessel", VESSEL]
     key_args = [a for k in RECORDED for a in ("--key-expr", f"seaway/{VESSEL}/{k}")]

@@ -47,6 +47,7 @@ from seaway.vessel.frames import GeoOrigin, wrap_pi
 from seaway.vessel.guidance import LosGains, los_thrust
 from seaway.vessel.metrics import MissionMetrics, mission_metrics
 from seaway.vessel.model import VesselParams, load_vessel
+from seaway.vessel.thrusters import output_pair
 from seaway_controller.core import ControllerConfig, ControllerCore
 from seaway_controller.mission import validate_mission
 from seaway_controller.ocp import ControllerKind
@@ -234,7 +235,8 @@ class LosPatrol:
 
 
 def fly(sim: SimCore, steering: Steering, ticks: int, tick_ns: int, *, control_every: int = 1,
-        estimator: EstimatorCore | None = None, publish_every: int = 1,
+        model: VesselParams | None = None, estimator: EstimatorCore | None = None,
+        publish_every: int = 1,
         gnss_filter: Callable[[int, GnssFix], GnssFix | None] | None = None,
         record_trace: bool = False, progress: Callable[[float], None] | None = None) -> Run:
     """Run ticks 0..``ticks`` of ``tick_ns``, or until ``steering`` ends the run.
@@ -243,9 +245,12 @@ def fly(sim: SimCore, steering: Steering, ticks: int, tick_ns: int, *, control_e
     the samples taken since the last tick, then publishes (every ``publish_every`` ticks); every
     ``control_every`` ticks ``steering`` commands from the truth at t. After the last tick, its command
     is held for one tick as every command is. ``gnss_filter(stamp_ns, fix)`` may replace or drop
-    (None) each fix before the estimator sees it (outliers, dropouts in tests).
+    (None) each fix before the estimator sees it (outliers, dropouts in tests). Each command reaches
+    the plant through vehicle I/O's output stage with ``model``'s limits (default: the vessel the
+    scenario models), as in the lockstep sim.
     """
     run = Run(core=estimator)
+    limits = model or load_vessel(sim.scenario.vessel)
     thrust = (0.0, 0.0)
     for k in range(ticks + 1):
         if k > 0:
@@ -264,7 +269,7 @@ def fly(sim: SimCore, steering: Steering, ticks: int, tick_ns: int, *, control_e
             cmd = steering.command(truth)
             if cmd is None:
                 return run
-            thrust = (cmd.thrust_port_n, cmd.thrust_starboard_n)
+            thrust = output_pair(cmd.thrust_port_n, cmd.thrust_starboard_n, limits)
             if estimator is not None:
                 t0 = time.perf_counter_ns()
                 estimator.on_thrust(cmd)
@@ -377,7 +382,7 @@ def run_closed_loop(scenario: str | Scenario, controller: ControllerKind,
     reports = battery or battery_j is not None
     steering = MissionSteering(core, (lambda _truth: sim.battery()) if reports else None)
     dt_s = core.config.dt_s
-    run = fly(sim, steering, round(max_time_s / dt_s), s_to_ns(dt_s), estimator=estimator,
+    run = fly(sim, steering, round(max_time_s / dt_s), s_to_ns(dt_s), model=vp, estimator=estimator,
               progress=progress)
     m = mission_metrics(run.truth, mission.waypoints_m, mission.coa_radius_m, mission.task_power_w,
                         energy_j=[s.energy_j for s in run.truth], state_source=keys.SIM_TRUTH.suffix)

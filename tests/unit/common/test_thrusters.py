@@ -4,7 +4,13 @@ from __future__ import annotations
 
 import pytest
 from seaway.vessel.model import load_vessel
-from seaway.vessel.thrusters import apply_dead_zone, compensate_dead_zone, saturate
+from seaway.vessel.thrusters import (
+    apply_dead_zone,
+    compensate_dead_zone,
+    output_pair,
+    output_stage,
+    saturate,
+)
 
 BOAT = load_vessel("paper-boat")  # 75 N ahead, 10 N dead zone
 
@@ -45,3 +51,17 @@ def test_compensation_sends_the_nearest_producible_thrust():
         sent = compensate_dead_zone(demand, 10.0)
         assert apply_dead_zone(sent, 10.0) == sent
         assert abs(sent - demand) <= 5.0
+
+
+def test_the_output_stage_saturates_then_compensates_with_the_vessel_files_dead_zone():
+    # What Seaway sends a thruster (vehicle I/O; the lockstep sim and the in-process loop in its
+    # place): a demand in the dead zone's upper half is sent at its edge, one in the lower half as 0.
+    assert output_stage(6.0, BOAT) == BOAT.dead_zone_n == 10.0
+    assert output_stage(-6.0, BOAT) == -10.0
+    assert output_stage(4.0, BOAT) == 0.0
+    assert output_stage(1e6, BOAT) == BOAT.thrust_max_n
+    assert output_stage(-1e6, BOAT) == -BOAT.reverse_max_n
+    assert output_stage(30.0, BOAT) == 30.0
+    assert output_pair(6.0, -4.0, BOAT) == (10.0, 0.0)
+    paper = load_vessel("paper-sim")  # no dead zone: only saturation
+    assert output_pair(6.0, 25.0, paper) == (6.0, paper.thrust_max_n)

@@ -263,3 +263,18 @@ def test_config_rejects_unknown_fields() -> None:
 
 def test_state_indices_match_the_message_layout() -> None:
     assert (IX, IY, IPSI) == (3, 4, 5)
+
+
+def test_the_prediction_takes_the_thrust_the_output_stage_sends_not_the_raw_demand() -> None:
+    """On a boat with a 10 N dead zone, vehicle I/O (and the lockstep sim in its place) sends a 6 N
+    demand as 10 N and a 4 N one as 0: the filter must predict what the thrusters then produce."""
+    boat = EstimatorConfig(origin=FIXED.origin, vessel="paper-boat", apply_dead_zone=True)
+
+    def surge_after(demand_n: float) -> float:
+        core = started(boat)
+        core.on_thrust(ThrustCommand(stamp_ns=0, thrust_port_n=demand_n, thrust_starboard_n=demand_n))
+        return core.predict_to(2 * S).u_mps
+
+    assert surge_after(6.0) == surge_after(10.0) > 0.02  # sent at the dead zone's edge
+    assert surge_after(4.0) == surge_after(0.0) == 0.0  # sent as nothing
+    assert surge_after(12.0) > surge_after(10.0)  # outside the dead zone: the demand itself

@@ -46,3 +46,19 @@ def test_nothing_kept_grows_with_the_commands() -> None:
         ls._on_thrust(key, cmd(k * PERIOD_NS))
     assert len(ls._commands) <= 64
     assert sum(len(s) for s in ls.member.ledger.seen.values()) == 0  # it noted 5000 before
+
+
+def test_the_lockstep_sim_applies_vehicle_ios_output_stage_to_the_demand() -> None:
+    """The lockstep sim takes the controller's demand where vehicle I/O would: on the lake's boat
+    (10 N dead zone) 6 N is applied as 10 N and 4 N as 0, as vehicle I/O sends them; applying the
+    raw demand would lose both to the dead zone (NMPC parked 3 m from a waypoint that way)."""
+    sc = load_scenario("lake")
+    assert sc.dead_zone
+    app = SimApp(MemoryHub().bus("vessel1"), SimCore(sc, load_vessel(sc.plant_vessel_file)),
+                 lockstep=True)
+    ls = Lockstep(app, PERIOD_NS / 1e9, threading.Event())
+    period = ls.period
+    assert ls.step(ThrustCommand(stamp_ns=period.stamp_ns, thrust_port_n=6.0, thrust_starboard_n=4.0),
+                   period)
+    truth = app.core.truth()
+    assert (truth.thrust_port_n, truth.thrust_starboard_n) == (10.0, 0.0)

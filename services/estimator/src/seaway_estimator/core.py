@@ -12,11 +12,12 @@ body-frame surge and sway forces (its ``tau_body``); ``d3`` is always the body y
 Whatever the internal frame, ``StateEstimate`` carries the body-frame values and their covariance.
 
 Prediction: the mean with ``seaway.vessel.model.rk4_step`` (the model is never re-derived here), the
-commanded thrust held (saturated by ``seaway.vessel.thrusters.saturate``, optionally the dead zone;
-zero while the autopilot's status says it withholds the thrust), substeps of at most
-``max_step_s``. The covariance with ``F = I + A h + (A h)^2 / 2``, where ``A`` is the exact Jacobian
-of ``seaway.vessel.model.derivative``, computed by complex-step differentiation (the model is
-evaluated with ``cmath`` as its ``ops``: derivatives exact to machine precision, no CasADi needed).
+commanded thrust held (through ``seaway.vessel.thrusters.output_stage`` as vehicle I/O sends it,
+optionally the dead zone; zero while the autopilot's status says it withholds the thrust), substeps
+of at most ``max_step_s``. The covariance with ``F = I + A h + (A h)^2 / 2``, where ``A`` is the
+exact Jacobian of ``seaway.vessel.model.derivative``, computed by complex-step differentiation (the
+model is evaluated with ``cmath`` as its ``ops``: derivatives exact to machine precision, no CasADi
+needed).
 
 Updates, each when it arrives and at its own rate, Joseph form and symmetrised:
 
@@ -52,7 +53,7 @@ from seaway.contract.units import NS_PER_S
 from seaway.vessel import model
 from seaway.vessel.frames import GeoOrigin, wrap_pi
 from seaway.vessel.model import VesselParams
-from seaway.vessel.thrusters import apply_dead_zone, saturate
+from seaway.vessel.thrusters import apply_dead_zone, output_pair
 
 from seaway_estimator.config import EstimatorConfig
 
@@ -208,8 +209,12 @@ class EstimatorCore:
         if not self._bring_to(t):
             return
         t_apply = t if f is None else max(t, f.t_ns)
-        self._thrust = (apply_dead_zone(saturate(msg.thrust_port_n, self.p), self._dead_zone_n),
-                        apply_dead_zone(saturate(msg.thrust_starboard_n, self.p), self._dead_zone_n))
+        # What the thrusters produce: the dead zone (if modelled) of what Seaway sends them, vehicle
+        # I/O's output stage (the lockstep sim applies it too). A compensated value is 0 or outside
+        # the dead zone, so the dead zone only bites for a vessel file without one.
+        port, starboard = output_pair(msg.thrust_port_n, msg.thrust_starboard_n, self.p)
+        self._thrust = (apply_dead_zone(port, self._dead_zone_n),
+                        apply_dead_zone(starboard, self._dead_zone_n))
         self._thrust_until_ns = t_apply + round(self.config.thrust_timeout_s * NS_PER_S)
         self.counters.inc("thrust_received")
 

@@ -50,6 +50,9 @@ class SimApp:
         self.lockstep = lockstep
         self.lock = threading.Lock()
         self.generation = 0
+        self.model = load_vessel(core.scenario.vessel)
+        """The vessel the services model: its limits are vehicle I/O's, whose output stage the
+        lockstep sim applies to the controller's demand (``thrusters.output_stage``)."""
         self.on_load: list[Callable[[Scenario, VesselParams], None]] = []
         self.pubs = {spec: bus.publisher(spec)
                      for spec in (keys.SIM_TRUTH, keys.SIM_DISTURBANCE, keys.SIM_CLOCK)}
@@ -64,11 +67,12 @@ class SimApp:
         """
         try:
             if request.action == "restart":
-                scenario, vessel = self.core.scenario, self.core.vessel
+                scenario, vessel, model = self.core.scenario, self.core.vessel, self.model
             else:
                 assert request.scenario is not None  # ScenarioRequest checks it
                 scenario = parse_scenario(request.scenario, "scenario request", scenario_base())
                 vessel = load_vessel(scenario.plant_vessel_file)
+                model = load_vessel(scenario.vessel)
                 self._check_model(scenario)
                 SimPack.of(scenario, vessel)  # its [battery] must fit the vessel's pack
         except ConfigError as err:
@@ -77,6 +81,7 @@ class SimApp:
         with self.lock:
             # Lockstep: a new episode, time restarts at 0 (seaway.runtime.lockstep); real time goes on.
             self.core.load(scenario, vessel, restart_time=self.lockstep)
+            self.model = model
             self.generation += 1
             for hook in self.on_load:
                 hook(scenario, vessel)

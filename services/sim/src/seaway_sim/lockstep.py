@@ -10,7 +10,8 @@ For each period t_k of the current episode, from one Zenoh session and in this o
   (b) wait until every member has answered t_k (``ready``): the controller with a command stamped
       t_k that the sim holds, the recorder covering everyone's latest answer. A member joining (its
       member token appears) makes the sim repeat (a); so does a stall of ``STALL_REPEAT_S``;
-  (c) apply that command (T1 port, T2 starboard, N; the plant saturates) for one period, so the
+  (c) apply that command (T1 port, T2 starboard, N) for one period through vehicle I/O's output
+      stage (``seaway.vessel.thrusters.output_stage``: saturation, dead-zone compensation), so the
       state goes to t_{k+1}; back to (a).
 
 Without a controller among the members (a test's responder), (b) takes any command stamped >= t_k.
@@ -30,6 +31,7 @@ from typing import Any
 from seaway.contract import keys
 from seaway.contract.messages import Message, ThrustCommand
 from seaway.runtime.lockstep import MEMBERS, STALL_REPEAT_S, Member, Period
+from seaway.vessel.thrusters import output_pair
 
 from seaway_sim.app import SimApp
 
@@ -198,7 +200,9 @@ class Lockstep:
         with self.app.lock:
             if self.period != period:
                 return False
-            self.app.core.advance((cmd.thrust_port_n, cmd.thrust_starboard_n), self.period_ns)
+            # The demand goes through vehicle I/O's output stage, which the sim stands in for here.
+            self.app.core.advance(output_pair(cmd.thrust_port_n, cmd.thrust_starboard_n, self.app.model),
+                                  self.period_ns)
             self._applied = cmd.stamp_ns
         if cmd.stamp_ns != period.stamp_ns:
             self.stats.stale_commands += 1

@@ -8,7 +8,8 @@ applies it): a normalised command ``u`` produces ``u * thrust_max_n`` ahead for 
 ``u * reverse_max_n`` astern for ``u < 0``, and any demand whose magnitude is below
 ``dead_zone_n`` produces nothing.
 
-Per thruster, in this order:
+Per thruster, in this order (steps 1-2 are ``thrusters.output_stage``, the one definition of what
+Seaway sends a thruster, which the lockstep sim applies in vehicle I/O's place):
 
 1. **saturation** to ``[-reverse_max_n, thrust_max_n]`` (the vessel file; ``thrusters.saturate``);
 2. **dead-zone compensation** (``thrusters.compensate_dead_zone``): a demand ``0 < |T| < dead_zone_n``
@@ -31,7 +32,7 @@ import math
 from dataclasses import dataclass
 
 from seaway.vessel.model import VesselParams
-from seaway.vessel.thrusters import compensate_dead_zone, saturate
+from seaway.vessel.thrusters import output_stage
 
 
 @dataclass(frozen=True)
@@ -57,7 +58,7 @@ def normalise(thrust_n: float, limits: ThrusterLimits, guard: float = 0.0) -> fl
     """One thruster's demand [N] -> normalised command in [-1, 1] (steps 1-5 above)."""
     if not math.isfinite(thrust_n):
         raise ValueError(f"thrust must be finite, got {thrust_n}")
-    t = compensate_dead_zone(saturate(thrust_n, limits), limits.dead_zone_n)
+    t = output_stage(thrust_n, limits)
     if t == 0.0:
         return 0.0
     scale = limits.thrust_max_n if t > 0 else limits.reverse_max_n

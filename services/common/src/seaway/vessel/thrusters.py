@@ -5,8 +5,12 @@ What a thruster does with a command (the simulated plant, the estimator's predic
 1. saturation: ``-reverse_max_n <= T <= thrust_max_n`` (the vessel file; reverse is weaker);
 2. dead zone: ``|T| < dead_zone_n`` produces no thrust (the real boat's 10 N; 0 in the paper).
 
-What to send so that the dead zone loses as little as possible (vehicle I/O):
-``compensate_dead_zone`` replaces a demand inside the dead zone by the nearest producible thrust.
+What Seaway sends a thruster for the controller's demand, ``output_stage``: saturation, then
+``compensate_dead_zone``, which replaces a demand inside the dead zone by the nearest producible
+thrust (so the dead zone loses as little as possible). Vehicle I/O applies it before normalising for
+the autopilot; the lockstep sim and the in-process loop, which take the controller's demand
+straight, apply it in vehicle I/O's place; the estimator predicts with it. So a demand produces the
+same thrust on a real boat, in a real-time simulation and in lockstep.
 
 T1 is the port thruster, T2 starboard; positive is ahead.
 """
@@ -25,6 +29,13 @@ class ThrustBounds(Protocol):
 
     @property
     def reverse_max_n(self) -> float: ...
+
+
+class ThrustLimits(ThrustBounds, Protocol):
+    """Bounds and the dead zone [N]: ``VesselParams``, vehicle I/O's ``ThrusterLimits``."""
+
+    @property
+    def dead_zone_n(self) -> float: ...
 
 
 def saturate(thrust_n: float, bounds: ThrustBounds) -> float:
@@ -48,3 +59,15 @@ def compensate_dead_zone(thrust_n: float, dead_zone_n: float) -> float:
     if mag >= dead_zone_n or thrust_n == 0.0:
         return thrust_n
     return math.copysign(dead_zone_n, thrust_n) if mag > dead_zone_n / 2.0 else 0.0
+
+
+def output_stage(thrust_n: float, limits: ThrustLimits) -> float:
+    """What Seaway sends one thruster for a demand [N]: saturated, then dead-zone compensated with
+    the limits of the vessel file the services model (the only figures vehicle I/O has). The
+    thruster's own dead zone then passes it unchanged (0, or at least ``dead_zone_n``)."""
+    return compensate_dead_zone(saturate(thrust_n, limits), limits.dead_zone_n)
+
+
+def output_pair(port_n: float, starboard_n: float, limits: ThrustLimits) -> tuple[float, float]:
+    """``output_stage`` of (T1 port, T2 starboard) [N]."""
+    return output_stage(port_n, limits), output_stage(starboard_n, limits)
