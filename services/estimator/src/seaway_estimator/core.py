@@ -210,8 +210,9 @@ class EstimatorCore:
             return
         t_apply = t if f is None else max(t, f.t_ns)
         # What the thrusters produce: the dead zone (if modelled) of what Seaway sends them, vehicle
-        # I/O's output stage (the lockstep sim applies it too). A compensated value is 0 or outside
-        # the dead zone, so the dead zone only bites for a vessel file without one.
+        # I/O's output stage (the lockstep sim applies it too). The stage sends 0 or at least this
+        # vessel's dead zone, so the dead zone passes it unchanged today; it stays as the thruster's
+        # physics, not as a second definition of the stage.
         port, starboard = output_pair(msg.thrust_port_n, msg.thrust_starboard_n, self.p)
         self._thrust = (apply_dead_zone(port, self._dead_zone_n),
                         apply_dead_zone(starboard, self._dead_zone_n))

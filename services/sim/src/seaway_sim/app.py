@@ -43,14 +43,15 @@ def scenario_base() -> Path:
 class SimApp:
     """The core, its lock, the truth publishers and the scenario request handler."""
 
-    def __init__(self, bus: Bus, core: SimCore, lockstep: bool, run: RunDescription | None = None) -> None:
+    def __init__(self, bus: Bus, core: SimCore, lockstep: bool, run: RunDescription | None = None,
+                 model: VesselParams | None = None) -> None:
         self.bus = bus
         self.run = run
         self.core = core
         self.lockstep = lockstep
         self.lock = threading.Lock()
         self.generation = 0
-        self.model = load_vessel(core.scenario.vessel)
+        self.model = model or load_vessel(core.scenario.vessel)
         """The vessel the services model: its limits are vehicle I/O's, whose output stage the
         lockstep sim applies to the controller's demand (``thrusters.output_stage``)."""
         self.on_load: list[Callable[[Scenario, VesselParams], None]] = []
@@ -73,7 +74,7 @@ class SimApp:
                 scenario = parse_scenario(request.scenario, "scenario request", scenario_base())
                 vessel = load_vessel(scenario.plant_vessel_file)
                 model = load_vessel(scenario.vessel)
-                self._check_model(scenario)
+                self._check_model(scenario, model)
                 SimPack.of(scenario, vessel)  # its [battery] must fit the vessel's pack
         except ConfigError as err:
             log.warning("scenario request refused: %s", err)
@@ -92,11 +93,11 @@ class SimApp:
         return Reply.accept(stamp, f"scenario {scenario.name} {what}", name=scenario.name,
                             seed=scenario.seed, vessel=vessel.name)
 
-    def _check_model(self, scenario: Scenario) -> None:
+    def _check_model(self, scenario: Scenario, model: VesselParams) -> None:
         """A scenario must keep the run's model: the estimator and controller cannot change theirs."""
         if self.run is None:
             return
-        if load_vessel(scenario.vessel) != load_vessel(self.run.model_vessel_file):
+        if model != load_vessel(self.run.model_vessel_file):
             raise ConfigError(f"scenario {scenario.name} models vessel {scenario.vessel!r} but this run's "
                               f"services model {self.run.model_vessel_file!r}: start a new run for it")
 

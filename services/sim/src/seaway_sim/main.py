@@ -91,6 +91,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         scenario = load_scenario(run.scenario)
         vessel = load_vessel(run.plant_vessel)
+        model = load_vessel(scenario.vessel)  # its limits: vehicle I/O's output stage in lockstep
         SimPack.of(scenario, vessel)  # the scenario's [battery] must fit the vessel's pack
     except ConfigError as err:
         print(f"seaway-sim: {err}", file=sys.stderr)
@@ -122,7 +123,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     with run_service("sim", args, run=run) as ctx:
         boot_ns = time.monotonic_ns()
         core = SimCore(scenario, vessel, epoch_ns=0 if lockstep else time.time_ns())
-        app = SimApp(ctx.bus, core, lockstep=lockstep, run=run)
+        app = SimApp(ctx.bus, core, lockstep=lockstep, run=run, model=model)
         log.info("scenario %s (seed %d), plant vessel %s, model vessel %s, period %g s, %s",
                  scenario.name, scenario.seed, vessel.name, run.model_vessel_file, period_s,
                  "lockstep" if lockstep else "real time, MAVLink signing "
