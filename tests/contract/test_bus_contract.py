@@ -70,6 +70,32 @@ def test_typed_messages_in_order_and_latest_only(buses) -> None:
     assert (a.stats.published, b.stats.received) == (20, 40)  # two subscriptions, each counts
 
 
+def test_newest_decodes_only_the_sample_it_is_asked_for(buses) -> None:
+    a, b = buses
+    newest = b.newest(keys.THRUST)
+    fifo = b.subscribe(keys.THRUST, mode="fifo")  # to know when every sample has arrived
+    ready(a, b)
+    assert newest.get() is None
+    pub = a.publisher(keys.THRUST)
+    for seq in range(1, 11):
+        pub.put(thrust(seq))
+    got = [fifo.get(5.0) for _ in range(10)]
+    assert [m.seq for m in got if m is not None] == list(range(1, 11))
+    received = b.stats.received
+    wait_for(lambda: newest.get() == thrust(10), 5, what="the newest sample")
+    # The nine before it were never decoded: one more received, not ten.
+    assert b.stats.received == received + 1
+    assert newest.get() == thrust(10) and b.stats.received == received + 1  # decoded once
+    # A malformed newest sample is counted when read; the last good message stays the answer.
+    fifo.undeclare()  # (it would count the malformed sample too)
+    a.raw_publisher(keys.THRUST.key(VESSEL), message_encoding(ThrustCommand)).put(b'{"seq": "x"}')
+    wait_for(lambda: newest.get() is not None and b.stats.malformed == 1, 5,
+             what="the malformed sample counted when read")
+    assert newest.get() == thrust(10) and b.stats.malformed == 1
+    pub.put(thrust(11))
+    wait_for(lambda: newest.get() == thrust(11), 5, what="a good sample after it")
+
+
 def test_wrong_type_and_non_finite_refused_before_the_wire(buses) -> None:
     a, b = buses
     sub = b.subscribe(keys.THRUST, mode="fifo")

@@ -11,7 +11,9 @@ provides, so both transports encode, validate, refuse and count exactly the same
 * ``Bus.publisher(spec)``: typed; refuses a message of the wrong type or with a non-finite field.
 * ``Bus.subscribe(spec, mode=...)``: ``latest`` keeps only the newest sample (a controller wants the
   freshest state), ``fifo`` keeps every sample in order up to a bound (a recorder, an estimator), or a
-  ``callback``. A malformed payload is logged with its key, counted and dropped; the process goes on.
+  ``callback``. ``Bus.newest(spec)`` keeps the newest sample's bytes and decodes them only when read
+  (a display that shows a few a second of what comes hundreds a second in lockstep). A malformed
+  payload is logged with its key, counted and dropped; the process goes on.
   Logged once per key and then at most every few seconds with a count (``seaway.runtime.ratelog``):
   a flood of bad samples is counted, not echoed line by line.
 * ``Bus.queryable`` / ``Bus.request``: a request is answered by a ``Reply`` that accepts or refuses
@@ -209,6 +211,49 @@ class TypedSubscriber(Generic[M]):
         self._sub.undeclare()
 
 
+class Newest(Generic[M]):
+    """The newest sample on one key, decoded only when read (``get``), and once per sample.
+
+    Receiving only keeps the bytes, on the transport's own thread: a reader that looks a few times
+    a second (the launcher's status line) pays nothing for the hundreds of samples a second between
+    its looks in lockstep. A malformed sample is counted and logged when read, and the last good
+    message stays the answer.
+    """
+
+    def __init__(self, bus: Bus, spec: keys.KeySpec, keyexpr: str) -> None:
+        assert spec.message is not None
+        self._bus, self.keyexpr = bus, keyexpr
+        self._type: type[M] = spec.message  # type: ignore[assignment]
+        self._raw: bytes | None = None
+        self._decoded_from: bytes | None = None
+        self._msg: M | None = None
+        self._lock = threading.Lock()
+        self._sub = bus.subscribe_raw(keyexpr, self._on_sample, inline=True)
+
+    def _on_sample(self, sample: RawSample) -> None:
+        self._raw = sample.payload  # one reference swapped: no lock on the receive thread
+
+    def get(self) -> M | None:
+        """The newest well-formed message heard, or None before the first."""
+        with self._lock:
+            raw = self._raw
+            if raw is None or raw is self._decoded_from:
+                return self._msg
+            self._decoded_from = raw
+            try:
+                self._msg = self._type.decode(raw)
+            except MessageError as err:
+                self._bus.stats.count_malformed(self.keyexpr, str(err))
+                self._bus.ratelog.warning(("malformed", self.keyexpr), "ignored malformed payload "
+                                          "on %s: %s (counted in the bus stats)", self.keyexpr, err)
+            else:
+                self._bus.stats.received += 1
+            return self._msg
+
+    def undeclare(self) -> None:
+        self._sub.undeclare()
+
+
 def _service_of(health_key: str) -> str:
     """``seaway/<vessel>/health/<service>`` -> ``<service>``."""
     return health_key.rsplit("/", 1)[-1]
@@ -277,6 +322,12 @@ class Bus(abc.ABC):
             raise ValueError(f"{spec.suffix} is a {spec.kind}, not a topic")
         keyexpr = spec.wildcard() if vessel == "*" else self.key(spec, vessel)
         return TypedSubscriber(self, spec, keyexpr, mode, capacity, callback, inline)
+
+    def newest(self, spec: keys.KeySpec, vessel: str | None = None) -> Newest[Any]:
+        """The newest sample on ``spec`` of this vessel (or ``vessel``), decoded when read."""
+        if spec.kind != "topic":
+            raise ValueError(f"{spec.suffix} is a {spec.kind}, not a topic")
+        return Newest(self, spec, self.key(spec, vessel))
 
     # -- typed requests ----------------------------------------------------------------------------
 

@@ -72,7 +72,7 @@ from seaway.contract.messages import (
 )
 from seaway.runtime import refusals
 from seaway.runtime import run as runs
-from seaway.runtime.bus import Bus
+from seaway.runtime.bus import Bus, Newest
 from seaway.runtime.credentials import ENV_CREDENTIALS, NONE, CredentialsError
 from seaway.runtime.service import DEFAULT_VESSEL, ENV_VESSEL, dump_stacks_on_signal
 from seaway.runtime.zenoh_bus import ENV_CONFIG
@@ -308,20 +308,28 @@ class StatusLine:
         self._last_print = 0.0
         self._first: tuple[float, float] | None = None  # lockstep: (sim s, wall s) of the first state
         self._moved: tuple[float, float] | None = None  # lockstep: (sim s, wall s) when it last moved
+        self._newest: dict[str, tuple[Newest[MissionStatus], Newest[StateEstimate],
+                                      Newest[ThrustCommand] | None]] = {}
 
     def watch(self, bus: Bus) -> None:
-        """Keep the latest mission status, state and energy budget of every vessel (on the bus's
-        threads)."""
+        """Keep the latest mission status, state and energy budget of every vessel.
+
+        In lockstep they come hundreds a second and the line shows a few a second: status, state and
+        commands are decoded only when shown (``Bus.newest``, ``pull``). Every budget is decoded (on
+        the receive thread), as the one of the period a decision was taken must be kept."""
         for v in self.vessels:
-            bus.subscribe(keys.MISSION_STATUS, vessel=v,
-                          callback=lambda _k, m, v=v: self.mission.__setitem__(v, m))
-            bus.subscribe(keys.NAV_STATE, vessel=v,
-                          callback=lambda _k, m, v=v: self.state.__setitem__(v, m))
-            bus.subscribe(keys.MISSION_ENERGY, vessel=v,
+            self._newest[v] = (bus.newest(keys.MISSION_STATUS, vessel=v),
+                               bus.newest(keys.NAV_STATE, vessel=v),
+                               bus.newest(keys.THRUST, vessel=v) if self.commands else None)
+            bus.subscribe(keys.MISSION_ENERGY, vessel=v, inline=True,
                           callback=lambda _k, m, v=v: self.on_energy(v, m))
-            if self.commands:  # not otherwise: in lockstep the commands come hundreds a second
-                bus.subscribe(keys.THRUST, vessel=v,
-                              callback=lambda _k, m, v=v: self.thrust.__setitem__(v, m))
+
+    def pull(self) -> None:
+        """Take the newest status, state and command heard (decoding them now)."""
+        for v, (mission, state, thrust) in self._newest.items():
+            self.mission[v], self.state[v] = mission.get(), state.get()
+            if thrust is not None:
+                self.thrust[v] = thrust.get()
 
     def on_energy(self, vessel: str, budget: EnergyBudget) -> None:
         """The vessel's latest budget; the first one of a decision is kept for its figures."""
@@ -333,6 +341,7 @@ class StatusLine:
     def complete(self, mission: MissionRequest | None) -> bool:
         """Whether every vessel's mission is complete: the one this launcher sent, if it sent one
         (a status of some other mission stops nothing)."""
+        self.pull()
         return all(self._over(v, m, mission) for v, m in self.mission.items())
 
     def _over(self, vessel: str, m: MissionStatus | None, sent: MissionRequest | None) -> bool:
@@ -416,6 +425,7 @@ class StatusLine:
 
     def show(self, t_s: float, final: bool = False) -> None:
         now = time.monotonic()
+        self.pull()
         if self.tty:
             sys.stdout.write("\r\x1b[2K" + self.text(t_s) + ("\n" if final else ""))
             sys.stdout.flush()
