@@ -78,3 +78,13 @@ def test_it_is_done_after_the_manoeuvre_and_a_neutral_tail() -> None:
     assert c.phase == "flying" and (cmd.thrust_port_n, cmd.thrust_starboard_n) == (0.0, 0.0)
     c.step(end + TAIL_S, WALL_NS)
     assert c.phase == "done" and c.finished
+
+
+def test_a_vessel_file_with_a_dead_zone_is_refused_before_the_bus_opens(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    # vehicle_io would compensate paper-boat's 10 N dead zone, hiding the boat's own from the ramp.
+    from seaway_lab.identify import cli
+
+    assert cli.main(["fly", "--vessel-file", "paper-boat"]) == 2
+    err = capsys.readouterr().err
+    assert "dead_zone_n = 10 N" in err and "paper-boat" in err and "dead_zone_n is 0" in err

@@ -126,6 +126,16 @@ def fly(args: argparse.Namespace) -> int:
     """The thin loop: the bus, the period, the signals. 0 flown, 1 aborted or not flown, 2 bad args."""
     run = service.resolve_run(args, "controller")
     vessel = load_vessel(run.model_vessel_file)
+    if vessel.dead_zone_n > 0:
+        # vehicle_io sends a demand inside the model's dead zone at its edge (or 0): the slow ramp
+        # would jump over the boat's dead zone, and the fit, which reads the demands, would find
+        # none and misplace every low-thrust step.
+        print(f"seaway identify fly: the run's vessel file {run.model_vessel_file} has dead_zone_n "
+              f"= {vessel.dead_zone_n:g} N, and vehicle_io compensates it (a demand inside it goes "
+              "out at its edge or as 0), so the manoeuvre could not show the boat's dead zone. Fly "
+              "with a vessel file whose dead_zone_n is 0: the base the fit starts from (the "
+              "profile's vessel_file, or --vessel-file)", file=sys.stderr)
+        return 2
     level = args.level_n if args.level_n is not None else vessel.thrust_max_n / 5.0
     if not 0 < level <= vessel.thrust_max_n:
         print(f"seaway identify fly: --level-n must be in (0, {vessel.thrust_max_n:g}] N (the "
