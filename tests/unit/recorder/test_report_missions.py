@@ -212,3 +212,44 @@ def test_a_restarted_controllers_resumption_is_the_same_flight() -> None:
     got = missions.choose(run, missions.acceptances([accepted(0, "probe", PROBE), again]), [], [])
     assert got.mission is not None and got.mission.source.startswith("recorded")
     assert got.start_ns == 0 and "sent again" not in got.how
+
+
+def test_when_the_estimate_completed_the_mission_and_the_true_track_did_not_both_are_said(
+        tmp_path, capsys) -> None:
+    # The estimate runs 0.6 m ahead of the truth: the controller ends the mission when its estimate
+    # enters the 1 m circle at (20, 0), with the true boat still 1.6 m short of the waypoint.
+    from seaway_lab.study.execute import not_completed_text
+
+    atts, _ = runinfo.scenario_attachments("lake")
+    w = RecordingWriter(tmp_path / "r.mcap", attachments=atts, foxglove=False)
+    w.open(0)
+    for k in range(200):
+        x, t = 0.1 * k, k * DT_NS
+        w.write(keys.SIM_TRUTH.key(V), SimTruth.make(
+            stamp_ns=t, u_mps=1.0, v_mps=0.0, r_radps=0.0, x_m=x, y_m=0.0, psi_rad=0.0,
+            thrust_port_n=10.0, thrust_starboard_n=10.0, energy_j=2.0 * k).encode(), "", t)
+        w.write(keys.NAV_STATE.key(V), StateEstimate.make(
+            stamp_ns=t, u_mps=1.0, v_mps=0.0, r_radps=0.0, x_m=x + 0.6, y_m=0.0,
+            psi_rad=0.0).encode(), "", t)
+        done = math.dist((x + 0.6, 0.0), PROBE[-1]) < 1.0
+        w.write(keys.MISSION_STATUS.key(V),
+                status(k, "probe", PROBE, x + 0.6, "complete" if done else "active").encode(), "", t)
+        if done:
+            break
+    w.close(t)
+    args = [str(tmp_path / "r.mcap"), "--no-plots", "--mission", str(probe_file(tmp_path))]
+    assert report.main([*args, "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert not doc["metrics"]["completed"]
+    c = doc["completion"]
+    assert (c["track"], c["controller"]) == (False, True)
+    assert c["estimate_error_m"] == pytest.approx(0.6, abs=1e-9)
+    assert not_completed_text(doc) == (
+        "the recording shows the mission not completed on the true track (0 of 1 legs); the "
+        "controller completed it on its estimate, 0.60 m from the truth")
+    assert report.main([*args, "--out", str(tmp_path / "rep")]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    row = next(i for i, line in enumerate(lines) if line.startswith("completed"))
+    assert lines[row].split()[1] == "NO" and "on the true track" in lines[row]
+    assert lines[row + 1].split()[:4] == ["by", "the", "controller", "yes"]
+    assert "0.60 m from the truth at the end" in lines[row + 1]

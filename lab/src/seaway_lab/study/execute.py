@@ -386,9 +386,24 @@ def run_one(spec: RunSpec, run_dir: str | Path, *, profile: str = PROFILE,
         out.timing["sim_per_wall"] = travel / out.timing["mission_s"]
     completed = bool(out.report and out.report.get("metrics", {}).get("completed"))
     if not out.error and not completed:
-        out.error = "the recording shows the mission not completed"
+        out.error = not_completed_text(out.report or {})
     out.ok = not out.error
     return out
+
+
+def not_completed_text(report: dict[str, Any]) -> str:
+    """Why a run whose launcher saw the mission complete counts as not completed: the recording's
+    true track did not complete it, while the controller did on its estimate (``completion``)."""
+    met, c = report.get("metrics") or {}, report.get("completion") or {}
+    text = "the recording shows the mission not completed"
+    legs = (report.get("mission") or {}).get("waypoints_m")
+    if met.get("legs_completed") is not None and legs:
+        text += f" on the true track ({met['legs_completed']} of {len(legs) - 1} legs)"
+    if c.get("controller"):
+        err = c.get("estimate_error_m")
+        text += ("; the controller completed it on its estimate"
+                 + (f", {err:.2f} m from the truth" if err is not None else ""))
+    return text
 
 
 def _phases(seen: dict[str, float], t_exit: float) -> dict[str, float]:

@@ -18,6 +18,7 @@ Writes ``metrics.json`` and, unless ``--no-plots``, ``trajectory.png``, ``thrust
 from __future__ import annotations
 
 import argparse
+import bisect
 import json
 import math
 import sys
@@ -215,6 +216,7 @@ def analyse(files: list[Path], *, scenario: str | None = None, mission_file: str
         "episodes": {"count": len(bounds), "reported": episode,
                      "time_went_back": len(bounds) - 1},
         "metrics": met.to_json() if met is not None else None,
+        "completion": completion(met, live, truth if state_source == TRUTH else [], nav),
         "energy_budget": energy.to_json(),
         "solve": mx.solve_stats(solves).to_json(),
         "controller_reported": live,
@@ -229,6 +231,28 @@ def analyse(files: list[Path], *, scenario: str | None = None, mission_file: str
               "start_ns": met.start_ns if met is not None else None, "energy": energy},
     }
     return out
+
+
+def completion(met: Any, live: dict[str, Any], truth: Sequence[Any],
+               nav: Sequence[StateEstimate]) -> dict[str, Any]:
+    """Who says the mission was completed: the track the metrics are taken on (``track``: the
+    simulator's truth when recorded), and the controller, which judges by its estimate
+    (``controller``: its last status said so; None without statuses). ``estimate_error_m``: how
+    far the last state estimate was from the truth at its stamp (nearest truth sample) [m]: where
+    the two verdicts differ, this is why (the controller ends the mission on a circle of
+    acceptance its estimate reached, and the true boat may still be outside it)."""
+    state = live.get("state")
+    err = None
+    if truth and nav:
+        last = nav[-1]
+        stamps = [t.stamp_ns for t in truth]
+        i = bisect.bisect_left(stamps, last.stamp_ns)
+        near = min((j for j in (i - 1, i) if 0 <= j < len(truth)),
+                   key=lambda j: abs(stamps[j] - last.stamp_ns))
+        err = math.hypot(last.x_m - truth[near].x_m, last.y_m - truth[near].y_m)
+    return {"track": None if met is None else bool(met.completed),
+            "controller": None if state is None else state == "complete",
+            "estimate_error_m": err}
 
 
 def _mission_json(m: runinfo.Mission | None) -> dict[str, Any] | None:
@@ -261,6 +285,20 @@ def _candidates(scenario: str | None, scen: Any, mission_file: str | None,
     return out
 
 
+def _completed_rows(m: dict[str, Any], c: dict[str, Any]) -> list[tuple[str, str, str]]:
+    """The 'completed' row, by the track the metrics are taken on; and the controller's verdict
+    below it when that differs (``completion``)."""
+    if m["completed"]:
+        return [("completed", "yes", "")]
+    rows = [("completed", "NO", "(metrics up to the last sample)")]
+    if c.get("controller"):
+        err = c.get("estimate_error_m")
+        rows = [("completed", "NO", "on the true track (metrics up to the last sample)"),
+                ("  by the controller", "yes", "on its estimate" + (
+                    f", {err:.2f} m from the truth at the end" if err is not None else ""))]
+    return rows
+
+
 def _f(v: Any, fmt: str = "{:.3f}") -> str:
     return "-" if v is None else fmt.format(v)
 
@@ -270,7 +308,7 @@ def table(res: dict[str, Any]) -> str:
     flown = res["missions"]
     if m is not None:
         rows = [
-            ("completed", "yes" if m["completed"] else "NO (metrics up to the last sample)", ""),
+            *_completed_rows(m, res.get("completion") or {}),
             ("travel time", _f(m["travel_time_s"], "{:.2f}"), "s"),
             ("energy", _f(m["energy_j"], "{:.2f}"), f"J ({m['energy_source']})"),
             ("  propulsion", _f(m["propulsion_energy_j"], "{:.2f}"), "J"),
