@@ -135,6 +135,11 @@ class SampleQueue:
         self.dropped = 0
         self.accepting = True
         self.arrived = threading.Event()  # wakes a lockstep writer at once (no polling delay)
+        self.wake_on_any = True
+        """Whether any sample wakes the writer, else only a lockstep answer: a lockstep writer has
+        nothing to decide before an answer comes, unless one it has lacks listed messages
+        (``LockstepWitness.lacking``). Woken for each of the ~20 samples of a period, it cost a
+        thread hand-over each."""
         self._lock = threading.Lock()
         self.timeline: Timeline | None = None  # a lockstep recorder's, when tracing
 
@@ -152,7 +157,8 @@ class SampleQueue:
             stamp = stamp_of(sample.payload)
             if stamp is not None:
                 self.timeline.mark("heard", stamp, sample.key.rsplit("/", 1)[1])
-        self.arrived.set()
+        if self.wake_on_any or "/lockstep/" in sample.key:
+            self.arrived.set()
 
 
 def recorded_suffixes(exprs: Sequence[str], vessel: str) -> set[str]:
@@ -243,6 +249,15 @@ class LockstepWitness:
         if lacking or absent:  # expected while members start or restart: the sim repeats for them
             log.info("lockstep t = %s: still lacking %s; no answer yet from %s", ledger.period,
                      lacking, absent)
+
+    def lacking(self) -> bool:
+        """Whether an answer of the current period lists messages not yet written (so the writer
+        must wake for every sample until they are), or no period has begun."""
+        member = self.member
+        with member.changed:
+            ledger = member.ledger
+            return ledger.period is None or any(
+                Period.of(a) == ledger.period and ledger.missing(a) for a in ledger.answers.values())
 
     def covers(self) -> tuple[Period, int, dict[str, int]] | None:
         """(period, period_ns, covers) when the current period is all written, else None."""
@@ -414,6 +429,8 @@ def _drain(writer: RecordingWriter, queue: SampleQueue, limit: int | None,
     if witness is not None:
         witness.written(batch)
         witness.maybe_answer(writer)
+        # Before the loop clears ``arrived`` and drains again, so no sample is left unwoken for.
+        queue.wake_on_any = witness.lacking()
     return n
 
 
