@@ -141,3 +141,37 @@ def test_a_bad_must_publish_is_refused_naming_it(duty: dict, message: str) -> No
                                        "must_publish": [duty]}]}
     with pytest.raises(ConfigError, match=re.escape(message)):
         parse_config(doc, Profile, "t.toml")
+
+
+def test_the_launcher_takes_what_it_heard_in_the_order_it_was_published(tmp_path) -> None:
+    # The launcher hears the answers through one ring per key (Bus.ring_raw) and takes them a few
+    # times a second, key by key: 200 periods at once, more than the watch remembers. Fed in the
+    # order taken, the estimator's answers would come before the sim's that asked for them, and
+    # every period but the last 64 would stay open for ever (overdue after LOCKSTEP_WITHIN_S).
+    import json
+
+    from seaway.contract import keys
+    from seaway.runtime.memory_bus import MemoryBus
+    from seaway.tools.launch.profile import BackoffPolicy, ProcessSpec
+    from seaway.tools.launch.supervisor import Supervised, Supervisor
+
+    procs = [Supervised(ProcessSpec(name=s, command=["true"], service=s), ["true"], "vessel1")
+             for s in ("sim", "estimator", "controller", "recorder")]
+    sup = Supervisor(procs, tmp_path, {}, BackoffPolicy(), echo=lambda _line: None, clock="lockstep")
+    bus = MemoryBus("vessel1")
+    sup.watch_on(bus)
+    for name in ("sim", "estimator", "controller", "recorder"):
+        sup.watches["vessel1"].arm(name, sup.duties[name], 0.0)
+    for service in ("recorder", "controller", "estimator", "sim"):  # the worst order there is
+        pub = bus.raw_publisher(keys.lockstep_spec(service).key("vessel1"))
+        for k in range(200):
+            pub.put(json.dumps({"episode": 0, "stamp_ns": k * 100_000_000,
+                                "hold": service == "controller" and k == 199}).encode())
+    bus.raw_publisher(keys.LOCKSTEP_SIM.key("vessel1")).put(b'{"episode": "x"}')  # no answer
+    assert sup.take_heard(1.0) == 800 and sup.take_heard(1.0) == 0
+    assert sup.watches["vessel1"].overdue(1.0 + W + 1.0) == {}
+    # A member that stops answering is still seen: the sim's next period, and no estimator.
+    bus.raw_publisher(keys.LOCKSTEP_SIM.key("vessel1")).put(
+        json.dumps({"episode": 0, "stamp_ns": 200 * 100_000_000}).encode())
+    sup.take_heard(2.0)
+    assert list(sup.watches["vessel1"].overdue(2.0 + W + 1.0)) == ["estimator"]

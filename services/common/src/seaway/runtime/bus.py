@@ -211,35 +211,56 @@ class TypedSubscriber(Generic[M]):
         self._sub.undeclare()
 
 
+class RawRing(Protocol):
+    """A transport's ring of the last samples on a key expression (``Bus.ring_raw``): full, the
+    oldest is dropped, never the transport held up."""
+
+    def take(self) -> bytes | None:
+        """The oldest payload held (removed from the ring), or None when it is empty."""
+
+    def undeclare(self) -> None: ...
+
+
+class _RingByCallback:
+    """``RawRing`` over ``subscribe_raw`` (a transport with no cheaper way: the in-memory bus)."""
+
+    def __init__(self, bus: Bus, keyexpr: str, capacity: int) -> None:
+        self._items: collections.deque[bytes] = collections.deque(maxlen=capacity)
+        self._sub = bus.subscribe_raw(keyexpr, lambda s: self._items.append(s.payload), inline=True)
+
+    def take(self) -> bytes | None:
+        try:
+            return self._items.popleft()
+        except IndexError:
+            return None
+
+    def undeclare(self) -> None:
+        self._sub.undeclare()
+
+
 class Newest(Generic[M]):
     """The newest sample on one key, decoded only when read (``get``), and once per sample.
 
-    Receiving only keeps the bytes, on the transport's own thread: a reader that looks a few times
-    a second (the launcher's status line) pays nothing for the hundreds of samples a second between
-    its looks in lockstep. A malformed sample is counted and logged when read, and the last good
-    message stays the answer.
+    The transport keeps only the newest sample's bytes (Zenoh: a ring of one, filled by its own
+    threads without running any Python): a reader that looks a few times a second (the launcher's
+    status line) pays nothing for the hundreds of samples a second between its looks in lockstep.
+    A malformed sample is counted and logged when read, and the last good message stays the answer.
     """
 
     def __init__(self, bus: Bus, spec: keys.KeySpec, keyexpr: str) -> None:
         assert spec.message is not None
         self._bus, self.keyexpr = bus, keyexpr
         self._type: type[M] = spec.message  # type: ignore[assignment]
-        self._raw: bytes | None = None
-        self._decoded_from: bytes | None = None
         self._msg: M | None = None
         self._lock = threading.Lock()
-        self._sub = bus.subscribe_raw(keyexpr, self._on_sample, inline=True)
-
-    def _on_sample(self, sample: RawSample) -> None:
-        self._raw = sample.payload  # one reference swapped: no lock on the receive thread
+        self._src = bus.ring_raw(keyexpr, 1)
 
     def get(self) -> M | None:
         """The newest well-formed message heard, or None before the first."""
         with self._lock:
-            raw = self._raw
-            if raw is None or raw is self._decoded_from:
+            raw = self._src.take()
+            if raw is None:
                 return self._msg
-            self._decoded_from = raw
             try:
                 self._msg = self._type.decode(raw)
             except MessageError as err:
@@ -251,7 +272,7 @@ class Newest(Generic[M]):
             return self._msg
 
     def undeclare(self) -> None:
-        self._sub.undeclare()
+        self._src.undeclare()
 
 
 def _service_of(health_key: str) -> str:
@@ -322,6 +343,12 @@ class Bus(abc.ABC):
             raise ValueError(f"{spec.suffix} is a {spec.kind}, not a topic")
         keyexpr = spec.wildcard() if vessel == "*" else self.key(spec, vessel)
         return TypedSubscriber(self, spec, keyexpr, mode, capacity, callback, inline)
+
+    def ring_raw(self, keyexpr: str, capacity: int) -> RawRing:
+        """Hold the last ``capacity`` samples' bytes on ``keyexpr`` for a reader that takes them
+        when it looks (``RawRing``), not a callback each; transports with a cheaper way override
+        it."""
+        return _RingByCallback(self, keyexpr, capacity)
 
     def newest(self, spec: keys.KeySpec, vessel: str | None = None) -> Newest[Any]:
         """The newest sample on ``spec`` of this vessel (or ``vessel``), decoded when read."""

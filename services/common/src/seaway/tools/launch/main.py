@@ -653,12 +653,7 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
     try:
         bus.watch_fleet_health(sup.on_health)
         # What the processes must keep publishing (liveness): heard here, so a hung one is seen.
-        for vessel, suffix in sorted(sup.watched_keys()):
-            spec = keys.spec_for_suffix(suffix)
-            assert spec is not None
-            # inline: on Zenoh's own receive thread (a short handler; hundreds a second in lockstep)
-            bus.subscribe_raw(spec.key(vessel), lambda sample, v=vessel, s=suffix:
-                              sup.on_sample(v, s, sample.payload), inline=True)
+        sup.watch_on(bus)
         status = StatusLine(vessels, lockstep=run.lockstep, commands=mission is None)
         status.watch(bus)
         error = sup.start_all(stop)

@@ -42,11 +42,33 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO
 
+from seaway.contract import keys
+from seaway.contract.messages import LOCKSTEP_SERVICES
+from seaway.runtime.bus import Bus, RawRing
 from seaway.runtime.credentials import ENV_IDENTITY
 from seaway.runtime.service import ENV_VESSEL
 from seaway.tools.launch.events import EVENTS_FILE, ProcessEvent
 from seaway.tools.launch.liveness import TOKEN_GRACE_S, Watch
 from seaway.tools.launch.profile import BackoffPolicy, ProcessSpec, start_order, stop_order
+
+WATCH_RING = 4096
+"""Samples held per watched key between two looks (``poll``, a few times a second): some 15 s of
+lockstep answers at 300 periods a second; past that the oldest go (a launcher busy that long)."""
+CHAIN_RANK = {keys.lockstep_spec(s).suffix: i for i, s in enumerate(LOCKSTEP_SERVICES)}
+"""A lockstep answer key's place in a period's chain (sim 0, estimator 1, controller 2, recorder 3)."""
+
+
+def answer_period(payload: bytes) -> tuple[tuple[int, int] | None, bool]:
+    """((episode, stamp_ns), hold) of a lockstep answer; (None, False) if it is malformed.
+
+    Only the three fields needed, read as plainly as can be (each member validates the answers it
+    acts on; a malformed one is no answer here)."""
+    try:
+        ans = json.loads(payload)
+        return (int(ans["episode"]), int(ans["stamp_ns"])), bool(ans.get("hold"))
+    except (ValueError, TypeError, KeyError):
+        return None, False
+
 
 HURRY_GRACE_S = 0.5
 """After a second Ctrl-C: how long a process (but the recorder) gets between SIGINT and SIGKILL."""
@@ -110,6 +132,7 @@ class Supervisor:
         self._watch_lock = threading.Lock()
         self._token_lost: dict[tuple[str, str], float] = {}
         self._own_link_noted = False
+        self._rings: list[tuple[str, str, RawRing]] = []  # (vessel, suffix, ring): watch_on
 
     # -- health ---------------------------------------------------------------------------------
 
@@ -132,20 +155,35 @@ class Supervisor:
         return {(sp.vessel, k) for name, sp in self.procs.items()
                 for k in Watch.keys_of(self.duties[name])}
 
-    def on_sample(self, vessel: str, suffix: str, payload: bytes) -> None:
-        """A sample on a watched key of ``vessel`` (from the launcher's Zenoh session, on its
-        threads)."""
-        period, hold = None, False
-        if suffix.startswith("lockstep/"):
-            # Hundreds a second in lockstep: only the three fields needed, read as plainly as can be
-            # (each member validates the answers it acts on; a malformed one is no answer here).
-            try:
-                ans = json.loads(payload)
-                period, hold = (int(ans["episode"]), int(ans["stamp_ns"])), bool(ans.get("hold"))
-            except (ValueError, TypeError, KeyError):
-                return
+    def watch_on(self, bus: Bus) -> None:
+        """Hear every watched key (``watched_keys``) through a ring the transport fills on its own
+        threads (``Bus.ring_raw``): no Python runs per sample, hundreds a second in lockstep; what
+        was heard is taken at each ``poll``."""
+        self._rings = []
+        for vessel, suffix in sorted(self.watched_keys()):
+            spec = keys.spec_for_suffix(suffix)
+            assert spec is not None  # a duty names registered topics (liveness.Duty)
+            self._rings.append((vessel, suffix, bus.ring_raw(spec.key(vessel), WATCH_RING)))
+
+    def take_heard(self, now: float) -> int:
+        """Give the watches what the rings hold (as heard ``now``); how many samples.
+
+        Taken key by key, they are fed in the order they were published in: by period, and in a
+        period along the lockstep chain (sim, estimator, controller, recorder), so each answer
+        comes after the one that asked for it, as the watch expects."""
+        heard: list[tuple[str, tuple[int, int], int, str, bool]] = []
+        no_period = (-1, -1)
+        for vessel, suffix, ring in self._rings:
+            rank = CHAIN_RANK.get(suffix, -1)
+            while (payload := ring.take()) is not None:
+                period, hold = answer_period(payload) if rank >= 0 else (no_period, False)
+                if period is not None:
+                    heard.append((vessel, period, rank, suffix, hold))
+        heard.sort(key=lambda h: (h[0], h[1], h[2]))
         with self._watch_lock:
-            self.watches[vessel].heard(suffix, time.monotonic(), period, hold)
+            for vessel, period, rank, suffix, hold in heard:
+                self.watches[vessel].heard(suffix, now, None if rank < 0 else period, hold)
+        return len(heard)
 
     def _mark_ready(self, sp: Supervised, now: float) -> None:
         sp.state, sp.ready_at = "ready", now
@@ -228,6 +266,9 @@ class Supervisor:
     def poll(self) -> None:
         """Notice exits; restart per policy after back-off. Call this a few times a second."""
         now = time.monotonic()
+        # What the watched keys carried since the last look, before any exit is noticed: a dead
+        # process's last answers count for it, not for the one that replaces it.
+        self.take_heard(now)
         for sp in self.procs.values():
             if sp.state == "backoff" and sp.next_start_at is not None and now >= sp.next_start_at:
                 sp.restarts += 1
