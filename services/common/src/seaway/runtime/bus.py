@@ -154,14 +154,9 @@ class TypedSubscriber(Generic[M]):
 
     def _on_sample(self, sample: RawSample) -> None:
         key = sample.key
-        try:
-            msg = self._type.decode(sample.payload)
-        except MessageError as err:
-            self._bus.stats.count_malformed(key, str(err))
-            self._bus.ratelog.warning(("malformed", key), "dropped malformed payload on %s: %s "
-                                      "(counted in the bus stats)", key, err)
+        msg = self._bus.decode_counted(self._type, key, sample.payload)
+        if msg is None:
             return
-        self._bus.stats.received += 1
         if self._callback is not None:
             try:
                 self._callback(key, msg)
@@ -259,16 +254,8 @@ class Newest(Generic[M]):
         """The newest well-formed message heard, or None before the first."""
         with self._lock:
             raw = self._src.take()
-            if raw is None:
-                return self._msg
-            try:
-                self._msg = self._type.decode(raw)
-            except MessageError as err:
-                self._bus.stats.count_malformed(self.keyexpr, str(err))
-                self._bus.ratelog.warning(("malformed", self.keyexpr), "ignored malformed payload "
-                                          "on %s: %s (counted in the bus stats)", self.keyexpr, err)
-            else:
-                self._bus.stats.received += 1
+            if raw is not None:  # a malformed one leaves the last good message the answer
+                self._msg = self._bus.decode_counted(self._type, self.keyexpr, raw) or self._msg
             return self._msg
 
     def undeclare(self) -> None:
@@ -306,6 +293,19 @@ class Bus(abc.ABC):
 
     def key(self, spec: keys.KeySpec, vessel: str | None = None) -> str:
         return spec.key(vessel or self.vessel)
+
+    def decode_counted(self, message: type[M], key: str, payload: bytes) -> M | None:
+        """``payload`` heard on ``key`` as a ``message``, counted as received; None if it is
+        malformed: then counted and logged (rate-limited, per key), and dropped."""
+        try:
+            msg = message.decode(payload)
+        except MessageError as err:
+            self.stats.count_malformed(key, str(err))
+            self.ratelog.warning(("malformed", key), "dropped malformed payload on %s: %s "
+                                 "(counted in the bus stats)", key, err)
+            return None
+        self.stats.received += 1
+        return msg
 
     # -- typed topics ------------------------------------------------------------------------------
 
