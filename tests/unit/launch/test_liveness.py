@@ -167,7 +167,10 @@ def test_the_launcher_takes_what_it_heard_in_the_order_it_was_published(tmp_path
         for k in range(200):
             pub.put(json.dumps({"episode": 0, "stamp_ns": k * 100_000_000,
                                 "hold": service == "controller" and k == 199}).encode())
-    bus.raw_publisher(keys.LOCKSTEP_SIM.key("vessel1")).put(b'{"episode": "x"}')  # no answer
+    sim = bus.raw_publisher(keys.LOCKSTEP_SIM.key("vessel1"))
+    for bad in (b'{"episode": "x"}', b'{"episode": Infinity, "stamp_ns": 1}', b"[1]", b'"x"',
+                b"\xff"):  # no answers, and the launcher's loop goes on
+        sim.put(bad)
     assert sup.take_heard(1.0) == 800 and sup.take_heard(1.0) == 0
     assert sup.watches["vessel1"].overdue(1.0 + W + 1.0) == {}
     # A member that stops answering is still seen: the sim's next period, and no estimator.

@@ -62,11 +62,11 @@ def answer_period(payload: bytes) -> tuple[tuple[int, int] | None, bool]:
     """((episode, stamp_ns), hold) of a lockstep answer; (None, False) if it is malformed.
 
     Only the three fields needed, read as plainly as can be (each member validates the answers it
-    acts on; a malformed one is no answer here)."""
+    acts on; a malformed one is no answer here, absurd numbers included: JSON's Infinity)."""
     try:
         ans = json.loads(payload)
         return (int(ans["episode"]), int(ans["stamp_ns"])), bool(ans.get("hold"))
-    except (ValueError, TypeError, KeyError):
+    except (ValueError, TypeError, KeyError, AttributeError, OverflowError):
         return None, False
 
 
