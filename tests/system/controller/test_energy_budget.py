@@ -10,13 +10,15 @@ import math
 import pytest
 from seaway.simkit.scenario import Current, load_scenario
 from seaway.vessel.model import load_vessel
+from seaway_controller.energy import BUDGET_INTERVAL_NS
 from seaway_estimator.core import EstimatorCore
 from seaway_lab.closed_loop import run_closed_loop
 
 LAKE = load_scenario("lake")
 BOAT = load_vessel(LAKE.vessel)
 RESERVE_J = BOAT.battery.reserve_energy_j  # type: ignore[union-attr]
-PERIOD_J = 2 * 520.0 * 0.1  # two control periods' energy at the lake cruise, ~500 W [J]
+INTERVAL_J = 2 * 520.0 * BUDGET_INTERVAL_NS / 1e9
+"""Twice the energy of one interval between the budget's pricings at the lake cruise, ~500 W [J]."""
 
 
 def _fly(sc, battery_j: float, max_time_s: float = 300.0):
@@ -36,11 +38,13 @@ def test_too_small_a_battery_returns_home_at_the_point_of_no_return():
     k = next(i for i, b in enumerate(budgets) if b.decision != "none")
     before, at = budgets[k - 1], budgets[k]
     assert at.decision == "return" and at.decided_ns == at.stamp_ns and not at.returning
-    # Energy to home + reserve reached what is left within one control period.
-    assert before.margin_j > 0 >= at.margin_j
-    assert abs(at.margin_j) <= PERIOD_J
+    # Energy to home + reserve reached what is left within one interval between pricings (once a
+    # second), falling, and not at the pricing before.
+    assert before.margin_j > at.margin_j and before.margin_j > 0
+    assert at.stamp_ns - before.stamp_ns <= BUDGET_INTERVAL_NS
+    assert abs(at.margin_j) <= INTERVAL_J
     assert at.battery_remaining_j == pytest.approx(at.energy_to_home_j + at.reserve_j,
-                                                   abs=PERIOD_J)
+                                                   abs=INTERVAL_J)
     # The point of no return predicted at the start is where the decision came.
     start = budgets[0]
     truth_at = next(t for t in out.truth if t.stamp_ns == at.stamp_ns)

@@ -1,7 +1,8 @@
 """The energy budget's return decision through the real processes (issue #17): a lockstep
 ``seaway launch sim-batch`` of the lake with a battery too small for its mission. The sim drains
-its pack and publishes it on ``vehicle/battery`` each period; the controller decides the return the
-period the energy to get home plus the reserve reaches what is left, flies home, and the mission
+its pack and publishes it on ``vehicle/battery`` each period; the controller prices its budget once
+a second and decides the return at the pricing where the energy to get home plus the reserve
+reaches what is left, or will before the next pricing; it flies home, and the mission
 ends there with at least the reserve left. The recording holds every input of the decision, and a
 replay of them through a fresh controller core (``seaway_controller.replay``) decides the same
 at the same period.
@@ -26,6 +27,7 @@ from seaway.contract.messages import (
     StateEstimate,
 )
 from seaway.vessel.model import load_vessel
+from seaway_controller.energy import BUDGET_INTERVAL_NS
 from seaway_controller.replay import replay
 from seaway_recorder import recording
 
@@ -72,8 +74,11 @@ def test_a_low_battery_returns_home_and_a_replay_decides_the_same(tmp_path):
     k = next(i for i, b in enumerate(budgets) if b.decision != "none")
     before, at = budgets[k - 1], budgets[k]
     assert at.decision == "return" and at.decided_ns == at.stamp_ns
-    # Energy to home + reserve = remaining, within one control period.
-    assert before.margin_j > 0 >= at.margin_j
+    # Energy to home + reserve = remaining, within the second between two pricings of the budget
+    # (at the lake cruise, ~500 W: 1 kJ is twice that second's energy).
+    assert before.margin_j > at.margin_j and before.margin_j > 0
+    assert at.stamp_ns - before.stamp_ns <= BUDGET_INTERVAL_NS
+    assert abs(at.margin_j) <= 1000.0
     assert at.reserve_j == pytest.approx(reserve)
 
     # The battery each period is the sim's own integral: remaining = initial - used.

@@ -223,23 +223,45 @@ def test_point_of_no_return_is_the_first_zero_of_the_margin_on_a_disturbed_path(
 
 
 @pytest.mark.parametrize("policy", ["warn", "return", "hold"])
-def test_the_decision_is_taken_once_when_the_margin_reaches_zero(policy):
-    b = Budget(model(), [(0.0, 0.0), (100.0, 0.0)], (0.0, 0.0), policy)
-    reserve = 1000.0
-    taken, margins = [], []
+def test_the_decision_is_taken_once_at_the_last_pricing_before_the_margin_reaches_zero(policy):
+    """Priced once a second, as the controller does (``Budget.due``): the decision comes at the
+    pricing after which the margin reaches 0 within the second, never a pricing late."""
+    path, home, reserve = [(0.0, 0.0), (100.0, 0.0)], (0.0, 0.0), 1000.0
+    b = Budget(model(), path, home, policy)
+    every = Budget(model(), path, home, "warn")  # priced each period: where the margin reaches 0
+    taken, priced, margins = [], [], []
     for k in range(60):
         x = 1.0 * k
         t = k * 100_000_000
         st = StateEstimate.make(stamp_ns=t, u_mps=1.0, v_mps=0.0, r_radps=0.0, x_m=x, y_m=0.0,
                                 psi_rad=0.0)
-        got = b.update(t, st, 1, None, 500.0 * x, 30_000.0 - 500.0 * x, t, reserve)
-        if got is not None:
-            taken.append((k, got))
-        margins.append(b.last.margin_j)
+        args = (t, st, 1, None, 500.0 * x, 30_000.0 - 500.0 * x, t, reserve)
+        every.update(*args)
+        margins.append(every.last.margin_j)
+        if b.due(t, 1):
+            priced.append(k)
+            got = b.update(*args)
+            if got is not None:
+                taken.append((k, got))
+                at = b.last
+    assert priced == list(range(0, 60, 10))  # whole seconds of the stamps' clock
     assert len(taken) == 1 and taken[0][1] == policy
     k = taken[0][0]
-    assert margins[k] <= 0 < margins[k - 1]  # the first period the margin reached zero
-    assert b.last.decided_ns == k * 100_000_000 and b.last.decision == policy
+    zero = next(i for i, m in enumerate(margins) if m <= 0)
+    assert k <= zero < k + 10  # within the second after the decision, not after the next pricing
+    assert k - 10 in priced and margins[k - 10] > 0 and zero >= 20  # not one pricing early either
+    assert at.decided_ns == k * 100_000_000 and at.decision == policy
+    assert at.margin_j == pytest.approx(margins[k], abs=1e-9)  # the same pricing
+    assert b.last.decision == policy and b.last.decided_ns == at.decided_ns  # and it stays
+
+
+def test_the_budget_is_due_on_a_new_second_or_a_new_leg():
+    b = Budget(model(), [(0.0, 0.0), (50.0, 0.0), (50.0, 50.0)], (0.0, 0.0), "warn")
+    assert b.due(1_300_000_000, 1)  # never priced
+    b.update(1_300_000_000, state(), 1, None, 0.0, 1e6, 0, 0.0)
+    assert not b.due(1_900_000_000, 1)
+    assert b.due(1_900_000_000, 2)  # the leg changed: the path ahead is another
+    assert b.due(2_000_000_000, 1)  # the next whole second
 
 
 def test_a_model_keeps_a_bounded_number_of_turn_tables() -> None:

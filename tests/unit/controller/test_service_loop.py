@@ -107,12 +107,15 @@ def test_answers_each_period_holds_when_idle_and_restarts_with_the_world(control
     assert not again.hold and again.published[keys.THRUST.suffix] == [0] and again.seq > idle.seq
     assert world.thrust.get(1.0).source == "cc-empc"
 
+    # The energy budget is priced at the mission's first period, then once a second of the
+    # periods' clock (seaway_controller.energy.BUDGET_INTERVAL_NS).
+    assert again.published[keys.MISSION_ENERGY.suffix] == [0]
+
     # One answer per period, listing what it published, in order.
     for k in range(1, 6):
         ans = world.period(k, state(k))
         assert ans.published == {keys.THRUST.suffix: [k * DT_NS], keys.SOLVE.suffix: [k * DT_NS],
-                                 keys.MISSION_STATUS.suffix: [k * DT_NS],
-                                 keys.MISSION_ENERGY.suffix: [k * DT_NS]}
+                                 keys.MISSION_STATUS.suffix: [k * DT_NS]}
     assert [c.stamp_ns for c in world.thrust.drain()] == [k * DT_NS for k in range(1, 6)]
 
     # The estimator has no state (re-initialising): zero thrust, so that time goes on.

@@ -411,9 +411,10 @@ class ControllerCore:
         return self.vessel.battery.reserve_energy_j if self.vessel.battery is not None else None
 
     def _update_budget(self, now_ns: int, state: StateEstimate, used: MpcOutcome | None) -> None:
-        """This period's budget, and the policy's action the period the margin reaches 0."""
+        """The budget, when due (``Budget.due``: once a second and at a new leg), and the policy's
+        action at the pricing that finds the margin at 0, or about to be."""
         budget, mm = self.budget, self.missions
-        if budget is None or mm.mission is None or mm.state != "active":
+        if budget is None or mm.mission is None or mm.state != "active" or not budget.due(now_ns, mm.active):
             return
         leg_j = _finite_or_none(used.costs.energy_to_go_j) if used is not None else None
         report = self.battery.report
@@ -448,7 +449,8 @@ class ControllerCore:
             self.missions.hold(f"the return home was refused: {reply.reason}")
 
     def take_budget(self) -> EnergyBudget | None:
-        """The budget of the last step, once (None: no active mission was stepped)."""
+        """The budget priced at the last step, once (None: none was, or no active mission was
+        stepped)."""
         msg, self._budget_msg = self._budget_msg, None
         return msg
 

@@ -88,7 +88,8 @@ MISSION_STATUS = KeySpec("mission/status", m.MissionStatus, "controller")
 MISSION_ACCEPTED = KeySpec("mission/accepted", m.MissionAccepted, "controller",
                             doc="the mission accepted, in local NED: on acceptance, and 1 Hz live")
 MISSION_ENERGY = KeySpec("mission/energy", m.EnergyBudget, "controller",
-                         doc="energy to finish and to get home against the battery; the decision")
+                         doc="energy to finish and to get home against the battery; the decision: "
+                             "1 Hz and at each new leg of an active mission")
 MISSION_SET = KeySpec("mission/set", m.MissionRequest, "controller", "query")
 MISSION_COMMAND = KeySpec("mission/command", m.MissionCommand, "controller", "query")
 SIM_TRUTH = KeySpec("sim/truth", m.SimTruth, "sim", also=("replay",))
