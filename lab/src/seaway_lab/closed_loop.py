@@ -52,6 +52,7 @@ from seaway_controller.core import ControllerConfig, ControllerCore
 from seaway_controller.mission import validate_mission
 from seaway_controller.ocp import ControllerKind
 from seaway_estimator.core import EstimatorCore
+from seaway_sim.battery import report_due
 from seaway_sim.core import Samples, SimCore
 
 DEFAULT_MAX_TIME_S = 900.0
@@ -164,9 +165,9 @@ class MissionSteering:
     """The controller's core on the TRUE state (the paper's setting), until its mission is over."""
 
     def __init__(self, core: ControllerCore,
-                 battery: Callable[[SimTruth], BatteryState] | None = None) -> None:
+                 battery: Callable[[SimTruth], BatteryState | None] | None = None) -> None:
         self.core = core
-        self.battery = battery  # the pack's report at each true state (None: no battery)
+        self.battery = battery  # the pack's report at a true state, None when none is due
         self.state = "idle"
         self.solve_times_s: list[float] = []
         self.successes: list[bool] = []
@@ -189,8 +190,9 @@ class MissionSteering:
         state = StateEstimate.make(stamp_ns=t, u_mps=truth.u_mps, v_mps=truth.v_mps,
                                    r_radps=truth.r_radps, x_m=truth.x_m, y_m=truth.y_m,
                                    psi_rad=max(-math.pi, min(math.pi, truth.psi_rad)), **tau)
-        if self.battery is not None:
-            self.core.on_battery(self.battery(truth))
+        report = self.battery(truth) if self.battery is not None else None
+        if report is not None:
+            self.core.on_battery(report)
         cmd, record, status = self.core.step(t, state)
         budget = self.core.take_budget()
         if budget is not None:
@@ -357,9 +359,9 @@ def run_closed_loop(scenario: str | Scenario, controller: ControllerKind,
     ``estimator``, if given, runs alongside on the scenario's sensors (``ClosedLoopResult.run``);
     it does not steer. ``battery_j``: the pack starts with this much usable energy [J] and the
     controller hears the simulator's report (``SimCore.battery``, what the lockstep sim
-    publishes) every period; the run then goes on while the energy budget holds the mission, until
+    publishes) once a second; the run then goes on while the energy budget holds the mission, until
     ``max_time_s``. ``battery``: the same reports from the scenario's own pack (as a lockstep stack
-    runs: the controller's budget then prices its point of no return every period).
+    runs: the controller's budget then prices its point of no return once a second).
     """
     sc = load_scenario(scenario) if isinstance(scenario, str) else scenario
     if sc.mission is None:
@@ -380,8 +382,14 @@ def run_closed_loop(scenario: str | Scenario, controller: ControllerKind,
     mission = core.missions.mission
     assert mission is not None
     reports = battery or battery_j is not None
-    steering = MissionSteering(core, (lambda _truth: sim.battery()) if reports else None)
     dt_s = core.config.dt_s
+
+    def battery_report(truth: SimTruth) -> BatteryState | None:
+        # As the lockstep sim reports it: once a second of sim time (battery.report_due).
+        due = report_due(truth.stamp_ns - s_to_ns(dt_s) if truth.stamp_ns > 0 else -1, truth.stamp_ns)
+        return sim.battery() if due else None
+
+    steering = MissionSteering(core, battery_report if reports else None)
     run = fly(sim, steering, round(max_time_s / dt_s), s_to_ns(dt_s), model=vp, estimator=estimator,
               progress=progress)
     m = mission_metrics(run.truth, mission.waypoints_m, mission.coa_radius_m, mission.task_power_w,

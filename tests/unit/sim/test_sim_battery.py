@@ -119,12 +119,15 @@ def test_a_scenario_request_whose_battery_does_not_fit_is_refused() -> None:
     assert app.generation == 0
 
 
-def test_lockstep_lists_the_battery_before_the_clock_and_real_time_does_not() -> None:
+def test_lockstep_lists_the_battery_before_the_clock_when_due_and_real_time_does_not() -> None:
     sc = load_scenario("paper-c1")
     hub = MemoryHub()
     lockstep = SimApp(hub.bus("vessel1"), SimCore(sc, load_vessel(sc.vessel)), lockstep=True)
-    kinds = [spec for spec, _ in lockstep.truth_outputs(None)]
+    kinds = [spec for spec, _ in lockstep.truth_outputs(None, since_ns=-1)]  # (-1 ns, 0]: t_0
     assert kinds == [keys.SIM_TRUTH, keys.SIM_DISTURBANCE, keys.VEHICLE_BATTERY, keys.SIM_CLOCK]
+    # Once a second of the sim's clock (battery.REPORT_HZ): none due in (0, 0].
+    assert [spec for spec, _ in lockstep.truth_outputs(None, since_ns=0)] == [
+        keys.SIM_TRUTH, keys.SIM_DISTURBANCE, keys.SIM_CLOCK]
     real = SimApp(hub.bus("vessel2"), SimCore(sc, load_vessel(sc.vessel)), lockstep=False)
     assert keys.VEHICLE_BATTERY not in [spec for spec, _ in real.truth_outputs(1.0)]
 

@@ -31,7 +31,7 @@ THE PREDICTION
 THE DECISION
 
 The battery's remaining energy now is its last report less the energy the controller counted since
-that report's stamp (reports come at ~1 Hz from an autopilot, each period in lockstep). The margin
+that report's stamp (reports come at ~1 Hz, from an autopilot or the lockstep sim). The margin
 is remaining - (energy to home + reserve). The budget is priced once a second (``BUDGET_INTERVAL_NS``)
 and when the active leg changes; the mission's policy acts at the first pricing at which the margin
 has reached 0 or, falling as it fell since the last pricing, will before the next one (so never up

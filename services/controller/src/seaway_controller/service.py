@@ -122,8 +122,9 @@ class ControllerService:
         self._states: dict[int, StateEstimate] = {}  # lockstep: the states of recent periods by stamp
         self._rethink = False  # lockstep: a mission request came while the current answer was hold
         if lockstep:
-            # The state comes with the estimator's answer, the battery with the sim's (the energy
-            # budget decides from the battery of the same period: exact, so replayable).
+            # The state comes with the estimator's answer, the battery with the sim's (once a
+            # second, the periods the energy budget is priced: it decides from the battery of the
+            # same period, exact, so replayable).
             self.member = Member(bus, NAME, watched={keys.NAV_STATE.suffix,
                                                      keys.VEHICLE_BATTERY.suffix},
                                  hears=("sim", "estimator"))

@@ -16,7 +16,7 @@ is what is under test, not a brown-out).
 
 Both of the sim's outputs come from one ``PackReading``: the lockstep ``BatteryState`` on
 ``vehicle/battery`` (``PackReading.message``) and, in real time, the PX4-like SYS_STATUS and
-BATTERY_STATUS (``px4_autopilot``), so the two never disagree.
+BATTERY_STATUS (``px4_autopilot``), so the two never disagree. Both come at ``REPORT_HZ``.
 """
 
 from __future__ import annotations
@@ -27,8 +27,20 @@ from seaway.contract.config import ConfigError
 from seaway.contract.messages import BatteryState
 from seaway.contract.units import NS_PER_S
 from seaway.simkit.scenario import Scenario
+from seaway.simkit.sensors import instants_in, period_ns
 from seaway.vessel.battery import J_PER_WH, BatteryParams, pack_state
 from seaway.vessel.model import VesselParams
+
+REPORT_HZ = 1.0
+"""How often the pack is reported, at whole seconds of the sim's clock: the simulated PX4's
+BATTERY_STATUS (PX4 streams it at 0.5 Hz on its onboard link) and the lockstep sim's
+``vehicle/battery``, as an autopilot would (each 0.1 s period, it was one sample in seven of the
+sim's, heard by the estimator, controller, recorder and launcher alike) [Hz]."""
+
+
+def report_due(after_ns: int, upto_ns: int) -> bool:
+    """Whether a report is due in (``after_ns``, ``upto_ns``] of the sim's clock [ns]."""
+    return bool(instants_in(period_ns(REPORT_HZ), after_ns, upto_ns))
 
 NOMINAL_PACK = BatteryParams(capacity_ah=10.0, nominal_voltage_v=14.8, full_voltage_v=16.8,
                              empty_voltage_v=13.2, reserve_frac=0.2)

@@ -112,8 +112,10 @@ class Lockstep:
             out: list[tuple[keys.KeySpec, Message]] = [(keys.GNSS, f) for f in samples.gnss
                                                        if f is not None]
             out += [(keys.ATTITUDE, a) for a in samples.attitude]
-            out += app.truth_outputs(None)
             period = self.period
+            # The first period of an episode (t_0) reports the pack too: (t_0 - 1 ns, t_0].
+            since = period.stamp_ns - self.period_ns if period.stamp_ns > 0 else -1
+            out += app.truth_outputs(None, since_ns=since)
             with self.member.changed:
                 members = sorted(self.members)
                 self._joined = False

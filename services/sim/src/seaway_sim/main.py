@@ -3,7 +3,7 @@
 Real time (the run's clock ``wall``): driven over MAVLink on ``--mavlink`` (``udpin:127.0.0.1:14580``).
 Lockstep (``lockstep``): sim time, driven by ThrustCommand on the bus (``seaway_sim.lockstep``).
 Both publish sim/truth, sim/disturbance and sim/clock and serve sim/scenario; lockstep also publishes
-the battery (vehicle/battery), which in real time the simulated PX4 reports over MAVLink.
+the battery (vehicle/battery, 1 Hz), which in real time the simulated PX4 reports over MAVLink.
 
 The run description (``--run`` or the run flags) says which scenario to run (default ``lake``), which
 vessel file the plant integrates (``plant_vessel_file``, else the model's) and the control period.

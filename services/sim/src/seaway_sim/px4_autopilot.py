@@ -51,7 +51,7 @@ from seaway.simkit.sensors import instants_in, period_ns
 from seaway.vessel.frames import GeoOrigin
 
 from seaway_sim import px4_mixer
-from seaway_sim.battery import PackReading
+from seaway_sim.battery import REPORT_HZ, PackReading
 from seaway_sim.px4_params import (
     BY_NAME,
     INDEX,
@@ -107,7 +107,6 @@ SENSORS_PRESENT = (mavlink.MAV_SYS_STATUS_SENSOR_GPS | mavlink.MAV_SYS_STATUS_SE
                    | mavlink.MAV_SYS_STATUS_AHRS | mavlink.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
                    | mavlink.MAV_SYS_STATUS_PREARM_CHECK)
 
-BATTERY_STATUS_HZ = 1.0  # PX4 streams it at 0.5 Hz on its onboard link; 1 Hz here
 UINT16_UNKNOWN = 65535  # MAVLink's "not set" for unsigned 16-bit fields
 INT16_MAX = 32767
 GPS_EPH_CDOP = 100  # GPS_RAW_INT.eph: HDOP x 100; a simulated open-sky receiver reports 1.0
@@ -625,7 +624,7 @@ class Px4Autopilot:
         if (instants_in(period_ns(SYS_STATUS_HZ), after_ns, upto_ns)
                 and keep(mavlink.MAVLINK_MSG_ID_SYS_STATUS, upto_ns)):
             out.append(self.sys_status(upto_ns, pack, gnss_ok, link_errors))
-        if (instants_in(period_ns(BATTERY_STATUS_HZ), after_ns, upto_ns)
+        if (instants_in(period_ns(REPORT_HZ), after_ns, upto_ns)
                 and keep(mavlink.MAVLINK_MSG_ID_BATTERY_STATUS, upto_ns)):
             out.append(self.battery_status(pack))
         fix = self.last_fix
