@@ -52,7 +52,7 @@ from seaway_controller.core import ControllerConfig, ControllerCore
 from seaway_controller.mission import validate_mission
 from seaway_controller.ocp import ControllerKind
 from seaway_estimator.core import EstimatorCore
-from seaway_sim.battery import report_due
+from seaway_sim.battery import report_due_at
 from seaway_sim.core import Samples, SimCore
 
 DEFAULT_MAX_TIME_S = 900.0
@@ -384,10 +384,8 @@ def run_closed_loop(scenario: str | Scenario, controller: ControllerKind,
     reports = battery or battery_j is not None
     dt_s = core.config.dt_s
 
-    def battery_report(truth: SimTruth) -> BatteryState | None:
-        # As the lockstep sim reports it: once a second of sim time (battery.report_due).
-        due = report_due(truth.stamp_ns - s_to_ns(dt_s) if truth.stamp_ns > 0 else -1, truth.stamp_ns)
-        return sim.battery() if due else None
+    def battery_report(truth: SimTruth) -> BatteryState | None:  # as the lockstep sim reports it
+        return sim.battery() if report_due_at(truth.stamp_ns, s_to_ns(dt_s)) else None
 
     steering = MissionSteering(core, battery_report if reports else None)
     run = fly(sim, steering, round(max_time_s / dt_s), s_to_ns(dt_s), model=vp, estimator=estimator,

@@ -15,7 +15,7 @@ from seaway.simkit.scenario import ScenarioBattery, load_scenario
 from seaway.vessel.battery import BatteryParams
 from seaway.vessel.model import load_vessel
 from seaway_sim.app import SimApp
-from seaway_sim.battery import NOMINAL_PACK, SimPack
+from seaway_sim.battery import NOMINAL_PACK, SimPack, report_due, report_due_at
 from seaway_sim.core import SimCore
 from seaway_sim.px4_autopilot import Px4Autopilot, Px4Config, battery_fields
 
@@ -123,13 +123,21 @@ def test_lockstep_lists_the_battery_before_the_clock_when_due_and_real_time_does
     sc = load_scenario("paper-c1")
     hub = MemoryHub()
     lockstep = SimApp(hub.bus("vessel1"), SimCore(sc, load_vessel(sc.vessel)), lockstep=True)
-    kinds = [spec for spec, _ in lockstep.truth_outputs(None, since_ns=-1)]  # (-1 ns, 0]: t_0
+    kinds = [spec for spec, _ in lockstep.truth_outputs(None, battery=True)]
     assert kinds == [keys.SIM_TRUTH, keys.SIM_DISTURBANCE, keys.VEHICLE_BATTERY, keys.SIM_CLOCK]
-    # Once a second of the sim's clock (battery.REPORT_HZ): none due in (0, 0].
-    assert [spec for spec, _ in lockstep.truth_outputs(None, since_ns=0)] == [
+    assert [spec for spec, _ in lockstep.truth_outputs(None)] == [
         keys.SIM_TRUTH, keys.SIM_DISTURBANCE, keys.SIM_CLOCK]
     real = SimApp(hub.bus("vessel2"), SimCore(sc, load_vessel(sc.vessel)), lockstep=False)
-    assert keys.VEHICLE_BATTERY not in [spec for spec, _ in real.truth_outputs(1.0)]
+    assert keys.VEHICLE_BATTERY not in [spec for spec, _ in real.truth_outputs(1.0, battery=True)]
+
+
+def test_a_lockstep_period_reports_the_pack_at_t0_and_at_each_whole_second() -> None:
+    period = 100_000_000
+    due = [k for k in range(0, 31) if report_due_at(k * period, period)]
+    assert due == [0, 10, 20, 30]
+    # A period that is not a divisor of the second: the period that holds the whole second.
+    assert [k for k in range(0, 15) if report_due_at(k * 150_000_000, 150_000_000)] == [0, 7, 14]
+    assert report_due(999_999_999, 1_000_000_000) and not report_due(1_000_000_000, 1_999_999_999)
 
 
 def test_mavlink_fields_as_px4_fills_them() -> None:

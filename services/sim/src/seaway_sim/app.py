@@ -20,7 +20,7 @@ from seaway.runtime.run import RunDescription
 from seaway.simkit.scenario import Scenario, load_scenario, parse_scenario
 from seaway.vessel.model import VesselParams, load_vessel
 
-from seaway_sim.battery import SimPack, report_due
+from seaway_sim.battery import SimPack
 from seaway_sim.core import SimCore
 
 log = logging.getLogger("seaway_sim")
@@ -102,16 +102,15 @@ class SimApp:
                               f"services model {self.run.model_vessel_file!r}: start a new run for it")
 
     def truth_outputs(self, real_time_factor: float | None,
-                      since_ns: int | None = None) -> list[tuple[keys.KeySpec, Message]]:
-        """SIM_TRUTH, SIM_DISTURBANCE, in lockstep VEHICLE_BATTERY when a report is due in
-        (``since_ns``, now] (``battery.report_due``), and SIM_CLOCK last, at the core's current time
-        (lock held).
+                      battery: bool = False) -> list[tuple[keys.KeySpec, Message]]:
+        """SIM_TRUTH, SIM_DISTURBANCE, in lockstep VEHICLE_BATTERY if ``battery`` (a report is due:
+        ``battery.report_due_at``), and SIM_CLOCK last, at the core's current time (lock held).
 
         The battery is the sim's own only in lockstep, where no autopilot speaks: in real time the
         simulated PX4 reports it over MAVLink and vehicle_io publishes it, as on a boat."""
         out: list[tuple[keys.KeySpec, Message]] = [(keys.SIM_TRUTH, self.core.truth()),
                                                    (keys.SIM_DISTURBANCE, self.core.disturbance())]
-        if self.lockstep and since_ns is not None and report_due(since_ns, self.core.stamp_ns):
+        if self.lockstep and battery:
             out.append((keys.VEHICLE_BATTERY, self.core.battery()))
         out.append((keys.SIM_CLOCK, ClockTick(stamp_ns=self.core.stamp_ns, lockstep=self.lockstep,
                                               real_time_factor=real_time_factor)))

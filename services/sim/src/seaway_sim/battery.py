@@ -42,6 +42,12 @@ def report_due(after_ns: int, upto_ns: int) -> bool:
     """Whether a report is due in (``after_ns``, ``upto_ns``] of the sim's clock [ns]."""
     return bool(instants_in(period_ns(REPORT_HZ), after_ns, upto_ns))
 
+
+def report_due_at(stamp_ns: int, period_ns: int) -> bool:
+    """Whether the lockstep period ending at ``stamp_ns`` reports the pack: one of length
+    ``period_ns`` [ns] with a report instant in it, and the episode's first (t_0 = 0)."""
+    return report_due(stamp_ns - period_ns if stamp_ns > 0 else -1, stamp_ns)
+
 NOMINAL_PACK = BatteryParams(capacity_ah=10.0, nominal_voltage_v=14.8, full_voltage_v=16.8,
                              empty_voltage_v=13.2, reserve_frac=0.2)
 """The pack of a plant vessel file without ``[battery]``: a 4S Li-ion 10 A h at 14.8 V (533 kJ),

@@ -34,6 +34,7 @@ from seaway.runtime.lockstep import MEMBERS, STALL_REPEAT_S, Member, Period
 from seaway.vessel.thrusters import output_pair
 
 from seaway_sim.app import SimApp
+from seaway_sim.battery import report_due_at
 
 log = logging.getLogger("seaway_sim.lockstep")
 
@@ -113,9 +114,7 @@ class Lockstep:
                                                        if f is not None]
             out += [(keys.ATTITUDE, a) for a in samples.attitude]
             period = self.period
-            # The first period of an episode (t_0) reports the pack too: (t_0 - 1 ns, t_0].
-            since = period.stamp_ns - self.period_ns if period.stamp_ns > 0 else -1
-            out += app.truth_outputs(None, since_ns=since)
+            out += app.truth_outputs(None, battery=report_due_at(period.stamp_ns, self.period_ns))
             with self.member.changed:
                 members = sorted(self.members)
                 self._joined = False

@@ -51,7 +51,7 @@ from seaway.simkit.sensors import instants_in, period_ns
 from seaway.vessel.frames import GeoOrigin
 
 from seaway_sim import px4_mixer
-from seaway_sim.battery import REPORT_HZ, PackReading
+from seaway_sim.battery import PackReading, report_due
 from seaway_sim.px4_params import (
     BY_NAME,
     INDEX,
@@ -624,8 +624,7 @@ class Px4Autopilot:
         if (instants_in(period_ns(SYS_STATUS_HZ), after_ns, upto_ns)
                 and keep(mavlink.MAVLINK_MSG_ID_SYS_STATUS, upto_ns)):
             out.append(self.sys_status(upto_ns, pack, gnss_ok, link_errors))
-        if (instants_in(period_ns(REPORT_HZ), after_ns, upto_ns)
-                and keep(mavlink.MAVLINK_MSG_ID_BATTERY_STATUS, upto_ns)):
+        if report_due(after_ns, upto_ns) and keep(mavlink.MAVLINK_MSG_ID_BATTERY_STATUS, upto_ns):
             out.append(self.battery_status(pack))
         fix = self.last_fix
         local_due = (instants_in(period_ns(LOCAL_POSITION_HZ), after_ns, upto_ns)
