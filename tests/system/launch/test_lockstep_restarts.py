@@ -225,10 +225,11 @@ def test_two_missions_back_to_back_in_one_stack_equal_two_fresh_stacks(tmp_path,
     # The same scenario again (a new episode from t = 0), then its mission again.
     reply = stack.bus.request(keys.SIM_SCENARIO, ScenarioRequest(stamp_ns=0, action="restart"), 10.0)
     assert reply.accepted, reply.reason
-    # The mission at once, as a user would send it: it usually reaches the controller before the
-    # new episode's first tick does. The controller then takes it at the old episode's held period,
-    # and starts it again from the new episode's first (its log: "mission 'second' restarted"):
-    # the old episode's last answer, stale to the sim, flies nothing.
+    # The mission at once, as a user would send it. The reply to the restart comes once every
+    # member has answered the new episode's first period (Lockstep.await_episode), so the mission
+    # is taken in the new episode. Before, it usually reached the controller first, was taken at
+    # the old episode's held period, and its acceptance, stamped there, was recorded in the new
+    # episode's time: 1 run in 9 reported the second mission as starting at its end.
     sc = load_scenario(SCENARIO)
     mission = sc.mission.to_request(0, mission_id="second", controller=CONTROLLER)
     reply = stack.bus.request(keys.MISSION_SET, mission, 10.0)

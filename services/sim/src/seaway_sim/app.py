@@ -55,6 +55,10 @@ class SimApp:
         """The vessel the services model: its limits are vehicle I/O's, whose output stage the
         lockstep sim applies to the controller's demand (``thrusters.output_stage``)."""
         self.on_load: list[Callable[[Scenario, VesselParams], None]] = []
+        self.after_load: Callable[[int, int], str] | None = None
+        """Lockstep: called with the new (episode, stamp [ns]) once a load is done, before the
+        reply; waits until the stack is in the new episode and returns a note for the reply ('' if
+        nothing to say) (``Lockstep.await_episode``)."""
         self.pubs = {spec: bus.publisher(spec)
                      for spec in (keys.SIM_TRUTH, keys.SIM_DISTURBANCE, keys.SIM_CLOCK)}
         bus.queryable(keys.SIM_SCENARIO, self.handle_scenario)
@@ -86,11 +90,12 @@ class SimApp:
             self.generation += 1
             for hook in self.on_load:
                 hook(scenario, vessel)
-            stamp = self.core.stamp_ns
+            stamp, episode = self.core.stamp_ns, self.generation
         what = "restarted" if request.action == "restart" else "loaded"
         log.info("scenario %s %s (seed %d, vessel %s)", scenario.name, what, scenario.seed,
                  vessel.name)
-        return Reply.accept(stamp, f"scenario {scenario.name} {what}", name=scenario.name,
+        note = self.after_load(episode, stamp) if self.after_load is not None else ""
+        return Reply.accept(stamp, f"scenario {scenario.name} {what}{note}", name=scenario.name,
                             seed=scenario.seed, vessel=vessel.name)
 
     def _check_model(self, scenario: Scenario, model: VesselParams) -> None:

@@ -38,6 +38,10 @@ from seaway_sim.battery import report_due_at
 
 log = logging.getLogger("seaway_sim.lockstep")
 
+EPISODE_WAIT_S = 5.0
+"""How long a scenario load waits for the members to answer the new episode's first period before
+it replies anyway (a member restarting: the launcher brings it back) [wall s]."""
+
 
 @dataclass
 class LockstepStats:
@@ -66,6 +70,7 @@ class Lockstep:
         self._applied: int | None = None  # stamp of the command applied over the last period
         app.bus.subscribe(keys.THRUST, callback=self._on_thrust, inline=True)
         app.bus.watch_lockstep_members(self._on_member)
+        app.after_load = self.await_episode
 
     # -- bus threads --------------------------------------------------------------------------------
 
@@ -98,6 +103,34 @@ class Lockstep:
             # Expected at every stop (the launcher stops the members first); after a crash the
             # launcher restarts it and says so. Nothing for the user to do here.
             log.info("lockstep: %s is gone; holding until it is back", service)
+
+    def await_episode(self, episode: int, stamp_ns: int) -> str:
+        """A scenario load's wait before its reply (``SimApp.after_load``, on the request's thread):
+        wake the loop, so that it publishes the new episode's first period now, and wait until every
+        member that serves requests (all but the recorder, which only writes) has answered that
+        period. A request sent after the reply (a mission, say) then finds the stack in the new
+        episode; before, it could reach the controller first and be taken at the old episode's held
+        period (its acceptance then recorded in the new episode's time). '' once they answered;
+        after ``EPISODE_WAIT_S``, or if another load came, a note saying so."""
+        period = Period(episode, stamp_ns)
+        deadline = time.monotonic() + EPISODE_WAIT_S
+        with self.member.changed:
+            self.member.version += 1
+            self.member.changed.notify_all()
+            while True:
+                if self.app.generation != episode:
+                    return "; another scenario was loaded since"
+                lacking = [m for m in sorted(self.members - {"recorder"})
+                           if self.member.ledger.answer(m, period) is None]
+                if not lacking:
+                    return ""
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    log.warning("lockstep: episode %d's first period not yet answered by %s after "
+                                "%.0f s; replying to the scenario request anyway", episode,
+                                ", ".join(lacking), EPISODE_WAIT_S)
+                    return f"; its first period not yet answered by {', '.join(lacking)}"
+                self.member.changed.wait(min(left, 0.25))
 
     # -- the period -----------------------------------------------------------------------------------
 

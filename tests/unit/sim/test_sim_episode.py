@@ -1,0 +1,97 @@
+"""A scenario load in lockstep replies once the stack is in the new episode: every member has
+answered its first period. A request sent after the reply (a mission) then cannot reach the
+controller while it still holds the old episode's last period. The sim's real loop and a member of
+the runtime's own lockstep protocol, on the in-memory bus."""
+
+from __future__ import annotations
+
+import threading
+
+from seaway.contract import keys
+from seaway.contract.messages import ScenarioRequest
+from seaway.runtime.lockstep import Member, Period
+from seaway.runtime.memory_bus import MemoryHub
+from seaway.simkit.scenario import load_scenario
+from seaway.vessel.model import load_vessel
+from seaway_sim import lockstep as sim_lockstep
+from seaway_sim.app import SimApp
+from seaway_sim.core import SimCore
+from seaway_sim.lockstep import Lockstep
+
+from tests.conftest import wait_for
+
+VESSEL = "vessel1"
+
+
+class SlowMember:
+    """A member that answers each new period of the sim with hold, ``delay`` after it heard it."""
+
+    def __init__(self, hub: MemoryHub, stop: threading.Event, delay: threading.Event) -> None:
+        self.member = Member(hub.bus(VESSEL), "controller", watched=set(), hears=("sim",))
+        self.answered: list[Period] = []
+        self.stop, self.delay = stop, delay
+        self.thread = threading.Thread(target=self._loop, daemon=True)
+        self.thread.start()
+        self.member.join()
+
+    def _loop(self) -> None:
+        version, last = 0, None
+        while not self.stop.is_set():
+            version = self.member.wait(version, 0.05)
+            with self.member.changed:
+                tick = self.member.ledger.answer("sim")
+            if tick is None or Period.of(tick) == last:
+                continue
+            self.delay.wait(0.3)  # a busy controller: set, it answers at once
+            last = Period.of(tick)
+            self.member.answer(last, tick.period_ns, hold=True)
+            self.answered.append(last)
+
+
+def test_a_scenario_restart_replies_once_every_member_answered_the_new_episode() -> None:
+    hub = MemoryHub()
+    sc = load_scenario("paper-c1")
+    app = SimApp(hub.bus(VESSEL), SimCore(sc, load_vessel(sc.vessel)), lockstep=True)
+    stop, fast = threading.Event(), threading.Event()
+    sim = Lockstep(app, 0.1, stop)
+    member = SlowMember(hub, stop, fast)
+    threading.Thread(target=sim.run, daemon=True).start()
+    try:
+        fast.set()
+        wait_for(lambda: Period(0, 0) in member.answered, 10, what="the first period answered")
+        fast.clear()  # from now on the member takes 0.3 s to answer
+        operator = hub.bus(VESSEL)
+        reply = operator.request(keys.SIM_SCENARIO, ScenarioRequest(stamp_ns=0, action="restart"),
+                                 timeout_s=10.0)
+        assert reply.accepted, reply.reason
+        # At the reply, the member has answered the new episode's first period (it held the old
+        # one's t_0 until then: nothing to fly).
+        assert member.answered[-1] == Period(1, 0), member.answered
+        assert reply.reason == f"scenario {sc.name} restarted"
+    finally:
+        stop.set()
+        fast.set()
+
+
+def test_a_member_that_does_not_answer_delays_the_reply_only_so_long(monkeypatch) -> None:
+    monkeypatch.setattr(sim_lockstep, "EPISODE_WAIT_S", 0.5)
+    hub = MemoryHub()
+    sc = load_scenario("paper-c1")
+    app = SimApp(hub.bus(VESSEL), SimCore(sc, load_vessel(sc.vessel)), lockstep=True)
+    stop, fast = threading.Event(), threading.Event()
+    sim = Lockstep(app, 0.1, stop)
+    member = SlowMember(hub, stop, fast)
+    threading.Thread(target=sim.run, daemon=True).start()
+    try:
+        fast.set()
+        wait_for(lambda: Period(0, 0) in member.answered, 10, what="the first period answered")
+        member.stop = threading.Event()
+        member.stop.set()  # it stops answering (hung, or being restarted)
+        member.thread.join(5.0)
+        assert not member.thread.is_alive()
+        reply = hub.bus(VESSEL).request(keys.SIM_SCENARIO,
+                                        ScenarioRequest(stamp_ns=0, action="restart"), timeout_s=10.0)
+        assert reply.accepted, reply.reason
+        assert reply.reason.endswith("its first period not yet answered by controller"), reply.reason
+    finally:
+        stop.set()
