@@ -48,50 +48,55 @@ class SlowMember:
             self.answered.append(last)
 
 
+class Stack:
+    """The sim's lockstep loop and a ``SlowMember``, past their first period (answered at once)."""
+
+    def __init__(self) -> None:
+        self.hub = MemoryHub()
+        self.scenario = load_scenario("paper-c1")
+        app = SimApp(self.hub.bus(VESSEL), SimCore(self.scenario, load_vessel(self.scenario.vessel)),
+                     lockstep=True)
+        self.stop, self.fast = threading.Event(), threading.Event()
+        sim = Lockstep(app, 0.1, self.stop)
+        self.member = SlowMember(self.hub, self.stop, self.fast)
+        threading.Thread(target=sim.run, daemon=True).start()
+        self.fast.set()
+        wait_for(lambda: Period(0, 0) in self.member.answered, 10, what="the first period answered")
+
+    def restart(self):
+        return self.hub.bus(VESSEL).request(
+            keys.SIM_SCENARIO, ScenarioRequest(stamp_ns=0, action="restart"), timeout_s=10.0)
+
+    def close(self) -> None:
+        self.stop.set()
+        self.fast.set()
+
+
 def test_a_scenario_restart_replies_once_every_member_answered_the_new_episode() -> None:
-    hub = MemoryHub()
-    sc = load_scenario("paper-c1")
-    app = SimApp(hub.bus(VESSEL), SimCore(sc, load_vessel(sc.vessel)), lockstep=True)
-    stop, fast = threading.Event(), threading.Event()
-    sim = Lockstep(app, 0.1, stop)
-    member = SlowMember(hub, stop, fast)
-    threading.Thread(target=sim.run, daemon=True).start()
+    stack = Stack()
     try:
-        fast.set()
-        wait_for(lambda: Period(0, 0) in member.answered, 10, what="the first period answered")
-        fast.clear()  # from now on the member takes 0.3 s to answer
-        operator = hub.bus(VESSEL)
-        reply = operator.request(keys.SIM_SCENARIO, ScenarioRequest(stamp_ns=0, action="restart"),
-                                 timeout_s=10.0)
+        stack.fast.clear()  # from now on the member takes 0.3 s to answer
+        reply = stack.restart()
         assert reply.accepted, reply.reason
         # At the reply, the member has answered the new episode's first period (it held the old
         # one's t_0 until then: nothing to fly).
-        assert member.answered[-1] == Period(1, 0), member.answered
-        assert reply.reason == f"scenario {sc.name} restarted"
+        assert stack.member.answered[-1] == Period(1, 0), stack.member.answered
+        assert reply.reason == f"scenario {stack.scenario.name} restarted"
     finally:
-        stop.set()
-        fast.set()
+        stack.close()
 
 
 def test_a_member_that_does_not_answer_delays_the_reply_only_so_long(monkeypatch) -> None:
     monkeypatch.setattr(sim_lockstep, "EPISODE_WAIT_S", 0.5)
-    hub = MemoryHub()
-    sc = load_scenario("paper-c1")
-    app = SimApp(hub.bus(VESSEL), SimCore(sc, load_vessel(sc.vessel)), lockstep=True)
-    stop, fast = threading.Event(), threading.Event()
-    sim = Lockstep(app, 0.1, stop)
-    member = SlowMember(hub, stop, fast)
-    threading.Thread(target=sim.run, daemon=True).start()
+    stack = Stack()
     try:
-        fast.set()
-        wait_for(lambda: Period(0, 0) in member.answered, 10, what="the first period answered")
+        member = stack.member
         member.stop = threading.Event()
         member.stop.set()  # it stops answering (hung, or being restarted)
         member.thread.join(5.0)
         assert not member.thread.is_alive()
-        reply = hub.bus(VESSEL).request(keys.SIM_SCENARIO,
-                                        ScenarioRequest(stamp_ns=0, action="restart"), timeout_s=10.0)
+        reply = stack.restart()
         assert reply.accepted, reply.reason
         assert reply.reason.endswith("its first period not yet answered by controller"), reply.reason
     finally:
-        stop.set()
+        stack.close()
