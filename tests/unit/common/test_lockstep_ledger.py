@@ -94,3 +94,28 @@ def test_a_member_hears_only_the_answers_it_asked_for() -> None:
     assert member.ledger.answers == {}
     Member(hub.bus("v1"), "sim", watched=()).answer(Period(0, P), P)
     assert set(member.ledger.answers) == {"sim"}
+
+
+def test_a_repeat_of_a_period_not_yet_answered_logs_what_the_member_lacks(caplog) -> None:
+    """A stalled run repeats its period every 2 s; each member that has not answered it says, in its
+    own log, which answers and which listed messages it is still waiting for."""
+    hub = MemoryHub()
+    member = Member(hub.bus("v1"), "controller", watched=("nav/state",), hears=("sim", "estimator"))
+    tick = answer("sim", 4, members=["estimator", "controller"])
+    member.on_answer("seaway/v1/lockstep/sim", tick)
+    with caplog.at_level("INFO", logger="seaway.lockstep"):
+        member.on_answer("seaway/v1/lockstep/sim", tick.model_copy(update={"seq": 2}))
+    assert "controller, lockstep t = 0.400 s (episode 0), repeated: no answer yet from estimator" \
+        in caplog.text
+    caplog.clear()
+    member.on_answer("seaway/v1/lockstep/estimator",
+                     answer("estimator", 4, published={"nav/state": [4 * P]}))
+    with caplog.at_level("INFO", logger="seaway.lockstep"):
+        member.on_answer("seaway/v1/lockstep/sim", tick.model_copy(update={"seq": 3}))
+    assert "repeated: estimator's answer lists, not seen: nav/state @ 0.400 s" in caplog.text
+    caplog.clear()
+    member.saw("nav/state", 4 * P)
+    member.answer(Period(0, 4 * P), P)  # answered: a repeat is no news
+    with caplog.at_level("INFO", logger="seaway.lockstep"):
+        member.on_answer("seaway/v1/lockstep/sim", tick.model_copy(update={"seq": 4}))
+    assert "repeated" not in caplog.text

@@ -224,10 +224,7 @@ class LockstepWitness:
             if key in self.answer_keys:  # after what it lists was written (it was published after)
                 try:
                     ans = PeriodDone.decode(payload)
-                    before = self.member.ledger.period
                     self.member.on_answer(key, ans)
-                    if ans.service == "sim" and before == Period.of(ans):
-                        self._explain_repeat()
                 except MessageError as err:
                     self.member.ratelog.warning(("malformed answer", key),
                                                 "lockstep answer on %s ignored: %s", key, err)
@@ -237,18 +234,6 @@ class LockstepWitness:
                     seen.append((key[len(self.prefix):], stamp))
         if seen:
             self.member.saw_many(seen)
-
-    def _explain_repeat(self) -> None:
-        """The sim repeated its period: say what this recorder still lacks, if anything."""
-        ledger = self.member.ledger
-        lacking = {s: ledger.missing(a) for s, a in ledger.answers.items()
-                   if Period.of(a) == ledger.period and ledger.missing(a)}
-        tick = ledger.answer("sim")
-        absent = [m for m in (tick.members if tick is not None else ())
-                  if m != "recorder" and ledger.answer(m) is None]
-        if lacking or absent:  # expected while members start or restart: the sim repeats for them
-            log.info("lockstep t = %s: still lacking %s; no answer yet from %s", ledger.period,
-                     lacking, absent)
 
     def lacking(self) -> bool:
         """Whether an answer of the current period lists messages not yet written (so the writer

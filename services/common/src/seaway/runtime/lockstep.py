@@ -217,6 +217,7 @@ class Member:
         sim and the estimator."""
         self.bus = bus
         self.service = service
+        self.hears = frozenset(LOCKSTEP_SERVICES if hears is None else hears) - {service}
         self.ledger = Ledger(watched, consumed)
         self.changed = threading.Condition()
         self.version = 0  # bumped on every ledger change, under ``changed``
@@ -231,9 +232,8 @@ class Member:
         self.ratelog = RateLimitedLog(log)  # repeated warnings, per kind and key
         self.timeline = Timeline.from_env(service)  # seaway.runtime.timeline: off unless asked
         if subscribe:  # else the service feeds ``on_answer`` itself (the recorder, from its stream)
-            for other in LOCKSTEP_SERVICES if hears is None else hears:
-                if other != service:
-                    bus.subscribe(keys.lockstep_spec(other), callback=self.on_answer, inline=True)
+            for other in sorted(self.hears):
+                bus.subscribe(keys.lockstep_spec(other), callback=self.on_answer, inline=True)
 
     # -- from the bus's threads -------------------------------------------------------------------
 
@@ -285,10 +285,36 @@ class Member:
                 if self.on_restart is not None:
                     self.on_restart(before, Period.of(answer))
             repeat = change == "repeat"
+            lacking = self.lacking() if repeat else ""
             self.version += 1
             self.changed.notify_all()
+        if lacking:  # expected while members start or restart: the sim repeats for them
+            log.info("%s, lockstep t = %.3f s (episode %d), repeated: %s", self.service,
+                     answer.stamp_ns / 1e9, answer.episode, lacking)
         if repeat:
             self.repeat()
+
+    def lacking(self) -> str:
+        """What keeps this member from answering the current period, for a person ('' if it has
+        answered it, or has all it needs): the answers it needs that have not come, and the messages
+        listed by those that have which it has not seen (key suffix and stamp). Under ``changed``.
+
+        Logged when the sim repeats a period this member has not answered: a run that stalls says
+        in each member's log what that member was waiting for."""
+        ledger, period = self.ledger, self.ledger.period
+        last = self.last_answer
+        if period is None or (last is not None and Period.of(last) == period):
+            return ""
+        tick = ledger.answer("sim")
+        absent = sorted(m for m in self.hears if m != "sim" and ledger.answer(m) is None
+                        and (tick is None or m in tick.members))
+        missing = {s: ledger.missing(a) for s, a in sorted(ledger.answers.items())
+                   if s in self.hears and Period.of(a) == period and ledger.missing(a)}
+        parts = [f"no answer yet from {', '.join(absent)}"] if absent else []
+        parts += [f"{s}'s answer lists, not seen: "
+                  + ", ".join(f"{suffix} @ {stamp / 1e9:.3f} s" for suffix, stamp in lacks)
+                  for s, lacks in missing.items()]
+        return "; ".join(parts)
 
     # -- from the service's loop ------------------------------------------------------------------
 
