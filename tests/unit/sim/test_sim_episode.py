@@ -8,7 +8,7 @@ from __future__ import annotations
 import threading
 
 from seaway.contract import keys
-from seaway.contract.messages import ScenarioRequest
+from seaway.contract.messages import ScenarioRequest, ThrustCommand
 from seaway.runtime.lockstep import Member, Period
 from seaway.runtime.memory_bus import MemoryHub
 from seaway.simkit.scenario import load_scenario
@@ -24,12 +24,14 @@ VESSEL = "vessel1"
 
 
 class SlowMember:
-    """A member that answers each new period of the sim with hold, ``delay`` after it heard it."""
+    """A controller that answers each new period of the sim ``delay`` after it heard it: with hold,
+    or (``flying``) with a thrust command, so the sim moves on at once."""
 
-    def __init__(self, hub: MemoryHub, stop: threading.Event, delay: threading.Event) -> None:
+    def __init__(self, hub: MemoryHub, stop: threading.Event, delay: threading.Event,
+                 flying: bool = False) -> None:
         self.member = Member(hub.bus(VESSEL), "controller", watched=set(), hears=("sim",))
         self.answered: list[Period] = []
-        self.stop, self.delay = stop, delay
+        self.stop, self.delay, self.flying = stop, delay, flying
         self.thread = threading.Thread(target=self._loop, daemon=True)
         self.thread.start()
         self.member.join()
@@ -44,21 +46,26 @@ class SlowMember:
                 continue
             self.delay.wait(0.3)  # a busy controller: set, it answers at once
             last = Period.of(tick)
-            self.member.answer(last, tick.period_ns, hold=True)
-            self.answered.append(last)
+            self.answered.append(last)  # before the answer: the sim may act on it at once
+            if self.flying:
+                cmd = ThrustCommand.make(stamp_ns=last.stamp_ns, thrust_port_n=5.0,
+                                         thrust_starboard_n=5.0)
+                self.member.answer(last, tick.period_ns, [(keys.THRUST, cmd)])
+            else:
+                self.member.answer(last, tick.period_ns, hold=True)
 
 
 class Stack:
     """The sim's lockstep loop and a ``SlowMember``, past their first period (answered at once)."""
 
-    def __init__(self) -> None:
+    def __init__(self, flying: bool = False) -> None:
         self.hub = MemoryHub()
         self.scenario = load_scenario("paper-c1")
         app = SimApp(self.hub.bus(VESSEL), SimCore(self.scenario, load_vessel(self.scenario.vessel)),
                      lockstep=True)
         self.stop, self.fast = threading.Event(), threading.Event()
         sim = Lockstep(app, 0.1, self.stop)
-        self.member = SlowMember(self.hub, self.stop, self.fast)
+        self.member = SlowMember(self.hub, self.stop, self.fast, flying)
         threading.Thread(target=sim.run, daemon=True).start()
         self.fast.set()
         wait_for(lambda: Period(0, 0) in self.member.answered, 10, what="the first period answered")
@@ -98,5 +105,23 @@ def test_a_member_that_does_not_answer_delays_the_reply_only_so_long(monkeypatch
         reply = stack.restart()
         assert reply.accepted, reply.reason
         assert reply.reason.endswith("its first period not yet answered by controller"), reply.reason
+    finally:
+        stack.close()
+
+
+def test_a_restart_while_flying_replies_once_the_new_episode_is_answered(monkeypatch) -> None:
+    """A member with a mission answers the new episode's first period with a command, and the sim is
+    periods further on by the time the waiting request looks: answering any period of the new
+    episode counts (only each member's latest answer is kept)."""
+    monkeypatch.setattr(sim_lockstep, "EPISODE_WAIT_S", 3.0)
+    stack = Stack(flying=True)
+    try:
+        wait_for(lambda: len(stack.member.answered) > 20, 10, what="periods flown")
+        for episode in (1, 2, 3):
+            reply = stack.restart()
+            assert reply.accepted, reply.reason
+            # Not "its first period not yet answered by controller" after the whole wait.
+            assert reply.reason == f"scenario {stack.scenario.name} restarted", reply.reason
+            assert Period(episode, 0) in stack.member.answered
     finally:
         stack.close()

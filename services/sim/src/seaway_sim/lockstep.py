@@ -112,7 +112,7 @@ class Lockstep:
         episode; before, it could reach the controller first and be taken at the old episode's held
         period (its acceptance then recorded in the new episode's time). '' once they answered;
         after ``EPISODE_WAIT_S``, or if another load came, a note saying so."""
-        period = Period(episode, stamp_ns)
+        first = Period(episode, stamp_ns)
         deadline = time.monotonic() + EPISODE_WAIT_S
         with self.member.changed:
             self.member.version += 1
@@ -121,7 +121,7 @@ class Lockstep:
                 if self.app.generation != episode:
                     return "; another scenario was loaded since"
                 lacking = [m for m in sorted(self.members - {"recorder"})
-                           if self.member.ledger.answer(m, period) is None]
+                           if not self._answered_since(m, first)]
                 if not lacking:
                     return ""
                 left = deadline - time.monotonic()
@@ -131,6 +131,13 @@ class Lockstep:
                                 ", ".join(lacking), EPISODE_WAIT_S)
                     return f"; its first period not yet answered by {', '.join(lacking)}"
                 self.member.changed.wait(min(left, 0.25))
+
+    def _answered_since(self, service: str, first: Period) -> bool:
+        """Whether ``service``'s latest answer is for ``first`` or a later period of its episode.
+        Only the latest is kept, and a stack with a mission to fly is periods past the first by the
+        time a waiting thread looks; under ``member.changed``."""
+        a = self.member.ledger.answers.get(service)
+        return a is not None and a.episode == first.episode and a.stamp_ns >= first.stamp_ns
 
     # -- the period -----------------------------------------------------------------------------------
 
