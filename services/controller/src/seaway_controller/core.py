@@ -411,8 +411,8 @@ class ControllerCore:
         return self.vessel.battery.reserve_energy_j if self.vessel.battery is not None else None
 
     def _update_budget(self, now_ns: int, state: StateEstimate, used: MpcOutcome | None) -> None:
-        """The budget, when due (``Budget.due``: once a second and at a new leg), and the policy's
-        action at the pricing that finds the margin at 0, or about to be."""
+        """The budget, when due (``Budget.due``: once a second, at a new leg, every period once
+        the margin is near 0), and the policy's action at the pricing that finds the margin at 0."""
         budget, mm = self.budget, self.missions
         if budget is None or mm.mission is None or mm.state != "active" or not budget.due(now_ns, mm.active):
             return

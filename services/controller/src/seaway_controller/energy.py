@@ -33,9 +33,11 @@ THE DECISION
 The battery's remaining energy now is its last report less the energy the controller counted since
 that report's stamp (reports come at ~1 Hz, from an autopilot or the lockstep sim). The margin
 is remaining - (energy to home + reserve). The budget is priced once a second (``BUDGET_INTERVAL_NS``)
-and when the active leg changes; the mission's policy acts at the first pricing at which the margin
-has reached 0 or, falling as it fell since the last pricing, will before the next one (so never up
-to a second late): ``warn`` (flag it, fly on), ``return`` (fly home), ``hold`` (stop). The decision
+and when the active leg changes, and every period once the margin is near 0 (``FINE_PRICING_SECONDS``);
+the mission's policy acts at the first pricing at which the margin has reached 0, so at the period it
+would have acted priced every period: ``warn`` (flag it, fly on), ``return`` (fly home), ``hold``
+(stop). Never early; late only if the margin falls from above three seconds' worth (at the rate it
+fell since the last pricing) to 0 within one second without a leg change. The decision
 stays with the mission; its inputs are all on the bus (state, battery, solve record, mission), so a
 replay of the recording decides the same at the same period (``seaway_controller.replay`` is that replay).
 
@@ -79,6 +81,12 @@ the active leg changes [ns]. An autopilot reports its battery about as often. Pr
 period it took 0.6 ms of the controller's CPU a period (paper #1 in lockstep: 2.1 of the
 controller's 7.1 core-s, on lockstep's critical path) for figures that move a few joules a
 period."""
+FINE_PRICING_SECONDS = 3.0
+"""Once the margin is no more than this many seconds from 0, falling at the rate it fell since the
+last pricing, the budget is priced every period until its decision [s]. A straight-line forecast
+between pricings was tried: a margin falling faster and faster (a turn) crossed 0 before the forecast
+did (decided late), and a rate taken over a leg change's 0.1 s magnified one battery report's step
+(decided 2 s early)."""
 MIN_SPEED_FRAC = 0.05
 """A predicted ground speed below this fraction of u* means the vessel cannot make way against the
 disturbance on that course: the leg's energy is then unbounded (reported as such)."""
@@ -496,7 +504,7 @@ class BatteryTrack:
 
 @dataclass
 class Budget:
-    """The energy budget of one mission: ``update`` each period, ``message`` to publish."""
+    """The energy budget of one mission: ``update`` when ``due``, ``last`` to publish."""
 
     model: EnergyModel
     waypoints: list[tuple[float, float]]
@@ -508,31 +516,37 @@ class Budget:
     decided_ns: int | None = None
     reason: str = ""
     last: EnergyBudget | None = field(default=None, repr=False)
-    next_ns: int | None = None  # when the next pricing is due (None: at the next period)
+    next_ns: int | None = None  # when the next pricing is due [ns] (None: at the next period)
     priced_leg: int | None = None  # the active leg at the last pricing
-    priced_margin: tuple[int, float] | None = None  # (when [ns], margin [J]) at the last pricing
+    priced_margin: tuple[int, float] | None = None  # (stamp [ns], margin [J]) at the last pricing
+    fine: bool = False  # priced every period: the margin is near 0 (``FINE_PRICING_SECONDS``)
 
     def due(self, now_ns: int, active: int) -> bool:
         """Whether to price the budget at the period ``now_ns`` with leg ``active`` active: the
-        mission's first period, a new whole second (``BUDGET_INTERVAL_NS``), or a new leg."""
+        mission's first two periods (the second gives the margin's rate), a new whole second
+        (``BUDGET_INTERVAL_NS``), a new leg, or any period once the margin is near 0."""
         return self.next_ns is None or now_ns >= self.next_ns or active != self.priced_leg
 
-    def _margin_next(self, now_ns: int, margin_j: float) -> float:
-        """The margin at the next pricing [J], falling at the rate it fell since the last (the
-        energy counted and the way home both move smoothly); a rising margin is taken as it is."""
-        if self.priced_margin is None or self.next_ns is None:
-            return margin_j
-        t0, m0 = self.priced_margin
-        if now_ns <= t0 or margin_j >= m0:
-            return margin_j
-        return margin_j + (margin_j - m0) * (self.next_ns - now_ns) / (now_ns - t0)
+    def _schedule(self, now_ns: int, margin_j: float | None) -> None:
+        """When to price next, after a pricing at ``now_ns`` found ``margin_j`` [J]."""
+        whole_ns = (now_ns // BUDGET_INTERVAL_NS + 1) * BUDGET_INTERVAL_NS
+        undecided = self.decision == "none" and not self.returning
+        if margin_j is None or not math.isfinite(margin_j) or not undecided:
+            self.next_ns = whole_ns
+            return
+        before = self.priced_margin
+        if before is not None and now_ns > before[0] and not self.fine:
+            fall_j_per_s = (before[1] - margin_j) * 1e9 / (now_ns - before[0])
+            self.fine = fall_j_per_s > 0 and margin_j <= FINE_PRICING_SECONDS * fall_j_per_s
+        # No rate yet (the budget's first pricing): the next period gives one.
+        self.next_ns = now_ns + 1 if self.fine or before is None else whole_ns
+        self.priced_margin = (now_ns, margin_j)
 
     def update(self, now_ns: int, state: StateEstimate, active: int, leg_mpc_j: float | None,
                energy_used_j: float, battery_remaining_j: float | None, battery_stamp_ns: int | None,
                reserve_j: float | None) -> EnergyDecision | None:
         """Price the budget now (``last``; the caller asks ``due`` first); the decision if it was
         taken now, else None."""
-        self.next_ns = (now_ns // BUDGET_INTERVAL_NS + 1) * BUDGET_INTERVAL_NS
         self.priced_leg = active
         nominal, sigmas = disturbance_sigma_points(state)
         pred, *spread = predict_many(self.model, state, self.waypoints, active, self.home,
@@ -549,15 +563,12 @@ class Budget:
             if not self.returning:
                 pnr = no_return_point(self.model, state, self.waypoints, active, self.home,
                                       battery_remaining_j, reserve, nominal)
-            ahead = self._margin_next(now_ns, margin)
-            if min(margin, ahead) <= 0 and self.decision == "none" and not self.returning:
+            if margin <= 0 and self.decision == "none" and not self.returning:
                 taken = self.decision = self.policy
                 self.decided_ns = now_ns
                 self.reason = (f"energy to get home {pred.to_home_j:.0f} J + reserve {reserve:.0f} J "
-                               + ("reached" if margin <= 0 else "will reach, before the next pricing,")
-                               + f" the battery's {battery_remaining_j:.0f} J left")
-            if math.isfinite(margin):
-                self.priced_margin = (now_ns, margin)
+                               f"reached the battery's {battery_remaining_j:.0f} J left")
+        self._schedule(now_ns, margin)
         self.last = EnergyBudget.make(
             stamp_ns=state.stamp_ns, mission_id=self.mission_id, active_leg=active,
             returning=self.returning, energy_used_j=max(0.0, energy_used_j),

@@ -123,8 +123,7 @@ class ControllerService:
         self._rethink = False  # lockstep: a mission request came while the current answer was hold
         if lockstep:
             # The state comes with the estimator's answer, the battery with the sim's (once a
-            # second, the periods the energy budget is priced: it decides from the battery of the
-            # same period, exact, so replayable).
+            # second): both listed, so the budget prices from the same inputs in a replay.
             self.member = Member(bus, NAME, watched={keys.NAV_STATE.suffix,
                                                      keys.VEHICLE_BATTERY.suffix},
                                  hears=("sim", "estimator"))

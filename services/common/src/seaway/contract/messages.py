@@ -349,8 +349,9 @@ def return_mission_id(mission_id: str) -> str:
 
 
 class EnergyBudget(Message):
-    """Will it make it back: the energy to finish and to get home against the battery, each control
-    period of an active mission (``mission/energy``; ``seaway_controller.energy``).
+    """Will it make it back: the energy to finish and to get home against the battery, at each
+    pricing of an active mission's budget (``mission/energy``; ``seaway_controller.energy``: once a
+    second, at each new leg, and every control period once the margin is near 0).
 
     Predictions come from the controller's own model and cost at its economic cruise under the
     estimated disturbance; ``*_low_j``/``*_high_j`` are the band from the estimate's disturbance
