@@ -40,6 +40,24 @@ def alive(pid: int) -> bool:
         return False
 
 
+def survivors(pids: list[int]) -> str:
+    """What the processes still alive are doing, for a failure message: state, parent, where each
+    thread waits in the kernel (a survivor is rare; this says why without a rerun)."""
+    out = []
+    for pid in (p for p in pids if alive(p)):
+        try:
+            status = dict(line.split(":\t", 1) for line in
+                          Path(f"/proc/{pid}/status").read_text().splitlines() if ":\t" in line)
+            waits = sorted({(t / "wchan").read_text() or "-"
+                            for t in Path(f"/proc/{pid}/task").iterdir()})
+            cmd = Path(f"/proc/{pid}/cmdline").read_text().replace("\0", " ")[:160]
+        except OSError:
+            continue  # gone meanwhile
+        out.append(f"pid {pid} state {status.get('State', '?')} ppid {status.get('PPid', '?')} "
+                   f"SigPnd {status.get('ShdPnd', '?')} threads waiting in {waits}: {cmd}")
+    return "; ".join(out) or "none (all gone just now)"
+
+
 def launch(procs, zenoh_env, profile: Path, tmp: Path):
     return procs.start([sys.executable, "-m", "seaway.tools.cli", "launch", str(profile),
                         "--run-dir", str(tmp / "run"), "--verbose"], zenoh_env, "launcher")
@@ -127,4 +145,8 @@ def test_a_launcher_killed_with_sigkill_leaves_no_process_running(procs, zenoh_e
     pids = [int(x) for x in marker.read_text().split()]
     assert len(pids) == 2 and all(alive(p) for p in pids)
     os.kill(la.pid, signal.SIGKILL)
-    wait_for(lambda: not any(alive(p) for p in pids), 10, what="no orphan processes")
+    deadline = time.monotonic() + 10.0
+    while any(alive(p) for p in pids) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not any(alive(p) for p in pids), f"orphans 10 s after the launcher's SIGKILL: {survivors(pids)}"
+    # (seen once in CI, 2026-11-24, not reproduced in 14 runs: the message says what they were doing)
