@@ -21,7 +21,6 @@ import argparse
 import contextlib
 import json
 import math
-import signal
 import socket
 import struct
 import threading
@@ -29,6 +28,7 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
+from seaway.runtime.service import install_stop_signals
 from seaway_vehicle_io import ardupilot, px4
 from seaway_vehicle_io.mav import mavlink
 
@@ -271,8 +271,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     host, port = args.to.rsplit(":", 1)
     stop = threading.Event()
-    signal.signal(signal.SIGTERM, lambda *_: stop.set())
-    signal.signal(signal.SIGINT, lambda *_: stop.set())
+    install_stop_signals(stop)
     peer = FakeAutopilot((host, int(port)), args.autopilot, args.sysid, armed=args.armed,
                          record_path=args.record).start()
     print(f"peer {args.autopilot} sysid {args.sysid} on {peer.sock.getsockname()} -> {args.to}",

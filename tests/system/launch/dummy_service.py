@@ -40,11 +40,20 @@ if args.quiet_vessel is not None and args.quiet_vessel != args.vessel:
     args.quiet_after = None
 
 stop = threading.Event()
+
+
+def on_signal(*_: object) -> None:
+    # Never set() twice: a second signal can land inside the first set(), whose lock is not
+    # reentrant (a dummy once waited on itself for good after two SIGTERMs).
+    if not stop.is_set():
+        stop.set()
+
+
 if args.ignore_sigint:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 else:
-    signal.signal(signal.SIGINT, lambda *_: stop.set())
-signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    signal.signal(signal.SIGINT, on_signal)
+signal.signal(signal.SIGTERM, on_signal)
 if args.marker:
     with open(args.marker, "a") as f:
         f.write(f"{os.getpid()}\n")

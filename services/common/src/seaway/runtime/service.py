@@ -125,11 +125,18 @@ def resolve_run(args: argparse.Namespace, name: str, load_scenario: object = Non
 
 
 def install_stop_signals(stop: threading.Event) -> None:
-    """SIGINT and SIGTERM set ``stop``; a second SIGINT exits at once (a stuck process)."""
+    """SIGINT and SIGTERM set ``stop``; a second SIGINT exits at once (a stuck process).
+
+    A second signal never calls ``stop.set()`` again: a handler runs on the main thread between two
+    bytecodes, possibly inside the first ``set()``, whose lock is not reentrant. A launcher's
+    SIGKILL (the parent-death SIGTERM) and a second SIGTERM so left a process waiting on itself for
+    good (CI, 2026-11-24)."""
 
     def handler(signum: int, _frame: object) -> None:
-        if stop.is_set() and signum == signal.SIGINT:
-            os._exit(130)
+        if stop.is_set():
+            if signum == signal.SIGINT:
+                os._exit(130)
+            return
         log.info("received %s, stopping", signal.Signals(signum).name)
         stop.set()
 
