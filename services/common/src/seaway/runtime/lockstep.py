@@ -285,7 +285,7 @@ class Member:
                 if self.on_restart is not None:
                     self.on_restart(before, Period.of(answer))
             repeat = change == "repeat"
-            lacking = self.lacking() if repeat else ""
+            lacking = self.waiting_for() if repeat else ""
             self.version += 1
             self.changed.notify_all()
         if lacking:  # expected while members start or restart: the sim repeats for them
@@ -294,7 +294,7 @@ class Member:
         if repeat:
             self.repeat()
 
-    def lacking(self) -> str:
+    def waiting_for(self) -> str:
         """What keeps this member from answering the current period, for a person ('' if it has
         answered it, or has all it needs): the answers it needs that have not come, and the messages
         listed by those that have which it has not seen (key suffix and stamp). Under ``changed``.
@@ -308,8 +308,8 @@ class Member:
         tick = ledger.answer("sim")
         absent = sorted(m for m in self.hears if m != "sim" and ledger.answer(m) is None
                         and (tick is None or m in tick.members))
-        missing = {s: ledger.missing(a) for s, a in sorted(ledger.answers.items())
-                   if s in self.hears and Period.of(a) == period and ledger.missing(a)}
+        missing = {s: lacks for s, a in sorted(ledger.answers.items())
+                   if s in self.hears and Period.of(a) == period and (lacks := ledger.missing(a))}
         parts = [f"no answer yet from {', '.join(absent)}"] if absent else []
         parts += [f"{s}'s answer lists, not seen: "
                   + ", ".join(f"{suffix} @ {stamp / 1e9:.3f} s" for suffix, stamp in lacks)
