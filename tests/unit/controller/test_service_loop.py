@@ -172,3 +172,23 @@ def test_lockstep_checkpoint_follows_simulated_time(tmp_path: Path) -> None:
     at_20 = next(s.energy_used_j for s in statuses if s.stamp_ns == 20 * DT_NS)
     assert at_20 > 0
     assert saved.energy_used_j == pytest.approx(at_20, rel=1e-12)
+
+
+def test_a_mission_after_a_restart_is_flown_from_the_new_episodes_first_state(
+        controller: Running) -> None:
+    """After a long idle episode (more states kept than the controller's window of recent ones),
+    the world restarts and a mission comes: its first period t_0 is flown from the new episode's
+    state at t_0. The state store dropped the lowest stamp when full, and the new t_0 state arrives
+    before the loop has dropped the old episode's (stamped up to its end): it was that state that
+    went, and the mission's first command was "no-state" zero thrust, its start a period late."""
+    world = World(controller.hub)
+    operator = controller.hub.bus(VESSEL)
+    for k in range(40):  # 4 s idle: each period held, each state kept in the window
+        assert world.period(k, state(k)).hold
+    assert world.period(0, state(0), episode=1).hold  # a new episode, still nothing to fly
+    world.thrust.drain()
+    assert operator.request(keys.MISSION_SET, mission(), timeout_s=2.0).accepted
+    again = world.next_answer(Period(1, 0))
+    assert not again.hold and keys.SOLVE.suffix in again.published, again.published
+    first = world.thrust.get(1.0)
+    assert (first.stamp_ns, first.source) == (0, "cc-empc")

@@ -287,7 +287,11 @@ class ControllerService:
         with member.changed:
             self._states[state.stamp_ns] = state
             if len(self._states) > 16:
-                del self._states[min(self._states)]
+                # The first to arrive goes, not the lowest stamp: the first state of a new episode
+                # (stamped 0) can arrive before this loop has seen the episode and dropped the old
+                # one's states (stamped up to its end), and it was the one dropped. A mission sent
+                # after a restart then flew t_0 with "no-state" zero thrust, a period late.
+                del self._states[next(iter(self._states))]
         member.saw(keys.NAV_STATE.suffix, state.stamp_ns)
 
     def run_lockstep(self) -> None:
