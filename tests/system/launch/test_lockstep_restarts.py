@@ -247,6 +247,8 @@ def test_two_missions_back_to_back_in_one_stack_equal_two_fresh_stacks(tmp_path,
     assert [m["mission_id"] for m in second["missions"]] == ["second"]
     for rep in (first, second):
         m = rep["metrics"]
+        # Both flown from t_0 (the second was a period late: its first state lost, zero thrust).
+        assert (m["start_ns"], m["completed"]) == (0, True), m
         for key in ("energy_j", "travel_time_s", "avg_cross_track_m"):
             assert m[key] == pytest.approx(undisturbed[key], rel=1e-6), (key, m, undisturbed)
     for stamps in truth_episodes(stack.run_dir):

@@ -55,10 +55,39 @@ class SlowMember:
                 self.member.answer(last, tick.period_ns, hold=True)
 
 
-class Stack:
-    """The sim's lockstep loop and a ``SlowMember``, past their first period (answered at once)."""
+class SlowRecorder:
+    """A recorder that answers each period ``delay`` after every member had, covering their answers
+    (as the real one does once they are on disk)."""
 
-    def __init__(self, flying: bool = False) -> None:
+    def __init__(self, hub: MemoryHub, stop: threading.Event, delay: threading.Event) -> None:
+        self.member = Member(hub.bus(VESSEL), "recorder", watched=set())
+        self.stop, self.delay = stop, delay
+        self.thread = threading.Thread(target=self._loop, daemon=True)
+        self.thread.start()
+        self.member.join()
+
+    def _loop(self) -> None:
+        version, covered = 0, None
+        while not self.stop.is_set():
+            version = self.member.wait(version, 0.05)
+            with self.member.changed:
+                ledger = self.member.ledger
+                tick, ctrl = ledger.answer("sim"), ledger.answer("controller")
+            if tick is None or ctrl is None:
+                continue
+            covers = {"sim": tick.seq, "controller": ctrl.seq}
+            if covers == covered:
+                continue
+            self.delay.wait(0.3)  # a slow disk: set, it answers at once
+            covered = covers
+            self.member.answer(Period.of(tick), tick.period_ns, covers=covers)
+
+
+class Stack:
+    """The sim's lockstep loop and a ``SlowMember``, past their first period (answered at once);
+    with ``recorder``, a ``SlowRecorder`` too."""
+
+    def __init__(self, flying: bool = False, recorder: bool = False) -> None:
         self.hub = MemoryHub()
         self.scenario = load_scenario("paper-c1")
         app = SimApp(self.hub.bus(VESSEL), SimCore(self.scenario, load_vessel(self.scenario.vessel)),
@@ -66,6 +95,7 @@ class Stack:
         self.stop, self.fast = threading.Event(), threading.Event()
         sim = Lockstep(app, 0.1, self.stop)
         self.member = SlowMember(self.hub, self.stop, self.fast, flying)
+        self.recorder = SlowRecorder(self.hub, self.stop, self.fast) if recorder else None
         threading.Thread(target=sim.run, daemon=True).start()
         self.fast.set()
         wait_for(lambda: Period(0, 0) in self.member.answered, 10, what="the first period answered")
@@ -123,5 +153,33 @@ def test_a_restart_while_flying_replies_once_the_new_episode_is_answered(monkeyp
             # Not "its first period not yet answered by controller" after the whole wait.
             assert reply.reason == f"scenario {stack.scenario.name} restarted", reply.reason
             assert Period(episode, 0) in stack.member.answered
+    finally:
+        stack.close()
+
+
+def test_a_restart_starts_the_new_episode_once_the_recorder_covers_the_old_ones_end() -> None:
+    """The old episode's last period is finished (every member answered, the recorder covering
+    them) before the new episode's first is published: the recorder logs each message in the time
+    of the episode it was heard in, and the controller's last status of the old episode, heard after
+    the new one began, was logged in the new one's time (where it ended the next mission)."""
+    stack = Stack(recorder=True)
+    heard: list[tuple[str, Period, dict[str, int]]] = []
+    observer = stack.hub.bus(VESSEL)
+    for service in ("sim", "recorder"):
+        observer.subscribe(keys.lockstep_spec(service), inline=True, callback=lambda _k, a: heard.append(
+            (a.service, Period.of(a), dict(a.covers))))
+    try:
+        stack.fast.clear()  # from now on the member and the recorder take 0.3 s to answer
+        # The reply comes once the controller answered episode 1's t_0 (hold), not the recorder:
+        # a second restart at once finds that answer not yet covered.
+        assert stack.restart().accepted
+        held = stack.member.member.last_answer
+        assert held is not None and Period.of(held) == Period(1, 0)
+        reply = stack.restart()
+        assert reply.accepted, reply.reason
+        assert reply.reason == f"scenario {stack.scenario.name} restarted", reply.reason
+        new = next(i for i, (s, p, _) in enumerate(heard) if s == "sim" and p.episode == 2)
+        assert any(s == "recorder" and c.get("controller") == held.seq for s, _, c in heard[:new]), (
+            "episode 2 began before the recorder covered episode 1's last answer", heard)
     finally:
         stack.close()

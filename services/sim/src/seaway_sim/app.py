@@ -55,6 +55,10 @@ class SimApp:
         """The vessel the services model: its limits are vehicle I/O's, whose output stage the
         lockstep sim applies to the controller's demand (``thrusters.output_stage``)."""
         self.on_load: list[Callable[[Scenario, VesselParams], None]] = []
+        self.before_load: Callable[[], str] | None = None
+        """Lockstep: called under ``lock`` before a load, so the loop publishes nothing more; waits
+        until the current episode's last period is answered and on disk, and returns a note for the
+        reply ('' if nothing to say)."""
         self.after_load: Callable[[int, int], str] | None = None
         """Lockstep: called with the new (episode, stamp [ns]) once a load is done, before the
         reply; waits until the stack is in the new episode and returns a note for the reply ('' if
@@ -84,6 +88,7 @@ class SimApp:
             log.warning("scenario request refused: %s", err)
             return Reply.refuse(self.core.stamp_ns, str(err))
         with self.lock:
+            before = self.before_load() if self.before_load is not None else ""
             # Lockstep: a new episode, time restarts at 0 (seaway.runtime.lockstep); real time goes on.
             self.core.load(scenario, vessel, restart_time=self.lockstep)
             self.model = model
@@ -94,7 +99,7 @@ class SimApp:
         what = "restarted" if request.action == "restart" else "loaded"
         log.info("scenario %s %s (seed %d, vessel %s)", scenario.name, what, scenario.seed,
                  vessel.name)
-        note = self.after_load(episode, stamp) if self.after_load is not None else ""
+        note = before + (self.after_load(episode, stamp) if self.after_load is not None else "")
         return Reply.accept(stamp, f"scenario {scenario.name} {what}{note}", name=scenario.name,
                             seed=scenario.seed, vessel=vessel.name)
 

@@ -43,10 +43,11 @@ def report_due(after_ns: int, upto_ns: int) -> bool:
     return bool(instants_in(period_ns(REPORT_HZ), after_ns, upto_ns))
 
 
-def report_due_at(stamp_ns: int, period_ns: int) -> bool:
+def report_due_at(stamp_ns: int, length_ns: int) -> bool:
     """Whether the lockstep period ending at ``stamp_ns`` reports the pack: one of length
-    ``period_ns`` [ns] with a report instant in it, and the episode's first (t_0 = 0)."""
-    return report_due(stamp_ns - period_ns if stamp_ns > 0 else -1, stamp_ns)
+    ``length_ns`` [ns] with a report instant in it, and the episode's first (t_0 = 0)."""
+    return report_due(stamp_ns - length_ns if stamp_ns > 0 else -1, stamp_ns)
+
 
 NOMINAL_PACK = BatteryParams(capacity_ah=10.0, nominal_voltage_v=14.8, full_voltage_v=16.8,
                              empty_voltage_v=13.2, reserve_frac=0.2)

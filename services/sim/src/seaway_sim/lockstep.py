@@ -30,7 +30,7 @@ from typing import Any
 
 from seaway.contract import keys
 from seaway.contract.messages import Message, ThrustCommand
-from seaway.runtime.lockstep import MEMBERS, STALL_REPEAT_S, Member, Period
+from seaway.runtime.lockstep import MEMBERS, RECORDER, STALL_REPEAT_S, Member, Period
 from seaway.vessel.thrusters import output_pair
 
 from seaway_sim.app import SimApp
@@ -39,8 +39,10 @@ from seaway_sim.battery import report_due_at
 log = logging.getLogger("seaway_sim.lockstep")
 
 EPISODE_WAIT_S = 5.0
-"""How long a scenario load waits for the members to answer the new episode's first period before
-it replies anyway (a member restarting: the launcher brings it back) [wall s]."""
+"""How long a scenario load waits, in all, for the old episode's last period to be finished
+(``Lockstep.finish_episode``) and the members to answer the new episode's first period
+(``Lockstep.await_episode``) before it goes on anyway (a member restarting: the launcher brings it
+back) [wall s]. Clients of ``sim/scenario`` wait 10 s for the reply."""
 
 
 @dataclass
@@ -70,7 +72,9 @@ class Lockstep:
         self._applied: int | None = None  # stamp of the command applied over the last period
         app.bus.subscribe(keys.THRUST, callback=self._on_thrust, inline=True)
         app.bus.watch_lockstep_members(self._on_member)
+        app.before_load = self.finish_episode
         app.after_load = self.await_episode
+        self._load_deadline: float | None = None  # monotonic s: a load's waits share one budget
 
     # -- bus threads --------------------------------------------------------------------------------
 
@@ -104,6 +108,34 @@ class Lockstep:
             # launcher restarts it and says so. Nothing for the user to do here.
             log.info("lockstep: %s is gone; holding until it is back", service)
 
+    def finish_episode(self) -> str:
+        """A scenario load's wait before the new episode starts (``SimApp.before_load``, under the
+        app's lock, so the loop publishes no further period): until every member has answered the
+        sim's last period and the recorder covers those answers, as before any step. The old
+        episode's last messages are then on disk in its own time: the controller's last status,
+        stamped at the old episode's end and heard by the recorder after the new episode began, was
+        logged in the new one's time and ended its mission there. '' once so; after
+        ``EPISODE_WAIT_S`` (a member dead or restarting), a note saying who had not."""
+        self._load_deadline = deadline = time.monotonic() + EPISODE_WAIT_S
+        with self.member.changed:
+            last = self.member.last_answer
+            if last is None:  # nothing published yet: nothing to finish
+                return ""
+            period = Period.of(last)  # after a step, the core is a period on: not yet published
+            while not self.answered(period):
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    absent = [m for m in sorted(self.members)
+                              if self.member.ledger.answer(m, period) is None]
+                    lacking = (f"no answer from {', '.join(absent)}" if absent
+                               else "the recorder has not covered every answer")
+                    log.warning("lockstep: t = %.3f s of episode %d not finished after %.0f s (%s); "
+                                "starting the new episode anyway", period.stamp_ns / 1e9,
+                                period.episode, EPISODE_WAIT_S, lacking)
+                    return f"; the last episode's last period was not finished ({lacking})"
+                self.member.changed.wait(min(left, 0.25))
+        return ""
+
     def await_episode(self, episode: int, stamp_ns: int) -> str:
         """A scenario load's wait before its reply (``SimApp.after_load``, on the request's thread):
         wake the loop, so that it publishes the new episode's first period now, and wait until every
@@ -113,14 +145,15 @@ class Lockstep:
         period (its acceptance then recorded in the new episode's time). '' once they answered;
         after ``EPISODE_WAIT_S``, or if another load came, a note saying so."""
         first = Period(episode, stamp_ns)
-        deadline = time.monotonic() + EPISODE_WAIT_S
+        deadline = self._load_deadline or time.monotonic() + EPISODE_WAIT_S
+        self._load_deadline = None
         with self.member.changed:
             self.member.version += 1
             self.member.changed.notify_all()
             while True:
                 if self.app.generation != episode:
                     return "; another scenario was loaded since"
-                lacking = [m for m in sorted(self.members - {"recorder"})
+                lacking = [m for m in sorted(self.members - {RECORDER})
                            if not self._answered_since(m, first)]
                 if not lacking:
                     return ""

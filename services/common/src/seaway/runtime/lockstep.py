@@ -26,7 +26,9 @@ THE PROTOCOL
   on a repeat every member repeats its last answer (the same bytes), so the newcomer finds the
   period complete and catches up from it. Receivers drop what they have already seen.
 * An answer from another episode, or from earlier in the same one, means the world restarted (a sim
-  restart or a scenario load): members start afresh from that answer. Stamps repeat from one
+  restart or a scenario load): members start afresh from that answer. A scenario load first
+  finishes the current period as a step would (every member answered, the recorder covering them),
+  so no message of the old episode is still on its way when the new one starts. Stamps repeat from one
   episode to the next, so at each new period a member forgets anything stamped after it: that can
   only be a late message of an earlier episode (the services' own caches do the same).
 
@@ -53,6 +55,9 @@ from seaway.runtime.timeline import Timeline
 
 log = logging.getLogger("seaway.lockstep")
 
+RECORDER = "recorder"
+"""The member that covers the others' answers (``PeriodDone.covers``) once they are on disk; it only
+writes, so no request waits for it."""
 MEMBERS = tuple(s for s in LOCKSTEP_SERVICES if s != "sim")
 """The services the sim waits for, once their member token has appeared."""
 STALL_REPEAT_S = 2.0
@@ -177,9 +182,9 @@ class Ledger:
         members = list(members)
         if any(self.answer(m, period) is None for m in members):
             return False
-        if "recorder" in members:
-            covers = self.answer("recorder", period).covers  # type: ignore[union-attr]
-            latest = {"sim": sim_seq, **{m: self.answers[m].seq for m in members if m != "recorder"}}
+        if RECORDER in members:
+            covers = self.answer(RECORDER, period).covers  # type: ignore[union-attr]
+            latest = {"sim": sim_seq, **{m: self.answers[m].seq for m in members if m != RECORDER}}
             if any(covers.get(m) != seq for m, seq in latest.items()):
                 return False
         return True
