@@ -291,6 +291,7 @@ def test_the_budget_is_due_on_a_new_second_or_a_new_leg():
     assert not b.due(1_900_000_000, 1) and not b.fine  # far from 0: once a second
     assert b.due(1_900_000_000, 2)  # the leg changed: the path ahead is another
     assert b.due(2_000_000_000, 1)  # the next whole second
+    assert b.due(1_000_000_000, 1)  # a stamp before the last pricing: the clock stepped back
 
 
 def test_a_model_keeps_a_bounded_number_of_turn_tables() -> None:

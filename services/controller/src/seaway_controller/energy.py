@@ -518,14 +518,17 @@ class Budget:
     last: EnergyBudget | None = field(default=None, repr=False)
     next_ns: int | None = None  # when the next pricing is due [ns] (None: at the next period)
     priced_leg: int | None = None  # the active leg at the last pricing
+    priced_ns: int | None = None  # the stamp of the last pricing [ns]
     priced_margin: tuple[int, float] | None = None  # (stamp [ns], margin [J]) at the last pricing
     fine: bool = False  # priced every period: the margin is near 0 (``FINE_PRICING_SECONDS``)
 
     def due(self, now_ns: int, active: int) -> bool:
         """Whether to price the budget at the period ``now_ns`` with leg ``active`` active: the
         mission's first two periods (the second gives the margin's rate), a new whole second
-        (``BUDGET_INTERVAL_NS``), a new leg, or any period once the margin is near 0."""
-        return self.next_ns is None or now_ns >= self.next_ns or active != self.priced_leg
+        (``BUDGET_INTERVAL_NS``), a new leg, any period once the margin is near 0, or a stamp
+        before the last pricing's (a wall clock stepped back: else not priced until it caught up)."""
+        return (self.next_ns is None or now_ns >= self.next_ns or active != self.priced_leg
+                or now_ns < (self.priced_ns or 0))
 
     def _schedule(self, now_ns: int, margin_j: float | None) -> None:
         """When to price next, after a pricing at ``now_ns`` found ``margin_j`` [J]."""
@@ -547,7 +550,7 @@ class Budget:
                reserve_j: float | None) -> EnergyDecision | None:
         """Price the budget now (``last``; the caller asks ``due`` first); the decision if it was
         taken now, else None."""
-        self.priced_leg = active
+        self.priced_leg, self.priced_ns = active, now_ns
         nominal, sigmas = disturbance_sigma_points(state)
         pred, *spread = predict_many(self.model, state, self.waypoints, active, self.home,
                                      leg_mpc_j, [nominal, *sigmas])
