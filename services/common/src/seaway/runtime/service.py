@@ -30,7 +30,7 @@ import os
 import signal
 import sys
 import threading
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -124,15 +124,32 @@ def resolve_run(args: argparse.Namespace, name: str, load_scenario: object = Non
         raise SystemExit(2) from None
 
 
-def install_stop_signals(stop: threading.Event) -> None:
-    """SIGINT and SIGTERM set ``stop``; a second SIGINT exits at once (a stuck process).
+def on_stop_signals(act: Callable[[int], None]) -> None:
+    """Call ``act(signum)`` for each SIGINT and SIGTERM, on a thread of its own.
 
-    A second signal never calls ``stop.set()`` again: a handler runs on the main thread between two
-    bytecodes, possibly inside the first ``set()``, whose lock is not reentrant. A launcher's
-    SIGKILL (the parent-death SIGTERM) and a second SIGTERM so left a process waiting on itself for
-    good (CI, 2026-11-24)."""
+    The handler only writes the signal's number to a pipe, which that thread reads. A handler runs
+    on the main thread between two bytecodes, possibly inside an ``Event.set()`` there, whose lock
+    is not reentrant: one that set a stop event itself could wait on that lock for good (CI,
+    2026-11-24: a launcher's SIGKILL, so the parent-death SIGTERM, and a second SIGTERM left a
+    process waiting on itself for 40 min). ``os.write`` takes no Python lock."""
+    read_fd, write_fd = os.pipe()
 
     def handler(signum: int, _frame: object) -> None:
+        os.write(write_fd, bytes((signum,)))
+
+    def watch() -> None:
+        while True:
+            act(os.read(read_fd, 1)[0])
+
+    threading.Thread(target=watch, name="stop-signals", daemon=True).start()
+    signal.signal(signal.SIGINT, handler)
+    signal.signal(signal.SIGTERM, handler)
+
+
+def install_stop_signals(stop: threading.Event) -> None:
+    """SIGINT and SIGTERM set ``stop``; a second SIGINT exits at once (a stuck process)."""
+
+    def act(signum: int) -> None:
         if stop.is_set():
             if signum == signal.SIGINT:
                 os._exit(130)
@@ -140,8 +157,7 @@ def install_stop_signals(stop: threading.Event) -> None:
         log.info("received %s, stopping", signal.Signals(signum).name)
         stop.set()
 
-    signal.signal(signal.SIGINT, handler)
-    signal.signal(signal.SIGTERM, handler)
+    on_stop_signals(act)
 
 
 @dataclass

@@ -74,7 +74,12 @@ from seaway.runtime import refusals
 from seaway.runtime import run as runs
 from seaway.runtime.bus import Bus, Newest
 from seaway.runtime.credentials import ENV_CREDENTIALS, NONE, CredentialsError
-from seaway.runtime.service import DEFAULT_VESSEL, ENV_VESSEL, dump_stacks_on_signal
+from seaway.runtime.service import (
+    DEFAULT_VESSEL,
+    ENV_VESSEL,
+    dump_stacks_on_signal,
+    on_stop_signals,
+)
 from seaway.runtime.zenoh_bus import ENV_CONFIG
 from seaway.simkit.scenario import load_scenario
 from seaway.tools.launch import address, authority
@@ -728,15 +733,14 @@ def _install_stop_signals(stop: threading.Event, sup: Supervisor) -> None:
     """SIGINT or SIGTERM stops the run (``stop``); every further Ctrl-C hurries the stop: shorter
     graces, the same order, the recorder's file finished, and the report skipped if it is running."""
 
-    def handler(signum: int, _frame: object) -> None:
+    def act(signum: int) -> None:  # on_stop_signals' own thread, not in a handler
         if not stop.is_set():
             stop.set()
             return
         if signum == signal.SIGINT:
             sup.hurry()  # no printing here: the main thread may be inside a write to the terminal
 
-    signal.signal(signal.SIGINT, handler)
-    signal.signal(signal.SIGTERM, handler)
+    on_stop_signals(act)
 
 
 def _describe_mission(mission: MissionRequest) -> str:
