@@ -183,3 +183,29 @@ def test_a_restart_starts_the_new_episode_once_the_recorder_covers_the_old_ones_
             "episode 2 began before the recorder covered episode 1's last answer", heard)
     finally:
         stack.close()
+
+
+def test_a_recorder_that_does_not_cover_the_old_episode_delays_the_new_one_only_so_long(
+        monkeypatch) -> None:
+    """A dead recorder (the launcher restarts it) holds a load back half of ``EPISODE_WAIT_S``;
+    the reply then says what was not finished."""
+    monkeypatch.setattr(sim_lockstep, "EPISODE_WAIT_S", 0.6)
+    stack = Stack(recorder=True)
+    try:
+        recorder = stack.recorder
+        assert recorder is not None
+        wait_for(lambda: (a := recorder.member.last_answer) is not None and a.covers.get(
+            "controller") == stack.member.member.last_answer.seq, 10, what="t_0 covered")
+        recorder.stop = threading.Event()
+        recorder.stop.set()  # it stops answering
+        recorder.thread.join(5.0)
+        assert not recorder.thread.is_alive()
+        first = stack.restart()  # t_0 was covered: at once; episode 1's t_0 is then never covered
+        assert first.reason == f"scenario {stack.scenario.name} restarted", first.reason
+        reply = stack.restart()
+        assert reply.accepted, reply.reason
+        assert reply.reason.endswith("the last episode's last period was not finished (no answer "
+                                     "from recorder)"), reply.reason
+        wait_for(lambda: Period(2, 0) in stack.member.answered, 10, what="episode 2 started")
+    finally:
+        stack.close()

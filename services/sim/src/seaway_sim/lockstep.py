@@ -39,9 +39,9 @@ from seaway_sim.battery import report_due_at
 log = logging.getLogger("seaway_sim.lockstep")
 
 EPISODE_WAIT_S = 5.0
-"""How long a scenario load waits, in all, for the old episode's last period to be finished
-(``Lockstep.finish_episode``) and the members to answer the new episode's first period
-(``Lockstep.await_episode``) before it goes on anyway (a member restarting: the launcher brings it
+"""How long a scenario load waits at most, half for the old episode's last period to be finished
+(``Lockstep.finish_episode``), half for the members to answer the new episode's first period
+(``Lockstep.await_episode``), before it goes on anyway (a member restarting: the launcher brings it
 back) [wall s]. Clients of ``sim/scenario`` wait 10 s for the reply."""
 
 
@@ -74,7 +74,6 @@ class Lockstep:
         app.bus.watch_lockstep_members(self._on_member)
         app.before_load = self.finish_episode
         app.after_load = self.await_episode
-        self._load_deadline: float | None = None  # monotonic s: a load's waits share one budget
 
     # -- bus threads --------------------------------------------------------------------------------
 
@@ -115,8 +114,8 @@ class Lockstep:
         episode's last messages are then on disk in its own time: the controller's last status,
         stamped at the old episode's end and heard by the recorder after the new episode began, was
         logged in the new one's time and ended its mission there. '' once so; after
-        ``EPISODE_WAIT_S`` (a member dead or restarting), a note saying who had not."""
-        self._load_deadline = deadline = time.monotonic() + EPISODE_WAIT_S
+        half of ``EPISODE_WAIT_S`` (a member dead or restarting), a note saying who had not."""
+        deadline = time.monotonic() + EPISODE_WAIT_S / 2
         with self.member.changed:
             last = self.member.last_answer
             if last is None:  # nothing published yet: nothing to finish
@@ -129,9 +128,9 @@ class Lockstep:
                               if self.member.ledger.answer(m, period) is None]
                     lacking = (f"no answer from {', '.join(absent)}" if absent
                                else "the recorder has not covered every answer")
-                    log.warning("lockstep: t = %.3f s of episode %d not finished after %.0f s (%s); "
+                    log.warning("lockstep: t = %.3f s of episode %d not finished after %.1f s (%s); "
                                 "starting the new episode anyway", period.stamp_ns / 1e9,
-                                period.episode, EPISODE_WAIT_S, lacking)
+                                period.episode, EPISODE_WAIT_S / 2, lacking)
                     return f"; the last episode's last period was not finished ({lacking})"
                 self.member.changed.wait(min(left, 0.25))
         return ""
@@ -143,10 +142,9 @@ class Lockstep:
         period. A request sent after the reply (a mission, say) then finds the stack in the new
         episode; before, it could reach the controller first and be taken at the old episode's held
         period (its acceptance then recorded in the new episode's time). '' once they answered;
-        after ``EPISODE_WAIT_S``, or if another load came, a note saying so."""
+        after half of ``EPISODE_WAIT_S``, or if another load came, a note saying so."""
         first = Period(episode, stamp_ns)
-        deadline = self._load_deadline or time.monotonic() + EPISODE_WAIT_S
-        self._load_deadline = None
+        deadline = time.monotonic() + EPISODE_WAIT_S / 2
         with self.member.changed:
             self.member.version += 1
             self.member.changed.notify_all()
@@ -160,8 +158,8 @@ class Lockstep:
                 left = deadline - time.monotonic()
                 if left <= 0:
                     log.warning("lockstep: episode %d's first period not yet answered by %s after "
-                                "%.0f s; replying to the scenario request anyway", episode,
-                                ", ".join(lacking), EPISODE_WAIT_S)
+                                "%.1f s; replying to the scenario request anyway", episode,
+                                ", ".join(lacking), EPISODE_WAIT_S / 2)
                     return f"; its first period not yet answered by {', '.join(lacking)}"
                 self.member.changed.wait(min(left, 0.25))
 
