@@ -23,18 +23,37 @@ from tests.conftest import wait_for
 VESSEL = "vessel1"
 
 
-class SlowMember:
+class Slow:
+    """A lockstep member on a thread of its own, answering ``delay`` after it could (set: at once)."""
+
+    def __init__(self, hub: MemoryHub, service: str, stop: threading.Event,
+                 delay: threading.Event, hears: tuple[str, ...] | None = None) -> None:
+        self.member = Member(hub.bus(VESSEL), service, watched=set(), hears=hears)
+        self.stop, self.delay = stop, delay
+        self.thread = threading.Thread(target=self._loop, daemon=True)
+        self.thread.start()
+        self.member.join()
+
+    def _loop(self) -> None:
+        raise NotImplementedError
+
+    def halt(self) -> None:
+        """Stop answering (hung, or being restarted by the launcher)."""
+        self.stop = threading.Event()
+        self.stop.set()
+        self.thread.join(5.0)
+        assert not self.thread.is_alive()
+
+
+class SlowMember(Slow):
     """A controller that answers each new period of the sim ``delay`` after it heard it: with hold,
     or (``flying``) with a thrust command, so the sim moves on at once."""
 
     def __init__(self, hub: MemoryHub, stop: threading.Event, delay: threading.Event,
                  flying: bool = False) -> None:
-        self.member = Member(hub.bus(VESSEL), "controller", watched=set(), hears=("sim",))
         self.answered: list[Period] = []
-        self.stop, self.delay, self.flying = stop, delay, flying
-        self.thread = threading.Thread(target=self._loop, daemon=True)
-        self.thread.start()
-        self.member.join()
+        self.flying = flying
+        super().__init__(hub, "controller", stop, delay, hears=("sim",))
 
     def _loop(self) -> None:
         version, last = 0, None
@@ -55,16 +74,12 @@ class SlowMember:
                 self.member.answer(last, tick.period_ns, hold=True)
 
 
-class SlowRecorder:
+class SlowRecorder(Slow):
     """A recorder that answers each period ``delay`` after every member had, covering their answers
     (as the real one does once they are on disk)."""
 
     def __init__(self, hub: MemoryHub, stop: threading.Event, delay: threading.Event) -> None:
-        self.member = Member(hub.bus(VESSEL), "recorder", watched=set())
-        self.stop, self.delay = stop, delay
-        self.thread = threading.Thread(target=self._loop, daemon=True)
-        self.thread.start()
-        self.member.join()
+        super().__init__(hub, "recorder", stop, delay)
 
     def _loop(self) -> None:
         version, covered = 0, None
@@ -127,11 +142,7 @@ def test_a_member_that_does_not_answer_delays_the_reply_only_so_long(monkeypatch
     monkeypatch.setattr(sim_lockstep, "EPISODE_WAIT_S", 0.5)
     stack = Stack()
     try:
-        member = stack.member
-        member.stop = threading.Event()
-        member.stop.set()  # it stops answering (hung, or being restarted)
-        member.thread.join(5.0)
-        assert not member.thread.is_alive()
+        stack.member.halt()
         reply = stack.restart()
         assert reply.accepted, reply.reason
         assert reply.reason.endswith("its first period not yet answered by controller"), reply.reason
@@ -196,10 +207,7 @@ def test_a_recorder_that_does_not_cover_the_old_episode_delays_the_new_one_only_
         assert recorder is not None
         wait_for(lambda: (a := recorder.member.last_answer) is not None and a.covers.get(
             "controller") == stack.member.member.last_answer.seq, 10, what="t_0 covered")
-        recorder.stop = threading.Event()
-        recorder.stop.set()  # it stops answering
-        recorder.thread.join(5.0)
-        assert not recorder.thread.is_alive()
+        recorder.halt()
         first = stack.restart()  # t_0 was covered: at once; episode 1's t_0 is then never covered
         assert first.reason == f"scenario {stack.scenario.name} restarted", first.reason
         reply = stack.restart()

@@ -124,8 +124,7 @@ class Lockstep:
             while not self.answered(period):
                 left = deadline - time.monotonic()
                 if left <= 0:
-                    absent = [m for m in sorted(self.members)
-                              if self.member.ledger.answer(m, period) is None]
+                    absent = self._absent(period)
                     lacking = (f"no answer from {', '.join(absent)}" if absent
                                else "the recorder has not covered every answer")
                     log.warning("lockstep: t = %.3f s of episode %d not finished after %.1f s (%s); "
@@ -259,9 +258,12 @@ class Lockstep:
                 stalled_since = time.monotonic()
         return None
 
+    def _absent(self, period: Period) -> list[str]:
+        """The members that have not answered ``period``; under ``member.changed``."""
+        return [m for m in sorted(self.members) if self.member.ledger.answer(m, period) is None]
+
     def _waiting_for(self, period: Period) -> str:
-        ledger = self.member.ledger
-        lacking = [m for m in sorted(self.members) if ledger.answer(m, period) is None]
+        lacking = self._absent(period)
         if not lacking:
             return "stalled: waiting for the recorder to cover every answer, or for the command"
         return f"stalled: no answer yet from {', '.join(lacking)}"
