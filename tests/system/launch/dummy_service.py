@@ -8,6 +8,8 @@
 --quiet-after S           stop publishing after S seconds, but keep running (a hung loop)
 --quiet-vessel V          with --quiet-after: only if this process's vessel is V (one of a fleet's)
 --drop-token-after S      withdraw the health token after S seconds, but keep running
+--times FILE              append "<service> start|up <unix time>" to FILE when it starts and when it
+                          declares its token (start-order tests)
 """
 
 from __future__ import annotations
@@ -35,11 +37,21 @@ ap.add_argument("--publish-thrust", type=float, default=None)
 ap.add_argument("--quiet-after", type=float, default=None)
 ap.add_argument("--quiet-vessel", default=None)
 ap.add_argument("--drop-token-after", type=float, default=None)
+ap.add_argument("--times", default=None)
 args = ap.parse_args()
 if args.quiet_vessel is not None and args.quiet_vessel != args.vessel:
     args.quiet_after = None
 
 stop = threading.Event()
+
+
+def note_time(what: str) -> None:
+    if args.times:
+        with open(args.times, "a") as f:
+            f.write(f"{args.service} {what} {time.time()}\n")
+
+
+note_time("start")
 
 
 def on_signal(*_: object) -> None:
@@ -60,6 +72,7 @@ if args.marker:
 bus = Bus.open(args.vessel)
 time.sleep(args.ready_after)
 bus.declare_alive(args.service)
+note_time("up")
 print(f"{args.service} up pid {os.getpid()}", flush=True)
 t0 = time.monotonic()
 thrust = bus.publisher(keys.THRUST) if args.publish_thrust else None

@@ -99,6 +99,28 @@ def test_start_restart_and_clean_stop_without_orphans(procs, zenoh_env, tmp_path
     assert (tmp_path / "run" / "logs" / "sim.log").read_text().count("--- start") == 2
 
 
+def test_processes_after_the_same_one_start_together(procs, zenoh_env, tmp_path) -> None:
+    """``after`` orders a start and nothing more: two processes after the same one start together,
+    and one after both starts once both are ready; a stack starts in its longest chain's time, not
+    the sum of its processes' start-ups."""
+    times = tmp_path / "times"
+    t = f', "--times", "{times}"'
+    profile = write_profile(tmp_path, proc("rec", "recorder", t)
+                            + proc("sim", "sim", t + ', "--ready-after", "2"', after='["rec"]')
+                            + proc("est", "estimator", t + ', "--ready-after", "2"', after='["rec"]')
+                            + proc("ctl", "controller", t, after='["sim", "est"]'))
+    la = launch(procs, zenoh_env, profile, tmp_path)
+    wait_for(lambda: "all ready" in procs.log(la), 30, what="all ready")
+    at = {tuple(line.split()[:2]): float(line.split()[2]) for line in times.read_text().splitlines()}
+    assert at["sim", "start"] > at["recorder", "up"] and at["estimator", "start"] > at["recorder", "up"]
+    # Each started before the other was ready (one after the other, the second would start only
+    # once the first was up, 2 s later).
+    assert at["sim", "start"] < at["estimator", "up"] and at["estimator", "start"] < at["sim", "up"], at
+    assert at["controller", "start"] > max(at["sim", "up"], at["estimator", "up"]), at
+    procs.stop(la, signal.SIGINT, timeout_s=8)
+    assert la.returncode == 0, procs.log(la)
+
+
 def test_required_failure_gives_nonzero_exit(procs, zenoh_env, tmp_path) -> None:
     profile = write_profile(tmp_path, proc("sim", "sim")
                             + proc("est", "estimator", ', "--exit-after", "0.5", "--code", "3"',

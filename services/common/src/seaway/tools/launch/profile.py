@@ -7,7 +7,8 @@ A profile is pure data, validated here before anything starts:
   substituted), its restart policy (``never`` or ``on-failure`` with exponential back-off) and
   whether the run fails without it (``required``);
 * readiness is the process's Zenoh liveliness token ``seaway/<vessel>/health/<service>``;
-* start order follows ``after``; stop order is the reverse, with the recorder always last;
+* a process starts once every process it names in ``after`` is ready (those with nothing between
+  them start together); stop order is the reverse of ``after``, with the recorder always last;
 * each key has at most one producer in a profile: by default a process produces the registry keys
   whose producer is its service; ``produces`` overrides that (the lockstep sim produces the sensor
   keys itself). Two producers of one key are refused, naming both;

@@ -190,19 +190,32 @@ class Supervisor:
         with self._watch_lock:
             self.watches[sp.vessel].arm(sp.spec.name, self.duties[sp.spec.name], now)
 
-    def _wait_ready(self, sp: Supervised, stop: threading.Event) -> bool:
-        token = (sp.vessel, sp.spec.service)
-        deadline = time.monotonic() + sp.spec.ready_timeout_s
+    def _wait_any_ready(self, starting: list[Supervised], stop: threading.Event) -> str | None:
+        """Block until at least one of ``starting`` is ready (its health token is up), mark those and
+        take them out of ``starting``; an error text if one exited or passed its ``ready_timeout_s``
+        (from its own spawn) first, or the launch was stopped."""
         with self._health_cond:
-            while token not in self.alive_services:
-                if stop.is_set() or sp.popen is None or sp.popen.poll() is not None:
-                    return False
-                remaining = deadline - time.monotonic()
-                if remaining <= 0:
-                    return False
-                self._health_cond.wait(min(remaining, 0.1))
-        self._mark_ready(sp, time.monotonic())
-        return True
+            while True:
+                now = time.monotonic()
+                up = [sp for sp in starting if (sp.vessel, sp.spec.service) in self.alive_services]
+                if up:
+                    break
+                if stop.is_set():
+                    return "stopped while starting"
+                for sp in starting:
+                    code = sp.popen.poll() if sp.popen is not None else None
+                    if sp.popen is None or code is not None:
+                        return self._start_failure(sp, f"exited with code {code}")
+                    if now - sp.started_at >= sp.spec.ready_timeout_s:
+                        return self._start_failure(sp, f"not ready within {sp.spec.ready_timeout_s:g} s")
+                self._health_cond.wait(0.1)
+        for sp in up:
+            starting.remove(sp)
+            self._mark_ready(sp, time.monotonic())
+        return None
+
+    def _start_failure(self, sp: Supervised, why: str) -> str:
+        return f"process {sp.spec.name!r} {why}; last log lines:\n{self.log_tail(sp.spec.name)}"
 
     # -- starting -------------------------------------------------------------------------------
 
@@ -238,27 +251,39 @@ class Supervisor:
         self._event(sp, "start", pid=sp.popen.pid)
 
     def start_all(self, stop: threading.Event) -> str | None:
-        """Start in order, waiting for each one's readiness. Returns an error text, or None."""
+        """Start each process once every process it names in ``after`` is ready: those with nothing
+        between them start together, so a profile starts in the time of its longest ``after`` chain,
+        not the sum of its processes' start-ups (each is seconds of imports and a session). Returns
+        an error text, or None."""
         if SETPRIV is None:
             self.echo("launcher: util-linux's setpriv is not installed: a launcher killed with "
                       "SIGKILL leaves its processes running (apt install util-linux)")
-        for spec in start_order([p.spec for p in self.procs.values()]):
-            sp = self.procs[spec.name]
-            try:
-                self.spawn(sp)
-            except FileNotFoundError as err:
-                sp.state = "failed"
-                if spec.required:
-                    return str(err)
-                self.echo(f"launcher: {err}; optional, continuing without it")
-                continue
-            if spec.service and not self._wait_ready(sp, stop):
-                if stop.is_set():
-                    return "stopped while starting"
-                why = (f"exited with code {sp.popen.poll()}" if sp.popen and sp.popen.poll() is not None
-                       else f"not ready within {spec.ready_timeout_s:g} s")
-                tail = self.log_tail(spec.name)
-                return f"process {spec.name!r} {why}; last log lines:\n{tail}"
+        pending = start_order([p.spec for p in self.procs.values()])
+        ready: set[str] = set()  # ready, running (no health token to wait for), or optional and absent
+        starting: list[Supervised] = []
+        while pending or starting:
+            for spec in [s for s in pending if ready.issuperset(s.after)]:
+                pending.remove(spec)
+                sp = self.procs[spec.name]
+                try:
+                    self.spawn(sp)
+                except FileNotFoundError as err:
+                    sp.state = "failed"
+                    if spec.required:
+                        return str(err)
+                    self.echo(f"launcher: {err}; optional, continuing without it")
+                    ready.add(spec.name)
+                    continue
+                if spec.service:
+                    starting.append(sp)
+                else:
+                    ready.add(spec.name)
+            if starting:
+                before = {sp.spec.name for sp in starting}
+                error = self._wait_any_ready(starting, stop)
+                if error:
+                    return error
+                ready |= before - {sp.spec.name for sp in starting}
         return None
 
     # -- watching -------------------------------------------------------------------------------
