@@ -23,4 +23,9 @@ else
     fi
 fi
 # --locked: fail rather than silently re-resolve, so every machine gets the same versions.
-"$UV" sync --locked --all-packages --python "$PY" -q
+# --compile-bytecode, and compileall for our own sources: every process of a stack imports numpy,
+# pydantic, casadi and zenoh, and compiling them from source at each start cost it about 0.8 s of
+# CPU (1.5 s -> 0.7 s a service, measured on a 2-core VM). Python reads the .pyc files even where
+# PYTHONDONTWRITEBYTECODE is set; compileall rewrites only those older than their source.
+"$UV" sync --locked --all-packages --python "$PY" -q --compile-bytecode
+.venv/bin/python -m compileall -q -j 0 services/*/src lab/src >/dev/null
