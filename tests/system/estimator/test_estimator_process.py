@@ -60,7 +60,7 @@ def test_lockstep_process_publishes_state_and_origin_and_replays_exactly(procs, 
         origins = bus.subscribe(keys.NAV_ORIGIN, mode="fifo")
         answers = bus.subscribe(keys.LOCKSTEP_ESTIMATOR, mode="fifo")
         sim = Member(bus, "sim", watched=())
-        thrust = bus.publisher(keys.THRUST)
+        ctl = Member(bus, "controller", watched=(), subscribe=False)  # its bundle: the command
         time.sleep(0.3)  # let our subscriptions reach the estimator's session
         received, first_fix = [], None
         applied: list[int] = []  # the stamp of the command applied over the last period
@@ -98,8 +98,8 @@ def test_lockstep_process_publishes_state_and_origin_and_replays_exactly(procs, 
             return _state_for(states, t)
 
         def command(t: int) -> None:
-            thrust.put(ThrustCommand(stamp_ns=t, thrust_port_n=3.0, thrust_starboard_n=2.5,
-                                     source="test"))
+            ctl.answer(Period(0, t), TICK_NS, [(keys.THRUST, ThrustCommand(
+                stamp_ns=t, thrust_port_n=3.0, thrust_starboard_n=2.5, source="test"))])
             applied.append(t)
 
         first = period(0)

@@ -11,7 +11,7 @@ import threading
 from pathlib import Path
 
 import pytest
-from seaway.contract import keys
+from seaway.contract import bundle, keys
 from seaway.contract.messages import BatteryState, PeriodDone, SimTruth
 from seaway.contract.units import NS_PER_S
 from seaway.runtime.bus import Bus
@@ -48,19 +48,23 @@ class Seen:
         bus.subscribe_raw(f"seaway/{VESSEL}/**", self._on)
 
     def _on(self, sample) -> None:
-        suffix = sample.key.split("/", 2)[2]
-        kind = {keys.SIM_TRUTH.suffix: SimTruth, keys.VEHICLE_BATTERY.suffix: BatteryState,
-                keys.LOCKSTEP_SIM.suffix: PeriodDone}.get(suffix)
-        if kind is None:
-            return
-        msg = kind.model_validate(json.loads(sample.payload))
-        with self._lock:
-            if kind is SimTruth:
-                self.truth[msg.stamp_ns] = msg
-            elif kind is BatteryState:
-                self.battery[msg.stamp_ns] = msg
-            else:
-                self.answers.append(msg)
+        # The sim's bundle stands for the samples it carries (seaway.contract.bundle).
+        parts = (bundle.unpack(sample.key, sample.payload) if sample.encoding == bundle.ENCODING
+                 else [(sample.key, sample.payload, sample.encoding)])
+        for key, payload, _encoding in parts:
+            suffix = key.split("/", 2)[2]
+            kind = {keys.SIM_TRUTH.suffix: SimTruth, keys.VEHICLE_BATTERY.suffix: BatteryState,
+                    keys.LOCKSTEP_SIM.suffix: PeriodDone}.get(suffix)
+            if kind is None:
+                continue
+            msg = kind.model_validate(json.loads(payload))
+            with self._lock:
+                if kind is SimTruth:
+                    self.truth[msg.stamp_ns] = msg
+                elif kind is BatteryState:
+                    self.battery[msg.stamp_ns] = msg
+                else:
+                    self.answers.append(msg)
 
 
 def test_lockstep_sim_publishes_its_battery_every_second_to_the_joule(procs, zenoh_env, tmp_path):

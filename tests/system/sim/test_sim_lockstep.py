@@ -9,7 +9,7 @@ import sys
 import threading
 
 import pytest
-from seaway.contract import keys
+from seaway.contract import bundle, keys
 from seaway.contract.messages import ClockTick, ThrustCommand
 from seaway.runtime.bus import Bus
 
@@ -30,11 +30,15 @@ class Recorder:
         bus.subscribe_raw(f"seaway/{VESSEL}/**", self._on)
 
     def _on(self, sample) -> None:
-        suffix = sample.key.split("/", 2)[2]
-        if suffix.startswith(("health/", "lockstep/")):
-            return
-        with self._lock:
-            self.samples.append((suffix, json.loads(sample.payload)))
+        # A lockstep bundle stands for the samples it carries (seaway.contract.bundle), in order.
+        parts = (bundle.unpack(sample.key, sample.payload) if sample.encoding == bundle.ENCODING
+                 else [(sample.key, sample.payload, sample.encoding)])
+        for key, payload, _encoding in parts:
+            suffix = key.split("/", 2)[2]
+            if suffix.startswith(("health/", "lockstep/")):
+                continue
+            with self._lock:
+                self.samples.append((suffix, json.loads(payload)))
 
     def of(self, suffix: str) -> list[dict]:
         with self._lock:

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import NamedTuple
 
 import pytest
-from seaway.contract import keys
+from seaway.contract import bundle, keys
 from seaway.contract.messages import MissionCommand, PeriodDone, StateEstimate
 from seaway.runtime.bus import TypedSubscriber
 from seaway.runtime.clock import WallClock
@@ -130,8 +130,12 @@ def test_answers_each_period_holds_when_idle_and_restarts_with_the_world(control
     assert rep.published == blind.published and rep.seq > blind.seq
     assert world.thrust.get(1.0).source == "no-state"
 
-    # A malformed state is counted and dropped by the controller's bus; the loop goes on.
-    operator.raw_publisher(keys.NAV_STATE.key(VESSEL)).put(b'{"stamp_ns": 1, "x_m": NaN}')
+    # A malformed state in the estimator's bundle is counted (on its key) and dropped by the
+    # controller's bus; the loop goes on.
+    again_6 = PeriodDone(stamp_ns=6 * DT_NS, service="estimator", episode=0, seq=999, period_ns=DT_NS,
+                         published={keys.NAV_STATE.suffix: [6 * DT_NS]})
+    operator.raw_publisher(keys.LOCKSTEP_ESTIMATOR.key(VESSEL), bundle.ENCODING).put(bundle.encode(
+        again_6.encode(), [(keys.NAV_STATE.suffix, b'{"stamp_ns": 600000000, "x_m": NaN}')]))
     paused = operator.request(keys.MISSION_COMMAND, MissionCommand.make(stamp_ns=0, command="pause"))
     assert paused.accepted, paused.reason
     assert world.period(7, state(7)).hold  # paused: nothing to fly, time stops

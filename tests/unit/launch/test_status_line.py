@@ -135,4 +135,9 @@ def test_on_a_bus_it_shows_and_judges_by_the_newest_status_and_state() -> None:
     bus.publisher(keys.MISSION_STATUS).put(status("complete"))
     assert line.complete(None)  # read when asked, not when heard
     bus.publisher(keys.MISSION_ENERGY).put(budget(decision="warn", decided_ns=1))
-    assert line.decided["v1"] is not None  # every budget is decoded: a decision's is kept
+    for _ in range(3):  # later budgets, before the line looks again
+        bus.publisher(keys.MISSION_ENERGY).put(budget())
+    assert line.decided["v1"] is None  # read when asked ...
+    line.pull()
+    decided = line.decided["v1"]  # ... and every budget then: a decision's is kept
+    assert decided is not None and decided.decision == "warn" and line.energy["v1"] == budget()

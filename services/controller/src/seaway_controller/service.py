@@ -1,7 +1,10 @@
 """``seaway-controller``: the thin loop around ``ControllerCore``.
 
-Inputs: ``nav/state`` (StateEstimate), ``nav/origin`` (NavOrigin), queryables ``mission/set``
-(MissionRequest) and ``mission/command`` (MissionCommand), each answered with a Reply.
+Inputs: ``nav/state`` (StateEstimate), ``nav/origin`` (NavOrigin), ``vehicle/battery``
+(BatteryState), ``vehicle/status`` (VehicleStatus), queryables ``mission/set`` (MissionRequest) and
+``mission/command`` (MissionCommand), each answered with a Reply. In lockstep the state and origin
+come in the estimator's bundle, the battery in the sim's (``seaway.contract.bundle``), and the
+outputs go in the controller's own.
 Outputs: ``ctrl/thrust`` (ThrustCommand, stamped with the state's stamp), ``ctrl/solve``
 (SolveRecord, one per solve), ``mission/status`` (MissionStatus) and ``mission/accepted``
 (MissionAccepted: the mission accepted, in local NED; real time: at once and every second, lockstep:
@@ -13,7 +16,7 @@ Two ways to run:
   each tick uses the newest state if a new one arrived; a state older than ``--max-state-age-s``
   gives zero thrust;
 * lockstep (``seaway.runtime.lockstep``): one answer per period of the sim, once the estimator's
-  answer and the state it lists are in: the command for that state (zero thrust if the estimator
+  bundle (its answer and the state) is in: the command for that state (zero thrust if the estimator
   has no state yet), or "hold" when there is nothing to fly (no mission, paused, over), which stops
   simulated time until a mission request makes the controller answer the period again. A new
   episode (the sim restarted or loaded a scenario) restarts a mission in progress from its first leg.
@@ -121,24 +124,31 @@ class ControllerService:
         self.member: Member | None = None
         self._states: dict[int, StateEstimate] = {}  # lockstep: the states of recent periods by stamp
         self._rethink = False  # lockstep: a mission request came while the current answer was hold
+        self._answered: PeriodDone | None = None  # lockstep: the last answer given
+        self._restarts: list[Period] = []  # lockstep: new episodes not yet acted on
+        self._step_lock = threading.Lock()  # lockstep: one answer at a time (bus thread or loop)
         if lockstep:
-            # The state comes with the estimator's answer, the battery with the sim's (once a
-            # second): both listed, so the budget prices from the same inputs in a replay.
+            # The state and origin come in the estimator's bundle, which moves the controller on;
+            # the battery in the sim's (once a second), sent before the estimator's and taken with
+            # it. State and battery are listed, so the budget prices from the same inputs in a
+            # replay; the origin is taken when it comes.
             self.member = Member(bus, NAME, watched={keys.NAV_STATE.suffix,
                                                      keys.VEHICLE_BATTERY.suffix},
-                                 hears=("sim", "estimator"))
-            bus.subscribe(keys.NAV_STATE, callback=self._on_state, inline=True)
+                                 inputs={keys.NAV_STATE.suffix, keys.VEHICLE_BATTERY.suffix,
+                                         keys.NAV_ORIGIN.suffix},
+                                 hears=("sim", "estimator"), passive=("sim",))
+            self.member.deliver = self._on_input
         else:  # real time acts on the newest state
             self.states = bus.subscribe(keys.NAV_STATE, mode="latest")
+            bus.subscribe(keys.VEHICLE_BATTERY, callback=self.on_battery)
+            bus.subscribe(keys.NAV_ORIGIN, callback=self.on_origin)
         self.pub_thrust = bus.publisher(keys.THRUST)
         self.pub_solve = bus.publisher(keys.SOLVE)
         self.pub_status = bus.publisher(keys.MISSION_STATUS)
         self.pub_accepted = bus.publisher(keys.MISSION_ACCEPTED)
         self.pub_energy = bus.publisher(keys.MISSION_ENERGY)
-        bus.subscribe(keys.VEHICLE_BATTERY, callback=self.on_battery, inline=lockstep)
         bus.queryable(keys.MISSION_SET, self.on_mission)
         bus.queryable(keys.MISSION_COMMAND, self.on_command)
-        bus.subscribe(keys.NAV_ORIGIN, callback=self.on_origin)
         self.stamps = StampGate(NAME, log, StampBounds.live())  # real time: states not ahead of now
         self.ratelog = RateLimitedLog(log)  # a step failing every period: a traceback now and then
         bus.subscribe(keys.VEHICLE_STATUS, callback=self.on_vehicle_status)  # pauses a mission
@@ -279,6 +289,15 @@ class ControllerService:
 
     # -- lockstep (seaway.runtime.lockstep) ------------------------------------------------------
 
+    def _on_input(self, key: str, msg: Any) -> None:
+        """An input from a bundle (``Member.deliver``): the state, the battery or the origin."""
+        if isinstance(msg, StateEstimate):
+            self._on_state(key, msg)
+        elif isinstance(msg, BatteryState):
+            self.on_battery(key, msg)
+        elif isinstance(msg, NavOrigin):
+            self.on_origin(key, msg)
+
     def _on_state(self, _key: str, state: StateEstimate) -> None:
         member = self.member
         assert member is not None
@@ -295,36 +314,46 @@ class ControllerService:
         member.saw(keys.NAV_STATE.suffix, state.stamp_ns)
 
     def run_lockstep(self) -> None:
-        """Answer each period once the estimator has (with the state it lists, if any)."""
+        """Answer each period once the estimator has (with the state it lists, if any): on the
+        bus's thread as the estimator's bundle is taken (``Member.on_ready``), else from this loop
+        (a mission request, a solver made, a passive bundle that came late)."""
         member = self.member
         assert member is not None
-        restarts: list[Period] = []
-        member.on_restart = lambda _before, now: restarts.append(now)
-        answered: PeriodDone | None = None
+        member.on_restart = lambda _before, now: self._restarts.append(now)
+        member.on_ready = self.lockstep_step
         version = 0
         while not self.ctx.stop.is_set():
             version = member.wait(version, 0.1)
+            self.lockstep_step()
+
+    def lockstep_step(self) -> None:
+        """Answer the current period if it can be and has not been (or was held and a mission came
+        since); one caller at a time."""
+        member = self.member
+        assert member is not None
+        with self._step_lock:
             with member.changed:
                 period = member.ledger.period
                 est = member.ledger.answer("estimator")
                 complete = member.ledger.complete(est) and member.ledger.complete(
                     member.ledger.answer("sim"))
-                restart = bool(restarts)
-                restarts.clear()
+                restart = bool(self._restarts)
+                self._restarts.clear()
                 rethink, self._rethink = self._rethink, False
             if restart and period is not None:
                 self.new_episode(period)
-                answered = None
+                self._answered = None
             if est is None or not complete or period is None:
-                continue
+                return
+            answered = self._answered
             if answered is not None and Period.of(answered) == period and not (
                     answered.hold and rethink):
-                continue
+                return
             with member.changed:  # later states can only be late ones of an earlier episode
                 self._states = {k: v for k, v in self._states.items() if k <= period.stamp_ns}
             stamps = est.published.get(keys.NAV_STATE.suffix, [])
             state = self._states.get(stamps[-1]) if stamps else None
-            answered = self.answer_period(member, period, est.period_ns, state)
+            self._answered = self.answer_period(member, period, est.period_ns, state)
 
     def answer_period(self, member: Member, period: Period, period_ns: int,
                       state: StateEstimate | None) -> PeriodDone:

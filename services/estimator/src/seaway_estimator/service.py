@@ -1,14 +1,16 @@
 """The estimator process: the bus around ``EstimatorCore``.
 
-Inputs: ``sensors/gnss`` (GnssFix), ``sensors/attitude`` (Attitude), ``ctrl/thrust`` (ThrustCommand),
-and in lockstep the sim's answers (``lockstep/sim``). Outputs: ``nav/state`` (StateEstimate) and
-``nav/origin`` (NavOrigin, once fixed, then at ``origin_rate_hz`` for late joiners).
+Inputs: ``sensors/gnss`` (GnssFix), ``sensors/attitude`` (Attitude), ``ctrl/thrust`` (ThrustCommand);
+in lockstep they come in the sim's and the controller's bundles (``lockstep/sim``,
+``lockstep/controller``: ``seaway.contract.bundle``). Outputs: ``nav/state`` (StateEstimate) and
+``nav/origin`` (NavOrigin, once fixed, then at ``origin_rate_hz`` for late joiners), in lockstep in
+its own bundle.
 
 * Realtime (default): every 1/``publish_rate_hz`` of wall time, the inputs that arrived are fed to
   the core in stamp order and the state is predicted to now and published.
 * Lockstep (``seaway.runtime.lockstep``): the estimator answers each period t_k of the sim once the
-  sim's answer and every message it lists have arrived (the samples due in (t_{k-1}, t_k] and the
-  thrust command the sim applied): the queued inputs stamped <= t_k are fed in stamp order, the
+  sim's bundle (the samples due in (t_{k-1}, t_k]) and the thrust command the sim applied (in the
+  controller's bundle) have arrived: the queued inputs stamped <= t_k are fed in stamp order, the
   state is predicted to t_k and published stamped exactly t_k, then the answer lists it. Nothing
   waits on a timeout. A new episode (the sim restarted, or loaded a scenario) re-initialises the
   core; a restarted estimator catches up from the sim's repeat of the current period.
@@ -252,21 +254,52 @@ def run_lockstep(loop: EstimatorLoop, bus: Any, inbox: Inbox, stop: threading.Ev
 
     ``ready`` is called once the subscriptions are in place (it declares the health token, which
     makes the sim repeat its period for this newcomer)."""
-    watched = {spec.suffix: kind for kind, spec in INPUT_KEYS.items()}
-    member = Member(bus, "estimator", watched=watched, hears=("sim",))
+    kinds = {spec.suffix: kind for kind, spec in INPUT_KEYS.items()}
+
+    def on_input(key: str, msg: Any) -> None:
+        suffix = key.split("/", 2)[2]
+        if not member.admit(suffix, msg.stamp_ns):
+            return  # stamped beyond any period to come soon: counted and logged by the member
+        inbox.put(kinds[suffix], msg)  # first: what the ledger has seen is in the inbox
+        member.saw(suffix, msg.stamp_ns)
+
+    # The sensors come in the sim's bundle, which moves the estimator on; the command the sim
+    # applied in the controller's, sent before the sim stepped (taken when the sim's comes).
+    member = Member(bus, "estimator", watched=kinds, hears=("sim", "controller"),
+                    passive=("controller",))
+    member.deliver = on_input  # once ``member`` names it (on_input uses it)
     member.stamps = loop.stamps  # one count of dropped stamps (the stats line's), lockstep bounds
     restarts: list[Period] = []
     member.on_restart = lambda _before, now: restarts.append(now)
-    for kind, spec in INPUT_KEYS.items():
-        def on_input(_key: str, msg: Any, kind: str = kind, suffix: str = spec.suffix) -> None:
-            if not member.admit(suffix, msg.stamp_ns):
-                return  # stamped beyond any period to come soon: counted and logged by the member
-            inbox.put(kind, msg)  # first: what the ledger has seen is in the inbox
-            member.saw(suffix, msg.stamp_ns)
-        bus.subscribe(spec, callback=on_input, inline=True)
+    answered: list[Period | None] = [None]
+    step_lock = threading.Lock()
+
+    def step() -> None:
+        """Answer the current period if all it needs is in: on the bus's thread as the sim's bundle
+        is taken (``Member.on_ready``), or from the loop (a passive bundle that came late, a reset)."""
+        with step_lock:
+            with member.changed:
+                period = member.ledger.period
+                tick = member.ledger.answer("sim")
+                ready = member.ledger.complete(tick) and period != answered[0]
+                restart = restarts[-1] if restarts else None
+                restarts.clear()
+            # After the ledger: everything it counted as seen is in the inbox by now.
+            items = inbox.take(0.0)
+            if restart is not None:
+                loop.restart(restart.stamp_ns)
+                answered[0] = None
+            with loop.lock:
+                for kind, msg in items:
+                    loop.queue(kind, msg)
+            if ready and tick is not None and period is not None:
+                loop.on_period(member, period, tick.period_ns,
+                               tick.consumed.get(keys.THRUST.suffix, []))
+                answered[0] = period
+
+    member.on_ready = step
     ready()
     member.join()
-    answered: Period | None = None
     version = 0
     stats_due = time.monotonic() + STATS_PERIOD_S
     while not stop.is_set():
@@ -274,24 +307,7 @@ def run_lockstep(loop: EstimatorLoop, bus: Any, inbox: Inbox, stop: threading.Ev
         if reset_signal.is_set():
             reset_signal.clear()
             loop.reset(keep_origin=True, why="SIGUSR1")
-        with member.changed:
-            period = member.ledger.period
-            tick = member.ledger.answer("sim")
-            ready = member.ledger.complete(tick) and period != answered
-            restart = restarts[-1] if restarts else None
-            restarts.clear()
-        # After the ledger: everything it counted as seen is in the inbox by now.
-        items = inbox.take(0.0)
-        if restart is not None:
-            loop.restart(restart.stamp_ns)
-            answered = None
-        with loop.lock:
-            for kind, msg in items:
-                loop.queue(kind, msg)
-        if ready and tick is not None and period is not None:
-            loop.on_period(member, period, tick.period_ns,
-                           tick.consumed.get(keys.THRUST.suffix, []))
-            answered = period
+        step()
         if time.monotonic() >= stats_due:
             stats_due += STATS_PERIOD_S
             log.info("estimator: %s", _stats_line(loop.core, loop))

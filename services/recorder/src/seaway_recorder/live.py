@@ -46,8 +46,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from seaway.contract import keys
-from seaway.contract.messages import LogRecord, MessageError
+from seaway.contract import bundle, keys
+from seaway.contract.messages import LogRecord, MessageError, PeriodDone
 from seaway.runtime.service import (
     DEFAULT_VESSEL,
     add_log_level_option,
@@ -130,7 +130,24 @@ class LiveFeed:
 
     def feed(self, key: str, payload: bytes, encoding: str, receive_ns: int) -> list[LiveMessage]:
         """The messages one sample received at ``receive_ns`` (wall clock) gives: none, its own,
-        or its own and the derived ones, each at its log time."""
+        or its own and the derived ones, each at its log time. A lockstep bundle
+        (``seaway.contract.bundle``) gives those of each sample it stands for, as the recording has
+        them; one that does not unpack goes to the error channel whole."""
+        if encoding != bundle.ENCODING:
+            return self._feed_one(key, payload, encoding, receive_ns)
+        try:
+            parts = bundle.unpack(key, payload)
+        except MessageError as err:
+            self.stats.samples += 1
+            self.stats.malformed += 1
+            log_ns = self.time.wall(receive_ns)
+            envelope = schemas.malformed_record(key, PeriodDone.SCHEMA, str(err), encoding, payload,
+                                                log_ns)
+            return self._out([LiveMessage(schemas.malformed_channel(), envelope, log_ns)])
+        return [m for k, data, enc in parts for m in self._feed_one(k, data, enc, receive_ns)]
+
+    def _feed_one(self, key: str, payload: bytes, encoding: str, receive_ns: int
+                  ) -> list[LiveMessage]:
         self.stats.samples += 1
         spec = self._spec(key, encoding)
         msg: Any = None

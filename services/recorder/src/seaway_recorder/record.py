@@ -25,6 +25,7 @@ import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+import zenoh
 from seaway.contract import keys
 from seaway.contract.config import ConfigError
 from seaway.contract.messages import LOCKSTEP_SERVICES, LogRecord, MessageError, PeriodDone
@@ -142,6 +143,21 @@ class SampleQueue:
         thread hand-over each."""
         self._lock = threading.Lock()
         self.timeline: Timeline | None = None  # a lockstep recorder's, when tracing
+        self._exprs: list[zenoh.KeyExpr] = []
+        self._records: dict[str, bool] = {}
+
+    def record(self, exprs: Sequence[str]) -> None:
+        """What this recording keeps (``records``): the key expressions it was asked for."""
+        self._exprs = [zenoh.KeyExpr(e) for e in exprs]
+        self._records.clear()
+
+    def records(self, key: str) -> bool:
+        """Whether ``key`` (a message out of a lockstep bundle) is one this recording keeps: the
+        bundle's own key may be subscribed for lockstep alone (``lockstep_exprs``)."""
+        kept = self._records.get(key)
+        if kept is None:
+            kept = self._records[key] = not self._exprs or any(e.includes(key) for e in self._exprs)
+        return kept
 
     def on_sample(self, sample: RawSample) -> None:
         # Called on the bus's delivery threads: keep it short (the bytes are already our own copy).
@@ -185,16 +201,16 @@ def lockstep_exprs(exprs: list[str], vessel: str) -> list[str]:
 
 class LockstepWitness:
     """The recorder as a lockstep member (``seaway.runtime.lockstep``): it answers a period once
-    every member's answer for it, and every message those list, is written and flushed to disk.
+    every member's bundle for it is written (its messages on their own keys) and flushed to disk.
 
     So a SIGKILL never loses a period the sim has moved past; a restarted recorder catches up from the
-    repeat its arrival causes. Repeats (the same bytes again on a key) are not written twice.
+    repeat its arrival causes. Repeats (the same bytes again on a key) are not written twice. A bundle
+    carries every message its answer lists (``seaway.contract.bundle``), and its answer is noted
+    after them: an answer noted is complete, there is nothing else to wait for.
     """
 
     def __init__(self, bus: Bus, vessel: str, exprs: Sequence[str]) -> None:
-        # Only keys it records can make an answer incomplete for it.
-        self.member = Member(bus, "recorder", watched=recorded_suffixes(exprs, vessel),
-                             subscribe=False, consumed=False)
+        self.member = Member(bus, "recorder", watched=(), subscribe=False, consumed=False)
         self.answer_keys = {keys.lockstep_spec(s).key(vessel) for s in LOCKSTEP_SERVICES if s != "recorder"}
         self.prefix = f"{keys.ROOT}/{vessel}/"
         self._recent: dict[str, collections.deque[bytes]] = collections.defaultdict(
@@ -217,32 +233,21 @@ class LockstepWitness:
         return True
 
     def written(self, batch: list[tuple[str, bytes]]) -> None:
-        """Count the stamps of what was just written, or skipped as a repeat of what was (this
-        vessel's keys only)."""
-        seen = []
+        """Note the answers just written (or skipped as repeats of what was), after what they list."""
         for key, payload in batch:
-            if key in self.answer_keys:  # after what it lists was written (it was published after)
+            if key in self.answer_keys:
                 try:
                     ans = PeriodDone.decode(payload)
                     self.member.on_answer(key, ans)
                 except MessageError as err:
                     self.member.ratelog.warning(("malformed answer", key),
                                                 "lockstep answer on %s ignored: %s", key, err)
-            elif key.startswith(self.prefix):
-                stamp = stamp_of(payload)
-                if stamp is not None:
-                    seen.append((key[len(self.prefix):], stamp))
-        if seen:
-            self.member.saw_many(seen)
 
     def lacking(self) -> bool:
-        """Whether an answer of the current period lists messages not yet written (so the writer
-        must wake for every sample until they are), or no period has begun."""
-        member = self.member
-        with member.changed:
-            ledger = member.ledger
-            return ledger.period is None or any(
-                Period.of(a) == ledger.period and ledger.missing(a) for a in ledger.answers.values())
+        """Whether the writer must wake for every sample, not only for answers: before the first
+        period (a bundle carries what its answer lists, so after that nothing is ever lacking)."""
+        with self.member.changed:
+            return self.member.ledger.period is None
 
     def covers(self) -> tuple[Period, int, dict[str, int]] | None:
         """(period, period_ns, covers) when the current period is all written, else None."""
@@ -361,6 +366,7 @@ def run(argv: Sequence[str]) -> int:
         print(f"recording {', '.join(exprs)} to {path}", flush=True)
         # In lockstep the recorder is a member: the sim does not move on until it is on disk.
         witness = None
+        queue.record(exprs)
         if run.lockstep:
             exprs = lockstep_exprs(exprs, args.vessel)
             witness = LockstepWitness(ctx.bus, args.vessel, exprs)
@@ -405,12 +411,15 @@ def _drain(writer: RecordingWriter, queue: SampleQueue, limit: int | None,
     items = queue.items
     batch: list[tuple[str, bytes]] = []
     while items and (limit is None or n < limit):
-        key, payload, encoding, t_ns = items.popleft()
+        sample_key, sample, sample_encoding, t_ns = items.popleft()
         n += 1
-        batch.append((key, payload))  # a repeat not written again is on disk all the same
-        if witness is not None and not witness.admit(key, payload):
-            continue
-        writer.write(key, payload, encoding, t_ns)
+        for key, payload, encoding in writer.unpack(sample_key, sample, sample_encoding, t_ns):
+            if key != sample_key and not queue.records(key):
+                continue  # a bundle's message on a key this recording leaves out
+            batch.append((key, payload))  # a repeat not written again is on disk all the same
+            if witness is not None and not witness.admit(key, payload):
+                continue
+            writer.write(key, payload, encoding, t_ns)
     if witness is not None:
         witness.written(batch)
         witness.maybe_answer(writer)

@@ -24,7 +24,7 @@ from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 
 import zenoh
-from seaway.contract import keys
+from seaway.contract import bundle, keys
 from seaway.contract.messages import MessageError, PeriodDone
 from seaway.runtime.bus import JSON_ENCODING, Bus, RawPublisher
 from seaway.runtime.credentials import ENV_IDENTITY
@@ -103,7 +103,8 @@ def replay(messages: Iterator[recording.RecordedMessage], bus: Bus, keep: KeyFil
     last_log = 0
     clock_key = f"{BUS_ROOT}{bus.vessel}/{SIM_ANSWER_SUFFIX}"
     period: list[recording.RecordedMessage] = []  # lockstep: kept since the last sim answer
-    pending: tuple[PeriodDone, Callable[[], None]] | None = None  # lockstep: the answer to play next
+    # lockstep: the answer to play next, with its other samples' publication and its bundle lines
+    pending: tuple[PeriodDone, Callable[[], None], list[tuple[str, bytes]]] | None = None
 
     def put(m: recording.RecordedMessage) -> None:
         pub = pubs.get(m.topic)
@@ -117,6 +118,21 @@ def replay(messages: Iterator[recording.RecordedMessage], bus: Bus, keep: KeyFil
     def publish(batch: list[recording.RecordedMessage]) -> None:
         for m in batch:
             put(m)
+
+    sim_prefix = f"{BUS_ROOT}{bus.vessel}/"
+
+    def bundled(batch: list[recording.RecordedMessage]
+                ) -> tuple[list[tuple[str, bytes]], list[recording.RecordedMessage]]:
+        """A period's recorded samples as (the sim's bundle lines, the rest): a lockstep sim sends
+        its messages in its bundle (``seaway.contract.bundle``), and so does its replay."""
+        lines, rest = [], []
+        for m in batch:
+            spec = keys.spec_for_key(m.topic) if m.topic.startswith(sim_prefix) else None
+            if spec is not None and bundle.bundled_by(spec) == "sim":
+                lines.append((spec.suffix, m.data))
+            else:
+                rest.append(m)
+        return lines, rest
 
     def count(batch: list[recording.RecordedMessage]) -> None:
         for m in batch:
@@ -157,7 +173,8 @@ def replay(messages: Iterator[recording.RecordedMessage], bus: Bus, keep: KeyFil
             if answer is None:
                 publish(batch)
             else:
-                pending = (answer, lambda b=batch[:-1]: publish(b))
+                lines, rest = bundled(batch[:-1])
+                pending = (answer, lambda b=rest: publish(b), lines)
             continue
         if rate is not None:
             due = start_wall + (m.log_time_ns - t0_log) / 1e9 / rate  # type: ignore[operator]

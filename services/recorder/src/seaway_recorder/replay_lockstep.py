@@ -24,9 +24,9 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
-from seaway.contract import keys
+from seaway.contract import bundle, keys
 from seaway.contract.messages import PeriodDone
 from seaway.runtime.bus import Bus
 from seaway.runtime.lockstep import MEMBERS, STALL_REPEAT_S, Ledger, Period
@@ -57,7 +57,8 @@ class LockstepPacer:
         self.ratelog = RateLimitedLog(log)  # a flood of impostor answers is counted, not echoed
         self._joined = False
         self._version = 0
-        self._pub = bus.publisher(keys.lockstep_spec("sim"), lockstep=True, express=True)
+        self._pub = bus.raw_publisher(keys.lockstep_spec("sim").key(bus.vessel), bundle.ENCODING,
+                                      block=True, express=True)
         for member in MEMBERS:
             bus.subscribe(keys.lockstep_spec(member), callback=self._on_answer, inline=True)
         bus.watch_lockstep_members(self._on_member)
@@ -88,9 +89,12 @@ class LockstepPacer:
 
     # -- the replay's thread ------------------------------------------------------------------------
 
-    def play(self, answer: PeriodDone, publish: Callable[[], None], hold_ends: bool = False) -> bool:
-        """``publish`` the samples of the period ``answer`` closes, then ``answer`` naming the live
-        members, and hold until every one of them has answered it; False if stopped first.
+    def play(self, answer: PeriodDone, publish: Callable[[], None],
+             lines: Sequence[tuple[str, bytes]] = (), hold_ends: bool = False) -> bool:
+        """``publish`` the samples of the period ``answer`` closes that its bundle does not carry,
+        then its bundle (``seaway.contract.bundle``): ``answer`` naming the live members, with
+        ``lines`` (key suffix, bytes: the sim's messages of the period, as recorded); and hold
+        until every live member has answered it; False if stopped first.
 
         The controller's ``hold`` is waited past (its mission has not come yet), unless
         ``hold_ends``: the recording does not go on past this period (it ends, or repeats it), so
@@ -105,7 +109,7 @@ class LockstepPacer:
             tick = answer.model_copy(update={"members": members})
             with self.changed:
                 self.ledger.on_answer(tick)
-            self._pub.put(tick)
+            self._pub.put(bundle.encode(tick.encode(), lines))
 
         send()
         since = self.clock()

@@ -31,7 +31,8 @@ import mcap
 from mcap.data_stream import RecordBuilder
 from mcap.records import ChunkIndex
 from mcap.writer import CompressionType, Writer
-from seaway.contract.messages import MessageError
+from seaway.contract import bundle
+from seaway.contract.messages import MessageError, PeriodDone
 from seaway.runtime.ratelog import RateLimitedLog
 from seaway.tools.launch.events import ProcessEvent
 from seaway.vessel.frames import GeoOrigin
@@ -374,6 +375,21 @@ class RecordingWriter:
                 self._put(derive.channel_spec(d), d.payload(), log_ns, receive_ns)
                 self.stats.derived += 1
         return True
+
+    def unpack(self, key: str, payload: bytes, encoding: str, receive_ns: int
+               ) -> list[tuple[str, bytes, str]]:
+        """The samples one bus sample stands for, to ``write`` each: itself, or for a lockstep
+        bundle (``seaway.contract.bundle``) its messages on their own keys, then its answer. A
+        bundle that does not unpack (its framing, or a line of a key its member does not produce)
+        is kept whole on the error channel, and stands for nothing."""
+        if encoding != bundle.ENCODING:
+            return [(key, payload, encoding)]
+        try:
+            return bundle.unpack(key, payload)
+        except MessageError as err:
+            self._put_malformed(key, PeriodDone.SCHEMA, str(err), encoding, payload,
+                                self.time.wall(receive_ns), receive_ns)
+            return []
 
     def _write_episodes(self) -> None:
         """A new lockstep episode continues the timeline: say at which offset, in the file."""

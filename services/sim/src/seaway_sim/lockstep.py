@@ -30,7 +30,7 @@ from typing import Any
 
 from seaway.contract import keys
 from seaway.contract.messages import Message, ThrustCommand
-from seaway.runtime.lockstep import MEMBERS, RECORDER, STALL_REPEAT_S, Member, Period
+from seaway.runtime.lockstep import MEMBERS, PASSIVE_POLL_S, RECORDER, STALL_REPEAT_S, Member, Period
 from seaway.vessel.thrusters import output_pair
 
 from seaway_sim.app import SimApp
@@ -43,6 +43,10 @@ EPISODE_WAIT_S = 5.0
 (``Lockstep.finish_episode``), half for the members to answer the new episode's first period
 (``Lockstep.await_episode``), before it goes on anyway (a member restarting: the launcher brings it
 back) [wall s]. Clients of ``sim/scenario`` wait 10 s for the reply."""
+
+EPISODE_POLL_S = 0.01
+"""How often a scenario load's waits look again (the estimator's answers come through a passive
+source, which wakes nobody) [wall s]."""
 
 
 @dataclass
@@ -65,12 +69,17 @@ class Lockstep:
         self.stall_s = stall_s
         self.stop = stop
         self.stats = LockstepStats()
-        self.member = Member(app.bus, "sim", watched={keys.THRUST.suffix})
         self.members: set[str] = set()
         self._joined = False
         self._commands: dict[int, ThrustCommand] = {}  # stamp -> latest command with that stamp
         self._applied: int | None = None  # stamp of the command applied over the last period
-        app.bus.subscribe(keys.THRUST, callback=self._on_thrust, inline=True)
+        # The controller's command comes in its bundle; a stand-in that is no member (a test's
+        # responder) publishes it alone, on its key.
+        # The controller's and the recorder's answers move the sim on; the estimator's, sent before
+        # the controller's, is taken with them.
+        self.member = Member(app.bus, "sim", watched={keys.THRUST.suffix}, passive=("estimator",))
+        self.member.deliver = self._on_thrust  # once ``self.member`` names it (it uses it)
+        app.bus.subscribe(keys.THRUST, callback=self._on_thrust, inline=True, bundles=False)
         app.bus.watch_lockstep_members(self._on_member)
         app.before_load = self.finish_episode
         app.after_load = self.await_episode
@@ -116,12 +125,15 @@ class Lockstep:
         logged in the new one's time and ended its mission there. '' once so; after
         half of ``EPISODE_WAIT_S`` (a member dead or restarting), a note saying who had not."""
         deadline = time.monotonic() + EPISODE_WAIT_S / 2
-        with self.member.changed:
-            last = self.member.last_answer
-            if last is None:  # nothing published yet: nothing to finish
-                return ""
-            period = Period.of(last)  # after a step, the core is a period on: not yet published
-            while not self.answered(period):
+        last = self.member.last_answer
+        if last is None:  # nothing published yet: nothing to finish
+            return ""
+        period = Period.of(last)  # after a step, the core is a period on: not yet published
+        while True:
+            self.member.drain()  # the estimator's answer comes through a passive source
+            with self.member.changed:
+                if self.answered(period):
+                    return ""
                 left = deadline - time.monotonic()
                 if left <= 0:
                     absent = self._absent(period)
@@ -131,8 +143,7 @@ class Lockstep:
                                 "starting the new episode anyway", period.stamp_ns / 1e9,
                                 period.episode, EPISODE_WAIT_S / 2, lacking)
                     return f"; the last episode's last period was not finished ({lacking})"
-                self.member.changed.wait(min(left, 0.25))
-        return ""
+                self.member.changed.wait(min(left, EPISODE_POLL_S))
 
     def await_episode(self, episode: int, stamp_ns: int) -> str:
         """A scenario load's wait before its reply (``SimApp.after_load``, on the request's thread):
@@ -147,7 +158,9 @@ class Lockstep:
         with self.member.changed:
             self.member.version += 1
             self.member.changed.notify_all()
-            while True:
+        while True:
+            self.member.drain()  # the estimator's answer comes through a passive source
+            with self.member.changed:
                 if self.app.generation != episode:
                     return "; another scenario was loaded since"
                 lacking = [m for m in sorted(self.members - {RECORDER})
@@ -160,7 +173,7 @@ class Lockstep:
                                 "%.1f s; replying to the scenario request anyway", episode,
                                 ", ".join(lacking), EPISODE_WAIT_S / 2)
                     return f"; its first period not yet answered by {', '.join(lacking)}"
-                self.member.changed.wait(min(left, 0.25))
+                self.member.changed.wait(min(left, EPISODE_POLL_S))
 
     def _answered_since(self, service: str, first: Period) -> bool:
         """Whether ``service``'s latest answer is for ``first`` or a later period of its episode.
@@ -233,11 +246,13 @@ class Lockstep:
         while not self.stop.is_set():
             if self.app.generation != period.episode:
                 return None
+            member.drain()
             with member.changed:
                 value = test(period)
                 joined = self._joined
                 if not value and not joined and member.version == version:
-                    member.changed.wait(min(self.stall_s, 0.25))
+                    member.changed.wait(PASSIVE_POLL_S if self._estimator_due(period)
+                                        else min(self.stall_s, 0.25))
                 version = member.version
             if value:
                 return value
@@ -257,6 +272,13 @@ class Lockstep:
                 self.repeat_period(period, self._waiting_for(period))
                 stalled_since = time.monotonic()
         return None
+
+    def _estimator_due(self, period: Period) -> bool:
+        """Whether the estimator's bundle for ``period`` is due (under ``member.changed``): the
+        controller answered it, so the estimator had (its bundle comes on another connection)."""
+        ledger = self.member.ledger
+        return (ledger.answer("controller", period) is not None
+                and "estimator" in self.members and ledger.answer("estimator", period) is None)
 
     def _absent(self, period: Period) -> list[str]:
         """The members that have not answered ``period``; under ``member.changed``."""

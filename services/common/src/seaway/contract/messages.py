@@ -114,6 +114,16 @@ class Message(BaseModel):
         return json.dumps(cls.json_schema(), sort_keys=True)
 
 
+JSON_ENCODING = "application/json"
+"""Encoding of every typed message and reply on the wire; a typed topic adds its schema name after
+``;`` (``message_encoding``)."""
+
+
+def message_encoding(message: type[Message]) -> str:
+    """The encoding a message type is published with: JSON with the versioned schema name."""
+    return f"{JSON_ENCODING};{message.SCHEMA}"
+
+
 # ---------------------------------------------------------------------------------------------
 # Sensors (producer: vehicle_io, from the autopilot; the sim reaches the bus through vehicle_io)
 # ---------------------------------------------------------------------------------------------
@@ -466,6 +476,13 @@ class PeriodDone(Message):
     covers: dict[LockstepService, Annotated[int, Field(ge=0)]] = Field(default_factory=dict)
     members: list[LockstepService] = Field(default_factory=list, max_length=len(LOCKSTEP_SERVICES),
                                            description="sim: the members it waits for")
+
+    @classmethod
+    def decode(cls, data: bytes | bytearray | memoryview | str) -> Self:
+        """The answer of a lockstep bundle (``seaway.contract.bundle``: its first line), or of a
+        lone ``PeriodDone``: every reader of an answer reads it the same way, whichever it heard."""
+        raw = bytes(data) if not isinstance(data, str) else data.encode()
+        return super().decode(raw.split(b"\n", 1)[0])
 
 
 # ---------------------------------------------------------------------------------------------

@@ -38,8 +38,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Generic, Literal, NamedTuple, Protocol, TypeVar
 
-from seaway.contract import keys
-from seaway.contract.messages import Message, MessageError, Reply
+from seaway.contract import bundle, keys
+from seaway.contract.messages import JSON_ENCODING, Message, MessageError, Reply, message_encoding
 from seaway.runtime.ratelog import RateLimitedLog
 
 if TYPE_CHECKING:
@@ -49,16 +49,8 @@ log = logging.getLogger("seaway.runtime.bus")
 
 M = TypeVar("M", bound=Message)
 
-JSON_ENCODING = "application/json"
-"""Encoding of every typed message and reply; a typed topic adds its schema name after ``;``."""
-
 RAW_ENCODING = "zenoh/bytes"
 """Encoding of raw bytes published without one (Zenoh's default, so both transports report it)."""
-
-
-def message_encoding(message: type[Message]) -> str:
-    """The encoding a typed publisher declares: JSON with the versioned schema name."""
-    return f"{JSON_ENCODING};{message.SCHEMA}"
 
 
 class RawSample(NamedTuple):
@@ -140,6 +132,7 @@ class TypedSubscriber(Generic[M]):
         capacity: int,
         callback: Callable[[str, M], None] | None,
         inline: bool = False,
+        bundles: bool = True,
     ) -> None:
         assert spec.message is not None
         self.spec, self.keyexpr, self._bus = spec, keyexpr, bus
@@ -151,6 +144,10 @@ class TypedSubscriber(Generic[M]):
         self._cond = threading.Condition()
         self.dropped_overflow = 0
         self._sub = bus.subscribe_raw(keyexpr, self._on_sample, inline=inline)
+        # In lockstep the key travels in its producer's bundle (seaway.contract.bundle): hear it there.
+        self._tap = bus.bundle_tap(spec, keyexpr, inline) if bundles else None
+        if self._tap is not None:
+            self._tap.add(spec.suffix, self._on_sample)
 
     def _on_sample(self, sample: RawSample) -> None:
         key = sample.key
@@ -204,6 +201,8 @@ class TypedSubscriber(Generic[M]):
 
     def undeclare(self) -> None:
         self._sub.undeclare()
+        if self._tap is not None:
+            self._tap.remove(self.spec.suffix, self._on_sample)
 
 
 class RawRing(Protocol):
@@ -233,6 +232,54 @@ class _RingByCallback:
         self._sub.undeclare()
 
 
+class BundleTap:
+    """One subscription to a lockstep member's bundles (``seaway.contract.bundle``) on one key
+    expression, handing each line on a routed key to that key's subscribers as a sample of its own.
+
+    Shared by every typed subscriber of a process to the keys that member bundles, so a bundle is
+    heard once however many of its keys are wanted. Only keys the member produces are routed
+    (``bundle.bundled_by``), so a line of another member's key is never handed on."""
+
+    def __init__(self, bus: Bus, keyexpr: str, inline: bool) -> None:
+        self._routes: dict[str, list[Callable[[RawSample], None]]] = {}
+        self._lock = threading.Lock()
+        self._sub = bus.subscribe_raw(keyexpr, self._on_bundle, inline=inline)
+
+    def add(self, suffix: str, callback: Callable[[RawSample], None]) -> None:
+        with self._lock:
+            self._routes = {**self._routes, suffix: [*self._routes.get(suffix, ()), callback]}
+
+    def remove(self, suffix: str, callback: Callable[[RawSample], None]) -> None:
+        with self._lock:
+            left = [c for c in self._routes.get(suffix, ()) if c is not callback]
+            self._routes = {k: v for k, v in {**self._routes, suffix: left}.items() if v}
+
+    def _on_bundle(self, sample: RawSample) -> None:
+        routes = self._routes  # replaced, never changed in place: no lock on the receive path
+        if not routes:
+            return
+        prefix = sample.key[: sample.key.rfind("/lockstep/") + 1]
+        for suffix, data in bundle.lines_of(sample.payload, routes.keys()):
+            spec = keys.spec_for_suffix(suffix)
+            assert spec is not None and spec.message is not None  # routed keys are registered
+            for callback in routes[suffix]:
+                callback(RawSample(prefix + suffix, data, message_encoding(spec.message)))
+
+
+def bundle_keyexpr(spec: keys.KeySpec, keyexpr: str) -> str | None:
+    """The bundle key expression that carries ``spec`` where ``keyexpr`` (``seaway/<v>/<suffix>``,
+    ``<v>`` possibly ``*``) names it, or None if no lockstep bundle carries it."""
+    member = bundle.bundled_by(spec)
+    if member is None or not keyexpr.endswith("/" + spec.suffix):
+        return None
+    return keyexpr[: -len(spec.suffix)] + keys.lockstep_spec(member).suffix
+
+
+NEWEST_BUNDLES = 64
+"""Bundles a ``Newest`` keeps between reads, searched newest first for its key: a read finds a key
+sent every period in the newest, and one sent in fewer periods if it came in the last 64."""
+
+
 class Newest(Generic[M]):
     """The newest sample on one key, decoded only when read (``get``), and once per sample.
 
@@ -249,17 +296,72 @@ class Newest(Generic[M]):
         self._msg: M | None = None
         self._lock = threading.Lock()
         self._src = bus.ring_raw(keyexpr, 1)
+        self._suffix = spec.suffix
+        tap = bundle_keyexpr(spec, keyexpr)
+        self._bundles = bus.ring_raw(tap, NEWEST_BUNDLES) if tap is not None else None
 
     def get(self) -> M | None:
         """The newest well-formed message heard, or None before the first."""
         with self._lock:
             raw = self._src.take()
+            if self._bundles is not None:  # lockstep: in the newest bundle that carries it
+                held = []
+                while (payload := self._bundles.take()) is not None:
+                    held.append(payload)
+                for payload in reversed(held):
+                    lines = bundle.lines_of(payload, (self._suffix,))
+                    if lines:
+                        raw = lines[-1][1]
+                        break
             if raw is not None:  # a malformed one leaves the last good message the answer
                 self._msg = self._bus.decode_counted(self._type, self.keyexpr, raw) or self._msg
             return self._msg
 
     def undeclare(self) -> None:
         self._src.undeclare()
+        if self._bundles is not None:
+            self._bundles.undeclare()
+
+
+EVERY_CAPACITY = 4096
+"""Samples (or bundles) an ``Every`` holds between reads: some 10 s of lockstep periods."""
+
+
+class Every(Generic[M]):
+    """Every sample on one key since the last read, decoded only when read (``take``), in order.
+
+    Like ``Newest``, the transport holds the bytes (a ring filled by its own threads, no Python per
+    sample), for a reader that looks a few times a second but must miss none (the launcher's energy
+    budgets: the one of the period a decision was taken). In lockstep the key comes in its
+    producer's bundles; those are held and searched the same way. Past ``capacity`` between two
+    reads the oldest are lost (a reader that stopped reading for seconds).
+    """
+
+    def __init__(self, bus: Bus, spec: keys.KeySpec, keyexpr: str,
+                 capacity: int = EVERY_CAPACITY) -> None:
+        assert spec.message is not None
+        self._bus, self.keyexpr, self._suffix = bus, keyexpr, spec.suffix
+        self._type: type[M] = spec.message  # type: ignore[assignment]
+        self._src = bus.ring_raw(keyexpr, capacity)
+        tap = bundle_keyexpr(spec, keyexpr)
+        self._bundles = bus.ring_raw(tap, capacity) if tap is not None else None
+
+    def take(self) -> list[M]:
+        """The well-formed messages heard since the last call, oldest first (malformed ones are
+        counted and logged)."""
+        raws = []
+        while (raw := self._src.take()) is not None:
+            raws.append(raw)
+        if self._bundles is not None:
+            while (payload := self._bundles.take()) is not None:
+                raws += [data for _, data in bundle.lines_of(payload, (self._suffix,))]
+        out = [self._bus.decode_counted(self._type, self.keyexpr, raw) for raw in raws]
+        return [m for m in out if m is not None]
+
+    def undeclare(self) -> None:
+        self._src.undeclare()
+        if self._bundles is not None:
+            self._bundles.undeclare()
 
 
 def _service_of(health_key: str) -> str:
@@ -281,6 +383,8 @@ class Bus(abc.ABC):
         """The bus's repeated warnings (malformed samples and requests, failing handlers), per key."""
         self._tokens: list[Declared] = []
         self._closed = False
+        self._taps: dict[tuple[str, bool], BundleTap] = {}
+        self._taps_lock = threading.Lock()
 
     @classmethod
     def open(cls, vessel: str, config_path: str | Path | None = None, identity: str | None = None,
@@ -315,11 +419,8 @@ class Bus(abc.ABC):
         under congestion (the publisher blocks instead). ``express``: sent at once, not batched,
         and the batch queued before it goes with it (Zenoh's ``express``).
 
-        Why a lockstep member's messages are batched and only its answer is express: an express
-        put writes to every subscribing peer from the caller's thread (about 15 us each on
-        loopback, more with TLS), so a period's seven messages cost 0.3 ms before the answer even
-        leaves; batched, they cost about 1 us each and leave together with the answer
-        (``seaway bench lockstep``)."""
+        A lockstep member publishes its period as one bundle (``seaway.runtime.lockstep.Member``),
+        not through publishers of its keys."""
         if spec.kind != "topic":
             raise ValueError(f"{spec.suffix} is a {spec.kind}, not a topic")
         return TypedPublisher(self, spec, self.key(spec, vessel), lockstep, express)
@@ -332,17 +433,34 @@ class Bus(abc.ABC):
         callback: Callable[[str, Any], None] | None = None,
         vessel: str | None = None,
         inline: bool = False,
+        bundles: bool = True,
     ) -> TypedSubscriber[Any]:
         """Subscribe to ``spec`` on this vessel (or ``vessel``, which may be ``*``).
 
         ``inline``: run ``callback`` on the transport's own receive thread, with no hand-off to a
         Python thread of its own first: the lowest latency, for short handlers that take no lock
         anybody holds for long (vehicle_io's thrust path).
+
+        The key is heard whether published alone or, in lockstep, in its producer's bundle
+        (``seaway.contract.bundle``); ``bundles=False`` hears only what is published alone (a
+        lockstep member, which hears the bundles through its ``Member`` already).
         """
         if spec.kind != "topic":
             raise ValueError(f"{spec.suffix} is a {spec.kind}, not a topic")
         keyexpr = spec.wildcard() if vessel == "*" else self.key(spec, vessel)
-        return TypedSubscriber(self, spec, keyexpr, mode, capacity, callback, inline)
+        return TypedSubscriber(self, spec, keyexpr, mode, capacity, callback, inline, bundles)
+
+    def bundle_tap(self, spec: keys.KeySpec, keyexpr: str, inline: bool) -> BundleTap | None:
+        """The shared subscription to the bundles that carry ``spec`` where ``keyexpr`` names it
+        (``BundleTap``), or None if none do."""
+        tap_expr = bundle_keyexpr(spec, keyexpr)
+        if tap_expr is None:
+            return None
+        with self._taps_lock:
+            tap = self._taps.get((tap_expr, inline))
+            if tap is None:
+                tap = self._taps[(tap_expr, inline)] = BundleTap(self, tap_expr, inline)
+            return tap
 
     def ring_raw(self, keyexpr: str, capacity: int) -> RawRing:
         """Hold the last ``capacity`` samples' bytes on ``keyexpr`` for a reader that takes them
@@ -355,6 +473,12 @@ class Bus(abc.ABC):
         if spec.kind != "topic":
             raise ValueError(f"{spec.suffix} is a {spec.kind}, not a topic")
         return Newest(self, spec, self.key(spec, vessel))
+
+    def every(self, spec: keys.KeySpec, vessel: str | None = None) -> Every[Any]:
+        """Every sample on ``spec`` of this vessel (or ``vessel``) since the last read (``Every``)."""
+        if spec.kind != "topic":
+            raise ValueError(f"{spec.suffix} is a {spec.kind}, not a topic")
+        return Every(self, spec, self.key(spec, vessel))
 
     # -- typed requests ----------------------------------------------------------------------------
 

@@ -7,17 +7,21 @@ THE PROTOCOL
 
 * Time is split into episodes (``episode`` counts the sim's scenario starts; a restarted sim starts
   at 0 again) and, within one, into periods t_k = k * period (the run's control period), t_0 = 0.
-* Each member answers each period with a ``PeriodDone`` on ``lockstep/<service>``, published AFTER
-  the messages it lists: ``published`` names them by key suffix and stamp. So a receiver knows what
-  is coming and waits for exactly that; it never waits on a timeout to learn that something is not.
+* Each member answers each period with ONE sample on ``lockstep/<service>``, its bundle
+  (``seaway.contract.bundle``): its ``PeriodDone``, which names what it published for the period
+  (``published``: key suffix -> stamps), and those messages themselves. So whoever hears an answer
+  has what it lists at once, and a receiver never waits on a timeout to learn that something is not
+  coming. (One sample rather than one per message: each sample heard costs a process a hand-over
+  from Zenoh's thread to Python, which was most of a period's time.)
 * The sim answers first (its answer is the period's tick): the sensor samples due in (t_{k-1}, t_k],
   truth, disturbance and clock, and in ``consumed`` the thrust command it applied over
   (t_{k-1}, t_k]. It steps to t_{k+1} once every member has answered t_k: the controller with a
   command the sim holds (an answer with ``hold`` means "nothing to fly": no step until another
   answer), the recorder covering (``covers``) the latest answer of every member.
-* The estimator answers t_k once it has the sim's answer and every message it lists (so also the
-  thrust command the sim applied); the controller once it has the estimator's answer and the state
-  it lists; the recorder once every member's latest answer for t_k and all they list is on disk.
+* The estimator answers t_k once it has the sim's answer and the thrust command the sim applied
+  (``consumed``, from the controller's bundle of the period before); the controller once it has the
+  estimator's answer; the recorder once every member's latest answer for t_k, with what it carries,
+  is on disk.
 * Members are the services whose member token (a liveliness token on ``lockstep/<service>``,
   ``Member.join``) has appeared since the sim started. Once a member, always a member: a member
   that dies is waited for until it is back (the launcher restarts it), so nothing happens without
@@ -33,7 +37,9 @@ THE PROTOCOL
   only be a late message of an earlier episode (the services' own caches do the same).
 
 ``Ledger`` is the pure bookkeeping (which answers, which stamps seen), ``Member`` the bus side a
-service's loop uses. Both are passed time, never read it.
+service's loop uses. Both are passed time, never read it. Processes that are not members (a display,
+a test) need not know about bundles: ``Bus.subscribe`` of a key takes it out of its producer's
+bundles too.
 """
 
 from __future__ import annotations
@@ -46,9 +52,9 @@ from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
 
-from seaway.contract import keys
-from seaway.contract.messages import LOCKSTEP_SERVICES, Message, PeriodDone
-from seaway.runtime.bus import Bus, TypedPublisher
+from seaway.contract import bundle, keys
+from seaway.contract.messages import LOCKSTEP_SERVICES, Message, MessageError, PeriodDone
+from seaway.runtime.bus import Bus, RawRing, RawSample
 from seaway.runtime.ratelog import RateLimitedLog
 from seaway.runtime.stamps import StampBounds, StampGate
 from seaway.runtime.timeline import Timeline
@@ -60,6 +66,11 @@ RECORDER = "recorder"
 writes, so no request waits for it."""
 MEMBERS = tuple(s for s in LOCKSTEP_SERVICES if s != "sim")
 """The services the sim waits for, once their member token has appeared."""
+PASSIVE_RING = 256
+"""Bundles a passive source holds until they are taken (``Member``): a source sends one a period."""
+PASSIVE_POLL_S = 0.0005
+"""How often a member looks again at its passive sources while it knows a bundle from one is due
+(sent, on another connection than the bundle that says so) [wall s]: nothing wakes it for them."""
 STALL_REPEAT_S = 2.0
 """A safety net, not a protocol step: a sim that has made no progress for this long (wall seconds)
 repeats its answer, in case a newcomer's subscriptions reached the bus after the repeat it caused."""
@@ -204,43 +215,148 @@ def listing(messages: Iterable[tuple[keys.KeySpec, Message]]) -> dict[str, list[
     return out
 
 
-class Member:
-    """A lockstep member's side of the bus: its ledger fed from the bus, its answers and repeats.
+Deliver = Callable[[str, Any], None]
+"""A member's input: ``deliver(key, message)``, on the bus's thread, for each message of an input key
+in a bundle it hears, before the bundle's answer is noted (the message came first)."""
 
-    The service subscribes to its own inputs as usual and calls ``saw`` for each message it wants
-    counted; ``changed`` wakes its loop whenever the ledger moved (an answer or a message arrived).
-    ``answer`` publishes the period's messages then the ``PeriodDone``; a repeat of the sim's answer
-    republishes the last one (``on_repeat`` lets the service add to that, e.g. to nothing).
+
+class Member:
+    """A lockstep member's side of the bus: its ledger fed from the bundles it hears, its answers and
+    repeats.
+
+    The member hears the bundles of ``hears``; each message in them on one of its ``inputs`` (key
+    suffixes, default ``watched``) is decoded, validated and given to ``deliver`` (which usually
+    admits its stamp and calls ``saw``), then the answer is noted; ``changed`` wakes the service's
+    loop whenever the ledger moved. ``answer`` publishes the period's messages and the ``PeriodDone``
+    listing them as one bundle; a repeat of the sim's answer republishes the last one.
+
+    Active and passive sources: a bundle from an active source is taken on the bus's thread as it
+    arrives and wakes the loop. One from a ``passive`` source waits in a ring the transport fills by
+    itself (no Python runs for it) until the next active bundle, or the loop, takes it: each member
+    has one source that moves it on (the estimator the sim, the controller the estimator, the sim the
+    controller), and whatever else it needs was sent before that one's bundle, so it is almost
+    always there by then; when it is not, the loop looks again every ``PASSIVE_POLL_S``. Each bundle
+    heard through Python costs a hand-over on a 2-core machine's busiest moment.
     """
 
     def __init__(self, bus: Bus, service: str, watched: Iterable[str] | None,
                  seq_start: int | None = None, subscribe: bool = True,
-                 consumed: bool = True, hears: Iterable[str] | None = None) -> None:
-        """``hears``: the members whose answers this one needs (default: every other). Only the
-        sim's classify a period; an answer nobody waits for still costs every receiver a decode
-        on the period's critical path, so the estimator hears only the sim, the controller the
-        sim and the estimator."""
+                 consumed: bool = True, hears: Iterable[str] | None = None,
+                 inputs: Iterable[str] | None = None, deliver: Deliver | None = None,
+                 passive: Iterable[str] = ()) -> None:
+        """``hears``: the members whose bundles this one needs (default: every other); ``passive``:
+        those of them that never move it on by themselves. Only the sim's classify a period, and
+        every bundle heard costs a hand-over to Python, so the estimator hears only the sim and the
+        controller (the command the sim applied), the controller the sim and the estimator."""
         self.bus = bus
         self.service = service
         self.hears = frozenset(LOCKSTEP_SERVICES if hears is None else hears) - {service}
         self.ledger = Ledger(watched, consumed)
+        self.inputs = frozenset(inputs if inputs is not None else (watched or ()))
+        self.deliver = deliver
+        unheard = sorted(s for s in self.inputs
+                         if (spec := keys.spec_for_suffix(s)) is None
+                         or bundle.bundled_by(spec) not in self.hears)
+        if subscribe and unheard:
+            raise ValueError(f"lockstep {service}: inputs {', '.join(unheard)} come in no bundle it "
+                             f"hears ({', '.join(sorted(self.hears))})")
         self.changed = threading.Condition()
         self.version = 0  # bumped on every ledger change, under ``changed``
         self.restarts: list[tuple[Period | None, Period]] = []
         self.repeats = 0
         self._seq = itertools.count(time.time_ns() if seq_start is None else seq_start)
-        self._pub = bus.publisher(keys.lockstep_spec(service), lockstep=True, express=True)
-        self._last: tuple[list[tuple[TypedPublisher[Any], Message]], PeriodDone] | None = None
-        self._publishers: dict[str, TypedPublisher[Any]] = {}
+        self._key = keys.lockstep_spec(service).key(bus.vessel)
+        self._pub = bus.raw_publisher(self._key, bundle.ENCODING, block=True, express=True)
+        self._last: tuple[list[tuple[str, bytes]], PeriodDone] | None = None
         self.on_restart: Callable[[Period | None, Period], None] | None = None
+        self.on_ready: Callable[[], None] | None = None
+        """A service that answers on the bus's thread: called there after each bundle taken from
+        an active source (its loop is then woken only while a passive bundle is due, to look for
+        it, and for its own business). Each hand-over from Zenoh's thread to a loop's cost a
+        period some 0.1 ms of a 2-core machine's busiest moment."""
         self.stamps = StampGate(f"{service} (lockstep)", log)
         self.ratelog = RateLimitedLog(log)  # repeated warnings, per kind and key
         self.timeline = Timeline.from_env(service)  # seaway.runtime.timeline: off unless asked
+        self.passive = frozenset(passive) & self.hears
+        # One bundle taken at a time, in the order taken. Reentrant: taking one can publish a
+        # repeat, which an in-process bus delivers at once, on this thread, to whoever hears it.
+        self._intake = threading.RLock()
+        self._rings: list[tuple[str, RawRing]] = []
         if subscribe:  # else the service feeds ``on_answer`` itself (the recorder, from its stream)
             for other in sorted(self.hears):
-                bus.subscribe(keys.lockstep_spec(other), callback=self.on_answer, inline=True)
+                key = keys.lockstep_spec(other).key(bus.vessel)
+                if other in self.passive:
+                    self._rings.append((key, bus.ring_raw(key, PASSIVE_RING)))
+                else:
+                    bus.subscribe_raw(key, self.on_bundle, inline=True)
 
     # -- from the bus's threads -------------------------------------------------------------------
+
+    def on_bundle(self, sample: RawSample) -> None:
+        """A bundle heard from an active source: what the passive ones hold first (it was sent
+        before), then this one."""
+        with self._intake:
+            self._drain()
+            self._take(sample.key, sample.payload)
+        if self.on_ready is not None:
+            self.on_ready()
+            with self.changed:
+                if self.expecting():  # a passive bundle is due: the loop looks for it
+                    self.changed.notify_all()
+
+    def drain(self) -> bool:
+        """Take what the passive sources hold (from the service's loop); whether anything came."""
+        if not self._rings:
+            return False
+        with self._intake:
+            return self._drain()
+
+    def _drain(self) -> bool:
+        got = False
+        for key, ring in self._rings:
+            while (payload := ring.take()) is not None:
+                self._take(key, payload)
+                got = True
+        return got
+
+    def _take(self, key: str, payload: bytes) -> None:
+        """One bundle: its inputs delivered, then its answer noted (``on_answer``)."""
+        service = bundle.service_of(key)
+        try:
+            raw_answer, lines = bundle.split(payload)
+        except MessageError as err:
+            self.bus.stats.count_malformed(key, str(err))
+            self.ratelog.warning(("malformed bundle", key), "lockstep bundle on %s dropped: %s",
+                                 key, err)
+            return
+        answer = self.bus.decode_counted(PeriodDone, key, raw_answer)
+        if answer is None or service is None:
+            return
+        if answer.service != service:
+            self._impostor(key, answer)
+            return
+        prefix = key[: -len(f"lockstep/{service}")]
+        for suffix, data in lines:
+            if suffix not in self.inputs:
+                continue
+            try:
+                spec = bundle.check_line(service, suffix)
+            except MessageError as err:  # a member wrapping another's key: never taken
+                self.bus.stats.count_malformed(key, str(err))
+                self.ratelog.warning(("foreign line", key), "%s", err)
+                continue
+            msg = self.bus.decode_counted(spec.message, prefix + suffix, data)  # type: ignore[arg-type]
+            if msg is not None and self.deliver is not None:
+                try:
+                    self.deliver(prefix + suffix, msg)
+                except Exception:  # a bug in a handler must not lose the answer after it
+                    self.ratelog.exception(("deliver", suffix), "%s: input %s failed",
+                                           self.service, suffix)
+        self.on_answer(key, answer)
+
+    def _impostor(self, key: str, answer: PeriodDone) -> None:
+        self.ratelog.warning(("impostor", key), "lockstep answer on %s claims to be %s's: ignored",
+                             key, answer.service)
 
     def admit(self, suffix: str, stamp_ns: int, ref_ns: int | None = None,
               period_ns: int | None = None) -> bool:
@@ -262,9 +378,9 @@ class Member:
     def saw_many(self, seen: Iterable[tuple[str, int]]) -> None:
         """Note messages seen; wake the loop only if an answer of the current period lacked some.
 
-        A member publishes its messages before its answer, so they almost always arrive first,
-        with nothing to do yet: waking the loop for each (2-3 a period) cost a thread hand-over on
-        the period's critical path. A member that follows no period (the sim) is always woken."""
+        A member's inputs come in the bundle before its answer is noted, so they almost always
+        find nothing waiting for them: waking the loop for each cost a thread hand-over on the
+        period's critical path. A member that follows no period (the sim) is always woken."""
         with self.changed:
             ledger = self.ledger
             waiting = ledger.period is None or any(
@@ -273,12 +389,12 @@ class Member:
                 ledger.see(suffix, stamp_ns)
             if waiting:
                 self.version += 1
-                self.changed.notify_all()
+                if self.on_ready is None:
+                    self.changed.notify_all()
 
     def on_answer(self, key: str, answer: PeriodDone) -> None:
         if not key.endswith(f"/lockstep/{answer.service}"):  # valid, but not who may say it there
-            self.ratelog.warning(("impostor", key), "lockstep answer on %s claims to be %s's: "
-                                  "ignored", key, answer.service)
+            self._impostor(key, answer)
             return
         repeat = False
         self.timeline.mark("heard", answer.stamp_ns, answer.service)
@@ -292,7 +408,8 @@ class Member:
             repeat = change == "repeat"
             lacking = self.waiting_for() if repeat else ""
             self.version += 1
-            self.changed.notify_all()
+            if self.on_ready is None:  # else the service answers on this thread (``on_ready``)
+                self.changed.notify_all()
         if lacking:  # expected while members start or restart: the sim repeats for them
             log.info("%s, lockstep t = %.3f s (episode %d), repeated: %s", self.service,
                      answer.stamp_ns / 1e9, answer.episode, lacking)
@@ -324,54 +441,65 @@ class Member:
     # -- from the service's loop ------------------------------------------------------------------
 
     def wait(self, version: int, timeout_s: float) -> int:
-        """Block until the ledger moved past ``version`` (or ``timeout_s``); the new version."""
+        """Block until the ledger moved past ``version`` (or ``timeout_s``); the new version. The
+        passive sources are looked at before and after, and every ``PASSIVE_POLL_S`` while a bundle
+        from one is due (``expecting``)."""
+        self.drain()
         with self.changed:
             if self.version == version:
-                self.changed.wait(timeout_s)
+                self.changed.wait(PASSIVE_POLL_S if self.expecting() else timeout_s)
+        self.drain()
+        with self.changed:
             return self.version
 
-    def publisher(self, spec: keys.KeySpec) -> TypedPublisher[Any]:
-        pub = self._publishers.get(spec.suffix)
-        if pub is None:
-            pub = self._publishers[spec.suffix] = self.bus.publisher(spec, lockstep=True)
-        return pub
+    def expecting(self) -> bool:
+        """Whether a passive source's bundle is due (under ``changed``): an answer of the current
+        period lists a message not yet seen (the estimator's tick, the command the sim applied), or
+        an active source answered another period than the sim's latest taken (the controller: the
+        estimator answered a period, so the sim had sent it)."""
+        ledger = self.ledger
+        if not self._rings or ledger.period is None:
+            return False
+        active = self.hears - self.passive
+        return any((a.service in active and Period.of(a) != ledger.period)
+                   or (Period.of(a) == ledger.period and ledger.missing(a))
+                   for a in ledger.answers.values())
 
     def answer(self, period: Period, period_ns: int,
                messages: Sequence[tuple[keys.KeySpec, Message]] = (), *, hold: bool = False,
                consumed: dict[str, list[int]] | None = None, covers: dict[str, int] | None = None,
                members: Sequence[str] = ()) -> PeriodDone:
-        """Publish ``messages`` in order, then this member's answer for ``period`` listing them."""
-        outs = [(self.publisher(spec), msg) for spec, msg in messages]
-        for pub, msg in outs:
-            pub.put(msg)
+        """Publish this member's bundle for ``period``: its answer listing ``messages``, and them."""
+        lines = [(spec.suffix, msg.encode()) for spec, msg in messages]
         done = PeriodDone(stamp_ns=period.stamp_ns, service=self.service,  # type: ignore[arg-type]
                           episode=period.episode, seq=next(self._seq), period_ns=period_ns,
                           published=listing(messages), consumed=consumed or {}, hold=hold,
                           covers=covers or {}, members=list(members))  # type: ignore[arg-type]
-        self.timeline.mark("sent", period.stamp_ns)  # its messages are out; the answer leaves now
-        self._pub.put(done)
-        self._last = (outs, done)
+        self.timeline.mark("sent", period.stamp_ns)  # encoded; the bundle leaves now
+        self._put(done, lines)
         return done
+
+    def _put(self, done: PeriodDone, lines: list[tuple[str, bytes]]) -> None:
+        self._pub.put(bundle.encode(done.encode(), lines))
+        self.bus.stats.published += 1 + len(lines)
+        self._last = (lines, done)
 
     def working(self, period: Period) -> None:
         """The service's loop starts on ``period`` (``seaway.runtime.timeline``)."""
         self.timeline.mark("work", period.stamp_ns)
 
     def repeat(self, members: Sequence[str] | None = None) -> PeriodDone | None:
-        """Publish the last answer again (same messages, new ``seq``), for a newcomer; the sim's
+        """Publish the last bundle again (same messages, new ``seq``), for a newcomer; the sim's
         names the members it now waits for."""
         last = self._last
         if last is None:
             return None
-        outs, done = last
-        for pub, msg in outs:
-            pub.put(msg)
+        lines, done = last
         update: dict[str, Any] = {"seq": next(self._seq)}
         if members is not None:
             update["members"] = list(members)
         again = done.model_copy(update=update)
-        self._pub.put(again)
-        self._last = (outs, again)
+        self._put(again, lines)
         self.repeats += 1
         return again
 

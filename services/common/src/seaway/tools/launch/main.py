@@ -72,7 +72,7 @@ from seaway.contract.messages import (
 )
 from seaway.runtime import refusals
 from seaway.runtime import run as runs
-from seaway.runtime.bus import Bus, Newest
+from seaway.runtime.bus import Bus, Every, Newest
 from seaway.runtime.credentials import ENV_CREDENTIALS, NONE, CredentialsError
 from seaway.runtime.service import (
     DEFAULT_VESSEL,
@@ -315,22 +315,25 @@ class StatusLine:
         self._moved: tuple[float, float] | None = None  # lockstep: (sim s, wall s) when it last moved
         self._newest: dict[str, tuple[Newest[MissionStatus], Newest[StateEstimate],
                                       Newest[ThrustCommand] | None]] = {}
+        self._budgets: dict[str, Every[EnergyBudget]] = {}
 
     def watch(self, bus: Bus) -> None:
         """Keep the latest mission status, state and energy budget of every vessel.
 
         In lockstep they come hundreds a second and the line shows a few a second: status, state and
-        commands are decoded only when shown (``Bus.newest``, ``pull``). Every budget is decoded (on
-        the receive thread), as the one of the period a decision was taken must be kept."""
+        commands are decoded only when shown (``Bus.newest``, ``pull``). Every budget is decoded
+        then too (``Bus.every``), as the one of the period a decision was taken must be kept."""
         for v in self.vessels:
             self._newest[v] = (bus.newest(keys.MISSION_STATUS, vessel=v),
                                bus.newest(keys.NAV_STATE, vessel=v),
                                bus.newest(keys.THRUST, vessel=v) if self.commands else None)
-            bus.subscribe(keys.MISSION_ENERGY, vessel=v, inline=True,
-                          callback=lambda _k, m, v=v: self.on_energy(v, m))
+            self._budgets[v] = bus.every(keys.MISSION_ENERGY, vessel=v)
 
     def pull(self) -> None:
-        """Take the newest status, state and command heard (decoding them now)."""
+        """Take the newest status, state and command heard, and every budget (decoding them now)."""
+        for v, budgets in self._budgets.items():
+            for budget in budgets.take():
+                self.on_energy(v, budget)
         for v, (mission, state, thrust) in self._newest.items():
             self.mission[v], self.state[v] = mission.get(), state.get()
             if thrust is not None:

@@ -42,7 +42,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO
 
-from seaway.contract import keys
+from seaway.contract import bundle, keys
 from seaway.contract.messages import LOCKSTEP_SERVICES
 from seaway.runtime.bus import Bus, RawRing
 from seaway.runtime.credentials import ENV_IDENTITY
@@ -64,7 +64,7 @@ def answer_period(payload: bytes) -> tuple[tuple[int, int] | None, bool]:
     Only the three fields needed, read as plainly as can be (each member validates the answers it
     acts on; a malformed one is no answer here, absurd numbers included: JSON's Infinity)."""
     try:
-        ans = json.loads(payload)
+        ans = json.loads(bundle.answer_of(payload))  # a bundle's first line (seaway.contract.bundle)
         return (int(ans["episode"]), int(ans["stamp_ns"])), bool(ans.get("hold"))
     except (ValueError, TypeError, KeyError, AttributeError, OverflowError):
         return None, False

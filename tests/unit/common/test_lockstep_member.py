@@ -1,0 +1,87 @@
+"""A lockstep member's sources (``seaway.runtime.lockstep.Member``): active ones move it on as their
+bundles arrive, passive ones are taken with them (nothing runs for those on arrival), and a service
+that answers on the bus's thread (``on_ready``) is not woken for what it has already done. On the
+in-memory bus: pure logic, no network."""
+
+from __future__ import annotations
+
+import threading
+
+from seaway.contract import keys
+from seaway.contract.messages import ThrustCommand
+from seaway.runtime.lockstep import Member, Period
+from seaway.runtime.memory_bus import MemoryHub
+
+P = 100_000_000
+V = "vessel1"
+
+
+def cmd(stamp_ns: int) -> ThrustCommand:
+    return ThrustCommand.make(stamp_ns=stamp_ns, thrust_port_n=1.0, thrust_starboard_n=1.0, seq=1)
+
+
+def test_a_passive_bundle_waits_for_the_next_active_one_and_is_taken_first() -> None:
+    """The estimator: the controller's bundle (the command the sim will apply) is only taken when
+    the sim's next bundle comes, and before it, so the sim's tick finds the command it lists."""
+    hub = MemoryHub()
+    taken: list[tuple[str, int]] = []
+    est = Member(hub.bus(V), "estimator", watched={"ctrl/thrust"}, hears=("sim", "controller"),
+                 passive=("controller",))
+    est.deliver = lambda key, msg: (taken.append((key.rsplit("/", 2)[-2], msg.stamp_ns)),
+                                    est.saw(keys.THRUST.suffix, msg.stamp_ns))
+    sim = Member(hub.bus(V), "sim", watched=(), subscribe=False)
+    ctl = Member(hub.bus(V), "controller", watched=(), subscribe=False)
+    sim.answer(Period(0, 0), P)
+    ctl.answer(Period(0, 0), P, [(keys.THRUST, cmd(0))])
+    assert taken == [] and "controller" not in est.ledger.answers  # held by the transport
+    sim.answer(Period(0, P), P, consumed={keys.THRUST.suffix: [0]})
+    assert taken == [("ctrl", 0)]
+    tick = est.ledger.answer("sim")
+    assert tick is not None and tick.stamp_ns == P and est.ledger.complete(tick)
+    assert not est.expecting()
+
+
+def test_a_member_knows_when_a_passive_bundle_is_due_and_its_loop_finds_it() -> None:
+    """The controller: the estimator's answer for t_1 came before the sim's bundle for t_1 (another
+    connection): the loop looks again soon, and ``wait`` takes the sim's bundle when it is there."""
+    hub = MemoryHub()
+    ctl = Member(hub.bus(V), "controller", watched=(), hears=("sim", "estimator"), passive=("sim",))
+    sim_bus = hub.bus(V)
+    sim = Member(sim_bus, "sim", watched=(), subscribe=False)
+    est = Member(hub.bus(V), "estimator", watched=(), subscribe=False)
+    sim.answer(Period(0, 0), P)
+    est.answer(Period(0, 0), P)
+    assert ctl.ledger.period == Period(0, 0) and not ctl.expecting()
+    # The estimator's t_1 before the sim's (held back here by sending it after).
+    est.answer(Period(0, P), P)
+    with ctl.changed:
+        assert ctl.ledger.answer("estimator") is None and ctl.expecting()
+    sim.answer(Period(0, P), P)  # now in the transport's ring: nothing ran for it
+    assert ctl.ledger.period == Period(0, 0)
+    ctl.wait(ctl.version, 5.0)  # returns at once: the ring had it
+    assert ctl.ledger.period == Period(0, P) and ctl.ledger.answer("estimator") is not None
+    with ctl.changed:
+        assert not ctl.expecting()
+
+
+def test_an_inline_service_answers_on_the_bus_thread_and_its_loop_is_not_woken() -> None:
+    hub = MemoryHub()
+    est = Member(hub.bus(V), "estimator", watched=(), hears=("sim", "controller"),
+                 passive=("controller",))
+    ready_on: list[str] = []
+    est.on_ready = lambda: ready_on.append(threading.current_thread().name)
+    woken = threading.Event()
+
+    def loop() -> None:
+        with est.changed:
+            if est.changed.wait(0.5):
+                woken.set()
+
+    waiter = threading.Thread(target=loop, name="loop")
+    waiter.start()
+    sim = Member(hub.bus(V), "sim", watched=(), subscribe=False)
+    sim.answer(Period(0, 0), P)
+    waiter.join()
+    assert ready_on == ["MainThread"]  # the publishing thread: the in-memory bus's "bus thread"
+    assert not woken.is_set()
+    assert est.ledger.period == Period(0, 0)
