@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import threading
 
-from seaway.contract import keys
-from seaway.contract.messages import ThrustCommand
+from seaway.contract import bundle, keys
+from seaway.contract.messages import PeriodDone, ThrustCommand
 from seaway.runtime.lockstep import Member, Period
 from seaway.runtime.memory_bus import MemoryHub
 
@@ -85,3 +85,28 @@ def test_an_inline_service_answers_on_the_bus_thread_and_its_loop_is_not_woken()
     assert ready_on == ["MainThread"]  # the publishing thread: the in-memory bus's "bus thread"
     assert not woken.is_set()
     assert est.ledger.period == Period(0, 0)
+
+
+def test_a_repeat_sends_the_previous_bundle_again_for_a_recorder_and_only_a_recorder_takes_it() -> None:
+    """The recorder may trail by a period (``RECORDER_LAG``): a member repeating its last bundle
+    first sends its previous one again, marked ``resent``. A restarted recorder gets both periods it
+    can have missed; the other members, and a subscriber of the keys, pass it over."""
+    hub = MemoryHub()
+    raw: list[tuple[str, bytes]] = []
+    hub.bus(V).subscribe_raw(keys.LOCKSTEP_CONTROLLER.key(V), lambda s: raw.append((s.key, s.payload)))
+    commands = hub.bus(V).subscribe(keys.THRUST, mode="fifo")
+    sim = Member(hub.bus(V), "sim", watched={"ctrl/thrust"})
+    got: list[int] = []
+    sim.deliver = lambda _key, msg: got.append(msg.stamp_ns)
+    ctl = Member(hub.bus(V), "controller", watched=(), subscribe=False)
+    for k in (0, 1):
+        ctl.answer(Period(0, k * P), P, [(keys.THRUST, cmd(k * P))])
+    assert got == [0, P] and [c.stamp_ns for c in commands.drain()] == [0, P]
+    raw.clear()
+    ctl.repeat()
+    answers = [PeriodDone.decode(p) for _, p in raw]
+    assert [(a.stamp_ns, a.resent) for a in answers] == [(0, True), (P, False)]
+    assert bundle.unpack(raw[0][0], raw[0][1])[0][1] == cmd(0).encode()  # with its messages
+    assert got == [0, P, P]  # the sim took the repeat, not the copy
+    assert [c.stamp_ns for c in commands.drain()] == [P]
+    assert sim.ledger.answers["controller"].stamp_ns == P

@@ -85,7 +85,10 @@ class World:
         return self.next_answer(p)
 
     def next_answer(self, p: Period) -> PeriodDone:
-        ans = wait_for(lambda: self.answers.get(0.05), 5, what=f"the controller's answer to {p}")
+        """The controller's next answer; a copy of its previous one sent again for a recorder (on a
+        repeat: ``PeriodDone.resent``) is passed over."""
+        ans = wait_for(lambda: (a := self.answers.get(0.05)) and not a.resent and a, 5,
+                       what=f"the controller's answer to {p}")
         assert Period.of(ans) == p
         return ans
 

@@ -217,3 +217,25 @@ def test_a_recorder_that_does_not_cover_the_old_episode_delays_the_new_one_only_
         wait_for(lambda: Period(2, 0) in stack.member.answered, 10, what="episode 2 started")
     finally:
         stack.close()
+
+
+def test_the_sim_runs_one_period_ahead_of_the_recorder_and_no_more() -> None:
+    """``RECORDER_LAG``: the sim publishes t_{k+1} once the recorder has answered t_{k-1}, so the
+    recorder's writing overlaps the next period; a recorder that stops answering stops the sim two
+    periods after the last one it answered (the members keep one bundle more for its successor)."""
+    stack = Stack(flying=True, recorder=True)
+    try:
+        recorder = stack.recorder
+        assert recorder is not None
+        wait_for(lambda: len(stack.member.answered) > 10, 10, what="periods flown")
+        recorder.halt()
+        last = recorder.member.last_answer
+        assert last is not None
+        time_before = len(stack.member.answered)
+        wait_for(lambda: stack.member.answered[-1].stamp_ns >= last.stamp_ns + 2 * 100_000_000, 10,
+                 what="the sim two periods past the recorder's last answer")
+        threading.Event().wait(0.5)  # and no further
+        assert stack.member.answered[-1] == Period(0, last.stamp_ns + 2 * 100_000_000), (
+            last, stack.member.answered[time_before - 1:])
+    finally:
+        stack.close()

@@ -111,11 +111,15 @@ def breakdown(marks: dict[tuple[str, str, str], dict[int, int]]) -> dict[str, li
     periods = [k for k in ticks[1:-1] if all(k in m for m in need)]
     out: dict[str, list[float]] = {label: [(get(b)[k] - get(a)[k]) / 1e6 for k in periods]
                                    for label, a, b in STAGES}
-    nxt = dict(itertools.pairwise(ticks))
+    nxt, prev = dict(itertools.pairwise(ticks)), {b: a for a, b in itertools.pairwise(ticks)}
     heard_ctl, heard_rec = get(("sim", "heard", "controller")), get(("sim", "heard", "recorder"))
-    out["sim: waiting for the recorder"] = [max(0, heard_rec[k] - heard_ctl[k]) / 1e6 for k in periods]
+    # The sim publishes t_{k+1} once the controller answered t_k and the recorder t_{k-1}
+    # (seaway.runtime.lockstep.RECORDER_LAG): the recorder's answer it waits for is the one before.
+    lagged = [k for k in periods if prev.get(k) in heard_rec]
+    out["sim: waiting for the recorder (its answer to the period before)"] = [
+        max(0, heard_rec[prev[k]] - heard_ctl[k]) / 1e6 for k in lagged]
     out["sim: step and publish after the last answer"] = [
-        (sent[nxt[k]] - max(heard_ctl[k], heard_rec[k])) / 1e6 for k in periods if k in nxt]
+        (sent[nxt[k]] - max(heard_ctl[k], heard_rec[prev[k]])) / 1e6 for k in lagged if k in nxt]
     out["period"] = [(sent[nxt[k]] - sent[k]) / 1e6 for k in periods if k in nxt]
     return out
 

@@ -238,7 +238,8 @@ class LockstepWitness:
             if key in self.answer_keys:
                 try:
                     ans = PeriodDone.decode(payload)
-                    self.member.on_answer(key, ans)
+                    if not ans.resent:  # a copy of an earlier one: its messages are written, no news
+                        self.member.on_answer(key, ans)
                 except MessageError as err:
                     self.member.ratelog.warning(("malformed answer", key),
                                                 "lockstep answer on %s ignored: %s", key, err)

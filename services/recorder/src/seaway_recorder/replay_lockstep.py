@@ -70,6 +70,8 @@ class LockstepPacer:
             self.ratelog.warning(("impostor", key), "lockstep answer on %s claims to be %s's: "
                                  "ignored", key, answer.service)
             return
+        if answer.resent:  # a copy of an earlier answer, for a restarted recorder
+            return
         with self.changed:
             self.ledger.on_answer(answer)
             self._version += 1

@@ -30,7 +30,15 @@ from typing import Any
 
 from seaway.contract import keys
 from seaway.contract.messages import Message, ThrustCommand
-from seaway.runtime.lockstep import MEMBERS, PASSIVE_POLL_S, RECORDER, STALL_REPEAT_S, Member, Period
+from seaway.runtime.lockstep import (
+    MEMBERS,
+    PASSIVE_POLL_S,
+    RECORDER,
+    RECORDER_LAG,
+    STALL_REPEAT_S,
+    Member,
+    Period,
+)
 from seaway.vessel.thrusters import output_pair
 
 from seaway_sim.app import SimApp
@@ -132,7 +140,7 @@ class Lockstep:
         while True:
             self.member.drain()  # the estimator's answer comes through a passive source
             with self.member.changed:
-                if self.answered(period):
+                if self.answered(period, lag=0):  # the recorder too: the episode ends on disk
                     return ""
                 left = deadline - time.monotonic()
                 if left <= 0:
@@ -230,11 +238,17 @@ class Lockstep:
         stamps = [s for s in self._commands if s >= period.stamp_ns]
         return self._commands[min(stamps)] if stamps else None
 
-    def answered(self, period: Period) -> bool:
-        """Whether every member has answered t_k, the recorder covering everyone's latest answer;
-        under ``member.changed``."""
-        return self.member.ledger.all_answered(period, self.members,
-                                               self.member.last_answer.seq)  # type: ignore[union-attr]
+    def answered(self, period: Period, lag: int = RECORDER_LAG) -> bool:
+        """Whether every member but the recorder has answered t_k, and the recorder t_{k-lag} or
+        later (all bundles up to it on disk; ``RECORDER_LAG``); under ``member.changed``."""
+        ledger = self.member.ledger
+        others = self.members - {RECORDER}
+        if not ledger.all_answered(period, others, self.member.last_answer.seq):  # type: ignore[union-attr]
+            return False
+        if RECORDER not in self.members:
+            return True
+        back = Period(period.episode, max(0, period.stamp_ns - lag * self.period_ns))
+        return ledger.recorded(back)
 
     def wait_for(self, period: Period, test: Callable[[Period], Any]) -> Any:
         """Step (b): block until ``test(period)`` is truthy (its value), repeating the period for

@@ -78,6 +78,13 @@ def answer_of(payload: bytes) -> bytes:
     return payload.split(b"\n", 1)[0]
 
 
+def is_resent(payload: bytes) -> bool:
+    """Whether a bundle is a copy of an earlier one sent again for a restarted recorder
+    (``PeriodDone.resent``): news to a recorder that may have missed it, to nobody else. Read off
+    the answer's bytes as ``PeriodDone.encode`` writes them, without decoding it."""
+    return b'"resent":true' in answer_of(payload)
+
+
 def split(payload: bytes) -> tuple[bytes, list[tuple[str, bytes]]]:
     """(the answer's bytes, [(key suffix, message bytes)]) of a bundle; a lone ``PeriodDone`` is a
     bundle of one line. Checks the framing only (each line ``["suffix",{...}]``); MessageError

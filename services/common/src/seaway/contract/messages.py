@@ -462,7 +462,9 @@ class PeriodDone(Message):
     timeout (``seaway.runtime.lockstep`` states the protocol). ``seq`` numbers a member's answers
     (unique across its restarts); ``covers`` (the recorder) names, per member, the ``seq`` of the
     answer whose messages it has written to disk. ``hold`` (the controller): nothing to fly, so the
-    sim does not step until another answer comes (a mission is set).
+    sim does not step until another answer comes (a mission is set). ``resent``: the recorder may
+    trail the others by a period, so a member sends its previous bundle again before repeating its
+    last one (``seaway.runtime.lockstep``).
     """
 
     SCHEMA: ClassVar[str] = "seaway.v1.PeriodDone"
@@ -476,6 +478,9 @@ class PeriodDone(Message):
     covers: dict[LockstepService, Annotated[int, Field(ge=0)]] = Field(default_factory=dict)
     members: list[LockstepService] = Field(default_factory=list, max_length=len(LOCKSTEP_SERVICES),
                                            description="sim: the members it waits for")
+    resent: bool = Field(default=False, description="a copy of this member's previous answer (with "
+                         "its messages), sent again for a recorder that (re)joined: only a "
+                         "recorder takes it")
 
     @classmethod
     def decode(cls, data: bytes | bytearray | memoryview | str) -> Self:

@@ -256,7 +256,7 @@ class BundleTap:
 
     def _on_bundle(self, sample: RawSample) -> None:
         routes = self._routes  # replaced, never changed in place: no lock on the receive path
-        if not routes:
+        if not routes or bundle.is_resent(sample.payload):  # a copy for a restarted recorder
             return
         prefix = sample.key[: sample.key.rfind("/lockstep/") + 1]
         for suffix, data in bundle.lines_of(sample.payload, routes.keys()):
@@ -309,6 +309,8 @@ class Newest(Generic[M]):
                 while (payload := self._bundles.take()) is not None:
                     held.append(payload)
                 for payload in reversed(held):
+                    if bundle.is_resent(payload):
+                        continue
                     lines = bundle.lines_of(payload, (self._suffix,))
                     if lines:
                         raw = lines[-1][1]
@@ -354,7 +356,8 @@ class Every(Generic[M]):
             raws.append(raw)
         if self._bundles is not None:
             while (payload := self._bundles.take()) is not None:
-                raws += [data for _, data in bundle.lines_of(payload, (self._suffix,))]
+                if not bundle.is_resent(payload):
+                    raws += [data for _, data in bundle.lines_of(payload, (self._suffix,))]
         out = [self._bus.decode_counted(self._type, self.keyexpr, raw) for raw in raws]
         return [m for m in out if m is not None]
 

@@ -15,9 +15,13 @@ THE PROTOCOL
   from Zenoh's thread to Python, which was most of a period's time.)
 * The sim answers first (its answer is the period's tick): the sensor samples due in (t_{k-1}, t_k],
   truth, disturbance and clock, and in ``consumed`` the thrust command it applied over
-  (t_{k-1}, t_k]. It steps to t_{k+1} once every member has answered t_k: the controller with a
-  command the sim holds (an answer with ``hold`` means "nothing to fly": no step until another
-  answer), the recorder covering (``covers``) the latest answer of every member.
+  (t_{k-1}, t_k]. It steps to t_{k+1} once every member but the recorder has answered t_k, the
+  controller with a command the sim holds (an answer with ``hold`` means "nothing to fly": no step
+  until another answer), and publishes t_{k+1} once the recorder has answered t_{k-1} or later:
+  the recorder may trail by one period (``RECORDER_LAG``), so its writing overlaps the next
+  period's work instead of adding a hand-over to every period. Every member keeps its previous
+  bundle and, before it repeats its last one, sends it again (``resent``; only a recorder takes
+  it), so a restarted recorder gets the two periods it can have missed.
 * The estimator answers t_k once it has the sim's answer and the thrust command the sim applied
   (``consumed``, from the controller's bundle of the period before); the controller once it has the
   estimator's answer; the recorder once every member's latest answer for t_k, with what it carries,
@@ -61,6 +65,9 @@ from seaway.runtime.timeline import Timeline
 
 log = logging.getLogger("seaway.lockstep")
 
+RECORDER_LAG = 1
+"""Periods the recorder's answers may trail the sim's: the sim publishes t_{k+1} once the recorder
+has answered t_{k-1} (the members keep one bundle more, to send again for a restarted recorder)."""
 RECORDER = "recorder"
 """The member that covers the others' answers (``PeriodDone.covers``) once they are on disk; it only
 writes, so no request waits for it."""
@@ -200,6 +207,13 @@ class Ledger:
                 return False
         return True
 
+    def recorded(self, period: Period) -> bool:
+        """Whether the recorder's latest answer is for ``period`` or a later period of its episode:
+        all the members' bundles up to it are on disk (it answers a period once it has written the
+        bundles of that period, and each member's come in order)."""
+        a = self.answers.get(RECORDER)
+        return a is not None and a.episode == period.episode and a.stamp_ns >= period.stamp_ns
+
     def held(self, period: Period) -> bool:
         """Whether the controller answered ``period`` with ``hold`` (nothing to fly): the clock waits
         for another answer, and that wait is not a stall."""
@@ -268,6 +282,7 @@ class Member:
         self._key = keys.lockstep_spec(service).key(bus.vessel)
         self._pub = bus.raw_publisher(self._key, bundle.ENCODING, block=True, express=True)
         self._last: tuple[list[tuple[str, bytes]], PeriodDone] | None = None
+        self._prev: tuple[list[tuple[str, bytes]], PeriodDone] | None = None  # the one before
         self.on_restart: Callable[[Period | None, Period], None] | None = None
         self.on_ready: Callable[[], None] | None = None
         """A service that answers on the bus's thread: called there after each bundle taken from
@@ -330,7 +345,7 @@ class Member:
                                  key, err)
             return
         answer = self.bus.decode_counted(PeriodDone, key, raw_answer)
-        if answer is None or service is None:
+        if answer is None or service is None or answer.resent:  # a copy for a recorder
             return
         if answer.service != service:
             self._impostor(key, answer)
@@ -482,6 +497,8 @@ class Member:
     def _put(self, done: PeriodDone, lines: list[tuple[str, bytes]]) -> None:
         self._pub.put(bundle.encode(done.encode(), lines))
         self.bus.stats.published += 1 + len(lines)
+        if self._last is not None and Period.of(self._last[1]) != Period.of(done):
+            self._prev = self._last
         self._last = (lines, done)
 
     def working(self, period: Period) -> None:
@@ -490,11 +507,16 @@ class Member:
 
     def repeat(self, members: Sequence[str] | None = None) -> PeriodDone | None:
         """Publish the last bundle again (same messages, new ``seq``), for a newcomer; the sim's
-        names the members it now waits for."""
+        names the members it now waits for. The previous one goes first, marked ``resent``, for a
+        recorder that (re)joined: it may not have it (``RECORDER_LAG``)."""
         last = self._last
         if last is None:
             return None
         lines, done = last
+        prev = self._prev
+        if prev is not None and prev[1].episode == done.episode:
+            again_prev = prev[1].model_copy(update={"seq": next(self._seq), "resent": True})
+            self._pub.put(bundle.encode(again_prev.encode(), prev[0]))
         update: dict[str, Any] = {"seq": next(self._seq)}
         if members is not None:
             update["members"] = list(members)

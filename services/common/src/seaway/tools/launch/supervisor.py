@@ -65,6 +65,8 @@ def answer_period(payload: bytes) -> tuple[tuple[int, int] | None, bool]:
     acts on; a malformed one is no answer here, absurd numbers included: JSON's Infinity)."""
     try:
         ans = json.loads(bundle.answer_of(payload))  # a bundle's first line (seaway.contract.bundle)
+        if ans.get("resent"):  # a copy of an earlier answer, for a restarted recorder: no news
+            return None, False
         return (int(ans["episode"]), int(ans["stamp_ns"])), bool(ans.get("hold"))
     except (ValueError, TypeError, KeyError, AttributeError, OverflowError):
         return None, False
