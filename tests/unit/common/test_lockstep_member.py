@@ -110,3 +110,14 @@ def test_a_repeat_sends_the_previous_bundle_again_for_a_recorder_and_only_a_reco
     assert got == [0, P, P]  # the sim took the repeat, not the copy
     assert [c.stamp_ns for c in commands.drain()] == [P]
     assert sim.ledger.answers["controller"].stamp_ns == P
+
+
+def test_a_bundle_that_does_not_read_is_counted_and_the_next_one_is_taken() -> None:
+    hub = MemoryHub()
+    est = Member(hub.bus(V), "estimator", watched={"sensors/attitude"}, hears=("sim",))
+    raw = hub.bus(V).raw_publisher(keys.LOCKSTEP_SIM.key(V), bundle.ENCODING)
+    raw.put(b'{"stamp_ns": 0}\n["sensors/attitude",{"stamp_ns": 0}')  # framing: no closing bracket
+    raw.put(b'{"stamp_ns": "soon"}')  # an answer that does not validate
+    assert est.bus.stats.malformed == 2 and est.ledger.period is None
+    Member(hub.bus(V), "sim", watched=(), subscribe=False).answer(Period(0, 0), P)
+    assert est.ledger.period == Period(0, 0)

@@ -15,8 +15,15 @@ from pathlib import Path
 
 import pytest
 from mcap.reader import make_reader
-from seaway.contract import keys
-from seaway.contract.messages import GnssFix, NavOrigin, SimTruth, StateEstimate, ThrustCommand
+from seaway.contract import bundle, keys
+from seaway.contract.messages import (
+    GnssFix,
+    NavOrigin,
+    PeriodDone,
+    SimTruth,
+    StateEstimate,
+    ThrustCommand,
+)
 from seaway_recorder import live, schemas
 from seaway_recorder.logtail import log_record, parse_line
 from seaway_recorder.writer import RecordingWriter
@@ -176,3 +183,27 @@ def test_a_log_line_on_the_bus_is_served_as_the_recordings_log(tmp_path: Path) -
     assert decoded["name"] == "controller" and decoded["message"] == "seaway_controller.core: slow solve"
     # A line without a time of its own carries the time it was read.
     assert log_record("sim", parse_line("Traceback (most recent call last):"), now_ns=42).stamp_ns == 42
+
+
+def test_a_lockstep_bundle_is_served_as_the_samples_it_carries_and_a_bad_one_as_an_error() -> None:
+    """``seaway foxglove`` on a lockstep stack: each bundle (seaway.contract.bundle) gives the
+    messages of its keys and its answer, as the recording has them; one that does not unpack goes to
+    the error channel whole and the feed goes on; a copy sent again for a recorder gives nothing."""
+    nav = StateEstimate.make(stamp_ns=100_000_000, u_mps=0.5, v_mps=0.0, r_radps=0.0, x_m=3.0,
+                             y_m=2.0, psi_rad=0.1)
+    done = PeriodDone(stamp_ns=100_000_000, service="estimator", episode=0, seq=1, period_ns=100_000_000,
+                      published={keys.NAV_STATE.suffix: [nav.stamp_ns]})
+    key = keys.LOCKSTEP_ESTIMATOR.key(V)
+    good = bundle.encode(done.encode(), [(keys.NAV_STATE.suffix, nav.encode())])
+    foreign = bundle.encode(done.encode(), [(keys.THRUST.suffix, ThrustCommand.make(
+        stamp_ns=1, thrust_port_n=1.0, thrust_starboard_n=1.0, seq=1).encode())])
+    resent = bundle.encode(done.model_copy(update={"seq": 2, "resent": True}).encode(),
+                           [(keys.NAV_STATE.suffix, nav.encode())])
+    feed = live.LiveFeed()
+    got = [(m.channel.topic, m.payload) for p in (good, b"{}\nnot a line", foreign, resent, good)
+           for m in feed.feed(key, p, bundle.ENCODING, 1_000)]
+    topics = [t for t, _ in got]
+    assert topics.count(keys.NAV_STATE.key(V)) == 2 and topics.count(key) == 2
+    assert (keys.NAV_STATE.key(V), nav.encode()) in got and (key, done.encode()) in got
+    assert topics.count(schemas.MALFORMED_TOPIC) == 2 and feed.stats.malformed == 2
+    assert keys.THRUST.key(V) not in topics  # the estimator may not carry a command

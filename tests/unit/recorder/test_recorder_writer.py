@@ -9,9 +9,10 @@ from pathlib import Path
 import jsonschema
 import pytest
 from mcap.reader import make_reader
-from seaway.contract import keys
-from seaway.contract.messages import NavOrigin, SimTruth, ThrustCommand
+from seaway.contract import bundle, keys
+from seaway.contract.messages import NavOrigin, PeriodDone, SimTruth, ThrustCommand
 from seaway.vessel.frames import GeoOrigin
+from seaway_recorder.record import KeptKeys, lockstep_exprs, recorded_suffixes
 from seaway_recorder.recording import iter_messages, open_paths, read_info
 from seaway_recorder.recover import recover
 from seaway_recorder.schemas import foxglove_json_schema
@@ -196,3 +197,42 @@ def test_recover_refuses_what_is_not_mcap(tmp_path: Path) -> None:
         recover(bad, tmp_path / "out.mcap")
     with pytest.raises(ValueError, match="must differ"):
         recover(bad, bad)
+
+
+def test_a_lockstep_bundle_unpacks_into_its_keys_and_a_bad_one_is_kept_whole_as_malformed(
+        tmp_path: Path) -> None:
+    """What a recorder writes of a bundle (seaway.contract.bundle): its messages on their own keys'
+    channels then its answer, bytes unchanged; one that does not unpack (framing, or a key its member
+    does not produce) whole on ``recorder/malformed``, saying why; the writer goes on."""
+    done = PeriodDone(stamp_ns=0, service="sim", episode=0, seq=1, period_ns=100_000_000,
+                      published={keys.SIM_TRUTH.suffix: [0]})
+    key = keys.LOCKSTEP_SIM.key(V)
+    good = bundle.encode(done.encode(), [(keys.SIM_TRUTH.suffix, truth(0))])
+    w = RecordingWriter(tmp_path / "r.mcap", foxglove=False)
+    w.open(0)
+    parts = w.unpack(key, good, bundle.ENCODING, 1_000)
+    assert [(k, d) for k, d, _ in parts] == [(keys.SIM_TRUTH.key(V), truth(0)), (key, done.encode())]
+    for k, d, enc in parts:
+        assert w.write(k, d, enc, 1_000)
+    bad = [b"{}\n[broken", bundle.encode(done.encode(), [(keys.THRUST.suffix, thrust(1))])]
+    assert [w.unpack(key, b, bundle.ENCODING, 2_000) for b in bad] == [[], []]
+    assert w.unpack(keys.SIM_TRUTH.key(V), truth(1), ENC, 3_000) == [(keys.SIM_TRUTH.key(V), truth(1), ENC)]
+    w.close(4_000)
+    got = read_all(tmp_path / "r.mcap")
+    assert [(t, d) for t, _, d, _ in got if t != "recorder/malformed"] == [
+        (keys.SIM_TRUTH.key(V), truth(0)), (key, done.encode())]
+    errors = [json.loads(d) for t, _, d, _ in got if t == "recorder/malformed"]
+    assert len(errors) == 2 and w.stats.malformed == 2
+    assert "line 2" in errors[0]["error"] and "does not produce" in errors[1]["error"]
+    assert {e["key"] for e in errors} == {key}
+
+
+def test_which_keys_a_recording_keeps_is_zenohs_own_matching() -> None:
+    """``--key-expr`` narrows a recording; in lockstep the bundles are heard on ``lockstep/*`` for
+    the protocol, and of the messages they carry only the kept keys are written."""
+    kept = KeptKeys([f"seaway/{V}/nav/**", "seaway/*/ctrl/thrust"])
+    assert kept(keys.NAV_STATE.key(V)) and kept(keys.THRUST.key("other"))
+    assert not kept(keys.SIM_TRUTH.key(V)) and not kept(keys.NAV_STATE.key("other"))
+    assert recorded_suffixes([f"seaway/{V}/nav/**"], V) == {"nav/state", "nav/origin", "nav/reset"}
+    assert lockstep_exprs([f"seaway/{V}/**"], V) == [f"seaway/{V}/**"]
+    assert lockstep_exprs([f"seaway/{V}/nav/**"], V) == [f"seaway/{V}/nav/**", f"seaway/{V}/lockstep/*"]

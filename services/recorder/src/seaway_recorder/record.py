@@ -143,21 +143,6 @@ class SampleQueue:
         thread hand-over each."""
         self._lock = threading.Lock()
         self.timeline: Timeline | None = None  # a lockstep recorder's, when tracing
-        self._exprs: list[zenoh.KeyExpr] = []
-        self._records: dict[str, bool] = {}
-
-    def record(self, exprs: Sequence[str]) -> None:
-        """What this recording keeps (``records``): the key expressions it was asked for."""
-        self._exprs = [zenoh.KeyExpr(e) for e in exprs]
-        self._records.clear()
-
-    def records(self, key: str) -> bool:
-        """Whether ``key`` (a message out of a lockstep bundle) is one this recording keeps: the
-        bundle's own key may be subscribed for lockstep alone (``lockstep_exprs``)."""
-        kept = self._records.get(key)
-        if kept is None:
-            kept = self._records[key] = not self._exprs or any(e.includes(key) for e in self._exprs)
-        return kept
 
     def on_sample(self, sample: RawSample) -> None:
         # Called on the bus's delivery threads: keep it short (the bytes are already our own copy).
@@ -177,17 +162,26 @@ class SampleQueue:
             self.arrived.set()
 
 
+class KeptKeys:
+    """Which keys a recording keeps: those its key expressions include (Zenoh's own matching).
+    Asked of each message a lockstep bundle carries: the bundle's key may be subscribed for
+    lockstep alone (``lockstep_exprs``), its messages' keys not."""
+
+    def __init__(self, exprs: Sequence[str]) -> None:
+        self._exprs = [zenoh.KeyExpr(e) for e in exprs]
+        self._kept: dict[str, bool] = {}
+
+    def __call__(self, key: str) -> bool:
+        kept = self._kept.get(key)
+        if kept is None:
+            kept = self._kept[key] = any(e.includes(key) for e in self._exprs)
+        return kept
+
+
 def recorded_suffixes(exprs: Sequence[str], vessel: str) -> set[str]:
     """The registered key suffixes of ``vessel`` that the key expressions ``exprs`` record."""
-    out = set()
-    for spec in keys.REGISTRY:
-        key = spec.key(vessel)
-        for e in exprs:
-            head, _, tail = e.partition("**")
-            if (e == key or (tail == "" and key.startswith(head))
-                    or (e.startswith(f"{keys.ROOT}/*/") and e[len(keys.ROOT) + 3:] == spec.suffix)):
-                out.add(spec.suffix)
-    return out
+    kept = KeptKeys(exprs)
+    return {spec.suffix for spec in keys.REGISTRY if kept(spec.key(vessel))}
 
 
 def lockstep_exprs(exprs: list[str], vessel: str) -> list[str]:
@@ -367,7 +361,7 @@ def run(argv: Sequence[str]) -> int:
         print(f"recording {', '.join(exprs)} to {path}", flush=True)
         # In lockstep the recorder is a member: the sim does not move on until it is on disk.
         witness = None
-        queue.record(exprs)
+        kept = KeptKeys(exprs)
         if run.lockstep:
             exprs = lockstep_exprs(exprs, args.vessel)
             witness = LockstepWitness(ctx.bus, args.vessel, exprs)
@@ -383,9 +377,10 @@ def run(argv: Sequence[str]) -> int:
                       LogTail(args.logs) if args.logs else None,
                       ctx.bus.publisher(keys.LOG_LINE).put if args.logs else None)
         try:
-            _loop(writer, queue, ctx.stop, args.flush_interval, args.status_interval, witness, tails)
+            _loop(writer, queue, ctx.stop, args.flush_interval, args.status_interval, witness, tails,
+                  kept)
             queue.accepting = False
-            _drain(writer, queue, limit=None)
+            _drain(writer, queue, limit=None, kept=kept)
             tails.copy(writer)
         except OSError as err:  # disk full, file removed, ...: finish what can be finished
             log.error("writing failed: %s; finishing the file", err)
@@ -407,7 +402,9 @@ def run(argv: Sequence[str]) -> int:
 
 
 def _drain(writer: RecordingWriter, queue: SampleQueue, limit: int | None,
-           witness: LockstepWitness | None = None) -> int:
+           witness: LockstepWitness | None = None, kept: KeptKeys | None = None) -> int:
+    """Write up to ``limit`` queued samples (a lockstep bundle as the samples it stands for, those
+    ``kept`` keeps); in lockstep, answer a period once it is on disk."""
     n = 0
     items = queue.items
     batch: list[tuple[str, bytes]] = []
@@ -415,7 +412,7 @@ def _drain(writer: RecordingWriter, queue: SampleQueue, limit: int | None,
         sample_key, sample, sample_encoding, t_ns = items.popleft()
         n += 1
         for key, payload, encoding in writer.unpack(sample_key, sample, sample_encoding, t_ns):
-            if key != sample_key and not queue.records(key):
+            if key != sample_key and kept is not None and not kept(key):
                 continue  # a bundle's message on a key this recording leaves out
             batch.append((key, payload))  # a repeat not written again is on disk all the same
             if witness is not None and not witness.admit(key, payload):
@@ -459,14 +456,15 @@ class Tails:
 
 def _loop(writer: RecordingWriter, queue: SampleQueue, stop: threading.Event, flush_s: float,
           status_s: float, witness: LockstepWitness | None = None,
-          tails: Tails | None = None) -> None:
+          tails: Tails | None = None,
+          kept: KeptKeys | None = None) -> None:
     flush_ns = int(flush_s * 1e9)
     next_flush = time.monotonic_ns() + flush_ns
     next_status = time.monotonic_ns() + int(status_s * 1e9)
     last_messages = 0
     while not stop.is_set():
         queue.arrived.clear()
-        n = _drain(writer, queue, limit=2000, witness=witness)
+        n = _drain(writer, queue, limit=2000, witness=witness, kept=kept)
         now = time.monotonic_ns()
         if now >= next_flush:
             writer.count_dropped(queue.dropped - writer.stats.dropped)

@@ -19,8 +19,9 @@ Real time publishes every message on its own key, as does any process that is no
 subscriber never needs to know which way it came.
 
 Authority: Zenoh's access control lets only a member publish its own bundle key; a bundle may carry
-only keys that member produces (``bundled_by(spec) == service``): ``unpack`` and ``lines_of`` refuse
-any other line, so a member cannot publish another's key by wrapping it.
+only keys that member produces (``bundled_by(spec) == service``): ``unpack`` and ``check_line``
+refuse any other line, and ``Bus.subscribe`` takes from a member's bundles only that member's keys,
+so a member cannot publish another's key by wrapping it.
 """
 
 from __future__ import annotations
@@ -85,18 +86,27 @@ def is_resent(payload: bytes) -> bool:
     return b'"resent":true' in answer_of(payload)
 
 
+def _line(line: bytes) -> tuple[str, bytes] | None:
+    """(key suffix, message bytes) of one message line ``["<suffix>",{...}]``, or None if it is not
+    framed so. The one place that knows a line's framing."""
+    end = line.find(b'",', 2)
+    if not (line.startswith(b'["') and end > 2 and line.endswith(b"}]")):
+        return None
+    return line[2:end].decode("ascii", "replace"), line[end + 2:-1]
+
+
 def split(payload: bytes) -> tuple[bytes, list[tuple[str, bytes]]]:
     """(the answer's bytes, [(key suffix, message bytes)]) of a bundle; a lone ``PeriodDone`` is a
     bundle of one line. Checks the framing only (each line ``["suffix",{...}]``); MessageError
     naming the line otherwise. The messages themselves are decoded by whoever needs them."""
     answer, *rest = payload.split(b"\n")
     lines = []
-    for i, line in enumerate(rest, start=2):
-        end = line.find(b'",', 2)
-        if not (line.startswith(b'["') and end > 2 and line.endswith(b"}]")):
+    for i, raw in enumerate(rest, start=2):
+        line = _line(raw)
+        if line is None:
             raise MessageError(f"lockstep bundle line {i}: not [\"<key suffix>\",{{...}}]: "
-                               f"{line[:80]!r}")
-        lines.append((line[2:end].decode("ascii", "replace"), line[end + 2:-1]))
+                               f"{raw[:80]!r}")
+        lines.append(line)
     return answer, lines
 
 
@@ -122,7 +132,8 @@ def service_of(key: str) -> str | None:
 def unpack(key: str, payload: bytes) -> list[tuple[str, bytes, str]]:
     """A bundle heard on ``key`` as the samples it stands for, (key, bytes, encoding): its messages
     in order, each on its own key, then the answer alone (it was sent after what it lists). What a
-    recorder writes. Lines another member's keys (``check_line``) or badly framed: MessageError."""
+    recorder writes. MessageError if a line is badly framed or on a key of another member
+    (``check_line``)."""
     service = service_of(key)
     if service is None:
         raise MessageError(f"{key} is not a lockstep answer key")
@@ -138,13 +149,12 @@ def unpack(key: str, payload: bytes) -> list[tuple[str, bytes, str]]:
 
 
 def lines_of(payload: bytes, suffixes: Sequence[str] | frozenset[str]) -> list[tuple[str, bytes]]:
-    """The (suffix, bytes) of ``payload``'s lines on ``suffixes``, without splitting what is not
-    asked for (a display looking for one key in hundreds of bundles a second)."""
+    """The (suffix, bytes) of ``payload``'s lines on ``suffixes``, skipping any that is not framed
+    (a display looking for a few keys in hundreds of bundles a second: its decode of what it takes
+    validates that). Which keys a member may carry is the caller's to ask (``check_line``)."""
     out = []
-    for line in payload.split(b"\n")[1:]:
-        end = line.find(b'",', 2)
-        if end > 2 and line.startswith(b'["') and line.endswith(b"}]"):
-            suffix = line[2:end].decode("ascii", "replace")
-            if suffix in suffixes:
-                out.append((suffix, line[end + 2:-1]))
+    for raw in payload.split(b"\n")[1:]:
+        line = _line(raw)
+        if line is not None and line[0] in suffixes:
+            out.append(line)
     return out

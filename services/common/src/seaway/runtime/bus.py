@@ -275,6 +275,16 @@ def bundle_keyexpr(spec: keys.KeySpec, keyexpr: str) -> str | None:
     return keyexpr[: -len(spec.suffix)] + keys.lockstep_spec(member).suffix
 
 
+def _news(ring: RawRing) -> list[bytes]:
+    """Every bundle ``ring`` holds, oldest first, but the copies sent again for a restarted
+    recorder (``bundle.is_resent``): a reader of keys has had those."""
+    out = []
+    while (payload := ring.take()) is not None:
+        if not bundle.is_resent(payload):
+            out.append(payload)
+    return out
+
+
 NEWEST_BUNDLES = 64
 """Bundles a ``Newest`` keeps between reads, searched newest first for its key: a read finds a key
 sent every period in the newest, and one sent in fewer periods if it came in the last 64."""
@@ -305,12 +315,7 @@ class Newest(Generic[M]):
         with self._lock:
             raw = self._src.take()
             if self._bundles is not None:  # lockstep: in the newest bundle that carries it
-                held = []
-                while (payload := self._bundles.take()) is not None:
-                    held.append(payload)
-                for payload in reversed(held):
-                    if bundle.is_resent(payload):
-                        continue
+                for payload in reversed(_news(self._bundles)):
                     lines = bundle.lines_of(payload, (self._suffix,))
                     if lines:
                         raw = lines[-1][1]
@@ -355,9 +360,8 @@ class Every(Generic[M]):
         while (raw := self._src.take()) is not None:
             raws.append(raw)
         if self._bundles is not None:
-            while (payload := self._bundles.take()) is not None:
-                if not bundle.is_resent(payload):
-                    raws += [data for _, data in bundle.lines_of(payload, (self._suffix,))]
+            for payload in _news(self._bundles):
+                raws += [data for _, data in bundle.lines_of(payload, (self._suffix,))]
         out = [self._bus.decode_counted(self._type, self.keyexpr, raw) for raw in raws]
         return [m for m in out if m is not None]
 
