@@ -256,8 +256,7 @@ class Member:
     def __init__(self, bus: Bus, service: str, watched: Iterable[str] | None,
                  seq_start: int | None = None, subscribe: bool = True,
                  consumed: bool = True, hears: Iterable[str] | None = None,
-                 inputs: Iterable[str] | None = None, deliver: Deliver | None = None,
-                 passive: Iterable[str] = ()) -> None:
+                 inputs: Iterable[str] | None = None, passive: Iterable[str] = ()) -> None:
         """``hears``: the members whose bundles this one needs (default: every other); ``passive``:
         those of them that never move it on by themselves. Only the sim's classify a period, and
         every bundle heard costs a hand-over to Python, so the estimator hears only the sim and the
@@ -267,7 +266,8 @@ class Member:
         self.hears = frozenset(LOCKSTEP_SERVICES if hears is None else hears) - {service}
         self.ledger = Ledger(watched, consumed)
         self.inputs = frozenset(inputs if inputs is not None else (watched or ()))
-        self.deliver = deliver
+        self.deliver: Deliver | None = None
+        """Set by the service once it can take inputs (its handler usually names this member)."""
         unheard = sorted(s for s in self.inputs
                          if (spec := keys.spec_for_suffix(s)) is None
                          or bundle.bundled_by(spec) not in self.hears)
