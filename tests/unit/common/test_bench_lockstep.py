@@ -12,12 +12,15 @@ from seaway_lab.bench import lockstep
 
 # One period's marks, as offsets [ns] from the sim's answer: each stage's duration is distinct, so a
 # stage measured between the wrong marks shows.
-OFFSETS = {("sim", "sent", ""): 0, ("estimator", "heard", "sim"): 100_000,
+OFFSETS = {("sim", "sent", ""): 0, ("estimator", "arrived", "sim"): 60_000,
+           ("estimator", "heard", "sim"): 100_000,
            ("estimator", "work", ""): 130_000, ("estimator", "sent", ""): 430_000,
+           ("controller", "arrived", "estimator"): 510_000,
            ("controller", "heard", "estimator"): 530_000, ("controller", "work", ""): 570_000,
-           ("controller", "sent", ""): 1_070_000, ("sim", "heard", "controller"): 1_170_000,
+           ("controller", "sent", ""): 1_070_000, ("sim", "arrived", "controller"): 1_160_000,
+           ("sim", "heard", "controller"): 1_170_000,
            ("recorder", "heard", "controller"): 1_250_000, ("recorder", "sent", ""): 1_650_000,
-           ("sim", "heard", "recorder"): 1_700_000}
+           ("sim", "arrived", "recorder"): 1_670_000, ("sim", "heard", "recorder"): 1_700_000}
 
 
 def marks(period_ns: int, n: int = 50) -> dict[tuple[str, str, str], dict[int, int]]:
@@ -31,11 +34,18 @@ def marks(period_ns: int, n: int = 50) -> dict[tuple[str, str, str], dict[int, i
 
 def test_breakdown_measures_each_stage_between_its_own_marks() -> None:
     got = {name: {round(x, 9) for x in v} for name, v in lockstep.breakdown(marks(2_000_000)).items()}
-    assert got["sim -> estimator: transport"] == {0.1}
+    assert got["sim -> estimator: transport"] == {0.06}
+    assert got["estimator: intake"] == {0.04}
+    assert got["estimator -> controller: transport"] == {0.08}
+    assert got["controller: intake"] == {0.02}
+    assert got["controller -> sim: transport"] == {0.09}
+    assert got["sim: intake of the controller's"] == {0.01}
+    assert got["recorder -> sim: transport"] == {0.02}
+    assert got["sim: intake of the recorder's"] == {0.03}
     assert got["estimator: wake-up"] == {0.03}
     assert got["estimator: filter and publish"] == {0.3}
     assert got["controller: solve and publish"] == {0.5}
-    assert got["controller -> recorder: transport"] == {0.18}
+    assert got["controller -> recorder: transport and intake"] == {0.18}
     assert got["recorder: write and flush"] == {0.4}
     # The sim waits for the recorder's answer to the period before (RECORDER_LAG), heard here 0.3 ms
     # before the controller's answer: no wait, and it publishes 0.83 ms after the controller's.

@@ -6,9 +6,11 @@ in-memory bus: pure logic, no network."""
 from __future__ import annotations
 
 import threading
+from pathlib import Path
 
 from seaway.contract import bundle, keys
 from seaway.contract.messages import PeriodDone, ThrustCommand
+from seaway.runtime import timeline
 from seaway.runtime.lockstep import Member, Period
 from seaway.runtime.memory_bus import MemoryHub
 
@@ -121,3 +123,22 @@ def test_a_bundle_that_does_not_read_is_counted_and_the_next_one_is_taken() -> N
     assert est.bus.stats.malformed == 2 and est.ledger.period is None
     Member(hub.bus(V), "sim", watched=(), subscribe=False).answer(Period(0, 0), P)
     assert est.ledger.period == Period(0, 0)
+
+
+def test_an_active_bundle_marks_its_arrival_before_its_intake_a_passive_one_only_its_intake(
+        tmp_path: Path) -> None:
+    """The bench's split of a hand-over (``seaway bench lockstep``): ``arrived`` when Zenoh hands an
+    active source's bundle over, ``heard`` once it is taken; a passive source's bundle sat in a ring,
+    so only its ``heard`` is noted (an arrival there would time the ring, not the transport)."""
+    hub = MemoryHub()
+    est = Member(hub.bus(V), "estimator", watched={"ctrl/thrust"}, hears=("sim", "controller"),
+                 passive=("controller",))
+    est.timeline = timeline.Timeline("estimator", tmp_path)
+    sim = Member(hub.bus(V), "sim", watched=(), subscribe=False)
+    ctl = Member(hub.bus(V), "controller", watched=(), subscribe=False)
+    ctl.answer(Period(0, 0), P, [(keys.THRUST, cmd(0))])
+    sim.answer(Period(0, P), P, consumed={keys.THRUST.suffix: [0]})
+    got = [(what, of, stamp) for _, what, of, stamp in est.timeline.marks or []]
+    assert got == [("heard", "controller", 0), ("arrived", "sim", P), ("heard", "sim", P)]
+    t = {(what, of): t_ns for t_ns, what, of, _ in est.timeline.marks or []}
+    assert t[("arrived", "sim")] <= t[("heard", "controller")] <= t[("heard", "sim")]

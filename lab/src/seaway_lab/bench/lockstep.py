@@ -9,8 +9,9 @@ end, read from the members' timeline marks. In process: ``seaway_lab.closed_loop
 the median over the stack runs of each one's wall time over its in-process run's.
 
 Where a period's time goes comes from the members' own marks (``seaway.runtime.timeline``, on the
-clock every process shares): for each period, each hand-over (transport: Zenoh, the decode, the hand
-to Python), each loop's wake-up, and each member's work (the estimator's filter, the controller's
+clock every process shares): for each period, each hand-over (transport: the put, Zenoh, the hand
+to Python; then the receiver's intake: decode, inputs handed to the service), each loop's wake-up,
+and each member's work (the estimator's filter, the controller's
 solve and records, the recorder's write and flush, the sim's step and publication); the sum along
 the critical path is the period.
 Targets (issue 13): through the processes at most 2x the in-process loop, and at least 100x real time.
@@ -83,18 +84,32 @@ def through_processes(run_dir: Path, auth: bool = True) -> dict[tuple[str, str, 
 
 STAGES: tuple[tuple[str, tuple[str, str, str], tuple[str, str, str]], ...] = (
     # (label, from mark, to mark) per period k; a mark is (service, what, of)
-    ("sim -> estimator: transport", ("sim", "sent", ""), ("estimator", "heard", "sim")),
+    ("sim -> estimator: transport", ("sim", "sent", ""), ("estimator", "arrived", "sim")),
+    ("estimator: intake", ("estimator", "arrived", "sim"), ("estimator", "heard", "sim")),
     ("estimator: wake-up", ("estimator", "heard", "sim"), ("estimator", "work", "")),
     ("estimator: filter and publish", ("estimator", "work", ""), ("estimator", "sent", "")),
-    ("estimator -> controller: transport", ("estimator", "sent", ""), ("controller", "heard", "estimator")),
+    ("estimator -> controller: transport", ("estimator", "sent", ""),
+     ("controller", "arrived", "estimator")),
+    ("controller: intake", ("controller", "arrived", "estimator"),
+     ("controller", "heard", "estimator")),
     ("controller: wake-up", ("controller", "heard", "estimator"), ("controller", "work", "")),
     ("controller: solve and publish", ("controller", "work", ""), ("controller", "sent", "")),
-    ("controller -> sim: transport", ("controller", "sent", ""), ("sim", "heard", "controller")),
-    ("controller -> recorder: transport", ("controller", "sent", ""), ("recorder", "heard", "controller")),
+    ("controller -> sim: transport", ("controller", "sent", ""), ("sim", "arrived", "controller")),
+    ("sim: intake of the controller's", ("sim", "arrived", "controller"),
+     ("sim", "heard", "controller")),
+    ("controller -> recorder: transport and intake", ("controller", "sent", ""),
+     ("recorder", "heard", "controller")),
     ("recorder: write and flush", ("recorder", "heard", "controller"), ("recorder", "sent", "")),
-    ("recorder -> sim: transport", ("recorder", "sent", ""), ("sim", "heard", "recorder")),
+    ("recorder -> sim: transport", ("recorder", "sent", ""), ("sim", "arrived", "recorder")),
+    ("sim: intake of the recorder's", ("sim", "arrived", "recorder"), ("sim", "heard", "recorder")),
 )
-"""The hand-overs and the work of one period, in the order of the protocol (services/sim/README.md)."""
+"""The hand-overs and the work of one period, in the order of the protocol (services/sim/README.md).
+
+Transport is from the sender's mark (its put follows) to Zenoh's call into the receiver's Python;
+intake is the receiver taking the bundle there: first what its passive sources left in their rings,
+then this bundle decoded and its inputs handed to the service, which may work on them at once (the
+estimator's filter advances on each sensor sample and on the command: part of its work is here).
+The recorder notes only its own ``heard`` (it takes bundles from its stream of samples)."""
 
 
 def breakdown(marks: dict[tuple[str, str, str], dict[int, int]]) -> dict[str, list[float]]:

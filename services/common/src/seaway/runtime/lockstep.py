@@ -310,9 +310,10 @@ class Member:
     def on_bundle(self, sample: RawSample) -> None:
         """A bundle heard from an active source: what the passive ones hold first (it was sent
         before), then this one."""
+        arrived_ns = time.monotonic_ns()
         with self._intake:
             self._drain()
-            self._take(sample.key, sample.payload)
+            self._take(sample.key, sample.payload, arrived_ns)
         if self.on_ready is not None:
             self.on_ready()
             with self.changed:
@@ -334,8 +335,9 @@ class Member:
                 got = True
         return got
 
-    def _take(self, key: str, payload: bytes) -> None:
-        """One bundle: its inputs delivered, then its answer noted (``on_answer``)."""
+    def _take(self, key: str, payload: bytes, arrived_ns: int | None = None) -> None:
+        """One bundle: its inputs delivered, then its answer noted (``on_answer``); ``arrived_ns``:
+        when Zenoh handed it over, for the timeline (none for a passive source's, held in a ring)."""
         service = bundle.service_of(key)
         try:
             raw_answer, lines = bundle.split(payload)
@@ -350,6 +352,8 @@ class Member:
         if answer.service != service:
             self._impostor(key, answer)
             return
+        if arrived_ns is not None:
+            self.timeline.mark("arrived", answer.stamp_ns, service, at_ns=arrived_ns)
         prefix = key[: -len(f"lockstep/{service}")]
         for suffix, data in lines:
             if suffix not in self.inputs:

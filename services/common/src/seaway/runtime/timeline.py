@@ -3,17 +3,23 @@
 Off unless ``$SEAWAY_LOCKSTEP_TRACE`` names a folder (``seaway bench lockstep`` sets it). Then each
 lockstep member (``seaway.runtime.lockstep.Member``) notes, per period t_k (its ``stamp_ns``):
 
-* ``heard``: another member's answer for t_k reached this process (``of`` names whose);
+* ``arrived``: another member's bundle for t_k reached this process's Python (Zenoh's callback was
+  entered; ``of`` names whose). Only for a source that moves the member on: a passive one's bundle
+  waits in a ring by design;
+* ``heard``: that member's answer for t_k was taken: the passive sources' bundles first, then this
+  one decoded and its inputs handed to the service (which may do its own work there: the estimator
+  advances its filter on each input);
 * ``work``: the service's loop started on t_k (everything it needed was in);
 * ``sent``: this member's messages for t_k are out and its answer is being put (the answer's own
   put counts as transport: with several peers it can outlast the first peer's receipt).
 
 Times are ``CLOCK_MONOTONIC`` nanoseconds, one clock for every process on a Linux machine, so marks
-of different processes subtract: ``sent`` of the sim to ``heard`` of the estimator is the transport
-(Zenoh, the decode, the hand-over to Python); ``heard`` to ``work`` the wake-up of the service's
-loop; ``work`` to ``sent`` the service's own work. At exit the marks are written as JSON lines to
-``<folder>/<service>-<pid>.jsonl`` (``[t_ns, what, of, stamp_ns]``); at most ``MAX_MARKS`` are kept
-(about half an hour of periods at 10 Hz), so a forgotten variable cannot grow a process for ever.
+of different processes subtract: ``sent`` of the sim to ``arrived`` of the estimator is the
+transport (the put, Zenoh, the hand-over to Python); ``arrived`` to ``heard`` the intake; ``heard``
+to ``work`` the wake-up of the service's loop; ``work`` to ``sent`` the service's own work. At exit
+the marks are written as JSON lines to ``<folder>/<service>-<pid>.jsonl`` (``[t_ns, what, of,
+stamp_ns]``); at most ``MAX_MARKS`` are kept (about half an hour of periods at 10 Hz), so a
+forgotten variable cannot grow a process for ever.
 """
 
 from __future__ import annotations
@@ -29,7 +35,7 @@ from typing import Literal
 
 ENV_TRACE = "SEAWAY_LOCKSTEP_TRACE"
 MAX_MARKS = 100_000
-Mark = Literal["heard", "work", "sent"]
+Mark = Literal["arrived", "heard", "work", "sent"]
 
 
 class Timeline:
@@ -46,9 +52,11 @@ class Timeline:
         folder = os.environ.get(ENV_TRACE)
         return cls(service, Path(folder) if folder else None)
 
-    def mark(self, what: Mark, stamp_ns: int, of: str = "") -> None:
+    def mark(self, what: Mark, stamp_ns: int, of: str = "", at_ns: int | None = None) -> None:
+        """Note ``what`` for period ``stamp_ns`` now, or at ``at_ns`` (``time.monotonic_ns``) when
+        the period was only known later (a bundle's arrival is noted once its answer is read)."""
         if self.marks is not None and len(self.marks) < MAX_MARKS:
-            self.marks.append((time.monotonic_ns(), what, of, stamp_ns))
+            self.marks.append((time.monotonic_ns() if at_ns is None else at_ns, what, of, stamp_ns))
 
     def write(self) -> Path | None:
         if self.folder is None or self.marks is None:
