@@ -162,3 +162,26 @@ def test_mx_graph_builds_the_same_nlp_as_the_sx_graph(kind):
                                    np.asarray(sx.constraint_fn(w, p)).ravel(), rtol=1e-12, atol=1e-12)
     with pytest.raises(ValueError, match="graph"):
         Ocp(OcpSpec(kind), VP, graph="QX")
+
+
+def test_a_plan_from_the_reference_ipopt_warm_starts_the_generated_solver() -> None:
+    """A real-time mission's first solve can come before the generated solver is loaded, so IPOPT
+    makes the first plan and the SQP warm-starts from it. With IPOPT's multipliers the SQP stalled
+    (not_converged, pr_inf ~1) for about a second, falling back to plan reuse and line of sight;
+    from its primal solution alone it converges at once. States as logged in such a run (the lake,
+    paper-boat, at rest then speeding up along a 25 m leg)."""
+    from seaway_controller.mpc import MpcController
+
+    ocp = Ocp(OcpSpec("cc-empc"), load_vessel("paper-boat"))
+    ctrl = MpcController(ocp, IpoptSolver(ocp))
+    leg = ((0.0, 0.0), (25.0, 0.0), 2.0, 250.0, ("quiet", 1))
+    first = ctrl.solve(10**9, np.array([0.011, 0.0, 0.0, -0.25, -0.06, 0.001]), *leg)
+    assert first.result.success and first.result.interior_point
+    ctrl.accept(first)
+    ctrl.solver = GeneratedSqpSolver(ocp)
+    for k, u_mps in enumerate((0.132, 0.241, 0.338, 0.42), start=1):
+        out = ctrl.solve(10**9 + k * 10**8, np.array([u_mps, 0.0, 0.0, -0.21 + 0.015 * k, 0.05, 0.004]),
+                         *leg)
+        assert out.result.success, (k, out.result.status)
+        assert not out.result.interior_point
+        ctrl.accept(out)

@@ -100,12 +100,12 @@ class MpcController:
         ocp = self.ocp
         plan, age = self.last_good, self.plan_age(now_ns)
         if plan is None or age is None:
-            w, lg = ocp.cold_guess(p), np.zeros(ocp.ng)
-            if self.spec.is_empc:
-                lg[-1] = ocp.terminal_multiplier_guess(w, p)
-            return w, np.zeros(ocp.nw), lg
+            w = ocp.cold_guess(p)
+            return (w, *self._cold_duals(w, p))
         r = plan.result
         w, lx, lg = r.w, r.lam_x, r.lam_g
+        if r.interior_point:  # IPOPT's multipliers would stall the SQP (SolveResult.interior_point)
+            lx, lg = self._cold_duals(w, p)
         tau = p[P_TAU:P_TAU + 3]
         for _ in range(age):
             w, lx, lg = ocp.shift(w, lx, lg, tau)
@@ -120,6 +120,14 @@ class MpcController:
             lx[ocp.i_time:ocp.i_time + 2] = 0.0
             lg[-1] = ocp.terminal_multiplier_guess(w, p)
         return w, lx, lg
+
+    def _cold_duals(self, w: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(lam_x, lam_g) of a start without multipliers for the guess ``w``: zero, but the
+        EMPC's terminal-time constraint, whose multiplier is guessed from ``w``."""
+        lg = np.zeros(self.ocp.ng)
+        if self.spec.is_empc:
+            lg[-1] = self.ocp.terminal_multiplier_guess(w, p)
+        return np.zeros(self.ocp.nw), lg
 
     def solve(self, now_ns: int, x0: np.ndarray, wp_prev: tuple[float, float],
               wp_active: tuple[float, float], coa_radius_m: float, task_power_w: float, leg_key: tuple,

@@ -93,6 +93,12 @@ class SolveResult:
     status: str
     iterations: int
     solve_time_s: float
+    interior_point: bool = False
+    """Solved by an interior-point method (the reference IPOPT). Its multipliers are not a warm
+    start for the SQP: IPOPT leaves every bound a small positive multiplier, so the active-set QP
+    starts from the wrong active set and stalls (``not_converged``, seen when a real-time mission's
+    first solve came before the generated solver was loaded). ``MpcController`` warm-starts the
+    primal only from such a plan."""
 
 
 class NlpSolver(Protocol):
@@ -422,7 +428,7 @@ class IpoptSolver:
         return SolveResult(np.asarray(sol["x"]).ravel(), np.asarray(sol["lam_x"]).ravel(),
                            np.asarray(sol["lam_g"]).ravel(), float(sol["f"]),
                            bool(stats.get("success", False)), str(stats.get("return_status", "")),
-                           int(stats.get("iter_count", 0)), elapsed)
+                           int(stats.get("iter_count", 0)), elapsed, interior_point=True)
 
 
 SolverKind = str
