@@ -50,6 +50,22 @@ def test_a_restart_keeps_the_new_episodes_first_stamps_and_drops_the_old_ones() 
     assert ledger.answer("estimator") is None  # answers of the old episode are forgotten
 
 
+def test_a_new_episodes_answer_heard_before_the_sims_is_kept_by_the_restart() -> None:
+    """Another connection can bring a member's first answer of a new episode before the sim's: the
+    restart the sim's brings must not forget it (the controller then waited for an answer already
+    given until the sim repeated the period for the stall, and the repeats put the old episode's
+    last bundles into the new one's recording)."""
+    ledger = Ledger(watched=None)
+    ledger.on_answer(answer("sim", 342))
+    ledger.on_answer(answer("estimator", 342))
+    ledger.on_answer(answer("estimator", 0, episode=1))  # before the sim's t_0 of episode 1
+    ledger.on_answer(answer("controller", 342))  # late, of the old episode
+    assert ledger.answer("estimator") is None  # not of the current period (yet)
+    assert ledger.on_answer(answer("sim", 0, episode=1)) == "restart"
+    assert ledger.answer("estimator") == answer("estimator", 0, episode=1)
+    assert set(ledger.answers) == {"sim", "estimator"}  # the old episode's controller: forgotten
+
+
 def test_an_answer_on_another_members_key_is_ignored() -> None:
     hub = MemoryHub()
     member = Member(hub.bus("v1"), "estimator", watched=())

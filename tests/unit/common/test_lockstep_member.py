@@ -114,6 +114,47 @@ def test_a_repeat_sends_the_previous_bundle_again_for_a_recorder_and_only_a_reco
     assert sim.ledger.answers["controller"].stamp_ns == P
 
 
+def test_the_estimators_first_answer_of_an_episode_before_the_sims_moves_the_controller_on() -> None:
+    """The CI failure of test_lockstep_restarts' back-to-back missions: after a scenario restart
+    the estimator's t_0 reached the controller before the sim's (its passive source). The sim's,
+    taken next, restarted the ledger and forgot the estimator's answer: no answer for 2 s, until
+    the sim repeated t_0 for the stall."""
+    hub = MemoryHub()
+    ctl = Member(hub.bus(V), "controller", watched=(), hears=("sim", "estimator"), passive=("sim",))
+    sim = Member(hub.bus(V), "sim", watched=(), subscribe=False)
+    est = Member(hub.bus(V), "estimator", watched=(), subscribe=False)
+    sim.answer(Period(0, 342 * P), P)
+    est.answer(Period(0, 342 * P), P)
+    assert ctl.ledger.answer("estimator") is not None
+    est.answer(Period(1, 0), P)  # the new episode's, on its way before the sim's
+    sim.answer(Period(1, 0), P)  # in the ring
+    ctl.wait(ctl.version, 5.0)
+    assert ctl.ledger.period == Period(1, 0)
+    assert ctl.ledger.answer("estimator") is not None and ctl.restarts == [(Period(0, 342 * P),
+                                                                            Period(1, 0))]
+
+
+def test_a_member_does_not_repeat_an_answer_of_an_earlier_episode() -> None:
+    """The sim repeats the new episode's t_0 (a newcomer, a stall) before a member has answered
+    it: that member's last answer is of the old episode, of no use to anyone now, and a recorder
+    took its messages as the new episode's. It repeats nothing; in its own episode it does."""
+    hub = MemoryHub()
+    raw: list[PeriodDone] = []
+    hub.bus(V).subscribe_raw(keys.LOCKSTEP_CONTROLLER.key(V),
+                             lambda s: raw.append(PeriodDone.decode(bundle.split(s.payload)[0])))
+    ctl = Member(hub.bus(V), "controller", watched=(), hears=("sim",))
+    sim = Member(hub.bus(V), "sim", watched=(), subscribe=False)
+    for k in (341, 342):
+        sim.answer(Period(0, k * P), P)
+        ctl.answer(Period(0, k * P), P, [(keys.THRUST, cmd(k * P))])
+    sim.answer(Period(0, 342 * P), P)  # a repeat in the episode: the last two again
+    assert [(a.stamp_ns, a.resent) for a in raw[2:]] == [(341 * P, True), (342 * P, False)]
+    del raw[:]
+    for episode, k in ((1, 0), (1, 0), (0, 0), (0, 0)):  # a scenario restart; a restarted sim
+        sim.answer(Period(episode, k), P)
+    assert raw == [] and ctl.repeats == 1
+
+
 def test_a_bundle_that_does_not_read_is_counted_and_the_next_one_is_taken() -> None:
     hub = MemoryHub()
     est = Member(hub.bus(V), "estimator", watched={"sensors/attitude"}, hears=("sim",))

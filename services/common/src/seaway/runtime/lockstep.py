@@ -32,7 +32,8 @@ THE PROTOCOL
   it and nothing is lost.
 * A member that (re)joins makes the sim repeat its answer (same messages, same stamps, new ``seq``);
   on a repeat every member repeats its last answer (the same bytes), so the newcomer finds the
-  period complete and catches up from it. Receivers drop what they have already seen.
+  period complete and catches up from it; not one of an earlier episode, which would be no use.
+  Receivers drop what they have already seen.
 * An answer from another episode, or from earlier in the same one, means the world restarted (a sim
   restart or a scenario load): members start afresh from that answer. A scenario load first
   finishes the current period as a step would (every member answered, the recorder covering them),
@@ -161,7 +162,11 @@ class Ledger:
             for stamps in self.seen.values():
                 stamps.difference_update([s for s in stamps if s > incoming.stamp_ns])
         if change == "restart":
-            self.answers = {"sim": answer}
+            # What already belongs to the new period stays: another member's answer can come before
+            # the sim's (another connection; the controller often hears the estimator's first answer
+            # of an episode first, and that is the one that moves it on). Dropped, it was waited for
+            # until the sim repeated the period for the stall, seconds later.
+            self.answers = {s: a for s, a in self.answers.items() if Period.of(a) == incoming}
         self.period, self.period_ns = incoming, answer.period_ns
         if change == "next":
             self._prune(incoming.stamp_ns - 2 * answer.period_ns)
@@ -424,8 +429,11 @@ class Member:
                 self.restarts.append((before, Period.of(answer)))
                 if self.on_restart is not None:
                     self.on_restart(before, Period.of(answer))
-            repeat = change == "repeat"
-            lacking = self.waiting_for() if repeat else ""
+            # A member repeats only what it said in this stretch of time: an answer of an earlier
+            # episode (the sim restarted, a scenario loaded) is of no use to a newcomer, and a
+            # recorder would write its messages again, in the new episode's time.
+            repeat = change == "repeat" and self._answered_in(Period.of(answer))
+            lacking = self.waiting_for() if change == "repeat" else ""
             self.version += 1
             if self.on_ready is None:  # else the service answers on this thread (``on_ready``)
                 self.changed.notify_all()
@@ -434,6 +442,12 @@ class Member:
                      answer.stamp_ns / 1e9, answer.episode, lacking)
         if repeat:
             self.repeat()
+
+    def _answered_in(self, period: Period) -> bool:
+        """Whether this member's last answer is of ``period``'s episode and not after it (stamps
+        start again from 0 in a new episode, and a restarted sim's episode is 0 again)."""
+        last = self.last_answer
+        return last is not None and last.episode == period.episode and last.stamp_ns <= period.stamp_ns
 
     def waiting_for(self) -> str:
         """What keeps this member from answering the current period, for a person ('' if it has
