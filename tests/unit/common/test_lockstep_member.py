@@ -153,6 +153,12 @@ def test_a_member_does_not_repeat_an_answer_of_an_earlier_episode() -> None:
     for episode, k in ((1, 0), (1, 0), (0, 0), (0, 0)):  # a scenario restart; a restarted sim
         sim.answer(Period(episode, k), P)
     assert raw == [] and ctl.repeats == 1
+    # Once it has answered the restarted sim's t_0, a repeat of it sends that answer alone, not the
+    # dead sim's last one (episode 0 too) as a ``resent`` copy: a recorder would write it again,
+    # in the new episode's time.
+    ctl.answer(Period(0, 0), P, [(keys.THRUST, cmd(0))])
+    sim.answer(Period(0, 0), P)
+    assert [(a.episode, a.stamp_ns, a.resent) for a in raw[1:]] == [(0, 0, False)]
 
 
 def test_a_bundle_that_does_not_read_is_counted_and_the_next_one_is_taken() -> None:

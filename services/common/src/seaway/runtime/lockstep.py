@@ -532,7 +532,9 @@ class Member:
             return None
         lines, done = last
         prev = self._prev
-        if prev is not None and prev[1].episode == done.episode:
+        # Only the period before, in the same stretch of time: after a sim restart (episode 0
+        # again) the previous bundle can be the dead sim's last period, stamped later than this one.
+        if prev is not None and prev[1].episode == done.episode and prev[1].stamp_ns < done.stamp_ns:
             again_prev = prev[1].model_copy(update={"seq": next(self._seq), "resent": True})
             self._pub.put(bundle.encode(again_prev.encode(), prev[0]))
         update: dict[str, Any] = {"seq": next(self._seq)}
