@@ -20,6 +20,9 @@ def test_classify_orders_periods_and_sees_restarts() -> None:
     assert classify(now, Period(0, 5 * P)) == "repeat"
     assert classify(now, Period(0, 0)) == "restart"  # a restarted sim: time went back
     assert classify(now, Period(1, 9 * P)) == "restart"  # a new episode, even if later
+    # One stretch of time: the same episode, not later (a restarted sim is episode 0 again).
+    assert Period(0, 4 * P).leads_to(now) and now.leads_to(now)
+    assert not Period(0, 6 * P).leads_to(now) and not Period(0, 0).leads_to(Period(1, 9 * P))
 
 
 def test_an_answer_is_complete_once_every_listed_message_on_a_watched_key_was_seen() -> None:

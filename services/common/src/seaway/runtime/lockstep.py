@@ -97,6 +97,12 @@ class Period:
     def of(cls, answer: PeriodDone) -> Period:
         return cls(answer.episode, answer.stamp_ns)
 
+    def leads_to(self, other: Period) -> bool:
+        """Whether this period is ``other`` or comes before it in the same stretch of time: the same
+        episode, not stamped later (stamps start again from 0 in a new episode, and a restarted
+        sim's episode is 0 again, so neither the order of episodes nor of stamps alone says)."""
+        return self.episode == other.episode and self.stamp_ns <= other.stamp_ns
+
 
 def classify(current: Period | None, incoming: Period) -> Change:
     """How a sim answer for ``incoming`` relates to the period a member is at."""
@@ -432,7 +438,9 @@ class Member:
             # A member repeats only what it said in this stretch of time: an answer of an earlier
             # episode (the sim restarted, a scenario loaded) is of no use to a newcomer, and a
             # recorder would write its messages again, in the new episode's time.
-            repeat = change == "repeat" and self._answered_in(Period.of(answer))
+            last = self.last_answer
+            repeat = change == "repeat" and last is not None and Period.of(last).leads_to(
+                Period.of(answer))
             lacking = self.waiting_for() if change == "repeat" else ""
             self.version += 1
             if self.on_ready is None:  # else the service answers on this thread (``on_ready``)
@@ -442,12 +450,6 @@ class Member:
                      answer.stamp_ns / 1e9, answer.episode, lacking)
         if repeat:
             self.repeat()
-
-    def _answered_in(self, period: Period) -> bool:
-        """Whether this member's last answer is of ``period``'s episode and not after it (stamps
-        start again from 0 in a new episode, and a restarted sim's episode is 0 again)."""
-        last = self.last_answer
-        return last is not None and last.episode == period.episode and last.stamp_ns <= period.stamp_ns
 
     def waiting_for(self) -> str:
         """What keeps this member from answering the current period, for a person ('' if it has
@@ -532,9 +534,9 @@ class Member:
             return None
         lines, done = last
         prev = self._prev
-        # Only the period before, in the same stretch of time: after a sim restart (episode 0
-        # again) the previous bundle can be the dead sim's last period, stamped later than this one.
-        if prev is not None and prev[1].episode == done.episode and prev[1].stamp_ns < done.stamp_ns:
+        # Only a period before this one (``_put`` keeps a previous bundle of another period): after
+        # a sim restart (episode 0 again) it can be the dead sim's last period, stamped later.
+        if prev is not None and Period.of(prev[1]).leads_to(Period.of(done)):
             again_prev = prev[1].model_copy(update={"seq": next(self._seq), "resent": True})
             self._pub.put(bundle.encode(again_prev.encode(), prev[0]))
         update: dict[str, Any] = {"seq": next(self._seq)}
