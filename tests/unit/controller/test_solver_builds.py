@@ -11,6 +11,7 @@ import logging
 import os
 import signal
 import stat
+import sys
 import threading
 from pathlib import Path
 
@@ -153,7 +154,11 @@ def test_a_compiler_killed_by_a_stop_is_not_a_compile_error(tmp_path: Path, monk
     interrupted build, which must not be reported as the compiler failing."""
     fake = tmp_path / "bin" / "gcc"
     fake.parent.mkdir()
-    fake.write_text("#!/bin/sh\nkill -INT $$\nsleep 5\n")
+    # Python, not sh: a suite started in the background (``./test &``, nohup) inherits SIGINT
+    # ignored, and a shell may not undo that, so a shell's ``kill -INT $$`` did nothing there.
+    fake.write_text(f"#!{sys.executable}\nimport os, signal, time\n"
+                    "signal.signal(signal.SIGINT, signal.SIG_DFL)\n"
+                    "os.kill(os.getpid(), signal.SIGINT)\ntime.sleep(5)\n")
     fake.chmod(fake.stat().st_mode | stat.S_IXUSR)
     monkeypatch.setenv("PATH", f"{fake.parent}{os.pathsep}{os.environ['PATH']}")
     ocp = Ocp(OcpSpec("eo-empc", horizon=3), VP)
