@@ -46,7 +46,7 @@ from seaway.runtime.clock import RateLoop
 from seaway.runtime.lockstep import Member, Period
 from seaway.runtime.ratelog import RateLimitedLog
 from seaway.runtime.run import RunDescription
-from seaway.runtime.service import base_parser, parse, resolve_run, run_service
+from seaway.runtime.service import base_parser, on_signals, parse, resolve_run, run_service
 from seaway.runtime.stamps import StampBounds, StampGate
 from seaway.simkit.scenario import load_scenario
 
@@ -381,7 +381,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         loop = EstimatorLoop(core, ctx.bus, recorder)
         inbox = Inbox()
         ctx.bus.queryable(keys.NAV_RESET, loop.on_reset_request)
-        signal.signal(signal.SIGUSR1, lambda *_: reset_signal.set())
+        on_signals((signal.SIGUSR1,), lambda _signum: reset_signal.set())
         log.info("estimator %s, vessel file %s", "lockstep" if lockstep
                  else f"realtime, publishing at {cfg.publish_rate_hz:g} Hz", cfg.vessel)
         try:

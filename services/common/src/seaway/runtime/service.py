@@ -124,26 +124,63 @@ def resolve_run(args: argparse.Namespace, name: str, load_scenario: object = Non
         raise SystemExit(2) from None
 
 
+_SIGNAL_ACTS: dict[int, Callable[[int], None]] = {}
+"""What each signal routed by ``on_signals`` calls, on the reader thread."""
+_SIGNAL_PIPE: tuple[int, int] | None = None
+"""(read end, write end) of the wakeup pipe, once the reader thread runs."""
+
+
+def _noted(_signum: int, _frame: object) -> None:
+    """The Python-level handler of a routed signal: nothing (the wakeup pipe carries it)."""
+
+
+def on_signals(signums: Sequence[int], act: Callable[[int], None]) -> None:
+    """Call ``act(signum)`` for each of ``signums`` received, on a reader thread of its own.
+
+    Call from the main thread (Python's rule for signal handlers). CPython's C-level handler writes
+    each caught signal's number to the wakeup pipe (``signal.set_wakeup_fd``) on whatever thread the
+    kernel delivered it to, and the reader thread acts on it. Neither a Python handler nor the main
+    thread takes part, for two reasons:
+
+    * A Python handler runs only on the main thread, between two bytecodes. A process-directed
+      signal may be delivered to another thread (Zenoh's, a writer's); then the main thread learns
+      of it only when it next runs bytecode, and one blocked on ``ctx.stop.wait()`` never does
+      (2026-11-28: 1 in 4 test responders sent SIGTERM went on waiting, until a second signal).
+    * A handler runs possibly inside an ``Event.set()`` of the main thread, whose lock is not
+      reentrant: one that set an event itself could wait on that lock for good (CI, 2026-11-24: a
+      launcher's SIGKILL, so the parent-death SIGTERM, and a second SIGTERM left a process waiting on
+      itself for 40 min).
+
+    The pipe carries every signal with a Python handler (a library's too, e.g. uvicorn's while it
+    serves); the reader acts on those routed here alone.
+    """
+    global _SIGNAL_PIPE
+    if _SIGNAL_PIPE is None:
+        read_fd, write_fd = os.pipe()
+        os.set_blocking(write_fd, False)  # set_wakeup_fd's rule: a full pipe never blocks a handler
+
+        def read() -> None:
+            while True:
+                for signum in os.read(read_fd, 64):
+                    routed = _SIGNAL_ACTS.get(signum)
+                    if routed is None:
+                        continue
+                    try:
+                        routed(signum)
+                    except Exception:  # the next signal must still be heard
+                        log.exception("acting on signal %d failed", signum)
+
+        threading.Thread(target=read, name="stop-signals", daemon=True).start()
+        _SIGNAL_PIPE = (read_fd, write_fd)
+    signal.set_wakeup_fd(_SIGNAL_PIPE[1], warn_on_full_buffer=False)
+    for signum in signums:
+        _SIGNAL_ACTS[signum] = act
+        signal.signal(signum, _noted)
+
+
 def on_stop_signals(act: Callable[[int], None]) -> None:
-    """Call ``act(signum)`` for each SIGINT and SIGTERM, on a thread of its own.
-
-    The handler only writes the signal's number to a pipe, which that thread reads. A handler runs
-    on the main thread between two bytecodes, possibly inside an ``Event.set()`` there, whose lock
-    is not reentrant: one that set a stop event itself could wait on that lock for good (CI,
-    2026-11-24: a launcher's SIGKILL, so the parent-death SIGTERM, and a second SIGTERM left a
-    process waiting on itself for 40 min). ``os.write`` takes no Python lock."""
-    read_fd, write_fd = os.pipe()
-
-    def handler(signum: int, _frame: object) -> None:
-        os.write(write_fd, bytes((signum,)))
-
-    def watch() -> None:
-        while True:
-            act(os.read(read_fd, 1)[0])
-
-    threading.Thread(target=watch, name="stop-signals", daemon=True).start()
-    signal.signal(signal.SIGINT, handler)
-    signal.signal(signal.SIGTERM, handler)
+    """Call ``act(signum)`` for each SIGINT and SIGTERM, on a thread of its own (``on_signals``)."""
+    on_signals((signal.SIGINT, signal.SIGTERM), act)
 
 
 def install_stop_signals(stop: threading.Event) -> None:
