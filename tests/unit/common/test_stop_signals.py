@@ -63,7 +63,7 @@ def test_a_signal_sets_stop() -> None:
 def test_a_signal_delivered_to_another_thread_wakes_a_main_thread_waiting_for_good() -> None:
     """A process-directed signal may go to any thread (Zenoh's, a writer's). Python runs its
     handlers on the main thread between bytecodes, so a main thread blocked on ``stop.wait()``
-    never ran one: 1 in 4 test responders sent SIGTERM went on waiting (2026-11-28). Here the signal
+    never ran one: 2 of 29 test responders sent SIGTERM went on waiting (2026-11-28). Here the signal
     goes to a sleeping thread on purpose (``pthread_kill``) while the main thread waits."""
     proc = _child("""
 sleeper = threading.Thread(target=time.sleep, args=(600,), daemon=True)
