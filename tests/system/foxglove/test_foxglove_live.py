@@ -68,6 +68,7 @@ def stalled_socket(url: str) -> socket.socket:
     return s
 
 
+@pytest.mark.slow  # a live real-time stack, about 50 s; test_foxglove_recording runs by default
 def test_a_foxglove_client_receives_the_live_stack_with_valid_messages(zenoh_env, procs,
                                                                         tmp_path: Path) -> None:
     fox = procs.start([str(BIN / "seaway"), "foxglove", "--port", "0", "--backlog", str(BACKLOG),

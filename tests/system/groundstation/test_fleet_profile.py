@@ -27,7 +27,7 @@ from seaway.runtime.credentials import ENV_IDENTITY
 from tests.conftest import BIN, wait_for
 from tests.system.groundstation.helpers import http
 
-pytestmark = pytest.mark.system  # about 37 s on a busy 2-core machine: not slow
+pytestmark = pytest.mark.system
 A, B = "vessel1", "vessel2"
 MISSIONS = {
     A: {"mission_id": "fleet-a", "waypoints": [{"x_m": 0.0, "y_m": 0.0}, {"x_m": 14.0, "y_m": 0.0},
@@ -69,6 +69,7 @@ class Heard:
         return got[-1] if got else None
 
 
+@pytest.mark.slow  # two real-time missions, about 36 s; test_fleet_launch runs by default
 def test_two_vessels_fly_different_missions_and_a_command_to_one_never_reaches_the_other(
         procs, zenoh_env, tmp_path) -> None:
     from seaway_recorder.recording import read_info

@@ -43,6 +43,7 @@ class Latest:
 
 
 @pytest.mark.timeout(600)  # about 45 s; the first start on a machine also compiles the solvers
+@pytest.mark.slow  # a real-time mission, about 37 s
 def test_an_autopilot_reboot_pauses_the_mission_until_resumed(procs, zenoh_env, tmp_path) -> None:
     run = tmp_path / "run"
     scenario = short_lake(tmp_path, "reboot")

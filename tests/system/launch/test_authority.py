@@ -210,8 +210,10 @@ def test_a_forging_insider_changes_nothing_in_lockstep(procs, zenoh_env, tmp_pat
     results = {}
     for name, attack in (("quiet", False), ("attacked", True)):
         run = tmp_path / name
+        # NMPC: condition #1 in 36 s of simulated time (CC-EMPC's 333 s would prove no more).
         la = procs.start([sys.executable, "-m", "seaway.tools.cli", "launch", "sim-batch", "--scenario",
-                          "paper-c1", "--run-dir", str(run)], env, f"launcher-{name}")
+                          "paper-c1", "--controller", "nmpc", "--run-dir", str(run)], env,
+                         f"launcher-{name}")
         if attack:
             stack = stack_credentials()
             # The operator watches from its own session: a session hears its own publications.
@@ -280,8 +282,8 @@ def test_two_stacks_on_one_machine_never_mix(procs, zenoh_env, tmp_path, monkeyp
     runs = {}
     for name, scenario in (("c1", "paper-c1"), ("c2", "paper-c2")):
         e = dict(env, SEAWAY_ZENOH_RENDEZVOUS=f"tcp/127.0.0.1:{free_port()}")
-        runs[name] = (procs.start([*launch, "--scenario", scenario, "--run-dir", str(tmp_path / name)],
-                                  e, f"launcher-{name}"), scenario)
+        runs[name] = (procs.start([*launch, "--scenario", scenario, "--controller", "nmpc",  # short
+                                   "--run-dir", str(tmp_path / name)], e, f"launcher-{name}"), scenario)
     for p, _ in runs.values():
         p.wait(180)
         assert p.returncode == 0, procs.log(p)

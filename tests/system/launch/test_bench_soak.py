@@ -13,6 +13,7 @@ from tests.conftest import BIN
 pytestmark = [pytest.mark.system, pytest.mark.bench]
 
 
+@pytest.mark.slow  # about 17 s
 def test_bench_soak_smoke(zenoh_env) -> None:
     r = subprocess.run([str(BIN / "seaway"), "bench", "soak", "--duration", "3", "--controller",
                         "nmpc", "--json"], capture_output=True, text=True, timeout=600,

@@ -77,6 +77,8 @@ def gaps(files: list[Path], suffix: str) -> list[float]:
     return [(b - a) / 1e9 for a, b in itertools.pairwise(t)]
 
 
+# A real-time mission with four kills, about 80 s; test_lockstep_restarts kills each member by default.
+@pytest.mark.slow
 def test_services_killed_mid_mission_are_restarted_and_the_mission_completes(procs, zenoh_env, tmp_path):
     run = tmp_path / "run"
     la = procs.start([sys.executable, "-m", "seaway.tools.cli", "launch", "sim", "--run-dir", str(run)],

@@ -39,6 +39,7 @@ def energy(run_dir: Path) -> float:
     return json.loads((run_dir / "report" / "metrics.json").read_text())["metrics"]["energy_j"]
 
 
+@pytest.mark.slow  # a solver compiled from cold, about 30 s
 def test_a_cold_start_is_ready_at_once_makes_one_solver_and_flies_as_a_warm_one(tmp_path) -> None:
     cache = tmp_path / "solvers"
     cold = launch(tmp_path / "cold", cache)

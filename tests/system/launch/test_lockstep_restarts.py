@@ -267,6 +267,7 @@ def test_two_missions_back_to_back_in_one_stack_equal_two_fresh_stacks(tmp_path,
     assert restarted and "(stalled" not in after, sim_log[-2000:]
 
 
+@pytest.mark.slow  # about 28 s; test_hangs_and_stops finds hung processes by default
 def test_a_member_stopped_mid_mission_is_found_hung_and_restarted(tmp_path, undisturbed) -> None:
     """SIGSTOP (a hung process, not a dead one): its exit never comes, and its health token stays
     until Zenoh gives up on it. The launcher finds it hung, kills and restarts it like a dead one,

@@ -84,6 +84,7 @@ def test_the_control_period_is_set_in_one_place_and_every_service_and_the_report
     assert report["solve"]["count"] == pytest.approx(met["travel_time_s"] / 0.2, abs=3)
 
 
+@pytest.mark.slow  # a whole CC-EMPC paper mission, about 29 s
 def test_a_plant_that_differs_from_the_model_flies_condition_4(tmp_path, zenoh_env) -> None:
     model, plant = load_vessel("paper-sim"), load_vessel("paper-sim-perturbed")
     # The shipped perturbed plant is what the issue asks: m11, m22 +20 %, Xu, Yv -20 %, rest equal.

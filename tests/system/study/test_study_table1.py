@@ -19,6 +19,8 @@ pytestmark = pytest.mark.system
 
 
 @pytest.mark.timeout(900)
+# Three paper missions, about 60 s; test_study_dask runs one of a study's runs end to end by default.
+@pytest.mark.slow
 def test_condition_1_shows_the_papers_relations(tmp_path: Path, zenoh_env: dict[str, str]) -> None:
     out = tmp_path / "study"
     p = subprocess.run([str(BIN / "seaway"), "study", "table1", "--rows", "#1", "--workers", "2",

@@ -18,6 +18,7 @@ from tests.conftest import BIN
 pytestmark = [pytest.mark.system, pytest.mark.bench]
 
 
+@pytest.mark.slow  # about 17 s
 def test_bench_io_smoke(zenoh_env) -> None:
     out = subprocess.run([str(BIN / "seaway"), "bench", "io", "--json", "--count", "100",
                           "--baseline-count", "50"], env=zenoh_env, capture_output=True,

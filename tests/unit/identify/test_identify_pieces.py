@@ -123,6 +123,7 @@ def test_a_noise_free_run_gives_back_the_vessel_and_its_dead_zone() -> None:
     assert res.rms_holdout["u_mps"] < 5e-3 and res.rms_holdout["r_radps"] < 5e-3
 
 
+@pytest.mark.slow  # two fits of a whole manoeuvre, about 30 s
 def test_the_arm_scales_m33_and_nr() -> None:
     """What the yaw data fix is m33/l and Nr/l: fitting with another arm scales both by it; the
     masses move only a little, through the small Munk moment (m22 - m11) u v / l."""
