@@ -48,7 +48,9 @@ def _median_step_s(stamps: list[int]) -> float:
 
 def test_the_control_period_is_set_in_one_place_and_every_service_and_the_report_follow(
         tmp_path, zenoh_env) -> None:
-    run_dir = _launch(tmp_path, zenoh_env, "--scenario", "paper-c1", "--control-period-s", "0.2")
+    # NMPC: condition #1 in about 36 s of simulated time (180 periods of 0.2 s), not CC-EMPC's 333 s.
+    run_dir = _launch(tmp_path, zenoh_env, "--scenario", "paper-c1", "--controller", "nmpc",
+                      "--control-period-s", "0.2")
     run = json.loads((run_dir / "run.json").read_text())
     assert run["control_period_s"] == 0.2 and run["clock"] == "lockstep"
     files = [run_dir / "recording.mcap"]
@@ -67,14 +69,14 @@ def test_the_control_period_is_set_in_one_place_and_every_service_and_the_report
     solves = [m for m in dec.get(keys.SOLVE.suffix) if isinstance(m, SolveRecord) and m.success]
     ratios = []
     by_stamp = {s.stamp_ns: s for s in states}
-    for rec in solves[200:1200:50]:
+    for rec in solves[20::5]:  # under way, each leg
         st = by_stamp.get(rec.stamp_ns)
         speed = (st.u_mps ** 2 + st.v_mps ** 2) ** 0.5 if st is not None else 0.0
-        if speed > 0.02 and len(rec.predicted_x_m) > 2:  # the economic cruise is ~0.05 m/s
+        if speed > 0.02 and len(rec.predicted_x_m) > 2:  # not turning on the spot
             dx = rec.predicted_x_m[2] - rec.predicted_x_m[1]
             dy = rec.predicted_y_m[2] - rec.predicted_y_m[1]
             ratios.append((dx * dx + dy * dy) ** 0.5 / speed)
-    assert ratios and statistics.median(ratios) == pytest.approx(0.2, rel=0.15)
+    assert len(ratios) >= 10 and statistics.median(ratios) == pytest.approx(0.2, rel=0.15), ratios
     assert "control period (OCP dt) 0.2 s" in (run_dir / "logs" / "controller.log").read_text()
     report = _report(run_dir)
     met = report["metrics"]
