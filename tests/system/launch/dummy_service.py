@@ -24,6 +24,7 @@ import time
 from seaway.contract import keys
 from seaway.contract.messages import ThrustCommand
 from seaway.runtime.bus import Bus
+from seaway.runtime.service import install_stop_signals, on_signals
 
 ap = argparse.ArgumentParser()
 ap.add_argument("--service", required=True)
@@ -54,18 +55,15 @@ def note_time(what: str) -> None:
 note_time("start")
 
 
-def on_signal(*_: object) -> None:
-    # Never set() twice: a second signal can land inside the first set(), whose lock is not
-    # reentrant (a dummy once waited on itself for good after two SIGTERMs).
-    if not stop.is_set():
-        stop.set()
-
-
+# The services' own stop signals (seaway.runtime.service): a Python handler setting ``stop`` ran on
+# the main thread between two bytecodes, also while that thread held ``stop``'s lock inside
+# ``stop.wait`` (20 times a second here), and then waited on that lock for good: a launcher's test
+# found this dummy alive 10 s after its SIGTERM (CI 2026-11-24, here 2026-11-28).
 if args.ignore_sigint:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    on_signals((signal.SIGTERM,), lambda _signum: stop.set())
 else:
-    signal.signal(signal.SIGINT, on_signal)
-signal.signal(signal.SIGTERM, on_signal)
+    install_stop_signals(stop)
 if args.marker:
     with open(args.marker, "a") as f:
         f.write(f"{os.getpid()}\n")

@@ -171,4 +171,7 @@ def test_a_launcher_killed_with_sigkill_leaves_no_process_running(procs, zenoh_e
     while any(alive(p) for p in pids) and time.monotonic() < deadline:
         time.sleep(0.05)
     assert not any(alive(p) for p in pids), f"orphans 10 s after the launcher's SIGKILL: {survivors(pids)}"
-    # (seen once in CI, 2026-11-24, not reproduced in 14 runs: the message says what they were doing)
+    # Failed in CI (2026-11-24) and here (2026-11-28): the dummy's own Python SIGTERM handler set
+    # its stop Event while the main thread held that Event's lock in stop.wait(), and waited on it
+    # for good. The dummy now stops as the services do (seaway.runtime.service.on_signals); the
+    # same handler hung 17 of 30 children looping on stop.wait(0), on_signals 0 of 30.
