@@ -125,7 +125,7 @@ def test_kkt_reuse_gives_bit_identical_solves_and_skips_factorisations(tmp_path)
     # as the controller does: the patched and the unpatched qrqp must agree bit for bit, and the
     # patched one must actually have skipped factorisations (else the patch is dead code).
     ocp = Ocp(OcpSpec("cc-empc"), VP)
-    reuse = GeneratedSqpSolver(ocp, directory=tmp_path)
+    reuse = GeneratedSqpSolver(ocp)  # the controller's own, from the solver cache (built once)
     plain = GeneratedSqpSolver(ocp, directory=tmp_path, kkt_reuse=False)
     assert reuse.path != plain.path and plain.kkt_counts() is None
     done0, reused0 = reuse.kkt_counts()
