@@ -205,8 +205,15 @@ def run(argv: list[str]) -> BenchResult:
     res.add("core_recording_writer_msg_per_s", round(core), note="type check + MCAP, 50 ms chunks")
     res.add("core_without_periodic_flush_msg_per_s", round(core_unflushed), note="4 MiB chunks only")
     res.add("publisher_rate_msg_per_s", round(e2e["send_rate"]), note="separate process")
+    # A publisher that could not offer the target's rate (a Python process on a slow machine) leaves
+    # the target untested, not failed by the recorder: the verdict stays "missed", the note says why.
+    offered = e2e["send_rate"] >= 0.98 * TARGET_MSG_S
+    note = f"{len(rates)} whole seconds"
+    if not offered:
+        note += (f"; the publisher offered only {e2e['send_rate']:,.0f} msg/s, so the target is not "
+                 f"tested (recorded {e2e['recorded']:,} of {e2e['sent']:,} sent)")
     res.add("recorded_rate_median_msg_per_s", round(med), target=f">= {0.98 * TARGET_MSG_S:,.0f}",
-            ok=med >= 0.98 * TARGET_MSG_S, note=f"{len(rates)} whole seconds")
+            ok=med >= 0.98 * TARGET_MSG_S, note=note)
     res.add("recorded_rate_p99_msg_per_s", round(percentile(rates, 99)))
     res.add("recorded_rate_p1_msg_per_s", round(percentile(rates, 1)), note="the slowest second")
     res.add("sent", e2e["sent"])
@@ -215,6 +222,7 @@ def run(argv: list[str]) -> BenchResult:
             note=f"missing {e2e['missing']}, queue overflow {e2e['queue_drops']}")
     res.add("file_mib", round(e2e["file_mib"], 2), note="zstd")
     res.meta.update({"message_bytes": MESSAGE_BYTES, "cpus": os.cpu_count() or 0,
+                     "target_rate_offered": offered,
                      "flush_interval_s": 0.05, "per_second_rates": rates})
     return res
 
