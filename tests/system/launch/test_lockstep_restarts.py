@@ -222,11 +222,22 @@ def test_a_nav_reset_mid_mission(tmp_path, undisturbed) -> None:
     assert_no_hole(truth_episodes(stack.run_dir)[0])
 
 
+def zenoh_threads(pid: int) -> list[str]:
+    """The names of ``pid``'s threads that are Zenoh's (its runtimes name them ``<runtime>-<n>``)."""
+    names = [(t / "comm").read_text().strip() for t in Path(f"/proc/{pid}/task").iterdir()]
+    return sorted(n for n in names if n.split("-")[0] in ("app", "acc", "tx", "rx", "net"))
+
+
 def test_two_missions_back_to_back_in_one_stack_equal_two_fresh_stacks(tmp_path,
                                                                        undisturbed) -> None:
     stack = Stack(tmp_path / "run", "--stay")
     done = lambda: (s := stack.status.latest()) is not None and s.state == "complete"  # noqa: E731
     stack.wait(done, 120, "the first mission complete")
+    # Each member runs all of Zenoh on one thread (zenoh_bus.LOCKSTEP_RUNTIME): no receive or
+    # transmit pools of their own, which woke threads at every hand-over.
+    for service in ("sim", "estimator", "controller", "recorder"):
+        names = zenoh_threads(stack.pid_of(service))
+        assert names and all(n.startswith("app-") for n in names), (service, names)
     # The same scenario again (a new episode from t = 0), then its mission again.
     reply = stack.bus.request(keys.SIM_SCENARIO, ScenarioRequest(stamp_ns=0, action="restart"), 10.0)
     assert reply.accepted, reply.reason

@@ -37,6 +37,24 @@ log = logging.getLogger("seaway.runtime.bus")
 ENV_CONFIG = "SEAWAY_ZENOH_CONFIG"
 ENV_RENDEZVOUS = "SEAWAY_ZENOH_RENDEZVOUS"
 DEFAULT_RENDEZVOUS = "tcp/127.0.0.1:7447"
+ENV_RUNTIME = "ZENOH_RUNTIME"
+"""Zenoh's own variable for its thread pools (RON: one entry per runtime, read once per process)."""
+LOCKSTEP_RUNTIME = ("(app: (worker_threads: 1), acc: (handover: app), tx: (handover: app), "
+                    "rx: (handover: app), net: (handover: app))")
+"""The Zenoh threads of a lockstep stack's processes: one worker thread for all of Zenoh's runtimes
+(by default each has its own: receive, transmit, accept, network, application; 6-7 threads).
+
+Why: a lockstep period is a chain of hand-overs, and with a pool per runtime each hand-over woke a
+transmit thread in the sender and a receive thread in the receiver, some 80 thread switches per
+period across a stack on a 2-vCPU VM, where the kernel's share (mostly switching) was 18 % of both
+CPUs (docs/results.md, 2026-11-28, evening). One thread per process: a put queues the bundle and the
+same thread writes it once the callback returns. Paper #1 through the processes, ten alternating
+pairs: 5-25 % less wall time in every pair (median 18 %); ``seaway study table1`` 181 -> 161 s.
+
+Safe only where no callback run on Zenoh's thread (``subscribe_raw(inline=True)``) waits for Zenoh
+itself: a lockstep member's intake answers and publishes, never waits for a reply. The launcher
+sets it for lockstep stacks (``seaway.tools.launch.main``) unless ``$ZENOH_RUNTIME`` is set; real
+time keeps Zenoh's defaults."""
 
 
 def default_config_text() -> str:

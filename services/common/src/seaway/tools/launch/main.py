@@ -80,7 +80,7 @@ from seaway.runtime.service import (
     dump_stacks_on_signal,
     on_stop_signals,
 )
-from seaway.runtime.zenoh_bus import ENV_CONFIG
+from seaway.runtime.zenoh_bus import ENV_CONFIG, ENV_RUNTIME, LOCKSTEP_RUNTIME
 from seaway.simkit.scenario import load_scenario
 from seaway.tools.launch import address, authority
 from seaway.tools.launch.profile import Instance, Profile, instances, load_profile, substitute
@@ -629,6 +629,11 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
     env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env.get('PATH', '')}"
     if profile.zenoh_config:
         env[ENV_CONFIG] = str(deploy_path("zenoh", profile.zenoh_config))
+    if run.lockstep:
+        # One Zenoh thread per process of a lockstep stack (zenoh_bus.LOCKSTEP_RUNTIME says why);
+        # the launcher's own too, before its session opens. A user's $ZENOH_RUNTIME wins.
+        env.setdefault(ENV_RUNTIME, LOCKSTEP_RUNTIME)
+        os.environ.setdefault(ENV_RUNTIME, env[ENV_RUNTIME])
     folders = {v: vessel_dir(run_dir, v, vessels) for v in vessels}
     mission_files: dict[str, Path | None] = dict.fromkeys(vessels)
     for v, folder in folders.items():
