@@ -48,8 +48,8 @@ Why: a lockstep period is a chain of hand-overs, and with a pool per runtime eac
 transmit thread in the sender and a receive thread in the receiver, some 80 thread switches per
 period across a stack on a 2-vCPU VM, where the kernel's share (mostly switching) was 18 % of both
 CPUs (docs/results.md, 2026-11-28, evening). One thread per process: a put queues the bundle and the
-same thread writes it once the callback returns. Paper #1 through the processes, thirteen
-alternating pairs: 5-25 % less wall time in every pair (median 17 %), context switches 82 -> 35 a
+same thread writes it once the callback returns. Paper #1 through the processes, fifteen
+alternating pairs: 5-25 % less wall time in every pair (median 16 %), context switches 82 -> 35 a
 period; ``seaway study table1`` 181 -> 161 s and 158 -> 133 s in two pairs.
 
 Safe only where no callback run on Zenoh's thread (``subscribe_raw(inline=True)``) waits for Zenoh
