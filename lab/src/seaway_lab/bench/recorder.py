@@ -207,13 +207,14 @@ def run(argv: list[str]) -> BenchResult:
     res.add("publisher_rate_msg_per_s", round(e2e["send_rate"]), note="separate process")
     # A publisher that could not offer the target's rate (a Python process on a slow machine) leaves
     # the target untested, not failed by the recorder: the verdict stays "missed", the note says why.
-    offered = e2e["send_rate"] >= 0.98 * TARGET_MSG_S
+    least = 0.98 * TARGET_MSG_S  # the target less 2 %, as the verdict always allowed
+    offered = e2e["send_rate"] >= least
     note = f"{len(rates)} whole seconds"
     if not offered:
         note += (f"; the publisher offered only {e2e['send_rate']:,.0f} msg/s, so the target is not "
                  f"tested (recorded {e2e['recorded']:,} of {e2e['sent']:,} sent)")
-    res.add("recorded_rate_median_msg_per_s", round(med), target=f">= {0.98 * TARGET_MSG_S:,.0f}",
-            ok=med >= 0.98 * TARGET_MSG_S, note=note)
+    res.add("recorded_rate_median_msg_per_s", round(med), target=f">= {least:,.0f}",
+            ok=med >= least, note=note)
     res.add("recorded_rate_p99_msg_per_s", round(percentile(rates, 99)))
     res.add("recorded_rate_p1_msg_per_s", round(percentile(rates, 1)), note="the slowest second")
     res.add("sent", e2e["sent"])
