@@ -57,3 +57,24 @@ def test_a_missing_scenario_or_vessel_lists_those_there_are(args, what, folder) 
     assert out.returncode == 2 and "Traceback" not in out.stderr, out.stderr
     there = ", ".join(sorted(p.stem for p in (REPO / "deploy" / folder).glob("*.toml")))
     assert f"no {what} 'nope' (deploy/{folder}/); there are: {there}" in out.stderr, out.stderr
+
+
+def test_a_bad_zenoh_runtime_setting_is_named_by_the_launcher_and_a_service(zenoh_env, tmp_path) -> None:
+    """``$ZENOH_RUNTIME`` (Zenoh's thread pools; the launcher sets it for lockstep stacks unless the
+    user did) that Zenoh cannot read made every process die of a Rust panic; now each names the
+    variable and what it takes, and exits 2 before starting anything."""
+    env = dict(zenoh_env, ZENOH_RUNTIME="(bogus: 1)")
+    launch = subprocess.run([str(BIN / "seaway"), "launch", "sim-batch", "--run-dir",
+                             str(tmp_path / "run"), "--no-report"], env=env, capture_output=True,
+                            text=True, timeout=120)
+    assert launch.returncode == 2, launch.stdout[-2000:] + launch.stderr[-2000:]
+    last = launch.stderr.strip().splitlines()[-1]
+    assert last.startswith("seaway launch: $ZENOH_RUNTIME='(bogus: 1)' is not a Zenoh runtime setting")
+    assert "app, acc, tx, rx, net" in last and "unset it" in last
+    assert not list((tmp_path / "run" / "logs").glob("*.log"))  # no process was started
+    service = dict(env)
+    service.pop(ENV_IDENTITY)
+    est = subprocess.run([str(BIN / "seaway-estimator"), "--vessel", "v1"], env=service,
+                         capture_output=True, text=True, timeout=120)
+    assert est.returncode == 2, est.stderr[-2000:]
+    assert "$ZENOH_RUNTIME='(bogus: 1)' is not a Zenoh runtime setting" in est.stderr

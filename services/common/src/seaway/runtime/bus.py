@@ -53,6 +53,12 @@ RAW_ENCODING = "zenoh/bytes"
 """Encoding of raw bytes published without one (Zenoh's default, so both transports report it)."""
 
 
+class RuntimeEnvError(ValueError):
+    """A bus that cannot open because ``$ZENOH_RUNTIME`` (Zenoh's thread pools, set by the user or,
+    for a lockstep stack, by the launcher: ``zenoh_bus.LOCKSTEP_RUNTIME``) is not something Zenoh
+    can read; the message says what it takes."""
+
+
 class RawSample(NamedTuple):
     """One sample as the transport delivered it: bytes unchanged, with their key and encoding."""
 

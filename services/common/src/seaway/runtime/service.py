@@ -38,7 +38,7 @@ from pathlib import Path
 from seaway.contract.config import ConfigError
 from seaway.runtime import refusals
 from seaway.runtime import run as runs
-from seaway.runtime.bus import Bus
+from seaway.runtime.bus import Bus, RuntimeEnvError
 from seaway.runtime.clock import Clock, WallClock
 from seaway.runtime.credentials import NONE, Credentials, CredentialsError
 
@@ -247,7 +247,7 @@ def run_service(name: str, args: argparse.Namespace, clock: Clock | None = None,
     try:
         bus = Bus.open(args.vessel, args.zenoh_config, identity=identity,
                        credentials=credentials_arg(getattr(args, "credentials", None)))
-    except CredentialsError as err:
+    except (CredentialsError, RuntimeEnvError) as err:
         log.error("%s", err)
         raise SystemExit(2) from None
     refusals.serve(bus, identity)

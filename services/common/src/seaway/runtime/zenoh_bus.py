@@ -30,7 +30,16 @@ import zenoh
 
 from seaway.runtime import credentials as creds
 from seaway.runtime import stacks
-from seaway.runtime.bus import JSON_ENCODING, RAW_ENCODING, Bus, Declared, RawPublisher, RawReply, RawSample
+from seaway.runtime.bus import (
+    JSON_ENCODING,
+    RAW_ENCODING,
+    Bus,
+    Declared,
+    RawPublisher,
+    RawReply,
+    RawSample,
+    RuntimeEnvError,
+)
 
 log = logging.getLogger("seaway.runtime.bus")
 
@@ -151,7 +160,20 @@ def _speaks_tls(conf: zenoh.Config) -> bool:
 
 def open_session(config_path: str | Path | None = None, identity: str | None = None,
                  credentials: creds.Credentials | str | None = None) -> zenoh.Session:
-    return close_at_exit(zenoh.open(load_zenoh_config(config_path, identity, credentials)))
+    config = load_zenoh_config(config_path, identity, credentials)
+    try:
+        session = zenoh.open(config)
+    except BaseException as err:
+        # Zenoh reads $ZENOH_RUNTIME when its first thread pool starts and panics on a bad value
+        # (pyo3's PanicException, not an Exception): say which variable and what it takes.
+        value = os.environ.get(ENV_RUNTIME)
+        if value is None or type(err).__name__ != "PanicException":
+            raise
+        raise RuntimeEnvError(
+            f"${ENV_RUNTIME}={value!r} is not a Zenoh runtime setting ({err}); it is RON with one "
+            f"entry per runtime (app, acc, tx, rx, net), e.g. {LOCKSTEP_RUNTIME!r}, what a "
+            f"lockstep stack gets by default; unset it for Zenoh's defaults") from None
+    return close_at_exit(session)
 
 
 # Strong references (a Session takes no weak one); closed sessions are dropped at each new open.

@@ -72,7 +72,7 @@ from seaway.contract.messages import (
 )
 from seaway.runtime import refusals
 from seaway.runtime import run as runs
-from seaway.runtime.bus import Bus, Every, Newest
+from seaway.runtime.bus import Bus, Every, Newest, RuntimeEnvError
 from seaway.runtime.credentials import ENV_CREDENTIALS, NONE, CredentialsError
 from seaway.runtime.service import (
     DEFAULT_VESSEL,
@@ -658,8 +658,12 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
     # The launcher holds the rendezvous port first: links refused there are counted here. It hears
     # the navigation state every period, so in lockstep it counts drops alone (refusals module).
     refusals.watch("launcher", full=not run.lockstep)
-    bus = Bus.open(vessels[0], env.get(ENV_CONFIG), identity="launcher",
-                   credentials=auth.credentials or NONE)
+    try:
+        bus = Bus.open(vessels[0], env.get(ENV_CONFIG), identity="launcher",
+                       credentials=auth.credentials or NONE)
+    except RuntimeEnvError as err:  # before any process started: nothing to stop
+        print(f"seaway launch: {err}", file=sys.stderr)
+        return 2
     refusals.serve(bus, "launcher")
     code = 0
     t0 = time.monotonic()
