@@ -55,8 +55,8 @@ RAW_ENCODING = "zenoh/bytes"
 
 class RuntimeEnvError(ValueError):
     """A bus that cannot open because ``$ZENOH_RUNTIME`` (Zenoh's thread pools, set by the user or,
-    for a lockstep stack, by the launcher: ``zenoh_bus.LOCKSTEP_RUNTIME``) is not something Zenoh
-    can read; the message says what it takes."""
+    in a lockstep run, by ``zenoh_bus.use_lockstep_runtime``) is not something Zenoh can read; the
+    message says what it takes."""
 
 
 class RawSample(NamedTuple):

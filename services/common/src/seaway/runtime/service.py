@@ -244,6 +244,10 @@ def run_service(name: str, args: argparse.Namespace, clock: Clock | None = None,
     # Before the session opens: it counts from Zenoh's log. In lockstep only the recorder, which
     # hears every publication, names each refusal (the cost: seaway.runtime.refusals).
     refusals.watch(identity, full=not run.lockstep or name == "recorder")
+    if run.lockstep:  # one Zenoh thread (zenoh_bus.LOCKSTEP_RUNTIME), before the session opens
+        from seaway.runtime.zenoh_bus import use_lockstep_runtime  # the loop itself needs no Zenoh
+
+        use_lockstep_runtime()
     try:
         bus = Bus.open(args.vessel, args.zenoh_config, identity=identity,
                        credentials=credentials_arg(getattr(args, "credentials", None)))

@@ -62,9 +62,16 @@ alternating pairs: 5-25 % less wall time in every pair (median 16 %), context sw
 period; ``seaway study table1`` 181 -> 161 s and 158 -> 133 s in two pairs.
 
 Safe only where no callback run on Zenoh's thread (``subscribe_raw(inline=True)``) waits for Zenoh
-itself: a lockstep member's intake answers and publishes, never waits for a reply. The launcher
-sets it for lockstep stacks (``seaway.tools.launch.main``) unless ``$ZENOH_RUNTIME`` is set; real
-time keeps Zenoh's defaults."""
+itself: a lockstep member's intake answers and publishes, never waits for a reply. Every process
+of a lockstep run takes it (``use_lockstep_runtime``: the services' shared loop and the launcher)
+unless ``$ZENOH_RUNTIME`` is set; real time keeps Zenoh's defaults."""
+
+
+def use_lockstep_runtime() -> None:
+    """This process's Zenoh on one thread (``LOCKSTEP_RUNTIME``), unless ``$ZENOH_RUNTIME`` says
+    otherwise; before its first session opens (Zenoh reads the variable once), and inherited by the
+    processes it starts."""
+    os.environ.setdefault(ENV_RUNTIME, LOCKSTEP_RUNTIME)
 
 
 def default_config_text() -> str:

@@ -80,7 +80,7 @@ from seaway.runtime.service import (
     dump_stacks_on_signal,
     on_stop_signals,
 )
-from seaway.runtime.zenoh_bus import ENV_CONFIG, ENV_RUNTIME, LOCKSTEP_RUNTIME
+from seaway.runtime.zenoh_bus import ENV_CONFIG, use_lockstep_runtime
 from seaway.simkit.scenario import load_scenario
 from seaway.tools.launch import address, authority
 from seaway.tools.launch.profile import Instance, Profile, instances, load_profile, substitute
@@ -621,6 +621,8 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
     """Start the stack, make the profile's requests, watch it until done; stop it."""
     vessels = list(runs_of)
     run = runs_of[vessels[0]]  # the run-wide facts, the same for every vessel of the launch
+    if run.lockstep:
+        use_lockstep_runtime()  # the launcher's own Zenoh, and so its processes' (zenoh_bus says why)
     env = dict(os.environ)
     env[ENV_VESSEL] = vessels[0]  # each process gets its own vessel's (Supervisor.spawn)
     # Every child is a process of this stack: the stack's credentials (or the explicit opt-out).
@@ -629,11 +631,6 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
     env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env.get('PATH', '')}"
     if profile.zenoh_config:
         env[ENV_CONFIG] = str(deploy_path("zenoh", profile.zenoh_config))
-    if run.lockstep:
-        # One Zenoh thread per process of a lockstep stack (zenoh_bus.LOCKSTEP_RUNTIME says why);
-        # the launcher's own too, before its session opens. A user's $ZENOH_RUNTIME wins.
-        env.setdefault(ENV_RUNTIME, LOCKSTEP_RUNTIME)
-        os.environ.setdefault(ENV_RUNTIME, env[ENV_RUNTIME])
     folders = {v: vessel_dir(run_dir, v, vessels) for v in vessels}
     mission_files: dict[str, Path | None] = dict.fromkeys(vessels)
     for v, folder in folders.items():
