@@ -13,8 +13,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from mcap.exceptions import McapError
-from mcap.reader import make_reader
+from mcap.reader import McapReader, make_reader
 from seaway.contract import keys
+from seaway.contract.keys import KeySpec
 from seaway.contract.messages import Message, MessageError
 
 from seaway_recorder.recover import RECOVER_METADATA, recover
@@ -202,37 +203,80 @@ class Decoded:
         return out
 
 
+def _wanted_topics(reader: McapReader, wanted: set[str] | None, vessels: set[str]) -> set[str] | None:
+    """The topics of a file worth reading (registered, typed, and of a ``wanted`` suffix when there
+    are some), noting in ``vessels`` the vessel of every registered topic with messages; None when
+    the file has no summary to tell (read everything)."""
+    summary = reader.get_summary()
+    if summary is None or summary.statistics is None or not summary.chunk_indexes:
+        return None
+    out: set[str] = set()
+    counts = summary.statistics.channel_message_counts
+    for cid, channel in summary.channels.items():
+        spec = keys.spec_for_key(channel.topic)
+        if spec is None or spec.message is None or not counts.get(cid):
+            continue
+        vessels.add(channel.topic.split("/", 2)[1])
+        if wanted is None or spec.suffix in wanted:
+            out.add(channel.topic)
+    return out
+
+
 def decode_vessel(files: list[Path], vessel: str | None = None,
                   suffixes: Iterable[str] | None = None) -> Decoded:
     """Decode the registered topics of one vessel (the only one, or the one named), all of them or
-    only those whose key ends in one of ``suffixes`` (``sim/truth``)."""
+    only those whose key ends in one of ``suffixes`` (``sim/truth``).
+
+    Each file is read in file order and only for the topics wanted (the chunks' index says where
+    they are), then each key's messages are put in log-time order: a stable sort, so messages logged
+    at the same time stay in file order, and a rotated series in name order, as a merge of the
+    files in log-time order gives (``iter_messages``). The merge of every topic was most of a report's
+    time: about 1.2 s of CPU for a 3,331-period run, 0.7 s of it the reader's ordering heap."""
     out = Decoded()
     wanted = None if suffixes is None else set(suffixes)
-    seen: set[tuple[str, int]] = set()
-    for m in iter_messages(files):
-        spec = keys.spec_for_key(m.topic)
-        if spec is None or spec.message is None:
-            continue
-        if wanted is not None and spec.suffix not in wanted:
-            out.vessels.add(m.topic.split("/", 2)[1])
-            continue
-        v = m.topic.split("/", 2)[1]
-        out.vessels.add(v)
-        if vessel is not None and v != vessel:
-            continue
-        if len(files) > 1:
-            ident = (m.topic, hash(m.data))
-            if ident in seen:
-                out.duplicates += 1
+    # suffix -> [(log time, topic, bytes)] in file order, files in name order
+    raw: dict[str, list[tuple[int, str, bytes]]] = {}
+    specs: dict[str, KeySpec | None] = {}
+    for path in files:
+        with open(path, "rb") as fh:
+            reader = make_reader(fh)
+            topics = _wanted_topics(reader, wanted, out.vessels)
+            if topics is not None and not topics:
                 continue
-            seen.add(ident)
-        try:
-            msg = spec.message.decode(m.data)
-        except MessageError:
-            out.undecodable += 1
-            continue
-        out.by_suffix.setdefault(spec.suffix, []).append(msg)
-        out.log_ns.setdefault(spec.suffix, []).append(m.log_time_ns)
+            for _schema, channel, msg in reader.iter_messages(topics=topics, log_time_order=False):
+                topic = channel.topic
+                if topic not in specs:
+                    specs[topic] = keys.spec_for_key(topic)
+                spec = specs[topic]
+                if spec is None or spec.message is None:
+                    continue
+                v = topic.split("/", 2)[1]
+                out.vessels.add(v)
+                if (wanted is not None and spec.suffix not in wanted) or (vessel is not None and v != vessel):
+                    continue
+                raw.setdefault(spec.suffix, []).append((msg.log_time, topic, bytes(msg.data)))
+    seen: set[tuple[str, int]] = set()
+    for suffix, items in raw.items():
+        items.sort(key=lambda item: item[0])  # stable: ties keep file order
+        message = specs[items[0][1]].message  # type: ignore[union-attr]  # one suffix, one type
+        msgs: list[Message] = []
+        logs: list[int] = []
+        for log_ns, topic, data in items:
+            if len(files) > 1:
+                ident = (topic, hash(data))
+                if ident in seen:
+                    out.duplicates += 1
+                    continue
+                seen.add(ident)
+            try:
+                msgs.append(message.decode(data))
+            except MessageError:
+                out.undecodable += 1
+                continue
+            logs.append(log_ns)
+        if msgs:
+            out.by_suffix[suffix] = msgs
+            out.log_ns[suffix] = logs
     if vessel is None and len(out.vessels) > 1:
         raise ValueError(f"the recording has several vessels ({', '.join(sorted(out.vessels))}): "
                          "choose one with --vessel")

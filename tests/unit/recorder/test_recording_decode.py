@@ -1,0 +1,108 @@
+"""``recording.decode_vessel`` reads each file in file order, only for the topics it wants, and sorts
+each key by log time afterwards; it must give exactly what decoding the merge of every message in
+log-time order (``recording.iter_messages``, the reader's ordering heap) gives: the same messages in
+the same order, ties in file order and a series in name order, repeats across files read once."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from mcap.writer import Writer
+from seaway.contract import keys
+from seaway.contract.messages import MessageError, NavOrigin
+from seaway_recorder import recording
+
+ORIGIN = keys.NAV_ORIGIN
+
+
+def origin(stamp_ns: int, lat_rad: float) -> bytes:
+    return NavOrigin(stamp_ns=stamp_ns, lat_rad=lat_rad, lon_rad=0.1, alt_m=0.0).encode()
+
+
+def write(path: Path, records: list[tuple[str, int, bytes]], chunk_size: int = 300) -> None:
+    """An MCAP file of ``(topic, log time, bytes)`` in this order (small chunks: many of them)."""
+    with open(path, "wb") as fh:
+        w = Writer(fh, chunk_size=chunk_size)
+        w.start()
+        schema = w.register_schema("seaway.v1.NavOrigin", "jsonschema", b"{}")
+        channels: dict[str, int] = {}
+        for seq, (topic, log_ns, data) in enumerate(records):
+            if topic not in channels:
+                channels[topic] = w.register_channel(topic, "json", schema)
+            w.add_message(channels[topic], log_time=log_ns, data=data, publish_time=log_ns,
+                          sequence=seq)
+        w.finish()
+
+
+def reference(files: list[Path], vessel: str | None, suffixes: list[str] | None):
+    """What decoding the log-time merge of every message gives (the ordering heap)."""
+    by: dict[str, list[tuple[int, bytes]]] = {}
+    seen, dups, bad, vessels = set(), 0, 0, set()
+    for m in recording.iter_messages(files):
+        spec = keys.spec_for_key(m.topic)
+        if spec is None or spec.message is None:
+            continue
+        v = m.topic.split("/", 2)[1]
+        vessels.add(v)
+        if (suffixes is not None and spec.suffix not in suffixes) or (vessel and v != vessel):
+            continue
+        if len(files) > 1:
+            if (m.topic, m.data) in seen:
+                dups += 1
+                continue
+            seen.add((m.topic, m.data))
+        try:
+            spec.message.decode(m.data)
+        except MessageError:
+            bad += 1
+            continue
+        by.setdefault(spec.suffix, []).append((m.log_time_ns, m.data))
+    return by, dups, bad, vessels
+
+
+@pytest.fixture
+def series(tmp_path: Path) -> list[Path]:
+    """Two files of a series: messages out of log-time order within a file, equal log times (not in
+    the order of their bytes), a repeat of the first file's last period in the second, a message that
+    does not decode, another vessel, an unregistered topic and a Foxglove one."""
+    a, b = ORIGIN.key("vessel1"), ORIGIN.key("vessel2")
+    first = [(a, 50, origin(5, 0.5)), (a, 10, origin(1, 0.1)), (a, 30, origin(3, 0.35)),
+             (a, 30, origin(3, 0.31)), (b, 20, origin(2, 0.2)), ("foxglove/vessel1/x", 5, b"{}"),
+             ("other/topic", 1, b"?"), (a, 40, b'{"not": "an origin"}'), (a, 70, origin(7, 0.7))]
+    second = [(a, 70, origin(7, 0.7)), (a, 60, origin(6, 0.6)), (a, 30, origin(3, 0.33)),
+              (a, 90, origin(9, 0.9)), (keys.SIM_CLOCK.key("vessel1"), 80, b'{"broken"')]
+    paths = [tmp_path / "recording.mcap", tmp_path / "recording.restart-001.mcap"]
+    write(paths[0], first)
+    write(paths[1], second)
+    return paths
+
+
+@pytest.mark.parametrize("vessel", ["vessel1", "vessel2"])
+@pytest.mark.parametrize("suffixes", [None, [ORIGIN.suffix], [keys.SIM_TRUTH.suffix]])
+@pytest.mark.parametrize("n_files", [1, 2])
+def test_decode_equals_the_log_time_merge(series: list[Path], vessel: str, suffixes,
+                                          n_files: int) -> None:
+    files = series[:n_files]
+    dec = recording.decode_vessel(files, vessel, suffixes)
+    by, dups, bad, vessels = reference(files, vessel, suffixes)
+    got = {s: list(zip(dec.log_ns[s], [m.encode() for m in msgs], strict=True))
+           for s, msgs in dec.by_suffix.items()}
+    want = {s: [(t, NavOrigin.decode(d).encode() if s == ORIGIN.suffix else d) for t, d in items]
+            for s, items in by.items()}
+    assert got == want
+    assert (dec.duplicates, dec.undecodable, dec.vessels) == (dups, bad, vessels)
+
+
+def test_the_order_is_by_log_time_then_file_order(series: list[Path]) -> None:
+    dec = recording.decode_vessel(series, "vessel1", [ORIGIN.suffix])
+    lat = [round(m.lat_rad, 2) for m in dec.get(ORIGIN.suffix)]
+    # 30 ns three times: the first file's two in its order, then the second file's; 70 ns once.
+    assert lat == [0.1, 0.35, 0.31, 0.33, 0.5, 0.6, 0.7, 0.9]
+    assert dec.log_ns[ORIGIN.suffix] == [10, 30, 30, 30, 50, 60, 70, 90]
+    assert (dec.duplicates, dec.undecodable) == (1, 1)  # the repeat; the non-origin (the clock: not read)
+
+
+def test_several_vessels_without_one_named_is_an_error(series: list[Path]) -> None:
+    with pytest.raises(ValueError, match=r"several vessels \(vessel1, vessel2\)"):
+        recording.decode_vessel(series, None, [ORIGIN.suffix])
