@@ -256,7 +256,8 @@ def decode_vessel(files: list[Path], vessel: str | None = None,
                     continue
                 raw.setdefault(spec.suffix, []).append((msg.log_time, topic, bytes(msg.data)))
     seen: set[tuple[str, int]] = set()
-    for suffix, items in raw.items():
+    for suffix in list(raw):
+        items = raw.pop(suffix)  # its bytes freed once decoded: one key's at a time held twice
         items.sort(key=lambda item: item[0])  # stable: ties keep file order
         message = specs[items[0][1]].message  # type: ignore[union-attr]  # one suffix, one type
         msgs: list[Message] = []
