@@ -278,6 +278,40 @@ def test_two_missions_back_to_back_in_one_stack_equal_two_fresh_stacks(tmp_path,
     assert restarted and "(stalled" not in after, sim_log[-2000:]
 
 
+def test_a_mission_taken_while_the_recorder_restarts_is_recorded_whole(tmp_path) -> None:
+    """Between two missions the controller holds; a mission taken then answers the held period
+    again, and the sim moves on. A recorder killed there came back without that answer: the
+    second mission's acceptance and its first status were not in the recording (each member
+    resent only its previous period's last bundle; now every bundle of its last three periods,
+    ``lockstep.KEPT_PERIODS``). The repeat of those bundles from Zenoh's thread also must not
+    stall the member (``zenoh_bus.LOCKSTEP_TX_QUEUE``): before, the member stopped there."""
+    stack = Stack(tmp_path / "run", "--stay")
+    done = lambda: (s := stack.status.latest()) is not None and s.state == "complete"  # noqa: E731
+    stack.wait(done, 120, "the first mission complete")
+    stack.kill("recorder")
+    mission = load_scenario(SCENARIO).mission.to_request(0, mission_id="second",
+                                                         controller=CONTROLLER)
+    reply = stack.bus.request(keys.MISSION_SET, mission, 10.0)
+    assert reply.accepted, reply.reason
+
+    def second_done() -> bool:
+        s: MissionStatus | None = stack.status.latest()
+        return s is not None and s.mission_id == "second" and s.state == "complete"
+    stack.wait(second_done, 120, "the second mission complete")
+    stack.stop()
+    files = recording.open_paths([stack.run_dir])
+    assert len(files) == 2  # the file it left, a new one
+    dec = recording.decode_vessel(files, None, [keys.MISSION_ACCEPTED.suffix,
+                                                keys.MISSION_STATUS.suffix])
+    assert [m.mission_id for m in dec.get(keys.MISSION_ACCEPTED.suffix)] == [SCENARIO, "second"]
+    statuses = [m for m in dec.get(keys.MISSION_STATUS.suffix) if isinstance(m, MissionStatus)]
+    held_at = max(m.stamp_ns for m in statuses if m.mission_id == SCENARIO)
+    second = sorted({m.stamp_ns for m in statuses if m.mission_id == "second"})
+    assert second[0] == held_at  # from the held period it was taken at, every period
+    assert second == list(range(held_at, second[-1] + 1, PERIOD_NS))
+    assert_no_hole(truth_episodes(stack.run_dir)[0])
+
+
 @pytest.mark.slow  # about 28 s; test_hangs_and_stops finds hung processes by default
 def test_a_member_stopped_mid_mission_is_found_hung_and_restarted(tmp_path, undisturbed) -> None:
     """SIGSTOP (a hung process, not a dead one): its exit never comes, and its health token stays

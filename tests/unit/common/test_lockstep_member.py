@@ -11,7 +11,7 @@ from pathlib import Path
 from seaway.contract import bundle, keys
 from seaway.contract.messages import PeriodDone, ThrustCommand
 from seaway.runtime import timeline
-from seaway.runtime.lockstep import Member, Period
+from seaway.runtime.lockstep import KEPT_BUNDLES, KEPT_PERIODS, Member, Period
 from seaway.runtime.memory_bus import MemoryHub
 
 P = 100_000_000
@@ -112,6 +112,51 @@ def test_a_repeat_sends_the_previous_bundle_again_for_a_recorder_and_only_a_reco
     assert got == [0, P, P]  # the sim took the repeat, not the copy
     assert [c.stamp_ns for c in commands.drain()] == [P]
     assert sim.ledger.answers["controller"].stamp_ns == P
+
+
+def test_a_repeat_sends_every_bundle_a_recorder_can_lack_once_more() -> None:
+    """A held period is answered again for a mission taken there: a recorder killed after covering
+    the first answer lacked the mission's acceptance, and the sim went on two periods without it
+    (it may trail by ``RECORDER_LAG``). A repeat sends every bundle of the last ``KEPT_PERIODS``
+    periods again, in the order sent, marked ``resent``, then the last one; older ones are gone."""
+    hub = MemoryHub()
+    raw: list[bytes] = []
+    hub.bus(V).subscribe_raw(keys.LOCKSTEP_CONTROLLER.key(V), lambda s: raw.append(s.payload))
+    ctl = Member(hub.bus(V), "controller", watched=(), subscribe=False)
+    ctl.answer(Period(0, 0), P, [(keys.THRUST, cmd(0))])
+    ctl.answer(Period(0, P), P, hold=True)  # nothing to fly
+    news = ThrustCommand.make(stamp_ns=P, thrust_port_n=0.0, thrust_starboard_n=0.0, seq=2)
+    ctl.answer(Period(0, P), P, [(keys.THRUST, news)], hold=True)  # again: a mission taken there
+    for k in (1, 2, 3):
+        ctl.answer(Period(0, k * P), P, [(keys.THRUST, cmd(k * P))])
+    assert KEPT_PERIODS == 3
+    raw.clear()
+    ctl.repeat()
+    sent = [(PeriodDone.decode(a), lines) for a, lines in map(bundle.split, raw)]
+    assert [(a.stamp_ns // P, a.hold, a.resent) for a, _ in sent] == [
+        (1, True, True), (1, True, True), (1, False, True), (2, False, True), (3, False, False)]
+    assert [lines for _, lines in sent[:3]] == [[], [("ctrl/thrust", news.encode())],
+                                                [("ctrl/thrust", cmd(P).encode())]]
+    assert ctl.last_answer is not None and not ctl.last_answer.resent
+    # The repeat stands for the last one: the next repeat sends the same five, no copy of a copy.
+    raw.clear()
+    ctl.repeat()
+    assert len(raw) == 5
+
+
+def test_a_member_keeps_no_more_than_kept_bundles() -> None:
+    hub = MemoryHub()
+    raw: list[bytes] = []
+    hub.bus(V).subscribe_raw(keys.LOCKSTEP_CONTROLLER.key(V), lambda s: raw.append(s.payload))
+    ctl = Member(hub.bus(V), "controller", watched=(), subscribe=False)
+    for seq in range(KEPT_BUNDLES + 5):  # a held period answered again and again
+        ctl.answer(Period(0, P), P, [(keys.THRUST, ThrustCommand.make(
+            stamp_ns=P, thrust_port_n=0.0, thrust_starboard_n=0.0, seq=seq + 1))], hold=True)
+    raw.clear()
+    ctl.repeat()
+    # The newest ones, the oldest dropped: a repeat fits a link's queue (zenoh_bus.LOCKSTEP_TX_QUEUE).
+    seqs = [ThrustCommand.decode(bundle.split(p)[1][0][1]).seq for p in raw]
+    assert seqs == list(range(6, KEPT_BUNDLES + 6))
 
 
 def test_the_estimators_first_answer_of_an_episode_before_the_sims_moves_the_controller_on() -> None:

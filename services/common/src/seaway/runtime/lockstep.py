@@ -19,9 +19,10 @@ THE PROTOCOL
   controller with a command the sim holds (an answer with ``hold`` means "nothing to fly": no step
   until another answer), and publishes t_{k+1} once the recorder has answered t_{k-1} or later:
   the recorder may trail by one period (``RECORDER_LAG``), so its writing overlaps the next
-  period's work instead of adding a hand-over to every period. Every member keeps its previous
-  bundle and, before it repeats its last one, sends it again (``resent``; only a recorder takes
-  it), so a restarted recorder gets the two periods it can have missed.
+  period's work instead of adding a hand-over to every period. Every member keeps what it sent
+  for its last three periods (``KEPT_PERIODS``: a held period can be answered several times) and,
+  before it repeats its last bundle, sends the others again (``resent``; only a recorder takes
+  them), so a restarted recorder gets everything it can have missed.
 * The estimator answers t_k once it has the sim's answer and the thrust command the sim applied
   (``consumed``, from the controller's bundle of the period before); the controller once it has the
   estimator's answer; the recorder once every member's latest answer for t_k, with what it carries,
@@ -68,12 +69,25 @@ log = logging.getLogger("seaway.lockstep")
 
 RECORDER_LAG = 1
 """Periods the recorder's answers may trail the sim's: the sim publishes t_{k+1} once the recorder
-has answered t_{k-1} (the members keep one bundle more, to send again for a restarted recorder)."""
+has answered t_{k-1} (the members keep their bundles of a period more, ``KEPT_PERIODS``)."""
 RECORDER = "recorder"
 """The member that covers the others' answers (``PeriodDone.covers``) once they are on disk; it only
 writes, so no request waits for it."""
 MEMBERS = tuple(s for s in LOCKSTEP_SERVICES if s != "sim")
 """The services the sim waits for, once their member token has appeared."""
+KEPT_PERIODS = RECORDER_LAG + 2
+"""The periods whose bundles a member keeps, to send again for a restarted recorder (``repeat``).
+
+The sim publishes t_{k+1} once the recorder's latest answer is for t_{k-1} or later. A recorder that
+dies right after answering t_r can have missed answers given to t_r after its own: a member answers
+a period again where it held (the controller taking a mission at a held period). The sim can
+still publish t_{r+1} and t_{r+2}, and no more. So what the recorder may lack lies in the last
+three periods a member answered."""
+KEPT_BUNDLES = 12
+"""Bundles a member keeps in all: one a period while time flows; a held period is answered again
+for each mission request the controller takes there. A repeat sends them all at once, often from
+Zenoh's thread, where each express put holds a batch of the link's queue until the callback returns:
+they and two answers more must fit in ``zenoh_bus.LOCKSTEP_TX_QUEUE``."""
 PASSIVE_RING = 256
 """Bundles a passive source holds until they are taken (``Member``): a source sends one a period."""
 PASSIVE_POLL_S = 0.0005
@@ -292,8 +306,9 @@ class Member:
         self._seq = itertools.count(time.time_ns() if seq_start is None else seq_start)
         self._key = keys.lockstep_spec(service).key(bus.vessel)
         self._pub = bus.raw_publisher(self._key, bundle.ENCODING, block=True, express=True)
-        self._last: tuple[list[tuple[str, bytes]], PeriodDone] | None = None
-        self._prev: tuple[list[tuple[str, bytes]], PeriodDone] | None = None  # the one before
+        self._kept: list[tuple[list[tuple[str, bytes]], PeriodDone]] = []
+        """(lines, answer) of every bundle sent for the last ``KEPT_PERIODS`` periods answered, in
+        the order sent: what a restarted recorder may lack (``repeat``)."""
         self.on_restart: Callable[[Period | None, Period], None] | None = None
         self.on_ready: Callable[[], None] | None = None
         """A service that answers on the bus's thread: called there after each bundle taken from
@@ -514,12 +529,27 @@ class Member:
         self._put(done, lines)
         return done
 
-    def _put(self, done: PeriodDone, lines: list[tuple[str, bytes]]) -> None:
+    def _put(self, done: PeriodDone, lines: list[tuple[str, bytes]], again: bool = False) -> None:
         self._pub.put(bundle.encode(done.encode(), lines))
         self.bus.stats.published += 1 + len(lines)
-        if self._last is not None and Period.of(self._last[1]) != Period.of(done):
-            self._prev = self._last
-        self._last = (lines, done)
+        self._keep(done, lines, again)
+
+    def _keep(self, done: PeriodDone, lines: list[tuple[str, bytes]], again: bool) -> None:
+        """Keep a bundle sent (``again``: a repeat of the last, which it stands for from now)."""
+        kept = self._kept
+        if again and kept:
+            kept[-1] = (lines, done)
+            return
+        period = Period.of(done)
+        if kept and Period.of(kept[-1][1]) != period:
+            periods = list(dict.fromkeys(Period.of(d) for _, d in kept))[-(KEPT_PERIODS - 1):]
+            kept[:] = [k for k in kept if Period.of(k[1]) in periods]
+        kept.append((lines, done))
+        if len(kept) > KEPT_BUNDLES:
+            del kept[0]
+            self.ratelog.warning(("kept", self.service), "%s sent more than %d bundles in %d "
+                                 "periods: a recorder restarted now would miss the oldest",
+                                 self.service, KEPT_BUNDLES, KEPT_PERIODS)
 
     def working(self, period: Period) -> None:
         """The service's loop starts on ``period`` (``seaway.runtime.timeline``)."""
@@ -527,23 +557,24 @@ class Member:
 
     def repeat(self, members: Sequence[str] | None = None) -> PeriodDone | None:
         """Publish the last bundle again (same messages, new ``seq``), for a newcomer; the sim's
-        names the members it now waits for. The previous one goes first, marked ``resent``, for a
-        recorder that (re)joined: it may not have it (``RECORDER_LAG``)."""
-        last = self._last
-        if last is None:
+        names the members it now waits for. Every bundle kept before it goes first, in the order
+        sent, marked ``resent``, for a recorder that (re)joined: it may not have them
+        (``KEPT_PERIODS``); the others pass them over."""
+        if not self._kept:
             return None
-        lines, done = last
-        prev = self._prev
-        # Only a period before this one (``_put`` keeps a previous bundle of another period): after
-        # a sim restart (episode 0 again) it can be the dead sim's last period, stamped later.
-        if prev is not None and Period.of(prev[1]).leads_to(Period.of(done)):
-            again_prev = prev[1].model_copy(update={"seq": next(self._seq), "resent": True})
-            self._pub.put(bundle.encode(again_prev.encode(), prev[0]))
+        lines, done = self._kept[-1]
+        last = Period.of(done)
+        for old_lines, old in self._kept[:-1]:
+            # Only what led to this period: after a sim restart (episode 0 again) a kept bundle can
+            # be of the dead sim's later periods, which a recorder would write in the new time.
+            if Period.of(old).leads_to(last):
+                copy = old.model_copy(update={"seq": next(self._seq), "resent": True})
+                self._pub.put(bundle.encode(copy.encode(), old_lines))
         update: dict[str, Any] = {"seq": next(self._seq)}
         if members is not None:
             update["members"] = list(members)
         again = done.model_copy(update=update)
-        self._put(again, lines)
+        self._put(again, lines, again=True)
         self.repeats += 1
         return again
 
@@ -554,4 +585,4 @@ class Member:
 
     @property
     def last_answer(self) -> PeriodDone | None:
-        return self._last[1] if self._last is not None else None
+        return self._kept[-1][1] if self._kept else None

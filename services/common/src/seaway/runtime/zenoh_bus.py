@@ -62,9 +62,21 @@ alternating pairs: 5-25 % less wall time in every pair (median 16 %), context sw
 period; ``seaway study table1`` 181 -> 161 s and 158 -> 133 s in two pairs.
 
 Safe only where no callback run on Zenoh's thread (``subscribe_raw(inline=True)``) waits for Zenoh
-itself: a lockstep member's intake answers and publishes, never waits for a reply. Every process
+itself: a lockstep member's intake answers and publishes, never waits for a reply, and publishes no
+more express samples than a link's queue holds (``LOCKSTEP_TX_QUEUE``). Every process
 of a lockstep run takes it (``use_lockstep_runtime``: the services' shared loop and the launcher)
 unless ``$ZENOH_RUNTIME`` is set; real time keeps Zenoh's defaults."""
+
+
+LOCKSTEP_TX_QUEUE = 16
+"""Batches a link may queue for the data priority (``transport/link/tx/queue/size/data``; Zenoh's
+maximum, its default 2) in a session on the one-thread runtime (``LOCKSTEP_RUNTIME``).
+
+Why: on one thread nothing is sent while a callback runs on it, and each express put takes a batch
+of every link's queue until the callback returns. With the default 2, the third put of a callback
+waited for ever: a lockstep member repeating three bundles for a restarted recorder stopped, its
+health token lapsed and the stack stalled (measured: 2 puts returned, 3 never). A member's repeat
+sends at most ``lockstep.KEPT_BUNDLES``, plus its answer."""
 
 
 def use_lockstep_runtime() -> None:
@@ -168,6 +180,8 @@ def _speaks_tls(conf: zenoh.Config) -> bool:
 def open_session(config_path: str | Path | None = None, identity: str | None = None,
                  credentials: creds.Credentials | str | None = None) -> zenoh.Session:
     config = load_zenoh_config(config_path, identity, credentials)
+    if os.environ.get(ENV_RUNTIME) == LOCKSTEP_RUNTIME:
+        config.insert_json5("transport/link/tx/queue/size/data", str(LOCKSTEP_TX_QUEUE))
     try:
         session = zenoh.open(config)
     except BaseException as err:
