@@ -21,6 +21,8 @@ with a forging insider ends with the undisturbed run's energy.
 from __future__ import annotations
 
 import json
+import os
+import signal
 import subprocess
 import sys
 import threading
@@ -290,3 +292,37 @@ def test_two_stacks_on_one_machine_never_mix(procs, zenoh_env, tmp_path, monkeyp
     for name, (_, scenario) in runs.items():
         ids = _mission_ids(tmp_path / name)
         assert ids <= {scenario, "(idle)"} and scenario in ids, (name, ids)  # none of the other stack
+
+
+def test_two_stacks_whose_run_folders_share_a_name_keep_their_own_credentials(procs, zenoh_env,
+                                                                              tmp_path, monkeypatch):
+    """Two studies at once run stacks whose run folders have the same names. Their launchers made
+    their credentials in one folder of the stacks registry, named after the run, and the first to
+    stop removed it: the other's next restarted process could not open its session ("credentials
+    folder ... does not exist", ten times, then failed). Each launch's files now carry its pid."""
+    from tests.conftest import free_port
+
+    env = _stack_env(zenoh_env, monkeypatch)
+    launch = [sys.executable, "-m", "seaway.tools.cli", "launch", "sim-batch", "--scenario",
+              "paper-c1", "--controller", "nmpc"]
+    env_b = dict(env, SEAWAY_ZENOH_RENDEZVOUS=f"tcp/127.0.0.1:{free_port()}")
+    b = procs.start([*launch, "--stay", "--run-dir", str(tmp_path / "b" / "run")], env_b, "launcher-b")
+    entry = wait_for(lambda: stacks.lookup(env_b["SEAWAY_ZENOH_RENDEZVOUS"]), 60,
+                     what="stack b registered")
+    a = procs.start([*launch, "--run-dir", str(tmp_path / "a" / "run")],
+                    dict(env, SEAWAY_ZENOH_RENDEZVOUS=f"tcp/127.0.0.1:{free_port()}"), "launcher-a")
+    a.wait(180)
+    assert a.returncode == 0, procs.log(a)
+    assert Path(entry.credentials).is_dir(), "stack a's stop removed stack b's credentials"
+    # b's recorder killed: the launcher restarts it, with b's credentials.
+    log = tmp_path / "b" / "run" / "logs" / "recorder.log"
+    pid = int(subprocess.run(["pgrep", "-f", f"seaway-recorder .*{tmp_path / 'b' / 'run'}"],
+                             capture_output=True, text=True, check=True).stdout.split()[0])
+    os.kill(pid, signal.SIGKILL)
+    wait_for(lambda: log.read_text().count("recorder ready on vessel") == 2, 60,
+             what="b's recorder restarted and ready")
+    assert "does not exist" not in log.read_text()
+    b.send_signal(signal.SIGINT)
+    b.wait(60)
+    assert b.returncode == 0, procs.log(b)
+    assert not Path(entry.credentials).exists()  # removed by its own launcher

@@ -52,7 +52,8 @@ def _path(rendezvous: str) -> Path:
     return stacks_dir() / (re.sub(r"[^A-Za-z0-9.]+", "-", rendezvous).strip("-") + ".json")
 
 
-def _alive(pid: int) -> bool:
+def alive(pid: int) -> bool:
+    """Whether process ``pid`` exists (someone else's counts)."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
@@ -69,7 +70,7 @@ def lookup(rendezvous: str) -> StackEntry | None:
         entry = StackEntry(**json.loads(p.read_text()))
     except (OSError, ValueError, TypeError):
         return None
-    if not _alive(entry.pid):
+    if not alive(entry.pid):
         p.unlink(missing_ok=True)
         return None
     return entry

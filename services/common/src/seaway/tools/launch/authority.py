@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import shutil
 import socket
 from dataclasses import dataclass, field
@@ -53,10 +54,37 @@ class Authority:
             self.mavlink_key = None
 
 
+def private_name(run_name: str) -> str:
+    """The name of this launch's files in the private stacks folder: the run's name and the
+    launcher's pid. Why the pid: two stacks whose run folders share a name (two studies at once,
+    ``--run-dir a/run`` and ``--run-dir b/run``) made their credentials in one folder, and the first
+    to stop removed it: the other's next restarted process could not open its session."""
+    return f"{run_name}.{os.getpid()}"
+
+
+_PRIVATE = re.compile(r"\.(\d+)\.(credentials|mavlink\.key)$")
+
+
+def remove_stale() -> list[Path]:
+    """Remove what launchers that are gone (killed: no ``release``) left in the stacks folder;
+    the paths removed."""
+    gone = []
+    folder = stacks.stacks_dir()
+    for p in folder.iterdir() if folder.is_dir() else ():
+        m = _PRIVATE.search(p.name)
+        if m and int(m.group(1)) != os.getpid() and not stacks.alive(int(m.group(1))):
+            if p.is_dir():
+                shutil.rmtree(p, ignore_errors=True)
+            else:
+                p.unlink(missing_ok=True)
+            gone.append(p)
+    return gone
+
+
 def mavlink_key_path(run_name: str) -> Path:
     """Where this run's MAVLink signing key is (``{mavlink_key}`` in a profile's commands): a new
     random key per run, in the private stacks folder, removed when the launcher exits."""
-    return stacks.stacks_dir() / f"{run_name}.mavlink.key"
+    return stacks.stacks_dir() / f"{private_name(run_name)}.mavlink.key"
 
 
 def credentials_for(profile: Profile, run_name: str) -> Authority:
@@ -64,7 +92,7 @@ def credentials_for(profile: Profile, run_name: str) -> Authority:
     auth = _zenoh_credentials(profile, run_name)
     key = mavlink_key_path(run_name)
     key.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
-    key.unlink(missing_ok=True)  # a leftover of a killed launcher with the same run name
+    remove_stale()
     mavlink_signing.write_key(key)
     auth.mavlink_key = key
     return auth
@@ -86,7 +114,7 @@ def _zenoh_credentials(profile: Profile, run_name: str) -> Authority:
             f"credentials in ${creds.ENV_CREDENTIALS} (one command makes both sides': `seaway "
             f"credentials create DIR --deployment --boat-host <boat address>`, then "
             f"{creds.ENV_CREDENTIALS}=DIR/{profile.side}; docs/deployment.md)")
-    folder = stacks.stacks_dir() / f"{run_name}.credentials"
+    folder = stacks.stacks_dir() / f"{private_name(run_name)}.credentials"
     made = creds.create(folder, producers=profile.producers())
     return Authority(made, rendezvous, owned_folder=folder,
                      notes=[f"credentials: a new authority for this run ({folder})"])
