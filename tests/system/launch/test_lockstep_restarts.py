@@ -104,6 +104,19 @@ class Stack:
     def launch_log(self) -> str:
         return (self.run_dir.parent / f"{self.run_dir.name}-launch.log").read_text()
 
+    def fly(self, mission_id: str) -> None:
+        """The scenario's mission again, as ``mission_id``, sent at once (as a user would), and
+        flown to its end."""
+        mission = load_scenario(SCENARIO).mission.to_request(0, mission_id=mission_id,
+                                                             controller=CONTROLLER)
+        reply = self.bus.request(keys.MISSION_SET, mission, 10.0)
+        assert reply.accepted, reply.reason
+
+        def complete() -> bool:
+            s: MissionStatus | None = self.status.latest()
+            return s is not None and s.mission_id == mission_id and s.state == "complete"
+        self.wait(complete, 120, f"mission {mission_id} complete")
+
     def pid_of(self, service: str) -> int:
         out = subprocess.run(["pgrep", "-f", f"seaway-{service} .*{self.run_dir}"],
                              capture_output=True, text=True, check=False).stdout.split()
@@ -247,14 +260,7 @@ def test_two_missions_back_to_back_in_one_stack_equal_two_fresh_stacks(tmp_path,
     # the old episode's held period, and its acceptance, stamped there, was recorded in the new
     # episode's time: 1 run in 9 reported the second mission as starting at its end.
     sc = load_scenario(SCENARIO)
-    mission = sc.mission.to_request(0, mission_id="second", controller=CONTROLLER)
-    reply = stack.bus.request(keys.MISSION_SET, mission, 10.0)
-    assert reply.accepted, reply.reason
-
-    def second_done() -> bool:
-        s: MissionStatus | None = stack.status.latest()
-        return s is not None and s.mission_id == "second" and s.state == "complete"
-    stack.wait(second_done, 120, "the second mission complete")
+    stack.fly("second")
     stack.stop()
     first, second = report(stack.run_dir, episode=0), report(stack.run_dir, episode=1)
     assert first["episodes"]["count"] == 2
@@ -289,15 +295,7 @@ def test_a_mission_taken_while_the_recorder_restarts_is_recorded_whole(tmp_path)
     done = lambda: (s := stack.status.latest()) is not None and s.state == "complete"  # noqa: E731
     stack.wait(done, 120, "the first mission complete")
     stack.kill("recorder")
-    mission = load_scenario(SCENARIO).mission.to_request(0, mission_id="second",
-                                                         controller=CONTROLLER)
-    reply = stack.bus.request(keys.MISSION_SET, mission, 10.0)
-    assert reply.accepted, reply.reason
-
-    def second_done() -> bool:
-        s: MissionStatus | None = stack.status.latest()
-        return s is not None and s.mission_id == "second" and s.state == "complete"
-    stack.wait(second_done, 120, "the second mission complete")
+    stack.fly("second")
     stack.stop()
     files = recording.open_paths([stack.run_dir])
     assert len(files) == 2  # the file it left, a new one
