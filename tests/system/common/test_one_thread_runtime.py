@@ -21,7 +21,7 @@ from seaway.runtime.zenoh_bus import ENV_RUNTIME, LOCKSTEP_RUNTIME, LOCKSTEP_TX_
 from tests.conftest import wait_for
 
 pytestmark = pytest.mark.system
-PUTS = KEPT_BUNDLES + 2  # a repeat's kept bundles, the last one again, and an answer
+PUTS = 2 * KEPT_BUNDLES + 2  # two repeats' kept bundles (one intake can take both), two answers
 TRIGGER, OUT = "seaway/vessel1/test/trigger", "seaway/vessel1/test/out"
 
 # The member side, as ``lockstep.Member`` publishes: an express, blocking publisher, and the puts

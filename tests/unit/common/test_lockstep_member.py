@@ -159,6 +159,23 @@ def test_a_member_keeps_no_more_than_kept_bundles() -> None:
     assert seqs == list(range(6, KEPT_BUNDLES + 6))
 
 
+def test_after_a_sim_restart_nothing_of_the_dead_sims_time_is_sent_again() -> None:
+    """The sim died at t_1 and started again at t_0 of the same episode number: the member's t_0
+    of the dead run is stamped as the new t_0 (``leads_to`` cannot tell them apart), so a restart
+    forgets every bundle kept; a repeat then sends the new answer alone."""
+    hub = MemoryHub()
+    raw: list[bytes] = []
+    hub.bus(V).subscribe_raw(keys.LOCKSTEP_CONTROLLER.key(V), lambda s: raw.append(s.payload))
+    ctl = Member(hub.bus(V), "controller", watched=(), subscribe=False)
+    for k in (0, 1):
+        ctl.answer(Period(0, k * P), P, [(keys.THRUST, cmd(k * P))])
+    fresh = ThrustCommand.make(stamp_ns=0, thrust_port_n=2.0, thrust_starboard_n=2.0, seq=9)
+    ctl.answer(Period(0, 0), P, [(keys.THRUST, fresh)])  # the restarted sim's t_0
+    raw.clear()
+    ctl.repeat()
+    assert [bundle.split(p)[1] for p in raw] == [[("ctrl/thrust", fresh.encode())]]
+
+
 def test_the_estimators_first_answer_of_an_episode_before_the_sims_moves_the_controller_on() -> None:
     """The CI failure of test_lockstep_restarts' back-to-back missions: after a scenario restart
     the estimator's t_0 reached the controller before the sim's (its passive source). The sim's,

@@ -83,11 +83,12 @@ dies right after answering t_r can have missed answers given to t_r after its ow
 a period again where it held (the controller taking a mission at a held period). The sim can
 still publish t_{r+1} and t_{r+2}, and no more. So what the recorder may lack lies in the last
 three periods a member answered."""
-KEPT_BUNDLES = 12
+KEPT_BUNDLES = 7
 """Bundles a member keeps in all: one a period while time flows; a held period is answered again
 for each mission request the controller takes there. A repeat sends them all at once, often from
-Zenoh's thread, where each express put holds a batch of the link's queue until the callback returns:
-they and two answers more must fit in ``zenoh_bus.LOCKSTEP_TX_QUEUE``."""
+Zenoh's thread, where each express put holds a batch of the link's queue until the callback returns;
+one intake can take two repeats of the sim (a ring held both): twice these and two answers must fit
+in ``zenoh_bus.LOCKSTEP_TX_QUEUE``."""
 PASSIVE_RING = 256
 """Bundles a passive source holds until they are taken (``Member``): a source sends one a period."""
 PASSIVE_POLL_S = 0.0005
@@ -541,7 +542,11 @@ class Member:
             kept[-1] = (lines, done)
             return
         period = Period.of(done)
-        if kept and Period.of(kept[-1][1]) != period:
+        if kept and not Period.of(kept[-1][1]).leads_to(period):
+            # The world restarted (a sim restart, a scenario load): nothing kept leads here, and a
+            # new t_0 would pass for the dead sim's (same episode 0, same stamp) in ``repeat``.
+            kept.clear()
+        elif kept and Period.of(kept[-1][1]) != period:
             periods = list(dict.fromkeys(Period.of(d) for _, d in kept))[-(KEPT_PERIODS - 1):]
             kept[:] = [k for k in kept if Period.of(k[1]) in periods]
         kept.append((lines, done))

@@ -70,13 +70,14 @@ unless ``$ZENOH_RUNTIME`` is set; real time keeps Zenoh's defaults."""
 
 LOCKSTEP_TX_QUEUE = 16
 """Batches a link may queue for the data priority (``transport/link/tx/queue/size/data``; Zenoh's
-maximum, its default 2) in a session on the one-thread runtime (``LOCKSTEP_RUNTIME``).
+maximum, its default 2) in a session whose process sets ``$ZENOH_RUNTIME`` (``LOCKSTEP_RUNTIME``, or a
+user's own, which may be one thread too).
 
 Why: on one thread nothing is sent while a callback runs on it, and each express put takes a batch
 of every link's queue until the callback returns. With the default 2, the third put of a callback
 waited for ever: a lockstep member repeating three bundles for a restarted recorder stopped, its
 health token lapsed and the stack stalled (measured: 2 puts returned, 3 never). A member's repeat
-sends at most ``lockstep.KEPT_BUNDLES``, plus its answer."""
+sends at most ``lockstep.KEPT_BUNDLES``, plus its answer, and one intake can take two repeats."""
 
 
 def use_lockstep_runtime() -> None:
@@ -180,7 +181,7 @@ def _speaks_tls(conf: zenoh.Config) -> bool:
 def open_session(config_path: str | Path | None = None, identity: str | None = None,
                  credentials: creds.Credentials | str | None = None) -> zenoh.Session:
     config = load_zenoh_config(config_path, identity, credentials)
-    if os.environ.get(ENV_RUNTIME) == LOCKSTEP_RUNTIME:
+    if os.environ.get(ENV_RUNTIME):  # ours or a user's own: either may be one thread
         config.insert_json5("transport/link/tx/queue/size/data", str(LOCKSTEP_TX_QUEUE))
     try:
         session = zenoh.open(config)
