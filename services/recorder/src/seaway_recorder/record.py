@@ -26,7 +26,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import zenoh
-from seaway.contract import keys
+from seaway.contract import bundle, keys
 from seaway.contract.config import ConfigError
 from seaway.contract.messages import LOCKSTEP_SERVICES, LogRecord, MessageError, PeriodDone
 from seaway.runtime.bus import Bus, RawSample
@@ -207,8 +207,8 @@ class LockstepWitness:
         self.member = Member(bus, "recorder", watched=(), subscribe=False, consumed=False)
         self.answer_keys = {keys.lockstep_spec(s).key(vessel) for s in LOCKSTEP_SERVICES if s != "recorder"}
         self.prefix = f"{keys.ROOT}/{vessel}/"
-        self._recent: dict[str, collections.deque[bytes]] = collections.defaultdict(
-            lambda: collections.deque(maxlen=32))
+        self._recent: dict[str, tuple[collections.deque[bytes], set[bytes]]] = \
+            collections.defaultdict(lambda: (collections.deque(maxlen=REPEAT_MEMORY), set()))
         self._covered: dict[str, int] | None = None
         self.repeats_skipped = 0
         # A new episode repeats the old one's first messages byte for byte (deterministic): those
@@ -219,11 +219,14 @@ class LockstepWitness:
         """Whether to write this sample: not when it repeats bytes just written on its key."""
         if not key.startswith(self.prefix):
             return True
-        recent = self._recent[key]
-        if payload in recent:
+        recent, known = self._recent[key]
+        if payload in known:
             self.repeats_skipped += 1
             return False
+        if len(recent) == recent.maxlen:
+            known.discard(recent[0])  # the one this append pushes out
         recent.append(payload)
+        known.add(payload)
         return True
 
     def written(self, batch: list[tuple[str, bytes]]) -> None:
@@ -272,6 +275,12 @@ class LockstepWitness:
         self.member.answer(period, period_ns, covers=covers)
         self._covered = covers
         return True
+
+
+REPEAT_MEMORY = 256
+"""Payloads per key a lockstep recorder remembers, to write a repeat (the same bytes again) once. A
+repeat carries what a member kept of its last periods (``lockstep.KEPT_PERIODS``); with the 32 of
+before, a key of more than about ten samples a period was written twice when the sim repeated."""
 
 
 def key_exprs(args: argparse.Namespace) -> list[str]:
@@ -411,13 +420,14 @@ def _drain(writer: RecordingWriter, queue: SampleQueue, limit: int | None,
     while items and (limit is None or n < limit):
         sample_key, sample, sample_encoding, t_ns = items.popleft()
         n += 1
+        copy = sample_encoding == bundle.ENCODING and bundle.is_resent(sample)
         for key, payload, encoding in writer.unpack(sample_key, sample, sample_encoding, t_ns):
             if key != sample_key and kept is not None and not kept(key):
                 continue  # a bundle's message on a key this recording leaves out
             batch.append((key, payload))  # a repeat not written again is on disk all the same
             if witness is not None and not witness.admit(key, payload):
                 continue
-            writer.write(key, payload, encoding, t_ns)
+            writer.write(key, payload, encoding, t_ns, copy)
     if witness is not None:
         witness.written(batch)
         witness.maybe_answer(writer)

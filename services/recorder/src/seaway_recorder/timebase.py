@@ -124,13 +124,19 @@ class RecordingTime:
 
     # -- the three kinds of time ----------------------------------------------------------------
 
-    def bus(self, key: str, stamp_ns: int | None, receive_ns: int) -> int:
+    def bus(self, key: str, stamp_ns: int | None, receive_ns: int, copy: bool = False) -> int:
         """The log time of a bus sample stamped ``stamp_ns`` (None: no stamp found), received at
-        ``receive_ns`` (wall)."""
+        ``receive_ns`` (wall). ``copy``: it came in a lockstep bundle sent again for a restarted
+        recorder (``resent``), stamped up to two periods before what this recorder may have
+        written: its own time in this episode, never the sign of a new one. (Every repeat of the
+        sim for another member made a live recorder start an episode there, shifting every later
+        log time by the time flown so far.)"""
         if not self.lockstep:
             return receive_ns
         if stamp_ns is None or stamp_ns >= SIM_STAMP_LIMIT_NS:
             return self.wall(receive_ns)
+        if copy:
+            return self.offset_ns + stamp_ns
         if _sim_produced(key):
             last = self._last_sim.get(key)
             if last is not None and stamp_ns < last:

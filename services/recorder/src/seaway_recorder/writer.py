@@ -347,9 +347,11 @@ class RecordingWriter:
         f.add(f.channel(spec), data, log_time_ns, publish_time_ns)
         self.stats.by_topic[spec.topic] += 1
 
-    def write(self, key: str, payload: bytes, encoding: str, receive_ns: int) -> bool:
+    def write(self, key: str, payload: bytes, encoding: str, receive_ns: int,
+              copy: bool = False) -> bool:
         """Record one sample received at ``receive_ns`` (wall clock; the publish time); returns
-        False if it was malformed (kept on the error channel)."""
+        False if it was malformed (kept on the error channel). ``copy``: from a lockstep bundle sent
+        again (``RecordingTime.bus``)."""
         spec = self._spec(key, encoding)
         self.stats.bytes += len(payload)
         msg: Any = None
@@ -365,7 +367,7 @@ class RecordingWriter:
         stamp = None
         if self.time.lockstep:
             stamp = msg.stamp_ns if msg is not None else stamp_of(payload)
-        log_ns = self.time.bus(key, stamp, receive_ns)
+        log_ns = self.time.bus(key, stamp, receive_ns, copy)
         self._put(spec, payload, log_ns, receive_ns)
         self.stats.messages += 1
         if self.time.new_episodes:

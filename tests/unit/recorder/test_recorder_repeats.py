@@ -1,0 +1,116 @@
+"""A live lockstep recorder hearing a repeat of the sim (another member rejoined, a stall): the
+bundles sent again (``resent``, up to ``lockstep.KEPT_PERIODS`` back) are copies, not news.
+
+Before: the resent sim answer, stamped a period back, made ``RecordingTime`` start an episode, and
+every later log time was shifted by the time flown so far (an estimator killed at 120.5 s of a run
+put the rest of its recording 120.6 s later in Foxglove). And ``seaway replay --lockstep`` played the
+recorded copy as a period of its own that no member takes, sending it again for ever.
+
+The real recorder parts on the in-memory bus (its queue, ``_drain``, ``LockstepWitness``,
+``RecordingWriter``, the MCAP file) and the real replay of that file.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from pathlib import Path
+
+from seaway.contract import keys
+from seaway.contract.messages import ClockTick
+from seaway.runtime.lockstep import Member, Period
+from seaway.runtime.memory_bus import MemoryHub
+from seaway_recorder import recording
+from seaway_recorder.record import KeptKeys, LockstepWitness, SampleQueue, _drain
+from seaway_recorder.replay import replay
+from seaway_recorder.replay_lockstep import LockstepPacer
+from seaway_recorder.timebase import RecordingTime
+from seaway_recorder.writer import RecordingWriter
+
+P = 100_000_000
+V = "vessel1"
+EPOCH_NS = 10**18
+EXPRS = [f"seaway/{V}/**"]
+
+
+def clock(stamp_ns: int) -> ClockTick:
+    return ClockTick(stamp_ns=stamp_ns, lockstep=True, real_time_factor=0.0)
+
+
+def record_a_run_with_a_repeat(folder: Path) -> RecordingWriter:
+    """Six periods of a sim whose only other member is the recorder, repeated after the fifth."""
+    hub = MemoryHub()
+    writer = RecordingWriter(folder / "recording.mcap", compression="none",
+                             time=RecordingTime(lockstep=True, epoch_ns=EPOCH_NS))
+    writer.open(time.time_ns())
+    queue = SampleQueue(10_000)
+    bus = hub.bus(V)
+    witness = LockstepWitness(bus, V, EXPRS)
+    bus.subscribe_raw(f"seaway/{V}/lockstep/*", queue.on_sample)
+    sim = Member(hub.bus(V), "sim", watched=(), subscribe=False)
+
+    def drain() -> None:
+        _drain(writer, queue, None, witness, KeptKeys(EXPRS))
+
+    for k in range(5):
+        sim.answer(Period(0, k * P), P, [(keys.SIM_CLOCK, clock(k * P))], members=["recorder"])
+        drain()
+    sim.repeat(["recorder"])  # the last three periods go again, two of them marked resent
+    drain()
+    sim.answer(Period(0, 5 * P), P, [(keys.SIM_CLOCK, clock(5 * P))], members=["recorder"])
+    drain()
+    writer.close()
+    return writer
+
+
+def test_a_repeat_starts_no_episode_and_moves_no_log_time(tmp_path: Path) -> None:
+    writer = record_a_run_with_a_repeat(tmp_path)
+    assert writer.time.episode == 0 and writer.time.offset_ns == EPOCH_NS
+    dec = recording.decode_vessel(recording.open_paths([tmp_path]), V,
+                                  [keys.SIM_CLOCK.suffix, keys.LOCKSTEP_SIM.suffix])
+    ticks = dec.get(keys.SIM_CLOCK.suffix)
+    assert [m.stamp_ns for m in ticks] == [k * P for k in range(6)]  # each once
+    assert dec.log_ns[keys.SIM_CLOCK.suffix] == [EPOCH_NS + k * P for k in range(6)]
+    # The copies of the sim's answers are kept, each at its own period's time.
+    answers = dec.get(keys.LOCKSTEP_SIM.suffix)
+    assert all(t == EPOCH_NS + a.stamp_ns
+               for t, a in zip(dec.log_ns[keys.LOCKSTEP_SIM.suffix], answers, strict=True))
+    assert sorted(a.stamp_ns // P for a in answers if a.resent) == [2, 3]
+
+
+def test_a_lockstep_replay_of_it_plays_no_copy(tmp_path: Path) -> None:
+    record_a_run_with_a_repeat(tmp_path)
+    hub = MemoryHub()
+    stop = threading.Event()
+    pacer = LockstepPacer(hub.bus(V), stop, stall_s=0.3)
+    est = Member(hub.bus(V), "estimator", watched=(), hears=("sim",))
+
+    def answer() -> None:
+        with est.changed:
+            period, last = est.ledger.period, est.last_answer
+        if period is not None and (last is None or Period.of(last) != period):
+            est.answer(period, P)
+
+    est.on_ready = answer
+    est.join()
+    files = recording.open_paths([tmp_path])
+    t = threading.Thread(target=replay, args=(recording.iter_messages(files), hub.bus(V),
+                                              lambda _key: True, None, stop), kwargs={"pacer": pacer})
+    t.start()
+    t.join(60)  # milliseconds of work; a copy played as a period was sent again for ever
+    finished = not t.is_alive()
+    stop.set()
+    t.join(5)
+    # Six periods and the recorded repeat of t_4 (as it was sent: not a copy), none sent again.
+    assert finished and (pacer.periods, pacer.repeats) == (7, 0)
+
+
+def test_a_repeat_of_a_busy_key_is_written_once() -> None:
+    """What a repeat carries on one key: up to three periods of it. A key of 20 samples a period
+    (attitude at 200 Hz) sends 60 again; the recorder remembered 32 and wrote the rest twice."""
+    witness = LockstepWitness(MemoryHub().bus(V), V, EXPRS)
+    key = keys.SIM_CLOCK.key(V)  # any key: the filter compares bytes
+    sent = [clock(k * P // 20).encode() for k in range(100)]
+    assert all(witness.admit(key, p) for p in sent)
+    assert not any(witness.admit(key, p) for p in sent[-60:])
+    assert witness.repeats_skipped == 60
