@@ -9,12 +9,14 @@ import sys
 from pathlib import Path
 
 import pytest
+from seaway.runtime import credentials
 from seaway.tools.launch import authority
 
 
 @pytest.fixture
 def folder(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     monkeypatch.setenv("SEAWAY_STACKS_DIR", str(tmp_path))
+    monkeypatch.delenv(credentials.ENV_CREDENTIALS, raising=False)  # the launcher makes its own
     return tmp_path
 
 
@@ -24,6 +26,8 @@ def test_the_private_name_is_the_run_and_this_launchers_pid(folder: Path) -> Non
 
 
 def test_only_the_files_of_launchers_that_are_gone_are_removed(folder: Path) -> None:
+    """Before a launcher makes its own: a live launcher's stay; a gone one's go, this pid's too (a
+    gone launcher's with the same pid: a new key may not overwrite its key file)."""
     gone = subprocess.Popen([sys.executable, "-c", "pass"])
     gone.wait()
     alive = os.getppid()
@@ -33,8 +37,23 @@ def test_only_the_files_of_launchers_that_are_gone_are_removed(folder: Path) -> 
         (folder / f"run.{pid}.mavlink.key").write_text("k")
     (folder / "tcp-127.0.0.1-7447.json").write_text("{}")  # a registry entry: not ours to judge
     removed = authority.remove_stale()
-    assert sorted(p.name for p in removed) == [f"run.{gone.pid}.credentials",
-                                               f"run.{gone.pid}.mavlink.key"]
+    assert sorted(p.name for p in removed) == sorted(
+        f"run.{pid}.{kind}" for pid in (gone.pid, os.getpid()) for kind in ("credentials",
+                                                                            "mavlink.key"))
     assert sorted(p.name for p in folder.iterdir()) == sorted(
-        [f"run.{alive}.credentials", f"run.{alive}.mavlink.key", f"run.{os.getpid()}.credentials",
-         f"run.{os.getpid()}.mavlink.key", "tcp-127.0.0.1-7447.json"])
+        [f"run.{alive}.credentials", f"run.{alive}.mavlink.key", "tcp-127.0.0.1-7447.json"])
+
+
+def test_a_launcher_with_a_gone_launchers_pid_makes_its_files(folder: Path) -> None:
+    """A launcher killed left its files; a new one with the same pid and run name starts."""
+    from seaway.tools.launch.profile import load_profile
+
+    (folder / f"run.{os.getpid()}.mavlink.key").write_text("old")
+    (folder / f"run.{os.getpid()}.credentials").mkdir()
+    auth = authority.credentials_for(load_profile("sim-batch"), "run")
+    try:
+        assert auth.mavlink_key is not None and auth.mavlink_key.read_bytes() != b"old"
+        assert auth.credentials is not None and auth.credentials.folder.is_dir()
+    finally:
+        auth.release()
+    assert list(folder.iterdir()) == []

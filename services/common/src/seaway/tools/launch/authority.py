@@ -66,13 +66,15 @@ _PRIVATE = re.compile(r"\.(\d+)\.(credentials|mavlink\.key)$")
 
 
 def remove_stale() -> list[Path]:
-    """Remove what launchers that are gone (killed: no ``release``) left in the stacks folder;
+    """Remove what launchers that are gone (killed: no ``release``) left in the stacks folder,
+    before this one makes its own: files with this process's pid are then a gone launcher's that
+    had the same pid (a container's launcher often has), whose key a new one may not overwrite;
     the paths removed."""
     gone = []
     folder = stacks.stacks_dir()
     for p in folder.iterdir() if folder.is_dir() else ():
         m = _PRIVATE.search(p.name)
-        if m and int(m.group(1)) != os.getpid() and not stacks.alive(int(m.group(1))):
+        if m and (int(m.group(1)) == os.getpid() or not stacks.alive(int(m.group(1)))):
             if p.is_dir():
                 shutil.rmtree(p, ignore_errors=True)
             else:
@@ -89,10 +91,10 @@ def mavlink_key_path(run_name: str) -> Path:
 
 def credentials_for(profile: Profile, run_name: str) -> Authority:
     """The credentials of this launch (see the module docstring), and its MAVLink signing key."""
+    remove_stale()
     auth = _zenoh_credentials(profile, run_name)
     key = mavlink_key_path(run_name)
     key.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
-    remove_stale()
     mavlink_signing.write_key(key)
     auth.mavlink_key = key
     return auth
