@@ -219,6 +219,14 @@ def test_a_member_killed_mid_mission_comes_back_and_the_run_finishes(victim, tmp
         assert rep["episodes"]["count"] == 1
         if victim == "recorder":
             assert len(recording.open_paths([stack.run_dir])) == 2  # the file it left, a new one
+        # One timeline: every sample at the run's epoch plus its stamp. (The repeat the newcomer
+        # caused sent copies of earlier periods, and a live recorder took the sim's for a new
+        # episode: the rest of the recording lay later by the time flown so far.)
+        files = recording.open_paths([stack.run_dir])
+        dec = recording.decode_vessel(files, None, [keys.SIM_TRUTH.suffix])
+        offsets = {t - m.stamp_ns for t, m in zip(dec.log_ns[keys.SIM_TRUTH.suffix],
+                                                   dec.get(keys.SIM_TRUTH.suffix), strict=True)}
+        assert len(offsets) == 1, sorted(offsets)
     assert_no_hole(eps[-1])
     assert eps[-1][-1] >= undisturbed["end_ns"] - PERIOD_NS
 

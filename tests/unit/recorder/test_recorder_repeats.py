@@ -114,3 +114,25 @@ def test_a_repeat_of_a_busy_key_is_written_once() -> None:
     assert all(witness.admit(key, p) for p in sent)
     assert not any(witness.admit(key, p) for p in sent[-60:])
     assert witness.repeats_skipped == 60
+
+
+def test_a_restarted_sims_first_period_is_written_though_its_bytes_repeat(tmp_path: Path) -> None:
+    """A sim killed mid-run starts again at t_0, and its first messages are the old run's byte for
+    byte (deterministic): the recorder must write them again, in the new episode."""
+    hub = MemoryHub()
+    writer = RecordingWriter(tmp_path / "recording.mcap", compression="none",
+                             time=RecordingTime(lockstep=True, epoch_ns=EPOCH_NS))
+    writer.open(time.time_ns())
+    queue = SampleQueue(10_000)
+    bus = hub.bus(V)
+    witness = LockstepWitness(bus, V, EXPRS)
+    bus.subscribe_raw(f"seaway/{V}/lockstep/*", queue.on_sample)
+    for sim, periods in ((Member(hub.bus(V), "sim", watched=(), subscribe=False), 3),
+                         (Member(hub.bus(V), "sim", watched=(), subscribe=False), 2)):
+        for k in range(periods):
+            sim.answer(Period(0, k * P), P, [(keys.SIM_CLOCK, clock(k * P))], members=["recorder"])
+            _drain(writer, queue, None, witness, KeptKeys(EXPRS))
+    writer.close()
+    dec = recording.decode_vessel(recording.open_paths([tmp_path]), V, [keys.SIM_CLOCK.suffix])
+    assert [m.stamp_ns // P for m in dec.get(keys.SIM_CLOCK.suffix)] == [0, 1, 2, 0, 1]
+    assert writer.time.episode == 1

@@ -30,7 +30,7 @@ from seaway.contract import bundle, keys
 from seaway.contract.config import ConfigError
 from seaway.contract.messages import LOCKSTEP_SERVICES, LogRecord, MessageError, PeriodDone
 from seaway.runtime.bus import Bus, RawSample
-from seaway.runtime.lockstep import Member, Period
+from seaway.runtime.lockstep import Member, Period, classify
 from seaway.runtime.run import RunDescription
 from seaway.runtime.service import base_parser, configure_logging, resolve_run, run_service
 from seaway.runtime.timeline import Timeline
@@ -206,6 +206,7 @@ class LockstepWitness:
     def __init__(self, bus: Bus, vessel: str, exprs: Sequence[str]) -> None:
         self.member = Member(bus, "recorder", watched=(), subscribe=False, consumed=False)
         self.answer_keys = {keys.lockstep_spec(s).key(vessel) for s in LOCKSTEP_SERVICES if s != "recorder"}
+        self.sim_key = keys.lockstep_spec("sim").key(vessel)
         self.prefix = f"{keys.ROOT}/{vessel}/"
         self._recent: dict[str, tuple[collections.deque[bytes], set[bytes]]] = \
             collections.defaultdict(lambda: (collections.deque(maxlen=REPEAT_MEMORY), set()))
@@ -214,6 +215,24 @@ class LockstepWitness:
         # A new episode repeats the old one's first messages byte for byte (deterministic): those
         # are new messages, to be written again.
         self.member.on_restart = lambda _before, _now: self._recent.clear()
+
+    def heard(self, key: str, payload: bytes) -> None:
+        """A sample about to be written. A sim answer from a restarted world (another episode, or
+        time gone back) forgets the payloads remembered first: the new episode's first messages
+        repeat the old one's byte for byte, and come in its bundle before the answer that would
+        tell the ledger (a sim killed at 12 s restarted without its t_0 in the recording)."""
+        if key != self.sim_key:
+            return
+        try:
+            answer = PeriodDone.decode(bundle.answer_of(payload))
+        except MessageError:
+            return  # written as malformed; no answer to judge
+        if answer.resent:
+            return
+        with self.member.changed:
+            current = self.member.ledger.period
+        if classify(current, Period.of(answer)) == "restart":
+            self._recent.clear()
 
     def admit(self, key: str, payload: bytes) -> bool:
         """Whether to write this sample: not when it repeats bytes just written on its key."""
@@ -421,6 +440,8 @@ def _drain(writer: RecordingWriter, queue: SampleQueue, limit: int | None,
         sample_key, sample, sample_encoding, t_ns = items.popleft()
         n += 1
         copy = sample_encoding == bundle.ENCODING and bundle.is_resent(sample)
+        if witness is not None:
+            witness.heard(sample_key, sample)
         for key, payload, encoding in writer.unpack(sample_key, sample, sample_encoding, t_ns):
             if key != sample_key and kept is not None and not kept(key):
                 continue  # a bundle's message on a key this recording leaves out
