@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from seaway.contract import keys
@@ -37,9 +38,8 @@ def clock(stamp_ns: int) -> ClockTick:
     return ClockTick(stamp_ns=stamp_ns, lockstep=True, real_time_factor=0.0)
 
 
-def record_a_run_with_a_repeat(folder: Path) -> RecordingWriter:
-    """Six periods of a sim whose only other member is the recorder, repeated after the fifth."""
-    hub = MemoryHub()
+def recorder(hub: MemoryHub, folder: Path) -> tuple[RecordingWriter, Callable[[], None]]:
+    """A lockstep recorder's writer on ``folder``, and what writes what it heard since (``_drain``)."""
     writer = RecordingWriter(folder / "recording.mcap", compression="none",
                              time=RecordingTime(lockstep=True, epoch_ns=EPOCH_NS))
     writer.open(time.time_ns())
@@ -47,11 +47,14 @@ def record_a_run_with_a_repeat(folder: Path) -> RecordingWriter:
     bus = hub.bus(V)
     witness = LockstepWitness(bus, V, EXPRS)
     bus.subscribe_raw(f"seaway/{V}/lockstep/*", queue.on_sample)
+    return writer, lambda: _drain(writer, queue, None, witness, KeptKeys(EXPRS)) and None
+
+
+def record_a_run_with_a_repeat(folder: Path) -> RecordingWriter:
+    """Six periods of a sim whose only other member is the recorder, repeated after the fifth."""
+    hub = MemoryHub()
+    writer, drain = recorder(hub, folder)
     sim = Member(hub.bus(V), "sim", watched=(), subscribe=False)
-
-    def drain() -> None:
-        _drain(writer, queue, None, witness, KeptKeys(EXPRS))
-
     for k in range(5):
         sim.answer(Period(0, k * P), P, [(keys.SIM_CLOCK, clock(k * P))], members=["recorder"])
         drain()
@@ -120,18 +123,12 @@ def test_a_restarted_sims_first_period_is_written_though_its_bytes_repeat(tmp_pa
     """A sim killed mid-run starts again at t_0, and its first messages are the old run's byte for
     byte (deterministic): the recorder must write them again, in the new episode."""
     hub = MemoryHub()
-    writer = RecordingWriter(tmp_path / "recording.mcap", compression="none",
-                             time=RecordingTime(lockstep=True, epoch_ns=EPOCH_NS))
-    writer.open(time.time_ns())
-    queue = SampleQueue(10_000)
-    bus = hub.bus(V)
-    witness = LockstepWitness(bus, V, EXPRS)
-    bus.subscribe_raw(f"seaway/{V}/lockstep/*", queue.on_sample)
+    writer, drain = recorder(hub, tmp_path)
     for sim, periods in ((Member(hub.bus(V), "sim", watched=(), subscribe=False), 3),
                          (Member(hub.bus(V), "sim", watched=(), subscribe=False), 2)):
         for k in range(periods):
             sim.answer(Period(0, k * P), P, [(keys.SIM_CLOCK, clock(k * P))], members=["recorder"])
-            _drain(writer, queue, None, witness, KeptKeys(EXPRS))
+            drain()
     writer.close()
     dec = recording.decode_vessel(recording.open_paths([tmp_path]), V, [keys.SIM_CLOCK.suffix])
     assert [m.stamp_ns // P for m in dec.get(keys.SIM_CLOCK.suffix)] == [0, 1, 2, 0, 1]
