@@ -401,12 +401,13 @@ class Bus(abc.ABC):
 
     @classmethod
     def open(cls, vessel: str, config_path: str | Path | None = None, identity: str | None = None,
-             credentials: Any = None) -> ZenohBus:
+             credentials: Any = None, rendezvous: str | None = None) -> ZenohBus:
         """The production bus: a Zenoh session from ``config_path`` as ``identity`` of the stack
-        (``credentials``: a ``seaway.runtime.credentials.Credentials``; see ``zenoh_bus``)."""
+        (``credentials``: a ``seaway.runtime.credentials.Credentials``; ``rendezvous``: the stack's
+        endpoint, else ``$SEAWAY_ZENOH_RENDEZVOUS``; see ``zenoh_bus``)."""
         from seaway.runtime.zenoh_bus import ZenohBus  # the interface itself needs no Zenoh
 
-        return ZenohBus.connect(vessel, config_path, identity, credentials)
+        return ZenohBus.connect(vessel, config_path, identity, credentials, rendezvous)
 
     def key(self, spec: keys.KeySpec, vessel: str | None = None) -> str:
         return spec.key(vessel or self.vessel)

@@ -96,22 +96,25 @@ def rendezvous_endpoint() -> str:
     return os.environ.get(ENV_RENDEZVOUS) or DEFAULT_RENDEZVOUS
 
 
-def resolve_credentials(given: creds.Credentials | str | None = None) -> creds.Credentials | None:
+def resolve_credentials(given: creds.Credentials | str | None = None,
+                        rendezvous: str | None = None) -> creds.Credentials | None:
     """The credentials a session uses: ``given``, else ``$SEAWAY_CREDENTIALS``, else those of the
-    stack registered on the rendezvous endpoint; None only when opted out (``none``).
+    stack registered on the rendezvous endpoint (``rendezvous``, else ``rendezvous_endpoint()``);
+    None only when opted out (``none``).
 
     Raises ``CredentialsError`` when there are none, naming the ways to get some.
     """
     found = given if given is not None else creds.from_env()
     if found is None:
-        entry = stacks.lookup(rendezvous_endpoint())
+        entry = stacks.lookup(rendezvous or rendezvous_endpoint())
         if entry is not None:
             found = (creds.NONE if entry.credentials == creds.NONE
                      else creds.Credentials(Path(entry.credentials)))
     if found is None:
         raise creds.CredentialsError(
-            f"no credentials: no stack runs on {rendezvous_endpoint()} and ${creds.ENV_CREDENTIALS} "
-            "is not set. Start the stack with `seaway launch` (it creates the run's credentials), "
+            f"no credentials: no stack runs on {rendezvous or rendezvous_endpoint()} and "
+            f"${creds.ENV_CREDENTIALS} is not set. Start the stack with `seaway launch` (it creates "
+            "the run's credentials), "
             f"or set ${creds.ENV_CREDENTIALS} to a folder made by `seaway credentials create`, or "
             f"to '{creds.NONE}' to run without authentication")
     return None if found == creds.NONE else found  # type: ignore[return-value]
@@ -126,12 +129,14 @@ def _secure_endpoints(conf: zenoh.Config) -> None:
 
 
 def load_zenoh_config(path: str | Path | None = None, identity: str | None = None,
-                      credentials: creds.Credentials | str | None = None) -> zenoh.Config:
+                      credentials: creds.Credentials | str | None = None,
+                      rendezvous: str | None = None) -> zenoh.Config:
     """Zenoh config from ``path``, else ``$SEAWAY_ZENOH_CONFIG``, else the packaged default, made
     ``identity``'s session of the stack (``resolve_credentials``).
 
-    ``identity``: else ``$SEAWAY_IDENTITY``, else ``operator``. ``$SEAWAY_ZENOH_RENDEZVOUS``
-    replaces the rendezvous endpoint of the packaged default only; with credentials the default's
+    ``identity``: else ``$SEAWAY_IDENTITY``, else ``operator``. ``rendezvous``, else
+    ``$SEAWAY_ZENOH_RENDEZVOUS``, replaces the rendezvous endpoint of the packaged default only (a
+    process talking to several stacks, each on its own, names each one's here); with credentials the default's
     endpoints are TLS (a file's endpoints are used as written).
     """
     identity = identity or os.environ.get(creds.ENV_IDENTITY) or "operator"
@@ -146,7 +151,7 @@ def load_zenoh_config(path: str | Path | None = None, identity: str | None = Non
             raise ValueError(f"Zenoh config {p} is invalid: {err}") from None
     else:
         conf = zenoh.Config.from_json5(default_config_text())
-        rendezvous = os.environ.get(ENV_RENDEZVOUS)
+        rendezvous = rendezvous or os.environ.get(ENV_RENDEZVOUS)
         if rendezvous:
             conf.insert_json5("listen/endpoints", json.dumps([rendezvous, "tcp/127.0.0.1:0"]))
             conf.insert_json5("connect/endpoints", json.dumps([rendezvous]))
@@ -156,7 +161,7 @@ def load_zenoh_config(path: str | Path | None = None, identity: str | None = Non
         log.warning("Zenoh config %s links over plain TCP: the stack's credentials are not used "
                     "(use a TLS config for authentication)", path)
         return conf
-    found = resolve_credentials(credentials)
+    found = resolve_credentials(credentials, rendezvous)
     if found is None and path is not None:
         raise creds.CredentialsError(
             f"Zenoh config {path} links over TLS: it needs the side's credentials, not "
@@ -179,8 +184,9 @@ def _speaks_tls(conf: zenoh.Config) -> bool:
 
 
 def open_session(config_path: str | Path | None = None, identity: str | None = None,
-                 credentials: creds.Credentials | str | None = None) -> zenoh.Session:
-    config = load_zenoh_config(config_path, identity, credentials)
+                 credentials: creds.Credentials | str | None = None,
+                 rendezvous: str | None = None) -> zenoh.Session:
+    config = load_zenoh_config(config_path, identity, credentials, rendezvous)
     if os.environ.get(ENV_RUNTIME):  # ours or a user's own: either may be one thread
         config.insert_json5("transport/link/tx/queue/size/data", str(LOCKSTEP_TX_QUEUE))
     try:
@@ -265,9 +271,10 @@ class ZenohBus(Bus):
 
     @classmethod
     def connect(cls, vessel: str, config_path: str | Path | None = None, identity: str | None = None,
-                credentials: creds.Credentials | str | None = None) -> ZenohBus:
+                credentials: creds.Credentials | str | None = None,
+                rendezvous: str | None = None) -> ZenohBus:
         """A new session from ``config_path`` as ``identity`` (see ``load_zenoh_config``)."""
-        return cls(open_session(config_path, identity, credentials), vessel)
+        return cls(open_session(config_path, identity, credentials, rendezvous), vessel)
 
     def raw_publisher(self, key: str, encoding: str = RAW_ENCODING, *, block: bool = False,
                       express: bool = False) -> RawPublisher:
