@@ -88,6 +88,28 @@ def _origin(dec: recording.Decoded, scenario_origin: GeoOrigin | None) -> GeoOri
     return scenario_origin
 
 
+Read = tuple[recording.RecordingInfo, recording.Decoded]
+"""A recording as a report reads it: its info (attachments, metadata) and the report's keys decoded."""
+
+
+def read_for_report(files: list[Path], vessel: str | None = None) -> Read:
+    """What ``analyse`` reads of ``files``: one decode, for as many episodes as are reported."""
+    return recording.read_info(files), recording.decode_vessel(files, vessel, REPORT_TOPICS)
+
+
+def episode_of_mission(dec: recording.Decoded, mission_id: str) -> int | None:
+    """The index of the last episode in which the controller accepted ``mission_id`` (its
+    ``mission/accepted``), None if none did: which episode flew a mission, where one stack flew
+    several, each after a scenario load."""
+    found = None
+    for i, (start, end) in enumerate(episodes(dec)):
+        part = dec.between(start, end)
+        if any(isinstance(m, MissionAccepted) and m.mission_id == mission_id
+               for m in part.get(ACCEPTED)):
+            found = i
+    return found
+
+
 def episodes(dec: recording.Decoded) -> list[tuple[int, int | None]]:
     """The recording's episodes as [start, end) log-time spans: a new one wherever simulated time
     went back (``sim/truth``): the sim restarted, or loaded a scenario (a lockstep episode)."""
@@ -101,13 +123,14 @@ def episodes(dec: recording.Decoded) -> list[tuple[int, int | None]]:
 
 def analyse(files: list[Path], *, scenario: str | None = None, mission_file: str | None = None,
             vessel_file: str | None = None, vessel: str | None = None, state: str = "auto",
-            sample_period_s: float | None = None, episode: int | None = None) -> dict[str, Any]:
+            sample_period_s: float | None = None, episode: int | None = None,
+            read: Read | None = None) -> dict[str, Any]:
     """Everything the report prints, as one JSON-able dict (plus the series for plots under '_').
 
     The metrics are those of one episode (default the last): where simulated time went back, the
-    episodes before are reported as such, not mixed in."""
-    info = recording.read_info(files)
-    dec = recording.decode_vessel(files, vessel, REPORT_TOPICS)
+    episodes before are reported as such, not mixed in. ``read``: ``files`` as ``read_for_report``
+    gave them, to report several episodes of one recording from one decode."""
+    info, dec = read if read is not None else read_for_report(files, vessel)
     bounds = episodes(dec)
     if episode is None:
         episode = len(bounds) - 1
