@@ -6,13 +6,19 @@
     seaway study lake --dask tcp://127.0.0.1:8786
     seaway study --list
 
-Each run is ``seaway launch sim-batch --scenario S --controller C [--predict-disturbance]
-[--task-power-w W] --run-dir OUT/runs/KEY`` on its own Zenoh rendezvous port, then the report of
-its recording. ``--workers N`` runs N at a time on this machine; ``--dask ADDRESS`` submits each run to
-a Dask scheduler instead (each worker starts the stack of the run it takes). Writes into ``--out``
-(default ``runs/study-NAME-<time>/``): ``results.md``, ``results.csv``, ``results.json``,
-``series.json`` (what the figures are drawn from), ``figures/*.png`` and ``runs/<key>/`` (each run's
-folder: recording, logs, launch.log). ``--redraw OUT`` draws the tables and figures of a finished
+A run is the mission of scenario S flown by controller C (with its T^w and disturbance prediction)
+through the real processes in lockstep, then the report of its recording. ``--workers N`` runs N
+stacks at once on this machine, each on its own Zenoh rendezvous port, and each stack flies one run
+after another: the first as ``seaway launch sim-batch --scenario S --controller C
+[--predict-disturbance] [--task-power-w W] --stay``, every next one as a scenario load (a new
+lockstep episode from t = 0) and a mission sent as the operator, so that a stack's start-up is paid
+once, not per run (``execute.SharedStack``). ``--fresh-stacks`` starts a stack of its own for every
+run instead; ``--dask ADDRESS`` submits each run to a Dask scheduler (each worker starts the stack of
+the run it takes). Writes into ``--out`` (default ``runs/study-NAME-<time>/``): ``results.md``,
+``results.csv``, ``results.json``, ``series.json`` (what the figures are drawn from),
+``figures/*.png`` and the stacks' folders: ``runs/stack-N/`` (recording with one episode per run,
+logs, launch.log; ``results.json`` says which run is which episode), or ``runs/<key>/`` with
+``--fresh-stacks`` and ``--dask``. ``--redraw OUT`` draws the tables and figures of a finished
 study again without running anything.
 
 Exit code: 0 when every run completed, 1 otherwise, 2 for bad arguments, 130 when interrupted
@@ -32,7 +38,7 @@ from seaway.contract.config import repo_root
 
 from seaway_lab.study import definitions as defs
 from seaway_lab.study import results as res
-from seaway_lab.study.execute import DEFAULT_TIMEOUT_S, RunOutcome, run_dask, run_local
+from seaway_lab.study.execute import DEFAULT_TIMEOUT_S, RunOutcome, run_dask, run_local, run_shared
 
 DEFAULT_WORKERS = 2
 
@@ -46,6 +52,9 @@ def parser() -> argparse.ArgumentParser:
                     help=f"runs at a time on this machine (default {DEFAULT_WORKERS})")
     ap.add_argument("--dask", metavar="ADDRESS", default=None,
                     help="submit the runs to this Dask scheduler (tcp://host:port) instead")
+    ap.add_argument("--fresh-stacks", action="store_true",
+                    help="start a stack for every run (default: each of the --workers stacks flies "
+                         "one run after another)")
     ap.add_argument("--out", type=Path, default=None, help="output folder (default runs/study-NAME-<time>)")
     ap.add_argument("--rows", nargs="+", default=None, help="only these rows (e.g. '#1' '#4')")
     ap.add_argument("--columns", nargs="+", default=None, help="only these columns (e.g. cc-empc nmpc)")
@@ -81,22 +90,34 @@ def _progress(total: int, quiet: bool) -> Any:
 
 
 def run_study(study: defs.Study, out: Path, *, workers: int, dask: str | None, timeout_s: float,
-              progress: bool = True) -> tuple[dict[str, RunOutcome], float, dict[str, Any], str]:
+              progress: bool = True, fresh_stacks: bool = False,
+              ) -> tuple[dict[str, RunOutcome], float, dict[str, Any], str]:
     """Run every run of ``study`` into ``out/runs``; (outcomes by key, wall s, executor, start time)."""
     jobs = [(spec, out / "runs" / spec.key) for spec in study.runs]
     outcomes: dict[str, RunOutcome] = {}
+    counted: set[str] = set()
     bar = _progress(len(jobs), not progress)
+
+    def count(o: RunOutcome, what: str, seconds: float) -> None:
+        """The bar moves once per run: when its mission ended (shared stacks) or it is done."""
+        if o.spec.key in counted:
+            return
+        counted.add(o.spec.key)
+        bar.set_postfix_str(f"{o.spec.key} {what} {seconds:.0f} s", refresh=False)
+        bar.update(1)
+        if bar.disable and progress:  # no bar (not a terminal): one line per run on stderr
+            print(f"[{len(counted)}/{len(jobs)}] {o.spec.key} {what} {seconds:.1f} s",
+                  file=sys.stderr, flush=True)
+
+    def flown(o: RunOutcome) -> None:
+        count(o, "flown" if not o.error else "FAILED", o.timing.get("flight_s", 0.0))
 
     def done(o: RunOutcome) -> None:
         outcomes[o.spec.key] = o
-        state = "ok" if o.ok else "FAILED"
-        bar.set_postfix_str(f"{o.spec.key} {state} {o.timing.get('wall_s', 0):.0f} s", refresh=False)
-        bar.update(1)
-        if not bar.disable:
-            return
-        if progress:  # no bar (not a terminal): one line per run on stderr
-            print(f"[{len(outcomes)}/{len(jobs)}] {o.spec.key} {state} "
-                  f"{o.timing.get('wall_s', 0):.1f} s", file=sys.stderr, flush=True)
+        if not o.ok and bar.disable and progress and o.spec.key in counted:
+            print(f"{o.spec.key} FAILED: {o.error.splitlines()[0] if o.error else ''}",
+                  file=sys.stderr, flush=True)
+        count(o, "ok" if o.ok else "FAILED", o.timing.get("wall_s", 0.0))
 
     started = time.strftime("%Y-%m-%dT%H:%M:%S%z")
     t0 = time.monotonic()
@@ -104,9 +125,12 @@ def run_study(study: defs.Study, out: Path, *, workers: int, dask: str | None, t
         if dask:
             executor: dict[str, Any] = {"kind": "dask", "address": dask}
             executor.update(run_dask(dask, jobs, done, timeout_s=timeout_s))
-        else:
-            executor = {"kind": "local", "address": None}
+        elif fresh_stacks:
+            executor = {"kind": "local", "address": None, "stacks": "one per run"}
             run_local(jobs, workers, done, timeout_s=timeout_s)
+        else:
+            executor = {"kind": "local", "address": None, "stacks": "shared"}
+            run_shared(study.runs, out / "runs", workers, done, on_flown=flown, timeout_s=timeout_s)
     finally:
         bar.close()
     return outcomes, time.monotonic() - t0, executor, started
@@ -166,7 +190,8 @@ def _redraw(args: argparse.Namespace) -> int:
         spec = next((s for s in study.runs if s.key == r["key"]), None)
         if spec is None:  # a run the study no longer defines
             continue
-        outcomes[spec.key] = RunOutcome(spec, r["run_dir"], ok=r["ok"], error=r["error"], host=r["host"],
+        outcomes[spec.key] = RunOutcome(spec, r["run_dir"], episode=r.get("episode"), ok=r["ok"],
+                                        error=r["error"], host=r["host"],
                                         port=r["port"], command=r["command"], returncode=r["returncode"],
                                         report=r["report"], series=series.get(spec.key), timing=r["timing"],
                                         cpu_s=r.get("cpu_s", {}))
@@ -208,7 +233,8 @@ def main(argv: list[str] | None = None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     try:
         outcomes, wall_s, executor, started = run_study(study, out, workers=args.workers, dask=args.dask,
-                                                        timeout_s=args.timeout_s)
+                                                        timeout_s=args.timeout_s,
+                                                        fresh_stacks=args.fresh_stacks)
     except KeyboardInterrupt:
         print(f"\nseaway study: interrupted; the runs so far are in {out / 'runs'}", file=sys.stderr)
         return 130

@@ -19,7 +19,10 @@ so tables and figures need no shared file system; the run folders stay where the
 
 from __future__ import annotations
 
+import collections
 import contextlib
+import itertools
+import json
 import math
 import os
 import random
@@ -180,6 +183,7 @@ class CpuMonitor:
         self.interval_s = interval_s
         self.cpu_s: dict[str, float] = {}
         self._seen: dict[tuple[int, float], tuple[str, float]] = {}
+        self._lock = threading.Lock()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="cpu-monitor", daemon=True)
 
@@ -190,10 +194,20 @@ class CpuMonitor:
     def __exit__(self, *exc: object) -> None:
         self._stop.set()
         self._thread.join(5.0)
+        self.cpu_s = self._totals()
+
+    def _totals(self) -> dict[str, float]:
         totals: dict[str, float] = {}
-        for name, cpu in self._seen.values():
-            totals[name] = totals.get(name, 0.0) + cpu
-        self.cpu_s = totals
+        with self._lock:
+            for name, cpu in self._seen.values():
+                totals[name] = totals.get(name, 0.0) + cpu
+        return totals
+
+    def snapshot(self) -> dict[str, float]:
+        """CPU seconds by process name so far, every process sampled now (one that ended since the
+        last poll counts with its last value)."""
+        self._poll()
+        return self._totals()
 
     def _sample(self, proc: Any, name: str | None = None) -> None:
         import psutil
@@ -205,25 +219,92 @@ class CpuMonitor:
                 name = name or process_name(proc.cmdline())
         except psutil.Error:
             return
-        self._seen[key] = (name, t.user + t.system)
+        with self._lock:
+            self._seen[key] = (name, t.user + t.system)
 
-    def _run(self) -> None:
+    def _poll(self) -> None:
         import psutil
 
         try:
             root = psutil.Process(self.pid)
         except psutil.Error:
             return
+        self._sample(root, "launch")
+        try:
+            children = root.children(recursive=True)
+        except psutil.Error:
+            children = []
+        for c in children:
+            self._sample(c)
+
+    def _run(self) -> None:
         while True:
-            self._sample(root, "launch")
-            try:
-                children = root.children(recursive=True)
-            except psutil.Error:
-                children = []
-            for c in children:
-                self._sample(c)
+            self._poll()
             if self._stop.wait(self.interval_s):
                 return
+
+
+class LauncherLog:
+    """A launcher's output, read on a thread of its own: kept in ``path`` (each line after the
+    seconds since ``t0``) and in ``lines``, with when each milestone (``_MILESTONES``) was first seen
+    (``seen``, seconds since ``t0``)."""
+
+    def __init__(self, stream: Iterable[str], path: Path, t0: float) -> None:
+        self.t0 = t0
+        self.lines: list[str] = []
+        self.seen: dict[str, float] = {}
+        self.ready_reported_s: float | None = None
+        self._ended = False
+        self._cond = threading.Condition()
+        self._thread = threading.Thread(target=self._read, args=(stream, path), name="launch-log",
+                                        daemon=True)
+        self._thread.start()
+
+    def _read(self, stream: Iterable[str], path: Path) -> None:
+        try:
+            with open(path, "w", buffering=1) as log:
+                for line in stream:
+                    now = time.monotonic() - self.t0
+                    log.write(f"{now:8.3f} {line}")
+                    with self._cond:
+                        self.lines.append(line.rstrip())
+                        for name, pat in _MILESTONES.items():
+                            m = pat.search(line.strip())
+                            if m and name not in self.seen:
+                                self.seen[name] = now
+                                if name == "ready":
+                                    self.ready_reported_s = float(m.group(1))
+                        self._cond.notify_all()
+        finally:
+            with self._cond:
+                self._ended = True
+                self._cond.notify_all()
+
+    def wait(self, names: Iterable[str], timeout_s: float | None = None) -> str | None:
+        """The first of ``names`` seen (in their order), waiting up to ``timeout_s`` (None: until
+        the output ends); None if it ended or the time ran out without one."""
+        names = list(names)
+        deadline = None if timeout_s is None else time.monotonic() + timeout_s
+        with self._cond:
+            while True:
+                hit = next((n for n in names if n in self.seen), None)
+                if hit is not None or self._ended:
+                    return hit
+                left = None if deadline is None else deadline - time.monotonic()
+                if left is not None and left <= 0:
+                    return None
+                self._cond.wait(left)
+
+    def line_with(self, text: str) -> str:
+        with self._cond:
+            return next((x for x in self.lines if text in x), "")
+
+    def tail(self, n: int = 20) -> str:
+        with self._cond:
+            return "\n".join(self.lines[-n:])
+
+    def join(self, timeout_s: float | None = None) -> None:
+        self._thread.join(timeout_s)
 
 
 @dataclass
@@ -232,6 +313,9 @@ class RunOutcome:
 
     spec: RunSpec
     run_dir: str
+    episode: int | None = None
+    """Which lockstep episode of the run folder's recording is this run's (``seaway report
+    --episode``), where one stack flew several runs (``run_shared``); None: its only one."""
     ok: bool = False
     error: str = ""
     host: str = field(default_factory=socket.gethostname)
@@ -258,7 +342,8 @@ class RunOutcome:
         return None if v is None else float(v)
 
     def to_json(self, with_series: bool = False) -> dict[str, Any]:
-        d: dict[str, Any] = {**self.spec.to_json(), "run_dir": self.run_dir, "ok": self.ok,
+        d: dict[str, Any] = {**self.spec.to_json(), "run_dir": self.run_dir,
+                             "episode": self.episode, "ok": self.ok,
                              "error": self.error, "host": self.host, "port": self.port,
                              "command": self.command, "returncode": self.returncode,
                              "timing": self.timing, "cpu_s": self.cpu_s, "report": self.report}
@@ -308,6 +393,16 @@ def stop_all() -> None:
         t.join()
 
 
+def _spawn(command: list[str], port: int) -> subprocess.Popen[str]:
+    """A launcher on its own rendezvous ``port``, in a session of its own, its output piped."""
+    p = subprocess.Popen(command, env=stack_env(port), stdout=subprocess.PIPE,
+                         stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, text=True,
+                         start_new_session=True)
+    with _running_lock:
+        _running.add(p)
+    return p
+
+
 def run_one(spec: RunSpec, run_dir: str | Path, *, profile: str = PROFILE,
             timeout_s: float = DEFAULT_TIMEOUT_S, keep_series: bool = True) -> RunOutcome:
     """One run through the real processes, its report, and its timing. Never raises for a failed run:
@@ -324,14 +419,7 @@ def run_one(spec: RunSpec, run_dir: str | Path, *, profile: str = PROFILE,
     out.port = free_port()
     out.command = [*seaway_command(), "launch", profile, *opts, "--run-dir", str(run_dir)]
     run_dir.mkdir(parents=True, exist_ok=True)
-    seen: dict[str, float] = {}
-    lines: list[str] = []
-    stopping = False
-    p = subprocess.Popen(out.command, env=stack_env(out.port), stdout=subprocess.PIPE,
-                         stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, text=True,
-                         start_new_session=True)
-    with _running_lock:
-        _running.add(p)
+    p = _spawn(out.command, out.port)
     timed_out = threading.Event()
 
     def on_timeout() -> None:
@@ -342,35 +430,29 @@ def run_one(spec: RunSpec, run_dir: str | Path, *, profile: str = PROFILE,
     watchdog.daemon = True
     watchdog.start()
     assert p.stdout is not None
-    with CpuMonitor(p.pid) as cpu, open(run_dir / "launch.log", "w", buffering=1) as log:
-        for line in p.stdout:
-            now = time.monotonic() - t0
-            log.write(f"{now:8.3f} {line}")
-            lines.append(line.rstrip())
-            for name, pat in _MILESTONES.items():
-                m = pat.search(line.strip())
-                if m and name not in seen:
-                    seen[name] = now
-                    if name == "ready":
-                        out.timing["ready_reported_s"] = float(m.group(1))
-            if "refused" in seen and not stopping:  # it would wait for a mission forever
-                stopping = True
-                threading.Thread(target=_stop_group, args=(p,), daemon=True).start()
+    with CpuMonitor(p.pid) as cpu:
+        log = LauncherLog(p.stdout, run_dir / "launch.log", t0)
+        if log.wait(["refused"]) == "refused":  # it would wait for a mission forever
+            threading.Thread(target=_stop_group, args=(p,), daemon=True).start()
+        log.join()
         out.returncode = p.wait()
     with _running_lock:
         _running.discard(p)
     watchdog.cancel()
     out.cpu_s = cpu.cpu_s
+    seen = log.seen
+    if log.ready_reported_s is not None:
+        out.timing["ready_reported_s"] = log.ready_reported_s
     t_exit = time.monotonic() - t0
     out.timing.update(_phases(seen, t_exit))
     if timed_out.is_set():
         out.error = f"timed out after {timeout_s:g} s"
     elif "refused" in seen:
-        out.error = "mission refused: " + next((x for x in lines if "REFUSED" in x), "")
+        out.error = "mission refused: " + log.line_with("REFUSED")
     elif out.returncode != 0 or "complete" not in seen:
         out.error = f"launcher exited {out.returncode} before the mission completed"
     if out.error:
-        out.error += "\n" + "\n".join(lines[-20:])
+        out.error += "\n" + log.tail()
     t1 = time.monotonic()
     try:
         if not timed_out.is_set():  # a runaway's recording is large, and its numbers are not shown
@@ -381,6 +463,12 @@ def run_one(spec: RunSpec, run_dir: str | Path, *, profile: str = PROFILE,
         out.error = (out.error + "\n" if out.error else "") + f"report: {type(err).__name__}: {err}"
     out.timing["report_s"] = time.monotonic() - t1
     out.timing["wall_s"] = time.monotonic() - t0
+    return _concluded(out)
+
+
+def _concluded(out: RunOutcome) -> RunOutcome:
+    """``out`` with its simulated seconds per wall second and its verdict: ok only when nothing
+    failed and the recording shows the mission completed."""
     travel = out.metric("travel_time_s")
     if travel and out.timing.get("mission_s"):
         out.timing["sim_per_wall"] = travel / out.timing["mission_s"]
@@ -434,14 +522,22 @@ def report_args(run_dir: str | Path) -> list[str]:
     return [str(run_dir), *(["--mission", str(mission)] if mission.is_file() else [])]
 
 
-def report_json(run_dir: str | Path) -> tuple[dict[str, Any], dict[str, Any]]:
-    """(what ``seaway report <report_args> --json --no-plots`` prints, the series for the figures)."""
+def report_json(run_dir: str | Path, *, episode: int | None = None, read: Any = None,
+                scenario: str | None = None, launcher_mission: bool = True,
+                ) -> tuple[dict[str, Any], dict[str, Any]]:
+    """(what ``seaway report <report_args> --json --no-plots`` prints, the series for the figures).
+
+    ``episode``, ``read`` (``report.read_for_report`` of the folder) and ``scenario``: one of the
+    runs a shared stack flew (``run_shared``), from one decode of its recording; its mission is
+    then the one the controller recorded accepting, and the launcher's ``mission.json`` (the first
+    run's) is no candidate unless ``launcher_mission``."""
     from seaway_recorder import recording
     from seaway_recorder import report as rep
 
     mission = Path(run_dir) / MISSION_FILE
-    res = rep.analyse(recording.open_paths([run_dir]),
-                      mission_file=str(mission) if mission.is_file() else None)
+    files = recording.open_paths([run_dir]) if read is None else read[0].files
+    res = rep.analyse(files, scenario=scenario, episode=episode, read=read,
+                      mission_file=str(mission) if launcher_mission and mission.is_file() else None)
     doc = rep._clean({k: v for k, v in res.items() if k != "_"})  # exactly what --json prints
     data = res["_"]
     ser = data["series"]
@@ -499,6 +595,277 @@ def run_local(jobs: Iterable[tuple[RunSpec, Path]], workers: int, on_done: Done,
         raise
     finally:
         pool.shutdown(wait=True)
+
+
+# -- many runs on one stack -----------------------------------------------------------------------
+
+STATUS_POLL_S = 0.01
+"""How often a shared stack's mission status is looked at: the newest status is kept by the
+transport (``Bus.subscribe(mode="latest")``), so a look costs one decode, not one per period."""
+REQUEST_TIMEOUT_S = 30.0
+"""How long a scenario load or a mission request may take to be answered (a load is answered once
+every member has answered the new episode's first period)."""
+
+
+class _RunFailedError(Exception):
+    """A run on a shared stack failed; the text says how. The stack is stopped after it."""
+
+
+class SharedStack:
+    """One ``seaway launch sim-batch --stay`` that flies runs one after another, in one folder.
+
+    The first run is the launcher's own mission (its options, as ``run_one`` gives them); each next
+    one loads its scenario into the sim (``sim/scenario``, action ``load``: a new lockstep episode
+    from t = 0, in which the estimator starts again and the controller holds) and sends its mission
+    (``mission/set``, with its controller, T^w and disturbance prediction) as the operator, with the
+    credentials the launcher made. Each run is one episode of the folder's recording; ``close``
+    stops the stack and reports every run flown from one decode of it.
+
+    Why: a stack's start and stop cost about 2.4 core-s and 3 s of wall time (five Python processes
+    importing numpy, CasADi, pydantic and Zenoh), a sixth of a Table I study's CPU when every run
+    started its own (docs/results.md). Two missions in one stack give the numbers of two fresh
+    stacks (``test_lockstep_restarts``, ``test_study_shared``).
+    """
+
+    def __init__(self, folder: Path, timeout_s: float = DEFAULT_TIMEOUT_S) -> None:
+        self.folder = Path(folder)
+        self.timeout_s = timeout_s
+        self.port: int | None = None
+        self.command: list[str] = []
+        self.proc: subprocess.Popen[str] | None = None
+        self.log: LauncherLog | None = None
+        self.bus: Any = None
+        self.status: Any = None
+        self.cpu: CpuMonitor | None = None
+        self._cpu_before: dict[str, float] = {}
+        self.flown: list[tuple[RunOutcome, str]] = []
+        """Runs flown to completion, with their mission ids, not yet reported."""
+        self.t_start = 0.0
+
+    @property
+    def started(self) -> bool:
+        return self.proc is not None
+
+    def fly(self, spec: RunSpec) -> RunOutcome:
+        """Fly ``spec`` on this stack (starting it for the first run). A failed run (its outcome
+        says why) leaves the stack stopped; the runs it flew before are in ``flown``."""
+        out = RunOutcome(spec, str(self.folder))
+        t0 = time.monotonic()
+        try:
+            mission_id = self._start(spec, out) if self.proc is None else self._next(spec, out)
+        except _RunFailedError as err:
+            out.error = str(err) + ("\n" + self.log.tail() if self.log is not None else "")
+        except Exception as err:  # a bus that would not open, a scenario that would not read
+            out.error = f"{type(err).__name__}: {err}"
+        out.port, out.command = self.port, self.command
+        out.timing["flight_s"] = time.monotonic() - t0
+        if self.cpu is not None:
+            now = self.cpu.snapshot()
+            out.cpu_s = {k: v - self._cpu_before.get(k, 0.0) for k, v in now.items()}
+            self._cpu_before = now
+        if out.error:
+            self.stop(out)
+        else:
+            self.flown.append((out, mission_id))
+        return out
+
+    def _start(self, spec: RunSpec, out: RunOutcome) -> str:
+        from seaway.runtime import stacks
+
+        opts = fit_options(spec, launcher_options())
+        opts += [f for f in (*OPTIONAL_FLAGS, "--stay") if f in launcher_options()]
+        self.port = free_port()
+        self.command = [*seaway_command(), "launch", PROFILE, *opts, "--run-dir", str(self.folder)]
+        self.folder.mkdir(parents=True, exist_ok=True)
+        self.t_start = time.monotonic()
+        deadline = self.t_start + self.timeout_s
+        self.proc = _spawn(self.command, self.port)
+        assert self.proc.stdout is not None
+        self.cpu = CpuMonitor(self.proc.pid).__enter__()
+        self.log = LauncherLog(self.proc.stdout, self.folder / "launch.log", self.t_start)
+        hit = self.log.wait(["refused", "accepted"], self.timeout_s)
+        if hit is None:
+            raise _RunFailedError(f"no mission accepted within {self.timeout_s:g} s of the launch"
+                          if self.proc.poll() is None else
+                          f"launcher exited {self.proc.wait()} before its mission was accepted")
+        if hit == "refused":
+            raise _RunFailedError("mission refused: " + self.log.line_with("REFUSED"))
+        out.timing["startup_s"] = self.log.seen["ready"]
+        if self.log.ready_reported_s is not None:
+            out.timing["ready_reported_s"] = self.log.ready_reported_s
+        rendezvous = f"tcp/127.0.0.1:{self.port}"
+        entry = stacks.lookup(rendezvous)
+        if entry is None:
+            raise _RunFailedError(f"the launcher registered no stack on {rendezvous}")
+        from seaway.runtime import credentials as creds
+        from seaway.runtime.bus import Bus
+
+        given = creds.NONE if entry.credentials == creds.NONE else creds.Credentials(
+            Path(entry.credentials))
+        self.bus = Bus.open(entry.vessel, identity="operator", credentials=given,
+                            rendezvous=rendezvous)
+        self.status = self.bus.subscribe(keys.MISSION_STATUS, mode="latest")
+        try:  # the mission the launcher sent, as it wrote it
+            mission_id = json.loads((self.folder / MISSION_FILE).read_text())["mission_id"]
+        except (OSError, ValueError, KeyError) as err:
+            raise _RunFailedError(f"the launcher's {MISSION_FILE} does not say its mission: {err}"
+                                  ) from None
+        self._fly_to_end(mission_id, deadline)
+        out.timing["mission_s"] = time.monotonic() - self.t_start - out.timing["startup_s"]
+        return mission_id
+
+    def _next(self, spec: RunSpec, out: RunOutcome) -> str:
+        from seaway.contract.config import deploy_named, read_document
+        from seaway.contract.messages import ScenarioRequest
+
+        t0 = time.monotonic()
+        deadline = t0 + self.timeout_s
+        doc = read_document(deploy_named("scenarios", spec.scenario, "scenario"))
+        reply = self.bus.request(keys.SIM_SCENARIO, ScenarioRequest(stamp_ns=0, action="load",
+                                                                    scenario=doc),
+                                 REQUEST_TIMEOUT_S)
+        if not reply.accepted:
+            raise _RunFailedError(f"scenario {spec.scenario} not loaded: {reply.reason}")
+        t1 = time.monotonic()
+        out.timing["switch_s"] = t1 - t0
+        mission = load_mission(spec.scenario).to_request(
+            0, controller=spec.controller, predict_disturbance=spec.predict_disturbance,
+            task_power_w=spec.task_power_w)
+        # Named after the run, whatever the scenario calls it: its status and its episode must not
+        # be taken for an earlier run's of the same scenario (which flew under the same name).
+        mission = type(mission).model_validate({**mission.model_dump(), "mission_id": spec.key})
+        reply = self.bus.request(keys.MISSION_SET, mission, REQUEST_TIMEOUT_S)
+        if not reply.accepted:
+            raise _RunFailedError(f"mission refused: {reply.reason}")
+        self._fly_to_end(spec.key, deadline)
+        out.timing["mission_s"] = time.monotonic() - t1
+        return spec.key
+
+    def _fly_to_end(self, mission_id: str, deadline: float) -> None:
+        assert self.proc is not None
+        while True:
+            s = self.status.latest()
+            if s is not None and s.mission_id == mission_id:
+                if s.state == "complete":
+                    return
+                if s.state == "aborted":
+                    raise _RunFailedError(f"mission {mission_id} aborted")
+            if self.proc.poll() is not None:
+                raise _RunFailedError(f"launcher exited {self.proc.returncode} before mission "
+                              f"{mission_id} completed")
+            if time.monotonic() > deadline:
+                raise _RunFailedError(f"timed out after {self.timeout_s:g} s")
+            time.sleep(STATUS_POLL_S)
+
+    def stop(self, last: RunOutcome | None = None) -> None:
+        """Stop the stack (its launcher and services); the time it took counts to ``last``'s."""
+        if self.proc is None:
+            return
+        t0 = time.monotonic()
+        if self.bus is not None:
+            self.bus.close()
+            self.bus = None
+        _stop_group(self.proc)
+        with _running_lock:
+            _running.discard(self.proc)
+        if self.log is not None:
+            self.log.join(10.0)
+        if self.cpu is not None:
+            self.cpu.__exit__(None, None, None)
+            if last is not None:
+                last.cpu_s = {k: v - self._cpu_before.get(k, 0.0) + last.cpu_s.get(k, 0.0)
+                              for k, v in self.cpu.cpu_s.items()}
+        if last is not None:
+            last.returncode = self.proc.returncode
+            last.timing["stop_s"] = time.monotonic() - t0
+
+    def close(self, keep_series: bool = True) -> list[RunOutcome]:
+        """Stop the stack and report every run it flew (one decode of its recording)."""
+        last = self.flown[-1][0] if self.flown else None
+        self.stop(last)
+        if not self.flown:
+            return []
+        from seaway_recorder import recording
+        from seaway_recorder import report as rep
+
+        outs = [o for o, _ in self.flown]
+        try:
+            t0 = time.monotonic()
+            read = rep.read_for_report(recording.open_paths([self.folder]))
+            shared_s = (time.monotonic() - t0) / len(outs)  # the decode, shared by its runs
+        except Exception as err:
+            for o in outs:
+                o.error = f"report: {type(err).__name__}: {err}"
+            return [_concluded(o) for o in outs]
+        for i, (o, mission_id) in enumerate(self.flown):
+            t1 = time.monotonic()
+            try:
+                o.episode = rep.episode_of_mission(read[1], mission_id)
+                if o.episode is None:
+                    raise ValueError(f"no episode of the recording accepted mission {mission_id}")
+                o.report, series = report_json(self.folder, episode=o.episode, read=read,
+                                               scenario=o.spec.scenario, launcher_mission=i == 0)
+                if keep_series:
+                    o.series = series
+            except Exception as err:
+                o.error = f"report: {type(err).__name__}: {err}"
+            o.timing["report_s"] = time.monotonic() - t1 + shared_s
+            o.timing["wall_s"] = sum(o.timing.get(k, 0.0) for k in ("flight_s", "stop_s", "report_s"))
+        self.flown = []
+        return [_concluded(o) for o in outs]
+
+
+def run_shared(specs: Iterable[RunSpec], runs_dir: Path, workers: int, on_done: Done,
+               on_flown: Done | None = None, timeout_s: float = DEFAULT_TIMEOUT_S) -> None:
+    """Run the specs on ``workers`` stacks at once, each flying one run after another
+    (``SharedStack``), longest first from one queue; ``on_flown`` as each run's mission ends,
+    ``on_done`` with its numbers once its stack has stopped (a stack stops when the queue is empty,
+    or after a failed run: the next run starts a new one). Stack folders: ``runs_dir/stack-N``."""
+    queue = collections.deque(longest_first((s, runs_dir) for s in specs))
+    lock = threading.Lock()
+    stacks_made = itertools.count(1)
+    launcher_options()  # once, before the threads
+
+    def said(callback: Done | None, outcome: RunOutcome) -> None:
+        if callback is not None:
+            with lock:
+                callback(outcome)
+
+    def worker() -> None:
+        stack: SharedStack | None = None
+        try:
+            while True:
+                with lock:
+                    if not queue:
+                        break
+                    spec, _ = queue.popleft()
+                    if stack is None:
+                        stack = SharedStack(runs_dir / f"stack-{next(stacks_made)}", timeout_s)
+                out = stack.fly(spec)
+                said(on_flown, out)
+                if out.error:  # the stack is stopped: report what it flew, and this run
+                    for o in stack.close():
+                        said(on_done, o)
+                    said(on_done, _concluded(out))
+                    stack = None
+        finally:
+            if stack is not None:
+                for o in stack.close():
+                    said(on_done, o)
+
+    threads = [threading.Thread(target=worker, name=f"study-{i}", daemon=True)
+               for i in range(max(1, workers))]
+    for t in threads:
+        t.start()
+    try:
+        for t in threads:
+            while t.is_alive():
+                t.join(0.5)
+    except BaseException:  # Ctrl-C: start no more runs, stop the running stacks
+        with lock:
+            queue.clear()
+        stop_all()
+        raise
 
 
 def run_dask(address: str, jobs: Iterable[tuple[RunSpec, Path]], on_done: Done,

@@ -23,7 +23,10 @@ from seaway_lab.study.definitions import METRICS, Study
 SHORT = {"energy_j": "energy J", "avg_cross_track_m": "xte m", "travel_time_s": "time s"}
 DIGITS = {"energy_j": 1, "avg_cross_track_m": 3, "travel_time_s": 1}
 """Decimals as Table I prints them."""
-TIMINGS = ("wall_s", "startup_s", "mission_s", "stop_s", "launcher_report_s", "report_s")
+TIMINGS = ("wall_s", "startup_s", "switch_s", "mission_s", "stop_s", "launcher_report_s", "report_s")
+"""A run's wall time [s] and its phases: its stack's start-up (a shared stack's first run), the
+scenario load before it (a shared stack's next runs), its mission, its stack's stop (the last run
+of a stack), the launcher's own report, and the report of its recording."""
 CC_EO_ENERGY_MAX_PCT = 0.5
 """The paper's claim, as the system test checks it: CC-EMPC at most +0.5 % of EO-EMPC's energy."""
 

@@ -1,0 +1,135 @@
+"""`seaway study` on shared stacks (``execute.run_shared``): which stack flies which run, what a
+failed run does to its stack, and the launcher's output as the study reads it. The stack itself is a
+stand-in here (pure scheduling); tests/system/study/test_study_shared.py flies real ones."""
+
+from __future__ import annotations
+
+import io
+import os
+import time
+from pathlib import Path
+from typing import ClassVar
+
+import pytest
+from seaway_lab.study import execute as ex
+from seaway_lab.study.definitions import RunSpec, get_study
+
+TABLE1 = get_study("table1").runs
+
+
+class FakeStack:
+    """Flies a run in no time; fails the runs named in ``FAILING``."""
+
+    FAILING: ClassVar[set[str]] = set()
+    made: ClassVar[list[FakeStack]] = []
+
+    def __init__(self, folder: Path, timeout_s: float) -> None:
+        self.folder, self.timeout_s = folder, timeout_s
+        self.flown: list[ex.RunOutcome] = []
+        self.closed = False
+        FakeStack.made.append(self)
+
+    def fly(self, spec: RunSpec) -> ex.RunOutcome:
+        assert not self.closed, "a run flown on a stopped stack"
+        out = ex.RunOutcome(spec, str(self.folder))
+        time.sleep(0.001)
+        if spec.key in self.FAILING:
+            out.error = "timed out after 1 s"
+            self.closed = True  # a failed run stops its stack (SharedStack.fly)
+        else:
+            out.report = {"metrics": {"completed": True}}
+            self.flown.append(out)
+        return out
+
+    def close(self) -> list[ex.RunOutcome]:
+        self.closed = True
+        for i, o in enumerate(self.flown):
+            o.episode = i
+        return [ex._concluded(o) for o in self.flown]
+
+
+@pytest.fixture()
+def fake(monkeypatch: pytest.MonkeyPatch):
+    monkeypatch.setattr(ex, "SharedStack", FakeStack)
+    monkeypatch.setattr(ex, "launcher_options", lambda: set())
+    FakeStack.made, FakeStack.FAILING = [], set()
+    return FakeStack
+
+
+def _run(tmp_path: Path, workers: int) -> tuple[list[ex.RunOutcome], list[str]]:
+    done, flown = [], []
+    ex.run_shared(TABLE1, tmp_path, workers, done.append, on_flown=lambda o: flown.append(o.spec.key))
+    return done, flown
+
+
+def test_each_worker_flies_its_runs_on_one_stack(fake, tmp_path: Path) -> None:
+    done, flown = _run(tmp_path, workers=2)
+    assert sorted(o.spec.key for o in done) == sorted(s.key for s in TABLE1)  # each once
+    assert sorted(flown) == sorted(s.key for s in TABLE1)
+    assert all(o.ok for o in done)
+    assert len(fake.made) == 2 and all(s.closed for s in fake.made)
+    assert {s.folder.name for s in fake.made} == {"stack-1", "stack-2"}
+    # a run's folder is its stack's, and its episode says which part of the recording is its
+    for s in fake.made:
+        mine = [o for o in done if o.run_dir == str(s.folder)]
+        assert [o.episode for o in mine] == list(range(len(mine)))
+
+
+def test_one_worker_one_stack_longest_first(fake, tmp_path: Path) -> None:
+    done, flown = _run(tmp_path, workers=1)
+    assert len(done) == 15 and len(fake.made) == 1
+    assert flown == [s.key for s, _ in ex.longest_first((s, tmp_path) for s in TABLE1)]
+    assert [k.endswith("nmpc") for k in flown[-5:]] == [True] * 5
+
+
+def test_a_failed_run_stops_its_stack_and_the_next_run_starts_a_new_one(fake, tmp_path: Path) -> None:
+    fake.FAILING = {"paper-c3-eo-empc"}
+    done, _ = _run(tmp_path, workers=1)
+    by_key = {o.spec.key: o for o in done}
+    assert len(done) == 15
+    assert not by_key["paper-c3-eo-empc"].ok and "timed out" in by_key["paper-c3-eo-empc"].error
+    assert all(o.ok for k, o in by_key.items() if k != "paper-c3-eo-empc")
+    assert len(fake.made) == 2  # the runs after it on a stack of their own
+    assert [s.folder.name for s in fake.made] == ["stack-1", "stack-2"]
+
+
+def test_the_launchers_output_read_on_its_own_thread(tmp_path: Path) -> None:
+    feed = io.StringIO("seaway launch sim-batch: vessel vessel1\nall ready in 1.5 s\n"
+                       "mission paper-c1: accepted (nmpc, tau_d = 0, T^w 0.49 W)\n")
+    log = ex.LauncherLog(feed, tmp_path / "launch.log", time.monotonic())
+    assert log.wait(["refused", "accepted"], 5.0) == "accepted"
+    log.join(5.0)
+    assert log.ready_reported_s == 1.5 and set(log.seen) == {"ready", "accepted"}
+    assert log.wait(["complete"]) is None  # the output ended without it: no waiting for ever
+    assert log.line_with("accepted").startswith("mission paper-c1")
+    text = (tmp_path / "launch.log").read_text().splitlines()
+    assert len(text) == 3 and text[1].split(None, 1)[1] == "all ready in 1.5 s"
+
+
+def test_waiting_on_a_launcher_that_says_nothing_times_out(tmp_path: Path) -> None:
+    r, w = _pipe()
+    log = ex.LauncherLog(r, tmp_path / "launch.log", time.monotonic())
+    t0 = time.monotonic()
+    assert log.wait(["accepted"], 0.2) is None
+    assert time.monotonic() - t0 >= 0.2
+    w.write("mission x: REFUSED: no\n")
+    w.flush()
+    assert log.wait(["refused", "accepted"], 5.0) == "refused"
+    w.close()
+    log.join(5.0)
+
+
+def _pipe():
+    rfd, wfd = os.pipe()
+    return os.fdopen(rfd, "r"), os.fdopen(wfd, "w")
+
+
+def test_the_cpu_of_each_run_is_what_its_stack_spent_while_it_flew() -> None:
+    # CpuMonitor.snapshot gives totals so far; SharedStack takes differences. Here on this process.
+    with ex.CpuMonitor(os.getpid(), interval_s=10.0) as mon:
+        a = mon.snapshot()
+        t0 = time.process_time()
+        while time.process_time() - t0 < 0.2:
+            pass
+        b = mon.snapshot()
+    assert b["launch"] - a["launch"] >= 0.15
