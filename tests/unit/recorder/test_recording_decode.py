@@ -106,3 +106,35 @@ def test_the_order_is_by_log_time_then_file_order(series: list[Path]) -> None:
 def test_several_vessels_without_one_named_is_an_error(series: list[Path]) -> None:
     with pytest.raises(ValueError, match=r"several vessels \(vessel1, vessel2\)"):
         recording.decode_vessel(series, None, [ORIGIN.suffix])
+
+
+@pytest.mark.parametrize("compression", ["zstd", "lz4", "none"])
+@pytest.mark.parametrize("topics", [None, "one"])
+def test_the_chunk_scan_yields_what_the_mcap_reader_yields(tmp_path: Path, compression: str,
+                                                           topics: str | None) -> None:
+    """``recording.chunked_messages`` reads chunks itself (the reader made an object of every
+    message): the same messages, in the same order, as ``iter_messages(log_time_order=False)``."""
+    from mcap.reader import make_reader
+    from mcap.writer import CompressionType
+
+    a, b = ORIGIN.key("vessel1"), keys.SIM_CLOCK.key("vessel1")
+    records = [(a if i % 3 else b, (i * 7919) % 500, origin(i, i / 1000)) for i in range(200)]
+    path = tmp_path / "r.mcap"
+    with open(path, "wb") as fh:
+        w = Writer(fh, chunk_size=400, compression=CompressionType[compression.upper()])
+        w.start()
+        schema = w.register_schema("x", "jsonschema", b"{}")
+        ids = {t: w.register_channel(t, "json", schema) for t in (a, b)}
+        for seq, (topic, log_ns, data) in enumerate(records):
+            w.add_message(ids[topic], log_time=log_ns, data=data, publish_time=0, sequence=seq)
+        w.finish()
+    wanted = None if topics is None else {a}
+    with open(path, "rb") as fh:
+        reader = make_reader(fh)
+        want = [(c.topic, m.log_time, bytes(m.data)) for _, c, m in
+                reader.iter_messages(topics=wanted, log_time_order=False)]
+        summary = reader.get_summary()
+        assert summary is not None and len(summary.chunk_indexes) > 10
+        got = list(recording._file_messages(fh, reader, wanted or {a, b}))
+    assert got == want
+    assert len(got) == (200 if topics is None else sum(1 for r in records if r[0] == a))

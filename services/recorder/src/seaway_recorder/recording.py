@@ -8,12 +8,16 @@ of a series; the first copy wins.
 from __future__ import annotations
 
 import heapq
+import struct
+import threading
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from mcap.exceptions import McapError
 from mcap.reader import McapReader, make_reader
+from mcap.records import ChunkIndex
 from seaway.contract import keys
 from seaway.contract.keys import KeySpec
 from seaway.contract.messages import Message, MessageError
@@ -222,6 +226,92 @@ def _wanted_topics(reader: McapReader, wanted: set[str] | None, vessels: set[str
     return out
 
 
+_RECORD = struct.Struct("<BQ")
+"""An MCAP record's opcode and content length."""
+_CHUNK = struct.Struct("<QQQI")
+"""A chunk's first fields: message start and end time, uncompressed size, uncompressed CRC."""
+_MESSAGE = struct.Struct("<HIQQ")
+"""A message's first fields: channel id, sequence, log time, publish time; its data follows."""
+_U32, _U64 = struct.Struct("<I"), struct.Struct("<Q")
+_OP_MESSAGE, _OP_CHUNK = 0x05, 0x06
+
+
+_local = threading.local()
+
+
+def _zstd() -> Any:
+    """This thread's zstd decompressor (one per chunk cost more than the decompression; an
+    instance is not to be shared between threads, and a study reports two stacks at once)."""
+    d = getattr(_local, "zstd", None)
+    if d is None:
+        import zstandard
+
+        d = _local.zstd = zstandard.ZstdDecompressor()
+    return d
+
+
+def _decompress(compression: str, data: bytes, size: int) -> bytes:
+    if compression == "":
+        return data
+    if compression == "zstd":
+        return _zstd().decompress(data, max_output_size=size)
+    if compression == "lz4":
+        import lz4.frame
+
+        return lz4.frame.decompress(data)
+    raise McapError(f"unsupported chunk compression {compression!r}")
+
+
+def chunked_messages(fh: Any, chunk_indexes: Iterable[ChunkIndex], channel_ids: set[int]
+                     ) -> Iterator[tuple[int, int, bytes]]:
+    """(channel id, log time, data) of every message on ``channel_ids`` in the chunks the summary
+    indexes, in file order: what the mcap reader's ``iter_messages(topics, log_time_order=False)``
+    yields (it too reads only the indexed chunks), without making a record object of every message.
+
+    Why: a lockstep recorder ends a chunk every period, some 20 messages of every topic each, and
+    the reader parsed all of them field by field in Python to hand on the few wanted: 80 % of a
+    report's decode (a paper #1 run: 0.40 s of CPU of which 0.31 s in the reader). Here a chunk
+    whose index names none of ``channel_ids`` is not read, and a message on another channel is
+    skipped by its length. The layout is MCAP's (mcap.dev/spec: Chunk, Message records)."""
+    for ci in sorted(chunk_indexes, key=lambda c: c.chunk_start_offset):
+        if channel_ids.isdisjoint(ci.message_index_offsets):
+            continue
+        fh.seek(ci.chunk_start_offset)
+        rec = fh.read(ci.chunk_length)
+        op, _ = _RECORD.unpack_from(rec, 0)
+        if op != _OP_CHUNK:
+            raise McapError(f"no chunk at offset {ci.chunk_start_offset} (opcode {op:#x})")
+        _, _, size, _ = _CHUNK.unpack_from(rec, _RECORD.size)
+        pos = _RECORD.size + _CHUNK.size
+        (n,) = _U32.unpack_from(rec, pos)
+        compression = rec[pos + 4:pos + 4 + n].decode()
+        pos += 4 + n
+        (records_len,) = _U64.unpack_from(rec, pos)
+        data = _decompress(compression, rec[pos + 8:pos + 8 + records_len], size)
+        pos, end = 0, len(data)
+        while pos < end:
+            op, length = _RECORD.unpack_from(data, pos)
+            body = pos + _RECORD.size
+            pos = body + length
+            if op == _OP_MESSAGE:
+                cid, _, log_ns, _ = _MESSAGE.unpack_from(data, body)
+                if cid in channel_ids:
+                    yield cid, log_ns, data[body + _MESSAGE.size:pos]
+
+
+def _file_messages(fh: Any, reader: McapReader, topics: set[str] | None
+                   ) -> Iterator[tuple[str, int, bytes]]:
+    """(topic, log time, data) of the file's messages on ``topics`` (None: all), in file order."""
+    summary = reader.get_summary()
+    if summary is not None and summary.chunk_indexes and topics is not None:
+        ids = {cid: ch.topic for cid, ch in summary.channels.items() if ch.topic in topics}
+        for cid, log_ns, data in chunked_messages(fh, summary.chunk_indexes, set(ids)):
+            yield ids[cid], log_ns, data
+        return
+    for _schema, channel, msg in reader.iter_messages(topics=topics, log_time_order=False):
+        yield channel.topic, msg.log_time, bytes(msg.data)
+
+
 def decode_vessel(files: list[Path], vessel: str | None = None,
                   suffixes: Iterable[str] | None = None) -> Decoded:
     """Decode the registered topics of one vessel (the only one, or the one named), all of them or
@@ -243,8 +333,7 @@ def decode_vessel(files: list[Path], vessel: str | None = None,
             topics = _wanted_topics(reader, wanted, out.vessels)
             if topics is not None and not topics:
                 continue
-            for _schema, channel, msg in reader.iter_messages(topics=topics, log_time_order=False):
-                topic = channel.topic
+            for topic, log_ns, data in _file_messages(fh, reader, topics):
                 if topic not in specs:
                     specs[topic] = keys.spec_for_key(topic)
                 spec = specs[topic]
@@ -254,7 +343,7 @@ def decode_vessel(files: list[Path], vessel: str | None = None,
                 out.vessels.add(v)
                 if (wanted is not None and spec.suffix not in wanted) or (vessel is not None and v != vessel):
                     continue
-                raw.setdefault(spec.suffix, []).append((msg.log_time, topic, bytes(msg.data)))
+                raw.setdefault(spec.suffix, []).append((log_ns, topic, data))
     seen: set[tuple[str, int]] = set()
     for suffix in list(raw):
         items = raw.pop(suffix)  # its bytes freed once decoded: one key's at a time held twice
