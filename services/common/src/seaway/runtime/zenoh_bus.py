@@ -136,11 +136,16 @@ def load_zenoh_config(path: str | Path | None = None, identity: str | None = Non
 
     ``identity``: else ``$SEAWAY_IDENTITY``, else ``operator``. ``rendezvous``, else
     ``$SEAWAY_ZENOH_RENDEZVOUS``, replaces the rendezvous endpoint of the packaged default only (a
-    process talking to several stacks, each on its own, names each one's here); with credentials the default's
+    process talking to several stacks, each on its own, names each one's here; then
+    ``$SEAWAY_ZENOH_CONFIG`` is not read, a ``path`` with it is a ValueError); with credentials the default's
     endpoints are TLS (a file's endpoints are used as written).
     """
     identity = identity or os.environ.get(creds.ENV_IDENTITY) or "operator"
-    path = path or os.environ.get(ENV_CONFIG) or None
+    if path is not None and rendezvous:
+        raise ValueError(f"a Zenoh config ({path}) names its own endpoints: give it or a "
+                         f"rendezvous ({rendezvous}), not both")
+    # A rendezvous named here is the packaged default's: the environment's config would drop it.
+    path = path or (None if rendezvous else os.environ.get(ENV_CONFIG)) or None
     if path is not None:
         p = Path(path)
         if not p.is_file():
