@@ -405,6 +405,20 @@ class EnergyBudget(Message):
     reason: str = Field(default="", max_length=MAX_REASON_CHARS)
 
 
+def mission_over(status: MissionStatus | None, budget: EnergyBudget | None,
+                 mission_id: str | None = None) -> bool:
+    """Whether the newest ``status`` says there is nothing more to fly of ``mission_id`` (None:
+    of whatever mission it is): it is complete, or the return home its energy budget decided
+    (``return_mission_id``) is, or the budget held it (``budget``: the newest, policy 'hold')."""
+    if status is None:
+        return False
+    if mission_id is not None and status.mission_id not in (mission_id, return_mission_id(mission_id)):
+        return False
+    held = (status.state == "paused" and budget is not None and budget.decision == "hold"
+            and budget.mission_id == status.mission_id)
+    return status.state == "complete" or held
+
+
 
 # ---------------------------------------------------------------------------------------------
 # Simulation (producer: sim)

@@ -68,7 +68,7 @@ from seaway.contract.messages import (
     ModeRequest,
     StateEstimate,
     ThrustCommand,
-    return_mission_id,
+    mission_over,
 )
 from seaway.runtime import refusals
 from seaway.runtime import run as runs
@@ -355,15 +355,7 @@ class StatusLine:
     def _over(self, vessel: str, m: MissionStatus | None, sent: MissionRequest | None) -> bool:
         """The mission sent is complete, or its return home that the energy budget decided
         (``return_mission_id``) is, or the budget held it (policy 'hold': nothing more to fly)."""
-        if m is None:
-            return False
-        ids = None if sent is None else (sent.mission_id, return_mission_id(sent.mission_id))
-        if ids is not None and m.mission_id not in ids:
-            return False
-        budget = self.energy.get(vessel)
-        held = (m.state == "paused" and budget is not None and budget.decision == "hold"
-                and budget.mission_id == m.mission_id)
-        return m.state == "complete" or held
+        return mission_over(m, self.energy.get(vessel), None if sent is None else sent.mission_id)
 
     def text(self, t_s: float) -> str:
         """One line for every vessel (a fleet's vessels joined by ``||``)."""
