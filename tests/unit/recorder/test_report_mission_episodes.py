@@ -1,4 +1,4 @@
-"""Which episode of a recording flew a mission (``report.episode_of_mission``): a stack that flew
+"""Which episodes of a recording flew a mission (``report.mission_episodes``): a stack that flew
 several runs, each after a scenario load, holds them as episodes of one recording, and
 ``seaway study`` reports each run from its own (execute.SharedStack)."""
 
@@ -34,15 +34,16 @@ def recording(episodes: list[tuple[int, list[str]]]) -> Decoded:
 def test_each_run_is_found_in_its_own_episode() -> None:
     dec = recording([(30, ["paper-c1"]), (20, ["paper-c2-eo-empc"]), (40, ["paper-c1-nmpc"])])
     assert len(report.episodes(dec)) == 3
-    assert report.episode_of_mission(dec, "paper-c1") == 0
-    assert report.episode_of_mission(dec, "paper-c2-eo-empc") == 1
-    assert report.episode_of_mission(dec, "paper-c1-nmpc") == 2
-    assert report.episode_of_mission(dec, "paper-c3-nmpc") is None
+    assert report.mission_episodes(dec, "paper-c1") == [0]
+    assert report.mission_episodes(dec, "paper-c2-eo-empc") == [1]
+    assert report.mission_episodes(dec, "paper-c1-nmpc") == [2]
+    assert report.mission_episodes(dec, "paper-c3-nmpc") == []
 
 
-def test_a_mission_accepted_again_is_its_last_episode() -> None:
+def test_a_mission_accepted_again_names_every_episode_it_flew() -> None:
     # A sim restarted mid-mission: the controller flies the mission again from its first leg in the
-    # new episode, and that is the one flown to the end.
-    dec = recording([(30, ["paper-c1"]), (50, ["paper-c1"]), (10, ["next"])])
-    assert report.episode_of_mission(dec, "paper-c1") == 1
-    assert report.episode_of_mission(dec, "next") == 2
+    # new episode, and that is the one flown to the end. Accepted twice in one episode (a resumed
+    # checkpoint) is one episode.
+    dec = recording([(30, ["paper-c1", "paper-c1"]), (50, ["paper-c1"]), (10, ["next"])])
+    assert report.mission_episodes(dec, "paper-c1") == [0, 1]
+    assert report.mission_episodes(dec, "next") == [2]

@@ -97,17 +97,17 @@ def read_for_report(files: list[Path], vessel: str | None = None) -> Read:
     return recording.read_info(files), recording.decode_vessel(files, vessel, REPORT_TOPICS)
 
 
-def episode_of_mission(dec: recording.Decoded, mission_id: str) -> int | None:
-    """The index of the last episode in which the controller accepted ``mission_id`` (its
-    ``mission/accepted``), None if none did: which episode flew a mission, where one stack flew
-    several, each after a scenario load."""
-    found = None
-    for i, (start, end) in enumerate(episodes(dec)):
-        part = dec.between(start, end)
-        if any(isinstance(m, MissionAccepted) and m.mission_id == mission_id
-               for m in part.get(ACCEPTED)):
-            found = i
-    return found
+def mission_episodes(dec: recording.Decoded, mission_id: str) -> list[int]:
+    """The indexes of the episodes in which the controller accepted ``mission_id`` (its
+    ``mission/accepted``), in order: which episode flew a mission, where one stack flew several,
+    each after a scenario load. More than one: the sim restarted while it flew, and the controller
+    flew it again from its first leg in the new episode (the last one is the one flown to its end)."""
+    accepted = dec.get(ACCEPTED)
+    logs = dec.log_ns.get(ACCEPTED, [])
+    mine = [t for t, m in zip(logs, accepted, strict=True)
+            if isinstance(m, MissionAccepted) and m.mission_id == mission_id]
+    return [i for i, (start, end) in enumerate(episodes(dec))
+            if any(start <= t and (end is None or t < end) for t in mine)]
 
 
 def episodes(dec: recording.Decoded) -> list[tuple[int, int | None]]:
