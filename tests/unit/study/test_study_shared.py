@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import io
 import os
+import threading
 import time
 from pathlib import Path
 from typing import ClassVar
@@ -133,3 +134,40 @@ def test_the_cpu_of_each_run_is_what_its_stack_spent_while_it_flew() -> None:
             pass
         b = mon.snapshot()
     assert b["launch"] - a["launch"] >= 0.15
+
+
+def test_a_run_is_the_last_episode_that_accepted_its_mission() -> None:
+    assert ex.run_episode([3], False, "k") == 3
+    assert ex.run_episode([0, 1], True, "k") == 1  # the first run: the sim restarts into its world
+    with pytest.raises(ValueError, match="no episode of the recording accepted mission k"):
+        ex.run_episode([], True, "k")
+    # A later run: a restarted sim comes back with the first run's scenario, not this run's.
+    with pytest.raises(ValueError, match=r"the sim restarted while mission k flew \(episodes \[2, 3\]\)"
+                                         r".*--fresh-stacks"):
+        ex.run_episode([2, 3], False, "k")
+
+
+def test_a_stack_is_stopped_once(tmp_path: Path) -> None:
+    """A failed run stops its stack; closing it after must not stop it again (it gave the run
+    before the failed one the failed one's exit code, stop time and CPU)."""
+    import subprocess
+
+    stack = ex.SharedStack(tmp_path / "stack-1")
+    stack.proc = subprocess.Popen(["sleep", "60"], start_new_session=True, text=True)
+    failed = ex.RunOutcome(RunSpec("paper-c1", "nmpc", "#1", "nmpc"), str(stack.folder))
+    stack.stop(failed)
+    assert failed.returncode is not None and "stop_s" in failed.timing
+    before = ex.RunOutcome(RunSpec("paper-c2", "nmpc", "#2", "nmpc"), str(stack.folder))
+    stack.flown = [before]
+    assert stack.close() == [before]  # reported (its recording is missing: said so)
+    assert before.returncode is None and "stop_s" not in before.timing
+    assert not before.ok and "report" in before.error
+    out = stack.fly(RunSpec("paper-c3", "nmpc", "#3", "nmpc"))
+    assert not out.ok and "the stack was stopped" in out.error
+
+
+def test_no_stack_is_started_once_the_study_is_stopping(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(ex, "_stopping", threading.Event())
+    ex.stop_all()
+    with pytest.raises(ex.StudyStoppingError, match="the study is stopping"):
+        ex._spawn(["sleep", "60"], 20000)

@@ -29,7 +29,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import signal
 import sys
+import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -207,6 +209,16 @@ def _printed(doc: dict[str, Any]) -> dict[str, Any]:
     return {k: v for k, v in doc.items() if k != "runs"}
 
 
+def _interrupt_on_sigterm() -> None:
+    """SIGTERM stops a study as Ctrl-C does: no more runs, every stack stopped (a shared stack's
+    launcher runs until it is told to stop: ``--stay``)."""
+    def interrupt(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, interrupt)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(list(sys.argv[1:] if argv is None else argv))
     if args.list:
@@ -231,6 +243,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     out = args.out or default_out(study.name)
     out.mkdir(parents=True, exist_ok=True)
+    _interrupt_on_sigterm()
     try:
         outcomes, wall_s, executor, started = run_study(study, out, workers=args.workers, dask=args.dask,
                                                         timeout_s=args.timeout_s,

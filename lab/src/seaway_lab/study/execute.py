@@ -22,7 +22,7 @@ from __future__ import annotations
 import collections
 import contextlib
 import itertools
-import json
+import logging
 import math
 import os
 import random
@@ -45,6 +45,8 @@ from seaway.runtime.zenoh_bus import ENV_CONFIG, ENV_RENDEZVOUS
 from seaway.simkit.scenario import load_mission
 
 from seaway_lab.study.definitions import RunSpec, scenario_task_power_w
+
+log = logging.getLogger("seaway.study")
 
 PROFILE = "sim-batch"
 OPTIONAL_FLAGS = ("--no-report",)
@@ -295,6 +297,12 @@ class LauncherLog:
                     return None
                 self._cond.wait(left)
 
+    @property
+    def ended(self) -> bool:
+        """Whether the output ended (the launcher closed it: it exited)."""
+        with self._cond:
+            return self._ended
+
     def line_with(self, text: str) -> str:
         with self._cond:
             return next((x for x in self.lines if text in x), "")
@@ -380,11 +388,19 @@ def _stop_group(p: subprocess.Popen[str], grace_s: float = 15.0) -> None:
 _running_lock = threading.Lock()
 _running: set[subprocess.Popen[str]] = set()
 """The launchers this process has started and not yet seen exit (``stop_all`` on Ctrl-C)."""
+_stopping = threading.Event()
+"""Set by ``stop_all``: no launcher is started after it (a worker that took a run just before)."""
+
+
+class StudyStoppingError(RuntimeError):
+    """A launcher asked for after ``stop_all``: the study is being stopped."""
 
 
 def stop_all() -> None:
-    """Stop every launcher this process started that is still running (each stops its services)."""
+    """Stop every launcher this process started that is still running (each stops its services),
+    and start no more."""
     with _running_lock:
+        _stopping.set()
         running = list(_running)
     threads = [threading.Thread(target=_stop_group, args=(p,), daemon=True) for p in running]
     for t in threads:
@@ -395,10 +411,12 @@ def stop_all() -> None:
 
 def _spawn(command: list[str], port: int) -> subprocess.Popen[str]:
     """A launcher on its own rendezvous ``port``, in a session of its own, its output piped."""
-    p = subprocess.Popen(command, env=stack_env(port), stdout=subprocess.PIPE,
-                         stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, text=True,
-                         start_new_session=True)
     with _running_lock:
+        if _stopping.is_set():
+            raise StudyStoppingError("the study is stopping: no more stacks are started")
+        p = subprocess.Popen(command, env=stack_env(port), stdout=subprocess.PIPE,
+                             stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, text=True,
+                             start_new_session=True)
         _running.add(p)
     return p
 
@@ -431,28 +449,28 @@ def run_one(spec: RunSpec, run_dir: str | Path, *, profile: str = PROFILE,
     watchdog.start()
     assert p.stdout is not None
     with CpuMonitor(p.pid) as cpu:
-        log = LauncherLog(p.stdout, run_dir / "launch.log", t0)
-        if log.wait(["refused"]) == "refused":  # it would wait for a mission forever
+        launcher_log = LauncherLog(p.stdout, run_dir / "launch.log", t0)
+        if launcher_log.wait(["refused"]) == "refused":  # it would wait for a mission forever
             threading.Thread(target=_stop_group, args=(p,), daemon=True).start()
-        log.join()
+        launcher_log.join()
         out.returncode = p.wait()
     with _running_lock:
         _running.discard(p)
     watchdog.cancel()
     out.cpu_s = cpu.cpu_s
-    seen = log.seen
-    if log.ready_reported_s is not None:
-        out.timing["ready_reported_s"] = log.ready_reported_s
+    seen = launcher_log.seen
+    if launcher_log.ready_reported_s is not None:
+        out.timing["ready_reported_s"] = launcher_log.ready_reported_s
     t_exit = time.monotonic() - t0
     out.timing.update(_phases(seen, t_exit))
     if timed_out.is_set():
         out.error = f"timed out after {timeout_s:g} s"
     elif "refused" in seen:
-        out.error = "mission refused: " + log.line_with("REFUSED")
+        out.error = "mission refused: " + launcher_log.line_with("REFUSED")
     elif out.returncode != 0 or "complete" not in seen:
         out.error = f"launcher exited {out.returncode} before the mission completed"
     if out.error:
-        out.error += "\n" + log.tail()
+        out.error += "\n" + launcher_log.tail()
     t1 = time.monotonic()
     try:
         if not timed_out.is_set():  # a runaway's recording is large, and its numbers are not shown
@@ -579,6 +597,7 @@ def run_local(jobs: Iterable[tuple[RunSpec, Path]], workers: int, on_done: Done,
               timeout_s: float = DEFAULT_TIMEOUT_S) -> None:
     """Run the jobs ``workers`` at a time on this machine; ``on_done`` as each finishes."""
     jobs = longest_first(jobs)
+    _stopping.clear()
     launcher_options()  # once, before the threads
     pool = ThreadPoolExecutor(max_workers=max(1, workers), thread_name_prefix="study")
     try:
@@ -600,30 +619,54 @@ def run_local(jobs: Iterable[tuple[RunSpec, Path]], workers: int, on_done: Done,
 # -- many runs on one stack -----------------------------------------------------------------------
 
 STATUS_POLL_S = 0.01
-"""How often a shared stack's mission status is looked at: the newest status is kept by the
-transport (``Bus.subscribe(mode="latest")``), so a look costs one decode, not one per period."""
+"""How often a shared stack's mission status is looked at: the transport keeps the newest status
+(``Bus.newest``), so a look costs one decode, not one per period."""
 REQUEST_TIMEOUT_S = 30.0
 """How long a scenario load or a mission request may take to be answered (a load is answered once
 every member has answered the new episode's first period)."""
+REQUESTED_FROM = frozenset({"sim", "controller"})
+"""The services a shared stack's runs are requested from (a scenario load, a mission)."""
+SHARED_FLAGS = ("--no-mission", "--stay")
+"""What a shared stack's launcher is started with: no mission of its own (the study sends each, the
+first too, once it hears the status), and no stop at a mission's end."""
 
 
 class _RunFailedError(Exception):
     """A run on a shared stack failed; the text says how. The stack is stopped after it."""
 
 
+def run_episode(episodes: list[int], first_on_stack: bool, mission_id: str) -> int:
+    """The episode of a stack's recording that is a run's, from the episodes that accepted its
+    mission (``report.mission_episodes``): the last (a sim restarted mid-run: the controller flew it
+    again from its first leg). ValueError when that cannot be the run's: none accepted it, or a sim
+    restarted while a run after the stack's first flew: a restarted sim comes back with the launch
+    scenario, the first run's, not the one loaded for this run."""
+    if not episodes:
+        raise ValueError(f"no episode of the recording accepted mission {mission_id}")
+    if len(episodes) > 1 and not first_on_stack:
+        raise ValueError(f"the sim restarted while mission {mission_id} flew (episodes {episodes}): a "
+                         "restarted sim comes back with the stack's first scenario, not the one "
+                         "loaded for this run, so its numbers are not this run's; run it again, or "
+                         "with --fresh-stacks")
+    return episodes[-1]
+
+
 class SharedStack:
-    """One ``seaway launch sim-batch --stay`` that flies runs one after another, in one folder.
+    """One ``seaway launch sim-batch --no-mission --stay`` that flies runs one after another, in one
+    folder.
 
-    The first run is the launcher's own mission (its options, as ``run_one`` gives them); each next
-    one loads its scenario into the sim (``sim/scenario``, action ``load``: a new lockstep episode
-    from t = 0, in which the estimator starts again and the controller holds) and sends its mission
-    (``mission/set``, with its controller, T^w and disturbance prediction) as the operator, with the
-    credentials the launcher made. Each run is one episode of the folder's recording; ``close``
-    stops the stack and reports every run flown from one decode of it.
+    The launcher starts the stack on the first run's scenario. For each run the study, as the
+    operator (with the credentials the launcher registered for the stack's rendezvous), loads its
+    scenario into the sim (``sim/scenario``, action ``load``: a new lockstep episode from t = 0, in
+    which the estimator starts again and the controller holds; not for the first run, whose
+    scenario is the launch's) and sends its mission (``mission/set``) named after the run, with its
+    controller, T^w and disturbance prediction, then waits until the controller's status says it is
+    over (``mission_over``). Each run is one episode of the folder's recording; ``close`` stops the
+    stack and reports every run it flew from one decode of it.
 
-    Why: a stack's start and stop cost about 2.4 core-s and 3 s of wall time (five Python processes
-    importing numpy, CasADi, pydantic and Zenoh), a sixth of a Table I study's CPU when every run
-    started its own (docs/results.md). Two missions in one stack give the numbers of two fresh
+    Why: a stack's start and stop cost 2.5-3 s of wall time and about 1 core-s (five Python
+    processes importing numpy, CasADi, pydantic and Zenoh), paid once per stack instead of once per
+    run (docs/results.md, 2026-11-29). Two missions in one stack give the numbers of two fresh
     stacks (``test_lockstep_restarts``, ``test_study_shared``).
     """
 
@@ -636,60 +679,72 @@ class SharedStack:
         self.log: LauncherLog | None = None
         self.bus: Any = None
         self.status: Any = None
+        self.energy: Any = None
         self.cpu: CpuMonitor | None = None
         self._cpu_before: dict[str, float] = {}
-        self.flown: list[tuple[RunOutcome, str]] = []
-        """Runs flown to completion, with their mission ids, not yet reported."""
-        self.t_start = 0.0
-
-    @property
-    def started(self) -> bool:
-        return self.proc is not None
+        self._stopped = False
+        self.flown: list[RunOutcome] = []
+        """Runs flown to their end, not yet reported (each mission is named ``spec.key``)."""
 
     def fly(self, spec: RunSpec) -> RunOutcome:
-        """Fly ``spec`` on this stack (starting it for the first run). A failed run (its outcome
-        says why) leaves the stack stopped; the runs it flew before are in ``flown``."""
+        """Fly ``spec`` on this stack (starting it for the first run). Never raises: a failed run's
+        outcome says why, and leaves the stack stopped (the runs it flew before are in ``flown``)."""
         out = RunOutcome(spec, str(self.folder))
         t0 = time.monotonic()
         try:
-            mission_id = self._start(spec, out) if self.proc is None else self._next(spec, out)
+            if self._stopped:
+                raise _RunFailedError("the stack was stopped")
+            if self.proc is None:
+                self._start(spec, out)
+            else:
+                self._load(spec, out)
+            self._mission(spec, out, t0 + self.timeout_s)
         except _RunFailedError as err:
             out.error = str(err) + ("\n" + self.log.tail() if self.log is not None else "")
         except Exception as err:  # a bus that would not open, a scenario that would not read
             out.error = f"{type(err).__name__}: {err}"
         out.port, out.command = self.port, self.command
         out.timing["flight_s"] = time.monotonic() - t0
-        if self.cpu is not None:
-            now = self.cpu.snapshot()
-            out.cpu_s = {k: v - self._cpu_before.get(k, 0.0) for k, v in now.items()}
-            self._cpu_before = now
+        self._count_cpu(out)
         if out.error:
             self.stop(out)
+            out.timing["wall_s"] = out.timing["flight_s"] + out.timing.get("stop_s", 0.0)
         else:
-            self.flown.append((out, mission_id))
+            self.flown.append(out)
         return out
 
-    def _start(self, spec: RunSpec, out: RunOutcome) -> str:
-        from seaway.runtime import stacks
+    def _count_cpu(self, out: RunOutcome) -> None:
+        """The stack's CPU since the last run ended, as this run's (the first's has the start-up)."""
+        if self.cpu is None:
+            return
+        now = self.cpu.snapshot()
+        out.cpu_s = {k: v - self._cpu_before.get(k, 0.0) for k, v in now.items()}
+        self._cpu_before = now
 
-        opts = fit_options(spec, launcher_options())
-        opts += [f for f in (*OPTIONAL_FLAGS, "--stay") if f in launcher_options()]
+    def _start(self, spec: RunSpec, out: RunOutcome) -> None:
+        from seaway.runtime import credentials as creds
+        from seaway.runtime import stacks
+        from seaway.runtime.bus import Bus
+
+        supported = launcher_options()
+        missing = [f for f in ("--scenario", *SHARED_FLAGS) if f not in supported]
+        if missing:
+            raise _RunFailedError(f"seaway launch has no {', '.join(missing)}, which a shared stack "
+                                  "needs: run the study with --fresh-stacks")
+        opts = ["--scenario", spec.scenario, *SHARED_FLAGS, *(f for f in OPTIONAL_FLAGS if f in supported)]
         self.port = free_port()
         self.command = [*seaway_command(), "launch", PROFILE, *opts, "--run-dir", str(self.folder)]
         self.folder.mkdir(parents=True, exist_ok=True)
-        self.t_start = time.monotonic()
-        deadline = self.t_start + self.timeout_s
+        t0 = time.monotonic()
         self.proc = _spawn(self.command, self.port)
         assert self.proc.stdout is not None
-        self.cpu = CpuMonitor(self.proc.pid).__enter__()
-        self.log = LauncherLog(self.proc.stdout, self.folder / "launch.log", self.t_start)
-        hit = self.log.wait(["refused", "accepted"], self.timeout_s)
-        if hit is None:
-            raise _RunFailedError(f"no mission accepted within {self.timeout_s:g} s of the launch"
-                          if self.proc.poll() is None else
-                          f"launcher exited {self.proc.wait()} before its mission was accepted")
-        if hit == "refused":
-            raise _RunFailedError("mission refused: " + self.log.line_with("REFUSED"))
+        self.cpu = CpuMonitor(self.proc.pid)
+        self.cpu.__enter__()
+        self.log = LauncherLog(self.proc.stdout, self.folder / "launch.log", t0)
+        if self.log.wait(["ready"], self.timeout_s) is None:
+            if self.log.ended:
+                raise _RunFailedError(f"launcher exited {self._exit_code()} before the stack was ready")
+            raise _RunFailedError(f"the stack was not ready within {self.timeout_s:g} s")
         out.timing["startup_s"] = self.log.seen["ready"]
         if self.log.ready_reported_s is not None:
             out.timing["ready_reported_s"] = self.log.ready_reported_s
@@ -697,37 +752,46 @@ class SharedStack:
         entry = stacks.lookup(rendezvous)
         if entry is None:
             raise _RunFailedError(f"the launcher registered no stack on {rendezvous}")
-        from seaway.runtime import credentials as creds
-        from seaway.runtime.bus import Bus
-
         given = creds.NONE if entry.credentials == creds.NONE else creds.Credentials(
             Path(entry.credentials))
         self.bus = Bus.open(entry.vessel, identity="operator", credentials=given,
                             rendezvous=rendezvous)
-        self.status = self.bus.subscribe(keys.MISSION_STATUS, mode="latest")
-        try:  # the mission the launcher sent, as it wrote it
-            mission_id = json.loads((self.folder / MISSION_FILE).read_text())["mission_id"]
-        except (OSError, ValueError, KeyError) as err:
-            raise _RunFailedError(f"the launcher's {MISSION_FILE} does not say its mission: {err}"
-                                  ) from None
-        self._fly_to_end(mission_id, deadline)
-        out.timing["mission_s"] = time.monotonic() - self.t_start - out.timing["startup_s"]
-        return mission_id
+        self.status = self.bus.newest(keys.MISSION_STATUS)
+        self.energy = self.bus.newest(keys.MISSION_ENERGY)
+        # A session just opened knows nobody yet: a request sent now found no one to answer it
+        # ("no reply"). The services' health tokens, declared after their queryables, say it does.
+        deadline = t0 + self.timeout_s
+        while not (seen := self.bus.alive_services(timeout_s=0.5)) >= REQUESTED_FROM:
+            if time.monotonic() > deadline:
+                raise _RunFailedError(f"the study's session did not reach the stack's "
+                                      f"{', '.join(sorted(REQUESTED_FROM - seen))} within "
+                                      f"{self.timeout_s:g} s")
+            time.sleep(0.05)
 
-    def _next(self, spec: RunSpec, out: RunOutcome) -> str:
+    def _exit_code(self) -> int | str:
+        assert self.proc is not None
+        try:
+            return self.proc.wait(5.0)
+        except subprocess.TimeoutExpired:
+            return "?"
+
+    def _load(self, spec: RunSpec, out: RunOutcome) -> None:
         from seaway.contract.config import deploy_named, read_document
         from seaway.contract.messages import ScenarioRequest
 
         t0 = time.monotonic()
-        deadline = t0 + self.timeout_s
         doc = read_document(deploy_named("scenarios", spec.scenario, "scenario"))
         reply = self.bus.request(keys.SIM_SCENARIO, ScenarioRequest(stamp_ns=0, action="load",
                                                                     scenario=doc),
                                  REQUEST_TIMEOUT_S)
         if not reply.accepted:
             raise _RunFailedError(f"scenario {spec.scenario} not loaded: {reply.reason}")
-        t1 = time.monotonic()
-        out.timing["switch_s"] = t1 - t0
+        out.timing["switch_s"] = time.monotonic() - t0
+
+    def _mission(self, spec: RunSpec, out: RunOutcome, deadline: float) -> None:
+        from seaway.contract.messages import mission_over
+
+        t0 = time.monotonic()
         mission = load_mission(spec.scenario).to_request(
             0, controller=spec.controller, predict_disturbance=spec.predict_disturbance,
             task_power_w=spec.task_power_w)
@@ -736,31 +800,28 @@ class SharedStack:
         mission = type(mission).model_validate({**mission.model_dump(), "mission_id": spec.key})
         reply = self.bus.request(keys.MISSION_SET, mission, REQUEST_TIMEOUT_S)
         if not reply.accepted:
-            raise _RunFailedError(f"mission refused: {reply.reason}")
-        self._fly_to_end(spec.key, deadline)
-        out.timing["mission_s"] = time.monotonic() - t1
-        return spec.key
-
-    def _fly_to_end(self, mission_id: str, deadline: float) -> None:
+            raise _RunFailedError(f"mission {spec.key} refused: {reply.reason}")
         assert self.proc is not None
-        while True:
-            s = self.status.latest()
-            if s is not None and s.mission_id == mission_id:
-                if s.state == "complete":
-                    return
-                if s.state == "aborted":
-                    raise _RunFailedError(f"mission {mission_id} aborted")
+        while not mission_over(self.status.get(), self.energy.get(), spec.key):
+            s = self.status.get()
+            if s is not None and s.mission_id == spec.key and s.state == "aborted":
+                raise _RunFailedError(f"mission {spec.key} aborted"
+                                      + (f": {s.reason}" if s.reason else ""))
             if self.proc.poll() is not None:
                 raise _RunFailedError(f"launcher exited {self.proc.returncode} before mission "
-                              f"{mission_id} completed")
+                                      f"{spec.key} was over")
             if time.monotonic() > deadline:
                 raise _RunFailedError(f"timed out after {self.timeout_s:g} s")
             time.sleep(STATUS_POLL_S)
+        out.timing["mission_s"] = time.monotonic() - t0
 
     def stop(self, last: RunOutcome | None = None) -> None:
-        """Stop the stack (its launcher and services); the time it took counts to ``last``'s."""
-        if self.proc is None:
+        """Stop the stack (its launcher and services), once; the time it took and the CPU spent
+        meanwhile count to ``last``'s."""
+        if self._stopped or self.proc is None:
+            self._stopped = True
             return
+        self._stopped = True
         t0 = time.monotonic()
         if self.bus is not None:
             self.bus.close()
@@ -773,22 +834,22 @@ class SharedStack:
         if self.cpu is not None:
             self.cpu.__exit__(None, None, None)
             if last is not None:
-                last.cpu_s = {k: v - self._cpu_before.get(k, 0.0) + last.cpu_s.get(k, 0.0)
-                              for k, v in self.cpu.cpu_s.items()}
+                for k, v in self.cpu.cpu_s.items():
+                    last.cpu_s[k] = last.cpu_s.get(k, 0.0) + v - self._cpu_before.get(k, 0.0)
         if last is not None:
             last.returncode = self.proc.returncode
             last.timing["stop_s"] = time.monotonic() - t0
 
     def close(self, keep_series: bool = True) -> list[RunOutcome]:
-        """Stop the stack and report every run it flew (one decode of its recording)."""
-        last = self.flown[-1][0] if self.flown else None
-        self.stop(last)
-        if not self.flown:
+        """Stop the stack (if a failed run did not) and report every run it flew, from one decode
+        of its recording. Never raises: a run that cannot be reported says why."""
+        outs, self.flown = self.flown, []
+        self.stop(outs[-1] if outs else None)
+        if not outs:
             return []
         from seaway_recorder import recording
         from seaway_recorder import report as rep
 
-        outs = [o for o, _ in self.flown]
         try:
             t0 = time.monotonic()
             read = rep.read_for_report(recording.open_paths([self.folder]))
@@ -797,21 +858,18 @@ class SharedStack:
             for o in outs:
                 o.error = f"report: {type(err).__name__}: {err}"
             return [_concluded(o) for o in outs]
-        for i, (o, mission_id) in enumerate(self.flown):
+        for i, o in enumerate(outs):
             t1 = time.monotonic()
             try:
-                o.episode = rep.episode_of_mission(read[1], mission_id)
-                if o.episode is None:
-                    raise ValueError(f"no episode of the recording accepted mission {mission_id}")
+                o.episode = run_episode(rep.mission_episodes(read[1], o.spec.key), i == 0, o.spec.key)
                 o.report, series = report_json(self.folder, episode=o.episode, read=read,
-                                               scenario=o.spec.scenario, launcher_mission=i == 0)
+                                               scenario=o.spec.scenario, launcher_mission=False)
                 if keep_series:
                     o.series = series
             except Exception as err:
                 o.error = f"report: {type(err).__name__}: {err}"
             o.timing["report_s"] = time.monotonic() - t1 + shared_s
             o.timing["wall_s"] = sum(o.timing.get(k, 0.0) for k in ("flight_s", "stop_s", "report_s"))
-        self.flown = []
         return [_concluded(o) for o in outs]
 
 
@@ -820,16 +878,23 @@ def run_shared(specs: Iterable[RunSpec], runs_dir: Path, workers: int, on_done: 
     """Run the specs on ``workers`` stacks at once, each flying one run after another
     (``SharedStack``), longest first from one queue; ``on_flown`` as each run's mission ends,
     ``on_done`` with its numbers once its stack has stopped (a stack stops when the queue is empty,
-    or after a failed run: the next run starts a new one). Stack folders: ``runs_dir/stack-N``."""
+    or after a failed run: the next run starts a new one). Stack folders: ``runs_dir/stack-N``.
+    Callbacks are called one at a time. Ctrl-C (or SIGTERM made one by the caller) starts no more
+    runs and stops every stack."""
     queue = collections.deque(longest_first((s, runs_dir) for s in specs))
     lock = threading.Lock()
     stacks_made = itertools.count(1)
+    _stopping.clear()
     launcher_options()  # once, before the threads
 
     def said(callback: Done | None, outcome: RunOutcome) -> None:
         if callback is not None:
             with lock:
                 callback(outcome)
+
+    def closed(stack: SharedStack) -> None:
+        for o in stack.close():
+            said(on_done, o)
 
     def worker() -> None:
         stack: SharedStack | None = None
@@ -843,15 +908,15 @@ def run_shared(specs: Iterable[RunSpec], runs_dir: Path, workers: int, on_done: 
                         stack = SharedStack(runs_dir / f"stack-{next(stacks_made)}", timeout_s)
                 out = stack.fly(spec)
                 said(on_flown, out)
-                if out.error:  # the stack is stopped: report what it flew, and this run
-                    for o in stack.close():
-                        said(on_done, o)
+                if out.error:  # the stack is stopped: report what it flew, then this run
+                    closed(stack)
                     said(on_done, _concluded(out))
                     stack = None
+        except Exception as err:  # a callback's: said, not lost with the thread
+            log.exception("study worker: %s", err)
         finally:
             if stack is not None:
-                for o in stack.close():
-                    said(on_done, o)
+                closed(stack)
 
     threads = [threading.Thread(target=worker, name=f"study-{i}", daemon=True)
                for i in range(max(1, workers))]
