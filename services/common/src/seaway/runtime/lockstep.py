@@ -551,10 +551,13 @@ class Member:
             kept[:] = [k for k in kept if Period.of(k[1]) in periods]
         kept.append((lines, done))
         if len(kept) > KEPT_BUNDLES:
-            del kept[0]
-            self.ratelog.warning(("kept", self.service), "%s sent more than %d bundles in %d "
-                                 "periods: a recorder restarted now would miss the oldest",
-                                 self.service, KEPT_BUNDLES, KEPT_PERIODS)
+            dropped, _ = kept.pop(0)
+            # Only messages are worth a warning: a bundle that is an answer alone (the recorder's,
+            # which answers its first period again as each member joins) leaves nothing to miss.
+            if dropped:
+                self.ratelog.warning(("kept", self.service), "%s sent more than %d bundles in %d "
+                                     "periods: a recorder restarted now would miss the oldest",
+                                     self.service, KEPT_BUNDLES, KEPT_PERIODS)
 
     def working(self, period: Period) -> None:
         """The service's loop starts on ``period`` (``seaway.runtime.timeline``)."""
