@@ -9,18 +9,18 @@
 A run is the mission of scenario S flown by controller C (with its T^w and disturbance prediction)
 through the real processes in lockstep, then the report of its recording. ``--workers N`` runs N
 stacks at once on this machine, each on its own Zenoh rendezvous port, and each stack flies one run
-after another: it is started as ``seaway launch sim-batch --scenario S --no-mission --stay`` on
-its first run's scenario, and each run is a scenario load (a new lockstep episode from t = 0; not
-for the first) and the run's mission, sent as the operator, so that a stack's start-up is paid
-once, not per run (``execute.SharedStack``). ``--fresh-stacks`` starts a stack of its own for every
-run instead (``seaway launch sim-batch --scenario S --controller C [--predict-disturbance]
-[--task-power-w W] --run-dir OUT/runs/KEY``); ``--dask ADDRESS`` submits each run to a Dask scheduler (each worker starts the stack of
-the run it takes). Writes into ``--out`` (default ``runs/study-NAME-<time>/``): ``results.md``,
-``results.csv``, ``results.json``, ``series.json`` (what the figures are drawn from),
-``figures/*.png`` and the stacks' folders: ``runs/stack-N/`` (recording with one episode per run,
-logs, launch.log; ``results.json`` says which run is which episode), or ``runs/<key>/`` with
-``--fresh-stacks`` and ``--dask``. ``--redraw OUT`` draws the tables and figures of a finished
-study again without running anything.
+after another: it is started as ``seaway launch sim-batch --scenario S --no-mission --stay`` on its
+first run's scenario, and each run is a scenario load (a new lockstep episode from t = 0; not for
+the first) and the run's mission, sent as the operator, so that a stack's start-up is paid once, not
+per run (``execute.SharedStack``). ``--fresh-stacks`` starts a stack of its own for every run
+instead (``seaway launch sim-batch --scenario S --controller C [--predict-disturbance]
+[--task-power-w W] --run-dir OUT/runs/KEY``); ``--dask ADDRESS`` submits each run to a Dask
+scheduler (each worker starts the stack of the run it takes). Writes into ``--out`` (default
+``runs/study-NAME-<time>/``): ``results.md``, ``results.csv``, ``results.json``, ``series.json``
+(what the figures are drawn from), ``figures/*.png`` and the stacks' folders: ``runs/stack-N/``
+(recording with one episode per run, logs, launch.log; ``results.json`` says which run is which
+episode), or ``runs/<key>/`` with ``--fresh-stacks`` and ``--dask``. ``--redraw OUT`` draws the
+tables and figures of a finished study again without running anything.
 
 Exit code: 0 when every run completed, 1 otherwise, 2 for bad arguments, 130 when interrupted
 (Ctrl-C starts no more runs and stops the running ones).
