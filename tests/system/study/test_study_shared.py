@@ -64,3 +64,32 @@ def test_runs_flown_one_after_another_on_one_stack_equal_fresh_stacks(tmp_path: 
     # The two conditions differ (the grid of #5 was loaded, not #1's calm water flown twice).
     c1, c5 = (shared["results"][r]["nmpc"] for r in ("#1", "#5"))
     assert abs(c1["energy_j"] - c5["energy_j"]) > 1.0, (c1, c5)
+
+
+@pytest.mark.timeout(300)
+def test_a_failed_run_stops_its_stack_and_the_next_run_gets_a_new_one(tmp_path: Path,
+                                                                     zenoh_env: dict[str, str],
+                                                                     monkeypatch: pytest.MonkeyPatch
+                                                                     ) -> None:
+    """The run before the failed one is reported from the stopped stack's recording, the failed
+    one says why, and the run after it flies on a stack of its own."""
+    from seaway_lab.study import execute as ex
+    from seaway_lab.study.definitions import RunSpec
+
+    for k, v in zenoh_env.items():
+        monkeypatch.setenv(k, v)
+    specs = [RunSpec("paper-c1", "nmpc", "#1", "nmpc"),
+             RunSpec("paper-c2", "nmpc", "#2", "nmpc", task_power_w=-1.0),  # no valid mission
+             RunSpec("paper-c5", "nmpc", "#5", "nmpc")]
+    done: list[ex.RunOutcome] = []
+    ex.run_shared(specs, tmp_path / "runs", 1, done.append, timeout_s=120)
+    by = {o.spec.key: o for o in done}
+    assert sorted(by) == sorted(s.key for s in specs)
+    first, bad, after = (by[s.key] for s in specs)
+    assert first.ok and first.episode == 0 and first.run_dir.endswith("stack-1"), first.error
+    assert not bad.ok and "task_power_w" in bad.error and bad.run_dir.endswith("stack-1")
+    assert "stop_s" in bad.timing and "wall_s" in bad.timing  # its stack stopped with it ...
+    assert "stop_s" not in first.timing and first.returncode is None  # ... once, counted to it
+    assert after.ok and after.episode == 0 and after.run_dir.endswith("stack-2"), after.error
+    assert after.port != first.port
+    assert first.report["metrics"]["energy_j"] != pytest.approx(after.report["metrics"]["energy_j"])
