@@ -137,8 +137,8 @@ def wait_for(predicate, timeout_s: float, interval_s: float = 0.05, what: str = 
 def stack_credentials(rendezvous: str | None = None, timeout_s: float = 60.0):
     """The credentials of the stack ``seaway launch`` registered on ``rendezvous`` (default: this
     environment's), waiting for it to register."""
-    from seaway.runtime import credentials, stacks
+    from seaway.runtime import stacks
 
     rendezvous = rendezvous or os.environ["SEAWAY_ZENOH_RENDEZVOUS"]
     entry = wait_for(lambda: stacks.lookup(rendezvous), timeout_s, what=f"a stack on {rendezvous}")
-    return credentials.Credentials(Path(entry.credentials))
+    return entry.session_credentials()

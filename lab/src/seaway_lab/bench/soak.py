@@ -29,7 +29,7 @@ from seaway.contract import keys
 from seaway.contract.messages import MissionStatus, ScenarioRequest
 from seaway.runtime import stacks
 from seaway.runtime.bus import Bus
-from seaway.runtime.credentials import ENV_CREDENTIALS, ENV_IDENTITY, Credentials
+from seaway.runtime.credentials import ENV_CREDENTIALS, ENV_IDENTITY
 from seaway.runtime.stacks import ENV_STACKS_DIR
 from seaway.runtime.zenoh_bus import ENV_CONFIG, ENV_RENDEZVOUS
 from seaway.simkit.scenario import load_scenario
@@ -104,7 +104,7 @@ class Stack:
                 raise RuntimeError(f"the stack did not start:\n{self.tail()}")
             time.sleep(0.2)
             entry = stacks.lookup(endpoint)
-        self.bus = Bus.open(VESSEL, identity="operator", credentials=Credentials(Path(entry.credentials)))
+        self.bus = Bus.open(VESSEL, identity="operator", credentials=entry.session_credentials())
         self.status = self.bus.subscribe(keys.MISSION_STATUS, mode="latest")
 
     def tail(self, n: int = 30) -> str:

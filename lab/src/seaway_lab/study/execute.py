@@ -541,21 +541,19 @@ def report_args(run_dir: str | Path) -> list[str]:
 
 
 def report_json(run_dir: str | Path, *, episode: int | None = None, read: Any = None,
-                scenario: str | None = None, launcher_mission: bool = True,
-                ) -> tuple[dict[str, Any], dict[str, Any]]:
+                scenario: str | None = None) -> tuple[dict[str, Any], dict[str, Any]]:
     """(what ``seaway report <report_args> --json --no-plots`` prints, the series for the figures).
 
     ``episode``, ``read`` (``report.read_for_report`` of the folder) and ``scenario``: one of the
-    runs a shared stack flew (``run_shared``), from one decode of its recording; its mission is
-    then the one the controller recorded accepting, and the launcher's ``mission.json`` (the first
-    run's) is no candidate unless ``launcher_mission``."""
+    runs a shared stack flew (``run_shared``), from one decode of its recording; its mission is the
+    one the controller recorded accepting (the launcher sent none: no ``mission.json``)."""
     from seaway_recorder import recording
     from seaway_recorder import report as rep
 
     mission = Path(run_dir) / MISSION_FILE
     files = recording.open_paths([run_dir]) if read is None else read[0].files
     res = rep.analyse(files, scenario=scenario, episode=episode, read=read,
-                      mission_file=str(mission) if launcher_mission and mission.is_file() else None)
+                      mission_file=str(mission) if mission.is_file() else None)
     doc = rep._clean({k: v for k, v in res.items() if k != "_"})  # exactly what --json prints
     data = res["_"]
     ser = data["series"]
@@ -722,7 +720,6 @@ class SharedStack:
         self._cpu_before = now
 
     def _start(self, spec: RunSpec, out: RunOutcome) -> None:
-        from seaway.runtime import credentials as creds
         from seaway.runtime import stacks
         from seaway.runtime.bus import Bus
 
@@ -752,10 +749,8 @@ class SharedStack:
         entry = stacks.lookup(rendezvous)
         if entry is None:
             raise _RunFailedError(f"the launcher registered no stack on {rendezvous}")
-        given = creds.NONE if entry.credentials == creds.NONE else creds.Credentials(
-            Path(entry.credentials))
-        self.bus = Bus.open(entry.vessel, identity="operator", credentials=given,
-                            rendezvous=rendezvous)
+        self.bus = Bus.open(entry.vessel, identity="operator",
+                            credentials=entry.session_credentials(), rendezvous=rendezvous)
         self.status = self.bus.newest(keys.MISSION_STATUS)
         self.energy = self.bus.newest(keys.MISSION_ENERGY)
         # A session just opened knows nobody yet: a request sent now found no one to answer it
@@ -802,8 +797,7 @@ class SharedStack:
         if not reply.accepted:
             raise _RunFailedError(f"mission {spec.key} refused: {reply.reason}")
         assert self.proc is not None
-        while not mission_over(self.status.get(), self.energy.get(), spec.key):
-            s = self.status.get()
+        while not mission_over(s := self.status.get(), self.energy.get(), spec.key):
             if s is not None and s.mission_id == spec.key and s.state == "aborted":
                 raise _RunFailedError(f"mission {spec.key} aborted"
                                       + (f": {s.reason}" if s.reason else ""))
@@ -863,7 +857,7 @@ class SharedStack:
             try:
                 o.episode = run_episode(rep.mission_episodes(read[1], o.spec.key), i == 0, o.spec.key)
                 o.report, series = report_json(self.folder, episode=o.episode, read=read,
-                                               scenario=o.spec.scenario, launcher_mission=False)
+                                               scenario=o.spec.scenario)
                 if keep_series:
                     o.series = series
             except Exception as err:

@@ -19,6 +19,10 @@ import os
 import re
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from seaway.runtime.credentials import Credentials
 
 ENV_STACKS_DIR = "SEAWAY_STACKS_DIR"
 
@@ -37,6 +41,13 @@ class StackEntry:
     def describe(self) -> str:
         return (f"profile {self.profile!r}, vessel {self.vessel!r}, launcher pid {self.pid}, "
                 f"run folder {self.run_dir}")
+
+    def session_credentials(self) -> Credentials | str:
+        """What a session of this stack authenticates with: its ``Credentials``, or
+        ``credentials.NONE`` for a stack launched without authentication."""
+        from seaway.runtime import credentials as creds
+
+        return creds.NONE if self.credentials == creds.NONE else creds.Credentials(Path(self.credentials))
 
 
 def stacks_dir() -> Path:

@@ -108,8 +108,7 @@ def resolve_credentials(given: creds.Credentials | str | None = None,
     if found is None:
         entry = stacks.lookup(rendezvous or rendezvous_endpoint())
         if entry is not None:
-            found = (creds.NONE if entry.credentials == creds.NONE
-                     else creds.Credentials(Path(entry.credentials)))
+            found = entry.session_credentials()
     if found is None:
         raise creds.CredentialsError(
             f"no credentials: no stack runs on {rendezvous or rendezvous_endpoint()} and "
