@@ -144,3 +144,22 @@ def test_the_chunk_scan_yields_what_the_mcap_reader_yields(tmp_path: Path, compr
         got = list(recording._file_messages(fh, reader, wanted or {a, b}))
     assert got == want
     assert len(got) == (240 if topics is None else sum(1 for r in records if r[0] == a))
+
+
+def test_a_damaged_chunk_is_named_with_the_way_to_repair_it(tmp_path: Path) -> None:
+    from mcap.reader import make_reader
+
+    a = ORIGIN.key("vessel1")
+    path = tmp_path / "recording.mcap"
+    write(path, [(a, i, origin(i, i / 1000)) for i in range(100)], chunk_size=2000)
+    with open(path, "rb") as fh:
+        chunk = sorted(make_reader(fh).get_summary().chunk_indexes,
+                       key=lambda c: c.chunk_start_offset)[1]
+    data = bytearray(path.read_bytes())
+    middle = chunk.chunk_start_offset + chunk.chunk_length // 2
+    data[middle:middle + 40] = bytes(40)  # compressed bytes zeroed: zstd says it is corrupt
+    path.write_bytes(bytes(data))
+    with pytest.raises(recording.UnreadableRecordingError,
+                       match=rf"recording.mcap: the chunk at byte {chunk.chunk_start_offset} is "
+                             r"damaged .*seaway record recover"):
+        recording.decode_vessel([path], "vessel1", [ORIGIN.suffix])

@@ -277,40 +277,57 @@ def chunked_messages(fh: Any, chunk_indexes: Iterable[ChunkIndex], channel_ids: 
     for ci in sorted(chunk_indexes, key=lambda c: c.chunk_start_offset):
         if ci.message_index_offsets and channel_ids.isdisjoint(ci.message_index_offsets):
             continue
-        fh.seek(ci.chunk_start_offset)
-        rec = fh.read(ci.chunk_length)
-        op, _ = _RECORD.unpack_from(rec, 0)
-        if op != _OP_CHUNK:
-            raise McapError(f"no chunk at offset {ci.chunk_start_offset} (opcode {op:#x})")
-        _, _, size, _ = _CHUNK.unpack_from(rec, _RECORD.size)
-        pos = _RECORD.size + _CHUNK.size
-        (n,) = _U32.unpack_from(rec, pos)
-        compression = rec[pos + 4:pos + 4 + n].decode()
-        pos += 4 + n
-        (records_len,) = _U64.unpack_from(rec, pos)
-        data = _decompress(compression, rec[pos + 8:pos + 8 + records_len], size)
-        pos, end = 0, len(data)
-        while pos < end:
-            op, length = _RECORD.unpack_from(data, pos)
-            body = pos + _RECORD.size
-            pos = body + length
-            if op == _OP_MESSAGE:
-                cid, _, log_ns, _ = _MESSAGE.unpack_from(data, body)
-                if cid in channel_ids:
-                    yield cid, log_ns, data[body + _MESSAGE.size:pos]
+        try:
+            found = _chunk_records(fh, ci, channel_ids)
+        except Exception as err:  # struct, decompression, text: a damaged chunk, said where
+            raise McapError(f"the chunk at byte {ci.chunk_start_offset} is damaged "
+                            f"({type(err).__name__}: {err})") from None
+        yield from found
+
+
+def _chunk_records(fh: Any, ci: ChunkIndex, channel_ids: set[int]) -> list[tuple[int, int, bytes]]:
+    """One chunk's messages on ``channel_ids`` (``chunked_messages``)."""
+    fh.seek(ci.chunk_start_offset)
+    rec = fh.read(ci.chunk_length)
+    op, _ = _RECORD.unpack_from(rec, 0)
+    if op != _OP_CHUNK:
+        raise McapError(f"opcode {op:#x}, not a chunk's")
+    _, _, size, _ = _CHUNK.unpack_from(rec, _RECORD.size)
+    pos = _RECORD.size + _CHUNK.size
+    (n,) = _U32.unpack_from(rec, pos)
+    compression = rec[pos + 4:pos + 4 + n].decode()
+    pos += 4 + n
+    (records_len,) = _U64.unpack_from(rec, pos)
+    data = _decompress(compression, rec[pos + 8:pos + 8 + records_len], size)
+    out = []
+    pos, end = 0, len(data)
+    while pos < end:
+        op, length = _RECORD.unpack_from(data, pos)
+        body = pos + _RECORD.size
+        pos = body + length
+        if op == _OP_MESSAGE:
+            cid, _, log_ns, _ = _MESSAGE.unpack_from(data, body)
+            if cid in channel_ids:
+                out.append((cid, log_ns, data[body + _MESSAGE.size:pos]))
+    return out
 
 
 def _file_messages(fh: Any, reader: McapReader, topics: set[str] | None
                    ) -> Iterator[tuple[str, int, bytes]]:
-    """(topic, log time, data) of the file's messages on ``topics`` (None: all), in file order."""
-    summary = reader.get_summary()
-    if summary is not None and summary.chunk_indexes and topics is not None:
-        ids = {cid: ch.topic for cid, ch in summary.channels.items() if ch.topic in topics}
-        for cid, log_ns, data in chunked_messages(fh, summary.chunk_indexes, set(ids)):
-            yield ids[cid], log_ns, data
-        return
-    for _schema, channel, msg in reader.iter_messages(topics=topics, log_time_order=False):
-        yield channel.topic, msg.log_time, bytes(msg.data)
+    """(topic, log time, data) of the file's messages on ``topics`` (None: all), in file order.
+    UnreadableRecordingError, naming the file and the way to repair it, where it is damaged."""
+    try:
+        summary = reader.get_summary()
+        if summary is not None and summary.chunk_indexes and topics is not None:
+            ids = {cid: ch.topic for cid, ch in summary.channels.items() if ch.topic in topics}
+            for cid, log_ns, data in chunked_messages(fh, summary.chunk_indexes, set(ids)):
+                yield ids[cid], log_ns, data
+            return
+        for _schema, channel, msg in reader.iter_messages(topics=topics, log_time_order=False):
+            yield channel.topic, msg.log_time, bytes(msg.data)
+    except McapError as err:
+        raise UnreadableRecordingError(f"{getattr(fh, 'name', 'the recording')}: {err}; "
+                                       f"{RECOVER_HINT}") from None
 
 
 def decode_vessel(files: list[Path], vessel: str | None = None,
