@@ -1,10 +1,13 @@
 """``seaway launch``'s mission options through the real processes: ``sim-batch --controller nmpc
 --predict-disturbance --task-power-w 1`` flies paper-c1's mission with NMPC predicting with the
-estimated tau_d, and the run folder, the recording and the report all say so."""
+estimated tau_d, and the run folder, the recording and the report all say so; ``--cpus`` keeps every
+process of the stack on the CPUs it names."""
 
 from __future__ import annotations
 
 import json
+import os
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -47,3 +50,43 @@ def test_the_launch_options_choose_the_controller_and_the_prediction(tmp_path, z
     assert report["mission"]["source"] == f"recorded {keys.MISSION_ACCEPTED.suffix}", report["mission"]
     assert (report["mission"]["controller"], report["mission"]["predict_disturbance"]) == ("nmpc", True)
     assert report["metrics"]["completed"] and report["metrics"]["legs_completed"] == 2
+
+
+@pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="needs two CPUs to pin to one")
+def test_cpus_keep_the_whole_stack_on_them(tmp_path, zenoh_env) -> None:
+    import psutil
+
+    cpu = max(os.sched_getaffinity(0))
+    p = subprocess.Popen([str(BIN / "seaway"), "launch", "sim-batch", "--no-mission", "--stay",
+                          "--cpus", str(cpu), "--run-dir", str(tmp_path / "run")],
+                         env=zenoh_env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                         start_new_session=True)
+    lines: list[str] = []
+    try:
+        assert p.stdout is not None
+        for line in p.stdout:  # the launcher's own lines, until the stack is up
+            lines.append(line)
+            if line.startswith("all ready"):
+                break
+        assert any(line.startswith("all ready") for line in lines), "".join(lines)
+        assert f", CPUs {cpu}\n" in "".join(lines)
+        procs = [psutil.Process(p.pid), *psutil.Process(p.pid).children(recursive=True)]
+        names = {q.name() for q in procs}
+        assert {"seaway-sim", "seaway-estimato", "seaway-controll", "seaway-recorder"} <= names, names
+        # every thread of every process: Zenoh's, the services' own, the launcher's
+        affinities = {frozenset(os.sched_getaffinity(t.id)) for q in procs for t in q.threads()}
+        assert affinities == {frozenset({cpu})}
+    finally:
+        p.send_signal(signal.SIGINT)
+        p.communicate(timeout=60)
+    assert p.returncode == 0, "".join(lines)
+
+
+def test_a_cpu_list_that_cannot_be_used_is_refused_before_anything_starts(tmp_path, zenoh_env) -> None:
+    out = subprocess.run([str(BIN / "seaway"), "launch", "sim-batch", "--cpus", "0-4096",
+                          "--run-dir", str(tmp_path / "run")],
+                         env=zenoh_env, capture_output=True, text=True, timeout=60, check=False)
+    assert out.returncode == 2
+    assert "argument --cpus: CPU list '0-4096': CPU 4096 cannot be used by this process (allowed here: " \
+        in out.stderr
+    assert not (tmp_path / "run").exists()

@@ -70,7 +70,7 @@ from seaway.contract.messages import (
     ThrustCommand,
     mission_over,
 )
-from seaway.runtime import refusals
+from seaway.runtime import cpus, refusals
 from seaway.runtime import run as runs
 from seaway.runtime.bus import Bus, Every, Newest, RuntimeEnvError
 from seaway.runtime.credentials import ENV_CREDENTIALS, NONE, CredentialsError
@@ -116,8 +116,19 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--recording", type=Path, default=None, help="recording for the replay profile")
     ap.add_argument("--control-period-s", type=float, default=None,
                     help=f"the run's control period [s] (default {runs.CONTROL_PERIOD_S})")
+    ap.add_argument("--cpus", type=_cpu_list, default=None, metavar="LIST",
+                    help="run the whole stack (this launcher, every process it starts, their "
+                         "threads) on these CPUs only, e.g. 0 or 0-1,4 (default: wherever the "
+                         "kernel puts them; seaway.runtime.cpus says when it pays)")
     ap.add_argument("--check", action="store_true", help="validate the profile and exit")
     return ap
+
+
+def _cpu_list(text: str) -> frozenset[int]:
+    try:
+        return cpus.parse_cpus(text)
+    except cpus.CpuSetError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
 
 
 def _task_power(text: str) -> float:
@@ -545,6 +556,8 @@ def show_groundstations(sup: Supervisor, run_dir: Path, shown: dict[str, int]) -
 
 def main(argv: list[str]) -> int:
     args = parser().parse_args(argv)
+    if args.cpus is not None:  # first: every thread and process started later inherits it
+        cpus.pin_threads(0, args.cpus)
     dump_stacks_on_signal()
     try:
         profile: Profile = load_profile(args.profile)
@@ -640,7 +653,8 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
     print(f"run {run.run_id}: model {run.model_vessel_file}"
           + (f", plant {run.plant_vessel_file}" if run.plant_vessel_file else "")
           + f", period {run.control_period_s:g} s, clock {run.clock}"
-          + (f", scenario {run.scenario}" if run.scenario else ""), flush=True)
+          + (f", scenario {run.scenario}" if run.scenario else "")
+          + (f", CPUs {cpus.format_cpus(args.cpus)}" if args.cpus is not None else ""), flush=True)
     for note in auth.notes:
         print(note, flush=True)
 
