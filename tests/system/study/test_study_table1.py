@@ -8,6 +8,7 @@ the lower mean cross-track error; NMPC is the fastest and the most expensive.
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 from pathlib import Path
 
@@ -57,4 +58,10 @@ def test_condition_1_shows_the_papers_relations(tmp_path: Path, zenoh_env: dict[
         assert not (folder / "report").exists(), folder
     ports = {r["port"] for r in saved["runs"]}
     assert len(ports) == 2  # a rendezvous port per stack
+    # two stacks on a machine of two or more CPUs: each on CPUs of its own (seaway.runtime.cpus)
+    if len(os.sched_getaffinity(0)) >= 2:
+        groups = doc["executor"]["cpus"]
+        assert groups is not None and len(set(groups)) == 2, groups
+        pinned = {c[c.index("--cpus") + 1] for c in (r["command"] for r in saved["runs"])}
+        assert pinned == set(groups)  # each stack's launcher told its own
     assert doc["timing"]["runs"] == 3 and doc["wall_s"] > 0

@@ -63,3 +63,16 @@ def test_bad_arguments() -> None:
     assert cli.main(["table1", "--workers", "0"]) == 2
     assert cli.main([]) == 2
     assert cli.main(["--list"]) == 0
+
+
+def test_pinning_that_cannot_be_done_is_refused_before_anything_is_made(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    from seaway.runtime import cpus
+
+    monkeypatch.setattr(cpus, "allowed", lambda: frozenset({0, 1}))
+    out = tmp_path / "study"
+    assert cli.main(["table1", "--workers", "3", "--pin", "--out", str(out)]) == 2
+    assert "3 stack(s) at once cannot each have CPUs of their own" in capsys.readouterr().err
+    assert cli.main(["table1", "--pin", "--dask", "tcp://127.0.0.1:9", "--out", str(out)]) == 2
+    assert "a Dask cluster's workers place their own stacks" in capsys.readouterr().err
+    assert not out.exists()

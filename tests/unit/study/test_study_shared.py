@@ -24,16 +24,28 @@ class FakeStack:
     FAILING: ClassVar[set[str]] = set()
     made: ClassVar[list[FakeStack]] = []
 
-    def __init__(self, folder: Path, timeout_s: float) -> None:
-        self.folder, self.timeout_s = folder, timeout_s
+    SLOW: ClassVar[set[str]] = set()
+    """Runs that take a while: their stack is still flying when the other worker runs out."""
+
+    def __init__(self, folder: Path, timeout_s: float, cpus: frozenset[int] | None = None) -> None:
+        self.folder, self.timeout_s, self.cpus = folder, timeout_s, cpus
+        self.started_on = cpus
+        self.widened: list[tuple[frozenset[int], set[str]]] = []
         self.flown: list[ex.RunOutcome] = []
+        self.flying: set[str] = set()
         self.closed = False
         FakeStack.made.append(self)
+
+    def widen(self, cpus: frozenset[int]) -> None:
+        self.widened.append((cpus, set(self.flying)))
+        self.cpus = cpus
 
     def fly(self, spec: RunSpec) -> ex.RunOutcome:
         assert not self.closed, "a run flown on a stopped stack"
         out = ex.RunOutcome(spec, str(self.folder))
-        time.sleep(0.001)
+        self.flying = {spec.key}
+        time.sleep(0.5 if spec.key in self.SLOW else 0.001)
+        self.flying = set()
         if spec.key in self.FAILING:
             out.error = "timed out after 1 s"
             self.closed = True  # a failed run stops its stack (SharedStack.fly)
@@ -53,14 +65,58 @@ class FakeStack:
 def fake(monkeypatch: pytest.MonkeyPatch):
     monkeypatch.setattr(ex, "SharedStack", FakeStack)
     monkeypatch.setattr(ex, "launcher_options", lambda: set())
-    FakeStack.made, FakeStack.FAILING = [], set()
+    FakeStack.made, FakeStack.FAILING, FakeStack.SLOW = [], set(), set()
     return FakeStack
 
 
-def _run(tmp_path: Path, workers: int) -> tuple[list[ex.RunOutcome], list[str]]:
+def _run(tmp_path: Path, workers: int, cpus: list[frozenset[int]] | None = None,
+         specs: list[RunSpec] = TABLE1) -> tuple[list[ex.RunOutcome], list[str]]:
     done, flown = [], []
-    ex.run_shared(TABLE1, tmp_path, workers, done.append, on_flown=lambda o: flown.append(o.spec.key))
+    ex.run_shared(specs, tmp_path, workers, done.append, on_flown=lambda o: flown.append(o.spec.key),
+                  cpus=cpus)
     return done, flown
+
+
+def test_pinned_stacks_start_on_their_workers_cpus_and_take_the_cpus_a_finished_one_leaves(
+        fake, tmp_path: Path) -> None:
+    # Two runs: one long. The worker of the short one runs out of runs while the long one flies:
+    # that stack may then use both CPUs (else one would idle to the end of the study).
+    specs = [s for s in TABLE1 if s.key in ("paper-c1-cc-empc", "paper-c1-nmpc")]
+    fake.SLOW = {"paper-c1-cc-empc"}
+    done, _ = _run(tmp_path, workers=2, cpus=[frozenset({0}), frozenset({1})], specs=specs)
+    assert all(o.ok for o in done) and len(fake.made) == 2
+    assert sorted(s.started_on for s in fake.made) == [frozenset({0}), frozenset({1})]
+    slow = next(s for s in fake.made if any(o.spec.key == "paper-c1-cc-empc" for o in s.flown))
+    assert slow.widened and slow.widened[0] == (frozenset({0, 1}), {"paper-c1-cc-empc"})
+    fast = next(s for s in fake.made if s is not slow)
+    assert all(c == frozenset({0, 1}) for c, _ in fast.widened)  # nothing narrower, ever
+
+
+def test_stacks_left_to_the_kernel_are_never_pinned(fake, tmp_path: Path) -> None:
+    fake.SLOW = {"paper-c1-cc-empc"}
+    _run(tmp_path, workers=2, specs=[s for s in TABLE1 if s.row == "#1"])
+    assert all(s.started_on is None and not s.widened for s in fake.made)
+
+
+def test_the_cpu_groups_of_a_study(monkeypatch: pytest.MonkeyPatch) -> None:
+    from seaway.runtime import cpus
+
+    monkeypatch.setattr(cpus, "allowed", lambda: frozenset({0, 1}))
+    assert ex.cpu_groups(2, None) == [frozenset({0}), frozenset({1})]
+    assert ex.cpu_groups(1, None) is None  # one stack: the kernel may use both CPUs for it
+    assert ex.cpu_groups(3, None) is None  # two stacks on one CPU while none idles: no
+    assert ex.cpu_groups(2, False) is None
+    with pytest.raises(ValueError, match=r"--pin: 3 stack\(s\) at once cannot each have CPUs of their "
+                                         r"own: this process may use 2 CPU\(s\) \(0-1\), so --pin "
+                                         r"takes 2 to 2 workers"):
+        ex.cpu_groups(3, True)
+    monkeypatch.setattr(cpus, "allowed", lambda: frozenset({3}))
+    with pytest.raises(ValueError, match=r"1 CPU\(s\) \(3\), so nothing can be pinned"):
+        ex.cpu_groups(2, True)
+    assert ex.cpu_groups(2, None) is None  # not asked: one CPU, nothing to pin, no error
+    assert ex.cpus_option(frozenset({1}), {"--cpus"}) == ["--cpus", "1"]
+    assert ex.cpus_option(frozenset({1}), set()) == []  # a launcher without the option
+    assert ex.cpus_option(None, {"--cpus"}) == []
 
 
 def test_each_worker_flies_its_runs_on_one_stack(fake, tmp_path: Path) -> None:
@@ -171,3 +227,33 @@ def test_no_stack_is_started_once_the_study_is_stopping(monkeypatch: pytest.Monk
     ex.stop_all()
     with pytest.raises(ex.StudyStoppingError, match="the study is stopping"):
         ex._spawn(["sleep", "60"], 20000)
+
+
+@pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="needs two CPUs to pin to one")
+def test_widening_a_stack_reaches_every_thread_of_every_process_in_it(tmp_path: Path) -> None:
+    import subprocess
+    import sys
+
+    import psutil
+
+    everything = frozenset(os.sched_getaffinity(0))
+    one = frozenset({min(everything)})
+    # A launcher pinned to one CPU (as --cpus does it) that started a service with two threads.
+    service = ("import threading, time; threading.Thread(target=time.sleep, args=(60,)).start(); "
+               "time.sleep(60)")
+    launcher = (f"import os, subprocess, sys, time; os.sched_setaffinity(0, {set(one)}); "
+                f"subprocess.Popen([sys.executable, '-c', {service!r}]); time.sleep(60)")
+    stack = ex.SharedStack(tmp_path / "stack-1", cpus=one)
+    stack.proc = subprocess.Popen([sys.executable, "-c", launcher], start_new_session=True, text=True)
+    try:
+        deadline = time.monotonic() + 30
+        while not (kids := psutil.Process(stack.proc.pid).children()) or len(kids[0].threads()) < 2:
+            assert time.monotonic() < deadline, "the stand-in service did not start"
+            time.sleep(0.05)
+        procs = [psutil.Process(stack.proc.pid), *kids]
+        assert {frozenset(os.sched_getaffinity(t.id)) for p in procs for t in p.threads()} == {one}
+        stack.widen(everything)
+        assert {frozenset(os.sched_getaffinity(t.id)) for p in procs for t in p.threads()} == {everything}
+        assert stack.cpus == everything
+    finally:
+        stack.stop()

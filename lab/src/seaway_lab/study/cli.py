@@ -15,7 +15,10 @@ the first) and the run's mission, sent as the operator, so that a stack's start-
 per run (``execute.SharedStack``). ``--fresh-stacks`` starts a stack of its own for every run
 instead (``seaway launch sim-batch --scenario S --controller C [--predict-disturbance]
 [--task-power-w W] --run-dir OUT/runs/KEY``); ``--dask ADDRESS`` submits each run to a Dask
-scheduler (each worker starts the stack of the run it takes). Writes into ``--out`` (default
+scheduler (each worker starts the stack of the run it takes). Local stacks run on CPUs of their
+own (``seaway launch --cpus``: on 2 CPUs, one each) when 2 or more run at once and there are CPUs
+enough, and may use every CPU once the other workers have no run left (``execute.cpu_groups``;
+``--no-pin`` leaves them to the kernel). Writes into ``--out`` (default
 ``runs/study-NAME-<time>/``): ``results.md``, ``results.csv``, ``results.json``, ``series.json``
 (what the figures are drawn from), ``figures/*.png`` and the stacks' folders: ``runs/stack-N/``
 (recording with one episode per run, logs, launch.log; ``results.json`` says which run is which
@@ -38,10 +41,18 @@ from pathlib import Path
 from typing import Any
 
 from seaway.contract.config import repo_root
+from seaway.runtime.cpus import format_cpus
 
 from seaway_lab.study import definitions as defs
 from seaway_lab.study import results as res
-from seaway_lab.study.execute import DEFAULT_TIMEOUT_S, RunOutcome, run_dask, run_local, run_shared
+from seaway_lab.study.execute import (
+    DEFAULT_TIMEOUT_S,
+    RunOutcome,
+    cpu_groups,
+    run_dask,
+    run_local,
+    run_shared,
+)
 
 DEFAULT_WORKERS = 2
 
@@ -58,6 +69,9 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--fresh-stacks", action="store_true",
                     help="start a stack for every run (default: each of the --workers stacks flies "
                          "one run after another)")
+    ap.add_argument("--pin", action=argparse.BooleanOptionalAction, default=None,
+                    help="give each local stack CPUs of its own (seaway launch --cpus); default: "
+                         "when 2 or more stacks, no more than the CPUs, run at once")
     ap.add_argument("--out", type=Path, default=None, help="output folder (default runs/study-NAME-<time>)")
     ap.add_argument("--rows", nargs="+", default=None, help="only these rows (e.g. '#1' '#4')")
     ap.add_argument("--columns", nargs="+", default=None, help="only these columns (e.g. cc-empc nmpc)")
@@ -93,10 +107,15 @@ def _progress(total: int, quiet: bool) -> Any:
 
 
 def run_study(study: defs.Study, out: Path, *, workers: int, dask: str | None, timeout_s: float,
-              progress: bool = True, fresh_stacks: bool = False,
+              progress: bool = True, fresh_stacks: bool = False, pin: bool | None = None,
               ) -> tuple[dict[str, RunOutcome], float, dict[str, Any], str]:
-    """Run every run of ``study`` into ``out/runs``; (outcomes by key, wall s, executor, start time)."""
+    """Run every run of ``study`` into ``out/runs``; (outcomes by key, wall s, executor, start time).
+    ``pin``: local stacks on CPUs of their own (``execute.cpu_groups``; ValueError if asked where
+    it cannot be)."""
     jobs = [(spec, out / "runs" / spec.key) for spec in study.runs]
+    if dask and pin:
+        raise ValueError("--pin: a Dask cluster's workers place their own stacks")
+    groups = None if dask else cpu_groups(min(workers, len(jobs)), pin)
     outcomes: dict[str, RunOutcome] = {}
     counted: set[str] = set()
     bar = _progress(len(jobs), not progress)
@@ -129,14 +148,22 @@ def run_study(study: defs.Study, out: Path, *, workers: int, dask: str | None, t
             executor: dict[str, Any] = {"kind": "dask", "address": dask}
             executor.update(run_dask(dask, jobs, done, timeout_s=timeout_s))
         elif fresh_stacks:
-            executor = {"kind": "local", "address": None, "stacks": "one per run"}
-            run_local(jobs, workers, done, timeout_s=timeout_s)
+            executor = {"kind": "local", "address": None, "stacks": "one per run",
+                        "cpus": _cpus_text(groups)}
+            run_local(jobs, workers, done, timeout_s=timeout_s, cpus=groups)
         else:
-            executor = {"kind": "local", "address": None, "stacks": "shared"}
-            run_shared(study.runs, out / "runs", workers, done, on_flown=flown, timeout_s=timeout_s)
+            executor = {"kind": "local", "address": None, "stacks": "shared",
+                        "cpus": _cpus_text(groups)}
+            run_shared(study.runs, out / "runs", workers, done, on_flown=flown, timeout_s=timeout_s,
+                       cpus=groups)
     finally:
         bar.close()
     return outcomes, time.monotonic() - t0, executor, started
+
+
+def _cpus_text(groups: list[frozenset[int]] | None) -> list[str] | None:
+    """Each local stack's CPUs in the kernel's list format, or None (not pinned)."""
+    return None if groups is None else [format_cpus(g) for g in groups]
 
 
 def workers_of(executor: dict[str, Any], workers: int, runs: int) -> int:
@@ -242,13 +269,24 @@ def main(argv: list[str] | None = None) -> int:
     if args.workers < 1:
         print("seaway study: --workers must be at least 1", file=sys.stderr)
         return 2
+    try:  # before any folder is made: what cannot be done here is said first
+        if args.dask and args.pin:
+            raise ValueError("--pin: a Dask cluster's workers place their own stacks")
+        if not args.dask:
+            cpu_groups(min(args.workers, len(study.runs)), args.pin)
+    except ValueError as err:
+        print(f"seaway study: {err}", file=sys.stderr)
+        return 2
     out = args.out or default_out(study.name)
     out.mkdir(parents=True, exist_ok=True)
     _interrupt_on_sigterm()
     try:
         outcomes, wall_s, executor, started = run_study(study, out, workers=args.workers, dask=args.dask,
                                                         timeout_s=args.timeout_s,
-                                                        fresh_stacks=args.fresh_stacks)
+                                                        fresh_stacks=args.fresh_stacks, pin=args.pin)
+    except ValueError as err:  # before any run: what was asked cannot be done here
+        print(f"seaway study: {err}", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         print(f"\nseaway study: interrupted; the runs so far are in {out / 'runs'}", file=sys.stderr)
         return 130

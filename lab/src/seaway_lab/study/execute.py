@@ -25,6 +25,7 @@ import itertools
 import logging
 import math
 import os
+import queue
 import random
 import re
 import shutil
@@ -41,6 +42,7 @@ from pathlib import Path
 from typing import Any
 
 from seaway.contract import keys
+from seaway.runtime import cpus as cpusets
 from seaway.runtime.zenoh_bus import ENV_CONFIG, ENV_RENDEZVOUS
 from seaway.simkit.scenario import load_mission
 
@@ -52,6 +54,33 @@ PROFILE = "sim-batch"
 OPTIONAL_FLAGS = ("--no-report",)
 """Launcher flags passed when the launcher has them: its own final report (with plots) is work the
 study does not use, since it reads each recording itself."""
+CPUS_FLAG = "--cpus"
+"""The launcher's option that keeps a stack on a CPU set (``seaway.runtime.cpus``); passed when the
+study pins its stacks and the launcher has it."""
+
+
+def cpu_groups(workers: int, pin: bool | None) -> list[frozenset[int]] | None:
+    """The CPU set of each of ``workers`` local stacks (``cpus.partition`` of the CPUs this process
+    may use), or None to leave them to the kernel. ``pin``: None pins where it pays (two or more
+    stacks, no more than the CPUs: each stack gets a CPU of its own), False never, True wherever
+    the CPUs can be split (an error otherwise, saying why)."""
+    if pin is False:
+        return None
+    available = cpusets.allowed()
+    groups = cpusets.partition(available, workers)
+    if groups is None and pin:
+        n = len(available)
+        raise ValueError(f"--pin: {workers} stack(s) at once cannot each have CPUs of their own: "
+                         f"this process may use {n} CPU(s) ({cpusets.format_cpus(available)}), so "
+                         + (f"--pin takes 2 to {n} workers" if n >= 2 else "nothing can be pinned"))
+    return groups
+
+
+def cpus_option(group: frozenset[int] | None, supported: set[str]) -> list[str]:
+    """``--cpus LIST`` for a stack pinned to ``group``, if the launcher has the option."""
+    if group is None or CPUS_FLAG not in supported:
+        return []
+    return [CPUS_FLAG, cpusets.format_cpus(group)]
 DEFAULT_TIMEOUT_S = 300.0
 """Wall time one run may take before its launcher is stopped (start-up, mission, stop, report): the
 longest run of the studies (T^w = 0.25 W, ~500 s simulated) takes well under a minute; a mission
@@ -422,15 +451,18 @@ def _spawn(command: list[str], port: int) -> subprocess.Popen[str]:
 
 
 def run_one(spec: RunSpec, run_dir: str | Path, *, profile: str = PROFILE,
-            timeout_s: float = DEFAULT_TIMEOUT_S, keep_series: bool = True) -> RunOutcome:
+            timeout_s: float = DEFAULT_TIMEOUT_S, keep_series: bool = True,
+            cpus: frozenset[int] | None = None) -> RunOutcome:
     """One run through the real processes, its report, and its timing. Never raises for a failed run:
-    the outcome says what went wrong (``ok``, ``error``, the launcher's log in ``run_dir``)."""
+    the outcome says what went wrong (``ok``, ``error``, the launcher's log in ``run_dir``).
+    ``cpus``: the CPUs its stack runs on (``cpu_groups``; None: wherever the kernel puts it)."""
     run_dir = Path(run_dir)
     out = RunOutcome(spec, str(run_dir))
     t0 = time.monotonic()
     try:
         supported = launcher_options()
-        opts = fit_options(spec, supported) + [f for f in OPTIONAL_FLAGS if f in supported]
+        opts = (fit_options(spec, supported) + [f for f in OPTIONAL_FLAGS if f in supported]
+                + cpus_option(cpus, supported))
     except ValueError as err:
         out.error = str(err)
         return out
@@ -592,14 +624,27 @@ def longest_first(jobs: Iterable[tuple[RunSpec, Path]]) -> list[tuple[RunSpec, P
 
 
 def run_local(jobs: Iterable[tuple[RunSpec, Path]], workers: int, on_done: Done,
-              timeout_s: float = DEFAULT_TIMEOUT_S) -> None:
-    """Run the jobs ``workers`` at a time on this machine; ``on_done`` as each finishes."""
+              timeout_s: float = DEFAULT_TIMEOUT_S,
+              cpus: list[frozenset[int]] | None = None) -> None:
+    """Run the jobs ``workers`` at a time on this machine; ``on_done`` as each finishes. ``cpus``:
+    one CPU set per worker (``cpu_groups``); a run's stack takes a free one for its life."""
     jobs = longest_first(jobs)
     _stopping.clear()
     launcher_options()  # once, before the threads
+    free: queue.SimpleQueue[frozenset[int] | None] = queue.SimpleQueue()
+    for group in cpus or [None] * max(1, workers):
+        free.put(group)
+
+    def one(spec: RunSpec, d: Path) -> RunOutcome:
+        group = free.get()  # never waits: a pool thread runs one run at a time
+        try:
+            return run_one(spec, d, timeout_s=timeout_s, cpus=group)
+        finally:
+            free.put(group)
+
     pool = ThreadPoolExecutor(max_workers=max(1, workers), thread_name_prefix="study")
     try:
-        futures = {pool.submit(run_one, spec, d, timeout_s=timeout_s): (spec, d) for spec, d in jobs}
+        futures = {pool.submit(one, spec, d): (spec, d) for spec, d in jobs}
         for fut in as_completed(futures):
             spec, d = futures[fut]
             try:
@@ -668,9 +713,13 @@ class SharedStack:
     stacks (``test_lockstep_restarts``, ``test_study_shared``).
     """
 
-    def __init__(self, folder: Path, timeout_s: float = DEFAULT_TIMEOUT_S) -> None:
+    def __init__(self, folder: Path, timeout_s: float = DEFAULT_TIMEOUT_S,
+                 cpus: frozenset[int] | None = None) -> None:
         self.folder = Path(folder)
         self.timeout_s = timeout_s
+        self.cpus = cpus
+        """The CPUs the stack runs on (``cpu_groups``; None: wherever the kernel puts it)."""
+        self._cpus_lock = threading.Lock()  # a widen waits for a start that read ``cpus``
         self.port: int | None = None
         self.command: list[str] = []
         self.proc: subprocess.Popen[str] | None = None
@@ -728,12 +777,14 @@ class SharedStack:
         if missing:
             raise _RunFailedError(f"seaway launch has no {', '.join(missing)}, which a shared stack "
                                   "needs: run the study with --fresh-stacks")
-        opts = ["--scenario", spec.scenario, *SHARED_FLAGS, *(f for f in OPTIONAL_FLAGS if f in supported)]
         self.port = free_port()
-        self.command = [*seaway_command(), "launch", PROFILE, *opts, "--run-dir", str(self.folder)]
         self.folder.mkdir(parents=True, exist_ok=True)
         t0 = time.monotonic()
-        self.proc = _spawn(self.command, self.port)
+        with self._cpus_lock:
+            opts = ["--scenario", spec.scenario, *SHARED_FLAGS,
+                    *(f for f in OPTIONAL_FLAGS if f in supported), *cpus_option(self.cpus, supported)]
+            self.command = [*seaway_command(), "launch", PROFILE, *opts, "--run-dir", str(self.folder)]
+            self.proc = _spawn(self.command, self.port)
         assert self.proc.stdout is not None
         self.cpu = CpuMonitor(self.proc.pid)
         self.cpu.__enter__()
@@ -809,6 +860,28 @@ class SharedStack:
             time.sleep(STATUS_POLL_S)
         out.timing["mission_s"] = time.monotonic() - t0
 
+    def widen(self, cpus: frozenset[int]) -> None:
+        """Let the stack use ``cpus`` from now on (for the CPUs a finished stack leaves idle): every
+        thread of its launcher and of the processes it started (one it starts later inherits the
+        launcher's); a stack not started yet starts there. Best effort: a process that ends
+        meanwhile is skipped."""
+        import psutil
+
+        with self._cpus_lock:
+            if self.cpus is None or self.cpus == cpus:
+                return
+            self.cpus = cpus
+            if self.proc is None or self._stopped or self.proc.poll() is not None:
+                return
+            try:
+                procs = [psutil.Process(self.proc.pid)]
+                procs += procs[0].children(recursive=True)
+            except psutil.Error:
+                return
+            for p in procs:
+                with contextlib.suppress(OSError):
+                    cpusets.pin_threads(p.pid, cpus)
+
     def stop(self, last: RunOutcome | None = None) -> None:
         """Stop the stack (its launcher and services), once; the time it took and the CPU spent
         meanwhile count to ``last``'s."""
@@ -868,15 +941,19 @@ class SharedStack:
 
 
 def run_shared(specs: Iterable[RunSpec], runs_dir: Path, workers: int, on_done: Done,
-               on_flown: Done | None = None, timeout_s: float = DEFAULT_TIMEOUT_S) -> None:
+               on_flown: Done | None = None, timeout_s: float = DEFAULT_TIMEOUT_S,
+               cpus: list[frozenset[int]] | None = None) -> None:
     """Run the specs on ``workers`` stacks at once, each flying one run after another
     (``SharedStack``), longest first from one queue; ``on_flown`` as each run's mission ends,
     ``on_done`` with its numbers once its stack has stopped (a stack stops when the queue is empty,
     or after a failed run: the next run starts a new one). Stack folders: ``runs_dir/stack-N``.
     Callbacks are called one at a time. Ctrl-C (or SIGTERM made one by the caller) starts no more
-    runs and stops every stack."""
-    queue = collections.deque(longest_first((s, runs_dir) for s in specs))
+    runs and stops every stack. ``cpus``: one CPU set per worker (``cpu_groups``), its stacks run
+    there; once a worker has nothing left to fly, the stacks still flying may use every CPU."""
+    todo = collections.deque(longest_first((s, runs_dir) for s in specs))
     lock = threading.Lock()
+    flying: dict[int, SharedStack] = {}
+    """Each worker's stack, by worker, while it has one."""
     stacks_made = itertools.count(1)
     _stopping.clear()
     launcher_options()  # once, before the threads
@@ -890,16 +967,18 @@ def run_shared(specs: Iterable[RunSpec], runs_dir: Path, workers: int, on_done: 
         for o in stack.close():
             said(on_done, o)
 
-    def worker() -> None:
+    def worker(index: int) -> None:
         stack: SharedStack | None = None
         try:
             while True:
                 with lock:
-                    if not queue:
+                    if not todo:
                         break
-                    spec, _ = queue.popleft()
+                    spec, _ = todo.popleft()
                     if stack is None:
-                        stack = SharedStack(runs_dir / f"stack-{next(stacks_made)}", timeout_s)
+                        stack = SharedStack(runs_dir / f"stack-{next(stacks_made)}", timeout_s,
+                                            cpus[index] if cpus else None)
+                        flying[index] = stack
                 out = stack.fly(spec)
                 said(on_flown, out)
                 if out.error:  # the stack is stopped: report what it flew, then this run
@@ -909,10 +988,17 @@ def run_shared(specs: Iterable[RunSpec], runs_dir: Path, workers: int, on_done: 
         except Exception as err:  # a callback's: said, not lost with the thread
             log.exception("study worker: %s", err)
         finally:
+            with lock:
+                flying.pop(index, None)
+                others = list(flying.values())
+            if cpus:  # this worker's CPUs would idle: the stacks still flying may use them
+                everything = frozenset().union(*cpus)
+                for other in others:
+                    other.widen(everything)
             if stack is not None:
                 closed(stack)
 
-    threads = [threading.Thread(target=worker, name=f"study-{i}", daemon=True)
+    threads = [threading.Thread(target=worker, args=(i,), name=f"study-{i}", daemon=True)
                for i in range(max(1, workers))]
     for t in threads:
         t.start()
@@ -922,7 +1008,7 @@ def run_shared(specs: Iterable[RunSpec], runs_dir: Path, workers: int, on_done: 
                 t.join(0.5)
     except BaseException:  # Ctrl-C: start no more runs, stop the running stacks
         with lock:
-            queue.clear()
+            todo.clear()
         stop_all()
         raise
 
