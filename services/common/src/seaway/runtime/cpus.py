@@ -5,8 +5,8 @@ threads) on CPU 0; ``seaway study`` gives each of its parallel stacks a CPU set 
 (``partition``). Why: in lockstep a period's work runs one process after another (sim, estimator,
 controller), each waking the next; kept on one CPU they wake each other without an inter-processor
 interrupt, find their caches warm, and never migrate. ``seaway study table1`` with its two stacks
-pinned apart on a 2-vCPU machine took a median 110.5 s against 118.4 s left to the kernel, in nine
-alternating pairs (six faster, by 5-20 %; three slower, by 2-3 %: docs/results.md, "2026-11-29,
+pinned apart on a 2-vCPU machine took a median 111.2 s against 121.1 s left to the kernel, in ten
+alternating pairs (seven faster, by 5-20 %; three slower, by 2-3 %: docs/results.md, "2026-11-29,
 evening: a study's stacks on CPUs of their own").
 
 A thread's affinity is its own: a new thread, and a child process, inherit their creator's. So a
