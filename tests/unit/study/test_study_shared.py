@@ -92,6 +92,16 @@ def test_pinned_stacks_start_on_their_workers_cpus_and_take_the_cpus_a_finished_
     assert all(c == frozenset({0, 1}) for c, _ in fast.widened)  # nothing narrower, ever
 
 
+def test_more_workers_than_runs_fly_each_run_once_on_cpus_of_their_own(fake, tmp_path: Path) -> None:
+    specs = [s for s in TABLE1 if s.key in ("paper-c1-cc-empc", "paper-c1-nmpc")]
+    groups = [frozenset({0}), frozenset({1})]  # cpu_groups(min(workers, runs)): one per stack
+    done, _ = _run(tmp_path, workers=3, cpus=groups, specs=specs)
+    assert sorted(o.spec.key for o in done) == sorted(s.key for s in specs) and all(o.ok for o in done)
+    assert sorted(s.started_on for s in fake.made) == groups
+    with pytest.raises(ValueError, match=r"2 CPU sets for 1 workers at once"):
+        _run(tmp_path, workers=1, cpus=groups, specs=specs)
+
+
 def test_stacks_left_to_the_kernel_are_never_pinned(fake, tmp_path: Path) -> None:
     fake.SLOW = {"paper-c1-cc-empc"}
     _run(tmp_path, workers=2, specs=[s for s in TABLE1 if s.row == "#1"])

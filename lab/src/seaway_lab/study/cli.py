@@ -17,8 +17,8 @@ instead (``seaway launch sim-batch --scenario S --controller C [--predict-distur
 [--task-power-w W] --run-dir OUT/runs/KEY``); ``--dask ADDRESS`` submits each run to a Dask
 scheduler (each worker starts the stack of the run it takes). Local stacks run on CPUs of their
 own (``seaway launch --cpus``: on 2 CPUs, one each) when 2 or more run at once and there are CPUs
-enough, and may use every CPU once the other workers have no run left (``execute.cpu_groups``;
-``--no-pin`` leaves them to the kernel). Writes into ``--out`` (default
+enough (``execute.cpu_groups``; ``--no-pin`` leaves them to the kernel); a shared stack still flying
+when the other workers have no run left may use every CPU. Writes into ``--out`` (default
 ``runs/study-NAME-<time>/``): ``results.md``, ``results.csv``, ``results.json``, ``series.json``
 (what the figures are drawn from), ``figures/*.png`` and the stacks' folders: ``runs/stack-N/``
 (recording with one episode per run, logs, launch.log; ``results.json`` says which run is which

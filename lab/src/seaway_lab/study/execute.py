@@ -58,29 +58,6 @@ CPUS_FLAG = "--cpus"
 """The launcher's option that keeps a stack on a CPU set (``seaway.runtime.cpus``); passed when the
 study pins its stacks and the launcher has it."""
 
-
-def cpu_groups(workers: int, pin: bool | None) -> list[frozenset[int]] | None:
-    """The CPU set of each of ``workers`` local stacks (``cpus.partition`` of the CPUs this process
-    may use), or None to leave them to the kernel. ``pin``: None pins where it pays (two or more
-    stacks, no more than the CPUs: each stack gets a CPU of its own), False never, True wherever
-    the CPUs can be split (an error otherwise, saying why)."""
-    if pin is False:
-        return None
-    available = cpusets.allowed()
-    groups = cpusets.partition(available, workers)
-    if groups is None and pin:
-        n = len(available)
-        raise ValueError(f"--pin: {workers} stack(s) at once cannot each have CPUs of their own: "
-                         f"this process may use {n} CPU(s) ({cpusets.format_cpus(available)}), so "
-                         + (f"--pin takes 2 to {n} workers" if n >= 2 else "nothing can be pinned"))
-    return groups
-
-
-def cpus_option(group: frozenset[int] | None, supported: set[str]) -> list[str]:
-    """``--cpus LIST`` for a stack pinned to ``group``, if the launcher has the option."""
-    if group is None or CPUS_FLAG not in supported:
-        return []
-    return [CPUS_FLAG, cpusets.format_cpus(group)]
 DEFAULT_TIMEOUT_S = 300.0
 """Wall time one run may take before its launcher is stopped (start-up, mission, stop, report): the
 longest run of the studies (T^w = 0.25 W, ~500 s simulated) takes well under a minute; a mission
@@ -140,6 +117,32 @@ def stack_env(port: int, base: dict[str, str] | None = None) -> dict[str, str]:
     env.pop(ENV_CONFIG, None)
     env["PYTHONUNBUFFERED"] = "1"
     return env
+
+
+# -- isolation: CPUs per stack -------------------------------------------------------------------
+
+def cpu_groups(workers: int, pin: bool | None) -> list[frozenset[int]] | None:
+    """The CPU set of each of ``workers`` local stacks (``cpus.partition`` of the CPUs this process
+    may use), or None to leave them to the kernel. ``pin``: None pins where it pays (two or more
+    stacks, no more than the CPUs: each stack gets a CPU of its own), False never, True wherever
+    the CPUs can be split (an error otherwise, saying why)."""
+    if pin is False:
+        return None
+    available = cpusets.allowed()
+    groups = cpusets.partition(available, workers)
+    if groups is None and pin:
+        n = len(available)
+        raise ValueError(f"--pin: {workers} stack(s) at once cannot each have CPUs of their own: "
+                         f"this process may use {n} CPU(s) ({cpusets.format_cpus(available)}), so "
+                         + (f"--pin takes 2 to {n} workers" if n >= 2 else "nothing can be pinned"))
+    return groups
+
+
+def cpus_option(group: frozenset[int] | None, supported: set[str]) -> list[str]:
+    """``--cpus LIST`` for a stack pinned to ``group``, if the launcher has the option."""
+    if group is None or CPUS_FLAG not in supported:
+        return []
+    return [CPUS_FLAG, cpusets.format_cpus(group)]
 
 
 # -- the launcher's options -----------------------------------------------------------------------
@@ -623,16 +626,27 @@ def longest_first(jobs: Iterable[tuple[RunSpec, Path]]) -> list[tuple[RunSpec, P
     return sorted(jobs, key=lambda j: -expected_cost(j[0]))
 
 
+def _workers(workers: int, runs: int, cpus: list[frozenset[int]] | None) -> int:
+    """The workers that run at once: no more than the runs; one CPU set each when pinned
+    (``cpu_groups`` of this number; ValueError otherwise, a caller's mistake)."""
+    n = max(1, min(workers, runs))
+    if cpus is not None and len(cpus) != n:
+        raise ValueError(f"{len(cpus)} CPU sets for {n} workers at once (cpu_groups(min(workers, "
+                         f"runs)) gives one each)")
+    return n
+
+
 def run_local(jobs: Iterable[tuple[RunSpec, Path]], workers: int, on_done: Done,
               timeout_s: float = DEFAULT_TIMEOUT_S,
               cpus: list[frozenset[int]] | None = None) -> None:
     """Run the jobs ``workers`` at a time on this machine; ``on_done`` as each finishes. ``cpus``:
     one CPU set per worker (``cpu_groups``); a run's stack takes a free one for its life."""
     jobs = longest_first(jobs)
+    workers = _workers(workers, len(jobs), cpus)
     _stopping.clear()
     launcher_options()  # once, before the threads
     free: queue.SimpleQueue[frozenset[int] | None] = queue.SimpleQueue()
-    for group in cpus or [None] * max(1, workers):
+    for group in cpus or [None] * workers:
         free.put(group)
 
     def one(spec: RunSpec, d: Path) -> RunOutcome:
@@ -642,7 +656,7 @@ def run_local(jobs: Iterable[tuple[RunSpec, Path]], workers: int, on_done: Done,
         finally:
             free.put(group)
 
-    pool = ThreadPoolExecutor(max_workers=max(1, workers), thread_name_prefix="study")
+    pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="study")
     try:
         futures = {pool.submit(one, spec, d): (spec, d) for spec, d in jobs}
         for fut in as_completed(futures):
@@ -954,6 +968,7 @@ def run_shared(specs: Iterable[RunSpec], runs_dir: Path, workers: int, on_done: 
     runs and stops every stack. ``cpus``: one CPU set per worker (``cpu_groups``), its stacks run
     there; once a worker has nothing left to fly, the stacks still flying may use every CPU."""
     todo = collections.deque(longest_first((s, runs_dir) for s in specs))
+    workers = _workers(workers, len(todo), cpus)
     lock = threading.Lock()
     flying: dict[int, SharedStack] = {}
     """Each worker's stack, by worker, while it has one."""
@@ -1002,7 +1017,7 @@ def run_shared(specs: Iterable[RunSpec], runs_dir: Path, workers: int, on_done: 
                 closed(stack)
 
     threads = [threading.Thread(target=worker, args=(i,), name=f"study-{i}", daemon=True)
-               for i in range(max(1, workers))]
+               for i in range(workers)]
     for t in threads:
         t.start()
     try:
