@@ -98,3 +98,19 @@ def test_pinning_a_process_that_is_gone_is_an_error() -> None:
     p.wait()
     with pytest.raises(ProcessLookupError):
         cpus.pin_threads(p.pid, frozenset(os.sched_getaffinity(0)))
+
+
+def test_a_launcher_the_system_will_not_pin_says_so_and_starts_nothing(
+        monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], tmp_path) -> None:
+    from seaway.tools.launch import main as launch
+
+    def refuse(pid: int, cpu_set: frozenset[int]) -> int:
+        raise PermissionError(1, "Operation not permitted")
+
+    monkeypatch.setattr(cpus, "pin_threads", refuse)
+    first = min(os.sched_getaffinity(0))
+    code = launch.main(["sim-batch", "--cpus", str(first), "--run-dir", str(tmp_path / "run")])
+    assert code == 2
+    assert (f"seaway launch: --cpus {first}: this process cannot be kept on those CPUs: "
+            "[Errno 1] Operation not permitted") in capsys.readouterr().err
+    assert not (tmp_path / "run").exists()

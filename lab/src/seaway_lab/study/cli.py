@@ -107,15 +107,12 @@ def _progress(total: int, quiet: bool) -> Any:
 
 
 def run_study(study: defs.Study, out: Path, *, workers: int, dask: str | None, timeout_s: float,
-              progress: bool = True, fresh_stacks: bool = False, pin: bool | None = None,
+              progress: bool = True, fresh_stacks: bool = False,
+              groups: list[frozenset[int]] | None = None,
               ) -> tuple[dict[str, RunOutcome], float, dict[str, Any], str]:
     """Run every run of ``study`` into ``out/runs``; (outcomes by key, wall s, executor, start time).
-    ``pin``: local stacks on CPUs of their own (``execute.cpu_groups``; ValueError if asked where
-    it cannot be)."""
+    ``groups``: the local stacks' CPU sets (``stack_cpus``), None to leave them to the kernel."""
     jobs = [(spec, out / "runs" / spec.key) for spec in study.runs]
-    if dask and pin:
-        raise ValueError("--pin: a Dask cluster's workers place their own stacks")
-    groups = None if dask else cpu_groups(min(workers, len(jobs)), pin)
     outcomes: dict[str, RunOutcome] = {}
     counted: set[str] = set()
     bar = _progress(len(jobs), not progress)
@@ -159,6 +156,18 @@ def run_study(study: defs.Study, out: Path, *, workers: int, dask: str | None, t
     finally:
         bar.close()
     return outcomes, time.monotonic() - t0, executor, started
+
+
+def stack_cpus(workers: int, runs: int, dask: str | None, pin: bool | None
+               ) -> list[frozenset[int]] | None:
+    """The CPU set of each local stack (``execute.cpu_groups`` for the stacks that run at once),
+    None for the kernel to place them or for a Dask cluster; ValueError for a ``--pin`` that cannot
+    be done here, saying why."""
+    if dask:
+        if pin:
+            raise ValueError("--pin: a Dask cluster's workers place their own stacks")
+        return None
+    return cpu_groups(min(workers, runs), pin)
 
 
 def _cpus_text(groups: list[frozenset[int]] | None) -> list[str] | None:
@@ -270,10 +279,7 @@ def main(argv: list[str] | None = None) -> int:
         print("seaway study: --workers must be at least 1", file=sys.stderr)
         return 2
     try:  # before any folder is made: what cannot be done here is said first
-        if args.dask and args.pin:
-            raise ValueError("--pin: a Dask cluster's workers place their own stacks")
-        if not args.dask:
-            cpu_groups(min(args.workers, len(study.runs)), args.pin)
+        groups = stack_cpus(args.workers, len(study.runs), args.dask, args.pin)
     except ValueError as err:
         print(f"seaway study: {err}", file=sys.stderr)
         return 2
@@ -283,10 +289,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         outcomes, wall_s, executor, started = run_study(study, out, workers=args.workers, dask=args.dask,
                                                         timeout_s=args.timeout_s,
-                                                        fresh_stacks=args.fresh_stacks, pin=args.pin)
-    except ValueError as err:  # before any run: what was asked cannot be done here
-        print(f"seaway study: {err}", file=sys.stderr)
-        return 2
+                                                        fresh_stacks=args.fresh_stacks, groups=groups)
     except KeyboardInterrupt:
         print(f"\nseaway study: interrupted; the runs so far are in {out / 'runs'}", file=sys.stderr)
         return 130

@@ -16,6 +16,7 @@ processes that should follow it.
 
 from __future__ import annotations
 
+import itertools
 import os
 from collections.abc import Iterable
 from pathlib import Path
@@ -32,16 +33,9 @@ def allowed() -> frozenset[int]:
 
 def format_cpus(cpus: Iterable[int]) -> str:
     """A CPU set as the kernel's list format: ``{0, 1, 2, 5}`` -> ``'0-2,5'``."""
-    out: list[str] = []
-    run: list[int] = []
-    for c in sorted(set(cpus)):
-        if run and c != run[-1] + 1:
-            out.append(f"{run[0]}-{run[-1]}" if len(run) > 1 else str(run[0]))
-            run = []
-        run.append(c)
-    if run:
-        out.append(f"{run[0]}-{run[-1]}" if len(run) > 1 else str(run[0]))
-    return ",".join(out)
+    runs = [[c for _, c in run] for _, run in
+            itertools.groupby(enumerate(sorted(set(cpus))), lambda ic: ic[1] - ic[0])]
+    return ",".join(f"{r[0]}-{r[-1]}" if len(r) > 1 else str(r[0]) for r in runs)
 
 
 def parse_cpus(text: str, available: frozenset[int] | None = None) -> frozenset[int]:

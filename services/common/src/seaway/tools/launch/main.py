@@ -557,7 +557,12 @@ def show_groundstations(sup: Supervisor, run_dir: Path, shown: dict[str, int]) -
 def main(argv: list[str]) -> int:
     args = parser().parse_args(argv)
     if args.cpus is not None:  # first: every thread and process started later inherits it
-        cpus.pin_threads(0, args.cpus)
+        try:
+            cpus.pin_threads(0, args.cpus)
+        except OSError as err:  # e.g. a container that forbids it: said, nothing started
+            print(f"seaway launch: --cpus {cpus.format_cpus(args.cpus)}: this process cannot be "
+                  f"kept on those CPUs: {err}", file=sys.stderr)
+            return 2
     dump_stacks_on_signal()
     try:
         profile: Profile = load_profile(args.profile)
