@@ -4,13 +4,15 @@ of its own (``execute.SharedStack``).
 
 Real processes, real Zenoh sessions and recordings: NMPC on paper conditions #1 and #5 (#5 loads a
 scenario whose disturbance grid is a file beside it), one worker, once on one stack and once on a
-stack per run (``--fresh-stacks``).
+stack per run (``--fresh-stacks``); a failed run; and a run whose sim is SIGKILLed mid-mission.
 """
 
 from __future__ import annotations
 
 import json
 import subprocess
+import threading
+import time
 from pathlib import Path
 
 import pytest
@@ -93,3 +95,75 @@ def test_a_failed_run_stops_its_stack_and_the_next_run_gets_a_new_one(tmp_path: 
     assert after.ok and after.episode == 0 and after.run_dir.endswith("stack-2"), after.error
     assert after.port != first.port
     assert first.report["metrics"]["energy_j"] != pytest.approx(after.report["metrics"]["energy_j"])
+
+
+def kill_sim_once_flying(stack, mission_id: str, after_s: float, killed: list[int]) -> None:
+    """SIGKILL the stack's sim once the controller's status says ``mission_id`` has flown
+    ``after_s`` of simulated time (its stamp), as a crash would; the launcher restarts it."""
+    import psutil
+
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline:
+        s = stack.status.get() if stack.status is not None else None
+        if s is not None and s.mission_id == mission_id and s.state == "active" \
+                and s.stamp_ns >= after_s * 1e9:
+            for p in psutil.Process(stack.proc.pid).children(recursive=True):
+                if any("seaway-sim" in part for part in p.cmdline()):
+                    p.kill()
+                    killed.append(p.pid)
+                    return
+        time.sleep(0.002)
+
+
+@pytest.mark.timeout(300)
+def test_a_sim_killed_in_a_later_run_flies_it_again_in_its_own_scenario(tmp_path: Path,
+                                                                        zenoh_env: dict[str, str],
+                                                                        monkeypatch: pytest.MonkeyPatch
+                                                                        ) -> None:
+    """The second run of a stack loaded its scenario (#5's current grid); its sim is killed
+    mid-mission. The restarted sim comes back in #5 (``--state-file``), not the stack's first
+    scenario, time starts again, the controller flies the mission again, and the run is reported
+    from that episode with the numbers of a stack of its own."""
+    from seaway_lab.study import execute as ex
+    from seaway_lab.study.definitions import RunSpec
+
+    for k, v in zenoh_env.items():
+        monkeypatch.setenv(k, v)
+    first, second = RunSpec("paper-c1", "nmpc", "#1", "nmpc"), RunSpec("paper-c5", "nmpc", "#5", "nmpc")
+    alone: list[ex.RunOutcome] = []
+    ex.run_shared([second], tmp_path / "alone", 1, alone.append, timeout_s=120)
+    assert alone[0].ok, alone[0].error
+
+    killed: list[int] = []
+    mission = ex.SharedStack._mission
+
+    def killing(stack, spec, out, deadline) -> None:
+        if spec.key == second.key:
+            threading.Thread(target=kill_sim_once_flying, args=(stack, spec.key, 8.0, killed),
+                             daemon=True).start()
+        mission(stack, spec, out, deadline)
+
+    monkeypatch.setattr(ex.SharedStack, "_mission", killing)
+    done: list[ex.RunOutcome] = []
+    ex.run_shared([first, second], tmp_path / "shared", 1, done.append, timeout_s=120)
+    by = {o.spec.key: o for o in done}
+    assert len(killed) == 1, "the sim was not killed while the second run flew"
+    assert by[first.key].ok and by[first.key].episode == 0, by[first.key].error
+    run = by[second.key]
+    assert run.ok, run.error
+    # Episodes of the stack's recording: #1, #5 until the kill, #5 again from t = 0.
+    assert run.episode == 2 and run.run_dir == by[first.key].run_dir
+    events = [json.loads(line) for line in (Path(run.run_dir) / "events.jsonl").read_text().splitlines()]
+    sims = [e for e in events if e["process"] == "sim"]
+    assert [e["event"] for e in sims][:3] == ["start", "exit", "start"], sims  # restarted once
+    assert sims[0]["pid"] == killed[0] and sims[1]["code"] == -9
+    a, b = run.report["metrics"], alone[0].report["metrics"]
+    assert a["completed"] and b["completed"]
+    # Flown again from t = 0 in the same water by the same code: the same numbers (the issue asks
+    # for 1 %; #1 and #5 differ by 0.4 % in energy, so only a tight tolerance tells them apart).
+    for m in ("energy_j", "avg_cross_track_m", "travel_time_s"):
+        assert a[m] == pytest.approx(b[m], rel=1e-6), (m, a[m], b[m])
+    # Not the stack's first water (#1: 2219.2 J where #5 is 2227.1 J).
+    assert abs(a["energy_j"] - by[first.key].report["metrics"]["energy_j"]) > 1.0
+    log = (Path(run.run_dir) / "logs" / "sim.log").read_text()
+    assert "paper-c5, as loaded over the bus before this sim started" in log

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 from seaway.contract.messages import MissionRequest
+from seaway.runtime import atomic
 from seaway_controller import checkpoint
 from seaway_controller.service import resume
 
@@ -62,7 +63,7 @@ def test_only_a_durable_save_waits_for_the_disk(tmp_path: Path, monkeypatch) -> 
     """Real time fsyncs each checkpoint (a power loss keeps it); lockstep does not (a simulation:
     a crash loses nothing the OS has), and both replace the file whole."""
     synced: list[int] = []
-    monkeypatch.setattr(checkpoint.os, "fsync", lambda fd: synced.append(fd))
+    monkeypatch.setattr(atomic.os, "fsync", lambda fd: synced.append(fd))
     req = MissionRequest.make(stamp_ns=0, waypoints=[{"x_m": 0.0, "y_m": 0.0}, {"x_m": 5.0, "y_m": 0.0}],
                               coa_radius_m=1.0, task_power_w=0.49)
     cp = checkpoint.MissionCheckpoint(request=req.model_dump(mode="json"), active_leg=1,

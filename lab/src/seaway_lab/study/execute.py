@@ -695,19 +695,13 @@ class _RunFailedError(Exception):
     """A run on a shared stack failed; the text says how. The stack is stopped after it."""
 
 
-def run_episode(episodes: list[int], first_on_stack: bool, mission_id: str) -> int:
+def run_episode(episodes: list[int], mission_id: str) -> int:
     """The episode of a stack's recording that is a run's, from the episodes that accepted its
-    mission (``report.mission_episodes``): the last (a sim restarted mid-run: the controller flew it
-    again from its first leg). ValueError when that cannot be the run's: none accepted it, or a sim
-    restarted while a run after the stack's first flew: a restarted sim comes back with the launch
-    scenario, the first run's, not the one loaded for this run."""
+    mission (``report.mission_episodes``): the last. More than one: the sim restarted mid-run, came
+    back in the scenario loaded for the run (``seaway_sim.kept``) with time at 0, and the controller
+    flew the mission again from its first leg. ValueError when none accepted it."""
     if not episodes:
         raise ValueError(f"no episode of the recording accepted mission {mission_id}")
-    if len(episodes) > 1 and not first_on_stack:
-        raise ValueError(f"the sim restarted while mission {mission_id} flew (episodes {episodes}): a "
-                         "restarted sim comes back with the stack's first scenario, not the one "
-                         "loaded for this run, so its numbers are not this run's; run it again, or "
-                         "with --fresh-stacks")
     return episodes[-1]
 
 
@@ -942,10 +936,10 @@ class SharedStack:
             for o in outs:
                 o.error = f"report: {type(err).__name__}: {err}"
             return [_concluded(o) for o in outs]
-        for i, o in enumerate(outs):
+        for o in outs:
             t1 = time.monotonic()
             try:
-                o.episode = run_episode(rep.mission_episodes(read[1], o.spec.key), i == 0, o.spec.key)
+                o.episode = run_episode(rep.mission_episodes(read[1], o.spec.key), o.spec.key)
                 o.report, series = report_json(self.folder, episode=o.episode, read=read,
                                                scenario=o.spec.scenario)
                 if keep_series:

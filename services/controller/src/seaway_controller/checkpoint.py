@@ -10,14 +10,13 @@ cannot be read is reported and ignored: the controller then starts idle, as it w
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from pathlib import Path
 from typing import Any, Literal
 
 from pydantic import Field, ValidationError
 from seaway.contract.config import ConfigModel, describe_validation_error
 from seaway.contract.messages import MessageError, MissionRequest
+from seaway.runtime import atomic
 
 
 class CheckpointError(ValueError):
@@ -41,23 +40,13 @@ class MissionCheckpoint(ConfigModel):
 
 
 def save(path: Path, checkpoint: MissionCheckpoint, durable: bool = True) -> None:
-    """Write ``checkpoint`` so that a reader sees the old file or the new one, never a mix.
+    """Write ``checkpoint`` so that a reader sees the old file or the new one, never a mix
+    (``seaway.runtime.atomic``).
 
     ``durable``: on disk before it counts (fsync), so that a power loss keeps it too. A simulation
     in lockstep passes False: a crashed process loses nothing the OS already has, and the fsync,
     every simulated second, cost the controller about 40 % of its time per period there."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as f:
-            f.write(checkpoint.model_dump_json())
-            f.flush()
-            if durable:
-                os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    atomic.write_text(path, checkpoint.model_dump_json(), durable)
 
 
 def load(path: Path) -> MissionCheckpoint | None:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import logging
 import threading
+import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -20,6 +21,7 @@ from seaway.runtime.run import RunDescription
 from seaway.simkit.scenario import Scenario, load_scenario, parse_scenario
 from seaway.vessel.model import VesselParams, load_vessel
 
+from seaway_sim import kept
 from seaway_sim.battery import SimPack
 from seaway_sim.core import SimCore
 
@@ -40,13 +42,33 @@ def scenario_base() -> Path:
         return Path.cwd()
 
 
+def world_of(document: dict, where: str, run: RunDescription | None
+             ) -> tuple[Scenario, VesselParams, VesselParams]:
+    """(scenario, plant vessel, model vessel) of a scenario document sent over the bus (or kept
+    from one: ``seaway_sim.kept``); ConfigError naming ``where`` and what is wrong.
+
+    The scenario must keep the run's model (the estimator and the controller cannot change theirs)
+    and its [battery] must fit the plant's pack."""
+    scenario = parse_scenario(document, where, scenario_base())
+    vessel = load_vessel(scenario.plant_vessel_file)
+    model = load_vessel(scenario.vessel)
+    if run is not None and model != load_vessel(run.model_vessel_file):
+        raise ConfigError(f"scenario {scenario.name} models vessel {scenario.vessel!r} but this "
+                          f"run's services model {run.model_vessel_file!r}: start a new run for it")
+    SimPack.of(scenario, vessel)
+    return scenario, vessel, model
+
+
 class SimApp:
     """The core, its lock, the truth publishers and the scenario request handler."""
 
     def __init__(self, bus: Bus, core: SimCore, lockstep: bool, run: RunDescription | None = None,
-                 model: VesselParams | None = None) -> None:
+                 model: VesselParams | None = None, state_file: Path | None = None) -> None:
         self.bus = bus
         self.run = run
+        self.state_file = state_file
+        """Where each scenario loaded over the bus is kept for a restarted sim (``seaway_sim.kept``);
+        None: not kept."""
         self.core = core
         self.lockstep = lockstep
         self.lock = threading.Lock()
@@ -79,11 +101,7 @@ class SimApp:
                 scenario, vessel, model = self.core.scenario, self.core.vessel, self.model
             else:
                 assert request.scenario is not None  # ScenarioRequest checks it
-                scenario = parse_scenario(request.scenario, "scenario request", scenario_base())
-                vessel = load_vessel(scenario.plant_vessel_file)
-                model = load_vessel(scenario.vessel)
-                self._check_model(scenario, model)
-                SimPack.of(scenario, vessel)  # its [battery] must fit the vessel's pack
+                scenario, vessel, model = world_of(request.scenario, "scenario request", self.run)
         except ConfigError as err:
             log.warning("scenario request refused: %s", err)
             return Reply.refuse(self.core.stamp_ns, str(err))
@@ -99,17 +117,25 @@ class SimApp:
         what = "restarted" if request.action == "restart" else "loaded"
         log.info("scenario %s %s (seed %d, vessel %s)", scenario.name, what, scenario.seed,
                  vessel.name)
+        if request.action == "load":
+            before += self._keep(scenario, request.scenario)
         note = before + (self.after_load(episode, stamp) if self.after_load is not None else "")
         return Reply.accept(stamp, f"scenario {scenario.name} {what}{note}", name=scenario.name,
                             seed=scenario.seed, vessel=vessel.name)
 
-    def _check_model(self, scenario: Scenario, model: VesselParams) -> None:
-        """A scenario must keep the run's model: the estimator and controller cannot change theirs."""
-        if self.run is None:
-            return
-        if model != load_vessel(self.run.model_vessel_file):
-            raise ConfigError(f"scenario {scenario.name} models vessel {scenario.vessel!r} but this run's "
-                              f"services model {self.run.model_vessel_file!r}: start a new run for it")
+    def _keep(self, scenario: Scenario, document: dict | None) -> str:
+        """Keep a loaded scenario's document for a restarted sim (``state_file``); a note for the
+        reply if it could not be kept (the load stands: it is flying)."""
+        if self.state_file is None or document is None:
+            return ""
+        try:
+            kept.save(self.state_file, kept.KeptScenario(name=scenario.name, document=document,
+                                                         saved_unix_ns=time.time_ns()))
+        except OSError as err:
+            log.error("scenario %s not kept in %s: %s; a restarted sim would fly the run's",
+                      scenario.name, self.state_file, err)
+            return f"; not kept for a restart ({self.state_file}: {err})"
+        return ""
 
     def truth_outputs(self, real_time_factor: float | None,
                       battery: bool = False) -> list[tuple[keys.KeySpec, Message]]:

@@ -6,7 +6,9 @@ Both publish sim/truth, sim/disturbance and sim/clock and serve sim/scenario; lo
 the battery (vehicle/battery, 1 Hz), which in real time the simulated PX4 reports over MAVLink.
 
 The run description (``--run`` or the run flags) says which scenario to run (default ``lake``), which
-vessel file the plant integrates (``plant_vessel_file``, else the model's) and the control period.
+vessel file the plant integrates (``plant_vessel_file``, else the model's) and the control period;
+with ``--state-file``, a scenario loaded over the bus before a restart is flown instead
+(``seaway_sim.kept``).
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ import logging
 import sys
 import time
 from collections.abc import Sequence
+from pathlib import Path
 
 from seaway.contract.config import ConfigError
 from seaway.runtime.lockstep import STALL_REPEAT_S
@@ -24,7 +27,8 @@ from seaway.simkit.scenario import load_scenario
 from seaway.vessel.mavlink_signing import KeyFileError, read_key
 from seaway.vessel.model import load_vessel
 
-from seaway_sim.app import SimApp
+from seaway_sim import kept
+from seaway_sim.app import SimApp, world_of
 from seaway_sim.battery import SimPack
 from seaway_sim.core import SimCore
 from seaway_sim.lockstep import Lockstep
@@ -48,6 +52,10 @@ def _positive(text: str) -> float:
 def build_parser() -> argparse.ArgumentParser:
     p = base_parser("sim", "The Seaway simulator: vessel plant, disturbances, sensor noise and a "
                            "PX4-like MAVLink endpoint (real time), or lockstep on the bus.")
+    p.add_argument("--state-file", type=Path, default=None, metavar="PATH",
+                   help="keep each scenario loaded over the bus (sim/scenario) in PATH, and start "
+                        "with the one kept there, if any, instead of the run's: a sim the launcher "
+                        "restarts flies on in the water it was given (seaway_sim.kept)")
     p.add_argument("--stall-repeat-s", type=_positive, default=STALL_REPEAT_S,
                    help="lockstep: wall seconds without progress after which the sim repeats its "
                         f"period, a safety net (default {STALL_REPEAT_S:g})")
@@ -96,6 +104,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ConfigError as err:
         print(f"seaway-sim: {err}", file=sys.stderr)
         return 2
+    resumed = None
+    if args.state_file is not None:
+        try:
+            resumed = kept.load(args.state_file)
+            if resumed is not None:
+                scenario, vessel, model = world_of(resumed.document, str(args.state_file), run)
+        except (kept.KeptError, ConfigError) as err:
+            print(f"seaway-sim: --state-file {args.state_file}: {err}\n(it keeps the scenario last "
+                  f"loaded over the bus, for a restarted sim; remove it to start with the run's, "
+                  f"{run.scenario})", file=sys.stderr)
+            return 2
     lockstep, period_s = run.lockstep, run.control_period_s
     try:
         params = parse_params(args.param)
@@ -123,7 +142,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     with run_service("sim", args, run=run) as ctx:
         boot_ns = time.monotonic_ns()
         core = SimCore(scenario, vessel, epoch_ns=0 if lockstep else time.time_ns())
-        app = SimApp(ctx.bus, core, lockstep=lockstep, run=run, model=model)
+        app = SimApp(ctx.bus, core, lockstep=lockstep, run=run, model=model,
+                     state_file=args.state_file)
+        if resumed is not None:
+            log.warning("scenario %s, as loaded over the bus before this sim started (kept in %s), "
+                        "not the run's %s: time starts again at 0", scenario.name, args.state_file,
+                        run.scenario)
         log.info("scenario %s (seed %d), plant vessel %s, model vessel %s, period %g s, %s",
                  scenario.name, scenario.seed, vessel.name, run.model_vessel_file, period_s,
                  "lockstep" if lockstep else "real time, MAVLink signing "
