@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import signal
 import subprocess
+import time
 from pathlib import Path
 
 import pytest
@@ -13,6 +14,9 @@ from seaway.contract import keys
 from seaway.contract.config import read_document
 from seaway.contract.messages import ScenarioRequest
 from seaway.runtime.bus import Bus
+from seaway.runtime.run import describe
+from seaway.simkit.scenario import load_scenario
+from seaway_sim import kept
 
 from tests.conftest import BIN, REPO, wait_for
 
@@ -62,3 +66,23 @@ def test_a_state_file_that_cannot_be_used_stops_the_sim_saying_why(procs, zenoh_
     assert p.returncode == 2, p.stderr
     assert f"--state-file {state}" in p.stderr and "remove it to start with the run's" in p.stderr
     assert "paper-c1" in p.stderr  # the run's scenario, named
+
+
+def test_a_scenario_kept_by_an_earlier_launch_into_the_same_folder_is_not_flown(procs, zenoh_env,
+                                                                               tmp_path: Path
+                                                                               ) -> None:
+    """``seaway launch --run-dir`` may name a folder a launch used before, and the run id is the
+    folder's name: a kept scenario saved before this run's description was written is that earlier
+    launch's, and the run's own scenario flies (``seaway.runtime.run.from_earlier_launch``)."""
+    state = tmp_path / "sim-state.json"
+    doc = read_document(REPO / "deploy" / "scenarios" / "paper-c5.toml")
+    kept.save(state, kept.KeptScenario(name="paper-c5", document=doc, saved_unix_ns=time.time_ns()))
+    run_file = describe(vessel=VESSEL, run_id=tmp_path.name, clock="lockstep",
+                        scenario=load_scenario("paper-c1"), scenario_ref="paper-c1"
+                        ).write(tmp_path / "run.json")  # the next launch, after the file was kept
+    with Bus.open(VESSEL) as bus:
+        p = procs.start([str(BIN / "seaway-sim"), "--vessel", VESSEL, "--run", str(run_file),
+                         "--state-file", str(state)], zenoh_env, "sim")
+        wait_for(lambda: "lockstep: period" in procs.log(p), 30, what="sim up")
+        assert "paper-c5 was kept before this run started" in procs.log(p)
+        assert current_scenario(bus) == "paper-c1"

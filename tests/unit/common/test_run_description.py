@@ -96,3 +96,12 @@ def test_a_bad_run_file_is_refused_naming_the_problem(tmp_path, text: str) -> No
     path.write_text(text)
     with pytest.raises(ConfigError, match=r"run\.json"):
         runs.resolve(_args("--run", str(path)), "sim")
+
+
+def test_a_state_kept_before_the_run_started_is_an_earlier_launchs(tmp_path) -> None:
+    run_file = runs.describe(vessel="v1", run_id="r").write(tmp_path / "run.json")
+    started = runs.started_ns(run_file)
+    assert started == run_file.stat().st_mtime_ns
+    assert runs.from_earlier_launch(started - 1, run_file)
+    assert not runs.from_earlier_launch(started, run_file)  # kept in this run (by a restart's past)
+    assert runs.started_ns(None) is None and not runs.from_earlier_launch(0, None)  # by hand

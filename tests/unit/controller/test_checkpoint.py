@@ -74,3 +74,33 @@ def test_only_a_durable_save_waits_for_the_disk(tmp_path: Path, monkeypatch) -> 
     checkpoint.save(path, cp.model_copy(update={"energy_used_j": 4.0}))
     assert len(synced) == 1 and checkpoint.load(path).energy_used_j == 4.0
     assert sorted(p.name for p in tmp_path.iterdir()) == ["mission.json"]  # no temporary left
+
+
+def test_a_checkpoint_from_an_earlier_launch_into_the_run_folder_is_not_resumed(tmp_path: Path,
+                                                                              caplog) -> None:
+    """The run folder may be reused (``seaway launch --run-dir``): a checkpoint saved before this
+    run's description was written is the earlier launch's mission, not this run's."""
+    caplog.set_level("INFO")
+    core = run_to_second_leg()
+    req, leg, st, energy = core.progress()
+    run_file = tmp_path / "run.json"
+    run_file.write_text("{}")
+    started = run_file.stat().st_mtime_ns
+    path = tmp_path / "cp.json"
+
+    def saved_at(ns: int) -> None:
+        checkpoint.save(path, checkpoint.MissionCheckpoint(
+            request=req.model_dump(mode="json"), active_leg=leg, state=st, energy_used_j=energy,
+            saved_unix_ns=ns), durable=False)
+
+    saved_at(started - 1)
+    fresh = make_core(ScriptedSolver())
+    resume(fresh, path, 10, run_file)
+    assert fresh.progress() is None and "saved before this run started" in caplog.text
+    saved_at(started)  # this run's (a restart): resumed
+    resume(fresh, path, 10, run_file)
+    assert fresh.progress()[1:] == (2, "active", energy)
+    other = make_core(ScriptedSolver())
+    saved_at(started - 1)
+    resume(other, path, 10, None)  # started by hand, no run file: the file is all there is
+    assert other.progress()[1:] == (2, "active", energy)

@@ -36,7 +36,8 @@ minutes). Until it is ready, real time flies with the reference IPOPT and lockst
 progress changes and once a second of the service's own clock (simulated time in lockstep, where a
 wall second can be a hundred periods), read at start, so that a controller restarted mid-mission (the
 launcher restarts a crashed one) resumes the same mission at the same leg, with its energy count,
-instead of idling.
+instead of idling. A checkpoint saved before the run started (an earlier launch into the same run
+folder, ``seaway launch --run-dir``) is not resumed.
 """
 
 from __future__ import annotations
@@ -66,6 +67,7 @@ from seaway.contract.messages import (
 from seaway.runtime.clock import RateLoop
 from seaway.runtime.lockstep import Member, Period
 from seaway.runtime.ratelog import RateLimitedLog
+from seaway.runtime.run import from_earlier_launch
 from seaway.runtime.service import ServiceContext, base_parser, parse, resolve_run, run_service
 from seaway.runtime.stamps import StampBounds, StampGate
 from seaway.simkit.scenario import load_scenario
@@ -458,11 +460,18 @@ class ControllerService:
             self.pub_accepted.put(accepted)
 
 
-def resume(core: ControllerCore, path: Path, now_ns: int) -> None:
-    """Resume the checkpointed mission, if there is one in progress; never fatal."""
+def resume(core: ControllerCore, path: Path, now_ns: int, run_file: str | Path | None = None
+           ) -> None:
+    """Resume the checkpointed mission, if there is one in progress and it was saved in this run
+    (not before ``run_file`` was written: ``seaway.runtime.run.from_earlier_launch``); never fatal."""
     try:
         cp = checkpoint.load(path)
         if cp is None:
+            return
+        if from_earlier_launch(cp.saved_unix_ns, run_file):
+            log.info("checkpoint %s: mission %s was saved before this run started (an earlier "
+                     "launch into this folder); starting idle", path,
+                     cp.request.get("mission_id", "?"))
             return
         if cp.state not in ("active", "paused"):
             log.info("checkpoint %s: mission %s was %s; starting idle", path,
@@ -523,7 +532,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 log.error("scenario %s mission refused: %s", scenario.name, reply.reason)
                 return 2
         if args.state_file is not None:
-            resume(core, args.state_file, ctx.clock.now_ns())
+            resume(core, args.state_file, ctx.clock.now_ns(), args.run)
         svc = ControllerService(ctx, core, run.lockstep, args.state_file, builds)
         ctx.ready()
         if svc.member is not None:

@@ -29,6 +29,7 @@ import zenoh
 from seaway.contract import bundle, keys
 from seaway.contract.config import ConfigError
 from seaway.contract.messages import LOCKSTEP_SERVICES, LogRecord, MessageError, PeriodDone
+from seaway.runtime import run as runs
 from seaway.runtime.bus import Bus, RawSample
 from seaway.runtime.lockstep import Member, Period, classify
 from seaway.runtime.run import RunDescription
@@ -357,8 +358,8 @@ def recording_time(args: argparse.Namespace, run: RunDescription, now_ns: int) -
         return RecordingTime.real_time()
     if args.sim_epoch:
         epoch_ns, source = parse_epoch(args.sim_epoch), "--sim-epoch"
-    elif args.run:
-        epoch_ns, source = Path(args.run).stat().st_mtime_ns, f"run started ({args.run} written)"
+    elif (started := runs.started_ns(args.run)) is not None:
+        epoch_ns, source = started, f"run started ({args.run} written)"
     else:
         epoch_ns, source = now_ns, "recorder started"
     return RecordingTime(lockstep=True, epoch_ns=epoch_ns - epoch_ns % 1_000_000_000,

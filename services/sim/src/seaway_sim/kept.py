@@ -6,7 +6,9 @@ command line, which names the run's scenario: without this file a restarted sim 
 water (another current, another wind, another start) and the mission went on there, its numbers
 neither run's. So the sim writes each document it loads to PATH (atomically:
 ``seaway.runtime.atomic``) before it replies, and a sim that starts while PATH exists loads that
-document instead of the run's. Time starts again at 0 either way (a restart: a new lockstep episode).
+document instead of the run's, unless it was kept before the run started: an earlier launch into the
+same run folder (``seaway.runtime.run.from_earlier_launch``). Time starts again at 0 either way (a
+restart: a new lockstep episode).
 
 A file that cannot be used (unreadable, not this format, a scenario that no longer validates) stops
 the sim with the reason rather than fly the run's scenario in its place.

@@ -22,6 +22,7 @@ from pathlib import Path
 
 from seaway.contract.config import ConfigError
 from seaway.runtime.lockstep import STALL_REPEAT_S
+from seaway.runtime.run import from_earlier_launch
 from seaway.runtime.service import base_parser, parse, resolve_run, run_service
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.mavlink_signing import KeyFileError, read_key
@@ -104,10 +105,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ConfigError as err:
         print(f"seaway-sim: {err}", file=sys.stderr)
         return 2
-    resumed = None
+    resumed = stale = None
     if args.state_file is not None:
         try:
             resumed = kept.load(args.state_file)
+            if resumed is not None and from_earlier_launch(resumed.saved_unix_ns, args.run):
+                stale, resumed = resumed, None
             if resumed is not None:
                 scenario, vessel, model = world_of(resumed.document, str(args.state_file), run)
         except (kept.KeptError, ConfigError) as err:
@@ -144,6 +147,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         core = SimCore(scenario, vessel, epoch_ns=0 if lockstep else time.time_ns())
         app = SimApp(ctx.bus, core, lockstep=lockstep, run=run, model=model,
                      state_file=args.state_file)
+        if stale is not None:
+            log.info("--state-file %s: %s was kept before this run started (an earlier launch into "
+                     "this folder): the run's %s flies", args.state_file, stale.name, run.scenario)
         if resumed is not None:
             log.warning("scenario %s, as loaded over the bus before this sim started (kept in %s), "
                         "not the run's %s: time starts again at 0", scenario.name, args.state_file,

@@ -110,6 +110,23 @@ class RunDescription(ConfigModel):
         return path
 
 
+def started_ns(run_file: str | Path | None) -> int | None:
+    """When the run started [ns since the Unix epoch]: when its description (``--run``) was written,
+    which the launcher does once per launch, before it starts any process, and a restarted process
+    reads again unchanged; None without one (a service started by hand from flags)."""
+    if not run_file:
+        return None
+    return Path(run_file).stat().st_mtime_ns
+
+
+def from_earlier_launch(saved_unix_ns: int, run_file: str | Path | None) -> bool:
+    """Whether a state a process kept for its restart (saved at ``saved_unix_ns``) was kept before
+    this run started: by an earlier launch into the same run folder (``seaway launch --run-dir``
+    names one, and the run id is the folder's name), so it is not this run's to resume."""
+    start = started_ns(run_file)
+    return start is not None and saved_unix_ns < start
+
+
 def new_run_id(label: str) -> str:
     """A run id from the wall time and a label, e.g. ``20261123-010203-sim-batch``."""
     return f"{time.strftime('%Y%m%d-%H%M%S')}-{label}"
