@@ -64,18 +64,25 @@ def test_a_period_some_member_did_not_mark_is_left_out() -> None:
 
 def test_lockstep_alternates_auth_and_reports_both(monkeypatch: pytest.MonkeyPatch) -> None:
     order: list[bool] = []
+    placed: list[frozenset[int] | None] = []
 
-    def fake_run(run_dir: Path, auth: bool = True) -> dict[tuple[str, str, str], dict[int, int]]:
+    def fake_run(run_dir: Path, auth: bool = True, cpus: frozenset[int] | None = None
+                 ) -> dict[tuple[str, str, str], dict[int, int]]:
         order.append(auth)
+        placed.append(cpus)
         return marks(5_000_000 if auth else 4_000_000)  # on costs 25 % more here
 
     monkeypatch.setattr(lockstep, "through_processes", fake_run)
     monkeypatch.setattr(lockstep, "run_closed_loop",
                         lambda *_a, **_k: SimpleNamespace(steps=49, travel_time_s=4.9))
+    monkeypatch.setattr(lockstep.cpusets, "allowed", lambda: frozenset({0, 1}))
     res = lockstep.run(["--repeat", "2"])
 
     assert order == [True, False, True, False]
+    # Every stack run placed alike: the chain apart given two CPUs (seaway launch --cpus).
+    assert placed == [frozenset({0, 1})] * 4
     out = res.to_json()
+    assert out["meta"]["stack placement"] == "chain on CPU 0, the rest on 1"
     names = set(lockstep.AUTH_FIGURES)
     for section in ("auth_on", "auth_off", "auth_overhead_ratio"):
         assert set(out[section]) == names
@@ -91,3 +98,22 @@ def test_lockstep_alternates_auth_and_reports_both(monkeypatch: pytest.MonkeyPat
     assert out["figures"]["through the processes, warm [s]"] == pytest.approx(out["auth_on"]["wall_time_s"])
     table = res.table()
     assert "auth on / off, period p99" in table and "through the processes, auth off [s]" in table
+
+
+def test_lockstep_without_pinning_leaves_the_stack_to_the_kernel(monkeypatch: pytest.MonkeyPatch
+                                                                 ) -> None:
+    placed: list[frozenset[int] | None] = []
+
+    def fake_run(run_dir: Path, auth: bool = True, cpus: frozenset[int] | None = None
+                 ) -> dict[tuple[str, str, str], dict[int, int]]:
+        placed.append(cpus)
+        return marks(5_000_000)
+
+    monkeypatch.setattr(lockstep, "through_processes", fake_run)
+    monkeypatch.setattr(lockstep, "run_closed_loop",
+                        lambda *_a, **_k: SimpleNamespace(steps=49, travel_time_s=4.9))
+    monkeypatch.setattr(lockstep.cpusets, "allowed", lambda: frozenset({0, 1}))
+    assert lockstep.run(["--no-pin"]).to_json()["meta"]["stack placement"] == "the kernel's"
+    monkeypatch.setattr(lockstep.cpusets, "allowed", lambda: frozenset({3}))  # one CPU: no split
+    assert lockstep.run([]).to_json()["meta"]["stack placement"] == "the kernel's"
+    assert placed == [None, None, None, None]

@@ -62,6 +62,16 @@ def test_cpus_are_split_evenly_between_stacks_in_runs_of_neighbours() -> None:
 
 
 @pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="needs two CPUs to pin to one")
+def test_a_lockstep_chain_gets_the_first_cpu_and_the_rest_the_others() -> None:
+    assert cpus.split_chain(frozenset({0, 1})) == (frozenset({0}), frozenset({1}))
+    assert cpus.split_chain(frozenset({5, 2, 7})) == (frozenset({2}), frozenset({5, 7}))
+    assert cpus.split_chain(frozenset({3})) is None  # one CPU: all share it
+    assert cpus.split_chain(frozenset()) is None
+    from seaway.runtime.lockstep import CHAIN
+
+    assert CHAIN == ("sim", "estimator", "controller")  # the recorder writes beside the chain
+
+
 def test_pinning_a_process_pins_every_thread_it_has_and_what_it_starts_later() -> None:
     # In a child, so the test process keeps its own affinity. A thread started before the pin is
     # pinned too (the kernel sets one thread at a time); one started after inherits it, and so

@@ -36,6 +36,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from seaway.runtime import cpus as cpusets
 from seaway.runtime import timeline
 from seaway.runtime.credentials import ENV_CREDENTIALS, ENV_IDENTITY, NONE
 from seaway.runtime.stacks import ENV_STACKS_DIR
@@ -60,11 +61,14 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-def through_processes(run_dir: Path, auth: bool = True) -> dict[tuple[str, str, str], dict[int, int]]:
+def through_processes(run_dir: Path, auth: bool = True, cpus: frozenset[int] | None = None
+                      ) -> dict[tuple[str, str, str], dict[int, int]]:
     """Run the stack once, its members marking their timelines; the marks (``timeline.first_marks``).
 
     ``auth``: the launcher makes the run's credentials (authentication on), else
-    ``SEAWAY_CREDENTIALS=none`` (off). The stack registers next to ``run_dir``, not with the user's
+    ``SEAWAY_CREDENTIALS=none`` (off). ``cpus``: ``seaway launch --cpus`` (with two or more, the
+    lockstep chain on one and the rest on the others: ``seaway.runtime.cpus.split_chain``); None:
+    where the kernel puts them. The stack registers next to ``run_dir``, not with the user's
     stacks, so the bench never meets another stack or another bench's credentials.
     """
     env = dict(os.environ, SEAWAY_ZENOH_RENDEZVOUS=f"tcp/127.0.0.1:{_free_port()}")
@@ -76,8 +80,9 @@ def through_processes(run_dir: Path, auth: bool = True) -> dict[tuple[str, str, 
         env.pop(ENV_CREDENTIALS, None)
     else:
         env[ENV_CREDENTIALS] = NONE
+    where = [] if cpus is None else ["--cpus", cpusets.format_cpus(cpus)]
     subprocess.run([str(Path(sys.executable).parent / "seaway"), "launch", "sim-batch", "--scenario",
-                    SCENARIO, "--controller", CONTROLLER, "--run-dir", str(run_dir)],
+                    SCENARIO, "--controller", CONTROLLER, "--run-dir", str(run_dir), *where],
                    env=env, check=True, capture_output=True, timeout=600)
     return timeline.first_marks(timeline.read(run_dir.parent / "timeline"))
 
@@ -157,7 +162,13 @@ def run(argv: list[str]) -> BenchResult:
     ap.add_argument("--repeat", type=int, default=1,
                     help="runs through the processes with authentication on, and as many with it "
                          "off, alternating (median)")
+    ap.add_argument("--no-pin", action="store_true",
+                    help="leave the stack's processes where the kernel puts them (default, given two "
+                         "CPUs or more: the sim, estimator and controller on one, the recorder and "
+                         "the launcher on the others, as 'seaway launch --cpus' does)")
     args = ap.parse_args(argv)
+    allowed = cpusets.allowed()
+    stack_cpus = None if args.no_pin or cpusets.split_chain(allowed) is None else allowed
     res = BenchResult("lockstep", "Lockstep: paper condition #1, CC-EMPC, through the processes vs "
                                   "in process")
     sc = load_scenario(SCENARIO)
@@ -187,7 +198,7 @@ def run(argv: list[str]) -> BenchResult:
             # minutes apart says more about the machine than about the stack.
             before = in_process_s()
             with tempfile.TemporaryDirectory(prefix="seaway-bench-lockstep-") as tmp:
-                marks = through_processes(Path(tmp) / "run", auth)
+                marks = through_processes(Path(tmp) / "run", auth, stack_cpus)
             walls[auth].append(wall_s(marks))
             inprocs.append(before)
             if auth:
@@ -217,5 +228,8 @@ def run(argv: list[str]) -> BenchResult:
     off = _auth_figures(walls[False], stage_ms[False]["period"])
     res.add("through the processes, auth off [s]", wall_off, note=f"median of {args.repeat}")
     compare_auth(res, on, off, lambda k: f"auth on / off, {AUTH_FIGURES[k]}")
-    res.meta = {"cpus": os.cpu_count(), "scenario": SCENARIO, "controller": CONTROLLER}
+    split = cpusets.split_chain(stack_cpus) if stack_cpus is not None else None
+    res.meta = {"cpus": os.cpu_count(), "scenario": SCENARIO, "controller": CONTROLLER,
+                "stack placement": (f"chain on CPU {cpusets.format_cpus(split[0])}, the rest on "
+                                    f"{cpusets.format_cpus(split[1])}") if split else "the kernel's"}
     return res

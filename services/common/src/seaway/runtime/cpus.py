@@ -9,6 +9,13 @@ pinned apart on a 2-vCPU machine took a median 111.2 s against 121.1 s left to t
 alternating pairs (seven faster, by 5-20 %; three slower, by 2-3 %: docs/results.md, "2026-11-29,
 evening: a study's stacks on CPUs of their own").
 
+Given two CPUs or more, a lockstep stack's chain (``seaway.runtime.lockstep.CHAIN``: sim, estimator,
+controller, which work one at a time) gets the first CPU of the set to itself and everything else
+(the recorder, the launcher) the others (``split_chain``): the chain's hand-overs stay on one CPU,
+and the recorder's writing neither takes that CPU nor evicts the chain's caches. One stack on a
+2-vCPU machine flew paper #1 6-10 % faster so than left to the kernel, in every one of four
+alternating pairs (docs/results.md, "2026-11-29, late: a stack's chain on a CPU of its own").
+
 A thread's affinity is its own: a new thread, and a child process, inherit their creator's. So a
 process is pinned by setting every one of its threads (``pin_threads``), before it starts the
 processes that should follow it.
@@ -81,6 +88,15 @@ def partition(cpus: frozenset[int], groups: int) -> list[frozenset[int]] | None:
         out.append(frozenset(ordered[start:end]))
         start = end
     return out
+
+
+def split_chain(cpus: frozenset[int]) -> tuple[frozenset[int], frozenset[int]] | None:
+    """(the lockstep chain's CPUs, everything else's) of a stack kept on ``cpus``: the lowest CPU,
+    and the others; None for fewer than two CPUs (nothing to split: all share the one)."""
+    if len(cpus) < 2:
+        return None
+    first = min(cpus)
+    return frozenset({first}), frozenset(cpus - {first})
 
 
 def pin_threads(pid: int, cpus: frozenset[int]) -> int:

@@ -75,6 +75,10 @@ RECORDER = "recorder"
 writes, so no request waits for it."""
 MEMBERS = tuple(s for s in LOCKSTEP_SERVICES if s != "sim")
 """The services the sim waits for, once their member token has appeared."""
+CHAIN = tuple(s for s in LOCKSTEP_SERVICES if s != RECORDER)
+"""The services a period passes through one after another (sim, estimator, controller, and back to
+the sim): the critical path, where only one of them works at a time. The recorder writes beside it
+(``RECORDER_LAG``)."""
 KEPT_PERIODS = RECORDER_LAG + 2
 """The periods whose bundles a member keeps, to send again for a restarted recorder (``repeat``).
 

@@ -74,6 +74,7 @@ from seaway.runtime import cpus, refusals
 from seaway.runtime import run as runs
 from seaway.runtime.bus import Bus, Every, Newest, RuntimeEnvError
 from seaway.runtime.credentials import ENV_CREDENTIALS, NONE, CredentialsError
+from seaway.runtime.lockstep import CHAIN
 from seaway.runtime.service import (
     DEFAULT_VESSEL,
     ENV_VESSEL,
@@ -118,8 +119,10 @@ def parser() -> argparse.ArgumentParser:
                     help=f"the run's control period [s] (default {runs.CONTROL_PERIOD_S})")
     ap.add_argument("--cpus", type=_cpu_list, default=None, metavar="LIST",
                     help="run the whole stack (this launcher, every process it starts, their "
-                         "threads) on these CPUs only, e.g. 0 or 0-1,4 (default: wherever the "
-                         "kernel puts them; seaway.runtime.cpus says when it pays)")
+                         "threads) on these CPUs only, e.g. 0 or 0-1,4; in lockstep with two or "
+                         "more, the sim, estimator and controller on the first, the rest on the "
+                         "others (default: wherever the kernel puts them; seaway.runtime.cpus says "
+                         "when it pays)")
     ap.add_argument("--check", action="store_true", help="validate the profile and exit")
     return ap
 
@@ -633,6 +636,12 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
     run = runs_of[vessels[0]]  # the run-wide facts, the same for every vessel of the launch
     if run.lockstep:
         use_lockstep_runtime()  # the launcher's own Zenoh, and so its processes' (zenoh_bus says why)
+    placement, split = None, None
+    if run.lockstep and args.cpus is not None and (split := cpus.split_chain(args.cpus)):
+        # The chain on a CPU of its own; the launcher, and so what it starts but the chain (the
+        # recorder), on the others (seaway.runtime.cpus says why).
+        cpus.pin_threads(0, split[1])
+        placement = dict.fromkeys(CHAIN, split[0])
     env = dict(os.environ)
     env[ENV_VESSEL] = vessels[0]  # each process gets its own vessel's (Supervisor.spawn)
     # Every child is a process of this stack: the stack's credentials (or the explicit opt-out).
@@ -649,7 +658,8 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
         if mission is not None:
             mission_files[v] = folder / "mission.json"
             mission_files[v].write_text(mission.model_dump_json(indent=2) + "\n")
-    sup = Supervisor(procs, run_dir, env, profile.backoff, default_echo, args.verbose, run.clock)
+    sup = Supervisor(procs, run_dir, env, profile.backoff, default_echo, args.verbose, run.clock,
+                     placement)
     stop = threading.Event()
     _install_stop_signals(stop, sup)
     label = {v: f"{v}: " if len(vessels) > 1 else "" for v in vessels}
@@ -659,7 +669,9 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
           + (f", plant {run.plant_vessel_file}" if run.plant_vessel_file else "")
           + f", period {run.control_period_s:g} s, clock {run.clock}"
           + (f", scenario {run.scenario}" if run.scenario else "")
-          + (f", CPUs {cpus.format_cpus(args.cpus)}" if args.cpus is not None else ""), flush=True)
+          + (f", CPUs {cpus.format_cpus(args.cpus)}" if args.cpus is not None else "")
+          + (f" (the lockstep chain on {cpus.format_cpus(split[0])}, the rest on "
+             f"{cpus.format_cpus(split[1])})" if split else ""), flush=True)
     for note in auth.notes:
         print(note, flush=True)
 

@@ -44,6 +44,7 @@ from typing import IO
 
 from seaway.contract import bundle, keys
 from seaway.contract.messages import LOCKSTEP_SERVICES
+from seaway.runtime import cpus
 from seaway.runtime.bus import Bus, RawRing
 from seaway.runtime.credentials import ENV_IDENTITY
 from seaway.runtime.service import ENV_VESSEL
@@ -109,8 +110,11 @@ class Supervised:
 class Supervisor:
     def __init__(self, procs: list[Supervised], run_dir: Path, env: dict[str, str],
                  backoff: BackoffPolicy, echo: Callable[[str], None], echo_all: bool = False,
-                 clock: str = "wall") -> None:
+                 clock: str = "wall", placement: dict[str, frozenset[int]] | None = None) -> None:
         self.procs = {p.spec.name: p for p in procs}
+        self.placement = placement or {}
+        """CPUs of the processes of a service (``seaway.runtime.cpus.split_chain``); a process of a
+        service not named keeps the launcher's."""
         self.run_dir = run_dir
         self.logs = run_dir / "logs"
         self.logs.mkdir(parents=True, exist_ok=True)
@@ -243,6 +247,12 @@ class Supervisor:
         sp.popen = subprocess.Popen(with_parent_death_signal([exe, *sp.argv[1:]]),
                                     stdout=subprocess.PIPE, stderr=subprocess.STDOUT, env=env,
                                     start_new_session=True)
+        where = self.placement.get(sp.spec.service or "")
+        if where is not None:  # now, while it has one thread: the ones it starts inherit the set
+            try:
+                cpus.pin_threads(sp.popen.pid, where)
+            except OSError as err:
+                self.echo(f"launcher: {sp.spec.name} left on the launcher's CPUs: {err}")
         sp.started_at = time.monotonic()
         sp.ready_at = None
         sp.state = "starting" if sp.spec.service else "running"
