@@ -12,9 +12,10 @@ evening: a study's stacks on CPUs of their own").
 Given two CPUs or more, a lockstep stack's chain (``seaway.runtime.lockstep.CHAIN``: sim, estimator,
 controller, which work one at a time) gets the first CPU of the set to itself and everything else
 (the recorder, the launcher) the others (``split_chain``): the chain's hand-overs stay on one CPU,
-and the recorder's writing neither takes that CPU nor evicts the chain's caches. One stack on a
-2-vCPU machine flew paper #1 6-10 % faster so than left to the kernel, in every one of four
-alternating pairs (docs/results.md, "2026-11-29, late: a stack's chain on a CPU of its own").
+and the recorder's writing neither takes that CPU nor evicts the chain's caches. ``seaway bench
+lockstep`` on a 2-vCPU machine, five alternating pairs: paper #1 through the processes in a median
+9.60 s so against 10.40 s left to the kernel, faster in every pair (docs/results.md, "2026-11-29,
+late: a stack's chain on a CPU of its own").
 
 A thread's affinity is its own: a new thread, and a child process, inherit their creator's. So a
 process is pinned by setting every one of its threads (``pin_threads``), before it starts the
