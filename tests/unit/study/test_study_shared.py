@@ -113,17 +113,22 @@ def test_the_cpu_groups_of_a_study(monkeypatch: pytest.MonkeyPatch) -> None:
 
     monkeypatch.setattr(cpus, "allowed", lambda: frozenset({0, 1}))
     assert ex.cpu_groups(2, None) == [frozenset({0}), frozenset({1})]
-    assert ex.cpu_groups(1, None) is None  # one stack: the kernel may use both CPUs for it
+    # One stack: both CPUs, its launcher putting the lockstep chain on one (cpus.split_chain).
+    assert ex.cpu_groups(1, None) == [frozenset({0, 1})]
+    assert ex.cpu_groups(1, True) == [frozenset({0, 1})]
     assert ex.cpu_groups(3, None) is None  # two stacks on one CPU while none idles: no
     assert ex.cpu_groups(2, False) is None
     with pytest.raises(ValueError, match=r"--pin: 3 stack\(s\) at once cannot each have CPUs of their "
                                          r"own: this process may use 2 CPU\(s\) \(0-1\), so --pin "
-                                         r"takes 2 to 2 workers"):
+                                         r"takes 1 to 2 workers"):
         ex.cpu_groups(3, True)
     monkeypatch.setattr(cpus, "allowed", lambda: frozenset({3}))
     with pytest.raises(ValueError, match=r"1 CPU\(s\) \(3\), so nothing can be pinned"):
         ex.cpu_groups(2, True)
     assert ex.cpu_groups(2, None) is None  # not asked: one CPU, nothing to pin, no error
+    assert ex.cpu_groups(1, None) is None  # one stack, one CPU: nothing to split
+    with pytest.raises(ValueError, match="nothing can be pinned"):
+        ex.cpu_groups(1, True)
     assert ex.cpus_option(frozenset({1}), {"--cpus"}) == ["--cpus", "1"]
     assert ex.cpus_option(frozenset({1}), set()) == []  # a launcher without the option
     assert ex.cpus_option(None, {"--cpus"}) == []

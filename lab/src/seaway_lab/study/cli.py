@@ -71,7 +71,9 @@ def parser() -> argparse.ArgumentParser:
                          "one run after another)")
     ap.add_argument("--pin", action=argparse.BooleanOptionalAction, default=None,
                     help="give each local stack CPUs of its own (seaway launch --cpus); default: "
-                         "when 2 or more stacks, no more than the CPUs, run at once")
+                         "when 2 or more stacks, no more than the CPUs, run at once, or one stack "
+                         "on 2 CPUs or more (its sim, estimator and controller on one, the rest on "
+                         "the others)")
     ap.add_argument("--out", type=Path, default=None, help="output folder (default runs/study-NAME-<time>)")
     ap.add_argument("--rows", nargs="+", default=None, help="only these rows (e.g. '#1' '#4')")
     ap.add_argument("--columns", nargs="+", default=None, help="only these columns (e.g. cc-empc nmpc)")

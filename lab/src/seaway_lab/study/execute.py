@@ -123,18 +123,23 @@ def stack_env(port: int, base: dict[str, str] | None = None) -> dict[str, str]:
 
 def cpu_groups(workers: int, pin: bool | None) -> list[frozenset[int]] | None:
     """The CPU set of each of ``workers`` local stacks (``cpus.partition`` of the CPUs this process
-    may use), or None to leave them to the kernel. ``pin``: None pins where it pays (two or more
-    stacks, no more than the CPUs: each stack gets a CPU of its own), False never, True wherever
-    the CPUs can be split (an error otherwise, saying why)."""
+    may use), or None to leave them to the kernel. ``pin``: None pins where it pays, False never,
+    True wherever it can be done (an error otherwise, saying why). It pays for two or more stacks
+    and no more than the CPUs (each stack gets CPUs of its own), and for one stack given two CPUs or
+    more (all of them: its launcher puts the lockstep chain on one and the rest on the others,
+    ``cpus.split_chain``)."""
     if pin is False:
         return None
     available = cpusets.allowed()
-    groups = cpusets.partition(available, workers)
+    if workers == 1:
+        groups = [available] if cpusets.split_chain(available) is not None else None
+    else:
+        groups = cpusets.partition(available, workers)
     if groups is None and pin:
         n = len(available)
         raise ValueError(f"--pin: {workers} stack(s) at once cannot each have CPUs of their own: "
                          f"this process may use {n} CPU(s) ({cpusets.format_cpus(available)}), so "
-                         + (f"--pin takes 2 to {n} workers" if n >= 2 else "nothing can be pinned"))
+                         + (f"--pin takes 1 to {n} workers" if n >= 2 else "nothing can be pinned"))
     return groups
 
 
