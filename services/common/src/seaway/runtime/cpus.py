@@ -10,7 +10,7 @@ alternating pairs (seven faster, by 5-20 %; three slower, by 2-3 %: docs/results
 evening: a study's stacks on CPUs of their own").
 
 Given two CPUs or more, a lockstep stack's chain (``seaway.runtime.lockstep.CHAIN``: sim, estimator,
-controller, which work one at a time) gets the first CPU of the set to itself and everything else
+controller, which work one at a time) gets the lowest CPU of the set to itself and everything else
 (the recorder, the launcher) the others (``split_chain``): the chain's hand-overs stay on one CPU,
 and the recorder's writing neither takes that CPU nor evicts the chain's caches. ``seaway bench
 lockstep`` on a 2-vCPU machine, five alternating pairs: paper #1 through the processes in a median

@@ -120,7 +120,7 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--cpus", type=_cpu_list, default=None, metavar="LIST",
                     help="run the whole stack (this launcher, every process it starts, their "
                          "threads) on these CPUs only, e.g. 0 or 0-1,4; in lockstep with two or "
-                         "more, the sim, estimator and controller on the first, the rest on the "
+                         "more, the sim, estimator and controller on the lowest, the rest on the "
                          "others (default: wherever the kernel puts them; seaway.runtime.cpus says "
                          "when it pays)")
     ap.add_argument("--check", action="store_true", help="validate the profile and exit")
