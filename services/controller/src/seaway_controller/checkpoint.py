@@ -13,14 +13,13 @@ import json
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import Field, ValidationError
-from seaway.contract.config import ConfigModel, describe_validation_error
+from pydantic import Field
+from seaway.contract.config import ConfigModel
 from seaway.contract.messages import MessageError, MissionRequest
 from seaway.runtime import atomic
 
-
-class CheckpointError(ValueError):
-    """The checkpoint file exists but cannot be used; the text says why."""
+CheckpointError = atomic.StateFileError
+"""The checkpoint file exists but cannot be used; the text says why."""
 
 
 class MissionCheckpoint(ConfigModel):
@@ -51,13 +50,4 @@ def save(path: Path, checkpoint: MissionCheckpoint, durable: bool = True) -> Non
 
 def load(path: Path) -> MissionCheckpoint | None:
     """The checkpoint at ``path``; None if there is none; CheckpointError if it is unusable."""
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        return None
-    except OSError as err:
-        raise CheckpointError(f"{path}: cannot read: {err}") from None
-    try:
-        return MissionCheckpoint.model_validate_json(text)
-    except ValidationError as err:
-        raise CheckpointError(describe_validation_error(err, str(path))) from None
+    return atomic.read_model(path, MissionCheckpoint)

@@ -19,13 +19,12 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from pydantic import Field, ValidationError
-from seaway.contract.config import ConfigModel, describe_validation_error
+from pydantic import Field
+from seaway.contract.config import ConfigModel
 from seaway.runtime import atomic
 
-
-class KeptError(ValueError):
-    """The file exists but cannot be used; the text says why."""
+KeptError = atomic.StateFileError
+"""The file exists but cannot be used; the text says why."""
 
 
 class KeptScenario(ConfigModel):
@@ -44,13 +43,4 @@ def save(path: Path, kept: KeptScenario) -> None:
 
 def load(path: Path) -> KeptScenario | None:
     """What ``path`` keeps; None if there is no file; KeptError if it cannot be used."""
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        return None
-    except OSError as err:
-        raise KeptError(f"cannot read it: {err}") from None
-    try:
-        return KeptScenario.model_validate_json(text)
-    except ValidationError as err:
-        raise KeptError(describe_validation_error(err, str(path))) from None
+    return atomic.read_model(path, KeptScenario)

@@ -2,8 +2,9 @@
 
 A process killed mid-write (SIGKILL, the OOM killer, a power loss) must not leave half a file for its
 successor: the text goes to a temporary file in the same folder, which then replaces the target in
-one ``rename`` (atomic within a file system). Used for the controller's mission checkpoint and the
-sim's loaded scenario.
+one ``rename`` (atomic within a file system). Read back as the typed model it was written from
+(``read_model``), a file that cannot be used says why. Used for the controller's mission
+checkpoint and the sim's loaded scenario.
 """
 
 from __future__ import annotations
@@ -11,6 +12,17 @@ from __future__ import annotations
 import os
 import tempfile
 from pathlib import Path
+from typing import TypeVar
+
+from pydantic import BaseModel, ValidationError
+
+from seaway.contract.config import describe_validation_error
+
+M = TypeVar("M", bound=BaseModel)
+
+
+class StateFileError(ValueError):
+    """A kept file exists but cannot be used; the text names it and says what is wrong."""
 
 
 def write_text(path: Path, text: str, durable: bool = True) -> None:
@@ -31,3 +43,18 @@ def write_text(path: Path, text: str, durable: bool = True) -> None:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def read_model(path: Path, model: type[M]) -> M | None:
+    """The ``model`` kept at ``path`` (its JSON); None if there is no file; StateFileError if it
+    cannot be read or is not a valid ``model``."""
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        return None
+    except OSError as err:
+        raise StateFileError(f"{path}: cannot read it: {err}") from None
+    try:
+        return model.model_validate_json(text)
+    except ValidationError as err:
+        raise StateFileError(describe_validation_error(err, str(path))) from None
