@@ -54,7 +54,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = base_parser("sim", "The Seaway simulator: vessel plant, disturbances, sensor noise and a "
                            "PX4-like MAVLink endpoint (real time), or lockstep on the bus.")
     p.add_argument("--state-file", type=Path, default=None, metavar="PATH",
-                   help="keep each scenario loaded over the bus (sim/scenario) in PATH, and start "
+                   help="keep each scenario loaded over the bus in PATH, and start "
                         "with the one kept there, if any, instead of the run's: a sim the launcher "
                         "restarts flies on in the water it was given (seaway_sim.kept)")
     p.add_argument("--stall-repeat-s", type=_positive, default=STALL_REPEAT_S,
