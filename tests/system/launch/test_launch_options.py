@@ -53,16 +53,19 @@ def test_the_launch_options_choose_the_controller_and_the_prediction(tmp_path, z
     assert report["metrics"]["completed"] and report["metrics"]["legs_completed"] == 2
 
 
-@pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="needs two CPUs to pin to one")
-def test_cpus_keep_the_whole_stack_on_them(tmp_path, zenoh_env) -> None:
+def stack_affinities(tmp_path: Path, env: dict[str, str], cpus: str
+                     ) -> tuple[str, dict[str, set[frozenset[int]]]]:
+    """Start ``seaway launch sim-batch --cpus CPUS`` with no mission; once all are ready, the CPU
+    sets of every thread (Zenoh's, the services' own, the launcher's), by process name; then stop
+    it (it must exit 0). Returns the launcher's lines up to then, and those sets."""
     import psutil
 
-    cpu = max(os.sched_getaffinity(0))
     p = subprocess.Popen([str(BIN / "seaway"), "launch", "sim-batch", "--no-mission", "--stay",
-                          "--cpus", str(cpu), "--run-dir", str(tmp_path / "run")],
-                         env=zenoh_env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                          "--cpus", cpus, "--run-dir", str(tmp_path / "run")],
+                         env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                          start_new_session=True)
     lines: list[str] = []
+    seen: dict[str, set[frozenset[int]]] = {}
     try:
         assert p.stdout is not None
         for line in p.stdout:  # the launcher's own lines, until the stack is up
@@ -70,42 +73,6 @@ def test_cpus_keep_the_whole_stack_on_them(tmp_path, zenoh_env) -> None:
             if line.startswith("all ready"):
                 break
         assert any(line.startswith("all ready") for line in lines), "".join(lines)
-        assert f", CPUs {cpu}\n" in "".join(lines)
-        procs = [psutil.Process(p.pid), *psutil.Process(p.pid).children(recursive=True)]
-        names = {q.name() for q in procs}
-        assert {"seaway-sim", "seaway-estimato", "seaway-controll", "seaway-recorder"} <= names, names
-        # every thread of every process: Zenoh's, the services' own, the launcher's
-        affinities = {frozenset(os.sched_getaffinity(t.id)) for q in procs for t in q.threads()}
-        assert affinities == {frozenset({cpu})}
-    finally:
-        p.send_signal(signal.SIGINT)
-        p.communicate(timeout=60)
-    assert p.returncode == 0, "".join(lines)
-
-
-@pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="needs two CPUs to split")
-def test_cpus_in_lockstep_put_the_chain_on_one_and_the_rest_on_the_others(tmp_path, zenoh_env) -> None:
-    """``--cpus`` with two CPUs or more in lockstep: the sim, estimator and controller (every thread)
-    on the lowest, the recorder and the launcher on the others. (Missions flown so: the one-worker
-    studies of tests/system/study, whose stack gets every CPU.)"""
-    import psutil
-
-    allowed = sorted(os.sched_getaffinity(0))
-    chain, rest = frozenset(allowed[:1]), frozenset(allowed[1:])
-    p = subprocess.Popen([str(BIN / "seaway"), "launch", "sim-batch", "--no-mission", "--stay",
-                          "--cpus", ",".join(str(c) for c in allowed),
-                          "--run-dir", str(tmp_path / "run")],
-                         env=zenoh_env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                         start_new_session=True)
-    lines: list[str] = []
-    seen: dict[str, set[frozenset[int]]] = {}
-    try:
-        assert p.stdout is not None
-        for line in p.stdout:
-            lines.append(line)
-            if line.startswith("all ready"):
-                break
-        assert "(the lockstep chain on" in "".join(lines), "".join(lines)
         for q in [psutil.Process(p.pid), *psutil.Process(p.pid).children(recursive=True)]:
             with contextlib.suppress(psutil.Error):
                 seen[q.name()] = {frozenset(os.sched_getaffinity(t.id)) for t in q.threads()}
@@ -113,10 +80,31 @@ def test_cpus_in_lockstep_put_the_chain_on_one_and_the_rest_on_the_others(tmp_pa
         p.send_signal(signal.SIGINT)
         p.communicate(timeout=60)
     assert p.returncode == 0, "".join(lines)
+    names = {"seaway", "seaway-sim", "seaway-estimato", "seaway-controll", "seaway-recorder"}
+    assert names <= set(seen), seen
+    return "".join(lines), seen
+
+
+@pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="needs two CPUs to pin to one")
+def test_cpus_keep_the_whole_stack_on_them(tmp_path, zenoh_env) -> None:
+    cpu = max(os.sched_getaffinity(0))
+    lines, seen = stack_affinities(tmp_path, zenoh_env, str(cpu))
+    assert f", CPUs {cpu}\n" in lines
+    assert set().union(*seen.values()) == {frozenset({cpu})}
+
+
+@pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="needs two CPUs to split")
+def test_cpus_in_lockstep_put_the_chain_on_one_and_the_rest_on_the_others(tmp_path, zenoh_env) -> None:
+    """``--cpus`` with two CPUs or more in lockstep: the sim, estimator and controller (every thread)
+    on the lowest, the recorder and the launcher on the others. (Missions flown so: the one-worker
+    studies of tests/system/study, whose stack gets every CPU.)"""
+    allowed = sorted(os.sched_getaffinity(0))
+    chain, rest = frozenset(allowed[:1]), frozenset(allowed[1:])
+    lines, seen = stack_affinities(tmp_path, zenoh_env, ",".join(str(c) for c in allowed))
+    assert "(the lockstep chain on" in lines, lines
     for name in ("seaway-sim", "seaway-estimato", "seaway-controll"):
-        assert seen.get(name) == {chain}, (name, seen)
-    assert seen.get("seaway-recorder") == {rest}, seen
-    assert seen.get("seaway") == {rest}, seen  # the launcher
+        assert seen[name] == {chain}, (name, seen)
+    assert seen["seaway-recorder"] == {rest} and seen["seaway"] == {rest}, seen  # and the launcher
 
 
 def test_a_cpu_list_that_cannot_be_used_is_refused_before_anything_starts(tmp_path, zenoh_env) -> None:

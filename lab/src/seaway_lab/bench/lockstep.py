@@ -168,7 +168,8 @@ def run(argv: list[str]) -> BenchResult:
                          "the launcher on the others, as 'seaway launch --cpus' does)")
     args = ap.parse_args(argv)
     allowed = cpusets.allowed()
-    stack_cpus = None if args.no_pin or cpusets.split_chain(allowed) is None else allowed
+    split = None if args.no_pin else cpusets.split_chain(allowed)
+    stack_cpus = allowed if split else None  # the launcher splits them so (--cpus)
     res = BenchResult("lockstep", "Lockstep: paper condition #1, CC-EMPC, through the processes vs "
                                   "in process")
     sc = load_scenario(SCENARIO)
@@ -228,7 +229,6 @@ def run(argv: list[str]) -> BenchResult:
     off = _auth_figures(walls[False], stage_ms[False]["period"])
     res.add("through the processes, auth off [s]", wall_off, note=f"median of {args.repeat}")
     compare_auth(res, on, off, lambda k: f"auth on / off, {AUTH_FIGURES[k]}")
-    split = cpusets.split_chain(stack_cpus) if stack_cpus is not None else None
     res.meta = {"cpus": os.cpu_count(), "scenario": SCENARIO, "controller": CONTROLLER,
                 "stack placement": (f"chain on CPU {cpusets.format_cpus(split[0])}, the rest on "
                                     f"{cpusets.format_cpus(split[1])}") if split else "the kernel's"}
