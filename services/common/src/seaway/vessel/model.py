@@ -117,7 +117,9 @@ def derivative(
 
     ``x`` = [u, v, r, x, y, psi]; ``thrust`` = [T1, T2] in N; see the module docstring for the rest.
     """
-    u, v, r, _, _, psi = (x[i] for i in range(NX))
+    # Indexed, not unpacked through a generator: this runs some 70 times a simulated period (the
+    # plant's RK4, the estimator's Jacobian), and the generator made it 1.35 us a call, not 0.88.
+    u, v, r, psi = x[0], x[1], x[2], x[5]
     t1, t2 = thrust[0], thrust[1]
     c, s = ops.cos(psi), ops.sin(psi)
     wu, wv = world_to_body(force_ne[0], force_ne[1], c, s)
@@ -151,11 +153,16 @@ def rk4_step(
     def f(xs: Sequence[Any]) -> list[Any]:
         return derivative(xs, thrust, p, ops, tau_body, force_ne, current_ne)
 
+    # The same operations in the same order as the textbook form (so the same floats, bit for bit),
+    # over zip rather than indices: the plant takes ten of these a period.
+    half, sixth = 0.5 * dt_s, dt_s / 6.0
+    x = [x[i] for i in range(NX)]  # a CasADi vector as its six entries; a list as a copy
     k1 = f(x)
-    k2 = f([x[i] + 0.5 * dt_s * k1[i] for i in range(NX)])
-    k3 = f([x[i] + 0.5 * dt_s * k2[i] for i in range(NX)])
-    k4 = f([x[i] + dt_s * k3[i] for i in range(NX)])
-    return [x[i] + dt_s / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]) for i in range(NX)]
+    k2 = f([xi + half * ki for xi, ki in zip(x, k1, strict=True)])
+    k3 = f([xi + half * ki for xi, ki in zip(x, k2, strict=True)])
+    k4 = f([xi + dt_s * ki for xi, ki in zip(x, k3, strict=True)])
+    return [xi + sixth * (a + 2.0 * b + 2.0 * c + d)
+            for xi, a, b, c, d in zip(x, k1, k2, k3, k4, strict=True)]
 
 
 def thruster_power_w(thrust_n: float | Any, p: VesselParams) -> float | Any:
