@@ -60,7 +60,10 @@ def test_the_tw_sweep_figure(tmp_path: Path) -> None:
 def test_bad_arguments() -> None:
     assert cli.main(["table9"]) == 2
     assert cli.main(["table1", "--rows", "#9"]) == 2
-    assert cli.main(["table1", "--workers", "0"]) == 2
+    for bad in (["--workers", "0"], ["--timeout-s", "nan"]):  # refused by argparse, exit 2
+        with pytest.raises(SystemExit) as exit_:
+            cli.main(["table1", *bad])
+        assert exit_.value.code == 2, bad
     assert cli.main([]) == 2
     assert cli.main(["--list"]) == 0
 

@@ -32,6 +32,7 @@ import time
 import casadi as ca
 import numpy as np
 from seaway.simkit.scenario import load_scenario
+from seaway.tools.argtypes import positive_int
 from seaway.vessel.metrics import median, percentile
 from seaway.vessel.model import load_vessel
 from seaway_controller.core import ControllerConfig, ControllerCore
@@ -77,8 +78,8 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     ap.add_argument("--conditions", default="1,2,3,4,5", help="paper conditions, e.g. 1,4")
     ap.add_argument("--controllers", default=",".join(CONTROLLER_KINDS),
                     help=f"comma-separated controllers (default {','.join(CONTROLLER_KINDS)})")
-    ap.add_argument("--repeats", type=int, default=3, help="runs per mission for the noise filter")
-    ap.add_argument("--ipopt-every", type=int, default=3,
+    ap.add_argument("--repeats", type=positive_int, default=3, help="runs per mission for the noise filter")
+    ap.add_argument("--ipopt-every", type=positive_int, default=3,
                     help="solve every N-th step's NLP with IPOPT too (1: every step)")
     ap.add_argument("--quick", action="store_true",
                     help="condition 1 only, 1 repeat, IPOPT on every 20th step")
@@ -94,8 +95,6 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     for k in args.controllers:
         if k not in CONTROLLER_KINDS:
             ap.error(f"unknown controller {k!r}; known: {', '.join(CONTROLLER_KINDS)}")
-    if args.repeats < 1 or args.ipopt_every < 1:
-        ap.error("--repeats and --ipopt-every must be >= 1")
     return args
 
 

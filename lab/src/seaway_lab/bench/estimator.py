@@ -30,6 +30,7 @@ import math
 import time
 
 from seaway.simkit.scenario import Scenario, load_scenario
+from seaway.tools.argtypes import positive_float
 from seaway.vessel import model
 from seaway.vessel.metrics import median, percentile, rms
 from seaway_estimator.config import EstimatorConfig, load_estimator_config
@@ -120,12 +121,12 @@ def _costs(res: BenchResult, runs: list[Run], vessel: str) -> None:
 
 def run(argv: list[str]) -> BenchResult:
     ap = argparse.ArgumentParser(prog="seaway bench estimator", description=__doc__.split("\n\n")[0])
-    ap.add_argument("--duration", type=float, default=180.0, help="simulated seconds per condition")
+    ap.add_argument("--duration", type=positive_float, default=180.0, help="simulated seconds per condition")
     ap.add_argument("--conditions", default=",".join(CONDITIONS),
                     help="comma-separated scenario names")
     ap.add_argument("--no-lake", action="store_true", help="skip the lake scenario")
     ap.add_argument("--config", default=None, help="estimator config file (default: defaults)")
-    ap.add_argument("--speed", type=float, default=0.25, help="LOS cruise speed, paper vessel [m/s]")
+    ap.add_argument("--speed", type=positive_float, default=0.25, help="LOS cruise speed, paper vessel [m/s]")
     args = ap.parse_args(argv)
     if args.duration < TARGET_CONVERGE_S:
         ap.error(f"--duration must be at least {TARGET_CONVERGE_S:g} s")

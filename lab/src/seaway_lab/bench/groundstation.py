@@ -45,6 +45,7 @@ from seaway.contract import keys
 from seaway.contract.messages import SolveRecord, StateEstimate
 from seaway.runtime import credentials
 from seaway.runtime.bus import Bus
+from seaway.tools.argtypes import positive_float, positive_int
 from seaway.vessel.metrics import median, percentile
 
 from seaway_lab.bench.common import BenchResult
@@ -189,15 +190,13 @@ def _start_server(env: dict[str, str], log_path: Path) -> tuple[subprocess.Popen
 
 def run(argv: list[str]) -> BenchResult:
     ap = argparse.ArgumentParser(prog="seaway bench groundstation", description=__doc__.split("\n\n")[0])
-    ap.add_argument("--clients", type=int, default=50, help="timely stream clients (default 50)")
-    ap.add_argument("--seconds", type=float, default=10.0, help="length of each phase [s] (default 10)")
-    ap.add_argument("--state-hz", type=float, default=20.0, help="state estimates published [Hz]")
-    ap.add_argument("--solve-hz", type=float, default=10.0, help="solve records published [Hz]")
+    ap.add_argument("--clients", type=positive_int, default=50, help="timely stream clients (default 50)")
+    ap.add_argument("--seconds", type=positive_float, default=10.0,
+                    help="length of each phase [s] (default 10)")
+    ap.add_argument("--state-hz", type=positive_float, default=20.0, help="state estimates published [Hz]")
+    ap.add_argument("--solve-hz", type=positive_float, default=10.0, help="solve records published [Hz]")
     ap.add_argument("--json", action="store_true", help="print one JSON object")
     args = ap.parse_args(argv)
-    for name in ("clients", "seconds", "state_hz", "solve_hz"):
-        if getattr(args, name) <= 0:
-            raise SystemExit(f"seaway bench groundstation: --{name.replace('_', '-')} must be > 0")
 
     with tempfile.TemporaryDirectory(prefix="seaway-bench-gs-") as tmp_dir:
         return _measure(args, Path(tmp_dir))

@@ -46,6 +46,7 @@ from seaway.contract.access import HARNESS
 from seaway.contract.messages import ThrustCommand
 from seaway.runtime import credentials
 from seaway.runtime.bus import Bus
+from seaway.tools.argtypes import positive_int
 from seaway.vessel.metrics import median, percentile
 from seaway.vessel.model import load_vessel
 from seaway_vehicle_io.px4 import PROFILE
@@ -219,15 +220,15 @@ def _split(total: int, parts: int) -> list[int]:
 
 def run(argv: list[str]) -> BenchResult:
     ap = argparse.ArgumentParser(prog="seaway bench io", description=__doc__.splitlines()[0])
-    ap.add_argument("--count", type=int, default=2000,
+    ap.add_argument("--count", type=positive_int, default=2000,
                     help="commands to time with authentication on, and as many off (default 2000)")
-    ap.add_argument("--baseline-count", type=int, default=1000, help="per authentication setting")
-    ap.add_argument("--rounds", type=int, default=2,
+    ap.add_argument("--baseline-count", type=positive_int, default=1000, help="per authentication setting")
+    ap.add_argument("--rounds", type=positive_int, default=2,
                     help="rounds per authentication setting, alternating on and off (default 2)")
     ap.add_argument("--vessel-file", default="paper-boat",
                     help="vessel file (name or path) for the thrust mapping (default paper-boat)")
     args = ap.parse_args(argv)
-    rounds = max(1, args.rounds)
+    rounds = args.rounds
     os.environ.pop("SEAWAY_ZENOH_CONFIG", None)
     vessel = "bench-io"
 

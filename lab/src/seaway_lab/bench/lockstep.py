@@ -41,6 +41,7 @@ from seaway.runtime import timeline
 from seaway.runtime.credentials import ENV_CREDENTIALS, ENV_IDENTITY, NONE
 from seaway.runtime.stacks import ENV_STACKS_DIR
 from seaway.simkit.scenario import load_scenario
+from seaway.tools.argtypes import positive_int
 from seaway.vessel.metrics import median, percentile
 from seaway_estimator.config import EstimatorConfig
 from seaway_estimator.core import EstimatorCore
@@ -159,7 +160,7 @@ def _auth_figures(walls_s: list[float], periods_ms: list[float]) -> dict[str, fl
 
 def run(argv: list[str]) -> BenchResult:
     ap = argparse.ArgumentParser(prog="seaway bench lockstep", description=__doc__.split("\n\n")[0])
-    ap.add_argument("--repeat", type=int, default=1,
+    ap.add_argument("--repeat", type=positive_int, default=1,
                     help="runs through the processes with authentication on, and as many with it "
                          "off, alternating (median)")
     ap.add_argument("--no-pin", action="store_true",

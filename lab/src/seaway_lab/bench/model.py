@@ -12,6 +12,7 @@ import math
 import time
 from collections.abc import Callable
 
+from seaway.tools.argtypes import positive_int
 from seaway.vessel import model
 from seaway.vessel.metrics import median, percentile
 
@@ -37,8 +38,9 @@ def _time_batches(step: Callable[[list[float]], list[float]], batches: int, batc
 def run(argv: list[str]) -> BenchResult:
     ap = argparse.ArgumentParser(prog="seaway bench model", description=__doc__.split("\n\n")[0])
     ap.add_argument("--vessel", default="paper-sim", help="vessel file name or path")
-    ap.add_argument("--batches", type=int, default=200, help="timed batches (median and p99 over them)")
-    ap.add_argument("--batch", type=int, default=200, help="RK4 steps per batch")
+    ap.add_argument("--batches", type=positive_int, default=200,
+                    help="timed batches (median and p99 over them)")
+    ap.add_argument("--batch", type=positive_int, default=200, help="RK4 steps per batch")
     args = ap.parse_args(argv)
     p = model.load_vessel(args.vessel)
     cpu = pin_to_one_core()

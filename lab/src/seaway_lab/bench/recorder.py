@@ -33,6 +33,7 @@ from mcap.writer import CompressionType, Writer
 from seaway.contract import keys
 from seaway.contract.messages import ThrustCommand
 from seaway.contract.units import NS_PER_S
+from seaway.tools.argtypes import positive_float, positive_int
 from seaway.vessel.metrics import median, percentile
 from seaway_recorder.writer import RecordingWriter
 
@@ -151,8 +152,8 @@ def publish(argv: list[str]) -> int:
     from seaway.runtime.zenoh_bus import open_session
 
     ap = argparse.ArgumentParser(prog="seaway_lab.bench.recorder publish")
-    ap.add_argument("--rate", type=float, required=True)
-    ap.add_argument("--seconds", type=float, required=True)
+    ap.add_argument("--rate", type=positive_float, required=True)
+    ap.add_argument("--seconds", type=positive_float, required=True)
     args = ap.parse_args(argv)
     session = open_session()
     pub = session.declare_publisher(keys.THRUST.key(BENCH_VESSEL),
@@ -185,9 +186,9 @@ def publish(argv: list[str]) -> int:
 
 def run(argv: list[str]) -> BenchResult:
     ap = argparse.ArgumentParser(prog="seaway bench recorder", description=__doc__.split("\n\n")[0])
-    ap.add_argument("--rate", type=float, default=TARGET_MSG_S, help="publisher rate [msg/s]")
-    ap.add_argument("--seconds", type=float, default=6.0, help="publishing time [s]")
-    ap.add_argument("--baseline-messages", type=int, default=200_000,
+    ap.add_argument("--rate", type=positive_float, default=TARGET_MSG_S, help="publisher rate [msg/s]")
+    ap.add_argument("--seconds", type=positive_float, default=6.0, help="publishing time [s]")
+    ap.add_argument("--baseline-messages", type=positive_int, default=200_000,
                     help="messages written straight to a file, the baseline of the same run")
     args = ap.parse_args(argv)
     flush_every = max(1, int(args.rate * 0.05))  # what a 50 ms flush interval means at this rate

@@ -25,6 +25,7 @@ from contextlib import contextmanager
 
 from seaway.runtime.bus import Bus
 from seaway.runtime.zenoh_bus import ENV_CONFIG, ENV_RENDEZVOUS
+from seaway.tools.argtypes import positive_float, positive_int, whole_number
 from seaway.vessel.metrics import median, percentile
 from seaway_sim.app import SimApp, load_world
 from seaway_sim.core import SimCore
@@ -97,9 +98,9 @@ def _plant_only(scenario_name: str, period_ns: int, periods: int) -> list[float]
 def run(argv: list[str]) -> BenchResult:
     ap = argparse.ArgumentParser(prog="seaway bench sim", description=__doc__.split("\n\n")[0])
     ap.add_argument("--scenario", default="lake", help="scenario name or path (default lake)")
-    ap.add_argument("--period", type=float, default=0.1, help="control period [s]")
-    ap.add_argument("--periods", type=int, default=3000, help="timed lockstep periods")
-    ap.add_argument("--warmup", type=int, default=50, help="untimed periods first")
+    ap.add_argument("--period", type=positive_float, default=0.1, help="control period [s]")
+    ap.add_argument("--periods", type=positive_int, default=3000, help="timed lockstep periods")
+    ap.add_argument("--warmup", type=whole_number(0), default=50, help="untimed periods first")
     args = ap.parse_args(argv)
     period_ns = round(args.period * 1e9)
     vessel_key = f"bench-{os.getpid()}"

@@ -33,6 +33,7 @@ from seaway.runtime.credentials import ENV_CREDENTIALS, ENV_IDENTITY
 from seaway.runtime.stacks import ENV_STACKS_DIR
 from seaway.runtime.zenoh_bus import ENV_CONFIG, ENV_RENDEZVOUS
 from seaway.simkit.scenario import load_scenario
+from seaway.tools.argtypes import positive_float
 from seaway.tools.launch.events import EVENTS_FILE
 
 from seaway_lab.bench.common import BenchResult
@@ -176,7 +177,7 @@ def soak(run_dir: Path, duration_s: float, scenario: str, controller: str) -> di
 
 def run(argv: list[str]) -> BenchResult:
     ap = argparse.ArgumentParser(prog="seaway bench soak", description=__doc__.split("\n\n")[0])
-    ap.add_argument("--duration", type=float, default=600.0,
+    ap.add_argument("--duration", type=positive_float, default=600.0,
                     help="wall seconds of missions back to back after the first (default 600)")
     ap.add_argument("--scenario", default="paper-c1",
                     help="scenario flown again and again (default paper-c1)")
@@ -185,8 +186,6 @@ def run(argv: list[str]) -> BenchResult:
     ap.add_argument("--keep", type=Path, default=None,
                     help="run folder to keep (default: a temporary one, removed)")
     args = ap.parse_args(argv)
-    if not args.duration > 0:
-        ap.error("--duration must be > 0 s")
     with tempfile.TemporaryDirectory(prefix="seaway-bench-soak-") as tmp:
         run_dir = args.keep or Path(tmp) / "run"
         run_dir.parent.mkdir(parents=True, exist_ok=True)

@@ -19,6 +19,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from seaway.tools.argtypes import positive_float, positive_int
 from seaway.vessel.metrics import median
 
 from seaway_lab.bench.common import BenchResult, bench_credentials
@@ -82,8 +83,8 @@ def _baseline() -> float:
 def run(argv: list[str]) -> BenchResult:
     ap = argparse.ArgumentParser(prog="seaway bench startup", description=__doc__.split("\n\n")[0])
     ap.add_argument("--profile", default="sim", help="launcher profile to start (default sim)")
-    ap.add_argument("--repeats", type=int, default=3, help="cold starts to time (median)")
-    ap.add_argument("--timeout", type=float, default=60.0,
+    ap.add_argument("--repeats", type=positive_int, default=3, help="cold starts to time (median)")
+    ap.add_argument("--timeout", type=positive_float, default=60.0,
                     help="seconds a start may take before it counts as failed")
     args = ap.parse_args(argv)
     runs = [_one_start(args.profile, args.timeout) for _ in range(args.repeats)]

@@ -37,6 +37,7 @@ import numpy as np
 from seaway.contract.config import ConfigError
 from seaway.runtime import service
 from seaway.simkit.scenario import SensorNoise, load_scenario
+from seaway.tools.argtypes import non_negative_float, positive_float
 from seaway.vessel.model import VesselParams, load_vessel
 
 from seaway_lab.identify import fit as fitmod
@@ -68,7 +69,7 @@ def parser() -> argparse.ArgumentParser:
                           "yaw rate 0.005 rad/s at 20 Hz; the default), the scenario's, or none")
     run.add_argument("--dead-zone", action="store_true",
                      help="apply the vessel file's thrust dead zone in the simulated plant")
-    run.add_argument("--level-n", type=float, default=None,
+    run.add_argument("--level-n", type=positive_float, default=None,
                      help="the manoeuvre's full thrust level per thruster [N] (default: the vessel's "
                           "thrust_max_n)")
     run.add_argument("--seed", type=int, default=1, help="the sensors' noise seed (calm water only)")
@@ -90,10 +91,10 @@ def parser() -> argparse.ArgumentParser:
     fit.add_argument("--base", default="paper-sim",
                      help="vessel file giving what the motion cannot: thrust bounds, power alpha and, "
                           "unless --arm-m, the thruster arm (default paper-sim)")
-    fit.add_argument("--arm-m", type=float, default=None,
+    fit.add_argument("--arm-m", type=positive_float, default=None,
                      help="the thruster arm l: distance from the centre line to each thruster, from the "
                           "drawing [m] (default: the base vessel file's)")
-    fit.add_argument("--dead-zone-n", type=float, default=None,
+    fit.add_argument("--dead-zone-n", type=non_negative_float, default=None,
                      help="take this dead zone [N] instead of fitting it")
     fit.add_argument("--fit-lag", action="store_true",
                      help="also fit a thruster time constant (it trades against m11: only when the "
@@ -153,10 +154,6 @@ def _fit(args: argparse.Namespace) -> int:
     base = load_vessel(args.base)
     compare = load_vessel(args.compare) if args.compare else None
     arm = args.arm_m if args.arm_m is not None else base.arm_m
-    if args.dead_zone_n is not None and args.dead_zone_n < 0:
-        print(f"seaway identify fit: --dead-zone-n must be >= 0 N, got {args.dead_zone_n:g}",
-              file=sys.stderr)
-        return 2
     rec = args.recording
     if not rec.exists():
         print(f"seaway identify fit: {rec}: no such file or folder", file=sys.stderr)

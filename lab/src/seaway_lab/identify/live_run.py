@@ -28,6 +28,7 @@ from seaway.contract import keys
 from seaway.contract.messages import ThrustCommand, VehicleStatus
 from seaway.contract.units import NS_PER_S
 from seaway.runtime import service
+from seaway.tools.argtypes import positive_float
 from seaway.vessel.model import load_vessel
 
 from seaway_lab.identify.manoeuvre import Manoeuvre
@@ -113,11 +114,11 @@ class FlyCore:
 
 def add_arguments(ap: argparse.ArgumentParser) -> None:
     """``seaway identify fly``'s own options (besides a service's: vessel, run, credentials)."""
-    ap.add_argument("--level-n", type=float, default=None,
+    ap.add_argument("--level-n", type=positive_float, default=None,
                     help="the manoeuvre's full thrust per thruster [N] (default: a fifth of the "
                          "model vessel's thrust_max_n; the fit is valid over the range flown, so pick "
                          "the range the missions will use)")
-    ap.add_argument("--wait", type=float, default=300.0, metavar="S",
+    ap.add_argument("--wait", type=positive_float, default=300.0, metavar="S",
                     help="how long to wait for the vessel to take thrust (armed, in a manual mode) "
                          "[s] (default 300)")
 

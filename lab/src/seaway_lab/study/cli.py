@@ -42,6 +42,7 @@ from typing import Any
 
 from seaway.contract.config import repo_root
 from seaway.runtime.cpus import format_cpus
+from seaway.tools.argtypes import positive_float, positive_int
 
 from seaway_lab.study import definitions as defs
 from seaway_lab.study import results as res
@@ -62,7 +63,7 @@ def parser() -> argparse.ArgumentParser:
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("name", nargs="?", help=f"the study: {', '.join(defs.STUDIES)}")
     ap.add_argument("--list", action="store_true", help="list the studies and their runs")
-    ap.add_argument("--workers", type=int, default=DEFAULT_WORKERS,
+    ap.add_argument("--workers", type=positive_int, default=DEFAULT_WORKERS,
                     help=f"runs at a time on this machine (default {DEFAULT_WORKERS})")
     ap.add_argument("--dask", metavar="ADDRESS", default=None,
                     help="submit the runs to this Dask scheduler (tcp://host:port) instead")
@@ -77,7 +78,8 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--out", type=Path, default=None, help="output folder (default runs/study-NAME-<time>)")
     ap.add_argument("--rows", nargs="+", default=None, help="only these rows (e.g. '#1' '#4')")
     ap.add_argument("--columns", nargs="+", default=None, help="only these columns (e.g. cc-empc nmpc)")
-    ap.add_argument("--timeout-s", type=float, default=DEFAULT_TIMEOUT_S, help="wall time limit of one run")
+    ap.add_argument("--timeout-s", type=positive_float, default=DEFAULT_TIMEOUT_S,
+                    help="wall time limit of one run")
     ap.add_argument("--no-figures", action="store_true",
                     help="tables only: do not draw the figures from the recordings (faster)")
     ap.add_argument("--redraw", type=Path, metavar="OUT", default=None,
@@ -276,9 +278,6 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     if not study.runs:
         print(f"seaway study: {args.name} has no run in those rows and columns", file=sys.stderr)
-        return 2
-    if args.workers < 1:
-        print("seaway study: --workers must be at least 1", file=sys.stderr)
         return 2
     try:  # before any folder is made: what cannot be done here is said first
         groups = stack_cpus(args.workers, len(study.runs), args.dask, args.pin)

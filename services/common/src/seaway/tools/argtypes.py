@@ -1,0 +1,56 @@
+"""Types for the command lines' numbers: a bad value stops argparse before any work starts.
+
+argparse names the option, these say what was given and what is allowed, e.g. ``seaway bench
+model: error: argument --batches: '0' is not a whole number of at least 1`` (exit 2). A number
+parsed with a bare ``type=int`` or ``type=float`` lets 0, negatives, ``nan`` and ``inf`` through, to
+fail later with a traceback, or never (a study run's ``--timeout-s nan`` waited for ever).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from collections.abc import Callable
+
+
+def whole_number(at_least: int) -> Callable[[str], int]:
+    """An integer >= ``at_least`` (counts: 1; how many to skip: 0)."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = None
+        if value is None or value < at_least:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a whole number of at least {at_least}")
+        return value
+
+    parse.__name__ = f"whole number >= {at_least}"  # argparse's fallback message names the type
+    return parse
+
+
+positive_int = whole_number(1)
+"""A count of at least 1 (runs, repeats, clients, batches)."""
+
+
+def _finite(text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        return math.nan
+
+
+def positive_float(text: str) -> float:
+    """A finite number above 0 (durations, rates, periods, speeds, lengths)."""
+    value = _finite(text)
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a finite number above 0")
+    return value
+
+
+def non_negative_float(text: str) -> float:
+    """A finite number of at least 0 (a dead zone, a margin)."""
+    value = _finite(text)
+    if not (math.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a finite number of at least 0")
+    return value
