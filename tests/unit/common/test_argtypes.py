@@ -31,12 +31,25 @@ class _ParsedError(Exception):
         self.parser = parser
 
 
+BARE_ALLOWED = {("report", "--episode")}
+"""Options whose numbers are meant to run both ways: an episode counts from the end when negative."""
+
+
 def _commands() -> list[tuple[str, object]]:
+    """Every command line of the project: each bench, each plugin command (``seaway study``, ``seaway
+    report``, ...), each ``seaway`` built-in but ``bench``, and each service's executable."""
+    from seaway.tools import cli
     from seaway_lab.study import cli as study
 
     benches = [(f"bench {ep.name}", ep.load()) for ep in entry_points(group="seaway.benchmarks")]
-    assert len(benches) >= 11  # the registry was found
-    return [*benches, ("study", lambda argv: study.main(["table1", *argv]))]
+    plugins = [(ep.name, ep.load()) for ep in entry_points(group="seaway.commands")]
+    services = [(ep.name, ep.load()) for ep in entry_points(group="console_scripts")
+                if ep.value.startswith("seaway_")]
+    builtins = [(name, fn) for name, fn in cli.BUILTIN.items() if name != "bench"]
+    assert len(benches) >= 11 and len(plugins) >= 7 and len(services) >= 6  # the registries were found
+    wrapped = [(n, (lambda argv, f=f: f(["table1", *argv]))) if n == "study" else (n, f) for n, f in plugins]
+    assert any(n == "study" for n, _ in wrapped) and study.main is not None
+    return [*benches, *wrapped, *services, *builtins]
 
 
 def _parser_of(command, monkeypatch: pytest.MonkeyPatch) -> argparse.ArgumentParser:
@@ -44,35 +57,56 @@ def _parser_of(command, monkeypatch: pytest.MonkeyPatch) -> argparse.ArgumentPar
         raise _ParsedError(self)
 
     monkeypatch.setattr(argparse.ArgumentParser, "parse_args", capture)
+    monkeypatch.setattr(argparse.ArgumentParser, "parse_known_args", capture)
     with pytest.raises(_ParsedError) as got:
         command([])
     monkeypatch.undo()
     return got.value.parser
 
 
+def _options(parser: argparse.ArgumentParser, prefix: tuple[str, ...] = ()):
+    """(subcommand words, action) of every option, into subcommands."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for word, sub in action.choices.items():
+                yield from _options(sub, (*prefix, word))
+        elif action.option_strings:
+            yield prefix, action
+
+
 @pytest.mark.parametrize(("name", "command"), _commands(), ids=lambda v: v if isinstance(v, str) else "")
 def test_every_numeric_option_refuses_a_bad_value_by_name(name, command, monkeypatch, capsys) -> None:
-    """No bench or study option takes a bare ``int`` or ``float`` (they let 0, nan and inf through:
-    a study's ``--timeout-s nan`` waited for ever, ``seaway bench sim --periods 0`` divided by
-    zero); each numeric one refuses 0 (or -1 where 0 is allowed), nan and a word, exit 2, naming
-    itself and what it allows."""
+    """No option of any command line takes a bare ``int`` or ``float`` (they let 0, nan and inf
+    through: a study's ``--timeout-s nan`` waited for ever, ``seaway report --sample-period -1``
+    never ended, ``seaway bench sim --periods 0`` divided by zero); each numeric one refuses 0 (or
+    -1 where 0 is allowed), nan and a word, exit 2, naming itself and what it allows."""
     parser = _parser_of(command, monkeypatch)
-    numeric = [a for a in parser._actions if a.option_strings and a.type is not None
-               and a.type not in (str,) and not isinstance(a.type, argparse.FileType)
-               and getattr(a.type, "__module__", "") != "pathlib"]
-    assert not [a.option_strings for a in numeric if a.type in (int, float)], name
-    ours = [a for a in numeric if getattr(a.type, "__module__", "") == "seaway.tools.argtypes"]
-    assert ours or name == "bench energy", name  # energy has no number to give
-    for action in ours:
+    options = list(_options(parser))
+    bare = [a.option_strings[-1] for _, a in options if a.type in (int, float)
+            and (name, a.option_strings[-1]) not in BARE_ALLOWED]
+    assert not bare, (name, bare)
+    ours = [(words, a) for words, a in options
+            if getattr(a.type, "__module__", "") == "seaway.tools.argtypes"]
+    for words, action in ours:
         option = action.option_strings[-1]
-        zero_allowed = action.type("0") == 0 if _accepts(action.type, "0") else False
+        zero_allowed = _accepts(action.type, "0")
         for bad in ("-1" if zero_allowed else "0", "nan", "many"):
             with pytest.raises(SystemExit) as exit_:
-                command([option, bad])
+                command([*words, option, bad])
             err = capsys.readouterr().err
             assert exit_.value.code == 2, (name, option, bad)
             assert f"argument {option}" in err and repr(bad) in err and (
-                "whole number of at least" in err or "finite number above 0" in err), err
+                "whole number" in err or "finite number" in err), err
+
+
+def test_the_commands_take_their_numbers_through_argtypes(monkeypatch) -> None:
+    """The sweep above reaches the options that matter (so it cannot pass by finding none)."""
+    found = {(name, a.option_strings[-1]) for name, command in _commands()
+             for _, a in _options(_parser_of(command, monkeypatch))
+             if getattr(a.type, "__module__", "") == "seaway.tools.argtypes"}
+    assert {("study", "--timeout-s"), ("report", "--sample-period"), ("bench lockstep", "--repeat"),
+            ("seaway-sim", "--sysid"), ("seaway-recorder", "--flush-interval"), ("credentials", "--days"),
+            ("seaway-groundstation", "--port"), ("identify", "--arm-m")} <= found, found
 
 
 def _accepts(parse, text: str) -> bool:

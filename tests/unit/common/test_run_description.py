@@ -40,7 +40,6 @@ def test_flags_override_the_scenario_and_a_plant_equal_to_the_model_is_not_a_sec
 
 
 @pytest.mark.parametrize(("argv", "match"), [
-    (["--control-period-s", "0"], "control_period_s"),
     (["--control-period-s", "2"], "control_period_s"),
     (["--scenario", "no-such-scenario"], "no-such-scenario"),
 ])
@@ -53,6 +52,14 @@ def test_bad_values_are_refused_naming_them(argv: list[str], match: str) -> None
 def test_bad_origins_are_refused_by_the_parser(origin: str) -> None:
     with pytest.raises(SystemExit):
         _args("--origin", origin)
+
+
+@pytest.mark.parametrize("period", ["0", "-0.1", "nan", "inf"])
+def test_a_control_period_that_is_no_duration_is_refused_by_the_parser(period: str, capsys) -> None:
+    with pytest.raises(SystemExit):
+        _args("--control-period-s", period)
+    err = capsys.readouterr().err
+    assert f"argument --control-period-s: {period!r} is not a finite number above 0" in err
 
 
 def test_a_run_file_says_it_all(tmp_path) -> None:

@@ -133,10 +133,11 @@ def test_unreadable_samples_are_skipped_and_counted_not_served() -> None:
 
 
 @pytest.mark.parametrize(("argv", "says"), [
-    (["--port", "70000"], "70000 is not a port number (0-65535)"),
-    (["--port", "http"], "'http' is not a port number"),
-    (["--queue", "0"], "0: at least 1"),
+    (["--port", "70000"], "argument --port: '70000' is not a whole number from 0 to 65535"),
+    (["--port", "http"], "'http' is not a whole number from 0 to 65535"),
+    (["--queue", "0"], "argument --queue: '0' is not a whole number of at least 1"),
     (["--backlog", "many"], "'many' is not a whole number"),
+    (["--status-interval", "-1"], "'-1' is not a finite number of at least 0"),
 ])
 def test_bad_options_are_refused_with_what_is_allowed(argv: list[str], says: str,
                                                       capsys: pytest.CaptureFixture[str]) -> None:

@@ -106,8 +106,10 @@ def test_a_simulated_run_shares_the_scenario_frame_and_the_period_is_one_option(
     run = resolve_run(_launch_args("--control-period-s", "0.25"), batch, "paper-c4-perturbed", "r3")
     assert run.clock == "lockstep" and run.control_period_s == 0.25 and run.origin is not None
     assert (run.model_vessel_file, run.plant_vessel_file) == ("paper-sim", "paper-sim-perturbed")
-    with pytest.raises(ConfigError, match="control_period_s"):
-        resolve_run(_launch_args("--control-period-s", "-1"), batch, "paper-c1", "r4")
+    with pytest.raises(ConfigError, match="control_period_s"):  # a duration, but too long
+        resolve_run(_launch_args("--control-period-s", "5"), batch, "paper-c1", "r4")
+    with pytest.raises(SystemExit):  # no duration at all: refused by the parser
+        _launch_args("--control-period-s", "-1")
 
 
 def test_a_run_on_the_autopilots_own_sitl_has_the_identified_model_and_no_plant_of_ours() -> None:

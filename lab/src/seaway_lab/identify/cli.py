@@ -37,7 +37,7 @@ import numpy as np
 from seaway.contract.config import ConfigError
 from seaway.runtime import service
 from seaway.simkit.scenario import SensorNoise, load_scenario
-from seaway.tools.argtypes import non_negative_float, positive_float
+from seaway.tools.argtypes import non_negative_float, positive_float, whole_number
 from seaway.vessel.model import VesselParams, load_vessel
 
 from seaway_lab.identify import fit as fitmod
@@ -72,7 +72,8 @@ def parser() -> argparse.ArgumentParser:
     run.add_argument("--level-n", type=positive_float, default=None,
                      help="the manoeuvre's full thrust level per thruster [N] (default: the vessel's "
                           "thrust_max_n)")
-    run.add_argument("--seed", type=int, default=1, help="the sensors' noise seed (calm water only)")
+    run.add_argument("--seed", type=whole_number(0), default=1,
+                     help="the sensors' noise seed (calm water only)")
     run.add_argument("--out", type=Path, default=Path("runs/identify/identify.mcap"),
                      help="the recording to write (default runs/identify/identify.mcap; a file "
                           "there already is kept and the next free name used)")
@@ -99,7 +100,7 @@ def parser() -> argparse.ArgumentParser:
     fit.add_argument("--fit-lag", action="store_true",
                      help="also fit a thruster time constant (it trades against m11: only when the "
                           "thrusters are known to lag)")
-    fit.add_argument("--holdout", type=float, default=fitmod.HOLDOUT_FRACTION,
+    fit.add_argument("--holdout", type=non_negative_float, default=fitmod.HOLDOUT_FRACTION,
                      help=f"fraction of the run held out of the fit and only predicted (default "
                           f"{fitmod.HOLDOUT_FRACTION})")
     fit.add_argument("--name", default=None, help="the new vessel's name (default: <recording>-identified)")

@@ -71,6 +71,7 @@ from seaway.runtime.run import from_earlier_launch
 from seaway.runtime.service import ServiceContext, base_parser, parse, resolve_run, run_service
 from seaway.runtime.stamps import StampBounds, StampGate
 from seaway.simkit.scenario import load_scenario
+from seaway.tools.argtypes import positive_float, positive_int, whole_number
 from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.model import load_vessel
 
@@ -97,13 +98,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="generated: compiled SQP (fast); ipopt: plain IPOPT (reference)")
     p.add_argument("--predict-disturbance", action="store_true",
                    help="predict with the estimator's tau_d instead of tau_d = 0 (the paper's)")
-    p.add_argument("--max-state-age-s", type=float, default=0.5,
+    p.add_argument("--max-state-age-s", type=positive_float, default=0.5,
                    help="real time: older states give zero thrust")
-    p.add_argument("--plan-reuse-steps", type=int, default=3)
-    p.add_argument("--los-steps", type=int, default=600)
+    p.add_argument("--plan-reuse-steps", type=whole_number(0), default=3)
+    p.add_argument("--los-steps", type=positive_int, default=600)
     p.add_argument("--state-file", type=Path, default=None,
                    help="mission checkpoint: resume from it at start, keep it up to date")
-    p.add_argument("--max-range-m", type=float, default=5000.0,
+    p.add_argument("--max-range-m", type=positive_float, default=5000.0,
                    help="operating area: waypoints within this distance of the origin")
     return p
 

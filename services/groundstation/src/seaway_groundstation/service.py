@@ -37,6 +37,7 @@ from pathlib import Path
 import uvicorn
 from seaway.contract.config import ConfigError
 from seaway.runtime.service import base_parser, parse, resolve_run, run_service
+from seaway.tools.argtypes import positive_float, positive_int, whole_number
 from seaway.tools.launch import address
 from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.model import load_vessel
@@ -61,21 +62,21 @@ def parser() -> argparse.ArgumentParser:
                            "vessel it hears.")
     ap.add_argument("--host", default=DEFAULT_HOST,
                     help=f"address to listen on (default {DEFAULT_HOST}: this machine only)")
-    ap.add_argument("--port", type=int, default=DEFAULT_PORT, help=f"TCP port (default {DEFAULT_PORT}; "
-                                                                   "0: any free port)")
+    ap.add_argument("--port", type=whole_number(0, 65535), default=DEFAULT_PORT,
+                    help=f"TCP port (default {DEFAULT_PORT}; 0: any free port)")
     ap.add_argument("--port-fallback", action="store_true",
                     help="if --port is taken, listen on any free port instead of failing (the "
                          "address is printed and written to the address file)")
     ap.add_argument("--token-file", default=None, metavar="FILE",
                     help=f"read the operator token from FILE (default ${ENV_TOKEN}, else a new one "
                          "each start)")
-    ap.add_argument("--max-body-bytes", type=int, default=Settings.max_body_bytes,
+    ap.add_argument("--max-body-bytes", type=positive_int, default=Settings.max_body_bytes,
                     help="largest request body [bytes]")
-    ap.add_argument("--rate-limit-per-s", type=float, default=Settings.rate_limit_per_s,
+    ap.add_argument("--rate-limit-per-s", type=positive_float, default=Settings.rate_limit_per_s,
                     help="sustained command requests per client [1/s]")
-    ap.add_argument("--rate-limit-burst", type=int, default=Settings.rate_limit_burst,
+    ap.add_argument("--rate-limit-burst", type=positive_int, default=Settings.rate_limit_burst,
                     help="command requests a client may make at once")
-    ap.add_argument("--request-timeout-s", type=float, default=Settings.request_timeout_s,
+    ap.add_argument("--request-timeout-s", type=positive_float, default=Settings.request_timeout_s,
                     help="how long a request waits for the vessel's reply [s]")
     ap.add_argument("--run-dir", type=Path, default=None, metavar="DIR",
                     help="the run folder: write groundstation/address.json (0600) and the requests "
@@ -86,7 +87,7 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--tiles", default=None, metavar="URL|DIR",
                     help="map tiles: a URL template with {z}/{x}/{y}, or a folder <z>/<x>/<y>.png "
                          "(default: none, a metric grid)")
-    ap.add_argument("--max-upload-bytes", type=int, default=Settings.max_upload_bytes,
+    ap.add_argument("--max-upload-bytes", type=positive_int, default=Settings.max_upload_bytes,
                     help="largest recording that may be uploaded for replay [bytes]")
     return ap
 

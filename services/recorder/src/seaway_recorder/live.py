@@ -57,6 +57,7 @@ from seaway.runtime.service import (
     credentials_arg,
     install_stop_signals,
 )
+from seaway.tools.argtypes import non_negative_float, positive_int, whole_number
 from seaway.vessel.frames import GeoOrigin
 
 from seaway_recorder import derive, schemas
@@ -195,26 +196,6 @@ class LiveFeed:
 # -- the loop ---------------------------------------------------------------------------------------
 
 
-def _port(text: str) -> int:
-    try:
-        port = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a port number (0-65535)") from None
-    if not 0 <= port <= 65535:
-        raise argparse.ArgumentTypeError(f"{port} is not a port number (0-65535)")
-    return port
-
-
-def _positive(text: str) -> int:
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
-    if n < 1:
-        raise argparse.ArgumentTypeError(f"{n}: at least 1")
-    return n
-
-
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="seaway foxglove",
@@ -229,16 +210,16 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--host", default=DEFAULT_HOST,
                    help=f"address to serve on (default {DEFAULT_HOST}, this machine only; 0.0.0.0 "
                         "serves every interface: anyone who reaches it sees the bus)")
-    p.add_argument("--port", type=_port, default=DEFAULT_PORT,
+    p.add_argument("--port", type=whole_number(0, 65535), default=DEFAULT_PORT,
                    help=f"TCP port to serve on (default {DEFAULT_PORT}, Foxglove's default; 0 picks "
                         "a free one, printed at start)")
-    p.add_argument("--queue", type=_positive, default=DEFAULT_QUEUE,
+    p.add_argument("--queue", type=positive_int, default=DEFAULT_QUEUE,
                    help=f"bus samples buffered between Zenoh and the server before new ones are "
                         f"dropped and counted (default {DEFAULT_QUEUE}); the bus never waits")
-    p.add_argument("--backlog", type=_positive, default=DEFAULT_BACKLOG,
+    p.add_argument("--backlog", type=positive_int, default=DEFAULT_BACKLOG,
                    help=f"messages buffered per viewer before its oldest is dropped (default "
                         f"{DEFAULT_BACKLOG}); a slow viewer loses messages, nobody else does")
-    p.add_argument("--status-interval", type=float, default=10.0,
+    p.add_argument("--status-interval", type=non_negative_float, default=10.0,
                    help="seconds between status lines on stderr (default 10; 0: none)")
     add_zenoh_config_option(p)
     p.add_argument("--credentials", default=None, metavar="DIR",
@@ -340,9 +321,6 @@ def run(argv: Sequence[str]) -> int:
         except ValueError as err:
             print(f"seaway foxglove: --vessel: {err}", file=sys.stderr)
             return 2
-    if args.status_interval < 0:
-        print("seaway foxglove: --status-interval must be >= 0 s", file=sys.stderr)
-        return 2
     expr = f"{keys.ROOT}/**" if vessel == "*" else f"{keys.ROOT}/{vessel}/**"
     feed = LiveFeed()
     queue = SampleQueue(args.queue)

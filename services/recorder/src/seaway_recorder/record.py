@@ -37,6 +37,7 @@ from seaway.runtime.service import base_parser, configure_logging, resolve_run, 
 from seaway.runtime.timeline import Timeline
 from seaway.runtime.zenoh_bus import ENV_CONFIG
 from seaway.simkit.scenario import load_scenario
+from seaway.tools.argtypes import positive_float, positive_int
 from seaway.vessel.frames import GeoOrigin
 
 from seaway_recorder import runinfo
@@ -98,22 +99,22 @@ def parser() -> argparse.ArgumentParser:
                    help=f"attach a file (repeatable); roles: {', '.join(runinfo.ROLES)} (default config)")
     p.add_argument("--meta", action="append", default=[], metavar="KEY=VALUE",
                    help="add to the seaway.run metadata record (repeatable)")
-    p.add_argument("--flush-interval", type=float, default=DEFAULT_FLUSH_S,
+    p.add_argument("--flush-interval", type=positive_float, default=DEFAULT_FLUSH_S,
                    help=f"seconds between flushes, at most 0.1 (default {DEFAULT_FLUSH_S})")
     p.add_argument("--max-bytes", type=parse_size, default=None, help="rotate after this size (e.g. 512M)")
-    p.add_argument("--max-seconds", type=float, default=None, help="rotate after this many seconds")
+    p.add_argument("--max-seconds", type=positive_float, default=None, help="rotate after this many seconds")
     p.add_argument("--compression", choices=["zstd", "lz4", "none"], default="zstd",
                    help="chunk compression (default zstd; none writes fastest, files are larger)")
     p.add_argument("--chunk-size", type=parse_size, default=4 << 20,
                    help="end a chunk early past this many bytes (default 4M)")
-    p.add_argument("--queue", type=int, default=200_000,
+    p.add_argument("--queue", type=positive_int, default=200_000,
                    help="samples buffered between Zenoh and the writer before drops (default 200000)")
     p.add_argument("--no-validate", action="store_true",
                    help="do not check samples against their types (faster; nothing counts as malformed)")
     p.add_argument("--no-foxglove", action="store_true",
                    help="do not add the derived Foxglove channels (map positions, mission, frames, "
                         "3D scene); log lines (--logs) are still recorded")
-    p.add_argument("--status-interval", type=float, default=5.0, help="seconds between status lines")
+    p.add_argument("--status-interval", type=positive_float, default=5.0, help="seconds between status lines")
     p.add_argument("--events", type=Path, default=None, metavar="FILE",
                    help="a launcher's events log (events.jsonl) to copy into the recording as it "
                         "grows, on launcher/events")

@@ -36,6 +36,7 @@ from seaway.runtime.service import (
     configure_logging,
     install_stop_signals,
 )
+from seaway.tools.argtypes import non_negative_float, positive_float
 
 from seaway_recorder import recording
 from seaway_recorder.replay_lockstep import SIM_ANSWER_SUFFIX, LockstepPacer
@@ -228,7 +229,8 @@ def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="seaway replay", description=__doc__.split("\n\n")[0])
     p.add_argument("files", nargs="+", help="recording file(s) or folder(s)")
     pace = p.add_mutually_exclusive_group()
-    pace.add_argument("--rate", type=float, default=1.0, help="speed-up factor (default 1: original pace)")
+    pace.add_argument("--rate", type=positive_float, default=1.0,
+                      help="speed-up factor (default 1: original pace)")
     pace.add_argument("--fast", action="store_true", help="as fast as possible")
     pace.add_argument("--lockstep", action="store_true",
                       help="a lockstep recording, each period held until the live estimator, "
@@ -239,7 +241,7 @@ def parser() -> argparse.ArgumentParser:
                         f"{keys.SIM_TRUTH.wildcard()})")
     p.add_argument("--exclude", action="append", default=[], metavar="KEYEXPR",
                    help="do not republish these keys: a live service produces them (repeatable)")
-    p.add_argument("--wait", type=float, default=1.0,
+    p.add_argument("--wait", type=non_negative_float, default=1.0,
                    help="seconds to wait after joining the bus before the first sample (default 1)")
     add_zenoh_config_option(p)
     add_log_level_option(p)
@@ -249,9 +251,6 @@ def parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     args = parser().parse_args(list(sys.argv[1:] if argv is None else argv))
     configure_logging("replay", args.log_level)
-    if not args.fast and not args.rate > 0:
-        print("seaway replay: --rate must be > 0", file=sys.stderr)
-        return 2
     vessel = DEFAULT_VESSEL
     try:
         files = recording.open_paths(args.files)

@@ -41,6 +41,7 @@ from seaway.contract.messages import (
 )
 from seaway.runtime.run import CONTROL_PERIOD_S
 from seaway.simkit.scenario import load_scenario
+from seaway.tools.argtypes import positive_float
 from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.metrics import mission_metrics
 from seaway.vessel.model import VesselParams
@@ -69,7 +70,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, default=None, help="folder for metrics.json and plots")
     p.add_argument("--state", choices=["auto", TRUTH, STATE], default="auto",
                    help=f"position source (default: {TRUTH} when recorded, else {STATE})")
-    p.add_argument("--sample-period", type=float, default=None,
+    p.add_argument("--sample-period", type=positive_float, default=None,
                    help="cross-track sample period [s] (default: the recorded run's control period)")
     p.add_argument("--episode", type=int, default=None,
                    help="which episode (simulated time went back between two: a sim restart or a "

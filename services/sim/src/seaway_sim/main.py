@@ -25,6 +25,7 @@ from seaway.runtime.lockstep import STALL_REPEAT_S
 from seaway.runtime.run import from_earlier_launch
 from seaway.runtime.service import base_parser, parse, resolve_run, run_service
 from seaway.simkit.scenario import load_scenario
+from seaway.tools.argtypes import positive_float, whole_number
 from seaway.vessel.mavlink_signing import KeyFileError, read_key
 from seaway.vessel.model import load_vessel
 
@@ -43,13 +44,6 @@ DEFAULT_SCENARIO = "lake"  # the simulator's own default: only it runs a scenari
 DEFAULT_STEP_S = 0.01  # real-time tick: the plant's internal RK4 step, 100 Hz
 
 
-def _positive(text: str) -> float:
-    value = float(text)
-    if not value > 0 or value != value or value == float("inf"):
-        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
-    return value
-
-
 def build_parser() -> argparse.ArgumentParser:
     p = base_parser("sim", "The Seaway simulator: vessel plant, disturbances, sensor noise and a "
                            "PX4-like MAVLink endpoint (real time), or lockstep on the bus.")
@@ -57,15 +51,16 @@ def build_parser() -> argparse.ArgumentParser:
                    help="keep each scenario loaded over the bus in PATH, and start "
                         "with the one kept there, if any, instead of the run's: a sim the launcher "
                         "restarts flies on in the water it was given (seaway_sim.kept)")
-    p.add_argument("--stall-repeat-s", type=_positive, default=STALL_REPEAT_S,
+    p.add_argument("--stall-repeat-s", type=positive_float, default=STALL_REPEAT_S,
                    help="lockstep: wall seconds without progress after which the sim repeats its "
                         f"period, a safety net (default {STALL_REPEAT_S:g})")
     p.add_argument("--mavlink", default=DEFAULT_ENDPOINT,
                    help=f"real time: where the simulated autopilot listens "
                         f"(default {DEFAULT_ENDPOINT})")
-    p.add_argument("--step", type=_positive, default=DEFAULT_STEP_S,
+    p.add_argument("--step", type=positive_float, default=DEFAULT_STEP_S,
                    help="real time: plant and MAVLink tick [s] (default 0.01)")
-    p.add_argument("--sysid", type=int, default=1, help="real time: MAVLink system id (default 1)")
+    p.add_argument("--sysid", type=whole_number(1, 255), default=1,
+                   help="real time: MAVLink system id (default 1)")
     p.add_argument("--signing-key-file", default=None, metavar="PATH",
                    help="real time: MAVLink 2 signing key file (64 hex characters): sign everything "
                         "sent and reject unsigned or wrongly signed messages, as PX4 with a key "

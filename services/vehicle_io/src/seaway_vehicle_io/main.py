@@ -11,6 +11,7 @@ from seaway.contract.config import ConfigError, load_config, parse_config
 from seaway.runtime.run import RunDescription
 from seaway.runtime.service import base_parser, parse, resolve_run, run_service
 from seaway.simkit.scenario import load_scenario
+from seaway.tools.argtypes import positive_float
 from seaway.vessel.battery import BatteryParams
 from seaway.vessel.mavlink_signing import KeyFileError, read_key
 from seaway.vessel.model import load_vessel
@@ -33,7 +34,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "tcp:HOST:PORT or /dev/ttyX")
     p.add_argument("--autopilot", choices=AUTOPILOT_CHOICES, default=None,
                    help="expected autopilot (overrides the config; default auto)")
-    p.add_argument("--thrust-timeout", type=float, default=None, metavar="S",
+    p.add_argument("--thrust-timeout", type=positive_float, default=None, metavar="S",
                    help="watchdog timeout [s] (overrides the config; default 0.3)")
     p.add_argument("--signing-key-file", default=None, metavar="PATH",
                    help="MAVLink 2 signing key file, 64 hex characters (overrides the config's "

@@ -37,6 +37,7 @@ from pathlib import Path
 from seaway.contract.config import ConfigError, load_config, repo_root
 from seaway.runtime.run import RunDescription
 from seaway.simkit.scenario import load_scenario
+from seaway.tools.argtypes import whole_number
 
 from seaway_vehicle_io.config import CONFIG_DIR
 
@@ -146,7 +147,7 @@ def parser() -> argparse.ArgumentParser:
                     "origin is SITL's home, its scenario gives the start heading")
     ap.add_argument("--dir", type=Path, required=True,
                     help="folder for the firmware's eeprom and logs (made if missing)")
-    ap.add_argument("--instance", type=int, default=0,
+    ap.add_argument("--instance", type=whole_number(0), default=0,
                     help="SITL instance N: SERIAL0 on TCP 5760 + 10 N (default 0)")
     ap.add_argument("--no-boat-params", action="store_true",
                     help=f"ArduPilot's defaults only, without {BOAT_PARAMS.name} and {SIM_PARAMS.name}")

@@ -32,6 +32,7 @@ from pydantic import Field, model_validator
 from seaway.contract import keys
 from seaway.contract.config import ConfigError, ConfigModel, Origin, load_config, parse_config
 from seaway.contract.units import s_to_ns
+from seaway.tools.argtypes import positive_float
 from seaway.vessel.model import check_vessel_files
 
 log = logging.getLogger("seaway.run")
@@ -203,7 +204,7 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                         f"default: the scenario's, else {DEFAULT_VESSEL_FILE})")
     g.add_argument("--plant-vessel-file", default=None,
                    help="simulation: vessel file the simulator integrates (default: the model's)")
-    g.add_argument("--control-period-s", type=float, default=None,
+    g.add_argument("--control-period-s", type=positive_float, default=None,
                    help=f"control period [s] (default {CONTROL_PERIOD_S})")
     g.add_argument("--origin", type=_origin_arg, default=None, metavar="LAT,LON[,ALT]",
                    help="local NED origin [deg, deg, m] (default: the scenario's; on a boat the first "

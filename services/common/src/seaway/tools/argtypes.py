@@ -13,19 +13,21 @@ import math
 from collections.abc import Callable
 
 
-def whole_number(at_least: int) -> Callable[[str], int]:
-    """An integer >= ``at_least`` (counts: 1; how many to skip: 0)."""
+def whole_number(at_least: int, at_most: int | None = None) -> Callable[[str], int]:
+    """An integer >= ``at_least`` (counts: 1; how many to skip: 0), and <= ``at_most`` if given."""
+    allowed = (f"of at least {at_least}" if at_most is None
+               else f"from {at_least} to {at_most}")
 
     def parse(text: str) -> int:
         try:
             value = int(text)
         except ValueError:
             value = None
-        if value is None or value < at_least:
-            raise argparse.ArgumentTypeError(f"{text!r} is not a whole number of at least {at_least}")
+        if value is None or value < at_least or (at_most is not None and value > at_most):
+            raise argparse.ArgumentTypeError(f"{text!r} is not a whole number {allowed}")
         return value
 
-    parse.__name__ = f"whole number >= {at_least}"  # argparse's fallback message names the type
+    parse.__name__ = f"whole number {allowed}"  # argparse's fallback message names the type
     return parse
 
 

@@ -21,6 +21,7 @@ from pathlib import Path
 from seaway.contract import keys
 from seaway.contract.config import ConfigError
 from seaway.contract.messages import ALL_MESSAGES
+from seaway.tools.argtypes import non_negative_float, whole_number
 
 
 def _plugins(group: str) -> dict[str, object]:
@@ -114,7 +115,7 @@ def cmd_echo(argv: list[str]) -> int:
     ap.add_argument("key", help=f"a registered topic: its suffix ({keys.NAV_STATE.suffix}) or the "
                                 f"full key ({keys.NAV_STATE.key('vessel1')})")
     add_vessel_option(ap, wildcard=True)
-    ap.add_argument("--count", type=int, default=0, help="stop after N messages (0: never)")
+    ap.add_argument("--count", type=whole_number(0), default=0, help="stop after N messages (0: never)")
     add_zenoh_config_option(ap)
     args = ap.parse_args(argv)
     spec, named = _spec_by_key(args.key)
@@ -155,7 +156,8 @@ def cmd_health(argv: list[str]) -> int:
         description="list the services alive and what each one refused: access control (per "
                     "identity, action and key) and vehicle_io's MAVLink link (per reason)")
     add_vessel_option(ap)
-    ap.add_argument("--wait", type=float, default=1.0, help="seconds to wait for peers first")
+    ap.add_argument("--wait", type=non_negative_float, default=1.0,
+                    help="seconds to wait for peers first")
     ap.add_argument("--json", action="store_true", help="one JSON object instead of the table")
     add_zenoh_config_option(ap)
     args = ap.parse_args(argv)

@@ -22,6 +22,7 @@ from cryptography import x509
 from seaway.contract import access
 from seaway.contract.config import ConfigError
 from seaway.runtime import credentials
+from seaway.tools.argtypes import positive_int
 
 
 def main(argv: list[str]) -> int:
@@ -32,7 +33,7 @@ def main(argv: list[str]) -> int:
     c.add_argument("folder", type=Path, help="folder to create (it must not hold credentials yet)")
     c.add_argument("--profile", default=None,
                    help="narrow each key to the process this launcher profile runs for it")
-    c.add_argument("--days", type=int, default=credentials.DEFAULT_DAYS,
+    c.add_argument("--days", type=positive_int, default=credentials.DEFAULT_DAYS,
                    help=f"validity of the certificates [days] (default {credentials.DEFAULT_DAYS})")
     c.add_argument("--deployment", action="store_true",
                    help="a boat and its shore: FOLDER/boat and FOLDER/shore from one authority, each "
@@ -56,9 +57,6 @@ def main(argv: list[str]) -> int:
             except ConfigError as err:
                 print(f"seaway credentials: {err}", file=sys.stderr)
                 return 2
-        if args.days < 1:
-            print("seaway credentials: --days must be at least 1", file=sys.stderr)
-            return 2
         if args.boat_host and not args.deployment:
             print("seaway credentials: --boat-host goes with --deployment", file=sys.stderr)
             return 2

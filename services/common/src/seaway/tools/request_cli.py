@@ -24,6 +24,7 @@ from seaway.contract import keys
 from seaway.contract.messages import Message, MessageError, Reply
 from seaway.runtime.bus import Bus
 from seaway.runtime.service import add_vessel_option, add_zenoh_config_option
+from seaway.tools.argtypes import positive_float
 
 RETRY_PAUSE_S = 0.2
 """Between two attempts whose query found no queryable (the mesh is still forming)."""
@@ -47,7 +48,7 @@ class Outcome:
 def add_request_arguments(ap: argparse.ArgumentParser, waits_for: str) -> None:
     """``--vessel``, ``--timeout`` (for ``waits_for``, the answering service) and ``--zenoh-config``."""
     add_vessel_option(ap)
-    ap.add_argument("--timeout", type=float, default=DEFAULT_TIMEOUT_S, metavar="S",
+    ap.add_argument("--timeout", type=positive_float, default=DEFAULT_TIMEOUT_S, metavar="S",
                     help=f"seconds to wait for the {waits_for} and its reply, in all (default "
                          f"{DEFAULT_TIMEOUT_S:g})")
     add_zenoh_config_option(ap)

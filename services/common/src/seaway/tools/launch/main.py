@@ -83,6 +83,7 @@ from seaway.runtime.service import (
 )
 from seaway.runtime.zenoh_bus import ENV_CONFIG, use_lockstep_runtime
 from seaway.simkit.scenario import load_scenario
+from seaway.tools.argtypes import positive_float
 from seaway.tools.launch import address, authority
 from seaway.tools.launch.profile import Instance, Profile, instances, load_profile, substitute
 from seaway.tools.launch.supervisor import Supervised, Supervisor, default_echo
@@ -115,7 +116,7 @@ def parser() -> argparse.ArgumentParser:
                     help="skip the final report (metrics, plots) after the stop; make it later with "
                          "'seaway report RUN_DIR' (a study reads each recording itself)")
     ap.add_argument("--recording", type=Path, default=None, help="recording for the replay profile")
-    ap.add_argument("--control-period-s", type=float, default=None,
+    ap.add_argument("--control-period-s", type=positive_float, default=None,
                     help=f"the run's control period [s] (default {runs.CONTROL_PERIOD_S})")
     ap.add_argument("--cpus", type=_cpu_list, default=None, metavar="LIST",
                     help="run the whole stack (this launcher, every process it starts, their "
