@@ -86,7 +86,7 @@ def test_without_vehicle_io_it_says_none_was_seen_and_bad_lines_exit_2(zenoh_env
     for args, text in ((("mode",), "mode: name the mode"),
                        (("arm", "HOLD"), "arm takes no argument (got 'HOLD')"),
                        (("mode", "HOLD", "--force"), "--force applies to arm and disarm only"),
-                       (("arm", "--timeout", "0"), "--timeout 0: must be a finite number")):
+                       (("arm", "--timeout", "0"), "argument --timeout: '0' is not a finite number above 0")):
         out = subprocess.run([str(BIN / "seaway"), "vehicle", *args], env=zenoh_env,
                              capture_output=True, text=True, timeout=60, check=False)
         assert out.returncode == 2 and text in out.stderr, (args, out.stderr)

@@ -32,11 +32,7 @@ def main(argv: list[str]) -> int:
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("what", help="mission file, scenario name, or pause|resume|abort|status")
     request_cli.add_request_arguments(ap, "controller")
-    args = ap.parse_args(argv)
-    bad = request_cli.timeout_error(args)
-    if bad:
-        print(f"seaway mission: {bad}", file=sys.stderr)
-        return request_cli.EXIT_USAGE
+    args = ap.parse_args(argv)  # a --timeout that is no duration is refused here (exit 2)
     if args.what == "status":
         return request_cli.show_next(args, keys.MISSION_STATUS)
     if args.what in COMMANDS:

@@ -54,13 +54,6 @@ def add_request_arguments(ap: argparse.ArgumentParser, waits_for: str) -> None:
     add_zenoh_config_option(ap)
 
 
-def timeout_error(args: argparse.Namespace) -> str | None:
-    """Why ``--timeout`` is unusable (not a finite number > 0), or None."""
-    if not 0 < args.timeout < float("inf"):
-        return f"--timeout {args.timeout:g}: must be a finite number of seconds > 0"
-    return None
-
-
 def _wait_for_token(bus: Bus, service: str, deadline: float) -> bool:
     """Whether ``service``'s health token was seen before ``deadline`` (monotonic s)."""
     seen = threading.Event()
