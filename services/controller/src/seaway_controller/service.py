@@ -71,7 +71,7 @@ from seaway.runtime.run import from_earlier_launch
 from seaway.runtime.service import ServiceContext, base_parser, parse, resolve_run, run_service
 from seaway.runtime.stamps import StampBounds, StampGate
 from seaway.simkit.scenario import load_scenario
-from seaway.tools.argtypes import positive_float, positive_int, whole_number
+from seaway.tools.argtypes import positive_float, whole_number
 from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.model import load_vessel
 
@@ -100,8 +100,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="predict with the estimator's tau_d instead of tau_d = 0 (the paper's)")
     p.add_argument("--max-state-age-s", type=positive_float, default=0.5,
                    help="real time: older states give zero thrust")
-    p.add_argument("--plan-reuse-steps", type=whole_number(0), default=3)
-    p.add_argument("--los-steps", type=positive_int, default=600)
+    p.add_argument("--plan-reuse-steps", type=whole_number(0), default=3,
+                   help="fallback 1: periods of failed solves flown on the last good plan (default 3)")
+    p.add_argument("--los-steps", type=whole_number(0), default=600,
+                   help="fallback 2: periods of line-of-sight guidance after that, before zero thrust "
+                        "(default 600)")
     p.add_argument("--state-file", type=Path, default=None,
                    help="mission checkpoint: resume from it at start, keep it up to date")
     p.add_argument("--max-range-m", type=positive_float, default=5000.0,
