@@ -1,4 +1,4 @@
-"""Command-line numbers (``seaway.tools.argtypes``): every bench's and the study's refuse a bad value
+"""Command-line numbers (``seaway.runtime.argtypes``): every bench's and the study's refuse a bad value
 at parse time, naming the option and what is allowed, before any work starts."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import math
 from importlib.metadata import entry_points
 
 import pytest
-from seaway.tools.argtypes import positive_float, positive_int, whole_number
+from seaway.runtime.argtypes import positive_float, positive_int, whole_number
 
 
 def test_whole_numbers_and_positive_floats() -> None:
@@ -39,7 +39,6 @@ def _commands() -> list[tuple[str, object]]:
     """Every command line of the project: each bench, each plugin command (``seaway study``, ``seaway
     report``, ...), each ``seaway`` built-in but ``bench``, and each service's executable."""
     from seaway.tools import cli
-    from seaway_lab.study import cli as study
 
     benches = [(f"bench {ep.name}", ep.load()) for ep in entry_points(group="seaway.benchmarks")]
     plugins = [(ep.name, ep.load()) for ep in entry_points(group="seaway.commands")]
@@ -47,9 +46,7 @@ def _commands() -> list[tuple[str, object]]:
                 if ep.value.startswith("seaway_")]
     builtins = [(name, fn) for name, fn in cli.BUILTIN.items() if name != "bench"]
     assert len(benches) >= 11 and len(plugins) >= 7 and len(services) >= 6  # the registries were found
-    wrapped = [(n, (lambda argv, f=f: f(["table1", *argv]))) if n == "study" else (n, f) for n, f in plugins]
-    assert any(n == "study" for n, _ in wrapped) and study.main is not None
-    return [*benches, *wrapped, *services, *builtins]
+    return [*benches, *plugins, *services, *builtins]
 
 
 def _parser_of(command, monkeypatch: pytest.MonkeyPatch) -> argparse.ArgumentParser:
@@ -86,7 +83,7 @@ def test_every_numeric_option_refuses_a_bad_value_by_name(name, command, monkeyp
             and (name, a.option_strings[-1]) not in BARE_ALLOWED]
     assert not bare, (name, bare)
     ours = [(words, a) for words, a in options
-            if getattr(a.type, "__module__", "") == "seaway.tools.argtypes"]
+            if getattr(a.type, "__module__", "") == "seaway.runtime.argtypes"]
     for words, action in ours:
         option = action.option_strings[-1]
         zero_allowed = _accepts(action.type, "0")
@@ -103,7 +100,7 @@ def test_the_commands_take_their_numbers_through_argtypes(monkeypatch) -> None:
     """The sweep above reaches the options that matter (so it cannot pass by finding none)."""
     found = {(name, a.option_strings[-1]) for name, command in _commands()
              for _, a in _options(_parser_of(command, monkeypatch))
-             if getattr(a.type, "__module__", "") == "seaway.tools.argtypes"}
+             if getattr(a.type, "__module__", "") == "seaway.runtime.argtypes"}
     assert {("study", "--timeout-s"), ("report", "--sample-period"), ("bench lockstep", "--repeat"),
             ("seaway-sim", "--sysid"), ("seaway-recorder", "--flush-interval"), ("credentials", "--days"),
             ("seaway-groundstation", "--port"), ("identify", "--arm-m")} <= found, found

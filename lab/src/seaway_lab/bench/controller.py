@@ -31,8 +31,8 @@ import time
 
 import casadi as ca
 import numpy as np
+from seaway.runtime.argtypes import positive_int
 from seaway.simkit.scenario import load_scenario
-from seaway.tools.argtypes import positive_int
 from seaway.vessel.metrics import median, percentile
 from seaway.vessel.model import load_vessel
 from seaway_controller.core import ControllerConfig, ControllerCore

@@ -29,8 +29,8 @@ import argparse
 import math
 import time
 
+from seaway.runtime.argtypes import positive_float
 from seaway.simkit.scenario import Scenario, load_scenario
-from seaway.tools.argtypes import positive_float
 from seaway.vessel import model
 from seaway.vessel.metrics import median, percentile, rms
 from seaway_estimator.config import EstimatorConfig, load_estimator_config

@@ -44,8 +44,8 @@ from pathlib import Path
 from seaway.contract import keys
 from seaway.contract.messages import SolveRecord, StateEstimate
 from seaway.runtime import credentials
+from seaway.runtime.argtypes import positive_float, positive_int
 from seaway.runtime.bus import Bus
-from seaway.tools.argtypes import positive_float, positive_int
 from seaway.vessel.metrics import median, percentile
 
 from seaway_lab.bench.common import BenchResult

@@ -45,8 +45,8 @@ from seaway.contract import keys
 from seaway.contract.access import HARNESS
 from seaway.contract.messages import ThrustCommand
 from seaway.runtime import credentials
+from seaway.runtime.argtypes import positive_int
 from seaway.runtime.bus import Bus
-from seaway.tools.argtypes import positive_int
 from seaway.vessel.metrics import median, percentile
 from seaway.vessel.model import load_vessel
 from seaway_vehicle_io.px4 import PROFILE

@@ -40,10 +40,10 @@ from pathlib import Path
 
 from seaway.runtime import cpus as cpusets
 from seaway.runtime import timeline
+from seaway.runtime.argtypes import positive_int
 from seaway.runtime.credentials import ENV_CREDENTIALS, ENV_IDENTITY, NONE
 from seaway.runtime.stacks import ENV_STACKS_DIR
 from seaway.simkit.scenario import load_scenario
-from seaway.tools.argtypes import positive_int
 from seaway.vessel.metrics import median, percentile
 from seaway_estimator.config import EstimatorConfig
 from seaway_estimator.core import EstimatorCore

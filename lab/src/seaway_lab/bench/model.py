@@ -12,7 +12,7 @@ import math
 import time
 from collections.abc import Callable
 
-from seaway.tools.argtypes import positive_int
+from seaway.runtime.argtypes import positive_int
 from seaway.vessel import model
 from seaway.vessel.metrics import median, percentile
 

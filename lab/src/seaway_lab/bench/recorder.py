@@ -33,7 +33,7 @@ from mcap.writer import CompressionType, Writer
 from seaway.contract import keys
 from seaway.contract.messages import ThrustCommand
 from seaway.contract.units import NS_PER_S
-from seaway.tools.argtypes import positive_float, positive_int
+from seaway.runtime.argtypes import positive_float, positive_int
 from seaway.vessel.metrics import median, percentile
 from seaway_recorder.writer import RecordingWriter
 

@@ -23,9 +23,9 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 
+from seaway.runtime.argtypes import positive_float, positive_int, whole_number
 from seaway.runtime.bus import Bus
 from seaway.runtime.zenoh_bus import ENV_CONFIG, ENV_RENDEZVOUS
-from seaway.tools.argtypes import positive_float, positive_int, whole_number
 from seaway.vessel.metrics import median, percentile
 from seaway_sim.app import SimApp, load_world
 from seaway_sim.core import SimCore

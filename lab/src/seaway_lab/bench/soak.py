@@ -28,12 +28,12 @@ from pathlib import Path
 from seaway.contract import keys
 from seaway.contract.messages import MissionStatus, ScenarioRequest
 from seaway.runtime import stacks
+from seaway.runtime.argtypes import positive_float
 from seaway.runtime.bus import Bus
 from seaway.runtime.credentials import ENV_CREDENTIALS, ENV_IDENTITY
 from seaway.runtime.stacks import ENV_STACKS_DIR
 from seaway.runtime.zenoh_bus import ENV_CONFIG, ENV_RENDEZVOUS
 from seaway.simkit.scenario import load_scenario
-from seaway.tools.argtypes import positive_float
 from seaway.tools.launch.events import EVENTS_FILE
 
 from seaway_lab.bench.common import BenchResult

@@ -19,7 +19,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from seaway.tools.argtypes import positive_float, positive_int
+from seaway.runtime.argtypes import positive_float, positive_int
 from seaway.vessel.metrics import median
 
 from seaway_lab.bench.common import BenchResult, bench_credentials

@@ -36,8 +36,8 @@ from pathlib import Path
 import numpy as np
 from seaway.contract.config import ConfigError
 from seaway.runtime import service
+from seaway.runtime.argtypes import non_negative_float, positive_float, whole_number
 from seaway.simkit.scenario import SensorNoise, load_scenario
-from seaway.tools.argtypes import non_negative_float, positive_float, whole_number
 from seaway.vessel.model import VesselParams, load_vessel
 
 from seaway_lab.identify import fit as fitmod

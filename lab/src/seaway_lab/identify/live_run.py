@@ -28,7 +28,7 @@ from seaway.contract import keys
 from seaway.contract.messages import ThrustCommand, VehicleStatus
 from seaway.contract.units import NS_PER_S
 from seaway.runtime import service
-from seaway.tools.argtypes import positive_float
+from seaway.runtime.argtypes import positive_float
 from seaway.vessel.model import load_vessel
 
 from seaway_lab.identify.manoeuvre import Manoeuvre

@@ -41,8 +41,8 @@ from pathlib import Path
 from typing import Any
 
 from seaway.contract.config import repo_root
+from seaway.runtime.argtypes import positive_float, positive_int
 from seaway.runtime.cpus import format_cpus
-from seaway.tools.argtypes import positive_float, positive_int
 
 from seaway_lab.study import definitions as defs
 from seaway_lab.study import results as res

@@ -64,6 +64,7 @@ from seaway.contract.messages import (
     StateEstimate,
     VehicleStatus,
 )
+from seaway.runtime.argtypes import positive_float, whole_number
 from seaway.runtime.clock import RateLoop
 from seaway.runtime.lockstep import Member, Period
 from seaway.runtime.ratelog import RateLimitedLog
@@ -71,7 +72,6 @@ from seaway.runtime.run import from_earlier_launch
 from seaway.runtime.service import ServiceContext, base_parser, parse, resolve_run, run_service
 from seaway.runtime.stamps import StampBounds, StampGate
 from seaway.simkit.scenario import load_scenario
-from seaway.tools.argtypes import positive_float, whole_number
 from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.model import load_vessel
 

@@ -36,8 +36,8 @@ from pathlib import Path
 
 import uvicorn
 from seaway.contract.config import ConfigError
+from seaway.runtime.argtypes import positive_float, positive_int, whole_number
 from seaway.runtime.service import base_parser, parse, resolve_run, run_service
-from seaway.tools.argtypes import positive_float, positive_int, whole_number
 from seaway.tools.launch import address
 from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.model import load_vessel

@@ -48,6 +48,7 @@ from typing import Any
 
 from seaway.contract import bundle, keys
 from seaway.contract.messages import LogRecord, MessageError, PeriodDone
+from seaway.runtime.argtypes import non_negative_float, positive_int, whole_number
 from seaway.runtime.service import (
     DEFAULT_VESSEL,
     add_log_level_option,
@@ -57,7 +58,6 @@ from seaway.runtime.service import (
     credentials_arg,
     install_stop_signals,
 )
-from seaway.tools.argtypes import non_negative_float, positive_int, whole_number
 from seaway.vessel.frames import GeoOrigin
 
 from seaway_recorder import derive, schemas

@@ -30,6 +30,7 @@ from seaway.contract import bundle, keys
 from seaway.contract.config import ConfigError
 from seaway.contract.messages import LOCKSTEP_SERVICES, LogRecord, MessageError, PeriodDone
 from seaway.runtime import run as runs
+from seaway.runtime.argtypes import positive_float, positive_int
 from seaway.runtime.bus import Bus, RawSample
 from seaway.runtime.lockstep import Member, Period, classify
 from seaway.runtime.run import RunDescription
@@ -37,7 +38,6 @@ from seaway.runtime.service import base_parser, configure_logging, resolve_run, 
 from seaway.runtime.timeline import Timeline
 from seaway.runtime.zenoh_bus import ENV_CONFIG
 from seaway.simkit.scenario import load_scenario
-from seaway.tools.argtypes import positive_float, positive_int
 from seaway.vessel.frames import GeoOrigin
 
 from seaway_recorder import runinfo

@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import zenoh
 from seaway.contract import bundle, keys
 from seaway.contract.messages import MessageError, PeriodDone
+from seaway.runtime.argtypes import non_negative_float, positive_float
 from seaway.runtime.bus import JSON_ENCODING, Bus, RawPublisher
 from seaway.runtime.credentials import ENV_IDENTITY
 from seaway.runtime.lockstep import Period
@@ -36,7 +37,6 @@ from seaway.runtime.service import (
     configure_logging,
     install_stop_signals,
 )
-from seaway.tools.argtypes import non_negative_float, positive_float
 
 from seaway_recorder import recording
 from seaway_recorder.replay_lockstep import SIM_ANSWER_SUFFIX, LockstepPacer

@@ -39,9 +39,9 @@ from seaway.contract.messages import (
     StateEstimate,
     ThrustCommand,
 )
+from seaway.runtime.argtypes import positive_float
 from seaway.runtime.run import CONTROL_PERIOD_S
 from seaway.simkit.scenario import load_scenario
-from seaway.tools.argtypes import positive_float
 from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.metrics import mission_metrics
 from seaway.vessel.model import VesselParams

@@ -21,11 +21,11 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from seaway.contract.config import ConfigError
+from seaway.runtime.argtypes import positive_float, whole_number
 from seaway.runtime.lockstep import STALL_REPEAT_S
 from seaway.runtime.run import from_earlier_launch
 from seaway.runtime.service import base_parser, parse, resolve_run, run_service
 from seaway.simkit.scenario import load_scenario
-from seaway.tools.argtypes import positive_float, whole_number
 from seaway.vessel.mavlink_signing import KeyFileError, read_key
 from seaway.vessel.model import load_vessel
 

@@ -8,10 +8,10 @@ import sys
 from collections.abc import Sequence
 
 from seaway.contract.config import ConfigError, load_config, parse_config
+from seaway.runtime.argtypes import positive_float
 from seaway.runtime.run import RunDescription
 from seaway.runtime.service import base_parser, parse, resolve_run, run_service
 from seaway.simkit.scenario import load_scenario
-from seaway.tools.argtypes import positive_float
 from seaway.vessel.battery import BatteryParams
 from seaway.vessel.mavlink_signing import KeyFileError, read_key
 from seaway.vessel.model import load_vessel

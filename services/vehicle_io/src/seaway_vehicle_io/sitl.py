@@ -35,9 +35,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from seaway.contract.config import ConfigError, load_config, repo_root
+from seaway.runtime.argtypes import whole_number
 from seaway.runtime.run import RunDescription
 from seaway.simkit.scenario import load_scenario
-from seaway.tools.argtypes import whole_number
 
 from seaway_vehicle_io.config import CONFIG_DIR
 

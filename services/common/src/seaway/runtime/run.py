@@ -32,7 +32,7 @@ from pydantic import Field, model_validator
 from seaway.contract import keys
 from seaway.contract.config import ConfigError, ConfigModel, Origin, load_config, parse_config
 from seaway.contract.units import s_to_ns
-from seaway.tools.argtypes import positive_float
+from seaway.runtime.argtypes import positive_float
 from seaway.vessel.model import check_vessel_files
 
 log = logging.getLogger("seaway.run")

@@ -21,7 +21,7 @@ from pathlib import Path
 from seaway.contract import keys
 from seaway.contract.config import ConfigError
 from seaway.contract.messages import ALL_MESSAGES
-from seaway.tools.argtypes import non_negative_float, whole_number
+from seaway.runtime.argtypes import non_negative_float, whole_number
 
 
 def _plugins(group: str) -> dict[str, object]:

@@ -22,7 +22,7 @@ from cryptography import x509
 from seaway.contract import access
 from seaway.contract.config import ConfigError
 from seaway.runtime import credentials
-from seaway.tools.argtypes import positive_int
+from seaway.runtime.argtypes import positive_int
 
 
 def main(argv: list[str]) -> int:

@@ -22,9 +22,9 @@ from dataclasses import dataclass
 
 from seaway.contract import keys
 from seaway.contract.messages import Message, MessageError, Reply
+from seaway.runtime.argtypes import positive_float
 from seaway.runtime.bus import Bus
 from seaway.runtime.service import add_vessel_option, add_zenoh_config_option
-from seaway.tools.argtypes import positive_float
 
 RETRY_PAUSE_S = 0.2
 """Between two attempts whose query found no queryable (the mesh is still forming)."""

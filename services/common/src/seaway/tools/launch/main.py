@@ -72,6 +72,7 @@ from seaway.contract.messages import (
 )
 from seaway.runtime import cpus, refusals
 from seaway.runtime import run as runs
+from seaway.runtime.argtypes import positive_float
 from seaway.runtime.bus import Bus, Every, Newest, RuntimeEnvError
 from seaway.runtime.credentials import ENV_CREDENTIALS, NONE, CredentialsError
 from seaway.runtime.lockstep import CHAIN
@@ -83,7 +84,6 @@ from seaway.runtime.service import (
 )
 from seaway.runtime.zenoh_bus import ENV_CONFIG, use_lockstep_runtime
 from seaway.simkit.scenario import load_scenario
-from seaway.tools.argtypes import positive_float
 from seaway.tools.launch import address, authority
 from seaway.tools.launch.profile import Instance, Profile, instances, load_profile, substitute
 from seaway.tools.launch.supervisor import Supervised, Supervisor, default_echo

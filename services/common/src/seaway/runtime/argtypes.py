@@ -4,6 +4,9 @@ argparse names the option, these say what was given and what is allowed, e.g. ``
 model: error: argument --batches: '0' is not a whole number of at least 1`` (exit 2). A number
 parsed with a bare ``type=int`` or ``type=float`` lets 0, negatives, ``nan`` and ``inf`` through, to
 fail later with a traceback, or never (a study run's ``--timeout-s nan`` waited for ever).
+
+In the runtime, beside the services' own flags (``seaway.runtime.service``, ``seaway.runtime.run``),
+so that services and tools alike take them from here.
 """
 
 from __future__ import annotations
