@@ -4,6 +4,8 @@ Three figures in one run:
 
 1. **baseline**: the mcap Writer alone, in this process, writing the same 300-byte messages into a
    file (zstd chunks ended every flush interval, as the recorder does): the ceiling of the library;
+   next to it the recorder's own MCAP writer (``seaway_recorder.mcapfile``, the same bytes), and
+   both again with a chunk every 20 messages, as a lockstep recorder ends one every period;
 2. **core**: ``RecordingWriter`` in this process (the recorder's core: type check, channel lookup,
    MCAP), no bus;
 3. **end to end**: the recorder as its own process, a publisher as another process sending
@@ -35,11 +37,14 @@ from seaway.contract.messages import ThrustCommand
 from seaway.contract.units import NS_PER_S
 from seaway.runtime.argtypes import positive_float, positive_int
 from seaway.vessel.metrics import median, percentile
+from seaway_recorder.mcapfile import McapWriter
 from seaway_recorder.writer import RecordingWriter
 
 from seaway_lab.bench.common import BenchResult, bench_credentials
 
 TARGET_MSG_S = 50_000
+LOCKSTEP_PERIOD_MESSAGES = 20
+"""Messages a lockstep recorder writes per period, each period a chunk (paper #1: about 18)."""
 MESSAGE_BYTES = 300
 BENCH_VESSEL = "bench"
 
@@ -53,10 +58,14 @@ def make_payload(seq: int, size: int = MESSAGE_BYTES) -> bytes:
                               thrust_starboard_n=-2.345678, source="p" * pad, seq=seq).encode()
 
 
-def bench_mcap_baseline(n: int, flush_every: int) -> float:
+def bench_mcap(n: int, flush_every: int, ours: bool = False) -> float:
+    """Messages per second through an MCAP writer alone, in this process: the mcap library's
+    ``Writer`` (the baseline), or the recorder's own ``mcapfile.McapWriter`` (``ours``), which
+    writes the same bytes."""
     payload = make_payload(1)
     buf = io.BytesIO()
-    w = Writer(buf, chunk_size=4 << 20, compression=CompressionType.ZSTD)
+    w = (McapWriter(buf, chunk_size=4 << 20) if ours
+         else Writer(buf, chunk_size=4 << 20, compression=CompressionType.ZSTD))
     w.start()
     sid = w.register_schema(ThrustCommand.SCHEMA, "jsonschema", ThrustCommand.json_schema_text().encode())
     cid = w.register_channel("seaway/bench/ctrl/thrust", "json", sid)
@@ -195,7 +204,11 @@ def run(argv: list[str]) -> BenchResult:
     res = BenchResult("recorder", f"Recorder throughput, {MESSAGE_BYTES}-byte messages")
     with tempfile.TemporaryDirectory(prefix="seaway-bench-recorder-") as d:
         tmp = Path(d)
-        base = bench_mcap_baseline(args.baseline_messages, flush_every)
+        base = bench_mcap(args.baseline_messages, flush_every)
+        ours = bench_mcap(args.baseline_messages, flush_every, ours=True)
+        # A lockstep recorder ends a chunk every period, about 20 messages.
+        base_period = bench_mcap(args.baseline_messages, LOCKSTEP_PERIOD_MESSAGES)
+        ours_period = bench_mcap(args.baseline_messages, LOCKSTEP_PERIOD_MESSAGES, ours=True)
         core = bench_core(args.baseline_messages, flush_every, tmp)
         core_unflushed = bench_core(args.baseline_messages, 10**12, tmp)
         e2e = bench_end_to_end(args.rate, args.seconds, tmp)
@@ -203,6 +216,12 @@ def run(argv: list[str]) -> BenchResult:
     drops = e2e["missing"] + e2e["queue_drops"]
     med = median(rates)
     res.add("baseline_mcap_writer_msg_per_s", round(base), note="mcap Writer alone, in-process, zstd")
+    res.add("recorder_mcap_writer_msg_per_s", round(ours),
+            note=f"seaway_recorder.mcapfile alone, the same bytes; {ours / base:.2f}x the baseline")
+    res.add("baseline_mcap_writer_lockstep_msg_per_s", round(base_period),
+            note=f"a chunk every {LOCKSTEP_PERIOD_MESSAGES} messages, as a lockstep recorder")
+    res.add("recorder_mcap_writer_lockstep_msg_per_s", round(ours_period),
+            note=f"the same; {ours_period / base_period:.2f}x the baseline")
     res.add("core_recording_writer_msg_per_s", round(core), note="type check + MCAP, 50 ms chunks")
     res.add("core_without_periodic_flush_msg_per_s", round(core_unflushed), note="4 MiB chunks only")
     res.add("publisher_rate_msg_per_s", round(e2e["send_rate"]), note="separate process")

@@ -18,19 +18,12 @@ numbered one; every file carries the attachments and run metadata again, so each
 from __future__ import annotations
 
 import logging
-import struct
-import tempfile
 import time
 from collections import Counter
-from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
-import mcap
-from mcap.data_stream import RecordBuilder
-from mcap.records import ChunkIndex
-from mcap.writer import CompressionType, Writer
 from seaway.contract import bundle
 from seaway.contract.messages import MessageError, PeriodDone
 from seaway.runtime.ratelog import RateLimitedLog
@@ -39,6 +32,7 @@ from seaway.vessel.frames import GeoOrigin
 
 from seaway_recorder import derive, schemas
 from seaway_recorder.logtail import LogLine
+from seaway_recorder.mcapfile import McapWriter, check_compression
 from seaway_recorder.timebase import EPISODE_METADATA, TIME_METADATA, RecordingTime, stamp_of
 
 log = logging.getLogger("seaway.recorder")
@@ -47,7 +41,6 @@ PROFILE = ""  # MCAP profile: none of the well-known ones (ros1, ros2) applies t
 LIBRARY = "seaway-recorder/0.1.0"
 SUMMARY_METADATA = "seaway.recorder.summary"
 RUN_METADATA = "seaway.run"
-COMPRESSIONS = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
 
 
 def free_path(path: Path) -> Path:
@@ -113,79 +106,13 @@ def media_type_for(path: Path) -> str:
             ".csv": "text/csv"}.get(path.suffix.lower(), "application/octet-stream")
 
 
-class _RawRecord:
-    """One record's bytes, written as they are into the summary (see ``SpilledChunkIndexes``)."""
-
-    __slots__ = ("data",)
-
-    def __init__(self, data: bytes) -> None:
-        self.data = data
-
-    def write(self, stream: RecordBuilder) -> None:
-        stream.write(self.data)
-
-
-class SpilledChunkIndexes:
-    """The mcap Writer's list of chunk indexes, kept in an anonymous temporary file, not in memory.
-
-    The Writer keeps one ``ChunkIndex`` per chunk (about 500 bytes of Python objects) until it
-    writes them into the file's summary at ``finish``. A lockstep recorder ends a chunk every period
-    (the sim moves on only once a period is on disk), so that list grew with every message: 19 MB
-    over a 600 s soak. Here each index is appended as its record bytes to a temporary file, and read
-    back, record by record, when the Writer writes the summary: the recorder's memory stays flat;
-    the file gets the same bytes.
-    """
-
-    def __init__(self) -> None:
-        self._file = tempfile.TemporaryFile()  # noqa: SIM115 - closed in close()
-        self._count = 0
-
-    def append(self, index: ChunkIndex) -> None:
-        builder = RecordBuilder()
-        index.write(builder)
-        self._file.write(builder.end())
-        self._count += 1
-
-    def __len__(self) -> int:
-        return self._count
-
-    def __iter__(self) -> Iterator[_RawRecord]:
-        self._file.flush()
-        self._file.seek(0)
-        for _ in range(self._count):
-            head = self._file.read(9)  # opcode (1 byte) and length (8 bytes, little-endian)
-            (length,) = struct.unpack("<Q", head[1:])
-            yield _RawRecord(head + self._file.read(length))
-        self._file.seek(0, 2)
-
-    def close(self) -> None:
-        self._file.close()
-
-
-_CHUNK_INDEXES = "_Writer__chunk_indices"
-"""The mcap Writer's (private) list of chunk indexes that ``SpilledChunkIndexes`` stands in for."""
-
-
-def spill_chunk_indexes(writer: Writer) -> SpilledChunkIndexes | None:
-    """Make ``writer`` keep its chunk indexes on disk; None (and a warning) if this mcap version
-    keeps them otherwise (then they stay in memory, as before)."""
-    if getattr(writer, _CHUNK_INDEXES, None) != []:
-        log.warning("mcap %s keeps its chunk indexes differently: they stay in memory (the "
-                    "recorder's memory then grows with the number of chunks)", mcap.__version__)
-        return None
-    spilled = SpilledChunkIndexes()
-    setattr(writer, _CHUNK_INDEXES, spilled)
-    return spilled
-
-
 class _OpenFile:
-    """One MCAP file being written: the mcap Writer, its stream and its channel table."""
+    """One MCAP file being written: its writer (``mcapfile``), its stream and its channel table."""
 
-    def __init__(self, path: Path, chunk_size: int, compression: CompressionType) -> None:
+    def __init__(self, path: Path, chunk_size: int, compression: str) -> None:
         self.path = path
         self.stream: IO[bytes] = open(path, "wb")  # noqa: SIM115 - closed in close()
-        self.writer = Writer(self.stream, chunk_size=chunk_size, compression=compression)
-        self.chunk_indexes = spill_chunk_indexes(self.writer)
+        self.writer = McapWriter(self.stream, chunk_size=chunk_size, compression=compression)
         self.writer.start(profile=PROFILE, library=LIBRARY)
         self.schemas: dict[tuple[str, bytes], int] = {}
         self.channels: dict[str, int] = {}
@@ -221,8 +148,6 @@ class _OpenFile:
         self.writer.finish()
         self.stream.flush()
         self.stream.close()
-        if self.chunk_indexes is not None:
-            self.chunk_indexes.close()
 
 
 class RecordingWriter:
@@ -243,12 +168,11 @@ class RecordingWriter:
         default_origin: GeoOrigin | None = None,
         time: RecordingTime | None = None,
     ) -> None:
-        if compression not in COMPRESSIONS:
-            raise ValueError(f"compression {compression!r}: use one of {', '.join(COMPRESSIONS)}")
+        check_compression(compression)
         self.base = Path(path)
         self.rotating = bool(max_bytes or max_seconds)
         self.chunk_size = chunk_size
-        self.compression = COMPRESSIONS[compression]
+        self.compression = compression
         self.max_bytes = max_bytes
         self.max_seconds = max_seconds
         self.attachments = list(attachments or [])

@@ -1,0 +1,283 @@
+"""The recorder's MCAP writer: the file ``mcap.writer.Writer`` writes, for a fraction of the work.
+
+A lockstep recorder ends a chunk every simulated period (the sim moves on only once a period is on
+disk), some 20 messages a chunk. Through the mcap library's ``Writer`` each message was a
+``Message`` dataclass written field by field (a ``struct.pack`` and a buffer write per field, a
+seek back for the length) and each chunk a dozen records built the same way: about 40 % of the
+recorder's Python time in a paper #1 run (docs/results.md, 2026-11-29, night). Here the four
+records written per message or per chunk (Message, Chunk, MessageIndex, ChunkIndex) are each one
+``struct.pack``, and the chunk's bytes are joined once. Everything else (header, schemas, channels,
+attachments, metadata, the summary and footer) is written by the mcap library's own record classes.
+
+The output is byte for byte the output of ``mcap.writer.Writer`` with its defaults (every index,
+schemas and channels repeated in the summary, statistics, summary offsets, chunk CRCs, no data
+section CRC) given the same calls: ``tests/unit/recorder/test_mcapfile.py`` holds the two to the
+same bytes over random call sequences, for each compression. The chunk indexes, one per chunk, wait
+for the summary in an anonymous temporary file as their record bytes, so the recorder's memory does
+not grow with the number of chunks (it did by 19 MB over a 600 s soak while they were Python
+objects).
+
+Units: every time is ns on the caller's timeline (MCAP's log and publish times); sizes in bytes.
+"""
+
+from __future__ import annotations
+
+import struct
+import tempfile
+import zlib
+from collections.abc import Callable
+from typing import IO
+
+import lz4.frame
+import zstandard
+from mcap.data_stream import RecordBuilder
+from mcap.opcode import Opcode
+from mcap.records import (
+    Attachment,
+    AttachmentIndex,
+    Channel,
+    DataEnd,
+    Footer,
+    Header,
+    Metadata,
+    MetadataIndex,
+    Schema,
+    Statistics,
+    SummaryOffset,
+)
+from mcap.writer import MCAP0_MAGIC
+
+COMPRESSIONS = ("zstd", "lz4", "none")
+"""Chunk compressions: the names of the MCAP spec ("" in the file for none)."""
+
+_MESSAGE = struct.Struct("<BQHIQQ")
+"""Opcode, record length, channel id, sequence, log time, publish time; the data follows."""
+_MESSAGE_FIELDS = 2 + 4 + 8 + 8
+_CHUNK_HEAD = struct.Struct("<BQQQQII")
+"""Opcode, record length, start and end time, uncompressed size, uncompressed CRC, the compression
+name's length; the name, the data's length (8 bytes) and the data follow."""
+_U64 = struct.Struct("<Q")
+_RECORD_HEAD = struct.Struct("<BQ")
+
+
+def check_compression(compression: str) -> str:
+    """``compression`` if it is one of ``COMPRESSIONS``; else ValueError naming them."""
+    if compression not in COMPRESSIONS:
+        raise ValueError(f"compression {compression!r}: use one of {', '.join(COMPRESSIONS)}")
+    return compression
+
+
+def _compressor(compression: str) -> tuple[str, Callable[[bytes], bytes] | None]:
+    """The name written into each chunk and the function compressing its records (None: none).
+    zstd at level 3 and lz4's frame defaults, as ``mcap.writer.Writer`` compresses; one zstd
+    context for the file, not one per chunk (the same bytes)."""
+    if check_compression(compression) == "zstd":
+        return "zstd", zstandard.ZstdCompressor(level=3).compress
+    if compression == "lz4":
+        return "lz4", lz4.frame.compress
+    return "", None
+
+
+def _record(write: Callable[[RecordBuilder], None]) -> bytes:
+    builder = RecordBuilder()
+    write(builder)
+    return builder.end()
+
+
+class McapWriter:
+    """Writes one MCAP file to ``stream`` (opened for binary writing; not closed here).
+
+    ``chunk_size``: a chunk ends once its records exceed this many bytes, and at every ``flush``.
+    The calls are ``mcap.writer.Writer``'s: ``start``, ``register_schema``, ``register_channel``,
+    ``add_message``, ``add_attachment``, ``add_metadata``, ``flush``, ``finish``.
+    """
+
+    def __init__(self, stream: IO[bytes], chunk_size: int = 1024 * 1024,
+                 compression: str = "zstd") -> None:
+        self._stream = stream
+        self._chunk_size = chunk_size
+        self._compression, self._compress = _compressor(compression)
+        # The chunk in progress: its records' bytes, their length, and each channel's (log time,
+        # offset) pairs flat, in the order the channels first appear in it.
+        self._parts: list[bytes] = []
+        self._length = 0
+        self._index: dict[int, list[int]] = {}
+        self._chunk_indexes = tempfile.TemporaryFile()  # noqa: SIM115 - closed in finish()/close()
+        self._schemas: dict[int, Schema] = {}
+        self._channels: dict[int, Channel] = {}
+        self._attachment_indexes: list[AttachmentIndex] = []
+        self._metadata_indexes: list[MetadataIndex] = []
+        self._stats = Statistics(attachment_count=0, channel_count=0, channel_message_counts={},
+                                 chunk_count=0, message_count=0, message_end_time=0,
+                                 message_start_time=0, metadata_count=0, schema_count=0)
+        self._counts = self._stats.channel_message_counts
+
+    @property
+    def chunk_indexes(self) -> int:
+        """Chunks written so far (their indexes wait on disk for the summary)."""
+        return self._stats.chunk_count
+
+    def start(self, profile: str = "", library: str = "") -> None:
+        self._stream.write(MCAP0_MAGIC)
+        self._stream.write(_record(Header(profile, library).write))
+
+    def register_schema(self, name: str, encoding: str, data: bytes) -> int:
+        schema = Schema(id=len(self._schemas) + 1, data=data, encoding=encoding, name=name)
+        self._schemas[schema.id] = schema
+        self._stats.schema_count += 1
+        self._add_to_chunk(_record(schema.write))
+        return schema.id
+
+    def register_channel(self, topic: str, message_encoding: str, schema_id: int,
+                         metadata: dict[str, str] | None = None) -> int:
+        channel = Channel(id=len(self._channels) + 1, topic=topic,
+                          message_encoding=message_encoding, schema_id=schema_id,
+                          metadata=dict(metadata or {}))
+        self._channels[channel.id] = channel
+        self._stats.channel_count += 1
+        self._add_to_chunk(_record(channel.write))
+        return channel.id
+
+    def _add_to_chunk(self, record: bytes) -> None:
+        """A schema or channel record, into the chunk in progress (as the mcap Writer does)."""
+        self._parts.append(record)
+        self._length += len(record)
+        if self._length > self._chunk_size:
+            self._end_chunk()
+
+    def add_message(self, channel_id: int, log_time: int, data: bytes, publish_time: int,
+                    sequence: int = 0) -> None:
+        # The statistics and the chunk's times are taken from its index when it ends: nothing
+        # per message but the index entry and the record.
+        index = self._index.get(channel_id)
+        if index is None:
+            index = self._index[channel_id] = []
+        index += (log_time, self._length)
+        self._parts += (_MESSAGE.pack(Opcode.MESSAGE, _MESSAGE_FIELDS + len(data), channel_id,
+                                      sequence, log_time, publish_time), data)
+        self._length += 9 + _MESSAGE_FIELDS + len(data)
+        if self._length > self._chunk_size:
+            self._end_chunk()
+
+    def add_attachment(self, create_time: int, log_time: int, name: str, media_type: str,
+                       data: bytes) -> None:
+        offset = self._stream.tell()
+        self._stats.attachment_count += 1
+        attachment = Attachment(create_time=create_time, log_time=log_time, name=name,
+                                media_type=media_type, data=data)
+        record = _record(attachment.write)
+        self._attachment_indexes.append(AttachmentIndex(
+            offset=offset, length=len(record), create_time=create_time, log_time=log_time,
+            data_size=len(data), name=name, media_type=media_type))
+        self._stream.write(record)
+
+    def add_metadata(self, name: str, data: dict[str, str]) -> None:
+        offset = self._stream.tell()
+        self._stats.metadata_count += 1
+        record = _record(Metadata(name=name, metadata=data).write)
+        self._metadata_indexes.append(MetadataIndex(offset=offset, length=len(record), name=name))
+        self._stream.write(record)
+
+    def _end_chunk(self) -> None:
+        """Write the chunk in progress (if it has a message), its message indexes, and keep its
+        chunk index for the summary."""
+        if not self._index:
+            return
+        stats = self._stats
+        counts = self._counts
+        start_ns = min(min(pairs[0::2]) for pairs in self._index.values())
+        end_ns = max(max(pairs[0::2]) for pairs in self._index.values())
+        for channel_id, pairs in self._index.items():
+            counts[channel_id] = counts.get(channel_id, 0) + len(pairs) // 2
+        if stats.message_count == 0 or start_ns < stats.message_start_time:
+            stats.message_start_time = start_ns
+        stats.message_end_time = max(stats.message_end_time, end_ns)
+        stats.message_count += sum(len(pairs) for pairs in self._index.values()) // 2
+        stats.chunk_count += 1
+        raw = b"".join(self._parts)
+        data = self._compress(raw) if self._compress is not None else raw
+        name = self._compression.encode()
+        stream = self._stream
+        chunk_start = stream.tell()
+        chunk_length = 9 + 8 + 8 + 8 + 4 + 4 + len(name) + 8 + len(data)
+        stream.write(_CHUNK_HEAD.pack(Opcode.CHUNK, chunk_length - 9, start_ns, end_ns,
+                                      len(raw), zlib.crc32(raw), len(name)))
+        stream.write(name)
+        stream.write(_U64.pack(len(data)))
+        stream.write(data)
+        index_start = chunk_start + chunk_length
+        offsets: list[int] = []
+        indexes: list[bytes] = []
+        at = index_start
+        for channel_id, pairs in self._index.items():
+            n = len(pairs)
+            record = struct.pack(f"<BQHI{n}Q", Opcode.MESSAGE_INDEX, 2 + 4 + 8 * n, channel_id,
+                                 8 * n, *pairs)
+            offsets += (channel_id, at)
+            at += len(record)
+            indexes.append(record)
+        stream.write(b"".join(indexes))
+        k = len(offsets) // 2
+        body = struct.pack(f"<QQQQI{'HQ' * k}Q", start_ns, end_ns, chunk_start,
+                           chunk_length, 10 * k, *offsets, at - index_start)
+        tail = struct.pack(f"<I{len(name)}sQQ", len(name), name, len(data), len(raw))
+        self._chunk_indexes.write(_RECORD_HEAD.pack(Opcode.CHUNK_INDEX, len(body) + len(tail)))
+        self._chunk_indexes.write(body)
+        self._chunk_indexes.write(tail)
+        self._parts.clear()
+        self._length = 0
+        self._index = {}
+
+    def flush(self) -> None:
+        """End the chunk in progress and hand everything written to the OS (no fsync)."""
+        self._end_chunk()
+        self._stream.flush()
+
+    def finish(self) -> None:
+        """End the last chunk and write the data end, the summary (schemas, channels, statistics,
+        chunk, attachment and metadata indexes, summary offsets) and the footer."""
+        self._end_chunk()
+        stream = self._stream
+        stream.write(_record(DataEnd(0).write))
+        summary_start = stream.tell()
+        builder = RecordBuilder()
+        offsets: list[SummaryOffset] = []
+
+        def group(opcode: Opcode, write: Callable[[], None]) -> None:
+            begin = builder.count
+            write()
+            offsets.append(SummaryOffset(group_opcode=opcode, group_start=summary_start + begin,
+                                         group_length=builder.count - begin))
+
+        def records(items: list) -> Callable[[], None]:
+            return lambda: [item.write(builder) for item in items]
+
+        group(Opcode.SCHEMA, records(list(self._schemas.values())))
+        group(Opcode.CHANNEL, records(list(self._channels.values())))
+        group(Opcode.STATISTICS, records([self._stats]))
+        group(Opcode.CHUNK_INDEX, lambda: self._copy_chunk_indexes(builder))
+        group(Opcode.ATTACHMENT_INDEX, records(self._attachment_indexes))
+        group(Opcode.METADATA_INDEX, records(self._metadata_indexes))
+        offset_start = summary_start + builder.count
+        for offset in offsets:
+            offset.write(builder)
+        summary = builder.end()
+        crc = zlib.crc32(summary)
+        crc = zlib.crc32(struct.pack("<BQQQ", Opcode.FOOTER, 8 + 8 + 4, summary_start, offset_start),
+                         crc)
+        stream.write(summary)
+        stream.write(_record(Footer(summary_start=summary_start, summary_offset_start=offset_start,
+                                    summary_crc=crc).write))
+        stream.write(MCAP0_MAGIC)
+        self.close()
+
+    def _copy_chunk_indexes(self, builder: RecordBuilder) -> None:
+        spilled = self._chunk_indexes
+        spilled.seek(0)
+        while block := spilled.read(1 << 20):
+            builder.write(block)
+        spilled.seek(0, 2)
+
+    def close(self) -> None:
+        """Drop the spilled chunk indexes (``finish`` does; a writer given up calls it alone)."""
+        self._chunk_indexes.close()
