@@ -133,3 +133,32 @@ def test_a_restarted_sims_first_period_is_written_though_its_bytes_repeat(tmp_pa
     dec = recording.decode_vessel(recording.open_paths([tmp_path]), V, [keys.SIM_CLOCK.suffix])
     assert [m.stamp_ns // P for m in dec.get(keys.SIM_CLOCK.suffix)] == [0, 1, 2, 0, 1]
     assert writer.time.episode == 1
+
+
+def test_each_answer_is_decoded_once_and_every_period_answered(tmp_path: Path, monkeypatch) -> None:
+    """The witness reads a member's answer once, for itself and for the writer's type check (it
+    was decoded three times: to judge a restart, to check it, to note it)."""
+    from seaway.contract.messages import PeriodDone
+
+    decoded: list[bytes] = []
+    real = PeriodDone.decode.__func__  # type: ignore[attr-defined]
+
+    def counting(cls: type[PeriodDone], payload: bytes) -> PeriodDone:
+        decoded.append(bytes(payload))
+        return real(cls, payload)
+
+    hub = MemoryHub()
+    writer, drain = recorder(hub, tmp_path)
+    answered: list[Period] = []
+    hub.bus(V).subscribe_raw(keys.LOCKSTEP_RECORDER.key(V), lambda s: answered.append(
+        Period.of(real(PeriodDone, s.payload.split(b"\n", 1)[0]))))
+    sim = Member(hub.bus(V), "sim", watched=(), subscribe=False)
+    monkeypatch.setattr(PeriodDone, "decode", classmethod(counting))
+    for k in range(6):
+        sim.answer(Period(0, k * P), P, [(keys.SIM_CLOCK, clock(k * P))], members=["recorder"])
+        drain()
+    monkeypatch.undo()
+    writer.close()
+    sim_answers = [d for d in decoded if b'"service":"sim"' in d]
+    assert len(sim_answers) == 6 and len(set(sim_answers)) == 6
+    assert answered == [Period(0, k * P) for k in range(6)]  # and each period was answered

@@ -3,8 +3,8 @@
 A lockstep recorder ends a chunk every simulated period (the sim moves on only once a period is on
 disk), some 20 messages a chunk. Through the mcap library's ``Writer`` each message was a
 ``Message`` dataclass written field by field (a ``struct.pack`` and a buffer write per field, a
-seek back for the length) and each chunk a dozen records built the same way: about 40 % of the
-recorder's Python time in a paper #1 run (docs/results.md, 2026-11-29, night). Here the four
+seek back for the length) and each chunk a dozen records built the same way: about a quarter of
+the recorder's Python time in a paper #1 run (docs/results.md, 2026-11-29, night). Here the four
 records written per message or per chunk (Message, Chunk, MessageIndex, ChunkIndex) are each one
 ``struct.pack``, and the chunk's bytes are joined once. Everything else (header, schemas, channels,
 attachments, metadata, the summary and footer) is written by the mcap library's own record classes.

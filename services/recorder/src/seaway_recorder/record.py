@@ -218,23 +218,28 @@ class LockstepWitness:
         # are new messages, to be written again.
         self.member.on_restart = lambda _before, _now: self._recent.clear()
 
-    def heard(self, key: str, payload: bytes) -> None:
-        """A sample about to be written. A sim answer from a restarted world (another episode, or
-        time gone back) forgets the payloads remembered first: the new episode's first messages
-        repeat the old one's byte for byte, and come in its bundle before the answer that would
-        tell the ledger (a sim killed at 12 s restarted without its t_0 in the recording)."""
-        if key != self.sim_key:
-            return
+    def heard(self, key: str, payload: bytes) -> PeriodDone | None:
+        """The last sample a bus sample stands for (``RecordingWriter.unpack``: a bundle's answer),
+        about to be written after the rest: the answer decoded if it is another member's (None: it
+        is not, or it is malformed, which is logged and then written as malformed), so that neither
+        the writer nor ``written`` decodes it again. A sim answer from a restarted world (another
+        episode, or time gone back) forgets the payloads remembered first: the new episode's first
+        messages repeat the old one's byte for byte, and come in its bundle before the answer that
+        would tell the ledger (a sim killed at 12 s restarted without its t_0 in the recording)."""
+        if key not in self.answer_keys:
+            return None
         try:
-            answer = PeriodDone.decode(bundle.answer_of(payload))
-        except MessageError:
-            return  # written as malformed; no answer to judge
-        if answer.resent:
-            return
-        with self.member.changed:
-            current = self.member.ledger.period
-        if classify(current, Period.of(answer)) == "restart":
-            self._recent.clear()
+            answer = PeriodDone.decode(payload)
+        except MessageError as err:
+            self.member.ratelog.warning(("malformed answer", key),
+                                        "lockstep answer on %s ignored: %s", key, err)
+            return None
+        if key == self.sim_key and not answer.resent:
+            with self.member.changed:
+                current = self.member.ledger.period
+            if classify(current, Period.of(answer)) == "restart":
+                self._recent.clear()
+        return answer
 
     def admit(self, key: str, payload: bytes) -> bool:
         """Whether to write this sample: not when it repeats bytes just written on its key."""
@@ -250,17 +255,11 @@ class LockstepWitness:
         known.add(payload)
         return True
 
-    def written(self, batch: list[tuple[str, bytes]]) -> None:
+    def written(self, answers: list[tuple[str, PeriodDone]]) -> None:
         """Note the answers just written (or skipped as repeats of what was), after what they list."""
-        for key, payload in batch:
-            if key in self.answer_keys:
-                try:
-                    ans = PeriodDone.decode(payload)
-                    if not ans.resent:  # a copy of an earlier one: its messages are written, no news
-                        self.member.on_answer(key, ans)
-                except MessageError as err:
-                    self.member.ratelog.warning(("malformed answer", key),
-                                                "lockstep answer on %s ignored: %s", key, err)
+        for key, answer in answers:
+            if not answer.resent:  # a copy of an earlier one: its messages are written, no news
+                self.member.on_answer(key, answer)
 
     def lacking(self) -> bool:
         """Whether the writer must wake for every sample, not only for answers: before the first
@@ -437,22 +436,26 @@ def _drain(writer: RecordingWriter, queue: SampleQueue, limit: int | None,
     ``kept`` keeps); in lockstep, answer a period once it is on disk."""
     n = 0
     items = queue.items
-    batch: list[tuple[str, bytes]] = []
+    answers: list[tuple[str, PeriodDone]] = []
     while items and (limit is None or n < limit):
         sample_key, sample, sample_encoding, t_ns = items.popleft()
         n += 1
         copy = sample_encoding == bundle.ENCODING and bundle.is_resent(sample)
-        if witness is not None:
-            witness.heard(sample_key, sample)
-        for key, payload, encoding in writer.unpack(sample_key, sample, sample_encoding, t_ns):
+        samples = writer.unpack(sample_key, sample, sample_encoding, t_ns)
+        answer = None  # the answer comes last, on the bundle's own key
+        if witness is not None and samples and samples[-1][0] == sample_key:
+            answer = witness.heard(sample_key, samples[-1][1])
+        for key, payload, encoding in samples:
             if key != sample_key and kept is not None and not kept(key):
                 continue  # a bundle's message on a key this recording leaves out
-            batch.append((key, payload))  # a repeat not written again is on disk all the same
+            decoded = answer if key == sample_key else None
+            if decoded is not None:
+                answers.append((key, decoded))  # a repeat not written again is on disk all the same
             if witness is not None and not witness.admit(key, payload):
                 continue
-            writer.write(key, payload, encoding, t_ns, copy)
+            writer.write(key, payload, encoding, t_ns, copy, decoded=decoded)
     if witness is not None:
-        witness.written(batch)
+        witness.written(answers)
         witness.maybe_answer(writer)
         # Before the loop clears ``arrived`` and drains again, so no sample is left unwoken for.
         queue.wake_on_any = witness.lacking()

@@ -26,6 +26,7 @@ from __future__ import annotations
 import bisect
 import collections
 import datetime as dt
+import functools
 import re
 
 from seaway.contract import keys
@@ -59,7 +60,9 @@ def stamp_of(payload: bytes) -> int | None:
     return int(m.group(1)) if m is not None else None
 
 
+@functools.lru_cache(maxsize=1024)
 def _sim_produced(key: str) -> bool:
+    """Whether the sim publishes on ``key`` (asked of every sample a lockstep recorder writes)."""
     spec = keys.spec_for_key(key)
     return spec is not None and (spec.producer == "sim" or "sim" in spec.also)
 

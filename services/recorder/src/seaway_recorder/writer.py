@@ -187,6 +187,8 @@ class RecordingWriter:
         self._file_index = 0
         self._file_opened_ns = 0
         self._channel_specs: dict[str, schemas.ChannelSpec] = {}
+        self._derives: dict[str, bool] = {}
+        """Per key: whether ``FoxgloveDeriver`` derives channels from it (``SOURCES``)."""
         self._ratelog = RateLimitedLog(log)  # a flood of malformed samples: counted, not echoed
         self._events_spec = schemas.events_channel()
 
@@ -272,14 +274,19 @@ class RecordingWriter:
         self.stats.by_topic[spec.topic] += 1
 
     def write(self, key: str, payload: bytes, encoding: str, receive_ns: int,
-              copy: bool = False) -> bool:
+              copy: bool = False, decoded: Any = None) -> bool:
         """Record one sample received at ``receive_ns`` (wall clock; the publish time); returns
         False if it was malformed (kept on the error channel). ``copy``: from a lockstep bundle sent
-        again (``RecordingTime.bus``)."""
+        again (``RecordingTime.bus``). ``decoded``: ``payload`` already decoded as its key's type
+        by the caller (a lockstep answer the recorder's witness read), not decoded again."""
         spec = self._spec(key, encoding)
         self.stats.bytes += len(payload)
-        msg: Any = None
-        if spec.message_type is not None and (self.validate or self._wants_decode(key)):
+        msg: Any = decoded
+        derives = self._derives.get(key)
+        if derives is None:
+            derives = self._derives[key] = (self._deriver is not None and
+                                            key.split("/", 2)[-1] in self._derived_sources)
+        if msg is None and spec.message_type is not None and (self.validate or derives):
             try:
                 msg = spec.message_type.decode(payload)
             except MessageError as err:
@@ -296,7 +303,8 @@ class RecordingWriter:
         self.stats.messages += 1
         if self.time.new_episodes:
             self._write_episodes()
-        if msg is not None and self._deriver is not None:
+        if derives and msg is not None:
+            assert self._deriver is not None
             for d in self._deriver.feed(key, msg):
                 self._put(derive.channel_spec(d), d.payload(), log_ns, receive_ns)
                 self.stats.derived += 1
@@ -345,9 +353,6 @@ class RecordingWriter:
         self._put(self._events_spec, line.rstrip(b"\n"), self.time.wall(t_ns), t_ns)
         self.stats.events += 1
         return True
-
-    def _wants_decode(self, key: str) -> bool:
-        return self._deriver is not None and key.split("/", 2)[-1] in self._derived_sources
 
     def _put_malformed(self, key: str, schema: str, error: str, encoding: str, payload: bytes,
                        log_time_ns: int, publish_time_ns: int) -> None:
