@@ -112,11 +112,6 @@ class McapWriter:
                                  message_start_time=0, metadata_count=0, schema_count=0)
         self._counts = self._stats.channel_message_counts
 
-    @property
-    def chunk_indexes(self) -> int:
-        """Chunks written so far (their indexes wait on disk for the summary)."""
-        return self._stats.chunk_count
-
     def start(self, profile: str = "", library: str = "") -> None:
         self._stream.write(MCAP0_MAGIC)
         self._stream.write(_record(Header(profile, library).write))
@@ -235,33 +230,28 @@ class McapWriter:
 
     def finish(self) -> None:
         """End the last chunk and write the data end, the summary (schemas, channels, statistics,
-        chunk, attachment and metadata indexes, summary offsets) and the footer."""
+        chunk, attachment and metadata indexes, each group with its summary offset) and the footer."""
         self._end_chunk()
         stream = self._stream
         stream.write(_record(DataEnd(0).write))
         summary_start = stream.tell()
-        builder = RecordBuilder()
-        offsets: list[SummaryOffset] = []
-
-        def group(opcode: Opcode, write: Callable[[], None]) -> None:
-            begin = builder.count
-            write()
-            offsets.append(SummaryOffset(group_opcode=opcode, group_start=summary_start + begin,
-                                         group_length=builder.count - begin))
-
-        def records(items: list) -> Callable[[], None]:
-            return lambda: [item.write(builder) for item in items]
-
-        group(Opcode.SCHEMA, records(list(self._schemas.values())))
-        group(Opcode.CHANNEL, records(list(self._channels.values())))
-        group(Opcode.STATISTICS, records([self._stats]))
-        group(Opcode.CHUNK_INDEX, lambda: self._copy_chunk_indexes(builder))
-        group(Opcode.ATTACHMENT_INDEX, records(self._attachment_indexes))
-        group(Opcode.METADATA_INDEX, records(self._metadata_indexes))
-        offset_start = summary_start + builder.count
-        for offset in offsets:
-            offset.write(builder)
-        summary = builder.end()
+        self._chunk_indexes.seek(0)
+        groups = [
+            (Opcode.SCHEMA, b"".join(_record(r.write) for r in self._schemas.values())),
+            (Opcode.CHANNEL, b"".join(_record(r.write) for r in self._channels.values())),
+            (Opcode.STATISTICS, _record(self._stats.write)),
+            (Opcode.CHUNK_INDEX, self._chunk_indexes.read()),
+            (Opcode.ATTACHMENT_INDEX, b"".join(_record(r.write) for r in self._attachment_indexes)),
+            (Opcode.METADATA_INDEX, b"".join(_record(r.write) for r in self._metadata_indexes)),
+        ]
+        summary = bytearray()
+        offsets = []
+        for opcode, data in groups:
+            offsets.append(SummaryOffset(group_opcode=opcode, group_start=summary_start + len(summary),
+                                         group_length=len(data)))
+            summary += data
+        offset_start = summary_start + len(summary)
+        summary += b"".join(_record(o.write) for o in offsets)
         crc = zlib.crc32(summary)
         crc = zlib.crc32(struct.pack("<BQQQ", Opcode.FOOTER, 8 + 8 + 4, summary_start, offset_start),
                          crc)
@@ -270,13 +260,6 @@ class McapWriter:
                                     summary_crc=crc).write))
         stream.write(MCAP0_MAGIC)
         self.close()
-
-    def _copy_chunk_indexes(self, builder: RecordBuilder) -> None:
-        spilled = self._chunk_indexes
-        spilled.seek(0)
-        while block := spilled.read(1 << 20):
-            builder.write(block)
-        spilled.seek(0, 2)
 
     def close(self) -> None:
         """Drop the spilled chunk indexes (``finish`` does; a writer given up calls it alone)."""
