@@ -141,7 +141,7 @@ def test_the_chunk_scan_yields_what_the_mcap_reader_yields(tmp_path: Path, compr
                 reader.iter_messages(topics=wanted, log_time_order=False)]
         summary = reader.get_summary()
         assert summary is not None and len(summary.chunk_indexes) > 10
-        got = list(recording._file_messages(fh, reader, wanted or {a, b}))
+        got = list(recording._file_messages(fh, recording.read_summary(fh), wanted or {a, b}))
     assert got == want
     assert len(got) == (240 if topics is None else sum(1 for r in records if r[0] == a))
 
@@ -163,3 +163,55 @@ def test_a_damaged_chunk_is_named_with_the_way_to_repair_it(tmp_path: Path) -> N
                        match=rf"recording.mcap: the chunk at byte {chunk.chunk_start_offset} is "
                              r"damaged .*seaway record recover"):
         recording.decode_vessel([path], "vessel1", [ORIGIN.suffix])
+
+
+def _fields(record: object) -> dict:
+    return dict(vars(record))
+
+
+@pytest.mark.parametrize("chunk_size", [0, 300, 1 << 20])
+def test_the_summary_is_the_mcap_readers(tmp_path: Path, chunk_size: int) -> None:
+    """``read_summary`` (chunk indexes by ``struct``) gives what the reader's ``get_summary`` gives:
+    every schema, channel, statistic, chunk index, attachment and metadata index, field by field."""
+    import random
+
+    from mcap.reader import make_reader
+
+    rng = random.Random(chunk_size)
+    path = tmp_path / "r.mcap"
+    with open(path, "wb") as fh:
+        w = Writer(fh, chunk_size=chunk_size)
+        w.start()
+        schemas = [w.register_schema(f"s{i}", "jsonschema", rng.randbytes(40)) for i in range(3)]
+        topics = [w.register_channel(f"seaway/v/t{i}", "json", rng.choice(schemas), {"i": str(i)})
+                  for i in range(12)]
+        for k in range(2_000):
+            w.add_message(rng.choice(topics), log_time=k * 1000 + rng.randint(0, 5000),
+                          data=rng.randbytes(rng.randint(1, 120)), publish_time=k, sequence=k)
+            if k % 500 == 0:
+                w.add_attachment(k, k, f"a{k}.toml", "application/toml", rng.randbytes(64))
+                w.add_metadata(f"m{k}", {"k": str(k)})
+        w.finish()
+    with open(path, "rb") as fh:
+        theirs = make_reader(fh).get_summary()
+        ours = recording.read_summary(fh)
+    assert theirs is not None and ours is not None
+    assert len(ours.chunk_indexes) == len(theirs.chunk_indexes) > (10 if chunk_size < 1000 else 0)
+    assert [_fields(c) for c in ours.chunk_indexes] == [_fields(c) for c in theirs.chunk_indexes]
+    assert _fields(ours.statistics) == _fields(theirs.statistics)
+    for name in ("schemas", "channels"):
+        mine, lib = getattr(ours, name), getattr(theirs, name)
+        assert {k: _fields(v) for k, v in mine.items()} == {k: _fields(v) for k, v in lib.items()}
+    for name in ("attachment_indexes", "metadata_indexes"):
+        assert [_fields(r) for r in getattr(ours, name)] == [_fields(r) for r in getattr(theirs, name)]
+    info = recording.read_info([path])  # attachments and metadata through those indexes
+    assert sorted(info.attachments) == [f"a{k}.toml" for k in (0, 1000, 1500, 500)]
+    assert info.metadata["m1500"] == {"k": "1500"}
+
+
+def test_a_file_without_a_footer_is_refused_by_name(tmp_path: Path) -> None:
+    path = tmp_path / "cut.mcap"
+    write(path, [(ORIGIN.key("v1"), k, origin(k, 0.1)) for k in range(50)])
+    path.write_bytes(path.read_bytes()[:-40])
+    with open(path, "rb") as fh, pytest.raises(recording.McapError, match="footer"):
+        recording.read_summary(fh)
