@@ -270,3 +270,37 @@ def test_widening_a_stack_reaches_every_thread_of_every_process_in_it(tmp_path: 
         assert stack.cpus == everything
     finally:
         stack.stop()
+
+
+def test_the_cpu_monitor_asks_for_the_stack_s_processes_every_few_polls(monkeypatch) -> None:
+    """Which processes are under the launcher is asked every ``FIND_EVERY`` polls and at every
+    snapshot (psutil reads every process's stat on the machine for it), and a process started
+    between two askings is counted from its start."""
+    import subprocess
+    import sys
+
+    import psutil
+
+    asked = []
+    real = psutil.Process.children
+    monkeypatch.setattr(psutil.Process, "children",
+                        lambda self, recursive=False: asked.append(1) or real(self, recursive=recursive))
+    mon = ex.CpuMonitor(os.getpid(), interval_s=10.0)
+    for _ in range(2 * ex.CpuMonitor.FIND_EVERY):
+        mon._poll()
+    assert len(asked) == 2
+    child = subprocess.Popen([sys.executable, "-c",
+                              "import time\nt = time.process_time()\n"
+                              "while time.process_time() - t < 0.3: pass\ntime.sleep(30)"])
+    try:
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline:
+            got = mon.snapshot()
+            burnt = sum(v for k, v in got.items() if k != "launch")
+            if burnt >= 0.25:
+                break
+            time.sleep(0.1)
+        assert burnt >= 0.25, got
+    finally:
+        child.kill()
+        child.wait()
