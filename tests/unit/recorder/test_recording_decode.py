@@ -215,3 +215,40 @@ def test_a_file_without_a_footer_is_refused_by_name(tmp_path: Path) -> None:
     path.write_bytes(path.read_bytes()[:-40])
     with open(path, "rb") as fh, pytest.raises(recording.McapError, match="footer"):
         recording.read_summary(fh)
+
+
+def test_a_report_reads_each_summary_once(tmp_path: Path, monkeypatch) -> None:
+    from seaway_recorder import report
+
+    path = tmp_path / "r.mcap"
+    write(path, [(ORIGIN.key("vessel1"), k, origin(k, 0.1)) for k in range(50)])
+    read = []
+    real = recording.read_summary
+    monkeypatch.setattr(recording, "read_summary", lambda fh: read.append(1) or real(fh))
+    info, dec = report.read_for_report([path], "vessel1")
+    assert len(read) == 1 and len(dec.get(ORIGIN.suffix)) == 50 and info.message_count == 50
+
+
+def test_a_damaged_summary_is_named_with_the_way_to_repair_it(tmp_path: Path) -> None:
+    """A summary record cut short (its schema's, then a chunk index's): the file is named, and how
+    to repair it; nothing else escapes."""
+    import struct
+
+    path = tmp_path / "recording.mcap"
+    write(path, [(ORIGIN.key("vessel1"), k, origin(k, 0.1)) for k in range(50)])
+    whole = path.read_bytes()
+    _, _, summary_start, _, _ = struct.unpack_from("<BQQQI", whole, len(whole) - 8 - 29)
+    schema_at = summary_start  # the summary's first record: the repeated schema
+    op, length = struct.unpack_from("<BQ", whole, schema_at)
+    index_at = schema_at + 9 + length
+    while whole[index_at] != 0x08:  # on to the first chunk index
+        index_at += 9 + struct.unpack_from("<Q", whole, index_at + 1)[0]
+    for at in (schema_at, index_at):
+        data = bytearray(whole)
+        data[at + 1:at + 9] = (3).to_bytes(8, "little")  # its record now 3 bytes long
+        path.write_bytes(bytes(data))
+        with pytest.raises(recording.UnreadableRecordingError,
+                           match=r"recording.mcap: cannot read its summary .*seaway record recover"):
+            recording.read_info([path])
+        with pytest.raises(recording.UnreadableRecordingError, match="seaway record recover"):
+            recording.decode_vessel([path], "vessel1", [ORIGIN.suffix])

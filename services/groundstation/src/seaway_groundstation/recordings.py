@@ -35,6 +35,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
+from mcap.writer import MCAP0_MAGIC as MCAP_MAGIC  # an upload must start with it
 from pydantic import BaseModel, Field
 from seaway.contract import keys
 from seaway.contract.messages import MessageError, MissionAccepted, MissionRequest
@@ -46,7 +47,6 @@ from seaway_groundstation.geo import GeoFrameView, MissionPlanView
 
 log = logging.getLogger("seaway_groundstation.recordings")
 
-MCAP_MAGIC = b"\x89MCAP0\r\n"
 UPLOAD_PREFIX = "upload:"
 MAX_LISTED = 500
 """Recordings listed at most (the newest first)."""
@@ -332,7 +332,8 @@ class Library:
         origins: dict[str, GeoOrigin | None] = {}
         accepted: list[tuple[str, MissionAccepted]] = []  # (vessel, acceptance), as recorded
         for v in vessels:
-            dec = recording.decode_vessel(readable, v, [*suffix_kind, keys.MISSION_ACCEPTED.suffix])
+            dec = recording.decode_vessel(readable, v, [*suffix_kind, keys.MISSION_ACCEPTED.suffix],
+                                          info.summaries)
             accepted += [(v, m) for m in dec.get(keys.MISSION_ACCEPTED.suffix)
                          if isinstance(m, MissionAccepted)]
             if dec.undecodable:

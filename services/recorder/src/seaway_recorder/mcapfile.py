@@ -45,19 +45,31 @@ from mcap.records import (
     Statistics,
     SummaryOffset,
 )
-from mcap.writer import MCAP0_MAGIC
+from mcap.writer import MCAP0_MAGIC as MAGIC
 
 COMPRESSIONS = ("zstd", "lz4", "none")
 """Chunk compressions: the names of the MCAP spec ("" in the file for none)."""
 
-_MESSAGE = struct.Struct("<BQHIQQ")
-"""Opcode, record length, channel id, sequence, log time, publish time; the data follows."""
-_MESSAGE_FIELDS = 2 + 4 + 8 + 8
-_CHUNK_HEAD = struct.Struct("<BQQQQII")
-"""Opcode, record length, start and end time, uncompressed size, uncompressed CRC, the compression
-name's length; the name, the data's length (8 bytes) and the data follow."""
-_U64 = struct.Struct("<Q")
-_RECORD_HEAD = struct.Struct("<BQ")
+# MCAP's record layouts (mcap.dev/spec), the one place this package spells them: written here,
+# read fast by ``recording`` (a chunk's messages, the summary's chunk indexes).
+RECORD_HEAD = struct.Struct("<BQ")
+"""Every record: its opcode and the length of what follows."""
+MESSAGE_HEAD = struct.Struct("<HIQQ")
+"""A Message after its record head: channel id, sequence, log time, publish time; the data follows."""
+CHUNK_HEAD = struct.Struct("<QQQI")
+"""A Chunk after its record head: start and end time, uncompressed size, uncompressed CRC; then the
+compression's name (length-prefixed), the records' length (8 bytes) and the records."""
+CHUNK_INDEX_HEAD = struct.Struct("<QQQQI")
+"""A Chunk Index after its record head: start and end time, the chunk's offset and length, the
+length of its map of message index offsets (10 bytes an entry: channel id, offset)."""
+FOOTER = struct.Struct("<BQQQI")
+"""The Footer record whole: opcode, length, summary start, summary offset start, summary CRC."""
+U32, U64 = struct.Struct("<I"), struct.Struct("<Q")
+
+_MESSAGE = struct.Struct(RECORD_HEAD.format + MESSAGE_HEAD.format[1:])
+"""A Message's record head and fields in one call (the writer's hot path)."""
+_CHUNK = struct.Struct(RECORD_HEAD.format + CHUNK_HEAD.format[1:] + "I")
+"""A Chunk's record head, fields and the compression name's length in one call."""
 
 
 def check_compression(compression: str) -> str:
@@ -113,7 +125,7 @@ class McapWriter:
         self._counts = self._stats.channel_message_counts
 
     def start(self, profile: str = "", library: str = "") -> None:
-        self._stream.write(MCAP0_MAGIC)
+        self._stream.write(MAGIC)
         self._stream.write(_record(Header(profile, library).write))
 
     def register_schema(self, name: str, encoding: str, data: bytes) -> int:
@@ -148,9 +160,9 @@ class McapWriter:
         if index is None:
             index = self._index[channel_id] = []
         index += (log_time, self._length)
-        self._parts += (_MESSAGE.pack(Opcode.MESSAGE, _MESSAGE_FIELDS + len(data), channel_id,
+        self._parts += (_MESSAGE.pack(Opcode.MESSAGE, MESSAGE_HEAD.size + len(data), channel_id,
                                       sequence, log_time, publish_time), data)
-        self._length += 9 + _MESSAGE_FIELDS + len(data)
+        self._length += _MESSAGE.size + len(data)
         if self._length > self._chunk_size:
             self._end_chunk()
 
@@ -194,11 +206,11 @@ class McapWriter:
         name = self._compression.encode()
         stream = self._stream
         chunk_start = stream.tell()
-        chunk_length = 9 + 8 + 8 + 8 + 4 + 4 + len(name) + 8 + len(data)
-        stream.write(_CHUNK_HEAD.pack(Opcode.CHUNK, chunk_length - 9, start_ns, end_ns,
+        chunk_length = _CHUNK.size + len(name) + U64.size + len(data)
+        stream.write(_CHUNK.pack(Opcode.CHUNK, chunk_length - RECORD_HEAD.size, start_ns, end_ns,
                                       len(raw), zlib.crc32(raw), len(name)))
         stream.write(name)
-        stream.write(_U64.pack(len(data)))
+        stream.write(U64.pack(len(data)))
         stream.write(data)
         index_start = chunk_start + chunk_length
         offsets: list[int] = []
@@ -213,10 +225,10 @@ class McapWriter:
             indexes.append(record)
         stream.write(b"".join(indexes))
         k = len(offsets) // 2
-        body = struct.pack(f"<QQQQI{'HQ' * k}Q", start_ns, end_ns, chunk_start,
+        body = struct.pack(f"{CHUNK_INDEX_HEAD.format}{'HQ' * k}Q", start_ns, end_ns, chunk_start,
                            chunk_length, 10 * k, *offsets, at - index_start)
         tail = struct.pack(f"<I{len(name)}sQQ", len(name), name, len(data), len(raw))
-        self._chunk_indexes.write(_RECORD_HEAD.pack(Opcode.CHUNK_INDEX, len(body) + len(tail)))
+        self._chunk_indexes.write(RECORD_HEAD.pack(Opcode.CHUNK_INDEX, len(body) + len(tail)))
         self._chunk_indexes.write(body)
         self._chunk_indexes.write(tail)
         self._parts.clear()
@@ -258,7 +270,7 @@ class McapWriter:
         stream.write(summary)
         stream.write(_record(Footer(summary_start=summary_start, summary_offset_start=offset_start,
                                     summary_crc=crc).write))
-        stream.write(MCAP0_MAGIC)
+        stream.write(MAGIC)
         self.close()
 
     def close(self) -> None:

@@ -18,6 +18,7 @@ from typing import Any
 
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
+from mcap.opcode import Opcode
 from mcap.reader import make_reader
 from mcap.records import (
     Attachment,
@@ -30,10 +31,20 @@ from mcap.records import (
     Statistics,
 )
 from mcap.summary import Summary
+from mcap.writer import MCAP0_MAGIC as MAGIC
 from seaway.contract import keys
 from seaway.contract.keys import KeySpec
 from seaway.contract.messages import Message, MessageError
 
+from seaway_recorder.mcapfile import (
+    CHUNK_HEAD,
+    CHUNK_INDEX_HEAD,
+    FOOTER,
+    MESSAGE_HEAD,
+    RECORD_HEAD,
+    U32,
+    U64,
+)
 from seaway_recorder.recover import RECOVER_METADATA, recover
 
 
@@ -60,9 +71,12 @@ class RecordingInfo:
     topics: dict[str, int] = field(default_factory=dict)
     recovered: dict[str, dict[str, str]] = field(default_factory=dict)
     """Per repaired copy read (its path): its ``seaway.recover`` metadata (source, reason, ...)."""
+    summaries: dict[Path, Summary] = field(default_factory=dict, repr=False)
+    """Each file's summary as read here, for ``decode_vessel`` not to read it again."""
 
 
-MCAP_MAGIC = b"\x89MCAP0\r\n"
+MCAP_MAGIC = MAGIC
+"""The bytes an MCAP file starts and ends with (the mcap library's)."""
 
 
 def finished(path: Path) -> bool:
@@ -144,14 +158,10 @@ def repaired(info: RecordingInfo) -> list[str]:
     return lines
 
 
-_FOOTER = struct.Struct("<BQQQI")
-"""The footer record: opcode, length, summary start, summary offset start, summary CRC."""
-_CHUNK_INDEX = struct.Struct("<QQQQI")
-"""A chunk index's first fields: start and end time, the chunk's offset and length, and the
-length of its map of message index offsets (10 bytes an entry: channel id, offset)."""
-_OP_FOOTER, _OP_CHUNK_INDEX = 0x02, 0x08
-_SUMMARY_RECORDS: dict[int, Any] = {0x03: Schema, 0x04: Channel, 0x0B: Statistics,
-                                     0x0A: AttachmentIndex, 0x0D: MetadataIndex}
+_SUMMARY_RECORDS: dict[int, Any] = {Opcode.SCHEMA: Schema, Opcode.CHANNEL: Channel,
+                                     Opcode.STATISTICS: Statistics,
+                                     Opcode.ATTACHMENT_INDEX: AttachmentIndex,
+                                     Opcode.METADATA_INDEX: MetadataIndex}
 """The summary's other records, read by the mcap library's own record classes."""
 
 
@@ -166,12 +176,12 @@ def read_summary(fh: Any) -> Summary | None:
     read by the library's classes. The layout is MCAP's (mcap.dev/spec: Footer, Chunk Index)."""
     fh.seek(0, 2)
     size = fh.tell()
-    tail = _FOOTER.size + len(MCAP_MAGIC)
+    tail = FOOTER.size + len(MCAP_MAGIC)
     if size < tail + len(MCAP_MAGIC):
         raise McapError("too short to have a footer")
     fh.seek(size - tail)
-    op, _, summary_start, _, _ = _FOOTER.unpack(fh.read(_FOOTER.size))
-    if op != _OP_FOOTER:
+    op, _, summary_start, _, _ = FOOTER.unpack(fh.read(FOOTER.size))
+    if op != Opcode.FOOTER:
         raise McapError(f"expected a footer at byte {size - tail}, found opcode {op:#x}")
     if summary_start == 0:
         return None
@@ -181,10 +191,10 @@ def read_summary(fh: Any) -> Summary | None:
     pos = 0
     try:
         while pos < len(data):
-            op, length = _RECORD.unpack_from(data, pos)
-            body, pos = pos + _RECORD.size, pos + _RECORD.size + length
-            if op == _OP_CHUNK_INDEX:
-                summary.chunk_indexes.append(_chunk_index(data, body))
+            op, length = RECORD_HEAD.unpack_from(data, pos)
+            body, pos = pos + RECORD_HEAD.size, pos + RECORD_HEAD.size + length
+            if op == Opcode.CHUNK_INDEX:
+                summary.chunk_indexes.append(_chunk_index(data, body, pos))
             elif (kind := _SUMMARY_RECORDS.get(op)) is not None:
                 record = kind.read(ReadDataStream(io.BytesIO(data[body:pos])))
                 if kind is Statistics:
@@ -203,15 +213,21 @@ def read_summary(fh: Any) -> Summary | None:
     return summary
 
 
-def _chunk_index(data: bytes, pos: int) -> ChunkIndex:
-    start_ns, end_ns, offset, length, map_len = _CHUNK_INDEX.unpack_from(data, pos)
-    pos += _CHUNK_INDEX.size
+def _chunk_index(data: bytes, pos: int, end: int) -> ChunkIndex:
+    """The chunk index whose fields are ``data[pos:end]``; McapError if they do not fill it."""
+    start_ns, end_ns, offset, length, map_len = CHUNK_INDEX_HEAD.unpack_from(data, pos)
+    if map_len % 10:
+        raise McapError(f"a chunk index's map of {map_len} bytes is not whole entries of 10")
+    pos += CHUNK_INDEX_HEAD.size
     pairs = struct.unpack_from("<" + "HQ" * (map_len // 10), data, pos)
     pos += map_len
-    (index_len,) = _U64.unpack_from(data, pos)
-    (n,) = _U32.unpack_from(data, pos + 8)
+    (index_len,) = U64.unpack_from(data, pos)
+    (n,) = U32.unpack_from(data, pos + 8)
     compression = data[pos + 12:pos + 12 + n].decode()
     compressed, uncompressed = struct.unpack_from("<QQ", data, pos + 12 + n)
+    if pos + 12 + n + 16 != end:
+        raise McapError(f"a chunk index's fields end at {pos + 12 + n + 16 - end:+d} bytes from "
+                        f"its record's end")
     return ChunkIndex(chunk_length=length, chunk_start_offset=offset, compression=compression,
                       compressed_size=compressed, message_end_time=end_ns,
                       message_index_length=index_len,
@@ -222,7 +238,7 @@ def _chunk_index(data: bytes, pos: int) -> ChunkIndex:
 def _indexed_record(fh: Any, offset: int, length: int, kind: Any) -> Any:
     """The Attachment or Metadata record an index points at, read by the library's class."""
     fh.seek(offset)
-    return kind.read(ReadDataStream(io.BytesIO(fh.read(length)[_RECORD.size:])))
+    return kind.read(ReadDataStream(io.BytesIO(fh.read(length)[RECORD_HEAD.size:])))
 
 
 def read_info(files: list[Path]) -> RecordingInfo:
@@ -237,6 +253,7 @@ def read_info(files: list[Path]) -> RecordingInfo:
                                           f"{err}); {RECOVER_HINT}") from None
             if summary is None or summary.statistics is None:
                 raise UnreadableRecordingError(f"{f}: no summary (not finished?); {RECOVER_HINT}")
+            info.summaries[f] = summary
             for ai in summary.attachment_indexes:
                 a = _indexed_record(fh, ai.offset, ai.length, Attachment)
                 info.attachments.setdefault(a.name, bytes(a.data))
@@ -320,16 +337,6 @@ def _wanted_topics(summary: Summary | None, wanted: set[str] | None, vessels: se
     return out
 
 
-_RECORD = struct.Struct("<BQ")
-"""An MCAP record's opcode and content length."""
-_CHUNK = struct.Struct("<QQQI")
-"""A chunk's first fields: message start and end time, uncompressed size, uncompressed CRC."""
-_MESSAGE = struct.Struct("<HIQQ")
-"""A message's first fields: channel id, sequence, log time, publish time; its data follows."""
-_U32, _U64 = struct.Struct("<I"), struct.Struct("<Q")
-_OP_MESSAGE, _OP_CHUNK = 0x05, 0x06
-
-
 _local = threading.local()
 
 
@@ -383,26 +390,26 @@ def _chunk_records(fh: Any, ci: ChunkIndex, channel_ids: set[int]) -> list[tuple
     """One chunk's messages on ``channel_ids`` (``chunked_messages``)."""
     fh.seek(ci.chunk_start_offset)
     rec = fh.read(ci.chunk_length)
-    op, _ = _RECORD.unpack_from(rec, 0)
-    if op != _OP_CHUNK:
+    op, _ = RECORD_HEAD.unpack_from(rec, 0)
+    if op != Opcode.CHUNK:
         raise McapError(f"opcode {op:#x}, not a chunk's")
-    _, _, size, _ = _CHUNK.unpack_from(rec, _RECORD.size)
-    pos = _RECORD.size + _CHUNK.size
-    (n,) = _U32.unpack_from(rec, pos)
+    _, _, size, _ = CHUNK_HEAD.unpack_from(rec, RECORD_HEAD.size)
+    pos = RECORD_HEAD.size + CHUNK_HEAD.size
+    (n,) = U32.unpack_from(rec, pos)
     compression = rec[pos + 4:pos + 4 + n].decode()
     pos += 4 + n
-    (records_len,) = _U64.unpack_from(rec, pos)
+    (records_len,) = U64.unpack_from(rec, pos)
     data = _decompress(compression, rec[pos + 8:pos + 8 + records_len], size)
     out = []
     pos, end = 0, len(data)
     while pos < end:
-        op, length = _RECORD.unpack_from(data, pos)
-        body = pos + _RECORD.size
+        op, length = RECORD_HEAD.unpack_from(data, pos)
+        body = pos + RECORD_HEAD.size
         pos = body + length
-        if op == _OP_MESSAGE:
-            cid, _, log_ns, _ = _MESSAGE.unpack_from(data, body)
+        if op == Opcode.MESSAGE:
+            cid, _, log_ns, _ = MESSAGE_HEAD.unpack_from(data, body)
             if cid in channel_ids:
-                out.append((cid, log_ns, data[body + _MESSAGE.size:pos]))
+                out.append((cid, log_ns, data[body + MESSAGE_HEAD.size:pos]))
     return out
 
 
@@ -425,9 +432,11 @@ def _file_messages(fh: Any, summary: Summary | None, topics: set[str] | None
 
 
 def decode_vessel(files: list[Path], vessel: str | None = None,
-                  suffixes: Iterable[str] | None = None) -> Decoded:
+                  suffixes: Iterable[str] | None = None,
+                  summaries: dict[Path, Summary] | None = None) -> Decoded:
     """Decode the registered topics of one vessel (the only one, or the one named), all of them or
-    only those whose key ends in one of ``suffixes`` (``sim/truth``).
+    only those whose key ends in one of ``suffixes`` (``sim/truth``). ``summaries``: the files'
+    summaries already read (``RecordingInfo.summaries``); the others are read here.
 
     Each file is read in file order and only for the topics wanted (the chunks' index says where
     they are), then each key's messages are put in log-time order: a stable sort, so messages logged
@@ -442,7 +451,7 @@ def decode_vessel(files: list[Path], vessel: str | None = None,
     for path in files:
         with open(path, "rb") as fh:
             try:
-                summary = read_summary(fh)
+                summary = (summaries or {}).get(path) or read_summary(fh)
             except McapError as err:
                 raise UnreadableRecordingError(f"{path}: cannot read its summary ({err}); "
                                                f"{RECOVER_HINT}") from None

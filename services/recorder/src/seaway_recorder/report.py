@@ -95,7 +95,8 @@ Read = tuple[recording.RecordingInfo, recording.Decoded]
 
 def read_for_report(files: list[Path], vessel: str | None = None) -> Read:
     """What ``analyse`` reads of ``files``: one decode, for as many episodes as are reported."""
-    return recording.read_info(files), recording.decode_vessel(files, vessel, REPORT_TOPICS)
+    info = recording.read_info(files)
+    return info, recording.decode_vessel(files, vessel, REPORT_TOPICS, info.summaries)
 
 
 def mission_episodes(dec: recording.Decoded, mission_id: str) -> list[int]:
