@@ -239,7 +239,7 @@ def test_a_damaged_summary_is_named_with_the_way_to_repair_it(tmp_path: Path) ->
     whole = path.read_bytes()
     _, _, summary_start, _, _ = struct.unpack_from("<BQQQI", whole, len(whole) - 8 - 29)
     schema_at = summary_start  # the summary's first record: the repeated schema
-    op, length = struct.unpack_from("<BQ", whole, schema_at)
+    _, length = struct.unpack_from("<BQ", whole, schema_at)
     index_at = schema_at + 9 + length
     while whole[index_at] != 0x08:  # on to the first chunk index
         index_at += 9 + struct.unpack_from("<Q", whole, index_at + 1)[0]
