@@ -55,8 +55,7 @@ import logging
 import threading
 import time
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any, Literal, NamedTuple
 
 from seaway.contract import bundle, keys
 from seaway.contract.messages import LOCKSTEP_SERVICES, Message, MessageError, PeriodDone
@@ -105,9 +104,11 @@ repeats its answer, in case a newcomer's subscriptions reached the bus after the
 Change = Literal["first", "next", "repeat", "restart", "stale"]
 
 
-@dataclass(frozen=True, order=True)
-class Period:
-    """(episode, t_k [ns]): the identity of one lockstep period."""
+class Period(NamedTuple):
+    """(episode, t_k [ns]): the identity of one lockstep period.
+
+    A named tuple, not a frozen dataclass: every member makes and compares several a period (one is
+    made in 0.35 us against 0.58, compared in 0.05 against 0.18, here)."""
 
     episode: int
     stamp_ns: int
@@ -311,8 +312,8 @@ class Member:
         self._seq = itertools.count(time.time_ns() if seq_start is None else seq_start)
         self._key = keys.lockstep_spec(service).key(bus.vessel)
         self._pub = bus.raw_publisher(self._key, bundle.ENCODING, block=True, express=True)
-        self._kept: list[tuple[list[tuple[str, bytes]], PeriodDone]] = []
-        """(lines, answer) of every bundle sent for the last ``KEPT_PERIODS`` periods answered, in
+        self._kept: list[tuple[list[tuple[str, bytes]], PeriodDone, Period]] = []
+        """(lines, answer, its period) of every bundle sent for the last ``KEPT_PERIODS`` periods answered, in
         the order sent: what a restarted recorder may lack (``repeat``)."""
         self.on_restart: Callable[[Period | None, Period], None] | None = None
         self.on_ready: Callable[[], None] | None = None
@@ -542,20 +543,20 @@ class Member:
     def _keep(self, done: PeriodDone, lines: list[tuple[str, bytes]], again: bool) -> None:
         """Keep a bundle sent (``again``: a repeat of the last, which it stands for from now)."""
         kept = self._kept
-        if again and kept:
-            kept[-1] = (lines, done)
-            return
         period = Period.of(done)
-        if kept and not Period.of(kept[-1][1]).leads_to(period):
+        if again and kept:
+            kept[-1] = (lines, done, period)
+            return
+        if kept and not kept[-1][2].leads_to(period):
             # The world restarted (a sim restart, a scenario load): nothing kept leads here, and a
             # new t_0 would pass for the dead sim's (same episode 0, same stamp) in ``repeat``.
             kept.clear()
-        elif kept and Period.of(kept[-1][1]) != period:
-            periods = list(dict.fromkeys(Period.of(d) for _, d in kept))[-(KEPT_PERIODS - 1):]
-            kept[:] = [k for k in kept if Period.of(k[1]) in periods]
-        kept.append((lines, done))
+        elif kept and kept[-1][2] != period:
+            periods = list(dict.fromkeys(p for _, _, p in kept))[-(KEPT_PERIODS - 1):]
+            kept[:] = [k for k in kept if k[2] in periods]
+        kept.append((lines, done, period))
         if len(kept) > KEPT_BUNDLES:
-            dropped, _ = kept.pop(0)
+            dropped, _, _ = kept.pop(0)
             # Only messages are worth a warning: a bundle that is an answer alone (the recorder's,
             # which answers its first period again as each member joins) leaves nothing to miss.
             if dropped:
@@ -574,12 +575,11 @@ class Member:
         (``KEPT_PERIODS``); the others pass them over."""
         if not self._kept:
             return None
-        lines, done = self._kept[-1]
-        last = Period.of(done)
-        for old_lines, old in self._kept[:-1]:
+        lines, done, last = self._kept[-1]
+        for old_lines, old, old_period in self._kept[:-1]:
             # Only what led to this period: after a sim restart (episode 0 again) a kept bundle can
             # be of the dead sim's later periods, which a recorder would write in the new time.
-            if Period.of(old).leads_to(last):
+            if old_period.leads_to(last):
                 copy = old.model_copy(update={"seq": next(self._seq), "resent": True})
                 self._pub.put(bundle.encode(copy.encode(), old_lines))
         update: dict[str, Any] = {"seq": next(self._seq)}
