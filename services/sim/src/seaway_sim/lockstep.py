@@ -83,9 +83,12 @@ class Lockstep:
         self._applied: int | None = None  # stamp of the command applied over the last period
         # The controller's command comes in its bundle; a stand-in that is no member (a test's
         # responder) publishes it alone, on its key.
-        # The controller's and the recorder's answers move the sim on; the estimator's, sent before
-        # the controller's, is taken with them.
-        self.member = Member(app.bus, "sim", watched={keys.THRUST.suffix}, passive=("estimator",))
+        # The controller's answer moves the sim on; the estimator's, sent before it, is taken with
+        # it, and so is the recorder's for the period before, nearly always in by then (a callback
+        # and a wake-up of this loop per period saved; when it is not, the loop looks again every
+        # ``PASSIVE_POLL_S``, ``_passive_due``).
+        self.member = Member(app.bus, "sim", watched={keys.THRUST.suffix},
+                             passive=("estimator", RECORDER))
         self.member.deliver = self._on_thrust  # once ``self.member`` names it (it uses it)
         app.bus.subscribe(keys.THRUST, callback=self._on_thrust, inline=True, bundles=False)
         app.bus.watch_lockstep_members(self._on_member)
@@ -265,7 +268,7 @@ class Lockstep:
                 value = test(period)
                 joined = self._joined
                 if not value and not joined and member.version == version:
-                    member.changed.wait(PASSIVE_POLL_S if self._estimator_due(period)
+                    member.changed.wait(PASSIVE_POLL_S if self._passive_due(period)
                                         else min(self.stall_s, 0.25))
                 version = member.version
             if value:
@@ -287,12 +290,17 @@ class Lockstep:
                 stalled_since = time.monotonic()
         return None
 
-    def _estimator_due(self, period: Period) -> bool:
-        """Whether the estimator's bundle for ``period`` is due (under ``member.changed``): the
-        controller answered it, so the estimator had (its bundle comes on another connection)."""
+    def _passive_due(self, period: Period) -> bool:
+        """Whether a passive source's bundle is due (under ``member.changed``): once the controller
+        answered ``period``, the estimator had (its bundle comes on another connection), and the
+        recorder's answer to the period ``RECORDER_LAG`` before is what the next one waits for."""
         ledger = self.member.ledger
-        return (ledger.answer("controller", period) is not None
-                and "estimator" in self.members and ledger.answer("estimator", period) is None)
+        if ledger.answer("controller", period) is None:
+            return False
+        if "estimator" in self.members and ledger.answer("estimator", period) is None:
+            return True
+        back = Period(period.episode, max(0, period.stamp_ns - RECORDER_LAG * self.period_ns))
+        return RECORDER in self.members and not ledger.recorded(back)
 
     def _absent(self, period: Period) -> list[str]:
         """The members that have not answered ``period``; under ``member.changed``."""
