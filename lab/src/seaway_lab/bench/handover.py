@@ -47,13 +47,16 @@ VESSEL = "bench"
 KEY_OUT = "seaway/bench/handover/out"
 KEY_IN = "seaway/bench/handover/in"
 WARMUP = 200
-"""Messages put before the timed ones (links up, caches warm); counted as heard too."""
+"""Messages put before the timed ones, once every process hears them (caches warm)."""
+FIRST_WITHIN_S = 30.0
+"""How long the peers may take to find each other (gossip) and declare, before a bench process
+that has heard nothing is an error."""
 DRAIN_S = 0.02
 """How often a ring listener takes what its ring holds (Python wakes 50 times a second, as the
 launcher's poll; the ring holds ``RING`` meanwhile)."""
 RING = 4096
-SETTLE_S = 1.5
-"""Wait after every process is ready, for the peers to find each other (gossip) and declare."""
+GO_S = 0.2
+"""Between the go and the first timed put: every bench process has started counting."""
 
 
 def _free_port() -> int:
@@ -72,9 +75,12 @@ def _listener(conn: Connection, port: int, kind: str) -> None:
     """Hear ``KEY_OUT`` through a ring or a callback; report CPU and messages between go and stop."""
     bus = _connect(port)
     heard = [0]
-    stop = threading.Event()
+    stop, first = threading.Event(), threading.Event()
     if kind == "callback":
-        bus.subscribe_raw(KEY_OUT, lambda _s: heard.__setitem__(0, heard[0] + 1), inline=True)
+        def on_out(_s: Any) -> None:
+            heard[0] += 1
+            first.set()
+        bus.subscribe_raw(KEY_OUT, on_out, inline=True)
     else:
         ring = bus.ring_raw(KEY_OUT, RING)
 
@@ -82,8 +88,9 @@ def _listener(conn: Connection, port: int, kind: str) -> None:
             while not stop.wait(DRAIN_S):
                 while ring.take() is not None:
                     heard[0] += 1
+                    first.set()
         threading.Thread(target=drain, daemon=True).start()
-    _serve(conn, heard, stop)
+    _serve(conn, heard, first, stop)
     bus.close()
 
 
@@ -93,33 +100,40 @@ def _relay(conn: Connection, port: int, put: bool, payload_bytes: int) -> None:
     pub = bus.raw_publisher(KEY_OUT, block=True, express=True)
     payload = b"x" * payload_bytes
     heard = [0]
+    first = threading.Event()
 
     def on_in(_s: Any) -> None:
         heard[0] += 1
         if put:
             pub.put(payload)
+        first.set()
     bus.subscribe_raw(KEY_IN, on_in, inline=True)
-    _serve(conn, heard, threading.Event())
+    _serve(conn, heard, first, threading.Event())
     bus.close()
 
 
-def _serve(conn: Connection, heard: list[int], stop: threading.Event) -> None:
-    conn.send("ready")
-    conn.recv()  # go
+def _serve(conn: Connection, heard: list[int], first: threading.Event, stop: threading.Event) -> None:
+    """The bench process's side: "first" once it heard something, then its CPU and the messages it
+    heard between the parent's go and stop."""
+    if first.wait(FIRST_WITHIN_S):
+        conn.send("first")
+    conn.recv()  # go: the warm-up's last messages may still be in a ring, taken within DRAIN_S
+    time.sleep(2 * DRAIN_S)  # (the parent waits GO_S before its first timed put)
     c0, n0 = time.process_time(), heard[0]
     conn.recv()  # stop
     time.sleep(2 * DRAIN_S)  # a ring's last messages taken
     c1, n1 = time.process_time(), heard[0]
     stop.set()
-    conn.send({"cpu_s": c1 - c0, "timed": n1 - n0, "heard": n1})
+    conn.send({"cpu_s": c1 - c0, "timed": n1 - n0})
     conn.recv()  # close
 
 
 def _case(port: int, children: list[tuple[Callable[..., None], tuple[Any, ...]]], key: str,
           messages: int, interval_s: float, payload_bytes: int) -> tuple[float, list[dict[str, Any]]]:
-    """Start ``children`` (each ``fn(conn, port, *args)``), put ``WARMUP + messages`` on ``key``
-    from this process's own thread, paced; this process's CPU per timed put [s], and each child's
-    report. Raises if a child did not hear every message."""
+    """Start ``children`` (each ``fn(conn, port, *args)``); put on ``key`` from this process's own
+    thread, paced, until every child heard something, then ``WARMUP`` more and ``messages`` timed
+    ones; this process's CPU per timed put [s], and each child's report. Raises if a child heard
+    nothing, or not every timed message."""
     ctx = mp.get_context("spawn")
     links, procs = [], []
     bus = _connect(port)  # first: it holds the rendezvous
@@ -130,18 +144,21 @@ def _case(port: int, children: list[tuple[Callable[..., None], tuple[Any, ...]]]
             p.start()
             links.append(ours)
             procs.append(p)
-        for link in links:
-            if not link.poll(60.0) or link.recv() != "ready":
-                raise RuntimeError("a bench process did not start within 60 s")
         pub = bus.raw_publisher(key, block=True, express=True)
-        time.sleep(SETTLE_S)
         payload = b"x" * payload_bytes
+        waiting, deadline = set(range(len(links))), time.monotonic() + 60.0 + FIRST_WITHIN_S
+        while waiting:  # started, found each other, heard: a process may take seconds to start
+            if time.monotonic() > deadline or not all(procs[i].is_alive() for i in waiting):
+                raise RuntimeError(f"{len(waiting)} of {len(links)} bench processes heard nothing")
+            pub.put(payload)
+            time.sleep(max(interval_s, 0.005))
+            waiting = {i for i in waiting if not (links[i].poll(0) and links[i].recv() == "first")}
         for _ in range(WARMUP):
             pub.put(payload)
             time.sleep(interval_s)
         for link in links:
             link.send("go")
-        time.sleep(0.1)
+        time.sleep(GO_S)
         c0 = time.process_time()
         for _ in range(messages):
             pub.put(payload)
@@ -155,8 +172,8 @@ def _case(port: int, children: list[tuple[Callable[..., None], tuple[Any, ...]]]
         for link in links:
             link.send("close")
         for r in reports:
-            if r["heard"] != WARMUP + messages:
-                raise RuntimeError(f"a bench process heard {r['heard']} of {WARMUP + messages} "
+            if r["timed"] != messages:
+                raise RuntimeError(f"a bench process heard {r['timed']} of the {messages} timed "
                                    "messages: the figures would not be per message")
             r["cpu_per_msg_s"] = r["cpu_s"] / messages
         return own, reports

@@ -108,8 +108,7 @@ STAGES: tuple[tuple[str, tuple[str, str, str], tuple[str, str, str]], ...] = (
     ("controller -> recorder: transport and intake", ("controller", "sent", ""),
      ("recorder", "heard", "controller")),
     ("recorder: write and flush", ("recorder", "heard", "controller"), ("recorder", "sent", "")),
-    ("recorder -> sim: transport", ("recorder", "sent", ""), ("sim", "arrived", "recorder")),
-    ("sim: intake of the recorder's", ("sim", "arrived", "recorder"), ("sim", "heard", "recorder")),
+    ("recorder -> sim: until taken", ("recorder", "sent", ""), ("sim", "heard", "recorder")),
 )
 """The hand-overs and the work of one period, in the order of the protocol (services/sim/README.md).
 
@@ -117,7 +116,10 @@ Transport is from the sender's mark (its put follows) to Zenoh's call into the r
 intake is the receiver taking the bundle there: first what its passive sources left in their rings,
 then this bundle decoded and its inputs handed to the service, which may work on them at once (the
 estimator's filter advances on each sensor sample and on the command: part of its work is here).
-The recorder notes only its own ``heard`` (it takes bundles from its stream of samples)."""
+The recorder notes only its own ``heard`` (it takes bundles from its stream of samples). The sim
+takes the recorder's answer as a passive source (``seaway_sim.lockstep``): no ``arrived``; from the
+recorder's put to the sim taking it from its ring, usually with the controller's next bundle, is
+transport and waiting, off the critical path unless the sim waits for it (the figure after)."""
 
 
 def breakdown(marks: dict[tuple[str, str, str], dict[int, int]]) -> dict[str, list[float]]:
