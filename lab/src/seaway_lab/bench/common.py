@@ -12,9 +12,11 @@ the ratios on / off are figures (target ``<= 1.1``), and the JSON also carries `
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
-from collections.abc import Callable
+import socket
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -118,3 +120,26 @@ def bench_credentials() -> dict[str, str]:
     atexit.register(shutil.rmtree, tmp, True)
     folder = credentials.create(tmp / "credentials", harness=True).folder
     return {credentials.ENV_CREDENTIALS: str(folder), credentials.ENV_IDENTITY: "harness"}
+
+
+def free_port(kind: int = socket.SOCK_STREAM) -> int:
+    """A port on 127.0.0.1 that nobody holds now (TCP unless ``kind`` says UDP): a private Zenoh
+    rendezvous, or a socket of the bench's own."""
+    with socket.socket(socket.AF_INET, kind) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+@contextlib.contextmanager
+def restored_environ(*names: str) -> Iterator[None]:
+    """``os.environ``'s ``names`` as they were (or unset) again on leaving: a bench sets them for
+    itself and the processes it starts, and its caller (a test) goes on."""
+    saved = {k: os.environ.get(k) for k in names}
+    try:
+        yield
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v

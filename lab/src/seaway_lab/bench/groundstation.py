@@ -48,7 +48,7 @@ from seaway.runtime.argtypes import positive_float, positive_int
 from seaway.runtime.bus import Bus
 from seaway.vessel.metrics import median, percentile
 
-from seaway_lab.bench.common import BenchResult
+from seaway_lab.bench.common import BenchResult, free_port
 
 TARGET_P99_MS = 20.0
 TARGET_SLOW_RATIO = 1.5
@@ -202,17 +202,9 @@ def run(argv: list[str]) -> BenchResult:
         return _measure(args, Path(tmp_dir))
 
 
-def _free_tcp_port() -> int:
-    import socket
-
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 def _measure(args: argparse.Namespace, tmp: Path) -> BenchResult:
     folder = credentials.create(tmp / "credentials", harness=True).folder
-    os.environ["SEAWAY_ZENOH_RENDEZVOUS"] = f"tcp/127.0.0.1:{_free_tcp_port()}"
+    os.environ["SEAWAY_ZENOH_RENDEZVOUS"] = f"tcp/127.0.0.1:{free_port()}"
     os.environ[credentials.ENV_CREDENTIALS] = str(folder)
     os.environ[credentials.ENV_IDENTITY] = "harness"
     env = {k: v for k, v in os.environ.items() if k != credentials.ENV_IDENTITY}

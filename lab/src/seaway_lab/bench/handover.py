@@ -29,7 +29,6 @@ import argparse
 import logging
 import multiprocessing as mp
 import os
-import socket
 import threading
 import time
 from collections.abc import Callable
@@ -41,7 +40,7 @@ from seaway.runtime.argtypes import positive_float, whole_number
 from seaway.runtime.credentials import ENV_CREDENTIALS, ENV_IDENTITY, NONE
 from seaway.vessel.metrics import median
 
-from seaway_lab.bench.common import BenchResult, bench_credentials
+from seaway_lab.bench.common import BenchResult, bench_credentials, free_port, restored_environ
 
 VESSEL = "bench"
 KEY_OUT = "seaway/bench/handover/out"
@@ -57,12 +56,6 @@ launcher's poll; the ring holds ``RING`` meanwhile)."""
 RING = 4096
 GO_S = 0.2
 """Between the go and the first timed put: every bench process has started counting."""
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def _connect(port: int) -> Any:
@@ -192,7 +185,7 @@ def measure(messages: int, interval_s: float, payload_bytes: int) -> dict[str, f
 
     def case(children: list[tuple[Callable[..., None], tuple[Any, ...]]],
              key: str = KEY_OUT) -> tuple[float, list[dict[str, Any]]]:
-        return _case(_free_port(), children, key, messages, interval_s, payload_bytes)
+        return _case(free_port(), children, key, messages, interval_s, payload_bytes)
 
     alone, _ = case([])
     one, (ring,) = case([(_listener, ("ring",))])
@@ -245,22 +238,14 @@ def run(argv: list[str]) -> BenchResult:
                     help="rounds with authentication on and off each, alternating (medians)")
     args = ap.parse_args(argv)
     creds = bench_credentials()
-    saved = {k: os.environ.get(k) for k in (ENV_CREDENTIALS, ENV_IDENTITY, zenoh_bus.ENV_RUNTIME)}
     rounds: dict[bool, list[dict[str, float]]] = {True: [], False: []}
-    try:
-        # Before this process's first session (Zenoh reads it once), and for its children; put back
-        # after, for a caller that goes on (a test).
+    with restored_environ(ENV_CREDENTIALS, ENV_IDENTITY, zenoh_bus.ENV_RUNTIME):
+        # Before this process's first session (Zenoh reads it once), and for its children.
         zenoh_bus.use_lockstep_runtime()
         for _ in range(args.repeat):
             for auth in (True, False):
                 os.environ.update(creds if auth else {ENV_CREDENTIALS: NONE, ENV_IDENTITY: "harness"})
                 rounds[auth].append(measure(args.messages, args.interval_ms / 1e3, args.payload_bytes))
-    finally:
-        for k, v in saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
     on = {k: median([r[k] for r in rounds[True]]) for k in LABELS}
     off = {k: median([r[k] for r in rounds[False]]) for k in LABELS}
     res = BenchResult("handover", "A lockstep hand-over at the least: the CPU of a put and of a "

@@ -52,18 +52,12 @@ from seaway.vessel.model import load_vessel
 from seaway_vehicle_io.px4 import PROFILE
 from seaway_vehicle_io.thrust import ThrusterLimits, normalise_pair
 
-from seaway_lab.bench.common import BenchResult, compare_auth
+from seaway_lab.bench.common import BenchResult, compare_auth, free_port
 from seaway_lab.fake_autopilot import FakeAutopilot, ManualControlRecord
 
 TARGET_P99_MS = 2.0
 WARMUP = 20  # commands per round not timed: the first few warm up the paths
 Auth = credentials.Credentials | str  # a credentials folder, or credentials.NONE
-
-
-def _free_port(kind: int) -> int:
-    with socket.socket(socket.AF_INET, kind) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def _ms(values_ns: Sequence[int]) -> list[float]:
@@ -107,7 +101,7 @@ def _udp_baseline(n: int) -> list[int]:
 def _use_fresh_rendezvous() -> None:
     """A free rendezvous port for the next sessions (each round its own: TLS and plain TCP never
     meet on one port, and a closing round never leaks into the next)."""
-    os.environ["SEAWAY_ZENOH_RENDEZVOUS"] = f"tcp/127.0.0.1:{_free_port(socket.SOCK_STREAM)}"
+    os.environ["SEAWAY_ZENOH_RENDEZVOUS"] = f"tcp/127.0.0.1:{free_port(socket.SOCK_STREAM)}"
 
 
 def _zenoh_baseline(n: int, vessel: str, auth: Auth) -> list[int]:
@@ -145,7 +139,7 @@ def _end_to_end(count: int, vessel: str, vessel_file: str, auth: Auth) -> tuple[
     """One round: a fresh vehicle_io (identity ``vehicle_io`` of ``auth``), ``count`` commands
     timed after the warm-up; the latencies [ns] put -> MANUAL_CONTROL and the commands lost."""
     _use_fresh_rendezvous()
-    udp_port = _free_port(socket.SOCK_DGRAM)
+    udp_port = free_port(socket.SOCK_DGRAM)
     limits = ThrusterLimits.from_vessel(load_vessel(vessel_file))
     folder = str(auth.folder) if isinstance(auth, credentials.Credentials) else auth
     proc = subprocess.Popen(

@@ -31,7 +31,6 @@ from __future__ import annotations
 import argparse
 import itertools
 import os
-import socket
 import subprocess
 import sys
 import tempfile
@@ -48,7 +47,7 @@ from seaway.vessel.metrics import median, percentile
 from seaway_estimator.config import EstimatorConfig
 from seaway_estimator.core import EstimatorCore
 
-from seaway_lab.bench.common import BenchResult, compare_auth
+from seaway_lab.bench.common import BenchResult, compare_auth, free_port
 from seaway_lab.closed_loop import run_closed_loop
 
 SCENARIO, CONTROLLER = "paper-c1", "cc-empc"
@@ -56,12 +55,6 @@ TARGET_RATIO, TARGET_REAL_TIME = 2.0, 100.0
 AUTH_FIGURES = {"wall_time_s": "wall time", "period_median_ms": "period median",
                 "period_p99_ms": "period p99"}
 """The figures compared with authentication on and off (JSON name: table label)."""
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def through_processes(run_dir: Path, auth: bool = True, cpus: frozenset[int] | None = None
@@ -74,7 +67,7 @@ def through_processes(run_dir: Path, auth: bool = True, cpus: frozenset[int] | N
     where the kernel puts them. The stack registers next to ``run_dir``, not with the user's
     stacks, so the bench never meets another stack or another bench's credentials.
     """
-    env = dict(os.environ, SEAWAY_ZENOH_RENDEZVOUS=f"tcp/127.0.0.1:{_free_port()}")
+    env = dict(os.environ, SEAWAY_ZENOH_RENDEZVOUS=f"tcp/127.0.0.1:{free_port()}")
     env.pop("SEAWAY_ZENOH_CONFIG", None)
     env.pop(ENV_IDENTITY, None)  # the launcher names each of its processes
     env[ENV_STACKS_DIR] = str(run_dir.parent / "stacks")

@@ -22,7 +22,6 @@ import argparse
 import io
 import json
 import os
-import socket
 import subprocess
 import sys
 import tempfile
@@ -40,7 +39,7 @@ from seaway.vessel.metrics import median, percentile
 from seaway_recorder.mcapfile import McapWriter
 from seaway_recorder.writer import RecordingWriter
 
-from seaway_lab.bench.common import BenchResult, bench_credentials
+from seaway_lab.bench.common import BenchResult, bench_credentials, free_port
 
 TARGET_MSG_S = 50_000
 LOCKSTEP_PERIOD_MESSAGES = 20
@@ -92,12 +91,6 @@ def bench_core(n: int, flush_every: int, tmp: Path) -> float:
     return n / (time.perf_counter() - t0)
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 def _wait_line(p: subprocess.Popen, text: str, timeout_s: float) -> None:
     deadline = time.monotonic() + timeout_s
     assert p.stdout is not None
@@ -113,7 +106,7 @@ def _wait_line(p: subprocess.Popen, text: str, timeout_s: float) -> None:
 
 
 def bench_end_to_end(rate: float, seconds: float, tmp: Path) -> dict:
-    env = dict(os.environ, SEAWAY_ZENOH_RENDEZVOUS=f"tcp/127.0.0.1:{_free_port()}", PYTHONUNBUFFERED="1",
+    env = dict(os.environ, SEAWAY_ZENOH_RENDEZVOUS=f"tcp/127.0.0.1:{free_port()}", PYTHONUNBUFFERED="1",
                **bench_credentials())
     env.pop("SEAWAY_ZENOH_CONFIG", None)
     out = tmp / "e2e.mcap"

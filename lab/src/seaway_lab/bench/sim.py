@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import socket
 import subprocess
 import sys
 import threading
@@ -31,34 +30,21 @@ from seaway_sim.app import SimApp, load_world
 from seaway_sim.core import SimCore
 from seaway_sim.lockstep import Lockstep
 
-from seaway_lab.bench.common import BenchResult, bench_credentials
+from seaway_lab.bench.common import BenchResult, bench_credentials, free_port, restored_environ
 
 TARGET_REAL_TIME_FACTOR = 200.0
 READY_TIMEOUT_S = 30.0
-
-
-def _free_tcp_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 @contextmanager
 def _private_zenoh() -> Iterator[dict[str, str]]:
     """This process and its children on a private rendezvous port (restored afterwards)."""
     extra = bench_credentials()
-    saved = {k: os.environ.get(k) for k in (ENV_RENDEZVOUS, ENV_CONFIG, *extra)}
-    os.environ[ENV_RENDEZVOUS] = f"tcp/127.0.0.1:{_free_tcp_port()}"
-    os.environ.pop(ENV_CONFIG, None)
-    os.environ.update(extra)
-    try:
+    with restored_environ(ENV_RENDEZVOUS, ENV_CONFIG, *extra):
+        os.environ[ENV_RENDEZVOUS] = f"tcp/127.0.0.1:{free_port()}"
+        os.environ.pop(ENV_CONFIG, None)
+        os.environ.update(extra)
         yield dict(os.environ)
-    finally:
-        for k, v in saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
 
 
 def _start_responder(env: dict[str, str], vessel: str) -> subprocess.Popen:

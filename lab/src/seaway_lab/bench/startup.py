@@ -12,7 +12,6 @@ import argparse
 import os
 import re
 import signal
-import socket
 import subprocess
 import sys
 import tempfile
@@ -22,21 +21,15 @@ from pathlib import Path
 from seaway.runtime.argtypes import positive_float, positive_int
 from seaway.vessel.metrics import median
 
-from seaway_lab.bench.common import BenchResult, bench_credentials
+from seaway_lab.bench.common import BenchResult, bench_credentials, free_port
 
 TARGET_READY_S = 5.0
 _READY = re.compile(r"all ready in ([0-9.]+) s")
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 def _env() -> dict[str, str]:
     env = dict(os.environ, **bench_credentials())
-    env["SEAWAY_ZENOH_RENDEZVOUS"] = f"tcp/127.0.0.1:{_free_port()}"
+    env["SEAWAY_ZENOH_RENDEZVOUS"] = f"tcp/127.0.0.1:{free_port()}"
     env.pop("SEAWAY_ZENOH_CONFIG", None)
     return env
 

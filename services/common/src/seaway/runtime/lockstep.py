@@ -313,8 +313,8 @@ class Member:
         self._key = keys.lockstep_spec(service).key(bus.vessel)
         self._pub = bus.raw_publisher(self._key, bundle.ENCODING, block=True, express=True)
         self._kept: list[tuple[list[tuple[str, bytes]], PeriodDone, Period]] = []
-        """(lines, answer, its period) of every bundle sent for the last ``KEPT_PERIODS`` periods answered, in
-        the order sent: what a restarted recorder may lack (``repeat``)."""
+        """(lines, answer, its period) of every bundle sent for the last ``KEPT_PERIODS`` periods
+        answered, in the order sent: what a restarted recorder may lack (``repeat``)."""
         self.on_restart: Callable[[Period | None, Period], None] | None = None
         self.on_ready: Callable[[], None] | None = None
         """A service that answers on the bus's thread: called there after each bundle taken from
