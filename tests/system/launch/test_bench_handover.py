@@ -15,6 +15,7 @@ pytestmark = [pytest.mark.system, pytest.mark.bench]
 
 def test_bench_handover_smoke(zenoh_env) -> None:
     before = {k: os.environ.get(k) for k in ("SEAWAY_CREDENTIALS", zenoh_bus.ENV_RUNTIME)}
+    level = zenoh_bus.log.level
     res = run(["--messages", "100", "--repeat", "1", "--interval-ms", "1"])
     data = res.to_json()
     on = {k: data["figures"][k] for k in LABELS}
@@ -29,5 +30,6 @@ def test_bench_handover_smoke(zenoh_env) -> None:
     assert data["figures"]["auth_on_off_handover_least"] == pytest.approx(
         on["handover_least_us"] / data["auth_off"]["handover_least_us"])
     assert res.meta["messages_per_case"] == 100 and res.meta["rounds_each"] == 1
-    # The environment the bench changed is the caller's again.
+    # The environment and the logging the bench changed are the caller's again.
     assert {k: os.environ.get(k) for k in before} == before
+    assert zenoh_bus.log.level == level

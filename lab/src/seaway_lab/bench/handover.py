@@ -59,13 +59,18 @@ GO_S = 0.2
 
 
 def _connect(port: int) -> Any:
-    # Off is half of the comparison, asked for: not worth a warning from every session.
-    zenoh_bus.log.setLevel(logging.ERROR)
     return zenoh_bus.ZenohBus.connect(VESSEL, rendezvous=f"tcp/127.0.0.1:{port}")
+
+
+def _quiet() -> None:
+    """A bench process's own: authentication off is half of the comparison, asked for, not worth a
+    warning from every session it opens."""
+    zenoh_bus.log.setLevel(logging.ERROR)
 
 
 def _listener(conn: Connection, port: int, kind: str) -> None:
     """Hear ``KEY_OUT`` through a ring or a callback; report CPU and messages between go and stop."""
+    _quiet()
     bus = _connect(port)
     heard = [0]
     stop, first = threading.Event(), threading.Event()
@@ -89,6 +94,7 @@ def _listener(conn: Connection, port: int, kind: str) -> None:
 
 def _relay(conn: Connection, port: int, put: bool, payload_bytes: int) -> None:
     """Hear ``KEY_IN`` through a callback on Zenoh's thread, and in it put on ``KEY_OUT`` (``put``)."""
+    _quiet()
     bus = _connect(port)
     pub = bus.raw_publisher(KEY_OUT, block=True, express=True)
     payload = b"x" * payload_bytes
@@ -239,13 +245,20 @@ def run(argv: list[str]) -> BenchResult:
     args = ap.parse_args(argv)
     creds = bench_credentials()
     rounds: dict[bool, list[dict[str, float]]] = {True: [], False: []}
+    level = zenoh_bus.log.level
     with restored_environ(ENV_CREDENTIALS, ENV_IDENTITY, zenoh_bus.ENV_RUNTIME):
         # Before this process's first session (Zenoh reads it once), and for its children.
         zenoh_bus.use_lockstep_runtime()
-        for _ in range(args.repeat):
-            for auth in (True, False):
-                os.environ.update(creds if auth else {ENV_CREDENTIALS: NONE, ENV_IDENTITY: "harness"})
-                rounds[auth].append(measure(args.messages, args.interval_ms / 1e3, args.payload_bytes))
+        _quiet()
+        try:
+            for _ in range(args.repeat):
+                for auth in (True, False):
+                    os.environ.update(creds if auth else {ENV_CREDENTIALS: NONE,
+                                                          ENV_IDENTITY: "harness"})
+                    rounds[auth].append(measure(args.messages, args.interval_ms / 1e3,
+                                                args.payload_bytes))
+        finally:
+            zenoh_bus.log.setLevel(level)  # the caller's (a test's) logging as it was
     on = {k: median([r[k] for r in rounds[True]]) for k in LABELS}
     off = {k: median([r[k] for r in rounds[False]]) for k in LABELS}
     res = BenchResult("handover", "A lockstep hand-over at the least: the CPU of a put and of a "
