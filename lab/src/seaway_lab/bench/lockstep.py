@@ -21,10 +21,10 @@ credentials: mutual TLS and access control) and off (``SEAWAY_CREDENTIALS=none``
 the same run (on, off, on, off... for ``--repeat``), so drift hits both; the figures on and off (wall
 time, and the period: the time between the sim's consecutive answers, median and p99) and their
 ratio on / off, the median over the pairs of each run on and the run off after it (target: within
-10 %). ``--repeat`` is 3 by default: on a 2-core VM one stack run's
-wall time differed from the next by up to 16 % (ten runs, 8.5-10.4 s), more than the target, so one
-pair's ratio says little. The comparison with the in-process loop and the stage breakdown are those
-with authentication on, as a stack runs.
+10 %). ``--repeat`` is 3 by default: on a 2-core VM one stack run's wall time differed from the
+next by up to 16 % (ten runs, 8.5-10.4 s), more than the target, so one pair's ratio says little.
+The comparison with the in-process loop and the stage breakdown are those with authentication on,
+as a stack runs.
 """
 
 from __future__ import annotations
