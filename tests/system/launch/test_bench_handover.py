@@ -13,6 +13,9 @@ from seaway_lab.bench.handover import LABELS, run
 pytestmark = [pytest.mark.system, pytest.mark.bench]
 
 
+# About 20 s (six processes spawned per case, authentication on and off), and the bench is a floor
+# beside `bench lockstep`, not a target: with --slow (CI runs it), so the default run stays near 15 min.
+@pytest.mark.slow
 def test_bench_handover_smoke(zenoh_env) -> None:
     before = {k: os.environ.get(k) for k in ("SEAWAY_CREDENTIALS", zenoh_bus.ENV_RUNTIME)}
     level = zenoh_bus.log.level
