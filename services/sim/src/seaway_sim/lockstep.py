@@ -250,8 +250,12 @@ class Lockstep:
             return False
         if RECORDER not in self.members:
             return True
-        back = Period(period.episode, max(0, period.stamp_ns - lag * self.period_ns))
-        return ledger.recorded(back)
+        return ledger.recorded(self._back(period, lag))
+
+    def _back(self, period: Period, lag: int) -> Period:
+        """The period ``lag`` periods before ``period`` (t_0 at the most): the one the recorder must
+        have answered before the sim moves on from ``period``."""
+        return Period(period.episode, max(0, period.stamp_ns - lag * self.period_ns))
 
     def wait_for(self, period: Period, test: Callable[[Period], Any]) -> Any:
         """Step (b): block until ``test(period)`` is truthy (its value), repeating the period for
@@ -299,8 +303,7 @@ class Lockstep:
             return False
         if "estimator" in self.members and ledger.answer("estimator", period) is None:
             return True
-        back = Period(period.episode, max(0, period.stamp_ns - RECORDER_LAG * self.period_ns))
-        return RECORDER in self.members and not ledger.recorded(back)
+        return RECORDER in self.members and not ledger.recorded(self._back(period, RECORDER_LAG))
 
     def _absent(self, period: Period) -> list[str]:
         """The members that have not answered ``period``; under ``member.changed``."""
