@@ -147,6 +147,12 @@ def free_port(kind: int = socket.SOCK_STREAM) -> int:
         return int(s.getsockname()[1])
 
 
+def free_rendezvous() -> str:
+    """A Zenoh rendezvous endpoint on a free loopback port, for ``$SEAWAY_ZENOH_RENDEZVOUS``: the
+    bench's stack apart from any other on this machine."""
+    return f"tcp/127.0.0.1:{free_port()}"
+
+
 @contextlib.contextmanager
 def restored_environ(*names: str) -> Iterator[None]:
     """``os.environ``'s ``names`` as they were (or unset) again on leaving: a bench sets them for

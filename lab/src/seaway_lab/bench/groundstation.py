@@ -46,9 +46,10 @@ from seaway.contract.messages import SolveRecord, StateEstimate
 from seaway.runtime import credentials
 from seaway.runtime.argtypes import positive_float, positive_int
 from seaway.runtime.bus import Bus
+from seaway.runtime.zenoh_bus import ENV_RENDEZVOUS
 from seaway.vessel.metrics import median, percentile
 
-from seaway_lab.bench.common import BenchResult, free_port
+from seaway_lab.bench.common import BenchResult, free_rendezvous
 
 TARGET_P99_MS = 20.0
 TARGET_SLOW_RATIO = 1.5
@@ -204,7 +205,7 @@ def run(argv: list[str]) -> BenchResult:
 
 def _measure(args: argparse.Namespace, tmp: Path) -> BenchResult:
     folder = credentials.create(tmp / "credentials", harness=True).folder
-    os.environ["SEAWAY_ZENOH_RENDEZVOUS"] = f"tcp/127.0.0.1:{free_port()}"
+    os.environ[ENV_RENDEZVOUS] = free_rendezvous()
     os.environ[credentials.ENV_CREDENTIALS] = str(folder)
     os.environ[credentials.ENV_IDENTITY] = "harness"
     env = {k: v for k, v in os.environ.items() if k != credentials.ENV_IDENTITY}

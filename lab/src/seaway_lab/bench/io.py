@@ -47,12 +47,13 @@ from seaway.contract.messages import ThrustCommand
 from seaway.runtime import credentials
 from seaway.runtime.argtypes import positive_int
 from seaway.runtime.bus import Bus
+from seaway.runtime.zenoh_bus import ENV_CONFIG, ENV_RENDEZVOUS
 from seaway.vessel.metrics import median, percentile
 from seaway.vessel.model import load_vessel
 from seaway_vehicle_io.px4 import PROFILE
 from seaway_vehicle_io.thrust import ThrusterLimits, normalise_pair
 
-from seaway_lab.bench.common import BenchResult, compare_auth, free_port
+from seaway_lab.bench.common import BenchResult, compare_auth, free_port, free_rendezvous
 from seaway_lab.fake_autopilot import FakeAutopilot, ManualControlRecord
 
 TARGET_P99_MS = 2.0
@@ -101,7 +102,7 @@ def _udp_baseline(n: int) -> list[int]:
 def _use_fresh_rendezvous() -> None:
     """A free rendezvous port for the next sessions (each round its own: TLS and plain TCP never
     meet on one port, and a closing round never leaks into the next)."""
-    os.environ["SEAWAY_ZENOH_RENDEZVOUS"] = f"tcp/127.0.0.1:{free_port(socket.SOCK_STREAM)}"
+    os.environ[ENV_RENDEZVOUS] = free_rendezvous()
 
 
 def _zenoh_baseline(n: int, vessel: str, auth: Auth) -> list[int]:
@@ -223,7 +224,7 @@ def run(argv: list[str]) -> BenchResult:
                     help="vessel file (name or path) for the thrust mapping (default paper-boat)")
     args = ap.parse_args(argv)
     rounds = args.rounds
-    os.environ.pop("SEAWAY_ZENOH_CONFIG", None)
+    os.environ.pop(ENV_CONFIG, None)
     vessel = "bench-io"
 
     result = BenchResult("io", "vehicle_io: ThrustCommand put on Zenoh -> MANUAL_CONTROL on the "

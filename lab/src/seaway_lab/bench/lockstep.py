@@ -43,12 +43,13 @@ from seaway.runtime import timeline
 from seaway.runtime.argtypes import positive_int
 from seaway.runtime.credentials import ENV_CREDENTIALS, ENV_IDENTITY, NONE
 from seaway.runtime.stacks import ENV_STACKS_DIR
+from seaway.runtime.zenoh_bus import ENV_CONFIG, ENV_RENDEZVOUS
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.metrics import median, percentile
 from seaway_estimator.config import EstimatorConfig
 from seaway_estimator.core import EstimatorCore
 
-from seaway_lab.bench.common import BenchResult, compare_auth, free_port
+from seaway_lab.bench.common import BenchResult, compare_auth, free_rendezvous
 from seaway_lab.closed_loop import run_closed_loop
 
 SCENARIO, CONTROLLER = "paper-c1", "cc-empc"
@@ -68,8 +69,9 @@ def through_processes(run_dir: Path, auth: bool = True, cpus: frozenset[int] | N
     where the kernel puts them. The stack registers next to ``run_dir``, not with the user's
     stacks, so the bench never meets another stack or another bench's credentials.
     """
-    env = dict(os.environ, SEAWAY_ZENOH_RENDEZVOUS=f"tcp/127.0.0.1:{free_port()}")
-    env.pop("SEAWAY_ZENOH_CONFIG", None)
+    env = dict(os.environ)
+    env[ENV_RENDEZVOUS] = free_rendezvous()
+    env.pop(ENV_CONFIG, None)
     env.pop(ENV_IDENTITY, None)  # the launcher names each of its processes
     env[ENV_STACKS_DIR] = str(run_dir.parent / "stacks")
     env[timeline.ENV_TRACE] = str(run_dir.parent / "timeline")

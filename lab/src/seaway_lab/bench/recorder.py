@@ -35,11 +35,12 @@ from seaway.contract import keys
 from seaway.contract.messages import ThrustCommand
 from seaway.contract.units import NS_PER_S
 from seaway.runtime.argtypes import positive_float, positive_int
+from seaway.runtime.zenoh_bus import ENV_CONFIG, ENV_RENDEZVOUS
 from seaway.vessel.metrics import median, percentile
 from seaway_recorder.mcapfile import McapWriter
 from seaway_recorder.writer import RecordingWriter
 
-from seaway_lab.bench.common import BenchResult, bench_credentials, free_port
+from seaway_lab.bench.common import BenchResult, bench_credentials, free_rendezvous
 
 TARGET_MSG_S = 50_000
 LOCKSTEP_PERIOD_MESSAGES = 20
@@ -106,9 +107,9 @@ def _wait_line(p: subprocess.Popen, text: str, timeout_s: float) -> None:
 
 
 def bench_end_to_end(rate: float, seconds: float, tmp: Path) -> dict:
-    env = dict(os.environ, SEAWAY_ZENOH_RENDEZVOUS=f"tcp/127.0.0.1:{free_port()}", PYTHONUNBUFFERED="1",
-               **bench_credentials())
-    env.pop("SEAWAY_ZENOH_CONFIG", None)
+    env = dict(os.environ, PYTHONUNBUFFERED="1", **bench_credentials())
+    env[ENV_RENDEZVOUS] = free_rendezvous()
+    env.pop(ENV_CONFIG, None)
     out = tmp / "e2e.mcap"
     rec = subprocess.Popen([sys.executable, "-m", "seaway_recorder.record", "--out", str(out),
                             "--key-expr", f"seaway/{BENCH_VESSEL}/**", "--log-level", "WARNING",

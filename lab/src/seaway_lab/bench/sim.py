@@ -30,7 +30,7 @@ from seaway_sim.app import SimApp, load_world
 from seaway_sim.core import SimCore
 from seaway_sim.lockstep import Lockstep
 
-from seaway_lab.bench.common import BenchResult, bench_credentials, free_port, restored_environ
+from seaway_lab.bench.common import BenchResult, bench_credentials, free_rendezvous, restored_environ
 
 TARGET_REAL_TIME_FACTOR = 200.0
 READY_TIMEOUT_S = 30.0
@@ -41,7 +41,7 @@ def _private_zenoh() -> Iterator[dict[str, str]]:
     """This process and its children on a private rendezvous port (restored afterwards)."""
     extra = bench_credentials()
     with restored_environ(ENV_RENDEZVOUS, ENV_CONFIG, *extra):
-        os.environ[ENV_RENDEZVOUS] = f"tcp/127.0.0.1:{free_port()}"
+        os.environ[ENV_RENDEZVOUS] = free_rendezvous()
         os.environ.pop(ENV_CONFIG, None)
         os.environ.update(extra)
         yield dict(os.environ)

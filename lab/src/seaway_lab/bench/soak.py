@@ -36,7 +36,7 @@ from seaway.runtime.zenoh_bus import ENV_CONFIG, ENV_RENDEZVOUS
 from seaway.simkit.scenario import load_scenario
 from seaway.tools.launch.events import EVENTS_FILE
 
-from seaway_lab.bench.common import BenchResult, free_port
+from seaway_lab.bench.common import BenchResult, free_rendezvous
 
 SERVICES = ("sim", "estimator", "controller", "recorder")
 TARGET_GROWTH_PCT = 5.0
@@ -85,7 +85,7 @@ class Stack:
 
     def __init__(self, run_dir: Path, scenario: str, controller: str) -> None:
         self.run_dir = run_dir
-        endpoint = f"tcp/127.0.0.1:{free_port()}"
+        endpoint = free_rendezvous()
         # This process and the launcher: the same private rendezvous and stack registry.
         os.environ[ENV_RENDEZVOUS] = endpoint
         os.environ[ENV_STACKS_DIR] = str(run_dir.parent / "stacks")

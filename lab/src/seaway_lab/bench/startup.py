@@ -19,9 +19,10 @@ import time
 from pathlib import Path
 
 from seaway.runtime.argtypes import positive_float, positive_int
+from seaway.runtime.zenoh_bus import ENV_CONFIG, ENV_RENDEZVOUS
 from seaway.vessel.metrics import median
 
-from seaway_lab.bench.common import BenchResult, bench_credentials, free_port
+from seaway_lab.bench.common import BenchResult, bench_credentials, free_rendezvous
 
 TARGET_READY_S = 5.0
 _READY = re.compile(r"all ready in ([0-9.]+) s")
@@ -29,8 +30,8 @@ _READY = re.compile(r"all ready in ([0-9.]+) s")
 
 def _env() -> dict[str, str]:
     env = dict(os.environ, **bench_credentials())
-    env["SEAWAY_ZENOH_RENDEZVOUS"] = f"tcp/127.0.0.1:{free_port()}"
-    env.pop("SEAWAY_ZENOH_CONFIG", None)
+    env[ENV_RENDEZVOUS] = free_rendezvous()
+    env.pop(ENV_CONFIG, None)
     return env
 
 
