@@ -124,6 +124,32 @@ def test_jacobian_matches_finite_differences_of_the_shared_model() -> None:
         assert A[0, 6] != 0.0 and np.all(A[6:, :] == 0.0)
 
 
+def test_prediction_step_is_rk4_of_the_shared_model_and_f_p_ft_of_its_jacobian() -> None:
+    """The compiled step against the float model: the mean is one RK4 step of the six vessel
+    states (the disturbance held), the covariance F P F^T + diag(q) h with F = I + Ah + (Ah)^2/2."""
+    rng = np.random.default_rng(3)
+    for frame in ("world", "body"):
+        core = EstimatorCore(EstimatorConfig(disturbance_frame=frame))
+        assert core._predictor.compiled
+        z = np.array([0.8, -0.05, 0.03, 2.0, -1.0, 2.9, 0.08, -0.1, 0.002])
+        L = rng.normal(size=(NZ, NZ)) * 0.05
+        P = L @ L.T + np.eye(NZ) * 1e-3
+        thrust, h = (4.0, 3.0), 0.05
+        z_next, P_next = core._predictor.step(z, P, thrust, h)
+        zl = z.tolist()
+        if frame == "world":
+            x6 = model.rk4_step(zl, thrust, h, core.p, math, (0, 0, zl[8]), (zl[6], zl[7]))
+        else:
+            x6 = model.rk4_step(zl, thrust, h, core.p, math, (zl[6], zl[7], zl[8]))
+        np.testing.assert_allclose(z_next, [*x6, *zl[6:]], rtol=1e-13, atol=1e-14)
+        Ah = core.jacobian(z, thrust) * h
+        F = np.eye(NZ) + Ah + 0.5 * Ah @ Ah
+        ref = F @ P @ F.T + np.diag(core._q * h)
+        np.testing.assert_allclose(P_next, 0.5 * (ref + ref.T), rtol=1e-12, atol=1e-15)
+        assert np.array_equal(P_next, P_next.T)
+        assert z_next is not core._predictor.step(z, P, thrust, h)[0]  # fresh arrays each call
+
+
 def test_commanded_thrust_is_held_then_assumed_stopped_after_the_timeout() -> None:
     def surge_after(timeout_s: float) -> float:
         core = started(EstimatorConfig(origin=FIXED.origin, thrust_timeout_s=timeout_s))

@@ -35,9 +35,10 @@ from seaway.runtime.argtypes import positive_int
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.metrics import median, percentile
 from seaway.vessel.model import load_vessel
+from seaway.vessel.native import cache_dir
 from seaway_controller.core import ControllerConfig, ControllerCore
 from seaway_controller.ocp import CONTROLLER_KINDS, Ocp
-from seaway_controller.solvers import IpoptSolver, cache_dir
+from seaway_controller.solvers import IpoptSolver
 
 from seaway_lab.bench.common import BenchResult, pin_to_one_core
 from seaway_lab.closed_loop import TABLE_I, ClosedLoopResult, run_closed_loop

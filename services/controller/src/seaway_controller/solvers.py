@@ -43,12 +43,12 @@ from typing import Any, Protocol
 
 import casadi as ca
 import numpy as np
+from seaway.vessel.native import cache_dir
 
 from seaway_controller.ocp import NP, Ocp, spec_digest
 
 log = logging.getLogger("seaway_controller.solvers")
 
-ENV_CACHE_DIR = "SEAWAY_CACHE_DIR"
 CC_FLAGS = ("-O3", "-fPIC", "-shared", "-fno-semantic-interposition")
 """-fno-semantic-interposition: the generated helpers (casadi_qr, casadi_cvx, ...) are global symbols;
 without it every call between them goes through the PLT and none is inlined (measured: 4 % of a
@@ -106,12 +106,6 @@ class NlpSolver(Protocol):
 
     def solve(self, w0: np.ndarray, p: np.ndarray, lam_x0: np.ndarray,
               lam_g0: np.ndarray) -> SolveResult: ...
-
-
-def cache_dir() -> Path:
-    """``$SEAWAY_CACHE_DIR`` or ``~/.cache/seaway/solvers``."""
-    env = os.environ.get(ENV_CACHE_DIR)
-    return Path(env) if env else Path.home() / ".cache" / "seaway" / "solvers"
 
 
 ERROR_EVALUATION, ERROR_CONVEXIFY = 1.0, 2.0

@@ -15,9 +15,8 @@ Prediction: the mean with ``seaway.vessel.model.rk4_step`` (the model is never r
 commanded thrust held (through ``seaway.vessel.thrusters.output_stage`` as vehicle I/O sends it,
 optionally the dead zone; zero while the autopilot's status says it withholds the thrust), substeps
 of at most ``max_step_s``. The covariance with ``F = I + A h + (A h)^2 / 2``, where ``A`` is the
-exact Jacobian of ``seaway.vessel.model.derivative``, computed by complex-step differentiation (the
-model is evaluated with ``cmath`` as its ``ops``: derivatives exact to machine precision, no CasADi
-needed).
+exact Jacobian of ``seaway.vessel.model.derivative`` (CasADi's automatic differentiation of the
+same expressions). Mean and covariance are one compiled function (``seaway_estimator.prediction``).
 
 Updates, each when it arrives and at its own rate, Joseph form and symmetrised:
 
@@ -33,7 +32,6 @@ bit for bit.
 
 from __future__ import annotations
 
-import cmath
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -55,7 +53,9 @@ from seaway.vessel.frames import GeoOrigin, wrap_pi
 from seaway.vessel.model import VesselParams
 from seaway.vessel.thrusters import apply_dead_zone, output_pair
 
+from seaway_estimator import prediction
 from seaway_estimator.config import EstimatorConfig
+from seaway_estimator.prediction import NZ, Predictor
 
 INPUT_KEYS: dict[str, keys.KeySpec] = {"gnss": keys.GNSS, "attitude": keys.ATTITUDE,
                                       "thrust": keys.THRUST}
@@ -66,9 +66,7 @@ STATUS_KEY = keys.VEHICLE_STATUS
 in real time only (in lockstep the sim applies exactly the command it says it consumed); traced as
 kind ``"status"``, applied after the inputs of the same stamp."""
 
-NZ = 9
 _I9 = np.eye(NZ)
-_CSTEP = 1e-30  # complex-step size: no subtraction, so no cancellation however small
 IU, IV, IR, IX, IY, IPSI, ID1, ID2, ID3 = range(NZ)
 _H_POS = np.zeros((2, NZ))
 _H_POS[0, IX] = _H_POS[1, IY] = 1.0
@@ -156,6 +154,7 @@ class EstimatorCore:
             c.position_std_per_sqrt_s, c.position_std_per_sqrt_s, c.heading_std_per_sqrt_s,
             c.force_std_per_sqrt_s, c.force_std_per_sqrt_s, c.moment_std_per_sqrt_s]) ** 2
         self._max_step_ns = round(c.max_step_s * NS_PER_S)
+        self._predictor = Predictor(vessel, self._world, self._q)
         self._fixed_origin = (None if c.origin is None else GeoOrigin.from_degrees(
             c.origin.lat_deg, c.origin.lon_deg, c.origin.alt_m))
         self.counters = Counters()
@@ -407,23 +406,13 @@ class EstimatorCore:
     # Model and prediction
     # ------------------------------------------------------------------------------------------
 
-    def _deriv(self, z: list, thrust: tuple[float, float], ops: object) -> list:
-        """d/dt of the six vessel states with the disturbance in ``z[6:9]`` (shared model)."""
-        if self._world:
-            return model.derivative(z, thrust, self.p, ops, (0.0, 0.0, z[ID3]), (z[ID1], z[ID2]))
-        return model.derivative(z, thrust, self.p, ops, (z[ID1], z[ID2], z[ID3]))
+    def _deriv(self, z: list, thrust: tuple[float, float]) -> list:
+        """d/dt of the six vessel states with the disturbance in ``z[6:9]`` (shared model), floats."""
+        return prediction.derivative(z, thrust, self.p, self._world, math)
 
     def jacobian(self, z: np.ndarray, thrust: tuple[float, float]) -> np.ndarray:
-        """A = d f / d z (9x9; the disturbance rows are zero), exact by complex step."""
-        base = [complex(v) for v in z.tolist()]
-        cols = []
-        for j in range(NZ):
-            zj = base.copy()
-            zj[j] += 1j * _CSTEP
-            cols.append([d.imag / _CSTEP for d in self._deriv(zj, thrust, cmath)])
-        A = np.zeros((NZ, NZ))
-        A[:6, :] = np.array(cols).T
-        return A
+        """A = d f / d z (9x9; the disturbance rows are zero), exact (automatic differentiation)."""
+        return self._predictor.jacobian(z, thrust)
 
     def _thrust_at(self, t_ns: int) -> tuple[float, float]:
         if (self.thrust_withheld is not None or self._thrust_until_ns is None
@@ -449,24 +438,14 @@ class EstimatorCore:
                 f.t_ns = t1
 
     def _predict(self, f: Filter, thrust: tuple[float, float], h: float) -> None:
-        z = f.z
-        A = self.jacobian(z, thrust) * h
-        F = _I9 + A + 0.5 * (A @ A)
-        zl = z.tolist()
-        if self._world:
-            xn = model.rk4_step(zl, thrust, h, self.p, math, (0.0, 0.0, zl[ID3]), (zl[ID1], zl[ID2]))
-        else:
-            xn = model.rk4_step(zl, thrust, h, self.p, math, (zl[ID1], zl[ID2], zl[ID3]))
-        xn[IPSI] = wrap_pi(xn[IPSI])
-        z[:6] = xn
-        P = F @ f.P @ F.T
-        P[np.diag_indices(NZ)] += self._q * h
-        f.P = 0.5 * (P + P.T)
+        z, P = self._predictor.step(f.z, f.P, thrust, h)
+        z[IPSI] = wrap_pi(z[IPSI])
+        f.z, f.P = z, P
 
     def _back(self, z: np.ndarray, delay_s: float) -> np.ndarray:
         """First-order estimate of the state ``delay_s`` earlier (for late measurements)."""
         zl = z.tolist()
-        xd = self._deriv(zl, self._thrust_at(self.filter.t_ns if self.filter else 0), math)
+        xd = self._deriv(zl, self._thrust_at(self.filter.t_ns if self.filter else 0))
         out = z.copy()
         out[:6] -= np.asarray(xd) * delay_s
         out[IPSI] = wrap_pi(out[IPSI])
