@@ -150,6 +150,38 @@ def test_prediction_step_is_rk4_of_the_shared_model_and_f_p_ft_of_its_jacobian()
         assert z_next is not core._predictor.step(z, P, thrust, h)[0]  # fresh arrays each call
 
 
+def test_update_is_the_joseph_form_with_its_normalised_innovation() -> None:
+    """The compiled update against the textbook: S = HPH' + R, K = PH'S^-1, Joseph form."""
+    from seaway_estimator.kalman import Updater
+
+    rng = np.random.default_rng(5)
+    L = rng.normal(size=(NZ, NZ)) * 0.1
+    P = L @ L.T + np.eye(NZ) * 1e-3
+    z = rng.normal(size=NZ)
+    cases = [(np.array([0.3]), np.eye(NZ)[[IPSI]], np.array([[0.02]])),
+             (np.array([0.4, -0.2]), rng.normal(size=(2, NZ)), np.diag([0.09, 0.04]))]
+    for nu, H, R in cases:
+        nis, z_next, P_next = Updater(len(nu)).step(z, P, nu, H, R)
+        S = H @ P @ H.T + R
+        K = P @ H.T @ np.linalg.inv(S)
+        IKH = np.eye(NZ) - K @ H
+        ref = IKH @ P @ IKH.T + K @ R @ K.T
+        assert nis == pytest.approx(float(nu @ np.linalg.solve(S, nu)), rel=1e-12)
+        np.testing.assert_allclose(z_next, z + K @ nu, rtol=1e-12, atol=1e-14)
+        np.testing.assert_allclose(P_next, 0.5 * (ref + ref.T), rtol=1e-10, atol=1e-14)
+        assert np.array_equal(P_next, P_next.T)
+
+
+def test_a_gated_out_measurement_leaves_the_filter_as_it_was() -> None:
+    core = started()
+    before_z, before_P = core.filter.z.copy(), core.filter.P.copy()
+    assert not core._gated_scalar(50.0, IPSI, 1e-4, 9.0)  # 50 rad off: nis far above the gate
+    assert not core._gated_scalar(float("nan"), IPSI, 1e-4, 9.0)
+    assert np.array_equal(core.filter.z, before_z) and np.array_equal(core.filter.P, before_P)
+    assert core._gated_scalar(0.001, IPSI, 1e-4, 9.0)
+    assert core.filter.P[IPSI, IPSI] < before_P[IPSI, IPSI]
+
+
 def test_commanded_thrust_is_held_then_assumed_stopped_after_the_timeout() -> None:
     def surge_after(timeout_s: float) -> float:
         core = started(EstimatorConfig(origin=FIXED.origin, thrust_timeout_s=timeout_s))

@@ -16,9 +16,10 @@ commanded thrust held (through ``seaway.vessel.thrusters.output_stage`` as vehic
 optionally the dead zone; zero while the autopilot's status says it withholds the thrust), substeps
 of at most ``max_step_s``. The covariance with ``F = I + A h + (A h)^2 / 2``, where ``A`` is the
 exact Jacobian of ``seaway.vessel.model.derivative`` (CasADi's automatic differentiation of the
-same expressions). Mean and covariance are one compiled function (``seaway_estimator.prediction``).
+same expressions). Mean and covariance are one compiled function (``seaway_estimator.kalman``).
 
-Updates, each when it arrives and at its own rate, Joseph form and symmetrised:
+Updates, each when it arrives and at its own rate, Joseph form and symmetrised (each one compiled
+function, ``seaway_estimator.kalman``):
 
 * GNSS position (x, y) from ``GnssFix`` lat/lon through the NED origin;
 * GNSS velocity over ground (north, east) = R(psi) [u, v];
@@ -53,9 +54,9 @@ from seaway.vessel.frames import GeoOrigin, wrap_pi
 from seaway.vessel.model import VesselParams
 from seaway.vessel.thrusters import apply_dead_zone, output_pair
 
-from seaway_estimator import prediction
+from seaway_estimator import kalman
 from seaway_estimator.config import EstimatorConfig
-from seaway_estimator.prediction import NZ, Predictor
+from seaway_estimator.kalman import NZ, Predictor, Updater
 
 INPUT_KEYS: dict[str, keys.KeySpec] = {"gnss": keys.GNSS, "attitude": keys.ATTITUDE,
                                       "thrust": keys.THRUST}
@@ -67,6 +68,7 @@ in real time only (in lockstep the sim applies exactly the command it says it co
 kind ``"status"``, applied after the inputs of the same stamp."""
 
 _I9 = np.eye(NZ)
+_UNIT_ROWS = tuple(np.eye(NZ))  # H of a measurement of one state
 IU, IV, IR, IX, IY, IPSI, ID1, ID2, ID3 = range(NZ)
 _H_POS = np.zeros((2, NZ))
 _H_POS[0, IX] = _H_POS[1, IY] = 1.0
@@ -155,6 +157,7 @@ class EstimatorCore:
             c.force_std_per_sqrt_s, c.force_std_per_sqrt_s, c.moment_std_per_sqrt_s]) ** 2
         self._max_step_ns = round(c.max_step_s * NS_PER_S)
         self._predictor = Predictor(vessel, self._world, self._q)
+        self._update_1, self._update_2 = Updater(1), Updater(2)
         self._fixed_origin = (None if c.origin is None else GeoOrigin.from_degrees(
             c.origin.lat_deg, c.origin.lon_deg, c.origin.alt_m))
         self.counters = Counters()
@@ -408,7 +411,7 @@ class EstimatorCore:
 
     def _deriv(self, z: list, thrust: tuple[float, float]) -> list:
         """d/dt of the six vessel states with the disturbance in ``z[6:9]`` (shared model), floats."""
-        return prediction.derivative(z, thrust, self.p, self._world, math)
+        return kalman.derivative(z, thrust, self.p, self._world, math)
 
     def jacobian(self, z: np.ndarray, thrust: tuple[float, float]) -> np.ndarray:
         """A = d f / d z (9x9; the disturbance rows are zero), exact (automatic differentiation)."""
@@ -456,42 +459,26 @@ class EstimatorCore:
     # ------------------------------------------------------------------------------------------
 
     def _gated_update(self, nu: np.ndarray, H: np.ndarray, R: np.ndarray, gate: float) -> bool:
-        """Kalman update with a chi-square gate on the innovation; False if rejected."""
+        """Kalman update (``kalman.Updater``, Joseph form) with a chi-square gate on the
+        innovation; False if rejected."""
         f = self.filter
         assert f is not None
-        P = f.P
-        PHt = P @ H.T
-        S = H @ PHt + R
-        Sinv = np.linalg.inv(S)
-        nis = float(nu @ Sinv @ nu)
-        if not (math.isfinite(nis) and nis <= gate):
+        nis, z, P = self._update_2.step(f.z, f.P, nu, H, R)
+        if not (math.isfinite(nis) and nis <= gate):  # also false for NaN
             return False
-        K = PHt @ Sinv
-        f.z += K @ nu
-        f.z[IPSI] = wrap_pi(f.z[IPSI])
-        IKH = _I9 - K @ H
-        P = IKH @ P @ IKH.T + K @ R @ K.T
-        f.P = 0.5 * (P + P.T)
+        z[IPSI] = wrap_pi(z[IPSI])
+        f.z, f.P = z, P
         return True
 
     def _gated_scalar(self, nu: float, i: int, var: float, gate: float) -> bool:
-        """``_gated_update`` for a measurement of one state ``i`` (H a unit row): no matrix products.
-
-        Joseph form with H = e_i expands to P - K p' - p K' + K K' S, p = P[:, i], K = p / S.
-        """
+        """``_gated_update`` for a measurement of one state ``i`` (H a unit row, R its variance)."""
         f = self.filter
         assert f is not None
-        P = f.P
-        S = P[i, i] + var
-        if not (nu * nu <= gate * S):  # also false for NaN
+        nis, z, P = self._update_1.step(f.z, f.P, nu, _UNIT_ROWS[i], var)
+        if not (math.isfinite(nis) and nis <= gate):
             return False
-        p = P[:, i].copy()
-        K = p / S
-        f.z += K * nu
-        f.z[IPSI] = wrap_pi(f.z[IPSI])
-        Kp = np.outer(K, p)
-        P = P - Kp - Kp.T + np.outer(K, K) * S
-        f.P = 0.5 * (P + P.T)
+        z[IPSI] = wrap_pi(z[IPSI])
+        f.z, f.P = z, P
         return True
 
     def _update_position(self, north: float, east: float, std: float, delay: float, t: int) -> None:

@@ -1,7 +1,8 @@
-"""The filter's prediction step, one compiled function of the shared vessel model.
+"""The Kalman filter's steps, each one compiled function (``seaway.vessel.native``).
 
-For the state ``z = [u, v, r, x, y, psi, d1, d2, d3]`` (``seaway_estimator.core``) and a step of
-``h`` seconds with the thrust held:
+For the state ``z = [u, v, r, x, y, psi, d1, d2, d3]`` (``seaway_estimator.core``):
+
+**Prediction** over ``h`` seconds with the thrust held:
 
 * the mean: one ``seaway.vessel.model.rk4_step`` of the six vessel states, the disturbance held
   (a random walk has no drift);
@@ -12,9 +13,15 @@ For the state ``z = [u, v, r, x, y, psi, d1, d2, d3]`` (``seaway_estimator.core`
 ``d1, d2`` are a world-frame force (north, east) [N] that the model rotates into the body frame
 (``world``), or body-frame surge and sway forces; ``d3`` is always the body yaw moment [N m].
 
-The whole step is one ``seaway.vessel.native.NativeFunction``: about 3 us a step, where the same
-with Python floats, a complex-step Jacobian and numpy took 65-76 us, two steps each simulated
-period (docs/results.md, 2026-12-01).
+**Update** with a measurement of ``m`` values (1 or 2), innovation ``nu``, rows ``H`` (m x 9) and
+noise ``R`` (m x m): ``S = H P H^T + R``, the normalised innovation squared ``nis = nu^T S^-1 nu``
+(the caller gates on it), ``K = P H^T S^-1``, ``z' = z + K nu`` and the Joseph form
+``P' = (I - K H) P (I - K H)^T + K R K^T``, symmetrised.
+
+Each is about 3 us a call through ctypes. The same steps in Python floats and numpy took 65-76 us
+(a prediction with its complex-step Jacobian, two a simulated period) and 14-33 us (an update, about
+five a period): numpy's cost per call on 9 x 9 matrices, not arithmetic (docs/results.md,
+2026-12-01).
 """
 
 from __future__ import annotations
@@ -91,3 +98,40 @@ class Predictor:
         self._h[0] = 0.0
         self._fn()
         return self._A.reshape(NZ, NZ, order="F").copy()
+
+
+def update_function(m: int) -> ca.Function:
+    """``update(z[9], P[9x9], nu[m], H[m x 9], R[m x m]) -> (nis, z_next[9], P_next[9x9])``."""
+    z, P = ca.SX.sym("z", NZ), ca.SX.sym("P", NZ, NZ)
+    nu, H, R = ca.SX.sym("nu", m), ca.SX.sym("H", m, NZ), ca.SX.sym("R", m, m)
+    PHt = P @ H.T
+    S_inv = ca.inv(H @ PHt + R)
+    K = PHt @ S_inv
+    IKH = ca.SX.eye(NZ) - K @ H
+    P_next = IKH @ P @ IKH.T + K @ R @ K.T
+    return ca.Function(f"seaway_ekf_update_{m}", [z, P, nu, H, R],
+                       dense(nu.T @ S_inv @ nu, z + K @ nu, 0.5 * (P_next + P_next.T)),
+                       ["z", "P", "nu", "H", "R"], ["nis", "z_next", "P_next"])
+
+
+class Updater:
+    """The update with ``m`` measured values, compiled (``update_function``)."""
+
+    def __init__(self, m: int) -> None:
+        self.m = m
+        self._fn = NativeFunction(update_function(m))
+        self._z, self._P, self._nu, self._H, self._R = self._fn.inputs
+        self._nis, self._z_next, self._P_next = self._fn.outputs
+
+    def step(self, z: np.ndarray, P: np.ndarray, nu: np.ndarray | float, H: np.ndarray,
+             R: np.ndarray | float) -> tuple[float, np.ndarray, np.ndarray]:
+        """``(nis, z_next, P_next)``; ``H`` is m x 9 (or a 9-vector for m = 1), ``R`` m x m (or
+        the variance for m = 1). New arrays; nothing is gated here."""
+        self._z[:] = z
+        self._P[:] = P.ravel(order="F")
+        self._nu[:] = nu
+        self._H[:] = np.asarray(H).ravel(order="F")
+        self._R[:] = np.asarray(R).ravel(order="F")
+        self._fn()
+        return (float(self._nis[0]), self._z_next.copy(),
+                self._P_next.reshape(NZ, NZ, order="F").copy())
