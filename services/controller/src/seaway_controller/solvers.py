@@ -28,12 +28,7 @@ import ctypes
 import hashlib
 import inspect
 import logging
-import os
 import re
-import shutil
-import signal
-import subprocess
-import tempfile
 import threading
 import time
 from collections.abc import Callable
@@ -43,7 +38,7 @@ from typing import Any, Protocol
 
 import casadi as ca
 import numpy as np
-from seaway.vessel.native import cache_dir
+from seaway.vessel.native import CompileInterruptedError, cache_dir, compile_shared
 
 from seaway_controller.ocp import NP, Ocp, spec_digest
 
@@ -206,11 +201,6 @@ def _patch_kkt_reuse(src: str, nz: int) -> str:
     return src + _KKT_EXPORT
 
 
-class CompileInterruptedError(RuntimeError):
-    """The C compiler was stopped by a signal before it finished: the process building the solver
-    is being stopped (a launcher's stop, Ctrl-C), which says nothing about the generated code."""
-
-
 def _patch_digest() -> str:
     """A hash of the code that edits the generated C (it is part of what gets compiled), and of
     nothing else in this module, so that editing the rest does not discard every cached solver."""
@@ -243,35 +233,16 @@ def build_shared_object(ocp: Ocp, options: dict, directory: Path | None = None,
     with its messages.
     """
     target = shared_object_path(ocp, options, directory, kkt_reuse)
-    directory = target.parent
     if target.is_file():
         return target
-    directory.mkdir(parents=True, exist_ok=True)
-    cc = shutil.which("gcc") or shutil.which("cc")
-    if cc is None:
-        raise RuntimeError("no C compiler (gcc or cc) on PATH: needed once to build the solver")
     t0 = time.perf_counter()
     solver = ca.nlpsol(SYMBOL, "sqpmethod", ocp.nlp, options)
-    with tempfile.TemporaryDirectory(dir=directory, prefix=".build-") as tmp:
-        gen = ca.CodeGenerator("solver.c", {"with_header": False})
-        gen.add(solver)
-        gen.generate(f"{tmp}{os.sep}")  # the prefix is the folder: no chdir, thread-safe
-        c_file = Path(tmp) / "solver.c"
-        src = patch_generated_source(c_file.read_text())
-        if kkt_reuse:
-            src = _patch_kkt_reuse(src, ocp.nw + ocp.ng)
-        c_file.write_text(src)
-        so_tmp = Path(tmp) / "solver.so"
-        proc = subprocess.run([cc, *CC_FLAGS, str(c_file), "-o", str(so_tmp), "-lm"],
-                              capture_output=True, text=True, check=False)
-        if proc.returncode < 0:  # killed (the launcher stopping us), not an error of the code
-            raise CompileInterruptedError(
-                f"compiling the {ocp.spec.kind} solver was interrupted: the C compiler was stopped "
-                f"by {signal.Signals(-proc.returncode).name} before it finished (this process is "
-                "being stopped); not a compile error")
-        if proc.returncode != 0:
-            raise RuntimeError(f"compiling the {ocp.spec.kind} solver failed:\n{proc.stderr[-2000:]}")
-        os.replace(so_tmp, target)
+    gen = ca.CodeGenerator("solver.c", {"with_header": False})
+    gen.add(solver)
+    src = patch_generated_source(gen.dump())
+    if kkt_reuse:
+        src = _patch_kkt_reuse(src, ocp.nw + ocp.ng)
+    compile_shared(src, target, CC_FLAGS, f"the {ocp.spec.kind} solver")
     log.info("built %s solver %s in %.1f s", ocp.spec.kind, target.name, time.perf_counter() - t0)
     return target
 

@@ -20,6 +20,7 @@ import hashlib
 import logging
 import os
 import shutil
+import signal
 import subprocess
 import tempfile
 import threading
@@ -51,35 +52,52 @@ def _source(fn: ca.Function) -> str:
 
 
 def library_path(fn: ca.Function, directory: Path | None = None) -> tuple[Path, str]:
-    """Where ``fn`` compiled is cached (named by its name and a hash of its source and the flags),
-    and that source."""
+    """Where ``fn`` compiled is cached (named by its name and a hash of its source, CasADi's version
+    and the flags), and that source."""
     src = _source(fn)
-    digest = hashlib.sha256("\0".join([src, *CC_FLAGS]).encode()).hexdigest()[:20]
+    digest = hashlib.sha256("\0".join([src, ca.__version__, *CC_FLAGS]).encode()).hexdigest()[:20]
     return (directory or cache_dir()) / f"{fn.name()}-{digest}.so", src
 
 
-def build(fn: ca.Function, directory: Path | None = None) -> Path:
-    """Generate and compile ``fn`` (cached: ``library_path``); its shared object.
+class CompileInterruptedError(RuntimeError):
+    """The C compiler was stopped by a signal before it finished: the process building is being
+    stopped (a launcher's stop, Ctrl-C), which says nothing about the generated code."""
 
-    Safe with concurrent processes: each compiles in a temporary folder of its own and moves the
-    result into place with an atomic rename. Raises ``RuntimeError`` naming the cause when there is
-    no C compiler or the compiler fails."""
-    target, src = library_path(fn, directory)
-    if target.is_file():
-        return target
+
+def compile_shared(src: str, target: Path, flags: Sequence[str], what: str) -> None:
+    """Compile C ``src`` into the shared object ``target`` with ``flags`` (``what`` names it in
+    errors): the one compile step of generated code (these functions, the controller's solvers).
+
+    Safe with concurrent processes: each compiles in a temporary folder of its own beside
+    ``target`` and moves the result into place with an atomic rename; whoever finishes last
+    replaces an identical file. ``CompileInterruptedError`` if the compiler was stopped by a
+    signal; ``RuntimeError`` naming the cause if there is no C compiler or it failed."""
     cc = shutil.which("gcc") or shutil.which("cc")
     if cc is None:
-        raise RuntimeError("no C compiler (gcc or cc) on PATH")
+        raise RuntimeError(f"no C compiler (gcc or cc) on PATH: needed once to build {what}")
     target.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=target.parent, prefix=".build-") as tmp:
-        c_file, so_tmp = Path(tmp) / f"{fn.name()}.c", Path(tmp) / f"{fn.name()}.so"
+        c_file, so_tmp = Path(tmp) / "source.c", Path(tmp) / "library.so"
         c_file.write_text(src)
-        proc = subprocess.run([cc, *CC_FLAGS, str(c_file), "-o", str(so_tmp), "-lm"],
+        proc = subprocess.run([cc, *flags, str(c_file), "-o", str(so_tmp), "-lm"],
                               capture_output=True, text=True, check=False)
+        if proc.returncode < 0:  # killed (the launcher stopping us), not an error of the code
+            raise CompileInterruptedError(
+                f"compiling {what} was interrupted: the C compiler was stopped by "
+                f"{signal.Signals(-proc.returncode).name} before it finished (this process is "
+                "being stopped); not a compile error")
         if proc.returncode != 0:
-            raise RuntimeError(f"compiling {fn.name()} failed (exit {proc.returncode}):\n"
+            raise RuntimeError(f"compiling {what} failed (exit {proc.returncode}):\n"
                                f"{proc.stderr[-2000:]}")
         os.replace(so_tmp, target)
+
+
+def build(fn: ca.Function, directory: Path | None = None) -> Path:
+    """Generate and compile ``fn`` (cached: ``library_path``); its shared object. Errors as
+    ``compile_shared``'s."""
+    target, src = library_path(fn, directory)
+    if not target.is_file():
+        compile_shared(src, target, CC_FLAGS, fn.name())
     return target
 
 
