@@ -17,6 +17,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from seaway_controller.ocp import CONTROLLER_KINDS
 
 from tests.conftest import free_port
 
@@ -50,7 +51,11 @@ def test_a_cold_start_is_ready_at_once_makes_one_solver_and_flies_as_a_warm_one(
     assert built, log[-2000:]
     # Ready long before the compile was done: the service does not wait for it.
     assert ready_s < float(built.group(1)), (ready_s, built.group(1))
-    assert [p.name.split("-")[0] for p in cache.glob("*.so")] == ["nmpc"]  # only what it needs
+    libs = {p.name.split("-")[0] for p in cache.glob("*.so")}
+    assert libs & set(CONTROLLER_KINDS) == {"nmpc"}  # only the solver it needs
+    # And the estimator's filter steps, compiled at its first start (seaway_estimator.kalman).
+    assert libs - set(CONTROLLER_KINDS) == {"seaway_ekf_predict_world", "seaway_ekf_update_1",
+                                            "seaway_ekf_update_2"}, libs
     assert "mission paper-c1: accepted" in cold and "its nmpc solver is being made" in cold
 
     warm = launch(tmp_path / "warm", cache)

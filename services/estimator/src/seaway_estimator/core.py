@@ -157,7 +157,7 @@ class EstimatorCore:
             c.force_std_per_sqrt_s, c.force_std_per_sqrt_s, c.moment_std_per_sqrt_s]) ** 2
         self._max_step_ns = round(c.max_step_s * NS_PER_S)
         self._predictor = Predictor(vessel, self._world, self._q)
-        self._update_1, self._update_2 = Updater(1), Updater(2)
+        self._updaters = {m: Updater(m) for m in (1, 2)}  # by the number of values measured
         self._fixed_origin = (None if c.origin is None else GeoOrigin.from_degrees(
             c.origin.lat_deg, c.origin.lon_deg, c.origin.alt_m))
         self.counters = Counters()
@@ -463,7 +463,7 @@ class EstimatorCore:
         innovation; False if rejected."""
         f = self.filter
         assert f is not None
-        nis, z, P = self._update_2.step(f.z, f.P, nu, H, R)
+        nis, z, P = self._updaters[len(nu)].step(f.z, f.P, nu, H, R)
         if not (math.isfinite(nis) and nis <= gate):  # also false for NaN
             return False
         z[IPSI] = wrap_pi(z[IPSI])
@@ -474,7 +474,7 @@ class EstimatorCore:
         """``_gated_update`` for a measurement of one state ``i`` (H a unit row, R its variance)."""
         f = self.filter
         assert f is not None
-        nis, z, P = self._update_1.step(f.z, f.P, nu, _UNIT_ROWS[i], var)
+        nis, z, P = self._updaters[1].step(f.z, f.P, nu, _UNIT_ROWS[i], var)
         if not (math.isfinite(nis) and nis <= gate):
             return False
         z[IPSI] = wrap_pi(z[IPSI])
