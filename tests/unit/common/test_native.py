@@ -17,22 +17,29 @@ pytestmark = pytest.mark.skipif(shutil.which("gcc") is None and shutil.which("cc
 
 
 def rk4_function(name: str = "seaway_test_rk4") -> ca.Function:
-    """One RK4 step of the paper's vessel model with its Jacobian, a dense 6x6 output."""
+    """One RK4 step of the paper's vessel model, its Jacobian J (a dense 6x6 output) and J M for a
+    6x6 input M: a matrix in and out, so that the column-major layout is checked both ways."""
     p = model.load_vessel("paper-sim")
-    x, u, h = ca.SX.sym("x", NX), ca.SX.sym("u", 2), ca.SX.sym("h")
+    x, u, h, M = ca.SX.sym("x", NX), ca.SX.sym("u", 2), ca.SX.sym("h"), ca.SX.sym("M", NX, NX)
     xn = ca.vertcat(*model.rk4_step([x[i] for i in range(NX)], [u[0], u[1]], h, p, ca))
-    return ca.Function(name, [x, u, h], native.dense(xn, ca.jacobian(xn, x)))
+    J = ca.jacobian(xn, x)
+    return ca.Function(name, [x, u, h, M], native.dense(xn, J, J @ M))
 
 
 X0 = np.array([0.9, 0.05, -0.02, 10.0, -4.0, 2.5])
+M0 = np.arange(NX * NX, dtype=float).reshape(NX, NX) / 10.0  # not symmetric
 
 
 def evaluate(fn: native.NativeFunction) -> tuple[np.ndarray, np.ndarray]:
     fn.inputs[0][:] = X0
     fn.inputs[1][:] = (3.0, 1.5)
     fn.inputs[2][0] = 0.05
+    fn.inputs[3][:] = M0.ravel(order="F")
     fn()
-    return fn.outputs[0].copy(), fn.outputs[1].reshape(NX, NX, order="F").copy()
+    J = fn.outputs[1].reshape(NX, NX, order="F")
+    np.testing.assert_allclose(fn.outputs[2].reshape(NX, NX, order="F"), J @ M0, rtol=1e-12,
+                               atol=1e-12)
+    return fn.outputs[0].copy(), J.copy()
 
 
 def test_compiled_function_gives_the_models_numbers_and_is_cached(tmp_path) -> None:

@@ -172,6 +172,32 @@ def test_update_is_the_joseph_form_with_its_normalised_innovation() -> None:
         assert np.array_equal(P_next, P_next.T)
 
 
+def test_without_a_compiler_the_filter_gives_the_same_estimates(tmp_path, monkeypatch) -> None:
+    """The fallback (CasADi evaluating the same functions) through the whole filter: matrices in
+    and out of every step, both disturbance frames."""
+    from seaway.vessel import native
+
+    def run(cfg: EstimatorConfig) -> list[float]:
+        core = started(cfg, psi=0.4)
+        core.on_thrust(ThrustCommand(stamp_ns=0, thrust_port_n=4.0, thrust_starboard_n=2.0))
+        for k in range(1, 21):
+            core.on_attitude(att(k * 50 * MS, 0.4 + 0.002 * k, 0.01))
+            if k % 4 == 0:
+                core.on_gnss(fix(k * 50 * MS, 0.03 * k, 0.01 * k, vn=0.2, ve=0.05))
+        est = core.predict_to(1100 * MS)
+        return [est.u_mps, est.x_m, est.psi_rad, est.tau_d_surge_n, *est.covariance]
+
+    for frame in ("world", "body"):
+        cfg = FIXED.model_copy(update={"disturbance_frame": frame})
+        compiled = run(cfg)
+        with monkeypatch.context() as m:
+            m.setattr(native.shutil, "which", lambda name: None)
+            m.setenv(native.ENV_CACHE_DIR, str(tmp_path / frame))  # nothing compiled there
+            assert not EstimatorCore(cfg)._predictor.compiled
+            fallback = run(cfg)
+        np.testing.assert_allclose(fallback, compiled, rtol=1e-9, atol=1e-12)
+
+
 def test_a_gated_out_measurement_leaves_the_filter_as_it_was() -> None:
     core = started()
     before_z, before_P = core.filter.z.copy(), core.filter.P.copy()

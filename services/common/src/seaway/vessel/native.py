@@ -8,9 +8,10 @@ the same function generated as C and called through ctypes costs about 3 us
 (``seaway.vessel.model`` evaluated on CasADi symbols), so nothing is stated twice.
 
 Each function is compiled once per machine with ``CC_FLAGS`` and cached by a hash of its generated
-source and the flags, beside the controller's solvers (``cache_dir``). Without a C compiler, or if
-the build fails, the same ``Function`` is evaluated by CasADi itself: the same expressions, so the
-same numbers to rounding, only slower; that is logged once, with the reason.
+source, CasADi's version and the flags, beside the controller's solvers (``cache_dir``). Without a C
+compiler, or if the build fails, the same ``Function`` is evaluated by CasADi itself: the same
+expressions, so the same numbers to rounding, but slower (about 0.15 ms a call for the estimator's
+steps, CasADi's call overhead); that is logged once, with the reason.
 """
 
 from __future__ import annotations
@@ -161,7 +162,8 @@ class NativeFunction:
             if self._entry(*self._args) != 0:
                 raise RuntimeError(f"{self.name}: evaluation failed")
             return
-        out = self._fn.call([ca.DM(a) for a in self.inputs])
+        out = self._fn.call([ca.reshape(ca.DM(a), *self._fn.size_in(i))  # column-major, as C's
+                             for i, a in enumerate(self.inputs)])
         for buf, value in zip(self.outputs, out, strict=True):
             buf[:] = value.full().ravel(order="F")
 
