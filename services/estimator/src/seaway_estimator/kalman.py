@@ -36,11 +36,17 @@ NZ = 9
 """Filter state size: the six vessel states and the three disturbance components."""
 
 
+def disturbance(z: list, world: bool) -> tuple[tuple, tuple]:
+    """The model's ``(tau_body, force_ne)`` for the disturbance in ``z[6:9]``: in the ``world``
+    frame ``d1, d2`` are a force (north, east) the model rotates, else body surge and sway."""
+    if world:
+        return (0.0, 0.0, z[8]), (z[6], z[7])
+    return (z[6], z[7], z[8]), model.ZERO2
+
+
 def derivative(z: list, thrust: list, p: VesselParams, world: bool, ops: object = ca) -> list:
     """d/dt of the six vessel states with the disturbance in ``z[6:9]`` (the shared model)."""
-    if world:
-        return model.derivative(z, thrust, p, ops, (0.0, 0.0, z[8]), (z[6], z[7]))
-    return model.derivative(z, thrust, p, ops, (z[6], z[7], z[8]))
+    return model.derivative(z, thrust, p, ops, *disturbance(z, world))
 
 
 def prediction_function(p: VesselParams, world: bool) -> ca.Function:
@@ -54,12 +60,8 @@ def prediction_function(p: VesselParams, world: bool) -> ca.Function:
     A = ca.vertcat(ca.jacobian(xdot, z), ca.SX.zeros(NZ - NX, NZ))
     Ah = A * h
     F = ca.SX.eye(NZ) + Ah + 0.5 * (Ah @ Ah)
-    d = zl[NX:]
-    if world:
-        xn = model.rk4_step(zl, tl, h, p, ca, (0.0, 0.0, d[2]), (d[0], d[1]))
-    else:
-        xn = model.rk4_step(zl, tl, h, p, ca, (d[0], d[1], d[2]))
-    z_next = ca.vertcat(*xn, *d)
+    xn = model.rk4_step(zl, tl, h, p, ca, *disturbance(zl, world))
+    z_next = ca.vertcat(*xn, *zl[NX:])  # the disturbance held
     P_next = F @ P @ F.T + ca.diag(q * h)
     P_next = 0.5 * (P_next + P_next.T)
     frame = "world" if world else "body"
@@ -118,7 +120,6 @@ class Updater:
     """The update with ``m`` measured values, compiled (``update_function``)."""
 
     def __init__(self, m: int) -> None:
-        self.m = m
         self._fn = NativeFunction(update_function(m))
         self._z, self._P, self._nu, self._H, self._R = self._fn.inputs
         self._nis, self._z_next, self._P_next = self._fn.outputs
