@@ -114,6 +114,31 @@ def test_a_repeat_sends_the_previous_bundle_again_for_a_recorder_and_only_a_reco
     assert sim.ledger.answers["controller"].stamp_ns == P
 
 
+def test_a_restarted_member_takes_what_it_lacks_from_a_copy_for_the_recorder() -> None:
+    """The estimator was killed in the middle of its put for t_1: the controller had its answer and
+    answered t_1, the sim had not. The sim repeats t_1, whose ``consumed`` names the command of
+    t_0; the controller repeats its t_1 and sends its t_0 again only as a copy for a recorder. The
+    restarted estimator takes that command from the copy (it lacks it), and nothing else."""
+    hub = MemoryHub()
+    sim = Member(hub.bus(V), "sim", watched=(), subscribe=False)
+    ctl = Member(hub.bus(V), "controller", watched=(), subscribe=False)
+    for k in (0, 1):
+        ctl.answer(Period(0, k * P), P, [(keys.THRUST, cmd(k * P))])
+    taken: list[int] = []
+    est = Member(hub.bus(V), "estimator", watched={"ctrl/thrust"}, hears=("sim", "controller"),
+                 passive=("controller",))  # the restarted one: it heard none of that
+    est.deliver = lambda key, msg: (taken.append(msg.stamp_ns),
+                                    est.saw(keys.THRUST.suffix, msg.stamp_ns))
+    sim.answer(Period(0, P), P, consumed={keys.THRUST.suffix: [0]})
+    tick = est.ledger.answer("sim")
+    assert tick is not None and not est.ledger.complete(tick)
+    ctl.repeat()
+    est.drain()
+    assert taken == [0, P]  # t_0's command from the copy, then the repeat's own, as always
+    assert est.ledger.complete(tick)
+    assert est.ledger.answers["controller"].stamp_ns == P and not est.ledger.answers["controller"].resent
+
+
 def test_a_repeat_sends_every_bundle_a_recorder_can_lack_once_more() -> None:
     """A held period is answered again for a mission taken there: a recorder killed after covering
     the first answer lacked the mission's acceptance, and the sim went on two periods without it

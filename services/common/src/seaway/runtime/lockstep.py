@@ -379,16 +379,46 @@ class Member:
                                  key, err)
             return
         answer = self.bus.decode_counted(PeriodDone, key, raw_answer)
-        if answer is None or service is None or answer.resent:  # a copy for a recorder
+        if answer is None or service is None:
             return
         if answer.service != service:
             self._impostor(key, answer)
             return
+        prefix = key[: -len(f"lockstep/{service}")]
+        if answer.resent:  # a copy for a recorder: its answer is old news, but see _lacking
+            with self.changed:
+                lacking = self._lacking()
+            if lacking:
+                self._deliver(service, prefix, key, lines, lacking)
+            return
         if arrived_ns is not None:
             self.timeline.mark("arrived", answer.stamp_ns, service, at_ns=arrived_ns)
-        prefix = key[: -len(f"lockstep/{service}")]
+        self._deliver(service, prefix, key, lines)
+        self.on_answer(key, answer)
+
+    def _lacking(self) -> set[tuple[str, int]]:
+        """(key suffix, stamp) that an answer of the current period lists and this member has not
+        seen; under ``changed``.
+
+        What a copy sent for a recorder (``resent``) may still give a member: a member killed in
+        the middle of its put can have reached the controller and not the sim, so the controller
+        answered the period after and repeats that one, while the sim repeats the period the dead
+        member had not finished, whose ``consumed`` names the controller's command before. A
+        restarted estimator finds that command only in the controller's copy of the period before.
+        """
+        ledger = self.ledger
+        if ledger.period is None:
+            return set()
+        return {miss for a in ledger.answers.values() if Period.of(a) == ledger.period
+                for miss in ledger.missing(a)}
+
+    def _deliver(self, service: str, prefix: str, key: str, lines: list[tuple[str, bytes]],
+                 only: set[tuple[str, int]] | None = None) -> None:
+        """Hand a bundle's messages on this member's inputs to the service (``only``: just those
+        (suffix, stamp))."""
+        wanted = None if only is None else {suffix for suffix, _ in only}
         for suffix, data in lines:
-            if suffix not in self.inputs:
+            if suffix not in self.inputs or (wanted is not None and suffix not in wanted):
                 continue
             try:
                 spec = bundle.check_line(service, suffix)
@@ -397,13 +427,14 @@ class Member:
                 self.ratelog.warning(("foreign line", key), "%s", err)
                 continue
             msg = self.bus.decode_counted(spec.message, prefix + suffix, data)  # type: ignore[arg-type]
-            if msg is not None and self.deliver is not None:
-                try:
-                    self.deliver(prefix + suffix, msg)
-                except Exception:  # a bug in a handler must not lose the answer after it
-                    self.ratelog.exception(("deliver", suffix), "%s: input %s failed",
-                                           self.service, suffix)
-        self.on_answer(key, answer)
+            if msg is None or self.deliver is None or (
+                    only is not None and (suffix, msg.stamp_ns) not in only):
+                continue
+            try:
+                self.deliver(prefix + suffix, msg)
+            except Exception:  # a bug in a handler must not lose the answer after it
+                self.ratelog.exception(("deliver", suffix), "%s: input %s failed",
+                                       self.service, suffix)
 
     def _impostor(self, key: str, answer: PeriodDone) -> None:
         self.ratelog.warning(("impostor", key), "lockstep answer on %s claims to be %s's: ignored",
