@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import logging
 import math
+import os
 import shutil
+import subprocess
 
 import casadi as ca
 import numpy as np
@@ -102,3 +104,19 @@ def test_cache_dir_follows_the_environment(tmp_path, monkeypatch) -> None:
     assert native.cache_dir() == tmp_path
     monkeypatch.delenv(native.ENV_CACHE_DIR)
     assert native.cache_dir().parts[-3:] == (".cache", "seaway", "solvers")
+
+
+def test_the_compiler_runs_at_the_lowest_priority(tmp_path, monkeypatch) -> None:
+    # A stand-in `gcc` first on PATH that notes its niceness, then runs the real compiler: the
+    # build must still work, and the compiler must have run niced (a background compile at
+    # normal priority took CPU from a real-time controller).
+    real = shutil.which("gcc") or shutil.which("cc")
+    bin_dir, seen = tmp_path / "bin", tmp_path / "niceness"
+    bin_dir.mkdir()
+    (bin_dir / "gcc").write_text(f'#!/bin/sh\nnice > "{seen}"\nexec "{real}" "$@"\n')
+    (bin_dir / "gcc").chmod(0o755)
+    monkeypatch.setenv("PATH", f"{bin_dir}:{os.environ['PATH']}")
+    fn = native.NativeFunction(rk4_function("seaway_test_rk4_niced"), tmp_path / "cache")
+    assert fn.compiled
+    base = int(subprocess.run(["nice"], capture_output=True, text=True, check=True).stdout)
+    assert int(seen.read_text()) == min(19, base + native.COMPILE_NICENESS)
