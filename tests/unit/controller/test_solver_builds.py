@@ -70,20 +70,64 @@ def problem(kind: str = "cc-empc") -> tuple[Ocp, tuple[np.ndarray, ...]]:
     return ocp, (ocp.cold_guess(p), p, np.zeros(ocp.nw), np.zeros(ocp.ng))
 
 
+class GatedReference:
+    """A reference 'set-up' (IPOPT's takes about a second) that finishes when the test says."""
+
+    def __init__(self, fail: bool = False) -> None:
+        self.gate, self.fail, self.solver = threading.Event(), fail, ScriptedSolver()
+        self.thread: str | None = None
+
+    def __call__(self, _ocp: Ocp) -> ScriptedSolver:
+        self.thread = threading.current_thread().name
+        self.gate.wait(10)
+        if self.fail:
+            raise RuntimeError("no IPOPT here (a fake error)")
+        return self.solver
+
+
 def test_real_time_flies_with_the_reference_until_the_fast_solver_is_made() -> None:
-    build, reference = GatedBuild(), ScriptedSolver()
+    build, reference = GatedBuild(), GatedReference()
     builds = SolverBuilds(build)
     ocp, args = problem()
-    staged = StagedSolver(ocp, builds, reference=lambda _ocp: reference)
+    staged = StagedSolver(ocp, builds, reference=reference)
     wait_for(lambda: build.asked, 5, what="the build to start")
+    # The reference is set up on a thread of its own, not in the control loop: the solve does
+    # not wait for it, it fails at once, saying why (the controller's fallbacks fly meanwhile).
     res = staged.solve(*args)
-    assert reference.calls == 1 and res.success
+    assert not res.success and res.solve_time_s == 0.0
+    assert res.status == ("no solver yet (the reference IPOPT is being set up; the generated "
+                          "solver is being made)")
+    np.testing.assert_array_equal(res.w, args[0])
+    wait_for(lambda: reference.thread is not None, 5, what="the reference's set-up to start")
+    assert reference.thread != threading.current_thread().name
+    reference.gate.set()
+    wait_for(lambda: staged.solve(*args).success, 5, what="the reference to be set up")
+    assert reference.solver.calls == 1
+    res = staged.solve(*args)
+    assert res.success and reference.solver.calls == 2
     assert res.status == "Solve_Succeeded (reference IPOPT: the generated solver is being made)"
     assert "its cc-empc solver is being made" in builds.describe("cc-empc")
     build.release("cc-empc")
     wait_for(lambda: builds.ready("cc-empc") is not None, 5, what="the build to finish")
-    assert staged.solve(*args).status == "Solve_Succeeded" and reference.calls == 1
+    assert staged.solve(*args).status == "Solve_Succeeded" and reference.solver.calls == 2
     assert build.made["cc-empc"].calls == 1 and builds.describe("cc-empc") == ""
+
+
+def test_a_reference_that_cannot_be_set_up_is_named_and_not_tried_again(caplog) -> None:
+    build, reference = GatedBuild(), GatedReference(fail=True)
+    staged = StagedSolver(problem()[0], SolverBuilds(build), reference=reference)
+    args = problem()[1]
+    reference.gate.set()
+    with caplog.at_level(logging.ERROR, "seaway_controller.solvers"):
+        staged.solve(*args)
+        wait_for(lambda: "could not be set up" in staged.solve(*args).status, 5,
+                 what="the set-up to fail")
+    res = staged.solve(*args)
+    assert not res.success and res.status == (
+        "no solver yet (the reference IPOPT could not be set up: RuntimeError: no IPOPT here (a "
+        "fake error); the generated solver is being made)")
+    assert caplog.text.count("could not set up the reference IPOPT for cc-empc") == 1
+    build.release("cc-empc")
 
 
 def test_a_solver_that_cannot_be_made_leaves_the_reference_flying(caplog) -> None:

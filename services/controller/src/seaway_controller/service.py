@@ -28,7 +28,8 @@ the scenario's mission at once (batch runs without a launcher).
 Solvers (``solvers.SolverBuilds``): the service is up, and serves requests, at once. The fast
 solver a mission needs (its controller's, and no other) is made when the mission is accepted, on a
 thread of its own: loaded from the cache, or compiled the first time on a machine (seconds to
-minutes). Until it is ready, real time flies with the reference IPOPT and lockstep answers "hold"
+minutes). Until it is ready, real time flies with the reference IPOPT (line-of-sight guidance
+while IPOPT itself is set up, on a thread too: ``solvers.StagedSolver``) and lockstep answers "hold"
 (simulated time waits, so the run is the one a warm start gives); the mission/set reply and
 ``MissionStatus.reason`` say so, and the log says how far it got.
 

@@ -521,7 +521,12 @@ class StagedSolver:
     reference (``reference``, plain IPOPT), whose results say so in their status. ``wait``
     (lockstep, where results must not depend on how long a compile took): wait for the fast one
     instead, and use the reference only if it cannot be made. The caller usually asks
-    ``SolverBuilds.pending`` first and does not solve meanwhile."""
+    ``SolverBuilds.pending`` first and does not solve meanwhile.
+
+    Real time never waits: setting up IPOPT takes about a second (CasADi builds its derivatives),
+    which in the control loop left the vessel without a command past vehicle_io's watchdog. So the
+    reference is set up on a thread of its own the first time it is needed, and until it is
+    ready a solve fails at once with a status that says why (the controller's fallbacks fly)."""
 
     def __init__(self, ocp: Ocp, builds: SolverBuilds,
                  reference: Callable[[Ocp], NlpSolver] = IpoptSolver, wait: bool = False) -> None:
@@ -530,6 +535,8 @@ class StagedSolver:
         self.name = f"{self.kind}/staged"
         self._make_reference = reference
         self._reference: NlpSolver | None = None
+        self._reference_error = ""
+        self._reference_setup: threading.Thread | None = None
         builds.request(ocp)
 
     def solve(self, w0: np.ndarray, p: np.ndarray, lam_x0: np.ndarray,
@@ -540,11 +547,38 @@ class StagedSolver:
             fast = self.builds.ready(self.kind)
         if fast is not None:
             return fast.solve(w0, p, lam_x0, lam_g0)
-        if self._reference is None:
-            self._reference = self._make_reference(self.ocp)
-        res = self._reference.solve(w0, p, lam_x0, lam_g0)
         why = "being made" if self.builds.pending(self.kind) else "unavailable"
+        reference = self._reference_now() if self.wait else self._reference_started()
+        if reference is None:
+            what = (f"could not be set up: {self._reference_error}" if self._reference_error
+                    else "is being set up")
+            return SolveResult(w0, lam_x0, lam_g0, float("nan"), False,
+                               f"no solver yet (the reference IPOPT {what}; the generated solver "
+                               f"is {why})", 0, 0.0)
+        res = reference.solve(w0, p, lam_x0, lam_g0)
         return replace(res, status=f"{res.status} (reference IPOPT: the generated solver is {why})")
+
+    def _reference_now(self) -> NlpSolver | None:
+        """Lockstep: the reference, set up here and now (time holds meanwhile)."""
+        if self._reference is None and not self._reference_error:
+            self._set_up_reference()
+        return self._reference
+
+    def _reference_started(self) -> NlpSolver | None:
+        """Real time: the reference if it is set up; else start setting it up, and None."""
+        if self._reference is None and self._reference_setup is None:
+            self._reference_setup = threading.Thread(target=self._set_up_reference,
+                                                     name=f"reference-{self.kind}", daemon=True)
+            self._reference_setup.start()
+        return self._reference
+
+    def _set_up_reference(self) -> None:
+        try:
+            self._reference = self._make_reference(self.ocp)
+        except Exception as err:  # the fallbacks fly on; say why once
+            self._reference_error = f"{type(err).__name__}: {err}"
+            log.error("could not set up the reference IPOPT for %s: %s", self.kind,
+                      self._reference_error)
 
 
 def make_solver(ocp: Ocp, kind: SolverKind = "generated") -> NlpSolver:
