@@ -49,9 +49,9 @@ def solver_built(kind: str, vessel: str) -> None:
 @pytest.mark.slow  # a whole real-time mission: about 45 s
 @pytest.mark.timeout(600)
 def test_a_normal_real_time_run_logs_no_warning(procs, zenoh_env, tmp_path) -> None:
-    # A normal run, not a machine's first: there the reference IPOPT flies while the solver is
-    # compiled, and a late first solve of it is worth its WARNING. (The compile itself runs
-    # niced, so it does not starve the stack: seaway.vessel.native.compile_shared.)
+    # A normal run, not a machine's first: there line-of-sight guidance and then the reference
+    # IPOPT fly while the solver is compiled, and that fallback is worth its WARNING. (The compile
+    # runs niced, so it does not starve the stack: seaway.vessel.native.compile_shared.)
     solver_built("cc-empc", "paper-boat")
     run = tmp_path / "run"
     la = procs.start([sys.executable, "-m", "seaway.tools.cli", "launch", "sim", "--scenario",
