@@ -111,7 +111,9 @@ class Stack:
         sim = Lockstep(app, 0.1, self.stop)
         self.member = SlowMember(self.hub, self.stop, self.fast, flying)
         self.recorder = SlowRecorder(self.hub, self.stop, self.fast) if recorder else None
-        threading.Thread(target=sim.run, daemon=True).start()
+        # Joined in close(): a loop left running logs after the test, into pytest's closed capture.
+        self.sim_thread = threading.Thread(target=sim.run, daemon=True)
+        self.sim_thread.start()
         self.fast.set()
         wait_for(lambda: Period(0, 0) in self.member.answered, 10, what="the first period answered")
 
@@ -122,6 +124,8 @@ class Stack:
     def close(self) -> None:
         self.stop.set()
         self.fast.set()
+        self.sim_thread.join(10.0)
+        assert not self.sim_thread.is_alive(), "the sim's lockstep loop did not stop"
 
 
 def test_a_scenario_restart_replies_once_every_member_answered_the_new_episode() -> None:
