@@ -79,3 +79,26 @@ def test_pinning_that_cannot_be_done_is_refused_before_anything_is_made(
     assert cli.main(["table1", "--pin", "--dask", "tcp://127.0.0.1:9", "--out", str(out)]) == 2
     assert "a Dask cluster's workers place their own stacks" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_a_study_into_the_folder_of_an_earlier_one_is_refused_and_nothing_is_touched(
+        tmp_path: Path, capsys, monkeypatch) -> None:
+    # A second study into the same --out read the first one's recordings beside its own (a stack
+    # reads every recording in its folder): its Table I came out scrambled. Refused before any
+    # stack starts.
+    started: list[object] = []
+    monkeypatch.setattr(cli, "run_study", lambda *a, **k: started.append(a))
+    out = tmp_path / "study"
+    old = out / "runs" / "stack-1" / "recording.mcap"
+    old.parent.mkdir(parents=True)
+    old.write_bytes(b"an earlier study's recording")
+    assert cli.main(["table1", "--out", str(out), "--workers", "1"]) == 2
+    err = capsys.readouterr().err
+    assert f"{out} already holds the runs of an earlier study ({out / 'runs'}: stack-1)" in err
+    assert "Give another --out" in err and f"--redraw {out}" in err
+    assert started == [] and old.read_bytes() == b"an earlier study's recording"
+    assert sorted(p.name for p in out.iterdir()) == ["runs"]
+    # A folder without runs (new, empty, or only an empty runs/) is taken.
+    (out / "runs" / "stack-1" / "recording.mcap").unlink()
+    (out / "runs" / "stack-1").rmdir()
+    assert cli.earlier_runs(out) == "" and cli.earlier_runs(tmp_path / "new") == ""

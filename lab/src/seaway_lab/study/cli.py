@@ -260,6 +260,19 @@ def _interrupt_on_sigterm() -> None:
         signal.signal(signal.SIGTERM, interrupt)
 
 
+def earlier_runs(out: Path) -> str:
+    """'' if ``out`` holds no run of an earlier study, else what it holds (for the refusal).
+
+    A study's stack folders (``out/runs/*``) keep their recordings, and a stack reads every
+    recording of its folder: a second study into the same ``--out`` found the first one's
+    missions, with the same ids, beside its own (Table I came out scrambled, a run "failed")."""
+    runs = out / "runs"
+    if not runs.is_dir():
+        return ""
+    held = sorted(p.name for p in runs.iterdir())
+    return "" if not held else f"{runs}: {', '.join(held[:4])}{', ...' if len(held) > 4 else ''}"
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(list(sys.argv[1:] if argv is None else argv))
     if args.list:
@@ -285,6 +298,13 @@ def main(argv: list[str] | None = None) -> int:
         print(f"seaway study: {err}", file=sys.stderr)
         return 2
     out = args.out or default_out(study.name)
+    earlier = earlier_runs(out)
+    if earlier:
+        print(f"seaway study: {out} already holds the runs of an earlier study ({earlier}); a stack "
+              "reads every recording in its folder, so that study's missions would be counted as "
+              f"this one's. Give another --out, or remove {out / 'runs'} "
+              f"(`seaway study --redraw {out}` draws that study's tables again)", file=sys.stderr)
+        return 2
     out.mkdir(parents=True, exist_ok=True)
     _interrupt_on_sigterm()
     try:
