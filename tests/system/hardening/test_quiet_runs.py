@@ -39,11 +39,9 @@ def solver_built(kind: str, vessel: str) -> None:
     """The controller's generated solver for ``kind`` on ``vessel`` (the default horizon and
     period), compiled into the cache the stack reads, as on any machine after its first run."""
     from seaway.vessel.model import load_vessel
-    from seaway_controller.core import ControllerConfig
-    from seaway_controller.ocp import Ocp
-    from seaway_controller.solvers import GeneratedSqpSolver
+    from seaway_controller.core import ControllerCore
 
-    GeneratedSqpSolver(Ocp(ControllerConfig().spec(kind), load_vessel(vessel)))
+    ControllerCore(load_vessel(vessel)).prepare((kind,))  # the controller's own way to its solver
 
 
 @pytest.mark.slow  # a whole real-time mission: about 45 s

@@ -536,7 +536,7 @@ class StagedSolver:
         self._make_reference = reference
         self._reference: NlpSolver | None = None
         self._reference_error = ""
-        self._reference_setup: threading.Thread | None = None
+        self._reference_started_once = False
         builds.request(ocp)
 
     def solve(self, w0: np.ndarray, p: np.ndarray, lam_x0: np.ndarray,
@@ -566,10 +566,10 @@ class StagedSolver:
 
     def _reference_started(self) -> NlpSolver | None:
         """Real time: the reference if it is set up; else start setting it up, and None."""
-        if self._reference is None and self._reference_setup is None:
-            self._reference_setup = threading.Thread(target=self._set_up_reference,
-                                                     name=f"reference-{self.kind}", daemon=True)
-            self._reference_setup.start()
+        if self._reference is None and not self._reference_started_once:
+            self._reference_started_once = True
+            threading.Thread(target=self._set_up_reference, name=f"reference-{self.kind}",
+                             daemon=True).start()
         return self._reference
 
     def _set_up_reference(self) -> None:
