@@ -576,9 +576,9 @@ class StagedSolver:
         try:
             self._reference = self._make_reference(self.ocp)
         except Exception as err:  # the fallbacks fly on; say why once
-            self._reference_error = f"{type(err).__name__}: {err}"
-            log.error("could not set up the reference IPOPT for %s: %s", self.kind,
-                      self._reference_error)
+            why = f"{type(err).__name__}: {err}"
+            log.error("could not set up the reference IPOPT for %s: %s", self.kind, why)
+            self._reference_error = why  # after the log: whoever reads it finds the log written
 
 
 def make_solver(ocp: Ocp, kind: SolverKind = "generated") -> NlpSolver:
