@@ -118,3 +118,24 @@ def test_the_default_run_folder_is_new_and_says_what_was_flown(tmp_path, monkeyp
     assert launch._run_dir(args, "paper-c1", req, STAMP).name.endswith("-tauD-3")
     given = parse("--run-dir", str(first))
     assert launch._run_dir(given, "paper-c1", req) == first  # --run-dir is taken as given
+
+
+@pytest.mark.parametrize(("profile", "where"), [("sim-batch", "."), ("fleet", "b")])
+def test_a_run_dir_holding_an_earlier_recording_is_refused(profile, where, tmp_path, capsys) -> None:
+    """A second launch into a used run folder wrote ``recording.restart-001.mcap`` beside the first
+    launch's recording, and the report and the study read every recording of a folder. It is refused
+    before anything starts; a folder with other files only (logs, a mission) is taken."""
+    run_dir = tmp_path / "run"
+    vessels = ["--vessels", "a,b"] if profile == "fleet" else []
+    (run_dir / where).mkdir(parents=True, exist_ok=True)
+    (run_dir / where / "notes.txt").write_text("kept")
+    assert launch.main([profile, *vessels, "--run-dir", str(run_dir), "--check"]) == 0
+    capsys.readouterr()
+    held = run_dir / where / "recording.mcap"
+    held.write_bytes(b"earlier")
+    assert launch.main([profile, *vessels, "--run-dir", str(run_dir), "--check"]) == 2
+    err = capsys.readouterr().err
+    assert f"--run-dir {run_dir} holds an earlier launch's recording ({held})" in err
+    assert "give a new --run-dir" in err
+    assert held.read_bytes() == b"earlier"
+    assert sorted(p.name for p in (run_dir / where).iterdir()) == ["notes.txt", "recording.mcap"]

@@ -23,7 +23,8 @@ The mission options (--controller, --predict-disturbance, --task-power-w) change
 mission that the launcher sends; with no mission to send they are refused. The run folder is
 ``--run-dir``, else ``runs/<time>-<profile>``, and when a mission is sent
 ``runs/<time>-<profile>-<scenario>-<controller>[-tauD]`` (``-tauD``: the mission predicts with the
-estimated disturbance), with ``-2``, ``-3``, ... added if that folder exists already. The mission sent
+estimated disturbance), with ``-2``, ``-3``, ... added if that folder exists already; a ``--run-dir``
+that holds an earlier launch's recording is refused (exit 2). The mission sent
 is written to ``mission.json`` in the run folder, and the final report takes it from there.
 
 Ctrl-C (or SIGTERM) stops every process in order, the recorder last, then prints the status table
@@ -266,6 +267,17 @@ def _run_dir(args: argparse.Namespace, scenario: str = "", mission: MissionReque
         n += 1
         path = base / f"{name}-{n}"
     return path
+
+
+def earlier_recordings(run_dir: Path, vessels: list[str]) -> list[Path]:
+    """The recordings an earlier launch left where this one would write its own (the run folder,
+    or each vessel's folder in it): none for a fresh folder.
+
+    A recorder never overwrites (``recording.restart-001.mcap`` goes beside), and the report and
+    the study read every recording of a folder: missions of two launches, often with the same
+    ids, would pass for one run's."""
+    folders = dict.fromkeys(vessel_dir(run_dir, v, vessels) for v in vessels)
+    return sorted(p for f in folders if f.is_dir() for p in f.glob("*.mcap"))
 
 
 def _mission_request(scenario_name: str, args: argparse.Namespace | None = None
@@ -596,6 +608,12 @@ def main(argv: list[str]) -> int:
         runs_of = {v: resolve_run(args, profile, scenario, run_dir.name, v) for v in vessels}
     except (ConfigError, ValueError) as err:
         print(f"seaway launch: {err}", file=sys.stderr)
+        return 2
+    if held := earlier_recordings(run_dir, vessels):
+        shown = ", ".join(str(p) for p in held[:3]) + (", ..." if len(held) > 3 else "")
+        print(f"seaway launch: --run-dir {run_dir} holds an earlier launch's recording ({shown}); "
+              f"a launch needs a run folder of its own: give a new --run-dir, leave it out "
+              f"(a fresh folder under runs/), or move those away", file=sys.stderr)
         return 2
     common = {"scenario": scenario, "run_dir": str(run_dir),
               "profile": str(profile_path(args.profile)), "recording": str(args.recording or ""),
