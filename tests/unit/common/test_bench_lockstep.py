@@ -23,6 +23,12 @@ OFFSETS = {("sim", "sent", ""): 0, ("estimator", "arrived", "sim"): 60_000,
            ("sim", "heard", "recorder"): 1_700_000}
 
 
+@pytest.fixture(autouse=True)
+def no_floor_processes(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The floor's hand-over measure starts processes (``seaway bench handover``): a fixed figure."""
+    monkeypatch.setattr(lockstep, "three_handovers_ms", lambda: 0.3)
+
+
 def marks(period_ns: int, n: int = 50) -> dict[tuple[str, str, str], dict[int, int]]:
     """Marks of ``n`` periods of ``period_ns`` wall time each (stamps 0.1 s apart)."""
     out: dict[tuple[str, str, str], dict[int, int]] = {}
@@ -138,3 +144,25 @@ def test_the_auth_ratio_is_the_median_of_the_alternating_pairs(monkeypatch: pyte
     assert out["targets"]["auth on / off, wall time"] == {"target": "<= 1.1", "ok": False}
     note = next(f.note for f in res.figures if f.name == "auth on / off, period median")
     assert "median of 3 alternating pairs' ratios (0.700-1.200)" in note
+
+
+def test_the_floor_is_the_in_process_period_plus_three_handovers(monkeypatch: pytest.MonkeyPatch
+                                                                 ) -> None:
+    ticks = iter(range(1000))  # each in-process run takes 1 s on this clock
+    monkeypatch.setattr(lockstep.time, "perf_counter", lambda: float(next(ticks)))
+    monkeypatch.setattr(lockstep, "through_processes", lambda *_a, **_k: marks(5_000_000))
+    monkeypatch.setattr(lockstep, "run_closed_loop",
+                        lambda *_a, **_k: SimpleNamespace(steps=50, travel_time_s=5.0))
+    monkeypatch.setattr(lockstep.cpusets, "allowed", lambda: frozenset({0, 1}))
+    res = lockstep.run(["--repeat", "1"])
+    fig = res.to_json()["figures"]
+    assert fig["in-process loop wall time [s]"] == pytest.approx(1.0)
+    assert fig["floor: a period at the least [ms]"] == pytest.approx(20.0 + 0.3)  # 1 s / 50 + 0.3
+    assert fig["floor: real-time factor at the least"] == pytest.approx(5.0 / (50 * 0.0203))
+    assert fig["floor: ratio to the in process at the least"] == pytest.approx(20.3 / 20.0)
+    note = next(f.note for f in res.figures if f.name == "floor: a period at the least [ms]")
+    assert "plus three hand-overs at the least, 0.300 ms of CPU" in note
+    # --no-floor: no measure, no floor rows.
+    monkeypatch.setattr(lockstep, "three_handovers_ms", lambda: pytest.fail("measured"))
+    res = lockstep.run(["--repeat", "1", "--no-floor"])
+    assert not [f for f in res.figures if f.name.startswith("floor")]

@@ -214,6 +214,30 @@ def measure(messages: int, interval_s: float, payload_bytes: int) -> dict[str, f
     }
 
 
+def measure_rounds(repeat: int, messages: int, interval_s: float, payload_bytes: int,
+                   auths: tuple[bool, ...] = (True, False)) -> dict[bool, list[dict[str, float]]]:
+    """``repeat`` rounds of ``measure`` per authentication setting in ``auths`` (on: a fresh
+    authority's mutual TLS, as a stack runs; off), alternating; this process's environment and
+    logging as they were after. Call it before this process opens any Zenoh session of its own:
+    the sessions here run Zenoh on one thread, as a lockstep stack's, and Zenoh reads that once."""
+    creds = bench_credentials() if True in auths else {}
+    rounds: dict[bool, list[dict[str, float]]] = {a: [] for a in auths}
+    level = zenoh_bus.log.level
+    with restored_environ(ENV_CREDENTIALS, ENV_IDENTITY, zenoh_bus.ENV_RUNTIME):
+        # Before this process's first session (Zenoh reads it once), and for its children.
+        zenoh_bus.use_lockstep_runtime()
+        _quiet()
+        try:
+            for _ in range(repeat):
+                for auth in auths:
+                    os.environ.update(creds if auth else {ENV_CREDENTIALS: NONE,
+                                                          ENV_IDENTITY: "harness"})
+                    rounds[auth].append(measure(messages, interval_s, payload_bytes))
+        finally:
+            zenoh_bus.log.setLevel(level)  # the caller's (a test's) logging as it was
+    return rounds
+
+
 LABELS = {
     "put_from_python_thread_us": "a put from a Python thread, one listener [us CPU]: as the sim's "
                                  "loop publishes (less the same loop putting to nobody)",
@@ -243,22 +267,7 @@ def run(argv: list[str]) -> BenchResult:
     ap.add_argument("--repeat", type=whole_number(1), default=2,
                     help="rounds with authentication on and off each, alternating (medians)")
     args = ap.parse_args(argv)
-    creds = bench_credentials()
-    rounds: dict[bool, list[dict[str, float]]] = {True: [], False: []}
-    level = zenoh_bus.log.level
-    with restored_environ(ENV_CREDENTIALS, ENV_IDENTITY, zenoh_bus.ENV_RUNTIME):
-        # Before this process's first session (Zenoh reads it once), and for its children.
-        zenoh_bus.use_lockstep_runtime()
-        _quiet()
-        try:
-            for _ in range(args.repeat):
-                for auth in (True, False):
-                    os.environ.update(creds if auth else {ENV_CREDENTIALS: NONE,
-                                                          ENV_IDENTITY: "harness"})
-                    rounds[auth].append(measure(args.messages, args.interval_ms / 1e3,
-                                                args.payload_bytes))
-        finally:
-            zenoh_bus.log.setLevel(level)  # the caller's (a test's) logging as it was
+    rounds = measure_rounds(args.repeat, args.messages, args.interval_ms / 1e3, args.payload_bytes)
     on = {k: median([r[k] for r in rounds[True]]) for k in LABELS}
     off = {k: median([r[k] for r in rounds[False]]) for k in LABELS}
     res = BenchResult("handover", "A lockstep hand-over at the least: the CPU of a put and of a "

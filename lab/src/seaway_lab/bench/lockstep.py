@@ -15,6 +15,9 @@ and each member's work (the estimator's filter, the controller's
 solve and records, the recorder's write and flush, the sim's step and publication); the sum along
 the critical path is the period.
 Targets (issue 13): through the processes at most 2x the in-process loop, and at least 100x real time.
+The floor beside them is what no split of these parts into processes can beat on this machine: the
+in-process loop's period plus three hand-overs at the least (``seaway bench handover``'s put from
+Zenoh's thread and receive into a callback), with nothing else in the period.
 
 Authentication (issue 15): the stack runs with authentication on (the launcher's per-run
 credentials: mutual TLS and access control) and off (``SEAWAY_CREDENTIALS=none``), alternately in
@@ -158,6 +161,20 @@ def _auth_figures(walls_s: list[float], periods_ms: list[float]) -> dict[str, fl
             "period_p99_ms": percentile(periods_ms, 99)}
 
 
+FLOOR_MESSAGES = 2000
+"""Timed messages per case of the hand-over measure behind the floor (``seaway bench handover``)."""
+
+
+def three_handovers_ms() -> float:
+    """Three lockstep hand-overs at the least, as ``seaway bench handover`` measures them with
+    authentication on [ms of CPU]: a put from Zenoh's thread and a receive into a Python callback,
+    each, between processes doing nothing else (one round)."""
+    from seaway_lab.bench import handover
+
+    rounds = handover.measure_rounds(1, FLOOR_MESSAGES, 0.0005, 2000, auths=(True,))
+    return rounds[True][0]["three_handovers_least_ms"]
+
+
 def run(argv: list[str]) -> BenchResult:
     ap = argparse.ArgumentParser(prog="seaway bench lockstep", description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeat", type=positive_int, default=3,
@@ -168,7 +185,12 @@ def run(argv: list[str]) -> BenchResult:
                     help="leave the stack's processes where the kernel puts them (default, given two "
                          "CPUs or more: the sim, estimator and controller on one, the recorder and "
                          "the launcher on the others, as 'seaway launch --cpus' does)")
+    ap.add_argument("--no-floor", action="store_true",
+                    help="leave out the floor (the in-process loop plus three hand-overs at the "
+                         "least, measured as 'seaway bench handover' does: about 20 s)")
     args = ap.parse_args(argv)
+    # First, before this process opens a Zenoh session of its own (the measure sets Zenoh's runtime).
+    handovers_ms = None if args.no_floor else three_handovers_ms()
     allowed = cpusets.allowed()
     split = None if args.no_pin else cpusets.split_chain(allowed)
     stack_cpus = allowed if split else None  # the launcher splits them so (--cpus)
@@ -225,6 +247,21 @@ def run(argv: list[str]) -> BenchResult:
     res.add("real-time factor through the processes", sim_s / wall, f">= {TARGET_REAL_TIME:g}",
             sim_s / wall >= TARGET_REAL_TIME)
     res.add("per period through the processes [ms]", 1e3 * wall / max(1, inproc.steps))
+    if handovers_ms is not None:
+        # A lower bound on any split of these parts into processes on this Zenoh: the chain works
+        # one member at a time, so its work (the in-process loop's) and three hand-overs' CPU
+        # (each a put in one member and a receive in the next, both on the critical path) add up,
+        # with no bookkeeping, no decoding, no recorder and warm caches.
+        inproc_ms = 1e3 * inproc_s / max(1, inproc.steps)
+        least_ms = inproc_ms + handovers_ms
+        res.add("floor: a period at the least [ms]", least_ms,
+                note=f"the in-process loop's {inproc_ms:.3f} ms a period plus three hand-overs at "
+                     f"the least, {handovers_ms:.3f} ms of CPU (seaway bench handover, auth on); "
+                     f"no process split of these parts can be faster here")
+        res.add("floor: real-time factor at the least", sim_s / (least_ms / 1e3 * inproc.steps),
+                note=f"against the target of {TARGET_REAL_TIME:g}x")
+        res.add("floor: ratio to the in process at the least", least_ms / inproc_ms,
+                note=f"against the target of {TARGET_RATIO:g}")
     for name, values in stage_ms[True].items():
         v_off = stage_ms[False].get(name, [])
         res.add(f"{name}, median [ms]", median(values), note=f"p99 {percentile(values, 99):.3f} ms"
