@@ -104,3 +104,50 @@ def test_a_checkpoint_from_an_earlier_launch_into_the_run_folder_is_not_resumed(
     saved_at(started - 1)
     resume(other, path, 10, None)  # started by hand, no run file: the file is all there is
     assert other.progress()[1:] == (2, "active", energy)
+
+
+def test_real_time_never_waits_for_the_checkpoints_disk(tmp_path: Path, monkeypatch) -> None:
+    """A durable write (fsync) took over a second beside another process's large write, and on the
+    control loop it left the vessel without a command past vehicle_io's watchdog (CI). Real time
+    hands the checkpoint to a writer thread: the request's reply and the control steps go on while
+    the disk holds the write, and the last progress is on disk once the service closes."""
+    import threading
+
+    from seaway.runtime.clock import WallClock
+    from seaway.runtime.memory_bus import MemoryHub
+    from seaway.runtime.run import RunDescription
+    from seaway.runtime.service import ServiceContext
+    from seaway_controller.service import ControllerService
+
+    from tests.unit.controller.test_core import DT_NS
+
+    gate, writers, synced = threading.Event(), [], []
+    real_write = atomic.write_text
+
+    def held_write(p, text, durable=True):  # the disk holds every write until the gate opens
+        writers.append((threading.current_thread().name, durable))
+        assert gate.wait(10)
+        real_write(p, text, durable)
+
+    monkeypatch.setattr(atomic, "write_text", held_write)
+    real_fsync = atomic.os.fsync
+    monkeypatch.setattr(atomic.os, "fsync", lambda fd: synced.append(fd) or real_fsync(fd))
+    hub = MemoryHub()
+    ctx = ServiceContext(name="controller", vessel="vessel1", bus=hub.bus("vessel1"), clock=WallClock(),
+                         stop=threading.Event(), run=RunDescription(run_id="unit", vessel="vessel1"))
+    path = tmp_path / "controller-state.json"
+    svc = ControllerService(ctx, make_core(ScriptedSolver()), lockstep=False, state_file=path)
+    assert svc._serve("mission/set", svc.core.handle_mission, mission()).accepted  # saves (forced)
+    t0 = ctx.clock.now_ns()
+    for k in range(1, 4):  # each step would save too, a second apart on the service's clock
+        monkeypatch.setattr(ctx.clock, "now_ns", lambda k=k: t0 + k * 1_000_000_000)
+        svc.step(k * DT_NS, state(k, x=2.0 + k))
+    assert not gate.is_set() and not path.exists()  # all answered while the disk held the first write
+    assert writers and all(name == "checkpoint" for name, _ in writers)
+    gate.set()
+    svc.close()
+    saved = checkpoint.load(path)
+    assert saved is not None and saved.state == "active"
+    assert saved.energy_used_j == pytest.approx(svc.core.progress()[3], rel=1e-12)  # the last step's
+    assert all(durable for _, durable in writers) and len(synced) == len(writers)
+    ctx.bus.close()

@@ -44,7 +44,9 @@ def save(path: Path, checkpoint: MissionCheckpoint, durable: bool = True) -> Non
 
     ``durable``: on disk before it counts (fsync), so that a power loss keeps it too. A simulation
     in lockstep passes False: a crashed process loses nothing the OS already has, and the fsync,
-    every simulated second, cost the controller about 40 % of its time per period there."""
+    every simulated second, cost the controller about 40 % of its time per period there. Real time
+    writes its durable checkpoints through ``atomic.LatestWriter`` instead (the control loop must
+    not wait for an fsync), as ``model_dump_json`` of the same model."""
     atomic.write_text(path, checkpoint.model_dump_json(), durable)
 
 

@@ -38,7 +38,9 @@ progress changes and once a second of the service's own clock (simulated time in
 wall second can be a hundred periods), read at start, so that a controller restarted mid-mission (the
 launcher restarts a crashed one) resumes the same mission at the same leg, with its energy count,
 instead of idling. A checkpoint saved before the run started (an earlier launch into the same run
-folder, ``seaway launch --run-dir``) is not resumed.
+folder, ``seaway launch --run-dir``) is not resumed. Real time writes it durably (fsync) on a thread of
+its own (``seaway.runtime.atomic.LatestWriter``: the control loop never waits for the disk), and the
+last one before the process ends; lockstep writes it in the answer's turn, not durably.
 """
 
 from __future__ import annotations
@@ -65,6 +67,7 @@ from seaway.contract.messages import (
     StateEstimate,
     VehicleStatus,
 )
+from seaway.runtime import atomic
 from seaway.runtime.argtypes import positive_float, whole_number
 from seaway.runtime.clock import RateLoop
 from seaway.runtime.lockstep import Member, Period
@@ -86,6 +89,8 @@ NAME = "controller"
 CHECKPOINT_PERIOD_NS = 1_000_000_000
 """An unchanged mission is re-saved this often (for its energy count), on the service's clock:
 wall time live, simulated time in lockstep. What a restart can lose is the energy of this long."""
+CHECKPOINT_CLOSE_S = 5.0
+"""How long a stopping controller waits for its last checkpoint to be written (real time) [s]."""
 
 
 SOLVER_REPLY_WAIT_S = 2.0
@@ -126,6 +131,11 @@ class ControllerService:
             builds.on_done = self.on_solver_done
         self._saved: tuple[str, int, str] | None = None  # (mission id, leg, state) last written
         self._saved_at_ns: int | None = None  # when, on the service's clock
+        # Real time writes it durably, on a thread of its own: an fsync can take a second beside
+        # another process's large write (seaway.runtime.atomic.LatestWriter), and the control loop
+        # must not wait for it. Lockstep writes it here, not durably (checkpoint.save says why).
+        self._writer = (atomic.LatestWriter(state_file, self._checkpoint_failed, "checkpoint")
+                        if state_file is not None and not lockstep else None)
         self.lock = threading.Lock()
         bus = ctx.bus
         self.member: Member | None = None
@@ -233,15 +243,28 @@ class ControllerService:
         due = last is None or not 0 <= now_ns - last < CHECKPOINT_PERIOD_NS
         if not force and key == self._saved and not due:
             return
-        try:
-            checkpoint.save(self.state_file, checkpoint.MissionCheckpoint(
-                request=req.model_dump(mode="json"), active_leg=leg, state=state,  # type: ignore[arg-type]
-                energy_used_j=energy, saved_unix_ns=time.time_ns()),
-                durable=self.member is None)  # lockstep: a simulation (checkpoint.save says why)
-        except OSError as err:  # the vessel keeps being controlled; only a restart would suffer
-            log.error("cannot write the mission checkpoint %s: %s", self.state_file, err)
-            return
+        cp = checkpoint.MissionCheckpoint(
+            request=req.model_dump(mode="json"), active_leg=leg, state=state,  # type: ignore[arg-type]
+            energy_used_j=energy, saved_unix_ns=time.time_ns())
+        if self._writer is not None:
+            self._writer.submit(cp.model_dump_json())
+        else:
+            try:
+                checkpoint.save(self.state_file, cp, durable=False)
+            except OSError as err:
+                self._checkpoint_failed(err)
+                return
         self._saved, self._saved_at_ns = key, now_ns
+
+    def _checkpoint_failed(self, err: OSError) -> None:
+        # The vessel keeps being controlled; only a restart would suffer.
+        log.error("cannot write the mission checkpoint %s: %s", self.state_file, err)
+
+    def close(self) -> None:
+        """The last checkpoint given, written before the process ends."""
+        if self._writer is not None and not self._writer.close(CHECKPOINT_CLOSE_S):
+            log.error("the mission checkpoint %s was not written within %g s of the stop",
+                      self.state_file, CHECKPOINT_CLOSE_S)
 
     def on_vehicle_status(self, _key: str, msg: VehicleStatus) -> None:
         if self.member is None and not self.stamps.admit(keys.VEHICLE_STATUS.suffix, msg.stamp_ns,
@@ -542,10 +565,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         ctx.ready()
         if svc.member is not None:
             svc.member.join()
-        if run.lockstep:
-            svc.run_lockstep()
-        else:
-            svc.run_rate(1.0 / period_s, args.max_state_age_s)
+        try:
+            if run.lockstep:
+                svc.run_lockstep()
+            else:
+                svc.run_rate(1.0 / period_s, args.max_state_age_s)
+        finally:
+            svc.close()
     return 0
 
 
