@@ -113,6 +113,41 @@ def test_real_time_flies_with_the_reference_until_the_fast_solver_is_made() -> N
     assert build.made["cc-empc"].calls == 1 and builds.describe("cc-empc") == ""
 
 
+class WaitSpy(SolverBuilds):
+    """Real builds whose ``wait`` records its timeout; ``finish``: the build finishes during it (as
+    a solver loaded from the cache does, in milliseconds, while a mission's first period runs)."""
+
+    def __init__(self, build: GatedBuild, finish: bool) -> None:
+        super().__init__(build)
+        self.gated, self.finish, self.waits = build, finish, []
+
+    def wait(self, kind: str, timeout_s: float | None = None) -> bool:
+        self.waits.append(timeout_s)
+        if self.finish:
+            self.gated.release(kind)
+        return super().wait(kind, timeout_s)
+
+
+def test_a_missions_first_solve_waits_a_little_for_its_solver_and_only_the_first() -> None:
+    from seaway_controller.solvers import FIRST_SOLVE_WAIT_S
+
+    ocp, args = problem()
+    loading = WaitSpy(GatedBuild(), finish=True)
+    staged = StagedSolver(ocp, loading, reference=GatedReference())
+    wait_for(lambda: loading.gated.asked, 5, what="the build to start")
+    res = staged.solve(*args)  # the solver became ready while the first solve waited: flown
+    assert res.success and res.status == "Solve_Succeeded"
+    assert loading.waits == [FIRST_SOLVE_WAIT_S] and loading.gated.made["cc-empc"].calls == 1
+
+    compiling = WaitSpy(GatedBuild(), finish=False)  # a compile: still being made after the wait
+    staged = StagedSolver(ocp, compiling, reference=GatedReference())
+    wait_for(lambda: compiling.gated.asked, 5, what="the build to start")
+    for _ in range(3):
+        assert staged.solve(*args).status.startswith("no solver yet")
+    assert compiling.waits == [FIRST_SOLVE_WAIT_S]  # the later solves fail at once
+    compiling.gated.release("cc-empc")
+
+
 def test_a_reference_that_cannot_be_set_up_is_named_and_not_tried_again(caplog) -> None:
     build, reference = GatedBuild(), GatedReference(fail=True)
     staged = StagedSolver(problem()[0], SolverBuilds(build), reference=reference)

@@ -515,6 +515,14 @@ class SolverBuilds:
         return list(self._builds)
 
 
+FIRST_SOLVE_WAIT_S = 0.05
+"""How long a real-time mission's first solve waits for its fast solver still being made [s]: one
+loaded from the cache takes milliseconds (logged "ready in 0.0 s"), and the first period of a
+mission came while it loaded, flying one period of fallback (with its WARNING) for a race of 1 ms.
+A compile takes seconds to minutes: after this the fallbacks fly, and no later solve waits. Well
+inside the control period (0.1 s) and the solve budget."""
+
+
 class StagedSolver:
     """One OCP's solver in a process that makes its fast solvers in the background
     (``SolverBuilds``): the fast one once it is ready; until then, or if it cannot be made, the
@@ -526,7 +534,8 @@ class StagedSolver:
     Real time never waits: setting up IPOPT takes about a second (CasADi builds its derivatives),
     which in the control loop left the vessel without a command past vehicle_io's watchdog. So the
     reference is set up on a thread of its own the first time it is needed, and until it is
-    ready a solve fails at once with a status that says why (the controller's fallbacks fly)."""
+    ready a solve fails at once with a status that says why (the controller's fallbacks fly). Only
+    the first solve waits, ``FIRST_SOLVE_WAIT_S`` at most, for a fast solver being loaded."""
 
     def __init__(self, ocp: Ocp, builds: SolverBuilds,
                  reference: Callable[[Ocp], NlpSolver] = IpoptSolver, wait: bool = False) -> None:
@@ -537,13 +546,15 @@ class StagedSolver:
         self._reference: NlpSolver | None = None
         self._reference_error = ""
         self._reference_started_once = False
+        self._waited_once = False
         builds.request(ocp)
 
     def solve(self, w0: np.ndarray, p: np.ndarray, lam_x0: np.ndarray,
               lam_g0: np.ndarray) -> SolveResult:
         fast = self.builds.ready(self.kind)
-        if fast is None and self.wait:
-            self.builds.wait(self.kind)
+        if fast is None and (self.wait or not self._waited_once):
+            self._waited_once = True
+            self.builds.wait(self.kind, None if self.wait else FIRST_SOLVE_WAIT_S)
             fast = self.builds.ready(self.kind)
         if fast is not None:
             return fast.solve(w0, p, lam_x0, lam_g0)
