@@ -142,3 +142,14 @@ def stack_credentials(rendezvous: str | None = None, timeout_s: float = 60.0):
     rendezvous = rendezvous or os.environ["SEAWAY_ZENOH_RENDEZVOUS"]
     entry = wait_for(lambda: stacks.lookup(rendezvous), timeout_s, what=f"a stack on {rendezvous}")
     return entry.session_credentials()
+
+
+def solver_built(kind: str, vessel: str) -> None:
+    """The controller's generated solver for ``kind`` on ``vessel`` (the default horizon and
+    period), compiled into the cache the stack reads, as on any machine after its first run: a
+    machine's first run flies the fallbacks while it is made (tests/system/launch/test_first_start.py
+    checks that), which a test of a normal run must not count."""
+    from seaway.vessel.model import load_vessel
+    from seaway_controller.core import ControllerCore
+
+    ControllerCore(load_vessel(vessel)).prepare((kind,))  # the controller's own way to its solver

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.conftest import wait_for
+from tests.conftest import solver_built, wait_for
 from tests.system.hardening.stack import short_lake
 
 pytestmark = pytest.mark.system
@@ -33,15 +33,6 @@ def test_a_normal_lockstep_run_logs_no_warning(procs, zenoh_env, tmp_path) -> No
     out = procs.log(la)
     assert la.returncode == 0 and "mission complete" in out, out[-3000:]
     assert loud_lines(run, out) == []
-
-
-def solver_built(kind: str, vessel: str) -> None:
-    """The controller's generated solver for ``kind`` on ``vessel`` (the default horizon and
-    period), compiled into the cache the stack reads, as on any machine after its first run."""
-    from seaway.vessel.model import load_vessel
-    from seaway_controller.core import ControllerCore
-
-    ControllerCore(load_vessel(vessel)).prepare((kind,))  # the controller's own way to its solver
 
 
 @pytest.mark.slow  # a whole real-time mission: about 45 s

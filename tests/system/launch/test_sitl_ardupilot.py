@@ -22,7 +22,7 @@ from seaway.vessel.model import load_vessel
 from seaway_recorder import recording
 from seaway_vehicle_io import sitl
 
-from tests.conftest import REPO
+from tests.conftest import REPO, solver_built
 from tests.system.vehicle_io.ardupilot_sitl import needs_sitl, sitl_instance
 
 pytestmark = pytest.mark.system
@@ -74,6 +74,10 @@ def test_a_missing_firmware_fails_the_launch_saying_how_to_get_it(tmp_path, zeno
 @pytest.mark.slow
 @pytest.mark.timeout(660)
 def test_the_lake_mission_on_ardupilot_sitl_with_the_identified_model(tmp_path, zenoh_env) -> None:
+    # A normal run, not a machine's first: on a cold cache the first 1.2 s flew line-of-sight
+    # guidance while the reference IPOPT was set up (12 of 313 periods "no solver yet" in CI, over
+    # the bound on non-converged solves below, which is about the MPC's turns).
+    solver_built("cc-empc", "ardupilot-sitl-motorboat")
     run_dir, stdout, log = launch_on_sitl("sitl-ardupilot", tmp_path, zenoh_env, 600)
     # The launcher waited for the EKF by asking to arm until ArduPilot agreed.
     assert re.search(r"^arm: accepted", stdout, re.M), log
@@ -94,6 +98,7 @@ def test_the_lake_mission_on_ardupilot_sitl_with_the_identified_model(tmp_path, 
     # boat's yaw rate is set by its speed, which the paper's model cannot hold). These bounds hold
     # what is reached, so that it cannot get worse unnoticed.
     assert metrics["avg_cross_track_m"] < 2.5 and metrics["max_cross_track_m"] < 8.0
+    assert not [s for s in solve["statuses"] if s.startswith("no solver yet")], solve["statuses"]
     assert solve["count"] > 100 and solve["failures"] <= 0.03 * solve["count"]
     assert set(solve["fallback_levels"]) <= {"1", "2"}  # never the stop
     # The boat was ArduPilot's: no simulator of ours in the recording, the state estimated from
