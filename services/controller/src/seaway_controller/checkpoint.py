@@ -38,6 +38,11 @@ class MissionCheckpoint(ConfigModel):
             raise CheckpointError(f"saved mission request is invalid: {err}") from None
 
 
+def encode(checkpoint: MissionCheckpoint) -> str:
+    """The file's text (what ``load`` reads back)."""
+    return checkpoint.model_dump_json()
+
+
 def save(path: Path, checkpoint: MissionCheckpoint, durable: bool = True) -> None:
     """Write ``checkpoint`` so that a reader sees the old file or the new one, never a mix
     (``seaway.runtime.atomic``).
@@ -46,8 +51,8 @@ def save(path: Path, checkpoint: MissionCheckpoint, durable: bool = True) -> Non
     in lockstep passes False: a crashed process loses nothing the OS already has, and the fsync,
     every simulated second, cost the controller about 40 % of its time per period there. Real time
     writes its durable checkpoints through ``atomic.LatestWriter`` instead (the control loop must
-    not wait for an fsync), as ``model_dump_json`` of the same model."""
-    atomic.write_text(path, checkpoint.model_dump_json(), durable)
+    not wait for an fsync), with the same ``encode``."""
+    atomic.write_text(path, encode(checkpoint), durable)
 
 
 def load(path: Path) -> MissionCheckpoint | None:

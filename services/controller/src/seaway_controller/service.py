@@ -247,7 +247,7 @@ class ControllerService:
             request=req.model_dump(mode="json"), active_leg=leg, state=state,  # type: ignore[arg-type]
             energy_used_j=energy, saved_unix_ns=time.time_ns())
         if self._writer is not None:
-            self._writer.submit(cp.model_dump_json())
+            self._writer.submit(checkpoint.encode(cp))
         else:
             try:
                 checkpoint.save(self.state_file, cp, durable=False)
