@@ -6,6 +6,7 @@ A WARNING is left for what a user should act on, so a normal run has none."""
 from __future__ import annotations
 
 import re
+import signal
 import sys
 from pathlib import Path
 
@@ -51,3 +52,30 @@ def test_a_normal_real_time_run_logs_no_warning(procs, zenoh_env, tmp_path) -> N
     assert loud_lines(run, out) == []  # (the stop's watchdog trip, if any, is INFO: a zero command)
     assert "built cc-empc solver" not in (run / "logs" / "controller.log").read_text(), \
         "the stack compiled its solver: solver_built made another one than the controller uses"
+
+
+@pytest.mark.slow  # a real-time stack up to a mission under way: about 30 s
+@pytest.mark.timeout(600)
+def test_ctrl_c_of_a_mission_under_way_stops_the_thrusters_quietly(procs, zenoh_env, tmp_path) -> None:
+    """Ctrl-C of ./run while the boat is driven: the controller stops first (stop order) and its
+    last command is zero thrust, so vehicle_io's watchdog trip after it is INFO, not the WARNING
+    (echoed by the launcher) that every interrupted run printed, saying the thrust was cut."""
+    solver_built("cc-empc", "paper-boat")
+    run = tmp_path / "run"
+    la = procs.start([sys.executable, "-m", "seaway.tools.cli", "launch", "sim", "--scenario",
+                      str(short_lake(tmp_path, "interrupted")), "--run-dir", str(run), "--no-report"],
+                     zenoh_env, "launcher")
+
+    def under_way() -> bool:  # the launcher's status line: leg 1 of 1 flown at 0.5 m/s or more
+        speeds = re.findall(r"active leg 1/1 .*\| speed +([\d.]+) m/s", procs.log(la))
+        return any(float(v) >= 0.5 for v in speeds) or la.poll() is not None
+
+    wait_for(under_way, 300, interval_s=0.5, what="the mission under way at 0.5 m/s or more")
+    assert la.poll() is None, procs.log(la)[-3000:]
+    la.send_signal(signal.SIGINT)
+    wait_for(lambda: la.poll() is not None, 60, interval_s=0.2, what="the launcher to stop")
+    out = procs.log(la)
+    assert la.returncode == 0 and "mission complete" not in out, out[-3000:]
+    assert loud_lines(run, out) == []
+    controller = (run / "logs" / "controller.log").read_text()
+    assert "stopping: zero thrust commanded" in controller, controller[-2000:]

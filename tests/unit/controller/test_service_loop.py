@@ -199,3 +199,41 @@ def test_a_mission_after_a_restart_is_flown_from_the_new_episodes_first_state(
     assert not again.hold and keys.SOLVE.suffix in again.published, again.published
     first = world.thrust.get(1.0)
     assert (first.stamp_ns, first.source) == (0, "cc-empc")
+
+
+def test_a_real_time_controller_stopping_in_order_commands_zero_thrust_last() -> None:
+    """Ctrl-C of a mission in progress: the thrusters kept the last command until vehicle_io's
+    watchdog cut them 0.3 s later with a WARNING. The real-time loop's last command is now zero
+    thrust (source 'stop'), so the thrusters stop at once and the watchdog's trip is the expected
+    end of a run (vehicle_io: after a zero command it is INFO)."""
+    hub = MemoryHub()
+    stop = threading.Event()
+    ctx = ServiceContext(name="controller", vessel=VESSEL, bus=hub.bus(VESSEL), clock=WallClock(),
+                         stop=stop, run=RunDescription(run_id="unit", vessel=VESSEL))
+    svc = ControllerService(ctx, make_core(ScriptedSolver()), lockstep=False)
+    observer = hub.bus(VESSEL)
+    thrust: TypedSubscriber = observer.subscribe(keys.THRUST, mode="fifo")
+    estimator = hub.bus(VESSEL)
+    nav = estimator.publisher(keys.NAV_STATE)
+    assert svc._serve("mission/set", svc.core.handle_mission, mission()).accepted
+    loop = threading.Thread(target=svc.run_rate, args=(50.0, 0.5), daemon=True)
+    loop.start()
+    seen = []
+
+    def flying() -> bool:  # a fresh state each look, as the estimator publishes them
+        now = ctx.clock.now_ns()
+        nav.put(state(0).model_copy(update={"stamp_ns": now}))
+        seen.extend(thrust.drain())
+        return any(c.source != "idle" and (c.thrust_port_n, c.thrust_starboard_n) != (0.0, 0.0)
+                   for c in seen)
+
+    wait_for(flying, 10, interval_s=0.05, what="the mission to drive the thrusters")
+    stop.set()
+    loop.join(5)
+    assert not loop.is_alive()
+    seen.extend(thrust.drain())
+    last = seen[-1]
+    assert (last.thrust_port_n, last.thrust_starboard_n, last.source) == (0.0, 0.0, "stop")
+    assert last.seq > seen[-2].seq
+    for bus in (ctx.bus, observer, estimator):
+        bus.close()

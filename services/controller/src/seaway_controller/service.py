@@ -478,6 +478,20 @@ class ControllerService:
                                 keys.NAV_STATE.suffix, max_state_age_s)
                     stale_reported = True
                 self.pub_thrust.put(self.core.zero_command(last_stamp, "stale-state"))
+        self.stop_thrusters(last_stamp)
+
+    def stop_thrusters(self, stamp_ns: int | None) -> None:
+        """Real time, stopping in order: zero thrust now, as the last command.
+
+        Without it the thrusters kept the last command until vehicle_io's watchdog saw the silence
+        (``thrust_timeout_s`` later) and cut them with a WARNING, at every Ctrl-C of a mission in
+        progress; after a zero command that trip is the expected end (vehicle_io logs it as INFO).
+        ``stamp_ns``: the last state's (the command's stamp is its state's), else now."""
+        stamp = stamp_ns if stamp_ns is not None else self.ctx.clock.now_ns()
+        with self.lock:
+            cmd = self.core.zero_command(stamp, "stop")
+        self.pub_thrust.put(cmd)
+        log.info("stopping: zero thrust commanded")
 
     def announce(self, now_ns: int) -> None:
         """Real time: the mission just accepted, or the current one again once a second (for a
