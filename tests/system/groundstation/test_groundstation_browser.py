@@ -26,7 +26,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.conftest import BIN, udp_port_free, wait_for
+from tests.conftest import BIN, wait_for
 
 pytestmark = [pytest.mark.system, pytest.mark.slow]
 
@@ -34,12 +34,6 @@ BOX_M = [(0.0, 0.0), (16.0, 0.0), (16.0, 12.0), (2.0, 12.0)]
 """The mission clicked on the map: local NED (north, east) [m], from where the vessel starts."""
 CLICK_TOLERANCE_M = 0.25
 """A click lands within a pixel of where it was aimed; at the test's zoom that is under 0.25 m."""
-
-
-SIM_MAVLINK_PORT = 14580
-"""The sim profile's simulated PX4 listens here (one such stack per machine at a time)."""
-
-
 
 
 def number(text: str) -> float:
@@ -54,9 +48,6 @@ def test_plan_fly_check_and_replay_a_mission_from_the_page(procs, zenoh_env, tmp
     print(f"\nscreenshots: {shots}")
     runs = tmp_path / "runs"
     run = runs / "browser-run"
-    # Another sim-profile stack on this machine (a developer's, a parallel test) holds the port.
-    wait_for(lambda: udp_port_free(SIM_MAVLINK_PORT), 300, interval_s=1.0,
-             what=f"UDP port {SIM_MAVLINK_PORT} (the sim profile's MAVLink) to be free")
     launcher = procs.start([sys.executable, "-m", "seaway.tools.cli", "launch", "sim", "--run-dir", str(run),
                             "--no-mission", "--stay"], zenoh_env, "launcher")
     address = run / "groundstation" / "address.json"

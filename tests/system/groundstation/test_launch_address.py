@@ -1,38 +1,45 @@
 """``./run``'s launcher (``seaway launch sim``, what ``./run`` execs) prints the ground station's page
 address once the stack is ready, the page and its API answer there with the token it carries, and
 the token is written nowhere in the run folder but the owner-only address file: not in the logs (the
-ground station's own output is ``logs/groundstation.log``), the events, nor the recording."""
+ground station's own output is ``logs/groundstation.log``), the events, nor the recording. The
+stack's MAVLink is on a port of its own: it arms with PX4 SITL's usual port held by someone else."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import re
 import signal
+import socket
 import sys
 from pathlib import Path
 
 import pytest
 
-from tests.conftest import udp_port_free, wait_for
+from tests.conftest import wait_for
 from tests.system.groundstation.helpers import http_raw as http
 
 pytestmark = pytest.mark.system
-SIM_MAVLINK_PORT = 14580
-"""The sim profile's simulated PX4 listens here (one such stack per machine at a time)."""
+PX4_API_PORT = 14580
+"""PX4 SITL's API-link port, where a simulated PX4 listens by default: another stack, a SITL or a
+test may hold it; the sim profile must not need it."""
 PAGE_LINE = re.compile(r"^ground station: (http://127\.0\.0\.1:(\d+)/)#token=(\S+)$", re.MULTILINE)
 
 
-
-
+@pytest.fixture
+def px4_port_held():
+    """PX4 SITL's API-link port held for the test (if nobody holds it already)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as held:
+        with contextlib.suppress(OSError):  # already held elsewhere: as good for this test
+            held.bind(("127.0.0.1", PX4_API_PORT))
+        yield
 
 
 def test_the_launcher_prints_the_page_address_and_the_token_stays_out_of_the_run(
-        procs, zenoh_env, tmp_path) -> None:
+        procs, zenoh_env, tmp_path, px4_port_held) -> None:
     from seaway_recorder.recording import iter_messages, read_info
 
     run = tmp_path / "run"
-    wait_for(lambda: udp_port_free(SIM_MAVLINK_PORT), 300, interval_s=1.0,
-             what=f"UDP port {SIM_MAVLINK_PORT} (the sim profile's MAVLink) to be free")
     launcher = procs.start([sys.executable, "-m", "seaway.tools.cli", "launch", "sim", "--run-dir",
                             str(run), "--no-mission", "--stay"], zenoh_env, "launcher")
 
