@@ -762,6 +762,9 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
         else:
             status.show(time.monotonic() - t_run, final=True)
     finally:
+        # The run is over, whatever ended it: from here on a Ctrl-C hurries the stop and skips the
+        # report (after a completed mission the first Ctrl-C only set ``stop``: the report went on).
+        stop.set()
         print("stopping...", flush=True)
         t_stop = time.monotonic()
         sup.stop_all()
@@ -839,8 +842,6 @@ def _final_report(run_dir: Path, scenario: str, mission_file: Path | None = None
         with console.status("making the report (metrics, plots) ...") as shown:
             while proc.poll() is None:
                 skipped = sup is not None and sup.hurried > hurried
-                if skipped:
-                    sup.note_hurry()
                 if skipped or time.monotonic() - t0 > REPORT_TIMEOUT_S:
                     proc.kill()
                     proc.wait()

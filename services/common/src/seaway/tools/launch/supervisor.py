@@ -1,14 +1,14 @@
 """The process supervisor behind ``seaway launch``: start, watch, restart and stop a profile.
 
 Processes run in sessions of their own, so a Ctrl-C at the terminal reaches only the launcher, which
-then stops them in order: SIGINT to each process group in stop order (recorder last), SIGKILL after
-the process's ``stop_timeout_s``. A second Ctrl-C (``hurry``) shortens that grace to
-``HURRY_GRACE_S`` for every process but the recorder, which keeps its own to finish the recording:
-the stop stays in order and the file stays whole. Each child also gets ``PR_SET_PDEATHSIG`` =
-SIGTERM, so that even a SIGKILLed launcher leaves no orphans behind on Linux: set by util-linux's
-``setpriv --pdeathsig`` before it execs the command, not by Python code between fork and exec
-(``preexec_fn``), which in a process with Zenoh's threads could deadlock the child before its exec
-and the launcher with it (seen in CI: a stack whose controller never started).
+then stops them in order: SIGINT to each process group in stop order (recorder last; SIGTERM to one
+still starting, ``stop_signal``), SIGKILL after the process's ``stop_timeout_s``. A second Ctrl-C
+(``hurry``) shortens that grace to ``HURRY_GRACE_S`` for every process but the recorder, which keeps
+its own to finish the recording: the stop stays in order and the file stays whole. Each child also
+gets ``PR_SET_PDEATHSIG`` = SIGTERM, so that even a SIGKILLed launcher leaves no orphans behind on
+Linux: set by util-linux's ``setpriv --pdeathsig`` before it execs the command, not by Python code
+between fork and exec (``preexec_fn``), which in a process with Zenoh's threads could deadlock the
+child before its exec and the launcher with it (seen in CI: a stack whose controller never started).
 
 A process that exits with a failure is restarted after its back-off (``restart = "on-failure"``).
 So is one that hangs (``liveness``): its health token gone for ``TOKEN_GRACE_S`` while it still
@@ -423,7 +423,8 @@ class Supervisor:
         return True
 
     def stop_all(self) -> None:
-        """SIGINT each process group in stop order; SIGKILL what is still alive after its grace."""
+        """Signal each process group in stop order (``stop_signal``); SIGKILL what is still alive
+        after its grace."""
         self.stopping = True
         for spec in stop_order([p.spec for p in self.procs.values()]):
             sp = self.procs[spec.name]
@@ -431,9 +432,11 @@ class Supervisor:
                 if sp.state == "backoff":
                     sp.state = "stopped"
                 continue
-            _signal_group(sp.popen, signal.SIGINT)
+            sig = stop_signal(sp.state)
+            _signal_group(sp.popen, sig)
             if not self._wait_stopped(sp):
-                self.echo(f"launcher: {spec.name} ignored SIGINT for {self.grace_s(spec):g} s; SIGKILL")
+                self.echo(f"launcher: {spec.name} ignored {sig.name} for {self.grace_s(spec):g} s; "
+                          f"SIGKILL")
                 _signal_group(sp.popen, signal.SIGKILL)
                 sp.popen.wait(5)
             sp.last_exit = sp.popen.returncode
@@ -471,6 +474,15 @@ class Supervisor:
                 folder.mkdir(parents=True, exist_ok=True)
                 with open(folder / EVENTS_FILE, "a") as f:
                     f.write(ev.line())
+
+
+def stop_signal(state: str) -> signal.Signals:
+    """The signal that stops a process in ``state``: SIGINT, as a Ctrl-C would; SIGTERM to a service
+    still starting. That one may still be importing, before its stop handler is in place
+    (``seaway.runtime.service.install_stop_signals``), where Python turns a SIGINT into a
+    KeyboardInterrupt traceback in its log and on the terminal; SIGTERM ends it quietly there, and
+    once the handler is in place it stops on either the same way."""
+    return signal.SIGTERM if state == "starting" else signal.SIGINT
 
 
 def _signal_group(p: subprocess.Popen, sig: int) -> None:
