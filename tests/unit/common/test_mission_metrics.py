@@ -10,7 +10,8 @@ from types import SimpleNamespace as S
 
 import pytest
 from seaway.contract.units import NS_PER_S
-from seaway.vessel.metrics import median, mission_metrics, percentile, rms
+from seaway.vessel import metrics
+from seaway.vessel.metrics import MAX_GRID_SAMPLES, median, mission_metrics, percentile, rms
 
 NS = NS_PER_S
 WPS = [(0.0, 0.0), (10.0, 0.0), (10.0, 10.0)]
@@ -126,6 +127,23 @@ def test_errors_name_what_is_missing() -> None:
     with pytest.raises(ValueError, match="after the mission started"):
         mission_metrics(straight_run(), WPS, 1.0, 0.0, energy_j=[0.0] * len(straight_run()),
                         mission_start_ns=10**15)
+
+
+def test_a_span_beyond_the_grid_s_bound_is_refused_not_walked(monkeypatch) -> None:
+    """One state stamped 10^9 s ahead asked for 10^10 grid samples (all the memory there was)."""
+    far = [pose(0.0, 0.0, 0.5), pose(0.1, 0.1, 0.5), S(stamp_ns=10**18, x_m=0.2, y_m=0.5)]
+    with pytest.raises(ValueError, match=r"\(nav/state\) span 1e\+09 s .* at most 55\.6 h "
+                                         r"\(2000000 samples of 0\.1 s\)"):
+        mission_metrics(far, WPS, 1.0, 0.0, energy_j=[0.0] * 3, state_source="nav/state")
+    assert MAX_GRID_SAMPLES == 2_000_000
+    # At the bound itself the span is walked; one sample over, refused (a smaller bound, to be quick).
+    monkeypatch.setattr(metrics, "MAX_GRID_SAMPLES", 100)
+    edge = [pose(0.0, 5.0, 0.5), pose(10.0, 5.2, 0.5)]  # outside the circles: every sample counts
+    assert mission_metrics(edge, WPS, 1.0, 0.0, energy_j=[0.0] * 2).cross_track_samples == 100
+    with pytest.raises(ValueError, match=r"span 10\.1 s"):
+        mission_metrics([*edge[:1], pose(10.1, 5.2, 0.5)], WPS, 1.0, 0.0, energy_j=[0.0] * 2)
+    with pytest.raises(ValueError, match="sample_period_s must be > 0"):
+        mission_metrics(edge, WPS, 1.0, 0.0, energy_j=[0.0] * 2, sample_period_s=0.0)
 
 
 def test_the_end_instant_is_not_a_cross_track_sample():

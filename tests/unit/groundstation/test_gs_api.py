@@ -360,3 +360,44 @@ def test_openapi_documents_every_endpoint_with_tags_and_refusals(client: TestCli
     imp = schema["paths"]["/api/vessels/{vessel}/mission/import"]["post"]["requestBody"]["content"]
     assert {"multipart/form-data", "application/json"} <= set(imp)
     assert "VesselView" in schema["components"]["schemas"]
+
+
+def test_a_state_stamped_far_ahead_of_the_wall_clock_is_dropped_not_shown(client: TestClient,
+                                                                          vessel: Vessel) -> None:
+    """Valid but absurd: an insider's state stamped 10^9 s ahead posed as the newest for good (shown
+    fresh, 10^6 m/s) and stretched the mission's metrics to its stamp (10^10 grid samples: all the
+    machine's memory). It is dropped, counted and logged; the vessel's real states go on."""
+    import time
+
+    vessel.publish(keys.NAV_STATE, state(1.0))
+    absurd = StateEstimate(stamp_ns=time.time_ns() + 10**18, u_mps=1e6, v_mps=0.0, r_radps=0.0,
+                           x_m=1e12, y_m=2.0, psi_rad=0.1)
+    vessel.publish(keys.NAV_STATE, absurd)
+    (v1,) = client.get("/api/vessels").json()["vessels"]
+    assert v1["state"]["message"]["x_m"] == 1.0
+    vessel.publish(keys.NAV_STATE, state(3.0))  # the next real one is taken
+    (v1,) = client.get("/api/vessels").json()["vessels"]
+    assert v1["state"]["message"]["x_m"] == 3.0
+    gate = client.app.state.groundstation.link.stamps  # type: ignore[attr-defined]
+    assert gate.dropped == {(keys.NAV_STATE.key("v1"), "ahead"): 1}
+
+
+@pytest.mark.parametrize(("path", "body"), [
+    ("/api/vessels/v1/mode", "NaN"),
+    ("/api/vessels/v1/mode", '{"mode": NaN}'),
+    ("/api/vessels/v1/arm", '{"arm": true, "force": Infinity}'),
+    ("/api/vessels/v1/mission", '{"waypoints": [{"x_m": NaN, "y_m": 0}, {"x_m": 1e400, "y_m": 0}], '
+                                '"coa_radius_m": 2.0}'),
+    ("/api/vessels/v1/mission", '{"waypoints": [{"x_m": 0, "y_m": 0}, {"x_m": 20, "y_m": 0}], '
+                                '"coa_radius_m": -Infinity}'),
+])
+def test_nan_infinity_and_overflowing_numbers_in_a_body_are_a_422_naming_the_field(
+        client: TestClient, vessel: Vessel, path: str, body: str) -> None:
+    """Python's JSON reads NaN, Infinity and 1e400 as floats; the default 422 echoed them and could
+    not encode its own answer: a bare 500 and a traceback. Now a 422 naming each field."""
+    r = client.post(path, content=body, headers={**AUTH, "Content-Type": "application/json"})
+    assert r.status_code == 422, r.text
+    detail = r.json()["detail"]
+    assert detail and all(e["loc"] and e["msg"] for e in detail), detail
+    assert any(str(e.get("input")) in ("nan", "inf", "-inf") for e in detail), detail
+    assert vessel.requests.get(keys.VEHICLE_ARM.suffix) is None  # nothing reached the vessel

@@ -34,6 +34,7 @@ from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Depends, FastAPI, HTTPException, Query, Request
 from fastapi import Path as PathParam
+from fastapi.encoders import jsonable_encoder
 from fastapi.exceptions import RequestValidationError
 from fastapi.middleware.gzip import GZipMiddleware
 from fastapi.responses import FileResponse, JSONResponse, Response
@@ -201,6 +202,25 @@ def _reply(reply: CommandReply) -> JSONResponse:
     return JSONResponse(reply.model_dump(mode="json"), status_code=STATUS_OF_OUTCOME[reply.outcome])
 
 
+def _json_safe(value: Any) -> Any:
+    """``value`` with every non-finite float as its text ('nan', 'inf'), which JSON cannot carry."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return repr(value)
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_json_safe(v) for v in value]
+    return value
+
+
+async def _unprocessable_response(_request: Any, exc: Exception) -> JSONResponse:
+    """FastAPI's own 422 (``{"detail": [errors]}``), but for a body holding NaN, Infinity or 1e400:
+    Python's JSON reads those as floats, each error echoes its input, and the default answer could
+    not encode them (a bare 500 and a traceback in the log, for ``{"mode": NaN}``)."""
+    assert isinstance(exc, RequestValidationError)
+    return JSONResponse(status_code=422, content={"detail": _json_safe(jsonable_encoder(exc.errors()))})
+
+
 def _validation_error(err: ValidationError) -> RequestValidationError:
     return RequestValidationError(err.errors(include_url=False, include_context=False))
 
@@ -266,6 +286,7 @@ def create_app(bus_like: Bus, settings: Settings | None = None,
                              422: {"model": UnprocessableBody, "description": "an invalid request: "
                                    "the fields at fault, or what in the content is wrong"}})
     app.state.groundstation = gs
+    app.add_exception_handler(RequestValidationError, _unprocessable_response)
     # Outermost first on the way in: the body bound before anything reads a body; replay frames
     # (megabytes of JSON for a long run) go out compressed.
     app.add_middleware(GZipMiddleware, minimum_size=4096)
@@ -353,15 +374,20 @@ def _read_router(gs: GroundStation) -> APIRouter:
 
     @r.get("/vessels/{vessel}/metrics", response_model=MetricsView | None,
            summary="The paper's metrics of the current mission so far",
-           responses={404: _errors("vessel never seen")})
+           responses={404: _errors("vessel never seen"),
+                      409: _errors("the samples heard cannot make metrics (a span over "
+                                   "seaway.vessel.metrics.MAX_GRID_SAMPLES)")})
     async def metrics(vessel: VesselName) -> MetricsView | None:
         """Travel time, energy and average cross-track error as ``seaway report`` defines them,
         from the states and thrust commands heard since the mission became active. ``null`` when
         the vessel flies no mission whose waypoints this ground station knows."""
         gs.known(vessel)
         gs.learn_mission(vessel)
-        return await run_in_threadpool(gs.fleet.metrics, vessel, gs.settings.alpha_w_per_n2,
-                                       gs.settings.control_period_s)
+        try:
+            return await run_in_threadpool(gs.fleet.metrics, vessel, gs.settings.alpha_w_per_n2,
+                                           gs.settings.control_period_s)
+        except ValueError as err:
+            raise HTTPException(409, f"no metrics for {vessel!r}: {err}") from None
 
     return r
 

@@ -3,7 +3,12 @@
 * ``BusLink.attach`` subscribes to every vessel's state, solve record, mission status, vehicle status,
   NED origin, thrust command and energy budget, and watches every vessel's health tokens; each
   arrival updates the ``Fleet`` and calls ``on_change(vessel)`` (the stream's wake-up). Callbacks
-  run on the transport's threads and do O(1) work: they never wait for a web client.
+  run on the transport's threads and do O(1) work: they never wait for a web client. A message
+  stamped more than ``seaway.runtime.stamps.MAX_AHEAD_LIVE_S`` ahead of this machine's wall clock is
+  dropped, counted and logged (``StampGate``): real time stamps with the wall clock and lockstep
+  from t = 0, so neither comes ahead of it, and one that does would pose as the newest message for
+  good and stretch the mission's metrics to its stamp (one state stamped 10^9 s ahead made them walk
+  10^10 grid points and take all the machine's memory).
 * ``ask`` sends one request and tells apart an answer (accepted or refused), no answer in time, and
   an error reply from the transport, which ``Bus.request`` folds into one refusal.
 """
@@ -18,6 +23,7 @@ from typing import Any
 from seaway.contract import keys
 from seaway.contract.messages import Message, MessageError, Reply
 from seaway.runtime.bus import Bus, Declared
+from seaway.runtime.stamps import StampBounds, StampGate
 
 from seaway_groundstation.fleet import Fleet, Kind
 from seaway_groundstation.views import CommandReply, Outcome
@@ -46,8 +52,12 @@ class BusLink:
     """Feeds the ``Fleet`` from the bus; see the module's description."""
 
     def __init__(self, bus: Bus, fleet: Fleet, clock: Callable[[], float] = time.monotonic,
-                 on_change: Callable[[str], None] | None = None) -> None:
-        self.bus, self.fleet, self.clock = bus, fleet, clock
+                 on_change: Callable[[str], None] | None = None,
+                 wall_ns: Callable[[], int] = time.time_ns) -> None:
+        """``clock``: receive times [s, monotonic]; ``wall_ns``: the reference for stamps [ns since
+        the Unix epoch]."""
+        self.bus, self.fleet, self.clock, self.wall_ns = bus, fleet, clock, wall_ns
+        self.stamps = StampGate("groundstation", log, StampBounds.live())
         self.on_change = on_change or (lambda _vessel: None)
         self._declared: list[Declared] = []
 
@@ -61,7 +71,7 @@ class BusLink:
     def _on_message(self, kind: Kind) -> Callable[[str, Any], None]:
         def handle(key: str, msg: Message) -> None:
             vessel = vessel_of(key)
-            if vessel is None:
+            if vessel is None or not self.stamps.admit(key, msg.stamp_ns, self.wall_ns()):
                 return
             self.fleet.on_message(vessel, kind, msg, self.clock())
             self.on_change(vessel)

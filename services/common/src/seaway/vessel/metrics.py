@@ -38,6 +38,11 @@ from seaway.contract import keys
 from seaway.contract.units import NS_PER_S
 from seaway.vessel.path import advance_leg, cross_track_m, inside_any_circle
 
+MAX_GRID_SAMPLES = 2_000_000
+"""The most samples of the cross-track grid one run's metrics walk: 55.6 h at the paper's 0.1 s. A
+longer span between a run's first and last state is a wrong stamp (one state stamped 10^9 s ahead
+asked for 10^10 samples, and all the machine's memory) or a recording of many runs, and is refused."""
+
 # -- statistics ---------------------------------------------------------------------------------------
 
 
@@ -159,9 +164,18 @@ def mission_metrics(
     last = end if end is not None else len(states) - 1
     t0, t1 = stamps[start], stamps[last]
     duration_s = (t1 - t0) / NS_PER_S
+    period_ns = round(sample_period_s * NS_PER_S)
+    if period_ns <= 0:
+        raise ValueError(f"sample_period_s must be > 0 (at least 1 ns), got {sample_period_s}")
+    if t1 - t0 > MAX_GRID_SAMPLES * period_ns:
+        raise ValueError(
+            f"the state samples{f' ({state_source})' if state_source else ''} span "
+            f"{duration_s:.6g} s from the mission's first to its last; at most "
+            f"{MAX_GRID_SAMPLES * sample_period_s / 3600:.1f} h ({MAX_GRID_SAMPLES} samples of "
+            f"{sample_period_s:g} s) are taken for one run: a stamp is wrong, or the recording "
+            f"holds more than one run")
 
     # Cross-track error on the sample grid over [t0, t1).
-    period_ns = round(sample_period_s * NS_PER_S)
     xte: list[float] = []
     grid_t: list[float] = []
     grid_xte: list[float] = []
