@@ -27,7 +27,7 @@ import itertools
 import json
 import math
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 import numpy as np
 from pydantic import Field, model_validator
@@ -38,18 +38,48 @@ from seaway.vessel.model import world_to_body
 
 AIR_DENSITY_KGPM3 = 1.225
 
+# Bounds on what a scenario may ask of the simulated world: beyond any sea a small twin-thruster
+# vessel works in, inside what the plant and its sensors can represent for every vessel file in
+# deploy/vessels (the lightest, 2 kg, stays finite at all of them at once: a unit test). Without
+# them a valid file (a current of 10^5 m/s, a wind of 10^6 m/s) crashed the sim at its first step
+# (a GNSS speed over MAVLink's 16 bits, a heading of inf), and a scenario loaded at run time and
+# kept in the sim's state file crashed it again at each restart. A heavier vessel could take more;
+# a lighter one than 2 kg may need lower bounds (the test runs every vessel file at them).
+MAX_FORCE_N = 20.0
+"""A constant or gridded disturbance force, each component [N] (the paper's are under 0.1 N)."""
+MAX_MOMENT_NM = 2.0
+"""A constant disturbance yaw moment [N m]."""
+MAX_CURRENT_MPS = 5.0
+"""A current, each component [m/s]: the strongest tidal races run about 5 m/s."""
+MAX_WIND_MPS = 25.0
+"""Mean wind speed [m/s]: a storm (Beaufort 10, 24.5-28.4 m/s)."""
+MAX_GUST_STD_MPS = 10.0
+"""Gust speed standard deviation [m/s]."""
+MAX_DRAG_AREA_M2 = 0.25
+"""Above-water Cd * A [m^2]: the paper's lake scenario has 0.08."""
+MAX_START_RANGE_M = 100_000.0
+"""How far from the NED origin a run may start, each axis [m] (vehicle_io drops positions past
+10^6 m; a flat local frame is already poor at 100 km)."""
+MAX_START_SPEED_MPS = 20.0
+"""Start surge speed, either way [m/s]."""
+
+
+def _within(bound: float) -> Any:
+    """A float field bounded to [-bound, bound], default 0."""
+    return Field(default=0.0, ge=-bound, le=bound)
+
 
 class BodyConstant(ConfigModel):
     kind: Literal["body_constant"]
-    surge_n: float = 0.0
-    sway_n: float = 0.0
-    yaw_nm: float = 0.0
+    surge_n: float = _within(MAX_FORCE_N)
+    sway_n: float = _within(MAX_FORCE_N)
+    yaw_nm: float = _within(MAX_MOMENT_NM)
 
 
 class WorldConstant(ConfigModel):
     kind: Literal["world_constant"]
-    north_n: float = 0.0
-    east_n: float = 0.0
+    north_n: float = _within(MAX_FORCE_N)
+    east_n: float = _within(MAX_FORCE_N)
 
 
 class WorldGrid(ConfigModel):
@@ -70,23 +100,27 @@ class WorldGrid(ConfigModel):
             if len(table) != len(self.xs_m) or any(len(row) != len(self.ys_m) for row in table):
                 raise ValueError(f"{name} must be {len(self.xs_m)} rows of {len(self.ys_m)} values "
                                  "(one row per xs_m, one value per ys_m)")
+            if any(abs(f) > MAX_FORCE_N for row in table for f in row):
+                raise ValueError(f"{name}: every force must be within +-{MAX_FORCE_N:g} N")
         return self
 
 
 class Current(ConfigModel):
     kind: Literal["current"]
-    north_mps: float = 0.0
-    east_mps: float = 0.0
+    north_mps: float = _within(MAX_CURRENT_MPS)
+    east_mps: float = _within(MAX_CURRENT_MPS)
 
 
 class Wind(ConfigModel):
     """Wind from ``from_rad`` (meteorological: the direction it blows from, clockwise from north)."""
 
     kind: Literal["wind"]
-    speed_mps: float = Field(ge=0)
+    speed_mps: float = Field(ge=0, le=MAX_WIND_MPS)
     from_rad: float
-    drag_area_m2: float = Field(default=0.05, ge=0, description="Cd * A, above-water [m^2]")
-    gust_std_mps: float = Field(default=0.0, ge=0, description="gust speed std [m/s]")
+    drag_area_m2: float = Field(default=0.05, ge=0, le=MAX_DRAG_AREA_M2,
+                                description="Cd * A, above-water [m^2]")
+    gust_std_mps: float = Field(default=0.0, ge=0, le=MAX_GUST_STD_MPS,
+                                description="gust speed std [m/s]")
     gust_direction_std_rad: float = Field(default=0.0, ge=0)
     gust_time_constant_s: float = Field(default=5.0, gt=0)
 
@@ -109,10 +143,10 @@ class SensorNoise(ConfigModel):
 
 
 class StartPose(ConfigModel):
-    x_m: float = 0.0
-    y_m: float = 0.0
-    psi_rad: float = 0.0
-    u_mps: float = 0.0
+    x_m: float = _within(MAX_START_RANGE_M)
+    y_m: float = _within(MAX_START_RANGE_M)
+    psi_rad: float = _within(1000.0)  # any heading, wrapped; not one a float loses the angle of
+    u_mps: float = _within(MAX_START_SPEED_MPS)
 
 
 def load_mission(path: str | Path) -> MissionSpec:

@@ -1,0 +1,78 @@
+"""A scenario's disturbances and start are bounded (``seaway.simkit.scenario.MAX_*``): a valid file
+with a current of 10^5 m/s, a wind of 10^6 m/s, a drag area of 10^9 m^2 or a gust std of 10^200 m/s
+crashed the sim at its first steps (a GNSS speed over MAVLink's 16 bits, a heading of inf), and one
+loaded at run time and kept in the sim's state file crashed it at every restart. Past a bound a file
+is refused naming the field and the bound; at the bounds every shipped vessel's plant stays finite
+and its telemetry packs."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from pymavlink.dialects.v20 import common as mavlink
+from seaway.contract.config import ConfigError
+from seaway.simkit import scenario as sc
+from seaway.vessel.model import load_vessel
+from seaway_sim.core import SimCore
+from seaway_sim.px4_autopilot import Px4Autopilot, Px4Config
+
+from tests.conftest import REPO
+
+VESSELS = sorted(p.stem for p in (REPO / "deploy" / "vessels").glob("*.toml"))
+
+
+def lake_with(**changes) -> dict:
+    doc = sc.load_scenario("lake").model_dump(mode="json")
+    doc.update(changes)
+    return doc
+
+
+@pytest.mark.parametrize(("changes", "field", "bound"), [
+    ({"disturbances": [{"kind": "current", "north_mps": 1e5}]}, "north_mps", sc.MAX_CURRENT_MPS),
+    ({"disturbances": [{"kind": "wind", "speed_mps": 1e6, "from_rad": 0.0}]}, "speed_mps", sc.MAX_WIND_MPS),
+    ({"disturbances": [{"kind": "wind", "speed_mps": 3.0, "from_rad": 0.0, "drag_area_m2": 1e9}]},
+     "drag_area_m2", sc.MAX_DRAG_AREA_M2),
+    ({"disturbances": [{"kind": "wind", "speed_mps": 3.0, "from_rad": 0.0, "gust_std_mps": 1e200}]},
+     "gust_std_mps", sc.MAX_GUST_STD_MPS),
+    ({"disturbances": [{"kind": "body_constant", "yaw_nm": -50.0}]}, "yaw_nm", -sc.MAX_MOMENT_NM),
+    ({"disturbances": [{"kind": "world_constant", "east_n": 1e4}]}, "east_n", sc.MAX_FORCE_N),
+    ({"disturbances": [{"kind": "world_grid", "xs_m": [0, 1], "ys_m": [0, 1],
+                        "north_n": [[0, 0], [0, 0]], "east_n": [[0, 0], [0, 1e3]]}]},
+     "east_n", sc.MAX_FORCE_N),
+    ({"start": {"x_m": 1e300}}, "x_m", sc.MAX_START_RANGE_M),
+    ({"start": {"u_mps": 300.0}}, "u_mps", sc.MAX_START_SPEED_MPS),
+])
+def test_a_world_past_the_bounds_is_refused_naming_the_field_and_the_bound(changes, field,
+                                                                           bound) -> None:
+    with pytest.raises(ConfigError) as err:
+        sc.parse_scenario(lake_with(**changes), "probe.toml")
+    text = str(err.value)
+    assert field in text and f"{bound:g}" in text and "probe.toml" in text, text
+
+
+@pytest.mark.parametrize("vessel", VESSELS)
+def test_at_the_bounds_the_plant_stays_finite_and_its_telemetry_packs(vessel: str) -> None:
+    worst = lake_with(vessel=vessel, start={"x_m": sc.MAX_START_RANGE_M, "y_m": -sc.MAX_START_RANGE_M,
+                                            "u_mps": sc.MAX_START_SPEED_MPS}, disturbances=[
+        {"kind": "wind", "speed_mps": sc.MAX_WIND_MPS, "from_rad": 1.0,
+         "drag_area_m2": sc.MAX_DRAG_AREA_M2, "gust_std_mps": sc.MAX_GUST_STD_MPS},
+        {"kind": "current", "north_mps": sc.MAX_CURRENT_MPS, "east_mps": -sc.MAX_CURRENT_MPS},
+        {"kind": "body_constant", "surge_n": sc.MAX_FORCE_N, "sway_n": -sc.MAX_FORCE_N,
+         "yaw_nm": sc.MAX_MOMENT_NM},
+        {"kind": "world_constant", "north_n": sc.MAX_FORCE_N, "east_n": sc.MAX_FORCE_N}])
+    scenario = sc.parse_scenario(worst, "worst.toml")
+    model = load_vessel(scenario.vessel)
+    core = SimCore(scenario, model)
+    ap = Px4Autopilot(Px4Config(thrust_max_n=model.thrust_max_n))
+    mav = mavlink.MAVLink(None)
+    fixes = 0
+    for k in range(600):  # 60 s, the thrusters hard over one way
+        core.advance((model.thrust_max_n, -model.thrust_max_n), 100_000_000)
+        samples = core.take_samples()
+        truth = core.truth()  # a message: refuses a non-finite field
+        assert all(math.isfinite(v) for v in (truth.x_m, truth.y_m, truth.psi_rad, truth.u_mps)), k
+        for msg in ap.sensor_telemetry(samples.gnss, samples.attitude, 0):
+            msg.pack(mav)  # a field out of its MAVLink type raises here
+        fixes += sum(f is not None for f in samples.gnss)
+    assert fixes > 100
