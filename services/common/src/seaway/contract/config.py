@@ -53,6 +53,9 @@ def read_document(path: str | Path) -> dict[str, Any]:
         text = p.read_text(encoding="utf-8")
     except OSError as err:
         raise ConfigError(f"{p}: cannot read: {err.strerror or err}") from None
+    except UnicodeDecodeError as err:
+        raise ConfigError(f"{p}: not UTF-8 text (byte {err.start} is 0x{err.object[err.start]:02x}); "
+                          f"TOML and JSON files must be UTF-8") from None
     try:
         if p.suffix == ".toml":
             return tomllib.loads(text)

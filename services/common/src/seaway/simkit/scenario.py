@@ -45,7 +45,7 @@ AIR_DENSITY_KGPM3 = 1.225
 # (a GNSS speed over MAVLink's 16 bits, a heading of inf), and a scenario loaded at run time and
 # kept in the sim's state file crashed it again at each restart. A heavier vessel could take more;
 # a lighter one than 2 kg may need lower bounds (the test runs every vessel file at them).
-MAX_FORCE_N = 20.0
+MAX_FORCE_N = 50.0
 """A constant or gridded disturbance force, each component [N] (the paper's are under 0.1 N)."""
 MAX_MOMENT_NM = 2.0
 """A constant disturbance yaw moment [N m]."""

@@ -295,6 +295,9 @@ def main(argv: list[str] | None = None) -> int:
     except CredentialsError as err:  # any command that opens the bus: say how to get credentials
         print(f"seaway {name}: {err}", file=sys.stderr)
         return 2
+    except keys.KeyNameError as err:  # --vessel ../x: the name is wrong, not the program
+        print(f"seaway {name}: {err}", file=sys.stderr)
+        return 2
     print(f"seaway: unknown command {name!r}; commands: {', '.join(commands)}", file=sys.stderr)
     return 2
 

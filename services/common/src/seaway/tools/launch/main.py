@@ -110,7 +110,8 @@ def parser() -> argparse.ArgumentParser:
                     help="the mission predicts with the estimator's tau_d instead of tau_d = 0 "
                          "(the paper's); default: the mission's")
     ap.add_argument("--task-power-w", type=_task_power, default=None, metavar="W",
-                    help="the mission's task power T^w [W], finite and >= 0 (default: the mission's)")
+                    help=f"the mission's task power T^w [W], in (0, {MAX_TASK_POWER_W:g}] "
+                         "(default: the mission's)")
     ap.add_argument("--stay", action="store_true", help="keep running after the mission completes")
     ap.add_argument("--verbose", action="store_true", help="show every process's output")
     ap.add_argument("--no-report", action="store_true",
