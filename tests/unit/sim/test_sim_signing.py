@@ -18,6 +18,7 @@ from seaway.vessel.mavlink_signing import (
     UNSIGNED,
     SignatureVerifier,
     frame_ids,
+    keep_up,
     signing_timestamp,
 )
 from seaway_sim.main import main as sim_main
@@ -211,3 +212,24 @@ def test_receive_is_bounded_so_a_flood_cannot_hold_back_what_arrived(socks):
         assert sum(sizes) == n and max(sizes) <= MAX_DATAGRAMS_PER_RECEIVE and len(sizes) >= 2
     finally:
         lk.close()
+
+
+def test_a_sender_kept_up_with_the_clock_is_taken_by_a_receiver_that_restarted() -> None:
+    """pymavlink adds 10 us per frame signed: after a few minutes at 50 frames a second a sender
+    lags the wall clock by minutes, and a receiver that restarted (no stream known) refused every
+    frame as replayed, for good (an autopilot's reboot, a restarted vehicle_io). ``keep_up`` before
+    each send, as both links do, brings the timestamp up to the clock and never back."""
+    wall0_ns = 1_800_000_000 * 10**9
+    lagging, kept = packer(KEY, timestamp=signing_timestamp(wall0_ns)), packer(KEY, timestamp=T0)
+    for k in range(50 * 300):  # five minutes at 50 frames a second
+        heartbeat(lagging)
+        keep_up(kept.signing, wall0_ns + k * 20_000_000)
+        heartbeat(kept)
+    now = signing_timestamp(wall0_ns + 300 * 10**9)
+    fresh = SignatureVerifier(KEY)  # the receiver just restarted
+    assert fresh.check(heartbeat(lagging), now) == REPLAYED
+    keep_up(kept.signing, wall0_ns + 300 * 10**9)
+    assert fresh.check(heartbeat(kept), now) == ACCEPTED
+    ahead = kept.signing.timestamp
+    keep_up(kept.signing, wall0_ns)  # a clock stepped back: never back
+    assert kept.signing.timestamp == ahead

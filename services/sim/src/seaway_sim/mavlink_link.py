@@ -34,6 +34,7 @@ from seaway.vessel.mavlink_signing import (
     ACCEPTED,
     UNSIGNED,
     SignatureVerifier,
+    keep_up,
     signing_timestamp,
 )
 
@@ -200,6 +201,8 @@ class MavlinkLink:
         """Send each message to the peer (a no-op until one has been heard)."""
         if self.peer is None:
             return
+        if self.verifier is not None:  # a restarted vehicle_io takes our stream only near its clock
+            keep_up(self._tx.signing, time.time_ns())
         for m in msgs:
             try:
                 self.sock.sendto(m.pack(self._tx), self.peer)

@@ -32,7 +32,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
-from seaway.vessel.mavlink_signing import frame_ids, signing_timestamp
+from seaway.vessel.mavlink_signing import frame_ids, keep_up, signing_timestamp
 
 from seaway_vehicle_io.authority import Address, Source, SourcePolicy
 from seaway_vehicle_io.component_metadata import (
@@ -261,6 +261,8 @@ class MavlinkLink:
 
     def _send(self, out: Output) -> None:
         mav = self._tx
+        if self.signing:  # a restarted autopilot takes our stream only near its clock
+            keep_up(mav.signing, time.time_ns())
         if isinstance(out, SendManualControl):
             a = out.axes
             mav.manual_control_send(out.target_system, a.x, a.y, a.z, a.r, 0)

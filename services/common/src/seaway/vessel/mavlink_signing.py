@@ -28,6 +28,7 @@ import secrets
 import stat
 import sys
 from pathlib import Path
+from typing import Any
 
 KEY_BYTES = 32
 KEY_HEX_CHARS = 2 * KEY_BYTES
@@ -113,6 +114,18 @@ def _is_hex(text: str) -> bool:
 def signing_timestamp(wall_ns: int) -> int:
     """The MAVLink signing timestamp (10 us since 2015-01-01 UTC) of a Unix time [ns]."""
     return max(0, wall_ns // 10_000 - EPOCH_2015_UNIX_S * TIMESTAMP_UNITS_PER_S)
+
+
+def keep_up(signing: Any, wall_ns: int) -> None:
+    """Bring a sender's signing timestamp (pymavlink's ``MAVLink.signing``) up to the wall clock
+    before it signs, never back: call before each send.
+
+    pymavlink adds one unit (10 us) per frame it signs and never looks at a clock, so a link that
+    sends 50 frames a second falls behind the wall clock by about a second a second. A receiver that
+    restarts (an autopilot rebooting, a restarted vehicle_io) knows no stream yet and takes one only
+    within ``NEW_STREAM_MAX_AGE`` (a minute) of its own clock: after the sender's first minute, every
+    frame was refused as replayed and the link never came back."""
+    signing.timestamp = max(signing.timestamp, signing_timestamp(wall_ns))
 
 
 # -- incoming frames --------------------------------------------------------------------------
