@@ -139,3 +139,28 @@ def test_a_run_dir_holding_an_earlier_recording_is_refused(profile, where, tmp_p
     assert "give a new --run-dir" in err
     assert held.read_bytes() == b"earlier"
     assert sorted(p.name for p in (run_dir / where).iterdir()) == ["notes.txt", "recording.mcap"]
+
+
+@pytest.mark.parametrize(("argv", "problem"), [
+    (["replay"], "profile replay plays a recording: give it with --recording PATH"),
+    (["replay", "--recording", "{tmp}/nope"], "--recording {tmp}/nope: no such file or folder"),
+    (["replay", "--recording", "{tmp}"], "--recording {tmp}: the folder holds no .mcap file"),
+    (["replay", "--recording", "{tmp}/notes.txt"], "--recording {tmp}/notes.txt: not an .mcap file"),
+    (["sim-batch", "--recording", "{tmp}"],
+     "--recording: profile sim-batch plays no recording (the replay profile does)"),
+])
+def test_a_recording_the_profile_cannot_use_is_refused_before_anything_starts(
+        argv, problem, tmp_path, capsys) -> None:
+    """``launch replay`` with no recording, or a wrong one, started the whole stack and only then
+    failed (an empty path, then a report of nothing); ``sim-batch --recording x`` flew a mission and
+    ignored it."""
+    (tmp_path / "notes.txt").write_text("not a recording")
+    filled = [a.replace("{tmp}", str(tmp_path)) for a in argv]
+    assert launch.main([*filled, "--scenario", "paper-c1", "--run-dir", str(tmp_path / "run"),
+                        "--check"]) == 2
+    assert f"seaway launch: {problem.replace('{tmp}', str(tmp_path))}" in capsys.readouterr().err
+    recorded = tmp_path / "rec"
+    recorded.mkdir()
+    (recorded / "recording.mcap").write_bytes(b"")
+    assert launch.main(["replay", "--recording", str(recorded), "--scenario", "paper-c1",
+                        "--run-dir", str(tmp_path / "run2"), "--check"]) == 0

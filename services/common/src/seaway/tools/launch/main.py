@@ -270,6 +270,26 @@ def _run_dir(args: argparse.Namespace, scenario: str = "", mission: MissionReque
     return path
 
 
+def recording_problem(profile: Profile, recording: Path | None) -> str | None:
+    """What is wrong with ``--recording`` for ``profile`` (None: nothing), said before anything
+    starts: a profile whose commands take ``{recording}`` (replay) needs one that holds MCAP files;
+    any other ignores it, so giving one is a mistake (``sim-batch --recording x`` flew a mission)."""
+    takes = any("{recording}" in arg for spec in profile.processes for arg in spec.command)
+    if not takes:
+        return (None if recording is None else
+                f"--recording: profile {profile.name} plays no recording (the replay profile does)")
+    if recording is None:
+        return (f"profile {profile.name} plays a recording: give it with --recording PATH (a run "
+                "folder or an .mcap file)")
+    if not recording.exists():
+        return f"--recording {recording}: no such file or folder"
+    if recording.is_dir() and not any(recording.glob("*.mcap")):
+        return f"--recording {recording}: the folder holds no .mcap file"
+    if recording.is_file() and recording.suffix != ".mcap":
+        return f"--recording {recording}: not an .mcap file"
+    return None
+
+
 def earlier_recordings(run_dir: Path, vessels: list[str]) -> list[Path]:
     """The recordings an earlier launch left where this one would write its own (the run folder,
     or each vessel's folder in it): none for a fresh folder.
@@ -601,6 +621,9 @@ def main(argv: list[str]) -> int:
                else f"scenario {scenario} has no [mission]")
         print(f"seaway launch: {', '.join(given)}: option(s) of the mission sent, but this launch "
               f"sends no mission ({why})", file=sys.stderr)
+        return 2
+    if problem := recording_problem(profile, args.recording):
+        print(f"seaway launch: {problem}", file=sys.stderr)
         return 2
     run_dir = _run_dir(args, scenario, mission)
     try:
