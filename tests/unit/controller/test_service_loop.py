@@ -237,3 +237,30 @@ def test_a_real_time_controller_stopping_in_order_commands_zero_thrust_last() ->
     assert last.seq > seen[-2].seq
     for bus in (ctx.bus, observer, estimator):
         bus.close()
+
+
+def test_a_mission_that_comes_while_the_period_cannot_be_answered_is_flown_once_it_can(
+        controller: Running) -> None:
+    """Seen in a CI-like run: the first mission of a fresh stack came while the estimator's answer of
+    the held t_0 lacked a state (its repeat for a newcomer crossing the state). The loop looked,
+    could not answer, and forgot the mission; once the estimator's answer was whole the hold stood,
+    a repeat only repeats it, and the run stalled at t = 0 for good (the sim's restart too)."""
+    import time
+
+    hub = controller.hub
+    world = World(hub)
+    operator = hub.bus(VESSEL)
+    assert world.period(0, state(0)).hold  # idle: nothing to fly
+    lacking = PeriodDone(stamp_ns=0, service="estimator", episode=0, seq=500, period_ns=DT_NS,
+                         published={keys.NAV_STATE.suffix: [0, 1]})  # a state it does not carry
+    operator.raw_publisher(keys.LOCKSTEP_ESTIMATOR.key(VESSEL), bundle.ENCODING).put(
+        bundle.encode(lacking.encode(), []))
+    reply = operator.request(keys.MISSION_SET, mission(), timeout_s=2.0)
+    assert reply.accepted, reply.reason
+    time.sleep(0.3)  # the loop looks now and cannot answer (a slower machine only weakens the test)
+    assert world.answers.get(0.05) is None or world.answers.drain() == []  # nothing answered yet
+    at_t0 = state(0).model_copy(update={"stamp_ns": 0})
+    world.est.answer(Period(0, 0), DT_NS, [(keys.NAV_STATE, at_t0)])  # whole again
+    flown = world.next_answer(Period(0, 0))
+    assert not flown.hold and flown.published[keys.THRUST.suffix] == [0]
+    assert world.thrust.get(1.0).source == "cc-empc"

@@ -369,16 +369,24 @@ class ControllerService:
                     member.ledger.answer("sim"))
                 restart = bool(self._restarts)
                 self._restarts.clear()
-                rethink, self._rethink = self._rethink, False
+                rethink = self._rethink
             if restart and period is not None:
                 self.new_episode(period)
                 self._answered = None
             if est is None or not complete or period is None:
+                # Not now; a mission or a solver that came meanwhile is still to be thought of when
+                # the period can be answered (consumed here, a hold answered just before stood for
+                # good: a repeat only repeats it, so the run stalled at t = 0, CI-like, 1 in ~10).
                 return
             answered = self._answered
             if answered is not None and Period.of(answered) == period and not (
                     answered.hold and rethink):
+                if not answered.hold:
+                    with member.changed:
+                        self._rethink = False  # the period is flown: nothing held to think again
                 return
+            with member.changed:
+                self._rethink = False  # answered now, with whatever came
             with member.changed:  # later states can only be late ones of an earlier episode
                 self._states = {k: v for k, v in self._states.items() if k <= period.stamp_ns}
             stamps = est.published.get(keys.NAV_STATE.suffix, [])
