@@ -376,7 +376,7 @@ class ControllerService:
             if est is None or not complete or period is None:
                 # Not now; a mission or a solver that came meanwhile is still to be thought of when
                 # the period can be answered (consumed here, a hold answered just before stood for
-                # good: a repeat only repeats it, so the run stalled at t = 0, CI-like, 1 in ~10).
+                # good: a repeat only repeats it, and a run of the default suite stalled at t = 0).
                 return
             answered = self._answered
             if answered is not None and Period.of(answered) == period and not (

@@ -62,6 +62,9 @@ MAX_START_RANGE_M = 100_000.0
 10^6 m; a flat local frame is already poor at 100 km)."""
 MAX_START_SPEED_MPS = 20.0
 """Start surge speed, either way [m/s]."""
+MAX_START_HEADING_RAD = 1000.0
+"""Start heading, either way [rad]: any heading, wrapped, but not one so large that a float loses
+its angle."""
 
 
 def _within(bound: float) -> Any:
@@ -145,7 +148,7 @@ class SensorNoise(ConfigModel):
 class StartPose(ConfigModel):
     x_m: float = _within(MAX_START_RANGE_M)
     y_m: float = _within(MAX_START_RANGE_M)
-    psi_rad: float = _within(1000.0)  # any heading, wrapped; not one a float loses the angle of
+    psi_rad: float = _within(MAX_START_HEADING_RAD)
     u_mps: float = _within(MAX_START_SPEED_MPS)
 
 
