@@ -401,3 +401,43 @@ def test_nan_infinity_and_overflowing_numbers_in_a_body_are_a_422_naming_the_fie
     assert detail and all(e["loc"] and e["msg"] for e in detail), detail
     assert any(str(e.get("input")) in ("nan", "inf", "-inf") for e in detail), detail
     assert vessel.requests.get(keys.VEHICLE_ARM.suffix) is None  # nothing reached the vessel
+
+
+@pytest.mark.parametrize("content_type", ["application/octet-stream", "text/plain", None,
+                                          "application/json"])
+def test_a_binary_body_is_a_422_saying_what_to_send(client: TestClient, vessel: Vessel,
+                                                    content_type: str | None) -> None:
+    """Bytes that are not UTF-8: FastAPI's 422 echoed them and could not encode its own answer (a
+    500 and a traceback), or, sent as JSON, a bare 400. Now a 422 on the body, echoing no bytes."""
+    binary = bytes(range(256)) * 4
+    headers = {**AUTH, **({"Content-Type": content_type} if content_type else {})}
+    for path in ("/api/vessels/v1/mode", "/api/vessels/v1/mission", "/api/vessels/v1/arm"):
+        r = client.post(path, content=binary, headers=headers)
+        assert r.status_code == 422, (path, r.status_code, r.text)
+        (error,) = r.json()["detail"]
+        assert error["loc"] == ["body"] and error["type"] in ("body_not_json", "body_not_utf8")
+        assert str(len(binary)) in error["msg"] and "UTF-8" in error["msg"]
+        assert len(r.content) < 1024
+    assert not vessel.requests.get(keys.VEHICLE_ARM.suffix)  # nothing reached the vessel
+
+
+@pytest.mark.parametrize(("path", "body"), [
+    ("/api/vessels/v1/mode", {"mode": "x" * 65536}),
+    ("/api/vessels/v1/mission", {"waypoints": [{"x_m": 1.0}] * 3000, "coa_radius_m": 2.0,
+                                 "task_power_w": 10.0}),
+    ("/api/vessels/v1/mission", {"waypoints": [{"x_m": "far"} for _ in range(2000)],
+                                 "coa_radius_m": 2.0, "task_power_w": 10.0, "note": "y" * 60000}),
+])
+def test_a_large_invalid_body_is_not_echoed_back(client: TestClient, vessel: Vessel, path: str,
+                                                  body: dict[str, Any]) -> None:
+    """A 64 KiB body's 422 gave the whole input back: now each field's input is cut to a short
+    prefix and the errors listed are bounded."""
+    raw = json.dumps(body)
+    assert len(raw) > 30_000
+    r = client.post(path, content=raw, headers={**AUTH, "Content-Type": "application/json"})
+    assert r.status_code == 422, r.text[:200]
+    detail = r.json()["detail"]
+    assert detail and all(e["loc"] and e["msg"] for e in detail)
+    assert len(r.content) < 8 * 1024, len(r.content)
+    assert all(len(json.dumps(e.get("input"))) < 100 for e in detail), detail
+    assert "mission/set" not in vessel.requests

@@ -34,7 +34,6 @@ from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Depends, FastAPI, HTTPException, Query, Request
 from fastapi import Path as PathParam
-from fastapi.encoders import jsonable_encoder
 from fastapi.exceptions import RequestValidationError
 from fastapi.middleware.gzip import GZipMiddleware
 from fastapi.responses import FileResponse, JSONResponse, Response
@@ -56,7 +55,7 @@ from starlette.concurrency import run_in_threadpool
 from starlette.datastructures import UploadFile
 from starlette.websockets import WebSocket
 
-from seaway_groundstation import bodies, geo, plans, replay
+from seaway_groundstation import bodies, errors, geo, plans, replay
 from seaway_groundstation.fleet import Fleet
 from seaway_groundstation.gateway import BusLink, ask
 from seaway_groundstation.journal import RequestJournal
@@ -202,29 +201,6 @@ def _reply(reply: CommandReply) -> JSONResponse:
     return JSONResponse(reply.model_dump(mode="json"), status_code=STATUS_OF_OUTCOME[reply.outcome])
 
 
-def _json_safe(value: Any) -> Any:
-    """``value`` with every non-finite float as its text ('nan', 'inf'), which JSON cannot carry."""
-    if isinstance(value, float) and not math.isfinite(value):
-        return repr(value)
-    if isinstance(value, dict):
-        return {k: _json_safe(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_json_safe(v) for v in value]
-    return value
-
-
-async def _unprocessable_response(_request: Any, exc: Exception) -> JSONResponse:
-    """FastAPI's own 422 (``{"detail": [errors]}``), but for a body holding NaN, Infinity or 1e400:
-    Python's JSON reads those as floats, each error echoes its input, and the default answer could
-    not encode them (a bare 500 and a traceback in the log, for ``{"mode": NaN}``)."""
-    assert isinstance(exc, RequestValidationError)
-    return JSONResponse(status_code=422, content={"detail": _json_safe(jsonable_encoder(exc.errors()))})
-
-
-def _validation_error(err: ValidationError) -> RequestValidationError:
-    return RequestValidationError(err.errors(include_url=False, include_context=False))
-
-
 def _operator_dependency(gs: GroundStation) -> Callable[..., Any]:
     bearer = HTTPBearer(auto_error=False, scheme_name="operator token",
                         description="the operator token the ground station prints at start")
@@ -281,12 +257,12 @@ def create_app(bus_like: Bus, settings: Settings | None = None,
 
     app = FastAPI(title="Seaway ground station", version=API_VERSION, lifespan=lifespan,
                   description=__doc__, openapi_tags=TAGS, docs_url=None, redoc_url=None,
-                  responses={400: _errors("a malformed request: a body that does not parse as JSON "
-                                          "(or UTF-8), a Content-Length that is not a number"),
+                  responses={400: _errors("a malformed request: a Content-Length that is not a number"),
                              422: {"model": UnprocessableBody, "description": "an invalid request: "
-                                   "the fields at fault, or what in the content is wrong"}})
+                                   "the fields at fault (each input echoed cut short), a body that "
+                                   "is not UTF-8 JSON, or what in the content is wrong"}})
     app.state.groundstation = gs
-    app.add_exception_handler(RequestValidationError, _unprocessable_response)
+    app.add_exception_handler(RequestValidationError, errors.unprocessable_response)
     # Outermost first on the way in: the body bound before anything reads a body; replay frames
     # (megabytes of JSON for a long run) go out compressed.
     app.add_middleware(GZipMiddleware, minimum_size=4096)
@@ -550,7 +526,7 @@ async def _read_import(request: Request, max_bytes: int) -> tuple[bodies.ImportP
         try:
             params = bodies.ImportParams.model_validate(fields)
         except ValidationError as err:
-            raise _validation_error(err) from None
+            raise errors.validation_error(err) from None
         try:
             doc = plans.load_json(data, f"uploaded {filename}")
         except plans.PlanError as err:
@@ -564,7 +540,7 @@ async def _read_import(request: Request, max_bytes: int) -> tuple[bodies.ImportP
         try:
             body = bodies.ImportBody.model_validate(raw, strict=True)
         except ValidationError as err:
-            raise _validation_error(err) from None
+            raise errors.validation_error(err) from None
         return body, body.document
     raise HTTPException(415, f"send the file as multipart/form-data or a JSON body, not {ctype or 'nothing'}")
 
