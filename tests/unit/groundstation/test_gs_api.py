@@ -441,3 +441,24 @@ def test_a_large_invalid_body_is_not_echoed_back(client: TestClient, vessel: Ves
     assert len(r.content) < 8 * 1024, len(r.content)
     assert all(len(json.dumps(e.get("input"))) < 100 for e in detail), detail
     assert "mission/set" not in vessel.requests
+
+
+@pytest.mark.parametrize(("document", "field"), [
+    ('{"name": "x", "vessel": {"mass_kg": NaN}}', "scenario.vessel.mass_kg"),
+    ('{"current": {"speed_mps": [0.1, Infinity]}}', "scenario.current.speed_mps[1]"),
+    ('{"mission": {"coa_radius_m": -1e400}}', "scenario.mission.coa_radius_m"),
+])
+def test_nan_or_infinity_inside_a_scenario_document_is_a_422_naming_the_field(
+        client: TestClient, vessel: Vessel, document: str, field: str) -> None:
+    """A scenario document is free-form: the body's finite-number rule did not reach inside it and
+    the message refused it while being made (a 500). Now a 422 naming the field's path."""
+    vessel.bus.declare_alive("sim")
+    vessel.serve(keys.SIM_SCENARIO)
+    r = client.post("/api/vessels/v1/scenario", content='{"scenario": ' + document + "}",
+                    headers={**AUTH, "Content-Type": "application/json"})
+    assert r.status_code == 422, r.text
+    (error,) = r.json()["detail"]
+    assert error["loc"] == ["body", "scenario"] and field in error["msg"]
+    assert keys.SIM_SCENARIO.suffix not in vessel.requests
+    ok = client.post("/api/vessels/v1/scenario", json={"scenario": {"name": "x"}}, headers=AUTH)
+    assert ok.status_code == 200  # the ground station goes on

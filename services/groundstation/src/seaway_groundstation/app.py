@@ -45,6 +45,7 @@ from seaway.contract.config import ConfigError, deploy_path, read_document
 from seaway.contract.messages import (
     ArmRequest,
     Message,
+    MessageError,
     MissionCommand,
     MissionRequest,
     ModeRequest,
@@ -580,8 +581,11 @@ def _vehicle_router(gs: GroundStation, command: list[Any]) -> APIRouter:
                 reason=f"vessel {vessel} is not simulated (no sim service is alive on it): "
                        "scenarios apply to simulated vessels only"))
         doc = gs.scenario_document(body.name) if body.name is not None else body.scenario
-        msg = ScenarioRequest.make(stamp_ns=time.time_ns(), action="restart" if doc is None else "load",
-                                   scenario=doc)
+        try:
+            msg = ScenarioRequest.make(stamp_ns=time.time_ns(),
+                                       action="restart" if doc is None else "load", scenario=doc)
+        except MessageError as err:  # what the message itself refuses (the body checked the rest)
+            raise HTTPException(422, f"the scenario cannot be sent: {err}") from None
         return _reply(await gs.send(keys.SIM_SCENARIO, msg, vessel))
 
     return r
