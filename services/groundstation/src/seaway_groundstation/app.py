@@ -25,8 +25,6 @@ import asyncio
 import contextlib
 import importlib.resources
 import json
-import math
-import secrets
 import time
 from collections.abc import AsyncIterator, Callable
 from pathlib import Path
@@ -37,7 +35,6 @@ from fastapi import Path as PathParam
 from fastapi.exceptions import RequestValidationError
 from fastapi.middleware.gzip import GZipMiddleware
 from fastapi.responses import FileResponse, JSONResponse, Response
-from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from fastapi.staticfiles import StaticFiles
 from pydantic import BaseModel, Field, ValidationError
 from seaway.contract import keys
@@ -56,7 +53,7 @@ from starlette.concurrency import run_in_threadpool
 from starlette.datastructures import UploadFile
 from starlette.websockets import WebSocket
 
-from seaway_groundstation import bodies, errors, geo, plans, replay
+from seaway_groundstation import bodies, errors, geo, guard, plans, replay
 from seaway_groundstation.fleet import Fleet
 from seaway_groundstation.gateway import BusLink, ask
 from seaway_groundstation.journal import RequestJournal
@@ -119,7 +116,8 @@ def _command_responses(reply_model: type[BaseModel]) -> dict[int | str, dict[str
         404: _errors("vessel never seen"),
         409: {"model": reply_model, "description": "refused by the vessel; the reason says why"},
         413: _errors("request body over the bound"),
-        429: _errors("too many command requests from this client (see Retry-After)"),
+        429: _errors("too many command requests from this identity: the operator, or this "
+                             "address without the token (see Retry-After)"),
         502: {"model": reply_model, "description": "the transport answered with an error"},
         504: {"model": reply_model, "description": "nobody answered in time (service not running?)"},
     }
@@ -202,36 +200,6 @@ def _reply(reply: CommandReply) -> JSONResponse:
     return JSONResponse(reply.model_dump(mode="json"), status_code=STATUS_OF_OUTCOME[reply.outcome])
 
 
-def _operator_dependency(gs: GroundStation) -> Callable[..., Any]:
-    bearer = HTTPBearer(auto_error=False, scheme_name="operator token",
-                        description="the operator token the ground station prints at start")
-    expected = gs.settings.token.encode()
-
-    async def operator(creds: Annotated[HTTPAuthorizationCredentials | None, Depends(bearer)]) -> None:
-        if creds is None:
-            raise HTTPException(401, "this request moves or changes a vessel: send "
-                                     "'Authorization: Bearer <operator token>' (the ground station "
-                                     "prints it at start)", headers={"WWW-Authenticate": "Bearer"})
-        if not secrets.compare_digest(creds.credentials.encode(), expected):
-            raise HTTPException(403, "wrong operator token")
-
-    return operator
-
-
-def _rate_dependency(gs: GroundStation) -> Callable[..., Any]:
-    async def rate_limit(request: Request) -> None:
-        client = request.client.host if request.client else "unknown"
-        wait_s = gs.limiter.allow(client, gs.settings.clock())
-        if wait_s > 0:
-            retry = "3600" if math.isinf(wait_s) else str(max(1, math.ceil(wait_s)))
-            raise HTTPException(429, f"too many command requests from {client}: at most "
-                                     f"{gs.settings.rate_limit_burst} at once, then "
-                                     f"{gs.settings.rate_limit_per_s:g} per second",
-                                headers={"Retry-After": retry})
-
-    return rate_limit
-
-
 def create_app(bus_like: Bus, settings: Settings | None = None,
                on_ready: Callable[[], None] | None = None) -> FastAPI:
     """The ground station's application over ``bus_like`` (a Zenoh or in-memory ``Bus``).
@@ -269,7 +237,7 @@ def create_app(bus_like: Bus, settings: Settings | None = None,
     app.add_middleware(GZipMiddleware, minimum_size=4096)
     app.add_middleware(BodyLimit, max_bytes=settings.max_body_bytes,
                        streamed={UPLOAD_PATH: settings.max_upload_bytes})
-    command = [Depends(_rate_dependency(gs)), Depends(_operator_dependency(gs))]
+    command = [Depends(guard.command_dependency(settings, gs.limiter))]
     app.include_router(_read_router(gs), prefix="/api")
     app.include_router(_mission_router(gs, command), prefix="/api")
     app.include_router(_vehicle_router(gs, command), prefix="/api")
@@ -608,7 +576,7 @@ def _replay_router(gs: GroundStation, command: list[Any]) -> APIRouter:
             responses={401: _errors("no operator token"), 403: _errors("wrong operator token"),
                        413: _errors("larger than the upload bound"), 415: _errors("not a raw body"),
                        422: _unprocessable("not an MCAP recording that reads"),
-                       429: _errors("too many command requests from this client")},
+                       429: _errors("too many command requests from this identity")},
             openapi_extra={"requestBody": {"required": True, "content": {
                 "application/octet-stream": {"schema": {"type": "string", "format": "binary"}}}}})
     async def upload(request: Request, name: Annotated[str, Query(
