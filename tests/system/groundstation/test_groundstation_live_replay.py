@@ -34,8 +34,9 @@ MAX_MESSAGES = 20_000
 
 
 def _state(i: int) -> StateEstimate:
-    return StateEstimate(stamp_ns=T0_NS + i * PERIOD_NS, u_mps=1.0, v_mps=0.0, r_radps=0.0,
-                         x_m=0.1 * i, y_m=0.5, psi_rad=0.0)
+    return StateEstimate(
+        stamp_ns=T0_NS + i * PERIOD_NS, u_mps=1.0, v_mps=0.0, r_radps=0.0, x_m=0.1 * i, y_m=0.5, psi_rad=0.0
+    )
 
 
 def test_concurrent_reads_of_a_live_recording_all_succeed(procs, zenoh_env, tmp_path: Path) -> None:
@@ -50,8 +51,9 @@ def test_concurrent_reads_of_a_live_recording_all_succeed(procs, zenoh_env, tmp_
         i = 0
         while not stop.is_set() and i < MAX_MESSAGES:
             msg = _state(i)
-            writer.write(keys.NAV_STATE.key(VESSEL), msg.encode(), f"application/json;{msg.SCHEMA}",
-                         msg.stamp_ns)
+            writer.write(
+                keys.NAV_STATE.key(VESSEL), msg.encode(), f"application/json;{msg.SCHEMA}", msg.stamp_ns
+            )
             i += 1
             if i % 20 == 0:
                 writer.flush()
@@ -61,11 +63,17 @@ def test_concurrent_reads_of_a_live_recording_all_succeed(procs, zenoh_env, tmp_
     recorder = threading.Thread(target=record, daemon=True)
     recorder.start()
     env = {**zenoh_env, "SEAWAY_REPAIR_DIR": str(tmp_path / "repairs")}
-    gs = procs.start([str(BIN / "seaway-groundstation"), "--port", "0",
-                      "--runs-dir", str(tmp_path / "runs")], env, "groundstation")
+    gs = procs.start(
+        [str(BIN / "seaway-groundstation"), "--port", "0", "--runs-dir", str(tmp_path / "runs")],
+        env,
+        "groundstation",
+    )
     try:
-        line = wait_for(lambda: re.search(r"groundstation: (http://127\.0\.0\.1:\d+/)", procs.log(gs)),
-                        30, what="the ground station's address line")
+        line = wait_for(
+            lambda: re.search(r"groundstation: (http://127\.0\.0\.1:\d+/)", procs.log(gs)),
+            30,
+            what="the ground station's address line",
+        )
         base = line.group(1)
         wait_for(lambda: written[0] >= 100, 30, what="the first flushed chunks")
         answers: list[tuple[str, int, object]] = []
@@ -74,8 +82,9 @@ def test_concurrent_reads_of_a_live_recording_all_succeed(procs, zenoh_env, tmp_
             for _ in range(REQUESTS_EACH):
                 status, body = http("GET", base + "api/recording?id=live", timeout_s=120)
                 answers.append(("open", status, body))
-                status, frames = http("GET", base + "api/recording/frames?id=live&start_s=0&end_s=5",
-                                      timeout_s=120)
+                status, frames = http(
+                    "GET", base + "api/recording/frames?id=live&start_s=0&end_s=5", timeout_s=120
+                )
                 answers.append(("frames", status, frames if status != 200 else frames["count"]))
 
         readers = [threading.Thread(target=read) for _ in range(READERS)]
