@@ -180,9 +180,14 @@ def _copy(copier: _Copier, r: object, res: RecoverResult) -> None:
 
 
 def repair_dir() -> Path:
-    """``$SEAWAY_REPAIR_DIR`` or ``~/.cache/seaway/recovered``."""
+    """``$SEAWAY_REPAIR_DIR`` or ``~/.cache/seaway/recovered``; OSError when neither is known."""
     env = os.environ.get(ENV_REPAIR_DIR)
-    return Path(env) if env else Path.home() / ".cache" / "seaway" / "recovered"
+    if env:
+        return Path(env)
+    try:
+        return Path.home() / ".cache" / "seaway" / "recovered"
+    except RuntimeError as err:  # no home known: the caller falls back as for an unwritable one
+        raise OSError(f"no folder for repaired copies: {err}; set {ENV_REPAIR_DIR}") from None
 
 
 def repaired_copy(src: Path) -> Path:
