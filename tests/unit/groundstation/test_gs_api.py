@@ -401,3 +401,82 @@ def test_nan_infinity_and_overflowing_numbers_in_a_body_are_a_422_naming_the_fie
     assert detail and all(e["loc"] and e["msg"] for e in detail), detail
     assert any(str(e.get("input")) in ("nan", "inf", "-inf") for e in detail), detail
     assert vessel.requests.get(keys.VEHICLE_ARM.suffix) is None  # nothing reached the vessel
+
+
+@pytest.mark.parametrize("content_type", ["application/octet-stream", "text/plain", None,
+                                          "application/json"])
+def test_a_binary_body_is_a_422_saying_what_to_send(client: TestClient, vessel: Vessel,
+                                                    content_type: str | None) -> None:
+    """Bytes that are not UTF-8: FastAPI's 422 echoed them and could not encode its own answer (a
+    500 and a traceback), or, sent as JSON, a bare 400. Now a 422 on the body, echoing no bytes."""
+    binary = bytes(range(256)) * 4
+    headers = {**AUTH, **({"Content-Type": content_type} if content_type else {})}
+    for path in ("/api/vessels/v1/mode", "/api/vessels/v1/mission", "/api/vessels/v1/arm"):
+        r = client.post(path, content=binary, headers=headers)
+        assert r.status_code == 422, (path, r.status_code, r.text)
+        (error,) = r.json()["detail"]
+        assert error["loc"] == ["body"] and error["type"] in ("body_not_json", "body_not_utf8")
+        assert str(len(binary)) in error["msg"] and "UTF-8" in error["msg"]
+        assert len(r.content) < 1024
+    assert not vessel.requests.get(keys.VEHICLE_ARM.suffix)  # nothing reached the vessel
+
+
+@pytest.mark.parametrize(("path", "body"), [
+    ("/api/vessels/v1/mode", {"mode": "x" * 65536}),
+    ("/api/vessels/v1/mission", {"waypoints": [{"x_m": 1.0}] * 3000, "coa_radius_m": 2.0,
+                                 "task_power_w": 10.0}),
+    ("/api/vessels/v1/mission", {"waypoints": [{"x_m": "far"} for _ in range(2000)],
+                                 "coa_radius_m": 2.0, "task_power_w": 10.0, "note": "y" * 60000}),
+])
+def test_a_large_invalid_body_is_not_echoed_back(client: TestClient, vessel: Vessel, path: str,
+                                                  body: dict[str, Any]) -> None:
+    """A 64 KiB body's 422 gave the whole input back: now each field's input is cut to a short
+    prefix and the errors listed are bounded."""
+    raw = json.dumps(body)
+    assert len(raw) > 30_000
+    r = client.post(path, content=raw, headers={**AUTH, "Content-Type": "application/json"})
+    assert r.status_code == 422, r.text[:200]
+    detail = r.json()["detail"]
+    assert detail and all(e["loc"] and e["msg"] for e in detail)
+    assert len(r.content) < 8 * 1024, len(r.content)
+    assert all(len(json.dumps(e.get("input"))) < 100 for e in detail), detail
+    assert "mission/set" not in vessel.requests
+
+
+@pytest.mark.parametrize(("document", "field"), [
+    ('{"name": "x", "vessel": {"mass_kg": NaN}}', "scenario.vessel.mass_kg"),
+    ('{"current": {"speed_mps": [0.1, Infinity]}}', "scenario.current.speed_mps[1]"),
+    ('{"mission": {"coa_radius_m": -1e400}}', "scenario.mission.coa_radius_m"),
+])
+def test_nan_or_infinity_inside_a_scenario_document_is_a_422_naming_the_field(
+        client: TestClient, vessel: Vessel, document: str, field: str) -> None:
+    """A scenario document is free-form: the body's finite-number rule did not reach inside it and
+    the message refused it while being made (a 500). Now a 422 naming the field's path."""
+    vessel.bus.declare_alive("sim")
+    vessel.serve(keys.SIM_SCENARIO)
+    r = client.post("/api/vessels/v1/scenario", content='{"scenario": ' + document + "}",
+                    headers={**AUTH, "Content-Type": "application/json"})
+    assert r.status_code == 422, r.text
+    (error,) = r.json()["detail"]
+    assert error["loc"] == ["body", "scenario"] and field in error["msg"]
+    assert keys.SIM_SCENARIO.suffix not in vessel.requests
+    ok = client.post("/api/vessels/v1/scenario", json={"scenario": {"name": "x"}}, headers=AUTH)
+    assert ok.status_code == 200  # the ground station goes on
+
+
+def test_requests_without_the_token_do_not_use_up_the_operators_rate(hub: MemoryHub,
+                                                                      vessel: Vessel) -> None:
+    """One bucket per client address, counted before the token check: 5 of 10 operator commands
+    were 429 after 10 requests without the token. Now those have their own bucket (401/403, then
+    429), and the operator's commands all pass."""
+    with client_for(hub, rate_limit_per_s=0.0, rate_limit_burst=5) as c:
+        anonymous = [c.post("/api/vessels/v1/arm").status_code for _ in range(6)]
+        guessing = [c.post("/api/vessels/v1/arm", headers={"Authorization": "Bearer guess-0123456789"})
+                    .status_code for _ in range(4)]
+        assert anonymous == [401] * 5 + [429]  # their own bucket: limited too
+        assert guessing == [429] * 4  # a wrong token is the same address without the token
+        assert [c.post("/api/vessels/v1/arm", headers=AUTH).status_code for _ in range(5)] == [200] * 5
+        r = c.post("/api/vessels/v1/arm", headers=AUTH)  # the operator's own bucket is bounded too
+        assert r.status_code == 429 and "operator" in r.json()["detail"]
+        assert c.post("/api/vessels/v1/arm").status_code == 429
+    assert len(vessel.requests["vehicle/arm"]) == 5

@@ -13,7 +13,7 @@ import shutil
 from pathlib import Path
 
 import pytest
-from seaway_recorder import report
+from seaway_recorder import recover, report
 from seaway_recorder.recording import finished
 
 GOLDEN = Path(__file__).resolve().parents[2] / "replay" / "data" / "lake-30s.mcap"
@@ -30,7 +30,9 @@ def cut(tmp_path: Path) -> Path:
     return path
 
 
-def test_report_on_a_cut_file_reads_its_repaired_copy_and_says_so(cut: Path, capsys) -> None:
+def test_report_on_a_cut_file_reads_its_repaired_copy_and_says_so(cut: Path, tmp_path: Path,
+                                                                  monkeypatch, capsys) -> None:
+    monkeypatch.setenv(recover.ENV_REPAIR_DIR, str(tmp_path / "repairs"))
     assert report.main([str(cut), "--no-plots", "--out", str(cut.parent / "report")]) == 0
     out = capsys.readouterr().out
     assert "NOTE: recording.mcap was not finished" in out
@@ -38,8 +40,10 @@ def test_report_on_a_cut_file_reads_its_repaired_copy_and_says_so(cut: Path, cap
     doc = json.loads((cut.parent / "report" / "metrics.json").read_text())
     (line,) = doc["recording"]["repaired"]
     assert "messages kept" in line and doc["recording"]["messages"] > 100
-    assert cut.with_name("recording.recovered.mcap").is_file()  # the original is left as it was
-    assert not finished(cut)
+    assert not finished(cut)  # the original is left as it was, and nothing is written beside it
+    assert sorted(p.name for p in cut.parent.iterdir()) == ["recording.mcap", "report"]
+    (copy,) = (tmp_path / "repairs").glob("*/recording.*.recovered.mcap")
+    assert finished(copy)
 
 
 def test_a_run_folder_after_a_recorder_restart_reports_both_files(cut: Path, capsys) -> None:

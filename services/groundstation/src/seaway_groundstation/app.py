@@ -25,8 +25,6 @@ import asyncio
 import contextlib
 import importlib.resources
 import json
-import math
-import secrets
 import time
 from collections.abc import AsyncIterator, Callable
 from pathlib import Path
@@ -34,11 +32,9 @@ from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Depends, FastAPI, HTTPException, Query, Request
 from fastapi import Path as PathParam
-from fastapi.encoders import jsonable_encoder
 from fastapi.exceptions import RequestValidationError
 from fastapi.middleware.gzip import GZipMiddleware
 from fastapi.responses import FileResponse, JSONResponse, Response
-from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from fastapi.staticfiles import StaticFiles
 from pydantic import BaseModel, Field, ValidationError
 from seaway.contract import keys
@@ -46,6 +42,7 @@ from seaway.contract.config import ConfigError, deploy_path, read_document
 from seaway.contract.messages import (
     ArmRequest,
     Message,
+    MessageError,
     MissionCommand,
     MissionRequest,
     ModeRequest,
@@ -56,7 +53,7 @@ from starlette.concurrency import run_in_threadpool
 from starlette.datastructures import UploadFile
 from starlette.websockets import WebSocket
 
-from seaway_groundstation import bodies, geo, plans, replay
+from seaway_groundstation import bodies, errors, geo, guard, plans, replay
 from seaway_groundstation.fleet import Fleet
 from seaway_groundstation.gateway import BusLink, ask
 from seaway_groundstation.journal import RequestJournal
@@ -119,7 +116,8 @@ def _command_responses(reply_model: type[BaseModel]) -> dict[int | str, dict[str
         404: _errors("vessel never seen"),
         409: {"model": reply_model, "description": "refused by the vessel; the reason says why"},
         413: _errors("request body over the bound"),
-        429: _errors("too many command requests from this client (see Retry-After)"),
+        429: _errors("too many command requests from this identity: the operator, or this "
+                             "address without the token (see Retry-After)"),
         502: {"model": reply_model, "description": "the transport answered with an error"},
         504: {"model": reply_model, "description": "nobody answered in time (service not running?)"},
     }
@@ -202,59 +200,6 @@ def _reply(reply: CommandReply) -> JSONResponse:
     return JSONResponse(reply.model_dump(mode="json"), status_code=STATUS_OF_OUTCOME[reply.outcome])
 
 
-def _json_safe(value: Any) -> Any:
-    """``value`` with every non-finite float as its text ('nan', 'inf'), which JSON cannot carry."""
-    if isinstance(value, float) and not math.isfinite(value):
-        return repr(value)
-    if isinstance(value, dict):
-        return {k: _json_safe(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_json_safe(v) for v in value]
-    return value
-
-
-async def _unprocessable_response(_request: Any, exc: Exception) -> JSONResponse:
-    """FastAPI's own 422 (``{"detail": [errors]}``), but for a body holding NaN, Infinity or 1e400:
-    Python's JSON reads those as floats, each error echoes its input, and the default answer could
-    not encode them (a bare 500 and a traceback in the log, for ``{"mode": NaN}``)."""
-    assert isinstance(exc, RequestValidationError)
-    return JSONResponse(status_code=422, content={"detail": _json_safe(jsonable_encoder(exc.errors()))})
-
-
-def _validation_error(err: ValidationError) -> RequestValidationError:
-    return RequestValidationError(err.errors(include_url=False, include_context=False))
-
-
-def _operator_dependency(gs: GroundStation) -> Callable[..., Any]:
-    bearer = HTTPBearer(auto_error=False, scheme_name="operator token",
-                        description="the operator token the ground station prints at start")
-    expected = gs.settings.token.encode()
-
-    async def operator(creds: Annotated[HTTPAuthorizationCredentials | None, Depends(bearer)]) -> None:
-        if creds is None:
-            raise HTTPException(401, "this request moves or changes a vessel: send "
-                                     "'Authorization: Bearer <operator token>' (the ground station "
-                                     "prints it at start)", headers={"WWW-Authenticate": "Bearer"})
-        if not secrets.compare_digest(creds.credentials.encode(), expected):
-            raise HTTPException(403, "wrong operator token")
-
-    return operator
-
-
-def _rate_dependency(gs: GroundStation) -> Callable[..., Any]:
-    async def rate_limit(request: Request) -> None:
-        client = request.client.host if request.client else "unknown"
-        wait_s = gs.limiter.allow(client, gs.settings.clock())
-        if wait_s > 0:
-            retry = "3600" if math.isinf(wait_s) else str(max(1, math.ceil(wait_s)))
-            raise HTTPException(429, f"too many command requests from {client}: at most "
-                                     f"{gs.settings.rate_limit_burst} at once, then "
-                                     f"{gs.settings.rate_limit_per_s:g} per second",
-                                headers={"Retry-After": retry})
-
-    return rate_limit
-
-
 def create_app(bus_like: Bus, settings: Settings | None = None,
                on_ready: Callable[[], None] | None = None) -> FastAPI:
     """The ground station's application over ``bus_like`` (a Zenoh or in-memory ``Bus``).
@@ -281,18 +226,18 @@ def create_app(bus_like: Bus, settings: Settings | None = None,
 
     app = FastAPI(title="Seaway ground station", version=API_VERSION, lifespan=lifespan,
                   description=__doc__, openapi_tags=TAGS, docs_url=None, redoc_url=None,
-                  responses={400: _errors("a malformed request: a body that does not parse as JSON "
-                                          "(or UTF-8), a Content-Length that is not a number"),
+                  responses={400: _errors("a malformed request: a Content-Length that is not a number"),
                              422: {"model": UnprocessableBody, "description": "an invalid request: "
-                                   "the fields at fault, or what in the content is wrong"}})
+                                   "the fields at fault (each input echoed cut short), a body that "
+                                   "is not UTF-8 JSON, or what in the content is wrong"}})
     app.state.groundstation = gs
-    app.add_exception_handler(RequestValidationError, _unprocessable_response)
+    app.add_exception_handler(RequestValidationError, errors.unprocessable_response)
     # Outermost first on the way in: the body bound before anything reads a body; replay frames
     # (megabytes of JSON for a long run) go out compressed.
     app.add_middleware(GZipMiddleware, minimum_size=4096)
     app.add_middleware(BodyLimit, max_bytes=settings.max_body_bytes,
                        streamed={UPLOAD_PATH: settings.max_upload_bytes})
-    command = [Depends(_rate_dependency(gs)), Depends(_operator_dependency(gs))]
+    command = [Depends(guard.command_dependency(settings, gs.limiter))]
     app.include_router(_read_router(gs), prefix="/api")
     app.include_router(_mission_router(gs, command), prefix="/api")
     app.include_router(_vehicle_router(gs, command), prefix="/api")
@@ -550,7 +495,7 @@ async def _read_import(request: Request, max_bytes: int) -> tuple[bodies.ImportP
         try:
             params = bodies.ImportParams.model_validate(fields)
         except ValidationError as err:
-            raise _validation_error(err) from None
+            raise errors.validation_error(err) from None
         try:
             doc = plans.load_json(data, f"uploaded {filename}")
         except plans.PlanError as err:
@@ -564,7 +509,7 @@ async def _read_import(request: Request, max_bytes: int) -> tuple[bodies.ImportP
         try:
             body = bodies.ImportBody.model_validate(raw, strict=True)
         except ValidationError as err:
-            raise _validation_error(err) from None
+            raise errors.validation_error(err) from None
         return body, body.document
     raise HTTPException(415, f"send the file as multipart/form-data or a JSON body, not {ctype or 'nothing'}")
 
@@ -604,8 +549,11 @@ def _vehicle_router(gs: GroundStation, command: list[Any]) -> APIRouter:
                 reason=f"vessel {vessel} is not simulated (no sim service is alive on it): "
                        "scenarios apply to simulated vessels only"))
         doc = gs.scenario_document(body.name) if body.name is not None else body.scenario
-        msg = ScenarioRequest.make(stamp_ns=time.time_ns(), action="restart" if doc is None else "load",
-                                   scenario=doc)
+        try:
+            msg = ScenarioRequest.make(stamp_ns=time.time_ns(),
+                                       action="restart" if doc is None else "load", scenario=doc)
+        except MessageError as err:  # what the message itself refuses (the body checked the rest)
+            raise HTTPException(422, f"the scenario cannot be sent: {err}") from None
         return _reply(await gs.send(keys.SIM_SCENARIO, msg, vessel))
 
     return r
@@ -628,7 +576,7 @@ def _replay_router(gs: GroundStation, command: list[Any]) -> APIRouter:
             responses={401: _errors("no operator token"), 403: _errors("wrong operator token"),
                        413: _errors("larger than the upload bound"), 415: _errors("not a raw body"),
                        422: _unprocessable("not an MCAP recording that reads"),
-                       429: _errors("too many command requests from this client")},
+                       429: _errors("too many command requests from this identity")},
             openapi_extra={"requestBody": {"required": True, "content": {
                 "application/octet-stream": {"schema": {"type": "string", "format": "binary"}}}}})
     async def upload(request: Request, name: Annotated[str, Query(

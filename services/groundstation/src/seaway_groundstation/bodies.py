@@ -11,7 +11,7 @@ import math
 from collections.abc import Sequence
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 from seaway.contract import keys
 from seaway.contract.messages import (
     DEFAULT_CONTROLLER,
@@ -39,6 +39,19 @@ def _refuse_nulls(data: Any) -> Any:
         if nulls:
             raise ValueError(f"{', '.join(nulls)}: null; give a value or leave it out")
     return data
+
+
+def non_finite_fields(value: Any, path: str) -> list[str]:
+    """Where in a free-form document (``path``: its name) a number is NaN or infinite, as
+    ``path.key[index]`` each; empty when every number is finite. ``allow_inf_nan=False`` checks
+    typed fields only, and Python's JSON reads NaN, Infinity and 1e400 as floats."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return [f"{path} ({value!r})"]
+    if isinstance(value, dict):
+        return [p for k, v in value.items() for p in non_finite_fields(v, f"{path}.{k}")]
+    if isinstance(value, list):
+        return [p for i, v in enumerate(value) for p in non_finite_fields(v, f"{path}[{i}]")]
+    return []
 
 
 def _one_position_pair(schema: dict[str, Any]) -> None:
@@ -174,6 +187,15 @@ class ScenarioBody(_Body):
     @classmethod
     def _no_nulls(cls, data: Any) -> Any:
         return _refuse_nulls(data)
+
+    @field_validator("scenario")
+    @classmethod
+    def _finite(cls, doc: dict[str, Any] | None) -> dict[str, Any] | None:
+        bad = non_finite_fields(doc, "scenario")
+        if bad:
+            raise ValueError(f"{', '.join(bad[:5])}: not a finite number; a scenario's numbers "
+                             "must be finite (NaN and Infinity are refused)")
+        return doc
 
     @model_validator(mode="after")
     def _exactly_one(self) -> ScenarioBody:

@@ -1,11 +1,13 @@
-"""Bounds on what a client may send: request body size (ASGI middleware) and a command rate.
+"""Bounds on what a client may send: request body size and encoding (ASGI middleware) and a
+command rate.
 
 ``BodyLimit`` reads a request's body before the application sees it and answers 413 past
 ``max_bytes`` (by ``Content-Length`` at once, or by counting a chunked body), so no endpoint ever
-holds more. Paths in ``streamed`` (a recording upload) have their own, larger bound: a declared
-length over it is refused at once, and the body is passed on unbuffered for the endpoint to write
-to disk, counting it itself. ``RateLimiter`` is a token bucket per client (pure: time passed in),
-bounded in the number of clients it remembers.
+holds more, and 422 for a body declared JSON that is not UTF-8 text. Paths in ``streamed`` (a
+recording upload) have their own, larger bound: a declared length over it is refused at once, and
+the body is passed on unbuffered for the endpoint to write to disk, counting it itself.
+``RateLimiter`` is a token bucket per client (pure: time passed in), bounded in the number of
+clients it remembers.
 """
 
 from __future__ import annotations
@@ -65,6 +67,13 @@ class BodyLimit:
             if not message.get("more_body", False):
                 break
         body = b"".join(chunks)
+        if _declares_json(scope) and not _utf8(body):
+            # Starlette's JSON reading fails on it with a bare 400 "error parsing the body".
+            await self._refuse(send, 422, [{
+                "type": "body_not_utf8", "loc": ["body"], "input": f"<{len(body)} bytes>",
+                "msg": f"the body ({len(body)} bytes) is sent as JSON but is not UTF-8 text: send "
+                       "a JSON object encoded as UTF-8"}])
+            return
         replayed = False
 
         async def replay() -> Message:
@@ -80,13 +89,28 @@ class BodyLimit:
         await self._refuse(send, 413, f"request body larger than {bound} bytes")
 
     @staticmethod
-    async def _refuse(send: Send, status: int, detail: str) -> None:
+    async def _refuse(send: Send, status: int, detail: str | list[dict[str, Any]]) -> None:
         payload = json.dumps({"detail": detail}).encode()
         await send({"type": "http.response.start", "status": status,
                     "headers": [(b"content-type", b"application/json"),
                                 (b"content-length", str(len(payload)).encode()),
                                 (b"connection", b"close")]})
         await send({"type": "http.response.body", "body": payload})
+
+
+def _declares_json(scope: Scope) -> bool:
+    """Whether the request's Content-Type says JSON (``application/json``, ``...+json``)."""
+    ctype = dict(scope.get("headers") or []).get(b"content-type", b"")
+    media = ctype.split(b";")[0].strip().lower()
+    return media == b"application/json" or (media.startswith(b"application/") and media.endswith(b"+json"))
+
+
+def _utf8(body: bytes) -> bool:
+    try:
+        body.decode("utf-8")
+    except UnicodeDecodeError:
+        return False
+    return True
 
 
 @dataclass

@@ -264,9 +264,8 @@ class UploadStore:
 
 
 def remove_upload(path: Path) -> None:
-    for p in (path, path.with_name(f"{path.stem}.recovered.mcap")):
-        with contextlib.suppress(OSError):
-            p.unlink()
+    with contextlib.suppress(OSError):
+        path.unlink()  # a repaired copy, if it was cut, is in the reader's cache (pruned there)
 
 
 @dataclass

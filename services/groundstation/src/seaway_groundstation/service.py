@@ -73,7 +73,8 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--max-body-bytes", type=positive_int, default=Settings.max_body_bytes,
                     help="largest request body [bytes]")
     ap.add_argument("--rate-limit-per-s", type=positive_float, default=Settings.rate_limit_per_s,
-                    help="sustained command requests per client [1/s]")
+                    help="sustained command requests per identity (the operator; each address "
+                         "without the token) [1/s]")
     ap.add_argument("--rate-limit-burst", type=positive_int, default=Settings.rate_limit_burst,
                     help="command requests a client may make at once")
     ap.add_argument("--request-timeout-s", type=positive_float, default=Settings.request_timeout_s,

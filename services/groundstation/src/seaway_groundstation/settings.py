@@ -36,7 +36,8 @@ class Settings:
     max_body_bytes: int = 1 << 20
     """Largest request body accepted (413 beyond)."""
     rate_limit_per_s: float = 5.0
-    """Sustained command requests per client (429 beyond)."""
+    """Sustained command requests per identity (429 beyond): the operator, and each address
+    without the operator token (``guard.py``)."""
     rate_limit_burst: int = 20
     """Command requests a client may make at once before the sustained rate applies."""
     request_timeout_s: float = 10.0

@@ -10,6 +10,7 @@ from __future__ import annotations
 import heapq
 import io
 import struct
+import tempfile
 import threading
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
@@ -45,7 +46,7 @@ from seaway_recorder.mcapfile import (
     U32,
     U64,
 )
-from seaway_recorder.recover import RECOVER_METADATA, recover
+from seaway_recorder.recover import RECOVER_METADATA, recover, repaired_copy
 
 
 @dataclass(frozen=True)
@@ -97,40 +98,39 @@ class UnreadableRecordingError(ValueError):
 
 
 def readable(path: Path) -> Path:
-    """``path``, or for a truncated file its repaired copy ``<stem>.recovered.mcap`` (made once,
-    next to it, or in a temporary folder when its own cannot be written; the original is left as
-    it is). The copy carries a ``seaway.recover`` metadata record saying what was kept.
+    """``path``, or for an unfinished file (cut by a crash, or still being written) a repaired copy
+    of it as it is now, carrying a ``seaway.recover`` metadata record saying what was kept.
+
+    The copy is never written beside the file (its run folder may be live): ``recover.repaired_copy``
+    keeps it in ``recover.repair_dir()``, whole and never rewritten, so several readers at once
+    each read a complete copy. When that folder cannot be written the copy goes to a new temporary
+    folder.
 
     Raises ``UnreadableRecordingError`` when nothing can be rebuilt from it.
     """
     path = Path(path)
     if finished(path):
         return path
-    fixed = path.with_name(f"{path.stem}.recovered.mcap")
     try:
-        if not fixed.exists() or fixed.stat().st_mtime < path.stat().st_mtime:
-            recover(path, fixed)
-        return fixed
+        return repaired_copy(path)
     except ValueError as err:  # not an MCAP file at all: nothing to rebuild
         raise UnreadableRecordingError(f"{path}: not finished, and nothing can be rebuilt from it: "
-                                  f"{err}") from None
+                                       f"{err}") from None
     except OSError:
-        pass  # its folder is read-only (an archive): repair into a temporary folder instead
-    import tempfile
-
-    fixed = Path(tempfile.mkdtemp(prefix="seaway-recovered-")) / fixed.name
+        pass  # no cache folder to write (a read-only home): a temporary folder instead
+    fixed = Path(tempfile.mkdtemp(prefix="seaway-recovered-")) / f"{path.stem}.recovered.mcap"
     try:
         recover(path, fixed)
     except (OSError, ValueError) as err:
         raise UnreadableRecordingError(f"{path}: not finished (cut short by a crash?) and it could not "
-                                  f"be repaired: {err}; {RECOVER_HINT}") from None
+                                       f"be repaired: {err}; {RECOVER_HINT}") from None
     return fixed
 
 
 def open_paths(paths: Iterable[str | Path]) -> list[Path]:
     """Files named, and every ``*.mcap`` in folders named, in name order; raises if none. A file
-    that a crash left truncated is read through its repaired copy (``readable``); ``repaired``
-    says which were."""
+    that a crash left truncated, or that is still being written, is read through a repaired copy
+    (``readable``); ``repaired`` says which were."""
     out: list[Path] = []
     for p in map(Path, paths):
         if p.is_dir():

@@ -6,11 +6,19 @@ channels and messages); the first record that is cut short or corrupt ends the d
 records are written again through the mcap Writer, which adds the chunk and message indexes, the
 statistics and the summary. Message times, sequence numbers, channel topics and metadata and schema
 bytes are kept unchanged; schema and channel ids may be renumbered.
+
+``repaired_copy`` is what readers use: a repaired copy of a file as it is now, kept out of the
+file's own folder (a live run's) in a cache, whole and never rewritten once there.
 """
 
 from __future__ import annotations
 
+import contextlib
+import hashlib
+import os
 import struct
+import tempfile
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import BinaryIO
@@ -31,6 +39,11 @@ from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.writer import CompressionType, Writer
 
 RECOVER_METADATA = "seaway.recover"
+ENV_REPAIR_DIR = "SEAWAY_REPAIR_DIR"
+"""Where readers keep repaired copies of unfinished files (default ``~/.cache/seaway/recovered``)."""
+REPAIR_KEEP_S = 600.0
+"""A repaired copy not made or used for this long is removed [s] (a reader that opened it has long
+finished; the next reader makes it again)."""
 
 
 @dataclass
@@ -164,3 +177,63 @@ def _copy(copier: _Copier, r: object, res: RecoverResult) -> None:
         copier.channel(r)
     elif isinstance(r, Message) and copier.message(r):
         res.messages += 1
+
+
+def repair_dir() -> Path:
+    """``$SEAWAY_REPAIR_DIR`` or ``~/.cache/seaway/recovered``; OSError when neither is known."""
+    env = os.environ.get(ENV_REPAIR_DIR)
+    if env:
+        return Path(env)
+    try:
+        return Path.home() / ".cache" / "seaway" / "recovered"
+    except RuntimeError as err:  # no home known: the caller falls back as for an unwritable one
+        raise OSError(f"no folder for repaired copies: {err}; set {ENV_REPAIR_DIR}") from None
+
+
+def repaired_copy(src: Path) -> Path:
+    """A repaired copy of ``src`` as it is now (``recover``), for reading.
+
+    Made in ``repair_dir()`` (never beside ``src``: its folder may be a live run's), named by the
+    path, size and modification time of ``src``, under a temporary name and then linked into
+    place, so a copy once there never changes: readers at once of the same state share one copy
+    or each make their own, and none reads one half-written; a file that grew gets a new copy.
+    Copies not made or used for ``REPAIR_KEEP_S`` are removed. Raises ValueError when ``src`` is
+    not MCAP, OSError when the cache cannot be written.
+    """
+    src = Path(src)
+    st = src.stat()
+    folder = repair_dir() / hashlib.sha256(str(src.resolve()).encode()).hexdigest()[:16]
+    folder.mkdir(mode=0o700, parents=True, exist_ok=True)
+    fixed = folder / f"{src.stem}.{st.st_size}-{st.st_mtime_ns}.recovered.mcap"
+    if fixed.exists():
+        os.utime(fixed)  # in use: not pruned under this reader
+    else:
+        fd, part_name = tempfile.mkstemp(prefix=f".{fixed.name}.", suffix=".part", dir=folder)
+        os.close(fd)
+        part = Path(part_name)
+        try:
+            recover(src, part)
+            with contextlib.suppress(FileExistsError):  # never replaced: a reader may hold that copy
+                os.link(part, fixed)
+        finally:
+            part.unlink(missing_ok=True)
+    _prune_repairs(repair_dir(), fixed)
+    return fixed
+
+
+def _prune_repairs(root: Path, keep: Path) -> None:
+    """Remove the copies under ``root`` not made or used for ``REPAIR_KEEP_S`` (but ``keep``), and
+    the folders they leave empty."""
+    now_s = time.time()
+
+    def stale(p: Path) -> bool:
+        return now_s - p.stat().st_mtime > REPAIR_KEEP_S
+
+    for folder in root.iterdir():
+        for old in [*folder.glob("*.recovered.mcap"), *folder.glob(".*.part")]:  # a killed reader's
+            with contextlib.suppress(OSError):
+                if old != keep and stale(old):
+                    old.unlink()
+        with contextlib.suppress(OSError):
+            if folder != keep.parent and stale(folder):  # not one another reader just made
+                folder.rmdir()  # only when empty

@@ -154,18 +154,23 @@ class StartPose(ConfigModel):
 
 def load_mission(path: str | Path) -> MissionSpec:
     """A mission file, or the ``[mission]`` table of a scenario file (by path or scenario name)."""
+    return load_mission_source(path)[0]
+
+
+def load_mission_source(path: str | Path) -> tuple[MissionSpec, Scenario | None]:
+    """``load_mission``, and the scenario it is the ``[mission]`` of (parsed whole: every table
+    checked), or None for a mission file."""
     p = Path(path)
     if p.suffix not in (".toml", ".json"):
         sc = load_scenario(path)
-        if sc.mission is None:
-            raise ConfigError(f"scenario {sc.name!r} has no [mission]")
-        return sc.mission.model_copy(update={"mission_id": sc.mission.mission_id or sc.name})
-    doc = read_document(p)
-    if "mission" in doc and isinstance(doc["mission"], dict):
+    else:
+        doc = read_document(p)
+        if not ("mission" in doc and isinstance(doc["mission"], dict)):
+            return parse_config(doc, MissionSpec, str(p)), None
         sc = parse_scenario(doc, str(p), p.parent)
-        assert sc.mission is not None
-        return sc.mission.model_copy(update={"mission_id": sc.mission.mission_id or sc.name})
-    return parse_config(doc, MissionSpec, str(p))
+    if sc.mission is None:
+        raise ConfigError(f"scenario {sc.name!r} has no [mission]")
+    return sc.mission.model_copy(update={"mission_id": sc.mission.mission_id or sc.name}), sc
 
 
 class ScenarioBattery(ConfigModel):

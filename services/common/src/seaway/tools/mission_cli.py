@@ -5,6 +5,10 @@
     seaway mission pause | resume | abort
     seaway mission status                            # the next mission/status message
 
+A scenario is checked whole, as the simulator loads it (its tables, its model and plant vessel
+files), and only its ``[mission]`` is sent: a note on stderr names what of it is not (the running
+stack's vessel, world and battery apply, whatever the scenario says).
+
 Prints the controller's reply (accepted, or refused with the reason) and exits 0 only if accepted
 (1 refused or not delivered, 2 a bad command line). The request waits, up to ``--timeout``, for the
 controller (``seaway.tools.request_cli``: a new session needs a moment to find its queryable) and
@@ -21,10 +25,34 @@ import time
 from seaway.contract import keys
 from seaway.contract.config import ConfigError
 from seaway.contract.messages import MessageError, MissionCommand
-from seaway.simkit.scenario import load_mission
+from seaway.contract.missions import MissionSpec
+from seaway.simkit.scenario import Scenario, load_mission_source
 from seaway.tools import request_cli
+from seaway.vessel.model import check_vessel_files
 
 COMMANDS = ("pause", "resume", "abort")
+SENT_OF_SCENARIO = frozenset({"name", "description", "mission"})
+"""A scenario's fields that go into the request (the rest is the simulator's business)."""
+
+
+def read_mission(what: str) -> tuple[MissionSpec, str | None]:
+    """The mission ``what`` names (a mission file, a scenario's name or file) and, for a scenario,
+    a note naming what of it is not sent. ConfigError when anything read is invalid: a scenario's
+    vessel files are loaded as the simulator loads them."""
+    spec, scenario = load_mission_source(what)
+    if scenario is None:
+        return spec, None
+    try:
+        check_vessel_files(model=scenario.vessel, plant=scenario.plant_vessel)
+    except ConfigError as err:
+        raise ConfigError(f"scenario {scenario.name!r}: {err}") from None
+    return spec, _ignored_note(scenario)
+
+
+def _ignored_note(scenario: Scenario) -> str:
+    ignored = sorted(scenario.model_fields_set - SENT_OF_SCENARIO)
+    return (f"using only [mission] of scenario {scenario.name!r}: its {', '.join(ignored)} are not "
+            "sent; the running stack's vessel, world and battery apply")
 
 
 def main(argv: list[str]) -> int:
@@ -39,9 +67,12 @@ def main(argv: list[str]) -> int:
         cmd = MissionCommand.make(stamp_ns=time.time_ns(), command=args.what)
         return request_cli.send(args, keys.MISSION_COMMAND, cmd, args.what)
     try:
-        request = load_mission(args.what).to_request(time.time_ns())
+        spec, note = read_mission(args.what)
+        request = spec.to_request(time.time_ns())
     except (ConfigError, MessageError) as err:
         print(f"seaway mission: {err}", file=sys.stderr)
         return request_cli.EXIT_USAGE
+    if note is not None:
+        print(f"seaway mission: {note}", file=sys.stderr)
     what = f"mission {request.mission_id or '(unnamed)'} ({len(request.waypoints)} waypoints)"
     return request_cli.send(args, keys.MISSION_SET, request, what)
