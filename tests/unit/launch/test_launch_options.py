@@ -164,3 +164,52 @@ def test_a_recording_the_profile_cannot_use_is_refused_before_anything_starts(
     (recorded / "recording.mcap").write_bytes(b"")
     assert launch.main(["replay", "--recording", str(recorded), "--scenario", "paper-c1",
                         "--run-dir", str(tmp_path / "run2"), "--check"]) == 0
+
+
+def _recording(path: Path, run_json: bytes | None) -> Path:
+    """A finished recording whose only content is ``run_json`` as its run description (if any)."""
+    from seaway_recorder.writer import AttachmentSpec, RecordingWriter
+
+    atts = [AttachmentSpec("run/run.json", "application/json", run_json, 0)] if run_json else []
+    w = RecordingWriter(path, attachments=atts, foxglove=False)
+    w.open(1)
+    w.close(2)
+    return path
+
+
+RECORDED_RUN = {"run_id": "r", "vessel": "vessel1", "model_vessel_file": "paper-boat",
+                "control_period_s": 0.1, "clock": "lockstep"}
+
+
+def test_a_replay_takes_the_scenario_its_recording_was_made_on(tmp_path, capsys) -> None:
+    """``launch replay --recording R`` without ``--scenario`` started a stack that waited at
+    "sim t 0 s | idle" for good: no scenario, so no mission and no origin. The recording's run
+    description names its scenario: the launch flies that scenario's mission."""
+    import json
+
+    rec = _recording(tmp_path / "lake.mcap", json.dumps({**RECORDED_RUN, "scenario": "lake"}).encode())
+    assert launch.main(["replay", "--recording", str(rec), "--run-dir", str(tmp_path / "run"),
+                        "--check"]) == 0
+    assert "mission lake " in capsys.readouterr().out
+    # --scenario still chooses.
+    assert launch.main(["replay", "--recording", str(rec), "--scenario", "paper-c1",
+                        "--run-dir", str(tmp_path / "run2"), "--check"]) == 0
+    assert "mission paper-c1 " in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(("run_json", "missing"), [
+    (None, "holds no run description"),
+    (b'{"run_id": "r", "vessel": "vessel1", "model_vessel_file": "paper-boat", '
+     b'"control_period_s": 0.1, "clock": "lockstep"}', "names no scenario"),
+    (b'{"run_id": "r", "vessel": "vessel1", "model_vessel_file": "paper-boat", '
+     b'"control_period_s": 0.1, "clock": "lockstep", "scenario": "/nowhere/sc.toml"}',
+     "'/nowhere/sc.toml'"),
+])
+def test_a_replay_whose_recording_names_no_usable_scenario_is_refused(
+        run_json, missing, tmp_path, capsys) -> None:
+    rec = _recording(tmp_path / "r.mcap", run_json)
+    assert launch.main(["replay", "--recording", str(rec), "--run-dir", str(tmp_path / "run"),
+                        "--check"]) == 2
+    err = capsys.readouterr().err
+    assert missing in err and "--scenario" in err
+    assert not (tmp_path / "run").exists()

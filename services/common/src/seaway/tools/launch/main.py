@@ -85,7 +85,7 @@ from seaway.runtime.service import (
 )
 from seaway.runtime.zenoh_bus import ENV_CONFIG, use_lockstep_runtime
 from seaway.simkit.scenario import load_scenario
-from seaway.tools.launch import address, authority
+from seaway.tools.launch import address, authority, recording_source
 from seaway.tools.launch.profile import Instance, Profile, instances, load_profile, substitute
 from seaway.tools.launch.supervisor import Supervised, Supervisor, default_echo
 
@@ -268,26 +268,6 @@ def _run_dir(args: argparse.Namespace, scenario: str = "", mission: MissionReque
         n += 1
         path = base / f"{name}-{n}"
     return path
-
-
-def recording_problem(profile: Profile, recording: Path | None) -> str | None:
-    """What is wrong with ``--recording`` for ``profile`` (None: nothing), said before anything
-    starts: a profile whose commands take ``{recording}`` (replay) needs one that holds MCAP files;
-    any other ignores it, so giving one is a mistake (``sim-batch --recording x`` flew a mission)."""
-    takes = any("{recording}" in arg for spec in profile.processes for arg in spec.command)
-    if not takes:
-        return (None if recording is None else
-                f"--recording: profile {profile.name} plays no recording (the replay profile does)")
-    if recording is None:
-        return (f"profile {profile.name} plays a recording: give it with --recording PATH (a run "
-                "folder or an .mcap file)")
-    if not recording.exists():
-        return f"--recording {recording}: no such file or folder"
-    if recording.is_dir() and not any(recording.glob("*.mcap")):
-        return f"--recording {recording}: the folder holds no .mcap file"
-    if recording.is_file() and recording.suffix != ".mcap":
-        return f"--recording {recording}: not an .mcap file"
-    return None
 
 
 def earlier_recordings(run_dir: Path, vessels: list[str]) -> list[Path]:
@@ -606,8 +586,15 @@ def main(argv: list[str]) -> int:
     except ConfigError as err:
         print(f"seaway launch: {err}", file=sys.stderr)
         return 2
-    scenario = args.scenario or profile.scenario or ""
+    takes = recording_source.takes_recording([spec.command for spec in profile.processes])
+    if problem := recording_source.recording_problem(profile.name, takes, args.recording):
+        print(f"seaway launch: {problem}", file=sys.stderr)
+        return 2
     try:
+        # A replay's estimator and controller need the recorded run's scenario (its model, origin
+        # and mission): without one they wait for a mission that never comes.
+        scenario = (args.scenario or (recording_source.recorded_scenario(args.recording) if takes
+                                      else profile.scenario) or "")
         mission = (_mission_request(scenario, args) if profile.mission_on_start and scenario
                    and not args.no_mission else None)
     except ConfigError as err:
@@ -621,9 +608,6 @@ def main(argv: list[str]) -> int:
                else f"scenario {scenario} has no [mission]")
         print(f"seaway launch: {', '.join(given)}: option(s) of the mission sent, but this launch "
               f"sends no mission ({why})", file=sys.stderr)
-        return 2
-    if problem := recording_problem(profile, args.recording):
-        print(f"seaway launch: {problem}", file=sys.stderr)
         return 2
     run_dir = _run_dir(args, scenario, mission)
     try:
