@@ -62,19 +62,14 @@ from seaway.contract.messages import (
     CONTROLLER_NAMES,
     MAX_TASK_POWER_W,
     ArmRequest,
-    EnergyBudget,
     MessageError,
     MissionRequest,
-    MissionStatus,
     ModeRequest,
-    StateEstimate,
-    ThrustCommand,
-    mission_over,
 )
 from seaway.runtime import cpus, refusals
 from seaway.runtime import run as runs
 from seaway.runtime.argtypes import positive_float
-from seaway.runtime.bus import Bus, Every, Newest, RuntimeEnvError
+from seaway.runtime.bus import Bus, RuntimeEnvError
 from seaway.runtime.credentials import ENV_CREDENTIALS, NONE, CredentialsError
 from seaway.runtime.lockstep import CHAIN
 from seaway.runtime.service import (
@@ -87,6 +82,7 @@ from seaway.runtime.zenoh_bus import ENV_CONFIG, use_lockstep_runtime
 from seaway.simkit.scenario import load_scenario
 from seaway.tools.launch import address, authority, recording_source
 from seaway.tools.launch.profile import Instance, Profile, instances, load_profile, substitute
+from seaway.tools.launch.status_line import StatusLine
 from seaway.tools.launch.supervisor import Supervised, Supervisor, default_echo
 
 
@@ -300,167 +296,6 @@ def _mission_request(scenario_name: str, args: argparse.Namespace | None = None
 def _mission_options(args: argparse.Namespace) -> list[str]:
     """The mission options given on the command line, spelled as flags."""
     return [f"--{o.replace('_', '-')}" for o in MISSION_OPTIONS if getattr(args, o) is not None]
-
-
-DECISION_LABELS = {"warn": "LOW ENERGY", "return": "RETURNING", "hold": "HOLDING"}
-"""How the status line names an energy budget's decision (``EnergyBudget.decision``, not 'none')."""
-
-
-def energy_text(j: float | None) -> str:
-    """An energy for the status line, three significant figures in J, kJ or MJ ('-' for none)."""
-    if j is None or not math.isfinite(j):
-        return "-"
-    unit, v = next((u, j / k) for u, k in (("MJ", 1e6), ("kJ", 1e3), ("J", 1.0))
-                   if abs(j) >= k or u == "J")
-    digits = 0 if abs(v) >= 99.95 else 1 if abs(v) >= 9.995 else 2
-    return f"{v:.{digits}f} {unit}"
-
-
-class StatusLine:
-    """The live line: per vessel, leg, speed, cross-track error and the energy budget: energy used,
-    to finish the mission, to get home, the battery's remaining energy against its reserve and,
-    once taken, the decision (``mission/energy``; the mission status's figures before any budget).
-
-    ``t`` is the run's time: the wall time since the start in real time; in lockstep the simulated
-    time (the latest state's stamp) and, beside it, how many times faster than real time it goes
-    (simulated over wall seconds since the first state)."""
-
-    def __init__(self, vessels: list[str], lockstep: bool = False, commands: bool = False) -> None:
-        self.lockstep = lockstep
-        self.commands = commands
-        """Show the latest thrust command while there is no mission status (a run that sends no
-        mission: ``seaway identify fly`` flying its manoeuvre, say)."""
-        self.vessels = list(vessels)
-        self.mission: dict[str, MissionStatus | None] = dict.fromkeys(self.vessels)
-        self.state: dict[str, StateEstimate | None] = dict.fromkeys(self.vessels)
-        self.energy: dict[str, EnergyBudget | None] = dict.fromkeys(self.vessels)
-        self.thrust: dict[str, ThrustCommand | None] = dict.fromkeys(self.vessels)
-        self.decided: dict[str, EnergyBudget | None] = dict.fromkeys(self.vessels)
-        """The budget of the period each vessel's decision was taken (its figures say why)."""
-        self.tty = sys.stdout.isatty()
-        self._last_print = 0.0
-        self._first: tuple[float, float] | None = None  # lockstep: (sim s, wall s) of the first state
-        self._moved: tuple[float, float] | None = None  # lockstep: (sim s, wall s) when it last moved
-        self._newest: dict[str, tuple[Newest[MissionStatus], Newest[StateEstimate],
-                                      Newest[ThrustCommand] | None]] = {}
-        self._budgets: dict[str, Every[EnergyBudget]] = {}
-
-    def watch(self, bus: Bus) -> None:
-        """Keep the latest mission status, state and energy budget of every vessel.
-
-        In lockstep they come hundreds a second and the line shows a few a second: status, state and
-        commands are decoded only when shown (``Bus.newest``, ``pull``). Every budget is decoded
-        then too (``Bus.every``), as the one of the period a decision was taken must be kept."""
-        for v in self.vessels:
-            self._newest[v] = (bus.newest(keys.MISSION_STATUS, vessel=v),
-                               bus.newest(keys.NAV_STATE, vessel=v),
-                               bus.newest(keys.THRUST, vessel=v) if self.commands else None)
-            self._budgets[v] = bus.every(keys.MISSION_ENERGY, vessel=v)
-
-    def pull(self) -> None:
-        """Take the newest status, state and command heard, and every budget (decoding them now)."""
-        for v, budgets in self._budgets.items():
-            for budget in budgets.take():
-                self.on_energy(v, budget)
-        for v, (mission, state, thrust) in self._newest.items():
-            self.mission[v], self.state[v] = mission.get(), state.get()
-            if thrust is not None:
-                self.thrust[v] = thrust.get()
-
-    def on_energy(self, vessel: str, budget: EnergyBudget) -> None:
-        """The vessel's latest budget; the first one of a decision is kept for its figures."""
-        self.energy[vessel] = budget
-        before = self.decided[vessel]
-        if budget.decision != "none" and (before is None or before.decided_ns != budget.decided_ns):
-            self.decided[vessel] = budget
-
-    def complete(self, mission: MissionRequest | None) -> bool:
-        """Whether every vessel's mission is complete: the one this launcher sent, if it sent one
-        (a status of some other mission stops nothing)."""
-        self.pull()
-        return all(self._over(v, m, mission) for v, m in self.mission.items())
-
-    def _over(self, vessel: str, m: MissionStatus | None, sent: MissionRequest | None) -> bool:
-        """The mission sent is complete, or its return home that the energy budget decided
-        (``return_mission_id``) is, or the budget held it (policy 'hold': nothing more to fly)."""
-        return mission_over(m, self.energy.get(vessel), None if sent is None else sent.mission_id)
-
-    def text(self, t_s: float) -> str:
-        """One line for every vessel (a fleet's vessels joined by ``||``)."""
-        return " || ".join(self.vessel_text(v, t_s) for v in self.vessels)
-
-    def vessel_text(self, vessel: str, t_s: float) -> str:
-        """``t_s``: wall seconds since the run started."""
-        m, s = self.mission[vessel], self.state[vessel]
-        parts = [vessel, self.time_text(s, t_s)]
-        if m is not None:
-            parts.append(f"{m.state} leg {m.active_leg}/{max(m.waypoint_count - 1, 0)}")
-            if m.cross_track_m is not None:
-                parts.append(f"xte {m.cross_track_m:5.2f} m")
-        elif self.commands and (c := self.thrust[vessel]) is not None:
-            parts.append(f"thrust {c.thrust_port_n:+.2f} / {c.thrust_starboard_n:+.2f} N ({c.source})")
-        else:
-            parts.append("no mission status yet")
-        if s is not None:
-            parts.append(f"speed {(s.u_mps ** 2 + s.v_mps ** 2) ** 0.5:4.2f} m/s")
-        parts += self.energy_parts(vessel)
-        return " | ".join(parts)
-
-    def energy_parts(self, vessel: str) -> list[str]:
-        """Energy used, to finish, to home, battery vs reserve, and the decision once taken: from
-        the budget of the mission the status names, else the status's own figures."""
-        m, b = self.mission[vessel], self.energy[vessel]
-        if b is None or (m is not None and m.mission_id != b.mission_id):
-            if m is None:
-                return []
-            return ([f"used {energy_text(m.energy_used_j)}"] if m.energy_used_j is not None else []) + (
-                [f"to finish {energy_text(m.energy_to_go_j)}"] if m.energy_to_go_j is not None else [])
-        parts = [f"used {energy_text(b.energy_used_j)}", f"to finish {energy_text(b.energy_to_go_j)}",
-                 f"to home {energy_text(b.energy_to_home_j)}"]
-        if b.battery_remaining_j is not None:
-            parts.append(f"battery {energy_text(b.battery_remaining_j)}"
-                         + (f" (reserve {energy_text(b.reserve_j)})" if b.reserve_j is not None else ""))
-        if b.decision != "none":
-            parts.append(self.decision_text(vessel, b, m))
-        return parts
-
-    def decision_text(self, vessel: str, b: EnergyBudget, m: MissionStatus | None) -> str:
-        label = DECISION_LABELS[b.decision]
-        if b.decision == "return" and b.returning and m is not None and m.state == "complete":
-            label = "RETURNED"
-        d = self.decided[vessel]
-        if d is None or d.decided_ns != b.decided_ns or None in (
-                d.energy_to_home_j, d.battery_remaining_j):
-            return f"{label}: {b.reason}" if b.reason else label  # its period was not heard
-        return (f"{label}: energy to home {energy_text(d.energy_to_home_j)} + reserve "
-                f"{energy_text(d.reserve_j or 0.0)} reached {energy_text(d.battery_remaining_j)} left")
-
-    def time_text(self, state: StateEstimate | None, wall_s: float) -> str:
-        if not self.lockstep:
-            return f"t {wall_s:5.0f} s"
-        if state is None:
-            return "sim t     - s"
-        sim_s = state.stamp_ns / 1e9
-        if self._first is None or sim_s < self._first[0]:  # the first state, or a new episode
-            self._first = self._moved = (sim_s, wall_s)
-        elif self._moved is None or sim_s != self._moved[0]:
-            self._moved = (sim_s, wall_s)
-        # The rate up to when simulated time last moved: a sim holding (the mission complete, no
-        # command) is not a run going slower.
-        assert self._moved is not None
-        d_sim, d_wall = self._moved[0] - self._first[0], self._moved[1] - self._first[1]
-        return f"sim t {sim_s:5.0f} s" + (f" ({d_sim / d_wall:4.0f}x real time)" if d_wall > 0.5 else "")
-
-    def show(self, t_s: float, final: bool = False) -> None:
-        now = time.monotonic()
-        self.pull()
-        if self.tty:
-            sys.stdout.write("\r\x1b[2K" + self.text(t_s) + ("\n" if final else ""))
-            sys.stdout.flush()
-        elif final or now - self._last_print >= 5.0:
-            for v in self.vessels:
-                print(self.vessel_text(v, t_s), flush=True)
-            self._last_print = now
 
 
 REPORT_TIMEOUT_S = 120.0  # the final report is skipped (with the command to make it) past this
