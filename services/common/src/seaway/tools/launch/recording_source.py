@@ -3,16 +3,22 @@ whether ``--recording`` fits the profile, and which scenario the recording was m
 
 A replay's live estimator and controller are described by the recorded run's scenario (its model,
 origin, dead zone) and fly its mission; without one they wait for a mission that never comes. So
-the scenario is ``--scenario``, else the one the recording's run description names
-(``run/run.json``, attached by the recorder to every recording), else the launch is refused.
+the scenario is ``--scenario``, else the one the recorded run's description names (``run.json``
+beside the recording), else the launch is refused. (The recorder attaches the same description to
+the recording itself; reading it there would take the recorder's MCAP reader, which the shared
+package does not depend on.)
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from seaway.contract.config import ConfigError
+from seaway.contract.config import ConfigError, load_config
+from seaway.runtime.run import RunDescription
 from seaway.simkit.scenario import load_scenario
+
+RUN_FILE = "run.json"
+"""The run description the launcher writes in each vessel's folder, beside its recording."""
 
 
 def takes_recording(commands: list[list[str]]) -> bool:
@@ -45,41 +51,36 @@ def recording_problem(profile_name: str, takes: bool, recording: Path | None) ->
 
 
 def recorded_scenario(recording: Path) -> str:
-    """The scenario (name or path) the run description attached to ``recording`` names, checked to
-    load here. ConfigError naming what is missing (no run description, one without a scenario, a
-    scenario not found on this machine) and that ``--scenario`` supplies it."""
-    try:  # the recorder package reads MCAP; the replay profile runs its ``seaway replay`` anyway
-        from seaway_recorder import recording as recordings
-        from seaway_recorder import runinfo
-    except ImportError:
+    """The scenario (name or path) of the run ``recording`` was made in: the one its run
+    description names (``run.json`` in the run folder, beside the recording: the launcher writes
+    it there, and the recorder attaches the same to the recording), checked to load here.
+    ConfigError naming what is missing (no run description, one without a scenario, a scenario not
+    found on this machine) and that ``--scenario`` supplies it."""
+    folder = recording if recording.is_dir() else recording.parent
+    path = folder / RUN_FILE
+    if not path.is_file():
         raise ConfigError(
-            f"--recording {recording}: reading its scenario needs the seaway-recorder "
-            "package; give the scenario with --scenario NAME"
-        ) from None
-    try:
-        run = runinfo.run_from_attachments(
-            recordings.read_info(recordings.open_paths([recording])).attachments
+            f"--recording {recording}: no run description ({path}) to name the "
+            "scenario it was made on; give the scenario with --scenario"
         )
-    except (OSError, ValueError) as err:  # ConfigError is a ValueError: a bad run.json says so
+    try:
+        run = load_config(path, RunDescription)
+    except ConfigError as err:
         raise ConfigError(
             f"--recording {recording}: {err}; give the scenario it was made on with --scenario"
         ) from None
-    if run is None:
-        raise ConfigError(
-            f"--recording {recording}: it holds no run description "
-            f"({runinfo.RUN_ATTACHMENT}) to name its scenario; give the scenario it "
-            "was made on with --scenario"
-        )
     if not run.scenario:
         raise ConfigError(
-            f"--recording {recording}: its run description names no scenario (a run "
-            "not simulated by Seaway?); give the scenario with --scenario"
+            f"--recording {recording}: its run description ({path}) names no "
+            "scenario (a run not simulated by Seaway?); give the scenario with "
+            "--scenario"
         )
     try:
         load_scenario(run.scenario)
     except ConfigError as err:
         raise ConfigError(
-            f"--recording {recording}: the scenario it was made on, {run.scenario!r}, "
-            f"cannot be loaded here ({err}); give it with --scenario"
+            f"--recording {recording}: the scenario it was made on, "
+            f"{run.scenario!r}, cannot be loaded here ({err}); give it with "
+            "--scenario"
         ) from None
     return run.scenario
