@@ -198,7 +198,7 @@ def supervised(plan: list[Instance], vessels: list[str], run_dir: Path,
     out = []
     for inst in plan:
         folder = vessel_dir(run_dir, inst.vessel, vessels)
-        values = {**common, "vessel": inst.vessel, "run": str(folder / "run.json"),
+        values = {**common, "vessel": inst.vessel, "run": str(folder / recording_source.RUN_FILE),
                   "vessel_dir": str(folder if inst.per_vessel or len(vessels) == 1 else run_dir),
                   "mavlink_port": str(ports[inst.vessel])}
         out.append(Supervised(inst.spec, substitute(inst.spec.command, values), inst.vessel,
@@ -516,7 +516,7 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
     mission_files: dict[str, Path | None] = dict.fromkeys(vessels)
     for v, folder in folders.items():
         folder.mkdir(parents=True, exist_ok=True)
-        runs_of[v].write(folder / "run.json")
+        runs_of[v].write(folder / recording_source.RUN_FILE)
         if mission is not None:
             mission_files[v] = folder / "mission.json"
             mission_files[v].write_text(mission.model_dump_json(indent=2) + "\n")
@@ -549,12 +549,23 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
     refusals.serve(bus, "launcher")
     code = 0
     t0 = time.monotonic()
+    flown: set[str] = set()
     try:
-        bus.watch_fleet_health(sup.on_health)
+        # The launcher's own token on each vessel (``seaway health`` lists it); not one of the
+        # processes it supervises, so the supervisor does not hear it. A shore launcher's would be
+        # the boat's to refuse: it declares none.
+        bus.watch_fleet_health(lambda v, service, alive: service != "launcher"
+                               and sup.on_health(v, service, alive))
+        if profile.side != "shore":
+            for v in vessels:
+                bus.declare_alive("launcher", vessel=v)
         # What the processes must keep publishing (liveness): heard here, so a hung one is seen.
         sup.watch_on(bus)
         status = StatusLine(vessels, lockstep=run.lockstep, commands=mission is None)
         status.watch(bus)
+        for v in vessels:  # which vessels' controllers take a mission (the launcher's or another's)
+            bus.subscribe(keys.MISSION_ACCEPTED, vessel=v,
+                          callback=lambda _key, _msg, v=v: flown.add(v))
         error = sup.start_all(stop)
         if error:
             print(f"seaway launch: {error}", file=sys.stderr)
@@ -622,7 +633,8 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
             if sup.hurried > hurried:  # a Ctrl-C during an earlier vessel's report skips the rest
                 print(f"(report skipped: Ctrl-C; make it with: seaway report {folders[v]})")
                 continue
-            _final_report(folders[v], scenario, mission_files[v], sup, make=not args.no_report)
+            _final_report(folders[v], scenario, mission_files[v], sup, make=not args.no_report,
+                          idle_vessel=None if v in flown else v)
     return code
 
 
@@ -648,17 +660,25 @@ def _describe_mission(mission: MissionRequest) -> str:
 
 
 def _final_report(run_dir: Path, scenario: str, mission_file: Path | None = None,
-                  sup: Supervisor | None = None, make: bool = True) -> None:
+                  sup: Supervisor | None = None, make: bool = True,
+                  idle_vessel: str | None = None) -> None:
     """The run's metrics (from its recording, by ``seaway report``) and where the recording is;
     with ``make`` False (``--no-report``) only where the recording is, and how to make the report.
 
     The report takes the mission from ``mission_file`` (what the launcher sent, options applied)
-    when there is one, else from the scenario. It runs in a session of its own, so that a Ctrl-C
+    when there is one, else from what the recording holds. An ``idle_vessel`` (one the launcher
+    sent no mission and whose controller accepted none either: a fleet's vessel the operator left
+    idle) gets no report, and that is said. The report runs in a session of its own, so that a Ctrl-C
     reaches only the launcher, which then stops it and says how to make it later."""
     recordings = sorted(run_dir.glob("*.mcap"))
     if not recordings:
         return
     print(f"recording: {', '.join(str(r) for r in recordings)}", flush=True)
+    if idle_vessel is not None and mission_file is None:
+        # The report would judge the scenario's path, which the vessel was never sent (a fleet's
+        # missions come from the operator).
+        print(f"(no report: vessel {idle_vessel} flew no mission in this run)", flush=True)
+        return
     seaway = shutil.which("seaway", path=str(Path(sys.executable).parent)) or "seaway"
     cmd = [seaway, "report", str(run_dir), "--out", str(run_dir / "report")]
     if scenario:
