@@ -14,9 +14,14 @@ pytestmark = [pytest.mark.system, pytest.mark.bench]
 
 def test_bench_controller_quick_json() -> None:
     r = subprocess.run([str(BIN / "seaway"), "bench", "controller", "--quick", "--controllers",
-                        "cc-empc", "--no-progress", "--json"],
+                        "cc-empc", "--json"],
                        capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr
+    # stderr is a pipe, not a terminal: a progress line per step (the run, IPOPT's instances), each
+    # with an estimate of the time left, the last at 100 %.
+    progress = [line for line in r.stderr.splitlines() if " ETA " in line]
+    assert len(progress) >= 2 and "\r" not in r.stderr, r.stderr
+    assert progress[-1].startswith("100% ETA 0 s"), r.stderr
     doc = json.loads(r.stdout.strip().splitlines()[-1])
     f = doc["figures"]
     assert f["cc-empc/steps"] > 3000 and f["cc-empc/unconverged"] == 0

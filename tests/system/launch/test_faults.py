@@ -160,7 +160,23 @@ def test_services_killed_mid_mission_are_restarted_and_the_mission_completes(pro
         print(f"{suffix}: one gap of {g[holes[0]]:.2f} s, then {len(g) - holes[0]} messages")
 
 
+STOP_BUDGET_S = 5.0
+"""From the Ctrl-C to every process of the stack gone (the stop takes 1-2 s on an idle machine)."""
+
+
+def _gone(pid: int) -> bool:
+    """The process has exited (reaped, or a zombie its parent has yet to reap)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().split()[2] == "Z"
+    except OSError:
+        return True
+
+
 def test_ctrl_c_stops_the_real_sim_profile_within_5_s_without_orphans(procs, zenoh_env, tmp_path):
+    """Timed: the stop (Ctrl-C to the last process gone, the recorder's file finished), not the
+    report the launcher makes after it, which has a timeout of its own (REPORT_TIMEOUT_S)."""
+    from seaway.tools.launch.main import REPORT_TIMEOUT_S
+
     run = tmp_path / "run"
     la = procs.start([sys.executable, "-m", "seaway.tools.cli", "launch", "sim", "--run-dir", str(run)],
                      zenoh_env, "launcher")
@@ -169,12 +185,14 @@ def test_ctrl_c_stops_the_real_sim_profile_within_5_s_without_orphans(procs, zen
     pids = [e["pid"] for name in ("recorder", "sim", "vehicle_io", "estimator", "controller")
             for e in starts(run, name)]
     assert len(pids) == 5
-    took = procs.stop(la, signal.SIGINT, timeout_s=10)
-    assert took < 5.0, procs.log(la)
-    assert la.returncode == 0
-    for pid in pids:
-        wait_for(lambda pid=pid: not Path(f"/proc/{pid}").exists() or
-                 Path(f"/proc/{pid}/stat").read_text().split()[2] == "Z", 2, what=f"process {pid} gone")
+    t0 = time.monotonic()
+    la.send_signal(signal.SIGINT)
+    wait_for(lambda: all(map(_gone, pids)), 4 * STOP_BUDGET_S, what="every process stopped")
+    took = time.monotonic() - t0
+    assert took < STOP_BUDGET_S, procs.log(la)
+    la.wait(REPORT_TIMEOUT_S + 30.0)  # then the report; the launcher still exits cleanly
+    assert la.returncode == 0, procs.log(la)
+    print(f"stopped in {took:.2f} s; launcher exited after {time.monotonic() - t0:.2f} s")
     # The recording was finished properly (indexed), not cut: it reads back with a summary.
     from mcap.reader import make_reader
 

@@ -61,8 +61,8 @@ def test_a_lockstep_recording_replays_into_live_services_paced_by_their_answers(
     original, again = tmp_path / "original", tmp_path / "replayed"
     done = launch(["sim-batch", "--scenario", SCENARIO, "--run-dir", str(original)], zenoh_env)
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
-    done = launch(["replay", "--recording", str(original), "--scenario", SCENARIO,
-                   "--run-dir", str(again)], zenoh_env)
+    # No --scenario: the replay takes the recorded run's (its run.json beside the recording).
+    done = launch(["replay", "--recording", str(original), "--run-dir", str(again)], zenoh_env)
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
     assert "completed                                           yes" in done.stdout, done.stdout
 

@@ -78,6 +78,9 @@ def test_a_mission_sent_live_is_reported_against_the_path_sent(procs, zenoh_env,
     assert procs.stop(launcher, signal.SIGINT, timeout_s=300) < 300
     assert launcher.returncode == 0, procs.log(launcher)[-3000:]
     assert not (run / "mission.json").exists()  # the launcher sent nothing: no document to go by
+    # ... but it heard the controller take the operator's mission (in lockstep, in its bundle):
+    # the vessel flew one, so it gets its report.
+    assert "no report: vessel" not in procs.log(launcher), procs.log(launcher)[-3000:]
 
     rep = subprocess.run([str(BIN / "seaway"), "report", str(run), "--out", str(tmp_path / "rep"),
                           "--json", "--no-plots"], capture_output=True, text=True, timeout=300,

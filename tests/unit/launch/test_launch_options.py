@@ -164,3 +164,52 @@ def test_a_recording_the_profile_cannot_use_is_refused_before_anything_starts(
     (recorded / "recording.mcap").write_bytes(b"")
     assert launch.main(["replay", "--recording", str(recorded), "--scenario", "paper-c1",
                         "--run-dir", str(tmp_path / "run2"), "--check"]) == 0
+
+
+def _recording(folder: Path, run_json: bytes | None) -> Path:
+    """A run folder as the launcher leaves it: a recording and, if any, its run description."""
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "recording.mcap").write_bytes(b"")
+    if run_json is not None:
+        (folder / "run.json").write_bytes(run_json)
+    return folder
+
+
+RECORDED_RUN = {"run_id": "r", "vessel": "vessel1", "model_vessel_file": "paper-boat",
+                "control_period_s": 0.1, "clock": "lockstep"}
+
+
+def test_a_replay_takes_the_scenario_its_recording_was_made_on(tmp_path, capsys) -> None:
+    """``launch replay --recording R`` without ``--scenario`` started a stack that waited at
+    "sim t 0 s | idle" for good: no scenario, so no mission and no origin. The recorded run's
+    description names its scenario: the launch flies that scenario's mission."""
+    import json
+
+    rec = _recording(tmp_path / "rec", json.dumps({**RECORDED_RUN, "scenario": "lake"}).encode())
+    for given in (rec, rec / "recording.mcap"):  # the run folder, or the recording in it
+        assert launch.main(["replay", "--recording", str(given), "--run-dir",
+                            str(tmp_path / "run"), "--check"]) == 0
+        assert "mission lake " in capsys.readouterr().out
+    # --scenario still chooses.
+    assert launch.main(["replay", "--recording", str(rec), "--scenario", "paper-c1",
+                        "--run-dir", str(tmp_path / "run2"), "--check"]) == 0
+    assert "mission paper-c1 " in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(("run_json", "missing"), [
+    (None, "no run description"),
+    (b'{"run_id": "r", "vessel": "vessel1", "model_vessel_file": "paper-boat", '
+     b'"control_period_s": 0.1, "clock": "lockstep"}', "names no scenario"),
+    (b'{"run_id": "r", "vessel": "vessel1", "model_vessel_file": "paper-boat", '
+     b'"control_period_s": 0.1, "clock": "lockstep", "scenario": "/nowhere/sc.toml"}',
+     "'/nowhere/sc.toml'"),
+    (b'{"run_id": ', "run.json"),
+])
+def test_a_replay_whose_recording_names_no_usable_scenario_is_refused(
+        run_json, missing, tmp_path, capsys) -> None:
+    rec = _recording(tmp_path / "rec", run_json)
+    assert launch.main(["replay", "--recording", str(rec), "--run-dir", str(tmp_path / "run"),
+                        "--check"]) == 2
+    err = capsys.readouterr().err
+    assert missing in err and "--scenario" in err
+    assert not (tmp_path / "run").exists()

@@ -3,8 +3,9 @@ times faster than real time the run goes; in real time the wall time."""
 
 from __future__ import annotations
 
+import pytest
 from seaway.contract.messages import EnergyBudget, MissionStatus, StateEstimate, ThrustCommand
-from seaway.tools.launch.main import StatusLine, energy_text
+from seaway.tools.launch.status_line import StatusLine, energy_text
 
 
 def state(t_s: float) -> StateEstimate:
@@ -141,3 +142,97 @@ def test_on_a_bus_it_shows_and_judges_by_the_newest_status_and_state() -> None:
     line.pull()
     decided = line.decided["v1"]  # ... and every budget then: a decision's is kept
     assert decided is not None and decided.decision == "warn" and line.energy["v1"] == budget()
+
+
+# -- fitting the terminal's width (issue #56 item 10) ----------------------------------------------
+
+
+def busy(vessels: list[str]) -> StatusLine:
+    """A line with every field: lockstep time and rate, leg, cross-track, speed, the budget and a
+    decision whose period was heard (the longest text there is)."""
+    line = StatusLine(vessels, lockstep=True)
+    for v in vessels:
+        line.mission[v] = MissionStatus(stamp_ns=1, state="active", mission_id="box", active_leg=2,
+                                        waypoint_count=5, cross_track_m=-1.25, energy_used_j=7.0)
+        line.state[v] = state(10.0)
+        line.time_text(line.state[v], 1.0)
+        line.state[v] = state(130.0)
+        line.on_energy(v, budget(decision="return", decided_ns=5))
+    return line
+
+
+@pytest.mark.parametrize("vessels", [["vessel1"], ["vessel1", "vessel2"]])
+@pytest.mark.parametrize("width", [80, 120, 200])
+def test_the_line_fits_the_width_keeping_the_most_important_fields(vessels, width) -> None:
+    line = busy(vessels)
+    whole = line.text(3.0)
+    assert len(whole) > 154  # what used to be written whatever the terminal
+    fitted = line.text(3.0, width)
+    assert len(fitted) <= width, fitted
+    assert "\n" not in fitted
+    for part in fitted.split(" || "):
+        # Always kept: what the mission does, and a decision taken; when, but in a fleet at 80.
+        assert "active" in part and "2/4" in part and "RETURN" in part, part
+        assert "t 130 s" in part or (len(vessels) > 1 and width == 80), part
+    if len(vessels) > 1:
+        assert fitted.split(" || ")[1].startswith("vessel2")  # a fleet's lines say whose
+    if width >= len(whole):
+        assert fitted == whole  # nothing lost when it fits
+
+
+def test_fit_shortens_then_leaves_out_the_least_important_first() -> None:
+    from seaway.tools.launch.status_line import Field, fit
+
+    fields = [Field(0, "alpha"), Field(2, "bravo long", "bravo"), Field(1, "charlie long", "ch")]
+    assert fit(fields, None) == "alpha | bravo long | charlie long"
+    assert fit(fields, 33) == "alpha | bravo long | charlie long"
+    assert fit(fields, 28) == "alpha | bravo | charlie long"  # the least important shortened
+    assert fit(fields, 20) == "alpha | bravo | ch"
+    assert fit(fields, 12) == "alpha | ch"  # then left out, least important first
+    assert fit(fields, 5) == "alpha"
+    assert fit(fields, 4) == "a..."  # the most important stays, cut
+
+
+def test_on_a_terminal_the_line_is_rewritten_in_place_within_its_width() -> None:
+    """On a pty of 80 columns: every rewrite starts at the line's start, clears what the previous
+    one left beyond its end, and stays within the width, so nothing wraps and no row is left."""
+    import fcntl
+    import os
+    import pty
+    import struct
+    import termios
+
+    master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 80, 0, 0))
+    out = os.fdopen(slave, "w")
+    try:
+        line = busy(["vessel1", "vessel2"])
+        line.out, line.tty = out, out.isatty()
+        assert line.tty
+        for t in (1.0, 2.0, 3.0):
+            line.show(t)
+        line.show(4.0, final=True)
+        out.flush()
+        written = b""
+        while not written.endswith(b"\n"):
+            written += os.read(master, 65536)
+    finally:
+        out.close()
+        os.close(master)
+    text = written.decode().replace("\r\n", "\n")  # the pty's own output translation
+    rewrites = text.split("\r")[1:]
+    assert len(rewrites) == 4 and text.startswith("\r") and text.count("\n") == 1
+    for r in rewrites:
+        assert r.rstrip("\n").endswith("\x1b[K")  # clears the rest of the previous line
+        assert len(r.rstrip("\n").removesuffix("\x1b[K")) < 80
+
+
+def test_when_not_a_terminal_whole_lines_are_printed_every_few_seconds(tmp_path) -> None:
+    with (tmp_path / "out.txt").open("w") as out:
+        line = busy(["vessel1"])
+        line.out, line.tty = out, False
+        line.show(1.0)
+        line.show(1.5)  # within PRINT_EVERY_S: nothing
+        line.show(2.0, final=True)
+    lines = (tmp_path / "out.txt").read_text().splitlines()
+    assert len(lines) == 2 and lines[0] == busy(["vessel1"]).vessel_text("vessel1", 1.0)

@@ -26,8 +26,8 @@ run are printed beside Table I's.
 from __future__ import annotations
 
 import argparse
-import sys
 import time
+from collections.abc import Callable
 
 import casadi as ca
 import numpy as np
@@ -41,6 +41,7 @@ from seaway_controller.ocp import CONTROLLER_KINDS, Ocp
 from seaway_controller.solvers import IpoptSolver
 
 from seaway_lab.bench.common import BenchResult, pin_to_one_core
+from seaway_lab.bench.progress import Progress, duration_text
 from seaway_lab.closed_loop import TABLE_I, ClosedLoopResult, run_closed_loop
 
 TARGET_MEDIAN_MS = 0.3
@@ -48,26 +49,47 @@ TARGET_P99_MS = 1.0
 TARGET_SPEEDUP = 30.0
 
 
-class Progress:
-    """One status line on stderr, rewritten at most a few times per second."""
+class _Work:
+    """How much of the bench is done, in units of one controller on one condition: its closed-loop
+    runs take ``fly_share`` of a unit, IPOPT the rest. The share is a guess (a half) until a unit is
+    done, then the measured one of the units done so far."""
 
-    def __init__(self, enabled: bool) -> None:
-        self.enabled = enabled and sys.stderr.isatty()
-        self._last = 0.0
+    def __init__(self, repeats: int, clock: Callable[[], float] = time.monotonic) -> None:
+        self.repeats = repeats
+        self.clock = clock
+        self.units = 0  # units done
+        self.fly_share = 0.5
+        self._fly_s = self._solve_s = 0.0
+        self._t0 = clock()
+        self._t_flown: float | None = None
 
-    def show(self, text: str, force: bool = False) -> None:
-        if not self.enabled:
-            return
-        now = time.monotonic()
-        if force or now - self._last > 0.25:
-            self._last = now
-            sys.stderr.write("\r\033[K" + text)
-            sys.stderr.flush()
+    @property
+    def done(self) -> float:
+        return float(self.units)
 
-    def done(self) -> None:
-        if self.enabled:
-            sys.stderr.write("\r\033[K")
-            sys.stderr.flush()
+    def flying(self, runs_done: int, run_fraction: float) -> float:
+        """Done so far, with ``runs_done`` runs of this unit flown and ``run_fraction`` of the
+        next (clamped to [0, 1]: a run may last longer than the paper's travel time)."""
+        fraction = (runs_done + min(max(run_fraction, 0.0), 1.0)) / self.repeats
+        return self.units + self.fly_share * min(fraction, 1.0)
+
+    def flown(self) -> None:
+        self._t_flown = self.clock()
+
+    def solving(self, solved: int, instances: int) -> float:
+        """Done so far, with ``solved`` of this unit's ``instances`` IPOPT instances solved."""
+        return self.units + self.fly_share + (1 - self.fly_share) * solved / max(instances, 1)
+
+    def solved(self) -> None:
+        """The unit is done: the share of flying in it is learned."""
+        now = self.clock()
+        flown = self._t_flown if self._t_flown is not None else now
+        self._fly_s += flown - self._t0
+        self._solve_s += now - flown
+        if self._fly_s + self._solve_s > 0:
+            self.fly_share = self._fly_s / (self._fly_s + self._solve_s)
+        self.units += 1
+        self._t0, self._t_flown = now, None
 
 
 def _ms(values: list[float], q: float | None = None) -> float:
@@ -84,7 +106,9 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
                     help="solve every N-th step's NLP with IPOPT too (1: every step)")
     ap.add_argument("--quick", action="store_true",
                     help="condition 1 only, 1 repeat, IPOPT on every 20th step")
-    ap.add_argument("--no-progress", action="store_true", help="no progress bar (for logs)")
+    ap.add_argument("--no-progress", action="store_true",
+                    help="no progress on stderr (by default: a line rewritten on a terminal, else a "
+                         "line per run and per IPOPT batch, each with an estimate of the time left)")
     args = ap.parse_args(argv)
     if args.quick:
         args.conditions, args.repeats, args.ipopt_every = "1", 1, 20
@@ -102,7 +126,10 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
 def run(argv: list[str]) -> BenchResult:
     args = parse_args(argv)
     cpu = pin_to_one_core()
-    progress = Progress(not args.no_progress)
+    # The work: one unit per controller and condition, its closed-loop runs taking a share of it
+    # and IPOPT on their instances the rest (the share measured once a unit is done).
+    progress = Progress(len(args.controllers) * len(args.conditions), not args.no_progress)
+    work = _Work(args.repeats)
     res = BenchResult("controller", "Controller: per-step solve time over whole missions "
                       "(generated SQP vs plain IPOPT) and closed-loop results vs Table I")
     t_start = time.perf_counter()
@@ -123,12 +150,18 @@ def run(argv: list[str]) -> BenchResult:
             ctrl = core.controller(kind)
             repeats: list[ClosedLoopResult] = []
             captured: list = []
+            t_mission_s = TABLE_I[cond][kind][2]  # the paper's travel time: the run's length, near
             for rep in range(args.repeats):
                 ctrl.capture = captured if rep == 0 else None
                 label = f"c{cond} {kind} run {rep + 1}/{args.repeats}"
+                t_run = time.monotonic()
                 repeats.append(run_closed_loop(
                     sc, kind, core=core, vessel=vp,
-                    progress=lambda t, label=label: progress.show(f"{label}: {t:6.1f} s simulated")))
+                    progress=lambda t, label=label, rep=rep, t_mission_s=t_mission_s: progress.show(
+                        work.flying(rep, t / t_mission_s), f"{label}: {t:6.1f} s simulated")))
+                progress.step(work.flying(rep + 1, 0.0),
+                              f"{label} flown in {duration_text(time.monotonic() - t_run)}")
+            work.flown()
             ctrl.capture = None
             first = repeats[0]
             runs[(cond, kind)] = first
@@ -144,7 +177,8 @@ def run(argv: list[str]) -> BenchResult:
             ipopt_sx = IpoptSolver(Ocp(config.spec(kind), vp, graph="SX"))
             picks = list(range(0, len(captured), args.ipopt_every))
             for j, i in enumerate(picks):
-                progress.show(f"c{cond} {kind} IPOPT: {j + 1}/{len(picks)} instances")
+                progress.show(work.solving(j, len(picks)),
+                              f"c{cond} {kind} IPOPT: {j + 1}/{len(picks)} instances")
                 outs = [ipopt.solve(*captured[i]) for _ in range(args.repeats)]
                 outs_sx = [ipopt_sx.solve(*captured[i]) for _ in range(args.repeats)]
                 acc["ipopt_raw"].append(outs[0].solve_time_s)
@@ -155,7 +189,9 @@ def run(argv: list[str]) -> BenchResult:
                 # Same expressions, same algorithm: the two graphs must reach the same point.
                 acc["graph_gap"].append(float(np.max(np.abs(outs[0].w - outs_sx[0].w))))
                 acc["fast_sampled"].append(filtered[i] if i < n else first.solve_times_s[i])
-    progress.done()
+            work.solved()
+            progress.step(work.done, f"c{cond} {kind} IPOPT: {len(picks)} instances solved")
+    progress.close()
     for kind, acc in pooled.items():
         pre = f"{kind}/"
         is_cc = kind == "cc-empc"

@@ -18,15 +18,14 @@ the last half (up to its last tenth) is shown beside it.
 from __future__ import annotations
 
 import argparse
-import sys
 
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.metrics import energy_prediction_check
 from seaway.vessel.model import load_vessel
 from seaway_estimator.core import EstimatorCore
-from tqdm import tqdm
 
 from seaway_lab.bench.common import BenchResult
+from seaway_lab.bench.progress import Progress
 from seaway_lab.closed_loop import run_closed_loop
 
 SCENARIOS = ("paper-c1", "paper-c2", "paper-c3", "paper-c4", "paper-c5", "lake")
@@ -45,12 +44,15 @@ def run(argv: list[str]) -> BenchResult:
     res = BenchResult("energy", f"Energy to finish, predicted ({args.controller}) vs used")
     per: dict[str, dict[str, float]] = {}
     worst_start = worst_half = 0.0
-    for name in tqdm(names, desc="scenarios", unit="run", file=sys.stderr,
-                     disable=not sys.stderr.isatty()):
+    progress = Progress(len(names))
+    for i, name in enumerate(names):
         sc = load_scenario(name)
         assert sc.mission is not None, f"scenario {name} has no mission"
         vessel = load_vessel(sc.vessel)
-        out = run_closed_loop(sc, args.controller, estimator=EstimatorCore(vessel=vessel))
+        out = run_closed_loop(sc, args.controller, estimator=EstimatorCore(vessel=vessel),
+                              progress=lambda t, i=i, name=name: progress.show(
+                                  i, f"{name}: {t:6.1f} s simulated"))
+        progress.step(i + 1, f"{name} flown ({i + 1}/{len(names)})")
         tw = sc.mission.task_power_w
         used = [(t.stamp_ns, t.energy_j + tw * t.stamp_ns / 1e9) for t in out.truth]
         m = out.metrics
@@ -83,6 +85,7 @@ def run(argv: list[str]) -> BenchResult:
                 f"({100 * h.error_frac:+.2f} %)", f"|err| <= {100 * HALF_TARGET:.0f} %",
                 abs(h.error_frac) <= HALF_TARGET,
                 f"worst over the last half {100 * check.last_half_max_abs_error_frac:.2f} %")
+    progress.close()
     res.add("worst_start_error_pct", 100 * worst_start, f"<= {100 * START_TARGET:.0f}",
             worst_start <= START_TARGET)
     res.add("worst_half_error_pct", 100 * worst_half, f"<= {100 * HALF_TARGET:.0f}",

@@ -546,9 +546,10 @@ class Bus(abc.ABC):
 
     # -- liveliness ---------------------------------------------------------------------------------
 
-    def declare_alive(self, service: str) -> None:
-        """Declare this process's health token ``seaway/<vessel>/health/<service>``."""
-        self._tokens.append(self._declare_token(keys.health_key(self.vessel, service)))
+    def declare_alive(self, service: str, vessel: str | None = None) -> None:
+        """Declare this process's health token ``seaway/<vessel>/health/<service>`` (``vessel``:
+        another than the bus's, for a process serving several: the launcher of a fleet)."""
+        self._tokens.append(self._declare_token(keys.health_key(vessel or self.vessel, service)))
 
     def alive_services(self, vessel: str | None = None, timeout_s: float = 1.0) -> set[str]:
         """Services whose health token is present now."""

@@ -99,14 +99,24 @@ ECHO_LOOK_S = 3.0
 """How long ``seaway echo`` waits for a first message before saying which vessels are on the bus."""
 
 
+ECHO_POLL_S = 0.05
+"""How often ``seaway echo`` looks for new messages when none is waiting [s]."""
+
+
+def echo_line(key: str, msg: object, every: bool) -> str:
+    """One output line of ``seaway echo``: the message as JSON; with ``--vessel '*'`` wrapped as
+    ``{"vessel": ..., "message": ...}``, the vessel taken from the key it came on."""
+    text = msg.model_dump_json()  # type: ignore[attr-defined]
+    if not every:
+        return text
+    vessel = key.split("/")[1] if key.startswith(f"{keys.ROOT}/") else key
+    return f'{{"vessel": {json.dumps(vessel)}, "message": {text}}}'
+
+
 def cmd_echo(argv: list[str]) -> int:
     from seaway.runtime.bus import Bus
-    from seaway.runtime.service import (
-        DEFAULT_VESSEL,
-        add_vessel_option,
-        add_zenoh_config_option,
-        install_stop_signals,
-    )
+    from seaway.runtime.service import DEFAULT_VESSEL, add_zenoh_config_option, install_stop_signals
+    from seaway.tools import vessel_choice
 
     ap = argparse.ArgumentParser(
         prog="seaway echo", description="print the messages of one key as JSON lines, until Ctrl-C "
@@ -114,32 +124,40 @@ def cmd_echo(argv: list[str]) -> int:
                                         "publishes it")
     ap.add_argument("key", help=f"a registered topic: its suffix ({keys.NAV_STATE.suffix}) or the "
                                 f"full key ({keys.NAV_STATE.key('vessel1')})")
-    add_vessel_option(ap, wildcard=True)
+    vessel_choice.add_option(ap, wildcard=True)
     ap.add_argument("--count", type=whole_number(0), default=0, help="stop after N messages (0: never)")
     add_zenoh_config_option(ap)
     args = ap.parse_args(argv)
     spec, named = _spec_by_key(args.key)
-    vessel = named or args.vessel
+    named = named or args.vessel
     stop = threading.Event()
     install_stop_signals(stop)
     n = 0
-    with Bus.open(vessel if vessel != "*" else DEFAULT_VESSEL, args.zenoh_config) as bus:
+    with Bus.open(named if named and named != "*" else DEFAULT_VESSEL, args.zenoh_config) as bus:
+        vessel = vessel_choice.resolve(bus, named, "seaway echo")
+        if vessel is None:
+            return 2
+        every = vessel == "*"  # each line then says whose message it is
         seen: set[str] = set()
         watch = bus.watch_fleet_health(lambda v, _service, alive: seen.add(v) if alive else None)
         sub = bus.subscribe(spec, mode="fifo", vessel=vessel)
         look_until = time.monotonic() + ECHO_LOOK_S
         while not stop.is_set():
-            msg = sub.get(0.1)
-            if msg is None:
+            got = sub.drain_with_keys()
+            if not got:
                 if look_until and time.monotonic() >= look_until:
                     look_until = 0.0
-                    if vessel != "*" and vessel not in seen:
+                    if not every and vessel not in seen:
                         print(f"seaway echo: no service of vessel {vessel!r} on the bus; vessels "
                               f"seen: {', '.join(sorted(seen)) or 'none'} (still listening; "
                               "Ctrl-C stops)", file=sys.stderr, flush=True)
+                stop.wait(ECHO_POLL_S)
                 continue
-            print(msg.model_dump_json(), flush=True)
-            n += 1
+            for key, msg in got:
+                print(echo_line(key, msg, every), flush=True)
+                n += 1
+                if args.count and n >= args.count:
+                    break
             if args.count and n >= args.count:
                 break
         watch.undeclare()
@@ -149,24 +167,28 @@ def cmd_echo(argv: list[str]) -> int:
 def cmd_health(argv: list[str]) -> int:
     from seaway.contract.messages import Refusals, VehicleStatus
     from seaway.runtime.bus import Bus
-    from seaway.runtime.service import add_vessel_option, add_zenoh_config_option
+    from seaway.runtime.service import DEFAULT_VESSEL, add_zenoh_config_option
+    from seaway.tools import vessel_choice
 
     ap = argparse.ArgumentParser(
         prog="seaway health",
         description="list the services alive and what each one refused: access control (per "
                     "identity, action and key) and vehicle_io's MAVLink link (per reason)")
-    add_vessel_option(ap)
+    vessel_choice.add_option(ap)
     ap.add_argument("--wait", type=non_negative_float, default=1.0,
                     help="seconds to wait for peers first")
     ap.add_argument("--json", action="store_true", help="one JSON object instead of the table")
     add_zenoh_config_option(ap)
     args = ap.parse_args(argv)
-    with Bus.open(args.vessel, args.zenoh_config) as bus:
-        status = bus.subscribe(keys.VEHICLE_STATUS)
+    with Bus.open(args.vessel or DEFAULT_VESSEL, args.zenoh_config) as bus:
+        vessel = vessel_choice.resolve(bus, args.vessel, "seaway health")
+        if vessel is None:
+            return 2
+        status = bus.subscribe(keys.VEHICLE_STATUS, vessel=vessel)
         time.sleep(args.wait)
-        alive = sorted(bus.alive_services())
+        alive = sorted(bus.alive_services(vessel))
         reports: list[Refusals] = []
-        for reply in bus.query_raw(keys.refusals_wildcard(args.vessel), timeout_s=2.0, every=True):
+        for reply in bus.query_raw(keys.refusals_wildcard(vessel), timeout_s=2.0, every=True):
             if reply.error is not None:
                 print(f"seaway health: a refusal report failed: {reply.error}", file=sys.stderr)
                 continue
@@ -178,9 +200,11 @@ def cmd_health(argv: list[str]) -> int:
     mavlink = dict(latest.refused_messages) if latest is not None else {}
     reports.sort(key=lambda r: r.identity)
     if args.json:
-        print(json.dumps({"alive": alive, "refusals": [r.model_dump(mode="json") for r in reports],
+        print(json.dumps({"vessel": vessel, "alive": alive,
+                          "refusals": [r.model_dump(mode="json") for r in reports],
                           "mavlink_refused": mavlink}))
         return 0
+    print(f"vessel {vessel}:")
     for s in keys.SERVICES:
         print(f"{s:15s} {'alive' if s in alive else '-'}")
     print("\nrefused by access control (since each process started):")

@@ -24,7 +24,8 @@ from seaway.contract import keys
 from seaway.contract.messages import Message, MessageError, Reply
 from seaway.runtime.argtypes import positive_float
 from seaway.runtime.bus import Bus
-from seaway.runtime.service import add_vessel_option, add_zenoh_config_option
+from seaway.runtime.service import DEFAULT_VESSEL, add_zenoh_config_option
+from seaway.tools import vessel_choice
 
 RETRY_PAUSE_S = 0.2
 """Between two attempts whose query found no queryable (the mesh is still forming)."""
@@ -46,40 +47,45 @@ class Outcome:
 
 
 def add_request_arguments(ap: argparse.ArgumentParser, waits_for: str) -> None:
-    """``--vessel``, ``--timeout`` (for ``waits_for``, the answering service) and ``--zenoh-config``."""
-    add_vessel_option(ap)
+    """``--vessel`` (``vessel_choice``: in a fleet, name one), ``--timeout`` (for ``waits_for``, the
+    answering service) and ``--zenoh-config``."""
+    vessel_choice.add_option(ap)
     ap.add_argument("--timeout", type=positive_float, default=DEFAULT_TIMEOUT_S, metavar="S",
                     help=f"seconds to wait for the {waits_for} and its reply, in all (default "
                          f"{DEFAULT_TIMEOUT_S:g})")
     add_zenoh_config_option(ap)
 
 
-def _wait_for_token(bus: Bus, service: str, deadline: float) -> bool:
-    """Whether ``service``'s health token was seen before ``deadline`` (monotonic s)."""
+def _wait_for_token(bus: Bus, service: str, deadline: float, vessel: str | None = None) -> bool:
+    """Whether ``service``'s health token (of ``vessel``, default the bus's) was seen before
+    ``deadline`` (monotonic s)."""
     seen = threading.Event()
 
     def on_health(name: str, alive: bool) -> None:
         if name == service and alive:
             seen.set()
 
-    watch = bus.watch_health(on_health)
+    watch = bus.watch_health(on_health, vessel)
     try:
         return seen.wait(max(0.0, deadline - time.monotonic()))
     finally:
         watch.undeclare()
 
 
-def request_when_served(bus: Bus, spec: keys.KeySpec, request: Message, timeout_s: float) -> Outcome:
-    """Send ``request`` on ``spec`` once its producer is there, within ``timeout_s`` in all.
+def request_when_served(bus: Bus, spec: keys.KeySpec, request: Message, timeout_s: float,
+                        vessel: str | None = None) -> Outcome:
+    """Send ``request`` on ``spec`` of ``vessel`` (default the bus's) once its producer is there,
+    within ``timeout_s`` in all.
 
     Waits for the producer's health token, then sends; a query that ends unanswered well before
     its timeout found no queryable (this session does not know the route yet) and is sent again
     after ``RETRY_PAUSE_S``; a query that runs out its time is not (it may have been delivered).
     """
     deadline = time.monotonic() + timeout_s
-    key = bus.key(spec)
-    if not _wait_for_token(bus, spec.producer, deadline):
-        return Outcome(None, f"no {spec.producer} on vessel {bus.vessel}: its health token did not "
+    key = bus.key(spec, vessel)
+    if not _wait_for_token(bus, spec.producer, deadline, vessel):
+        return Outcome(None, f"no {spec.producer} on vessel {vessel or bus.vessel}: its health "
+                             "token did not "
                              f"appear within {timeout_s:g} s (is the stack running, on this "
                              "rendezvous, with this vessel name?)")
     payload = request.encode()
@@ -121,20 +127,31 @@ def show(what: str, out: Outcome) -> int:
 
 
 def send(args: argparse.Namespace, spec: keys.KeySpec, request: Message, what: str) -> int:
-    """Open the bus for ``args.vessel``, send ``request`` on ``spec`` when its service is there,
-    print the outcome as ``what`` and return the exit code."""
-    with Bus.open(args.vessel, args.zenoh_config) as bus:
-        out = request_when_served(bus, spec, request, args.timeout)
+    """Open the bus, choose the vessel (``args.vessel``, ``vessel_choice``), send ``request`` on
+    ``spec`` when its service is there, print the outcome as ``what`` and return the exit code."""
+    with Bus.open(args.vessel or DEFAULT_VESSEL, args.zenoh_config) as bus:
+        vessel = vessel_choice.resolve(bus, args.vessel, _prog(spec))
+        if vessel is None:
+            return EXIT_USAGE
+        out = request_when_served(bus, spec, request, args.timeout, vessel)
     return show(what, out)
 
 
+def _prog(spec: keys.KeySpec) -> str:
+    """The command that speaks to ``spec``'s producer, for its messages."""
+    return "seaway mission" if spec.producer == "controller" else "seaway vehicle"
+
+
 def show_next(args: argparse.Namespace, spec: keys.KeySpec) -> int:
-    """Print the next ``spec`` message of ``args.vessel`` as JSON (exit 0), or say that none came
-    within ``--timeout`` (exit 1)."""
-    with Bus.open(args.vessel, args.zenoh_config) as bus:
-        msg = bus.subscribe(spec).get(args.timeout)
+    """Print the next ``spec`` message of the vessel (``args.vessel``, ``vessel_choice``) as JSON
+    (exit 0), or say that none came within ``--timeout`` (exit 1)."""
+    with Bus.open(args.vessel or DEFAULT_VESSEL, args.zenoh_config) as bus:
+        vessel = vessel_choice.resolve(bus, args.vessel, _prog(spec))
+        if vessel is None:
+            return EXIT_USAGE
+        msg = bus.subscribe(spec, vessel=vessel).get(args.timeout)
     if msg is None:
-        print(f"no {spec.suffix} from vessel {args.vessel} within {args.timeout:g} s", file=sys.stderr)
+        print(f"no {spec.suffix} from vessel {vessel} within {args.timeout:g} s", file=sys.stderr)
         return EXIT_REFUSED
     print(msg.model_dump_json(indent=2))
     return EXIT_ACCEPTED

@@ -62,19 +62,14 @@ from seaway.contract.messages import (
     CONTROLLER_NAMES,
     MAX_TASK_POWER_W,
     ArmRequest,
-    EnergyBudget,
     MessageError,
     MissionRequest,
-    MissionStatus,
     ModeRequest,
-    StateEstimate,
-    ThrustCommand,
-    mission_over,
 )
 from seaway.runtime import cpus, refusals
 from seaway.runtime import run as runs
 from seaway.runtime.argtypes import positive_float
-from seaway.runtime.bus import Bus, Every, Newest, RuntimeEnvError
+from seaway.runtime.bus import Bus, RuntimeEnvError
 from seaway.runtime.credentials import ENV_CREDENTIALS, NONE, CredentialsError
 from seaway.runtime.lockstep import CHAIN
 from seaway.runtime.service import (
@@ -85,8 +80,9 @@ from seaway.runtime.service import (
 )
 from seaway.runtime.zenoh_bus import ENV_CONFIG, use_lockstep_runtime
 from seaway.simkit.scenario import load_scenario
-from seaway.tools.launch import address, authority
+from seaway.tools.launch import address, authority, recording_source
 from seaway.tools.launch.profile import Instance, Profile, instances, load_profile, substitute
+from seaway.tools.launch.status_line import StatusLine
 from seaway.tools.launch.supervisor import Supervised, Supervisor, default_echo
 
 
@@ -202,7 +198,7 @@ def supervised(plan: list[Instance], vessels: list[str], run_dir: Path,
     out = []
     for inst in plan:
         folder = vessel_dir(run_dir, inst.vessel, vessels)
-        values = {**common, "vessel": inst.vessel, "run": str(folder / "run.json"),
+        values = {**common, "vessel": inst.vessel, "run": str(folder / recording_source.RUN_FILE),
                   "vessel_dir": str(folder if inst.per_vessel or len(vessels) == 1 else run_dir),
                   "mavlink_port": str(ports[inst.vessel])}
         out.append(Supervised(inst.spec, substitute(inst.spec.command, values), inst.vessel,
@@ -270,26 +266,6 @@ def _run_dir(args: argparse.Namespace, scenario: str = "", mission: MissionReque
     return path
 
 
-def recording_problem(profile: Profile, recording: Path | None) -> str | None:
-    """What is wrong with ``--recording`` for ``profile`` (None: nothing), said before anything
-    starts: a profile whose commands take ``{recording}`` (replay) needs one that holds MCAP files;
-    any other ignores it, so giving one is a mistake (``sim-batch --recording x`` flew a mission)."""
-    takes = any("{recording}" in arg for spec in profile.processes for arg in spec.command)
-    if not takes:
-        return (None if recording is None else
-                f"--recording: profile {profile.name} plays no recording (the replay profile does)")
-    if recording is None:
-        return (f"profile {profile.name} plays a recording: give it with --recording PATH (a run "
-                "folder or an .mcap file)")
-    if not recording.exists():
-        return f"--recording {recording}: no such file or folder"
-    if recording.is_dir() and not any(recording.glob("*.mcap")):
-        return f"--recording {recording}: the folder holds no .mcap file"
-    if recording.is_file() and recording.suffix != ".mcap":
-        return f"--recording {recording}: not an .mcap file"
-    return None
-
-
 def earlier_recordings(run_dir: Path, vessels: list[str]) -> list[Path]:
     """The recordings an earlier launch left where this one would write its own (the run folder,
     or each vessel's folder in it): none for a fresh folder.
@@ -320,167 +296,6 @@ def _mission_request(scenario_name: str, args: argparse.Namespace | None = None
 def _mission_options(args: argparse.Namespace) -> list[str]:
     """The mission options given on the command line, spelled as flags."""
     return [f"--{o.replace('_', '-')}" for o in MISSION_OPTIONS if getattr(args, o) is not None]
-
-
-DECISION_LABELS = {"warn": "LOW ENERGY", "return": "RETURNING", "hold": "HOLDING"}
-"""How the status line names an energy budget's decision (``EnergyBudget.decision``, not 'none')."""
-
-
-def energy_text(j: float | None) -> str:
-    """An energy for the status line, three significant figures in J, kJ or MJ ('-' for none)."""
-    if j is None or not math.isfinite(j):
-        return "-"
-    unit, v = next((u, j / k) for u, k in (("MJ", 1e6), ("kJ", 1e3), ("J", 1.0))
-                   if abs(j) >= k or u == "J")
-    digits = 0 if abs(v) >= 99.95 else 1 if abs(v) >= 9.995 else 2
-    return f"{v:.{digits}f} {unit}"
-
-
-class StatusLine:
-    """The live line: per vessel, leg, speed, cross-track error and the energy budget: energy used,
-    to finish the mission, to get home, the battery's remaining energy against its reserve and,
-    once taken, the decision (``mission/energy``; the mission status's figures before any budget).
-
-    ``t`` is the run's time: the wall time since the start in real time; in lockstep the simulated
-    time (the latest state's stamp) and, beside it, how many times faster than real time it goes
-    (simulated over wall seconds since the first state)."""
-
-    def __init__(self, vessels: list[str], lockstep: bool = False, commands: bool = False) -> None:
-        self.lockstep = lockstep
-        self.commands = commands
-        """Show the latest thrust command while there is no mission status (a run that sends no
-        mission: ``seaway identify fly`` flying its manoeuvre, say)."""
-        self.vessels = list(vessels)
-        self.mission: dict[str, MissionStatus | None] = dict.fromkeys(self.vessels)
-        self.state: dict[str, StateEstimate | None] = dict.fromkeys(self.vessels)
-        self.energy: dict[str, EnergyBudget | None] = dict.fromkeys(self.vessels)
-        self.thrust: dict[str, ThrustCommand | None] = dict.fromkeys(self.vessels)
-        self.decided: dict[str, EnergyBudget | None] = dict.fromkeys(self.vessels)
-        """The budget of the period each vessel's decision was taken (its figures say why)."""
-        self.tty = sys.stdout.isatty()
-        self._last_print = 0.0
-        self._first: tuple[float, float] | None = None  # lockstep: (sim s, wall s) of the first state
-        self._moved: tuple[float, float] | None = None  # lockstep: (sim s, wall s) when it last moved
-        self._newest: dict[str, tuple[Newest[MissionStatus], Newest[StateEstimate],
-                                      Newest[ThrustCommand] | None]] = {}
-        self._budgets: dict[str, Every[EnergyBudget]] = {}
-
-    def watch(self, bus: Bus) -> None:
-        """Keep the latest mission status, state and energy budget of every vessel.
-
-        In lockstep they come hundreds a second and the line shows a few a second: status, state and
-        commands are decoded only when shown (``Bus.newest``, ``pull``). Every budget is decoded
-        then too (``Bus.every``), as the one of the period a decision was taken must be kept."""
-        for v in self.vessels:
-            self._newest[v] = (bus.newest(keys.MISSION_STATUS, vessel=v),
-                               bus.newest(keys.NAV_STATE, vessel=v),
-                               bus.newest(keys.THRUST, vessel=v) if self.commands else None)
-            self._budgets[v] = bus.every(keys.MISSION_ENERGY, vessel=v)
-
-    def pull(self) -> None:
-        """Take the newest status, state and command heard, and every budget (decoding them now)."""
-        for v, budgets in self._budgets.items():
-            for budget in budgets.take():
-                self.on_energy(v, budget)
-        for v, (mission, state, thrust) in self._newest.items():
-            self.mission[v], self.state[v] = mission.get(), state.get()
-            if thrust is not None:
-                self.thrust[v] = thrust.get()
-
-    def on_energy(self, vessel: str, budget: EnergyBudget) -> None:
-        """The vessel's latest budget; the first one of a decision is kept for its figures."""
-        self.energy[vessel] = budget
-        before = self.decided[vessel]
-        if budget.decision != "none" and (before is None or before.decided_ns != budget.decided_ns):
-            self.decided[vessel] = budget
-
-    def complete(self, mission: MissionRequest | None) -> bool:
-        """Whether every vessel's mission is complete: the one this launcher sent, if it sent one
-        (a status of some other mission stops nothing)."""
-        self.pull()
-        return all(self._over(v, m, mission) for v, m in self.mission.items())
-
-    def _over(self, vessel: str, m: MissionStatus | None, sent: MissionRequest | None) -> bool:
-        """The mission sent is complete, or its return home that the energy budget decided
-        (``return_mission_id``) is, or the budget held it (policy 'hold': nothing more to fly)."""
-        return mission_over(m, self.energy.get(vessel), None if sent is None else sent.mission_id)
-
-    def text(self, t_s: float) -> str:
-        """One line for every vessel (a fleet's vessels joined by ``||``)."""
-        return " || ".join(self.vessel_text(v, t_s) for v in self.vessels)
-
-    def vessel_text(self, vessel: str, t_s: float) -> str:
-        """``t_s``: wall seconds since the run started."""
-        m, s = self.mission[vessel], self.state[vessel]
-        parts = [vessel, self.time_text(s, t_s)]
-        if m is not None:
-            parts.append(f"{m.state} leg {m.active_leg}/{max(m.waypoint_count - 1, 0)}")
-            if m.cross_track_m is not None:
-                parts.append(f"xte {m.cross_track_m:5.2f} m")
-        elif self.commands and (c := self.thrust[vessel]) is not None:
-            parts.append(f"thrust {c.thrust_port_n:+.2f} / {c.thrust_starboard_n:+.2f} N ({c.source})")
-        else:
-            parts.append("no mission status yet")
-        if s is not None:
-            parts.append(f"speed {(s.u_mps ** 2 + s.v_mps ** 2) ** 0.5:4.2f} m/s")
-        parts += self.energy_parts(vessel)
-        return " | ".join(parts)
-
-    def energy_parts(self, vessel: str) -> list[str]:
-        """Energy used, to finish, to home, battery vs reserve, and the decision once taken: from
-        the budget of the mission the status names, else the status's own figures."""
-        m, b = self.mission[vessel], self.energy[vessel]
-        if b is None or (m is not None and m.mission_id != b.mission_id):
-            if m is None:
-                return []
-            return ([f"used {energy_text(m.energy_used_j)}"] if m.energy_used_j is not None else []) + (
-                [f"to finish {energy_text(m.energy_to_go_j)}"] if m.energy_to_go_j is not None else [])
-        parts = [f"used {energy_text(b.energy_used_j)}", f"to finish {energy_text(b.energy_to_go_j)}",
-                 f"to home {energy_text(b.energy_to_home_j)}"]
-        if b.battery_remaining_j is not None:
-            parts.append(f"battery {energy_text(b.battery_remaining_j)}"
-                         + (f" (reserve {energy_text(b.reserve_j)})" if b.reserve_j is not None else ""))
-        if b.decision != "none":
-            parts.append(self.decision_text(vessel, b, m))
-        return parts
-
-    def decision_text(self, vessel: str, b: EnergyBudget, m: MissionStatus | None) -> str:
-        label = DECISION_LABELS[b.decision]
-        if b.decision == "return" and b.returning and m is not None and m.state == "complete":
-            label = "RETURNED"
-        d = self.decided[vessel]
-        if d is None or d.decided_ns != b.decided_ns or None in (
-                d.energy_to_home_j, d.battery_remaining_j):
-            return f"{label}: {b.reason}" if b.reason else label  # its period was not heard
-        return (f"{label}: energy to home {energy_text(d.energy_to_home_j)} + reserve "
-                f"{energy_text(d.reserve_j or 0.0)} reached {energy_text(d.battery_remaining_j)} left")
-
-    def time_text(self, state: StateEstimate | None, wall_s: float) -> str:
-        if not self.lockstep:
-            return f"t {wall_s:5.0f} s"
-        if state is None:
-            return "sim t     - s"
-        sim_s = state.stamp_ns / 1e9
-        if self._first is None or sim_s < self._first[0]:  # the first state, or a new episode
-            self._first = self._moved = (sim_s, wall_s)
-        elif self._moved is None or sim_s != self._moved[0]:
-            self._moved = (sim_s, wall_s)
-        # The rate up to when simulated time last moved: a sim holding (the mission complete, no
-        # command) is not a run going slower.
-        assert self._moved is not None
-        d_sim, d_wall = self._moved[0] - self._first[0], self._moved[1] - self._first[1]
-        return f"sim t {sim_s:5.0f} s" + (f" ({d_sim / d_wall:4.0f}x real time)" if d_wall > 0.5 else "")
-
-    def show(self, t_s: float, final: bool = False) -> None:
-        now = time.monotonic()
-        self.pull()
-        if self.tty:
-            sys.stdout.write("\r\x1b[2K" + self.text(t_s) + ("\n" if final else ""))
-            sys.stdout.flush()
-        elif final or now - self._last_print >= 5.0:
-            for v in self.vessels:
-                print(self.vessel_text(v, t_s), flush=True)
-            self._last_print = now
 
 
 REPORT_TIMEOUT_S = 120.0  # the final report is skipped (with the command to make it) past this
@@ -606,8 +421,15 @@ def main(argv: list[str]) -> int:
     except ConfigError as err:
         print(f"seaway launch: {err}", file=sys.stderr)
         return 2
-    scenario = args.scenario or profile.scenario or ""
+    takes = recording_source.takes_recording([spec.command for spec in profile.processes])
+    if problem := recording_source.recording_problem(profile.name, takes, args.recording):
+        print(f"seaway launch: {problem}", file=sys.stderr)
+        return 2
     try:
+        # A replay's estimator and controller need the recorded run's scenario (its model, origin
+        # and mission): without one they wait for a mission that never comes.
+        scenario = (args.scenario or (recording_source.recorded_scenario(args.recording) if takes
+                                      else profile.scenario) or "")
         mission = (_mission_request(scenario, args) if profile.mission_on_start and scenario
                    and not args.no_mission else None)
     except ConfigError as err:
@@ -621,9 +443,6 @@ def main(argv: list[str]) -> int:
                else f"scenario {scenario} has no [mission]")
         print(f"seaway launch: {', '.join(given)}: option(s) of the mission sent, but this launch "
               f"sends no mission ({why})", file=sys.stderr)
-        return 2
-    if problem := recording_problem(profile, args.recording):
-        print(f"seaway launch: {problem}", file=sys.stderr)
         return 2
     run_dir = _run_dir(args, scenario, mission)
     try:
@@ -697,7 +516,7 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
     mission_files: dict[str, Path | None] = dict.fromkeys(vessels)
     for v, folder in folders.items():
         folder.mkdir(parents=True, exist_ok=True)
-        runs_of[v].write(folder / "run.json")
+        runs_of[v].write(folder / recording_source.RUN_FILE)
         if mission is not None:
             mission_files[v] = folder / "mission.json"
             mission_files[v].write_text(mission.model_dump_json(indent=2) + "\n")
@@ -730,12 +549,23 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
     refusals.serve(bus, "launcher")
     code = 0
     t0 = time.monotonic()
+    flown: set[str] = set()
     try:
-        bus.watch_fleet_health(sup.on_health)
+        # The launcher's own token on each vessel (``seaway health`` lists it); not one of the
+        # processes it supervises, so the supervisor does not hear it. A shore launcher's would be
+        # the boat's to refuse: it declares none.
+        bus.watch_fleet_health(lambda v, service, alive: service != "launcher"
+                               and sup.on_health(v, service, alive))
+        if profile.side != "shore":
+            for v in vessels:
+                bus.declare_alive("launcher", vessel=v)
         # What the processes must keep publishing (liveness): heard here, so a hung one is seen.
         sup.watch_on(bus)
         status = StatusLine(vessels, lockstep=run.lockstep, commands=mission is None)
         status.watch(bus)
+        for v in vessels:  # which vessels' controllers take a mission (the launcher's or another's)
+            bus.subscribe(keys.MISSION_ACCEPTED, vessel=v,
+                          callback=lambda _key, _msg, v=v: flown.add(v))
         error = sup.start_all(stop)
         if error:
             print(f"seaway launch: {error}", file=sys.stderr)
@@ -803,7 +633,8 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
             if sup.hurried > hurried:  # a Ctrl-C during an earlier vessel's report skips the rest
                 print(f"(report skipped: Ctrl-C; make it with: seaway report {folders[v]})")
                 continue
-            _final_report(folders[v], scenario, mission_files[v], sup, make=not args.no_report)
+            _final_report(folders[v], scenario, mission_files[v], sup, make=not args.no_report,
+                          idle_vessel=None if v in flown else v)
     return code
 
 
@@ -829,17 +660,25 @@ def _describe_mission(mission: MissionRequest) -> str:
 
 
 def _final_report(run_dir: Path, scenario: str, mission_file: Path | None = None,
-                  sup: Supervisor | None = None, make: bool = True) -> None:
+                  sup: Supervisor | None = None, make: bool = True,
+                  idle_vessel: str | None = None) -> None:
     """The run's metrics (from its recording, by ``seaway report``) and where the recording is;
     with ``make`` False (``--no-report``) only where the recording is, and how to make the report.
 
     The report takes the mission from ``mission_file`` (what the launcher sent, options applied)
-    when there is one, else from the scenario. It runs in a session of its own, so that a Ctrl-C
+    when there is one, else from what the recording holds. An ``idle_vessel`` (one the launcher
+    sent no mission and whose controller accepted none either: a fleet's vessel the operator left
+    idle) gets no report, and that is said. The report runs in a session of its own, so that a Ctrl-C
     reaches only the launcher, which then stops it and says how to make it later."""
     recordings = sorted(run_dir.glob("*.mcap"))
     if not recordings:
         return
     print(f"recording: {', '.join(str(r) for r in recordings)}", flush=True)
+    if idle_vessel is not None and mission_file is None:
+        # The report would judge the scenario's path, which the vessel was never sent (a fleet's
+        # missions come from the operator).
+        print(f"(no report: vessel {idle_vessel} flew no mission in this run)", flush=True)
+        return
     seaway = shutil.which("seaway", path=str(Path(sys.executable).parent)) or "seaway"
     cmd = [seaway, "report", str(run_dir), "--out", str(run_dir / "report")]
     if scenario:
