@@ -81,6 +81,11 @@ class EstimatorConfig(ConfigModel):
                                           "rejected in a row means the filter, not the GNSS, is "
                                           "wrong: re-initialise the position from the fix")
     heading_reject_reinit_count: int = Field(default=40, ge=2, description="the same for heading")
+    reject_run_reopen_count: int = Field(default=5, ge=2, description="this many yaw rates, or "
+                                         "velocities over ground, rejected in a row mean the model "
+                                         "is wrong (a thruster lost, a tow): the disturbance's "
+                                         "variance is re-opened by a thruster's full thrust (and "
+                                         "moment) and the sample tried again")
     gnss_timeout_s: float = Field(default=2.0, gt=0, description="no accepted GNSS position for "
                                   "this long sets `degraded`")
     heading_timeout_s: float = Field(default=1.0, gt=0, description="no accepted heading for this "

@@ -83,7 +83,8 @@ COUNTERS = (
     "yaw_rate_accepted", "yaw_rate_rejected",
     "thrust_received", "late_applied", "too_old", "too_new", "refused_non_finite",
     "status_received",
-    "degraded_entered", "time_jumps", "divergence_resets", "resets", "published",
+    "degraded_entered", "time_jumps", "divergence_resets", "disturbance_reopened", "resets",
+    "published",
     "publish_refused",
 )
 
@@ -111,6 +112,8 @@ class Filter:
     last_heading_ns: int
     gnss_reject_run: int = 0
     heading_reject_run: int = 0
+    sog_reject_run: int = 0
+    yaw_rate_reject_run: int = 0
     degraded: bool = False
 
 
@@ -173,6 +176,9 @@ class EstimatorCore:
             c.force_std_per_sqrt_s, c.force_std_per_sqrt_s, c.moment_std_per_sqrt_s]) ** 2
         self._max_step_ns = round(c.max_step_s * NS_PER_S)
         self._init_force_std_n = _initial_force_std(c, vessel, self._world)
+        # What a lost thruster leaves unexplained: its full thrust, and that thrust's moment.
+        self._reopen_force_var = vessel.thrust_max_n ** 2
+        self._reopen_moment_var = (vessel.thrust_max_n * vessel.arm_m) ** 2
         self._predictor = Predictor(vessel, self._world, self._q)
         self._updaters = {m: Updater(m) for m in (1, 2)}  # by the number of values measured
         self._fixed_origin = (None if c.origin is None else GeoOrigin.from_degrees(
@@ -547,6 +553,18 @@ class EstimatorCore:
         H[1, IU], H[1, IV], H[1, IPSI] = s, c, u * c - v * s
         R = np.eye(2) * self.config.sog_std_mps ** 2
         ok = self._gated_update(nu, H, R, self.config.gate_sog)
+        if ok:
+            f.sog_reject_run = 0
+        else:
+            f.sog_reject_run += 1
+            if f.sog_reject_run >= self.config.reject_run_reopen_count:
+                # The boat does not move as the model says (a thrust lost, a tow): let the force
+                # take up what the model lacks, and the speeds follow, then try the sample again.
+                size = float(nu @ nu)
+                self._reopen(((ID1, self._reopen_force_var), (ID2, self._reopen_force_var),
+                              (IU, size), (IV, size)), "velocity over ground", f.sog_reject_run)
+                f.sog_reject_run = 0
+                ok = self._gated_update(nu, H, R, self.config.gate_sog)
         self.counters.inc("sog_accepted" if ok else "sog_rejected")
 
     def _update_heading(self, psi_m: float, delay: float, t: int) -> None:
@@ -576,9 +594,33 @@ class EstimatorCore:
         f = self.filter
         assert f is not None
         zp = self._back(f.z, delay) if delay > 0 else f.z
-        ok = self._gated_scalar(r_m - zp[IR], IR, self.config.yaw_rate_std_radps ** 2,
-                                self.config.gate_yaw_rate)
+        nu, var = r_m - zp[IR], self.config.yaw_rate_std_radps ** 2
+        ok = self._gated_scalar(nu, IR, var, self.config.gate_yaw_rate)
+        if ok:
+            f.yaw_rate_reject_run = 0
+        else:
+            f.yaw_rate_reject_run += 1
+            if f.yaw_rate_reject_run >= self.config.reject_run_reopen_count:
+                # The boat does not turn as the model says: the same for the yaw moment. Left
+                # alone, the heading followed the model away (radians) and was re-initialised
+                # again and again.
+                self._reopen(((ID3, self._reopen_moment_var), (IR, nu * nu)), "yaw rate",
+                             f.yaw_rate_reject_run)
+                f.yaw_rate_reject_run = 0
+                ok = self._gated_scalar(nu, IR, var, self.config.gate_yaw_rate)
         self.counters.inc("yaw_rate_accepted" if ok else "yaw_rate_rejected")
+
+    def _reopen(self, added: tuple[tuple[int, float], ...], sensor: str, run: int) -> None:
+        """Add variance to states ``(index, variance)``: ``run`` samples of ``sensor`` in a row
+        said the model, not the sensor, is wrong."""
+        f = self.filter
+        assert f is not None
+        for i, var in added:
+            f.P[i, i] += var
+        self.counters.inc("disturbance_reopened")
+        self._notices.append(Notice(f.t_ns, "disturbance_reopened", f"{run} {sensor} samples in a "
+                                    "row disagree with the model: the disturbance's uncertainty "
+                                    "is re-opened", run))
 
     def _reinit_block(self, idx: tuple[int, ...], shift: tuple[float, ...], var: float) -> None:
         """Move states ``idx`` by ``shift`` and decorrelate them with variance ``var``."""

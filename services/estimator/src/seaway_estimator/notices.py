@@ -20,7 +20,8 @@ class Notice:
 
     ``kind``: ``gnss_rejected``, ``heading_rejected`` (``run``: rejections in a row so far),
     ``gnss_reinit``, ``heading_reinit`` (the state taken from the sensor after ``run`` rejections),
-    ``time_jump``, ``divergence_reset`` (the whole state dropped). ``detail`` says by how much."""
+    ``time_jump``, ``divergence_reset`` (the whole state dropped), ``disturbance_reopened`` (a
+    run of ``run`` rejections said the model is wrong). ``detail`` says by how much."""
 
     stamp_ns: int
     kind: str
