@@ -63,7 +63,12 @@ class EstimatorConfig(ConfigModel):
     # -- initial uncertainty -------------------------------------------------------------------
     init_speed_std_mps: float = Field(default=0.3, gt=0, description="u, v when no SOG [m/s]")
     init_yaw_rate_std_radps: float = Field(default=0.05, gt=0)
-    init_force_std_n: float = Field(default=0.3, gt=0)
+    init_force_std_n: float = Field(default=0.3, gt=0, description="disturbance force other than "
+                                    "a current's (wind, a towed load) [N]")
+    init_current_std_mps: float = Field(default=0.3, ge=0, description="the water current the "
+                                        "filter may start in [m/s]: the model has no current, so "
+                                        "it holds a drift c by the force D c that balances the "
+                                        "damping D (X_u, Y_v); the initial force std adds that")
     init_moment_std_nm: float = Field(default=0.03, gt=0)
     init_max_skew_s: float = Field(default=1.0, gt=0, description="the first fix and the first "
                                    "heading must be this close in time to initialise")
@@ -76,6 +81,11 @@ class EstimatorConfig(ConfigModel):
                                           "rejected in a row means the filter, not the GNSS, is "
                                           "wrong: re-initialise the position from the fix")
     heading_reject_reinit_count: int = Field(default=40, ge=2, description="the same for heading")
+    reject_run_reopen_count: int = Field(default=5, ge=2, description="this many yaw rates, or "
+                                         "velocities over ground, rejected in a row mean the model "
+                                         "is wrong (a thruster lost, a tow): the disturbance's "
+                                         "variance is re-opened by a thruster's full thrust (and "
+                                         "moment) and the sample tried again")
     gnss_timeout_s: float = Field(default=2.0, gt=0, description="no accepted GNSS position for "
                                   "this long sets `degraded`")
     heading_timeout_s: float = Field(default=1.0, gt=0, description="no accepted heading for this "

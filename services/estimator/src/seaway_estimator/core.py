@@ -26,14 +26,16 @@ function, ``seaway_estimator.kalman``):
 * heading psi (innovation wrapped to (-pi, pi]); yaw rate r.
 
 Every update is gated on its normalised innovation squared (chi-square threshold per measurement);
-a rejected sample is counted and ignored. Time is always passed in (``stamp_ns`` of the messages and
-``predict_to(t_ns)``); there is no clock and no randomness, so the same inputs give the same outputs
-bit for bit.
+a rejected sample is counted and ignored. Rejections and re-initialisations are also kept as
+``Notice``s for the service to log (``take_notices``). Time is always passed in (``stamp_ns`` of the
+messages and ``predict_to(t_ns)``); there is no clock and no randomness, so the same inputs give the
+same outputs bit for bit.
 """
 
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -57,6 +59,7 @@ from seaway.vessel.thrusters import apply_dead_zone, output_pair
 from seaway_estimator import kalman
 from seaway_estimator.config import EstimatorConfig
 from seaway_estimator.kalman import NZ, Predictor, Updater
+from seaway_estimator.notices import MAX_NOTICES, Notice
 
 INPUT_KEYS: dict[str, keys.KeySpec] = {"gnss": keys.GNSS, "attitude": keys.ATTITUDE,
                                       "thrust": keys.THRUST}
@@ -80,7 +83,8 @@ COUNTERS = (
     "yaw_rate_accepted", "yaw_rate_rejected",
     "thrust_received", "late_applied", "too_old", "too_new", "refused_non_finite",
     "status_received",
-    "degraded_entered", "time_jumps", "divergence_resets", "resets", "published",
+    "degraded_entered", "time_jumps", "divergence_resets", "disturbance_reopened", "resets",
+    "published",
     "publish_refused",
 )
 
@@ -108,6 +112,8 @@ class Filter:
     last_heading_ns: int
     gnss_reject_run: int = 0
     heading_reject_run: int = 0
+    sog_reject_run: int = 0
+    yaw_rate_reject_run: int = 0
     degraded: bool = False
 
 
@@ -138,6 +144,19 @@ def _stamp(where: str, t_ns: object) -> int:
     return int(t_ns)
 
 
+def _initial_force_std(c: EstimatorConfig, p: VesselParams, world: bool) -> tuple[float, float]:
+    """The prior std of ``(d1, d2)`` [N]: ``init_force_std_n`` and the force that holds a drift of
+    ``init_current_std_mps`` against the damping (the model has no current, so a current is a
+    speed through the water ``c`` kept up by ``D c``). Without it the prior of a 0.15 m/s current
+    is a 25-sigma force on the paper's vessel, and the first fixes of a drifting boat are gated out.
+    In the world frame the current's direction is unknown: the larger damping on both axes."""
+    surge = p.xu_kgps * c.init_current_std_mps
+    sway = p.yv_kgps * c.init_current_std_mps
+    if world:
+        surge = sway = max(surge, sway)
+    return math.hypot(c.init_force_std_n, surge), math.hypot(c.init_force_std_n, sway)
+
+
 class EstimatorCore:
     """Messages and time in, ``StateEstimate`` out. See the module docstring for the model."""
 
@@ -156,11 +175,16 @@ class EstimatorCore:
             c.position_std_per_sqrt_s, c.position_std_per_sqrt_s, c.heading_std_per_sqrt_s,
             c.force_std_per_sqrt_s, c.force_std_per_sqrt_s, c.moment_std_per_sqrt_s]) ** 2
         self._max_step_ns = round(c.max_step_s * NS_PER_S)
+        self._init_force_std_n = _initial_force_std(c, vessel, self._world)
+        # What a lost thruster leaves unexplained: its full thrust, and that thrust's moment.
+        self._reopen_force_var = vessel.thrust_max_n ** 2
+        self._reopen_moment_var = (vessel.thrust_max_n * vessel.arm_m) ** 2
         self._predictor = Predictor(vessel, self._world, self._q)
         self._updaters = {m: Updater(m) for m in (1, 2)}  # by the number of values measured
         self._fixed_origin = (None if c.origin is None else GeoOrigin.from_degrees(
             c.origin.lat_deg, c.origin.lon_deg, c.origin.alt_m))
         self.counters = Counters()
+        self._notices: deque[Notice] = deque(maxlen=MAX_NOTICES)
         self.origin: GeoOrigin | None = self._fixed_origin
         self.filter: Filter | None = None
         self._pending = _Pending()
@@ -190,6 +214,12 @@ class EstimatorCore:
         if not keep_origin:
             self.origin = self._fixed_origin
         self.counters.inc("resets")
+
+    def take_notices(self) -> list[Notice]:
+        """The notices since the last call, oldest first (see ``Notice``)."""
+        out = list(self._notices)
+        self._notices.clear()
+        return out
 
     def nav_origin(self, stamp_ns: int) -> NavOrigin | None:
         """The NED origin as a message, once fixed."""
@@ -376,6 +406,10 @@ class EstimatorCore:
     def _time_jump(self, t: int) -> None:
         """A gap too long to integrate: drop the state; the next measurements re-initialise."""
         self.counters.inc("time_jumps")
+        f = self.filter
+        gap_s = (t - f.t_ns) / NS_PER_S if f is not None else 0.0
+        self._notices.append(Notice(t, "time_jump", f"a step of {gap_s:.1f} s (over max_gap_s "
+                                    f"{self.config.max_gap_s:g} s): the state is dropped"))
         self.filter = None
         self._pending = _Pending()
 
@@ -399,7 +433,7 @@ class EstimatorCore:
             u, v, sstd = 0.0, 0.0, c.init_speed_std_mps
         z = np.array([u, v, r, north, east, psi, 0.0, 0.0, 0.0])
         P = np.diag(np.array([sstd, sstd, max(c.yaw_rate_std_radps, 1e-4), gstd, gstd,
-                              c.heading_std_rad, c.init_force_std_n, c.init_force_std_n,
+                              c.heading_std_rad, *self._init_force_std_n,
                               c.init_moment_std_nm]) ** 2)
         t0 = max(t_fix, t_att)
         self.filter = Filter(t_ns=t0, z=z, P=P, last_gnss_ns=t_fix, last_heading_ns=t_att)
@@ -494,9 +528,14 @@ class EstimatorCore:
             return
         self.counters.inc("gnss_rejected")
         f.gnss_reject_run += 1
+        off_m = math.hypot(nu[0], nu[1])
+        self._notices.append(Notice(t, "gnss_rejected", f"fix {off_m:.2f} m from the estimate "
+                                    f"(std {std:.2f} m)", f.gnss_reject_run))
         if f.gnss_reject_run >= self.config.gnss_reject_reinit_count:
             # Consistently far from every fix: the filter is what is wrong. Take the fix.
             self._reinit_block((IX, IY), (north - zp[IX], east - zp[IY]), std * std)
+            self._notices.append(Notice(t, "gnss_reinit", f"position moved {off_m:.2f} m to the "
+                                        "fix", f.gnss_reject_run))
             f.gnss_reject_run = 0
             f.last_gnss_ns = max(f.last_gnss_ns, t)
             self.counters.inc("gnss_reinit")
@@ -514,6 +553,18 @@ class EstimatorCore:
         H[1, IU], H[1, IV], H[1, IPSI] = s, c, u * c - v * s
         R = np.eye(2) * self.config.sog_std_mps ** 2
         ok = self._gated_update(nu, H, R, self.config.gate_sog)
+        if ok:
+            f.sog_reject_run = 0
+        else:
+            f.sog_reject_run += 1
+            if f.sog_reject_run >= self.config.reject_run_reopen_count:
+                # The boat does not move as the model says (a thrust lost, a tow): let the force
+                # take up what the model lacks, and the speeds follow, then try the sample again.
+                size = float(nu @ nu)
+                self._reopen(((ID1, self._reopen_force_var), (ID2, self._reopen_force_var),
+                              (IU, size), (IV, size)), "velocity over ground", f.sog_reject_run)
+                f.sog_reject_run = 0
+                ok = self._gated_update(nu, H, R, self.config.gate_sog)
         self.counters.inc("sog_accepted" if ok else "sog_rejected")
 
     def _update_heading(self, psi_m: float, delay: float, t: int) -> None:
@@ -529,8 +580,12 @@ class EstimatorCore:
             return
         self.counters.inc("heading_rejected")
         f.heading_reject_run += 1
+        self._notices.append(Notice(t, "heading_rejected", f"heading {innov:+.3f} rad from the "
+                                    "estimate", f.heading_reject_run))
         if f.heading_reject_run >= self.config.heading_reject_reinit_count:
             self._reinit_block((IPSI,), (innov,), var)
+            self._notices.append(Notice(t, "heading_reinit", f"heading moved {innov:+.3f} rad to "
+                                        "the measurement", f.heading_reject_run))
             f.heading_reject_run = 0
             f.last_heading_ns = max(f.last_heading_ns, t)
             self.counters.inc("heading_reinit")
@@ -539,9 +594,33 @@ class EstimatorCore:
         f = self.filter
         assert f is not None
         zp = self._back(f.z, delay) if delay > 0 else f.z
-        ok = self._gated_scalar(r_m - zp[IR], IR, self.config.yaw_rate_std_radps ** 2,
-                                self.config.gate_yaw_rate)
+        nu, var = r_m - zp[IR], self.config.yaw_rate_std_radps ** 2
+        ok = self._gated_scalar(nu, IR, var, self.config.gate_yaw_rate)
+        if ok:
+            f.yaw_rate_reject_run = 0
+        else:
+            f.yaw_rate_reject_run += 1
+            if f.yaw_rate_reject_run >= self.config.reject_run_reopen_count:
+                # The boat does not turn as the model says: the same for the yaw moment. Left
+                # alone, the heading followed the model away (radians) and was re-initialised
+                # again and again.
+                self._reopen(((ID3, self._reopen_moment_var), (IR, nu * nu)), "yaw rate",
+                             f.yaw_rate_reject_run)
+                f.yaw_rate_reject_run = 0
+                ok = self._gated_scalar(nu, IR, var, self.config.gate_yaw_rate)
         self.counters.inc("yaw_rate_accepted" if ok else "yaw_rate_rejected")
+
+    def _reopen(self, added: tuple[tuple[int, float], ...], sensor: str, run: int) -> None:
+        """Add variance to states ``(index, variance)``: ``run`` samples of ``sensor`` in a row
+        said the model, not the sensor, is wrong."""
+        f = self.filter
+        assert f is not None
+        for i, var in added:
+            f.P[i, i] += var
+        self.counters.inc("disturbance_reopened")
+        self._notices.append(Notice(f.t_ns, "disturbance_reopened", f"{run} {sensor} samples in a "
+                                    "row disagree with the model: the disturbance's uncertainty "
+                                    "is re-opened", run))
 
     def _reinit_block(self, idx: tuple[int, ...], shift: tuple[float, ...], var: float) -> None:
         """Move states ``idx`` by ``shift`` and decorrelate them with variance ``var``."""
@@ -592,6 +671,10 @@ class EstimatorCore:
         if not finite or pos_std > self.config.max_position_std_m:
             self.counters.inc("publish_refused")
             self.counters.inc("divergence_resets")
+            self._notices.append(Notice(t, "divergence_reset", "the state is not finite" if not
+                                        finite else f"position std {pos_std:.0f} m (over "
+                                        f"max_position_std_m {self.config.max_position_std_m:g} m)"
+                                        ": the state is dropped"))
             self.filter = None
             self._pending = _Pending()
             return None

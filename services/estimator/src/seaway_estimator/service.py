@@ -155,6 +155,17 @@ class EstimatorLoop:
         except EstimatorError as err:
             self.refused += 1
             self.ratelog.warning(("refused", kind), "refused %s input: %s", kind, err)
+        self.log_notices()
+
+    def log_notices(self) -> None:
+        """Log what the core gated out or re-initialised (``seaway_estimator.notices``): a lone
+        rejection at INFO, a run of them and every re-initialisation at WARNING, each kind at most
+        once per ``LOG_EVERY_S`` of wall time (the line says how many were held back)."""
+        for n in self.core.take_notices():
+            level = logging.WARNING if n.persistent else logging.INFO
+            run = f" ({n.run} in a row)" if n.run else ""
+            self.ratelog.log((n.kind, n.persistent), level, "estimator %s at t = %.3f s: %s%s",
+                             n.kind.replace("_", " "), n.stamp_ns / 1e9, n.detail, run)
 
     def feed_pending(self, upto_ns: int | None) -> None:
         """Feed queued messages stamped <= ``upto_ns`` (all if None) in stamp order."""
@@ -177,6 +188,7 @@ class EstimatorLoop:
         except EstimatorError as err:
             self.ratelog.warning("publish", "cannot publish at %d: %s", t_ns, err)
             return out
+        self.log_notices()
         if est is not None:
             out.append((keys.NAV_STATE, est))
         origin = self.core.nav_origin(t_ns)

@@ -7,6 +7,9 @@ in real time).
 
 * the plant is ``seaway.simkit.plant.Plant`` (paper eq. 1-2, RK4 at 100 Hz inside, saturation, optional
   dead zone and thruster lag from the scenario flags);
+* the scenario's scheduled faults (``seaway.simkit.faults``) act in both: thruster faults in the
+  plant, sensor faults in the sensors, timed from the scenario's start, so that real-time and
+  lockstep runs get the same;
 * the sensors are ``seaway.simkit.sensors.SensorSuite``; a step is split at each sensor sample instant, so
   a sample is taken of the state at its own instant whatever step the caller takes. The split does
   not change the command (held over the whole step) and keeps the 10 ms internal grid when the
@@ -70,7 +73,9 @@ class SimCore:
         self.scenario = scenario
         self.vessel = vessel
         self.plant = Plant(scenario, vessel)
-        self.sensors = SensorSuite(scenario.sensors, scenario.origin, scenario.seed)
+        # The scenario's faults are timed from its start (the plant's time), not the sim's epoch.
+        self.sensors = SensorSuite(scenario.sensors, scenario.origin, scenario.seed, scenario.faults,
+                                   since_ns=self.t_ns)
         self.origin: GeoOrigin = origin_of(scenario.origin)
         self.command_n: tuple[float, float] = (0.0, 0.0)
         self.pending = Samples()
@@ -143,5 +148,5 @@ class SimCore:
         return model.propulsion_power_w(self.plant.state.thrust_n, self.vessel)
 
     def gnss_ok(self) -> bool:
-        """False while a GNSS dropout is on (asked at the current time)."""
-        return not self.sensors.dropouts.active(self.t_ns)
+        """False while a GNSS dropout (random or scheduled) is on (asked at the current time)."""
+        return not self.sensors.gnss_lost(self.t_ns)

@@ -10,7 +10,8 @@ Actuator model, applied in this order to each thruster's command [N]:
 
 1. saturation: ``-reverse_max_n <= T <= thrust_max_n`` (vessel file; ``seaway.vessel.thrusters``);
 2. dead zone (if enabled): ``|T| < dead_zone_n`` gives 0 (the real boat's 10 N; the same module);
-3. first-order lag (if enabled): ``T' = (T_cmd - T) / thruster_time_constant_s``, exact per step.
+3. a scheduled thruster fault (``seaway.simkit.faults``): times ``factor`` while it lasts;
+4. first-order lag (if enabled): ``T' = (T_cmd - T) / thruster_time_constant_s``, exact per step.
 
 Energy: the paper's metric integrates ``alpha (T1^2 + T2^2)`` over the run (eq. 3); ``energy_j`` here is
 that integral of the thrust actually produced, by the trapezoid rule over internal steps. The task
@@ -22,6 +23,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from seaway.simkit.faults import ThrusterFaults
 from seaway.simkit.scenario import DisturbanceModel, Scenario, body_force
 from seaway.vessel import model
 from seaway.vessel.model import VesselParams
@@ -53,6 +55,7 @@ class Plant:
         self.dead_zone_n = vessel.dead_zone_n if scenario.dead_zone else 0.0
         tc = vessel.thruster_time_constant_s if scenario.thruster_lag else 0.0
         self.lag_tc_s = tc
+        self.thruster_faults = ThrusterFaults(scenario.faults)
         self.reset()
 
     def reset(self) -> None:
@@ -70,7 +73,8 @@ class Plant:
         if not (math.isfinite(command_n[0]) and math.isfinite(command_n[1])):
             raise ValueError(f"thrust command must be finite, got {command_n}")
         st = self.state
-        target = self.actuate(command_n)
+        demanded = target = self.actuate(command_n)
+        faults = self.thruster_faults if self.thruster_faults.items else None
         n = max(1, round(dt_s / self.internal_dt_s))
         h = dt_s / n
         decay = math.exp(-h / self.lag_tc_s) if self.lag_tc_s > 0 else 0.0
@@ -79,6 +83,9 @@ class Plant:
         thrust = st.thrust_n
         for _ in range(n):
             tau_body, force_ne, current_ne = self.disturbance.sample(st.t_s, x[3], x[4])
+            if faults is not None:
+                port, starboard = faults.factors(st.t_s)
+                target = (demanded[0] * port, demanded[1] * starboard)
             if self.lag_tc_s > 0:
                 new = (target[0] + (thrust[0] - target[0]) * decay,
                        target[1] + (thrust[1] - target[1]) * decay)

@@ -17,6 +17,9 @@ Disturbances (summed when several are given):
 * ``wind``: a mean wind with seeded gusts (a first-order Gauss-Markov process on speed and
   direction), turned into a world-frame force by a quadratic drag law.
 
+Faults (``[[faults]]``: GNSS dropouts, position jumps, heading biases, thruster failures) are
+scheduled at fixed times of the scenario: ``seaway.simkit.faults``.
+
 World x/y are NED north/east, as the waypoints are (shared/reproduction.md).
 """
 
@@ -34,6 +37,7 @@ from pydantic import Field, model_validator
 
 from seaway.contract.config import ConfigError, ConfigModel, Origin, deploy_named, parse_config, read_document
 from seaway.contract.missions import MissionSpec
+from seaway.simkit.faults import Fault
 from seaway.vessel.model import world_to_body
 
 AIR_DENSITY_KGPM3 = 1.225
@@ -200,6 +204,8 @@ class Scenario(ConfigModel):
     thruster_lag: bool = Field(default=False, description="apply the vessel file's thruster lag")
     mission: MissionSpec | None = None
     battery: ScenarioBattery = ScenarioBattery()
+    faults: list[Fault] = Field(default_factory=list, description="scheduled sensor and thruster "
+                                "faults (seaway.simkit.faults)")
 
     @property
     def hotel_power_w(self) -> float:

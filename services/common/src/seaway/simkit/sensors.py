@@ -16,6 +16,9 @@ What is modelled (``seaway.simkit.scenario.SensorNoise`` gives the numbers, all 
 * Attitude at ``attitude_rate_hz``: heading = psi + N(0, heading_std_rad), wrapped to (-pi, pi];
   yaw rate = r + N(0, yaw_rate_std_radps). A 3-DOF surface vessel has no roll or pitch: both are 0.
 
+The scenario's scheduled sensor faults (``seaway.simkit.faults``: GNSS dropouts, position jumps, a
+heading bias) are applied on top, at the scenario's time (``t_ns - since_ns``).
+
 Sample instants are ``i * period`` from the simulation epoch (t = 0), in integer nanoseconds, so a
 sensor's schedule never drifts and is the same whatever step the simulator takes.
 """
@@ -30,6 +33,7 @@ import numpy as np
 from seaway.contract.config import Origin
 from seaway.contract.messages import Attitude, GnssFix
 from seaway.contract.units import NS_PER_S
+from seaway.simkit.faults import SensorFaults
 from seaway.simkit.scenario import SensorNoise
 from seaway.vessel.frames import GeoOrigin, wrap_pi
 
@@ -93,7 +97,10 @@ class GnssDropouts:
 class SensorSuite:
     """The simulated vessel's sensors for one scenario (noise levels, origin, seed)."""
 
-    def __init__(self, noise: SensorNoise, origin: Origin, seed: int) -> None:
+    def __init__(self, noise: SensorNoise, origin: Origin, seed: int, faults: Sequence[object] = (),
+                 since_ns: int = 0) -> None:
+        """``faults``: the scenario's scheduled faults, timed from ``since_ns`` (the sim time at
+        which the scenario started) [ns]."""
         self.noise = noise
         self.origin = origin_of(origin)
         self.gnss_period_ns = period_ns(noise.gnss_rate_hz)
@@ -106,6 +113,12 @@ class SensorSuite:
         self._yaw_rate = _Normal(seed, _YAW_RATE, noise.yaw_rate_std_radps)
         self.dropouts = GnssDropouts(seed, noise.gnss_dropout_rate_per_s,
                                      noise.gnss_dropout_duration_s)
+        self.faults = SensorFaults(faults, self.gnss_period_ns)
+        self.since_ns = since_ns
+
+    def gnss_lost(self, t_ns: int) -> bool:
+        """Whether no fix is produced at sim time ``t_ns``: a random or a scheduled dropout."""
+        return self.dropouts.active(t_ns) or self.faults.gnss_lost(t_ns - self.since_ns)
 
     def gnss(self, t_ns: int, x: Sequence[float], current_ne: Sequence[float],
              epoch_ns: int = 0) -> GnssFix | None:
@@ -114,12 +127,13 @@ class SensorSuite:
         ``t_ns`` is time since the sim epoch (it drives the dropout schedule); the fix is stamped
         ``epoch_ns + t_ns``.
         """
-        if self.dropouts.active(t_ns):
+        if self.gnss_lost(t_ns):
             return None
         u, v, _, north, east, psi = x
         c, s = math.cos(psi), math.sin(psi)
-        noisy_north = north + self._north.draw()
-        noisy_east = east + self._east.draw()
+        jump_north, jump_east = self.faults.position_offset_m(t_ns - self.since_ns)
+        noisy_north = north + self._north.draw() + jump_north
+        noisy_east = east + self._east.draw() + jump_east
         lat, lon, _ = self.origin.to_geodetic(noisy_north, noisy_east, 0.0)
         return GnssFix(
             stamp_ns=epoch_ns + t_ns,
@@ -141,7 +155,8 @@ class SensorSuite:
             stamp_ns=epoch_ns + t_ns,
             roll_rad=0.0,
             pitch_rad=0.0,
-            yaw_rad=wrap_pi(x[5] + self._heading.draw()),
+            yaw_rad=wrap_pi(x[5] + self._heading.draw()
+                            + self.faults.heading_bias_rad(t_ns - self.since_ns)),
             roll_rate_radps=0.0,
             pitch_rate_radps=0.0,
             yaw_rate_radps=x[2] + self._yaw_rate.draw(),

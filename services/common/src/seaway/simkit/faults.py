@@ -1,0 +1,153 @@
+"""Scheduled faults of a scenario (its ``[[faults]]``) and how the simulator applies them.
+
+A fault happens at a fixed time of the scenario (seconds since the scenario started: the plant's
+and the sensors' time, whatever the sim's clock or epoch), so a run with faults is as deterministic
+as one without, in lockstep and in real time alike. Kinds (``kind = ...``):
+
+* ``gnss_dropout``: no GNSS fix is produced for ``start_s <= t < start_s + duration_s`` (and the
+  simulated autopilot says its GNSS is lost), as the seeded random dropouts of ``[sensors]`` do;
+* ``position_jump``: GNSS positions are moved ``distance_m`` toward ``direction_rad`` (NED, from
+  north, clockwise). With ``duration_s`` every fix in ``[time_s, time_s + duration_s)`` is moved (an
+  offset, multipath); without, only the first fix due at or after ``time_s`` (one outlier). The
+  velocity over ground is not changed;
+* ``heading_bias``: ``bias_rad`` is added to the measured heading from ``start_s`` (for
+  ``duration_s``, or to the end);
+* ``thruster``: from ``time_s`` (for ``duration_s``, or to the end) the ``port``, ``starboard`` or
+  ``both`` thrusters produce ``factor`` times the thrust they would (0: failed, 0.5: half lost to a
+  fouled propeller). The energy metric counts the thrust produced.
+
+Faults of one kind that overlap combine: outages unite, jumps and biases add, factors multiply.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Annotated, Any, Literal
+
+from pydantic import Field
+
+from seaway.contract.config import ConfigModel
+from seaway.contract.units import NS_PER_S
+
+MAX_FAULT_TIME_S = 86_400.0
+"""When a fault may start, and how long it may last [s]: a day, longer than any scenario."""
+MAX_POSITION_JUMP_M = 1000.0
+"""How far a GNSS position may jump [m]: far past any receiver error, short of a spoofed city."""
+MAX_HEADING_BIAS_RAD = math.pi
+"""A heading bias, either way [rad]."""
+MAX_DIRECTION_RAD = 2.0 * math.pi
+"""A jump's direction, either way [rad]."""
+
+
+def _time() -> Any:
+    return Field(ge=0.0, le=MAX_FAULT_TIME_S, description="since the scenario started [s]")
+
+
+def _until_end() -> Any:
+    return Field(default=None, gt=0.0, le=MAX_FAULT_TIME_S, description="[s]; default: to the end")
+
+
+class GnssDropoutFault(ConfigModel):
+    kind: Literal["gnss_dropout"]
+    start_s: float = _time()
+    duration_s: float = Field(gt=0.0, le=MAX_FAULT_TIME_S, description="[s]")
+
+
+class PositionJumpFault(ConfigModel):
+    kind: Literal["position_jump"]
+    time_s: float = _time()
+    distance_m: float = Field(gt=0.0, le=MAX_POSITION_JUMP_M, description="[m]")
+    direction_rad: float = Field(
+        ge=-MAX_DIRECTION_RAD,
+        le=MAX_DIRECTION_RAD,
+        description="toward which the fix moves, from north clockwise [rad]",
+    )
+    duration_s: float | None = Field(
+        default=None,
+        gt=0.0,
+        le=MAX_FAULT_TIME_S,
+        description="[s]; default: the first fix at or after time_s only",
+    )
+
+
+class HeadingBiasFault(ConfigModel):
+    kind: Literal["heading_bias"]
+    start_s: float = _time()
+    bias_rad: float = Field(ge=-MAX_HEADING_BIAS_RAD, le=MAX_HEADING_BIAS_RAD, description="[rad]")
+    duration_s: float | None = _until_end()
+
+
+class ThrusterFault(ConfigModel):
+    kind: Literal["thruster"]
+    time_s: float = _time()
+    thruster: Literal["port", "starboard", "both"]
+    factor: float = Field(ge=0.0, le=1.0, description="thrust produced / thrust demanded; 0: failed")
+    duration_s: float | None = _until_end()
+
+
+Fault = Annotated[
+    GnssDropoutFault | PositionJumpFault | HeadingBiasFault | ThrusterFault, Field(discriminator="kind")
+]
+
+
+def _ns(seconds: float) -> int:
+    return round(seconds * NS_PER_S)
+
+
+def _within(t_ns: int, start_s: float, duration_s: float | None) -> bool:
+    start = _ns(start_s)
+    return t_ns >= start and (duration_s is None or t_ns < start + _ns(duration_s))
+
+
+class SensorFaults:
+    """The sensor faults of a scenario, asked at sample instants ``t_ns`` (since the scenario
+    started). Stateless: the answer depends on the instant alone."""
+
+    def __init__(self, faults: Sequence[object], gnss_period_ns: int) -> None:
+        self.dropouts = [f for f in faults if isinstance(f, GnssDropoutFault)]
+        self.jumps = [f for f in faults if isinstance(f, PositionJumpFault)]
+        self.biases = [f for f in faults if isinstance(f, HeadingBiasFault)]
+        self.gnss_period_ns = gnss_period_ns
+
+    def gnss_lost(self, t_ns: int) -> bool:
+        return any(_within(t_ns, f.start_s, f.duration_s) for f in self.dropouts)
+
+    def position_offset_m(self, t_ns: int) -> tuple[float, float]:
+        """(north, east) [m] to add to a fix sampled at ``t_ns``."""
+        north = east = 0.0
+        for f in self.jumps:
+            if f.duration_s is None:
+                first = -(-_ns(f.time_s) // self.gnss_period_ns) * self.gnss_period_ns
+                hit = t_ns == first
+            else:
+                hit = _within(t_ns, f.time_s, f.duration_s)
+            if hit:
+                north += f.distance_m * math.cos(f.direction_rad)
+                east += f.distance_m * math.sin(f.direction_rad)
+        return north, east
+
+    def heading_bias_rad(self, t_ns: int) -> float:
+        return sum((f.bias_rad for f in self.biases if _within(t_ns, f.start_s, f.duration_s)), 0.0)
+
+
+class ThrusterFaults:
+    """The thruster faults of a scenario, asked along the plant's own time [s]."""
+
+    def __init__(self, faults: Sequence[object]) -> None:
+        self.items = [f for f in faults if isinstance(f, ThrusterFault)]
+
+    def factors(self, t_s: float) -> tuple[float, float]:
+        """(port, starboard) thrust factors over a plant step that starts at ``t_s`` [s]; 1, 1
+        without faults. A step is taken as starting at ``t_s`` to the nanosecond, so that a fault
+        at 10 s applies from the internal step that starts at 10 s, whatever the float sum of the
+        steps before it."""
+        port = starboard = 1.0
+        t_ns = _ns(t_s)
+        for f in self.items:
+            if _within(t_ns, f.time_s, f.duration_s):
+                if f.thruster in ("port", "both"):
+                    port *= f.factor
+                if f.thruster in ("starboard", "both"):
+                    starboard *= f.factor
+        return port, starboard
