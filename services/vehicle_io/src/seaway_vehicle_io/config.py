@@ -85,6 +85,12 @@ class VehicleIoConfig(ConfigModel):
         default=10.0, gt=0,
         description="window of the min filter that maps autopilot boot time to wall time [s]",
     )
+    time_confirm_s: float = Field(
+        default=1.0, gt=0, le=10.0,
+        description="time_boot_ms more than 1 s away from the offset estimate, in every message for "
+                    "this long, restarts the estimate (an autopilot reboot the link did not show, "
+                    "or a wrong estimate); one late or corrupt message never does [s]",
+    )
     gps_raw_max_age_s: float = Field(
         default=3.0, gt=0, description="GPS_RAW_INT older than this no longer qualifies a fix [s]"
     )

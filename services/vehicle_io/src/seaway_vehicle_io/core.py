@@ -87,7 +87,6 @@ NON_VEHICLE_TYPES = frozenset({6, 18, 26, 27, 30, 31})
 FAILSAFE_AUTOPILOT_CONFIG = "autopilot_config"
 UNKNOWN_MESSAGES = "UNKNOWN"  # counts[] key of messages the dialect does not define
 
-MAX_BOOT_TIME_LEAD_NS = 1_000_000_000  # a boot time > 1 s "ahead" of its receipt is corrupt
 LOG_EVERY_S = 5.0  # at most one log line per (message, field) per 5 s
 RATE_WINDOW_S = 2.0  # receive rates are counted over windows of at least this length
 
@@ -223,7 +222,8 @@ class VehicleIoCore:
         self.forced_profile = (profiles.by_name(config.autopilot)
                                if config.autopilot != profiles.AUTO else None)
         self.link = LinkState(profile=self.forced_profile)
-        self.offset = BootTimeOffset(config.time_offset_window_s)
+        self.offset = BootTimeOffset(config.time_offset_window_s,
+                                     confirm_s=config.time_confirm_s)
         self.watchdog = ThrustWatchdog(config.thrust_timeout_s)
         self.commands = CommandTracker()
         self.params = ParamCheck()
@@ -667,12 +667,21 @@ class VehicleIoCore:
     # ===========================================================================================
 
     def _stamp(self, msg: Any, now: Now) -> int:
-        """Stamp for a message with time_boot_ms, validated before it may move the estimate."""
+        """Stamp for a message with time_boot_ms, validated before it may move the estimate
+        (``timesync.BootTimeOffset``: a boot time far ahead is refused, a late one gets its older
+        stamp, and only a streak of samples, never one, restarts the estimate)."""
         boot_ms = msg.time_boot_ms
-        if self.offset.lead_ns(boot_ms, now.wall_ns) > MAX_BOOT_TIME_LEAD_NS:
+        resets, rebases = self.offset.resets, self.offset.rebases
+        stamp = self.offset.stamp(boot_ms, now.wall_ns)
+        if self.offset.resets != resets:
+            log.warning("autopilot clock restarted (every time_boot_ms over %.1f s behind the "
+                        "estimate): time offset estimated anew", self.cfg.time_confirm_s)
+        elif self.offset.rebases != rebases:
+            log.warning("time offset was wrong (every time_boot_ms over %.1f s ahead of it): "
+                        "estimated anew from those messages", self.cfg.time_confirm_s)
+        if stamp is None:
             raise FieldError(msg.get_type(), "time_boot_ms", boot_ms,
                              "jumps ahead of the autopilot's clock")
-        stamp = self.offset.peek(boot_ms, now.wall_ns)
         if stamp < 0:
             raise FieldError(msg.get_type(), "time_boot_ms", boot_ms, "gives a negative stamp")
         return stamp
@@ -680,8 +689,15 @@ class VehicleIoCore:
     def _publish_stamped(self, msg: Any, now: Now, convert: Any) -> list[Output]:
         stamp = self._stamp(msg, now)
         message = convert(stamp)  # raises FieldError before the estimate is touched
-        self.offset.update(msg.time_boot_ms, now.wall_ns)
+        self.offset.commit(msg.time_boot_ms, now.wall_ns)
         return [Publish(message)]
+
+    def _on_system_time(self, msg: Any, now: Now) -> list[Output]:
+        """SYSTEM_TIME: the autopilot's clock now; going back means it rebooted."""
+        if self.offset.system_time(msg.time_boot_ms):
+            log.warning("autopilot rebooted (SYSTEM_TIME time_boot_ms went back to %d ms): time "
+                        "offset estimated anew", msg.time_boot_ms)
+        return []
 
     def _on_global_position_int(self, msg: Any, now: Now) -> list[Output]:
         fresh = (self.gps_quality is not None and now.mono_ns - self.gps_quality_mono_ns
@@ -951,6 +967,7 @@ class VehicleIoCore:
         "COMMAND_ACK": _on_command_ack,
         "PARAM_VALUE": _on_param_value,
         "STATUSTEXT": _on_statustext,
+        "SYSTEM_TIME": _on_system_time,
         "EVENT": _on_event,
         "COMPONENT_METADATA": _on_component_metadata,
         "FILE_TRANSFER_PROTOCOL": _on_file_transfer_protocol,
