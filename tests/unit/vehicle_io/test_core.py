@@ -76,8 +76,9 @@ def published(outs, kind):
     return [o.message for o in outs if isinstance(o, Publish) and isinstance(o.message, kind)]
 
 
-def thrust(t1: float, t2: float) -> ThrustCommand:
-    return ThrustCommand.make(stamp_ns=0, thrust_port_n=t1, thrust_starboard_n=t2)
+def thrust(t1: float, t2: float, t_ns: int = 0) -> ThrustCommand:
+    """A command stamped with the state of time ``t_ns`` (within vehicle_io's bounds near it)."""
+    return ThrustCommand.make(stamp_ns=WALL0 + t_ns, thrust_port_n=t1, thrust_starboard_n=t2)
 
 
 def connected(armed: bool = True, **cfg) -> VehicleIoCore:
@@ -300,7 +301,7 @@ def test_param_check_reports_the_verdict():
     core.tick(at(2 * S + 20 * MS))
     a = core.params.assessment
     assert a is not None and a.verdict == "none"  # NAV_RCL_ACT 0: the boat would keep going
-    core.on_thrust(thrust(20.0, 20.0), at(2 * S + 30 * MS))
+    core.on_thrust(thrust(20.0, 20.0, 2 * S), at(2 * S + 30 * MS))
     status = core.status(at(2 * S + 40 * MS))
     assert status.failsafe is None  # commands are fresh: no failsafe is acting
     assert status.autopilot_loss_failsafe == "none"

@@ -69,6 +69,13 @@ class VehicleIoConfig(ConfigModel):
         default=0.3, gt=0,
         description="watchdog: no ThrustCommand received for this long -> neutral thrust [s]",
     )
+    thrust_max_age_s: float = Field(
+        default=1.0, gt=0, le=10.0,
+        description="a ThrustCommand whose stamp (its state's time) is older than this on our wall "
+                    "clock is refused, as one stamped over 1 s ahead of it is (seaway.runtime.stamps); "
+                    "the controller acts on states up to 0.5 s old (--max-state-age-s), so 1 s leaves "
+                    "a solve and the transport. A zero-thrust command is taken whatever its stamp [s]",
+    )
     manual_control_rate_hz: float = Field(
         default=20.0, ge=5.0, le=100.0,
         description="MANUAL_CONTROL stream rate; >= 5 Hz keeps PX4 (COM_RC_LOSS_T 0.5 s) and "
