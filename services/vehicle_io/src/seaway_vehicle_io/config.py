@@ -10,6 +10,7 @@ file. ``--config`` takes a path, or the name of a file shipped in ``services/veh
 
 from __future__ import annotations
 
+import ipaddress
 from pathlib import Path
 from typing import Literal
 
@@ -42,6 +43,12 @@ class VehicleIoConfig(ConfigModel):
                     "first), tcp:HOST:PORT, or a serial device /dev/ttyX (baud from 'baud')",
     )
     baud: int = Field(default=57600, gt=0, description="serial baud rate (serial URLs only)")
+    bind_host: str | None = Field(
+        default=None,
+        description="udpout: the local address our socket listens on for the autopilot's answers. "
+                    "None: 127.0.0.1 when the autopilot's address is loopback, else 0.0.0.0 (every "
+                    "interface). udpin listens where its URL says",
+    )
     autopilot: AutopilotChoice = Field(
         default=profile.AUTO,
         description=f"expected autopilot, one of {', '.join(AUTOPILOT_CHOICES)}; "
@@ -160,6 +167,17 @@ class VehicleIoConfig(ConfigModel):
         if path is not None:
             read_key(path)  # KeyFileError (a ValueError) names the file and what it must hold
         return path
+
+    @field_validator("bind_host")
+    @classmethod
+    def _check_bind_host(cls, value: str | None) -> str | None:
+        if value is not None:
+            try:
+                ipaddress.ip_address(value)
+            except ValueError:
+                raise ValueError(f"bind_host {value!r} is not an IP address (e.g. 127.0.0.1, "
+                                 "0.0.0.0, or the address of one interface)") from None
+        return value
 
     @field_validator("message_rates_hz")
     @classmethod
