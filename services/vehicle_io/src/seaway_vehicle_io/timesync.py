@@ -2,9 +2,9 @@
 
 Telemetry carries ``time_boot_ms``, the autopilot's time since boot when the data was valid. PX4
 and ArduPilot stamp ATTITUDE, GLOBAL_POSITION_INT and LOCAL_POSITION_NED with the time their
-estimator produced the value, i.e. about when it is sent (measured on both SITLs: every one within
-a few tens of ms of SYSTEM_TIME; only GPS_RAW_INT carries the receiver's fix time, and it is not
-used for stamps). For each message we observe::
+estimator produced the value, i.e. about when it is sent (measured on both SITLs, docs/autopilots.md;
+only GPS_RAW_INT carries the receiver's fix time, and it is not used for stamps). For each message
+we observe::
 
     offset_sample = wall time at receipt [ns] - time_boot_ms * 1e6  =  true offset + link latency
 
@@ -118,7 +118,7 @@ class BootTimeOffset:
         if side != self._streak_side:
             self._streak.clear()
             self._streak_side = side
-        if self._streak and abs(sample - min(s for _, s in self._streak)) > self.jump_ns:
+        if self._streak and abs(sample - self._streak[0][1]) > self.jump_ns:
             self._streak.clear()  # they do not agree with each other: garbage, not a clock
         self._streak.append((receipt_wall_ns, sample))
         span = receipt_wall_ns - self._streak[0][0]
