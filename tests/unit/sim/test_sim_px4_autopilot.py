@@ -156,7 +156,7 @@ HOME = origin_of(Origin())
 
 def _texts(ap: Px4Autopilot, now_ns: int) -> list[tuple[int, str]]:
     pack = SimPack(NOMINAL_PACK, NOMINAL_PACK.energy_j, hotel_power_w=0.0).reading(0.0, 0, 0.0)
-    return [(m.severity, m.text) for m in ap.periodic_telemetry(now_ns, now_ns, HOME, 0, pack,
+    return [(m.severity, m.text) for m in ap.periodic_telemetry(now_ns, now_ns, 0, pack,
                                                                  True, 0)
             if m.get_type() == "STATUSTEXT"]
 
@@ -380,12 +380,11 @@ def test_param_set_echoes_the_new_value_and_refuses_bad_ones() -> None:
 
 def test_periodic_telemetry_and_battery_drain() -> None:
     ap = Px4Autopilot(Px4Config(thrust_max_n=10.0))
-    o = origin_of(Origin())
     pack = SimPack(NOMINAL_PACK, NOMINAL_PACK.energy_j, hotel_power_w=0.0)
     full = pack.reading(0.0, 0, 0.0)
-    kinds = [m.get_type() for m in ap.periodic_telemetry(999 * MS, 1 * S, o, 0, full, True, 0)]
-    assert kinds == ["HEARTBEAT", "SYS_STATUS", "BATTERY_STATUS"]  # no fix yet: no local position
-    assert ap.periodic_telemetry(1 * S, 1090 * MS, o, 0, full, True, 0) == []
+    kinds = [m.get_type() for m in ap.periodic_telemetry(999 * MS, 1 * S, 0, full, True, 0)]
+    assert kinds == ["HEARTBEAT", "SYS_STATUS", "BATTERY_STATUS", "SYSTEM_TIME"]
+    assert ap.periodic_telemetry(1 * S, 1090 * MS, 0, full, True, 0) == []
     half = pack.reading(NOMINAL_PACK.energy_j / 2, 0, 148.0)
     full_msg, used = ap.battery_status(full), ap.battery_status(half)
     assert (full_msg.voltages[0], full_msg.battery_remaining) == (16800, 100)
@@ -452,3 +451,32 @@ def test_set_message_interval_thins_a_stream_as_px4_takes_it() -> None:
     assert count("GLOBAL_POSITION_INT", 1) == 10
     (ack,) = ap.handle(command(interval, ml.MAVLINK_MSG_ID_HEARTBEAT, 1e6), 0)
     assert ack.result == ml.MAV_RESULT_FAILED
+
+
+def test_no_message_carries_an_old_time_after_a_gnss_dropout() -> None:
+    """Each message is stamped when its value is made, as PX4's streams are: within a tick of being
+    sent. Before, LOCAL_POSITION_NED repeated the last fix with its own stamp once the dropout
+    ended and before the next fix came: a message 5 s old, which vehicle_io took for a reboot."""
+    ap = Px4Autopilot(Px4Config(thrust_max_n=10.0))
+    pack = SimPack(NOMINAL_PACK, NOMINAL_PACK.energy_j, hotel_power_w=0.0).reading(0.0, 0, 0.0)
+    tick, epoch = 10 * MS, 1_800_000_000 * S
+    dropout = (100 * S + 30 * MS, 105 * S + 30 * MS)  # off the fixes' 200 ms grid, as Poisson is
+    ages_ms, kinds, system_times = [], set(), []
+    for k in range(99 * 100, 107 * 100):
+        t = k * tick
+        in_dropout = dropout[0] <= t < dropout[1]
+        fixes = [_fix_at(0.0, stamp_ns=epoch + t)] if t % (200 * MS) == 0 and not in_dropout else []
+        out = ap.sensor_telemetry(fixes, [], epoch, HOME)
+        out += ap.periodic_telemetry(t - tick, t, epoch, pack, not in_dropout, 0)
+        for m in out:
+            m = rx(m)
+            if hasattr(m, "time_boot_ms"):
+                ages_ms.append(t // MS - m.time_boot_ms)
+                kinds.add(m.get_type())
+            if m.get_type() == "SYSTEM_TIME":
+                system_times.append(m)
+    assert {"GLOBAL_POSITION_INT", "LOCAL_POSITION_NED", "SYSTEM_TIME"} <= kinds
+    assert max(ages_ms) == 0 and min(ages_ms) == 0
+    assert len(system_times) == 8  # 1 Hz
+    for m in system_times:
+        assert m.time_unix_usec == (epoch // 1000) + m.time_boot_ms * 1000

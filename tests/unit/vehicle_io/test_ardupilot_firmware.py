@@ -274,7 +274,7 @@ def test_thrust_waits_for_the_calibration_then_is_compensated():
 
     core = make(message_rates_hz={})
     core.on_mavlink(ardupilot_heartbeat(armed=True), at(0))
-    cmd = ThrustCommand.make(stamp_ns=0, thrust_port_n=12.0, thrust_starboard_n=12.0)
+    cmd = ThrustCommand.make(stamp_ns=WALL0, thrust_port_n=12.0, thrust_starboard_n=12.0)
     (mc,) = of(core.on_thrust(cmd, at(10 * MS)), SendManualControl)
     assert mc.neutral  # the RC calibration is not known yet
     answer_params(core, SITL_PARAMS, 20 * MS)

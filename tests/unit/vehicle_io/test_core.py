@@ -76,8 +76,9 @@ def published(outs, kind):
     return [o.message for o in outs if isinstance(o, Publish) and isinstance(o.message, kind)]
 
 
-def thrust(t1: float, t2: float) -> ThrustCommand:
-    return ThrustCommand.make(stamp_ns=0, thrust_port_n=t1, thrust_starboard_n=t2)
+def thrust(t1: float, t2: float, t_ns: int = 0) -> ThrustCommand:
+    """A command stamped with the state of time ``t_ns`` (within vehicle_io's bounds near it)."""
+    return ThrustCommand.make(stamp_ns=WALL0 + t_ns, thrust_port_n=t1, thrust_starboard_n=t2)
 
 
 def connected(armed: bool = True, **cfg) -> VehicleIoCore:
@@ -213,6 +214,39 @@ def test_telemetry_is_converted_and_stamped_through_the_offset():
     assert fix.stamp_ns == WALL0 + 20 * S + 200 * MS
 
 
+def local_position_ned(time_boot_ms: int) -> Any:
+    return wire(mavlink.MAVLink_local_position_ned_message(time_boot_ms, 1.0, 2.0, 0.0, 0.1, 0.2,
+                                                           0.0))
+
+
+def test_a_message_seconds_late_does_not_blind_the_telemetry():
+    """A LOCAL_POSITION_NED stamped 5 s back (the sim's after a GNSS dropout; a radio holding a
+    packet) among on-time ATTITUDE: it is published with its own older stamp, and every on-time
+    message after it still is, with its own."""
+    core = connected()
+    for k in range(50):
+        core.on_mavlink(attitude(time_boot_ms=100_000 + 100 * k), at(100 * S + k * 100 * MS))
+    outs = core.on_mavlink(local_position_ned(100_000), at(105 * S))
+    (late,) = [o.message for o in outs if isinstance(o, Publish)]
+    assert late.stamp_ns == WALL0 + 100 * S
+    for k in range(1, 30):
+        (att,) = published(core.on_mavlink(attitude(time_boot_ms=105_000 + 100 * k),
+                                           at(105 * S + k * 100 * MS)), Attitude)
+        assert att.stamp_ns == WALL0 + 105 * S + k * 100 * MS
+    assert core.dropped == 0
+
+
+def test_system_time_going_back_restarts_the_time_offset():
+    core = connected()
+    core.on_mavlink(attitude(time_boot_ms=100_000), at(100 * S))
+    core.on_mavlink(wire(mavlink.MAVLink_system_time_message(0, 100_010)), at(100 * S))
+    core.on_mavlink(wire(mavlink.MAVLink_system_time_message(0, 500)), at(102 * S))
+    assert core.offset.resets == 1
+    (att,) = published(core.on_mavlink(attitude(time_boot_ms=600), at(102 * S + 100 * MS)),
+                       Attitude)
+    assert att.stamp_ns == WALL0 + 102 * S + 100 * MS
+
+
 def test_out_of_range_and_garbage_are_counted_and_dropped():
     core = connected()
     core.on_mavlink(attitude(time_boot_ms=1000), at(2 * S))
@@ -267,7 +301,7 @@ def test_param_check_reports_the_verdict():
     core.tick(at(2 * S + 20 * MS))
     a = core.params.assessment
     assert a is not None and a.verdict == "none"  # NAV_RCL_ACT 0: the boat would keep going
-    core.on_thrust(thrust(20.0, 20.0), at(2 * S + 30 * MS))
+    core.on_thrust(thrust(20.0, 20.0, 2 * S), at(2 * S + 30 * MS))
     status = core.status(at(2 * S + 40 * MS))
     assert status.failsafe is None  # commands are fresh: no failsafe is acting
     assert status.autopilot_loss_failsafe == "none"

@@ -101,7 +101,7 @@ def locked(core: VehicleIoCore, address=AUTOPILOT, t_ns: int = MS, **kw: Any) ->
 
 
 def thrusting(core: VehicleIoCore, t_ns: int) -> SendManualControl:
-    (mc,) = [o for o in core.on_thrust(ThrustCommand.make(stamp_ns=0, thrust_port_n=30.0,
+    (mc,) = [o for o in core.on_thrust(ThrustCommand.make(stamp_ns=WALL0 + t_ns, thrust_port_n=30.0,
                                                           thrust_starboard_n=30.0), at(t_ns))
              if isinstance(o, SendManualControl)]
     return mc

@@ -43,29 +43,74 @@ def test_window_forgets_old_minimum():
     assert est.offset_ns == EPOCH + 4 * MS
 
 
-def test_reboot_resets():
+def test_a_late_message_gets_its_older_stamp_and_the_ones_after_it_keep_flowing():
+    """One message 5 s late (a position stamped with an old fix, a radio that held a packet) is
+    neither a reboot nor a reason to refuse what follows: before, it reset the estimate 5 s wrong
+    and every later message was refused as "ahead" for good."""
     est = BootTimeOffset(window_s=10.0)
-    est.update(50_000, EPOCH + 50_000 * MS + 3 * MS)
-    new_epoch = EPOCH + 60 * S  # rebooted 60 s after the first boot
-    stamp = est.update(100, new_epoch + 100 * MS + 6 * MS)
+    for k in range(50):  # 5 s of 10 Hz telemetry, 2 ms latency
+        est.update(100_000 + 100 * k, EPOCH + (100_000 + 100 * k + 2) * MS)
+    late = est.update(100_000, EPOCH + 105_002 * MS)  # boot time 5 s behind the newest
+    assert late == EPOCH + 100_002 * MS  # its own (old) time, not its arrival
+    for k in range(1, 100):  # the normal ones after it: stamped, each at its own time
+        boot = 105_000 + 100 * k
+        assert est.update(boot, EPOCH + (boot + 2) * MS) == EPOCH + (boot + 2) * MS
+    assert est.resets == 0 and est.rebases == 0
+
+
+def test_a_reboot_the_link_did_not_show_restarts_the_estimate_after_confirm_s():
+    est = BootTimeOffset(window_s=10.0, confirm_s=1.0, confirm_samples=3)
+    est.update(50_000, EPOCH + 50_003 * MS)
+    new_epoch = EPOCH + 51 * S  # rebooted 1 s after that sample: every sample 50 s behind
+    stamps = [est.update(100 * k, new_epoch + (100 * k + 6) * MS) for k in range(1, 13)]
     assert est.resets == 1
     assert est.offset_ns == new_epoch + 6 * MS
-    assert stamp == new_epoch + 106 * MS
+    # Until then (1 s of samples) they were taken as late messages: old stamps, never ahead.
+    assert all(s < new_epoch for s in stamps[:10])
+    assert stamps[-1] == new_epoch + 1206 * MS
 
 
-def test_peek_matches_update_and_does_not_record():
+def test_system_time_going_back_is_a_reboot_at_once():
+    est = BootTimeOffset(window_s=10.0)
+    est.update(50_000, EPOCH + 50_003 * MS)
+    assert not est.system_time(50_010)
+    assert not est.system_time(49_500)  # reordered by half a second: not a reboot
+    assert est.system_time(200)
+    assert est.resets == 1 and est.offset_ns is None
+    new_epoch = EPOCH + 60 * S
+    assert est.update(300, new_epoch + 304 * MS) == new_epoch + 304 * MS
+
+
+def test_a_wrong_estimate_is_rebuilt_from_the_messages_that_contradict_it():
+    est = BootTimeOffset(window_s=10.0, confirm_s=1.0, confirm_samples=3)
+    # The only sample so far was 5 s late: the estimate is 5 s too large.
+    est.update(100_000, EPOCH + 105_002 * MS)
+    refused = 0
+    for k in range(1, 30):
+        boot = 105_000 + 100 * k
+        stamp = est.update(boot, EPOCH + (boot + 2) * MS)
+        if stamp is None:
+            refused += 1
+        else:
+            assert stamp == EPOCH + (boot + 2) * MS
+    assert est.rebases == 1
+    assert 1 <= refused <= 10  # refused for about confirm_s, then right again
+
+
+def test_stamp_does_not_record_until_commit():
     est = BootTimeOffset(window_s=10.0)
     est.update(100, EPOCH + 103 * MS)
-    peeked = est.peek(200, EPOCH + 201 * MS)
-    assert est.offset_ns == EPOCH + 3 * MS  # unchanged by peek
-    assert peeked == est.update(200, EPOCH + 201 * MS) == EPOCH + 201 * MS
+    peeked = est.stamp(200, EPOCH + 201 * MS)
+    assert est.offset_ns == EPOCH + 3 * MS  # unchanged by stamp
+    est.commit(200, EPOCH + 201 * MS)
+    assert peeked == EPOCH + 201 * MS and est.offset_ns == EPOCH + 1 * MS
 
 
-def test_lead_flags_a_forward_jump():
+def test_a_forward_jump_is_refused():
     est = BootTimeOffset(window_s=10.0)
     est.update(1000, EPOCH + 1002 * MS)
-    assert est.lead_ns(1100, EPOCH + 1102 * MS) == 0
-    assert est.lead_ns(1000 + 3_600_000, EPOCH + 1102 * MS) > S  # an hour ahead: corrupt
+    assert est.stamp(1100, EPOCH + 1102 * MS) == EPOCH + 1102 * MS
+    assert est.stamp(1000 + 3_600_000, EPOCH + 1102 * MS) is None  # an hour ahead: corrupt
 
 
 def cmd(t1: float = 10.0, t2: float = 10.0) -> ThrustCommand:

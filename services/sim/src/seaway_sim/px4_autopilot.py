@@ -93,7 +93,7 @@ FORCE_MAGIC = 21196  # MAV_CMD_COMPONENT_ARM_DISARM param2 that forces (disarm o
 # Telemetry rates [Hz] (docs/autopilots.md A.5); sensor-driven streams follow the scenario's rates.
 HEARTBEAT_HZ = 1.0
 SYS_STATUS_HZ = 1.0
-LOCAL_POSITION_HZ = 10.0
+SYSTEM_TIME_HZ = 1.0
 
 # PX4 v1.16.0 release, FIRMWARE_VERSION_TYPE_OFFICIAL (0xFF) in the low byte.
 FLIGHT_SW_VERSION = (1 << 24) | (16 << 16) | (0 << 8) | 0xFF
@@ -566,12 +566,17 @@ class Px4Autopilot:
             CAPABILITIES, FLIGHT_SW_VERSION, 0, 0, 0, bytes(8), bytes(8), bytes(8), 0, 0, 0)
 
     def sensor_telemetry(self, fixes: Sequence[GnssFix | None], attitudes: Sequence[Attitude],
-                         epoch_ns: int) -> list[Any]:
-        """GPS_RAW_INT and GLOBAL_POSITION_INT per fix, ATTITUDE per attitude sample (time order kept
-        per kind). GPS_RAW_INT carries what only the receiver knows (fix type, accuracy, satellites):
-        a companion needs it to trust a fix, and PX4 streams it by default.
+                         epoch_ns: int, origin: GeoOrigin | None = None) -> list[Any]:
+        """GPS_RAW_INT, GLOBAL_POSITION_INT and (with ``origin``) LOCAL_POSITION_NED per fix,
+        ATTITUDE per attitude sample (time order kept per kind). GPS_RAW_INT carries what only the
+        receiver knows (fix type, accuracy, satellites): a companion needs it to trust a fix, and
+        PX4 streams it by default.
 
-        Stamps of the samples are ``epoch_ns + time since boot``.
+        Stamps of the samples are ``epoch_ns + time since boot``. Each message goes out once, when
+        its value is made, stamped with that time, as PX4's streams send an estimator output once
+        (``time_boot_ms`` = its publication time, about the time it is sent: measured on the 1.18
+        SITL, within the spread of SYSTEM_TIME). An old value is never repeated with its old
+        stamp: during a GNSS dropout no position goes out at all.
         """
         out: list[Any] = []
         heading = self._last_heading
@@ -605,15 +610,22 @@ class Px4Autopilot:
                     round(math.degrees(fix.lon_rad) * 1e7), round(fix.alt_m * 1000), 0,
                     round((fix.vel_n_mps or 0.0) * 100), round((fix.vel_e_mps or 0.0) * 100), 0,
                     hdg))
+            if origin is not None and keep(mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED, t_ns):
+                # PX4's local origin is the sim's origin; its estimate here is the fix.
+                north, east, _ = origin.to_ned(fix.lat_rad, fix.lon_rad, fix.alt_m)
+                out.append(mavlink.MAVLink_local_position_ned_message(
+                    _boot_ms(t_ns), north, east, 0.0,  # z: on the surface
+                    fix.vel_n_mps or 0.0, fix.vel_e_mps or 0.0, 0.0))
         return out
 
-    def periodic_telemetry(self, after_ns: int, upto_ns: int, origin: GeoOrigin, epoch_ns: int,
+    def periodic_telemetry(self, after_ns: int, upto_ns: int, epoch_ns: int,
                            pack: PackReading, gnss_ok: bool, link_errors: int) -> list[Any]:
-        """HEARTBEAT, SYS_STATUS, BATTERY_STATUS (1 Hz), LOCAL_POSITION_NED (10 Hz) due in
-        (after, upto]; the battery messages describe ``pack`` (the battery at ``upto_ns``).
+        """HEARTBEAT, SYSTEM_TIME, SYS_STATUS, BATTERY_STATUS (1 Hz) due in (after, upto]; the
+        battery messages describe ``pack`` (the battery at ``upto_ns``).
 
-        Times are since boot; LOCAL_POSITION_NED carries the last fix, stamped with its own time
-        (fix stamp - ``epoch_ns``), as an estimator output would be.
+        Times are since boot. SYSTEM_TIME carries the wall clock (``epoch_ns`` + time since boot)
+        and the boot time at ``upto_ns``, as PX4 streams it on its onboard link (1 Hz measured);
+        a companion tells a reboot from it (its boot time goes back).
         """
         out: list[Any] = [mavlink.MAVLink_statustext_message(severity, text.encode()[:50])
                           for severity, text in self._texts]
@@ -626,15 +638,9 @@ class Px4Autopilot:
             out.append(self.sys_status(upto_ns, pack, gnss_ok, link_errors))
         if report_due(after_ns, upto_ns) and keep(mavlink.MAVLINK_MSG_ID_BATTERY_STATUS, upto_ns):
             out.append(self.battery_status(pack))
-        fix = self.last_fix
-        local_due = (instants_in(period_ns(LOCAL_POSITION_HZ), after_ns, upto_ns)
-                     and keep(mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED, upto_ns))
-        if fix is not None and gnss_ok and local_due:
-            # PX4's local origin is the sim's origin; its estimate here is the last GNSS fix.
-            north, east, _ = origin.to_ned(fix.lat_rad, fix.lon_rad, fix.alt_m)
-            out.append(mavlink.MAVLink_local_position_ned_message(
-                _boot_ms(fix.stamp_ns - epoch_ns), north, east, 0.0,  # z: on the surface
-                fix.vel_n_mps or 0.0, fix.vel_e_mps or 0.0, 0.0))
+        if instants_in(period_ns(SYSTEM_TIME_HZ), after_ns, upto_ns):
+            out.append(mavlink.MAVLink_system_time_message((epoch_ns + upto_ns) // 1000,
+                                                          _boot_ms(upto_ns)))
         return out
 
 

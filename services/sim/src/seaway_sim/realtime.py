@@ -73,9 +73,10 @@ class Realtime:
         core.advance(thrust, ticks * self.step_ns)
         samples = core.take_samples()
         gnss_ok = core.gnss_ok()
-        self.link.send(ap.sensor_telemetry(samples.gnss, samples.attitude, core.epoch_ns))
-        self.link.send(ap.periodic_telemetry(before, core.t_ns, core.origin, core.epoch_ns,
-                                             core.pack_reading(), gnss_ok, self.link.garbage))
+        self.link.send(ap.sensor_telemetry(samples.gnss, samples.attitude, core.epoch_ns,
+                                           core.origin))
+        self.link.send(ap.periodic_telemetry(before, core.t_ns, core.epoch_ns, core.pack_reading(),
+                                             gnss_ok, self.link.garbage))
         if instants_in(self.publish_period_ns, before, core.t_ns):
             self.app.publish_truth(1.0)
 

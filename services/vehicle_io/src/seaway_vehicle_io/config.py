@@ -10,6 +10,7 @@ file. ``--config`` takes a path, or the name of a file shipped in ``services/veh
 
 from __future__ import annotations
 
+import ipaddress
 from pathlib import Path
 from typing import Literal
 
@@ -42,6 +43,12 @@ class VehicleIoConfig(ConfigModel):
                     "first), tcp:HOST:PORT, or a serial device /dev/ttyX (baud from 'baud')",
     )
     baud: int = Field(default=57600, gt=0, description="serial baud rate (serial URLs only)")
+    bind_host: str | None = Field(
+        default=None,
+        description="udpout: the local address our socket listens on for the autopilot's answers. "
+                    "None: 127.0.0.1 when the autopilot's address is loopback, else 0.0.0.0 (every "
+                    "interface). udpin listens where its URL says",
+    )
     autopilot: AutopilotChoice = Field(
         default=profile.AUTO,
         description=f"expected autopilot, one of {', '.join(AUTOPILOT_CHOICES)}; "
@@ -69,6 +76,13 @@ class VehicleIoConfig(ConfigModel):
         default=0.3, gt=0,
         description="watchdog: no ThrustCommand received for this long -> neutral thrust [s]",
     )
+    thrust_max_age_s: float = Field(
+        default=1.0, gt=0, le=10.0,
+        description="a ThrustCommand whose stamp (its state's time) is older than this on our wall "
+                    "clock is refused, as one stamped over 1 s ahead of it is (seaway.runtime.stamps); "
+                    "the controller acts on states up to 0.5 s old (--max-state-age-s), so 1 s leaves "
+                    "a solve and the transport. A zero-thrust command is taken whatever its stamp [s]",
+    )
     manual_control_rate_hz: float = Field(
         default=20.0, ge=5.0, le=100.0,
         description="MANUAL_CONTROL stream rate; >= 5 Hz keeps PX4 (COM_RC_LOSS_T 0.5 s) and "
@@ -84,6 +98,12 @@ class VehicleIoConfig(ConfigModel):
     time_offset_window_s: float = Field(
         default=10.0, gt=0,
         description="window of the min filter that maps autopilot boot time to wall time [s]",
+    )
+    time_confirm_s: float = Field(
+        default=1.0, gt=0, le=10.0,
+        description="time_boot_ms more than 1 s away from the offset estimate, in every message for "
+                    "this long, restarts the estimate (an autopilot reboot the link did not show, "
+                    "or a wrong estimate); one late or corrupt message never does [s]",
     )
     gps_raw_max_age_s: float = Field(
         default=3.0, gt=0, description="GPS_RAW_INT older than this no longer qualifies a fix [s]"
@@ -147,6 +167,17 @@ class VehicleIoConfig(ConfigModel):
         if path is not None:
             read_key(path)  # KeyFileError (a ValueError) names the file and what it must hold
         return path
+
+    @field_validator("bind_host")
+    @classmethod
+    def _check_bind_host(cls, value: str | None) -> str | None:
+        if value is not None:
+            try:
+                ipaddress.ip_address(value)
+            except ValueError:
+                raise ValueError(f"bind_host {value!r} is not an IP address (e.g. 127.0.0.1, "
+                                 "0.0.0.0, or the address of one interface)") from None
+        return value
 
     @field_validator("message_rates_hz")
     @classmethod

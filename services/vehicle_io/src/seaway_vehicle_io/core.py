@@ -29,8 +29,10 @@ import logging
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
+from seaway.contract import keys
 from seaway.contract.messages import Message, ThrustCommand, ThrustWithheld, VehicleStatus
 from seaway.runtime.ratelog import RateLimitedLog
+from seaway.runtime.stamps import STAMP_LOG_EVERY_S, StampBounds, StampGate
 from seaway.vessel.battery import BatteryParams
 from seaway.vessel.mavlink_signing import ACCEPTED, SignatureVerifier, signing_timestamp
 
@@ -74,7 +76,7 @@ from seaway_vehicle_io.mav import mavlink
 from seaway_vehicle_io.profile import FailsafeAssessment, ManualControlAxes, Profile
 from seaway_vehicle_io.rates import MAV_CMD_SET_MESSAGE_INTERVAL, RateCheck
 from seaway_vehicle_io.statustext import StatusTexts, matching
-from seaway_vehicle_io.thrust import ThrusterLimits, normalise_pair
+from seaway_vehicle_io.thrust import ThrusterLimits, absurd_thrust, normalise_pair
 from seaway_vehicle_io.timesync import BootTimeOffset
 from seaway_vehicle_io.watchdog import FAILSAFE_THRUST_STALE, ThrustWatchdog
 
@@ -87,7 +89,6 @@ NON_VEHICLE_TYPES = frozenset({6, 18, 26, 27, 30, 31})
 FAILSAFE_AUTOPILOT_CONFIG = "autopilot_config"
 UNKNOWN_MESSAGES = "UNKNOWN"  # counts[] key of messages the dialect does not define
 
-MAX_BOOT_TIME_LEAD_NS = 1_000_000_000  # a boot time > 1 s "ahead" of its receipt is corrupt
 LOG_EVERY_S = 5.0  # at most one log line per (message, field) per 5 s
 RATE_WINDOW_S = 2.0  # receive rates are counted over windows of at least this length
 
@@ -223,8 +224,13 @@ class VehicleIoCore:
         self.forced_profile = (profiles.by_name(config.autopilot)
                                if config.autopilot != profiles.AUTO else None)
         self.link = LinkState(profile=self.forced_profile)
-        self.offset = BootTimeOffset(config.time_offset_window_s)
+        self.offset = BootTimeOffset(config.time_offset_window_s,
+                                     confirm_s=config.time_confirm_s)
         self.watchdog = ThrustWatchdog(config.thrust_timeout_s)
+        # The stamp bounds every service applies, held here too: the last step before the thrusters.
+        self.thrust_stamps = StampGate("vehicle_io", log, StampBounds.live(config.thrust_max_age_s))
+        self.thrust_absurd = 0  # ThrustCommands refused for an absurd thrust
+        self._thrust_log = RateLimitedLog(log, STAMP_LOG_EVERY_S)  # as refused stamps are logged
         self.commands = CommandTracker()
         self.params = ParamCheck()
         self.rate_check: RateCheck | None = None
@@ -318,13 +324,44 @@ class VehicleIoCore:
             self.refusals.add(FOREIGN_SOURCE, source, count, now.mono_ns)
 
     def on_thrust(self, cmd: ThrustCommand, now: Now) -> list[Output]:
-        """A ThrustCommand arrived from the bus: becomes the latest, and goes out at once."""
+        """A ThrustCommand arrived from the bus: becomes the latest, and goes out at once; unless it
+        is refused (``thrust_refused``): then it changes nothing and never reaches the autopilot."""
+        if self.thrust_refused(cmd, now):
+            return []
         out: list[Output] = []
         event = self.watchdog.command(cmd, now.mono_ns)
         if event is not None:
             log.info("thrust commands fresh again (source %r): forwarding", cmd.source)
             out.append(Publish(self.status(now)))
         out.extend(self._manual_control(now))
+        return out
+
+    def thrust_refused(self, cmd: ThrustCommand, now: Now) -> bool:
+        """Whether ``cmd`` is refused (counted and logged, at most one line per reason a minute):
+
+        * an absurd thrust (``thrust.absurd_thrust``: beyond twice the vessel's bounds), which
+          saturation would otherwise turn into full power without a word;
+        * a stamp over ``MAX_AHEAD_LIVE_S`` ahead of our wall clock or older than
+          ``thrust_max_age_s`` (``seaway.runtime.stamps``). A command that stops both thrusters is
+          exempt: stopping is always safe (the watchdog does it anyway), and the controller stamps
+          its stale-state and shutdown stops with the last state's time, however old."""
+        why = absurd_thrust(cmd.thrust_port_n, cmd.thrust_starboard_n, self.limits)
+        if why is not None:
+            self.thrust_absurd += 1
+            self._thrust_log.warning("absurd", "refused a ThrustCommand (source %r): %s. Refused "
+                                     "so far: %d (logged at most once a minute)", cmd.source, why,
+                                     self.thrust_absurd, now_ns=now.mono_ns)
+            return True
+        if cmd.thrust_port_n == 0.0 and cmd.thrust_starboard_n == 0.0:
+            return False
+        return not self.thrust_stamps.admit(keys.THRUST.suffix, cmd.stamp_ns, now.wall_ns,
+                                            now_ns=now.mono_ns)
+
+    def refused_thrust(self) -> dict[str, int]:
+        """ThrustCommands refused so far, by reason: 'absurd', 'stamp_ahead', 'stamp_behind'."""
+        out = {f"stamp_{direction}": n for (_, direction), n in self.thrust_stamps.dropped.items()}
+        if self.thrust_absurd:
+            out["absurd"] = self.thrust_absurd
         return out
 
     def tick(self, now: Now) -> list[Output]:
@@ -499,6 +536,7 @@ class VehicleIoCore:
             telemetry_rates_short=None if self.rate_check is None or self.rate_check.result is None
             else dict(self.rate_check.result),
             thrust_withheld=self._withheld,
+            refused_thrust=self.refused_thrust(),
         )
 
     def _update_rates(self, now: Now) -> None:
@@ -667,12 +705,21 @@ class VehicleIoCore:
     # ===========================================================================================
 
     def _stamp(self, msg: Any, now: Now) -> int:
-        """Stamp for a message with time_boot_ms, validated before it may move the estimate."""
+        """Stamp for a message with time_boot_ms, validated before it may move the estimate
+        (``timesync.BootTimeOffset``: a boot time far ahead is refused, a late one gets its older
+        stamp, and only a streak of samples, never one, restarts the estimate)."""
         boot_ms = msg.time_boot_ms
-        if self.offset.lead_ns(boot_ms, now.wall_ns) > MAX_BOOT_TIME_LEAD_NS:
+        resets, rebases = self.offset.resets, self.offset.rebases
+        stamp = self.offset.stamp(boot_ms, now.wall_ns)
+        if self.offset.resets != resets:
+            log.warning("autopilot clock restarted (every time_boot_ms over %.1f s behind the "
+                        "estimate): time offset estimated anew", self.cfg.time_confirm_s)
+        elif self.offset.rebases != rebases:
+            log.warning("time offset was wrong (every time_boot_ms over %.1f s ahead of it): "
+                        "estimated anew from those messages", self.cfg.time_confirm_s)
+        if stamp is None:
             raise FieldError(msg.get_type(), "time_boot_ms", boot_ms,
                              "jumps ahead of the autopilot's clock")
-        stamp = self.offset.peek(boot_ms, now.wall_ns)
         if stamp < 0:
             raise FieldError(msg.get_type(), "time_boot_ms", boot_ms, "gives a negative stamp")
         return stamp
@@ -680,8 +727,15 @@ class VehicleIoCore:
     def _publish_stamped(self, msg: Any, now: Now, convert: Any) -> list[Output]:
         stamp = self._stamp(msg, now)
         message = convert(stamp)  # raises FieldError before the estimate is touched
-        self.offset.update(msg.time_boot_ms, now.wall_ns)
+        self.offset.commit(msg.time_boot_ms, now.wall_ns)
         return [Publish(message)]
+
+    def _on_system_time(self, msg: Any, now: Now) -> list[Output]:
+        """SYSTEM_TIME: the autopilot's clock now; going back means it rebooted."""
+        if self.offset.system_time(msg.time_boot_ms):
+            log.warning("autopilot rebooted (SYSTEM_TIME time_boot_ms went back to %d ms): time "
+                        "offset estimated anew", msg.time_boot_ms)
+        return []
 
     def _on_global_position_int(self, msg: Any, now: Now) -> list[Output]:
         fresh = (self.gps_quality is not None and now.mono_ns - self.gps_quality_mono_ns
@@ -951,6 +1005,7 @@ class VehicleIoCore:
         "COMMAND_ACK": _on_command_ack,
         "PARAM_VALUE": _on_param_value,
         "STATUSTEXT": _on_statustext,
+        "SYSTEM_TIME": _on_system_time,
         "EVENT": _on_event,
         "COMPONENT_METADATA": _on_component_metadata,
         "FILE_TRANSFER_PROTOCOL": _on_file_transfer_protocol,

@@ -25,6 +25,7 @@ is given. pymavlink's ``conn.mav`` only parses, without a key: signatures are ch
 from __future__ import annotations
 
 import importlib.util
+import ipaddress
 import logging
 import select
 import socket
@@ -57,6 +58,7 @@ log = logging.getLogger("seaway.vehicle_io.link")
 SERIAL_PREFIXES = ("/dev/", "COM")
 SUPPORTED_PREFIXES = ("udpin:", "udpout:", "tcp:", *SERIAL_PREFIXES)
 
+LOOPBACK, ANY_INTERFACE = "127.0.0.1", "0.0.0.0"
 MAX_DATAGRAMS_PER_READ = 256  # UDP: at most this many datagrams per read (refused ones included)
 MAX_MESSAGES_PER_READ = 256  # TCP / serial: at most this many messages per read
 # Asked of the kernel for UDP (it caps this at net.core.rmem_max): room for a few milliseconds of
@@ -98,7 +100,8 @@ class MavlinkLink:
     except ``wait_readable``, which only selects on the descriptor."""
 
     def __init__(self, url: str, source_system: int, source_component: int, baud: int = 57600,
-                 udp_client_timeout_s: float = 3.0, signing_key: bytes | None = None) -> None:
+                 udp_client_timeout_s: float = 3.0, signing_key: bytes | None = None,
+                 bind_host: str | None = None) -> None:
         self.url = check_url(url)
         self.conn: Any = mavutil.mavlink_connection(
             url, baud=baud, source_system=source_system, source_component=source_component,
@@ -125,8 +128,9 @@ class MavlinkLink:
             except OSError:
                 log.debug("SO_RCVBUF not set", exc_info=True)
             if self.conn.port.getsockname()[1] == 0:
-                # udpout: the port the first send would pick, picked now so the log can name it.
-                self.conn.port.bind(("0.0.0.0", 0))
+                # udpout: the port the first send would pick, picked now so the log can name it,
+                # on no more interfaces than the autopilot needs (``udpout_bind_host``).
+                self.conn.port.bind((bind_host or udpout_bind_host(self._expected_address()), 0))
         self.policy = SourcePolicy(self._expected_address())
         self.sent = 0
         self.truncated_datagrams = 0
@@ -294,6 +298,15 @@ class MavlinkLink:
             self.conn.close()
         except OSError:
             log.debug("close failed", exc_info=True)
+
+
+def udpout_bind_host(autopilot: Address) -> str:
+    """Where a udpout socket listens for the autopilot's answers, by default: loopback when the
+    autopilot is on this machine (nothing elsewhere can then reach the socket), else every interface
+    (the route to the autopilot picks one)."""
+    if autopilot is not None and ipaddress.ip_address(autopilot[0]).is_loopback:
+        return LOOPBACK
+    return ANY_INTERFACE
 
 
 def _address(sockaddr: Any) -> Address:

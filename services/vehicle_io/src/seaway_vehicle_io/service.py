@@ -141,7 +141,7 @@ class VehicleIoService:
         try:
             link = MavlinkLink(self.cfg.mavlink, self.cfg.source_system, self.cfg.source_component,
                                self.cfg.baud, udp_client_timeout_s=self.cfg.heartbeat_timeout_s,
-                               signing_key=self.signing_key)
+                               signing_key=self.signing_key, bind_host=self.cfg.bind_host)
         except Exception as err:  # OSError, or pyserial's own SerialException
             self._open_failures += 1
             if self._open_failures % OPEN_FAILURES_PER_LOG == 1:  # the first, then every 30 s

@@ -189,6 +189,10 @@ class VehicleStatus(Message):
         default_factory=dict,
         description="MAVLink messages refused, by reason: 'foreign_source' (not the autopilot the "
                     "link is locked to), 'unsigned', 'bad_signature', 'replayed' (signing on)")
+    refused_thrust: dict[str, int] = Field(
+        default_factory=dict,
+        description="ThrustCommands refused before the autopilot, by reason: 'absurd' (beyond twice "
+                    "the vessel's thrust bounds), 'stamp_ahead', 'stamp_behind' (seaway.runtime.stamps)")
     autopilot_loss_failsafe: Literal["stops", "takes_over", "none", "unknown"] | None = Field(
         default=None,
         description="what the autopilot does if vehicle_io stops streaming commands, judged from its "
