@@ -94,7 +94,6 @@ def energy_section(budgets: Sequence[EnergyBudget], metrics: MissionMetrics | No
         "source": keys.MISSION_ENERGY.suffix,
         "samples": len(budgets),
         "energy_used_j": metrics.energy_j if metrics is not None else None,
-        "controller_energy_used_j": end.energy_used_j,  # at its last period before the end
         "policy": last.policy,
         "decision": last.decision,
         "decided_ns": last.decided_ns,
@@ -105,7 +104,10 @@ def energy_section(budgets: Sequence[EnergyBudget], metrics: MissionMetrics | No
         "energy_to_home_end_j": end.energy_to_home_j,
         "energy_to_home_end_low_j": end.energy_to_home_low_j,
         "energy_to_home_end_high_j": end.energy_to_home_high_j,
-        "battery_remaining_start_j": first.battery_remaining_j,
+        # The first period that knew the battery: a live mission may start before the autopilot's
+        # first report reached the controller (its first budgets have no battery figure).
+        "battery_remaining_start_j": next((b.battery_remaining_j for b in budgets
+                                           if b.battery_remaining_j is not None), None),
         "battery_remaining_end_j": end.battery_remaining_j,
         "reserve_j": end.reserve_j if end.reserve_j is not None else first.reserve_j,
         "margin_end_j": end.margin_j,
@@ -164,10 +166,8 @@ def table_rows(section: dict[str, Any]) -> list[tuple[str, str, str]]:
         return "-" if v is None else fmt.format(v)
 
     s = section
-    rows = [("energy budget", "", f"({s['source']}, {s['samples']} periods, policy {s['policy']})"),
-            ("  energy used", f(s["energy_used_j"], "{:.2f}"),
-             f"J (the report's; the budget's last period counted "
-             f"{f(s['controller_energy_used_j'], '{:.2f}')} J)")]
+    # The energy used is the report's one figure, above; not repeated here (issue 56, item 13).
+    rows = [("energy budget", "", f"({s['source']}, {s['samples']} periods, policy {s['policy']})")]
     p = s["prediction"]
     if p is not None:
         for name, pt in (("start", p["start"]), ("half way", p["half"])):

@@ -435,7 +435,10 @@ class StatusLine:
                 return []
             return ([f"used {energy_text(m.energy_used_j)}"] if m.energy_used_j is not None else []) + (
                 [f"to finish {energy_text(m.energy_to_go_j)}"] if m.energy_to_go_j is not None else [])
-        parts = [f"used {energy_text(b.energy_used_j)}", f"to finish {energy_text(b.energy_to_go_j)}",
+        # Energy used: the status's count, every period (the budget's is priced once a second, so
+        # it lags by up to a second's energy: the report's one figure is the status's, issue 56).
+        used = m.energy_used_j if m is not None and m.energy_used_j is not None else b.energy_used_j
+        parts = [f"used {energy_text(used)}", f"to finish {energy_text(b.energy_to_go_j)}",
                  f"to home {energy_text(b.energy_to_home_j)}"]
         if b.battery_remaining_j is not None:
             parts.append(f"battery {energy_text(b.battery_remaining_j)}"
