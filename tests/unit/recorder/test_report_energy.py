@@ -206,3 +206,22 @@ def test_the_report_gives_one_energy_used_and_the_controllers_count_as_its_check
     assert len(named) == 1 and named[0].startswith("energy used"), rows
     count = next(line for line in rows if line.strip().startswith("controller's count"))
     assert "189.00" in count
+
+
+def test_the_band_says_whether_it_held_the_actual_its_coverage_and_a_poor_prediction_is_flagged() -> None:
+    budgets = [plan(k, 1.2 if k < 45 else 1.0) for k in range(90)]  # band 0.8..1.2 x predicted
+    cc = budget.energy_section(budgets, metrics(), 0, controller="cc-empc").to_json()
+    assert cc["prediction"]["start"]["in_band"] is True  # actual = predicted / 1.2 >= 0.8 x
+    assert cc["prediction_warning"] is None
+    assert cc["band_coverage"]["derived"] == 1.0 and 0.0 < cc["band_coverage"]["unseen"] <= 1.0
+    rows = dict((a.strip(), (b, c)) for a, b, c in budget.table_rows(cc))
+    assert "band's measured coverage" in rows and "WARNING" not in rows
+    assert "inside" in rows["to finish, predicted at start"][1]
+    wide = [plan(k, 1.5) for k in range(90)]  # actual = predicted / 1.5, below 0.8 x predicted
+    nmpc = budget.energy_section(wide, metrics(), 0, controller="nmpc").to_json()
+    assert nmpc["prediction"]["start"]["in_band"] is False
+    assert nmpc["prediction_warning"] and "nmpc" in nmpc["prediction_warning"]
+    rows = dict((a.strip(), (b, c)) for a, b, c in budget.table_rows(nmpc))
+    assert "nmpc" in rows["WARNING"][1] and "OUTSIDE" in rows["to finish, predicted at start"][1]
+    unknown = budget.energy_section(budgets, metrics(), 0).to_json()  # controller not recorded
+    assert unknown["band_coverage"] is None and unknown["prediction_warning"] is None

@@ -201,7 +201,7 @@ def analyse(files: list[Path], *, scenario: str | None = None, mission_file: str
         met = metrics_of(doc, chosen.start_ns, r.end_ns) if doc is not None else None
         sections.append(budget.energy_section(
             budget.mission_budgets(budgets, r.mission_id, chosen.start_ns, r.end_ns), met,
-            chosen.start_ns, batteries))
+            chosen.start_ns, batteries, doc.controller if doc is not None else None))
         flown.append({"mission_id": r.mission_id, "start_ns": r.start_ns, "end_ns": r.end_ns,
                       "source": doc.source if doc is not None else None, "fit": chosen.how,
                       "mission": _mission_json(doc), "metrics": met,
@@ -225,7 +225,7 @@ def analyse(files: list[Path], *, scenario: str | None = None, mission_file: str
         live = {}
         # No status says which mission flew: the budgets of the last one that published any.
         mine = [b for b in budgets if b.mission_id == budgets[-1].mission_id]
-        energy = budget.energy_section(mine, met, met.start_ns, batteries)
+        energy = budget.energy_section(mine, met, met.start_ns, batteries, only.controller)
     solves = [m for m in dec.get(SOLVES) if isinstance(m, SolveRecord)]
     commands = sorted((m for m in dec.get(COMMANDS) if isinstance(m, ThrustCommand)),
                       key=lambda m: m.stamp_ns)
@@ -525,7 +525,7 @@ def energy_plot(plt: Any, res: dict[str, Any]) -> Any:
         high = [b.energy_to_go_high_j for b in pts]
         if pts and all(v is not None for v in (*low, *high)):
             ax.fill_between(t, low, high, color="tab:orange", alpha=0.25, lw=0,
-                            label="predicted band (disturbance +-1 sd)")
+                            label="predicted band (disturbance +-1 sd and measured error)")
         ax.plot(t, [b.energy_to_go_j for b in pts], color="tab:orange",
                 label=f"predicted ({keys.MISSION_ENERGY.suffix})")
         check = section.check
