@@ -74,8 +74,13 @@ def test_the_line_shows_the_budget_of_the_mission_flown() -> None:
     assert line.energy_parts("v1") == ["used 7.00 J", "to finish 8.00 J"]
     line.on_energy("v1", budget())
     text = line.vessel_text("v1", 3.0)
-    assert text.endswith("used 1.23 kJ | to finish 45.6 kJ | to home 3.21 kJ | "
+    # Energy used is the status's count (every period), not the budget's (priced once a second):
+    # the one figure the report gives too (issue 56 item 13).
+    assert text.endswith("used 7.00 J | to finish 45.6 kJ | to home 3.21 kJ | "
                          "battery 150 kJ (reserve 106 kJ)"), text
+    line.mission["v1"] = status().model_copy(update={"energy_used_j": None})
+    assert line.energy_parts("v1")[0] == "used 1.23 kJ"  # a status without one: the budget's
+    line.mission["v1"] = status()
     assert "\n" not in text and "RETURN" not in text
     # Another mission's budget (the previous one's last) is not shown against this one.
     line.mission["v1"] = status(mission_id="next")

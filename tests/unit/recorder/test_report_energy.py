@@ -157,3 +157,71 @@ def test_a_return_home_is_reported_on_both_flights(tmp_path: Path) -> None:
     assert back["energy_used_j"] == pytest.approx(POWER_W * 4.0)
     assert back["prediction"]["start"]["error_pct"] == pytest.approx(0.0, abs=1e-9)
     assert "'m': completed NO" in report.table(res) and "energy budget: return at 5.0 s" in report.table(res)
+
+
+# -- one energy used (issue 56 item 13) ---------------------------------------------------------
+
+
+def test_a_live_mission_started_before_the_first_battery_report_has_a_battery_start() -> None:
+    # The first budgets were priced before the autopilot's first report reached the controller.
+    budgets = [plan(k, battery_remaining_j=None) if k < 3 else plan(k) for k in range(90)]
+    s = budget.energy_section(budgets, metrics(), 0).to_json()
+    assert s["battery_remaining_start_j"] == pytest.approx(500.0 - POWER_W * 0.3)
+    start_row = dict((a.strip(), b) for a, b, _ in budget.table_rows(s))["battery remaining start / end"]
+    assert not start_row.startswith("-")
+
+
+def test_the_report_gives_one_energy_used_and_the_controllers_count_as_its_check(tmp_path: Path) -> None:
+    """Truth, statuses counting 21 J/s (a little late: 0.2 s past the end) and budgets priced once a
+    second: one 'energy used' (the report's integral), the controller's count at the same end beside
+    it, and neither the budget's stale count nor the status's last one as another energy used."""
+    w = RecordingWriter(tmp_path / "recording.mcap", attachments=runinfo.scenario_attachments("lake")[0],
+                        foxglove=False)
+    w.open(0)
+
+    def put(spec, msg, k: int) -> None:
+        w.write(spec.key("vessel1"), msg.encode(), "", k * DT_NS)
+
+    put(keys.MISSION_ACCEPTED, MissionAccepted.make(
+        stamp_ns=0, accepted_ns=0, mission_id="m", coa_radius_m=1.0, task_power_w=1.0,
+        controller="cc-empc", waypoints=[Waypoint(x_m=x, y_m=y) for x, y in WPS],
+        predict_disturbance=False), 0)
+    for k in range(96):
+        put(keys.SIM_TRUTH, truth(k), k)
+        done = k >= 92  # the controller's estimate enters the circle 0.2 s after the truth
+        put(keys.MISSION_STATUS, MissionStatus.make(
+            stamp_ns=k * DT_NS, state="complete" if done else "active", mission_id="m", active_leg=1,
+            waypoint_count=2, energy_used_j=POWER_W * 0.1 * min(k, 92)), k)
+        if k % 10 == 0:
+            put(keys.MISSION_ENERGY, plan(k), k)
+    w.close(96 * DT_NS)
+    res = report.analyse([tmp_path / "recording.mcap"])
+    used = res["energy_used"]
+    assert used["j"] == pytest.approx(res["metrics"]["energy_j"]) == pytest.approx(POWER_W * END_S)
+    assert used["controller_count_j"] == pytest.approx(POWER_W * END_S)  # at the report's end
+    assert used["controller_count_difference_pct"] == pytest.approx(0.0, abs=1e-6)
+    assert "controller_energy_used_j" not in res["energy_budget"]
+    rows = [line for line in report.table(res).splitlines()[3:]]
+    named = [line for line in rows if "energy used" in line.lower() or "energy_used" in line]
+    assert len(named) == 1 and named[0].startswith("energy used"), rows
+    count = next(line for line in rows if line.strip().startswith("controller's count"))
+    assert "189.00" in count
+
+
+def test_the_band_says_whether_it_held_the_actual_its_coverage_and_a_poor_prediction_is_flagged() -> None:
+    budgets = [plan(k, 1.2 if k < 45 else 1.0) for k in range(90)]  # band 0.8..1.2 x predicted
+    cc = budget.energy_section(budgets, metrics(), 0, controller="cc-empc").to_json()
+    assert cc["prediction"]["start"]["in_band"] is True  # actual = predicted / 1.2 >= 0.8 x
+    assert cc["prediction_warning"] is None
+    assert cc["band_coverage"]["derived"] == 1.0 and 0.0 < cc["band_coverage"]["unseen"] <= 1.0
+    rows = dict((a.strip(), (b, c)) for a, b, c in budget.table_rows(cc))
+    assert "band's measured coverage" in rows and "WARNING" not in rows
+    assert "inside" in rows["to finish, predicted at start"][1]
+    wide = [plan(k, 1.5) for k in range(90)]  # actual = predicted / 1.5, below 0.8 x predicted
+    nmpc = budget.energy_section(wide, metrics(), 0, controller="nmpc").to_json()
+    assert nmpc["prediction"]["start"]["in_band"] is False
+    assert nmpc["prediction_warning"] and "nmpc" in nmpc["prediction_warning"]
+    rows = dict((a.strip(), (b, c)) for a, b, c in budget.table_rows(nmpc))
+    assert "nmpc" in rows["WARNING"][1] and "OUTSIDE" in rows["to finish, predicted at start"][1]
+    unknown = budget.energy_section(budgets, metrics(), 0).to_json()  # controller not recorded
+    assert unknown["band_coverage"] is None and unknown["prediction_warning"] is None

@@ -201,7 +201,7 @@ class ControllerCore:
             self.config.predict_disturbance or (req is not None and req.predict_disturbance),
             spec.profile_n, spec.t_d_min_s, spec.t_d_max_s)
         return Budget(model, list(mission.waypoints_m), mission.home, mission.on_low_energy,
-                      mission.mission_id, returning)
+                      mission.mission_id, returning, controller=mission.controller)
 
     @property
     def predict_disturbance(self) -> bool:

@@ -26,7 +26,8 @@ THE PREDICTION
   one straight run, the same way (the return mission is exactly that path, ``return_request``).
 * **The band** is the prediction at the disturbance one standard deviation away along each
   principal axis of the estimate's tau_d covariance: the lowest and highest of those, and the
-  nominal.
+  nominal; the energy to finish's ends are then widened by the controller's own measured
+  prediction error (``seaway.vessel.energy_prediction``), so that it holds what finishing takes.
 
 THE DECISION
 
@@ -61,6 +62,7 @@ from seaway.contract.messages import (
     MissionAccepted,
     StateEstimate,
 )
+from seaway.vessel.energy_prediction import band_factors
 from seaway.vessel.model import VesselParams
 
 from seaway_controller import costs
@@ -521,6 +523,7 @@ class Budget:
     priced_ns: int | None = None  # the stamp of the last pricing [ns]
     priced_margin: tuple[int, float] | None = None  # (stamp [ns], margin [J]) at the last pricing
     fine: bool = False  # priced every period: the margin is near 0 (``FINE_PRICING_SECONDS``)
+    controller: str = ""  # whose measured error widens the band (``band_factors``; "": not widened)
 
     def due(self, now_ns: int, active: int) -> bool:
         """Whether to price the budget at the period ``now_ns`` with leg ``active`` active: the
@@ -554,6 +557,7 @@ class Budget:
         nominal, sigmas = disturbance_sigma_points(state)
         pred, *spread = predict_many(self.model, state, self.waypoints, active, self.home,
                                      leg_mpc_j, [nominal, *sigmas])
+        low_factor, high_factor = band_factors(self.controller)
         to_go = [p.to_go_j for p in spread] + [pred.to_go_j]
         to_home = [p.to_home_j for p in spread] + [pred.to_home_j]
         reserve = reserve_j or 0.0
@@ -576,7 +580,8 @@ class Budget:
             stamp_ns=state.stamp_ns, mission_id=self.mission_id, active_leg=active,
             returning=self.returning, energy_used_j=max(0.0, energy_used_j),
             leg_energy_to_go_j=_finite(leg_mpc_j), energy_to_go_j=_finite(pred.to_go_j),
-            energy_to_go_low_j=_finite(min(to_go)), energy_to_go_high_j=_finite(max(to_go)),
+            energy_to_go_low_j=_finite(min(to_go) * low_factor),
+            energy_to_go_high_j=_finite(max(to_go) * high_factor),
             energy_to_home_j=_finite(pred.to_home_j), energy_to_home_low_j=_finite(min(to_home)),
             energy_to_home_high_j=_finite(max(to_home)), home_x_m=self.home[0],
             home_y_m=self.home[1], battery_remaining_j=battery_remaining_j,

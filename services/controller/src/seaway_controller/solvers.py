@@ -17,7 +17,9 @@ Success is decided from this call's own results, never from a stale status (trap
 function's return flag, plus the primal and dual infeasibilities of the returned point as the
 solver's own convergence test computed them. CasADi 3.8's generated ``sqpmethod`` returns 0 at its
 iteration limit, so the flag alone is not enough; the C is patched (checked, anchored edits) to export
-the iteration count and those two residuals. The cache key covers the patch's code (``_patch_digest``).
+the iteration count and those two residuals. eigen-clip's eigenvalue iteration is patched too, to step
+on the right block (``cvx_patch``: CasADi's could exhaust ``max_iter_eig`` on close eigenvalues). The
+cache key covers the patches' code (``_patch_digest``).
 
 Reference: ``nlpsol('ipopt')`` with default options, the configuration most examples use.
 """
@@ -40,6 +42,7 @@ import casadi as ca
 import numpy as np
 from seaway.vessel.native import CompileInterruptedError, cache_dir, compile_shared
 
+from seaway_controller import cvx_patch
 from seaway_controller.ocp import NP, Ocp, spec_digest
 
 log = logging.getLogger("seaway_controller.solvers")
@@ -205,6 +208,7 @@ def _patch_digest() -> str:
     """A hash of the code that edits the generated C (it is part of what gets compiled), and of
     nothing else in this module, so that editing the rest does not discard every cached solver."""
     parts = [inspect.getsource(f) for f in (patch_generated_source, _tag_failure, _patch_kkt_reuse)]
+    parts += [inspect.getsource(cvx_patch)]
     parts += [_STATS_DECL, _STATS_SET, _STATS_EXPORT, _SQP_ANCHOR, _FAIL_RETURN.pattern,
               _FACTORIZE_BODY, _RESET_HEAD, _SINGULAR_HEAD, _KKT_CACHE_DECL, _KKT_CACHED_FACTORIZE,
               _KKT_EXPORT, repr((ERROR_EVALUATION, ERROR_CONVEXIFY))]
@@ -239,7 +243,7 @@ def build_shared_object(ocp: Ocp, options: dict, directory: Path | None = None,
     solver = ca.nlpsol(SYMBOL, "sqpmethod", ocp.nlp, options)
     gen = ca.CodeGenerator("solver.c", {"with_header": False})
     gen.add(solver)
-    src = patch_generated_source(gen.dump())
+    src = cvx_patch.patch_cvx_block_choice(patch_generated_source(gen.dump()))
     if kkt_reuse:
         src = _patch_kkt_reuse(src, ocp.nw + ocp.ng)
     compile_shared(src, target, CC_FLAGS, f"the {ocp.spec.kind} solver")

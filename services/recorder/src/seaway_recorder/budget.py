@@ -20,6 +20,7 @@ from typing import Any
 from seaway.contract import keys
 from seaway.contract.messages import BatteryState, EnergyBudget
 from seaway.contract.units import NS_PER_S
+from seaway.vessel.energy_prediction import DERIVED_ON, MEASURED, UNSEEN_ON, known_poor
 from seaway.vessel.metrics import MissionMetrics, PredictionCheck, PredictionPoint, energy_prediction_check
 
 NOT_RECORDED = "no energy budget recorded"
@@ -62,9 +63,11 @@ def _point(pt: PredictionPoint | None, stamp_ns: int | None, band: dict[int, Ene
     if pt is None or stamp_ns is None:
         return None
     b = band[stamp_ns]
+    low, high = b.energy_to_go_low_j, b.energy_to_go_high_j
+    inside = None if low is None and high is None else (
+        (low is None or low <= pt.actual_j) and (high is None or pt.actual_j <= high))
     return {"t_s": _t(stamp_ns, t0_ns), "predicted_j": pt.predicted_j, "actual_j": pt.actual_j,
-            "error_pct": _pct(pt.error_frac), "low_j": b.energy_to_go_low_j,
-            "high_j": b.energy_to_go_high_j}
+            "error_pct": _pct(pt.error_frac), "low_j": low, "high_j": high, "in_band": inside}
 
 
 def _battery_at(reports: Sequence[BatteryState], stamp_ns: int, first_after: bool) -> float | None:
@@ -78,10 +81,13 @@ def _battery_at(reports: Sequence[BatteryState], stamp_ns: int, first_after: boo
 
 
 def energy_section(budgets: Sequence[EnergyBudget], metrics: MissionMetrics | None, start_ns: int,
-                   batteries: Sequence[BatteryState] = ()) -> EnergySection:
+                   batteries: Sequence[BatteryState] = (), controller: str | None = None
+                   ) -> EnergySection:
     """The section of one mission from its budgets (``mission_budgets``), the report's metrics of
     it (None: its waypoints are unknown, so no energy integral) and the battery's own reports
-    (``vehicle/battery``). ``start_ns``: the mission's start when there are no metrics."""
+    (``vehicle/battery``). ``start_ns``: the mission's start when there are no metrics.
+    ``controller``: the one that flew it, when known: the band's measured coverage and a warning
+    where its prediction is known to be poor (``seaway.vessel.energy_prediction``)."""
     if not budgets:
         return EnergySection({"recorded": False, "note": NOT_RECORDED})
     t0 = metrics.start_ns if metrics is not None else start_ns
@@ -94,7 +100,6 @@ def energy_section(budgets: Sequence[EnergyBudget], metrics: MissionMetrics | No
         "source": keys.MISSION_ENERGY.suffix,
         "samples": len(budgets),
         "energy_used_j": metrics.energy_j if metrics is not None else None,
-        "controller_energy_used_j": end.energy_used_j,  # at its last period before the end
         "policy": last.policy,
         "decision": last.decision,
         "decided_ns": last.decided_ns,
@@ -105,7 +110,10 @@ def energy_section(budgets: Sequence[EnergyBudget], metrics: MissionMetrics | No
         "energy_to_home_end_j": end.energy_to_home_j,
         "energy_to_home_end_low_j": end.energy_to_home_low_j,
         "energy_to_home_end_high_j": end.energy_to_home_high_j,
-        "battery_remaining_start_j": first.battery_remaining_j,
+        # The first period that knew the battery: a live mission may start before the autopilot's
+        # first report reached the controller (its first budgets have no battery figure).
+        "battery_remaining_start_j": next((b.battery_remaining_j for b in budgets
+                                           if b.battery_remaining_j is not None), None),
         "battery_remaining_end_j": end.battery_remaining_j,
         "reserve_j": end.reserve_j if end.reserve_j is not None else first.reserve_j,
         "margin_end_j": end.margin_j,
@@ -115,6 +123,8 @@ def energy_section(budgets: Sequence[EnergyBudget], metrics: MissionMetrics | No
         "battery_reported": None,
         "prediction": None,
         "prediction_note": "",
+        "band_coverage": _coverage(controller),
+        "prediction_warning": known_poor(controller) if controller else None,
     }
     if batteries:
         out["battery_reported"] = {"source": keys.VEHICLE_BATTERY.suffix,
@@ -155,6 +165,15 @@ def energy_section(budgets: Sequence[EnergyBudget], metrics: MissionMetrics | No
     return section
 
 
+def _coverage(controller: str | None) -> dict[str, Any] | None:
+    """The band's measured coverage for ``controller`` (``seaway.vessel.energy_prediction``)."""
+    e = MEASURED.get(controller or "")
+    if e is None:
+        return None
+    return {"derived": e.coverage, "derived_on": DERIVED_ON, "unseen": e.coverage_unseen,
+            "unseen_on": UNSEEN_ON}
+
+
 def table_rows(section: dict[str, Any]) -> list[tuple[str, str, str]]:
     """The section as the report's table rows (name, value, unit and note)."""
     if not section.get("recorded"):
@@ -164,22 +183,31 @@ def table_rows(section: dict[str, Any]) -> list[tuple[str, str, str]]:
         return "-" if v is None else fmt.format(v)
 
     s = section
-    rows = [("energy budget", "", f"({s['source']}, {s['samples']} periods, policy {s['policy']})"),
-            ("  energy used", f(s["energy_used_j"], "{:.2f}"),
-             f"J (the report's; the budget's last period counted "
-             f"{f(s['controller_energy_used_j'], '{:.2f}')} J)")]
+    # The energy used is the report's one figure, above; not repeated here (issue 56, item 13).
+    rows = [("energy budget", "", f"({s['source']}, {s['samples']} periods, policy {s['policy']})")]
+    if s.get("prediction_warning"):
+        rows.append(("  WARNING", "", s["prediction_warning"]))
     p = s["prediction"]
     if p is not None:
         for name, pt in (("start", p["start"]), ("half way", p["half"])):
             if pt is None:
                 rows.append((f"  to finish, predicted at {name}", "-", ""))
                 continue
-            band = (f", band {f(pt['low_j'])}-{f(pt['high_j'])} J" if pt["low_j"] is not None else "")
+            band = (f", band {f(pt['low_j'])}-{f(pt['high_j'])} J"
+                    + ("" if pt.get("in_band") is None else
+                       " (actual inside)" if pt["in_band"] else " (actual OUTSIDE)")
+                    if pt["low_j"] is not None or pt["high_j"] is not None else "")
             rows.append((f"  to finish, predicted at {name}", f(pt["predicted_j"]),
                          f"J at {pt['t_s']:.1f} s; actual {pt['actual_j']:.1f} J, error "
                          f"{f(pt['error_pct'], '{:+.1f}')} %{band}"))
         rows.append(("  worst |error|, last half", f(p["last_half_max_abs_error_pct"]),
                      "% (until a tenth of the mission is left)"))
+        cov = s.get("band_coverage")
+        if cov is not None:
+            unseen = "-" if cov["unseen"] is None else f"{100 * cov['unseen']:.0f}"
+            rows.append(("  band's measured coverage", f"{100 * cov['derived']:.0f} / {unseen}",
+                         f"% of predictions held: {cov['derived_on']} (derived there) / "
+                         f"{cov['unseen_on']} (unseen)"))
     else:
         rows.append(("  to finish, predicted at start", f(s["energy_to_go_start_j"]),
                      f"J ({s['prediction_note']})"))

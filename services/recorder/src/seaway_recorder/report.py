@@ -201,7 +201,7 @@ def analyse(files: list[Path], *, scenario: str | None = None, mission_file: str
         met = metrics_of(doc, chosen.start_ns, r.end_ns) if doc is not None else None
         sections.append(budget.energy_section(
             budget.mission_budgets(budgets, r.mission_id, chosen.start_ns, r.end_ns), met,
-            chosen.start_ns, batteries))
+            chosen.start_ns, batteries, doc.controller if doc is not None else None))
         flown.append({"mission_id": r.mission_id, "start_ns": r.start_ns, "end_ns": r.end_ns,
                       "source": doc.source if doc is not None else None, "fit": chosen.how,
                       "mission": _mission_json(doc), "metrics": met,
@@ -225,7 +225,7 @@ def analyse(files: list[Path], *, scenario: str | None = None, mission_file: str
         live = {}
         # No status says which mission flew: the budgets of the last one that published any.
         mine = [b for b in budgets if b.mission_id == budgets[-1].mission_id]
-        energy = budget.energy_section(mine, met, met.start_ns, batteries)
+        energy = budget.energy_section(mine, met, met.start_ns, batteries, only.controller)
     solves = [m for m in dec.get(SOLVES) if isinstance(m, SolveRecord)]
     commands = sorted((m for m in dec.get(COMMANDS) if isinstance(m, ThrustCommand)),
                       key=lambda m: m.stamp_ns)
@@ -241,6 +241,7 @@ def analyse(files: list[Path], *, scenario: str | None = None, mission_file: str
         "episodes": {"count": len(bounds), "reported": episode,
                      "time_went_back": len(bounds) - 1},
         "metrics": met.to_json() if met is not None else None,
+        "energy_used": energy_used(met, statuses, flown[-1]["mission_id"] if flown else None),
         "completion": completion(met, live, truth if state_source == TRUTH else [], nav),
         "energy_budget": energy.to_json(),
         "solve": mx.solve_stats(solves).to_json(),
@@ -256,6 +257,28 @@ def analyse(files: list[Path], *, scenario: str | None = None, mission_file: str
               "start_ns": met.start_ns if met is not None else None, "energy": energy},
     }
     return out
+
+
+ENERGY_USED_DEFINITION = ("alpha (T1^2 + T2^2) + T^w integrated from the mission's start to its "
+                          "completion (the paper's energy)")
+"""What "energy used" means in the report, and in the status line and the ground station, which show
+the controller's live count of the same integral (``MissionStatus.energy_used_j``)."""
+
+
+def energy_used(met: Any, statuses: Sequence[MissionStatus], mission_id: str | None
+                ) -> dict[str, Any] | None:
+    """The mission's one energy used [J]: the report's integral (``met.energy_j``), and beside it the
+    controller's count of the same integral at the same end (its last status of the mission at or
+    before ``met.end_ns``), as a check: the status line showed that count. None without metrics."""
+    if met is None:
+        return None
+    mine = [s for s in statuses if s.energy_used_j is not None and s.stamp_ns <= met.end_ns
+            and (mission_id is None or s.mission_id == mission_id)]
+    count = mine[-1].energy_used_j if mine else None
+    diff = (100.0 * (count - met.energy_j) / met.energy_j
+            if count is not None and met.energy_j else None)
+    return {"j": met.energy_j, "source": met.energy_source, "definition": ENERGY_USED_DEFINITION,
+            "controller_count_j": count, "controller_count_difference_pct": diff}
 
 
 def completion(met: Any, live: dict[str, Any], truth: Sequence[Any],
@@ -324,6 +347,15 @@ def _completed_rows(m: dict[str, Any], c: dict[str, Any]) -> list[tuple[str, str
     return rows
 
 
+def _controller_count_rows(used: dict[str, Any] | None) -> list[tuple[str, str, str]]:
+    """The controller's count of the energy used at the same end, as a check of the figure above."""
+    if used is None or used.get("controller_count_j") is None:
+        return []
+    return [("  controller's count", _f(used["controller_count_j"], "{:.2f}"),
+             f"J ({STATUS} at the same end, {_f(used['controller_count_difference_pct'], '{:+.2f}')} %;"
+             " the status line's figure)")]
+
+
 def _f(v: Any, fmt: str = "{:.3f}") -> str:
     return "-" if v is None else fmt.format(v)
 
@@ -335,11 +367,12 @@ def table(res: dict[str, Any]) -> str:
         rows = [
             *_completed_rows(m, res.get("completion") or {}),
             ("travel time", _f(m["travel_time_s"], "{:.2f}"), "s"),
-            ("energy", _f(m["energy_j"], "{:.2f}"), f"J ({m['energy_source']})"),
+            ("energy used", _f(m["energy_j"], "{:.2f}"), f"J ({m['energy_source']})"),
             ("  propulsion", _f(m["propulsion_energy_j"], "{:.2f}"), "J"),
             ("  task (T^w * t)", _f(m["task_energy_j"], "{:.2f}"), "J"),
             ("  check", _f(m["energy_check_j"], "{:.2f}"),
              f"J ({m['energy_check_source'] or 'none'})"),
+            *_controller_count_rows(res.get("energy_used")),
             ("avg cross-track error", _f(m["avg_cross_track_m"], "{:.4f}"),
              f"m ({m['cross_track_samples']} samples outside the circles)"),
             ("max cross-track error", _f(m["max_cross_track_m"], "{:.4f}"), "m"),
@@ -357,9 +390,9 @@ def table(res: dict[str, Any]) -> str:
          f"{_f(s['solve_time_p95_ms'], '{:.2f}')} / {_f(s['solve_time_max_ms'], '{:.2f}')}", "ms"),
         ("fallbacks", str(s["fallbacks"]), f"by level {s['fallback_levels'] or '{}'}"),
     ]
-    if live.get("energy_used_j") is not None:
-        rows.append(("controller's energy_used", _f(live["energy_used_j"], "{:.2f}"),
-                     "J (MissionStatus)"))
+    if m is None and live.get("energy_used_j") is not None:  # no integral: the controller's count
+        rows.append(("energy used (controller's count)", _f(live["energy_used_j"], "{:.2f}"),
+                     f"J ({STATUS})"))
     w = max(len(r[0]) for r in rows)
     v = max(len(r[1]) for r in rows)
     head = f"Run report: {', '.join(res['files'])}\nvessel {res['vessel']}"
@@ -492,7 +525,7 @@ def energy_plot(plt: Any, res: dict[str, Any]) -> Any:
         high = [b.energy_to_go_high_j for b in pts]
         if pts and all(v is not None for v in (*low, *high)):
             ax.fill_between(t, low, high, color="tab:orange", alpha=0.25, lw=0,
-                            label="predicted band (disturbance +-1 sd)")
+                            label="predicted band (disturbance +-1 sd and measured error)")
         ax.plot(t, [b.energy_to_go_j for b in pts], color="tab:orange",
                 label=f"predicted ({keys.MISSION_ENERGY.suffix})")
         check = section.check

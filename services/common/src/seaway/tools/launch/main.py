@@ -65,6 +65,7 @@ from seaway.contract.messages import (
     MessageError,
     MissionRequest,
     ModeRequest,
+    Reply,
 )
 from seaway.runtime import cpus, refusals
 from seaway.runtime import run as runs
@@ -84,6 +85,7 @@ from seaway.tools.launch import address, authority, recording_source
 from seaway.tools.launch.profile import Instance, Profile, instances, load_profile, substitute
 from seaway.tools.launch.status_line import StatusLine
 from seaway.tools.launch.supervisor import Supervised, Supervisor, default_echo
+from seaway.vessel.energy_prediction import known_poor
 
 
 def parser() -> argparse.ArgumentParser:
@@ -583,12 +585,8 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
             if mission is None or stop.is_set():
                 break
             reply = bus.request(keys.MISSION_SET, mission, timeout_s=10.0, vessel=v)
-            # An acceptance can carry news too (its solver is still being made, say).
-            said = ("accepted" + ("" if reply.reason in ("", "mission started")
-                                  else f" ({reply.reason})")
-                    if reply.accepted else "REFUSED: " + reply.reason)
-            print(f"{label[v]}mission {mission.mission_id}: {said} ({_describe_mission(mission)})",
-                  flush=True)
+            for line in mission_reply_lines(mission, reply):
+                print(f"{label[v]}{line}", flush=True)
         t_run = time.monotonic()
         while not stop.wait(0.2):
             sup.poll()
@@ -650,6 +648,19 @@ def _install_stop_signals(stop: threading.Event, sup: Supervisor) -> None:
             sup.hurry()  # no printing here: the main thread may be inside a write to the terminal
 
     on_stop_signals(act)
+
+
+def mission_reply_lines(mission: MissionRequest, reply: Reply) -> list[str]:
+    """What the launcher prints of the controller's reply to the mission it sent; a warning below
+    an acceptance when the controller's energy prediction is known to be poor, so that the 'to
+    finish' and 'to home' on the status line are not read as more than they are."""
+    # An acceptance can carry news too (its solver is still being made, say).
+    said = ("accepted" + ("" if reply.reason in ("", "mission started") else f" ({reply.reason})")
+            if reply.accepted else "REFUSED: " + reply.reason)
+    lines = [f"mission {mission.mission_id}: {said} ({_describe_mission(mission)})"]
+    if reply.accepted and (poor := known_poor(mission.controller)):
+        lines.append(f"WARNING: {poor}")
+    return lines
 
 
 def _describe_mission(mission: MissionRequest) -> str:

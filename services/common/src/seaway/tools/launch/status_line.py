@@ -226,8 +226,11 @@ class StatusLine:
             return ([_used(m.energy_used_j)] if m.energy_used_j is not None else []) + (
                 [_to_finish(m.energy_to_go_j)] if m.energy_to_go_j is not None else []
             )
+        # Energy used: the status's count, every period (the budget's is priced once a second, so
+        # it lags by up to a second's energy; the report's one figure is the status's).
+        used = m.energy_used_j if m is not None and m.energy_used_j is not None else b.energy_used_j
         out = [
-            _used(b.energy_used_j),
+            _used(used),
             _to_finish(b.energy_to_go_j),
             Field(
                 RANK_TO_HOME,
