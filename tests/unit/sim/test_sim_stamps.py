@@ -62,3 +62,25 @@ def test_the_lockstep_sim_applies_vehicle_ios_output_stage_to_the_demand() -> No
                    period)
     truth = app.core.truth()
     assert (truth.thrust_port_n, truth.thrust_starboard_n) == (10.0, 0.0)
+
+
+def test_the_lockstep_sim_refuses_an_absurd_demand_as_vehicle_io_does(caplog) -> None:
+    """Issue 56, item 5: 1e9 N is not saturated to full power in vehicle I/O's place; the period
+    gets neutral, and the refusal is counted and logged. Twice the bound is still saturated."""
+    sc = load_scenario("lake")
+    vessel = load_vessel(sc.plant_vessel_file)
+    app = SimApp(MemoryHub().bus("vessel1"), SimCore(sc, vessel), lockstep=True)
+    ls = Lockstep(app, PERIOD_NS / 1e9, threading.Event())
+    period = ls.period
+    with caplog.at_level("WARNING", logger="seaway_sim.lockstep"):
+        assert ls.step(ThrustCommand(stamp_ns=period.stamp_ns, thrust_port_n=1e9,
+                                     thrust_starboard_n=1e9), period)
+    truth = app.core.truth()
+    assert (truth.thrust_port_n, truth.thrust_starboard_n) == (0.0, 0.0)
+    assert ls.stats.refused_commands == 1
+    assert any("absurd" in r.getMessage() for r in caplog.records)
+    period = ls.period
+    assert ls.step(ThrustCommand(stamp_ns=period.stamp_ns, thrust_port_n=2 * vessel.thrust_max_n,
+                                 thrust_starboard_n=0.0), period)
+    assert app.core.truth().thrust_port_n == vessel.thrust_max_n
+    assert ls.stats.refused_commands == 1

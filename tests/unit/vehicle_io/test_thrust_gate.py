@@ -6,8 +6,8 @@ import logging
 
 import pytest
 from seaway.contract.messages import ThrustCommand, VehicleStatus
+from seaway.vessel.thrusters import ABSURD_THRUST_FACTOR, absurd_thrust
 from seaway_vehicle_io.core import SendManualControl
-from seaway_vehicle_io.thrust import ABSURD_THRUST_FACTOR, absurd_thrust
 
 from tests.unit.vehicle_io.test_core import LIM, MS, PX4_NEUTRAL, WALL0, S, at, connected, of, published
 

@@ -39,12 +39,14 @@ from seaway.runtime.lockstep import (
     Member,
     Period,
 )
-from seaway.vessel.thrusters import output_pair
+from seaway.runtime.ratelog import RateLimitedLog
+from seaway.vessel.thrusters import absurd_thrust, output_pair
 
 from seaway_sim.app import SimApp
 from seaway_sim.battery import report_due_at
 
 log = logging.getLogger("seaway_sim.lockstep")
+_refusals = RateLimitedLog(log, every_s=60.0)
 
 EPISODE_WAIT_S = 5.0
 """How long a scenario load waits at most, half for the old episode's last period to be finished
@@ -63,6 +65,8 @@ class LockstepStats:
     stale_commands: int = 0
     repeats: int = 0
     holds: int = 0
+    refused_commands: int = 0
+    """Absurd demands (``thrusters.absurd_thrust``) replaced by neutral, as vehicle I/O refuses them."""
 
 
 class Lockstep:
@@ -321,9 +325,16 @@ class Lockstep:
         with self.app.lock:
             if self.period != period:
                 return False
-            # The demand goes through vehicle I/O's output stage, which the sim stands in for here.
-            self.app.core.advance(output_pair(cmd.thrust_port_n, cmd.thrust_starboard_n, self.app.model),
-                                  self.period_ns)
+            # The demand goes through vehicle I/O's output stage, which the sim stands in for here,
+            # and so through its refusal of an absurd demand: neutral for the period, never full
+            # power by saturation.
+            demand = (cmd.thrust_port_n, cmd.thrust_starboard_n)
+            if (why := absurd_thrust(*demand, self.app.model)) is not None:
+                self.stats.refused_commands += 1
+                _refusals.log("absurd", logging.WARNING, "refused an absurd thrust command (%s); "
+                              "neutral applied; %d refused so far", why, self.stats.refused_commands)
+                demand = (0.0, 0.0)
+            self.app.core.advance(output_pair(*demand, self.app.model), self.period_ns)
             self._applied = cmd.stamp_ns
         if cmd.stamp_ns != period.stamp_ns:
             self.stats.stale_commands += 1

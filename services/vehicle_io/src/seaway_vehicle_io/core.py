@@ -35,6 +35,7 @@ from seaway.runtime.ratelog import RateLimitedLog
 from seaway.runtime.stamps import STAMP_LOG_EVERY_S, StampBounds, StampGate
 from seaway.vessel.battery import BatteryParams
 from seaway.vessel.mavlink_signing import ACCEPTED, SignatureVerifier, signing_timestamp
+from seaway.vessel.thrusters import absurd_thrust
 
 from seaway_vehicle_io import profile as profiles
 from seaway_vehicle_io import rates as telemetry_rates
@@ -76,7 +77,7 @@ from seaway_vehicle_io.mav import mavlink
 from seaway_vehicle_io.profile import FailsafeAssessment, ManualControlAxes, Profile
 from seaway_vehicle_io.rates import MAV_CMD_SET_MESSAGE_INTERVAL, RateCheck
 from seaway_vehicle_io.statustext import StatusTexts, matching
-from seaway_vehicle_io.thrust import ThrusterLimits, absurd_thrust, normalise_pair
+from seaway_vehicle_io.thrust import ThrusterLimits, normalise_pair
 from seaway_vehicle_io.timesync import BootTimeOffset
 from seaway_vehicle_io.watchdog import FAILSAFE_THRUST_STALE, ThrustWatchdog
 
@@ -339,7 +340,7 @@ class VehicleIoCore:
     def thrust_refused(self, cmd: ThrustCommand, now: Now) -> bool:
         """Whether ``cmd`` is refused (counted and logged, at most one line per reason a minute):
 
-        * an absurd thrust (``thrust.absurd_thrust``: beyond twice the vessel's bounds), which
+        * an absurd thrust (``thrusters.absurd_thrust``: beyond twice the vessel's bounds), which
           saturation would otherwise turn into full power without a word;
         * a stamp over ``MAX_AHEAD_LIVE_S`` ahead of our wall clock or older than
           ``thrust_max_age_s`` (``seaway.runtime.stamps``). A command that stops both thrusters is

@@ -74,24 +74,3 @@ def normalise_pair(port_n: float, starboard_n: float, limits: ThrusterLimits,
                    guard: float = 0.0) -> tuple[float, float]:
     """(T1 port, T2 starboard) [N] -> (L, R) normalised."""
     return normalise(port_n, limits, guard), normalise(starboard_n, limits, guard)
-
-
-ABSURD_THRUST_FACTOR = 2.0
-"""A demand beyond this multiple of its thruster's bound (``thrust_max_n`` ahead, ``reverse_max_n``
-astern) is not a controller asking for full power: it is corrupt or forged, and is refused rather
-than saturated (a controller's own plan never leaves the bounds; twice them leaves room for any
-rounding or a fallback's overshoot)."""
-
-
-def absurd_thrust(port_n: float, starboard_n: float, limits: ThrusterLimits) -> str | None:
-    """Why the demand (T1 port, T2 starboard) [N] is absurd for these thrusters, or None.
-
-    Non-finite values never get here: the bus refuses them (``seaway.contract.messages``)."""
-    ahead, astern = ABSURD_THRUST_FACTOR * limits.thrust_max_n, ABSURD_THRUST_FACTOR * limits.reverse_max_n
-    for name, t in (("thrust_port_n", port_n), ("thrust_starboard_n", starboard_n)):
-        if not -astern <= t <= ahead:
-            return (
-                f"{name} = {t:g} N is outside [{-astern:g}, {ahead:g}] N ({ABSURD_THRUST_FACTOR:g} "
-                f"x the vessel's thrust bounds -{limits.reverse_max_n:g} .. {limits.thrust_max_n:g} N)"
-            )
-    return None

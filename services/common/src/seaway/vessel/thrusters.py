@@ -12,6 +12,9 @@ the autopilot; the lockstep sim and the in-process loop, which take the controll
 straight, apply it in vehicle I/O's place; the estimator predicts with it. So a demand produces the
 same thrust on a real boat, in a real-time simulation and in lockstep.
 
+A demand far outside the bounds (``absurd_thrust``) is not saturated but refused, by vehicle I/O and
+by the lockstep sim alike: it is corrupt or forged, not a controller asking for full power.
+
 T1 is the port thruster, T2 starboard; positive is ahead.
 """
 
@@ -71,3 +74,24 @@ def output_stage(thrust_n: float, limits: ThrustLimits) -> float:
 def output_pair(port_n: float, starboard_n: float, limits: ThrustLimits) -> tuple[float, float]:
     """``output_stage`` of (T1 port, T2 starboard) [N]."""
     return output_stage(port_n, limits), output_stage(starboard_n, limits)
+
+
+ABSURD_THRUST_FACTOR = 2.0
+"""A demand beyond this multiple of its thruster's bound (``thrust_max_n`` ahead, ``reverse_max_n``
+astern) is not a controller asking for full power: it is corrupt or forged, and is refused rather
+than saturated (a controller's own plan never leaves the bounds; twice them leaves room for any
+rounding or a fallback's overshoot)."""
+
+
+def absurd_thrust(port_n: float, starboard_n: float, limits: ThrustBounds) -> str | None:
+    """Why the demand (T1 port, T2 starboard) [N] is absurd for these thrusters, or None.
+
+    Non-finite values never get here: the bus refuses them (``seaway.contract.messages``)."""
+    ahead, astern = ABSURD_THRUST_FACTOR * limits.thrust_max_n, ABSURD_THRUST_FACTOR * limits.reverse_max_n
+    for name, t in (("thrust_port_n", port_n), ("thrust_starboard_n", starboard_n)):
+        if not -astern <= t <= ahead:
+            return (
+                f"{name} = {t:g} N is outside [{-astern:g}, {ahead:g}] N ({ABSURD_THRUST_FACTOR:g} "
+                f"x the vessel's thrust bounds -{limits.reverse_max_n:g} .. {limits.thrust_max_n:g} N)"
+            )
+    return None
