@@ -137,6 +137,10 @@ class ControllerService:
         self._writer = (atomic.LatestWriter(state_file, self._checkpoint_failed, "checkpoint")
                         if state_file is not None and not lockstep else None)
         self.lock = threading.Lock()
+        # Before any subscription: a callback can run on the bus's thread the moment its
+        # subscription exists, before this constructor returns, and uses these.
+        self.stamps = StampGate(NAME, log, StampBounds.live())  # real time: states not ahead of now
+        self.ratelog = RateLimitedLog(log)  # a step failing every period: a traceback now and then
         bus = ctx.bus
         self.member: Member | None = None
         self._states: dict[int, StateEstimate] = {}  # lockstep: the states of recent periods by stamp
@@ -166,8 +170,6 @@ class ControllerService:
         self.pub_energy = bus.publisher(keys.MISSION_ENERGY)
         bus.queryable(keys.MISSION_SET, self.on_mission)
         bus.queryable(keys.MISSION_COMMAND, self.on_command)
-        self.stamps = StampGate(NAME, log, StampBounds.live())  # real time: states not ahead of now
-        self.ratelog = RateLimitedLog(log)  # a step failing every period: a traceback now and then
         bus.subscribe(keys.VEHICLE_STATUS, callback=self.on_vehicle_status)  # pauses a mission
 
     def on_mission(self, req: MissionRequest) -> Reply:
