@@ -44,6 +44,7 @@ import numpy as np
 from seaway.contract.messages import (
     BatteryState,
     EnergyBudget,
+    EnergyDecision,
     MissionAccepted,
     MissionCommand,
     MissionRequest,
@@ -102,6 +103,17 @@ class ControllerConfig:
 
 
 SolverFactory = Callable[[Ocp], NlpSolver]
+
+
+@dataclass(frozen=True)
+class BudgetDecision:
+    """What the energy budget decided for the current mission (kept across a restart)."""
+
+    returning: bool = False
+    """The mission is the budget's return home."""
+    decision: EnergyDecision = "none"
+    decided_ns: int | None = None
+    reason: str = ""
 
 
 def _finite_or_none(v: float | None) -> float | None:
@@ -217,12 +229,25 @@ class ControllerCore:
             return None
         return self.mission_request, mm.active, mm.state, self.energy_used_j
 
+    def decision(self) -> BudgetDecision:
+        """The current mission's energy budget decision, as a checkpoint keeps it."""
+        b = self.budget
+        if b is None:
+            return BudgetDecision()
+        return BudgetDecision(b.returning, b.decision, b.decided_ns, b.reason)
+
     def restore(self, now_ns: int, req: MissionRequest, active_leg: int, state: str,
-                energy_used_j: float) -> Reply:
-        """Resume a checkpointed mission at ``active_leg`` (after a restart), or refuse."""
-        reply = self.handle_mission(now_ns, req)
+                energy_used_j: float, decision: BudgetDecision | None = None) -> Reply:
+        """Resume a checkpointed mission at ``active_leg`` (after a restart), or refuse; with
+        the energy budget's ``decision`` as it was (a return home goes on as one: its own policy
+        is only 'warn', and a fresh budget would have said 'LOW ENERGY (policy: warn)')."""
+        decision = decision or BudgetDecision()
+        reply = self.handle_mission(now_ns, req, returning=decision.returning)
         if not reply.accepted:
             return reply
+        if self.budget is not None:
+            b = self.budget
+            b.decision, b.decided_ns, b.reason = decision.decision, decision.decided_ns, decision.reason
         mm = self.missions
         assert mm.mission is not None
         if not 1 <= active_leg < len(mm.mission.waypoints_m):

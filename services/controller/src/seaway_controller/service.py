@@ -36,9 +36,10 @@ while IPOPT itself is set up, on a thread too: ``solvers.StagedSolver``) and loc
 ``--state-file PATH`` keeps a mission checkpoint (``checkpoint.py``): written whenever the mission's
 progress changes and once a second of the service's own clock (simulated time in lockstep, where a
 wall second can be a hundred periods), read at start, so that a controller restarted mid-mission (the
-launcher restarts a crashed one) resumes the same mission at the same leg, with its energy count,
-instead of idling. A checkpoint saved before the run started (an earlier launch into the same run
-folder, ``seaway launch --run-dir``) is not resumed. Real time writes it durably (fsync) on a thread of
+launcher restarts a crashed one) resumes the same mission at the same leg, with its energy count
+and its energy budget's decision (a return home goes on as one), instead of idling. A checkpoint
+saved before the run started (an earlier launch into the same run folder, ``seaway launch
+--run-dir``) is not resumed. Real time writes it durably (fsync) on a thread of
 its own (``seaway.runtime.atomic.LatestWriter``: the control loop never waits for the disk), and the
 last one before the process ends; lockstep writes it in the answer's turn, not durably.
 """
@@ -57,6 +58,7 @@ from typing import Any
 from seaway.contract import keys
 from seaway.contract.config import ConfigError
 from seaway.contract.messages import (
+    MAX_REASON_CHARS,
     BatteryState,
     MissionCommand,
     MissionRequest,
@@ -80,7 +82,7 @@ from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.model import load_vessel
 
 from seaway_controller import checkpoint
-from seaway_controller.core import ControllerConfig, ControllerCore
+from seaway_controller.core import BudgetDecision, ControllerConfig, ControllerCore
 from seaway_controller.mission import MissionLimits
 from seaway_controller.solvers import SOLVER_KINDS, SolverBuilds, StagedSolver
 
@@ -129,7 +131,7 @@ class ControllerService:
         self.builds = builds
         if builds is not None:
             builds.on_done = self.on_solver_done
-        self._saved: tuple[str, int, str] | None = None  # (mission id, leg, state) last written
+        self._saved: tuple | None = None  # (mission id, leg, state, decision) last written
         self._saved_at_ns: int | None = None  # when, on the service's clock
         # Real time writes it durably, on a thread of its own: an fsync can take a second beside
         # another process's large write (seaway.runtime.atomic.LatestWriter), and the control loop
@@ -239,7 +241,9 @@ class ControllerService:
         if progress is None:
             return
         req, leg, state, energy = progress
-        key = (req.mission_id, leg, state)
+        with self.lock:
+            decision = self.core.decision()
+        key = (req.mission_id, leg, state, decision)
         now_ns = self._now_ns()
         last = self._saved_at_ns
         due = last is None or not 0 <= now_ns - last < CHECKPOINT_PERIOD_NS
@@ -247,7 +251,9 @@ class ControllerService:
             return
         cp = checkpoint.MissionCheckpoint(
             request=req.model_dump(mode="json"), active_leg=leg, state=state,  # type: ignore[arg-type]
-            energy_used_j=energy, saved_unix_ns=time.time_ns())
+            energy_used_j=energy, saved_unix_ns=time.time_ns(), returning=decision.returning,
+            decision=decision.decision, decided_ns=decision.decided_ns,
+            decision_reason=decision.reason[:MAX_REASON_CHARS])
         if self._writer is not None:
             self._writer.submit(checkpoint.encode(cp))
         else:
@@ -533,10 +539,12 @@ def resume(core: ControllerCore, path: Path, now_ns: int, run_file: str | Path |
     except checkpoint.CheckpointError as err:
         log.error("ignoring the mission checkpoint: %s", err)
         return
-    reply = core.restore(now_ns, req, cp.active_leg, cp.state, cp.energy_used_j)
+    decision = BudgetDecision(cp.returning, cp.decision, cp.decided_ns, cp.decision_reason)
+    reply = core.restore(now_ns, req, cp.active_leg, cp.state, cp.energy_used_j, decision)
     if reply.accepted:
-        log.warning("resumed mission %r from %s at leg %d (%s), %.1f J used before the restart",
-                    req.mission_id, path, cp.active_leg, cp.state, cp.energy_used_j)
+        log.warning("resumed mission %r from %s at leg %d (%s), %.1f J used before the restart; "
+                    "energy budget: %s%s", req.mission_id, path, cp.active_leg, cp.state,
+                    cp.energy_used_j, cp.decision, " (returning home)" if cp.returning else "")
     else:
         log.error("could not resume mission %r from %s: %s", req.mission_id, path, reply.reason)
 
