@@ -65,7 +65,13 @@ from seaway.vessel.model import VesselParams, propulsion_power_w
 
 from seaway_controller import costs
 from seaway_controller.energy import BatteryTrack, Budget, EnergyModel
-from seaway_controller.mission import Mission, MissionError, MissionLimits, MissionManager
+from seaway_controller.mission import (
+    Mission,
+    MissionError,
+    MissionLimits,
+    MissionManager,
+    validate_mission,
+)
 from seaway_controller.mpc import MpcController, MpcOutcome
 from seaway_controller.ocp import CONTROLLER_KINDS, ControllerKind, Ocp, OcpSpec
 from seaway_controller.solvers import NlpSolver, make_solver
@@ -167,6 +173,17 @@ class ControllerCore:
         """Build every controller now, so that no mission waits for a compile."""
         for k in kinds:
             self.controller(k)
+
+    def prepare_for(self, req: MissionRequest) -> ControllerKind | None:
+        """The controller ``req`` would be flown with, built now (its solver asked for), so that
+        the caller can wait for its solver before the mission starts; None if ``req`` would be
+        refused (``handle_mission`` then says why)."""
+        try:
+            mission = validate_mission(req, self.origin, self.missions.limits)
+        except MissionError:
+            return None
+        self.controller(mission.controller)
+        return mission.controller
 
     def set_origin(self, origin: GeoOrigin) -> None:
         self.origin = origin

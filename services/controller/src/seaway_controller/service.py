@@ -26,9 +26,10 @@ The vessel model, the control period (which is also the OCP's dt) and the origin
 the scenario's mission at once (batch runs without a launcher).
 
 Solvers (``solvers.SolverBuilds``): the service is up, and serves requests, at once. The fast
-solver a mission needs (its controller's, and no other) is made when the mission is accepted, on a
+solver a mission needs (its controller's, and no other) is made when the mission comes, on a
 thread of its own: loaded from the cache, or compiled the first time on a machine (seconds to
-minutes). Until it is ready, real time flies with the reference IPOPT (line-of-sight guidance
+minutes); the mission starts once it is ready, or after ``SOLVER_REPLY_WAIT_S`` (a compile). Until
+it is ready, real time flies with the reference IPOPT (line-of-sight guidance
 while IPOPT itself is set up, on a thread too: ``solvers.StagedSolver``) and lockstep answers "hold"
 (simulated time waits, so the run is the one a warm start gives); the mission/set reply and
 ``MissionStatus.reason`` say so, and the log says how far it got.
@@ -96,8 +97,8 @@ CHECKPOINT_CLOSE_S = 5.0
 
 
 SOLVER_REPLY_WAIT_S = 2.0
-"""How long a mission's reply waits for its solver: enough to load a cached one, so that only a
-compile still under way is worth a word in the reply."""
+"""How long a mission waits for its solver before it starts: enough to load a cached one, so that
+only a compile still under way is flown on the fallbacks and worth a word in the reply [s]."""
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -175,10 +176,16 @@ class ControllerService:
         bus.subscribe(keys.VEHICLE_STATUS, callback=self.on_vehicle_status)  # pauses a mission
 
     def on_mission(self, req: MissionRequest) -> Reply:
+        if self.builds is not None:
+            # The mission's solver is asked for first, and the mission starts once it is there
+            # (a cached one is loaded in a moment) or this wait is over (a compile): started
+            # before, its first periods flew on a fallback while the solver was being loaded.
+            with self.lock:
+                kind = self.core.prepare_for(req)
+            if kind is not None:
+                self.builds.wait(kind, SOLVER_REPLY_WAIT_S)
         reply = self._serve(f"{keys.MISSION_SET.suffix} {req.mission_id!r}", self.core.handle_mission,
                             req)
-        if reply.accepted and self.builds is not None:  # a cached solver is loaded in a moment
-            self.builds.wait(req.controller, SOLVER_REPLY_WAIT_S)
         making = self.solver_progress(req.controller) if reply.accepted else ""
         if making:  # the mission is on; say how it is flown until its solver is there
             meanwhile = ("simulated time holds until it is ready" if self.member is not None
