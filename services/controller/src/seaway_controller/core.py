@@ -63,8 +63,8 @@ from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.guidance import LosGains, los_thrust
 from seaway.vessel.model import VesselParams, propulsion_power_w
 
-from seaway_controller import costs
-from seaway_controller.energy import BatteryTrack, Budget, EnergyModel
+from seaway_controller import acceptance, costs
+from seaway_controller.energy import BatteryTrack, Budget, Disturbance, EnergyModel, predict
 from seaway_controller.mission import (
     Mission,
     MissionError,
@@ -147,6 +147,7 @@ class ControllerCore:
         self._energy_to_go_j: float | None = None
         self.mission_request: MissionRequest | None = None
         self.vehicle: VehicleStatus | None = None  # the latest status heard (None: no vehicle_io)
+        self._last_state: StateEstimate | None = None  # the latest stepped (a mission is judged on it)
         self._ratelog = RateLimitedLog(log)
         self._mission_start_ns = 0
         self.accepted: MissionAccepted | None = None  # the current mission, as accepted
@@ -190,13 +191,24 @@ class ControllerCore:
 
     # -- requests -------------------------------------------------------------------------------
 
-    def handle_mission(self, now_ns: int, req: MissionRequest, returning: bool = False) -> Reply:
+    def handle_mission(self, now_ns: int, req: MissionRequest, returning: bool = False,
+                       check: bool = True) -> Reply:
         """Validate and start a mission (replacing the current one), or refuse with a reason.
-        ``returning``: the return home the energy budget decided (``_return_home``)."""
+        ``returning``: the return home the energy budget decided (``_return_home``). ``check``: a
+        new mission that cannot be flown under the disturbance estimated now is refused
+        (``acceptance``); a mission resumed or restarted is not judged again."""
         try:
-            mission = self.missions.start(req, self.origin)
+            candidate = validate_mission(req, self.origin, self.missions.limits)
         except MissionError as err:
             return Reply.refuse(now_ns, str(err))
+        if check and not returning:
+            model = self._energy_model(candidate, req)
+            why = acceptance.why_not_flyable(model, self._last_state, candidate.waypoints_m,
+                                             candidate.home)
+            if why is not None:
+                log.warning("mission %r refused: %s", req.mission_id, why)
+                return Reply.refuse(now_ns, f"mission {req.mission_id!r} cannot be flown: {why}")
+        mission = self.missions.start(req, self.origin)
         ctrl = self.controller(mission.controller)
         ctrl.reset()
         self._mission_serial += 1
@@ -217,18 +229,39 @@ class ControllerCore:
                  mission.mission_id, len(mission.waypoints_m), mission.coa_radius_m,
                  mission.task_power_w, mission.controller,
                  "predicting the estimated tau_d" if self.predict_disturbance else "tau_d = 0")
-        return Reply.accept(now_ns, "mission started", mission_id=mission.mission_id,
+        return Reply.accept(now_ns, "mission started" + self._shortfall(), mission_id=mission.mission_id,
                             waypoints_m=[list(p) for p in mission.waypoints_m],
                             controller=mission.controller,
                             predict_disturbance=self.predict_disturbance)
 
-    def _new_budget(self, mission: Mission, returning: bool) -> Budget:
-        spec = self.controller(mission.controller).spec
-        req = self.mission_request
-        model = EnergyModel(
+    def _shortfall(self) -> str:
+        """'' or, for the mission just started, that the battery is short of the energy predicted
+        to finish it (from the latest state, under the disturbance estimated now) and what the
+        mission's policy will do about it."""
+        b, st, left = self.budget, self._last_state, self.battery_remaining_j()
+        if b is None or st is None or left is None or b.returning:
+            return ""
+        pred = predict(b.model, st, b.waypoints, 1, b.home, None,
+                       Disturbance.from_body((st.tau_d_surge_n, st.tau_d_sway_n, st.tau_d_yaw_nm),
+                                             st.psi_rad))
+        above = left - (self._reserve_j() or 0.0)
+        if not math.isfinite(pred.to_go_j) or pred.to_go_j <= above:
+            return ""
+        return (f"; it needs about {pred.to_go_j:.0f} J and the battery has {above:.0f} J above its "
+                f"reserve: the energy budget's policy '{b.policy}' acts when the way home reaches "
+                "what is left")
+
+    def _energy_model(self, mission: Mission, req: MissionRequest) -> EnergyModel:
+        """What the energy budget prices ``mission`` (requested as ``req``) with."""
+        spec = self.config.spec(mission.controller)
+        return EnergyModel(
             self.vessel, mission.task_power_w, mission.coa_radius_m, spec.is_empc,
-            self.config.predict_disturbance or (req is not None and req.predict_disturbance),
+            self.config.predict_disturbance or req.predict_disturbance,
             spec.profile_n, spec.t_d_min_s, spec.t_d_max_s)
+
+    def _new_budget(self, mission: Mission, returning: bool) -> Budget:
+        assert self.mission_request is not None
+        model = self._energy_model(mission, self.mission_request)
         return Budget(model, list(mission.waypoints_m), mission.home, mission.on_low_energy,
                       mission.mission_id, returning)
 
@@ -259,7 +292,7 @@ class ControllerCore:
         the energy budget's ``decision`` as it was (a return home goes on as one: its own policy
         is only 'warn', and a fresh budget would have said 'LOW ENERGY (policy: warn)')."""
         decision = decision or BudgetDecision()
-        reply = self.handle_mission(now_ns, req, returning=decision.returning)
+        reply = self.handle_mission(now_ns, req, returning=decision.returning, check=False)
         if not reply.accepted:
             return reply
         if self.budget is not None:
@@ -372,6 +405,7 @@ class ControllerCore:
         x0 = np.array([state.u_mps, state.v_mps, state.r_radps, state.x_m, state.y_m,
                        state.psi_rad])
         self._account_energy(now_ns)
+        self._last_state = state
         mm = self.missions
         mm.update(state.x_m, state.y_m)
         self.seq += 1
