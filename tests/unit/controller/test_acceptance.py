@@ -35,16 +35,25 @@ def model(task_power_w: float) -> EnergyModel:
     return EnergyModel(BOAT, task_power_w, 1.0, True, False)
 
 
-def test_a_cruise_the_disturbance_leaves_no_way_is_named_with_its_figures() -> None:
-    why = why_not_flyable(model(C1.task_power_w), lake_state(), C1.waypoints_m, C1.waypoints_m[0])
-    assert why is not None and "cannot be made good" in why and "dead zone" in why
-    assert "0.0446 m/s" in why  # u* named
-    # The same path at the lake's own task power (1 m/s on 34 N), or with no disturbance known.
+def test_a_cruise_inside_the_thrusters_dead_zone_is_named_with_its_figures() -> None:
+    why = why_not_flyable(model(C1.task_power_w), None, C1.waypoints_m, C1.waypoints_m[0])
+    assert why is not None and "dead zone" in why and "0.0446 m/s" in why
+    least_w = float(why.split("a task power of ")[1].split(" W")[0])
+    assert model(least_w).cruise_speed_mps * BOAT.xu_kgps / 2 >= BOAT.dead_zone_n
+    # The lake's own task power (1 m/s on 34 N), with the lake's wind, flies.
     assert why_not_flyable(model(LAKE.task_power_w), lake_state(), C1.waypoints_m,
                            C1.waypoints_m[0]) is None
-    assert why_not_flyable(model(C1.task_power_w), None, C1.waypoints_m, C1.waypoints_m[0]) is None
-    assert why_not_flyable(model(C1.task_power_w), lake_state(tau=(0.0, 0.0, 0.0)),
-                           C1.waypoints_m, C1.waypoints_m[0]) is None
+
+
+def test_a_cruise_the_disturbance_leaves_no_way_is_named_with_its_figures() -> None:
+    no_dead_zone = EnergyModel(BOAT.model_copy(update={"dead_zone_n": 0.0}), C1.task_power_w, 1.0,
+                               True, False)
+    why = why_not_flyable(no_dead_zone, lake_state(), C1.waypoints_m, C1.waypoints_m[0])
+    assert why is not None and "cannot be made good" in why and "m/s on that course" in why
+    # No disturbance known, or none estimated: flown.
+    assert why_not_flyable(no_dead_zone, None, C1.waypoints_m, C1.waypoints_m[0]) is None
+    assert why_not_flyable(no_dead_zone, lake_state(tau=(0.0, 0.0, 0.0)), C1.waypoints_m,
+                           C1.waypoints_m[0]) is None
     # The NMPC holds no economic cruise: not judged.
     nmpc = EnergyModel(BOAT, C1.task_power_w, 1.0, False, False)
     assert why_not_flyable(nmpc, lake_state(), C1.waypoints_m, C1.waypoints_m[0]) is None

@@ -183,8 +183,15 @@ class ControllerCore:
             mission = validate_mission(req, self.origin, self.missions.limits)
         except MissionError:
             return None
+        if self._not_flyable(mission, req) is not None:
+            return None
         self.controller(mission.controller)
         return mission.controller
+
+    def _not_flyable(self, mission: Mission, req: MissionRequest) -> str | None:
+        """Why ``mission`` cannot be flown from the latest state (``acceptance``), or None."""
+        return acceptance.why_not_flyable(self._energy_model(mission, req), self._last_state,
+                                          mission.waypoints_m, mission.home)
 
     def set_origin(self, origin: GeoOrigin) -> None:
         self.origin = origin
@@ -202,9 +209,7 @@ class ControllerCore:
         except MissionError as err:
             return Reply.refuse(now_ns, str(err))
         if check and not returning:
-            model = self._energy_model(candidate, req)
-            why = acceptance.why_not_flyable(model, self._last_state, candidate.waypoints_m,
-                                             candidate.home)
+            why = self._not_flyable(candidate, req)
             if why is not None:
                 log.warning("mission %r refused: %s", req.mission_id, why)
                 return Reply.refuse(now_ns, f"mission {req.mission_id!r} cannot be flown: {why}")
