@@ -171,3 +171,50 @@ def test_a_controller_killed_at_the_return_decision_flies_home_as_a_return(tmp_p
     assert math.dist((truth.x_m, truth.y_m), (0.0, 0.0)) <= 2.0 + 0.1  # the lake's r_COA
     batteries = [b for b in dec.get(keys.VEHICLE_BATTERY.suffix) if isinstance(b, BatteryState)]
     assert batteries[-1].remaining_j >= reserve
+
+
+@pytest.mark.slow  # a real-time lake mission to its decision, a restart and the way home: ~40 s
+def test_real_time_a_controller_killed_at_the_return_decision_flies_home_as_a_return(tmp_path):
+    """The same kill in real time (the issue's case: ``seaway launch sim``): the restarted
+    controller resumes the way home as the budget's return, without a traceback."""
+    scenario, _reserve = _scenario(tmp_path, extra_j=8_000.0)
+    run_dir = tmp_path / "run"
+    rendezvous = f"tcp/127.0.0.1:{free_port()}"
+    env = dict(os.environ, PYTHONUNBUFFERED="1", SEAWAY_ZENOH_RENDEZVOUS=rendezvous)
+    env.pop("SEAWAY_ZENOH_CONFIG", None)
+    with open(tmp_path / "launch.log", "w") as out:
+        launcher = subprocess.Popen(
+            [str(BIN / "seaway"), "launch", "sim", "--scenario", str(scenario), "--run-dir",
+             str(run_dir), "--no-report"], env=env, stdout=out, stderr=subprocess.STDOUT,
+            start_new_session=True)
+    bus = None
+    try:
+        bus = Bus.open("vessel1", identity="operator", credentials=stack_credentials(rendezvous),
+                       rendezvous=rendezvous)
+        energy = bus.subscribe(keys.MISSION_ENERGY, mode="latest")
+        wait_for(lambda: (b := energy.latest()) is not None and b.decision != "none", 240,
+                 interval_s=0.01, what="the energy budget's return decision")
+        pid = subprocess.run(["pgrep", "-f", f"seaway-controller .*{run_dir}"], capture_output=True,
+                             text=True, check=False).stdout.split()
+        assert len(pid) == 1, pid
+        os.kill(int(pid[0]), signal.SIGKILL)
+        rc = launcher.wait(300)
+    finally:
+        if launcher.poll() is None:
+            os.killpg(launcher.pid, signal.SIGKILL)
+            launcher.wait(10)
+        if bus is not None:
+            bus.close()
+    assert rc == 0, (tmp_path / "launch.log").read_text()[-4000:]
+    log = (run_dir / "logs" / "controller.log").read_text()
+    assert log.count(" starting on vessel") == 2, "the controller was not restarted"
+    restarted = log.split(" starting on vessel")[-1]
+    assert "resumed mission" in restarted and "Traceback" not in restarted, restarted[-3000:]
+    dec = recording.decode_vessel(recording.open_paths([run_dir]), None,
+                                  [keys.MISSION_ENERGY.suffix, keys.MISSION_STATUS.suffix])
+    home = [b for b in dec.get(keys.MISSION_ENERGY.suffix)
+            if isinstance(b, EnergyBudget) and b.mission_id.endswith("/return")]
+    assert home and all(b.returning and b.decision == "return" for b in home), \
+        sorted({(b.returning, b.decision) for b in home})
+    statuses = [s for s in dec.get(keys.MISSION_STATUS.suffix) if isinstance(s, MissionStatus)]
+    assert statuses[-1].state == "complete" and statuses[-1].mission_id.endswith("/return")
