@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import os
+import signal
 import subprocess
 import sys
 import tomllib
@@ -26,12 +27,13 @@ from seaway.contract.messages import (
     MissionStatus,
     StateEstimate,
 )
+from seaway.runtime.bus import Bus
 from seaway.vessel.model import load_vessel
 from seaway_controller.energy import BUDGET_INTERVAL_NS
 from seaway_controller.replay import replay
 from seaway_recorder import recording
 
-from tests.conftest import free_port
+from tests.conftest import free_port, stack_credentials, wait_for
 
 pytestmark = pytest.mark.system
 BIN = Path(sys.executable).parent
@@ -39,14 +41,14 @@ REPO = Path(__file__).resolve().parents[3]
 EXTRA_J = 20_000.0  # above the reserve: the lake mission needs ~30 kJ
 
 
-def _scenario(tmp_path: Path) -> tuple[Path, float]:
-    """The lake, its pack starting with the reserve and 20 kJ more."""
+def _scenario(tmp_path: Path, extra_j: float = EXTRA_J) -> tuple[Path, float]:
+    """The lake, its pack starting with the reserve and ``extra_j`` more (20 kJ)."""
     vessel = load_vessel("paper-boat")
     assert vessel.battery is not None
     reserve = vessel.battery.reserve_energy_j
     text = (REPO / "deploy/scenarios/lake.toml").read_text()
     text = text.replace('name = "lake"', 'name = "lake-low-battery"', 1)
-    text += f"\n[battery]\ninitial_energy_j = {reserve + EXTRA_J}\n"
+    text += f"\n[battery]\ninitial_energy_j = {reserve + extra_j}\n"
     tomllib.loads(text)  # still a valid document
     path = tmp_path / "lake-low-battery.toml"
     path.write_text(text)
@@ -109,3 +111,110 @@ def test_a_low_battery_returns_home_and_a_replay_decides_the_same(tmp_path):
     assert again.decision() == (at.decided_ns, "return")
     replayed = {b.stamp_ns: b for b in again.budgets}
     assert replayed[at.stamp_ns].margin_j == pytest.approx(at.margin_j, abs=1e-6)
+
+
+def test_a_controller_killed_at_the_return_decision_flies_home_as_a_return(tmp_path):
+    """SIGKILL of the controller as soon as its budget has decided the return: the launcher
+    restarts it, and the new one resumes the flight home as the budget's return (its budgets say
+    returning, decision 'return'), not as a mission of its own whose 'warn' policy fires at once."""
+    scenario, reserve = _scenario(tmp_path, extra_j=8_000.0)  # decided after a few seconds
+    run_dir = tmp_path / "run"
+    env = dict(os.environ, PYTHONUNBUFFERED="1",
+               SEAWAY_ZENOH_RENDEZVOUS=f"tcp/127.0.0.1:{free_port()}")
+    env.pop("SEAWAY_ZENOH_CONFIG", None)
+    with open(tmp_path / "launch.log", "w") as out:
+        launcher = subprocess.Popen(
+            [str(BIN / "seaway"), "launch", "sim-batch", "--scenario", str(scenario),
+             "--run-dir", str(run_dir)], env=env, stdout=out, stderr=subprocess.STDOUT,
+            start_new_session=True)
+    bus = None
+    try:
+        rendezvous = env["SEAWAY_ZENOH_RENDEZVOUS"]
+        bus = Bus.open("vessel1", identity="operator", credentials=stack_credentials(rendezvous),
+                       rendezvous=rendezvous)
+        energy = bus.subscribe(keys.MISSION_ENERGY, mode="latest")
+
+        def decided() -> bool:
+            b = energy.latest()
+            return b is not None and b.decision != "none"
+        wait_for(decided, 240, interval_s=0.002, what="the energy budget's return decision")
+        pid = subprocess.run(["pgrep", "-f", f"seaway-controller .*{run_dir}"], capture_output=True,
+                             text=True, check=False).stdout.split()
+        assert len(pid) == 1, pid
+        os.kill(int(pid[0]), signal.SIGKILL)
+        rc = launcher.wait(300)
+    finally:
+        if launcher.poll() is None:
+            os.killpg(launcher.pid, signal.SIGKILL)
+            launcher.wait(10)
+        if bus is not None:
+            bus.close()
+    assert rc == 0, (tmp_path / "launch.log").read_text()[-4000:]
+    log = (run_dir / "logs" / "controller.log").read_text()
+    assert log.count(" starting on vessel") == 2, "the controller was not restarted"
+    restarted = log.split(" starting on vessel")[-1]
+    assert "resumed mission" in restarted and "Traceback" not in restarted
+
+    dec = recording.decode_vessel(recording.open_paths([run_dir]), None,
+                                  [keys.MISSION_ENERGY.suffix, keys.MISSION_STATUS.suffix,
+                                   keys.SIM_TRUTH.suffix, keys.VEHICLE_BATTERY.suffix])
+    budgets = [b for b in dec.get(keys.MISSION_ENERGY.suffix) if isinstance(b, EnergyBudget)]
+    home = [b for b in budgets if b.mission_id.endswith("/return")]
+    assert home, "no budget of the return home"
+    decided_ns = {b.decided_ns for b in home}
+    assert len(decided_ns) == 1  # the one decision, kept through the restart
+    assert all(b.returning and b.decision == "return" for b in home), \
+        sorted({(b.returning, b.decision) for b in home})
+    statuses = [s for s in dec.get(keys.MISSION_STATUS.suffix) if isinstance(s, MissionStatus)]
+    assert statuses[-1].state == "complete" and statuses[-1].mission_id.endswith("/return")
+    truth = dec.get(keys.SIM_TRUTH.suffix)[-1]
+    assert math.dist((truth.x_m, truth.y_m), (0.0, 0.0)) <= 2.0 + 0.1  # the lake's r_COA
+    batteries = [b for b in dec.get(keys.VEHICLE_BATTERY.suffix) if isinstance(b, BatteryState)]
+    assert batteries[-1].remaining_j >= reserve
+
+
+@pytest.mark.slow  # a real-time lake mission to its decision, a restart and the way home: ~40 s
+def test_real_time_a_controller_killed_at_the_return_decision_flies_home_as_a_return(tmp_path):
+    """The same kill in real time (the issue's case: ``seaway launch sim``): the restarted
+    controller resumes the way home as the budget's return, without a traceback."""
+    scenario, _reserve = _scenario(tmp_path, extra_j=8_000.0)
+    run_dir = tmp_path / "run"
+    rendezvous = f"tcp/127.0.0.1:{free_port()}"
+    env = dict(os.environ, PYTHONUNBUFFERED="1", SEAWAY_ZENOH_RENDEZVOUS=rendezvous)
+    env.pop("SEAWAY_ZENOH_CONFIG", None)
+    with open(tmp_path / "launch.log", "w") as out:
+        launcher = subprocess.Popen(
+            [str(BIN / "seaway"), "launch", "sim", "--scenario", str(scenario), "--run-dir",
+             str(run_dir), "--no-report"], env=env, stdout=out, stderr=subprocess.STDOUT,
+            start_new_session=True)
+    bus = None
+    try:
+        bus = Bus.open("vessel1", identity="operator", credentials=stack_credentials(rendezvous),
+                       rendezvous=rendezvous)
+        energy = bus.subscribe(keys.MISSION_ENERGY, mode="latest")
+        wait_for(lambda: (b := energy.latest()) is not None and b.decision != "none", 240,
+                 interval_s=0.01, what="the energy budget's return decision")
+        pid = subprocess.run(["pgrep", "-f", f"seaway-controller .*{run_dir}"], capture_output=True,
+                             text=True, check=False).stdout.split()
+        assert len(pid) == 1, pid
+        os.kill(int(pid[0]), signal.SIGKILL)
+        rc = launcher.wait(300)
+    finally:
+        if launcher.poll() is None:
+            os.killpg(launcher.pid, signal.SIGKILL)
+            launcher.wait(10)
+        if bus is not None:
+            bus.close()
+    assert rc == 0, (tmp_path / "launch.log").read_text()[-4000:]
+    log = (run_dir / "logs" / "controller.log").read_text()
+    assert log.count(" starting on vessel") == 2, "the controller was not restarted"
+    restarted = log.split(" starting on vessel")[-1]
+    assert "resumed mission" in restarted and "Traceback" not in restarted, restarted[-3000:]
+    dec = recording.decode_vessel(recording.open_paths([run_dir]), None,
+                                  [keys.MISSION_ENERGY.suffix, keys.MISSION_STATUS.suffix])
+    home = [b for b in dec.get(keys.MISSION_ENERGY.suffix)
+            if isinstance(b, EnergyBudget) and b.mission_id.endswith("/return")]
+    assert home and all(b.returning and b.decision == "return" for b in home), \
+        sorted({(b.returning, b.decision) for b in home})
+    statuses = [s for s in dec.get(keys.MISSION_STATUS.suffix) if isinstance(s, MissionStatus)]
+    assert statuses[-1].state == "complete" and statuses[-1].mission_id.endswith("/return")

@@ -153,3 +153,47 @@ def test_real_time_never_waits_for_the_checkpoints_disk(tmp_path: Path, monkeypa
     assert saved.energy_used_j == pytest.approx(svc.core.progress()[3], rel=1e-12)  # the last step's
     assert all(durable for _, durable in writers) and len(synced) == len(writers)
     ctx.bus.close()
+
+
+def test_a_return_home_decided_before_a_restart_goes_on_as_a_return_home(tmp_path: Path) -> None:
+    """A controller restarted on its way home said 'LOW ENERGY (policy: warn)' and took the return
+    for a mission of its own: the checkpoint held the return's request (its own policy only warns)
+    and not the decision. The decision is saved with the progress and resumed with it."""
+    import threading
+
+    from seaway.contract.messages import BatteryState
+    from seaway.runtime.clock import WallClock
+    from seaway.runtime.memory_bus import MemoryHub
+    from seaway.runtime.run import RunDescription
+    from seaway.runtime.service import ServiceContext
+    from seaway_controller.service import ControllerService
+
+    from tests.unit.controller.test_core import DT_NS
+
+    hub = MemoryHub()
+    ctx = ServiceContext(name="controller", vessel="vessel1", bus=hub.bus("vessel1"), clock=WallClock(),
+                         stop=threading.Event(),
+                         run=RunDescription(run_id="unit", vessel="vessel1", clock="lockstep"))
+    path = tmp_path / "controller-state.json"
+    core = make_core(ScriptedSolver())
+    svc = ControllerService(ctx, core, lockstep=True, state_file=path)
+    assert core.handle_mission(0, mission()).accepted
+    core.on_battery(BatteryState.make(stamp_ns=0, source="sim", remaining_j=1.0, reserve_j=0.5))
+    for k in range(3):
+        core.step(k * DT_NS, state(k, x=3.0))
+    assert core.budget.returning and core.budget.decision == "return"
+    svc.save_checkpoint()
+    ctx.bus.close()
+
+    fresh = make_core(ScriptedSolver())
+    resume(fresh, path, 10)
+    req, leg, st, _ = fresh.progress()
+    assert req.mission_id == core.mission_request.mission_id and (leg, st) == (1, "active")
+    b = fresh.budget
+    assert (b.returning, b.decision, b.decided_ns) == (True, "return", core.budget.decided_ns)
+    fresh.on_battery(BatteryState.make(stamp_ns=3 * DT_NS, source="sim", remaining_j=1.0,
+                                       reserve_j=0.5))
+    for k in range(3, 6):
+        fresh.step(k * DT_NS, state(k, x=2.5))
+    last = fresh.take_budget()
+    assert last is not None and last.returning and last.decision == "return"

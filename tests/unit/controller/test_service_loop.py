@@ -10,13 +10,20 @@ from __future__ import annotations
 
 import contextlib
 import threading
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import NamedTuple
 
 import pytest
 from seaway.contract import bundle, keys
-from seaway.contract.messages import MissionCommand, PeriodDone, StateEstimate
+from seaway.contract.messages import (
+    BatteryState,
+    MissionCommand,
+    PeriodDone,
+    StateEstimate,
+    VehicleStatus,
+)
 from seaway.runtime.bus import TypedSubscriber
 from seaway.runtime.clock import WallClock
 from seaway.runtime.lockstep import Member, Period
@@ -264,3 +271,32 @@ def test_a_mission_that_comes_while_the_period_cannot_be_answered_is_flown_once_
     flown = world.next_answer(Period(0, 0))
     assert not flown.hold and flown.published[keys.THRUST.suffix] == [0]
     assert world.thrust.get(1.0).source == "cc-empc"
+
+
+class _PromptBus(MemoryBus):
+    """A bus whose battery and vehicle status callbacks run the moment they are subscribed, as
+    Zenoh's thread may run them before the subscriber's constructor has returned."""
+
+    def subscribe(self, spec, mode="latest", capacity=10_000, callback=None, **kw):  # type: ignore[override]
+        sub = super().subscribe(spec, mode, capacity, callback, **kw)
+        if callback is not None and spec is keys.VEHICLE_BATTERY:
+            callback(spec.suffix, BatteryState.make(stamp_ns=time.time_ns(), source="autopilot",
+                                                    remaining_j=5_000.0, reserve_j=1_000.0))
+        if callback is not None and spec is keys.VEHICLE_STATUS:
+            callback(spec.suffix, VehicleStatus.make(stamp_ns=time.time_ns(), autopilot="px4",
+                                                     armed=True, mode="MANUAL", link_ok=True))
+        return sub
+
+
+def test_a_report_that_comes_as_the_real_time_service_subscribes_is_taken() -> None:
+    """A restarted real-time controller died on its first battery report: the subscription was made
+    before ``self.stamps`` existed, and a report that came at once raised AttributeError on the
+    bus's thread (and was lost). Every input is taken from the moment it is subscribed."""
+    hub = MemoryHub()
+    bus = _PromptBus(VESSEL, hub)
+    ctx = ServiceContext(name="controller", vessel=VESSEL, bus=bus, clock=WallClock(),
+                         stop=threading.Event(), run=RunDescription(run_id="unit", vessel=VESSEL))
+    svc = ControllerService(ctx, make_core(ScriptedSolver()), lockstep=False)
+    assert svc.core.battery.report is not None and svc.core.battery.report.remaining_j == 5_000.0
+    assert svc.core.vehicle is not None
+    bus.close()

@@ -247,3 +247,66 @@ def test_a_compiler_killed_by_a_stop_is_not_a_compile_error(tmp_path: Path, monk
     assert f"stopped by {signal.SIGINT.name}" in text and "not a compile error" in text
     assert "failed" not in text
     assert not list((tmp_path / "cache").glob("*.so"))
+
+
+def test_real_time_starts_a_mission_once_its_cached_solver_is_loaded() -> None:
+    """A warm-cache run logged "fallback level 2 ... the solver is being made" at a mission's start
+    and its report counted a failed solve: the mission started at once, and its first period came
+    while its solver was still being loaded. The mission now starts once its solver is there (the
+    control loop goes on meanwhile), and a solver being loaded is said to be loaded, not made."""
+    from seaway.contract.messages import SOLVER_NOT_READY
+
+    build = GatedBuild()
+    hub = MemoryHub()
+    stop = threading.Event()
+    ctx = ServiceContext(name="controller", vessel=VESSEL, bus=hub.bus(VESSEL), clock=WallClock(),
+                         stop=stop, run=RunDescription(run_id="unit", vessel=VESSEL))
+    builds = SolverBuilds(build, stopping=stop, cached=lambda _ocp: True)
+    core = ControllerCore(VP, ControllerConfig(solve_budget_s=None),
+                          solver_factory=lambda ocp: StagedSolver(ocp, builds,
+                                                                  reference=GatedReference()))
+    svc = ControllerService(ctx, core, lockstep=False, builds=builds)
+    observer = hub.bus(VESSEL)
+    thrust = observer.subscribe(keys.THRUST, mode="fifo")
+    solves = observer.subscribe(keys.SOLVE, mode="fifo")
+    nav = hub.bus(VESSEL).publisher(keys.NAV_STATE)
+    loop = threading.Thread(target=svc.run_rate, args=(50.0, 0.5), daemon=True)
+    feeder_stop = threading.Event()
+
+    def feed() -> None:  # fresh states, as the estimator publishes them
+        while not feeder_stop.wait(0.02):
+            nav.put(state(0).model_copy(update={"stamp_ns": ctx.clock.now_ns()}))
+
+    feeder = threading.Thread(target=feed, daemon=True)
+    replies: list = []
+    operator = hub.bus(VESSEL)
+    asking = threading.Thread(target=lambda: replies.append(
+        operator.request(keys.MISSION_SET, mission(), timeout_s=10.0)), daemon=True)
+    try:
+        loop.start()
+        feeder.start()
+        asking.start()
+        wait_for(lambda: build.asked, 5, what="the mission's solver to be asked for")
+        assert "its cc-empc solver is being loaded" in builds.describe("cc-empc")
+        seen: list = []
+        # The loop goes on while the solver loads, the mission not started yet (zero thrust).
+        wait_for(lambda: seen.extend(thrust.drain()) or len(seen) >= 10, 10,
+                 what="the loop's commands while the solver loads")
+        assert {c.source for c in seen} == {"idle"}
+        build.release("cc-empc")
+        asking.join(10)
+        assert replies and replies[0].accepted, replies
+        wait_for(lambda: seen.extend(thrust.drain()) or any(c.source == "cc-empc" for c in seen),
+                 10, what="the mission flown with its solver")
+        records = solves.drain()
+        assert records and all(r.success and r.fallback_level == 0 for r in records), \
+            [(r.status, r.fallback_level) for r in records[:3]]
+        assert not any(r.status.startswith(SOLVER_NOT_READY) for r in records)
+    finally:
+        feeder_stop.set()
+        stop.set()
+        build.release("cc-empc")
+        loop.join(5)
+        for bus in (ctx.bus, observer, operator):
+            bus.close()
+    assert not loop.is_alive()

@@ -28,3 +28,18 @@ def test_solve_stats() -> None:
     assert s.max_fallback_count == 10
     assert s.controllers == ["cc-empc"]
     assert solve_stats([]).solve_time_median_ms is None
+
+
+def test_periods_before_the_solver_was_ready_are_not_failed_solves() -> None:
+    """A warm-cache run's first period could come while its solver was being loaded: flown on a
+    fallback, with no solve, and the report counted it as a failed solve."""
+    from seaway.contract.messages import SOLVER_NOT_READY
+
+    def rec(i: int, status: str, success: bool) -> SolveRecord:
+        return SolveRecord.make(stamp_ns=i, controller="cc-empc", status=status, success=success,
+                                iterations=0, solve_time_s=0.0, fallback_level=0 if success else 2)
+
+    recs = [rec(0, f"{SOLVER_NOT_READY} (the generated solver is being made)", False),
+            rec(1, "convexify_failed", False)] + [rec(i, "Solve_Succeeded", True) for i in range(2, 9)]
+    s = solve_stats(recs)
+    assert (s.count, s.successes, s.failures, s.not_ready) == (9, 7, 1, 1)

@@ -3,7 +3,8 @@
 A controller killed mid-mission (a crash, the OOM killer, a launcher restart) must not forget the
 mission nor start it again from P_0. The service writes this small JSON file atomically (temporary
 file, fsync, rename) whenever the mission's progress changes and once a second for the energy
-count; a new process given the same file resumes the mission at the same leg. A checkpoint that
+count; a new process given the same file resumes the mission at the same leg, with the energy
+budget's decision (a return home stays a return home, a hold a hold). A checkpoint that
 cannot be read is reported and ignored: the controller then starts idle, as it would without one.
 """
 
@@ -15,7 +16,7 @@ from typing import Any, Literal
 
 from pydantic import Field
 from seaway.contract.config import ConfigModel
-from seaway.contract.messages import MessageError, MissionRequest
+from seaway.contract.messages import EnergyDecision, MessageError, MissionRequest
 from seaway.runtime import atomic
 
 CheckpointError = atomic.StateFileError
@@ -30,6 +31,10 @@ class MissionCheckpoint(ConfigModel):
     state: Literal["active", "paused", "complete", "aborted"]
     energy_used_j: float = Field(ge=0)
     saved_unix_ns: int = Field(ge=0)
+    returning: bool = Field(default=False, description="the mission is the energy budget's return home")
+    decision: EnergyDecision = Field(default="none", description="the energy budget's decision")
+    decided_ns: int | None = Field(default=None, ge=0, description="the period it was decided [ns]")
+    decision_reason: str = Field(default="", description="why, as the budget said it")
 
     def mission_request(self) -> MissionRequest:
         try:

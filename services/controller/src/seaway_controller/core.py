@@ -44,6 +44,7 @@ import numpy as np
 from seaway.contract.messages import (
     BatteryState,
     EnergyBudget,
+    EnergyDecision,
     MissionAccepted,
     MissionCommand,
     MissionRequest,
@@ -62,9 +63,15 @@ from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.guidance import LosGains, los_thrust
 from seaway.vessel.model import VesselParams, propulsion_power_w
 
-from seaway_controller import costs
-from seaway_controller.energy import BatteryTrack, Budget, EnergyModel
-from seaway_controller.mission import Mission, MissionError, MissionLimits, MissionManager
+from seaway_controller import acceptance, costs
+from seaway_controller.energy import BatteryTrack, Budget, Disturbance, EnergyModel, predict
+from seaway_controller.mission import (
+    Mission,
+    MissionError,
+    MissionLimits,
+    MissionManager,
+    validate_mission,
+)
 from seaway_controller.mpc import MpcController, MpcOutcome
 from seaway_controller.ocp import CONTROLLER_KINDS, ControllerKind, Ocp, OcpSpec
 from seaway_controller.solvers import NlpSolver, make_solver
@@ -104,6 +111,17 @@ class ControllerConfig:
 SolverFactory = Callable[[Ocp], NlpSolver]
 
 
+@dataclass(frozen=True)
+class BudgetDecision:
+    """What the energy budget decided for the current mission (kept across a restart)."""
+
+    returning: bool = False
+    """The mission is the budget's return home."""
+    decision: EnergyDecision = "none"
+    decided_ns: int | None = None
+    reason: str = ""
+
+
 def _finite_or_none(v: float | None) -> float | None:
     return v if v is not None and math.isfinite(v) else None
 
@@ -129,6 +147,7 @@ class ControllerCore:
         self._energy_to_go_j: float | None = None
         self.mission_request: MissionRequest | None = None
         self.vehicle: VehicleStatus | None = None  # the latest status heard (None: no vehicle_io)
+        self._last_state: StateEstimate | None = None  # the latest stepped (a mission is judged on it)
         self._ratelog = RateLimitedLog(log)
         self._mission_start_ns = 0
         self.accepted: MissionAccepted | None = None  # the current mission, as accepted
@@ -156,18 +175,45 @@ class ControllerCore:
         for k in kinds:
             self.controller(k)
 
+    def prepare_for(self, req: MissionRequest) -> ControllerKind | None:
+        """The controller ``req`` would be flown with, built now (its solver asked for), so that
+        the caller can wait for its solver before the mission starts; None if ``req`` would be
+        refused (``handle_mission`` then says why)."""
+        try:
+            mission = validate_mission(req, self.origin, self.missions.limits)
+        except MissionError:
+            return None
+        if self._not_flyable(mission, req) is not None:
+            return None
+        self.controller(mission.controller)
+        return mission.controller
+
+    def _not_flyable(self, mission: Mission, req: MissionRequest) -> str | None:
+        """Why ``mission`` cannot be flown from the latest state (``acceptance``), or None."""
+        return acceptance.why_not_flyable(self._energy_model(mission, req), self._last_state,
+                                          mission.waypoints_m, mission.home)
+
     def set_origin(self, origin: GeoOrigin) -> None:
         self.origin = origin
 
     # -- requests -------------------------------------------------------------------------------
 
-    def handle_mission(self, now_ns: int, req: MissionRequest, returning: bool = False) -> Reply:
+    def handle_mission(self, now_ns: int, req: MissionRequest, returning: bool = False,
+                       check: bool = True) -> Reply:
         """Validate and start a mission (replacing the current one), or refuse with a reason.
-        ``returning``: the return home the energy budget decided (``_return_home``)."""
+        ``returning``: the return home the energy budget decided (``_return_home``). ``check``: a
+        new mission that cannot be flown under the disturbance estimated now is refused
+        (``acceptance``); a mission resumed or restarted is not judged again."""
         try:
-            mission = self.missions.start(req, self.origin)
+            candidate = validate_mission(req, self.origin, self.missions.limits)
         except MissionError as err:
             return Reply.refuse(now_ns, str(err))
+        if check and not returning:
+            why = self._not_flyable(candidate, req)
+            if why is not None:
+                log.warning("mission %r refused: %s", req.mission_id, why)
+                return Reply.refuse(now_ns, f"mission {req.mission_id!r} cannot be flown: {why}")
+        mission = self.missions.start(req, self.origin)
         ctrl = self.controller(mission.controller)
         ctrl.reset()
         self._mission_serial += 1
@@ -188,18 +234,39 @@ class ControllerCore:
                  mission.mission_id, len(mission.waypoints_m), mission.coa_radius_m,
                  mission.task_power_w, mission.controller,
                  "predicting the estimated tau_d" if self.predict_disturbance else "tau_d = 0")
-        return Reply.accept(now_ns, "mission started", mission_id=mission.mission_id,
+        return Reply.accept(now_ns, "mission started" + self._shortfall(), mission_id=mission.mission_id,
                             waypoints_m=[list(p) for p in mission.waypoints_m],
                             controller=mission.controller,
                             predict_disturbance=self.predict_disturbance)
 
-    def _new_budget(self, mission: Mission, returning: bool) -> Budget:
-        spec = self.controller(mission.controller).spec
-        req = self.mission_request
-        model = EnergyModel(
+    def _shortfall(self) -> str:
+        """'' or, for the mission just started, that the battery is short of the energy predicted
+        to finish it (from the latest state, under the disturbance estimated now) and what the
+        mission's policy will do about it."""
+        b, st, left = self.budget, self._last_state, self.battery_remaining_j()
+        if b is None or st is None or left is None or b.returning:
+            return ""
+        pred = predict(b.model, st, b.waypoints, 1, b.home, None,
+                       Disturbance.from_body((st.tau_d_surge_n, st.tau_d_sway_n, st.tau_d_yaw_nm),
+                                             st.psi_rad))
+        above = left - (self._reserve_j() or 0.0)
+        if not math.isfinite(pred.to_go_j) or pred.to_go_j <= above:
+            return ""
+        return (f"; it needs about {pred.to_go_j:.0f} J and the battery has {above:.0f} J above its "
+                f"reserve: the energy budget's policy '{b.policy}' acts when the way home reaches "
+                "what is left")
+
+    def _energy_model(self, mission: Mission, req: MissionRequest) -> EnergyModel:
+        """What the energy budget prices ``mission`` (requested as ``req``) with."""
+        spec = self.config.spec(mission.controller)
+        return EnergyModel(
             self.vessel, mission.task_power_w, mission.coa_radius_m, spec.is_empc,
-            self.config.predict_disturbance or (req is not None and req.predict_disturbance),
+            self.config.predict_disturbance or req.predict_disturbance,
             spec.profile_n, spec.t_d_min_s, spec.t_d_max_s)
+
+    def _new_budget(self, mission: Mission, returning: bool) -> Budget:
+        assert self.mission_request is not None
+        model = self._energy_model(mission, self.mission_request)
         return Budget(model, list(mission.waypoints_m), mission.home, mission.on_low_energy,
                       mission.mission_id, returning, controller=mission.controller)
 
@@ -217,12 +284,25 @@ class ControllerCore:
             return None
         return self.mission_request, mm.active, mm.state, self.energy_used_j
 
+    def decision(self) -> BudgetDecision:
+        """The current mission's energy budget decision, as a checkpoint keeps it."""
+        b = self.budget
+        if b is None:
+            return BudgetDecision()
+        return BudgetDecision(b.returning, b.decision, b.decided_ns, b.reason)
+
     def restore(self, now_ns: int, req: MissionRequest, active_leg: int, state: str,
-                energy_used_j: float) -> Reply:
-        """Resume a checkpointed mission at ``active_leg`` (after a restart), or refuse."""
-        reply = self.handle_mission(now_ns, req)
+                energy_used_j: float, decision: BudgetDecision | None = None) -> Reply:
+        """Resume a checkpointed mission at ``active_leg`` (after a restart), or refuse; with
+        the energy budget's ``decision`` as it was (a return home goes on as one: its own policy
+        is only 'warn', and a fresh budget would have said 'LOW ENERGY (policy: warn)')."""
+        decision = decision or BudgetDecision()
+        reply = self.handle_mission(now_ns, req, returning=decision.returning, check=False)
         if not reply.accepted:
             return reply
+        if self.budget is not None:
+            b = self.budget
+            b.decision, b.decided_ns, b.reason = decision.decision, decision.decided_ns, decision.reason
         mm = self.missions
         assert mm.mission is not None
         if not 1 <= active_leg < len(mm.mission.waypoints_m):
@@ -330,6 +410,7 @@ class ControllerCore:
         x0 = np.array([state.u_mps, state.v_mps, state.r_radps, state.x_m, state.y_m,
                        state.psi_rad])
         self._account_energy(now_ns)
+        self._last_state = state
         mm = self.missions
         mm.update(state.x_m, state.y_m)
         self.seq += 1

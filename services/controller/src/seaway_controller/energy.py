@@ -573,8 +573,13 @@ class Budget:
             if margin <= 0 and self.decision == "none" and not self.returning:
                 taken = self.decision = self.policy
                 self.decided_ns = now_ns
-                self.reason = (f"energy to get home {pred.to_home_j:.0f} J + reserve {reserve:.0f} J "
-                               f"reached the battery's {battery_remaining_j:.0f} J left")
+                if math.isfinite(pred.to_home_j):
+                    self.reason = (f"energy to get home {pred.to_home_j:.0f} J + reserve "
+                                   f"{reserve:.0f} J reached the battery's {battery_remaining_j:.0f} J left")
+                else:  # not 'inf J': the vessel makes no way home (MIN_SPEED_FRAC)
+                    self.reason = ("the way home cannot be made good at the cruise under the "
+                                   f"estimated disturbance (battery {battery_remaining_j:.0f} J left, "
+                                   f"reserve {reserve:.0f} J)")
         self._schedule(now_ns, margin)
         self.last = EnergyBudget.make(
             stamp_ns=state.stamp_ns, mission_id=self.mission_id, active_leg=active,

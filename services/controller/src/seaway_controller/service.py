@@ -26,9 +26,10 @@ The vessel model, the control period (which is also the OCP's dt) and the origin
 the scenario's mission at once (batch runs without a launcher).
 
 Solvers (``solvers.SolverBuilds``): the service is up, and serves requests, at once. The fast
-solver a mission needs (its controller's, and no other) is made when the mission is accepted, on a
+solver a mission needs (its controller's, and no other) is made when the mission comes, on a
 thread of its own: loaded from the cache, or compiled the first time on a machine (seconds to
-minutes). Until it is ready, real time flies with the reference IPOPT (line-of-sight guidance
+minutes); the mission starts once it is ready, or after ``SOLVER_REPLY_WAIT_S`` (a compile). Until
+it is ready, real time flies with the reference IPOPT (line-of-sight guidance
 while IPOPT itself is set up, on a thread too: ``solvers.StagedSolver``) and lockstep answers "hold"
 (simulated time waits, so the run is the one a warm start gives); the mission/set reply and
 ``MissionStatus.reason`` say so, and the log says how far it got.
@@ -36,9 +37,10 @@ while IPOPT itself is set up, on a thread too: ``solvers.StagedSolver``) and loc
 ``--state-file PATH`` keeps a mission checkpoint (``checkpoint.py``): written whenever the mission's
 progress changes and once a second of the service's own clock (simulated time in lockstep, where a
 wall second can be a hundred periods), read at start, so that a controller restarted mid-mission (the
-launcher restarts a crashed one) resumes the same mission at the same leg, with its energy count,
-instead of idling. A checkpoint saved before the run started (an earlier launch into the same run
-folder, ``seaway launch --run-dir``) is not resumed. Real time writes it durably (fsync) on a thread of
+launcher restarts a crashed one) resumes the same mission at the same leg, with its energy count
+and its energy budget's decision (a return home goes on as one), instead of idling. A checkpoint
+saved before the run started (an earlier launch into the same run folder, ``seaway launch
+--run-dir``) is not resumed. Real time writes it durably (fsync) on a thread of
 its own (``seaway.runtime.atomic.LatestWriter``: the control loop never waits for the disk), and the
 last one before the process ends; lockstep writes it in the answer's turn, not durably.
 """
@@ -57,6 +59,7 @@ from typing import Any
 from seaway.contract import keys
 from seaway.contract.config import ConfigError
 from seaway.contract.messages import (
+    MAX_REASON_CHARS,
     BatteryState,
     MissionCommand,
     MissionRequest,
@@ -80,7 +83,7 @@ from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.model import load_vessel
 
 from seaway_controller import checkpoint
-from seaway_controller.core import ControllerConfig, ControllerCore
+from seaway_controller.core import BudgetDecision, ControllerConfig, ControllerCore
 from seaway_controller.mission import MissionLimits
 from seaway_controller.solvers import SOLVER_KINDS, SolverBuilds, StagedSolver
 
@@ -94,8 +97,8 @@ CHECKPOINT_CLOSE_S = 5.0
 
 
 SOLVER_REPLY_WAIT_S = 2.0
-"""How long a mission's reply waits for its solver: enough to load a cached one, so that only a
-compile still under way is worth a word in the reply."""
+"""How long a mission waits for its solver before it starts: enough to load a cached one, so that
+only a compile still under way is flown on the fallbacks and worth a word in the reply [s]."""
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -129,7 +132,7 @@ class ControllerService:
         self.builds = builds
         if builds is not None:
             builds.on_done = self.on_solver_done
-        self._saved: tuple[str, int, str] | None = None  # (mission id, leg, state) last written
+        self._saved: tuple | None = None  # (mission id, leg, state, decision) last written
         self._saved_at_ns: int | None = None  # when, on the service's clock
         # Real time writes it durably, on a thread of its own: an fsync can take a second beside
         # another process's large write (seaway.runtime.atomic.LatestWriter), and the control loop
@@ -137,6 +140,10 @@ class ControllerService:
         self._writer = (atomic.LatestWriter(state_file, self._checkpoint_failed, "checkpoint")
                         if state_file is not None and not lockstep else None)
         self.lock = threading.Lock()
+        # Before any subscription: a callback can run on the bus's thread the moment its
+        # subscription exists, before this constructor returns, and uses these.
+        self.stamps = StampGate(NAME, log, StampBounds.live())  # real time: states not ahead of now
+        self.ratelog = RateLimitedLog(log)  # a step failing every period: a traceback now and then
         bus = ctx.bus
         self.member: Member | None = None
         self._states: dict[int, StateEstimate] = {}  # lockstep: the states of recent periods by stamp
@@ -166,15 +173,19 @@ class ControllerService:
         self.pub_energy = bus.publisher(keys.MISSION_ENERGY)
         bus.queryable(keys.MISSION_SET, self.on_mission)
         bus.queryable(keys.MISSION_COMMAND, self.on_command)
-        self.stamps = StampGate(NAME, log, StampBounds.live())  # real time: states not ahead of now
-        self.ratelog = RateLimitedLog(log)  # a step failing every period: a traceback now and then
         bus.subscribe(keys.VEHICLE_STATUS, callback=self.on_vehicle_status)  # pauses a mission
 
     def on_mission(self, req: MissionRequest) -> Reply:
+        if self.builds is not None:
+            # The mission's solver is asked for first, and the mission starts once it is there
+            # (a cached one is loaded in a moment) or this wait is over (a compile): started
+            # before, its first periods flew on a fallback while the solver was being loaded.
+            with self.lock:
+                kind = self.core.prepare_for(req)
+            if kind is not None:
+                self.builds.wait(kind, SOLVER_REPLY_WAIT_S)
         reply = self._serve(f"{keys.MISSION_SET.suffix} {req.mission_id!r}", self.core.handle_mission,
                             req)
-        if reply.accepted and self.builds is not None:  # a cached solver is loaded in a moment
-            self.builds.wait(req.controller, SOLVER_REPLY_WAIT_S)
         making = self.solver_progress(req.controller) if reply.accepted else ""
         if making:  # the mission is on; say how it is flown until its solver is there
             meanwhile = ("simulated time holds until it is ready" if self.member is not None
@@ -237,7 +248,9 @@ class ControllerService:
         if progress is None:
             return
         req, leg, state, energy = progress
-        key = (req.mission_id, leg, state)
+        with self.lock:
+            decision = self.core.decision()
+        key = (req.mission_id, leg, state, decision)
         now_ns = self._now_ns()
         last = self._saved_at_ns
         due = last is None or not 0 <= now_ns - last < CHECKPOINT_PERIOD_NS
@@ -245,7 +258,9 @@ class ControllerService:
             return
         cp = checkpoint.MissionCheckpoint(
             request=req.model_dump(mode="json"), active_leg=leg, state=state,  # type: ignore[arg-type]
-            energy_used_j=energy, saved_unix_ns=time.time_ns())
+            energy_used_j=energy, saved_unix_ns=time.time_ns(), returning=decision.returning,
+            decision=decision.decision, decided_ns=decision.decided_ns,
+            decision_reason=decision.reason[:MAX_REASON_CHARS])
         if self._writer is not None:
             self._writer.submit(checkpoint.encode(cp))
         else:
@@ -455,7 +470,7 @@ class ControllerService:
             if progress is None or progress[2] not in ("active", "paused"):
                 return
             req = progress[0]
-            reply = self.core.handle_mission(period.stamp_ns, req)
+            reply = self.core.handle_mission(period.stamp_ns, req, check=False)
         with self.member.changed:  # type: ignore[union-attr]
             self._states = {k: v for k, v in self._states.items() if k <= period.stamp_ns}
         log.warning("lockstep episode %d (time back to %.3f s): mission %r restarted: %s",
@@ -531,10 +546,12 @@ def resume(core: ControllerCore, path: Path, now_ns: int, run_file: str | Path |
     except checkpoint.CheckpointError as err:
         log.error("ignoring the mission checkpoint: %s", err)
         return
-    reply = core.restore(now_ns, req, cp.active_leg, cp.state, cp.energy_used_j)
+    decision = BudgetDecision(cp.returning, cp.decision, cp.decided_ns, cp.decision_reason)
+    reply = core.restore(now_ns, req, cp.active_leg, cp.state, cp.energy_used_j, decision)
     if reply.accepted:
-        log.warning("resumed mission %r from %s at leg %d (%s), %.1f J used before the restart",
-                    req.mission_id, path, cp.active_leg, cp.state, cp.energy_used_j)
+        log.warning("resumed mission %r from %s at leg %d (%s), %.1f J used before the restart; "
+                    "energy budget: %s%s", req.mission_id, path, cp.active_leg, cp.state,
+                    cp.energy_used_j, cp.decision, " (returning home)" if cp.returning else "")
     else:
         log.error("could not resume mission %r from %s: %s", req.mission_id, path, reply.reason)
 

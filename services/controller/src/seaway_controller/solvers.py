@@ -40,6 +40,7 @@ from typing import Any, Protocol
 
 import casadi as ca
 import numpy as np
+from seaway.contract.messages import SOLVER_NOT_READY
 from seaway.vessel.native import CompileInterruptedError, cache_dir, compile_shared
 
 from seaway_controller import cvx_patch
@@ -421,6 +422,7 @@ class _Build:
     solver: NlpSolver | None = None
     error: str = ""
     seconds: float = 0.0
+    loading: bool = False  # from the cache (milliseconds), not compiled (seconds to minutes)
 
 
 class SolverBuilds:
@@ -435,8 +437,12 @@ class SolverBuilds:
 
     def __init__(self, build: Callable[[Ocp], NlpSolver] = GeneratedSqpSolver,
                  on_done: Callable[[str], None] | None = None,
-                 stopping: threading.Event | None = None) -> None:
+                 stopping: threading.Event | None = None,
+                 cached: Callable[[Ocp], bool] | None = None) -> None:
         self._build_fn = build
+        # Whether a build only loads a cached solver (said as such, not as a compile).
+        self._cached = cached or (_generated_is_cached if build is GeneratedSqpSolver
+                                  else lambda _ocp: False)
         self.on_done = on_done
         self._stopping = stopping or threading.Event()
         self._builds: dict[str, _Build] = {}
@@ -460,6 +466,7 @@ class SolverBuilds:
 
     def _run(self, b: _Build, ocp: Ocp) -> None:
         try:
+            b.loading = self._cached(ocp)
             b.solver = self._build_fn(ocp)
         except CompileInterruptedError as err:
             b.error = str(err)
@@ -504,13 +511,22 @@ class SolverBuilds:
         b = self._builds.get(kind)
         return b is None or b.done.wait(timeout_s)
 
+    def doing(self, kind: str) -> str:
+        """'being loaded' (from the cache) or 'being made' (compiled) while ``kind``'s solver is
+        pending; 'unavailable' otherwise."""
+        b = self._builds.get(kind)
+        if b is None or b.done.is_set():
+            return "unavailable"
+        return "being loaded" if b.loading else "being made"
+
     def describe(self, kind: str) -> str:
         """Where ``kind``'s solver is, in a few words ('' when it is ready or was never asked for)."""
         b = self._builds.get(kind)
         if b is None or b.solver is not None:
             return ""
         if not b.done.is_set():
-            return f"its {kind} solver is being made ({time.monotonic() - b.started_s:.0f} s so far)"
+            return (f"its {kind} solver is {self.doing(kind)} "
+                    f"({time.monotonic() - b.started_s:.0f} s so far)")
         return f"its {kind} solver could not be made ({b.error[:120]})"
 
     @property
@@ -562,14 +578,14 @@ class StagedSolver:
             fast = self.builds.ready(self.kind)
         if fast is not None:
             return fast.solve(w0, p, lam_x0, lam_g0)
-        why = "being made" if self.builds.pending(self.kind) else "unavailable"
+        why = self.builds.doing(self.kind)
         reference = self._reference_now() if self.wait else self._reference_started()
         if reference is None:
             what = (f"could not be set up: {self._reference_error}" if self._reference_error
                     else "is being set up")
             return SolveResult(w0, lam_x0, lam_g0, float("nan"), False,
-                               f"no solver yet (the reference IPOPT {what}; the generated solver "
-                               f"is {why})", 0, 0.0)
+                               f"{SOLVER_NOT_READY} (the reference IPOPT {what}; the generated "
+                               f"solver is {why})", 0, 0.0)
         res = reference.solve(w0, p, lam_x0, lam_g0)
         return replace(res, status=f"{res.status} (reference IPOPT: the generated solver is {why})")
 
@@ -594,6 +610,11 @@ class StagedSolver:
             why = f"{type(err).__name__}: {err}"
             log.error("could not set up the reference IPOPT for %s: %s", self.kind, why)
             self._reference_error = why  # after the log: whoever reads it finds the log written
+
+
+def _generated_is_cached(ocp: Ocp) -> bool:
+    """Whether ``GeneratedSqpSolver(ocp)`` finds its compiled solver in the cache."""
+    return shared_object_path(ocp, dict(SQP_OPTIONS)).is_file()
 
 
 def make_solver(ocp: Ocp, kind: SolverKind = "generated") -> NlpSolver:

@@ -10,6 +10,7 @@ from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from typing import Any
 
+from seaway.contract.messages import SOLVER_NOT_READY
 from seaway.vessel.metrics import median, percentile
 
 
@@ -18,6 +19,9 @@ class SolveStats:
     count: int
     successes: int
     failures: int
+    """Solves that failed; not the periods before the solver was ready (``not_ready``)."""
+    not_ready: int
+    """Periods with no solver to call yet (``SOLVER_NOT_READY``: being made), flown on a fallback."""
     solve_time_median_ms: float | None
     solve_time_p95_ms: float | None
     solve_time_p99_ms: float | None
@@ -43,6 +47,7 @@ def solve_stats(records: Sequence[Any]) -> SolveStats:
             levels[str(r.fallback_level)] = levels.get(str(r.fallback_level), 0) + 1
         statuses[r.status] = statuses.get(r.status, 0) + 1
     succ = sum(1 for r in records if r.success)
+    not_ready = sum(1 for r in records if not r.success and r.status.startswith(SOLVER_NOT_READY))
 
     def opt(v: float) -> float | None:
         return None if (v is None or math.isnan(v)) else v
@@ -50,7 +55,8 @@ def solve_stats(records: Sequence[Any]) -> SolveStats:
     return SolveStats(
         count=len(records),
         successes=succ,
-        failures=len(records) - succ,
+        failures=len(records) - succ - not_ready,
+        not_ready=not_ready,
         solve_time_median_ms=opt(median(times)),
         solve_time_p95_ms=opt(percentile(times, 95)),
         solve_time_p99_ms=opt(percentile(times, 99)),

@@ -385,7 +385,9 @@ def table(res: dict[str, Any]) -> str:
                  f"of {max(int(live.get('waypoint_count') or 0) - 1, 0)}")]
     rows += budget.table_rows(res["energy_budget"])
     rows += [
-        ("solves", str(s["count"]), f"{s['failures']} failed"),
+        ("solves", str(s["count"]), f"{s['failures']} failed" + (
+            f", {s['not_ready']} before its solver was ready (a fallback flew)"
+            if s.get("not_ready") else "")),
         ("solve time median / p95 / max", f"{_f(s['solve_time_median_ms'], '{:.2f}')} / "
          f"{_f(s['solve_time_p95_ms'], '{:.2f}')} / {_f(s['solve_time_max_ms'], '{:.2f}')}", "ms"),
         ("fallbacks", str(s["fallbacks"]), f"by level {s['fallback_levels'] or '{}'}"),

@@ -294,6 +294,11 @@ class ThrustCommand(Message):
     seq: int = Field(default=0, ge=0)
 
 
+SOLVER_NOT_READY = "no solver yet"
+"""How a ``SolveRecord.status`` begins for a period with no solver to call yet (its fast solver
+being loaded or made, the reference being set up): flown on a fallback, and not a failed solve."""
+
+
 class SolveRecord(Message):
     """One MPC solve: outcome, timing, prediction and the cost split by term (paper eq. 14)."""
 
