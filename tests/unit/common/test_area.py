@@ -3,6 +3,7 @@ predicted trajectories against it."""
 
 from __future__ import annotations
 
+import json
 import math
 
 import pytest
@@ -178,3 +179,23 @@ def test_point_checks_and_signed_margin() -> None:
     assert margin_m(area, (37.0, 0.0)) == pytest.approx(-2.0)  # 2 m out of the keep-in
     assert margin_m(OperatingArea(), (0.0, 0.0)) == math.inf
     assert OperatingArea().empty and not area.empty
+
+
+# -- on the bus ----------------------------------------------------------------------------------
+
+
+def test_the_area_message_carries_the_area_exactly_and_refuses_an_invalid_one() -> None:
+    from seaway.contract.messages import ActiveArea, MessageError
+
+    msg = ActiveArea.of_area(lake(), stamp_ns=5, since_ns=3, source="lake")
+    back = ActiveArea.decode(msg.encode())
+    assert back == msg and back.to_area() == lake()
+    wire = json.loads(msg.encode())
+    wire["keep_in"]["vertices"] = [
+        {"x_m": 0, "y_m": 0},
+        {"x_m": 10, "y_m": 10},
+        {"x_m": 10, "y_m": 0},
+        {"x_m": 0, "y_m": 10},
+    ]
+    with pytest.raises(MessageError, match=r"ActiveArea.*cross"):
+        ActiveArea.decode(json.dumps(wire))
