@@ -265,3 +265,38 @@ def test_bad_geojson_area_features_are_refused_naming_the_feature(doc: dict, nam
     with pytest.raises(AreaError) as err:
         f.spec_from_geojson(doc)
     assert named in str(err.value) and "features[0]" in str(err.value)
+
+
+# -- files by suffix -----------------------------------------------------------------------------
+
+
+def test_an_area_file_is_read_by_its_suffix(tmp_path) -> None:
+    spec = f.spec_of(area(), ORIGIN)
+    (tmp_path / "a.toml").write_text(f.to_toml(spec))
+    fence, rally = f.plan_sections(spec)
+    (tmp_path / "a.plan").write_text(
+        json.dumps({"fileType": "Plan", "geoFence": fence, "rallyPoints": rally})
+    )
+    (tmp_path / "a.geojson").write_text(json.dumps(f.to_geojson(spec)))
+    for name in ("a.toml", "a.geojson"):
+        assert f.load_area_file(tmp_path / name) == spec, name
+    assert_same_area(f.load_area_file(tmp_path / "a.plan").to_area(ORIGIN), area())  # .plan: no names
+    (tmp_path / "empty.plan").write_text(json.dumps({"fileType": "Plan"}))
+    assert f.load_area_file(tmp_path / "empty.plan") is None
+
+
+def test_an_unreadable_area_file_is_refused_naming_it(tmp_path) -> None:
+    (tmp_path / "a.txt").write_text("x")
+    (tmp_path / "bad.plan").write_text("{")
+    (tmp_path / "bad.geojson").write_text(
+        json.dumps(_feature({"type": "Point", "coordinates": [8, 47]}, area="moat"))
+    )
+    for name, named in (
+        ("a.txt", "unknown file type"),
+        ("bad.plan", "not JSON"),
+        ("missing.toml", "cannot read"),
+        ("bad.geojson", "features[0]"),
+    ):
+        with pytest.raises(AreaError) as err:
+            f.load_area_file(tmp_path / name)
+        assert named in str(err.value) and name in str(err.value)

@@ -38,6 +38,7 @@ import json
 import math
 import tomllib
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 from pydantic import Field, ValidationError, model_validator
@@ -263,6 +264,31 @@ def to_toml(spec: AreaSpec) -> str:
     for r in spec.rally:
         lines += ["", "[[area.rally]]", *_toml_fields(r)]
     return "\n".join(lines) + "\n"
+
+
+def load_area_file(path: str | Path) -> AreaSpec | None:
+    """An area from a file, by its suffix: ``.toml`` (its ``[area]`` table), ``.plan`` (its
+    ``geoFence`` and ``rallyPoints``), ``.geojson`` or ``.json`` (GeoJSON area features). None when
+    a .plan or GeoJSON file carries no area; AreaError naming the file and what is wrong."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8-sig")
+    except (OSError, UnicodeDecodeError) as err:
+        raise AreaError(f"{p}: cannot read: {err}") from None
+    if p.suffix == ".toml":
+        return from_toml(text, str(p))
+    if p.suffix not in (".plan", ".geojson", ".json"):
+        raise AreaError(
+            f"{p}: unknown file type {p.suffix!r}; an area is read from .toml, .plan, .geojson or .json"
+        )
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as err:
+        raise AreaError(f"{p}: not JSON: {err.msg} at line {err.lineno} column {err.colno}") from None
+    try:
+        return spec_from_plan(doc) if p.suffix == ".plan" else spec_from_geojson(doc)
+    except AreaError as err:
+        raise AreaError(f"{p}: {err}") from None
 
 
 def from_toml(text: str, where: str = "area file") -> AreaSpec:

@@ -20,7 +20,7 @@ from typing import Literal
 from pydantic import Field, ValidationError, model_validator
 
 from seaway.area import geometry as g
-from seaway.contract.config import ConfigError, ConfigModel, describe_validation_error
+from seaway.contract.config import ConfigModel, describe_validation_error
 
 Point = g.Point
 
@@ -335,8 +335,3 @@ def margin_m(area: OperatingArea, p: Point) -> float:
             d = -d if zone.contains(p) else d
         best = min(best, d)
     return best
-
-
-def to_config_error(err: AreaError, where: str) -> ConfigError:
-    """An AreaError as the ConfigError a config loader raises, prefixed with ``where``."""
-    return ConfigError(f"{where}: {err}")
