@@ -42,13 +42,22 @@ def polygon_area_m2(polygon: Sequence[Point]) -> float:
 
 def on_boundary(p: Point, polygon: Sequence[Point], tol_m: float = 1e-6) -> bool:
     """True if ``p`` lies on an edge of the polygon (within ``tol_m``)."""
-    return any(distance_point_segment_m(p, a, b) <= tol_m for a, b in _edges(polygon))
+    x, y = p
+    for a, b in _edges(polygon):
+        if (
+            x < min(a[0], b[0]) - tol_m
+            or x > max(a[0], b[0]) + tol_m
+            or y < min(a[1], b[1]) - tol_m
+            or y > max(a[1], b[1]) + tol_m
+        ):
+            continue  # outside the edge's box: not on it (cheap, and most edges)
+        if distance_point_segment_m(p, a, b) <= tol_m:
+            return True
+    return False
 
 
 def point_in_polygon(p: Point, polygon: Sequence[Point]) -> bool:
     """True if ``p`` is inside the polygon or on its boundary (even-odd rule)."""
-    if on_boundary(p, polygon):
-        return True
     inside = False
     x, y = p
     for (x1, y1), (x2, y2) in _edges(polygon):
@@ -56,7 +65,7 @@ def point_in_polygon(p: Point, polygon: Sequence[Point]) -> bool:
             x_cross = x1 + (y - y1) * (x2 - x1) / (y2 - y1)
             if x < x_cross:
                 inside = not inside
-    return inside
+    return inside or on_boundary(p, polygon)
 
 
 def distance_to_polygon_boundary_m(p: Point, polygon: Sequence[Point]) -> float:
@@ -101,11 +110,24 @@ def self_intersection(polygon: Sequence[Point]) -> tuple[int, int] | None:
     return None
 
 
-def _crossing_params(a: Point, b: Point, polygon: Sequence[Point]) -> list[float]:
-    """Parameters t in [0, 1] along a-b where it meets the polygon's boundary (sorted)."""
+def _crossing_params(a: Point, b: Point, polygon: Sequence[Point]) -> tuple[list[float], bool]:
+    """Parameters t in [0, 1] along a-b where it meets the polygon's boundary (sorted, with 0 and
+    1), and whether it meets the boundary at all (if not, the whole segment is on the side of
+    ``a``)."""
     ts = {0.0, 1.0}
+    met = False
     rx, ry = b[0] - a[0], b[1] - a[1]
+    r2 = rx * rx + ry * ry
+    lo_x, hi_x = min(a[0], b[0]) - 1e-6, max(a[0], b[0]) + 1e-6
+    lo_y, hi_y = min(a[1], b[1]) - 1e-6, max(a[1], b[1]) + 1e-6
     for c, d in _edges(polygon):
+        if (
+            max(c[0], d[0]) < lo_x
+            or min(c[0], d[0]) > hi_x
+            or max(c[1], d[1]) < lo_y
+            or min(c[1], d[1]) > hi_y
+        ):
+            continue  # the boxes do not overlap: no contact (the common case, and cheap)
         sx, sy = d[0] - c[0], d[1] - c[1]
         denom = rx * sy - ry * sx
         qx, qy = c[0] - a[0], c[1] - a[1]
@@ -114,14 +136,15 @@ def _crossing_params(a: Point, b: Point, polygon: Sequence[Point]) -> list[float
             u = (qx * ry - qy * rx) / denom
             if -1e-12 <= t <= 1 + 1e-12 and -1e-12 <= u <= 1 + 1e-12:
                 ts.add(min(1.0, max(0.0, t)))
-        else:  # parallel: where the segment passes the edge's ends, if it runs along it
-            r2 = rx * rx + ry * ry
+                met = True
+        elif segments_intersect(a, b, c, d):  # parallel and touching: where it passes the edge's ends
+            met = True
             if r2 > 0.0:
                 for e in (c, d):
                     t = ((e[0] - a[0]) * rx + (e[1] - a[1]) * ry) / r2
                     if 0.0 <= t <= 1.0:
                         ts.add(t)
-    return sorted(ts)
+    return sorted(ts), met
 
 
 def _at(a: Point, b: Point, t: float) -> Point:
@@ -131,9 +154,11 @@ def _at(a: Point, b: Point, t: float) -> Point:
 def segment_leaves_polygon(a: Point, b: Point, polygon: Sequence[Point]) -> float | None:
     """Where the segment a-b is first outside the polygon, as a parameter t in [0, 1] along it
     (0 if ``a`` is outside), or None if it stays inside (the boundary counts as inside)."""
-    ts = _crossing_params(a, b, polygon)
+    ts, met = _crossing_params(a, b, polygon)
     if not point_in_polygon(a, polygon):
         return 0.0
+    if not met:
+        return None
     for t0, t1 in itertools.pairwise(ts):
         if not point_in_polygon(_at(a, b, 0.5 * (t0 + t1)), polygon):
             return t0
@@ -145,7 +170,9 @@ def segment_leaves_polygon(a: Point, b: Point, polygon: Sequence[Point]) -> floa
 def segment_enters_polygon(a: Point, b: Point, polygon: Sequence[Point]) -> float | None:
     """Where the segment a-b first touches the polygon (boundary included), as a parameter t in
     [0, 1] along it, or None if it stays clear."""
-    ts = _crossing_params(a, b, polygon)
+    ts, met = _crossing_params(a, b, polygon)
+    if not met:
+        return 0.0 if point_in_polygon(a, polygon) else None
     for k, t in enumerate(ts):
         if point_in_polygon(_at(a, b, t), polygon):
             return t
