@@ -54,6 +54,14 @@ def test_segment_leaving_a_non_convex_polygon_is_found_though_both_ends_are_insi
     assert g.segment_leaves_polygon((12.0, 0.0), (5.0, 5.0), SQUARE) == 0.0  # starts outside
 
 
+def test_segments_touching_the_boundary() -> None:
+    assert g.segment_leaves_polygon((10.0, 5.0), (15.0, 5.0), SQUARE) == 0.0  # from the edge, out
+    assert g.segment_leaves_polygon((10.0, 5.0), (5.0, 5.0), SQUARE) is None  # from the edge, in
+    assert g.segment_leaves_polygon((0.0, 5.0), (0.0, 15.0), SQUARE) == pytest.approx(0.5)  # along, out
+    assert g.segment_enters_polygon((10.0, 15.0), (10.0, 10.0), SQUARE) == pytest.approx(1.0)  # to a corner
+    assert g.segment_enters_polygon((-1.0, -1.0), (-1.0, 20.0), SQUARE) is None  # along, 1 m clear
+
+
 def test_segment_entering_a_polygon_or_a_circle() -> None:
     assert g.segment_enters_polygon((-5, 5), (15, 5), SQUARE) == pytest.approx(0.25)
     assert g.segment_enters_polygon((-5, 15), (15, 15), SQUARE) is None
