@@ -1,5 +1,5 @@
-"""seaway.area.files: the operating area in TOML, QGroundControl .plan (geoFence, rallyPoints) and
-GeoJSON, each round-tripped, and bad files refused naming what is wrong."""
+"""seaway.area.spec, .plan, .geojson and .files: the operating area in TOML, QGroundControl .plan
+(geoFence, rallyPoints) and GeoJSON, each round-tripped, and bad files refused naming what is wrong."""
 
 from __future__ import annotations
 
@@ -8,7 +8,8 @@ import json
 import math
 
 import pytest
-from seaway.area import files as f
+from seaway.area import files, geojson, plan
+from seaway.area import spec as area_spec
 from seaway.area.model import AreaError, OperatingArea
 from seaway.vessel.frames import GeoOrigin
 
@@ -44,12 +45,12 @@ def assert_same_area(a: OperatingArea, b: OperatingArea, tol_m: float = 1e-6) ->
 
 def test_toml_round_trips_in_metres_and_in_degrees() -> None:
     for origin in (None, ORIGIN):
-        spec = f.spec_of(area(), origin)
-        text = f.to_toml(spec)
-        back = f.from_toml(text)
+        spec = area_spec.spec_of(area(), origin)
+        text = area_spec.to_toml(spec)
+        back = area_spec.from_toml(text)
         assert back == spec
         assert_same_area(back.to_area(ORIGIN), area())
-    assert "vertices_deg" in f.to_toml(f.spec_of(area(), ORIGIN))
+    assert "vertices_deg" in area_spec.to_toml(area_spec.spec_of(area(), ORIGIN))
 
 
 def test_toml_as_written_by_hand() -> None:
@@ -63,7 +64,7 @@ radius_m = 3.0
 position_deg = [28.18, 112.94]
 name = "jetty"
 """
-    result = f.from_toml(text).to_area(ORIGIN)
+    result = area_spec.from_toml(text).to_area(ORIGIN)
     assert result.keep_out_circles[0].radius_m == 3.0
     assert math.dist(result.rally_points[0].position_m, (0.0, 0.0)) < 1e-6
 
@@ -84,23 +85,23 @@ name = "jetty"
 )
 def test_bad_toml_tables_are_refused_naming_the_field(table: dict, named: str) -> None:
     with pytest.raises(AreaError) as err:
-        f.parse_spec(table, "scenario [area]")
+        area_spec.parse_spec(table, "scenario [area]")
     assert named in str(err.value) and "scenario [area]" in str(err.value)
 
 
 def test_degrees_without_an_origin_and_unreadable_toml_are_refused() -> None:
     with pytest.raises(AreaError, match="origin"):
-        f.spec_of(area(), ORIGIN).to_area(None)
+        area_spec.spec_of(area(), ORIGIN).to_area(None)
     with pytest.raises(AreaError, match="not valid TOML"):
-        f.from_toml("[area\n")
+        area_spec.from_toml("[area\n")
     with pytest.raises(AreaError, match=r"no \[area\] table"):
-        f.from_toml("x = 1\n")
+        area_spec.from_toml("x = 1\n")
 
 
 def test_an_area_valid_as_a_table_but_not_as_an_area_is_refused() -> None:
     table = {"keep_in": {"vertices_m": [[0, 0], [10, 10], [10, 0], [0, 10]]}}
     with pytest.raises(AreaError, match="cross"):
-        f.parse_spec(table).to_area(None)
+        area_spec.parse_spec(table).to_area(None)
 
 
 # -- QGroundControl .plan ------------------------------------------------------------------------
@@ -131,7 +132,7 @@ QGC_SECTIONS = {
 
 
 def test_qgc_sections_read_into_keep_in_keep_out_and_rally_points() -> None:
-    spec = f.spec_from_plan(QGC_SECTIONS)
+    spec = plan.spec_from_plan(QGC_SECTIONS)
     assert spec is not None
     assert spec.keep_in.vertices_deg[0] == (47.399, 8.544)
     assert [z.is_circle for z in spec.keep_out] == [False, True]
@@ -142,20 +143,21 @@ def test_qgc_sections_read_into_keep_in_keep_out_and_rally_points() -> None:
 
 
 def test_qgc_sections_round_trip() -> None:
-    spec = f.spec_from_plan(QGC_SECTIONS)
-    fence, rally = f.plan_sections(spec)
-    assert f.spec_from_plan({"geoFence": fence, "rallyPoints": rally}) == spec
+    spec = plan.spec_from_plan(QGC_SECTIONS)
+    fence, rally = plan.plan_sections(spec)
+    assert plan.spec_from_plan({"geoFence": fence, "rallyPoints": rally}) == spec
     assert fence["version"] == 2 and rally["version"] == 2
     assert {p["version"] for p in fence["polygons"]} == {1}
     # An area in metres goes out through the origin and comes back the same.
-    spec_deg = f.spec_of(area(), ORIGIN)
-    back = f.spec_from_plan(dict(zip(("geoFence", "rallyPoints"), f.plan_sections(spec_deg), strict=True)))
+    spec_deg = area_spec.spec_of(area(), ORIGIN)
+    fence, rally = plan.plan_sections(spec_deg)
+    back = plan.spec_from_plan({"geoFence": fence, "rallyPoints": rally})
     assert_same_area(back.to_area(ORIGIN), area())
 
 
 def test_an_empty_plan_fence_is_no_area() -> None:
     assert (
-        f.spec_from_plan(
+        plan.spec_from_plan(
             {
                 "geoFence": {"circles": [], "polygons": [], "version": 2},
                 "rallyPoints": {"points": [], "version": 2},
@@ -163,8 +165,8 @@ def test_an_empty_plan_fence_is_no_area() -> None:
         )
         is None
     )
-    assert f.spec_from_plan({}) is None
-    assert f.plan_sections(None) == (
+    assert plan.spec_from_plan({}) is None
+    assert plan.plan_sections(None) == (
         {"circles": [], "polygons": [], "version": 2},
         {"points": [], "version": 2},
     )
@@ -201,7 +203,7 @@ def _broken(path: tuple, value: object) -> dict:
 )
 def test_bad_plan_fences_are_refused_naming_the_item(doc: dict, named: str) -> None:
     with pytest.raises(AreaError) as err:
-        spec = f.spec_from_plan(doc)
+        spec = plan.spec_from_plan(doc)
         spec.to_area(GeoOrigin.from_degrees(47.3977, 8.5456))
     assert named in str(err.value)
 
@@ -210,8 +212,8 @@ def test_bad_plan_fences_are_refused_naming_the_item(doc: dict, named: str) -> N
 
 
 def test_geojson_round_trips_with_circles_as_points_with_a_radius() -> None:
-    spec = f.spec_of(area(), ORIGIN)
-    doc = json.loads(json.dumps(f.to_geojson(spec)))
+    spec = area_spec.spec_of(area(), ORIGIN)
+    doc = json.loads(json.dumps(geojson.to_geojson(spec)))
     kinds = [(x["geometry"]["type"], x["properties"]["area"]) for x in doc["features"]]
     assert kinds == [
         ("Polygon", "keep_in"),
@@ -222,8 +224,8 @@ def test_geojson_round_trips_with_circles_as_points_with_a_radius() -> None:
     ]
     ring = doc["features"][0]["geometry"]["coordinates"][0]
     assert ring[0] == ring[-1]  # RFC 7946: closed rings
-    assert f.spec_from_geojson(doc) == spec
-    assert_same_area(f.spec_from_geojson(doc).to_area(ORIGIN), area())
+    assert geojson.spec_from_geojson(doc) == spec
+    assert_same_area(geojson.spec_from_geojson(doc).to_area(ORIGIN), area())
 
 
 def test_geojson_without_area_features_has_no_area() -> None:
@@ -232,8 +234,8 @@ def test_geojson_without_area_features_has_no_area() -> None:
         "geometry": {"type": "LineString", "coordinates": [[8, 47], [8.1, 47]]},
         "properties": {},
     }
-    assert f.spec_from_geojson(line) is None
-    assert f.spec_from_geojson({"type": "FeatureCollection", "features": [line]}) is None
+    assert geojson.spec_from_geojson(line) is None
+    assert geojson.spec_from_geojson({"type": "FeatureCollection", "features": [line]}) is None
 
 
 def _feature(geometry: dict, **props: object) -> dict:
@@ -263,7 +265,7 @@ SQUARE_RING = [[[8.0, 47.0], [8.001, 47.0], [8.001, 47.001], [8.0, 47.001], [8.0
 )
 def test_bad_geojson_area_features_are_refused_naming_the_feature(doc: dict, named: str) -> None:
     with pytest.raises(AreaError) as err:
-        f.spec_from_geojson(doc)
+        geojson.spec_from_geojson(doc)
     assert named in str(err.value) and "features[0]" in str(err.value)
 
 
@@ -271,18 +273,18 @@ def test_bad_geojson_area_features_are_refused_naming_the_feature(doc: dict, nam
 
 
 def test_an_area_file_is_read_by_its_suffix(tmp_path) -> None:
-    spec = f.spec_of(area(), ORIGIN)
-    (tmp_path / "a.toml").write_text(f.to_toml(spec))
-    fence, rally = f.plan_sections(spec)
+    spec = area_spec.spec_of(area(), ORIGIN)
+    (tmp_path / "a.toml").write_text(area_spec.to_toml(spec))
+    fence, rally = plan.plan_sections(spec)
     (tmp_path / "a.plan").write_text(
         json.dumps({"fileType": "Plan", "geoFence": fence, "rallyPoints": rally})
     )
-    (tmp_path / "a.geojson").write_text(json.dumps(f.to_geojson(spec)))
+    (tmp_path / "a.geojson").write_text(json.dumps(geojson.to_geojson(spec)))
     for name in ("a.toml", "a.geojson"):
-        assert f.load_area_file(tmp_path / name) == spec, name
-    assert_same_area(f.load_area_file(tmp_path / "a.plan").to_area(ORIGIN), area())  # .plan: no names
+        assert files.load_area_file(tmp_path / name) == spec, name
+    assert_same_area(files.load_area_file(tmp_path / "a.plan").to_area(ORIGIN), area())  # .plan: no names
     (tmp_path / "empty.plan").write_text(json.dumps({"fileType": "Plan"}))
-    assert f.load_area_file(tmp_path / "empty.plan") is None
+    assert files.load_area_file(tmp_path / "empty.plan") is None
 
 
 def test_an_unreadable_area_file_is_refused_naming_it(tmp_path) -> None:
@@ -298,5 +300,5 @@ def test_an_unreadable_area_file_is_refused_naming_it(tmp_path) -> None:
         ("bad.geojson", "features[0]"),
     ):
         with pytest.raises(AreaError) as err:
-            f.load_area_file(tmp_path / name)
+            files.load_area_file(tmp_path / name)
         assert named in str(err.value) and name in str(err.value)

@@ -28,15 +28,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
-from seaway.area.files import (
-    AREA_PROPERTY,
-    AreaSpec,
-    geojson_features,
-    plan_sections,
-    spec_from_geojson,
-    spec_from_plan,
-)
+from seaway.area.geojson import AREA_PROPERTY, geojson_features, spec_from_geojson
 from seaway.area.model import AreaError
+from seaway.area.plan import plan_sections, spec_from_plan
+from seaway.area.spec import AreaSpec
 
 NAV_WAYPOINT = 16
 """MAV_CMD_NAV_WAYPOINT: the only mission item that becomes a Seaway waypoint."""

@@ -113,7 +113,7 @@ class ParsedMission(BaseModel):
     area: dict[str, Any] | None = Field(
         default=None, description="the operating area and rally points the file carries (a .plan's "
                                   "geoFence and rallyPoints, GeoJSON area features), in degrees, as "
-                                  "seaway.area.files.AreaSpec writes it; None: the file has none")
+                                  "seaway.area.spec.AreaSpec writes it; None: the file has none")
 
 
 class ErrorBody(BaseModel):

@@ -35,8 +35,8 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import Field, model_validator
 
-from seaway.area.files import AreaSpec
 from seaway.area.model import AreaError, OperatingArea
+from seaway.area.spec import AreaSpec
 from seaway.contract.config import ConfigError, ConfigModel, Origin, deploy_named, parse_config, read_document
 from seaway.contract.missions import MissionSpec
 from seaway.simkit.faults import Fault
@@ -210,7 +210,7 @@ class Scenario(ConfigModel):
     faults: list[Fault] = Field(default_factory=list, description="scheduled sensor and thruster "
                                 "faults (seaway.simkit.faults)")
     area: AreaSpec | None = Field(default=None, description="the operating area and rally points "
-                                  "(seaway.area.files; degrees through [origin]); the start and the "
+                                  "(seaway.area.spec; degrees through [origin]); the start and the "
                                   "mission's home must be inside it")
 
     @model_validator(mode="after")
