@@ -46,7 +46,8 @@ def test_each_member_carries_exactly_the_keys_it_publishes_in_lockstep() -> None
         "sim/truth", "sim/disturbance", "sim/clock"}
     assert bundle.suffixes_of("estimator") == {"nav/state", "nav/origin"}
     assert bundle.suffixes_of("controller") == {
-        "ctrl/thrust", "ctrl/solve", "mission/status", "mission/accepted", "mission/energy"}
+        "ctrl/thrust", "ctrl/solve", "mission/status", "mission/accepted", "mission/energy",
+        "area/active"}
     assert bundle.suffixes_of("recorder") == frozenset()
     assert bundle.bundled_by(keys.VEHICLE_STATUS) is None  # vehicle_io is no member
     assert bundle.bundled_by(keys.LOCKSTEP_SIM) is None

@@ -278,6 +278,20 @@ def test_parse_reads_a_file_without_sending(client: TestClient, vessel: Vessel) 
     assert "mission/set" not in vessel.requests
 
 
+def test_parse_returns_the_plans_operating_area(client: TestClient) -> None:
+    doc = json.loads((DATA / "PX4SITL-ArduRover.plan").read_text())
+    assert client.post("/api/missions/parse", json={"document": doc, "skip_unsupported": True}
+                       ).json()["area"] is None  # its geoFence and rallyPoints are empty
+    lat, lon = doc["mission"]["plannedHomePosition"][:2]
+    d = 0.01
+    ring = [[lat - d, lon - d], [lat - d, lon + d], [lat + d, lon + d], [lat + d, lon - d]]
+    doc["geoFence"]["polygons"] = [{"inclusion": True, "version": 1, "polygon": ring}]
+    doc["rallyPoints"]["points"] = [[lat, lon, 5.0]]
+    area = client.post("/api/missions/parse", json={"document": doc, "skip_unsupported": True}).json()["area"]
+    assert area["keep_in"]["vertices_deg"][0] == [lat - d, lon - d]
+    assert area["rally"] == [{"name": "", "position_deg": [lat, lon]}]
+
+
 def test_export_last_mission_as_plan_and_geojson(client: TestClient, vessel: Vessel) -> None:
     assert client.get("/api/vessels/v1/mission/export").status_code == 404  # nothing sent yet
     sent = client.post("/api/vessels/v1/mission", json=mission(mission_id="box"), headers=AUTH)

@@ -44,6 +44,55 @@ def test_real_rover_plan_keeps_waypoints_in_global_frames_and_skips_the_rest() -
     assert "DO_CHANGE_SPEED" in names and "NAV_LOITER_TIME" in names and "NAV_RETURN_TO_LAUNCH" in names
 
 
+# The geoFence and rallyPoints as QGroundControl writes them (GeoFenceController, QGCFencePolygon,
+# QGCFenceCircle, RallyPointController): around the real square plan's waypoints.
+QGC_FENCE = {
+    "circles": [{"circle": {"center": [47.3977, 8.5455], "radius": 20.0}, "inclusion": False,
+                 "version": 1}],
+    "polygons": [{"inclusion": True, "polygon": [[47.3995, 8.5435], [47.3995, 8.5475],
+                                                 [47.3960, 8.5475], [47.3960, 8.5435]], "version": 1}],
+    "version": 2,
+}
+QGC_RALLY = {"points": [[47.3980, 8.5460, 10.0], [47.3970, 8.5440, 10.0]], "version": 2}
+
+
+def test_plan_geofence_and_rally_points_are_read_not_dropped() -> None:
+    doc = {**load("simple_square.plan"), "geoFence": QGC_FENCE, "rallyPoints": QGC_RALLY}
+    path = plans.parse_plan(doc, skip_unsupported=True)
+    assert path.area is not None
+    assert path.area.keep_in.vertices_deg[0] == (47.3995, 8.5435)
+    assert path.area.keep_out[0].center_deg == (47.3977, 8.5455) and path.area.keep_out[0].radius_m == 20.0
+    assert [r.position_deg for r in path.area.rally] == [(47.398, 8.546), (47.397, 8.544)]
+    assert plans.parse_plan(load("simple_square.plan"), skip_unsupported=True).area is None  # empty
+
+
+def test_plan_with_geofence_and_rally_points_round_trips_through_import_and_export() -> None:
+    doc = {**load("simple_square.plan"), "geoFence": QGC_FENCE, "rallyPoints": QGC_RALLY}
+    path = plans.parse_plan(doc, skip_unsupported=True)
+    out = json.loads(json.dumps(plans.to_plan(path.points_deg, coa_radius_m=2.0, area=path.area)))
+    assert out["geoFence"] == QGC_FENCE
+    assert out["rallyPoints"]["points"] == [[47.398, 8.546, 0.0], [47.397, 8.544, 0.0]]  # at the surface
+    again = plans.parse_plan(out)
+    assert again.area == path.area and again.points_deg == path.points_deg
+
+
+def test_geojson_export_carries_the_area_and_reads_it_back() -> None:
+    path = plans.parse_plan({**load("simple_square.plan"), "geoFence": QGC_FENCE,
+                             "rallyPoints": QGC_RALLY}, skip_unsupported=True)
+    doc = json.loads(json.dumps(plans.to_geojson(path.points_deg, {"coa_radius_m": 2.0}, area=path.area)))
+    assert doc["type"] == "FeatureCollection"
+    again = plans.parse_geojson(doc)
+    assert again.area == path.area and again.points_deg == path.points_deg
+    assert again.hints == {"coa_radius_m": 2.0}
+
+
+def test_a_bad_plan_fence_is_refused_as_a_plan_error_naming_it() -> None:
+    fence = copy.deepcopy(QGC_FENCE)
+    fence["circles"][0]["inclusion"] = True
+    with pytest.raises(PlanError, match=r"geoFence.circles\[0\]: an inclusion circle"):
+        plans.parse_plan({**load("simple_square.plan"), "geoFence": fence}, skip_unsupported=True)
+
+
 def test_plan_round_trip_keeps_points_and_acceptance_radius() -> None:
     points = [(47.3977, 8.5456), (47.3987, 8.5466), (47.3987, 8.5446)]
     doc = plans.to_plan(points, coa_radius_m=2.5, cruise_speed_mps=1.2)

@@ -24,6 +24,7 @@ VESSELS = sorted(p.stem for p in (REPO / "deploy" / "vessels").glob("*.toml"))
 
 def lake_with(**changes) -> dict:
     doc = sc.load_scenario("lake").model_dump(mode="json")
+    doc.pop("area")  # the lake's area holds its own start, not the far ones tried here
     doc.update(changes)
     return doc
 

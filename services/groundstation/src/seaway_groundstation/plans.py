@@ -9,10 +9,13 @@ WGS84 latitude/longitude in degrees; Seaway's ``MissionRequest`` takes the same 
   global frame has latitude and longitude in ``params[4]`` and ``params[5]`` [deg] and its
   acceptance radius in ``params[1]`` [m]. Anything else (takeoff, loiter, speed changes, survey
   ``ComplexItem`` s) is refused naming the item, or skipped and listed with ``skip_unsupported``.
+  Its ``geoFence`` and ``rallyPoints`` are the operating area (``seaway.area.files``).
 * GeoJSON (RFC 7946): a ``LineString`` as a bare geometry, a ``Feature`` or a
   ``FeatureCollection`` with exactly one; positions are ``[lon, lat]`` or ``[lon, lat, alt]``
   (longitude first). A Feature's ``properties`` may carry Seaway's mission parameters, which an
-  export writes and an import offers as defaults.
+  export writes and an import offers as defaults. A FeatureCollection may also carry the operating
+  area: features whose ``properties.area`` is ``keep_in``, ``keep_out`` or ``rally``
+  (``seaway.area.files``).
 
 Every refusal is a ``PlanError`` whose text names the file kind and the item at fault.
 """
@@ -24,6 +27,11 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
+
+from seaway.area.geojson import AREA_PROPERTY, geojson_features, spec_from_geojson
+from seaway.area.model import AreaError
+from seaway.area.plan import plan_sections, spec_from_plan
+from seaway.area.spec import AreaSpec
 
 NAV_WAYPOINT = 16
 """MAV_CMD_NAV_WAYPOINT: the only mission item that becomes a Seaway waypoint."""
@@ -72,6 +80,8 @@ class ImportedPath:
     """(lat_deg, lon_deg) of each waypoint, in order."""
     skipped: tuple[str, ...] = ()
     hints: dict[str, Any] = field(default_factory=dict)
+    area: AreaSpec | None = None
+    """The operating area and rally points the file carries, in degrees, or None."""
 
 
 # ---------------------------------------------------------------------------------------------
@@ -220,7 +230,15 @@ def parse_plan(doc: Any, *, skip_unsupported: bool = False,
     hints: dict[str, Any] = {}
     if radii and radii[0] is not None and all(r == radii[0] for r in radii):
         hints["coa_radius_m"] = radii[0]
-    return ImportedPath("plan", tuple(points), tuple(skipped), hints)
+    return ImportedPath("plan", tuple(points), tuple(skipped), hints, _area(spec_from_plan, doc))
+
+
+def _area(read: Any, doc: Any) -> AreaSpec | None:
+    """The operating area ``read`` finds in ``doc``, its refusal as a PlanError."""
+    try:
+        return read(doc)
+    except AreaError as err:
+        raise PlanError(str(err)) from None
 
 
 _HINT_PROPERTIES = ("mission_id", "coa_radius_m", "task_power_w", "controller", "predict_disturbance",
@@ -284,6 +302,8 @@ def parse_geojson(doc: Any, *, skip_unsupported: bool = False,
             if isinstance(geometry, dict) and geometry.get("type") == "LineString":
                 lines.append((i, feature))
                 continue
+            if isinstance(feature.get("properties"), dict) and AREA_PROPERTY in feature["properties"]:
+                continue  # the operating area's: read below
             gtype = geometry.get("type") if isinstance(geometry, dict) else None
             msg = f"{where}: geometry type {json.dumps(gtype)} is not a LineString"
             if not skip_unsupported:
@@ -311,7 +331,7 @@ def parse_geojson(doc: Any, *, skip_unsupported: bool = False,
     _check_count("geojson", points, skipped, max_waypoints)
     hints = {k: properties[k] for k in _HINT_PROPERTIES
              if isinstance(properties, dict) and properties.get(k) is not None}
-    return ImportedPath("geojson", tuple(points), tuple(skipped), hints)
+    return ImportedPath("geojson", tuple(points), tuple(skipped), hints, _area(spec_from_geojson, doc))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -325,11 +345,16 @@ def _check_points(points_deg: Sequence[tuple[float, float]]) -> None:
 
 
 def to_plan(points_deg: Sequence[tuple[float, float]], *, coa_radius_m: float | None = None,
-            cruise_speed_mps: float | None = None) -> dict[str, Any]:
+            cruise_speed_mps: float | None = None, area: AreaSpec | None = None) -> dict[str, Any]:
     """A QGroundControl plan (``fileType: "Plan"``, mission version 2) with one NAV_WAYPOINT per
     point [deg], in frame GLOBAL_RELATIVE_ALT at altitude 0 m; ``coa_radius_m`` goes into each
-    item's acceptance radius (params[1]) and ``cruise_speed_mps`` into ``cruiseSpeed``."""
+    item's acceptance radius (params[1]) and ``cruise_speed_mps`` into ``cruiseSpeed``; ``area``
+    (in degrees) into ``geoFence`` and ``rallyPoints``."""
     _check_points(points_deg)
+    try:
+        fence, rally = plan_sections(area)
+    except AreaError as err:
+        raise PlanError(str(err)) from None
     items = []
     for i, (lat, lon) in enumerate(points_deg):
         items.append({
@@ -340,7 +365,7 @@ def to_plan(points_deg: Sequence[tuple[float, float]], *, coa_radius_m: float | 
     home = [points_deg[0][0], points_deg[0][1], 0] if points_deg else [0, 0, 0]
     return {
         "fileType": "Plan",
-        "geoFence": {"circles": [], "polygons": [], "version": 2},
+        "geoFence": fence,
         "groundStation": "Seaway",
         "mission": {
             "cruiseSpeed": cruise_speed_mps or 1.0, "firmwareType": MAV_AUTOPILOT_GENERIC,
@@ -348,18 +373,26 @@ def to_plan(points_deg: Sequence[tuple[float, float]], *, coa_radius_m: float | 
             "plannedHomePosition": home, "vehicleType": MAV_TYPE_SURFACE_BOAT,
             "version": PLAN_MISSION_VERSION,
         },
-        "rallyPoints": {"points": [], "version": 2},
+        "rallyPoints": rally,
         "version": 1,
     }
 
 
 def to_geojson(points_deg: Sequence[tuple[float, float]],
-               properties: dict[str, Any] | None = None) -> dict[str, Any]:
+               properties: dict[str, Any] | None = None,
+               area: AreaSpec | None = None) -> dict[str, Any]:
     """A GeoJSON Feature with one LineString of the points ([lon, lat] positions, RFC 7946) and
-    ``properties`` (Seaway writes the mission's parameters there, read back as hints)."""
+    ``properties`` (Seaway writes the mission's parameters there, read back as hints). With an
+    ``area`` (in degrees): a FeatureCollection of that Feature and the area's features."""
     _check_points(points_deg)
-    return {
+    line = {
         "type": "Feature",
         "geometry": {"type": "LineString", "coordinates": [[lon, lat] for lat, lon in points_deg]},
         "properties": dict(properties or {}),
     }
+    if area is None:
+        return line
+    try:
+        return {"type": "FeatureCollection", "features": [line, *geojson_features(area)]}
+    except AreaError as err:
+        raise PlanError(str(err)) from None

@@ -110,6 +110,10 @@ class ParsedMission(BaseModel):
     skipped: list[str] = Field(default_factory=list)
     hints: dict[str, Any] = Field(default_factory=dict,
                                   description="mission parameters the file states")
+    area: dict[str, Any] | None = Field(
+        default=None, description="the operating area and rally points the file carries (a .plan's "
+                                  "geoFence and rallyPoints, GeoJSON area features), in degrees, as "
+                                  "seaway.area.spec.AreaSpec writes it; None: the file has none")
 
 
 class ErrorBody(BaseModel):

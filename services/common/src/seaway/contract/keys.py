@@ -90,6 +90,9 @@ MISSION_ACCEPTED = KeySpec("mission/accepted", m.MissionAccepted, "controller",
 MISSION_ENERGY = KeySpec("mission/energy", m.EnergyBudget, "controller",
                          doc="energy to finish and to get home against the battery; the decision: "
                              "1 Hz and at each new leg of an active mission")
+AREA_ACTIVE = KeySpec("area/active", m.ActiveArea, "controller",
+                     doc="the operating area the controller enforces, in local NED: when it comes "
+                         "into force, and 1 Hz live")
 MISSION_SET = KeySpec("mission/set", m.MissionRequest, "controller", "query")
 MISSION_COMMAND = KeySpec("mission/command", m.MissionCommand, "controller", "query")
 SIM_TRUTH = KeySpec("sim/truth", m.SimTruth, "sim", also=("replay",))

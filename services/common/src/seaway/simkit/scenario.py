@@ -35,9 +35,12 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import Field, model_validator
 
+from seaway.area.model import AreaError, OperatingArea
+from seaway.area.spec import AreaSpec
 from seaway.contract.config import ConfigError, ConfigModel, Origin, deploy_named, parse_config, read_document
 from seaway.contract.missions import MissionSpec
 from seaway.simkit.faults import Fault
+from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.model import world_to_body
 
 AIR_DENSITY_KGPM3 = 1.225
@@ -206,6 +209,29 @@ class Scenario(ConfigModel):
     battery: ScenarioBattery = ScenarioBattery()
     faults: list[Fault] = Field(default_factory=list, description="scheduled sensor and thruster "
                                 "faults (seaway.simkit.faults)")
+    area: AreaSpec | None = Field(default=None, description="the operating area and rally points "
+                                  "(seaway.area.spec; degrees through [origin]); the start and the "
+                                  "mission's home must be inside it")
+
+    @model_validator(mode="after")
+    def _area_holds_the_start(self) -> Scenario:
+        try:
+            area = self.operating_area()
+            if area is not None:
+                area.require_inside((self.start.x_m, self.start.y_m), "start")
+                if self.mission is not None and self.mission.home_m is not None:
+                    area.require_inside(self.mission.home_m, "mission.home_m")
+        except AreaError as err:  # one line: the area's own problems, each naming its field
+            raise ValueError(str(err).replace("\n  ", "; ")) from None
+        return self
+
+    def operating_area(self) -> OperatingArea | None:
+        """The scenario's operating area in local NED metres, or None; AreaError if it is not
+        valid (a parsed Scenario's always is)."""
+        if self.area is None:
+            return None
+        return self.area.to_area(GeoOrigin.from_degrees(self.origin.lat_deg, self.origin.lon_deg,
+                                                        self.origin.alt_m), "area")
 
     @property
     def hotel_power_w(self) -> float:
