@@ -23,7 +23,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from seaway.contract import keys
-from seaway.contract.messages import Message, Refusals
+from seaway.contract.messages import Message, Refusals, wire_json_schema
 from seaway.tools.launch.events import EVENTS_TOPIC, ProcessEvent
 
 JSON = "json"
@@ -61,22 +61,23 @@ class ChannelSpec:
 
 
 _FOXGLOVE_TYPES = ("boolean", "string", "number", "integer", "object", "array")
-_NULLABLE_NOTE = ("Foxglove's form of the schema: a field whose value may be absent is null then, "
-                  "though its type is named alone (the contract: seaway.contract.messages)")
 
 
 def foxglove_json_schema(schema: dict[str, Any]) -> dict[str, Any]:
-    """``schema`` (pydantic's JSON Schema of a message) in the form Foxglove and Lichtblick read.
+    """``schema`` (the JSON Schema of a message's wire form) in the form Foxglove and Lichtblick read,
+    still true to every message that form validates.
 
     Their reader (``parseJsonSchema`` of ``@foxglove/mcap-support``, copied by Lichtblick) takes
     one ``type`` per field from boolean, string, number, integer, object (with ``properties``) and
     array (of those, not of arrays), and follows no ``$ref``; any other field fails the whole
     channel ("Unsupported type undefined for cross_track_m"), and with it every plot of the topic.
-    So: ``$ref`` is inlined from ``$defs``; ``anyOf``/``oneOf``/a type list with null becomes the
-    one type besides null (the value is null when absent: the one thing this form does not say,
-    noted in the root's ``description``); an object without ``properties`` (a map) gets empty ones;
-    a field with no single type left is dropped from ``properties`` (its values stay in every
-    message). The rest (titles, descriptions, bounds, enums, ``required``) is kept.
+    So: ``$ref`` is inlined from ``$defs``; ``anyOf``/``oneOf`` of one alternative becomes it; an
+    object without ``properties`` (a map) gets empty ones; a field with no single type (an
+    alternative, or a value that may be null, which one type cannot say) is dropped from
+    ``properties``: its values stay in every message, and an unlisted field is allowed. A
+    message's unknown fields are absent on the wire (``seaway.contract.messages.wire_json_schema``),
+    so an optional field has its one type. The rest (titles, descriptions, bounds, enums,
+    ``required``) is kept.
     """
     defs: dict[str, Any] = schema.get("$defs", {})
 
@@ -95,20 +96,18 @@ def foxglove_json_schema(schema: dict[str, Any]) -> dict[str, Any]:
                 continue
             if alt_key == "oneOf" and all(isinstance(a.get("const"), int | float) for a in alts):
                 return node  # Foxglove's own numeric enum form
-            rest = [a for a in alts if a.get("type") != "null"]
-            if len(rest) != 1:
+            if len(alts) != 1:
                 return None
             del node[alt_key]
-            inner = resolve(rest[0], seen)
+            inner = resolve(alts[0], seen)
             if inner is None:
                 return None
             node = {**inner, **{k: v for k, v in node.items() if k != "type"}}
         kind = node.get("type")
         if isinstance(kind, list):
-            kinds = [k for k in kind if k != "null"]
-            if len(kinds) != 1:
+            if len(kind) != 1:
                 return None
-            node["type"] = kind = kinds[0]
+            node["type"] = kind = kind[0]
         if kind not in _FOXGLOVE_TYPES:
             return None
         if kind == "object":
@@ -128,8 +127,6 @@ def foxglove_json_schema(schema: dict[str, Any]) -> dict[str, Any]:
     out = resolve({k: v for k, v in schema.items() if k != "$defs"}, ())
     if out is None:
         raise ValueError(f"schema {schema.get('title')!r} has no object form Foxglove reads")
-    out["description"] = f"{out['description']} ({_NULLABLE_NOTE})" if out.get("description") \
-        else _NULLABLE_NOTE
     return out
 
 
@@ -164,7 +161,8 @@ def malformed_channel() -> ChannelSpec:
 def events_channel() -> ChannelSpec:
     """The launcher's process events (``seaway.tools.launch.events``), copied from its log."""
     return ChannelSpec(EVENTS_TOPIC, ProcessEvent.SCHEMA, JSONSCHEMA,
-                       foxglove_schema_text(ProcessEvent.model_json_schema()), JSON, None,
+                       foxglove_schema_text(wire_json_schema(ProcessEvent, ProcessEvent.SCHEMA)),
+                       JSON, None,
                        {"role": "events", "source": "launcher"})
 
 

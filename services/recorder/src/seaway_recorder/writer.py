@@ -350,7 +350,9 @@ class RecordingWriter:
             log.warning("events log line ignored (not a process event): %s", str(err)[:200])
             return False
         t_ns = int(ev.t_unix_s * 1e9)
-        self._put(self._events_spec, line.rstrip(b"\n"), self.time.wall(t_ns), t_ns)
+        # Its own form (defaults left out), which the channel's schema says: a line written by
+        # hand may carry a null the schema does not allow.
+        self._put(self._events_spec, ev.line().rstrip("\n").encode(), self.time.wall(t_ns), t_ns)
         self.stats.events += 1
         return True
 
