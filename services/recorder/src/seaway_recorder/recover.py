@@ -29,6 +29,7 @@ from mcap.records import (
 )
 from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.writer import CompressionType, Writer
+from seaway.runtime.private import open_private
 
 RECOVER_METADATA = "seaway.recover"
 
@@ -103,7 +104,7 @@ def recover(src: Path, dst: Path, compression: CompressionType = CompressionType
     if src.resolve() == dst.resolve():
         raise ValueError("recover writes a new file: OUT must differ from IN")
     res = RecoverResult()
-    with open(src, "rb") as fin, open(dst, "wb") as fout:
+    with open(src, "rb") as fin, open_private(dst) as fout:
         tracked = _Tracking(fin)
         reader = StreamReader(tracked, emit_chunks=True, record_size_limit=1 << 31)  # type: ignore[arg-type]
         out = Writer(fout, chunk_size=chunk_size, compression=compression)

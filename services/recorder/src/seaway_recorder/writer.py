@@ -26,6 +26,7 @@ from typing import IO, Any
 
 from seaway.contract import bundle
 from seaway.contract.messages import MessageError, PeriodDone
+from seaway.runtime.private import open_private, private_folder
 from seaway.runtime.ratelog import RateLimitedLog
 from seaway.tools.launch.events import ProcessEvent
 from seaway.vessel.frames import GeoOrigin
@@ -111,7 +112,7 @@ class _OpenFile:
 
     def __init__(self, path: Path, chunk_size: int, compression: str) -> None:
         self.path = path
-        self.stream: IO[bytes] = open(path, "wb")  # noqa: SIM115 - closed in close()
+        self.stream: IO[bytes] = open_private(path)  # closed in close(); only the user reads it
         self.writer = McapWriter(self.stream, chunk_size=chunk_size, compression=compression)
         self.writer.start(profile=PROFILE, library=LIBRARY)
         self.schemas: dict[tuple[str, bytes], int] = {}
@@ -202,7 +203,8 @@ class RecordingWriter:
     def open(self, now_ns: int) -> Path:
         """Open the next file and write the attachments and run metadata into it."""
         path = self._next_path()
-        path.parent.mkdir(parents=True, exist_ok=True)
+        if not path.parent.is_dir():  # a folder of its own (a run folder given may be shared)
+            private_folder(path.parent)
         self._file = _OpenFile(path, self.chunk_size, self.compression)
         self._file_opened_ns = now_ns
         self._file_index += 1
