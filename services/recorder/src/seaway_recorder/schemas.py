@@ -47,6 +47,33 @@ MALFORMED_SCHEMA: dict[str, Any] = {
     "required": ["key", "schema", "error", "payload_base64", "receive_time_ns"],
 }
 
+RESTART_TOPIC = "recorder/restart"
+RESTART_SCHEMA_NAME = "seaway.recorder.v1.Restart"
+RESTART_SCHEMA: dict[str, Any] = {
+    "$schema": "https://json-schema.org/draft/2020-12/schema",
+    "title": RESTART_SCHEMA_NAME,
+    "description": "A recorder restarted into a run folder whose recording its predecessor left: "
+                   "the time it was away, and how far back it asked the publishers' caches for "
+                   "what was published meanwhile. A sample published before asked_from_ns (or "
+                   "by a publisher without a cache) in that time is not in the recording.",
+    "type": "object",
+    "properties": {
+        "stamp_ns": {"type": "integer", "minimum": 0,
+                     "description": "when this recorder started [ns since epoch]"},
+        "previous_file": {"type": "string", "description": "the predecessor's recording"},
+        "previous_last_ns": {"type": "integer", "minimum": 0,
+                             "description": "log time of its last message on disk [ns]"},
+        "asked_from_ns": {"type": "integer", "minimum": 0,
+                          "description": "the start of what the caches were asked for [ns]"},
+        "gap_unrecovered_s": {"type": "number", "minimum": 0,
+                              "description": "from previous_last_ns to asked_from_ns, if later: "
+                                             "the time nothing could be asked for [s]"},
+    },
+    "required": ["stamp_ns", "previous_file", "previous_last_ns", "asked_from_ns",
+                 "gap_unrecovered_s"],
+}
+
+
 @dataclass(frozen=True)
 class ChannelSpec:
     """How one topic is written: its schema (name, encoding, text) or none, and channel metadata."""
@@ -156,6 +183,12 @@ def malformed_channel() -> ChannelSpec:
     return ChannelSpec(MALFORMED_TOPIC, MALFORMED_SCHEMA_NAME, JSONSCHEMA,
                        json.dumps(MALFORMED_SCHEMA, sort_keys=True).encode(), JSON, None,
                        {"role": "errors"})
+
+
+def restart_channel() -> ChannelSpec:
+    return ChannelSpec(RESTART_TOPIC, RESTART_SCHEMA_NAME, JSONSCHEMA,
+                       json.dumps(RESTART_SCHEMA, sort_keys=True).encode(), JSON, None,
+                       {"role": "recorder"})
 
 
 def events_channel() -> ChannelSpec:

@@ -17,6 +17,7 @@ numbered one; every file carries the attachments and run metadata again, so each
 
 from __future__ import annotations
 
+import json
 import logging
 import time
 from collections import Counter
@@ -357,6 +358,12 @@ class RecordingWriter:
         self._put(self._events_spec, ev.line().rstrip("\n").encode(), self.time.wall(t_ns), t_ns)
         self.stats.events += 1
         return True
+
+    def write_restart(self, record: dict[str, Any], log_ns: int) -> None:
+        """Say in the recording that this recorder took over from one that stopped
+        (``schemas.RESTART_SCHEMA``), at ``log_ns`` (wall clock)."""
+        self._put(schemas.restart_channel(), json.dumps(record, sort_keys=True).encode(),
+                  self.time.wall(log_ns), log_ns)
 
     def _put_malformed(self, key: str, schema: str, error: str, encoding: str, payload: bytes,
                        log_time_ns: int, publish_time_ns: int) -> None:
