@@ -18,6 +18,7 @@ from mcap.reader import make_reader
 
 from tests.conftest import wait_for
 from tests.system.recorder.test_foxglove_recording import SCENARIO
+from tests.unit.recorder.foxglove_check import invalid_messages
 
 pytestmark = [pytest.mark.system, pytest.mark.slow]
 BIN = Path(sys.executable).parent
@@ -78,6 +79,12 @@ def test_a_recorder_killed_in_real_time_loses_at_most_100_ms(tmp_path, zenoh_env
     (marker,) = [json.loads(d) for t, d, _ in restarted if t == "recorder/restart"]
     assert marker["previous_file"] == "recording.mcap" and marker["gap_unrecovered_s"] == 0
     assert marker["previous_last_ns"] <= t_kill <= marker["stamp_ns"]
+
+    # Both files validate against their channels' schemas, the recalled samples and the marker too
+    # (a real-time run: vehicle_io's status, with its unknown fields, among them).
+    for name in ("recording.recovered.mcap", "recording.restart-001.mcap"):
+        checked, invalid = invalid_messages(run_dir / name)
+        assert checked > 500 and invalid == {}, (name, {t: e[0] for t, e in invalid.items()})
 
     # Each steady topic's samples, by their own stamps, across the kill: no gap beyond its period
     # plus the goal, and no sample in both files.
