@@ -30,8 +30,11 @@ def recorder_pids(run_dir: Path) -> list[int]:
     path = run_dir / "events.jsonl"
     if not path.is_file():
         return []
-    return [e["pid"] for e in map(json.loads, path.read_text().splitlines())
-            if e["process"] == "recorder" and e["event"] == "start"]
+    return [
+        e["pid"]
+        for e in map(json.loads, path.read_text().splitlines())
+        if e["process"] == "recorder" and e["event"] == "start"
+    ]
 
 
 def messages(path: Path) -> list[tuple[str, bytes, int]]:
@@ -53,14 +56,23 @@ def test_a_recorder_killed_in_real_time_loses_at_most_100_ms(tmp_path, zenoh_env
     scenario = tmp_path / "short.toml"
     scenario.write_text(SCENARIO)
     run_dir = tmp_path / "run"
-    launcher = subprocess.Popen([str(BIN / "seaway"), "launch", "sim", "--scenario", str(scenario),
-                                 "--run-dir", str(run_dir)], env=zenoh_env, stdout=subprocess.PIPE,
-                                stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    launcher = subprocess.Popen(
+        [str(BIN / "seaway"), "launch", "sim", "--scenario", str(scenario), "--run-dir", str(run_dir)],
+        env=zenoh_env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        start_new_session=True,
+    )
     try:
         first = wait_for(lambda: recorder_pids(run_dir), 120, what="the recorder started")[0]
         log = run_dir / "logs" / "controller.log"
-        wait_for(lambda: log.is_file() and "mission" in log.read_text() and "accepted" in log.read_text(),
-                 120, interval_s=0.2, what="the mission accepted")
+        wait_for(
+            lambda: log.is_file() and "mission" in log.read_text() and "accepted" in log.read_text(),
+            120,
+            interval_s=0.2,
+            what="the mission accepted",
+        )
         time.sleep(8.0)  # well under way (the leg takes about 30 s)
         t_kill = time.time_ns()
         os.kill(first, signal.SIGKILL)

@@ -23,8 +23,9 @@ def wide_umask():
         os.umask(old)
 
 
-def test_a_registry_first_made_as_a_credentials_parent_is_made_0700(tmp_path, monkeypatch,
-                                                                     wide_umask) -> None:
+def test_a_registry_first_made_as_a_credentials_parent_is_made_0700(
+    tmp_path, monkeypatch, wide_umask
+) -> None:
     # What the launcher did: the credentials folder made in the stacks folder first, with parents,
     # which gives the stacks folder the umask's 0755.
     folder = tmp_path / "state" / "stacks"
