@@ -171,3 +171,55 @@ def _float_fields(cls: type[BaseModel]) -> list[str]:
 def test_float_fields_name_their_unit(cls: type[BaseModel]) -> None:
     for name in set(_float_fields(cls)) - MIXED_UNITS:
         assert name.endswith(UNIT_SUFFIXES), f"{cls.__name__}.{name} does not end in a unit suffix"
+
+
+def _unknowns_left_out(cls: type[m.Message]) -> dict:
+    """The example with every field that may be unknown (default None) left unknown."""
+    if cls is m.ScenarioRequest:  # its document is there exactly when the action loads one
+        return dict(action="restart")
+    return {k: v for k, v in EXAMPLES[cls].items() if cls.model_fields[k].default is not None}
+
+
+@pytest.mark.parametrize("cls", ALL_MESSAGES, ids=lambda c: c.__name__)
+def test_a_message_with_unknown_fields_is_valid_against_its_schema(cls: type[m.Message]) -> None:
+    # Unknown is absent on the wire, never null: the schema names an optional field's type alone
+    # (so Foxglove reads it), which a null would break.
+    msg = cls.make(stamp_ns=T, **_unknowns_left_out(cls))
+    wire = json.loads(msg.encode())
+    assert None not in wire.values()
+    assert cls.decode(msg.encode()) == msg
+    jsonschema.Draft202012Validator(cls.json_schema()).validate(wire)
+    jsonschema.Draft202012Validator(cls.json_schema()).validate(json.loads(
+        cls.make(stamp_ns=T, **EXAMPLES[cls]).encode()))
+
+
+@pytest.mark.parametrize("cls", ALL_MESSAGES, ids=lambda c: c.__name__)
+def test_a_null_is_refused_by_the_schema_of_every_optional_field(cls: type[m.Message]) -> None:
+    schema = cls.json_schema()
+    validator = jsonschema.Draft202012Validator(schema)
+    wire = json.loads(cls.make(stamp_ns=T, **EXAMPLES[cls]).encode())
+    optional = [k for k, f in cls.model_fields.items() if f.default is None]
+    for name in optional:
+        with pytest.raises(jsonschema.ValidationError):
+            validator.validate({**wire, name: None})
+
+
+def test_every_field_that_may_be_unknown_defaults_to_it() -> None:
+    # Otherwise it could not be left out on the wire (Message.encode) and still decode.
+    assert {c.__name__: m.nullable_fields_without_default(c) for c in ALL_MESSAGES
+            if m.nullable_fields_without_default(c)} == {}
+    from seaway.tools.launch.events import ProcessEvent
+
+    assert m.nullable_fields_without_default(ProcessEvent) == []
+
+
+def test_nullable_fields_without_default_finds_them() -> None:
+    class Inner(BaseModel):
+        a: int | None
+
+    class Outer(BaseModel):
+        b: float | None = 1.0
+        c: list[Inner] = []
+        d: str | None = None
+
+    assert m.nullable_fields_without_default(Outer) == ["Outer.b", "Outer.c.a"]

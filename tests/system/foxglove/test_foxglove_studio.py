@@ -63,7 +63,7 @@ def test_a_schema_foxglove_cannot_read_is_reported(tmp_path, installed) -> None:
         w = Writer(f)
         w.start()
         sid = w.register_schema(StateEstimate.SCHEMA, "jsonschema",
-                                json.dumps(StateEstimate.json_schema()).encode())
+                                json.dumps(StateEstimate.model_json_schema()).encode())
         cid = w.register_channel(keys.NAV_STATE.key("vessel1"), "json", sid)
         for i in range(3):
             w.add_message(cid, log_time=(i + 1) * 10**9, publish_time=(i + 1) * 10**9,

@@ -1,5 +1,7 @@
 """Foxglove-native recordings through the real launcher and processes (#18):
 
+* every message of every JSON channel of a lockstep run validates against the JSON Schema its
+  channel carries in the file (``jsonschema`` alone);
 * a lockstep run's recording logs every bus message at its sim time on the run's epoch (recorded in
   the file's ``seaway.time`` metadata), and its derived Foxglove messages' own timestamps are the
   same instants;
@@ -25,7 +27,12 @@ from mcap.reader import make_reader
 from seaway.contract import keys
 from seaway.contract.messages import MissionStatus
 
-from tests.unit.recorder.foxglove_check import contract_validator, foxglove_messages, t_ns
+from tests.unit.recorder.foxglove_check import (
+    contract_validator,
+    foxglove_messages,
+    invalid_messages,
+    t_ns,
+)
 
 pytestmark = pytest.mark.system
 BIN = Path(sys.executable).parent
@@ -118,6 +125,15 @@ def test_lockstep_recording_is_on_sim_time_and_every_foxglove_channel_is_valid(t
                 assert channel.topic == "launcher/events"
                 assert epoch_ns <= m.log_time <= epoch_ns + last_stamp + 10**9
     assert n_bus > 1000
+    # Independently of the contract's code: every message of every JSON channel validates against
+    # the schema its channel carries in the file (issue #56: optional fields were typed alone while
+    # the messages carried null), messages that leave fields unknown among them.
+    checked, invalid = invalid_messages(path)
+    assert checked > n_bus and invalid == {}, {t: (len(e), e[0]) for t, e in invalid.items()}
+    with open(path, "rb") as fh:
+        accepted = [json.loads(m.data) for _, _, m in make_reader(fh).iter_messages(
+            topics=[keys.MISSION_ACCEPTED.key(V)])]
+    assert accepted and "speed_hint_mps" not in accepted[0]
     assert n_logs > 10  # the recorder put the lines it tails on the bus, and recorded them
     assert last_stamp > 20 * 10**9  # a 30 m leg at about 1 m/s
     assert max(ahead) > 0, "publish times are the wall-clock receive times"

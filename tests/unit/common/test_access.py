@@ -327,3 +327,18 @@ def test_the_cli_makes_a_deployment_and_refuses_a_boat_host_without_one(tmp_path
     assert credentials_cli.main(["show", str(dep)]) == 0
     shown = capsys.readouterr().out
     assert f"{dep / 'boat'}:" in shown and f"{dep / 'shore'}:" in shown and "NOT USABLE" not in shown
+
+
+def test_a_topics_cache_is_its_producers_and_any_stack_process_may_ask_it():
+    # zenoh-ext's advanced publisher (a real-time topic's cache for a restarted recorder): its
+    # liveliness token and queryable under <key>/@adv/..., its replies on the key itself.
+    key = keys.THRUST.key("vessel1")
+    cache = f"{key}/@adv/pub/0123abcd/7/uhlc/_"
+    for message in ("declare_queryable", "liveliness_token", "reply"):
+        assert allowed(RULES, "controller", message, cache), message
+        assert not allowed(RULES, "estimator", message, cache), message
+    assert allowed(RULES, "controller", "reply", key)
+    assert not allowed(RULES, "estimator", "reply", key)
+    for message in ("query", "declare_liveliness_subscriber", "liveliness_query"):
+        assert allowed(RULES, "recorder", message, cache), message
+        assert allowed(RULES, "recorder", message, "seaway/**/@adv/**"), message

@@ -104,14 +104,12 @@ def foxglove_json_problems(schema: dict[str, Any], path: str = "") -> list[str]:
 
 
 def contract_validator(schema_name: str, schema_data: bytes) -> Any:
-    """A validator of a JSON channel's messages. A bus topic's channel (``seaway.v1.*``) carries the
-    Foxglove form of its type's schema, which names a nullable field's type alone: its messages are
-    validated against the contract's own schema (``Message.json_schema``), after checking the
-    channel's schema is exactly that schema's Foxglove form. Any other channel: its own schema."""
+    """A validator of a JSON channel's messages against the channel's own schema, as an independent
+    reader of the file would (no substitution). A bus topic's channel (``seaway.v1.*``) must also
+    carry exactly the Foxglove form of its type's schema, and one Foxglove reads."""
     import json
 
     import jsonschema
-    from seaway.contract.messages import Message
     from seaway_recorder.schemas import foxglove_json_schema
 
     doc = json.loads(schema_data)
@@ -119,11 +117,36 @@ def contract_validator(schema_name: str, schema_data: bytes) -> Any:
     if contract is not None:
         assert doc == foxglove_json_schema(contract.json_schema()), schema_name
         assert not foxglove_json_problems(doc), (schema_name, foxglove_json_problems(doc))
-        doc = contract.json_schema()
-    assert isinstance(contract, type | None) and (contract is None or issubclass(contract, Message))
     cls = jsonschema.validators.validator_for(doc)
     cls.check_schema(doc)
     return cls(doc)
+
+
+def invalid_messages(path: Path) -> tuple[int, dict[str, list[str]]]:
+    """Every message of every JSON channel of the recording at ``path`` validated against the JSON
+    Schema its channel carries in the file, with ``jsonschema`` alone: (messages checked, the
+    errors by topic). A JSON channel without a ``jsonschema`` schema is an error too."""
+    import json
+
+    import jsonschema
+
+    checked, errors, validators = 0, {}, {}
+    with open(path, "rb") as fh:
+        for schema, channel, m in make_reader(fh).iter_messages(log_time_order=False):
+            if channel.message_encoding != "json":
+                continue
+            checked += 1
+            if schema is None or schema.encoding != "jsonschema":
+                errors.setdefault(channel.topic, []).append("no jsonschema schema")
+                continue
+            v = validators.get(schema.id)
+            if v is None:
+                doc = json.loads(schema.data)
+                v = validators[schema.id] = jsonschema.validators.validator_for(doc)(doc)
+            for err in v.iter_errors(json.loads(m.data)):
+                errors.setdefault(channel.topic, []).append(
+                    f"{'.'.join(map(str, err.absolute_path))}: {err.message[:200]}")
+    return checked, errors
 
 
 def _contract_types() -> dict[str, Any]:

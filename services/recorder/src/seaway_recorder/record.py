@@ -31,7 +31,7 @@ from seaway.contract.config import ConfigError
 from seaway.contract.messages import LOCKSTEP_SERVICES, LogRecord, MessageError, PeriodDone
 from seaway.runtime import run as runs
 from seaway.runtime.argtypes import positive_float, positive_int
-from seaway.runtime.bus import Bus, RawSample
+from seaway.runtime.bus import REJOIN_HISTORY_S, Bus, RawSample
 from seaway.runtime.lockstep import Member, Period, classify
 from seaway.runtime.run import RunDescription
 from seaway.runtime.service import base_parser, configure_logging, resolve_run, run_service
@@ -42,7 +42,7 @@ from seaway.vessel.frames import GeoOrigin
 
 from seaway_recorder import runinfo
 from seaway_recorder.logtail import FileTail, LogTail, log_record
-from seaway_recorder.recover import recover
+from seaway_recorder.recover import recover, tail_of
 from seaway_recorder.timebase import RecordingTime, parse_epoch, stamp_of
 from seaway_recorder.writer import LIBRARY, RUN_METADATA, AttachmentSpec, RecordingWriter
 
@@ -129,6 +129,18 @@ def parser() -> argparse.ArgumentParser:
     return p
 
 
+LATE_NS = 500_000_000
+"""A sample received this long after it was published came from a publisher's cache (or waited
+that long in a queue): logged at its publication time, and looked up among a predecessor's."""
+
+
+def newest_recording(base: Path) -> Path | None:
+    """The newest of ``base`` and its ``.restart-<k>`` siblings (``writer.free_path``) that exists:
+    the recording a recorder restarted into the same run folder takes over from."""
+    found = [p for p in [base, *base.parent.glob(f"{base.stem}.restart-*{base.suffix}")] if p.is_file()]
+    return max(found, key=lambda p: p.stat().st_mtime_ns) if found else None
+
+
 class SampleQueue:
     """Bounded hand-over from the bus's threads to the writer; overflow is counted, never blocks."""
 
@@ -145,16 +157,28 @@ class SampleQueue:
         thread hand-over each."""
         self._lock = threading.Lock()
         self.timeline: Timeline | None = None  # a lockstep recorder's, when tracing
+        self.already: set[tuple[str, bytes]] = set()
+        """(key, bytes) a predecessor's recording holds (a restarted recorder): not queued again."""
+        self.repeats = 0
 
     def on_sample(self, sample: RawSample) -> None:
         # Called on the bus's delivery threads: keep it short (the bytes are already our own copy).
         if not self.accepting:
             return
+        now_ns = time.time_ns()
+        late = sample.published_ns is not None and now_ns - sample.published_ns > LATE_NS
+        if late and (sample.key, sample.payload) in self.already:
+            with self._lock:
+                self.repeats += 1
+            return
         if len(self.items) >= self.capacity:
             with self._lock:
                 self.dropped += 1
             return
-        self.items.append((sample.key, sample.payload, sample.encoding, time.time_ns()))
+        # A sample a publisher's cache gave late (to a recorder that restarted) is logged when it
+        # was published, where it belongs on the timeline.
+        self.items.append((sample.key, sample.payload, sample.encoding,
+                           sample.published_ns if late else now_ns))
         if self.timeline is not None and "/lockstep/" in sample.key:
             # Its arrival, not when it is written (seaway.runtime.timeline: the recorder's "heard").
             stamp = stamp_of(sample.payload)
@@ -386,7 +410,9 @@ def run(argv: Sequence[str]) -> int:
     # The recorder records whatever runs (a shore recorder sees a boat launched elsewhere), so it
     # does not take part in the run agreement; its run only describes the recording.
     with run_service("recorder", args, run=run, agree=False) as ctx:
-        path = writer.open(time.time_ns())
+        started_ns = time.time_ns()
+        previous = None if run.lockstep or writer.rotating else newest_recording(writer.base)
+        path = writer.open(started_ns)
         print(f"recording {', '.join(exprs)} to {path}", flush=True)
         # In lockstep the recorder is a member: the sim does not move on until it is on disk.
         witness = None
@@ -396,8 +422,25 @@ def run(argv: Sequence[str]) -> int:
             witness = LockstepWitness(ctx.bus, args.vessel, exprs)
             if witness.member.timeline.marks is not None:
                 queue.timeline = witness.member.timeline
+        if previous is not None:
+            # Restarted into a run folder: what the publishers' caches give back that the
+            # predecessor wrote already is not written twice; the time nothing can be asked for
+            # is said in the file (schemas.RESTART_SCHEMA).
+            asked_from_ns = started_ns - round(REJOIN_HISTORY_S * 1e9)
+            tail = tail_of(previous, asked_from_ns - LATE_NS)
+            queue.already = tail.messages
+            writer.write_restart({
+                "stamp_ns": started_ns, "previous_file": previous.name,
+                "previous_last_ns": tail.last_log_ns, "asked_from_ns": asked_from_ns,
+                "gap_unrecovered_s": max(0, asked_from_ns - tail.last_log_ns) / 1e9}, started_ns)
+            log.info("restarted after %s (last message at %.3f s before this start): asking the "
+                     "publishers for their last %.0f s", previous.name,
+                     (started_ns - tail.last_log_ns) / 1e9, REJOIN_HISTORY_S)
         for e in exprs:
-            ctx.bus.subscribe_raw(e, queue.on_sample, inline=run.lockstep)
+            # Real time: also what was published up to REJOIN_HISTORY_S before (the publishers'
+            # caches), which a recorder restarted by the launcher was away for.
+            ctx.bus.subscribe_raw(e, queue.on_sample, inline=run.lockstep,
+                                  history_s=0.0 if run.lockstep else REJOIN_HISTORY_S)
         ctx.ready()
         if witness is not None:
             witness.member.join()
@@ -423,7 +466,8 @@ def run(argv: Sequence[str]) -> int:
         except OSError as err:
             log.error("could not finish %s: %s (try 'seaway record recover')", writer.path, err)
             return 1
-    summary = {"files": files, **writer.stats.as_metadata(), "by_topic": dict(writer.stats.by_topic)}
+    summary = {"files": files, **writer.stats.as_metadata(), "by_topic": dict(writer.stats.by_topic),
+               "repeats_not_written": queue.repeats}
     log.info("recorder finished: %s", writer.stats.line())
     print(f"recording finished: {', '.join(files)}", flush=True)
     print(json.dumps(summary), flush=True)

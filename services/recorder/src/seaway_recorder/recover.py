@@ -37,6 +37,7 @@ from mcap.records import (
 )
 from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.writer import CompressionType, Writer
+from seaway.runtime.private import open_private
 
 RECOVER_METADATA = "seaway.recover"
 ENV_REPAIR_DIR = "SEAWAY_REPAIR_DIR"
@@ -116,7 +117,7 @@ def recover(src: Path, dst: Path, compression: CompressionType = CompressionType
     if src.resolve() == dst.resolve():
         raise ValueError("recover writes a new file: OUT must differ from IN")
     res = RecoverResult()
-    with open(src, "rb") as fin, open(dst, "wb") as fout:
+    with open(src, "rb") as fin, open_private(dst) as fout:
         tracked = _Tracking(fin)
         reader = StreamReader(tracked, emit_chunks=True, record_size_limit=1 << 31)  # type: ignore[arg-type]
         out = Writer(fout, chunk_size=chunk_size, compression=compression)
@@ -237,3 +238,43 @@ def _prune_repairs(root: Path, keep: Path) -> None:
         with contextlib.suppress(OSError):
             if folder != keep.parent and stale(folder):  # not one another reader just made
                 folder.rmdir()  # only when empty
+
+
+@dataclass
+class Tail:
+    """The end of a recording a recorder left (killed): its last log time, and the messages it
+    holds from ``since_ns`` on, as (topic, bytes)."""
+
+    last_log_ns: int = 0
+    messages: set[tuple[str, bytes]] = field(default_factory=set)
+
+
+def tail_of(src: Path, since_ns: int) -> Tail:
+    """``Tail`` of ``src``, read as far as it is whole (a killed recorder's file has no summary).
+    Every chunk is read: a channel is declared in the chunk of its first message."""
+    tail = Tail()
+    topics: dict[int, str] = {}
+    with open(src, "rb") as fin:
+        reader = StreamReader(_Tracking(fin), emit_chunks=True, record_size_limit=1 << 31)  # type: ignore[arg-type]
+        try:
+            for record in reader.records:
+                if isinstance(record, Chunk):
+                    tail.last_log_ns = max(tail.last_log_ns, record.message_end_time)
+                    for r in breakup_chunk(record, validate_crc=True):
+                        _note(r, topics, tail, since_ns)
+                elif isinstance(record, DataEnd | Footer):
+                    break
+                else:
+                    _note(record, topics, tail, since_ns)
+        except (McapError, struct.error, EOFError, ValueError, UnicodeDecodeError):
+            pass  # the file ends where the recorder was killed: what came before is the tail
+    return tail
+
+
+def _note(r: object, topics: dict[int, str], tail: Tail, since_ns: int) -> None:
+    if isinstance(r, Channel):
+        topics[r.id] = r.topic
+    elif isinstance(r, Message):
+        tail.last_log_ns = max(tail.last_log_ns, r.log_time)
+        if r.log_time >= since_ns and r.channel_id in topics:
+            tail.messages.add((topics[r.channel_id], bytes(r.data)))

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from seaway.contract import keys
-from seaway.contract.messages import Message, Refusals
+from seaway.contract.messages import Message, Refusals, wire_json_schema
 from seaway.tools.launch.events import EVENTS_TOPIC, ProcessEvent
 
 JSON = "json"
@@ -47,6 +47,33 @@ MALFORMED_SCHEMA: dict[str, Any] = {
     "required": ["key", "schema", "error", "payload_base64", "receive_time_ns"],
 }
 
+RESTART_TOPIC = "recorder/restart"
+RESTART_SCHEMA_NAME = "seaway.recorder.v1.Restart"
+RESTART_SCHEMA: dict[str, Any] = {
+    "$schema": "https://json-schema.org/draft/2020-12/schema",
+    "title": RESTART_SCHEMA_NAME,
+    "description": "A recorder restarted into a run folder whose recording its predecessor left: "
+                   "the time it was away, and how far back it asked the publishers' caches for "
+                   "what was published meanwhile. A sample published before asked_from_ns (or "
+                   "by a publisher without a cache) in that time is not in the recording.",
+    "type": "object",
+    "properties": {
+        "stamp_ns": {"type": "integer", "minimum": 0,
+                     "description": "when this recorder started [ns since epoch]"},
+        "previous_file": {"type": "string", "description": "the predecessor's recording"},
+        "previous_last_ns": {"type": "integer", "minimum": 0,
+                             "description": "log time of its last message on disk [ns]"},
+        "asked_from_ns": {"type": "integer", "minimum": 0,
+                          "description": "the start of what the caches were asked for [ns]"},
+        "gap_unrecovered_s": {"type": "number", "minimum": 0,
+                              "description": "from previous_last_ns to asked_from_ns, if later: "
+                                             "the time nothing could be asked for [s]"},
+    },
+    "required": ["stamp_ns", "previous_file", "previous_last_ns", "asked_from_ns",
+                 "gap_unrecovered_s"],
+}
+
+
 @dataclass(frozen=True)
 class ChannelSpec:
     """How one topic is written: its schema (name, encoding, text) or none, and channel metadata."""
@@ -61,22 +88,23 @@ class ChannelSpec:
 
 
 _FOXGLOVE_TYPES = ("boolean", "string", "number", "integer", "object", "array")
-_NULLABLE_NOTE = ("Foxglove's form of the schema: a field whose value may be absent is null then, "
-                  "though its type is named alone (the contract: seaway.contract.messages)")
 
 
 def foxglove_json_schema(schema: dict[str, Any]) -> dict[str, Any]:
-    """``schema`` (pydantic's JSON Schema of a message) in the form Foxglove and Lichtblick read.
+    """``schema`` (the JSON Schema of a message's wire form) in the form Foxglove and Lichtblick read,
+    still true to every message that form validates.
 
     Their reader (``parseJsonSchema`` of ``@foxglove/mcap-support``, copied by Lichtblick) takes
     one ``type`` per field from boolean, string, number, integer, object (with ``properties``) and
     array (of those, not of arrays), and follows no ``$ref``; any other field fails the whole
     channel ("Unsupported type undefined for cross_track_m"), and with it every plot of the topic.
-    So: ``$ref`` is inlined from ``$defs``; ``anyOf``/``oneOf``/a type list with null becomes the
-    one type besides null (the value is null when absent: the one thing this form does not say,
-    noted in the root's ``description``); an object without ``properties`` (a map) gets empty ones;
-    a field with no single type left is dropped from ``properties`` (its values stay in every
-    message). The rest (titles, descriptions, bounds, enums, ``required``) is kept.
+    So: ``$ref`` is inlined from ``$defs``; ``anyOf``/``oneOf`` of one alternative becomes it; an
+    object without ``properties`` (a map) gets empty ones; a field with no single type (an
+    alternative, or a value that may be null, which one type cannot say) is dropped from
+    ``properties``: its values stay in every message, and an unlisted field is allowed. A
+    message's unknown fields are absent on the wire (``seaway.contract.messages.wire_json_schema``),
+    so an optional field has its one type. The rest (titles, descriptions, bounds, enums,
+    ``required``) is kept.
     """
     defs: dict[str, Any] = schema.get("$defs", {})
 
@@ -95,20 +123,18 @@ def foxglove_json_schema(schema: dict[str, Any]) -> dict[str, Any]:
                 continue
             if alt_key == "oneOf" and all(isinstance(a.get("const"), int | float) for a in alts):
                 return node  # Foxglove's own numeric enum form
-            rest = [a for a in alts if a.get("type") != "null"]
-            if len(rest) != 1:
+            if len(alts) != 1:
                 return None
             del node[alt_key]
-            inner = resolve(rest[0], seen)
+            inner = resolve(alts[0], seen)
             if inner is None:
                 return None
             node = {**inner, **{k: v for k, v in node.items() if k != "type"}}
         kind = node.get("type")
         if isinstance(kind, list):
-            kinds = [k for k in kind if k != "null"]
-            if len(kinds) != 1:
+            if len(kind) != 1:
                 return None
-            node["type"] = kind = kinds[0]
+            node["type"] = kind = kind[0]
         if kind not in _FOXGLOVE_TYPES:
             return None
         if kind == "object":
@@ -128,8 +154,6 @@ def foxglove_json_schema(schema: dict[str, Any]) -> dict[str, Any]:
     out = resolve({k: v for k, v in schema.items() if k != "$defs"}, ())
     if out is None:
         raise ValueError(f"schema {schema.get('title')!r} has no object form Foxglove reads")
-    out["description"] = f"{out['description']} ({_NULLABLE_NOTE})" if out.get("description") \
-        else _NULLABLE_NOTE
     return out
 
 
@@ -161,10 +185,17 @@ def malformed_channel() -> ChannelSpec:
                        {"role": "errors"})
 
 
+def restart_channel() -> ChannelSpec:
+    return ChannelSpec(RESTART_TOPIC, RESTART_SCHEMA_NAME, JSONSCHEMA,
+                       json.dumps(RESTART_SCHEMA, sort_keys=True).encode(), JSON, None,
+                       {"role": "recorder"})
+
+
 def events_channel() -> ChannelSpec:
     """The launcher's process events (``seaway.tools.launch.events``), copied from its log."""
     return ChannelSpec(EVENTS_TOPIC, ProcessEvent.SCHEMA, JSONSCHEMA,
-                       foxglove_schema_text(ProcessEvent.model_json_schema()), JSON, None,
+                       foxglove_schema_text(wire_json_schema(ProcessEvent, ProcessEvent.SCHEMA)),
+                       JSON, None,
                        {"role": "events", "source": "launcher"})
 
 

@@ -17,6 +17,7 @@ numbered one; every file carries the attachments and run metadata again, so each
 
 from __future__ import annotations
 
+import json
 import logging
 import time
 from collections import Counter
@@ -26,6 +27,7 @@ from typing import IO, Any
 
 from seaway.contract import bundle
 from seaway.contract.messages import MessageError, PeriodDone
+from seaway.runtime.private import open_private, private_folder
 from seaway.runtime.ratelog import RateLimitedLog
 from seaway.tools.launch.events import ProcessEvent
 from seaway.vessel.frames import GeoOrigin
@@ -111,7 +113,7 @@ class _OpenFile:
 
     def __init__(self, path: Path, chunk_size: int, compression: str) -> None:
         self.path = path
-        self.stream: IO[bytes] = open(path, "wb")  # noqa: SIM115 - closed in close()
+        self.stream: IO[bytes] = open_private(path)  # closed in close(); only the user reads it
         self.writer = McapWriter(self.stream, chunk_size=chunk_size, compression=compression)
         self.writer.start(profile=PROFILE, library=LIBRARY)
         self.schemas: dict[tuple[str, bytes], int] = {}
@@ -202,7 +204,8 @@ class RecordingWriter:
     def open(self, now_ns: int) -> Path:
         """Open the next file and write the attachments and run metadata into it."""
         path = self._next_path()
-        path.parent.mkdir(parents=True, exist_ok=True)
+        if not path.parent.is_dir():  # a folder of its own (a run folder given may be shared)
+            private_folder(path.parent)
         self._file = _OpenFile(path, self.chunk_size, self.compression)
         self._file_opened_ns = now_ns
         self._file_index += 1
@@ -350,9 +353,17 @@ class RecordingWriter:
             log.warning("events log line ignored (not a process event): %s", str(err)[:200])
             return False
         t_ns = int(ev.t_unix_s * 1e9)
-        self._put(self._events_spec, line.rstrip(b"\n"), self.time.wall(t_ns), t_ns)
+        # Its own form (defaults left out), which the channel's schema says: a line written by
+        # hand may carry a null the schema does not allow.
+        self._put(self._events_spec, ev.line().rstrip("\n").encode(), self.time.wall(t_ns), t_ns)
         self.stats.events += 1
         return True
+
+    def write_restart(self, record: dict[str, Any], log_ns: int) -> None:
+        """Say in the recording that this recorder took over from one that stopped
+        (``schemas.RESTART_SCHEMA``), at ``log_ns`` (wall clock)."""
+        self._put(schemas.restart_channel(), json.dumps(record, sort_keys=True).encode(),
+                  self.time.wall(log_ns), log_ns)
 
     def _put_malformed(self, key: str, schema: str, error: str, encoding: str, payload: bytes,
                        log_time_ns: int, publish_time_ns: int) -> None:

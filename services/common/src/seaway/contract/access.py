@@ -65,6 +65,9 @@ HARNESS = "harness"
 launcher never issues it."""
 
 # Messages a reader needs: its subscriptions and liveliness interest must reach the producers.
+_CACHE = "@adv"
+"""zenoh-ext's chunk under a topic's key for its publisher's cache and liveliness token (a chunk
+starting with @ is matched by no wildcard, so it is named)."""
 _READ = ["declare_subscriber", "liveliness_query", "declare_liveliness_subscriber"]
 _EVERYTHING = ["put", "delete", "declare_subscriber", "query", "reply", "declare_queryable",
                "liveliness_token", "liveliness_query", "declare_liveliness_subscriber"]
@@ -141,11 +144,13 @@ def acl(overrides: Mapping[str, str] | None = None, *, harness: bool = False,
         _rule("read", _READ, [f"{keys.ROOT}/**"], ["ingress", "egress"]),
         # Open requests: the run descriptions and the refusal counts (read-only answers).
         _rule("ask-open", ["query"], _open_requests()),
-        _rule("send", _EVERYTHING, ["**"], ["egress"]),
+        _rule("send", _EVERYTHING, ["**", f"**/{_CACHE}/**"], ["egress"]),
+        # A late subscriber (a restarted recorder) finds the topics' caches and asks them.
+        _rule("recall", ["query", *_READ], [f"{keys.ROOT}/**/{_CACHE}/**"], ["ingress", "egress"]),
         _rule("ask-actuate", ["query"], _actuating()),
     ]
     policies = [
-        {"id": "stack", "rules": ["read", "ask-open"], "subjects": identities},
+        {"id": "stack", "rules": ["read", "ask-open", "recall"], "subjects": identities},
         {"id": "send", "rules": ["send"], "subjects": senders},
         {"id": "operators", "rules": ["ask-actuate"],
          "subjects": [i for i in (*OPERATORS, HARNESS) if i in identities]},
@@ -165,7 +170,8 @@ def acl(overrides: Mapping[str, str] | None = None, *, harness: bool = False,
         policies.append({"id": "boat-via-router", "rules": [r["id"] for r in relay], "subjects": [RELAY]})
     for ident in identities:
         if ident == HARNESS:
-            rules.append(_rule(f"all-{ident}", _EVERYTHING, [f"{keys.ROOT}/**"]))
+            rules.append(_rule(f"all-{ident}", _EVERYTHING,
+                               [f"{keys.ROOT}/**", f"{keys.ROOT}/**/{_CACHE}/**"]))
             policies.append({"id": ident, "rules": [f"all-{ident}"], "subjects": [ident]})
             continue
         mine_specs = [spec for spec in keys.REGISTRY if ident in who[spec.suffix]]
@@ -175,7 +181,13 @@ def acl(overrides: Mapping[str, str] | None = None, *, harness: bool = False,
         served += [_wild(f"{keys.RUN}/{ident}"), _wild(f"{keys.REFUSALS}/{ident}")]
         tokens = [_wild(f"{keys.HEALTH}/{ident}")] + [_wild(spec.suffix) for spec in mine_specs
                                                        if spec.suffix.startswith("lockstep/")]
-        mine = [f"pub-{ident}", f"serve-{ident}", f"alive-{ident}"]
+        caches = [f"{t}/{_CACHE}/**" for t in topics]
+        mine = [f"pub-{ident}", f"serve-{ident}", f"alive-{ident}", f"cache-{ident}",
+                f"recall-{ident}"]
+        # Its topics' caches (zenoh-ext's advanced publisher): announced, and answered with the
+        # samples kept, on the topic's own key.
+        rules.append(_rule(mine[3], ["declare_queryable", "liveliness_token"], caches))
+        rules.append(_rule(mine[4], ["reply"], [*caches, *topics]))
         rules.append(_rule(mine[1], ["declare_queryable", "reply"], served))
         rules.append(_rule(mine[2], ["liveliness_token"], tokens))
         rules.append(_rule(mine[0], ["put", "delete"], topics))

@@ -13,8 +13,9 @@ Rules every type here follows (design.md, "Messages, units, frames, time"):
 * world frame: local NED at the published origin (x north, y east, psi from north, clockwise);
   body frame: forward-right-down. Thruster 1 is the port (left) one, thruster 2 the starboard one, so
   that the paper's yaw moment (T1 - T2) * l is positive (clockwise from above) as NED requires;
-* no NaN or infinity: refused at construction with an error that names the field; unknown is an
-  explicit ``None``;
+* no NaN or infinity: refused at construction with an error that names the field; unknown is
+  ``None``, which the wire form leaves out: a field that may be unknown defaults to ``None``, so
+  that its absence decodes to it, and the JSON Schema names its type alone (``wire_json_schema``);
 * decoding ignores unknown fields, so that an old reader survives a newer log; except requests
   (``Request``: they change what a service does), which refuse unknown fields, and each of which
   says what it asks for in a required field (``ArmRequest.arm``, ``ScenarioRequest.action``, ...).
@@ -26,7 +27,8 @@ from __future__ import annotations
 
 import json
 import math
-from typing import Annotated, Any, ClassVar, Literal, Self, get_args
+from types import UnionType
+from typing import Annotated, Any, ClassVar, Literal, Self, Union, get_args, get_origin
 
 from pydantic import BaseModel, ConfigDict, Field, StringConstraints, ValidationError, model_validator
 
@@ -86,7 +88,7 @@ class Message(BaseModel):
         Instances built through the constructor are already finite; this also catches ones made with
         ``model_construct`` (which skips validation). The substring test keeps the common path cheap.
         """
-        data = self.model_dump_json().encode()
+        data = self.model_dump_json(exclude_none=True).encode()
         if b"NaN" in data or b"Infinity" in data:
             bad = _first_non_finite(self.model_dump(), "")
             if bad:
@@ -104,14 +106,72 @@ class Message(BaseModel):
     @classmethod
     def json_schema(cls) -> dict[str, Any]:
         """JSON Schema (draft 2020-12) of the wire form, titled with the versioned schema name."""
-        schema = cls.model_json_schema(mode="serialization")
-        schema["title"] = cls.SCHEMA
-        schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"
-        return schema
+        return wire_json_schema(cls, cls.SCHEMA)
 
     @classmethod
     def json_schema_text(cls) -> str:
         return json.dumps(cls.json_schema(), sort_keys=True)
+
+
+def wire_json_schema(model: type[BaseModel], title: str) -> dict[str, Any]:
+    """JSON Schema (draft 2020-12) of ``model``'s wire form, where an unknown field is left out.
+
+    pydantic names a field that may be ``None`` ``anyOf: [X, null]`` with ``default: null``; on the
+    wire (``Message.encode``: ``exclude_none``) such a field is X or absent, never null, so its
+    property here is X alone, and absent is allowed because it is not ``required``. A field whose
+    ``None`` is not its default could not be left out: ``nullable_fields_without_default`` finds
+    them (a contract test keeps that list empty). ``None`` inside a list or a map is kept as null
+    and stays in the schema.
+    """
+    schema = model.model_json_schema(mode="serialization")
+    for obj in [schema, *schema.get("$defs", {}).values()]:
+        for name, prop in obj.get("properties", {}).items():
+            alts = prop.get("anyOf")
+            if "default" not in prop or prop["default"] is not None or not isinstance(alts, list):
+                continue
+            rest = [a for a in alts if a != {"type": "null"}]
+            if len(rest) == len(alts):
+                continue
+            del prop["default"], prop["anyOf"]
+            obj["properties"][name] = {**rest[0], **prop} if len(rest) == 1 else {"anyOf": rest, **prop}
+    schema["title"] = title
+    schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"
+    return schema
+
+
+def nullable_fields_without_default(model: type[BaseModel]) -> list[str]:
+    """Fields of ``model`` (and of the models inside it) that admit ``None`` without defaulting to
+    it: the wire form leaves ``None`` out, so such a field would not survive a round trip."""
+    out: list[str] = []
+    seen: set[type[BaseModel]] = set()
+
+    def nested(ann: Any) -> list[type[BaseModel]]:
+        found = [ann] if isinstance(ann, type) and issubclass(ann, BaseModel) else []
+        for a in get_args(ann):
+            found.extend(nested(a))
+        return found
+
+    def walk(cls: type[BaseModel], path: str) -> None:
+        if cls in seen:
+            return
+        seen.add(cls)
+        for name, field in cls.model_fields.items():
+            if _admits_none(field.annotation) and (field.is_required() or field.default is not None):
+                out.append(f"{path}.{name}")
+            for sub in nested(field.annotation):
+                walk(sub, f"{path}.{name}")
+
+    walk(model, model.__name__)
+    return out
+
+
+def _admits_none(ann: Any) -> bool:
+    if ann is None or ann is type(None) or ann is Any:
+        return True
+    origin = get_origin(ann)
+    if origin is Annotated:
+        return _admits_none(get_args(ann)[0])
+    return origin in (Union, UnionType) and any(_admits_none(a) for a in get_args(ann))
 
 
 JSON_ENCODING = "application/json"

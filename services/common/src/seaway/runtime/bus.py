@@ -60,11 +60,21 @@ class RuntimeEnvError(ValueError):
 
 
 class RawSample(NamedTuple):
-    """One sample as the transport delivered it: bytes unchanged, with their key and encoding."""
+    """One sample as the transport delivered it: bytes unchanged, with their key and encoding.
+    ``published_ns``: when it was published [ns since epoch, the publisher's clock], where the
+    transport says (Zenoh's timestamp), else None."""
 
     key: str
     payload: bytes
     encoding: str
+    published_ns: int | None = None
+
+
+REJOIN_CACHE_SAMPLES = 512
+"""Samples a real-time topic publisher keeps for a subscriber that joins late (a restarted
+recorder) to ask for: 10 s of the fastest sensor topic at 50 Hz, more of the others."""
+REJOIN_HISTORY_S = 10.0
+"""How far back such a subscriber asks [s]: longer than a recorder's restart by the launcher."""
 
 
 class RawReply(NamedTuple):
@@ -113,8 +123,10 @@ class TypedPublisher(Generic[M]):
         assert spec.message is not None
         self.spec, self.key, self._bus = spec, key, bus
         self._type = spec.message
+        # Real time: kept for a recorder that restarts (lockstep has its own catch-up, bundles
+        # sent again, and every message of it counts: no copies on its hot path).
         self._pub = bus.raw_publisher(key, message_encoding(spec.message), block=lockstep,
-                                      express=express)
+                                      express=express, cache=0 if lockstep else REJOIN_CACHE_SAMPLES)
 
     def put(self, msg: M) -> None:
         if type(msg) is not self._type:
@@ -611,14 +623,18 @@ class Bus(abc.ABC):
 
     @abc.abstractmethod
     def raw_publisher(self, key: str, encoding: str = RAW_ENCODING, *, block: bool = False,
-                      express: bool = False) -> RawPublisher:
+                      express: bool = False, cache: int = 0) -> RawPublisher:
         """Publish bytes on ``key`` with ``encoding``. ``block``: wait rather than drop when the
-        network is congested (replay, which must lose nothing)."""
+        network is congested (replay, which must lose nothing). ``cache``: keep the last ``cache``
+        samples for a subscriber with ``history_s`` that joins late (a restarted recorder)."""
 
     @abc.abstractmethod
     def subscribe_raw(self, keyexpr: str, callback: Callable[[RawSample], None], *,
-                      inline: bool = False) -> Declared:
-        """``callback(sample)`` for every sample on ``keyexpr`` (wildcards allowed), bytes unchanged."""
+                      inline: bool = False, history_s: float = 0.0) -> Declared:
+        """``callback(sample)`` for every sample on ``keyexpr`` (wildcards allowed), bytes unchanged.
+        ``history_s`` > 0: also, first, what publishers with a ``cache`` published in the last
+        ``history_s`` seconds, each with its ``published_ns`` (also those found later: a
+        publisher restarted meanwhile)."""
 
     @abc.abstractmethod
     def queryable_raw(self, key: str, serve: Callable[[bytes | None], bytes],

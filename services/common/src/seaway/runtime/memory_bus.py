@@ -217,13 +217,14 @@ class MemoryBus(Bus):
             raise RuntimeError("the bus is closed")
 
     def raw_publisher(self, key: str, encoding: str = RAW_ENCODING, *, block: bool = False,
-                      express: bool = False) -> RawPublisher:
+                      express: bool = False, cache: int = 0) -> RawPublisher:
+        # ``cache``: nothing to keep, no subscriber of one process joins late.
         self._check_open()
         _keyexpr(key)
         return _Publisher(self, key, encoding)
 
     def subscribe_raw(self, keyexpr: str, callback: Callable[[RawSample], None], *,
-                      inline: bool = False) -> Declared:
+                      inline: bool = False, history_s: float = 0.0) -> Declared:
         self._check_open()
         return self.hub._declare(self.hub._subscribers, self, keyexpr, callback)
 

@@ -21,6 +21,8 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from seaway.runtime import private
+
 if TYPE_CHECKING:
     from seaway.runtime.credentials import Credentials
 
@@ -59,6 +61,12 @@ def stacks_dir() -> Path:
     return base / "seaway" / "stacks"
 
 
+def private_folder(folder: Path | None = None) -> Path:
+    """The stacks folder (or ``folder`` in it), made 0700 however it came to exist: a stack's
+    credentials folder is made in it, and ``mkdir`` gives the parents it makes the umask's mode."""
+    return private.private_folder(folder or stacks_dir())
+
+
 def _path(rendezvous: str) -> Path:
     return stacks_dir() / (re.sub(r"[^A-Za-z0-9.]+", "-", rendezvous).strip("-") + ".json")
 
@@ -88,9 +96,8 @@ def lookup(rendezvous: str) -> StackEntry | None:
 
 
 def register(entry: StackEntry) -> Path:
-    """Write ``entry`` (atomically; the folder is created 0700)."""
-    d = stacks_dir()
-    d.mkdir(mode=0o700, parents=True, exist_ok=True)
+    """Write ``entry`` (atomically; the folder is made 0700)."""
+    private_folder(stacks_dir())
     p = _path(entry.rendezvous)
     tmp = p.with_suffix(f".{os.getpid()}.tmp")
     tmp.write_text(json.dumps(asdict(entry), indent=1))

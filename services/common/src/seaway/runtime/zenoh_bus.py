@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import Any
 
 import zenoh
+import zenoh.ext
 
 from seaway.runtime import credentials as creds
 from seaway.runtime import stacks
@@ -159,6 +160,9 @@ def load_zenoh_config(path: str | Path | None = None, identity: str | None = Non
         if rendezvous:
             conf.insert_json5("listen/endpoints", json.dumps([rendezvous, "tcp/127.0.0.1:0"]))
             conf.insert_json5("connect/endpoints", json.dumps([rendezvous]))
+    # Every sample stamped by its publisher: a real-time topic's publisher keeps a cache for a
+    # restarted recorder (Bus.raw_publisher), which zenoh-ext orders by these stamps.
+    conf.insert_json5("timestamping/enabled", "true")
     if path is not None and not _speaks_tls(conf):
         # A deployment file that links its processes over plain TCP has no certificate to match:
         # the access rules would refuse everything. Its own rules (or none) stand; say so.
@@ -281,24 +285,38 @@ class ZenohBus(Bus):
         return cls(open_session(config_path, identity, credentials, rendezvous), vessel)
 
     def raw_publisher(self, key: str, encoding: str = RAW_ENCODING, *, block: bool = False,
-                      express: bool = False) -> RawPublisher:
+                      express: bool = False, cache: int = 0) -> RawPublisher:
         # Only a blocking publisher names its congestion control: the others keep Zenoh's default.
         extra: dict[str, Any] = {"congestion_control": zenoh.CongestionControl.BLOCK} if block else {}
         if express:
             extra["express"] = True
-        pub = self.session.declare_publisher(key, encoding=zenoh.Encoding(encoding), **extra)
+        if cache > 0:
+            # zenoh-ext's cache, answered to an advanced subscriber's history query; detectable
+            # (a liveliness token), so a subscriber that joins later asks it.
+            pub: Any = zenoh.ext.declare_advanced_publisher(
+                self.session, key, encoding=zenoh.Encoding(encoding),
+                cache=zenoh.ext.CacheConfig(max_samples=cache), publisher_detection=True, **extra)
+        else:
+            pub = self.session.declare_publisher(key, encoding=zenoh.Encoding(encoding), **extra)
         self._entities.append(pub)
         return pub
 
     def subscribe_raw(self, keyexpr: str, callback: Callable[[RawSample], None], *,
-                      inline: bool = False) -> Declared:
+                      inline: bool = False, history_s: float = 0.0) -> Declared:
         def on_sample(sample: zenoh.Sample) -> None:
-            callback(RawSample(str(sample.key_expr), sample.payload.to_bytes(), str(sample.encoding)))
+            stamp = sample.timestamp
+            callback(RawSample(str(sample.key_expr), sample.payload.to_bytes(), str(sample.encoding),
+                               None if stamp is None else stamp.get_time_as_ntp64().as_nanos()))
 
         # A plain callable is run by zenoh-python on a Python thread of its own (one hand-off per
         # sample); ``indirect=False`` runs it on Zenoh's receive thread itself.
         handler: Any = zenoh.handlers.Callback(on_sample, indirect=False) if inline else on_sample
-        sub = self.session.declare_subscriber(keyexpr, handler)
+        if history_s > 0:
+            sub: Any = zenoh.ext.declare_advanced_subscriber(
+                self.session, keyexpr, handler,
+                history=zenoh.ext.HistoryConfig(detect_late_publishers=True, max_age=history_s))
+        else:
+            sub = self.session.declare_subscriber(keyexpr, handler)
         self._entities.append(sub)
         return sub
 

@@ -92,9 +92,9 @@ def mavlink_key_path(run_name: str) -> Path:
 def credentials_for(profile: Profile, run_name: str) -> Authority:
     """The credentials of this launch (see the module docstring), and its MAVLink signing key."""
     remove_stale()
+    stacks.private_folder()  # before the credentials folder made in it would make it 0755
     auth = _zenoh_credentials(profile, run_name)
     key = mavlink_key_path(run_name)
-    key.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
     mavlink_signing.write_key(key)
     auth.mavlink_key = key
     return auth

@@ -73,6 +73,7 @@ from seaway.runtime.argtypes import positive_float
 from seaway.runtime.bus import Bus, RuntimeEnvError
 from seaway.runtime.credentials import ENV_CREDENTIALS, NONE, CredentialsError
 from seaway.runtime.lockstep import CHAIN
+from seaway.runtime.private import PRIVATE_UMASK
 from seaway.runtime.service import (
     DEFAULT_VESSEL,
     ENV_VESSEL,
@@ -410,6 +411,9 @@ def show_groundstations(sup: Supervisor, run_dir: Path, shown: dict[str, int]) -
 
 def main(argv: list[str]) -> int:
     args = parser().parse_args(argv)
+    # Everything the launch writes (run folder, recording, logs, registry, credentials) and what its
+    # processes write is the user's alone: 0600 files, 0700 folders (seaway.runtime.private).
+    os.umask(PRIVATE_UMASK)
     if args.cpus is not None:  # first: every thread and process started later inherits it
         try:
             cpus.pin_threads(0, args.cpus)
