@@ -86,6 +86,7 @@ from seaway.runtime.service import (
 from seaway.runtime.zenoh_bus import ENV_CONFIG, use_lockstep_runtime
 from seaway.simkit.scenario import load_scenario
 from seaway.tools.launch import address, authority
+from seaway.tools.launch.mission_end import MissionEnd
 from seaway.tools.launch.profile import Instance, Profile, instances, load_profile, substitute
 from seaway.tools.launch.supervisor import Supervised, Supervisor, default_echo
 
@@ -736,6 +737,9 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
         sup.watch_on(bus)
         status = StatusLine(vessels, lockstep=run.lockstep, commands=mission is None)
         status.watch(bus)
+        ending = MissionEnd(vessels, mission, None if not run.lockstep
+                            else round(run.control_period_s * 1e9))
+        ending.watch(bus)
         error = sup.start_all(stop)
         if error:
             print(f"seaway launch: {error}", file=sys.stderr)
@@ -777,9 +781,9 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
                 print(f"{profile.stop_after} finished", flush=True)
                 break
             # Completion counts only for the mission this launcher sent (and, by the access rules,
-            # only from the controller), on every vessel: a status of some other mission stops
-            # nothing.
-            if profile.stop_when_complete and not args.stay and status.complete(mission):
+            # only from the controller), bounded and borne out by the navigation state
+            # (mission_end), on every vessel: a status of some other mission stops nothing.
+            if profile.stop_when_complete and not args.stay and ending.over(time.time_ns()):
                 status.show(time.monotonic() - t_run, final=True)
                 print("mission complete", flush=True)
                 break
