@@ -728,6 +728,11 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
     except RuntimeEnvError as err:  # before any process started: nothing to stop
         print(f"seaway launch: {err}", file=sys.stderr)
         return 2
+    problem = authority.rendezvous_problem(auth, bus)
+    if problem is not None:  # before any process started: none of them could link
+        bus.close()
+        print(f"seaway launch: {problem}", file=sys.stderr)
+        return 2
     refusals.serve(bus, "launcher")
     code = 0
     t0 = time.monotonic()
