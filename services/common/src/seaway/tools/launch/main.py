@@ -88,6 +88,7 @@ from seaway.simkit.scenario import load_scenario
 from seaway.tools.launch import address, authority
 from seaway.tools.launch.mission_end import MissionEnd
 from seaway.tools.launch.profile import Instance, Profile, instances, load_profile, substitute
+from seaway.tools.launch.resume import RESUME_WAIT_S, LinkTender
 from seaway.tools.launch.supervisor import Supervised, Supervisor, default_echo
 
 
@@ -114,6 +115,10 @@ def parser() -> argparse.ArgumentParser:
                     help=f"the mission's task power T^w [W], in (0, {MAX_TASK_POWER_W:g}] "
                          "(default: the mission's)")
     ap.add_argument("--stay", action="store_true", help="keep running after the mission completes")
+    ap.add_argument("--resume-wait", type=positive_float, default=RESUME_WAIT_S, metavar="S",
+                    help="real time: how long a mission paused by a restart of vehicle_io or the sim "
+                         "may wait for the autopilot (armed) before the run ends it (default "
+                         f"{RESUME_WAIT_S:g} s; seaway.tools.launch.resume)")
     ap.add_argument("--verbose", action="store_true", help="show every process's output")
     ap.add_argument("--no-report", action="store_true",
                     help="skip the final report (metrics, plots) after the stop; make it later with "
@@ -769,6 +774,8 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
             print(f"{label[v]}mission {mission.mission_id}: {said} ({_describe_mission(mission)})",
                   flush=True)
         t_run = time.monotonic()
+        tender = None if mission is None or run.lockstep else LinkTender(
+            bus, sup, vessels, mission, profile.mode_on_start, args.resume_wait)
         while not stop.wait(0.2):
             sup.poll()
             show_groundstations(sup, run_dir, shown)  # again after a restart: a new address
@@ -781,6 +788,12 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
                 code = 1
                 break
             status.show(time.monotonic() - t_run)
+            ended = tender.step(time.monotonic(), label) if tender is not None else None
+            if ended:  # a mission paused by a link restart that could not be resumed
+                status.show(time.monotonic() - t_run, final=True)
+                print(f"\nseaway launch: {ended}", file=sys.stderr, flush=True)
+                code = 1
+                break
             if profile.stop_after and sup.procs[profile.stop_after].state == "exited":
                 status.show(time.monotonic() - t_run, final=True)
                 print(f"{profile.stop_after} finished", flush=True)
