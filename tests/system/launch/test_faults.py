@@ -8,7 +8,8 @@ One run of the lake mission (about a minute), three faults:
 2. the estimator is killed: restarted; the recording shows the gap in nav/state and its recovery;
 3. vehicle_io is killed: restarted; the recording shows the gap in the sensor keys and their
    recovery; the autopilot's own loss failsafe held the boat meanwhile, so the controller paused the
-   mission (the thrust did not reach the thrusters) and the operator resumes it.
+   mission (the thrust did not reach the thrusters), and the launcher, which restarted the link,
+   puts the still armed autopilot back in its mode and resumes it.
 
 The mission then completes, and the launcher exits 0.
 """
@@ -26,7 +27,6 @@ from pathlib import Path
 
 import pytest
 from seaway.contract import keys
-from seaway.contract.messages import MissionCommand
 from seaway.runtime.bus import Bus
 from seaway_recorder.recording import iter_messages, open_paths
 
@@ -121,26 +121,13 @@ def test_services_killed_mid_mission_are_restarted_and_the_mission_completes(pro
         os.kill(vio["pid"], signal.SIGKILL)
         wait_for(lambda: len(starts(run, "vehicle_io")) == 2, 15, what="vehicle_io restarted")
         # Meanwhile the thrust did not reach the thrusters (no link, then the failsafe's HOLD): the
-        # controller paused the mission, saying why; it resumes when the operator asks, once the
-        # vehicle applies the thrust again (issue 14, item 2).
+        # controller paused the mission, saying why (issue 14, item 2). The launcher restarted the
+        # link and the autopilot stayed armed: it puts it back in its mode and resumes the mission
+        # (issue 56, item 19; seaway.tools.launch.resume).
         wait_for(lambda: w.status.state == "paused" and "paused by the controller" in w.status.reason,
                  15, what="the mission paused by the controller")
-        wait_for(lambda: w.vehicle is not None and w.vehicle.thrust_withheld is None, 15,
-                 what="the vehicle applying thrust again")
-        # The controller hears that vehicle status a moment after this test does (seen: 3 ms, with
-        # the other core busy): until then it refuses, saying the autopilot is in HOLD. An operator
-        # asks again; so does the test, and nothing but that refusal may come back.
-        refusals: list[str] = []
-
-        def resume() -> bool:
-            reply = bus.request(keys.MISSION_COMMAND, MissionCommand.make(
-                stamp_ns=time.time_ns(), command="resume"), 10.0)
-            if not reply.accepted:
-                refusals.append(reply.reason)
-            return reply.accepted
-
-        wait_for(resume, 10, interval_s=0.2, what="the resume accepted (each refusal is in controller.log)")
-        assert all("in mode HOLD" in r for r in refusals), refusals
+        wait_for(lambda: w.status.state == "active", 30, what="the launcher resuming the mission")
+        assert "mission resumed after the link restart" in procs.log(la)
 
         la.wait(120)
     out = procs.log(la)

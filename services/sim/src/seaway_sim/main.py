@@ -8,13 +8,15 @@ the battery (vehicle/battery, 1 Hz), which in real time the simulated PX4 report
 The run description (``--run`` or the run flags) says which scenario to run (default ``lake``), which
 vessel file the plant integrates (``plant_vessel_file``, else the model's) and the control period;
 with ``--state-file``, a scenario loaded over the bus before a restart is flown instead
-(``seaway_sim.kept``).
+(``seaway_sim.kept``), and in real time the vessel is put back where the sim before left it
+(``seaway_sim.plant_kept``).
 """
 
 from __future__ import annotations
 
 import argparse
 import logging
+import math
 import sys
 import time
 from collections.abc import Sequence
@@ -29,7 +31,7 @@ from seaway.simkit.scenario import load_scenario
 from seaway.vessel.mavlink_signing import KeyFileError, read_key
 from seaway.vessel.model import load_vessel
 
-from seaway_sim import kept
+from seaway_sim import kept, plant_kept
 from seaway_sim.app import SimApp, world_of
 from seaway_sim.battery import SimPack
 from seaway_sim.core import SimCore
@@ -160,13 +162,37 @@ def main(argv: Sequence[str] | None = None) -> int:
         else:
             autopilot = Px4Autopilot(Px4Config(thrust_max_n=vessel.thrust_max_n, sysid=args.sysid,
                                                param_overrides=params))
+            keeper = None if args.state_file is None else resume_plant(core, args.state_file, args.run)
             try:
-                realtime = Realtime(app, autopilot, link, args.step, period_s, ctx.stop, boot_ns)
+                realtime = Realtime(app, autopilot, link, args.step, period_s, ctx.stop, boot_ns,
+                                    keeper)
                 ctx.ready()
                 realtime.run()
             finally:
                 link.close()
     return 0
+
+
+def resume_plant(core: SimCore, state_file: Path, run_file: str | None) -> plant_kept.PlantKeeper:
+    """Real time: put the vessel back where a sim before this one left it, if it kept it for this
+    run and scenario (``seaway_sim.plant_kept``); the keeper that keeps it from now on."""
+    path = plant_kept.plant_path(state_file)
+    try:
+        kept = plant_kept.load(path)
+    except plant_kept.PlantKeptError as err:
+        log.error("%s: %s; the vessel starts at the scenario's start", path, err)
+        kept = None
+    why = plant_kept.resumable(kept, core, run_file)
+    if kept is not None and why is None:
+        plant_kept.restore(core, kept)
+        u, v, _r, x, y, psi = kept.x
+        log.warning("vessel put back where the sim before this one left it (kept in %s): x %.1f m, "
+                    "y %.1f m, heading %.2f rad, speed %.2f m/s, propulsion energy %.0f J, pack "
+                    "drawn for %.0f s", path, x, y, psi, math.hypot(u, v), kept.energy_j,
+                    kept.pack_elapsed_ns / 1e9)
+    elif kept is not None:
+        log.info("%s not resumed: %s", path, why)
+    return plant_kept.PlantKeeper(path)
 
 
 if __name__ == "__main__":

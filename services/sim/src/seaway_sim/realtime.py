@@ -7,7 +7,8 @@ Two threads share the core under ``SimApp.lock``:
 * the main thread ticks every ``--step`` (10 ms) on a drift-free ``RateLoop``: it asks the autopilot
   for the thrust, advances the plant to the tick (after missed ticks, by all of them: simulated time
   never falls behind the wall clock), sends the sensor and periodic MAVLink telemetry that fell due,
-  and every ``--period`` publishes SIM_TRUTH, SIM_DISTURBANCE and SIM_CLOCK on the bus.
+  and every ``--period`` publishes SIM_TRUTH, SIM_DISTURBANCE and SIM_CLOCK on the bus; it keeps
+  the plant's state for a restarted sim (``seaway_sim.plant_kept``).
 
 Time: the autopilot's "time since boot" and the core's sim time are both nanoseconds since the sim
 started (monotonic); bus stamps are the wall clock at start plus that (``SimCore.epoch_ns``).
@@ -26,6 +27,7 @@ from seaway.vessel.model import VesselParams
 
 from seaway_sim.app import SimApp
 from seaway_sim.mavlink_link import MavlinkLink
+from seaway_sim.plant_kept import PlantKeeper
 from seaway_sim.px4_autopilot import Px4Autopilot
 
 log = logging.getLogger("seaway_sim.realtime")
@@ -37,7 +39,8 @@ class Realtime:
     """The real-time loop: plant on the wall clock, MAVLink in and out."""
 
     def __init__(self, app: SimApp, autopilot: Px4Autopilot, link: MavlinkLink, step_s: float,
-                 period_s: float, stop: threading.Event, boot_monotonic_ns: int) -> None:
+                 period_s: float, stop: threading.Event, boot_monotonic_ns: int,
+                 keeper: PlantKeeper | None = None) -> None:
         self.app = app
         self.autopilot = autopilot
         self.link = link
@@ -46,6 +49,8 @@ class Realtime:
         self.stop = stop
         self.boot_ns = boot_monotonic_ns
         self.overrun_ticks = 0
+        self.keeper = keeper
+        """Keeps the plant's state for a restarted sim (``seaway_sim.plant_kept``); None: not kept."""
         app.on_load.append(self._on_load)
 
     def _on_load(self, scenario: Scenario, vessel: VesselParams) -> None:
@@ -79,6 +84,8 @@ class Realtime:
                                              gnss_ok, self.link.garbage))
         if instants_in(self.publish_period_ns, before, core.t_ns):
             self.app.publish_truth(1.0)
+        if self.keeper is not None:
+            self.keeper.tick(core)
 
     def run(self) -> None:
         log.info("real time: MAVLink on udpin:%s:%d, step %.3f s, truth every %.3f s",
@@ -99,6 +106,9 @@ class Realtime:
         finally:
             self.stop.set()
             receiver.join(2 * _RECEIVE_POLL_S)
+            if self.keeper is not None:
+                with self.app.lock:
+                    self.keeper.close(self.app.core)
             log.info("real time ended at t = %.3f s (%d overrun ticks caught up); link %s; "
                      "autopilot %s", self.app.core.t_ns / 1e9, self.overrun_ticks,
                      dict(self.link.counters), dict(self.autopilot.counters))

@@ -8,6 +8,12 @@
 * ``claim``: register this stack on its rendezvous endpoint, or refuse with the name of the stack
   already there (two stacks on one endpoint would otherwise fight over it: with different
   credentials neither can reach the other, so the second would wait for its own processes forever).
+* ``rendezvous_problem``: once the launcher's own session is open, whether the endpoint answers
+  with this stack's credentials. A port held before the launch by a process that is not a stack of
+  this registry (a Zenoh session without the credentials, a stack registered in another registry
+  folder, any other program) would otherwise let every process start and none link: the start
+  failed 30 s later with "recorder not ready". Now it fails within ``RENDEZVOUS_PROBE_S``, naming
+  the port, the holder's pid and command line where this user may see them, and what to do.
 """
 
 from __future__ import annotations
@@ -17,14 +23,20 @@ import os
 import re
 import shutil
 import socket
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from seaway.runtime import credentials as creds
 from seaway.runtime import stacks
-from seaway.runtime.zenoh_bus import rendezvous_endpoint
+from seaway.runtime.zenoh_bus import ZenohBus, rendezvous_endpoint
 from seaway.tools.launch.profile import Profile
 from seaway.vessel import mavlink_signing
+
+RENDEZVOUS_PROBE_S = 5.0
+"""How long a launcher whose rendezvous port was already held waits for a session there to accept
+its credentials [s]: a link on loopback comes within milliseconds, a few seconds on a loaded
+machine."""
 
 
 class StackInUseError(RuntimeError):
@@ -40,6 +52,8 @@ class Authority:
     owned_folder: Path | None = None
     mavlink_key: Path | None = None
     registered: bool = False
+    port_held: bool = False
+    """The rendezvous port was open before this launch (by no stack of this registry)."""
     notes: list[str] = field(default_factory=list)
 
     def release(self) -> None:
@@ -145,9 +159,66 @@ def claim(auth: Authority, profile: Profile, run_dir: Path, vessel: str) -> None
     if _port_in_use(auth.rendezvous):
         # Not a stack (none is registered): a session opened before the launch (a `seaway echo`
         # waiting, a test) holds the port. It joins only if it has this stack's credentials.
+        auth.port_held = True
         auth.notes.append(f"{auth.rendezvous} is already held by a session that is not a stack; "
                           "it takes part only if it has this stack's credentials")
     stacks.register(stacks.StackEntry(
         rendezvous=auth.rendezvous, pid=os.getpid(), profile=profile.name, run_dir=str(run_dir),
         credentials=str(auth.credentials.folder) if auth.credentials else creds.NONE, vessel=vessel))
     auth.registered = True
+
+
+def _port(endpoint: str) -> int | None:
+    with contextlib.suppress(ValueError):
+        return int(endpoint.rpartition(":")[2])
+    return None
+
+
+def port_holder(port: int) -> tuple[int, str] | None:
+    """(pid, command line) of the process listening on TCP ``port`` of this machine, if this user
+    may see it (``/proc``: a listening socket's inode, then the process holding it); else None."""
+    inodes = set()
+    for table in ("/proc/net/tcp", "/proc/net/tcp6"):
+        with contextlib.suppress(OSError):
+            for line in Path(table).read_text().splitlines()[1:]:
+                f = line.split()
+                if len(f) > 9 and f[3] == "0A" and int(f[1].rpartition(":")[2], 16) == port:
+                    inodes.add(f"socket:[{f[9]}]")
+    for proc in Path("/proc").iterdir() if inodes else ():
+        if not proc.name.isdigit() or int(proc.name) == os.getpid():
+            continue
+        with contextlib.suppress(OSError):
+            for fd in (proc / "fd").iterdir():
+                with contextlib.suppress(OSError):
+                    if os.readlink(fd) in inodes:
+                        cmd = (proc / "cmdline").read_bytes().replace(b"\0", b" ").decode(
+                            errors="replace").strip()
+                        return int(proc.name), cmd[:200]
+    return None
+
+
+def rendezvous_problem(auth: Authority, bus: object, wait_s: float = RENDEZVOUS_PROBE_S) -> str | None:
+    """Why this stack's processes could not meet on the rendezvous endpoint, or None.
+
+    Only when the port was held before the launch (``claim``): the launcher's session, opened with
+    the stack's credentials, must then be linked to the holder within ``wait_s``. ``bus``: the
+    launcher's (a ``ZenohBus``; any other transport has no rendezvous)."""
+    if not auth.port_held or not isinstance(bus, ZenohBus):
+        return None
+    info = bus.session.info
+    deadline = time.monotonic() + wait_s
+    while True:
+        if list(info.peers_zid()) or list(info.routers_zid()):
+            return None
+        if time.monotonic() >= deadline:
+            break
+        time.sleep(0.1)
+    port = _port(auth.rendezvous)
+    holder = port_holder(port) if port is not None else None
+    who = (f"process {holder[0]} ({holder[1]})" if holder is not None
+           else "a process this user cannot see")
+    return (f"the rendezvous endpoint {auth.rendezvous} is held by {who}, which did not accept this "
+            f"stack's credentials within {wait_s:g} s: a Zenoh session without them, or a stack "
+            f"registered in another stacks folder (${stacks.ENV_STACKS_DIR} or $XDG_RUNTIME_DIR "
+            f"differ; this one is {stacks.stacks_dir()}). No process of this stack could link. Stop "
+            f"it, or start this stack on another port, e.g. SEAWAY_ZENOH_RENDEZVOUS=tcp/127.0.0.1:7450")

@@ -83,7 +83,9 @@ from seaway.runtime.service import (
 from seaway.runtime.zenoh_bus import ENV_CONFIG, use_lockstep_runtime
 from seaway.simkit.scenario import load_scenario
 from seaway.tools.launch import address, authority, recording_source
+from seaway.tools.launch.mission_end import MissionEnd
 from seaway.tools.launch.profile import Instance, Profile, instances, load_profile, substitute
+from seaway.tools.launch.resume import RESUME_WAIT_S, LinkTender
 from seaway.tools.launch.status_line import StatusLine
 from seaway.tools.launch.supervisor import Supervised, Supervisor, default_echo
 from seaway.vessel.energy_prediction import known_poor
@@ -112,6 +114,10 @@ def parser() -> argparse.ArgumentParser:
                     help=f"the mission's task power T^w [W], in (0, {MAX_TASK_POWER_W:g}] "
                          "(default: the mission's)")
     ap.add_argument("--stay", action="store_true", help="keep running after the mission completes")
+    ap.add_argument("--resume-wait", type=positive_float, default=RESUME_WAIT_S, metavar="S",
+                    help="real time: how long a mission paused by a restart of vehicle_io or the sim "
+                         "may wait for the autopilot (armed) before the run ends it (default "
+                         f"{RESUME_WAIT_S:g} s; seaway.tools.launch.resume)")
     ap.add_argument("--verbose", action="store_true", help="show every process's output")
     ap.add_argument("--no-report", action="store_true",
                     help="skip the final report (metrics, plots) after the stop; make it later with "
@@ -552,6 +558,11 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
     except RuntimeEnvError as err:  # before any process started: nothing to stop
         print(f"seaway launch: {err}", file=sys.stderr)
         return 2
+    problem = authority.rendezvous_problem(auth, bus)
+    if problem is not None:  # before any process started: none of them could link
+        bus.close()
+        print(f"seaway launch: {problem}", file=sys.stderr)
+        return 2
     refusals.serve(bus, "launcher")
     code = 0
     t0 = time.monotonic()
@@ -572,6 +583,9 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
         for v in vessels:  # which vessels' controllers take a mission (the launcher's or another's)
             bus.subscribe(keys.MISSION_ACCEPTED, vessel=v,
                           callback=lambda _key, _msg, v=v: flown.add(v))
+        ending = MissionEnd(vessels, mission, None if not run.lockstep
+                            else round(run.control_period_s * 1e9))
+        ending.watch(bus)
         error = sup.start_all(stop)
         if error:
             print(f"seaway launch: {error}", file=sys.stderr)
@@ -592,6 +606,8 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
             for line in mission_reply_lines(mission, reply):
                 print(f"{label[v]}{line}", flush=True)
         t_run = time.monotonic()
+        tender = None if mission is None or run.lockstep else LinkTender(
+            bus, sup, vessels, mission, profile.mode_on_start, args.resume_wait)
         while not stop.wait(0.2):
             sup.poll()
             show_groundstations(sup, run_dir, shown)  # again after a restart: a new address
@@ -604,14 +620,20 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
                 code = 1
                 break
             status.show(time.monotonic() - t_run)
+            ended = tender.step(time.monotonic(), label) if tender is not None else None
+            if ended:  # a mission paused by a link restart that could not be resumed
+                status.show(time.monotonic() - t_run, final=True)
+                print(f"\nseaway launch: {ended}", file=sys.stderr, flush=True)
+                code = 1
+                break
             if profile.stop_after and sup.procs[profile.stop_after].state == "exited":
                 status.show(time.monotonic() - t_run, final=True)
                 print(f"{profile.stop_after} finished", flush=True)
                 break
             # Completion counts only for the mission this launcher sent (and, by the access rules,
-            # only from the controller), on every vessel: a status of some other mission stops
-            # nothing.
-            if profile.stop_when_complete and not args.stay and status.complete(mission):
+            # only from the controller), bounded and borne out by the navigation state
+            # (mission_end), on every vessel: a status of some other mission stops nothing.
+            if profile.stop_when_complete and not args.stay and ending.over(time.time_ns()):
                 status.show(time.monotonic() - t_run, final=True)
                 print("mission complete", flush=True)
                 break

@@ -1,0 +1,216 @@
+"""When the launcher ends a run: a mission status that says "over", bounded and borne out.
+
+The controller's identity may publish ``mission/status`` and ``mission/energy`` (the access rules
+allow no one else), but a compromised or confused process of that identity can still say
+"complete" at the start of a mission. So the launcher takes a status as the end of a mission only
+when:
+
+* its stamp is within the bounds every service applies (``seaway.runtime.stamps``): in real time at
+  most ``MAX_AHEAD_LIVE_S`` ahead of the launcher's wall clock and at most ``MAX_AGE_S`` behind it;
+  in lockstep at most ``LOCKSTEP_AHEAD_PERIODS`` periods ahead of the newest navigation state heard
+  and at most ``MAX_AGE_S`` of simulated time behind it (the status of a period comes from that
+  period's state); the same bounds hold for the energy budget that holds a mission;
+* and, for a mission this launcher sent, the vessel was seen where the status says it is: the
+  navigation state (``nav/state``, the estimator's: an identity the controller's cannot publish as)
+  put it within the circle of acceptance (plus ``ARRIVAL_SLACK_M``) of the last waypoint for
+  "complete", or of home for the completed return home (``return_mission_id``), at some look since
+  the mission was sent. A "hold" decided by the energy budget needs no position.
+
+A status that fails is not taken: counted and logged (at most once a minute per reason), and the
+run goes on. ``VesselEnd`` is the pure judgement (messages and times in); ``MissionEnd`` reads the
+launcher's bus for every vessel.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+
+from seaway.contract import keys
+from seaway.contract.messages import (
+    EnergyBudget,
+    MissionRequest,
+    MissionStatus,
+    NavOrigin,
+    StateEstimate,
+    Waypoint,
+    mission_over,
+    return_mission_id,
+)
+from seaway.contract.units import NS_PER_S
+from seaway.runtime.bus import Bus, Newest
+from seaway.runtime.ratelog import RateLimitedLog
+from seaway.runtime.stamps import StampBounds, StampGate
+from seaway.vessel.frames import GeoOrigin
+
+log = logging.getLogger("seaway.launch")
+
+MAX_AGE_S = 5.0
+"""How old a status, budget or state may be to end a mission [s]: the controller publishes its
+status every control period (0.1 s), so a status this old is not the current one."""
+ARRIVAL_SLACK_M = 3.0
+"""Added to the circle of acceptance when judging where the vessel was [m]: the launcher looks at
+the newest state a few times a second, and a vessel that just completed may have coasted on past
+the circle since (at 2 m/s, about 1 m in a look's 0.5 s). Far below any leg a forger could hide in:
+a status is refused while the vessel is more than this outside the circle."""
+REFUSED_LOG_EVERY_S = 60.0
+"""A refused "over" status is logged once, then at most once a minute per reason."""
+
+Point = tuple[float, float]
+
+
+def _ned(wp: Waypoint, origin: GeoOrigin | None) -> Point | None:
+    """A waypoint in local NED metres; None if given in degrees and no origin is known yet."""
+    if wp.x_m is not None and wp.y_m is not None:
+        return float(wp.x_m), float(wp.y_m)
+    if wp.lat_deg is None or wp.lon_deg is None or origin is None:
+        return None
+    north, east, _ = origin.to_ned(math.radians(wp.lat_deg), math.radians(wp.lon_deg), origin.alt_m)
+    return north, east
+
+
+@dataclass
+class VesselEnd:
+    """Whether one vessel's mission is over, judged from bounded, consistent messages.
+
+    ``mission``: the mission the launcher sent (None: it sent none; any mission's bounded
+    "complete" ends the run, as no waypoint is known to check it against). ``period_ns``: the
+    lockstep control period (None: real time)."""
+
+    vessel: str
+    mission: MissionRequest | None
+    period_ns: int | None = None
+    origin: GeoOrigin | None = None
+    reached: dict[str, bool] = field(default_factory=dict)
+    """'end' (the last waypoint), 'home' -> the vessel was seen arriving within its circle (plus
+    slack): inside it, and, for a point within that reach of the first waypoint (home, a loop's
+    end), outside it before (where the vessel starts is no arrival)."""
+    left: dict[str, bool] = field(default_factory=dict)
+    """'end', 'home' -> the vessel was seen outside its circle (plus slack)."""
+    refused: dict[str, int] = field(default_factory=dict)
+    """Reason -> how many "over" statuses were not taken for it."""
+    gate: StampGate = field(init=False)
+    _log: RateLimitedLog = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.gate = StampGate(f"launcher ({self.vessel})", log)
+        self._log = RateLimitedLog(log, REFUSED_LOG_EVERY_S)
+
+    def bounds(self) -> StampBounds:
+        if self.period_ns is None:
+            return StampBounds.live(behind_s=MAX_AGE_S)
+        return StampBounds(StampBounds.lockstep(self.period_ns).ahead_ns, round(MAX_AGE_S * NS_PER_S))
+
+    def reference_ns(self, wall_ns: int, state: StateEstimate | None) -> int | None:
+        """The time stamps are judged against: the wall clock, in lockstep the newest state's."""
+        if self.period_ns is None:
+            return wall_ns
+        return None if state is None else state.stamp_ns
+
+    def targets(self) -> tuple[Point | None, Point | None]:
+        """(last waypoint, home) of the mission sent, in NED metres (None where not known)."""
+        if self.mission is None or not self.mission.waypoints:
+            return None, None
+        wps = self.mission.waypoints
+        return _ned(wps[-1], self.origin), _ned(self.mission.home or wps[0], self.origin)
+
+    def on_origin(self, origin: NavOrigin | None) -> None:
+        if origin is not None:
+            self.origin = GeoOrigin(origin.lat_rad, origin.lon_rad, origin.alt_m)
+
+    def on_state(self, state: StateEstimate | None, ref_ns: int | None) -> None:
+        """A look at the newest state: note whether it puts the vessel at the end or at home."""
+        if state is None or self.mission is None:
+            return
+        if self.period_ns is None and not self.gate.admit(
+            keys.NAV_STATE.suffix, state.stamp_ns, ref_ns, self.bounds()
+        ):
+            return
+        reach = self.mission.coa_radius_m + ARRIVAL_SLACK_M
+        first = _ned(self.mission.waypoints[0], self.origin)
+        here = (state.x_m, state.y_m)
+        for name, point in zip(("end", "home"), self.targets(), strict=True):
+            if point is None:
+                continue
+            if math.dist(here, point) > reach:
+                self.left[name] = True
+            elif self.left.get(name) or (first is not None and math.dist(first, point) > reach):
+                self.reached[name] = True
+
+    def over(self, status: MissionStatus | None, budget: EnergyBudget | None, ref_ns: int | None) -> bool:
+        """Whether ``status`` (the newest) ends the mission sent: see the module docstring."""
+        sent = None if self.mission is None else self.mission.mission_id
+        if not mission_over(status, budget, sent):
+            return False
+        assert status is not None
+        if not self.gate.admit(keys.MISSION_STATUS.suffix, status.stamp_ns, ref_ns, self.bounds()):
+            return self._refuse("stamp", "its stamp is out of bounds")
+        if status.state != "complete":  # held by the energy budget: its budget must be current too
+            assert budget is not None
+            if not self.gate.admit(keys.MISSION_ENERGY.suffix, budget.stamp_ns, ref_ns, self.bounds()):
+                return self._refuse("stamp", "its energy budget's stamp is out of bounds")
+            return True
+        if sent is None:
+            return True
+        end, home = self.targets()
+        home_run = status.mission_id == return_mission_id(sent) != sent
+        name, target = ("home", home) if home_run else ("end", end)
+        if self.reached.get(name):
+            return True
+        where = "home" if home_run else "the last waypoint"
+        if target is None:
+            return self._refuse("origin", f"{where} is in degrees and no nav/origin was heard")
+        reach = self.mission.coa_radius_m + ARRIVAL_SLACK_M  # type: ignore[union-attr]
+        return self._refuse(
+            "position",
+            f"no navigation state has shown the vessel arriving within "
+            f"{reach:g} m of {where} ({target[0]:.1f}, {target[1]:.1f}) m",
+        )
+
+    def _refuse(self, reason: str, why: str) -> bool:
+        self.refused[reason] = n = self.refused.get(reason, 0) + 1
+        self._log.warning(
+            (self.vessel, reason),
+            "launcher (%s): a mission status says the mission "
+            "is over, not taken: %s. Not taken so far for this reason: %d (logged at "
+            "most once a minute)",
+            self.vessel,
+            why,
+            n,
+        )
+        return False
+
+
+class MissionEnd:
+    """Every vessel's ``VesselEnd``, fed from the launcher's bus (newest samples, read when asked:
+    in lockstep they come hundreds a second)."""
+
+    def __init__(
+        self, vessels: list[str], mission: MissionRequest | None, period_ns: int | None = None
+    ) -> None:
+        self.vessels = {v: VesselEnd(v, mission, period_ns) for v in vessels}
+        self._newest: dict[
+            str, tuple[Newest[MissionStatus], Newest[EnergyBudget], Newest[StateEstimate], Newest[NavOrigin]]
+        ] = {}
+
+    def watch(self, bus: Bus) -> None:
+        for v in self.vessels:
+            self._newest[v] = (
+                bus.newest(keys.MISSION_STATUS, vessel=v),
+                bus.newest(keys.MISSION_ENERGY, vessel=v),
+                bus.newest(keys.NAV_STATE, vessel=v),
+                bus.newest(keys.NAV_ORIGIN, vessel=v),
+            )
+
+    def over(self, wall_ns: int) -> bool:
+        """Whether every vessel's mission is over (``wall_ns``: the wall clock, ``time.time_ns``).
+        Call it a few times a second: each call is also a look at where the vessels are."""
+        done = True
+        for v, end in self.vessels.items():
+            status, budget, state, origin = (n.get() for n in self._newest[v])
+            end.on_origin(origin)  # type: ignore[arg-type]
+            ref = end.reference_ns(wall_ns, state)  # type: ignore[arg-type]
+            end.on_state(state, ref)  # type: ignore[arg-type]
+            done = end.over(status, budget, ref) and done  # type: ignore[arg-type]
+        return done

@@ -1,0 +1,145 @@
+"""When the launcher ends a run (issue 56, item 18): a "complete" from the controller's identity
+stamped an hour ahead, an hour behind or now, at the start of a mission, stopped the stack. Now a
+status ends a mission only when its stamp is within bounds and the navigation state bears it out."""
+
+from __future__ import annotations
+
+from seaway.contract.messages import (
+    EnergyBudget,
+    MissionRequest,
+    MissionStatus,
+    NavOrigin,
+    StateEstimate,
+    Waypoint,
+    return_mission_id,
+)
+from seaway.runtime.memory_bus import MemoryBus
+from seaway.tools.launch.mission_end import MissionEnd, VesselEnd
+
+S = 1_000_000_000
+NOW = 1_800_000_000 * S  # a wall clock [ns]
+HOUR = 3600 * S
+MISSION = MissionRequest(
+    stamp_ns=NOW,
+    mission_id="m1",
+    coa_radius_m=2.0,
+    task_power_w=250.0,
+    waypoints=[Waypoint(x_m=0.0, y_m=0.0), Waypoint(x_m=300.0, y_m=0.0)],
+)
+
+
+def state(x_m: float, t_ns: int = NOW) -> StateEstimate:
+    return StateEstimate(stamp_ns=t_ns, u_mps=1.0, v_mps=0.0, r_radps=0.0, x_m=x_m, y_m=0.0, psi_rad=0.0)
+
+
+def status(state_: str = "complete", t_ns: int = NOW, mission_id: str = "m1") -> MissionStatus:
+    return MissionStatus(stamp_ns=t_ns, state=state_, mission_id=mission_id, active_leg=1, waypoint_count=2)
+
+
+def test_a_complete_at_the_start_is_not_taken_whatever_its_stamp() -> None:
+    end = VesselEnd("v1", MISSION)
+    end.on_state(state(0.5), NOW)  # the vessel at the start, 300 m from the last waypoint
+    for stamp in (NOW + HOUR, NOW - HOUR, NOW):
+        assert not end.over(status(t_ns=stamp), None, NOW)
+    assert end.gate.dropped == {("mission/status", "ahead"): 1, ("mission/status", "behind"): 1}
+    assert end.refused == {"stamp": 2, "position": 1}
+
+
+def test_a_complete_after_the_vessel_arrived_is_taken_also_once_it_coasted_on() -> None:
+    end = VesselEnd("v1", MISSION)
+    end.on_state(state(150.0), NOW)
+    assert not end.over(status(), None, NOW)
+    end.on_state(state(299.0), NOW)  # within the circle
+    end.on_state(state(310.0), NOW)  # then coasted on: the arrival was seen
+    assert end.over(status(), None, NOW)
+    assert not end.over(status(t_ns=NOW + HOUR), None, NOW)  # still bounded
+
+
+def test_a_state_stamped_out_of_bounds_is_no_evidence() -> None:
+    end = VesselEnd("v1", MISSION)
+    end.on_state(state(300.0, NOW + HOUR), NOW)
+    end.on_state(state(300.0, NOW - HOUR), NOW)
+    assert not end.over(status(), None, NOW)
+
+
+def test_the_return_home_is_complete_only_after_the_vessel_left_home_and_came_back() -> None:
+    end = VesselEnd("v1", MISSION)
+    home = status(mission_id=return_mission_id("m1"))
+    end.on_state(state(0.0), NOW)  # it starts at home: that is no arrival
+    assert not end.over(home, None, NOW)
+    end.on_state(state(80.0), NOW)
+    assert not end.over(home, None, NOW)
+    end.on_state(state(1.0), NOW)
+    assert end.over(home, None, NOW)
+
+
+def test_a_loop_mission_ends_only_after_the_vessel_went_round() -> None:
+    loop = MISSION.model_copy(
+        update={
+            "waypoints": [Waypoint(x_m=0.0, y_m=0.0), Waypoint(x_m=50.0, y_m=0.0), Waypoint(x_m=0.0, y_m=1.0)]
+        }
+    )
+    end = VesselEnd("v1", loop)
+    end.on_state(state(0.0), NOW)
+    assert not end.over(status(), None, NOW)
+    end.on_state(state(40.0), NOW)
+    end.on_state(state(0.5), NOW)
+    assert end.over(status(), None, NOW)
+
+
+def test_waypoints_in_degrees_are_judged_through_the_origin() -> None:
+    origin = NavOrigin(stamp_ns=NOW, lat_rad=0.82, lon_rad=0.14, alt_m=0.0)
+    mission = MISSION.model_copy(
+        update={
+            "waypoints": [Waypoint(lat_deg=46.983, lon_deg=8.021), Waypoint(lat_deg=46.985, lon_deg=8.021)]
+        }
+    )
+    end = VesselEnd("v1", mission)
+    end.on_state(state(0.0), NOW)
+    assert not end.over(status(), None, NOW)
+    assert end.refused == {"origin": 1}
+    end.on_origin(origin)
+    far, there = end.targets()
+    assert far is not None and there is not None
+    end.on_state(state(far[0]).model_copy(update={"y_m": far[1]}), NOW)
+    assert end.over(status(), None, NOW)
+
+
+def test_a_hold_needs_a_current_budget() -> None:
+    end = VesselEnd("v1", MISSION)
+    held = status("paused")
+    budget = EnergyBudget(
+        stamp_ns=NOW - HOUR,
+        mission_id="m1",
+        energy_used_j=1.0,
+        decision="hold",
+        home_x_m=0.0,
+        home_y_m=0.0,
+        policy="hold",
+    )
+    assert not end.over(held, budget, NOW)
+    assert end.over(held, budget.model_copy(update={"stamp_ns": NOW}), NOW)
+
+
+def test_lockstep_judges_stamps_against_the_newest_state() -> None:
+    end = VesselEnd("v1", MISSION, period_ns=S // 10)
+    t = 120 * S
+    end.on_state(state(300.0, t), end.reference_ns(NOW, state(300.0, t)))
+    assert end.reference_ns(NOW, None) is None
+    assert end.over(status(t_ns=t), None, t)
+    assert not end.over(status(t_ns=t + HOUR), None, t)
+    assert not end.over(status(t_ns=t - 10 * S), None, t)
+
+
+def test_on_a_bus_every_vessel_must_be_over() -> None:
+    from seaway.contract import keys
+
+    bus = MemoryBus("v1")
+    ending = MissionEnd(["v1", "v2"], MISSION)
+    ending.watch(bus)
+    for v in ("v1", "v2"):
+        bus.publisher(keys.NAV_STATE, vessel=v).put(state(299.0))
+    bus.publisher(keys.MISSION_STATUS, vessel="v1").put(status())
+    assert not ending.over(NOW)  # v2 has no status
+    bus.publisher(keys.MISSION_STATUS, vessel="v2").put(status())
+    assert ending.over(NOW)
