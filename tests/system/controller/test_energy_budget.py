@@ -90,5 +90,8 @@ def test_bench_energy_prints_the_prediction_against_the_energy_used():
     # Table I's condition #1: ~330 J used; the prediction within the targets.
     assert c1["actual_start_j"] == pytest.approx(330.4, rel=0.02)
     assert abs(c1["error_start_pct"]) <= 5 and abs(c1["error_half_pct"]) <= 2
-    assert c1["band_start_low_j"] < c1["predicted_start_j"] < c1["band_start_high_j"]
+    # At the start the disturbance is still uncertain: the band's high end may be unbounded (None),
+    # never the prediction itself.
+    assert c1["band_start_low_j"] < c1["predicted_start_j"]
+    assert c1["band_start_high_j"] is None or c1["predicted_start_j"] < c1["band_start_high_j"]
     assert doc["passed"] is True

@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from seaway.vessel.energy_prediction import known_poor
 
 from tests.conftest import solver_built, wait_for
 from tests.system.hardening.stack import short_lake
@@ -33,7 +34,13 @@ def test_a_normal_lockstep_run_logs_no_warning(procs, zenoh_env, tmp_path) -> No
     la.wait(540)
     out = procs.log(la)
     assert la.returncode == 0 and "mission complete" in out, out[-3000:]
-    assert loud_lines(run, out) == []
+    # The one warning a normal NMPC run has, by design (issue 56, item 13): its energy prediction is
+    # known to be poor, said under the mission's acceptance and in the report; nothing else.
+    poor = known_poor("nmpc")
+    assert poor is not None
+    loud = loud_lines(run, out)
+    assert any(poor in line for line in loud), loud
+    assert [line for line in loud if poor not in line] == []
 
 
 @pytest.mark.slow  # a whole real-time mission: about 45 s
