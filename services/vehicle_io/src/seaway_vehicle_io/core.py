@@ -74,7 +74,7 @@ from seaway_vehicle_io.conversions import (
 from seaway_vehicle_io.events_channel import EventsChannel
 from seaway_vehicle_io.mav import mavlink
 from seaway_vehicle_io.profile import FailsafeAssessment, ManualControlAxes, Profile
-from seaway_vehicle_io.rates import MAV_CMD_SET_MESSAGE_INTERVAL, RateCheck
+from seaway_vehicle_io.rates import MAV_CMD_SET_MESSAGE_INTERVAL, RateCheck, RateWatch
 from seaway_vehicle_io.statustext import StatusTexts, matching
 from seaway_vehicle_io.thrust import ThrusterLimits, absurd_thrust, normalise_pair
 from seaway_vehicle_io.timesync import BootTimeOffset
@@ -234,6 +234,9 @@ class VehicleIoCore:
         self.commands = CommandTracker()
         self.params = ParamCheck()
         self.rate_check: RateCheck | None = None
+        self.rate_watch: RateWatch | None = None  # the rates after the check (None: not asked)
+        self._rates_redrop_ns: int | None = None  # when a drop was last asked again (None: none)
+        self._rates_asked_resets = 0  # the reboots the time offset had seen by then
         self.texts = StatusTexts()
         self.events = EventsChannel()  # the events protocol (PX4's arming reasons), per connection
         self.mapper: Any = None  # (L, R) -> axes for this autopilot's parameters; None: not yet
@@ -406,7 +409,7 @@ class VehicleIoCore:
             status_now = True
         self.refusals.flush(now.mono_ns)  # a refused source held back by the log's rate limit
         if status_now or now.mono_ns >= self._next_status_ns:
-            self._update_rates(now)
+            out.extend(self._update_rates(now))
             out.append(Publish(self.status(now)))
             self._next_status_ns = now.mono_ns + self._period_status_ns
         return out
@@ -533,19 +536,40 @@ class VehicleIoCore:
             else self.params.assessment.verdict,
             autopilot_loss_failsafe_summary="" if self.params.assessment is None
             else self.params.assessment.summary,
-            telemetry_rates_short=None if self.rate_check is None or self.rate_check.result is None
-            else dict(self.rate_check.result),
+            telemetry_rates_short=None if self.rate_watch is None or self.rate_watch.short is None
+            else dict(self.rate_watch.short),
             thrust_withheld=self._withheld,
             refused_thrust=self.refused_thrust(),
         )
 
-    def _update_rates(self, now: Now) -> None:
+    def _update_rates(self, now: Now) -> list[Output]:
+        """Close a rate window (at least RATE_WINDOW_S long); what to send if the telemetry the
+        autopilot was asked for has dropped (``rates.RateWatch``)."""
         dt = (now.mono_ns - self._rates_since_ns) / 1e9
         if dt < RATE_WINDOW_S:  # a 1 Hz message needs a window of seconds to show a steady rate
-            return
+            return []
         self.rates_hz = {k: round(v / dt, 2) for k, v in sorted(self.counts.items())}
+        verdict = None
+        rc, watch = self.rate_check, self.rate_watch
+        if (rc is not None and watch is not None and rc.phase == "done"
+                and self._rates_since_ns >= rc.window_end_ns()):  # a window after the check's
+            verdict = watch.window(self.counts, self._rates_since_ns, now.mono_ns)
         self.counts.clear()
         self._rates_since_ns = now.mono_ns
+        if verdict == "recovered":
+            self._rates_redrop_ns = None
+            log.info("telemetry back at the requested rates: warning cleared")
+        elif verdict == "drop" and watch is not None and self.link.profile is not None:
+            want = {r.message: r.rate_hz for r in watch.requests}
+            slow = ", ".join(f"{m} {hz:g} Hz of {want[m]:g} Hz" for m, hz in (watch.short or {}).items())
+            last = self._rates_redrop_ns
+            if last is None or now.mono_ns - last >= round(telemetry_rates.REREQUEST_EVERY_S * 1e9):
+                self._rates_redrop_ns = now.mono_ns
+                log.warning("telemetry DROPPED below the requested rate: %s; asking again", slow)
+                return self._request_rates(self.link.profile, now)
+            log.warning("telemetry below the requested rate: %s (asked again less than %g s ago)",
+                        slow, telemetry_rates.REREQUEST_EVERY_S)
+        return []
 
     # ===========================================================================================
     # Link
@@ -658,6 +682,8 @@ class VehicleIoCore:
         self.commands.abandon_all()
         self.params = ParamCheck()
         self.rate_check = None
+        self.rate_watch = None
+        self._rates_redrop_ns = None
         self.mapper = None
         return True
 
@@ -852,12 +878,16 @@ class VehicleIoCore:
     # ===========================================================================================
 
     def _request_rates(self, profile: Profile, now: Now) -> list[Output]:
-        """At connection: SET_MESSAGE_INTERVAL for every message at its configured rate."""
+        """At connection, after a reboot and on a drop: SET_MESSAGE_INTERVAL for every message at
+        its configured rate. A standing shortfall stays in the status until the new check ends."""
         self.rate_check = None
         if not profile.requests_message_rates or not self.cfg.message_rates_hz:
             return []
         requests = telemetry_rates.plan(self.cfg.message_rates_hz)
         self.rate_check = RateCheck(requests, now.mono_ns)
+        if self.rate_watch is None:
+            self.rate_watch = RateWatch(requests)
+        self._rates_asked_resets = self.offset.resets
         link = self.link
         assert link.target_system is not None and link.target_component is not None
         return [SendCommandLong(link.target_system, link.target_component,
@@ -870,6 +900,11 @@ class VehicleIoCore:
         rc, link = self.rate_check, self.link
         if rc is None or not link.ok or link.profile is None or link.target_system is None:
             return None
+        if self.offset.resets != self._rates_asked_resets:
+            # A reboot (SYSTEM_TIME or every stamp going back) without the link dropping: the
+            # autopilot forgot the intervals it was asked for and streams at its defaults.
+            log.warning("autopilot rebooted: asking for the telemetry rates again")
+            return self._request_rates(link.profile, now)
         if rc.all_accepted():
             rc.start_measuring(now.mono_ns, fallback=False)
             return []
@@ -885,6 +920,8 @@ class VehicleIoCore:
                     for sid, hz in sorted(streams.items())]
         if rc.phase == "measuring" and now.mono_ns >= rc.window_end_ns():
             short = rc.finish()
+            if self.rate_watch is not None:
+                self.rate_watch.checked(short)
             asked = ", ".join(f"{r.message} {r.rate_hz:g}" for r in rc.requests)
             how = "REQUEST_DATA_STREAM" if rc.fallback_used else "SET_MESSAGE_INTERVAL"
             if short:

@@ -201,9 +201,11 @@ class VehicleStatus(Message):
         default="", description="the parameters and the action behind that verdict, one line")
     telemetry_rates_short: dict[str, float] | None = Field(
         default=None,
-        description="the start-up rate check: each telemetry message vehicle_io asked for that "
-                    "arrives below its requested rate, with the rate measured [Hz]; {} all arrive "
-                    "at their rates; None not checked (yet, or the autopilot is not asked)")
+        description="each telemetry message vehicle_io asked for that arrives below its requested "
+                    "rate, with the rate measured [Hz]: from the rate check at connection, after a "
+                    "reboot or a drop, and kept up to date after it (cleared when the rates "
+                    "recover); {} all arrive at their rates; None not checked (yet, or the "
+                    "autopilot is not asked)")
     thrust_withheld: ThrustWithheld | None = Field(
         default=None,
         description="why the commanded thrust does not reach the thrusters now, whatever the "
