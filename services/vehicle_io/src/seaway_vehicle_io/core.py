@@ -72,6 +72,12 @@ from seaway_vehicle_io.conversions import (
     local_position_from_local_position_ned,
 )
 from seaway_vehicle_io.events_channel import EventsChannel
+from seaway_vehicle_io.failsafe_cause import (
+    EVENT_WARNING_LEVEL,
+    WARNING_SEVERITY,
+    FailsafeCause,
+    classify_text,
+)
 from seaway_vehicle_io.mav import mavlink
 from seaway_vehicle_io.profile import FailsafeAssessment, ManualControlAxes, Profile
 from seaway_vehicle_io.rates import MAV_CMD_SET_MESSAGE_INTERVAL, RateCheck, RateWatch
@@ -238,6 +244,8 @@ class VehicleIoCore:
         self._rates_redrop_ns: int | None = None  # when a drop was last asked again (None: none)
         self._rates_asked_resets = 0  # the reboots the time offset had seen by then
         self.texts = StatusTexts()
+        self.hold = FailsafeCause()  # why the autopilot took the vessel (failsafe_cause.py)
+        self._mode_asked: str | None = None  # the mode vehicle_io last asked for, until it is seen
         self.events = EventsChannel()  # the events protocol (PX4's arming reasons), per connection
         self.mapper: Any = None  # (L, R) -> axes for this autopilot's parameters; None: not yet
         self.gps_quality: GpsQuality | None = None
@@ -456,6 +464,7 @@ class VehicleIoCore:
             p1, p2, p3 = self.link.profile.encode_mode(mode)
         except ValueError as err:
             return str(err)
+        self._mode_asked = mode.strip().upper()  # its HEARTBEAT may come before the ACK
         return self._command_long(MAV_CMD_DO_SET_MODE, (p1, p2, p3, 0, 0, 0, 0))
 
     def command_accepted(self, command: int, params: tuple[float, ...], mode: str | None) -> None:
@@ -466,6 +475,9 @@ class VehicleIoCore:
             self.link.armed = params[0] == 1.0
         elif command == MAV_CMD_DO_SET_MODE and mode is not None:
             self.link.mode = mode.strip().upper()
+            if self.hold.own_mode_accepted():
+                log.info("Seaway's mode %s accepted: the autopilot's hold reason is cleared",
+                         self.link.mode)
 
     def _command_precondition(self) -> str:
         if not self.link.ok or self.link.target_system is None or self.link.profile is None:
@@ -536,6 +548,8 @@ class VehicleIoCore:
             else self.params.assessment.verdict,
             autopilot_loss_failsafe_summary="" if self.params.assessment is None
             else self.params.assessment.summary,
+            hold_reason=self.hold.cause,
+            hold_reason_detail=self.hold.detail,
             telemetry_rates_short=None if self.rate_watch is None or self.rate_watch.short is None
             else dict(self.rate_watch.short),
             thrust_withheld=self._withheld,
@@ -639,6 +653,11 @@ class VehicleIoCore:
         mode = link.profile.decode_mode(msg.base_mode, msg.custom_mode)
         if announce and (armed != link.armed or mode != link.mode):
             log.info("autopilot %s, mode %s", "ARMED" if armed else "disarmed", mode)
+        if announce and mode != link.mode:
+            if mode == self._mode_asked:
+                self._mode_asked = None
+            elif link.mode not in link.profile.booting_modes and link.mode != "UNKNOWN":
+                self._hold_changed(self.hold.mode_changed(link.mode, mode, now.mono_ns))
         if (link.mode in link.profile.booting_modes and mode not in link.profile.booting_modes
                 and self.cfg.check_failsafe_params):
             # Read during start-up, some values were not final yet (measured: Rover answered
@@ -677,6 +696,8 @@ class VehicleIoCore:
         link.custom_mode = None
         self.events = EventsChannel()  # another firmware may answer next: fetch its catalog anew
         self.offset.reset()
+        self.hold = FailsafeCause()
+        self._mode_asked = None
         self.gps_quality = None
         self.battery = BatteryReading()
         self.commands.abandon_all()
@@ -783,7 +804,11 @@ class VehicleIoCore:
         return []
 
     def _on_sys_status(self, msg: Any, now: Now) -> list[Output]:
-        return self._on_battery(battery_from_sys_status(msg), now)
+        reading = battery_from_sys_status(msg)  # refuses an absurd message before it is used
+        self._hold_changed(self.hold.health(msg.onboard_control_sensors_present,
+                                            msg.onboard_control_sensors_enabled,
+                                            msg.onboard_control_sensors_health, now.mono_ns))
+        return self._on_battery(reading, now)
 
     def _on_battery_status(self, msg: Any, now: Now) -> list[Output]:
         if msg.id != 0:
@@ -817,6 +842,9 @@ class VehicleIoCore:
             # MAV_SEVERITY <= 4 is a warning or worse (PreArm failures are 2, CRITICAL)
             self._log_limited(now, "STATUSTEXT", item.text, logging.WARNING if item.severity <= 4
                               else logging.INFO, f"autopilot says: {item.text}")
+            if item.severity <= WARNING_SEVERITY:
+                self._hold_changed(self.hold.said(classify_text(item.text), item.text,
+                                                  now.mono_ns))
         return []
 
     def refusal_texts(self, since_mono_ns: int) -> tuple[list[str], bool]:
@@ -854,7 +882,13 @@ class VehicleIoCore:
             # info as info; debug and protocol chatter not at all
             self._log_limited(now, "EVENT", ev.text, logging.WARNING if ev.level <= 4
                               else logging.INFO, f"autopilot says: {ev.text}")
+        if ev is not None and ev.level <= EVENT_WARNING_LEVEL:
+            self._hold_changed(self.hold.said(classify_text(ev.text), ev.text, now.mono_ns))
         return []
+
+    def _hold_changed(self, changed: bool) -> None:
+        if changed:
+            log.warning("autopilot took the vessel: %s (%s)", self.hold.cause, self.hold.detail)
 
     def _on_component_metadata(self, msg: Any, now: Now) -> list[Output]:
         return list(self.events.on_component_metadata(msg, now.mono_ns))

@@ -168,6 +168,11 @@ class LocalPosition(Message):
 
 
 ThrustWithheld = Literal["no_link", "disarmed", "mode", "autopilot_config"]
+HoldReason = Literal["gcs_mode_change", "battery", "fence", "radio_loss", "gcs_link_loss", "other"]
+"""Why the autopilot took the vessel from Seaway (``VehicleStatus.hold_reason``): a mode change
+nobody in Seaway asked for ('gcs_mode_change'), or the failsafe it named: 'battery', 'fence',
+'radio_loss' (RC / manual control), 'gcs_link_loss' (its ground-station link), 'other' (a failsafe
+it did not name, e.g. ArduPilot's EKF failsafe)."""
 """Why the autopilot does not apply the commanded thrust (``VehicleStatus.thrust_withheld``)."""
 
 
@@ -206,6 +211,13 @@ class VehicleStatus(Message):
                     "reboot or a drop, and kept up to date after it (cleared when the rates "
                     "recover); {} all arrive at their rates; None not checked (yet, or the "
                     "autopilot is not asked)")
+    hold_reason: HoldReason | None = Field(
+        default=None,
+        description="why the autopilot took the vessel from Seaway (HoldReason), decoded from its "
+                    "HEARTBEAT, SYS_STATUS, STATUSTEXT and EVENTs; stands until Seaway's own mode "
+                    "request is accepted with no failsafe condition left; None: none")
+    hold_reason_detail: str = Field(
+        default="", description="the autopilot's own words (or the bit) behind hold_reason")
     thrust_withheld: ThrustWithheld | None = Field(
         default=None,
         description="why the commanded thrust does not reach the thrusters now, whatever the "
