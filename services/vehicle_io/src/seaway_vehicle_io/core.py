@@ -30,7 +30,13 @@ from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 from seaway.contract import keys
-from seaway.contract.messages import Message, ThrustCommand, ThrustWithheld, VehicleStatus
+from seaway.contract.messages import (
+    BatteryLevel,
+    Message,
+    ThrustCommand,
+    ThrustWithheld,
+    VehicleStatus,
+)
 from seaway.runtime.ratelog import RateLimitedLog
 from seaway.runtime.stamps import STAMP_LOG_EVERY_S, StampBounds, StampGate
 from seaway.vessel.battery import BatteryParams
@@ -66,10 +72,12 @@ from seaway_vehicle_io.conversions import (
     attitude_from_attitude,
     battery_from_battery_status,
     battery_from_sys_status,
+    battery_level_from_text,
     battery_state,
     gnss_from_global_position_int,
     gps_quality_from_gps_raw_int,
     local_position_from_local_position_ned,
+    worse_level,
 )
 from seaway_vehicle_io.events_channel import EventsChannel
 from seaway_vehicle_io.failsafe_cause import (
@@ -251,6 +259,7 @@ class VehicleIoCore:
         self.gps_quality: GpsQuality | None = None
         self.gps_quality_mono_ns = 0
         self.battery = BatteryReading()
+        self.battery_said: tuple[BatteryLevel, str] | None = None  # its battery text, latched
         self.dropped = 0
         self.counts: dict[str, int] = {}
         self.rates_hz: dict[str, float] = {}
@@ -700,6 +709,7 @@ class VehicleIoCore:
         self._mode_asked = None
         self.gps_quality = None
         self.battery = BatteryReading()
+        self.battery_said = None
         self.commands.abandon_all()
         self.params = ParamCheck()
         self.rate_check = None
@@ -820,7 +830,8 @@ class VehicleIoCore:
         state, completed from the vessel file, on ``vehicle/battery`` at once. Stamped at receipt
         (wall clock), as VehicleStatus: neither message carries the autopilot's time."""
         self.battery = self.battery.merged(reading)
-        return [Publish(battery_state(self.battery, self.battery_params, now.wall_ns))]
+        return [Publish(battery_state(self.battery, self.battery_params, now.wall_ns,
+                                      self.battery_said))]
 
     def _on_command_ack(self, msg: Any, now: Now) -> list[Output]:
         if msg.command == MAV_CMD_SET_MESSAGE_INTERVAL:
@@ -845,6 +856,12 @@ class VehicleIoCore:
             if item.severity <= WARNING_SEVERITY:
                 self._hold_changed(self.hold.said(classify_text(item.text), item.text,
                                                   now.mono_ns))
+                level = battery_level_from_text(item.text)
+                if level is not None:
+                    # Latched: ArduPilot says it once, and its battery failsafe holds till reboot.
+                    self.battery_said = (worse_level(level, None if self.battery_said is None
+                                                     else self.battery_said[0]) or level, item.text)
+                    return self._on_battery(BatteryReading(), now)
         return []
 
     def refusal_texts(self, since_mono_ns: int) -> tuple[list[str], bool]:

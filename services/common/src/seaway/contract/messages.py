@@ -227,6 +227,9 @@ class VehicleStatus(Message):
 
 
 BatterySource = Literal["autopilot", "sim"]
+BatteryLevel = Literal["ok", "low", "critical", "emergency", "failed", "unhealthy", "charging"]
+"""The autopilot's own judgement of its battery: MAVLink MAV_BATTERY_CHARGE_STATE (BATTERY_STATUS
+``charge_state``), or what it said in STATUSTEXT ("Battery 1 is low"), whichever is worse."""
 """Who measured a ``BatteryState``: the autopilot's battery monitor (through vehicle_io; also the
 MAVLink-speaking simulator), or the lockstep simulator itself."""
 
@@ -253,6 +256,12 @@ class BatteryState(Message):
                                          description="remaining_j over the usable energy")
     capacity_j: float | None = Field(default=None, gt=0, description="usable energy full to empty [J]")
     reserve_j: float | None = Field(default=None, ge=0, description="what a return home must leave [J]")
+    autopilot_level: BatteryLevel | None = Field(
+        default=None,
+        description="the autopilot's own low/critical flag (BatteryLevel): BATTERY_STATUS "
+                    "charge_state, raised by its battery STATUSTEXT; None: it says nothing")
+    autopilot_level_detail: str = Field(
+        default="", description="the autopilot's battery text behind autopilot_level, if any")
 
 
 # ---------------------------------------------------------------------------------------------
