@@ -196,7 +196,9 @@ def sitl(tmp_path):
 
 
 def start_vio(procs: Procs, env: dict[str, str], tmp: Path, url: str, **cfg: object):
-    lines = [f'mavlink = "{url}"', 'autopilot = "ardupilot"', "source_system = 255"]
+    # vehicle_io's own identity (system 245, component 191), which ardupilot-boat.parm makes
+    # ArduPilot's MAV_GCS_SYSID
+    lines = [f'mavlink = "{url}"', 'autopilot = "ardupilot"']
     lines += [f"{k} = {json.dumps(v)}" for k, v in cfg.items()]
     path = tmp / f"vio-{len(procs.procs)}.toml"
     path.write_text("\n".join(lines) + "\n")

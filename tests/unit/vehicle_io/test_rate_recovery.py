@@ -9,7 +9,7 @@ from typing import Any
 
 from seaway.contract.units import NS_PER_S
 from seaway_vehicle_io import rates
-from seaway_vehicle_io.config import VehicleIoConfig
+from seaway_vehicle_io.config import SOURCE_SYSTEM, VehicleIoConfig
 from seaway_vehicle_io.core import Now, SendCommandLong, VehicleIoCore
 from seaway_vehicle_io.mav import mavlink
 from seaway_vehicle_io.thrust import ThrusterLimits
@@ -75,7 +75,7 @@ class Autopilot:
                 self.core.on_mavlink(
                     wire(
                         mavlink.MAVLink_command_ack_message(
-                            rates.MAV_CMD_SET_MESSAGE_INTERVAL, 0, 0, 0, 255, 191
+                            rates.MAV_CMD_SET_MESSAGE_INTERVAL, 0, 0, 0, SOURCE_SYSTEM, 191
                         )
                     ),
                     at(t),

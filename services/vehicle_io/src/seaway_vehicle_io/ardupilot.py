@@ -255,7 +255,7 @@ class ArduPilotProfile(Profile):
             warnings.append("PILOT_STEER_TYPE not read: the mapping assumes 1 (Two Paddles)")
         if GCS_SYSID in p and int(p[GCS_SYSID]) != our_sysid:
             warnings.append(f"{'/'.join(GCS_SYSID_NAMES)}={int(p[GCS_SYSID])} but we are system "
-                            f"{our_sysid}: ArduPilot ignores our MANUAL_CONTROL")
+                            f"{our_sysid}: ArduPilot ignores our MANUAL_CONTROL (set it to {our_sysid})")
         override = p.get("RC_OVERRIDE_TIME")
         if override is not None and override == 0.0:
             blocking.append("RC_OVERRIDE_TIME=0 disables RC overrides: ArduPilot ignores our "
