@@ -448,3 +448,33 @@ def kill_during_thrust(bus: Bus, procs: Procs, vio: subprocess.Popen) -> float:
     kill_at = time.monotonic()
     procs.stop(vio, signal.SIGKILL)
     return kill_at
+
+
+@needs_sitl
+@pytest.mark.slow
+def test_a_mode_change_by_a_second_ground_station_is_named(zenoh_env, procs, bus, tmp_path, sitl):
+    """A second ground station (the test's own link, system 250, on SERIAL1) puts the firmware in
+    HOLD: vehicle_io names it ``gcs_mode_change`` in its status, rather than a plain 'mode HOLD';
+    Seaway's own mode request then clears it."""
+    status = StatusWatch(bus)
+    vio = start_vio(procs, zenoh_env, tmp_path, sitl.vio_url, rc_receiver="present")
+    obs = sitl.observe()
+    status.wait(lambda s: s.link_ok and s.mode == "MANUAL", 120, "the SITL in MANUAL")
+    # MANUAL (0) on the firmware itself, past INITIALISING (16), which refuses mode changes
+    wait_for(lambda: obs.modes and obs.modes[-1][1] == 0, 60, what="the SITL in MANUAL")
+
+    def hold_from_the_second_station():
+        obs.conn.mav.command_long_send(1, 1, mavlink.MAV_CMD_DO_SET_MODE, 0, 1, MODE_HOLD, 0, 0,
+                                       0, 0, 0)
+        return next((s for _, s in status.poll() if s.mode == "HOLD"), None)
+
+    held = wait_for(hold_from_the_second_station, 20, interval_s=1.0,
+                    what="HOLD set by the second station")
+    assert held.hold_reason == "gcs_mode_change", (held.hold_reason, held.hold_reason_detail)
+    assert "gcs_mode_change" in procs.log(vio)  # logged (at WARNING)
+    reply = bus.request(keys.VEHICLE_MODE, ModeRequest.make(stamp_ns=time.time_ns(), mode="MANUAL"),
+                        timeout_s=REQUEST_TIMEOUT_S)
+    assert reply.accepted, reply
+    status.wait(lambda s: s.mode == "MANUAL" and s.hold_reason is None, 10,
+                "Seaway's own MANUAL clearing it", fresh=True)
+    alive(vio, procs, sitl)
