@@ -478,3 +478,38 @@ def test_a_mode_change_by_a_second_ground_station_is_named(zenoh_env, procs, bus
     status.wait(lambda s: s.mode == "MANUAL" and s.hold_reason is None, 10,
                 "Seaway's own MANUAL clearing it", fresh=True)
     alive(vio, procs, sitl)
+
+
+@needs_sitl
+@pytest.mark.slow
+def test_the_autopilots_low_battery_reaches_the_battery_message_and_the_status(
+        zenoh_env, procs, bus, tmp_path, sitl):
+    """The pack drops to 11.0 V under ArduPilot's BATT_LOW_VOLT (11.5 V): the firmware's own low
+    flag reaches vehicle/battery (autopilot_level) beside its voltage and remaining, and the status
+    names the battery as the cause (hold_reason). Armed with neutral thrust: ArduPilot checks its
+    battery failsafes only while armed."""
+    batteries = bus.subscribe(keys.VEHICLE_BATTERY, mode="fifo")
+    status = StatusWatch(bus)
+    vio = start_vio(procs, zenoh_env, tmp_path, sitl.vio_url)
+    obs = sitl.observe()
+    status.wait(lambda s: s.link_ok and s.mode == "MANUAL", 120, "the SITL in MANUAL")
+    # ArduPilot checks its battery failsafes only while armed
+    t0 = time.monotonic()
+    while not (reply := arm(bus)).accepted:
+        assert time.monotonic() - t0 < EKF_READY_TIMEOUT_S, f"never armed; last: {reply.reason}"
+        time.sleep(2.0)
+    for name, value in (("BATT_LOW_TIMER", 1.0), ("BATT_LOW_VOLT", 11.5), ("BATT_FS_LOW_ACT", 2.0),
+                        ("SIM_BATT_VOLTAGE", 11.0)):
+        obs.set_param(name, value)
+    seen: list[BatteryState] = []
+
+    def low():
+        seen.extend(batteries.drain())
+        return next((b for b in seen if b.autopilot_level in ("low", "critical")), None)
+
+    b = wait_for(low, 30, interval_s=0.2, what="the autopilot's low flag in vehicle/battery")
+    print(f"autopilot_level {b.autopilot_level} ({b.autopilot_level_detail!r}) at "
+          f"{b.voltage_v} V, remaining {b.remaining_frac}")
+    assert b.voltage_v == pytest.approx(11.0, abs=0.1)
+    status.wait(lambda s: s.hold_reason == "battery", 10, "hold_reason battery")
+    alive(vio, procs, sitl)
