@@ -84,8 +84,9 @@ def _start_sitl(tmp: Path, instance: int, serial_path: str) -> subprocess.Popen:
     run_dir = tmp / f"sitl-{instance}"
     run_dir.mkdir()
     with open(tmp / f"sitl-{instance}.log", "wb") as log:
-        return subprocess.Popen(args, cwd=run_dir, stdout=log, stderr=subprocess.STDOUT,
-                                start_new_session=True)
+        return subprocess.Popen(
+            args, cwd=run_dir, stdout=log, stderr=subprocess.STDOUT, start_new_session=True
+        )
 
 
 def _statuses(sub) -> list[VehicleStatus]:
@@ -100,41 +101,60 @@ def test_a_fast_reboot_gets_the_telemetry_rates_asked_for_again(zenoh_env, procs
     obs = None
     try:
         cfg = tmp_path / "vio.toml"
-        cfg.write_text(f'mavlink = "{line.path2}"\nautopilot = "ardupilot"\n'
-                       f"message_rates_hz = {{ ATTITUDE = {ATTITUDE_HZ} }}\n"
-                       f"heartbeat_timeout_s = {HEARTBEAT_TIMEOUT_S}\n")
+        cfg.write_text(
+            f'mavlink = "{line.path2}"\nautopilot = "ardupilot"\n'
+            f"message_rates_hz = {{ ATTITUDE = {ATTITUDE_HZ} }}\n"
+            f"heartbeat_timeout_s = {HEARTBEAT_TIMEOUT_S}\n"
+        )
         sub = bus.subscribe(keys.VEHICLE_STATUS, mode="fifo")
-        vio = procs.start([str(VIO), "--config", str(cfg), "--scenario", "lake"], zenoh_env,
-                          name="vio")
+        vio = procs.start([str(VIO), "--config", str(cfg), "--scenario", "lake"], zenoh_env, name="vio")
         seen: list[VehicleStatus] = []
 
         def status_where(pred, since_ns: int = 0) -> VehicleStatus | None:
             seen.extend(_statuses(sub))
             return next((s for s in seen if s.stamp_ns >= since_ns and pred(s)), None)
 
-        wait_for(lambda: status_where(lambda s: s.link_ok and s.telemetry_rates_short == {}
-                                      and s.rates_hz.get("ATTITUDE", 0) >= AT_RATE_HZ),
-                 120, interval_s=0.2, what="ATTITUDE at the requested rate before the reboot")
+        wait_for(
+            lambda: status_where(
+                lambda s: (
+                    s.link_ok
+                    and s.telemetry_rates_short == {}
+                    and s.rates_hz.get("ATTITUDE", 0) >= AT_RATE_HZ
+                )
+            ),
+            120,
+            interval_s=0.2,
+            what="ATTITUDE at the requested rate before the reboot",
+        )
 
-        obs = wait_for(lambda: _tcp(5761 + 10 * instance), 30, interval_s=0.5,
-                       what="SITL's SERIAL1")
+        obs = wait_for(lambda: _tcp(5761 + 10 * instance), 30, interval_s=0.5, what="SITL's SERIAL1")
         obs.mav.command_long_send(1, 1, MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN, 0, 1, 0, 0, 0, 0, 0, 0)
         t_reboot = time.time_ns()
-        wait_for(lambda: any(w in procs.log(vio) for w in ("autopilot rebooted", "clock restarted",
-                                                            "link LOST")),
-                 60, interval_s=0.2, what="vehicle_io seeing the reboot")
+        wait_for(
+            lambda: any(w in procs.log(vio) for w in ("autopilot rebooted", "clock restarted", "link LOST")),
+            60,
+            interval_s=0.2,
+            what="vehicle_io seeing the reboot",
+        )
         # After the reboot: the rate is back at what was asked, in a status window that began
         # after vehicle_io asked again (>= 2 s windows, so 5 s after the reboot is seen).
         t_seen = time.time_ns()
-        after = wait_for(lambda: status_where(
-            lambda s: s.link_ok and s.rates_hz.get("ATTITUDE", 0) >= AT_RATE_HZ,
-            since_ns=t_seen + 5_000_000_000), 60, interval_s=0.2,
-            what="ATTITUDE back at the requested rate after the reboot")
+        after = wait_for(
+            lambda: status_where(
+                lambda s: s.link_ok and s.rates_hz.get("ATTITUDE", 0) >= AT_RATE_HZ,
+                since_ns=t_seen + 5_000_000_000,
+            ),
+            60,
+            interval_s=0.2,
+            what="ATTITUDE back at the requested rate after the reboot",
+        )
         assert vio.poll() is None, procs.log(vio)[-3000:]
         log = procs.log(vio)
         lost = "link LOST" in log
-        print(f"reboot seen {(t_seen - t_reboot) / 1e9:.1f} s after the command; link lost: "
-              f"{lost}; ATTITUDE {after.rates_hz.get('ATTITUDE')} Hz after")
+        print(
+            f"reboot seen {(t_seen - t_reboot) / 1e9:.1f} s after the command; link lost: "
+            f"{lost}; ATTITUDE {after.rates_hz.get('ATTITUDE')} Hz after"
+        )
         assert not lost, "the link dropped: this run did not test a fast reboot"
         assert log.count("SET_MESSAGE_INTERVAL") >= 1
     finally:
@@ -150,7 +170,8 @@ def test_a_fast_reboot_gets_the_telemetry_rates_asked_for_again(zenoh_env, procs
 
 def _tcp(port: int):
     try:
-        return mavutil.mavlink_connection(f"tcp:127.0.0.1:{port}", source_system=250,
-                                          source_component=190, autoreconnect=False)
+        return mavutil.mavlink_connection(
+            f"tcp:127.0.0.1:{port}", source_system=250, source_component=190, autoreconnect=False
+        )
     except OSError:
         return None

@@ -56,8 +56,7 @@ def classify_text(text: str) -> HoldReason | None:
         return "fence"
     if ("radio" in t and "failsafe" in t) or "manual control los" in t or "rc lost" in t:
         return "radio_loss"
-    if ("gcs" in t and ("failsafe" in t or "connection loss" in t)) or \
-            "ground control station lost" in t:
+    if ("gcs" in t and ("failsafe" in t or "connection loss" in t)) or "ground control station lost" in t:
         return "gcs_link_loss"
     if "failsafe" in t:
         return "other"
@@ -95,8 +94,7 @@ class FailsafeCause:
         changed = False
         for bit, cause in HEALTH_CAUSES.items():
             if newly & bit:
-                changed |= self.said(cause, f"SYS_STATUS: {cause.replace('_', ' ')} unhealthy",
-                                     now_ns)
+                changed |= self.said(cause, f"SYS_STATUS: {cause.replace('_', ' ')} unhealthy", now_ns)
         return changed
 
     def mode_changed(self, old: str, new: str, now_ns: int) -> bool:
@@ -112,8 +110,7 @@ class FailsafeCause:
             # returns): its next step is not someone else's doing.
             self.detail = f"{self.detail.split(' (mode ')[0]} (mode {old} -> {new})"
             return True
-        return self._offer("gcs_mode_change", f"mode {old} -> {new}, not asked by Seaway", now_ns,
-                           force=True)
+        return self._offer("gcs_mode_change", f"mode {old} -> {new}, not asked by Seaway", now_ns, force=True)
 
     def own_mode_accepted(self) -> bool:
         """vehicle_io's own mode request was accepted: the cause is over unless a health bit still
@@ -130,8 +127,7 @@ class FailsafeCause:
             self.detail = text
             return False
         recent = self.since_ns is not None and now_ns - self.since_ns <= round(CAUSE_WINDOW_S * 1e9)
-        if not force and self.cause is not None and recent and (
-                cause in VAGUE or self.cause not in VAGUE):
+        if not force and self.cause is not None and recent and (cause in VAGUE or self.cause not in VAGUE):
             return False
         self.cause, self.detail, self.since_ns = cause, text, now_ns
         return True
