@@ -463,10 +463,12 @@ def test_a_mode_change_by_a_second_ground_station_is_named(zenoh_env, procs, bus
     # MANUAL (0) on the firmware itself, past INITIALISING (16), which refuses mode changes
     wait_for(lambda: obs.modes and obs.modes[-1][1] == 0, 60, what="the SITL in MANUAL")
 
+    skip = len(status.poll())
+
     def hold_from_the_second_station():
         obs.conn.mav.command_long_send(1, 1, mavlink.MAV_CMD_DO_SET_MODE, 0, 1, MODE_HOLD, 0, 0,
                                        0, 0, 0)
-        return next((s for _, s in status.poll() if s.mode == "HOLD"), None)
+        return next((s for _, s in status.poll()[skip:] if s.mode == "HOLD"), None)
 
     held = wait_for(hold_from_the_second_station, 20, interval_s=1.0,
                     what="HOLD set by the second station")

@@ -54,6 +54,8 @@ HEALTH = MAV_SYS_STATUS_SENSOR_RC_RECEIVER | MAV_SYS_STATUS_GEOFENCE | MAV_SYS_S
         ("Emergency battery level, land immediately", "battery"),
         ("Geofence violation: approaching or outside geofence", "fence"),
         ("Failsafe activated: switching to Hold", "other"),
+        ("Failsafe warning:", None),  # PX4 1.18 SITL, disarmed: a warning with no cause, no action
+        ("Failsafe warning: Low battery level", "battery"),
         ("Geofence violation for waypoint 3", None),  # a mission check, not a breach
         ("GCS connection regained", None),
         ("Arming denied: Resolve system health failures first", None),

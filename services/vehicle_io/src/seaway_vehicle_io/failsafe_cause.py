@@ -46,7 +46,8 @@ VAGUE: frozenset[HoldReason | None] = frozenset({None, "other", "gcs_mode_change
 
 def classify_text(text: str) -> HoldReason | None:
     """The failsafe a STATUSTEXT or a decoded EVENT text names (None: none). Arming-check texts
-    ("PreArm: ...") and "cleared" texts name no failsafe in force."""
+    ("PreArm: ..."), "cleared" texts and PX4's causeless "Failsafe warning:" (sent while disarmed,
+    its action only a warning) name no failsafe in force."""
     t = text.lower()
     if t.startswith(("prearm", "arm:")) or "cleared" in t or "regained" in t:
         return None
@@ -58,7 +59,8 @@ def classify_text(text: str) -> HoldReason | None:
         return "radio_loss"
     if ("gcs" in t and ("failsafe" in t or "connection loss" in t)) or "ground control station lost" in t:
         return "gcs_link_loss"
-    if "failsafe" in t:
+    if "failsafe" in t and "failsafe warning" not in t:
+        # PX4's "Failsafe warning: ..." (Action::Warn) takes no action: news only with a cause
         return "other"
     return None
 
