@@ -189,3 +189,15 @@ def test_a_low_battery_text_without_a_mode_change_is_shown_too():
         wire(mavlink.MAVLink_statustext_message(4, b"Battery 1 is low 11.00V used 500 mAh", 0, 0)), at(2 * S)
     )
     assert status(core, 2 * S).hold_reason == "battery"
+
+
+def test_a_second_station_returning_to_seaways_last_mode_is_still_someone_else():
+    core = connected()
+    assert not isinstance(core.mode_command("HOLD"), str)
+    core.command_accepted(MAV_CMD_DO_SET_MODE, (1.0, 4.0, 0.0), "HOLD")
+    core.on_mavlink(heartbeat("HOLD"), at(2 * S))
+    assert status(core, 2 * S).hold_reason is None  # Seaway's own
+    core.on_mavlink(heartbeat("MANUAL"), at(3 * S))
+    core.on_mavlink(heartbeat("HOLD"), at(4 * S))  # HOLD again, but Seaway did not ask this time
+    st = status(core, 4 * S)
+    assert st.hold_reason == "gcs_mode_change" and "MANUAL -> HOLD" in st.hold_reason_detail

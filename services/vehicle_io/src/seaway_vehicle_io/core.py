@@ -484,6 +484,7 @@ class VehicleIoCore:
             self.link.armed = params[0] == 1.0
         elif command == MAV_CMD_DO_SET_MODE and mode is not None:
             self.link.mode = mode.strip().upper()
+            self._mode_asked = None  # taken: a later change to it is someone else's
             if self.hold.own_mode_accepted():
                 log.info("Seaway's mode %s accepted: the autopilot's hold reason is cleared",
                          self.link.mode)
