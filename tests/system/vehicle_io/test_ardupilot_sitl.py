@@ -196,7 +196,9 @@ def sitl(tmp_path):
 
 
 def start_vio(procs: Procs, env: dict[str, str], tmp: Path, url: str, **cfg: object):
-    lines = [f'mavlink = "{url}"', 'autopilot = "ardupilot"', "source_system = 255"]
+    # vehicle_io's own identity (system 245, component 191), which ardupilot-boat.parm makes
+    # ArduPilot's MAV_GCS_SYSID
+    lines = [f'mavlink = "{url}"', 'autopilot = "ardupilot"']
     lines += [f"{k} = {json.dumps(v)}" for k, v in cfg.items()]
     path = tmp / f"vio-{len(procs.procs)}.toml"
     path.write_text("\n".join(lines) + "\n")
@@ -446,3 +448,70 @@ def kill_during_thrust(bus: Bus, procs: Procs, vio: subprocess.Popen) -> float:
     kill_at = time.monotonic()
     procs.stop(vio, signal.SIGKILL)
     return kill_at
+
+
+@needs_sitl
+@pytest.mark.slow
+def test_a_mode_change_by_a_second_ground_station_is_named(zenoh_env, procs, bus, tmp_path, sitl):
+    """A second ground station (the test's own link, system 250, on SERIAL1) puts the firmware in
+    HOLD: vehicle_io names it ``gcs_mode_change`` in its status, rather than a plain 'mode HOLD';
+    Seaway's own mode request then clears it."""
+    status = StatusWatch(bus)
+    vio = start_vio(procs, zenoh_env, tmp_path, sitl.vio_url, rc_receiver="present")
+    obs = sitl.observe()
+    status.wait(lambda s: s.link_ok and s.mode == "MANUAL", 120, "the SITL in MANUAL")
+    # MANUAL (0) on the firmware itself, past INITIALISING (16), which refuses mode changes
+    wait_for(lambda: obs.modes and obs.modes[-1][1] == 0, 60, what="the SITL in MANUAL")
+
+    skip = len(status.poll())
+
+    def hold_from_the_second_station():
+        obs.conn.mav.command_long_send(1, 1, mavlink.MAV_CMD_DO_SET_MODE, 0, 1, MODE_HOLD, 0, 0,
+                                       0, 0, 0)
+        return next((s for _, s in status.poll()[skip:] if s.mode == "HOLD"), None)
+
+    held = wait_for(hold_from_the_second_station, 20, interval_s=1.0,
+                    what="HOLD set by the second station")
+    assert held.hold_reason == "gcs_mode_change", (held.hold_reason, held.hold_reason_detail)
+    assert "gcs_mode_change" in procs.log(vio)  # logged (at WARNING)
+    reply = bus.request(keys.VEHICLE_MODE, ModeRequest.make(stamp_ns=time.time_ns(), mode="MANUAL"),
+                        timeout_s=REQUEST_TIMEOUT_S)
+    assert reply.accepted, reply
+    status.wait(lambda s: s.mode == "MANUAL" and s.hold_reason is None, 10,
+                "Seaway's own MANUAL clearing it", fresh=True)
+    alive(vio, procs, sitl)
+
+
+@needs_sitl
+@pytest.mark.slow
+def test_the_autopilots_low_battery_reaches_the_battery_message_and_the_status(
+        zenoh_env, procs, bus, tmp_path, sitl):
+    """The pack drops to 11.0 V under ArduPilot's BATT_LOW_VOLT (11.5 V): the firmware's own low
+    flag reaches vehicle/battery (autopilot_level) beside its voltage and remaining, and the status
+    names the battery as the cause (hold_reason). Armed with neutral thrust: ArduPilot checks its
+    battery failsafes only while armed."""
+    batteries = bus.subscribe(keys.VEHICLE_BATTERY, mode="fifo")
+    status = StatusWatch(bus)
+    vio = start_vio(procs, zenoh_env, tmp_path, sitl.vio_url)
+    obs = sitl.observe()
+    status.wait(lambda s: s.link_ok and s.mode == "MANUAL", 120, "the SITL in MANUAL")
+    # ArduPilot checks its battery failsafes only while armed
+    t0 = time.monotonic()
+    while not (reply := arm(bus)).accepted:
+        assert time.monotonic() - t0 < EKF_READY_TIMEOUT_S, f"never armed; last: {reply.reason}"
+        time.sleep(2.0)
+    for name, value in (("BATT_LOW_TIMER", 1.0), ("BATT_LOW_VOLT", 11.5), ("BATT_FS_LOW_ACT", 2.0),
+                        ("SIM_BATT_VOLTAGE", 11.0)):
+        obs.set_param(name, value)
+    seen: list[BatteryState] = []
+
+    def low():
+        seen.extend(batteries.drain())
+        return next((b for b in seen if b.autopilot_level in ("low", "critical")), None)
+
+    b = wait_for(low, 30, interval_s=0.2, what="the autopilot's low flag in vehicle/battery")
+    print(f"autopilot_level {b.autopilot_level} ({b.autopilot_level_detail!r}) at "
+          f"{b.voltage_v} V, remaining {b.remaining_frac}")
+    assert b.voltage_v == pytest.approx(11.0, abs=0.1)
+    status.wait(lambda s: s.hold_reason == "battery", 10, "hold_reason battery")
+    alive(vio, procs, sitl)

@@ -207,3 +207,31 @@ def test_directions_neutral_and_sigkill_failsafe_on_px4(zenoh_env, procs, bus, t
     assert 5.0 - 0.5 <= ret - hold <= 5.0 + 1.5  # COM_FAIL_ACT_T Hold first
     assert px4.proc.poll() is None
 
+
+
+@needs_px4
+@pytest.mark.slow
+def test_a_mode_change_by_a_second_ground_station_is_named_on_px4(zenoh_env, procs, bus, tmp_path,
+                                                                   px4):
+    """PX4 put in Hold by another MAVLink client (the test's own, system 250): vehicle_io names it
+    ``gcs_mode_change``; Seaway's own MANUAL clears it."""
+    status = StatusWatch(bus)
+    vio = start_vio(procs, zenoh_env, tmp_path, px4.vio_url)
+    status.wait(lambda s: s.link_ok and s.autopilot == "px4", 60, "vehicle_io's link to PX4")
+    assert set_mode(bus, "MANUAL").accepted
+    status.wait(lambda s: s.mode == "MANUAL" and s.hold_reason is None, 10, "MANUAL, asked by Seaway")
+    main, sub = MODES["HOLD"]
+    skip = len(status.poll())  # PX4 booted in Hold: only statuses from now on
+
+    def hold_from_the_second_station():
+        conn = px4.observer.sih  # PX4 SITL instance N is system N + 1
+        conn.mav.command_long_send(conn.target_system, 1, 176, 0, 1, main, sub, 0, 0, 0, 0)  # DO_SET_MODE
+        return next((s for _, s in status.poll()[skip:] if s.mode == "HOLD"), None)
+
+    held = wait_for(hold_from_the_second_station, 20, interval_s=1.0,
+                    what="HOLD set by the second client")
+    assert held.hold_reason == "gcs_mode_change", (held.hold_reason, held.hold_reason_detail)
+    assert set_mode(bus, "MANUAL").accepted
+    status.wait(lambda s: s.mode == "MANUAL" and s.hold_reason is None, 10,
+                "Seaway's own MANUAL clearing it", fresh=True)
+    alive(vio, procs, px4)

@@ -35,6 +35,7 @@ from seaway.contract.messages import (
 )
 from seaway.runtime.bus import Bus
 from seaway_lab.fake_autopilot import ARDUPILOT_DEFAULT_PARAMS, FakeAutopilot
+from seaway_vehicle_io.config import SOURCE_SYSTEM
 from seaway_vehicle_io.mav import mavlink
 
 from tests.conftest import BIN, PYTHON, Procs, wait_for
@@ -281,7 +282,7 @@ def test_peer_arm_mode_thrust_and_telemetry(zenoh_env, procs, bus, tmp_path):
         pub.put(thrust(30.0, -20.0))
         rec = wait_for(lambda: next((r for r in peer.manual_controls_since(t0)
                                      if (r.y, r.z) == (333, 533)), None), 2, what="MANUAL_CONTROL")
-        assert (rec.target, rec.x, rec.r, rec.src_system) == (1, 0, 0, 255)
+        assert (rec.target, rec.x, rec.r, rec.src_system) == (1, 0, 0, SOURCE_SYSTEM)
     alive(vio, procs)
 
 

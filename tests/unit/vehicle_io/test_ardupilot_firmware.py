@@ -13,7 +13,7 @@ from seaway.contract.units import NS_PER_S
 from seaway_vehicle_io import rates
 from seaway_vehicle_io.ardupilot import PROFILE as AP
 from seaway_vehicle_io.ardupilot import RcChannel
-from seaway_vehicle_io.config import VehicleIoConfig
+from seaway_vehicle_io.config import SOURCE_SYSTEM, VehicleIoConfig
 from seaway_vehicle_io.core import (
     Now,
     SendCommandLong,
@@ -36,7 +36,7 @@ SITL_RC = {f"RC{ch}_{f}": v for ch in (1, 3)
 # What Rover 4.7.0-dev SITL answers (motorboat defaults + PILOT_STEER_TYPE 1): no SYSID_MYGCS.
 SITL_PARAMS = {"FS_THR_ENABLE": 1.0, "FS_ACTION": 2.0, "FS_TIMEOUT": 1.5, "FS_GCS_ENABLE": 0.0,
                "RC_OVERRIDE_TIME": 3.0, "RC_OPTIONS": 32.0, "PILOT_STEER_TYPE": 1.0,
-               "MAV_GCS_SYSID": 255.0, "FRAME_CLASS": 2.0, "MOT_SLEWRATE": 0.0,
+               "MAV_GCS_SYSID": float(SOURCE_SYSTEM), "FRAME_CLASS": 2.0, "MOT_SLEWRATE": 0.0,
                "MOT_THST_ASYM": 1.0, "RCMAP_ROLL": 1.0, "RCMAP_THROTTLE": 3.0, **SITL_RC}
 
 
@@ -59,7 +59,7 @@ def px4_heartbeat() -> Any:
 
 
 def ack(command: int, result: int) -> Any:
-    return wire(mavlink.MAVLink_command_ack_message(command, result, 0, 0, 255, 191))
+    return wire(mavlink.MAVLink_command_ack_message(command, result, 0, 0, SOURCE_SYSTEM, 191))
 
 
 def param_value(name: str, value: float) -> Any:
@@ -205,7 +205,7 @@ def test_gcs_sysid_is_asked_under_both_names_and_the_check_ends_on_the_first_ans
     assert "MAV_GCS_SYSID" in asked and "SYSID_MYGCS" in asked
     answer_params(core, SITL_PARAMS, 50 * MS)  # 4.7 answers MAV_GCS_SYSID only
     assert core.params.done  # at once: nothing left waiting for SYSID_MYGCS
-    assert core.params.values["SYSID_MYGCS"] == 255.0
+    assert core.params.values["SYSID_MYGCS"] == SOURCE_SYSTEM
     assert core.params.answered_as["SYSID_MYGCS"] == "MAV_GCS_SYSID"
     assert core.status(at(60 * MS)).autopilot_loss_failsafe is not None
     assert not of(core.tick(at(1100 * MS)), SendParamRequestRead)  # nothing asked again

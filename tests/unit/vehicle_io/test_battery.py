@@ -196,3 +196,43 @@ def test_a_link_loss_forgets_the_battery():
     core.on_mavlink(battery_status(), at(100 * MS))
     core.tick(at(10_000 * MS))  # no HEARTBEAT for 10 s: lost
     assert not core.link.ok and core.battery == BatteryReading()
+
+
+# -- the autopilot's own low/critical flags ----------------------------------------------------------
+
+
+def battery_status_charge(state: int, mv: int = 11_000) -> object:
+    """BATTERY_STATUS with its MAVLink 2 charge_state (MAV_BATTERY_CHARGE_STATE)."""
+    return wire(mavlink.MAVLink_battery_status_message(
+        0, 0, 0, 32767, [mv] + [U16] * 9, 420, 5000, 2664, 98, charge_state=state))
+
+
+@pytest.mark.parametrize(("state", "level"), [
+    (0, None), (1, "ok"), (2, "low"), (3, "critical"), (4, "emergency"), (5, "failed"),
+    (6, "unhealthy"), (7, "charging"), (42, None),
+])
+def test_every_charge_state_is_named(state, level):
+    assert battery_from_battery_status(battery_status_charge(state)).level == level
+
+
+def test_the_autopilots_low_flag_reaches_the_battery_message_beside_a_remaining_it_contradicts():
+    """At 11.0 V the autopilot said low while its remaining read 98 %: both go out, so the energy
+    budget can take the lower."""
+    core = connected()
+    (b,) = published(core.on_mavlink(battery_status_charge(2), at(100 * MS)), BatteryState)
+    assert b.autopilot_level == "low" and b.remaining_frac == pytest.approx(0.98)
+    assert b.voltage_v == pytest.approx(11.0)
+
+
+def test_ardupilots_battery_text_raises_the_level_and_latches():
+    core = connected()
+    core.on_mavlink(battery_status_charge(1), at(100 * MS))
+    text = b"Battery 1 is low 11.00V used 500 mAh"
+    (b,) = published(core.on_mavlink(wire(mavlink.MAVLink_statustext_message(4, text, 0, 0)),
+                                     at(200 * MS)), BatteryState)
+    assert b.autopilot_level == "low" and "is low" in b.autopilot_level_detail
+    (b,) = published(core.on_mavlink(battery_status_charge(1), at(300 * MS)), BatteryState)
+    assert b.autopilot_level == "low"  # ArduPilot's battery failsafe holds until reboot
+    (b,) = published(core.on_mavlink(battery_status_charge(3), at(400 * MS)), BatteryState)
+    assert b.autopilot_level == "critical"  # the worse of the two
+    assert core.status(at(400 * MS)).hold_reason == "battery"

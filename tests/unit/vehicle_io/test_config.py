@@ -62,3 +62,10 @@ def test_serial_url_needs_pyserial(monkeypatch):
     assert check_url("udpin:0.0.0.0:14540") == "udpin:0.0.0.0:14540"  # others unaffected
     monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: object())
     assert check_url("/dev/ttyAMA0") == "/dev/ttyAMA0"
+
+
+def test_vehicle_io_speaks_as_the_onboard_computer_not_as_a_ground_station():
+    """255 is every ground station's default system id: a second one must not look like us."""
+    cfg = VehicleIoConfig()
+    assert cfg.source_component == 191  # MAV_COMP_ID_ONBOARD_COMPUTER
+    assert cfg.source_system != 255

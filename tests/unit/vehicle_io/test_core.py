@@ -8,7 +8,7 @@ from typing import Any
 import pytest
 from seaway.contract.messages import Attitude, GnssFix, ThrustCommand, VehicleStatus
 from seaway.contract.units import NS_PER_S
-from seaway_vehicle_io.config import VehicleIoConfig
+from seaway_vehicle_io.config import SOURCE_SYSTEM, VehicleIoConfig
 from seaway_vehicle_io.core import (
     Now,
     Publish,
@@ -113,7 +113,7 @@ def test_learns_the_autopilot_from_its_heartbeat():
     heartbeat(mav_type=6, autopilot=8),  # a GCS
     heartbeat(mav_type=18, autopilot=12),  # an onboard computer, even if it claims PX4
     heartbeat(autopilot=0),  # generic autopilot: no profile
-    heartbeat(sysid=255, compid=191),  # ourselves, echoed
+    heartbeat(sysid=SOURCE_SYSTEM, compid=191),  # ourselves, echoed
 ])
 def test_ignores_heartbeats_that_are_not_a_known_autopilot(hb):
     core = make()
@@ -332,7 +332,8 @@ def test_commands_and_acks():
     # an ACK for another GCS is not ours; ours is recorded
     core.on_mavlink(wire(mavlink.MAVLink_command_ack_message(400, 0, 0, 0, 254, 0)), at(2 * MS))
     assert core.commands.state(400).result is None
-    core.on_mavlink(wire(mavlink.MAVLink_command_ack_message(400, 1, 0, 0, 255, 191)), at(3 * MS))
+    core.on_mavlink(wire(mavlink.MAVLink_command_ack_message(400, 1, 0, 0, SOURCE_SYSTEM, 191)),
+                    at(3 * MS))
     assert core.commands.state(400).result == 1
 
 

@@ -38,7 +38,7 @@ from seaway_vehicle_io.authority import (
     Refusals,
     SourcePolicy,
 )
-from seaway_vehicle_io.config import VehicleIoConfig
+from seaway_vehicle_io.config import SOURCE_SYSTEM, VehicleIoConfig
 from seaway_vehicle_io.core import (
     LockPeer,
     Now,
@@ -189,7 +189,7 @@ def test_udpout_only_the_address_we_send_to_may_lock_even_after_a_loss():
 def test_our_own_echo_is_ignored_not_counted():
     core = make()
     locked(core)
-    echo = wire(mavlink.MAVLink_heartbeat_message(6, 8, 0, 0, 4, 3), sysid=255, compid=191)
+    echo = wire(mavlink.MAVLink_heartbeat_message(6, 8, 0, 0, 4, 3), sysid=SOURCE_SYSTEM, compid=191)
     assert core.on_mavlink(echo, at(2 * MS), INTRUDER) == []
     assert core.refusals.total == 0
 

@@ -105,6 +105,7 @@ PX4_OK = {"COM_RC_IN_MODE": 1, "COM_RC_LOSS_T": 0.5, "NAV_RCL_ACT": 1, "CA_AIRFR
     ({}, "stops", 0),
     ({"NAV_RCL_ACT": 6}, "stops", 0),
     ({"NAV_RCL_ACT": 5}, "stops", 0),
+    ({"NAV_RCL_ACT": 7}, "stops", 0),  # 1.18: Hold without a failsafe
     ({"NAV_RCL_ACT": 2}, "takes_over", 1),  # PX4 default: Return
     ({"NAV_RCL_ACT": 3}, "takes_over", 1),
     ({"NAV_RCL_ACT": 0}, "none", 0),
@@ -142,6 +143,8 @@ GCS_HOLD = {"FS_THR_ENABLE": 0, "FS_GCS_ENABLE": 1}
     (GCS_HOLD, "unknown", "stops", 0, 0),  # GCS failsafe -> Hold either way
     ({**GCS_HOLD, "FS_ACTION": 1}, "absent", "takes_over", 0, 0),  # RTL
     ({**GCS_HOLD, "FS_ACTION": 0}, "absent", "none", 0, 0),
+    ({**GCS_HOLD, "FS_ACTION": 6}, "absent", "takes_over", 0, 0),  # 4.7: Loiter drives the boat
+    ({**GCS_HOLD, "FS_ACTION": 9}, "absent", "unknown", 0, 0),  # not a value 4.7 defines
     ({"FS_THR_ENABLE": 0}, "absent", "none", 0, 0),  # the last override stays in radio_in
     ({"PILOT_STEER_TYPE": 0}, "absent", "stops", 0, 1),  # our mapping would be wrong
     ({"SYSID_MYGCS": 254}, "absent", "stops", 1, 0),
@@ -170,3 +173,14 @@ def test_ardupilot_failsafe_summary_states_the_timing_with_and_without_a_receive
     assert "held for RC_OVERRIDE_TIME=3 s" in present and "sticks" in present
     both = AP.assess_failsafe(params, 255, "unknown").summary
     assert "held 0.5 s" in both and "RC_OVERRIDE_TIME=3 s" in both
+
+
+def test_every_failsafe_action_the_firmware_defines_is_named():
+    """PX4 1.18's NAV_RCL_ACT and ArduPilot 4.7's FS_ACTION values (their parameter metadata), each
+    named in the summary rather than shown as a bare number."""
+    for act in (1, 2, 3, 5, 6, 7):
+        params = {k: float(v) for k, v in {**PX4_OK, "NAV_RCL_ACT": act}.items()}
+        assert "not a known action" not in PX4.assess_failsafe(params, 255).summary
+    for act in range(7):
+        params = {k: float(v) for k, v in {**AP_OK, **GCS_HOLD, "FS_ACTION": act}.items()}
+        assert f"FS_ACTION={act} " not in AP.assess_failsafe(params, 255, "absent").summary

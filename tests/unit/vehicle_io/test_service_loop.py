@@ -20,7 +20,7 @@ from seaway.contract.messages import ArmRequest, ThrustCommand, VehicleStatus
 from seaway.runtime.memory_bus import MemoryBus, MemoryHub
 from seaway.vessel.model import load_vessel
 from seaway_lab.fake_autopilot import FakeAutopilot
-from seaway_vehicle_io.config import VehicleIoConfig
+from seaway_vehicle_io.config import SOURCE_SYSTEM, VehicleIoConfig
 from seaway_vehicle_io.service import VehicleIoService
 from seaway_vehicle_io.thrust import ThrusterLimits
 
@@ -79,6 +79,6 @@ def test_requests_thrust_and_telemetry_through_the_memory_bus(vio) -> None:
             stamp_ns=time.time_ns(), thrust_port_n=30.0, thrust_starboard_n=-20.0, source="test"))
         rec = wait_for(lambda: next((r for r in peer.manual_controls_since(t0)
                                      if (r.y, r.z) == (333, 533)), None), 2, what="MANUAL_CONTROL")
-        assert (rec.target, rec.x, rec.r, rec.src_system) == (1, 0, 0, 255)
+        assert (rec.target, rec.x, rec.r, rec.src_system) == (1, 0, 0, SOURCE_SYSTEM)
         assert vio_bus.stats.malformed_by_key == {keys.THRUST.key(VESSEL): 1}
         assert vio_bus.stats.received == 1

@@ -73,9 +73,11 @@ MODES: dict[str, int] = {
 ALIASES = {"AUTO": "MISSION"}
 _DECODE = {v: k for k, v in MODES.items()}
 
+# FS_ACTION values (Rover/Parameters.cpp, 4.7: "6:Loiter or Hold" is new). A value not named here
+# is judged "unknown", never guessed.
 FS_ACTION_NAMES = {0: "None", 1: "RTL", 2: "Hold", 3: "SmartRTL->RTL->Hold",
-                   4: "SmartRTL->Hold", 5: "Terminate"}
-FS_ACTIONS_THAT_STOP = frozenset({2, 5})  # Hold, Terminate (RTL and SmartRTL drive the boat)
+                   4: "SmartRTL->Hold", 5: "Terminate", 6: "Loiter->Hold"}
+FS_ACTIONS_THAT_STOP = frozenset({2, 5})  # Hold, Terminate (RTL, SmartRTL, Loiter drive the boat)
 
 RADIO_FAILSAFE_S = 0.5  # Rover::radio_failsafe_check: no new RC input (overrides included) for 500 ms
 
@@ -253,7 +255,7 @@ class ArduPilotProfile(Profile):
             warnings.append("PILOT_STEER_TYPE not read: the mapping assumes 1 (Two Paddles)")
         if GCS_SYSID in p and int(p[GCS_SYSID]) != our_sysid:
             warnings.append(f"{'/'.join(GCS_SYSID_NAMES)}={int(p[GCS_SYSID])} but we are system "
-                            f"{our_sysid}: ArduPilot ignores our MANUAL_CONTROL")
+                            f"{our_sysid}: ArduPilot ignores our MANUAL_CONTROL (set it to {our_sysid})")
         override = p.get("RC_OVERRIDE_TIME")
         if override is not None and override == 0.0:
             blocking.append("RC_OVERRIDE_TIME=0 disables RC overrides: ArduPilot ignores our "
@@ -295,7 +297,7 @@ class ArduPilotProfile(Profile):
         timeout = p.get("FS_TIMEOUT")
         timeout_text = f"{timeout:g}" if timeout is not None else "?"
         action_verdict: Verdict = "stops" if action in FS_ACTIONS_THAT_STOP else (
-            "none" if action == 0 else "takes_over")
+            "none" if action == 0 else "takes_over" if action in FS_ACTION_NAMES else "unknown")
         override = p["RC_OVERRIDE_TIME"]
         held = ("held for ever (RC_OVERRIDE_TIME=-1)" if override < 0
                 else f"held for RC_OVERRIDE_TIME={override:g} s")

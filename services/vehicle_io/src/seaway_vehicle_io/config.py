@@ -34,6 +34,13 @@ def config_path(name_or_path: str) -> Path:
 AutopilotChoice = Literal[AUTOPILOT_CHOICES]  # type: ignore[valid-type]  # built from the registry
 
 
+SOURCE_SYSTEM = 245
+"""vehicle_io's default MAVLink system id: one no ground station uses by default (QGroundControl,
+Mission Planner and MAVProxy all speak as 255), so that a second ground station is told apart.
+Its component is MAV_COMP_ID_ONBOARD_COMPUTER (191)."""
+SOURCE_COMPONENT = 191  # MAV_COMP_ID_ONBOARD_COMPUTER
+
+
 class VehicleIoConfig(ConfigModel):
     """How vehicle_io talks to the autopilot and how it guards the thrusters."""
 
@@ -56,12 +63,15 @@ class VehicleIoConfig(ConfigModel):
                     "named autopilot is ignored (never commanded)",
     )
     source_system: int = Field(
-        default=255, ge=1, le=255,
-        description="our MAVLink system id; ArduPilot accepts MANUAL_CONTROL only from SYSID_MYGCS "
-                    "(default 255)",
+        default=SOURCE_SYSTEM, ge=1, le=255,
+        description="our MAVLink system id; not 255, every ground station's default, so the "
+                    "autopilot (and its log) tells vehicle_io from a ground station. ArduPilot "
+                    "accepts MANUAL_CONTROL only from MAV_GCS_SYSID (SYSID_MYGCS before 4.7): set "
+                    "it to this (ardupilot-boat.parm does)",
     )
     source_component: int = Field(
-        default=191, ge=1, le=255, description="our component id (191 MAV_COMP_ID_ONBOARD_COMPUTER)"
+        default=SOURCE_COMPONENT, ge=1, le=255,
+        description="our component id (191 MAV_COMP_ID_ONBOARD_COMPUTER)"
     )
     target_system: int | None = Field(
         default=None, ge=1, le=255,

@@ -22,7 +22,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from seaway.contract.messages import Attitude, BatteryState, GnssFix, LocalPosition
+from seaway.contract.messages import Attitude, BatteryLevel, BatteryState, GnssFix, LocalPosition
 from seaway.vessel.battery import BatteryParams
 
 UINT16_MAX = 65535
@@ -195,13 +195,14 @@ class BatteryReading:
     """What SYS_STATUS and BATTERY_STATUS say about the pack; None where the autopilot says unknown.
 
     voltage [V], remaining charge [0..1], current [A] (positive discharging), charge drawn [mA h],
-    energy drawn [J]."""
+    energy drawn [J], the autopilot's own level (BATTERY_STATUS charge_state)."""
 
     voltage_v: float | None = None
     remaining_frac: float | None = None
     current_a: float | None = None
     consumed_mah: float | None = None
     consumed_j: float | None = None
+    level: BatteryLevel | None = None  # the autopilot's charge_state
 
     def merged(self, newer: BatteryReading) -> BatteryReading:
         """``newer``'s figures, this one's where ``newer`` says unknown: both messages describe the
@@ -273,10 +274,40 @@ def battery_from_battery_status(msg: Any) -> BatteryReading:
         current_a=_current(t, msg.current_battery),
         consumed_mah=_count(t, "current_consumed", msg.current_consumed),
         consumed_j=None if hj is None else hj * HJ_TO_J,
+        level=CHARGE_STATES.get(int(getattr(msg, "charge_state", 0) or 0)),
     )
 
 
-def battery_state(reading: BatteryReading, pack: BatteryParams | None, stamp_ns: int) -> BatteryState:
+# MAV_BATTERY_CHARGE_STATE (common.xml): every value defined; 0 UNDEFINED (and a value a newer
+# dialect may add) is "not said".
+CHARGE_STATES: dict[int, BatteryLevel] = {1: "ok", 2: "low", 3: "critical", 4: "emergency",
+                                          5: "failed", 6: "unhealthy", 7: "charging"}
+_LEVEL_RANK: dict[BatteryLevel, int] = {"ok": 0, "charging": 0, "low": 1, "critical": 2,
+                                        "emergency": 3, "unhealthy": 3, "failed": 4}
+
+
+def worse_level(a: BatteryLevel | None, b: BatteryLevel | None) -> BatteryLevel | None:
+    """The more serious of two levels (None: not said)."""
+    if a is None or b is None:
+        return a if b is None else b
+    return a if _LEVEL_RANK[a] >= _LEVEL_RANK[b] else b
+
+
+def battery_level_from_text(text: str) -> BatteryLevel | None:
+    """The level a battery STATUSTEXT says (ArduPilot AP_BattMonitor: "Battery 1 is low 11.00V used
+    500 mAh", "... is critical ..."; PX4: "Critical battery level ...", "Emergency battery level
+    ..."), None if it says none."""
+    t = text.lower()
+    if "battery" not in t or t.startswith(("prearm", "arm:")):
+        return None
+    for word, level in (("emergency", "emergency"), ("critical", "critical"), ("low", "low")):
+        if word in t:
+            return level  # type: ignore[return-value]
+    return None
+
+
+def battery_state(reading: BatteryReading, pack: BatteryParams | None, stamp_ns: int,
+                  said: tuple[BatteryLevel, str] | None = None) -> BatteryState:
     """The autopilot's battery in SI units (``BatteryState``, source ``autopilot``), completed from
     the vessel file's ``[battery]`` (``pack``; None: only what the autopilot measured).
 
@@ -286,7 +317,9 @@ def battery_state(reading: BatteryReading, pack: BatteryParams | None, stamp_ns:
     * remaining energy: the autopilot's remaining fraction x the usable energy; else usable energy
       minus the energy drawn (never below 0); the fraction, if the autopilot gives none, is that
       over the usable energy;
-    * capacity (usable energy) and reserve: the vessel file's.
+    * capacity (usable energy) and reserve: the vessel file's;
+    * the autopilot's level: its charge_state, or the level its battery text ``said`` (level, text),
+      whichever is worse.
     """
     v, i = reading.voltage_v, reading.current_a
     consumed = reading.consumed_j
@@ -304,4 +337,6 @@ def battery_state(reading: BatteryReading, pack: BatteryParams | None, stamp_ns:
     return BatteryState.make(
         stamp_ns=stamp_ns, source="autopilot", voltage_v=v, current_a=i,
         power_w=v * i if v is not None and i is not None else None, consumed_j=consumed,
-        remaining_j=remaining, remaining_frac=frac, capacity_j=capacity, reserve_j=reserve)
+        remaining_j=remaining, remaining_frac=frac, capacity_j=capacity, reserve_j=reserve,
+        autopilot_level=worse_level(reading.level, None if said is None else said[0]),
+        autopilot_level_detail="" if said is None else said[1])

@@ -30,7 +30,13 @@ from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 from seaway.contract import keys
-from seaway.contract.messages import Message, ThrustCommand, ThrustWithheld, VehicleStatus
+from seaway.contract.messages import (
+    BatteryLevel,
+    Message,
+    ThrustCommand,
+    ThrustWithheld,
+    VehicleStatus,
+)
 from seaway.runtime.ratelog import RateLimitedLog
 from seaway.runtime.stamps import STAMP_LOG_EVERY_S, StampBounds, StampGate
 from seaway.vessel.battery import BatteryParams
@@ -67,15 +73,23 @@ from seaway_vehicle_io.conversions import (
     attitude_from_attitude,
     battery_from_battery_status,
     battery_from_sys_status,
+    battery_level_from_text,
     battery_state,
     gnss_from_global_position_int,
     gps_quality_from_gps_raw_int,
     local_position_from_local_position_ned,
+    worse_level,
 )
 from seaway_vehicle_io.events_channel import EventsChannel
+from seaway_vehicle_io.failsafe_cause import (
+    EVENT_WARNING_LEVEL,
+    WARNING_SEVERITY,
+    FailsafeCause,
+    classify_text,
+)
 from seaway_vehicle_io.mav import mavlink
 from seaway_vehicle_io.profile import FailsafeAssessment, ManualControlAxes, Profile
-from seaway_vehicle_io.rates import MAV_CMD_SET_MESSAGE_INTERVAL, RateCheck
+from seaway_vehicle_io.rates import MAV_CMD_SET_MESSAGE_INTERVAL, RateCheck, RateWatch
 from seaway_vehicle_io.statustext import StatusTexts, matching
 from seaway_vehicle_io.thrust import ThrusterLimits, normalise_pair
 from seaway_vehicle_io.timesync import BootTimeOffset
@@ -235,12 +249,18 @@ class VehicleIoCore:
         self.commands = CommandTracker()
         self.params = ParamCheck()
         self.rate_check: RateCheck | None = None
+        self.rate_watch: RateWatch | None = None  # the rates after the check (None: not asked)
+        self._rates_redrop_ns: int | None = None  # when a drop was last asked again (None: none)
+        self._rates_asked_resets = 0  # the reboots the time offset had seen by then
         self.texts = StatusTexts()
+        self.hold = FailsafeCause()  # why the autopilot took the vessel (failsafe_cause.py)
+        self._mode_asked: str | None = None  # the mode vehicle_io last asked for, until it is seen
         self.events = EventsChannel()  # the events protocol (PX4's arming reasons), per connection
         self.mapper: Any = None  # (L, R) -> axes for this autopilot's parameters; None: not yet
         self.gps_quality: GpsQuality | None = None
         self.gps_quality_mono_ns = 0
         self.battery = BatteryReading()
+        self.battery_said: tuple[BatteryLevel, str] | None = None  # its battery text, latched
         self.dropped = 0
         self.counts: dict[str, int] = {}
         self.rates_hz: dict[str, float] = {}
@@ -407,7 +427,7 @@ class VehicleIoCore:
             status_now = True
         self.refusals.flush(now.mono_ns)  # a refused source held back by the log's rate limit
         if status_now or now.mono_ns >= self._next_status_ns:
-            self._update_rates(now)
+            out.extend(self._update_rates(now))
             out.append(Publish(self.status(now)))
             self._next_status_ns = now.mono_ns + self._period_status_ns
         return out
@@ -454,6 +474,7 @@ class VehicleIoCore:
             p1, p2, p3 = self.link.profile.encode_mode(mode)
         except ValueError as err:
             return str(err)
+        self._mode_asked = mode.strip().upper()  # its HEARTBEAT may come before the ACK
         return self._command_long(MAV_CMD_DO_SET_MODE, (p1, p2, p3, 0, 0, 0, 0))
 
     def command_accepted(self, command: int, params: tuple[float, ...], mode: str | None) -> None:
@@ -464,6 +485,10 @@ class VehicleIoCore:
             self.link.armed = params[0] == 1.0
         elif command == MAV_CMD_DO_SET_MODE and mode is not None:
             self.link.mode = mode.strip().upper()
+            self._mode_asked = None  # taken: a later change to it is someone else's
+            if self.hold.own_mode_accepted():
+                log.info("Seaway's mode %s accepted: the autopilot's hold reason is cleared",
+                         self.link.mode)
 
     def _command_precondition(self) -> str:
         if not self.link.ok or self.link.target_system is None or self.link.profile is None:
@@ -534,19 +559,42 @@ class VehicleIoCore:
             else self.params.assessment.verdict,
             autopilot_loss_failsafe_summary="" if self.params.assessment is None
             else self.params.assessment.summary,
-            telemetry_rates_short=None if self.rate_check is None or self.rate_check.result is None
-            else dict(self.rate_check.result),
+            hold_reason=self.hold.cause,
+            hold_reason_detail=self.hold.detail,
+            telemetry_rates_short=None if self.rate_watch is None or self.rate_watch.short is None
+            else dict(self.rate_watch.short),
             thrust_withheld=self._withheld,
             refused_thrust=self.refused_thrust(),
         )
 
-    def _update_rates(self, now: Now) -> None:
+    def _update_rates(self, now: Now) -> list[Output]:
+        """Close a rate window (at least RATE_WINDOW_S long); what to send if the telemetry the
+        autopilot was asked for has dropped (``rates.RateWatch``)."""
         dt = (now.mono_ns - self._rates_since_ns) / 1e9
         if dt < RATE_WINDOW_S:  # a 1 Hz message needs a window of seconds to show a steady rate
-            return
+            return []
         self.rates_hz = {k: round(v / dt, 2) for k, v in sorted(self.counts.items())}
+        verdict = None
+        rc, watch = self.rate_check, self.rate_watch
+        if (rc is not None and watch is not None and rc.phase == "done"
+                and self._rates_since_ns >= rc.window_end_ns()):  # a window after the check's
+            verdict = watch.window(self.counts, self._rates_since_ns, now.mono_ns)
         self.counts.clear()
         self._rates_since_ns = now.mono_ns
+        if verdict == "recovered":
+            self._rates_redrop_ns = None
+            log.info("telemetry back at the requested rates: warning cleared")
+        elif verdict == "drop" and watch is not None and self.link.profile is not None:
+            want = {r.message: r.rate_hz for r in watch.requests}
+            slow = ", ".join(f"{m} {hz:g} Hz of {want[m]:g} Hz" for m, hz in (watch.short or {}).items())
+            last = self._rates_redrop_ns
+            if last is None or now.mono_ns - last >= round(telemetry_rates.REREQUEST_EVERY_S * 1e9):
+                self._rates_redrop_ns = now.mono_ns
+                log.warning("telemetry DROPPED below the requested rate: %s; asking again", slow)
+                return self._request_rates(self.link.profile, now)
+            log.warning("telemetry below the requested rate: %s (asked again less than %g s ago)",
+                        slow, telemetry_rates.REREQUEST_EVERY_S)
+        return []
 
     # ===========================================================================================
     # Link
@@ -616,6 +664,11 @@ class VehicleIoCore:
         mode = link.profile.decode_mode(msg.base_mode, msg.custom_mode)
         if announce and (armed != link.armed or mode != link.mode):
             log.info("autopilot %s, mode %s", "ARMED" if armed else "disarmed", mode)
+        if announce and mode != link.mode:
+            if mode == self._mode_asked:
+                self._mode_asked = None
+            elif link.mode not in link.profile.booting_modes and link.mode != "UNKNOWN":
+                self._hold_changed(self.hold.mode_changed(link.mode, mode, now.mono_ns))
         if (link.mode in link.profile.booting_modes and mode not in link.profile.booting_modes
                 and self.cfg.check_failsafe_params):
             # Read during start-up, some values were not final yet (measured: Rover answered
@@ -654,11 +707,16 @@ class VehicleIoCore:
         link.custom_mode = None
         self.events = EventsChannel()  # another firmware may answer next: fetch its catalog anew
         self.offset.reset()
+        self.hold = FailsafeCause()
+        self._mode_asked = None
         self.gps_quality = None
         self.battery = BatteryReading()
+        self.battery_said = None
         self.commands.abandon_all()
         self.params = ParamCheck()
         self.rate_check = None
+        self.rate_watch = None
+        self._rates_redrop_ns = None
         self.mapper = None
         return True
 
@@ -758,7 +816,11 @@ class VehicleIoCore:
         return []
 
     def _on_sys_status(self, msg: Any, now: Now) -> list[Output]:
-        return self._on_battery(battery_from_sys_status(msg), now)
+        reading = battery_from_sys_status(msg)  # refuses an absurd message before it is used
+        self._hold_changed(self.hold.health(msg.onboard_control_sensors_present,
+                                            msg.onboard_control_sensors_enabled,
+                                            msg.onboard_control_sensors_health, now.mono_ns))
+        return self._on_battery(reading, now)
 
     def _on_battery_status(self, msg: Any, now: Now) -> list[Output]:
         if msg.id != 0:
@@ -770,7 +832,8 @@ class VehicleIoCore:
         state, completed from the vessel file, on ``vehicle/battery`` at once. Stamped at receipt
         (wall clock), as VehicleStatus: neither message carries the autopilot's time."""
         self.battery = self.battery.merged(reading)
-        return [Publish(battery_state(self.battery, self.battery_params, now.wall_ns))]
+        return [Publish(battery_state(self.battery, self.battery_params, now.wall_ns,
+                                      self.battery_said))]
 
     def _on_command_ack(self, msg: Any, now: Now) -> list[Output]:
         if msg.command == MAV_CMD_SET_MESSAGE_INTERVAL:
@@ -792,6 +855,15 @@ class VehicleIoCore:
             # MAV_SEVERITY <= 4 is a warning or worse (PreArm failures are 2, CRITICAL)
             self._log_limited(now, "STATUSTEXT", item.text, logging.WARNING if item.severity <= 4
                               else logging.INFO, f"autopilot says: {item.text}")
+            if item.severity <= WARNING_SEVERITY:
+                self._hold_changed(self.hold.said(classify_text(item.text), item.text,
+                                                  now.mono_ns))
+                level = battery_level_from_text(item.text)
+                if level is not None:
+                    # Latched: ArduPilot says it once, and its battery failsafe holds till reboot.
+                    self.battery_said = (worse_level(level, None if self.battery_said is None
+                                                     else self.battery_said[0]) or level, item.text)
+                    return self._on_battery(BatteryReading(), now)
         return []
 
     def refusal_texts(self, since_mono_ns: int) -> tuple[list[str], bool]:
@@ -829,7 +901,13 @@ class VehicleIoCore:
             # info as info; debug and protocol chatter not at all
             self._log_limited(now, "EVENT", ev.text, logging.WARNING if ev.level <= 4
                               else logging.INFO, f"autopilot says: {ev.text}")
+        if ev is not None and ev.level <= EVENT_WARNING_LEVEL:
+            self._hold_changed(self.hold.said(classify_text(ev.text), ev.text, now.mono_ns))
         return []
+
+    def _hold_changed(self, changed: bool) -> None:
+        if changed:
+            log.warning("autopilot took the vessel: %s (%s)", self.hold.cause, self.hold.detail)
 
     def _on_component_metadata(self, msg: Any, now: Now) -> list[Output]:
         return list(self.events.on_component_metadata(msg, now.mono_ns))
@@ -853,12 +931,16 @@ class VehicleIoCore:
     # ===========================================================================================
 
     def _request_rates(self, profile: Profile, now: Now) -> list[Output]:
-        """At connection: SET_MESSAGE_INTERVAL for every message at its configured rate."""
+        """At connection, after a reboot and on a drop: SET_MESSAGE_INTERVAL for every message at
+        its configured rate. A standing shortfall stays in the status until the new check ends."""
         self.rate_check = None
         if not profile.requests_message_rates or not self.cfg.message_rates_hz:
             return []
         requests = telemetry_rates.plan(self.cfg.message_rates_hz)
         self.rate_check = RateCheck(requests, now.mono_ns)
+        if self.rate_watch is None:
+            self.rate_watch = RateWatch(requests)
+        self._rates_asked_resets = self.offset.resets
         link = self.link
         assert link.target_system is not None and link.target_component is not None
         return [SendCommandLong(link.target_system, link.target_component,
@@ -871,6 +953,11 @@ class VehicleIoCore:
         rc, link = self.rate_check, self.link
         if rc is None or not link.ok or link.profile is None or link.target_system is None:
             return None
+        if self.offset.resets != self._rates_asked_resets:
+            # A reboot (SYSTEM_TIME or every stamp going back) without the link dropping: the
+            # autopilot forgot the intervals it was asked for and streams at its defaults.
+            log.warning("autopilot rebooted: asking for the telemetry rates again")
+            return self._request_rates(link.profile, now)
         if rc.all_accepted():
             rc.start_measuring(now.mono_ns, fallback=False)
             return []
@@ -886,6 +973,8 @@ class VehicleIoCore:
                     for sid, hz in sorted(streams.items())]
         if rc.phase == "measuring" and now.mono_ns >= rc.window_end_ns():
             short = rc.finish()
+            if self.rate_watch is not None:
+                self.rate_watch.checked(short)
             asked = ", ".join(f"{r.message} {r.rate_hz:g}" for r in rc.requests)
             how = "REQUEST_DATA_STREAM" if rc.fallback_used else "SET_MESSAGE_INTERVAL"
             if short:

@@ -53,7 +53,8 @@ _DECODE = {v: k for k, v in MODES.items()}
 # Main modes whose sub mode does not change the name (POSCTL sub 1 is plain position control).
 _MAIN_ONLY = {1: "MANUAL", 2: "ALTCTL", 3: "POSCTL", 5: "ACRO", 6: "OFFBOARD", 7: "STABILIZED"}
 
-# NAV_RCL_ACT values (commander_params.c, v1.14+): what PX4 does when manual control is lost.
+# NAV_RCL_ACT values (commander_params.yaml; 7 is new in 1.18): what PX4 does when manual control
+# is lost. 7 switches to Hold without flagging a failsafe (event commander_rc_loss_hold_no_failsafe).
 NAV_RCL_ACT_VERDICT: dict[int, tuple[Verdict, str]] = {
     0: ("none", "0 = disabled (pre-1.14 firmware): no action, last setpoint kept"),
     1: ("stops", "1 = Hold"),
@@ -61,6 +62,7 @@ NAV_RCL_ACT_VERDICT: dict[int, tuple[Verdict, str]] = {
     3: ("takes_over", "3 = Land"),
     5: ("stops", "5 = Terminate"),
     6: ("stops", "6 = Disarm"),
+    7: ("stops", "7 = Hold (no failsafe)"),
 }
 
 

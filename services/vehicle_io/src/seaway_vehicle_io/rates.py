@@ -17,6 +17,13 @@ message is counted; one arriving at less than ``TOLERANCE`` of its requested rat
 reported by name with its measured rate. The whole check ends within about 3 s of connecting
 (1 s more when the fallback is needed), inside the 5 s the start-up verdict has.
 
+Watch: the rates can fall later. An autopilot that reboots forgets every interval asked of it and
+streams at its defaults again (1 Hz on Rover), and it may reboot fast enough that the link never
+drops. So after the check, ``RateWatch`` keeps measuring over the status windows: a shortfall that
+stands for ``DROP_CONFIRM_S`` is a drop (the core asks again, at most every ``REREQUEST_EVERY_S``),
+and a window with every message at its rate clears the shortfall (the status field and the log say
+so). The core also asks again at once when it sees the autopilot reboot (``timesync``).
+
 All pure: time comes in as monotonic nanoseconds.
 """
 
@@ -37,6 +44,8 @@ SETTLE_S = 0.5  # the autopilot's scheduler needs a moment to adopt a new interv
 WINDOW_S = 2.5  # a 1 Hz message is counted at least twice whatever its phase
 TOLERANCE = 0.8  # a message arriving at >= 80 % of its requested rate is "at the rate"
 MAX_RATE_HZ = 50.0
+DROP_CONFIRM_S = 4.0  # a shortfall standing this long (two status windows) is a drop, not jitter
+REREQUEST_EVERY_S = 10.0  # a drop the last request did not cure is asked again at most this often
 
 TELEMETRY = frozenset({"ATTITUDE", "GLOBAL_POSITION_INT", "GPS_RAW_INT", "LOCAL_POSITION_NED",
                        "SYS_STATUS", "BATTERY_STATUS"})
@@ -105,13 +114,14 @@ def fallback_streams(requests: tuple[RateRequest, ...],
 
 
 def shortfalls(requests: tuple[RateRequest, ...], counts: Mapping[str, int],
-               window_s: float, tolerance: float = TOLERANCE) -> dict[str, float]:
+               window_s: float, tolerance: float = TOLERANCE, slack: int = 0) -> dict[str, float]:
     """Message -> measured rate [Hz] for each requested message that arrived below
-    ``tolerance`` x its requested rate over ``window_s``; {} when all did."""
+    ``tolerance`` x its requested rate over ``window_s``; {} when all did. ``slack`` messages
+    more may be missing (a window not aligned with a slow message's phase)."""
     short = {}
     for r in requests:
         count = counts.get(r.message, 0)
-        if count < tolerance * r.rate_hz * window_s - 1e-9:
+        if count + slack < tolerance * r.rate_hz * window_s - 1e-9:
             short[r.message] = round(count / window_s, 2)
     return short
 
@@ -177,4 +187,46 @@ class RateCheck:
             return self.sent_mono_ns + round(ACK_TIMEOUT_S * 1e9)
         if self.phase == "measuring":
             return self.window_end_ns()
+        return None
+
+
+Verdict = Literal["drop", "recovered"]
+
+
+@dataclass
+class RateWatch:
+    """The rates as they keep arriving after a check (pure; time in monotonic nanoseconds).
+
+    ``short`` is the standing shortfall (message -> measured Hz) the status reports: None before
+    the first check ends, {} when every message is at its rate."""
+
+    requests: tuple[RateRequest, ...]
+    short: dict[str, float] | None = None
+    since_ns: int | None = None  # start of the first window of the shortfall now standing
+
+    def checked(self, result: Mapping[str, float]) -> None:
+        """A rate check ended with ``result`` (``RateCheck.finish``): that is the standing state."""
+        self.short = dict(result)
+        self.since_ns = None
+
+    def window(self, counts: Mapping[str, int], start_ns: int, end_ns: int) -> Verdict | None:
+        """Messages counted over [start_ns, end_ns): "drop" once a shortfall has stood for
+        ``DROP_CONFIRM_S`` (then it is the standing one, and the confirmation starts over),
+        "recovered" when a standing shortfall is gone, else None."""
+        window_s = (end_ns - start_ns) / 1e9
+        if window_s <= 0:
+            return None
+        short = shortfalls(self.requests, counts, window_s, slack=1)
+        if not short:
+            self.since_ns = None
+            if self.short:
+                self.short = {}
+                return "recovered"
+            return None
+        if self.since_ns is None:
+            self.since_ns = start_ns
+        if end_ns - self.since_ns >= round(DROP_CONFIRM_S * 1e9):
+            self.short = short
+            self.since_ns = None
+            return "drop"
         return None

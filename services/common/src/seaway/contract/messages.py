@@ -228,6 +228,11 @@ class LocalPosition(Message):
 
 
 ThrustWithheld = Literal["no_link", "disarmed", "mode", "autopilot_config"]
+HoldReason = Literal["gcs_mode_change", "battery", "fence", "radio_loss", "gcs_link_loss", "other"]
+"""Why the autopilot took the vessel from Seaway (``VehicleStatus.hold_reason``): a mode change
+nobody in Seaway asked for ('gcs_mode_change'), or the failsafe it named: 'battery', 'fence',
+'radio_loss' (RC / manual control), 'gcs_link_loss' (its ground-station link), 'other' (a failsafe
+it did not name, e.g. ArduPilot's EKF failsafe)."""
 """Why the autopilot does not apply the commanded thrust (``VehicleStatus.thrust_withheld``)."""
 
 
@@ -261,9 +266,18 @@ class VehicleStatus(Message):
         default="", description="the parameters and the action behind that verdict, one line")
     telemetry_rates_short: dict[str, float] | None = Field(
         default=None,
-        description="the start-up rate check: each telemetry message vehicle_io asked for that "
-                    "arrives below its requested rate, with the rate measured [Hz]; {} all arrive "
-                    "at their rates; None not checked (yet, or the autopilot is not asked)")
+        description="each telemetry message vehicle_io asked for that arrives below its requested "
+                    "rate, with the rate measured [Hz]: from the rate check at connection, after a "
+                    "reboot or a drop, and kept up to date after it (cleared when the rates "
+                    "recover); {} all arrive at their rates; None not checked (yet, or the "
+                    "autopilot is not asked)")
+    hold_reason: HoldReason | None = Field(
+        default=None,
+        description="why the autopilot took the vessel from Seaway (HoldReason), decoded from its "
+                    "HEARTBEAT, SYS_STATUS, STATUSTEXT and EVENTs; stands until Seaway's own mode "
+                    "request is accepted with no failsafe condition left; None: none")
+    hold_reason_detail: str = Field(
+        default="", description="the autopilot's own words (or the bit) behind hold_reason")
     thrust_withheld: ThrustWithheld | None = Field(
         default=None,
         description="why the commanded thrust does not reach the thrusters now, whatever the "
@@ -273,6 +287,9 @@ class VehicleStatus(Message):
 
 
 BatterySource = Literal["autopilot", "sim"]
+BatteryLevel = Literal["ok", "low", "critical", "emergency", "failed", "unhealthy", "charging"]
+"""The autopilot's own judgement of its battery: MAVLink MAV_BATTERY_CHARGE_STATE (BATTERY_STATUS
+``charge_state``), or what it said in STATUSTEXT ("Battery 1 is low"), whichever is worse."""
 """Who measured a ``BatteryState``: the autopilot's battery monitor (through vehicle_io; also the
 MAVLink-speaking simulator), or the lockstep simulator itself."""
 
@@ -299,6 +316,12 @@ class BatteryState(Message):
                                          description="remaining_j over the usable energy")
     capacity_j: float | None = Field(default=None, gt=0, description="usable energy full to empty [J]")
     reserve_j: float | None = Field(default=None, ge=0, description="what a return home must leave [J]")
+    autopilot_level: BatteryLevel | None = Field(
+        default=None,
+        description="the autopilot's own low/critical flag (BatteryLevel): BATTERY_STATUS "
+                    "charge_state, raised by its battery STATUSTEXT; None: it says nothing")
+    autopilot_level_detail: str = Field(
+        default="", description="the autopilot's battery text behind autopilot_level, if any")
 
 
 # ---------------------------------------------------------------------------------------------
