@@ -228,7 +228,8 @@ class ControllerCore:
             if why is not None:
                 log.warning("mission %r refused: %s", req.mission_id, why)
                 return Reply.refuse(now_ns, f"mission {req.mission_id!r} cannot be flown: {why}")
-        mission = self.missions.start(req, self.origin)
+        st = self._last_state
+        mission = self.missions.start(req, self.origin, (st.x_m, st.y_m) if st is not None else None)
         ctrl = self.controller(mission.controller)
         ctrl.reset()
         self._mission_serial += 1
@@ -565,7 +566,8 @@ class ControllerCore:
             "mission_id": return_mission_id(mission.mission_id),
             "waypoints": [Waypoint(x_m=state.x_m, y_m=state.y_m),
                           Waypoint(x_m=home[0], y_m=home[1])],
-            "home": Waypoint(x_m=home[0], y_m=home[1]), "on_low_energy": "warn"})
+            "home": Waypoint(x_m=home[0], y_m=home[1]), "on_low_energy": "warn",
+            "join_first_leg": True})
         reply = self.handle_mission(now_ns, back, returning=True)
         if not reply.accepted:  # cannot happen with a home inside the area; stop rather than fly on
             self.missions.hold(f"the return home was refused: {reply.reason}")
@@ -645,7 +647,8 @@ class ControllerCore:
             return MissionStatus.make(stamp_ns=state.stamp_ns, state="idle")
         m = mm.mission
         wp_prev, wp_act = mm.leg()
-        xte = path.signed_cross_track_m(state.x_m, state.y_m, wp_prev, wp_act)
+        xte = (path.signed_cross_track_m(state.x_m, state.y_m, wp_prev, wp_act)
+               if wp_prev != wp_act else math.dist((state.x_m, state.y_m), wp_act))
         return MissionStatus.make(
             stamp_ns=state.stamp_ns, state=mm.state, mission_id=m.mission_id, active_leg=mm.active,
             waypoint_count=len(m.waypoints_m),

@@ -159,14 +159,33 @@ class MissionManager:
         self.position: Point | None = None  # the vessel's last position seen (update)
         self.hold_point: Point | None = None
 
-    def start(self, req: MissionRequest, origin: GeoOrigin | None) -> Mission:
-        """Validate and start ``req`` (replacing any mission); raises MissionError if refused."""
+    def start(self, req: MissionRequest, origin: GeoOrigin | None,
+              position: Point | None = None) -> Mission:
+        """Validate and start ``req`` (replacing any mission); raises MissionError if refused.
+        ``position``: where the vessel is now (local NED, m), if known; else where it is first
+        seen (``update``) decides whether it goes to P_0 first."""
         mission = validate_mission(req, origin, self.limits)
         self.mission, self.state, self.switches = mission, "active", 0
         self.active = 1 if mission.join_first_leg else 0
         self.approach_from = self.hold_point = None
         self.reason = ""
+        if position is not None:
+            self._first_seen(*position)
         return mission
+
+    def _first_seen(self, x_m: float, y_m: float) -> bool:
+        """On the way to P_0: the first leg once inside P_0's circle (True if so, now)."""
+        assert self.mission is not None
+        p0 = self.mission.waypoints_m[0]
+        if math.hypot(x_m - p0[0], y_m - p0[1]) > self.mission.coa_radius_m:
+            if self.approach_from is None:
+                self.approach_from = (x_m, y_m)
+            return False
+        # In P_0's circle: its first leg. Seen there at once, it is the start the paper's runs had
+        # (no switch); arrived from outside, a waypoint switch.
+        self.switches += self.approach_from is not None
+        self.active = 1
+        return True
 
     def wait(self, reason: str) -> None:
         """The mission just started waits for the vehicle (``reason``: for what)."""
@@ -231,14 +250,10 @@ class MissionManager:
         wps = self.mission.waypoints_m
         switched = False
         if self.active == 0:
-            if math.hypot(x_m - wps[0][0], y_m - wps[0][1]) > self.mission.coa_radius_m:
-                if self.approach_from is None:
-                    self.approach_from = (x_m, y_m)
+            seen_before = self.approach_from is not None
+            if not self._first_seen(x_m, y_m):
                 return None
-            # In P_0's circle: its first leg. Seen there at once, it is the start the paper's runs
-            # had (no switch); arrived from outside, a waypoint switch.
-            switched = self.approach_from is not None
-            self.active, self.switches = 1, self.switches + switched
+            switched = seen_before
         # Several circles may be entered at once; the last one keeps its leg active, complete.
         passed = path.advance_leg(self.active, x_m, y_m, wps, self.mission.coa_radius_m)
         if passed == self.active:
