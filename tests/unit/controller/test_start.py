@@ -61,3 +61,19 @@ def test_a_vessel_starting_at_p0_flies_the_run_it_flew_before() -> None:
     first = run_closed_loop("paper-c1", "cc-empc")
     joined = run_closed_loop("paper-c1", "cc-empc", join_first_leg=True)
     assert first.trajectory == joined.trajectory and first.energy_j == joined.energy_j
+
+
+def test_a_restart_on_the_way_to_p0_resumes_it() -> None:
+    # The checkpoint keeps leg 0 (and a waiting mission), which it refused before.
+    from seaway_controller.checkpoint import MissionCheckpoint
+
+    req = mission(join_first_leg=False)
+    for leg, st in ((0, "active"), (0, "waiting")):
+        cp = MissionCheckpoint(request=req.model_dump(mode="json"), active_leg=leg, state=st,
+                               energy_used_j=1.0, saved_unix_ns=1)
+        core = make_core(ScriptedSolver())
+        reply = core.restore(0, cp.mission_request(), cp.active_leg, cp.state, cp.energy_used_j)
+        assert reply.accepted, reply.reason
+        assert core.missions.active == 0 and core.missions.state == st
+        if st == "waiting":
+            assert "waiting for the vehicle" in core.missions.reason

@@ -334,6 +334,9 @@ class ControllerCore:
             return Reply.refuse(now_ns, f"checkpoint's active leg {active_leg} is not a leg of the "
                                         f"mission ({len(mm.mission.waypoints_m)} waypoints)")
         mm.active, mm.state = active_leg, state  # type: ignore[assignment]
+        if state == "waiting" and not mm.reason:
+            mm.wait("waiting for the vehicle: no status heard since the restart yet; the mission "
+                    "starts by itself once the vehicle applies the thrust")
         mm.switches += 1  # the warm start re-guesses t_d and t_s as on a waypoint switch
         self.energy_used_j = energy_used_j
         if self.accepted is not None:  # the same flight going on, not a new one (the report)
