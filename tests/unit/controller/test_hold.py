@@ -103,3 +103,33 @@ def test_it_holds_in_a_current_and_wind_in_the_closed_loop() -> None:
     assert f["propulsion_energy_j"] > 0 and math.isfinite(f["controller_hold_energy_j"])
     assert f["controller_hold_energy_j"] == pytest.approx(
         f["propulsion_energy_j"] + f["task_energy_j"], rel=0.05)
+
+
+def test_the_energy_budget_prices_the_hold_and_returns_home_when_it_must() -> None:
+    from seaway.contract.messages import BatteryState
+
+    core = completed()
+    # Enough above the reserve to hold for a while, not to get home (8.6 m at the cruise, ~200 J).
+    core.on_battery(BatteryState.make(stamp_ns=2 * DT_NS, source="sim", remaining_j=1_100.0,
+                                      reserve_j=1_000.0))
+    sources = []
+    for k in range(3, 40):
+        cmd, _, st = core.step(k * DT_NS, at(k, *LAST, tau=(0.5, 0.0, 0.0)))
+        sources.append(cmd.source)
+        if st.state == "active":
+            break
+    # Priced while holding (the hold drains the battery): the policy 'return' flies home.
+    assert sources[0] == "hold" and core.budget is not None and core.budget.returning
+    assert st.mission_id == "m1/return" and st.state == "active"
+
+
+def test_the_budgets_hold_policy_stops_the_station_keeping() -> None:
+    from seaway.contract.messages import BatteryState
+
+    core = completed(on_low_energy="hold")
+    core.on_battery(BatteryState.make(stamp_ns=2 * DT_NS, source="sim", remaining_j=1_100.0,
+                                      reserve_j=1_000.0))
+    for k in range(3, 40):
+        cmd, _, st = core.step(k * DT_NS, at(k, *LAST, tau=(0.5, 0.0, 0.0)))
+    assert st.state == "complete" and st.hold_x_m is None and "energy budget" in st.reason
+    assert (cmd.thrust_port_n, cmd.thrust_starboard_n) == (0.0, 0.0)

@@ -32,7 +32,9 @@ one before the arming). Lockstep has no vehicle_io: no status, no wait.
 
 At rest (after the last waypoint, paused by the operator) the vessel holds station at the mission
 manager's ``hold_point`` with the station-keeping law (``hold.py``) unless the mission asked to
-drift; the energy it takes is counted to the battery and reported (``MissionStatus.hold_energy_j``).
+drift; the energy it takes is counted to the battery and reported (``MissionStatus.hold_energy_j``),
+and the energy budget goes on pricing the way home meanwhile (its policy acts on a hold that drains
+the battery as on a mission).
 
 The mission accepted (``accepted_due``, ``take_accepted``): every accepted mission becomes a
 ``MissionAccepted`` (its waypoints in local NED, its controller's settings) for ``mission/accepted``,
@@ -132,6 +134,12 @@ class BudgetDecision:
     decision: EnergyDecision = "none"
     decided_ns: int | None = None
     reason: str = ""
+
+
+def _waiting_for(why: str) -> str:
+    """A waiting mission's reason: what the vehicle lacks (``why``) and what starts it."""
+    return (f"waiting for the vehicle: {why}; the mission starts by itself once the vehicle "
+            "applies the thrust (arm it, set its mode)")
 
 
 def _finite_or_none(v: float | None) -> float | None:
@@ -248,8 +256,7 @@ class ControllerCore:
         self._accepted_pending = True
         withheld = self.withheld_reason()
         if withheld is not None:
-            self.missions.wait(f"waiting for the vehicle: {withheld}; the mission starts by itself "
-                               "once the vehicle applies the thrust (arm it, set its mode)")
+            self.missions.wait(_waiting_for(withheld))
         state = self.missions.state
         log.info("mission %r accepted (%s): %d waypoints, r_COA %.2f m, T^w %.2f W, %s, %s",
                  mission.mission_id, state, len(mission.waypoints_m), mission.coa_radius_m,
@@ -335,8 +342,7 @@ class ControllerCore:
                                         f"mission ({len(mm.mission.waypoints_m)} waypoints)")
         mm.active, mm.state = active_leg, state  # type: ignore[assignment]
         if state == "waiting" and not mm.reason:
-            mm.wait("waiting for the vehicle: no status heard since the restart yet; the mission "
-                    "starts by itself once the vehicle applies the thrust")
+            mm.wait(_waiting_for("no status heard since the restart yet"))
         mm.switches += 1  # the warm start re-guesses t_d and t_s as on a waypoint switch
         self.energy_used_j = energy_used_j
         if self.accepted is not None:  # the same flight going on, not a new one (the report)
@@ -411,8 +417,7 @@ class ControllerCore:
                          self.missions.mission.mission_id if self.missions.mission else "")
                 return "started: the vehicle applies the thrust"
             if why is not None:
-                self.missions.wait(f"waiting for the vehicle: {why}; the mission starts by itself "
-                                   "once the vehicle applies the thrust (arm it, set its mode)")
+                self.missions.wait(_waiting_for(why))
             return None
         if why is None or not self.missions.hold(f"paused by the controller: {why}; resume with "
                                                  "'seaway mission resume' once it applies it again"):
@@ -460,6 +465,7 @@ class ControllerCore:
                 tau = (state.tau_d_surge_n, state.tau_d_sway_n, state.tau_d_yaw_nm)
                 thrust = hold_thrust(tuple(x0), point, tau, self.vessel, self.config.hold)
                 cmd = self._command(state.stamp_ns, thrust, "hold")
+                self._update_budget(now_ns, state, None)  # the hold drains the battery too
             return cmd, None, self._status(now_ns, state)
         self._holding = None
         mission = mm.mission
@@ -538,9 +544,12 @@ class ControllerCore:
 
     def _update_budget(self, now_ns: int, state: StateEstimate, used: MpcOutcome | None) -> None:
         """The budget, when due (``Budget.due``: once a second, at a new leg, every period once
-        the margin is near 0), and the policy's action at the pricing that finds the margin at 0."""
+        the margin is near 0), and the policy's action at the pricing that finds the margin at 0.
+        Priced while the mission is active and while the vessel holds station at rest (the hold
+        takes energy for as long as it lasts: the way home is priced against what is left)."""
         budget, mm = self.budget, self.missions
-        if budget is None or mm.mission is None or mm.state != "active" or not budget.due(now_ns, mm.active):
+        priced = mm.state == "active" or self._holding is not None
+        if budget is None or mm.mission is None or not priced or not budget.due(now_ns, mm.active):
             return
         leg_j = _finite_or_none(used.costs.energy_to_go_j) if used is not None else None
         report = self.battery.report
@@ -551,8 +560,9 @@ class ControllerCore:
         if taken is None:
             return
         log.warning("energy budget: %s; the mission's policy: %s", budget.reason, taken)
-        if taken == "hold":
-            mm.hold(f"held by the energy budget: {budget.reason}")
+        if taken == "hold" and not mm.hold(f"held by the energy budget: {budget.reason}"):
+            mm.drift(f"drifting: the energy budget's policy 'hold' stopped the station keeping: "
+                     f"{budget.reason}")
         elif taken == "return":
             self._return_home(now_ns, state)
 

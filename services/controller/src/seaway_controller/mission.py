@@ -208,6 +208,11 @@ class MissionManager:
         self.hold_point = None
         return True
 
+    def drift(self, reason: str) -> None:
+        """Stop holding station at rest for ``reason`` (zero thrust from now on)."""
+        if self.hold_point is not None:
+            self.hold_point, self.reason = None, reason[:MAX_REASON_CHARS]
+
     def command(self, cmd: MissionCommand) -> str:
         """Apply pause/resume/abort; returns what happened, raises MissionError if refused."""
         c = cmd.command
