@@ -77,3 +77,13 @@ def test_a_restart_on_the_way_to_p0_resumes_it() -> None:
         assert core.missions.active == 0 and core.missions.state == st
         if st == "waiting":
             assert "waiting for the vehicle" in core.missions.reason
+
+
+def test_the_accepted_mission_says_how_it_starts_and_ends() -> None:
+    core = make_core(ScriptedSolver())
+    core.handle_mission(0, mission(join_first_leg=False).model_copy(update={"at_rest": "drift"}))
+    acc = core.take_accepted(1)
+    assert acc is not None and acc.join_first_leg is False and acc.at_rest == "drift"
+    core.handle_mission(2, mission())
+    acc = core.take_accepted(3)
+    assert acc is not None and acc.join_first_leg is True and acc.at_rest == "hold"

@@ -367,7 +367,8 @@ class ControllerCore:
             controller=mission.controller, predict_disturbance=self.predict_disturbance,
             speed_hint_mps=mission.speed_hint_mps, controller_settings=settings,
             on_low_energy=mission.on_low_energy, home_x_m=mission.home[0],
-            home_y_m=mission.home[1])
+            home_y_m=mission.home[1], join_first_leg=mission.join_first_leg,
+            at_rest=mission.at_rest)
 
     def take_accepted(self, stamp_ns: int) -> MissionAccepted | None:
         """Lockstep: the mission accepted since the last call, stamped ``stamp_ns`` (the period

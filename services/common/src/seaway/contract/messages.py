@@ -687,6 +687,10 @@ class MissionAccepted(Message):
     home_x_m: float | None = Field(default=None, description="home, local NED north [m]: the "
                                    "request's, or P_0 (None only in recordings made before it)")
     home_y_m: float | None = Field(default=None, description="home, local NED east [m]")
+    join_first_leg: bool = Field(default=False, description="the request's: joined P_0 -> P_1 from "
+                                 "where the vessel was, instead of going to P_0 first")
+    at_rest: AtRest = Field(default="hold", description="the request's: 'hold' station or 'drift' "
+                            "after the last waypoint and on pause")
     resumed: bool = Field(default=False, description="re-announced by a restarted controller that "
                           "resumed it from its checkpoint: the same flight going on, not a new one")
     controller_settings: dict[Annotated[str, StringConstraints(max_length=64)], float] = Field(
