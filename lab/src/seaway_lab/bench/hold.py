@@ -30,6 +30,7 @@ from seaway.contract.messages import (
     Waypoint,
 )
 from seaway.contract.units import NS_PER_S, s_to_ns
+from seaway.runtime.argtypes import non_negative_float, positive_float
 from seaway.simkit.scenario import AIR_DENSITY_KGPM3, load_scenario
 from seaway.vessel.model import load_vessel
 from seaway_controller.core import ControllerConfig, ControllerCore
@@ -133,15 +134,15 @@ def fly_hold(hold_s: float = HOLD_S, gust_std_mps: float = 1.0, seed: int = 1) -
 def run(argv: list[str]) -> BenchResult:
     ap = argparse.ArgumentParser(prog="seaway bench hold", description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="hold 30 s instead of 120 s")
-    ap.add_argument("--seconds", type=float, help=f"how long to hold [s] (default {HOLD_S:g})")
-    ap.add_argument("--gust-std-mps", type=float, default=1.0,
+    ap.add_argument("--seconds", type=positive_float, help=f"how long to hold [s] (default {HOLD_S:g})")
+    ap.add_argument("--gust-std-mps", type=non_negative_float, default=1.0,
                     help="the wind's gust speed std [m/s] (default 1; 0: a steady wind)")
     args = ap.parse_args(argv)
     hold_s = args.seconds or (30.0 if args.quick else HOLD_S)
-    if not (math.isfinite(hold_s) and 1.0 <= hold_s <= 3600.0):
-        ap.error(f"--seconds {hold_s:g}: must be within [1, 3600] s")
-    if not (math.isfinite(args.gust_std_mps) and 0.0 <= args.gust_std_mps <= 10.0):
-        ap.error(f"--gust-std-mps {args.gust_std_mps:g}: must be within [0, 10] m/s")
+    if not 1.0 <= hold_s <= 3600.0:
+        ap.error(f"argument --seconds: {hold_s:g} s is outside [1, 3600] s")
+    if args.gust_std_mps > 10.0:
+        ap.error(f"argument --gust-std-mps: {args.gust_std_mps:g} m/s is above 10 m/s")
     f = fly_hold(hold_s, args.gust_std_mps)
     res = BenchResult("hold", f"Station keeping, paper-sim, {CURRENT_MPS} m/s current + "
                       f"{WIND_FORCE_N:g} N wind, {hold_s:g} s")
