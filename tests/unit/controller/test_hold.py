@@ -133,3 +133,16 @@ def test_the_budgets_hold_policy_stops_the_station_keeping() -> None:
         cmd, _, st = core.step(k * DT_NS, at(k, *LAST, tau=(0.5, 0.0, 0.0)))
     assert st.state == "complete" and st.hold_x_m is None and "energy budget" in st.reason
     assert (cmd.thrust_port_n, cmd.thrust_starboard_n) == (0.0, 0.0)
+
+
+def test_abort_stops_the_hold_at_the_end() -> None:
+    core = completed()
+    cmd, _, _ = core.step(3 * DT_NS, at(3, *LAST, tau=(2.0, 1.0, 0.0)))
+    assert cmd.source == "hold"
+    reply = core.handle_command(3 * DT_NS, MissionCommand.make(stamp_ns=0, command="abort"))
+    assert reply.accepted
+    cmd, _, st = core.step(4 * DT_NS, at(4, *LAST, tau=(2.0, 1.0, 0.0)))
+    assert st.state == "aborted" and st.hold_x_m is None
+    assert (cmd.thrust_port_n, cmd.thrust_starboard_n) == (0.0, 0.0)
+    # Nothing left to stop: a second abort is refused.
+    assert not core.handle_command(5 * DT_NS, MissionCommand.make(stamp_ns=0, command="abort")).accepted

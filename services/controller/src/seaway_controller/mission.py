@@ -234,7 +234,9 @@ class MissionManager:
                 raise MissionError(f"cannot resume: the mission is {self.state}, not paused")
             self.state = "active"
         elif c == "abort":
-            if self.state not in ("active", "paused", "waiting"):
+            # A complete mission whose vessel holds station is aborted to stop the hold.
+            holding = self.state == "complete" and self.hold_point is not None
+            if self.state not in ("active", "paused", "waiting") and not holding:
                 raise MissionError(f"cannot abort: the mission is already {self.state}")
             self.state = "aborted"
 
