@@ -351,7 +351,8 @@ def run_closed_loop(scenario: str | Scenario, controller: ControllerKind,
                     vessel: VesselParams | None = None, max_time_s: float = DEFAULT_MAX_TIME_S,
                     progress: Callable[[float], None] | None = None,
                     estimator: EstimatorCore | None = None,
-                    battery_j: float | None = None, battery: bool = False) -> ClosedLoopResult:
+                    battery_j: float | None = None, battery: bool = False,
+                    join_first_leg: bool = False) -> ClosedLoopResult:
     """Fly ``scenario``'s mission with ``controller`` from the true state, one control period per
     tick; stops on completion or after ``max_time_s``.
 
@@ -362,6 +363,8 @@ def run_closed_loop(scenario: str | Scenario, controller: ControllerKind,
     publishes) once a second; the run then goes on while the energy budget holds the mission, until
     ``max_time_s``. ``battery``: the same reports from the scenario's own pack (as a lockstep stack
     runs: the controller's budget then prices its point of no return once a second).
+    ``join_first_leg``: the mission joins P_0 -> P_1 from the start pose instead of going to P_0
+    first (``MissionRequest.join_first_leg``; the same run when the vessel starts at P_0).
     """
     sc = load_scenario(scenario) if isinstance(scenario, str) else scenario
     if sc.mission is None:
@@ -376,7 +379,8 @@ def run_closed_loop(scenario: str | Scenario, controller: ControllerKind,
     # The plant is the scenario's (it may differ from the model: a robustness run), as in the sim.
     sim = SimCore(sc, vp if vessel is not None else load_vessel(sc.plant_vessel_file))
     core.set_origin(sim.origin)
-    reply = core.handle_mission(0, sc.mission.to_request(0, mission_id=sc.name, controller=controller))
+    req = sc.mission.to_request(0, mission_id=sc.name, controller=controller)
+    reply = core.handle_mission(0, req.model_copy(update={"join_first_leg": join_first_leg}))
     if not reply.accepted:
         raise ValueError(f"mission refused: {reply.reason}")
     mission = core.missions.mission

@@ -35,9 +35,11 @@ def make_core(solver: ScriptedSolver, **cfg) -> ControllerCore:
     return ControllerCore(VP, config, solver_factory=lambda ocp: solver)
 
 
-def mission(controller: str = "cc-empc") -> MissionRequest:
+def mission(controller: str = "cc-empc", join_first_leg: bool = True) -> MissionRequest:
+    # The states below are on the first leg, off P_0's circle: these tests fly that leg, joined
+    # from there (by default a mission would go to P_0 first: test_start.py).
     return MissionRequest.make(stamp_ns=0, mission_id="m1", coa_radius_m=1.0, task_power_w=0.49,
-                               controller=controller,
+                               controller=controller, join_first_leg=join_first_leg,
                                waypoints=[Waypoint(x_m=0, y_m=0), Waypoint(x_m=8, y_m=0),
                                           Waypoint(x_m=5.13, y_m=8.57)])
 
@@ -137,7 +139,8 @@ def test_completion_pause_and_refusals():
     assert core.missions.active == 2
     cmd, rec, status = core.step(2 * DT_NS, state(2, x=5.3, y=8.2))
     assert status.state == "complete" and rec is None
-    assert (cmd.thrust_port_n, cmd.thrust_starboard_n) == (0.0, 0.0)
+    # At the end it holds station at the last waypoint (test_hold.py), no MPC solve.
+    assert cmd.source == "hold" and (status.hold_x_m, status.hold_y_m) == (5.13, 8.57)
 
 
 def test_energy_used_integrates_commands():

@@ -63,8 +63,8 @@ def test_operating_area_is_configurable():
 def test_switches_on_entering_the_circle_and_completes_on_the_last():
     mm = MissionManager()
     mm.start(request([(0, 0), (8, 0), (5.13, 8.57)], coa=1.0), None)
-    assert mm.state == "active" and mm.leg() == ((0, 0), (8, 0))
-    assert mm.update(0.0, 0.0) is None  # inside P_0's circle: not the active waypoint
+    assert mm.update(0.0, 0.0) is None  # inside P_0's circle from the start: its first leg
+    assert mm.state == "active" and mm.leg() == ((0, 0), (8, 0)) and mm.switches == 0
     assert mm.update(6.9, 0.0) is None  # 1.1 m short of P_1
     assert mm.update(7.05, 0.2) == "switched"
     assert mm.active == 2 and mm.leg() == ((8, 0), (5.13, 8.57))
@@ -77,7 +77,7 @@ def test_switches_on_entering_the_circle_and_completes_on_the_last():
 
 def test_passing_several_circles_at_once():
     mm = MissionManager()
-    mm.start(request([(0, 0), (2, 0), (2.5, 0), (10, 0)], coa=1.0), None)
+    mm.start(request([(0, 0), (2, 0), (2.5, 0), (10, 0)], coa=1.0, join_first_leg=True), None)
     assert mm.update(2.2, 0.0) == "switched"
     assert mm.active == 3
 
@@ -98,4 +98,4 @@ def test_pause_resume_abort():
     with pytest.raises(MissionError, match="already aborted"):
         mm.command(cmd("abort"))
     mm.start(request([(0, 0), (8, 0)]), None)  # a new mission replaces an aborted one
-    assert mm.state == "active" and mm.active == 1
+    assert mm.state == "active" and mm.active == 0  # on its way to P_0 first

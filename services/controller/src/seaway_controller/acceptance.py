@@ -34,12 +34,19 @@ changes (a gust of a fifth more takes its way; the budget's own bound of no way 
 Point = tuple[float, float]
 
 
-def runs_of(waypoints: Sequence[Point], home: Point, start: Point | None
-            ) -> list[tuple[str, Point, Point]]:
-    """(name, from, to) of every straight run the mission may fly: its legs (the first from
-    ``start`` when given), and home from ``start`` and from each waypoint after P_0."""
-    first = start if start is not None else waypoints[0]
-    runs = [("leg 0->1", first, waypoints[1])]
+def runs_of(waypoints: Sequence[Point], home: Point, start: Point | None,
+            join_first_leg: bool = True, coa_radius_m: float = 0.0) -> list[tuple[str, Point, Point]]:
+    """(name, from, to) of every straight run the mission may fly: the way from ``start`` to P_0
+    when it goes there first and starts outside its circle (``coa_radius_m``), its legs (the first
+    from ``start`` when given and joined from there), and home from ``start`` and from each
+    waypoint after P_0."""
+    runs = []
+    first = waypoints[0]
+    if start is not None and join_first_leg:
+        first = start
+    elif start is not None and math.dist(start, waypoints[0]) > coa_radius_m:
+        runs.append(("the way to P_0 from where the vessel is", start, waypoints[0]))
+    runs.append(("leg 0->1", first, waypoints[1]))
     runs += [(f"leg {i - 1}->{i}", waypoints[i - 1], waypoints[i]) for i in range(2, len(waypoints))]
     if start is not None:
         runs.append(("the way home from where the vessel is", start, home))
@@ -48,7 +55,7 @@ def runs_of(waypoints: Sequence[Point], home: Point, start: Point | None
 
 
 def why_not_flyable(model: EnergyModel, state: StateEstimate | None, waypoints: Sequence[Point],
-                    home: Point) -> str | None:
+                    home: Point, join_first_leg: bool = False) -> str | None:
     """Why the mission cannot be flown (the first run it cannot make good), or None if it can."""
     if not model.economic:
         return None
@@ -65,7 +72,7 @@ def why_not_flyable(model: EnergyModel, state: StateEstimate | None, waypoints: 
     dist = (Disturbance.from_body((state.tau_d_surge_n, state.tau_d_sway_n, state.tau_d_yaw_nm),
                                   state.psi_rad) if state is not None else ZERO)
     start = (state.x_m, state.y_m) if state is not None else None
-    runs = runs_of(waypoints, home, start)
+    runs = runs_of(waypoints, home, start, join_first_leg, model.coa_radius_m)
     if not runs:
         return None
     courses = np.array([math.atan2(b[1] - a[1], b[0] - a[0]) for _, a, b in runs])

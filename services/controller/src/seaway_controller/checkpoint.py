@@ -27,8 +27,9 @@ class MissionCheckpoint(ConfigModel):
     """Mission progress as saved: the accepted request, the active leg, the state, the energy."""
 
     request: dict[str, Any] = Field(description="the accepted MissionRequest, as on the wire")
-    active_leg: int = Field(ge=1, description="index i of the active waypoint P_i")
-    state: Literal["active", "paused", "complete", "aborted"]
+    active_leg: int = Field(ge=0, description="index i of the active waypoint P_i (0: on the way "
+                            "to P_0)")
+    state: Literal["waiting", "active", "paused", "complete", "aborted"]
     energy_used_j: float = Field(ge=0)
     saved_unix_ns: int = Field(ge=0)
     returning: bool = Field(default=False, description="the mission is the energy budget's return home")

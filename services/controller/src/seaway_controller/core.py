@@ -24,6 +24,18 @@ the vehicle applies the thrust again (a rebooted autopilot must not drive off on
 someone re-arms it). Only statuses stamped from the mission's start on count: the one before may
 predate the arming its sender just did.
 
+A mission sent while the latest status says the thrust is withheld is accepted as ``waiting``
+(never "started"), the reply and ``MissionStatus.reason`` saying for what; it becomes active by
+itself at the first status stamped from its acceptance on that says the vehicle applies the thrust
+(the launcher arms and sets the mode, then sends the mission: the status it last heard may be the
+one before the arming). Lockstep has no vehicle_io: no status, no wait.
+
+At rest (after the last waypoint, paused by the operator) the vessel holds station at the mission
+manager's ``hold_point`` with the station-keeping law (``hold.py``) unless the mission asked to
+drift; the energy it takes is counted to the battery and reported (``MissionStatus.hold_energy_j``),
+and the energy budget goes on pricing the way home meanwhile (its policy acts on a hold that drains
+the battery as on a mission).
+
 The mission accepted (``accepted_due``, ``take_accepted``): every accepted mission becomes a
 ``MissionAccepted`` (its waypoints in local NED, its controller's settings) for ``mission/accepted``,
 so that a recording holds the path actually flown. Lockstep takes it once, into the answer of the
@@ -65,6 +77,7 @@ from seaway.vessel.model import VesselParams, propulsion_power_w
 
 from seaway_controller import acceptance, costs
 from seaway_controller.energy import BatteryTrack, Budget, Disturbance, EnergyModel, predict
+from seaway_controller.hold import HoldGains, hold_thrust
 from seaway_controller.mission import (
     Mission,
     MissionError,
@@ -101,6 +114,7 @@ class ControllerConfig:
     """Make every mission predict with the estimate's tau_d (beyond the paper, which predicts with
     tau_d = 0), whatever its request says; False leaves it to each mission's ``predict_disturbance``."""
     los: LosGains = field(default_factory=LosGains)
+    hold: HoldGains = field(default_factory=HoldGains)
     limits: MissionLimits = field(default_factory=MissionLimits)
     nmpc: costs.NmpcWeights = field(default_factory=costs.NmpcWeights)
 
@@ -120,6 +134,12 @@ class BudgetDecision:
     decision: EnergyDecision = "none"
     decided_ns: int | None = None
     reason: str = ""
+
+
+def _waiting_for(why: str) -> str:
+    """A waiting mission's reason: what the vehicle lacks (``why``) and what starts it."""
+    return (f"waiting for the vehicle: {why}; the mission starts by itself once the vehicle "
+            "applies the thrust (arm it, set its mode)")
 
 
 def _finite_or_none(v: float | None) -> float | None:
@@ -160,6 +180,8 @@ class ControllerCore:
         self.energy_counted_j = 0.0
         self.budget: Budget | None = None
         self._budget_msg: EnergyBudget | None = None
+        self.hold_energy_j = 0.0  # counted since the current hold began
+        self._holding: tuple[float, float] | None = None  # the point held at the last step
 
     # -- set-up ---------------------------------------------------------------------------------
 
@@ -191,7 +213,8 @@ class ControllerCore:
     def _not_flyable(self, mission: Mission, req: MissionRequest) -> str | None:
         """Why ``mission`` cannot be flown from the latest state (``acceptance``), or None."""
         return acceptance.why_not_flyable(self._energy_model(mission, req), self._last_state,
-                                          mission.waypoints_m, mission.home)
+                                          mission.waypoints_m, mission.home,
+                                          join_first_leg=mission.join_first_leg)
 
     def set_origin(self, origin: GeoOrigin) -> None:
         self.origin = origin
@@ -213,7 +236,8 @@ class ControllerCore:
             if why is not None:
                 log.warning("mission %r refused: %s", req.mission_id, why)
                 return Reply.refuse(now_ns, f"mission {req.mission_id!r} cannot be flown: {why}")
-        mission = self.missions.start(req, self.origin)
+        st = self._last_state
+        mission = self.missions.start(req, self.origin, (st.x_m, st.y_m) if st is not None else None)
         ctrl = self.controller(mission.controller)
         ctrl.reset()
         self._mission_serial += 1
@@ -230,14 +254,19 @@ class ControllerCore:
         self._mission_start_ns = now_ns
         self.accepted = self._accepted_message(now_ns, mission)
         self._accepted_pending = True
-        log.info("mission %r accepted: %d waypoints, r_COA %.2f m, T^w %.2f W, %s, %s",
-                 mission.mission_id, len(mission.waypoints_m), mission.coa_radius_m,
+        withheld = self.withheld_reason()
+        if withheld is not None:
+            self.missions.wait(_waiting_for(withheld))
+        state = self.missions.state
+        log.info("mission %r accepted (%s): %d waypoints, r_COA %.2f m, T^w %.2f W, %s, %s",
+                 mission.mission_id, state, len(mission.waypoints_m), mission.coa_radius_m,
                  mission.task_power_w, mission.controller,
                  "predicting the estimated tau_d" if self.predict_disturbance else "tau_d = 0")
-        return Reply.accept(now_ns, "mission started" + self._shortfall(), mission_id=mission.mission_id,
+        said = "mission started" if state == "active" else f"mission accepted, {self.missions.reason}"
+        return Reply.accept(now_ns, said + self._shortfall(), mission_id=mission.mission_id,
                             waypoints_m=[list(p) for p in mission.waypoints_m],
                             controller=mission.controller,
-                            predict_disturbance=self.predict_disturbance)
+                            predict_disturbance=self.predict_disturbance, state=state)
 
     def _shortfall(self) -> str:
         """'' or, for the mission just started, that the battery is short of the energy predicted
@@ -246,7 +275,7 @@ class ControllerCore:
         b, st, left = self.budget, self._last_state, self.battery_remaining_j()
         if b is None or st is None or left is None or b.returning:
             return ""
-        pred = predict(b.model, st, b.waypoints, 1, b.home, None,
+        pred = predict(b.model, st, b.waypoints, self.missions.active, b.home, None,
                        Disturbance.from_body((st.tau_d_surge_n, st.tau_d_sway_n, st.tau_d_yaw_nm),
                                              st.psi_rad))
         above = left - (self._reserve_j() or 0.0)
@@ -305,12 +334,15 @@ class ControllerCore:
             b.decision, b.decided_ns, b.reason = decision.decision, decision.decided_ns, decision.reason
         mm = self.missions
         assert mm.mission is not None
-        if not 1 <= active_leg < len(mm.mission.waypoints_m):
+        first = 1 if mm.mission.join_first_leg else 0  # 0: it was on its way to P_0
+        if not first <= active_leg < len(mm.mission.waypoints_m):
             mm.state = "idle"
             self.accepted, self._accepted_pending = None, False  # not flown after all
             return Reply.refuse(now_ns, f"checkpoint's active leg {active_leg} is not a leg of the "
                                         f"mission ({len(mm.mission.waypoints_m)} waypoints)")
         mm.active, mm.state = active_leg, state  # type: ignore[assignment]
+        if state == "waiting" and not mm.reason:
+            mm.wait(_waiting_for("no status heard since the restart yet"))
         mm.switches += 1  # the warm start re-guesses t_d and t_s as on a waypoint switch
         self.energy_used_j = energy_used_j
         if self.accepted is not None:  # the same flight going on, not a new one (the report)
@@ -335,7 +367,8 @@ class ControllerCore:
             controller=mission.controller, predict_disturbance=self.predict_disturbance,
             speed_hint_mps=mission.speed_hint_mps, controller_settings=settings,
             on_low_energy=mission.on_low_energy, home_x_m=mission.home[0],
-            home_y_m=mission.home[1])
+            home_y_m=mission.home[1], join_first_leg=mission.join_first_leg,
+            at_rest=mission.at_rest)
 
     def take_accepted(self, stamp_ns: int) -> MissionAccepted | None:
         """Lockstep: the mission accepted since the last call, stamped ``stamp_ns`` (the period
@@ -373,12 +406,20 @@ class ControllerCore:
 
     def on_vehicle_status(self, status: VehicleStatus) -> str | None:
         """The vehicle's status, in the order vehicle_io published them: pauses an active mission
-        while the autopilot does not apply the commanded thrust (see the module docstring). The
-        reason if it paused it now, else None."""
+        while the autopilot does not apply the commanded thrust, starts a waiting one once it does
+        (see the module docstring). What it changed now (for a person), else None."""
         self.vehicle = status  # the latest, whatever its stamp says (a stamp cannot pin an old one)
         if status.stamp_ns < self._mission_start_ns:
             return None  # from before this mission: perhaps before the arming that preceded it
         why = self.withheld_reason()
+        if self.missions.state == "waiting":
+            if why is None and self.missions.release():
+                log.info("mission %r started: the vehicle applies the thrust",
+                         self.missions.mission.mission_id if self.missions.mission else "")
+                return "started: the vehicle applies the thrust"
+            if why is not None:
+                self.missions.wait(_waiting_for(why))
+            return None
         if why is None or not self.missions.hold(f"paused by the controller: {why}; resume with "
                                                  "'seaway mission resume' once it applies it again"):
             return None
@@ -415,8 +456,19 @@ class ControllerCore:
         mm.update(state.x_m, state.y_m)
         self.seq += 1
         if mm.state != "active" or mm.mission is None:
-            cmd = self._command(state.stamp_ns, (0.0, 0.0), mm.state)
+            point = mm.hold_point if self.withheld_reason() is None else None
+            if point is not None and self._holding != point:
+                self.hold_energy_j = 0.0  # a new hold
+            self._holding = point
+            if point is None:
+                cmd = self._command(state.stamp_ns, (0.0, 0.0), mm.state)
+            else:
+                tau = (state.tau_d_surge_n, state.tau_d_sway_n, state.tau_d_yaw_nm)
+                thrust = hold_thrust(tuple(x0), point, tau, self.vessel, self.config.hold)
+                cmd = self._command(state.stamp_ns, thrust, "hold")
+                self._update_budget(now_ns, state, None)  # the hold drains the battery too
             return cmd, None, self._status(now_ns, state)
+        self._holding = None
         mission = mm.mission
         wp_prev, wp_act = mm.leg()
         ctrl = self.controller(mission.controller)
@@ -493,9 +545,12 @@ class ControllerCore:
 
     def _update_budget(self, now_ns: int, state: StateEstimate, used: MpcOutcome | None) -> None:
         """The budget, when due (``Budget.due``: once a second, at a new leg, every period once
-        the margin is near 0), and the policy's action at the pricing that finds the margin at 0."""
+        the margin is near 0), and the policy's action at the pricing that finds the margin at 0.
+        Priced while the mission is active and while the vessel holds station at rest (the hold
+        takes energy for as long as it lasts: the way home is priced against what is left)."""
         budget, mm = self.budget, self.missions
-        if budget is None or mm.mission is None or mm.state != "active" or not budget.due(now_ns, mm.active):
+        priced = mm.state == "active" or self._holding is not None
+        if budget is None or mm.mission is None or not priced or not budget.due(now_ns, mm.active):
             return
         leg_j = _finite_or_none(used.costs.energy_to_go_j) if used is not None else None
         report = self.battery.report
@@ -506,8 +561,9 @@ class ControllerCore:
         if taken is None:
             return
         log.warning("energy budget: %s; the mission's policy: %s", budget.reason, taken)
-        if taken == "hold":
-            mm.hold(f"held by the energy budget: {budget.reason}")
+        if taken == "hold" and not mm.hold(f"held by the energy budget: {budget.reason}"):
+            mm.drift(f"drifting: the energy budget's policy 'hold' stopped the station keeping: "
+                     f"{budget.reason}")
         elif taken == "return":
             self._return_home(now_ns, state)
 
@@ -524,7 +580,8 @@ class ControllerCore:
             "mission_id": return_mission_id(mission.mission_id),
             "waypoints": [Waypoint(x_m=state.x_m, y_m=state.y_m),
                           Waypoint(x_m=home[0], y_m=home[1])],
-            "home": Waypoint(x_m=home[0], y_m=home[1]), "on_low_energy": "warn"})
+            "home": Waypoint(x_m=home[0], y_m=home[1]), "on_low_energy": "warn",
+            "join_first_leg": True})
         reply = self.handle_mission(now_ns, back, returning=True)
         if not reply.accepted:  # cannot happen with a home inside the area; stop rather than fly on
             self.missions.hold(f"the return home was refused: {reply.reason}")
@@ -564,6 +621,8 @@ class ControllerCore:
             self.energy_counted_j += energy
             if mm.state == "active" and mm.mission is not None:
                 self.energy_used_j += energy
+            elif self._holding is not None:
+                self.hold_energy_j += energy
         self._last_step_ns = now_ns
 
     def _command(self, stamp_ns: int, thrust: tuple[float, float], source: str) -> ThrustCommand:
@@ -602,7 +661,8 @@ class ControllerCore:
             return MissionStatus.make(stamp_ns=state.stamp_ns, state="idle")
         m = mm.mission
         wp_prev, wp_act = mm.leg()
-        xte = path.signed_cross_track_m(state.x_m, state.y_m, wp_prev, wp_act)
+        xte = (path.signed_cross_track_m(state.x_m, state.y_m, wp_prev, wp_act)
+               if wp_prev != wp_act else math.dist((state.x_m, state.y_m), wp_act))
         return MissionStatus.make(
             stamp_ns=state.stamp_ns, state=mm.state, mission_id=m.mission_id, active_leg=mm.active,
             waypoint_count=len(m.waypoints_m),
@@ -611,4 +671,6 @@ class ControllerCore:
             energy_to_go_j=(self.budget.last.energy_to_go_j if mm.state == "active" and self.budget
                             and self.budget.last else None),
             leg_energy_to_go_j=self._energy_to_go_j if mm.state == "active" else None,
-            reason=mm.reason)
+            reason=mm.reason, hold_x_m=self._holding[0] if self._holding else None,
+            hold_y_m=self._holding[1] if self._holding else None,
+            hold_energy_j=self.hold_energy_j if self._holding else None)

@@ -1,9 +1,20 @@
 """The mission manager: validation, the active leg, waypoint switching, completion, commands.
 
 Pure: no clock, no bus. A mission is the ordered waypoints P_0..P_N (local NED, metres), the circle of
-acceptance r_COA, the task power T^w and the controller. The vessel follows the leg P_{i-1} -> P_i
-(i starts at 1, as in the paper's runs which start at P_0); P_i is passed when the vessel enters its
-circle of acceptance (paper section III), and entering the last circle completes the mission.
+acceptance r_COA, the task power T^w and the controller. The vessel follows the leg P_{i-1} -> P_i;
+P_i is passed when the vessel enters its circle of acceptance (paper section III), and entering the
+last circle completes the mission.
+
+The start: as QGroundControl and ArduPilot do, the vessel first goes to P_0, on the approach "leg"
+from where it was first seen after the start to P_0 (``active`` = 0), then flies P_0 -> P_1 (i = 1).
+A vessel first seen inside P_0's circle (the paper's runs, which start at P_0) starts at i = 1 at
+once, with no switch counted: exactly the former start. ``MissionRequest.join_first_leg`` joins
+P_0 -> P_1 from wherever the vessel is instead.
+
+At rest: after the last waypoint, and while the operator pauses, the vessel holds station at a
+``hold_point`` (the last waypoint; where it was when paused) unless the mission asked to drift
+(``MissionRequest.at_rest``). A pause by the controller itself (``hold``: the vehicle withholds the
+thrust, the energy budget's policy) has no hold point: zero thrust.
 """
 
 from __future__ import annotations
@@ -16,6 +27,7 @@ from seaway.contract import keys
 from seaway.contract.messages import (
     MAX_REASON_CHARS,
     MAX_TASK_POWER_W,
+    AtRest,
     ControllerName,
     LowEnergyPolicy,
     MissionCommand,
@@ -56,6 +68,9 @@ class Mission:
     home_m: Point | None = None
     """Where a return goes (the request's home, else P_0) [m]."""
     on_low_energy: LowEnergyPolicy = "return"
+    join_first_leg: bool = False
+    """Join P_0 -> P_1 from where the vessel is, instead of going to P_0 first."""
+    at_rest: AtRest = "hold"
 
     @property
     def home(self) -> Point:
@@ -119,15 +134,18 @@ def validate_mission(req: MissionRequest, origin: GeoOrigin | None,
             raise MissionError(f"home at ({home[0]:.1f}, {home[1]:.1f}) m is outside the operating "
                                f"area (max {limits.max_range_m:.0f} m from the origin)")
     return Mission(req.mission_id, tuple(points), float(req.coa_radius_m), float(req.task_power_w),
-                   req.controller, req.speed_hint_mps, home, req.on_low_energy)
+                   req.controller, req.speed_hint_mps, home, req.on_low_energy, req.join_first_leg,
+                   req.at_rest)
 
 
 class MissionManager:
-    """The active mission's state machine: idle -> active <-> paused -> complete | aborted.
+    """The active mission's state machine: idle -> [waiting ->] active <-> paused -> complete | aborted.
 
     A mission is paused by the operator (``command``) or by the controller itself (``hold``: the
     vehicle stopped applying the thrust); either way it resumes only on the operator's request.
-    ``reason`` says why it is in its state when the operator did not ask for it ("" otherwise).
+    A mission accepted while the vehicle cannot fly it ``wait``s, and becomes active by itself
+    (``release``) once it can. ``reason`` says why it is in its state when the operator did not ask
+    for it ("" otherwise). ``hold_point``: where the vessel holds station now (None: it does not).
     """
 
     def __init__(self, limits: MissionLimits = MissionLimits()) -> None:
@@ -135,15 +153,51 @@ class MissionManager:
         self.mission: Mission | None = None
         self.state: MissionState = "idle"
         self.reason = ""
-        self.active = 0  # index i of the active waypoint P_i
+        self.active = 0  # index i of the active waypoint P_i (0: on the way to P_0)
         self.switches = 0  # legs changed since the mission started (warm starts re-guess on change)
+        self.approach_from: Point | None = None  # where the way to P_0 starts (first seen there)
+        self.position: Point | None = None  # the vessel's last position seen (update)
+        self.hold_point: Point | None = None
 
-    def start(self, req: MissionRequest, origin: GeoOrigin | None) -> Mission:
-        """Validate and start ``req`` (replacing any mission); raises MissionError if refused."""
+    def start(self, req: MissionRequest, origin: GeoOrigin | None,
+              position: Point | None = None) -> Mission:
+        """Validate and start ``req`` (replacing any mission); raises MissionError if refused.
+        ``position``: where the vessel is now (local NED, m), if known; else where it is first
+        seen (``update``) decides whether it goes to P_0 first."""
         mission = validate_mission(req, origin, self.limits)
-        self.mission, self.state, self.active, self.switches = mission, "active", 1, 0
+        self.mission, self.state, self.switches = mission, "active", 0
+        self.active = 1 if mission.join_first_leg else 0
+        self.approach_from = self.hold_point = None
         self.reason = ""
+        if position is not None:
+            self._first_seen(*position)
         return mission
+
+    def _first_seen(self, x_m: float, y_m: float) -> bool:
+        """On the way to P_0: the first leg once inside P_0's circle (True if so, now)."""
+        assert self.mission is not None
+        p0 = self.mission.waypoints_m[0]
+        if math.hypot(x_m - p0[0], y_m - p0[1]) > self.mission.coa_radius_m:
+            if self.approach_from is None:
+                self.approach_from = (x_m, y_m)
+            return False
+        # In P_0's circle: its first leg. Seen there at once, it is the start the paper's runs had
+        # (no switch); arrived from outside, a waypoint switch.
+        self.switches += self.approach_from is not None
+        self.active = 1
+        return True
+
+    def wait(self, reason: str) -> None:
+        """The mission just started waits for the vehicle (``reason``: for what)."""
+        if self.mission is not None and self.state in ("active", "waiting"):
+            self.state, self.reason = "waiting", reason[:MAX_REASON_CHARS]
+
+    def release(self) -> bool:
+        """A waiting mission becomes active (the vehicle can fly it now); True if it was waiting."""
+        if self.state != "waiting":
+            return False
+        self.state, self.reason = "active", ""
+        return True
 
     def hold(self, reason: str) -> bool:
         """Pause the active mission for ``reason`` (not the operator's request); True if it was
@@ -151,7 +205,13 @@ class MissionManager:
         if self.mission is None or self.state != "active":
             return False
         self.state, self.reason = "paused", reason[:MAX_REASON_CHARS]
+        self.hold_point = None
         return True
+
+    def drift(self, reason: str) -> None:
+        """Stop holding station at rest for ``reason`` (zero thrust from now on)."""
+        if self.hold_point is not None:
+            self.hold_point, self.reason = None, reason[:MAX_REASON_CHARS]
 
     def command(self, cmd: MissionCommand) -> str:
         """Apply pause/resume/abort; returns what happened, raises MissionError if refused."""
@@ -160,6 +220,8 @@ class MissionManager:
             raise MissionError(f"cannot {c}: no mission has been set")
         self._command(c)
         self.reason = ""  # the operator's doing from now on
+        held = self.state == "paused" and self.mission.at_rest == "hold"
+        self.hold_point = self.position if held else None
         return self.state
 
     def _command(self, c: str) -> None:
@@ -172,7 +234,9 @@ class MissionManager:
                 raise MissionError(f"cannot resume: the mission is {self.state}, not paused")
             self.state = "active"
         elif c == "abort":
-            if self.state not in ("active", "paused"):
+            # A complete mission whose vessel holds station is aborted to stop the hold.
+            holding = self.state == "complete" and self.hold_point is not None
+            if self.state not in ("active", "paused", "waiting") and not holding:
                 raise MissionError(f"cannot abort: the mission is already {self.state}")
             self.state = "aborted"
 
@@ -181,22 +245,32 @@ class MissionManager:
         if self.mission is None:
             raise MissionError("no mission")
         wps = self.mission.waypoints_m
+        if self.active == 0:  # on the way to P_0; from P_0 itself until the vessel is seen
+            return self.approach_from or wps[0], wps[0]
         return wps[self.active - 1], wps[self.active]
 
     def update(self, x_m: float, y_m: float) -> Literal["switched", "complete"] | None:
         """Switch on entering P_i's circle of acceptance; complete on the last one."""
+        self.position = (x_m, y_m)
         if self.mission is None or self.state != "active":
             return None
         wps = self.mission.waypoints_m
+        switched = False
+        if self.active == 0:
+            seen_before = self.approach_from is not None
+            if not self._first_seen(x_m, y_m):
+                return None
+            switched = seen_before
         # Several circles may be entered at once; the last one keeps its leg active, complete.
         passed = path.advance_leg(self.active, x_m, y_m, wps, self.mission.coa_radius_m)
         if passed == self.active:
-            return None
+            return "switched" if switched else None
         last = len(wps) - 1
         self.switches += min(passed, last) - self.active
         self.active = min(passed, last)
         if passed > last:
             self.state = "complete"
+            self.hold_point = wps[last] if self.mission.at_rest == "hold" else None
             return "complete"
         return "switched"
 

@@ -538,7 +538,7 @@ def resume(core: ControllerCore, path: Path, now_ns: int, run_file: str | Path |
                      "launch into this folder); starting idle", path,
                      cp.request.get("mission_id", "?"))
             return
-        if cp.state not in ("active", "paused"):
+        if cp.state not in ("waiting", "active", "paused"):
             log.info("checkpoint %s: mission %s was %s; starting idle", path,
                      cp.request.get("mission_id", "?"), cp.state)
             return

@@ -409,7 +409,13 @@ class SolveRecord(Message):
     predicted_thrust_starboard_n: list[float] = Field(default_factory=list)
 
 
-MissionState = Literal["idle", "active", "paused", "complete", "aborted"]
+MissionState = Literal["idle", "waiting", "active", "paused", "complete", "aborted"]
+"""``waiting``: accepted, but the vehicle does not apply the commanded thrust yet (disarmed, a mode
+that withholds it, no link); it becomes ``active`` by itself once the vehicle does
+(``MissionStatus.reason`` says what it waits for)."""
+AtRest = Literal["hold", "drift"]
+"""What the vessel does after the last waypoint and while the operator pauses the mission: ``hold``
+station at a point (the default) or ``drift`` (zero thrust)."""
 """A mission's state: idle -> active <-> paused -> complete | aborted (the controller's machine)."""
 
 
@@ -436,6 +442,11 @@ class MissionStatus(Message):
                         "did not ask for but should know about the mission's state: why the "
                         "controller paused it (e.g. the vehicle was disarmed), or how it is flown "
                         "meanwhile; empty otherwise")
+    hold_x_m: float | None = Field(default=None, description="holding station at this point, local "
+                                   "NED north [m] (after the last waypoint, or paused); None when not")
+    hold_y_m: float | None = Field(default=None, description="the hold point, local NED east [m]")
+    hold_energy_j: float | None = Field(default=None, description="energy used holding station since "
+                                        "the hold began: propulsion + T^w [J]")
 
 
 LowEnergyPolicy = Literal["warn", "return", "hold"]
@@ -714,6 +725,11 @@ class MissionRequest(Request):
                                            "'warn', 'return' home (default) or 'hold'")
     home: Waypoint | None = Field(default=None, description="where home is; default the first "
                                   "waypoint P_0")
+    join_first_leg: bool = Field(default=False, description="join the leg P_0 -> P_1 from where the "
+                                 "vessel is; by default it first goes to P_0 (into its circle of "
+                                 "acceptance), as QGroundControl and ArduPilot do")
+    at_rest: AtRest = Field(default="hold", description="after the last waypoint and while paused "
+                            "by the operator: 'hold' station (default) or 'drift' (zero thrust)")
 
 
 class MissionCommand(Request):
@@ -754,6 +770,10 @@ class MissionAccepted(Message):
     home_x_m: float | None = Field(default=None, description="home, local NED north [m]: the "
                                    "request's, or P_0 (None only in recordings made before it)")
     home_y_m: float | None = Field(default=None, description="home, local NED east [m]")
+    join_first_leg: bool = Field(default=False, description="the request's: joined P_0 -> P_1 from "
+                                 "where the vessel was, instead of going to P_0 first")
+    at_rest: AtRest = Field(default="hold", description="the request's: 'hold' station or 'drift' "
+                            "after the last waypoint and on pause")
     resumed: bool = Field(default=False, description="re-announced by a restarted controller that "
                           "resumed it from its checkpoint: the same flight going on, not a new one")
     controller_settings: dict[Annotated[str, StringConstraints(max_length=64)], float] = Field(
