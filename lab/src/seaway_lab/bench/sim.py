@@ -34,6 +34,9 @@ from seaway_lab.bench.common import BenchResult, bench_credentials, free_rendezv
 
 TARGET_REAL_TIME_FACTOR = 200.0
 READY_TIMEOUT_S = 30.0
+BENCH_THRUST_N = (8.0, 6.0)
+"""(T1 port, T2 starboard) [N] the responder answers with, and the plant alone is stepped with:
+inside every shipped vessel's bounds (paper-sim's 10 N), so no demand is refused as absurd."""
 
 
 @contextmanager
@@ -49,7 +52,8 @@ def _private_zenoh() -> Iterator[dict[str, str]]:
 
 def _start_responder(env: dict[str, str], vessel: str) -> subprocess.Popen:
     p = subprocess.Popen([sys.executable, "-m", "seaway_lab.responder", "--vessel", vessel,
-                          "--port-n", "30", "--starboard-n", "20", "--log-level", "WARNING"],
+                          "--port-n", str(BENCH_THRUST_N[0]), "--starboard-n", str(BENCH_THRUST_N[1]),
+                          "--log-level", "WARNING"],
                          env=env, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
     ready = threading.Event()
 
@@ -73,7 +77,7 @@ def _plant_only(scenario_name: str, period_ns: int, periods: int) -> list[float]
     out = []
     for _ in range(periods):
         t0 = time.perf_counter()
-        core.advance((30.0, 20.0), period_ns)
+        core.advance(BENCH_THRUST_N, period_ns)
         core.take_samples()
         core.truth()
         core.disturbance()
