@@ -22,11 +22,9 @@ from typing import TextIO
 from seaway.contract import keys
 from seaway.contract.messages import (
     EnergyBudget,
-    MissionRequest,
     MissionStatus,
     StateEstimate,
     ThrustCommand,
-    mission_over,
 )
 from seaway.runtime.bus import Bus, Every, Newest
 
@@ -160,17 +158,6 @@ class StatusLine:
         before = self.decided[vessel]
         if budget.decision != "none" and (before is None or before.decided_ns != budget.decided_ns):
             self.decided[vessel] = budget
-
-    def complete(self, mission: MissionRequest | None) -> bool:
-        """Whether every vessel's mission is complete: the one this launcher sent, if it sent one
-        (a status of some other mission stops nothing)."""
-        self.pull()
-        return all(self._over(v, m, mission) for v, m in self.mission.items())
-
-    def _over(self, vessel: str, m: MissionStatus | None, sent: MissionRequest | None) -> bool:
-        """The mission sent is complete, or its return home that the energy budget decided
-        (``return_mission_id``) is, or the budget held it (policy 'hold': nothing more to fly)."""
-        return mission_over(m, self.energy.get(vessel), None if sent is None else sent.mission_id)
 
     def text(self, t_s: float, width: int | None = None) -> str:
         """One line for every vessel (a fleet's vessels joined by ``||``), in at most ``width``
