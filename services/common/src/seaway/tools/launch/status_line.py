@@ -199,10 +199,6 @@ class StatusLine:
             out.append(Field(RANK_SPEED, f"speed {speed_mps:4.2f} m/s", f"{speed_mps:.2f} m/s"))
         return out + self.energy_fields(vessel)
 
-    def energy_parts(self, vessel: str) -> list[str]:
-        """Energy used, to finish, to home, battery vs reserve, and the decision once taken, whole."""
-        return [f.full for f in self.energy_fields(vessel)]
-
     def energy_fields(self, vessel: str) -> list[Field]:
         """Energy used, to finish, to home, battery vs reserve, and the decision once taken: from
         the budget of the mission the status names, else the status's own figures."""
@@ -250,9 +246,6 @@ class StatusLine:
             f"{label}: energy to home {energy_text(d.energy_to_home_j)} + reserve "
             f"{energy_text(d.reserve_j or 0.0)} reached {energy_text(d.battery_remaining_j)} left"
         )
-
-    def time_text(self, state: StateEstimate | None, wall_s: float) -> str:
-        return self.time_field(state, wall_s).full
 
     def time_field(self, state: StateEstimate | None, wall_s: float) -> Field:
         if not self.lockstep:
