@@ -160,7 +160,7 @@ class VesselEnd:
             return True
         where = "home" if home_run else "the last waypoint"
         if target is None:
-            return self._refuse("origin", f"{where} is in degrees and no nav/origin was heard")
+            return self._refuse("origin", f"{where} is in degrees and no {keys.NAV_ORIGIN.suffix} was heard")
         reach = self.mission.coa_radius_m + ARRIVAL_SLACK_M  # type: ignore[union-attr]
         return self._refuse(
             "position",
