@@ -94,6 +94,11 @@ class Procs:
         self.procs.append(p)
         return p
 
+    def launch(self, env: dict[str, str], *args: str, name: str = "launcher") -> subprocess.Popen:
+        """``seaway launch ARGS`` (this interpreter's CLI) under ``env``, its output in ``name``'s
+        log."""
+        return self.start([PYTHON, "-m", "seaway.tools.cli", "launch", *args], env, name)
+
     @staticmethod
     def log(p: subprocess.Popen) -> str:
         return Path(p.log_path).read_text(errors="replace")  # type: ignore[attr-defined]

@@ -8,7 +8,7 @@ reported as the lockstep sim does). Every pricing of the budget (``EnergyBudget`
 second) from the mission's start until a tenth of its time is left (as the report's check,
 ``seaway.vessel.metrics.energy_prediction_check``) is one sample: the nominal prediction, the band
 as published (``energy_to_go_low_j`` .. ``energy_to_go_high_j``) and the energy actually used from
-then to the end (the simulator's propulsion integral plus T^w t).
+then to the end (``seaway.vessel.metrics.truth_energy_used``: the simulator's propulsion integral plus T^w t).
 
 Printed per controller: the samples, the smallest and largest actual / predicted (what
 ``seaway.vessel.energy_prediction.MEASURED`` is derived from) and the coverage of the band as
@@ -20,13 +20,13 @@ its coverage there is 1 by construction; other scenarios (``paper-c4-perturbed``
 from __future__ import annotations
 
 import argparse
-import bisect
 import json
 import sys
 from dataclasses import dataclass, field
 
 import numpy as np
 from seaway.simkit.scenario import load_scenario
+from seaway.vessel.metrics import CHECK_TAIL_FRAC, energy_used_at, truth_energy_used
 from seaway.vessel.model import load_vessel
 from seaway_estimator.core import EstimatorCore
 
@@ -34,8 +34,6 @@ from seaway_lab.closed_loop import run_closed_loop
 
 SCENARIOS = ("paper-c1", "paper-c2", "paper-c3", "paper-c4", "paper-c5", "lake")
 CONTROLLERS = ("cc-empc", "eo-empc", "nmpc")
-TAIL_FRAC = 0.1
-"""Samples stop when this fraction of the mission's time is left (as the report's check)."""
 
 
 @dataclass
@@ -71,19 +69,18 @@ def samples_of(scenario: str, controller: str) -> list[Sample]:
     r = run_closed_loop(sc, controller, estimator=EstimatorCore(vessel=load_vessel(sc.vessel)), battery=True)
     if not r.reached or r.metrics is None or r.metrics.travel_time_s is None:
         raise RuntimeError(f"{scenario} / {controller}: the mission did not complete")
-    tw = sc.mission.task_power_w
-    used = [(t.stamp_ns, t.energy_j + tw * t.stamp_ns / 1e9) for t in r.truth]
-    stamps = [s for s, _ in used]
-
-    def at(t_ns: int) -> float:
-        return used[max(bisect.bisect_right(stamps, t_ns) - 1, 0)][1]
-
+    used = truth_energy_used(r.truth, sc.mission.task_power_w)
     t0 = r.truth[0].stamp_ns
     end_ns = t0 + round(r.metrics.travel_time_s * 1e9)
-    tail_ns = end_ns - TAIL_FRAC * (end_ns - t0)
-    total = at(end_ns)
+    tail_ns = end_ns - CHECK_TAIL_FRAC * (end_ns - t0)
+    total = energy_used_at(used, end_ns)
     return [
-        Sample(b.energy_to_go_j, b.energy_to_go_low_j, b.energy_to_go_high_j, total - at(b.stamp_ns))
+        Sample(
+            b.energy_to_go_j,
+            b.energy_to_go_low_j,
+            b.energy_to_go_high_j,
+            total - energy_used_at(used, b.stamp_ns),
+        )
         for b in r.budgets
         if b.energy_to_go_j is not None and b.energy_to_go_j > 0 and b.stamp_ns <= tail_ns
     ]

@@ -11,7 +11,6 @@ the launcher makes for the run; the forger opens a session with the stack's cont
 
 from __future__ import annotations
 
-import sys
 import time
 
 import pytest
@@ -37,21 +36,7 @@ def test_a_forged_complete_from_the_controllers_identity_stops_nothing(
         env.pop(name, None)
         monkeypatch.delenv(name, raising=False)
     run = tmp_path / "run"
-    la = procs.start(
-        [
-            sys.executable,
-            "-m",
-            "seaway.tools.cli",
-            "launch",
-            "sim",
-            "--scenario",
-            str(short_lake(tmp_path, "forged")),
-            "--run-dir",
-            str(run),
-        ],
-        env,
-        "launcher",
-    )
+    la = procs.launch(env, "sim", "--scenario", str(short_lake(tmp_path, "forged")), "--run-dir", str(run))
     stack = stack_credentials()
     with Bus.open("vessel1", identity="controller", credentials=stack) as forger:
         heard: list[MissionStatus] = []

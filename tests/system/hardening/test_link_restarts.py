@@ -16,7 +16,6 @@ from __future__ import annotations
 import math
 import os
 import signal
-import sys
 
 import pytest
 from seaway.contract import keys
@@ -41,23 +40,9 @@ class Heard:
 
 def _launch(procs, zenoh_env, tmp_path, name: str, *extra: str):
     run = tmp_path / "run"
-    la = procs.start(
-        [
-            sys.executable,
-            "-m",
-            "seaway.tools.cli",
-            "launch",
-            "sim",
-            "--scenario",
-            str(short_lake(tmp_path, name)),
-            "--run-dir",
-            str(run),
-            *extra,
-        ],
-        zenoh_env,
-        "launcher",
+    return run, procs.launch(
+        zenoh_env, "sim", "--scenario", str(short_lake(tmp_path, name)), "--run-dir", str(run), *extra
     )
-    return run, la
 
 
 @pytest.mark.timeout(400)

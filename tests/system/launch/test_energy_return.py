@@ -55,12 +55,37 @@ def _scenario(tmp_path: Path, extra_j: float = EXTRA_J) -> tuple[Path, float]:
     return path, reserve
 
 
+def _env(rendezvous: str) -> dict[str, str]:
+    """This environment on a rendezvous of its own and without a Zenoh config file: the launcher
+    makes its stack's credentials, which ``stack_credentials`` then reads."""
+    env = dict(os.environ, PYTHONUNBUFFERED="1", SEAWAY_ZENOH_RENDEZVOUS=rendezvous)
+    env.pop("SEAWAY_ZENOH_CONFIG", None)
+    return env
+
+
+def _kill_the_controller_at_the_return_decision(procs, run_dir: Path, *launch: str,
+                                                interval_s: float) -> subprocess.Popen:
+    """``seaway launch LAUNCH``; SIGKILL its controller as soon as the energy budget has decided,
+    polled every ``interval_s``; the launcher, once it has exited (within 300 s)."""
+    rendezvous = f"tcp/127.0.0.1:{free_port()}"
+    launcher = procs.launch(_env(rendezvous), *launch)
+    with Bus.open("vessel1", identity="operator", credentials=stack_credentials(rendezvous),
+                  rendezvous=rendezvous) as bus:
+        energy = bus.subscribe(keys.MISSION_ENERGY, mode="latest")
+        wait_for(lambda: (b := energy.latest()) is not None and b.decision != "none", 240,
+                 interval_s=interval_s, what="the energy budget's return decision")
+        pid = subprocess.run(["pgrep", "-f", f"seaway-controller .*{run_dir}"], capture_output=True,
+                             text=True, check=False).stdout.split()
+        assert len(pid) == 1, pid
+        os.kill(int(pid[0]), signal.SIGKILL)
+        launcher.wait(300)
+    return launcher
+
+
 def test_a_low_battery_returns_home_and_a_replay_decides_the_same(tmp_path):
     scenario, reserve = _scenario(tmp_path)
     run_dir = tmp_path / "run"
-    env = dict(os.environ, PYTHONUNBUFFERED="1",
-               SEAWAY_ZENOH_RENDEZVOUS=f"tcp/127.0.0.1:{free_port()}")
-    env.pop("SEAWAY_ZENOH_CONFIG", None)
+    env = _env(f"tcp/127.0.0.1:{free_port()}")
     out = subprocess.run([str(BIN / "seaway"), "launch", "sim-batch", "--scenario", str(scenario),
                           "--run-dir", str(run_dir)], env=env, capture_output=True, text=True,
                          timeout=600, check=False)
@@ -113,43 +138,16 @@ def test_a_low_battery_returns_home_and_a_replay_decides_the_same(tmp_path):
     assert replayed[at.stamp_ns].margin_j == pytest.approx(at.margin_j, abs=1e-6)
 
 
-def test_a_controller_killed_at_the_return_decision_flies_home_as_a_return(tmp_path):
+def test_a_controller_killed_at_the_return_decision_flies_home_as_a_return(procs, tmp_path):
     """SIGKILL of the controller as soon as its budget has decided the return: the launcher
     restarts it, and the new one resumes the flight home as the budget's return (its budgets say
     returning, decision 'return'), not as a mission of its own whose 'warn' policy fires at once."""
     scenario, reserve = _scenario(tmp_path, extra_j=8_000.0)  # decided after a few seconds
     run_dir = tmp_path / "run"
-    env = dict(os.environ, PYTHONUNBUFFERED="1",
-               SEAWAY_ZENOH_RENDEZVOUS=f"tcp/127.0.0.1:{free_port()}")
-    env.pop("SEAWAY_ZENOH_CONFIG", None)
-    with open(tmp_path / "launch.log", "w") as out:
-        launcher = subprocess.Popen(
-            [str(BIN / "seaway"), "launch", "sim-batch", "--scenario", str(scenario),
-             "--run-dir", str(run_dir)], env=env, stdout=out, stderr=subprocess.STDOUT,
-            start_new_session=True)
-    bus = None
-    try:
-        rendezvous = env["SEAWAY_ZENOH_RENDEZVOUS"]
-        bus = Bus.open("vessel1", identity="operator", credentials=stack_credentials(rendezvous),
-                       rendezvous=rendezvous)
-        energy = bus.subscribe(keys.MISSION_ENERGY, mode="latest")
-
-        def decided() -> bool:
-            b = energy.latest()
-            return b is not None and b.decision != "none"
-        wait_for(decided, 240, interval_s=0.002, what="the energy budget's return decision")
-        pid = subprocess.run(["pgrep", "-f", f"seaway-controller .*{run_dir}"], capture_output=True,
-                             text=True, check=False).stdout.split()
-        assert len(pid) == 1, pid
-        os.kill(int(pid[0]), signal.SIGKILL)
-        rc = launcher.wait(300)
-    finally:
-        if launcher.poll() is None:
-            os.killpg(launcher.pid, signal.SIGKILL)
-            launcher.wait(10)
-        if bus is not None:
-            bus.close()
-    assert rc == 0, (tmp_path / "launch.log").read_text()[-4000:]
+    launcher = _kill_the_controller_at_the_return_decision(
+        procs, run_dir, "sim-batch", "--scenario", str(scenario), "--run-dir", str(run_dir),
+        interval_s=0.002)
+    assert launcher.returncode == 0, procs.log(launcher)[-4000:]
     log = (run_dir / "logs" / "controller.log").read_text()
     assert log.count(" starting on vessel") == 2, "the controller was not restarted"
     restarted = log.split(" starting on vessel")[-1]
@@ -174,38 +172,15 @@ def test_a_controller_killed_at_the_return_decision_flies_home_as_a_return(tmp_p
 
 
 @pytest.mark.slow  # a real-time lake mission to its decision, a restart and the way home: ~40 s
-def test_real_time_a_controller_killed_at_the_return_decision_flies_home_as_a_return(tmp_path):
+def test_real_time_a_controller_killed_at_the_return_decision_flies_home_as_a_return(procs, tmp_path):
     """The same kill in real time (the issue's case: ``seaway launch sim``): the restarted
     controller resumes the way home as the budget's return, without a traceback."""
     scenario, _reserve = _scenario(tmp_path, extra_j=8_000.0)
     run_dir = tmp_path / "run"
-    rendezvous = f"tcp/127.0.0.1:{free_port()}"
-    env = dict(os.environ, PYTHONUNBUFFERED="1", SEAWAY_ZENOH_RENDEZVOUS=rendezvous)
-    env.pop("SEAWAY_ZENOH_CONFIG", None)
-    with open(tmp_path / "launch.log", "w") as out:
-        launcher = subprocess.Popen(
-            [str(BIN / "seaway"), "launch", "sim", "--scenario", str(scenario), "--run-dir",
-             str(run_dir), "--no-report"], env=env, stdout=out, stderr=subprocess.STDOUT,
-            start_new_session=True)
-    bus = None
-    try:
-        bus = Bus.open("vessel1", identity="operator", credentials=stack_credentials(rendezvous),
-                       rendezvous=rendezvous)
-        energy = bus.subscribe(keys.MISSION_ENERGY, mode="latest")
-        wait_for(lambda: (b := energy.latest()) is not None and b.decision != "none", 240,
-                 interval_s=0.01, what="the energy budget's return decision")
-        pid = subprocess.run(["pgrep", "-f", f"seaway-controller .*{run_dir}"], capture_output=True,
-                             text=True, check=False).stdout.split()
-        assert len(pid) == 1, pid
-        os.kill(int(pid[0]), signal.SIGKILL)
-        rc = launcher.wait(300)
-    finally:
-        if launcher.poll() is None:
-            os.killpg(launcher.pid, signal.SIGKILL)
-            launcher.wait(10)
-        if bus is not None:
-            bus.close()
-    assert rc == 0, (tmp_path / "launch.log").read_text()[-4000:]
+    launcher = _kill_the_controller_at_the_return_decision(
+        procs, run_dir, "sim", "--scenario", str(scenario), "--run-dir", str(run_dir), "--no-report",
+        interval_s=0.01)
+    assert launcher.returncode == 0, procs.log(launcher)[-4000:]
     log = (run_dir / "logs" / "controller.log").read_text()
     assert log.count(" starting on vessel") == 2, "the controller was not restarted"
     restarted = log.split(" starting on vessel")[-1]

@@ -44,20 +44,7 @@ per_vessel = true
 command = [{dummy}, "--service", "controller", "--publish-thrust", "20"]
 """)
     run = tmp_path / "run"
-    la = procs.start(
-        [
-            sys.executable,
-            "-m",
-            "seaway.tools.cli",
-            "launch",
-            str(profile),
-            "--run-dir",
-            str(run),
-            "--no-report",
-        ],
-        env,
-        "launcher",
-    )
+    la = procs.launch(env, str(profile), "--run-dir", str(run), "--no-report")
     wait_for(lambda: "all ready" in procs.log(la), 60, what="all ready")
 
     for args in (["health", "--wait", "0.2"], ["vehicle", "status", "--timeout", "2"]):

@@ -11,7 +11,15 @@ from types import SimpleNamespace as S
 import pytest
 from seaway.contract.units import NS_PER_S
 from seaway.vessel import metrics
-from seaway.vessel.metrics import MAX_GRID_SAMPLES, median, mission_metrics, percentile, rms
+from seaway.vessel.metrics import (
+    MAX_GRID_SAMPLES,
+    energy_used_at,
+    median,
+    mission_metrics,
+    percentile,
+    rms,
+    truth_energy_used,
+)
 
 NS = NS_PER_S
 WPS = [(0.0, 0.0), (10.0, 0.0), (10.0, 10.0)]
@@ -70,6 +78,18 @@ def test_mission_start_and_energy_from_cumulative_energy() -> None:
     assert m.task_energy_j == pytest.approx(0.5 * dur)
     assert m.energy_j == pytest.approx(2.5 * dur)
     assert m.energy_source == "sim/truth energy_j"
+
+
+
+def test_the_truth_side_energy_used_is_the_reports() -> None:
+    # The energy used that benches and the band's measurement read off the sim's truth is the
+    # metrics' energy between the same two stamps; a lookup takes the newest sample at or before.
+    states = [pose(s.stamp_ns / NS, s.x_m, s.y_m, energy_j=2.0 * s.stamp_ns / NS) for s in straight_run()]
+    m = mission_metrics(states, WPS, 1.0, 0.5, energy_j=[s.energy_j for s in states], mission_start_ns=3 * NS)
+    used = truth_energy_used(states, 0.5)
+    assert energy_used_at(used, m.end_ns) - energy_used_at(used, m.start_ns) == pytest.approx(m.energy_j)
+    assert energy_used_at(used, 3 * NS + NS // 20) == energy_used_at(used, 3 * NS)  # between samples
+    assert energy_used_at(used, -1) == used[0][1]  # before the first: the first
 
 
 def test_energy_from_thrusts_held_until_the_next_one() -> None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 from seaway.contract.messages import EnergyBudget, MissionStatus, StateEstimate, ThrustCommand
-from seaway.tools.launch.status_line import StatusLine, energy_text
+from seaway.tools.launch.status_line import Field, StatusLine, energy_text
 
 
 def state(t_s: float) -> StateEstimate:
@@ -13,23 +13,28 @@ def state(t_s: float) -> StateEstimate:
                          y_m=0.0, psi_rad=0.0)
 
 
+def full(fields: list[Field]) -> list[str]:
+    """The fields' whole texts."""
+    return [f.full for f in fields]
+
+
 def test_lockstep_shows_sim_time_and_speed_up() -> None:
     line = StatusLine(["v1"], lockstep=True)
-    assert line.time_text(None, 0.2) == "sim t     - s"
-    assert line.time_text(state(1.0), 2.0) == "sim t     1 s"  # the first state: no rate yet
-    assert line.time_text(state(121.0), 4.0) == "sim t   121 s (  60x real time)"  # 120 s in 2 s
+    assert line.time_field(None, 0.2).full == "sim t     - s"
+    assert line.time_field(state(1.0), 2.0).full == "sim t     1 s"  # the first state: no rate yet
+    assert line.time_field(state(121.0), 4.0).full == "sim t   121 s (  60x real time)"  # 120 s in 2 s
     # The sim holding (the mission complete): the rate stays that of the run, not falling with
     # every wall second that passes.
-    assert line.time_text(state(121.0), 30.0) == "sim t   121 s (  60x real time)"
-    assert line.time_text(state(151.0), 31.0) == "sim t   151 s (   5x real time)"  # 150 s in 29 s
+    assert line.time_field(state(121.0), 30.0).full == "sim t   121 s (  60x real time)"
+    assert line.time_field(state(151.0), 31.0).full == "sim t   151 s (   5x real time)"  # 150 s in 29 s
     # A new episode (sim time went back) starts the rate afresh.
-    assert line.time_text(state(0.5), 10.0) == "sim t     0 s"
-    assert line.time_text(state(20.5), 11.0) == "sim t    20 s (  20x real time)"
+    assert line.time_field(state(0.5), 10.0).full == "sim t     0 s"
+    assert line.time_field(state(20.5), 11.0).full == "sim t    20 s (  20x real time)"
 
 
 def test_real_time_shows_wall_time() -> None:
     line = StatusLine(["v1"])
-    assert line.time_text(state(500.0), 12.4) == "t    12 s"
+    assert line.time_field(state(500.0), 12.4).full == "t    12 s"
     line.state["v1"] = state(3.0)
     assert line.vessel_text("v1", 7.0).startswith("v1 | t     7 s | no mission status yet")
 
@@ -71,7 +76,7 @@ def test_the_line_shows_the_budget_of_the_mission_flown() -> None:
     line = StatusLine(["v1"])
     line.mission["v1"] = status()
     # Before any budget: the mission status's own figures.
-    assert line.energy_parts("v1") == ["used 7.00 J", "to finish 8.00 J"]
+    assert full(line.energy_fields("v1")) == ["used 7.00 J", "to finish 8.00 J"]
     line.on_energy("v1", budget())
     text = line.vessel_text("v1", 3.0)
     # Energy used is the status's count (every period), not the budget's (priced once a second):
@@ -79,12 +84,12 @@ def test_the_line_shows_the_budget_of_the_mission_flown() -> None:
     assert text.endswith("used 7.00 J | to finish 45.6 kJ | to home 3.21 kJ | "
                          "battery 150 kJ (reserve 106 kJ)"), text
     line.mission["v1"] = status().model_copy(update={"energy_used_j": None})
-    assert line.energy_parts("v1")[0] == "used 1.23 kJ"  # a status without one: the budget's
+    assert full(line.energy_fields("v1"))[0] == "used 1.23 kJ"  # a status without one: the budget's
     line.mission["v1"] = status()
     assert "\n" not in text and "RETURN" not in text
     # Another mission's budget (the previous one's last) is not shown against this one.
     line.mission["v1"] = status(mission_id="next")
-    assert line.energy_parts("v1") == ["used 7.00 J", "to finish 8.00 J"]
+    assert full(line.energy_fields("v1")) == ["used 7.00 J", "to finish 8.00 J"]
 
 
 def test_the_decision_says_what_reached_what_at_the_period_it_was_taken() -> None:
@@ -102,7 +107,7 @@ def test_the_decision_says_what_reached_what_at_the_period_it_was_taken() -> Non
     assert text.endswith("| to home 9.00 kJ | battery 117 kJ (reserve 106 kJ) | RETURNING: energy "
                          "to home 12.3 kJ + reserve 106 kJ reached 118 kJ left"), text
     line.mission["v1"] = status("complete", "box/return")
-    assert line.energy_parts("v1")[-1].startswith("RETURNED: energy to home 12.3 kJ")
+    assert full(line.energy_fields("v1"))[-1].startswith("RETURNED: energy to home 12.3 kJ")
 
 
 def test_the_decisions_figures_are_those_of_its_own_period() -> None:
@@ -110,7 +115,7 @@ def test_the_decisions_figures_are_those_of_its_own_period() -> None:
     line.mission["v1"] = status()
     line.on_energy("v1", budget(decision="hold", decided_ns=70))
     line.on_energy("v1", budget(decision="hold", decided_ns=70, energy_to_home_j=1.0))
-    assert line.energy_parts("v1")[-1] == ("HOLDING: energy to home 3.21 kJ + reserve 106 kJ "
+    assert full(line.energy_fields("v1"))[-1] == ("HOLDING: energy to home 3.21 kJ + reserve 106 kJ "
                                            "reached 150 kJ left")
 
 
@@ -119,10 +124,10 @@ def test_a_decision_whose_period_was_not_heard_shows_the_controllers_reason() ->
     line.mission["v1"] = status()
     line.on_energy("v1", budget(decision="warn", decided_ns=1))
     line.energy["v1"] = budget(decision="warn", decided_ns=2, reason="the controller's words")
-    assert line.energy_parts("v1")[-1] == "LOW ENERGY: the controller's words"
+    assert full(line.energy_fields("v1"))[-1] == "LOW ENERGY: the controller's words"
 
 
-def test_on_a_bus_it_shows_and_judges_by_the_newest_status_and_state() -> None:
+def test_on_a_bus_it_shows_the_newest_status_and_state() -> None:
     from seaway.contract import keys
     from seaway.runtime.memory_bus import MemoryBus
 
@@ -132,14 +137,17 @@ def test_on_a_bus_it_shows_and_judges_by_the_newest_status_and_state() -> None:
     for t in (1.0, 2.0, 3.0):  # in lockstep hundreds a second: only the newest is decoded
         bus.publisher(keys.NAV_STATE).put(state(t))
     received = bus.stats.received
-    assert line.mission["v1"] is None and not line.complete(None)
+    line.pull()
+    assert line.mission["v1"] is None
     assert line.state["v1"] == state(3.0) and bus.stats.received == received + 1
     bus.publisher(keys.THRUST).put(ThrustCommand(stamp_ns=1, thrust_port_n=2.4,
                                                  thrust_starboard_n=-0.6, source="identify"))
     line.show(4.0)
     assert line.thrust["v1"] is not None and line.thrust["v1"].thrust_port_n == 2.4
     bus.publisher(keys.MISSION_STATUS).put(status("complete"))
-    assert line.complete(None)  # read when asked, not when heard
+    assert line.mission["v1"] is None  # read when asked, not when heard
+    line.pull()
+    assert line.mission["v1"] is not None and line.mission["v1"].state == "complete"
     bus.publisher(keys.MISSION_ENERGY).put(budget(decision="warn", decided_ns=1))
     for _ in range(3):  # later budgets, before the line looks again
         bus.publisher(keys.MISSION_ENERGY).put(budget())
@@ -160,7 +168,7 @@ def busy(vessels: list[str]) -> StatusLine:
         line.mission[v] = MissionStatus(stamp_ns=1, state="active", mission_id="box", active_leg=2,
                                         waypoint_count=5, cross_track_m=-1.25, energy_used_j=7.0)
         line.state[v] = state(10.0)
-        line.time_text(line.state[v], 1.0)
+        line.time_field(line.state[v], 1.0)  # the first state seen, for the rate
         line.state[v] = state(130.0)
         line.on_energy(v, budget(decision="return", decided_ns=5))
     return line
@@ -186,7 +194,7 @@ def test_the_line_fits_the_width_keeping_the_most_important_fields(vessels, widt
 
 
 def test_fit_shortens_then_leaves_out_the_least_important_first() -> None:
-    from seaway.tools.launch.status_line import Field, fit
+    from seaway.tools.launch.status_line import fit
 
     fields = [Field(0, "alpha"), Field(2, "bravo long", "bravo"), Field(1, "charlie long", "ch")]
     assert fit(fields, None) == "alpha | bravo long | charlie long"

@@ -20,7 +20,7 @@ from __future__ import annotations
 import argparse
 
 from seaway.simkit.scenario import load_scenario
-from seaway.vessel.metrics import energy_prediction_check
+from seaway.vessel.metrics import energy_prediction_check, truth_energy_used
 from seaway.vessel.model import load_vessel
 from seaway_estimator.core import EstimatorCore
 
@@ -53,8 +53,7 @@ def run(argv: list[str]) -> BenchResult:
                               progress=lambda t, i=i, name=name: progress.show(
                                   i, f"{name}: {t:6.1f} s simulated"))
         progress.step(i + 1, f"{name} flown ({i + 1}/{len(names)})")
-        tw = sc.mission.task_power_w
-        used = [(t.stamp_ns, t.energy_j + tw * t.stamp_ns / 1e9) for t in out.truth]
+        used = truth_energy_used(out.truth, sc.mission.task_power_w)
         m = out.metrics
         assert m is not None
         end_ns = (out.truth[0].stamp_ns + round(m.travel_time_s * 1e9)

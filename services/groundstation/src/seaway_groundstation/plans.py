@@ -31,7 +31,7 @@ from typing import Any, Literal
 from seaway.area.geojson import AREA_PROPERTY, geojson_features, spec_from_geojson
 from seaway.area.model import AreaError
 from seaway.area.plan import plan_sections, spec_from_plan
-from seaway.area.spec import AreaSpec
+from seaway.area.spec import AreaSpec, read_lat_lon
 
 NAV_WAYPOINT = 16
 """MAV_CMD_NAV_WAYPOINT: the only mission item that becomes a Seaway waypoint."""
@@ -123,19 +123,12 @@ def parse_document(doc: Any, *, skip_unsupported: bool = False,
     return parse_geojson(doc, skip_unsupported=skip_unsupported, max_waypoints=max_waypoints)
 
 
-def _number(value: Any, where: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        raise PlanError(f"{where}: expected a finite number, got {json.dumps(value)}")
-    return float(value)
-
-
 def _lat_lon(lat: Any, lon: Any, where: str) -> tuple[float, float]:
-    lat_deg, lon_deg = _number(lat, f"{where} latitude"), _number(lon, f"{where} longitude")
-    if not -90.0 <= lat_deg <= 90.0:
-        raise PlanError(f"{where}: latitude {lat_deg} deg is outside [-90, 90]")
-    if not -180.0 <= lon_deg <= 180.0:
-        raise PlanError(f"{where}: longitude {lon_deg} deg is outside [-180, 180]")
-    return lat_deg, lon_deg
+    """(lat_deg, lon_deg), read as an area's positions are (``read_lat_lon``); PlanError if not."""
+    try:
+        return read_lat_lon([lat, lon], where)
+    except AreaError as err:
+        raise PlanError(str(err)) from None
 
 
 def _check_count(kind: str, points: Sequence[tuple[float, float]], skipped: Sequence[str],

@@ -263,7 +263,36 @@ def _thrust_energy(thrusts: Sequence[Thrust], alpha: float, t0: int, t1: int, at
     return curve[-1], curve[:-1]
 
 
-# -- how good the energy-to-finish prediction was (issue #17) -----------------------------------------
+# -- energy used, and how good the energy-to-finish prediction was (issue #17) -----------------------
+
+
+class Drawn(Protocol):
+    """A sample of the simulator's propulsion integral: ``SimTruth``."""
+
+    stamp_ns: int
+    energy_j: float
+
+
+EnergyUsed = Sequence[tuple[int, float]]
+"""(stamp [ns], energy used [J]) in time order; a difference of two is the energy used between."""
+
+CHECK_TAIL_FRAC = 0.1
+"""Predictions are judged until this fraction of the mission's time is left: closer to the end, a
+few joules of misprediction are a large fraction of what is left, and nothing depends on them."""
+
+
+def truth_energy_used(truth: Sequence[Drawn], task_power_w: float) -> list[tuple[int, float]]:
+    """The energy used (paper eq. 3) at each simulator sample: its propulsion integral
+    (``energy_j`` [J]) plus T^w t, ``task_power_w`` [W] times the stamp [s]. Only differences mean
+    anything (the same energy the report's metrics integrate, ``mission_metrics``)."""
+    return [(t.stamp_ns, t.energy_j + task_power_w * t.stamp_ns / NS_PER_S) for t in truth]
+
+
+def energy_used_at(used: EnergyUsed, t_ns: int) -> float:
+    """The energy used at ``t_ns`` [ns]: that of the newest sample at or before it (the first
+    sample's before the first)."""
+    i = bisect_right(used, t_ns, key=lambda u: u[0]) - 1
+    return used[max(i, 0)][1]
 
 
 @dataclass(frozen=True)
@@ -285,9 +314,8 @@ class PredictionCheck:
     """The energy to finish as predicted along a mission against the energy actually used.
 
     ``start``: the first prediction; ``half``: the first at or after half the mission's time;
-    ``last_half_max_abs_error_frac``: the worst |error| of every prediction from there until a
-    tenth of the mission is left (closer to the end, a few joules of misprediction are a large
-    fraction of what is left, and nothing depends on them)."""
+    ``last_half_max_abs_error_frac``: the worst |error| of every prediction from there until
+    ``CHECK_TAIL_FRAC`` of the mission is left."""
 
     points: list[PredictionPoint]
     start: PredictionPoint | None
@@ -300,12 +328,10 @@ def energy_prediction_check(predicted: Sequence[tuple[int, float]],
     """Compare predictions (stamp [ns], energy to finish [J]) with the energy actually used from
     each stamp to ``end_ns`` [ns], from ``used``: (stamp [ns], energy used since the start [J]),
     in time order, read as the newest sample at or before a time (the report's energy integral,
-    or the simulator's ``energy_j`` plus T^w t)."""
-    stamps = [s for s, _ in used]
+    or the simulator's ``energy_j`` plus T^w t: ``truth_energy_used``)."""
 
     def at(t_ns: int) -> float:
-        i = bisect_right(stamps, t_ns) - 1
-        return used[max(i, 0)][1]
+        return energy_used_at(used, t_ns)
 
     preds = [(s, p) for s, p in predicted if s <= end_ns and math.isfinite(p)]
     if not preds or not used:
@@ -314,7 +340,7 @@ def energy_prediction_check(predicted: Sequence[tuple[int, float]],
     total = at(end_ns)
     points = [PredictionPoint((s - t0) / NS_PER_S, p, total - at(s)) for s, p in preds]
     half_ns = t0 + (end_ns - t0) / 2
-    tail_ns = end_ns - (end_ns - t0) / 10
+    tail_ns = end_ns - CHECK_TAIL_FRAC * (end_ns - t0)
     half = next((pt for (s, _), pt in zip(preds, points, strict=True) if s >= half_ns), None)
     errs = [abs(pt.error_frac) for (s, _), pt in zip(preds, points, strict=True)
             if half_ns <= s <= tail_ns and math.isfinite(pt.error_frac)]

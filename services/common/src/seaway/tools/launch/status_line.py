@@ -22,11 +22,9 @@ from typing import TextIO
 from seaway.contract import keys
 from seaway.contract.messages import (
     EnergyBudget,
-    MissionRequest,
     MissionStatus,
     StateEstimate,
     ThrustCommand,
-    mission_over,
 )
 from seaway.runtime.bus import Bus, Every, Newest
 
@@ -161,17 +159,6 @@ class StatusLine:
         if budget.decision != "none" and (before is None or before.decided_ns != budget.decided_ns):
             self.decided[vessel] = budget
 
-    def complete(self, mission: MissionRequest | None) -> bool:
-        """Whether every vessel's mission is complete: the one this launcher sent, if it sent one
-        (a status of some other mission stops nothing)."""
-        self.pull()
-        return all(self._over(v, m, mission) for v, m in self.mission.items())
-
-    def _over(self, vessel: str, m: MissionStatus | None, sent: MissionRequest | None) -> bool:
-        """The mission sent is complete, or its return home that the energy budget decided
-        (``return_mission_id``) is, or the budget held it (policy 'hold': nothing more to fly)."""
-        return mission_over(m, self.energy.get(vessel), None if sent is None else sent.mission_id)
-
     def text(self, t_s: float, width: int | None = None) -> str:
         """One line for every vessel (a fleet's vessels joined by ``||``), in at most ``width``
         characters (None: whole); each vessel gets an equal share."""
@@ -211,10 +198,6 @@ class StatusLine:
             speed_mps = (s.u_mps**2 + s.v_mps**2) ** 0.5
             out.append(Field(RANK_SPEED, f"speed {speed_mps:4.2f} m/s", f"{speed_mps:.2f} m/s"))
         return out + self.energy_fields(vessel)
-
-    def energy_parts(self, vessel: str) -> list[str]:
-        """Energy used, to finish, to home, battery vs reserve, and the decision once taken, whole."""
-        return [f.full for f in self.energy_fields(vessel)]
 
     def energy_fields(self, vessel: str) -> list[Field]:
         """Energy used, to finish, to home, battery vs reserve, and the decision once taken: from
@@ -263,9 +246,6 @@ class StatusLine:
             f"{label}: energy to home {energy_text(d.energy_to_home_j)} + reserve "
             f"{energy_text(d.reserve_j or 0.0)} reached {energy_text(d.battery_remaining_j)} left"
         )
-
-    def time_text(self, state: StateEstimate | None, wall_s: float) -> str:
-        return self.time_field(state, wall_s).full
 
     def time_field(self, state: StateEstimate | None, wall_s: float) -> Field:
         if not self.lockstep:
