@@ -30,7 +30,8 @@ solver a mission needs (its controller's, and no other) is made when the mission
 thread of its own: loaded from the cache, or compiled the first time on a machine (seconds to
 minutes); the mission starts once it is ready, or after ``SOLVER_REPLY_WAIT_S`` (a compile). Until
 it is ready, real time flies with the reference IPOPT (line-of-sight guidance
-while IPOPT itself is set up, on a thread too: ``solvers.StagedSolver``) and lockstep answers "hold"
+while IPOPT itself is set up, on a thread too: ``solvers.StagedSolver``; each of its solves runs in
+the control loop and is stopped at the control period) and lockstep answers "hold"
 (simulated time waits, so the run is the one a warm start gives); the mission/set reply and
 ``MissionStatus.reason`` say so, and the log says how far it got.
 
@@ -48,6 +49,7 @@ last one before the process ends; lockstep writes it in the answer's turn, not d
 from __future__ import annotations
 
 import argparse
+import functools
 import logging
 import sys
 import threading
@@ -85,7 +87,7 @@ from seaway.vessel.model import load_vessel
 from seaway_controller import checkpoint
 from seaway_controller.core import BudgetDecision, ControllerConfig, ControllerCore
 from seaway_controller.mission import MissionLimits
-from seaway_controller.solvers import SOLVER_KINDS, SolverBuilds, StagedSolver
+from seaway_controller.solvers import SOLVER_KINDS, IpoptSolver, SolverBuilds, StagedSolver
 
 log = logging.getLogger("seaway_controller.service")
 NAME = "controller"
@@ -492,7 +494,9 @@ class ControllerService:
                 last_stamp = state.stamp_ns
                 if (now - state.stamp_ns) / 1e9 <= max_state_age_s:
                     stale_reported = False
+                    t0 = time.perf_counter()
                     self.step(now, state)
+                    warn_slow_step(self.ratelog, time.perf_counter() - t0, 1.0 / rate_hz)
                     continue
             if last_stamp is not None and (now - last_stamp) / 1e9 > max_state_age_s:
                 # No fresh state: hold still rather than act on old information.
@@ -523,6 +527,18 @@ class ControllerService:
             accepted = self.core.accepted_due(now_ns)
         if accepted is not None:
             self.pub_accepted.put(accepted)
+
+
+def warn_slow_step(ratelog: RateLimitedLog, took_s: float, period_s: float) -> bool:
+    """Real time: a WARNING (rate-limited) when one control step took ``took_s`` [s], longer than
+    the control period ``period_s`` [s], so that a late or missing command names its cause in the
+    log. True if the step was slow."""
+    if took_s <= period_s:
+        return False
+    ratelog.warning("slow-step", "a control step took %.3f s, longer than the control period "
+                    "(%.3f s): the thrust command came late; the solve records (ctrl/solve) say "
+                    "which solver ran", took_s, period_s)
+    return True
 
 
 def resume(core: ControllerCore, path: Path, now_ns: int, run_file: str | Path | None = None
@@ -582,7 +598,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         factory = None
         if args.solver == "generated":
             builds = SolverBuilds(stopping=ctx.stop)
-            factory = lambda ocp: StagedSolver(ocp, builds, wait=run.lockstep)  # noqa: E731
+            # Real time solves the reference on the control loop's thread: bounded by the period.
+            reference = (IpoptSolver if run.lockstep
+                         else functools.partial(IpoptSolver, time_limit_s=period_s))
+            factory = lambda ocp: StagedSolver(ocp, builds, reference,  # noqa: E731
+                                               wait=run.lockstep)
         core = ControllerCore(vessel, config, solver_factory=factory)
         log.info("solver %s, made per mission; model %s, control period (OCP dt) %g s, %s clock",
                  args.solver, run.model_vessel_file, period_s, run.clock)
