@@ -79,6 +79,7 @@ from seaway.runtime.lockstep import Member, Period
 from seaway.runtime.ratelog import RateLimitedLog
 from seaway.runtime.run import from_earlier_launch
 from seaway.runtime.service import ServiceContext, base_parser, parse, resolve_run, run_service
+from seaway.runtime.stallwatch import StallWatch
 from seaway.runtime.stamps import StampBounds, StampGate
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.frames import GeoOrigin
@@ -96,6 +97,12 @@ CHECKPOINT_PERIOD_NS = 1_000_000_000
 wall time live, simulated time in lockstep. What a restart can lose is the energy of this long."""
 CHECKPOINT_CLOSE_S = 5.0
 """How long a stopping controller waits for its last checkpoint to be written (real time) [s]."""
+
+
+STEP_STALL_S = 1.0
+"""Real time: a control step still running after this long is logged with the loop's stack
+(``seaway.runtime.stallwatch``) [s]: past vehicle_io's thrust watchdog, well before the launcher's
+liveness restarts a controller silent on ``ctrl/thrust``, so the log says where it hung."""
 
 
 SOLVER_REPLY_WAIT_S = 2.0
@@ -146,6 +153,8 @@ class ControllerService:
         # subscription exists, before this constructor returns, and uses these.
         self.stamps = StampGate(NAME, log, StampBounds.live())  # real time: states not ahead of now
         self.ratelog = RateLimitedLog(log)  # a step failing every period: a traceback now and then
+        # Real time: a step stuck for long is logged with where it is, before a restart ends it.
+        self.watch = StallWatch(log, "control loop", STEP_STALL_S, ctx.stop)
         bus = ctx.bus
         self.member: Member | None = None
         self._states: dict[int, StateEstimate] = {}  # lockstep: the states of recent periods by stamp
@@ -495,7 +504,11 @@ class ControllerService:
                 if (now - state.stamp_ns) / 1e9 <= max_state_age_s:
                     stale_reported = False
                     t0 = time.perf_counter()
-                    self.step(now, state)
+                    self.watch.begin()
+                    try:
+                        self.step(now, state)
+                    finally:
+                        self.watch.end()
                     warn_slow_step(self.ratelog, time.perf_counter() - t0, 1.0 / rate_hz)
                     continue
             if last_stamp is not None and (now - last_stamp) / 1e9 > max_state_age_s:
