@@ -9,6 +9,7 @@ injected solver (test_core's ``ScriptedSolver``), so nothing is compiled.
 from __future__ import annotations
 
 import contextlib
+import logging
 import threading
 import time
 from collections.abc import Iterator
@@ -28,10 +29,12 @@ from seaway.runtime.bus import TypedSubscriber
 from seaway.runtime.clock import WallClock
 from seaway.runtime.lockstep import Member, Period
 from seaway.runtime.memory_bus import MemoryBus, MemoryHub
+from seaway.runtime.ratelog import RateLimitedLog
 from seaway.runtime.run import RunDescription
 from seaway.runtime.service import ServiceContext
 from seaway_controller import checkpoint
-from seaway_controller.service import ControllerService
+from seaway_controller import service as service_module
+from seaway_controller.service import ControllerService, warn_slow_step
 
 from tests.conftest import wait_for
 from tests.unit.controller.test_core import DT_NS, ScriptedSolver, make_core, mission, state
@@ -300,3 +303,110 @@ def test_a_report_that_comes_as_the_real_time_service_subscribes_is_taken() -> N
     assert svc.core.battery.report is not None and svc.core.battery.report.remaining_j == 5_000.0
     assert svc.core.vehicle is not None
     bus.close()
+
+
+class SlowSolver(ScriptedSolver):
+    """Takes ``sleep_s`` of wall time in each solve, as a reference IPOPT on the loop could."""
+
+    def __init__(self, sleep_s: float) -> None:
+        super().__init__()
+        self.sleep_s = sleep_s
+
+    def solve(self, w0, p, lam_x0, lam_g0):
+        time.sleep(self.sleep_s)
+        return super().solve(w0, p, lam_x0, lam_g0)
+
+
+def test_a_real_time_step_longer_than_the_period_names_itself_in_the_log(caplog) -> None:
+    """A real-time controller stalled in its step (issue #56 item 2: the vessel stopped with
+    ``thrust_stale`` and nothing in the controller's log said why): a step that takes longer
+    than the control period is logged as a WARNING with how long it took."""
+    hub = MemoryHub()
+    stop = threading.Event()
+    ctx = ServiceContext(name="controller", vessel=VESSEL, bus=hub.bus(VESSEL), clock=WallClock(),
+                         stop=stop, run=RunDescription(run_id="unit", vessel=VESSEL))
+    period_s = 0.02
+    svc = ControllerService(ctx, make_core(SlowSolver(sleep_s=5 * period_s)), lockstep=False)
+    estimator = hub.bus(VESSEL)
+    nav = estimator.publisher(keys.NAV_STATE)
+    assert svc._serve("mission/set", svc.core.handle_mission, mission()).accepted
+    loop = threading.Thread(target=svc.run_rate, args=(1.0 / period_s, 5.0), daemon=True)
+    caplog.set_level("WARNING", logger="seaway_controller.service")
+
+    def slow_step_logged() -> bool:
+        nav.put(state(0).model_copy(update={"stamp_ns": ctx.clock.now_ns()}))
+        return any("control step took" in r.getMessage() for r in caplog.records)
+
+    try:
+        loop.start()
+        wait_for(slow_step_logged, 10, interval_s=0.05, what="the slow step's WARNING")
+    finally:
+        stop.set()
+        loop.join(5)
+        for bus in (ctx.bus, estimator):
+            bus.close()
+    slow = [r for r in caplog.records if "control step took" in r.getMessage()]
+    assert slow[0].levelname == "WARNING"
+    took_s = float(slow[0].getMessage().split("took ")[1].split(" s")[0])
+    assert took_s > period_s
+
+
+def test_a_step_within_the_period_is_not_logged(caplog) -> None:
+    caplog.set_level("WARNING", logger="seaway_controller.service")
+    ratelog = RateLimitedLog(logging.getLogger("seaway_controller.service"))
+    assert not warn_slow_step(ratelog, 0.05, 0.1)
+    assert warn_slow_step(ratelog, 0.15, 0.1)
+    assert len(caplog.records) == 1
+
+
+class StuckSolver(ScriptedSolver):
+    """Blocks in its solve until released, as a hung computation on the loop's thread would."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.release = threading.Event()
+
+    def solve(self, w0, p, lam_x0, lam_g0):
+        self.release.wait(30)
+        return super().solve(w0, p, lam_x0, lam_g0)
+
+
+def test_a_real_time_step_stuck_for_long_is_logged_with_where_it_is_while_stuck(
+        caplog, monkeypatch) -> None:
+    """A controller silent on ctrl/thrust for seconds is restarted by the launcher's liveness, and
+    its log said nothing of why (issue #56 item 2). While a step is stuck, the log now says so with
+    the loop thread's stack (here: inside the solver), before the step returns."""
+    monkeypatch.setattr(service_module, "STEP_STALL_S", 0.2)
+    hub = MemoryHub()
+    stop = threading.Event()
+    ctx = ServiceContext(name="controller", vessel=VESSEL, bus=hub.bus(VESSEL), clock=WallClock(),
+                         stop=stop, run=RunDescription(run_id="unit", vessel=VESSEL))
+    solver = StuckSolver()
+    svc = ControllerService(ctx, make_core(solver), lockstep=False)
+    estimator = hub.bus(VESSEL)
+    nav = estimator.publisher(keys.NAV_STATE)
+    assert svc._serve("mission/set", svc.core.handle_mission, mission()).accepted
+    loop = threading.Thread(target=svc.run_rate, args=(50.0, 5.0), daemon=True)
+    caplog.set_level("WARNING", logger="seaway_controller.service")
+
+    def stuck_logged() -> bool:
+        nav.put(state(0).model_copy(update={"stamp_ns": ctx.clock.now_ns()}))
+        return any("running for" in r.getMessage() for r in caplog.records)
+
+    try:
+        loop.start()
+        wait_for(stuck_logged, 10, interval_s=0.05, what="the stuck step's WARNING")
+        assert not solver.release.is_set()  # said while the step is still stuck
+        stuck = next(r for r in caplog.records if "running for" in r.getMessage())
+        assert stuck.levelname == "WARNING"
+        assert "StuckSolver" in stuck.getMessage() or "in solve" in stuck.getMessage()
+        assert "release.wait" in stuck.getMessage()  # the line the loop is stuck on
+        solver.release.set()
+        wait_for(lambda: any("stuck step ended" in r.getMessage() for r in caplog.records), 10,
+                 what="the stuck step's end")
+    finally:
+        solver.release.set()
+        stop.set()
+        loop.join(5)
+        for bus in (ctx.bus, estimator):
+            bus.close()

@@ -185,3 +185,17 @@ def test_a_plan_from_the_reference_ipopt_warm_starts_the_generated_solver() -> N
         assert out.result.success, (k, out.result.status)
         assert not out.result.interior_point
         ctrl.accept(out)
+
+
+def test_ipopt_with_a_time_limit_stops_there_and_says_so():
+    """Real time solves the reference IPOPT on the control loop's thread (while the generated
+    solver is being made); its own limit is 3000 iterations, not a time, so the service gives it
+    the control period. A solve that cannot finish within the limit fails, naming the limit."""
+    ocp = Ocp(OcpSpec("cc-empc"), VP)
+    w0, p = start_problem(ocp)
+    z = (np.zeros(ocp.nw), np.zeros(ocp.ng))
+    res = IpoptSolver(ocp, time_limit_s=1e-9).solve(w0, p, *z)
+    assert not res.success and "WallTime" in res.status, res.status
+    assert IpoptSolver(ocp, time_limit_s=60.0).solve(w0, p, *z).success
+    with pytest.raises(ValueError, match="time_limit_s"):
+        IpoptSolver(ocp, time_limit_s=0.0)

@@ -30,7 +30,8 @@ solver a mission needs (its controller's, and no other) is made when the mission
 thread of its own: loaded from the cache, or compiled the first time on a machine (seconds to
 minutes); the mission starts once it is ready, or after ``SOLVER_REPLY_WAIT_S`` (a compile). Until
 it is ready, real time flies with the reference IPOPT (line-of-sight guidance
-while IPOPT itself is set up, on a thread too: ``solvers.StagedSolver``) and lockstep answers "hold"
+while IPOPT itself is set up, on a thread too: ``solvers.StagedSolver``; each of its solves runs in
+the control loop and is stopped at the control period) and lockstep answers "hold"
 (simulated time waits, so the run is the one a warm start gives); the mission/set reply and
 ``MissionStatus.reason`` say so, and the log says how far it got.
 
@@ -48,6 +49,7 @@ last one before the process ends; lockstep writes it in the answer's turn, not d
 from __future__ import annotations
 
 import argparse
+import functools
 import logging
 import sys
 import threading
@@ -77,6 +79,7 @@ from seaway.runtime.lockstep import Member, Period
 from seaway.runtime.ratelog import RateLimitedLog
 from seaway.runtime.run import from_earlier_launch
 from seaway.runtime.service import ServiceContext, base_parser, parse, resolve_run, run_service
+from seaway.runtime.stallwatch import StallWatch
 from seaway.runtime.stamps import StampBounds, StampGate
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.frames import GeoOrigin
@@ -85,7 +88,7 @@ from seaway.vessel.model import load_vessel
 from seaway_controller import checkpoint
 from seaway_controller.core import BudgetDecision, ControllerConfig, ControllerCore
 from seaway_controller.mission import MissionLimits
-from seaway_controller.solvers import SOLVER_KINDS, SolverBuilds, StagedSolver
+from seaway_controller.solvers import SOLVER_KINDS, IpoptSolver, SolverBuilds, StagedSolver
 
 log = logging.getLogger("seaway_controller.service")
 NAME = "controller"
@@ -94,6 +97,12 @@ CHECKPOINT_PERIOD_NS = 1_000_000_000
 wall time live, simulated time in lockstep. What a restart can lose is the energy of this long."""
 CHECKPOINT_CLOSE_S = 5.0
 """How long a stopping controller waits for its last checkpoint to be written (real time) [s]."""
+
+
+STEP_STALL_S = 1.0
+"""Real time: a control step still running after this long is logged with the loop's stack
+(``seaway.runtime.stallwatch``) [s]: past vehicle_io's thrust watchdog, well before the launcher's
+liveness restarts a controller silent on ``ctrl/thrust``, so the log says where it hung."""
 
 
 SOLVER_REPLY_WAIT_S = 2.0
@@ -144,6 +153,8 @@ class ControllerService:
         # subscription exists, before this constructor returns, and uses these.
         self.stamps = StampGate(NAME, log, StampBounds.live())  # real time: states not ahead of now
         self.ratelog = RateLimitedLog(log)  # a step failing every period: a traceback now and then
+        # Real time: a step stuck for long is logged with where it is, before a restart ends it.
+        self.watch = StallWatch(log, "control loop", STEP_STALL_S, ctx.stop)
         bus = ctx.bus
         self.member: Member | None = None
         self._states: dict[int, StateEstimate] = {}  # lockstep: the states of recent periods by stamp
@@ -492,7 +503,13 @@ class ControllerService:
                 last_stamp = state.stamp_ns
                 if (now - state.stamp_ns) / 1e9 <= max_state_age_s:
                     stale_reported = False
-                    self.step(now, state)
+                    t0 = time.perf_counter()
+                    self.watch.begin()
+                    try:
+                        self.step(now, state)
+                    finally:
+                        self.watch.end()
+                    warn_slow_step(self.ratelog, time.perf_counter() - t0, 1.0 / rate_hz)
                     continue
             if last_stamp is not None and (now - last_stamp) / 1e9 > max_state_age_s:
                 # No fresh state: hold still rather than act on old information.
@@ -523,6 +540,18 @@ class ControllerService:
             accepted = self.core.accepted_due(now_ns)
         if accepted is not None:
             self.pub_accepted.put(accepted)
+
+
+def warn_slow_step(ratelog: RateLimitedLog, took_s: float, period_s: float) -> bool:
+    """Real time: a WARNING (rate-limited) when one control step took ``took_s`` [s], longer than
+    the control period ``period_s`` [s], so that a late or missing command names its cause in the
+    log. True if the step was slow."""
+    if took_s <= period_s:
+        return False
+    ratelog.warning("slow-step", "a control step took %.3f s, longer than the control period "
+                    "(%.3f s): the thrust command came late; the solve records (ctrl/solve) say "
+                    "which solver ran", took_s, period_s)
+    return True
 
 
 def resume(core: ControllerCore, path: Path, now_ns: int, run_file: str | Path | None = None
@@ -582,7 +611,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         factory = None
         if args.solver == "generated":
             builds = SolverBuilds(stopping=ctx.stop)
-            factory = lambda ocp: StagedSolver(ocp, builds, wait=run.lockstep)  # noqa: E731
+            # Real time solves the reference on the control loop's thread: bounded by the period.
+            reference = (IpoptSolver if run.lockstep
+                         else functools.partial(IpoptSolver, time_limit_s=period_s))
+            factory = lambda ocp: StagedSolver(ocp, builds, reference,  # noqa: E731
+                                               wait=run.lockstep)
         core = ControllerCore(vessel, config, solver_factory=factory)
         log.info("solver %s, made per mission; model %s, control period (OCP dt) %g s, %s clock",
                  args.solver, run.model_vessel_file, period_s, run.clock)

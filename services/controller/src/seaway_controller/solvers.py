@@ -378,12 +378,22 @@ class GeneratedSqpSolver:
 
 
 class IpoptSolver:
-    """Plain IPOPT with default options (output silenced): the robust, slow reference."""
+    """Plain IPOPT with default options (output silenced): the robust, slow reference.
 
-    def __init__(self, ocp: Ocp, options: dict | None = None) -> None:
+    ``time_limit_s``: stop a solve after this long (IPOPT's ``max_wall_time``; the result then
+    fails with status ``Maximum_WallTime_Exceeded``). Real time solves on the control loop's
+    thread, and IPOPT's own limit is 3000 iterations, not a time: without one a hard solve keeps
+    the vessel without a command for as long as it runs."""
+
+    def __init__(self, ocp: Ocp, options: dict | None = None,
+                 time_limit_s: float | None = None) -> None:
         self.ocp = ocp
         self.name = f"{ocp.spec.kind}/ipopt"
-        opts = {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes"}
+        opts: dict = {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes"}
+        if time_limit_s is not None:
+            if not time_limit_s > 0:
+                raise ValueError(f"time_limit_s must be > 0 s, got {time_limit_s}")
+            opts["ipopt.max_wall_time"] = float(time_limit_s)
         opts.update(options or {})
         self._solver = ca.nlpsol("ipopt_ref", "ipopt", ocp.nlp, opts)
 
