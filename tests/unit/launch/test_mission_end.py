@@ -4,17 +4,20 @@ status ends a mission only when its stamp is within bounds and the navigation st
 
 from __future__ import annotations
 
+from seaway.contract import bundle, keys
 from seaway.contract.messages import (
     EnergyBudget,
+    MissionAccepted,
     MissionRequest,
     MissionStatus,
     NavOrigin,
+    PeriodDone,
     StateEstimate,
     Waypoint,
     return_mission_id,
 )
 from seaway.runtime.memory_bus import MemoryBus
-from seaway.tools.launch.mission_end import MissionEnd, VesselEnd
+from seaway.tools.launch.mission_end import MissionEnd, MissionsTaken, VesselEnd
 
 S = 1_000_000_000
 NOW = 1_800_000_000 * S  # a wall clock [ns]
@@ -143,3 +146,55 @@ def test_on_a_bus_every_vessel_must_be_over() -> None:
     assert not ending.over(NOW)  # v2 has no status
     bus.publisher(keys.MISSION_STATUS, vessel="v2").put(status())
     assert ending.over(NOW)
+
+
+class HandOffCountingBus(MemoryBus):
+    """An in-memory bus that notes each subscription whose samples would go to a callback on a
+    Python thread of the transport's (``inline=False``), one hand-off per sample."""
+
+    def __init__(self, vessel: str) -> None:
+        super().__init__(vessel)
+        self.handed_off: list[str] = []
+
+    def subscribe_raw(self, keyexpr, callback, *, inline=False, history_s=0.0):
+        if not inline:
+            self.handed_off.append(keyexpr)
+        return super().subscribe_raw(keyexpr, callback, inline=inline, history_s=history_s)
+
+
+def accepted(stamp_ns: int) -> MissionAccepted:
+    return MissionAccepted.make(
+        stamp_ns=stamp_ns,
+        accepted_ns=stamp_ns,
+        mission_id="m1",
+        waypoints=MISSION.waypoints,
+        coa_radius_m=2.0,
+        task_power_w=1.0,
+        controller="cc-empc",
+        predict_disturbance=False,
+    )
+
+
+def test_missions_taken_are_read_when_looked_at_with_no_callback_per_sample() -> None:
+    """The launcher heard ``mission/accepted`` through a callback, which in lockstep handed every
+    controller bundle (hundreds a second) to a Python thread to find the key in it. Now it is read
+    when the launcher looks; alone (real time) or in a controller's bundle (lockstep)."""
+    bus = HandOffCountingBus("v1")
+    taken = MissionsTaken(["v1", "v2", "v3"])
+    taken.watch(bus)
+    assert bus.handed_off == []  # nothing per sample to a Python thread
+    assert taken.look() == set()
+    bus.publisher(keys.MISSION_ACCEPTED, vessel="v1").put(accepted(NOW))
+    assert taken.look() == {"v1"}
+    done = PeriodDone(
+        stamp_ns=S,
+        service="controller",
+        episode=0,
+        seq=1,
+        period_ns=S // 10,
+        published={keys.MISSION_ACCEPTED.suffix: [S]},
+    )
+    payload = bundle.encode(done.encode(), [(keys.MISSION_ACCEPTED.suffix, accepted(S).encode())])
+    bus.raw_publisher(keys.LOCKSTEP_CONTROLLER.key("v2"), bundle.ENCODING).put(payload)
+    assert taken.look() == {"v1", "v2"}
+    assert taken.look() == {"v1", "v2"}  # once taken, taken for the run

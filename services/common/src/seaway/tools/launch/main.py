@@ -83,7 +83,7 @@ from seaway.runtime.service import (
 from seaway.runtime.zenoh_bus import ENV_CONFIG, use_lockstep_runtime
 from seaway.simkit.scenario import load_scenario
 from seaway.tools.launch import address, authority, recording_source
-from seaway.tools.launch.mission_end import MissionEnd
+from seaway.tools.launch.mission_end import MissionEnd, MissionsTaken
 from seaway.tools.launch.profile import Instance, Profile, instances, load_profile, substitute
 from seaway.tools.launch.resume import RESUME_WAIT_S, LinkTender
 from seaway.tools.launch.status_line import StatusLine
@@ -566,7 +566,7 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
     refusals.serve(bus, "launcher")
     code = 0
     t0 = time.monotonic()
-    flown: set[str] = set()
+    taken = MissionsTaken(vessels)
     try:
         # The launcher's own token on each vessel (``seaway health`` lists it); not one of the
         # processes it supervises, so the supervisor does not hear it. A shore launcher's would be
@@ -580,9 +580,7 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
         sup.watch_on(bus)
         status = StatusLine(vessels, lockstep=run.lockstep, commands=mission is None)
         status.watch(bus)
-        for v in vessels:  # which vessels' controllers take a mission (the launcher's or another's)
-            bus.subscribe(keys.MISSION_ACCEPTED, vessel=v,
-                          callback=lambda _key, _msg, v=v: flown.add(v))
+        taken.watch(bus)  # which vessels' controllers take a mission (the launcher's or another's)
         ending = MissionEnd(vessels, mission, None if not run.lockstep
                             else round(run.control_period_s * 1e9))
         ending.watch(bus)
@@ -620,6 +618,7 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
                 code = 1
                 break
             status.show(time.monotonic() - t_run)
+            taken.look()
             ended = tender.step(time.monotonic(), label) if tender is not None else None
             if ended:  # a mission paused by a link restart that could not be resumed
                 status.show(time.monotonic() - t_run, final=True)
@@ -645,6 +644,7 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
         stop.set()
         print("stopping...", flush=True)
         t_stop = time.monotonic()
+        flown = taken.look()
         sup.stop_all()
         bus.close()
         print(sup.status_table())

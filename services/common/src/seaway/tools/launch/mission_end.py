@@ -18,7 +18,7 @@ when:
 
 A status that fails is not taken: counted and logged (at most once a minute per reason), and the
 run goes on. ``VesselEnd`` is the pure judgement (messages and times in); ``MissionEnd`` reads the
-launcher's bus for every vessel.
+launcher's bus for every vessel. ``MissionsTaken`` says which vessels' controllers took a mission.
 """
 
 from __future__ import annotations
@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 from seaway.contract import keys
 from seaway.contract.messages import (
     EnergyBudget,
+    MissionAccepted,
     MissionRequest,
     MissionStatus,
     NavOrigin,
@@ -214,3 +215,28 @@ class MissionEnd:
             end.on_state(state, ref)  # type: ignore[arg-type]
             done = end.over(status, budget, ref) and done  # type: ignore[arg-type]
         return done
+
+
+class MissionsTaken:
+    """Which vessels' controllers have taken a mission in this run (the launcher's or another's):
+    a vessel whose controller took none gets no report.
+
+    Read when asked (``look``, from the launcher's loop), from the newest ``mission/accepted``
+    (``Bus.newest``: the transport holds the bytes, no Python runs per sample). Not a callback: in
+    lockstep the key comes in the controller's bundles, hundreds a second, and a callback would
+    hand each bundle to a Python thread to find the one key in it."""
+
+    def __init__(self, vessels: list[str]) -> None:
+        self.vessels = list(vessels)
+        self.taken: set[str] = set()
+        self._accepted: dict[str, Newest[MissionAccepted]] = {}
+
+    def watch(self, bus: Bus) -> None:
+        self._accepted = {v: bus.newest(keys.MISSION_ACCEPTED, vessel=v) for v in self.vessels}
+
+    def look(self) -> set[str]:
+        """The vessels whose controller has accepted a mission, at this look or an earlier one."""
+        for v, accepted in self._accepted.items():
+            if v not in self.taken and accepted.get() is not None:
+                self.taken.add(v)
+        return self.taken
