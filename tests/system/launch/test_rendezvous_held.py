@@ -16,8 +16,9 @@ import time
 from pathlib import Path
 
 import pytest
-from seaway.runtime import credentials
+from seaway.runtime import credentials, stacks
 from seaway.runtime.bus import Bus
+from seaway.tools.launch.authority import port_holder
 
 from tests.conftest import wait_for
 from tests.system.launch.test_launcher import proc, write_profile
@@ -80,3 +81,22 @@ def test_a_stack_of_another_registry_on_the_port_is_named(procs, zenoh_env, tmp_
     assert first.poll() is None  # the first stack runs on, undisturbed
     procs.stop(first, signal.SIGINT, timeout_s=15)
     assert first.returncode == 0, procs.log(first)[-3000:]
+
+
+@pytest.mark.timeout(120)
+def test_a_registered_stack_already_holds_its_rendezvous_port(
+    procs, zenoh_env, tmp_path, monkeypatch
+) -> None:
+    """Whoever finds the stack in the registry and opens a session (a test's operator session, a
+    `seaway` command) must find the port held by the launcher: taken by that session instead, the
+    stack linked through it and the links refused there went uncounted (`seaway health`)."""
+    env = _own_credentials(zenoh_env, tmp_path / "stacks")
+    monkeypatch.setenv("SEAWAY_STACKS_DIR", env["SEAWAY_STACKS_DIR"])
+    endpoint = env["SEAWAY_ZENOH_RENDEZVOUS"]
+    la = _launch(procs, env, tmp_path, "held")
+    # Polled tightly: the first look that finds the entry asks who holds the port.
+    entry = wait_for(lambda: stacks.lookup(endpoint), LAUNCH_S, 0.01, what="the stack registered")
+    holder = port_holder(int(endpoint.rpartition(":")[2]))
+    assert entry.pid == la.pid
+    assert holder is not None and holder[0] == la.pid, (holder, procs.log(la)[-3000:])
+    procs.stop(la, signal.SIGINT, timeout_s=15)

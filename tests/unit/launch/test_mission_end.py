@@ -65,15 +65,34 @@ def test_a_state_stamped_out_of_bounds_is_no_evidence() -> None:
     assert not end.over(status(), None, NOW)
 
 
-def test_the_return_home_is_complete_only_after_the_vessel_left_home_and_came_back() -> None:
+def test_the_return_home_is_complete_only_with_the_vessel_seen_back_at_home() -> None:
     end = VesselEnd("v1", MISSION)
     home = status(mission_id=return_mission_id("m1"))
-    end.on_state(state(0.0), NOW)  # it starts at home: that is no arrival
-    assert not end.over(home, None, NOW)
-    end.on_state(state(80.0), NOW)
+    end.on_state(state(80.0), NOW)  # out on the first leg: a return "complete" there is refused
     assert not end.over(home, None, NOW)
     end.on_state(state(1.0), NOW)
     assert end.over(home, None, NOW)
+    end.on_state(state(6.0), NOW)  # coasted on past the circle: the arrival was seen
+    assert end.over(home, None, NOW)
+    assert end.refused == {"position": 1}
+
+
+def test_a_return_home_decided_before_the_vessel_left_is_complete_where_it_stands() -> None:
+    end = VesselEnd("v1", MISSION)
+    home = status(mission_id=return_mission_id("m1"))
+    end.on_state(state(0.0), NOW)  # the budget decided the return at the start, at home
+    end.on_state(state(1.5), NOW)  # it never left the circle
+    assert end.over(home, None, NOW)
+    assert not end.over(status(), None, NOW)  # the mission's own "complete" there is no arrival
+    assert end.refused == {"position": 1}
+
+
+def test_a_return_home_once_at_home_is_not_complete_once_the_vessel_went_out() -> None:
+    end = VesselEnd("v1", MISSION)
+    home = status(mission_id=return_mission_id("m1"))
+    end.on_state(state(0.0), NOW)  # at home at the start ...
+    end.on_state(state(40.0), NOW)  # ... then out on the leg: a forged return "complete" now
+    assert not end.over(home, None, NOW)
 
 
 def test_a_loop_mission_ends_only_after_the_vessel_went_round() -> None:

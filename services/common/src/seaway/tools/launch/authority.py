@@ -5,9 +5,10 @@
   authority for this run only, in a private folder that is
   removed when the launcher exits; the access rules narrow each key to the process the profile
   runs for it.
-* ``claim``: register this stack on its rendezvous endpoint, or refuse with the name of the stack
-  already there (two stacks on one endpoint would otherwise fight over it: with different
-  credentials neither can reach the other, so the second would wait for its own processes forever).
+* ``claim``: claim the rendezvous endpoint for this stack (``register`` writes its registry entry
+  once the launcher's session holds the port), or refuse with the name of the stack already there
+  (two stacks on one endpoint would otherwise fight over it: with different credentials neither
+  can reach the other, so the second would wait for its own processes forever).
 * ``rendezvous_problem``: once the launcher's own session is open, whether the endpoint answers
   with this stack's credentials. A port held before the launch by a process that is not a stack of
   this registry (a Zenoh session without the credentials, a stack registered in another registry
@@ -54,6 +55,8 @@ class Authority:
     registered: bool = False
     port_held: bool = False
     """The rendezvous port was open before this launch (by no stack of this registry)."""
+    entry: stacks.StackEntry | None = None
+    """This stack's registry entry, made by ``claim``, written by ``register``."""
     notes: list[str] = field(default_factory=list)
 
     def release(self) -> None:
@@ -145,10 +148,11 @@ def _port_in_use(endpoint: str) -> bool:
 
 
 def claim(auth: Authority, profile: Profile, run_dir: Path, vessel: str) -> None:
-    """Register this stack on its rendezvous endpoint; ``StackInUseError`` if it is taken.
+    """Claim the rendezvous endpoint for this stack; ``StackInUseError`` if a stack has it.
 
     For the default peer config only. A port already open without a registered stack is a session
     opened before the launch (noted, not refused: without this stack's credentials it cannot link).
+    The entry is written by ``register`` once the launcher's session holds the port.
     """
     other = stacks.lookup(auth.rendezvous)
     if other is not None:
@@ -162,10 +166,21 @@ def claim(auth: Authority, profile: Profile, run_dir: Path, vessel: str) -> None
         auth.port_held = True
         auth.notes.append(f"{auth.rendezvous} is already held by a session that is not a stack; "
                           "it takes part only if it has this stack's credentials")
-    stacks.register(stacks.StackEntry(
+    auth.entry = stacks.StackEntry(
         rendezvous=auth.rendezvous, pid=os.getpid(), profile=profile.name, run_dir=str(run_dir),
-        credentials=str(auth.credentials.folder) if auth.credentials else creds.NONE, vessel=vessel))
-    auth.registered = True
+        credentials=str(auth.credentials.folder) if auth.credentials else creds.NONE, vessel=vessel)
+
+
+def register(auth: Authority) -> None:
+    """Write the entry ``claim`` made (none: a deployment config, nothing to register).
+
+    Only once the launcher's session is open: whoever finds the stack in the registry (a test, a
+    `seaway` command, an operator's session) and opens a session then finds the rendezvous port held
+    by the launcher, which counts the links refused there. Registered earlier, such a session took
+    the free port itself, and the stack linked through it."""
+    if auth.entry is not None and not auth.registered:
+        stacks.register(auth.entry)
+        auth.registered = True
 
 
 def _port(endpoint: str) -> int | None:

@@ -563,6 +563,7 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
         bus.close()
         print(f"seaway launch: {problem}", file=sys.stderr)
         return 2
+    authority.register(auth)  # now that this session holds the rendezvous port (authority says why)
     refusals.serve(bus, "launcher")
     code = 0
     t0 = time.monotonic()

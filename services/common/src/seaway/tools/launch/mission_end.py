@@ -14,7 +14,11 @@ when:
   navigation state (``nav/state``, the estimator's: an identity the controller's cannot publish as)
   put it within the circle of acceptance (plus ``ARRIVAL_SLACK_M``) of the last waypoint for
   "complete", or of home for the completed return home (``return_mission_id``), at some look since
-  the mission was sent. A "hold" decided by the energy budget needs no position.
+  the mission was sent. Where a point is also where the vessel starts (home, a loop's end), being
+  there at the start is no arrival: the vessel must be seen leaving it first, except for the return
+  home while the newest look puts the vessel at home (a return decided before the vessel left home
+  is complete where it stands; a status saying so elsewhere is still refused). A "hold" decided by
+  the energy budget needs no position.
 
 A status that fails is not taken: counted and logged (at most once a minute per reason), and the
 run goes on. ``VesselEnd`` is the pure judgement (messages and times in); ``MissionEnd`` reads the
@@ -89,6 +93,8 @@ class VesselEnd:
     end), outside it before (where the vessel starts is no arrival)."""
     left: dict[str, bool] = field(default_factory=dict)
     """'end', 'home' -> the vessel was seen outside its circle (plus slack)."""
+    at_home: bool = False
+    """The newest admitted look put the vessel within home's circle (plus slack)."""
     refused: dict[str, int] = field(default_factory=dict)
     """Reason -> how many "over" statuses were not taken for it."""
     gate: StampGate = field(init=False)
@@ -134,7 +140,10 @@ class VesselEnd:
         for name, point in zip(("end", "home"), self.targets(), strict=True):
             if point is None:
                 continue
-            if math.dist(here, point) > reach:
+            inside = math.dist(here, point) <= reach
+            if name == "home":
+                self.at_home = inside
+            if not inside:
                 self.left[name] = True
             elif self.left.get(name) or (first is not None and math.dist(first, point) > reach):
                 self.reached[name] = True
@@ -157,7 +166,9 @@ class VesselEnd:
         end, home = self.targets()
         home_run = status.mission_id == return_mission_id(sent) != sent
         name, target = ("home", home) if home_run else ("end", end)
-        if self.reached.get(name):
+        # The return home is over wherever the vessel is now at home, also if it never left (the
+        # budget decided the return at the start); a loop's end needs the seen arrival.
+        if self.reached.get(name) or (home_run and self.at_home):
             return True
         where = "home" if home_run else "the last waypoint"
         if target is None:
