@@ -549,8 +549,8 @@ def warn_slow_step(ratelog: RateLimitedLog, took_s: float, period_s: float) -> b
     if took_s <= period_s:
         return False
     ratelog.warning("slow-step", "a control step took %.3f s, longer than the control period "
-                    "(%.3f s): the thrust command came late; the solve records (ctrl/solve) say "
-                    "which solver ran", took_s, period_s)
+                    "(%.3f s): the thrust command came late; the solve records (%s) say "
+                    "which solver ran", took_s, period_s, keys.SOLVE.suffix)
     return True
 
 
