@@ -15,6 +15,7 @@ from pathlib import Path
 
 import pytest
 from mcap.reader import make_reader
+from seaway_recorder.recover import recover
 
 from tests.conftest import wait_for
 from tests.system.recorder.test_foxglove_recording import SCENARIO
@@ -84,8 +85,11 @@ def test_a_recorder_killed_in_real_time_loses_at_most_100_ms(tmp_path, zenoh_env
     assert launcher.returncode == 0, out[-3000:]
     assert len(recorder_pids(run_dir)) == 2, out[-3000:]  # restarted once
 
-    # The killed file as the launcher repaired it (seaway record recover).
-    killed = messages(run_dir / "recording.recovered.mcap")
+    # The killed file, repaired here (seaway record recover): readers repair into a cache of their
+    # own, never into the run folder.
+    repaired = tmp_path / "killed.recovered.mcap"
+    recover(run_dir / "recording.mcap", repaired)
+    killed = messages(repaired)
     restarted = messages(run_dir / "recording.restart-001.mcap")
     # The restart is said in the file, with the time it asked the publishers for.
     (marker,) = [json.loads(d) for t, d, _ in restarted if t == "recorder/restart"]
@@ -94,9 +98,9 @@ def test_a_recorder_killed_in_real_time_loses_at_most_100_ms(tmp_path, zenoh_env
 
     # Both files validate against their channels' schemas, the recalled samples and the marker too
     # (a real-time run: vehicle_io's status, with its unknown fields, among them).
-    for name in ("recording.recovered.mcap", "recording.restart-001.mcap"):
-        checked, invalid = invalid_messages(run_dir / name)
-        assert checked > 500 and invalid == {}, (name, {t: e[0] for t, e in invalid.items()})
+    for path in (repaired, run_dir / "recording.restart-001.mcap"):
+        checked, invalid = invalid_messages(path)
+        assert checked > 500 and invalid == {}, (path.name, {t: e[0] for t, e in invalid.items()})
 
     # Each steady topic's samples, by their own stamps, across the kill: no gap beyond its period
     # plus the goal, and no sample in both files.
