@@ -1,7 +1,7 @@
 """The ground station's side of the bus: what it hears (into the ``Fleet``) and what it asks.
 
 * ``BusLink.attach`` subscribes to every vessel's state, solve record, mission status, vehicle status,
-  NED origin, thrust command and energy budget, and watches every vessel's health tokens; each
+  NED origin, thrust command, energy budget and operating area, and watches every vessel's health tokens; each
   arrival updates the ``Fleet`` and calls ``on_change(vessel)`` (the stream's wake-up). Callbacks
   run on the transport's threads and do O(1) work: they never wait for a web client. A message
   stamped more than ``seaway.runtime.stamps.MAX_AHEAD_LIVE_S`` ahead of this machine's wall clock is
@@ -38,6 +38,7 @@ TOPICS: dict[Kind, keys.KeySpec] = {
     "origin": keys.NAV_ORIGIN,
     "thrust": keys.THRUST,
     "energy": keys.MISSION_ENERGY,
+    "area": keys.AREA_ACTIVE,
 }
 """What the ground station shows of each vessel, by the fleet's kind."""
 

@@ -150,7 +150,9 @@ function render() {
     setText("v-link", vehicle ? (vehicle.link_ok ? "up" : "DOWN") : "–", vehicle ? (vehicle.link_ok ? "good" : "bad") : "");
     setText("v-armed", vehicle ? (vehicle.armed ? "armed" : "disarmed") : "–", vehicle?.armed ? "warn" : "");
     setText("v-mode", vehicle?.mode ?? "–");
-    setText("v-failsafe", vehicle ? vehicle.failsafe || "none" : "–", vehicle?.failsafe ? "bad" : "");
+    const holdWhy = vehicle?.hold_reason ? `${HOLD_REASONS[vehicle.hold_reason] || vehicle.hold_reason}`
+      + (vehicle.hold_reason_detail ? `: ${vehicle.hold_reason_detail}` : "") : "";
+    setText("v-failsafe", vehicle ? vehicle.failsafe || holdWhy || "none" : "–", vehicle?.failsafe || holdWhy ? "bad" : "");
     setText("v-services", (view?.services || v?.services || []).join(", ") || "–");
     document.querySelector(".sim-only").hidden = !view?.simulated;
     markStale("vehicle", stale("vehicle"));
@@ -159,6 +161,8 @@ function render() {
   // Mission progress.
   const legs = mission ? Math.max(mission.waypoint_count - 1, 0) : 0;
   setText("p-state", mission?.state ?? "–", mission?.state === "complete" ? "good" : mission?.state === "aborted" ? "bad" : "");
+  const why = mission && mission.state !== "idle" && mission.state !== "active" ? mission.reason || "" : mission?.reason || "";
+  setText("p-reason", why || "–", !why ? "" : mission.state === "aborted" ? "bad" : "warn");
   setText("p-id", mission?.mission_id || "–");
   setText("p-leg", mission && mission.state !== "idle" ? `${mission.active_leg} / ${legs}` : "–");
   setText("p-dist", fmt(mission?.distance_to_waypoint_m, 1, "m"));
@@ -183,7 +187,7 @@ function render() {
   }
   map.setModel({
     geo: app.mode === "live" ? view?.geo ?? null : player.detail?.geo?.[app.selected] ?? null,
-    plan, activeLeg: mission && mission.state !== "idle" ? mission.active_leg : -1,
+    plan, activeLeg: mission && mission.state !== "idle" ? mission.active_leg : -1, area: msg("area"),
     trail: v?.trail || [], state, solve, others, budget,
     stale: { state: stale("state"), solve: stale("solve"), energy: stale("energy") },
   });
@@ -222,6 +226,13 @@ function renderMetrics(mission) {
   setText("m-xte-max", fmt(m?.max_cross_track_m, 2, "m"));
   setText("metrics-source", source);
 }
+
+/** What took the vessel from Seaway (VehicleStatus.hold_reason), in the operator's words. */
+const HOLD_REASONS = {
+  gcs_mode_change: "mode changed by another ground station", battery: "battery failsafe",
+  fence: "fence breach", radio_loss: "radio (RC) lost", gcs_link_loss: "ground-station link lost",
+  other: "autopilot failsafe",
+};
 
 const DECISIONS = { warn: ["LOW ENERGY", "warn"], return: ["RETURNING HOME", "bad"], hold: ["HOLDING", "bad"] };
 

@@ -1,6 +1,7 @@
 // The map: local NED metres (x north up, y east right), drawn as SVG in screen pixels.
 //
-// Layers, bottom to top: optional tiles, the metric grid, the mission flown (path, circles of
+// Layers, bottom to top: optional tiles, the metric grid, the operating area (keep-in outline,
+// keep-out polygons and circles, rally points), the mission flown (path, circles of
 // acceptance, the active waypoint), the draft being edited (dashed, draggable handles), the trail,
 // the MPC's predicted trajectory, the energy budget's home and point of no return, other vessels,
 // the vessel with its heading and the disturbance estimate as an arrow in its body frame. Wheel zooms at the cursor, dragging the background pans;
@@ -50,7 +51,7 @@ export class MapView {
     this.tilesUrl = null;
     this.dirty = true;
     this.layers = {};
-    for (const name of ["tiles", "grid", "mission", "draft", "trail", "pred", "energy", "others", "vessel", "handles"]) {
+    for (const name of ["tiles", "grid", "area", "mission", "draft", "trail", "pred", "energy", "others", "vessel", "handles"]) {
       this.layers[name] = el("g", { class: `layer-${name}` }, svg);
     }
     this.bind();
@@ -195,6 +196,7 @@ export class MapView {
     if (this.follow && m.state) this.center = [m.state.x_m, m.state.y_m];
     this.renderTiles();
     this.renderGrid();
+    this.renderArea(m.area);
     this.renderMission(m.plan, m.activeLeg);
     this.renderDraft();
     this.renderPolyline("trail", m.trail || [], "var(--trail)", 1.5, m.stale?.state);
@@ -225,6 +227,41 @@ export class MapView {
     el("title", {}, pnr).textContent = `point of no return: ${along}`;
     el("path", { d: "M0,-9 L9,0 L0,9 L-9,0 Z", fill: colour, stroke: "#fff", "stroke-width": 1.5 }, pnr);
     el("text", { x: 11, y: -8, "font-size": 11, "font-weight": 700, fill: colour }, pnr).textContent = "no return";
+  }
+
+  /** The operating area the controller enforces (area/active, local NED metres): the keep-in
+   *  polygon as an outline, keep-out polygons and circles shaded, rally points as "R" markers.
+   *  Every shape carries its name as a tooltip and data-* attributes of its world coordinates. */
+  renderArea(area) {
+    const g = this.layers.area;
+    g.replaceChildren();
+    if (!area) return;
+    const points = (zone) => zone.vertices.map((v) => this.toScreen(v.x_m, v.y_m).map((c) => c.toFixed(1)).join(",")).join(" ");
+    const world = (zone) => JSON.stringify(zone.vertices.map((v) => [v.x_m, v.y_m]));
+    if (area.keep_in) {
+      const k = el("polygon", { points: points(area.keep_in), fill: "none", stroke: "var(--keep-in)", "stroke-width": 2.5,
+        "stroke-dasharray": "10 5", class: "area-keep-in", "data-world": world(area.keep_in) }, g);
+      el("title", {}, k).textContent = `keep in: ${area.keep_in.name || "operating area"}`;
+    }
+    for (const zone of area.keep_out_polygons || []) {
+      const k = el("polygon", { points: points(zone), fill: "var(--keep-out-fill)", stroke: "var(--keep-out)", "stroke-width": 2,
+        class: "area-keep-out", "data-world": world(zone) }, g);
+      el("title", {}, k).textContent = `keep out: ${zone.name || "area"}`;
+    }
+    for (const c of area.keep_out_circles || []) {
+      const [sx, sy] = this.toScreen(c.x_m, c.y_m);
+      const k = el("circle", { cx: sx.toFixed(1), cy: sy.toFixed(1), r: Math.max(c.radius_m * this.scale, 2).toFixed(1),
+        fill: "var(--keep-out-fill)", stroke: "var(--keep-out)", "stroke-width": 2, class: "area-keep-out-circle",
+        "data-n": c.x_m, "data-e": c.y_m, "data-radius-m": c.radius_m }, g);
+      el("title", {}, k).textContent = `keep out: ${c.name || "circle"} (radius ${c.radius_m} m)`;
+    }
+    for (const r of area.rally_points || []) {
+      const [sx, sy] = this.toScreen(r.x_m, r.y_m);
+      const k = el("g", { class: "area-rally", "data-n": r.x_m, "data-e": r.y_m, transform: `translate(${sx.toFixed(1)},${sy.toFixed(1)})` }, g);
+      el("title", {}, k).textContent = `rally point: ${r.name || ""}`.trim();
+      el("circle", { r: 7, fill: "#fff", stroke: "var(--rally)", "stroke-width": 2 }, k);
+      el("text", { y: 3.5, "font-size": 9, "font-weight": 700, "text-anchor": "middle", fill: "var(--rally)" }, k).textContent = "R";
+    }
   }
 
   renderTiles() {

@@ -4,7 +4,7 @@
 // time in replay. Ages and staleness follow from it the same way in both.
 //
 // A frame: {vessel, services, stale_after_s, updates: {kind: {age_s, stale, message}}}, with kinds
-// state, solve, mission, vehicle, origin, thrust, energy (the ground station's app.py documents it).
+// state, solve, mission, vehicle, origin, thrust, energy, area (the ground station's app.py documents it).
 
 const MAX_POINTS = 20000;   // per series; beyond, every other point is dropped (the shape stays)
 const MAX_TRAIL = 8000;
