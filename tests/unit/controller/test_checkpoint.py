@@ -197,3 +197,57 @@ def test_a_return_home_decided_before_a_restart_goes_on_as_a_return_home(tmp_pat
         fresh.step(k * DT_NS, state(k, x=2.5))
     last = fresh.take_budget()
     assert last is not None and last.returning and last.decision == "return"
+
+
+def _service_with_checkpoint(tmp_path: Path, core):
+    import threading
+
+    from seaway.runtime.clock import WallClock
+    from seaway.runtime.memory_bus import MemoryHub
+    from seaway.runtime.run import RunDescription
+    from seaway.runtime.service import ServiceContext
+    from seaway_controller.service import ControllerService
+
+    hub = MemoryHub()
+    ctx = ServiceContext(name="controller", vessel="vessel1", bus=hub.bus("vessel1"),
+                         clock=WallClock(), stop=threading.Event(),
+                         run=RunDescription(run_id="unit", vessel="vessel1", clock="lockstep"))
+    return ControllerService(ctx, core, lockstep=True, state_file=tmp_path / "cp.json"), ctx
+
+
+@pytest.mark.parametrize("at_rest", ["complete", "paused"])
+def test_a_controller_restarted_at_rest_goes_on_holding_station_where_it_held(
+        tmp_path: Path, at_rest: str) -> None:
+    """A controller restarted while the vessel held station (after the last waypoint, or paused)
+    came back idle and the vessel drifted: the hold point was not in the checkpoint and a complete
+    mission was not taken up again. Now the new one holds at the same point."""
+    from seaway.contract.messages import MissionCommand
+
+    from tests.unit.controller.test_core import DT_NS
+
+    core = make_core(ScriptedSolver())
+    svc, ctx = _service_with_checkpoint(tmp_path, core)
+    assert core.handle_mission(0, mission()).accepted
+    core.step(0, state(0, x=2.0, y=0.0))
+    if at_rest == "complete":
+        core.step(DT_NS, state(1, x=7.5, y=0.0))    # P1's circle: leg 2
+        core.step(2 * DT_NS, state(2, x=5.1, y=8.5))  # the last waypoint's circle: complete
+        want = (5.13, 8.57)
+    else:
+        core.step(DT_NS, state(1, x=3.0, y=0.2))
+        assert core.handle_command(2 * DT_NS, MissionCommand.make(stamp_ns=2 * DT_NS,
+                                                                  command="pause")).accepted
+        want = (3.0, 0.2)
+    assert core.missions.state == at_rest and core.missions.hold_point == want
+    svc.save_checkpoint(force=True)
+    ctx.bus.close()
+
+    fresh = make_core(ScriptedSolver())
+    resume(fresh, tmp_path / "cp.json", 10)
+    assert fresh.missions.state == at_rest
+    assert fresh.missions.hold_point == pytest.approx(want)
+    # Pushed 3 m off the hold point, the new controller drives back to it (not zero thrust).
+    off = state(3, x=want[0] - 3.0, y=want[1])
+    cmd, record, status = fresh.step(3 * DT_NS, off)
+    assert record is None and status.state == at_rest
+    assert cmd.thrust_port_n + cmd.thrust_starboard_n != 0.0

@@ -4,7 +4,9 @@ A controller killed mid-mission (a crash, the OOM killer, a launcher restart) mu
 mission nor start it again from P_0. The service writes this small JSON file atomically (temporary
 file, fsync, rename) whenever the mission's progress changes and once a second for the energy
 count; a new process given the same file resumes the mission at the same leg, with the energy
-budget's decision (a return home stays a return home, a hold a hold). A checkpoint that
+budget's decision (a return home stays a return home, a hold a hold), and where the vessel holds
+station at rest (paused, or after the last waypoint), so that it goes on holding there rather than
+drifting or idling. A checkpoint that
 cannot be read is reported and ignored: the controller then starts idle, as it would without one.
 """
 
@@ -36,6 +38,18 @@ class MissionCheckpoint(ConfigModel):
     decision: EnergyDecision = Field(default="none", description="the energy budget's decision")
     decided_ns: int | None = Field(default=None, ge=0, description="the period it was decided [ns]")
     decision_reason: str = Field(default="", description="why, as the budget said it")
+    hold_x_m: float | None = Field(default=None, allow_inf_nan=False, description="where the "
+                                   "vessel holds station at rest (paused, or complete), local NED "
+                                   "north [m]; None: it does not hold (flying, or drifting)")
+    hold_y_m: float | None = Field(default=None, allow_inf_nan=False, description="the hold point, "
+                                   "local NED east [m]")
+
+    @property
+    def hold_point(self) -> tuple[float, float] | None:
+        """The saved hold point (north, east) [m], if the vessel held station."""
+        if self.hold_x_m is None or self.hold_y_m is None:
+            return None
+        return (self.hold_x_m, self.hold_y_m)
 
     def mission_request(self) -> MissionRequest:
         try:

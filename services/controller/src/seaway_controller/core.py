@@ -321,10 +321,12 @@ class ControllerCore:
         return BudgetDecision(b.returning, b.decision, b.decided_ns, b.reason)
 
     def restore(self, now_ns: int, req: MissionRequest, active_leg: int, state: str,
-                energy_used_j: float, decision: BudgetDecision | None = None) -> Reply:
+                energy_used_j: float, decision: BudgetDecision | None = None,
+                hold_point: tuple[float, float] | None = None) -> Reply:
         """Resume a checkpointed mission at ``active_leg`` (after a restart), or refuse; with
         the energy budget's ``decision`` as it was (a return home goes on as one: its own policy
-        is only 'warn', and a fresh budget would have said 'LOW ENERGY (policy: warn)')."""
+        is only 'warn', and a fresh budget would have said 'LOW ENERGY (policy: warn)'), and, at
+        rest (paused or complete), station kept at ``hold_point`` (local NED [m]) as before."""
         decision = decision or BudgetDecision()
         reply = self.handle_mission(now_ns, req, returning=decision.returning, check=False)
         if not reply.accepted:
@@ -341,6 +343,8 @@ class ControllerCore:
             return Reply.refuse(now_ns, f"checkpoint's active leg {active_leg} is not a leg of the "
                                         f"mission ({len(mm.mission.waypoints_m)} waypoints)")
         mm.active, mm.state = active_leg, state  # type: ignore[assignment]
+        if state in ("paused", "complete"):
+            mm.hold_point = hold_point
         if state == "waiting" and not mm.reason:
             mm.wait(_waiting_for("no status heard since the restart yet"))
         mm.switches += 1  # the warm start re-guesses t_d and t_s as on a waypoint switch

@@ -261,7 +261,8 @@ class ControllerService:
         req, leg, state, energy = progress
         with self.lock:
             decision = self.core.decision()
-        key = (req.mission_id, leg, state, decision)
+            hold = self.core.missions.hold_point
+        key = (req.mission_id, leg, state, decision, hold)
         now_ns = self._now_ns()
         last = self._saved_at_ns
         due = last is None or not 0 <= now_ns - last < CHECKPOINT_PERIOD_NS
@@ -271,7 +272,8 @@ class ControllerService:
             request=req.model_dump(mode="json"), active_leg=leg, state=state,  # type: ignore[arg-type]
             energy_used_j=energy, saved_unix_ns=time.time_ns(), returning=decision.returning,
             decision=decision.decision, decided_ns=decision.decided_ns,
-            decision_reason=decision.reason[:MAX_REASON_CHARS])
+            decision_reason=decision.reason[:MAX_REASON_CHARS],
+            hold_x_m=None if hold is None else hold[0], hold_y_m=None if hold is None else hold[1])
         if self._writer is not None:
             self._writer.submit(checkpoint.encode(cp))
         else:
@@ -567,7 +569,9 @@ def resume(core: ControllerCore, path: Path, now_ns: int, run_file: str | Path |
                      "launch into this folder); starting idle", path,
                      cp.request.get("mission_id", "?"))
             return
-        if cp.state not in ("waiting", "active", "paused"):
+        # A finished mission is taken up again only to go on holding station at its end.
+        holding = cp.state == "complete" and cp.hold_point is not None
+        if cp.state not in ("waiting", "active", "paused") and not holding:
             log.info("checkpoint %s: mission %s was %s; starting idle", path,
                      cp.request.get("mission_id", "?"), cp.state)
             return
@@ -576,7 +580,8 @@ def resume(core: ControllerCore, path: Path, now_ns: int, run_file: str | Path |
         log.error("ignoring the mission checkpoint: %s", err)
         return
     decision = BudgetDecision(cp.returning, cp.decision, cp.decided_ns, cp.decision_reason)
-    reply = core.restore(now_ns, req, cp.active_leg, cp.state, cp.energy_used_j, decision)
+    reply = core.restore(now_ns, req, cp.active_leg, cp.state, cp.energy_used_j, decision,
+                         cp.hold_point)
     if reply.accepted:
         log.warning("resumed mission %r from %s at leg %d (%s), %.1f J used before the restart; "
                     "energy budget: %s%s", req.mission_id, path, cp.active_leg, cp.state,
