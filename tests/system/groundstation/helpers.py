@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import urllib.error
 import urllib.request
 from typing import Any
@@ -32,3 +33,11 @@ def http(method: str, url: str, body: Any = None, token: str | None = None,
     return status, json.loads(raw)
 
 
+ENERGY_UNITS_J = {"J": 1.0, "kJ": 1e3, "MJ": 1e6}
+
+
+def joules(text: str) -> float:
+    """The first energy the page shows in ``text`` ("29.7 kJ (8.25 Wh)"), in joules."""
+    m = re.search(r"(-?\d+(?:\.\d+)?) (J|kJ|MJ)\b", text)
+    assert m, f"no energy in {text!r}"
+    return float(m.group(1)) * ENERGY_UNITS_J[m.group(2)]

@@ -30,6 +30,7 @@ from seaway.contract.messages import (
 from seaway.runtime.bus import Bus
 
 from tests.conftest import BIN, wait_for
+from tests.system.groundstation import axe_check
 from tests.system.groundstation.helpers import http
 
 pytestmark = pytest.mark.system
@@ -54,6 +55,10 @@ def area() -> ActiveArea:
 
 def test_the_page_draws_the_operating_area_and_says_why_the_mission_waits(
         procs, zenoh_env, tmp_path, browser) -> None:
+    try:
+        axe_script = axe_check.install()
+    except axe_check.AxeUnavailableError as err:
+        pytest.skip(str(err))
     gs = procs.start([str(BIN / "seaway-groundstation"), "--port", "0", "--request-timeout-s", "10"],
                      zenoh_env, "groundstation")
     line = wait_for(lambda: re.search(r"groundstation: (http://127\.0\.0\.1:\d+/) token (\S+)",
@@ -148,6 +153,9 @@ def test_the_page_draws_the_operating_area_and_says_why_the_mission_waits(
             assert page.locator("#p-reason").is_visible()
             failsafe = page.locator("#v-failsafe").text_content()
             assert "battery" in failsafe and "11.00V" in failsafe, failsafe
+            # The warnings in this state (waiting, failsafe) meet WCAG AA too (axe-core).
+            found = axe_check.violations(page, axe_script)
+            assert not axe_check.serious(found), axe_check.serious(found)
             page.screenshot(path=str(tmp_path / "area.png"))
             print(f"\nscreenshot: {tmp_path / 'area.png'}")
             assert not errors, errors

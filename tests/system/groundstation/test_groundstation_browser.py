@@ -27,6 +27,7 @@ from pathlib import Path
 import pytest
 
 from tests.conftest import BIN, wait_for
+from tests.system.groundstation.helpers import joules
 
 pytestmark = [pytest.mark.system, pytest.mark.slow]
 
@@ -101,8 +102,8 @@ def test_plan_fly_check_and_replay_a_mission_from_the_page(procs, zenoh_env, tmp
     # The controller's energy budget (mission/energy) while it flies: to finish and to get home.
     page.wait_for_function("document.getElementById('e-source').textContent === 'mission/energy'",
                            timeout=30_000)
-    assert number(page.locator("#e-finish").text_content() or "") > 0
-    assert number(page.locator("#e-home").text_content() or "") > 0
+    assert joules(page.locator("#e-finish").text_content() or "") > 0
+    assert joules(page.locator("#e-home").text_content() or "") > 0
 
     # Watch it reach the last waypoint.
     page.wait_for_function("document.getElementById('p-state').textContent === 'complete'", timeout=240_000)
@@ -146,8 +147,8 @@ def test_plan_fly_check_and_replay_a_mission_from_the_page(procs, zenoh_env, tmp
           f"{estimate['travel_time_s']:.1f} s")
     # Energy: the controller's own account (alpha T^2 + T^w of its commands) and the ground
     # station's (the same from the commands it heard) against the simulator's integral.
-    assert number(shown["m-energy-used"]) == pytest.approx(truth["energy_j"], rel=0.02)
-    assert number(shown["m-energy"]) == pytest.approx(truth["energy_j"], rel=0.03)
+    assert joules(shown["m-energy-used"]) == pytest.approx(truth["energy_j"], rel=0.02)
+    assert joules(shown["m-energy"]) == pytest.approx(truth["energy_j"], rel=0.03)
     assert number(shown["m-travel-time"]) == pytest.approx(truth["travel_time_s"], abs=1.0)
     # Cross-track: the page computes the report's metric on the estimate (nav/state as heard
     # live), so it matches the report on the recorded nav/state; the truth differs by the
@@ -175,10 +176,11 @@ def test_plan_fly_check_and_replay_a_mission_from_the_page(procs, zenoh_env, tmp
     page.screenshot(path=str(shots / "7-replay-end.png"))
     # The end of the recording is the end of the mission: the same figures as live, and the
     # report's beside them.
-    assert number(page.locator("#m-energy-used").text_content() or "") == pytest.approx(
-        number(shown["m-energy-used"]), rel=0.01)
-    replay_energy = number(page.locator("#m-energy").text_content() or "")
-    assert replay_energy == pytest.approx(truth["energy_j"], abs=0.1)  # the report's, as shown
+    assert joules(page.locator("#m-energy-used").text_content() or "") == pytest.approx(
+        joules(shown["m-energy-used"]), rel=0.01)
+    replay_energy = joules(page.locator("#m-energy").text_content() or "")
+    # The report's, as shown: three significant digits (kJ) round by at most 0.5 %.
+    assert replay_energy == pytest.approx(truth["energy_j"], rel=0.005)
     assert page.locator("#p-id").text_content() == "browser-box"
     # The energy budget replays too: the last one recorded for the mission is the one shown.
     from seaway.contract import keys
@@ -187,10 +189,10 @@ def test_plan_fly_check_and_replay_a_mission_from_the_page(procs, zenoh_env, tmp
     dec = recording.decode_vessel(recording.open_paths([run]), None, [keys.MISSION_ENERGY.suffix])
     last = [b for b in dec.get(keys.MISSION_ENERGY.suffix) if b.mission_id == "browser-box"][-1]
     assert page.locator("#e-source").text_content() == "mission/energy"
-    assert number(page.locator("#e-finish").text_content() or "") == pytest.approx(
-        last.energy_to_go_j, abs=0.051)
-    assert number(page.locator("#e-home").text_content() or "") == pytest.approx(
-        last.energy_to_home_j, abs=0.051)
+    assert joules(page.locator("#e-finish").text_content() or "") == pytest.approx(
+        last.energy_to_go_j, rel=0.005, abs=0.01)
+    assert joules(page.locator("#e-home").text_content() or "") == pytest.approx(
+        last.energy_to_home_j, rel=0.005, abs=0.01)
     plan = page.evaluate("window.seaway.map.model.plan")
     assert plan["mission_id"] == "browser-box" and len(plan["waypoints_m"]) == len(BOX_M)
     assert not errors, errors

@@ -24,7 +24,7 @@ from seaway.runtime.bus import Bus
 from seaway.vessel.frames import GeoOrigin
 
 from tests.conftest import BIN, wait_for
-from tests.system.groundstation.helpers import http
+from tests.system.groundstation.helpers import http, joules
 
 pytestmark = pytest.mark.system
 VESSEL = "energy-boat"
@@ -102,11 +102,12 @@ def test_the_page_shows_the_energy_budget_the_point_of_no_return_and_the_decisio
             text = {i: page.locator(f"#{i}").text_content() for i in (
                 "m-energy-used", "e-finish", "e-home", "e-battery", "e-reserve", "e-margin", "e-pnr",
                 "e-decision")}
-            assert text["m-energy-used"] == "1234.5 J"
-            assert text["e-finish"] == "6789.0 J (6500.0–7100.0)"
-            assert text["e-home"] == "4200.0 J (4000.0–4400.0)"
-            assert (text["e-battery"], text["e-reserve"], text["e-margin"]) == ("9000.0 J", "1000.0 J",
-                                                                                 "3800.0 J")
+            # Energies in kJ with Wh, three significant digits; a band as its ends in the same unit.
+            assert text["m-energy-used"] == "1.23 kJ (0.34 Wh)"
+            assert text["e-finish"] == "6.79 kJ (1.89 Wh), 6.50–7.10 kJ"
+            assert text["e-home"] == "4.20 kJ (1.17 Wh), 4.00–4.40 kJ"
+            assert (text["e-battery"], text["e-reserve"], text["e-margin"]) == (
+                "9.00 kJ (2.50 Wh)", "1.00 kJ (0.28 Wh)", "3.80 kJ (1.06 Wh)")
             assert text["e-decision"] == "none (policy: return)"
             assert not page.locator("#map-decision").is_visible()
             # The point of no return: in metres on the map's path, in degrees through the origin.
@@ -136,7 +137,7 @@ def test_the_page_shows_the_energy_budget_the_point_of_no_return_and_the_decisio
             assert page.locator("#map-decision").text_content() == f"RETURNING HOME — {REASON}"
             assert page.locator("#e-decision-banner").is_visible()
             assert page.locator("#e-decision").text_content() == "RETURNING HOME (policy: return)"
-            assert page.locator("#e-margin").text_content() == "0.0 J"
+            assert joules(page.locator("#e-margin").text_content()) == 0.0
             assert page.locator("#e-pnr").text_content() == "reached: the margin is gone"
             page.wait_for_selector("#no-return-marker", state="detached", timeout=10_000)
             page.screenshot(path=str(tmp_path / "energy-2-decided.png"))

@@ -16,7 +16,8 @@ per vessel with news, at most ``stream_rate_hz`` per client::
                  "origin": {... NavOrigin ...}, "thrust": {... ThrustCommand ...},
                  "energy": {... EnergyBudget: energy used, to finish, to home, battery, margin,
                             point of no return (local NED), decision ...},
-                 "area": {... ActiveArea: keep-in, keep-outs, rally points (local NED) ...}}}
+                 "area": {... ActiveArea: keep-in, keep-outs, rally points (local NED) ...},
+                 "battery": {... BatteryState ...}, "gnss": {... GnssFix ...}}}
 
 with only the kinds that changed since the client's last frame (the latest of each, never a
 backlog; ``stream.py`` says how a slow client is kept from slowing the others).

@@ -4,7 +4,8 @@ Inputs, each with the receive time ``now_s`` (a monotonic clock [s]):
 
 * ``on_health(vessel, service, alive)``: health tokens ``seaway/<vessel>/health/<service>``;
 * ``on_message(vessel, kind, msg)``: the latest state, solve record, mission status, vehicle status,
-  NED origin, thrust command, energy budget and operating area of each vessel (``KINDS``); states, thrusts and
+  NED origin, thrust command, energy budget, operating area, battery and GNSS fix of each vessel
+  (``KINDS``); states, thrusts and
   statuses also feed
   the vessel's ``MissionTrack`` (the paper's metrics of its current mission, ``progress.py``);
 * ``record_mission(vessel, request, source)``: a mission this ground station sent and had accepted
@@ -40,8 +41,10 @@ from seaway_groundstation import geo
 from seaway_groundstation.progress import MetricsView, MissionTrack
 from seaway_groundstation.views import FleetView, Timed, VesselView
 
-Kind = Literal["state", "solve", "mission", "vehicle", "origin", "thrust", "energy", "area"]
-KINDS: tuple[Kind, ...] = ("state", "solve", "mission", "vehicle", "origin", "thrust", "energy", "area")
+Kind = Literal["state", "solve", "mission", "vehicle", "origin", "thrust", "energy", "area", "battery",
+               "gnss"]
+KINDS: tuple[Kind, ...] = ("state", "solve", "mission", "vehicle", "origin", "thrust", "energy", "area",
+                           "battery", "gnss")
 MAX_MISSIONS = 32
 """Missions remembered per vessel (by id), the most recent kept."""
 HEALTH = "health"

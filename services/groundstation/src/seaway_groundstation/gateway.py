@@ -1,14 +1,15 @@
 """The ground station's side of the bus: what it hears (into the ``Fleet``) and what it asks.
 
-* ``BusLink.attach`` subscribes to every vessel's state, solve record, mission status, vehicle status,
-  NED origin, thrust command, energy budget and operating area, and watches every vessel's health tokens; each
-  arrival updates the ``Fleet`` and calls ``on_change(vessel)`` (the stream's wake-up). Callbacks
-  run on the transport's threads and do O(1) work: they never wait for a web client. A message
-  stamped more than ``seaway.runtime.stamps.MAX_AHEAD_LIVE_S`` ahead of this machine's wall clock is
-  dropped, counted and logged (``StampGate``): real time stamps with the wall clock and lockstep
-  from t = 0, so neither comes ahead of it, and one that does would pose as the newest message for
-  good and stretch the mission's metrics to its stamp (one state stamped 10^9 s ahead made them walk
-  10^10 grid points and take all the machine's memory).
+* ``BusLink.attach`` subscribes to every vessel's state, solve record, mission status, vehicle
+  status, NED origin, thrust command, energy budget, operating area, battery and GNSS fix, and
+  watches every vessel's health tokens; each arrival updates the ``Fleet`` and calls
+  ``on_change(vessel)`` (the stream's wake-up). Callbacks run on the transport's threads and do O(1)
+  work: they never wait for a web client. A message stamped more than
+  ``seaway.runtime.stamps.MAX_AHEAD_LIVE_S`` ahead of this machine's wall clock is dropped, counted
+  and logged (``StampGate``): real time stamps with the wall clock and lockstep from t = 0, so
+  neither comes ahead of it, and one that does would pose as the newest message for good and stretch
+  the mission's metrics to its stamp (one state stamped 10^9 s ahead made them walk 10^10 grid
+  points and take all the machine's memory).
 * ``ask`` sends one request and tells apart an answer (accepted or refused), no answer in time, and
   an error reply from the transport, which ``Bus.request`` folds into one refusal.
 """
@@ -39,6 +40,8 @@ TOPICS: dict[Kind, keys.KeySpec] = {
     "thrust": keys.THRUST,
     "energy": keys.MISSION_ENERGY,
     "area": keys.AREA_ACTIVE,
+    "battery": keys.VEHICLE_BATTERY,
+    "gnss": keys.GNSS,
 }
 """What the ground station shows of each vessel, by the fleet's kind."""
 

@@ -13,7 +13,9 @@ from pydantic import BaseModel, Field
 from seaway.contract import keys
 from seaway.contract.messages import (
     ActiveArea,
+    BatteryState,
     EnergyBudget,
+    GnssFix,
     Message,
     MissionRequest,
     MissionStatus,
@@ -63,6 +65,11 @@ class VesselView(BaseModel):
     area: Timed[ActiveArea] | None = Field(
         default=None, description="the operating area the controller enforces: keep-in polygon, "
                                   "keep-out polygons and circles, rally points (local NED [m])")
+    battery: Timed[BatteryState] | None = Field(
+        default=None, description="the propulsion battery as the autopilot reports it: voltage, "
+                                  "remaining fraction and energy, its own low/critical flag")
+    gnss: Timed[GnssFix] | None = Field(default=None, description="the latest GNSS fix: fix type, "
+                                        "satellites, accuracy, velocity over ground")
     last_mission: MissionRequest | None = Field(
         default=None, description="the last mission this ground station sent and the vessel accepted")
     active_mission: MissionPlanView | None = Field(

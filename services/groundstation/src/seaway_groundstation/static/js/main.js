@@ -12,7 +12,7 @@ import { MapView } from "./map.js";
 import { TimePlot } from "./plot.js";
 import { Player } from "./replay.js";
 import { Store } from "./store.js";
-import { $, fmt, markStale, say, setText, stickySay } from "./ui.js";
+import { $, fmt, fmtDuration, fmtEnergy, markStale, say, setText, stickySay } from "./ui.js";
 
 const POLL_MS = 2000;
 const METRICS_MS = 1500;
@@ -55,7 +55,7 @@ const plots = {
     lines: [{ key: "speed", label: "", colour: "vessel" }] }),
   xte: new TimePlot($("plot-xte"), { title: "Cross-track error", unit: "m", digits: 2, zeroBased: true,
     lines: [{ key: "xte", label: "", colour: "pred" }] }),
-  energy: new TimePlot($("plot-energy"), { title: "Energy", unit: "J", digits: 0, zeroBased: true,
+  energy: new TimePlot($("plot-energy"), { title: "Energy", unit: "J", digits: 0, zeroBased: true, siPrefix: true,
     lines: [{ key: "used", label: "used", colour: "accent" }, { key: "finish", label: "to finish", colour: "draft" },
       { key: "home", label: "to home", colour: "home" }] }),
 };
@@ -154,9 +154,13 @@ function render() {
       + (vehicle.hold_reason_detail ? `: ${vehicle.hold_reason_detail}` : "") : "";
     setText("v-failsafe", vehicle ? vehicle.failsafe || holdWhy || "none" : "–", vehicle?.failsafe || holdWhy ? "bad" : "");
     setText("v-services", (view?.services || v?.services || []).join(", ") || "–");
+    syncModeBox(vehicle);
+    markStale("battery", stale("battery") && Boolean(msg("battery")));
     document.querySelector(".sim-only").hidden = !view?.simulated;
     markStale("vehicle", stale("vehicle"));
   }
+
+  renderVesselFacts(msg("battery"), vehicle, msg("gnss"), state);
 
   // Mission progress.
   const legs = mission ? Math.max(mission.waypoint_count - 1, 0) : 0;
@@ -167,6 +171,7 @@ function render() {
   setText("p-leg", mission && mission.state !== "idle" ? `${mission.active_leg} / ${legs}` : "–");
   setText("p-dist", fmt(mission?.distance_to_waypoint_m, 1, "m"));
   setText("p-xte", fmt(mission?.cross_track_m, 2, "m"));
+  setText("p-eta", eta(mission, currentPlan(v, mission), state, msg("gnss")));
   setText("p-dist-est", state ? `surge ${fmt(state.tau_d_surge_n, 2)} N, sway ${fmt(state.tau_d_sway_n, 2)} N, yaw ${fmt(state.tau_d_yaw_nm, 2)} N·m` : "–");
   let frac = 0;
   if (mission?.state === "complete") frac = 1;
@@ -207,6 +212,82 @@ function render() {
   if (app.mode === "replay") updateTransport();
 }
 
+const FIX_TYPES = ["no GPS", "no fix", "2D fix", "3D fix", "DGPS", "RTK float", "RTK fixed", "static", "PPP"];
+const BAD_LEVELS = new Set(["critical", "emergency", "failed", "unhealthy"]);
+
+/** Speed over ground [m/s]: the GNSS's velocity when it gives one, else the estimate's. */
+function speedOverGround(state, gnss) {
+  if (gnss && Number.isFinite(gnss.vel_n_mps) && Number.isFinite(gnss.vel_e_mps)) {
+    return Math.hypot(gnss.vel_n_mps, gnss.vel_e_mps);
+  }
+  return state ? Math.hypot(state.u_mps, state.v_mps) : null;
+}
+
+/** The vehicle as an operator reads it: battery, energy left, GNSS, position, heading, speed and
+ *  the time of the latest state (UTC live; the run's time in a simulation that starts at 0). */
+function renderVesselFacts(battery, vehicle, gnss, state) {
+  const frac = battery?.remaining_frac ?? vehicle?.battery_remaining_frac;
+  const volts = battery?.voltage_v ?? vehicle?.battery_voltage_v;
+  const level = battery?.autopilot_level;
+  const parts = [];
+  if (Number.isFinite(frac)) parts.push(`${(frac * 100).toFixed(0)} %`);
+  if (Number.isFinite(volts)) parts.push(`${volts.toFixed(2)} V`);
+  if (level && level !== "ok") parts.push(`autopilot: ${level}`);
+  const batteryCls = BAD_LEVELS.has(level) || (Number.isFinite(frac) && frac < 0.1) ? "bad"
+    : level === "low" || (Number.isFinite(frac) && frac < 0.25) ? "warn" : "";
+  setText("v-battery", parts.join(" · ") || "–", batteryCls);
+  const left = battery?.remaining_j;
+  setText("v-energy-left", Number.isFinite(left)
+    ? `${fmtEnergy(left)}${Number.isFinite(battery.reserve_j) ? `, reserve ${fmtEnergy(battery.reserve_j)}` : ""}` : "–");
+  if (gnss) {
+    const g = [FIX_TYPES[gnss.fix_type] ?? `fix ${gnss.fix_type}`];
+    if (Number.isFinite(gnss.satellites)) g.push(`${gnss.satellites} sats`);
+    if (Number.isFinite(gnss.horizontal_std_m)) g.push(`±${gnss.horizontal_std_m.toFixed(1)} m`);
+    setText("v-gnss", g.join(" · "), gnss.fix_type < 3 ? "bad" : "");
+  } else {
+    setText("v-gnss", "–", "");
+  }
+  if (state) {
+    const ll = map.latLon(state.x_m, state.y_m);
+    setText("v-position", `N ${state.x_m.toFixed(1)} m, E ${state.y_m.toFixed(1)} m`
+      + (ll ? ` (${ll[0].toFixed(6)}°, ${ll[1].toFixed(6)}°)` : ""));
+    const deg = (((state.psi_rad * 180) / Math.PI) % 360 + 360) % 360;
+    setText("v-heading", `${deg.toFixed(0)}°`);
+    const sog = speedOverGround(state, gnss);
+    setText("v-speed", `${fmt(sog, 2, "m/s")} over ground`);
+    // Real time stamps with the Unix clock; a simulation in lockstep from 0.
+    const stampS = state.stamp_ns / 1e9;
+    setText("v-time", stampS > 1e9 ? `${new Date(stampS * 1000).toISOString().slice(11, 19)} UTC`
+      : `t = ${stampS.toFixed(1)} s (simulated)`);
+  } else {
+    for (const id of ["v-position", "v-heading", "v-speed", "v-time"]) setText(id, "–");
+  }
+}
+
+/** Time to the last waypoint at the current speed over ground: the rest of the active leg plus the
+ *  legs after it. "–" when not flying or too slow to say. */
+function eta(mission, plan, state, gnss) {
+  if (!mission || mission.state !== "active" || !plan?.waypoints_m?.length) return "–";
+  const wps = plan.waypoints_m;
+  let rest = Number.isFinite(mission.distance_to_waypoint_m) ? mission.distance_to_waypoint_m : 0;
+  for (let i = Math.max(mission.active_leg, 0); i + 1 < wps.length; i++) {
+    rest += Math.hypot(wps[i + 1][0] - wps[i][0], wps[i + 1][1] - wps[i][1]);
+  }
+  const sog = speedOverGround(state, gnss);
+  if (!Number.isFinite(sog) || sog < 0.05) return `${rest.toFixed(0)} m to go`;
+  return `${fmtDuration(rest / sog)} (${rest.toFixed(0)} m at ${sog.toFixed(2)} m/s)`;
+}
+
+/** The mode box shows the autopilot's real mode until the operator types in it: "Set mode" then
+ *  sends what is shown, never a stale default (it used to say HOLD whatever the mode was). */
+let modeEdited = false;
+$("mode-select").addEventListener("input", () => { modeEdited = true; });
+function syncModeBox(vehicle) {
+  const box = $("mode-select");
+  if (!vehicle?.mode || modeEdited || document.activeElement === box) return;
+  if (box.value !== vehicle.mode) box.value = vehicle.mode;
+}
+
 function renderMetrics(mission) {
   let m = null, source = "";
   if (app.mode === "live") {
@@ -221,7 +302,7 @@ function renderMetrics(mission) {
     source = "This recording's run has no report/metrics.json.";
   }
   setText("m-travel-time", fmt(m?.travel_time_s, 1, "s"));
-  setText("m-energy", fmt(m?.energy_j, 1, "J"));
+  setText("m-energy", fmtEnergy(m?.energy_j));
   setText("m-xte-avg", fmt(m?.avg_cross_track_m, 3, "m"));
   setText("m-xte-max", fmt(m?.max_cross_track_m, 2, "m"));
   setText("metrics-source", source);
@@ -236,11 +317,14 @@ const HOLD_REASONS = {
 
 const DECISIONS = { warn: ["LOW ENERGY", "warn"], return: ["RETURNING HOME", "bad"], hold: ["HOLDING", "bad"] };
 
-/** An energy [J] with its band, "45.6 J (40.1–50.2)". */
+/** An energy [J] with its band, "6.79 kJ (1.89 Wh), 6.50–7.10 kJ". */
 function withBand(j, low, high) {
-  const band = Number.isFinite(low) && Number.isFinite(high) && (low !== j || high !== j)
-    ? ` (${low.toFixed(1)}–${high.toFixed(1)})` : "";
-  return fmt(j, 1, "J") + (Number.isFinite(j) ? band : "");
+  if (!Number.isFinite(j)) return "–";
+  const band = Number.isFinite(low) && Number.isFinite(high) && (low !== j || high !== j);
+  if (!band) return fmtEnergy(j);
+  const [scale, unit] = Math.abs(j) >= 1e6 ? [1e6, "MJ"] : Math.abs(j) >= 1e3 ? [1e3, "kJ"] : [1, "J"];
+  const digits = scale === 1 ? 0 : 2;
+  return `${fmtEnergy(j)}, ${(low / scale).toFixed(digits)}–${(high / scale).toFixed(digits)} ${unit}`;
 }
 
 /** The energy budget's figures (mission/energy; the status's before any), and its decision shown
@@ -249,13 +333,13 @@ function renderEnergy(b, mission, isStale) {
   setText("e-source", b ? "mission/energy" : mission?.energy_used_j != null ? "mission status" : "");
   // The controller's count either way; the status's goes on to the completion (the budget's stops
   // with the last active period).
-  setText("m-energy-used", fmt(mission?.energy_used_j ?? b?.energy_used_j, 1, "J"));
+  setText("m-energy-used", fmtEnergy(mission?.energy_used_j ?? b?.energy_used_j));
   setText("e-finish", b ? withBand(b.energy_to_go_j, b.energy_to_go_low_j, b.energy_to_go_high_j)
-    : fmt(mission?.energy_to_go_j, 1, "J"));
+    : fmtEnergy(mission?.energy_to_go_j));
   setText("e-home", b ? withBand(b.energy_to_home_j, b.energy_to_home_low_j, b.energy_to_home_high_j) : "–");
-  setText("e-battery", b && b.battery_remaining_j == null ? "not reported" : fmt(b?.battery_remaining_j, 1, "J"));
-  setText("e-reserve", fmt(b?.reserve_j, 1, "J"));
-  setText("e-margin", fmt(b?.margin_j, 1, "J"), Number.isFinite(b?.margin_j) && b.margin_j <= 0 ? "bad" : "");
+  setText("e-battery", b && b.battery_remaining_j == null ? "not reported" : fmtEnergy(b?.battery_remaining_j));
+  setText("e-reserve", fmtEnergy(b?.reserve_j));
+  setText("e-margin", fmtEnergy(b?.margin_j), Number.isFinite(b?.margin_j) && b.margin_j <= 0 ? "bad" : "");
   let pnr = "–";
   if (b && Number.isFinite(b.no_return_along_m)) {
     const ll = map.latLon(b.no_return_x_m, b.no_return_y_m);
@@ -287,6 +371,17 @@ function renderEnergy(b, mission, isStale) {
   // Budgets come while the mission is active only: after it they are the last, not stale news.
   markStale("energy", Boolean(b) && isStale && mission?.state === "active");
 }
+
+/** Operator or read-only: whether this tab holds the operator token (commands need it). */
+function updateAccessPill() {
+  const pill = $("access");
+  const operator = Boolean(getToken());
+  pill.textContent = operator ? "operator" : "read-only";
+  pill.className = `pill ${operator ? "ok" : "readonly"}`;
+}
+setInterval(updateAccessPill, 1000);
+updateAccessPill();
+$("access").addEventListener("click", () => askToken());
 
 function updateLinkPill() {
   const pill = $("link");
@@ -397,7 +492,20 @@ const COMMANDS = {
   abort: () => confirm(`Abort the mission of ${app.selected}?`) && run("Abort", vpath("mission/abort")),
   start: () => run("Start again", vpath("mission/start")),
 };
-for (const b of document.querySelectorAll("[data-cmd]")) b.addEventListener("click", () => COMMANDS[b.dataset.cmd]());
+// One request per click: the button stays disabled until the vessel answered (a double click on a
+// command used to send it twice).
+for (const b of document.querySelectorAll("[data-cmd]")) {
+  b.addEventListener("click", async () => {
+    if (b.disabled) return;
+    b.disabled = true;
+    try {
+      await COMMANDS[b.dataset.cmd]();
+    } finally {
+      b.disabled = false;
+      if (b.dataset.cmd === "mode") modeEdited = false;
+    }
+  });
+}
 
 // -- the mission editor ---------------------------------------------------------------------------
 

@@ -301,12 +301,12 @@ export class MapView {
       const [sx] = this.toScreen(0, e);
       el("line", { x1: sx, y1: 0, x2: sx, y2: h, stroke: Math.abs(e) < step / 2 ? "#c5ced8" : "var(--grid)" }, g);
       el("text", { x: sx + 3, y: 12, "font-size": 10, fill: "var(--muted)" }, g)
-        .textContent = `${+e.toPrecision(6)} E`;
+        .textContent = `${+e.toPrecision(6)} m E`;
     }
     for (let n = Math.ceil(nBot / step) * step; n <= nTop; n += step) {
       const [, sy] = this.toScreen(n, 0);
       el("line", { x1: 0, y1: sy, x2: w, y2: sy, stroke: Math.abs(n) < step / 2 ? "#c5ced8" : "var(--grid)" }, g);
-      if (sy > 20) el("text", { x: 3, y: sy - 3, "font-size": 10, fill: "var(--muted)" }, g).textContent = `${+n.toPrecision(6)} N`;
+      if (sy > 20) el("text", { x: 3, y: sy - 3, "font-size": 10, fill: "var(--muted)" }, g).textContent = `${+n.toPrecision(6)} m N`;
     }
     // North arrow.
     const a = el("g", { transform: `translate(${w - 24},30)` }, g);

@@ -13,10 +13,11 @@ function niceStep(span, target) {
 export class TimePlot {
   /**
    * canvas: the element; title: text; unit: y unit; lines: [{key, label, colour (CSS variable
-   * name)}]; digits: decimals of the readout; zeroBased: keep 0 in the y range.
+   * name)}]; digits: decimals of the readout; zeroBased: keep 0 in the y range; siPrefix: show
+   * large values in k or M of the unit (energy in kJ, MJ) so that axis labels stay short.
    */
-  constructor(canvas, { title, unit, lines, digits = 1, zeroBased = false }) {
-    Object.assign(this, { canvas, title, unit, lines, digits, zeroBased });
+  constructor(canvas, { title, unit, lines, digits = 1, zeroBased = false, siPrefix = false }) {
+    Object.assign(this, { canvas, title, unit, lines, digits, zeroBased, siPrefix });
     this.ctx = canvas.getContext("2d");
     this.canvas.dataset.title = title;
   }
@@ -36,18 +37,28 @@ export class TimePlot {
     const pad = { l: 46, r: 8, t: 22, b: 20 };
     const pw = w - pad.l - pad.r, ph = h - pad.t - pad.b;
 
+    // The unit's prefix from the largest value shown (k from 10^4, M from 10^6).
+    const n = data?.t?.length ?? 0;
+    let top = 0;
+    if (this.siPrefix) {
+      for (const line of this.lines) for (const v of data?.[line.key] || []) if (Number.isFinite(v)) top = Math.max(top, Math.abs(v));
+    }
+    const [scale, prefix] = top >= 1e6 ? [1e6, "M"] : top >= 1e4 ? [1e3, "k"] : [1, ""];
+    const unit = `${prefix}${this.unit}`;
+    this.canvas.dataset.unit = unit;
+    const digits = scale === 1 ? this.digits : 2;
+
     // Title and latest values.
     ctx.font = "600 12px system-ui, sans-serif";
     ctx.fillStyle = ink;
     ctx.textBaseline = "top";
-    ctx.fillText(`${this.title} [${this.unit}]`, 4, 3);
-    const n = data?.t?.length ?? 0;
-    let x = ctx.measureText(`${this.title} [${this.unit}]`).width + 14;
+    ctx.fillText(`${this.title} [${unit}]`, 4, 3);
+    let x = ctx.measureText(`${this.title} [${unit}]`).width + 14;
     ctx.font = "12px system-ui, sans-serif";
     for (const line of this.lines) {
       const v = n ? data[line.key][n - 1] : NaN;
       ctx.fillStyle = stale ? colour("stale") : colour(line.colour);
-      const text = `${line.label} ${Number.isFinite(v) ? v.toFixed(this.digits) : "–"}`;
+      const text = `${line.label} ${Number.isFinite(v) ? (v / scale).toFixed(digits) : "–"}`;
       ctx.fillText(text, x, 3);
       x += ctx.measureText(text).width + 10;
     }
@@ -85,7 +96,7 @@ export class TimePlot {
     ctx.textBaseline = "middle";
     for (let v = Math.ceil(lo / ys) * ys; v <= hi; v += ys) {
       ctx.beginPath(); ctx.moveTo(pad.l, Y(v)); ctx.lineTo(pad.l + pw, Y(v)); ctx.stroke();
-      ctx.fillText(Math.abs(v) < ys / 1e6 ? "0" : +v.toPrecision(6) + "", pad.l - 4, Y(v));
+      ctx.fillText(Math.abs(v) < ys / 1e6 ? "0" : +(v / scale).toPrecision(6) + "", pad.l - 4, Y(v));
     }
     const xs = niceStep(t1 - t0, 5);
     ctx.textAlign = "center";

@@ -44,6 +44,27 @@ export function fmt(value, digits = 1, unit = "") {
   return `${value.toFixed(digits)}${unit ? " " + unit : ""}`;
 }
 
+/** An energy [J] in the unit an operator reads: J under 1 kJ, kJ (with Wh) under 1 MJ, else MJ
+ *  (with Wh); 3 significant digits at least. */
+export function fmtEnergy(j) {
+  if (j === null || j === undefined || !Number.isFinite(j)) return "–";
+  const a = Math.abs(j);
+  if (a < 1e3) return `${j.toFixed(a < 10 ? 2 : a < 100 ? 1 : 0)} J`;
+  const wh = j / 3600;
+  const whText = Math.abs(wh) < 10 ? wh.toFixed(2) : Math.abs(wh) < 100 ? wh.toFixed(1) : wh.toFixed(0);
+  if (a < 1e6) return `${(j / 1e3).toFixed(a < 1e4 ? 2 : a < 1e5 ? 1 : 0)} kJ (${whText} Wh)`;
+  return `${(j / 1e6).toFixed(a < 1e7 ? 2 : 1)} MJ (${whText} Wh)`;
+}
+
+/** A duration [s] as "1 h 02 min", "4 min 05 s" or "12 s". */
+export function fmtDuration(s) {
+  if (s === null || s === undefined || !Number.isFinite(s) || s < 0) return "–";
+  const t = Math.round(s);
+  if (t >= 3600) return `${Math.floor(t / 3600)} h ${String(Math.floor((t % 3600) / 60)).padStart(2, "0")} min`;
+  if (t >= 60) return `${Math.floor(t / 60)} min ${String(t % 60).padStart(2, "0")} s`;
+  return `${t} s`;
+}
+
 export function setText(id, text, cls) {
   const el = $(id);
   if (!el) return;
