@@ -143,6 +143,10 @@ def test_a_crash_between_saves_is_covered_by_the_margin(tmp_path):
 
 
 def test_a_reopened_link_continues_the_same_clock(tmp_path):
+    """The saved timestamp is an hour ahead of the wall clock (one that was set back): a link that
+    started again from the wall clock would go back by an hour."""
+    ahead = signing_timestamp(time.time_ns()) + 3600 * TIMESTAMP_UNITS_PER_S
+    (tmp_path / "k.timestamp").write_text(str(ahead))
     clock = clock_at(tmp_path, time.time_ns(), time.monotonic_ns())
     peer = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     peer.bind(("127.0.0.1", 0))
@@ -159,6 +163,7 @@ def test_a_reopened_link_continues_the_same_clock(tmp_path):
     finally:
         peer.close()
         clock.close()
+    assert stamps[0] > ahead
     assert all(b > a for a, b in itertools.pairwise(stamps)), stamps
 
 

@@ -114,10 +114,12 @@ def push(url: str, setup: SigningSetup, system: int, component: int, timeout_s: 
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog=PROG, description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    sub = ap.add_subparsers(dest="command", required=True)
-    new = sub.add_parser("new", help="write a new random key file (mode 0600)")
-    new.add_argument("path", type=Path)
-    p = sub.add_parser("push", help="give the key to the autopilot (SETUP_SIGNING) and check it")
+    sub = ap.add_subparsers(dest="command", required=True, help="new: make a key; push: give it")
+    new = sub.add_parser("new", help="write a new random key file (mode 0600)",
+                         description="Write a new random 32-byte key, 0600; never overwrites.")
+    new.add_argument("path", type=Path, help="the key file to create")
+    p = sub.add_parser("push", help="give the key to the autopilot (SETUP_SIGNING) and check it",
+                       description="Send SETUP_SIGNING until the autopilot signs with the key.")
     p.add_argument("--key", type=Path, required=True, help="the key file (64 hex characters)")
     p.add_argument("--mavlink", required=True, help="the autopilot's MAVLink URL (as vehicle_io's)")
     p.add_argument("--system", type=int, default=SOURCE_SYSTEM, help="our system id")
