@@ -48,8 +48,9 @@ from seaway_vehicle_io.core import (
     VehicleIoCore,
 )
 from seaway_vehicle_io.link import MAX_DATAGRAMS_PER_READ, MavlinkLink
-from seaway_vehicle_io.main import build_parser, load, signing_key
+from seaway_vehicle_io.main import build_parser, load, signing_setup
 from seaway_vehicle_io.mav import mavlink
+from seaway_vehicle_io.signing import SigningClock, SigningSetup
 from seaway_vehicle_io.thrust import ThrusterLimits
 
 S = NS_PER_S
@@ -271,13 +272,14 @@ def test_source_descriptions():
 
 
 @pytest.fixture
-def link_and_peers():
+def link_and_peers(tmp_path):
     """vehicle_io's link listening (udpin), an autopilot socket and an intruder socket."""
     probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     probe.bind(("127.0.0.1", 0))
     port = probe.getsockname()[1]
     probe.close()
-    link = MavlinkLink(f"udpin:127.0.0.1:{port}", 255, 191, signing_key=KEY)
+    clock = SigningClock(SigningSetup(KEY, 1, tmp_path / "ts"), time.time_ns(), time.monotonic_ns())
+    link = MavlinkLink(f"udpin:127.0.0.1:{port}", 255, 191, signing=clock)
     ap = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     intruder = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     for s in (ap, intruder):
@@ -421,10 +423,12 @@ def test_signing_key_file_flag_overrides_the_config(tmp_path):
     args = build_parser().parse_args(["--signing-key-file", str(path), "--vessel-file",
                                       "paper-boat"])
     cfg, _limits = load(args, resolve(args, "vehicle_io"))
-    assert cfg.signing_key_file == path and signing_key(cfg) == key
+    setup = signing_setup(cfg)
+    assert cfg.signing_key_file == path and setup is not None and setup.key == key
+    assert setup.timestamp_file == tmp_path / "flag.key.timestamp" and setup.link_id == 1
     plain = build_parser().parse_args(["--vessel-file", "paper-boat"])
     cfg, _limits = load(plain, resolve(plain, "vehicle_io"))
-    assert signing_key(cfg) is None
+    assert signing_setup(cfg) is None
     (tmp_path / "empty.key").write_text("")
     (tmp_path / "empty.key").chmod(0o600)
     bad = build_parser().parse_args(["--signing-key-file", str(tmp_path / "empty.key")])

@@ -19,6 +19,13 @@ from seaway.contract.config import ConfigModel, named_file
 from seaway.vessel.mavlink_signing import read_key
 
 from seaway_vehicle_io import profile, rates
+from seaway_vehicle_io.signing import (
+    DEFAULT_LINK_ID,
+    SigningSetup,
+    TimestampFileError,
+    read_timestamp,
+    timestamp_path,
+)
 
 AUTOPILOT_CHOICES: tuple[str, ...] = profile.choices()
 """``auto`` and every registered autopilot profile's name (``profile.py``)."""
@@ -166,9 +173,22 @@ class VehicleIoConfig(ConfigModel):
     signing_key_file: Path | None = Field(
         default=None,
         description="MAVLink 2 signing: a file holding the 32-byte secret key as 64 hex characters "
-                    "(python -m seaway.vessel.mavlink_signing PATH writes one; a relative path is "
-                    "from the working directory). Set: everything we send is signed, and unsigned or "
-                    "wrongly signed incoming messages are refused (counted). None: no signing",
+                    "(a relative path is from the working directory). Set: everything we send is "
+                    "signed, and unsigned or wrongly signed incoming messages are refused "
+                    "(counted). None: no signing. "
+                    "`seaway signing new PATH` writes one, `seaway signing push` gives it to the "
+                    "autopilot",
+    )
+    signing_link_id: int = Field(
+        default=DEFAULT_LINK_ID, ge=0, le=255,
+        description="MAVLink signing link id of our frames; two senders sharing a key and ids must "
+                    "differ in it",
+    )
+    signing_timestamp_file: Path | None = Field(
+        default=None,
+        description="where our signing timestamp is kept across restarts, so that it never goes "
+                    "back (written every 10 s and at exit, mode 0600). None: the key file's path "
+                    "with '.timestamp' appended",
     )
 
     @field_validator("signing_key_file")
@@ -177,6 +197,28 @@ class VehicleIoConfig(ConfigModel):
         if path is not None:
             read_key(path)  # KeyFileError (a ValueError) names the file and what it must hold
         return path
+
+    @model_validator(mode="after")
+    def _check_timestamp_file(self) -> VehicleIoConfig:
+        if self.signing_key_file is not None:
+            try:
+                read_timestamp(self.timestamp_file())
+            except TimestampFileError as err:
+                raise ValueError(f"signing_timestamp_file: {err}") from None
+        return self
+
+    def timestamp_file(self) -> Path:
+        """Where the signing timestamp is kept (only meaningful with a key file)."""
+        if self.signing_timestamp_file is not None:
+            return self.signing_timestamp_file
+        return timestamp_path(self.signing_key_file or Path("mavlink.key"))
+
+    def signing_setup(self) -> SigningSetup | None:
+        """The signing this config asks for (None: none), the key read now. KeyFileError."""
+        if self.signing_key_file is None:
+            return None
+        return SigningSetup(read_key(self.signing_key_file), self.signing_link_id,
+                            self.timestamp_file())
 
     @field_validator("bind_host")
     @classmethod

@@ -17,8 +17,9 @@ as fast as a sender can produce it, so that the kernel's socket buffer does not 
 the autopilot's datagrams with the flood's. Each read is bounded (``MAX_DATAGRAMS_PER_READ``), so a
 flood can never keep the receive thread from handing what it has to the core.
 
-Signing: our messages are packed by our own ``MAVLink`` object (``_tx``), which signs them when a key
-is given. pymavlink's ``conn.mav`` only parses, without a key: signatures are checked by the core
+Signing: our messages are packed by our own ``MAVLink`` object (``_tx``), which signs them when a
+``SigningClock`` is given (``signing.py``: the key, link id and a timestamp that never goes back).
+pymavlink's ``conn.mav`` only parses, without a key: signatures are checked by the core
 (``seaway.vessel.mavlink_signing``), not by pymavlink's parser, whose check can be poisoned.
 """
 
@@ -33,7 +34,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
-from seaway.vessel.mavlink_signing import frame_ids, keep_up, signing_timestamp
+from seaway.vessel.mavlink_signing import frame_ids
 
 from seaway_vehicle_io.authority import Address, Source, SourcePolicy
 from seaway_vehicle_io.component_metadata import (
@@ -50,6 +51,7 @@ from seaway_vehicle_io.core import (
     SendRequestDataStream,
 )
 from seaway_vehicle_io.mav import DIALECT, mavlink, mavutil
+from seaway_vehicle_io.signing import SigningClock
 
 FTP_PAYLOAD_LEN = 251  # FILE_TRANSFER_PROTOCOL.payload
 
@@ -64,7 +66,6 @@ MAX_MESSAGES_PER_READ = 256  # TCP / serial: at most this many messages per read
 # Asked of the kernel for UDP (it caps this at net.core.rmem_max): room for a few milliseconds of
 # a flood while the receive thread is descheduled, so the autopilot's datagrams are not dropped.
 RECEIVE_BUFFER_BYTES = 1 << 20
-SIGNING_LINK_ID = 1  # our signing link id (one link per vehicle_io)
 
 
 class LinkClosedError(ConnectionError):
@@ -100,7 +101,7 @@ class MavlinkLink:
     except ``wait_readable``, which only selects on the descriptor."""
 
     def __init__(self, url: str, source_system: int, source_component: int, baud: int = 57600,
-                 udp_client_timeout_s: float = 3.0, signing_key: bytes | None = None,
+                 udp_client_timeout_s: float = 3.0, signing: SigningClock | None = None,
                  bind_host: str | None = None) -> None:
         self.url = check_url(url)
         self.conn: Any = mavutil.mavlink_connection(
@@ -112,12 +113,10 @@ class MavlinkLink:
         self.is_tcp = isinstance(self.conn, mavutil.mavtcp)
         self.is_udp = isinstance(self.conn, mavutil.mavudp)
         self._tx = mavlink.MAVLink(self.conn, srcSystem=source_system, srcComponent=source_component)
-        self.signing = signing_key is not None
-        if signing_key is not None:
-            sig = self._tx.signing
-            sig.secret_key, sig.sign_outgoing, sig.link_id = signing_key, True, SIGNING_LINK_ID
-            # Wall-clock based, so it is ahead of what the autopilot saw from our last run.
-            sig.timestamp = signing_timestamp(time.time_ns())
+        self.clock = signing
+        self.signing = signing is not None
+        if signing is not None:
+            signing.attach(self._tx)
         self.peer: Address = None  # UDP: the locked autopilot's address; None hears everyone
         self.stream_address: Address = None  # TCP: the connected peer; serial: None
         if self.is_tcp:
@@ -261,12 +260,15 @@ class MavlinkLink:
             self._send(out)
         except OSError as err:  # TCP reset, serial gone (UDP errors are swallowed by pymavlink)
             raise LinkClosedError(f"{self.url}: {err}") from err
+        finally:
+            if self.clock is not None:
+                self.clock.note_sent(self._tx)
         self.sent += 1
 
     def _send(self, out: Output) -> None:
         mav = self._tx
-        if self.signing:  # a restarted autopilot takes our stream only near its clock
-            keep_up(mav.signing, time.time_ns())
+        if self.clock is not None:  # a restarted autopilot takes our stream only near its clock
+            self.clock.before_send(mav, time.time_ns(), time.monotonic_ns())
         if isinstance(out, SendManualControl):
             a = out.axes
             mav.manual_control_send(out.target_system, a.x, a.y, a.z, a.r, 0)

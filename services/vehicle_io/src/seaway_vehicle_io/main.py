@@ -13,12 +13,13 @@ from seaway.runtime.run import RunDescription
 from seaway.runtime.service import base_parser, parse, resolve_run, run_service
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.battery import BatteryParams
-from seaway.vessel.mavlink_signing import KeyFileError, read_key
+from seaway.vessel.mavlink_signing import KeyFileError
 from seaway.vessel.model import load_vessel
 
 from seaway_vehicle_io.config import AUTOPILOT_CHOICES, VehicleIoConfig, config_path
 from seaway_vehicle_io.link import check_url
 from seaway_vehicle_io.service import VehicleIoService
+from seaway_vehicle_io.signing import SigningSetup
 from seaway_vehicle_io.thrust import ThrusterLimits
 
 log = logging.getLogger("seaway.vehicle_io")
@@ -39,7 +40,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--signing-key-file", default=None, metavar="PATH",
                    help="MAVLink 2 signing key file, 64 hex characters (overrides the config's "
                         "signing_key_file): sign everything sent, refuse unsigned or wrongly signed "
-                        "messages. Create one with: python -m seaway.vessel.mavlink_signing PATH")
+                        "messages. Create one with: seaway signing new PATH")
     return p
 
 
@@ -70,12 +71,12 @@ def battery_of(run: RunDescription) -> BatteryParams | None:
     return load_vessel(run.model_vessel_file).battery
 
 
-def signing_key(cfg: VehicleIoConfig) -> bytes | None:
-    """The MAVLink signing key the config names (None: no signing). ConfigError."""
+def signing_setup(cfg: VehicleIoConfig) -> SigningSetup | None:
+    """The MAVLink signing the config asks for (None: no signing). ConfigError."""
     try:
-        return read_key(cfg.signing_key_file) if cfg.signing_key_file is not None else None
+        return cfg.signing_setup()
     except KeyFileError as err:  # changed since the config was validated
-        raise ConfigError(str(err)) from None
+        raise ConfigError(f"signing_key_file: {err}") from None
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -83,7 +84,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     run = resolve_run(args, "vehicle_io", load_scenario)
     try:
         cfg, limits = load(args, run)
-        key = signing_key(cfg)
+        signing = signing_setup(cfg)
         battery = battery_of(run)
     except ConfigError as err:
         print(f"seaway-vehicle-io: {err}", file=sys.stderr)
@@ -96,8 +97,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                  limits.dead_zone_n, "none in the vessel file (measured figures only)"
                  if battery is None else f"{battery.energy_j / 1e3:.1f} kJ usable, reserve "
                  f"{battery.reserve_energy_j / 1e3:.1f} kJ, nominal {battery.nominal_voltage_v:g} V",
-                 f"on (key file {cfg.signing_key_file})" if key is not None else "off")
-        service = VehicleIoService(cfg, limits, ctx.bus, ctx.stop, signing_key=key,
+                 f"on (key file {cfg.signing_key_file})" if signing is not None else "off")
+        service = VehicleIoService(cfg, limits, ctx.bus, ctx.stop, signing=signing,
                                    battery=battery)
         ctx.ready()
         service.run()

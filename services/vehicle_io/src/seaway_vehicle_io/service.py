@@ -50,6 +50,7 @@ from seaway_vehicle_io.config import VehicleIoConfig
 from seaway_vehicle_io.core import LockPeer, Now, Output, Publish, SendCommandLong, VehicleIoCore
 from seaway_vehicle_io.link import LinkClosedError, MavlinkLink
 from seaway_vehicle_io.mav import result_name
+from seaway_vehicle_io.signing import SigningClock, SigningSetup
 from seaway_vehicle_io.thrust import ThrusterLimits
 
 log = logging.getLogger("seaway.vehicle_io")
@@ -69,15 +70,17 @@ class VehicleIoService:
     """vehicle_io running on one bus and one MAVLink URL until ``stop`` is set."""
 
     def __init__(self, cfg: VehicleIoConfig, limits: ThrusterLimits, bus: Bus,
-                 stop: threading.Event, signing_key: bytes | None = None,
+                 stop: threading.Event, signing: SigningSetup | None = None,
                  battery: BatteryParams | None = None) -> None:
         self.cfg = cfg
         self.bus = bus
         self.stop = stop
-        self.signing_key = signing_key
+        t = now()
+        # One signing clock for every link this process opens: its timestamp never goes back.
+        self.signing = None if signing is None else SigningClock(signing, t.wall_ns, t.mono_ns)
         self.lock = threading.Lock()
         self.acks = threading.Condition(self.lock)
-        self.core = VehicleIoCore(cfg, limits, now(), signing_key, battery)
+        self.core = VehicleIoCore(cfg, limits, t, None if signing is None else signing.key, battery)
         self.link: MavlinkLink | None = None
         self._requests_serial = threading.Lock()  # one COMMAND_LONG in flight at a time
         self._ratelog = RateLimitedLog(log)
@@ -131,6 +134,9 @@ class VehicleIoService:
             if self.link is not None:
                 self.link.close()
                 self.link = None
+            if self.signing is not None and not self.signing.close():
+                log.warning("MAVLink signing: the timestamp file %s was not written in time",
+                            self.signing.setup.timestamp_file)
             if self.core.refusals.total:
                 log.info("MAVLink refused during the run: %s (busiest: %s)",
                          self.core.refusals.by_reason, self.core.refusals.summary())
@@ -141,7 +147,7 @@ class VehicleIoService:
         try:
             link = MavlinkLink(self.cfg.mavlink, self.cfg.source_system, self.cfg.source_component,
                                self.cfg.baud, udp_client_timeout_s=self.cfg.heartbeat_timeout_s,
-                               signing_key=self.signing_key, bind_host=self.cfg.bind_host)
+                               signing=self.signing, bind_host=self.cfg.bind_host)
         except Exception as err:  # OSError, or pyserial's own SerialException
             self._open_failures += 1
             if self._open_failures % OPEN_FAILURES_PER_LOG == 1:  # the first, then every 30 s
