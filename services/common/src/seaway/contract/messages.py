@@ -236,6 +236,28 @@ it did not name, e.g. ArduPilot's EKF failsafe)."""
 """Why the autopilot does not apply the commanded thrust (``VehicleStatus.thrust_withheld``)."""
 
 
+AutopilotFenceState = Literal["uploading", "verified", "mismatch", "failed", "refused"]
+"""Where the operating area stands as the autopilot's own fence (``AutopilotFence.state``)."""
+
+
+class AutopilotFence(BaseModel):
+    """The operating area as the autopilot's own fence (vehicle_io uploads it over MAVLink's
+    mission protocol and sets the fence's parameters): 'uploading' (under way), 'verified' (read
+    back: the items and the parameters are those meant), 'mismatch' (read back, and they differ:
+    ``detail`` says where), 'failed' (the transfer got no answer or a refusal; retried), 'refused'
+    (the area does not fit the autopilot, ``detail`` names the field; not retried until it
+    changes)."""
+
+    model_config = ConfigDict(extra="ignore", allow_inf_nan=False, frozen=True)
+    state: AutopilotFenceState
+    detail: str = Field(default="", max_length=2000)
+    area_since_ns: int = Field(ge=0, description="ActiveArea.since_ns of the area it is")
+    fence_items: int = Field(ge=0, description="fence items uploaded (vertices and circles)")
+    rally_points: int = Field(ge=0)
+    action: str = Field(default="", max_length=200,
+                        description="the fence parameters set, e.g. 'FENCE_ACTION=2 (Hold)'")
+
+
 class VehicleStatus(Message):
     """Link, arming, mode, failsafe and battery state of the autopilot as vehicle_io sees it."""
 
@@ -284,6 +306,9 @@ class VehicleStatus(Message):
                     "controller commands: 'no_link' (no autopilot), 'disarmed', 'mode' (a mode in "
                     "which manual control does not drive the thrusters, e.g. HOLD after a "
                     "failsafe), 'autopilot_config' (vehicle_io sends neutral only); None: it does")
+    autopilot_fence: AutopilotFence | None = Field(
+        default=None, description="the operating area as the autopilot's own fence; None: no "
+                                  "area heard, no origin, or not uploaded (autopilot_fence off)")
 
 
 BatterySource = Literal["autopilot", "sim"]
