@@ -55,6 +55,19 @@ def active_area(since_ns: int, circle: tuple[tuple[float, float], float] = KEEP_
         rally_points=[{"x_m": x, "y_m": y} for x, y in RALLY])
 
 
+def oversized_area(since_ns: int, keep_outs: int = 12) -> ActiveArea:
+    """A 100-vertex keep-in and ``keep_outs`` 100-vertex keep-out polygons: 1300 fence items."""
+
+    def ring(cx: float, cy: float, r: float) -> list[dict[str, float]]:
+        return [{"x_m": cx + r * math.cos(2 * math.pi * k / 100),
+                 "y_m": cy + r * math.sin(2 * math.pi * k / 100)} for k in range(100)]
+
+    return ActiveArea.make(
+        stamp_ns=since_ns, since_ns=since_ns, source="test", keep_in={"vertices": ring(0, 0, 400)},
+        keep_out_polygons=[{"vertices": ring(150 * math.cos(k), 150 * math.sin(k), 10)}
+                           for k in range(keep_outs)])
+
+
 def e7(north_m: float, east_m: float) -> tuple[int, int]:
     lat, lon, _ = ORIGIN.to_geodetic(north_m, east_m, 0.0)
     return round(math.degrees(lat) * 1e7), round(math.degrees(lon) * 1e7)
@@ -138,6 +151,23 @@ def test_vehicle_io_uploads_the_area_as_ardupilots_fence_and_the_fence_holds_the
         (mavlink.MAV_CMD_NAV_RALLY_POINT, *e7(*p)) for p in RALLY]
     assert params == {"FENCE_ENABLE": 1.0, "FENCE_TYPE": 4.0, "FENCE_ACTION": 2.0}
     print(f"read back on SERIAL2: {len(held)} fence items, {len(rally)} rally points, {params}")
+
+    # -- more than the firmware stores: refused, naming the fields; the fence it has stays ------
+    big = oversized_area(time.time_ns())
+    areas.put(big)
+    _, refused = status.wait(lambda s: s.autopilot_fence is not None
+                             and s.autopilot_fence.area_since_ns == big.since_ns
+                             and s.autopilot_fence.state != "uploading", 60,
+                             "the verdict on an area too big for the firmware")
+    print(f"oversized area: {refused.autopilot_fence.state}: {refused.autopilot_fence.detail}")
+    assert refused.autopilot_fence.state == "refused", refused.autopilot_fence
+    assert "NO_SPACE" in refused.autopilot_fence.detail
+    assert "keep_in (100 vertices) + keep_out_polygons (" in refused.autopilot_fence.detail
+    reader = Reader(5762 + 10 * sitl.instance)
+    try:
+        assert len(reader.download(mavlink.MAV_MISSION_TYPE_FENCE)) == len(want)  # unchanged
+    finally:
+        reader.close()
 
     # -- the line holds: armed in MANUAL, a keep-out circle over the vessel ----------------------
     reply, t_arm = arm(bus), time.monotonic()

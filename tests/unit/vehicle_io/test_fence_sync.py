@@ -289,3 +289,19 @@ def test_an_empty_area_clears_the_fence_and_disables_ardupilots():
     assert rig.ap.stored[mavlink.MAV_MISSION_TYPE_FENCE] == []
     assert rig.ap.params == {"FENCE_ENABLE": 0.0}
     assert rig.status().autopilot_fence.state == "verified"  # type: ignore[union-attr]
+
+
+def test_a_reboot_without_the_link_dropping_checks_the_fence_again():
+    """A fast reboot (SYSTEM_TIME going back, the link never lost): the autopilot's fence is
+    uploaded and read back again, since a firmware may come back without it."""
+    rig = Rig(FakeAutopilot("ardupilot"))
+    assert rig.core.fence is not None
+    rig.core.fence.set_area(area())
+    rig.feed([wire(mavlink.MAVLink_system_time_message(WALL0 // 1000, 600_000))])
+    rig.run(1.0)
+    n = rig.ap.sent_types.count("SendMissionCount")
+    rig.feed([wire(mavlink.MAVLink_system_time_message(WALL0 // 1000, 2_000))])  # rebooted
+    assert rig.core.link.ok
+    rig.run(1.0)
+    assert rig.ap.sent_types.count("SendMissionCount") == n + 2
+    assert rig.status().autopilot_fence.state == "verified"  # type: ignore[union-attr]
