@@ -28,7 +28,7 @@ from seaway_vehicle_io.mav import mavlink
 from seaway_vehicle_io.profile import decode_param_value
 
 from tests.conftest import BIN, Procs, wait_for
-from tests.system.vehicle_io.px4_sitl import Px4Sitl, needs_px4
+from tests.system.vehicle_io.px4_sitl import Px4Sitl, boat_params, needs_px4
 from tests.system.vehicle_io.test_ardupilot_sitl import StatusWatch
 from tests.system.vehicle_io.test_mavlink_authority import udp_port
 
@@ -124,9 +124,18 @@ def test_the_sims_px4_takes_the_fence_and_holds_the_line(zenoh_env, procs, bus, 
     assert sim.poll() is None and vio.poll() is None
 
 
+def at_the_runs_origin(monkeypatch: pytest.MonkeyPatch) -> None:
+    """PX4 SITL's SIH starts where PX4_HOME_* say (``px4-rc.sihsim``): here, the run's origin.
+    Elsewhere, the fence would lie half a world away and PX4 would discard it (see below)."""
+    for name, value in (("LAT", 28.18), ("LON", 112.94), ("ALT", 30.0)):
+        monkeypatch.setenv(f"PX4_HOME_{name}", str(value))
+
+
 @needs_px4
-def test_px4s_own_firmware_takes_the_fence_and_it_reads_back(zenoh_env, procs, bus, tmp_path):
+def test_px4s_own_firmware_takes_the_fence_and_it_reads_back(zenoh_env, procs, bus, tmp_path,
+                                                             monkeypatch):
     """PX4 SITL 1.18: vehicle_io's upload verified, and the same lists read back on the SIH link."""
+    at_the_runs_origin(monkeypatch)
     px4 = Px4Sitl(tmp_path)
     try:
         status = StatusWatch(bus)
@@ -156,6 +165,82 @@ def test_px4s_own_firmware_takes_the_fence_and_it_reads_back(zenoh_env, procs, b
         assert decode_param_value(value, ptype) == 2.0
         print(f"PX4 SITL read back on the SIH link: {len(fence)} fence items, {len(rally)} rally "
               "points, GF_ACTION 2")
+        assert status.poll()[-1][1].autopilot_fence.state == "verified"  # not discarded since
         assert vio.poll() is None and px4.proc.poll() is None, px4.log()[-3000:]
+    finally:
+        px4.kill()
+
+
+@needs_px4
+def test_px4s_own_geofence_holds_the_line_and_its_cause_is_named(zenoh_env, procs, bus, tmp_path,
+                                                                 monkeypatch):
+    """PX4 SITL 1.18 (SIH differential rover, the boat's parameters), started at the run's origin:
+    armed in MANUAL, driven full ahead out of a keep-in square; PX4's geofence (GF_ACTION 2) takes
+    it into Hold, and vehicle_io names the cause 'fence' with PX4's words."""
+    at_the_runs_origin(monkeypatch)
+    px4 = Px4Sitl(tmp_path, params=boat_params())
+    try:
+        status = StatusWatch(bus)
+        positions = bus.subscribe(keys.LOCAL_POSITION)
+        vio = start_vio(procs, zenoh_env, tmp_path, px4.vio_url)
+        status.wait(lambda s: s.link_ok and s.autopilot == "px4", 60, "vehicle_io's link to PX4")
+        start: LocalPosition = wait_for(positions.latest, 60, what="a LocalPosition")
+        a = area((start.x_m, start.y_m), 8.0)
+        bus.publisher(keys.AREA_ACTIVE).put(a)
+        verified(status, a, "the fence's verdict on PX4 SITL")
+        assert request(bus, keys.VEHICLE_MODE, ModeRequest.make(stamp_ns=time.time_ns(),
+                                                                mode="MANUAL")).accepted
+        t_arm = time.monotonic()
+        while not request(bus, keys.VEHICLE_ARM, ArmRequest.make(stamp_ns=time.time_ns(),
+                                                                 arm=True)).accepted:
+            assert time.monotonic() - t_arm < 60, "PX4 never armed"
+            time.sleep(1.0)
+        status.wait(lambda s: s.armed and s.mode == "MANUAL" and s.thrust_withheld is None, 10,
+                    "armed in MANUAL", fresh=True)
+        thrust = bus.publisher(keys.THRUST)
+        t0 = time.monotonic()
+        while not any(s.hold_reason is not None for _, s in status.poll()):
+            if time.monotonic() - t0 >= 90:
+                last = positions.latest()
+                fast = max((math.hypot(vx, vy) for _, vx, vy in list(px4.observer.speeds)),
+                           default=None)
+                raise AssertionError(
+                    f"PX4 never held: at {last and (last.x_m - start.x_m, last.y_m - start.y_m)} "
+                    f"from the start, fastest {fast} m/s, motors "
+                    f"{list(px4.observer.motors)[-1:]}, texts {list(px4.observer.texts)[-5:]}, "
+                    f"status {status.poll()[-1][1]}")
+            thrust.put(ThrustCommand.make(stamp_ns=time.time_ns(), thrust_port_n=60.0,
+                                          thrust_starboard_n=60.0, source="test"))
+            time.sleep(0.05)
+        _, named = status.wait(lambda s: s.hold_reason == "fence", 10, "the hold named 'fence'")
+        print(f"PX4 SITL breach after {time.monotonic() - t0:.1f} s: mode {named.mode}, "
+              f"{named.hold_reason} ({named.hold_reason_detail}); texts "
+              f"{[t for _, t in px4.observer.texts][-4:]}")
+        assert named.mode == "HOLD" and "eofence" in named.hold_reason_detail, named
+        assert vio.poll() is None and px4.proc.poll() is None, px4.log()[-3000:]
+    finally:
+        px4.kill()
+
+
+@needs_px4
+def test_a_fence_px4_accepts_but_discards_is_not_called_verified(zenoh_env, procs, bus, tmp_path):
+    """PX4 at SIH's default home (Zurich), the run's area at the lake: PX4 ACKs the upload and
+    the lists read back as sent, but its navigator drops every zone for not containing home and
+    says so in text only. vehicle_io reports a mismatch, not a verified fence."""
+    px4 = Px4Sitl(tmp_path)
+    try:
+        status = StatusWatch(bus)
+        vio = start_vio(procs, zenoh_env, tmp_path, px4.vio_url)
+        status.wait(lambda s: s.link_ok and s.autopilot == "px4", 60, "vehicle_io's link to PX4")
+        wait_for(lambda: any(s.rates_hz.get("HOME_POSITION") for _, s in status.poll()), 60,
+                 what="PX4's home position")
+        a = area((0.0, 0.0), 100.0)
+        bus.publisher(keys.AREA_ACTIVE).put(a)
+        _, st = status.wait(lambda s: s.autopilot_fence is not None
+                            and s.autopilot_fence.state == "mismatch", 30,
+                            "the fence judged not enforced")
+        print(f"PX4 SITL away from the area: {st.autopilot_fence.detail}")
+        assert "doesn't contain Home position" in st.autopilot_fence.detail
+        assert vio.poll() is None
     finally:
         px4.kill()

@@ -305,3 +305,23 @@ def test_a_reboot_without_the_link_dropping_checks_the_fence_again():
     rig.run(1.0)
     assert rig.ap.sent_types.count("SendMissionCount") == n + 2
     assert rig.status().autopilot_fence.state == "verified"  # type: ignore[union-attr]
+
+
+def test_px4_discarding_a_zone_it_accepted_is_a_mismatch_not_verified(caplog):
+    """PX4's navigator drops a zone that does not contain home after the upload was ACKed, and
+    says so only in text: the lists still read back as uploaded."""
+    rig = Rig(FakeAutopilot("px4"))
+    assert rig.core.fence is not None
+    rig.core.fence.set_area(area())
+    rig.run(1.0)
+    assert rig.status().autopilot_fence.state == "verified"  # type: ignore[union-attr]
+    with caplog.at_level(logging.WARNING):
+        rig.feed([wire(mavlink.MAVLink_statustext_message(
+            mavlink.MAV_SEVERITY_CRITICAL, b"Geofence invalid, doesn't contain Home position"))])
+    st = rig.status().autopilot_fence
+    assert st is not None and st.state == "mismatch"
+    assert "does not enforce all of it" in st.detail and "Home position" in st.detail
+    assert "DIFFERS" in caplog.text
+    rig.core.fence.set_area(area(since_ns=7, circle_m=30.0))  # a new area: judged afresh
+    rig.run(1.0)
+    assert rig.status().autopilot_fence.state == "verified"  # type: ignore[union-attr]

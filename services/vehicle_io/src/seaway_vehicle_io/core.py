@@ -881,6 +881,8 @@ class VehicleIoCore:
             # MAV_SEVERITY <= 4 is a warning or worse (PreArm failures are 2, CRITICAL)
             self._log_limited(now, "STATUSTEXT", item.text, logging.WARNING if item.severity <= 4
                               else logging.INFO, f"autopilot says: {item.text}")
+            if self.fence is not None:
+                self.fence.on_text(item.text)
             if item.severity <= WARNING_SEVERITY:
                 self._hold_changed(self.hold.said(classify_text(item.text), item.text,
                                                   now.mono_ns))
@@ -927,6 +929,8 @@ class VehicleIoCore:
             # info as info; debug and protocol chatter not at all
             self._log_limited(now, "EVENT", ev.text, logging.WARNING if ev.level <= 4
                               else logging.INFO, f"autopilot says: {ev.text}")
+        if ev is not None and self.fence is not None:
+            self.fence.on_text(ev.text)
         if ev is not None and ev.level <= EVENT_WARNING_LEVEL:
             self._hold_changed(self.hold.said(classify_text(ev.text), ev.text, now.mono_ns))
         return []

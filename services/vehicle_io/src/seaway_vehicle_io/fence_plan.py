@@ -46,6 +46,9 @@ CIRCLE_EXCLUSION = mavlink.MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION
 RALLY_POINT = mavlink.MAV_CMD_NAV_RALLY_POINT
 MAV_PARAM_TYPE_INT8 = 2
 MAV_PARAM_TYPE_INT32 = 6
+DISCARD_TEXT = "geofence invalid"
+"""What PX4 says when its navigator discards a zone it accepted (``Geofence::_updateFence``:
+"Geofence invalid, doesn't contain Home position" / "... current vehicle position")."""
 LATLON_TOLERANCE_E7 = 1  # a firmware storing degrees as double may round by one unit (~1 cm)
 RADIUS_TOLERANCE_M = 0.01
 

@@ -97,6 +97,7 @@ class FenceSync:
         self._state: AutopilotFenceState | None = None
         self._detail = ""
         self._fence: plan.AutopilotFence | None = None
+        self._discarded: str | None = None  # the autopilot said it does not enforce part of it
 
     # -- inputs --------------------------------------------------------------------------------------
 
@@ -131,6 +132,17 @@ class FenceSync:
             return []
         step.value = value
         return self._advance(now_ns)
+
+    def on_text(self, text: str) -> None:
+        """A STATUSTEXT or decoded EVENT: PX4 discards a zone that does not contain home (or, when
+        armed, the vehicle) after accepting the upload, and says only this ("Geofence invalid,
+        doesn't contain Home position"). The items read back as uploaded, but the autopilot does
+        not hold them: a mismatch, not 'verified'."""
+        if plan.DISCARD_TEXT not in text.lower() or self.area is None or self._state is None:
+            return
+        self._discarded = text
+        if self._state == "verified":
+            self._verdict()
 
     def tick(self, now_ns: int, target: tuple[int, int] | None, autopilot: str | None,
              epoch: object) -> list[FenceOutput]:
@@ -192,6 +204,7 @@ class FenceSync:
         assert self.area is not None and self.origin is not None and self._target is not None
         assert self._autopilot is not None
         self._dirty, self._retry_ns, self._mismatch, self._read = False, None, [], {}
+        self._discarded = None
         self._fence = plan.FENCES[self._autopilot]
         self._meant = {FENCE: plan.fence_items(self.area, self.origin),
                        RALLY: plan.rally_items(self.area, self.origin)}
@@ -258,6 +271,10 @@ class FenceSync:
         return self._verdict()
 
     def _verdict(self) -> list[FenceOutput]:
+        if self._discarded is not None:
+            self._mismatch.append(f"the autopilot does not enforce all of it: "
+                                  f"{self._discarded!r}")
+            self._discarded = None
         if self._mismatch:
             self._state, self._detail = "mismatch", "; ".join(self._mismatch)
             log.warning("the autopilot's fence DIFFERS from the operating area: %s", self._detail)
