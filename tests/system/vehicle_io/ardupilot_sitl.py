@@ -7,8 +7,11 @@ why, only when it is absent.
 
 from __future__ import annotations
 
+import fcntl
 import os
 import socket
+import tempfile
+from pathlib import Path
 
 import pytest
 from seaway.contract.config import repo_root
@@ -27,6 +30,22 @@ needs_sitl = pytest.mark.skipif(FIRMWARE is None or START is None or not START.e
                                 reason=f"ArduPilot Rover SITL: {_MISSING or 'no start-motorboat.sh'}")
 
 _used_instances: set[int] = set()
+_held_locks: list[object] = []  # open lock files: held until this process ends
+LOCK_DIR = Path(tempfile.gettempdir())
+
+
+def _claim(instance: int) -> bool:
+    """Take the machine-wide lock of an instance number (a file lock: released when this process
+    ends, however it ends), so that two test processes started at once, whose SITLs have not bound
+    their ports yet, never pick the same number."""
+    f = open(LOCK_DIR / f"seaway-ardupilot-sitl-{instance}.lock", "w")  # noqa: SIM115
+    try:
+        fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        f.close()
+        return False
+    _held_locks.append(f)
+    return True
 
 
 def _ports_free(instance: int) -> bool:
@@ -45,7 +64,7 @@ def sitl_instance() -> int:
     worker = os.environ.get("PYTEST_XDIST_WORKER", "gw0")
     base = 40 + 20 * int("".join(c for c in worker if c.isdigit()) or 0)
     for instance in range(base, base + 20):
-        if instance not in _used_instances and _ports_free(instance):
+        if instance not in _used_instances and _ports_free(instance) and _claim(instance):
             _used_instances.add(instance)
             return instance
     pytest.fail(f"no free ArduPilot SITL instance number in {base}..{base + 19}")

@@ -18,11 +18,13 @@ Skipped, saying why, only when the binary is absent.
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import os
 import shutil
 import signal
 import struct
 import subprocess
+import tempfile
 import threading
 import time
 from collections import deque
@@ -71,10 +73,27 @@ def runnable_bin(into: Path) -> Path:
     return exe
 
 
+_held_locks: list[object] = []  # open lock files: held until this process ends
+
+
+def _claim(instance: int) -> bool:
+    """The machine-wide lock of a PX4 instance number (released when this process ends), so that
+    two test processes starting at once never pick the same one before PX4 binds its ports."""
+    f = open(Path(tempfile.gettempdir()) / f"seaway-px4-sitl-{instance}.lock", "w")  # noqa: SIM115
+    try:
+        fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        f.close()
+        return False
+    _held_locks.append(f)
+    return True
+
+
 def free_instance() -> int:
     """An instance number whose ports (PX4's and the ones it sends to) are free."""
     for n in range(3, 40):
-        if all(udp_port_free(p + n) for p in (18570, 14580, 14540, 19450, 19410, 14280, 13030)):
+        if all(udp_port_free(p + n) for p in (18570, 14580, 14540, 19450, 19410, 14280, 13030)) \
+                and _claim(n):
             return n
     pytest.fail("no free PX4 SITL instance number in 3..39")
 
@@ -145,6 +164,7 @@ class Observer:
         self.heartbeats: deque[tuple[float, int, bool]] = deque(maxlen=5000)  # custom_mode, armed
         self.texts: deque[tuple[float, str]] = deque(maxlen=500)
         self.params: dict[str, tuple[float, int]] = {}  # name -> (value as sent, type)
+        self.mission: deque = deque(maxlen=500)  # MISSION_COUNT / MISSION_ITEM_INT heard
         self._stop = threading.Event()
         self._threads = [threading.Thread(target=self._run, args=(self.sih,), daemon=True)]
 
@@ -174,6 +194,8 @@ class Observer:
                 self.texts.append((now, msg.text))
             elif kind == "PARAM_VALUE":
                 self.params[msg.param_id] = (msg.param_value, msg.param_type)
+            elif kind in ("MISSION_COUNT", "MISSION_ITEM_INT"):
+                self.mission.append(msg)
 
     def set_param(self, name: str, value: float, timeout_s: float = 10.0) -> None:
         """PARAM_SET on the SIH link, in the type PX4 declares (it ignores a set of another type:
@@ -200,6 +222,27 @@ class Observer:
             assert time.monotonic() < deadline, f"PX4 did not take {name} = {value} (has {got})"
             self.sih.mav.param_set_send(self.instance + 1, 1, name.encode(), raw, ptype)
             time.sleep(0.2)
+
+    def download(self, mission_type: int, timeout_s: float = 5.0) -> list:
+        """The firmware's list of ``mission_type`` (fence, rally), over the mission protocol on
+        the SIH link: MISSION_REQUEST_LIST, then MISSION_REQUEST_INT per item."""
+
+        def heard(kind: str, seq: int | None = None):
+            return next((m for m in list(self.mission) if m.get_type() == kind
+                         and m.mission_type == mission_type
+                         and (seq is None or m.seq == seq)), None)
+
+        target = self.instance + 1
+        self.mission.clear()
+        self.sih.mav.mission_request_list_send(target, 1, mission_type)
+        count = wait_for(lambda: heard("MISSION_COUNT"), timeout_s, what="PX4's MISSION_COUNT")
+        items = []
+        for seq in range(count.count):
+            self.sih.mav.mission_request_int_send(target, 1, seq, mission_type)
+            items.append(wait_for(lambda seq=seq: heard("MISSION_ITEM_INT", seq), timeout_s,
+                                  what=f"PX4's MISSION_ITEM_INT {seq}"))
+        self.sih.mav.mission_ack_send(target, 1, 0, mission_type)
+        return items
 
     def motors_since(self, t: float) -> list[Motors]:
         return [m for m in list(self.motors) if m.mono_s >= t]

@@ -110,3 +110,19 @@ def test_a_stamp_cannot_pin_an_old_status() -> None:
     assert core.on_vehicle_status(status(t, "disarmed")) is not None
     _, _, st = core.step(t + DT_NS, state(3))
     assert st.state == "paused"
+
+
+def test_the_autopilots_fence_breach_is_named_in_the_missions_reason_and_the_refused_resume() -> None:
+    """Issue 63: a fence breach reaches the mission state with its cause, not as a bare HOLD."""
+    core = flying()
+    t = START_NS + 3 * DT_NS
+    breach = VehicleStatus(stamp_ns=t, autopilot="ardupilot", link_ok=True, armed=True,
+                           mode="HOLD", thrust_withheld="mode", hold_reason="fence",
+                           hold_reason_detail="SYS_STATUS: fence unhealthy (mode MANUAL -> HOLD)")
+    core.on_vehicle_status(breach)
+    _, _, st = core.step(t + DT_NS, state(3))
+    assert st.state == "paused"
+    assert "the autopilot's fence was breached" in st.reason and "hold_reason fence" in st.reason
+    assert "SYS_STATUS: fence unhealthy" in st.reason
+    refused = resume(core, t + DT_NS + 1)
+    assert not refused.accepted and "fence was breached" in refused.reason

@@ -362,7 +362,8 @@ def test_param_list_has_every_failsafe_param_vehicle_io_checks() -> None:
                       "COM_DL_LOSS_T": 10, "COM_OF_LOSS_T": 1.0, "COM_OBL_RC_ACT": 0,
                       "COM_DISARM_LAND": 2.0, "NAV_ACC_RAD": 0.5,
                       "MAV_TYPE": 10, "MAV_SYS_ID": 1, "CA_AIRFRAME": 6, "CA_R_REV": 3,
-                      "RO_ACCEL_LIM": -1.0, "RO_DECEL_LIM": -1.0, "RO_MAX_THR_SPEED": -1.0}
+                      "RO_ACCEL_LIM": -1.0, "RO_DECEL_LIM": -1.0, "RO_MAX_THR_SPEED": -1.0,
+                      "GF_ACTION": 2, "GF_SOURCE": 0}
 
 
 def test_param_set_echoes_the_new_value_and_refuses_bad_ones() -> None:

@@ -54,6 +54,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from seaway.contract.messages import (
+    HOLD_REASON_TEXT,
     BatteryState,
     EnergyBudget,
     EnergyDecision,
@@ -437,6 +438,11 @@ class ControllerCore:
         v = self.vehicle
         if v is None or v.thrust_withheld is None:
             return None
+        if v.thrust_withheld == "mode" and v.hold_reason is not None:
+            said = f": {v.hold_reason_detail}" if v.hold_reason_detail else ""
+            return (f"the autopilot is in mode {v.mode}, in which it does not apply the commanded "
+                    f"thrust: {HOLD_REASON_TEXT[v.hold_reason]} (hold_reason {v.hold_reason}"
+                    f"{said})")
         return {
             "no_link": "vehicle_io has no link to the autopilot (lost, or the autopilot rebooted)",
             "disarmed": "the vehicle is disarmed (the autopilot rebooted, or was disarmed)",

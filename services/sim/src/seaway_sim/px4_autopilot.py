@@ -52,6 +52,7 @@ from seaway.vessel.frames import GeoOrigin
 
 from seaway_sim import px4_mixer
 from seaway_sim.battery import PackReading, report_due
+from seaway_sim.px4_geofence import Px4Geofence
 from seaway_sim.px4_params import (
     BY_NAME,
     INDEX,
@@ -83,6 +84,8 @@ MODE_NAMES = {MANUAL: "MANUAL", HOLD: "HOLD", RTL: "RTL", LAND: "LAND"}
 # so an operator (the launcher's profiles: mode_on_start) asks for MANUAL before arming.
 BOOT_MODE = HOLD
 
+# GF_ACTION values (geofence_result_s).
+GF_NONE, GF_WARN, GF_HOLD, GF_RETURN, GF_TERMINATE, GF_LAND = 0, 1, 2, 3, 4, 5
 # NAV_RCL_ACT values (PX4 v1.14+).
 RCL_HOLD, RCL_RETURN, RCL_LAND, RCL_TERMINATE, RCL_DISARM = 1, 2, 3, 5, 6
 # COM_RC_IN_MODE values under which a MAVLink MANUAL_CONTROL stream is not an input.
@@ -233,12 +236,19 @@ class Px4Autopilot:
         self._last_heading: float | None = None  # for GLOBAL_POSITION_INT.hdg
         self._warnings = RateLimitedLog(log, every_s=1.0)  # streams repeat: once a second per kind
         self.streams = StreamIntervals()
+        self.geofence = Px4Geofence(config.sysid, COMPID)
+        self.fence_action: int | None = None  # GF_ACTION taken on a breach, until a mode change
+        self._fence_loaded = 0  # the geofence's load count last built into zones
+        self._was_inside = True
         self._handlers = {
             "MANUAL_CONTROL": self._on_manual_control,
             "COMMAND_LONG": self._on_command_long,
             "PARAM_REQUEST_READ": self._on_param_request_read,
             "PARAM_REQUEST_LIST": self._on_param_request_list,
             "PARAM_SET": self._on_param_set,
+            **dict.fromkeys(("MISSION_COUNT", "MISSION_ITEM_INT", "MISSION_REQUEST_LIST",
+                             "MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"),
+                            self._on_mission),
         }
 
     # -- derived state -----------------------------------------------------------------------
@@ -255,6 +265,8 @@ class Px4Autopilot:
 
     def nav_mode(self) -> tuple[int, int]:
         """The mode PX4 would report: the failsafe's while one is active, else the user's."""
+        if self.fence_action is not None:
+            return {GF_RETURN: RTL, GF_LAND: LAND}.get(self.fence_action, HOLD)
         if self.failsafe_since_ns is None:
             return self.user_mode
         return {RCL_RETURN: RTL, RCL_LAND: LAND}.get(self.failsafe_action or RCL_HOLD, HOLD)
@@ -266,6 +278,7 @@ class Px4Autopilot:
 
     def update(self, now_ns: int) -> None:
         """Advance the failsafe state machine to ``now_ns`` (call before reading thrust)."""
+        self._check_geofence()
         lost = self.manual_control_lost(now_ns)
         if not lost:
             self.manual_lost_at_arming = False
@@ -321,6 +334,30 @@ class Px4Autopilot:
             log.warning("Return ended at home: disarmed by landing")
             self._clear_failsafe()
 
+    def _check_geofence(self) -> None:
+        """The geofence (``px4_geofence``): a new fence is loaded into zones; armed, a position
+        newly outside it takes ``GF_ACTION`` (PX4's failsafe framework: the action stands until a
+        mode change or disarming), with PX4's text."""
+        fix = self.last_fix
+        position = None if fix is None else (fix.lat_rad, fix.lon_rad)
+        action = int(self.params.get("GF_ACTION"))
+        if self.geofence.loaded != self._fence_loaded:
+            self._fence_loaded = self.geofence.loaded
+            self.geofence.load(self.home, position if self.armed and action != GF_NONE else None)
+            self._texts += self.geofence.texts
+            self.geofence.texts.clear()
+        inside = position is None or self.geofence.inside(*position)
+        newly_out, self._was_inside = self._was_inside and not inside, inside
+        if not (newly_out and self.armed and action != GF_NONE) or self.fence_action is not None:
+            return
+        self._text(SEVERITY_CRITICAL, "Geofence violation: approaching or outside geofence")
+        self.counters["geofence_breach"] += 1
+        log.warning("geofence breached: GF_ACTION %d", action)
+        if action == GF_TERMINATE:
+            self.terminated, self.armed = True, False
+        elif action != GF_WARN:
+            self.fence_action = action
+
     def _at_home(self) -> bool:
         """Whether the last fix is within NAV_ACC_RAD of home (the fix at arming). The sim does
         not navigate, so a Return that begins farther away never arrives."""
@@ -330,6 +367,7 @@ class Px4Autopilot:
         return math.hypot(north, east) <= float(self.params.get("NAV_ACC_RAD"))
 
     def _clear_failsafe(self) -> None:
+        self.fence_action = None
         self.failsafe_since_ns = None
         self.failsafe_action = None
         self.landed_since_ns = None
@@ -342,7 +380,8 @@ class Px4Autopilot:
         """(T1 port, T2 starboard) [N] the autopilot outputs at ``now_ns``."""
         self.update(now_ns)
         if (not self.armed or self.terminated or self.failsafe_since_ns is not None
-                or self.user_mode != MANUAL or self.manual_control_lost(now_ns)):
+                or self.fence_action is not None or self.user_mode != MANUAL
+                or self.manual_control_lost(now_ns)):
             return 0.0, 0.0
         y, z = self.last_manual_axes
         return px4_mixer.manual_control_to_thrust_n(y, z, self.thrust_max_n)
@@ -474,6 +513,7 @@ class Px4Autopilot:
         if mode != self.user_mode:
             log.info("mode %s -> %s", MODE_NAMES[self.user_mode], MODE_NAMES[mode])
         self.user_mode = mode
+        self.fence_action = None  # a mode change takes the vessel back from the geofence action
         return mavlink.MAV_RESULT_ACCEPTED
 
     def _param_value(self, spec: ParamSpec) -> Any:
@@ -512,6 +552,15 @@ class Px4Autopilot:
             return self._reject("param_set_refused", now_ns, f"PARAM_SET refused: {error}")
         log.info("parameter %s = %s", name, value)
         return [self._param_value(BY_NAME[name])]
+
+    def _on_mission(self, msg: Any, now_ns: int) -> list[Any]:
+        if not self._for_me(msg.target_system):
+            self.counters["ignored_other_target"] += 1
+            return []
+        out = self.geofence.handle(msg)
+        self._texts += self.geofence.texts
+        self.geofence.texts.clear()
+        return out
 
     # -- outgoing -----------------------------------------------------------------------------
 

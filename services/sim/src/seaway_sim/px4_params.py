@@ -69,6 +69,11 @@ PARAMS: tuple[ParamSpec, ...] = (
               "throttle deceleration limit [m/s^2]; -1 disabled (not simulated)"),
     ParamSpec("RO_MAX_THR_SPEED", MAV_PARAM_TYPE_REAL32, -1.0, -1.0, 100.0, False,
               "speed at full throttle [m/s]; -1 disabled (not simulated)"),
+    ParamSpec("GF_ACTION", MAV_PARAM_TYPE_INT32, 2, 0, 5, True,
+              "geofence breach action: 0 none, 1 warning, 2 Hold, 3 Return, 4 Terminate, 5 Land "
+              "(PX4's default 2)"),
+    ParamSpec("GF_SOURCE", MAV_PARAM_TYPE_INT32, 0, 0, 1, False,
+              "geofence position source: 0 global position, 1 GPS (the sim's fix either way)"),
 )
 BY_NAME: dict[str, ParamSpec] = {p.name: p for p in PARAMS}
 INDEX: dict[str, int] = {p.name: i for i, p in enumerate(PARAMS)}

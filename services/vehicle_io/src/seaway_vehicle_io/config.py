@@ -137,6 +137,18 @@ class VehicleIoConfig(ConfigModel):
         default=1.0, gt=0, description="wait this long for each PARAM_VALUE before asking again [s]"
     )
     param_attempts: int = Field(default=3, ge=1, le=10)
+    autopilot_fence: bool = Field(
+        default=True,
+        description="upload the operating area the controller enforces to the autopilot as its own fence, "
+                    "with its fence action Hold, and read it back (fence_sync.py)",
+    )
+    fence_timeout_s: float = Field(
+        default=1.5, gt=0, le=30,
+        description="fence upload/download: wait this long for each answer before sending again [s]",
+    )
+    fence_attempts: int = Field(default=5, ge=1, le=20,
+                                description="fence upload/download: sends of one message before "
+                                            "the transfer fails (and is retried 10 s later)")
     message_rates_hz: dict[str, float] = Field(
         default_factory=lambda: dict(rates.DEFAULT_RATES_HZ),
         description="telemetry rates asked of the autopilot at each connection (ArduPilot: "

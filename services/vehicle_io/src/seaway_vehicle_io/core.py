@@ -87,7 +87,9 @@ from seaway_vehicle_io.failsafe_cause import (
     FailsafeCause,
     classify_text,
 )
+from seaway_vehicle_io.fence_sync import FenceOutput, FenceSync
 from seaway_vehicle_io.mav import mavlink
+from seaway_vehicle_io.mission_transfer import TRANSFER_MESSAGES
 from seaway_vehicle_io.profile import FailsafeAssessment, ManualControlAxes, Profile
 from seaway_vehicle_io.rates import MAV_CMD_SET_MESSAGE_INTERVAL, RateCheck, RateWatch
 from seaway_vehicle_io.statustext import StatusTexts, matching
@@ -172,7 +174,8 @@ class LockPeer:
 
 
 Output = (SendHeartbeat | SendManualControl | SendCommandLong | SendParamRequestRead
-          | SendRequestDataStream | SendRequestMessage | SendFileTransfer | Publish | LockPeer)
+          | SendRequestDataStream | SendRequestMessage | SendFileTransfer | Publish | LockPeer
+          | FenceOutput)
 
 
 # -- state pieces ---------------------------------------------------------------------------------
@@ -275,6 +278,10 @@ class VehicleIoCore:
         self._next_status_ns = start.mono_ns
         self._ratelog = RateLimitedLog(log, LOG_EVERY_S)
         self._withheld: ThrustWithheld | None = self.thrust_withheld()  # as last published
+        # The operating area as the autopilot's own fence (None: off); fed by the loop's area
+        # and origin subscriptions, driven here.
+        self.fence = (FenceSync(config.fence_timeout_s, config.fence_attempts)
+                      if config.autopilot_fence else None)
 
     # ===========================================================================================
     # Inputs
@@ -326,6 +333,8 @@ class VehicleIoCore:
         self.counts[mtype] = self.counts.get(mtype, 0) + 1
         if self.rate_check is not None:
             self.rate_check.count(mtype, now.mono_ns)
+        if mtype in TRANSFER_MESSAGES:
+            return [] if self.fence is None else list(self.fence.on_mavlink(msg, now.mono_ns))
         handler = self._HANDLERS.get(mtype)
         if handler is None:
             return []
@@ -417,6 +426,7 @@ class VehicleIoCore:
             if now.mono_ns >= self._next_mc_ns:
                 self._next_mc_ns = _next_after(self._next_mc_ns, self._period_mc_ns, now.mono_ns)
         out.extend(self._param_requests(now))
+        out.extend(self._fence_tick(now))
         if self.link.ok:
             sends, ended = self.events.tick(now.mono_ns)
             out.extend(sends)
@@ -449,7 +459,22 @@ class VehicleIoCore:
             rc_due = self.rate_check.next_due_ns()
             if rc_due is not None:
                 due.append(rc_due)
+        fence_due = self.fence.next_due_ns() if self.fence is not None else None
+        if fence_due is not None:
+            due.append(fence_due)
         return min(due)
+
+    def _fence_tick(self, now: Now) -> list[Output]:
+        """Drive the fence sync; a new link or a reboot (the time offset's resets) checks it again."""
+        if self.fence is None:
+            return []
+        link = self.link
+        target = ((link.target_system, link.target_component)
+                  if link.ok and link.target_system is not None and link.target_component is not None
+                  else None)
+        return list(self.fence.tick(now.mono_ns, target,
+                                    link.profile.name if link.profile is not None else None,
+                                    (link.connects, self.offset.resets)))
 
     # ===========================================================================================
     # Requests (arm, mode): the loop sends the returned command and waits for the ACK
@@ -565,6 +590,7 @@ class VehicleIoCore:
             else dict(self.rate_watch.short),
             thrust_withheld=self._withheld,
             refused_thrust=self.refused_thrust(),
+            autopilot_fence=self.fence.report() if self.fence is not None else None,
         )
 
     def _update_rates(self, now: Now) -> list[Output]:
@@ -855,6 +881,8 @@ class VehicleIoCore:
             # MAV_SEVERITY <= 4 is a warning or worse (PreArm failures are 2, CRITICAL)
             self._log_limited(now, "STATUSTEXT", item.text, logging.WARNING if item.severity <= 4
                               else logging.INFO, f"autopilot says: {item.text}")
+            if self.fence is not None:
+                self.fence.on_text(item.text)
             if item.severity <= WARNING_SEVERITY:
                 self._hold_changed(self.hold.said(classify_text(item.text), item.text,
                                                   now.mono_ns))
@@ -901,6 +929,8 @@ class VehicleIoCore:
             # info as info; debug and protocol chatter not at all
             self._log_limited(now, "EVENT", ev.text, logging.WARNING if ev.level <= 4
                               else logging.INFO, f"autopilot says: {ev.text}")
+        if ev is not None and self.fence is not None:
+            self.fence.on_text(ev.text)
         if ev is not None and ev.level <= EVENT_WARNING_LEVEL:
             self._hold_changed(self.hold.said(classify_text(ev.text), ev.text, now.mono_ns))
         return []
@@ -995,6 +1025,12 @@ class VehicleIoCore:
     def _on_param_value(self, msg: Any, now: Now) -> list[Output]:
         pc = self.params
         name = str(msg.param_id).rstrip("\x00")
+        if self.fence is not None and self.link.profile is not None:
+            value = self.link.profile.decode_param(msg.param_value, msg.param_type)
+            if value == value and abs(value) != float("inf"):
+                fence_out: list[Output] = list(self.fence.on_param_value(name, value, now.mono_ns))
+                if fence_out:
+                    return fence_out
         wanted = pc.wanted_for(name)
         if pc.done or wanted is None or self.link.profile is None:
             return []

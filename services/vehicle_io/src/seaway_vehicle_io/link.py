@@ -50,7 +50,15 @@ from seaway_vehicle_io.core import (
     SendParamRequestRead,
     SendRequestDataStream,
 )
+from seaway_vehicle_io.fence_sync import SendParamRead, SendParamSet
 from seaway_vehicle_io.mav import DIALECT, mavlink, mavutil
+from seaway_vehicle_io.mission_transfer import (
+    SendMissionAck,
+    SendMissionCount,
+    SendMissionItemInt,
+    SendMissionRequestInt,
+    SendMissionRequestList,
+)
 from seaway_vehicle_io.signing import SigningClock
 
 FTP_PAYLOAD_LEN = 251  # FILE_TRANSFER_PROTOCOL.payload
@@ -289,9 +297,29 @@ class MavlinkLink:
         elif isinstance(out, SendFileTransfer):
             mav.file_transfer_protocol_send(0, out.target_system, out.target_component,
                                             list(out.payload.ljust(FTP_PAYLOAD_LEN, b"\0")))
-        elif isinstance(out, SendParamRequestRead):
+        elif isinstance(out, SendParamRequestRead | SendParamRead):
             mav.param_request_read_send(out.target_system, out.target_component,
                                         out.param_id.encode("ascii"), -1)
+        elif isinstance(out, SendParamSet):
+            mav.param_set_send(out.target_system, out.target_component,
+                               out.param_id.encode("ascii"), out.value, out.param_type)
+        elif isinstance(out, SendMissionCount):
+            mav.mission_count_send(out.target_system, out.target_component, out.count,
+                                   out.mission_type)
+        elif isinstance(out, SendMissionItemInt):
+            i = out.item
+            mav.mission_item_int_send(out.target_system, out.target_component, out.seq, i.frame,
+                                      i.command, 0, 1, i.param1, 0, 0, 0, i.lat_e7, i.lon_e7, i.z,
+                                      out.mission_type)
+        elif isinstance(out, SendMissionRequestList):
+            mav.mission_request_list_send(out.target_system, out.target_component,
+                                          out.mission_type)
+        elif isinstance(out, SendMissionRequestInt):
+            mav.mission_request_int_send(out.target_system, out.target_component, out.seq,
+                                         out.mission_type)
+        elif isinstance(out, SendMissionAck):
+            mav.mission_ack_send(out.target_system, out.target_component, out.result,
+                                 out.mission_type)
         else:
             raise TypeError(f"not a MAVLink output: {out!r}")
 

@@ -13,6 +13,7 @@ from seaway.runtime.run import RunDescription
 from seaway.runtime.service import base_parser, parse, resolve_run, run_service
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.battery import BatteryParams
+from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.mavlink_signing import KeyFileError
 from seaway.vessel.model import load_vessel
 
@@ -98,8 +99,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                  if battery is None else f"{battery.energy_j / 1e3:.1f} kJ usable, reserve "
                  f"{battery.reserve_energy_j / 1e3:.1f} kJ, nominal {battery.nominal_voltage_v:g} V",
                  f"on (key file {cfg.signing_key_file})" if signing is not None else "off")
+        o = run.origin
         service = VehicleIoService(cfg, limits, ctx.bus, ctx.stop, signing=signing,
-                                   battery=battery)
+                                   battery=battery, origin=None if o is None else
+                                   GeoOrigin.from_degrees(o.lat_deg, o.lon_deg, o.alt_m))
         ctx.ready()
         service.run()
     return 0

@@ -12,7 +12,8 @@ Threads, and why:
 * **bus callbacks**: a ThrustCommand is handled on arrival, on the transport's receive thread
   (``inline``; MANUAL_CONTROL goes out from the callback itself, which is what keeps bus-to-wire
   latency in the sub-millisecond range); arm and mode requests block their own callback thread
-  while they wait for COMMAND_ACK.
+  while they wait for COMMAND_ACK; ``keys.AREA_ACTIVE`` and ``keys.NAV_ORIGIN`` feed the autopilot's fence
+  (``fence_sync.py``) under the lock, and the timer loop drives its upload.
 
 Every call into the core and every MAVLink send happens under ``self.lock``; the condition on that
 lock wakes request handlers when an ACK has been processed. Bus publications are made after the
@@ -30,6 +31,7 @@ from collections.abc import Callable
 
 from seaway.contract import keys
 from seaway.contract.messages import (
+    ActiveArea,
     ArmRequest,
     Attitude,
     BatteryState,
@@ -37,6 +39,7 @@ from seaway.contract.messages import (
     LocalPosition,
     MessageError,
     ModeRequest,
+    NavOrigin,
     Reply,
     ThrustCommand,
     VehicleStatus,
@@ -44,6 +47,7 @@ from seaway.contract.messages import (
 from seaway.runtime.bus import Bus, TypedPublisher
 from seaway.runtime.ratelog import RateLimitedLog
 from seaway.vessel.battery import BatteryParams
+from seaway.vessel.frames import GeoOrigin
 
 from seaway_vehicle_io.commands import MAV_CMD_COMPONENT_ARM_DISARM, MAV_RESULT_ACCEPTED
 from seaway_vehicle_io.config import VehicleIoConfig
@@ -71,7 +75,7 @@ class VehicleIoService:
 
     def __init__(self, cfg: VehicleIoConfig, limits: ThrusterLimits, bus: Bus,
                  stop: threading.Event, signing: SigningSetup | None = None,
-                 battery: BatteryParams | None = None) -> None:
+                 battery: BatteryParams | None = None, origin: GeoOrigin | None = None) -> None:
         self.cfg = cfg
         self.bus = bus
         self.stop = stop
@@ -81,6 +85,8 @@ class VehicleIoService:
         self.lock = threading.Lock()
         self.acks = threading.Condition(self.lock)
         self.core = VehicleIoCore(cfg, limits, t, None if signing is None else signing.key, battery)
+        if origin is not None and self.core.fence is not None:
+            self.core.fence.set_origin(origin)  # the run's; the published one, once heard, replaces it
         self.link: MavlinkLink | None = None
         self._requests_serial = threading.Lock()  # one COMMAND_LONG in flight at a time
         self._ratelog = RateLimitedLog(log)
@@ -103,6 +109,9 @@ class VehicleIoService:
         gc.freeze()
         self._open_link()
         self._subscribe_thrust()
+        if self.core.fence is not None:
+            self._area_sub = self.bus.subscribe(keys.AREA_ACTIVE, callback=self._on_area)
+            self._origin_sub = self.bus.subscribe(keys.NAV_ORIGIN, callback=self._on_origin)
         self.bus.queryable(keys.VEHICLE_ARM, self._on_arm)
         self.bus.queryable(keys.VEHICLE_MODE, self._on_mode)
         receiver = threading.Thread(target=self._receive_loop, name="mavlink-rx", daemon=True)
@@ -260,6 +269,16 @@ class VehicleIoService:
         with self.lock:
             publish = self._send(self.core.on_thrust(cmd, now()))
         self._publish(publish)
+
+    def _on_area(self, _key: str, area: ActiveArea) -> None:
+        with self.lock:
+            if self.core.fence is not None:
+                self.core.fence.set_area(area)
+
+    def _on_origin(self, _key: str, origin: NavOrigin) -> None:
+        with self.lock:
+            if self.core.fence is not None:
+                self.core.fence.set_origin(GeoOrigin(origin.lat_rad, origin.lon_rad, origin.alt_m))
 
     def _on_arm(self, req: ArmRequest) -> Reply:
         what = "arm" if req.arm else "disarm"

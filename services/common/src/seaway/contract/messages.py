@@ -233,7 +233,39 @@ HoldReason = Literal["gcs_mode_change", "battery", "fence", "radio_loss", "gcs_l
 nobody in Seaway asked for ('gcs_mode_change'), or the failsafe it named: 'battery', 'fence',
 'radio_loss' (RC / manual control), 'gcs_link_loss' (its ground-station link), 'other' (a failsafe
 it did not name, e.g. ArduPilot's EKF failsafe)."""
+HOLD_REASON_TEXT: dict[str, str] = {
+    "gcs_mode_change": "someone else changed the autopilot's mode (a second ground station or the "
+                       "RC mode switch)",
+    "battery": "the autopilot's battery failsafe",
+    "fence": "the autopilot's fence was breached (its fence action took the vessel)",
+    "radio_loss": "the autopilot's radio (RC) loss failsafe",
+    "gcs_link_loss": "the autopilot's ground-station link loss failsafe",
+    "other": "an autopilot failsafe it did not name",
+}
+"""Each HoldReason for a person (the mission's reason, the page)."""
 """Why the autopilot does not apply the commanded thrust (``VehicleStatus.thrust_withheld``)."""
+
+
+AutopilotFenceState = Literal["uploading", "verified", "mismatch", "failed", "refused"]
+"""Where the operating area stands as the autopilot's own fence (``AutopilotFence.state``)."""
+
+
+class AutopilotFence(BaseModel):
+    """The operating area as the autopilot's own fence (vehicle_io uploads it over MAVLink's
+    mission protocol and sets the fence's parameters): 'uploading' (under way), 'verified' (read
+    back: the items and the parameters are those meant), 'mismatch' (read back, and they differ:
+    ``detail`` says where), 'failed' (the transfer got no answer or a refusal; retried), 'refused'
+    (the area does not fit the autopilot, ``detail`` names the field; not retried until it
+    changes)."""
+
+    model_config = ConfigDict(extra="ignore", allow_inf_nan=False, frozen=True)
+    state: AutopilotFenceState
+    detail: str = Field(default="", max_length=2000)
+    area_since_ns: int = Field(ge=0, description="ActiveArea.since_ns of the area it is")
+    fence_items: int = Field(ge=0, description="fence items uploaded (vertices and circles)")
+    rally_points: int = Field(ge=0)
+    action: str = Field(default="", max_length=200,
+                        description="the fence parameters set, e.g. 'FENCE_ACTION=2 (Hold)'")
 
 
 class VehicleStatus(Message):
@@ -284,6 +316,9 @@ class VehicleStatus(Message):
                     "controller commands: 'no_link' (no autopilot), 'disarmed', 'mode' (a mode in "
                     "which manual control does not drive the thrusters, e.g. HOLD after a "
                     "failsafe), 'autopilot_config' (vehicle_io sends neutral only); None: it does")
+    autopilot_fence: AutopilotFence | None = Field(
+        default=None, description="the operating area as the autopilot's own fence; None: no "
+                                  "area heard, no origin, or not uploaded (autopilot_fence off)")
 
 
 BatterySource = Literal["autopilot", "sim"]
