@@ -7,8 +7,11 @@ why, only when it is absent.
 
 from __future__ import annotations
 
+import fcntl
 import os
 import socket
+import tempfile
+from pathlib import Path
 
 import pytest
 from seaway.contract.config import repo_root
@@ -41,11 +44,35 @@ def _ports_free(instance: int) -> bool:
 
 def sitl_instance() -> int:
     """An instance number of our own: per pytest-xdist worker a block of 20, skipping numbers in
-    use (in this process, or by anything holding its ports)."""
+    use (in this process, by another test process on this machine: ``instance_lock``, or by
+    anything holding its ports)."""
     worker = os.environ.get("PYTEST_XDIST_WORKER", "gw0")
     base = 40 + 20 * int("".join(c for c in worker if c.isdigit()) or 0)
     for instance in range(base, base + 20):
-        if instance not in _used_instances and _ports_free(instance):
+        if instance not in _used_instances and instance_lock("ardupilot", instance) \
+                and _ports_free(instance):
             _used_instances.add(instance)
             return instance
     pytest.fail(f"no free ArduPilot SITL instance number in {base}..{base + 19}")
+
+
+_locks: dict[str, int] = {}
+LOCK_DIR = Path(tempfile.gettempdir()) / "seaway-sitl-instances"
+
+
+def instance_lock(firmware: str, instance: int) -> bool:
+    """Hold ``firmware``'s ``instance`` for the rest of this process (True), unless another process
+    holds it (False): free ports alone do not make a number ours, since a SITL started by another
+    test process a moment later takes them (its ports are bound only once it has booted)."""
+    name = f"{firmware}-{instance}"
+    if name in _locks:
+        return False
+    LOCK_DIR.mkdir(exist_ok=True)
+    fd = os.open(LOCK_DIR / f"{name}.lock", os.O_CREAT | os.O_RDWR, 0o666)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        os.close(fd)
+        return False
+    _locks[name] = fd  # released when this process exits
+    return True
