@@ -25,7 +25,7 @@ from pathlib import Path
 
 import pytest
 from seaway.contract import keys
-from seaway.contract.messages import MissionCommand, MissionStatus, ModeRequest, VehicleStatus
+from seaway.contract.messages import ArmRequest, MissionCommand, MissionStatus, ModeRequest, VehicleStatus
 from seaway.runtime.bus import Bus
 from seaway.simkit.scenario import load_scenario
 from seaway_controller.mission import HOLD_CAUSES
@@ -159,8 +159,13 @@ def request(bus: Bus, spec, msg):
 
 
 def take_back(bus: Bus, watch: Watch) -> None:
-    """The operator takes the vessel back: MANUAL, then resume; the mission flies again."""
+    """The operator takes the vessel back: MANUAL (armed again if the autopilot disarmed), then
+    resume; the mission flies again."""
     t = time.monotonic()
+    last = watch.since("vehicle", 0.0)[-1]
+    if not last.armed:
+        wait_for(lambda: request(bus, keys.VEHICLE_ARM, ArmRequest.make(
+            stamp_ns=time.time_ns(), arm=True)).accepted, 60, interval_s=2.0, what="armed again")
     assert request(bus, keys.VEHICLE_MODE, ModeRequest.make(stamp_ns=time.time_ns(), mode="MANUAL")).accepted
     reply = wait_for(lambda: (r := request(bus, keys.MISSION_COMMAND, MissionCommand.make(
         stamp_ns=time.time_ns(), command="resume"))).accepted and r, 30, interval_s=1.0,

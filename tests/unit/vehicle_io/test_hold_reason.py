@@ -270,3 +270,16 @@ def test_a_fast_reboot_is_no_mode_change_and_clears_the_cause():
     core.on_mavlink(wire(mavlink.MAVLink_heartbeat_message(11, 3, 1, 0, 4, 3)), at(4 * S))  # MANUAL
     st = status(core, 4 * S)
     assert st.link_ok and st.mode == "MANUAL" and st.hold_reason is None, st
+
+
+def test_px4_giving_the_mode_back_after_an_unheard_failsafe_is_not_someone_else():
+    """PX4 SITL, a 10 s fade: the link came back in RTL (its manual-control loss failsafe, unheard),
+    then PX4 itself gave MANUAL back once vehicle_io's MANUAL_CONTROL reached it. That second
+    change was named gcs_mode_change (issue 63)."""
+    core = connected()
+    lose_the_link(core, 5 * S)
+    core.on_mavlink(heartbeat("RTL"), at(12 * S))
+    assert status(core, 12 * S).hold_reason == "other"
+    core.on_mavlink(heartbeat("MANUAL"), at(13 * S))
+    st = status(core, 13 * S)
+    assert st.hold_reason == "other" and "RTL -> MANUAL" in st.hold_reason_detail, st

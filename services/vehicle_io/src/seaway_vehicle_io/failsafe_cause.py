@@ -117,9 +117,10 @@ class FailsafeCause:
         window = round(CAUSE_WINDOW_S * 1e9)
         if last is not None and now_ns - last[2] <= window:
             return self._offer(last[0], f"{last[1]} (mode {old} -> {new})", now_ns)
-        if self.cause not in VAGUE:
+        if self.cause is not None and self.cause != "gcs_mode_change":
             # A failsafe still standing moves on by itself (PX4 holds COM_FAIL_ACT_T, then
-            # returns): its next step is not someone else's doing.
+            # returns; it gives the mode back once the link is regained): its next step is not
+            # someone else's doing, be the failsafe named or not ('other').
             self.detail = f"{self.detail.split(' (mode ')[0]} (mode {old} -> {new})"
             return True
         return self._offer("gcs_mode_change", f"mode {old} -> {new}, not asked by Seaway", now_ns, force=True)
