@@ -119,8 +119,8 @@ def held(t_ns: int, hold_reason: str | None, detail: str = "") -> VehicleStatus:
 
 
 @pytest.mark.parametrize(("cause", "detail", "words"), [
-    ("gcs_mode_change", "", "a mode change nobody in Seaway asked for"),
-    ("gcs_link_loss", "GCS Failsafe", "ground-station link failsafe (the link to it was lost) "
+    ("gcs_mode_change", "", "a mode change Seaway did not ask for"),
+    ("gcs_link_loss", "GCS Failsafe", "ground-station link failsafe "
                                       "(GCS Failsafe)"),
     ("radio_loss", "Radio Failsafe", "radio (RC) failsafe (Radio Failsafe)"),
 ])
@@ -142,7 +142,7 @@ def test_a_cause_named_after_the_pause_replaces_the_reason_while_paused() -> Non
     t = START_NS + 3 * DT_NS
     core.on_vehicle_status(held(t, None))
     _, _, st = core.step(t + DT_NS, state(3))
-    assert st.state == "paused" and "says why" not in st.reason
+    assert st.state == "paused" and "why:" not in st.reason
     why = core.on_vehicle_status(held(t + DT_NS + 1, "gcs_link_loss", "GCS Failsafe"))
     assert why is not None and "GCS Failsafe" in why
     _, _, st = core.step(t + 2 * DT_NS, state(4))

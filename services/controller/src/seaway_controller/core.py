@@ -445,13 +445,13 @@ class ControllerCore:
         if v is None or v.thrust_withheld is None:
             return None
         cause = "" if v.hold_reason is None else (
-            f"; the autopilot says why: {HOLD_CAUSES[v.hold_reason]}"
+            f"; why: {HOLD_CAUSES[v.hold_reason]}"
             + (f" ({v.hold_reason_detail})" if v.hold_reason_detail else ""))
         return {
             "no_link": "vehicle_io has no link to the autopilot (lost, or the autopilot rebooted)",
             "disarmed": "the vehicle is disarmed (the autopilot rebooted, or was disarmed)",
             "mode": f"the autopilot is in mode {v.mode}, in which it does not apply the commanded "
-                    "thrust (a failsafe, or another mode was set)",
+                    "thrust" + ("" if cause else " (a failsafe, or another mode was set)"),
             "autopilot_config": "vehicle_io sends neutral only: the autopilot's configuration "
                                 "blocks thrust (see vehicle_io's log)",
         }[v.thrust_withheld] + cause

@@ -142,13 +142,12 @@ def validate_mission(req: MissionRequest, origin: GeoOrigin | None,
 PAUSED_PREFIX = "paused by the controller: "
 """How a pause the controller makes because the vehicle withholds the thrust begins its reason."""
 HOLD_CAUSES: dict[HoldReason, str] = {
-    "gcs_mode_change": "a mode change nobody in Seaway asked for (another ground station, or the "
-                       "RC mode switch)",
-    "battery": "its battery failsafe",
-    "fence": "its geofence breach",
-    "radio_loss": "its radio (RC) failsafe",
-    "gcs_link_loss": "its ground-station link failsafe (the link to it was lost)",
-    "other": "a failsafe it did not name",
+    "gcs_mode_change": "a mode change Seaway did not ask for (another ground station, the RC)",
+    "battery": "the autopilot's battery failsafe",
+    "fence": "the autopilot's geofence breach",
+    "radio_loss": "the autopilot's radio (RC) failsafe",
+    "gcs_link_loss": "the autopilot's ground-station link failsafe",
+    "other": "a failsafe the autopilot did not name",
 }
 """The cause behind ``VehicleStatus.hold_reason``, for the operator (``MissionStatus.reason``)."""
 
