@@ -23,7 +23,7 @@ from seaway.contract import keys
 from seaway_controller.mission import HOLD_CAUSES
 from seaway_vehicle_io.px4 import MODES
 
-from tests.conftest import solver_built
+from tests.conftest import solver_built, wait_for
 from tests.system.launch.test_sitl_ardupilot import PROFILES
 from tests.system.launch.test_sitl_ardupilot_faults import (
     FADE_S,
@@ -78,7 +78,11 @@ def test_faults_mid_mission_reach_the_operator_on_px4(tmp_path, zenoh_env, procs
         watch.first("vehicle", lambda s: s.link_ok and s.armed and s.mode == "MANUAL", 300,
                     "armed in MANUAL by the launcher")
         t = time.monotonic()
-        assert request(bus, keys.MISSION_SET, long_mission()).accepted
+        # The controller refuses a mission its estimated disturbance makes impossible; on the SIH
+        # rover at rest under the paper boat's model that estimate can briefly say so. Asked again
+        # until accepted: the mission is not what is under test here.
+        wait_for(lambda: request(bus, keys.MISSION_SET, long_mission()).accepted, 90,
+                 interval_s=5.0, what="the long mission accepted")
         watch.first("mission", lambda m: m.state == "active" and m.mission_id == "faults", 30,
                     "the long mission active", since=t)
         time.sleep(3.0)
