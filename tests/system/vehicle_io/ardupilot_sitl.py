@@ -30,22 +30,7 @@ needs_sitl = pytest.mark.skipif(FIRMWARE is None or START is None or not START.e
                                 reason=f"ArduPilot Rover SITL: {_MISSING or 'no start-motorboat.sh'}")
 
 _used_instances: set[int] = set()
-_held_locks: list[object] = []  # open lock files: held until this process ends
-LOCK_DIR = Path(tempfile.gettempdir())
 
-
-def _claim(instance: int) -> bool:
-    """Take the machine-wide lock of an instance number (a file lock: released when this process
-    ends, however it ends), so that two test processes started at once, whose SITLs have not bound
-    their ports yet, never pick the same number."""
-    f = open(LOCK_DIR / f"seaway-ardupilot-sitl-{instance}.lock", "w")  # noqa: SIM115
-    try:
-        fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except OSError:
-        f.close()
-        return False
-    _held_locks.append(f)
-    return True
 
 
 def _ports_free(instance: int) -> bool:
@@ -60,11 +45,35 @@ def _ports_free(instance: int) -> bool:
 
 def sitl_instance() -> int:
     """An instance number of our own: per pytest-xdist worker a block of 20, skipping numbers in
-    use (in this process, or by anything holding its ports)."""
+    use (in this process, by another test process on this machine: ``instance_lock``, or by
+    anything holding its ports)."""
     worker = os.environ.get("PYTEST_XDIST_WORKER", "gw0")
     base = 40 + 20 * int("".join(c for c in worker if c.isdigit()) or 0)
     for instance in range(base, base + 20):
-        if instance not in _used_instances and _ports_free(instance) and _claim(instance):
+        if instance not in _used_instances and instance_lock("ardupilot", instance) \
+                and _ports_free(instance):
             _used_instances.add(instance)
             return instance
     pytest.fail(f"no free ArduPilot SITL instance number in {base}..{base + 19}")
+
+
+_locks: dict[str, int] = {}
+LOCK_DIR = Path(tempfile.gettempdir()) / "seaway-sitl-instances"
+
+
+def instance_lock(firmware: str, instance: int) -> bool:
+    """Hold ``firmware``'s ``instance`` for the rest of this process (True), unless another process
+    holds it (False): free ports alone do not make a number ours, since a SITL started by another
+    test process a moment later takes them (its ports are bound only once it has booted)."""
+    name = f"{firmware}-{instance}"
+    if name in _locks:
+        return False
+    LOCK_DIR.mkdir(exist_ok=True)
+    fd = os.open(LOCK_DIR / f"{name}.lock", os.O_CREAT | os.O_RDWR, 0o666)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        os.close(fd)
+        return False
+    _locks[name] = fd  # released when this process exits
+    return True

@@ -18,13 +18,11 @@ Skipped, saying why, only when the binary is absent.
 from __future__ import annotations
 
 import contextlib
-import fcntl
 import os
 import shutil
 import signal
 import struct
 import subprocess
-import tempfile
 import threading
 import time
 from collections import deque
@@ -36,6 +34,7 @@ from seaway_vehicle_io.mav import mavutil
 from seaway_vehicle_io.profile import decode_param_value
 
 from tests.conftest import REPO, udp_port_free, wait_for
+from tests.system.vehicle_io.ardupilot_sitl import instance_lock
 
 PX4_DIR = Path(os.environ.get("SEAWAY_PX4_SITL", REPO.parent / "shared" / "sitl" / "px4"))
 PX4_BIN = PX4_DIR / "bin" / "px4"
@@ -73,27 +72,14 @@ def runnable_bin(into: Path) -> Path:
     return exe
 
 
-_held_locks: list[object] = []  # open lock files: held until this process ends
 
-
-def _claim(instance: int) -> bool:
-    """The machine-wide lock of a PX4 instance number (released when this process ends), so that
-    two test processes starting at once never pick the same one before PX4 binds its ports."""
-    f = open(Path(tempfile.gettempdir()) / f"seaway-px4-sitl-{instance}.lock", "w")  # noqa: SIM115
-    try:
-        fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except OSError:
-        f.close()
-        return False
-    _held_locks.append(f)
-    return True
 
 
 def free_instance() -> int:
     """An instance number whose ports (PX4's and the ones it sends to) are free."""
     for n in range(3, 40):
         if all(udp_port_free(p + n) for p in (18570, 14580, 14540, 19450, 19410, 14280, 13030)) \
-                and _claim(n):
+                and instance_lock("px4", n):
             return n
     pytest.fail("no free PX4 SITL instance number in 3..39")
 
@@ -120,14 +106,11 @@ class Px4Sitl:
         self.run_dir.mkdir(parents=True)
         exe = runnable_bin(tmp / "px4-bin")
         self.log_path = tmp / f"px4-{self.instance}.log"
-        env = dict(os.environ, PX4_SIM_MODEL=MODEL, PX4_RUNTIME_DIR=str(self.run_dir),
-                   PX4_MAVLINK_BIND_ADDR="127.0.0.1")
-        with open(self.log_path, "wb") as log:
-            self.proc = subprocess.Popen(
-                [str(exe), "-d", "-i", str(self.instance), "-w", str(self.run_dir),
-                 "-t", str(PX4_DIR / "test_data"), str(PX4_DIR / "etc")],
-                cwd=self.run_dir, env=env, stdout=log, stderr=subprocess.STDOUT,
-                start_new_session=True)
+        self._env = dict(os.environ, PX4_SIM_MODEL=MODEL, PX4_RUNTIME_DIR=str(self.run_dir),
+                         PX4_MAVLINK_BIND_ADDR="127.0.0.1")
+        self._args = [str(exe), "-d", "-i", str(self.instance), "-w", str(self.run_dir),
+                      "-t", str(PX4_DIR / "test_data"), str(PX4_DIR / "etc")]
+        self._popen("wb")
         self.observer = Observer(self.instance)
         self.observer.start()
         self.boot_mono_s = time.monotonic()
@@ -135,6 +118,22 @@ class Px4Sitl:
             wait_for(lambda: self.observer.heartbeats, 30, what="PX4's first HEARTBEAT")
             for name, value in params.items():
                 self.observer.set_param(name, value)
+
+    def _popen(self, log_mode: str) -> None:
+        with open(self.log_path, log_mode) as log:
+            self.proc = subprocess.Popen(self._args, cwd=self.run_dir, env=self._env, stdout=log,
+                                         stderr=subprocess.STDOUT, start_new_session=True)
+
+    def restart(self) -> None:
+        """SIGKILL the firmware and start it again on the same instance and parameters (saved in
+        its folder): a power cycle. The observer stays."""
+        if self.proc.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(self.proc.pid, signal.SIGKILL)
+        self.proc.wait(10)
+        wait_for(lambda: udp_port_free(14580 + self.instance), 10, what="PX4's port released")
+        self._popen("ab")
+        self.boot_mono_s = time.monotonic()
 
     @property
     def vio_url(self) -> str:

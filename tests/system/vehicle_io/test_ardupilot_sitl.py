@@ -466,9 +466,13 @@ def test_a_mode_change_by_a_second_ground_station_is_named(zenoh_env, procs, bus
     skip = len(status.poll())
 
     def hold_from_the_second_station():
-        obs.conn.mav.command_long_send(1, 1, mavlink.MAV_CMD_DO_SET_MODE, 0, 1, MODE_HOLD, 0, 0,
-                                       0, 0, 0)
-        return next((s for _, s in status.poll()[skip:] if s.mode == "HOLD"), None)
+        # Seen first, sent (again) only if not: a repeat arriving after Seaway's own MANUAL below
+        # would be a second mode change by the second station.
+        held = next((s for _, s in status.poll()[skip:] if s.mode == "HOLD"), None)
+        if held is None:
+            obs.conn.mav.command_long_send(1, 1, mavlink.MAV_CMD_DO_SET_MODE, 0, 1, MODE_HOLD, 0,
+                                           0, 0, 0, 0)
+        return held
 
     held = wait_for(hold_from_the_second_station, 20, interval_s=1.0,
                     what="HOLD set by the second station")

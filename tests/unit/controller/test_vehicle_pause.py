@@ -6,7 +6,7 @@ only once the vehicle applies thrust again). Pure core, injected solver, time pa
 from __future__ import annotations
 
 import pytest
-from seaway.contract.messages import MissionCommand, VehicleStatus
+from seaway.contract.messages import HOLD_REASON_TEXT, MissionCommand, VehicleStatus
 
 from tests.unit.controller.test_core import DT_NS, ScriptedSolver, make_core, mission, state
 
@@ -122,7 +122,51 @@ def test_the_autopilots_fence_breach_is_named_in_the_missions_reason_and_the_ref
     core.on_vehicle_status(breach)
     _, _, st = core.step(t + DT_NS, state(3))
     assert st.state == "paused"
-    assert "the autopilot's fence was breached" in st.reason and "hold_reason fence" in st.reason
+    assert HOLD_REASON_TEXT["fence"] in st.reason
     assert "SYS_STATUS: fence unhealthy" in st.reason
     refused = resume(core, t + DT_NS + 1)
-    assert not refused.accepted and "fence was breached" in refused.reason
+    assert not refused.accepted and HOLD_REASON_TEXT["fence"] in refused.reason
+
+
+def held(t_ns: int, hold_reason: str | None, detail: str = "") -> VehicleStatus:
+    return VehicleStatus(stamp_ns=t_ns, autopilot="ardupilot", link_ok=True, armed=True,
+                         mode="HOLD", thrust_withheld="mode", hold_reason=hold_reason,  # type: ignore[arg-type]
+                         hold_reason_detail=detail)
+
+
+@pytest.mark.parametrize(("cause", "detail", "words"), [
+    ("gcs_mode_change", "", "a mode change Seaway did not ask for"),
+    ("gcs_link_loss", "GCS Failsafe", "ground-station link failsafe "
+                                      "(GCS Failsafe)"),
+    ("radio_loss", "Radio Failsafe", "radio (RC) failsafe (Radio Failsafe)"),
+])
+def test_the_autopilots_cause_reaches_the_operator(cause: str, detail: str, words: str) -> None:
+    """Issue 63: the cause vehicle_io decoded (``hold_reason``, the autopilot's own words) is in
+    ``mission/status``'s reason, not only in ``vehicle/status``."""
+    core = flying()
+    t = START_NS + 3 * DT_NS
+    core.on_vehicle_status(held(t, cause, detail))
+    _, _, st = core.step(t + DT_NS, state(3))
+    assert st.state == "paused" and "in mode HOLD" in st.reason and words in st.reason, st.reason
+
+
+def test_a_cause_named_after_the_pause_replaces_the_reason_while_paused() -> None:
+    """ArduPilot's "GCS Failsafe" text may follow its mode change: the pause began without a
+    cause, and the operator is told it once vehicle_io names it; a pause the operator made is not
+    touched."""
+    core = flying()
+    t = START_NS + 3 * DT_NS
+    core.on_vehicle_status(held(t, None))
+    _, _, st = core.step(t + DT_NS, state(3))
+    assert st.state == "paused" and "why:" not in st.reason
+    why = core.on_vehicle_status(held(t + DT_NS + 1, "gcs_link_loss", "GCS Failsafe"))
+    assert why is not None and "GCS Failsafe" in why
+    _, _, st = core.step(t + 2 * DT_NS, state(4))
+    assert st.state == "paused" and "ground-station link failsafe" in st.reason, st.reason
+    assert "GCS Failsafe" in st.reason
+    # The operator's own pause keeps its (empty) reason.
+    core = flying()
+    assert core.handle_command(t, MissionCommand.make(stamp_ns=t, command="pause")).accepted
+    assert core.on_vehicle_status(held(t + 1, "battery", "Battery 1 is low")) is None
+    _, _, st = core.step(t + DT_NS, state(3))
+    assert st.state == "paused" and st.reason == "", st.reason

@@ -19,6 +19,7 @@ from seaway_vehicle_io.failsafe_cause import (
     MAV_SYS_STATUS_SENSOR_RC_RECEIVER,
     FailsafeCause,
     classify_text,
+    cleared_cause,
 )
 from seaway_vehicle_io.mav import mavlink
 from seaway_vehicle_io.thrust import ThrusterLimits
@@ -201,3 +202,84 @@ def test_a_second_station_returning_to_seaways_last_mode_is_still_someone_else()
     core.on_mavlink(heartbeat("HOLD"), at(4 * S))  # HOLD again, but Seaway did not ask this time
     st = status(core, 4 * S)
     assert st.hold_reason == "gcs_mode_change" and "MANUAL -> HOLD" in st.hold_reason_detail
+
+
+@pytest.mark.parametrize(("text", "cause"), [
+    ("GCS Failsafe Cleared", "gcs_link_loss"),  # Rover/failsafe.cpp "%s Failsafe Cleared", at INFO
+    ("Radio Failsafe Cleared", "radio_loss"),
+    ("GCS Failsafe", None),  # in force: classify_text's
+    ("Battery 1 is low 11.00V used 500 mAh", None),
+])
+def test_a_cleared_text_names_the_failsafe_that_had_fired(text, cause):
+    assert cleared_cause(text) == cause
+
+
+def lose_the_link(core: VehicleIoCore, t_ns: int) -> None:
+    core.tick(at(t_ns))
+    assert not status(core, t_ns).link_ok
+
+
+def test_a_hold_made_while_the_link_was_down_is_named_when_it_comes_back():
+    """Issue 63: a 10 s radio fade on ArduPilot SITL with FS_GCS_ENABLE. Its "GCS Failsafe" text
+    went out while nothing reached vehicle_io; the link came back in HOLD with no cause (before: no
+    hold_reason at all, the operator saw a plain 'mode HOLD'). The mode change is seen across the
+    loss, and the INFO "GCS Failsafe Cleared" that follows names it."""
+    core = connected()
+    lose_the_link(core, 5 * S)
+    core.on_mavlink(heartbeat("HOLD"), at(12 * S))
+    st = status(core, 12 * S)
+    assert st.link_ok and st.hold_reason == "other" and "MANUAL -> HOLD" in st.hold_reason_detail
+    core.on_mavlink(wire(mavlink.MAVLink_statustext_message(6, b"GCS Failsafe Cleared", 0, 0)),
+                    at(12500 * MS))
+    st = status(core, 12500 * MS)
+    assert st.hold_reason == "gcs_link_loss" and "GCS Failsafe Cleared" in st.hold_reason_detail
+
+
+def test_a_cleared_text_alone_names_no_hold_and_a_reboot_is_no_mode_change():
+    core = connected()
+    core.on_mavlink(wire(mavlink.MAVLink_statustext_message(6, b"GCS Failsafe Cleared", 0, 0)), at(2 * S))
+    assert status(core, 2 * S).hold_reason is None  # the mode is still Seaway's
+    lose_the_link(core, 6 * S)
+    disarmed_hold = wire(mavlink.MAVLink_heartbeat_message(11, 3, 1, AP_MODES["HOLD"], 4, 3))
+    core.on_mavlink(disarmed_hold, at(9 * S))  # rebooted: disarmed, in its initial mode
+    assert status(core, 9 * S).hold_reason is None
+
+
+def test_the_cleared_text_may_come_before_the_heartbeat_that_brings_the_link_back():
+    """ArduPilot sends "GCS Failsafe Cleared" the moment vehicle_io's HEARTBEAT reaches it, often
+    before its own next HEARTBEAT re-locks the link (measured on SITL): it still names the hold."""
+    core = connected()
+    lose_the_link(core, 5 * S)
+    core.on_mavlink(wire(mavlink.MAVLink_statustext_message(6, b"GCS Failsafe Cleared", 0, 0)),
+                    at(11500 * MS))
+    core.on_mavlink(heartbeat("HOLD"), at(12 * S))
+    st = status(core, 12 * S)
+    assert st.hold_reason == "gcs_link_loss" and "GCS Failsafe Cleared" in st.hold_reason_detail
+    assert "MANUAL -> HOLD" in st.hold_reason_detail
+
+
+def test_a_fast_reboot_is_no_mode_change_and_clears_the_cause():
+    """ArduPilot SITL's forced reboot re-executes it in ~3 s: the link never drops, and its first
+    HEARTBEATs say INITIALISING. That was named a mode change by someone else (issue 63)."""
+    core = connected()
+    core.on_mavlink(wire(mavlink.MAVLink_statustext_message(4, b"Radio Failsafe", 0, 0)), at(2 * S))
+    core.on_mavlink(heartbeat("HOLD"), at(2100 * MS))
+    assert status(core, 2100 * MS).hold_reason == "radio_loss"
+    booting = wire(mavlink.MAVLink_heartbeat_message(11, 3, 1, 16, 3, 3))  # INITIALISING, disarmed
+    core.on_mavlink(booting, at(3 * S))
+    core.on_mavlink(wire(mavlink.MAVLink_heartbeat_message(11, 3, 1, 0, 4, 3)), at(4 * S))  # MANUAL
+    st = status(core, 4 * S)
+    assert st.link_ok and st.mode == "MANUAL" and st.hold_reason is None, st
+
+
+def test_px4_giving_the_mode_back_after_an_unheard_failsafe_is_not_someone_else():
+    """PX4 SITL, a 10 s fade: the link came back in RTL (its manual-control loss failsafe, unheard),
+    then PX4 itself gave MANUAL back once vehicle_io's MANUAL_CONTROL reached it. That second
+    change was named gcs_mode_change (issue 63)."""
+    core = connected()
+    lose_the_link(core, 5 * S)
+    core.on_mavlink(heartbeat("RTL"), at(12 * S))
+    assert status(core, 12 * S).hold_reason == "other"
+    core.on_mavlink(heartbeat("MANUAL"), at(13 * S))
+    st = status(core, 13 * S)
+    assert st.hold_reason == "other" and "RTL -> MANUAL" in st.hold_reason_detail, st

@@ -80,6 +80,7 @@ from seaway_controller import acceptance, costs
 from seaway_controller.energy import BatteryTrack, Budget, Disturbance, EnergyModel, predict
 from seaway_controller.hold import HoldGains, hold_thrust
 from seaway_controller.mission import (
+    PAUSED_PREFIX,
     Mission,
     MissionError,
     MissionLimits,
@@ -425,8 +426,17 @@ class ControllerCore:
             if why is not None:
                 self.missions.wait(_waiting_for(why))
             return None
-        if why is None or not self.missions.hold(f"paused by the controller: {why}; resume with "
-                                                 "'seaway mission resume' once it applies it again"):
+        if why is None:
+            return None
+        reason = (f"{PAUSED_PREFIX}{why}; resume with 'seaway mission resume' once it "
+                  "applies it again")
+        if not self.missions.hold(reason):
+            # The cause may be named after the pause began (the autopilot's text follows its mode
+            # change): the operator is told the newest, while the pause is still the controller's.
+            if self.missions.restate(PAUSED_PREFIX, reason):
+                log.warning("mission %r paused: %s", self.missions.mission.mission_id
+                            if self.missions.mission else "", why)
+                return self.missions.reason
             return None
         log.warning("mission %r paused: %s (resumes only on request)",
                     self.missions.mission.mission_id if self.missions.mission else "", why)
@@ -438,19 +448,17 @@ class ControllerCore:
         v = self.vehicle
         if v is None or v.thrust_withheld is None:
             return None
-        if v.thrust_withheld == "mode" and v.hold_reason is not None:
-            said = f": {v.hold_reason_detail}" if v.hold_reason_detail else ""
-            return (f"the autopilot is in mode {v.mode}, in which it does not apply the commanded "
-                    f"thrust: {HOLD_REASON_TEXT[v.hold_reason]} (hold_reason {v.hold_reason}"
-                    f"{said})")
+        cause = "" if v.hold_reason is None else (
+            f"; why: {HOLD_REASON_TEXT[v.hold_reason]}"
+            + (f" ({v.hold_reason_detail})" if v.hold_reason_detail else ""))
         return {
             "no_link": "vehicle_io has no link to the autopilot (lost, or the autopilot rebooted)",
             "disarmed": "the vehicle is disarmed (the autopilot rebooted, or was disarmed)",
             "mode": f"the autopilot is in mode {v.mode}, in which it does not apply the commanded "
-                    "thrust (a failsafe, or another mode was set)",
+                    "thrust" + ("" if cause else " (a failsafe, or another mode was set)"),
             "autopilot_config": "vehicle_io sends neutral only: the autopilot's configuration "
                                 "blocks thrust (see vehicle_io's log)",
-        }[v.thrust_withheld]
+        }[v.thrust_withheld] + cause
 
     # -- the control period ---------------------------------------------------------------------
 

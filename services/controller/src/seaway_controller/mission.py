@@ -138,6 +138,9 @@ def validate_mission(req: MissionRequest, origin: GeoOrigin | None,
                    req.at_rest)
 
 
+PAUSED_PREFIX = "paused by the controller: "
+"""How a pause the controller makes because the vehicle withholds the thrust begins its reason."""
+
 class MissionManager:
     """The active mission's state machine: idle -> [waiting ->] active <-> paused -> complete | aborted.
 
@@ -206,6 +209,15 @@ class MissionManager:
             return False
         self.state, self.reason = "paused", reason[:MAX_REASON_CHARS]
         self.hold_point = None
+        return True
+
+    def restate(self, prefix: str, reason: str) -> bool:
+        """Say ``reason`` for a pause the controller made whose reason starts with ``prefix`` (its
+        cause became known, or changed, after the pause began); True if the reason changed."""
+        reason = reason[:MAX_REASON_CHARS]
+        if self.state != "paused" or not self.reason.startswith(prefix) or self.reason == reason:
+            return False
+        self.reason = reason
         return True
 
     def drift(self, reason: str) -> None:

@@ -86,6 +86,7 @@ from seaway_vehicle_io.failsafe_cause import (
     WARNING_SEVERITY,
     FailsafeCause,
     classify_text,
+    cleared_cause,
 )
 from seaway_vehicle_io.fence_sync import FenceOutput, FenceSync
 from seaway_vehicle_io.mav import mavlink
@@ -258,6 +259,9 @@ class VehicleIoCore:
         self.texts = StatusTexts()
         self.hold = FailsafeCause()  # why the autopilot took the vessel (failsafe_cause.py)
         self._mode_asked: str | None = None  # the mode vehicle_io last asked for, until it is seen
+        # (mode, armed, last HEARTBEAT [mono ns], address) when the link was lost: a mode changed
+        # meanwhile was not Seaway's
+        self._before_loss: tuple[str, bool, int, Address] | None = None
         self.events = EventsChannel()  # the events protocol (PX4's arming reasons), per connection
         self.mapper: Any = None  # (L, R) -> axes for this autopilot's parameters; None: not yet
         self.gps_quality: GpsQuality | None = None
@@ -329,6 +333,11 @@ class VehicleIoCore:
         if mtype == "HEARTBEAT":
             return self._on_heartbeat(msg, now, address)
         if not link.ok:
+            if mtype == "STATUSTEXT" and self._before_loss is not None \
+                    and address == self._before_loss[3]:
+                # The autopilot lost, speaking again before its HEARTBEAT: ArduPilot's "GCS
+                # Failsafe Cleared" goes out the moment our HEARTBEAT reaches it again.
+                self.hold.cleared(cleared_cause(str(msg.text)), str(msg.text), now.mono_ns)
             return []  # no autopilot locked yet: nothing else is ours to interpret
         self.counts[mtype] = self.counts.get(mtype, 0) + 1
         if self.rate_check is not None:
@@ -666,6 +675,12 @@ class VehicleIoCore:
         link.connects += 1
         self.counts["HEARTBEAT"] = self.counts.get("HEARTBEAT", 0) + 1
         self._apply_heartbeat(msg, now, announce=False)  # the line below says it all
+        before, self._before_loss = self._before_loss, None
+        if (before is not None and before[1] and link.armed and link.mode != before[0]
+                and link.mode not in profile.booting_modes):
+            # Still armed, so not rebooted: the autopilot changed mode while unheard (its failsafe)
+            self._hold_changed(self.hold.mode_changed_unheard(
+                before[0], link.mode, (now.mono_ns - before[2]) / 1e9, now.mono_ns))
         log.info("autopilot link up: %s system %d component %d at %s, %s, %s (connection #%d); "
                  "locked to that source: MAVLink from any other is refused%s", profile.name,
                  link.target_system, link.target_component, address_key(address),
@@ -693,6 +708,11 @@ class VehicleIoCore:
         if announce and mode != link.mode:
             if mode == self._mode_asked:
                 self._mode_asked = None
+            elif mode in link.profile.booting_modes:
+                # Back in its start-up mode: a reboot faster than the link timeout, nobody's mode
+                # change; the rebooted autopilot has no failsafe standing either.
+                log.warning("autopilot back in %s: it rebooted", mode)
+                self.hold = FailsafeCause()
             elif link.mode not in link.profile.booting_modes and link.mode != "UNKNOWN":
                 self._hold_changed(self.hold.mode_changed(link.mode, mode, now.mono_ns))
         if (link.mode in link.profile.booting_modes and mode not in link.profile.booting_modes
@@ -718,6 +738,8 @@ class VehicleIoCore:
             return False
         link.ok = False
         link.losses += 1
+        self._before_loss = (link.mode, link.armed, link.last_heartbeat_mono_ns,
+                             link.target_address)
         log.warning("autopilot link LOST: no HEARTBEAT from system %s for %.1f s; source lock "
                     "released, waiting for an autopilot HEARTBEAT to reconnect%s",
                     link.target_system, silent_ns / 1e9,
@@ -883,6 +905,7 @@ class VehicleIoCore:
                               else logging.INFO, f"autopilot says: {item.text}")
             if self.fence is not None:
                 self.fence.on_text(item.text)
+            self._hold_changed(self.hold.cleared(cleared_cause(item.text), item.text, now.mono_ns))
             if item.severity <= WARNING_SEVERITY:
                 self._hold_changed(self.hold.said(classify_text(item.text), item.text,
                                                   now.mono_ns))

@@ -65,6 +65,16 @@ def classify_text(text: str) -> HoldReason | None:
     return None
 
 
+def cleared_cause(text: str) -> HoldReason | None:
+    """The failsafe a "<kind> Failsafe Cleared" text says had fired (ArduPilot Rover sends it, at
+    INFO, when the condition ends: vehicle_io's HEARTBEATs reach it again, the receiver is back;
+    the vessel stays in the failsafe's mode). None: the text says no such thing."""
+    suffix = " cleared"
+    if not text.lower().rstrip().endswith("failsafe" + suffix):
+        return None
+    return classify_text(text.rstrip()[: -len(suffix)])
+
+
 @dataclass
 class FailsafeCause:
     """The standing cause (``cause``, with the autopilot's words in ``detail``)."""
@@ -107,12 +117,35 @@ class FailsafeCause:
         window = round(CAUSE_WINDOW_S * 1e9)
         if last is not None and now_ns - last[2] <= window:
             return self._offer(last[0], f"{last[1]} (mode {old} -> {new})", now_ns)
-        if self.cause not in VAGUE:
+        if self.cause is not None and self.cause != "gcs_mode_change":
             # A failsafe still standing moves on by itself (PX4 holds COM_FAIL_ACT_T, then
-            # returns): its next step is not someone else's doing.
+            # returns; it gives the mode back once the link is regained): its next step is not
+            # someone else's doing, be the failsafe named or not ('other').
             self.detail = f"{self.detail.split(' (mode ')[0]} (mode {old} -> {new})"
             return True
         return self._offer("gcs_mode_change", f"mode {old} -> {new}, not asked by Seaway", now_ns, force=True)
+
+    def mode_changed_unheard(self, old: str, new: str, silent_s: float, now_ns: int) -> bool:
+        """The link came back after ``silent_s`` of silence with the mode changed from ``old`` to
+        ``new``, unasked: the autopilot said nothing vehicle_io heard (its failsafe text went out
+        while the link was down), so the cause is a failsafe not named (``other``) until a text
+        names it (``cleared``). True if the standing cause changed."""
+        last = self._last_said
+        if last is not None and now_ns - last[2] <= round(CAUSE_WINDOW_S * 1e9):
+            return self._offer(last[0], f"{last[1]} (mode {old} -> {new})", now_ns)
+        return self._offer("other", f"mode {old} -> {new} while vehicle_io heard nothing from the "
+                           f"autopilot for {silent_s:.0f} s", now_ns, force=True)
+
+    def cleared(self, cause: HoldReason | None, text: str, now_ns: int) -> bool:
+        """The autopilot said its failsafe ``cause`` had fired and is over (``cleared_cause``): it
+        names the hold that failsafe made if that is standing unnamed (or follows within the
+        window). True if the standing cause changed."""
+        if cause is None:
+            return False
+        self._last_said = (cause, text, now_ns)
+        if self.cause is None or self.cause not in VAGUE:
+            return False  # nothing unnamed standing: news of a failsafe already over
+        return self._offer(cause, f"{text}: it fired while the link was down", now_ns)
 
     def own_mode_accepted(self) -> bool:
         """vehicle_io's own mode request was accepted: the cause is over unless a health bit still

@@ -234,13 +234,12 @@ nobody in Seaway asked for ('gcs_mode_change'), or the failsafe it named: 'batte
 'radio_loss' (RC / manual control), 'gcs_link_loss' (its ground-station link), 'other' (a failsafe
 it did not name, e.g. ArduPilot's EKF failsafe)."""
 HOLD_REASON_TEXT: dict[str, str] = {
-    "gcs_mode_change": "someone else changed the autopilot's mode (a second ground station or the "
-                       "RC mode switch)",
+    "gcs_mode_change": "a mode change Seaway did not ask for (another ground station, the RC)",
     "battery": "the autopilot's battery failsafe",
-    "fence": "the autopilot's fence was breached (its fence action took the vessel)",
-    "radio_loss": "the autopilot's radio (RC) loss failsafe",
-    "gcs_link_loss": "the autopilot's ground-station link loss failsafe",
-    "other": "an autopilot failsafe it did not name",
+    "fence": "the autopilot's geofence breach (its fence action took the vessel)",
+    "radio_loss": "the autopilot's radio (RC) failsafe",
+    "gcs_link_loss": "the autopilot's ground-station link failsafe",
+    "other": "a failsafe the autopilot did not name",
 }
 """Each HoldReason for a person (the mission's reason, the page)."""
 """Why the autopilot does not apply the commanded thrust (``VehicleStatus.thrust_withheld``)."""
