@@ -36,6 +36,7 @@ from pathlib import Path
 
 import uvicorn
 from seaway.contract.config import ConfigError
+from seaway.runtime import memory
 from seaway.runtime.argtypes import positive_float, positive_int, whole_number
 from seaway.runtime.service import base_parser, parse, resolve_run, run_service
 from seaway.tools.launch import address
@@ -133,6 +134,7 @@ def url(host: str, port: int) -> str:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    memory.cap_malloc_arenas()  # first, before any thread: off the control path, long-lived
     args = parse(parser(), argv)
     token = resolve_token(args)
     run = resolve_run(args, NAME)

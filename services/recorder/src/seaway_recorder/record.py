@@ -29,6 +29,7 @@ import zenoh
 from seaway.contract import bundle, keys
 from seaway.contract.config import ConfigError
 from seaway.contract.messages import LOCKSTEP_SERVICES, LogRecord, MessageError, PeriodDone
+from seaway.runtime import memory
 from seaway.runtime import run as runs
 from seaway.runtime.argtypes import positive_float, positive_int
 from seaway.runtime.bus import REJOIN_HISTORY_S, Bus, RawSample
@@ -589,6 +590,9 @@ def cmd_recover(argv: Sequence[str]) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    # First, before any thread: the recorder hears every message of the run on the transport's
+    # threads for as long as it lasts, off the control path (seaway.runtime.memory says why).
+    memory.cap_malloc_arenas()
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] == "recover":
         configure_logging("recorder")

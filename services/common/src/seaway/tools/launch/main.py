@@ -67,7 +67,7 @@ from seaway.contract.messages import (
     ModeRequest,
     Reply,
 )
-from seaway.runtime import cpus, refusals
+from seaway.runtime import cpus, memory, refusals
 from seaway.runtime import run as runs
 from seaway.runtime.argtypes import positive_float
 from seaway.runtime.bus import Bus, RuntimeEnvError
@@ -416,6 +416,9 @@ def show_groundstations(sup: Supervisor, run_dir: Path, shown: dict[str, int]) -
 
 
 def main(argv: list[str]) -> int:
+    # First, before any thread: the launcher lives as long as the run and is off the control path
+    # (seaway.runtime.memory says why its memory grew without it).
+    memory.cap_malloc_arenas()
     args = parser().parse_args(argv)
     # Everything the launch writes (run folder, recording, logs, registry, credentials) and what its
     # processes write is the user's alone: 0600 files, 0700 folders (seaway.runtime.private).
