@@ -173,3 +173,22 @@ def test_disturbance_estimate_is_predicted_only_when_enabled(enabled):
     core.step(7, s)
     want = [0.015, 0.02, 0.001] if enabled else [0.0, 0.0, 0.0]
     assert solver.params[0][12:15].tolist() == want
+
+
+def test_a_state_no_vessel_could_be_in_gets_zero_thrust_and_moves_no_waypoint() -> None:
+    """An estimator that ran away published 10^27 m/s as finite; the controller planned from it,
+    its model's rollout threw a math domain error and the solver ground on for a second a period.
+    Now such a state is refused before the MPC: zero thrust, counted, and the mission as it was."""
+    solver = ScriptedSolver()
+    core = make_core(solver)
+    assert core.handle_mission(0, mission()).accepted
+    core.step(0, state(0))
+    calls = solver.calls
+    wild = StateEstimate.make(stamp_ns=DT_NS + 7, u_mps=-9e27, v_mps=5e27, r_radps=1e28,
+                              x_m=7.9, y_m=0.0, psi_rad=0.3)  # inside P1's circle, yet no switch
+    cmd, record, status = core.step(DT_NS, wild)
+    assert (cmd.thrust_port_n, cmd.thrust_starboard_n) == (0.0, 0.0) and cmd.source == "absurd_state"
+    assert record is None and solver.calls == calls and core.absurd_states == 1
+    assert status.state == "active" and status.active_leg == 1
+    cmd, record, _ = core.step(2 * DT_NS, state(2))  # a sane state: flown again
+    assert record is not None and solver.calls == calls + 1

@@ -93,6 +93,25 @@ def test_a_diverged_filter_is_never_published_and_recovers() -> None:
     assert est is not None and all(math.isfinite(v) for v in est.covariance)
 
 
+@pytest.mark.parametrize(("index", "value"), [(0, 1e27), (1, -4e3), (2, 50.0), (IPSI, math.inf)])
+def test_a_state_no_vessel_could_be_in_is_dropped_not_published(index: int, value: float) -> None:
+    """On an identified model far from the firmware's boat the filter ran away: it published
+    finite speeds of 10^27 m/s, and a heading of inf stopped the estimator with a math domain error
+    in the prediction. Past the vessel's envelope the state is dropped, as a non-finite one is,
+    without an exception, and the next measurements start it again."""
+    core = started()
+    core.filter.z[index] = value
+    assert core.predict_to(50 * MS) is None
+    assert core.counters["divergence_resets"] == 1 and not core.initialised
+    notice = core.take_notices()[-1]
+    assert notice.kind == "divergence_reset"
+    assert ("envelope" in notice.detail) == math.isfinite(value)
+    core.on_gnss(fix(200 * MS, 0.1, 0.0))
+    core.on_attitude(att(200 * MS, 0.0))
+    est = core.predict_to(250 * MS)
+    assert est is not None and abs(est.u_mps) < 1.0
+
+
 def test_heading_innovation_is_wrapped_across_pi() -> None:
     core = started(psi=math.pi - 0.01)
     for k in range(1, 41):

@@ -72,6 +72,7 @@ from seaway.contract.messages import (
 )
 from seaway.runtime.ratelog import RateLimitedLog
 from seaway.vessel import path
+from seaway.vessel.envelope import envelope
 from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.guidance import LosGains, los_thrust
 from seaway.vessel.model import VesselParams, propulsion_power_w
@@ -92,6 +93,8 @@ from seaway_controller.ocp import CONTROLLER_KINDS, ControllerKind, Ocp, OcpSpec
 from seaway_controller.solvers import NlpSolver, make_solver
 
 log = logging.getLogger("seaway_controller.core")
+ABSURD_STATE = "absurd_state"
+"""``ThrustCommand.source`` of the zero thrust given for a state estimate no vessel could be in."""
 
 LEVEL_MPC, LEVEL_PLAN, LEVEL_LOS, LEVEL_STOP = 0, 1, 2, 3
 ACCEPTED_REPUBLISH_NS = 1_000_000_000
@@ -171,6 +174,9 @@ class ControllerCore:
         self.vehicle: VehicleStatus | None = None  # the latest status heard (None: no vehicle_io)
         self._last_state: StateEstimate | None = None  # the latest stepped (a mission is judged on it)
         self._ratelog = RateLimitedLog(log)
+        self._envelope = envelope(vessel)
+        self.absurd_states = 0
+        """State estimates refused as no vessel's (``seaway.vessel.envelope``): zero thrust instead."""
         self._mission_start_ns = 0
         self.accepted: MissionAccepted | None = None  # the current mission, as accepted
         self._accepted_pending = False  # accepted since it was last taken or sent
@@ -466,6 +472,16 @@ class ControllerCore:
              ) -> tuple[ThrustCommand, SolveRecord | None, MissionStatus]:
         """One period: a command for ``state`` (stamped with its stamp), the solve record (None
         when no solve was needed: no mission, paused, complete, aborted) and the mission status."""
+        why = self._envelope.absurd(state.u_mps, state.v_mps, state.r_radps)
+        if why is not None:
+            # No vessel moves like this: an estimator that went unstable. Planning from it threw
+            # in the model's rollout and ground the solver for a second a period; nothing is
+            # flown on it and it moves no waypoint, but the period still gets its command.
+            self.seq += 1
+            self.absurd_states += 1
+            self._ratelog.warning("absurd_state", "state estimate refused, zero thrust: %s", why)
+            cmd = self._command(state.stamp_ns, (0.0, 0.0), ABSURD_STATE)
+            return cmd, None, self._status(now_ns, self._last_state or state)
         x0 = np.array([state.u_mps, state.v_mps, state.r_radps, state.x_m, state.y_m,
                        state.psi_rad])
         self._account_energy(now_ns)

@@ -52,6 +52,7 @@ from seaway.contract.messages import (
 )
 from seaway.contract.units import NS_PER_S
 from seaway.vessel import model
+from seaway.vessel.envelope import envelope
 from seaway.vessel.frames import GeoOrigin, wrap_pi
 from seaway.vessel.model import VesselParams
 from seaway.vessel.thrusters import apply_dead_zone, output_pair
@@ -179,6 +180,7 @@ class EstimatorCore:
         # What a lost thruster leaves unexplained: its full thrust, and that thrust's moment.
         self._reopen_force_var = vessel.thrust_max_n ** 2
         self._reopen_moment_var = (vessel.thrust_max_n * vessel.arm_m) ** 2
+        self._envelope = envelope(vessel)
         self._predictor = Predictor(vessel, self._world, self._q)
         self._updaters = {m: Updater(m) for m in (1, 2)}  # by the number of values measured
         self._fixed_origin = (None if c.origin is None else GeoOrigin.from_degrees(
@@ -313,7 +315,8 @@ class EstimatorCore:
 
         A time before the filter's own (within ``late_tolerance_s``) gives a first-order
         back-extrapolated estimate without moving the filter; further back gives None (counted).
-        Never returns a non-finite estimate: a filter that went non-finite is dropped (counted in
+        Never returns a non-finite or absurd estimate (``seaway.vessel.envelope``): a filter that went
+        there is dropped (counted in
         ``divergence_resets``) and re-initialises from the next measurements.
         """
         t = _stamp("predict_to", t_ns)
@@ -325,6 +328,8 @@ class EstimatorCore:
             return None
         if t >= f.t_ns:
             self._advance(t)
+            if self.filter is None:  # it diverged on the way
+                return None
             z, delay = f.z, 0.0
         else:
             delay = (f.t_ns - t) / NS_PER_S
@@ -382,7 +387,7 @@ class EstimatorCore:
                 self._time_jump(t)
                 return None
             self._advance(t)
-            return 0.0
+            return None if self.filter is None else 0.0
         delay = (f.t_ns - t) / NS_PER_S
         if delay > self.config.late_tolerance_s:
             self.counters.inc("too_old")
@@ -471,13 +476,34 @@ class EstimatorCore:
             t0 = f.t_ns
             for k in range(n):
                 t1 = t0 + (end - t0) * (k + 1) // n
-                self._predict(f, thrust, (t1 - f.t_ns) / NS_PER_S)
+                why = self._predict(f, thrust, (t1 - f.t_ns) / NS_PER_S)
                 f.t_ns = t1
+                if why is not None:  # integrating on would only make it worse
+                    self._diverged(t1, why)
+                    return
 
-    def _predict(self, f: Filter, thrust: tuple[float, float], h: float) -> None:
+    def _predict(self, f: Filter, thrust: tuple[float, float], h: float) -> str | None:
+        """One substep of ``h`` [s]; why the state it reached is no vessel's (None: it is one)."""
         z, P = self._predictor.step(f.z, f.P, thrust, h)
-        z[IPSI] = wrap_pi(z[IPSI])
         f.z, f.P = z, P
+        why = self._absurd(z)
+        if why is None:
+            z[IPSI] = wrap_pi(z[IPSI])
+        return why
+
+    def _absurd(self, z: np.ndarray) -> str | None:
+        """Why ``z`` cannot be this vessel's state (``seaway.vessel.envelope``), or None."""
+        if not np.isfinite(z).all():
+            return "the state is not finite"
+        return self._envelope.absurd(float(z[IU]), float(z[IV]), float(z[IR]))
+
+    def _diverged(self, t: int, why: str) -> None:
+        """The filter went unstable (a model far from the vessel, a bad update): drop it, so that
+        the next measurements re-initialise it, rather than publish or integrate it further."""
+        self.counters.inc("divergence_resets")
+        self._notices.append(Notice(t, "divergence_reset", f"{why}: the state is dropped"))
+        self.filter = None
+        self._pending = _Pending()
 
     def _back(self, z: np.ndarray, delay_s: float) -> np.ndarray:
         """First-order estimate of the state ``delay_s`` earlier (for late measurements)."""
@@ -668,15 +694,13 @@ class EstimatorCore:
             Pout = P
         pos_std = math.sqrt(max(P[IX, IX], P[IY, IY])) if np.isfinite(P[IX, IX]) else math.inf
         finite = bool(np.isfinite(z).all() and np.isfinite(Pout).all())
-        if not finite or pos_std > self.config.max_position_std_m:
+        why = ("the state is not finite" if not finite else self._absurd(z)
+               or (f"position std {pos_std:.0f} m (over max_position_std_m "
+                   f"{self.config.max_position_std_m:g} m)"
+                   if pos_std > self.config.max_position_std_m else None))
+        if why is not None:
             self.counters.inc("publish_refused")
-            self.counters.inc("divergence_resets")
-            self._notices.append(Notice(t, "divergence_reset", "the state is not finite" if not
-                                        finite else f"position std {pos_std:.0f} m (over "
-                                        f"max_position_std_m {self.config.max_position_std_m:g} m)"
-                                        ": the state is dropped"))
-            self.filter = None
-            self._pending = _Pending()
+            self._diverged(t, why)
             return None
         try:
             est = StateEstimate(
