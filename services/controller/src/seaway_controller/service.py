@@ -14,7 +14,8 @@ Two ways to run:
 
 * real time (the run's clock ``wall``): ticks every control period of the run on the wall clock;
   each tick uses the newest state if a new one arrived; a state older than ``--max-state-age-s``
-  gives zero thrust;
+  gives zero thrust; a step that overruns gets a command sent in its place, once a period
+  (``keeper.ThrustKeeper``);
 * lockstep (``seaway.runtime.lockstep``): one answer per period of the sim, once the estimator's
   bundle (its answer and the state) is in: the command for that state (zero thrust if the estimator
   has no state yet), or "hold" when there is nothing to fly (no mission, paused, over), which stops
