@@ -302,3 +302,36 @@ def test_a_model_keeps_a_bounded_number_of_turn_tables() -> None:
     assert 0 < len(m._tables) <= TABLES_PER_MODEL
     again = m.turn_j(0.5, 0.8 + 0.001 * 39)  # the latest speed is still kept, and priced the same
     assert again == EnergyModel(BOAT, TW, 2.0, False, False).turn_j(0.5, 0.8 + 0.001 * 39)
+
+
+def test_a_turn_costs_the_least_extra_energy_over_t_d() -> None:
+    """Each turn's extra energy is the least of the paper's terminal cost over t_d in [1, 60] s
+    less the straight run, as a fine grid of t_d finds it (at angles of the table: between them
+    ``turn_j`` interpolates)."""
+    u = 0.93
+    m = EnergyModel(BOAT, TW, 2.0, False, False)
+    p_static = costs.surge_power_w(u, BOAT) + TW
+    t_d = np.linspace(1.0, 60.0, 200_001)
+    for psi in (k * math.pi / 90 for k in (0, 13, 37, 63, 90)):
+        p_dyn = costs.dynamic_power_w(u, 0.0, psi, t_d, TW, 2.0, BOAT)
+        least = max(0.0, float(np.min(t_d * (p_dyn - p_static * costs.smooth_sinc(psi)))))
+        assert m.turn_j(psi, u) == pytest.approx(least, rel=1e-6, abs=1e-6), psi
+
+
+def test_a_new_speed_prices_every_turn_of_its_table_in_one_search(monkeypatch) -> None:
+    """Issue #56 item 2 (the work at the return decision): the NMPC's budget prices at its present
+    speed, new at every pricing, and near the decision it prices every period on the control loop.
+    Its turn table (91 angles) was made one golden-section search per angle: 91 x 62 evaluations
+    of the terminal cost, ~50 ms a period. All angles now share one search of array evaluations."""
+    calls = 0
+    real = costs.dynamic_power_w
+
+    def counted(*args, **kw):
+        nonlocal calls
+        calls += 1
+        return real(*args, **kw)
+
+    monkeypatch.setattr(costs, "dynamic_power_w", counted)
+    m = EnergyModel(BOAT, TW, 2.0, False, False)
+    m.turn_j(0.7, 0.8765)  # a speed no table was made for
+    assert 0 < calls <= 70

@@ -14,7 +14,7 @@ import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import pytest
 from seaway.contract import bundle, keys
@@ -33,6 +33,7 @@ from seaway.runtime.ratelog import RateLimitedLog
 from seaway.runtime.run import RunDescription
 from seaway.runtime.service import ServiceContext
 from seaway_controller import checkpoint
+from seaway_controller import keeper as keeper_module
 from seaway_controller import service as service_module
 from seaway_controller.service import ControllerService, warn_slow_step
 
@@ -410,3 +411,102 @@ def test_a_real_time_step_stuck_for_long_is_logged_with_where_it_is_while_stuck(
         loop.join(5)
         for bus in (ctx.bus, estimator):
             bus.close()
+
+
+@contextlib.contextmanager
+def stuck_real_time_controller(period_s: float) -> Iterator[tuple[ControllerService, StuckSolver,
+                                                                   TypedSubscriber, Any]]:
+    """A real-time controller flying a mission whose first solve blocks until released; yields
+    (service, solver, a subscriber to ctrl/thrust, a function that publishes a fresh state)."""
+    hub = MemoryHub()
+    stop = threading.Event()
+    ctx = ServiceContext(name="controller", vessel=VESSEL, bus=hub.bus(VESSEL), clock=WallClock(),
+                         stop=stop, run=RunDescription(run_id="unit", vessel=VESSEL))
+    solver = StuckSolver()
+    svc = ControllerService(ctx, make_core(solver), lockstep=False)
+    observer, estimator = hub.bus(VESSEL), hub.bus(VESSEL)
+    thrust: TypedSubscriber = observer.subscribe(keys.THRUST, mode="fifo")
+    nav = estimator.publisher(keys.NAV_STATE)
+    assert svc._serve("mission/set", svc.core.handle_mission, mission()).accepted
+    loop = threading.Thread(target=svc.run_rate, args=(1.0 / period_s, 5.0), daemon=True)
+
+    def fresh_state() -> None:
+        nav.put(state(0).model_copy(update={"stamp_ns": ctx.clock.now_ns()}))
+
+    try:
+        fresh_state()
+        loop.start()
+        yield svc, solver, thrust, fresh_state
+    finally:
+        solver.release.set()
+        stop.set()
+        loop.join(5)
+        for bus in (ctx.bus, observer, estimator):
+            bus.close()
+    assert not loop.is_alive()
+
+
+def test_a_real_time_step_that_overruns_still_commands_the_thrusters_once_a_period(caplog) -> None:
+    """Issue #56 item 2: the controller stopped commanding at the return decision (vehicle_io's
+    ``thrust_stale``, the vessel stopped) while one step ran long. The loop published one command
+    per step, so a step that overran left the thrusters without one. While a step overruns, the
+    keeper now sends the fallback chain's line-of-sight guidance on the active leg, from the newest
+    state, once a period; the step's own command follows when it ends, and none of the keeper's
+    after it."""
+    caplog.set_level("WARNING", logger="seaway_controller.service")
+    with stuck_real_time_controller(period_s=0.02) as (_svc, solver, thrust, fresh_state):
+        seen: list = []
+
+        def kept() -> bool:
+            fresh_state()
+            seen.extend(thrust.drain())
+            return sum(c.source == keeper_module.SOURCE_LOS for c in seen) >= 3
+
+        wait_for(kept, 10, interval_s=0.01, what="commands sent in the stuck step's place")
+        assert not solver.release.is_set()  # all while the step is still stuck
+        los = [c for c in seen if c.source == keeper_module.SOURCE_LOS]
+        assert all((c.thrust_port_n, c.thrust_starboard_n) != (0.0, 0.0) for c in los)
+        assert [c.stamp_ns for c in los] == sorted(c.stamp_ns for c in los)  # the newest state
+        assert len({c.stamp_ns for c in los}) > 1
+        assert any("commanding overrun-los thrust in its place" in r.getMessage()
+                   for r in caplog.records)
+        solver.release.set()
+
+        def flown() -> bool:
+            fresh_state()
+            seen.extend(thrust.drain())
+            return any(c.source == "cc-empc" for c in seen)
+
+        wait_for(flown, 10, interval_s=0.01, what="the MPC's command once the step ended")
+        first_mpc = next(i for i, c in enumerate(seen) if c.source == "cc-empc")
+        assert all(c.source != keeper_module.SOURCE_LOS for c in seen[first_mpc:])
+
+
+def test_a_real_time_step_that_hangs_gets_zero_thrust_then_silence(caplog, monkeypatch) -> None:
+    """A step that does not end is a hang, not a late step: after ``KEEP_MAX_S`` the keeper sends
+    zero thrust once, logs an ERROR and stops, so that the launcher's liveness (silence on
+    ``ctrl/thrust``) restarts the process rather than line-of-sight guidance flying on a leg the
+    stuck core no longer switches."""
+    monkeypatch.setattr(keeper_module, "KEEP_MAX_S", 0.3)
+    caplog.set_level("WARNING", logger="seaway_controller.service")
+    with stuck_real_time_controller(period_s=0.02) as (svc, solver, thrust, fresh_state):
+        seen: list = []
+
+        def stopped() -> bool:
+            fresh_state()
+            seen.extend(thrust.drain())
+            return any(c.source == keeper_module.SOURCE_STOP for c in seen)
+
+        wait_for(stopped, 10, interval_s=0.01, what="the keeper's zero thrust")
+        stop = next(c for c in seen if c.source == keeper_module.SOURCE_STOP)
+        assert (stop.thrust_port_n, stop.thrust_starboard_n) == (0.0, 0.0)
+        assert seen[-1] is stop and any(c.source == keeper_module.SOURCE_LOS for c in seen)
+        assert svc.keeper is not None
+        sent = svc.keeper.sent
+        for _ in range(20):  # still stuck: nothing more, whatever comes in
+            fresh_state()
+            time.sleep(0.01)
+        assert not solver.release.is_set()
+        assert thrust.drain() == [] and svc.keeper.sent == sent
+        assert any(r.levelname == "ERROR" and "stopped commanding in its place" in r.getMessage()
+                   for r in caplog.records)

@@ -172,42 +172,44 @@ def _per_m(ground_mps: np.ndarray, power_w: np.ndarray) -> np.ndarray:
     return np.where(moving, power_w / np.where(moving, ground_mps, 1.0), np.inf)
 
 
-def _turn_extra_j(vessel: VesselParams, task_power_w: float, speed_mps: float, delta_psi: float,
-                  n: float, t_d_min_s: float, t_d_max_s: float) -> float:
-    """Extra energy of turning by ``delta_psi`` on the way: the least E_d + E_s over t_d (paper
-    eq. 15, t_s from the terminal constraint) minus the straight run E_s would be alone [J]."""
+def _turn_extra_j(vessel: VesselParams, task_power_w: float, speed_mps: float,
+                  delta_psi: np.ndarray, n: float, t_d_min_s: float, t_d_max_s: float) -> np.ndarray:
+    """Extra energy of turning by each of ``delta_psi`` [rad] on the way: the least E_d + E_s over
+    t_d (paper eq. 15, t_s from the terminal constraint) minus the straight run E_s would be alone
+    [J]. All angles at once: one array evaluation per step of the search, not one per angle (the
+    NMPC's table is made again at each pricing, since its speed changes: one angle at a time, 91
+    searches took ~50 ms, on the control loop, every period near the return decision)."""
+    psi = np.asarray(delta_psi, dtype=float)
     p_static = costs.surge_power_w(speed_mps, vessel) + task_power_w
-    sinc = costs.smooth_sinc(delta_psi)
+    sinc = costs.smooth_sinc(psi, np)
 
-    def extra(t_d: float) -> float:
-        p_dyn = costs.dynamic_power_w(speed_mps, 0.0, delta_psi, t_d, task_power_w, n, vessel)
+    def extra(t_d: np.ndarray) -> np.ndarray:
+        p_dyn = costs.dynamic_power_w(speed_mps, 0.0, psi, t_d, task_power_w, n, vessel)
         return t_d * (p_dyn - p_static * sinc)
 
-    # Golden-section search on [t_d_min, t_d_max] (extra(t_d) is unimodal: a turning cost falling
-    # as 1/t_d against a straight-line cost growing with t_d).
-    a, b = t_d_min_s, t_d_max_s
+    # Golden-section search on [t_d_min, t_d_max] for each angle (extra(t_d) is unimodal: a
+    # turning cost falling as 1/t_d against a straight-line cost growing with t_d).
+    a, b = np.full(psi.shape, t_d_min_s), np.full(psi.shape, t_d_max_s)
     g = (math.sqrt(5.0) - 1.0) / 2.0
     c, d = b - g * (b - a), a + g * (b - a)
     fc, fd = extra(c), extra(d)
     for _ in range(60):
-        if fc < fd:
-            b, d, fd = d, c, fc
-            c = b - g * (b - a)
-            fc = extra(c)
-        else:
-            a, c, fc = c, d, fd
-            d = a + g * (b - a)
-            fd = extra(d)
-    return max(0.0, min(fc, fd))
+        left = fc < fd  # the minimum is in [a, d]: d becomes the upper end, c the new d
+        a, b = np.where(left, a, c), np.where(left, d, b)
+        x = np.where(left, b - g * (b - a), a + g * (b - a))
+        fx = extra(x)
+        c, d, fc, fd = (np.where(left, x, d), np.where(left, c, x), np.where(left, fx, fd),
+                        np.where(left, fc, fx))
+    return np.maximum(0.0, np.minimum(fc, fd))
 
 
 @lru_cache(maxsize=64)
 def _turn_table(vessel: VesselParams, task_power_w: float, speed_mps: float, n: float,
                 t_d_min_s: float, t_d_max_s: float) -> tuple[float, ...]:
     """``_turn_extra_j`` at ``TURN_TABLE_POINTS`` angles evenly over [0, pi] [J]."""
-    step = math.pi / (TURN_TABLE_POINTS - 1)
-    return tuple(_turn_extra_j(vessel, task_power_w, speed_mps, i * step, n, t_d_min_s, t_d_max_s)
-                 for i in range(TURN_TABLE_POINTS))
+    angles = np.linspace(0.0, math.pi, TURN_TABLE_POINTS)
+    return tuple(float(j) for j in _turn_extra_j(vessel, task_power_w, speed_mps, angles, n,
+                                                 t_d_min_s, t_d_max_s))
 
 
 # -- the model of one mission ------------------------------------------------------------------------

@@ -14,7 +14,8 @@ Two ways to run:
 
 * real time (the run's clock ``wall``): ticks every control period of the run on the wall clock;
   each tick uses the newest state if a new one arrived; a state older than ``--max-state-age-s``
-  gives zero thrust;
+  gives zero thrust; a step that overruns gets a command sent in its place, once a period
+  (``keeper.ThrustKeeper``);
 * lockstep (``seaway.runtime.lockstep``): one answer per period of the sim, once the estimator's
   bundle (its answer and the state) is in: the command for that state (zero thrust if the estimator
   has no state yet), or "hold" when there is nothing to fly (no mission, paused, over), which stops
@@ -70,6 +71,7 @@ from seaway.contract.messages import (
     PeriodDone,
     Reply,
     StateEstimate,
+    ThrustCommand,
     VehicleStatus,
 )
 from seaway.runtime import atomic
@@ -87,6 +89,7 @@ from seaway.vessel.model import load_vessel
 
 from seaway_controller import checkpoint
 from seaway_controller.core import BudgetDecision, ControllerConfig, ControllerCore
+from seaway_controller.keeper import ThrustKeeper, overrun_command
 from seaway_controller.mission import MissionLimits
 from seaway_controller.solvers import SOLVER_KINDS, IpoptSolver, SolverBuilds, StagedSolver
 
@@ -155,6 +158,9 @@ class ControllerService:
         self.ratelog = RateLimitedLog(log)  # a step failing every period: a traceback now and then
         # Real time: a step stuck for long is logged with where it is, before a restart ends it.
         self.watch = StallWatch(log, "control loop", STEP_STALL_S, ctx.stop)
+        # Real time: a step that overruns gets a command sent in its place (keeper.py), on time.
+        self.keeper: ThrustKeeper | None = None  # made by run_rate, which knows the period
+        self._flying: tuple | None = None  # (leg, speed hint, seq) as of the last step or request
         bus = ctx.bus
         self.member: Member | None = None
         self._states: dict[int, StateEstimate] = {}  # lockstep: the states of recent periods by stamp
@@ -233,6 +239,7 @@ class ControllerService:
         if it was "hold" (nothing to fly until now)."""
         with self.lock:
             reply = handle(self._now_ns(), request)
+            self._remember_leg()
         log.info("%s: %s %s", what, "accepted" if reply.accepted else "REFUSED", reply.reason)
         self.save_checkpoint(force=True)
         if self.member is not None and reply.accepted:
@@ -300,6 +307,7 @@ class ControllerService:
             return  # stamped ahead of now: wrong (seaway.runtime.stamps)
         with self.lock:
             paused = self.core.on_vehicle_status(msg)
+            self._remember_leg()
         if paused:
             self.save_checkpoint(force=True)
 
@@ -329,14 +337,18 @@ class ControllerService:
                 cmd, record, status = self.core.step(now_ns, state)
                 budget = self.core.take_budget()
                 making = self.solver_pending()
+                self._remember_leg()
             if making is not None and not status.reason:  # flown by the reference meanwhile
                 status = status.model_copy(update={
                     "reason": f"flying with the reference IPOPT: {self.solver_progress(making)}"})
         except Exception:  # a bug must not leave the vessel (or a lockstep sim) without a command
             self.ratelog.exception("step", "control step failed; commanding zero thrust")
             with self.lock:
-                self.pub_thrust.put(self.core.zero_command(state.stamp_ns, "error"))
+                cmd = self.core.zero_command(state.stamp_ns, "error")
+            self._step_ended()
+            self.pub_thrust.put(cmd)
             return
+        self._step_ended()  # none is sent in its place after the step's own command
         self.pub_thrust.put(cmd)
         if record is not None:
             self.pub_solve.put(record)
@@ -344,6 +356,32 @@ class ControllerService:
         if budget is not None:
             self.pub_energy.put(budget)
         self.save_checkpoint()
+
+    def _remember_leg(self) -> None:
+        """Keep what the keeper's fallback flies (under the lock, which a stuck step holds): the
+        active mission's leg and speed hint, and the last command's sequence number."""
+        mm = self.core.missions
+        flying = mm.state == "active" and mm.mission is not None
+        self._flying = ((mm.leg(), mm.mission.speed_hint_mps if mm.mission else None, self.core.seq)
+                        if flying else (None, None, self.core.seq))
+
+    def _overrun_command(self, state: StateEstimate, max_state_age_s: float,
+                         stop: bool) -> ThrustCommand | None:
+        """Real time: the command ``ThrustKeeper`` sends in the place of the step for ``state``
+        (``keeper.overrun_command``): line-of-sight guidance on the leg flown at the last step,
+        from the newest state heard (not ahead of now, not older than ``max_state_age_s`` [s]:
+        else zero thrust); ``stop``: zero thrust. Runs on the keeper's thread, without the lock."""
+        leg, hint, seq = self._flying or (None, None, 0)
+        newest, now = self.states.latest(), self.ctx.clock.now_ns()
+        if newest is not None and state.stamp_ns <= newest.stamp_ns <= now:
+            state = newest
+        stale = (now - state.stamp_ns) / 1e9 > max_state_age_s
+        return overrun_command(state, leg, self.core.vessel, self.core.config.los, hint, seq,
+                               stop=stop or stale)
+
+    def _step_ended(self) -> None:
+        if self.keeper is not None:
+            self.keeper.end()
 
     # -- lockstep (seaway.runtime.lockstep) ------------------------------------------------------
 
@@ -493,6 +531,7 @@ class ControllerService:
     def run_rate(self, rate_hz: float, max_state_age_s: float) -> None:
         sub = self.states
         loop = RateLoop(1.0 / rate_hz, self.ctx.clock, self.ctx.stop)
+        self.keeper = ThrustKeeper(self.pub_thrust.put, 1.0 / rate_hz, log, self.ctx.stop)
         last_stamp: int | None = None
         stale_reported = False
         while loop.wait():
@@ -507,9 +546,12 @@ class ControllerService:
                     stale_reported = False
                     t0 = time.perf_counter()
                     self.watch.begin()
+                    self.keeper.begin(functools.partial(self._overrun_command, state,
+                                                        max_state_age_s))
                     try:
                         self.step(now, state)
                     finally:
+                        self.keeper.end()
                         self.watch.end()
                     warn_slow_step(self.ratelog, time.perf_counter() - t0, 1.0 / rate_hz)
                     continue
