@@ -57,6 +57,13 @@ def boat_params(path: Path = BOAT_PARAMS) -> dict[str, float]:
     return out
 
 
+def as_sent(value: float, param_type: int) -> float:
+    """``value`` as PX4 holds it: a float32 for REAL32 (9), a whole number otherwise."""
+    if param_type == 9:
+        return struct.unpack("<f", struct.pack("<f", float(value)))[0]
+    return float(int(value))
+
+
 def runnable_bin(into: Path) -> Path:
     """A bin folder PX4 can run from: the binary and a ``px4-<module>`` symlink per module."""
     into.mkdir(parents=True, exist_ok=True)
@@ -195,7 +202,7 @@ class Observer:
         self.params.pop(name, None)
         while True:
             got = echo()
-            if got is not None and decode_param_value(got[0], got[1]) == float(value):
+            if got is not None and decode_param_value(got[0], got[1]) == as_sent(value, ptype):
                 return
             assert time.monotonic() < deadline, f"PX4 did not take {name} = {value} (has {got})"
             self.sih.mav.param_set_send(self.instance + 1, 1, name.encode(), raw, ptype)
