@@ -64,7 +64,7 @@ def test_seaways_parameters_are_set_and_the_links_go_where_vehicle_io_listens() 
     assert params["RO_ACCEL_LIM"] == 0 and params["RD_YAW_STK_GAIN"] == 1
     assert params["NAV_RCL_ACT"] == 1  # manual-control loss: Hold, the thrusters stop
     script = sitl_px4.links_script(12, 40123, params)
-    assert "param set RD_YAW_STK_GAIN 1" in script and "param set SDLOG_MODE -1" in script
+    assert "param set RD_YAW_STK_GAIN 1" in script and "param set SDLOG_BACKEND 0" in script
     assert "mavlink start -x -u 14592 -r 4000000 -f -m onboard -o 40123" in script
     assert "-u 19462 -r 400000 -m custom -o 19422" in script  # the SIH display link
     assert "-u 18582 " in script  # a ground station's, sending to 14550
