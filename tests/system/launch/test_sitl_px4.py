@@ -29,6 +29,8 @@ from tests.system.vehicle_io.px4_sitl import needs_px4
 pytestmark = pytest.mark.system
 BIN = Path(sys.executable).parent
 PROFILES = REPO / "deploy" / "profiles"
+# Issue #62's targets for the lake mission on PX4 SITL with the identified model.
+MEAN_XTE_M, MAX_XTE_M, FAILED_SOLVES = 0.5, 2.0, 0
 
 
 def launch(profile: str, run_dir: Path, env: dict[str, str], timeout_s: float
@@ -72,13 +74,44 @@ def test_identify_flies_the_manoeuvre_on_px4_sitl_and_fits_its_rover(tmp_path, z
     assert fit.returncode == 0, fit.stdout[-3000:] + fit.stderr[-3000:]
     result = json.loads(fit.stdout)
     print(json.dumps({p: v["value"] for p, v in result["params"].items()}))
-    print(json.dumps(result.get("residual_rms", {})))
+    print(json.dumps({"rms_fit": result["rms_fit"], "rms_holdout": result["rms_holdout"]}))
     new = load_vessel(fitted)
-    # What the build's source says the rover is (deploy/vessels/px4-sitl-base.toml): 20 kg, and a
-    # yaw moment of 0.3 m x the side difference against SIH_KDW 30 N m s (fitted as Nr with l 0.3).
-    assert new.m11_kg == pytest.approx(20.0, rel=0.35)
+    # What the build's source says the rover is (deploy/vessels/px4-sitl-base.toml): a yaw moment
+    # of 0.3 m x the side difference against SIH_KDW 30 N m s (fitted as Nr with l 0.3), and 20 kg
+    # whose ground friction the linear model takes partly as mass: never less than that.
     assert new.nr_kgm2ps == pytest.approx(30.0, rel=0.15)
+    assert 20.0 <= new.m11_kg <= 45.0 and 75.0 <= new.xu_kgps <= 115.0
     shipped = load_vessel("px4-sitl-rover")  # the same fit, made from another run
     for p in ("xu_kgps", "nr_kgm2ps"):
         assert getattr(new, p) == pytest.approx(getattr(shipped, p), rel=0.10), p
     assert Path(result["plot"]).stat().st_size > 10_000
+
+
+@needs_px4
+@pytest.mark.slow
+@pytest.mark.timeout(660)
+def test_the_lake_mission_on_px4_sitl_with_the_identified_model(tmp_path, zenoh_env) -> None:
+    solver_built("cc-empc", "px4-sitl-rover")  # a normal run, not a machine's first
+    run_dir, stdout, log = launch_ok("sitl-px4", tmp_path, zenoh_env, 600)
+    assert re.search(r"^arm: accepted", stdout, re.M), log
+    assert "mission complete" in stdout, log
+    run = json.loads((run_dir / "run.json").read_text())
+    assert run["model_vessel_file"] == "px4-sitl-rover" and run["plant_vessel_file"] is None
+    report = json.loads((run_dir / "report" / "metrics.json").read_text())
+    metrics, solve = report["metrics"], report["solve"]
+    legs = len(report["mission"]["waypoints_m"]) - 1
+    print(f"PX4 SITL lake: legs {metrics['legs_completed']}/{legs}, XTE mean "
+          f"{metrics['avg_cross_track_m']:.3f} m max {metrics['max_cross_track_m']:.3f} m, "
+          f"travel {metrics['travel_time_s']} s, solves {solve['count']} failures {solve['failures']} "
+          f"fallbacks {solve['fallbacks']}, state from {metrics['state_source']}")
+    assert metrics["completed"] and metrics["legs_completed"] == legs
+    assert metrics["avg_cross_track_m"] <= MEAN_XTE_M and metrics["max_cross_track_m"] <= MAX_XTE_M
+    assert solve["failures"] <= FAILED_SOLVES
+    assert not [s for s in solve["statuses"] if s.startswith("no solver yet")], solve["statuses"]
+    # The rover was PX4's: no simulator of ours in the recording, the state estimated from
+    # vehicle_io's sensors, and the thrust came from CC-EMPC.
+    topics = report["recording"]["topics"]
+    assert not any("/sim/" in t for t in topics) and metrics["state_source"] == "nav/state"
+    dec = recording.decode_vessel([run_dir / "recording.mcap"], None, [keys.THRUST.suffix])
+    sources = [m.source for m in dec.get(keys.THRUST.suffix) if isinstance(m, ThrustCommand)]
+    assert sources.count("cc-empc") > 0.8 * solve["count"]
