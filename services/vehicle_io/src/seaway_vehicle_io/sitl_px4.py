@@ -234,8 +234,8 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--link-port", type=whole_number(1, 65535), required=True,
                     help="UDP port on 127.0.0.1 PX4's onboard link sends to (vehicle_io's udpin)")
     ap.add_argument("--instance", type=whole_number(0, 99), default=None,
-                    help=f"PX4 instance N (default: the first free of {OWN_INSTANCES.start}.."
-                         f"{OWN_INSTANCES.stop - 1})")
+                    help=f"PX4 instance N, which must be free (default: the first free of "
+                         f"{OWN_INSTANCES.start}..{OWN_INSTANCES.stop - 1})")
     ap.add_argument("--param", type=param_override, action="append", default=[],
                     metavar="NAME=VALUE", help="a PX4 parameter set after Seaway's; repeatable")
     ap.add_argument("--print", action="store_true", help="print the links script and the command "
@@ -250,12 +250,12 @@ def main(argv: list[str] | None = None) -> int:
         build = find_firmware(firmware_folder(os.environ, repo_root()))
         pose = start_pose(load_config(args.run, RunDescription))
         params = {**read_params(BOAT_PARAMS), **read_params(SIM_PARAMS), **dict(args.param)}
-        if args.instance is not None:
-            instance = args.instance
-        elif args.print:
-            instance = OWN_INSTANCES.start
-        else:
-            instance, lock_fd = free_instance(OWN_INSTANCES)
+        if args.print:
+            instance = OWN_INSTANCES.start if args.instance is None else args.instance
+        else:  # a given instance is locked and checked as a chosen one is
+            wanted = OWN_INSTANCES if args.instance is None else range(args.instance,
+                                                                       args.instance + 1)
+            instance, lock_fd = free_instance(wanted)
         runtime_dir = LOCK_DIR / f"run-{instance}"
         env = environment(os.environ, pose, runtime_dir, args.dir / "rc")
     except (ConfigError, OSError) as err:
