@@ -99,9 +99,13 @@ class Px4Sitl:
         self.observer.start()
         self.boot_mono_s = time.monotonic()
         if params:
-            wait_for(lambda: self.observer.heartbeats, 30, what="PX4's first HEARTBEAT")
-            for name, value in params.items():
-                self.observer.set_param(name, value)
+            try:
+                wait_for(lambda: self.observer.heartbeats, 30, what="PX4's first HEARTBEAT")
+                for name, value in params.items():
+                    self.observer.set_param(name, value)
+            except BaseException:
+                self.kill()  # no fixture will: the object was never handed out
+                raise
 
     @property
     def vio_url(self) -> str:
