@@ -24,3 +24,12 @@ def test_vehicle_io_encoding_decodes_to_the_same_thrusts_in_the_sim(left: float,
     assert (axes.x, axes.r) == (0, 0)  # PX4 differential Manual ignores them
     got = px4_mixer.manual_control_to_normalised(axes.y, axes.z)
     assert got == pytest.approx((left, right), abs=2.5e-3)  # integer wire fields: 1/500 per step
+
+
+@pytest.mark.parametrize("gain", [0.6, 1.0])
+def test_the_yaw_stick_gain_means_the_same_on_both_sides(gain: float) -> None:
+    """RD_YAW_STK_GAIN, served by the sim and read by vehicle_io, scales the same axis the same way."""
+    assert px4_params.BY_NAME["RD_YAW_STK_GAIN"].used
+    axes = PROFILE.mapper({"RD_YAW_STK_GAIN": gain})(0.5, 0.1)
+    got = px4_mixer.manual_control_to_normalised(axes.y, axes.z, gain)
+    assert got == pytest.approx((0.5, 0.1), abs=2.5e-3)

@@ -37,6 +37,9 @@ PX4_DEFAULT_PARAMS: dict[str, tuple[float, int]] = {
     # set to 1 (Hold), the recommended value.
     "COM_RC_IN_MODE": (1, 6), "COM_RC_LOSS_T": (0.5, 9), "NAV_RCL_ACT": (1, 6),
     "COM_FAIL_ACT_T": (5.0, 9), "NAV_DLL_ACT": (0, 6), "CA_AIRFRAME": (6, 6),
+    # What px4-boat.params sets: no throttle slew, the roll stick at full scale.
+    "RO_ACCEL_LIM": (0.0, 9), "RO_DECEL_LIM": (0.0, 9), "RO_MAX_THR_SPEED": (3.2, 9),
+    "RD_YAW_STK_GAIN": (1.0, 9),
 }
 ARDUPILOT_DEFAULT_PARAMS: dict[str, tuple[float, int]] = {
     "FS_THR_ENABLE": (1, 2), "FS_ACTION": (2, 2), "FS_TIMEOUT": (1.5, 9), "FS_GCS_ENABLE": (0, 2),

@@ -351,6 +351,10 @@ KNOWN_DIFFERENCES: dict[str, tuple[str, str, str]] = {
         "the SIH airframe 10046 tunes the rover's slew limits; the imitation does not model them "
         "and reports them disabled (-1), PX4's default, which is what vehicle_io asks for")
        for name, value in (("RO_ACCEL_LIM", 3), ("RO_DECEL_LIM", 3), ("RO_MAX_THR_SPEED", 3.2))},
+    "param RD_YAW_STK_GAIN": (
+        "1 REAL32", "0.6 REAL32",
+        "the SIH airframe 10046 scales the roll stick by 0.6; the imitation reports PX4's default 1, "
+        "which px4-boat.params sets (vehicle_io divides either out)"),
     **{f"{label} (disarmed)": (
         "TEMP_REJECTED", "ACCEPTED",
         "PX4's rover has these modes; the imitation cannot fly them (it has Manual and Hold only) "

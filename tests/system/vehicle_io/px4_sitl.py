@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import contextlib
 import os
-import shutil
 import signal
 import struct
 import subprocess
@@ -30,11 +29,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
+from seaway_vehicle_io import sitl_px4
 from seaway_vehicle_io.mav import mavutil
 from seaway_vehicle_io.profile import decode_param_value
 
 from tests.conftest import REPO, udp_port_free, wait_for
-from tests.system.vehicle_io.ardupilot_sitl import instance_lock
 
 PX4_DIR = Path(os.environ.get("SEAWAY_PX4_SITL", REPO.parent / "shared" / "sitl" / "px4"))
 PX4_BIN = PX4_DIR / "bin" / "px4"
@@ -42,46 +41,26 @@ needs_px4 = pytest.mark.skipif(
     not (PX4_BIN.exists() and (PX4_DIR / "etc").is_dir()),
     reason=f"PX4 SITL not found at {PX4_DIR} (bin/px4, etc/): build it (docs/autopilots.md) or "
            "set SEAWAY_PX4_SITL to its folder")
-BOAT_PARAMS = REPO / "services" / "vehicle_io" / "config" / "px4-boat.params"
-MODEL = "sihsim_rover_differential"  # airframe 10046: PX4's rover_differential, two motors
+BOAT_PARAMS = sitl_px4.BOAT_PARAMS
+MODEL = sitl_px4.MODEL  # airframe 10046: PX4's rover_differential, two motors
 BOOT_MODE_HOLD = 0x03040000  # AUTO/LOITER: PX4 boots in Hold
 
 
 def boat_params(path: Path = BOAT_PARAMS) -> dict[str, float]:
     """The parameters Seaway expects on a PX4 boat (``NAME VALUE`` lines, ``#`` comments)."""
-    out: dict[str, float] = {}
-    for line in path.read_text().splitlines():
-        line = line.split("#", 1)[0].strip()
-        if line:
-            name, value = line.split()
-            out[name] = float(value)
-    return out
+    return sitl_px4.read_params(path)
+
+
+def as_sent(value: float, param_type: int) -> float:
+    """``value`` as PX4 holds it: a float32 for REAL32 (9), a whole number otherwise."""
+    if param_type == 9:
+        return struct.unpack("<f", struct.pack("<f", float(value)))[0]
+    return float(int(value))
 
 
 def runnable_bin(into: Path) -> Path:
-    """A bin folder PX4 can run from: the binary and a ``px4-<module>`` symlink per module."""
-    into.mkdir(parents=True, exist_ok=True)
-    exe = into / "px4"
-    shutil.copy2(PX4_BIN, exe)
-    exe.chmod(0o755)
-    for entry in (PX4_DIR / "bin").iterdir():
-        if entry.name.startswith("px4-") and entry.suffix != ".sh":
-            (into / entry.name).symlink_to("px4")
-        elif entry.suffix == ".sh":
-            shutil.copy2(entry, into / entry.name)
-    return exe
-
-
-
-
-
-def free_instance() -> int:
-    """An instance number whose ports (PX4's and the ones it sends to) are free."""
-    for n in range(3, 40):
-        if all(udp_port_free(p + n) for p in (18570, 14580, 14540, 19450, 19410, 14280, 13030)) \
-                and instance_lock("px4", n):
-            return n
-    pytest.fail("no free PX4 SITL instance number in 3..39")
+    """A bin folder PX4 can run from (``seaway sitl px4``'s)."""
+    return sitl_px4.runnable_bin(sitl_px4.find_firmware(PX4_DIR), into)
 
 
 @dataclass(frozen=True)
@@ -101,7 +80,9 @@ class Px4Sitl:
     """One PX4 SITL process (its own process group) with an observer on the GCS and SIH links."""
 
     def __init__(self, tmp: Path, params: dict[str, float] | None = None) -> None:
-        self.instance = free_instance()
+        # PX4's stock links (vehicle_io's sends to 14540 + N): an instance of STOCK_INSTANCES,
+        # locked for as long as this object or the firmware holds the descriptor.
+        self.instance, self._lock_fd = sitl_px4.free_instance(sitl_px4.STOCK_INSTANCES)
         self.run_dir = tmp / f"px4-{self.instance}"
         self.run_dir.mkdir(parents=True)
         exe = runnable_bin(tmp / "px4-bin")
@@ -115,14 +96,19 @@ class Px4Sitl:
         self.observer.start()
         self.boot_mono_s = time.monotonic()
         if params:
-            wait_for(lambda: self.observer.heartbeats, 30, what="PX4's first HEARTBEAT")
-            for name, value in params.items():
-                self.observer.set_param(name, value)
+            try:
+                wait_for(lambda: self.observer.heartbeats, 30, what="PX4's first HEARTBEAT")
+                for name, value in params.items():
+                    self.observer.set_param(name, value)
+            except BaseException:
+                self.kill()  # no fixture will: the object was never handed out
+                raise
 
     def _popen(self, log_mode: str) -> None:
         with open(self.log_path, log_mode) as log:
             self.proc = subprocess.Popen(self._args, cwd=self.run_dir, env=self._env, stdout=log,
-                                         stderr=subprocess.STDOUT, start_new_session=True)
+                                         stderr=subprocess.STDOUT, start_new_session=True,
+                                         pass_fds=(self._lock_fd,))
 
     def restart(self) -> None:
         """SIGKILL the firmware and start it again on the same instance and parameters (saved in
@@ -145,6 +131,8 @@ class Px4Sitl:
             with contextlib.suppress(ProcessLookupError):
                 os.killpg(self.proc.pid, signal.SIGKILL)
         self.proc.wait(10)
+        with contextlib.suppress(OSError):
+            os.close(self._lock_fd)
 
     def log(self) -> str:
         return self.log_path.read_text(errors="replace")
@@ -216,7 +204,7 @@ class Observer:
         self.params.pop(name, None)
         while True:
             got = echo()
-            if got is not None and decode_param_value(got[0], got[1]) == float(value):
+            if got is not None and decode_param_value(got[0], got[1]) == as_sent(value, ptype):
                 return
             assert time.monotonic() < deadline, f"PX4 did not take {name} = {value} (has {got})"
             self.sih.mav.param_set_send(self.instance + 1, 1, name.encode(), raw, ptype)

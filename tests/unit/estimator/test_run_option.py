@@ -35,3 +35,13 @@ def test_a_config_file_may_not_set_run_wide_fields(field: str) -> None:
     cfg = EstimatorConfig(**{field: value})
     with pytest.raises(ConfigError, match=field):
         with_run(cfg, _run("paper-c1"))
+
+
+def test_a_shipped_config_is_found_by_its_name_and_an_unknown_name_lists_them() -> None:
+    from seaway.contract.config import ConfigError
+    from seaway_estimator.config import EstimatorConfig, load_estimator_config
+
+    cfg = load_estimator_config("px4-sitl")
+    assert cfg.accel_surge_std_per_sqrt_s > EstimatorConfig().accel_surge_std_per_sqrt_s
+    with pytest.raises(ConfigError, match=r"no estimator config 'nope'.*px4-sitl"):
+        load_estimator_config("nope")

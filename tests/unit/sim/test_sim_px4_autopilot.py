@@ -356,14 +356,14 @@ def test_param_list_has_every_failsafe_param_vehicle_io_checks() -> None:
     # Types as the 1.18 SITL reports them (COM_DL_LOSS_T is an INT32 there).
     assert {pv.param_id for pv in answers if pv.param_type == px4_params.MAV_PARAM_TYPE_REAL32} \
         == {"COM_RC_LOSS_T", "COM_FAIL_ACT_T", "COM_OF_LOSS_T", "COM_DISARM_LAND", "NAV_ACC_RAD",
-            "RO_ACCEL_LIM", "RO_DECEL_LIM", "RO_MAX_THR_SPEED"}
+            "RO_ACCEL_LIM", "RO_DECEL_LIM", "RO_MAX_THR_SPEED", "RD_YAW_STK_GAIN"}
     assert values == {"COM_RC_IN_MODE": 3, "COM_RC_LOSS_T": 0.5, "NAV_RCL_ACT": 2,
                       "COM_RCL_EXCEPT": 0, "COM_FAIL_ACT_T": 5.0, "NAV_DLL_ACT": 0,
                       "COM_DL_LOSS_T": 10, "COM_OF_LOSS_T": 1.0, "COM_OBL_RC_ACT": 0,
                       "COM_DISARM_LAND": 2.0, "NAV_ACC_RAD": 0.5,
                       "MAV_TYPE": 10, "MAV_SYS_ID": 1, "CA_AIRFRAME": 6, "CA_R_REV": 3,
                       "RO_ACCEL_LIM": -1.0, "RO_DECEL_LIM": -1.0, "RO_MAX_THR_SPEED": -1.0,
-                      "GF_ACTION": 2, "GF_SOURCE": 0}
+                      "GF_ACTION": 2, "GF_SOURCE": 0, "RD_YAW_STK_GAIN": 1.0}
 
 
 def test_param_set_echoes_the_new_value_and_refuses_bad_ones() -> None:

@@ -114,10 +114,10 @@ def test_clamp_int_rounds_half_away_from_zero(v, expect):
     assert clamp_int(v, -1000, 1000) == expect
 
 
-def px4_decode(axes: ManualControlAxes) -> tuple[float, float]:
+def px4_decode(axes: ManualControlAxes, yaw_stick_gain: float = 1.0) -> tuple[float, float]:
     """What PX4 does with the axes (docs/autopilots.md A.1.1 and A.1.3): (L, R)."""
     thr = axes.z / 500.0 - 1.0
-    d = axes.y / 1000.0
+    d = axes.y / 1000.0 * yaw_stick_gain
     excess = abs(thr) + abs(d) - 1.0
     if excess > 0:  # "prioritize yaw rate": throttle reduced by the excess
         thr -= excess if thr > 0 else -excess
@@ -161,3 +161,30 @@ def test_turn_direction_px4():
     left, right = normalise_pair(40.0, 10.0, LIM)
     assert PX4.manual_control(left, right).y > 0
     assert AP.manual_control(left, right).y > AP.manual_control(left, right).z
+
+
+@pytest.mark.parametrize("gain", [0.6, 1.0, 0.25])
+def test_px4_mapper_undoes_the_yaw_stick_gain(gain):
+    """With the firmware's RD_YAW_STK_GAIN read, every pair within reach (|L - R| <= 2 gain) comes
+    out of PX4's mixing as sent; beyond it the difference is cut to 2 gain, the sum kept."""
+    axes = PX4.mapper({"RD_YAW_STK_GAIN": gain})
+    levels = [-1.0, -0.6, -0.2, 0.0, 0.15, 0.5, 0.9, 1.0]
+    for left, right in itertools.product(levels, levels):
+        out_l, out_r = px4_decode(axes(left, right), gain)
+        if abs(left - right) <= 2 * gain:
+            assert (out_l, out_r) == pytest.approx((left, right), abs=PX4.quantisation_guard)
+        else:
+            assert out_l - out_r == pytest.approx(2 * gain * (1 if left > right else -1), abs=2e-3)
+            assert out_l + out_r == pytest.approx(left + right, abs=2.5e-3)
+
+
+def test_px4_yaw_stick_gain_is_judged():
+    base = {"COM_RC_IN_MODE": 1, "COM_RC_LOSS_T": 0.5, "NAV_RCL_ACT": 1}
+    assert PX4.assess_failsafe({**base, "RD_YAW_STK_GAIN": 1.0}, 245).warnings == ()
+    low = PX4.assess_failsafe({**base, "RD_YAW_STK_GAIN": 0.6}, 245)
+    assert any("RD_YAW_STK_GAIN=0.6" in w and "1.2" in w for w in low.warnings), low
+    assert not low.blocking
+    zero = PX4.assess_failsafe({**base, "RD_YAW_STK_GAIN": 0.0}, 245)
+    assert any("RD_YAW_STK_GAIN=0" in b for b in zero.blocking), zero
+    assert PX4.mapper({"RD_YAW_STK_GAIN": 0.0})(0.5, 0.0) == PX4.manual_control(0.5, 0.0)
+    assert PX4.mapper({})(0.5, 0.0) == PX4.manual_control(0.5, 0.0)  # absent: PX4's default 1

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Literal
 
 from pydantic import Field
-from seaway.contract.config import ConfigModel, Origin, load_config
+from seaway.contract.config import ConfigModel, Origin, load_config, named_file
 from seaway.runtime.run import DEFAULT_VESSEL_FILE
 
 CHI2_2DOF_9999 = 18.42
@@ -99,6 +99,13 @@ class EstimatorConfig(ConfigModel):
                                       "drops its state and re-initialises")
 
 
+CONFIG_DIR = Path(__file__).resolve().parents[2] / "config"
+"""The shipped configs (``px4-sitl.toml``: a vessel whose model leaves large residuals)."""
+
+
 def load_estimator_config(path: str | Path | None) -> EstimatorConfig:
-    """The config file at ``path`` (TOML or JSON), or the defaults."""
-    return EstimatorConfig() if path is None else load_config(path, EstimatorConfig)
+    """The config file at ``path`` (TOML or JSON), or ``CONFIG_DIR/<name>.toml``, or the defaults."""
+    if path is None:
+        return EstimatorConfig()
+    return load_config(named_file(CONFIG_DIR, path, "estimator config", "services/estimator/config/"),
+                       EstimatorConfig)

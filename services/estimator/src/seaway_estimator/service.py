@@ -375,7 +375,8 @@ def with_run(cfg: EstimatorConfig, run: RunDescription) -> EstimatorConfig:
 def main(argv: Sequence[str] | None = None) -> int:
     ap = base_parser("estimator", f"EKF state and disturbance estimator: {keys.GNSS.suffix}, "
                                   f"{keys.ATTITUDE.suffix} -> {keys.NAV_STATE.suffix}")
-    ap.add_argument("--config", default=None, help="estimator config file (TOML or JSON)")
+    ap.add_argument("--config", default=None, help="estimator config file (TOML or JSON), or the "
+                    "name of one in services/estimator/config (e.g. px4-sitl)")
     ap.add_argument("--record-inputs", default=None, metavar="FILE",
                     help="write every core call as JSON lines, for python -m seaway_estimator.replay")
     args = parse(ap, argv)

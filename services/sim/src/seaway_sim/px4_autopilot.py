@@ -384,7 +384,8 @@ class Px4Autopilot:
                 or self.manual_control_lost(now_ns)):
             return 0.0, 0.0
         y, z = self.last_manual_axes
-        return px4_mixer.manual_control_to_thrust_n(y, z, self.thrust_max_n)
+        return px4_mixer.manual_control_to_thrust_n(y, z, self.thrust_max_n,
+                                                    float(self.params.get("RD_YAW_STK_GAIN")))
 
     # -- incoming -----------------------------------------------------------------------------
 

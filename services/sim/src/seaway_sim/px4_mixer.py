@@ -8,7 +8,7 @@ Forward (what the sim does with a MANUAL_CONTROL message)::
     roll     = y / 1000                      applied only if -1000 <= y <= 1000, else 0
     throttle = z / 500 - 1                   applied only if     0 <= z <= 1000, else 0 (stop)
     (x: pitch and r: yaw are decoded by PX4 but ignored by the differential Manual mode)
-    diff = roll
+    diff = roll * RD_YAW_STK_GAIN             (DifferentialManualMode; PX4's default 1, SIH 10046: 0.6)
     if |throttle| + |diff| > 1:              PX4 "prioritizes yaw rate": the throttle is cut
         throttle = sign(throttle) * (1 - |diff|)      (|diff| <= 1, so this is >= 0 in magnitude)
     R = throttle - diff        -> actuator_motors.control[0] (Motor1, right / starboard)
@@ -21,7 +21,7 @@ turns clockwise (to starboard), as NED and the paper's tau = [T1 + T2, 0, (T1 - 
 
 Inverse (what vehicle_io sends for wanted normalised thrusts L, R in [-1, 1])::
 
-    y = round(500 * (L - R))                 (= 1000 * d, d = (L - R) / 2)
+    y = round(500 * (L - R) / RD_YAW_STK_GAIN)   (= 1000 * d / gain, d = (L - R) / 2)
     z = round(500 + 250 * (L + R))           (= 500 * (thr + 1), thr = (L + R) / 2); 500 = stop
 
 For |L|, |R| <= 1 the throttle cut never triggers (|thr| + |d| = max(|L|, |R|)), so forward(inverse)
@@ -56,14 +56,17 @@ def mix(throttle: float, diff: float) -> tuple[float, float]:
     return throttle + diff, throttle - diff
 
 
-def manual_control_to_normalised(y: int, z: int) -> tuple[float, float]:
-    """MANUAL_CONTROL (y, z) -> normalised (L, R), exactly as PX4's differential Manual mode."""
-    return mix(throttle_from_z(z), roll_from_y(y))
+def manual_control_to_normalised(y: int, z: int,
+                                 yaw_stick_gain: float = 1.0) -> tuple[float, float]:
+    """MANUAL_CONTROL (y, z) -> normalised (L, R), exactly as PX4's differential Manual mode with
+    RD_YAW_STK_GAIN = ``yaw_stick_gain``."""
+    return mix(throttle_from_z(z), roll_from_y(y) * yaw_stick_gain)
 
 
-def manual_control_to_thrust_n(y: int, z: int, thrust_max_n: float) -> tuple[float, float]:
+def manual_control_to_thrust_n(y: int, z: int, thrust_max_n: float,
+                               yaw_stick_gain: float = 1.0) -> tuple[float, float]:
     """MANUAL_CONTROL (y, z) -> (T1 port, T2 starboard) [N]: normalised thrust * thrust_max_n."""
-    left, right = manual_control_to_normalised(y, z)
+    left, right = manual_control_to_normalised(y, z, yaw_stick_gain)
     return left * thrust_max_n, right * thrust_max_n
 
 

@@ -67,6 +67,8 @@ PARAMS: tuple[ParamSpec, ...] = (
               "throttle acceleration limit [m/s^2]; -1 disabled (not simulated)"),
     ParamSpec("RO_DECEL_LIM", MAV_PARAM_TYPE_REAL32, -1.0, -1.0, 100.0, False,
               "throttle deceleration limit [m/s^2]; -1 disabled (not simulated)"),
+    ParamSpec("RD_YAW_STK_GAIN", MAV_PARAM_TYPE_REAL32, 1.0, 0.0, 1.0, True,
+              "Manual mode: speed difference = roll stick x this (rover_differential)"),
     ParamSpec("RO_MAX_THR_SPEED", MAV_PARAM_TYPE_REAL32, -1.0, -1.0, 100.0, False,
               "speed at full throttle [m/s]; -1 disabled (not simulated)"),
     ParamSpec("GF_ACTION", MAV_PARAM_TYPE_INT32, 2, 0, 5, True,

@@ -2,13 +2,21 @@
 
 MANUAL_CONTROL mapping (inverse of ``DifferentialActControl::computeInverseKinematics``, where
 ``control[0]`` = right = thr - d and ``control[1]`` = left = thr + d; PX4 decodes ``y/1000`` as roll
-and ``z/500 - 1`` as throttle in ``MavlinkReceiver::handle_message_manual_control``)::
+and ``z/500 - 1`` as throttle in ``MavlinkReceiver::handle_message_manual_control``, and the
+differential Manual mode makes the speed difference ``d = roll * RD_YAW_STK_GAIN``)::
 
-    y = round(500 * (L - R))          in [-1000, 1000]
+    y = round(500 * (L - R) / g)      in [-1000, 1000], g = RD_YAW_STK_GAIN (read at connection)
     z = round(500 + 250 * (L + R))    in [0, 1000], 500 = stop
     x = 0, r = 0                      (ignored by the rover's Manual mode)
 
-Reconstruction error of L or R after rounding: 0.5/1000 (y) + 0.5/500 (z) = 0.0015; the guard adds
+Measured on PX4 1.18 SITL (airframe 10046, whose RD_YAW_STK_GAIN is 0.6): the motors are
+``thr -/+ 0.6 roll`` exactly, and PX4 cuts the throttle by ``|thr| + |d| - 1`` when that is positive
+(never for |L|, |R| <= 1). With g < 1 a difference |L - R| above 2 g is out of reach: y saturates and
+the difference is cut to 2 g, the sum kept (``assess_failsafe`` warns; px4-boat.params sets g = 1).
+Slew: with RO_ACCEL_LIM, RO_DECEL_LIM and RO_MAX_THR_SPEED all > 0 PX4 ramps the throttle part;
+px4-boat.params turns it off. Neither Manual-mode axis has a dead zone or expo on this path.
+
+Reconstruction error of L or R after rounding: 0.5/1000 g (y) + 0.5/500 (z) <= 0.0015; the guard adds
 margin to 0.002.
 
 Modes: ``custom_mode = main << 16 | sub << 24`` (``px4_custom_mode.h``); DO_SET_MODE takes
@@ -16,6 +24,8 @@ param1 = 1 (MAV_MODE_FLAG_CUSTOM_MODE_ENABLED), param2 = main, param3 = sub.
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable, Mapping
 
 from seaway_vehicle_io.profile import (
     FailsafeAssessment,
@@ -30,6 +40,10 @@ from seaway_vehicle_io.profile import (
 
 MAV_AUTOPILOT_PX4 = 12
 CUSTOM_MODE_ENABLED = 1
+YAW_STICK_GAIN = "RD_YAW_STK_GAIN"
+"""rover_differential's Manual-mode scale from the roll stick to the speed difference [-]."""
+YAW_STICK_GAIN_DEFAULT = 1.0
+"""Its value when the firmware does not report it (PX4's own default; older firmware scaled no roll)."""
 
 # Seaway name -> (main mode, sub mode). HOLD is PX4's AUTO.LOITER, which the rover implements as
 # a stop (docs/autopilots.md A.3).
@@ -79,16 +93,24 @@ class Px4Profile(Profile):
     requests_message_rates = True
     failsafe_params = (
         "COM_RC_IN_MODE", "COM_RC_LOSS_T", "NAV_RCL_ACT", "COM_FAIL_ACT_T", "NAV_DLL_ACT",
-        "CA_AIRFRAME", "RO_ACCEL_LIM", "RO_DECEL_LIM", "RO_MAX_THR_SPEED",
+        "CA_AIRFRAME", "RO_ACCEL_LIM", "RO_DECEL_LIM", "RO_MAX_THR_SPEED", YAW_STICK_GAIN,
     )
+    mapping_needs_params = True
 
     def manual_control(self, left: float, right: float) -> ManualControlAxes:
-        return ManualControlAxes(
-            x=0,
-            y=clamp_int(500.0 * (left - right), -1000, 1000),
-            z=clamp_int(500.0 + 250.0 * (left + right), 0, 1000),
-            r=0,
-        )
+        """The mapping with RD_YAW_STK_GAIN = 1 (neutral, and a firmware not yet read)."""
+        return axes_for(left, right, YAW_STICK_GAIN_DEFAULT)
+
+    def mapper(self, params: Mapping[str, float]) -> Callable[[float, float], ManualControlAxes]:
+        """The roll axis scaled by the firmware's RD_YAW_STK_GAIN (absent: 1; not positive:
+        ``assess_failsafe`` blocks thrust, and the plain mapping stays)."""
+        gain = params.get(YAW_STICK_GAIN, YAW_STICK_GAIN_DEFAULT)
+        if not gain > 0.0:
+            return self.manual_control
+
+        def axes(left: float, right: float) -> ManualControlAxes:
+            return axes_for(left, right, gain)
+        return axes
 
     def mode_names(self) -> tuple[str, ...]:
         return tuple(MODES)
@@ -142,13 +164,33 @@ class Px4Profile(Profile):
         if params.get("CA_AIRFRAME") is not None and int(params["CA_AIRFRAME"]) != 6:
             warnings.append(f"CA_AIRFRAME={int(params['CA_AIRFRAME'])}, not 6 (Rover Differential): "
                             "the MANUAL_CONTROL mapping assumes a differential rover")
+        blocking: list[str] = []
+        gain = params.get(YAW_STICK_GAIN)
+        if gain is not None and not gain > 0.0:
+            blocking.append(f"{YAW_STICK_GAIN}={gain:g}: PX4 turns no roll into a speed "
+                            "difference, so no thrust difference can be commanded (1 wanted)")
+        elif gain is not None and gain < 1.0:
+            warnings.append(f"{YAW_STICK_GAIN}={gain:g}: thrust differences above {2 * gain:g} of "
+                            "full scale (L - R) are cut to that (1 lets the full range through)")
         for slew in ("RO_ACCEL_LIM", "RO_DECEL_LIM"):
             if params.get(slew, 0.0) > 0 and params.get("RO_MAX_THR_SPEED", 0.0) > 0:
                 warnings.append(f"{slew}={params[slew]:g} with RO_MAX_THR_SPEED>0 slew-limits the "
                                 "throttle (L+R) part of every command")
         summary = (f"manual-control loss after COM_RC_LOSS_T={loss_t:g} s -> NAV_RCL_ACT={what}"
                    f"{delay}: {verdict}")
-        return FailsafeAssessment(verdict, summary, tuple(warnings), params=dict(params))
+        return FailsafeAssessment(verdict, summary, tuple(warnings), tuple(blocking),
+                                  params=dict(params))
+
+
+def axes_for(left: float, right: float, yaw_stick_gain: float) -> ManualControlAxes:
+    """Normalised (L port, R starboard) -> MANUAL_CONTROL for a firmware whose RD_YAW_STK_GAIN is
+    ``yaw_stick_gain`` (> 0): the inverse of PX4's differential Manual mode (module docstring)."""
+    return ManualControlAxes(
+        x=0,
+        y=clamp_int(500.0 * (left - right) / yaw_stick_gain, -1000, 1000),
+        z=clamp_int(500.0 + 250.0 * (left + right), 0, 1000),
+        r=0,
+    )
 
 
 PROFILE = register(Px4Profile())

@@ -27,7 +27,6 @@ ArduPilot itself and nothing is left behind.
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import sys
 from collections.abc import Mapping
@@ -37,9 +36,10 @@ from pathlib import Path
 from seaway.contract.config import ConfigError, load_config, repo_root
 from seaway.runtime.argtypes import whole_number
 from seaway.runtime.run import RunDescription
-from seaway.simkit.scenario import load_scenario
 
+from seaway_vehicle_io import sitl_common, sitl_px4
 from seaway_vehicle_io.config import CONFIG_DIR
+from seaway_vehicle_io.sitl_common import SitlError, start_pose
 
 ENV_FOLDER = "SEAWAY_ARDUPILOT_SITL"
 FRAME = "motorboat-skid"
@@ -58,10 +58,6 @@ HOW_TO_GET = (
     "parameter files")
 
 
-class SitlError(ConfigError):
-    """The firmware or its parameter files cannot be found, or the run cannot place it."""
-
-
 @dataclass(frozen=True)
 class ArduPilotSitl:
     """A built ArduPilot Rover SITL: the binary and ArduPilot's default parameter files for the frame."""
@@ -73,11 +69,7 @@ class ArduPilotSitl:
 
 def default_folder(env: Mapping[str, str], root: Path | None) -> Path | None:
     """``$SEAWAY_ARDUPILOT_SITL``, else ``<checkout>/../shared/sitl/ardupilot`` if it exists."""
-    if env.get(ENV_FOLDER):
-        return Path(env[ENV_FOLDER])
-    if root is not None and (root.parent / "shared" / "sitl" / "ardupilot").is_dir():
-        return root.parent / "shared" / "sitl" / "ardupilot"
-    return None
+    return sitl_common.default_folder(env, root, ENV_FOLDER, "ardupilot")
 
 
 def find_firmware(folder: Path | None) -> ArduPilotSitl:
@@ -111,19 +103,9 @@ def home_text(run: RunDescription) -> str:
     """ArduPilot's ``--home lat,lon,alt,yaw``: the run's NED origin and the scenario's start heading
     [deg, clockwise from north] (SITL starts at its home, so the scenario's start must be at the
     origin)."""
-    if run.origin is None:
-        raise SitlError("the run has no NED origin (origin_from_scenario = false?): SITL needs one "
-                        "for its home; use a scenario with an [origin]")
-    yaw_deg = 0.0
-    if run.scenario:
-        start = load_scenario(run.scenario).start
-        if math.hypot(start.x_m, start.y_m) > 0.01 or start.u_mps != 0.0:
-            raise SitlError(f"scenario {run.scenario}: SITL starts at rest at the origin, but the "
-                            f"scenario starts at x {start.x_m:g} m, y {start.y_m:g} m, "
-                            f"u {start.u_mps:g} m/s")
-        yaw_deg = math.degrees(start.psi_rad) % 360.0
-    o = run.origin
-    return f"{o.lat_deg:.7f},{o.lon_deg:.7f},{o.alt_m:g},{yaw_deg:g}"
+    pose = start_pose(run)
+    o = pose.origin
+    return f"{o.lat_deg:.7f},{o.lon_deg:.7f},{o.alt_m:g},{pose.yaw_deg:g}"
 
 
 def command(sitl: ArduPilotSitl, home: str, instance: int,
@@ -142,7 +124,9 @@ def command(sitl: ArduPilotSitl, home: str, instance: int,
 def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="seaway sitl", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("firmware", choices=["ardupilot"], help="which autopilot's SITL (ardupilot)")
+    ap.add_argument("firmware", choices=["ardupilot", "px4"],
+                    help="which autopilot's SITL: ardupilot (Rover, motorboat-skid) or px4 (SIH "
+                         "differential rover; its options: seaway sitl px4 --help)")
     ap.add_argument("--run", type=Path, required=True, help="the run description (run.json): its "
                     "origin is SITL's home, its scenario gives the start heading")
     ap.add_argument("--dir", type=Path, required=True,
@@ -159,6 +143,9 @@ def parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if argv[:1] == ["px4"]:
+        return sitl_px4.main(argv[1:])
     args = parser().parse_args(argv)
     try:
         sitl = find_firmware(default_folder(os.environ, repo_root()))
