@@ -17,6 +17,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from seaway_vehicle_io.sitl_px4 import udp_port_free  # noqa: F401 - the tests' one
 
 REPO = Path(__file__).resolve().parents[1]
 PYTHON = sys.executable
@@ -47,15 +48,6 @@ def free_port() -> int:
         s.bind(("127.0.0.1", 0))
         return s.getsockname()[1]
 
-
-def udp_port_free(port: int) -> bool:
-    """Whether UDP ``port`` can be bound on loopback (a fixed MAVLink port is not taken)."""
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        try:
-            s.bind(("127.0.0.1", port))
-        except OSError:
-            return False
-    return True
 
 
 @pytest.fixture

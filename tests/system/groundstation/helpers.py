@@ -41,3 +41,15 @@ def joules(text: str) -> float:
     m = re.search(r"(-?\d+(?:\.\d+)?) (J|kJ|MJ)\b", text)
     assert m, f"no energy in {text!r}"
     return float(m.group(1)) * ENERGY_UNITS_J[m.group(2)]
+
+
+def start_groundstation(procs: Any, env: dict[str, str]) -> tuple[Any, str, str]:
+    """A real ``seaway-groundstation`` on an ephemeral port: (its process, its base URL, the
+    operator token), read from its address line."""
+    from tests.conftest import BIN, wait_for
+
+    gs = procs.start([str(BIN / "seaway-groundstation"), "--port", "0", "--request-timeout-s", "10"],
+                     env, "groundstation")
+    line = wait_for(lambda: re.search(r"groundstation: (http://127\.0\.0\.1:\d+/) token (\S+)",
+                                      procs.log(gs)), 60, what="the ground station's address line")
+    return gs, line.group(1), line.group(2)

@@ -10,7 +10,6 @@ mission is not flying and which failsafe took the vessel.
 
 from __future__ import annotations
 
-import re
 import signal
 import threading
 from typing import Any
@@ -29,9 +28,9 @@ from seaway.contract.messages import (
 )
 from seaway.runtime.bus import Bus
 
-from tests.conftest import BIN, wait_for
+from tests.conftest import wait_for
 from tests.system.groundstation import axe_check
-from tests.system.groundstation.helpers import http
+from tests.system.groundstation.helpers import http, start_groundstation
 
 pytestmark = pytest.mark.system
 VESSEL = "area-boat"
@@ -59,11 +58,7 @@ def test_the_page_draws_the_operating_area_and_says_why_the_mission_waits(
         axe_script = axe_check.install()
     except axe_check.AxeUnavailableError as err:
         pytest.skip(str(err))
-    gs = procs.start([str(BIN / "seaway-groundstation"), "--port", "0", "--request-timeout-s", "10"],
-                     zenoh_env, "groundstation")
-    line = wait_for(lambda: re.search(r"groundstation: (http://127\.0\.0\.1:\d+/) token (\S+)",
-                                      procs.log(gs)), 60, what="the ground station's address line")
-    base = line.group(1)
+    gs, base, _token = start_groundstation(procs, zenoh_env)
     stop = threading.Event()
     with Bus.open(VESSEL) as bus:  # the test plays the vessel's controller and vehicle_io
         bus.declare_alive("controller")

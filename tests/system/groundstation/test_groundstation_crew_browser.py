@@ -32,9 +32,9 @@ from seaway.contract.messages import (
 from seaway.runtime.bus import Bus
 from seaway.vessel.frames import GeoOrigin
 
-from tests.conftest import BIN, wait_for
+from tests.conftest import wait_for
 from tests.system.groundstation import axe_check
-from tests.system.groundstation.helpers import http, joules
+from tests.system.groundstation.helpers import http, joules, start_groundstation
 
 pytestmark = pytest.mark.system
 VESSEL = "crew-boat"
@@ -56,11 +56,7 @@ def test_the_vehicle_panel_reads_at_a_glance_and_commands_go_once(procs, zenoh_e
         axe_script = axe_check.install()
     except axe_check.AxeUnavailableError as err:
         pytest.skip(str(err))
-    gs = procs.start([str(BIN / "seaway-groundstation"), "--port", "0", "--request-timeout-s", "10"],
-                     zenoh_env, "groundstation")
-    line = wait_for(lambda: re.search(r"groundstation: (http://127\.0\.0\.1:\d+/) token (\S+)",
-                                      procs.log(gs)), 60, what="the ground station's address line")
-    base, token = line.group(1), line.group(2)
+    gs, base, token = start_groundstation(procs, zenoh_env)
     stop = threading.Event()
     mode_requests: list[str] = []
 

@@ -23,8 +23,8 @@ from seaway.contract.messages import EnergyBudget, MissionStatus, NavOrigin, Rep
 from seaway.runtime.bus import Bus
 from seaway.vessel.frames import GeoOrigin
 
-from tests.conftest import BIN, wait_for
-from tests.system.groundstation.helpers import http, joules
+from tests.conftest import wait_for
+from tests.system.groundstation.helpers import http, joules, start_groundstation
 
 pytestmark = pytest.mark.system
 VESSEL = "energy-boat"
@@ -50,11 +50,7 @@ def budget(decided: bool) -> EnergyBudget:
 
 def test_the_page_shows_the_energy_budget_the_point_of_no_return_and_the_decision(
         procs, zenoh_env, tmp_path, browser) -> None:
-    gs = procs.start([str(BIN / "seaway-groundstation"), "--port", "0", "--request-timeout-s", "10"],
-                     zenoh_env, "groundstation")
-    line = wait_for(lambda: re.search(r"groundstation: (http://127\.0\.0\.1:\d+/) token (\S+)",
-                                      procs.log(gs)), 60, what="the ground station's address line")
-    base, token = line.group(1), line.group(2)
+    gs, base, token = start_groundstation(procs, zenoh_env)
     decided = threading.Event()
     stop = threading.Event()
     with Bus.open(VESSEL) as bus:  # the test plays the vessel's controller
