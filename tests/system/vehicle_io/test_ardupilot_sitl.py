@@ -131,6 +131,7 @@ class Observer:
         self.modes: deque[tuple[float, int, bool]] = deque(maxlen=1000)
         self.last_seen: dict[str, float] = {}
         self.rc_in: tuple[int, int] | None = None  # RC1, RC3 as the autopilot reads them [us]
+        self.ekf_flags: deque[tuple[float, int]] = deque(maxlen=2000)  # EKF_STATUS_REPORT flags
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
 
@@ -162,6 +163,8 @@ class Observer:
                 self.rc_in = (msg.chan1_raw, msg.chan3_raw)
             elif kind == "ATTITUDE":
                 self.yawspeeds.append((now, msg.yawspeed))
+            elif kind == "EKF_STATUS_REPORT":
+                self.ekf_flags.append((now, msg.flags))
             elif kind == "HEARTBEAT" and msg.autopilot == 3:
                 self.modes.append((now, msg.custom_mode, bool(msg.base_mode & 128)))
 
