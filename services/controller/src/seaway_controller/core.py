@@ -415,7 +415,8 @@ class ControllerCore:
         return self.accepted.model_copy(update={"stamp_ns": now_ns})
 
     def handle_command(self, now_ns: int, cmd: MissionCommand) -> Reply:
-        withheld = self.withheld_reason() or _latched_reason(self.vehicle)
+        withheld = "; and ".join(r for r in (_latched_reason(self.vehicle), self.withheld_reason())
+                                 if r is not None)
         if cmd.command == "resume" and self.missions.state == "paused" and withheld:
             return Reply.refuse(now_ns, f"cannot resume: {withheld}; the mission stays paused")
         try:
