@@ -114,7 +114,7 @@ def test_the_battery_failsafe_pauses_with_its_cause_and_resume_waits_for_it(zeno
     _, paused = w.first(keys.MISSION_STATUS, lambda m: m.state == "paused" and "battery" in m.reason,
                         10, "the pause naming the battery")
     print(f"paused: {paused.reason}")
-    assert "battery" in paused.reason and "Battery 1 is low" in paused.reason, paused.reason
+    assert "took the vessel (battery: " in paused.reason, paused.reason
     assert w.set_mode("MANUAL").accepted
     w.first(keys.VEHICLE_STATUS, lambda s: s.mode == "MANUAL" and s.thrust_withheld is None, 15,
             "the thrust applied again in MANUAL")

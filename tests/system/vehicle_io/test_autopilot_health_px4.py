@@ -108,7 +108,7 @@ def test_pxs_battery_failsafe_pauses_with_its_cause_and_resume_waits_for_it(zeno
         _, paused = w.first(keys.MISSION_STATUS, lambda m: m.state == "paused"
                             and "battery" in m.reason, 10, "the pause naming the battery")
         print(f"paused: {paused.reason}")
-        assert "battery" in paused.reason, paused.reason
+        assert "took the vessel (battery: " in paused.reason, paused.reason
         # Taken back during PX4's 5 s Hold, before its Return drives home and disarms there
         wait_for(lambda: w.set_mode("MANUAL").accepted, 10, interval_s=0.5, what="MANUAL again")
         w.first(keys.VEHICLE_STATUS, lambda s: s.mode == "MANUAL" and s.thrust_withheld is None,

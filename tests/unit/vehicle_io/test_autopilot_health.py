@@ -99,3 +99,23 @@ def test_pxs_battery_warning_is_latched_from_battery_status():
     core.on_mavlink(wire(msg), at(2 * S))
     st = status(core, 2 * S)
     assert st.failsafe_latched == "battery" and "charge_state" in st.failsafe_latched_detail
+
+
+def test_a_reboot_ends_the_latched_battery_failsafe():
+    core = connected()
+    core.on_mavlink(wire(mavlink.MAVLink_system_time_message(0, 60_000)), at(2 * S))
+    core.on_mavlink(wire(mavlink.MAVLink_statustext_message(
+        4, b"Battery 1 is low 11.00V used 500 mAh", 0, 0)), at(3 * S))
+    assert status(core, 3 * S).failsafe_latched == "battery"
+    core.on_mavlink(wire(mavlink.MAVLink_system_time_message(0, 1_000)), at(4 * S))  # rebooted
+    assert status(core, 4 * S).failsafe_latched is None
+
+
+def test_pxs_later_causeless_failsafe_text_keeps_the_battery_it_named_before():
+    from seaway_vehicle_io.failsafe_cause import FailsafeCause
+
+    cause = FailsafeCause()
+    cause.said("battery", "Low battery level, return advised", 0)
+    cause.said("other", "Failsafe activated: entering Hold for 5 seconds", 8 * S)  # past the window
+    cause.mode_changed("MANUAL", "HOLD", 8 * S + 100 * MS)
+    assert cause.cause == "battery", cause

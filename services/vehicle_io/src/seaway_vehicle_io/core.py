@@ -820,6 +820,9 @@ class VehicleIoCore:
         if self.offset.system_time(msg.time_boot_ms):
             log.warning("autopilot rebooted (SYSTEM_TIME time_boot_ms went back to %d ms): time "
                         "offset estimated anew", msg.time_boot_ms)
+            # A reboot ends what the autopilot latched till reboot (ArduPilot's battery failsafe).
+            self.battery_said = None
+            self.health = Health(px4=self.health.px4)
         return []
 
     def _on_global_position_int(self, msg: Any, now: Now) -> list[Output]:
