@@ -58,6 +58,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from seaway.contract.messages import (
     MAX_REASON_CHARS,
+    THRUST_APPLIED_ANYWAY,
     BatteryState,
     EnergyBudget,
     EnergyDecision,
@@ -443,7 +444,7 @@ class ControllerCore:
             if why is not None:
                 self.missions.wait(_waiting_for(why))
             return None
-        if status.thrust_withheld == "autopilot_unhealthy":
+        if status.thrust_withheld in THRUST_APPLIED_ANYWAY:
             return None  # starts wait for it; under way, the autopilot's own failsafes act on it
         paused = _paused_for(why) if why is not None else ""
         if why is not None and self.missions.state == "paused" and self.missions.reason.startswith(

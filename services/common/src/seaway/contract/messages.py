@@ -228,6 +228,10 @@ class LocalPosition(Message):
 
 
 ThrustWithheld = Literal["no_link", "disarmed", "mode", "autopilot_config", "autopilot_unhealthy"]
+THRUST_APPLIED_ANYWAY: frozenset[str] = frozenset({"autopilot_unhealthy"})
+"""``ThrustWithheld`` values under which the autopilot still applies what is commanded: a mission
+waits for them to clear, but a thrust commanded meanwhile moves the boat (the estimator predicts
+with it)."""
 HoldReason = Literal["gcs_mode_change", "battery", "fence", "radio_loss", "gcs_link_loss", "other"]
 """Why the autopilot took the vessel from Seaway (``VehicleStatus.hold_reason``): a mode change
 nobody in Seaway asked for ('gcs_mode_change'), or the failsafe it named: 'battery', 'fence',
