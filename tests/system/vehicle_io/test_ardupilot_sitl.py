@@ -31,6 +31,7 @@ from pathlib import Path
 import pytest
 from seaway.contract import keys
 from seaway.contract.messages import (
+    THRUST_APPLIED_ANYWAY,
     ArmRequest,
     BatteryState,
     ModeRequest,
@@ -230,6 +231,12 @@ class StatusWatch:
                         timeout_s, interval_s=0.02, what=what)
 
 
+def thrust_forwarded(s: VehicleStatus) -> bool:
+    """vehicle_io forwards the commanded thrust (a mission might still wait for the autopilot's
+    health: that does not stop the thrust)."""
+    return s.thrust_withheld is None or s.thrust_withheld in THRUST_APPLIED_ANYWAY
+
+
 def arm(bus: Bus):
     return bus.request(keys.VEHICLE_ARM, ArmRequest.make(stamp_ns=time.time_ns(), arm=True),
                        timeout_s=REQUEST_TIMEOUT_S)
@@ -365,7 +372,9 @@ def test_arming_thrust_turns_neutral_and_failsafes_on_the_firmware(zenoh_env, pr
         reply = arm(bus)
         alive(vio, procs, sitl)
     print(f"armed {time.monotonic() - t0:.0f} s after the first refusal")
-    status.wait(lambda s: s.armed and s.thrust_withheld is None, 10, "armed, thrust forwarded")
+    # Its EKF may not use GPS yet ('autopilot_unhealthy': a mission would wait), but vehicle_io
+    # forwards the thrust all the same
+    status.wait(lambda s: s.armed and thrust_forwarded(s), 10, "armed, thrust forwarded")
 
     # -- thrust mapping: force at the servos within 3 % of the command ----------------------------
     errors = {}
@@ -428,7 +437,7 @@ def test_arming_thrust_turns_neutral_and_failsafes_on_the_firmware(zenoh_env, pr
     # the receiver's loss (no overrides, no pulses) itself tripped the failsafe into HOLD: back
     assert bus.request(keys.VEHICLE_MODE, ModeRequest.make(stamp_ns=time.time_ns(), mode="MANUAL"),
                        timeout_s=REQUEST_TIMEOUT_S).accepted
-    status.wait(lambda s: s.armed and s.mode == "MANUAL" and s.thrust_withheld is None, 10,
+    status.wait(lambda s: s.armed and s.mode == "MANUAL" and thrust_forwarded(s), 10,
                 "armed in MANUAL again", fresh=True)
     kill_at = kill_during_thrust(bus, procs, vio2)
     stopped = wait_for(lambda: next((s for s in obs.servos_since(kill_at) if s.neutral), None), 10,
@@ -477,6 +486,7 @@ def test_a_mode_change_by_a_second_ground_station_is_named(zenoh_env, procs, bus
                     what="HOLD set by the second station")
     assert held.hold_reason == "gcs_mode_change", (held.hold_reason, held.hold_reason_detail)
     assert "gcs_mode_change" in procs.log(vio)  # logged (at WARNING)
+    time.sleep(1.5)  # a HOLD the second station sent again before its first showed lands first
     reply = bus.request(keys.VEHICLE_MODE, ModeRequest.make(stamp_ns=time.time_ns(), mode="MANUAL"),
                         timeout_s=REQUEST_TIMEOUT_S)
     assert reply.accepted, reply
