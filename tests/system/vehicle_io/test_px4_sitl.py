@@ -24,7 +24,7 @@ from seaway_vehicle_io.px4 import MODES
 
 from tests.conftest import BIN, Procs, wait_for
 from tests.system.vehicle_io.px4_sitl import Px4Sitl, boat_params, needs_px4
-from tests.system.vehicle_io.test_ardupilot_sitl import StatusWatch, hold_thrust
+from tests.system.vehicle_io.test_ardupilot_sitl import StatusWatch, hold_thrust, thrust_forwarded
 
 pytestmark = pytest.mark.system
 
@@ -133,7 +133,7 @@ def test_link_verdict_rates_and_arming_reason(zenoh_env, procs, bus, tmp_path, p
     assert "Arming denied: Resolve system health failures first" in texts, refused
     assert ODID_MISSING in texts, refused
     assert all(t in refused.reason for t in texts)
-    status.wait(lambda s: s.armed and s.mode == "MANUAL" and s.thrust_withheld is None, 10,
+    status.wait(lambda s: s.armed and s.mode == "MANUAL" and thrust_forwarded(s), 10,
                 "armed in MANUAL, thrust forwarded", fresh=True)
     alive(vio, procs, px4)
 
@@ -152,7 +152,7 @@ def test_directions_neutral_and_sigkill_failsafe_on_px4(zenoh_env, procs, bus, t
                              "vehicle_io's link and verdict")
     assert verdict.autopilot_loss_failsafe == "takes_over"
     armed_in_manual(bus, procs, vio, px4)
-    status.wait(lambda s: s.armed and s.mode == "MANUAL" and s.thrust_withheld is None, 10,
+    status.wait(lambda s: s.armed and s.mode == "MANUAL" and thrust_forwarded(s), 10,
                 "armed in MANUAL, thrust forwarded", fresh=True)
 
     # -- forward and astern: each motor at the commanded share of full thrust, within 3 % ---------

@@ -114,6 +114,13 @@ def test_withheld_thrust_is_predicted_as_zero(why: str) -> None:
     assert _surge_after_5_s([status(0, why)]) == pytest.approx(0.0, abs=1e-12)
 
 
+def test_an_unhealthy_autopilot_still_applies_the_thrust() -> None:
+    """'autopilot_unhealthy' keeps a new mission waiting, but what is commanded still drives the
+    thrusters (issue 63): the filter predicts with it."""
+    assert _surge_after_5_s([status(0, "autopilot_unhealthy")]) == pytest.approx(
+        _surge_after_5_s([]), rel=1e-12)
+
+
 def test_thrust_applies_again_from_the_status_that_says_so() -> None:
     # Withheld for the first 2 s, applied from then: the same as a command that starts at 2 s.
     withheld_then_applied = _surge_after_5_s([status(0, "disarmed"), status(2 * S, None)])

@@ -22,7 +22,10 @@ the mission only pretends: the boat does not move, the energy count rises. So an
 paused, with the reason in ``MissionStatus.reason``, and resumes only on the operator's request once
 the vehicle applies the thrust again (a rebooted autopilot must not drive off on its own when
 someone re-arms it). Only statuses stamped from the mission's start on count: the one before may
-predate the arming its sender just did.
+predate the arming its sender just did. An autopilot that is not healthy (``thrust_withheld``
+'autopilot_unhealthy': its estimator not using GNSS, a critical status) keeps a new mission waiting
+but does not pause one under way (its own failsafes act on that); and a paused mission is not
+resumed while the autopilot is latched in a failsafe (``VehicleStatus.failsafe_latched``).
 
 A mission sent while the latest status says the thrust is withheld is accepted as ``waiting``
 (never "started"), the reply and ``MissionStatus.reason`` saying for what; it becomes active by
@@ -55,6 +58,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from seaway.contract.messages import (
     HOLD_REASON_TEXT,
+    THRUST_APPLIED_ANYWAY,
     BatteryState,
     EnergyBudget,
     EnergyDecision,
@@ -78,7 +82,8 @@ from seaway.vessel.guidance import LosGains, los_thrust
 from seaway.vessel.model import VesselParams, propulsion_power_w
 
 from seaway_controller import acceptance, costs
-from seaway_controller.energy import BatteryTrack, Budget, Disturbance, EnergyModel, predict
+from seaway_controller.battery_estimate import BatteryTrack
+from seaway_controller.energy import Budget, Disturbance, EnergyModel, predict
 from seaway_controller.hold import HoldGains, hold_thrust
 from seaway_controller.mission import (
     PAUSED_PREFIX,
@@ -147,6 +152,15 @@ def _waiting_for(why: str) -> str:
             "applies the thrust (arm it, set its mode)")
 
 
+def _latched_reason(v: VehicleStatus | None) -> str | None:
+    """Why a paused mission may not resume although the thrust is applied: the autopilot still
+    stands in a failsafe (``VehicleStatus.failsafe_latched``), named; None: it does not."""
+    if v is None or v.failsafe_latched is None:
+        return None
+    return (f"the autopilot is still latched in {HOLD_REASON_TEXT[v.failsafe_latched]} "
+            f"({v.failsafe_latched_detail[:120]})")
+
+
 def _finite_or_none(v: float | None) -> float | None:
     return v if v is not None and math.isfinite(v) else None
 
@@ -184,7 +198,7 @@ class ControllerCore:
         # The energy budget (seaway_controller.energy): the battery's last report, the energy
         # counted since the process started (propulsion + T^w, whatever the mission's state: the
         # battery feeds the task while paused too), the current mission's budget, its last message.
-        self.battery = BatteryTrack()
+        self.battery = BatteryTrack(vessel.battery)
         self.energy_counted_j = 0.0
         self.budget: Budget | None = None
         self._budget_msg: EnergyBudget | None = None
@@ -405,7 +419,8 @@ class ControllerCore:
         return self.accepted.model_copy(update={"stamp_ns": now_ns})
 
     def handle_command(self, now_ns: int, cmd: MissionCommand) -> Reply:
-        withheld = self.withheld_reason()
+        withheld = "; and ".join(r for r in (_latched_reason(self.vehicle), self.withheld_reason())
+                                 if r is not None)
         if cmd.command == "resume" and self.missions.state == "paused" and withheld:
             return Reply.refuse(now_ns, f"cannot resume: {withheld}; the mission stays paused")
         try:
@@ -432,6 +447,8 @@ class ControllerCore:
             if why is not None:
                 self.missions.wait(_waiting_for(why))
             return None
+        if status.thrust_withheld in THRUST_APPLIED_ANYWAY:
+            return None  # starts wait for it; under way, the autopilot's own failsafes act on it
         if why is None:
             return None
         reason = (f"{PAUSED_PREFIX}{why}; resume with 'seaway mission resume' once it "
@@ -462,6 +479,7 @@ class ControllerCore:
             "disarmed": "the vehicle is disarmed (the autopilot rebooted, or was disarmed)",
             "mode": f"the autopilot is in mode {v.mode}, in which it does not apply the commanded "
                     "thrust" + ("" if cause else " (a failsafe, or another mode was set)"),
+            "autopilot_unhealthy": v.autopilot_unhealthy_detail or "the autopilot is not healthy",
             "autopilot_config": "vehicle_io sends neutral only: the autopilot's configuration "
                                 "blocks thrust (see vehicle_io's log)",
         }[v.thrust_withheld] + cause
@@ -591,6 +609,8 @@ class ControllerCore:
         taken = budget.update(now_ns, state, mm.active, leg_j, self.energy_used_j,
                               self.battery_remaining_j(),
                               report.stamp_ns if report is not None else None, self._reserve_j())
+        if budget.last is not None and self.battery.source is not None:
+            budget.last = budget.last.model_copy(update={"battery_source": self.battery.source})
         self._budget_msg = budget.last
         if taken is None:
             return

@@ -55,7 +55,6 @@ from functools import lru_cache
 
 import numpy as np
 from seaway.contract.messages import (
-    BatteryState,
     EnergyBudget,
     EnergyDecision,
     LowEnergyPolicy,
@@ -490,20 +489,6 @@ def no_return_point(model: EnergyModel, state: StateEstimate,
 
 
 # -- the budget of one mission, period after period --------------------------------------------------
-
-
-@dataclass
-class BatteryTrack:
-    """The battery's last report and the energy the controller counted since its stamp."""
-
-    report: BatteryState | None = None
-    counted_at_report_j: float = 0.0
-
-    def remaining_j(self, counted_now_j: float) -> float | None:
-        r = self.report
-        if r is None or r.remaining_j is None:
-            return None
-        return max(0.0, r.remaining_j - max(0.0, counted_now_j - self.counted_at_report_j))
 
 
 @dataclass

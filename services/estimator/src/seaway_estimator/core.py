@@ -42,6 +42,7 @@ from pathlib import Path
 import numpy as np
 from seaway.contract import keys
 from seaway.contract.messages import (
+    THRUST_APPLIED_ANYWAY,
     Attitude,
     GnssFix,
     MessageError,
@@ -263,7 +264,7 @@ class EstimatorCore:
         ``max_gap_s`` ahead of the filter is refused (``too_new``), as a thrust command is.
         """
         t = self._check(msg.stamp_ns, "VehicleStatus")
-        withheld = msg.thrust_withheld
+        withheld = None if msg.thrust_withheld in THRUST_APPLIED_ANYWAY else msg.thrust_withheld
         if withheld == self.thrust_withheld:
             self.counters.inc("status_received")
             return

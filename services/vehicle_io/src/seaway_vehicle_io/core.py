@@ -32,6 +32,7 @@ from typing import Any, ClassVar
 from seaway.contract import keys
 from seaway.contract.messages import (
     BatteryLevel,
+    HoldReason,
     Message,
     ThrustCommand,
     ThrustWithheld,
@@ -53,6 +54,7 @@ from seaway_vehicle_io.authority import (
     SourcePolicy,
     address_key,
 )
+from seaway_vehicle_io.autopilot_health import Health, latched_failsafe
 from seaway_vehicle_io.commands import (
     COMMAND_NAMES,
     MAV_CMD_COMPONENT_ARM_DISARM,
@@ -258,6 +260,8 @@ class VehicleIoCore:
         self._rates_asked_resets = 0  # the reboots the time offset had seen by then
         self.texts = StatusTexts()
         self.hold = FailsafeCause()  # why the autopilot took the vessel (failsafe_cause.py)
+        self.health = Health()  # is it fit to start a mission (autopilot_health.py)
+        self._health_said: str | None = None  # the health problem last logged
         self._mode_asked: str | None = None  # the mode vehicle_io last asked for, until it is seen
         # (mode, armed, last HEARTBEAT [mono ns], address) when the link was lost: a mode changed
         # meanwhile was not Seaway's
@@ -568,11 +572,27 @@ class VehicleIoCore:
             return "disarmed"
         if link.mode not in link.profile.thrust_modes:
             return "mode"
+        if self.health.problem() is not None:
+            return "autopilot_unhealthy"
         return None
+
+    def failsafe_latched(self) -> tuple[HoldReason, str] | None:
+        """The failsafe the autopilot still stands in, and what says so (``autopilot_health``)."""
+        said = self.battery_said
+        level = worse_level(self.battery.level, None if said is None else said[0])
+        return latched_failsafe(self.health.failsafe_bits, level, "" if said is None else said[1])
 
     def status(self, now: Now) -> VehicleStatus:
         link = self.link
         self._withheld = self.thrust_withheld()
+        latched = self.failsafe_latched()
+        problem = self.health.problem()
+        if problem != self._health_said:
+            if problem is not None:
+                log.warning("%s", problem)
+            elif self._health_said is not None:
+                log.info("the autopilot is healthy again (estimator, status, sensors)")
+            self._health_said = problem
         hb_age = (None if link.last_heartbeat_mono_ns is None
                   else max(0.0, (now.mono_ns - link.last_heartbeat_mono_ns) / 1e9))
         return VehicleStatus.make(
@@ -600,6 +620,9 @@ class VehicleIoCore:
             thrust_withheld=self._withheld,
             refused_thrust=self.refused_thrust(),
             autopilot_fence=self.fence.report() if self.fence is not None else None,
+            autopilot_unhealthy_detail=self.health.problem() or "",
+            failsafe_latched=None if latched is None else latched[0],
+            failsafe_latched_detail="" if latched is None else latched[1],
         )
 
     def _update_rates(self, now: Now) -> list[Output]:
@@ -673,6 +696,7 @@ class VehicleIoCore:
         link.target_address = address
         link.profile = profile
         link.connects += 1
+        self.health = Health(px4=profile.name == "px4")
         self.counts["HEARTBEAT"] = self.counts.get("HEARTBEAT", 0) + 1
         self._apply_heartbeat(msg, now, announce=False)  # the line below says it all
         before, self._before_loss = self._before_loss, None
@@ -727,6 +751,7 @@ class VehicleIoCore:
         link.armed, link.mode = armed, mode
         link.custom_mode = int(msg.custom_mode)
         link.last_heartbeat_mono_ns = now.mono_ns
+        self.health.heartbeat(msg.system_status)
 
     def _check_link(self, now: Now) -> bool:
         """Declare the link lost after heartbeat_timeout_s of silence; True if it just was."""
@@ -756,6 +781,7 @@ class VehicleIoCore:
         self.events = EventsChannel()  # another firmware may answer next: fetch its catalog anew
         self.offset.reset()
         self.hold = FailsafeCause()
+        self.health = Health()
         self._mode_asked = None
         self.gps_quality = None
         self.battery = BatteryReading()
@@ -842,6 +868,9 @@ class VehicleIoCore:
         if self.offset.system_time(msg.time_boot_ms):
             log.warning("autopilot rebooted (SYSTEM_TIME time_boot_ms went back to %d ms): time "
                         "offset estimated anew", msg.time_boot_ms)
+            # A reboot ends what the autopilot latched till reboot (ArduPilot's battery failsafe).
+            self.battery_said = None
+            self.health = Health(px4=self.health.px4)
         return []
 
     def _on_global_position_int(self, msg: Any, now: Now) -> list[Output]:
@@ -868,7 +897,15 @@ class VehicleIoCore:
         self._hold_changed(self.hold.health(msg.onboard_control_sensors_present,
                                             msg.onboard_control_sensors_enabled,
                                             msg.onboard_control_sensors_health, now.mono_ns))
+        self.health.sys_status(msg.onboard_control_sensors_present,
+                               msg.onboard_control_sensors_enabled,
+                               msg.onboard_control_sensors_health)
         return self._on_battery(reading, now)
+
+    def _on_estimator_report(self, msg: Any, now: Now) -> list[Output]:
+        """EKF_STATUS_REPORT (ArduPilot) or ESTIMATOR_STATUS (PX4): is it using GNSS."""
+        self.health.estimator_flags(msg.get_type(), int(msg.flags))
+        return []
 
     def _on_battery_status(self, msg: Any, now: Now) -> list[Output]:
         if msg.id != 0:
@@ -1155,6 +1192,8 @@ class VehicleIoCore:
         "PARAM_VALUE": _on_param_value,
         "STATUSTEXT": _on_statustext,
         "SYSTEM_TIME": _on_system_time,
+        "EKF_STATUS_REPORT": _on_estimator_report,
+        "ESTIMATOR_STATUS": _on_estimator_report,
         "EVENT": _on_event,
         "COMPONENT_METADATA": _on_component_metadata,
         "FILE_TRANSFER_PROTOCOL": _on_file_transfer_protocol,

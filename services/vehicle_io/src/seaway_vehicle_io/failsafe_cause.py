@@ -164,6 +164,10 @@ class FailsafeCause:
         recent = self.since_ns is not None and now_ns - self.since_ns <= round(CAUSE_WINDOW_S * 1e9)
         if not force and self.cause is not None and recent and (cause in VAGUE or self.cause not in VAGUE):
             return False
+        if not force and cause in VAGUE and self.cause not in VAGUE:
+            # PX4 names its battery failsafe ("Low battery level"), then says only "Failsafe
+            # activated" when it acts on it, later: that is the same failsafe, not another one.
+            return False
         self.cause, self.detail, self.since_ns = cause, text, now_ns
         return True
 

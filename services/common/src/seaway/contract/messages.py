@@ -227,7 +227,11 @@ class LocalPosition(Message):
     vz_mps: float
 
 
-ThrustWithheld = Literal["no_link", "disarmed", "mode", "autopilot_config"]
+ThrustWithheld = Literal["no_link", "disarmed", "mode", "autopilot_config", "autopilot_unhealthy"]
+THRUST_APPLIED_ANYWAY: frozenset[str] = frozenset({"autopilot_unhealthy"})
+"""``ThrustWithheld`` values under which the autopilot still applies what is commanded: a mission
+waits for them to clear, but a thrust commanded meanwhile moves the boat (the estimator predicts
+with it)."""
 HoldReason = Literal["gcs_mode_change", "battery", "fence", "radio_loss", "gcs_link_loss", "other"]
 """Why the autopilot took the vessel from Seaway (``VehicleStatus.hold_reason``): a mode change
 nobody in Seaway asked for ('gcs_mode_change'), or the failsafe it named: 'battery', 'fence',
@@ -314,7 +318,21 @@ class VehicleStatus(Message):
         description="why the commanded thrust does not reach the thrusters now, whatever the "
                     "controller commands: 'no_link' (no autopilot), 'disarmed', 'mode' (a mode in "
                     "which manual control does not drive the thrusters, e.g. HOLD after a "
-                    "failsafe), 'autopilot_config' (vehicle_io sends neutral only); None: it does")
+                    "failsafe), 'autopilot_config' (vehicle_io sends neutral only), "
+                    "'autopilot_unhealthy' (armed and in a thrust mode, but the autopilot says it is "
+                    "not fit to start a mission: its estimator not using GNSS, a critical status; "
+                    "what, in autopilot_unhealthy_detail); None: it does")
+    autopilot_unhealthy_detail: str = Field(
+        default="", description="what the autopilot lacks to be healthy, in its own terms (the "
+                                "HEARTBEAT system_status, SYS_STATUS sensor bits, its estimator's "
+                                "flags); '' healthy, or not said")
+    failsafe_latched: HoldReason | None = Field(
+        default=None,
+        description="a failsafe the autopilot still stands in (HoldReason), whatever its mode: its "
+                    "health bit for it still unhealthy, or its battery flag low or worse (ArduPilot "
+                    "keeps a battery failsafe until reboot); a mission is not resumed onto it; None: none")
+    failsafe_latched_detail: str = Field(
+        default="", description="the autopilot's words (or the bit) behind failsafe_latched")
     autopilot_fence: AutopilotFence | None = Field(
         default=None, description="the operating area as the autopilot's own fence; None: no "
                                   "area heard, no origin, or not uploaded (autopilot_fence off)")
@@ -495,6 +513,13 @@ def return_mission_id(mission_id: str) -> str:
     return f"{mission_id}/return"[-64:]
 
 
+BatteryEstimateSource = Literal["count", "autopilot", "voltage"]
+"""Where the energy budget's battery figure came from, the lowest of: ``count`` (the first report's
+energy less what the controller counted since), ``autopilot`` (the autopilot's latest remaining,
+less what was counted since it), ``voltage`` (the pack's voltage on the vessel file's battery
+model, ``seaway.vessel.battery``)."""
+
+
 class EnergyBudget(Message):
     """Will it make it back: the energy to finish and to get home against the battery, at each
     pricing of an active mission's budget (``mission/energy``; ``seaway_controller.energy``: once a
@@ -540,6 +565,10 @@ class EnergyBudget(Message):
                                      "the policy did, from that period on")
     decided_ns: int | None = Field(default=None, ge=0, description="the period it was decided")
     reason: str = Field(default="", max_length=MAX_REASON_CHARS)
+    battery_source: BatteryEstimateSource | None = Field(
+        default=None,
+        description="which estimate battery_remaining_j is, the lowest of them "
+                    "(BatteryEstimateSource); None: no battery report yet")
 
 
 def mission_over(status: MissionStatus | None, budget: EnergyBudget | None,
