@@ -122,7 +122,7 @@ def test_the_pause_takes_the_cause_the_autopilot_names_after_its_mode_change() -
     core.on_vehicle_status(vs(t, mode="HOLD", thrust_withheld="mode", hold_reason="gcs_mode_change",
                               hold_reason_detail="mode MANUAL -> HOLD, not asked by Seaway"))
     _, _, st = core.step(t + DT_NS, state(3))
-    assert st.state == "paused" and "gcs_mode_change" in st.reason
+    assert st.state == "paused" and HOLD_REASON_TEXT["gcs_mode_change"] in st.reason
     said = core.on_vehicle_status(vs(t + 2, mode="HOLD", thrust_withheld="mode",
                                      hold_reason="battery", hold_reason_detail="Battery 1 is low"))
     assert said is not None and HOLD_REASON_TEXT["battery"] in said and "Battery 1 is low" in said
