@@ -54,6 +54,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from seaway.contract.messages import (
+    MAX_REASON_CHARS,
     BatteryState,
     EnergyBudget,
     EnergyDecision,
@@ -76,6 +77,7 @@ from seaway.vessel.guidance import LosGains, los_thrust
 from seaway.vessel.model import VesselParams, propulsion_power_w
 
 from seaway_controller import acceptance, costs
+from seaway_controller.area_guard import AreaGuard
 from seaway_controller.energy import BatteryTrack, Budget, Disturbance, EnergyModel, predict
 from seaway_controller.hold import HoldGains, hold_thrust
 from seaway_controller.mission import (
@@ -182,6 +184,8 @@ class ControllerCore:
         self._budget_msg: EnergyBudget | None = None
         self.hold_energy_j = 0.0  # counted since the current hold began
         self._holding: tuple[float, float] | None = None  # the point held at the last step
+        self.area = AreaGuard(vessel)  # the operating area enforced (area_guard.py)
+        self._area_return = False  # the mission is the return from the area's edge
 
     # -- set-up ---------------------------------------------------------------------------------
 
@@ -231,12 +235,18 @@ class ControllerCore:
             candidate = validate_mission(req, self.origin, self.missions.limits)
         except MissionError as err:
             return Reply.refuse(now_ns, str(err))
+        st = self._last_state
         if check and not returning:
             why = self._not_flyable(candidate, req)
             if why is not None:
                 log.warning("mission %r refused: %s", req.mission_id, why)
                 return Reply.refuse(now_ns, f"mission {req.mission_id!r} cannot be flown: {why}")
-        st = self._last_state
+        if check:  # the route against the operating area, from where the vessel is
+            why = self.area.refusal(candidate.waypoints_m, (st.x_m, st.y_m) if st else None,
+                                    candidate.join_first_leg, returning)
+            if why is not None:
+                log.warning("mission %r refused: %s", req.mission_id, why)
+                return Reply.refuse(now_ns, f"mission {req.mission_id!r} refused: {why}")
         mission = self.missions.start(req, self.origin, (st.x_m, st.y_m) if st is not None else None)
         ctrl = self.controller(mission.controller)
         ctrl.reset()
@@ -246,6 +256,7 @@ class ControllerCore:
         self.energy_used_j = 0.0
         self._energy_to_go_j = None
         self.mission_request = req
+        self._area_return = False
         previous = self.budget
         self.budget = self._new_budget(mission, returning)
         if returning and previous is not None:  # the decision stays with the flight
@@ -351,6 +362,7 @@ class ControllerCore:
 
     def _accepted_message(self, now_ns: int, mission: Mission) -> MissionAccepted:
         """``mission`` as accepted: its NED waypoints and the settings its controller flies it with."""
+        req = self.mission_request
         spec = self.controller(mission.controller).spec
         settings = {"horizon_steps": float(spec.horizon), "dt_s": spec.dt_s,
                     "profile_n": spec.profile_n, "u_min_mps": spec.u_min_mps}
@@ -368,7 +380,8 @@ class ControllerCore:
             speed_hint_mps=mission.speed_hint_mps, controller_settings=settings,
             on_low_energy=mission.on_low_energy, home_x_m=mission.home[0],
             home_y_m=mission.home[1], join_first_leg=mission.join_first_leg,
-            at_rest=mission.at_rest)
+            at_rest=mission.at_rest, on_area_breach=req.on_area_breach if req else "hold",
+            forced=bool(req and req.force))
 
     def take_accepted(self, stamp_ns: int) -> MissionAccepted | None:
         """Lockstep: the mission accepted since the last call, stamped ``stamp_ns`` (the period
@@ -507,10 +520,34 @@ class ControllerCore:
                 thrust, source = (0.0, 0.0), "stop"
                 self._set_level(LEVEL_STOP, reason)
         cmd = self._command(state.stamp_ns, thrust, source)
-        record = self._record(state.stamp_ns, mission.controller, out, late, used,
-                              reusable if self.level == LEVEL_PLAN else None)
+        flown = reusable if self.level == LEVEL_PLAN else None
+        record = self._record(state.stamp_ns, mission.controller, out, late, used, flown)
+        plan = used.plan if used is not None else flown
+        breach = self.area.breach(state, plan.states if plan is not None else None,
+                                  position_only=self._area_return)
+        if breach is not None:  # stop short of the area's edge: this period's command is the stop's
+            self._area_stop(now_ns, state, breach)
+            cmd, _, status = self.step(now_ns, state)
+            return cmd, record, status
         self._update_budget(now_ns, state, used)
         return cmd, record, self._status(now_ns, state)
+
+    def _area_stop(self, now_ns: int, state: StateEstimate, why: str) -> None:
+        """The course would leave the operating area: per the mission's ``on_area_breach``, return
+        to the nearest clear one of home and the rally points, else hold station where it is."""
+        req, mm = self.mission_request, self.missions
+        here = (state.x_m, state.y_m)
+        if req is not None and req.on_area_breach == "return" and mm.mission is not None:
+            target = self.area.return_target(here, mm.mission.home)
+            if target is not None and self._return_home(now_ns, state, target,
+                                                        f"returning: {why}") == "active":
+                self._area_return = True
+                log.warning("operating area: %s; returning to (%.1f, %.1f) m", why, *target)
+                return
+        if mm.hold(f"held at the operating area's edge: {why}; holding station here"):
+            mm.hold_point = here
+        log.warning("operating area: %s; mission %r held", why, mm.mission.mission_id
+                    if mm.mission else "")
 
     # -- the energy budget (seaway_controller.energy) -------------------------------------------
 
@@ -567,24 +604,30 @@ class ControllerCore:
         elif taken == "return":
             self._return_home(now_ns, state)
 
-    def _return_home(self, now_ns: int, state: StateEstimate) -> None:
-        """Replace the mission by the straight run home, flown the same way (same controller, T^w,
-        r_COA); its own budget only warns."""
+    def _return_home(self, now_ns: int, state: StateEstimate, home: tuple[float, float] | None = None,
+                     reason: str = "") -> str:
+        """Replace the mission by the straight run to ``home`` (default the mission's; the energy
+        budget's nearest reachable of home and the rally points), flown the same way (same
+        controller, T^w, r_COA); its own budget only warns. The mission manager's state after."""
         req, mission = self.mission_request, self.missions.mission
         assert req is not None and mission is not None
-        home = mission.home
+        home = home if home is not None else mission.home
         if math.dist((state.x_m, state.y_m), home) <= mission.coa_radius_m:
             self.missions.hold("home reached on the energy budget's return")
-            return
+            return self.missions.state
         back = req.model_copy(update={
             "mission_id": return_mission_id(mission.mission_id),
             "waypoints": [Waypoint(x_m=state.x_m, y_m=state.y_m),
                           Waypoint(x_m=home[0], y_m=home[1])],
             "home": Waypoint(x_m=home[0], y_m=home[1]), "on_low_energy": "warn",
+            "on_area_breach": "hold",
             "join_first_leg": True})
         reply = self.handle_mission(now_ns, back, returning=True)
-        if not reply.accepted:  # cannot happen with a home inside the area; stop rather than fly on
+        if not reply.accepted:  # its way crosses the area: stop rather than fly on
             self.missions.hold(f"the return home was refused: {reply.reason}")
+        elif reason:
+            self.missions.reason = reason[:MAX_REASON_CHARS]
+        return self.missions.state
 
     def take_budget(self) -> EnergyBudget | None:
         """The budget priced at the last step, once (None: none was, or no active mission was
