@@ -123,7 +123,11 @@ def test_a_low_battery_returns_home_and_a_replay_decides_the_same(tmp_path):
     statuses = [s for s in dec.get(keys.MISSION_STATUS.suffix) if isinstance(s, MissionStatus)]
     assert statuses[-1].state == "complete" and statuses[-1].mission_id.endswith("/return")
     truth = dec.get(keys.SIM_TRUTH.suffix)[-1]
-    assert math.dist((truth.x_m, truth.y_m), (0.0, 0.0)) <= accepted[-1].coa_radius_m + 0.1
+    # Home is where the vessel was (estimated) when the mission was accepted: at the start, to
+    # within the estimate's noise; the return ends in home's circle, as the estimate sees it.
+    home = (accepted[-1].home_x_m, accepted[-1].home_y_m)
+    assert math.dist(home, (0.0, 0.0)) <= 1.0
+    assert math.dist((truth.x_m, truth.y_m), home) <= accepted[-1].coa_radius_m + 0.5
     last_battery = batteries[max(batteries)]
     assert last_battery.remaining_j >= reserve
 

@@ -103,3 +103,27 @@ def test_a_return_may_start_outside_the_keep_in_but_not_cross_a_keep_out() -> No
     assert "enters keep-out area" in guard.refusal([outside, (0.0, 8.0)], outside, True,
                                                    returning=True)
     assert guard.return_target((8.0, 8.0), (0.0, 0.0)) is None  # the way home crosses the circle
+
+
+def test_home_is_where_the_vessel_was_at_the_first_mission_or_at_arming() -> None:
+    from tests.unit.controller.test_vehicle_pause import status as vehicle_status
+
+    core = core_with(area())
+    core.step(DT_NS, at(1, 1.0, 2.0))
+    assert core.handle_mission(0, mission()).accepted
+    assert core.missions.mission.home == (1.0, 2.0) and core.home == (1.0, 2.0)
+    assert (core.accepted.home_x_m, core.accepted.home_y_m) == (1.0, 2.0)
+    # A later mission keeps it; the operator's own home wins.
+    core.step(2 * DT_NS, at(2, 3.0, 3.0))
+    assert core.handle_mission(0, mission()).accepted and core.missions.mission.home == (1.0, 2.0)
+    own = mission().model_copy(update={"home": Waypoint(x_m=0.0, y_m=5.0)})
+    assert core.handle_mission(0, own).accepted and core.missions.mission.home == (0.0, 5.0)
+    # A home outside the area is refused, naming it.
+    out = mission().model_copy(update={"home": Waypoint(x_m=30.0, y_m=0.0)})
+    reply = core.handle_mission(0, out)
+    assert not reply.accepted and "home at north 30.0 m" in reply.reason
+    # Arming moves home to where the vessel is.
+    core.on_vehicle_status(vehicle_status(3 * DT_NS, "disarmed"))
+    core.step(4 * DT_NS, at(4, 4.0, 4.0))
+    core.on_vehicle_status(vehicle_status(5 * DT_NS, None))
+    assert core.home == (4.0, 4.0)

@@ -18,7 +18,7 @@ Pure: the area, the vessel, states and plans in; reasons and messages out.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from seaway.area.model import OperatingArea, check_segment, check_trajectory
@@ -95,13 +95,26 @@ class AreaGuard:
         assert self.area is not None
         return not check_segment(self.area, here, there)
 
-    def return_target(self, here: Point, home: Point) -> Point | None:
+    def return_target(self, here: Point, home: Point,
+                      cost: Callable[[Point], float] | None = None) -> Point | None:
         """The nearest of home and the rally points whose straight way from ``here`` stays in the
-        area, or None."""
-        for _, p in sorted(self.places(home), key=lambda np_: math.dist(here, np_[1])):
-            if self.clear_way(here, p):
-                return p
-        return None
+        area, or None. Nearest by ``cost`` (e.g. the energy budget's energy to get there [J]; a
+        place it prices infinite, not reached), else by distance."""
+        def key(place: Point) -> float:
+            return cost(place) if cost is not None else math.dist(here, place)
+
+        costed = [(key(p), p) for _, p in self.places(home) if self.clear_way(here, p)]
+        costed = [(c, p) for c, p in costed if math.isfinite(c)]
+        return min(costed)[1] if costed else None
+
+    def home_refusal(self, home: Point) -> str | None:
+        """Why ``home`` is not a place in the area (a return there would leave it), or None."""
+        if not self.bounding:
+            return None
+        assert self.area is not None
+        why = self.area.why_not_allowed(home)
+        return None if why is None else (f"home at north {home[0]:.1f} m, east {home[1]:.1f} m is "
+                                         f"{why} ({self.source}); home must be in the area")
 
     # -- in flight -------------------------------------------------------------------------------
 

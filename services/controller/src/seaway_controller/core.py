@@ -186,6 +186,9 @@ class ControllerCore:
         self._holding: tuple[float, float] | None = None  # the point held at the last step
         self.area = AreaGuard(vessel)  # the operating area enforced (area_guard.py)
         self._area_return = False  # the mission is the return from the area's edge
+        # Home, explicit: the operator's (a request's ``home``), else where the vessel was when
+        # armed (vehicle_io) or, with no vehicle (lockstep), when the first mission was accepted.
+        self.home: tuple[float, float] | None = None
 
     # -- set-up ---------------------------------------------------------------------------------
 
@@ -231,11 +234,12 @@ class ControllerCore:
         ``returning``: the return home the energy budget decided (``_return_home``). ``check``: a
         new mission that cannot be flown under the disturbance estimated now is refused
         (``acceptance``); a mission resumed or restarted is not judged again."""
+        st = self._last_state
+        req = self._with_home(req, st)
         try:
             candidate = validate_mission(req, self.origin, self.missions.limits)
         except MissionError as err:
             return Reply.refuse(now_ns, str(err))
-        st = self._last_state
         if check and not returning:
             why = self._not_flyable(candidate, req)
             if why is not None:
@@ -244,6 +248,7 @@ class ControllerCore:
         if check:  # the route against the operating area, from where the vessel is
             why = self.area.refusal(candidate.waypoints_m, (st.x_m, st.y_m) if st else None,
                                     candidate.join_first_leg, returning)
+            why = why or self.area.home_refusal(candidate.home)
             if why is not None:
                 log.warning("mission %r refused: %s", req.mission_id, why)
                 return Reply.refuse(now_ns, f"mission {req.mission_id!r} refused: {why}")
@@ -278,6 +283,17 @@ class ControllerCore:
                             waypoints_m=[list(p) for p in mission.waypoints_m],
                             controller=mission.controller,
                             predict_disturbance=self.predict_disturbance, state=state)
+
+    def _with_home(self, req: MissionRequest, st: StateEstimate | None) -> MissionRequest:
+        """``req`` with its home explicit: its own, else the vessel's (``self.home``), else where
+        the vessel is now (which becomes the vessel's home), else P_0 (nothing known yet)."""
+        if req.home is not None:
+            return req
+        if self.home is None and st is not None:
+            self.home = (st.x_m, st.y_m)
+        if self.home is None:
+            return req
+        return req.model_copy(update={"home": Waypoint(x_m=self.home[0], y_m=self.home[1])})
 
     def _shortfall(self) -> str:
         """'' or, for the mission just started, that the battery is short of the energy predicted
@@ -421,6 +437,9 @@ class ControllerCore:
         """The vehicle's status, in the order vehicle_io published them: pauses an active mission
         while the autopilot does not apply the commanded thrust, starts a waiting one once it does
         (see the module docstring). What it changed now (for a person), else None."""
+        was, st = self.vehicle, self._last_state
+        if status.armed and (was is None or not was.armed) and st is not None:
+            self.home = (st.x_m, st.y_m)  # home is where the vessel was armed
         self.vehicle = status  # the latest, whatever its stamp says (a stamp cannot pin an old one)
         if status.stamp_ns < self._mission_start_ns:
             return None  # from before this mission: perhaps before the arming that preceded it
@@ -601,8 +620,14 @@ class ControllerCore:
         if taken == "hold" and not mm.hold(f"held by the energy budget: {budget.reason}"):
             mm.drift(f"drifting: the energy budget's policy 'hold' stopped the station keeping: "
                      f"{budget.reason}")
-        elif taken == "return":
-            self._return_home(now_ns, state)
+        elif taken == "return":  # to the cheapest to reach of home and the rally points
+            dist = Disturbance.from_body((state.tau_d_surge_n, state.tau_d_sway_n,
+                                          state.tau_d_yaw_nm), state.psi_rad)
+            target = self.area.return_target(
+                (state.x_m, state.y_m), budget.home,
+                lambda p: predict(budget.model, state, budget.waypoints, mm.active, p, None,
+                                  dist).to_home_j)
+            self._return_home(now_ns, state, target)
 
     def _return_home(self, now_ns: int, state: StateEstimate, home: tuple[float, float] | None = None,
                      reason: str = "") -> str:

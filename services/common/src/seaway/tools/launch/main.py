@@ -415,6 +415,14 @@ def show_groundstations(sup: Supervisor, run_dir: Path, shown: dict[str, int]) -
         print(f"ground station: {where.page}", flush=True)
 
 
+
+def _rally_points(scenario: str) -> tuple[tuple[float, float], ...]:
+    """The rally points of ``scenario``'s operating area (local NED, m); none without one."""
+    if not scenario:
+        return ()
+    area = load_scenario(scenario).operating_area()
+    return () if area is None else tuple(r.position_m for r in area.rally_points)
+
 def main(argv: list[str]) -> int:
     args = parser().parse_args(argv)
     # Everything the launch writes (run folder, recording, logs, registry, credentials) and what its
@@ -583,7 +591,7 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
         status.watch(bus)
         taken.watch(bus)  # which vessels' controllers take a mission (the launcher's or another's)
         ending = MissionEnd(vessels, mission, None if not run.lockstep
-                            else round(run.control_period_s * 1e9))
+                            else round(run.control_period_s * 1e9), _rally_points(scenario))
         ending.watch(bus)
         error = sup.start_all(stop)
         if error:
