@@ -87,6 +87,7 @@ from seaway_controller.mission import (
     MissionManager,
     validate_mission,
 )
+from seaway_controller.mission_check import MissionCheck, check_mission
 from seaway_controller.mpc import MpcController, MpcOutcome
 from seaway_controller.ocp import CONTROLLER_KINDS, ControllerKind, Ocp, OcpSpec
 from seaway_controller.solvers import NlpSolver, make_solver
@@ -249,6 +250,9 @@ class ControllerCore:
             why = self.area.refusal(candidate.waypoints_m, (st.x_m, st.y_m) if st else None,
                                     candidate.join_first_leg, returning)
             why = why or self.area.home_refusal(candidate.home)
+            if why is None and not returning:  # the check before a mission (mission_check.py)
+                verdict = self.check(req)
+                why = "; ".join(verdict.reasons) if verdict.verdict == "refused" else None
             if why is not None:
                 log.warning("mission %r refused: %s", req.mission_id, why)
                 return Reply.refuse(now_ns, f"mission {req.mission_id!r} refused: {why}")
@@ -283,6 +287,14 @@ class ControllerCore:
                             waypoints_m=[list(p) for p in mission.waypoints_m],
                             controller=mission.controller,
                             predict_disturbance=self.predict_disturbance, state=state)
+
+    def check(self, req: MissionRequest) -> MissionCheck:
+        """``mission_check.check_mission`` of ``req`` against this vessel now: its latest state,
+        the battery left and its reserve, the area in force, its home."""
+        return check_mission(req, self.vessel, origin=self.origin, state=self._last_state,
+                             battery_j=self.battery_remaining_j(), reserve_j=self._reserve_j(),
+                             area=self.area.area, home=self.home, limits=self.missions.limits,
+                             profile_n=self.config.profile_n)
 
     def _with_home(self, req: MissionRequest, st: StateEstimate | None) -> MissionRequest:
         """``req`` with its home explicit: its own, else the vessel's (``self.home``), else where

@@ -416,6 +416,22 @@ def show_groundstations(sup: Supervisor, run_dir: Path, shown: dict[str, int]) -
 
 
 
+
+def _check_mission(mission: MissionRequest | None, scenario: str) -> int:
+    """``--check``: the mission sent checked as the controller checks it (``seaway mission
+    check``), against the scenario; 0 ok (or no mission), 1 refused, 2 unreadable."""
+    if mission is None or not scenario:
+        return 0
+    from seaway.tools import mission_check_cli
+
+    try:
+        out = mission_check_cli.check_request(mission, load_scenario(scenario))
+    except (ConfigError, ValueError, RuntimeError) as err:
+        print(f"seaway launch: mission check: {err}", file=sys.stderr)
+        return 2
+    print(mission_check_cli.show(out))
+    return 0 if out["verdict"] == "ok" else 1
+
 def _rally_points(scenario: str) -> tuple[tuple[float, float], ...]:
     """The rally points of ``scenario``'s operating area (local NED, m); none without one."""
     if not scenario:
@@ -491,7 +507,7 @@ def main(argv: list[str]) -> int:
               + (f" for vessels {', '.join(vessels)}" if len(vessels) > 1 else "") + ", valid"
               + (f"; mission {mission.mission_id} ({_describe_mission(mission)})"
                  if mission is not None else ""))
-        return 0
+        return _check_mission(mission, scenario)
 
     try:
         auth = authority.credentials_for(profile, run_dir.name)
