@@ -210,9 +210,9 @@ class MissionBuildError(ValueError):
 
 
 def mission_from_body(body: MissionBody, stamp_ns: int) -> MissionRequest:
-    """The bus request for a mission body."""
+    """The bus request for a mission body (a check's body: its mission, without ``battery_j``)."""
     return _make(stamp_ns, body.mission_id, [w.to_waypoint() for w in body.waypoints],
-                 body.model_dump(exclude={"mission_id", "waypoints"}))
+                 body.model_dump(exclude={"mission_id", "waypoints", "battery_j"}))
 
 
 def mission_from_import(path: ImportedPath, params: ImportParams, stamp_ns: int) -> MissionRequest:

@@ -40,8 +40,9 @@ from seaway_groundstation import geo
 from seaway_groundstation.progress import MetricsView, MissionTrack
 from seaway_groundstation.views import FleetView, Timed, VesselView
 
-Kind = Literal["state", "solve", "mission", "vehicle", "origin", "thrust", "energy"]
-KINDS: tuple[Kind, ...] = ("state", "solve", "mission", "vehicle", "origin", "thrust", "energy")
+Kind = Literal["state", "solve", "mission", "vehicle", "origin", "thrust", "energy", "area"]
+KINDS: tuple[Kind, ...] = ("state", "solve", "mission", "vehicle", "origin", "thrust", "energy",
+                           "area")
 MAX_MISSIONS = 32
 """Missions remembered per vessel (by id), the most recent kept."""
 HEALTH = "health"

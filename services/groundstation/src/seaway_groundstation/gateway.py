@@ -38,6 +38,7 @@ TOPICS: dict[Kind, keys.KeySpec] = {
     "origin": keys.NAV_ORIGIN,
     "thrust": keys.THRUST,
     "energy": keys.MISSION_ENERGY,
+    "area": keys.AREA_ACTIVE,
 }
 """What the ground station shows of each vessel, by the fleet's kind."""
 

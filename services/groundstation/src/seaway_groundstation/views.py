@@ -12,6 +12,7 @@ from typing import Any, Generic, Literal, TypeVar
 from pydantic import BaseModel, Field
 from seaway.contract import keys
 from seaway.contract.messages import (
+    ActiveArea,
     EnergyBudget,
     Message,
     MissionRequest,
@@ -59,6 +60,9 @@ class VesselView(BaseModel):
                                   "used, to finish and to get home (with their bands), the battery "
                                   "left, reserve and margin, the point of no return (local NED [m]) "
                                   "and the decision ('none' until the margin reached 0) [J]")
+    area: Timed[ActiveArea] | None = Field(
+        default=None, description="the operating area the controller enforces (keep-in and "
+                                  "keep-out polygons and circles, rally points; local NED [m])")
     last_mission: MissionRequest | None = Field(
         default=None, description="the last mission this ground station sent and the vessel accepted")
     active_mission: MissionPlanView | None = Field(
