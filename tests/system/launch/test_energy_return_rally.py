@@ -59,3 +59,17 @@ def test_a_low_battery_returns_to_the_nearer_rally_point(tmp_path) -> None:
     print(f"turned back at ({here[0]:.1f}, {here[1]:.1f}) m: pier {math.dist(here, PIER):.1f} m, "
           f"home {math.dist(here, home):.1f} m; {batteries[-1].remaining_j - reserve:.0f} J "
           "above the reserve at the end")
+
+
+def test_a_batch_mission_the_battery_cannot_fly_is_refused_and_the_run_ends(tmp_path) -> None:
+    """Not forced: the controller's mission check refuses it (the reply names the energy), and
+    the batch run, whose end is the mission's, ends at once with status 1 instead of waiting."""
+    scenario, _ = _scenario(tmp_path)
+    scenario.write_text(scenario.read_text().replace("force = true\n", "", 1))
+    out = subprocess.run([str(BIN / "seaway"), "launch", "sim-batch", "--scenario", str(scenario),
+                          "--run-dir", str(tmp_path / "run"), "--no-report"],
+                         env=_env(f"tcp/127.0.0.1:{free_port()}"), capture_output=True, text=True,
+                         timeout=180, check=False)
+    assert out.returncode == 1, out.stdout[-2000:] + out.stderr[-2000:]
+    assert "REFUSED" in out.stdout and "send it with force" in out.stdout
+    assert "the mission was refused" in out.stderr

@@ -622,12 +622,21 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
             if not _operator_requests(bus, profile, stop, v, label[v], lambda: _required_failure(sup)):
                 code = 1
                 return code
+        refused = []
         for v in vessels:
             if mission is None or stop.is_set():
                 break
             reply = bus.request(keys.MISSION_SET, mission, timeout_s=10.0, vessel=v)
             for line in mission_reply_lines(mission, reply):
                 print(f"{label[v]}{line}", flush=True)
+            if not reply.accepted:
+                refused.append(v)
+        if refused and profile.stop_when_complete and not args.stay:
+            # A batch run ends when its mission does: one refused never will.
+            print(f"seaway launch: the mission was refused ({', '.join(refused)}); nothing to "
+                  "fly (seaway mission check says why before a launch)", file=sys.stderr, flush=True)
+            code = 1
+            return code
         t_run = time.monotonic()
         tender = None if mission is None or run.lockstep else LinkTender(
             bus, sup, vessels, mission, profile.mode_on_start, args.resume_wait)
