@@ -53,3 +53,15 @@ def test_a_bad_body_is_422_naming_the_field(client: TestClient, vessel: Vessel) 
                        json=body([(0, 0), (1, 1)])).status_code == 404
     desk = client.post("/api/missions/check", json=body([(0, 0), (20, 0)])).json()
     assert desk["verdict"] == "ok" and not desk["live"] and desk["against"] == "the desk"
+
+
+def test_a_mission_sent_carries_its_start_and_rest_options_validated(client: TestClient,  # noqa: F811
+                                                                     vessel: Vessel) -> None:  # noqa: F811
+    r = client.post("/api/vessels/v1/mission", headers=AUTH,
+                    json=body([(0, 0), (20, 0)], join_first_leg=True, at_rest="drift", force=True))
+    assert r.status_code == 200, r.text
+    sent = vessel.requests["mission/set"][-1]
+    assert sent.join_first_leg and sent.at_rest == "drift" and sent.force
+    bad = client.post("/api/vessels/v1/mission", headers=AUTH,
+                      json=body([(0, 0), (20, 0)], at_rest="float"))
+    assert bad.status_code == 422 and "at_rest" in bad.text

@@ -25,10 +25,6 @@ class MissionCheckBody(MissionBody):
     """A mission to check (nothing is sent): waypoints and parameters as for sending, and the
     options only the check has."""
 
-    join_first_leg: bool = Field(default=False, description="join P_0 -> P_1 from where the "
-                                 "vessel is instead of going to P_0 first")
-    force: bool = Field(default=False, description="check it as a forced mission (the energy "
-                        "refusal becomes a note)")
     battery_j: float | None = Field(default=None, ge=0, le=1e9, description="usable energy in "
                                     "the battery [J]; default the vessel's last energy budget's")
 
