@@ -32,7 +32,7 @@ from seaway.contract.messages import MissionRequest, StateEstimate
 from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.model import VesselParams
 
-from seaway_controller import acceptance
+from seaway_controller import acceptance, controllers
 from seaway_controller.energy import ZERO, Disturbance, EnergyModel, predict
 from seaway_controller.mission import MissionError, MissionLimits, validate_mission
 
@@ -120,8 +120,8 @@ def check_mission(req: MissionRequest, vessel: VesselParams, *, origin: GeoOrigi
             out.refuse(f"the route leaves the operating area: {why}")
 
     # Can it be flown, and the energy.
-    spec_economic = mission.controller != "nmpc"
-    model = EnergyModel(vessel, mission.task_power_w, mission.coa_radius_m, spec_economic,
+    economic = controllers.get(mission.controller).economic  # the registered definition says
+    model = EnergyModel(vessel, mission.task_power_w, mission.coa_radius_m, economic,
                         req.predict_disturbance, profile_n)
     flyable = acceptance.why_not_flyable(model, state, wps, home, mission.join_first_leg)
     if flyable is not None:
