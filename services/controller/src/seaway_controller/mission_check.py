@@ -29,6 +29,7 @@ from typing import Any, Literal
 from seaway.area.model import OperatingArea
 from seaway.area.route import mission_runs, route_verdict
 from seaway.contract.messages import MissionRequest, StateEstimate
+from seaway.vessel.energy_prediction import known_poor
 from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.model import VesselParams
 
@@ -130,6 +131,8 @@ def check_mission(req: MissionRequest, vessel: VesselParams, *, origin: GeoOrigi
     dist = (Disturbance.from_body((state.tau_d_surge_n, state.tau_d_sway_n, state.tau_d_yaw_nm),
                                   state.psi_rad) if state is not None else ZERO)
     active = 1 if mission.join_first_leg or state is None else 0
+    if (poor := known_poor(mission.controller)) is not None:
+        out.notes.append(poor)  # its energy figures are not to be read as more than they are
     out.cruise_speed_mps = model.speed_mps(state)
     if out.cruise_speed_mps > 0:
         out.predicted_time_s = out.path_length_m / out.cruise_speed_mps
