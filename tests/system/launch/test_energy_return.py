@@ -42,13 +42,17 @@ EXTRA_J = 20_000.0  # above the reserve: the lake mission needs ~30 kJ
 
 
 def _scenario(tmp_path: Path, extra_j: float = EXTRA_J) -> tuple[Path, float]:
-    """The lake, its pack starting with the reserve and ``extra_j`` more (20 kJ)."""
+    """The lake, its pack starting with the reserve and ``extra_j`` more (20 kJ), its mission
+    forced."""
     vessel = load_vessel("paper-boat")
     assert vessel.battery is not None
     reserve = vessel.battery.reserve_energy_j
     text = (REPO / "deploy/scenarios/lake.toml").read_text()
     text = text.replace('name = "lake"', 'name = "lake-low-battery"', 1)
     text += f"\n[battery]\ninitial_energy_j = {reserve + extra_j}\n"
+    # The mission check refuses a mission the battery cannot finish and get home from: the
+    # operator forces it, to see the energy budget's return in flight.
+    text = text.replace("[mission]\n", "[mission]\nforce = true\n", 1)
     tomllib.loads(text)  # still a valid document
     path = tmp_path / "lake-low-battery.toml"
     path.write_text(text)
@@ -123,7 +127,11 @@ def test_a_low_battery_returns_home_and_a_replay_decides_the_same(tmp_path):
     statuses = [s for s in dec.get(keys.MISSION_STATUS.suffix) if isinstance(s, MissionStatus)]
     assert statuses[-1].state == "complete" and statuses[-1].mission_id.endswith("/return")
     truth = dec.get(keys.SIM_TRUTH.suffix)[-1]
-    assert math.dist((truth.x_m, truth.y_m), (0.0, 0.0)) <= accepted[-1].coa_radius_m + 0.1
+    # Home is where the vessel was (estimated) when the mission was accepted: at the start, to
+    # within the estimate's noise; the return ends in home's circle, as the estimate sees it.
+    home = (accepted[-1].home_x_m, accepted[-1].home_y_m)
+    assert math.dist(home, (0.0, 0.0)) <= 1.0
+    assert math.dist((truth.x_m, truth.y_m), home) <= accepted[-1].coa_radius_m + 0.5
     last_battery = batteries[max(batteries)]
     assert last_battery.remaining_j >= reserve
 

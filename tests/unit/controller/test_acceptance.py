@@ -76,11 +76,18 @@ def test_the_controller_refuses_it_and_flies_nothing() -> None:
     assert core.handle_mission(2, request(LAKE.task_power_w, "fast")).accepted
 
 
-def test_a_battery_short_of_the_mission_is_said_at_the_start() -> None:
+def test_a_battery_short_of_the_mission_is_refused_unless_forced_and_said_at_the_start() -> None:
     core = ControllerCore(BOAT, ControllerConfig(), solver_factory=lambda ocp: ScriptedSolver())
     core.on_battery(BatteryState.make(stamp_ns=0, source="sim", remaining_j=1_000.0, reserve_j=600.0))
     core.step(0, lake_state(tau=(0.0, 0.0, 0.0)))
-    reply = core.handle_mission(1, request(LAKE.task_power_w))
+    # The mission check (mission_check.py): it cannot finish and get home on 400 J.
+    refused = core.handle_mission(1, request(LAKE.task_power_w))
+    assert not refused.accepted and "send it with force" in refused.reason
+    assert "less its 600 J reserve (400 J)" in refused.reason
+    assert core.missions.state == "idle"
+    # Forced by the operator: flown, the shortfall said, and the force recorded.
+    reply = core.handle_mission(1, request(LAKE.task_power_w).model_copy(update={"force": True}))
     assert reply.accepted and "400 J above its reserve" in reply.reason
+    assert core.accepted is not None and core.accepted.forced
     needs = float(reply.reason.split("needs about ")[1].split(" J")[0])
     assert math.isfinite(needs) and needs > 400.0

@@ -58,6 +58,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from seaway.contract.messages import (
     HOLD_REASON_TEXT,
+    MAX_REASON_CHARS,
     THRUST_APPLIED_ANYWAY,
     BatteryState,
     EnergyBudget,
@@ -82,6 +83,7 @@ from seaway.vessel.guidance import LosGains, los_thrust
 from seaway.vessel.model import VesselParams, propulsion_power_w
 
 from seaway_controller import acceptance, costs
+from seaway_controller.area_guard import AreaGuard
 from seaway_controller.battery_estimate import BatteryTrack
 from seaway_controller.energy import Budget, Disturbance, EnergyModel, predict
 from seaway_controller.hold import HoldGains, hold_thrust
@@ -93,6 +95,7 @@ from seaway_controller.mission import (
     MissionManager,
     validate_mission,
 )
+from seaway_controller.mission_check import MissionCheck, check_mission
 from seaway_controller.mpc import MpcController, MpcOutcome
 from seaway_controller.ocp import CONTROLLER_KINDS, ControllerKind, Ocp, OcpSpec
 from seaway_controller.solvers import NlpSolver, make_solver
@@ -204,6 +207,11 @@ class ControllerCore:
         self._budget_msg: EnergyBudget | None = None
         self.hold_energy_j = 0.0  # counted since the current hold began
         self._holding: tuple[float, float] | None = None  # the point held at the last step
+        self.area = AreaGuard(vessel)  # the operating area enforced (area_guard.py)
+        self._area_return = False  # the mission is the return from the area's edge
+        # Home, explicit: the operator's (a request's ``home``), else where the vessel was when
+        # armed (vehicle_io) or, with no vehicle (lockstep), when the first mission was accepted.
+        self.home: tuple[float, float] | None = None
 
     # -- set-up ---------------------------------------------------------------------------------
 
@@ -249,6 +257,8 @@ class ControllerCore:
         ``returning``: the return home the energy budget decided (``_return_home``). ``check``: a
         new mission that cannot be flown under the disturbance estimated now is refused
         (``acceptance``); a mission resumed or restarted is not judged again."""
+        st = self._last_state
+        req = self._with_home(req, st)
         try:
             candidate = validate_mission(req, self.origin, self.missions.limits)
         except MissionError as err:
@@ -258,7 +268,16 @@ class ControllerCore:
             if why is not None:
                 log.warning("mission %r refused: %s", req.mission_id, why)
                 return Reply.refuse(now_ns, f"mission {req.mission_id!r} cannot be flown: {why}")
-        st = self._last_state
+        if check:  # the route against the operating area, from where the vessel is
+            why = self.area.refusal(candidate.waypoints_m, (st.x_m, st.y_m) if st else None,
+                                    candidate.join_first_leg, returning)
+            why = why or self.area.home_refusal(candidate.home)
+            if why is None and not returning:  # the check before a mission (mission_check.py)
+                verdict = self.check(req)
+                why = "; ".join(verdict.reasons) if verdict.verdict == "refused" else None
+            if why is not None:
+                log.warning("mission %r refused: %s", req.mission_id, why)
+                return Reply.refuse(now_ns, f"mission {req.mission_id!r} refused: {why}")
         mission = self.missions.start(req, self.origin, (st.x_m, st.y_m) if st is not None else None)
         ctrl = self.controller(mission.controller)
         ctrl.reset()
@@ -268,6 +287,7 @@ class ControllerCore:
         self.energy_used_j = 0.0
         self._energy_to_go_j = None
         self.mission_request = req
+        self._area_return = False
         previous = self.budget
         self.budget = self._new_budget(mission, returning)
         if returning and previous is not None:  # the decision stays with the flight
@@ -289,6 +309,25 @@ class ControllerCore:
                             waypoints_m=[list(p) for p in mission.waypoints_m],
                             controller=mission.controller,
                             predict_disturbance=self.predict_disturbance, state=state)
+
+    def check(self, req: MissionRequest) -> MissionCheck:
+        """``mission_check.check_mission`` of ``req`` against this vessel now: its latest state,
+        the battery left and its reserve, the area in force, its home."""
+        return check_mission(req, self.vessel, origin=self.origin, state=self._last_state,
+                             battery_j=self.battery_remaining_j(), reserve_j=self._reserve_j(),
+                             area=self.area.area, home=self.home, limits=self.missions.limits,
+                             profile_n=self.config.profile_n)
+
+    def _with_home(self, req: MissionRequest, st: StateEstimate | None) -> MissionRequest:
+        """``req`` with its home explicit: its own, else the vessel's (``self.home``), else where
+        the vessel is now (which becomes the vessel's home), else P_0 (nothing known yet)."""
+        if req.home is not None:
+            return req
+        if self.home is None and st is not None:
+            self.home = (st.x_m, st.y_m)
+        if self.home is None:
+            return req
+        return req.model_copy(update={"home": Waypoint(x_m=self.home[0], y_m=self.home[1])})
 
     def _shortfall(self) -> str:
         """'' or, for the mission just started, that the battery is short of the energy predicted
@@ -377,6 +416,7 @@ class ControllerCore:
 
     def _accepted_message(self, now_ns: int, mission: Mission) -> MissionAccepted:
         """``mission`` as accepted: its NED waypoints and the settings its controller flies it with."""
+        req = self.mission_request
         spec = self.controller(mission.controller).spec
         settings = {"horizon_steps": float(spec.horizon), "dt_s": spec.dt_s,
                     "profile_n": spec.profile_n, "u_min_mps": spec.u_min_mps}
@@ -394,7 +434,8 @@ class ControllerCore:
             speed_hint_mps=mission.speed_hint_mps, controller_settings=settings,
             on_low_energy=mission.on_low_energy, home_x_m=mission.home[0],
             home_y_m=mission.home[1], join_first_leg=mission.join_first_leg,
-            at_rest=mission.at_rest)
+            at_rest=mission.at_rest, on_area_breach=req.on_area_breach if req else "hold",
+            forced=bool(req and req.force))
 
     def take_accepted(self, stamp_ns: int) -> MissionAccepted | None:
         """Lockstep: the mission accepted since the last call, stamped ``stamp_ns`` (the period
@@ -435,6 +476,9 @@ class ControllerCore:
         """The vehicle's status, in the order vehicle_io published them: pauses an active mission
         while the autopilot does not apply the commanded thrust, starts a waiting one once it does
         (see the module docstring). What it changed now (for a person), else None."""
+        was, st = self.vehicle, self._last_state
+        if status.armed and (was is None or not was.armed) and st is not None:
+            self.home = (st.x_m, st.y_m)  # home is where the vessel was armed
         self.vehicle = status  # the latest, whatever its stamp says (a stamp cannot pin an old one)
         if status.stamp_ns < self._mission_start_ns:
             return None  # from before this mission: perhaps before the arming that preceded it
@@ -559,10 +603,34 @@ class ControllerCore:
                 thrust, source = (0.0, 0.0), "stop"
                 self._set_level(LEVEL_STOP, reason)
         cmd = self._command(state.stamp_ns, thrust, source)
-        record = self._record(state.stamp_ns, mission.controller, out, late, used,
-                              reusable if self.level == LEVEL_PLAN else None)
+        flown = reusable if self.level == LEVEL_PLAN else None
+        record = self._record(state.stamp_ns, mission.controller, out, late, used, flown)
+        plan = used.plan if used is not None else flown
+        breach = self.area.breach(state, plan.states if plan is not None else None,
+                                  position_only=self._area_return)
+        if breach is not None:  # stop short of the area's edge: this period's command is the stop's
+            self._area_stop(now_ns, state, breach)
+            cmd, _, status = self.step(now_ns, state)
+            return cmd, record, status
         self._update_budget(now_ns, state, used)
         return cmd, record, self._status(now_ns, state)
+
+    def _area_stop(self, now_ns: int, state: StateEstimate, why: str) -> None:
+        """The course would leave the operating area: per the mission's ``on_area_breach``, return
+        to the nearest clear one of home and the rally points, else hold station where it is."""
+        req, mm = self.mission_request, self.missions
+        here = (state.x_m, state.y_m)
+        if req is not None and req.on_area_breach == "return" and mm.mission is not None:
+            target = self.area.return_target(here, mm.mission.home)
+            if target is not None and self._return_home(now_ns, state, target,
+                                                        f"returning: {why}") == "active":
+                self._area_return = True
+                log.warning("operating area: %s; returning to (%.1f, %.1f) m", why, *target)
+                return
+        if mm.hold(f"held at the operating area's edge: {why}; holding station here"):
+            mm.hold_point = here
+        log.warning("operating area: %s; mission %r held", why, mm.mission.mission_id
+                    if mm.mission else "")
 
     # -- the energy budget (seaway_controller.energy) -------------------------------------------
 
@@ -618,27 +686,39 @@ class ControllerCore:
         if taken == "hold" and not mm.hold(f"held by the energy budget: {budget.reason}"):
             mm.drift(f"drifting: the energy budget's policy 'hold' stopped the station keeping: "
                      f"{budget.reason}")
-        elif taken == "return":
-            self._return_home(now_ns, state)
+        elif taken == "return":  # to the cheapest to reach of home and the rally points
+            dist = Disturbance.from_body((state.tau_d_surge_n, state.tau_d_sway_n,
+                                          state.tau_d_yaw_nm), state.psi_rad)
+            target = self.area.return_target(
+                (state.x_m, state.y_m), budget.home,
+                lambda p: predict(budget.model, state, budget.waypoints, mm.active, p, None,
+                                  dist).to_home_j)
+            self._return_home(now_ns, state, target)
 
-    def _return_home(self, now_ns: int, state: StateEstimate) -> None:
-        """Replace the mission by the straight run home, flown the same way (same controller, T^w,
-        r_COA); its own budget only warns."""
+    def _return_home(self, now_ns: int, state: StateEstimate, home: tuple[float, float] | None = None,
+                     reason: str = "") -> str:
+        """Replace the mission by the straight run to ``home`` (default the mission's; the energy
+        budget's nearest reachable of home and the rally points), flown the same way (same
+        controller, T^w, r_COA); its own budget only warns. The mission manager's state after."""
         req, mission = self.mission_request, self.missions.mission
         assert req is not None and mission is not None
-        home = mission.home
+        home = home if home is not None else mission.home
         if math.dist((state.x_m, state.y_m), home) <= mission.coa_radius_m:
             self.missions.hold("home reached on the energy budget's return")
-            return
+            return self.missions.state
         back = req.model_copy(update={
             "mission_id": return_mission_id(mission.mission_id),
             "waypoints": [Waypoint(x_m=state.x_m, y_m=state.y_m),
                           Waypoint(x_m=home[0], y_m=home[1])],
             "home": Waypoint(x_m=home[0], y_m=home[1]), "on_low_energy": "warn",
+            "on_area_breach": "hold",
             "join_first_leg": True})
         reply = self.handle_mission(now_ns, back, returning=True)
-        if not reply.accepted:  # cannot happen with a home inside the area; stop rather than fly on
+        if not reply.accepted:  # its way crosses the area: stop rather than fly on
             self.missions.hold(f"the return home was refused: {reply.reason}")
+        elif reason:
+            self.missions.reason = reason[:MAX_REASON_CHARS]
+        return self.missions.state
 
     def take_budget(self) -> EnergyBudget | None:
         """The budget priced at the last step, once (None: none was, or no active mission was

@@ -47,7 +47,9 @@ def request_of(accepted: MissionAccepted) -> MissionRequest:
         stamp_ns=accepted.accepted_ns, mission_id=accepted.mission_id, waypoints=accepted.waypoints,
         coa_radius_m=accepted.coa_radius_m, task_power_w=accepted.task_power_w,
         controller=accepted.controller, predict_disturbance=accepted.predict_disturbance,
-        speed_hint_mps=accepted.speed_hint_mps, on_low_energy=accepted.on_low_energy, home=home)
+        speed_hint_mps=accepted.speed_hint_mps, on_low_energy=accepted.on_low_energy, home=home,
+        join_first_leg=accepted.join_first_leg, at_rest=accepted.at_rest,
+        on_area_breach=accepted.on_area_breach, force=accepted.forced)
 
 
 def replay(accepted: MissionAccepted, vessel: VesselParams, states: Iterable[StateEstimate],

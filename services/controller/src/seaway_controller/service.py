@@ -59,6 +59,8 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from seaway.area.files import run_area
+from seaway.area.model import AreaError
 from seaway.contract import keys
 from seaway.contract.config import ConfigError
 from seaway.contract.messages import (
@@ -130,6 +132,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="mission checkpoint: resume from it at start, keep it up to date")
     p.add_argument("--max-range-m", type=positive_float, default=5000.0,
                    help="operating area: waypoints within this distance of the origin")
+    p.add_argument("--area", type=Path, default=None,
+                   help="the operating area to enforce (.toml [area], .plan geoFence, .geojson); "
+                        "default: the run's scenario's [area], else none")
     return p
 
 
@@ -188,6 +193,7 @@ class ControllerService:
         self.pub_status = bus.publisher(keys.MISSION_STATUS)
         self.pub_accepted = bus.publisher(keys.MISSION_ACCEPTED)
         self.pub_energy = bus.publisher(keys.MISSION_ENERGY)
+        self.pub_area = bus.publisher(keys.AREA_ACTIVE)
         bus.queryable(keys.MISSION_SET, self.on_mission)
         bus.queryable(keys.MISSION_COMMAND, self.on_command)
         bus.subscribe(keys.VEHICLE_STATUS, callback=self.on_vehicle_status)  # pauses a mission
@@ -472,6 +478,9 @@ class ControllerService:
         with self.lock:  # a mission accepted since the last answer: first of this period's messages
             accepted = self.core.take_accepted(t)
         announce = [] if accepted is None else [(keys.MISSION_ACCEPTED, accepted)]
+        with self.lock:
+            area = self.core.area.message(t)
+        announce += [] if area is None else [(keys.AREA_ACTIVE, area)]
         try:
             with self.lock:
                 active = self.core.missions.state == "active"
@@ -584,6 +593,10 @@ class ControllerService:
             accepted = self.core.accepted_due(now_ns)
         if accepted is not None:
             self.pub_accepted.put(accepted)
+        with self.lock:
+            area = self.core.area.message(now_ns)
+        if area is not None:
+            self.pub_area.put(area)
 
 
 def warn_slow_step(ratelog: RateLimitedLog, took_s: float, period_s: float) -> bool:
@@ -669,6 +682,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         if run.origin is not None:
             o = run.origin
             core.set_origin(GeoOrigin.from_degrees(o.lat_deg, o.lon_deg, o.alt_m))
+        try:
+            area, source = run_area(scenario or (load_scenario(run.scenario) if run.scenario
+                                                 else None), args.area, core.origin)
+        except (AreaError, ConfigError) as err:
+            print(f"seaway-controller: --area: {err}", file=sys.stderr)
+            return 2
+        if area is not None:
+            core.area.set_area(area, source, None if run.lockstep else ctx.clock.now_ns())
+            log.info("operating area from %s enforced", source)
         if scenario is not None:
             if scenario.mission is None:
                 log.error("scenario %s has no [mission] to start", scenario.name)

@@ -55,7 +55,7 @@ from starlette.concurrency import run_in_threadpool
 from starlette.datastructures import UploadFile
 from starlette.websockets import WebSocket
 
-from seaway_groundstation import bodies, errors, geo, guard, plans, replay
+from seaway_groundstation import bodies, errors, geo, guard, mission_checks, plans, replay
 from seaway_groundstation.fleet import Fleet
 from seaway_groundstation.gateway import BusLink, ask
 from seaway_groundstation.journal import RequestJournal
@@ -382,6 +382,30 @@ def _mission_router(gs: GroundStation, command: list[Any]) -> APIRouter:
         except (plans.PlanError, bodies.MissionBuildError) as err:
             raise HTTPException(422, str(err)) from None
         return await gs.send_mission(vessel, req, path.skipped)
+
+    @r.post("/missions/check",
+            responses={404: _errors("the vessel named is not known"),
+                       413: _errors("request body over the bound"),
+                       422: _unprocessable("not a valid mission body")},
+            summary="Check a mission before sending it (nothing is sent)")
+    async def check_mission(body: mission_checks.MissionCheckBody,
+                            vessel: Annotated[str | None, Query(
+                                pattern=r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$",
+                                description="check against this vessel's live state and area "
+                                            "(none: at the desk, the run's vessel model)")] = None
+                            ) -> JSONResponse:
+        """The controller's own check (``seaway mission check``): path length, predicted time and
+        energy, battery after, reserve, energy home from the last waypoint, the operating area's
+        verdict; ``{"verdict": "ok"|"refused", "reasons": [...], ...}``."""
+        if vessel is not None:
+            gs.known(vessel)
+        try:
+            req = bodies.mission_from_body(body, time.time_ns())
+        except bodies.MissionBuildError as err:
+            raise HTTPException(422, str(err)) from None
+        out = mission_checks.live_check(req, gs.fleet, vessel, gs.settings.clock(),
+                                        gs.settings.model_vessel_file, body.battery_j)
+        return JSONResponse(out)
 
     @r.post("/missions/parse", response_model=ParsedMission,
             responses={404: _errors("the vessel named is not known"),

@@ -16,6 +16,8 @@ from seaway.contract import keys
 from seaway.contract.messages import (
     DEFAULT_CONTROLLER,
     MAX_TASK_POWER_W,
+    AreaBreachPolicy,
+    AtRest,
     ControllerName,
     MessageError,
     MissionRequest,
@@ -111,6 +113,14 @@ class MissionParams(_Body):
     predict_disturbance: bool = Field(default=False, description="predict with the estimator's tau_d "
                                       "(disturbance-aware) instead of tau_d = 0 (the paper's)")
     speed_hint_mps: float | None = Field(default=None, gt=0, le=50, description="cruise hint [m/s]")
+    join_first_leg: bool = Field(default=False, description="join P_0 -> P_1 from where the vessel "
+                                 "is instead of going to P_0 first")
+    at_rest: AtRest = Field(default="hold", description="after the last waypoint and on pause: "
+                            "'hold' station or 'drift'")
+    on_area_breach: AreaBreachPolicy = Field(default="hold", description="at the operating area's "
+                                             "edge in flight: 'hold' station or 'return'")
+    force: bool = Field(default=False, description="fly it although the mission check refuses it "
+                        "on energy (the operator's explicit choice, recorded)")
 
 
 class MissionBody(MissionParams):
@@ -133,6 +143,10 @@ class ImportParams(_Body):
     controller: ControllerName | None = None
     predict_disturbance: bool | None = None
     speed_hint_mps: float | None = Field(default=None, gt=0, le=50, description="[m/s]")
+    join_first_leg: bool | None = None
+    at_rest: AtRest | None = None
+    on_area_breach: AreaBreachPolicy | None = None
+    force: bool | None = None
     skip_unsupported: bool = Field(default=False, description="leave out items that are not "
                                    "waypoints (takeoff, loiter, survey, ...) instead of refusing")
 
@@ -210,9 +224,9 @@ class MissionBuildError(ValueError):
 
 
 def mission_from_body(body: MissionBody, stamp_ns: int) -> MissionRequest:
-    """The bus request for a mission body."""
+    """The bus request for a mission body (a check's body: its mission, without ``battery_j``)."""
     return _make(stamp_ns, body.mission_id, [w.to_waypoint() for w in body.waypoints],
-                 body.model_dump(exclude={"mission_id", "waypoints"}))
+                 body.model_dump(exclude={"mission_id", "waypoints", "battery_j"}))
 
 
 def mission_from_import(path: ImportedPath, params: ImportParams, stamp_ns: int) -> MissionRequest:

@@ -148,7 +148,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                 origin.lat_deg, origin.lon_deg, origin.alt_m),
             runs_dir=runs_dir, run_dir=args.run_dir, tiles=args.tiles,
             max_upload_bytes=args.max_upload_bytes, control_period_s=run.control_period_s,
-            alpha_w_per_n2=vessel_alpha(run.model_vessel_file))
+            alpha_w_per_n2=vessel_alpha(run.model_vessel_file),
+            model_vessel_file=run.model_vessel_file)
     except ValueError as err:
         print(f"seaway-groundstation: {err}", file=sys.stderr)
         return 2

@@ -8,7 +8,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from seaway.runtime.run import CONTROL_PERIOD_S
+from seaway.runtime.run import CONTROL_PERIOD_S, DEFAULT_VESSEL_FILE
 from seaway.vessel.frames import GeoOrigin
 
 DEFAULT_HOST = "127.0.0.1"
@@ -66,6 +66,8 @@ class Settings:
     tiles: str | None = None
     """Map tiles: a URL template with {z}, {x}, {y} (http(s)://...), or a local folder laid out
     ``<z>/<x>/<y>.png`` served at ``/tiles/``; None: no tiles (the map is a metric grid)."""
+    model_vessel_file: str = DEFAULT_VESSEL_FILE
+    """The run's vessel model file: what the mission check predicts with."""
     run_dir: Path | None = None
     """The run folder of the stack this ground station belongs to: it writes its requests log
     there and reads the launcher's ``mission.json`` (None: neither)."""

@@ -20,6 +20,7 @@ import sys
 import time
 from pathlib import Path
 
+from seaway.runtime.argtypes import positive_float, whole_number
 from seaway.vessel.mavlink_signing import KeyFileError, SignatureVerifier, read_key, write_key
 
 from seaway_vehicle_io.config import SOURCE_COMPONENT, SOURCE_SYSTEM
@@ -122,12 +123,16 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Send SETUP_SIGNING until the autopilot signs with the key.")
     p.add_argument("--key", type=Path, required=True, help="the key file (64 hex characters)")
     p.add_argument("--mavlink", required=True, help="the autopilot's MAVLink URL (as vehicle_io's)")
-    p.add_argument("--system", type=int, default=SOURCE_SYSTEM, help="our system id")
-    p.add_argument("--component", type=int, default=SOURCE_COMPONENT, help="our component id")
-    p.add_argument("--link-id", type=int, default=DEFAULT_LINK_ID, help="our signing link id")
+    p.add_argument("--system", type=whole_number(1, 255), default=SOURCE_SYSTEM,
+                   help="our system id (1-255)")
+    p.add_argument("--component", type=whole_number(1, 255), default=SOURCE_COMPONENT,
+                   help="our component id (1-255)")
+    p.add_argument("--link-id", type=whole_number(0, 255), default=DEFAULT_LINK_ID,
+                   help="our signing link id (0-255)")
     p.add_argument("--timestamp-file", type=Path, default=None,
                    help="our signing timestamp file (default: the key file's, as vehicle_io's)")
-    p.add_argument("--timeout", type=float, default=15.0, help="give up after this long [s]")
+    p.add_argument("--timeout", type=positive_float, default=15.0,
+                   help="give up after this long [s]")
     return ap
 
 

@@ -40,9 +40,10 @@ import json
 from pathlib import Path
 
 from seaway.area.geojson import spec_from_geojson
-from seaway.area.model import AreaError
+from seaway.area.model import AreaError, OperatingArea
 from seaway.area.plan import spec_from_plan
 from seaway.area.spec import AreaSpec, from_toml
+from seaway.vessel.frames import GeoOrigin
 
 
 def load_area_file(path: str | Path) -> AreaSpec | None:
@@ -68,3 +69,20 @@ def load_area_file(path: str | Path) -> AreaSpec | None:
         return spec_from_plan(doc) if p.suffix == ".plan" else spec_from_geojson(doc)
     except AreaError as err:
         raise AreaError(f"{p}: {err}") from None
+
+
+def run_area(scenario: object | None, area_file: str | Path | None,
+             origin: GeoOrigin | None) -> tuple[OperatingArea | None, str]:
+    """The operating area of a run and where it came from: ``area_file`` if given (any format
+    ``load_area_file`` reads; degrees through the run's ``origin``), else the run's scenario's
+    ``[area]`` (a ``seaway.simkit.scenario.Scenario``), else none. AreaError naming the file."""
+    if area_file is not None:
+        spec = load_area_file(area_file)
+        if spec is None:
+            raise AreaError(f"{area_file}: carries no operating area")
+        return spec.to_area(origin, str(area_file)), str(area_file)
+    if scenario is not None:
+        area = scenario.operating_area()  # type: ignore[attr-defined]
+        if area is not None:
+            return area, f"scenario {scenario.name}"  # type: ignore[attr-defined]
+    return None, ""

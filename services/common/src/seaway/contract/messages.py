@@ -502,6 +502,9 @@ class MissionStatus(Message):
 
 
 LowEnergyPolicy = Literal["warn", "return", "hold"]
+AreaBreachPolicy = Literal["hold", "return"]
+"""What the controller does when the vessel or the MPC's predicted course would leave the operating
+area in flight: 'hold' station where it is, or 'return' home (or to the nearest rally point)."""
 """What a mission does when the energy to get home plus the reserve reaches the battery's remaining
 energy: ``warn`` (say so, fly on), ``return`` (fly straight home, the default), ``hold`` (stop)."""
 EnergyDecision = Literal["none", "warn", "return", "hold"]
@@ -793,6 +796,11 @@ class MissionRequest(Request):
                                  "acceptance), as QGroundControl and ArduPilot do")
     at_rest: AtRest = Field(default="hold", description="after the last waypoint and while paused "
                             "by the operator: 'hold' station (default) or 'drift' (zero thrust)")
+    on_area_breach: AreaBreachPolicy = Field(default="hold", description="when the vessel or the "
+                                             "predicted course would leave the operating area: "
+                                             "'hold' station there (default) or 'return' home")
+    force: bool = Field(default=False, description="fly it although the mission check refuses it "
+                        "on energy (the operator's explicit choice; recorded as MissionAccepted.forced)")
 
 
 class MissionCommand(Request):
@@ -837,6 +845,10 @@ class MissionAccepted(Message):
                                  "where the vessel was, instead of going to P_0 first")
     at_rest: AtRest = Field(default="hold", description="the request's: 'hold' station or 'drift' "
                             "after the last waypoint and on pause")
+    on_area_breach: AreaBreachPolicy = Field(default="hold", description="the request's: 'hold' "
+                                             "or 'return' at the operating area's edge")
+    forced: bool = Field(default=False, description="the request forced it past a refusal of the "
+                         "mission check (energy)")
     resumed: bool = Field(default=False, description="re-announced by a restarted controller that "
                           "resumed it from its checkpoint: the same flight going on, not a new one")
     controller_settings: dict[Annotated[str, StringConstraints(max_length=64)], float] = Field(

@@ -11,6 +11,8 @@ from seaway.contract.config import ConfigModel
 from seaway.contract.messages import (
     DEFAULT_CONTROLLER,
     MAX_TASK_POWER_W,
+    AreaBreachPolicy,
+    AtRest,
     ControllerName,
     LowEnergyPolicy,
     MessageError,
@@ -46,7 +48,15 @@ class MissionSpec(ConfigModel):
                                            "home plus the reserve reaches what the battery has "
                                            "left: 'warn', 'return' (default) or 'hold'")
     home_m: tuple[float, float] | None = Field(default=None, description="home [north, east] in "
-                                               "local NED metres; default the first waypoint")
+                                               "local NED metres; default the vessel's home")
+    join_first_leg: bool = Field(default=False, description="join P_0 -> P_1 from where the vessel "
+                                 "is instead of going to P_0 first")
+    at_rest: AtRest = Field(default="hold", description="after the last waypoint and on pause: "
+                            "'hold' station (default) or 'drift'")
+    on_area_breach: AreaBreachPolicy = Field(default="hold", description="at the operating area's "
+                                             "edge in flight: 'hold' (default) or 'return'")
+    force: bool = Field(default=False, description="fly it although the mission check refuses it "
+                        "on energy (the operator's explicit choice)")
 
     @model_validator(mode="after")
     def _one_kind_of_waypoints(self) -> MissionSpec:
@@ -81,4 +91,6 @@ class MissionSpec(ConfigModel):
             predict_disturbance=(self.predict_disturbance if predict_disturbance is None
                                  else predict_disturbance),
             on_low_energy=self.on_low_energy,
-            home=None if self.home_m is None else Waypoint(x_m=self.home_m[0], y_m=self.home_m[1]))
+            home=None if self.home_m is None else Waypoint(x_m=self.home_m[0], y_m=self.home_m[1]),
+            join_first_leg=self.join_first_leg, at_rest=self.at_rest,
+            on_area_breach=self.on_area_breach, force=self.force)

@@ -4,6 +4,7 @@
     seaway mission paper-c1                          # the [mission] of a scenario
     seaway mission pause | resume | abort
     seaway mission status                            # the next mission/status message
+    seaway mission check FILE|SCENARIO [--json]      # the check before a mission (mission_check_cli)
 
 A scenario is checked whole, as the simulator loads it (its tables, its model and plant vessel
 files), and only its ``[mission]`` is sent: a note on stderr names what of it is not (the running
@@ -56,6 +57,10 @@ def _ignored_note(scenario: Scenario) -> str:
 
 
 def main(argv: list[str]) -> int:
+    if argv[:1] == ["check"]:  # the check before a mission, at the desk
+        from seaway.tools import mission_check_cli
+
+        return mission_check_cli.main(argv[1:])
     ap = argparse.ArgumentParser(prog="seaway mission", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("what", help="mission file, scenario name, or pause|resume|abort|status")

@@ -415,6 +415,30 @@ def show_groundstations(sup: Supervisor, run_dir: Path, shown: dict[str, int]) -
         print(f"ground station: {where.page}", flush=True)
 
 
+
+
+def _check_mission(mission: MissionRequest | None, scenario: str) -> int:
+    """``--check``: the mission sent checked as the controller checks it (``seaway mission
+    check``), against the scenario; 0 ok (or no mission), 1 refused, 2 unreadable."""
+    if mission is None or not scenario:
+        return 0
+    from seaway.tools import mission_check_cli
+
+    try:
+        out = mission_check_cli.check_request(mission, load_scenario(scenario))
+    except (ConfigError, ValueError, RuntimeError) as err:
+        print(f"seaway launch: mission check: {err}", file=sys.stderr)
+        return 2
+    print(mission_check_cli.show(out))
+    return 0 if out["verdict"] == "ok" else 1
+
+def _rally_points(scenario: str) -> tuple[tuple[float, float], ...]:
+    """The rally points of ``scenario``'s operating area (local NED, m); none without one."""
+    if not scenario:
+        return ()
+    area = load_scenario(scenario).operating_area()
+    return () if area is None else tuple(r.position_m for r in area.rally_points)
+
 def main(argv: list[str]) -> int:
     # First, before any thread: the launcher lives as long as the run and is off the control path
     # (seaway.runtime.memory says why its memory grew without it).
@@ -486,7 +510,7 @@ def main(argv: list[str]) -> int:
               + (f" for vessels {', '.join(vessels)}" if len(vessels) > 1 else "") + ", valid"
               + (f"; mission {mission.mission_id} ({_describe_mission(mission)})"
                  if mission is not None else ""))
-        return 0
+        return _check_mission(mission, scenario)
 
     try:
         auth = authority.credentials_for(profile, run_dir.name)
@@ -586,7 +610,7 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
         status.watch(bus)
         taken.watch(bus)  # which vessels' controllers take a mission (the launcher's or another's)
         ending = MissionEnd(vessels, mission, None if not run.lockstep
-                            else round(run.control_period_s * 1e9))
+                            else round(run.control_period_s * 1e9), _rally_points(scenario))
         ending.watch(bus)
         error = sup.start_all(stop)
         if error:
@@ -601,12 +625,21 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
             if not _operator_requests(bus, profile, stop, v, label[v], lambda: _required_failure(sup)):
                 code = 1
                 return code
+        refused = []
         for v in vessels:
             if mission is None or stop.is_set():
                 break
             reply = bus.request(keys.MISSION_SET, mission, timeout_s=10.0, vessel=v)
             for line in mission_reply_lines(mission, reply):
                 print(f"{label[v]}{line}", flush=True)
+            if not reply.accepted:
+                refused.append(v)
+        if refused and profile.stop_when_complete and not args.stay:
+            # A batch run ends when its mission does: one refused never will.
+            print(f"seaway launch: the mission was refused ({', '.join(refused)}); nothing to "
+                  "fly (seaway mission check says why before a launch)", file=sys.stderr, flush=True)
+            code = 1
+            return code
         t_run = time.monotonic()
         tender = None if mission is None or run.lockstep else LinkTender(
             bus, sup, vessels, mission, profile.mode_on_start, args.resume_wait)

@@ -93,6 +93,9 @@ class VesselEnd:
     end), outside it before (where the vessel starts is no arrival)."""
     left: dict[str, bool] = field(default_factory=dict)
     """'end', 'home' -> the vessel was seen outside its circle (plus slack)."""
+    rally: tuple[Point, ...] = ()
+    """The operating area's rally points (the run's scenario's ``[area]``): the energy budget's
+    return goes to the nearest of home and these, so arriving at any of them ends it."""
     at_home: bool = False
     """The newest admitted look put the vessel within home's circle (plus slack)."""
     refused: dict[str, int] = field(default_factory=dict)
@@ -140,12 +143,15 @@ class VesselEnd:
         for name, point in zip(("end", "home"), self.targets(), strict=True):
             if point is None:
                 continue
-            inside = math.dist(here, point) <= reach
+            places = [point, *self.rally] if name == "home" else [point]
+            near = [p for p in places if math.dist(here, p) <= reach]
+            inside = bool(near)
             if name == "home":
                 self.at_home = inside
             if not inside:
                 self.left[name] = True
-            elif self.left.get(name) or (first is not None and math.dist(first, point) > reach):
+            elif self.left.get(name) or (first is not None and all(math.dist(first, p) > reach
+                                                                    for p in near)):
                 self.reached[name] = True
 
     def over(self, status: MissionStatus | None, budget: EnergyBudget | None, ref_ns: int | None) -> bool:
@@ -199,9 +205,10 @@ class MissionEnd:
     in lockstep they come hundreds a second)."""
 
     def __init__(
-        self, vessels: list[str], mission: MissionRequest | None, period_ns: int | None = None
+        self, vessels: list[str], mission: MissionRequest | None, period_ns: int | None = None,
+        rally: tuple[Point, ...] = (),
     ) -> None:
-        self.vessels = {v: VesselEnd(v, mission, period_ns) for v in vessels}
+        self.vessels = {v: VesselEnd(v, mission, period_ns, rally=rally) for v in vessels}
         self._newest: dict[
             str, tuple[Newest[MissionStatus], Newest[EnergyBudget], Newest[StateEstimate], Newest[NavOrigin]]
         ] = {}
