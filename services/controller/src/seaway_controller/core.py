@@ -24,6 +24,10 @@ the vehicle applies the thrust again (a rebooted autopilot must not drive off on
 someone re-arms it). Only statuses stamped from the mission's start on count: the one before may
 predate the arming its sender just did.
 
+The vessel does not do what it is told (``motion.py``): while the estimate carries a motion fault
+(``StateEstimate.motion_fault``: aground, a thruster stuck), an active mission is paused with the
+fault named, and a resume is refused while it lasts.
+
 A mission sent while the latest status says the thrust is withheld is accepted as ``waiting``
 (never "started"), the reply and ``MissionStatus.reason`` saying for what; it becomes active by
 itself at the first status stamped from its acceptance on that says the vehicle applies the thrust
@@ -75,7 +79,7 @@ from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.guidance import LosGains, los_thrust
 from seaway.vessel.model import VesselParams, propulsion_power_w
 
-from seaway_controller import acceptance, costs
+from seaway_controller import acceptance, costs, motion
 from seaway_controller.energy import BatteryTrack, Budget, Disturbance, EnergyModel, predict
 from seaway_controller.hold import HoldGains, hold_thrust
 from seaway_controller.mission import (
@@ -396,6 +400,9 @@ class ControllerCore:
         withheld = self.withheld_reason()
         if cmd.command == "resume" and self.missions.state == "paused" and withheld:
             return Reply.refuse(now_ns, f"cannot resume: {withheld}; the mission stays paused")
+        refused = motion.resume_refusal(self._last_state) if cmd.command == "resume" else None
+        if refused is not None and self.missions.state == "paused":
+            return Reply.refuse(now_ns, refused)
         try:
             state = self.missions.command(cmd)
         except MissionError as err:
@@ -455,6 +462,8 @@ class ControllerCore:
         mm = self.missions
         mm.update(state.x_m, state.y_m)
         self.seq += 1
+        if (paused := motion.pause_on_motion_fault(mm, state)) is not None:  # seaway_controller.motion
+            log.warning("mission %r %s", mm.mission.mission_id if mm.mission else "", paused)
         if mm.state != "active" or mm.mission is None:
             point = mm.hold_point if self.withheld_reason() is None else None
             if point is not None and self._holding != point:

@@ -159,6 +159,11 @@ function render() {
   // Mission progress.
   const legs = mission ? Math.max(mission.waypoint_count - 1, 0) : 0;
   setText("p-state", mission?.state ?? "–", mission?.state === "complete" ? "good" : mission?.state === "aborted" ? "bad" : "");
+  setText("p-reason", mission?.reason || "–", mission?.reason && mission.state === "paused" ? "warn" : "");
+  // The estimator's motion fault (StateEstimate.motion_fault): the vessel does not do what it is told.
+  setText("p-motion", !state ? "–" : state.motion_fault
+    ? `FAULT ${state.motion_fault}${state.motion_fault_detail ? ` — ${state.motion_fault_detail}` : ""}`
+    : "no fault", state?.motion_fault ? "bad" : "");
   setText("p-id", mission?.mission_id || "–");
   setText("p-leg", mission && mission.state !== "idle" ? `${mission.active_leg} / ${legs}` : "–");
   setText("p-dist", fmt(mission?.distance_to_waypoint_m, 1, "m"));
