@@ -33,7 +33,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import Field
 
-from seaway.contract.config import ConfigModel
+from seaway.contract.config import ConfigError, ConfigModel
 from seaway.contract.units import NS_PER_S
 
 MAX_FAULT_TIME_S = 86_400.0
@@ -161,7 +161,7 @@ class ThrusterFaults:
     def __init__(self, faults: Sequence[object], thrust_range_n: tuple[float, float] | None = None
                  ) -> None:
         """``thrust_range_n``: (most reverse, most ahead) the vessel's thrusters give [N]; a stuck
-        thrust outside it is refused (ValueError naming the fault)."""
+        thrust outside it is refused (ConfigError naming the fault and the range)."""
         self.items = [f for f in faults if isinstance(f, ThrusterFault | StuckThrusterFault)]
         self.stuck_items = sorted((f for f in self.items if isinstance(f, StuckThrusterFault)),
                                   key=lambda f: f.time_s)
@@ -170,8 +170,8 @@ class ThrusterFaults:
             lo, hi = thrust_range_n
             for i, f in enumerate(faults):
                 if isinstance(f, StuckThrusterFault) and not lo <= f.thrust_n <= hi:
-                    raise ValueError(f"faults[{i}].thrust_n = {f.thrust_n:g} N: a stuck thruster "
-                                     f"gives what the vessel's can, {lo:g} to {hi:g} N")
+                    raise ConfigError(f"faults.{i}.thrust_n = {f.thrust_n:g} N: a stuck thruster "
+                                      f"gives what the vessel's can, {lo:g} to {hi:g} N")
 
     def stuck(self, t_s: float) -> tuple[float | None, float | None]:
         """(port, starboard) thrust held whatever is commanded over a step at ``t_s`` [N]; None:
