@@ -249,3 +249,15 @@ def test_when_not_a_terminal_whole_lines_are_printed_every_few_seconds(tmp_path)
         line.show(2.0, final=True)
     lines = (tmp_path / "out.txt").read_text().splitlines()
     assert len(lines) == 2 and lines[0] == busy(["vessel1"]).vessel_text("vessel1", 1.0)
+
+
+def test_a_motion_fault_is_shown_beside_the_mission_and_kept_when_the_line_is_short() -> None:
+    line = StatusLine(["v1"])
+    line.mission["v1"] = MissionStatus(stamp_ns=1, state="paused", active_leg=1, waypoint_count=4,
+                                       cross_track_m=0.05)
+    line.state["v1"] = state(3.0)
+    assert "FAULT" not in line.vessel_text("v1", 7.0)
+    line.state["v1"] = state(3.0).model_copy(update={"motion_fault": "not_moving"})
+    text = line.vessel_text("v1", 7.0)
+    assert "paused leg 1/3 | xte  0.05 m | MOTION FAULT not_moving | speed" in text, text
+    assert "FAULT not_moving" in line.vessel_text("v1", 7.0, width=40)  # before the speed and xte

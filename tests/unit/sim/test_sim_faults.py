@@ -203,3 +203,48 @@ def test_lockstep_cores_with_faults_stay_deterministic() -> None:
     assert [None if f is None else f.encode() for f in runs[0][1]] == [
         None if f is None else f.encode() for f in runs[1][1]
     ]
+
+
+def test_a_stuck_thruster_gives_its_thrust_whatever_is_commanded() -> None:
+    fault = [{"kind": "stuck_thruster", "time_s": 2.0, "thruster": "port", "thrust_n": 0.0}]
+    _, _, _, truths = fly(quiet_lake(fault), 4.0)
+    before = [t for t in truths if 0 < t.stamp_ns <= 2 * S]
+    after = [t for t in truths if t.stamp_ns > 2 * S]
+    assert all((t.thrust_port_n, t.thrust_starboard_n) == (30.0, 20.0) for t in before)
+    assert all((t.thrust_port_n, t.thrust_starboard_n) == (0.0, 20.0) for t in after)
+    stuck_at = [{"kind": "stuck_thruster", "time_s": 1.0, "thruster": "both", "thrust_n": 15.0,
+                 "duration_s": 1.0}]
+    _, _, _, truths = fly(quiet_lake(stuck_at), 3.0)
+    by_t = {round(t.stamp_ns / S, 1): (t.thrust_port_n, t.thrust_starboard_n) for t in truths}
+    assert by_t[1.5] == (15.0, 15.0) and by_t[2.5] == (30.0, 20.0)
+
+
+def test_a_grounding_holds_the_vessel_where_it_is_whatever_the_thrust() -> None:
+    fault = [{"kind": "grounding", "time_s": 2.0, "duration_s": 2.0}]
+    _, _, _, truths = fly(quiet_lake(fault), 6.0)
+    by_t = {round(t.stamp_ns / S, 1): t for t in truths}
+    assert by_t[1.9].u_mps > 0.3
+    held = [by_t[k / 10] for k in range(21, 41)]
+    assert all((t.u_mps, t.v_mps, t.r_radps) == (0.0, 0.0, 0.0) for t in held)
+    assert len({(t.x_m, t.y_m, t.psi_rad) for t in held}) == 1
+    assert by_t[6.0].u_mps > 0.3  # afloat again
+
+
+@pytest.mark.parametrize(("fault", "field", "bound"), [
+    ({"kind": "stuck_thruster", "time_s": 1, "thruster": "aft", "thrust_n": 1}, "thruster", "starboard"),
+    ({"kind": "stuck_thruster", "time_s": 1, "thruster": "port"}, "thrust_n", "required"),
+    ({"kind": "stuck_thruster", "time_s": 1, "thruster": "port", "thrust_n": 1e6}, "thrust_n", "10000"),
+    ({"kind": "grounding", "time_s": -1}, "time_s", "0"),
+    ({"kind": "grounding", "time_s": 1, "duration_s": 0}, "duration_s", "0"),
+])
+def test_a_stuck_thruster_or_grounding_out_of_bounds_is_refused(fault, field, bound) -> None:
+    with pytest.raises(ConfigError) as err:
+        sc.parse_scenario(lake_doc([fault]), "probe.toml")
+    text = str(err.value)
+    assert "probe.toml" in text and "faults.0" in text and field in text and bound in text, text
+
+
+def test_a_stuck_thrust_beyond_what_the_vessel_gives_is_refused_naming_the_range() -> None:
+    scenario = quiet_lake([{"kind": "stuck_thruster", "time_s": 1, "thruster": "port", "thrust_n": 80.0}])
+    with pytest.raises(ConfigError, match=r"faults\.0\.thrust_n = 80 N.*to 75 N"):
+        SimCore(scenario, load_vessel(scenario.vessel))

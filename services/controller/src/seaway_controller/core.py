@@ -27,6 +27,10 @@ predate the arming its sender just did. An autopilot that is not healthy (``thru
 but does not pause one under way (its own failsafes act on that); and a paused mission is not
 resumed while the autopilot is latched in a failsafe (``VehicleStatus.failsafe_latched``).
 
+The vessel does not do what it is told (``motion.py``): while the estimate carries a motion fault
+(``StateEstimate.motion_fault``: aground, a thruster stuck), an active mission is paused with the
+fault named, and a resume is refused while it lasts.
+
 A mission sent while the latest status says the thrust is withheld is accepted as ``waiting``
 (never "started"), the reply and ``MissionStatus.reason`` saying for what; it becomes active by
 itself at the first status stamped from its acceptance on that says the vehicle applies the thrust
@@ -82,7 +86,7 @@ from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.guidance import LosGains, los_thrust
 from seaway.vessel.model import VesselParams, propulsion_power_w
 
-from seaway_controller import acceptance, costs
+from seaway_controller import acceptance, costs, motion
 from seaway_controller.area_guard import AreaGuard
 from seaway_controller.battery_estimate import BatteryTrack
 from seaway_controller.energy import Budget, Disturbance, EnergyModel, predict
@@ -464,6 +468,9 @@ class ControllerCore:
                                  if r is not None)
         if cmd.command == "resume" and self.missions.state == "paused" and withheld:
             return Reply.refuse(now_ns, f"cannot resume: {withheld}; the mission stays paused")
+        refused = motion.resume_refusal(self._last_state) if cmd.command == "resume" else None
+        if refused is not None and self.missions.state == "paused":
+            return Reply.refuse(now_ns, refused)
         try:
             state = self.missions.command(cmd)
         except MissionError as err:
@@ -551,6 +558,8 @@ class ControllerCore:
         mm = self.missions
         mm.update(state.x_m, state.y_m)
         self.seq += 1
+        if (paused := motion.pause_on_motion_fault(mm, state)) is not None:  # seaway_controller.motion
+            log.warning("mission %r %s", mm.mission.mission_id if mm.mission else "", paused)
         if mm.state != "active" or mm.mission is None:
             point = mm.hold_point if self.withheld_reason() is None else None
             if point is not None and self._holding != point:

@@ -18,6 +18,8 @@ from pydantic import Field
 from seaway.contract.config import ConfigModel, Origin, load_config, named_file
 from seaway.runtime.run import DEFAULT_VESSEL_FILE
 
+from seaway_estimator.mismatch import MismatchConfig
+
 CHI2_2DOF_9999 = 18.42
 CHI2_1DOF_9999 = 15.14
 
@@ -97,6 +99,9 @@ class EstimatorConfig(ConfigModel):
                              "integrated: the filter re-initialises from the next measurements")
     max_position_std_m: float = Field(default=1000.0, gt=0, description="beyond this the filter "
                                       "drops its state and re-initialises")
+    mismatch: MismatchConfig = Field(default_factory=MismatchConfig, description="the motion fault "
+                                     "detector (``seaway_estimator.mismatch``): the vessel does not "
+                                     "do what the commanded thrust says")
 
 
 CONFIG_DIR = Path(__file__).resolve().parents[2] / "config"

@@ -61,6 +61,7 @@ from seaway.vessel.thrusters import apply_dead_zone, output_pair
 from seaway_estimator import kalman
 from seaway_estimator.config import EstimatorConfig
 from seaway_estimator.kalman import NZ, Predictor, Updater
+from seaway_estimator.mismatch import FixSample, MotionMismatch
 from seaway_estimator.notices import MAX_NOTICES, Notice
 
 INPUT_KEYS: dict[str, keys.KeySpec] = {"gnss": keys.GNSS, "attitude": keys.ATTITUDE,
@@ -86,6 +87,7 @@ COUNTERS = (
     "thrust_received", "late_applied", "too_old", "too_new", "refused_non_finite",
     "status_received",
     "degraded_entered", "time_jumps", "divergence_resets", "disturbance_reopened", "resets",
+    "motion_faults", "motion_anchored",
     "published",
     "publish_refused",
 )
@@ -193,6 +195,9 @@ class EstimatorCore:
         self._pending = _Pending()
         self._thrust: tuple[float, float] = (0.0, 0.0)
         self._thrust_until_ns: int | None = None
+        self.mismatch = MotionMismatch(c.mismatch)
+        """The motion fault detector (``seaway_estimator.mismatch``), fed at each GNSS fix."""
+        self._last_nis = math.nan  # of the last gated update
         self.thrust_withheld: str | None = None
         """Why the autopilot does not apply the commanded thrust now (the last ``VehicleStatus``
         said so: disarmed, no link, another mode); None: it does, or nobody said otherwise."""
@@ -214,6 +219,7 @@ class EstimatorCore:
         """
         self.filter = None
         self._pending = _Pending()
+        self.mismatch.reset()
         if not keep_origin:
             self.origin = self._fixed_origin
         self.counters.inc("resets")
@@ -293,9 +299,18 @@ class EstimatorCore:
         delay = self._to_time(t)
         if delay is None:
             return
+        rejected = self.counters["gnss_rejected"] + self.counters["sog_rejected"]
         self._update_position(north, east, std, delay, t)
+        nis = self._last_nis if math.isfinite(self._last_nis) else math.inf
         if sog[0] is not None and sog[1] is not None:
             self._update_sog(sog[0], sog[1], delay)
+        rejected = self.counters["gnss_rejected"] + self.counters["sog_rejected"] > rejected
+        psi = self.filter.z[IPSI] if self.filter is not None else 0.0
+        self._judge_motion(FixSample(
+            t, north, east, rejected, min(nis, self.config.gate_gnss),
+            None if sog[0] is None or sog[1] is None else
+            sog[0] * math.cos(psi) + sog[1] * math.sin(psi),
+            sum(self._commanded_at(t)) / self.p.xu_kgps), std, sog)
 
     def on_attitude(self, msg: Attitude) -> None:
         """Heading and yaw rate (roll and pitch are not used by a 3-DOF model)."""
@@ -457,11 +472,16 @@ class EstimatorCore:
         """A = d f / d z (9x9; the disturbance rows are zero), exact (automatic differentiation)."""
         return self._predictor.jacobian(z, thrust)
 
-    def _thrust_at(self, t_ns: int) -> tuple[float, float]:
+    def _commanded_at(self, t_ns: int) -> tuple[float, float]:
+        """The thrust commanded and applied by the autopilot at ``t_ns`` [N]."""
         if (self.thrust_withheld is not None or self._thrust_until_ns is None
                 or t_ns >= self._thrust_until_ns):
             return (0.0, 0.0)
         return self._thrust
+
+    def _thrust_at(self, t_ns: int) -> tuple[float, float]:
+        """The thrust the prediction uses: none while the vessel is seen not to move with it."""
+        return (0.0, 0.0) if self.mismatch.kind == "not_moving" else self._commanded_at(t_ns)
 
     def _advance(self, t: int) -> None:
         """Integrate the filter from its time to ``t`` (later), through thrust expiry."""
@@ -525,6 +545,7 @@ class EstimatorCore:
         f = self.filter
         assert f is not None
         nis, z, P = self._updaters[len(nu)].step(f.z, f.P, nu, H, R)
+        self._last_nis = nis
         if not (math.isfinite(nis) and nis <= gate):  # also false for NaN
             return False
         z[IPSI] = wrap_pi(z[IPSI])
@@ -637,6 +658,40 @@ class EstimatorCore:
                 ok = self._gated_scalar(nu, IR, var, self.config.gate_yaw_rate)
         self.counters.inc("yaw_rate_accepted" if ok else "yaw_rate_rejected")
 
+    def _judge_motion(self, sample: FixSample, std: float,
+                      sog: tuple[float | None, float | None]) -> None:
+        """Feed the motion fault detector (``mismatch``); re-anchor to the measurements on it.
+
+        At the onset the state is moved to the fix (position, and speeds from its velocity over
+        ground) and the disturbance forgotten (it had taken up thrust the vessel never gave); while
+        a ``not_moving`` fault lasts the prediction stops using a thrust the vessel does not follow,
+        and while any fault lasts a fix the filter gates out moves the state to it at once, instead
+        of dead-reckoning until ``gnss_reject_reinit_count`` rejections."""
+        f = self.filter
+        event = self.mismatch.on_fix(sample)
+        if event is not None:
+            self._notices.append(Notice(event.t_ns, "motion_fault" if event.kind else
+                                        "motion_fault_cleared",
+                                        f"{event.kind}: {event.detail}" if event.kind else
+                                        event.detail))
+            if event.kind is not None:
+                self.counters.inc("motion_faults")
+                for i, std0 in zip((ID1, ID2, ID3), (*self._init_force_std_n,
+                                                     self.config.init_moment_std_nm), strict=True):
+                    if f is not None:
+                        self._reinit_block((i,), (-f.z[i],), std0 * std0)
+        onset = event is not None and event.kind is not None
+        if f is None or not (onset or (self.mismatch.kind is not None and sample.rejected)):
+            return
+        self._reinit_block((IX, IY), (sample.north_m - f.z[IX], sample.east_m - f.z[IY]), std * std)
+        if sog[0] is not None and sog[1] is not None:
+            c, s = math.cos(f.z[IPSI]), math.sin(f.z[IPSI])
+            u, v = c * sog[0] + s * sog[1], -s * sog[0] + c * sog[1]
+            self._reinit_block((IU, IV), (u - f.z[IU], v - f.z[IV]), self.config.sog_std_mps ** 2)
+        f.gnss_reject_run = f.sog_reject_run = 0
+        f.last_gnss_ns = max(f.last_gnss_ns, sample.t_ns)
+        self.counters.inc("motion_anchored")
+
     def _reopen(self, added: tuple[tuple[int, float], ...], sensor: str, run: int) -> None:
         """Add variance to states ``(index, variance)``: ``run`` samples of ``sensor`` in a row
         said the model, not the sensor, is wrong."""
@@ -708,7 +763,8 @@ class EstimatorCore:
                 stamp_ns=t, u_mps=float(z[IU]), v_mps=float(z[IV]), r_radps=float(z[IR]),
                 x_m=float(z[IX]), y_m=float(z[IY]), psi_rad=wrap_pi(float(z[IPSI])),
                 tau_d_surge_n=d[0], tau_d_sway_n=d[1], tau_d_yaw_nm=d[2],
-                covariance=Pout.ravel().tolist(), degraded=degraded)
+                covariance=Pout.ravel().tolist(), degraded=degraded,
+                motion_fault=self.mismatch.kind, motion_fault_detail=self.mismatch.detail)
         except (MessageError, ValueError):
             self.counters.inc("publish_refused")
             return None

@@ -18,6 +18,7 @@ from seaway.contract.config import ConfigError, deploy_path
 from seaway.contract.messages import ClockTick, Message, Reply, ScenarioRequest
 from seaway.runtime.bus import Bus
 from seaway.runtime.run import RunDescription
+from seaway.simkit.faults import ThrusterFaults
 from seaway.simkit.scenario import Scenario, load_scenario, parse_scenario
 from seaway.vessel.model import VesselParams, load_vessel
 
@@ -56,6 +57,7 @@ def world_of(document: dict, where: str, run: RunDescription | None
         raise ConfigError(f"scenario {scenario.name} models vessel {scenario.vessel!r} but this "
                           f"run's services model {run.model_vessel_file!r}: start a new run for it")
     SimPack.of(scenario, vessel)
+    ThrusterFaults(scenario.faults, (-vessel.reverse_max_n, vessel.thrust_max_n))  # a stuck thrust fits
     return scenario, vessel, model
 
 

@@ -27,6 +27,7 @@ from seaway.runtime.argtypes import positive_float, whole_number
 from seaway.runtime.lockstep import STALL_REPEAT_S
 from seaway.runtime.run import from_earlier_launch
 from seaway.runtime.service import base_parser, parse, resolve_run, run_service
+from seaway.simkit.faults import ThrusterFaults
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.mavlink_signing import KeyFileError, read_key
 from seaway.vessel.model import load_vessel
@@ -99,6 +100,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         vessel = load_vessel(run.plant_vessel)
         model = load_vessel(scenario.vessel)  # its limits: vehicle I/O's output stage in lockstep
         SimPack.of(scenario, vessel)  # the scenario's [battery] must fit the vessel's pack
+        ThrusterFaults(scenario.faults, (-vessel.reverse_max_n, vessel.thrust_max_n))  # stuck thrusts fit
     except ConfigError as err:
         print(f"seaway-sim: {err}", file=sys.stderr)
         return 2

@@ -390,6 +390,21 @@ class NavOrigin(Message):
     alt_m: float
 
 
+MAX_REASON_CHARS = 300
+"""Longest ``MissionStatus.reason`` (and ``StateEstimate.motion_fault_detail``)."""
+
+
+MotionFaultKind = Literal["not_moving", "not_as_modelled"]
+"""A persistent disagreement between what the commanded thrust should do and what the GNSS measures
+(``seaway_estimator.mismatch``)."""
+MOTION_FAULT_TEXT: dict[str, str] = {
+    "not_moving": "the vessel does not move as commanded (grounded, fouled, or held)",
+    "not_as_modelled": "the vessel does not move as the model predicts from the thrust "
+                       "(a thruster stuck or lost)",
+}
+"""Each ``MotionFaultKind`` for a person."""
+
+
 class StateEstimate(Message):
     """Estimated state [u, v, r, x, y, psi] (paper eq. 1-2) and disturbance tau_d (body frame).
 
@@ -409,6 +424,11 @@ class StateEstimate(Message):
     tau_d_yaw_nm: float = 0.0
     covariance: list[float] | None = Field(default=None, min_length=81, max_length=81)
     degraded: bool = False
+    motion_fault: MotionFaultKind | None = Field(default=None, description="the vessel does not do "
+                                                 "what it is told (``MOTION_FAULT_TEXT``); None: "
+                                                 "no such fault")
+    motion_fault_detail: str | None = Field(default=None, max_length=MAX_REASON_CHARS,
+                                            description="the evidence, for a person")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -469,10 +489,6 @@ AtRest = Literal["hold", "drift"]
 """What the vessel does after the last waypoint and while the operator pauses the mission: ``hold``
 station at a point (the default) or ``drift`` (zero thrust)."""
 """A mission's state: idle -> active <-> paused -> complete | aborted (the controller's machine)."""
-
-
-MAX_REASON_CHARS = 300
-"""Longest ``MissionStatus.reason``."""
 
 
 class MissionStatus(Message):

@@ -14,9 +14,15 @@ as one without, in lockstep and in real time alike. Kinds (``kind = ...``):
   ``duration_s``, or to the end);
 * ``thruster``: from ``time_s`` (for ``duration_s``, or to the end) the ``port``, ``starboard`` or
   ``both`` thrusters produce ``factor`` times the thrust they would (0: failed, 0.5: half lost to a
-  fouled propeller). The energy metric counts the thrust produced.
+  fouled propeller). The energy metric counts the thrust produced;
+* ``stuck_thruster``: from ``time_s`` (for ``duration_s``, or to the end) the ``port``, ``starboard``
+  or ``both`` thrusters produce ``thrust_n`` whatever is commanded (0: stopped; within the vessel's
+  thrust range, checked when the plant is built);
+* ``grounding``: from ``time_s`` (for ``duration_s``, or to the end) the vessel is held where it is:
+  its speeds are zero and its pose does not change, whatever the thrust (aground, or moored).
 
-Faults of one kind that overlap combine: outages unite, jumps and biases add, factors multiply.
+Faults of one kind that overlap combine: outages unite, jumps and biases add, factors multiply;
+a stuck thruster overrides its factor, and of two stuck values the later-starting one holds.
 """
 
 from __future__ import annotations
@@ -27,7 +33,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import Field
 
-from seaway.contract.config import ConfigModel
+from seaway.contract.config import ConfigError, ConfigModel
 from seaway.contract.units import NS_PER_S
 
 MAX_FAULT_TIME_S = 86_400.0
@@ -38,6 +44,8 @@ MAX_HEADING_BIAS_RAD = math.pi
 """A heading bias, either way [rad]."""
 MAX_DIRECTION_RAD = 2.0 * math.pi
 """A jump's direction, either way [rad]."""
+MAX_STUCK_THRUST_N = 10_000.0
+"""A stuck thruster's thrust, either way [N]: the plant checks it against the vessel's own range."""
 
 
 def _time() -> Any:
@@ -86,8 +94,24 @@ class ThrusterFault(ConfigModel):
     duration_s: float | None = _until_end()
 
 
+class StuckThrusterFault(ConfigModel):
+    kind: Literal["stuck_thruster"]
+    time_s: float = _time()
+    thruster: Literal["port", "starboard", "both"]
+    thrust_n: float = Field(ge=-MAX_STUCK_THRUST_N, le=MAX_STUCK_THRUST_N,
+                            description="thrust produced whatever the command [N]; 0: stopped")
+    duration_s: float | None = _until_end()
+
+
+class GroundingFault(ConfigModel):
+    kind: Literal["grounding"]
+    time_s: float = _time()
+    duration_s: float | None = _until_end()
+
+
 Fault = Annotated[
-    GnssDropoutFault | PositionJumpFault | HeadingBiasFault | ThrusterFault, Field(discriminator="kind")
+    GnssDropoutFault | PositionJumpFault | HeadingBiasFault | ThrusterFault | StuckThrusterFault
+    | GroundingFault, Field(discriminator="kind")
 ]
 
 
@@ -134,8 +158,38 @@ class SensorFaults:
 class ThrusterFaults:
     """The thruster faults of a scenario, asked along the plant's own time [s]."""
 
-    def __init__(self, faults: Sequence[object]) -> None:
-        self.items = [f for f in faults if isinstance(f, ThrusterFault)]
+    def __init__(self, faults: Sequence[object], thrust_range_n: tuple[float, float] | None = None
+                 ) -> None:
+        """``thrust_range_n``: (most reverse, most ahead) the vessel's thrusters give [N]; a stuck
+        thrust outside it is refused (ConfigError naming the fault and the range)."""
+        self.items = [f for f in faults if isinstance(f, ThrusterFault | StuckThrusterFault)]
+        self.stuck_items = sorted((f for f in self.items if isinstance(f, StuckThrusterFault)),
+                                  key=lambda f: f.time_s)
+        self.groundings = [f for f in faults if isinstance(f, GroundingFault)]
+        if thrust_range_n is not None:
+            lo, hi = thrust_range_n
+            for i, f in enumerate(faults):
+                if isinstance(f, StuckThrusterFault) and not lo <= f.thrust_n <= hi:
+                    raise ConfigError(f"faults.{i}.thrust_n = {f.thrust_n:g} N: a stuck thruster "
+                                      f"gives what the vessel's can, {lo:g} to {hi:g} N")
+
+    def stuck(self, t_s: float) -> tuple[float | None, float | None]:
+        """(port, starboard) thrust held whatever is commanded over a step at ``t_s`` [N]; None:
+        not stuck."""
+        port = starboard = None
+        t_ns = _ns(t_s)
+        for f in self.stuck_items:
+            if _within(t_ns, f.time_s, f.duration_s):
+                if f.thruster in ("port", "both"):
+                    port = f.thrust_n
+                if f.thruster in ("starboard", "both"):
+                    starboard = f.thrust_n
+        return port, starboard
+
+    def grounded(self, t_s: float) -> bool:
+        """Whether the vessel is held where it is over a step that starts at ``t_s``."""
+        t_ns = _ns(t_s)
+        return any(_within(t_ns, f.time_s, f.duration_s) for f in self.groundings)
 
     def factors(self, t_s: float) -> tuple[float, float]:
         """(port, starboard) thrust factors over a plant step that starts at ``t_s`` [s]; 1, 1
@@ -145,7 +199,7 @@ class ThrusterFaults:
         port = starboard = 1.0
         t_ns = _ns(t_s)
         for f in self.items:
-            if _within(t_ns, f.time_s, f.duration_s):
+            if isinstance(f, ThrusterFault) and _within(t_ns, f.time_s, f.duration_s):
                 if f.thruster in ("port", "both"):
                     port *= f.factor
                 if f.thruster in ("starboard", "both"):

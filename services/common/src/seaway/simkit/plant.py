@@ -10,8 +10,12 @@ Actuator model, applied in this order to each thruster's command [N]:
 
 1. saturation: ``-reverse_max_n <= T <= thrust_max_n`` (vessel file; ``seaway.vessel.thrusters``);
 2. dead zone (if enabled): ``|T| < dead_zone_n`` gives 0 (the real boat's 10 N; the same module);
-3. a scheduled thruster fault (``seaway.simkit.faults``): times ``factor`` while it lasts;
+3. a scheduled thruster fault (``seaway.simkit.faults``): times ``factor`` while it lasts, or the
+   stuck thrust of a ``stuck_thruster``;
 4. first-order lag (if enabled): ``T' = (T_cmd - T) / thruster_time_constant_s``, exact per step.
+
+A scheduled ``grounding`` holds the vessel where it is while it lasts: zero speeds, the pose of the
+step it began, whatever the thrust (which still costs its energy).
 
 Energy: the paper's metric integrates ``alpha (T1^2 + T2^2)`` over the run (eq. 3); ``energy_j`` here is
 that integral of the thrust actually produced, by the trapezoid rule over internal steps. The task
@@ -55,7 +59,8 @@ class Plant:
         self.dead_zone_n = vessel.dead_zone_n if scenario.dead_zone else 0.0
         tc = vessel.thruster_time_constant_s if scenario.thruster_lag else 0.0
         self.lag_tc_s = tc
-        self.thruster_faults = ThrusterFaults(scenario.faults)
+        self.thruster_faults = ThrusterFaults(scenario.faults, (-vessel.reverse_max_n,
+                                                                vessel.thrust_max_n))
         self.reset()
 
     def reset(self) -> None:
@@ -74,7 +79,8 @@ class Plant:
             raise ValueError(f"thrust command must be finite, got {command_n}")
         st = self.state
         demanded = target = self.actuate(command_n)
-        faults = self.thruster_faults if self.thruster_faults.items else None
+        faults = (self.thruster_faults if self.thruster_faults.items or self.thruster_faults.groundings
+                  else None)
         n = max(1, round(dt_s / self.internal_dt_s))
         h = dt_s / n
         decay = math.exp(-h / self.lag_tc_s) if self.lag_tc_s > 0 else 0.0
@@ -85,7 +91,9 @@ class Plant:
             tau_body, force_ne, current_ne = self.disturbance.sample(st.t_s, x[3], x[4])
             if faults is not None:
                 port, starboard = faults.factors(st.t_s)
-                target = (demanded[0] * port, demanded[1] * starboard)
+                stuck = faults.stuck(st.t_s)
+                target = (demanded[0] * port if stuck[0] is None else stuck[0],
+                          demanded[1] * starboard if stuck[1] is None else stuck[1])
             if self.lag_tc_s > 0:
                 new = (target[0] + (thrust[0] - target[0]) * decay,
                        target[1] + (thrust[1] - target[1]) * decay)
@@ -93,7 +101,10 @@ class Plant:
             else:
                 new = held = target
             p_before = model.propulsion_power_w(thrust if self.lag_tc_s > 0 else target, p)
-            x = model.rk4_step(x, held, h, p, math, tau_body, force_ne, current_ne)
+            if faults is not None and faults.grounded(st.t_s):
+                x = [0.0, 0.0, 0.0, *x[3:6]]  # aground: held where it is
+            else:
+                x = model.rk4_step(x, held, h, p, math, tau_body, force_ne, current_ne)
             st.energy_j += 0.5 * (p_before + model.propulsion_power_w(new, p)) * h
             thrust = new
             st.t_s += h

@@ -96,7 +96,8 @@ def fit(fields: list[Field], width: int | None, separator: str = SEPARATOR) -> s
 
 
 class StatusLine:
-    """The live line: per vessel, leg, speed, cross-track error and the energy budget: energy used,
+    """The live line: per vessel, leg, the estimator's motion fault if any
+    (``StateEstimate.motion_fault``), speed, cross-track error and the energy budget: energy used,
     to finish the mission, to get home, the battery's remaining energy against its reserve and,
     once taken, the decision (``mission/energy``; the mission status's figures before any budget).
 
@@ -194,6 +195,8 @@ class StatusLine:
             )
         else:
             out.append(Field(RANK_MISSION, "no mission status yet", "no status"))
+        if s is not None and s.motion_fault is not None:  # the vessel does not do what it is told
+            out.append(Field(RANK_DECISION, f"MOTION FAULT {s.motion_fault}", f"FAULT {s.motion_fault}"))
         if s is not None:
             speed_mps = (s.u_mps**2 + s.v_mps**2) ** 0.5
             out.append(Field(RANK_SPEED, f"speed {speed_mps:4.2f} m/s", f"{speed_mps:.2f} m/s"))

@@ -167,6 +167,10 @@ function render() {
   setText("p-state", mission?.state ?? "–", mission?.state === "complete" ? "good" : mission?.state === "aborted" ? "bad" : "");
   const why = mission && mission.state !== "idle" && mission.state !== "active" ? mission.reason || "" : mission?.reason || "";
   setText("p-reason", why || "–", !why ? "" : mission.state === "aborted" ? "bad" : "warn");
+  // The estimator's motion fault (StateEstimate.motion_fault): the vessel does not do what it is told.
+  setText("p-motion", !state ? "–" : state.motion_fault
+    ? `FAULT ${state.motion_fault}${state.motion_fault_detail ? ` — ${state.motion_fault_detail}` : ""}`
+    : "no fault", state?.motion_fault ? "bad" : "");
   setText("p-id", mission?.mission_id || "–");
   setText("p-leg", mission && mission.state !== "idle" ? `${mission.active_leg} / ${legs}` : "–");
   setText("p-dist", fmt(mission?.distance_to_waypoint_m, 1, "m"));
