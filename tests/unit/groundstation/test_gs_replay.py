@@ -158,6 +158,8 @@ def test_open_a_run_and_read_its_frames_missions_origin_and_report(client: TestC
     assert d["geo"][V]["lat0_deg"] == pytest.approx(28.18)
 
     w = client.get("/api/recording/frames", params={"id": "r1", "start_s": 0, "end_s": 100}).json()
+    d = client.get("/api/recording", params={"id": "r1"}).json()  # every frame is cut by now
+    assert w["complete"] and d["complete"] and w["loaded_to_s"] == 100
     assert w["count"] == d["frame_count"] == len(w["frames"]) > 40
     kinds = {k for f in w["frames"] for k in f["frame"]["updates"]}
     assert kinds == {"origin", "state", "thrust", "solve", "mission"}

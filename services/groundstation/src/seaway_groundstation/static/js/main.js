@@ -697,7 +697,8 @@ function updateTransport() {
   if (d) {
     $("scrub").max = d.duration_s.toFixed(2);
     if (document.activeElement !== $("scrub")) $("scrub").value = player.t;
-    setText("replay-time", `${player.t.toFixed(1)} / ${d.duration_s.toFixed(1)} s`);
+    const waiting = player.wanted === null ? "" : ` (loading to ${player.wanted.toFixed(1)} s…)`;
+    setText("replay-time", `${player.t.toFixed(1)} / ${d.duration_s.toFixed(1)} s${waiting}`);
   }
 }
 
