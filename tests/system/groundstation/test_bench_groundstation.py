@@ -17,7 +17,8 @@ pytestmark = [pytest.mark.system, pytest.mark.bench]
 
 def test_bench_groundstation_smoke(zenoh_env) -> None:
     out = subprocess.run([str(BIN / "seaway"), "bench", "groundstation", "--json", "--clients", "5",
-                          "--seconds", "2", "--replay-mb", "0"], env=zenoh_env, capture_output=True, text=True, timeout=180)
+                          "--seconds", "2", "--replay-mb", "0"], env=zenoh_env, capture_output=True,
+                         text=True, timeout=180)
     assert out.returncode == 0, out.stderr[-3000:]
     res = json.loads(out.stdout.strip().splitlines()[-1])
     f = res["figures"]

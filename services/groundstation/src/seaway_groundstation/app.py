@@ -291,6 +291,9 @@ class PageConfig(BaseModel):
     controllers: list[str]
     max_upload_bytes: int
     runs_dir: str
+    live_recordings: list[str] = Field(
+        default_factory=list, description="ids of the live run's recordings (its folder's, and its "
+                                          "vessels' folders' in a fleet): the plots' history")
 
 
 def _read_router(gs: GroundStation) -> APIRouter:
@@ -304,7 +307,9 @@ def _read_router(gs: GroundStation) -> APIRouter:
         return PageConfig(api_version=API_VERSION, stale_after_s=s.stale_after_s,
                           stream_rate_hz=s.stream_rate_hz, tiles_url=s.tiles_url,
                           controllers=list(CONTROLLER_NAMES), max_upload_bytes=s.max_upload_bytes,
-                          runs_dir=str(s.runs_dir))
+                          runs_dir=str(s.runs_dir),
+                          live_recordings=[] if s.run_dir is None else
+                          await run_in_threadpool(gs.library.runs.ids_in, Path(s.run_dir)))
 
     @r.get("/vessels", response_model=FleetView, summary="Every vessel seen, with its latest messages")
     async def vessels() -> FleetView:

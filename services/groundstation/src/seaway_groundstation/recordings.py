@@ -163,6 +163,19 @@ class RunsFolder:
         out.sort(key=lambda e: e.modified_s, reverse=True)
         return out[:MAX_LISTED]
 
+    def ids_in(self, folder: Path) -> list[str]:
+        """The ids of the recordings in ``folder`` (a run's: its own, and each vessel's folder's in a
+        fleet run), if it is under the root; reads only, like everything here."""
+        root = self._real_root()
+        try:
+            where = Path(folder).resolve()
+            if where == root or not where.is_relative_to(root) or not where.is_dir():
+                return []
+            subs = sorted(p for p in where.iterdir() if p.is_dir() and not p.is_symlink())
+        except OSError:
+            return []
+        return [d.relative_to(root).as_posix() for d in [where, *subs] if _mcaps(d)]
+
     def resolve(self, ref: str) -> tuple[Path, list[Path]]:
         """The folder or file ``ref`` names under the root and its MCAP files; RecordingError if the
         name is malformed (422), leaves the folder (422) or names no recording (404)."""

@@ -128,3 +128,36 @@ export class Player {
     this.onState?.();
   }
 }
+
+/** A recording's frames, all of them, as the player loads them: [{t_s, frame}]. */
+export async function recordedFrames(id) {
+  const q = encodeURIComponent(id);
+  const detail = await get(`/api/recording?id=${q}`);
+  const end = detail.duration_s + 1;
+  const frames = [];
+  let loaded = 0;
+  while (loaded < end) {
+    const w = await get(`/api/recording/frames?id=${q}&start_s=${loaded}&end_s=${loaded + WINDOW_S}`);
+    for (const f of w.frames) frames.push(f);
+    loaded = Math.max(loaded, w.loaded_to_s);
+  }
+  return frames;
+}
+
+/** The live store's history from the live run's recordings (`ids`): the plots and the trail as
+ *  they were before the page was (re)loaded. Live frames that arrive meanwhile are kept and go
+ *  again over the history. `clock`: the live store's clock [s]. */
+export async function liveHistory(store, ids, clock) {
+  if (!ids.length) return;
+  store.keepLog();
+  try {
+    const recordings = [];
+    for (const id of ids) {
+      const frames = await recordedFrames(id);
+      if (frames.length) recordings.push({ frames, endT: frames[frames.length - 1].t_s });
+    }
+    if (recordings.length) store.underlay(recordings, clock());
+  } finally {
+    store.log = null;
+  }
+}
