@@ -112,6 +112,59 @@ def test_a_gap_in_the_recording_shows_as_stale() -> None:
     assert not fleet_view["stale"]
 
 
+def test_only_the_last_message_of_a_kind_per_frame_is_decoded() -> None:
+    raw = [(T0 + i * 10_000_000, state(i).encode()) for i in range(40)]  # 100 Hz for 0.4 s
+    raw[24] = (raw[24][0], b'{"not": "a state"}')  # the last of the fifth period does not decode
+    decoded: list[bytes] = []
+
+    def decode(kind: str, data: bytes) -> StateEstimate | None:
+        decoded.append(data)
+        try:
+            return StateEstimate.decode(data)
+        except Exception:
+            return None
+
+    cutter = replay.Cutter(T0, 20.0, 2.0, decode)
+    frames = [f for t, data in raw for f in cutter.add(t, V, "state", data)] + cutter.finish()
+    assert len(frames) == 8 and len(decoded) == 9  # one a frame, and one more where the last is bad
+    assert cutter.undecodable == 1
+    xs = [json.loads(f.frame)["updates"]["state"]["message"]["x_m"] for f in frames]
+    expected = [0.1 * (5 * k - 1) for k in range(1, 9)]
+    expected[4] = 2.3  # the fifth period's last state does not decode: the one before it
+    assert xs == pytest.approx(expected)
+    whole = replay.cut_frames([(t, V, "state", state(i)) for i, (t, _) in enumerate(raw) if i != 24],
+                              T0, 20.0, 2.0)
+    assert [f.frame for f in frames] == [f.frame for f in whole]
+
+
+def test_a_timeline_answers_only_for_the_frames_it_has_cut(runs: Path) -> None:
+    from seaway_groundstation.timeline import Timeline
+    from seaway_recorder import recording
+
+    write_run(runs / "r1", n=50, chunk_size=2048)
+    files = recording.open_paths([runs / "r1"])
+    info = recording.read_info(files)
+    tl = Timeline(files, info.summaries, info.start_ns, 20.0, 2.0)
+    assert tl.window(0.0, 10.0) == ("[]", 0, 0.0) and not tl.complete  # nothing read yet
+    tl.start().wait(10.0, 30.0)
+    text, count, upto = tl.window(0.0, 10.0)
+    assert tl.complete and upto == 10.0 and count == len(json.loads(text)) > 40
+    assert [json.loads(f.frame) for f in tl.frames] == [json.loads(f.frame) for f in _whole_cut(files, info)]
+
+
+def _whole_cut(files: list[Path], info: Any) -> list[replay.ReplayFrame]:
+    """The frames as cut from every message decoded first (the way it was done before)."""
+    import heapq
+
+    from seaway_groundstation.gateway import TOPICS
+    from seaway_recorder import recording
+
+    dec = recording.decode_vessel(files, V, [s.suffix for s in TOPICS.values()], info.summaries)
+    streams = [[(t, V, kind, m) for t, m in zip(dec.log_ns.get(spec.suffix, []), dec.get(spec.suffix),
+                                                strict=True)] for kind, spec in TOPICS.items()]
+    return replay.cut_frames(heapq.merge(*streams, key=lambda s: s[0]), info.start_ns, 20.0, 2.0)
+
+
 # -- the runs folder -----------------------------------------------------------------------------
 
 
