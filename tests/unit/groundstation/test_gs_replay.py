@@ -224,6 +224,34 @@ def test_open_a_run_and_read_its_frames_missions_origin_and_report(client: TestC
     assert backwards.status_code == 422
 
 
+def test_frames_of_a_growing_recording_come_from_the_state_it_was_opened_in(
+        client: TestClient, runs: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A recording still being written was opened (repaired, read) again for every frames request
+    as it grew: a 40 MB live run loaded a few per cent a minute. Its frames now come from the state
+    the page opened; opening it again reads the new state."""
+    monkeypatch.setenv("SEAWAY_REPAIR_DIR", str(tmp_path / "repairs"))
+    (runs / "live").mkdir(parents=True)
+    w = RecordingWriter(runs / "live" / "recording.mcap", foxglove=False, chunk_size=2048)
+    w.open(T0)
+
+    def record(periods: range) -> None:
+        for i in periods:
+            assert w.write(keys.NAV_STATE.key(V), state(i).encode(),
+                           f"application/json;{StateEstimate.SCHEMA}", T0 + i * PERIOD_NS)
+        w.flush()
+
+    record(range(50))
+    opened = client.get("/api/recording", params={"id": "live"}).json()
+    for k in range(1, 4):
+        record(range(50 * k, 50 * (k + 1)))
+        r = client.get("/api/recording/frames", params={"id": "live", "start_s": 0, "end_s": 100}).json()
+        assert r["complete"] and r["duration_s"] == opened["duration_s"]
+    assert len(list((tmp_path / "repairs").glob("*/*.recovered.mcap"))) == 1
+    again = client.get("/api/recording", params={"id": "live"}).json()
+    assert again["duration_s"] > opened["duration_s"] + 10
+    w.close(T0 + 200 * PERIOD_NS)
+
+
 def test_bad_names_and_missing_recordings_are_refused_clearly(client: TestClient, runs: Path) -> None:
     write_run(runs / "r1", n=3)
     r = client.get("/api/recording", params={"id": "../../etc"})
