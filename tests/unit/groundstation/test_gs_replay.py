@@ -112,6 +112,59 @@ def test_a_gap_in_the_recording_shows_as_stale() -> None:
     assert not fleet_view["stale"]
 
 
+def test_only_the_last_message_of_a_kind_per_frame_is_decoded() -> None:
+    raw = [(T0 + i * 10_000_000, state(i).encode()) for i in range(40)]  # 100 Hz for 0.4 s
+    raw[24] = (raw[24][0], b'{"not": "a state"}')  # the last of the fifth period does not decode
+    decoded: list[bytes] = []
+
+    def decode(kind: str, data: bytes) -> StateEstimate | None:
+        decoded.append(data)
+        try:
+            return StateEstimate.decode(data)
+        except Exception:
+            return None
+
+    cutter = replay.Cutter(T0, 20.0, 2.0, decode)
+    frames = [f for t, data in raw for f in cutter.add(t, V, "state", data)] + cutter.finish()
+    assert len(frames) == 8 and len(decoded) == 9  # one a frame, and one more where the last is bad
+    assert cutter.undecodable == 1
+    xs = [json.loads(f.frame)["updates"]["state"]["message"]["x_m"] for f in frames]
+    expected = [0.1 * (5 * k - 1) for k in range(1, 9)]
+    expected[4] = 2.3  # the fifth period's last state does not decode: the one before it
+    assert xs == pytest.approx(expected)
+    whole = replay.cut_frames([(t, V, "state", state(i)) for i, (t, _) in enumerate(raw) if i != 24],
+                              T0, 20.0, 2.0)
+    assert [f.frame for f in frames] == [f.frame for f in whole]
+
+
+def test_a_timeline_answers_only_for_the_frames_it_has_cut(runs: Path) -> None:
+    from seaway_groundstation.timeline import Timeline
+    from seaway_recorder import recording
+
+    write_run(runs / "r1", n=50, chunk_size=2048)
+    files = recording.open_paths([runs / "r1"])
+    info = recording.read_info(files)
+    tl = Timeline(files, info.summaries, info.start_ns, 20.0, 2.0)
+    assert tl.window(0.0, 10.0) == ("[]", 0, 0.0) and not tl.complete  # nothing read yet
+    tl.start().wait(10.0, 30.0)
+    text, count, upto = tl.window(0.0, 10.0)
+    assert tl.complete and upto == 10.0 and count == len(json.loads(text)) > 40
+    assert [json.loads(f.frame) for f in tl.frames] == [json.loads(f.frame) for f in _whole_cut(files, info)]
+
+
+def _whole_cut(files: list[Path], info: Any) -> list[replay.ReplayFrame]:
+    """The frames as cut from every message decoded first (the way it was done before)."""
+    import heapq
+
+    from seaway_groundstation.gateway import TOPICS
+    from seaway_recorder import recording
+
+    dec = recording.decode_vessel(files, V, [s.suffix for s in TOPICS.values()], info.summaries)
+    streams = [[(t, V, kind, m) for t, m in zip(dec.log_ns.get(spec.suffix, []), dec.get(spec.suffix),
+                                                strict=True)] for kind, spec in TOPICS.items()]
+    return replay.cut_frames(heapq.merge(*streams, key=lambda s: s[0]), info.start_ns, 20.0, 2.0)
+
+
 # -- the runs folder -----------------------------------------------------------------------------
 
 
@@ -158,6 +211,8 @@ def test_open_a_run_and_read_its_frames_missions_origin_and_report(client: TestC
     assert d["geo"][V]["lat0_deg"] == pytest.approx(28.18)
 
     w = client.get("/api/recording/frames", params={"id": "r1", "start_s": 0, "end_s": 100}).json()
+    d = client.get("/api/recording", params={"id": "r1"}).json()  # every frame is cut by now
+    assert w["complete"] and d["complete"] and w["loaded_to_s"] == 100
     assert w["count"] == d["frame_count"] == len(w["frames"]) > 40
     kinds = {k for f in w["frames"] for k in f["frame"]["updates"]}
     assert kinds == {"origin", "state", "thrust", "solve", "mission"}
@@ -167,6 +222,34 @@ def test_open_a_run_and_read_its_frames_missions_origin_and_report(client: TestC
     assert part["frames"] and all(1 <= f["t_s"] < 2 for f in part["frames"])
     backwards = client.get("/api/recording/frames", params={"id": "r1", "start_s": 2, "end_s": 1})
     assert backwards.status_code == 422
+
+
+def test_frames_of_a_growing_recording_come_from_the_state_it_was_opened_in(
+        client: TestClient, runs: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A recording still being written was opened (repaired, read) again for every frames request
+    as it grew: a 40 MB live run loaded a few per cent a minute. Its frames now come from the state
+    the page opened; opening it again reads the new state."""
+    monkeypatch.setenv("SEAWAY_REPAIR_DIR", str(tmp_path / "repairs"))
+    (runs / "live").mkdir(parents=True)
+    w = RecordingWriter(runs / "live" / "recording.mcap", foxglove=False, chunk_size=2048)
+    w.open(T0)
+
+    def record(periods: range) -> None:
+        for i in periods:
+            assert w.write(keys.NAV_STATE.key(V), state(i).encode(),
+                           f"application/json;{StateEstimate.SCHEMA}", T0 + i * PERIOD_NS)
+        w.flush()
+
+    record(range(50))
+    opened = client.get("/api/recording", params={"id": "live"}).json()
+    for k in range(1, 4):
+        record(range(50 * k, 50 * (k + 1)))
+        r = client.get("/api/recording/frames", params={"id": "live", "start_s": 0, "end_s": 100}).json()
+        assert r["complete"] and r["duration_s"] == opened["duration_s"]
+    assert len(list((tmp_path / "repairs").glob("*/*.recovered.mcap"))) == 1
+    again = client.get("/api/recording", params={"id": "live"}).json()
+    assert again["duration_s"] > opened["duration_s"] + 10
+    w.close(T0 + 200 * PERIOD_NS)
 
 
 def test_bad_names_and_missing_recordings_are_refused_clearly(client: TestClient, runs: Path) -> None:

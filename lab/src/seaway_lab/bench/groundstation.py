@@ -23,6 +23,10 @@ vessel's kinds at up to 20 Hz each), the median and p99 latency of the timely cl
 20 ms), the server's CPU [% of one core]; then the ratio of the timely clients' p99 with and without
 the slow client (target <= 1.5: the slow one must not raise the others') and the server's resident
 memory.
+
+Then the replay (``groundstation_replay``): a recording of ``--replay-mb`` (40 MB) opened through
+the API the page's replay view uses; the time to its first frame (target <= 3 s) and to its whole
+timeline (target <= 10 s).
 """
 
 from __future__ import annotations
@@ -38,6 +42,7 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -172,10 +177,10 @@ def _latencies(stats: list[ClientStats], sent_ns: dict[int, int]) -> list[float]
     return out
 
 
-def _start_server(env: dict[str, str], log_path: Path) -> tuple[subprocess.Popen, str]:
+def _start_server(env: dict[str, str], log_path: Path, *extra: str) -> tuple[subprocess.Popen, str]:
     exe = str(Path(sys.executable).parent / "seaway-groundstation")
     log = open(log_path, "wb")  # noqa: SIM115 - closed with the process
-    proc = subprocess.Popen([exe, "--port", "0", "--log-level", "WARNING"], env=env, stdout=log,
+    proc = subprocess.Popen([exe, "--port", "0", "--log-level", "WARNING", *extra], env=env, stdout=log,
                             stderr=subprocess.STDOUT, start_new_session=True)
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline:
@@ -189,6 +194,25 @@ def _start_server(env: dict[str, str], log_path: Path) -> tuple[subprocess.Popen
     raise RuntimeError(f"seaway-groundstation did not start: {log_path.read_text(errors='replace')[-2000:]}")
 
 
+def _stop(proc: subprocess.Popen) -> None:
+    proc.send_signal(signal.SIGINT)
+    try:
+        proc.wait(10)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+
+
+def _replay(res: BenchResult, args: argparse.Namespace, tmp: Path, env: dict[str, str]) -> None:
+    from seaway_lab.bench import groundstation_replay
+
+    def serve(runs: Path) -> tuple[str, Callable[[], None]]:
+        proc, base = _start_server(env, tmp / "groundstation-replay.log", "--runs-dir", str(runs))
+        return base, lambda: _stop(proc)
+
+    groundstation_replay.measure(res, serve, tmp, env, args.replay_mb, args.replay_repeat,
+                                 args.recording)
+
+
 def run(argv: list[str]) -> BenchResult:
     ap = argparse.ArgumentParser(prog="seaway bench groundstation", description=__doc__.split("\n\n")[0])
     ap.add_argument("--clients", type=positive_int, default=50, help="timely stream clients (default 50)")
@@ -196,6 +220,11 @@ def run(argv: list[str]) -> BenchResult:
                     help="length of each phase [s] (default 10)")
     ap.add_argument("--state-hz", type=positive_float, default=20.0, help="state estimates published [Hz]")
     ap.add_argument("--solve-hz", type=positive_float, default=10.0, help="solve records published [Hz]")
+    ap.add_argument("--replay-mb", type=float, default=40.0,
+                    help="size of the recording replayed [MB] (default 40; 0: no replay figures)")
+    ap.add_argument("--replay-repeat", type=positive_int, default=3, help="opens of it timed (default 3)")
+    ap.add_argument("--recording", type=Path, default=None,
+                    help="replay this .mcap instead of making one from a lockstep run")
     ap.add_argument("--json", action="store_true", help="print one JSON object")
     args = ap.parse_args(argv)
 
@@ -233,11 +262,7 @@ def _measure(args: argparse.Namespace, tmp: Path) -> BenchResult:
             rss = _server_rss_mib(proc.pid)
             sent = dict(vessel.sent_ns)
     finally:
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
+        _stop(proc)
     p99 = {}
     for name, (stats, took, cpu) in phases.items():
         lat = _latencies(stats, sent)
@@ -256,6 +281,8 @@ def _measure(args: argparse.Namespace, tmp: Path) -> BenchResult:
     res.add("slow_over_steady_p99", ratio, f"<= {TARGET_SLOW_RATIO:g}", ratio <= TARGET_SLOW_RATIO,
             note="the timely clients' p99 with the slow client / without")
     res.add("server_rss_mib", rss)
+    if args.replay_mb > 0 or args.recording is not None:
+        _replay(res, args, tmp, env)
     res.meta.update(clients=args.clients, seconds_per_phase=args.seconds, state_hz=args.state_hz,
                     solve_hz=args.solve_hz, cpus=os.cpu_count())
     return res

@@ -55,7 +55,7 @@ from starlette.concurrency import run_in_threadpool
 from starlette.datastructures import UploadFile
 from starlette.websockets import WebSocket
 
-from seaway_groundstation import bodies, errors, geo, guard, mission_checks, plans, replay
+from seaway_groundstation import bodies, errors, geo, guard, mission_checks, plans
 from seaway_groundstation.fleet import Fleet
 from seaway_groundstation.gateway import BusLink, ask
 from seaway_groundstation.journal import RequestJournal
@@ -98,6 +98,8 @@ TAGS = [
 STATIC = importlib.resources.files("seaway_groundstation") / "static"
 """The page: plain HTML, CSS and ES modules shipped in the package (no build step, no CDN)."""
 UPLOAD_PATH = "/api/recordings/upload"
+FRAMES_WAIT_S = 2.0
+"""How long a frames request waits for frames not yet cut [s] before it answers with fewer."""
 RecordingId = Annotated[str, Query(
     min_length=1, max_length=600, examples=["20260101-120000-sim-lake-cc-empc"],
     description="a recording's id from GET /api/recordings: its path under the runs folder, or upload:...")]
@@ -289,6 +291,9 @@ class PageConfig(BaseModel):
     controllers: list[str]
     max_upload_bytes: int
     runs_dir: str
+    live_recordings: list[str] = Field(
+        default_factory=list, description="ids of the live run's recordings (its folder's, and its "
+                                          "vessels' folders' in a fleet): the plots' history")
 
 
 def _read_router(gs: GroundStation) -> APIRouter:
@@ -302,7 +307,9 @@ def _read_router(gs: GroundStation) -> APIRouter:
         return PageConfig(api_version=API_VERSION, stale_after_s=s.stale_after_s,
                           stream_rate_hz=s.stream_rate_hz, tiles_url=s.tiles_url,
                           controllers=list(CONTROLLER_NAMES), max_upload_bytes=s.max_upload_bytes,
-                          runs_dir=str(s.runs_dir))
+                          runs_dir=str(s.runs_dir),
+                          live_recordings=[] if s.run_dir is None else
+                          await run_in_threadpool(gs.library.runs.ids_in, Path(s.run_dir)))
 
     @r.get("/vessels", response_model=FleetView, summary="Every vessel seen, with its latest messages")
     async def vessels() -> FleetView:
@@ -634,28 +641,34 @@ def _replay_router(gs: GroundStation, command: list[Any]) -> APIRouter:
         """Its span, vessels and number of frames, the missions flown (in metres), each vessel's
         origin and the run's report; the frames themselves come from ``/api/recording/frames``."""
         try:
-            return (await run_in_threadpool(gs.library.open, id)).detail
+            return (await run_in_threadpool(gs.library.open, id)).current()
         except RecordingError as err:
             raise _recording_error(err) from None
 
     @r.get("/recording/frames", summary="A recording's frames over a span of its time",
-           responses={200: {"description": "{id, start_s, end_s, duration_s, count, frames: "
-                                           "[{t_s, frame}]}, each frame as the live stream sends it"},
+           responses={200: {"description": "{id, start_s, end_s, loaded_to_s, complete, duration_s, "
+                                           "count, frames: [{t_s, frame}]}, each frame as the live "
+                                           "stream sends it"},
                       404: _errors("no such recording"), 422: _unprocessable("a bad name or span")})
     async def frames(id: RecordingId,
                      start_s: Annotated[float, Query(ge=0, le=1e7, description="from [s]")] = 0.0,
                      end_s: Annotated[float, Query(gt=0, le=1e7, description="until [s], excluded")] = 60.0
                      ) -> Response:
-        """The frames with ``start_s <= t_s < end_s`` (seconds since the recording's start), each
-        exactly what the live stream would have sent then: the page feeds both to the same code."""
+        """The frames with ``start_s <= t_s < loaded_to_s`` (seconds since the recording's start),
+        each exactly what the live stream would have sent then: the page feeds both to the same
+        code. The frames are cut as the recording is read: the answer waits a little for them up
+        to ``end_s``, then gives those cut so far; ``loaded_to_s`` (``end_s`` once they all are)
+        says up to when it is whole, where the next request takes up."""
         if end_s <= start_s:
             raise HTTPException(422, f"end_s ({end_s}) must be after start_s ({start_s})")
         try:
-            loaded = await run_in_threadpool(gs.library.open, id)
+            loaded = await run_in_threadpool(gs.library.get, id)
         except RecordingError as err:
             raise _recording_error(err) from None
-        text, count = replay.window(loaded.frames, start_s, end_s, loaded.times)
-        head = json.dumps({"id": id, "start_s": start_s, "end_s": end_s,
+        await run_in_threadpool(loaded.timeline.wait, end_s, FRAMES_WAIT_S)
+        text, count, upto = loaded.timeline.window(start_s, end_s)
+        head = json.dumps({"id": id, "start_s": start_s, "end_s": end_s, "loaded_to_s": upto,
+                           "complete": loaded.timeline.complete,
                            "duration_s": loaded.detail.duration_s, "count": count})
         return Response(head[:-1] + ',"frames":' + text + "}", media_type="application/json")
 

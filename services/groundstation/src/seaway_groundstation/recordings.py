@@ -6,8 +6,11 @@
 * ``UploadStore``: uploaded ``.mcap`` files in a private folder, a bounded number of them, each
   checked to be MCAP and to read; named ``upload:<id>-<name>.mcap``.
 * ``Library``: opens a recording with the recorder's own reading code (``seaway_recorder``:
-  series, crash-truncated files, duplicates), cuts it into the live stream's frames (``replay.py``)
-  and keeps the last few opened (a recording still being written is opened again when it grew).
+  series, crash-truncated files, duplicates), has it cut into the live stream's frames by a thread
+  of its own (``timeline.py``: the first frames at once, the rest as they are cut) and keeps the
+  last few opened (a recording still being written is opened again when it grew; its frames are
+  read from the state it was opened in). Nothing is ever written beside a recording: an
+  unfinished one is read through the recorder's repaired copy in its cache.
   Also what the page needs beside the frames: the missions flown (the controller's recorded
   ``mission/accepted``, else the ground station's journal, the launcher's ``mission.json`` or the
   recording's attachments) in local metres, each vessel's NED origin, and the run's
@@ -21,7 +24,6 @@ from __future__ import annotations
 
 import collections
 import contextlib
-import heapq
 import json
 import logging
 import os
@@ -41,9 +43,9 @@ from seaway.contract import keys
 from seaway.contract.messages import MessageError, MissionAccepted, MissionRequest
 from seaway.vessel.frames import GeoOrigin
 
-from seaway_groundstation import geo, journal, replay
-from seaway_groundstation.gateway import TOPICS
+from seaway_groundstation import geo, journal
 from seaway_groundstation.geo import GeoFrameView, MissionPlanView
+from seaway_groundstation.timeline import Timeline
 
 log = logging.getLogger("seaway_groundstation.recordings")
 
@@ -90,7 +92,10 @@ class RecordingDetail(RecordingEntry):
     message_count: int
     vessels: list[str]
     topics: dict[str, int]
-    frame_count: int
+    frame_count: int = Field(description="frames cut so far (every one once complete)")
+    complete: bool = Field(description="every frame is cut")
+    loaded_to_s: float | None = Field(description="frames before this recorded time [s] are cut "
+                                                  "(null once complete)")
     rate_hz: float = Field(description="frames per second of recorded time")
     missions: list[MissionPlanView] = Field(description="missions known to have been flown, "
                                                             "in local metres (match by mission_id)")
@@ -157,6 +162,19 @@ class RunsFolder:
                                       modified_s=newest, has_report=has_report))
         out.sort(key=lambda e: e.modified_s, reverse=True)
         return out[:MAX_LISTED]
+
+    def ids_in(self, folder: Path) -> list[str]:
+        """The ids of the recordings in ``folder`` (a run's: its own, and each vessel's folder's in a
+        fleet run), if it is under the root; reads only, like everything here."""
+        root = self._real_root()
+        try:
+            where = Path(folder).resolve()
+            if where == root or not where.is_relative_to(root) or not where.is_dir():
+                return []
+            subs = sorted(p for p in where.iterdir() if p.is_dir() and not p.is_symlink())
+        except OSError:
+            return []
+        return [d.relative_to(root).as_posix() for d in [where, *subs] if _mcaps(d)]
 
     def resolve(self, ref: str) -> tuple[Path, list[Path]]:
         """The folder or file ``ref`` names under the root and its MCAP files; RecordingError if the
@@ -270,11 +288,22 @@ def remove_upload(path: Path) -> None:
 
 @dataclass
 class Loaded:
-    """An opened recording: its detail and frames (with their times, for windows)."""
+    """An opened recording: its detail and its frames (cut by a thread of their own)."""
 
     detail: RecordingDetail
-    frames: list[replay.ReplayFrame]
-    times: list[float]
+    timeline: Timeline
+
+    def current(self) -> RecordingDetail:
+        """The detail with the frames cut so far (and, once all are, what could not be read)."""
+        tl = self.timeline
+        notes = list(self.detail.notes)
+        if tl.complete and tl.undecodable:
+            notes.append(f"{tl.undecodable} message(s) that do not decode were left out")
+        if tl.error:
+            notes.append(f"the recording could not be read to its end: {tl.error}")
+        return self.detail.model_copy(update={
+            "frame_count": len(tl.frames), "complete": tl.complete,
+            "loaded_to_s": None if tl.complete else tl.loaded_to_s, "notes": notes})
 
 
 class Library:
@@ -286,6 +315,7 @@ class Library:
         self.rate_hz, self.stale_after_s, self.cache_size = rate_hz, stale_after_s, cache_size
         self._cache: collections.OrderedDict[tuple[Any, ...], Loaded] = collections.OrderedDict()
         self._lock = threading.Lock()
+        self._opening: dict[str, threading.Lock] = {}
 
     def listing(self) -> RecordingList:
         return RecordingList(runs_dir=str(self.runs.root),
@@ -297,23 +327,36 @@ class Library:
         return (*self.runs.resolve(ref), "runs")
 
     def open(self, ref: str) -> Loaded:
-        """The recording ``ref``, opened (blocking: call from a worker thread)."""
+        """The recording ``ref``, opened (blocking: call from a worker thread); opened again when
+        its files changed (a recording still being written), else the one opened before."""
         where, files, source = self.resolve(ref)
         try:
             key = (ref, *((f.name, f.stat().st_size, f.stat().st_mtime_ns) for f in files))
         except OSError as err:
             raise RecordingError(404, f"recording {ref!r}: {err}") from None
         with self._lock:
-            hit = self._cache.get(key)
-            if hit is not None:
-                self._cache.move_to_end(key)
-                return hit
-        loaded = self._load(ref, where, files, source)
-        with self._lock:
-            self._cache[key] = loaded
-            while len(self._cache) > self.cache_size:
-                self._cache.popitem(last=False)
+            opening = self._opening.setdefault(ref, threading.Lock())
+        with opening:  # one open of a recording at a time: readers at once share it
+            with self._lock:
+                hit = self._cache.get(key)
+                if hit is not None:
+                    self._cache.move_to_end(key)
+                    return hit
+            loaded = self._load(ref, where, files, source)
+            with self._lock:
+                self._cache[key] = loaded
+                while len(self._cache) > self.cache_size:
+                    self._cache.popitem(last=False)[1].timeline.cancel()
         return loaded
+
+    def get(self, ref: str) -> Loaded:
+        """The recording ``ref`` as last opened, even if it grew since (its frames are being read
+        from that state), else opened now: a page reading its frames keeps one state of it."""
+        with self._lock:
+            for key in reversed(self._cache):
+                if key[0] == ref:
+                    return self._cache[key]
+        return self.open(ref)
 
     def _load(self, ref: str, where: Path, files: list[Path], source: Literal["runs", "upload"]) -> Loaded:
         from seaway_recorder import recording  # the recorder's reader: only the replay view needs it
@@ -325,28 +368,24 @@ class Library:
             raise RecordingError(422, f"recording {ref!r} does not read as MCAP: {err}") from None
         vessels = sorted({t.split("/", 2)[1] for t in info.topics
                           if t.startswith(keys.ROOT + "/") and keys.spec_for_key(t) is not None})
-        suffix_kind = {spec.suffix: kind for kind, spec in TOPICS.items()}
-        streams: list[list[tuple[int, str, Any, Any]]] = []
         notes: list[str] = []
         origins: dict[str, GeoOrigin | None] = {}
         accepted: list[tuple[str, MissionAccepted]] = []  # (vessel, acceptance), as recorded
-        for v in vessels:
-            dec = recording.decode_vessel(readable, v, [*suffix_kind, keys.MISSION_ACCEPTED.suffix],
-                                          info.summaries)
+        for v in vessels:  # only these two: a few messages, read through the chunks' index
+            try:
+                dec = recording.decode_vessel(readable, v, [keys.MISSION_ACCEPTED.suffix,
+                                                            keys.NAV_ORIGIN.suffix], info.summaries)
+            except Exception as err:
+                raise RecordingError(422, f"recording {ref!r} does not read: {err}") from None
             accepted += [(v, m) for m in dec.get(keys.MISSION_ACCEPTED.suffix)
                          if isinstance(m, MissionAccepted)]
-            if dec.undecodable:
-                notes.append(f"{v}: {dec.undecodable} message(s) that do not decode were left out")
-            for suffix, kind in suffix_kind.items():
-                msgs, logs = dec.get(suffix), dec.log_ns.get(suffix, [])
-                streams.append([(t, v, kind, m) for t, m in zip(logs, msgs, strict=True)])
             recorded = dec.get(keys.NAV_ORIGIN.suffix)
             origins[v] = geo.geo_origin(recorded[-1]) if recorded else None  # type: ignore[arg-type]
         scenario_name, scenario_origin = _scenario(info.attachments, notes)
         for v in vessels:
             origins[v] = origins[v] or scenario_origin
-        frames = replay.cut_frames(heapq.merge(*streams, key=lambda s: s[0]), info.start_ns,
-                                   self.rate_hz, self.stale_after_s)
+        timeline = Timeline(readable, info.summaries, info.start_ns, self.rate_hz,
+                            self.stale_after_s).start()
         size, newest = _entry_stats(files)
         run_folder = where if where.is_dir() else None
         detail = RecordingDetail(
@@ -355,12 +394,12 @@ class Library:
             has_report=run_folder is not None and (run_folder / "report" / "metrics.json").is_file(),
             start_ns=info.start_ns, duration_s=max(0.0, (info.end_ns - info.start_ns) / 1e9),
             message_count=info.message_count, vessels=vessels, topics=info.topics,
-            frame_count=len(frames), rate_hz=self.rate_hz,
+            frame_count=0, complete=False, loaded_to_s=0.0, rate_hz=self.rate_hz,
             missions=_missions(run_folder, info.attachments, origins, scenario_name, notes,
                                accepted),
             geo={v: fv for v, o in origins.items() if (fv := geo.frame_view(o)) is not None},
             report=_report(run_folder, notes), notes=notes)
-        return Loaded(detail, frames, [f.t_s for f in frames])
+        return Loaded(detail, timeline)
 
 
 def _scenario(attachments: dict[str, bytes], notes: list[str]) -> tuple[str | None, GeoOrigin | None]:

@@ -10,7 +10,7 @@ import { ApiError, command, get, getToken, request, setToken, takeTokenFromFragm
 import { LiveStream } from "./live.js";
 import { MapView } from "./map.js";
 import { TimePlot } from "./plot.js";
-import { Player } from "./replay.js";
+import { Player, liveHistory } from "./replay.js";
 import { Store } from "./store.js";
 import { $, fmt, fmtDuration, fmtEnergy, markStale, say, setText, stickySay } from "./ui.js";
 
@@ -701,7 +701,8 @@ function updateTransport() {
   if (d) {
     $("scrub").max = d.duration_s.toFixed(2);
     if (document.activeElement !== $("scrub")) $("scrub").value = player.t;
-    setText("replay-time", `${player.t.toFixed(1)} / ${d.duration_s.toFixed(1)} s`);
+    const waiting = player.wanted === null ? "" : ` (loading to ${player.wanted.toFixed(1)} s…)`;
+    setText("replay-time", `${player.t.toFixed(1)} / ${d.duration_s.toFixed(1)} s${waiting}`);
   }
 }
 
@@ -768,6 +769,9 @@ async function start() {
   $("controller").replaceChildren(...app.config.controllers.map((c) => new Option(c, c)));
   renderDraftTable();
   setMode(new URLSearchParams(location.search).get("view") === "replay" ? "replay" : "live");
+  // Plots keep their history across a reload: the live run's recording under the live frames.
+  liveHistory(app.live, app.config.live_recordings || [], clockLive).then(schedule)
+    .catch((err) => say(`The plots' history from the recording: ${err.message}`, "error"));
   stream.start();
   pollFleet();
   map.fit();

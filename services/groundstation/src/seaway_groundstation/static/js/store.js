@@ -131,6 +131,7 @@ export class VesselData {
 export class Store {
   constructor() {
     this.vessels = new Map();
+    this.log = null;         // [[frame, now]] since keepLog (null: not kept)
   }
 
   vessel(name) {
@@ -144,8 +145,29 @@ export class Store {
 
   ingest(frame, now) {
     if (!frame || typeof frame.vessel !== "string") return null;
+    this.log?.push([frame, now]);
     this.vessel(frame.vessel).ingest(frame, now);
     return frame.vessel;
+  }
+
+  /** Keep the frames ingested from now on, to go again over a history (`underlay`). */
+  keepLog() {
+    this.log = [];
+  }
+
+  /** Put recordings' frames (`[{frames: [{t_s, frame}], endT}]`, the last frame of each at `endT`
+   *  [s]: at `now` on the store's clock) under what this store has ingested since `keepLog`: the
+   *  recorded ones first, then those again (a point older than the last one of its series is left
+   *  out: no doubles where they overlap). */
+  underlay(recordings, now) {
+    const log = this.log || [];
+    this.log = null;
+    const under = new Store();
+    for (const { frames, endT } of recordings) {
+      for (const f of frames) under.ingest(f.frame, now - (endT - f.t_s));
+    }
+    for (const [frame, at] of log) under.ingest(frame, at);
+    this.vessels = under.vessels;
   }
 
   clear() {
