@@ -17,7 +17,9 @@ per vessel with news, at most ``stream_rate_hz`` per client::
                  "energy": {... EnergyBudget: energy used, to finish, to home, battery, margin,
                             point of no return (local NED), decision ...},
                  "area": {... ActiveArea: keep-in, keep-outs, rally points (local NED) ...},
-                 "battery": {... BatteryState ...}, "gnss": {... GnssFix ...}}}
+                 "battery": {... BatteryState ...}, "gnss": {... GnssFix ...},
+                 "command": {... CommandNote: the latest request this ground station relayed to the
+                             vessel, its answer and the sending page's X-Seaway-Client id ...}}}
 
 with only the kinds that changed since the client's last frame (the latest of each, never a
 backlog; ``stream.py`` says how a slow client is kept from slowing the others).
@@ -73,6 +75,7 @@ from seaway_groundstation.recordings import (
 from seaway_groundstation.settings import Settings
 from seaway_groundstation.stream import StreamHub
 from seaway_groundstation.views import (
+    CommandNote,
     CommandReply,
     ErrorBody,
     FleetView,
@@ -179,6 +182,11 @@ class GroundStation:
         reply = await run_in_threadpool(ask, self.bus, spec, msg, vessel, self.settings.request_timeout_s)
         await run_in_threadpool(self.journal.record, vessel, spec.suffix, reply.outcome, reply.reason,
                                 msg.model_dump(mode="json"))
+        self.fleet.on_command(vessel, CommandNote(
+            request=spec.suffix, what=bodies.command_words(msg), outcome=reply.outcome,
+            reason=reply.reason, client=guard.commander.get(), stamp_ns=time.time_ns()),
+            self.settings.clock())
+        self.hub.notify(vessel)
         return reply
 
     async def send_mission(self, vessel: str, req: MissionRequest,

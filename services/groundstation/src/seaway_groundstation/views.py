@@ -89,6 +89,20 @@ class FleetView(BaseModel):
 Outcome = Literal["accepted", "refused", "no_reply", "error_reply"]
 
 
+class CommandNote(BaseModel):
+    """A request this ground station relayed to a vessel, as every page hears it on the stream
+    (kind ``command``): so each tab and client sees what another one commanded."""
+
+    request: str = Field(description="the bus request: its key suffix, e.g. "
+                                     f"{keys.VEHICLE_MODE.suffix!r}")
+    what: str = Field(description="the request in a few words, e.g. 'mode HOLD', 'pause'")
+    outcome: Outcome
+    reason: str = ""
+    client: str = Field(description="the sending page's own id (its X-Seaway-Client header; '' "
+                                    "from a client without one)")
+    stamp_ns: int = Field(description="when the vessel answered, Unix time [ns]")
+
+
 class CommandReply(BaseModel):
     """The vessel's answer to one request: accepted, or refused with a reason a person can act on."""
 
