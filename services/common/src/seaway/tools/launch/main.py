@@ -201,15 +201,17 @@ def free_udp_ports(n: int) -> list[int]:
 def supervised(plan: list[Instance], vessels: list[str], run_dir: Path,
                common: dict[str, str]) -> list[Supervised]:
     """The processes of ``plan`` with their commands' placeholders filled in: ``common`` (the
-    launch's) and each one's vessel's ``{vessel}``, ``{run}``, ``{vessel_dir}`` and
-    ``{mavlink_port}`` (a free UDP port per vessel). ConfigError for an unknown placeholder."""
+    launch's) and each one's vessel's ``{vessel}``, ``{run}``, ``{vessel_dir}``,
+    ``{mavlink_port}`` (a free UDP port per vessel) and ``{vessel_index}`` (its place in
+    ``vessels``, from 0). ConfigError for an unknown placeholder."""
     ports = dict(zip(vessels, free_udp_ports(len(vessels)), strict=True))
     out = []
     for inst in plan:
         folder = vessel_dir(run_dir, inst.vessel, vessels)
         values = {**common, "vessel": inst.vessel, "run": str(folder / recording_source.RUN_FILE),
                   "vessel_dir": str(folder if inst.per_vessel or len(vessels) == 1 else run_dir),
-                  "mavlink_port": str(ports[inst.vessel])}
+                  "mavlink_port": str(ports[inst.vessel]),
+                  "vessel_index": str(vessels.index(inst.vessel))}
         out.append(Supervised(inst.spec, substitute(inst.spec.command, values), inst.vessel,
                               folder if inst.per_vessel else None))
     return out
