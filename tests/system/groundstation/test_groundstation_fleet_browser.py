@@ -15,6 +15,7 @@ the test's folder.
 
 from __future__ import annotations
 
+import json
 import math
 import re
 import signal
@@ -25,6 +26,7 @@ from seaway.contract import keys
 from seaway.contract.messages import (
     BatteryState,
     MissionCommand,
+    MissionRequest,
     MissionStatus,
     NavOrigin,
     Reply,
@@ -69,6 +71,13 @@ def test_a_fleet_of_two_is_told_apart_guarded_and_usable_on_a_phone(procs, zenoh
     base, token = line.group(1), line.group(2)
     stop = threading.Event()
     commands: dict[str, list[str]] = {A: [], B: []}
+    missions: dict[str, list[MissionRequest]] = {A: [], B: []}
+
+    def on_mission(vessel: str):
+        def serve(req: MissionRequest) -> Reply:
+            missions[vessel].append(req)
+            return Reply.accept(1, "mission started")
+        return serve
 
     def on_command(vessel: str):
         def serve(req: MissionCommand) -> Reply:
@@ -78,7 +87,7 @@ def test_a_fleet_of_two_is_told_apart_guarded_and_usable_on_a_phone(procs, zenoh
 
     with Bus.open(A) as bus:
         for v in (A, B):
-            bus.queryable(keys.MISSION_SET, lambda req: Reply.accept(1, "mission started"), vessel=v)
+            bus.queryable(keys.MISSION_SET, on_mission(v), vessel=v)
             bus.queryable(keys.MISSION_COMMAND, on_command(v), vessel=v)
             bus.queryable(keys.VEHICLE_MODE, lambda req: Reply.accept(1, f"mode {req.mode}"), vessel=v)
             bus.declare_alive("vehicle_io", vessel=v)
@@ -190,6 +199,28 @@ def test_a_fleet_of_two_is_told_apart_guarded_and_usable_on_a_phone(procs, zenoh
             page.locator("#draft-from-active").focus()
             page.keyboard.press("Tab")
             assert page.evaluate("() => document.activeElement.id") == "import-file"
+
+            # Per-waypoint speed: a GeoJSON's speeds_mps in the editor, editable; the first speed is
+            # sent as the mission's speed hint (the controller takes one per mission).
+            lat0, lon0 = math.degrees(ORIGIN.lat_rad), math.degrees(ORIGIN.lon_rad)
+            line = [[lon0 + k * 1e-4, lat0] for k in range(3)]
+            doc = {"type": "Feature", "geometry": {"type": "LineString", "coordinates": line},
+                   "properties": {"speeds_mps": [None, 1.3, 0.9]}}
+            page.set_input_files("#import-file", files=[{
+                "name": "speeds.geojson", "mimeType": "application/json",
+                "buffer": json.dumps(doc).encode()}])
+            page.wait_for_function("document.querySelectorAll('#wp-table tbody tr').length === 3",
+                                   timeout=10_000)
+            speeds = [page.locator(f"#wp-table input[aria-label^='speed {i}']").input_value()
+                      for i in range(3)]
+            assert speeds == ["", "1.3", "0.9"], speeds
+            page.locator("#wp-table input[aria-label^='speed 0']").fill("1.1")
+            page.locator("#wp-table input[aria-label^='speed 0']").press("Tab")
+            page.once("dialog", lambda d: d.accept())
+            page.locator("#send-mission").click()
+            wait_for(lambda: len(missions[B]) == 2, 20, what="the mission with its speed hint")
+            assert missions[B][-1].speed_hint_mps == pytest.approx(1.1)
+            assert len(missions[B][-1].waypoints) == 3
 
             # Guards: a second tab. Declining the confirmation sends nothing; accepting sends once.
             other = browser.new_page(viewport={"width": 1200, "height": 900})

@@ -411,6 +411,7 @@ def _mission_router(gs: GroundStation, command: list[Any]) -> APIRouter:
         metres = None if vessel is None else geo.points_m(path.points_deg, gs.fleet.geo_origin(vessel))
         area = None if path.area is None else path.area.model_dump(mode="json", exclude_none=True)
         return ParsedMission(source=path.source, skipped=list(path.skipped), hints=path.hints, area=area,
+                             speeds_mps=list(path.speeds_mps),
                              waypoints=[{"lat_deg": a, "lon_deg": b} for a, b in path.points_deg],
                              waypoints_m=None if metres is None else [{"x_m": x, "y_m": y}
                                                                       for x, y in metres])

@@ -135,6 +135,10 @@ class ParsedMission(BaseModel):
     skipped: list[str] = Field(default_factory=list)
     hints: dict[str, Any] = Field(default_factory=dict,
                                   description="mission parameters the file states")
+    speeds_mps: list[float | None] = Field(
+        default_factory=list, description="each waypoint's speed from the file (a .plan's "
+                                          "DO_CHANGE_SPEED, a GeoJSON speeds_mps property) [m/s], or "
+                                          "[]: the controller takes the first as the mission's hint")
     area: dict[str, Any] | None = Field(
         default=None, description="the operating area and rally points the file carries (a .plan's "
                                   "geoFence and rallyPoints, GeoJSON area features), in degrees, as "

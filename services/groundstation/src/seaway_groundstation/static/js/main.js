@@ -590,16 +590,30 @@ function renderDraftTable() {
   body.replaceChildren(...app.draft.map((p, i) => {
     const tr = document.createElement("tr");
     tr.innerHTML = `<td>${i}</td><td><input type="number" step="0.1" aria-label="north ${i}"></td>`
-      + `<td><input type="number" step="0.1" aria-label="east ${i}"></td><td><button title="remove">×</button></td>`;
-    const [n, e] = tr.querySelectorAll("input");
+      + `<td><input type="number" step="0.1" aria-label="east ${i}"></td>`
+      + `<td><input type="number" step="0.1" min="0.1" max="50" placeholder="–" aria-label="speed ${i} in metres per second"></td>`
+      + `<td><button title="remove" aria-label="remove waypoint ${i}">×</button></td>`;
+    const [n, e, v] = tr.querySelectorAll("input");
     n.value = p.x_m.toFixed(2);
     e.value = p.y_m.toFixed(2);
+    v.value = Number.isFinite(p.speed_mps) ? String(p.speed_mps) : "";
     const edit = () => {
-      app.draft[i] = { x_m: Number(n.value), y_m: Number(e.value) };
+      // Moved in metres: its lat/lon no longer holds; the speed stays the waypoint's.
+      const speed = v.value === "" ? undefined : Number(v.value);
+      if (speed !== undefined && !(speed > 0 && speed <= 50)) {
+        say(`Waypoint ${i}: speed ${v.value} m/s is not in (0, 50]`, "warn");
+        v.value = Number.isFinite(p.speed_mps) ? String(p.speed_mps) : "";
+        return;
+      }
+      const moved = Number(n.value) !== p.x_m || Number(e.value) !== p.y_m;
+      app.draft[i] = moved ? { x_m: Number(n.value), y_m: Number(e.value) } : { ...p };
+      if (speed === undefined) delete app.draft[i].speed_mps;
+      else app.draft[i].speed_mps = speed;
       map.setDraft(app.draft, coa());
     };
     n.onchange = edit;
     e.onchange = edit;
+    v.onchange = edit;
     tr.querySelector("button").onclick = () => {
       app.draft.splice(i, 1);
       renderDraftTable();
@@ -621,8 +635,13 @@ function draftBody() {
     task_power_w: Number($("task-power").value),
     controller: $("controller").value,
     predict_disturbance: $("predict").checked,
+    // One cruise hint per mission: the controller has no per-waypoint speed.
+    ...(speedHint() !== undefined ? { speed_hint_mps: speedHint() } : {}),
   };
 }
+
+/** The mission's speed hint [m/s]: the first waypoint speed given in the editor, if any. */
+const speedHint = () => app.draft.find((p) => Number.isFinite(p.speed_mps))?.speed_mps;
 
 $("send-mission").onclick = async () => {
   if (app.draft.length < 2) {
@@ -688,7 +707,11 @@ $("import-file").onchange = async (ev) => {
       return;
     }
     // Keep the file's latitude/longitude (sent as they are); metres are for drawing and editing.
-    app.draft = parsed.waypoints_m.map((p, i) => ({ ...p, ...parsed.waypoints[i] }));
+    app.draft = parsed.waypoints_m.map((p, i) => ({ ...p, ...parsed.waypoints[i],
+      ...(Number.isFinite(parsed.speeds_mps?.[i]) ? { speed_mps: parsed.speeds_mps[i] } : {}) }));
+    if (!parsed.speeds_mps?.length && parsed.hints?.speed_hint_mps && app.draft.length) {
+      app.draft[0].speed_mps = parsed.hints.speed_hint_mps;
+    }
     if (parsed.hints?.coa_radius_m) $("coa").value = parsed.hints.coa_radius_m;
     if (parsed.hints?.task_power_w !== undefined) $("task-power").value = parsed.hints.task_power_w;
     renderDraftTable();

@@ -184,8 +184,9 @@ export class MapView {
         this.follow = false;
         this.center = [drag.center[0] + dy / this.scale, drag.center[1] - dx / this.scale];
       } else {
-        // A moved waypoint is in metres from now on (its lat/lon no longer holds).
-        this.draft[drag.index] = { x_m: round2(n), y_m: round2(e) };
+        // A moved waypoint is in metres from now on (its lat/lon no longer holds); its speed stays.
+        const speed = this.draft[drag.index]?.speed_mps;
+        this.draft[drag.index] = { x_m: round2(n), y_m: round2(e), ...(Number.isFinite(speed) ? { speed_mps: speed } : {}) };
         this.onDraftChange?.(this.draft, false);
       }
       this.invalidate();
