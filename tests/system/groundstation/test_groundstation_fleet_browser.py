@@ -34,11 +34,13 @@ from seaway.contract.messages import (
     VehicleStatus,
 )
 from seaway.runtime.bus import Bus
+from seaway.tools.launch.address import ENV_TILES
 from seaway.vessel.frames import GeoOrigin
 
 from tests.conftest import BIN, wait_for
 from tests.system.groundstation import axe_check
 from tests.system.groundstation.helpers import http
+from tests.unit.groundstation import mbtiles_maker
 
 pytestmark = pytest.mark.system
 A, B = "vessel1", "vessel2"
@@ -64,8 +66,14 @@ def test_a_fleet_of_two_is_told_apart_guarded_and_usable_on_a_phone(procs, zenoh
     shots = tmp_path / "screenshots"
     shots.mkdir()
     print(f"\nscreenshots: {shots}")
+    # Offline map tiles as the launcher hands them over (its --tiles, in the environment): a tiny
+    # MBTiles file around the origin, served by the ground station itself.
+    lat0, lon0 = math.degrees(ORIGIN.lat_rad), math.degrees(ORIGIN.lon_rad)
+    around = [(z, x + dx, y + dy) for z in range(15, 21)
+              for x, y in [mbtiles_maker.slippy(lat0, lon0, z)] for dx in range(-6, 7) for dy in range(-6, 7)]
+    tiles = mbtiles_maker.make(tmp_path / "lake.mbtiles", around)
     gs = procs.start([str(BIN / "seaway-groundstation"), "--port", "0", "--request-timeout-s", "10"],
-                     zenoh_env, "groundstation")
+                     {**zenoh_env, ENV_TILES: str(tiles)}, "groundstation")
     line = wait_for(lambda: re.search(r"groundstation: (http://127\.0\.0\.1:\d+/) token (\S+)",
                                       procs.log(gs)), 60, what="the ground station's address line")
     base, token = line.group(1), line.group(2)
@@ -167,6 +175,16 @@ def test_a_fleet_of_two_is_told_apart_guarded_and_usable_on_a_phone(procs, zenoh
                                   "`.vessel-label[data-vessel=${n}] rect`).getBoundingClientRect().toJSON())",
                                   [A, B])
             assert not boxes_overlap(*boxes), boxes
+            # The MBTiles' tiles under the grid, each one the ground station serves.
+            page.wait_for_selector(".layer-tiles image", state="attached", timeout=30_000)
+            served = page.evaluate("""async () => {
+                const hrefs = [...document.querySelectorAll('.layer-tiles image')]
+                    .map((i) => i.getAttribute('href'));
+                const r = await fetch(hrefs[0]);
+                return [hrefs.length, hrefs[0], r.status, r.headers.get('content-type')];
+            }""")
+            assert served[0] >= 1 and served[1].startswith("/tiles/"), served
+            assert served[2:] == [200, "image/png"], served
             page.screenshot(path=str(shots / "1-fleet-wide.png"))
             found = axe_check.violations(page, axe_script)
             print("axe-core, wide:", [(v["id"], v["impact"], len(v["nodes"])) for v in found])
@@ -202,7 +220,6 @@ def test_a_fleet_of_two_is_told_apart_guarded_and_usable_on_a_phone(procs, zenoh
 
             # Per-waypoint speed: a GeoJSON's speeds_mps in the editor, editable; the first speed is
             # sent as the mission's speed hint (the controller takes one per mission).
-            lat0, lon0 = math.degrees(ORIGIN.lat_rad), math.degrees(ORIGIN.lon_rad)
             line = [[lon0 + k * 1e-4, lat0] for k in range(3)]
             doc = {"type": "Feature", "geometry": {"type": "LineString", "coordinates": line},
                    "properties": {"speeds_mps": [None, 1.3, 0.9]}}
@@ -275,11 +292,12 @@ def test_a_fleet_of_two_is_told_apart_guarded_and_usable_on_a_phone(procs, zenoh
             assert phone.evaluate("() => document.documentElement.scrollWidth") <= 390
             legend = phone.locator("#map-legend")
             assert legend.get_attribute("open") is None  # folded: the vessel stays in sight
-            legend_box = legend.bounding_box()
             phone.wait_for_selector("#vessel-glyph", timeout=30_000)
             phone.evaluate("() => window.seaway.map.fit()")
             phone.wait_for_timeout(300)
-            assert not boxes_overlap(legend_box, phone.locator("#vessel-glyph").bounding_box())
+            boxes = phone.evaluate("() => ['map-legend', 'vessel-glyph'].map((i) => "
+                                   "document.getElementById(i).getBoundingClientRect().toJSON())")
+            assert not boxes_overlap(*boxes), boxes
             phone.locator("#map-legend summary").click()
             assert legend.get_attribute("open") is not None
             assert phone.locator(".lg.trail").is_visible()

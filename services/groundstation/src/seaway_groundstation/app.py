@@ -57,7 +57,7 @@ from starlette.concurrency import run_in_threadpool
 from starlette.datastructures import UploadFile
 from starlette.websockets import WebSocket
 
-from seaway_groundstation import bodies, errors, geo, guard, plans, replay
+from seaway_groundstation import bodies, errors, geo, guard, plans, replay, tiles
 from seaway_groundstation.fleet import Fleet
 from seaway_groundstation.gateway import BusLink, ask
 from seaway_groundstation.journal import RequestJournal
@@ -273,7 +273,18 @@ def create_app(bus_like: Bus, settings: Settings | None = None,
         # no-cache: a ground station updated in place serves its new page at the next load
         return FileResponse(index_html, headers={"Cache-Control": "no-cache"})
 
-    if settings.tiles is not None and not settings.tiles.startswith(("http://", "https://")):
+    if settings.tiles is not None and tiles.is_mbtiles(settings.tiles):
+        mbtiles = tiles.MBTiles(settings.tiles)
+
+        @app.get("/tiles/{z}/{x}/{y}", include_in_schema=False)
+        async def mb_tile(z: Annotated[int, PathParam(ge=0, le=tiles.MAX_ZOOM)],
+                          x: Annotated[int, PathParam(ge=0)], y: Annotated[int, PathParam(ge=0)]) -> Response:
+            data = await run_in_threadpool(mbtiles.tile, z, x, y)
+            if data is None:
+                raise HTTPException(404, f"no tile {z}/{x}/{y} in {mbtiles.path.name}")
+            return Response(data, media_type=mbtiles.media_type,
+                            headers={"Cache-Control": "max-age=3600"})
+    elif settings.tiles is not None and not settings.tiles.startswith(("http://", "https://")):
         tiles_dir = Path(settings.tiles).resolve()
 
         @app.get("/tiles/{z}/{x}/{y}.png", include_in_schema=False)

@@ -105,6 +105,10 @@ def parser() -> argparse.ArgumentParser:
                     help="default runs/<time>-<profile>, or runs/<time>-<profile>-<scenario>-"
                          "<controller>[-tauD] when a mission is sent")
     ap.add_argument("--no-mission", action="store_true", help="do not send the scenario's mission")
+    ap.add_argument("--tiles", default=None, metavar="URL|DIR|FILE",
+                    help="the ground station's map tiles: an http(s) URL template with {z}/{x}/{y}, "
+                         "a folder <z>/<x>/<y>.png or an MBTiles file (*.mbtiles) it serves itself "
+                         "(default: the profile's tiles, else none: a metric grid, offline)")
     ap.add_argument("--controller", choices=CONTROLLER_NAMES, default=None,
                     help="fly the mission with this controller (default: the mission's)")
     ap.add_argument("--predict-disturbance", action=argparse.BooleanOptionalAction, default=None,
@@ -181,6 +185,14 @@ def vessel_dir(run_dir: Path, vessel: str, vessels: list[str]) -> Path:
     """A vessel's folder in the run folder: the run folder itself for a launch of one vessel,
     ``<run_dir>/<vessel>`` for several (its run.json, mission.json, recording, report, events)."""
     return run_dir if len(vessels) == 1 else run_dir / vessel
+
+
+def tiles_for(tiles: str | None) -> str | None:
+    """The ground station's tiles as its process needs them: a URL as it is, a file or folder as an
+    absolute path (the ground station checks it, and refuses what it cannot serve)."""
+    if not tiles or tiles.startswith(("http://", "https://")):
+        return tiles or None
+    return str(Path(tiles).expanduser().resolve())
 
 
 def free_udp_ports(n: int) -> list[int]:
@@ -520,6 +532,9 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
         placement = dict.fromkeys(CHAIN, split[0])
     env = dict(os.environ)
     env[ENV_VESSEL] = vessels[0]  # each process gets its own vessel's (Supervisor.spawn)
+    tiles = tiles_for(args.tiles or profile.tiles)
+    if tiles is not None:
+        env[address.ENV_TILES] = tiles
     # Every child is a process of this stack: the stack's credentials (or the explicit opt-out).
     env[ENV_CREDENTIALS] = str(auth.credentials.folder) if auth.credentials else NONE
     # Children find their commands next to the interpreter running the launcher (the venv).

@@ -98,6 +98,9 @@ class Profile(ConfigModel):
         "run unless $SEAWAY_CREDENTIALS names one; 'boat'/'shore': one half of a deployment, which "
         "needs the deployment's credentials for that side (seaway credentials create DIR --deployment)")
     scenario: str | None = Field(default=None, description="default scenario name or path")
+    tiles: str | None = Field(default=None, description="the ground station's map tiles (launch "
+                              "--tiles overrides): an http(s) {z}/{x}/{y} URL template, a folder "
+                              "<z>/<x>/<y>.png or an .mbtiles file; none: the metric grid")
     clock: Literal["wall", "lockstep"] = Field(default="wall", description="the run's clock: 'wall' "
                                                "(real time) or 'lockstep' (the simulator owns time)")
     vessel_file: str | None = Field(default=None, description="vessel file the services model; "
