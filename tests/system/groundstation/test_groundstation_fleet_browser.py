@@ -233,9 +233,15 @@ def test_a_fleet_of_two_is_told_apart_guarded_and_usable_on_a_phone(procs, zenoh
             assert speeds == ["", "1.3", "0.9"], speeds
             page.locator("#wp-table input[aria-label^='speed 0']").fill("1.1")
             page.locator("#wp-table input[aria-label^='speed 0']").press("Tab")
-            page.once("dialog", lambda d: d.accept())
-            page.locator("#send-mission").click()
+            def accept(d) -> None:
+                d.accept()
+            page.on("dialog", accept)  # every confirmation accepted: a double click sends once
+            page.locator("#send-mission").dblclick()
             wait_for(lambda: len(missions[B]) == 2, 20, what="the mission with its speed hint")
+            page.wait_for_function("!document.getElementById('send-mission').disabled", timeout=20_000)
+            page.wait_for_timeout(500)
+            assert len(missions[B]) == 2
+            page.remove_listener("dialog", accept)
             assert missions[B][-1].speed_hint_mps == pytest.approx(1.1)
             assert len(missions[B][-1].waypoints) == 3
 

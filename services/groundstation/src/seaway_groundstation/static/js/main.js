@@ -648,9 +648,17 @@ $("send-mission").onclick = async () => {
     say("A mission needs at least two waypoints: click “Add waypoints”, then the map.", "warn");
     return;
   }
+  const button = $("send-mission");
+  if (button.disabled) return;
   const body = draftBody();
   if (!sure(`Send mission ${body.mission_id} (${body.waypoints.length} waypoints; it starts at once)`)) return;
-  const reply = await run(`Mission ${body.mission_id}`, vpath("mission"), body);
+  button.disabled = true; // one request per click, as the other commands
+  let reply;
+  try {
+    reply = await run(`Mission ${body.mission_id}`, vpath("mission"), body);
+  } finally {
+    button.disabled = false;
+  }
   if (reply) {
     $("mission-id").value = "";
     app.draft = [];
