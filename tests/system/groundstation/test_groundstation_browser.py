@@ -67,6 +67,7 @@ def test_plan_fly_check_and_replay_a_mission_from_the_page(procs, zenoh_env, tmp
     page = browser.new_page(viewport={"width": 1500, "height": 1000})
     errors: list[str] = []
     page.on("pageerror", lambda e: errors.append(str(e)))
+    page.on("dialog", lambda d: d.accept())  # the page asks before moving the vessel
     page.goto(page_url)
     # The token came in the fragment: kept for the tab, gone from the address bar.
     page.wait_for_function("sessionStorage.getItem('seaway.groundstation.token') !== null")

@@ -112,6 +112,7 @@ def test_the_vehicle_panel_reads_at_a_glance_and_commands_go_once(procs, zenoh_e
             page = browser.new_page(viewport={"width": 1500, "height": 1000})
             errors: list[str] = []
             page.on("pageerror", lambda e: errors.append(str(e)))
+            page.on("dialog", lambda d: d.accept())  # the page asks before moving the vessel
             page.goto(base)  # no token in the fragment: read-only
             page.wait_for_function("document.getElementById('v-mode').textContent === 'MANUAL'",
                                    timeout=60_000)

@@ -494,3 +494,30 @@ def test_requests_without_the_token_do_not_use_up_the_operators_rate(hub: Memory
         assert r.status_code == 429 and "operator" in r.json()["detail"]
         assert c.post("/api/vessels/v1/arm").status_code == 429
     assert len(vessel.requests["vehicle/arm"]) == 5
+
+
+def test_every_stream_client_hears_each_command_relayed_with_its_sender(client: TestClient,
+                                                                       vessel: Vessel) -> None:
+    vessel.publish(keys.NAV_STATE, state(0.0))
+    with client.websocket_connect("/api/stream?vessel=v1") as ws:
+        assert "command" not in ws.receive_json()["updates"]
+        r = client.post("/api/vessels/v1/mission/pause", headers={**AUTH, "X-Seaway-Client": "tab-1"})
+        assert r.status_code == 200
+        while "command" not in (frame := ws.receive_json())["updates"]:
+            pass
+        note = frame["updates"]["command"]["message"]
+        assert (note["request"], note["what"], note["outcome"], note["client"]) == (
+            "mission/command", "pause", "accepted", "tab-1")
+        # Refused requests are news too; a client without the header is "".
+        r = client.post("/api/vessels/v1/arm", json={"force": True}, headers=AUTH)
+        while (frame := ws.receive_json())["updates"].get("command", {}).get("message", {}).get(
+                "request") != "vehicle/arm":
+            pass
+        assert frame["updates"]["command"]["message"]["what"] == "arm (forced)"
+        assert frame["updates"]["command"]["message"]["client"] == ""
+
+
+def test_a_bad_client_header_is_refused_naming_it(client: TestClient, vessel: Vessel) -> None:
+    r = client.post("/api/vessels/v1/mission/pause", headers={**AUTH, "X-Seaway-Client": "a b/c"})
+    assert r.status_code == 422 and "X-Seaway-Client" in r.json()["detail"], r.text
+    assert "mission/command" not in vessel.requests

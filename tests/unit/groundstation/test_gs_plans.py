@@ -41,7 +41,30 @@ def test_real_rover_plan_keeps_waypoints_in_global_frames_and_skips_the_rest() -
     assert path.points_deg == ((47.4104747, 8.565406), (47.397, 8.585312), (47.3700507, 8.5455),
                                (47.3700507, 8.505688), (47.397, 8.505688))
     names = " | ".join(path.skipped)
-    assert "DO_CHANGE_SPEED" in names and "NAV_LOITER_TIME" in names and "NAV_RETURN_TO_LAUNCH" in names
+    assert "NAV_LOITER_TIME" in names and "NAV_RETURN_TO_LAUNCH" in names
+    # Its DO_CHANGE_SPEED (5 m/s, after the second waypoint) is the speed of the waypoints after it,
+    # and the first speed given is the mission's cruise hint.
+    assert "DO_CHANGE_SPEED" not in names
+    assert path.speeds_mps == (None, None, 5.0, 5.0, 5.0)
+    assert path.hints["speed_hint_mps"] == 5.0
+
+
+def test_speeds_are_read_from_geojson_and_bad_ones_refused_naming_them() -> None:
+    line = {"type": "LineString", "coordinates": [[8.5, 47.3], [8.501, 47.3], [8.501, 47.301]]}
+    path = plans.parse_geojson({"type": "Feature", "geometry": line,
+                                "properties": {"speeds_mps": [1.2, None, 0.8]}})
+    assert path.speeds_mps == (1.2, None, 0.8) and path.hints["speed_hint_mps"] == 1.2
+    own = plans.parse_geojson({"type": "Feature", "geometry": line,
+                               "properties": {"speeds_mps": [1.2, None, 0.8], "speed_hint_mps": 0.9}})
+    assert own.hints["speed_hint_mps"] == 0.9  # the file's own hint wins
+    for bad, match in (([1.0, 2.0], "list of 3 speeds"), ([1.0, -1.0, 1.0], r"speeds_mps\[1\]: speed -1"),
+                       ([1.0, "fast", 1.0], r"speeds_mps\[1\]"), ([1.0, 1.0, 99.0], r"\(0, 50\]")):
+        with pytest.raises(PlanError, match=match):
+            plans.parse_geojson({"type": "Feature", "geometry": line, "properties": {"speeds_mps": bad}})
+    plan = load("PX4SITL-ArduRover.plan")
+    plan["mission"]["items"][2]["params"][1] = 0
+    with pytest.raises(PlanError, match=r"items\[2\].*DO_CHANGE_SPEED.*speed 0"):
+        plans.parse_plan(plan, skip_unsupported=True)
 
 
 # The geoFence and rallyPoints as QGroundControl writes them (GeoFenceController, QGCFencePolygon,

@@ -106,6 +106,8 @@ def test_the_fleet_profile_gives_each_vessel_its_own_run_folder_recording_and_ma
         assert arg(vio, "--mavlink") == f"udpout:127.0.0.1:{port}"
         ports.add(port)
     assert len(ports) == len(vessels)  # each autopilot on its own port
+    # Each simulated vessel starts in a slot of its own, not on top of another.
+    assert [arg(by_name[f"sim-{v}"], "--start-slot") for v in vessels] == ["0", "1", "2"]
     gs = by_name["groundstation"]
     assert (gs.vessel, gs.vessel_dir) == ("v1", None)  # one for the launch, on its first vessel
     assert arg(gs, "--run-dir") == str(tmp_path) and arg(gs, "--run") == str(tmp_path / "v1" / "run.json")

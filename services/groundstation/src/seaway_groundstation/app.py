@@ -17,7 +17,9 @@ per vessel with news, at most ``stream_rate_hz`` per client::
                  "energy": {... EnergyBudget: energy used, to finish, to home, battery, margin,
                             point of no return (local NED), decision ...},
                  "area": {... ActiveArea: keep-in, keep-outs, rally points (local NED) ...},
-                 "battery": {... BatteryState ...}, "gnss": {... GnssFix ...}}}
+                 "battery": {... BatteryState ...}, "gnss": {... GnssFix ...},
+                 "command": {... CommandNote: the latest request this ground station relayed to the
+                             vessel, its answer and the sending page's X-Seaway-Client id ...}}}
 
 with only the kinds that changed since the client's last frame (the latest of each, never a
 backlog; ``stream.py`` says how a slow client is kept from slowing the others).
@@ -55,7 +57,7 @@ from starlette.concurrency import run_in_threadpool
 from starlette.datastructures import UploadFile
 from starlette.websockets import WebSocket
 
-from seaway_groundstation import bodies, errors, geo, guard, mission_checks, plans
+from seaway_groundstation import bodies, errors, geo, guard, mission_checks, plans, tiles
 from seaway_groundstation.fleet import Fleet
 from seaway_groundstation.gateway import BusLink, ask
 from seaway_groundstation.journal import RequestJournal
@@ -73,6 +75,7 @@ from seaway_groundstation.recordings import (
 from seaway_groundstation.settings import Settings
 from seaway_groundstation.stream import StreamHub
 from seaway_groundstation.views import (
+    CommandNote,
     CommandReply,
     ErrorBody,
     FleetView,
@@ -181,6 +184,11 @@ class GroundStation:
         reply = await run_in_threadpool(ask, self.bus, spec, msg, vessel, self.settings.request_timeout_s)
         await run_in_threadpool(self.journal.record, vessel, spec.suffix, reply.outcome, reply.reason,
                                 msg.model_dump(mode="json"))
+        self.fleet.on_command(vessel, CommandNote(
+            request=spec.suffix, what=bodies.command_words(msg), outcome=reply.outcome,
+            reason=reply.reason, client=guard.commander.get(), stamp_ns=time.time_ns()),
+            self.settings.clock())
+        self.hub.notify(vessel)
         return reply
 
     async def send_mission(self, vessel: str, req: MissionRequest,
@@ -267,7 +275,18 @@ def create_app(bus_like: Bus, settings: Settings | None = None,
         # no-cache: a ground station updated in place serves its new page at the next load
         return FileResponse(index_html, headers={"Cache-Control": "no-cache"})
 
-    if settings.tiles is not None and not settings.tiles.startswith(("http://", "https://")):
+    if settings.tiles is not None and tiles.is_mbtiles(settings.tiles):
+        mbtiles = tiles.MBTiles(settings.tiles)
+
+        @app.get("/tiles/{z}/{x}/{y}", include_in_schema=False)
+        async def mb_tile(z: Annotated[int, PathParam(ge=0, le=tiles.MAX_ZOOM)],
+                          x: Annotated[int, PathParam(ge=0)], y: Annotated[int, PathParam(ge=0)]) -> Response:
+            data = await run_in_threadpool(mbtiles.tile, z, x, y)
+            if data is None:
+                raise HTTPException(404, f"no tile {z}/{x}/{y} in {mbtiles.path.name}")
+            return Response(data, media_type=mbtiles.media_type,
+                            headers={"Cache-Control": "max-age=3600"})
+    elif settings.tiles is not None and not settings.tiles.startswith(("http://", "https://")):
         tiles_dir = Path(settings.tiles).resolve()
 
         @app.get("/tiles/{z}/{x}/{y}.png", include_in_schema=False)
@@ -434,6 +453,7 @@ def _mission_router(gs: GroundStation, command: list[Any]) -> APIRouter:
         metres = None if vessel is None else geo.points_m(path.points_deg, gs.fleet.geo_origin(vessel))
         area = None if path.area is None else path.area.model_dump(mode="json", exclude_none=True)
         return ParsedMission(source=path.source, skipped=list(path.skipped), hints=path.hints, area=area,
+                             speeds_mps=list(path.speeds_mps),
                              waypoints=[{"lat_deg": a, "lon_deg": b} for a, b in path.points_deg],
                              waypoints_m=None if metres is None else [{"x_m": x, "y_m": y}
                                                                       for x, y in metres])

@@ -17,10 +17,15 @@ from seaway.contract.messages import (
     DEFAULT_CONTROLLER,
     MAX_TASK_POWER_W,
     AreaBreachPolicy,
+    ArmRequest,
     AtRest,
     ControllerName,
+    Message,
     MessageError,
+    MissionCommand,
     MissionRequest,
+    ModeRequest,
+    ScenarioRequest,
     Waypoint,
 )
 from seaway.vessel.frames import GeoOrigin
@@ -281,3 +286,18 @@ def mission_properties(req: MissionRequest) -> dict[str, Any]:
     if req.speed_hint_mps is not None:
         props["speed_hint_mps"] = req.speed_hint_mps
     return props
+
+
+def command_words(msg: Message) -> str:
+    """A request relayed to a vessel in a few words, as another page shows it ("mode HOLD")."""
+    if isinstance(msg, ArmRequest):
+        return ("arm" if msg.arm else "disarm") + (" (forced)" if msg.force else "")
+    if isinstance(msg, ModeRequest):
+        return f"mode {msg.mode}"
+    if isinstance(msg, MissionCommand):
+        return msg.command
+    if isinstance(msg, MissionRequest):
+        return f"mission {msg.mission_id}"
+    if isinstance(msg, ScenarioRequest):
+        return "restart the simulation" if msg.action == "restart" else "load a scenario"
+    return type(msg).__name__

@@ -27,6 +27,7 @@ import threading
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
+from pydantic import BaseModel
 from seaway.contract.messages import (
     Message,
     MissionRequest,
@@ -39,7 +40,7 @@ from seaway.vessel.frames import GeoOrigin
 
 from seaway_groundstation import geo
 from seaway_groundstation.progress import MetricsView, MissionTrack
-from seaway_groundstation.views import FleetView, Timed, VesselView
+from seaway_groundstation.views import CommandNote, FleetView, Timed, VesselView
 
 Kind = Literal["state", "solve", "mission", "vehicle", "origin", "thrust", "energy", "area", "battery",
                "gnss"]
@@ -47,6 +48,9 @@ KINDS: tuple[Kind, ...] = ("state", "solve", "mission", "vehicle", "origin", "th
                            "battery", "gnss")
 MAX_MISSIONS = 32
 """Missions remembered per vessel (by id), the most recent kept."""
+COMMAND = "command"
+"""The stream's kind of the latest request relayed to the vessel (``CommandNote``); not a bus
+message, so not in ``KINDS`` nor in the vessel's view."""
 HEALTH = "health"
 """The stream's pseudo-kind for a change of a vessel's services."""
 IGNORED_SERVICES = ("groundstation",)
@@ -58,7 +62,7 @@ class Entry:
 
     __slots__ = ("_json", "message", "received_s", "seq")
 
-    def __init__(self, message: Message, received_s: float, seq: int) -> None:
+    def __init__(self, message: BaseModel, received_s: float, seq: int) -> None:
         self.message, self.received_s, self.seq = message, received_s, seq
         self._json: str | None = None
 
@@ -131,6 +135,13 @@ class Fleet:
                 v.track.on_thrust(msg)
             elif isinstance(msg, MissionStatus):
                 v.track.on_status(msg)
+
+    def on_command(self, vessel: str, note: CommandNote, now_s: float) -> None:
+        """A request relayed to ``vessel`` and its answer: streamed to every client as ``command``."""
+        with self._lock:
+            v = self._vessel(vessel)
+            self._seq += 1
+            v.entries[COMMAND] = Entry(note, now_s, self._seq)
 
     def record_mission(self, vessel: str, request: MissionRequest, source: str = "groundstation") -> None:
         """Remember a mission of ``vessel``: sent from here (the last one, for export and start

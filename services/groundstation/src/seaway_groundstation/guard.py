@@ -9,7 +9,9 @@ tokens is slowed down, and requests without the token never use up the operator'
 
 # No ``from __future__ import annotations``: FastAPI reads the dependency's annotations at
 # run time, and they name a local (``bearer``).
+import contextvars
 import math
+import re
 import secrets
 from collections.abc import Callable
 from typing import Annotated, Any
@@ -22,6 +24,13 @@ from seaway_groundstation.settings import Settings
 
 OPERATOR = "operator"
 """The rate limit's key of requests carrying the operator token."""
+CLIENT_HEADER = "X-Seaway-Client"
+"""The header a page names itself by (a random id per page load), so the others can tell its
+commands from their own."""
+CLIENT_ID = re.compile(r"[A-Za-z0-9_-]{1,64}")
+commander: contextvars.ContextVar[str] = contextvars.ContextVar("commander", default="")
+"""The current command's ``CLIENT_HEADER`` ('' without one), set by the command dependency for the
+endpoint it guards (the same task, so the endpoint reads it)."""
 UNAUTHENTICATED = "unauthenticated:"
 """The rate limit's key prefix of requests without the right token (then the client's address)."""
 
@@ -67,5 +76,10 @@ def command_dependency(settings: Settings, limiter: RateLimiter) -> Callable[...
             )
         if not token_ok:
             raise HTTPException(403, "wrong operator token")
+        client_id = request.headers.get(CLIENT_HEADER, "")
+        if client_id and not CLIENT_ID.fullmatch(client_id):
+            raise HTTPException(422, f"header {CLIENT_HEADER}: 1 to 64 letters, digits, '_' or '-', "
+                                     f"got {client_id[:64]!r}")
+        commander.set(client_id)
 
     return command

@@ -7,14 +7,16 @@ WGS84 latitude/longitude in degrees; Seaway's ``MissionRequest`` takes the same 
 * ``.plan`` (QGroundControl's JSON plan, ``fileType: "Plan"``, mission ``version`` 2): each mission
   item is a ``SimpleItem`` with a MAVLink ``command`` and seven ``params``; a NAV_WAYPOINT (16) in a
   global frame has latitude and longitude in ``params[4]`` and ``params[5]`` [deg] and its
-  acceptance radius in ``params[1]`` [m]. Anything else (takeoff, loiter, speed changes, survey
-  ``ComplexItem`` s) is refused naming the item, or skipped and listed with ``skip_unsupported``.
+  acceptance radius in ``params[1]`` [m]; a DO_CHANGE_SPEED (178) sets the speed of the waypoints
+  after it (``params[1]`` [m/s]). Anything else (takeoff, loiter, survey ``ComplexItem`` s) is
+  refused naming the item, or skipped and listed with ``skip_unsupported``.
   Its ``geoFence`` and ``rallyPoints`` are the operating area (``seaway.area.files``).
 * GeoJSON (RFC 7946): a ``LineString`` as a bare geometry, a ``Feature`` or a
   ``FeatureCollection`` with exactly one; positions are ``[lon, lat]`` or ``[lon, lat, alt]``
   (longitude first). A Feature's ``properties`` may carry Seaway's mission parameters, which an
-  export writes and an import offers as defaults. A FeatureCollection may also carry the operating
-  area: features whose ``properties.area`` is ``keep_in``, ``keep_out`` or ``rally``
+  export writes and an import offers as defaults, and ``speeds_mps`` (one per position). A
+  FeatureCollection may also carry the operating area: features whose ``properties.area`` is
+  ``keep_in``, ``keep_out`` or ``rally``
   (``seaway.area.files``).
 
 Every refusal is a ``PlanError`` whose text names the file kind and the item at fault.
@@ -35,6 +37,11 @@ from seaway.area.spec import AreaSpec, read_lat_lon
 
 NAV_WAYPOINT = 16
 """MAV_CMD_NAV_WAYPOINT: the only mission item that becomes a Seaway waypoint."""
+DO_CHANGE_SPEED = 178
+"""MAV_CMD_DO_CHANGE_SPEED: the speed [m/s] in ``params[1]`` (-1: no change) holds for the
+waypoints after it; read as their speed, not flown as an item."""
+MAX_SPEED_MPS = 50.0
+"""Bound on a speed a file may give [m/s] (the API's bound of a mission's speed hint)."""
 MAV_CMD_NAMES: dict[int, str] = {
     16: "NAV_WAYPOINT", 17: "NAV_LOITER_UNLIM", 18: "NAV_LOITER_TURNS", 19: "NAV_LOITER_TIME",
     20: "NAV_RETURN_TO_LAUNCH", 21: "NAV_LAND", 22: "NAV_TAKEOFF", 31: "NAV_LOITER_TO_ALT",
@@ -82,6 +89,9 @@ class ImportedPath:
     hints: dict[str, Any] = field(default_factory=dict)
     area: AreaSpec | None = None
     """The operating area and rally points the file carries, in degrees, or None."""
+    speeds_mps: tuple[float | None, ...] = ()
+    """Each waypoint's speed from the file [m/s] (None: none given), or () if the file gives none.
+    The controller takes one cruise hint per mission (``speed_hint_mps``: the first one given)."""
 
 
 # ---------------------------------------------------------------------------------------------
@@ -208,8 +218,14 @@ def parse_plan(doc: Any, *, skip_unsupported: bool = False,
         raise PlanError("plan: mission.items must be a list")
     points: list[tuple[float, float]] = []
     radii: list[float | None] = []
+    speeds: list[float | None] = []
+    speed: float | None = None
     skipped: list[str] = []
     for i, item in enumerate(items):
+        if isinstance(item, dict) and item.get("type") == "SimpleItem" \
+                and item.get("command") == DO_CHANGE_SPEED:
+            speed = _plan_speed(i, item, speed)
+            continue
         try:
             lat, lon, radius_m = _plan_item(i, item)
         except _UnsupportedError as err:
@@ -219,11 +235,42 @@ def parse_plan(doc: Any, *, skip_unsupported: bool = False,
             continue
         points.append((lat, lon))
         radii.append(radius_m)
+        speeds.append(speed)
     _check_count("plan", points, skipped, max_waypoints)
     hints: dict[str, Any] = {}
     if radii and radii[0] is not None and all(r == radii[0] for r in radii):
         hints["coa_radius_m"] = radii[0]
-    return ImportedPath("plan", tuple(points), tuple(skipped), hints, _area(spec_from_plan, doc))
+    return ImportedPath("plan", tuple(points), tuple(skipped), _with_speed_hint(hints, speeds),
+                        _area(spec_from_plan, doc), _speeds_or_none(speeds))
+
+
+def _plan_speed(i: int, item: dict[str, Any], before: float | None) -> float | None:
+    """The speed a DO_CHANGE_SPEED item sets [m/s] (``before`` for -1, "no change")."""
+    params = item.get("params")
+    value = params[1] if isinstance(params, list) and len(params) == 7 else None
+    if value == -1:
+        return before
+    return _speed(value, f"{_item_name(i, item)} (DO_CHANGE_SPEED) params[1]")
+
+
+def _speed(value: Any, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value) \
+            or not 0 < value <= MAX_SPEED_MPS:
+        raise PlanError(f"{where}: speed {json.dumps(value)[:40]} must be a number of m/s in "
+                        f"(0, {MAX_SPEED_MPS:g}]")
+    return float(value)
+
+
+def _speeds_or_none(speeds: list[float | None]) -> tuple[float | None, ...]:
+    return tuple(speeds) if any(v is not None for v in speeds) else ()
+
+
+def _with_speed_hint(hints: dict[str, Any], speeds: Sequence[float | None]) -> dict[str, Any]:
+    """``hints`` with the mission's cruise hint: the file's own, else its first waypoint speed."""
+    first = next((v for v in speeds if v is not None), None)
+    if first is not None and "speed_hint_mps" not in hints:
+        return {**hints, "speed_hint_mps": first}
+    return hints
 
 
 def _area(read: Any, doc: Any) -> AreaSpec | None:
@@ -237,6 +284,8 @@ def _area(read: Any, doc: Any) -> AreaSpec | None:
 _HINT_PROPERTIES = ("mission_id", "coa_radius_m", "task_power_w", "controller", "predict_disturbance",
                     "speed_hint_mps")
 """GeoJSON Feature properties read back as mission parameters (what ``to_geojson`` writes)."""
+SPEEDS_PROPERTY = "speeds_mps"
+"""A GeoJSON Feature's per-waypoint speeds [m/s]: a list, one number or null per position."""
 
 
 def _geojson_line(geometry: Any, where: str) -> list[tuple[float, float]]:
@@ -324,7 +373,21 @@ def parse_geojson(doc: Any, *, skip_unsupported: bool = False,
     _check_count("geojson", points, skipped, max_waypoints)
     hints = {k: properties[k] for k in _HINT_PROPERTIES
              if isinstance(properties, dict) and properties.get(k) is not None}
-    return ImportedPath("geojson", tuple(points), tuple(skipped), hints, _area(spec_from_geojson, doc))
+    speeds = _geojson_speeds(properties, len(points))
+    return ImportedPath("geojson", tuple(points), tuple(skipped), _with_speed_hint(hints, speeds),
+                        _area(spec_from_geojson, doc), _speeds_or_none(speeds))
+
+
+def _geojson_speeds(properties: Any, n: int) -> list[float | None]:
+    """A Feature's ``speeds_mps``: one speed [m/s] or null per position of its LineString."""
+    raw = properties.get(SPEEDS_PROPERTY) if isinstance(properties, dict) else None
+    if raw is None:
+        return []
+    if not isinstance(raw, list) or len(raw) != n:
+        raise PlanError(f"geojson properties.{SPEEDS_PROPERTY}: expected a list of {n} speeds [m/s] "
+                        f"or nulls, one per position, got {json.dumps(raw)[:60]}")
+    return [None if v is None else _speed(v, f"geojson properties.{SPEEDS_PROPERTY}[{k}]")
+            for k, v in enumerate(raw)]
 
 
 # ---------------------------------------------------------------------------------------------

@@ -40,6 +40,7 @@ from seaway.runtime import memory
 from seaway.runtime.argtypes import positive_float, positive_int, whole_number
 from seaway.runtime.service import base_parser, parse, resolve_run, run_service
 from seaway.tools.launch import address
+from seaway.tools.launch.address import ENV_TILES
 from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.model import load_vessel
 
@@ -86,9 +87,10 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--runs-dir", type=Path, default=None, metavar="DIR",
                     help=f"where the replay view lists recordings (default: the folder holding "
                          f"--run-dir, else {DEFAULT_RUNS_DIR}/ here)")
-    ap.add_argument("--tiles", default=None, metavar="URL|DIR",
-                    help="map tiles: a URL template with {z}/{x}/{y}, or a folder <z>/<x>/<y>.png "
-                         "(default: none, a metric grid)")
+    ap.add_argument("--tiles", default=os.environ.get(ENV_TILES) or None, metavar="URL|DIR|FILE",
+                    help="map tiles: a URL template with {z}/{x}/{y}, a folder <z>/<x>/<y>.png or an "
+                         f"MBTiles file (*.mbtiles) served here (default ${ENV_TILES}, else none: "
+                         "a metric grid)")
     ap.add_argument("--max-upload-bytes", type=positive_int, default=Settings.max_upload_bytes,
                     help="largest recording that may be uploaded for replay [bytes]")
     return ap

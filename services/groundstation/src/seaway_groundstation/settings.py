@@ -11,6 +11,8 @@ from pathlib import Path
 from seaway.runtime.run import CONTROL_PERIOD_S, DEFAULT_VESSEL_FILE
 from seaway.vessel.frames import GeoOrigin
 
+from seaway_groundstation.tiles import MBTiles, is_mbtiles
+
 DEFAULT_HOST = "127.0.0.1"
 DEFAULT_PORT = 8321
 ENV_TOKEN = "SEAWAY_GROUNDSTATION_TOKEN"
@@ -64,8 +66,9 @@ class Settings:
     replay_rate_hz: float = 20.0
     """Frames per second of recorded time a replay is cut into (the live stream's rate)."""
     tiles: str | None = None
-    """Map tiles: a URL template with {z}, {x}, {y} (http(s)://...), or a local folder laid out
-    ``<z>/<x>/<y>.png`` served at ``/tiles/``; None: no tiles (the map is a metric grid)."""
+    """Map tiles: a URL template with {z}, {x}, {y} (http(s)://...), a local folder laid out
+    ``<z>/<x>/<y>.png``, or an MBTiles file (``*.mbtiles``, ``tiles.py``), both served at
+    ``/tiles/``; None: no tiles (the map is a metric grid)."""
     model_vessel_file: str = DEFAULT_VESSEL_FILE
     """The run's vessel model file: what the mission check predicts with."""
     run_dir: Path | None = None
@@ -87,15 +90,21 @@ class Settings:
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
         if self.tiles is not None and not self.tiles.startswith(("http://", "https://")) \
-                and not Path(self.tiles).is_dir():
-            raise ValueError(f"tiles {self.tiles!r}: neither an http(s) URL template nor a folder")
+                and not Path(self.tiles).is_dir() \
+                and not (is_mbtiles(self.tiles) and Path(self.tiles).is_file()):
+            raise ValueError(f"tiles {self.tiles!r}: neither an http(s) URL template, a folder nor an "
+                             ".mbtiles file")
         if self.tiles is not None and self.tiles.startswith(("http://", "https://")) \
                 and not all(f"{{{k}}}" in self.tiles for k in "zxy"):
             raise ValueError(f"tiles {self.tiles!r}: a URL template needs {{z}}, {{x}} and {{y}}")
+        if self.tiles is not None and is_mbtiles(self.tiles):
+            MBTiles(self.tiles).close()  # refused now, naming the file, if it cannot be served
 
     @property
     def tiles_url(self) -> str | None:
         """The template the page loads tiles from (a local folder is served at ``/tiles/``)."""
         if self.tiles is None:
             return None
-        return self.tiles if self.tiles.startswith(("http://", "https://")) else "/tiles/{z}/{x}/{y}.png"
+        if self.tiles.startswith(("http://", "https://")):
+            return self.tiles
+        return "/tiles/{z}/{x}/{y}" if is_mbtiles(self.tiles) else "/tiles/{z}/{x}/{y}.png"

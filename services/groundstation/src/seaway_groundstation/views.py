@@ -89,6 +89,20 @@ class FleetView(BaseModel):
 Outcome = Literal["accepted", "refused", "no_reply", "error_reply"]
 
 
+class CommandNote(BaseModel):
+    """A request this ground station relayed to a vessel, as every page hears it on the stream
+    (kind ``command``): so each tab and client sees what another one commanded."""
+
+    request: str = Field(description="the bus request: its key suffix, e.g. "
+                                     f"{keys.VEHICLE_MODE.suffix!r}")
+    what: str = Field(description="the request in a few words, e.g. 'mode HOLD', 'pause'")
+    outcome: Outcome
+    reason: str = ""
+    client: str = Field(description="the sending page's own id (its X-Seaway-Client header; '' "
+                                    "from a client without one)")
+    stamp_ns: int = Field(description="when the vessel answered, Unix time [ns]")
+
+
 class CommandReply(BaseModel):
     """The vessel's answer to one request: accepted, or refused with a reason a person can act on."""
 
@@ -121,6 +135,10 @@ class ParsedMission(BaseModel):
     skipped: list[str] = Field(default_factory=list)
     hints: dict[str, Any] = Field(default_factory=dict,
                                   description="mission parameters the file states")
+    speeds_mps: list[float | None] = Field(
+        default_factory=list, description="each waypoint's speed from the file (a .plan's "
+                                          "DO_CHANGE_SPEED, a GeoJSON speeds_mps property) [m/s], or "
+                                          "[]: the controller takes the first as the mission's hint")
     area: dict[str, Any] | None = Field(
         default=None, description="the operating area and rally points the file carries (a .plan's "
                                   "geoFence and rallyPoints, GeoJSON area features), in degrees, as "

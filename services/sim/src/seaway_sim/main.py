@@ -28,7 +28,7 @@ from seaway.runtime.lockstep import STALL_REPEAT_S
 from seaway.runtime.run import from_earlier_launch
 from seaway.runtime.service import base_parser, parse, resolve_run, run_service
 from seaway.simkit.faults import ThrusterFaults
-from seaway.simkit.scenario import load_scenario
+from seaway.simkit.scenario import Scenario, load_scenario
 from seaway.vessel.mavlink_signing import KeyFileError, read_key
 from seaway.vessel.model import load_vessel
 
@@ -45,6 +45,9 @@ log = logging.getLogger("seaway_sim")
 
 DEFAULT_SCENARIO = "lake"  # the simulator's own default: only it runs a scenario
 DEFAULT_STEP_S = 0.01  # real-time tick: the plant's internal RK4 step, 100 Hz
+START_SPACING_M = 5.0
+"""How far apart [m] the vessels of a fleet start (``--start-slot``): east of the scenario's start,
+one slot each, clear of each other's circle of acceptance and of their glyphs on the map."""
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -68,6 +71,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="real time: MAVLink 2 signing key file (64 hex characters): sign everything "
                         "sent and reject unsigned or wrongly signed messages, as PX4 with a key "
                         "does. Create one with: python -m seaway.vessel.mavlink_signing PATH")
+    p.add_argument("--start-slot", type=whole_number(0, 64), default=0, metavar="N",
+                   help=f"start N x {START_SPACING_M:g} m east of the scenario's start (the fleet "
+                        "profile gives each vessel its own slot, so none starts on another); the "
+                        "scenario's operating area must hold it (default 0: the scenario's start)")
     p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                    help="real time: set a simulated PX4 parameter at boot (repeatable), e.g. NAV_RCL_ACT=1")
     return p
@@ -87,6 +94,19 @@ def parse_params(items: Sequence[str]) -> tuple[tuple[str, float], ...]:
     return tuple(out)
 
 
+def in_slot(scenario: Scenario, slot: int) -> Scenario:
+    """``scenario`` started ``slot`` x ``START_SPACING_M`` east of its start; validated again (its
+    operating area must hold the new start). ConfigError naming --start-slot otherwise."""
+    if slot == 0:
+        return scenario
+    start = scenario.start.model_copy(update={"y_m": scenario.start.y_m + slot * START_SPACING_M})
+    try:
+        return Scenario.model_validate({**scenario.model_dump(), "start": start.model_dump()})
+    except ValueError as err:
+        raise ConfigError(f"--start-slot {slot}: scenario {scenario.name!r} cannot start "
+                          f"{slot * START_SPACING_M:g} m east of its start: {err}") from None
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = parse(build_parser(), argv)
     if not args.run and args.scenario is None:
@@ -101,6 +121,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         model = load_vessel(scenario.vessel)  # its limits: vehicle I/O's output stage in lockstep
         SimPack.of(scenario, vessel)  # the scenario's [battery] must fit the vessel's pack
         ThrusterFaults(scenario.faults, (-vessel.reverse_max_n, vessel.thrust_max_n))  # stuck thrusts fit
+        scenario = in_slot(scenario, args.start_slot)
     except ConfigError as err:
         print(f"seaway-sim: {err}", file=sys.stderr)
         return 2

@@ -21,6 +21,9 @@ from pathlib import Path
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
+ENV_TILES = "SEAWAY_GROUNDSTATION_TILES"
+"""The ground station's map tiles when its command line gives none (``--tiles``): the launcher
+sets it from ``seaway launch --tiles`` or the profile's ``tiles``."""
 FOLDER = "groundstation"
 """The ground station's folder in a run folder (its address file, its requests journal)."""
 FILE = "address.json"

@@ -105,6 +105,10 @@ def parser() -> argparse.ArgumentParser:
                     help="default runs/<time>-<profile>, or runs/<time>-<profile>-<scenario>-"
                          "<controller>[-tauD] when a mission is sent")
     ap.add_argument("--no-mission", action="store_true", help="do not send the scenario's mission")
+    ap.add_argument("--tiles", default=None, metavar="URL|DIR|FILE",
+                    help="the ground station's map tiles: an http(s) URL template with {z}/{x}/{y}, "
+                         "a folder <z>/<x>/<y>.png or an MBTiles file (*.mbtiles) it serves itself "
+                         "(default: the profile's tiles, else none: a metric grid, offline)")
     ap.add_argument("--controller", choices=CONTROLLER_NAMES, default=None,
                     help="fly the mission with this controller (default: the mission's)")
     ap.add_argument("--predict-disturbance", action=argparse.BooleanOptionalAction, default=None,
@@ -183,6 +187,14 @@ def vessel_dir(run_dir: Path, vessel: str, vessels: list[str]) -> Path:
     return run_dir if len(vessels) == 1 else run_dir / vessel
 
 
+def tiles_for(tiles: str | None) -> str | None:
+    """The ground station's tiles as its process needs them: a URL as it is, a file or folder as an
+    absolute path (the ground station checks it, and refuses what it cannot serve)."""
+    if not tiles or tiles.startswith(("http://", "https://")):
+        return tiles or None
+    return str(Path(tiles).expanduser().resolve())
+
+
 def free_udp_ports(n: int) -> list[int]:
     """``n`` distinct UDP ports free on loopback now (``{mavlink_port}``: each simulated
     autopilot of a fleet listens on its own)."""
@@ -201,15 +213,17 @@ def free_udp_ports(n: int) -> list[int]:
 def supervised(plan: list[Instance], vessels: list[str], run_dir: Path,
                common: dict[str, str]) -> list[Supervised]:
     """The processes of ``plan`` with their commands' placeholders filled in: ``common`` (the
-    launch's) and each one's vessel's ``{vessel}``, ``{run}``, ``{vessel_dir}`` and
-    ``{mavlink_port}`` (a free UDP port per vessel). ConfigError for an unknown placeholder."""
+    launch's) and each one's vessel's ``{vessel}``, ``{run}``, ``{vessel_dir}``,
+    ``{mavlink_port}`` (a free UDP port per vessel) and ``{vessel_index}`` (its place in
+    ``vessels``, from 0). ConfigError for an unknown placeholder."""
     ports = dict(zip(vessels, free_udp_ports(len(vessels)), strict=True))
     out = []
     for inst in plan:
         folder = vessel_dir(run_dir, inst.vessel, vessels)
         values = {**common, "vessel": inst.vessel, "run": str(folder / recording_source.RUN_FILE),
                   "vessel_dir": str(folder if inst.per_vessel or len(vessels) == 1 else run_dir),
-                  "mavlink_port": str(ports[inst.vessel])}
+                  "mavlink_port": str(ports[inst.vessel]),
+                  "vessel_index": str(vessels.index(inst.vessel))}
         out.append(Supervised(inst.spec, substitute(inst.spec.command, values), inst.vessel,
                               folder if inst.per_vessel else None))
     return out
@@ -545,6 +559,9 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
         placement = dict.fromkeys(CHAIN, split[0])
     env = dict(os.environ)
     env[ENV_VESSEL] = vessels[0]  # each process gets its own vessel's (Supervisor.spawn)
+    tiles = tiles_for(args.tiles or profile.tiles)
+    if tiles is not None:
+        env[address.ENV_TILES] = tiles
     # Every child is a process of this stack: the stack's credentials (or the explicit opt-out).
     env[ENV_CREDENTIALS] = str(auth.credentials.folder) if auth.credentials else NONE
     # Children find their commands next to the interpreter running the launcher (the venv).

@@ -18,7 +18,8 @@ A profile is pure data, validated here before anything starts:
 **Several vessels** (a fleet, ``deploy/profiles/fleet.toml``): ``vessels`` lists them, and each
 process marked ``per_vessel`` runs once per vessel (``instances``): named ``<name>-<vessel>``, with
 that vessel's ``{vessel}``, ``{run}`` (its own run description), ``{vessel_dir}`` (its folder in
-the run folder) and ``{mavlink_port}`` (a UDP port of its own); its ``after`` names the same
+the run folder), ``{mavlink_port}`` (a UDP port of its own) and ``{vessel_index}`` (its place in
+the list, from 0: the fleet's simulators start side by side by it); its ``after`` names the same
 vessel's copies. A process not marked runs once for the launch, on its first vessel (``{vessel}``,
 ``{run}`` are the first vessel's; ``{vessel_dir}`` is the run folder), after every copy of what it
 names in ``after``. One producer per key holds per vessel: the copies produce the same keys, each
@@ -97,6 +98,9 @@ class Profile(ConfigModel):
         "run unless $SEAWAY_CREDENTIALS names one; 'boat'/'shore': one half of a deployment, which "
         "needs the deployment's credentials for that side (seaway credentials create DIR --deployment)")
     scenario: str | None = Field(default=None, description="default scenario name or path")
+    tiles: str | None = Field(default=None, description="the ground station's map tiles (launch "
+                              "--tiles overrides): an http(s) {z}/{x}/{y} URL template, a folder "
+                              "<z>/<x>/<y>.png or an .mbtiles file; none: the metric grid")
     clock: Literal["wall", "lockstep"] = Field(default="wall", description="the run's clock: 'wall' "
                                                "(real time) or 'lockstep' (the simulator owns time)")
     vessel_file: str | None = Field(default=None, description="vessel file the services model; "

@@ -2,6 +2,9 @@
 // commands, and every refusal turned into one readable sentence (the API's own reason).
 
 const TOKEN_KEY = "seaway.groundstation.token";
+/** This page's own id (new at each load), sent with its commands: the ground station streams every
+ *  command it relays with the sender's id, so each page tells another's commands from its own. */
+export const CLIENT_ID = (crypto.randomUUID?.() || `${Date.now().toString(36)}-${Math.random().toString(36).slice(2)}`);
 
 /** The operator token: from the URL fragment (#token=...) once, then from sessionStorage. */
 export function takeTokenFromFragment() {
@@ -54,6 +57,7 @@ export async function request(method, path, { body, command = false, raw = false
   const h = { ...headers };
   if (body !== undefined && !raw) h["Content-Type"] = "application/json";
   if (command) {
+    h["X-Seaway-Client"] = CLIENT_ID;
     const token = getToken();
     if (token) h.Authorization = `Bearer ${token}`;
   }

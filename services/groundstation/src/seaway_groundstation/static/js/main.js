@@ -6,7 +6,7 @@
 // Replay: `Player` feeds its own store from the recording's frames at the recording's time.
 // Every command goes through `run()`, which asks for the token when needed and shows the answer.
 
-import { ApiError, command, get, getToken, request, setToken, takeTokenFromFragment } from "./api.js";
+import { ApiError, CLIENT_ID, command, get, getToken, request, setToken, takeTokenFromFragment } from "./api.js";
 import { LiveStream } from "./live.js";
 import { MapView } from "./map.js";
 import { TimePlot } from "./plot.js";
@@ -29,6 +29,7 @@ const app = {
   selected: sessionStorage.getItem(VESSEL_KEY) || "",
   draft: [],
   lastMissionId: null,
+  lastCommands: new Map(), // vessel -> the last command relayed to it, in words
 };
 
 // -- setup ----------------------------------------------------------------------------------------
@@ -36,6 +37,7 @@ const app = {
 takeTokenFromFragment();
 
 const map = new MapView($("map"), {
+  onPick: (name) => selectVessel(name),
   onDraftChange: (draft, done) => {
     app.draft = draft;
     renderDraftTable();
@@ -62,6 +64,7 @@ const plots = {
 
 const stream = new LiveStream({
   onFrame: (frame) => {
+    noteCommand(frame.vessel, frame.updates?.command?.message);
     const name = app.live.ingest(frame, clockLive());
     if (name && !app.selected) selectVessel(name);
     schedule();
@@ -80,6 +83,24 @@ const player = new Player({
   onProgress: (f) => { $("load-progress").firstElementChild.style.width = `${(f * 100).toFixed(0)}%`; },
   onState: () => updateTransport(),
 });
+
+/** A command another tab or client sent through this ground station (it streams each one it
+ *  relays): said in a note and kept in the vehicle panel. The page's own are answered in `run`. */
+const LOADED_NS = Date.now() * 1e6;
+const commandsSeen = new Set();
+function noteCommand(vessel, c) {
+  if (!c || !vessel) return;
+  const key = `${vessel}|${c.stamp_ns}|${c.request}`;
+  if (commandsSeen.has(key)) return;
+  commandsSeen.add(key);
+  const mine = c.client === CLIENT_ID;
+  const when = new Date(c.stamp_ns / 1e6).toISOString().slice(11, 19);
+  const answer = c.outcome === "accepted" ? "accepted" : `${c.outcome.replace("_", " ")}${c.reason ? `: ${c.reason}` : ""}`;
+  app.lastCommands.set(vessel, `${c.what} — ${answer}, ${when} UTC${mine ? "" : ", from another tab or client"}`);
+  if (!mine && c.stamp_ns > LOADED_NS) {
+    say(`${vessel}: ${c.what} sent by another tab or client — ${answer}`, c.outcome === "accepted" ? "warn" : "info");
+  }
+}
 
 const clockLive = () => performance.now() / 1000;
 const now = () => (app.mode === "live" ? clockLive() : player.t);
@@ -154,6 +175,7 @@ function render() {
       + (vehicle.hold_reason_detail ? `: ${vehicle.hold_reason_detail}` : "") : "";
     setText("v-failsafe", vehicle ? vehicle.failsafe || holdWhy || "none" : "–", vehicle?.failsafe || holdWhy ? "bad" : "");
     setText("v-services", (view?.services || v?.services || []).join(", ") || "–");
+    setText("v-last-command", app.lastCommands.get(app.selected) || "–");
     syncModeBox(vehicle);
     markStale("battery", stale("battery") && Boolean(msg("battery")));
     document.querySelector(".sim-only").hidden = !view?.simulated;
@@ -191,13 +213,16 @@ function render() {
   map.tilesUrl = app.config.tiles_url;
   const others = [];
   for (const [name, o] of store().vessels) {
-    const s = o.message("state");
-    if (name !== app.selected && s) others.push({ name, ...s });
+    if (name === app.selected) continue;
+    const s = o.message("state"), sv = o.message("solve");
+    others.push({ name, state: s, colour: vesselColour(name), trail: o.trail, stale: o.stale("state", t),
+      pred: sv ? sv.predicted_x_m.map((x, i) => [x, sv.predicted_y_m[i]]) : [],
+      plan: app.mode === "live" ? app.fleet.get(name)?.active_mission ?? null : null });
   }
   map.setModel({
     geo: app.mode === "live" ? view?.geo ?? null : player.detail?.geo?.[app.selected] ?? null,
     plan, activeLeg: mission && mission.state !== "idle" ? mission.active_leg : -1, area: msg("area"),
-    trail: v?.trail || [], state, solve, others, budget,
+    trail: v?.trail || [], state, solve, others, budget, name: app.selected, colour: vesselColour(app.selected),
     stale: { state: stale("state"), solve: stale("solve"), energy: stale("energy") },
   });
   $("map-stale").hidden = !(stale("state") && state);
@@ -205,6 +230,8 @@ function render() {
     app.lastMissionId = plan.mission_id;
     map.fit();
   }
+
+  renderFleet(t);
 
   // Plots.
   const cursor = null;
@@ -214,6 +241,50 @@ function render() {
   plots.xte.draw(s?.xte, { stale: stale("mission"), cursorT: cursor, empty: "no mission yet" });
   plots.energy.draw(v?.energySeries(), { stale: stale("mission"), cursorT: cursor, empty: "no mission yet" });
   if (app.mode === "replay") updateTransport();
+}
+
+/** Each vessel's colour on the map and in the fleet table: by its place in the sorted names, so
+ *  every tab and a reload give a vessel the same one. Dark enough for 4.5:1 text on white. */
+const VESSEL_COLOURS = ["#0b3d62", "#8a2be2", "#00695c", "#ad1457", "#7a4a00", "#283593", "#4e6b00", "#6d4c41"];
+function vesselColour(name) {
+  const i = vesselNames().indexOf(name);
+  return VESSEL_COLOURS[(i < 0 ? 0 : i) % VESSEL_COLOURS.length];
+}
+
+/** The fleet overview: one row per vessel (state, leg, battery, link); its name picks it. */
+function renderFleet(t) {
+  const names = vesselNames();
+  $("fleet-panel").hidden = names.length < 2;
+  const rows = names.map((name) => {
+    const o = store().vessels.get(name);
+    const mission = o?.message("mission"), vehicle = o?.message("vehicle"), battery = o?.message("battery");
+    const frac = battery?.remaining_frac ?? vehicle?.battery_remaining_frac;
+    const legs = mission ? Math.max(mission.waypoint_count - 1, 0) : 0;
+    const stale = !o || o.stale("state", t);
+    return [name, mission?.state ?? "–", mission && mission.state !== "idle" ? `${mission.active_leg} / ${legs}` : "–",
+      Number.isFinite(frac) ? `${(frac * 100).toFixed(0)} %` : "–",
+      vehicle ? (vehicle.link_ok && !stale ? "up" : stale ? "stale" : "DOWN") : "–"];
+  });
+  const body = $("fleet-table").tBodies[0];
+  const key = JSON.stringify([rows, app.selected]);
+  if (body.dataset.key === key) return;
+  body.dataset.key = key;
+  body.replaceChildren(...rows.map(([name, ...cells]) => {
+    const tr = document.createElement("tr");
+    tr.dataset.vessel = name;
+    if (name === app.selected) tr.className = "selected";
+    const th = document.createElement("th");
+    th.scope = "row";
+    const b = document.createElement("button");
+    b.className = "ghost pick";
+    b.style.borderLeft = `6px solid ${vesselColour(name)}`;
+    b.textContent = name;
+    b.setAttribute("aria-pressed", String(name === app.selected));
+    b.onclick = () => selectVessel(name);
+    th.append(b);
+    tr.append(th, ...cells.map((c) => Object.assign(document.createElement("td"), { textContent: c })));
+    return tr;
+  }));
 }
 
 const FIX_TYPES = ["no GPS", "no fix", "2D fix", "3D fix", "DGPS", "RTK float", "RTK fixed", "static", "PPP"];
@@ -485,16 +556,21 @@ async function run(label, path, body) {
 
 const vpath = (suffix) => `/api/vessels/${encodeURIComponent(app.selected)}/${suffix}`;
 
+/** Ask before an action that moves or stops the vessel (a misclick on a boat is not undone). */
+const sure = (what) => confirm(`${what} — ${app.selected}?`);
+
 const COMMANDS = {
-  arm: () => run("Arm", vpath("arm"), { force: false }),
-  disarm: () => run("Disarm", vpath("disarm"), { force: false }),
-  mode: () => run(`Mode ${$("mode-select").value}`, vpath("mode"), { mode: $("mode-select").value.trim() }),
-  scenario: () => run(`Scenario ${$("scenario-name").value}`, vpath("scenario"), { name: $("scenario-name").value.trim() }),
-  restart: () => run("Restart the simulation", vpath("scenario"), { restart: true }),
-  pause: () => run("Pause", vpath("mission/pause")),
-  resume: () => run("Resume", vpath("mission/resume")),
-  abort: () => confirm(`Abort the mission of ${app.selected}?`) && run("Abort", vpath("mission/abort")),
-  start: () => run("Start again", vpath("mission/start")),
+  arm: () => sure("Arm: the thrusters may turn") && run("Arm", vpath("arm"), { force: false }),
+  disarm: () => sure("Disarm: the thrusters stop") && run("Disarm", vpath("disarm"), { force: false }),
+  mode: () => sure(`Set the autopilot's mode to ${$("mode-select").value.trim()}`)
+    && run(`Mode ${$("mode-select").value}`, vpath("mode"), { mode: $("mode-select").value.trim() }),
+  scenario: () => sure(`Load scenario ${$("scenario-name").value.trim()} (the simulated vessel moves)`)
+    && run(`Scenario ${$("scenario-name").value}`, vpath("scenario"), { name: $("scenario-name").value.trim() }),
+  restart: () => sure("Restart the simulation") && run("Restart the simulation", vpath("scenario"), { restart: true }),
+  pause: () => sure("Pause the mission (the vessel holds)") && run("Pause", vpath("mission/pause")),
+  resume: () => sure("Resume the mission (the vessel moves)") && run("Resume", vpath("mission/resume")),
+  abort: () => sure("Abort the mission") && run("Abort", vpath("mission/abort")),
+  start: () => sure("Start the last mission again from P0 (the vessel moves)") && run("Start again", vpath("mission/start")),
 };
 // One request per click: the button stays disabled until the vessel answered (a double click on a
 // command used to send it twice).
@@ -518,16 +594,30 @@ function renderDraftTable() {
   body.replaceChildren(...app.draft.map((p, i) => {
     const tr = document.createElement("tr");
     tr.innerHTML = `<td>${i}</td><td><input type="number" step="0.1" aria-label="north ${i}"></td>`
-      + `<td><input type="number" step="0.1" aria-label="east ${i}"></td><td><button title="remove">×</button></td>`;
-    const [n, e] = tr.querySelectorAll("input");
+      + `<td><input type="number" step="0.1" aria-label="east ${i}"></td>`
+      + `<td><input type="number" step="0.1" min="0.1" max="50" placeholder="–" aria-label="speed ${i} in metres per second"></td>`
+      + `<td><button title="remove" aria-label="remove waypoint ${i}">×</button></td>`;
+    const [n, e, v] = tr.querySelectorAll("input");
     n.value = p.x_m.toFixed(2);
     e.value = p.y_m.toFixed(2);
+    v.value = Number.isFinite(p.speed_mps) ? String(p.speed_mps) : "";
     const edit = () => {
-      app.draft[i] = { x_m: Number(n.value), y_m: Number(e.value) };
+      // Moved in metres: its lat/lon no longer holds; the speed stays the waypoint's.
+      const speed = v.value === "" ? undefined : Number(v.value);
+      if (speed !== undefined && !(speed > 0 && speed <= 50)) {
+        say(`Waypoint ${i}: speed ${v.value} m/s is not in (0, 50]`, "warn");
+        v.value = Number.isFinite(p.speed_mps) ? String(p.speed_mps) : "";
+        return;
+      }
+      const moved = Number(n.value) !== p.x_m || Number(e.value) !== p.y_m;
+      app.draft[i] = moved ? { x_m: Number(n.value), y_m: Number(e.value) } : { ...p };
+      if (speed === undefined) delete app.draft[i].speed_mps;
+      else app.draft[i].speed_mps = speed;
       map.setDraft(app.draft, coa());
     };
     n.onchange = edit;
     e.onchange = edit;
+    v.onchange = edit;
     tr.querySelector("button").onclick = () => {
       app.draft.splice(i, 1);
       renderDraftTable();
@@ -549,16 +639,30 @@ function draftBody() {
     task_power_w: Number($("task-power").value),
     controller: $("controller").value,
     predict_disturbance: $("predict").checked,
+    // One cruise hint per mission: the controller has no per-waypoint speed.
+    ...(speedHint() !== undefined ? { speed_hint_mps: speedHint() } : {}),
   };
 }
+
+/** The mission's speed hint [m/s]: the first waypoint speed given in the editor, if any. */
+const speedHint = () => app.draft.find((p) => Number.isFinite(p.speed_mps))?.speed_mps;
 
 $("send-mission").onclick = async () => {
   if (app.draft.length < 2) {
     say("A mission needs at least two waypoints: click “Add waypoints”, then the map.", "warn");
     return;
   }
+  const button = $("send-mission");
+  if (button.disabled) return;
   const body = draftBody();
-  const reply = await run(`Mission ${body.mission_id}`, vpath("mission"), body);
+  if (!sure(`Send mission ${body.mission_id} (${body.waypoints.length} waypoints; it starts at once)`)) return;
+  button.disabled = true; // one request per click, as the other commands
+  let reply;
+  try {
+    reply = await run(`Mission ${body.mission_id}`, vpath("mission"), body);
+  } finally {
+    button.disabled = false;
+  }
   if (reply) {
     $("mission-id").value = "";
     app.draft = [];
@@ -615,7 +719,11 @@ $("import-file").onchange = async (ev) => {
       return;
     }
     // Keep the file's latitude/longitude (sent as they are); metres are for drawing and editing.
-    app.draft = parsed.waypoints_m.map((p, i) => ({ ...p, ...parsed.waypoints[i] }));
+    app.draft = parsed.waypoints_m.map((p, i) => ({ ...p, ...parsed.waypoints[i],
+      ...(Number.isFinite(parsed.speeds_mps?.[i]) ? { speed_mps: parsed.speeds_mps[i] } : {}) }));
+    if (!parsed.speeds_mps?.length && parsed.hints?.speed_hint_mps && app.draft.length) {
+      app.draft[0].speed_mps = parsed.hints.speed_hint_mps;
+    }
     if (parsed.hints?.coa_radius_m) $("coa").value = parsed.hints.coa_radius_m;
     if (parsed.hints?.task_power_w !== undefined) $("task-power").value = parsed.hints.task_power_w;
     renderDraftTable();
@@ -768,6 +876,8 @@ async function start() {
   }
   $("controller").replaceChildren(...app.config.controllers.map((c) => new Option(c, c)));
   renderDraftTable();
+  // The legend starts open where it leaves room for the vessel, folded on a phone.
+  $("map-legend").open = window.matchMedia("(min-width: 900px)").matches;
   setMode(new URLSearchParams(location.search).get("view") === "replay" ? "replay" : "live");
   // Plots keep their history across a reload: the live run's recording under the live frames.
   liveHistory(app.live, app.config.live_recordings || [], clockLive).then(schedule)

@@ -3,9 +3,11 @@
 // Layers, bottom to top: optional tiles, the metric grid, the operating area (keep-in outline,
 // keep-out polygons and circles, rally points), the mission flown (path, circles of
 // acceptance, the active waypoint), the draft being edited (dashed, draggable handles), the trail,
-// the MPC's predicted trajectory, the energy budget's home and point of no return, other vessels,
-// the vessel with its heading and the disturbance estimate as an arrow in its body frame. Wheel zooms at the cursor, dragging the background pans;
-// in "add" mode a click adds a waypoint; dragging a handle moves it, right-click removes it.
+// the MPC's predicted trajectory, the energy budget's home and point of no return, the other
+// vessels (each in its colour: path, trail, prediction, glyph), the chosen vessel with its heading
+// and the disturbance estimate as an arrow in its body frame, every vessel's name. Wheel zooms at the cursor, dragging the background pans;
+// in "add" mode a click adds a waypoint; dragging a handle moves it, right-click removes it; a
+// click on another vessel picks it. Focused, arrow keys pan, + and - zoom, F fits.
 //
 // Latitude/longitude appear only where the ground station gave the frame's origin and scale
 // (`geo`: metres per degree at the origin, computed by the ground station); the page does no
@@ -37,8 +39,9 @@ const latTile = (lat, z) => {
 };
 
 export class MapView {
-  constructor(svg, { onDraftChange, onReadout }) {
+  constructor(svg, { onDraftChange, onReadout, onPick }) {
     this.svg = svg;
+    this.onPick = onPick;
     this.onDraftChange = onDraftChange;
     this.onReadout = onReadout;
     this.scale = 8;              // px per metre
@@ -51,7 +54,7 @@ export class MapView {
     this.tilesUrl = null;
     this.dirty = true;
     this.layers = {};
-    for (const name of ["tiles", "grid", "area", "mission", "draft", "trail", "pred", "energy", "others", "vessel", "handles"]) {
+    for (const name of ["tiles", "grid", "area", "mission", "draft", "trail", "pred", "energy", "others", "vessel", "labels", "handles"]) {
       this.layers[name] = el("g", { class: `layer-${name}` }, svg);
     }
     this.bind();
@@ -108,6 +111,7 @@ export class MapView {
     for (const p of this.draft) pts.push([p.x_m, p.y_m]);
     for (const p of m.trail || []) pts.push(p);
     if (m.state) pts.push([m.state.x_m, m.state.y_m]);
+    for (const o of m.others || []) if (o.state) pts.push([o.state.x_m, o.state.y_m]);
     if (!pts.length) pts.push([0, 0]);
     let n0 = Infinity, n1 = -Infinity, e0 = Infinity, e1 = -Infinity;
     for (const [n, e] of pts) { n0 = Math.min(n0, n); n1 = Math.max(n1, n); e0 = Math.min(e0, e); e1 = Math.max(e1, e); }
@@ -137,13 +141,35 @@ export class MapView {
       this.center = [this.center[0] + before[0] - after[0], this.center[1] + before[1] - after[1]];
       this.invalidate();
     }, { passive: false });
+    // The keyboard: arrows pan an eighth of the view, + and - zoom about the middle, F fits.
+    svg.addEventListener("keydown", (ev) => {
+      if (ev.altKey || ev.ctrlKey || ev.metaKey) return;
+      const [w, h] = this.size();
+      const pan = { ArrowUp: [h / 8, 0], ArrowDown: [-h / 8, 0], ArrowLeft: [0, -w / 8], ArrowRight: [0, w / 8] }[ev.key];
+      if (pan) {
+        this.follow = false;
+        this.center = [this.center[0] + pan[0] / this.scale, this.center[1] + pan[1] / this.scale];
+      } else if (ev.key === "+" || ev.key === "=") {
+        this.scale = Math.min(500, this.scale * 1.25);
+      } else if (ev.key === "-" || ev.key === "_") {
+        this.scale = Math.max(0.05, this.scale / 1.25);
+      } else if (ev.key === "f" || ev.key === "F") {
+        this.fit();
+      } else {
+        return;
+      }
+      ev.preventDefault();
+      this.invalidate();
+    });
     svg.addEventListener("pointerdown", (ev) => {
       if (ev.button !== 0) return;
       const handle = ev.target.closest?.("[data-wp]");
       const p = local(ev);
       drag = handle
         ? { kind: "handle", index: Number(handle.dataset.wp), start: p, moved: false }
-        : { kind: "pan", start: p, center: [...this.center], moved: false };
+        : { kind: "pan", start: p, center: [...this.center], moved: false,
+          // (the vessel under the pointer now: once captured, the pointer's events target the svg)
+          pick: ev.target.closest?.("[data-vessel]")?.dataset.vessel };
       svg.setPointerCapture(ev.pointerId);
     });
     svg.addEventListener("pointermove", (ev) => {
@@ -158,8 +184,9 @@ export class MapView {
         this.follow = false;
         this.center = [drag.center[0] + dy / this.scale, drag.center[1] - dx / this.scale];
       } else {
-        // A moved waypoint is in metres from now on (its lat/lon no longer holds).
-        this.draft[drag.index] = { x_m: round2(n), y_m: round2(e) };
+        // A moved waypoint is in metres from now on (its lat/lon no longer holds); its speed stays.
+        const speed = this.draft[drag.index]?.speed_mps;
+        this.draft[drag.index] = { x_m: round2(n), y_m: round2(e), ...(Number.isFinite(speed) ? { speed_mps: speed } : {}) };
         this.onDraftChange?.(this.draft, false);
       }
       this.invalidate();
@@ -169,6 +196,7 @@ export class MapView {
       const d = drag;
       drag = null;
       if (d.kind === "handle" && d.moved) this.onDraftChange?.(this.draft, true);
+      if (d.kind === "pan" && !d.moved && !this.adding && d.pick) this.onPick?.(d.pick);
       if (d.kind === "pan" && !d.moved && this.adding) {
         const [n, e] = this.toWorld(...local(ev));
         this.draft.push({ x_m: round2(n), y_m: round2(e) });
@@ -204,7 +232,8 @@ export class MapView {
     this.renderPolyline("pred", pred, "var(--pred)", 2.2, m.stale?.solve, true);
     this.renderEnergy(m.budget, m.stale?.energy);
     this.renderOthers(m.others || []);
-    this.renderVessel(m.state, m.stale?.state);
+    this.renderVessel(m.state, m.stale?.state, m.colour);
+    this.renderLabels([...(m.others || []), ...(m.state && m.name ? [{ name: m.name, state: m.state, colour: m.colour || "var(--vessel)", selected: true }] : [])]);
   }
 
   /** The energy budget (mission/energy, local NED like the rest of the map): home, and the point
@@ -365,18 +394,61 @@ export class MapView {
     }
   }
 
+  /** Every vessel but the chosen one, in its own colour: its mission path (thin, dashed), trail,
+   *  MPC prediction and glyph, each glyph a button that picks the vessel. */
   renderOthers(others) {
     const g = this.layers.others;
     g.replaceChildren();
     for (const o of others) {
-      const [sx, sy] = this.toScreen(o.x_m, o.y_m);
-      const v = el("g", { transform: `translate(${sx},${sy}) rotate(${(o.psi_rad * 180) / Math.PI})` }, g);
-      el("path", { d: "M0,-10 L5,7 L0,4 L-5,7 Z", fill: "var(--stale)" }, v);
-      el("text", { x: sx + 8, y: sy + 4, "font-size": 11, fill: "var(--muted)" }, g).textContent = o.name;
+      const colour = o.stale ? "var(--stale)" : o.colour;
+      const line = (points, attrs) => {
+        if (points.length < 2) return;
+        el("polyline", { points: points.map(([n, e]) => this.toScreen(n, e).map((v) => v.toFixed(1)).join(",")).join(" "),
+          fill: "none", stroke: colour, "stroke-linejoin": "round", ...attrs }, g);
+      };
+      line(o.plan?.waypoints_m || [], { "stroke-width": 1.5, "stroke-dasharray": "8 4", opacity: 0.8,
+        class: "other-path", "data-vessel": o.name });
+      line(o.trail || [], { "stroke-width": 1.5, opacity: 0.6, class: "other-trail", "data-vessel": o.name });
+      line(o.pred || [], { "stroke-width": 2, opacity: 0.9, class: "other-pred", "data-vessel": o.name });
+      if (!o.state) continue;
+      const [sx, sy] = this.toScreen(o.state.x_m, o.state.y_m);
+      const v = el("g", { transform: `translate(${sx},${sy}) rotate(${(o.state.psi_rad * 180) / Math.PI})`,
+        class: "vessel-glyph other", "data-vessel": o.name, style: "cursor: pointer" }, g);
+      el("title", {}, v).textContent = `${o.name}: click to pick`;
+      el("path", { d: "M0,-12 L7,8 L0,4 L-7,8 Z", fill: colour, stroke: "#fff", "stroke-width": 1.5 }, v);
     }
   }
 
-  renderVessel(state, stale) {
+  /** Every vessel's name beside its glyph, in its colour. Vessels close together on screen (two
+   *  started on one spot) get their labels stacked with a leader line instead of on top of each
+   *  other. */
+  renderLabels(labelled) {
+    const g = this.layers.labels;
+    g.replaceChildren();
+    const placed = [];
+    const items = labelled.filter((o) => o.state)
+      .map((o) => ({ ...o, at: this.toScreen(o.state.x_m, o.state.y_m) }))
+      .sort((a, b) => a.at[1] - b.at[1] || a.name.localeCompare(b.name));
+    for (const o of items) {
+      const [sx, sy] = o.at;
+      let lx = sx + 14, ly = sy - 10;
+      const width = 10 + 7.5 * o.name.length, height = 16, gap = 5; // [px], 12 px type
+      while (placed.some(([px, py, pw]) => lx < px + pw + gap && px < lx + width + gap && Math.abs(ly - py) < height + gap)) {
+        ly += height + gap;
+      }
+      placed.push([lx, ly, width]);
+      const label = el("g", { class: "vessel-label", "data-vessel": o.name, "data-n": o.state.x_m, "data-e": o.state.y_m }, g);
+      if (Math.hypot(lx - sx, ly - sy) > 20) {
+        el("line", { x1: sx, y1: sy, x2: lx, y2: ly, stroke: o.colour, "stroke-width": 1 }, label);
+      }
+      el("rect", { x: lx - 3, y: ly - 12, width, height, rx: 3, fill: "#fff", opacity: 0.9,
+        stroke: o.colour, "stroke-width": o.selected ? 2 : 1 }, label);
+      el("text", { x: lx + 1, y: ly, "font-size": 12, "font-weight": o.selected ? 700 : 500, fill: o.colour }, label)
+        .textContent = o.name;
+    }
+  }
+
+  renderVessel(state, stale, colour) {
     const g = this.layers.vessel;
     g.replaceChildren();
     if (!state) return;
@@ -395,7 +467,7 @@ export class MapView {
       el("path", { d: `M${ex},${ey} L${ex - 8 * ux + 4 * uy},${ey - 8 * uy - 4 * ux} L${ex - 8 * ux - 4 * uy},${ey - 8 * uy + 4 * ux} Z`,
         fill: "var(--dist)", id: "disturbance-arrow" }, v);
     }
-    el("path", { d: "M0,-15 L8,9 L0,5 L-8,9 Z", fill: stale ? "var(--stale)" : "var(--vessel)", stroke: "#fff",
+    el("path", { d: "M0,-15 L8,9 L0,5 L-8,9 Z", fill: stale ? "var(--stale)" : colour || "var(--vessel)", stroke: "#fff",
       "stroke-width": 1.5 }, v);
   }
 }
