@@ -108,6 +108,13 @@ def test_the_lake_mission_on_ardupilot_sitl_with_the_identified_model(tmp_path, 
     dec = recording.decode_vessel([run_dir / "recording.mcap"], None, [keys.THRUST.suffix])
     sources = [m.source for m in dec.get(keys.THRUST.suffix) if isinstance(m, ThrustCommand)]
     assert sources.count("cc-empc") > 0.8 * solve["count"]
+    # Issue #63: the energy to finish predicted at the start, with the identified vessel, against
+    # the report's integral of the energy used (the same alpha, plus T^w t): within 10 %.
+    start = report["energy_budget"]["prediction"]["start"]
+    error = (start["predicted_j"] - start["actual_j"]) / start["actual_j"]
+    print(f"SITL lake energy: predicted at start {start['predicted_j']:.0f} J, "
+          f"used {start['actual_j']:.0f} J, {100 * error:+.1f} %")
+    assert abs(error) <= 0.10, start
 
 
 @needs_sitl

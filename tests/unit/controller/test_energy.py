@@ -9,7 +9,8 @@ import math
 import numpy as np
 import pytest
 from seaway.contract.messages import StateEstimate
-from seaway.vessel.model import load_vessel
+from seaway.vessel.energy_prediction import VEHICLES_MEASURED
+from seaway.vessel.model import load_vessel, rk4_step
 from seaway_controller import costs
 from seaway_controller.energy import (
     MIN_SPEED_FRAC,
@@ -24,6 +25,7 @@ from seaway_controller.energy import (
     predict,
     predict_many,
 )
+from seaway_controller.energy_runs import turning_vessel
 
 BOAT = load_vessel("paper-boat")
 TW = 250.0
@@ -306,14 +308,15 @@ def test_a_model_keeps_a_bounded_number_of_turn_tables() -> None:
 
 def test_a_turn_costs_the_least_extra_energy_over_t_d() -> None:
     """Each turn's extra energy is the least of the paper's terminal cost over t_d in [1, 60] s
-    less the straight run, as a fine grid of t_d finds it (at angles of the table: between them
-    ``turn_j`` interpolates)."""
+    (with the yaw damping of the steady turn, ``turning_vessel``) less the straight run, as a fine
+    grid of t_d finds it (at angles of the table: between them ``turn_j`` interpolates)."""
     u = 0.93
     m = EnergyModel(BOAT, TW, 2.0, False, False)
     p_static = costs.surge_power_w(u, BOAT) + TW
     t_d = np.linspace(1.0, 60.0, 200_001)
+    turning = turning_vessel(BOAT, u)
     for psi in (k * math.pi / 90 for k in (0, 13, 37, 63, 90)):
-        p_dyn = costs.dynamic_power_w(u, 0.0, psi, t_d, TW, 2.0, BOAT)
+        p_dyn = costs.dynamic_power_w(u, 0.0, psi, t_d, TW, 2.0, turning)
         least = max(0.0, float(np.min(t_d * (p_dyn - p_static * costs.smooth_sinc(psi)))))
         assert m.turn_j(psi, u) == pytest.approx(least, rel=1e-6, abs=1e-6), psi
 
@@ -335,3 +338,62 @@ def test_a_new_speed_prices_every_turn_of_its_table_in_one_search(monkeypatch) -
     m = EnergyModel(BOAT, TW, 2.0, False, False)
     m.turn_j(0.7, 0.8765)  # a speed no table was made for
     assert 0 < calls <= 70
+
+
+def _steady_yaw_damping(vessel, speed_mps: float) -> float:
+    """N l / r of the model's own steady turn at ``speed_mps`` under a small differential thrust
+    (the surge thrust holding the speed): the yaw damping the turn sees [kg m^2/s]."""
+    d_t = 0.02 * vessel.xu_kgps * speed_mps
+    t_sum = vessel.xu_kgps * speed_mps
+    x = [speed_mps, 0.0, 0.0, 0.0, 0.0, 0.0]
+    for _ in range(20_000):  # 200 s at 10 ms: many times every time constant of these vessels
+        x = rk4_step(x, [(t_sum + d_t) / 2, (t_sum - d_t) / 2], 0.01, vessel)
+    return d_t * vessel.arm_m / x[2]
+
+
+@pytest.mark.parametrize("name", ["ardupilot-sitl-motorboat", "paper-boat"])
+def test_a_turn_is_priced_with_the_yaw_damping_of_the_models_own_steady_turn(name) -> None:
+    """Issue #63: the terminal cost's yaw power sees only Nr; the model also has the sway a turn
+    makes and its Munk moment. On the boat identified from ArduPilot's SITL (m22 > m11, a 0.1 m
+    arm) that moment turns it half again as fast at its cruise as Nr alone says (measured on the
+    SITL: 0.108 rad/s per N of differential thrust; Nr alone: 0.070), and its turns were priced
+    at ~3.8 kJ where the closed loop flew them for less. The turns are priced with the damping the
+    model's own steady turn shows."""
+    vessel = load_vessel(name)
+    m = EnergyModel(vessel, TW, 2.0, True, False)
+    u = m.cruise_speed_mps
+    steady = _steady_yaw_damping(vessel, u)
+    assert turning_vessel(vessel, u).nr_kgm2ps == pytest.approx(steady, rel=1e-3)
+    same = vessel.model_copy(update={"nr_kgm2ps": steady})
+    t_d = np.linspace(1.0, 60.0, 20_001)
+    p_dyn = costs.dynamic_power_w(u, 0.0, math.pi / 2, t_d, TW, 2.0, same)
+    p_static = costs.surge_power_w(u, vessel) + TW
+    least = float(np.min(t_d * (p_dyn - p_static * costs.smooth_sinc(math.pi / 2))))
+    assert m.turn_j(math.pi / 2, u) == pytest.approx(least, rel=1e-4)
+    if name == "ardupilot-sitl-motorboat":
+        assert vessel.arm_m / steady == pytest.approx(0.105, abs=0.003)  # rad/s per N
+
+
+def test_the_prediction_is_scaled_by_the_ratio_measured_on_the_files_vehicle() -> None:
+    """Issue #63: on ArduPilot's SITL boat the identified model's prediction was measured high
+    (``VEHICLES_MEASURED``); the budget scales its prediction, and its point of no return, by the
+    measured ratio for that file, and for no other (the same model under another name)."""
+    vessel = load_vessel("ardupilot-sitl-motorboat")
+    other = vessel.model_copy(update={"name": "another-boat"})
+    ratio = VEHICLES_MEASURED["ardupilot-sitl-motorboat"].ratio
+    assert 0.5 < ratio < 1.0
+    wps = [(0.0, 0.0), (22.0, 0.0), (22.0, 18.0), (0.0, 18.0)]
+    here = state(x=5.0, psi=0.0)
+    measured, plain = (EnergyModel(v, TW, 2.0, True, False) for v in (vessel, other))
+    assert plain.vehicle_ratio == 1.0
+    a = predict(measured, here, wps, 1, (0.0, 0.0), 900.0, Disturbance())
+    b = predict(plain, here, wps, 1, (0.0, 0.0), 900.0, Disturbance())
+    assert a.to_go_j == pytest.approx(ratio * b.to_go_j, rel=1e-12)
+    assert a.to_home_j == pytest.approx(ratio * b.to_home_j, rel=1e-12)
+    # The point of no return sees the same energies: a battery and reserve scaled by 1 / ratio
+    # put it where the unscaled model puts it with the unscaled battery.
+    pa = no_return_point(measured, here, wps, 1, (0.0, 0.0), 9000.0, 1000.0, Disturbance())
+    pb = no_return_point(plain, here, wps, 1, (0.0, 0.0), 9000.0 / ratio, 1000.0 / ratio,
+                         Disturbance())
+    assert pa is not None and pb is not None
+    assert pa[2] == pytest.approx(pb[2], rel=1e-9)

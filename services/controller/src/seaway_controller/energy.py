@@ -13,7 +13,11 @@ THE PREDICTION
   metre), and the terminal cost is the paper's, disturbance-free, while the cruise below is not.
 * **Each later leg** starts where the vessel enters the previous circle and ends on its own: a turn
   by the change of course, priced by the paper's terminal cost (the least E_d + E_s over t_d minus
-  the straight run it replaces, ``turn_extra_j``), plus the straight run at the economic cruise.
+  the straight run it replaces), plus the straight run at the economic cruise. The terminal cost's
+  yaw power sees only the yaw damping (N = m33 rdot + Nr r); the model the vessel turns by also
+  has the sway it slips into and its Munk moment, which change the moment a turn at the cruise
+  takes. The turns are priced with that moment (``seaway_controller.energy_runs.turning_vessel``):
+  the MPC optimises the paper's cost, but its closed loop turns the vessel the model has.
 * **The cruise** under a disturbance force (``cruise``): the estimator's tau_d, a body-frame force,
   is taken as the world-frame force it is now (wind, or a current seen through the GNSS) and turned
   into each leg's body frame. The economic controllers hold the model's surge speed at u*, where
@@ -24,6 +28,10 @@ THE PREDICTION
   differential thrust. The NMPC has no economic cruise: it is taken at its present speed.
 * **Home** is straight from here to the home point's circle: a turn from the present heading and
   one straight run, the same way (the return mission is exactly that path, ``return_request``).
+* **The vehicle**: where the vessel file's prediction was measured on the vehicle it was identified
+  from and found off (``seaway.vessel.energy_prediction.VEHICLES_MEASURED``: ArduPilot's SITL boat,
+  whose drag and turns the identified model prices high), every energy above is scaled by that
+  measured ratio (``EnergyModel.vehicle_ratio``); 1 for any other file.
 * **The band** is the prediction at the disturbance one standard deviation away along each
   principal axis of the estimate's tau_d covariance: the lowest and highest of those, and the
   nominal; the energy to finish's ends are then widened by the controller's own measured
@@ -51,7 +59,6 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
-from functools import lru_cache
 
 import numpy as np
 from seaway.contract.messages import (
@@ -61,13 +68,18 @@ from seaway.contract.messages import (
     MissionAccepted,
     StateEstimate,
 )
-from seaway.vessel.energy_prediction import band_factors
+from seaway.vessel.energy_prediction import band_factors, forecast_ratio
 from seaway.vessel.model import VesselParams
 
 from seaway_controller import costs
+from seaway_controller.energy_runs import (
+    Cruise,
+    _per_m,
+    _turn_table,
+    cruise,
+    cruise_courses,
+)
 
-TURN_TABLE_POINTS = 91
-"""Turn angles [0, pi] at which the turn's extra energy is tabulated (2 deg apart), interpolated."""
 TABLES_PER_MODEL = 8
 """Turn tables a model keeps (one per speed): an economic mission needs one, at u*."""
 PNR_SCAN = 32
@@ -91,124 +103,6 @@ did (decided late), and a rate taken over a leg change's 0.1 s magnified one bat
 MIN_SPEED_FRAC = 0.05
 """A predicted ground speed below this fraction of u* means the vessel cannot make way against the
 disturbance on that course: the leg's energy is then unbounded (reported as such)."""
-
-
-# -- the cruise ----------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class Cruise:
-    """A steady straight run along a course [m/s, W, N]."""
-
-    ground_speed_mps: float
-    power_w: float
-    thrust_port_n: float
-    thrust_starboard_n: float
-
-    @property
-    def j_per_m(self) -> float:
-        """Energy per metre made good [J/m]; inf when the vessel makes no way."""
-        return self.power_w / self.ground_speed_mps if self.ground_speed_mps > 0 else math.inf
-
-
-def cruise(vessel: VesselParams, task_power_w: float, speed_mps: float, course_rad: float,
-           force_ne: tuple[float, float] = (0.0, 0.0), yaw_nm: float = 0.0,
-           pay_in_thrust: bool = True) -> Cruise:
-    """The steady run along ``course_rad`` at model surge speed ``speed_mps`` under a world-frame
-    force ``force_ne`` [N north, N east] and a yaw moment ``yaw_nm`` [N m] (module docstring;
-    ``cruise_courses`` for many at once, which this is one of)."""
-    g, pw, t1, t2 = cruise_courses(vessel, task_power_w, speed_mps, course_rad, force_ne[0],
-                                   force_ne[1], yaw_nm, pay_in_thrust)
-    return Cruise(float(g), float(pw), float(t1), float(t2))
-
-
-def cruise_courses(vessel: VesselParams, task_power_w: float, speed_mps: float,
-                   courses_rad: np.ndarray | float, force_n: np.ndarray | float = 0.0,
-                   force_e: np.ndarray | float = 0.0, yaw_nm: np.ndarray | float = 0.0,
-                   pay_in_thrust: bool = True
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Steady runs at model surge speed ``speed_mps``: (ground speeds [m/s], powers [W], port and
-    starboard thrusts [N]), broadcast over the courses [rad] and the world-frame disturbances
-    (force north and east [N], yaw moment [N m]) (module docstring).
-
-    ``pay_in_thrust``: the controller knows the force and holds its speed with thrust; else it
-    keeps the thrust of the undisturbed cruise and the speed changes. Thrusts are bounded by the
-    vessel's limits (a cruise beyond them is flown at the bound, and the speed follows).
-
-    Arrays because the budget prices its legs under seven disturbances and ~50 runs home a period:
-    one at a time, that cost more than the MPC's solve."""
-    p = vessel
-    courses, fn, fe, yaw = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in
-                                                 (courses_rad, force_n, force_e, yaw_nm)))
-    lo, hi = -2 * p.reverse_max_n, 2 * p.thrust_max_n
-    beta = np.zeros(courses.shape)  # crab angle: heading - course
-    for _ in range(6):  # the crab angle and the forces it sees agree within 1e-6 rad in 3
-        psi = courses + beta
-        c, s = np.cos(psi), np.sin(psi)
-        f_u = c * fn + s * fe
-        if pay_in_thrust:
-            t_sum = np.clip(p.xu_kgps * speed_mps - f_u, lo, hi)
-        else:
-            t_sum = np.full(courses.shape, min(max(p.xu_kgps * speed_mps, lo), hi))
-        u = (t_sum + f_u) / p.xu_kgps
-        v = (c * fe - s * fn) / p.yv_kgps
-        before, beta = beta, np.where(u > 0, -np.arctan2(v, u), 0.0)
-        # Every element on until the last agrees: one that agreed earlier only moves closer to
-        # its fixed point (within 1e-9 rad of where cruise stops), and the arrays stay whole.
-        if np.abs(beta - before).max(initial=0.0) < 1e-9:
-            break
-    t_diff = ((p.m22_kg - p.m11_kg) * u * v - yaw) / p.arm_m
-    t1 = np.clip((t_sum + t_diff) / 2.0, -p.reverse_max_n, p.thrust_max_n)
-    t2 = np.clip((t_sum - t_diff) / 2.0, -p.reverse_max_n, p.thrust_max_n)
-    ground = np.where(u > 0, np.hypot(u, v), 0.0)
-    power = p.alpha_w_per_n2 * (t1 * t1 + t2 * t2) + task_power_w
-    return ground, power, t1, t2
-
-
-def _per_m(ground_mps: np.ndarray, power_w: np.ndarray) -> np.ndarray:
-    """``Cruise.j_per_m`` of arrays [J/m]: inf where the vessel makes no way."""
-    moving = ground_mps > 0
-    return np.where(moving, power_w / np.where(moving, ground_mps, 1.0), np.inf)
-
-
-def _turn_extra_j(vessel: VesselParams, task_power_w: float, speed_mps: float,
-                  delta_psi: np.ndarray, n: float, t_d_min_s: float, t_d_max_s: float) -> np.ndarray:
-    """Extra energy of turning by each of ``delta_psi`` [rad] on the way: the least E_d + E_s over
-    t_d (paper eq. 15, t_s from the terminal constraint) minus the straight run E_s would be alone
-    [J]. All angles at once: one array evaluation per step of the search, not one per angle (the
-    NMPC's table is made again at each pricing, since its speed changes: one angle at a time, 91
-    searches took ~50 ms, on the control loop, every period near the return decision)."""
-    psi = np.asarray(delta_psi, dtype=float)
-    p_static = costs.surge_power_w(speed_mps, vessel) + task_power_w
-    sinc = costs.smooth_sinc(psi, np)
-
-    def extra(t_d: np.ndarray) -> np.ndarray:
-        p_dyn = costs.dynamic_power_w(speed_mps, 0.0, psi, t_d, task_power_w, n, vessel)
-        return t_d * (p_dyn - p_static * sinc)
-
-    # Golden-section search on [t_d_min, t_d_max] for each angle (extra(t_d) is unimodal: a
-    # turning cost falling as 1/t_d against a straight-line cost growing with t_d).
-    a, b = np.full(psi.shape, t_d_min_s), np.full(psi.shape, t_d_max_s)
-    g = (math.sqrt(5.0) - 1.0) / 2.0
-    c, d = b - g * (b - a), a + g * (b - a)
-    fc, fd = extra(c), extra(d)
-    for _ in range(60):
-        left = fc < fd  # the minimum is in [a, d]: d becomes the upper end, c the new d
-        a, b = np.where(left, a, c), np.where(left, d, b)
-        x = np.where(left, b - g * (b - a), a + g * (b - a))
-        fx = extra(x)
-        c, d, fc, fd = (np.where(left, x, d), np.where(left, c, x), np.where(left, fx, fd),
-                        np.where(left, fc, fx))
-    return np.maximum(0.0, np.minimum(fc, fd))
-
-
-@lru_cache(maxsize=64)
-def _turn_table(vessel: VesselParams, task_power_w: float, speed_mps: float, n: float,
-                t_d_min_s: float, t_d_max_s: float) -> tuple[float, ...]:
-    """``_turn_extra_j`` at ``TURN_TABLE_POINTS`` angles evenly over [0, pi] [J]."""
-    angles = np.linspace(0.0, math.pi, TURN_TABLE_POINTS)
-    return tuple(float(j) for j in _turn_extra_j(vessel, task_power_w, speed_mps, angles, n,
-                                                 t_d_min_s, t_d_max_s))
 
 
 # -- the model of one mission ------------------------------------------------------------------------
@@ -255,6 +149,11 @@ class EnergyModel:
         return cls(vessel, accepted.task_power_w, accepted.coa_radius_m,
                    "t_d_min_s" in cs, accepted.predict_disturbance, cs.get("profile_n", 2.0),
                    cs.get("t_d_min_s", 1.0), cs.get("t_d_max_s", 60.0))
+
+    @property
+    def vehicle_ratio(self) -> float:
+        """The measured energy used / predicted on this vessel file's vehicle (module docstring)."""
+        return forecast_ratio(self.vessel.name)
 
     @property
     def cruise_speed_mps(self) -> float:
@@ -382,6 +281,7 @@ def predict_many(model: EnergyModel, state: StateEstimate,
         near = undisturbed * min(r, math.dist(pos, target))
         mpc = leg_mpc_j - near + (per_m[1:, 0] - undisturbed) * remaining
         energy[:, 0] = np.where(np.isfinite(energy[:, 0]), mpc, energy[:, 0])
+    energy = energy * model.vehicle_ratio
     to_go, to_home = energy[:, :-1].sum(axis=1), energy[:, -1]
     return [Prediction(float(g), float(h)) for g, h in zip(to_go, to_home, strict=True)]
 
@@ -458,13 +358,16 @@ def no_return_point(model: EnergyModel, state: StateEstimate,
     seg_e0 = np.cumsum(turns) + np.concatenate(([0.0], np.cumsum(seg_per_m * seg_len)[:-1]))
     total = float(seg_len.sum())
 
+    ratio = model.vehicle_ratio
+
     def at(s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(margins [J], points (n x 2) [m]) at distances ``s`` [m] along the path."""
         k = np.maximum(np.searchsorted(seg_s0, s, side="right") - 1, 0)
         along = (s - seg_s0[k])[:, None]
         q = seg_start[k] + seg_unit[k] * along
         home_j = model.run_j_many(q, home, seg_course[k], speed, dist, r)
-        return remaining_j - (seg_e0[k] + seg_per_m[k] * along[:, 0]) - home_j - reserve_j, q
+        spent_j = seg_e0[k] + seg_per_m[k] * along[:, 0]
+        return remaining_j - ratio * (spent_j + home_j) - reserve_j, q
 
     def first_reached(s: np.ndarray) -> int | None:
         """Index of the first of ``s`` where the margin is not above 0 (NaN-safe: a path home that
