@@ -212,7 +212,10 @@ def test_px4s_own_geofence_holds_the_line_and_its_cause_is_named(zenoh_env, proc
             thrust.put(ThrustCommand.make(stamp_ns=time.time_ns(), thrust_port_n=60.0,
                                           thrust_starboard_n=60.0, source="test"))
             time.sleep(0.05)
-        _, named = status.wait(lambda s: s.hold_reason == "fence", 10, "the hold named 'fence'")
+        # vehicle_io may name the breach from PX4's fence health bit a moment before PX4's Hold
+        # shows in its HEARTBEAT: wait for both.
+        _, named = status.wait(lambda s: s.hold_reason == "fence" and s.mode == "HOLD", 10,
+                               "PX4 in HOLD with the hold named 'fence'")
         print(f"PX4 SITL breach after {time.monotonic() - t0:.1f} s: mode {named.mode}, "
               f"{named.hold_reason} ({named.hold_reason_detail}); texts "
               f"{[t for _, t in px4.observer.texts][-4:]}")
