@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import re
+import time
 import urllib.error
 import urllib.request
 from typing import Any
@@ -53,3 +54,12 @@ def start_groundstation(procs: Any, env: dict[str, str]) -> tuple[Any, str, str]
     line = wait_for(lambda: re.search(r"groundstation: (http://127\.0\.0\.1:\d+/) token (\S+)",
                                       procs.log(gs)), 60, what="the ground station's address line")
     return gs, line.group(1), line.group(2)
+
+
+def pumped(page: Any, done: Any, what: str, timeout_s: float = 30.0) -> None:
+    """Wait for ``done()`` while Playwright runs its event handlers: it dispatches an event (a
+    dialog, say) to its handler only inside one of its own calls, never while Python sleeps."""
+    deadline = time.monotonic() + timeout_s
+    while not done():
+        assert time.monotonic() < deadline, f"timed out after {timeout_s:g} s waiting for {what}"
+        page.wait_for_timeout(100)

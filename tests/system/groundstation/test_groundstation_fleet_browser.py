@@ -39,7 +39,7 @@ from seaway.vessel.frames import GeoOrigin
 
 from tests.conftest import BIN, wait_for
 from tests.system.groundstation import axe_check
-from tests.system.groundstation.helpers import http
+from tests.system.groundstation.helpers import http, pumped
 from tests.unit.groundstation import mbtiles_maker
 
 pytestmark = pytest.mark.system
@@ -237,7 +237,8 @@ def test_a_fleet_of_two_is_told_apart_guarded_and_usable_on_a_phone(procs, zenoh
                 d.accept()
             page.on("dialog", accept)  # every confirmation accepted: a double click sends once
             page.locator("#send-mission").dblclick()
-            wait_for(lambda: len(missions[B]) == 2, 20, what="the mission with its speed hint")
+            # The page checks the mission first, then asks: the dialog comes after an await.
+            pumped(page, lambda: len(missions[B]) == 2, "the mission with its speed hint")
             page.wait_for_function("!document.getElementById('send-mission').disabled", timeout=20_000)
             page.wait_for_timeout(500)
             assert len(missions[B]) == 2

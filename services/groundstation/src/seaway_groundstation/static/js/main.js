@@ -647,6 +647,53 @@ function draftBody() {
 /** The mission's speed hint [m/s]: the first waypoint speed given in the editor, if any. */
 const speedHint = () => app.draft.find((p) => Number.isFinite(p.speed_mps))?.speed_mps;
 
+/** The controller's own check of the draft (POST /api/missions/check, nothing sent), shown under
+ *  the editor; the check's answer, or null when the ground station could not check. */
+async function checkDraft(body) {
+  const vessel = app.selected ? `?vessel=${encodeURIComponent(app.selected)}` : "";
+  let out;
+  try {
+    out = await request("POST", `/api/missions/check${vessel}`, { body });
+  } catch (err) {
+    say(`Check: ${err.message}`, "error");
+    return null;
+  }
+  $("check-result").hidden = false;
+  const ok = out.verdict === "ok";
+  setText("check-verdict", ok ? `Check: ok${out.live ? " (against the vessel's live state)" : " (at the desk)"}`
+    : "Check: REFUSED", ok ? "good" : "bad");
+  setText("check-length", fmt(out.path_length_m, 0, "m"));
+  setText("check-time", out.predicted_time_s == null ? "–"
+    : `${fmtDuration(out.predicted_time_s)}${Number.isFinite(out.cruise_speed_mps) ? ` at ${out.cruise_speed_mps.toFixed(2)} m/s` : ""}`);
+  setText("check-energy", fmtEnergy(out.energy_mission_j));
+  setText("check-home", fmtEnergy(out.energy_home_from_last_j));
+  setText("check-battery", out.battery_after_j == null ? "battery not known"
+    : `${fmtEnergy(out.battery_after_j)}${out.reserve_j != null ? ` (reserve ${fmtEnergy(out.reserve_j)})` : ""}`,
+  out.battery_after_j != null && out.reserve_j != null && out.battery_after_j < out.reserve_j ? "bad" : "");
+  setText("check-area", out.area, out.area === "refused" ? "bad" : "");
+  $("check-reasons").replaceChildren(...[...out.reasons, ...out.notes].map((text) => {
+    const li = document.createElement("li");
+    li.textContent = text;
+    return li;
+  }));
+  return out;
+}
+
+$("check-mission").onclick = async () => {
+  if (app.draft.length < 2) {
+    say("A mission needs at least two waypoints: click “Add waypoints”, then the map.", "warn");
+    return;
+  }
+  const button = $("check-mission");
+  if (button.disabled) return;
+  button.disabled = true;
+  try {
+    await checkDraft(draftBody());
+  } finally {
+    button.disabled = false;
+  }
+};
+
 $("send-mission").onclick = async () => {
   if (app.draft.length < 2) {
     say("A mission needs at least two waypoints: click “Add waypoints”, then the map.", "warn");
@@ -655,10 +702,17 @@ $("send-mission").onclick = async () => {
   const button = $("send-mission");
   if (button.disabled) return;
   const body = draftBody();
-  if (!sure(`Send mission ${body.mission_id} (${body.waypoints.length} waypoints; it starts at once)`)) return;
   button.disabled = true; // one request per click, as the other commands
   let reply;
   try {
+    // The check first, on the page: a mission it refuses goes only if the operator forces it.
+    const checked = await checkDraft(body);
+    if (checked && checked.verdict !== "ok") {
+      if (!sure(`The check refuses mission ${body.mission_id}: ${checked.reasons.join("; ")}. Send it anyway (forced)`)) return;
+      body.force = true;
+    } else if (!sure(`Send mission ${body.mission_id} (${body.waypoints.length} waypoints; it starts at once)`)) {
+      return;
+    }
     reply = await run(`Mission ${body.mission_id}`, vpath("mission"), body);
   } finally {
     button.disabled = false;
