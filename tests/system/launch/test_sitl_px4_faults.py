@@ -67,8 +67,12 @@ def px4_profile(tmp: Path, url: str) -> Path:
 
 @needs_px4
 @pytest.mark.timeout(900)
-def test_faults_mid_mission_reach_the_operator_on_px4(tmp_path, zenoh_env, procs, bus) -> None:  # noqa: F811
+def test_faults_mid_mission_reach_the_operator_on_px4(tmp_path, zenoh_env, procs, bus, monkeypatch) -> None:  # noqa: F811
     solver_built("cc-empc", "paper-boat")
+    # SIH starts at the lake scenario's origin (its [origin]): the controller refuses a mission
+    # whose vessel is outside the scenario's operating area, as it was at PX4's own home.
+    monkeypatch.setenv("PX4_HOME_LAT", "28.18")
+    monkeypatch.setenv("PX4_HOME_LON", "112.94")
     watch = Watch(bus)
     px4 = Px4Sitl(tmp_path, params={**boat_params(), **FAILSAFE_PARAMS})
     relay = UdpRelay(14540 + px4.instance, 14580 + px4.instance)

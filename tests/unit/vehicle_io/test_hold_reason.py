@@ -283,3 +283,58 @@ def test_px4_giving_the_mode_back_after_an_unheard_failsafe_is_not_someone_else(
     core.on_mavlink(heartbeat("MANUAL"), at(13 * S))
     st = status(core, 13 * S)
     assert st.hold_reason == "other" and "RTL -> MANUAL" in st.hold_reason_detail, st
+
+
+PX4_MODES = {"MANUAL": 1 << 16, "HOLD": (4 << 16) | (3 << 24)}  # main << 16 | sub << 24
+
+
+def px4_heartbeat(mode: str, armed: bool) -> Any:
+    return wire(mavlink.MAVLink_heartbeat_message(10, 12, 1 | (128 if armed else 0), PX4_MODES[mode], 4, 3))
+
+
+def system_time(time_boot_ms: int, t_ns: int) -> Any:
+    return wire(mavlink.MAVLink_system_time_message((WALL0 + t_ns) // 1000, time_boot_ms))
+
+
+def px4_armed_in_manual() -> VehicleIoCore:
+    core = VehicleIoCore(
+        VehicleIoConfig(autopilot="auto", check_failsafe_params=False, message_rates_hz={}), LIM, at(0)
+    )
+    core.on_mavlink(px4_heartbeat("MANUAL", armed=True), at(0))
+    core.on_mavlink(system_time(600_000, S), at(S))
+    core.on_mavlink(px4_heartbeat("MANUAL", armed=True), at(S))
+    return core
+
+
+def test_px4_back_from_a_kill_faster_than_the_link_timeout_is_nobodys_mode_change():
+    """PX4 SITL SIGKILLed mid-mission and started again: it was back within the 3 s link timeout,
+    its first HEARTBEAT disarmed and in the Hold it boots into. That was named gcs_mode_change
+    (mode MANUAL -> HOLD, not asked by Seaway) in the operator's pause reason (issue 63)."""
+    core = px4_armed_in_manual()
+    core.on_mavlink(px4_heartbeat("HOLD", armed=False), at(2500 * MS))
+    st = status(core, 2500 * MS)
+    assert st.link_ok and not st.armed and st.mode == "HOLD"
+    assert st.hold_reason is None, st
+    core.on_mavlink(system_time(900, 3 * S), at(3 * S))  # its clock restarted: it rebooted
+    assert status(core, 3 * S).hold_reason is None
+
+
+def test_a_reboot_without_a_link_loss_forgets_the_standing_cause():
+    core = px4_armed_in_manual()
+    core.on_mavlink(px4_heartbeat("HOLD", armed=True), at(2 * S))
+    assert status(core, 2 * S).hold_reason == "gcs_mode_change"
+    core.on_mavlink(px4_heartbeat("HOLD", armed=False), at(3 * S))
+    core.on_mavlink(system_time(900, 3100 * MS), at(3100 * MS))  # its clock restarted
+    st = status(core, 3100 * MS)
+    assert st.hold_reason is None and st.hold_reason_detail == "", st
+
+
+def test_px4_moving_to_its_start_up_mode_after_the_link_comes_back_is_nobodys_mode_change():
+    """The same kill, slower than the link timeout: the link comes back disarmed in MANUAL, then
+    PX4 settles in Hold by itself."""
+    core = px4_armed_in_manual()
+    lose_the_link(core, 5 * S)
+    core.on_mavlink(px4_heartbeat("MANUAL", armed=False), at(8 * S))
+    core.on_mavlink(px4_heartbeat("HOLD", armed=False), at(9 * S))
+    st = status(core, 9 * S)
+    assert st.link_ok and st.mode == "HOLD" and st.hold_reason is None, st

@@ -738,7 +738,7 @@ class VehicleIoCore:
                 log.warning("autopilot back in %s: it rebooted", mode)
                 self.hold = FailsafeCause()
             elif link.mode not in link.profile.booting_modes and link.mode != "UNKNOWN":
-                self._hold_changed(self.hold.mode_changed(link.mode, mode, now.mono_ns))
+                self._hold_changed(self.hold.mode_changed(link.mode, mode, now.mono_ns, armed))
         if (link.mode in link.profile.booting_modes and mode not in link.profile.booting_modes
                 and self.cfg.check_failsafe_params):
             # Read during start-up, some values were not final yet (measured: Rover answered
@@ -847,6 +847,7 @@ class VehicleIoCore:
         if self.offset.resets != resets:
             log.warning("autopilot clock restarted (every time_boot_ms over %.1f s behind the "
                         "estimate): time offset estimated anew", self.cfg.time_confirm_s)
+            self._rebooted()
         elif self.offset.rebases != rebases:
             log.warning("time offset was wrong (every time_boot_ms over %.1f s ahead of it): "
                         "estimated anew from those messages", self.cfg.time_confirm_s)
@@ -868,10 +869,18 @@ class VehicleIoCore:
         if self.offset.system_time(msg.time_boot_ms):
             log.warning("autopilot rebooted (SYSTEM_TIME time_boot_ms went back to %d ms): time "
                         "offset estimated anew", msg.time_boot_ms)
-            # A reboot ends what the autopilot latched till reboot (ArduPilot's battery failsafe).
-            self.battery_said = None
-            self.health = Health(px4=self.health.px4)
+            self._rebooted()
         return []
+
+    def _rebooted(self) -> None:
+        """The autopilot rebooted without the link dropping (its clock went back): forget what it
+        said before, as a link loss does. A reboot ends what it latched till reboot (ArduPilot's
+        battery failsafe), and a failsafe or a mode change before it is no cause of a hold after."""
+        self.battery_said = None
+        self.health = Health(px4=self.health.px4)
+        if self.hold.cause is not None:
+            log.info("the autopilot's hold reason (%s) ends with its reboot", self.hold.cause)
+        self.hold = FailsafeCause()
 
     def _on_global_position_int(self, msg: Any, now: Now) -> list[Output]:
         fresh = (self.gps_quality is not None and now.mono_ns - self.gps_quality_mono_ns

@@ -4,7 +4,8 @@ change nobody in Seaway asked for (``VehicleStatus.hold_reason``).
 The autopilot says it in four places, none of them alone enough:
 
 * HEARTBEAT: the mode changed, and vehicle_io did not ask for it. With no failsafe said around it,
-  someone else (a second ground station, the RC mode switch) changed it: ``gcs_mode_change``;
+  someone else (a second ground station, the RC mode switch) changed it: ``gcs_mode_change``, if
+  the vessel is armed (a disarmed one changing mode is one starting or back from a restart);
 * SYS_STATUS: ``onboard_control_sensors_*`` bits going unhealthy (present and enabled, not
   healthy): RC receiver (radio loss), geofence (breach), battery. ArduPilot Rover says a fence
   breach nowhere else: it changes mode and writes its log, with no STATUSTEXT (Rover/fence.cpp);
@@ -17,7 +18,8 @@ The autopilot says it in four places, none of them alone enough:
 The texts and the mode change come in either order within a second or so, so a cause said within
 ``CAUSE_WINDOW_S`` of an unasked mode change names it, and a named cause replaces a vaguer one
 (``other``, ``gcs_mode_change``) said within that window. The cause stands until vehicle_io's own
-mode request is accepted (the operator took the vessel back) while no health bit is still unhealthy.
+mode request is accepted (the operator took the vessel back) while no health bit is still unhealthy,
+or until the link is lost or the autopilot reboots (vehicle_io starts a new ``FailsafeCause``).
 
 Pure: time comes in as monotonic nanoseconds.
 """
@@ -109,10 +111,10 @@ class FailsafeCause:
                 changed |= self.said(cause, f"SYS_STATUS: {cause.replace('_', ' ')} unhealthy", now_ns)
         return changed
 
-    def mode_changed(self, old: str, new: str, now_ns: int) -> bool:
+    def mode_changed(self, old: str, new: str, now_ns: int, armed: bool = True) -> bool:
         """The mode changed from ``old`` to ``new`` and vehicle_io did not ask for it: the cause said
-        around it, else the failsafe still standing, else someone else. True if the standing cause
-        (or its detail) changed."""
+        around it, else the failsafe still standing, else someone else, if the autopilot is
+        ``armed``. True if the standing cause (or its detail) changed."""
         last = self._last_said
         window = round(CAUSE_WINDOW_S * 1e9)
         if last is not None and now_ns - last[2] <= window:
@@ -123,6 +125,11 @@ class FailsafeCause:
             # someone else's doing, be the failsafe named or not ('other').
             self.detail = f"{self.detail.split(' (mode ')[0]} (mode {old} -> {new})"
             return True
+        if not armed:
+            # Nobody took a disarmed vessel from Seaway, which drives an armed one only: an
+            # autopilot back from a restart within the link timeout says disarmed and the mode it
+            # boots into (PX4: Hold) in one HEARTBEAT, and one starting settles into its own mode.
+            return False
         return self._offer("gcs_mode_change", f"mode {old} -> {new}, not asked by Seaway", now_ns, force=True)
 
     def mode_changed_unheard(self, old: str, new: str, silent_s: float, now_ns: int) -> bool:
