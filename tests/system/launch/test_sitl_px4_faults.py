@@ -4,9 +4,9 @@ restart of the firmware. As on ArduPilot (``test_sitl_ardupilot_faults``): the m
 the autopilot's cause in ``mission/status``'s reason, does not resume by itself, the link and the
 telemetry rates come back, and the operator's resume works once PX4 applies thrust again.
 
-The ``sitl-ardupilot`` profile's processes with vehicle_io's PX4 configuration and the lake
-scenario's own vessel (no vessel is identified for the SIH rover: the faults, not the tracking,
-are under test). vehicle_io reaches PX4's onboard link through a UDP relay the test can fade;
+The ``sitl-px4`` profile's processes, with the rover identified on this firmware: the lake
+scenario's own boat would not move the rover (its friction), and the motion fault would then
+rightly refuse every resume. vehicle_io reaches PX4's onboard link through a UDP relay the test can fade;
 PX4's data-link loss failsafe is switched on (NAV_DLL_ACT 1: Hold after COM_DL_LOSS_T 5 s) beside
 its manual-control loss (vehicle_io's MANUAL_CONTROL stream; NAV_RCL_ACT 1: Hold). PX4 refuses a
 reboot command while armed, so its forced reboot is the power cycle: SIGKILL, start again. Slow:
@@ -49,17 +49,17 @@ FAILSAFE_PARAMS = {"NAV_RCL_ACT": 1, "NAV_DLL_ACT": 1, "COM_DL_LOSS_T": 5}
 
 
 def px4_profile(tmp: Path, url: str) -> Path:
-    """``sitl-ardupilot``'s Seaway processes, vehicle_io on PX4 at ``url``, the scenario's vessel,
-    no mission on start, running on."""
-    text = (PROFILES / "sitl-ardupilot.toml").read_text()
+    """``sitl-px4``'s Seaway processes (the identified rover, the estimator's PX4 configuration)
+    with vehicle_io on PX4 at ``url`` instead of ``seaway sitl px4``'s link, no mission on start,
+    running on."""
+    text = (PROFILES / "sitl-px4.toml").read_text()
     blocks = text.split("[[processes]]")
     text = "[[processes]]".join(b for b in blocks if 'name = "sitl"' not in b)
     text = text.replace('after = ["sitl"]', 'after = ["recorder"]')
-    text = text.replace('vessel_file = "ardupilot-sitl-motorboat"\n', "")
     text = text.replace("mission_on_start = true", "mission_on_start = false")
     text = text.replace("stop_when_complete = true", "stop_when_complete = false")
-    text = text.replace('"--config", "ardupilot-sitl"]', f'"--config", "px4-sitl", "--mavlink", "{url}"]')
-    assert text.count(url) == 1 and 'name = "sitl"' not in text and "vessel_file" not in text
+    text = text.replace('"--mavlink", "udpin:127.0.0.1:{mavlink_port}"]', f'"--mavlink", "{url}"]')
+    assert text.count(url) == 1 and 'name = "sitl"' not in text
     out = tmp / "px4-faults.toml"
     out.write_text(text)
     return out
@@ -68,7 +68,7 @@ def px4_profile(tmp: Path, url: str) -> Path:
 @needs_px4
 @pytest.mark.timeout(900)
 def test_faults_mid_mission_reach_the_operator_on_px4(tmp_path, zenoh_env, procs, bus, monkeypatch) -> None:  # noqa: F811
-    solver_built("cc-empc", "paper-boat")
+    solver_built("cc-empc", "px4-sitl-rover")
     # SIH starts at the lake scenario's origin (its [origin]): the controller refuses a mission
     # whose vessel is outside the scenario's operating area, as it was at PX4's own home.
     monkeypatch.setenv("PX4_HOME_LAT", "28.18")
