@@ -196,6 +196,9 @@ class ControllerCore:
         self._last_state: StateEstimate | None = None  # the latest stepped (a mission is judged on it)
         self._ratelog = RateLimitedLog(log)
         self._envelope = envelope(vessel)
+        self.battery_at_start_j: float | None = None
+        """The run's battery at its start [J] (its scenario's ``[battery]``, else the full pack):
+        what a mission is checked against before the first battery report; None: not known."""
         self.absurd_states = 0
         """State estimates refused as no vessel's (``seaway.vessel.envelope``): zero thrust instead."""
         self._mission_start_ns = 0
@@ -317,8 +320,11 @@ class ControllerCore:
     def check(self, req: MissionRequest) -> MissionCheck:
         """``mission_check.check_mission`` of ``req`` against this vessel now: its latest state,
         the battery left and its reserve, the area in force, its home."""
+        battery_j = self.battery_remaining_j()
+        if battery_j is None:  # no report heard yet (a batch run's first period): the run's start
+            battery_j = self.battery_at_start_j
         return check_mission(req, self.vessel, origin=self.origin, state=self._last_state,
-                             battery_j=self.battery_remaining_j(), reserve_j=self._reserve_j(),
+                             battery_j=battery_j, reserve_j=self._reserve_j(),
                              area=self.area.area, home=self.home, limits=self.missions.limits,
                              profile_n=self.config.profile_n)
 

@@ -683,11 +683,13 @@ def main(argv: Sequence[str] | None = None) -> int:
             o = run.origin
             core.set_origin(GeoOrigin.from_degrees(o.lat_deg, o.lon_deg, o.alt_m))
         try:
-            area, source = run_area(scenario or (load_scenario(run.scenario) if run.scenario
-                                                 else None), args.area, core.origin)
+            run_scenario = scenario or (load_scenario(run.scenario) if run.scenario else None)
+            area, source = run_area(run_scenario, args.area, core.origin)
         except (AreaError, ConfigError) as err:
             print(f"seaway-controller: --area: {err}", file=sys.stderr)
             return 2
+        if run_scenario is not None:
+            core.battery_at_start_j = run_scenario.battery.start_j(vessel.battery)
         if area is not None:
             core.area.set_area(area, source, None if run.lockstep else ctx.clock.now_ns())
             log.info("operating area from %s enforced", source)

@@ -40,6 +40,7 @@ from seaway.area.spec import AreaSpec
 from seaway.contract.config import ConfigError, ConfigModel, Origin, deploy_named, parse_config, read_document
 from seaway.contract.missions import MissionSpec
 from seaway.simkit.faults import Fault
+from seaway.vessel.battery import BatteryParams
 from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.model import world_to_body
 
@@ -183,6 +184,13 @@ def load_mission_source(path: str | Path) -> tuple[MissionSpec, Scenario | None]
 class ScenarioBattery(ConfigModel):
     """A scenario's ``[battery]``: how the simulated pack starts and what else draws from it. The
     pack itself is the plant vessel file's ``[battery]`` (``seaway.vessel.battery``)."""
+
+    def start_j(self, pack: BatteryParams | None) -> float | None:
+        """The usable energy at the start [J]: ``initial_energy_j``, else the full ``pack``'s;
+        None: neither known (what a mission is checked against before any battery report)."""
+        if self.initial_energy_j is not None:
+            return self.initial_energy_j
+        return None if pack is None else pack.energy_j
 
     initial_energy_j: float | None = Field(default=None, ge=0, description="usable energy in the "
                                            "pack at the start [J]; default full")

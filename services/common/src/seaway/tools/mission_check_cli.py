@@ -68,10 +68,7 @@ def check_request(req: MissionRequest, against: Scenario, battery_j: float | Non
     origin = GeoOrigin.from_degrees(o.lat_deg, o.lon_deg, o.alt_m)
     area, area_source = run_area(against, area_file, origin)
     if battery_j is None:
-        if against.battery.initial_energy_j is not None:
-            battery_j = against.battery.initial_energy_j
-        elif vessel.battery is not None:
-            battery_j = vessel.battery.energy_j
+        battery_j = against.battery.start_j(vessel.battery)
     home = (against.start.x_m, against.start.y_m)
     out = check_mission(req, vessel, origin=origin, battery_j=battery_j, area=area,
                         home=home).to_dict()
