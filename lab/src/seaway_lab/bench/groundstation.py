@@ -49,7 +49,7 @@ from pathlib import Path
 from seaway.contract import keys
 from seaway.contract.messages import SolveRecord, StateEstimate
 from seaway.runtime import credentials
-from seaway.runtime.argtypes import positive_float, positive_int
+from seaway.runtime.argtypes import non_negative_float, positive_float, positive_int
 from seaway.runtime.bus import Bus
 from seaway.runtime.zenoh_bus import ENV_RENDEZVOUS
 from seaway.vessel.metrics import median, percentile
@@ -220,7 +220,7 @@ def run(argv: list[str]) -> BenchResult:
                     help="length of each phase [s] (default 10)")
     ap.add_argument("--state-hz", type=positive_float, default=20.0, help="state estimates published [Hz]")
     ap.add_argument("--solve-hz", type=positive_float, default=10.0, help="solve records published [Hz]")
-    ap.add_argument("--replay-mb", type=float, default=40.0,
+    ap.add_argument("--replay-mb", type=non_negative_float, default=40.0,
                     help="size of the recording replayed [MB] (default 40; 0: no replay figures)")
     ap.add_argument("--replay-repeat", type=positive_int, default=3, help="opens of it timed (default 3)")
     ap.add_argument("--recording", type=Path, default=None,
