@@ -44,7 +44,7 @@ from seaway.contract.messages import (
     return_mission_id,
 )
 from seaway.contract.units import NS_PER_S
-from seaway.runtime.bus import Bus, Newest
+from seaway.runtime.bus import Bus, Every, Newest
 from seaway.runtime.ratelog import RateLimitedLog
 from seaway.runtime.stamps import StampBounds, StampGate
 from seaway.vessel.frames import GeoOrigin
@@ -235,26 +235,35 @@ class MissionEnd:
         return done
 
 
+ACCEPTED_BUNDLES = 1024
+"""Controller bundles held between two looks for ``mission/accepted``: five seconds of lockstep at
+200 periods a second, for a launcher that looks every 0.2 s."""
+
+
 class MissionsTaken:
     """Which vessels' controllers have taken a mission in this run (the launcher's or another's):
     a vessel whose controller took none gets no report.
 
-    Read when asked (``look``, from the launcher's loop), from the newest ``mission/accepted``
-    (``Bus.newest``: the transport holds the bytes, no Python runs per sample). Not a callback: in
-    lockstep the key comes in the controller's bundles, hundreds a second, and a callback would
-    hand each bundle to a Python thread to find the one key in it."""
+    Read when asked (``look``, from the launcher's loop), from every ``mission/accepted`` since
+    the last look (``Every``: the transport holds the bytes, no Python runs per sample). Not a
+    callback: in lockstep the key comes in the controller's bundles, hundreds a second, and a
+    callback would hand each bundle to a Python thread to find the one key in it. Not the newest
+    only: lockstep sends the acceptance in one period's bundle, and a launcher slowed by a busy
+    machine looked after more bundles than ``Newest`` keeps had come (the vessel then got no
+    report)."""
 
     def __init__(self, vessels: list[str]) -> None:
         self.vessels = list(vessels)
         self.taken: set[str] = set()
-        self._accepted: dict[str, Newest[MissionAccepted]] = {}
+        self._accepted: dict[str, Every[MissionAccepted]] = {}
 
     def watch(self, bus: Bus) -> None:
-        self._accepted = {v: bus.newest(keys.MISSION_ACCEPTED, vessel=v) for v in self.vessels}
+        self._accepted = {v: Every(bus, keys.MISSION_ACCEPTED, bus.key(keys.MISSION_ACCEPTED, v),
+                                   capacity=ACCEPTED_BUNDLES) for v in self.vessels}
 
     def look(self) -> set[str]:
         """The vessels whose controller has accepted a mission, at this look or an earlier one."""
         for v, accepted in self._accepted.items():
-            if v not in self.taken and accepted.get() is not None:
+            if accepted.take() and v not in self.taken:
                 self.taken.add(v)
         return self.taken
