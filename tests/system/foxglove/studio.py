@@ -22,16 +22,14 @@ from __future__ import annotations
 
 import argparse
 import datetime as dt
-import hashlib
-import os
-import shutil
 import socket
-import subprocess
 import sys
 import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+
+from tests.system import npm_cache
 
 STUDIO_DIR = Path(__file__).parent / "studio"
 LAYOUT = Path(__file__).resolve().parents[3] / "deploy" / "foxglove" / "seaway.json"
@@ -50,22 +48,11 @@ class StudioUnavailableError(RuntimeError):
 def install(cache: Path | None = None) -> Path:
     """The folder whose ``node_modules`` holds Foxglove Studio 1.48 and React, installed with
     ``npm ci`` from ``studio/package-lock.json`` on first use (about 36 MB)."""
-    lock = (STUDIO_DIR / "package-lock.json").read_bytes()
-    root = cache or Path(os.environ.get(ENV_CACHE) or Path.home() / ".cache" / "seaway" / "foxglove-studio")
-    where = root / hashlib.sha256(lock).hexdigest()[:12]
-    if (where / "node_modules" / "@foxglove" / "studio-base" / "assets" / "index.js").is_file():
-        return where
-    npm = shutil.which("npm")
-    if npm is None:
-        raise StudioUnavailableError("npm is not installed (apt-get install npm; .ci/run does)")
-    where.mkdir(parents=True, exist_ok=True)
-    for name in ("package.json", "package-lock.json"):
-        shutil.copyfile(STUDIO_DIR / name, where / name)
-    done = subprocess.run([npm, "ci", "--no-audit", "--no-fund", "--ignore-scripts"], cwd=where,
-                          capture_output=True, text=True, timeout=900)
-    if done.returncode != 0:
-        raise StudioUnavailableError(f"npm ci failed in {where}: {done.stderr[-2000:]}")
-    return where
+    try:
+        return npm_cache.install(STUDIO_DIR, "node_modules/@foxglove/studio-base/assets/index.js",
+                                 ENV_CACHE, "foxglove-studio", cache)
+    except npm_cache.NpmUnavailableError as err:
+        raise StudioUnavailableError(str(err)) from None
 
 
 def _free_port() -> int:

@@ -8,12 +8,10 @@ which impacts fail it.
 
 from __future__ import annotations
 
-import hashlib
-import os
-import shutil
-import subprocess
 from pathlib import Path
 from typing import Any
+
+from tests.system import npm_cache
 
 AXE_DIR = Path(__file__).parent / "axe"
 ENV_CACHE = "SEAWAY_AXE_CACHE"
@@ -26,23 +24,12 @@ class AxeUnavailableError(RuntimeError):
 
 def install(cache: Path | None = None) -> Path:
     """``axe.min.js`` of the locked axe-core, installed with ``npm ci`` on first use."""
-    lock = (AXE_DIR / "package-lock.json").read_bytes()
-    root = cache or Path(os.environ.get(ENV_CACHE) or Path.home() / ".cache" / "seaway" / "axe-core")
-    where = root / hashlib.sha256(lock).hexdigest()[:12]
-    script = where / "node_modules" / "axe-core" / "axe.min.js"
-    if script.is_file():
-        return script
-    npm = shutil.which("npm")
-    if npm is None:
-        raise AxeUnavailableError("npm is not installed (apt-get install npm; .ci/run does)")
-    where.mkdir(parents=True, exist_ok=True)
-    for name in ("package.json", "package-lock.json"):
-        shutil.copyfile(AXE_DIR / name, where / name)
-    done = subprocess.run([npm, "ci", "--no-audit", "--no-fund", "--ignore-scripts"], cwd=where,
-                          capture_output=True, text=True, timeout=600)
-    if done.returncode != 0 or not script.is_file():
-        raise AxeUnavailableError(f"npm ci failed in {where}: {done.stderr[-2000:]}")
-    return script
+    try:
+        where = npm_cache.install(AXE_DIR, "node_modules/axe-core/axe.min.js", ENV_CACHE,
+                                  "axe-core", cache, timeout_s=600)
+    except npm_cache.NpmUnavailableError as err:
+        raise AxeUnavailableError(str(err)) from None
+    return where / "node_modules" / "axe-core" / "axe.min.js"
 
 
 def violations(page: Any, script: Path) -> list[dict[str, Any]]:
