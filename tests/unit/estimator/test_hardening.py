@@ -142,3 +142,56 @@ def test_the_loop_feeds_vehicle_status_in_real_time(caplog) -> None:
     assert loop.core.thrust_withheld == "disarmed"
     assert any("withholds the thrust (disarmed): predicting with zero thrust" in r.getMessage()
                for r in caplog.records)
+
+
+def _reboot_run(thrust_n: float) -> tuple[EstimatorCore, float]:
+    """Thrust applied from 0 s; the autopilot stops it at 6 s and falls silent (rebooting), and is
+    heard again, disarmed, at 10.5 s; fixes at 5 Hz of where the boat is. The truth is the model
+    itself (a second core, predicting only, told of the stop at the moment it happened). Returns
+    the core under test and its worst position error after the first fix back."""
+    config = EstimatorConfig(origin=FIXED.origin, thrust_timeout_s=100.0)
+    truth, core = started(config), started(config)
+    truth.on_thrust(cmd(0, thrust_n))
+    core.on_thrust(cmd(0, thrust_n))
+    worst_m = 0.0
+    for k in range(1, 101):  # 20 s
+        t = k * 200 * MS
+        if t == 6 * S:
+            truth.on_vehicle_status(status(t, "disarmed"))
+        if t == 10_400 * MS:
+            core.on_vehicle_status(status(10_500 * MS, "disarmed"))
+        real = truth.predict_to(t)
+        if 6 * S < t < 10_600 * MS:
+            continue  # the rebooting autopilot sends nothing
+        core.on_gnss(fix(t, real.x_m, real.y_m, real.u_mps, real.v_mps))
+        core.on_attitude(att(t, 0.0))
+        if t >= 10_600 * MS:
+            est = core.predict_to(t)
+            worst_m = max(worst_m, ((est.x_m - real.x_m) ** 2 + (est.y_m - real.y_m) ** 2) ** 0.5)
+    return core, worst_m
+
+
+def test_a_reboot_that_stopped_the_thrust_unseen_is_no_motion_fault() -> None:
+    """The thrust stopped when the autopilot rebooted, seconds before vehicle_io could say so: the
+    filter dead-reckoned on commands the vessel never got, 2 m ahead of the boat. Before, the
+    fixes back were gated out for 5 s, then the state jumped to them and the detector named a motion
+    fault ('not_as_modelled') that paused the resumed mission. Now the first fix after the thrust is
+    found withheld re-anchors the state and the detector starts afresh."""
+    core, worst_m = _reboot_run(8.0)
+    assert core.counters["withheld_anchored"] == 1
+    assert core.mismatch.onsets == 0
+    assert core.counters["gnss_rejected"] == 0
+    assert worst_m < 0.3
+
+
+def test_a_fault_raised_before_the_thrust_was_withheld_stays_raised() -> None:
+    """The re-anchor starts a new window, but a raised fault is only cleared by the evidence."""
+    core = started(EstimatorConfig(origin=FIXED.origin, thrust_timeout_s=100.0))
+    core.on_thrust(cmd(0, 8.0))
+    for k in range(1, 60):  # commanded on, fixes say still: not_moving
+        core.on_gnss(fix(k * 200 * MS, 0.0, 0.0))
+        core.on_attitude(att(k * 200 * MS, 0.0))
+    assert core.mismatch.kind == "not_moving"
+    core.on_vehicle_status(status(12 * S, "disarmed"))
+    core.on_gnss(fix(12_200 * MS, 0.0, 0.0))
+    assert core.mismatch.kind == "not_moving" and core.counters["withheld_anchored"] == 1

@@ -87,7 +87,7 @@ COUNTERS = (
     "thrust_received", "late_applied", "too_old", "too_new", "refused_non_finite",
     "status_received",
     "degraded_entered", "time_jumps", "divergence_resets", "disturbance_reopened", "resets",
-    "motion_faults", "motion_anchored",
+    "motion_faults", "motion_anchored", "withheld_anchored",
     "published",
     "publish_refused",
 )
@@ -201,6 +201,9 @@ class EstimatorCore:
         self.thrust_withheld: str | None = None
         """Why the autopilot does not apply the commanded thrust now (the last ``VehicleStatus``
         said so: disarmed, no link, another mode); None: it does, or nobody said otherwise."""
+        self._anchor_next_fix = False
+        """The next GNSS fix moves the state to it (``on_vehicle_status``: the thrust was found
+        withheld, so the prediction since some unknown moment used a thrust never applied)."""
 
     # ------------------------------------------------------------------------------------------
     # Public API
@@ -276,6 +279,14 @@ class EstimatorCore:
             return
         if not self._bring_to(t):
             return
+        if withheld is not None and self.thrust_withheld is None and self.filter is not None:
+            # The autopilot stopped applying the thrust (rebooted, link lost, disarmed) some time
+            # before this status said so, up to its link timeout: the filter dead-reckoned on
+            # commands the vessel never got. The next fix re-anchors the state, and the motion
+            # fault detector starts a new window: a vessel not obeying an autopilot that was not
+            # passing the commands on is no motion fault.
+            self._anchor_next_fix = True
+            self.mismatch.reset()
         self.thrust_withheld = withheld
         self.counters.inc("status_received")
 
@@ -298,6 +309,14 @@ class EstimatorCore:
             return
         delay = self._to_time(t)
         if delay is None:
+            return
+        if self._anchor_next_fix:
+            self._anchor_next_fix = False
+            off_m = math.hypot(north - self.filter.z[IX], east - self.filter.z[IY])
+            self._anchor(north, east, std, sog, t)
+            self.counters.inc("withheld_anchored")
+            self._notices.append(Notice(t, "withheld_reanchor", f"position moved {off_m:.2f} m to "
+                                        "the fix: the thrust was withheld since an unknown moment"))
             return
         rejected = self.counters["gnss_rejected"] + self.counters["sog_rejected"]
         self._update_position(north, east, std, delay, t)
@@ -683,14 +702,22 @@ class EstimatorCore:
         onset = event is not None and event.kind is not None
         if f is None or not (onset or (self.mismatch.kind is not None and sample.rejected)):
             return
-        self._reinit_block((IX, IY), (sample.north_m - f.z[IX], sample.east_m - f.z[IY]), std * std)
+        self._anchor(sample.north_m, sample.east_m, std, sog, sample.t_ns)
+        self.counters.inc("motion_anchored")
+
+    def _anchor(self, north_m: float, east_m: float, std_m: float,
+                sog: tuple[float | None, float | None], t_ns: int) -> None:
+        """Move the position (NED, m) to a fix of standard deviation ``std_m``, and the speeds to
+        its velocity over ground (``sog``, north and east, m/s) when it has one."""
+        f = self.filter
+        assert f is not None
+        self._reinit_block((IX, IY), (north_m - f.z[IX], east_m - f.z[IY]), std_m * std_m)
         if sog[0] is not None and sog[1] is not None:
             c, s = math.cos(f.z[IPSI]), math.sin(f.z[IPSI])
             u, v = c * sog[0] + s * sog[1], -s * sog[0] + c * sog[1]
             self._reinit_block((IU, IV), (u - f.z[IU], v - f.z[IV]), self.config.sog_std_mps ** 2)
         f.gnss_reject_run = f.sog_reject_run = 0
-        f.last_gnss_ns = max(f.last_gnss_ns, sample.t_ns)
-        self.counters.inc("motion_anchored")
+        f.last_gnss_ns = max(f.last_gnss_ns, t_ns)
 
     def _reopen(self, added: tuple[tuple[int, float], ...], sensor: str, run: int) -> None:
         """Add variance to states ``(index, variance)``: ``run`` samples of ``sensor`` in a row

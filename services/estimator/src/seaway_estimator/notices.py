@@ -21,7 +21,9 @@ class Notice:
     ``kind``: ``gnss_rejected``, ``heading_rejected`` (``run``: rejections in a row so far),
     ``gnss_reinit``, ``heading_reinit`` (the state taken from the sensor after ``run`` rejections),
     ``time_jump``, ``divergence_reset`` (the whole state dropped), ``disturbance_reopened`` (a
-    run of ``run`` rejections said the model is wrong). ``detail`` says by how much."""
+    run of ``run`` rejections said the model is wrong), ``withheld_reanchor`` (the state moved to
+    the first fix after the autopilot was found withholding the thrust: routine, not a warning).
+    ``detail`` says by how much."""
 
     stamp_ns: int
     kind: str
@@ -31,4 +33,6 @@ class Notice:
     @property
     def persistent(self) -> bool:
         """A run of rejections, or a re-initialisation: worth a warning, not an info line."""
+        if self.kind == "withheld_reanchor":
+            return False
         return not self.kind.endswith("_rejected") or self.run >= PERSISTENT_REJECT_RUN
