@@ -98,12 +98,14 @@ class Watch:
         return time.monotonic()
 
     def send_mission(self, mission_id: str, east_m: float, task_power_w: float,
-                     on_low_energy: str = "return", timeout_s: float = 120.0) -> Reply:
-        """A two-waypoint mission east of the origin, sent until the controller answers."""
+                     on_low_energy: str = "return", timeout_s: float = 120.0,
+                     force: bool = False) -> Reply:
+        """A two-waypoint mission east of the origin, sent until the controller answers; ``force``
+        flies it although the mission check refuses it on energy."""
         req = MissionRequest.make(
             stamp_ns=time.time_ns(), mission_id=mission_id, coa_radius_m=2.0,
             task_power_w=task_power_w,
-            controller=CONTROLLER, join_first_leg=True, on_low_energy=on_low_energy,
+            controller=CONTROLLER, join_first_leg=True, on_low_energy=on_low_energy, force=force,
             waypoints=[Waypoint(x_m=0.0, y_m=0.0), Waypoint(x_m=0.0, y_m=east_m)])
 
         def answered() -> Reply | None:

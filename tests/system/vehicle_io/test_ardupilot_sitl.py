@@ -465,15 +465,21 @@ def kill_during_thrust(bus: Bus, procs: Procs, vio: subprocess.Popen) -> float:
 @needs_sitl
 @pytest.mark.slow
 def test_a_mode_change_by_a_second_ground_station_is_named(zenoh_env, procs, bus, tmp_path, sitl):
-    """A second ground station (the test's own link, system 250, on SERIAL1) puts the firmware in
-    HOLD: vehicle_io names it ``gcs_mode_change`` in its status, rather than a plain 'mode HOLD';
-    Seaway's own mode request then clears it."""
+    """A second ground station (the test's own link, system 250, on SERIAL1) puts the armed
+    firmware in HOLD: vehicle_io names it ``gcs_mode_change`` in its status, rather than a plain
+    'mode HOLD'; Seaway's own mode request then clears it. (Disarmed, a mode change is no one
+    taking the vessel from Seaway: ``FailsafeCause.mode_changed``.)"""
     status = StatusWatch(bus)
     vio = start_vio(procs, zenoh_env, tmp_path, sitl.vio_url, rc_receiver="present")
     obs = sitl.observe()
     status.wait(lambda s: s.link_ok and s.mode == "MANUAL", 120, "the SITL in MANUAL")
     # MANUAL (0) on the firmware itself, past INITIALISING (16), which refuses mode changes
     wait_for(lambda: obs.modes and obs.modes[-1][1] == 0, 60, what="the SITL in MANUAL")
+    t0 = time.monotonic()
+    while not (reply := arm(bus)).accepted:
+        assert time.monotonic() - t0 < EKF_READY_TIMEOUT_S, f"never armed; last: {reply.reason}"
+        time.sleep(2.0)
+    status.wait(lambda s: s.armed and s.mode == "MANUAL", 10, "armed in MANUAL")
 
     skip = len(status.poll())
 

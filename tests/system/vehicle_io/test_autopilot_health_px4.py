@@ -93,8 +93,10 @@ def test_pxs_battery_failsafe_pauses_with_its_cause_and_resume_waits_for_it(zeno
         assert w.set_mode("MANUAL").accepted
         w.arm_until_accepted(60)
         w.first(keys.VEHICLE_STATUS, lambda s: s.thrust_withheld is None, 60, "a healthy PX4")
-        # 'warn': flown on whatever the budget says, so that PX4's failsafe is what stops it
-        assert w.send_mission(MISSION, 300.0, TASK_POWER_W, "warn").accepted
+        # 'warn' and forced past the check (longer than the pack): flown on whatever the budget
+        # says, so that PX4's failsafe is what stops it
+        reply = w.send_mission(MISSION, 300.0, TASK_POWER_W, "warn", force=True)
+        assert reply.accepted, reply.reason
         w.mission_in(MISSION, "active", 60)
         px4.observer.set_param("SIM_BAT_DRAIN", 30)
         _, low = w.first(keys.MISSION_ENERGY, lambda b: b.battery_source == "autopilot"

@@ -213,13 +213,15 @@ def test_directions_neutral_and_sigkill_failsafe_on_px4(zenoh_env, procs, bus, t
 @pytest.mark.slow
 def test_a_mode_change_by_a_second_ground_station_is_named_on_px4(zenoh_env, procs, bus, tmp_path,
                                                                    px4):
-    """PX4 put in Hold by another MAVLink client (the test's own, system 250): vehicle_io names it
-    ``gcs_mode_change``; Seaway's own MANUAL clears it."""
+    """Armed PX4 put in Hold by another MAVLink client (the test's own, system 250): vehicle_io
+    names it ``gcs_mode_change``; Seaway's own MANUAL clears it. (Disarmed, a mode change is no
+    one taking the vessel from Seaway: ``FailsafeCause.mode_changed``.)"""
     status = StatusWatch(bus)
     vio = start_vio(procs, zenoh_env, tmp_path, px4.vio_url)
     status.wait(lambda s: s.link_ok and s.autopilot == "px4", 60, "vehicle_io's link to PX4")
-    assert set_mode(bus, "MANUAL").accepted
-    status.wait(lambda s: s.mode == "MANUAL" and s.hold_reason is None, 10, "MANUAL, asked by Seaway")
+    armed_in_manual(bus, procs, vio, px4)
+    status.wait(lambda s: s.armed and s.mode == "MANUAL" and s.hold_reason is None, 10,
+                "armed in MANUAL, asked by Seaway")
     main, sub = MODES["HOLD"]
     skip = len(status.poll())  # PX4 booted in Hold: only statuses from now on
 
