@@ -82,7 +82,15 @@ def _kill_the_controller_at_the_return_decision(procs, run_dir: Path, *launch: s
                              text=True, check=False).stdout.split()
         assert len(pid) == 1, pid
         os.kill(int(pid[0]), signal.SIGKILL)
-        launcher.wait(300)
+        try:
+            launcher.wait(300)
+        except subprocess.TimeoutExpired:
+            # Say where the run stood: the launcher's lines and each service's last log lines.
+            tails = {p.name: p.read_text(errors="replace")[-2500:]
+                     for p in sorted((run_dir / "logs").glob("*.log"))}
+            pytest.fail(f"the run did not end within 300 s of the kill\nlauncher:\n"
+                        f"{procs.log(launcher)[-3000:]}\n" + "\n".join(
+                            f"--- {name}\n{tail}" for name, tail in tails.items()))
     return launcher
 
 
@@ -146,6 +154,7 @@ def test_a_low_battery_returns_home_and_a_replay_decides_the_same(tmp_path):
     assert replayed[at.stamp_ns].margin_j == pytest.approx(at.margin_j, abs=1e-6)
 
 
+@pytest.mark.timeout(600)  # a stalled run is reported with its logs after 300 s of waiting
 def test_a_controller_killed_at_the_return_decision_flies_home_as_a_return(procs, tmp_path):
     """SIGKILL of the controller as soon as its budget has decided the return: the launcher
     restarts it, and the new one resumes the flight home as the budget's return (its budgets say
@@ -185,6 +194,7 @@ def test_a_controller_killed_at_the_return_decision_flies_home_as_a_return(procs
     assert batteries[-1].remaining_j >= reserve
 
 
+@pytest.mark.timeout(600)
 @pytest.mark.slow  # a real-time lake mission to its decision, a restart and the way home: ~40 s
 def test_real_time_a_controller_killed_at_the_return_decision_flies_home_as_a_return(procs, tmp_path):
     """The same kill in real time (the issue's case: ``seaway launch sim``): the restarted

@@ -397,3 +397,28 @@ def test_the_prediction_is_scaled_by_the_ratio_measured_on_the_files_vehicle() -
                          Disturbance())
     assert pa is not None and pb is not None
     assert pa[2] == pytest.approx(pb[2], rel=1e-9)
+
+
+def test_no_way_home_decides_only_once_it_has_lasted() -> None:
+    """A disturbance estimate the cruise cannot beat (no finite energy home) for a second or two,
+    as just after the estimator re-opens its uncertainty, is no return decision (seen on
+    ArduPilot's firmware: a lake mission returned 20 s in); lasting ``UNREACHABLE_DECIDE_S`` it
+    is."""
+    from seaway_controller.energy import UNREACHABLE_DECIDE_S
+
+    b = Budget(model(), [(0.0, 0.0), (60.0, 0.0)], (0.0, 0.0), "return")
+    s = 1_000_000_000
+    swept = state(x=30.0, tau_d_surge_n=300.0)  # pushed north, away from home, past the cruise
+    assert b.update(0, swept, 1, None, 0.0, 1e6, 0, 1000.0) is None
+    assert b.last.energy_to_home_j is None and b.decision == "none"
+    assert b.update(2 * s, swept, 1, None, 0.0, 1e6, 0, 1000.0) is None
+    assert b.update(3 * s, state(x=30.0), 1, None, 0.0, 1e6, 0, 1000.0) is None  # it passed
+    assert b.unreachable_since_ns is None
+    for k in range(4, 9):  # again, from 4 s
+        assert b.update(k * s, swept, 1, None, 0.0, 1e6, 0, 1000.0) is None
+    assert b.update(round((4 + UNREACHABLE_DECIDE_S) * s), swept, 1, None, 0.0, 1e6, 0,
+                    1000.0) == "return"
+    assert "cannot be made good" in b.reason
+    # A finite margin at or below 0 still decides at once.
+    c = Budget(model(), [(0.0, 0.0), (60.0, 0.0)], (0.0, 0.0), "return")
+    assert c.update(0, state(x=30.0), 1, None, 0.0, 1000.0, 0, 1000.0) == "return"

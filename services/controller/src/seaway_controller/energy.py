@@ -94,6 +94,12 @@ the active leg changes [ns]. An autopilot reports its battery about as often. Pr
 period it took 0.6 ms of the controller's CPU a period (paper #1 in lockstep: 2.1 of the
 controller's 7.1 core-s, on lockstep's critical path) for figures that move a few joules a
 period."""
+UNREACHABLE_DECIDE_S = 5.0
+"""A way home that cannot be made good (the estimated disturbance stronger than the cruise, so no
+finite energy home) decides the policy only once every pricing has said so for this long [s]: one
+estimate of the disturbance, just after its uncertainty was re-opened, can swing past anything the
+vessel can beat for a second or two, and flying the mission's policy on it is a false return. A
+finite margin at or below 0 decides at once, as before."""
 FINE_PRICING_SECONDS = 3.0
 """Once the margin is no more than this many seconds from 0, falling at the rate it fell since the
 last pricing, the budget is priced every period until its decision [s]. A straight-line forecast
@@ -414,6 +420,7 @@ class Budget:
     priced_margin: tuple[int, float] | None = None  # (stamp [ns], margin [J]) at the last pricing
     fine: bool = False  # priced every period: the margin is near 0 (``FINE_PRICING_SECONDS``)
     controller: str = ""  # whose measured error widens the band (``band_factors``; "": not widened)
+    unreachable_since_ns: int | None = None  # pricings since then found no way home [ns]
 
     def due(self, now_ns: int, active: int) -> bool:
         """Whether to price the budget at the period ``now_ns`` with leg ``active`` active: the
@@ -460,10 +467,17 @@ class Budget:
             if not self.returning:
                 pnr = no_return_point(self.model, state, self.waypoints, active, self.home,
                                       battery_remaining_j, reserve, nominal)
-            if margin <= 0 and self.decision == "none" and not self.returning:
+            unreachable = not math.isfinite(pred.to_home_j)
+            if not unreachable:
+                self.unreachable_since_ns = None
+            elif self.unreachable_since_ns is None or now_ns < self.unreachable_since_ns:
+                self.unreachable_since_ns = now_ns
+            persisted = (not unreachable or now_ns - self.unreachable_since_ns
+                         >= round(UNREACHABLE_DECIDE_S * 1e9))
+            if margin <= 0 and persisted and self.decision == "none" and not self.returning:
                 taken = self.decision = self.policy
                 self.decided_ns = now_ns
-                if math.isfinite(pred.to_home_j):
+                if not unreachable:
                     self.reason = (f"energy to get home {pred.to_home_j:.0f} J + reserve "
                                    f"{reserve:.0f} J reached the battery's {battery_remaining_j:.0f} J left")
                 else:  # not 'inf J': the vessel makes no way home (MIN_SPEED_FRAC)
