@@ -139,6 +139,50 @@ def test_a_restarted_member_takes_what_it_lacks_from_a_copy_for_the_recorder() -
     assert est.ledger.answers["controller"].stamp_ns == P and not est.ledger.answers["controller"].resent
 
 
+def test_a_command_whose_sender_died_putting_it_is_taken_as_lost_after_a_while(caplog) -> None:
+    """The controller was killed in the middle of its put for t_0: the sim had its command and
+    applied it, the estimator never heard it, and no living member holds it. The estimator waits
+    (the sim repeats t_1) for ``GIVE_UP_LACKING_S``, then takes that command as lost, says so, and
+    can answer; before, it waited for ever and the run hung (the restarted controller waiting for
+    it in turn)."""
+    from seaway.runtime.lockstep import GIVE_UP_LACKING_S
+
+    now = [0]
+    hub = MemoryHub()
+    sim = Member(hub.bus(V), "sim", watched=(), subscribe=False)
+    est = Member(hub.bus(V), "estimator", watched={"ctrl/thrust"}, hears=("sim", "controller"),
+                 passive=("controller",), clock=lambda: now[0])
+    est.deliver = lambda key, msg: est.saw(keys.THRUST.suffix, msg.stamp_ns)
+    sim.answer(Period(0, P), P, consumed={keys.THRUST.suffix: [0]})
+    for t_s in (2.0, 4.0, GIVE_UP_LACKING_S):  # the sim repeats its stalled period
+        now[0] = round(t_s * 1e9)
+        sim.repeat()
+        assert not est.ledger.complete(est.ledger.answer("sim")) and est.given_up == []
+    now[0] = round((GIVE_UP_LACKING_S + 2.0) * 1e9)
+    sim.repeat()
+    assert est.given_up == [(keys.THRUST.suffix, 0)]
+    assert est.ledger.complete(est.ledger.answer("sim"))
+    assert any("taken as lost" in r.getMessage() for r in caplog.records if r.levelname == "WARNING")
+
+
+def test_a_command_that_comes_late_is_not_given_up_on() -> None:
+    """A command that arrives while the sim repeats is taken as always, and nothing is lost."""
+    now = [0]
+    hub = MemoryHub()
+    sim = Member(hub.bus(V), "sim", watched=(), subscribe=False)
+    ctl = Member(hub.bus(V), "controller", watched=(), subscribe=False)
+    est = Member(hub.bus(V), "estimator", watched={"ctrl/thrust"}, hears=("sim", "controller"),
+                 passive=("controller",), clock=lambda: now[0])
+    est.deliver = lambda key, msg: est.saw(keys.THRUST.suffix, msg.stamp_ns)
+    sim.answer(Period(0, P), P, consumed={keys.THRUST.suffix: [0]})
+    now[0] = 2 * 10**9
+    sim.repeat()
+    ctl.answer(Period(0, 0), P, [(keys.THRUST, cmd(0))])
+    now[0] = 30 * 10**9
+    sim.repeat()
+    assert est.given_up == [] and est.ledger.complete(est.ledger.answer("sim"))
+
+
 def test_a_repeat_sends_every_bundle_a_recorder_can_lack_once_more() -> None:
     """A held period is answered again for a mission taken there: a recorder killed after covering
     the first answer lacked the mission's acceptance, and the sim went on two periods without it

@@ -94,6 +94,13 @@ one intake can take two repeats of the sim (a ring held both): twice these and t
 in ``zenoh_bus.LOCKSTEP_TX_QUEUE``."""
 PASSIVE_RING = 256
 """Bundles a passive source holds until they are taken (``Member``): a source sends one a period."""
+GIVE_UP_LACKING_S = 10.0
+"""How long a member waits, while the sim repeats its period, for a command the sim's answer says it
+applied (``consumed``) before it takes that command as lost [wall s]. A member killed in the middle
+of its put can reach the sim and no other member, and nobody alive holds its bundle to send again:
+the estimator then waited for the dead controller's last command for ever, and the restarted
+controller for the estimator (seen about once in fifteen kills at the return decision). Well below
+the launcher's hang limit (30 s), well above any delivery of a live sender."""
 PASSIVE_POLL_S = 0.0005
 """How often a member looks again at its passive sources while it knows a bundle from one is due
 (sent, on another connection than the bundle that says so) [wall s]: nothing wakes it for them."""
@@ -220,6 +227,15 @@ class Ledger:
                 out.extend((suffix, s) for s in stamps if s not in seen)
         return out
 
+    def missing_consumed(self, answer: PeriodDone) -> list[tuple[str, int]]:
+        """The (key suffix, stamp) an answer lists as consumed, on watched keys, not seen: another
+        member's messages, which reach this one in that member's bundle, not in this answer's."""
+        if not self.consumed:
+            return []
+        return [(suffix, s) for suffix, stamps in answer.consumed.items()
+                if self.watched is None or suffix in self.watched
+                for s in stamps if s not in self.seen.get(suffix, set())]
+
     def complete(self, answer: PeriodDone | None) -> bool:
         return answer is not None and not self.missing(answer)
 
@@ -287,7 +303,8 @@ class Member:
     def __init__(self, bus: Bus, service: str, watched: Iterable[str] | None,
                  seq_start: int | None = None, subscribe: bool = True,
                  consumed: bool = True, hears: Iterable[str] | None = None,
-                 inputs: Iterable[str] | None = None, passive: Iterable[str] = ()) -> None:
+                 inputs: Iterable[str] | None = None, passive: Iterable[str] = (),
+                 clock: Callable[[], int] = time.monotonic_ns) -> None:
         """``hears``: the members whose bundles this one needs (default: every other); ``passive``:
         those of them that never move it on by themselves. Only the sim's classify a period, and
         every bundle heard costs a hand-over to Python, so the estimator hears only the sim and the
@@ -325,6 +342,10 @@ class Member:
         self.ratelog = RateLimitedLog(log)  # repeated warnings, per kind and key
         self.timeline = Timeline.from_env(service)  # seaway.runtime.timeline: off unless asked
         self.passive = frozenset(passive) & self.hears
+        self._clock = clock  # wall, monotonic [ns]: only for giving up on a lost command
+        self._lacking_since: dict[tuple[str, int], int] = {}
+        self.given_up: list[tuple[str, int]] = []
+        """(key suffix, stamp) of every command taken as lost (``GIVE_UP_LACKING_S``)."""
         # One bundle taken at a time, in the order taken. Reentrant: taking one can publish a
         # repeat, which an in-process bus delivers at once, on this thread, to whoever hears it.
         self._intake = threading.RLock()
@@ -493,15 +514,38 @@ class Member:
             last = self.last_answer
             repeat = change == "repeat" and last is not None and Period.of(last).leads_to(
                 Period.of(answer))
+            lost = self._give_up_lacking(answer) if change == "repeat" else []
             lacking = self.waiting_for() if change == "repeat" else ""
             self.version += 1
             if self.on_ready is None:  # else the service answers on this thread (``on_ready``)
                 self.changed.notify_all()
+        for suffix, stamp_ns in lost:
+            log.warning("%s, lockstep t = %.3f s (episode %d): %s @ %.3f s, which the sim applied, "
+                        "never came in %.0f s (its sender died putting it): taken as lost",
+                        self.service, answer.stamp_ns / 1e9, answer.episode, suffix,
+                        stamp_ns / 1e9, GIVE_UP_LACKING_S)
         if lacking:  # expected while members start or restart: the sim repeats for them
             log.info("%s, lockstep t = %.3f s (episode %d), repeated: %s", self.service,
                      answer.stamp_ns / 1e9, answer.episode, lacking)
         if repeat:
             self.repeat()
+
+    def _give_up_lacking(self, answer: PeriodDone) -> list[tuple[str, int]]:
+        """At a repeat of the sim's answer: the commands it lists as applied that this member has
+        lacked for ``GIVE_UP_LACKING_S``, now noted as seen (so no longer waited for). Under
+        ``changed``."""
+        if answer.service != "sim":
+            return []
+        now = self._clock()
+        lacking = self.ledger.missing_consumed(answer)
+        self._lacking_since = {k: self._lacking_since.get(k, now) for k in lacking}
+        lost = [k for k, since in self._lacking_since.items()
+                if now - since >= round(GIVE_UP_LACKING_S * 1e9)]
+        for suffix, stamp_ns in lost:
+            self.ledger.see(suffix, stamp_ns)
+            del self._lacking_since[(suffix, stamp_ns)]
+        self.given_up += lost
+        return lost
 
     def waiting_for(self) -> str:
         """What keeps this member from answering the current period, for a person ('' if it has
