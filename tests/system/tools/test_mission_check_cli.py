@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import subprocess
 import sys
 from pathlib import Path
@@ -53,3 +54,57 @@ def test_ok_refused_and_unreadable_by_exit_status_and_json(tmp_path: Path) -> No
     unreadable = check(str(bad))
     assert unreadable.returncode == 2 and "at_rest" in unreadable.stderr
     assert check(str(tmp_path / "none.toml")).returncode == 2
+
+
+def _plan(path: Path, north_east_m: list[tuple[float, float]], fence_m: list[tuple[float, float]]
+          | None = None) -> Path:
+    """A QGroundControl plan written by hand (QGC's own layout, not Seaway's writer): the lake
+    scenario's origin, NAV_WAYPOINTs with a 2 m acceptance radius, and an inclusion fence."""
+    from seaway.vessel.frames import GeoOrigin
+
+    origin = GeoOrigin.from_degrees(28.18, 112.94, 0.0)  # deploy/scenarios/lake.toml [origin]
+
+    def deg(n: float, e: float) -> list[float]:
+        lat, lon, _ = origin.to_geodetic(n, e, 0.0)
+        return [math.degrees(lat), math.degrees(lon)]
+
+    items = [{"type": "SimpleItem", "command": 16, "frame": 3, "autoContinue": True,
+              "doJumpId": i + 1, "params": [0, 2.0, 0, None, *deg(n, e), 0]}
+             for i, (n, e) in enumerate(north_east_m)]
+    doc = {"fileType": "Plan", "version": 1, "groundStation": "QGroundControl",
+           "mission": {"version": 2, "firmwareType": 3, "vehicleType": 11, "cruiseSpeed": 1.0,
+                       "hoverSpeed": 1.0, "plannedHomePosition": [*deg(0, 0), 0], "items": items},
+           "geoFence": {"version": 2, "circles": [], "polygons": [] if fence_m is None else [
+               {"version": 1, "inclusion": True, "polygon": [deg(n, e) for n, e in fence_m]}]},
+           "rallyPoints": {"version": 2, "points": []}}
+    path.write_text(json.dumps(doc))
+    return path
+
+
+def test_a_qgroundcontrol_plan_is_checked_with_its_own_fence(tmp_path: Path) -> None:
+    """A ``.plan`` is read (#57 item 3: "A .plan carries its own operating area"): its waypoints
+    through the default scenario's origin, its acceptance radius, its geoFence as the area; the
+    task power it does not give is the default scenario's, said in a note."""
+    square = [(0.0, 0.0), (22.0, 0.0), (22.0, 18.0), (0.0, 18.0)]
+    ok = check(str(_plan(tmp_path / "square.plan", square)), "--json")
+    assert ok.returncode == 0, ok.stderr
+    out = json.loads(ok.stdout)
+    assert out["verdict"] == "ok" and out["path_length_m"] == pytest.approx(62.0, abs=0.05)
+    assert out["area_source"] == "scenario lake"  # no fence in the file: the scenario's area
+    assert any("task_power_w" in n for n in out["notes"])
+    # Its own fence, which the second leg leaves: refused naming the leg, the file as the area.
+    fenced = _plan(tmp_path / "fenced.plan", square,
+                   fence_m=[(-5.0, -5.0), (30.0, -5.0), (30.0, 10.0), (-5.0, 10.0)])
+    refused = check(str(fenced), "--json", "--task-power-w", "250")
+    assert refused.returncode == 1, refused.stderr
+    out = json.loads(refused.stdout)
+    assert out["verdict"] == "refused" and out["area"] == "refused"
+    assert out["area_source"] == str(fenced)
+    assert any("leaves the keep-in area" in r for r in out["reasons"])
+    assert not any("task_power_w" in n for n in out["notes"])  # given on the command line
+    # Unreadable: not JSON, or no waypoints: exit 2 naming the file.
+    broken = tmp_path / "broken.plan"
+    broken.write_text("{ not json")
+    bad = check(str(broken))
+    assert bad.returncode == 2 and "broken.plan" in bad.stderr
+    assert check(str(fenced), "--task-power-w", "-3").returncode == 2

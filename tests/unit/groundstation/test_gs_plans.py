@@ -1,5 +1,5 @@
 """Mission files: QGroundControl .plan and GeoJSON read into WGS84 waypoints, written back, and
-every refusal naming the item at fault (seaway_groundstation.plans, bodies)."""
+every refusal naming the item at fault (seaway.mission_files, seaway_groundstation.bodies)."""
 
 from __future__ import annotations
 
@@ -9,10 +9,11 @@ import math
 from pathlib import Path
 
 import pytest
+from seaway import mission_files as plans
 from seaway.contract.messages import MissionRequest, Waypoint
+from seaway.mission_files import PlanError
 from seaway.vessel.frames import GeoOrigin
-from seaway_groundstation import bodies, plans
-from seaway_groundstation.plans import PlanError
+from seaway_groundstation import bodies
 
 DATA = Path(__file__).parent / "data"
 

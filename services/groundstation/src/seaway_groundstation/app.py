@@ -41,6 +41,7 @@ from fastapi.middleware.gzip import GZipMiddleware
 from fastapi.responses import FileResponse, JSONResponse, Response
 from fastapi.staticfiles import StaticFiles
 from pydantic import BaseModel, Field, ValidationError
+from seaway import mission_files as plans
 from seaway.contract import keys
 from seaway.contract.config import ConfigError, deploy_path, read_document
 from seaway.contract.messages import (
@@ -57,7 +58,7 @@ from starlette.concurrency import run_in_threadpool
 from starlette.datastructures import UploadFile
 from starlette.websockets import WebSocket
 
-from seaway_groundstation import bodies, errors, geo, guard, mission_checks, plans, tiles
+from seaway_groundstation import bodies, errors, geo, guard, mission_checks, tiles
 from seaway_groundstation.fleet import Fleet
 from seaway_groundstation.gateway import BusLink, ask
 from seaway_groundstation.journal import RequestJournal

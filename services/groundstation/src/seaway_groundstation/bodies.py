@@ -28,9 +28,8 @@ from seaway.contract.messages import (
     ScenarioRequest,
     Waypoint,
 )
+from seaway.mission_files import MAX_WAYPOINTS, ImportedPath
 from seaway.vessel.frames import GeoOrigin
-
-from seaway_groundstation.plans import MAX_WAYPOINTS, ImportedPath
 
 
 class _Body(BaseModel):

@@ -4,6 +4,11 @@ the controller's own, the one it applies on acceptance).
     seaway mission check deploy/missions/lake-square.toml [--json]
     seaway mission check lake --battery-j 298000
     seaway mission check mission.toml --area lake-area.plan
+    seaway mission check survey.plan --task-power-w 250
+
+A QGroundControl ``.plan`` or a GeoJSON mission (``seaway.mission_files``) brings its own operating
+area and rally points (``--area`` replaces them) and acceptance radius; what it does not give
+(``--coa-radius-m``, ``--task-power-w``) is the default scenario's mission's, and said in a note.
 
 What it checks against: a scenario's own vessel file, battery (its ``[battery]``, else full) and
 operating area; a mission file against those of the default scenario (the ``sim`` profile's),
@@ -21,13 +26,15 @@ import argparse
 import json
 import sys
 import time
+from pathlib import Path
 
+from seaway import mission_files
 from seaway.area.files import run_area
 from seaway.area.model import AreaError
 from seaway.contract.config import ConfigError
-from seaway.contract.messages import MessageError, MissionRequest
+from seaway.contract.messages import MessageError, MissionRequest, Waypoint
 from seaway.mission_check import MissionCheckUnavailableError, check_mission
-from seaway.runtime.argtypes import non_negative_float
+from seaway.runtime.argtypes import non_negative_float, positive_float
 from seaway.simkit.scenario import Scenario, load_mission_source, load_scenario
 from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.model import load_vessel
@@ -47,10 +54,73 @@ def default_scenario() -> Scenario:
     return load_scenario(name)
 
 
+def foreign_mission(path: Path) -> mission_files.ImportedPath | None:
+    """The mission of a QGroundControl ``.plan`` or a GeoJSON file (``.geojson``, or a ``.json``
+    that is one), or None for Seaway's own mission and scenario files. ConfigError naming the file
+    when it is one of those and cannot be read."""
+    if path.suffix not in (".plan", ".geojson", ".json"):
+        return None
+    try:
+        doc = mission_files.load_json(path.read_bytes(), str(path))
+    except OSError as err:
+        raise ConfigError(f"{path}: cannot read: {err.strerror}") from None
+    except mission_files.PlanError as err:
+        raise ConfigError(str(err)) from None
+    if path.suffix == ".json" and not (isinstance(doc, dict) and (
+            doc.get("fileType") == "Plan" or isinstance(doc.get("type"), str))):
+        return None  # Seaway's own mission or scenario as JSON
+    try:
+        return mission_files.parse_document(doc)
+    except mission_files.PlanError as err:
+        raise ConfigError(f"{path}: {err}") from None
+
+
+def foreign_request(path: Path, imported: mission_files.ImportedPath, against: Scenario,
+                    coa_radius_m: float | None, task_power_w: float | None,
+                    ) -> tuple[MissionRequest, list[str]]:
+    """The request for an imported path: the command line's values, then the file's, then the
+    default scenario's mission's (each of those named in the notes returned)."""
+    params = {**imported.hints}
+    if coa_radius_m is not None:
+        params["coa_radius_m"] = coa_radius_m
+    if task_power_w is not None:
+        params["task_power_w"] = task_power_w
+    notes = []
+    for name in ("coa_radius_m", "task_power_w"):
+        if name not in params:
+            if against.mission is None:
+                raise ConfigError(f"{path}: gives no {name} and scenario {against.name!r} has no "
+                                  f"[mission] to take it from; give --{name.replace('_', '-')}")
+            params[name] = getattr(against.mission, name)
+            notes.append(f"{name} {params[name]:g} from scenario {against.name}'s mission "
+                         f"(the {imported.source} file gives none)")
+    mission_id = str(params.pop("mission_id", "") or path.stem)
+    try:
+        req = MissionRequest.make(
+            stamp_ns=time.time_ns(), mission_id=mission_id[:64],
+            waypoints=[Waypoint(lat_deg=lat, lon_deg=lon) for lat, lon in imported.points_deg],
+            **params)
+    except MessageError as err:
+        raise ConfigError(f"{path}: {err}") from None
+    return req, notes
+
+
 def desk_check(what: str, battery_j: float | None = None, area_file: str | None = None,
-               force: bool = False) -> dict:
+               force: bool = False, coa_radius_m: float | None = None,
+               task_power_w: float | None = None) -> dict:
     """The check of the mission ``what`` names, at the desk, as ``--json`` prints it.
     ConfigError/AreaError/MessageError when something cannot be read."""
+    imported = foreign_mission(Path(what))
+    if imported is not None:
+        against = default_scenario()
+        req, notes = foreign_request(Path(what), imported, against, coa_radius_m, task_power_w)
+        if force:
+            req = req.model_copy(update={"force": True})
+        if area_file is None and imported.area is not None:
+            area_file = what  # the file's own geoFence and rallyPoints
+        out = check_request(req, against, battery_j, area_file)
+        out["notes"] = [*notes, *out["notes"]]
+        return out
     spec, scenario = load_mission_source(what)
     against = scenario if scenario is not None else default_scenario()
     req = spec.to_request(time.time_ns(), mission_id=spec.mission_id or against.name)
@@ -103,7 +173,8 @@ def show(out: dict) -> str:
 def main(argv: list[str]) -> int:
     ap = argparse.ArgumentParser(prog="seaway mission check", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("what", help="mission file (.toml, .json) or scenario (name or file)")
+    ap.add_argument("what", help="mission file (.toml, .json, QGroundControl .plan, GeoJSON) or "
+                    "scenario (name or file)")
     ap.add_argument("--json", action="store_true", help="print one JSON object")
     ap.add_argument("--battery-j", type=non_negative_float, default=None, metavar="J",
                     help="usable energy in the battery [J] (default: the scenario's, else full)")
@@ -111,9 +182,15 @@ def main(argv: list[str]) -> int:
                     help="the operating area (.toml [area], .plan geoFence, .geojson)")
     ap.add_argument("--force", action="store_true",
                     help="check as the controller would a forced mission (energy only warns)")
+    ap.add_argument("--coa-radius-m", type=positive_float, default=None, metavar="M",
+                    help="r_COA of a .plan or GeoJSON mission (default: the file's, else the "
+                    "default scenario's)")
+    ap.add_argument("--task-power-w", type=positive_float, default=None, metavar="W",
+                    help="T^w of a .plan or GeoJSON mission (default: the default scenario's)")
     args = ap.parse_args(argv)
     try:
-        out = desk_check(args.what, args.battery_j, args.area, args.force)
+        out = desk_check(args.what, args.battery_j, args.area, args.force, args.coa_radius_m,
+                         args.task_power_w)
     except (ConfigError, AreaError, MessageError, OSError, MissionCheckUnavailableError) as err:
         print(f"seaway mission check: {err}", file=sys.stderr)
         return EXIT_UNREADABLE

@@ -1,4 +1,5 @@
-"""Mission files the ground station reads and writes: QGroundControl ``.plan`` and GeoJSON.
+"""Mission files from other tools: QGroundControl ``.plan`` and GeoJSON, read (the ground
+station's import, ``seaway mission check``) and written (the ground station's export).
 
 Pure functions over parsed JSON documents (no bus, no web framework). Both formats carry a path as
 WGS84 latitude/longitude in degrees; Seaway's ``MissionRequest`` takes the same (``Waypoint.lat_deg``
