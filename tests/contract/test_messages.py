@@ -52,6 +52,7 @@ EXAMPLES: dict[type[m.Message], dict] = {
     m.MissionRequest: dict(waypoints=[{"x_m": 0.0, "y_m": 0.0}, {"lat_deg": 47.0, "lon_deg": 8.0}],
                            coa_radius_m=1.0, task_power_w=0.49, controller="eo-empc"),
     m.MissionCommand: dict(command="pause"),
+    m.HomeRequest: dict(home="here"),
     m.MissionAccepted: dict(accepted_ns=T, mission_id="m1", coa_radius_m=1.0, task_power_w=0.49,
                             waypoints=[{"x_m": 0.0, "y_m": 0.0}, {"x_m": 8.0, "y_m": 0.0}],
                             controller="cc-empc", predict_disturbance=False,

@@ -21,6 +21,7 @@ MINIMAL = {  # the least each request needs: what it asks for
     m.MissionRequest: {"waypoints": [{"x_m": 0, "y_m": 0}, {"x_m": 1, "y_m": 0}],
                        "coa_radius_m": 1.0, "task_power_w": 0.49},
     m.MissionCommand: {"command": "pause"},
+    m.HomeRequest: {"home": "here"},
     m.NavResetRequest: {"keep_origin": True},
 }
 

@@ -127,3 +127,47 @@ def test_home_is_where_the_vessel_was_at_the_first_mission_or_at_arming() -> Non
     core.step(4 * DT_NS, at(4, 4.0, 4.0))
     core.on_vehicle_status(vehicle_status(5 * DT_NS, None))
     assert core.home == (4.0, 4.0)
+
+
+def test_the_operator_sets_home_and_the_mission_under_way_takes_it() -> None:
+    """``mission/home`` (#57 item 2, "set by the operator"): 'here' or a point; outside the area,
+    with degrees before the origin is known, or before any state for 'here': refused, naming why.
+    The mission under way takes the new home: its budget prices the way there, and the accepted
+    mission is published again with it."""
+    from seaway.contract.messages import HomeRequest
+
+    core = core_with(area())
+    here = HomeRequest.make(stamp_ns=0, home="here")
+    refused = core.handle_home(0, here)
+    assert not refused.accepted and "no state estimate" in refused.reason and core.home is None
+    core.step(DT_NS, at(1, 1.0, 2.0))
+    assert core.handle_mission(0, mission()).accepted
+    assert core.budget is not None and core.budget.home == (1.0, 2.0)
+    reply = core.handle_home(2 * DT_NS, HomeRequest.make(stamp_ns=0, home=Waypoint(x_m=0.0,
+                                                                                  y_m=8.0)))
+    assert reply.accepted, reply.reason
+    assert reply.detail == {"home_x_m": 0.0, "home_y_m": 8.0}
+    assert core.home == (0.0, 8.0) and core.missions.mission.home == (0.0, 8.0)
+    assert core.budget.home == (0.0, 8.0)
+    assert core.mission_request.home == Waypoint(x_m=0.0, y_m=8.0)  # what a checkpoint keeps
+    assert (core.accepted.home_x_m, core.accepted.home_y_m) == (0.0, 8.0)
+    # Outside the keep-in area: refused, home unchanged.
+    out = core.handle_home(3 * DT_NS, HomeRequest.make(stamp_ns=0, home=Waypoint(x_m=30.0, y_m=0.0)))
+    assert not out.accepted and "home at north 30.0 m" in out.reason and core.home == (0.0, 8.0)
+    # Degrees need the origin.
+    deg = core.handle_home(3 * DT_NS, HomeRequest.make(stamp_ns=0, home=Waypoint(lat_deg=28.18,
+                                                                                lon_deg=112.94)))
+    assert not deg.accepted and "origin" in deg.reason
+    # 'here' takes the latest estimate; the next mission without a home of its own takes it.
+    core.step(4 * DT_NS, at(4, 3.0, 3.0))
+    assert core.handle_home(4 * DT_NS, here).accepted and core.home == (3.0, 3.0)
+    assert core.handle_mission(0, mission()).accepted and core.missions.mission.home == (3.0, 3.0)
+
+
+def test_a_home_request_is_validated_at_the_edge() -> None:
+    """NaN, a string other than 'here', a waypoint with no position: refused by the message."""
+    from seaway.contract.messages import HomeRequest, MessageError
+
+    for bad in ({"home": "there"}, {"home": {"x_m": float("nan"), "y_m": 0.0}}, {}):
+        with pytest.raises(MessageError):
+            HomeRequest.make(stamp_ns=0, **bad)

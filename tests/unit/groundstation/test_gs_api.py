@@ -366,7 +366,7 @@ def test_openapi_documents_every_endpoint_with_tags_and_refusals(client: TestCli
     assert {t["name"] for t in schema["tags"]} == {"fleet", "mission", "vehicle", "sim", "replay", "page"}
     commands = [(p, op) for p, ops in schema["paths"].items() for m, op in ops.items()
                 if m == "post" and p.startswith("/api/vessels/")]
-    assert len(commands) == 10
+    assert len(commands) == 11
     for path, op in commands:
         assert op["tags"] and op["summary"], path
         assert {"401", "403", "404", "409", "429", "504"} <= set(op["responses"]), path
@@ -521,3 +521,22 @@ def test_a_bad_client_header_is_refused_naming_it(client: TestClient, vessel: Ve
     r = client.post("/api/vessels/v1/mission/pause", headers={**AUTH, "X-Seaway-Client": "a b/c"})
     assert r.status_code == 422 and "X-Seaway-Client" in r.json()["detail"], r.text
     assert "mission/command" not in vessel.requests
+
+
+def test_set_home_here_or_at_a_point_becomes_the_bus_request(client: TestClient,
+                                                              vessel: Vessel) -> None:
+    vessel.serve(keys.MISSION_HOME)
+    assert client.post("/api/vessels/v1/home", json={"home": "here"}, headers=AUTH).status_code == 200
+    r = client.post("/api/vessels/v1/home", json={"home": {"lat_deg": 28.18, "lon_deg": 112.94}},
+                    headers=AUTH)
+    assert r.status_code == 200 and r.json()["request"] == "mission/home", r.text
+    here, point = vessel.requests["mission/home"]
+    assert here.home == "here" and (point.home.lat_deg, point.home.lon_deg) == (28.18, 112.94)
+    # Refused at the edge, naming the field: no position, half a pair, a word, NaN text.
+    for bad in ({"home": {}}, {"home": {"x_m": 1.0}}, {"home": "there"}, {}):
+        r = client.post("/api/vessels/v1/home", json=bad, headers=AUTH)
+        assert r.status_code == 422 and "home" in r.text, (bad, r.text)
+    r = client.post("/api/vessels/v1/home", content=b'{"home": {"x_m": NaN, "y_m": 0}}',
+                    headers={**AUTH, "Content-Type": "application/json"})
+    assert r.status_code == 422
+    assert len(vessel.requests["mission/home"]) == 2

@@ -51,7 +51,7 @@ def _vessel(hub: MemoryHub) -> None:
         return Reply.accept(1, "done")
 
     for spec in (keys.VEHICLE_ARM, keys.VEHICLE_MODE, keys.MISSION_SET, keys.MISSION_COMMAND,
-                 keys.SIM_SCENARIO):
+                 keys.MISSION_HOME, keys.SIM_SCENARIO):
         bus.queryable(spec, answer)
     bus.publisher(keys.NAV_ORIGIN).put(NavOrigin(stamp_ns=1, lat_rad=0.49, lon_rad=1.97, alt_m=0.0))
     bus.publisher(keys.NAV_STATE).put(StateEstimate(stamp_ns=1, u_mps=1.0, v_mps=0.0, r_radps=0.0,

@@ -57,7 +57,7 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from seaway.contract.messages import (
@@ -67,6 +67,7 @@ from seaway.contract.messages import (
     BatteryState,
     EnergyBudget,
     EnergyDecision,
+    HomeRequest,
     MissionAccepted,
     MissionCommand,
     MissionRequest,
@@ -97,6 +98,7 @@ from seaway_controller.mission import (
     MissionError,
     MissionLimits,
     MissionManager,
+    home_ned,
     validate_mission,
 )
 from seaway_controller.mission_check import MissionCheck, check_mission
@@ -468,6 +470,45 @@ class ControllerCore:
             return None
         self._accepted_pending, self._accepted_sent_ns = False, now_ns
         return self.accepted.model_copy(update={"stamp_ns": now_ns})
+
+    def handle_home(self, now_ns: int, req: HomeRequest) -> Reply:
+        """The operator sets the vessel's home (``mission/home``): a point, or where the vessel is
+        now. It must lie in the operating area. The mission under way (not a return already flying
+        home) takes it as its home: its energy budget prices the way there from now on."""
+        if req.home == "here":
+            st = self._last_state
+            if st is None:
+                return Reply.refuse(now_ns, "home 'here' is not known: no state estimate yet; give "
+                                    "a position (x_m/y_m or lat_deg/lon_deg)")
+            point = (st.x_m, st.y_m)
+        else:
+            try:
+                point = home_ned(req.home, self.origin, self.missions.limits)
+            except MissionError as err:
+                return Reply.refuse(now_ns, str(err))
+        why = self.area.home_refusal(point)
+        if why is not None:
+            return Reply.refuse(now_ns, why)
+        self.home = point
+        said = f"home set at north {point[0]:.1f} m, east {point[1]:.1f} m"
+        mission, req_now, b = self.missions.mission, self.mission_request, self.budget
+        returning = (b is not None and b.returning) or self._area_return
+        if mission is not None and req_now is not None and self.missions.state in (
+                "waiting", "active", "paused") and not returning:
+            self.missions.mission = replace(mission, home_m=point)
+            self.mission_request = req_now.model_copy(
+                update={"home": Waypoint(x_m=point[0], y_m=point[1])})
+            if b is not None:
+                b.home = point
+            if self.accepted is not None:
+                self.accepted = self.accepted.model_copy(update={"home_x_m": point[0],
+                                                                 "home_y_m": point[1]})
+                self._accepted_pending = True
+            said += f"; mission {mission.mission_id!r} returns there if it must"
+        elif returning:
+            said += "; the return under way ends at the home it set out for"
+        log.info("%s", said)
+        return Reply.accept(now_ns, said, home_x_m=point[0], home_y_m=point[1])
 
     def handle_command(self, now_ns: int, cmd: MissionCommand) -> Reply:
         withheld = "; and ".join(r for r in (_latched_reason(self.vehicle), self.withheld_reason())

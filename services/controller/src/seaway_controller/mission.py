@@ -33,6 +33,7 @@ from seaway.contract.messages import (
     MissionCommand,
     MissionRequest,
     MissionState,
+    Waypoint,
 )
 from seaway.vessel import path
 from seaway.vessel.frames import GeoOrigin
@@ -100,6 +101,17 @@ def _waypoint_ned(i: int | str, wp: object, origin: GeoOrigin | None) -> Point:
     raise MissionError(f"waypoint {i}: has no position (x_m/y_m or lat_deg/lon_deg)")
 
 
+def home_ned(wp: Waypoint, origin: GeoOrigin | None, limits: MissionLimits = MissionLimits()
+             ) -> Point:
+    """A home given as a waypoint (local NED metres, or degrees through ``origin``) in local NED
+    metres, within ``limits.max_range_m`` of the origin; MissionError naming what is wrong."""
+    home = _waypoint_ned("home", wp, origin)
+    if not all(map(math.isfinite, home)) or math.hypot(*home) > limits.max_range_m:
+        raise MissionError(f"home at ({home[0]:.1f}, {home[1]:.1f}) m is outside the operating "
+                           f"area (max {limits.max_range_m:.0f} m from the origin)")
+    return home
+
+
 def validate_mission(req: MissionRequest, origin: GeoOrigin | None,
                      limits: MissionLimits = MissionLimits()) -> Mission:
     """Check a request and convert it to local NED; raises MissionError naming the problem."""
@@ -126,13 +138,7 @@ def validate_mission(req: MissionRequest, origin: GeoOrigin | None,
         if leg < limits.min_leg_m:
             raise MissionError(f"leg {i - 1}->{i} has zero length ({leg:.3g} m < "
                                f"{limits.min_leg_m} m): remove the duplicate waypoint")
-    home = None
-    if req.home is not None:
-        home = _waypoint_ned("home", req.home, origin)
-        r = math.hypot(*home)
-        if not all(map(math.isfinite, home)) or r > limits.max_range_m:
-            raise MissionError(f"home at ({home[0]:.1f}, {home[1]:.1f}) m is outside the operating "
-                               f"area (max {limits.max_range_m:.0f} m from the origin)")
+    home = None if req.home is None else home_ned(req.home, origin, limits)
     return Mission(req.mission_id, tuple(points), float(req.coa_radius_m), float(req.task_power_w),
                    req.controller, req.speed_hint_mps, home, req.on_low_energy, req.join_first_leg,
                    req.at_rest)

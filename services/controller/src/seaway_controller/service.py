@@ -66,6 +66,7 @@ from seaway.contract.config import ConfigError
 from seaway.contract.messages import (
     MAX_REASON_CHARS,
     BatteryState,
+    HomeRequest,
     MissionCommand,
     MissionRequest,
     MissionStatus,
@@ -196,6 +197,7 @@ class ControllerService:
         self.pub_area = bus.publisher(keys.AREA_ACTIVE)
         bus.queryable(keys.MISSION_SET, self.on_mission)
         bus.queryable(keys.MISSION_COMMAND, self.on_command)
+        bus.queryable(keys.MISSION_HOME, self.on_home)
         bus.subscribe(keys.VEHICLE_STATUS, callback=self.on_vehicle_status)  # pauses a mission
 
     def on_mission(self, req: MissionRequest) -> Reply:
@@ -237,6 +239,9 @@ class ControllerService:
 
     def on_command(self, cmd: MissionCommand) -> Reply:
         return self._serve(f"{keys.MISSION_COMMAND.suffix} {cmd.command}", self.core.handle_command, cmd)
+
+    def on_home(self, req: HomeRequest) -> Reply:
+        return self._serve(keys.MISSION_HOME.suffix, self.core.handle_home, req)
 
     def _serve(self, what: str, handle: Callable[[int, Any], Reply], request: Any) -> Reply:
         """One mission request: the core decides under the lock, the reply is logged, progress saved.

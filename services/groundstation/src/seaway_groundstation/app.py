@@ -584,6 +584,17 @@ def _vehicle_router(gs: GroundStation, command: list[Any]) -> APIRouter:
         msg = ArmRequest.make(stamp_ns=time.time_ns(), arm=False, force=bool(body and body.force))
         return _reply(await gs.send(keys.VEHICLE_ARM, msg, vessel))
 
+    @r.post("/vessels/{vessel}/home", response_model=CommandReply, dependencies=command,
+            responses=_command_responses(CommandReply), summary="Set the vessel's home")
+    async def set_home(vessel: VesselName, body: bodies.HomeBody) -> JSONResponse:
+        """Where a return goes, and the home of every mission that gives none (until set: where
+        the vessel was armed); refused by the controller outside the operating area."""
+        try:
+            msg = body.to_request(time.time_ns())
+        except bodies.MissionBuildError as err:
+            raise HTTPException(422, str(err)) from None
+        return _reply(await gs.send(keys.MISSION_HOME, msg, vessel))
+
     @r.post("/vessels/{vessel}/mode", response_model=CommandReply, dependencies=command,
             responses=_command_responses(CommandReply), summary="Change the autopilot mode")
     async def mode(vessel: VesselName, body: bodies.ModeBody) -> JSONResponse:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 from seaway.contract import keys
@@ -20,6 +20,7 @@ from seaway.contract.messages import (
     ArmRequest,
     AtRest,
     ControllerName,
+    HomeRequest,
     Message,
     MessageError,
     MissionCommand,
@@ -172,6 +173,19 @@ class ArmBody(_Body):
     force: bool = Field(default=False, description="arm or disarm even if the autopilot's checks fail")
 
 
+class HomeBody(_Body):
+    """The vessel's new home: ``"here"`` (where it is now) or a waypoint."""
+
+    home: Literal["here"] | WaypointIn = Field(description="'here', or x_m/y_m or lat_deg/lon_deg")
+
+    def to_request(self, stamp_ns: int) -> HomeRequest:
+        home = self.home if self.home == "here" else self.home.to_waypoint()
+        try:
+            return HomeRequest.make(stamp_ns=stamp_ns, home=home)
+        except MessageError as err:
+            raise MissionBuildError(str(err)) from None
+
+
 class ModeBody(_Body):
     mode: str = Field(min_length=1, max_length=32, pattern=r"^[A-Za-z0-9_]+$",
                       description="Seaway's autopilot mode name, e.g. 'MANUAL' or 'HOLD'")
@@ -299,4 +313,6 @@ def command_words(msg: Message) -> str:
         return f"mission {msg.mission_id}"
     if isinstance(msg, ScenarioRequest):
         return "restart the simulation" if msg.action == "restart" else "load a scenario"
+    if isinstance(msg, HomeRequest):
+        return "set home here" if msg.home == "here" else "set home"
     return type(msg).__name__

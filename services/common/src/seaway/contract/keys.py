@@ -95,6 +95,8 @@ AREA_ACTIVE = KeySpec("area/active", m.ActiveArea, "controller",
                          "into force, and 1 Hz live")
 MISSION_SET = KeySpec("mission/set", m.MissionRequest, "controller", "query")
 MISSION_COMMAND = KeySpec("mission/command", m.MissionCommand, "controller", "query")
+MISSION_HOME = KeySpec("mission/home", m.HomeRequest, "controller", "query",
+                       doc="set the vessel's home (the operator's; else where it was armed)")
 SIM_TRUTH = KeySpec("sim/truth", m.SimTruth, "sim", also=("replay",))
 SIM_DISTURBANCE = KeySpec("sim/disturbance", m.DisturbanceForce, "sim", also=("replay",))
 SIM_CLOCK = KeySpec("sim/clock", m.ClockTick, "sim", also=("replay",))

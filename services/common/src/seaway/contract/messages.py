@@ -826,6 +826,16 @@ class MissionCommand(Request):
     command: Literal["pause", "resume", "abort"]
 
 
+class HomeRequest(Request):
+    """Set the vessel's home (``mission/home``): where the energy budget's return and an area
+    breach's 'return' go, and the home of every mission that does not give its own. ``home`` is a
+    waypoint (local NED metres or WGS84 degrees), or ``"here"``: where the vessel is now, as the
+    estimator has it. Until set, home is where the vessel was armed."""
+
+    SCHEMA: ClassVar[str] = "seaway.v1.HomeRequest"
+    home: Waypoint | Literal["here"] = Field(description="the new home, or 'here'")
+
+
 class MissionAccepted(Message):
     """The mission the controller accepted and flies (``mission/accepted``): a ``MissionRequest``
     as the controller validated it, with its waypoints in local NED metres (converted through the
