@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -108,3 +109,43 @@ def test_a_qgroundcontrol_plan_is_checked_with_its_own_fence(tmp_path: Path) -> 
     bad = check(str(broken))
     assert bad.returncode == 2 and "broken.plan" in bad.stderr
     assert check(str(fenced), "--task-power-w", "-3").returncode == 2
+
+
+def test_live_check_against_the_running_vessel(procs, zenoh_env, tmp_path: Path) -> None:
+    """``--live`` (#57 item 3: "With a running vessel it checks against that vessel's live state"):
+    a real-time lake stack (``seaway launch sim``, no mission); the check takes the vessel's state,
+    the area its controller enforces and the stack's model; a far mission is refused by that area,
+    and with no stack at all the live check says so (exit 2)."""
+    from tests.conftest import wait_for
+
+    run = tmp_path / "run"
+    launcher = procs.start([sys.executable, "-m", "seaway.tools.cli", "launch", "sim", "--scenario",
+                            "lake", "--run-dir", str(run), "--no-mission", "--no-report"],
+                           zenoh_env, "launcher")
+
+    def ready() -> bool:
+        if launcher.poll() is not None:
+            pytest.fail(f"the launcher exited ({launcher.returncode}):\n{procs.log(launcher)[-3000:]}")
+        return "all ready in" in procs.log(launcher)
+
+    wait_for(ready, 240, interval_s=0.2, what="the lake stack to be ready")
+
+    def live(*args: str, timeout_s: float = 60.0) -> subprocess.CompletedProcess:
+        return subprocess.run([*SEAWAY, "mission", "check", *args, "--live", "--json", "--timeout",
+                               str(timeout_s)], capture_output=True, text=True, timeout=120,
+                              check=False, cwd=REPO, env=zenoh_env)
+
+    ok = live("deploy/missions/lake-square.toml")
+    assert ok.returncode == 0, ok.stdout + ok.stderr
+    out = json.loads(ok.stdout)
+    assert out["against"] == "vessel vessel1" and out["vessel"] == "paper-boat"
+    assert out["area"] == "ok" and out["area_source"]  # the area the controller enforces
+    far = tmp_path / "far.toml"
+    far.write_text('mission_id = "far"\nwaypoints_m = [[0.0, 0.0], [200.0, 0.0]]\n'
+                   'coa_radius_m = 2.0\ntask_power_w = 250.0\n')
+    refused = live(str(far))
+    assert refused.returncode == 1, refused.stdout + refused.stderr
+    assert json.loads(refused.stdout)["area"] == "refused"
+    assert procs.stop(launcher, signal.SIGINT, timeout_s=60) < 60
+    none = live("deploy/missions/lake-square.toml", "--vessel-file", "paper-boat", timeout_s=3.0)
+    assert none.returncode == 2 and "nav/state" in none.stderr, none.stderr

@@ -31,3 +31,19 @@ def check_mission(*args: Any, **kwargs: Any) -> Any:
             f"the mission check comes with the seaway-controller package (entry point group "
             f"{GROUP!r}), which is not installed here")
     return found[0].load()(*args, **kwargs)
+
+
+def check_live(req: Any, vessel: Any, *, origin: Any, state: Any = None, energy: Any = None,
+               area: Any = None, battery_j: float | None = None) -> dict[str, Any]:
+    """The check of ``req`` against what a running vessel says, as ``--json`` prints it: its
+    navigation state (``StateEstimate``: where it is, the disturbance estimate), its energy
+    budget (``EnergyBudget``: the battery left unless ``battery_j`` is given, the reserve, home),
+    the operating area the controller enforces (``ActiveArea``) and the origin (``GeoOrigin``).
+    Each may be None (not heard, or stale): the check then takes the desk's default for it."""
+    if battery_j is None and energy is not None:
+        battery_j = energy.battery_remaining_j
+    return check_mission(
+        req, vessel, origin=origin, state=state, battery_j=battery_j,
+        reserve_j=energy.reserve_j if energy is not None else None,
+        area=area.to_area() if area is not None else None,
+        home=(energy.home_x_m, energy.home_y_m) if energy is not None else None).to_dict()

@@ -14,7 +14,7 @@ from typing import Any
 
 from pydantic import Field
 from seaway.contract.messages import ActiveArea, EnergyBudget, MissionRequest, StateEstimate
-from seaway.mission_check import check_mission
+from seaway.mission_check import check_live
 from seaway.vessel.model import load_vessel
 
 from seaway_groundstation.bodies import MissionBody
@@ -44,14 +44,10 @@ def live_check(req: MissionRequest, fleet: Fleet, vessel: str | None, now_s: flo
     state = state if isinstance(state, StateEstimate) else None
     energy = energy if isinstance(energy, EnergyBudget) else None
     area = area if isinstance(area, ActiveArea) else None
-    if battery_j is None and energy is not None:
-        battery_j = energy.battery_remaining_j
-    out = check_mission(
+    out = check_live(
         req, load_vessel(model_vessel_file),
         origin=fleet.geo_origin(vessel) if vessel is not None else fleet.default_origin, state=state,
-        battery_j=battery_j, reserve_j=energy.reserve_j if energy is not None else None,
-        area=area.to_area() if area is not None else None,
-        home=(energy.home_x_m, energy.home_y_m) if energy is not None else None).to_dict()
+        energy=energy, area=area, battery_j=battery_j)
     against = "the desk" if vessel is None else f"vessel {vessel}" + ("" if state else " (desk)")
     out.update(vessel=model_vessel_file, against=against,
                area_source=area.source if area is not None else None)

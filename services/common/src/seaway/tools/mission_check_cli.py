@@ -10,7 +10,12 @@ A QGroundControl ``.plan`` or a GeoJSON mission (``seaway.mission_files``) bring
 area and rally points (``--area`` replaces them) and acceptance radius; what it does not give
 (``--coa-radius-m``, ``--task-power-w``) is the default scenario's mission's, and said in a note.
 
-What it checks against: a scenario's own vessel file, battery (its ``[battery]``, else full) and
+With ``--live`` it checks against the running vessel (``--vessel`` in a fleet): its state and
+disturbance estimate, its energy budget's battery, reserve and home, the operating area its
+controller enforces and its origin, as heard on the bus within ``--timeout``; the model is the
+running stack's (its run description), or ``--vessel-file``.
+
+At the desk, what it checks against: a scenario's own vessel file, battery (its ``[battery]``, else full) and
 operating area; a mission file against those of the default scenario (the ``sim`` profile's),
 with the mission file's own area if ``--area`` gives one. ``--battery-j`` replaces the battery's
 usable energy left. At the desk there is no vessel: the vessel is taken at rest at P_0, calm.
@@ -33,9 +38,10 @@ from seaway.area.files import run_area
 from seaway.area.model import AreaError
 from seaway.contract.config import ConfigError
 from seaway.contract.messages import MessageError, MissionRequest, Waypoint
-from seaway.mission_check import MissionCheckUnavailableError, check_mission
+from seaway.mission_check import MissionCheckUnavailableError, check_live, check_mission
 from seaway.runtime.argtypes import non_negative_float, positive_float
 from seaway.simkit.scenario import Scenario, load_mission_source, load_scenario
+from seaway.tools import request_cli
 from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.model import load_vessel
 
@@ -147,6 +153,77 @@ def check_request(req: MissionRequest, against: Scenario, battery_j: float | Non
     return out
 
 
+LIVE_LISTEN_S = 1.5
+"""How long the live check listens once the vessel's state has come [s]: the area and the origin
+are said once a second."""
+
+
+def live_request(what: str, coa_radius_m: float | None, task_power_w: float | None,
+                 force: bool) -> tuple[MissionRequest, list[str]]:
+    """The request a live check checks: a .plan or GeoJSON file's, or a mission or scenario
+    file's ``[mission]``."""
+    imported = foreign_mission(Path(what))
+    if imported is not None:
+        req, notes = foreign_request(Path(what), imported, default_scenario(), coa_radius_m,
+                                     task_power_w)
+    else:
+        spec, scenario = load_mission_source(what)
+        req, notes = spec.to_request(time.time_ns(), mission_id=spec.mission_id or (
+            scenario.name if scenario is not None else Path(what).stem)), []
+    return (req.model_copy(update={"force": True}) if force else req), notes
+
+
+def running_model(vessel_file: str | None) -> str:
+    """The model vessel file of the stack this command speaks to (its run description), unless
+    ``vessel_file`` names one. ConfigError when neither is known."""
+    if vessel_file is not None:
+        return vessel_file
+    from seaway.contract.config import parse_config, read_document
+    from seaway.runtime import stacks
+    from seaway.runtime.run import RunDescription
+    from seaway.runtime.zenoh_bus import rendezvous_endpoint
+
+    entry = stacks.lookup(rendezvous_endpoint())
+    run_file = Path(entry.run_dir) / "run.json" if entry is not None else None
+    if run_file is None or not run_file.is_file():
+        raise ConfigError("no running stack's run description found here to take the vessel model "
+                          "from; give --vessel-file")
+    return parse_config(read_document(run_file), RunDescription, str(run_file)).model_vessel_file
+
+
+def live_check(args: argparse.Namespace) -> dict | None:
+    """The check of ``args.what`` against the running vessel; None if no vessel was chosen (a
+    fleet without ``--vessel``: ``vessel_choice`` has said so). ConfigError when its state does
+    not come within ``args.timeout``."""
+    from seaway.contract import keys
+    from seaway.runtime.bus import Bus
+    from seaway.tools import vessel_choice
+    from seaway.tools.request_cli import DEFAULT_VESSEL
+
+    req, notes = live_request(args.what, args.coa_radius_m, args.task_power_w, args.force)
+    model = running_model(args.vessel_file)
+    with Bus.open(args.vessel or DEFAULT_VESSEL, args.zenoh_config) as bus:
+        vessel = vessel_choice.resolve(bus, args.vessel, "seaway mission check")
+        if vessel is None:
+            return None
+        heard = {spec: bus.subscribe(spec, vessel=vessel) for spec in (
+            keys.NAV_STATE, keys.NAV_ORIGIN, keys.MISSION_ENERGY, keys.AREA_ACTIVE)}
+        if heard[keys.NAV_STATE].get(args.timeout) is None:
+            raise ConfigError(f"no {keys.NAV_STATE.suffix} from vessel {vessel} within "
+                              f"{args.timeout:g} s: is it running? (without --live: at the desk)")
+        time.sleep(LIVE_LISTEN_S)
+        state, origin_msg, energy, area = (heard[s].latest() for s in (
+            keys.NAV_STATE, keys.NAV_ORIGIN, keys.MISSION_ENERGY, keys.AREA_ACTIVE))
+    origin = None if origin_msg is None else GeoOrigin(origin_msg.lat_rad, origin_msg.lon_rad,
+                                                       origin_msg.alt_m)
+    out = check_live(req, load_vessel(model), origin=origin, state=state, energy=energy, area=area,
+                     battery_j=args.battery_j)
+    out.update(vessel=model, against=f"vessel {vessel}",
+               area_source=area.source if area is not None else None)
+    out["notes"] = [*notes, *out["notes"]]
+    return out
+
+
 def show(out: dict) -> str:
     def fig(k: str, unit: str, fmt: str = ".0f") -> str:
         v = out.get(k)
@@ -180,6 +257,11 @@ def main(argv: list[str]) -> int:
                     help="usable energy in the battery [J] (default: the scenario's, else full)")
     ap.add_argument("--area", default=None, metavar="FILE",
                     help="the operating area (.toml [area], .plan geoFence, .geojson)")
+    ap.add_argument("--live", action="store_true",
+                    help="check against the running vessel's live state, battery and area")
+    ap.add_argument("--vessel-file", default=None, metavar="NAME",
+                    help="with --live: the vessel model (default: the running stack's)")
+    request_cli.add_request_arguments(ap, "vessel's state (with --live)")
     ap.add_argument("--force", action="store_true",
                     help="check as the controller would a forced mission (energy only warns)")
     ap.add_argument("--coa-radius-m", type=positive_float, default=None, metavar="M",
@@ -188,9 +270,16 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--task-power-w", type=positive_float, default=None, metavar="W",
                     help="T^w of a .plan or GeoJSON mission (default: the default scenario's)")
     args = ap.parse_args(argv)
+    if args.live and args.area is not None:
+        ap.error("--area is for the desk: live, the area is the one the controller enforces")
     try:
-        out = desk_check(args.what, args.battery_j, args.area, args.force, args.coa_radius_m,
-                         args.task_power_w)
+        if args.live:
+            out = live_check(args)
+            if out is None:
+                return EXIT_UNREADABLE
+        else:
+            out = desk_check(args.what, args.battery_j, args.area, args.force, args.coa_radius_m,
+                             args.task_power_w)
     except (ConfigError, AreaError, MessageError, OSError, MissionCheckUnavailableError) as err:
         print(f"seaway mission check: {err}", file=sys.stderr)
         return EXIT_UNREADABLE
