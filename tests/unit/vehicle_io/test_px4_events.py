@@ -161,7 +161,11 @@ def test_tracker_counts_lost_events_ignores_repeats_and_waits_for_its_catalog():
     assert t.on_event(eid(133277), b"", 0x62, 10, 0) is None and t.undecoded == 1
     t.catalog = CATALOG
     assert t.on_event(eid(133277), b"", 0x62, 13, 1) is not None and t.lost == 2
-    assert t.on_event(eid(133277), b"", 0x62, 12, 2) is None  # re-sent: already seen
+    assert t.missing == {11, 12} and t.to_ask == (11, 12)
+    assert t.on_event(eid(133277), b"", 0x62, 12, 2) is not None  # a lost one, re-sent: taken
+    assert t.missing == {11} and t.recovered == 1 and t.last_sequence == 13
+    assert t.on_event(eid(133277), b"", 0x62, 12, 2) is None  # and again: already seen
+    assert t.on_event(eid(133277), b"", 0x62, 13, 2) is None
     wrap = EventTracker(CATALOG)
     wrap.on_event(eid(133277), b"", 0x62, 0xFFFE, 3)
     assert wrap.on_event(eid(133277), b"", 0x62, 0, 4) is not None  # wrapped: one lost
@@ -310,3 +314,36 @@ def test_metadata_that_unpacks_beyond_the_limit_is_refused():
         cm.unpack_file(bomb)
     with pytest.raises(MetadataError, match="neither JSON nor xz"):
         EventCatalog.from_bytes(bomb)
+
+
+def test_events_lost_on_the_link_are_asked_for_again_once_the_catalog_reads_them():
+    """A radio fade: PX4's failsafe EVENTs went out while the link was down. The next sequence
+    heard (an EVENT, or CURRENT_EVENT_SEQUENCE), across a reconnection too, shows the gap; it is
+    asked for with REQUEST_EVENT once the catalog is there, again after a second while some have
+    not come (three times at most), and not at all after a reboot (the count restarted)."""
+    from seaway_vehicle_io.events_channel import ASKS, EventsChannel, SendRequestEvent
+
+    ch = EventsChannel(resume_after=40)  # the connection before this one heard up to 40
+    ch.connect(1, 1, 0)
+    assert ch.on_current_sequence(44, 0, 1) == []  # no catalog yet: nothing it could read
+    ch.tracker.catalog = CATALOG
+    ch.fetch = None
+    sends, _ = ch.tick(2)
+    assert sends == [SendRequestEvent(1, 1, 41, 43)]
+    assert ch.tick(3)[0] == []  # asked: not again at once
+    ev = type("M", (), {"id": eid(133277), "arguments": b"", "log_levels": 0x62, "sequence": 42})
+    got, more = ch.on_event(ev, 4)
+    assert got is not None and more == [] and ch.tracker.missing == {41, 43}
+    asked = [ch.tick(k * 1_000_000_000 + 5)[0] for k in range(1, 6)]
+    assert asked[:ASKS - 1] == [[SendRequestEvent(1, 1, 41, 43)]] * (ASKS - 1)
+    assert all(a == [] for a in asked[ASKS - 1:])
+    # A reboot: the count restarts (RESET flag, or far back): nothing is asked for.
+    rebooted = EventsChannel(resume_after=500)
+    rebooted.connect(1, 1, 0)
+    rebooted.tracker.catalog, rebooted.fetch = CATALOG, None
+    assert rebooted.on_current_sequence(3, 1, 1) == [] and rebooted.tracker.missing == set()
+    assert rebooted.on_current_sequence(5, 0, 2) == [SendRequestEvent(1, 1, 4, 4)]
+    far = EventsChannel(resume_after=500)
+    far.connect(1, 1, 0)
+    far.tracker.catalog, far.fetch = CATALOG, None
+    assert far.on_current_sequence(7, 0, 1) == [] and far.tracker.missing == set()

@@ -47,6 +47,9 @@ SUMMARY_SUFFIX = "arming_check_summary"
 DENIAL_MARK = "arm_denied"  # commander_arm_denied_*: the verdict on an arm request
 MODES_ARGUMENT = "modes"
 KEEP = 64  # decoded events remembered
+MAX_MISSING = 32
+"""Lost events asked for again at most (a longer gap is a reboot's new count, or too old for the
+autopilot's buffer: PX4 keeps its recent events for a REQUEST_EVENT)."""
 
 
 class MetadataError(ValueError):
@@ -233,17 +236,48 @@ class EventTracker:
         self.undecoded = 0  # EVENTs that arrived before the catalog did
         self.last_sequence: int | None = None
         self.lost = 0  # events skipped in the sequence (a gap: lost on the link)
+        self.missing: set[int] = set()
+        """Sequence numbers skipped (lost on the link) that a REQUEST_EVENT may still bring."""
+        self.recovered = 0  # missing events that came after all (re-sent on request)
+        self.to_ask: tuple[int, int] | None = None
+        """The latest gap (first, last sequence) not yet asked for (``EventsChannel``)."""
+
+    def note_sequence(self, sequence: int) -> tuple[int, int] | None:
+        """The autopilot's latest event is ``sequence`` (an EVENT's, or CURRENT_EVENT_SEQUENCE's):
+        the (first, last) sequence numbers it reveals as lost, if any, now ``missing``. A jump back
+        or of more than ``MAX_MISSING`` (a reboot restarts the count) asks for nothing."""
+        last, self.last_sequence = self.last_sequence, sequence
+        if last is None:
+            return None
+        gap = (sequence - last - 1) & 0xFFFF
+        if gap == 0 or gap >= 0x8000:
+            if gap >= 0x8000 and (last - sequence) & 0xFFFF > MAX_MISSING:
+                self.missing.clear()  # the count restarted: nothing old can be asked for
+            elif gap >= 0x8000:
+                self.last_sequence = last  # an old one again (re-sent): the newest stays
+            return None
+        self.lost += gap
+        if gap > MAX_MISSING:
+            return None
+        first = (last + 1) & 0xFFFF
+        self.missing.update((first + k) & 0xFFFF for k in range(gap))
+        while len(self.missing) > MAX_MISSING:
+            self.missing.discard(min(self.missing))
+        self.to_ask = (first, (sequence - 1) & 0xFFFF)
+        return self.to_ask
 
     def on_event(self, event_id: int, raw: bytes, log_levels: int, sequence: int,
                  mono_ns: int) -> Event | None:
-        """One EVENT message; the decoded event, or None when there is no catalog yet."""
-        if self.last_sequence is not None:
-            gap = (sequence - self.last_sequence - 1) & 0xFFFF
-            if 0 < gap < 0x8000:
-                self.lost += gap
-            elif gap >= 0x8000:
-                return None  # a repeat (re-sent on request): already handled
-        self.last_sequence = sequence
+        """One EVENT message; the decoded event, or None when there is no catalog yet or it was
+        handled already (a repeat). One that was ``missing`` is taken, late."""
+        if sequence in self.missing:
+            self.missing.discard(sequence)
+            self.recovered += 1
+        elif self.last_sequence is not None and (
+                (sequence - self.last_sequence - 1) & 0xFFFF) >= 0x8000:
+            return None  # a repeat (re-sent on request): already handled
+        else:
+            self.note_sequence(sequence)
         if self.catalog is None:
             self.undecoded += 1
             return None

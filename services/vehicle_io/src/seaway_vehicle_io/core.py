@@ -82,7 +82,7 @@ from seaway_vehicle_io.conversions import (
     local_position_from_local_position_ned,
     worse_level,
 )
-from seaway_vehicle_io.events_channel import EventsChannel
+from seaway_vehicle_io.events_channel import EventsChannel, SendRequestEvent
 from seaway_vehicle_io.failsafe_cause import (
     EVENT_WARNING_LEVEL,
     WARNING_SEVERITY,
@@ -177,8 +177,8 @@ class LockPeer:
 
 
 Output = (SendHeartbeat | SendManualControl | SendCommandLong | SendParamRequestRead
-          | SendRequestDataStream | SendRequestMessage | SendFileTransfer | Publish | LockPeer
-          | FenceOutput)
+          | SendRequestDataStream | SendRequestMessage | SendFileTransfer | SendRequestEvent
+          | Publish | LockPeer | FenceOutput)
 
 
 # -- state pieces ---------------------------------------------------------------------------------
@@ -442,7 +442,7 @@ class VehicleIoCore:
         out.extend(self._fence_tick(now))
         if self.link.ok:
             sends, ended = self.events.tick(now.mono_ns)
-            out.extend(sends)
+            out.extend(_said_asking(sends))
             self._events_fetch_ended(ended)
         rates_out = self._rate_check_tick(now)
         if rates_out is not None:
@@ -778,7 +778,9 @@ class VehicleIoCore:
         link.armed = False
         link.mode = "UNKNOWN"
         link.custom_mode = None
-        self.events = EventsChannel()  # another firmware may answer next: fetch its catalog anew
+        # Another firmware may answer next: fetch its catalog anew. The same one, not rebooted,
+        # goes on counting its events: the gap across the outage is asked for (events_channel).
+        self.events = EventsChannel(resume_after=self.events.tracker.last_sequence)
         self.offset.reset()
         self.hold = FailsafeCause()
         self.health = Health()
@@ -878,6 +880,7 @@ class VehicleIoCore:
         battery failsafe), and a failsafe or a mode change before it is no cause of a hold after."""
         self.battery_said = None
         self.health = Health(px4=self.health.px4)
+        self.events.restart_count()
         if self.hold.cause is not None:
             log.info("the autopilot's hold reason (%s) ends with its reboot", self.hold.cause)
         self.hold = FailsafeCause()
@@ -992,7 +995,7 @@ class VehicleIoCore:
     def _on_event(self, msg: Any, now: Now) -> list[Output]:
         if self.link.profile is None or not self.link.profile.events_protocol:
             return []
-        ev = self.events.on_event(msg, now.mono_ns)
+        ev, asks = self.events.on_event(msg, now.mono_ns)
         if ev is not None and ev.level <= 6 and not ev.name.endswith("_summary"):
             # warning or worse (arming-check failures are error, 3) as a warning, notices and
             # info as info; debug and protocol chatter not at all
@@ -1002,7 +1005,13 @@ class VehicleIoCore:
             self.fence.on_text(ev.text)
         if ev is not None and ev.level <= EVENT_WARNING_LEVEL:
             self._hold_changed(self.hold.said(classify_text(ev.text), ev.text, now.mono_ns))
-        return []
+        return _said_asking(asks)
+
+    def _on_current_event_sequence(self, msg: Any, now: Now) -> list[Output]:
+        if self.link.profile is None or not self.link.profile.events_protocol:
+            return []
+        return _said_asking(self.events.on_current_sequence(int(msg.sequence), int(msg.flags),
+                                                            now.mono_ns))
 
     def _hold_changed(self, changed: bool) -> None:
         if changed:
@@ -1204,9 +1213,19 @@ class VehicleIoCore:
         "EKF_STATUS_REPORT": _on_estimator_report,
         "ESTIMATOR_STATUS": _on_estimator_report,
         "EVENT": _on_event,
+        "CURRENT_EVENT_SEQUENCE": _on_current_event_sequence,
         "COMPONENT_METADATA": _on_component_metadata,
         "FILE_TRANSFER_PROTOCOL": _on_file_transfer_protocol,
     }
+
+
+def _said_asking(sends: list[Any]) -> list[Output]:
+    """``sends``, each REQUEST_EVENT among them logged: events lost on the link asked for again."""
+    for s in sends:
+        if isinstance(s, SendRequestEvent):
+            log.info("asking the autopilot again for its events %d-%d, lost on the link",
+                     s.first_sequence, s.last_sequence)
+    return list(sends)
 
 
 def _next_after(due_ns: int, period_ns: int, now_ns: int) -> int:

@@ -50,6 +50,8 @@ from seaway_vehicle_io.core import (
     SendParamRequestRead,
     SendRequestDataStream,
 )
+from seaway_vehicle_io.dialect import events as events_dialect
+from seaway_vehicle_io.events_channel import SendRequestEvent
 from seaway_vehicle_io.fence_sync import SendParamRead, SendParamSet
 from seaway_vehicle_io.mav import DIALECT, mavlink, mavutil
 from seaway_vehicle_io.mission_transfer import (
@@ -291,6 +293,9 @@ class MavlinkLink:
         elif isinstance(out, SendRequestDataStream):
             mav.request_data_stream_send(out.target_system, out.target_component, out.stream_id,
                                          out.rate_hz, 1)
+        elif isinstance(out, SendRequestEvent):
+            mav.send(events_dialect.MAVLink_request_event_message(
+                out.target_system, out.target_component, out.first_sequence, out.last_sequence))
         elif isinstance(out, SendRequestMessage):
             mav.command_long_send(out.target_system, out.target_component, MAV_CMD_REQUEST_MESSAGE,
                                   0, float(out.message_id), 0, 0, 0, 0, 0, 0)
