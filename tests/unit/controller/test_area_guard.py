@@ -4,6 +4,8 @@ the nearest clear one of home and the rally points); the area announced on ``are
 
 from __future__ import annotations
 
+import math
+
 import pytest
 from seaway.area.model import OperatingArea
 from seaway.contract.messages import ActiveArea, StateEstimate, Waypoint
@@ -62,7 +64,9 @@ def test_a_course_that_would_leave_holds_station_inside_and_says_why() -> None:
     assert record is not None  # the solve of this period is still recorded
     assert st.state == "paused" and "operating area's edge" in st.reason
     assert "leaves the keep-in area" in st.reason and "test box" in st.reason
-    assert (st.hold_x_m, st.hold_y_m) == (9.4, 0.0) and cmd.source == "hold"
+    # Held where it stopped, moved in from the edge by HOLD_MARGIN_M (hold_point): 2 m inside.
+    assert st.hold_x_m == pytest.approx(7.5, abs=0.15) and abs(st.hold_y_m) < 0.3
+    assert cmd.source == "hold"
     # Well inside, the same speed goes on.
     core = core_with(area())
     assert core.handle_mission(0, mission()).accepted
@@ -171,3 +175,36 @@ def test_a_home_request_is_validated_at_the_edge() -> None:
     for bad in ({"home": "there"}, {"home": {"x_m": float("nan"), "y_m": 0.0}}, {}):
         with pytest.raises(MessageError):
             HomeRequest.make(stamp_ns=0, **bad)
+
+
+def test_a_hold_point_near_the_edge_is_moved_in_and_one_inside_is_kept() -> None:
+    """Station keeping wanders about its point (p95 within 2 m) while the guard does not act: a
+    last waypoint 0.5 m inside the edge is held ``HOLD_MARGIN_M`` inside instead, at the nearest
+    such point; one well inside is held where it is."""
+    from seaway.area.model import margin_m
+    from seaway_controller.area_guard import HOLD_MARGIN_M
+
+    guard = AreaGuard(VP, area(), "test box", 0)
+    near = (9.0, 3.0)  # 0.5 m from the north edge (9.5)
+    moved = guard.hold_point(near)
+    assert margin_m(guard.area, moved) >= HOLD_MARGIN_M
+    assert math.dist(near, moved) <= 1.5 + 0.3  # straight in, to within the search's steps
+    assert moved[0] < near[0]
+    assert guard.hold_point((2.0, 3.0)) == (2.0, 3.0)
+    assert AreaGuard(VP).hold_point(near) == near  # no area: held where asked
+
+
+def test_the_controller_holds_inside_at_the_end_of_a_mission_ending_near_the_edge() -> None:
+    from seaway.area.model import margin_m
+    from seaway_controller.area_guard import HOLD_MARGIN_M
+
+    core = core_with(area())
+    core.step(DT_NS, at(1, 0.0, 3.0))
+    end = mission().model_copy(update={"waypoints": [Waypoint(x_m=0.0, y_m=3.0),
+                                                     Waypoint(x_m=9.0, y_m=3.0)]})
+    assert core.handle_mission(0, end).accepted
+    _, _, st = core.step(2 * DT_NS, at(2, 9.0, 3.0))  # at the last waypoint: complete
+    assert st.state == "complete", st
+    _, _, st = core.step(3 * DT_NS, at(3, 9.0, 3.0))
+    held = (st.hold_x_m, st.hold_y_m)
+    assert margin_m(core.area.area, held) >= HOLD_MARGIN_M and held[0] < 9.0

@@ -88,7 +88,7 @@ from seaway.vessel.guidance import LosGains, los_thrust
 from seaway.vessel.model import VesselParams, propulsion_power_w
 
 from seaway_controller import acceptance, costs, motion
-from seaway_controller.area_guard import AreaGuard
+from seaway_controller.area_guard import HOLD_MARGIN_M, AreaGuard
 from seaway_controller.battery_estimate import BatteryTrack
 from seaway_controller.energy import Budget, Disturbance, EnergyModel, predict
 from seaway_controller.hold import HoldGains, hold_thrust
@@ -216,6 +216,8 @@ class ControllerCore:
         self._budget_msg: EnergyBudget | None = None
         self.hold_energy_j = 0.0  # counted since the current hold began
         self._holding: tuple[float, float] | None = None  # the point held at the last step
+        self._hold_moved: tuple[tuple[float, float], tuple[float, float], object] | None = None
+        """(hold point asked, point held, the area it was worked out in)."""
         self.area = AreaGuard(vessel)  # the operating area enforced (area_guard.py)
         self._area_return = False  # the mission is the return from the area's edge
         # Home, explicit: the operator's (a request's ``home``), else where the vessel was when
@@ -609,6 +611,8 @@ class ControllerCore:
             log.warning("mission %r %s", mm.mission.mission_id if mm.mission else "", paused)
         if mm.state != "active" or mm.mission is None:
             point = mm.hold_point if self.withheld_reason() is None else None
+            if point is not None:
+                point = self._hold_at(point)
             if point is not None and self._holding != point:
                 self.hold_energy_j = 0.0  # a new hold
             self._holding = point
@@ -775,6 +779,20 @@ class ControllerCore:
         elif reason:
             self.missions.reason = reason[:MAX_REASON_CHARS]
         return self.missions.state
+
+    def _hold_at(self, point: tuple[float, float]) -> tuple[float, float]:
+        """The point held for ``point`` (``AreaGuard.hold_point``: moved in from the area's edge),
+        worked out once per hold point."""
+        cached = self._hold_moved
+        if cached is None or cached[0] != point or cached[2] is not self.area.area:
+            moved = self.area.hold_point(point)
+            if moved != point:
+                log.info("holding station %.1f m inside the area's edge at north %.1f m, east "
+                         "%.1f m, not at north %.1f m, east %.1f m (%.1f m from it)",
+                         HOLD_MARGIN_M, moved[0], moved[1], point[0], point[1],
+                         math.dist(moved, point))
+            self._hold_moved = cached = (point, moved, self.area.area)
+        return cached[1]
 
     def take_budget(self) -> EnergyBudget | None:
         """The budget priced at the last step, once (None: none was, or no active mission was
