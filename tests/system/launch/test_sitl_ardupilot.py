@@ -120,8 +120,10 @@ def test_the_lake_mission_on_ardupilot_sitl_with_the_identified_model(tmp_path, 
 @needs_sitl
 @pytest.mark.slow
 @pytest.mark.timeout(1260)
-def test_identify_flies_the_manoeuvre_on_ardupilot_sitl_and_fits_its_boat(tmp_path, zenoh_env) -> None:
-    run_dir, stdout, log = launch_on_sitl("identify-ardupilot", tmp_path, zenoh_env, 900)
+def test_identify_flies_the_manoeuvre_on_ardupilot_sitl_and_fits_its_boat(tmp_path, identify_runs
+                                                                         ) -> None:
+    # Flown at the same time as PX4's when both are selected (identify_runs).
+    run_dir, stdout, log = identify_runs.wait("identify-ardupilot", 900)
     assert "identify finished" in stdout, log
     fitted = tmp_path / "fitted.toml"
     fit = subprocess.run([str(BIN / "seaway"), "identify", "fit", str(run_dir / "recording.mcap"),

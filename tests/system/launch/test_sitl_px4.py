@@ -63,8 +63,10 @@ def test_a_missing_px4_firmware_fails_the_launch_saying_how_to_get_it(tmp_path, 
 @needs_px4
 @pytest.mark.slow
 @pytest.mark.timeout(1260)
-def test_identify_flies_the_manoeuvre_on_px4_sitl_and_fits_its_rover(tmp_path, zenoh_env) -> None:
-    run_dir, stdout, log = launch_ok("identify-px4", tmp_path, zenoh_env, 900)
+def test_identify_flies_the_manoeuvre_on_px4_sitl_and_fits_its_rover(tmp_path, identify_runs
+                                                                    ) -> None:
+    # Flown at the same time as ArduPilot's when both are selected (identify_runs).
+    run_dir, stdout, log = identify_runs.wait("identify-px4", 900)
     assert re.search(r"^arm: accepted", stdout, re.M), log
     assert "identify finished" in stdout, log
     fitted = tmp_path / "fitted.toml"
