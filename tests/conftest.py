@@ -91,6 +91,23 @@ class Procs:
         log."""
         return self.start([PYTHON, "-m", "seaway.tools.cli", "launch", *args], env, name)
 
+    def launch_ready(self, env: dict[str, str], *args: str, timeout_s: float = 240.0
+                     ) -> subprocess.Popen:
+        """``launch`` and wait until the launcher says all its processes are ready; a launcher
+        that exits first fails the test with its output."""
+        import pytest
+
+        launcher = self.launch(env, *args)
+
+        def ready() -> bool:
+            if launcher.poll() is not None:
+                pytest.fail(f"the launcher exited ({launcher.returncode}):\n"
+                            f"{self.log(launcher)[-3000:]}")
+            return "all ready in" in self.log(launcher)
+
+        wait_for(ready, timeout_s, interval_s=0.2, what=f"seaway launch {' '.join(args)} ready")
+        return launcher
+
     @staticmethod
     def log(p: subprocess.Popen) -> str:
         return Path(p.log_path).read_text(errors="replace")  # type: ignore[attr-defined]

@@ -116,19 +116,10 @@ def test_live_check_against_the_running_vessel(procs, zenoh_env, tmp_path: Path)
     a real-time lake stack (``seaway launch sim``, no mission); the check takes the vessel's state,
     the area its controller enforces and the stack's model; a far mission is refused by that area,
     and with no stack at all the live check says so (exit 2)."""
-    from tests.conftest import wait_for
 
     run = tmp_path / "run"
-    launcher = procs.start([sys.executable, "-m", "seaway.tools.cli", "launch", "sim", "--scenario",
-                            "lake", "--run-dir", str(run), "--no-mission", "--no-report"],
-                           zenoh_env, "launcher")
-
-    def ready() -> bool:
-        if launcher.poll() is not None:
-            pytest.fail(f"the launcher exited ({launcher.returncode}):\n{procs.log(launcher)[-3000:]}")
-        return "all ready in" in procs.log(launcher)
-
-    wait_for(ready, 240, interval_s=0.2, what="the lake stack to be ready")
+    launcher = procs.launch_ready(zenoh_env, "sim", "--scenario", "lake", "--run-dir", str(run),
+                                  "--no-mission", "--no-report")
 
     def live(*args: str, timeout_s: float = 60.0) -> subprocess.CompletedProcess:
         return subprocess.run([*SEAWAY, "mission", "check", *args, "--live", "--json", "--timeout",

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import signal
 import subprocess
-import sys
 
 import pytest
 from seaway.contract import keys
@@ -25,16 +24,8 @@ def home(env: dict[str, str], *args: str) -> subprocess.CompletedProcess:
 
 def test_the_operator_sets_home_and_the_next_mission_returns_there(procs, zenoh_env, tmp_path):
     run = tmp_path / "run"
-    launcher = procs.start([sys.executable, "-m", "seaway.tools.cli", "launch", "sim-batch",
-                            "--scenario", "lake", "--run-dir", str(run), "--no-mission", "--stay"],
-                           zenoh_env, "launcher")
-
-    def ready() -> bool:
-        if launcher.poll() is not None:
-            pytest.fail(f"the launcher exited ({launcher.returncode}):\n{procs.log(launcher)[-3000:]}")
-        return "all ready in" in procs.log(launcher)
-
-    wait_for(ready, 240, interval_s=0.2, what="the lake stack to be ready")
+    launcher = procs.launch_ready(zenoh_env, "sim-batch", "--scenario", "lake", "--run-dir",
+                                  str(run), "--no-mission", "--stay")
     # Outside the lake's keep-in area (45 m north at most): refused, naming it; exit 1.
     out = home(zenoh_env, "60,0")
     assert out.returncode == 1 and "home at north 60.0 m" in out.stdout + out.stderr, out
