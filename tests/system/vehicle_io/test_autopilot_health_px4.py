@@ -99,17 +99,25 @@ def test_pxs_battery_failsafe_pauses_with_its_cause_and_resume_waits_for_it(zeno
         assert reply.accepted, reply.reason
         w.mission_in(MISSION, "active", 60)
         px4.observer.set_param("SIM_BAT_DRAIN", 30)
-        _, low = w.first(keys.MISSION_ENERGY, lambda b: b.battery_source == "autopilot"
+        # The budget takes the lowest of PX4's own figure and the one from PX4's voltage (both
+        # the autopilot's word; which is lower depends on the pack's curve), saying which.
+        _, low = w.first(keys.MISSION_ENERGY, lambda b: b.battery_source in ("autopilot", "voltage")
                          and b.battery_remaining_j is not None and b.battery_remaining_j < 0.5 * (
                              w.latest(keys.VEHICLE_BATTERY).capacity_j or 1.0), 120,
                          "the budget taking PX4's falling figure")
         battery = w.latest(keys.VEHICLE_BATTERY)
         print(f"PX4: {battery.remaining_frac} at {battery.voltage_v} V ({battery.autopilot_level}); "
               f"budget {low.battery_remaining_j:.0f} J ({low.battery_source})")
-        assert low.battery_remaining_j == pytest.approx(battery.remaining_j, abs=0.05 * battery.capacity_j)
-        w.mission_in(MISSION, "paused", 120)
+        tolerance = 0.05 * battery.capacity_j
+        if low.battery_source == "autopilot":
+            assert low.battery_remaining_j == pytest.approx(battery.remaining_j, abs=tolerance)
+        else:
+            assert low.battery_remaining_j <= battery.remaining_j + tolerance
+        # (The paper's boat modelled on SIH's rover is below its ground friction here: the
+        # controller may pause for a motion fault first, 'not_moving'. PX4's failsafe then names
+        # the pause's cause anew.)
         _, paused = w.first(keys.MISSION_STATUS, lambda m: m.state == "paused"
-                            and "battery" in m.reason, 10, "the pause naming the battery")
+                            and "battery" in m.reason, 120, "the pause naming the battery")
         print(f"paused: {paused.reason}")
         assert HOLD_REASON_TEXT["battery"] in paused.reason, paused.reason
         # Taken back during PX4's 5 s Hold, before its Return drives home and disarms there

@@ -170,3 +170,25 @@ def test_a_cause_named_after_the_pause_replaces_the_reason_while_paused() -> Non
     assert core.on_vehicle_status(held(t + 1, "battery", "Battery 1 is low")) is None
     _, _, st = core.step(t + DT_NS, state(3))
     assert st.state == "paused" and st.reason == "", st.reason
+
+
+def test_the_budget_goes_on_while_paused_and_drifting() -> None:
+    """Paused with zero thrust (the vehicle disarmed: nothing to hold with), the pack still
+    drains, and the budget published says so: before, it was priced only while flying or holding
+    station, and the operator saw the battery of the moment the pause began (seen on PX4's firmware:
+    a motion-fault pause, then PX4's battery failsafe, with the budget frozen at 444 kJ)."""
+    from seaway.contract.messages import BatteryState
+
+    core = flying()
+    t = START_NS + 3 * DT_NS
+    core.on_vehicle_status(status(t, "disarmed"))
+    seen = []
+    for k in range(4, 40):
+        if k % 10 == 0:
+            core.on_battery(BatteryState.make(stamp_ns=t + k * DT_NS, source="sim",
+                                              remaining_j=100_000.0 - 1_000.0 * k, reserve_j=0.0))
+        _, _, st = core.step(t + k * DT_NS, state(k))
+        assert st.state == "paused" and core._holding is None  # drifting, not holding
+        if (b := core.take_budget()) is not None and b.battery_remaining_j is not None:
+            seen.append(b.battery_remaining_j)
+    assert len(seen) >= 3 and seen[-1] < seen[0], seen

@@ -622,7 +622,9 @@ class ControllerCore:
                 tau = (state.tau_d_surge_n, state.tau_d_sway_n, state.tau_d_yaw_nm)
                 thrust = hold_thrust(tuple(x0), point, tau, self.vessel, self.config.hold)
                 cmd = self._command(state.stamp_ns, thrust, "hold")
-                self._update_budget(now_ns, state, None)  # the hold drains the battery too
+            # Held or drifting, the pack drains (the hold, the task's load, the autopilot's own
+            # figure falling): the budget goes on telling the truth about it.
+            self._update_budget(now_ns, state, None)
             return cmd, None, self._status(now_ns, state)
         self._holding = None
         mission = mm.mission
@@ -726,10 +728,11 @@ class ControllerCore:
     def _update_budget(self, now_ns: int, state: StateEstimate, used: MpcOutcome | None) -> None:
         """The budget, when due (``Budget.due``: once a second, at a new leg, every period once
         the margin is near 0), and the policy's action at the pricing that finds the margin at 0.
-        Priced while the mission is active and while the vessel holds station at rest (the hold
-        takes energy for as long as it lasts: the way home is priced against what is left)."""
+        Priced while the mission is active, paused (holding station or drifting: the battery
+        goes on falling, and the way home is priced against what is left) and while the vessel
+        holds station at rest after it."""
         budget, mm = self.budget, self.missions
-        priced = mm.state == "active" or self._holding is not None
+        priced = mm.state in ("active", "paused") or self._holding is not None
         if budget is None or mm.mission is None or not priced or not budget.due(now_ns, mm.active):
             return
         leg_j = _finite_or_none(used.costs.energy_to_go_j) if used is not None else None
