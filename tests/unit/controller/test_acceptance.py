@@ -91,3 +91,22 @@ def test_a_battery_short_of_the_mission_is_refused_unless_forced_and_said_at_the
     assert core.accepted is not None and core.accepted.forced
     needs = float(reply.reason.split("needs about ")[1].split(" J")[0])
     assert math.isfinite(needs) and needs > 400.0
+
+
+def test_an_uncertain_disturbance_refuses_nothing_a_settled_one_does() -> None:
+    """The same estimated force: with the uncertainty of an estimate just started (a standard
+    deviation as large as the force) the mission is flown; settled (a fiftieth of it), refused as
+    before. Seen on PX4's firmware: 140 N estimated at rest a second after boot refused the lake."""
+    no_dead_zone = EnergyModel(BOAT.model_copy(update={"dead_zone_n": 0.0}), C1.task_power_w, 1.0,
+                               True, False)
+
+    def with_std(std_n: float) -> StateEstimate:
+        cov = [0.0] * 81
+        for i, var in ((6, std_n ** 2), (7, std_n ** 2), (8, 0.01)):
+            cov[i * 9 + i] = var
+        return lake_state().model_copy(update={"covariance": cov})
+
+    force = math.hypot(LAKE_TAU_N[0], LAKE_TAU_N[1])
+    assert why_not_flyable(no_dead_zone, with_std(force), C1.waypoints_m, C1.waypoints_m[0]) is None
+    settled = why_not_flyable(no_dead_zone, with_std(0.02 * force), C1.waypoints_m, C1.waypoints_m[0])
+    assert settled is not None and "cannot be made good" in settled

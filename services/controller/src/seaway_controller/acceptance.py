@@ -8,10 +8,10 @@ cannot be flown: they would not turn. A disturbance that
 thrust cannot beat leaves the vessel no way on some courses: the energy budget prices that leg, or
 the way home, as infinite, and its policy turns the mission into a return home at once, a return
 that cannot be made either. So a mission is refused when, under the disturbance estimated now (a
-world-frame force, ``energy.Disturbance``), the cruise would make good less than
-``MIN_SPEED_FRAC`` of u* along one of its legs or on the way home from where the vessel is or from
-any waypoint, with the figures that say why. The NMPC has no economic cruise (it holds no speed of
-its own): it is not judged here.
+world-frame force, ``energy.Disturbance``, as far as the estimate is sure of it:
+``confident_disturbance``), the cruise would make good less than ``MIN_SPEED_FRAC`` of u* along one
+of its legs or on the way home from where the vessel is or from any waypoint, with the figures that
+say why. The NMPC has no economic cruise (it holds no speed of its own): it is not judged here.
 
 Pure: the energy model, a state and the mission's geometry in, a reason or None out.
 """
@@ -31,7 +31,28 @@ MIN_SPEED_FRAC = 0.25
 of u* is not flyable: at a quarter of its speed a vessel is at the mercy of the disturbance's
 changes (a gust of a fifth more takes its way; the budget's own bound of no way is 5 %)."""
 
+CONFIDENCE_SIGMAS = 2.0
+"""The disturbance judged is the estimate shrunk toward zero by this many of its standard
+deviations along its own direction (``confident_disturbance``): an estimate just started, or just
+re-opened, is mostly uncertainty (seen on PX4's firmware: 140 N at rest a second after boot, and a
+mission refused for it), while a settled one is judged as it is."""
+
 Point = tuple[float, float]
+
+
+def confident_disturbance(state: StateEstimate) -> Disturbance:
+    """The disturbance of ``state`` that its estimate is sure of: the surge/sway force shrunk toward
+    zero by ``CONFIDENCE_SIGMAS`` standard deviations along its direction (the whole estimate
+    without a covariance); the yaw moment as estimated."""
+    surge, sway, yaw = state.tau_d_surge_n, state.tau_d_sway_n, state.tau_d_yaw_nm
+    magnitude = math.hypot(surge, sway)
+    if state.covariance is None or magnitude == 0.0:
+        return Disturbance.from_body((surge, sway, yaw), state.psi_rad)
+    cov = np.asarray(state.covariance, dtype=float).reshape(9, 9)[6:8, 6:8]
+    along = np.array([surge, sway]) / magnitude
+    sigma = math.sqrt(max(float(along @ cov @ along), 0.0))
+    keep = max(0.0, 1.0 - CONFIDENCE_SIGMAS * sigma / magnitude)
+    return Disturbance.from_body((keep * surge, keep * sway, yaw), state.psi_rad)
 
 
 def runs_of(waypoints: Sequence[Point], home: Point, start: Point | None,
@@ -69,8 +90,7 @@ def why_not_flyable(model: EnergyModel, state: StateEstimate | None, waypoints: 
                 f"{thrust_n / 2.0:.2g} N a side, inside the thrusters' {dead_zone_n:g} N dead zone "
                 f"(the vessel file's): they would not turn; a task power of {math.ceil(least_w)} W or more "
                 "cruises outside it")
-    dist = (Disturbance.from_body((state.tau_d_surge_n, state.tau_d_sway_n, state.tau_d_yaw_nm),
-                                  state.psi_rad) if state is not None else ZERO)
+    dist = confident_disturbance(state) if state is not None else ZERO
     start = (state.x_m, state.y_m) if state is not None else None
     runs = runs_of(waypoints, home, start, join_first_leg, model.coa_radius_m)
     if not runs:
