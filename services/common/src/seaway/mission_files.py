@@ -100,6 +100,25 @@ class ImportedPath:
 # ---------------------------------------------------------------------------------------------
 
 
+def mission_request(path: ImportedPath, params: dict[str, Any], stamp_ns: int) -> Any:
+    """The ``MissionRequest`` an imported path becomes: ``params`` over the file's hints, its
+    points as WGS84 waypoints. PlanError naming the field when a needed one is given by neither,
+    or a value is refused."""
+    from seaway.contract.messages import MessageError, MissionRequest, Waypoint
+
+    merged = {**path.hints, **params}
+    for needed in ("coa_radius_m", "task_power_w"):
+        if needed not in merged:
+            raise PlanError(f"{needed} is required: the {path.source} file does not give it")
+    mission_id = str(merged.pop("mission_id", "") or "")
+    try:
+        return MissionRequest.make(
+            stamp_ns=stamp_ns, mission_id=mission_id,
+            waypoints=[Waypoint(lat_deg=lat, lon_deg=lon) for lat, lon in path.points_deg], **merged)
+    except (MessageError, TypeError) as err:
+        raise PlanError(str(err)) from None
+
+
 def load_json(data: bytes | str, what: str = "mission file") -> Any:
     """Parse JSON text, refusing NaN/Infinity literals, with the position of a syntax error."""
 

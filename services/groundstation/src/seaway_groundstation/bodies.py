@@ -29,7 +29,7 @@ from seaway.contract.messages import (
     ScenarioRequest,
     Waypoint,
 )
-from seaway.mission_files import MAX_WAYPOINTS, ImportedPath
+from seaway.mission_files import MAX_WAYPOINTS, ImportedPath, PlanError, mission_request
 from seaway.vessel.frames import GeoOrigin
 
 
@@ -250,13 +250,10 @@ def mission_from_body(body: MissionBody, stamp_ns: int) -> MissionRequest:
 def mission_from_import(path: ImportedPath, params: ImportParams, stamp_ns: int) -> MissionRequest:
     """The bus request for an imported path: ``params`` first, then the file's hints."""
     given = params.model_dump(exclude={"skip_unsupported", "document"}, exclude_none=True)
-    merged = {**path.hints, **given}
-    for needed in ("coa_radius_m", "task_power_w"):
-        if needed not in merged:
-            raise MissionBuildError(f"{needed} is required: the {path.source} file does not give it")
-    mission_id = str(merged.pop("mission_id", "") or "")
-    wps = [Waypoint(lat_deg=lat, lon_deg=lon) for lat, lon in path.points_deg]
-    return _make(stamp_ns, mission_id, wps, merged)
+    try:
+        return mission_request(path, given, stamp_ns)
+    except PlanError as err:
+        raise MissionBuildError(str(err)) from None
 
 
 def _make(stamp_ns: int, mission_id: str, waypoints: list[Waypoint],

@@ -37,7 +37,7 @@ from seaway import mission_files
 from seaway.area.files import run_area
 from seaway.area.model import AreaError
 from seaway.contract.config import ConfigError
-from seaway.contract.messages import MessageError, MissionRequest, Waypoint
+from seaway.contract.messages import MessageError, MissionRequest
 from seaway.mission_check import MissionCheckUnavailableError, check_live, check_mission
 from seaway.runtime.argtypes import non_negative_float, positive_float
 from seaway.simkit.scenario import Scenario, load_mission_source, load_scenario
@@ -87,6 +87,8 @@ def foreign_request(path: Path, imported: mission_files.ImportedPath, against: S
     """The request for an imported path: the command line's values, then the file's, then the
     default scenario's mission's (each of those named in the notes returned)."""
     params = {**imported.hints}
+    if not params.get("mission_id"):
+        params["mission_id"] = path.stem[:64]
     if coa_radius_m is not None:
         params["coa_radius_m"] = coa_radius_m
     if task_power_w is not None:
@@ -100,15 +102,10 @@ def foreign_request(path: Path, imported: mission_files.ImportedPath, against: S
             params[name] = getattr(against.mission, name)
             notes.append(f"{name} {params[name]:g} from scenario {against.name}'s mission "
                          f"(the {imported.source} file gives none)")
-    mission_id = str(params.pop("mission_id", "") or path.stem)
     try:
-        req = MissionRequest.make(
-            stamp_ns=time.time_ns(), mission_id=mission_id[:64],
-            waypoints=[Waypoint(lat_deg=lat, lon_deg=lon) for lat, lon in imported.points_deg],
-            **params)
-    except MessageError as err:
+        return mission_files.mission_request(imported, params, time.time_ns()), notes
+    except mission_files.PlanError as err:
         raise ConfigError(f"{path}: {err}") from None
-    return req, notes
 
 
 def desk_check(what: str, battery_j: float | None = None, area_file: str | None = None,
