@@ -72,20 +72,33 @@ def test_identify_flies_the_manoeuvre_on_px4_sitl_and_fits_its_rover(tmp_path, i
     fitted = tmp_path / "fitted.toml"
     fit = subprocess.run([str(BIN / "seaway"), "identify", "fit", str(run_dir / "recording.mcap"),
                           "--base", "px4-sitl-base", "--name", "px4-refit", "--out", str(fitted),
-                          "--json"], capture_output=True, text=True, timeout=300, check=False)
+                          "--friction", "--dead-zone-n", "0", "--json"],
+                         capture_output=True, text=True, timeout=300, check=False)
     assert fit.returncode == 0, fit.stdout[-3000:] + fit.stderr[-3000:]
     result = json.loads(fit.stdout)
-    print(json.dumps({p: v["value"] for p, v in result["params"].items()}))
+    print(json.dumps({p: v["value"] for p, v in {**result["params"], **result["friction"]}.items()}))
     print(json.dumps({"rms_fit": result["rms_fit"], "rms_holdout": result["rms_holdout"]}))
     new = load_vessel(fitted)
     # What the build's source says the rover is (deploy/vessels/px4-sitl-base.toml): a yaw moment
-    # of 0.3 m x the side difference against SIH_KDW 30 N m s (fitted as Nr with l 0.3), and 20 kg
-    # whose ground friction the linear model takes partly as mass: never less than that.
-    assert new.nr_kgm2ps == pytest.approx(30.0, rel=0.15)
-    assert 20.0 <= new.m11_kg <= 45.0 and 75.0 <= new.xu_kgps <= 115.0
+    # of 0.3 m x the side difference against SIH_KDW 30 N m s (fitted as Nr with l 0.3), 20 kg
+    # (its air drag adds a little of its own) and a rolling ground friction of 0.3 m g = 59 N,
+    # which the model now carries as friction, not as a secant of mass and damping.
+    assert new.nr_kgm2ps == pytest.approx(30.0, rel=0.05)
+    assert 18.0 <= new.m11_kg <= 32.0 and 40.0 <= new.xu_kgps <= 75.0
+    assert 35.0 <= new.friction_n <= 70.0 and new.static_n >= new.friction_n
     shipped = load_vessel("px4-sitl-rover")  # the same fit, made from another run
-    for p in ("xu_kgps", "nr_kgm2ps"):
+    for p in ("xu_kgps", "nr_kgm2ps", "friction_n"):
         assert getattr(new, p) == pytest.approx(getattr(shipped, p), rel=0.10), p
+    # The friction terms explain what the linear model could not: the held-out yaw rate (whose
+    # turns start and stop against the ground) is predicted better than without them.
+    plain = subprocess.run([str(BIN / "seaway"), "identify", "fit", str(run_dir / "recording.mcap"),
+                            "--base", "px4-sitl-base", "--out", str(tmp_path / "plain.toml"),
+                            "--json"], capture_output=True, text=True, timeout=300, check=False)
+    assert plain.returncode == 0, plain.stdout[-3000:] + plain.stderr[-3000:]
+    without = json.loads(plain.stdout)["rms_holdout"]
+    print(json.dumps({"rms_holdout_without_friction": without}))
+    assert result["rms_holdout"]["r_radps"] < 0.8 * without["r_radps"]
+    assert result["rms_holdout"]["u_mps"] < without["u_mps"]
     assert Path(result["plot"]).stat().st_size > 10_000
 
 

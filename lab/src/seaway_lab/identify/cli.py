@@ -97,6 +97,13 @@ def parser() -> argparse.ArgumentParser:
                           "drawing [m] (default: the base vessel file's)")
     fit.add_argument("--dead-zone-n", type=non_negative_float, default=None,
                      help="take this dead zone [N] instead of fitting it")
+    fit.add_argument("--friction", action="store_true",
+                     help="also fit surge friction (sliding and near rest: friction_n, "
+                          "static_friction_n), for a plant that has it (a wheeled test rover); give "
+                          "--dead-zone-n too (both explain a vessel that does not move)")
+    fit.add_argument("--friction-speed-mps", type=positive_float, default=fitmod.FRICTION_SPEED_MPS,
+                     help=f"the least speed over which the friction builds up [m/s] (default "
+                          f"{fitmod.FRICTION_SPEED_MPS}; raised to what the control period integrates)")
     fit.add_argument("--fit-lag", action="store_true",
                      help="also fit a thruster time constant (it trades against m11: only when the "
                           "thrusters are known to lag)")
@@ -168,7 +175,8 @@ def _fit(args: argparse.Namespace) -> int:
     result = fitmod.fit(trace, arm, fit_dead_zone=args.dead_zone_n is None,
                         dead_zone_n=args.dead_zone_n or 0.0, fit_lag=args.fit_lag,
                         lag_s=base.thruster_time_constant_s, holdout_fraction=args.holdout,
-                        start_theta=np.array([getattr(base, p) for p in fitmod.PARAMS]))
+                        start_theta=np.array([getattr(base, p) for p in fitmod.PARAMS]),
+                        fit_friction=args.friction, friction_least_mps=args.friction_speed_mps)
     text = output.vessel_toml(result, base, name, str(rec))
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(text)
@@ -179,6 +187,9 @@ def _fit(args: argparse.Namespace) -> int:
         print(json.dumps({"vessel_file": str(out), "plot": str(png), "arm_m": arm,
                           "params": {p: {"value": e.value, "std": e.std}
                                      for p, e in result.params.items()},
+                          "friction": {p: {"value": e.value, "std": e.std}
+                                       for p, e in result.friction.items()},
+                          "friction_speed_mps": result.friction_speed_mps,
                           "dead_zone_n": result.dead_zone_n, "lag_s": result.lag_s,
                           "current_ne_mps": result.current_ne_mps, "rms_fit": result.rms_fit,
                           "rms_holdout": result.rms_holdout, "errors_pct": errors,
@@ -186,9 +197,11 @@ def _fit(args: argparse.Namespace) -> int:
         return 0
     print(f"fitted {trace.duration_s:.0f} s of {rec} (arm l = {arm:g} m fixed; held out after "
           f"{result.split_s:.0f} s)")
-    for p, e in result.params.items():
-        err = f"   {errors[p]:+6.2f} % vs {compare.name}" if errors and compare else ""
+    for p, e in (*result.params.items(), *result.friction.items()):
+        err = f"   {errors[p]:+6.2f} % vs {compare.name}" if errors and compare and p in errors else ""
         print(f"  {p:<10} {e.value:10.4g}  +- {e.std:.3g} ({100 * e.rel_std:.2f} %){err}")
+    if result.friction:
+        print(f"  friction build-up speed {result.friction_speed_mps:.3g} m/s (not fitted)")
     dz_err = (f"   ({compare.dead_zone_n:g} N in {compare.name})" if compare else "")
     print(f"  dead zone  {result.dead_zone_n:10.4g} N{dz_err}")
     print(f"  residual RMS fitted: {output._rms(result.rms_fit)}")

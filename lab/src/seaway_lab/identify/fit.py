@@ -25,7 +25,15 @@ What such data can and cannot determine:
 * the dead zone shows where the slow ramp of the manoeuvre first moves the vessel; it is chosen by
   profiling the equation error over candidate values;
 * the thruster time constant, when it is a few tenths of a second, trades against m11 (both slow
-  the surge response); it is fitted only when asked (``fit_lag``), by the same profile.
+  the surge response); it is fitted only when asked (``fit_lag``), by the same profile;
+* surge friction (``fit_friction``; the law ``F_f(u)`` of ``seaway.vessel.model``): the sliding
+  friction F_c and the friction near rest F_s, for a plant that has them (a wheeled test rover).
+  F_c shows as the thrust the vessel needs to keep moving beyond what X_u u explains, F_s in how
+  it starts from rest. The speed ``eps`` over which the friction builds up is not identified: it
+  is set where the model stays integrable at the control period (``FRICTION_TAU_MIN_S``, with a
+  margin) or at ``friction_speed_mps`` if that is larger, a function of F_c, F_s and m11 that moves
+  with them during the fit. A dead zone and friction both explain a vessel that does not move on
+  a small command; fit friction with the dead zone given (0 for a plant without one).
 
 Equation error: the model integrated over windows of ``WINDOW_S`` (no derivatives of noisy data):
 ``m11 (u_b - u_a) - m22 int(v r) + Xu int(u) = int(T1 + T2)`` and likewise for sway and yaw, one
@@ -47,6 +55,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from seaway.vessel.model import FRICTION_TAU_MIN_S, friction_rise_n, surge_friction_law_n
 
 from seaway_lab.identify.trace import IdentifyError, Trace
 
@@ -65,6 +74,21 @@ every period can shape. A vessel that is quicker (ArduPilot SITL's boat sets its
 instantly) gets this floor, and the note says so."""
 WINDOW_S = 1.0
 """The equation error's integration window [s]."""
+FRICTION_PARAMS = ("friction_n", "static_friction_n")
+"""The surge friction's fitted parameters (vessel-file names), after PARAMS when fitted."""
+FRICTION_SPEED_MPS = 0.3
+"""The friction's build-up speed eps the fit starts from and uses at least [m/s] (``fit``'s
+``friction_speed_mps``): raised, with F_c, F_s and m11, to keep the friction integrable."""
+FRICTION_MARGIN = 1.2
+"""eps is set to this times the least integrable eps (``seaway.vessel.model.FRICTION_TAU_MIN_S``)
+so that a file written from the fit loads whatever its rounding."""
+
+
+def friction_speed_mps(fc: np.ndarray, fs: np.ndarray, m11: np.ndarray,
+                       least_mps: float = FRICTION_SPEED_MPS) -> np.ndarray:
+    """The build-up speed eps [m/s] for friction F_c, F_s on mass m11 (arrays of candidates):
+    ``least_mps``, or the least the control period can integrate times ``FRICTION_MARGIN``."""
+    return np.maximum(least_mps, FRICTION_MARGIN * FRICTION_TAU_MIN_S * friction_rise_n(fc, fs) / m11)
 
 
 def theta_of(z: np.ndarray) -> np.ndarray:
@@ -131,6 +155,10 @@ class FitResult:
     samples: int
     prediction: Prediction
     notes: list[str] = field(default_factory=list)
+    friction: dict[str, Estimate] = field(default_factory=dict)
+    """FRICTION_PARAMS when fitted (``fit_friction``), else empty."""
+    friction_speed_mps: float = 0.0
+    """The friction's build-up speed eps of the fitted values [m/s] (0: no friction fitted)."""
 
     @property
     def ratios(self) -> dict[str, float]:
@@ -178,8 +206,17 @@ def _grid(trace: Trace, t_end_s: float) -> _Grid:
                  np.interp(t, trace.att_t_s, trace.r_radps), trace.command_at(t))
 
 
-def _equation_rows(g: _Grid, thrust: np.ndarray, arm_m: float) -> tuple[np.ndarray, np.ndarray]:
-    """(A, b) of the windowed equations, rows [surge..., sway..., yaw...], columns ``PARAMS``."""
+def _friction_shapes(u: np.ndarray, eps_mps: float) -> tuple[np.ndarray, np.ndarray]:
+    """F_f(u) = F_c g_c(u) + F_s g_s(u): the law of ``seaway.vessel.model`` split into its two
+    linear parts, each evaluated through that law (a unit F_c, then a unit F_s)."""
+    return (surge_friction_law_n(u, 1.0, 0.0, eps_mps, np),
+            surge_friction_law_n(u, 0.0, 1.0, eps_mps, np))
+
+
+def _equation_rows(g: _Grid, thrust: np.ndarray, arm_m: float,
+                   friction_eps_mps: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(A, b) of the windowed equations, rows [surge..., sway..., yaw...], columns ``PARAMS``
+    (then ``FRICTION_PARAMS`` on the surge rows, for the build-up speed ``friction_eps_mps``)."""
     n = max(1, round(WINDOW_S / DT_S))
     ends = np.arange(n, len(g.t_s), n)
     starts = ends - n
@@ -201,6 +238,11 @@ def _equation_rows(g: _Grid, thrust: np.ndarray, arm_m: float) -> tuple[np.ndarr
     surge = np.column_stack([delta(g.u), -ivr, z, integral(g.u), z, z])
     sway = np.column_stack([iur, delta(g.v), z, z, integral(g.v), z])
     yaw = np.column_stack([-iuv, iuv, delta(g.r), z, z, integral(g.r)])
+    if friction_eps_mps is not None:
+        g_c, g_s = _friction_shapes(g.u, friction_eps_mps)
+        surge = np.column_stack([surge, integral(g_c), integral(g_s)])
+        sway = np.column_stack([sway, z, z])
+        yaw = np.column_stack([yaw, z, z])
     return np.vstack([surge, sway, yaw]), np.concatenate([surge_f, z, yaw_m])
 
 
@@ -230,21 +272,25 @@ def _weighted_lstsq(a: np.ndarray, b: np.ndarray, groups: int) -> tuple[np.ndarr
 
 
 def equation_error(trace: Trace, arm_m: float, dead_zone_n: float = 0.0, lag_s: float = 0.0,
-                   t_end_s: float | None = None) -> tuple[np.ndarray, np.ndarray, float]:
-    """Equation-error estimates of ``PARAMS`` (values, standard errors, cost) on t < ``t_end_s``."""
+                   t_end_s: float | None = None, friction_eps_mps: float | None = None,
+                   ) -> tuple[np.ndarray, np.ndarray, float]:
+    """Equation-error estimates of ``PARAMS`` (and ``FRICTION_PARAMS`` with ``friction_eps_mps``):
+    values, standard errors, cost, on t < ``t_end_s``."""
     g = _grid(trace, trace.cmd_t_s[-1] if t_end_s is None else t_end_s)
     thrust = produced_thrust(g.cmd, dead_zone_n, lag_s, DT_S)
-    a, b = _equation_rows(g, thrust, arm_m)
+    a, b = _equation_rows(g, thrust, arm_m, friction_eps_mps)
     return _weighted_lstsq(a, b, 3)
 
 
 def dead_zone_profile(trace: Trace, arm_m: float, candidates: np.ndarray, lag_s: float,
-                      t_end_s: float) -> list[tuple[float, float]]:
+                      t_end_s: float, friction_eps_mps: float | None = None,
+                      ) -> list[tuple[float, float]]:
     """The equation error's cost at each candidate dead zone [N]."""
     g = _grid(trace, t_end_s)
     out = []
     for dz in candidates:
-        a, b = _equation_rows(g, produced_thrust(g.cmd, float(dz), lag_s, DT_S), arm_m)
+        a, b = _equation_rows(g, produced_thrust(g.cmd, float(dz), lag_s, DT_S), arm_m,
+                              friction_eps_mps)
         theta, _, _ = _weighted_lstsq(a, b, 3)
         res = a @ theta - b
         m = len(b) // 3
@@ -258,17 +304,23 @@ def dead_zone_profile(trace: Trace, arm_m: float, candidates: np.ndarray, lag_s:
 # -- output error -------------------------------------------------------------------------------
 
 
-def simulate(theta: np.ndarray, thrust: np.ndarray, arm_m: float, x0: np.ndarray) -> np.ndarray:
+def simulate(theta: np.ndarray, thrust: np.ndarray, arm_m: float, x0: np.ndarray,
+             friction: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """Simulate [u, v, r] on the grid (RK4, ``DT_S``) for P parameter sets at once.
 
     ``theta``: (P, 6) ``PARAMS`` values; ``thrust``: (n, 2) produced thrust held over each step;
-    ``x0``: (P, 3). Returns (n, 3, P): the state at each grid instant.
+    ``x0``: (P, 3); ``friction``: (F_c, F_s, eps) of each set, each (P,), or None. Returns
+    (n, 3, P): the state at each grid instant. The model of ``seaway.vessel.model.derivative``
+    without the kinematics, on arrays of parameter sets (its friction law is the model's own).
     """
     m11, m22, m33, xu, yv, nr = (theta[:, i] for i in range(6))
     inv11, inv22, inv33, dm = 1.0 / m11, 1.0 / m22, 1.0 / m33, m22 - m11
 
     def f(u: np.ndarray, v: np.ndarray, r: np.ndarray, fs: float, my: float):
-        return ((fs + m22 * v * r - xu * u) * inv11, (-m11 * u * r - yv * v) * inv22,
+        surge = fs + m22 * v * r - xu * u
+        if friction is not None:
+            surge = surge - surge_friction_law_n(u, friction[0], friction[1], friction[2], np)
+        return (surge * inv11, (-m11 * u * r - yv * v) * inv22,
                 (my - dm * u * v - nr * r) * inv33)
 
     n = len(thrust)
@@ -290,13 +342,33 @@ def simulate(theta: np.ndarray, thrust: np.ndarray, arm_m: float, x0: np.ndarray
     return out
 
 
-class _OutputError:
-    """Residuals of the output-error problem. Vector z = [log PARAMS (6), current n, e, u0, v0, r0]."""
+def friction_of(z: np.ndarray, least_mps: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(F_c, F_s, eps) of the fit's parameter vectors (P, 13): F_c = exp(z11), F_s = F_c + exp(z12)
+    (so that F_s >= F_c > 0), eps from them and m11 (``friction_speed_mps``)."""
+    z = np.atleast_2d(z)
+    fc = np.exp(z[:, 11])
+    fs = fc + np.exp(z[:, 12])
+    return fc, fs, friction_speed_mps(fc, fs, theta_of(z)[:, 0], least_mps)
 
-    NZ = 11
+
+def physical_of(z: np.ndarray, least_mps: float | None) -> np.ndarray:
+    """The fitted values in vessel-file units (P, 6 or 8): ``PARAMS``, then ``FRICTION_PARAMS``
+    when ``least_mps`` is given (friction fitted)."""
+    theta = theta_of(z)
+    if least_mps is None:
+        return theta
+    fc, fs, _ = friction_of(z, least_mps)
+    return np.concatenate([theta, fc[:, None], fs[:, None]], axis=1)
+
+
+class _OutputError:
+    """Residuals of the output-error problem. Vector z = [PARAMS through ``theta_of`` (6), current
+    n, e, u0, v0, r0] and, when friction is fitted, [log F_c, log (F_s - F_c)]."""
 
     def __init__(self, trace: Trace, arm_m: float, thrust: np.ndarray, t_grid: np.ndarray,
-                 t_end_s: float) -> None:
+                 t_end_s: float, friction_least_mps: float | None = None) -> None:
+        self.friction_least_mps = friction_least_mps
+        self.nz = 11 if friction_least_mps is None else 13
         self.arm_m = arm_m
         self.thrust = thrust
         self.t_grid = t_grid
@@ -316,7 +388,9 @@ class _OutputError:
         """(P, nz) -> predicted (vel_n, vel_e) (P, ng, 2), r (P, na), body (u, v) (P, ng, 2)."""
         z = np.atleast_2d(z)
         theta = theta_of(z)
-        x = simulate(theta, self.thrust[:self.n], self.arm_m, z[:, 8:11])
+        friction = (None if self.friction_least_mps is None
+                    else friction_of(z, self.friction_least_mps))
+        x = simulate(theta, self.thrust[:self.n], self.arm_m, z[:, 8:11], friction)
         tg = self.t_grid[:self.n]
         u = np.stack([np.interp(self.gnss_t, tg, x[:, 0, p]) for p in range(z.shape[0])])
         v = np.stack([np.interp(self.gnss_t, tg, x[:, 1, p]) for p in range(z.shape[0])])
@@ -339,13 +413,14 @@ class _OutputError:
                 float(np.sqrt(np.mean((r[0] - self.r) ** 2))))
 
 
-_STEP = np.array([1e-4] * 6 + [1e-4] * 2 + [1e-4] * 3)
+_STEP = 1e-4
+"""The forward-difference step of the Jacobian in z (logarithms, speeds [m/s], rates [rad/s])."""
 
 
 def _jacobian(prob: _OutputError, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    zs = np.vstack([z, z + np.diag(_STEP)])
+    zs = np.vstack([z, z + _STEP * np.eye(len(z))])
     res = prob.residuals(zs)
-    return res[0], ((res[1:] - res[0]) / _STEP[:, None]).T
+    return res[0], ((res[1:] - res[0]) / _STEP).T
 
 
 def levenberg_marquardt(prob: _OutputError, z: np.ndarray, max_iter: int = 40,
@@ -386,12 +461,15 @@ def levenberg_marquardt(prob: _OutputError, z: np.ndarray, max_iter: int = 40,
 def fit(trace: Trace, arm_m: float, *, fit_dead_zone: bool = True, dead_zone_n: float = 0.0,
         lag_s: float = 0.0, fit_lag: bool = False,
         holdout_fraction: float = HOLDOUT_FRACTION,
-        start_theta: np.ndarray | None = None) -> FitResult:
+        start_theta: np.ndarray | None = None, fit_friction: bool = False,
+        friction_least_mps: float = FRICTION_SPEED_MPS) -> FitResult:
     """Fit ``PARAMS`` to ``trace`` with the arm ``arm_m`` fixed (see the module docstring).
 
     ``dead_zone_n`` and ``lag_s`` are used as given unless ``fit_dead_zone`` / ``fit_lag``. The
     last ``holdout_fraction`` of the run is held out: not fitted, only predicted. ``start_theta``
     (PARAMS values, e.g. the base vessel file's) is tried as the start beside the equation error's.
+    ``fit_friction`` fits ``FRICTION_PARAMS`` too, with a build-up speed of at least
+    ``friction_least_mps`` [m/s].
     """
     if not arm_m > 0:
         raise IdentifyError(f"the thruster arm must be > 0 m (the vessel drawing's distance from the "
@@ -401,27 +479,40 @@ def fit(trace: Trace, arm_m: float, *, fit_dead_zone: bool = True, dead_zone_n: 
     t0 = max(trace.cmd_t_s[0], trace.gnss_t_s[0], trace.att_t_s[0])
     t_end = min(trace.cmd_t_s[-1], trace.gnss_t_s[-1], trace.att_t_s[-1])
     split = t_end - holdout_fraction * (t_end - t0)
+    if not friction_least_mps > 0:
+        raise IdentifyError(f"the friction's build-up speed must be > 0 m/s, got {friction_least_mps}")
+    least = friction_least_mps if fit_friction else None
     notes = []
     peak = float(np.max(np.abs(trace.cmd_n)))
     profile: list[tuple[float, float]] = []
     if fit_lag:
         lags = np.array([0.0, 0.05, 0.1, 0.15, 0.2, 0.3, 0.4, 0.6, 0.8, 1.0])
-        costs = [equation_error(trace, arm_m, dead_zone_n, float(tc), split)[2] for tc in lags]
+        costs = [equation_error(trace, arm_m, dead_zone_n, float(tc), split, least)[2] for tc in lags]
         lag_s = float(lags[int(np.argmin(costs))])
     if fit_dead_zone:
         cands = np.linspace(0.0, 0.35 * peak, 36)
-        profile = dead_zone_profile(trace, arm_m, cands, lag_s, split)
+        profile = dead_zone_profile(trace, arm_m, cands, lag_s, split, least)
         dead_zone_n = profile[int(np.argmin([c for _, c in profile]))][0]
-    theta0, _, _ = equation_error(trace, arm_m, dead_zone_n, lag_s, split)
+    start_all, _, _ = equation_error(trace, arm_m, dead_zone_n, lag_s, split, least)
+    theta0 = start_all[:6]
     start = dict(zip(PARAMS, map(float, theta0), strict=True))
     bad = [p for p, v in start.items() if not v > 0]
     if bad:
         notes.append(f"equation error gave non-positive {', '.join(bad)}: started from 1 instead")
         theta0 = np.where(theta0 > 0, theta0, 1.0)
+    z_friction: list[float] = []
+    if fit_friction:
+        fc0, fs0 = float(start_all[6]), float(start_all[7])
+        start.update(friction_n=fc0, static_friction_n=fs0)
+        if not fc0 > 0:
+            notes.append(f"equation error gave friction_n {fc0:.3g} N: started from 1 N instead")
+            fc0 = 1.0
+        # F_s > F_c is the parametrisation's; a start at or below F_c starts just above it
+        z_friction = [math.log(fc0), math.log(max(fs0 - fc0, 0.05 * fc0))]
 
     t_grid = np.arange(t0, t_end + DT_S, DT_S)
     thrust = produced_thrust(trace.command_at(t_grid), dead_zone_n, lag_s, DT_S)
-    prob = _OutputError(trace, arm_m, thrust, t_grid, split)
+    prob = _OutputError(trace, arm_m, thrust, t_grid, split, least)
     uv0 = trace.body_velocity()
     x0 = np.array([np.interp(t0, trace.gnss_t_s, uv0[:, 0]), np.interp(t0, trace.gnss_t_s, uv0[:, 1]),
                    np.interp(t0, trace.att_t_s, trace.r_radps)])
@@ -434,7 +525,7 @@ def fit(trace: Trace, arm_m: float, *, fit_dead_zone: bool = True, dead_zone_n: 
     best: tuple[float, str, np.ndarray, list[str]] | None = None
     for label, th in starts:
         zs, raised = z_of(th)
-        cand = np.concatenate([zs, [0.0, 0.0], x0])
+        cand = np.concatenate([zs, [0.0, 0.0], x0, z_friction])
         with np.errstate(all="ignore"):
             e0 = prob.residuals(cand)[0]
         cost = float(e0 @ e0)
@@ -465,22 +556,27 @@ def fit(trace: Trace, arm_m: float, *, fit_dead_zone: bool = True, dead_zone_n: 
         cov = np.linalg.pinv(jac.T @ jac) * s2
     except np.linalg.LinAlgError:
         cov = np.full((len(z), len(z)), np.inf)
-    theta = theta_of(z)[0]
-    # Standard errors by the delta method through theta_of (masses depend on two entries of z).
-    grad = np.empty((6, 6))
-    for j in range(6):
+    values = physical_of(z, least)[0]
+    theta = values[:6]
+    # Standard errors by the delta method through physical_of (a mass depends on two entries of
+    # z, F_s on two, eps on no fitted entry of its own).
+    grad = np.zeros((len(values), len(z)))
+    for j in range(len(z)):
         dz = np.zeros_like(z)
         dz[j] = 1e-6
-        grad[:, j] = (theta_of(z + dz)[0] - theta) / 1e-6
-    var = np.einsum("ij,jk,ik->i", grad, cov[:6, :6], grad)
-    params = {p: Estimate(float(theta[i]), float(math.sqrt(abs(var[i])))) for i, p in enumerate(PARAMS)}
+        grad[:, j] = (physical_of(z + dz, least)[0] - values) / 1e-6
+    var = np.einsum("ij,jk,ik->i", grad, cov, grad)
+    estimates = [Estimate(float(values[i]), float(math.sqrt(abs(var[i])))) for i in range(len(values))]
+    params = dict(zip(PARAMS, estimates[:6], strict=True))
+    friction = dict(zip(FRICTION_PARAMS, estimates[6:], strict=True)) if least is not None else {}
+    eps = float(friction_of(z, least)[2][0]) if least is not None else 0.0
     at_floor = [PARAMS[i] for i in range(3) if theta[i] / theta[i + 3] < 1.05 * TAU_MIN_S]
     if at_floor:
         notes.append(f"time constant of {', '.join(at_floor)} at the {TAU_MIN_S:g} s floor: this "
                      "vessel responds faster than the model can be integrated at the control period")
 
     # Prediction over the whole run with the fitted model, compared on both parts.
-    full = _OutputError(trace, arm_m, thrust, t_grid, t_end)
+    full = _OutputError(trace, arm_m, thrust, t_grid, t_end, least)
     full.sigma = prob.sigma
     _, r_pred, uv_pred = full.predict(z)
     current = (float(z[6]), float(z[7]))
@@ -502,4 +598,5 @@ def fit(trace: Trace, arm_m: float, *, fit_dead_zone: bool = True, dead_zone_n: 
         lag_s=float(lag_s), current_ne_mps=current, start=start, split_s=float(split),
         rms_fit=rms(pred.t_s < split, pred.r_t_s < split),
         rms_holdout=rms(pred.t_s >= split, pred.r_t_s >= split),
-        iterations=iters, samples=len(e), prediction=pred, notes=notes)
+        iterations=iters, samples=len(e), prediction=pred, notes=notes, friction=friction,
+        friction_speed_mps=eps)

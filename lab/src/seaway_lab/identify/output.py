@@ -7,10 +7,10 @@ from pathlib import Path
 
 from seaway.vessel.model import VesselParams
 
-from seaway_lab.identify.fit import PARAMS, FitResult
+from seaway_lab.identify.fit import FitResult
 
 _UNITS = {"m11_kg": "kg", "m22_kg": "kg", "m33_kgm2": "kg m^2", "xu_kgps": "kg/s",
-          "yv_kgps": "kg/s", "nr_kgm2ps": "kg m^2/s"}
+          "yv_kgps": "kg/s", "nr_kgm2ps": "kg m^2/s", "friction_n": "N", "static_friction_n": "N"}
 
 
 def _f(x: float) -> str:
@@ -30,10 +30,13 @@ def vessel_toml(result: FitResult, base: VesselParams, name: str, source: str) -
         f"name = \"{name}\"",
         f"description = \"identified from {Path(source).name}\"",
     ]
-    for p in PARAMS:
-        e = r.params[p]
-        lines.append(f"{p} = {_f(e.value)}  # +- {e.std:.3g} {_UNITS[p]} ({100 * e.rel_std:.2f} %), "
-                     f"start {_f(r.start[p])}")
+    for p, e in (*r.params.items(), *r.friction.items()):
+        start = f", start {_f(r.start[p])}" if p in r.start else ""
+        lines.append(f"{p} = {_f(e.value)}  # +- {e.std:.3g} {_UNITS[p]} ({100 * e.rel_std:.2f} %)"
+                     + start)
+    if r.friction:
+        lines.append(f"friction_speed_mps = {_f(r.friction_speed_mps)}  # not fitted: the fit's least, "
+                     "or what the control period integrates (seaway_lab.identify.fit) if more")
     rat = r.ratios
     lines += [
         f"arm_m = {_f(r.arm_m)}  # fixed (the vessel drawing), not fitted: the yaw data give "

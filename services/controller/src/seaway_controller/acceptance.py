@@ -23,6 +23,7 @@ from collections.abc import Sequence
 
 import numpy as np
 from seaway.contract.messages import StateEstimate
+from seaway.vessel import model as vessel_model
 
 from seaway_controller.energy import ZERO, Disturbance, EnergyModel
 
@@ -81,11 +82,13 @@ def why_not_flyable(model: EnergyModel, state: StateEstimate | None, waypoints: 
     if not model.economic:
         return None
     u_star = model.cruise_speed_mps
-    thrust_n = model.vessel.xu_kgps * u_star
-    dead_zone_n = model.vessel.dead_zone_n
+    vessel = model.vessel
+    thrust_n = vessel_model.sliding_resistance_n(u_star, vessel)
+    dead_zone_n = vessel.dead_zone_n
     if thrust_n / 2.0 < dead_zone_n:
-        # The cruise's thrust grows as the square root of T^w (P^sur(u*) = T^w).
-        least_w = model.task_power_w * (2.0 * dead_zone_n / thrust_n) ** 2
+        # The cruise's thrust Xu u* + F_c = sqrt(2 T^w / alpha + F_c^2) + F_c (costs.cruise_speed_mps).
+        fc = vessel.friction_n
+        least_w = vessel.alpha_w_per_n2 / 2.0 * ((2.0 * dead_zone_n - fc) ** 2 - fc * fc)
         return (f"its economic cruise at T^w {model.task_power_w:g} W is {u_star:.3g} m/s on "
                 f"{thrust_n / 2.0:.2g} N a side, inside the thrusters' {dead_zone_n:g} N dead zone "
                 f"(the vessel file's): they would not turn; a task power of {math.ceil(least_w)} W or more "

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from types import ModuleType
 from typing import Any
 
+from seaway.vessel import model
 from seaway.vessel.model import VesselParams
 from seaway.vessel.path import signed_cross_track_m
 
@@ -47,7 +48,12 @@ def abs_eps_m2(cruise_speed_mps: Any, ops: ModuleType = math) -> Any:
 
 
 def cruise_speed_mps(task_power_w: Any, p: VesselParams, ops: ModuleType = math) -> Any:
-    """The economic cruise u* = sqrt(T^w / (alpha Xu^2 / 2)) [m/s]: P^sur(u*) = T^w."""
+    """The economic cruise u* = sqrt(T^w / (alpha Xu^2 / 2)) [m/s]: P^sur(u*) = T^w.
+
+    With sliding friction F_c (``seaway.vessel.model``) the energy per metre
+    (alpha (Xu u + F_c)^2 / 2 + T^w) / u is least at u* = sqrt(2 T^w / alpha + F_c^2) / Xu."""
+    if p.has_friction:
+        return ops.sqrt(2.0 * task_power_w / p.alpha_w_per_n2 + p.friction_n ** 2) / p.xu_kgps
     return ops.sqrt(2.0 * task_power_w / p.alpha_w_per_n2) / p.xu_kgps
 DIST_EPS_M2 = 1e-6
 """distance = sqrt(dx^2 + dy^2 + DIST_EPS_M2) [m^2]."""
@@ -76,8 +82,9 @@ def stage_cost_j(thrust_port_n: Any, thrust_starboard_n: Any, task_power_w: Any,
 
 
 def surge_power_w(u_mps: Any, p: VesselParams) -> Any:
-    """P^sur = 2 h_p(Xu u / 2) = 2 alpha (Xu u / 2)^2 (reproduction.md item 7) [W]."""
-    half = p.xu_kgps * u_mps / 2.0
+    """P^sur = 2 h_p(Xu u / 2) = 2 alpha (Xu u / 2)^2 (reproduction.md item 7) [W]; Xu u is
+    ``model.sliding_resistance_n`` (Xu u + F_c on a vessel with surge friction)."""
+    half = model.sliding_resistance_n(u_mps, p) / 2.0
     return 2.0 * p.alpha_w_per_n2 * half * half
 
 
@@ -99,7 +106,7 @@ def point_power_w(u_mps: Any, r_radps: Any, r_dot: Any, p: VesselParams) -> Any:
     N = m33 rdot + Nr r [N m]; T^{1,2} = (Xu u_H +- N / l) / 2 [N]; P = alpha (T^1)^2 + alpha (T^2)^2.
     """
     yaw_nm = p.m33_kgm2 * r_dot + p.nr_kgm2ps * r_radps
-    surge = p.xu_kgps * u_mps
+    surge = model.sliding_resistance_n(u_mps, p)
     t1 = (surge + yaw_nm / p.arm_m) / 2.0
     t2 = (surge - yaw_nm / p.arm_m) / 2.0
     return p.alpha_w_per_n2 * (t1 * t1 + t2 * t2)

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from seaway.vessel.model import VesselParams
+from seaway.vessel.model import VesselParams, sliding_resistance_n
 
 from seaway_controller import costs
 
@@ -74,10 +74,14 @@ def cruise_courses(vessel: VesselParams, task_power_w: float, speed_mps: float,
         c, s = np.cos(psi), np.sin(psi)
         f_u = c * fn + s * fe
         if pay_in_thrust:
-            t_sum = np.clip(p.xu_kgps * speed_mps - f_u, lo, hi)
+            t_sum = np.clip(sliding_resistance_n(speed_mps, p) - f_u, lo, hi)
         else:
-            t_sum = np.full(courses.shape, min(max(p.xu_kgps * speed_mps, lo), hi))
-        u = (t_sum + f_u) / p.xu_kgps
+            t_sum = np.full(courses.shape, min(max(sliding_resistance_n(speed_mps, p), lo), hi))
+        if p.has_friction:  # the speed the surge force slides at (model.steady_surge_speed_mps)
+            net = t_sum + f_u
+            u = np.sign(net) * np.maximum(np.abs(net) - p.friction_n, 0.0) / p.xu_kgps
+        else:
+            u = (t_sum + f_u) / p.xu_kgps
         v = (c * fe - s * fn) / p.yv_kgps
         before, beta = beta, np.where(u > 0, -np.arctan2(v, u), 0.0)
         # Every element on until the last agrees: one that agreed earlier only moves closer to

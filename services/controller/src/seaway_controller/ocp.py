@@ -257,12 +257,11 @@ class Ocp:
         return p
 
     def cruise_speed_mps(self, task_power_w: float) -> float:
-        """Energy-optimal cruise u* = sqrt(2 T^w / alpha) / Xu (reproduction.md, T^w row) [m/s].
+        """Energy-optimal cruise u* (``costs.cruise_speed_mps``; reproduction.md, T^w row) [m/s].
 
         Used only for initial guesses; bounded below so that a zero task power still gives a guess.
         """
-        vp = self.vessel
-        u_star = math.sqrt(2.0 * max(task_power_w, 0.0) / vp.alpha_w_per_n2) / vp.xu_kgps
+        u_star = costs.cruise_speed_mps(max(task_power_w, 0.0), self.vessel)
         return max(u_star, 10.0 * self.spec.u_min_mps)
 
     def cold_guess(self, p: np.ndarray) -> np.ndarray:

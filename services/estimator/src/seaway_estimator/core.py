@@ -329,7 +329,7 @@ class EstimatorCore:
             t, north, east, rejected, min(nis, self.config.gate_gnss),
             None if sog[0] is None or sog[1] is None else
             sog[0] * math.cos(psi) + sog[1] * math.sin(psi),
-            sum(self._commanded_at(t)) / self.p.xu_kgps), std, sog)
+            model.steady_surge_speed_mps(sum(self._commanded_at(t)), self.p)), std, sog)
 
     def on_attitude(self, msg: Attitude) -> None:
         """Heading and yaw rate (roll and pitch are not used by a 3-DOF model)."""

@@ -19,7 +19,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from seaway.vessel.frames import wrap_pi
-from seaway.vessel.model import VesselParams, thrusts_for_wrench
+from seaway.vessel.model import VesselParams, surge_resistance_n, thrusts_for_wrench
 from seaway.vessel.path import los_heading_rad
 from seaway.vessel.thrusters import saturate
 
@@ -51,6 +51,6 @@ def los_thrust(state: Sequence[float], wp_prev: Sequence[float], wp_active: Sequ
     yaw_max = 0.8 * 2.0 * p.arm_m * min(p.thrust_max_n, p.reverse_max_n)  # keep room for surge
     yaw_nm = min(max(yaw_nm, -yaw_max), yaw_max)
     u_ref = (speed_mps or gains.speed_mps) * max(0.0, math.cos(e_psi))
-    surge_n = p.xu_kgps * u_ref + p.m11_kg * gains.speed_gain_per_s * (u_ref - u)
+    surge_n = surge_resistance_n(u_ref, p) + p.m11_kg * gains.speed_gain_per_s * (u_ref - u)
     t1, t2 = thrusts_for_wrench(surge_n, yaw_nm, p)
     return saturate(t1, p), saturate(t2, p)

@@ -20,6 +20,19 @@ Extensions beyond the paper (all default to zero, which is the paper's model):
 * ``current_ne``: an irrotational water current [m/s north, m/s east]. Then u, v are speeds through the
   water and the current is added to the kinematics (Fossen 2011, eq. 10.139 for constant current).
 
+And one optional term of the vessel file, zero for the paper's boat: **surge friction**
+``F_f(u)`` (``surge_friction_n``), subtracted from the surge force. A hull in water has none; a
+wheeled test plant (PX4 SITL's SIH rover) has Coulomb ground friction that a linear damping can
+only fake by a secant over the speeds flown. The law is smooth, so the MPC can differentiate it::
+
+    F_f(u) = F_c tanh(2 u / eps) + (F_s - F_c) (u / eps) exp((1 - (u / eps)^2) / 2)
+
+``F_c`` (``friction_n``) the sliding friction, ``F_s`` (``static_friction_n``) the friction near rest
+(the breakaway force, near ``u = eps``: Stribeck's hump), ``eps`` (``friction_speed_mps``)
+the speed over which it builds up. Below ``F_s`` the model creeps (a fraction of ``eps``)
+where the plant sticks; above ``eps`` it is ``F_c`` and the speed is ``(T - F_c) / X_u``. ``eps``
+is bounded below (``FRICTION_TAU_MIN_S``) so that RK4 at the control period stays stable.
+
 Every function here takes an ``ops`` namespace providing ``sin`` and ``cos``: pass ``math`` for the
 fast plain-float path (the simulator, the estimator) or ``casadi`` for symbolic expressions (the
 MPC). That is how the model exists once and is used by every service (see ``model_casadi``).
@@ -45,6 +58,11 @@ NU = 2
 ZERO3 = (0.0, 0.0, 0.0)
 ZERO2 = (0.0, 0.0)
 
+FRICTION_TAU_MIN_S = 0.05
+"""The shortest time constant the surge friction may have, ``eps m11 / F_f'(0)`` [s]: its slope at
+rest, ``(2 F_c + e^0.5 (F_s - F_c)) / eps``, is a stiffness the controller's and estimator's RK4
+integrate at the 0.1 s control period, stable up to h lambda = 2.8; 0.05 s keeps it at 2."""
+
 
 class VesselParams(ConfigModel):
     """A vessel file (``deploy/vessels/*.toml``): the paper's Table II plus the thruster limits."""
@@ -65,6 +83,13 @@ class VesselParams(ConfigModel):
     )
     dead_zone_n: float = Field(default=0.0, ge=0, description="|T| below this gives no thrust [N]")
     thruster_time_constant_s: float = Field(default=0.0, ge=0, description="first-order lag [s]")
+    friction_n: float = Field(default=0.0, ge=0, description="sliding (Coulomb) friction against "
+                              "surge F_c [N]; 0 for a hull (seaway.vessel.model, surge_friction_n)")
+    static_friction_n: float | None = Field(
+        default=None, ge=0, description="surge friction near rest F_s, the breakaway force [N]; "
+        "None: friction_n")
+    friction_speed_mps: float = Field(default=0.4, gt=0, description="the speed eps over which "
+                                      "the surge friction builds up [m/s]")
     battery: BatteryParams | None = Field(default=None, description="the propulsion battery "
                                           "(seaway.vessel.battery); None: not known")
 
@@ -75,6 +100,31 @@ class VesselParams(ConfigModel):
                              f"(thrust_max_n {self.thrust_max_n:g} N, reverse {self.reverse_max_n:g} N):"
                              " the thrusters could never produce any thrust")
         return self
+
+    @model_validator(mode="after")
+    def _friction_integrable(self) -> VesselParams:
+        if self.static_n < self.friction_n:
+            raise ValueError(f"static_friction_n {self.static_n:g} N must be at least friction_n "
+                             f"{self.friction_n:g} N (friction near rest is not below sliding)")
+        force_n = friction_rise_n(self.friction_n, self.static_n)
+        least_mps = FRICTION_TAU_MIN_S * force_n / self.m11_kg
+        if self.friction_speed_mps < least_mps:
+            raise ValueError(
+                f"friction_speed_mps {self.friction_speed_mps:g} m/s is too small for friction_n "
+                f"{self.friction_n:g} N and static_friction_n {self.static_n:g} N on m11_kg "
+                f"{self.m11_kg:g} kg: the friction's time constant would be below "
+                f"{FRICTION_TAU_MIN_S:g} s, where RK4 at the control period diverges; need "
+                f">= {least_mps:.3g} m/s")
+        return self
+
+    @property
+    def static_n(self) -> float:
+        """F_s [N]: ``static_friction_n``, or ``friction_n`` when not given."""
+        return self.friction_n if self.static_friction_n is None else self.static_friction_n
+
+    @property
+    def has_friction(self) -> bool:
+        return self.friction_n > 0 or self.static_n > 0
 
     @property
     def reverse_max_n(self) -> float:
@@ -97,6 +147,52 @@ def check_vessel_files(**files: str | Path | None) -> None:
             load_vessel(name)
         except ConfigError as err:
             raise ConfigError(f"{role.replace('_', ' ')} vessel file: {err}") from None
+
+
+def friction_rise_n(friction_n: float, static_n: float) -> float:
+    """``eps F_f'(0)`` = 2 F_c + e^0.5 (F_s - F_c) [N]: the friction law's slope at rest times eps."""
+    return 2.0 * friction_n + math.exp(0.5) * (static_n - friction_n)
+
+
+def surge_friction_law_n(u_mps: Any, friction_n: Any, static_n: Any, speed_mps: Any,
+                         ops: ModuleType = math) -> Any:
+    """F_f(u) of the module docstring [N], opposing the surge speed ``u_mps`` (body frame).
+
+    Written on its arguments, not a vessel file, so that the identification evaluates it on arrays
+    of candidate values (``ops`` = numpy) as the simulator (math) and the MPC (casadi) do."""
+    x = u_mps / speed_mps
+    return (friction_n * ops.tanh(2.0 * x)
+            + (static_n - friction_n) * x * ops.exp(0.5 * (1.0 - x * x)))
+
+
+def surge_friction_n(u_mps: Any, p: VesselParams, ops: ModuleType = math) -> Any:
+    """The vessel's surge friction F_f(u) [N]; 0 for a vessel without (the paper's)."""
+    if not p.has_friction:
+        return 0.0
+    return surge_friction_law_n(u_mps, p.friction_n, p.static_n, p.friction_speed_mps, ops)
+
+
+def surge_resistance_n(u_mps: Any, p: VesselParams, ops: ModuleType = math) -> Any:
+    """The steady surge force that holds speed ``u_mps`` in still water: X_u u + F_f(u) [N]."""
+    if not p.has_friction:
+        return p.xu_kgps * u_mps
+    return p.xu_kgps * u_mps + surge_friction_n(u_mps, p, ops)
+
+
+def sliding_resistance_n(u_mps: Any, p: VesselParams) -> Any:
+    """X_u u + F_c [N]: ``surge_resistance_n`` at a cruise above ``eps``, where the friction is the
+    sliding one; no transcendental, so it prices cruising on floats, arrays and CasADi symbols."""
+    if not p.has_friction:
+        return p.xu_kgps * u_mps
+    return p.xu_kgps * u_mps + p.friction_n
+
+
+def steady_surge_speed_mps(surge_n: float, p: VesselParams) -> float:
+    """The speed a steady surge force settles to once sliding [m/s]: (T - F_c sign T) / X_u, 0
+    within the sliding friction (the inverse of ``surge_resistance_n`` above ``eps``)."""
+    if not p.has_friction:
+        return surge_n / p.xu_kgps
+    return math.copysign(max(abs(surge_n) - p.friction_n, 0.0), surge_n) / p.xu_kgps
 
 
 def world_to_body(north: Any, east: Any, cos_psi: Any, sin_psi: Any) -> tuple[Any, Any]:
@@ -125,7 +221,10 @@ def derivative(
     wu, wv = world_to_body(force_ne[0], force_ne[1], c, s)
     fu, fv, fr = tau_body[0] + wu, tau_body[1] + wv, tau_body[2]
     m11, m22, m33 = p.m11_kg, p.m22_kg, p.m33_kgm2
-    u_dot = (t1 + t2 + m22 * v * r - p.xu_kgps * u + fu) / m11
+    if p.has_friction:
+        u_dot = (t1 + t2 + m22 * v * r - p.xu_kgps * u + fu - surge_friction_n(u, p, ops)) / m11
+    else:  # the paper's model, the same operations as ever (the reproduction holds to the digit)
+        u_dot = (t1 + t2 + m22 * v * r - p.xu_kgps * u + fu) / m11
     v_dot = (-m11 * u * r - p.yv_kgps * v + fv) / m22
     r_dot = ((t1 - t2) * p.arm_m - (m22 - m11) * u * v - p.nr_kgm2ps * r + fr) / m33
     return [

@@ -6,6 +6,7 @@ from collections.abc import Sequence
 from types import ModuleType
 from typing import TYPE_CHECKING, Any
 
+from seaway.vessel import model
 from seaway.vessel.model import VesselParams
 
 from seaway_controller import costs
@@ -21,6 +22,7 @@ def energy_stage_cost(x_next: Sequence[Any], thrust: Sequence[Any], wp_active: S
 
 
 def cruise_thrust(ocp: Ocp, task_power_w: float) -> tuple[float, float]:
-    """Each thruster's share of the drag at the economic cruise u* [N]: Xu u* / 2."""
+    """Each thruster's share of the drag at the economic cruise u* [N]: Xu u* / 2 (plus half the
+    sliding friction on a vessel with it: ``model.sliding_resistance_n``)."""
     u_c = ocp.cruise_speed_mps(task_power_w)
-    return (ocp.vessel.xu_kgps * u_c / 2.0,) * 2
+    return (model.sliding_resistance_n(u_c, ocp.vessel) / 2.0,) * 2
