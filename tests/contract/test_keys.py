@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import ast
+import re
+import tomllib
 from pathlib import Path
 
 import pytest
@@ -55,14 +57,6 @@ def _service_packages() -> dict[str, Path]:
     return out
 
 
-# Known exception, to be removed by moving the recording reader into the shared library: the ground
-# station's replay view reads recordings with the recorder's reader (seaway_recorder.recording and
-# the attachment readers of seaway_recorder.runinfo) rather than a second copy of them. Only these
-# modules, only from the ground station (a shore process; the boat's install is unaffected).
-ALLOWED_IMPORTS = {("seaway_groundstation", "seaway_recorder.recording"),
-                   ("seaway_groundstation", "seaway_recorder.runinfo")}
-
-
 def test_no_service_imports_another() -> None:
     pkgs = _service_packages()
     assert "seaway" in pkgs
@@ -80,6 +74,17 @@ def test_no_service_imports_another() -> None:
                     mods = [f"{node.module}.{a.name}" for a in node.names]  # from pkg import module
                 for mod in mods:
                     top = mod.split(".")[0]
-                    if (name, mod) in ALLOWED_IMPORTS:
-                        continue
                     assert not (top in services and top != name), f"{py} imports {mod}"
+
+
+def test_no_service_depends_on_another() -> None:
+    """Nor does its package ask for another service's: what services share is in ``seaway``."""
+    projects = {tomllib.loads(p.read_text())["project"]["name"]: p
+                for p in (REPO / "services").glob("*/pyproject.toml")}
+    services = set(projects) - {"seaway"}
+    for name, pyproject in projects.items():
+        project = tomllib.loads(pyproject.read_text())["project"]
+        deps = [*project.get("dependencies", []),
+                *(d for ds in project.get("optional-dependencies", {}).values() for d in ds)]
+        wanted = {re.match(r"[A-Za-z0-9_.-]+", d).group(0).lower().replace("_", "-") for d in deps}
+        assert not (wanted & services) - {name}, f"{pyproject} depends on {wanted & services}"

@@ -23,6 +23,7 @@ from pathlib import Path
 import pytest
 from seaway.contract import keys
 from seaway.contract.messages import Attitude, GnssFix, PeriodDone, StateEstimate, ThrustCommand
+from seaway.recording.reader import iter_messages
 from seaway.runtime import run as runs
 from seaway.runtime.lockstep import Member, Period
 from seaway.runtime.memory_bus import MemoryHub
@@ -33,7 +34,6 @@ from seaway_controller.core import ControllerConfig, ControllerCore
 from seaway_estimator.config import load_estimator_config
 from seaway_estimator.core import EstimatorCore
 from seaway_estimator.service import EstimatorLoop, with_run
-from seaway_recorder.recording import iter_messages
 
 from tests.replay.regen import GOLDENS
 

@@ -19,8 +19,8 @@ import pytest
 from seaway.area.model import OperatingArea
 from seaway.contract import keys
 from seaway.contract.messages import ActiveArea, MissionRequest, MissionStatus, SimTruth, Waypoint
+from seaway.recording import reader
 from seaway.runtime.bus import Bus
-from seaway_recorder import recording
 
 from tests.conftest import REPO, free_port, stack_credentials, wait_for
 
@@ -92,7 +92,7 @@ def test_a_last_leg_pointing_out_is_held_at_the_edge_and_never_leaves(procs, tmp
         time.sleep(1.0)
     procs.stop(launcher, signal.SIGINT, 60.0)
 
-    dec = recording.decode_vessel(recording.open_paths([run_dir]), None,
+    dec = reader.decode_vessel(reader.open_paths([run_dir]), None,
                                   [keys.SIM_TRUTH.suffix, keys.MISSION_STATUS.suffix,
                                    keys.AREA_ACTIVE.suffix])
     truths = [t for t in dec.get(keys.SIM_TRUTH.suffix) if isinstance(t, SimTruth)]

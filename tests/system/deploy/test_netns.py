@@ -187,7 +187,7 @@ def _missing_services() -> list[str]:
 
 
 def _recorded(run_dir: Path, topic: str) -> list:
-    from seaway_recorder.recording import iter_messages, open_paths
+    from seaway.recording.reader import iter_messages, open_paths
 
     return list(iter_messages(open_paths([run_dir]), topics=[topic]))
 

@@ -15,8 +15,8 @@ from pathlib import Path
 import pytest
 from seaway.contract import keys
 from seaway.contract.messages import MissionCommand, MissionStatus, StateEstimate
+from seaway.recording import reader
 from seaway.runtime.bus import Bus
-from seaway_recorder import recording
 
 from tests.conftest import REPO, free_port, stack_credentials, wait_for
 
@@ -73,8 +73,8 @@ def test_a_motion_fault_is_named_and_pauses_the_mission(procs, tmp_path, kind) -
     assert "paused by the controller: motion fault not_moving" in reason, reason
     assert "does not move as commanded" in reason and "commanded" in reason and "measured" in reason
 
-    files = recording.open_paths([run_dir])
-    dec = recording.decode_vessel(files, None, [keys.NAV_STATE.suffix, keys.MISSION_STATUS.suffix,
+    files = reader.open_paths([run_dir])
+    dec = reader.decode_vessel(files, None, [keys.NAV_STATE.suffix, keys.MISSION_STATUS.suffix,
                                                 keys.THRUST.suffix])
     states = sorted((s for s in dec.get(keys.NAV_STATE.suffix) if isinstance(s, StateEstimate)),
                     key=lambda s: s.stamp_ns)

@@ -72,7 +72,7 @@ class Heard:
 @pytest.mark.slow  # two real-time missions, about 36 s; test_fleet_launch runs by default
 def test_two_vessels_fly_different_missions_and_a_command_to_one_never_reaches_the_other(
         procs, zenoh_env, tmp_path) -> None:
-    from seaway_recorder.recording import read_info
+    from seaway.recording.reader import read_info
 
     run = tmp_path / "run"
     launcher = procs.start([sys.executable, "-m", "seaway.tools.cli", "launch", "fleet", "--run-dir",

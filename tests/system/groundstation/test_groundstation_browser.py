@@ -185,9 +185,9 @@ def test_plan_fly_check_and_replay_a_mission_from_the_page(procs, zenoh_env, tmp
     assert page.locator("#p-id").text_content() == "browser-box"
     # The energy budget replays too: the last one recorded for the mission is the one shown.
     from seaway.contract import keys
-    from seaway_recorder import recording
+    from seaway.recording import reader
 
-    dec = recording.decode_vessel(recording.open_paths([run]), None, [keys.MISSION_ENERGY.suffix])
+    dec = reader.decode_vessel(reader.open_paths([run]), None, [keys.MISSION_ENERGY.suffix])
     last = [b for b in dec.get(keys.MISSION_ENERGY.suffix) if b.mission_id == "browser-box"][-1]
     assert page.locator("#e-source").text_content() == "mission/energy"
     assert joules(page.locator("#e-finish").text_content() or "") == pytest.approx(

@@ -37,7 +37,7 @@ def px4_port_held():
 
 def test_the_launcher_prints_the_page_address_and_the_token_stays_out_of_the_run(
         procs, zenoh_env, tmp_path, px4_port_held) -> None:
-    from seaway_recorder.recording import iter_messages, read_info
+    from seaway.recording.reader import iter_messages, read_info
 
     run = tmp_path / "run"
     launcher = procs.start([sys.executable, "-m", "seaway.tools.cli", "launch", "sim", "--run-dir",

@@ -43,9 +43,9 @@ from seaway.contract.messages import (
     ThrustCommand,
     Waypoint,
 )
+from seaway.recording.reader import iter_messages, open_paths
 from seaway.runtime import credentials, stacks
 from seaway.runtime.bus import Bus
-from seaway_recorder.recording import iter_messages, open_paths
 
 from tests.conftest import stack_credentials, wait_for
 from tests.system.hardening.stack import short_lake

@@ -27,11 +27,11 @@ from seaway.contract.messages import (
     MissionStatus,
     StateEstimate,
 )
+from seaway.recording import reader
 from seaway.runtime.bus import Bus
 from seaway.vessel.model import load_vessel
 from seaway_controller.energy import BUDGET_INTERVAL_NS
 from seaway_controller.replay import replay
-from seaway_recorder import recording
 
 from tests.conftest import free_port, stack_credentials, wait_for
 
@@ -103,11 +103,11 @@ def test_a_low_battery_returns_home_and_a_replay_decides_the_same(tmp_path):
                          timeout=600, check=False)
     assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
 
-    files = recording.open_paths([run_dir])
+    files = reader.open_paths([run_dir])
     suffixes = [keys.MISSION_ENERGY.suffix, keys.NAV_STATE.suffix, keys.VEHICLE_BATTERY.suffix,
                 keys.SOLVE.suffix, keys.MISSION_STATUS.suffix, keys.MISSION_ACCEPTED.suffix,
                 keys.SIM_TRUTH.suffix]
-    dec = recording.decode_vessel(files, None, suffixes)
+    dec = reader.decode_vessel(files, None, suffixes)
     budgets = [b for b in dec.get(keys.MISSION_ENERGY.suffix) if isinstance(b, EnergyBudget)]
     assert budgets, "no mission/energy recorded"
     k = next(i for i, b in enumerate(budgets) if b.decision != "none")
@@ -170,7 +170,7 @@ def test_a_controller_killed_at_the_return_decision_flies_home_as_a_return(procs
     restarted = log.split(" starting on vessel")[-1]
     assert "resumed mission" in restarted and "Traceback" not in restarted
 
-    dec = recording.decode_vessel(recording.open_paths([run_dir]), None,
+    dec = reader.decode_vessel(reader.open_paths([run_dir]), None,
                                   [keys.MISSION_ENERGY.suffix, keys.MISSION_STATUS.suffix,
                                    keys.SIM_TRUTH.suffix, keys.VEHICLE_BATTERY.suffix,
                                    keys.MISSION_ACCEPTED.suffix])
@@ -209,7 +209,7 @@ def test_real_time_a_controller_killed_at_the_return_decision_flies_home_as_a_re
     assert log.count(" starting on vessel") == 2, "the controller was not restarted"
     restarted = log.split(" starting on vessel")[-1]
     assert "resumed mission" in restarted and "Traceback" not in restarted, restarted[-3000:]
-    dec = recording.decode_vessel(recording.open_paths([run_dir]), None,
+    dec = reader.decode_vessel(reader.open_paths([run_dir]), None,
                                   [keys.MISSION_ENERGY.suffix, keys.MISSION_STATUS.suffix])
     home = [b for b in dec.get(keys.MISSION_ENERGY.suffix)
             if isinstance(b, EnergyBudget) and b.mission_id.endswith("/return")]

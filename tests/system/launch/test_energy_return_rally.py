@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 from seaway.contract import keys
 from seaway.contract.messages import BatteryState, MissionAccepted, MissionStatus, SimTruth
-from seaway_recorder import recording
+from seaway.recording import reader
 
 from tests.conftest import free_port
 from tests.system.launch.test_energy_return import _env, _scenario
@@ -36,7 +36,7 @@ def test_a_low_battery_returns_to_the_nearer_rally_point(tmp_path) -> None:
                          capture_output=True, text=True, timeout=500, check=False)
     assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
 
-    dec = recording.decode_vessel(recording.open_paths([run_dir]), None, [
+    dec = reader.decode_vessel(reader.open_paths([run_dir]), None, [
         keys.MISSION_ACCEPTED.suffix, keys.MISSION_STATUS.suffix, keys.SIM_TRUTH.suffix,
         keys.VEHICLE_BATTERY.suffix])
     accepted = [a for a in dec.get(keys.MISSION_ACCEPTED.suffix) if isinstance(a, MissionAccepted)]

@@ -27,8 +27,8 @@ from pathlib import Path
 
 import pytest
 from seaway.contract import keys
+from seaway.recording.reader import iter_messages, open_paths
 from seaway.runtime.bus import Bus
-from seaway_recorder.recording import iter_messages, open_paths
 
 from tests.conftest import wait_for
 

@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 
 import pytest
-from seaway_recorder.recording import finished, iter_messages
+from seaway.recording.reader import finished, iter_messages
 
 from tests.conftest import BIN, wait_for
 from tests.system.launch.test_launcher import DUMMY, launch, write_profile

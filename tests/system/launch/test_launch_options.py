@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 from seaway.contract import keys
 from seaway.contract.messages import SolveRecord, ThrustCommand
-from seaway_recorder import recording
+from seaway.recording import reader
 
 pytestmark = pytest.mark.system
 BIN = Path(sys.executable).parent
@@ -36,7 +36,7 @@ def test_the_launch_options_choose_the_controller_and_the_prediction(tmp_path, z
     assert "nmpc, predicting the estimated tau_d" in (run_dir / "logs" / "controller.log").read_text()
 
     # The recording: every solve is NMPC's, and NMPC flew the mission.
-    dec = recording.decode_vessel([run_dir / "recording.mcap"], None,
+    dec = reader.decode_vessel([run_dir / "recording.mcap"], None,
                                   [keys.SOLVE.suffix, keys.THRUST.suffix])
     solves = [m for m in dec.get(keys.SOLVE.suffix) if isinstance(m, SolveRecord)]
     assert solves and {s.controller for s in solves} == {"nmpc"}

@@ -23,10 +23,10 @@ from pathlib import Path
 import pytest
 from seaway.contract import keys
 from seaway.contract.messages import MissionStatus, NavResetRequest, ScenarioRequest, SimTruth
+from seaway.recording import reader
 from seaway.runtime.bus import Bus
 from seaway.runtime.service import STACKS_SIGNAL
 from seaway.simkit.scenario import load_scenario
-from seaway_recorder import recording
 from seaway_recorder.report import episodes
 
 from tests.conftest import free_port, stack_credentials, wait_for
@@ -160,8 +160,8 @@ def report(run_dir: Path, episode: int | None = None) -> dict:
 
 def truth_episodes(run_dir: Path) -> list[list[int]]:
     """The sim/truth stamps of each episode, every recording file of the run read (and repaired)."""
-    files = recording.open_paths([run_dir])
-    dec = recording.decode_vessel(files, None, [keys.SIM_TRUTH.suffix])
+    files = reader.open_paths([run_dir])
+    dec = reader.decode_vessel(files, None, [keys.SIM_TRUTH.suffix])
     out = []
     for start, end in episodes(dec):
         part = dec.between(start, end)
@@ -218,12 +218,12 @@ def test_a_member_killed_mid_mission_comes_back_and_the_run_finishes(victim, tmp
     else:
         assert rep["episodes"]["count"] == 1
         if victim == "recorder":
-            assert len(recording.open_paths([stack.run_dir])) == 2  # the file it left, a new one
+            assert len(reader.open_paths([stack.run_dir])) == 2  # the file it left, a new one
         # One timeline: every sample at the run's epoch plus its stamp. (The repeat the newcomer
         # caused sent copies of earlier periods, and a live recorder took the sim's for a new
         # episode: the rest of the recording lay later by the time flown so far.)
-        files = recording.open_paths([stack.run_dir])
-        dec = recording.decode_vessel(files, None, [keys.SIM_TRUTH.suffix])
+        files = reader.open_paths([stack.run_dir])
+        dec = reader.decode_vessel(files, None, [keys.SIM_TRUTH.suffix])
         offsets = {t - m.stamp_ns for t, m in zip(dec.log_ns[keys.SIM_TRUTH.suffix],
                                                    dec.get(keys.SIM_TRUTH.suffix), strict=True)}
         assert len(offsets) == 1, sorted(offsets)
@@ -305,9 +305,9 @@ def test_a_mission_taken_while_the_recorder_restarts_is_recorded_whole(tmp_path)
     stack.kill("recorder")
     stack.fly("second")
     stack.stop()
-    files = recording.open_paths([stack.run_dir])
+    files = reader.open_paths([stack.run_dir])
     assert len(files) == 2  # the file it left, a new one
-    dec = recording.decode_vessel(files, None, [keys.MISSION_ACCEPTED.suffix,
+    dec = reader.decode_vessel(files, None, [keys.MISSION_ACCEPTED.suffix,
                                                 keys.MISSION_STATUS.suffix])
     assert [m.mission_id for m in dec.get(keys.MISSION_ACCEPTED.suffix)] == [SCENARIO, "second"]
     statuses = [m for m in dec.get(keys.MISSION_STATUS.suffix) if isinstance(m, MissionStatus)]

@@ -13,9 +13,9 @@ from pathlib import Path
 import pytest
 from seaway.contract import keys
 from seaway.contract.messages import SimTruth, ThrustCommand
+from seaway.recording import reader
 from seaway.vessel.model import load_vessel
 from seaway.vessel.thrusters import output_stage
-from seaway_recorder import recording
 
 pytestmark = pytest.mark.system
 BIN = Path(sys.executable).parent
@@ -30,7 +30,7 @@ def test_nmpc_finishes_the_lake_with_its_small_demands_sent_as_vehicle_io_sends_
     log = out.stdout[-3000:] + out.stderr[-3000:]
     assert out.returncode == 0 and "mission complete" in out.stdout, log
 
-    dec = recording.decode_vessel([run_dir / "recording.mcap"], None,
+    dec = reader.decode_vessel([run_dir / "recording.mcap"], None,
                                   [keys.THRUST.suffix, keys.SIM_TRUTH.suffix])
     commands = {m.stamp_ns: m for m in dec.get(keys.THRUST.suffix) if isinstance(m, ThrustCommand)}
     truths = [m for m in dec.get(keys.SIM_TRUTH.suffix) if isinstance(m, SimTruth)]

@@ -17,8 +17,8 @@ from pathlib import Path
 import pytest
 from seaway.contract import keys
 from seaway.contract.messages import ClockTick, SolveRecord, StateEstimate, ThrustCommand
+from seaway.recording import reader, runinfo
 from seaway.vessel.model import load_vessel
-from seaway_recorder import recording, runinfo
 
 from tests.conftest import wait_for
 
@@ -54,9 +54,9 @@ def test_the_control_period_is_set_in_one_place_and_every_service_and_the_report
     run = json.loads((run_dir / "run.json").read_text())
     assert run["control_period_s"] == 0.2 and run["clock"] == "lockstep"
     files = [run_dir / "recording.mcap"]
-    atts = recording.read_info(files).attachments
+    atts = reader.read_info(files).attachments
     assert runinfo.run_from_attachments(atts).control_period_s == 0.2  # the recording carries the run
-    dec = recording.decode_vessel(files, None, [keys.SIM_CLOCK.suffix, keys.NAV_STATE.suffix,
+    dec = reader.decode_vessel(files, None, [keys.SIM_CLOCK.suffix, keys.NAV_STATE.suffix,
                                                 keys.THRUST.suffix, keys.SOLVE.suffix])
     ticks = [m for m in dec.get(keys.SIM_CLOCK.suffix) if isinstance(m, ClockTick)]
     states = [m for m in dec.get(keys.NAV_STATE.suffix) if isinstance(m, StateEstimate)]
@@ -101,7 +101,7 @@ def test_a_plant_that_differs_from_the_model_flies_condition_4(tmp_path, zenoh_e
     sim_log = (run_dir / "logs" / "sim.log").read_text()
     assert "plant vessel paper-sim-perturbed, model vessel paper-sim" in sim_log
     assert "model paper-sim" in (run_dir / "logs" / "controller.log").read_text()
-    atts = recording.read_info([run_dir / "recording.mcap"]).attachments
+    atts = reader.read_info([run_dir / "recording.mcap"]).attachments
     assert any(n.startswith("plant-vessel/") for n in atts) and any(n.startswith("vessel/") for n in atts)
     met = _report(run_dir)["metrics"]
     assert met["completed"] and met["legs_completed"] == 2

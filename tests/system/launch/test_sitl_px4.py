@@ -20,8 +20,8 @@ from pathlib import Path
 import pytest
 from seaway.contract import keys
 from seaway.contract.messages import ThrustCommand
+from seaway.recording import reader
 from seaway.vessel.model import load_vessel
-from seaway_recorder import recording
 
 from tests.conftest import REPO, solver_built
 from tests.system.vehicle_io.px4_sitl import needs_px4
@@ -127,6 +127,6 @@ def test_the_lake_mission_on_px4_sitl_with_the_identified_model(tmp_path, zenoh_
     # vehicle_io's sensors, and the thrust came from CC-EMPC.
     topics = report["recording"]["topics"]
     assert not any("/sim/" in t for t in topics) and metrics["state_source"] == "nav/state"
-    dec = recording.decode_vessel([run_dir / "recording.mcap"], None, [keys.THRUST.suffix])
+    dec = reader.decode_vessel([run_dir / "recording.mcap"], None, [keys.THRUST.suffix])
     sources = [m.source for m in dec.get(keys.THRUST.suffix) if isinstance(m, ThrustCommand)]
     assert sources.count("cc-empc") > 0.8 * solve["count"]

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 from mcap.reader import make_reader
-from seaway_recorder.recover import recover
+from seaway.recording.recover import recover
 
 from tests.conftest import wait_for
 from tests.system.recorder.test_foxglove_recording import SCENARIO

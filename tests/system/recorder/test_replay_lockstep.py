@@ -25,7 +25,7 @@ from pathlib import Path
 
 import pytest
 from seaway.contract.messages import StateEstimate, ThrustCommand
-from seaway_recorder.recording import iter_messages
+from seaway.recording.reader import iter_messages
 
 pytestmark = pytest.mark.system
 

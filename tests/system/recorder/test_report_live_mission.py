@@ -51,7 +51,7 @@ def cross_track(x: np.ndarray, y: np.ndarray, wps: list[tuple[float, float]], co
 
 
 def test_a_mission_sent_live_is_reported_against_the_path_sent(procs, zenoh_env, tmp_path) -> None:
-    from seaway_recorder.recording import decode_vessel
+    from seaway.recording.reader import decode_vessel
 
     run = tmp_path / "run"
     mission_file = tmp_path / "probe.toml"

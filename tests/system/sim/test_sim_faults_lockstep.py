@@ -12,8 +12,8 @@ from pathlib import Path
 import pytest
 from seaway.contract import keys
 from seaway.contract.messages import GnssFix, SimTruth
+from seaway.recording.reader import iter_messages
 from seaway.runtime.bus import Bus
-from seaway_recorder.recording import iter_messages
 
 from tests.conftest import BIN, REPO, wait_for
 

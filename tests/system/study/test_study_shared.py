@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 
 import pytest
-from seaway_recorder import recording
+from seaway.recording import reader
 from seaway_recorder.report import episodes, read_for_report
 
 from tests.conftest import BIN, REPO
@@ -48,7 +48,7 @@ def test_runs_flown_one_after_another_on_one_stack_equal_fresh_stacks(tmp_path: 
     assert folders == {str(tmp_path / "shared" / "runs" / "stack-1")}
     assert sorted(r["episode"] for r in runs.values()) == [0, 1]
     assert len({r["port"] for r in runs.values()}) == 1
-    files = recording.open_paths(folders)
+    files = reader.open_paths(folders)
     assert len(episodes(read_for_report(files)[1])) == 2
     first, second = sorted(runs.values(), key=lambda r: r["episode"])
     assert "startup_s" in first["timing"] and "switch_s" not in first["timing"]

@@ -31,8 +31,8 @@ from pathlib import Path
 import pytest
 from seaway.contract import keys
 from seaway.contract.messages import ArmRequest, ModeRequest, ThrustCommand
+from seaway.mavlink.signing import signing_timestamp, write_key
 from seaway.runtime.bus import Bus
-from seaway.vessel.mavlink_signing import signing_timestamp, write_key
 from seaway_vehicle_io.mav import mavlink
 
 from tests.conftest import BIN, PYTHON, Procs, wait_for

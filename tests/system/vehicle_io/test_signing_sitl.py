@@ -31,14 +31,14 @@ from pathlib import Path
 import pytest
 from seaway.contract import keys
 from seaway.contract.messages import ModeRequest
-from seaway.runtime.bus import Bus
-from seaway.vessel.mavlink_signing import (
+from seaway.mavlink.signing import (
     ACCEPTED,
     BAD_SIGNATURE,
     SignatureVerifier,
     read_key,
     signing_timestamp,
 )
+from seaway.runtime.bus import Bus
 from seaway_vehicle_io import ardupilot, px4
 from seaway_vehicle_io.mav import mavlink
 

@@ -138,12 +138,12 @@ def test_only_the_last_message_of_a_kind_per_frame_is_decoded() -> None:
 
 
 def test_a_timeline_answers_only_for_the_frames_it_has_cut(runs: Path) -> None:
+    from seaway.recording import reader
     from seaway_groundstation.timeline import Timeline
-    from seaway_recorder import recording
 
     write_run(runs / "r1", n=50, chunk_size=2048)
-    files = recording.open_paths([runs / "r1"])
-    info = recording.read_info(files)
+    files = reader.open_paths([runs / "r1"])
+    info = reader.read_info(files)
     tl = Timeline(files, info.summaries, info.start_ns, 20.0, 2.0)
     assert tl.window(0.0, 10.0) == ("[]", 0, 0.0) and not tl.complete  # nothing read yet
     tl.start().wait(10.0, 30.0)
@@ -156,10 +156,10 @@ def _whole_cut(files: list[Path], info: Any) -> list[replay.ReplayFrame]:
     """The frames as cut from every message decoded first (the way it was done before)."""
     import heapq
 
+    from seaway.recording import reader
     from seaway_groundstation.gateway import TOPICS
-    from seaway_recorder import recording
 
-    dec = recording.decode_vessel(files, V, [s.suffix for s in TOPICS.values()], info.summaries)
+    dec = reader.decode_vessel(files, V, [s.suffix for s in TOPICS.values()], info.summaries)
     streams = [[(t, V, kind, m) for t, m in zip(dec.log_ns.get(spec.suffix, []), dec.get(spec.suffix),
                                                 strict=True)] for kind, spec in TOPICS.items()]
     return replay.cut_frames(heapq.merge(*streams, key=lambda s: s[0]), info.start_ns, 20.0, 2.0)

@@ -19,13 +19,13 @@ from pathlib import Path
 
 from seaway.contract import keys
 from seaway.contract.messages import ClockTick
+from seaway.recording import reader
+from seaway.recording.timebase import RecordingTime
 from seaway.runtime.lockstep import Member, Period
 from seaway.runtime.memory_bus import MemoryHub
-from seaway_recorder import recording
 from seaway_recorder.record import KeptKeys, LockstepWitness, SampleQueue, _drain
 from seaway_recorder.replay import replay
 from seaway_recorder.replay_lockstep import LockstepPacer
-from seaway_recorder.timebase import RecordingTime
 from seaway_recorder.writer import RecordingWriter
 
 P = 100_000_000
@@ -69,7 +69,7 @@ def record_a_run_with_a_repeat(folder: Path) -> RecordingWriter:
 def test_a_repeat_starts_no_episode_and_moves_no_log_time(tmp_path: Path) -> None:
     writer = record_a_run_with_a_repeat(tmp_path)
     assert writer.time.episode == 0 and writer.time.offset_ns == EPOCH_NS
-    dec = recording.decode_vessel(recording.open_paths([tmp_path]), V,
+    dec = reader.decode_vessel(reader.open_paths([tmp_path]), V,
                                   [keys.SIM_CLOCK.suffix, keys.LOCKSTEP_SIM.suffix])
     ticks = dec.get(keys.SIM_CLOCK.suffix)
     assert [m.stamp_ns for m in ticks] == [k * P for k in range(6)]  # each once
@@ -96,8 +96,8 @@ def test_a_lockstep_replay_of_it_plays_no_copy(tmp_path: Path) -> None:
 
     est.on_ready = answer
     est.join()
-    files = recording.open_paths([tmp_path])
-    t = threading.Thread(target=replay, args=(recording.iter_messages(files), hub.bus(V),
+    files = reader.open_paths([tmp_path])
+    t = threading.Thread(target=replay, args=(reader.iter_messages(files), hub.bus(V),
                                               lambda _key: True, None, stop), kwargs={"pacer": pacer})
     t.start()
     t.join(60)  # milliseconds of work; a copy played as a period was sent again for ever
@@ -130,7 +130,7 @@ def test_a_restarted_sims_first_period_is_written_though_its_bytes_repeat(tmp_pa
             sim.answer(Period(0, k * P), P, [(keys.SIM_CLOCK, clock(k * P))], members=["recorder"])
             drain()
     writer.close()
-    dec = recording.decode_vessel(recording.open_paths([tmp_path]), V, [keys.SIM_CLOCK.suffix])
+    dec = reader.decode_vessel(reader.open_paths([tmp_path]), V, [keys.SIM_CLOCK.suffix])
     assert [m.stamp_ns // P for m in dec.get(keys.SIM_CLOCK.suffix)] == [0, 1, 2, 0, 1]
     assert writer.time.episode == 1
 

@@ -1,23 +1,22 @@
-"""Run information (attachments in, mission and vessel back out) and replay's key filter and pacing."""
+"""Run information through the recorder (a scenario's files attached, read back) and replay's key
+filter and pacing. Reading attachments alone: tests/unit/common/test_recording_runinfo.py."""
 
 from __future__ import annotations
 
-import json
-import math
 import threading
 from pathlib import Path
 
 import pytest
+from seaway.recording import runinfo
+from seaway.recording.reader import RecordedMessage
 from seaway.runtime.bus import RawSample
 from seaway.runtime.memory_bus import MemoryBus, MemoryHub
-from seaway.vessel.frames import GeoOrigin
-from seaway_recorder import runinfo
-from seaway_recorder.recording import RecordedMessage
+from seaway_recorder import attachments
 from seaway_recorder.replay import KeyFilter, normalise, replay
 
 
 def test_scenario_attachments_bring_the_vessel_and_data_files() -> None:
-    atts, scen = runinfo.scenario_attachments("paper-c5")
+    atts, scen = attachments.scenario_attachments("paper-c5")
     names = [a.name for a in atts]
     assert names == ["scenario/paper-c5.toml", "scenario-data/data/condition5_grid.json",
                      "vessel/paper-sim.toml"]
@@ -30,29 +29,14 @@ def test_scenario_attachments_bring_the_vessel_and_data_files() -> None:
     assert runinfo.scenario_from_attachments(by).origin.lat_deg == scen.origin.lat_deg
 
 
-def test_mission_attachment_wins_and_geodetic_waypoints_use_the_origin() -> None:
-    origin = GeoOrigin(math.radians(47.0), math.radians(8.0), 0.0)
-    lat, lon, _ = origin.to_geodetic(10.0, -5.0)
-    geo = {"lat_deg": math.degrees(lat), "lon_deg": math.degrees(lon)}
-    doc = {"waypoints": [{"x_m": 0.0, "y_m": 0.0}, geo], "coa_radius_m": 2.0, "task_power_w": 1.5}
-    atts = {"mission/m.json": json.dumps(doc).encode(),
-            "scenario/s.toml": b'[mission]\nwaypoints_m = [[0, 0], [1, 1]]\ncoa_radius_m = 1.0\n'}
-    m = runinfo.mission_from_attachments(atts, origin)
-    assert m.coa_radius_m == 2.0 and m.task_power_w == 1.5 and m.source == "attachment mission/m.json"
-    assert m.waypoints[1] == pytest.approx((10.0, -5.0), abs=1e-6)
-    with pytest.raises(ValueError, match="no origin"):
-        runinfo.mission_from_attachments(atts, None)
-    assert runinfo.mission_from_attachments({"config/x.toml": b"a = 1"}, None) is None
-
-
 def test_attach_roles(tmp_path: Path) -> None:
     f = tmp_path / "profile.toml"
     f.write_text("x = 1\n")
-    assert runinfo.parse_attach_arg(f"profile={f}").name == "profile/profile.toml"
-    a = runinfo.parse_attach_arg(str(f))
+    assert attachments.parse_attach_arg(f"profile={f}").name == "profile/profile.toml"
+    a = attachments.parse_attach_arg(str(f))
     assert (a.name, a.media_type, a.data) == ("config/profile.toml", "application/toml", b"x = 1\n")
     with pytest.raises(Exception, match="cannot attach"):
-        runinfo.parse_attach_arg(str(tmp_path / "missing.toml"))
+        attachments.parse_attach_arg(str(tmp_path / "missing.toml"))
 
 
 def test_key_filter() -> None:

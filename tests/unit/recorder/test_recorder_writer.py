@@ -11,10 +11,10 @@ import pytest
 from mcap.reader import make_reader
 from seaway.contract import bundle, keys
 from seaway.contract.messages import NavOrigin, PeriodDone, SimTruth, ThrustCommand
+from seaway.recording.reader import iter_messages, open_paths, read_info
+from seaway.recording.recover import recover
 from seaway.vessel.frames import GeoOrigin
 from seaway_recorder.record import KeptKeys, lockstep_exprs, recorded_suffixes
-from seaway_recorder.recording import iter_messages, open_paths, read_info
-from seaway_recorder.recover import recover
 from seaway_recorder.schemas import foxglove_json_schema
 from seaway_recorder.writer import AttachmentSpec, RecordingWriter
 

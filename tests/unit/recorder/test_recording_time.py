@@ -1,20 +1,19 @@
-"""The recording's time convention (``timebase``), the log-file tail, and both through the writer:
-in lockstep every log time is the sim time on the run's epoch (no clock read: times passed in)."""
+"""The log-file tail, and the recording's time convention (``seaway.recording.timebase``) through the
+writer: in lockstep every log time is the sim time on the run's epoch (no clock read: times passed
+in). The convention alone: tests/unit/common/test_recording_timebase.py."""
 
 from __future__ import annotations
 
-import datetime as dt
 import json
 import logging
 from pathlib import Path
 
-import pytest
 from mcap.reader import make_reader
 from seaway.contract import keys
 from seaway.contract.messages import NavOrigin, SimTruth
+from seaway.recording.timebase import RecordingTime
 from seaway.tools.launch.events import EVENTS_TOPIC
 from seaway_recorder.logtail import LogLine, LogTail, parse_line
-from seaway_recorder.timebase import RecordingTime, parse_epoch
 from seaway_recorder.writer import RecordingWriter
 
 from tests.unit.recorder.foxglove_check import foxglove_messages, t_ns
@@ -22,54 +21,6 @@ from tests.unit.recorder.foxglove_check import foxglove_messages, t_ns
 V = "v1"
 E = 1_780_000_000_000_000_000  # the run's epoch [ns]
 TRUTH = keys.SIM_TRUTH.key(V)
-STATE = keys.NAV_STATE.key(V)
-
-
-def test_real_time_keeps_receive_times_and_stamps() -> None:
-    t = RecordingTime.real_time()
-    assert t.bus(TRUTH, 123, 456) == 456
-    assert t.wall(789) == 789
-    assert t.foxglove_ns(123) == 123
-    assert t.metadata()["log_time"] == "receive"
-
-
-def test_lockstep_logs_sim_time_on_the_epoch_and_places_wall_events_in_sim_time() -> None:
-    t = RecordingTime(lockstep=True, epoch_ns=E)
-    w0 = 1_790_000_000_000_000_000  # wall time the sim started at
-    assert t.wall(w0 - 5_000_000_000) == E  # before the sim's first sample: its start
-    # Sim time runs 10x faster than the wall here: 1 s of sim per 0.1 s of wall.
-    for k in range(5):
-        assert t.bus(TRUTH, k * 1_000_000_000, w0 + k * 100_000_000) == E + k * 1_000_000_000
-        assert t.foxglove_ns(k * 1_000_000_000) == E + k * 1_000_000_000
-    # Something at a wall time between two samples happened at the sim time reached then.
-    assert t.wall(w0 + 250_000_000) == E + 2_000_000_000
-    assert t.wall(w0 + 10_000_000_000) == E + 4_000_000_000
-    # A wall-clock stamp (a process not on the sim clock) is placed where it arrived.
-    assert t.bus(keys.VEHICLE_STATUS.key(V), w0 + 150_000_000, w0 + 150_000_000) == E + 1_000_000_000
-    meta = t.metadata()
-    assert (meta["log_time"], meta["epoch_ns"]) == ("sim", str(E))
-
-
-def test_a_new_lockstep_episode_continues_the_timeline() -> None:
-    t = RecordingTime(lockstep=True, epoch_ns=E, gap_ns=100_000_000)
-    for k in range(31):  # episode 0: 0 .. 3 s
-        t.bus(TRUTH, k * 100_000_000, 1000 + k)
-    assert t.bus(TRUTH, 0, 2000) == E + 3_100_000_000  # time back to 0: a new episode
-    assert t.bus(STATE, 0, 2001) == E + 3_100_000_000
-    assert t.new_episodes == [{"episode": "1", "offset_ns": str(E + 3_100_000_000),
-                               "offset_utc": dt.datetime.fromtimestamp((E + 3_100_000_000) / 1e9,
-                                                                       dt.UTC).isoformat(
-                                   timespec="milliseconds")}]
-    assert t.bus(TRUTH, 100_000_000, 2002) == E + 3_200_000_000
-
-
-def test_sim_epoch_option() -> None:
-    assert parse_epoch("2026-05-01T09:00:00Z") == int(dt.datetime(2026, 5, 1, 9, tzinfo=dt.UTC)
-                                                      .timestamp()) * 10**9
-    assert parse_epoch("2026-05-01T09:00:00") == parse_epoch("2026-05-01T09:00:00+00:00")
-    assert parse_epoch("1780000000.5") == 1_780_000_000_500_000_000
-    with pytest.raises(ValueError, match="ISO 8601"):
-        parse_epoch("yesterday")
 
 
 def test_log_lines_are_parsed_as_the_services_write_them() -> None:

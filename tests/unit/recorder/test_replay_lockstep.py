@@ -15,10 +15,10 @@ from pathlib import Path
 import pytest
 from seaway.contract import keys
 from seaway.contract.messages import PeriodDone
+from seaway.recording.reader import RecordingInfo
 from seaway.runtime.bus import Bus
 from seaway.runtime.lockstep import Ledger, Member, Period
 from seaway.runtime.memory_bus import MemoryHub
-from seaway_recorder.recording import RecordingInfo
 from seaway_recorder.replay import KeyFilter, lockstep_vessel
 from seaway_recorder.replay_lockstep import LockstepPacer
 

@@ -21,7 +21,7 @@ from seaway.contract.messages import (
     Waypoint,
 )
 from seaway.vessel.metrics import mission_metrics
-from seaway_recorder import budget, report, runinfo
+from seaway_recorder import attachments, budget, report
 from seaway_recorder.writer import RecordingWriter
 
 DT_NS = 100_000_000
@@ -115,7 +115,7 @@ def test_a_return_home_is_reported_on_both_flights(tmp_path: Path) -> None:
     """The budget decides the return at 5 s (x = 5 m): the controller replaces mission 'm' by
     'm/return' (back to P0) in the same period; the report has an energy section for each flight,
     the decision on both, and the prediction's errors only on the one that completed."""
-    w = RecordingWriter(tmp_path / "recording.mcap", attachments=runinfo.scenario_attachments("lake")[0],
+    w = RecordingWriter(tmp_path / "recording.mcap", attachments=attachments.scenario_attachments("lake")[0],
                         foxglove=False)
     w.open(0)
 
@@ -175,7 +175,7 @@ def test_the_report_gives_one_energy_used_and_the_controllers_count_as_its_check
     """Truth, statuses counting 21 J/s (a little late: 0.2 s past the end) and budgets priced once a
     second: one 'energy used' (the report's integral), the controller's count at the same end beside
     it, and neither the budget's stale count nor the status's last one as another energy used."""
-    w = RecordingWriter(tmp_path / "recording.mcap", attachments=runinfo.scenario_attachments("lake")[0],
+    w = RecordingWriter(tmp_path / "recording.mcap", attachments=attachments.scenario_attachments("lake")[0],
                         foxglove=False)
     w.open(0)
 

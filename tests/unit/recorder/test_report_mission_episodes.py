@@ -6,8 +6,8 @@ from __future__ import annotations
 
 from seaway.contract import keys
 from seaway.contract.messages import MissionAccepted, SimTruth
+from seaway.recording.reader import Decoded
 from seaway_recorder import report
-from seaway_recorder.recording import Decoded
 
 TRUTH, ACCEPTED = keys.SIM_TRUTH.suffix, keys.MISSION_ACCEPTED.suffix
 PERIOD_NS = 100_000_000

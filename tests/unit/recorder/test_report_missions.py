@@ -25,7 +25,8 @@ from seaway.contract.messages import (
     StateEstimate,
     Waypoint,
 )
-from seaway_recorder import missions, report, runinfo
+from seaway.recording import runinfo
+from seaway_recorder import attachments, missions, report
 from seaway_recorder.writer import RecordingWriter
 
 V = "vessel1"
@@ -56,7 +57,7 @@ def write(path: Path, flights: list[tuple[str, list[tuple[float, float]], int]],
     """One episode: each flight (mission id, waypoints, periods) after the other, the boat at
     1 m/s north, restarting from x = 0 for each; the controller's status every period; each of
     ``announced`` (``mission/accepted``) at its stamp, before that period's status."""
-    atts, _ = runinfo.scenario_attachments("lake")
+    atts, _ = attachments.scenario_attachments("lake")
     w = RecordingWriter(path, attachments=atts, foxglove=False)
     w.open(0)
     k = 0
@@ -220,7 +221,7 @@ def test_when_the_estimate_completed_the_mission_and_the_true_track_did_not_both
     # enters the 1 m circle at (20, 0), with the true boat still 1.6 m short of the waypoint.
     from seaway_lab.study.execute import not_completed_text
 
-    atts, _ = runinfo.scenario_attachments("lake")
+    atts, _ = attachments.scenario_attachments("lake")
     w = RecordingWriter(tmp_path / "r.mcap", attachments=atts, foxglove=False)
     w.open(0)
     for k in range(200):

@@ -13,8 +13,9 @@ import shutil
 from pathlib import Path
 
 import pytest
-from seaway_recorder import recover, report
-from seaway_recorder.recording import finished
+from seaway.recording import recover
+from seaway.recording.reader import finished
+from seaway_recorder import report
 
 GOLDEN = Path(__file__).resolve().parents[2] / "replay" / "data" / "lake-30s.mcap"
 

@@ -14,7 +14,7 @@ from pathlib import Path
 from mcap.reader import make_reader
 from seaway.contract import keys
 from seaway.contract.messages import ThrustCommand
-from seaway_recorder.recording import iter_messages, read_info
+from seaway.recording.reader import iter_messages, read_info
 from seaway_recorder.writer import RecordingWriter
 
 KEY = keys.THRUST.key("vessel1")

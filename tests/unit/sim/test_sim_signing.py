@@ -10,17 +10,17 @@ import time
 
 import pytest
 from pymavlink.dialects.v20 import common as ml
-from seaway.vessel.mavlink_signing import (
+from seaway.mavlink.signing import (
     ACCEPTED,
     BAD_SIGNATURE,
     NEW_STREAM_MAX_AGE,
     REPLAYED,
     UNSIGNED,
     SignatureVerifier,
-    frame_ids,
     keep_up,
     signing_timestamp,
 )
+from seaway.mavlink.wire import frame_ids
 from seaway_sim.main import main as sim_main
 from seaway_sim.mavlink_link import MAX_DATAGRAMS_PER_RECEIVE, MavlinkLink
 

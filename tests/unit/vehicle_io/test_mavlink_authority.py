@@ -18,15 +18,15 @@ import pytest
 from seaway.contract.config import ConfigError, parse_config
 from seaway.contract.messages import ThrustCommand, VehicleStatus
 from seaway.contract.units import NS_PER_S
-from seaway.runtime.run import resolve
-from seaway.vessel import mavlink_signing
-from seaway.vessel.mavlink_signing import (
+from seaway.mavlink import signing as mavlink_signing
+from seaway.mavlink.signing import (
     KeyFileError,
     SignatureVerifier,
     read_key,
     signing_timestamp,
     write_key,
 )
+from seaway.runtime.run import resolve
 from seaway_vehicle_io import authority
 from seaway_vehicle_io.authority import (
     BAD_SIGNATURE,

@@ -10,7 +10,7 @@ import time
 
 import pytest
 from seaway.contract.config import ConfigError, parse_config
-from seaway.vessel.mavlink_signing import (
+from seaway.mavlink.signing import (
     ACCEPTED,
     KEY_BYTES,
     TIMESTAMP_UNITS_PER_S,

@@ -58,11 +58,11 @@ def repeat_recording(src: Path, dst: Path, target_bytes: int) -> tuple[int, int]
     """Write the bus messages of ``src`` again and again into ``dst`` with the recorder's writer,
     each repetition after the last on the log-time clock, until ``dst`` holds ``target_bytes``;
     (repetitions, messages written)."""
-    from seaway_recorder import recording
+    from seaway.recording import reader
     from seaway_recorder.writer import RecordingWriter
 
-    files = recording.open_paths([src])
-    msgs = [(m.log_time_ns, m.topic, m.data) for m in recording.iter_messages(files)
+    files = reader.open_paths([src])
+    msgs = [(m.log_time_ns, m.topic, m.data) for m in reader.iter_messages(files)
             if (spec := keys.spec_for_key(m.topic)) is not None and spec.message is not None]
     if not msgs:
         raise SystemExit(f"seaway bench groundstation: {src} has no bus messages to replay")

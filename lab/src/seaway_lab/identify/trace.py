@@ -123,7 +123,7 @@ def from_messages(thrust: list[tuple[int, ThrustCommand]], gnss: list[GnssFix],
 
 def from_recording(path: str | Path, vessel: str | None = None) -> Trace:
     """The trace of a recording (an MCAP file or a run folder) of one vessel."""
-    from seaway_recorder.recording import decode_vessel, open_paths
+    from seaway.recording.reader import decode_vessel, open_paths
 
     files = open_paths([path])
     wanted = (keys.THRUST.suffix, keys.GNSS.suffix, keys.ATTITUDE.suffix)

@@ -612,7 +612,7 @@ def report_json(run_dir: str | Path, *, episode: int | None = None, read: Any = 
     ``episode``, ``read`` (``report.read_for_report`` of the folder) and ``scenario``: one of the
     runs a shared stack flew (``run_shared``), from one decode of its recording; its mission is the
     one the controller recorded accepting (the launcher sent none: no ``mission.json``)."""
-    from seaway_recorder import recording
+    from seaway.recording import reader as recording
     from seaway_recorder import report as rep
 
     mission = Path(run_dir) / MISSION_FILE
@@ -955,7 +955,7 @@ class SharedStack:
         self.stop(outs[-1] if outs else None)
         if not outs:
             return []
-        from seaway_recorder import recording
+        from seaway.recording import reader as recording
         from seaway_recorder import report as rep
 
         try:

@@ -5,12 +5,12 @@
   the folder once resolved (no ``..``, no absolute path, no symbolic link out).
 * ``UploadStore``: uploaded ``.mcap`` files in a private folder, a bounded number of them, each
   checked to be MCAP and to read; named ``upload:<id>-<name>.mcap``.
-* ``Library``: opens a recording with the recorder's own reading code (``seaway_recorder``:
-  series, crash-truncated files, duplicates), has it cut into the live stream's frames by a thread
+* ``Library``: opens a recording with the shared reader (``seaway.recording``: series,
+  crash-truncated files, duplicates), has it cut into the live stream's frames by a thread
   of its own (``timeline.py``: the first frames at once, the rest as they are cut) and keeps the
   last few opened (a recording still being written is opened again when it grew; its frames are
   read from the state it was opened in). Nothing is ever written beside a recording: an
-  unfinished one is read through the recorder's repaired copy in its cache.
+  unfinished one is read through the reader's repaired copy in its cache.
   Also what the page needs beside the frames: the missions flown (the controller's recorded
   ``mission/accepted``, else the ground station's journal, the launcher's ``mission.json`` or the
   recording's attachments) in local metres, each vessel's NED origin, and the run's
@@ -359,11 +359,11 @@ class Library:
         return self.open(ref)
 
     def _load(self, ref: str, where: Path, files: list[Path], source: Literal["runs", "upload"]) -> Loaded:
-        from seaway_recorder import recording  # the recorder's reader: only the replay view needs it
+        from seaway.recording import reader  # mcap is imported by the replay view alone
 
         try:
-            readable = recording.open_paths([where]) if where.is_dir() else [recording.readable(where)]
-            info = recording.read_info(readable)
+            readable = reader.open_paths([where]) if where.is_dir() else [reader.readable(where)]
+            info = reader.read_info(readable)
         except Exception as err:  # mcap raises its own errors for damaged files; say which file
             raise RecordingError(422, f"recording {ref!r} does not read as MCAP: {err}") from None
         vessels = sorted({t.split("/", 2)[1] for t in info.topics
@@ -373,7 +373,7 @@ class Library:
         accepted: list[tuple[str, MissionAccepted]] = []  # (vessel, acceptance), as recorded
         for v in vessels:  # only these two: a few messages, read through the chunks' index
             try:
-                dec = recording.decode_vessel(readable, v, [keys.MISSION_ACCEPTED.suffix,
+                dec = reader.decode_vessel(readable, v, [keys.MISSION_ACCEPTED.suffix,
                                                             keys.NAV_ORIGIN.suffix], info.summaries)
             except Exception as err:
                 raise RecordingError(422, f"recording {ref!r} does not read: {err}") from None
@@ -403,7 +403,7 @@ class Library:
 
 
 def _scenario(attachments: dict[str, bytes], notes: list[str]) -> tuple[str | None, GeoOrigin | None]:
-    from seaway_recorder import runinfo
+    from seaway.recording import runinfo
 
     try:
         sc = runinfo.scenario_from_attachments(attachments)
@@ -430,7 +430,7 @@ def _missions(run_folder: Path | None, attachments: dict[str, bytes],
     """The missions flown, by id: what the controller recorded accepting (``mission/accepted``, in
     local metres; the latest of an id sent twice), else sent from the ground station (its journal),
     sent by the launcher (``mission.json``), else the recording's mission or scenario attachment."""
-    from seaway_recorder import runinfo
+    from seaway.recording import runinfo
 
     any_origin = next((o for o in origins.values() if o is not None), None)
     found: dict[str, geo.MissionPlanView] = {}

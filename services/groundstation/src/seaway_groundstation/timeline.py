@@ -8,7 +8,8 @@ the next unread chunk's first log time: the order a merge of the whole recording
 a chunk or two in memory. ``loaded_to_s`` says up to when (recorded time since the start) the
 frames are final; ``window`` answers a span with the frames that are.
 
-A file written without chunk indexes is read whole through the recorder's reader instead.
+A file written without chunk indexes is read whole through the shared reader
+(``seaway.recording.reader``) instead.
 """
 
 from __future__ import annotations
@@ -55,7 +56,7 @@ def _chunked(files: list[Path], summaries: dict[Path, Summary]
              ) -> Iterator[tuple[int, str, bytes] | int]:
     """(log time, topic, data) of the shown topics' messages in log-time order; between them, an
     int: a log time before which every message has been yielded."""
-    from seaway_recorder.recording import chunked_messages
+    from seaway.recording.reader import chunked_messages
 
     # (first log time, file, chunk, its file's shown channels: id -> topic, and their ids)
     wanted: list[tuple[int, Path, Any, dict[int, str], set[int]]] = []
@@ -86,7 +87,7 @@ def _chunked(files: list[Path], summaries: dict[Path, Summary]
 
 
 def _whole(files: list[Path]) -> Iterator[tuple[int, str, bytes] | int]:
-    from seaway_recorder.recording import iter_messages
+    from seaway.recording.reader import iter_messages
 
     for m in iter_messages(files):
         if shown_topic(m.topic) is not None:

@@ -48,6 +48,7 @@ from typing import Any
 
 from seaway.contract import bundle, keys
 from seaway.contract.messages import LogRecord, MessageError, PeriodDone
+from seaway.recording.timebase import RecordingTime, stamp_of
 from seaway.runtime.argtypes import non_negative_float, positive_int, whole_number
 from seaway.runtime.service import (
     DEFAULT_VESSEL,
@@ -62,7 +63,6 @@ from seaway.vessel.frames import GeoOrigin
 
 from seaway_recorder import derive, schemas
 from seaway_recorder.record import SampleQueue
-from seaway_recorder.timebase import RecordingTime, stamp_of
 
 log = logging.getLogger("seaway.foxglove")
 

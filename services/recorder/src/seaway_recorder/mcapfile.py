@@ -45,27 +45,12 @@ from mcap.records import (
     Statistics,
     SummaryOffset,
 )
-from mcap.writer import MCAP0_MAGIC as MAGIC
+from seaway.recording.layout import CHUNK_HEAD, CHUNK_INDEX_HEAD, MAGIC, MESSAGE_HEAD, RECORD_HEAD, U64
 
 COMPRESSIONS = ("zstd", "lz4", "none")
 """Chunk compressions: the names of the MCAP spec ("" in the file for none)."""
 
-# MCAP's record layouts (mcap.dev/spec), the one place this package spells them: written here,
-# read fast by ``recording`` (a chunk's messages, the summary's chunk indexes).
-RECORD_HEAD = struct.Struct("<BQ")
-"""Every record: its opcode and the length of what follows."""
-MESSAGE_HEAD = struct.Struct("<HIQQ")
-"""A Message after its record head: channel id, sequence, log time, publish time; the data follows."""
-CHUNK_HEAD = struct.Struct("<QQQI")
-"""A Chunk after its record head: start and end time, uncompressed size, uncompressed CRC; then the
-compression's name (length-prefixed), the records' length (8 bytes) and the records."""
-CHUNK_INDEX_HEAD = struct.Struct("<QQQQI")
-"""A Chunk Index after its record head: start and end time, the chunk's offset and length, the
-length of its map of message index offsets (10 bytes an entry: channel id, offset)."""
-FOOTER = struct.Struct("<BQQQI")
-"""The Footer record whole: opcode, length, summary start, summary offset start, summary CRC."""
-U32, U64 = struct.Struct("<I"), struct.Struct("<Q")
-
+# The per-message and per-chunk records packed whole (``seaway.recording.layout`` spells each part).
 _MESSAGE = struct.Struct(RECORD_HEAD.format + MESSAGE_HEAD.format[1:])
 """A Message's record head and fields in one call (the writer's hot path)."""
 _CHUNK = struct.Struct(RECORD_HEAD.format + CHUNK_HEAD.format[1:] + "I")

@@ -25,8 +25,7 @@ from dataclasses import dataclass, field
 
 from seaway.contract import keys
 from seaway.contract.messages import MissionAccepted, MissionStatus, StateEstimate
-
-from seaway_recorder.runinfo import Mission, mission_from_accepted
+from seaway.recording.runinfo import Mission, mission_from_accepted
 
 FIT_MEDIAN_M = 0.25
 """A document fits a flown mission when the median |distance to the active waypoint from the

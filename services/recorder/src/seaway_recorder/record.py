@@ -29,6 +29,9 @@ import zenoh
 from seaway.contract import bundle, keys
 from seaway.contract.config import ConfigError
 from seaway.contract.messages import LOCKSTEP_SERVICES, LogRecord, MessageError, PeriodDone
+from seaway.recording import runinfo
+from seaway.recording.recover import recover, tail_of
+from seaway.recording.timebase import RecordingTime, parse_epoch, stamp_of
 from seaway.runtime import memory
 from seaway.runtime import run as runs
 from seaway.runtime.argtypes import positive_float, positive_int
@@ -41,10 +44,8 @@ from seaway.runtime.zenoh_bus import ENV_CONFIG
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.frames import GeoOrigin
 
-from seaway_recorder import runinfo
+from seaway_recorder import attachments
 from seaway_recorder.logtail import FileTail, LogTail, log_record
-from seaway_recorder.recover import recover, tail_of
-from seaway_recorder.timebase import RecordingTime, parse_epoch, stamp_of
 from seaway_recorder.writer import LIBRARY, RUN_METADATA, AttachmentSpec, RecordingWriter
 
 log = logging.getLogger("seaway.recorder")
@@ -341,22 +342,22 @@ def build_run_info(args: argparse.Namespace, exprs: list[str], run: RunDescripti
     origin = None
     scenario_name = ""
     if run.scenario:
-        s_atts, scenario = runinfo.scenario_attachments(run.scenario, with_vessel=False)
+        s_atts, scenario = attachments.scenario_attachments(run.scenario, with_vessel=False)
         atts += s_atts
         scenario_name = scenario.name
     if run.origin is not None:
         origin = GeoOrigin.from_degrees(run.origin.lat_deg, run.origin.lon_deg, run.origin.alt_m)
-    atts.append(runinfo.attachment("vessel", runinfo.vessel_path(run.model_vessel_file)))
+    atts.append(attachments.attachment("vessel", runinfo.vessel_path(run.model_vessel_file)))
     if run.plant_vessel_file is not None:
-        atts.append(runinfo.attachment("plant-vessel", runinfo.vessel_path(run.plant_vessel_file)))
+        atts.append(attachments.attachment("plant-vessel", runinfo.vessel_path(run.plant_vessel_file)))
     if args.profile:
-        atts.append(runinfo.attachment("profile", runinfo.profile_path(args.profile)))
+        atts.append(attachments.attachment("profile", runinfo.profile_path(args.profile)))
     if args.mission:
-        atts.append(runinfo.attachment("mission", Path(args.mission)))
+        atts.append(attachments.attachment("mission", Path(args.mission)))
     zcfg = args.zenoh_config or os.environ.get(ENV_CONFIG)
     if zcfg:
-        atts.append(runinfo.attachment("zenoh", Path(zcfg)))
-    atts += [runinfo.parse_attach_arg(a) for a in args.attach]
+        atts.append(attachments.attachment("zenoh", Path(zcfg)))
+    atts += [attachments.parse_attach_arg(a) for a in args.attach]
     meta = {
         "recorder": LIBRARY,
         "started_utc": dt.datetime.now(dt.UTC).isoformat(timespec="milliseconds"),

@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import zenoh
 from seaway.contract import bundle, keys
 from seaway.contract.messages import MessageError, PeriodDone
+from seaway.recording import reader
 from seaway.runtime.argtypes import non_negative_float, positive_float
 from seaway.runtime.bus import JSON_ENCODING, Bus, RawPublisher
 from seaway.runtime.credentials import ENV_IDENTITY
@@ -38,7 +39,6 @@ from seaway.runtime.service import (
     install_stop_signals,
 )
 
-from seaway_recorder import recording
 from seaway_recorder.replay_lockstep import SIM_ANSWER_SUFFIX, LockstepPacer
 
 BUS_ROOT = f"{keys.ROOT}/"
@@ -90,7 +90,7 @@ class ReplayStats:
     """Lockstep: recorded periods every live member answered."""
 
 
-def replay(messages: Iterator[recording.RecordedMessage], bus: Bus, keep: KeyFilter,
+def replay(messages: Iterator[reader.RecordedMessage], bus: Bus, keep: KeyFilter,
            rate: float | None, stop: threading.Event, clock=time.monotonic,
            pacer: LockstepPacer | None = None) -> ReplayStats:
     """Publish ``messages`` (in log-time order) on ``bus``, paced by their log times (``rate``; None:
@@ -103,11 +103,11 @@ def replay(messages: Iterator[recording.RecordedMessage], bus: Bus, keep: KeyFil
     t0_log: int | None = None
     last_log = 0
     clock_key = f"{BUS_ROOT}{bus.vessel}/{SIM_ANSWER_SUFFIX}"
-    period: list[recording.RecordedMessage] = []  # lockstep: kept since the last sim answer
+    period: list[reader.RecordedMessage] = []  # lockstep: kept since the last sim answer
     # lockstep: the answer to play next, with its other samples' publication and its bundle lines
     pending: tuple[PeriodDone, Callable[[], None], list[tuple[str, bytes]]] | None = None
 
-    def put(m: recording.RecordedMessage) -> None:
+    def put(m: reader.RecordedMessage) -> None:
         pub = pubs.get(m.topic)
         if pub is None:
             enc = m.channel_metadata.get("zenoh_encoding") or (
@@ -116,14 +116,14 @@ def replay(messages: Iterator[recording.RecordedMessage], bus: Bus, keep: KeyFil
             pubs[m.topic] = pub
         pub.put(m.data)
 
-    def publish(batch: list[recording.RecordedMessage]) -> None:
+    def publish(batch: list[reader.RecordedMessage]) -> None:
         for m in batch:
             put(m)
 
     sim_prefix = f"{BUS_ROOT}{bus.vessel}/"
 
-    def bundled(batch: list[recording.RecordedMessage]
-                ) -> tuple[list[tuple[str, bytes]], list[recording.RecordedMessage]]:
+    def bundled(batch: list[reader.RecordedMessage]
+                ) -> tuple[list[tuple[str, bytes]], list[reader.RecordedMessage]]:
         """A period's recorded samples as (the sim's bundle lines, the rest): a lockstep sim sends
         its messages in its bundle (``seaway.contract.bundle``), and so does its replay."""
         lines, rest = [], []
@@ -135,7 +135,7 @@ def replay(messages: Iterator[recording.RecordedMessage], bus: Bus, keep: KeyFil
                 rest.append(m)
         return lines, rest
 
-    def count(batch: list[recording.RecordedMessage]) -> None:
+    def count(batch: list[reader.RecordedMessage]) -> None:
         for m in batch:
             stats.published += 1
             stats.by_topic[m.topic] = stats.by_topic.get(m.topic, 0) + 1
@@ -207,7 +207,7 @@ def replay(messages: Iterator[recording.RecordedMessage], bus: Bus, keep: KeyFil
     return stats
 
 
-def lockstep_vessel(info: recording.RecordingInfo, keep: KeyFilter) -> str:
+def lockstep_vessel(info: reader.RecordingInfo, keep: KeyFilter) -> str:
     """The one vessel whose recorded sim answers are kept: the lockstep replay's clock.
 
     Raises ValueError when there is none (not a lockstep recording, or the answers filtered out) or
@@ -253,10 +253,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     configure_logging("replay", args.log_level)
     vessel = DEFAULT_VESSEL
     try:
-        files = recording.open_paths(args.files)
+        files = reader.open_paths(args.files)
         keep = KeyFilter(args.only, args.exclude)
-        info = recording.read_info(files)
-        notes = recording.repaired(info)
+        info = reader.read_info(files)
+        notes = reader.repaired(info)
         if args.lockstep:
             vessel = lockstep_vessel(info, keep)
     except (FileNotFoundError, ValueError) as err:
@@ -277,7 +277,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 else "as fast as possible" if args.fast else f"rate {args.rate:g}")
         print(f"replaying {', '.join(map(str, files))} ({pace})", flush=True)
         stop.wait(args.wait)
-        stats = replay(recording.iter_messages(files), bus, keep,
+        stats = replay(reader.iter_messages(files), bus, keep,
                        None if args.fast or args.lockstep else args.rate, stop, pacer=pacer)
     finally:
         bus.close()

@@ -39,6 +39,7 @@ from seaway.contract.messages import (
     StateEstimate,
     ThrustCommand,
 )
+from seaway.recording import reader, runinfo
 from seaway.runtime.argtypes import positive_float
 from seaway.runtime.run import CONTROL_PERIOD_S
 from seaway.simkit.scenario import load_scenario
@@ -46,7 +47,7 @@ from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.metrics import mission_metrics
 from seaway.vessel.model import VesselParams
 
-from seaway_recorder import budget, missions, recording, runinfo
+from seaway_recorder import budget, missions
 from seaway_recorder import metrics as mx
 
 TRUTH, STATE, ORIGIN = keys.SIM_TRUTH.suffix, keys.NAV_STATE.suffix, keys.NAV_ORIGIN.suffix
@@ -80,7 +81,7 @@ def parser() -> argparse.ArgumentParser:
     return p
 
 
-def _origin(dec: recording.Decoded, scenario_origin: GeoOrigin | None) -> GeoOrigin | None:
+def _origin(dec: reader.Decoded, scenario_origin: GeoOrigin | None) -> GeoOrigin | None:
     origins = dec.get(ORIGIN)
     if origins:
         o = origins[-1]
@@ -89,17 +90,17 @@ def _origin(dec: recording.Decoded, scenario_origin: GeoOrigin | None) -> GeoOri
     return scenario_origin
 
 
-Read = tuple[recording.RecordingInfo, recording.Decoded]
+Read = tuple[reader.RecordingInfo, reader.Decoded]
 """A recording as a report reads it: its info (attachments, metadata) and the report's keys decoded."""
 
 
 def read_for_report(files: list[Path], vessel: str | None = None) -> Read:
     """What ``analyse`` reads of ``files``: one decode, for as many episodes as are reported."""
-    info = recording.read_info(files)
-    return info, recording.decode_vessel(files, vessel, REPORT_TOPICS, info.summaries)
+    info = reader.read_info(files)
+    return info, reader.decode_vessel(files, vessel, REPORT_TOPICS, info.summaries)
 
 
-def mission_episodes(dec: recording.Decoded, mission_id: str) -> list[int]:
+def mission_episodes(dec: reader.Decoded, mission_id: str) -> list[int]:
     """The indexes of the episodes in which the controller accepted ``mission_id`` (its
     ``mission/accepted``), in order: which episode flew a mission, where one stack flew several,
     each after a scenario load. More than one: the sim restarted while it flew, and the controller
@@ -112,7 +113,7 @@ def mission_episodes(dec: recording.Decoded, mission_id: str) -> list[int]:
             if any(start <= t and (end is None or t < end) for t in mine)]
 
 
-def episodes(dec: recording.Decoded) -> list[tuple[int, int | None]]:
+def episodes(dec: reader.Decoded) -> list[tuple[int, int | None]]:
     """The recording's episodes as [start, end) log-time spans: a new one wherever simulated time
     went back (``sim/truth``): the sim restarted, or loaded a scenario (a lockstep episode)."""
     truth, logs = dec.get(TRUTH), dec.log_ns.get(TRUTH, [])
@@ -251,7 +252,7 @@ def analyse(files: list[Path], *, scenario: str | None = None, mission_file: str
                       "undecodable": dec.undecodable, "duplicates": dec.duplicates,
                       "recorder_summary": info.metadata.get("seaway.recorder.summary", {}),
                       "recovered": info.metadata.get("seaway.recover", {}),
-                      "repaired": recording.repaired(info)},
+                      "repaired": reader.repaired(info)},
         "_": {"series": met.series if met is not None else None, "commands": commands,
               "thrusts": thrusts, "states": states, "solves": solves, "statuses": statuses,
               "start_ns": met.start_ns if met is not None else None, "energy": energy},
@@ -566,7 +567,7 @@ def _clean(v: Any) -> Any:
 def main(argv: Sequence[str] | None = None) -> int:
     args = parser().parse_args(list(sys.argv[1:] if argv is None else argv))
     try:
-        files = recording.open_paths(args.files)
+        files = reader.open_paths(args.files)
         res = analyse(files, scenario=args.scenario, mission_file=args.mission,
                       vessel_file=args.vessel_file, vessel=args.vessel, state=args.state,
                       sample_period_s=args.sample_period, episode=args.episode)

@@ -27,6 +27,7 @@ from typing import IO, Any
 
 from seaway.contract import bundle
 from seaway.contract.messages import MessageError, PeriodDone
+from seaway.recording.timebase import EPISODE_METADATA, TIME_METADATA, RecordingTime, stamp_of
 from seaway.runtime.private import open_private, private_folder
 from seaway.runtime.ratelog import RateLimitedLog
 from seaway.tools.launch.events import ProcessEvent
@@ -35,7 +36,6 @@ from seaway.vessel.frames import GeoOrigin
 from seaway_recorder import derive, schemas
 from seaway_recorder.logtail import LogLine
 from seaway_recorder.mcapfile import McapWriter, check_compression
-from seaway_recorder.timebase import EPISODE_METADATA, TIME_METADATA, RecordingTime, stamp_of
 
 log = logging.getLogger("seaway.recorder")
 

@@ -23,13 +23,13 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from seaway.contract.config import ConfigError
+from seaway.mavlink.signing import KeyFileError, read_key
 from seaway.runtime.argtypes import positive_float, whole_number
 from seaway.runtime.lockstep import STALL_REPEAT_S
 from seaway.runtime.run import from_earlier_launch
 from seaway.runtime.service import base_parser, parse, resolve_run, run_service
 from seaway.simkit.faults import ThrusterFaults
 from seaway.simkit.scenario import Scenario, load_scenario
-from seaway.vessel.mavlink_signing import KeyFileError, read_key
 from seaway.vessel.model import load_vessel
 
 from seaway_sim import kept, plant_kept
@@ -70,7 +70,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--signing-key-file", default=None, metavar="PATH",
                    help="real time: MAVLink 2 signing key file (64 hex characters): sign everything "
                         "sent and reject unsigned or wrongly signed messages, as PX4 with a key "
-                        "does. Create one with: python -m seaway.vessel.mavlink_signing PATH")
+                        "does. Create one with: python -m seaway.mavlink.signing PATH")
     p.add_argument("--start-slot", type=whole_number(0, 64), default=0, metavar="N",
                    help=f"start N x {START_SPACING_M:g} m east of the scenario's start (the fleet "
                         "profile gives each vessel its own slot, so none starts on another); the "

@@ -12,7 +12,7 @@ goes on. Valid frames in the same datagram are still used.
 
 Signing (``signing_key``, ``--signing-key-file``), as PX4 does once it has a key: every message the
 sim sends is signed, and an incoming message must carry a valid signature with a newer timestamp
-than its stream's last (``seaway.vessel.mavlink_signing``); unsigned, wrongly signed and replayed
+than its stream's last (``seaway.mavlink.signing``); unsigned, wrongly signed and replayed
 messages are refused before the autopilot sees them, counted (``refused_<reason>``) and logged once
 per source. Like PX4, a few messages are accepted unsigned (HEARTBEAT, RADIO_STATUS, ADSB_VEHICLE,
 COLLISION; none of them commands anything here). Only a signed message moves the peer, so nobody
@@ -29,14 +29,14 @@ from collections.abc import Iterable
 from typing import Any
 
 from pymavlink.dialects.v20 import common as mavlink
-from seaway.runtime.ratelog import RateLimitedLog
-from seaway.vessel.mavlink_signing import (
+from seaway.mavlink.signing import (
     ACCEPTED,
     UNSIGNED,
     SignatureVerifier,
     keep_up,
     signing_timestamp,
 )
+from seaway.runtime.ratelog import RateLimitedLog
 
 log = logging.getLogger("seaway_sim.mavlink")
 

@@ -16,7 +16,7 @@ from typing import Literal
 
 from pydantic import Field, field_validator, model_validator
 from seaway.contract.config import ConfigModel, named_file
-from seaway.vessel.mavlink_signing import read_key
+from seaway.mavlink.signing import read_key
 
 from seaway_vehicle_io import profile, rates
 from seaway_vehicle_io.signing import (

@@ -38,10 +38,10 @@ from seaway.contract.messages import (
     ThrustWithheld,
     VehicleStatus,
 )
+from seaway.mavlink.signing import ACCEPTED, SignatureVerifier, signing_timestamp
 from seaway.runtime.ratelog import RateLimitedLog
 from seaway.runtime.stamps import STAMP_LOG_EVERY_S, StampBounds, StampGate
 from seaway.vessel.battery import BatteryParams
-from seaway.vessel.mavlink_signing import ACCEPTED, SignatureVerifier, signing_timestamp
 from seaway.vessel.thrusters import absurd_thrust
 
 from seaway_vehicle_io import profile as profiles

@@ -20,7 +20,7 @@ flood can never keep the receive thread from handing what it has to the core.
 Signing: our messages are packed by our own ``MAVLink`` object (``_tx``), which signs them when a
 ``SigningClock`` is given (``signing.py``: the key, link id and a timestamp that never goes back).
 pymavlink's ``conn.mav`` only parses, without a key: signatures are checked by the core
-(``seaway.vessel.mavlink_signing``), not by pymavlink's parser, whose check can be poisoned.
+(``seaway.mavlink.signing``), not by pymavlink's parser, whose check can be poisoned.
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
-from seaway.vessel.mavlink_signing import frame_ids
+from seaway.mavlink.wire import frame_ids
 
 from seaway_vehicle_io.authority import Address, Source, SourcePolicy
 from seaway_vehicle_io.component_metadata import (

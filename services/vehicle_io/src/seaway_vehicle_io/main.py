@@ -8,13 +8,13 @@ import sys
 from collections.abc import Sequence
 
 from seaway.contract.config import ConfigError, load_config, parse_config
+from seaway.mavlink.signing import KeyFileError
 from seaway.runtime.argtypes import positive_float
 from seaway.runtime.run import RunDescription
 from seaway.runtime.service import base_parser, parse, resolve_run, run_service
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.battery import BatteryParams
 from seaway.vessel.frames import GeoOrigin
-from seaway.vessel.mavlink_signing import KeyFileError
 from seaway.vessel.model import load_vessel
 
 from seaway_vehicle_io.config import AUTOPILOT_CHOICES, VehicleIoConfig, config_path

@@ -1,7 +1,7 @@
 """vehicle_io's MAVLink 2 signing: the key, our signing timestamp kept across restarts, SETUP_SIGNING.
 
 The key file format and the check of incoming signatures are shared with the simulator
-(``seaway.vessel.mavlink_signing``); signing our own frames is pymavlink's (``MAVLink.signing``:
+(``seaway.mavlink.signing``); signing our own frames is pymavlink's (``MAVLink.signing``:
 ``secret_key``, ``sign_outgoing``, ``link_id``, ``timestamp``). What this module adds:
 
 **The timestamp never goes back.** A MAVLink receiver refuses a frame whose timestamp (10 us units
@@ -27,8 +27,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from seaway.runtime.atomic import LatestWriter
-from seaway.vessel.mavlink_signing import (
+from seaway.mavlink.signing import (
     ACCEPTED,
     KEY_BYTES,
     TIMESTAMP_UNITS_PER_S,
@@ -36,6 +35,7 @@ from seaway.vessel.mavlink_signing import (
     keep_up,
     signing_timestamp,
 )
+from seaway.runtime.atomic import LatestWriter
 
 log = logging.getLogger("seaway.vehicle_io.signing")
 

@@ -20,8 +20,8 @@ import sys
 import time
 from pathlib import Path
 
+from seaway.mavlink.signing import KeyFileError, SignatureVerifier, read_key, write_key
 from seaway.runtime.argtypes import positive_float, whole_number
-from seaway.vessel.mavlink_signing import KeyFileError, SignatureVerifier, read_key, write_key
 
 from seaway_vehicle_io.config import SOURCE_COMPONENT, SOURCE_SYSTEM
 from seaway_vehicle_io.link import check_url

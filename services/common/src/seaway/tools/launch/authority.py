@@ -28,11 +28,11 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from seaway.mavlink import signing
 from seaway.runtime import credentials as creds
 from seaway.runtime import stacks
 from seaway.runtime.zenoh_bus import ZenohBus, rendezvous_endpoint
 from seaway.tools.launch.profile import Profile
-from seaway.vessel import mavlink_signing
 
 RENDEZVOUS_PROBE_S = 5.0
 """How long a launcher whose rendezvous port was already held waits for a session there to accept
@@ -112,7 +112,7 @@ def credentials_for(profile: Profile, run_name: str) -> Authority:
     stacks.private_folder()  # before the credentials folder made in it would make it 0755
     auth = _zenoh_credentials(profile, run_name)
     key = mavlink_key_path(run_name)
-    mavlink_signing.write_key(key)
+    signing.write_key(key)
     auth.mavlink_key = key
     return auth
 

@@ -5,8 +5,8 @@ A replay's live estimator and controller are described by the recorded run's sce
 origin, dead zone) and fly its mission; without one they wait for a mission that never comes. So
 the scenario is ``--scenario``, else the one the recorded run's description names (``run.json``
 beside the recording), else the launch is refused. (The recorder attaches the same description to
-the recording itself; reading it there would take the recorder's MCAP reader, which the shared
-package does not depend on.)
+the recording itself; reading it there would take the MCAP reader, ``seaway.recording``, whose
+mcap library the launcher's install, ``seaway`` without its ``recording`` extra, does not have.)
 """
 
 from __future__ import annotations

@@ -32,21 +32,21 @@ from mcap.records import (
     Statistics,
 )
 from mcap.summary import Summary
-from mcap.writer import MCAP0_MAGIC as MAGIC
+
 from seaway.contract import keys
 from seaway.contract.keys import KeySpec
 from seaway.contract.messages import Message, MessageError
-
-from seaway_recorder.mcapfile import (
+from seaway.recording.layout import (
     CHUNK_HEAD,
     CHUNK_INDEX_HEAD,
     FOOTER,
+    MAGIC,
     MESSAGE_HEAD,
     RECORD_HEAD,
     U32,
     U64,
 )
-from seaway_recorder.recover import RECOVER_METADATA, recover, repaired_copy
+from seaway.recording.recover import RECOVER_METADATA, recover, repaired_copy
 
 
 @dataclass(frozen=True)

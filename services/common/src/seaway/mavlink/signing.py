@@ -1,13 +1,13 @@
 """MAVLink 2 message signing: the secret key file, and the check of an incoming signature.
 
 Shared by vehicle_io and the simulator (the sim must not depend on vehicle_io), so it is written on
-raw frame bytes with ``hashlib`` only: no pymavlink here. Signing *outgoing* frames is pymavlink's
-job (``MAVLink.signing``: ``secret_key``, ``sign_outgoing``, ``link_id``, ``timestamp``); callers set
-it up with ``signing_timestamp`` for the initial timestamp.
+raw frame bytes (``seaway.mavlink.wire``) with ``hashlib`` only: no pymavlink here. Signing
+*outgoing* frames is pymavlink's job (``MAVLink.signing``: ``secret_key``, ``sign_outgoing``,
+``link_id``, ``timestamp``); callers set it up with ``signing_timestamp`` for the initial timestamp.
 
 **Key file**: the 32-byte secret key written as 64 hexadecimal characters (surrounding whitespace
 and one trailing newline are fine), nothing else. ``write_key`` creates one with a random key, mode
-0600; ``python -m seaway.vessel.mavlink_signing PATH`` does the same from a shell.
+0600; ``python -m seaway.mavlink.signing PATH`` does the same from a shell.
 
 **Why not pymavlink's own check**: ``MAVLink.check_signature`` (pymavlink 2.4.x) stores a stream's
 timestamp *before* it compares the signature, so a single forged frame carrying the timestamp
@@ -30,14 +30,10 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from seaway.mavlink.wire import CRC_LEN, HEADER_LEN, IFLAG_SIGNED, MAVLINK2_MAGIC, SIGNATURE_BLOCK_LEN
+
 KEY_BYTES = 32
 KEY_HEX_CHARS = 2 * KEY_BYTES
-
-MAVLINK2_MAGIC = 0xFD
-IFLAG_SIGNED = 0x01
-SIGNATURE_BLOCK_LEN = 13  # link id (1) + timestamp (6) + signature (6)
-HEADER_LEN = 10
-CRC_LEN = 2
 
 EPOCH_2015_UNIX_S = 1_420_070_400
 TIMESTAMP_UNITS_PER_S = 100_000  # 10 us
@@ -78,7 +74,7 @@ def read_key(path: str | Path) -> bytes:
         raise KeyFileError(
             f"signing key file {p}: expected the {KEY_BYTES}-byte key as exactly {KEY_HEX_CHARS} "
             f"hexadecimal characters (0-9, a-f) and nothing else, got {len(raw)} bytes; create one "
-            f"with: python -m seaway.vessel.mavlink_signing {p}")
+            f"with: python -m seaway.mavlink.signing {p}")
     key = bytes.fromhex(text)
     if not any(key):
         raise KeyFileError(f"signing key file {p}: the key is all zeros, which means 'signing off' "
@@ -131,16 +127,6 @@ def keep_up(signing: Any, wall_ns: int) -> None:
 # -- incoming frames --------------------------------------------------------------------------
 
 
-def frame_ids(frame: bytes) -> tuple[int | None, int | None]:
-    """(system id, component id) claimed by the header of the first frame in ``frame``, without
-    any check (None, None for bytes that do not start a MAVLink frame). For counting refusals."""
-    if len(frame) >= HEADER_LEN and frame[0] == MAVLINK2_MAGIC:
-        return frame[5], frame[6]
-    if len(frame) >= 6 and frame[0] == 0xFE:  # MAVLink 1
-        return frame[3], frame[4]
-    return None, None
-
-
 class SignatureVerifier:
     """Checks the signatures of incoming MAVLink 2 frames against one secret key.
 
@@ -179,10 +165,10 @@ class SignatureVerifier:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m seaway.vessel.mavlink_signing PATH``: write a new random key file (mode 0600)."""
+    """``python -m seaway.mavlink.signing PATH``: write a new random key file (mode 0600)."""
     args = sys.argv[1:] if argv is None else argv
     if len(args) != 1 or args[0].startswith("-"):
-        print("usage: python -m seaway.vessel.mavlink_signing PATH\n"
+        print("usage: python -m seaway.mavlink.signing PATH\n"
               "writes a new random MAVLink 2 signing key to PATH (64 hex characters, mode 0600); "
               "refuses to overwrite an existing file", file=sys.stderr)
         return 2

@@ -37,6 +37,7 @@ from mcap.records import (
 )
 from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.writer import CompressionType, Writer
+
 from seaway.runtime.private import open_private
 
 RECOVER_METADATA = "seaway.recover"

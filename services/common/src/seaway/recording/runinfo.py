@@ -2,7 +2,8 @@
 
 Attachments are named ``<role>/<file name>``; the roles are ``scenario``, ``scenario-data`` (files a
 scenario refers to, by their path relative to it), ``vessel``, ``profile``, ``mission``, ``zenoh`` and
-``config``. The recorder writes them; the report and replay read them back:
+``config`` (``ROLES``). The recorder writes them (``seaway_recorder.attachments`` makes them from
+files); the report, replay and the ground station's replay view read them back here:
 
 * the mission (waypoints, circle of acceptance, T^w): a ``mission/*`` attachment (a MissionRequest
   JSON document, or a TOML/JSON file with the scenario's ``[mission]`` fields at its top level or under
@@ -24,35 +25,16 @@ from typing import Any
 from seaway.contract.config import ConfigError, deploy_path, parse_config
 from seaway.contract.messages import MessageError, MissionAccepted, MissionRequest
 from seaway.runtime.run import RunDescription
-from seaway.simkit.scenario import Scenario, load_scenario, parse_scenario
+from seaway.simkit.scenario import Scenario, parse_scenario
 from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.model import VesselParams, load_vessel
-
-from seaway_recorder.writer import AttachmentSpec, media_type_for
 
 ROLES = ("run", "scenario", "scenario-data", "vessel", "plant-vessel", "profile", "mission", "zenoh",
          "config")
 RUN_ATTACHMENT = "run/run.json"  # the run description (seaway.runtime.run) every recording carries
 
 
-def attachment(role: str, path: Path, name: str | None = None) -> AttachmentSpec:
-    if role not in ROLES:
-        raise ValueError(f"attachment role {role!r}: use one of {', '.join(ROLES)}")
-    p = Path(path)
-    try:
-        data = p.read_bytes()
-        created = int(p.stat().st_mtime * 1e9)
-    except OSError as err:
-        raise ConfigError(f"cannot attach {p}: {err.strerror or err}") from None
-    return AttachmentSpec(f"{role}/{name or p.name}", media_type_for(p), data, created)
-
-
-def parse_attach_arg(text: str) -> AttachmentSpec:
-    """``ROLE=FILE`` or ``FILE`` (role ``config``)."""
-    role, sep, path = text.partition("=")
-    if sep and role in ROLES:
-        return attachment(role, Path(path))
-    return attachment("config", Path(text))
+# -- the files a name stands for (deploy/scenarios, deploy/profiles, deploy/vessels) ----------------
 
 
 def scenario_path(name_or_path: str) -> Path:
@@ -72,21 +54,6 @@ def vessel_path(name_or_path: str, relative_to: Path | None = None) -> Path:
     if p.suffix in (".toml", ".json"):
         return p if p.is_absolute() or relative_to is None else relative_to / p
     return deploy_path("vessels", f"{name_or_path}.toml")
-
-
-def scenario_attachments(name_or_path: str, with_vessel: bool = True
-                         ) -> tuple[list[AttachmentSpec], Scenario]:
-    """The scenario file (validated), the data files it refers to and, optionally, its vessel file."""
-    path = scenario_path(name_or_path)
-    scenario = load_scenario(path)
-    out = [attachment("scenario", path)]
-    doc = tomllib.loads(path.read_text()) if path.suffix == ".toml" else json.loads(path.read_text())
-    for d in doc.get("disturbances", []) or []:
-        if isinstance(d, dict) and "file" in d:
-            out.append(attachment("scenario-data", path.parent / d["file"], name=str(d["file"])))
-    if with_vessel:
-        out.append(attachment("vessel", vessel_path(scenario.vessel, path.parent)))
-    return out, scenario
 
 
 # -- reading back -------------------------------------------------------------------------------

@@ -1,6 +1,6 @@
-"""``recording.decode_vessel`` reads each file in file order, only for the topics it wants, and sorts
+"""``reader.decode_vessel`` reads each file in file order, only for the topics it wants, and sorts
 each key by log time afterwards; it must give exactly what decoding the merge of every message in
-log-time order (``recording.iter_messages``, the reader's ordering heap) gives: the same messages in
+log-time order (``reader.iter_messages``, the reader's ordering heap) gives: the same messages in
 the same order, ties in file order and a series in name order, repeats across files read once."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import pytest
 from mcap.writer import Writer
 from seaway.contract import keys
 from seaway.contract.messages import MessageError, NavOrigin
-from seaway_recorder import recording
+from seaway.recording import reader
 
 ORIGIN = keys.NAV_ORIGIN
 
@@ -39,7 +39,7 @@ def reference(files: list[Path], vessel: str | None, suffixes: list[str] | None)
     """What decoding the log-time merge of every message gives (the ordering heap)."""
     by: dict[str, list[tuple[int, bytes]]] = {}
     seen, dups, bad, vessels = set(), 0, 0, set()
-    for m in recording.iter_messages(files):
+    for m in reader.iter_messages(files):
         spec = keys.spec_for_key(m.topic)
         if spec is None or spec.message is None:
             continue
@@ -84,7 +84,7 @@ def series(tmp_path: Path) -> list[Path]:
 def test_decode_equals_the_log_time_merge(series: list[Path], vessel: str, suffixes,
                                           n_files: int) -> None:
     files = series[:n_files]
-    dec = recording.decode_vessel(files, vessel, suffixes)
+    dec = reader.decode_vessel(files, vessel, suffixes)
     by, dups, bad, vessels = reference(files, vessel, suffixes)
     got = {s: list(zip(dec.log_ns[s], [m.encode() for m in msgs], strict=True))
            for s, msgs in dec.by_suffix.items()}
@@ -95,7 +95,7 @@ def test_decode_equals_the_log_time_merge(series: list[Path], vessel: str, suffi
 
 
 def test_the_order_is_by_log_time_then_file_order(series: list[Path]) -> None:
-    dec = recording.decode_vessel(series, "vessel1", [ORIGIN.suffix])
+    dec = reader.decode_vessel(series, "vessel1", [ORIGIN.suffix])
     lat = [round(m.lat_rad, 2) for m in dec.get(ORIGIN.suffix)]
     # 30 ns three times: the first file's two in its order, then the second file's; 70 ns once.
     assert lat == [0.1, 0.35, 0.31, 0.33, 0.5, 0.6, 0.7, 0.9]
@@ -105,7 +105,7 @@ def test_the_order_is_by_log_time_then_file_order(series: list[Path]) -> None:
 
 def test_several_vessels_without_one_named_is_an_error(series: list[Path]) -> None:
     with pytest.raises(ValueError, match=r"several vessels \(vessel1, vessel2\)"):
-        recording.decode_vessel(series, None, [ORIGIN.suffix])
+        reader.decode_vessel(series, None, [ORIGIN.suffix])
 
 
 @pytest.mark.parametrize("compression", ["zstd", "lz4", "none"])
@@ -114,7 +114,7 @@ def test_several_vessels_without_one_named_is_an_error(series: list[Path]) -> No
 def test_the_chunk_scan_yields_what_the_mcap_reader_yields(tmp_path: Path, compression: str,
                                                            topics: str | None,
                                                            message_indexes: bool) -> None:
-    """``recording.chunked_messages`` reads chunks itself (the reader made an object of every
+    """``reader.chunked_messages`` reads chunks itself (the reader made an object of every
     message): the same messages, in the same order, as ``iter_messages(log_time_order=False)``;
     chunks of one channel only (skipped when another is wanted), and chunks whose index does not
     name their channels (another tool's file: read, not skipped)."""
@@ -136,12 +136,12 @@ def test_the_chunk_scan_yields_what_the_mcap_reader_yields(tmp_path: Path, compr
         w.finish()
     wanted = None if topics is None else {a}
     with open(path, "rb") as fh:
-        reader = make_reader(fh)
+        mr = make_reader(fh)
         want = [(c.topic, m.log_time, bytes(m.data)) for _, c, m in
-                reader.iter_messages(topics=wanted, log_time_order=False)]
-        summary = reader.get_summary()
+                mr.iter_messages(topics=wanted, log_time_order=False)]
+        summary = mr.get_summary()
         assert summary is not None and len(summary.chunk_indexes) > 10
-        got = list(recording._file_messages(fh, recording.read_summary(fh), wanted or {a, b}))
+        got = list(reader._file_messages(fh, reader.read_summary(fh), wanted or {a, b}))
     assert got == want
     assert len(got) == (240 if topics is None else sum(1 for r in records if r[0] == a))
 
@@ -159,10 +159,10 @@ def test_a_damaged_chunk_is_named_with_the_way_to_repair_it(tmp_path: Path) -> N
     middle = chunk.chunk_start_offset + chunk.chunk_length // 2
     data[middle:middle + 40] = bytes(40)  # compressed bytes zeroed: zstd says it is corrupt
     path.write_bytes(bytes(data))
-    with pytest.raises(recording.UnreadableRecordingError,
+    with pytest.raises(reader.UnreadableRecordingError,
                        match=rf"recording.mcap: the chunk at byte {chunk.chunk_start_offset} is "
                              r"damaged .*seaway record recover"):
-        recording.decode_vessel([path], "vessel1", [ORIGIN.suffix])
+        reader.decode_vessel([path], "vessel1", [ORIGIN.suffix])
 
 
 def _fields(record: object) -> dict:
@@ -194,7 +194,7 @@ def test_the_summary_is_the_mcap_readers(tmp_path: Path, chunk_size: int) -> Non
         w.finish()
     with open(path, "rb") as fh:
         theirs = make_reader(fh).get_summary()
-        ours = recording.read_summary(fh)
+        ours = reader.read_summary(fh)
     assert theirs is not None and ours is not None
     assert len(ours.chunk_indexes) == len(theirs.chunk_indexes) > (10 if chunk_size < 1000 else 0)
     assert [_fields(c) for c in ours.chunk_indexes] == [_fields(c) for c in theirs.chunk_indexes]
@@ -204,7 +204,7 @@ def test_the_summary_is_the_mcap_readers(tmp_path: Path, chunk_size: int) -> Non
         assert {k: _fields(v) for k, v in mine.items()} == {k: _fields(v) for k, v in lib.items()}
     for name in ("attachment_indexes", "metadata_indexes"):
         assert [_fields(r) for r in getattr(ours, name)] == [_fields(r) for r in getattr(theirs, name)]
-    info = recording.read_info([path])  # attachments and metadata through those indexes
+    info = reader.read_info([path])  # attachments and metadata through those indexes
     assert sorted(info.attachments) == [f"a{k}.toml" for k in (0, 1000, 1500, 500)]
     assert info.metadata["m1500"] == {"k": "1500"}
 
@@ -213,20 +213,8 @@ def test_a_file_without_a_footer_is_refused_by_name(tmp_path: Path) -> None:
     path = tmp_path / "cut.mcap"
     write(path, [(ORIGIN.key("v1"), k, origin(k, 0.1)) for k in range(50)])
     path.write_bytes(path.read_bytes()[:-40])
-    with open(path, "rb") as fh, pytest.raises(recording.McapError, match="footer"):
-        recording.read_summary(fh)
-
-
-def test_a_report_reads_each_summary_once(tmp_path: Path, monkeypatch) -> None:
-    from seaway_recorder import report
-
-    path = tmp_path / "r.mcap"
-    write(path, [(ORIGIN.key("vessel1"), k, origin(k, 0.1)) for k in range(50)])
-    read = []
-    real = recording.read_summary
-    monkeypatch.setattr(recording, "read_summary", lambda fh: read.append(1) or real(fh))
-    info, dec = report.read_for_report([path], "vessel1")
-    assert len(read) == 1 and len(dec.get(ORIGIN.suffix)) == 50 and info.message_count == 50
+    with open(path, "rb") as fh, pytest.raises(reader.McapError, match="footer"):
+        reader.read_summary(fh)
 
 
 def test_a_damaged_summary_is_named_with_the_way_to_repair_it(tmp_path: Path) -> None:
@@ -247,8 +235,8 @@ def test_a_damaged_summary_is_named_with_the_way_to_repair_it(tmp_path: Path) ->
         data = bytearray(whole)
         data[at + 1:at + 9] = (3).to_bytes(8, "little")  # its record now 3 bytes long
         path.write_bytes(bytes(data))
-        with pytest.raises(recording.UnreadableRecordingError,
+        with pytest.raises(reader.UnreadableRecordingError,
                            match=r"recording.mcap: cannot read its summary .*seaway record recover"):
-            recording.read_info([path])
-        with pytest.raises(recording.UnreadableRecordingError, match="seaway record recover"):
-            recording.decode_vessel([path], "vessel1", [ORIGIN.suffix])
+            reader.read_info([path])
+        with pytest.raises(reader.UnreadableRecordingError, match="seaway record recover"):
+            reader.decode_vessel([path], "vessel1", [ORIGIN.suffix])
