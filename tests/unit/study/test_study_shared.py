@@ -13,6 +13,7 @@ from typing import ClassVar
 
 import pytest
 from seaway_lab.study import execute as ex
+from seaway_lab.study import launcher
 from seaway_lab.study.definitions import RunSpec, get_study
 
 TABLE1 = get_study("table1").runs
@@ -236,7 +237,7 @@ def test_a_stack_is_stopped_once(tmp_path: Path) -> None:
 
 
 def test_no_stack_is_started_once_the_study_is_stopping(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(ex, "_stopping", threading.Event())
+    monkeypatch.setattr(launcher, "_stopping", threading.Event())  # where _spawn and stop_all read it
     ex.stop_all()
     with pytest.raises(ex.StudyStoppingError, match="the study is stopping"):
         ex._spawn(["sleep", "60"], 20000)
