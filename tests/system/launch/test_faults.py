@@ -162,7 +162,7 @@ def _gone(pid: int) -> bool:
 def test_ctrl_c_stops_the_real_sim_profile_within_5_s_without_orphans(procs, zenoh_env, tmp_path):
     """Timed: the stop (Ctrl-C to the last process gone, the recorder's file finished), not the
     report the launcher makes after it, which has a timeout of its own (REPORT_TIMEOUT_S)."""
-    from seaway.tools.launch.main import REPORT_TIMEOUT_S
+    from seaway.tools.launch.final_report import REPORT_TIMEOUT_S
 
     run = tmp_path / "run"
     la = procs.start([sys.executable, "-m", "seaway.tools.cli", "launch", "sim", "--run-dir", str(run)],

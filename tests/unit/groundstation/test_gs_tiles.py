@@ -8,7 +8,7 @@ import pytest
 from fastapi.testclient import TestClient
 from seaway.runtime.memory_bus import MemoryHub
 from seaway.tools.launch.address import ENV_TILES
-from seaway.tools.launch.main import tiles_for
+from seaway.tools.launch.plan import tiles_for
 from seaway_groundstation.app import create_app
 from seaway_groundstation.service import parser
 from seaway_groundstation.settings import Settings

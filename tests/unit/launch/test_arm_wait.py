@@ -7,7 +7,7 @@ import threading
 
 import pytest
 from seaway.contract.messages import Reply
-from seaway.tools.launch import main as launch
+from seaway.tools.launch import startup_requests as launch
 
 
 class Autopilot:

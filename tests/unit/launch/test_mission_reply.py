@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from seaway.contract.messages import MissionRequest, Reply, Waypoint
-from seaway.tools.launch.main import mission_reply_lines
+from seaway.tools.launch.startup_requests import mission_reply_lines
 
 
 def request(controller: str) -> MissionRequest:

@@ -8,7 +8,7 @@ from seaway.contract import keys
 from seaway.contract.messages import ThrustCommand
 from seaway.runtime.service import DEFAULT_VESSEL
 from seaway.tools import cli, vessel_choice
-from seaway.tools.launch import main as launch
+from seaway.tools.launch import final_report as launch
 
 
 def test_a_named_vessel_is_taken_one_running_is_found_several_are_asked_about() -> None:

@@ -1,0 +1,121 @@
+"""The core's VehicleStatus: link, armed state, mode, failsafe, battery, rates, refusals, and why the
+autopilot took the vessel or would not drive the thrusters.
+
+Stamped with the wall clock; ages (the last HEARTBEAT's) in seconds of monotonic time. It owns
+the autopilot's condition as heard: the hold reason (``failsafe_cause``) and its health
+(``autopilot_health``), both reset by a loss or a reboot.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import TYPE_CHECKING
+
+from seaway.contract.messages import HoldReason, ThrustWithheld, VehicleStatus
+
+from seaway_vehicle_io.autopilot_health import Health, latched_failsafe
+from seaway_vehicle_io.conversions import worse_level
+from seaway_vehicle_io.core_outputs import Now
+from seaway_vehicle_io.failsafe_cause import FailsafeCause
+from seaway_vehicle_io.watchdog import FAILSAFE_THRUST_STALE
+
+if TYPE_CHECKING:
+    from seaway.contract.messages import BatteryLevel
+
+    from seaway_vehicle_io.authority import Refusals
+    from seaway_vehicle_io.conversions import BatteryReading
+    from seaway_vehicle_io.core_link import LinkState
+    from seaway_vehicle_io.core_params import ParamCheck
+    from seaway_vehicle_io.fence_sync import FenceSync
+    from seaway_vehicle_io.rates import RateWatch
+    from seaway_vehicle_io.watchdog import ThrustWatchdog
+
+log = logging.getLogger("seaway.vehicle_io")
+
+FAILSAFE_AUTOPILOT_CONFIG = "autopilot_config"
+
+
+class StatusReport:
+    """The status part of ``VehicleIoCore``: owns the hold reason, the health, the health problem
+    last logged and the thrust-withheld reason last published."""
+
+    # read from the other parts
+    link: LinkState
+    params: ParamCheck
+    watchdog: ThrustWatchdog
+    battery: BatteryReading
+    battery_said: tuple[BatteryLevel, str] | None
+    rates_hz: dict[str, float]
+    dropped: int
+    refusals: Refusals
+    rate_watch: RateWatch | None
+    fence: FenceSync | None
+
+    def _init_status(self) -> None:
+        """Last: the thrust-withheld reason is the other parts' state as it starts."""
+        self.hold = FailsafeCause()  # why the autopilot took the vessel (failsafe_cause.py)
+        self.health = Health()  # is it fit to start a mission (autopilot_health.py)
+        self._health_said: str | None = None  # the health problem last logged
+        self._withheld: ThrustWithheld | None = self.thrust_withheld()  # as last published
+
+    def failsafe(self, now: Now) -> str | None:
+        """The failsafe to report, most serious first."""
+        a = self.params.assessment
+        if a is not None and a.blocking:
+            return FAILSAFE_AUTOPILOT_CONFIG
+        if self.watchdog.active(now.mono_ns) is None:
+            return FAILSAFE_THRUST_STALE
+        return None
+
+    def failsafe_latched(self) -> tuple[HoldReason, str] | None:
+        """The failsafe the autopilot still stands in, and what says so (``autopilot_health``)."""
+        said = self.battery_said
+        level = worse_level(self.battery.level, None if said is None else said[0])
+        return latched_failsafe(self.health.failsafe_bits, level, "" if said is None else said[1])
+
+    def status(self, now: Now) -> VehicleStatus:
+        link = self.link
+        self._withheld = self.thrust_withheld()
+        latched = self.failsafe_latched()
+        problem = self.health.problem()
+        if problem != self._health_said:
+            if problem is not None:
+                log.warning("%s", problem)
+            elif self._health_said is not None:
+                log.info("the autopilot is healthy again (estimator, status, sensors)")
+            self._health_said = problem
+        hb_age = (None if link.last_heartbeat_mono_ns is None
+                  else max(0.0, (now.mono_ns - link.last_heartbeat_mono_ns) / 1e9))
+        return VehicleStatus.make(
+            stamp_ns=now.wall_ns,
+            autopilot=link.profile.name if link.profile else "unknown",
+            link_ok=link.ok,
+            armed=link.armed,
+            mode=link.mode,
+            failsafe=self.failsafe(now),
+            battery_voltage_v=self.battery.voltage_v,
+            battery_remaining_frac=self.battery.remaining_frac,
+            heartbeat_age_s=hb_age,
+            rates_hz=dict(self.rates_hz),
+            dropped_messages=self.dropped,
+            refused_messages=dict(self.refusals.by_reason),
+            # A standing hazard, not an event: reported beside the failsafe, not as one.
+            autopilot_loss_failsafe=None if self.params.assessment is None
+            else self.params.assessment.verdict,
+            autopilot_loss_failsafe_summary="" if self.params.assessment is None
+            else self.params.assessment.summary,
+            hold_reason=self.hold.cause,
+            hold_reason_detail=self.hold.detail,
+            telemetry_rates_short=None if self.rate_watch is None or self.rate_watch.short is None
+            else dict(self.rate_watch.short),
+            thrust_withheld=self._withheld,
+            refused_thrust=self.refused_thrust(),
+            autopilot_fence=self.fence.report() if self.fence is not None else None,
+            autopilot_unhealthy_detail=self.health.problem() or "",
+            failsafe_latched=None if latched is None else latched[0],
+            failsafe_latched_detail="" if latched is None else latched[1],
+        )
+
+    def _hold_changed(self, changed: bool) -> None:
+        if changed:
+            log.warning("autopilot took the vessel: %s (%s)", self.hold.cause, self.hold.detail)
