@@ -38,6 +38,8 @@ from seaway.contract.messages import (
 from seaway.vessel import path
 from seaway.vessel.frames import GeoOrigin
 
+from seaway_controller import controllers
+
 Point = tuple[float, float]
 
 
@@ -120,6 +122,10 @@ def validate_mission(req: MissionRequest, origin: GeoOrigin | None,
         raise MissionError(f"a mission needs at least 2 waypoints (P_0 and one more), got {n}")
     if n > limits.max_waypoints:
         raise MissionError(f"too many waypoints: {n} > {limits.max_waypoints}")
+    try:
+        controllers.get(req.controller)  # registered: shipped, or by a --controller-module
+    except ValueError as err:
+        raise MissionError(str(err)) from None
     if not (math.isfinite(req.coa_radius_m) and req.coa_radius_m > 0):
         raise MissionError(f"coa_radius_m must be a finite number > 0, got {req.coa_radius_m}")
     if not (math.isfinite(req.task_power_w) and 0 < req.task_power_w <= MAX_TASK_POWER_W):

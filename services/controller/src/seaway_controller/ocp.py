@@ -30,6 +30,7 @@ disturbance.
 from __future__ import annotations
 
 import hashlib
+import inspect
 import json
 import math
 from dataclasses import asdict, dataclass, field
@@ -45,7 +46,7 @@ from seaway.vessel.model_casadi import rk4_discrete
 from seaway_controller import controllers, costs
 
 ControllerKind = ControllerName
-"""A controller's name (the wire's closed set, ``seaway.contract.messages.ControllerName``)."""
+"""A registered controller's name (``seaway.contract.messages.ControllerName``)."""
 CONTROLLER_KINDS: tuple[ControllerKind, ...] = controllers.NAMES
 
 TIME_SCALE_S = 100.0
@@ -120,13 +121,21 @@ def spec_digest(spec: OcpSpec, vessel: VesselParams, extra: dict | None = None) 
     """A stable hash of the problem (spec, vessel, formulation code) and ``extra`` (solver options).
 
     The code hashed is every file the NLP is built from: this one, the cost terms, the controller
-    definitions (``controllers/*.py``) and the shared vessel maths they call (``seaway.vessel``'s
-    model and path geometry), so that editing any of them rebuilds the cached solver."""
+    definitions (``controllers/*.py``, and the file of a controller loaded from elsewhere,
+    ``controllers.load_module``) and the shared vessel maths they call (``seaway.vessel``'s model
+    and path geometry), so that editing any of them rebuilds the cached solver."""
     from seaway.vessel import model, model_casadi, path
 
     here = Path(__file__).parent
     files = [here / "costs.py", here / "ocp.py", *sorted((here / "controllers").glob("*.py")),
              *(Path(m.__file__) for m in (model, model_casadi, path))]
+    c = spec.controller
+    sources = [controllers.source_file(spec.kind),
+               *(inspect.getsourcefile(fn) for fn in (c.stage_cost, c.guess_thrust, c.terminal)
+                 if fn is not None)]
+    for source in sources:
+        if source is not None and Path(source).resolve() not in {f.resolve() for f in files}:
+            files.append(Path(source))
     code = "".join(f.read_text() for f in files)
     doc = {"spec": asdict(spec), "vessel": vessel.model_dump(), "extra": extra or {},
            "casadi": ca.__version__, "code": hashlib.sha256(code.encode()).hexdigest()}
