@@ -149,7 +149,7 @@ class SharedStack:
         self.folder.mkdir(parents=True, exist_ok=True)
         t0 = time.monotonic()
         with self._cpus_lock:
-            opts = ["--scenario", spec.scenario, *SHARED_FLAGS,
+            opts = ["--scenario", spec.scenario, *SHARED_FLAGS, *spec.module_options(),
                     *(f for f in OPTIONAL_FLAGS if f in supported), *cpus_option(self.cpus, supported)]
             self.command = [*seaway_command(), "launch", PROFILE, *opts, "--run-dir", str(self.folder)]
             self.proc = _spawn(self.command, self.port)
