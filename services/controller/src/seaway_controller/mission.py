@@ -8,7 +8,7 @@ last circle completes the mission.
 The start: as QGroundControl and ArduPilot do, the vessel first goes to P_0, on the approach "leg"
 from where it was first seen after the start to P_0 (``active`` = 0), then flies P_0 -> P_1 (i = 1).
 A vessel first seen inside P_0's circle (the paper's runs, which start at P_0) starts at i = 1 at
-once, with no switch counted: exactly the former start. ``MissionRequest.join_first_leg`` joins
+once, with no switch counted, as the paper's missions start. ``MissionRequest.join_first_leg`` joins
 P_0 -> P_1 from wherever the vessel is instead.
 
 At rest: after the last waypoint, and while the operator pauses, the vessel holds station at a

@@ -18,7 +18,7 @@ Scaling (solver-notes.md, trap 1), from the vessel and the mission's task power 
 serves a 0.045 m/s lab model and a 1 m/s boat alike (``empc_scales``): the EMPCs optimise t/100
 instead of t for t_d and t_s, and minimise J / E* + (rho/2) (c / L*)^2, E* = P* L* / u* being the
 energy to sail L* = 4.5 m at the economic cruise u* (P* = T^w + P^sur(u*) = 2 T^w; E* = 98.8 J on the
-paper's vessel, where this is the former fixed 0.01, and 2232 J on the lake boat) and c the terminal
+paper's vessel, a scale of about 0.01, and 2232 J on the lake boat) and c the terminal
 constraint's residual. The penalty is zero, with a zero gradient, at every feasible point, so the
 optimum and its multipliers are those of the paper's problem; it makes the terminal block of the
 Hessian (bilinear in u_H and t_s) positive definite, so that eigen-clip leaves it alone instead of
@@ -294,8 +294,8 @@ class Ocp:
         t_d minimises E_d + E_s = P_d(t_d) t_d + P_s t_s over a log grid of [t_d_min, t_d_max], t_s
         following from eq. 15d (t_s = d / u_H - t_d sinc(Delta psi) >= 0): a turn's best duration
         depends on the vessel and its speed (the solved t_d is about 11.5 s on the paper's 0.045 m/s
-        model and 1.5-2.5 s on the 1 m/s lake boat; the former 1 + 10 |Delta psi| s rule guessed 16 s
-        there at a 90 degree switch), so no fixed seconds-per-radian rule fits both.
+        model and 1.5-2.5 s on the 1 m/s lake boat, where a 1 + 10 |Delta psi| s rule would guess
+        16 s at a 90 degree switch), so no fixed seconds-per-radian rule fits both.
         """
         s, vp = self.spec, self.vessel
         task = float(p[P_TASK])
