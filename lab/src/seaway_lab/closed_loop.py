@@ -374,7 +374,8 @@ def run_closed_loop(scenario: str | Scenario, controller: ControllerKind,
             update={"initial_energy_j": battery_j})})
     vp = vessel or load_vessel(sc.vessel)
     # A simulation in process, like lockstep: a slow solve is never late, so that the result does
-    # not depend on how busy the machine was (issue 14: load made solves "unconverged").
+    # not depend on how busy the machine is (a solve budget would count a solve slowed by load as
+    # unconverged).
     core = core or ControllerCore(vp, config or ControllerConfig(solve_budget_s=None))
     # The plant is the scenario's (it may differ from the model: a robustness run), as in the sim.
     sim = SimCore(sc, vp if vessel is not None else load_vessel(sc.plant_vessel_file))

@@ -44,7 +44,7 @@ def test_request_predicts_with_tau_d_only_when_asked() -> None:
     ({"predict_disturbance": [True]}, "MissionRequest.predict_disturbance"),
     ({"task_power_w": -0.1}, "MissionRequest.task_power_w"),
     ({"task_power_w": float("nan")}, "MissionRequest.task_power_w"),
-    ({"controller": "pid"}, "MissionRequest.controller"),
+    ({"controller": "PID!"}, "MissionRequest.controller"),
 ])
 def test_bad_request_fields_are_refused_naming_them(fields: dict, problem: str) -> None:
     with pytest.raises(MessageError, match=problem):

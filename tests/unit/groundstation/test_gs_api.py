@@ -213,7 +213,7 @@ def test_mission_send_start_pause_resume_abort(client: TestClient, vessel: Vesse
     ({"waypoints": [{"x_m": 0}, {"x_m": 1, "y_m": 1}], "coa_radius_m": 2, "task_power_w": 0.49}, "waypoints"),
     (mission(coa_radius_m=0), "coa_radius_m"),
     (mission(task_power_w=-1), "task_power_w"),
-    (mission(controller="pid"), "controller"),
+    (mission(controller="PID!"), "controller"),
     (mission(colour="red"), "colour"),
 ])
 def test_bad_missions_are_422_naming_the_field(client: TestClient, vessel: Vessel, body: dict,

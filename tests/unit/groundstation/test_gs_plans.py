@@ -243,7 +243,7 @@ def test_import_without_radius_or_power_is_refused_and_bad_hints_name_the_field(
     path = plans.parse_plan(_square())
     with pytest.raises(bodies.MissionBuildError, match="coa_radius_m is required: the plan file"):
         bodies.mission_from_import(path, bodies.ImportParams(task_power_w=1.0), 1)
-    bad = plans.ImportedPath("geojson", path.points_deg, hints={"controller": "pid", "coa_radius_m": 1,
+    bad = plans.ImportedPath("geojson", path.points_deg, hints={"controller": "PID!", "coa_radius_m": 1,
                                                                 "task_power_w": 0.49})
     with pytest.raises(bodies.MissionBuildError, match=r"MissionRequest\.controller"):
         bodies.mission_from_import(bad, bodies.ImportParams(), 1)

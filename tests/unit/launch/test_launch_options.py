@@ -28,7 +28,14 @@ def test_mission_options_parse() -> None:
 
 
 @pytest.mark.parametrize(("argv", "problem"), [
-    (["--controller", "pid"], "argument --controller: invalid choice: 'pid'"),
+    (["--controller", "PID!"], "--controller: 'PID!': a controller's name is lower case letters, "
+                               "digits and '-', starting with a letter: cc-empc, eo-empc, nmpc, or "
+                               "one a --controller-module registers"),
+    (["--controller-module", "no/such/file.py"], "--controller-module: no/such/file.py: no such file "
+                                                 "(a .py file that registers a controller, or an "
+                                                 "importable module name)"),
+    (["--controller-module", "my package"], "--controller-module: 'my package': neither a .py file "
+                                            "nor a module name"),
     (["--task-power-w", "-1"], "--task-power-w: '-1': the task power must be finite, in (0, 10000] W"),
     (["--task-power-w=-0.5"], "--task-power-w: '-0.5': the task power must be finite, in (0, 10000] W"),
     (["--task-power-w", "0"], "'0': the task power must be finite, in (0, 10000] W"),
@@ -52,6 +59,27 @@ def test_the_options_change_the_mission_sent() -> None:
                                                     "--task-power-w", "2.5"))
     assert (req.controller, req.predict_disturbance, req.task_power_w) == ("eo-empc", True, 2.5)
     assert req.waypoints == plain.waypoints and req.coa_radius_m == plain.coa_radius_m
+
+
+def test_a_controller_module_goes_to_the_controller_processes_only(tmp_path, capsys) -> None:
+    """The file as an absolute path (the processes run in their own folders), after each
+    controller's own options; a profile without a controller refuses it."""
+    from seaway.tools.launch.plan import supervised
+    from seaway.tools.launch.profile import instances, load_profile
+
+    mine = tmp_path / "mine.py"
+    mine.write_text("")
+    args = parse("--controller-module", str(mine), "--controller", "mine")
+    assert args.controller_module == [str(mine.resolve())] and args.controller == "mine"
+    common = dict.fromkeys(("scenario", "run_dir", "profile", "recording", "mavlink_key"), "x")
+    procs = supervised(instances(load_profile("sim-batch"), ["v"]), ["v"], tmp_path, common)
+    before = {p.spec.name: list(p.argv) for p in procs}
+    assert launch.hand_controller_modules(procs, args.controller_module)
+    for p in procs:
+        added = [] if p.spec.name != "controller" else ["--controller-module", str(mine.resolve())]
+        assert p.argv == before[p.spec.name] + added
+    assert launch.main(["shore", "--controller-module", str(mine), "--check"]) == 2
+    assert "--controller-module: profile shore runs no controller" in capsys.readouterr().err
 
 
 def _no_mission_scenario(tmp_path: Path) -> Path:

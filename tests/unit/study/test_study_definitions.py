@@ -96,3 +96,22 @@ def test_only_restricts_rows_and_columns() -> None:
         defs.only(defs.get_study("table1"), ["#7"])
     with pytest.raises(KeyError, match="no study"):
         defs.get_study("table2")
+
+
+def test_with_controllers_adds_a_column_of_ones_own_loaded_by_every_stack() -> None:
+    """``seaway study lake --controller-module FILE --with-controller mine``: a column more, every
+    row's first run flown by it, every run's stack loading the module; compared with CC-EMPC."""
+    lake = defs.get_study("lake")
+    s = defs.with_controllers(lake, ["mine"], ("/x/mine.py",))
+    assert s.columns == (*lake.columns, "mine") and s.rows == lake.rows
+    mine = s.cell("lake", "mine")
+    assert mine is not None and (mine.scenario, mine.controller) == ("lake", "mine")
+    assert s.compare == ("cc-empc", "mine")
+    assert all(r.controller_modules == ("/x/mine.py",) for r in s.runs)
+    opts = mine.launch_options()
+    assert opts[-2:] == ["--controller-module", "/x/mine.py"]
+    args = launch_parser().parse_args(["sim-batch", *opts[:-2]])  # the launcher takes them all
+    assert args.controller == "mine"
+    assert defs.only(s, None, ["cc-empc", "mine"]).columns == ("cc-empc", "mine")
+    with pytest.raises(KeyError, match="has a column nmpc already"):
+        defs.with_controllers(lake, ["nmpc"])

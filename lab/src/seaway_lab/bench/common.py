@@ -92,10 +92,10 @@ def compare_auth(result: BenchResult, on: dict[str, float], off: dict[str, float
     JSON sections ``auth_on``, ``auth_off`` and ``auth_overhead_ratio``. Returns the ratios.
 
     ``pairs`` (name -> the ratio on / off of each alternating pair of runs): the ratio reported is
-    their median, not the ratio of ``on`` to ``off``. Why: a shared VM's speed drifts within
+    their median, not the ratio of ``on`` to ``off``. Why: a shared machine's speed drifts within
     minutes, and a run is closer in speed to its neighbour than to the median of its own setting;
-    with three runs each, the ratio of medians fell either side of the target from one bench to
-    the next (wall time 1.04, 1.13 and 0.92 in three runs of ``bench lockstep`` on one evening)."""
+    with few runs each, the ratio of medians can fall either side of the target from one bench to
+    the next."""
     def ratio(k: str) -> float:
         if pairs:
             return median(pairs[k])

@@ -24,8 +24,8 @@ credentials: mutual TLS and access control) and off (``SEAWAY_CREDENTIALS=none``
 the same run (on, off, on, off... for ``--repeat``), so drift hits both; the figures on and off (wall
 time, and the period: the time between the sim's consecutive answers, median and p99) and their
 ratio on / off, the median over the pairs of each run on and the run off after it (target: within
-10 %). ``--repeat`` is 3 by default: on a 2-core VM one stack run's wall time differed from the
-next by up to 16 % (ten runs, 8.5-10.4 s), more than the target, so one pair's ratio says little.
+10 %). ``--repeat`` is 3 by default: on a small shared machine one stack run's wall time can
+differ from the next by more than the target, so one pair's ratio says little.
 The comparison with the in-process loop and the stage breakdown are those with authentication on,
 as a stack runs.
 """
@@ -179,8 +179,9 @@ def run(argv: list[str]) -> BenchResult:
     ap = argparse.ArgumentParser(prog="seaway bench lockstep", description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeat", type=positive_int, default=3,
                     help="runs through the processes with authentication on, and as many with it "
-                         "off, alternating (median; default 3: on a 2-core VM one stack run's wall "
-                         "time can differ from the next by more than the on / off target of 10 %%)")
+                         "off, alternating (median; default 3: on a small shared machine one stack "
+                         "run's wall time can differ from the next by more than the on / off "
+                         "target of 10 %%)")
     ap.add_argument("--no-pin", action="store_true",
                     help="leave the stack's processes where the kernel puts them (default, given two "
                          "CPUs or more: the sim, estimator and controller on one, the recorder and "
@@ -219,9 +220,9 @@ def run(argv: list[str]) -> BenchResult:
     runs: dict[bool, list[dict[str, float]]] = {True: [], False: []}  # each run's AUTH_FIGURES
     for _ in range(args.repeat):
         for auth in (True, False):  # alternate, so drift in the machine's load hits both
-            # Each stack run is paired with an in-process run just before it: a shared VM's speed
-            # drifts (seen: the same loop 4.4 s and 8.6 s within ten minutes), so a ratio of runs
-            # minutes apart says more about the machine than about the stack.
+            # Each stack run is paired with an in-process run just before it: a shared machine's
+            # speed drifts within minutes, so a ratio of runs minutes apart says more about the
+            # machine than about the stack.
             before = in_process_s()
             with tempfile.TemporaryDirectory(prefix="seaway-bench-lockstep-") as tmp:
                 marks = through_processes(Path(tmp) / "run", auth, stack_cpus)

@@ -4,6 +4,7 @@
     seaway study table1 --rows '#1' --json   # one condition, the result as one JSON object
     seaway study tw-sweep --workers 1
     seaway study lake --dask tcp://127.0.0.1:8786
+    seaway study lake --controller-module my_controller.py --with-controller mine
     seaway study --list
 
 A run is the mission of scenario S flown by controller C (with its T^w and disturbance prediction)
@@ -78,6 +79,12 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--out", type=Path, default=None, help="output folder (default runs/study-NAME-<time>)")
     ap.add_argument("--rows", nargs="+", default=None, help="only these rows (e.g. '#1' '#4')")
     ap.add_argument("--columns", nargs="+", default=None, help="only these columns (e.g. cc-empc nmpc)")
+    ap.add_argument("--with-controller", action="append", default=[], metavar="NAME",
+                    help="add a column: every row flown by this controller too (one of your own "
+                         "needs --controller-module); repeatable")
+    ap.add_argument("--controller-module", action="append", default=[], metavar="FILE|MODULE",
+                    help="a controller of one's own that every stack loads (seaway launch "
+                         "--controller-module; docs/researcher/new-controller.md); repeatable")
     ap.add_argument("--timeout-s", type=positive_float, default=DEFAULT_TIMEOUT_S,
                     help="wall time limit of one run")
     ap.add_argument("--no-figures", action="store_true",
@@ -223,6 +230,10 @@ def _redraw(args: argparse.Namespace) -> int:
         doc = json.loads((out / "results.json").read_text())
         series = json.loads((out / "series.json").read_text()) if (out / "series.json").is_file() else {}
         study = defs.get_study(doc["study"])
+        runs = doc.get("runs", [])
+        added = list(dict.fromkeys(r["column"] for r in runs if r["column"] not in study.columns))
+        modules = next((tuple(r.get("controller_modules", ())) for r in runs), ())
+        study = defs.with_controllers(study, added, modules) if added else study
         study = defs.only(study, sorted({r["row"] for r in doc.get("runs", [])}, key=study.rows.index),
                           sorted({r["column"] for r in doc.get("runs", [])}, key=study.columns.index))
     except (OSError, KeyError, ValueError) as err:
@@ -285,7 +296,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"seaway study: name a study: {', '.join(defs.STUDIES)}", file=sys.stderr)
         return 2
     try:
-        study = defs.only(defs.get_study(args.name), args.rows, args.columns)
+        modules = tuple(str(Path(m).resolve()) if m.endswith(".py") or "/" in m else m
+                        for m in args.controller_module)
+        study = defs.with_controllers(defs.get_study(args.name), args.with_controller, modules)
+        study = defs.only(study, args.rows, args.columns)
     except KeyError as err:
         print(f"seaway study: {err.args[0]}", file=sys.stderr)
         return 2

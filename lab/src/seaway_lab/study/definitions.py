@@ -14,7 +14,7 @@ from __future__ import annotations
 import functools
 import math
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from seaway.contract.messages import ControllerName
 from seaway.simkit.scenario import load_mission
@@ -64,6 +64,9 @@ class RunSpec:
     predict_disturbance: bool = False
     task_power_w: float | None = None
     """T^w [W] for this run; None: the scenario's own."""
+    controller_modules: tuple[str, ...] = ()
+    """Files or modules of controllers of one's own the stack loads (``seaway launch
+    --controller-module``), for a run of one of them (``with_controllers``)."""
 
     @property
     def key(self) -> str:
@@ -82,7 +85,11 @@ class RunSpec:
             opts.append("--predict-disturbance")
         if self.task_power_w is not None:
             opts += ["--task-power-w", f"{self.task_power_w:g}"]
-        return opts
+        return opts + self.module_options()
+
+    def module_options(self) -> list[str]:
+        """``--controller-module M`` for each of ``controller_modules`` (a stack's start needs them)."""
+        return [o for m in self.controller_modules for o in ("--controller-module", m)]
 
     def paper(self) -> dict[str, float] | None:
         """Table I's energy, cross-track error and time for what this run flies, if the paper flew it."""
@@ -98,7 +105,8 @@ class RunSpec:
     def to_json(self) -> dict[str, object]:
         return {"key": self.key, "scenario": self.scenario, "controller": self.controller,
                 "predict_disturbance": self.predict_disturbance, "task_power_w": self.task_power_w,
-                "row": self.row, "column": self.column}
+                "row": self.row, "column": self.column,
+                "controller_modules": list(self.controller_modules)}
 
 
 @dataclass(frozen=True)
@@ -191,6 +199,25 @@ def get_study(name: str) -> Study:
         return STUDIES[name]
     except KeyError:
         raise KeyError(f"no study {name!r}; studies: {', '.join(STUDIES)}") from None
+
+
+def with_controllers(study: Study, names: list[str], modules: tuple[str, ...] = ()) -> Study:
+    """The study with a column more for each controller in ``names`` (``seaway study
+    --with-controller``): in every row, the row's first run flown by that controller. Every run's
+    stack loads ``modules`` (``--controller-module``), so that any stack can fly any run; a
+    comparison with CC-EMPC is shown when there is one column more and a cc-empc column."""
+    runs = list(study.runs)
+    for name in names:
+        if name in study.columns:
+            raise KeyError(f"study {study.name} has a column {name} already")
+        for row in study.rows:
+            first = next(r for r in study.runs if r.row == row)
+            runs.append(replace(first, controller=name, column=name))
+    runs = [replace(r, controller_modules=tuple(modules)) for r in runs]
+    compare = (("cc-empc", names[0]) if len(names) == 1 and "cc-empc" in study.columns
+               else study.compare)
+    return Study(study.name, study.title, study.row_label, tuple(runs), compare, study.relations,
+                 study.figures, study.notes)
 
 
 def only(study: Study, rows: list[str] | None = None, columns: list[str] | None = None) -> Study:

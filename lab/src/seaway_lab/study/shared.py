@@ -35,9 +35,8 @@ from seaway_lab.study.outcome import RunOutcome, _concluded, report_json
 STATUS_POLL_S = 0.05
 """How often a shared stack's mission status is looked at [wall s]: the transport keeps the newest
 status (``Bus.newest``), so a look costs one decode, not one per period. A stack whose mission is
-over holds (nothing to fly), so a later look costs the next run at most this much; looking every
-0.01 s cost the study's process 5.4 % of a core per stack while it flew, every 0.05 s 3.7-4.2 %
-(a paper #1 run, two of each)."""
+over holds (nothing to fly), so a later look costs the next run at most this much; looking more
+often costs the study's process CPU, per stack, that the stacks would rather have, for little."""
 REQUEST_TIMEOUT_S = 30.0
 """How long a scenario load or a mission request may take to be answered (a load is answered once
 every member has answered the new episode's first period)."""
@@ -75,9 +74,9 @@ class SharedStack:
     over (``mission_over``). Each run is one episode of the folder's recording; ``close`` stops the
     stack and reports every run it flew from one decode of it.
 
-    Why: a stack's start and stop cost 2.5-3 s of wall time and about 1 core-s (five Python
-    processes importing numpy, CasADi, pydantic and Zenoh), paid once per stack instead of once per
-    run (docs/results.md, 2026-11-29). Two missions in one stack give the numbers of two fresh
+    Why: a stack's start and stop cost seconds of wall time and CPU (five Python processes
+    importing numpy, CasADi, pydantic and Zenoh), paid once per stack instead of once per run. Two
+    missions in one stack give the numbers of two fresh
     stacks (``test_lockstep_restarts``, ``test_study_shared``).
     """
 
@@ -149,7 +148,7 @@ class SharedStack:
         self.folder.mkdir(parents=True, exist_ok=True)
         t0 = time.monotonic()
         with self._cpus_lock:
-            opts = ["--scenario", spec.scenario, *SHARED_FLAGS,
+            opts = ["--scenario", spec.scenario, *SHARED_FLAGS, *spec.module_options(),
                     *(f for f in OPTIONAL_FLAGS if f in supported), *cpus_option(self.cpus, supported)]
             self.command = [*seaway_command(), "launch", PROFILE, *opts, "--run-dir", str(self.folder)]
             self.proc = _spawn(self.command, self.port)

@@ -90,10 +90,9 @@ path: to 0.05 mm)."""
 BUDGET_INTERVAL_NS = 1_000_000_000
 """The budget is priced at the first period of each whole second of the controller's clock (the
 states' stamps: simulated time in lockstep, so a replay prices the same periods), and at the period
-the active leg changes [ns]. An autopilot reports its battery about as often. Priced every 0.1 s
-period it took 0.6 ms of the controller's CPU a period (paper #1 in lockstep: 2.1 of the
-controller's 7.1 core-s, on lockstep's critical path) for figures that move a few joules a
-period."""
+the active leg changes [ns]. An autopilot reports its battery about as often. Pricing it every
+period would put a large share of the controller's CPU on lockstep's critical path for figures
+that move a few joules a period."""
 UNREACHABLE_DECIDE_S = 5.0
 """A way home that cannot be made good (the estimated disturbance stronger than the cruise, so no
 finite energy home) decides the policy only once every pricing has said so for this long [s]: one

@@ -128,8 +128,9 @@ def _turn_extra_j(vessel: VesselParams, task_power_w: float, speed_mps: float,
     """Extra energy of turning by each of ``delta_psi`` [rad] on the way: the least E_d + E_s over
     t_d (paper eq. 15, t_s from the terminal constraint) minus the straight run E_s would be alone
     [J]. All angles at once: one array evaluation per step of the search, not one per angle (the
-    NMPC's table is made again at each pricing, since its speed changes: one angle at a time, 91
-    searches took ~50 ms, on the control loop, every period near the return decision)."""
+    NMPC's table is made again at each pricing, since its speed changes, and 91 searches one angle
+    at a time would take a large part of a control period, on the control loop, every period near
+    the return decision)."""
     psi = np.asarray(delta_psi, dtype=float)
     p_static = costs.surge_power_w(speed_mps, vessel) + task_power_w
     sinc = costs.smooth_sinc(psi, np)

@@ -8,7 +8,7 @@ last circle completes the mission.
 The start: as QGroundControl and ArduPilot do, the vessel first goes to P_0, on the approach "leg"
 from where it was first seen after the start to P_0 (``active`` = 0), then flies P_0 -> P_1 (i = 1).
 A vessel first seen inside P_0's circle (the paper's runs, which start at P_0) starts at i = 1 at
-once, with no switch counted: exactly the former start. ``MissionRequest.join_first_leg`` joins
+once, with no switch counted, as the paper's missions start. ``MissionRequest.join_first_leg`` joins
 P_0 -> P_1 from wherever the vessel is instead.
 
 At rest: after the last waypoint, and while the operator pauses, the vessel holds station at a
@@ -37,6 +37,8 @@ from seaway.contract.messages import (
 )
 from seaway.vessel import path
 from seaway.vessel.frames import GeoOrigin
+
+from seaway_controller import controllers
 
 Point = tuple[float, float]
 
@@ -120,6 +122,10 @@ def validate_mission(req: MissionRequest, origin: GeoOrigin | None,
         raise MissionError(f"a mission needs at least 2 waypoints (P_0 and one more), got {n}")
     if n > limits.max_waypoints:
         raise MissionError(f"too many waypoints: {n} > {limits.max_waypoints}")
+    try:
+        controllers.get(req.controller)  # registered: shipped, or by a --controller-module
+    except ValueError as err:
+        raise MissionError(str(err)) from None
     if not (math.isfinite(req.coa_radius_m) and req.coa_radius_m > 0):
         raise MissionError(f"coa_radius_m must be a finite number > 0, got {req.coa_radius_m}")
     if not (math.isfinite(req.task_power_w) and 0 < req.task_power_w <= MAX_TASK_POWER_W):

@@ -18,7 +18,7 @@ Scaling (solver-notes.md, trap 1), from the vessel and the mission's task power 
 serves a 0.045 m/s lab model and a 1 m/s boat alike (``empc_scales``): the EMPCs optimise t/100
 instead of t for t_d and t_s, and minimise J / E* + (rho/2) (c / L*)^2, E* = P* L* / u* being the
 energy to sail L* = 4.5 m at the economic cruise u* (P* = T^w + P^sur(u*) = 2 T^w; E* = 98.8 J on the
-paper's vessel, where this is the former fixed 0.01, and 2232 J on the lake boat) and c the terminal
+paper's vessel, a scale of about 0.01, and 2232 J on the lake boat) and c the terminal
 constraint's residual. The penalty is zero, with a zero gradient, at every feasible point, so the
 optimum and its multipliers are those of the paper's problem; it makes the terminal block of the
 Hessian (bilinear in u_H and t_s) positive definite, so that eigen-clip leaves it alone instead of
@@ -30,6 +30,7 @@ disturbance.
 from __future__ import annotations
 
 import hashlib
+import inspect
 import json
 import math
 from dataclasses import asdict, dataclass, field
@@ -45,7 +46,7 @@ from seaway.vessel.model_casadi import rk4_discrete
 from seaway_controller import controllers, costs
 
 ControllerKind = ControllerName
-"""A controller's name (the wire's closed set, ``seaway.contract.messages.ControllerName``)."""
+"""A registered controller's name (``seaway.contract.messages.ControllerName``)."""
 CONTROLLER_KINDS: tuple[ControllerKind, ...] = controllers.NAMES
 
 TIME_SCALE_S = 100.0
@@ -120,13 +121,21 @@ def spec_digest(spec: OcpSpec, vessel: VesselParams, extra: dict | None = None) 
     """A stable hash of the problem (spec, vessel, formulation code) and ``extra`` (solver options).
 
     The code hashed is every file the NLP is built from: this one, the cost terms, the controller
-    definitions (``controllers/*.py``) and the shared vessel maths they call (``seaway.vessel``'s
-    model and path geometry), so that editing any of them rebuilds the cached solver."""
+    definitions (``controllers/*.py``, and the file of a controller loaded from elsewhere,
+    ``controllers.load_module``) and the shared vessel maths they call (``seaway.vessel``'s model
+    and path geometry), so that editing any of them rebuilds the cached solver."""
     from seaway.vessel import model, model_casadi, path
 
     here = Path(__file__).parent
     files = [here / "costs.py", here / "ocp.py", *sorted((here / "controllers").glob("*.py")),
              *(Path(m.__file__) for m in (model, model_casadi, path))]
+    c = spec.controller
+    sources = [controllers.source_file(spec.kind),
+               *(inspect.getsourcefile(fn) for fn in (c.stage_cost, c.guess_thrust, c.terminal)
+                 if fn is not None)]
+    for source in sources:
+        if source is not None and Path(source).resolve() not in {f.resolve() for f in files}:
+            files.append(Path(source))
     code = "".join(f.read_text() for f in files)
     doc = {"spec": asdict(spec), "vessel": vessel.model_dump(), "extra": extra or {},
            "casadi": ca.__version__, "code": hashlib.sha256(code.encode()).hexdigest()}
@@ -285,8 +294,8 @@ class Ocp:
         t_d minimises E_d + E_s = P_d(t_d) t_d + P_s t_s over a log grid of [t_d_min, t_d_max], t_s
         following from eq. 15d (t_s = d / u_H - t_d sinc(Delta psi) >= 0): a turn's best duration
         depends on the vessel and its speed (the solved t_d is about 11.5 s on the paper's 0.045 m/s
-        model and 1.5-2.5 s on the 1 m/s lake boat; the former 1 + 10 |Delta psi| s rule guessed 16 s
-        there at a 90 degree switch), so no fixed seconds-per-radian rule fits both.
+        model and 1.5-2.5 s on the 1 m/s lake boat, where a 1 + 10 |Delta psi| s rule would guess
+        16 s at a 90 degree switch), so no fixed seconds-per-radian rule fits both.
         """
         s, vp = self.spec, self.vessel
         task = float(p[P_TASK])

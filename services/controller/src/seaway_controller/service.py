@@ -90,7 +90,7 @@ from seaway.simkit.scenario import load_scenario
 from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.model import load_vessel
 
-from seaway_controller import checkpoint
+from seaway_controller import checkpoint, controllers
 from seaway_controller.core import BudgetDecision, ControllerConfig, ControllerCore
 from seaway_controller.keeper import ThrustKeeper, overrun_command
 from seaway_controller.mission import MissionLimits
@@ -133,6 +133,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="mission checkpoint: resume from it at start, keep it up to date")
     p.add_argument("--max-range-m", type=positive_float, default=5000.0,
                    help="operating area: waypoints within this distance of the origin")
+    p.add_argument("--controller-module", action="append", default=[], metavar="FILE|MODULE",
+                   help="a controller of one's own: a .py file or an importable module that "
+                        "registers it (seaway_controller.controllers.load_module); repeatable")
     p.add_argument("--area", type=Path, default=None,
                    help="the operating area to enforce (.toml [area], .plan geoFence, .geojson); "
                         "default: the run's scenario's [area], else none")
@@ -652,6 +655,13 @@ def resume(core: ControllerCore, path: Path, now_ns: int, run_file: str | Path |
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = parse(build_parser(), argv)
+    for module in args.controller_module:  # before the run's scenario or a checkpoint names it
+        try:
+            log.info("controller module %s: registered %s", module,
+                     ", ".join(controllers.load_module(module)))
+        except controllers.ControllerModuleError as err:
+            print(f"seaway-controller: --controller-module: {err}", file=sys.stderr)
+            return 2
     run = resolve_run(args, NAME, load_scenario)
     # A scenario named by flag (a batch run without a launcher) also starts its mission at once.
     scenario = load_scenario(args.scenario) if args.scenario and not args.run else None

@@ -10,8 +10,7 @@ qrqp re-forms and re-factorises its KKT matrix at every active-set iteration, al
 set did not change, so that a QP which converges in one step pays for two sparse QR factorisations.
 The generated C is patched to keep the last factorisation while the QP's active pattern is unchanged
 (``_patch_kkt_reuse``): the same matrix gives the same factors, so the results are bit for bit those of
-the unpatched code, and a CC-EMPC step costs about 25 % less (measured: 0.170 -> 0.127 ms median on
-paper condition #1, identical closed loop).
+the unpatched code (the same closed loop), and a step costs less by the factorisations saved.
 
 Success is decided from this call's own results, never from a stale status (trap 3): the generated
 function's return flag, plus the primal and dual infeasibilities of the returned point as the
@@ -50,8 +49,8 @@ log = logging.getLogger("seaway_controller.solvers")
 
 CC_FLAGS = ("-O3", "-fPIC", "-shared", "-fno-semantic-interposition")
 """-fno-semantic-interposition: the generated helpers (casadi_qr, casadi_cvx, ...) are global symbols;
-without it every call between them goes through the PLT and none is inlined (measured: 4 % of a
-CC-EMPC step, identical results)."""
+without it every call between them goes through the PLT and none is inlined (the results are
+identical either way)."""
 SYMBOL = "seaway_nlp"
 N_IN, N_OUT = 8, 6  # x0, p, lbx, ubx, lbg, ubg, lam_x0, lam_g0 -> x, f, g, lam_x, lam_g, lam_p
 

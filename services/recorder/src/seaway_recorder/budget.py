@@ -183,7 +183,8 @@ def table_rows(section: dict[str, Any]) -> list[tuple[str, str, str]]:
         return "-" if v is None else fmt.format(v)
 
     s = section
-    # The energy used is the report's one figure, above; not repeated here (issue 56, item 13).
+    # The energy used is the report's one figure, above; not repeated here, so that it is one
+    # number in one place.
     rows = [("energy budget", "", f"({s['source']}, {s['samples']} periods, policy {s['policy']})")]
     if s.get("prediction_warning"):
         rows.append(("  WARNING", "", s["prediction_warning"]))

@@ -1,10 +1,10 @@
 """The recorder's MCAP writer: the file ``mcap.writer.Writer`` writes, for a fraction of the work.
 
 A lockstep recorder ends a chunk every simulated period (the sim moves on only once a period is on
-disk), some 20 messages a chunk. Through the mcap library's ``Writer`` each message was a
+disk), some 20 messages a chunk. Through the mcap library's ``Writer`` each message is a
 ``Message`` dataclass written field by field (a ``struct.pack`` and a buffer write per field, a
-seek back for the length) and each chunk a dozen records built the same way: about a quarter of
-the recorder's Python time in a paper #1 run (docs/results.md, 2026-11-29, night). Here the four
+seek back for the length) and each chunk a dozen records built the same way, a large share of the
+recorder's Python time in lockstep. Here the four
 records written per message or per chunk (Message, Chunk, MessageIndex, ChunkIndex) are each one
 ``struct.pack``, and the chunk's bytes are joined once. Everything else (header, schemas, channels,
 attachments, metadata, the summary and footer) is written by the mcap library's own record classes.

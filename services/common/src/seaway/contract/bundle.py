@@ -9,9 +9,9 @@ between lines, no newline inside a line: compact JSON escapes it):
   published them, each ``["<key suffix>",<the message's JSON>]``, the message's bytes unchanged:
   a recorder writes them on their own key's channel as if they had been sent alone.
 
-Why one sample: each sample a process hears costs it a hand-over from Zenoh's thread to Python
-(measured on a 2-core machine: a period's eight samples heard one by one cost the receiver 380-460
-us of CPU, the same bytes in one sample 120 us). So a lockstep period is one sample per member, and
+Why one sample: each sample a process hears costs it a hand-over from Zenoh's thread to Python,
+and that per-sample cost, not the bytes, is most of what hearing a period's messages costs. So a
+lockstep period is one sample per member, and
 the messages reach everybody who hears the answer together with it: nothing listed can be missing.
 
 Real time publishes every message on its own key, as does any process that is not a lockstep member.

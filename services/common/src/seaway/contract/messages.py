@@ -755,12 +755,20 @@ class ScenarioRequest(Request):
         return self
 
 
-ControllerName = Literal["cc-empc", "eo-empc", "nmpc"]
-"""The controllers a mission can ask for: the paper's CC-EMPC and its two baselines, EO-EMPC and
-NMPC (section V). The one spelling of the closed set: the controller service registers exactly these
-names (``seaway_controller.controllers`` checks it at import)."""
-CONTROLLER_NAMES: tuple[ControllerName, ...] = get_args(ControllerName)
-DEFAULT_CONTROLLER: ControllerName = "cc-empc"
+BuiltinControllerName = Literal["cc-empc", "eo-empc", "nmpc"]
+"""The controllers Seaway ships: the paper's CC-EMPC and its two baselines, EO-EMPC and NMPC
+(section V). The one spelling of that set: the controller package registers exactly these names
+(``seaway_controller.controllers`` checks it at import)."""
+CONTROLLER_NAMES: tuple[BuiltinControllerName, ...] = get_args(BuiltinControllerName)
+CONTROLLER_NAME_PATTERN = r"^[a-z][a-z0-9-]{0,31}$"
+"""How a controller's name is spelled: lower case letters, digits and '-', starting with a letter,
+at most 32 characters (it names run folders and solver files)."""
+ControllerName = Annotated[str, StringConstraints(pattern=CONTROLLER_NAME_PATTERN)]
+"""The controller a mission asks for: a shipped one (``CONTROLLER_NAMES``) or one a
+``--controller-module`` registered (``seaway_controller.controllers.load_module``). The wire allows
+any well-spelled name; the controller refuses a mission naming one it has not registered, the reply
+naming those it has."""
+DEFAULT_CONTROLLER: BuiltinControllerName = "cc-empc"
 
 
 class Waypoint(BaseModel):

@@ -370,8 +370,8 @@ def chunked_messages(fh: Any, chunk_indexes: Iterable[ChunkIndex], channel_ids: 
     yields (it too reads only the indexed chunks), without making a record object of every message.
 
     Why: a lockstep recorder ends a chunk every period, some 20 messages of every topic each, and
-    the reader parsed all of them field by field in Python to hand on the few wanted: 80 % of a
-    report's decode (a paper #1 run: 0.40 s of CPU of which 0.31 s in the reader). Here a chunk
+    the mcap reader parses all of them field by field in Python to hand on the few wanted, most of
+    a report's decode. Here a chunk
     whose index names none of ``channel_ids`` is not read, and a message on another channel is
     skipped by its length. The layout is MCAP's (mcap.dev/spec: Chunk, Message records). A chunk
     written without message indexes says nothing of its channels: it is read, as the reader does."""
@@ -441,8 +441,8 @@ def decode_vessel(files: list[Path], vessel: str | None = None,
     Each file is read in file order and only for the topics wanted (the chunks' index says where
     they are), then each key's messages are put in log-time order: a stable sort, so messages logged
     at the same time stay in file order, and a rotated series in name order, as a merge of the
-    files in log-time order gives (``iter_messages``). The merge of every topic was most of a report's
-    time: about 1.2 s of CPU for a 3,331-period run, 0.7 s of it the reader's ordering heap."""
+    files in log-time order gives (``iter_messages``), without merging every topic through the
+    reader's ordering heap, which would be most of a report's time."""
     out = Decoded()
     wanted = None if suffixes is None else set(suffixes)
     # suffix -> [(log time, topic, bytes)] in file order, files in name order

@@ -52,12 +52,13 @@ class LatestWriter:
     """Keeps one file up to date with the latest text given, written (``write_text``, durable) on a
     thread of its own, so that the caller never waits for the disk.
 
-    A control loop must not: an fsync of a 500-byte file took 1.1 s here beside one large write
-    (``dd ... conv=fsync``), and one on the controller's loop left the vessel 0.58 s without a
-    command in a CI run. Texts given faster than the disk takes them are coalesced: only the
-    latest is written, which is all a file read back at a restart needs. ``on_error(err)`` is
-    called (on the writer's thread) for a write that failed; the next text is tried all the same.
-    ``close`` writes what is still pending before it returns (bounded by its timeout).
+    A control loop must not: an fsync of even a small file waits for whatever else the disk is
+    writing, which beside another process's large write can be longer than a control period, and
+    the vessel would be without a command meanwhile. Texts given faster than the disk takes them
+    are coalesced: only the latest is written, which is all a file read back at a restart needs.
+    ``on_error(err)`` is called (on the writer's thread) for a write that failed; the next text is
+    tried all the same. ``close`` writes what is still pending before it returns (bounded by its
+    timeout).
     """
 
     def __init__(self, path: Path, on_error: Callable[[OSError], None],

@@ -4,18 +4,14 @@
 threads) on CPU 0; ``seaway study`` gives each of its parallel stacks a CPU set of its own
 (``partition``). Why: in lockstep a period's work runs one process after another (sim, estimator,
 controller), each waking the next; kept on one CPU they wake each other without an inter-processor
-interrupt, find their caches warm, and never migrate. ``seaway study table1`` with its two stacks
-pinned apart on a 2-vCPU machine took a median 111.2 s against 121.1 s left to the kernel, in ten
-alternating pairs (seven faster, by 5-20 %; three slower, by 2-3 %: docs/results.md, "2026-11-29,
-evening: a study's stacks on CPUs of their own").
+interrupt, find their caches warm, and never migrate; and two stacks pinned apart do not take
+each other's CPU in the middle of a hand-over (``seaway bench lockstep`` and ``seaway study`` with
+``--pin`` and ``--no-pin`` measure what it is worth on a machine).
 
 Given two CPUs or more, a lockstep stack's chain (``seaway.runtime.lockstep.CHAIN``: sim, estimator,
 controller, which work one at a time) gets the lowest CPU of the set to itself and everything else
 (the recorder, the launcher) the others (``split_chain``): the chain's hand-overs stay on one CPU,
-and the recorder's writing neither takes that CPU nor evicts the chain's caches. ``seaway bench
-lockstep`` on a 2-vCPU machine, five alternating pairs: paper #1 through the processes in a median
-9.60 s so against 10.40 s left to the kernel, faster in every pair (docs/results.md, "2026-11-29,
-late: a stack's chain on a CPU of its own").
+and the recorder's writing neither takes that CPU nor evicts the chain's caches.
 
 A thread's affinity is its own: a new thread, and a child process, inherit their creator's. So a
 process is pinned by setting every one of its threads (``pin_threads``), before it starts the

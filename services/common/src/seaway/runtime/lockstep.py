@@ -114,8 +114,8 @@ Change = Literal["first", "next", "repeat", "restart", "stale"]
 class Period(NamedTuple):
     """(episode, t_k [ns]): the identity of one lockstep period.
 
-    A named tuple, not a frozen dataclass: every member makes and compares several a period (one is
-    made in 0.35 us against 0.58, compared in 0.05 against 0.18, here)."""
+    A named tuple, not a frozen dataclass: every member makes and compares several a period, and a
+    tuple is made and compared in C, a frozen dataclass through Python code."""
 
     episode: int
     stamp_ns: int
@@ -297,7 +297,7 @@ class Member:
     has one source that moves it on (the estimator the sim, the controller the estimator, the sim the
     controller), and whatever else it needs was sent before that one's bundle, so it is almost
     always there by then; when it is not, the loop looks again every ``PASSIVE_POLL_S``. Each bundle
-    heard through Python costs a hand-over on a 2-core machine's busiest moment.
+    heard through Python costs a thread hand-over at the busiest moment of the period.
     """
 
     def __init__(self, bus: Bus, service: str, watched: Iterable[str] | None,
@@ -336,8 +336,8 @@ class Member:
         self.on_ready: Callable[[], None] | None = None
         """A service that answers on the bus's thread: called there after each bundle taken from
         an active source (its loop is then woken only while a passive bundle is due, to look for
-        it, and for its own business). Each hand-over from Zenoh's thread to a loop's cost a
-        period some 0.1 ms of a 2-core machine's busiest moment."""
+        it, and for its own business): each hand-over from Zenoh's thread to a loop's costs a
+        thread switch at the busiest moment of the period."""
         self.stamps = StampGate(f"{service} (lockstep)", log)
         self.ratelog = RateLimitedLog(log)  # repeated warnings, per kind and key
         self.timeline = Timeline.from_env(service)  # seaway.runtime.timeline: off unless asked

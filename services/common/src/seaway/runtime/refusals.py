@@ -177,8 +177,8 @@ class _Watch:
                     return
                 rest = self._lines(rest + chunk)
                 # Wake a few times a second, not per line: a thread that wakes per message takes
-                # the interpreter lock from the service's own loop every time (measured: +30 %
-                # per lockstep period). The pipe holds what comes meanwhile.
+                # the interpreter lock from the service's own loop every time, which lengthens
+                # every lockstep period. The pipe holds what comes meanwhile.
                 time.sleep(READ_PAUSE_S)
             for listener in list(self.listeners):
                 try:

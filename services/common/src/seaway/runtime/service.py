@@ -144,12 +144,11 @@ def on_signals(signums: Sequence[int], act: Callable[[int], None]) -> None:
 
     * A Python handler runs only on the main thread, between two bytecodes. A process-directed
       signal may be delivered to another thread (Zenoh's, a writer's); then the main thread learns
-      of it only when it next runs bytecode, and one blocked on ``ctx.stop.wait()`` never does
-      (2026-11-28: 2 of 29 test responders sent SIGTERM went on waiting, until a second signal).
+      of it only when it next runs bytecode, and one blocked on ``ctx.stop.wait()`` never does:
+      the process would go on waiting until a second signal.
     * A handler runs possibly inside an ``Event.set()`` of the main thread, whose lock is not
-      reentrant: one that set an event itself could wait on that lock for good (CI, 2026-11-24: a
-      launcher's SIGKILL, so the parent-death SIGTERM, and a second SIGTERM left a process waiting on
-      itself for 40 min).
+      reentrant: one that set an event itself could wait on that lock for good (e.g. the
+      parent-death SIGTERM followed by a second SIGTERM would leave the process waiting on itself).
 
     The pipe carries every signal with a Python handler (a library's too, e.g. uvicorn's while it
     serves); the reader acts on those routed here alone.

@@ -54,13 +54,11 @@ LOCKSTEP_RUNTIME = ("(app: (worker_threads: 1), acc: (handover: app), tx: (hando
 """The Zenoh threads of a lockstep stack's processes: one worker thread for all of Zenoh's runtimes
 (by default each has its own: receive, transmit, accept, network, application; 6-7 threads).
 
-Why: a lockstep period is a chain of hand-overs, and with a pool per runtime each hand-over woke a
-transmit thread in the sender and a receive thread in the receiver, some 80 thread switches per
-period across a stack on a 2-vCPU VM, where the kernel's share (mostly switching) was 18 % of both
-CPUs (docs/results.md, 2026-11-28, evening). One thread per process: a put queues the bundle and the
-same thread writes it once the callback returns. Paper #1 through the processes, fifteen
-alternating pairs: 5-25 % less wall time in every pair (median 16 %), context switches 82 -> 35 a
-period; ``seaway study table1`` 181 -> 161 s and 158 -> 133 s in two pairs.
+Why: a lockstep period is a chain of hand-overs, and with a pool per runtime each hand-over wakes
+a transmit thread in the sender and a receive thread in the receiver: dozens of thread switches per
+period across a stack, a large share of a small machine's CPU spent switching. With one thread per
+process a put queues the bundle and the same thread writes it once the callback returns, which
+halves the switches per period (``seaway bench lockstep`` measures the wall time it saves).
 
 Safe only where no callback run on Zenoh's thread (``subscribe_raw(inline=True)``) waits for Zenoh
 itself: a lockstep member's intake answers and publishes, never waits for a reply, and publishes no
@@ -76,8 +74,8 @@ user's own, which may be one thread too).
 
 Why: on one thread nothing is sent while a callback runs on it, and each express put takes a batch
 of every link's queue until the callback returns. With the default 2, the third put of a callback
-waited for ever: a lockstep member repeating three bundles for a restarted recorder stopped, its
-health token lapsed and the stack stalled (measured: 2 puts returned, 3 never). A member's repeat
+waits for ever: a lockstep member repeating three bundles for a restarted recorder would stop, its
+health token lapse and the stack stall. A member's repeat
 sends at most ``lockstep.KEPT_BUNDLES``, plus its answer, and one intake can take two repeats."""
 
 

@@ -1,17 +1,17 @@
 """CasADi functions of the vessel model, generated as C, compiled once and called through ctypes.
 
-Needs the ``casadi`` extra. Why: evaluating the model with Python floats and numpy costs tens of
-microseconds a call (the estimator's prediction step, with its Jacobian and covariance: 65-76 us),
-and so does calling a CasADi ``Function`` from Python (its call overhead alone is about 36 us);
-the same function generated as C and called through ctypes costs about 3 us
+Needs the ``casadi`` extra. Why: evaluating the model with Python floats and numpy (the estimator's
+prediction step, with its Jacobian and covariance) is dominated by the per-call overhead of numpy on
+small matrices, and calling a CasADi ``Function`` from Python by its call overhead; the same
+function generated as C and called through ctypes is an order of magnitude cheaper
 (``../shared/solver-notes.md``, "Plant step cost"). The expressions are built from the one model
 (``seaway.vessel.model`` evaluated on CasADi symbols), so nothing is stated twice.
 
 Each function is compiled once per machine with ``CC_FLAGS`` and cached by a hash of its generated
 source, CasADi's version and the flags, beside the controller's solvers (``cache_dir``). Without a C
 compiler, or if the build fails, the same ``Function`` is evaluated by CasADi itself: the same
-expressions, so the same numbers to rounding, but slower (about 0.15 ms a call for the estimator's
-steps, CasADi's call overhead); that is logged once, with the reason.
+expressions, so the same numbers to rounding, but slower (CasADi's call overhead on every call);
+that is logged once, with the reason.
 """
 
 from __future__ import annotations
@@ -81,8 +81,8 @@ def compile_shared(src: str, target: Path, flags: Sequence[str], what: str) -> N
     if cc is None:
         raise RuntimeError(f"no C compiler (gcc or cc) on PATH: needed once to build {what}")
     # A compile is background work (a solver made while the reference flies the boat): at the
-    # lowest CPU priority it takes only what the running stack leaves. At normal priority a
-    # controller beside it missed its 300 ms thrust deadline on a 2-core machine. (`nice` execs the
+    # lowest CPU priority it takes only what the running stack leaves: at normal priority it can
+    # delay the controller beside it past vehicle_io's thrust deadline. (`nice` execs the
     # compiler, so a signal that stops it still reads as one here.)
     nice = shutil.which("nice")
     lowest = [nice, "-n", str(COMPILE_NICENESS)] if nice else []

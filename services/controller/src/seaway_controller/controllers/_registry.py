@@ -9,12 +9,13 @@ registered definition for those pieces and never test a controller's name.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from types import ModuleType
 from typing import TYPE_CHECKING, Any
 
-from seaway.contract.messages import ControllerName
+from seaway.contract.messages import CONTROLLER_NAME_PATTERN, ControllerName
 from seaway.vessel.model import VesselParams
 
 from seaway_controller import costs
@@ -54,7 +55,11 @@ _REGISTERED: dict[str, Controller] = {}
 
 
 def register(controller: Controller) -> Controller:
-    """Add ``controller`` under its name (once); its module calls this at import."""
+    """Add ``controller`` under its name (once); its module calls this at import. ValueError for a
+    name spelled otherwise than ``CONTROLLER_NAME_PATTERN`` allows, or one already taken."""
+    if not re.fullmatch(CONTROLLER_NAME_PATTERN, controller.name):
+        raise ValueError(f"controller name {controller.name!r}: lower case letters, digits and '-', "
+                         f"starting with a letter, at most 32 characters ({CONTROLLER_NAME_PATTERN})")
     if controller.name in _REGISTERED:
         raise ValueError(f"controller {controller.name!r} is registered twice")
     _REGISTERED[controller.name] = controller

@@ -54,6 +54,7 @@ from pathlib import Path
 from seaway.contract.access import AccessError
 from seaway.contract.config import ConfigError, repo_root
 from seaway.contract.messages import (
+    CONTROLLER_NAME_PATTERN,
     CONTROLLER_NAMES,
     MAX_TASK_POWER_W,
     MessageError,
@@ -76,6 +77,7 @@ from seaway.tools.launch.profile import Profile, instances, load_profile
 from seaway.tools.launch.resume import RESUME_WAIT_S
 from seaway.tools.launch.stack import _launch
 from seaway.tools.launch.startup_requests import _describe_mission
+from seaway.tools.launch.supervisor import Supervised
 
 
 def parser() -> argparse.ArgumentParser:
@@ -96,8 +98,14 @@ def parser() -> argparse.ArgumentParser:
                     help="the ground station's map tiles: an http(s) URL template with {z}/{x}/{y}, "
                          "a folder <z>/<x>/<y>.png or an MBTiles file (*.mbtiles) it serves itself "
                          "(default: the profile's tiles, else none: a metric grid, offline)")
-    ap.add_argument("--controller", choices=CONTROLLER_NAMES, default=None,
-                    help="fly the mission with this controller (default: the mission's)")
+    ap.add_argument("--controller", type=_controller_name, default=None,
+                    help=f"fly the mission with this controller: {', '.join(CONTROLLER_NAMES)}, or "
+                         "one a --controller-module registers (default: the mission's)")
+    ap.add_argument("--controller-module", type=_controller_module, action="append", default=[],
+                    metavar="FILE|MODULE",
+                    help="a controller of one's own, handed to every controller process: a .py "
+                         "file or an importable module that registers it (docs/researcher/"
+                         "new-controller.md); repeatable")
     ap.add_argument("--predict-disturbance", action=argparse.BooleanOptionalAction, default=None,
                     help="the mission predicts with the estimator's tau_d instead of tau_d = 0 "
                          "(the paper's); default: the mission's")
@@ -131,6 +139,29 @@ def _cpu_list(text: str) -> frozenset[int]:
         return cpus.parse_cpus(text)
     except cpus.CpuSetError as err:
         raise argparse.ArgumentTypeError(str(err)) from None
+
+
+def _controller_name(text: str) -> str:
+    if not re.fullmatch(CONTROLLER_NAME_PATTERN, text):
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: a controller's name is lower case letters, digits and '-', starting with a "
+            f"letter: {', '.join(CONTROLLER_NAMES)}, or one a --controller-module registers")
+    return text
+
+
+def _controller_module(text: str) -> str:
+    """A file as an absolute path (the processes run elsewhere), checked to exist; a module name as
+    it is (the controller process imports it and says what is wrong)."""
+    if text.endswith(".py") or "/" in text or "\\" in text:
+        path = Path(text).expanduser().resolve()
+        if not path.is_file():
+            raise argparse.ArgumentTypeError(f"{text}: no such file (a .py file that registers a "
+                                             "controller, or an importable module name)")
+        return str(path)
+    if not re.fullmatch(r"[A-Za-z_]\w*(\.[A-Za-z_]\w*)*", text):
+        raise argparse.ArgumentTypeError(f"{text!r}: neither a .py file nor a module name "
+                                         "(e.g. my_package.my_controller)")
+    return text
 
 
 def _task_power(text: str) -> float:
@@ -214,6 +245,16 @@ def _mission_options(args: argparse.Namespace) -> list[str]:
     return [f"--{o.replace('_', '-')}" for o in MISSION_OPTIONS if getattr(args, o) is not None]
 
 
+def hand_controller_modules(procs: list[Supervised], modules: list[str]) -> bool:
+    """``--controller-module``: each module added to the command of every controller process;
+    False (nothing changed) when there is none."""
+    controllers = [p for p in procs if p.spec.service == "controller"]
+    for p in controllers:
+        for module in modules:
+            p.argv += ["--controller-module", module]
+    return bool(controllers)
+
+
 def _check_mission(mission: MissionRequest | None, scenario: str) -> int:
     """``--check``: the mission sent checked as the controller checks it (``seaway mission
     check``), against the scenario; 0 ok (or no mission), 1 refused, 2 unreadable."""
@@ -295,6 +336,10 @@ def main(argv: list[str]) -> int:
         procs = supervised(plan, vessels, run_dir, common)
     except ConfigError as err:
         print(f"seaway launch: {err}", file=sys.stderr)
+        return 2
+    if args.controller_module and not hand_controller_modules(procs, args.controller_module):
+        print(f"seaway launch: --controller-module: profile {profile.name} runs no controller",
+              file=sys.stderr)
         return 2
     if args.check:
         print(f"profile {profile.name}: {len(procs)} processes"

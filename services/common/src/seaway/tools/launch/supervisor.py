@@ -8,7 +8,7 @@ its own to finish the recording: the stop stays in order and the file stays whol
 gets ``PR_SET_PDEATHSIG`` = SIGTERM, so that even a SIGKILLed launcher leaves no orphans behind on
 Linux: set by util-linux's ``setpriv --pdeathsig`` before it execs the command, not by Python code
 between fork and exec (``preexec_fn``), which in a process with Zenoh's threads could deadlock the
-child before its exec and the launcher with it (seen in CI: a stack whose controller never started).
+child before its exec and the launcher with it (a process that never starts).
 
 A process that exits with a failure is restarted after its back-off (``restart = "on-failure"``).
 So is one that hangs (``liveness``): its health token gone for ``TOKEN_GRACE_S`` while it still
