@@ -264,9 +264,35 @@ def cmd_router(argv: list[str]) -> int:
     return router_main(argv)
 
 
+def cmd_ros2(argv: list[str]) -> int:
+    if not argv or argv[0] in ("-h", "--help"):
+        print("usage: seaway ros2 bridge [options]\n\nSeaway's state as ROS 2 topics over rmw_zenoh "
+              "(docs/ros2.md); `seaway ros2 bridge --help` gives its options.")
+        return 0 if argv else 2
+    if argv[0] != "bridge":
+        print(f"seaway ros2: unknown subcommand {argv[0]!r}; subcommands: bridge", file=sys.stderr)
+        return 2
+    from seaway.ros2.bridge import main as bridge_main
+
+    return bridge_main(argv[1:])
+
+
+def cmd_export(argv: list[str]) -> int:
+    if not argv or argv[0] in ("-h", "--help"):
+        print("usage: seaway export ros2 RECORDING OUT\n\nWrite a recording as an MCAP that "
+              "rosbag2 plays (docs/ros2.md); `seaway export ros2 --help` gives its options.")
+        return 0 if argv else 2
+    if argv[0] != "ros2":
+        print(f"seaway export: unknown format {argv[0]!r}; formats: ros2", file=sys.stderr)
+        return 2
+    from seaway.ros2.export import main as export_main
+
+    return export_main(argv[1:])
+
+
 BUILTIN = {"bench": cmd_bench, "echo": cmd_echo, "health": cmd_health, "schemas": cmd_schemas,
            "launch": cmd_launch, "router": cmd_router, "credentials": cmd_credentials,
-           "mission": cmd_mission, "vehicle": cmd_vehicle}
+           "mission": cmd_mission, "vehicle": cmd_vehicle, "ros2": cmd_ros2, "export": cmd_export}
 SUMMARIES = {
     "bench": "run a benchmark (seaway bench --help lists them)",
     "echo": "print the messages of one key as they come",
@@ -277,6 +303,8 @@ SUMMARIES = {
     "credentials": "make and show the credentials of a stack or a boat/shore deployment",
     "mission": "send a mission (or start, pause, resume, abort) to a running vessel",
     "vehicle": "arm, disarm, set the mode of, or read the status of a running vessel",
+    "ros2": "the ROS 2 face: Seaway's state as ROS 2 topics over rmw_zenoh (seaway ros2 bridge)",
+    "export": "write a recording for another tool: seaway export ros2 RECORDING OUT (rosbag2)",
 }
 """One line per built-in command for ``seaway --help``; plugins' come from their module docstring."""
 
