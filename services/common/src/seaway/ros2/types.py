@@ -73,6 +73,8 @@ def _t(name: str, *fields: Field, constants: tuple[Constant, ...] = ()) -> MsgTy
 
 F = Field
 TIME = _t("builtin_interfaces/msg/Time", F("sec", "int32"), F("nanosec", "uint32"))
+STRING = _t("std_msgs/msg/String", F("data", "string"))
+"""Not published: the type whose hash and key expression rmw_zenoh's own documentation shows."""
 HEADER = _t("std_msgs/msg/Header", F("stamp", TIME.name), F("frame_id", "string"))
 POINT = _t("geometry_msgs/msg/Point", F("x", "float64"), F("y", "float64"), F("z", "float64"))
 VECTOR3 = _t("geometry_msgs/msg/Vector3", F("x", "float64"), F("y", "float64"), F("z", "float64"))
