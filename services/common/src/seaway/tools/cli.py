@@ -264,30 +264,31 @@ def cmd_router(argv: list[str]) -> int:
     return router_main(argv)
 
 
+def _subcommand(prog: str, choices: dict[str, str], argv: list[str]) -> tuple[str, list[str]]:
+    """The subcommand of ``seaway PROG`` and the arguments it takes (argparse says what is wrong)."""
+    ap = argparse.ArgumentParser(prog=f"seaway {prog}", description="; ".join(
+        f"{k}: {v}" for k, v in choices.items()), add_help=not argv or argv[0] in ("-h", "--help"))
+    ap.add_argument("what", choices=sorted(choices), help="subcommand (`seaway PROG WHAT --help`)")
+    args, rest = ap.parse_known_args(argv[:1])
+    return args.what, [*rest, *argv[1:]]
+
+
 def cmd_ros2(argv: list[str]) -> int:
-    if not argv or argv[0] in ("-h", "--help"):
-        print("usage: seaway ros2 bridge [options]\n\nSeaway's state as ROS 2 topics over rmw_zenoh "
-              "(docs/ros2.md); `seaway ros2 bridge --help` gives its options.")
-        return 0 if argv else 2
-    if argv[0] != "bridge":
-        print(f"seaway ros2: unknown subcommand {argv[0]!r}; subcommands: bridge", file=sys.stderr)
-        return 2
+    what, rest = _subcommand("ros2", {"bridge": "Seaway's state as ROS 2 topics over rmw_zenoh "
+                                                "(docs/ros2.md)"}, argv)
     from seaway.ros2.bridge import main as bridge_main
 
-    return bridge_main(argv[1:])
+    assert what == "bridge"
+    return bridge_main(rest)
 
 
 def cmd_export(argv: list[str]) -> int:
-    if not argv or argv[0] in ("-h", "--help"):
-        print("usage: seaway export ros2 RECORDING OUT\n\nWrite a recording as an MCAP that "
-              "rosbag2 plays (docs/ros2.md); `seaway export ros2 --help` gives its options.")
-        return 0 if argv else 2
-    if argv[0] != "ros2":
-        print(f"seaway export: unknown format {argv[0]!r}; formats: ros2", file=sys.stderr)
-        return 2
+    what, rest = _subcommand("export", {"ros2": "RECORDING OUT: an MCAP that rosbag2 plays "
+                                                "(docs/ros2.md)"}, argv)
     from seaway.ros2.export import main as export_main
 
-    return export_main(argv[1:])
+    assert what == "ros2"
+    return export_main(rest)
 
 
 BUILTIN = {"bench": cmd_bench, "echo": cmd_echo, "health": cmd_health, "schemas": cmd_schemas,
