@@ -20,7 +20,7 @@ from seaway.contract import messages as m
 
 ROOT = "seaway"
 SERVICES = ("sim", "vehicle_io", "estimator", "controller", "groundstation", "recorder", "launcher",
-            "router")
+            "router", "ros2")
 
 # A vessel name is one key chunk: no wildcards, separators or verbatim markers.
 _VESSEL_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")

@@ -264,9 +264,36 @@ def cmd_router(argv: list[str]) -> int:
     return router_main(argv)
 
 
+def _subcommand(prog: str, choices: dict[str, str], argv: list[str]) -> tuple[str, list[str]]:
+    """The subcommand of ``seaway PROG`` and the arguments it takes (argparse says what is wrong)."""
+    ap = argparse.ArgumentParser(prog=f"seaway {prog}", description="; ".join(
+        f"{k}: {v}" for k, v in choices.items()), add_help=not argv or argv[0] in ("-h", "--help"))
+    ap.add_argument("what", choices=sorted(choices), help="subcommand (`seaway PROG WHAT --help`)")
+    args, rest = ap.parse_known_args(argv[:1])
+    return args.what, [*rest, *argv[1:]]
+
+
+def cmd_ros2(argv: list[str]) -> int:
+    what, rest = _subcommand("ros2", {"bridge": "Seaway's state as ROS 2 topics over rmw_zenoh "
+                                                "(docs/ros2.md)"}, argv)
+    from seaway.ros2.bridge import main as bridge_main
+
+    assert what == "bridge"
+    return bridge_main(rest)
+
+
+def cmd_export(argv: list[str]) -> int:
+    what, rest = _subcommand("export", {"ros2": "RECORDING OUT: an MCAP that rosbag2 plays "
+                                                "(docs/ros2.md)"}, argv)
+    from seaway.ros2.export import main as export_main
+
+    assert what == "ros2"
+    return export_main(rest)
+
+
 BUILTIN = {"bench": cmd_bench, "echo": cmd_echo, "health": cmd_health, "schemas": cmd_schemas,
            "launch": cmd_launch, "router": cmd_router, "credentials": cmd_credentials,
-           "mission": cmd_mission, "vehicle": cmd_vehicle}
+           "mission": cmd_mission, "vehicle": cmd_vehicle, "ros2": cmd_ros2, "export": cmd_export}
 SUMMARIES = {
     "bench": "run a benchmark (seaway bench --help lists them)",
     "echo": "print the messages of one key as they come",
@@ -277,6 +304,8 @@ SUMMARIES = {
     "credentials": "make and show the credentials of a stack or a boat/shore deployment",
     "mission": "send a mission (or start, pause, resume, abort) to a running vessel",
     "vehicle": "arm, disarm, set the mode of, or read the status of a running vessel",
+    "ros2": "the ROS 2 face: Seaway's state as ROS 2 topics over rmw_zenoh (seaway ros2 bridge)",
+    "export": "write a recording for another tool: seaway export ros2 RECORDING OUT (rosbag2)",
 }
 """One line per built-in command for ``seaway --help``; plugins' come from their module docstring."""
 

@@ -60,9 +60,10 @@ from seaway.contract.messages import (
     MessageError,
     MissionRequest,
 )
+from seaway.ros2.rmw import DEFAULT_ROUTER, ROS_DOMAIN_MAX
 from seaway.runtime import cpus, memory
 from seaway.runtime import run as runs
-from seaway.runtime.argtypes import positive_float
+from seaway.runtime.argtypes import positive_float, whole_number
 from seaway.runtime.credentials import CredentialsError
 from seaway.runtime.private import PRIVATE_UMASK
 from seaway.runtime.service import (
@@ -73,7 +74,7 @@ from seaway.runtime.service import (
 from seaway.simkit.scenario import load_scenario
 from seaway.tools.launch import authority, recording_source
 from seaway.tools.launch.plan import launch_vessels, profile_path, resolve_run, supervised, vessel_dir
-from seaway.tools.launch.profile import Profile, instances, load_profile
+from seaway.tools.launch.profile import Profile, instances, load_profile, with_ros2
 from seaway.tools.launch.resume import RESUME_WAIT_S
 from seaway.tools.launch.stack import _launch
 from seaway.tools.launch.startup_requests import _describe_mission
@@ -130,6 +131,14 @@ def parser() -> argparse.ArgumentParser:
                          "more, the sim, estimator and controller on the lowest, the rest on the "
                          "others (default: wherever the kernel puts them; seaway.runtime.cpus says "
                          "when it pays)")
+    ap.add_argument("--ros2", action="store_true",
+                    help="add the ROS 2 face (seaway-ros2, docs/ros2.md): Seaway's state as ROS 2 "
+                         "topics over rmw_zenoh, read only")
+    ap.add_argument("--ros2-connect", action="append", default=None, metavar="ENDPOINT",
+                    help=f"with --ros2: rmw_zenohd's Zenoh endpoint (default {DEFAULT_ROUTER}; "
+                         "repeat for several)")
+    ap.add_argument("--ros2-domain", type=whole_number(0, ROS_DOMAIN_MAX), default=None,
+                    help="with --ros2: the ROS_DOMAIN_ID (default $ROS_DOMAIN_ID or 0)")
     ap.add_argument("--check", action="store_true", help="validate the profile and exit")
     return ap
 
@@ -289,6 +298,10 @@ def main(argv: list[str]) -> int:
     dump_stacks_on_signal()
     try:
         profile: Profile = load_profile(args.profile)
+        if args.ros2:
+            profile = with_ros2(profile, args.ros2_connect or [DEFAULT_ROUTER], args.ros2_domain)
+        elif args.ros2_connect or args.ros2_domain is not None:
+            raise ConfigError("--ros2-connect and --ros2-domain go with --ros2")
     except ConfigError as err:
         print(f"seaway launch: {err}", file=sys.stderr)
         return 2

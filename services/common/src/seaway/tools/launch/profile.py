@@ -279,3 +279,26 @@ def substitute(argv: list[str], values: dict[str, str]) -> list[str]:
             raise ConfigError(f"command argument {a!r} uses unknown placeholder {err}; "
                               f"known: {', '.join(sorted(values))}") from None
     return out
+
+
+ROS2_PROCESS = "ros2"
+"""The name of the ROS 2 face's process a launch adds (``seaway launch --ros2``)."""
+
+
+def with_ros2(profile: Profile, connect: list[str], domain: int | None = None) -> Profile:
+    """``profile`` with the ROS 2 face (``seaway-ros2``, docs/ros2.md) added, one per vessel,
+    connecting to ``connect`` (rmw_zenohd's endpoints) on ROS domain ``domain`` (None: the
+    process's ``$ROS_DOMAIN_ID`` or 0). Not required: the vessel does not depend on it. A profile
+    that runs it already is refused (one producer of its topics)."""
+    if any(p.service == ROS2_PROCESS for p in profile.processes):
+        raise ConfigError(f"profile {profile.name} runs the ROS 2 face already; leave --ros2 out")
+    command = ["seaway-ros2", "--vessel", "{vessel}", "--run", "{run}"]
+    for endpoint in connect:
+        command += ["--ros2-connect", endpoint]
+    if domain is not None:
+        command += ["--ros2-domain", str(domain)]
+    spec = {"name": ROS2_PROCESS, "service": ROS2_PROCESS, "required": False, "per_vessel": True,
+            "command": command}
+    data = profile.model_dump(exclude_unset=True)
+    data["processes"] = [*data["processes"], spec]
+    return Profile.model_validate(data)

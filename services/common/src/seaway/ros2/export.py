@@ -1,0 +1,187 @@
+"""``seaway export ros2 RECORDING OUT``: a Seaway recording as an MCAP that rosbag2 plays.
+
+OUT holds everything RECORDING holds, unchanged (each JSON channel with its schema, the
+attachments, the metadata), and beside it one CDR channel per topic of the ROS 2 face
+(``seaway.ros2.face``) for each vessel recorded: ``/<vessel>/odom``, ``/<vessel>/gnss/fix``, ... in
+the ROS 2 types, frames and units the live face publishes, one message for each Seaway message
+it comes from, at the same log and publish times. The file follows rosbag2_storage_mcap's layout:
+profile ``ros2``; each CDR channel with message encoding ``cdr``, a ``ros2msg`` schema (the type's
+``.msg`` text and its dependencies, ``seaway.ros2.types.msg_definition``) and the channel metadata
+``offered_qos_profiles`` (ROS's default profile: reliable, volatile, keep last 10) and
+``topic_type_hash``. The JSON channels' types are no ROS types: ``ros2 bag play --topics`` picks
+the CDR topics, and ``--only-ros2`` writes them alone for readers that refuse any other channel.
+
+``/diagnostics`` is live only: health is liveliness, which a recording does not hold.
+"""
+
+from __future__ import annotations
+
+import argparse
+import heapq
+import sys
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from seaway.contract import keys
+from seaway.contract.config import ConfigError
+from seaway.contract.messages import MessageError
+from seaway.recording import reader, runinfo
+from seaway.ros2 import cdr, face, rmw
+from seaway.ros2 import types as rt
+from seaway.vessel.model import VesselParams, load_vessel
+
+PROFILE = "ros2"
+SCHEMA_ENCODING = "ros2msg"
+MESSAGE_ENCODING = "cdr"
+_INFINITE = "    sec: 9223372036\n    nsec: 854775807\n"
+DEFAULT_QOS_YAML = ("- history: 1\n  depth: 10\n  reliability: 1\n  durability: 2\n"
+                    f"  deadline:\n{_INFINITE}  lifespan:\n{_INFINITE}  liveliness: 1\n"
+                    f"  liveliness_lease_duration:\n{_INFINITE}"
+                    "  avoid_ros_namespace_conventions: false\n")
+"""rosbag2's ``offered_qos_profiles`` of one publisher with ROS's default QoS (numeric enums:
+keep last, reliable, volatile, automatic; durations infinite), the form every rosbag2 reads."""
+
+
+@dataclass
+class ExportStats:
+    copied: int = 0
+    converted: dict[str, int] | None = None
+    dropped: dict[str, int] | None = None
+
+
+@dataclass(frozen=True)
+class _Raw:
+    log_time: int
+    publish_time: int
+    sequence: int
+    channel: Any
+    schema: Any
+    data: bytes
+
+
+def _iter_raw(files: Sequence[Path]) -> Iterator[_Raw]:
+    from mcap.reader import make_reader
+
+    def one(path: Path) -> Iterator[_Raw]:
+        with open(path, "rb") as fh:
+            for schema, channel, msg in make_reader(fh).iter_messages(log_time_order=True):
+                yield _Raw(msg.log_time, msg.publish_time, msg.sequence, channel, schema,
+                           bytes(msg.data))
+
+    yield from heapq.merge(*(one(f) for f in files), key=lambda r: r.log_time)
+
+
+def vessel_of(info: reader.RecordingInfo, vessel_file: str | None) -> VesselParams:
+    """The vessel the thrust's moment is computed with: ``vessel_file``, else the recording's."""
+    if vessel_file is not None:
+        return load_vessel(vessel_file)
+    found = runinfo.vessel_from_attachments(info.attachments)
+    if found is not None:
+        return found
+    run = runinfo.run_from_attachments(info.attachments)
+    if run is not None:
+        return load_vessel(run.model_vessel_file)
+    raise ConfigError("the recording names no vessel file (no vessel/* or run/run.json "
+                      "attachment): give --vessel-file")
+
+
+def export(recording: Sequence[Path], out: Path, vessel: VesselParams | None = None,
+           vessel_file: str | None = None, only_ros2: bool = False) -> ExportStats:
+    """Write ``out`` from the recording's files (module docstring); ``only_ros2``: the CDR
+    channels alone, no attachments or metadata (for readers that refuse other encodings)."""
+    from mcap.writer import Writer
+
+    files = reader.open_paths(recording)
+    info = reader.read_info(files)
+    params = vessel or vessel_of(info, vessel_file)
+    stats = ExportStats(converted={}, dropped={})
+    with open(out, "wb") as fh:
+        w = Writer(fh)
+        w.start(profile=PROFILE, library="seaway export ros2")
+        schemas: dict[Any, int] = {}
+        channels: dict[Any, int] = {}
+        ros_schemas: dict[str, int] = {}
+        ros_channels: dict[str, int] = {}
+
+        def ros_channel(topic: str, type_name: str) -> int:
+            if topic not in ros_channels:
+                if type_name not in ros_schemas:
+                    ros_schemas[type_name] = w.register_schema(
+                        type_name, SCHEMA_ENCODING, rt.msg_definition(type_name).encode())
+                ros_channels[topic] = w.register_channel(
+                    topic, MESSAGE_ENCODING, ros_schemas[type_name],
+                    {"offered_qos_profiles": DEFAULT_QOS_YAML,
+                     "topic_type_hash": rt.type_hash(type_name)})
+            return ros_channels[topic]
+
+        for raw in _iter_raw(files):
+            ch = raw.channel
+            _convert(raw, params, ros_channel, w, stats)
+            if only_ros2:
+                continue
+            if ch.id not in channels:
+                sid = 0
+                if raw.schema is not None:
+                    key = (raw.schema.name, raw.schema.encoding, raw.schema.data)
+                    if key not in schemas:
+                        schemas[key] = w.register_schema(*key)
+                    sid = schemas[key]
+                channels[ch.id] = w.register_channel(ch.topic, ch.message_encoding, sid,
+                                                     dict(ch.metadata))
+            w.add_message(channels[ch.id], raw.log_time, raw.data, raw.publish_time, raw.sequence)
+            stats.copied += 1
+        for name, data in ({} if only_ros2 else info.attachments).items():
+            w.add_attachment(info.start_ns, info.start_ns, name, "application/octet-stream", data)
+        for name, meta in ({} if only_ros2 else info.metadata).items():
+            w.add_metadata(name, meta)
+        w.finish()
+    return stats
+
+
+def _convert(raw: _Raw, params: VesselParams, ros_channel: Any, w: Any, stats: ExportStats) -> None:
+    spec = keys.spec_for_key(raw.channel.topic)
+    topic = face.BY_SUFFIX.get(spec.suffix) if spec is not None else None
+    if topic is None or spec is None or spec.message is None:
+        return
+    assert stats.converted is not None and stats.dropped is not None
+    vessel = raw.channel.topic.split("/")[1]
+    fq = rmw.qualify(f"/{rmw.ros_name(vessel)}", topic.name)
+    try:
+        msg = spec.message.decode(raw.data)
+        type_name, value = face.ros_message(topic, msg, params)
+        data = cdr.encode(type_name, value)
+    except (MessageError, cdr.CdrError, ValueError):
+        stats.dropped[fq] = stats.dropped.get(fq, 0) + 1
+        return
+    w.add_message(ros_channel(fq, type_name), raw.log_time, data, raw.publish_time, raw.sequence)
+    stats.converted[fq] = stats.converted.get(fq, 0) + 1
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="seaway export ros2", description=__doc__.split("\n\n")[0])
+    ap.add_argument("recording", type=Path, nargs="+",
+                    help="the recording: an .mcap file, a rotated series, or a run folder")
+    ap.add_argument("out", type=Path, help="the MCAP file to write (rosbag2's mcap storage)")
+    ap.add_argument("--vessel-file", default=None, metavar="NAME|PATH",
+                    help="the vessel file for the thrust's yaw moment (default: the recording's)")
+    ap.add_argument("--only-ros2", action="store_true",
+                    help="write the ROS 2 CDR channels alone (for readers that refuse JSON channels, "
+                         "such as rosbags' rosbag2 reader)")
+    args = ap.parse_args(list(argv) if argv is not None else None)
+    if any(args.out.resolve() == Path(r).resolve() for r in args.recording):
+        print("seaway export ros2: OUT is one of the recording's files; name another", file=sys.stderr)
+        return 2
+    try:
+        stats = export(args.recording, args.out, vessel_file=args.vessel_file,
+                       only_ros2=args.only_ros2)
+    except (ConfigError, FileNotFoundError, reader.UnreadableRecordingError) as err:
+        print(f"seaway export ros2: {err}", file=sys.stderr)
+        return 2
+    assert stats.converted is not None and stats.dropped is not None
+    print(f"wrote {args.out}: {stats.copied} messages kept as recorded, "
+          f"{sum(stats.converted.values())} as ROS 2 CDR on {len(stats.converted)} topics"
+          + "".join(f"\n  {t}: {n}" for t, n in sorted(stats.converted.items()))
+          + (f"\n  dropped (not convertible): {stats.dropped}" if stats.dropped else ""))
+    return 0
