@@ -28,12 +28,11 @@ def _message_link(spec: keys.KeySpec) -> str:
 
 
 def _what(spec: keys.KeySpec) -> str:
-    """The registry's note on a key, else the first sentence of its message type's docstring."""
+    """The registry's note on a key, else the first paragraph of its message type's docstring."""
     if spec.doc:
         return describe(spec.doc)
-    text = describe(spec.message.__doc__ if spec.message is not None else "")
-    end = text.find(". ")
-    return text if end < 0 else text[:end + 1]
+    doc = (spec.message.__doc__ or "") if spec.message is not None else ""
+    return describe(doc.strip().split("\n\n")[0])
 
 
 def _who(spec: keys.KeySpec) -> tuple[str, str]:
@@ -41,7 +40,7 @@ def _who(spec: keys.KeySpec) -> tuple[str, str]:
     producers = ", ".join(access.producers()[spec.suffix])
     if spec.kind == "query":
         return producers + " (serves)", ", ".join(access.OPERATORS) + " (ask)"
-    return producers, "every identity of the stack (read)"
+    return producers, "all (read)"
 
 
 def page() -> str:
@@ -49,18 +48,18 @@ def page() -> str:
     rows = []
     for spec in sorted(keys.REGISTRY, key=lambda s: s.suffix):
         producer, users = _who(spec)
-        rows.append([code(f"{keys.ROOT}/<vessel>/{spec.suffix}"), spec.kind, _message_link(spec),
+        rows.append([code(spec.suffix), spec.kind, _message_link(spec),
                      cell(producer), cell(users), cell(_what(spec))])
     other = [
-        [code(f"{keys.ROOT}/<vessel>/{keys.HEALTH}/<service>"), "liveliness", "(none)",
-         "the service it names", "every identity of the stack (read)",
+        [code(f"{keys.HEALTH}/<service>"), "liveliness", "(none)",
+         "the service it names", "all (read)",
          cell(_doc("HEALTH"))],
-        [code(f"{keys.ROOT}/<vessel>/{keys.RUN}/<service>"), "query",
+        [code(f"{keys.RUN}/<service>"), "query",
          "[`RunDescription`](files.md#run-description)", "the service it names (serves)",
-         "every identity of the stack (ask)", cell(_doc("RUN"))],
-        [code(f"{keys.ROOT}/<vessel>/{keys.REFUSALS}/<identity>"), "topic and query",
+         "all (ask)", cell(_doc("RUN"))],
+        [code(f"{keys.REFUSALS}/<identity>"), "topic and query",
          f"[`Refusals`](messages.md#{anchor('Refusals')})", "the identity it names",
-         "every identity of the stack (read, ask)", cell(_doc("REFUSALS"))],
+         "all (read, ask)", cell(_doc("REFUSALS"))],
     ]
     ident_rows = [[code(i), cell(_role(i))] for i in access.IDENTITIES]
     ident_rows.append([code(access.HARNESS), cell(describe(_access_doc("HARNESS")))])
@@ -71,7 +70,8 @@ def page() -> str:
         "generated from the registry (`seaway.contract.access`), drops what an identity may not do: "
         "only a key's producer publishes it or serves it, only the operator identities ask a "
         "request that moves or resets, and only the service a health token names declares it. "
-        "A profile narrows a key with several possible producers to the one it runs.\n\n",
+        "A profile narrows a key with several possible producers to the one it runs. Each key below "
+        "is under `seaway/<vessel>/`; \"all\" is every identity of the stack.\n\n",
         "## Registered keys\n\n",
         table(["key", "kind", "message", "producer", "who may use it", "what"], rows),
         "\n## Keys outside the registry's topics\n\n",
