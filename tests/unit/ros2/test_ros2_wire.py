@@ -170,3 +170,28 @@ def test_the_attachment_is_zenoh_ext_serialised():
     assert rmw.parse_attachment(att) == (7, 1_700_000_000_123_456_789, gid)
     with pytest.raises(ValueError):
         rmw.parse_attachment(att[:-1])
+
+
+# XXH3-128 of the empty input (seed 0) is xxHash's documented sanity value
+# 0x99AA06D3014798D8_6001C324468D497F (high64_low64, tests/sanity_test_vectors.h); rmw_zenoh stores
+# low64 then high64, each little endian. The two tokens' GIDs were computed by compiling rmw_zenoh's
+# own simplified_xxhash3.cpp (rolling) with Entity::Entity's two memcpy calls, not with this code.
+RMW_ZENOH_GIDS = {
+    "": "7f498d4624c30160d8984701d306aa99",
+    "@ros2_lv/0/8b20917502ee955ac4476e0266340d5c/0/0/NN/%/%/talker":
+        "82f480988f49d464f0f2c507f2f1a8c6",
+    "@ros2_lv/0/8b20917502ee955ac4476e0266340d5c/0/10/MP/%/%/talker/%chatter/"
+    "std_msgs::msg::dds_::String_/" + PUBLISHED["std_msgs/msg/String"] + "/::,7:,:,:,,":
+        "eb85fa883b7846dc448a4501890ad062",
+}
+
+
+@pytest.mark.parametrize("token", sorted(RMW_ZENOH_GIDS))
+def test_the_gid_is_rmw_zenohs_xxh3_128_of_the_token(token):
+    assert rmw.gid(token).hex() == RMW_ZENOH_GIDS[token]
+
+
+def test_the_gid_of_the_documented_talker_is_that_of_its_token():
+    node = rmw.Node(0, "8b20917502ee955ac4476e0266340d5c", 0, "/", "talker")
+    token = node.publisher_token(10, "/chatter", "std_msgs/msg/String", qos="::,7:,:,:,,")
+    assert rmw.gid(token).hex() == "eb85fa883b7846dc448a4501890ad062"

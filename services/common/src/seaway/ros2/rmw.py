@@ -17,17 +17,20 @@ after ros2/rmw_zenoh#601 (positional attachment); read from its sources
 * The QoS chunk names only what differs from ROS's default profile (reliable, volatile, keep last
   10, no deadline, lifespan or liveliness lease): ``::,:,:,:,,`` for the default itself.
 
-The GID: rmw_zenoh takes XXH3-128 of the entity's token; here it is the first 16 bytes of the
-token's SHA-256 (no XXH3 in the dependencies). A GID only needs to be unique and constant per
-publisher: subscribers compare it, nobody recomputes it.
+The GID, as rmw_zenoh makes it (``Entity::Entity`` in ``liveliness_utils.cpp``): XXH3-128, seed 0,
+of the entity's whole liveliness token (``@ros2_lv/...``), its 128-bit value stored as the low 64
+bits then the high 64 bits, each in the machine's byte order (little endian on every platform ROS 2
+ships for), so the 16 bytes are the value little endian. A ROS 2 tool that compares a sample's GID
+with the one it derives from the publisher's token (``ros2 topic info --verbose``) sees the same.
 """
 
 from __future__ import annotations
 
-import hashlib
 import re
 import struct
 from dataclasses import dataclass
+
+import xxhash
 
 from seaway.ros2.types import dds_type_name, type_hash
 
@@ -118,7 +121,7 @@ class Node:
 
 def gid(token: str) -> bytes:
     """The 16-byte GID of the entity whose liveliness token is ``token`` (module docstring)."""
-    return hashlib.sha256(token.encode()).digest()[:GID_BYTES]
+    return xxhash.xxh3_128_intdigest(token.encode()).to_bytes(GID_BYTES, "little")
 
 
 def attachment(sequence: int, source_stamp_ns: int, source_gid: bytes) -> bytes:
