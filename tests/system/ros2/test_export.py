@@ -1,6 +1,7 @@
 """``seaway export ros2`` through the real command, read back with ``rosbags``: its rosbag2 reader
-(the ros2msg schemas, the CDR) message for message against the Seaway messages recorded, and the
-full export's JSON channels kept as they were."""
+(the ros2msg schemas, the CDR) message for message against the Seaway messages recorded; the bag
+as rosbag2_storage_mcap reads it (one serialization format, a schema per channel, the ``rosbag2``
+metadata record); and the rest of the recording kept as it was in the file beside it."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ import pytest
 from mcap.reader import make_reader
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
+from ruamel.yaml import YAML
 from seaway.contract import keys
 from seaway.recording import reader
 
@@ -34,7 +36,7 @@ def _stamp(h) -> int:
 
 def test_rosbags_reads_every_cdr_channel_message_for_message(tmp_path) -> None:
     out = tmp_path / "ros2.mcap"
-    _export(out, "--only-ros2")
+    _export(out)  # the default export: rosbags reads it as it is
     dec = reader.decode_vessel([RECORDING], None, [keys.NAV_STATE.suffix, keys.GNSS.suffix,
                                                    keys.THRUST.suffix])
     states, fixes, thrusts = (dec.get(k.suffix) for k in (keys.NAV_STATE, keys.GNSS, keys.THRUST))
@@ -62,29 +64,62 @@ def test_rosbags_reads_every_cdr_channel_message_for_message(tmp_path) -> None:
         assert w.wrench.force.x == pytest.approx(t.thrust_port_n + t.thrust_starboard_n, abs=1e-9)
 
 
-def test_the_full_export_keeps_the_recording_and_adds_ros2_channels(tmp_path) -> None:
+def test_the_bag_is_what_rosbag2_reads_and_the_rest_is_kept_beside_it(tmp_path) -> None:
     out = tmp_path / "full.mcap"
-    _export(out)
+    said = _export(out)
+    rest = tmp_path / "full.seaway.mcap"
+    assert str(rest) in said
     store = get_typestore(Stores.EMPTY)
     counts: dict[str, int] = {}
     with open(out, "rb") as fh:
         r = make_reader(fh)
         assert r.get_header().profile == "ros2"
+        summary = r.get_summary()
+        assert summary is not None
+        # rosbag2's SequentialReader::open: one serialization format; MCAPStorage::read_metadata:
+        # every channel has a schema.
+        assert {c.message_encoding for c in summary.channels.values()} == {"cdr"}
+        assert all(c.schema_id in summary.schemas for c in summary.channels.values())
         for schema, channel, msg in r.iter_messages():
             counts[channel.topic] = counts.get(channel.topic, 0) + 1
-            if channel.message_encoding == "cdr":
-                assert schema.encoding == "ros2msg" and "offered_qos_profiles" in channel.metadata
-                if schema.name not in store.fielddefs:
-                    from rosbags.typesys import get_types_from_msg
+            assert schema.encoding == "ros2msg" and "offered_qos_profiles" in channel.metadata
+            if schema.name not in store.fielddefs:
+                from rosbags.typesys import get_types_from_msg
 
-                    for part in schema.data.decode().split("=" * 80 + "\n"):
-                        head, _, body = part.partition("\n")
-                        store.register(get_types_from_msg(body, head[5:].replace("/", "/msg/"))
-                                       if head.startswith("MSG: ") else
-                                       get_types_from_msg(part, schema.name))
-                store.deserialize_cdr(msg.data, schema.name)
-        atts = {a.name for a in r.iter_attachments()}
+                for part in schema.data.decode().split("=" * 80 + "\n"):
+                    head, _, body = part.partition("\n")
+                    store.register(get_types_from_msg(body, head[5:].replace("/", "/msg/"))
+                                   if head.startswith("MSG: ") else
+                                   get_types_from_msg(part, schema.name))
+            store.deserialize_cdr(msg.data, schema.name)
+        meta = {m.name: m.metadata for m in r.iter_metadata()}
+        assert not list(r.iter_attachments())
+    # The metadata record rosbag2 writes, its YAML read by a YAML parser, agreeing with the file.
+    assert set(meta) == {"rosbag2"} and meta["rosbag2"]["ROS_DISTRO"] == "jazzy"
+    bag = YAML(typ="safe").load(meta["rosbag2"]["serialized_metadata"])
+    assert bag["storage_identifier"] == "mcap" and bag["ros_distro"] == "jazzy"
+    assert bag["relative_file_paths"] == [out.name]
+    assert bag["message_count"] == sum(counts.values())
+    assert {t["topic_metadata"]["name"]: t["message_count"]
+            for t in bag["topics_with_message_count"]} == counts
+    for t in bag["topics_with_message_count"]:
+        tm = t["topic_metadata"]
+        assert tm["serialization_format"] == "cdr"
+        assert tm["type_description_hash"] == get_typestore(Stores.ROS2_JAZZY).hash_rihs01(tm["type"])
+
     info = reader.read_info([RECORDING])
-    assert {t: counts[t] for t in info.topics} == info.topics  # every JSON message kept
+    kept: dict[str, int] = {}
+    with open(rest, "rb") as fh:
+        r = make_reader(fh)
+        for _schema, channel, _msg in r.iter_messages():
+            kept[channel.topic] = kept.get(channel.topic, 0) + 1
+        atts = {a.name for a in r.iter_attachments()}
+    assert kept == info.topics  # every recorded message kept, nothing else
     assert set(info.attachments) <= atts
     assert counts["/replay1/odom"] == info.topics["seaway/replay1/nav/state"]
+
+
+def test_only_ros2_writes_no_companion(tmp_path) -> None:
+    out = tmp_path / "bag.mcap"
+    _export(out, "--only-ros2")
+    assert out.exists() and not (tmp_path / "bag.seaway.mcap").exists()

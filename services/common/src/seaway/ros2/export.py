@@ -1,15 +1,21 @@
 """``seaway export ros2 RECORDING OUT``: a Seaway recording as an MCAP that rosbag2 plays.
 
-OUT holds everything RECORDING holds, unchanged (each JSON channel with its schema, the
-attachments, the metadata), and beside it one CDR channel per topic of the ROS 2 face
+OUT is a rosbag2 bag in one MCAP file: one CDR channel per topic of the ROS 2 face
 (``seaway.ros2.face``) for each vessel recorded: ``/<vessel>/odom``, ``/<vessel>/gnss/fix``, ... in
 the ROS 2 types, frames and units the live face publishes, one message for each Seaway message
-it comes from, at the same log and publish times. The file follows rosbag2_storage_mcap's layout:
-profile ``ros2``; each CDR channel with message encoding ``cdr``, a ``ros2msg`` schema (the type's
+it comes from, at the same log and publish times. It follows rosbag2_storage_mcap's layout:
+profile ``ros2``; each channel with message encoding ``cdr``, a ``ros2msg`` schema (the type's
 ``.msg`` text and its dependencies, ``seaway.ros2.types.msg_definition``) and the channel metadata
 ``offered_qos_profiles`` (ROS's default profile: reliable, volatile, keep last 10) and
-``topic_type_hash``. The JSON channels' types are no ROS types: ``ros2 bag play --topics`` picks
-the CDR topics, and ``--only-ros2`` writes them alone for readers that refuse any other channel.
+``topic_type_hash``; and the metadata record ``rosbag2`` (``serialized_metadata``, the bag's
+metadata as rosbag2 writes it, and ``ROS_DISTRO``).
+
+Everything else the recording held (its JSON channels, attachments, metadata), unchanged, goes to
+a second file beside OUT, ``<OUT's stem>.seaway.mcap`` (:func:`companion_path`), not into OUT:
+rosbag2's reader refuses a bag whose topics have different serialization formats
+(``SequentialReader::open``, "All topics must have the same serialization format") and a channel
+without a schema (``MCAPStorage::read_metadata``), so one JSON channel in OUT would make the whole
+bag unplayable; ``rosbags`` refuses the ``jsonschema`` schemas too. ``--only-ros2`` skips it.
 
 ``/diagnostics`` is live only: health is liveliness, which a recording does not hold.
 """
@@ -18,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import heapq
+import json
 import sys
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
@@ -35,6 +42,14 @@ from seaway.vessel.model import VesselParams, load_vessel
 PROFILE = "ros2"
 SCHEMA_ENCODING = "ros2msg"
 MESSAGE_ENCODING = "cdr"
+STORAGE_ID = "mcap"
+ROS_DISTRO = "jazzy"
+"""The distribution whose message definitions and type hashes ``seaway.ros2.types`` follows."""
+BAG_METADATA_RECORD = "rosbag2"
+BAG_METADATA_VERSION = 8
+"""rosbag2's ``BagMetadata`` version written: 8 has ``ros_distro`` and reads each topic's QoS as
+the string the channel metadata also holds (version 9 wants a YAML list there)."""
+COMPANION_SUFFIX = ".seaway.mcap"
 _INFINITE = "    sec: 9223372036\n    nsec: 854775807\n"
 DEFAULT_QOS_YAML = ("- history: 1\n  depth: 10\n  reliability: 1\n  durability: 2\n"
                     f"  deadline:\n{_INFINITE}  lifespan:\n{_INFINITE}  liveliness: 1\n"
@@ -49,6 +64,39 @@ class ExportStats:
     copied: int = 0
     converted: dict[str, int] | None = None
     dropped: dict[str, int] | None = None
+    companion: Path | None = None
+    first_ns: int | None = None
+    last_ns: int | None = None
+
+
+def companion_path(out: Path) -> Path:
+    """Where the export keeps what is not ROS 2: ``run.mcap`` -> ``run.seaway.mcap``."""
+    return out.with_name((out.name[:-5] if out.name.endswith(".mcap") else out.name)
+                         + COMPANION_SUFFIX)
+
+
+def bag_metadata(out: Path, stats: ExportStats, topics: dict[str, str]) -> str:
+    """rosbag2's ``serialized_metadata`` of OUT (``YAML::convert<BagMetadata>::encode``'s fields),
+    as JSON, which is YAML too. ``topics``: topic -> ROS type."""
+    assert stats.converted is not None
+    first = stats.first_ns or 0
+    duration = {"nanoseconds": (stats.last_ns or first) - first}
+    start = {"nanoseconds_since_epoch": first}
+    count = sum(stats.converted.values())
+    return json.dumps({
+        "version": BAG_METADATA_VERSION, "storage_identifier": STORAGE_ID,
+        "duration": duration, "starting_time": start, "message_count": count,
+        "topics_with_message_count": [
+            {"topic_metadata": {"name": t, "type": ty, "serialization_format": MESSAGE_ENCODING,
+                                "offered_qos_profiles": DEFAULT_QOS_YAML,
+                                "type_description_hash": rt.type_hash(ty)},
+             "message_count": stats.converted.get(t, 0)} for t, ty in sorted(topics.items())],
+        "compression_format": "", "compression_mode": "",
+        "relative_file_paths": [out.name],
+        "files": [{"path": out.name, "starting_time": start, "duration": duration,
+                   "message_count": count}],
+        "custom_data": {}, "ros_distro": ROS_DISTRO,
+    }, indent=1)
 
 
 @dataclass(frozen=True)
@@ -89,21 +137,26 @@ def vessel_of(info: reader.RecordingInfo, vessel_file: str | None) -> VesselPara
 
 def export(recording: Sequence[Path], out: Path, vessel: VesselParams | None = None,
            vessel_file: str | None = None, only_ros2: bool = False) -> ExportStats:
-    """Write ``out`` from the recording's files (module docstring); ``only_ros2``: the CDR
-    channels alone, no attachments or metadata (for readers that refuse other encodings)."""
+    """Write ``out`` (the ROS 2 bag) and, unless ``only_ros2``, ``companion_path(out)`` (the rest,
+    unchanged) from the recording's files (module docstring)."""
     from mcap.writer import Writer
 
     files = reader.open_paths(recording)
     info = reader.read_info(files)
     params = vessel or vessel_of(info, vessel_file)
     stats = ExportStats(converted={}, dropped={})
-    with open(out, "wb") as fh:
+    companion = None if only_ros2 else companion_path(out)
+    with open(out, "wb") as fh, (open(companion, "wb") if companion else _Nothing()) as cfh:
         w = Writer(fh)
         w.start(profile=PROFILE, library="seaway export ros2")
+        rest = Writer(cfh) if companion else None
+        if rest is not None:
+            rest.start(profile="", library="seaway export ros2 (kept as recorded)")
         schemas: dict[Any, int] = {}
         channels: dict[Any, int] = {}
         ros_schemas: dict[str, int] = {}
         ros_channels: dict[str, int] = {}
+        ros_types: dict[str, str] = {}
 
         def ros_channel(topic: str, type_name: str) -> int:
             if topic not in ros_channels:
@@ -114,30 +167,48 @@ def export(recording: Sequence[Path], out: Path, vessel: VesselParams | None = N
                     topic, MESSAGE_ENCODING, ros_schemas[type_name],
                     {"offered_qos_profiles": DEFAULT_QOS_YAML,
                      "topic_type_hash": rt.type_hash(type_name)})
+                ros_types[topic] = type_name
             return ros_channels[topic]
 
         for raw in _iter_raw(files):
             ch = raw.channel
             _convert(raw, params, ros_channel, w, stats)
-            if only_ros2:
+            if rest is None:
                 continue
             if ch.id not in channels:
                 sid = 0
                 if raw.schema is not None:
                     key = (raw.schema.name, raw.schema.encoding, raw.schema.data)
                     if key not in schemas:
-                        schemas[key] = w.register_schema(*key)
+                        schemas[key] = rest.register_schema(*key)
                     sid = schemas[key]
-                channels[ch.id] = w.register_channel(ch.topic, ch.message_encoding, sid,
-                                                     dict(ch.metadata))
-            w.add_message(channels[ch.id], raw.log_time, raw.data, raw.publish_time, raw.sequence)
+                channels[ch.id] = rest.register_channel(ch.topic, ch.message_encoding, sid,
+                                                        dict(ch.metadata))
+            rest.add_message(channels[ch.id], raw.log_time, raw.data, raw.publish_time,
+                             raw.sequence)
             stats.copied += 1
-        for name, data in ({} if only_ros2 else info.attachments).items():
-            w.add_attachment(info.start_ns, info.start_ns, name, "application/octet-stream", data)
-        for name, meta in ({} if only_ros2 else info.metadata).items():
-            w.add_metadata(name, meta)
+        w.add_metadata(BAG_METADATA_RECORD, {
+            "serialized_metadata": bag_metadata(out, stats, ros_types), "ROS_DISTRO": ROS_DISTRO})
         w.finish()
+        if rest is not None:
+            for name, data in info.attachments.items():
+                rest.add_attachment(info.start_ns, info.start_ns, name, "application/octet-stream",
+                                    data)
+            for name, meta in info.metadata.items():
+                rest.add_metadata(name, meta)
+            rest.finish()
+    stats.companion = companion
     return stats
+
+
+class _Nothing:
+    """A context that is no file (``--only-ros2`` writes no companion)."""
+
+    def __enter__(self) -> None:
+        return None
+
+    def __exit__(self, *exc: object) -> None:
+        return None
 
 
 def _convert(raw: _Raw, params: VesselParams, ros_channel: Any, w: Any, stats: ExportStats) -> None:
@@ -157,21 +228,25 @@ def _convert(raw: _Raw, params: VesselParams, ros_channel: Any, w: Any, stats: E
         return
     w.add_message(ros_channel(fq, type_name), raw.log_time, data, raw.publish_time, raw.sequence)
     stats.converted[fq] = stats.converted.get(fq, 0) + 1
+    stats.first_ns = raw.log_time if stats.first_ns is None else min(stats.first_ns, raw.log_time)
+    stats.last_ns = raw.log_time if stats.last_ns is None else max(stats.last_ns, raw.log_time)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="seaway export ros2", description=__doc__.split("\n\n")[0])
     ap.add_argument("recording", type=Path, nargs="+",
                     help="the recording: an .mcap file, a rotated series, or a run folder")
-    ap.add_argument("out", type=Path, help="the MCAP file to write (rosbag2's mcap storage)")
+    ap.add_argument("out", type=Path, help="the MCAP file to write (a rosbag2 bag, CDR only); the "
+                    f"rest of the recording goes beside it, <stem>{COMPANION_SUFFIX}")
     ap.add_argument("--vessel-file", default=None, metavar="NAME|PATH",
                     help="the vessel file for the thrust's yaw moment (default: the recording's)")
     ap.add_argument("--only-ros2", action="store_true",
-                    help="write the ROS 2 CDR channels alone (for readers that refuse JSON channels, "
-                         "such as rosbags' rosbag2 reader)")
+                    help=f"write the ROS 2 bag alone, without <stem>{COMPANION_SUFFIX}")
     args = ap.parse_args(list(argv) if argv is not None else None)
-    if any(args.out.resolve() == Path(r).resolve() for r in args.recording):
-        print("seaway export ros2: OUT is one of the recording's files; name another", file=sys.stderr)
+    written = [args.out] + ([] if args.only_ros2 else [companion_path(args.out)])
+    if any(o.resolve() == Path(r).resolve() for o in written for r in args.recording):
+        print(f"seaway export ros2: {' or '.join(map(str, written))} would overwrite the "
+              "recording; name another OUT", file=sys.stderr)
         return 2
     try:
         stats = export(args.recording, args.out, vessel_file=args.vessel_file,
@@ -180,8 +255,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"seaway export ros2: {err}", file=sys.stderr)
         return 2
     assert stats.converted is not None and stats.dropped is not None
-    print(f"wrote {args.out}: {stats.copied} messages kept as recorded, "
-          f"{sum(stats.converted.values())} as ROS 2 CDR on {len(stats.converted)} topics"
+    print(f"wrote {args.out}: {sum(stats.converted.values())} ROS 2 messages (CDR) on "
+          f"{len(stats.converted)} topics"
           + "".join(f"\n  {t}: {n}" for t, n in sorted(stats.converted.items()))
-          + (f"\n  dropped (not convertible): {stats.dropped}" if stats.dropped else ""))
+          + (f"\n  dropped (not convertible): {stats.dropped}" if stats.dropped else "")
+          + (f"\nwrote {stats.companion}: {stats.copied} messages kept as recorded, with the "
+             "recording's attachments and metadata" if stats.companion else ""))
     return 0
