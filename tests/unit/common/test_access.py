@@ -342,3 +342,36 @@ def test_a_topics_cache_is_its_producers_and_any_stack_process_may_ask_it():
     for message in ("query", "declare_liveliness_subscriber", "liveliness_query"):
         assert allowed(RULES, "recorder", message, cache), message
         assert allowed(RULES, "recorder", message, "seaway/**/@adv/**"), message
+
+
+# -- the ROS 2 face's writes (acl(ros2_writes=True)) ---------------------------------------------------
+
+
+@pytest.mark.parametrize("side", ["local", "boat"])
+def test_ros2_may_ask_the_missions_requests_only_when_writes_are_on(side):
+    on = access.acl(side=side, ros2_writes=True)
+    off = access.acl(side=side)
+    asked = {s.suffix for s in access.ROS2_REQUESTS}
+    assert asked == {keys.MISSION_SET.suffix, keys.MISSION_COMMAND.suffix}
+    for spec in (s for s in keys.REGISTRY if s.kind == "query"):
+        key = spec.key("vessel1")
+        assert allowed(on, access.ROS2, "query", key) == (spec.suffix in asked), spec.suffix
+        assert not allowed(off, access.ROS2, "query", key), spec.suffix
+        assert not allowed(on, access.ROS2, "reply", key)  # it asks; the controller answers
+    # Nothing else changes: no other identity gains a right, ros2 publishes nothing new.
+    for ident in access.IDENTITIES:
+        if ident != access.ROS2:
+            for spec in keys.REGISTRY:
+                for message in ("put", "query"):
+                    key = spec.key("vessel1")
+                    assert allowed(on, ident, message, key) == allowed(off, ident, message, key)
+    for spec in keys.REGISTRY:
+        assert allowed(on, access.ROS2, "put", spec.key("vessel1")) == allowed(
+            off, access.ROS2, "put", spec.key("vessel1"))
+
+
+def test_ros2_writes_go_into_the_credentials_rules(tmp_path):
+    made = credentials.create(tmp_path / "c", ros2_writes=True)
+    assert made.access_rules() == access.acl(ros2_writes=True)
+    conf = zenoh.Config()
+    conf.insert_json5("access_control", json.dumps(made.access_rules()))  # Zenoh accepts it

@@ -10,7 +10,9 @@ Zenoh before any Seaway code sees it:
   profile to exactly one);
 * **serve** a request (declare the queryable, send its replies): only the key's producer;
 * **ask** a request that actuates or resets (every registered ``query`` key: arm, mode, mission,
-  scenario, navigation reset): only the operator identities (:data:`OPERATORS`);
+  scenario, navigation reset): only the operator identities (:data:`OPERATORS`); and, in a stack
+  made with ``ros2_writes``, the ROS 2 face (identity ``ros2``) the mission's requests alone
+  (:data:`ROS2_REQUESTS`: a mission, pause/resume/abort), never arming, modes or resets;
 * **declare** a health or lockstep-membership token: only the service it names;
 * **read** (subscribe, liveliness queries, the run descriptions and refusal counts): everyone in the
   stack.
@@ -60,6 +62,13 @@ SHORE_IDENTITIES: tuple[str, ...] = ("launcher", "recorder", RELAY, "operator", 
 """The identities a shore computer runs (profile ``shore``, the operator commands, the ground station)."""
 LOOPBACK = "lo"
 """The interface a boat's own processes link over (``boat-client.json5``): Linux's loopback."""
+ROS2 = "ros2"
+"""The ROS 2 face's identity (``seaway-ros2``, docs/ros2.md)."""
+ROS2_REQUESTS: tuple[keys.KeySpec, ...] = (keys.MISSION_SET, keys.MISSION_COMMAND)
+"""What the ROS 2 face may ask when the stack lets ROS 2 write (``acl(ros2_writes=True)``): a
+mission and its pause/resume/abort, decided by the controller as an operator's are."""
+ROS2_WRITES_POLICY = "ros2-writes"
+"""The policy ``acl(ros2_writes=True)`` adds."""
 HARNESS = "harness"
 """The test harness: may do everything. Issued only when asked for (tests, benchmarks); the
 launcher never issues it."""
@@ -127,13 +136,14 @@ def side_identities(side: Side) -> tuple[str, ...]:
 
 
 def acl(overrides: Mapping[str, str] | None = None, *, harness: bool = False,
-        side: Side = "local") -> dict[str, Any]:
+        side: Side = "local", ros2_writes: bool = False) -> dict[str, Any]:
     """The ``access_control`` section of every process's Zenoh config in one stack.
 
     ``overrides``: the profile's producers (:func:`producers`); ``harness``: admit the test
     harness identity with every right; ``side``: ``local`` for a stack alone on its machine, or the
     ``boat``/``shore`` half of a deployment, where the router (:data:`RELAY`) carries the other
-    side (module docstring). The same document serves every process of a side, router included.
+    side (module docstring). ``ros2_writes``: the ROS 2 face may ask :data:`ROS2_REQUESTS`. The
+    same document serves every process of a side, router included.
     """
     if side not in SIDES:
         raise AccessError(f"side {side!r} unknown; allowed: {', '.join(SIDES)}")
@@ -155,6 +165,9 @@ def acl(overrides: Mapping[str, str] | None = None, *, harness: bool = False,
         {"id": "operators", "rules": ["ask-actuate"],
          "subjects": [i for i in (*OPERATORS, HARNESS) if i in identities]},
     ]
+    if ros2_writes and ROS2 in identities:
+        rules.append(_rule("ros2-ask", ["query"], [_wild(s.suffix) for s in ROS2_REQUESTS]))
+        policies.append({"id": ROS2_WRITES_POLICY, "rules": ["ros2-ask"], "subjects": [ROS2]})
     if side == "boat":
         # What arrives from the router came from the shore: the shore's rights, nothing more.
         relay = _shore_rights("from-shore", "ingress")

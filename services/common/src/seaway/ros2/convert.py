@@ -8,7 +8,9 @@ north, z up: frame ``map``, at the same origin), body frame forward-left-up (``b
 * a heading psi (clockwise from north) is the yaw pi/2 - psi (counter-clockwise from east), as a
   quaternion about z;
 * a body velocity (u forward, v right, r clockwise) is (x = u, y = -v) with angular z = -r;
-* a body force and moment (X forward, Y right, N clockwise) is (x = X, y = -Y), torque z = -N.
+* a body force and moment (X forward, Y right, N clockwise) is (x = X, y = -Y), torque z = -N;
+* and back, for what ROS 2 may send (``seaway-ros2 --ros2-writes``): a ``nav_msgs/Path`` in ``map``
+  is the NED waypoints (north = y, east = x) of a mission (``path_waypoints_ned``).
 
 Every function here takes a Seaway message and returns ``(ROS type name, message dict)`` for
 ``seaway.ros2.cdr.encode``; units stay SI, times become ``builtin_interfaces/Time`` from
@@ -41,6 +43,11 @@ Msg = tuple[str, dict[str, Any]]
 def ned_to_enu(north_m: float, east_m: float) -> tuple[float, float]:
     """(north, east) in NED -> (x east, y north) in ENU [m]."""
     return east_m, north_m
+
+
+def enu_to_ned(x_east_m: float, y_north_m: float) -> tuple[float, float]:
+    """(x east, y north) in ENU -> (north, east) in NED [m]."""
+    return y_north_m, x_east_m
 
 
 def heading_to_yaw(psi_rad: float) -> float:
@@ -109,6 +116,35 @@ def _twist_covariance(cov: Sequence[float] | None) -> list[float]:
     for i, (a, sa) in src.items():
         for j, (b, sb) in src.items():
             out[6 * i + j] = sa * sb * cov[9 * a + b]
+    return out
+
+
+# -- from ROS 2 -------------------------------------------------------------------------------
+
+
+class NotConvertibleError(ValueError):
+    """A ROS 2 message Seaway cannot take as it is (a frame it does not know, a value not finite)."""
+
+
+def path_waypoints_ned(path: Mapping[str, Any]) -> list[tuple[float, float]]:
+    """The (north, east) waypoints [m] of a ``nav_msgs/Path`` (decoded), in the order given.
+
+    Its frame must be ``map``, the frame the face publishes in (the path's header; a pose's own
+    header may leave it empty or say ``map``): Seaway has no transform tree to take another.
+    Positions must be finite; ``z`` and the orientations are not used (a mission is waypoints)."""
+    frame = path["header"]["frame_id"]
+    if frame != MAP_FRAME:
+        raise NotConvertibleError(f"Path.header.frame_id is {frame!r}: only {MAP_FRAME!r} (ENU at "
+                             "Seaway's origin) is taken")
+    out = []
+    for i, ps in enumerate(path["poses"]):
+        if ps["header"]["frame_id"] not in ("", MAP_FRAME):
+            raise NotConvertibleError(f"Path.poses[{i}].header.frame_id is {ps['header']['frame_id']!r}: "
+                                 f"only {MAP_FRAME!r} or empty is taken")
+        p = ps["pose"]["position"]
+        if not (math.isfinite(p["x"]) and math.isfinite(p["y"])):
+            raise NotConvertibleError(f"Path.poses[{i}].pose.position ({p['x']}, {p['y']}) is not finite")
+        out.append(enu_to_ned(p["x"], p["y"]))
     return out
 
 

@@ -44,6 +44,9 @@ TOPICS: tuple[Topic, ...] = (
     Topic(keys.VEHICLE_BATTERY, "battery", rt.BATTERY_STATE.name,
           lambda b, _v: convert.battery_state(b), "the propulsion battery"),
 )
+WRITES_FLAG = "--ros2-writes"
+"""``seaway-ros2``'s switch for what ROS 2 may send (``seaway.ros2.writes``); the launcher passes
+it and makes the stack's access rules let the face ask (``seaway.contract.access.ROS2_REQUESTS``)."""
 DIAGNOSTICS_TOPIC = "/diagnostics"
 """Health: each service's liveliness and the vehicle's status (``convert.diagnostics``)."""
 BY_SUFFIX: dict[str, Topic] = {t.spec.suffix: t for t in TOPICS}

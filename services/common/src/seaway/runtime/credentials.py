@@ -136,19 +136,21 @@ def _populate(folder: Path, ca_key: ec.EllipticCurvePrivateKey, ca_cert: x509.Ce
 
 def create(folder: Path, identities: Iterable[str] | None = None, *,
            producers: Mapping[str, str] | None = None, harness: bool = False,
-           days: int = DEFAULT_DAYS) -> Credentials:
+           days: int = DEFAULT_DAYS, ros2_writes: bool = False) -> Credentials:
     """A new authority and a certificate for each identity in ``folder`` (created 0700).
 
     ``producers``: the profile's producer of each key it narrows (``access.producers``);
-    ``harness``: also the test harness identity, with every right. An existing authority in
-    ``folder`` is replaced: certificates of the old one stop working.
+    ``harness``: also the test harness identity, with every right; ``ros2_writes``: the ROS 2 face
+    may ask the mission's requests (``access.ROS2_REQUESTS``). An existing authority in ``folder``
+    is replaced: certificates of the old one stop working.
     """
     folder = _private_folder(folder)
     ca_key, ca_cert = _authority(days)
     _write_authority(folder, ca_key, ca_cert, with_key=True)
     base = access.IDENTITIES if identities is None else identities
     names = list(dict.fromkeys([*base, *([access.HARNESS] if harness else [])]))
-    _populate(folder, ca_key, ca_cert, names, access.acl(producers, harness=harness), days)
+    _populate(folder, ca_key, ca_cert, names,
+              access.acl(producers, harness=harness, ros2_writes=ros2_writes), days)
     return Credentials(folder)
 
 
@@ -159,14 +161,15 @@ DEFAULT_BOAT_HOSTS = ("seaway-boat",)
 
 def create_deployment(folder: Path, *, boat_hosts: Iterable[str] = DEFAULT_BOAT_HOSTS,
                       producers: Mapping[str, str] | None = None, harness: bool = False,
-                      days: int = DEFAULT_DAYS) -> dict[str, Credentials]:
+                      days: int = DEFAULT_DAYS, ros2_writes: bool = False) -> dict[str, Credentials]:
     """One authority for a boat and its shore: ``folder/boat`` and ``folder/shore``, each a
     credentials folder with that side's identities and rules (``access.acl(side=...)``).
 
     The authority's key stays in ``folder`` (``ca-key.pem``), on neither machine's folder: copy
     ``boat/`` to the boat and ``shore/`` to the shore. The routers' certificates carry
     ``boat_hosts`` (names or addresses the shore dials) besides localhost and 127.0.0.1.
-    ``producers`` narrows the boat's keys as its profile runs them. Creating again replaces the
+    ``producers`` narrows the boat's keys as its profile runs them; ``ros2_writes`` lets the boat's
+    ROS 2 face ask the mission's requests (``access.ROS2_REQUESTS``). Creating again replaces the
     authority (rotation): every earlier certificate stops working.
     """
     root = _private_folder(folder)
@@ -179,7 +182,8 @@ def create_deployment(folder: Path, *, boat_hosts: Iterable[str] = DEFAULT_BOAT_
             old.unlink()
         _write_authority(sub, ca_key, ca_cert, with_key=False)
         names = [*access.side_identities(side), *([access.HARNESS] if harness else [])]
-        rules = access.acl(producers if side == "boat" else None, harness=harness, side=side)
+        rules = access.acl(producers if side == "boat" else None, harness=harness, side=side,
+                           ros2_writes=ros2_writes and side == "boat")
         _populate(sub, ca_key, ca_cert, names, rules, days, router_hosts=boat_hosts)
         made[side] = Credentials(sub)
     return made

@@ -44,6 +44,9 @@ def main(argv: list[str]) -> int:
                         "localhost and 127.0.0.1 always)")
     c.add_argument("--harness", action="store_true",
                    help="also the test harness identity, which may do everything (tests only)")
+    c.add_argument("--ros2-writes", action="store_true",
+                   help="let the ROS 2 face (seaway-ros2 --ros2-writes) ask a mission and its "
+                        "pause/resume/abort, as an operator does (docs/ros2.md)")
     s = sub.add_parser("show", help="the identities in a folder and when they expire")
     s.add_argument("folder", type=Path, help="a credentials folder")
     args = ap.parse_args(argv)
@@ -63,14 +66,16 @@ def main(argv: list[str]) -> int:
         if args.deployment:
             sides = credentials.create_deployment(
                 args.folder, boat_hosts=args.boat_host or credentials.DEFAULT_BOAT_HOSTS,
-                producers=producers, harness=args.harness, days=args.days)
+                producers=producers, harness=args.harness, days=args.days,
+                ros2_writes=args.ros2_writes)
             print(f"created {args.folder}: one authority (its key ca-key.pem stays here), valid "
                   f"{args.days} days")
             for side, made in sides.items():
                 print(f"  {side:5s} {made.folder}: {', '.join(_identities(made.folder))}; on the {side} "
                       f"computer: {credentials.ENV_CREDENTIALS}={made.folder} (or where you copy it)")
             return 0
-        made = credentials.create(args.folder, producers=producers, harness=args.harness, days=args.days)
+        made = credentials.create(args.folder, producers=producers, harness=args.harness,
+                                  days=args.days, ros2_writes=args.ros2_writes)
         print(f"created {made.folder}: authority and {len(access.IDENTITIES) + args.harness} identities, "
               f"valid {args.days} days; use it with {credentials.ENV_CREDENTIALS}={made.folder}")
         return 0

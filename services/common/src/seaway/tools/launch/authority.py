@@ -28,6 +28,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from seaway.contract import access
 from seaway.mavlink import signing
 from seaway.runtime import credentials as creds
 from seaway.runtime import stacks
@@ -126,7 +127,13 @@ def _zenoh_credentials(profile: Profile, run_name: str) -> Authority:
             "command this stack"])
     if isinstance(given, creds.Credentials):
         given.check("launcher")
-        return Authority(given, rendezvous, notes=[f"credentials {given.folder}"])
+        notes = [f"credentials {given.folder}"]
+        if profile.ros2_writes() and not any(p.get("id") == access.ROS2_WRITES_POLICY for p in
+                                             given.access_rules().get("policies", [])):
+            notes.append("ROS 2 writes: these credentials do not let the ROS 2 face ask anything, "
+                         "so its requests will be refused (make them with `seaway credentials "
+                         "create --ros2-writes`)")
+        return Authority(given, rendezvous, notes=notes)
     if profile.side != "local":
         raise creds.CredentialsError(
             f"profile {profile.name} is the {profile.side} half of a deployment: it needs that side's "
@@ -134,7 +141,7 @@ def _zenoh_credentials(profile: Profile, run_name: str) -> Authority:
             f"credentials create DIR --deployment --boat-host <boat address>`, then "
             f"{creds.ENV_CREDENTIALS}=DIR/{profile.side}; docs/deployment.md)")
     folder = stacks.stacks_dir() / f"{private_name(run_name)}.credentials"
-    made = creds.create(folder, producers=profile.producers())
+    made = creds.create(folder, producers=profile.producers(), ros2_writes=profile.ros2_writes())
     return Authority(made, rendezvous, owned_folder=folder,
                      notes=[f"credentials: a new authority for this run ({folder})"])
 

@@ -139,6 +139,10 @@ def parser() -> argparse.ArgumentParser:
                          "repeat for several)")
     ap.add_argument("--ros2-domain", type=whole_number(0, ROS_DOMAIN_MAX), default=None,
                     help="with --ros2: the ROS_DOMAIN_ID (default $ROS_DOMAIN_ID or 0)")
+    ap.add_argument("--ros2-writes", action="store_true",
+                    help="with --ros2: also take a mission (nav_msgs/Path) and its pause/resume/"
+                         "abort (std_msgs/String) from ROS 2, as an operator's requests; the run's "
+                         "access rules let the face ask only these (docs/ros2.md)")
     ap.add_argument("--check", action="store_true", help="validate the profile and exit")
     return ap
 
@@ -299,9 +303,10 @@ def main(argv: list[str]) -> int:
     try:
         profile: Profile = load_profile(args.profile)
         if args.ros2:
-            profile = with_ros2(profile, args.ros2_connect or [DEFAULT_ROUTER], args.ros2_domain)
-        elif args.ros2_connect or args.ros2_domain is not None:
-            raise ConfigError("--ros2-connect and --ros2-domain go with --ros2")
+            profile = with_ros2(profile, args.ros2_connect or [DEFAULT_ROUTER], args.ros2_domain,
+                                writes=args.ros2_writes)
+        elif args.ros2_connect or args.ros2_domain is not None or args.ros2_writes:
+            raise ConfigError("--ros2-connect, --ros2-domain and --ros2-writes go with --ros2")
     except ConfigError as err:
         print(f"seaway launch: {err}", file=sys.stderr)
         return 2

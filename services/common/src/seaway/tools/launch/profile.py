@@ -37,6 +37,7 @@ from pydantic import Field, model_validator
 
 from seaway.contract import access, keys
 from seaway.contract.config import ConfigError, ConfigModel, deploy_path, load_config
+from seaway.ros2.face import WRITES_FLAG
 from seaway.tools.launch.liveness import Duty, duties_for
 
 
@@ -159,6 +160,11 @@ class Profile(ConfigModel):
         except access.AccessError as err:
             raise ValueError(str(err)) from None
         return self
+
+    def ros2_writes(self) -> bool:
+        """Whether a ROS 2 face of this profile takes requests from ROS 2 (``--ros2-writes``): its
+        stack's access rules must then let it ask them (``contract.access.ROS2_REQUESTS``)."""
+        return any(p.service == ROS2_PROCESS and WRITES_FLAG in p.command for p in self.processes)
 
     def producers(self) -> dict[str, str]:
         """Each key this profile produces and the identity producing it: the access rules narrow
@@ -285,10 +291,12 @@ ROS2_PROCESS = "ros2"
 """The name of the ROS 2 face's process a launch adds (``seaway launch --ros2``)."""
 
 
-def with_ros2(profile: Profile, connect: list[str], domain: int | None = None) -> Profile:
+def with_ros2(profile: Profile, connect: list[str], domain: int | None = None,
+              writes: bool = False) -> Profile:
     """``profile`` with the ROS 2 face (``seaway-ros2``, docs/ros2.md) added, one per vessel,
     connecting to ``connect`` (rmw_zenohd's endpoints) on ROS domain ``domain`` (None: the
-    process's ``$ROS_DOMAIN_ID`` or 0). Not required: the vessel does not depend on it. A profile
+    process's ``$ROS_DOMAIN_ID`` or 0); ``writes``: it takes a mission and its pause/resume/abort
+    from ROS 2 (``seaway.ros2.writes``). Not required: the vessel does not depend on it. A profile
     that runs it already is refused (one producer of its topics)."""
     if any(p.service == ROS2_PROCESS for p in profile.processes):
         raise ConfigError(f"profile {profile.name} runs the ROS 2 face already; leave --ros2 out")
@@ -297,6 +305,8 @@ def with_ros2(profile: Profile, connect: list[str], domain: int | None = None) -
         command += ["--ros2-connect", endpoint]
     if domain is not None:
         command += ["--ros2-domain", str(domain)]
+    if writes:
+        command.append(WRITES_FLAG)
     spec = {"name": ROS2_PROCESS, "service": ROS2_PROCESS, "required": False, "per_vessel": True,
             "command": command}
     data = profile.model_dump(exclude_unset=True)
