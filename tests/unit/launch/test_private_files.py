@@ -57,3 +57,20 @@ def test_a_launcher_with_a_gone_launchers_pid_makes_its_files(folder: Path) -> N
     finally:
         auth.release()
     assert list(folder.iterdir()) == []
+
+
+@pytest.mark.parametrize("writes", [False, True])
+def test_a_launch_with_ros2_writes_lets_the_face_ask_the_missions_requests(folder: Path,
+                                                                         writes: bool) -> None:
+    """--ros2 --ros2-writes: the per-run rules are access.acl(ros2_writes=True); without, not."""
+    from seaway.contract import access
+    from seaway.tools.launch.profile import load_profile, with_ros2
+
+    profile = with_ros2(load_profile("sim"), ["tcp/127.0.0.1:7447"], 3, writes=writes)
+    assert profile.ros2_writes() is writes
+    auth = authority.credentials_for(profile, "run")
+    try:
+        assert auth.credentials is not None
+        assert auth.credentials.access_rules() == access.acl(profile.producers(), ros2_writes=writes)
+    finally:
+        auth.release()
