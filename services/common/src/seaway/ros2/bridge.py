@@ -213,7 +213,8 @@ def _what(request: m.Request) -> str:
 
 
 def parser() -> argparse.ArgumentParser:
-    p = base_parser(SERVICE, "Seaway's state as ROS 2 topics over rmw_zenoh (read only).",
+    p = base_parser(SERVICE, "Seaway's state as ROS 2 topics over rmw_zenoh (read only unless "
+                    "--ros2-writes).",
                     prog="seaway-ros2")
     p.add_argument("--ros2-connect", action="append", default=None, metavar="ENDPOINT",
                    help=f"Zenoh endpoint of ROS 2's router, rmw_zenohd (default {rmw.DEFAULT_ROUTER}; "
@@ -226,10 +227,10 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--ros2-namespace", default=None, metavar="NS",
                    help="the node's namespace (default /<vessel>, made a valid ROS name)")
     p.add_argument(face.WRITES_FLAG, action="store_true",
-                   help="also take a mission (nav_msgs/Path on <ns>/mission/set_path) and its "
-                        "pause/resume/abort (std_msgs/String on <ns>/mission/command) from ROS 2, "
-                        "sent as an operator's requests under this process's identity; the stack's "
-                        "access rules must let it ask them (docs/ros2.md)")
+                   help=f"also take a mission (nav_msgs/Path on <ns>/{writes.SET_PATH.name}) and "
+                        f"its pause/resume/abort (std_msgs/String on <ns>/{writes.COMMAND.name}) "
+                        "from ROS 2, sent as an operator's requests under this process's identity; "
+                        "the stack's access rules must let it ask them (docs/ros2.md)")
     return p
 
 

@@ -44,7 +44,8 @@ class Inbound:
     doc: str
 
 
-COMMAND = Inbound("mission/command", rt.STRING.name, keys.MISSION_COMMAND,
+# The command's topic is named after the key it feeds (``mission/command`` on both sides).
+COMMAND = Inbound(keys.MISSION_COMMAND.suffix, rt.STRING.name, keys.MISSION_COMMAND,
                   "'pause', 'resume' or 'abort' the mission")
 SET_PATH = Inbound("mission/set_path", rt.PATH.name, keys.MISSION_SET,
                    "a new mission through the path's positions (frame map), with the settings of "

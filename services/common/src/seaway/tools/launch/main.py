@@ -133,7 +133,7 @@ def parser() -> argparse.ArgumentParser:
                          "when it pays)")
     ap.add_argument("--ros2", action="store_true",
                     help="add the ROS 2 face (seaway-ros2, docs/ros2.md): Seaway's state as ROS 2 "
-                         "topics over rmw_zenoh, read only")
+                         "topics over rmw_zenoh, read only unless --ros2-writes")
     ap.add_argument("--ros2-connect", action="append", default=None, metavar="ENDPOINT",
                     help=f"with --ros2: rmw_zenohd's Zenoh endpoint (default {DEFAULT_ROUTER}; "
                          "repeat for several)")
