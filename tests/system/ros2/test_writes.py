@@ -27,7 +27,8 @@ from tests.conftest import free_port, wait_for
 pytestmark = [pytest.mark.system, pytest.mark.slow]
 TS = get_typestore(Stores.ROS2_JAZZY)
 DOMAIN = 9
-STRING, DIAG = "std_msgs/msg/String", "diagnostic_msgs/msg/DiagnosticArray"
+STRING, DIAG, PATH = ("std_msgs/msg/String", "diagnostic_msgs/msg/DiagnosticArray",
+                      "nav_msgs/msg/Path")
 QOS = "::,:,:,:,,"  # rmw_zenoh's QoS chunk of the default profile
 
 
@@ -38,7 +39,8 @@ def dds_name(ros_type: str) -> str:
 
 class RosPeer:
     """A ROS 2 node ``/tester`` on its own Zenoh peer (the face connects to it, as to rmw_zenohd):
-    liveliness tokens heard, ``/diagnostics`` received, one publisher on ``/vessel1/mission/command``."""
+    liveliness tokens heard, ``/diagnostics`` received, publishers on ``/vessel1/mission/command``
+    and ``/vessel1/mission/set_path``."""
 
     def __init__(self, port: int) -> None:
         conf = zenoh.Config()
@@ -55,16 +57,21 @@ class RosPeer:
         diag = f"{DOMAIN}/diagnostics/{dds_name(DIAG)}/{TS.hash_rihs01(DIAG)}"
         self.keep.append(self.session.declare_subscriber(diag, self._on_diag))
         # rmw_zenoh's layout: @ros2_lv/<domain>/<zid>/<nid>/<id>/NN|MP/<enclave>/<ns>/<node>[/...].
-        node = f"@ros2_lv/{DOMAIN}/{self.zid}/0/0/NN/%/%/tester"
-        topic = "vessel1/mission/command"
-        self.pub_token = (f"@ros2_lv/{DOMAIN}/{self.zid}/0/1/MP/%/%/tester/%{topic.replace('/', '%')}/"
-                          f"{dds_name(STRING)}/{TS.hash_rihs01(STRING)}/{QOS}")
-        self.gid = xxhash.xxh3_128_intdigest(self.pub_token.encode()).to_bytes(16, "little")
-        self.keep += [self.session.liveliness().declare_token(node),
-                      self.session.liveliness().declare_token(self.pub_token)]
-        self.pub = self.session.declare_publisher(
-            f"{DOMAIN}/{topic}/{dds_name(STRING)}/{TS.hash_rihs01(STRING)}")
+        self.keep.append(self.session.liveliness().declare_token(
+            f"@ros2_lv/{DOMAIN}/{self.zid}/0/0/NN/%/%/tester"))
+        self.pubs = {ros_type: self._publisher(i + 1, topic, ros_type) for i, (topic, ros_type) in
+                     enumerate([("vessel1/mission/command", STRING),
+                                ("vessel1/mission/set_path", PATH)])}
         self.seq = 0
+
+    def _publisher(self, entity: int, topic: str, ros_type: str):
+        token = (f"@ros2_lv/{DOMAIN}/{self.zid}/0/{entity}/MP/%/%/tester/%{topic.replace('/', '%')}/"
+                 f"{dds_name(ros_type)}/{TS.hash_rihs01(ros_type)}/{QOS}")
+        gid = xxhash.xxh3_128_intdigest(token.encode()).to_bytes(16, "little")
+        self.keep.append(self.session.liveliness().declare_token(token))
+        pub = self.session.declare_publisher(
+            f"{DOMAIN}/{topic}/{dds_name(ros_type)}/{TS.hash_rihs01(ros_type)}")
+        return pub, gid
 
     def _on_token(self, sample: zenoh.Sample) -> None:
         with self.lock:
@@ -86,13 +93,24 @@ class RosPeer:
                     return t
         return None
 
-    def send(self, payload: bytes) -> None:
+    def send(self, payload: bytes, ros_type: str = STRING) -> None:
+        pub, gid = self.pubs[ros_type]
         self.seq += 1
-        att = struct.pack("<qqB", self.seq, time.time_ns(), 16) + self.gid
-        self.pub.put(payload, attachment=att)
+        pub.put(payload, attachment=struct.pack("<qqB", self.seq, time.time_ns(), 16) + gid)
 
     def send_word(self, word: str) -> None:
         self.send(bytes(TS.serialize_cdr(TS.types[STRING](data=word), STRING)))
+
+    def send_path(self, points_enu: list[tuple[float, float]]) -> None:
+        t = TS.types
+        stamp = t["builtin_interfaces/msg/Time"](sec=0, nanosec=0)
+        q = t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0)
+        poses = [t["geometry_msgs/msg/PoseStamped"](
+            header=t["std_msgs/msg/Header"](stamp=stamp, frame_id="map"),
+            pose=t["geometry_msgs/msg/Pose"](position=t["geometry_msgs/msg/Point"](x=x, y=y, z=0.0),
+                                              orientation=q)) for x, y in points_enu]
+        msg = t[PATH](header=t["std_msgs/msg/Header"](stamp=stamp, frame_id="map"), poses=poses)
+        self.send(bytes(TS.serialize_cdr(msg, PATH)), PATH)
 
     def writes_counts(self) -> dict[str, str] | None:
         """The newest ``seaway ros2 writes`` status of ``/diagnostics``, as key -> value."""
@@ -152,6 +170,14 @@ def test_a_ros2_pause_pauses_the_mission_and_a_malformed_one_is_counted(
             counts = wait_for(lambda: (c := ros.writes_counts()) and c["accepted"] == "1" and c, 20,
                               interval_s=0.2, what="the pause counted as accepted")
             assert counts["dropped"] == "1" and counts["received"] == "2"
+
+            # Absurd missions: the controller's own checks refuse them, the face counts it.
+            ros.send_path([(0.0, 0.0), (1e6, 0.0)])  # 1000 km east
+            ros.send_path([(float(i % 2), float(i)) for i in range(2000)])  # 2000 waypoints
+            counts = wait_for(lambda: (c := ros.writes_counts()) and c["refused"] == "2" and c, 30,
+                              interval_s=0.2, what="both absurd paths refused")
+            assert counts["sent"] == "3" and counts["accepted"] == "1"
+            assert status.now() == "paused"  # the mission was not replaced
         assert launcher.poll() is None
         procs.stop(launcher, timeout_s=30)
     finally:
