@@ -37,7 +37,7 @@ import zenoh
 
 from seaway.contract import keys
 from seaway.contract import messages as m
-from seaway.ros2 import cdr, face, rmw, writes
+from seaway.ros2 import cdr, convert, face, rmw, writes
 from seaway.runtime.argtypes import whole_number
 from seaway.runtime.ratelog import RateLimitedLog
 from seaway.runtime.service import base_parser, parse, run_service
@@ -148,7 +148,7 @@ class Bridge:
             with self._writes_lock:
                 counts = self.writes.stats.values()
             value["status"].append({
-                "level": face.convert.OK, "name": "seaway ros2 writes",
+                "level": convert.OK, "name": "seaway ros2 writes",
                 "message": f"{counts['sent']} requests sent, {counts['dropped']} samples dropped",
                 "hardware_id": self.vessel_name,
                 "values": [{"key": k, "value": v} for k, v in counts.items()]})
