@@ -27,8 +27,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from seaway.simkit.compiled import MAX_SUBSTEPS, Substeps
 from seaway.simkit.faults import ThrusterFaults
-from seaway.simkit.scenario import DisturbanceModel, Scenario, body_force
+from seaway.simkit.scenario import DisturbanceModel, Scenario, WorldGrid, body_force
 from seaway.vessel import model
 from seaway.vessel.model import VesselParams
 from seaway.vessel.thrusters import apply_dead_zone, saturate
@@ -61,6 +62,13 @@ class Plant:
         self.lag_tc_s = tc
         self.thruster_faults = ThrusterFaults(scenario.faults, (-vessel.reverse_max_n,
                                                                 vessel.thrust_max_n))
+        # Substeps whose inputs are all known before the first (no fault, no lag, no disturbance
+        # field varying with position) are integrated compiled, the same floats
+        # (``seaway.simkit.compiled``); the others in Python.
+        batchable = (not self.thruster_faults.items and not self.thruster_faults.groundings
+                     and tc == 0.0
+                     and not any(isinstance(d, WorldGrid) for d in scenario.disturbances))
+        self.substeps = Substeps.make(vessel) if batchable else None
         self.reset()
 
     def reset(self) -> None:
@@ -77,6 +85,8 @@ class Plant:
         """Hold ``command_n`` (T1 port, T2 starboard) [N] for ``dt_s`` and integrate."""
         if not (math.isfinite(command_n[0]) and math.isfinite(command_n[1])):
             raise ValueError(f"thrust command must be finite, got {command_n}")
+        if self.substeps is not None:
+            return self._step_compiled(self.substeps, command_n, dt_s)
         st = self.state
         demanded = target = self.actuate(command_n)
         faults = (self.thruster_faults if self.thruster_faults.items or self.thruster_faults.groundings
@@ -113,4 +123,36 @@ class Plant:
         x[5] = math.remainder(x[5], 2.0 * math.pi)  # keep psi in [-pi, pi] without changing the state
         st.x = x
         st.thrust_n = thrust
+        return st
+
+    def _step_compiled(self, substeps: Substeps, command_n: tuple[float, float], dt_s: float
+                       ) -> PlantState:
+        """``step`` without faults, lag or a position-dependent disturbance: the same substeps,
+        their disturbance sampled first (it depends on time only), integrated compiled."""
+        st = self.state
+        target = self.actuate(command_n)
+        n = max(1, round(dt_s / self.internal_dt_s))
+        h = dt_s / n
+        p = self.p
+        # The thrust is held and produced at once: the energy of each substep, as ``step`` sums it.
+        power = model.propulsion_power_w(target, p)
+        substep_j = 0.5 * (power + power) * h
+        x = st.x
+        sample = self.disturbance.sample
+        done = 0
+        while done < n:
+            k = min(MAX_SUBSTEPS, n - done)
+            inputs: list[float] = []
+            for _ in range(k):
+                tau_body, force_ne, current_ne = sample(st.t_s, x[3], x[4])
+                inputs += (target[0], target[1], h, *tau_body, *force_ne, *current_ne)
+                st.energy_j += substep_j
+                st.t_s += h
+            x = substeps.run(x, inputs, k)
+            done += k
+        st.last_disturbance_body = body_force(tau_body, force_ne, x[5])
+        st.last_current_ne = current_ne
+        x[5] = math.remainder(x[5], 2.0 * math.pi)
+        st.x = x
+        st.thrust_n = target
         return st
