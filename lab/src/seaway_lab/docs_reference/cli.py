@@ -83,7 +83,8 @@ def stale(out: Path, pages: dict[str, str]) -> list[str]:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="seaway docs", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    sub = ap.add_subparsers(dest="action", required=True, metavar="ACTION")
+    sub = ap.add_subparsers(dest="action", required=True, metavar="ACTION",
+                            help="reference: the generated reference pages")
     ref = sub.add_parser("reference", help="write (or --check) the generated reference pages",
                          description="write the reference pages generated from the code")
     ref.add_argument("--out", type=Path, default=None,
