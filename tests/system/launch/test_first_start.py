@@ -53,9 +53,10 @@ def test_a_cold_start_is_ready_at_once_makes_one_solver_and_flies_as_a_warm_one(
     assert ready_s < float(built.group(1)), (ready_s, built.group(1))
     libs = {p.name.split("-")[0] for p in cache.glob("*.so")}
     assert libs & set(CONTROLLER_KINDS) == {"nmpc"}  # only the solver it needs
-    # And the estimator's filter steps, compiled at its first start (seaway_estimator.kalman).
+    # And the estimator's filter steps, compiled at its first start (seaway_estimator.kalman), and
+    # the plant's substeps, at the simulator's (seaway.simkit.compiled).
     assert libs - set(CONTROLLER_KINDS) == {"seaway_ekf_predict_world", "seaway_ekf_update_1",
-                                            "seaway_ekf_update_2"}, libs
+                                            "seaway_ekf_update_2", "seaway_plant_substep_acc10"}, libs
     assert "mission paper-c1: accepted" in cold and "its nmpc solver is being made" in cold
 
     warm = launch(tmp_path / "warm", cache)
