@@ -342,13 +342,16 @@ def simulate(theta: np.ndarray, thrust: np.ndarray, arm_m: float, x0: np.ndarray
     return out
 
 
-def friction_of(z: np.ndarray, least_mps: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def friction_of(z: np.ndarray, eps_mps: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(F_c, F_s, eps) of the fit's parameter vectors (P, 13): F_c = exp(z11), F_s = F_c + exp(z12)
-    (so that F_s >= F_c > 0), eps from them and m11 (``friction_speed_mps``)."""
+    (so that F_s >= F_c > 0), and the build-up speed ``eps_mps``, held fixed during the fit: were it
+    to follow F and m11 (``friction_speed_mps``), a small m11 and a large F would widen it into a
+    second linear damping, a valley the fit was seen to fall into. Held fixed, such a vessel is too
+    stiff for the fit's own RK4 and the step is refused."""
     z = np.atleast_2d(z)
     fc = np.exp(z[:, 11])
     fs = fc + np.exp(z[:, 12])
-    return fc, fs, friction_speed_mps(fc, fs, theta_of(z)[:, 0], least_mps)
+    return fc, fs, np.full(len(fc), eps_mps)
 
 
 def physical_of(z: np.ndarray, least_mps: float | None) -> np.ndarray:
@@ -507,9 +510,7 @@ def fit(trace: Trace, arm_m: float, *, fit_dead_zone: bool = True, dead_zone_n: 
         if not fc0 > 0:
             notes.append(f"equation error gave friction_n {fc0:.3g} N: started from 1 N instead")
             fc0 = 1.0
-        # F_s > F_c is the parametrisation's; a start at or below F_c starts just above it
-        z_friction = [math.log(fc0), math.log(max(fs0 - fc0, 0.05 * fc0))]
-
+        fs0 = max(fs0, 1.05 * fc0)  # F_s > F_c is the parametrisation's
     t_grid = np.arange(t0, t_end + DT_S, DT_S)
     thrust = produced_thrust(trace.command_at(t_grid), dead_zone_n, lag_s, DT_S)
     prob = _OutputError(trace, arm_m, thrust, t_grid, split, least)
@@ -525,6 +526,9 @@ def fit(trace: Trace, arm_m: float, *, fit_dead_zone: bool = True, dead_zone_n: 
     best: tuple[float, str, np.ndarray, list[str]] | None = None
     for label, th in starts:
         zs, raised = z_of(th)
+        if fit_friction:  # a friction start this start's m11 integrates (FRICTION_TAU_MIN_S)
+            scale = min(1.0, 0.8 * least * th[0] / FRICTION_TAU_MIN_S / friction_rise_n(fc0, fs0))
+            z_friction = [math.log(scale * fc0), math.log(scale * (fs0 - fc0))]
         cand = np.concatenate([zs, [0.0, 0.0], x0, z_friction])
         with np.errstate(all="ignore"):
             e0 = prob.residuals(cand)[0]
@@ -569,7 +573,12 @@ def fit(trace: Trace, arm_m: float, *, fit_dead_zone: bool = True, dead_zone_n: 
     estimates = [Estimate(float(values[i]), float(math.sqrt(abs(var[i])))) for i in range(len(values))]
     params = dict(zip(PARAMS, estimates[:6], strict=True))
     friction = dict(zip(FRICTION_PARAMS, estimates[6:], strict=True)) if least is not None else {}
-    eps = float(friction_of(z, least)[2][0]) if least is not None else 0.0
+    eps = 0.0
+    if least is not None:
+        eps = float(friction_speed_mps(values[6], values[7], values[0], least))
+        if eps > least:  # the file must load (seaway.vessel.model's integrability bound)
+            notes.append(f"friction_speed_mps raised from {least:g} to {eps:.3g} m/s: the fitted "
+                         "friction is too stiff for the control period at the speed fitted with")
     at_floor = [PARAMS[i] for i in range(3) if theta[i] / theta[i + 3] < 1.05 * TAU_MIN_S]
     if at_floor:
         notes.append(f"time constant of {', '.join(at_floor)} at the {TAU_MIN_S:g} s floor: this "
