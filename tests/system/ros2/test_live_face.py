@@ -22,6 +22,7 @@ from seaway.contract import keys
 from seaway.runtime.bus import Bus
 
 from tests.conftest import free_port, wait_for
+from tests.system.ros2.independent import dds_name, ros_peer
 
 pytestmark = [pytest.mark.system, pytest.mark.slow]
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
@@ -29,20 +30,12 @@ DOMAIN = 7
 ODOM, PATH = "nav_msgs/msg/Odometry", "nav_msgs/msg/Path"
 
 
-def dds_name(ros_type: str) -> str:
-    pkg, sub, name = ros_type.split("/")
-    return f"{pkg}::{sub}::dds_::{name}_"
-
 
 class RosListener:
     """Liveliness tokens and samples heard on ROS 2's side, by key."""
 
     def __init__(self, port: int) -> None:
-        conf = zenoh.Config()
-        conf.insert_json5("mode", '"peer"')
-        conf.insert_json5("scouting/multicast/enabled", "false")
-        conf.insert_json5("listen/endpoints", f'["tcp/127.0.0.1:{port}"]')
-        self.session = zenoh.open(conf)
+        self.session = ros_peer(port)
         self.tokens: set[str] = set()
         self.samples: dict[str, list[tuple[bytes, bytes | None]]] = {}
         self.lock = threading.Lock()

@@ -23,6 +23,7 @@ from seaway.runtime import credentials
 from seaway.runtime.bus import Bus
 
 from tests.conftest import free_port, wait_for
+from tests.system.ros2.independent import dds_name, ros_peer
 
 pytestmark = [pytest.mark.system, pytest.mark.slow]
 TS = get_typestore(Stores.ROS2_JAZZY)
@@ -32,10 +33,6 @@ STRING, DIAG, PATH = ("std_msgs/msg/String", "diagnostic_msgs/msg/DiagnosticArra
 QOS = "::,:,:,:,,"  # rmw_zenoh's QoS chunk of the default profile
 
 
-def dds_name(ros_type: str) -> str:
-    pkg, sub, name = ros_type.split("/")
-    return f"{pkg}::{sub}::dds_::{name}_"
-
 
 class RosPeer:
     """A ROS 2 node ``/tester`` on its own Zenoh peer (the face connects to it, as to rmw_zenohd):
@@ -43,11 +40,7 @@ class RosPeer:
     and ``/vessel1/mission/set_path``."""
 
     def __init__(self, port: int) -> None:
-        conf = zenoh.Config()
-        conf.insert_json5("mode", '"peer"')
-        conf.insert_json5("scouting/multicast/enabled", "false")
-        conf.insert_json5("listen/endpoints", f'["tcp/127.0.0.1:{port}"]')
-        self.session = zenoh.open(conf)
+        self.session = ros_peer(port)
         self.zid = str(self.session.info.zid())
         self.tokens: set[str] = set()
         self.diagnostics: list[bytes] = []
