@@ -43,7 +43,7 @@ from seaway.contract.messages import JSON_ENCODING, Message, MessageError, Reply
 from seaway.runtime.ratelog import RateLimitedLog
 
 if TYPE_CHECKING:
-    from seaway.runtime.zenoh_bus import ZenohBus
+    pass
 
 log = logging.getLogger("seaway.runtime.bus")
 
@@ -413,10 +413,16 @@ class Bus(abc.ABC):
 
     @classmethod
     def open(cls, vessel: str, config_path: str | Path | None = None, identity: str | None = None,
-             credentials: Any = None, rendezvous: str | None = None) -> ZenohBus:
+             credentials: Any = None, rendezvous: str | None = None) -> Bus:
         """The production bus: a Zenoh session from ``config_path`` as ``identity`` of the stack
         (``credentials``: a ``seaway.runtime.credentials.Credentials``; ``rendezvous``: the stack's
-        endpoint, else ``$SEAWAY_ZENOH_RENDEZVOUS``; see ``zenoh_bus``)."""
+        endpoint, else ``$SEAWAY_ZENOH_RENDEZVOUS``; see ``zenoh_bus``). In a process that
+        composes its services (``seaway.runtime.host``), a bus on the host's in-memory hub."""
+        from seaway.runtime import host  # the interface itself needs neither
+
+        composed = host.active()
+        if composed is not None:
+            return composed.bus(vessel)
         from seaway.runtime.zenoh_bus import ZenohBus  # the interface itself needs no Zenoh
 
         return ZenohBus.connect(vessel, config_path, identity, credentials, rendezvous)

@@ -29,6 +29,7 @@ from typing import Any
 
 import zenoh
 
+from seaway.runtime import host
 from seaway.runtime.bus import JSON_ENCODING, RAW_ENCODING, Bus, Declared, RawPublisher, RawReply, RawSample
 from seaway.runtime.service import DEFAULT_VESSEL
 
@@ -145,7 +146,9 @@ class MemoryHub:
                 answers.put(None)
 
         for d in targets:
-            threading.Thread(target=serve, args=(d,), name=f"memory-query {d.expr}", daemon=True).start()
+            t = threading.Thread(target=serve, args=(d,), name=f"memory-query {d.expr}", daemon=True)
+            host.adopt(t, d.owner.node)  # the server's work, whoever asked (composed output)
+            t.start()
         return self._answers(answers, len(targets), time.monotonic() + timeout_s)
 
     @staticmethod
@@ -207,6 +210,8 @@ class MemoryBus(Bus):
     def __init__(self, vessel: str = DEFAULT_VESSEL, hub: MemoryHub | None = None) -> None:
         super().__init__(vessel)
         self.hub = hub if hub is not None else MemoryHub()
+        self.node = host.Host.current()
+        """The composed node this bus was opened for (``seaway.runtime.host``), else None."""
 
     @property
     def closed(self) -> bool:

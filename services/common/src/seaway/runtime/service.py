@@ -36,7 +36,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from seaway.contract.config import ConfigError
-from seaway.runtime import refusals
+from seaway.runtime import host, refusals
 from seaway.runtime import run as runs
 from seaway.runtime.bus import Bus, RuntimeEnvError
 from seaway.runtime.clock import Clock, WallClock
@@ -49,7 +49,10 @@ log = logging.getLogger("seaway.runtime.service")
 
 def configure_logging(name: str, level: str = "INFO") -> None:
     """One line per record, prefixed with the service name (the launcher prefixes again per process).
-    Also ``dump_stacks_on_signal``."""
+    Also ``dump_stacks_on_signal``. A node of a composed process (``seaway.runtime.host``) leaves
+    logging to the host, which names each line's node."""
+    if host.active() is not None:
+        return
     logging.basicConfig(
         level=getattr(logging, level.upper(), logging.INFO),
         format=f"%(asctime)s {name} %(levelname)s %(name)s: %(message)s",
@@ -154,6 +157,11 @@ def on_signals(signums: Sequence[int], act: Callable[[int], None]) -> None:
     serves); the reader acts on those routed here alone.
     """
     global _SIGNAL_PIPE
+    if host.active() is not None and threading.current_thread() is not threading.main_thread():
+        # A node of a composed process: signals are the process's, which its host handles; the
+        # node's stop comes from the supervisor (``host.NodeThread.send_signal``).
+        log.debug("signals %s not routed: a node of a composed process", list(signums))
+        return
     if _SIGNAL_PIPE is None:
         read_fd, write_fd = os.pipe()
         os.set_blocking(write_fd, False)  # set_wakeup_fd's rule: a full pipe never blocks a handler
@@ -235,15 +243,19 @@ def run_service(name: str, args: argparse.Namespace, clock: Clock | None = None,
     """
     configure_logging(name, args.log_level)
     run = run or resolve_run(args, name)
-    stop = threading.Event()
-    install_stop_signals(stop)
+    node = host.Host.current()
+    stop = node.stop if node is not None else threading.Event()
+    if node is None:
+        install_stop_signals(stop)
     # A service is its own identity (its certificate's name is the service's), whatever
     # $SEAWAY_IDENTITY says; ``identity`` is for test peers that play another part.
     identity = identity or name
     # Before the session opens: it counts from Zenoh's log. In lockstep only the recorder, which
     # hears every publication, names each refusal (the cost: seaway.runtime.refusals).
-    refusals.watch(identity, full=not run.lockstep or name == "recorder")
-    if run.lockstep:  # one Zenoh thread (zenoh_bus.LOCKSTEP_RUNTIME), before the session opens
+    if node is None:
+        refusals.watch(identity, full=not run.lockstep or name == "recorder")
+    # One Zenoh thread (zenoh_bus.LOCKSTEP_RUNTIME), before the session opens.
+    if run.lockstep and node is None:
         from seaway.runtime.zenoh_bus import use_lockstep_runtime  # the loop itself needs no Zenoh
 
         use_lockstep_runtime()
@@ -253,7 +265,8 @@ def run_service(name: str, args: argparse.Namespace, clock: Clock | None = None,
     except (CredentialsError, RuntimeEnvError) as err:
         log.error("%s", err)
         raise SystemExit(2) from None
-    refusals.serve(bus, identity)
+    if node is None:  # a composed node has no network to refuse anyone
+        refusals.serve(bus, identity)
     ctx = ServiceContext(name, args.vessel, bus, clock or WallClock(), stop, run, agree)
     try:
         log.info("%s starting on vessel %s, run %s", name, args.vessel, run.run_id)

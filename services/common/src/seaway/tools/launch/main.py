@@ -61,7 +61,7 @@ from seaway.contract.messages import (
     MissionRequest,
 )
 from seaway.ros2.rmw import DEFAULT_ROUTER, ROS_DOMAIN_MAX
-from seaway.runtime import cpus, memory
+from seaway.runtime import cpus, host, memory
 from seaway.runtime import run as runs
 from seaway.runtime.argtypes import positive_float, whole_number
 from seaway.runtime.credentials import CredentialsError
@@ -143,6 +143,10 @@ def parser() -> argparse.ArgumentParser:
                     help="with --ros2: also take a mission (nav_msgs/Path) and its pause/resume/"
                          "abort (std_msgs/String) from ROS 2, as an operator's requests; the run's "
                          "access rules let the face ask only these (docs/ros2.md)")
+    ap.add_argument("--composed", action="store_true",
+                    help="a lockstep profile's services as nodes of this one process over the "
+                         "in-memory bus (seaway.runtime.host): the same code, the same recording, "
+                         "no network; for batch runs and studies (a boat runs processes)")
     ap.add_argument("--check", action="store_true", help="validate the profile and exit")
     return ap
 
@@ -310,6 +314,11 @@ def main(argv: list[str]) -> int:
     except ConfigError as err:
         print(f"seaway launch: {err}", file=sys.stderr)
         return 2
+    if args.composed and profile.clock != "lockstep":
+        print(f"seaway launch: --composed: profile {profile.name} runs on the wall clock; only a "
+              "lockstep profile (sim-batch) composes: a real-time stack talks to an autopilot and "
+              "keeps its services apart", file=sys.stderr)
+        return 2
     takes = recording_source.takes_recording([spec.command for spec in profile.processes])
     if problem := recording_source.recording_problem(profile.name, takes, args.recording):
         print(f"seaway launch: {problem}", file=sys.stderr)
@@ -366,6 +375,12 @@ def main(argv: list[str]) -> int:
                  if mission is not None else ""))
         return _check_mission(mission, scenario)
 
+    if args.composed:
+        # One process, no network: nobody to authenticate, no rendezvous to hold.
+        host.activate()
+        auth = authority.Authority(credentials=None, rendezvous="", notes=[
+            "composed: every service a node of this process, over the in-memory bus"])
+        return _launch(args, profile, scenario, mission, run_dir, runs_of, procs, auth)
     try:
         auth = authority.credentials_for(profile, run_dir.name)
         if not profile.zenoh_config:

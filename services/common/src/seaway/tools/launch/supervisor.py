@@ -44,7 +44,7 @@ from typing import IO
 
 from seaway.contract import bundle, keys
 from seaway.contract.messages import LOCKSTEP_SERVICES
-from seaway.runtime import cpus
+from seaway.runtime import cpus, host
 from seaway.runtime.bus import Bus, RawRing
 from seaway.runtime.credentials import ENV_IDENTITY
 from seaway.runtime.service import ENV_VESSEL
@@ -236,6 +236,14 @@ class Supervisor:
         log.close()
 
     def spawn(self, sp: Supervised) -> None:
+        composed = host.active()
+        if composed is not None:  # a node of this process (seaway.runtime.host), not a process
+            log = open(self.logs / f"{sp.spec.name}.log", "ab")  # noqa: SIM115 - closed by the pump
+            log.write(f"--- start {time.strftime('%Y-%m-%dT%H:%M:%S')} (node of this process) "
+                      f"{' '.join(sp.argv)}\n".encode())
+            sp.popen = composed.start(sp.spec.name, sp.argv)  # type: ignore[assignment]
+            self._started(sp, log)
+            return
         exe = shutil.which(sp.argv[0], path=self.env.get("PATH"))
         if exe is None:
             raise FileNotFoundError(f"process {sp.spec.name!r}: command {sp.argv[0]!r} not found")
@@ -253,6 +261,11 @@ class Supervisor:
                 cpus.pin_threads(sp.popen.pid, where)
             except OSError as err:
                 self.echo(f"launcher: {sp.spec.name} left on the launcher's CPUs: {err}")
+        self._started(sp, log)
+
+    def _started(self, sp: Supervised, log: IO[bytes]) -> None:
+        """What follows a start, process or node: its state, its output pumped to its log."""
+        assert sp.popen is not None and sp.popen.stdout is not None
         sp.started_at = time.monotonic()
         sp.ready_at = None
         sp.state = "starting" if sp.spec.service else "running"
@@ -486,6 +499,9 @@ def stop_signal(state: str) -> signal.Signals:
 
 
 def _signal_group(p: subprocess.Popen, sig: int) -> None:
+    if isinstance(p, host.NodeThread):  # a node of this process: its own stop, not the group's
+        p.send_signal(sig)
+        return
     with contextlib.suppress(ProcessLookupError, PermissionError):
         os.killpg(p.pid, sig)
 
