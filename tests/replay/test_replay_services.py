@@ -5,7 +5,7 @@ rewrites them). The order comes from the recording itself: the sim's lockstep an
 (``seaway.runtime.lockstep``) say, period by period, which samples and which command belong to it.
 With that order:
 
-* the estimator (its service glue ``EstimatorLoop`` answering each period, and its core, on the
+* the estimator (its node ``EstimatorNode`` answering each period, and its core, on the
   in-memory bus) reproduces every recorded ``nav/state``, integers and flags exactly and every float
   to 1e-9 relative: another CPU's libm and BLAS differ in the last bit (4.4e-16 seen), while a real
   change does not hide under that (dropping one GNSS fix moves the estimate by orders of magnitude
@@ -25,15 +25,17 @@ from seaway.contract import keys
 from seaway.contract.messages import Attitude, GnssFix, PeriodDone, StateEstimate, ThrustCommand
 from seaway.recording.reader import iter_messages
 from seaway.runtime import run as runs
-from seaway.runtime.lockstep import Member, Period
+from seaway.runtime.lockstep import Member
 from seaway.runtime.memory_bus import MemoryHub
+from seaway.runtime.node import Period, PeriodAt
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.model import load_vessel
 from seaway_controller.core import ControllerConfig, ControllerCore
 from seaway_estimator.config import load_estimator_config
 from seaway_estimator.core import EstimatorCore
-from seaway_estimator.service import EstimatorLoop, with_run
+from seaway_estimator.main import with_run
+from seaway_estimator.node import EstimatorNode
 
 from tests.replay.regen import GOLDENS
 
@@ -77,9 +79,9 @@ def replay_estimator(scenario: str, rec: dict, skip_gnss: int | None = None) -> 
                    runs.describe(scenario=load_scenario(scenario), scenario_ref=scenario, vessel=VESSEL,
                                  run_id="golden"))
     hub = MemoryHub()
-    states = hub.bus(VESSEL).subscribe(keys.NAV_STATE, mode="fifo", capacity=1_000_000)
-    loop = EstimatorLoop(EstimatorCore(cfg), hub.bus(VESSEL))
+    loop = EstimatorNode(EstimatorCore(cfg))
     member = Member(hub.bus(VESSEL), "estimator", watched=(), subscribe=False)
+    states = []
     by_stamp = {(k, msg.stamp_ns): msg for k in KIND_OF for i, (_, msg) in enumerate(rec[k])
                 if not (k == keys.GNSS.suffix and i == skip_gnss)}
     last: Period | None = None
@@ -94,8 +96,11 @@ def replay_estimator(scenario: str, rec: dict, skip_gnss: int | None = None) -> 
                     msg = by_stamp.get((suffix, stamp))
                     if msg is not None:
                         loop.queue(KIND_OF[suffix], msg)
-        loop.on_period(member, period, tick.period_ns, tick.consumed.get(keys.THRUST.suffix, []))
-    return {s.stamp_ns: s.model_dump() for s in states.drain()}
+        answer = loop.answer(PeriodAt(period, tick.period_ns, {"sim": tick},
+                                      lambda suffix, stamp, period=period, tick=tick: member.admit(
+                                          suffix, stamp, period.stamp_ns, tick.period_ns)))
+        states += [msg for spec, msg in answer.messages if spec == keys.NAV_STATE]
+    return {s.stamp_ns: s.model_dump() for s in states}
 
 
 def mismatched_states(rec: dict, replayed: dict[int, dict]) -> list[int]:

@@ -11,7 +11,7 @@ from seaway.contract.messages import ThrustCommand, VehicleStatus
 from seaway.runtime.memory_bus import MemoryHub
 from seaway_estimator.config import EstimatorConfig
 from seaway_estimator.core import EstimatorCore
-from seaway_estimator.service import EstimatorLoop
+from seaway_estimator.node import EstimatorNode
 
 from tests.unit.estimator.test_core import FIXED, MS, S, att, fix, started
 
@@ -55,9 +55,8 @@ def test_a_status_stamped_absurdly_ahead_is_refused_too() -> None:
     assert core.filter is not None and core.filter.t_ns == 0
 
 
-def _loop() -> EstimatorLoop:
-    bus = MemoryHub().bus("vessel1")
-    return EstimatorLoop(EstimatorCore(FIXED), bus)
+def _loop() -> EstimatorNode:
+    return EstimatorNode(EstimatorCore(FIXED))
 
 
 def test_the_loop_drops_inputs_stamped_ahead_of_its_clock_before_the_core(caplog) -> None:
@@ -79,16 +78,20 @@ def test_the_loop_drops_inputs_stamped_ahead_of_its_clock_before_the_core(caplog
 def test_lockstep_leftovers_too_far_ahead_are_dropped_at_the_period() -> None:
     """Lockstep: inputs queued before the member knew its period (at start) wait for their period;
     one stamped beyond any period to come soon would wait for ever (memory): dropped."""
-    from seaway.runtime.lockstep import Member, Period
+    from seaway.contract.messages import PeriodDone
+    from seaway.runtime.lockstep import Member
+    from seaway.runtime.node import Period, PeriodAt
 
     hub = MemoryHub()
-    loop = EstimatorLoop(EstimatorCore(FIXED), hub.bus("vessel1"))
+    loop = EstimatorNode(EstimatorCore(FIXED))
     member = Member(hub.bus("vessel1"), "estimator", watched=())
     loop.queue("gnss", fix(0, 0.0, 0.0))
     loop.queue("attitude", att(0, 0.0))
     loop.queue("attitude", att(50 * MS, 0.0))  # the next period's: waits
     loop.queue("gnss", fix(10**4000, 0.0, 0.0))
-    loop.on_period(member, Period(0, 0), 100 * MS)
+    tick = PeriodDone(stamp_ns=0, service="sim", episode=0, seq=1, period_ns=100 * MS)
+    loop.answer(PeriodAt(Period(0, 0), 100 * MS, {"sim": tick},
+                         lambda suffix, stamp: member.admit(suffix, stamp, 0, 100 * MS)))
     assert [(p[0], p[3]) for p in loop.pending] == [(50 * MS, "attitude")]
     assert member.stamps.dropped == {("sensors/gnss", "ahead"): 1}
 

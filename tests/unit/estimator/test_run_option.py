@@ -5,7 +5,7 @@ from seaway.contract.config import ConfigError, Origin
 from seaway.runtime import run as runs
 from seaway.simkit.scenario import load_scenario
 from seaway_estimator.config import EstimatorConfig, load_estimator_config
-from seaway_estimator.service import with_run
+from seaway_estimator.main import with_run
 
 
 def _run(scenario: str) -> runs.RunDescription:

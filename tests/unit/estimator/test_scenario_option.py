@@ -5,11 +5,10 @@ from seaway_estimator.config import load_estimator_config
 
 def test_a_repeated_sample_is_used_once() -> None:
     from seaway.contract.messages import Attitude
-    from seaway.runtime.memory_bus import MemoryBus
     from seaway_estimator.core import EstimatorCore
-    from seaway_estimator.service import EstimatorLoop
+    from seaway_estimator.node import EstimatorNode
 
-    loop = EstimatorLoop(EstimatorCore(load_estimator_config(None)), MemoryBus())
+    loop = EstimatorNode(EstimatorCore(load_estimator_config(None)))
     att = Attitude(stamp_ns=0, roll_rad=0, pitch_rad=0, yaw_rad=0.1, roll_rate_radps=0,
                    pitch_rate_radps=0, yaw_rate_radps=0)
     loop.queue("attitude", att)

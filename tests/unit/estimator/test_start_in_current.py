@@ -7,10 +7,9 @@ import logging
 import math
 
 import pytest
-from seaway.runtime.memory_bus import MemoryHub
 from seaway_estimator.core import EstimatorCore
+from seaway_estimator.node import EstimatorNode
 from seaway_estimator.notices import PERSISTENT_REJECT_RUN
-from seaway_estimator.service import EstimatorLoop
 
 from tests.unit.estimator.test_core import FIXED, MS, S, att, fix
 
@@ -88,7 +87,7 @@ def test_rejections_and_the_reinitialisation_are_noticed_once_each() -> None:
 def test_the_loop_logs_rejections_rate_limited_and_warns_when_they_persist(caplog) -> None:
     caplog.set_level(logging.INFO, "seaway.estimator")
     core = EstimatorCore(FIXED)
-    loop = EstimatorLoop(core, MemoryHub().bus("vessel1"))
+    loop = EstimatorNode(core)
     n = core.config.gnss_reject_reinit_count
     offset_fixes(core, n)
     loop.feed("attitude", att((n + 1) * 200 * MS, 0.0))  # any core call logs what it noticed

@@ -1,6 +1,6 @@
 """What the estimator's core tells its service to log: gated-out measurements and
 re-initialisations (``EstimatorCore.take_notices``). The core stays pure (no logging, no clock);
-the service decides the lines and their rate (``seaway_estimator.service``)."""
+the service decides the lines and their rate (``seaway_estimator.node``)."""
 
 from __future__ import annotations
 

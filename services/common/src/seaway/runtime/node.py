@@ -1,0 +1,285 @@
+"""The node runtime: what a service declares, and the one driver per clock that runs it.
+
+A service is a node: a pure core, and around it a small class that says what it hears, what it
+publishes and what one period's work is. The runtime drives it; the service never sees the bus's
+threads, the lockstep protocol (``seaway.runtime.lockstep``) or the rate loop::
+
+    class EchoNode:                                   # a node of service "echo"
+        name = "echo"
+        member = MemberSpec("echo", needs=("sim",), inputs=frozenset({"sim/truth"}))
+        live_inputs = (keys.SIM_TRUTH,)
+
+        def take(self, key, msg, now_ns):             # an input, stamp already bounded
+            self.last = msg
+        def answer(self, at):                         # lockstep: period at.period answered
+            return Answer([(keys.NAV_STATE, estimate_from(self.last, at.period.stamp_ns))])
+        def tick(self, now_ns, out):                  # real time: every period of the wall clock
+            out.put(keys.NAV_STATE, estimate_from(self.last, now_ns))
+
+    with run_service("echo", args) as ctx:
+        run_node(ctx, EchoNode(), period_s=0.1)      # lockstep or real time: the run says which
+
+Modes:
+
+* **real time** (``LiveDriver``): each of ``live_inputs`` is subscribed and handed to ``take`` with
+  the wall clock (the node bounds its stamps: ``seaway.runtime.stamps``); every ``period_s`` of the
+  wall clock (``RateLoop``, drift-free) ``tick`` runs and publishes through ``out``; ``idle`` runs
+  at each wake. Signals, the health token and restarts are ``run_service``'s and the launcher's.
+* **lockstep member** (``MemberDriver``): the inputs come in the bundles of the members the node
+  hears; the driver admits each stamp (``Member.admit``), hands it to ``take`` (``now_ns`` None)
+  and notes it seen; once the answers of the period the node ``needs`` are in, with everything they
+  list, it calls ``answer`` once for the period and publishes the returned messages as the node's
+  bundle (``hold``: nothing to fly, the clock waits). ``rethink`` asks for a held period to be
+  answered again (a mission came); a new episode calls ``restart``; a restarted node catches up
+  from the clock's repeat of the current period (the protocol's). ``answered`` runs after the
+  bundle left (a checkpoint).
+* **lockstep clock**: the sim (``seaway_sim.node``) or a recording (``seaway replay --lockstep``),
+  ``seaway.runtime.clock_driver``.
+
+Composition (``seaway.runtime.host``) runs the same nodes as threads of one process over the
+in-memory bus: the drivers are the same, only the bus differs.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any, NamedTuple, Protocol
+
+from seaway.contract import keys
+from seaway.contract.messages import Message, PeriodDone
+from seaway.runtime.bus import Bus, TypedPublisher
+from seaway.runtime.clock import RateLoop
+from seaway.runtime.lockstep import Member, Period
+from seaway.runtime.stamps import StampGate
+
+__all__ = ["Answer", "LiveDriver", "MemberDriver", "MemberSpec", "Outputs", "Period", "PeriodAt",
+           "run_node"]
+
+log = logging.getLogger("seaway.runtime.node")
+
+WAKE_S = 0.1
+"""How long a driver's loop sleeps at most between looks when nothing wakes it [wall s]: the
+``idle`` housekeeping (a signal's request, a stats line) is never later than this."""
+
+
+@dataclass(frozen=True)
+class MemberSpec:
+    """How a node takes part in lockstep (``seaway.runtime.lockstep`` states the protocol).
+
+    ``needs``: the members whose answers for the period must be in, with all they list on watched
+    keys, before this one answers (the estimator the sim's, the controller the sim's and the
+    estimator's). ``inputs``: the key suffixes handed to ``take``; ``watched``: those whose listed
+    stamps must be seen before answering (default ``inputs``). ``hears``: whose bundles (default
+    ``needs`` and the producers of ``inputs``); ``passive``: those of them that never move this one
+    on by themselves (taken when an active one's comes)."""
+
+    service: str
+    needs: tuple[str, ...]
+    inputs: frozenset[str]
+    watched: frozenset[str] | None = None
+    hears: tuple[str, ...] | None = None
+    passive: tuple[str, ...] = ()
+
+
+class PeriodAt(NamedTuple):
+    """What a node answers: the period, its length, the answers it needed (by service), and
+    ``admit(suffix, stamp_ns)``: whether a message so stamped may still wait for a later period of
+    this episode (one further ahead never will: drop it)."""
+
+    period: Period
+    period_ns: int
+    answers: Mapping[str, PeriodDone]
+    admit: Callable[[str, int], bool]
+
+
+class Answer(NamedTuple):
+    """A node's answer to one period: the messages it publishes for it, in order, and ``hold``
+    (nothing to fly: the clock waits for another answer)."""
+
+    messages: Sequence[tuple[keys.KeySpec, Message]] = ()
+    hold: bool = False
+
+
+class Outputs:
+    """The node's publishers in real time, made on first use: ``put(spec, msg)``."""
+
+    def __init__(self, bus: Bus) -> None:
+        self.bus = bus
+        self._pubs: dict[keys.KeySpec, TypedPublisher[Any]] = {}
+
+    def put(self, spec: keys.KeySpec, msg: Message) -> None:
+        pub = self._pubs.get(spec)
+        if pub is None:
+            pub = self._pubs[spec] = self.bus.publisher(spec)
+        pub.put(msg)
+
+    def put_all(self, messages: Sequence[tuple[keys.KeySpec, Message]]) -> None:
+        for spec, msg in messages:
+            self.put(spec, msg)
+
+
+class Node(Protocol):
+    """A service's node (see the module's description); a node of one clock only leaves the other's
+    methods out (the driver of that clock is never asked to run it)."""
+
+    name: str
+    member: MemberSpec | None
+    live_inputs: Sequence[keys.KeySpec]
+
+    def take(self, key: str, msg: Message, now_ns: int | None) -> None: ...
+    def restart(self, period: Period) -> None: ...
+    def answer(self, at: PeriodAt) -> Answer: ...
+    def answered(self) -> None: ...
+    def tick(self, now_ns: int, out: Outputs) -> None: ...
+    def idle(self) -> None: ...
+
+
+def _suffix(key: str) -> str:
+    """``seaway/<vessel>/<suffix>`` -> ``<suffix>``."""
+    return key.split("/", 2)[2]
+
+
+@dataclass
+class MemberDriver:
+    """Runs a node as a lockstep member (see the module's description)."""
+
+    bus: Bus
+    node: Any
+    stamps: StampGate | None = None
+    """The node's own stamp gate, so that one count of dropped stamps says all (default the
+    member's)."""
+    member: Member = field(init=False)
+    _answered: PeriodDone | None = field(default=None, init=False)
+    _rethink: bool = field(default=False, init=False)
+    _restarts: list[Period] = field(default_factory=list, init=False)
+    _step_lock: threading.Lock = field(default_factory=threading.Lock, init=False)
+
+    def __post_init__(self) -> None:
+        spec: MemberSpec = self.node.member
+        producers = {s for s in spec.inputs if keys.spec_for_suffix(s) is not None}
+        hears = spec.hears if spec.hears is not None else tuple(sorted(
+            set(spec.needs) | {_bundler(s) for s in producers}))
+        self.member = Member(self.bus, spec.service,
+                             watched=spec.watched if spec.watched is not None else spec.inputs,
+                             inputs=spec.inputs, hears=hears, passive=spec.passive)
+        if self.stamps is not None:
+            self.member.stamps = self.stamps
+        self.member.deliver = self._deliver
+        self.member.on_restart = lambda _before, now: self._restarts.append(now)
+        self.member.on_ready = self.step
+
+    # -- from the bus's threads, or the loop --------------------------------------------------
+
+    def _deliver(self, key: str, msg: Message) -> None:
+        suffix = _suffix(key)
+        if not self.member.admit(suffix, msg.stamp_ns):
+            return  # beyond any period to come soon: counted and logged by the member
+        self.node.take(key, msg, None)  # first: what the ledger has seen, the node has
+        self.member.saw(suffix, msg.stamp_ns)
+
+    def rethink(self) -> None:
+        """Answer the current period again if it was held (a mission came, a solver is ready)."""
+        with self.member.changed:
+            self._rethink = True
+            self.member.version += 1
+            self.member.changed.notify_all()
+
+    def now_ns(self) -> int:
+        """The current period's stamp (0 before the first): the node's time in lockstep."""
+        with self.member.changed:
+            period = self.member.ledger.period
+        return period.stamp_ns if period is not None else 0
+
+    def step(self) -> None:
+        """Answer the current period if all it needs is in and it has not been answered (or was
+        held and a rethink came since); one caller at a time."""
+        member, spec = self.member, self.node.member
+        with self._step_lock:
+            with member.changed:
+                ledger = member.ledger
+                period = ledger.period
+                answers = {s: ledger.answer(s) for s in spec.needs}
+                complete = all(ledger.complete(a) for a in answers.values())
+                restart = self._restarts[-1] if self._restarts else None
+                self._restarts.clear()
+                rethink = self._rethink
+            if restart is not None:
+                self.node.restart(restart)
+                self._answered = None
+            if not complete or period is None:
+                # Not now; a rethink that came meanwhile is still to be thought of when the period
+                # can be answered (consumed here, a hold answered just before stood for good).
+                return
+            answered = self._answered
+            if answered is not None and Period.of(answered) == period and not (
+                    answered.hold and rethink):
+                if not answered.hold:
+                    with member.changed:
+                        self._rethink = False  # the period is flown: nothing held to think again
+                return
+            with member.changed:
+                self._rethink = False  # answered now, with whatever came
+            period_ns = next(iter(answers.values())).period_ns  # type: ignore[union-attr]
+            member.working(period)
+            at = PeriodAt(period, period_ns, answers,  # type: ignore[arg-type]
+                          lambda suffix, stamp: member.admit(suffix, stamp, period.stamp_ns,
+                                                             period_ns))
+            result = self.node.answer(at)
+            self._answered = member.answer(period, period_ns, result.messages, hold=result.hold)
+            self.node.answered()
+
+    def run(self, stop: threading.Event, ready: Callable[[], None]) -> None:
+        """Join once ``ready`` declared the node's health, then answer until ``stop``."""
+        ready()
+        self.member.join()
+        version = 0
+        while not stop.is_set():
+            version = self.member.wait(version, WAKE_S)
+            self.node.idle()
+            self.step()
+
+
+def _bundler(suffix: str) -> str:
+    from seaway.contract import bundle  # the node runtime needs it only here
+
+    spec = keys.spec_for_suffix(suffix)
+    assert spec is not None
+    return bundle.bundled_by(spec)
+
+
+@dataclass
+class LiveDriver:
+    """Runs a node on the wall clock (see the module's description)."""
+
+    ctx: Any  # seaway.runtime.service.ServiceContext
+    node: Any
+    period_s: float
+
+    def run(self) -> None:
+        ctx, node = self.ctx, self.node
+        for spec in node.live_inputs:
+            ctx.bus.subscribe(spec, callback=self._take)
+        out = Outputs(ctx.bus)
+        ctx.ready()
+        loop = RateLoop(self.period_s, ctx.clock, ctx.stop)
+        while loop.wait():
+            node.idle()
+            node.tick(ctx.clock.now_ns(), out)
+
+    def _take(self, key: str, msg: Message) -> None:
+        self.node.take(key, msg, self.ctx.clock.now_ns())
+
+
+def run_node(ctx: Any, node: Any, period_s: float, stamps: StampGate | None = None) -> None:
+    """Run ``node`` in the mode of ``ctx``'s run: a lockstep member, or on the wall clock every
+    ``period_s``; returns when ``ctx.stop`` is set."""
+    if ctx.run.lockstep:
+        driver = MemberDriver(ctx.bus, node, stamps)
+        node.attach(driver)
+        driver.run(ctx.stop, ctx.ready)
+    else:
+        node.attach(None)
+        LiveDriver(ctx, node, period_s).run()

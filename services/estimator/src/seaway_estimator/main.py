@@ -1,0 +1,77 @@
+"""``seaway-estimator``: the estimator's configuration, and its node run (``seaway.runtime.node``).
+
+The node (``seaway_estimator.node``) says what the estimator hears and publishes; this reads the
+configuration (a TOML or JSON file, ``seaway_estimator.config``, and the run's facts), serves
+re-initialisation (``nav/reset``, SIGUSR1) and hands the node to the runtime.
+"""
+
+from __future__ import annotations
+
+import logging
+import signal
+import sys
+from collections.abc import Sequence
+
+from seaway.contract import keys
+from seaway.contract.config import ConfigError
+from seaway.runtime.node import run_node
+from seaway.runtime.run import RunDescription
+from seaway.runtime.service import base_parser, on_signals, parse, resolve_run, run_service
+from seaway.simkit.scenario import load_scenario
+
+from seaway_estimator.config import EstimatorConfig, load_estimator_config
+from seaway_estimator.core import EstimatorCore
+from seaway_estimator.node import EstimatorNode, stats_line
+from seaway_estimator.replay import TraceWriter
+
+log = logging.getLogger("seaway.estimator")
+
+RUN_WIDE_CONFIG = ("vessel", "apply_dead_zone", "origin")  # what the run says, not the config file
+
+
+def with_run(cfg: EstimatorConfig, run: RunDescription) -> EstimatorConfig:
+    """The config with the run's model vessel, dead zone and NED origin.
+
+    Those are run-wide facts (the controller and simulator must agree on them): a config file that
+    sets them is refused, naming the fields, rather than silently overridden.
+    """
+    clash = sorted(set(RUN_WIDE_CONFIG) & cfg.model_fields_set)
+    if clash:
+        raise ConfigError(f"estimator config sets {', '.join(clash)}: these come from the run "
+                          "(--run, or --vessel-file/--origin/--dead-zone/--scenario)")
+    return cfg.model_copy(update={"vessel": run.model_vessel_file, "apply_dead_zone": run.dead_zone,
+                                  "origin": run.origin})
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    ap = base_parser("estimator", f"EKF state and disturbance estimator: {keys.GNSS.suffix}, "
+                                  f"{keys.ATTITUDE.suffix} -> {keys.NAV_STATE.suffix}")
+    ap.add_argument("--config", default=None, help="estimator config file (TOML or JSON), or the "
+                    "name of one in services/estimator/config (e.g. px4-sitl)")
+    ap.add_argument("--record-inputs", default=None, metavar="FILE",
+                    help="write every core call as JSON lines, for python -m seaway_estimator.replay")
+    args = parse(ap, argv)
+    run = resolve_run(args, "estimator", load_scenario)
+    try:
+        cfg = with_run(load_estimator_config(args.config), run)
+    except ConfigError as err:
+        print(f"seaway-estimator: {err}", file=sys.stderr)
+        return 2
+    recorder = TraceWriter(args.record_inputs) if args.record_inputs else None
+    node = EstimatorNode(EstimatorCore(cfg), recorder)
+    with run_service("estimator", args, run=run) as ctx:
+        ctx.bus.queryable(keys.NAV_RESET, node.on_reset_request)
+        on_signals((signal.SIGUSR1,), lambda _signum: node.reset_requested.set())
+        log.info("estimator %s, vessel file %s", "lockstep" if run.lockstep
+                 else f"realtime, publishing at {cfg.publish_rate_hz:g} Hz", cfg.vessel)
+        try:
+            run_node(ctx, node, 1.0 / cfg.publish_rate_hz, stamps=node.stamps)
+        finally:
+            if recorder is not None:
+                recorder.close()
+            log.info("estimator final: %s", stats_line(node.core, node))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
