@@ -60,7 +60,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     recorder = TraceWriter(args.record_inputs) if args.record_inputs else None
     node = EstimatorNode(EstimatorCore(cfg), recorder)
     with run_service("estimator", args, run=run) as ctx:
-        ctx.bus.queryable(keys.NAV_RESET, node.on_reset_request)
         on_signals((signal.SIGUSR1,), lambda _signum: node.reset_requested.set())
         log.info("estimator %s, vessel file %s", "lockstep" if run.lockstep
                  else f"realtime, publishing at {cfg.publish_rate_hz:g} Hz", cfg.vessel)

@@ -34,11 +34,12 @@ import bisect
 import logging
 import threading
 import time
+from collections.abc import Callable
 from typing import Any
 
 from seaway.contract import keys
 from seaway.contract.messages import NavResetRequest, Reply
-from seaway.runtime.node import Answer, MemberSpec, Outputs, Period, PeriodAt
+from seaway.runtime.node import Answer, MemberSpec, Node, Outputs, Period, PeriodAt
 from seaway.runtime.ratelog import RateLimitedLog
 from seaway.runtime.stamps import StampBounds, StampGate
 
@@ -59,7 +60,7 @@ MEMBER = MemberSpec("estimator", needs=("sim",),
 sim applied in the controller's, sent before the sim stepped (taken when the sim's comes)."""
 
 
-class EstimatorNode:
+class EstimatorNode(Node):
     """Feeds the core, answers each period or tick, and serves resets (``seaway.runtime.node``)."""
 
     name = "estimator"
@@ -212,8 +213,8 @@ class EstimatorNode:
 
     # -- the node (seaway.runtime.node) ---------------------------------------------------------
 
-    def attach(self, driver: Any) -> None:
-        """The runtime's driver (lockstep) or None (real time): nothing to keep."""
+    def requests(self) -> dict[keys.KeySpec, Callable[[Any], Reply]]:
+        return {keys.NAV_RESET: self.on_reset_request}
 
     def take(self, key: str, msg: Any, now_ns: int | None) -> None:
         """An input: queued (``queue``); ``now_ns`` the wall clock in real time, None in lockstep."""
@@ -241,9 +242,6 @@ class EstimatorNode:
             # enough (queued before the member knew its period, e.g. at start): dropped, counted.
             self.pending = [p for p in self.pending if at.admit(_SUFFIX[p[3]], p[0])]
             return Answer(self.outputs(t_ns, t_ns / 1e9))
-
-    def answered(self) -> None:
-        """Nothing to do after a bundle left."""
 
     def tick(self, now_ns: int, out: Outputs) -> None:
         """Real time: feed what arrived in stamp order, publish the state at now."""

@@ -46,17 +46,17 @@ import logging
 import threading
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, NamedTuple, Protocol
+from typing import Any, NamedTuple
 
 from seaway.contract import keys
-from seaway.contract.messages import Message, PeriodDone
+from seaway.contract.messages import Message, PeriodDone, Reply
 from seaway.runtime.bus import Bus, TypedPublisher
 from seaway.runtime.clock import RateLoop
 from seaway.runtime.lockstep import Member, Period
 from seaway.runtime.stamps import StampGate
 
-__all__ = ["Answer", "LiveDriver", "MemberDriver", "MemberSpec", "Outputs", "Period", "PeriodAt",
-           "run_node"]
+__all__ = ["Answer", "LiveDriver", "MemberDriver", "MemberSpec", "Node", "Outputs", "Period",
+           "PeriodAt", "run_node"]
 
 log = logging.getLogger("seaway.runtime.node")
 
@@ -121,20 +121,51 @@ class Outputs:
             self.put(spec, msg)
 
 
-class Node(Protocol):
-    """A service's node (see the module's description); a node of one clock only leaves the other's
-    methods out (the driver of that clock is never asked to run it)."""
+class Node:
+    """A service's node (see the module's description): the declarations and the hooks with what
+    they do by default (nothing). A node of one clock only leaves the other's methods out (the
+    driver of that clock never asks for them)."""
 
-    name: str
-    member: MemberSpec | None
-    live_inputs: Sequence[keys.KeySpec]
+    name: str = ""
+    member: MemberSpec | None = None
+    """How it takes part in lockstep; None: it does not (a node of the wall clock only)."""
+    live_inputs: Sequence[keys.KeySpec] = ()
+    """Real time: the keys it hears (``take`` with the wall clock)."""
+    side_inputs: Sequence[keys.KeySpec] = ()
+    """Keys it hears apart from the lockstep bundles, in either clock (``take`` with ``now_ns``
+    the wall clock in real time, None in lockstep): what no lockstep member produces."""
 
-    def take(self, key: str, msg: Message, now_ns: int | None) -> None: ...
-    def restart(self, period: Period) -> None: ...
-    def answer(self, at: PeriodAt) -> Answer: ...
-    def answered(self) -> None: ...
-    def tick(self, now_ns: int, out: Outputs) -> None: ...
-    def idle(self) -> None: ...
+    def requests(self) -> Mapping[keys.KeySpec, Callable[[Any], Reply]]:
+        """The requests it answers: key -> handler (on a request thread of the bus)."""
+        return {}
+
+    def attach(self, driver: MemberDriver | LiveDriver) -> None:
+        """The driver that runs it, before anything is heard: ``now_ns()`` is the node's time in
+        either clock, ``rethink()`` (lockstep) answers a held period again, ``out`` (real time)
+        publishes."""
+
+    def take(self, key: str, msg: Any, now_ns: int | None) -> None:
+        """An input on ``key``."""
+
+    def restart(self, period: Period) -> None:
+        """Lockstep: a new episode starts at ``period`` (the sim restarted or loaded a scenario)."""
+
+    def answer(self, at: PeriodAt) -> Answer:
+        """Lockstep: the answer to ``at.period``."""
+        raise NotImplementedError(f"node {self.name} has no lockstep answer")
+
+    def answered(self) -> None:
+        """Lockstep: after the answer's bundle left."""
+
+    def tick(self, now_ns: int, out: Outputs) -> None:
+        """Real time: one period of the wall clock at ``now_ns``."""
+        raise NotImplementedError(f"node {self.name} has no real-time tick")
+
+    def idle(self) -> None:
+        """At each wake of the driver's loop (at least every ``WAKE_S``): housekeeping."""
+
+    def finish(self) -> None:
+        """Once the driver's loop ended (the service is stopping)."""
 
 
 def _suffix(key: str) -> str:
@@ -147,7 +178,7 @@ class MemberDriver:
     """Runs a node as a lockstep member (see the module's description)."""
 
     bus: Bus
-    node: Any
+    node: Node
     stamps: StampGate | None = None
     """The node's own stamp gate, so that one count of dropped stamps says all (default the
     member's)."""
@@ -158,7 +189,8 @@ class MemberDriver:
     _step_lock: threading.Lock = field(default_factory=threading.Lock, init=False)
 
     def __post_init__(self) -> None:
-        spec: MemberSpec = self.node.member
+        spec = self.node.member
+        assert spec is not None, f"node {self.node.name} is no lockstep member"
         producers = {s for s in spec.inputs if keys.spec_for_suffix(s) is not None}
         hears = spec.hears if spec.hears is not None else tuple(sorted(
             set(spec.needs) | {_bundler(s) for s in producers}))
@@ -233,13 +265,18 @@ class MemberDriver:
 
     def run(self, stop: threading.Event, ready: Callable[[], None]) -> None:
         """Join once ``ready`` declared the node's health, then answer until ``stop``."""
+        for spec in self.node.side_inputs:
+            self.bus.subscribe(spec, callback=lambda key, msg: self.node.take(key, msg, None))
         ready()
         self.member.join()
         version = 0
-        while not stop.is_set():
-            version = self.member.wait(version, WAKE_S)
-            self.node.idle()
-            self.step()
+        try:
+            while not stop.is_set():
+                version = self.member.wait(version, WAKE_S)
+                self.node.idle()
+                self.step()
+        finally:
+            self.node.finish()
 
 
 def _bundler(suffix: str) -> str:
@@ -250,36 +287,45 @@ def _bundler(suffix: str) -> str:
     return bundle.bundled_by(spec)
 
 
-@dataclass
 class LiveDriver:
     """Runs a node on the wall clock (see the module's description)."""
 
-    ctx: Any  # seaway.runtime.service.ServiceContext
-    node: Any
-    period_s: float
+    def __init__(self, ctx: Any, node: Node, period_s: float) -> None:
+        self.ctx, self.node, self.period_s = ctx, node, period_s
+        self.stop: threading.Event = ctx.stop
+        self.out = Outputs(ctx.bus)
+
+    def now_ns(self) -> int:
+        return self.ctx.clock.now_ns()
 
     def run(self) -> None:
         ctx, node = self.ctx, self.node
-        for spec in node.live_inputs:
+        for spec in (*node.live_inputs, *node.side_inputs):
             ctx.bus.subscribe(spec, callback=self._take)
-        out = Outputs(ctx.bus)
         ctx.ready()
         loop = RateLoop(self.period_s, ctx.clock, ctx.stop)
-        while loop.wait():
-            node.idle()
-            node.tick(ctx.clock.now_ns(), out)
+        try:
+            while loop.wait():
+                node.idle()
+                node.tick(ctx.clock.now_ns(), self.out)
+        finally:
+            node.finish()
 
     def _take(self, key: str, msg: Message) -> None:
         self.node.take(key, msg, self.ctx.clock.now_ns())
 
 
-def run_node(ctx: Any, node: Any, period_s: float, stamps: StampGate | None = None) -> None:
-    """Run ``node`` in the mode of ``ctx``'s run: a lockstep member, or on the wall clock every
-    ``period_s``; returns when ``ctx.stop`` is set."""
+def run_node(ctx: Any, node: Node, period_s: float, stamps: StampGate | None = None) -> None:
+    """Run ``node`` in the mode of ``ctx``'s run (a ``ServiceContext``): a lockstep member, or on
+    the wall clock every ``period_s`` [s]; its requests served in both. Returns when ``ctx.stop``
+    is set, after the node's ``finish``."""
+    for spec, handler in node.requests().items():
+        ctx.bus.queryable(spec, handler)
     if ctx.run.lockstep:
-        driver = MemberDriver(ctx.bus, node, stamps)
-        node.attach(driver)
-        driver.run(ctx.stop, ctx.ready)
+        member = MemberDriver(ctx.bus, node, stamps)
+        node.attach(member)
+        member.run(ctx.stop, ctx.ready)
     else:
-        node.attach(None)
-        LiveDriver(ctx, node, period_s).run()
+        live = LiveDriver(ctx, node, period_s)
+        node.attach(live)
+        live.run()
