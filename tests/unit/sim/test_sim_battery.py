@@ -10,13 +10,12 @@ import pytest
 from seaway.contract import keys
 from seaway.contract.config import ConfigError
 from seaway.contract.units import NS_PER_S
-from seaway.runtime.memory_bus import MemoryHub
 from seaway.simkit.scenario import ScenarioBattery, load_scenario
 from seaway.vessel.battery import BatteryParams
 from seaway.vessel.model import load_vessel
-from seaway_sim.app import SimApp
 from seaway_sim.battery import NOMINAL_PACK, SimPack, report_due, report_due_at
 from seaway_sim.core import SimCore
+from seaway_sim.node import SimNode
 from seaway_sim.px4_autopilot import Px4Autopilot, Px4Config, battery_fields
 
 PERIOD_NS = 100_000_000
@@ -109,25 +108,24 @@ def test_a_scenario_cannot_start_with_more_than_the_pack_holds() -> None:
 
 def test_a_scenario_request_whose_battery_does_not_fit_is_refused() -> None:
     sc = load_scenario("paper-c1")
-    app = SimApp(MemoryHub().bus("vessel1"), SimCore(sc, load_vessel(sc.vessel)), lockstep=True)
+    app = SimNode(SimCore(sc, load_vessel(sc.vessel)), lockstep=True)
     from seaway.contract.messages import ScenarioRequest
 
     doc = sc.model_dump(mode="json", exclude_none=True)
     doc["battery"] = {"initial_energy_j": 1e9}
     reply = app.handle_scenario(ScenarioRequest(stamp_ns=0, action="load", scenario=doc))
     assert not reply.accepted and "initial_energy_j" in reply.reason
-    assert app.generation == 0
+    assert app.episode == 0
 
 
 def test_lockstep_lists_the_battery_before_the_clock_when_due_and_real_time_does_not() -> None:
     sc = load_scenario("paper-c1")
-    hub = MemoryHub()
-    lockstep = SimApp(hub.bus("vessel1"), SimCore(sc, load_vessel(sc.vessel)), lockstep=True)
+    lockstep = SimNode(SimCore(sc, load_vessel(sc.vessel)), lockstep=True)
     kinds = [spec for spec, _ in lockstep.truth_outputs(None, battery=True)]
     assert kinds == [keys.SIM_TRUTH, keys.SIM_DISTURBANCE, keys.VEHICLE_BATTERY, keys.SIM_CLOCK]
     assert [spec for spec, _ in lockstep.truth_outputs(None)] == [
         keys.SIM_TRUTH, keys.SIM_DISTURBANCE, keys.SIM_CLOCK]
-    real = SimApp(hub.bus("vessel2"), SimCore(sc, load_vessel(sc.vessel)), lockstep=False)
+    real = SimNode(SimCore(sc, load_vessel(sc.vessel)), lockstep=False)
     assert keys.VEHICLE_BATTERY not in [spec for spec, _ in real.truth_outputs(1.0, battery=True)]
 
 

@@ -9,14 +9,14 @@ import threading
 
 from seaway.contract import keys
 from seaway.contract.messages import ScenarioRequest, ThrustCommand
+from seaway.runtime import lockstep_clock as sim_lockstep
 from seaway.runtime.lockstep import Member, Period
+from seaway.runtime.lockstep_clock import LockstepClock
 from seaway.runtime.memory_bus import MemoryHub
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.model import load_vessel
-from seaway_sim import lockstep as sim_lockstep
-from seaway_sim.app import SimApp
 from seaway_sim.core import SimCore
-from seaway_sim.lockstep import Lockstep
+from seaway_sim.node import SimNode
 
 from tests.conftest import wait_for
 
@@ -105,10 +105,12 @@ class Stack:
     def __init__(self, flying: bool = False, recorder: bool = False) -> None:
         self.hub = MemoryHub()
         self.scenario = load_scenario("paper-c1")
-        app = SimApp(self.hub.bus(VESSEL), SimCore(self.scenario, load_vessel(self.scenario.vessel)),
+        app = SimNode(SimCore(self.scenario, load_vessel(self.scenario.vessel)),
                      lockstep=True)
         self.stop, self.fast = threading.Event(), threading.Event()
-        sim = Lockstep(app, 0.1, self.stop)
+        bus = self.hub.bus(VESSEL)
+        bus.queryable(keys.SIM_SCENARIO, app.handle_scenario)  # run_node's, for the sim's node
+        sim = LockstepClock(bus, app, 0.1, self.stop)
         self.member = SlowMember(self.hub, self.stop, self.fast, flying)
         self.recorder = SlowRecorder(self.hub, self.stop, self.fast) if recorder else None
         # Joined in close(): a loop left running logs after the test, into pytest's closed capture.

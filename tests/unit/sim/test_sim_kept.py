@@ -10,17 +10,17 @@ from pathlib import Path
 
 import pytest
 from seaway.contract.messages import ScenarioRequest
-from seaway.runtime.memory_bus import MemoryHub
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.model import load_vessel
 from seaway_sim import kept
-from seaway_sim.app import SimApp, world_of
 from seaway_sim.core import SimCore
+from seaway_sim.node import SimNode
+from seaway_sim.world import world_of
 
 
-def app_with(state_file: Path | None) -> SimApp:
+def app_with(state_file: Path | None) -> SimNode:
     sc = load_scenario("paper-c1")
-    return SimApp(MemoryHub().bus("vessel1"), SimCore(sc, load_vessel(sc.vessel)), lockstep=True,
+    return SimNode(SimCore(sc, load_vessel(sc.vessel)), lockstep=True,
                   state_file=state_file)
 
 
@@ -28,7 +28,7 @@ def document(name: str) -> dict:
     return load_scenario(name).model_dump(mode="json", exclude_none=True)
 
 
-def load(app: SimApp, doc: dict) -> tuple[bool, str]:
+def load(app: SimNode, doc: dict) -> tuple[bool, str]:
     reply = app.handle_scenario(ScenarioRequest(stamp_ns=0, action="load", scenario=doc))
     return reply.accepted, reply.reason
 

@@ -8,20 +8,20 @@ import threading
 
 from seaway.contract import keys
 from seaway.contract.messages import ThrustCommand
+from seaway.runtime.lockstep_clock import LockstepClock
 from seaway.runtime.memory_bus import MemoryHub
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.model import load_vessel
-from seaway_sim.app import SimApp
 from seaway_sim.core import SimCore
-from seaway_sim.lockstep import Lockstep
+from seaway_sim.node import SimNode
 
 PERIOD_NS = 100_000_000
 
 
-def lockstep() -> Lockstep:
+def lockstep() -> LockstepClock:
     sc = load_scenario("paper-c1")
-    app = SimApp(MemoryHub().bus("vessel1"), SimCore(sc, load_vessel(sc.vessel)), lockstep=True)
-    return Lockstep(app, PERIOD_NS / 1e9, threading.Event())
+    app = SimNode(SimCore(sc, load_vessel(sc.vessel)), lockstep=True)
+    return LockstepClock(MemoryHub().bus("vessel1"), app, PERIOD_NS / 1e9, threading.Event())
 
 
 def cmd(stamp_ns: int) -> ThrustCommand:
@@ -54,9 +54,9 @@ def test_the_lockstep_sim_applies_vehicle_ios_output_stage_to_the_demand() -> No
     raw demand would lose both to the dead zone (NMPC parked 3 m from a waypoint that way)."""
     sc = load_scenario("lake")
     assert sc.dead_zone
-    app = SimApp(MemoryHub().bus("vessel1"), SimCore(sc, load_vessel(sc.plant_vessel_file)),
+    app = SimNode(SimCore(sc, load_vessel(sc.plant_vessel_file)),
                  lockstep=True)
-    ls = Lockstep(app, PERIOD_NS / 1e9, threading.Event())
+    ls = LockstepClock(MemoryHub().bus("vessel1"), app, PERIOD_NS / 1e9, threading.Event())
     period = ls.period
     assert ls.step(ThrustCommand(stamp_ns=period.stamp_ns, thrust_port_n=6.0, thrust_starboard_n=4.0),
                    period)
@@ -69,18 +69,18 @@ def test_the_lockstep_sim_refuses_an_absurd_demand_as_vehicle_io_does(caplog) ->
     gets neutral, and the refusal is counted and logged. Twice the bound is still saturated."""
     sc = load_scenario("lake")
     vessel = load_vessel(sc.plant_vessel_file)
-    app = SimApp(MemoryHub().bus("vessel1"), SimCore(sc, vessel), lockstep=True)
-    ls = Lockstep(app, PERIOD_NS / 1e9, threading.Event())
+    app = SimNode(SimCore(sc, vessel), lockstep=True)
+    ls = LockstepClock(MemoryHub().bus("vessel1"), app, PERIOD_NS / 1e9, threading.Event())
     period = ls.period
-    with caplog.at_level("WARNING", logger="seaway_sim.lockstep"):
+    with caplog.at_level("WARNING", logger="seaway_sim"):
         assert ls.step(ThrustCommand(stamp_ns=period.stamp_ns, thrust_port_n=1e9,
                                      thrust_starboard_n=1e9), period)
     truth = app.core.truth()
     assert (truth.thrust_port_n, truth.thrust_starboard_n) == (0.0, 0.0)
-    assert ls.stats.refused_commands == 1
+    assert app.refused_commands == 1
     assert any("absurd" in r.getMessage() for r in caplog.records)
     period = ls.period
     assert ls.step(ThrustCommand(stamp_ns=period.stamp_ns, thrust_port_n=2 * vessel.thrust_max_n,
                                  thrust_starboard_n=0.0), period)
     assert app.core.truth().thrust_port_n == vessel.thrust_max_n
-    assert ls.stats.refused_commands == 1
+    assert app.refused_commands == 1

@@ -1,9 +1,10 @@
 """``seaway bench sim``: simulated seconds per wall second in lockstep, against an instant responder.
 
-The sim's lockstep loop (``seaway_sim.lockstep.Lockstep``, the code ``seaway-sim --lockstep`` runs)
-runs in this process on its own Zenoh session; the responder (``python -m seaway_lab.responder``)
-is a second process that answers each clock tick with a ThrustCommand at once. Both use a private
-rendezvous port and vessel name, so a stack running on the machine is neither heard nor disturbed.
+The sim's lockstep loop (``seaway.runtime.lockstep_clock.LockstepClock`` over the sim's node: the
+code ``seaway-sim`` runs in lockstep) runs in this process on its own Zenoh session; the responder
+(``python -m seaway_lab.responder``) is a second process that answers each clock tick with a
+ThrustCommand at once. Both use a private rendezvous port and vessel name, so a stack running on
+the machine is neither heard nor disturbed.
 
 Per period it times the whole protocol round: publish sensors, truth, disturbance and the tick,
 wait for the command, step the plant. Target: >= 200x real time at the 0.1 s control period. The
@@ -24,11 +25,12 @@ from contextlib import contextmanager
 
 from seaway.runtime.argtypes import positive_float, positive_int, whole_number
 from seaway.runtime.bus import Bus
+from seaway.runtime.lockstep_clock import LockstepClock
 from seaway.runtime.zenoh_bus import ENV_CONFIG, ENV_RENDEZVOUS
 from seaway.vessel.metrics import median, percentile
-from seaway_sim.app import SimApp, load_world
 from seaway_sim.core import SimCore
-from seaway_sim.lockstep import Lockstep
+from seaway_sim.node import SimNode
+from seaway_sim.world import load_world
 
 from seaway_lab.bench.common import BenchResult, bench_credentials, free_rendezvous, restored_environ
 
@@ -101,8 +103,8 @@ def run(argv: list[str]) -> BenchResult:
         responder = _start_responder(env, vessel_key)
         try:
             with Bus.open(vessel_key) as bus:
-                app = SimApp(bus, SimCore(scenario, vessel), lockstep=True)
-                loop = Lockstep(app, args.period, stop, stall_s=0.5)
+                app = SimNode(SimCore(scenario, vessel), lockstep=True)
+                loop = LockstepClock(bus, app, args.period, stop, stall_s=0.5)
                 for k in range(args.warmup + args.periods):
                     t0 = time.perf_counter()
                     period = loop.publish_period()

@@ -1,7 +1,8 @@
 """``seaway-sim``: the simulator (plant, disturbances, sensors, a PX4-like MAVLink endpoint).
 
 Real time (the run's clock ``wall``): driven over MAVLink on ``--mavlink`` (``udpin:127.0.0.1:14580``).
-Lockstep (``lockstep``): sim time, driven by ThrustCommand on the bus (``seaway_sim.lockstep``).
+Lockstep (``lockstep``): sim time, driven by ThrustCommand on the bus: the sim's node
+(``seaway_sim.node``) is the clock of ``seaway.runtime.lockstep_clock``.
 Both publish sim/truth, sim/disturbance and sim/clock and serve sim/scenario; lockstep also publishes
 the battery (vehicle/battery, 1 Hz), which in real time the simulated PX4 reports over MAVLink.
 
@@ -25,7 +26,8 @@ from pathlib import Path
 from seaway.contract.config import ConfigError
 from seaway.mavlink.signing import KeyFileError, read_key
 from seaway.runtime.argtypes import positive_float, whole_number
-from seaway.runtime.lockstep import STALL_REPEAT_S
+from seaway.runtime.lockstep_clock import STALL_REPEAT_S
+from seaway.runtime.node import run_node
 from seaway.runtime.run import from_earlier_launch
 from seaway.runtime.service import base_parser, parse, resolve_run, run_service
 from seaway.simkit.faults import ThrusterFaults
@@ -33,13 +35,13 @@ from seaway.simkit.scenario import Scenario, load_scenario
 from seaway.vessel.model import load_vessel
 
 from seaway_sim import kept, plant_kept
-from seaway_sim.app import SimApp, world_of
 from seaway_sim.battery import SimPack
 from seaway_sim.core import SimCore
-from seaway_sim.lockstep import Lockstep
 from seaway_sim.mavlink_link import DEFAULT_ENDPOINT, MavlinkLink
+from seaway_sim.node import SimNode
 from seaway_sim.px4_autopilot import COMPID, Px4Autopilot, Px4Config
 from seaway_sim.realtime import Realtime
+from seaway_sim.world import world_of
 
 log = logging.getLogger("seaway_sim")
 
@@ -165,8 +167,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     with run_service("sim", args, run=run) as ctx:
         boot_ns = time.monotonic_ns()
         core = SimCore(scenario, vessel, epoch_ns=0 if lockstep else time.time_ns())
-        app = SimApp(ctx.bus, core, lockstep=lockstep, run=run, model=model,
-                     state_file=args.state_file)
+        node = SimNode(core, lockstep=lockstep, run=run, model=model, state_file=args.state_file)
+        node.stall_s = args.stall_repeat_s
         if stale is not None:
             log.info("--state-file %s: %s was kept before this run started (an earlier launch into "
                      "this folder): the run's %s flies", args.state_file, stale.name, run.scenario)
@@ -179,18 +181,14 @@ def main(argv: Sequence[str] | None = None) -> int:
                  "lockstep" if lockstep else "real time, MAVLink signing "
                  + (f"on (key file {args.signing_key_file})" if key is not None else "off"))
         if link is None:
-            stepper = Lockstep(app, period_s, ctx.stop, args.stall_repeat_s)
-            ctx.ready()
-            stepper.run()
+            run_node(ctx, node, period_s)
         else:
             autopilot = Px4Autopilot(Px4Config(thrust_max_n=vessel.thrust_max_n, sysid=args.sysid,
                                                param_overrides=params))
             keeper = None if args.state_file is None else resume_plant(core, args.state_file, args.run)
             try:
-                realtime = Realtime(app, autopilot, link, args.step, period_s, ctx.stop, boot_ns,
-                                    keeper)
-                ctx.ready()
-                realtime.run()
+                node.live = Realtime(node, autopilot, link, args.step, period_s, boot_ns, keeper)
+                run_node(ctx, node, args.step)
             finally:
                 link.close()
     return 0

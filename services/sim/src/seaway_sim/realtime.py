@@ -1,14 +1,14 @@
-"""Real time: the sim runs on the wall clock and is driven through its PX4-like MAVLink endpoint.
+"""Real time: the sim's node on the wall clock, driven through its PX4-like MAVLink endpoint.
 
-Two threads share the core under ``SimApp.lock``:
+Two threads share the core under ``SimNode.lock``:
 
 * the link thread waits on the UDP socket and hands every decoded message to the autopilot core at
   once (so a COMMAND_ACK does not wait for a tick), sending its answers back;
-* the main thread ticks every ``--step`` (10 ms) on a drift-free ``RateLoop``: it asks the autopilot
-  for the thrust, advances the plant to the tick (after missed ticks, by all of them: simulated time
-  never falls behind the wall clock), sends the sensor and periodic MAVLink telemetry that fell due,
-  and every ``--period`` publishes SIM_TRUTH, SIM_DISTURBANCE and SIM_CLOCK on the bus; it keeps
-  the plant's state for a restarted sim (``seaway_sim.plant_kept``).
+* the runtime's rate loop (``seaway.runtime.node.LiveDriver``) ticks every ``--step`` (10 ms): the
+  node asks the autopilot for the thrust, advances the plant to the tick (after missed ticks, by all
+  of them: simulated time never falls behind the wall clock), sends the sensor and periodic MAVLink
+  telemetry that fell due, and every ``--period`` publishes SIM_TRUTH, SIM_DISTURBANCE and SIM_CLOCK
+  on the bus; it keeps the plant's state for a restarted sim (``seaway_sim.plant_kept``).
 
 Time: the autopilot's "time since boot" and the core's sim time are both nanoseconds since the sim
 started (monotonic); bus stamps are the wall clock at start plus that (``SimCore.epoch_ns``).
@@ -19,16 +19,18 @@ from __future__ import annotations
 import logging
 import threading
 import time
+from typing import TYPE_CHECKING
 
-from seaway.runtime.clock import RateLoop, WallClock
 from seaway.simkit.scenario import Scenario
 from seaway.simkit.sensors import instants_in
 from seaway.vessel.model import VesselParams
 
-from seaway_sim.app import SimApp
 from seaway_sim.mavlink_link import MavlinkLink
 from seaway_sim.plant_kept import PlantKeeper
 from seaway_sim.px4_autopilot import Px4Autopilot
+
+if TYPE_CHECKING:
+    from seaway_sim.node import SimNode
 
 log = logging.getLogger("seaway_sim.realtime")
 
@@ -36,18 +38,19 @@ _RECEIVE_POLL_S = 0.1  # the link thread's longest wait, bounding how late it no
 
 
 class Realtime:
-    """The real-time loop: plant on the wall clock, MAVLink in and out."""
+    """The sim node's real-time half: plant on the wall clock, MAVLink in and out."""
 
-    def __init__(self, app: SimApp, autopilot: Px4Autopilot, link: MavlinkLink, step_s: float,
-                 period_s: float, stop: threading.Event, boot_monotonic_ns: int,
-                 keeper: PlantKeeper | None = None) -> None:
+    def __init__(self, app: SimNode, autopilot: Px4Autopilot, link: MavlinkLink, step_s: float,
+                 period_s: float, boot_monotonic_ns: int, keeper: PlantKeeper | None = None) -> None:
         self.app = app
         self.autopilot = autopilot
         self.link = link
         self.step_ns = round(step_s * 1e9)
         self.publish_period_ns = round(period_s * 1e9)
-        self.stop = stop
+        self.stop = threading.Event()
         self.boot_ns = boot_monotonic_ns
+        self._done = 0  # the rate loop's tick done last
+        self._receiver: threading.Thread | None = None
         self.overrun_ticks = 0
         self.keeper = keeper
         """Keeps the plant's state for a restarted sim (``seaway_sim.plant_kept``); None: not kept."""
@@ -70,7 +73,27 @@ class Realtime:
                 for msg in msgs:
                     self.link.send(self.autopilot.handle(msg, now))
 
-    def tick(self, ticks: int) -> None:
+    def start(self, stop: threading.Event) -> None:
+        """Start the link thread; it ends with ``stop`` (the service's) or ``close``."""
+        self.stop = stop
+        log.info("real time: MAVLink on udpin:%s:%d, step %.3f s, truth every %.3f s",
+                 *self.link.address, self.step_ns / 1e9, self.publish_period_ns / 1e9)
+        self._receiver = threading.Thread(target=self._link_thread, name="mavlink-rx", daemon=True)
+        self._receiver.start()
+
+    def tick(self, index: int) -> None:
+        """At tick ``index`` of the rate loop (0: the first, which only starts the schedule):
+        advance the world by the steps due since the last (more than one after missed ticks) and
+        send what fell due (lock held by the caller)."""
+        ticks = index - self._done
+        if ticks <= 0:
+            return
+        if ticks > 1:
+            self.overrun_ticks += ticks - 1
+        self._done = index
+        self.advance(ticks)
+
+    def advance(self, ticks: int) -> None:
         """Advance the world by ``ticks`` steps and send what fell due (lock held by the caller)."""
         core, ap = self.app.core, self.autopilot
         before = core.t_ns
@@ -87,28 +110,14 @@ class Realtime:
         if self.keeper is not None:
             self.keeper.tick(core)
 
-    def run(self) -> None:
-        log.info("real time: MAVLink on udpin:%s:%d, step %.3f s, truth every %.3f s",
-                 *self.link.address, self.step_ns / 1e9, self.publish_period_ns / 1e9)
-        receiver = threading.Thread(target=self._link_thread, name="mavlink-rx", daemon=True)
-        receiver.start()
-        loop = RateLoop(self.step_ns / 1e9, WallClock(), self.stop)
-        loop.wait()  # the first call only starts the schedule
-        done = 0
-        try:
-            while loop.wait():
-                ticks = loop.tick - done
-                if ticks > 1:
-                    self.overrun_ticks += ticks - 1
-                done = loop.tick
-                with self.app.lock:
-                    self.tick(ticks)
-        finally:
-            self.stop.set()
-            receiver.join(2 * _RECEIVE_POLL_S)
-            if self.keeper is not None:
-                with self.app.lock:
-                    self.keeper.close(self.app.core)
-            log.info("real time ended at t = %.3f s (%d overrun ticks caught up); link %s; "
-                     "autopilot %s", self.app.core.t_ns / 1e9, self.overrun_ticks,
-                     dict(self.link.counters), dict(self.autopilot.counters))
+    def close(self) -> None:
+        """The service stops: the link thread joined, the plant kept one last time."""
+        self.stop.set()
+        if self._receiver is not None:
+            self._receiver.join(2 * _RECEIVE_POLL_S)
+        if self.keeper is not None:
+            with self.app.lock:
+                self.keeper.close(self.app.core)
+        log.info("real time ended at t = %.3f s (%d overrun ticks caught up); link %s; "
+                 "autopilot %s", self.app.core.t_ns / 1e9, self.overrun_ticks,
+                 dict(self.link.counters), dict(self.autopilot.counters))

@@ -294,6 +294,8 @@ class LiveDriver:
         self.ctx, self.node, self.period_s = ctx, node, period_s
         self.stop: threading.Event = ctx.stop
         self.out = Outputs(ctx.bus)
+        self.loop = RateLoop(period_s, ctx.clock, ctx.stop)
+        """Its ``tick`` counts the periods since the first (missed ones too)."""
 
     def now_ns(self) -> int:
         return self.ctx.clock.now_ns()
@@ -303,7 +305,7 @@ class LiveDriver:
         for spec in (*node.live_inputs, *node.side_inputs):
             ctx.bus.subscribe(spec, callback=self._take)
         ctx.ready()
-        loop = RateLoop(self.period_s, ctx.clock, ctx.stop)
+        loop = self.loop
         try:
             while loop.wait():
                 node.idle()
@@ -315,13 +317,28 @@ class LiveDriver:
         self.node.take(key, msg, self.ctx.clock.now_ns())
 
 
+def _clock_node() -> type:
+    from seaway.runtime.lockstep_clock import ClockNode  # it builds on this module
+
+    return ClockNode
+
+
 def run_node(ctx: Any, node: Node, period_s: float, stamps: StampGate | None = None) -> None:
-    """Run ``node`` in the mode of ``ctx``'s run (a ``ServiceContext``): a lockstep member, or on
-    the wall clock every ``period_s`` [s]; its requests served in both. Returns when ``ctx.stop``
+    """Run ``node`` in the mode of ``ctx``'s run (a ``ServiceContext``): in lockstep the clock (a
+    ``ClockNode``: periods of ``period_s``) or a member, else on the wall clock every ``period_s``
+    [s]; its requests served in each. Returns when ``ctx.stop``
     is set, after the node's ``finish``."""
     for spec, handler in node.requests().items():
         ctx.bus.queryable(spec, handler)
-    if ctx.run.lockstep:
+    if ctx.run.lockstep and isinstance(node, _clock_node()):
+        from seaway.runtime.lockstep_clock import LockstepClock
+
+        clock = LockstepClock(ctx.bus, node, period_s, ctx.stop, node.stall_s)
+        node.attach(clock)
+        ctx.ready()
+        clock.run()
+        node.finish()
+    elif ctx.run.lockstep:
         member = MemberDriver(ctx.bus, node, stamps)
         node.attach(member)
         member.run(ctx.stop, ctx.ready)

@@ -1,7 +1,13 @@
-"""What both of the sim's loops share: the core behind a lock, scenario loading, truth outputs.
+"""The sim as a node of ``seaway.runtime.node``: the core behind a lock, scenario loading, outputs.
 
-The ``sim/scenario`` queryable runs on a Zenoh thread while a loop steps the core; the lock makes a
-scenario swap happen between two steps, never inside one. ``generation`` counts swaps, so a loop
+In lockstep it is the clock (``seaway.runtime.lockstep_clock.LockstepClock``): each period it
+publishes the sensor samples due, the truth, the disturbance, the battery when a report is due
+(``battery.report_due_at``) and the clock (``outputs``), and applies the controller's command over
+the period through vehicle I/O's output stage (``advance``). On the wall clock it is driven over
+its PX4-like MAVLink endpoint (``seaway_sim.realtime``), ticking every ``--step``.
+
+The ``sim/scenario`` request runs on a bus thread while the loop steps the core; the lock makes a
+scenario swap happen between two steps, never inside one. ``episode`` counts swaps, so a loop
 waiting on something (lockstep waits for a thrust command) can notice that the world changed.
 """
 
@@ -12,61 +18,35 @@ import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from seaway.contract import keys
-from seaway.contract.config import ConfigError, deploy_path
-from seaway.contract.messages import ClockTick, Message, Reply, ScenarioRequest
-from seaway.runtime.bus import Bus
+from seaway.contract.config import ConfigError
+from seaway.contract.messages import ClockTick, Message, Reply, ScenarioRequest, ThrustCommand
+from seaway.runtime.lockstep_clock import ClockNode
+from seaway.runtime.node import LiveDriver, Outputs
+from seaway.runtime.ratelog import RateLimitedLog
 from seaway.runtime.run import RunDescription
-from seaway.simkit.faults import ThrusterFaults
-from seaway.simkit.scenario import Scenario, load_scenario, parse_scenario
+from seaway.simkit.scenario import Scenario
 from seaway.vessel.model import VesselParams, load_vessel
+from seaway.vessel.thrusters import absurd_thrust, output_pair
 
 from seaway_sim import kept
-from seaway_sim.battery import SimPack
+from seaway_sim.battery import report_due_at
 from seaway_sim.core import SimCore
+from seaway_sim.world import world_of
 
 log = logging.getLogger("seaway_sim")
+_refusals = RateLimitedLog(log, every_s=60.0)
 
 
-def load_world(name_or_path: str) -> tuple[Scenario, VesselParams]:
-    """A scenario by name (deploy/scenarios) or path, and its plant's vessel file. ConfigError."""
-    scenario = load_scenario(name_or_path)
-    return scenario, load_vessel(scenario.plant_vessel_file)
+class SimNode(ClockNode):
+    """The core, its lock, its outputs, the scenario request handler; the live half when given."""
 
+    name = "sim"
 
-def scenario_base() -> Path:
-    """Where ``file =`` entries of a scenario sent over the bus resolve: deploy/scenarios."""
-    try:
-        return deploy_path("scenarios")
-    except ConfigError:
-        return Path.cwd()
-
-
-def world_of(document: dict, where: str, run: RunDescription | None
-             ) -> tuple[Scenario, VesselParams, VesselParams]:
-    """(scenario, plant vessel, model vessel) of a scenario document sent over the bus (or kept
-    from one: ``seaway_sim.kept``); ConfigError naming ``where`` and what is wrong.
-
-    The scenario must keep the run's model (the estimator and the controller cannot change theirs)
-    and its [battery] must fit the plant's pack."""
-    scenario = parse_scenario(document, where, scenario_base())
-    vessel = load_vessel(scenario.plant_vessel_file)
-    model = load_vessel(scenario.vessel)
-    if run is not None and model != load_vessel(run.model_vessel_file):
-        raise ConfigError(f"scenario {scenario.name} models vessel {scenario.vessel!r} but this "
-                          f"run's services model {run.model_vessel_file!r}: start a new run for it")
-    SimPack.of(scenario, vessel)
-    ThrusterFaults(scenario.faults, (-vessel.reverse_max_n, vessel.thrust_max_n))  # a stuck thrust fits
-    return scenario, vessel, model
-
-
-class SimApp:
-    """The core, its lock, the truth publishers and the scenario request handler."""
-
-    def __init__(self, bus: Bus, core: SimCore, lockstep: bool, run: RunDescription | None = None,
+    def __init__(self, core: SimCore, lockstep: bool, run: RunDescription | None = None,
                  model: VesselParams | None = None, state_file: Path | None = None) -> None:
-        self.bus = bus
         self.run = run
         self.state_file = state_file
         """Where each scenario loaded over the bus is kept for a restarted sim (``seaway_sim.kept``);
@@ -74,7 +54,7 @@ class SimApp:
         self.core = core
         self.lockstep = lockstep
         self.lock = threading.Lock()
-        self.generation = 0
+        self.episode = 0
         self.model = model or load_vessel(core.scenario.vessel)
         """The vessel the services model: its limits are vehicle I/O's, whose output stage the
         lockstep sim applies to the controller's demand (``thrusters.output_stage``)."""
@@ -86,10 +66,23 @@ class SimApp:
         self.after_load: Callable[[int, int], str] | None = None
         """Lockstep: called with the new (episode, stamp [ns]) once a load is done, before the
         reply; waits until the stack is in the new episode and returns a note for the reply ('' if
-        nothing to say) (``Lockstep.await_episode``)."""
-        self.pubs = {spec: bus.publisher(spec)
-                     for spec in (keys.SIM_TRUTH, keys.SIM_DISTURBANCE, keys.SIM_CLOCK)}
-        bus.queryable(keys.SIM_SCENARIO, self.handle_scenario)
+        nothing to say) (``LockstepClock.await_episode``)."""
+        self.refused_commands = 0
+        """Lockstep: absurd demands (``thrusters.absurd_thrust``) replaced by neutral, as vehicle I/O
+        refuses them."""
+        self.live: Any = None
+        """Real time: the MAVLink half (``seaway_sim.realtime.Realtime``), given by ``main``."""
+        self.out: Outputs | None = None
+
+    def requests(self) -> dict[keys.KeySpec, Callable[[Any], Reply]]:
+        return {keys.SIM_SCENARIO: self.handle_scenario}
+
+    def attach(self, driver: Any) -> None:
+        if isinstance(driver, LiveDriver):
+            self.out = driver.out
+            self.driver = driver
+            if self.live is not None:
+                self.live.start(driver.stop)
 
     def handle_scenario(self, request: ScenarioRequest) -> Reply:
         """Load the scenario document in ``request`` (action ``load``), or restart the current
@@ -112,10 +105,10 @@ class SimApp:
             # Lockstep: a new episode, time restarts at 0 (seaway.runtime.lockstep); real time goes on.
             self.core.load(scenario, vessel, restart_time=self.lockstep)
             self.model = model
-            self.generation += 1
+            self.episode += 1
             for hook in self.on_load:
                 hook(scenario, vessel)
-            stamp, episode = self.core.stamp_ns, self.generation
+            stamp, episode = self.core.stamp_ns, self.episode
         what = "restarted" if request.action == "restart" else "loaded"
         log.info("scenario %s %s (seed %d, vessel %s)", scenario.name, what, scenario.seed,
                  vessel.name)
@@ -155,9 +148,47 @@ class SimApp:
         return out
 
     def publish_truth(self, real_time_factor: float | None) -> None:
-        """Publish ``truth_outputs`` in that order (lock held)."""
-        for spec, msg in self.truth_outputs(real_time_factor):
-            pub = self.pubs.get(spec)
-            if pub is None:
-                pub = self.pubs[spec] = self.bus.publisher(spec)
-            pub.put(msg)
+        """Real time: publish ``truth_outputs`` in that order (lock held)."""
+        assert self.out is not None, "publish_truth is the real-time node's"
+        self.out.put_all(self.truth_outputs(real_time_factor))
+
+    # -- the lockstep clock (seaway.runtime.lockstep_clock) ------------------------------------
+
+    def time_ns(self) -> int:
+        return self.core.stamp_ns
+
+    def outputs(self, period_ns: int) -> list[tuple[keys.KeySpec, Message]]:
+        """The sensor samples due in (t_{k-1}, t_k] (at k = 0: those at t = 0) on GNSS and
+        ATTITUDE, each stamped with its own sample instant (a fix due inside a dropout is not
+        published); then SIM_TRUTH, SIM_DISTURBANCE, VEHICLE_BATTERY when a report is due and
+        SIM_CLOCK, stamped t_k (lock held)."""
+        samples = self.core.take_samples()
+        out: list[tuple[keys.KeySpec, Message]] = [(keys.GNSS, f) for f in samples.gnss
+                                                   if f is not None]
+        out += [(keys.ATTITUDE, a) for a in samples.attitude]
+        out += self.truth_outputs(None, battery=report_due_at(self.core.stamp_ns, period_ns))
+        return out
+
+    def advance(self, cmd: ThrustCommand, period_ns: int) -> None:
+        """Apply ``cmd`` (T1 port, T2 starboard [N]) for one period through vehicle I/O's output
+        stage, which the sim stands in for here (saturation, dead-zone compensation), and so
+        through its refusal of an absurd demand: neutral for the period, never full power by
+        saturation (lock held)."""
+        demand = (cmd.thrust_port_n, cmd.thrust_starboard_n)
+        if (why := absurd_thrust(*demand, self.model)) is not None:
+            self.refused_commands += 1
+            _refusals.log("absurd", logging.WARNING, "refused an absurd thrust command (%s); "
+                          "neutral applied; %d refused so far", why, self.refused_commands)
+            demand = (0.0, 0.0)
+        self.core.advance(output_pair(*demand, self.model), period_ns)
+
+    # -- real time (seaway_sim.realtime) -------------------------------------------------------
+
+    def tick(self, now_ns: int, out: Outputs) -> None:
+        """Real time: advance the world to now and send what fell due (``Realtime.tick``)."""
+        with self.lock:
+            self.live.tick(self.driver.loop.tick)
+
+    def finish(self) -> None:
+        if self.live is not None:
+            self.live.close()

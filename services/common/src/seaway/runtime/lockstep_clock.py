@@ -1,22 +1,22 @@
-"""Lockstep: the sim is the clock of ``seaway.runtime.lockstep`` (the protocol is stated there).
+"""The lockstep clock: the node that owns simulated time (``seaway.runtime.lockstep`` states the
+protocol), driven by ``LockstepClock``; the sim's node (``seaway_sim.node``) is one.
 
-For each period t_k of the current episode, from one Zenoh session and in this order:
+For each period t_k of the current episode, from one bus session and in this order:
 
-  (a) publish the sensor samples due in (t_{k-1}, t_k] (at k = 0: those at t = 0) on GNSS and
-      ATTITUDE, each stamped with its own sample instant (a fix due inside a dropout is not
-      published); SIM_TRUTH, SIM_DISTURBANCE and SIM_CLOCK stamped t_k; then the sim's answer on
-      ``lockstep/sim`` listing them, the thrust command applied over (t_{k-1}, t_k] and the members
-      it waits for;
+  (a) publish the node's messages for t_k (``ClockNode.outputs``: the sim's sensor samples due in
+      (t_{k-1}, t_k], its truth, disturbance and clock), then the clock's answer on
+      ``lockstep/<clock>`` listing them, the thrust command applied over (t_{k-1}, t_k] and the
+      members it waits for;
   (b) wait until every member has answered t_k (``ready``): the controller with a command stamped
-      t_k that the sim holds, the recorder covering everyone's latest answer. A member joining (its
-      member token appears) makes the sim repeat (a); so does a stall of ``STALL_REPEAT_S``;
-  (c) apply that command (T1 port, T2 starboard, N) for one period through vehicle I/O's output
-      stage (``seaway.vessel.thrusters.output_stage``: saturation, dead-zone compensation), so the
-      state goes to t_{k+1}; back to (a).
+      t_k that the clock holds, the recorder covering everyone's latest answer. A member joining
+      (its member token appears) makes the clock repeat (a); so does a stall of ``STALL_REPEAT_S``;
+  (c) apply that command for one period (``ClockNode.advance``), so the world goes to t_{k+1};
+      back to (a).
 
 Without a controller among the members (a test's responder), (b) takes any command stamped >= t_k.
-A scenario loaded through ``sim/scenario`` starts a new episode: time restarts at 0 and every member
-starts afresh (the estimator re-initialises, the controller waits for a new mission).
+A scenario load (the node's request, which calls ``before_load`` and ``after_load``) starts a new
+episode: time restarts at 0 and every member starts afresh (the estimator re-initialises, the
+controller waits for a new mission).
 """
 
 from __future__ import annotations
@@ -30,6 +30,7 @@ from typing import Any
 
 from seaway.contract import keys
 from seaway.contract.messages import Message, ThrustCommand
+from seaway.runtime.bus import Bus
 from seaway.runtime.lockstep import (
     MEMBERS,
     PASSIVE_POLL_S,
@@ -39,14 +40,9 @@ from seaway.runtime.lockstep import (
     Member,
     Period,
 )
-from seaway.runtime.ratelog import RateLimitedLog
-from seaway.vessel.thrusters import absurd_thrust, output_pair
+from seaway.runtime.node import Node
 
-from seaway_sim.app import SimApp
-from seaway_sim.battery import report_due_at
-
-log = logging.getLogger("seaway_sim.lockstep")
-_refusals = RateLimitedLog(log, every_s=60.0)
+log = logging.getLogger("seaway.runtime.lockstep_clock")
 
 EPISODE_WAIT_S = 5.0
 """How long a scenario load waits at most, half for the old episode's last period to be finished
@@ -65,14 +61,37 @@ class LockstepStats:
     stale_commands: int = 0
     repeats: int = 0
     holds: int = 0
-    refused_commands: int = 0
-    """Absurd demands (``thrusters.absurd_thrust``) replaced by neutral, as vehicle I/O refuses them."""
 
 
-class Lockstep:
-    """The lockstep loop over one ``SimApp``."""
+class ClockNode(Node):
+    """A node that owns simulated time (the sim): what ``LockstepClock`` asks of it. ``lock`` is
+    held while a period is published or stepped, and by a scenario load, which bumps ``episode``
+    and calls ``before_load`` (under the lock) and ``after_load`` (after it), set by the clock."""
 
-    def __init__(self, app: SimApp, period_s: float, stop: threading.Event,
+    lock: threading.Lock
+    episode: int = 0
+    stall_s: float = STALL_REPEAT_S
+    """Wall seconds without progress after which the clock repeats its period (a safety net)."""
+    before_load: Callable[[], str] | None = None
+    after_load: Callable[[int, int], str] | None = None
+
+    def time_ns(self) -> int:
+        """The current period's stamp t_k [ns] (0 at an episode's start)."""
+        raise NotImplementedError
+
+    def outputs(self, period_ns: int) -> list[tuple[keys.KeySpec, Message]]:
+        """The messages of the current period, in publishing order (lock held)."""
+        raise NotImplementedError
+
+    def advance(self, cmd: ThrustCommand, period_ns: int) -> None:
+        """Apply ``cmd`` over one period, to t_{k+1} (lock held)."""
+        raise NotImplementedError
+
+
+class LockstepClock:
+    """The lockstep loop over one ``ClockNode``."""
+
+    def __init__(self, bus: Bus, app: ClockNode, period_s: float, stop: threading.Event,
                  stall_s: float = STALL_REPEAT_S) -> None:
         if not period_s > 0 or not stall_s > 0:
             raise ValueError("period and stall time must be > 0")
@@ -91,11 +110,11 @@ class Lockstep:
         # it, and so is the recorder's for the period before, nearly always in by then (a callback
         # and a wake-up of this loop per period saved; when it is not, the loop looks again every
         # ``PASSIVE_POLL_S``, ``_passive_due``).
-        self.member = Member(app.bus, "sim", watched={keys.THRUST.suffix},
+        self.member = Member(bus, app.name, watched={keys.THRUST.suffix},
                              passive=("estimator", RECORDER))
         self.member.deliver = self._on_thrust  # once ``self.member`` names it (it uses it)
-        app.bus.subscribe(keys.THRUST, callback=self._on_thrust, inline=True, bundles=False)
-        app.bus.watch_lockstep_members(self._on_member)
+        bus.subscribe(keys.THRUST, callback=self._on_thrust, inline=True, bundles=False)
+        bus.watch_lockstep_members(self._on_member)
         app.before_load = self.finish_episode
         app.after_load = self.await_episode
 
@@ -104,7 +123,7 @@ class Lockstep:
     def _on_thrust(self, _key: str, cmd: ThrustCommand) -> None:
         # A command answers a period the sim has published; one stamped further ahead of the sim's
         # time is wrong (or a late one of an earlier episode): dropped, counted, logged once.
-        if not self.member.admit(keys.THRUST.suffix, cmd.stamp_ns, self.app.core.stamp_ns,
+        if not self.member.admit(keys.THRUST.suffix, cmd.stamp_ns, self.app.time_ns(),
                                  self.period_ns):
             return
         with self.member.changed:
@@ -176,7 +195,7 @@ class Lockstep:
         while True:
             self.member.drain()  # the estimator's answer comes through a passive source
             with self.member.changed:
-                if self.app.generation != episode:
+                if self.app.episode != episode:
                     return "; another scenario was loaded since"
                 lacking = [m for m in sorted(self.members - {RECORDER})
                            if not self._answered_since(m, first)]
@@ -201,18 +220,14 @@ class Lockstep:
 
     @property
     def period(self) -> Period:
-        return Period(self.app.generation, self.app.core.stamp_ns)
+        return Period(self.app.episode, self.app.time_ns())
 
     def publish_period(self) -> Period:
         """Step (a); the period it published."""
         app = self.app
         with app.lock:
-            samples = app.core.take_samples()
-            out: list[tuple[keys.KeySpec, Message]] = [(keys.GNSS, f) for f in samples.gnss
-                                                       if f is not None]
-            out += [(keys.ATTITUDE, a) for a in samples.attitude]
+            out = app.outputs(self.period_ns)
             period = self.period
-            out += app.truth_outputs(None, battery=report_due_at(period.stamp_ns, self.period_ns))
             with self.member.changed:
                 members = sorted(self.members)
                 self._joined = False
@@ -269,7 +284,7 @@ class Lockstep:
         stalled_since = time.monotonic()
         held = False
         while not self.stop.is_set():
-            if self.app.generation != period.episode:
+            if self.app.episode != period.episode:
                 return None
             member.drain()
             with member.changed:
@@ -325,16 +340,7 @@ class Lockstep:
         with self.app.lock:
             if self.period != period:
                 return False
-            # The demand goes through vehicle I/O's output stage, which the sim stands in for here,
-            # and so through its refusal of an absurd demand: neutral for the period, never full
-            # power by saturation.
-            demand = (cmd.thrust_port_n, cmd.thrust_starboard_n)
-            if (why := absurd_thrust(*demand, self.app.model)) is not None:
-                self.stats.refused_commands += 1
-                _refusals.log("absurd", logging.WARNING, "refused an absurd thrust command (%s); "
-                              "neutral applied; %d refused so far", why, self.stats.refused_commands)
-                demand = (0.0, 0.0)
-            self.app.core.advance(output_pair(*demand, self.app.model), self.period_ns)
+            self.app.advance(cmd, self.period_ns)
             self._applied = cmd.stamp_ns
         if cmd.stamp_ns != period.stamp_ns:
             self.stats.stale_commands += 1
@@ -354,10 +360,10 @@ class Lockstep:
             cmd = self.wait_for(period, self.command)
             if cmd is not None and self.step(cmd, period) and self.wait_for(period, self.answered):
                 continue
-            if self.app.generation != period.episode:  # a new episode: time restarts at 0
+            if self.app.episode != period.episode:  # a new episode: time restarts at 0
                 self._applied = None
                 with self.member.changed:
                     self._commands.clear()
         log.info("lockstep ended at t = %.3f s: %d periods, %d repeats, %d holds",
-                 self.app.core.t_ns / 1e9, self.stats.periods, self.stats.repeats, self.stats.holds)
+                 self.app.time_ns() / 1e9, self.stats.periods, self.stats.repeats, self.stats.holds)
         return self.stats
