@@ -6,7 +6,7 @@ every later log time was shifted by the time flown so far (an estimator killed a
 put the rest of its recording 120.6 s later in Foxglove). And ``seaway replay --lockstep`` played the
 recorded copy as a period of its own that no member takes, sending it again for ever.
 
-The real recorder parts on the in-memory bus (its queue, ``_drain``, ``LockstepWitness``,
+The real recorder parts on the in-memory bus (its queue, ``drain``, ``LockstepWitness``,
 ``RecordingWriter``, the MCAP file) and the real replay of that file.
 """
 
@@ -22,10 +22,11 @@ from seaway.contract.messages import ClockTick
 from seaway.recording import reader
 from seaway.recording.timebase import RecordingTime
 from seaway.runtime.lockstep import Member, Period
+from seaway.runtime.lockstep_replay import LockstepPacer
+from seaway.runtime.lockstep_witness import LockstepWitness
 from seaway.runtime.memory_bus import MemoryHub
-from seaway_recorder.record import KeptKeys, LockstepWitness, SampleQueue, _drain
+from seaway_recorder.node import KeptKeys, SampleQueue, drain
 from seaway_recorder.replay import replay
-from seaway_recorder.replay_lockstep import LockstepPacer
 from seaway_recorder.writer import RecordingWriter
 
 P = 100_000_000
@@ -39,7 +40,7 @@ def clock(stamp_ns: int) -> ClockTick:
 
 
 def recorder(hub: MemoryHub, folder: Path) -> tuple[RecordingWriter, Callable[[], None]]:
-    """A lockstep recorder's writer on ``folder``, and what writes what it heard since (``_drain``)."""
+    """A lockstep recorder's writer on ``folder``, and what writes what it heard since (``drain``)."""
     writer = RecordingWriter(folder / "recording.mcap", compression="none",
                              time=RecordingTime(lockstep=True, epoch_ns=EPOCH_NS))
     writer.open(time.time_ns())
@@ -47,7 +48,7 @@ def recorder(hub: MemoryHub, folder: Path) -> tuple[RecordingWriter, Callable[[]
     bus = hub.bus(V)
     witness = LockstepWitness(bus, V, EXPRS)
     bus.subscribe_raw(f"seaway/{V}/lockstep/*", queue.on_sample)
-    return writer, lambda: _drain(writer, queue, None, witness, KeptKeys(EXPRS)) and None
+    return writer, lambda: drain(writer, queue, None, witness, KeptKeys(EXPRS)) and None
 
 
 def record_a_run_with_a_repeat(folder: Path) -> RecordingWriter:

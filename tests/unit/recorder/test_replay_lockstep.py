@@ -1,5 +1,5 @@
 """``seaway replay --lockstep``'s pacer on the in-memory bus: a recorded period is held until every
-live member has answered it, as the sim holds its own (``seaway_recorder.replay_lockstep``).
+live member has answered it, as the sim holds its own (``seaway.runtime.lockstep_replay``).
 
 Members here are scripted: each answers the sim's tick from inside its delivery (the in-memory bus
 delivers synchronously), the recorder covering the others' latest answers.
@@ -18,9 +18,9 @@ from seaway.contract.messages import PeriodDone
 from seaway.recording.reader import RecordingInfo
 from seaway.runtime.bus import Bus
 from seaway.runtime.lockstep import Ledger, Member, Period
+from seaway.runtime.lockstep_replay import LockstepPacer
 from seaway.runtime.memory_bus import MemoryHub
 from seaway_recorder.replay import KeyFilter, lockstep_vessel
-from seaway_recorder.replay_lockstep import LockstepPacer
 
 V = "v1"
 P_NS = 100_000_000

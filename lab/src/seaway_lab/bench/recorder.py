@@ -111,7 +111,7 @@ def bench_end_to_end(rate: float, seconds: float, tmp: Path) -> dict:
     env[ENV_RENDEZVOUS] = free_rendezvous()
     env.pop(ENV_CONFIG, None)
     out = tmp / "e2e.mcap"
-    rec = subprocess.Popen([sys.executable, "-m", "seaway_recorder.record", "--out", str(out),
+    rec = subprocess.Popen([sys.executable, "-m", "seaway_recorder.main", "--out", str(out),
                             "--key-expr", f"seaway/{BENCH_VESSEL}/**", "--log-level", "WARNING",
                             "--vessel", BENCH_VESSEL],
                            env=env, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,

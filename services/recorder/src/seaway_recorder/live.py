@@ -62,7 +62,7 @@ from seaway.runtime.service import (
 from seaway.vessel.frames import GeoOrigin
 
 from seaway_recorder import derive, schemas
-from seaway_recorder.record import SampleQueue
+from seaway_recorder.node import SampleQueue
 
 log = logging.getLogger("seaway.foxglove")
 

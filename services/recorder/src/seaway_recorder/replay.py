@@ -8,7 +8,7 @@ controller with ``--only nav/state``. Each sample goes out with its recorded byt
 in recorded order; with ``--rate X`` the gaps between receive times are divided by X; ``--fast`` does not
 wait at all (publishers block rather than drop, so nothing is lost). ``--lockstep`` replays a lockstep
 recording as its sim would: each period waits for the live members' answers
-(``seaway_recorder.replay_lockstep``), so live services get every period, as fast as they go.
+(``seaway.runtime.lockstep_replay``), so live services get every period, as fast as they go.
 """
 
 from __future__ import annotations
@@ -30,7 +30,8 @@ from seaway.recording import reader
 from seaway.runtime.argtypes import non_negative_float, positive_float
 from seaway.runtime.bus import JSON_ENCODING, Bus, RawPublisher
 from seaway.runtime.credentials import ENV_IDENTITY
-from seaway.runtime.lockstep import Period
+from seaway.runtime.lockstep_replay import SIM_ANSWER_SUFFIX, LockstepPacer
+from seaway.runtime.node import Period
 from seaway.runtime.service import (
     DEFAULT_VESSEL,
     add_log_level_option,
@@ -38,8 +39,6 @@ from seaway.runtime.service import (
     configure_logging,
     install_stop_signals,
 )
-
-from seaway_recorder.replay_lockstep import SIM_ANSWER_SUFFIX, LockstepPacer
 
 BUS_ROOT = f"{keys.ROOT}/"
 

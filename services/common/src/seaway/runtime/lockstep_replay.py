@@ -1,4 +1,5 @@
-"""``seaway replay --lockstep``: a lockstep recording replayed as its sim would, paced by the members.
+"""The lockstep clock from a recording (``seaway replay --lockstep``): a lockstep recording replayed
+as its sim would, paced by the members.
 
 A recording of a lockstep run holds the sim's answers (``lockstep/sim``, ``seaway.runtime.lockstep``):
 each closes one period and lists the samples published for it. Replayed at a fixed rate, the live
@@ -32,7 +33,7 @@ from seaway.runtime.bus import Bus
 from seaway.runtime.lockstep import MEMBERS, STALL_REPEAT_S, Ledger, Period
 from seaway.runtime.ratelog import RateLimitedLog
 
-log = logging.getLogger("seaway_recorder.replay")
+log = logging.getLogger("seaway.runtime.lockstep_replay")
 
 SIM_ANSWER_SUFFIX = keys.lockstep_spec("sim").suffix
 

@@ -1,0 +1,206 @@
+"""The recorder's node: what it hears (every sample of its key expressions, taken off the bus's
+threads into ``SampleQueue``), and the writer's loop that drains it into ``RecordingWriter``,
+flushes at least every ``--flush-interval``, rotates, copies the launcher's events and the run's
+logs in, and, in lockstep, answers each period once it is on disk (the runtime's
+``seaway.runtime.lockstep_witness.LockstepWitness``). ``seaway_recorder.main`` configures it.
+"""
+
+from __future__ import annotations
+
+import collections
+import logging
+import threading
+import time
+from collections.abc import Callable, Sequence
+
+import zenoh
+from seaway.contract import bundle, keys
+from seaway.contract.messages import LOCKSTEP_SERVICES, LogRecord, PeriodDone
+from seaway.recording.timebase import stamp_of
+from seaway.runtime.bus import RawSample
+from seaway.runtime.lockstep_witness import LockstepWitness
+from seaway.runtime.timeline import Timeline
+
+from seaway_recorder.logtail import FileTail, LogTail, log_record
+from seaway_recorder.writer import RecordingWriter
+
+log = logging.getLogger("seaway.recorder")
+
+LATE_NS = 500_000_000
+"""A sample received this long after it was published came from a publisher's cache (or waited
+that long in a queue): logged at its publication time, and looked up among a predecessor's."""
+
+
+class SampleQueue:
+    """Bounded hand-over from the bus's threads to the writer; overflow is counted, never blocks."""
+
+    def __init__(self, capacity: int) -> None:
+        self.capacity = capacity
+        self.items: collections.deque[tuple[str, bytes, str, int]] = collections.deque()
+        self.dropped = 0
+        self.accepting = True
+        self.arrived = threading.Event()  # wakes a lockstep writer at once (no polling delay)
+        self.wake_on_any = True
+        """Whether any sample wakes the writer, else only a lockstep answer: a lockstep writer has
+        nothing to decide before an answer comes, unless one it has lacks listed messages
+        (``LockstepWitness.lacking``). Woken for each of the ~20 samples of a period, it cost a
+        thread hand-over each."""
+        self._lock = threading.Lock()
+        self.timeline: Timeline | None = None  # a lockstep recorder's, when tracing
+        self.already: set[tuple[str, bytes]] = set()
+        """(key, bytes) a predecessor's recording holds (a restarted recorder): not queued again."""
+        self.repeats = 0
+
+    def on_sample(self, sample: RawSample) -> None:
+        # Called on the bus's delivery threads: keep it short (the bytes are already our own copy).
+        if not self.accepting:
+            return
+        now_ns = time.time_ns()
+        late = sample.published_ns is not None and now_ns - sample.published_ns > LATE_NS
+        if late and (sample.key, sample.payload) in self.already:
+            with self._lock:
+                self.repeats += 1
+            return
+        if len(self.items) >= self.capacity:
+            with self._lock:
+                self.dropped += 1
+            return
+        # A sample a publisher's cache gave late (to a recorder that restarted) is logged when it
+        # was published, where it belongs on the timeline.
+        self.items.append((sample.key, sample.payload, sample.encoding,
+                           sample.published_ns if late else now_ns))
+        if self.timeline is not None and "/lockstep/" in sample.key:
+            # Its arrival, not when it is written (seaway.runtime.timeline: the recorder's "heard").
+            stamp = stamp_of(sample.payload)
+            if stamp is not None:
+                self.timeline.mark("heard", stamp, sample.key.rsplit("/", 1)[1])
+        if self.wake_on_any or "/lockstep/" in sample.key:
+            self.arrived.set()
+
+
+class KeptKeys:
+    """Which keys a recording keeps: those its key expressions include (Zenoh's own matching).
+    Asked of each message a lockstep bundle carries: the bundle's key may be subscribed for
+    lockstep alone (``lockstep_exprs``), its messages' keys not."""
+
+    def __init__(self, exprs: Sequence[str]) -> None:
+        self._exprs = [zenoh.KeyExpr(e) for e in exprs]
+        self._kept: dict[str, bool] = {}
+
+    def __call__(self, key: str) -> bool:
+        kept = self._kept.get(key)
+        if kept is None:
+            kept = self._kept[key] = any(e.includes(key) for e in self._exprs)
+        return kept
+
+
+def recorded_suffixes(exprs: Sequence[str], vessel: str) -> set[str]:
+    """The registered key suffixes of ``vessel`` that the key expressions ``exprs`` record."""
+    kept = KeptKeys(exprs)
+    return {spec.suffix for spec in keys.REGISTRY if kept(spec.key(vessel))}
+
+
+def lockstep_exprs(exprs: list[str], vessel: str) -> list[str]:
+    """``exprs`` plus the lockstep answers of ``vessel`` if they do not record them already: a
+    recorder in lockstep must hear them to take part."""
+    answers = {keys.lockstep_spec(s).suffix for s in LOCKSTEP_SERVICES}
+    if answers <= recorded_suffixes(exprs, vessel):
+        return exprs
+    return [*exprs, f"{keys.ROOT}/{vessel}/lockstep/*"]
+
+
+def drain(writer: RecordingWriter, queue: SampleQueue, limit: int | None,
+           witness: LockstepWitness | None = None, kept: KeptKeys | None = None) -> int:
+    """Write up to ``limit`` queued samples (a lockstep bundle as the samples it stands for, those
+    ``kept`` keeps); in lockstep, answer a period once it is on disk."""
+    n = 0
+    items = queue.items
+    answers: list[tuple[str, PeriodDone]] = []
+    while items and (limit is None or n < limit):
+        sample_key, sample, sample_encoding, t_ns = items.popleft()
+        n += 1
+        copy = sample_encoding == bundle.ENCODING and bundle.is_resent(sample)
+        samples = writer.unpack(sample_key, sample, sample_encoding, t_ns)
+        answer = None  # the answer comes last, on the bundle's own key
+        if witness is not None and samples and samples[-1][0] == sample_key:
+            answer = witness.heard(sample_key, samples[-1][1])
+        for key, payload, encoding in samples:
+            if key != sample_key and kept is not None and not kept(key):
+                continue  # a bundle's message on a key this recording leaves out
+            decoded = answer if key == sample_key else None
+            if decoded is not None:
+                answers.append((key, decoded))  # a repeat not written again is on disk all the same
+            if witness is not None and not witness.admit(key, payload):
+                continue
+            writer.write(key, payload, encoding, t_ns, copy, decoded=decoded)
+    if witness is not None:
+        witness.written(answers)
+        witness.maybe_answer(writer.flush)
+        # Before the loop clears ``arrived`` and drains again, so no sample is left unwoken for.
+        queue.wake_on_any = witness.lacking()
+    return n
+
+
+class Tails:
+    """The files copied into the recording as they grow: the launcher's events, the run's logs.
+
+    ``publish``: also put each log line on the bus (``keys.LOG_LINE``), for a viewer that is not
+    on this machine (``seaway foxglove`` on the shore). A line that cannot be published (the
+    session closing) is still recorded."""
+
+    def __init__(self, events: FileTail | None, logs: LogTail | None,
+                 publish: Callable[[LogRecord], None] | None = None) -> None:
+        self.events = events
+        self.logs = logs
+        self.publish = publish
+
+    def copy(self, writer: RecordingWriter) -> None:
+        if self.events is not None:
+            for line in self.events.poll():
+                writer.write_event(line)
+        if self.logs is not None:
+            now_ns = time.time_ns()
+            for process, line in self.logs.poll(now_ns):
+                writer.write_log(process, line)
+                if self.publish is not None:
+                    try:
+                        self.publish(log_record(process, line, now_ns))
+                    except Exception as err:
+                        log.debug("log line not published: %s", err)
+
+
+def write_loop(writer: RecordingWriter, queue: SampleQueue, stop: threading.Event, flush_s: float,
+          status_s: float, witness: LockstepWitness | None = None,
+          tails: Tails | None = None,
+          kept: KeptKeys | None = None) -> None:
+    flush_ns = int(flush_s * 1e9)
+    next_flush = time.monotonic_ns() + flush_ns
+    next_status = time.monotonic_ns() + int(status_s * 1e9)
+    last_messages = 0
+    while not stop.is_set():
+        queue.arrived.clear()
+        n = drain(writer, queue, limit=2000, witness=witness, kept=kept)
+        now = time.monotonic_ns()
+        if now >= next_flush:
+            writer.count_dropped(queue.dropped - writer.stats.dropped)
+            if tails is not None:
+                tails.copy(writer)
+            writer.flush()
+            writer.maybe_rotate(time.time_ns())
+            next_flush = now + flush_ns
+        if now >= next_status:
+            rate = (writer.stats.messages - last_messages) / status_s
+            last_messages = writer.stats.messages
+            log.info("%s; %.0f msg/s; queue %d; file %s", writer.stats.line(), rate,
+                     len(queue.items), writer.path)
+            next_status = now + int(status_s * 1e9)
+        if n == 0:
+            # Nothing queued: wait for a sample (lockstep answers at once) or a little, never past
+            # the next flush.
+            timeout = min(0.005, max(0.0, (next_flush - time.monotonic_ns()) / 1e9))
+            if witness is not None:
+                queue.arrived.wait(timeout)
+            else:
+                stop.wait(timeout)
+
+
