@@ -134,6 +134,17 @@ class Node:
     side_inputs: Sequence[keys.KeySpec] = ()
     """Keys it hears apart from the lockstep bundles, in either clock (``take`` with ``now_ns``
     the wall clock in real time, None in lockstep): what no lockstep member produces."""
+    inline_inputs: frozenset[keys.KeySpec] = frozenset()
+    """Real time: those of its inputs taken on the transport's own receive thread, with no
+    hand-over to a Python thread first (``Bus.subscribe``'s ``inline``): for a short handler on the
+    latency path (vehicle_io's thrust)."""
+    paced = False
+    """Real time: the node says when it next needs a tick (``wake_s``) instead of ticking on the
+    rate loop's grid; the driver waits at most ``period_s`` between ticks either way."""
+
+    def wake_s(self) -> float:
+        """A paced node, after a tick: how long until it needs the next one [s]."""
+        return 0.0
 
     def requests(self) -> Mapping[keys.KeySpec, Callable[[Any], Reply]]:
         """The requests it answers: key -> handler (on a request thread of the bus)."""
@@ -303,13 +314,19 @@ class LiveDriver:
     def run(self) -> None:
         ctx, node = self.ctx, self.node
         for spec in (*node.live_inputs, *node.side_inputs):
-            ctx.bus.subscribe(spec, callback=self._take)
+            ctx.bus.subscribe(spec, callback=self._take, inline=spec in node.inline_inputs)
         ctx.ready()
         loop = self.loop
         try:
-            while loop.wait():
-                node.idle()
-                node.tick(ctx.clock.now_ns(), self.out)
+            if node.paced:
+                while not ctx.stop.is_set():
+                    node.idle()
+                    node.tick(ctx.clock.now_ns(), self.out)
+                    ctx.stop.wait(min(max(0.0, node.wake_s()), self.period_s))
+            else:
+                while loop.wait():
+                    node.idle()
+                    node.tick(ctx.clock.now_ns(), self.out)
         finally:
             node.finish()
 
