@@ -178,9 +178,10 @@ class Host:
     def bus(self, vessel: str) -> MemoryBus:
         return self.hub.bus(vessel)
 
-    def start(self, name: str, argv: Sequence[str]) -> NodeThread:
-        """Start the service ``argv[0]`` (a console script) with ``argv[1:]`` as node ``name``."""
-        node = NodeThread(self, name, entry_point(argv[0]), argv[1:]).start()
+    def start(self, name: str, argv: Sequence[str], entry: Entry | None = None) -> NodeThread:
+        """Start the service ``argv[0]`` (a console script, unless ``entry`` is its function) with
+        ``argv[1:]`` as node ``name``."""
+        node = NodeThread(self, name, entry or entry_point(argv[0]), argv[1:]).start()
         self.nodes.append(node)
         return node
 
