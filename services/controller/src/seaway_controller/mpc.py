@@ -89,9 +89,9 @@ class MpcController:
         """e counts only when the terminal position is outside both circles (item 2)."""
         if self.plan_age(now_ns) is not None:
             assert self.last_good is not None
-            pos = self.last_good.states[-1, 3:5]
+            pos = self.last_good.states[-1, 3:5].tolist()  # floats: math.dist reads them faster
         else:
-            pos = x0[3:5]
+            pos = x0[3:5].tolist()
         r_f = min(math.dist(pos, wp_prev), math.dist(pos, wp_active))
         return r_f > coa_radius_m
 

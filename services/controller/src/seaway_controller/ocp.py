@@ -344,9 +344,8 @@ class Ocp:
         lx2[: (h - 1) * st] = lam_x[st: h * st]
         x_last = w[self.x_index(h)]
         u_last = w[self.u_index(h - 1)]
-        w2[self.x_index(h)] = model.rk4_step([float(v) for v in x_last], [float(v) for v in u_last],
-                                             s.dt_s, self.vessel, math,
-                                             tuple(float(v) for v in tau_d))
+        w2[self.x_index(h)] = model.rk4_step(x_last.tolist(), u_last.tolist(), s.dt_s, self.vessel,
+                                             math, tuple(np.asarray(tau_d, dtype=float).tolist()))
         # Costates: gap k takes gap k+1's multipliers; the last gap keeps its own.
         lg2[: NX * (h - 1)] = lam_g[NX: NX * h]
         if s.is_empc:
