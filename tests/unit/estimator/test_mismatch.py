@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 import random
+from fractions import Fraction
 
 from seaway_estimator.mismatch import FixSample, MismatchConfig, MotionMismatch
 
@@ -117,3 +118,34 @@ def test_positions_alone_give_the_speed_when_fixes_have_no_velocity() -> None:
             det.on_fix(FixSample(t, moving * t / S, 0.0, False, 2.0, None, 0.9))
         assert det.kind == want
     assert math.isfinite(det.last.measured_mps)
+
+
+def _window_verdict(fixes: list[FixSample], c: MismatchConfig) -> tuple[float, float, float, float]:
+    """(commanded, measured, reject rate, mean NIS) of the fast window, summed afresh, exactly."""
+    w = [s for s in fixes if s.t_ns >= fixes[-1].t_ns - round(c.window_s * 1e9)]
+
+    def mean(xs: list[float]) -> float:
+        return float(sum(map(Fraction, xs)) / len(xs))  # the exact mean, rounded once
+    return (mean([s.commanded_mps for s in w]), mean([s.surge_over_ground_mps or 0.0 for s in w]),
+            sum(s.rejected for s in w) / len(w), mean([s.nis for s in w]))
+
+
+def test_the_window_sums_kept_over_a_long_run_are_the_window_summed_afresh() -> None:
+    # The sums are kept as fixes come and go (a verdict is O(1)); a float sum kept that way drifts
+    # (a large value added then taken out leaves its rounding behind), so after ten thousand fixes
+    # of wildly mixed sizes the kept sums must still be those of the window summed afresh.
+    c = MismatchConfig()
+    det = MotionMismatch(c)
+    rng = random.Random(7)
+    fixes: list[FixSample] = []
+    for k in range(10_000):
+        big = k % 97 == 0
+        s = FixSample(k * 200_000_000, 0.0, 0.0, rng.random() < 0.1,
+                      rng.uniform(0.0, 9.0) * (1e12 if big else 1.0),
+                      rng.uniform(0.0, 0.5) * (1e15 if big else 1.0),
+                      rng.uniform(0.0, 0.5) + (1e16 if big else 0.0))
+        fixes.append(s)
+        det.on_fix(s)
+    v = det.last
+    assert v is not None
+    assert (v.commanded_mps, v.measured_mps, v.reject_rate, v.mean_nis) == _window_verdict(fixes, c)

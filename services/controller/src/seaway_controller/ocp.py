@@ -184,12 +184,16 @@ class Ocp:
 
     def states(self, w: np.ndarray, x0: np.ndarray) -> np.ndarray:
         """(H+1, 6) predicted states, X_0 = x0 first."""
-        return np.stack([np.asarray(x0, dtype=float)]
-                        + [w[self.x_index(k)] for k in range(1, self.spec.horizon + 1)])
+        h = self.spec.horizon
+        out = np.empty((h + 1, NX))
+        out[0] = x0
+        out[1:] = w[: h * self.stage].reshape(h, self.stage)[:, NU:]  # the blocks' X_{k+1}
+        return out
 
     def thrusts(self, w: np.ndarray) -> np.ndarray:
         """(H, 2) planned thrusts [N]."""
-        return np.stack([w[self.u_index(k)] for k in range(self.spec.horizon)])
+        h = self.spec.horizon
+        return w[: h * self.stage].reshape(h, self.stage)[:, :NU].copy()  # the blocks' U_k
 
     def times_s(self, w: np.ndarray) -> tuple[float, float] | None:
         """(t_d, t_s) [s], unscaled; None for the NMPC."""
@@ -340,9 +344,8 @@ class Ocp:
         lx2[: (h - 1) * st] = lam_x[st: h * st]
         x_last = w[self.x_index(h)]
         u_last = w[self.u_index(h - 1)]
-        w2[self.x_index(h)] = model.rk4_step([float(v) for v in x_last], [float(v) for v in u_last],
-                                             s.dt_s, self.vessel, math,
-                                             tuple(float(v) for v in tau_d))
+        w2[self.x_index(h)] = model.rk4_step(x_last.tolist(), u_last.tolist(), s.dt_s, self.vessel,
+                                             math, tuple(np.asarray(tau_d, dtype=float).tolist()))
         # Costates: gap k takes gap k+1's multipliers; the last gap keeps its own.
         lg2[: NX * (h - 1)] = lam_g[NX: NX * h]
         if s.is_empc:

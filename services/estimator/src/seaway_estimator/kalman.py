@@ -77,6 +77,10 @@ class Predictor:
         self._z, self._P, self._thrust, self._h, self._q = self._fn.inputs
         self._q[:] = q
         self._z_next, self._P_next, self._A = self._fn.outputs
+        # The matrices' buffers seen as matrices (column-major, as CasADi stores them): a matrix
+        # goes in and out with one copy, not a transposed copy and then another.
+        self._P_in = self._P.reshape(NZ, NZ, order="F")
+        self._P_out = self._P_next.reshape(NZ, NZ, order="F")
 
     @property
     def compiled(self) -> bool:
@@ -86,11 +90,11 @@ class Predictor:
              ) -> tuple[np.ndarray, np.ndarray]:
         """``(z_next, P_next)`` after ``h_s`` seconds with ``thrust`` [N] held: new arrays."""
         self._z[:] = z
-        self._P[:] = P.ravel(order="F")
+        self._P_in[...] = P
         self._thrust[0], self._thrust[1] = thrust
         self._h[0] = h_s
         self._fn()
-        return self._z_next.copy(), self._P_next.reshape(NZ, NZ, order="F").copy()
+        return self._z_next.copy(), self._P_out.copy()
 
     def jacobian(self, z: np.ndarray, thrust: tuple[float, float]) -> np.ndarray:
         """``A = d f / d z`` at ``z`` (9x9; the disturbance rows zero)."""
@@ -122,16 +126,20 @@ class Updater:
         self._fn = NativeFunction(update_function(m))
         self._z, self._P, self._nu, self._H, self._R = self._fn.inputs
         self._nis, self._z_next, self._P_next = self._fn.outputs
+        # As matrices (column-major), filled and read with one copy each (``Predictor``).
+        self._P_in = self._P.reshape(NZ, NZ, order="F")
+        self._H_in = self._H.reshape(m, NZ, order="F")
+        self._R_in = self._R.reshape(m, m, order="F")
+        self._P_out = self._P_next.reshape(NZ, NZ, order="F")
 
     def step(self, z: np.ndarray, P: np.ndarray, nu: np.ndarray | float, H: np.ndarray,
              R: np.ndarray | float) -> tuple[float, np.ndarray, np.ndarray]:
         """``(nis, z_next, P_next)``; ``H`` is m x 9 (or a 9-vector for m = 1), ``R`` m x m (or
         the variance for m = 1). New arrays; nothing is gated here."""
         self._z[:] = z
-        self._P[:] = P.ravel(order="F")
+        self._P_in[...] = P
         self._nu[:] = nu
-        self._H[:] = np.asarray(H).ravel(order="F")
-        self._R[:] = np.asarray(R).ravel(order="F")
+        self._H_in[...] = H  # a 9-vector fills the one row of m = 1
+        self._R_in[...] = R  # a variance fills the 1 x 1 of m = 1
         self._fn()
-        return (float(self._nis[0]), self._z_next.copy(),
-                self._P_next.reshape(NZ, NZ, order="F").copy())
+        return float(self._nis[0]), self._z_next.copy(), self._P_out.copy()

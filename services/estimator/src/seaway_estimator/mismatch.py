@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 from pydantic import Field
@@ -122,7 +123,7 @@ class MotionFaultEvent:
     detail: str
 
 
-def _slope_speed(window: deque[FixSample]) -> float:
+def _slope_speed(window: Sequence[FixSample]) -> float:
     """Speed over ground from the least-squares slope of the positions [m/s]."""
     t0 = window[0].t_ns
     ts = [(s.t_ns - t0) / NS_PER_S for s in window]
@@ -137,12 +138,72 @@ def _slope_speed(window: deque[FixSample]) -> float:
     return math.hypot(vn, ve)
 
 
+_FIXED_BITS = 1074
+"""Every finite float is a whole multiple of 2**-1074 (the smallest subnormal's unit), so a sum kept
+as an int in that unit is exact: adding a fix to a window and taking the oldest out leaves no
+rounding behind, however long the run, and a mean is the exact sum, rounded once."""
+
+
+def _fixed(x: float) -> int:
+    """``x`` (finite) in units of 2**-1074, exactly."""
+    n, d = x.as_integer_ratio()  # d is a power of two, at most 2**1074
+    return n << (_FIXED_BITS + 1 - d.bit_length())
+
+
+def _mean(total: int, n: int) -> float:
+    """The mean of ``n`` values whose exact sum in units of 2**-1074 is ``total``, rounded once."""
+    return total / (n << _FIXED_BITS)  # int / int: correctly rounded
+
+
+class _Window:
+    """The fixes of the last ``span_ns`` before the newest (inclusive), with the sums a verdict
+    needs kept as fixes come and go, so that a verdict costs the same however many fixes it spans.
+    """
+
+    def __init__(self, span_s: float) -> None:
+        self.span_ns = round(span_s * NS_PER_S)
+        self.fixes: deque[FixSample] = deque()
+        self.clear()
+
+    def clear(self) -> None:
+        self.fixes.clear()
+        self.commanded = self.sog = self.nis = 0  # exact sums, units of 2**-1074 (_fixed)
+        self.n_sog = self.n_nis = self.rejected = 0
+
+    def _add(self, s: FixSample, sign: int) -> None:
+        self.commanded += sign * _fixed(s.commanded_mps)
+        if s.surge_over_ground_mps is not None:
+            self.sog += sign * _fixed(s.surge_over_ground_mps)
+            self.n_sog += sign
+        if math.isfinite(s.nis):
+            self.nis += sign * _fixed(s.nis)
+            self.n_nis += sign
+        self.rejected += sign * s.rejected
+
+    def push(self, s: FixSample) -> None:
+        """Add the newest fix and drop those older than ``span_ns`` before it."""
+        w = self.fixes
+        w.append(s)
+        self._add(s, 1)
+        start = s.t_ns - self.span_ns
+        while w[0].t_ns < start:
+            self._add(w.popleft(), -1)
+
+    def speeds(self) -> tuple[float, float]:
+        """(commanded, measured) mean speeds [m/s]: the fixes' velocity over ground when every
+        fix has one, else the slope of their positions."""
+        n = len(self.fixes)
+        measured = _mean(self.sog, n) if self.n_sog == n else _slope_speed(self.fixes)
+        return _mean(self.commanded, n), measured
+
+
 class MotionMismatch:
     """The detector: ``on_fix`` per GNSS fix; ``kind``/``detail`` the fault now (None: none)."""
 
     def __init__(self, config: MismatchConfig) -> None:
         self.config = config
-        self._window: deque[FixSample] = deque()
+        self._fast = _Window(config.window_s)
+        self._slow = _Window(config.slow_window_s)
         self.kind: MotionFaultKind | None = None
         self.detail: str | None = None
         self.onsets = 0
@@ -153,47 +214,31 @@ class MotionMismatch:
 
     def reset(self) -> None:
         """Forget the window (the filter re-initialised); a raised fault stays until cleared."""
-        self._window.clear()
+        self._fast.clear()
+        self._slow.clear()
         self._suspect_since = self._clean_since = self._proven_since = None
 
-    def _recent(self, window_s: float) -> list[FixSample] | None:
-        """The fixes of the last ``window_s``, or None if too few or too short a span for a
-        verdict."""
-        c, w = self.config, self._window
-        start = w[-1].t_ns - round(window_s * NS_PER_S)
-        recent = [s for s in w if s.t_ns >= start]
-        span = recent[-1].t_ns - recent[0].t_ns
-        if len(recent) < c.min_samples or span < c.min_span_frac * window_s * NS_PER_S:
-            return None
-        return recent
-
-    @staticmethod
-    def _speeds(w: list[FixSample]) -> tuple[float, float]:
-        """(commanded, measured) mean speeds of ``w`` [m/s]."""
-        commanded = sum(s.commanded_mps for s in w) / len(w)
-        sogs = [s.surge_over_ground_mps for s in w if s.surge_over_ground_mps is not None]
-        measured = sum(sogs) / len(sogs) if len(sogs) == len(w) else _slope_speed(w)
-        return commanded, measured
+    def _judged(self, w: _Window, window_s: float) -> bool:
+        """Whether ``w`` holds enough fixes over a long enough span for a verdict."""
+        f = w.fixes
+        return (len(f) >= self.config.min_samples
+                and f[-1].t_ns - f[0].t_ns >= self.config.min_span_frac * window_s * NS_PER_S)
 
     def verdict(self) -> Verdict | None:
         """The evidence of the window now, or None if it is too short for one."""
-        c = self.config
-        w = self._recent(c.window_s) if self._window else None
-        if w is None:
+        c, w = self.config, self._fast
+        if not w.fixes or not self._judged(w, c.window_s):
             return None
-        n = len(w)
-        commanded, measured = self._speeds(w)
-        reject_rate = sum(s.rejected for s in w) / n
-        finite = [s.nis for s in w if math.isfinite(s.nis)]
-        mean_nis = sum(finite) / len(finite) if finite else math.inf
+        n = len(w.fixes)
+        commanded, measured = w.speeds()
+        reject_rate = w.rejected / n
+        mean_nis = _mean(w.nis, w.n_nis) if w.n_nis else math.inf
         commanding = commanded >= c.min_commanded_speed_mps
         still = commanding and measured < c.moving_ratio * commanded
-        if not commanding:
-            slow = self._recent(c.slow_window_s)
-            if slow is not None:
-                slow_cmd, slow_meas = self._speeds(slow)
-                if slow_cmd >= c.min_slow_speed_mps and slow_meas < c.moving_ratio * slow_cmd:
-                    still, commanded, measured = True, slow_cmd, slow_meas
+        if not commanding and self._judged(self._slow, c.slow_window_s):
+            slow_cmd, slow_meas = self._slow.speeds()
+            if slow_cmd >= c.min_slow_speed_mps and slow_meas < c.moving_ratio * slow_cmd:
+                still, commanded, measured = True, slow_cmd, slow_meas
         suspect: MotionFaultKind | None = None
         if still:
             suspect = "not_moving"
@@ -208,13 +253,11 @@ class MotionMismatch:
         c = self.config
         if not c.enabled:
             return None
-        w = self._window
+        w = self._fast.fixes
         if w and sample.t_ns < w[-1].t_ns:
             self.reset()  # time went back: a new run
-        w.append(sample)
-        horizon = sample.t_ns - round(max(c.window_s, c.slow_window_s) * NS_PER_S)
-        while w and w[0].t_ns < horizon:
-            w.popleft()
+        self._fast.push(sample)
+        self._slow.push(sample)
         v = self.verdict()
         self.last = v
         if v is None:
