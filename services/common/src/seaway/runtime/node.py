@@ -201,7 +201,6 @@ class MemberDriver:
             self.member.stamps = self.stamps
         self.member.deliver = self._deliver
         self.member.on_restart = lambda _before, now: self._restarts.append(now)
-        self.member.on_ready = self.step
 
     # -- from the bus's threads, or the loop --------------------------------------------------
 
@@ -268,6 +267,9 @@ class MemberDriver:
         for spec in self.node.side_inputs:
             self.bus.subscribe(spec, callback=lambda key, msg: self.node.take(key, msg, None))
         ready()
+        # Answers from the bus's thread only from now on: the node is attached (its inputs are
+        # taken from the start, and the loop below answers what came before).
+        self.member.on_ready = self.step
         self.member.join()
         version = 0
         try:
@@ -318,14 +320,14 @@ class LiveDriver:
 def run_node(ctx: Any, node: Node, period_s: float, stamps: StampGate | None = None) -> None:
     """Run ``node`` in the mode of ``ctx``'s run (a ``ServiceContext``): a lockstep member, or on
     the wall clock every ``period_s`` [s]; its requests served in both. Returns when ``ctx.stop``
-    is set, after the node's ``finish``."""
+    is set, after the node's ``finish``. The node is attached before its requests are served (a
+    handler may ask the driver for the time)."""
+    driver = (MemberDriver(ctx.bus, node, stamps) if ctx.run.lockstep
+              else LiveDriver(ctx, node, period_s))
+    node.attach(driver)
     for spec, handler in node.requests().items():
         ctx.bus.queryable(spec, handler)
-    if ctx.run.lockstep:
-        member = MemberDriver(ctx.bus, node, stamps)
-        node.attach(member)
-        member.run(ctx.stop, ctx.ready)
+    if isinstance(driver, MemberDriver):
+        driver.run(ctx.stop, ctx.ready)
     else:
-        live = LiveDriver(ctx, node, period_s)
-        node.attach(live)
-        live.run()
+        driver.run()
