@@ -32,7 +32,7 @@ def test_boat_install_has_the_onboard_services_and_nothing_else(tmp_path) -> Non
     out = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stderr[-2000:]
     py = venv / "bin" / "python"
-    for present in ("seaway.contract.messages", "seaway.runtime.run", "seaway_controller.service",
+    for present in ("seaway.contract.messages", "seaway.runtime.run", "seaway_controller.main",
                     "seaway_estimator.main", "seaway_vehicle_io.main", "seaway_recorder.main"):
         r = subprocess.run([str(py), "-c", f"import {present}"], capture_output=True, text=True)
         assert r.returncode == 0, f"{present}: {r.stderr[-500:]}"

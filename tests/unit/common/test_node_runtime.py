@@ -67,6 +67,7 @@ def stack() -> tuple[Estimating, MemberDriver, Member, Member]:
     node = Estimating()
     driver = MemberDriver(hub.bus(V), node)
     node.attach(driver)
+    driver.answer_on_arrival()  # what ``run`` does once the node is ready
     sim = Member(hub.bus(V), "sim", watched=(), subscribe=False)
     listener = Member(hub.bus(V), "controller", watched={keys.NAV_STATE.suffix},
                       inputs={keys.NAV_STATE.suffix}, hears=("sim", "estimator"))
@@ -166,7 +167,7 @@ def test_a_paced_node_ticks_when_it_asks_and_finishes_at_the_stop() -> None:
 
 def test_period_done_of_a_node_lists_what_it_published() -> None:
     """The bundle's answer names the node's messages (what a recorder and the clock rely on)."""
-    node, _driver, sim, listener = stack()
+    _node, _driver, sim, listener = stack()
     sim.answer(Period(0, 0), P, [(keys.GNSS, fix(0))])
     ans = listener.ledger.answer("estimator")
     assert isinstance(ans, PeriodDone) and ans.service == "estimator" and ans.period_ns == P

@@ -9,7 +9,7 @@ import pytest
 from seaway.contract.messages import MissionRequest
 from seaway.runtime import atomic
 from seaway_controller import checkpoint
-from seaway_controller.service import resume
+from seaway_controller.checkpointing import resume
 
 from tests.unit.controller.test_core import ScriptedSolver, make_core, mission, state
 
@@ -115,9 +115,10 @@ def test_real_time_never_waits_for_the_checkpoints_disk(tmp_path: Path, monkeypa
 
     from seaway.runtime.clock import WallClock
     from seaway.runtime.memory_bus import MemoryHub
+    from seaway.runtime.node import LiveDriver
     from seaway.runtime.run import RunDescription
     from seaway.runtime.service import ServiceContext
-    from seaway_controller.service import ControllerService
+    from seaway_controller.node import ControllerNode
 
     from tests.unit.controller.test_core import DT_NS
 
@@ -137,20 +138,21 @@ def test_real_time_never_waits_for_the_checkpoints_disk(tmp_path: Path, monkeypa
     ctx = ServiceContext(name="controller", vessel="vessel1", bus=hub.bus("vessel1"), clock=WallClock(),
                          stop=threading.Event(), run=RunDescription(run_id="unit", vessel="vessel1"))
     path = tmp_path / "controller-state.json"
-    svc = ControllerService(ctx, make_core(ScriptedSolver()), lockstep=False, state_file=path)
-    assert svc._serve("mission/set", svc.core.handle_mission, mission()).accepted  # saves (forced)
+    node = ControllerNode(make_core(ScriptedSolver()), state_file=path)
+    node.attach(LiveDriver(ctx, node, DT_NS / 1e9))  # the runtime's wall-clock driver
+    assert node._serve("mission/set", node.core.handle_mission, mission()).accepted  # saves (forced)
     t0 = ctx.clock.now_ns()
     for k in range(1, 4):  # each step would save too, a second apart on the service's clock
         monkeypatch.setattr(ctx.clock, "now_ns", lambda k=k: t0 + k * 1_000_000_000)
-        svc.step(k * DT_NS, state(k, x=2.0 + k))
+        node.step(k * DT_NS, state(k, x=2.0 + k))
     assert not gate.is_set() and not path.exists()  # all answered while the disk held the first write
     assert writing.wait(10)  # (the writer's thread may start late on a busy machine)
     assert all(name == "checkpoint" for name, _ in writers)
     gate.set()
-    svc.close()
+    node.checkpoints.close()
     saved = checkpoint.load(path)
     assert saved is not None and saved.state == "active"
-    assert saved.energy_used_j == pytest.approx(svc.core.progress()[3], rel=1e-12)  # the last step's
+    assert saved.energy_used_j == pytest.approx(node.core.progress()[3], rel=1e-12)  # the last step's
     assert all(durable for _, durable in writers) and len(synced) == len(writers)
     ctx.bus.close()
 
@@ -166,7 +168,6 @@ def test_a_return_home_decided_before_a_restart_goes_on_as_a_return_home(tmp_pat
     from seaway.runtime.memory_bus import MemoryHub
     from seaway.runtime.run import RunDescription
     from seaway.runtime.service import ServiceContext
-    from seaway_controller.service import ControllerService
 
     from tests.unit.controller.test_core import DT_NS
 
@@ -176,7 +177,7 @@ def test_a_return_home_decided_before_a_restart_goes_on_as_a_return_home(tmp_pat
                          run=RunDescription(run_id="unit", vessel="vessel1", clock="lockstep"))
     path = tmp_path / "controller-state.json"
     core = make_core(ScriptedSolver())
-    svc = ControllerService(ctx, core, lockstep=True, state_file=path)
+    svc = lockstep_node(ctx, core, path)
     assert core.handle_mission(0, mission()).accepted
     core.on_battery(BatteryState.make(stamp_ns=0, source="sim", remaining_j=1.0, reserve_j=0.5))
     for k in range(3):
@@ -199,6 +200,17 @@ def test_a_return_home_decided_before_a_restart_goes_on_as_a_return_home(tmp_pat
     assert last is not None and last.returning and last.decision == "return"
 
 
+def lockstep_node(ctx, core, path: Path):
+    """A controller node with the checkpoint ``path``, attached to the runtime's lockstep driver on
+    ``ctx``'s bus (not run: its clock stays before the first period)."""
+    from seaway.runtime.node import MemberDriver
+    from seaway_controller.node import ControllerNode
+
+    node = ControllerNode(core, state_file=path)
+    node.attach(MemberDriver(ctx.bus, node))
+    return node
+
+
 def _service_with_checkpoint(tmp_path: Path, core):
     import threading
 
@@ -206,13 +218,12 @@ def _service_with_checkpoint(tmp_path: Path, core):
     from seaway.runtime.memory_bus import MemoryHub
     from seaway.runtime.run import RunDescription
     from seaway.runtime.service import ServiceContext
-    from seaway_controller.service import ControllerService
 
     hub = MemoryHub()
     ctx = ServiceContext(name="controller", vessel="vessel1", bus=hub.bus("vessel1"),
                          clock=WallClock(), stop=threading.Event(),
                          run=RunDescription(run_id="unit", vessel="vessel1", clock="lockstep"))
-    return ControllerService(ctx, core, lockstep=True, state_file=tmp_path / "cp.json"), ctx
+    return lockstep_node(ctx, core, tmp_path / "cp.json"), ctx
 
 
 @pytest.mark.parametrize("at_rest", ["complete", "paused"])

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 from seaway.contract.messages import StateEstimate
 from seaway_controller import checkpoint
-from seaway_controller.service import resume
+from seaway_controller.checkpointing import resume
 
 from tests.unit.controller.test_core import CapturingSolver, make_core, mission
 

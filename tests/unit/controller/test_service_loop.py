@@ -1,4 +1,4 @@
-"""The controller's real lockstep loop (``ControllerService.run_lockstep``) on the in-memory bus.
+"""The controller's node (``ControllerNode``) run by the runtime's drivers on the in-memory bus.
 
 No network and no hand-written fake: the sim, the estimator, the operator and the observers are
 other buses on the same ``MemoryHub``, as they would be other processes on Zenoh, and they speak the
@@ -27,20 +27,37 @@ from seaway.contract.messages import (
 )
 from seaway.runtime.bus import TypedSubscriber
 from seaway.runtime.clock import WallClock
-from seaway.runtime.lockstep import Member, Period
+from seaway.runtime.lockstep import Member
 from seaway.runtime.memory_bus import MemoryBus, MemoryHub
+from seaway.runtime.node import LiveDriver, Period, run_node
 from seaway.runtime.ratelog import RateLimitedLog
 from seaway.runtime.run import RunDescription
 from seaway.runtime.service import ServiceContext
 from seaway_controller import checkpoint
 from seaway_controller import keeper as keeper_module
-from seaway_controller import service as service_module
-from seaway_controller.service import ControllerService, warn_slow_step
+from seaway_controller import realtime as realtime_module
+from seaway_controller.node import ControllerNode
+from seaway_controller.realtime import warn_slow_step
 
 from tests.conftest import wait_for
 from tests.unit.controller.test_core import DT_NS, ScriptedSolver, make_core, mission, state
 
 VESSEL = "vessel1"
+LOGGER = "seaway_controller"  # the node's modules log under it
+
+
+def live_context(hub: MemoryHub, bus: MemoryBus | None = None) -> ServiceContext:
+    """A real-time controller's context on ``hub`` (its own bus unless ``bus``)."""
+    return ServiceContext(name="controller", vessel=VESSEL, bus=bus or hub.bus(VESSEL),
+                          clock=WallClock(), stop=threading.Event(),
+                          run=RunDescription(run_id="unit", vessel=VESSEL))
+
+
+def live_driver(ctx: ServiceContext, node: ControllerNode, period_s: float) -> LiveDriver:
+    """The runtime's wall-clock driver, attached to ``node`` (``run`` on a thread runs it)."""
+    driver = LiveDriver(ctx, node, period_s)
+    node.attach(driver)
+    return driver
 
 
 class Running(NamedTuple):
@@ -50,16 +67,17 @@ class Running(NamedTuple):
 
 @contextlib.contextmanager
 def running_controller(state_file: Path | None = None) -> Iterator[Running]:
-    """A controller running its lockstep loop on a thread, as its process would."""
+    """A lockstep controller run by the runtime (``run_node``) on a thread, as its process would."""
     hub = MemoryHub()
     bus = hub.bus(VESSEL)
     stop = threading.Event()
     ctx = ServiceContext(name="controller", vessel=VESSEL, bus=bus, clock=WallClock(), stop=stop,
                          run=RunDescription(run_id="unit", vessel=VESSEL, clock="lockstep"))
-    svc = ControllerService(ctx, make_core(ScriptedSolver()), lockstep=True, state_file=state_file)
-    ctx.ready()
-    loop = threading.Thread(target=svc.run_lockstep, name="controller-loop", daemon=True)
+    node = ControllerNode(make_core(ScriptedSolver()), state_file=state_file)
+    loop = threading.Thread(target=run_node, args=(ctx, node, DT_NS / 1e9),
+                            name="controller-loop", daemon=True)
     loop.start()
+    wait_for(lambda: ctx.is_ready, 5, what="the controller to be ready")
     try:
         yield Running(hub, bus)
     finally:
@@ -218,16 +236,16 @@ def test_a_real_time_controller_stopping_in_order_commands_zero_thrust_last() ->
     thrust (source 'stop'), so the thrusters stop at once and the watchdog's trip is the expected
     end of a run (vehicle_io: after a zero command it is INFO)."""
     hub = MemoryHub()
-    stop = threading.Event()
-    ctx = ServiceContext(name="controller", vessel=VESSEL, bus=hub.bus(VESSEL), clock=WallClock(),
-                         stop=stop, run=RunDescription(run_id="unit", vessel=VESSEL))
-    svc = ControllerService(ctx, make_core(ScriptedSolver()), lockstep=False)
+    ctx = live_context(hub)
+    stop = ctx.stop
+    node = ControllerNode(make_core(ScriptedSolver()), max_state_age_s=0.5)
+    driver = live_driver(ctx, node, 1 / 50.0)
     observer = hub.bus(VESSEL)
     thrust: TypedSubscriber = observer.subscribe(keys.THRUST, mode="fifo")
     estimator = hub.bus(VESSEL)
     nav = estimator.publisher(keys.NAV_STATE)
-    assert svc._serve("mission/set", svc.core.handle_mission, mission()).accepted
-    loop = threading.Thread(target=svc.run_rate, args=(50.0, 0.5), daemon=True)
+    assert node._serve("mission/set", node.core.handle_mission, mission()).accepted
+    loop = threading.Thread(target=driver.run, daemon=True)
     loop.start()
     seen = []
 
@@ -298,12 +316,21 @@ def test_a_report_that_comes_as_the_real_time_service_subscribes_is_taken() -> N
     bus's thread (and was lost). Every input is taken from the moment it is subscribed."""
     hub = MemoryHub()
     bus = _PromptBus(VESSEL, hub)
-    ctx = ServiceContext(name="controller", vessel=VESSEL, bus=bus, clock=WallClock(),
-                         stop=threading.Event(), run=RunDescription(run_id="unit", vessel=VESSEL))
-    svc = ControllerService(ctx, make_core(ScriptedSolver()), lockstep=False)
-    assert svc.core.battery.report is not None and svc.core.battery.report.remaining_j == 5_000.0
-    assert svc.core.vehicle is not None
-    bus.close()
+    ctx = live_context(hub, bus)
+    node = ControllerNode(make_core(ScriptedSolver()))
+    driver = live_driver(ctx, node, 0.02)
+    loop = threading.Thread(target=driver.run, daemon=True)
+    loop.start()
+    try:
+        wait_for(lambda: ctx.is_ready, 5, what="the controller to be ready")  # all subscribed
+        report = node.core.battery.report
+        assert report is not None and report.remaining_j == 5_000.0
+        assert node.core.vehicle is not None
+    finally:
+        ctx.stop.set()
+        loop.join(5)
+        bus.close()
+    assert not loop.is_alive()
 
 
 class SlowSolver(ScriptedSolver):
@@ -323,16 +350,16 @@ def test_a_real_time_step_longer_than_the_period_names_itself_in_the_log(caplog)
     ``thrust_stale`` and nothing in the controller's log said why): a step that takes longer
     than the control period is logged as a WARNING with how long it took."""
     hub = MemoryHub()
-    stop = threading.Event()
-    ctx = ServiceContext(name="controller", vessel=VESSEL, bus=hub.bus(VESSEL), clock=WallClock(),
-                         stop=stop, run=RunDescription(run_id="unit", vessel=VESSEL))
+    ctx = live_context(hub)
+    stop = ctx.stop
     period_s = 0.02
-    svc = ControllerService(ctx, make_core(SlowSolver(sleep_s=5 * period_s)), lockstep=False)
+    node = ControllerNode(make_core(SlowSolver(sleep_s=5 * period_s)), max_state_age_s=5.0)
+    driver = live_driver(ctx, node, period_s)
     estimator = hub.bus(VESSEL)
     nav = estimator.publisher(keys.NAV_STATE)
-    assert svc._serve("mission/set", svc.core.handle_mission, mission()).accepted
-    loop = threading.Thread(target=svc.run_rate, args=(1.0 / period_s, 5.0), daemon=True)
-    caplog.set_level("WARNING", logger="seaway_controller.service")
+    assert node._serve("mission/set", node.core.handle_mission, mission()).accepted
+    loop = threading.Thread(target=driver.run, daemon=True)
+    caplog.set_level("WARNING", logger=LOGGER)
 
     def slow_step_logged() -> bool:
         nav.put(state(0).model_copy(update={"stamp_ns": ctx.clock.now_ns()}))
@@ -353,8 +380,8 @@ def test_a_real_time_step_longer_than_the_period_names_itself_in_the_log(caplog)
 
 
 def test_a_step_within_the_period_is_not_logged(caplog) -> None:
-    caplog.set_level("WARNING", logger="seaway_controller.service")
-    ratelog = RateLimitedLog(logging.getLogger("seaway_controller.service"))
+    caplog.set_level("WARNING", logger=LOGGER)
+    ratelog = RateLimitedLog(logging.getLogger(LOGGER))
     assert not warn_slow_step(ratelog, 0.05, 0.1)
     assert warn_slow_step(ratelog, 0.15, 0.1)
     assert len(caplog.records) == 1
@@ -377,18 +404,18 @@ def test_a_real_time_step_stuck_for_long_is_logged_with_where_it_is_while_stuck(
     """A controller silent on ctrl/thrust for seconds is restarted by the launcher's liveness, and
     its log said nothing of why (issue #56 item 2). While a step is stuck, the log now says so with
     the loop thread's stack (here: inside the solver), before the step returns."""
-    monkeypatch.setattr(service_module, "STEP_STALL_S", 0.2)
+    monkeypatch.setattr(realtime_module, "STEP_STALL_S", 0.2)
     hub = MemoryHub()
-    stop = threading.Event()
-    ctx = ServiceContext(name="controller", vessel=VESSEL, bus=hub.bus(VESSEL), clock=WallClock(),
-                         stop=stop, run=RunDescription(run_id="unit", vessel=VESSEL))
+    ctx = live_context(hub)
+    stop = ctx.stop
     solver = StuckSolver()
-    svc = ControllerService(ctx, make_core(solver), lockstep=False)
+    node = ControllerNode(make_core(solver), max_state_age_s=5.0)
+    driver = live_driver(ctx, node, 1 / 50.0)
     estimator = hub.bus(VESSEL)
     nav = estimator.publisher(keys.NAV_STATE)
-    assert svc._serve("mission/set", svc.core.handle_mission, mission()).accepted
-    loop = threading.Thread(target=svc.run_rate, args=(50.0, 5.0), daemon=True)
-    caplog.set_level("WARNING", logger="seaway_controller.service")
+    assert node._serve("mission/set", node.core.handle_mission, mission()).accepted
+    loop = threading.Thread(target=driver.run, daemon=True)
+    caplog.set_level("WARNING", logger=LOGGER)
 
     def stuck_logged() -> bool:
         nav.put(state(0).model_copy(update={"stamp_ns": ctx.clock.now_ns()}))
@@ -414,21 +441,21 @@ def test_a_real_time_step_stuck_for_long_is_logged_with_where_it_is_while_stuck(
 
 
 @contextlib.contextmanager
-def stuck_real_time_controller(period_s: float) -> Iterator[tuple[ControllerService, StuckSolver,
+def stuck_real_time_controller(period_s: float) -> Iterator[tuple[ControllerNode, StuckSolver,
                                                                    TypedSubscriber, Any]]:
     """A real-time controller flying a mission whose first solve blocks until released; yields
-    (service, solver, a subscriber to ctrl/thrust, a function that publishes a fresh state)."""
+    (node, solver, a subscriber to ctrl/thrust, a function that publishes a fresh state)."""
     hub = MemoryHub()
-    stop = threading.Event()
-    ctx = ServiceContext(name="controller", vessel=VESSEL, bus=hub.bus(VESSEL), clock=WallClock(),
-                         stop=stop, run=RunDescription(run_id="unit", vessel=VESSEL))
+    ctx = live_context(hub)
+    stop = ctx.stop
     solver = StuckSolver()
-    svc = ControllerService(ctx, make_core(solver), lockstep=False)
+    node = ControllerNode(make_core(solver), max_state_age_s=5.0)
+    driver = live_driver(ctx, node, period_s)
     observer, estimator = hub.bus(VESSEL), hub.bus(VESSEL)
     thrust: TypedSubscriber = observer.subscribe(keys.THRUST, mode="fifo")
     nav = estimator.publisher(keys.NAV_STATE)
-    assert svc._serve("mission/set", svc.core.handle_mission, mission()).accepted
-    loop = threading.Thread(target=svc.run_rate, args=(1.0 / period_s, 5.0), daemon=True)
+    assert node._serve("mission/set", node.core.handle_mission, mission()).accepted
+    loop = threading.Thread(target=driver.run, daemon=True)
 
     def fresh_state() -> None:
         nav.put(state(0).model_copy(update={"stamp_ns": ctx.clock.now_ns()}))
@@ -436,7 +463,7 @@ def stuck_real_time_controller(period_s: float) -> Iterator[tuple[ControllerServ
     try:
         fresh_state()
         loop.start()
-        yield svc, solver, thrust, fresh_state
+        yield node, solver, thrust, fresh_state
     finally:
         solver.release.set()
         stop.set()
@@ -453,8 +480,8 @@ def test_a_real_time_step_that_overruns_still_commands_the_thrusters_once_a_peri
     keeper now sends the fallback chain's line-of-sight guidance on the active leg, from the newest
     state, once a period; the step's own command follows when it ends, and none of the keeper's
     after it."""
-    caplog.set_level("WARNING", logger="seaway_controller.service")
-    with stuck_real_time_controller(period_s=0.02) as (_svc, solver, thrust, fresh_state):
+    caplog.set_level("WARNING", logger=LOGGER)
+    with stuck_real_time_controller(period_s=0.02) as (_node, solver, thrust, fresh_state):
         seen: list = []
 
         def kept() -> bool:
@@ -488,8 +515,8 @@ def test_a_real_time_step_that_hangs_gets_zero_thrust_then_silence(caplog, monke
     ``ctrl/thrust``) restarts the process rather than line-of-sight guidance flying on a leg the
     stuck core no longer switches."""
     monkeypatch.setattr(keeper_module, "KEEP_MAX_S", 0.3)
-    caplog.set_level("WARNING", logger="seaway_controller.service")
-    with stuck_real_time_controller(period_s=0.02) as (svc, solver, thrust, fresh_state):
+    caplog.set_level("WARNING", logger=LOGGER)
+    with stuck_real_time_controller(period_s=0.02) as (node, solver, thrust, fresh_state):
         seen: list = []
 
         def stopped() -> bool:
@@ -501,12 +528,12 @@ def test_a_real_time_step_that_hangs_gets_zero_thrust_then_silence(caplog, monke
         stop = next(c for c in seen if c.source == keeper_module.SOURCE_STOP)
         assert (stop.thrust_port_n, stop.thrust_starboard_n) == (0.0, 0.0)
         assert seen[-1] is stop and any(c.source == keeper_module.SOURCE_LOS for c in seen)
-        assert svc.keeper is not None
-        sent = svc.keeper.sent
+        assert node.live is not None
+        sent = node.live.keeper.sent
         for _ in range(20):  # still stuck: nothing more, whatever comes in
             fresh_state()
             time.sleep(0.01)
         assert not solver.release.is_set()
-        assert thrust.drain() == [] and svc.keeper.sent == sent
+        assert thrust.drain() == [] and node.live.keeper.sent == sent
         assert any(r.levelname == "ERROR" and "stopped commanding in its place" in r.getMessage()
                    for r in caplog.records)

@@ -19,14 +19,14 @@ import numpy as np
 import pytest
 from seaway.contract import keys
 from seaway.runtime.clock import WallClock
-from seaway.runtime.lockstep import Period
 from seaway.runtime.memory_bus import MemoryHub
+from seaway.runtime.node import Period, run_node
 from seaway.runtime.run import RunDescription
 from seaway.runtime.service import ServiceContext
 from seaway.vessel.model import load_vessel
 from seaway_controller.core import ControllerConfig, ControllerCore
+from seaway_controller.node import ControllerNode
 from seaway_controller.ocp import Ocp, OcpSpec
-from seaway_controller.service import ControllerService
 from seaway_controller.solvers import (
     SQP_OPTIONS,
     CompileInterruptedError,
@@ -188,10 +188,10 @@ def lockstep_controller(build: GatedBuild):
     builds = SolverBuilds(build, stopping=stop)
     core = ControllerCore(VP, ControllerConfig(solve_budget_s=None),
                           solver_factory=lambda ocp: StagedSolver(ocp, builds, wait=True))
-    svc = ControllerService(ctx, core, lockstep=True, builds=builds)
-    ctx.ready()
-    loop = threading.Thread(target=svc.run_lockstep, daemon=True)
+    node = ControllerNode(core, builds=builds)
+    loop = threading.Thread(target=run_node, args=(ctx, node, 0.1), daemon=True)
     loop.start()
+    wait_for(lambda: ctx.is_ready, 5, what="the controller to be ready")
     return hub, stop, loop
 
 
@@ -265,12 +265,12 @@ def test_real_time_starts_a_mission_once_its_cached_solver_is_loaded() -> None:
     core = ControllerCore(VP, ControllerConfig(solve_budget_s=None),
                           solver_factory=lambda ocp: StagedSolver(ocp, builds,
                                                                   reference=GatedReference()))
-    svc = ControllerService(ctx, core, lockstep=False, builds=builds)
+    node = ControllerNode(core, builds=builds, max_state_age_s=0.5)
     observer = hub.bus(VESSEL)
     thrust = observer.subscribe(keys.THRUST, mode="fifo")
     solves = observer.subscribe(keys.SOLVE, mode="fifo")
     nav = hub.bus(VESSEL).publisher(keys.NAV_STATE)
-    loop = threading.Thread(target=svc.run_rate, args=(50.0, 0.5), daemon=True)
+    loop = threading.Thread(target=run_node, args=(ctx, node, 1 / 50.0), daemon=True)
     feeder_stop = threading.Event()
 
     def feed() -> None:  # fresh states, as the estimator publishes them
@@ -284,6 +284,7 @@ def test_real_time_starts_a_mission_once_its_cached_solver_is_loaded() -> None:
         operator.request(keys.MISSION_SET, mission(), timeout_s=10.0)), daemon=True)
     try:
         loop.start()
+        wait_for(lambda: ctx.is_ready, 5, what="the controller to be ready")  # requests served
         feeder.start()
         asking.start()
         wait_for(lambda: build.asked, 5, what="the mission's solver to be asked for")

@@ -212,7 +212,6 @@ class MemberDriver:
             self.member.stamps = self.stamps
         self.member.deliver = self._deliver
         self.member.on_restart = lambda _before, now: self._restarts.append(now)
-        self.member.on_ready = self.step
 
     # -- from the bus's threads, or the loop --------------------------------------------------
 
@@ -274,11 +273,18 @@ class MemberDriver:
             self._answered = member.answer(period, period_ns, result.messages, hold=result.hold)
             self.node.answered()
 
+    def answer_on_arrival(self) -> None:
+        """From now on, answer on the bus's thread as the bundle that completes a period is taken
+        (``Member.on_ready``): once the node is attached (its inputs are taken from the start, and
+        the loop answers what came before)."""
+        self.member.on_ready = self.step
+
     def run(self, stop: threading.Event, ready: Callable[[], None]) -> None:
         """Join once ``ready`` declared the node's health, then answer until ``stop``."""
         for spec in self.node.side_inputs:
             self.bus.subscribe(spec, callback=lambda key, msg: self.node.take(key, msg, None))
         ready()
+        self.answer_on_arrival()
         self.member.join()
         version = 0
         try:
@@ -343,23 +349,28 @@ def _clock_node() -> type:
 def run_node(ctx: Any, node: Node, period_s: float, stamps: StampGate | None = None) -> None:
     """Run ``node`` in the mode of ``ctx``'s run (a ``ServiceContext``): in lockstep the clock (a
     ``ClockNode``: periods of ``period_s``) or a member, else on the wall clock every ``period_s``
-    [s]; its requests served in each. Returns when ``ctx.stop``
-    is set, after the node's ``finish``."""
-    for spec, handler in node.requests().items():
-        ctx.bus.queryable(spec, handler)
+    [s]; its requests served in each. Returns when ``ctx.stop`` is set, after the node's
+    ``finish``. The node is attached before its requests are served (a handler may ask the driver
+    for the time)."""
+    driver: Any
     if ctx.run.lockstep and isinstance(node, _clock_node()):
         from seaway.runtime.lockstep_clock import LockstepClock
 
-        clock = LockstepClock(ctx.bus, node, period_s, ctx.stop, node.stall_s)
-        node.attach(clock)
-        ctx.ready()
-        clock.run()
-        node.finish()
+        driver = LockstepClock(ctx.bus, node, period_s, ctx.stop, node.stall_s)
     elif ctx.run.lockstep:
-        member = MemberDriver(ctx.bus, node, stamps)
-        node.attach(member)
-        member.run(ctx.stop, ctx.ready)
+        driver = MemberDriver(ctx.bus, node, stamps)
     else:
-        live = LiveDriver(ctx, node, period_s)
-        node.attach(live)
-        live.run()
+        driver = LiveDriver(ctx, node, period_s)
+    node.attach(driver)
+    for spec, handler in node.requests().items():
+        ctx.bus.queryable(spec, handler)
+    if isinstance(driver, MemberDriver):
+        driver.run(ctx.stop, ctx.ready)
+    elif isinstance(driver, LiveDriver):
+        driver.run()
+    else:
+        ctx.ready()
+        try:
+            driver.run()
+        finally:
+            node.finish()
