@@ -18,16 +18,17 @@ to its last answer (its ``sent`` mark for the last), read from the members' time
 the stop and the recorder's close are outside it; the simulated time is the stamps' span between
 the same two marks. A period is the sim's answer to its next; its median and p99 are over the
 periods of the mission.
-Targets (issue 58): composed at least 200x real time and at most 2x the sum of its solve times;
-through the processes at least 60x real time.
+Targets (issue 58): composed at least 200x real time and at most 2x the MPC solves alone; through
+the processes at least 60x real time.
 
 ``--repeat N`` flies the mission composed, then through the processes with authentication on (the
 launcher's per-run credentials: mutual TLS and access control), then with it off
 (``SEAWAY_CREDENTIALS=none``), N times over, so drift in the machine's speed hits every setting. A
-ratio is the median over the repeats of each one's ratio of neighbours (the processes with
-authentication on over the composed run just before; on over the off run just after: target within
-10 %, issue 15); the wall times and the periods are the medians over the runs of a setting. A
-composed run has no network, so nothing to authenticate.
+ratio is the median over the repeats of each one's ratio of neighbours (the composed run over the
+solves of the runs through the processes after it; the processes with authentication on over the
+composed run just before; on over the off run just after: target within 10 %, issue 15); the wall
+times and the periods are the medians over the runs of a setting. A composed run has no network, so
+nothing to authenticate.
 
 Where a period's time goes comes from the members' own marks, composed and through the processes
 (authentication on): for each period, each hand-over (transport: the put, the bus, the hand to
