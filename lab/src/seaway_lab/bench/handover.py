@@ -19,7 +19,7 @@ messages, divided by their number. Cases, each on processes started for it:
 
 The hand-over at the least is a relay's put plus a callback's receive; three of them are the
 least the transport adds to a lockstep period before any service does anything (compare
-``seaway bench lockstep``'s period and the in-process loop's). With authentication on (the stack's
+``seaway bench lockstep``'s periods through the processes and composed). With authentication on (the stack's
 mutual TLS, a fresh authority) and off, alternating; medians over ``--repeat`` rounds each.
 """
 

@@ -1,9 +1,10 @@
 """``seaway bench hotpath``: where a period of the in-process closed loop goes, part by part.
 
-The mission is the one ``seaway bench lockstep`` flies in process: paper condition #1 by CC-EMPC
-(``seaway_lab.closed_loop.run_closed_loop``), the estimator alongside on the sim's sensors and the
-controller hearing the sim's battery once a second, so that its energy budget prices the point of
-no return as in a stack. Each period is split into
+The mission is paper condition #1 by CC-EMPC in the in-process loop
+(``seaway_lab.closed_loop.run_closed_loop``; ``seaway bench lockstep`` flies it composed and through
+the processes), the estimator alongside on the sim's sensors and the controller hearing the sim's
+battery once a second, so that its energy budget prices the point of no return as in a stack.
+Each period is split into
 
 * **energy budget**: ``ControllerCore`` taking the battery's report and pricing its budget
   (``seaway_controller.energy``, when due, and the due check when not);
@@ -112,7 +113,7 @@ def metered() -> Iterator[Meter]:
 
 
 def fly(sc: Scenario) -> ClosedLoopResult:
-    """The mission, as ``seaway bench lockstep`` flies it in process."""
+    """The mission in process: the estimator alongside, the controller hearing the battery."""
     cfg = EstimatorConfig().model_copy(update={"vessel": sc.vessel, "apply_dead_zone": sc.dead_zone})
     return run_closed_loop(sc, CONTROLLER, estimator=EstimatorCore(cfg), battery=True)
 
