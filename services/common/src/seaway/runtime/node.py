@@ -342,8 +342,9 @@ def _clock_node() -> type:
 
 def run_node(ctx: Any, node: Node, period_s: float, stamps: StampGate | None = None) -> None:
     """Run ``node`` in the mode of ``ctx``'s run (a ``ServiceContext``): in lockstep the clock (a
-    ``ClockNode``: periods of ``period_s``) or a member, else on the wall clock every ``period_s``
-    [s]; its requests served in each. Returns when ``ctx.stop``
+    ``ClockNode``: periods of ``period_s``) or a member, else (or a node with no ``member``: of
+    the wall clock only, as vehicle_io) on the wall clock every ``period_s`` [s]; its requests
+    served in each. Returns when ``ctx.stop``
     is set, after the node's ``finish``."""
     for spec, handler in node.requests().items():
         ctx.bus.queryable(spec, handler)
@@ -355,7 +356,7 @@ def run_node(ctx: Any, node: Node, period_s: float, stamps: StampGate | None = N
         ctx.ready()
         clock.run()
         node.finish()
-    elif ctx.run.lockstep:
+    elif ctx.run.lockstep and node.member is not None:
         member = MemberDriver(ctx.bus, node, stamps)
         node.attach(member)
         member.run(ctx.stop, ctx.ready)
