@@ -1,6 +1,6 @@
 """vehicle_io's pure core: MAVLink messages, thrust commands and time in; messages to send out.
 
-Nothing here opens a socket, reads a clock or touches the bus. The service loop (``service.py``)
+Nothing here opens a socket, reads a clock or touches the bus. The node (``node.py``)
 feeds it:
 
 * ``on_mavlink(msg, now, address)`` for every decoded MAVLink message (the one receive loop), with

@@ -1,7 +1,7 @@
 """What vehicle_io's core hears the time as and says back: ``Now`` and the outputs the loop performs.
 
 ``Now`` carries both clocks [ns]: ``wall_ns`` (Unix epoch) stamps messages, ``mono_ns``
-(monotonic) measures every timeout. The outputs are performed in order by the service loop:
+(monotonic) measures every timeout. The outputs are performed in order by the node (``node.py``):
 ``Send*`` go to the autopilot as MAVLink (ids as MAVLink numbers them, parameters in the command's
 own units), ``Publish`` goes to the bus, ``LockPeer`` tells the link which peer to hear. The
 outputs of the parts the core drives (the fence sync, the events channel, the component metadata

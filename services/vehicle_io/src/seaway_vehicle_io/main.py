@@ -1,4 +1,9 @@
-"""``seaway-vehicle-io``: the command line of the vehicle I/O service."""
+"""``seaway-vehicle-io``: vehicle I/O's configuration, and its node run (``seaway.runtime.node``).
+
+The node (``seaway_vehicle_io.node``) says what vehicle_io hears, answers and publishes; this reads
+the configuration (a TOML or JSON file, ``seaway_vehicle_io.config``, command-line overrides and the
+run's vessel) and hands the node to the runtime, on the wall clock.
+"""
 
 from __future__ import annotations
 
@@ -10,6 +15,7 @@ from collections.abc import Sequence
 from seaway.contract.config import ConfigError, load_config, parse_config
 from seaway.mavlink.signing import KeyFileError
 from seaway.runtime.argtypes import positive_float
+from seaway.runtime.node import run_node
 from seaway.runtime.run import RunDescription
 from seaway.runtime.service import base_parser, parse, resolve_run, run_service
 from seaway.simkit.scenario import load_scenario
@@ -19,7 +25,7 @@ from seaway.vessel.model import load_vessel
 
 from seaway_vehicle_io.config import AUTOPILOT_CHOICES, VehicleIoConfig, config_path
 from seaway_vehicle_io.link import check_url
-from seaway_vehicle_io.service import VehicleIoService
+from seaway_vehicle_io.node import MAX_SLEEP_S, VehicleIoNode
 from seaway_vehicle_io.signing import SigningSetup
 from seaway_vehicle_io.thrust import ThrusterLimits
 
@@ -100,11 +106,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                  f"{battery.reserve_energy_j / 1e3:.1f} kJ, nominal {battery.nominal_voltage_v:g} V",
                  f"on (key file {cfg.signing_key_file})" if signing is not None else "off")
         o = run.origin
-        service = VehicleIoService(cfg, limits, ctx.bus, ctx.stop, signing=signing,
-                                   battery=battery, origin=None if o is None else
-                                   GeoOrigin.from_degrees(o.lat_deg, o.lon_deg, o.alt_m))
-        ctx.ready()
-        service.run()
+        node = VehicleIoNode(cfg, limits, signing=signing, battery=battery, origin=None if o is None
+                             else GeoOrigin.from_degrees(o.lat_deg, o.lon_deg, o.alt_m))
+        run_node(ctx, node, MAX_SLEEP_S)
     return 0
 
 

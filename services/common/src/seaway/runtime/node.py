@@ -348,16 +348,16 @@ def _clock_node() -> type:
 
 def run_node(ctx: Any, node: Node, period_s: float, stamps: StampGate | None = None) -> None:
     """Run ``node`` in the mode of ``ctx``'s run (a ``ServiceContext``): in lockstep the clock (a
-    ``ClockNode``: periods of ``period_s``) or a member, else on the wall clock every ``period_s``
-    [s]; its requests served in each. Returns when ``ctx.stop`` is set, after the node's
-    ``finish``. The node is attached before its requests are served (a handler may ask the driver
-    for the time)."""
+    ``ClockNode``: periods of ``period_s``) or a member, else (or a node with no ``member``: of
+    the wall clock only, as vehicle_io) on the wall clock every ``period_s`` [s]; its requests
+    served in each. Returns when ``ctx.stop`` is set, after the node's ``finish``. The node is
+    attached before its requests are served (a handler may ask the driver for the time)."""
     driver: Any
     if ctx.run.lockstep and isinstance(node, _clock_node()):
         from seaway.runtime.lockstep_clock import LockstepClock
 
         driver = LockstepClock(ctx.bus, node, period_s, ctx.stop, node.stall_s)
-    elif ctx.run.lockstep:
+    elif ctx.run.lockstep and node.member is not None:
         driver = MemberDriver(ctx.bus, node, stamps)
     else:
         driver = LiveDriver(ctx, node, period_s)

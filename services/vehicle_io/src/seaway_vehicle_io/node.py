@@ -1,4 +1,6 @@
-"""vehicle_io's thin loop: owns the bus, the MAVLink link, the threads and the one lock.
+"""vehicle_io as a node of ``seaway.runtime.node``: the MAVLink link, its receive thread, the one
+lock, and what the bus brings and asks for. The runtime (``LiveDriver``, on the wall clock) makes
+the subscriptions and the request handlers, and runs the paced loop.
 
 Threads, and why:
 
@@ -6,14 +8,17 @@ Threads, and why:
   what arrived (a bounded batch per cycle, so a flood cannot keep it from handing heartbeats to
   the core, nor hold the lock for long) and hands each message, with the address it came from, to
   the core. It also reopens a transport that broke (TCP EOF, serial unplugged).
-* **timer** (the main thread, ``_timer_loop``): calls ``core.tick`` when ``core.next_wake_ns``
-  says something is due (MANUAL_CONTROL stream, watchdog deadline, heartbeat, status, retries),
-  sleeping at most one stream period.
-* **bus callbacks**: a ThrustCommand is handled on arrival, on the transport's receive thread
-  (``inline``; MANUAL_CONTROL goes out from the callback itself, which is what keeps bus-to-wire
+* **timer** (the runtime's paced loop, on the main thread): ``tick`` calls ``core.tick``, and the
+  driver sleeps until ``core.next_wake_ns`` says something is due (MANUAL_CONTROL stream, watchdog
+  deadline, heartbeat, status, retries), at most ``MAX_SLEEP_S`` (one stream period).
+* **bus callbacks** (``take``): a ThrustCommand is handled on arrival, on the transport's receive
+  thread (``inline_inputs``; MANUAL_CONTROL goes out from the callback itself, which is what keeps bus-to-wire
   latency in the sub-millisecond range); arm and mode requests block their own callback thread
   while they wait for COMMAND_ACK; ``keys.AREA_ACTIVE`` and ``keys.NAV_ORIGIN`` feed the autopilot's fence
   (``fence_sync.py``) under the lock, and the timer loop drives its upload.
+
+Shutting down (``finish``, once the loop ended): neutral thrust sent, the link closed, the receive
+thread joined.
 
 Every call into the core and every MAVLink send happens under ``self.lock``; the condition on that
 lock wakes request handlers when an ACK has been processed. Bus publications are made after the
@@ -27,7 +32,8 @@ import gc
 import logging
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from typing import Any
 
 from seaway.contract import keys
 from seaway.contract.messages import (
@@ -44,7 +50,8 @@ from seaway.contract.messages import (
     ThrustCommand,
     VehicleStatus,
 )
-from seaway.runtime.bus import Bus, TypedPublisher
+from seaway.runtime.bus import TypedPublisher
+from seaway.runtime.node import LiveDriver, Node, Outputs
 from seaway.runtime.ratelog import RateLimitedLog
 from seaway.vessel.battery import BatteryParams
 from seaway.vessel.frames import GeoOrigin
@@ -70,15 +77,19 @@ def now() -> Now:
     return Now(time.time_ns(), time.monotonic_ns())
 
 
-class VehicleIoService:
-    """vehicle_io running on one bus and one MAVLink URL until ``stop`` is set."""
+class VehicleIoNode(Node):
+    """vehicle_io on one MAVLink URL, a node of the wall clock only (no lockstep part)."""
 
-    def __init__(self, cfg: VehicleIoConfig, limits: ThrusterLimits, bus: Bus,
-                 stop: threading.Event, signing: SigningSetup | None = None,
-                 battery: BatteryParams | None = None, origin: GeoOrigin | None = None) -> None:
+    name = "vehicle_io"
+    inline_inputs = frozenset({keys.THRUST})
+    paced = True
+
+    def __init__(self, cfg: VehicleIoConfig, limits: ThrusterLimits,
+                 signing: SigningSetup | None = None, battery: BatteryParams | None = None,
+                 origin: GeoOrigin | None = None) -> None:
         self.cfg = cfg
-        self.bus = bus
-        self.stop = stop
+        self.stop = threading.Event()
+        """The service's stop (the driver's, from ``attach``)."""
         t = now()
         # One signing clock for every link this process opens: its timestamp never goes back.
         self.signing = None if signing is None else SigningClock(signing, t.wall_ns, t.mono_ns)
@@ -91,46 +102,64 @@ class VehicleIoService:
         self._requests_serial = threading.Lock()  # one COMMAND_LONG in flight at a time
         self._ratelog = RateLimitedLog(log)
         self._open_failures = 0
-        self._publishers: dict[type, TypedPublisher] = {
+        self._publishers: dict[type, TypedPublisher] = {}
+        self._receiver: threading.Thread | None = None
+        self._wake_ns = 0  # monotonic
+        # The autopilot's fence needs the operating area and the NED origin; nothing else does.
+        self.live_inputs = (keys.THRUST,) if self.core.fence is None else (
+            keys.THRUST, keys.AREA_ACTIVE, keys.NAV_ORIGIN)
+
+    # -- the runtime's hooks ---------------------------------------------------------------------
+
+    def requests(self) -> Mapping[keys.KeySpec, Callable[[Any], Reply]]:
+        return {keys.VEHICLE_ARM: self._on_arm, keys.VEHICLE_MODE: self._on_mode}
+
+    def attach(self, driver: Any) -> None:
+        assert isinstance(driver, LiveDriver), "vehicle_io runs on the wall clock only"
+        self.stop = driver.stop
+        bus = driver.out.bus
+        # Typed publishers of its own (not ``out``'s, made on first use): the receive thread, the
+        # request threads and the thrust callback publish too.
+        self._publishers = {
             GnssFix: bus.publisher(keys.GNSS),
             Attitude: bus.publisher(keys.ATTITUDE),
             LocalPosition: bus.publisher(keys.LOCAL_POSITION),
             VehicleStatus: bus.publisher(keys.VEHICLE_STATUS),
             BatteryState: bus.publisher(keys.VEHICLE_BATTERY),
         }
-
-    # -- running ---------------------------------------------------------------------------------
-
-    def run(self) -> None:
         # Everything allocated so far (pymavlink's dialect alone is tens of thousands of objects)
         # lives for the whole run: move it out of the collector's reach, so that a full
         # collection cannot pause a thrust command for milliseconds.
         gc.collect()
         gc.freeze()
         self._open_link()
-        self._subscribe_thrust()
-        if self.core.fence is not None:
-            self._area_sub = self.bus.subscribe(keys.AREA_ACTIVE, callback=self._on_area)
-            self._origin_sub = self.bus.subscribe(keys.NAV_ORIGIN, callback=self._on_origin)
-        self.bus.queryable(keys.VEHICLE_ARM, self._on_arm)
-        self.bus.queryable(keys.VEHICLE_MODE, self._on_mode)
-        receiver = threading.Thread(target=self._receive_loop, name="mavlink-rx", daemon=True)
-        receiver.start()
-        try:
-            self._timer_loop()
-        finally:
-            self.stop.set()
-            self._shutdown()
-            receiver.join(2.0)
+        self._receiver = threading.Thread(target=self._receive_loop, name="mavlink-rx",
+                                          daemon=True)
+        self._receiver.start()
 
-    def _timer_loop(self) -> None:
-        while not self.stop.is_set():
-            with self.lock:
-                publish = self._send(self.core.tick(now()))
-                wake_ns = self.core.next_wake_ns()
-            self._publish(publish)
-            delay = min(max(0.0, (wake_ns - time.monotonic_ns()) / 1e9), MAX_SLEEP_S)
-            self.stop.wait(delay)
+    def take(self, key: str, msg: Any, now_ns: int | None) -> None:
+        if isinstance(msg, ThrustCommand):  # first: the latency path
+            self._on_thrust(msg)
+        elif isinstance(msg, ActiveArea):
+            self._on_area(msg)
+        elif isinstance(msg, NavOrigin):
+            self._on_origin(msg)
+
+    def tick(self, now_ns: int, out: Outputs) -> None:
+        with self.lock:
+            publish = self._send(self.core.tick(now()))
+            self._wake_ns = self.core.next_wake_ns()
+        self._publish(publish)
+
+    def wake_s(self) -> float:
+        """Until the core's next due work [s] (the driver waits at most ``MAX_SLEEP_S``)."""
+        return (self._wake_ns - time.monotonic_ns()) / 1e9
+
+    def finish(self) -> None:
+        self.stop.set()  # the receive thread and any waiting request end with it
+        self._shutdown()
+        if self._receiver is not None:
+            self._receiver.join(2.0)
 
     def _shutdown(self) -> None:
         """Leave the thrusters at neutral rather than at the last command until the autopilot's
@@ -254,8 +283,8 @@ class VehicleIoService:
 
     # -- bus in ------------------------------------------------------------------------------------------
 
-    def _subscribe_thrust(self) -> None:
-        """ThrustCommand handled on the transport's own receive thread (``inline``).
+    def _on_thrust(self, cmd: ThrustCommand) -> None:
+        """ThrustCommand handled on the transport's own receive thread (``inline_inputs``).
 
         A plain callback subscription hands each sample to a Python thread of its own first; that
         extra wake-up is most of the tail latency from bus to wire on a loaded machine. The handler
@@ -263,19 +292,16 @@ class VehicleIoService:
         Latest-only by construction: each command replaces the previous one in the core. Malformed
         payloads are counted in the bus's stats and dropped, as on every typed subscription.
         """
-        self._thrust_sub = self.bus.subscribe(keys.THRUST, callback=self._on_thrust, inline=True)
-
-    def _on_thrust(self, _key: str, cmd: ThrustCommand) -> None:
         with self.lock:
             publish = self._send(self.core.on_thrust(cmd, now()))
         self._publish(publish)
 
-    def _on_area(self, _key: str, area: ActiveArea) -> None:
+    def _on_area(self, area: ActiveArea) -> None:
         with self.lock:
             if self.core.fence is not None:
                 self.core.fence.set_area(area)
 
-    def _on_origin(self, _key: str, origin: NavOrigin) -> None:
+    def _on_origin(self, origin: NavOrigin) -> None:
         with self.lock:
             if self.core.fence is not None:
                 self.core.fence.set_origin(GeoOrigin(origin.lat_rad, origin.lon_rad, origin.alt_m))

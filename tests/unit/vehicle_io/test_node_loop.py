@@ -1,4 +1,5 @@
-"""vehicle_io's real loop (``VehicleIoService.run``) on the in-memory bus, against a scripted autopilot.
+"""vehicle_io's node on the runtime's wall-clock driver (``run_node``) on the in-memory bus, against
+a scripted autopilot.
 
 The bus side needs no network: requests, thrust commands and telemetry go through a ``MemoryHub``.
 The MAVLink side is the real UDP link on loopback to ``seaway_lab.fake_autopilot.FakeAutopilot``.
@@ -17,11 +18,15 @@ from collections.abc import Iterator
 import pytest
 from seaway.contract import keys
 from seaway.contract.messages import ArmRequest, ThrustCommand, VehicleStatus
+from seaway.runtime.clock import WallClock
 from seaway.runtime.memory_bus import MemoryBus, MemoryHub
+from seaway.runtime.node import run_node
+from seaway.runtime.run import RunDescription
+from seaway.runtime.service import ServiceContext
 from seaway.vessel.model import load_vessel
 from seaway_lab.fake_autopilot import FakeAutopilot
 from seaway_vehicle_io.config import SOURCE_SYSTEM, VehicleIoConfig
-from seaway_vehicle_io.service import VehicleIoService
+from seaway_vehicle_io.node import MAX_SLEEP_S, VehicleIoNode
 from seaway_vehicle_io.thrust import ThrusterLimits
 
 from tests.conftest import wait_for
@@ -37,12 +42,15 @@ def udp_port() -> int:
 
 @pytest.fixture
 def vio() -> Iterator[tuple[MemoryHub, MemoryBus, int]]:
-    """vehicle_io's loop on a thread, listening for the autopilot on a free UDP port."""
+    """vehicle_io's node run on a thread, listening for the autopilot on a free UDP port."""
     hub, port, stop = MemoryHub(), udp_port(), threading.Event()
     bus = hub.bus(VESSEL)
     limits = ThrusterLimits.from_vessel(load_vessel("paper-boat"))
-    svc = VehicleIoService(VehicleIoConfig(mavlink=f"udpin:127.0.0.1:{port}"), limits, bus, stop)
-    loop = threading.Thread(target=svc.run, name="vehicle-io", daemon=True)
+    node = VehicleIoNode(VehicleIoConfig(mavlink=f"udpin:127.0.0.1:{port}"), limits)
+    ctx = ServiceContext(name="vehicle_io", vessel=VESSEL, bus=bus, clock=WallClock(), stop=stop,
+                         run=RunDescription(run_id="unit", vessel=VESSEL), agree=False)
+    loop = threading.Thread(target=run_node, args=(ctx, node, MAX_SLEEP_S), name="vehicle-io",
+                            daemon=True)
     loop.start()
     try:
         yield hub, bus, port
@@ -50,7 +58,7 @@ def vio() -> Iterator[tuple[MemoryHub, MemoryBus, int]]:
         stop.set()
         loop.join(5.0)
         bus.close()
-        gc.unfreeze()  # run() froze the collector's view of this (test) process; give it back
+        gc.unfreeze()  # attach() froze the collector's view of this (test) process; give it back
     assert not loop.is_alive()
 
 
