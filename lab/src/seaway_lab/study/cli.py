@@ -68,6 +68,9 @@ def parser() -> argparse.ArgumentParser:
                     help=f"runs at a time on this machine (default {DEFAULT_WORKERS})")
     ap.add_argument("--dask", metavar="ADDRESS", default=None,
                     help="submit the runs to this Dask scheduler (tcp://host:port) instead")
+    ap.add_argument("--processes", action="store_true",
+                    help="run each stack's services as processes on Zenoh (seaway launch without "
+                         "--composed) instead of composed as nodes of one process")
     ap.add_argument("--fresh-stacks", action="store_true",
                     help="start a stack for every run (default: each of the --workers stacks flies "
                          "one run after another)")
@@ -119,10 +122,11 @@ def _progress(total: int, quiet: bool) -> Any:
 
 def run_study(study: defs.Study, out: Path, *, workers: int, dask: str | None, timeout_s: float,
               progress: bool = True, fresh_stacks: bool = False,
-              groups: list[frozenset[int]] | None = None,
+              groups: list[frozenset[int]] | None = None, composed: bool = True,
               ) -> tuple[dict[str, RunOutcome], float, dict[str, Any], str]:
     """Run every run of ``study`` into ``out/runs``; (outcomes by key, wall s, executor, start time).
-    ``groups``: the local stacks' CPU sets (``stack_cpus``), None to leave them to the kernel."""
+    ``groups``: the local stacks' CPU sets (``stack_cpus``), None to leave them to the kernel.
+    ``composed``: each stack's services as nodes of one process, else as processes."""
     jobs = [(spec, out / "runs" / spec.key) for spec in study.runs]
     outcomes: dict[str, RunOutcome] = {}
     counted: set[str] = set()
@@ -152,18 +156,19 @@ def run_study(study: defs.Study, out: Path, *, workers: int, dask: str | None, t
     started = time.strftime("%Y-%m-%dT%H:%M:%S%z")
     t0 = time.monotonic()
     try:
+        services = "composed" if composed else "processes"
         if dask:
-            executor: dict[str, Any] = {"kind": "dask", "address": dask}
-            executor.update(run_dask(dask, jobs, done, timeout_s=timeout_s))
+            executor: dict[str, Any] = {"kind": "dask", "address": dask, "services": services}
+            executor.update(run_dask(dask, jobs, done, timeout_s=timeout_s, composed=composed))
         elif fresh_stacks:
             executor = {"kind": "local", "address": None, "stacks": "one per run",
-                        "cpus": _cpus_text(groups)}
-            run_local(jobs, workers, done, timeout_s=timeout_s, cpus=groups)
+                        "services": services, "cpus": _cpus_text(groups)}
+            run_local(jobs, workers, done, timeout_s=timeout_s, cpus=groups, composed=composed)
         else:
             executor = {"kind": "local", "address": None, "stacks": "shared",
-                        "cpus": _cpus_text(groups)}
+                        "services": services, "cpus": _cpus_text(groups)}
             run_shared(study.runs, out / "runs", workers, done, on_flown=flown, timeout_s=timeout_s,
-                       cpus=groups)
+                       cpus=groups, composed=composed)
     finally:
         bar.close()
     return outcomes, time.monotonic() - t0, executor, started
@@ -244,11 +249,7 @@ def _redraw(args: argparse.Namespace) -> int:
         spec = next((s for s in study.runs if s.key == r["key"]), None)
         if spec is None:  # a run the study no longer defines
             continue
-        outcomes[spec.key] = RunOutcome(spec, r["run_dir"], episode=r.get("episode"), ok=r["ok"],
-                                        error=r["error"], host=r["host"],
-                                        port=r["port"], command=r["command"], returncode=r["returncode"],
-                                        report=r["report"], series=series.get(spec.key), timing=r["timing"],
-                                        cpu_s=r.get("cpu_s", {}))
+        outcomes[spec.key] = RunOutcome.from_json({**r, "series": series.get(spec.key)}, spec)
     new, rows = write_outputs(study, out, outcomes, doc["wall_s"], doc["workers"], doc["executor"],
                               doc["started"], doc["machine"], figures=not args.no_figures)
     print(json.dumps(_printed(new)) if args.json else res.text(new, study, rows), end="" if not args.json
@@ -324,7 +325,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         outcomes, wall_s, executor, started = run_study(study, out, workers=args.workers, dask=args.dask,
                                                         timeout_s=args.timeout_s,
-                                                        fresh_stacks=args.fresh_stacks, groups=groups)
+                                                        fresh_stacks=args.fresh_stacks, groups=groups,
+                                                        composed=not args.processes)
     except KeyboardInterrupt:
         print(f"\nseaway study: interrupted; the runs so far are in {out / 'runs'}", file=sys.stderr)
         return 130
