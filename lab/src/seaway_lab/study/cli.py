@@ -1,30 +1,40 @@
-"""``seaway study NAME``: run a study's runs through the real processes in lockstep, tabulate, draw.
+"""``seaway study NAME``: run a study's runs through the real stack in lockstep, tabulate, draw.
 
     seaway study table1                      # the paper's Table I: 5 conditions x 3 controllers
     seaway study table1 --rows '#1' --json   # one condition, the result as one JSON object
+    seaway study table1 --processes          # the same through the services' own processes
     seaway study tw-sweep --workers 1
     seaway study lake --dask tcp://127.0.0.1:8786
     seaway study lake --controller-module my_controller.py --with-controller mine
     seaway study --list
 
 A run is the mission of scenario S flown by controller C (with its T^w and disturbance prediction)
-through the real processes in lockstep, then the report of its recording. ``--workers N`` runs N
-stacks at once on this machine, each on its own Zenoh rendezvous port, and each stack flies one run
-after another: it is started as ``seaway launch sim-batch --scenario S --no-mission --stay`` on its
-first run's scenario, and each run is a scenario load (a new lockstep episode from t = 0; not for
-the first) and the run's mission, sent as the operator, so that a stack's start-up is paid once, not
-per run (``execute.SharedStack``). ``--fresh-stacks`` starts a stack of its own for every run
-instead (``seaway launch sim-batch --scenario S --controller C [--predict-disturbance]
-[--task-power-w W] --run-dir OUT/runs/KEY``); ``--dask ADDRESS`` submits each run to a Dask
-scheduler (each worker starts the stack of the run it takes). Local stacks run on CPUs of their
-own (``seaway launch --cpus``: on 2 CPUs, one each) when 2 or more run at once and there are CPUs
+through the real stack in lockstep (sim, estimator, controller, recorder), then the report of its
+recording. By default each stack is composed: its launcher and services are nodes of one process
+over the in-memory bus (``seaway launch --composed``: the same service code and recording, no
+network); ``--processes`` runs them as processes on Zenoh instead, each stack on a rendezvous port
+of its own. The two give the same numbers to the last digit.
+
+``--workers N`` runs N stacks at once on this machine, and each stack flies one run after another:
+it starts on its first run's scenario with no mission of its own and stays, and each run is a
+scenario load (a new lockstep episode from t = 0; not for the first) and the run's mission, sent as
+the operator, so that a stack's start-up is paid once, not per run (``shared.SharedStack``).
+Composed, each stack is a study worker process of its own (one interpreter each, so stacks fly in
+parallel: ``worker``) that starts ``seaway launch sim-batch --composed --no-mission --stay`` as a
+node and makes the requests on its hub (``composed.ComposedStack``); through the processes the
+study starts ``seaway launch sim-batch --scenario S --no-mission --stay`` and makes them over Zenoh.
+``--fresh-stacks`` starts a stack of its own for every run instead (``seaway launch sim-batch
+[--composed] --scenario S --controller C [--predict-disturbance] [--task-power-w W] --run-dir
+OUT/runs/KEY``); ``--dask ADDRESS`` submits each run to a Dask scheduler (each worker starts the
+stack of the run it takes). Local stacks run on CPUs of their own (``seaway launch --cpus``, or a
+study worker's whole process: on 2 CPUs, one each) when 2 or more run at once and there are CPUs
 enough (``execute.cpu_groups``; ``--no-pin`` leaves them to the kernel); a shared stack still flying
 when the other workers have no run left may use every CPU. Writes into ``--out`` (default
 ``runs/study-NAME-<time>/``): ``results.md``, ``results.csv``, ``results.json``, ``series.json``
 (what the figures are drawn from), ``figures/*.png`` and the stacks' folders: ``runs/stack-N/``
-(recording with one episode per run, logs, launch.log; ``results.json`` says which run is which
-episode), or ``runs/<key>/`` with ``--fresh-stacks`` and ``--dask``. ``--redraw OUT`` draws the
-tables and figures of a finished study again without running anything.
+(recording with one episode per run, logs, launch.log, worker.log when composed; ``results.json``
+says which run is which episode), or ``runs/<key>/`` with ``--fresh-stacks`` and ``--dask``.
+``--redraw OUT`` draws the tables and figures of a finished study again without running anything.
 
 Exit code: 0 when every run completed, 1 otherwise, 2 for bad arguments, 130 when interrupted
 (Ctrl-C starts no more runs and stops the running ones).

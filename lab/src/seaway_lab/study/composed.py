@@ -12,6 +12,7 @@ import io
 import os
 import signal
 from collections.abc import Iterable
+from pathlib import Path
 from typing import Any
 
 from seaway_lab.study.definitions import RunSpec
@@ -35,6 +36,14 @@ def vessel() -> str:
     return os.environ.get(ENV_VESSEL) or DEFAULT_VESSEL
 
 
+def launcher_argv(spec: RunSpec, folder: Path) -> list[str]:
+    """``seaway`` arguments of a composed shared stack's launcher in ``folder``, on ``spec``'s
+    scenario: no mission of its own, no stop at a mission's end, no report of its own (the study
+    reads the recording), the vessel the study's requests go to."""
+    return ["launch", PROFILE, COMPOSED_FLAG, "--scenario", spec.scenario, *SHARED_FLAGS,
+            *spec.module_options(), "--no-report", "--vessel", vessel(), "--run-dir", str(folder)]
+
+
 class ComposedStack(SharedStack):
     """``seaway launch sim-batch --composed --no-mission --stay`` as a node of this process, which
     must be a host (``host.activate()``): the same runs as ``SharedStack`` (a scenario load and a
@@ -51,9 +60,7 @@ class ComposedStack(SharedStack):
         if composing is None:
             raise _RunFailedError("a composed stack runs in a process that composes "
                                   "(seaway.runtime.host.activate())")
-        argv = ["launch", PROFILE, COMPOSED_FLAG, "--scenario", spec.scenario, *SHARED_FLAGS,
-                *spec.module_options(), "--no-report", "--vessel", vessel(),
-                "--run-dir", str(self.folder)]
+        argv = launcher_argv(spec, self.folder)
         self.command = [*seaway_command(), *argv]
         node = host.NodeThread(composing, LAUNCHER_NODE, cli.main, argv)
         composing.nodes.append(node)

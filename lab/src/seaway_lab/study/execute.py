@@ -1,27 +1,31 @@
-"""Running a study's runs: one run through the real processes, and many of them at once.
+"""Running a study's runs: one run through the real stack, and many of them at once.
 
-One run (``run_one``) is ``seaway launch sim-batch <the run's options> --run-dir DIR`` as a
-subprocess on its own Zenoh rendezvous port (``SEAWAY_ZENOH_RENDEZVOUS``), so that stacks running
-side by side never meet, followed by the report of its recording: ``seaway_recorder.report.analyse``
-called in-process, which gives the same JSON as ``seaway report DIR --mission DIR/mission.json
---json --no-plots`` (the mission the launcher sent, so with the run's own T^w) from one decode of the
-recording instead of a second process, and from the same decode the trajectory and thrusts the
-figures need. The launcher's output is kept in ``DIR/launch.log`` and timed line by line, so the
-wall time of a run splits into the stack's start-up, the mission, the stop and the launcher's own
-final report.
+One run (``run_one``) is ``seaway launch sim-batch [--composed] <the run's options> --run-dir DIR``
+as a subprocess: composed, its services are nodes of the launcher's one process over the in-memory
+bus; through the processes, the stack is on its own Zenoh rendezvous port
+(``SEAWAY_ZENOH_RENDEZVOUS``), so that stacks running side by side never meet. It is followed by the
+report of its recording: ``seaway_recorder.report.analyse`` called in-process, which gives the same
+JSON as ``seaway report DIR --mission DIR/mission.json --json --no-plots`` (the mission the launcher
+sent, so with the run's own T^w) from one decode of the recording instead of a second process, and
+from the same decode the trajectory and thrusts the figures need. The launcher's output is kept in
+``DIR/launch.log`` and timed line by line, so the wall time of a run splits into the stack's
+start-up, the mission, the stop and the launcher's own final report.
 
-Many runs: ``run_local`` (a pool of threads, each waiting on one launcher subprocess: ``--workers``)
-or ``run_dask`` (each run submitted to a Dask cluster, whose worker starts the stack: ``--dask``).
-``run_one`` is the function submitted, so a worker needs the same installation (``seaway`` next to
-its Python). The worker reads its run's recording itself and sends back the numbers and the series,
-so tables and figures need no shared file system; the run folders stay where the workers wrote them.
+Many runs: ``run_shared`` (``--workers`` stacks, each flying one run after another: a study worker
+process composing its stack, ``worker.WorkerStack``, or a launcher and its processes,
+``shared.SharedStack``), ``run_local`` (a pool of threads, each waiting on one launcher subprocess:
+``--fresh-stacks``) or ``run_dask`` (each run submitted to a Dask cluster, whose worker starts the
+stack: ``--dask``). ``run_one`` is the function submitted, so a worker needs the same installation
+(``seaway`` next to its Python). The worker reads its run's recording itself and sends back the
+numbers and the series, so tables and figures need no shared file system; the run folders stay
+where the workers wrote them.
 
 The parts: ``isolation`` (a rendezvous port and CPUs per stack), ``launcher`` (the launcher's
 command, options and output, the launchers running), ``monitor`` (CPU seconds per process),
-``outcome`` (what a run gave, its report) and ``shared`` (many runs on one stack). This module runs
+``outcome`` (what a run gave, its report), ``shared`` (many runs on one stack), ``composed`` (one
+such stack as nodes of this process) and ``worker`` (a process per composed stack). This module runs
 them and is what ``seaway study`` (``cli``) imports; it offers their names too.
 """
-
 from __future__ import annotations
 
 import collections
