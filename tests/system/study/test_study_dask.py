@@ -1,4 +1,5 @@
-"""`seaway study --dask`: a run submitted to a Dask cluster on loopback starts its stack on the worker.
+"""`seaway study --dask`: a run submitted to a Dask cluster on loopback starts its stack on the worker,
+composed in one process (``seaway launch --composed``, the study's default).
 
 One short run (condition #1 with NMPC: ~34 s of simulated time, a few seconds of wall) on a
 ``distributed.LocalCluster`` with one worker process; its metrics are those the report command prints
@@ -30,7 +31,7 @@ def test_one_run_on_a_local_dask_cluster(tmp_path: Path, zenoh_env: dict[str, st
                            env=zenoh_env, cwd=REPO, capture_output=True, text=True, timeout=500)
     assert p.returncode == 0, p.stdout[-3000:] + p.stderr[-3000:]
     doc = json.loads(p.stdout)
-    assert doc["executor"]["kind"] == "dask"
+    assert doc["executor"]["kind"] == "dask" and doc["executor"]["services"] == "composed"
     assert doc["executor"]["address"].startswith("tcp://127.0.0.1:")
     assert doc["workers"] == 1 and doc["failures"] == {}
     nm = doc["results"]["#1"]["nmpc"]
@@ -48,4 +49,6 @@ def test_one_run_on_a_local_dask_cluster(tmp_path: Path, zenoh_env: dict[str, st
     for k in ("energy_j", "travel_time_s", "avg_cross_track_m"):
         assert nm[k] == metrics[k]
     run = json.loads((out / "results.json").read_text())["runs"][0]
-    assert run["ok"] and run["timing"]["startup_s"] > 0 and run["port"] is not None
+    assert run["ok"] and run["timing"]["startup_s"] > 0
+    assert "--composed" in run["command"] and run["port"] is None  # one process, no network
+    assert run["cpu_s"]["composed"] > 0

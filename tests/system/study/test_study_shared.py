@@ -1,6 +1,7 @@
-"""`seaway study` on a shared stack: one `seaway launch sim-batch --stay` flies run after run (a
-scenario load and a mission each, sent as the operator), and each run's numbers are those of a stack
-of its own (``execute.SharedStack``).
+"""`seaway study --processes` on a shared stack: one `seaway launch sim-batch --stay` flies run after
+run (a scenario load and a mission each, sent as the operator), and each run's numbers are those of a
+stack of its own (``execute.SharedStack``). The composed shared stacks are test_study_table1's and
+test_study_parity's.
 
 Real processes, real Zenoh sessions and recordings: NMPC on paper conditions #1 and #5 (#5 loads a
 scenario whose disturbance grid is a file beside it), one worker, once on one stack and once on a
@@ -28,7 +29,8 @@ KEYS = ("paper-c1-nmpc", "paper-c5-nmpc")
 
 def study(out: Path, env: dict[str, str], *extra: str) -> dict:
     p = subprocess.run([str(BIN / "seaway"), "study", "table1", "--rows", "#1", "#5", "--columns",
-                        "nmpc", "--workers", "1", "--no-figures", "--out", str(out), "--json", *extra],
+                        "nmpc", "--workers", "1", "--no-figures", "--out", str(out), "--json",
+                        "--processes", *extra],
                        env=env, cwd=REPO, capture_output=True, text=True, timeout=400)
     assert p.returncode == 0, p.stdout[-3000:] + p.stderr[-3000:]
     assert json.loads(p.stdout)["failures"] == {}

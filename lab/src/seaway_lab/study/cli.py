@@ -1,30 +1,40 @@
-"""``seaway study NAME``: run a study's runs through the real processes in lockstep, tabulate, draw.
+"""``seaway study NAME``: run a study's runs through the real stack in lockstep, tabulate, draw.
 
     seaway study table1                      # the paper's Table I: 5 conditions x 3 controllers
     seaway study table1 --rows '#1' --json   # one condition, the result as one JSON object
+    seaway study table1 --processes          # the same through the services' own processes
     seaway study tw-sweep --workers 1
     seaway study lake --dask tcp://127.0.0.1:8786
     seaway study lake --controller-module my_controller.py --with-controller mine
     seaway study --list
 
 A run is the mission of scenario S flown by controller C (with its T^w and disturbance prediction)
-through the real processes in lockstep, then the report of its recording. ``--workers N`` runs N
-stacks at once on this machine, each on its own Zenoh rendezvous port, and each stack flies one run
-after another: it is started as ``seaway launch sim-batch --scenario S --no-mission --stay`` on its
-first run's scenario, and each run is a scenario load (a new lockstep episode from t = 0; not for
-the first) and the run's mission, sent as the operator, so that a stack's start-up is paid once, not
-per run (``execute.SharedStack``). ``--fresh-stacks`` starts a stack of its own for every run
-instead (``seaway launch sim-batch --scenario S --controller C [--predict-disturbance]
-[--task-power-w W] --run-dir OUT/runs/KEY``); ``--dask ADDRESS`` submits each run to a Dask
-scheduler (each worker starts the stack of the run it takes). Local stacks run on CPUs of their
-own (``seaway launch --cpus``: on 2 CPUs, one each) when 2 or more run at once and there are CPUs
+through the real stack in lockstep (sim, estimator, controller, recorder), then the report of its
+recording. By default each stack is composed: its launcher and services are nodes of one process
+over the in-memory bus (``seaway launch --composed``: the same service code and recording, no
+network); ``--processes`` runs them as processes on Zenoh instead, each stack on a rendezvous port
+of its own. The two give the same numbers to the last digit.
+
+``--workers N`` runs N stacks at once on this machine, and each stack flies one run after another:
+it starts on its first run's scenario with no mission of its own and stays, and each run is a
+scenario load (a new lockstep episode from t = 0; not for the first) and the run's mission, sent as
+the operator, so that a stack's start-up is paid once, not per run (``shared.SharedStack``).
+Composed, each stack is a study worker process of its own (one interpreter each, so stacks fly in
+parallel: ``worker``) that starts ``seaway launch sim-batch --composed --no-mission --stay`` as a
+node and makes the requests on its hub (``composed.ComposedStack``); through the processes the
+study starts ``seaway launch sim-batch --scenario S --no-mission --stay`` and makes them over Zenoh.
+``--fresh-stacks`` starts a stack of its own for every run instead (``seaway launch sim-batch
+[--composed] --scenario S --controller C [--predict-disturbance] [--task-power-w W] --run-dir
+OUT/runs/KEY``); ``--dask ADDRESS`` submits each run to a Dask scheduler (each worker starts the
+stack of the run it takes). Local stacks run on CPUs of their own (``seaway launch --cpus``, or a
+study worker's whole process: on 2 CPUs, one each) when 2 or more run at once and there are CPUs
 enough (``execute.cpu_groups``; ``--no-pin`` leaves them to the kernel); a shared stack still flying
 when the other workers have no run left may use every CPU. Writes into ``--out`` (default
 ``runs/study-NAME-<time>/``): ``results.md``, ``results.csv``, ``results.json``, ``series.json``
 (what the figures are drawn from), ``figures/*.png`` and the stacks' folders: ``runs/stack-N/``
-(recording with one episode per run, logs, launch.log; ``results.json`` says which run is which
-episode), or ``runs/<key>/`` with ``--fresh-stacks`` and ``--dask``. ``--redraw OUT`` draws the
-tables and figures of a finished study again without running anything.
+(recording with one episode per run, logs, launch.log, worker.log when composed; ``results.json``
+says which run is which episode), or ``runs/<key>/`` with ``--fresh-stacks`` and ``--dask``.
+``--redraw OUT`` draws the tables and figures of a finished study again without running anything.
 
 Exit code: 0 when every run completed, 1 otherwise, 2 for bad arguments, 130 when interrupted
 (Ctrl-C starts no more runs and stops the running ones).
@@ -68,6 +78,9 @@ def parser() -> argparse.ArgumentParser:
                     help=f"runs at a time on this machine (default {DEFAULT_WORKERS})")
     ap.add_argument("--dask", metavar="ADDRESS", default=None,
                     help="submit the runs to this Dask scheduler (tcp://host:port) instead")
+    ap.add_argument("--processes", action="store_true",
+                    help="run each stack's services as processes on Zenoh (seaway launch without "
+                         "--composed) instead of composed as nodes of one process")
     ap.add_argument("--fresh-stacks", action="store_true",
                     help="start a stack for every run (default: each of the --workers stacks flies "
                          "one run after another)")
@@ -119,10 +132,11 @@ def _progress(total: int, quiet: bool) -> Any:
 
 def run_study(study: defs.Study, out: Path, *, workers: int, dask: str | None, timeout_s: float,
               progress: bool = True, fresh_stacks: bool = False,
-              groups: list[frozenset[int]] | None = None,
+              groups: list[frozenset[int]] | None = None, composed: bool = True,
               ) -> tuple[dict[str, RunOutcome], float, dict[str, Any], str]:
     """Run every run of ``study`` into ``out/runs``; (outcomes by key, wall s, executor, start time).
-    ``groups``: the local stacks' CPU sets (``stack_cpus``), None to leave them to the kernel."""
+    ``groups``: the local stacks' CPU sets (``stack_cpus``), None to leave them to the kernel.
+    ``composed``: each stack's services as nodes of one process, else as processes."""
     jobs = [(spec, out / "runs" / spec.key) for spec in study.runs]
     outcomes: dict[str, RunOutcome] = {}
     counted: set[str] = set()
@@ -152,18 +166,19 @@ def run_study(study: defs.Study, out: Path, *, workers: int, dask: str | None, t
     started = time.strftime("%Y-%m-%dT%H:%M:%S%z")
     t0 = time.monotonic()
     try:
+        services = "composed" if composed else "processes"
         if dask:
-            executor: dict[str, Any] = {"kind": "dask", "address": dask}
-            executor.update(run_dask(dask, jobs, done, timeout_s=timeout_s))
+            executor: dict[str, Any] = {"kind": "dask", "address": dask, "services": services}
+            executor.update(run_dask(dask, jobs, done, timeout_s=timeout_s, composed=composed))
         elif fresh_stacks:
             executor = {"kind": "local", "address": None, "stacks": "one per run",
-                        "cpus": _cpus_text(groups)}
-            run_local(jobs, workers, done, timeout_s=timeout_s, cpus=groups)
+                        "services": services, "cpus": _cpus_text(groups)}
+            run_local(jobs, workers, done, timeout_s=timeout_s, cpus=groups, composed=composed)
         else:
             executor = {"kind": "local", "address": None, "stacks": "shared",
-                        "cpus": _cpus_text(groups)}
+                        "services": services, "cpus": _cpus_text(groups)}
             run_shared(study.runs, out / "runs", workers, done, on_flown=flown, timeout_s=timeout_s,
-                       cpus=groups)
+                       cpus=groups, composed=composed)
     finally:
         bar.close()
     return outcomes, time.monotonic() - t0, executor, started
@@ -244,11 +259,7 @@ def _redraw(args: argparse.Namespace) -> int:
         spec = next((s for s in study.runs if s.key == r["key"]), None)
         if spec is None:  # a run the study no longer defines
             continue
-        outcomes[spec.key] = RunOutcome(spec, r["run_dir"], episode=r.get("episode"), ok=r["ok"],
-                                        error=r["error"], host=r["host"],
-                                        port=r["port"], command=r["command"], returncode=r["returncode"],
-                                        report=r["report"], series=series.get(spec.key), timing=r["timing"],
-                                        cpu_s=r.get("cpu_s", {}))
+        outcomes[spec.key] = RunOutcome.from_json({**r, "series": series.get(spec.key)}, spec)
     new, rows = write_outputs(study, out, outcomes, doc["wall_s"], doc["workers"], doc["executor"],
                               doc["started"], doc["machine"], figures=not args.no_figures)
     print(json.dumps(_printed(new)) if args.json else res.text(new, study, rows), end="" if not args.json
@@ -324,7 +335,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         outcomes, wall_s, executor, started = run_study(study, out, workers=args.workers, dask=args.dask,
                                                         timeout_s=args.timeout_s,
-                                                        fresh_stacks=args.fresh_stacks, groups=groups)
+                                                        fresh_stacks=args.fresh_stacks, groups=groups,
+                                                        composed=not args.processes)
     except KeyboardInterrupt:
         print(f"\nseaway study: interrupted; the runs so far are in {out / 'runs'}", file=sys.stderr)
         return 130

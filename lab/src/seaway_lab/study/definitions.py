@@ -15,6 +15,7 @@ import functools
 import math
 import re
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 from seaway.contract.messages import ControllerName
 from seaway.simkit.scenario import load_mission
@@ -101,6 +102,14 @@ class RunSpec:
             return None
         energy, xte, time_s = TABLE_I[cond][self.controller]
         return {"energy_j": energy, "travel_time_s": time_s, "avg_cross_track_m": xte}
+
+    @classmethod
+    def from_json(cls, d: dict[str, Any]) -> RunSpec:
+        """The run ``to_json`` gave (its ``key`` follows from the rest)."""
+        return cls(d["scenario"], d["controller"], d["row"], d["column"],
+                   predict_disturbance=bool(d.get("predict_disturbance")),
+                   task_power_w=d.get("task_power_w"),
+                   controller_modules=tuple(d.get("controller_modules") or ()))
 
     def to_json(self) -> dict[str, object]:
         return {"key": self.key, "scenario": self.scenario, "controller": self.controller,

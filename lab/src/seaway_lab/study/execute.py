@@ -1,27 +1,31 @@
-"""Running a study's runs: one run through the real processes, and many of them at once.
+"""Running a study's runs: one run through the real stack, and many of them at once.
 
-One run (``run_one``) is ``seaway launch sim-batch <the run's options> --run-dir DIR`` as a
-subprocess on its own Zenoh rendezvous port (``SEAWAY_ZENOH_RENDEZVOUS``), so that stacks running
-side by side never meet, followed by the report of its recording: ``seaway_recorder.report.analyse``
-called in-process, which gives the same JSON as ``seaway report DIR --mission DIR/mission.json
---json --no-plots`` (the mission the launcher sent, so with the run's own T^w) from one decode of the
-recording instead of a second process, and from the same decode the trajectory and thrusts the
-figures need. The launcher's output is kept in ``DIR/launch.log`` and timed line by line, so the
-wall time of a run splits into the stack's start-up, the mission, the stop and the launcher's own
-final report.
+One run (``run_one``) is ``seaway launch sim-batch [--composed] <the run's options> --run-dir DIR``
+as a subprocess: composed, its services are nodes of the launcher's one process over the in-memory
+bus; through the processes, the stack is on its own Zenoh rendezvous port
+(``SEAWAY_ZENOH_RENDEZVOUS``), so that stacks running side by side never meet. It is followed by the
+report of its recording: ``seaway_recorder.report.analyse`` called in-process, which gives the same
+JSON as ``seaway report DIR --mission DIR/mission.json --json --no-plots`` (the mission the launcher
+sent, so with the run's own T^w) from one decode of the recording instead of a second process, and
+from the same decode the trajectory and thrusts the figures need. The launcher's output is kept in
+``DIR/launch.log`` and timed line by line, so the wall time of a run splits into the stack's
+start-up, the mission, the stop and the launcher's own final report.
 
-Many runs: ``run_local`` (a pool of threads, each waiting on one launcher subprocess: ``--workers``)
-or ``run_dask`` (each run submitted to a Dask cluster, whose worker starts the stack: ``--dask``).
-``run_one`` is the function submitted, so a worker needs the same installation (``seaway`` next to
-its Python). The worker reads its run's recording itself and sends back the numbers and the series,
-so tables and figures need no shared file system; the run folders stay where the workers wrote them.
+Many runs: ``run_shared`` (``--workers`` stacks, each flying one run after another: a study worker
+process composing its stack, ``worker.WorkerStack``, or a launcher and its processes,
+``shared.SharedStack``), ``run_local`` (a pool of threads, each waiting on one launcher subprocess:
+``--fresh-stacks``) or ``run_dask`` (each run submitted to a Dask cluster, whose worker starts the
+stack: ``--dask``). ``run_one`` is the function submitted, so a worker needs the same installation
+(``seaway`` next to its Python). The worker reads its run's recording itself and sends back the
+numbers and the series, so tables and figures need no shared file system; the run folders stay
+where the workers wrote them.
 
 The parts: ``isolation`` (a rendezvous port and CPUs per stack), ``launcher`` (the launcher's
 command, options and output, the launchers running), ``monitor`` (CPU seconds per process),
-``outcome`` (what a run gave, its report) and ``shared`` (many runs on one stack). This module runs
+``outcome`` (what a run gave, its report), ``shared`` (many runs on one stack), ``composed`` (one
+such stack as nodes of this process) and ``worker`` (a process per composed stack). This module runs
 them and is what ``seaway study`` (``cli``) imports; it offers their names too.
 """
-
 from __future__ import annotations
 
 import collections
@@ -36,6 +40,7 @@ from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any
 
+from seaway_lab.study.composed import COMPOSED_FLAG
 from seaway_lab.study.definitions import RunSpec, scenario_task_power_w
 from seaway_lab.study.isolation import (
     CPUS_FLAG,
@@ -63,7 +68,7 @@ from seaway_lab.study.launcher import (
     seaway_command,
     stop_all,
 )
-from seaway_lab.study.monitor import CpuMonitor, process_name
+from seaway_lab.study.monitor import CpuMonitor, ProcessCpu, process_name
 from seaway_lab.study.outcome import (
     MISSION_FILE,
     RunOutcome,
@@ -73,6 +78,7 @@ from seaway_lab.study.outcome import (
     report_json,
 )
 from seaway_lab.study.shared import SharedStack, run_episode
+from seaway_lab.study.worker import WorkerStack
 
 log = logging.getLogger("seaway.study")
 
@@ -82,21 +88,26 @@ log = logging.getLogger("seaway.study")
 
 def run_one(spec: RunSpec, run_dir: str | Path, *, profile: str = PROFILE,
             timeout_s: float = DEFAULT_TIMEOUT_S, keep_series: bool = True,
-            cpus: frozenset[int] | None = None) -> RunOutcome:
-    """One run through the real processes, its report, and its timing. Never raises for a failed run:
-    the outcome says what went wrong (``ok``, ``error``, the launcher's log in ``run_dir``).
-    ``cpus``: the CPUs its stack runs on (``cpu_groups``; None: wherever the kernel puts it)."""
+            cpus: frozenset[int] | None = None, composed: bool = False) -> RunOutcome:
+    """One run through the real processes, or composed in the launcher's one process
+    (``composed``: ``seaway launch --composed``, no network), its report, and its timing. Never
+    raises for a failed run: the outcome says what went wrong (``ok``, ``error``, the launcher's log
+    in ``run_dir``). ``cpus``: the CPUs its stack runs on (``cpu_groups``; None: wherever the kernel
+    puts it)."""
     run_dir = Path(run_dir)
     out = RunOutcome(spec, str(run_dir))
     t0 = time.monotonic()
     try:
         supported = launcher_options()
-        opts = (fit_options(spec, supported) + [f for f in OPTIONAL_FLAGS if f in supported]
-                + cpus_option(cpus, supported))
+        if composed and COMPOSED_FLAG not in supported:
+            raise ValueError(f"seaway launch has no {COMPOSED_FLAG}: run the study with --processes")
+        opts = ([COMPOSED_FLAG] if composed else []) + (
+            fit_options(spec, supported) + [f for f in OPTIONAL_FLAGS if f in supported]
+            + cpus_option(cpus, supported))
     except ValueError as err:
         out.error = str(err)
         return out
-    out.port = free_port()
+    out.port = None if composed else free_port()  # a composed stack has no network
     out.command = [*seaway_command(), "launch", profile, *opts, "--run-dir", str(run_dir)]
     run_dir.mkdir(parents=True, exist_ok=True)
     p = _spawn(out.command, out.port)
@@ -110,7 +121,7 @@ def run_one(spec: RunSpec, run_dir: str | Path, *, profile: str = PROFILE,
     watchdog.daemon = True
     watchdog.start()
     assert p.stdout is not None
-    with CpuMonitor(p.pid) as cpu:
+    with CpuMonitor(p.pid, root=ProcessCpu.NAME if composed else "launch") as cpu:
         launcher_log = LauncherLog(p.stdout, run_dir / "launch.log", t0)
         if launcher_log.wait(["refused"]) == "refused":  # it would wait for a mission forever
             threading.Thread(target=_stop_group, args=(p,), daemon=True).start()
@@ -180,9 +191,10 @@ def _workers(workers: int, runs: int, cpus: list[frozenset[int]] | None) -> int:
 
 def run_local(jobs: Iterable[tuple[RunSpec, Path]], workers: int, on_done: Done,
               timeout_s: float = DEFAULT_TIMEOUT_S,
-              cpus: list[frozenset[int]] | None = None) -> None:
-    """Run the jobs ``workers`` at a time on this machine; ``on_done`` as each finishes. ``cpus``:
-    one CPU set per worker (``cpu_groups``); a run's stack takes a free one for its life."""
+              cpus: list[frozenset[int]] | None = None, composed: bool = False) -> None:
+    """Run the jobs ``workers`` at a time on this machine, each with a stack of its own (composed:
+    ``run_one``); ``on_done`` as each finishes. ``cpus``: one CPU set per worker (``cpu_groups``);
+    a run's stack takes a free one for its life."""
     jobs = longest_first(jobs)
     workers = _workers(workers, len(jobs), cpus)
     _stopping.clear()
@@ -194,7 +206,7 @@ def run_local(jobs: Iterable[tuple[RunSpec, Path]], workers: int, on_done: Done,
     def one(spec: RunSpec, d: Path) -> RunOutcome:
         group = free.get()  # never waits: a pool thread runs one run at a time
         try:
-            return run_one(spec, d, timeout_s=timeout_s, cpus=group)
+            return run_one(spec, d, timeout_s=timeout_s, cpus=group, composed=composed)
         finally:
             free.put(group)
 
@@ -217,9 +229,10 @@ def run_local(jobs: Iterable[tuple[RunSpec, Path]], workers: int, on_done: Done,
 
 def run_shared(specs: Iterable[RunSpec], runs_dir: Path, workers: int, on_done: Done,
                on_flown: Done | None = None, timeout_s: float = DEFAULT_TIMEOUT_S,
-               cpus: list[frozenset[int]] | None = None) -> None:
+               cpus: list[frozenset[int]] | None = None, composed: bool = False) -> None:
     """Run the specs on ``workers`` stacks at once, each flying one run after another
-    (``SharedStack``), longest first from one queue; ``on_flown`` as each run's mission ends,
+    (``SharedStack``; ``composed``: ``WorkerStack``, a study worker process composing its stack),
+    longest first from one queue; ``on_flown`` as each run's mission ends,
     ``on_done`` with its numbers once its stack has stopped (a stack stops when the queue is empty,
     or after a failed run: the next run starts a new one). Stack folders: ``runs_dir/stack-N``.
     Callbacks are called one at a time. Ctrl-C (or SIGTERM made one by the caller) starts no more
@@ -228,7 +241,8 @@ def run_shared(specs: Iterable[RunSpec], runs_dir: Path, workers: int, on_done: 
     todo = collections.deque(longest_first((s, runs_dir) for s in specs))
     workers = _workers(workers, len(todo), cpus)
     lock = threading.Lock()
-    flying: dict[int, SharedStack] = {}
+    make: type[SharedStack] | type[WorkerStack] = WorkerStack if composed else SharedStack
+    flying: dict[int, SharedStack | WorkerStack] = {}
     """Each worker's stack, by worker, while it has one."""
     stacks_made = itertools.count(1)
     _stopping.clear()
@@ -239,12 +253,12 @@ def run_shared(specs: Iterable[RunSpec], runs_dir: Path, workers: int, on_done: 
             with lock:
                 callback(outcome)
 
-    def closed(stack: SharedStack) -> None:
+    def closed(stack: SharedStack | WorkerStack) -> None:
         for o in stack.close():
             said(on_done, o)
 
     def worker(index: int) -> None:
-        stack: SharedStack | None = None
+        stack: SharedStack | WorkerStack | None = None
         try:
             while True:
                 with lock:
@@ -252,8 +266,8 @@ def run_shared(specs: Iterable[RunSpec], runs_dir: Path, workers: int, on_done: 
                         break
                     spec, _ = todo.popleft()
                     if stack is None:
-                        stack = SharedStack(runs_dir / f"stack-{next(stacks_made)}", timeout_s,
-                                            cpus[index] if cpus else None)
+                        stack = make(runs_dir / f"stack-{next(stacks_made)}", timeout_s,
+                                     cpus[index] if cpus else None)
                         flying[index] = stack
                 out = stack.fly(spec)
                 said(on_flown, out)
@@ -290,8 +304,9 @@ def run_shared(specs: Iterable[RunSpec], runs_dir: Path, workers: int, on_done: 
 
 
 def run_dask(address: str, jobs: Iterable[tuple[RunSpec, Path]], on_done: Done,
-             timeout_s: float = DEFAULT_TIMEOUT_S) -> dict[str, Any]:
-    """Submit every run to the Dask scheduler at ``address``; each worker thread launches one stack.
+             timeout_s: float = DEFAULT_TIMEOUT_S, composed: bool = False) -> dict[str, Any]:
+    """Submit every run to the Dask scheduler at ``address``; each worker thread launches one stack
+    (``composed``: one process, ``run_one``).
 
     Returns what the cluster was (scheduler address, workers and their threads).
     """
@@ -305,7 +320,8 @@ def run_dask(address: str, jobs: Iterable[tuple[RunSpec, Path]], on_done: Done,
                    for w, v in info.get("workers", {}).items()}
         futures = {}
         for spec, d in jobs:
-            fut = client.submit(run_one, spec, str(d), timeout_s=timeout_s, pure=False,
+            fut = client.submit(run_one, spec, str(d), timeout_s=timeout_s, composed=composed,
+                                pure=False,
                                 priority=round(expected_cost(spec)),
                                 key=f"seaway-study-{spec.key}-{time.time_ns()}")
             futures[fut] = (spec, d)
@@ -323,10 +339,10 @@ def run_dask(address: str, jobs: Iterable[tuple[RunSpec, Path]], on_done: Done,
 
 
 __all__ = [  # the parts' names that ``cli`` and the study's tests reach through here
-    "CPUS_FLAG", "DEFAULT_TIMEOUT_S", "MISSION_FILE", "OPTIONAL_FLAGS", "PROFILE", "_MILESTONES",
-    "CpuMonitor", "Done", "LauncherLog", "RunOutcome", "SharedStack", "StudyStoppingError",
-    "_ephemeral_low", "cpu_groups", "cpus_option", "expected_cost", "fit_options", "free_port",
-    "launcher_options", "longest_first", "not_completed_text", "process_name", "report_args",
-    "report_json", "run_dask", "run_episode", "run_local", "run_one", "run_shared", "seaway_command",
-    "stack_env", "stop_all",
+    "COMPOSED_FLAG", "CPUS_FLAG", "DEFAULT_TIMEOUT_S", "MISSION_FILE", "OPTIONAL_FLAGS", "PROFILE",
+    "_MILESTONES", "CpuMonitor", "Done", "LauncherLog", "RunOutcome", "SharedStack",
+    "StudyStoppingError", "WorkerStack", "_ephemeral_low", "cpu_groups", "cpus_option",
+    "expected_cost", "fit_options", "free_port", "launcher_options", "longest_first",
+    "not_completed_text", "process_name", "report_args", "report_json", "run_dask", "run_episode",
+    "run_local", "run_one", "run_shared", "seaway_command", "stack_env", "stop_all",
 ]

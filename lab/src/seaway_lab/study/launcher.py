@@ -15,6 +15,7 @@ import threading
 import time
 from collections.abc import Iterable
 from pathlib import Path
+from typing import Any
 
 from seaway.simkit.scenario import load_mission
 
@@ -224,13 +225,16 @@ def stop_all() -> None:
         t.join()
 
 
-def _spawn(command: list[str], port: int) -> subprocess.Popen[str]:
-    """A launcher on its own rendezvous ``port``, in a session of its own, its output piped."""
+def _spawn(command: list[str], port: int | None, *, stdin: Any = subprocess.DEVNULL,
+           stderr: Any = subprocess.STDOUT) -> subprocess.Popen[str]:
+    """A launcher on its own rendezvous ``port`` (None: a composed one, which has no network), or
+    a study worker (``worker``), in a session of its own, its output piped (its errors with it,
+    unless ``stderr`` says where)."""
     with _running_lock:
         if _stopping.is_set():
             raise StudyStoppingError("the study is stopping: no more stacks are started")
-        p = subprocess.Popen(command, env=stack_env(port), stdout=subprocess.PIPE,
-                             stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, text=True,
-                             start_new_session=True)
+        env = stack_env(port) if port is not None else {**os.environ, "PYTHONUNBUFFERED": "1"}
+        p = subprocess.Popen(command, env=env, stdout=subprocess.PIPE, stderr=stderr, stdin=stdin,
+                             text=True, start_new_session=True)
         _running.add(p)
     return p

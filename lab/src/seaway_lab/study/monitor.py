@@ -1,8 +1,9 @@
 """Where a run's CPU went: the CPU seconds of a launcher and of each process under it, by name
-(``CpuMonitor``, ``process_name``)."""
+(``CpuMonitor``, ``process_name``), or of a composed stack's one process (``ProcessCpu``)."""
 
 from __future__ import annotations
 
+import os
 import threading
 from pathlib import Path
 from typing import Any
@@ -33,8 +34,10 @@ class CpuMonitor:
     FIND_EVERY = 6
     """Polls between two askings of which processes are under the launcher (3 s at 0.5 s)."""
 
-    def __init__(self, pid: int, interval_s: float = 0.5) -> None:
+    def __init__(self, pid: int, interval_s: float = 0.5, root: str = "launch") -> None:
         self.pid = pid
+        self.root = root
+        """The name of process ``pid`` in the figures (a composed launcher's is ``composed``)."""
         self.interval_s = interval_s
         self.cpu_s: dict[str, float] = {}
         self._seen: dict[tuple[int, float], tuple[str, float]] = {}
@@ -88,7 +91,7 @@ class CpuMonitor:
 
         try:
             root = psutil.Process(self.pid)
-            found = [(root, "launch"), *((c, None) for c in root.children(recursive=True))]
+            found = [(root, self.root), *((c, None) for c in root.children(recursive=True))]
         except psutil.Error:
             return
         for proc, name in found:
@@ -114,3 +117,26 @@ class CpuMonitor:
             self._poll()
             if self._stop.wait(self.interval_s):
                 return
+
+
+
+class ProcessCpu:
+    """CPU seconds (user + system) of this process, a composed stack (``seaway.runtime.host``), as
+    ``composed``: its nodes hand work to one another on the thread that publishes (the in-memory
+    bus calls subscribers in place), so a thread's CPU is not its node's, and only the whole is
+    told. The face of ``CpuMonitor`` (``snapshot``, ``cpu_s`` once exited), without a thread."""
+
+    NAME = "composed"
+
+    def __init__(self) -> None:
+        self.cpu_s: dict[str, float] = {}
+
+    def __enter__(self) -> ProcessCpu:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.cpu_s = self.snapshot()
+
+    def snapshot(self) -> dict[str, float]:
+        t = os.times()
+        return {self.NAME: t.user + t.system}

@@ -59,6 +59,14 @@ class RunOutcome:
             d["series"] = self.series
         return d
 
+    @classmethod
+    def from_json(cls, d: dict[str, Any], spec: RunSpec | None = None) -> RunOutcome:
+        """The outcome ``to_json`` gave (``spec``: the run, else read from ``d``)."""
+        return cls(spec or RunSpec.from_json(d), d["run_dir"], episode=d.get("episode"), ok=d["ok"],
+                   error=d["error"], host=d["host"], port=d["port"], command=d["command"],
+                   returncode=d["returncode"], report=d["report"], series=d.get("series"),
+                   timing=d["timing"], cpu_s=d.get("cpu_s", {}))
+
 
 def _concluded(out: RunOutcome) -> RunOutcome:
     """``out`` with its simulated seconds per wall second and its verdict: ok only when nothing

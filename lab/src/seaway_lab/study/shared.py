@@ -8,6 +8,7 @@ import contextlib
 import subprocess
 import threading
 import time
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
@@ -29,7 +30,7 @@ from seaway_lab.study.launcher import (
     launcher_options,
     seaway_command,
 )
-from seaway_lab.study.monitor import CpuMonitor
+from seaway_lab.study.monitor import CpuMonitor, ProcessCpu
 from seaway_lab.study.outcome import RunOutcome, _concluded, report_json
 
 STATUS_POLL_S = 0.05
@@ -89,12 +90,14 @@ class SharedStack:
         self._cpus_lock = threading.Lock()  # a widen waits for a start that read ``cpus``
         self.port: int | None = None
         self.command: list[str] = []
-        self.proc: subprocess.Popen[str] | None = None
+        self.proc: Any = None
+        """The launcher: a process (``subprocess.Popen``), or a node (``host.NodeThread``) of a
+        composed stack (``composed.ComposedStack``)."""
         self.log: LauncherLog | None = None
         self.bus: Any = None
         self.status: Any = None
         self.energy: Any = None
-        self.cpu: CpuMonitor | None = None
+        self.cpu: CpuMonitor | ProcessCpu | None = None
         self._cpu_before: dict[str, float] = {}
         self._stopped = False
         self.flown: list[RunOutcome] = []
@@ -136,26 +139,10 @@ class SharedStack:
         self._cpu_before = now
 
     def _start(self, spec: RunSpec, out: RunOutcome) -> None:
-        from seaway.runtime import stacks
-        from seaway.runtime.bus import Bus
-
-        supported = launcher_options()
-        missing = [f for f in ("--scenario", *SHARED_FLAGS) if f not in supported]
-        if missing:
-            raise _RunFailedError(f"seaway launch has no {', '.join(missing)}, which a shared stack "
-                                  "needs: run the study with --fresh-stacks")
-        self.port = free_port()
-        self.folder.mkdir(parents=True, exist_ok=True)
         t0 = time.monotonic()
-        with self._cpus_lock:
-            opts = ["--scenario", spec.scenario, *SHARED_FLAGS, *spec.module_options(),
-                    *(f for f in OPTIONAL_FLAGS if f in supported), *cpus_option(self.cpus, supported)]
-            self.command = [*seaway_command(), "launch", PROFILE, *opts, "--run-dir", str(self.folder)]
-            self.proc = _spawn(self.command, self.port)
-        assert self.proc.stdout is not None
-        self.cpu = CpuMonitor(self.proc.pid)
-        self.cpu.__enter__()
-        self.log = LauncherLog(self.proc.stdout, self.folder / "launch.log", t0)
+        self.folder.mkdir(parents=True, exist_ok=True)
+        stream = self._launch(spec)
+        self.log = LauncherLog(stream, self.folder / "launch.log", t0)
         if self.log.wait(["ready"], self.timeout_s) is None:
             if self.log.ended:
                 raise _RunFailedError(f"launcher exited {self._exit_code()} before the stack was ready")
@@ -163,12 +150,7 @@ class SharedStack:
         out.timing["startup_s"] = self.log.seen["ready"]
         if self.log.ready_reported_s is not None:
             out.timing["ready_reported_s"] = self.log.ready_reported_s
-        rendezvous = f"tcp/127.0.0.1:{self.port}"
-        entry = stacks.lookup(rendezvous)
-        if entry is None:
-            raise _RunFailedError(f"the launcher registered no stack on {rendezvous}")
-        self.bus = Bus.open(entry.vessel, identity="operator",
-                            credentials=entry.session_credentials(), rendezvous=rendezvous)
+        self.bus = self._open_bus()
         self.status = self.bus.newest(keys.MISSION_STATUS)
         self.energy = self.bus.newest(keys.MISSION_ENERGY)
         # A session just opened knows nobody yet: a request sent now found no one to answer it
@@ -180,6 +162,38 @@ class SharedStack:
                                       f"{', '.join(sorted(REQUESTED_FROM - seen))} within "
                                       f"{self.timeout_s:g} s")
             time.sleep(0.05)
+
+    def _launch(self, spec: RunSpec) -> Iterable[str]:
+        """Start the stack's launcher on ``spec``'s scenario (``proc``, ``command``, ``port``,
+        ``cpu``); its output, line by line."""
+        supported = launcher_options()
+        missing = [f for f in ("--scenario", *SHARED_FLAGS) if f not in supported]
+        if missing:
+            raise _RunFailedError(f"seaway launch has no {', '.join(missing)}, which a shared stack "
+                                  "needs: run the study with --fresh-stacks")
+        self.port = free_port()
+        with self._cpus_lock:
+            opts = ["--scenario", spec.scenario, *SHARED_FLAGS, *spec.module_options(),
+                    *(f for f in OPTIONAL_FLAGS if f in supported), *cpus_option(self.cpus, supported)]
+            self.command = [*seaway_command(), "launch", PROFILE, *opts, "--run-dir", str(self.folder)]
+            self.proc = _spawn(self.command, self.port)
+        assert self.proc.stdout is not None
+        self.cpu = CpuMonitor(self.proc.pid)
+        self.cpu.__enter__()
+        return self.proc.stdout
+
+    def _open_bus(self) -> Any:
+        """The study's session on the stack, as the operator (with the credentials the launcher
+        registered for its rendezvous)."""
+        from seaway.runtime import stacks
+        from seaway.runtime.bus import Bus
+
+        rendezvous = f"tcp/127.0.0.1:{self.port}"
+        entry = stacks.lookup(rendezvous)
+        if entry is None:
+            raise _RunFailedError(f"the launcher registered no stack on {rendezvous}")
+        return Bus.open(entry.vessel, identity="operator", credentials=entry.session_credentials(),
+                        rendezvous=rendezvous)
 
     def _exit_code(self) -> int | str:
         assert self.proc is not None
@@ -260,9 +274,7 @@ class SharedStack:
         if self.bus is not None:
             self.bus.close()
             self.bus = None
-        _stop_group(self.proc)
-        with _running_lock:
-            _running.discard(self.proc)
+        self._end_launcher()
         if self.log is not None:
             self.log.join(10.0)
         if self.cpu is not None:
@@ -273,6 +285,13 @@ class SharedStack:
         if last is not None:
             last.returncode = self.proc.returncode
             last.timing["stop_s"] = time.monotonic() - t0
+
+    def _end_launcher(self) -> None:
+        """Stop the launcher (it stops its services, the recorder last) and wait for it."""
+        assert self.proc is not None
+        _stop_group(self.proc)
+        with _running_lock:
+            _running.discard(self.proc)
 
     def close(self, keep_series: bool = True) -> list[RunOutcome]:
         """Stop the stack (if a failed run did not) and report every run it flew, from one decode

@@ -17,7 +17,7 @@ from pathlib import Path
 from seaway.contract import keys
 from seaway.contract.config import deploy_path
 from seaway.contract.messages import MissionRequest
-from seaway.runtime import cpus, refusals
+from seaway.runtime import cpus, host, refusals
 from seaway.runtime import run as runs
 from seaway.runtime.bus import Bus, RuntimeEnvError
 from seaway.runtime.credentials import ENV_CREDENTIALS, NONE
@@ -82,8 +82,11 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
     run = runs_of[vessels[0]]  # the run-wide facts, the same for every vessel of the launch
     if run.lockstep:
         use_lockstep_runtime()  # the launcher's own Zenoh, and so its processes' (zenoh_bus says why)
+    composed = host.active() is not None  # services as nodes of this process (runtime.host)
     placement, split = None, None
-    if run.lockstep and args.cpus is not None and (split := cpus.split_chain(args.cpus)):
+    # A composed stack is one process: its chain has no process of its own to place.
+    if (run.lockstep and args.cpus is not None and not composed
+            and (split := cpus.split_chain(args.cpus))):
         # The chain on a CPU of its own; the launcher, and so what it starts but the chain (the
         # recorder), on the others (seaway.runtime.cpus says why).
         cpus.pin_threads(0, split[1])
@@ -109,8 +112,7 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
             mission_files[v].write_text(mission.model_dump_json(indent=2) + "\n")
     sup = Supervisor(procs, run_dir, env, profile.backoff, default_echo, args.verbose, run.clock,
                      placement)
-    stop = threading.Event()
-    _install_stop_signals(stop, sup)
+    stop = _stop_event(sup)
     label = {v: f"{v}: " if len(vessels) > 1 else "" for v in vessels}
     print(f"seaway launch {profile.name}: vessel{'s' if len(vessels) > 1 else ''} "
           f"{', '.join(vessels)}, run folder {run_dir}", flush=True)
@@ -126,7 +128,10 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
 
     # The launcher holds the rendezvous port first: links refused there are counted here. It hears
     # the navigation state every period, so in lockstep it counts drops alone (refusals module).
-    refusals.watch("launcher", full=not run.lockstep)
+    # Composed, there is no network to refuse anyone, and the watch would take this process's
+    # stdout from the host, which routes each node's output to its own log.
+    if not composed:
+        refusals.watch("launcher", full=not run.lockstep)
     try:
         bus = Bus.open(vessels[0], env.get(ENV_CONFIG), identity="launcher",
                        credentials=auth.credentials or NONE)
@@ -139,7 +144,8 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
         print(f"seaway launch: {problem}", file=sys.stderr)
         return 2
     authority.register(auth)  # now that this session holds the rendezvous port (authority says why)
-    refusals.serve(bus, "launcher")
+    if not composed:
+        refusals.serve(bus, "launcher")
     code = 0
     t0 = time.monotonic()
     taken = MissionsTaken(vessels)
@@ -245,6 +251,19 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
             _final_report(folders[v], scenario, mission_files[v], sup, make=not args.no_report,
                           idle_vessel=None if v in flown else v)
     return code
+
+
+def _stop_event(sup: Supervisor) -> threading.Event:
+    """What stops the run: the node's own stop when the launcher runs as a node of a composed
+    process (``seaway.runtime.host``: signals are that process's, and whoever composes it stops
+    the launcher as the launcher stops its services, ``NodeThread.send_signal``), else SIGINT or
+    SIGTERM (``_install_stop_signals``)."""
+    node = host.Host.current()
+    if node is not None:
+        return node.stop
+    stop = threading.Event()
+    _install_stop_signals(stop, sup)
+    return stop
 
 
 def _install_stop_signals(stop: threading.Event, sup: Supervisor) -> None:
