@@ -33,6 +33,7 @@ from seaway.runtime import run as runs
 from seaway.runtime.argtypes import positive_float, positive_int
 from seaway.runtime.bus import REJOIN_HISTORY_S
 from seaway.runtime.lockstep_witness import LockstepWitness
+from seaway.runtime.node import run_node
 from seaway.runtime.run import RunDescription
 from seaway.runtime.service import base_parser, configure_logging, resolve_run, run_service
 from seaway.runtime.zenoh_bus import ENV_CONFIG
@@ -41,7 +42,7 @@ from seaway.vessel.frames import GeoOrigin
 
 from seaway_recorder import attachments
 from seaway_recorder.logtail import FileTail, LogTail
-from seaway_recorder.node import LATE_NS, KeptKeys, SampleQueue, Tails, drain, lockstep_exprs, write_loop
+from seaway_recorder.node import LATE_NS, KeptKeys, RecorderNode, SampleQueue, Tails, lockstep_exprs
 from seaway_recorder.writer import LIBRARY, RUN_METADATA, AttachmentSpec, RecordingWriter
 
 log = logging.getLogger("seaway.recorder")
@@ -248,25 +249,13 @@ def run(argv: Sequence[str]) -> int:
             # caches), which a recorder restarted by the launcher was away for.
             ctx.bus.subscribe_raw(e, queue.on_sample, inline=run.lockstep,
                                   history_s=0.0 if run.lockstep else REJOIN_HISTORY_S)
-        ctx.ready()
-        if witness is not None:
-            witness.member.join()
-        print("READY", flush=True)
         tails = Tails(FileTail(args.events) if args.events else None,
                       LogTail(args.logs) if args.logs else None,
                       ctx.bus.publisher(keys.LOG_LINE).put if args.logs else None)
-        try:
-            write_loop(writer, queue, ctx.stop, args.flush_interval, args.status_interval, witness,
-                       tails, kept)
-            queue.accepting = False
-            drain(writer, queue, limit=None, kept=kept)
-            tails.copy(writer)
-        except OSError as err:  # disk full, file removed, ...: finish what can be finished
-            log.error("writing failed: %s; finishing the file", err)
-            queue.accepting = False
-            failed = True
-        else:
-            failed = False
+        node = RecorderNode(writer, queue, args.flush_interval, args.status_interval, witness,
+                            tails, kept)
+        run_node(ctx, node, args.flush_interval)
+        failed = node.failed is not None
         writer.count_dropped(queue.dropped - writer.stats.dropped)
         try:
             files = writer.close()

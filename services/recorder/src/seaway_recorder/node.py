@@ -12,6 +12,7 @@ import logging
 import threading
 import time
 from collections.abc import Callable, Sequence
+from typing import Any
 
 import zenoh
 from seaway.contract import bundle, keys
@@ -19,12 +20,19 @@ from seaway.contract.messages import LOCKSTEP_SERVICES, LogRecord, PeriodDone
 from seaway.recording.timebase import stamp_of
 from seaway.runtime.bus import RawSample
 from seaway.runtime.lockstep_witness import LockstepWitness
+from seaway.runtime.node import Node
 from seaway.runtime.timeline import Timeline
 
 from seaway_recorder.logtail import FileTail, LogTail, log_record
 from seaway_recorder.writer import RecordingWriter
 
 log = logging.getLogger("seaway.recorder")
+
+DRAIN_BATCH = 2000
+"""Samples written at most per tick: the flush and the status line come between batches."""
+IDLE_WAIT_S = 0.005
+"""How long an idle recorder waits for a sample before it looks again (real time; in lockstep a
+sample wakes it at once) [s]."""
 
 LATE_NS = 500_000_000
 """A sample received this long after it was published came from a publisher's cache (or waited
@@ -169,38 +177,92 @@ class Tails:
                         log.debug("log line not published: %s", err)
 
 
-def write_loop(writer: RecordingWriter, queue: SampleQueue, stop: threading.Event, flush_s: float,
-          status_s: float, witness: LockstepWitness | None = None,
-          tails: Tails | None = None,
-          kept: KeptKeys | None = None) -> None:
-    flush_ns = int(flush_s * 1e9)
-    next_flush = time.monotonic_ns() + flush_ns
-    next_status = time.monotonic_ns() + int(status_s * 1e9)
-    last_messages = 0
-    while not stop.is_set():
-        queue.arrived.clear()
-        n = drain(writer, queue, limit=2000, witness=witness, kept=kept)
+class RecorderNode(Node):
+    """The recorder as a paced node of the wall clock (``seaway.runtime.node``): each tick drains
+    up to ``DRAIN_BATCH`` queued samples into the writer, flushes every ``flush_s`` (with the
+    events and logs copied in), rotates, and logs its counts every ``status_s``; in lockstep the
+    witness answers each period once it is on disk (``drain``), and a sample wakes it at once."""
+
+    name = "recorder"
+    paced = True
+
+    def __init__(self, writer: RecordingWriter, queue: SampleQueue, flush_s: float,
+                 status_s: float, witness: LockstepWitness | None = None,
+                 tails: Tails | None = None, kept: KeptKeys | None = None) -> None:
+        self.writer, self.queue, self.witness, self.tails, self.kept = (
+            writer, queue, witness, tails, kept)
+        self.flush_ns = int(flush_s * 1e9)
+        self.status_s = status_s
         now = time.monotonic_ns()
-        if now >= next_flush:
+        self._next_flush = now + self.flush_ns
+        self._next_status = now + int(status_s * 1e9)
+        self._last_messages = 0
+        self._drained = 0
+        self._joined = False
+        self.failed: OSError | None = None
+        """The write that failed (disk full, file removed): the node stops, the file is finished."""
+        self._stop: threading.Event | None = None
+
+    def attach(self, driver: Any) -> None:
+        self._stop = driver.stop
+
+    def tick(self, now_ns: int, out: Any) -> None:
+        if not self._joined:  # once healthy: the clock then repeats its period for us
+            self._joined = True
+            if self.witness is not None:
+                self.witness.member.join()
+            print("READY", flush=True)
+        try:
+            self._write()
+        except OSError as err:  # finish what can be finished (``finish``)
+            self.failed = err
+            assert self._stop is not None
+            self._stop.set()
+
+    def _write(self) -> None:
+        writer, queue = self.writer, self.queue
+        queue.arrived.clear()
+        self._drained = drain(writer, queue, limit=DRAIN_BATCH, witness=self.witness,
+                              kept=self.kept)
+        now = time.monotonic_ns()
+        if now >= self._next_flush:
             writer.count_dropped(queue.dropped - writer.stats.dropped)
-            if tails is not None:
-                tails.copy(writer)
+            if self.tails is not None:
+                self.tails.copy(writer)
             writer.flush()
             writer.maybe_rotate(time.time_ns())
-            next_flush = now + flush_ns
-        if now >= next_status:
-            rate = (writer.stats.messages - last_messages) / status_s
-            last_messages = writer.stats.messages
+            self._next_flush = now + self.flush_ns
+        if now >= self._next_status:
+            rate = (writer.stats.messages - self._last_messages) / self.status_s
+            self._last_messages = writer.stats.messages
             log.info("%s; %.0f msg/s; queue %d; file %s", writer.stats.line(), rate,
                      len(queue.items), writer.path)
-            next_status = now + int(status_s * 1e9)
-        if n == 0:
-            # Nothing queued: wait for a sample (lockstep answers at once) or a little, never past
-            # the next flush.
-            timeout = min(0.005, max(0.0, (next_flush - time.monotonic_ns()) / 1e9))
-            if witness is not None:
-                queue.arrived.wait(timeout)
-            else:
-                stop.wait(timeout)
+            self._next_status = now + int(self.status_s * 1e9)
 
+    def wake_s(self) -> float:
+        """At once while samples are queued; else a little, never past the next flush."""
+        if self._drained:
+            return 0.0
+        return min(IDLE_WAIT_S, max(0.0, (self._next_flush - time.monotonic_ns()) / 1e9))
 
+    def sleep(self, timeout_s: float, stop: threading.Event) -> None:
+        if timeout_s <= 0:
+            return
+        if self.witness is not None:  # lockstep: a sample (an answer) wakes it at once
+            self.queue.arrived.wait(timeout_s)
+        else:
+            stop.wait(timeout_s)
+
+    def finish(self) -> None:
+        """Stopping: what is queued written, the tails copied (unless writing failed)."""
+        self.queue.accepting = False
+        if self.failed is not None:
+            log.error("writing failed: %s; finishing the file", self.failed)
+            return
+        try:
+            drain(self.writer, self.queue, limit=None, kept=self.kept)
+            if self.tails is not None:
+                self.tails.copy(self.writer)
+        except OSError as err:
+            self.failed = err
+            log.error("writing failed: %s; finishing the file", err)

@@ -146,6 +146,11 @@ class Node:
         """A paced node, after a tick: how long until it needs the next one [s]."""
         return 0.0
 
+    def sleep(self, timeout_s: float, stop: threading.Event) -> None:
+        """A paced node, between two ticks: wait ``timeout_s`` [s] or until ``stop``; a node that
+        something else can wake sooner waits on that instead (the recorder on a sample)."""
+        stop.wait(timeout_s)
+
     def requests(self) -> Mapping[keys.KeySpec, Callable[[Any], Reply]]:
         """The requests it answers: key -> handler (on a request thread of the bus)."""
         return {}
@@ -328,7 +333,7 @@ class LiveDriver:
                 while not ctx.stop.is_set():
                     node.idle()
                     node.tick(ctx.clock.now_ns(), self.out)
-                    ctx.stop.wait(min(max(0.0, node.wake_s()), self.period_s))
+                    node.sleep(min(max(0.0, node.wake_s()), self.period_s), ctx.stop)
             else:
                 while loop.wait():
                     node.idle()
