@@ -120,3 +120,14 @@ def test_a_composed_launch_records_what_the_processes_record(tmp_path: Path, zen
     assert len(set(starts.values())) == 1, starts  # one process
     for name in starts:
         assert "node of this process" in (composed / "logs" / f"{name}.log").read_text()
+
+
+def test_a_real_time_profile_is_not_composed(tmp_path: Path, zenoh_env) -> None:
+    """A real-time stack talks to an autopilot and keeps its services apart: refused, nothing run."""
+    run_dir = tmp_path / "run"
+    out = subprocess.run([str(BIN / "seaway"), "launch", "sim", "--composed", "--run-dir",
+                          str(run_dir)], env=zenoh_env, capture_output=True, text=True, timeout=60,
+                         check=False)
+    assert out.returncode == 2, out.stdout[-2000:] + out.stderr[-2000:]
+    assert "--composed" in out.stderr and "lockstep" in out.stderr
+    assert not (run_dir / "recording.mcap").exists()

@@ -99,7 +99,7 @@ intake is the receiver taking the bundle there: first what its passive sources l
 then this bundle decoded and its inputs handed to the service, which may work on them at once (the
 estimator's filter advances on each sensor sample and on the command: part of its work is here).
 The recorder notes only its own ``heard`` (it takes bundles from its stream of samples). The sim
-takes the recorder's answer as a passive source (``seaway_sim.lockstep``): no ``arrived``; from the
+takes the recorder's answer as a passive source (``seaway.runtime.lockstep_clock``): no ``arrived``; from the
 recorder's put to the sim taking it from its ring, usually with the controller's next bundle, is
 transport and waiting, off the critical path unless the sim waits for it (the figure after)."""
 

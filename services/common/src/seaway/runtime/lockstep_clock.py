@@ -151,7 +151,7 @@ class LockstepClock:
             log.info("lockstep: %s is gone; holding until it is back", service)
 
     def finish_episode(self) -> str:
-        """A scenario load's wait before the new episode starts (``SimApp.before_load``, under the
+        """A scenario load's wait before the new episode starts (``ClockNode.before_load``, under the
         app's lock, so the loop publishes no further period): until every member has answered the
         sim's last period and the recorder covers those answers, as before any step. The old
         episode's last messages are then on disk in its own time: the controller's last status,
@@ -180,7 +180,7 @@ class LockstepClock:
                 self.member.changed.wait(min(left, EPISODE_POLL_S))
 
     def await_episode(self, episode: int, stamp_ns: int) -> str:
-        """A scenario load's wait before its reply (``SimApp.after_load``, on the request's thread):
+        """A scenario load's wait before its reply (``ClockNode.after_load``, on the request's thread):
         wake the loop, so that it publishes the new episode's first period now, and wait until every
         member that serves requests (all but the recorder, which only writes) has answered that
         period. A request sent after the reply (a mission, say) then finds the stack in the new
