@@ -131,3 +131,16 @@ def test_a_real_time_profile_is_not_composed(tmp_path: Path, zenoh_env) -> None:
     assert out.returncode == 2, out.stdout[-2000:] + out.stderr[-2000:]
     assert "--composed" in out.stderr and "lockstep" in out.stderr
     assert not (run_dir / "recording.mcap").exists()
+
+
+def test_a_command_that_is_no_installed_service_is_named(tmp_path: Path, zenoh_env) -> None:
+    """A composed profile naming a command no package installs: the launch says which, exit 1."""
+    profile = tmp_path / "bad.toml"
+    profile.write_text('name = "bad"\ndescription = "test"\nscenario = "paper-c1"\n'
+                       'clock = "lockstep"\n[[processes]]\nname = "sim"\nservice = "sim"\n'
+                       'command = ["seaway-no-such-service", "--vessel", "{vessel}"]\n')
+    out = subprocess.run([str(BIN / "seaway"), "launch", str(profile), "--composed", "--run-dir",
+                          str(tmp_path / "run")], env=zenoh_env, capture_output=True, text=True,
+                         timeout=60, check=False)
+    assert out.returncode == 1, out.stdout[-2000:] + out.stderr[-2000:]
+    assert "seaway-no-such-service" in out.stderr and "Traceback" not in out.stdout + out.stderr

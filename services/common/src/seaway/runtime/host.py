@@ -50,8 +50,9 @@ _NODE_ATTR = "_seaway_node"
 """The attribute a thread carries naming the node it works for (``current``)."""
 
 
-class HostError(RuntimeError):
-    """A node that cannot be started in this process (no such command)."""
+class HostError(FileNotFoundError):
+    """A node that cannot be started in this process (no such command): the supervisor says so as
+    of a process whose command is not found."""
 
 
 def entry_point(command: str) -> Entry:

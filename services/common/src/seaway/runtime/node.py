@@ -104,16 +104,21 @@ class Answer(NamedTuple):
 
 
 class Outputs:
-    """The node's publishers in real time, made on first use: ``put(spec, msg)``."""
+    """The node's publishers in real time, made on first use: ``put(spec, msg)``, from any of the
+    node's threads (the controller's keeper sends a thrust beside its rate loop)."""
 
     def __init__(self, bus: Bus) -> None:
         self.bus = bus
         self._pubs: dict[keys.KeySpec, TypedPublisher[Any]] = {}
+        self._making = threading.Lock()  # one publisher per key, whichever thread puts first
 
     def put(self, spec: keys.KeySpec, msg: Message) -> None:
         pub = self._pubs.get(spec)
         if pub is None:
-            pub = self._pubs[spec] = self.bus.publisher(spec)
+            with self._making:
+                pub = self._pubs.get(spec)
+                if pub is None:
+                    pub = self._pubs[spec] = self.bus.publisher(spec)
         pub.put(msg)
 
     def put_all(self, messages: Sequence[tuple[keys.KeySpec, Message]]) -> None:
