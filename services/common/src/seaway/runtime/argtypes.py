@@ -59,3 +59,23 @@ def non_negative_float(text: str) -> float:
     if not (math.isfinite(value) and value >= 0):
         raise argparse.ArgumentTypeError(f"{text!r} is not a finite number of at least 0")
     return value
+
+
+def finite_number(gt: float | None = None, ge: float | None = None, lt: float | None = None,
+                  le: float | None = None) -> Callable[[str], float]:
+    """A finite number within the bounds given (``gt``: above, ``ge``: at least, ``lt``: below,
+    ``le``: at most); ``positive_float`` and ``non_negative_float`` are its two common cases."""
+    parts = [f"above {gt:g}" if gt is not None else "", f"at least {ge:g}" if ge is not None else "",
+             f"below {lt:g}" if lt is not None else "", f"at most {le:g}" if le is not None else ""]
+    allowed = " and ".join(p for p in parts if p)
+
+    def parse(text: str) -> float:
+        value = _finite(text)
+        if not (math.isfinite(value) and (gt is None or value > gt) and (ge is None or value >= ge)
+                and (lt is None or value < lt) and (le is None or value <= le)):
+            raise argparse.ArgumentTypeError(f"{text!r} is not a finite number"
+                                             + (f" {allowed}" if allowed else ""))
+        return value
+
+    parse.__name__ = f"finite number {allowed}".strip()
+    return parse
