@@ -1,8 +1,9 @@
 """``seaway-controller``: the controller's configuration, and its node run (``seaway.runtime.node``).
 
 The node (``seaway_controller.node``) says what the controller hears, publishes and answers; this
-reads the command line and the run (``seaway.runtime.run``: the vessel model, the control period,
-which is also the OCP's dt, and the origin), sets up the solvers, the operating area and a
+reads the configuration (``seaway_controller.config``, made by ``seaway.runtime.config``: its
+defaults, ``--config FILE``, its flags) and the run (``seaway.runtime.run``: the vessel model, the
+control period, which is also the OCP's dt, and the origin), sets up the solvers, the operating area and a
 checkpointed mission to resume, and hands the node to the runtime. ``--scenario NAME`` given as a
 flag (not through ``--run``) also starts the scenario's mission at once (batch runs without a
 launcher).
@@ -23,57 +24,36 @@ import functools
 import logging
 import sys
 from collections.abc import Sequence
-from pathlib import Path
 
 from seaway.area.files import run_area
 from seaway.area.model import AreaError
 from seaway.contract.config import ConfigError
-from seaway.runtime.argtypes import positive_float, whole_number
+from seaway.runtime.config import parse_service_args, service_parser
 from seaway.runtime.node import run_node
-from seaway.runtime.service import base_parser, parse, resolve_run, run_service
+from seaway.runtime.service import resolve_run, run_service
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.model import load_vessel
 
 from seaway_controller import controllers
 from seaway_controller.checkpointing import resume
+from seaway_controller.config import ControllerServiceConfig
 from seaway_controller.core import ControllerConfig, ControllerCore
 from seaway_controller.mission import MissionLimits
 from seaway_controller.node import NAME, ControllerNode
-from seaway_controller.solvers import SOLVER_KINDS, IpoptSolver, SolverBuilds, StagedSolver
+from seaway_controller.solvers import IpoptSolver, SolverBuilds, StagedSolver
 
 log = logging.getLogger(__name__)
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = base_parser(NAME, "Mission manager and CC-EMPC / EO-EMPC / NMPC controller.")
-    p.add_argument("--solver", choices=SOLVER_KINDS, default="generated",
-                   help="generated: compiled SQP (fast); ipopt: plain IPOPT (reference)")
-    p.add_argument("--predict-disturbance", action="store_true",
-                   help="predict with the estimator's tau_d instead of tau_d = 0 (the paper's)")
-    p.add_argument("--max-state-age-s", type=positive_float, default=0.5,
-                   help="real time: older states give zero thrust")
-    p.add_argument("--plan-reuse-steps", type=whole_number(0), default=3,
-                   help="fallback 1: periods of failed solves flown on the last good plan (default 3)")
-    p.add_argument("--los-steps", type=whole_number(0), default=600,
-                   help="fallback 2: periods of line-of-sight guidance after that, before zero thrust "
-                        "(default 600)")
-    p.add_argument("--state-file", type=Path, default=None,
-                   help="mission checkpoint: resume from it at start, keep it up to date")
-    p.add_argument("--max-range-m", type=positive_float, default=5000.0,
-                   help="operating area: waypoints within this distance of the origin")
-    p.add_argument("--controller-module", action="append", default=[], metavar="FILE|MODULE",
-                   help="a controller of one's own: a .py file or an importable module that "
-                        "registers it (seaway_controller.controllers.load_module); repeatable")
-    p.add_argument("--area", type=Path, default=None,
-                   help="the operating area to enforce (.toml [area], .plan geoFence, .geojson); "
-                        "default: the run's scenario's [area], else none")
-    return p
+    return service_parser(NAME, "Mission manager and CC-EMPC / EO-EMPC / NMPC controller.",
+                          ControllerServiceConfig)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    args = parse(build_parser(), argv)
-    for module in args.controller_module:  # before the run's scenario or a checkpoint names it
+    args, settings = parse_service_args(build_parser(), argv, ControllerServiceConfig)
+    for module in settings.controller_module:  # before the run's scenario or a checkpoint names it
         try:
             log.info("controller module %s: registered %s", module,
                      ", ".join(controllers.load_module(module)))
@@ -89,20 +69,20 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"seaway-controller: {err}", file=sys.stderr)
         return 2
     period_s = run.control_period_s
-    config = ControllerConfig(solver=args.solver, plan_reuse_steps=args.plan_reuse_steps,
-                              los_steps=args.los_steps,
-                              predict_disturbance=args.predict_disturbance,
+    config = ControllerConfig(solver=settings.solver, plan_reuse_steps=settings.plan_reuse_steps,
+                              los_steps=settings.los_steps,
+                              predict_disturbance=settings.predict_disturbance,
                               dt_s=period_s,
                               # Lockstep waits for every command, so a slow solve is never late,
                               # and a batch run must not depend on how busy the machine was.
                               solve_budget_s=None if run.lockstep else period_s,
-                              limits=MissionLimits(max_range_m=args.max_range_m))
+                              limits=MissionLimits(max_range_m=settings.max_range_m))
     with run_service(NAME, args, run=run) as ctx:
         # Only the solver a mission needs is made, when the mission comes, in the background: the
         # service is up (and answers requests) at once, also while a first compile takes minutes.
         builds = None
         factory = None
-        if args.solver == "generated":
+        if settings.solver == "generated":
             builds = SolverBuilds(stopping=ctx.stop)
             # Real time solves the reference on the control loop's thread: bounded by the period.
             reference = (IpoptSolver if run.lockstep
@@ -111,13 +91,13 @@ def main(argv: Sequence[str] | None = None) -> int:
                                                wait=run.lockstep)
         core = ControllerCore(vessel, config, solver_factory=factory)
         log.info("solver %s, made per mission; model %s, control period (OCP dt) %g s, %s clock",
-                 args.solver, run.model_vessel_file, period_s, run.clock)
+                 settings.solver, run.model_vessel_file, period_s, run.clock)
         if run.origin is not None:
             o = run.origin
             core.set_origin(GeoOrigin.from_degrees(o.lat_deg, o.lon_deg, o.alt_m))
         try:
             run_scenario = scenario or (load_scenario(run.scenario) if run.scenario else None)
-            area, source = run_area(run_scenario, args.area, core.origin)
+            area, source = run_area(run_scenario, settings.area, core.origin)
         except (AreaError, ConfigError) as err:
             print(f"seaway-controller: --area: {err}", file=sys.stderr)
             return 2
@@ -135,9 +115,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             if not reply.accepted:
                 log.error("scenario %s mission refused: %s", scenario.name, reply.reason)
                 return 2
-        if args.state_file is not None:
-            resume(core, args.state_file, ctx.clock.now_ns(), args.run)
-        node = ControllerNode(core, args.state_file, builds, args.max_state_age_s)
+        if settings.state_file is not None:
+            resume(core, settings.state_file, ctx.clock.now_ns(), args.run)
+        node = ControllerNode(core, settings.state_file, builds, settings.max_state_age_s)
         run_node(ctx, node, period_s)
     return 0
 

@@ -1,4 +1,8 @@
-"""The estimator's configuration file (TOML or JSON); unknown fields are errors.
+"""The estimator's configuration: defaults, a file (TOML or JSON; unknown fields are errors), flags.
+
+Made by ``seaway.runtime.config`` (``--config FILE`` or the name of a shipped one, then the flags
+of the fields marked ``Flag``). ``vessel``, ``apply_dead_zone`` and ``origin`` are the run's
+(``seaway_estimator.main.with_run``), never the file's.
 
 Every standard deviation is 1-sigma in the unit its name carries. Process noise is given as the
 standard deviation a quantity accumulates over one second of white noise (``..._per_sqrt_s``), so
@@ -12,10 +16,11 @@ and yaw rate), so a healthy filter rejects about one good sample in 10,000.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import Field
 from seaway.contract.config import ConfigModel, Origin, load_config, named_file
+from seaway.runtime.config import Flag
 from seaway.runtime.run import DEFAULT_VESSEL_FILE
 
 from seaway_estimator.mismatch import MismatchConfig
@@ -38,14 +43,16 @@ class EstimatorConfig(ConfigModel):
         "Published values are always body frame")
     max_step_s: float = Field(default=0.05, gt=0, le=1.0, description="prediction substep [s]")
     # -- publishing ----------------------------------------------------------------------------
-    publish_rate_hz: float = Field(default=20.0, gt=0, le=200)
+    publish_rate_hz: float = Field(default=20.0, gt=0, le=200, description="NavState rate in real "
+                                   "time [Hz] (lockstep answers once per control period)")
     origin_rate_hz: float = Field(default=1.0, gt=0, le=50, description="NavOrigin repeat rate")
     origin: Origin | None = Field(default=None, description="fixed NED origin; None: the first good GNSS fix")
     # -- measurement noise (used unless a message reports its own) ------------------------------
     gnss_std_m: float = Field(default=0.3, gt=0, description="GNSS horizontal position std [m]")
     use_reported_gnss_std: bool = Field(default=True, description="use GnssFix.horizontal_std_m "
                                         "when present (floored at gnss_std_min_m)")
-    gnss_std_min_m: float = Field(default=0.02, gt=0)
+    gnss_std_min_m: float = Field(default=0.02, gt=0, description="floor of a reported GNSS "
+                                  "horizontal std [m]")
     min_fix_type: int = Field(default=3, ge=2, le=8, description="MAVLink GPS_FIX_TYPE accepted")
     sog_std_mps: float = Field(default=0.05, gt=0, description="GNSS velocity over ground std "
                                "per axis [m/s]")
@@ -64,14 +71,16 @@ class EstimatorConfig(ConfigModel):
                                          "moment random walk [N m/sqrt(s)]")
     # -- initial uncertainty -------------------------------------------------------------------
     init_speed_std_mps: float = Field(default=0.3, gt=0, description="u, v when no SOG [m/s]")
-    init_yaw_rate_std_radps: float = Field(default=0.05, gt=0)
+    init_yaw_rate_std_radps: float = Field(default=0.05, gt=0, description="r at initialisation "
+                                           "[rad/s]")
     init_force_std_n: float = Field(default=0.3, gt=0, description="disturbance force other than "
                                     "a current's (wind, a towed load) [N]")
     init_current_std_mps: float = Field(default=0.3, ge=0, description="the water current the "
                                         "filter may start in [m/s]: the model has no current, so "
                                         "it holds a drift c by the force D c that balances the "
                                         "damping D (X_u, Y_v); the initial force std adds that")
-    init_moment_std_nm: float = Field(default=0.03, gt=0)
+    init_moment_std_nm: float = Field(default=0.03, gt=0, description="disturbance yaw moment at "
+                                      "initialisation [N m]")
     init_max_skew_s: float = Field(default=1.0, gt=0, description="the first fix and the first "
                                    "heading must be this close in time to initialise")
     # -- robustness ------------------------------------------------------------------------------
@@ -102,6 +111,10 @@ class EstimatorConfig(ConfigModel):
     mismatch: MismatchConfig = Field(default_factory=MismatchConfig, description="the motion fault "
                                      "detector (``seaway_estimator.mismatch``): the vessel does not "
                                      "do what the commanded thrust says")
+    # -- the process ---------------------------------------------------------------------------
+    record_inputs: Annotated[Path | None, Flag(metavar="FILE")] = Field(
+        default=None, description="write every core call as JSON lines, for python -m "
+                                  "seaway_estimator.replay (None: do not)")
 
 
 CONFIG_DIR = Path(__file__).resolve().parents[2] / "config"

@@ -1,12 +1,14 @@
 """``seaway-estimator``: the estimator's configuration, and its node run (``seaway.runtime.node``).
 
 The node (``seaway_estimator.node``) says what the estimator hears and publishes; this reads the
-configuration (a TOML or JSON file, ``seaway_estimator.config``, and the run's facts), serves
+configuration (``seaway_estimator.config``, made by ``seaway.runtime.config``: its defaults,
+``--config FILE``, its flags; and the run's facts), serves
 re-initialisation (``nav/reset``, SIGUSR1) and hands the node to the runtime.
 """
 
 from __future__ import annotations
 
+import argparse
 import logging
 import signal
 import sys
@@ -14,12 +16,13 @@ from collections.abc import Sequence
 
 from seaway.contract import keys
 from seaway.contract.config import ConfigError
+from seaway.runtime.config import parse_service_args, service_parser
 from seaway.runtime.node import run_node
 from seaway.runtime.run import RunDescription
-from seaway.runtime.service import base_parser, on_signals, parse, resolve_run, run_service
+from seaway.runtime.service import on_signals, resolve_run, run_service
 from seaway.simkit.scenario import load_scenario
 
-from seaway_estimator.config import EstimatorConfig, load_estimator_config
+from seaway_estimator.config import CONFIG_DIR, EstimatorConfig
 from seaway_estimator.core import EstimatorCore
 from seaway_estimator.node import EstimatorNode, stats_line
 from seaway_estimator.replay import TraceWriter
@@ -43,21 +46,21 @@ def with_run(cfg: EstimatorConfig, run: RunDescription) -> EstimatorConfig:
                                   "origin": run.origin})
 
 
+def build_parser() -> argparse.ArgumentParser:
+    return service_parser("estimator", f"EKF state and disturbance estimator: {keys.GNSS.suffix}, "
+                                       f"{keys.ATTITUDE.suffix} -> {keys.NAV_STATE.suffix}",
+                          EstimatorConfig, shipped=CONFIG_DIR)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    ap = base_parser("estimator", f"EKF state and disturbance estimator: {keys.GNSS.suffix}, "
-                                  f"{keys.ATTITUDE.suffix} -> {keys.NAV_STATE.suffix}")
-    ap.add_argument("--config", default=None, help="estimator config file (TOML or JSON), or the "
-                    "name of one in services/estimator/config (e.g. px4-sitl)")
-    ap.add_argument("--record-inputs", default=None, metavar="FILE",
-                    help="write every core call as JSON lines, for python -m seaway_estimator.replay")
-    args = parse(ap, argv)
+    args, cfg = parse_service_args(build_parser(), argv, EstimatorConfig)
     run = resolve_run(args, "estimator", load_scenario)
     try:
-        cfg = with_run(load_estimator_config(args.config), run)
+        cfg = with_run(cfg, run)
     except ConfigError as err:
         print(f"seaway-estimator: {err}", file=sys.stderr)
         return 2
-    recorder = TraceWriter(args.record_inputs) if args.record_inputs else None
+    recorder = TraceWriter(cfg.record_inputs) if cfg.record_inputs else None
     node = EstimatorNode(EstimatorCore(cfg), recorder)
     with run_service("estimator", args, run=run) as ctx:
         on_signals((signal.SIGUSR1,), lambda _signum: node.reset_requested.set())

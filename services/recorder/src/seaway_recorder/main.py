@@ -30,23 +30,23 @@ from seaway.recording.recover import recover, tail_of
 from seaway.recording.timebase import RecordingTime, parse_epoch
 from seaway.runtime import memory
 from seaway.runtime import run as runs
-from seaway.runtime.argtypes import positive_float, positive_int
 from seaway.runtime.bus import REJOIN_HISTORY_S
+from seaway.runtime.config import parse_service_args, service_parser
 from seaway.runtime.lockstep_witness import LockstepWitness
 from seaway.runtime.node import run_node
 from seaway.runtime.run import RunDescription
-from seaway.runtime.service import base_parser, configure_logging, resolve_run, run_service
+from seaway.runtime.service import configure_logging, resolve_run, run_service
 from seaway.runtime.zenoh_bus import ENV_CONFIG
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.frames import GeoOrigin
 
 from seaway_recorder import attachments
+from seaway_recorder.config import RecorderConfig, parse_meta
 from seaway_recorder.logtail import FileTail, LogTail
 from seaway_recorder.node import LATE_NS, KeptKeys, RecorderNode, SampleQueue, Tails, lockstep_exprs
 from seaway_recorder.writer import LIBRARY, RUN_METADATA, AttachmentSpec, RecordingWriter
 
 log = logging.getLogger("seaway.recorder")
-DEFAULT_FLUSH_S = 0.05
 
 
 def default_out() -> Path:
@@ -61,71 +61,14 @@ def out_path(text: str | None) -> Path:
     return p if p.suffix == ".mcap" else p / "recording.mcap"
 
 
-def parse_meta(items: Sequence[str]) -> dict[str, str]:
-    out = {}
-    for item in items:
-        k, sep, v = item.partition("=")
-        if not sep or not k:
-            raise SystemExit(f"seaway record: --meta wants KEY=VALUE, got {item!r}")
-        out[k] = v
-    return out
-
-
-def parse_size(text: str) -> int:
-    units = {"k": 1 << 10, "m": 1 << 20, "g": 1 << 30}
-    t = text.strip().lower().removesuffix("b").removesuffix("i")
-    mult = units.get(t[-1:], 1)
-    return int(float(t[:-1] if t[-1:] in units else t) * mult)
-
-
 def parser() -> argparse.ArgumentParser:
-    p = base_parser(
-        "recorder", prog="seaway record [run]",
+    return service_parser(
+        "recorder", prog="seaway record [run]", model=RecorderConfig,
         description="Two commands. 'seaway record [run] [options]' (the default) records every "
                     "sample on the bus to MCAP until Ctrl-C: bytes unchanged, with their JSON "
                     "Schemas, flushed at least every --flush-interval so a crash loses little; the "
                     "launcher starts it as the recorder. 'seaway record recover IN [OUT]' rebuilds a "
                     "fully indexed file from one a crash cut short (seaway record recover --help).")
-    p.add_argument("--out", default=None,
-                   help="output folder or .mcap file (default runs/<UTC time>/recording.mcap)")
-    p.add_argument("--vessels", default="",
-                   help="comma-separated vessels to record (default: every vessel, seaway/**)")
-    p.add_argument("--key-expr", action="append", default=[],
-                   help="record this key expression instead (repeatable)")
-    p.add_argument("--profile", default=None, help="launcher profile (name or file) to attach")
-    p.add_argument("--mission", default=None, help="mission file to attach (MissionRequest JSON or TOML)")
-    p.add_argument("--attach", action="append", default=[], metavar="[ROLE=]FILE",
-                   help=f"attach a file (repeatable); roles: {', '.join(runinfo.ROLES)} (default config)")
-    p.add_argument("--meta", action="append", default=[], metavar="KEY=VALUE",
-                   help="add to the seaway.run metadata record (repeatable)")
-    p.add_argument("--flush-interval", type=positive_float, default=DEFAULT_FLUSH_S,
-                   help=f"seconds between flushes, at most 0.1 (default {DEFAULT_FLUSH_S})")
-    p.add_argument("--max-bytes", type=parse_size, default=None, help="rotate after this size (e.g. 512M)")
-    p.add_argument("--max-seconds", type=positive_float, default=None, help="rotate after this many seconds")
-    p.add_argument("--compression", choices=["zstd", "lz4", "none"], default="zstd",
-                   help="chunk compression (default zstd; none writes fastest, files are larger)")
-    p.add_argument("--chunk-size", type=parse_size, default=4 << 20,
-                   help="end a chunk early past this many bytes (default 4M)")
-    p.add_argument("--queue", type=positive_int, default=200_000,
-                   help="samples buffered between Zenoh and the writer before drops (default 200000)")
-    p.add_argument("--no-validate", action="store_true",
-                   help="do not check samples against their types (faster; nothing counts as malformed)")
-    p.add_argument("--no-foxglove", action="store_true",
-                   help="do not add the derived Foxglove channels (map positions, mission, frames, "
-                        "3D scene); log lines (--logs) are still recorded")
-    p.add_argument("--status-interval", type=positive_float, default=5.0, help="seconds between status lines")
-    p.add_argument("--events", type=Path, default=None, metavar="FILE",
-                   help="a launcher's events log (events.jsonl) to copy into the recording as it "
-                        "grows, on launcher/events")
-    p.add_argument("--logs", action="append", default=[], metavar="GLOB|DIR",
-                   help="log files to copy into the recording as they grow, each line a "
-                        "foxglove.Log on foxglove/log (repeatable; a folder means its *.log; the "
-                        "launcher's profiles pass '<run>/logs/*.log')")
-    p.add_argument("--sim-epoch", default=None, metavar="TIME",
-                   help="lockstep: the wall-clock time simulated time 0 is logged at, ISO 8601 "
-                        "(2026-05-01T09:00:00Z) or Unix seconds (default: when the run started, "
-                        "i.e. the --run file was written, else now; whole seconds)")
-    return p
 
 
 def newest_recording(base: Path) -> Path | None:
@@ -135,14 +78,15 @@ def newest_recording(base: Path) -> Path | None:
     return max(found, key=lambda p: p.stat().st_mtime_ns) if found else None
 
 
-def key_exprs(args: argparse.Namespace) -> list[str]:
-    if args.key_expr:
-        return list(args.key_expr)
-    vessels = [v.strip() for v in args.vessels.split(",") if v.strip()]
+def key_exprs(cfg: RecorderConfig) -> list[str]:
+    if cfg.key_expr:
+        return list(cfg.key_expr)
+    vessels = [v.strip() for v in cfg.vessels.split(",") if v.strip()]
     return [keys.vessel_wildcard(v) for v in vessels] or [keys.vessel_wildcard()]
 
 
-def build_run_info(args: argparse.Namespace, exprs: list[str], run: RunDescription):
+def build_run_info(args: argparse.Namespace, cfg: RecorderConfig, exprs: list[str],
+                   run: RunDescription):
     """Attachments (the run description, its scenario, vessel files, ...) and metadata of a recording."""
     atts = [AttachmentSpec(runinfo.RUN_ATTACHMENT, "application/json", run.encode(), time.time_ns())]
     origin = None
@@ -156,14 +100,14 @@ def build_run_info(args: argparse.Namespace, exprs: list[str], run: RunDescripti
     atts.append(attachments.attachment("vessel", runinfo.vessel_path(run.model_vessel_file)))
     if run.plant_vessel_file is not None:
         atts.append(attachments.attachment("plant-vessel", runinfo.vessel_path(run.plant_vessel_file)))
-    if args.profile:
-        atts.append(attachments.attachment("profile", runinfo.profile_path(args.profile)))
-    if args.mission:
-        atts.append(attachments.attachment("mission", Path(args.mission)))
+    if cfg.profile:
+        atts.append(attachments.attachment("profile", runinfo.profile_path(cfg.profile)))
+    if cfg.mission:
+        atts.append(attachments.attachment("mission", Path(cfg.mission)))
     zcfg = args.zenoh_config or os.environ.get(ENV_CONFIG)
     if zcfg:
         atts.append(attachments.attachment("zenoh", Path(zcfg)))
-    atts += [attachments.parse_attach_arg(a) for a in args.attach]
+    atts += [attachments.parse_attach_arg(a) for a in cfg.attach]
     meta = {
         "recorder": LIBRARY,
         "started_utc": dt.datetime.now(dt.UTC).isoformat(timespec="milliseconds"),
@@ -173,23 +117,24 @@ def build_run_info(args: argparse.Namespace, exprs: list[str], run: RunDescripti
         "run_id": run.run_id,
         "control_period_s": f"{run.control_period_s:g}",
         "clock": run.clock,
-        "profile": Path(args.profile).stem if args.profile else "",
-        "flush_interval_s": f"{args.flush_interval:g}",
+        "profile": Path(cfg.profile).stem if cfg.profile else "",
+        "flush_interval_s": f"{cfg.flush_interval_s:g}",
         "command": " ".join(sys.argv),
         "attachments": ",".join(a.name for a in atts),
-        **parse_meta(args.meta),
+        **parse_meta(cfg.meta),
     }
     return atts, {RUN_METADATA: meta}, origin
 
 
-def recording_time(args: argparse.Namespace, run: RunDescription, now_ns: int) -> RecordingTime:
+def recording_time(args: argparse.Namespace, cfg: RecorderConfig, run: RunDescription,
+                   now_ns: int) -> RecordingTime:
     """The recording's time convention (``timebase``): the run's clock and, in lockstep, its epoch:
     ``--sim-epoch``, else when the run started (the launcher writes ``--run`` then, and a restarted
     recorder reads the same file), else ``now_ns``; whole seconds."""
     if not run.lockstep:
         return RecordingTime.real_time()
-    if args.sim_epoch:
-        epoch_ns, source = parse_epoch(args.sim_epoch), "--sim-epoch"
+    if cfg.sim_epoch:
+        epoch_ns, source = parse_epoch(cfg.sim_epoch), "--sim-epoch"
     elif (started := runs.started_ns(args.run)) is not None:
         epoch_ns, source = started, f"run started ({args.run} written)"
     else:
@@ -199,22 +144,21 @@ def recording_time(args: argparse.Namespace, run: RunDescription, now_ns: int) -
 
 
 def run(argv: Sequence[str]) -> int:
-    args = parser().parse_args(list(argv))
-    if not 0 < args.flush_interval <= 0.1:
-        raise SystemExit("seaway record: --flush-interval must be in (0, 0.1] s")
-    exprs = key_exprs(args)
+    args, cfg = parse_service_args(parser(), argv, RecorderConfig)
+    exprs = key_exprs(cfg)
     run = resolve_run(args, "recorder", load_scenario)
     try:
-        atts, meta, origin = build_run_info(args, exprs, run)
-        rec_time = recording_time(args, run, time.time_ns())
+        atts, meta, origin = build_run_info(args, cfg, exprs, run)
+        rec_time = recording_time(args, cfg, run, time.time_ns())
     except (ConfigError, ValueError, OSError) as err:
         print(f"seaway record: {err}", file=sys.stderr)
         return 2
-    writer = RecordingWriter(out_path(args.out), chunk_size=args.chunk_size, compression=args.compression,
-                             max_bytes=args.max_bytes, max_seconds=args.max_seconds, attachments=atts,
-                             metadata=meta, validate=not args.no_validate, foxglove=not args.no_foxglove,
+    writer = RecordingWriter(out_path(cfg.out), chunk_size=cfg.chunk_size_bytes,
+                             compression=cfg.compression, max_bytes=cfg.max_bytes,
+                             max_seconds=cfg.max_seconds, attachments=atts, metadata=meta,
+                             validate=cfg.validate_samples, foxglove=cfg.foxglove,
                              default_origin=origin, time=rec_time)
-    queue = SampleQueue(args.queue)
+    queue = SampleQueue(cfg.queue)
     # The recorder records whatever runs (a shore recorder sees a boat launched elsewhere), so it
     # does not take part in the run agreement; its run only describes the recording.
     with run_service("recorder", args, run=run, agree=False) as ctx:
@@ -249,12 +193,12 @@ def run(argv: Sequence[str]) -> int:
             # caches), which a recorder restarted by the launcher was away for.
             ctx.bus.subscribe_raw(e, queue.on_sample, inline=run.lockstep,
                                   history_s=0.0 if run.lockstep else REJOIN_HISTORY_S)
-        tails = Tails(FileTail(args.events) if args.events else None,
-                      LogTail(args.logs) if args.logs else None,
-                      ctx.bus.publisher(keys.LOG_LINE).put if args.logs else None)
-        node = RecorderNode(writer, queue, args.flush_interval, args.status_interval, witness,
+        tails = Tails(FileTail(cfg.events) if cfg.events else None,
+                      LogTail(cfg.logs) if cfg.logs else None,
+                      ctx.bus.publisher(keys.LOG_LINE).put if cfg.logs else None)
+        node = RecorderNode(writer, queue, cfg.flush_interval_s, cfg.status_interval_s, witness,
                             tails, kept)
-        run_node(ctx, node, args.flush_interval)
+        run_node(ctx, node, cfg.flush_interval_s)
         failed = node.failed is not None
         writer.count_dropped(queue.dropped - writer.stats.dropped)
         try:

@@ -25,19 +25,19 @@ from pathlib import Path
 
 from seaway.contract.config import ConfigError
 from seaway.mavlink.signing import KeyFileError, read_key
-from seaway.runtime.argtypes import positive_float, whole_number
-from seaway.runtime.lockstep_clock import STALL_REPEAT_S
+from seaway.runtime.config import parse_service_args, service_parser
 from seaway.runtime.node import run_node
 from seaway.runtime.run import from_earlier_launch
-from seaway.runtime.service import base_parser, parse, resolve_run, run_service
+from seaway.runtime.service import resolve_run, run_service
 from seaway.simkit.faults import ThrusterFaults
 from seaway.simkit.scenario import Scenario, load_scenario
 from seaway.vessel.model import load_vessel
 
 from seaway_sim import kept, plant_kept
 from seaway_sim.battery import SimPack
+from seaway_sim.config import START_SPACING_M, SimConfig, parse_params
 from seaway_sim.core import SimCore
-from seaway_sim.mavlink_link import DEFAULT_ENDPOINT, MavlinkLink
+from seaway_sim.mavlink_link import MavlinkLink
 from seaway_sim.node import SimNode
 from seaway_sim.px4_autopilot import COMPID, Px4Autopilot, Px4Config
 from seaway_sim.realtime import Realtime
@@ -46,54 +46,10 @@ from seaway_sim.world import world_of
 log = logging.getLogger("seaway_sim")
 
 DEFAULT_SCENARIO = "lake"  # the simulator's own default: only it runs a scenario
-DEFAULT_STEP_S = 0.01  # real-time tick: the plant's internal RK4 step, 100 Hz
-START_SPACING_M = 5.0
-"""How far apart [m] the vessels of a fleet start (``--start-slot``): east of the scenario's start,
-one slot each, clear of each other's circle of acceptance and of their glyphs on the map."""
-
-
 def build_parser() -> argparse.ArgumentParser:
-    p = base_parser("sim", "The Seaway simulator: vessel plant, disturbances, sensor noise and a "
-                           "PX4-like MAVLink endpoint (real time), or lockstep on the bus.")
-    p.add_argument("--state-file", type=Path, default=None, metavar="PATH",
-                   help="keep each scenario loaded over the bus in PATH, and start "
-                        "with the one kept there, if any, instead of the run's: a sim the launcher "
-                        "restarts flies on in the water it was given (seaway_sim.kept)")
-    p.add_argument("--stall-repeat-s", type=positive_float, default=STALL_REPEAT_S,
-                   help="lockstep: wall seconds without progress after which the sim repeats its "
-                        f"period, a safety net (default {STALL_REPEAT_S:g})")
-    p.add_argument("--mavlink", default=DEFAULT_ENDPOINT,
-                   help=f"real time: where the simulated autopilot listens "
-                        f"(default {DEFAULT_ENDPOINT})")
-    p.add_argument("--step", type=positive_float, default=DEFAULT_STEP_S,
-                   help="real time: plant and MAVLink tick [s] (default 0.01)")
-    p.add_argument("--sysid", type=whole_number(1, 255), default=1,
-                   help="real time: MAVLink system id (default 1)")
-    p.add_argument("--signing-key-file", default=None, metavar="PATH",
-                   help="real time: MAVLink 2 signing key file (64 hex characters): sign everything "
-                        "sent and reject unsigned or wrongly signed messages, as PX4 with a key "
-                        "does. Create one with: python -m seaway.mavlink.signing PATH")
-    p.add_argument("--start-slot", type=whole_number(0, 64), default=0, metavar="N",
-                   help=f"start N x {START_SPACING_M:g} m east of the scenario's start (the fleet "
-                        "profile gives each vessel its own slot, so none starts on another); the "
-                        "scenario's operating area must hold it (default 0: the scenario's start)")
-    p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
-                   help="real time: set a simulated PX4 parameter at boot (repeatable), e.g. NAV_RCL_ACT=1")
-    return p
-
-
-def parse_params(items: Sequence[str]) -> tuple[tuple[str, float], ...]:
-    """``NAME=VALUE`` items -> overrides; the autopilot's ParamStore checks names, types, ranges."""
-    out = []
-    for item in items:
-        name, sep, value = item.partition("=")
-        try:
-            if not sep:
-                raise ValueError
-            out.append((name.strip(), float(value)))
-        except ValueError:
-            raise ConfigError(f"--param wants NAME=VALUE with a number, got {item!r}") from None
-    return tuple(out)
+    return service_parser("sim", "The Seaway simulator: vessel plant, disturbances, sensor noise "
+                                 "and a PX4-like MAVLink endpoint (real time), or lockstep on the "
+                                 "bus.", SimConfig)
 
 
 def in_slot(scenario: Scenario, slot: int) -> Scenario:
@@ -110,7 +66,7 @@ def in_slot(scenario: Scenario, slot: int) -> Scenario:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    args = parse(build_parser(), argv)
+    args, cfg = parse_service_args(build_parser(), argv, SimConfig)
     if not args.run and args.scenario is None:
         args.scenario = DEFAULT_SCENARIO
     run = resolve_run(args, "sim", load_scenario)
@@ -123,35 +79,32 @@ def main(argv: Sequence[str] | None = None) -> int:
         model = load_vessel(scenario.vessel)  # its limits: vehicle I/O's output stage in lockstep
         SimPack.of(scenario, vessel)  # the scenario's [battery] must fit the vessel's pack
         ThrusterFaults(scenario.faults, (-vessel.reverse_max_n, vessel.thrust_max_n))  # stuck thrusts fit
-        scenario = in_slot(scenario, args.start_slot)
+        scenario = in_slot(scenario, cfg.start_slot)
     except ConfigError as err:
         print(f"seaway-sim: {err}", file=sys.stderr)
         return 2
     resumed = stale = None
-    if args.state_file is not None:
+    if cfg.state_file is not None:
         try:
-            resumed = kept.load(args.state_file)
+            resumed = kept.load(cfg.state_file)
             if resumed is not None and from_earlier_launch(resumed.saved_unix_ns, args.run):
                 stale, resumed = resumed, None
             if resumed is not None:
-                scenario, vessel, model = world_of(resumed.document, str(args.state_file), run)
+                scenario, vessel, model = world_of(resumed.document, str(cfg.state_file), run)
         except (kept.KeptError, ConfigError) as err:
-            print(f"seaway-sim: --state-file {args.state_file}: {err}\n(it keeps the scenario last "
+            print(f"seaway-sim: --state-file {cfg.state_file}: {err}\n(it keeps the scenario last "
                   f"loaded over the bus, for a restarted sim; remove it to start with the run's, "
                   f"{run.scenario})", file=sys.stderr)
             return 2
     lockstep, period_s = run.lockstep, run.control_period_s
     try:
-        params = parse_params(args.param)
+        params = parse_params(cfg.px4_params)
         Px4Autopilot(Px4Config(thrust_max_n=1.0, param_overrides=params))  # validates them now
     except (ConfigError, ValueError) as err:
         print(f"seaway-sim: {err}", file=sys.stderr)
         return 2
-    if not 1 <= args.sysid <= 255:
-        print(f"seaway-sim: --sysid must be 1..255, got {args.sysid}", file=sys.stderr)
-        return 2
     try:
-        key = read_key(args.signing_key_file) if args.signing_key_file else None
+        key = read_key(cfg.signing_key_file) if cfg.signing_key_file else None
     except KeyFileError as err:
         print(f"seaway-sim: --signing-key-file: {err}", file=sys.stderr)
         return 2
@@ -160,35 +113,35 @@ def main(argv: Sequence[str] | None = None) -> int:
         log.warning("--signing-key-file ignored: lockstep does not speak MAVLink")
     if not lockstep:
         try:
-            link = MavlinkLink(args.mavlink, args.sysid, COMPID, signing_key=key)
+            link = MavlinkLink(cfg.mavlink, cfg.sysid, COMPID, signing_key=key)
         except (ValueError, OSError) as err:
-            print(f"seaway-sim: --mavlink {args.mavlink}: {err}", file=sys.stderr)
+            print(f"seaway-sim: --mavlink {cfg.mavlink}: {err}", file=sys.stderr)
             return 2
     with run_service("sim", args, run=run) as ctx:
         boot_ns = time.monotonic_ns()
         core = SimCore(scenario, vessel, epoch_ns=0 if lockstep else time.time_ns())
-        node = SimNode(core, lockstep=lockstep, run=run, model=model, state_file=args.state_file)
-        node.stall_s = args.stall_repeat_s
+        node = SimNode(core, lockstep=lockstep, run=run, model=model, state_file=cfg.state_file)
+        node.stall_s = cfg.stall_repeat_s
         if stale is not None:
             log.info("--state-file %s: %s was kept before this run started (an earlier launch into "
-                     "this folder): the run's %s flies", args.state_file, stale.name, run.scenario)
+                     "this folder): the run's %s flies", cfg.state_file, stale.name, run.scenario)
         if resumed is not None:
             log.warning("scenario %s, as loaded over the bus before this sim started (kept in %s), "
-                        "not the run's %s: time starts again at 0", scenario.name, args.state_file,
+                        "not the run's %s: time starts again at 0", scenario.name, cfg.state_file,
                         run.scenario)
         log.info("scenario %s (seed %d), plant vessel %s, model vessel %s, period %g s, %s",
                  scenario.name, scenario.seed, vessel.name, run.model_vessel_file, period_s,
                  "lockstep" if lockstep else "real time, MAVLink signing "
-                 + (f"on (key file {args.signing_key_file})" if key is not None else "off"))
+                 + (f"on (key file {cfg.signing_key_file})" if key is not None else "off"))
         if link is None:
             run_node(ctx, node, period_s)
         else:
-            autopilot = Px4Autopilot(Px4Config(thrust_max_n=vessel.thrust_max_n, sysid=args.sysid,
+            autopilot = Px4Autopilot(Px4Config(thrust_max_n=vessel.thrust_max_n, sysid=cfg.sysid,
                                                param_overrides=params))
-            keeper = None if args.state_file is None else resume_plant(core, args.state_file, args.run)
+            keeper = None if cfg.state_file is None else resume_plant(core, cfg.state_file, args.run)
             try:
-                node.live = Realtime(node, autopilot, link, args.step, period_s, boot_ns, keeper)
-                run_node(ctx, node, args.step)
+                node.live = Realtime(node, autopilot, link, cfg.step_s, period_s, boot_ns, keeper)
+                run_node(ctx, node, cfg.step_s)
             finally:
                 link.close()
     return 0

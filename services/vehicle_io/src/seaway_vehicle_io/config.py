@@ -1,22 +1,23 @@
-"""vehicle_io's configuration file (TOML or JSON); unknown fields are errors.
+"""vehicle_io's configuration: defaults, a file (TOML or JSON; unknown fields are errors), flags.
 
-Every field has a safe default, so a file is needed only to change something. ``--mavlink``,
-``--autopilot``, ``--thrust-timeout`` and ``--signing-key-file`` on the command line override the
-file. ``--config`` takes a path, or the name of a file shipped in ``services/vehicle_io/config/``
-(``ardupilot-sitl``, ``px4-sitl``, ``boat-serial``, ...: ``config_path``). The vessel file
-(thruster limits, dead zone) is a run-wide fact: it comes from the run description
-(``seaway.runtime.run``), not from here.
+Every field has a safe default, so a file is needed only to change something. ``--config`` takes a
+path, or the name of a file shipped in ``services/vehicle_io/config/`` (``ardupilot-sitl``,
+``px4-sitl``, ``boat-serial``, ...: ``config_path``). The fields marked ``Flag`` are also flags
+(``--mavlink``, ``--autopilot``, ``--thrust-timeout``, ``--signing-key-file``) that override the
+file (``seaway.runtime.config``). The vessel file (thruster limits, dead zone) is a run-wide fact:
+it comes from the run description (``seaway.runtime.run``), not from here.
 """
 
 from __future__ import annotations
 
 import ipaddress
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import Field, field_validator, model_validator
 from seaway.contract.config import ConfigModel, named_file
 from seaway.mavlink.signing import read_key
+from seaway.runtime.config import Flag
 
 from seaway_vehicle_io import profile, rates
 from seaway_vehicle_io.signing import (
@@ -51,7 +52,7 @@ SOURCE_COMPONENT = 191  # MAV_COMP_ID_ONBOARD_COMPUTER
 class VehicleIoConfig(ConfigModel):
     """How vehicle_io talks to the autopilot and how it guards the thrusters."""
 
-    mavlink: str = Field(
+    mavlink: Annotated[str, Flag()] = Field(
         default="udpout:127.0.0.1:14580",
         description="pymavlink connection URL: udpin:HOST:PORT (listen), udpout:HOST:PORT (send "
                     "first), tcp:HOST:PORT, or a serial device /dev/ttyX (baud from 'baud')",
@@ -63,7 +64,7 @@ class VehicleIoConfig(ConfigModel):
                     "None: 127.0.0.1 when the autopilot's address is loopback, else 0.0.0.0 (every "
                     "interface). udpin listens where its URL says",
     )
-    autopilot: AutopilotChoice = Field(
+    autopilot: Annotated[AutopilotChoice, Flag()] = Field(
         default=profile.AUTO,
         description=f"expected autopilot, one of {', '.join(AUTOPILOT_CHOICES)}; "
                     f"'{profile.AUTO}' takes it from the HEARTBEAT. A HEARTBEAT that contradicts a "
@@ -89,7 +90,7 @@ class VehicleIoConfig(ConfigModel):
         default=3.0, gt=0, description="no autopilot HEARTBEAT for this long = link lost [s]"
     )
     heartbeat_period_s: float = Field(default=1.0, gt=0, description="our HEARTBEAT period [s]")
-    thrust_timeout_s: float = Field(
+    thrust_timeout_s: Annotated[float, Flag("--thrust-timeout", metavar="S")] = Field(
         default=0.3, gt=0,
         description="watchdog: no ThrustCommand received for this long -> neutral thrust [s]",
     )
@@ -136,7 +137,8 @@ class VehicleIoConfig(ConfigModel):
     param_timeout_s: float = Field(
         default=1.0, gt=0, description="wait this long for each PARAM_VALUE before asking again [s]"
     )
-    param_attempts: int = Field(default=3, ge=1, le=10)
+    param_attempts: int = Field(default=3, ge=1, le=10, description="PARAM_REQUEST_READ "
+                                "transmissions of one parameter before giving up")
     autopilot_fence: bool = Field(
         default=True,
         description="upload the operating area the controller enforces to the autopilot as its own fence, "
@@ -182,7 +184,7 @@ class VehicleIoConfig(ConfigModel):
         description="send neutral while the autopilot reports disarmed, so arming never starts "
                     "the thrusters at a demand computed before it",
     )
-    signing_key_file: Path | None = Field(
+    signing_key_file: Annotated[Path | None, Flag(metavar="PATH")] = Field(
         default=None,
         description="MAVLink 2 signing: a file holding the 32-byte secret key as 64 hex characters "
                     "(a relative path is from the working directory). Set: everything we send is "

@@ -1,8 +1,9 @@
 """``seaway-vehicle-io``: vehicle I/O's configuration, and its node run (``seaway.runtime.node``).
 
 The node (``seaway_vehicle_io.node``) says what vehicle_io hears, answers and publishes; this reads
-the configuration (a TOML or JSON file, ``seaway_vehicle_io.config``, command-line overrides and the
-run's vessel) and hands the node to the runtime, on the wall clock.
+the configuration (``seaway_vehicle_io.config``, made by ``seaway.runtime.config``: its defaults,
+``--config FILE``, then its flags; and the run's vessel) and hands the node to the runtime, on
+the wall clock.
 """
 
 from __future__ import annotations
@@ -12,18 +13,18 @@ import logging
 import sys
 from collections.abc import Sequence
 
-from seaway.contract.config import ConfigError, load_config, parse_config
+from seaway.contract.config import ConfigError
 from seaway.mavlink.signing import KeyFileError
-from seaway.runtime.argtypes import positive_float
+from seaway.runtime.config import config_of, parse_service_args, service_parser
 from seaway.runtime.node import run_node
 from seaway.runtime.run import RunDescription
-from seaway.runtime.service import base_parser, parse, resolve_run, run_service
+from seaway.runtime.service import resolve_run, run_service
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.battery import BatteryParams
 from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.model import load_vessel
 
-from seaway_vehicle_io.config import AUTOPILOT_CHOICES, VehicleIoConfig, config_path
+from seaway_vehicle_io.config import CONFIG_DIR, VehicleIoConfig
 from seaway_vehicle_io.link import check_url
 from seaway_vehicle_io.node import MAX_SLEEP_S, VehicleIoNode
 from seaway_vehicle_io.signing import SigningSetup
@@ -33,33 +34,19 @@ log = logging.getLogger("seaway.vehicle_io")
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = base_parser("vehicle_io", "The only MAVLink speaker: autopilot telemetry to the bus, "
-                                  "thrust commands to the autopilot, with a watchdog.")
-    p.add_argument("--config", default=None, help="vehicle_io config file (.toml or .json), or the "
-                   "name of one in services/vehicle_io/config (e.g. ardupilot-sitl)")
-    p.add_argument("--mavlink", default=None,
-                   help="MAVLink URL (overrides the config): udpin:HOST:PORT, udpout:HOST:PORT, "
-                        "tcp:HOST:PORT or /dev/ttyX")
-    p.add_argument("--autopilot", choices=AUTOPILOT_CHOICES, default=None,
-                   help="expected autopilot (overrides the config; default auto)")
-    p.add_argument("--thrust-timeout", type=positive_float, default=None, metavar="S",
-                   help="watchdog timeout [s] (overrides the config; default 0.3)")
-    p.add_argument("--signing-key-file", default=None, metavar="PATH",
-                   help="MAVLink 2 signing key file, 64 hex characters (overrides the config's "
-                        "signing_key_file): sign everything sent, refuse unsigned or wrongly signed "
-                        "messages. Create one with: seaway signing new PATH")
-    return p
+    return service_parser("vehicle_io", "The only MAVLink speaker: autopilot telemetry to the bus, "
+                                        "thrust commands to the autopilot, with a watchdog.",
+                          VehicleIoConfig, shipped=CONFIG_DIR)
 
 
 def load(args: argparse.Namespace, run: RunDescription) -> tuple[VehicleIoConfig, ThrusterLimits]:
-    """Config file + command-line overrides, validated together; the run's vessel's thruster limits."""
-    cfg = load_config(config_path(args.config), VehicleIoConfig) if args.config else VehicleIoConfig()
-    overrides = {k: v for k, v in {
-        "mavlink": args.mavlink, "autopilot": args.autopilot,
-        "thrust_timeout_s": args.thrust_timeout, "signing_key_file": args.signing_key_file,
-    }.items() if v is not None}
-    if overrides:
-        cfg = parse_config({**cfg.model_dump(), **overrides}, VehicleIoConfig, "command line")
+    """The configuration (``seaway.runtime.config``: defaults, ``--config``, flags) and ``checked``.
+    ConfigError."""
+    return checked(config_of(args, VehicleIoConfig), run)
+
+
+def checked(cfg: VehicleIoConfig, run: RunDescription) -> tuple[VehicleIoConfig, ThrusterLimits]:
+    """The config with its URL checked, and the run's vessel's thruster limits. ConfigError."""
     try:
         check_url(cfg.mavlink)
     except ValueError as err:
@@ -87,10 +74,10 @@ def signing_setup(cfg: VehicleIoConfig) -> SigningSetup | None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    args = parse(build_parser(), argv)
+    args, cfg = parse_service_args(build_parser(), argv, VehicleIoConfig)
     run = resolve_run(args, "vehicle_io", load_scenario)
     try:
-        cfg, limits = load(args, run)
+        cfg, limits = checked(cfg, run)
         signing = signing_setup(cfg)
         battery = battery_of(run)
     except ConfigError as err:

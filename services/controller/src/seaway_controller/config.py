@@ -1,0 +1,54 @@
+"""The controller service's configuration: defaults, a file (TOML or JSON), flags.
+
+Made by ``seaway.runtime.config``: the defaults below, then ``--config FILE`` (unknown fields are
+errors), then a flag per field (``--solver``, ``--max-state-age-s``, ...). The vessel model, the
+control period (also the OCP's dt), the origin and the clock are the run's (``seaway.runtime.run``),
+not settings of the controller. ``seaway_controller.main`` turns this and the run into the core's
+``ControllerConfig``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Literal
+
+from pydantic import Field
+from seaway.contract.config import ConfigModel
+from seaway.runtime.config import Flag
+
+from seaway_controller.mission import MissionLimits
+from seaway_controller.solvers import SOLVER_KINDS
+
+SolverChoice = Literal[SOLVER_KINDS]  # type: ignore[valid-type]  # built from the solver registry
+
+
+class ControllerServiceConfig(ConfigModel):
+    """What the controller service runs with, besides the run's facts."""
+
+    solver: Annotated[SolverChoice, Flag()] = Field(
+        default="generated",
+        description="generated: compiled SQP (fast); ipopt: plain IPOPT (reference)")
+    predict_disturbance: Annotated[bool, Flag()] = Field(
+        default=False,
+        description="predict with the estimator's tau_d instead of tau_d = 0 (the paper's)")
+    max_state_age_s: Annotated[float, Flag()] = Field(
+        default=0.5, gt=0, description="real time: older states give zero thrust [s]")
+    plan_reuse_steps: Annotated[int, Flag()] = Field(
+        default=3, ge=0,
+        description="fallback 1: periods of failed solves flown on the last good plan")
+    los_steps: Annotated[int, Flag()] = Field(
+        default=600, ge=0,
+        description="fallback 2: periods of line-of-sight guidance after that, before zero thrust")
+    state_file: Annotated[Path | None, Flag()] = Field(
+        default=None, description="mission checkpoint: resume from it at start, keep it up to date")
+    max_range_m: Annotated[float, Flag()] = Field(
+        default=MissionLimits.max_range_m, gt=0,
+        description="operating area: waypoints within this distance of the origin [m]")
+    controller_module: Annotated[list[str], Flag(metavar="FILE|MODULE")] = Field(
+        default_factory=list,
+        description="a controller of one's own: a .py file or an importable module that registers "
+                    "it (seaway_controller.controllers.load_module)")
+    area: Annotated[Path | None, Flag()] = Field(
+        default=None,
+        description="the operating area to enforce (.toml [area], .plan geoFence, .geojson); "
+                    "default: the run's scenario's [area], else none")
