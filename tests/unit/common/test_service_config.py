@@ -88,6 +88,8 @@ def test_bool_and_list_flags() -> None:
     assert cfg.state_file == Path("s.json") and cfg.mode == "slow"
     _args, cfg = _parse([])
     assert cfg.verbose is False and cfg.check is True and cfg.module == []
+    help_text = service_parser("demo", "a demo service", DemoConfig).format_help()
+    assert "turns off (on by default): check what comes in" in " ".join(help_text.split())
 
 
 def test_an_unknown_field_in_the_file_is_named(tmp_path: Path, capsys) -> None:

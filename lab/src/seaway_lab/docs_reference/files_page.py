@@ -30,7 +30,10 @@ def _files() -> list[tuple[str, str, type[BaseModel], str]]:
     from seaway.simkit.scenario import Scenario
     from seaway.tools.launch.profile import Profile
     from seaway.vessel.model import VesselParams
+    from seaway_controller.config import ControllerServiceConfig
     from seaway_estimator.config import EstimatorConfig
+    from seaway_recorder.config import RecorderConfig
+    from seaway_sim.config import SimConfig
     from seaway_vehicle_io.config import VehicleIoConfig
 
     return [
@@ -42,6 +45,9 @@ def _files() -> list[tuple[str, str, type[BaseModel], str]]:
         ("Launcher profile", "deploy/profiles/*.toml", Profile, ""),
         ("vehicle_io config", "services/vehicle_io/config/*.toml", VehicleIoConfig, ""),
         ("Estimator config", "services/estimator/config/*.toml", EstimatorConfig, ""),
+        ("Controller config", "seaway-controller --config FILE", ControllerServiceConfig, ""),
+        ("Simulator config", "seaway-sim --config FILE", SimConfig, ""),
+        ("Recorder config", "seaway-recorder --config FILE", RecorderConfig, ""),
         ("Run description", "runs/<run>/run.json (written by the launcher)", RunDescription, ""),
     ]
 

@@ -130,7 +130,7 @@ def _add(group: argparse._ArgumentGroup, spec: FlagSpec) -> None:
     kw: dict[str, Any] = {"dest": spec.field, "default": argparse.SUPPRESS}
     if kind is bool:
         if default:
-            help_text += "; on unless this flag is given"
+            help_text = f"turns off (on by default): {help_text}"
         group.add_argument(spec.option, action="store_false" if default else "store_true",
                            help=help_text, **kw)
         return
