@@ -1,4 +1,4 @@
-"""``seaway bench recorder-lockstep``: the recorder's own cost per lockstep period, in this process.
+"""``seaway bench recorder --lockstep``: the recorder's own cost per lockstep period, in this process.
 
 A lockstep recorder hears one bundle a period from each member (``seaway.contract.bundle``), writes
 the messages they carry on their own channels with the derived Foxglove channels, and answers the
@@ -148,7 +148,7 @@ def record(vessel: str, periods: list[list[Sample]], out: Path, logs: Path | Non
 
 
 def run(argv: list[str]) -> BenchResult:
-    ap = argparse.ArgumentParser(prog="seaway bench recorder-lockstep",
+    ap = argparse.ArgumentParser(prog="seaway bench recorder --lockstep",
                                  description=__doc__.split("\n\n")[0])
     ap.add_argument("--recording", type=Path, default=None,
                     help="a lockstep recording to take the bundles from (default: fly paper-c1 "
