@@ -163,3 +163,22 @@ def test_each_answer_is_decoded_once_and_every_period_answered(tmp_path: Path, m
     sim_answers = [d for d in decoded if b'"service":"sim"' in d]
     assert len(sim_answers) == 6 and len(set(sim_answers)) == 6
     assert answered == [Period(0, k * P) for k in range(6)]  # and each period was answered
+
+
+def test_the_witness_looks_at_its_ledger_only_after_an_answer_is_noted() -> None:
+    """The recorder's loop asks the witness after every bundle it drains; only an answer noted since
+    the last look can complete a period, so the ledger (under its lock) is looked at only then."""
+    hub = MemoryHub()
+    witness = LockstepWitness(hub.bus(V), V, EXPRS)
+    looks: list[int] = []
+    covers = witness.covers
+    witness.covers = lambda: looks.append(1) or covers()  # type: ignore[method-assign]
+    flushes: list[int] = []
+    sim = Member(hub.bus(V), "sim", watched=(), subscribe=False)
+    for k in range(2):
+        witness.written([(keys.lockstep_spec("sim").key(V),
+                          sim.answer(Period(0, k * P), P, members=["recorder"]))])
+        assert witness.maybe_answer(lambda: flushes.append(1))
+        for _ in range(5):
+            assert not witness.maybe_answer(lambda: flushes.append(1))
+    assert (len(looks), len(flushes)) == (2, 2)

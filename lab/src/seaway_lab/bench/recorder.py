@@ -13,6 +13,9 @@ Three figures in one run:
    The per-second rates are counted from the recording's receive times (whole seconds only); drops are
    the messages sent but not in the file, plus the recorder's own queue drops.
 
+``--lockstep`` measures instead what a lockstep recorder costs per period, the bundles of a real
+mission in, the period answered on disk (``seaway_lab.bench.recorder_lockstep``).
+
 Run the publisher alone with ``python -m seaway_lab.bench.recorder publish --rate R --seconds S``.
 """
 
@@ -40,6 +43,7 @@ from seaway.vessel.metrics import median, percentile
 from seaway_recorder.mcapfile import McapWriter
 from seaway_recorder.writer import RecordingWriter
 
+from seaway_lab.bench import recorder_lockstep
 from seaway_lab.bench.common import BenchResult, bench_credentials, free_rendezvous
 
 TARGET_MSG_S = 50_000
@@ -193,7 +197,15 @@ def run(argv: list[str]) -> BenchResult:
     ap.add_argument("--seconds", type=positive_float, default=6.0, help="publishing time [s]")
     ap.add_argument("--baseline-messages", type=positive_int, default=200_000,
                     help="messages written straight to a file, the baseline of the same run")
-    args = ap.parse_args(argv)
+    ap.add_argument("--lockstep", action="store_true",
+                    help="measure instead the recorder's own cost per lockstep period, in this "
+                         "process (seaway_lab.bench.recorder_lockstep; its options: --recording, "
+                         "--repeat, --keep)")
+    args, rest = ap.parse_known_args(argv)
+    if args.lockstep:
+        return recorder_lockstep.run(rest)
+    if rest:
+        ap.error(f"unrecognized arguments: {' '.join(rest)}")
     flush_every = max(1, int(args.rate * 0.05))  # what a 50 ms flush interval means at this rate
     res = BenchResult("recorder", f"Recorder throughput, {MESSAGE_BYTES}-byte messages")
     with tempfile.TemporaryDirectory(prefix="seaway-bench-recorder-") as d:

@@ -121,8 +121,15 @@ def timestamp(t_ns: int) -> fg.Timestamp:
 
 
 def _color(name: str) -> fg.Color:
-    r, g, b, a = _COLOR[name]
-    return fg.Color(r=r, g=g, b=b, a=a)
+    color = _COLORS.get(name)
+    if color is None:
+        r, g, b, a = _COLOR[name]
+        color = _COLORS[name] = fg.Color(r=r, g=g, b=b, a=a)
+    return color
+
+
+_COLORS: dict[str, fg.Color] = {}
+"""Each color made once: a message holds its parts by value (``encode`` writes what they are)."""
 
 
 def _yaw(psi_rad: float) -> fg.Quaternion:
@@ -131,8 +138,11 @@ def _yaw(psi_rad: float) -> fg.Quaternion:
 
 
 def _identity_pose() -> fg.Pose:
-    return fg.Pose(position=fg.Vector3(x=0.0, y=0.0, z=0.0),
-                   orientation=fg.Quaternion(x=0.0, y=0.0, z=0.0, w=1.0))
+    return _IDENTITY_POSE
+
+
+_IDENTITY_POSE = fg.Pose(position=fg.Vector3(x=0.0, y=0.0, z=0.0),
+                         orientation=fg.Quaternion(x=0.0, y=0.0, z=0.0, w=1.0))
 
 
 def circle_ned(x_m: float, y_m: float, r_m: float, n: int = CIRCLE_VERTICES) -> list[tuple[float, float]]:
@@ -235,17 +245,26 @@ class FoxgloveDeriver:
         self._default = default_origin
         self._t = timestamp_ns
         self._vessels: dict[str, _Vessel] = {}
+        self._sources: dict[str, tuple[str, _Vessel, str]] = {}
+        """Per key fed: its vessel, that vessel's state, and the key's suffix as a topic name."""
 
     def feed(self, key: str, msg: Message) -> list[Derived]:
-        parts = key.split("/", 2)
-        if len(parts) != 3 or parts[0] != keys.ROOT:
-            return []
-        vessel, suffix = parts[1], parts[2]
-        v = self._vessels.setdefault(vessel, _Vessel())
+        found = self._sources.get(key)
+        if found is None:
+            parts = key.split("/", 2)
+            if len(parts) != 3 or parts[0] != keys.ROOT:
+                return []
+            vessel = parts[1]
+            v = self._vessels.get(vessel)
+            if v is None:
+                v = self._vessels[vessel] = _Vessel()
+            found = self._sources[key] = (vessel, v, parts[2].replace("/", "-"))
+        vessel, v, source = found
         out: list[Derived] = []
-        source = suffix.replace("/", "-")
         if isinstance(msg, NavOrigin):
-            v.origin = GeoOrigin(msg.lat_rad, msg.lon_rad, msg.alt_m)
+            heard = GeoOrigin(msg.lat_rad, msg.lon_rad, msg.alt_m)
+            if heard != v.origin:  # the same origin again keeps its precomputed terms
+                v.origin = heard
         origin = v.origin or self._default
         t_ns = self._t(msg.stamp_ns)
         if isinstance(msg, GnssFix):

@@ -22,6 +22,7 @@ Units: every time is ns on the caller's timeline (MCAP's log and publish times);
 
 from __future__ import annotations
 
+import functools
 import struct
 import tempfile
 import zlib
@@ -45,7 +46,15 @@ from mcap.records import (
     Statistics,
     SummaryOffset,
 )
-from seaway.recording.layout import CHUNK_HEAD, CHUNK_INDEX_HEAD, MAGIC, MESSAGE_HEAD, RECORD_HEAD, U64
+from seaway.recording.layout import (
+    CHUNK_HEAD,
+    CHUNK_INDEX_HEAD,
+    MAGIC,
+    MESSAGE_HEAD,
+    RECORD_HEAD,
+    U32,
+    U64,
+)
 
 COMPRESSIONS = ("zstd", "lz4", "none")
 """Chunk compressions: the names of the MCAP spec ("" in the file for none)."""
@@ -55,6 +64,22 @@ _MESSAGE = struct.Struct(RECORD_HEAD.format + MESSAGE_HEAD.format[1:])
 """A Message's record head and fields in one call (the writer's hot path)."""
 _CHUNK = struct.Struct(RECORD_HEAD.format + CHUNK_HEAD.format[1:] + "I")
 """A Chunk's record head, fields and the compression name's length in one call."""
+_pack_message = _MESSAGE.pack
+_MESSAGE_OPCODE = int(Opcode.MESSAGE)
+_MESSAGE_HEAD_SIZE = MESSAGE_HEAD.size
+_MESSAGE_SIZE = _MESSAGE.size
+
+
+@functools.lru_cache(maxsize=256)
+def _message_index(n: int) -> struct.Struct:
+    """A MessageIndex record of ``n // 2`` (log time, offset) pairs, head included, in one call."""
+    return struct.Struct(f"<BQHI{n}Q")
+
+
+@functools.lru_cache(maxsize=256)
+def _chunk_index(k: int) -> struct.Struct:
+    """A ChunkIndex's fields up to its compression name, with ``k`` message index offsets."""
+    return struct.Struct(f"{CHUNK_INDEX_HEAD.format}{'HQ' * k}Q")
 
 
 def check_compression(compression: str) -> str:
@@ -94,6 +119,9 @@ class McapWriter:
         self._stream = stream
         self._chunk_size = chunk_size
         self._compression, self._compress = _compressor(compression)
+        self._name = self._compression.encode()
+        self._index_tail = U32.pack(len(self._name)) + self._name
+        """A chunk index's compression name (length-prefixed), before its two sizes."""
         # The chunk in progress: its records' bytes, their length, and each channel's (log time,
         # offset) pairs flat, in the order the channels first appear in it.
         self._parts: list[bytes] = []
@@ -144,11 +172,12 @@ class McapWriter:
         index = self._index.get(channel_id)
         if index is None:
             index = self._index[channel_id] = []
-        index += (log_time, self._length)
-        self._parts += (_MESSAGE.pack(Opcode.MESSAGE, MESSAGE_HEAD.size + len(data), channel_id,
+        length = self._length
+        index += (log_time, length)
+        self._parts += (_pack_message(_MESSAGE_OPCODE, _MESSAGE_HEAD_SIZE + len(data), channel_id,
                                       sequence, log_time, publish_time), data)
-        self._length += _MESSAGE.size + len(data)
-        if self._length > self._chunk_size:
+        self._length = length = length + _MESSAGE_SIZE + len(data)
+        if length > self._chunk_size:
             self._end_chunk()
 
     def add_attachment(self, create_time: int, log_time: int, name: str, media_type: str,
@@ -172,50 +201,53 @@ class McapWriter:
 
     def _end_chunk(self) -> None:
         """Write the chunk in progress (if it has a message), its message indexes, and keep its
-        chunk index for the summary."""
-        if not self._index:
+        chunk index for the summary: each in one write."""
+        index = self._index
+        if not index:
             return
         stats = self._stats
         counts = self._counts
-        start_ns = min(min(pairs[0::2]) for pairs in self._index.values())
-        end_ns = max(max(pairs[0::2]) for pairs in self._index.values())
-        for channel_id, pairs in self._index.items():
-            counts[channel_id] = counts.get(channel_id, 0) + len(pairs) // 2
+        start_ns = end_ns = -1
+        messages = 0
+        for channel_id, pairs in index.items():
+            times = pairs[0::2]
+            lo, hi = min(times), max(times)
+            if start_ns < 0 or lo < start_ns:
+                start_ns = lo
+            if hi > end_ns:
+                end_ns = hi
+            n = len(times)
+            counts[channel_id] = counts.get(channel_id, 0) + n
+            messages += n
         if stats.message_count == 0 or start_ns < stats.message_start_time:
             stats.message_start_time = start_ns
-        stats.message_end_time = max(stats.message_end_time, end_ns)
-        stats.message_count += sum(len(pairs) for pairs in self._index.values()) // 2
+        if end_ns > stats.message_end_time:
+            stats.message_end_time = end_ns
+        stats.message_count += messages
         stats.chunk_count += 1
         raw = b"".join(self._parts)
         data = self._compress(raw) if self._compress is not None else raw
-        name = self._compression.encode()
-        stream = self._stream
-        chunk_start = stream.tell()
+        name = self._name
+        chunk_start = self._stream.tell()
         chunk_length = _CHUNK.size + len(name) + U64.size + len(data)
-        stream.write(_CHUNK.pack(Opcode.CHUNK, chunk_length - RECORD_HEAD.size, start_ns, end_ns,
-                                      len(raw), zlib.crc32(raw), len(name)))
-        stream.write(name)
-        stream.write(U64.pack(len(data)))
-        stream.write(data)
-        index_start = chunk_start + chunk_length
+        out = [_CHUNK.pack(Opcode.CHUNK, chunk_length - RECORD_HEAD.size, start_ns, end_ns,
+                           len(raw), zlib.crc32(raw), len(name)), name, U64.pack(len(data)), data]
+        index_start = at = chunk_start + chunk_length
         offsets: list[int] = []
-        indexes: list[bytes] = []
-        at = index_start
-        for channel_id, pairs in self._index.items():
+        for channel_id, pairs in index.items():
             n = len(pairs)
-            record = struct.pack(f"<BQHI{n}Q", Opcode.MESSAGE_INDEX, 2 + 4 + 8 * n, channel_id,
-                                 8 * n, *pairs)
+            record = _message_index(n).pack(Opcode.MESSAGE_INDEX, 2 + 4 + 8 * n, channel_id,
+                                            8 * n, *pairs)
             offsets += (channel_id, at)
             at += len(record)
-            indexes.append(record)
-        stream.write(b"".join(indexes))
+            out.append(record)
+        self._stream.write(b"".join(out))
         k = len(offsets) // 2
-        body = struct.pack(f"{CHUNK_INDEX_HEAD.format}{'HQ' * k}Q", start_ns, end_ns, chunk_start,
-                           chunk_length, 10 * k, *offsets, at - index_start)
-        tail = struct.pack(f"<I{len(name)}sQQ", len(name), name, len(data), len(raw))
-        self._chunk_indexes.write(RECORD_HEAD.pack(Opcode.CHUNK_INDEX, len(body) + len(tail)))
-        self._chunk_indexes.write(body)
-        self._chunk_indexes.write(tail)
+        body = _chunk_index(k).pack(start_ns, end_ns, chunk_start, chunk_length, 10 * k, *offsets,
+                                    at - index_start)
+        self._chunk_indexes.write(b"".join((
+            RECORD_HEAD.pack(Opcode.CHUNK_INDEX, len(body) + len(self._index_tail) + 16), body,
+            self._index_tail, U64.pack(len(data)), U64.pack(len(raw)))))
         self._parts.clear()
         self._length = 0
         self._index = {}

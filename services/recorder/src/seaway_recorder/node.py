@@ -176,6 +176,13 @@ class Tails:
                     except Exception as err:
                         log.debug("log line not published: %s", err)
 
+    def close(self) -> None:
+        """Let go of the files (after the last ``copy``)."""
+        if self.events is not None:
+            self.events.close()
+        if self.logs is not None:
+            self.logs.close()
+
 
 class RecorderNode(Node):
     """The recorder as a paced node of the wall clock (``seaway.runtime.node``): each tick drains
@@ -256,13 +263,16 @@ class RecorderNode(Node):
     def finish(self) -> None:
         """Stopping: what is queued written, the tails copied (unless writing failed)."""
         self.queue.accepting = False
-        if self.failed is not None:
-            log.error("writing failed: %s; finishing the file", self.failed)
-            return
         try:
+            if self.failed is not None:
+                log.error("writing failed: %s; finishing the file", self.failed)
+                return
             drain(self.writer, self.queue, limit=None, kept=self.kept)
             if self.tails is not None:
                 self.tails.copy(self.writer)
         except OSError as err:
             self.failed = err
             log.error("writing failed: %s; finishing the file", err)
+        finally:
+            if self.tails is not None:
+                self.tails.close()

@@ -118,7 +118,8 @@ class _OpenFile:
         self.writer.start(profile=PROFILE, library=LIBRARY)
         self.schemas: dict[tuple[str, bytes], int] = {}
         self.channels: dict[str, int] = {}
-        self.sequence: Counter[int] = Counter()
+        self.sequence: list[int] = [0]
+        """Messages written so far per channel id (ids count from 1)."""
         self.messages = 0
 
     def channel(self, spec: schemas.ChannelSpec) -> int:
@@ -136,12 +137,8 @@ class _OpenFile:
         cid = self.writer.register_channel(spec.topic, spec.message_encoding, schema_id,
                                            dict(spec.metadata))
         self.channels[spec.topic] = cid
+        self.sequence += [0] * (cid + 1 - len(self.sequence))
         return cid
-
-    def add(self, cid: int, data: bytes, log_time_ns: int, publish_time_ns: int) -> None:
-        self.sequence[cid] += 1
-        self.writer.add_message(cid, log_time_ns, data, publish_time_ns, self.sequence[cid] & 0xFFFFFFFF)
-        self.messages += 1
 
     def size(self) -> int:
         return self.stream.tell()
@@ -188,9 +185,9 @@ class RecordingWriter:
         self._file: _OpenFile | None = None
         self._file_index = 0
         self._file_opened_ns = 0
-        self._channel_specs: dict[str, schemas.ChannelSpec] = {}
-        self._derives: dict[str, bool] = {}
-        """Per key: whether ``FoxgloveDeriver`` derives channels from it (``SOURCES``)."""
+        self._channel_specs: dict[str, tuple[schemas.ChannelSpec, bool]] = {}
+        """Per key: its channel, and whether ``FoxgloveDeriver`` derives channels from it
+        (``SOURCES``)."""
         self._ratelog = RateLimitedLog(log)  # a flood of malformed samples: counted, not echoed
         self._events_spec = schemas.events_channel()
 
@@ -262,19 +259,29 @@ class RecordingWriter:
 
     # -- samples ----------------------------------------------------------------------------
 
-    def _spec(self, key: str, encoding: str) -> schemas.ChannelSpec:
-        spec = self._channel_specs.get(key)
-        if spec is None:
-            spec = schemas.channel_for_key(key, encoding)
-            self._channel_specs[key] = spec
-        return spec
+    def _spec(self, key: str, encoding: str) -> tuple[schemas.ChannelSpec, bool]:
+        """The channel of ``key`` (the encoding of its first sample says it for an unregistered
+        key), and whether the deriver takes it."""
+        found = self._channel_specs.get(key)
+        if found is None:
+            derives = (self._deriver is not None
+                       and key.split("/", 2)[-1] in self._derived_sources)
+            found = self._channel_specs[key] = (schemas.channel_for_key(key, encoding), derives)
+        return found
 
     def _put(self, spec: schemas.ChannelSpec, data: bytes, log_time_ns: int, publish_time_ns: int) -> None:
         f = self._file
         if f is None:
             raise RuntimeError("RecordingWriter.write before open()")
-        f.add(f.channel(spec), data, log_time_ns, publish_time_ns)
-        self.stats.by_topic[spec.topic] += 1
+        topic = spec.topic
+        cid = f.channels.get(topic)
+        if cid is None:
+            cid = f.channel(spec)
+        sequence = f.sequence
+        seq = sequence[cid] = sequence[cid] + 1
+        f.writer.add_message(cid, log_time_ns, data, publish_time_ns, seq & 0xFFFFFFFF)
+        f.messages += 1
+        self.stats.by_topic[topic] += 1
 
     def write(self, key: str, payload: bytes, encoding: str, receive_ns: int,
               copy: bool = False, decoded: Any = None) -> bool:
@@ -282,13 +289,11 @@ class RecordingWriter:
         False if it was malformed (kept on the error channel). ``copy``: from a lockstep bundle sent
         again (``RecordingTime.bus``). ``decoded``: ``payload`` already decoded as its key's type
         by the caller (a lockstep answer the recorder's witness read), not decoded again."""
-        spec = self._spec(key, encoding)
-        self.stats.bytes += len(payload)
+        found = self._channel_specs.get(key)
+        spec, derives = found if found is not None else self._spec(key, encoding)
+        stats = self.stats
+        stats.bytes += len(payload)
         msg: Any = decoded
-        derives = self._derives.get(key)
-        if derives is None:
-            derives = self._derives[key] = (self._deriver is not None and
-                                            key.split("/", 2)[-1] in self._derived_sources)
         if msg is None and spec.message_type is not None and (self.validate or derives):
             try:
                 msg = spec.message_type.decode(payload)
@@ -297,20 +302,21 @@ class RecordingWriter:
                                     self.time.wall(receive_ns), receive_ns)
                 return False
         elif spec.message_type is None:
-            self.stats.unregistered += 1
+            stats.unregistered += 1
         stamp = None
-        if self.time.lockstep:
+        rec_time = self.time
+        if rec_time.lockstep:
             stamp = msg.stamp_ns if msg is not None else stamp_of(payload)
-        log_ns = self.time.bus(key, stamp, receive_ns, copy)
+        log_ns = rec_time.bus(key, stamp, receive_ns, copy)
         self._put(spec, payload, log_ns, receive_ns)
-        self.stats.messages += 1
-        if self.time.new_episodes:
+        stats.messages += 1
+        if rec_time.new_episodes:
             self._write_episodes()
         if derives and msg is not None:
             assert self._deriver is not None
             for d in self._deriver.feed(key, msg):
                 self._put(derive.channel_spec(d), d.payload(), log_ns, receive_ns)
-                self.stats.derived += 1
+                stats.derived += 1
         return True
 
     def unpack(self, key: str, payload: bytes, encoding: str, receive_ns: int

@@ -26,6 +26,7 @@ so a member cannot publish another's key by wrapping it.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Iterable, Sequence
 
 from seaway.contract import keys
@@ -120,6 +121,7 @@ def check_line(service: str, suffix: str) -> keys.KeySpec:
     return spec
 
 
+@functools.lru_cache(maxsize=1024)
 def service_of(key: str) -> str | None:
     """The member whose bundle key ``key`` is (``seaway/<vessel>/lockstep/<service>``), else None."""
     parts = key.split("/")
@@ -141,11 +143,20 @@ def unpack(key: str, payload: bytes) -> list[tuple[str, bytes, str]]:
     vessel_prefix = key[: -len(f"lockstep/{service}")]
     out = []
     for suffix, data in lines:
-        spec = check_line(service, suffix)
-        out.append((vessel_prefix + suffix, data,
-                    f"{JSON_ENCODING};{spec.message.SCHEMA}"))  # type: ignore[union-attr]
-    out.append((key, answer, f"{JSON_ENCODING};{PeriodDone.SCHEMA}"))
+        encoding = _LINE_ENCODINGS.get((service, suffix))
+        if encoding is None:
+            spec = check_line(service, suffix)
+            encoding = _LINE_ENCODINGS[(service, suffix)] = \
+                f"{JSON_ENCODING};{spec.message.SCHEMA}"  # type: ignore[union-attr]
+        out.append((vessel_prefix + suffix, data, encoding))
+    out.append((key, answer, _ANSWER_ENCODING))
     return out
+
+
+_LINE_ENCODINGS: dict[tuple[str, str], str] = {}
+"""(member, key suffix) -> the Zenoh encoding of its line's message, once ``check_line`` let it:
+``unpack`` runs for every bundle a recorder hears."""
+_ANSWER_ENCODING = f"{JSON_ENCODING};{PeriodDone.SCHEMA}"
 
 
 def lines_of(payload: bytes, suffixes: Sequence[str] | frozenset[str]) -> list[tuple[str, bytes]]:

@@ -3,7 +3,6 @@ protocol). It hears every member's bundle, and answers a period once all of it i
 
 from __future__ import annotations
 
-import collections
 from collections.abc import Callable, Sequence
 
 from seaway.contract import keys
@@ -32,9 +31,15 @@ class LockstepWitness:
         self.answer_keys = {keys.lockstep_spec(s).key(vessel) for s in LOCKSTEP_SERVICES if s != "recorder"}
         self.sim_key = keys.lockstep_spec("sim").key(vessel)
         self.prefix = f"{keys.ROOT}/{vessel}/"
-        self._recent: dict[str, tuple[collections.deque[bytes], set[bytes]]] = \
-            collections.defaultdict(lambda: (collections.deque(maxlen=REPEAT_MEMORY), set()))
+        self._recent: dict[str, dict[bytes, None]] = {}
+        """Per key, the last ``REPEAT_MEMORY`` payloads written, oldest first (a dict: an ordered
+        set with one lookup a sample)."""
         self._covered: dict[str, int] | None = None
+        self._news = False
+        """Whether an answer was noted since ``maybe_answer`` last looked: nothing else changes
+        what the ledger covers."""
+        self._started = False
+        """Whether the first period has come (``lacking``: from then on never again)."""
         self.repeats_skipped = 0
         # A new episode repeats the old one's first messages byte for byte (deterministic): those
         # are new messages, to be written again.
@@ -65,16 +70,17 @@ class LockstepWitness:
 
     def admit(self, key: str, payload: bytes) -> bool:
         """Whether to write this sample: not when it repeats bytes just written on its key."""
-        if not key.startswith(self.prefix):
-            return True
-        recent, known = self._recent[key]
+        known = self._recent.get(key)
+        if known is None:
+            if not key.startswith(self.prefix):
+                return True
+            known = self._recent[key] = {}
         if payload in known:
             self.repeats_skipped += 1
             return False
-        if len(recent) == recent.maxlen:
-            known.discard(recent[0])  # the one this append pushes out
-        recent.append(payload)
-        known.add(payload)
+        known[payload] = None
+        if len(known) > REPEAT_MEMORY:
+            del known[next(iter(known))]  # the oldest
         return True
 
     def written(self, answers: list[tuple[str, PeriodDone]]) -> None:
@@ -82,12 +88,16 @@ class LockstepWitness:
         for key, answer in answers:
             if not answer.resent:  # a copy of an earlier one: its messages are written, no news
                 self.member.on_answer(key, answer)
+                self._news = True
 
     def lacking(self) -> bool:
         """Whether the writer must wake for every sample, not only for answers: before the first
         period (a bundle carries what its answer lists, so after that nothing is ever lacking)."""
+        if self._started:  # a ledger's period, once set, is never unset
+            return False
         with self.member.changed:
-            return self.member.ledger.period is None
+            self._started = self.member.ledger.period is not None
+        return not self._started
 
     def covers(self) -> tuple[Period, int, dict[str, int]] | None:
         """(period, period_ns, covers) when the current period is all written, else None."""
@@ -109,7 +119,11 @@ class LockstepWitness:
 
     def maybe_answer(self, flush: Callable[[], None]) -> bool:
         """Flush (``flush``: onto the disk, the OS has it) and answer if the current period is
-        complete and not yet answered as it is."""
+        complete and not yet answered as it is (only an answer noted since it last looked can
+        make it so)."""
+        if not self._news:
+            return False
+        self._news = False
         ready = self.covers()
         if ready is None or ready[2] == self._covered:
             return False

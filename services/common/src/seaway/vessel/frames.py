@@ -6,6 +6,7 @@ exact (through ECEF), not a flat-earth approximation, so it holds over any lake 
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -39,6 +40,9 @@ def geodetic_to_ecef(lat_rad: float, lon_rad: float, alt_m: float) -> tuple[floa
     )
 
 
+_NEAR_POLE_RAD = math.radians(89.0)
+
+
 def ecef_to_geodetic(x_m: float, y_m: float, z_m: float) -> tuple[float, float, float]:
     """ECEF -> (lat_rad, lon_rad, alt_m); Bowring's start and fixed-point refinement (sub-mm)."""
     lon = math.atan2(y_m, x_m)
@@ -48,8 +52,11 @@ def ecef_to_geodetic(x_m: float, y_m: float, z_m: float) -> tuple[float, float, 
     for _ in range(6):
         sl = math.sin(lat)
         n = WGS84_A_M / math.sqrt(1.0 - WGS84_E2 * sl * sl)
-        alt = p / math.cos(lat) - n if abs(lat) < math.radians(89.0) else z_m / sl - n * (1 - WGS84_E2)
-        lat = math.atan2(z_m, p * (1.0 - WGS84_E2 * n / (n + alt)))
+        alt = p / math.cos(lat) - n if abs(lat) < _NEAR_POLE_RAD else z_m / sl - n * (1 - WGS84_E2)
+        refined = math.atan2(z_m, p * (1.0 - WGS84_E2 * n / (n + alt)))
+        if refined == lat:  # a fixed point: every further round gives these very values again
+            break
+        lat = refined
     return lat, lon, alt
 
 
@@ -69,6 +76,16 @@ class GeoOrigin:
     def _ecef0(self) -> tuple[float, float, float]:
         return geodetic_to_ecef(self.lat_rad, self.lon_rad, self.alt_m)
 
+    @functools.cached_property
+    def _to_ecef(self) -> tuple[float, ...]:
+        """The origin in ECEF and the NED -> ECEF rotation's terms, as ``to_geodetic`` multiplies
+        them (the same products, so the same floats as computed afresh): a recorder converts
+        every position it derives a map fix from."""
+        x0, y0, z0 = self._ecef0()
+        sl, cl = math.sin(self.lat_rad), math.cos(self.lat_rad)
+        so, co = math.sin(self.lon_rad), math.cos(self.lon_rad)
+        return x0, y0, z0, -sl * co, so, cl * co, -sl * so, co, cl * so, cl, sl
+
     def to_ned(self, lat_rad: float, lon_rad: float, alt_m: float = 0.0) -> tuple[float, float, float]:
         """Geodetic -> (north_m, east_m, down_m) relative to this origin."""
         x0, y0, z0 = self._ecef0()
@@ -83,10 +100,8 @@ class GeoOrigin:
 
     def to_geodetic(self, north_m: float, east_m: float, down_m: float = 0.0) -> tuple[float, float, float]:
         """(north_m, east_m, down_m) relative to this origin -> (lat_rad, lon_rad, alt_m)."""
-        x0, y0, z0 = self._ecef0()
-        sl, cl = math.sin(self.lat_rad), math.cos(self.lat_rad)
-        so, co = math.sin(self.lon_rad), math.cos(self.lon_rad)
-        dx = -sl * co * north_m - so * east_m - cl * co * down_m
-        dy = -sl * so * north_m + co * east_m - cl * so * down_m
+        x0, y0, z0, n_x, e_x, d_x, n_y, e_y, d_y, cl, sl = self._to_ecef
+        dx = n_x * north_m - e_x * east_m - d_x * down_m
+        dy = n_y * north_m + e_y * east_m - d_y * down_m
         dz = cl * north_m - sl * down_m
         return ecef_to_geodetic(x0 + dx, y0 + dy, z0 + dz)
