@@ -281,10 +281,11 @@ class RecordingWriter:
         """Record one sample received at ``receive_ns`` (wall clock; the publish time); returns
         False if it was malformed (kept on the error channel). ``copy``: from a lockstep bundle sent
         again (``RecordingTime.bus``). ``decoded``: ``payload`` already decoded as its key's type
-        by the caller (a lockstep answer the recorder's witness read), not decoded again."""
+        by the caller (a lockstep answer the recorder's witness read, or what an in-process
+        publisher encoded it from), not decoded again; of another type, it is not used."""
         spec = self._spec(key, encoding)
         self.stats.bytes += len(payload)
-        msg: Any = decoded
+        msg: Any = decoded if type(decoded) is spec.message_type else None
         derives = self._derives.get(key)
         if derives is None:
             derives = self._derives[key] = (self._deriver is not None and

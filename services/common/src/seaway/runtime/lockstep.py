@@ -59,7 +59,7 @@ from typing import Any, Literal, NamedTuple
 
 from seaway.contract import bundle, keys
 from seaway.contract.messages import LOCKSTEP_SERVICES, Message, MessageError, PeriodDone
-from seaway.runtime.bus import Bus, RawRing, RawSample
+from seaway.runtime.bus import Bus, RawRing, RawSample, carrying_put
 from seaway.runtime.ratelog import RateLimitedLog
 from seaway.runtime.stamps import StampBounds, StampGate
 from seaway.runtime.timeline import Timeline
@@ -329,8 +329,10 @@ class Member:
         self._seq = itertools.count(time.time_ns() if seq_start is None else seq_start)
         self._key = keys.lockstep_spec(service).key(bus.vessel)
         self._pub = bus.raw_publisher(self._key, bundle.ENCODING, block=True, express=True)
-        self._kept: list[tuple[list[tuple[str, bytes]], PeriodDone, Period]] = []
-        """(lines, answer, its period) of every bundle sent for the last ``KEPT_PERIODS`` periods
+        self._put_bundle = carrying_put(self._pub)  # in process, what it was encoded from too
+        self._kept: list[tuple[list[tuple[str, bytes]], tuple[Message, ...], PeriodDone, Period]] = []
+        """(lines, their messages, answer, its period) of every bundle sent for the last
+        ``KEPT_PERIODS`` periods
         answered, in the order sent: what a restarted recorder may lack (``repeat``)."""
         self.on_restart: Callable[[Period | None, Period], None] | None = None
         self.on_ready: Callable[[], None] | None = None
@@ -366,7 +368,7 @@ class Member:
         arrived_ns = time.monotonic_ns()
         with self._intake:
             self._drain()
-            self._take(sample.key, sample.payload, arrived_ns)
+            self._take(sample.key, sample.payload, arrived_ns, sample.carried)
         if self.on_ready is not None:
             self.on_ready()
             with self.changed:
@@ -383,14 +385,16 @@ class Member:
     def _drain(self) -> bool:
         got = False
         for key, ring in self._rings:
-            while (payload := ring.take()) is not None:
-                self._take(key, payload)
+            while (item := ring.take_carried()) is not None:
+                self._take(key, item[0], carried=item[1])
                 got = True
         return got
 
-    def _take(self, key: str, payload: bytes, arrived_ns: int | None = None) -> None:
+    def _take(self, key: str, payload: bytes, arrived_ns: int | None = None,
+              carried: Any = None) -> None:
         """One bundle: its inputs delivered, then its answer noted (``on_answer``); ``arrived_ns``:
-        when Zenoh handed it over, for the timeline (none for a passive source's, held in a ring)."""
+        when Zenoh handed it over, for the timeline (none for a passive source's, held in a ring);
+        ``carried``: what an in-process sender encoded it from (``RawSample.carried``)."""
         service = bundle.service_of(key)
         try:
             raw_answer, lines = bundle.split(payload)
@@ -399,7 +403,11 @@ class Member:
             self.ratelog.warning(("malformed bundle", key), "lockstep bundle on %s dropped: %s",
                                  key, err)
             return
-        answer = self.bus.decode_counted(PeriodDone, key, raw_answer)
+        answer = self.bus.decode_counted(PeriodDone, key, raw_answer, bundle.carried_answer(carried))
+        if type(carried) is bundle.Carried and len(carried.messages) == len(lines):
+            msgs: Sequence[Any] = carried.messages
+        else:
+            msgs = (None,) * len(lines)
         if answer is None or service is None:
             return
         if answer.service != service:
@@ -410,11 +418,11 @@ class Member:
             with self.changed:
                 lacking = self._lacking()
             if lacking:
-                self._deliver(service, prefix, key, lines, lacking)
+                self._deliver(service, prefix, key, lines, msgs, lacking)
             return
         if arrived_ns is not None:
             self.timeline.mark("arrived", answer.stamp_ns, service, at_ns=arrived_ns)
-        self._deliver(service, prefix, key, lines)
+        self._deliver(service, prefix, key, lines, msgs)
         self.on_answer(key, answer)
 
     def _lacking(self) -> set[tuple[str, int]]:
@@ -434,11 +442,11 @@ class Member:
                 for miss in ledger.missing(a)}
 
     def _deliver(self, service: str, prefix: str, key: str, lines: list[tuple[str, bytes]],
-                 only: set[tuple[str, int]] | None = None) -> None:
+                 msgs: Sequence[Any], only: set[tuple[str, int]] | None = None) -> None:
         """Hand a bundle's messages on this member's inputs to the service (``only``: just those
-        (suffix, stamp))."""
+        (suffix, stamp)); ``msgs``: per line, what it was encoded from (in process), or None."""
         wanted = None if only is None else {suffix for suffix, _ in only}
-        for suffix, data in lines:
+        for (suffix, data), carried in zip(lines, msgs, strict=True):
             if suffix not in self.inputs or (wanted is not None and suffix not in wanted):
                 continue
             try:
@@ -447,7 +455,8 @@ class Member:
                 self.bus.stats.count_malformed(key, str(err))
                 self.ratelog.warning(("foreign line", key), "%s", err)
                 continue
-            msg = self.bus.decode_counted(spec.message, prefix + suffix, data)  # type: ignore[arg-type]
+            msg = self.bus.decode_counted(spec.message, prefix + suffix, data,  # type: ignore[arg-type]
+                                          carried)
             if msg is None or self.deliver is None or (
                     only is not None and (suffix, msg.stamp_ns) not in only):
                 continue
@@ -602,36 +611,39 @@ class Member:
                members: Sequence[str] = ()) -> PeriodDone:
         """Publish this member's bundle for ``period``: its answer listing ``messages``, and them."""
         lines = [(spec.suffix, msg.encode()) for spec, msg in messages]
+        msgs = tuple(msg for _, msg in messages)
         done = PeriodDone(stamp_ns=period.stamp_ns, service=self.service,  # type: ignore[arg-type]
                           episode=period.episode, seq=next(self._seq), period_ns=period_ns,
                           published=listing(messages), consumed=consumed or {}, hold=hold,
                           covers=covers or {}, members=list(members))  # type: ignore[arg-type]
         self.timeline.mark("sent", period.stamp_ns)  # encoded; the bundle leaves now
-        self._put(done, lines)
+        self._put(done, lines, msgs)
         return done
 
-    def _put(self, done: PeriodDone, lines: list[tuple[str, bytes]], again: bool = False) -> None:
-        self._pub.put(bundle.encode(done.encode(), lines))
+    def _put(self, done: PeriodDone, lines: list[tuple[str, bytes]], msgs: tuple[Message, ...],
+             again: bool = False) -> None:
+        self._put_bundle(bundle.encode(done.encode(), lines), bundle.Carried(done, msgs))
         self.bus.stats.published += 1 + len(lines)
-        self._keep(done, lines, again)
+        self._keep(done, lines, msgs, again)
 
-    def _keep(self, done: PeriodDone, lines: list[tuple[str, bytes]], again: bool) -> None:
+    def _keep(self, done: PeriodDone, lines: list[tuple[str, bytes]], msgs: tuple[Message, ...],
+              again: bool) -> None:
         """Keep a bundle sent (``again``: a repeat of the last, which it stands for from now)."""
         kept = self._kept
         period = Period.of(done)
         if again and kept:
-            kept[-1] = (lines, done, period)
+            kept[-1] = (lines, msgs, done, period)
             return
-        if kept and not kept[-1][2].leads_to(period):
+        if kept and not kept[-1][3].leads_to(period):
             # The world restarted (a sim restart, a scenario load): nothing kept leads here, and a
             # new t_0 would pass for the dead sim's (same episode 0, same stamp) in ``repeat``.
             kept.clear()
-        elif kept and kept[-1][2] != period:
-            periods = list(dict.fromkeys(p for _, _, p in kept))[-(KEPT_PERIODS - 1):]
-            kept[:] = [k for k in kept if k[2] in periods]
-        kept.append((lines, done, period))
+        elif kept and kept[-1][3] != period:
+            periods = list(dict.fromkeys(k[3] for k in kept))[-(KEPT_PERIODS - 1):]
+            kept[:] = [k for k in kept if k[3] in periods]
+        kept.append((lines, msgs, done, period))
         if len(kept) > KEPT_BUNDLES:
-            dropped, _, _ = kept.pop(0)
+            dropped = kept.pop(0)[0]
             # Only messages are worth a warning: a bundle that is an answer alone (the recorder's,
             # which answers its first period again as each member joins) leaves nothing to miss.
             if dropped:
@@ -650,18 +662,19 @@ class Member:
         (``KEPT_PERIODS``); the others pass them over."""
         if not self._kept:
             return None
-        lines, done, last = self._kept[-1]
-        for old_lines, old, old_period in self._kept[:-1]:
+        lines, msgs, done, last = self._kept[-1]
+        for old_lines, old_msgs, old, old_period in self._kept[:-1]:
             # Only what led to this period: after a sim restart (episode 0 again) a kept bundle can
             # be of the dead sim's later periods, which a recorder would write in the new time.
             if old_period.leads_to(last):
                 copy = old.model_copy(update={"seq": next(self._seq), "resent": True})
-                self._pub.put(bundle.encode(copy.encode(), old_lines))
+                self._put_bundle(bundle.encode(copy.encode(), old_lines),
+                                 bundle.Carried(copy, old_msgs))
         update: dict[str, Any] = {"seq": next(self._seq)}
         if members is not None:
             update["members"] = list(members)
         again = done.model_copy(update=update)
-        self._put(again, lines, again=True)
+        self._put(again, lines, msgs, again=True)
         self.repeats += 1
         return again
 
@@ -672,4 +685,4 @@ class Member:
 
     @property
     def last_answer(self) -> PeriodDone | None:
-        return self._kept[-1][1] if self._kept else None
+        return self._kept[-1][2] if self._kept else None
