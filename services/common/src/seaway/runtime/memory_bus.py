@@ -5,7 +5,11 @@ For unit tests of service loops: no network, no discovery delay, nothing to clea
 code the Zenoh bus runs; only the moving of bytes is done here:
 
 * ``put`` delivers synchronously: when it returns, every matching subscriber has the sample (queued
-  for ``latest``/``fifo``, or its callback has run), so a test needs no sleeps;
+  for ``latest``/``fifo``, or its callback has run), so a test needs no sleeps. A put made by a
+  subscriber's callback while it is handed a sample (on the delivering thread) is delivered once
+  that sample has reached every subscriber, in the order put: a reaction never reaches anybody
+  before its cause (a lockstep member's ring holds the sim's bundle before the estimator's answer
+  to it reaches the controller), and the outermost put returns once all of it is delivered;
 * a query runs the queryable's handler on a thread of its own and waits up to ``timeout_s`` for it,
   so a slow handler gives the same "no reply within" refusal as on Zenoh;
 * key expressions match as on Zenoh (``zenoh.KeyExpr`` decides: one definition of ``*`` and ``**``);
@@ -99,6 +103,11 @@ class MemoryHub:
     def __init__(self) -> None:
         self._lock = threading.Lock()
         self._subscribers: list[_Declaration] = []
+        self._targets: dict[str, list[Callable[[RawSample], None]]] = {}
+        """Key -> the callbacks of the subscribers matching it, made on the first put on the key
+        and forgotten whenever a subscriber comes or goes."""
+        self._delivering = threading.local()
+        """Per thread, while it delivers: the samples its subscribers put meanwhile (``_publish``)."""
         self._queryables: list[_Declaration] = []
         self._watchers: list[_Declaration] = []
         self._tokens: collections.Counter[str] = collections.Counter()
@@ -115,23 +124,42 @@ class MemoryHub:
         d = _Declaration(self, table, owner, expr, fn)
         with self._lock:
             table.append(d)
+            self._targets = {}
         return d
 
     def _remove(self, d: _Declaration) -> None:
         with self._lock:
             if d in d.table:
                 d.table.remove(d)
+                self._targets = {}
 
     def _drop_owner(self, owner: MemoryBus) -> None:
         with self._lock:
             for table in (self._subscribers, self._queryables, self._watchers):
                 table[:] = [d for d in table if d.owner is not owner]
+            self._targets = {}
 
     # -- data -----------------------------------------------------------------------------------------
 
     def _publish(self, sample: RawSample) -> None:
+        delivering = self._delivering
+        pending: collections.deque[RawSample] | None = getattr(delivering, "pending", None)
+        if pending is not None:  # put by a subscriber: once what is being delivered is
+            pending.append(sample)
+            return
+        pending = delivering.pending = collections.deque((sample,))
+        try:
+            while pending:
+                self._deliver(pending.popleft())
+        finally:
+            delivering.pending = None
+
+    def _deliver(self, sample: RawSample) -> None:
         with self._lock:
-            targets = [d.fn for d in self._subscribers if intersects(d.expr, sample.key)]
+            targets = self._targets.get(sample.key)
+            if targets is None:
+                targets = self._targets[sample.key] = [
+                    d.fn for d in self._subscribers if intersects(d.expr, sample.key)]
         for fn in targets:  # outside the lock: a callback may publish or declare in turn
             try:
                 fn(sample)
