@@ -110,6 +110,8 @@ repeats its answer, in case a newcomer's subscriptions reached the bus after the
 
 Change = Literal["first", "next", "repeat", "restart", "stale"]
 
+_NOTHING: frozenset[int] = frozenset()
+
 
 class Period(NamedTuple):
     """(episode, t_k [ns]): the identity of one lockstep period.
@@ -214,18 +216,35 @@ class Ledger:
         """``service``'s latest answer if it is for ``period`` (default: the current one)."""
         a = self.answers.get(service)
         period = period or self.period
-        return a if a is not None and period is not None and Period.of(a) == period else None
+        # Compared field by field: asked several times a period by every member.
+        return a if (a is not None and period is not None and a.stamp_ns == period.stamp_ns
+                     and a.episode == period.episode) else None
 
     def missing(self, answer: PeriodDone) -> list[tuple[str, int]]:
         """The (key suffix, stamp) an answer lists, on watched keys, that have not been seen."""
         out = []
+        watched, seen_by = self.watched, self.seen
         for listing in (answer.published, answer.consumed) if self.consumed else (answer.published,):
             for suffix, stamps in listing.items():
-                if self.watched is not None and suffix not in self.watched:
+                if watched is not None and suffix not in watched:
                     continue
-                seen = self.seen.get(suffix, set())
+                seen = seen_by.get(suffix, _NOTHING)
                 out.extend((suffix, s) for s in stamps if s not in seen)
         return out
+
+    def lacks(self, answer: PeriodDone) -> bool:
+        """Whether ``missing(answer)`` is not empty (found without listing it: asked for every
+        bundle, and nearly always of an answer that lacks nothing)."""
+        watched, seen_by = self.watched, self.seen
+        for listing in (answer.published, answer.consumed) if self.consumed else (answer.published,):
+            for suffix, stamps in listing.items():
+                if watched is not None and suffix not in watched:
+                    continue
+                seen = seen_by.get(suffix, _NOTHING)
+                for s in stamps:
+                    if s not in seen:
+                        return True
+        return False
 
     def missing_consumed(self, answer: PeriodDone) -> list[tuple[str, int]]:
         """The (key suffix, stamp) an answer lists as consumed, on watched keys, not seen: another
@@ -237,7 +256,13 @@ class Ledger:
                 for s in stamps if s not in self.seen.get(suffix, set())]
 
     def complete(self, answer: PeriodDone | None) -> bool:
-        return answer is not None and not self.missing(answer)
+        return answer is not None and not self.lacks(answer)
+
+    def current(self, answer: PeriodDone) -> bool:
+        """Whether ``answer`` is for the current period."""
+        period = self.period
+        return (period is not None and answer.stamp_ns == period.stamp_ns
+                and answer.episode == period.episode)
 
     def all_answered(self, period: Period, members: Iterable[str], sim_seq: int) -> bool:
         """Whether every one of ``members`` has answered ``period``, the recorder (if a member)
@@ -344,6 +369,9 @@ class Member:
         self.ratelog = RateLimitedLog(log)  # repeated warnings, per kind and key
         self.timeline = Timeline.from_env(service)  # seaway.runtime.timeline: off unless asked
         self.passive = frozenset(passive) & self.hears
+        self._active = self.hears - self.passive
+        self._seen_batch: list[tuple[str, int]] | None = None
+        self._batch_thread = 0
         self._clock = clock  # wall, monotonic [ns]: only for giving up on a lost command
         self._lacking_since: dict[tuple[str, int], int] = {}
         self.given_up: list[tuple[str, int]] = []
@@ -444,7 +472,20 @@ class Member:
     def _deliver(self, service: str, prefix: str, key: str, lines: list[tuple[str, bytes]],
                  msgs: Sequence[Any], only: set[tuple[str, int]] | None = None) -> None:
         """Hand a bundle's messages on this member's inputs to the service (``only``: just those
-        (suffix, stamp)); ``msgs``: per line, what it was encoded from (in process), or None."""
+        (suffix, stamp)); ``msgs``: per line, what it was encoded from (in process), or None.
+        What the service notes seen meanwhile (``saw``) is noted once, after the last: each
+        note asks every answer of the period what it lacks."""
+        outer, self._seen_batch = self._seen_batch, []
+        self._batch_thread = threading.get_ident()  # under ``_intake``: one thread at a time
+        try:
+            self._deliver_lines(service, prefix, key, lines, msgs, only)
+        finally:
+            batch, self._seen_batch = self._seen_batch, outer
+            if batch:
+                self.saw_many(batch)
+
+    def _deliver_lines(self, service: str, prefix: str, key: str, lines: list[tuple[str, bytes]],
+                       msgs: Sequence[Any], only: set[tuple[str, int]] | None) -> None:
         wanted = None if only is None else {suffix for suffix, _ in only}
         for (suffix, data), carried in zip(lines, msgs, strict=True):
             if suffix not in self.inputs or (wanted is not None and suffix not in wanted):
@@ -485,6 +526,12 @@ class Member:
         return self.stamps.admit(suffix, stamp_ns, ref_ns, bounds)
 
     def saw(self, suffix: str, stamp_ns: int) -> None:
+        """Note a message seen (``saw_many``); while this thread hands a bundle's inputs to the
+        service (``_deliver``), once with the others of the bundle, after them."""
+        batch = self._seen_batch
+        if batch is not None and self._batch_thread == threading.get_ident():
+            batch.append((suffix, stamp_ns))
+            return
         self.saw_many(((suffix, stamp_ns),))
 
     def saw_many(self, seen: Iterable[tuple[str, int]]) -> None:
@@ -496,7 +543,7 @@ class Member:
         with self.changed:
             ledger = self.ledger
             waiting = ledger.period is None or any(
-                Period.of(a) == ledger.period and ledger.missing(a) for a in ledger.answers.values())
+                ledger.current(a) and ledger.lacks(a) for a in ledger.answers.values())
             for suffix, stamp_ns in seen:
                 ledger.see(suffix, stamp_ns)
             if waiting:
@@ -600,9 +647,9 @@ class Member:
         ledger = self.ledger
         if not self._rings or ledger.period is None:
             return False
-        active = self.hears - self.passive
-        return any((a.service in active and Period.of(a) != ledger.period)
-                   or (Period.of(a) == ledger.period and ledger.missing(a))
+        active = self._active
+        return any(not ledger.current(a) if a.service in active
+                   else (ledger.current(a) and ledger.lacks(a))
                    for a in ledger.answers.values())
 
     def answer(self, period: Period, period_ns: int,
@@ -639,8 +686,17 @@ class Member:
             # new t_0 would pass for the dead sim's (same episode 0, same stamp) in ``repeat``.
             kept.clear()
         elif kept and kept[-1][3] != period:
-            periods = list(dict.fromkeys(k[3] for k in kept))[-(KEPT_PERIODS - 1):]
-            kept[:] = [k for k in kept if k[3] in periods]
+            # Keep the bundles of the last KEPT_PERIODS - 1 periods sent (the kept ones lead to
+            # each other, so a period's bundles are next to each other): from the first of them.
+            start, distinct = len(kept) - 1, 1
+            while start > 0:
+                if kept[start - 1][3] != kept[start][3]:
+                    if distinct == KEPT_PERIODS - 1:
+                        break
+                    distinct += 1
+                start -= 1
+            if start:
+                del kept[:start]
         kept.append((lines, msgs, done, period))
         if len(kept) > KEPT_BUNDLES:
             dropped = kept.pop(0)[0]
