@@ -377,7 +377,8 @@ class Member:
         self.given_up: list[tuple[str, int]] = []
         """(key suffix, stamp) of every command taken as lost (``GIVE_UP_LACKING_S``)."""
         # One bundle taken at a time, in the order taken. Reentrant: taking one can publish a
-        # repeat, which an in-process bus delivers at once, on this thread, to whoever hears it.
+        # repeat, and a transport that delivered it at once on this thread would come back here
+        # (the in-memory bus queues it until the sample at hand has reached everybody).
         self._intake = threading.RLock()
         self._rings: list[tuple[str, RawRing]] = []
         if subscribe:  # else the service feeds ``on_answer`` itself (the recorder, from its stream)
