@@ -365,3 +365,23 @@ def test_in_one_process_the_chain_answers_within_the_sims_put_and_wakes_no_loop(
         assert commands == [i * P for i in range(k + 1)]  # before the put returned
         with ctl.member.changed:
             assert not ctl.member.expecting()  # nothing for its loop to look for
+
+
+def test_an_active_answer_that_lists_what_a_passive_source_sends_makes_the_loop_look() -> None:
+    """The estimator: the sim's answer (its active source) names the command it applied, which
+    comes in the controller's bundle (a passive source) not yet there: its loop must look for
+    it (else it waits for the next wake-up, a tenth of a second, every period)."""
+    hub = MemoryHub()
+    est = Member(hub.bus(V), "estimator", watched={keys.THRUST.suffix}, hears=("sim", "controller"),
+                 passive=("controller",))
+    est.deliver = lambda _key, msg: est.saw(keys.THRUST.suffix, msg.stamp_ns)
+    sim = Member(hub.bus(V), "sim", watched=(), subscribe=False)
+    ctl = Member(hub.bus(V), "controller", watched=(), subscribe=False)
+    sim.answer(Period(0, 0), P)
+    sim.answer(Period(0, P), P, consumed={keys.THRUST.suffix: [0]})
+    with est.changed:
+        assert est.expecting()
+    ctl.answer(Period(0, 0), P, [(keys.THRUST, cmd(0))])
+    est.drain()
+    with est.changed:
+        assert not est.expecting()

@@ -649,8 +649,8 @@ class Member:
         if not self._rings or ledger.period is None:
             return False
         active = self._active
-        return any(not ledger.current(a) if a.service in active
-                   else (ledger.current(a) and ledger.lacks(a))
+        return any((a.service in active and not ledger.current(a))
+                   or (ledger.current(a) and ledger.lacks(a))
                    for a in ledger.answers.values())
 
     def answer(self, period: Period, period_ns: int,
