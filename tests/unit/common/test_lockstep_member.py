@@ -332,3 +332,56 @@ def test_an_active_bundle_marks_its_arrival_before_its_intake_a_passive_one_only
     assert got == [("heard", "controller", 0), ("arrived", "sim", P), ("heard", "sim", P)]
     t = {(what, of): t_ns for t_ns, what, of, _ in est.timeline.marks or []}
     assert t[("arrived", "sim")] <= t[("heard", "controller")] <= t[("heard", "sim")]
+
+
+def test_in_one_process_the_chain_answers_within_the_sims_put_and_wakes_no_loop() -> None:
+    """Composed (every member on one hub, answering on arrival): the sim's put runs the estimator
+    and then the controller on the sim's own thread, the controller finding the sim's bundle in its
+    (passive) ring before the estimator's answer comes, so no member's loop needs to look."""
+    from seaway.runtime.node import Answer, MemberDriver, MemberSpec, Node
+
+    class Echo(Node):
+        def __init__(self, spec: MemberSpec) -> None:
+            self.name, self.member = spec.service, spec
+
+        def answer(self, at):  # type: ignore[no-untyped-def]
+            return Answer([(keys.THRUST, cmd(at.period.stamp_ns))] if self.name == "controller"
+                          else [])
+
+    hub = MemoryHub()
+    est = MemberDriver(hub.bus(V), Echo(MemberSpec("estimator", needs=("sim",),
+                                                   inputs=frozenset(), hears=("sim",))))
+    ctl = MemberDriver(hub.bus(V), Echo(MemberSpec("controller", needs=("sim", "estimator"),
+                                                   inputs=frozenset(), hears=("sim", "estimator"),
+                                                   passive=("sim",))))
+    # The estimator subscribed first: it is handed the sim's bundle before the controller's ring.
+    est.answer_on_arrival()
+    ctl.answer_on_arrival()
+    sim = Member(hub.bus(V), "sim", watched={keys.THRUST.suffix}, passive=("estimator",))
+    commands: list[int] = []
+    sim.deliver = lambda _key, msg: commands.append(msg.stamp_ns)
+    for k in range(3):
+        sim.answer(Period(0, k * P), P, members=["controller", "estimator"])
+        assert commands == [i * P for i in range(k + 1)]  # before the put returned
+        with ctl.member.changed:
+            assert not ctl.member.expecting()  # nothing for its loop to look for
+
+
+def test_an_active_answer_that_lists_what_a_passive_source_sends_makes_the_loop_look() -> None:
+    """The estimator: the sim's answer (its active source) names the command it applied, which
+    comes in the controller's bundle (a passive source) not yet there: its loop must look for
+    it (else it waits for the next wake-up, a tenth of a second, every period)."""
+    hub = MemoryHub()
+    est = Member(hub.bus(V), "estimator", watched={keys.THRUST.suffix}, hears=("sim", "controller"),
+                 passive=("controller",))
+    est.deliver = lambda _key, msg: est.saw(keys.THRUST.suffix, msg.stamp_ns)
+    sim = Member(hub.bus(V), "sim", watched=(), subscribe=False)
+    ctl = Member(hub.bus(V), "controller", watched=(), subscribe=False)
+    sim.answer(Period(0, 0), P)
+    sim.answer(Period(0, P), P, consumed={keys.THRUST.suffix: [0]})
+    with est.changed:
+        assert est.expecting()
+    ctl.answer(Period(0, 0), P, [(keys.THRUST, cmd(0))])
+    est.drain()
+    with est.changed:
+        assert not est.expecting()

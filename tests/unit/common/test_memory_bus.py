@@ -162,3 +162,17 @@ def test_iterate_yields_in_order_until_stopped() -> None:
         if msg.seq == 3:
             stop.set()
     assert got == [1, 2, 3]
+
+
+def test_a_reaction_reaches_nobody_before_its_cause() -> None:
+    """A subscriber that publishes as it is handed a sample: its sample is delivered once the one
+    it reacts to has reached every subscriber (a lockstep member's ring holds the sim's bundle
+    before the estimator's answer to it comes), and the first put returns once both are."""
+    hub = MemoryHub()
+    reacting, hearing = hub.bus(), hub.bus()
+    heard: list[str] = []
+    reaction = reacting.raw_publisher("seaway/vessel1/reaction")
+    reacting.subscribe_raw("seaway/vessel1/cause", lambda _s: reaction.put(b"2"))  # first in line
+    hearing.subscribe_raw("seaway/vessel1/*", lambda s: heard.append(s.key.rsplit("/", 1)[1]))
+    hub.bus().raw_publisher("seaway/vessel1/cause").put(b"1")
+    assert heard == ["cause", "reaction"]

@@ -17,6 +17,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+import pytest
 from seaway.contract import keys
 from seaway.contract.messages import ClockTick
 from seaway.recording import reader
@@ -136,9 +137,12 @@ def test_a_restarted_sims_first_period_is_written_though_its_bytes_repeat(tmp_pa
     assert writer.time.episode == 1
 
 
-def test_each_answer_is_decoded_once_and_every_period_answered(tmp_path: Path, monkeypatch) -> None:
+@pytest.mark.parametrize("carried", [False, True], ids=["bytes only", "in process"])
+def test_each_answer_is_decoded_once_and_every_period_answered(tmp_path: Path, monkeypatch,
+                                                               carried: bool) -> None:
     """The witness reads a member's answer once, for itself and for the writer's type check (it
-    was decoded three times: to judge a restart, to check it, to note it)."""
+    was decoded three times: to judge a restart, to check it, to note it). In process, where the
+    bus hands the answer it was encoded from along (``RawSample.carried``), not at all."""
     from seaway.contract.messages import PeriodDone
 
     decoded: list[bytes] = []
@@ -149,6 +153,9 @@ def test_each_answer_is_decoded_once_and_every_period_answered(tmp_path: Path, m
         return real(cls, payload)
 
     hub = MemoryHub()
+    if not carried:  # bytes alone, as from another process
+        publish = hub._publish
+        monkeypatch.setattr(hub, "_publish", lambda sample: publish(sample._replace(carried=None)))
     writer, drain = recorder(hub, tmp_path)
     answered: list[Period] = []
     hub.bus(V).subscribe_raw(keys.LOCKSTEP_RECORDER.key(V), lambda s: answered.append(
@@ -161,7 +168,7 @@ def test_each_answer_is_decoded_once_and_every_period_answered(tmp_path: Path, m
     monkeypatch.undo()
     writer.close()
     sim_answers = [d for d in decoded if b'"service":"sim"' in d]
-    assert len(sim_answers) == 6 and len(set(sim_answers)) == 6
+    assert len(sim_answers) == (0 if carried else 6) and len(set(sim_answers)) == len(sim_answers)
     assert answered == [Period(0, k * P) for k in range(6)]  # and each period was answered
 
 

@@ -302,7 +302,7 @@ def _drain(feed: LiveFeed, queue: SampleQueue, server: Server, limit: int) -> in
     n = 0
     items = queue.items
     while items and n < limit:
-        key, payload, encoding, t_ns = items.popleft()
+        key, payload, encoding, t_ns, _carried = items.popleft()
         n += 1
         for m in feed.feed(key, payload, encoding, t_ns):
             server.log(m)

@@ -44,7 +44,9 @@ class SampleQueue:
 
     def __init__(self, capacity: int) -> None:
         self.capacity = capacity
-        self.items: collections.deque[tuple[str, bytes, str, int]] = collections.deque()
+        self.items: collections.deque[tuple[str, bytes, str, int, Any]] = collections.deque()
+        """(key, bytes, encoding, receive time [ns], what the bytes were encoded from in process
+        (``RawSample.carried``) or None)."""
         self.dropped = 0
         self.accepting = True
         self.arrived = threading.Event()  # wakes a lockstep writer at once (no polling delay)
@@ -76,7 +78,7 @@ class SampleQueue:
         # A sample a publisher's cache gave late (to a recorder that restarted) is logged when it
         # was published, where it belongs on the timeline.
         self.items.append((sample.key, sample.payload, sample.encoding,
-                           sample.published_ns if late else now_ns))
+                           sample.published_ns if late else now_ns, sample.carried))
         if self.timeline is not None and "/lockstep/" in sample.key:
             # Its arrival, not when it is written (seaway.runtime.timeline: the recorder's "heard").
             stamp = stamp_of(sample.payload)
@@ -117,6 +119,17 @@ def lockstep_exprs(exprs: list[str], vessel: str) -> list[str]:
     return [*exprs, f"{keys.ROOT}/{vessel}/lockstep/*"]
 
 
+def carried_objects(samples: list[tuple[str, bytes, str]], carried: Any) -> list[Any]:
+    """Per sample ``RecordingWriter.unpack`` made of one bus sample, what its bytes were encoded
+    from if the in-process bus handed it along (``RawSample.carried``), else None: the writer
+    then decodes the bytes (it takes an object only of its key's type)."""
+    if type(carried) is bundle.Carried and len(carried.messages) + 1 == len(samples):
+        return [*carried.messages, carried.answer]
+    if carried is not None and len(samples) == 1 and type(carried) is not bundle.Carried:
+        return [carried]
+    return [None] * len(samples)
+
+
 def drain(writer: RecordingWriter, queue: SampleQueue, limit: int | None,
            witness: LockstepWitness | None = None, kept: KeptKeys | None = None) -> int:
     """Write up to ``limit`` queued samples (a lockstep bundle as the samples it stands for, those
@@ -125,19 +138,20 @@ def drain(writer: RecordingWriter, queue: SampleQueue, limit: int | None,
     items = queue.items
     answers: list[tuple[str, PeriodDone]] = []
     while items and (limit is None or n < limit):
-        sample_key, sample, sample_encoding, t_ns = items.popleft()
+        sample_key, sample, sample_encoding, t_ns, carried = items.popleft()
         n += 1
         copy = sample_encoding == bundle.ENCODING and bundle.is_resent(sample)
         samples = writer.unpack(sample_key, sample, sample_encoding, t_ns)
         answer = None  # the answer comes last, on the bundle's own key
         if witness is not None and samples and samples[-1][0] == sample_key:
-            answer = witness.heard(sample_key, samples[-1][1])
-        for key, payload, encoding in samples:
+            answer = witness.heard(sample_key, samples[-1][1], bundle.carried_answer(carried))
+        for (key, payload, encoding), obj in zip(samples, carried_objects(samples, carried),
+                                                 strict=True):
             if key != sample_key and kept is not None and not kept(key):
                 continue  # a bundle's message on a key this recording leaves out
-            decoded = answer if key == sample_key else None
-            if decoded is not None:
-                answers.append((key, decoded))  # a repeat not written again is on disk all the same
+            decoded = answer if key == sample_key and answer is not None else obj
+            if answer is not None and decoded is answer:
+                answers.append((key, answer))  # a repeat not written again is on disk all the same
             if witness is not None and not witness.admit(key, payload):
                 continue
             writer.write(key, payload, encoding, t_ns, copy, decoded=decoded)

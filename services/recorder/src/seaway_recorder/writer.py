@@ -288,12 +288,13 @@ class RecordingWriter:
         """Record one sample received at ``receive_ns`` (wall clock; the publish time); returns
         False if it was malformed (kept on the error channel). ``copy``: from a lockstep bundle sent
         again (``RecordingTime.bus``). ``decoded``: ``payload`` already decoded as its key's type
-        by the caller (a lockstep answer the recorder's witness read), not decoded again."""
+        by the caller (a lockstep answer the recorder's witness read, or what an in-process
+        publisher encoded it from), not decoded again; of another type, it is not used."""
         found = self._channel_specs.get(key)
         spec, derives = found if found is not None else self._spec(key, encoding)
         stats = self.stats
         stats.bytes += len(payload)
-        msg: Any = decoded
+        msg: Any = decoded if type(decoded) is spec.message_type else None
         if msg is None and spec.message_type is not None and (self.validate or derives):
             try:
                 msg = spec.message_type.decode(payload)

@@ -28,9 +28,16 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Iterable, Sequence
+from typing import Any, NamedTuple
 
 from seaway.contract import keys
-from seaway.contract.messages import JSON_ENCODING, LOCKSTEP_SERVICES, MessageError, PeriodDone
+from seaway.contract.messages import (
+    JSON_ENCODING,
+    LOCKSTEP_SERVICES,
+    Message,
+    MessageError,
+    PeriodDone,
+)
 
 ENCODING = f"application/jsonl;{PeriodDone.SCHEMA}"
 """The Zenoh encoding of a bundle: JSON Lines whose first line is a ``PeriodDone``."""
@@ -72,6 +79,38 @@ def encode(answer: bytes, lines: Iterable[tuple[str, bytes]]) -> bytes:
     parts = [answer]
     parts += [b'["' + suffix.encode() + b'",' + data + b"]" for suffix, data in lines]
     return b"\n".join(parts)
+
+
+class Carried(NamedTuple):
+    """What a bundle was encoded from, handed along with its bytes on an in-process bus
+    (``seaway.runtime.bus.RawSample.carried``): its answer and its messages, in line order."""
+
+    answer: PeriodDone
+    messages: tuple[Message, ...]
+
+
+def carried_answer(carried: Any) -> PeriodDone | None:
+    """The answer ``carried`` holds if it is a bundle's (``Carried``), else None (decode the bytes)."""
+    return carried.answer if type(carried) is Carried else None
+
+
+def carried_lines(payload: bytes, carried: Any, suffixes: Iterable[str] | None = None
+                  ) -> list[tuple[str, bytes, Message]] | None:
+    """(key suffix, bytes, message) of ``payload``'s lines (on ``suffixes``, default all), each
+    with the message it was encoded from, if ``carried`` is what the bundle was encoded from
+    (``Carried``, as many messages as lines); else None: decode the lines' bytes. The framing is
+    checked as ``split`` checks it; which keys a member may carry is the caller's to ask."""
+    if type(carried) is not Carried:
+        return None
+    try:
+        _answer, lines = split(payload)
+    except MessageError:
+        return None
+    if len(lines) != len(carried.messages):
+        return None
+    wanted = None if suffixes is None else frozenset(suffixes)
+    return [(suffix, data, msg) for (suffix, data), msg in zip(lines, carried.messages, strict=True)
+            if wanted is None or suffix in wanted]
 
 
 def answer_of(payload: bytes) -> bytes:

@@ -62,12 +62,20 @@ class RuntimeEnvError(ValueError):
 class RawSample(NamedTuple):
     """One sample as the transport delivered it: bytes unchanged, with their key and encoding.
     ``published_ns``: when it was published [ns since epoch, the publisher's clock], where the
-    transport says (Zenoh's timestamp), else None."""
+    transport says (Zenoh's timestamp), else None.
+
+    ``carried``: on the in-process bus only, what the publisher encoded ``payload`` from (a
+    ``Message`` from a typed publisher, a ``bundle.Carried`` from a lockstep member), so that a
+    receiver in the same process need not decode the bytes again (``Bus.decode_counted``; the
+    messages are frozen). None from a transport that moves bytes (Zenoh): a payload from another
+    process is always decoded and validated. The bytes travel all the same (a recorder writes
+    them)."""
 
     key: str
     payload: bytes
     encoding: str
     published_ns: int | None = None
+    carried: Any = None
 
 
 REJOIN_CACHE_SAMPLES = 512
@@ -91,6 +99,21 @@ class RawPublisher(Protocol):
     def put(self, payload: bytes) -> None: ...
 
     def undeclare(self) -> None: ...
+
+
+PutCarrying = Callable[[bytes, Any], None]
+"""``put(payload, carried)``: publish ``payload``, and on an in-process bus hand ``carried`` (what
+it was encoded from) along with it (``RawSample.carried``)."""
+
+
+def carrying_put(pub: RawPublisher) -> PutCarrying:
+    """``pub``'s put that hands the encoded object along where its transport can (the in-process
+    bus's publishers have ``put_carrying``), else its plain put (the object dropped)."""
+    put_carrying = getattr(pub, "put_carrying", None)
+    if put_carrying is not None:
+        return put_carrying  # type: ignore[no-any-return]
+    put = pub.put
+    return lambda payload, _carried: put(payload)
 
 
 class Declared(Protocol):
@@ -127,11 +150,12 @@ class TypedPublisher(Generic[M]):
         # sent again, and every message of it counts: no copies on its hot path).
         self._pub = bus.raw_publisher(key, message_encoding(spec.message), block=lockstep,
                                       express=express, cache=0 if lockstep else REJOIN_CACHE_SAMPLES)
+        self._put = carrying_put(self._pub)
 
     def put(self, msg: M) -> None:
         if type(msg) is not self._type:
             raise TypeError(f"{self.key} carries {self._type.__name__}, not {type(msg).__name__}")
-        self._pub.put(msg.encode())
+        self._put(msg.encode(), msg)  # encoded first: a non-finite field is refused here
         self._bus.stats.published += 1
 
     def undeclare(self) -> None:
@@ -169,7 +193,7 @@ class TypedSubscriber(Generic[M]):
 
     def _on_sample(self, sample: RawSample) -> None:
         key = sample.key
-        msg = self._bus.decode_counted(self._type, key, sample.payload)
+        msg = self._bus.decode_counted(self._type, key, sample.payload, sample.carried)
         if msg is None:
             return
         if self._callback is not None:
@@ -230,6 +254,10 @@ class RawRing(Protocol):
     def take(self) -> bytes | None:
         """The oldest payload held (removed from the ring), or None when it is empty."""
 
+    def take_carried(self) -> tuple[bytes, Any] | None:
+        """``take``, with what the payload was encoded from where the transport hands it along
+        (``RawSample.carried``; None on Zenoh)."""
+
     def undeclare(self) -> None: ...
 
 
@@ -237,10 +265,15 @@ class _RingByCallback:
     """``RawRing`` over ``subscribe_raw`` (a transport with no cheaper way: the in-memory bus)."""
 
     def __init__(self, bus: Bus, keyexpr: str, capacity: int) -> None:
-        self._items: collections.deque[bytes] = collections.deque(maxlen=capacity)
-        self._sub = bus.subscribe_raw(keyexpr, lambda s: self._items.append(s.payload), inline=True)
+        self._items: collections.deque[tuple[bytes, Any]] = collections.deque(maxlen=capacity)
+        self._sub = bus.subscribe_raw(
+            keyexpr, lambda s: self._items.append((s.payload, s.carried)), inline=True)
 
     def take(self) -> bytes | None:
+        item = self.take_carried()
+        return None if item is None else item[0]
+
+    def take_carried(self) -> tuple[bytes, Any] | None:
         try:
             return self._items.popleft()
         except IndexError:
@@ -277,11 +310,14 @@ class BundleTap:
         if not routes or bundle.is_resent(sample.payload):  # a copy for a restarted recorder
             return
         prefix = sample.key[: sample.key.rfind("/lockstep/") + 1]
-        for suffix, data in bundle.lines_of(sample.payload, routes.keys()):
+        carried = bundle.carried_lines(sample.payload, sample.carried, routes.keys())
+        for suffix, data, msg in carried or ((s, d, None) for s, d in
+                                             bundle.lines_of(sample.payload, routes.keys())):
             spec = keys.spec_for_suffix(suffix)
             assert spec is not None and spec.message is not None  # routed keys are registered
             for callback in routes[suffix]:
-                callback(RawSample(prefix + suffix, data, message_encoding(spec.message)))
+                callback(RawSample(prefix + suffix, data, message_encoding(spec.message),
+                                   carried=msg))
 
 
 def bundle_keyexpr(spec: keys.KeySpec, keyexpr: str) -> str | None:
@@ -430,9 +466,15 @@ class Bus(abc.ABC):
     def key(self, spec: keys.KeySpec, vessel: str | None = None) -> str:
         return spec.key(vessel or self.vessel)
 
-    def decode_counted(self, message: type[M], key: str, payload: bytes) -> M | None:
+    def decode_counted(self, message: type[M], key: str, payload: bytes,
+                       carried: Any = None) -> M | None:
         """``payload`` heard on ``key`` as a ``message``, counted as received; None if it is
-        malformed: then counted and logged (rate-limited, per key), and dropped."""
+        malformed: then counted and logged (rate-limited, per key), and dropped. ``carried``: what
+        an in-process publisher encoded ``payload`` from (``RawSample.carried``), taken as it is
+        when it is a ``message`` (built, so validated, and frozen), else the bytes are decoded."""
+        if type(carried) is message:
+            self.stats.received += 1
+            return carried  # type: ignore[no-any-return]
         try:
             msg = message.decode(payload)
         except MessageError as err:

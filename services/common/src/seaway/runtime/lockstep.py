@@ -59,7 +59,7 @@ from typing import Any, Literal, NamedTuple
 
 from seaway.contract import bundle, keys
 from seaway.contract.messages import LOCKSTEP_SERVICES, Message, MessageError, PeriodDone
-from seaway.runtime.bus import Bus, RawRing, RawSample
+from seaway.runtime.bus import Bus, RawRing, RawSample, carrying_put
 from seaway.runtime.ratelog import RateLimitedLog
 from seaway.runtime.stamps import StampBounds, StampGate
 from seaway.runtime.timeline import Timeline
@@ -109,6 +109,8 @@ STALL_REPEAT_S = 2.0
 repeats its answer, in case a newcomer's subscriptions reached the bus after the repeat it caused."""
 
 Change = Literal["first", "next", "repeat", "restart", "stale"]
+
+_NOTHING: frozenset[int] = frozenset()
 
 
 class Period(NamedTuple):
@@ -214,18 +216,35 @@ class Ledger:
         """``service``'s latest answer if it is for ``period`` (default: the current one)."""
         a = self.answers.get(service)
         period = period or self.period
-        return a if a is not None and period is not None and Period.of(a) == period else None
+        # Compared field by field: asked several times a period by every member.
+        return a if (a is not None and period is not None and a.stamp_ns == period.stamp_ns
+                     and a.episode == period.episode) else None
 
     def missing(self, answer: PeriodDone) -> list[tuple[str, int]]:
         """The (key suffix, stamp) an answer lists, on watched keys, that have not been seen."""
         out = []
+        watched, seen_by = self.watched, self.seen
         for listing in (answer.published, answer.consumed) if self.consumed else (answer.published,):
             for suffix, stamps in listing.items():
-                if self.watched is not None and suffix not in self.watched:
+                if watched is not None and suffix not in watched:
                     continue
-                seen = self.seen.get(suffix, set())
+                seen = seen_by.get(suffix, _NOTHING)
                 out.extend((suffix, s) for s in stamps if s not in seen)
         return out
+
+    def lacks(self, answer: PeriodDone) -> bool:
+        """Whether ``missing(answer)`` is not empty (found without listing it: asked for every
+        bundle, and nearly always of an answer that lacks nothing)."""
+        watched, seen_by = self.watched, self.seen
+        for listing in (answer.published, answer.consumed) if self.consumed else (answer.published,):
+            for suffix, stamps in listing.items():
+                if watched is not None and suffix not in watched:
+                    continue
+                seen = seen_by.get(suffix, _NOTHING)
+                for s in stamps:
+                    if s not in seen:
+                        return True
+        return False
 
     def missing_consumed(self, answer: PeriodDone) -> list[tuple[str, int]]:
         """The (key suffix, stamp) an answer lists as consumed, on watched keys, not seen: another
@@ -237,7 +256,13 @@ class Ledger:
                 for s in stamps if s not in self.seen.get(suffix, set())]
 
     def complete(self, answer: PeriodDone | None) -> bool:
-        return answer is not None and not self.missing(answer)
+        return answer is not None and not self.lacks(answer)
+
+    def current(self, answer: PeriodDone) -> bool:
+        """Whether ``answer`` is for the current period."""
+        period = self.period
+        return (period is not None and answer.stamp_ns == period.stamp_ns
+                and answer.episode == period.episode)
 
     def all_answered(self, period: Period, members: Iterable[str], sim_seq: int) -> bool:
         """Whether every one of ``members`` has answered ``period``, the recorder (if a member)
@@ -329,8 +354,10 @@ class Member:
         self._seq = itertools.count(time.time_ns() if seq_start is None else seq_start)
         self._key = keys.lockstep_spec(service).key(bus.vessel)
         self._pub = bus.raw_publisher(self._key, bundle.ENCODING, block=True, express=True)
-        self._kept: list[tuple[list[tuple[str, bytes]], PeriodDone, Period]] = []
-        """(lines, answer, its period) of every bundle sent for the last ``KEPT_PERIODS`` periods
+        self._put_bundle = carrying_put(self._pub)  # in process, what it was encoded from too
+        self._kept: list[tuple[list[tuple[str, bytes]], tuple[Message, ...], PeriodDone, Period]] = []
+        """(lines, their messages, answer, its period) of every bundle sent for the last
+        ``KEPT_PERIODS`` periods
         answered, in the order sent: what a restarted recorder may lack (``repeat``)."""
         self.on_restart: Callable[[Period | None, Period], None] | None = None
         self.on_ready: Callable[[], None] | None = None
@@ -342,12 +369,16 @@ class Member:
         self.ratelog = RateLimitedLog(log)  # repeated warnings, per kind and key
         self.timeline = Timeline.from_env(service)  # seaway.runtime.timeline: off unless asked
         self.passive = frozenset(passive) & self.hears
+        self._active = self.hears - self.passive
+        self._seen_batch: list[tuple[str, int]] | None = None
+        self._batch_thread = 0
         self._clock = clock  # wall, monotonic [ns]: only for giving up on a lost command
         self._lacking_since: dict[tuple[str, int], int] = {}
         self.given_up: list[tuple[str, int]] = []
         """(key suffix, stamp) of every command taken as lost (``GIVE_UP_LACKING_S``)."""
         # One bundle taken at a time, in the order taken. Reentrant: taking one can publish a
-        # repeat, which an in-process bus delivers at once, on this thread, to whoever hears it.
+        # repeat, and a transport that delivered it at once on this thread would come back here
+        # (the in-memory bus queues it until the sample at hand has reached everybody).
         self._intake = threading.RLock()
         self._rings: list[tuple[str, RawRing]] = []
         if subscribe:  # else the service feeds ``on_answer`` itself (the recorder, from its stream)
@@ -366,7 +397,7 @@ class Member:
         arrived_ns = time.monotonic_ns()
         with self._intake:
             self._drain()
-            self._take(sample.key, sample.payload, arrived_ns)
+            self._take(sample.key, sample.payload, arrived_ns, sample.carried)
         if self.on_ready is not None:
             self.on_ready()
             with self.changed:
@@ -383,14 +414,16 @@ class Member:
     def _drain(self) -> bool:
         got = False
         for key, ring in self._rings:
-            while (payload := ring.take()) is not None:
-                self._take(key, payload)
+            while (item := ring.take_carried()) is not None:
+                self._take(key, item[0], carried=item[1])
                 got = True
         return got
 
-    def _take(self, key: str, payload: bytes, arrived_ns: int | None = None) -> None:
+    def _take(self, key: str, payload: bytes, arrived_ns: int | None = None,
+              carried: Any = None) -> None:
         """One bundle: its inputs delivered, then its answer noted (``on_answer``); ``arrived_ns``:
-        when Zenoh handed it over, for the timeline (none for a passive source's, held in a ring)."""
+        when Zenoh handed it over, for the timeline (none for a passive source's, held in a ring);
+        ``carried``: what an in-process sender encoded it from (``RawSample.carried``)."""
         service = bundle.service_of(key)
         try:
             raw_answer, lines = bundle.split(payload)
@@ -399,7 +432,11 @@ class Member:
             self.ratelog.warning(("malformed bundle", key), "lockstep bundle on %s dropped: %s",
                                  key, err)
             return
-        answer = self.bus.decode_counted(PeriodDone, key, raw_answer)
+        answer = self.bus.decode_counted(PeriodDone, key, raw_answer, bundle.carried_answer(carried))
+        if type(carried) is bundle.Carried and len(carried.messages) == len(lines):
+            msgs: Sequence[Any] = carried.messages
+        else:
+            msgs = (None,) * len(lines)
         if answer is None or service is None:
             return
         if answer.service != service:
@@ -410,11 +447,11 @@ class Member:
             with self.changed:
                 lacking = self._lacking()
             if lacking:
-                self._deliver(service, prefix, key, lines, lacking)
+                self._deliver(service, prefix, key, lines, msgs, lacking)
             return
         if arrived_ns is not None:
             self.timeline.mark("arrived", answer.stamp_ns, service, at_ns=arrived_ns)
-        self._deliver(service, prefix, key, lines)
+        self._deliver(service, prefix, key, lines, msgs)
         self.on_answer(key, answer)
 
     def _lacking(self) -> set[tuple[str, int]]:
@@ -434,11 +471,24 @@ class Member:
                 for miss in ledger.missing(a)}
 
     def _deliver(self, service: str, prefix: str, key: str, lines: list[tuple[str, bytes]],
-                 only: set[tuple[str, int]] | None = None) -> None:
+                 msgs: Sequence[Any], only: set[tuple[str, int]] | None = None) -> None:
         """Hand a bundle's messages on this member's inputs to the service (``only``: just those
-        (suffix, stamp))."""
+        (suffix, stamp)); ``msgs``: per line, what it was encoded from (in process), or None.
+        What the service notes seen meanwhile (``saw``) is noted once, after the last: each
+        note asks every answer of the period what it lacks."""
+        outer, self._seen_batch = self._seen_batch, []
+        self._batch_thread = threading.get_ident()  # under ``_intake``: one thread at a time
+        try:
+            self._deliver_lines(service, prefix, key, lines, msgs, only)
+        finally:
+            batch, self._seen_batch = self._seen_batch, outer
+            if batch:
+                self.saw_many(batch)
+
+    def _deliver_lines(self, service: str, prefix: str, key: str, lines: list[tuple[str, bytes]],
+                       msgs: Sequence[Any], only: set[tuple[str, int]] | None) -> None:
         wanted = None if only is None else {suffix for suffix, _ in only}
-        for suffix, data in lines:
+        for (suffix, data), carried in zip(lines, msgs, strict=True):
             if suffix not in self.inputs or (wanted is not None and suffix not in wanted):
                 continue
             try:
@@ -447,7 +497,8 @@ class Member:
                 self.bus.stats.count_malformed(key, str(err))
                 self.ratelog.warning(("foreign line", key), "%s", err)
                 continue
-            msg = self.bus.decode_counted(spec.message, prefix + suffix, data)  # type: ignore[arg-type]
+            msg = self.bus.decode_counted(spec.message, prefix + suffix, data,  # type: ignore[arg-type]
+                                          carried)
             if msg is None or self.deliver is None or (
                     only is not None and (suffix, msg.stamp_ns) not in only):
                 continue
@@ -476,6 +527,12 @@ class Member:
         return self.stamps.admit(suffix, stamp_ns, ref_ns, bounds)
 
     def saw(self, suffix: str, stamp_ns: int) -> None:
+        """Note a message seen (``saw_many``); while this thread hands a bundle's inputs to the
+        service (``_deliver``), once with the others of the bundle, after them."""
+        batch = self._seen_batch
+        if batch is not None and self._batch_thread == threading.get_ident():
+            batch.append((suffix, stamp_ns))
+            return
         self.saw_many(((suffix, stamp_ns),))
 
     def saw_many(self, seen: Iterable[tuple[str, int]]) -> None:
@@ -487,7 +544,7 @@ class Member:
         with self.changed:
             ledger = self.ledger
             waiting = ledger.period is None or any(
-                Period.of(a) == ledger.period and ledger.missing(a) for a in ledger.answers.values())
+                ledger.current(a) and ledger.lacks(a) for a in ledger.answers.values())
             for suffix, stamp_ns in seen:
                 ledger.see(suffix, stamp_ns)
             if waiting:
@@ -591,9 +648,9 @@ class Member:
         ledger = self.ledger
         if not self._rings or ledger.period is None:
             return False
-        active = self.hears - self.passive
-        return any((a.service in active and Period.of(a) != ledger.period)
-                   or (Period.of(a) == ledger.period and ledger.missing(a))
+        active = self._active
+        return any((a.service in active and not ledger.current(a))
+                   or (ledger.current(a) and ledger.lacks(a))
                    for a in ledger.answers.values())
 
     def answer(self, period: Period, period_ns: int,
@@ -602,36 +659,48 @@ class Member:
                members: Sequence[str] = ()) -> PeriodDone:
         """Publish this member's bundle for ``period``: its answer listing ``messages``, and them."""
         lines = [(spec.suffix, msg.encode()) for spec, msg in messages]
+        msgs = tuple(msg for _, msg in messages)
         done = PeriodDone(stamp_ns=period.stamp_ns, service=self.service,  # type: ignore[arg-type]
                           episode=period.episode, seq=next(self._seq), period_ns=period_ns,
                           published=listing(messages), consumed=consumed or {}, hold=hold,
                           covers=covers or {}, members=list(members))  # type: ignore[arg-type]
         self.timeline.mark("sent", period.stamp_ns)  # encoded; the bundle leaves now
-        self._put(done, lines)
+        self._put(done, lines, msgs)
         return done
 
-    def _put(self, done: PeriodDone, lines: list[tuple[str, bytes]], again: bool = False) -> None:
-        self._pub.put(bundle.encode(done.encode(), lines))
+    def _put(self, done: PeriodDone, lines: list[tuple[str, bytes]], msgs: tuple[Message, ...],
+             again: bool = False) -> None:
+        self._put_bundle(bundle.encode(done.encode(), lines), bundle.Carried(done, msgs))
         self.bus.stats.published += 1 + len(lines)
-        self._keep(done, lines, again)
+        self._keep(done, lines, msgs, again)
 
-    def _keep(self, done: PeriodDone, lines: list[tuple[str, bytes]], again: bool) -> None:
+    def _keep(self, done: PeriodDone, lines: list[tuple[str, bytes]], msgs: tuple[Message, ...],
+              again: bool) -> None:
         """Keep a bundle sent (``again``: a repeat of the last, which it stands for from now)."""
         kept = self._kept
         period = Period.of(done)
         if again and kept:
-            kept[-1] = (lines, done, period)
+            kept[-1] = (lines, msgs, done, period)
             return
-        if kept and not kept[-1][2].leads_to(period):
+        if kept and not kept[-1][3].leads_to(period):
             # The world restarted (a sim restart, a scenario load): nothing kept leads here, and a
             # new t_0 would pass for the dead sim's (same episode 0, same stamp) in ``repeat``.
             kept.clear()
-        elif kept and kept[-1][2] != period:
-            periods = list(dict.fromkeys(p for _, _, p in kept))[-(KEPT_PERIODS - 1):]
-            kept[:] = [k for k in kept if k[2] in periods]
-        kept.append((lines, done, period))
+        elif kept and kept[-1][3] != period:
+            # Keep the bundles of the last KEPT_PERIODS - 1 periods sent (the kept ones lead to
+            # each other, so a period's bundles are next to each other): from the first of them.
+            start, distinct = len(kept) - 1, 1
+            while start > 0:
+                if kept[start - 1][3] != kept[start][3]:
+                    if distinct == KEPT_PERIODS - 1:
+                        break
+                    distinct += 1
+                start -= 1
+            if start:
+                del kept[:start]
+        kept.append((lines, msgs, done, period))
         if len(kept) > KEPT_BUNDLES:
-            dropped, _, _ = kept.pop(0)
+            dropped = kept.pop(0)[0]
             # Only messages are worth a warning: a bundle that is an answer alone (the recorder's,
             # which answers its first period again as each member joins) leaves nothing to miss.
             if dropped:
@@ -650,18 +719,19 @@ class Member:
         (``KEPT_PERIODS``); the others pass them over."""
         if not self._kept:
             return None
-        lines, done, last = self._kept[-1]
-        for old_lines, old, old_period in self._kept[:-1]:
+        lines, msgs, done, last = self._kept[-1]
+        for old_lines, old_msgs, old, old_period in self._kept[:-1]:
             # Only what led to this period: after a sim restart (episode 0 again) a kept bundle can
             # be of the dead sim's later periods, which a recorder would write in the new time.
             if old_period.leads_to(last):
                 copy = old.model_copy(update={"seq": next(self._seq), "resent": True})
-                self._pub.put(bundle.encode(copy.encode(), old_lines))
+                self._put_bundle(bundle.encode(copy.encode(), old_lines),
+                                 bundle.Carried(copy, old_msgs))
         update: dict[str, Any] = {"seq": next(self._seq)}
         if members is not None:
             update["members"] = list(members)
         again = done.model_copy(update=update)
-        self._put(again, lines, again=True)
+        self._put(again, lines, msgs, again=True)
         self.repeats += 1
         return again
 
@@ -672,4 +742,4 @@ class Member:
 
     @property
     def last_answer(self) -> PeriodDone | None:
-        return self._kept[-1][1] if self._kept else None
+        return self._kept[-1][2] if self._kept else None

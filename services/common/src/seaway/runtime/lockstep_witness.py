@@ -45,22 +45,26 @@ class LockstepWitness:
         # are new messages, to be written again.
         self.member.on_restart = lambda _before, _now: self._recent.clear()
 
-    def heard(self, key: str, payload: bytes) -> PeriodDone | None:
+    def heard(self, key: str, payload: bytes, carried: PeriodDone | None = None) -> PeriodDone | None:
         """The last sample a bus sample stands for (a bundle's answer: ``RecordingWriter.unpack``),
         about to be written after the rest: the answer decoded if it is another member's (None: it
         is not, or it is malformed, which is logged and then written as malformed), so that neither
         the writer nor ``written`` decodes it again. A sim answer from a restarted world (another
         episode, or time gone back) forgets the payloads remembered first: the new episode's first
         messages repeat the old one's byte for byte, and come in its bundle before the answer that
-        would tell the ledger (a sim killed at 12 s restarted without its t_0 in the recording)."""
+        would tell the ledger (a sim killed at 12 s restarted without its t_0 in the recording).
+        ``carried``: the answer an in-process member encoded ``payload`` from, taken as it is."""
         if key not in self.answer_keys:
             return None
-        try:
-            answer = PeriodDone.decode(payload)
-        except MessageError as err:
-            self.member.ratelog.warning(("malformed answer", key),
-                                        "lockstep answer on %s ignored: %s", key, err)
-            return None
+        if type(carried) is PeriodDone:
+            answer = carried
+        else:
+            try:
+                answer = PeriodDone.decode(payload)
+            except MessageError as err:
+                self.member.ratelog.warning(("malformed answer", key),
+                                            "lockstep answer on %s ignored: %s", key, err)
+                return None
         if key == self.sim_key and not answer.resent:
             with self.member.changed:
                 current = self.member.ledger.period

@@ -5,7 +5,11 @@ For unit tests of service loops: no network, no discovery delay, nothing to clea
 code the Zenoh bus runs; only the moving of bytes is done here:
 
 * ``put`` delivers synchronously: when it returns, every matching subscriber has the sample (queued
-  for ``latest``/``fifo``, or its callback has run), so a test needs no sleeps;
+  for ``latest``/``fifo``, or its callback has run), so a test needs no sleeps. A put made by a
+  subscriber's callback while it is handed a sample (on the delivering thread) is delivered once
+  that sample has reached every subscriber, in the order put: a reaction never reaches anybody
+  before its cause (a lockstep member's ring holds the sim's bundle before the estimator's answer
+  to it reaches the controller), and the outermost put returns once all of it is delivered;
 * a query runs the queryable's handler on a thread of its own and waits up to ``timeout_s`` for it,
   so a slow handler gives the same "no reply within" refusal as on Zenoh;
 * key expressions match as on Zenoh (``zenoh.KeyExpr`` decides: one definition of ``*`` and ``**``);
@@ -13,7 +17,10 @@ code the Zenoh bus runs; only the moving of bytes is done here:
 
 Differences to keep in mind: delivery runs in the publishing thread, so a callback that takes a lock
 the publisher holds deadlocks here (on Zenoh it would wait for a delivery thread); nothing is ever
-dropped or reordered; ``block`` and ``inline`` change nothing.
+dropped or reordered; ``block`` and ``inline`` change nothing; a typed publisher's sample (and a
+lockstep member's bundle) carries the object its bytes were encoded from (``RawSample.carried``), so
+a receiver takes that object instead of decoding the bytes again (a raw publisher's bytes carry
+nothing and are decoded, and refused if malformed, as on Zenoh).
 """
 
 from __future__ import annotations
@@ -77,9 +84,14 @@ class _Publisher:
         self.declared = True
 
     def put(self, payload: bytes) -> None:
+        self.put_carrying(payload, None)
+
+    def put_carrying(self, payload: bytes, carried: Any) -> None:
+        """``put``, handing ``carried`` (what ``payload`` was encoded from) to the receivers
+        (``RawSample.carried``): in one process they need not decode the bytes again."""
         if self.bus.closed or not self.declared:
             raise RuntimeError(f"publisher on {self.key}: the bus is closed or the publisher undeclared")
-        self.bus.hub._publish(RawSample(self.key, bytes(payload), self.encoding))
+        self.bus.hub._publish(RawSample(self.key, bytes(payload), self.encoding, carried=carried))
 
     def undeclare(self) -> None:
         self.declared = False
@@ -91,6 +103,11 @@ class MemoryHub:
     def __init__(self) -> None:
         self._lock = threading.Lock()
         self._subscribers: list[_Declaration] = []
+        self._targets: dict[str, list[Callable[[RawSample], None]]] = {}
+        """Key -> the callbacks of the subscribers matching it, made on the first put on the key
+        and forgotten whenever a subscriber comes or goes."""
+        self._delivering = threading.local()
+        """Per thread, while it delivers: the samples its subscribers put meanwhile (``_publish``)."""
         self._queryables: list[_Declaration] = []
         self._watchers: list[_Declaration] = []
         self._tokens: collections.Counter[str] = collections.Counter()
@@ -107,23 +124,42 @@ class MemoryHub:
         d = _Declaration(self, table, owner, expr, fn)
         with self._lock:
             table.append(d)
+            self._targets = {}
         return d
 
     def _remove(self, d: _Declaration) -> None:
         with self._lock:
             if d in d.table:
                 d.table.remove(d)
+                self._targets = {}
 
     def _drop_owner(self, owner: MemoryBus) -> None:
         with self._lock:
             for table in (self._subscribers, self._queryables, self._watchers):
                 table[:] = [d for d in table if d.owner is not owner]
+            self._targets = {}
 
     # -- data -----------------------------------------------------------------------------------------
 
     def _publish(self, sample: RawSample) -> None:
+        delivering = self._delivering
+        pending: collections.deque[RawSample] | None = getattr(delivering, "pending", None)
+        if pending is not None:  # put by a subscriber: once what is being delivered is
+            pending.append(sample)
+            return
+        pending = delivering.pending = collections.deque((sample,))
+        try:
+            while pending:
+                self._deliver(pending.popleft())
+        finally:
+            delivering.pending = None
+
+    def _deliver(self, sample: RawSample) -> None:
         with self._lock:
-            targets = [d.fn for d in self._subscribers if intersects(d.expr, sample.key)]
+            targets = self._targets.get(sample.key)
+            if targets is None:
+                targets = self._targets[sample.key] = [
+                    d.fn for d in self._subscribers if intersects(d.expr, sample.key)]
         for fn in targets:  # outside the lock: a callback may publish or declare in turn
             try:
                 fn(sample)

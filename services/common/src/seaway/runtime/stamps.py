@@ -23,6 +23,7 @@ The bounds:
 
 from __future__ import annotations
 
+import functools
 import logging
 import threading
 from dataclasses import dataclass
@@ -71,8 +72,9 @@ class StampBounds:
 
     @classmethod
     def lockstep(cls, period_ns: int) -> StampBounds:
-        """Lockstep with periods of ``period_ns``: ``LOCKSTEP_AHEAD_PERIODS`` ahead, any age."""
-        return cls(LOCKSTEP_AHEAD_PERIODS * max(int(period_ns), 0))
+        """Lockstep with periods of ``period_ns``: ``LOCKSTEP_AHEAD_PERIODS`` ahead, any age.
+        One instance per period length (asked for every message a lockstep member takes)."""
+        return _lockstep_bounds(cls, int(period_ns))
 
     def judge(self, stamp_ns: int, ref_ns: int) -> Direction | None:
         """None if ``stamp_ns`` is within the bounds around ``ref_ns``, else which side it is on."""
@@ -135,3 +137,8 @@ class StampGate:
 def _short(stamp_ns: int) -> str:
     text = str(stamp_ns)
     return text if len(text) <= 24 else f"{text[:8]}...({len(text)} digits)"
+
+
+@functools.lru_cache(maxsize=8)
+def _lockstep_bounds(cls: type[StampBounds], period_ns: int) -> StampBounds:
+    return cls(LOCKSTEP_AHEAD_PERIODS * max(period_ns, 0))

@@ -262,6 +262,10 @@ class _Ring:
         sample = self._sub.try_recv()
         return None if sample is None else sample.payload.to_bytes()
 
+    def take_carried(self) -> tuple[bytes, Any] | None:
+        payload = self.take()
+        return None if payload is None else (payload, None)  # bytes from another process only
+
     def undeclare(self) -> None:
         self._sub.undeclare()
 

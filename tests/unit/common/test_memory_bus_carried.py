@@ -1,0 +1,125 @@
+"""In one process the in-memory bus hands along what a sample's bytes were encoded from
+(``RawSample.carried``): a receiver takes the publisher's own (frozen) message and decodes nothing.
+Bytes that carry nothing (a raw publisher, anything from another process) are decoded and, when
+malformed, refused and counted, as on Zenoh."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import pytest
+from seaway.contract import bundle, keys
+from seaway.contract.messages import ClockTick, Message, PeriodDone, ThrustCommand
+from seaway.runtime.bus import RawSample
+from seaway.runtime.lockstep import Member, Period
+from seaway.runtime.memory_bus import MemoryBus, MemoryHub
+
+P = 100_000_000
+V = "vessel1"
+
+
+@pytest.fixture
+def decodes(monkeypatch: pytest.MonkeyPatch) -> Iterator[list[str]]:
+    """The names of the message types decoded from bytes meanwhile (every ``Message.decode``,
+    which ``PeriodDone.decode`` ends in)."""
+    seen: list[str] = []
+    real = Message.decode.__func__  # type: ignore[attr-defined]
+
+    def counting(cls: type[Message], data: bytes) -> Message:
+        seen.append(cls.__name__)
+        return real(cls, data)  # type: ignore[no-any-return]
+
+    monkeypatch.setattr(Message, "decode", classmethod(counting))
+    yield seen
+
+
+def thrust(stamp_ns: int) -> ThrustCommand:
+    return ThrustCommand.make(stamp_ns=stamp_ns, thrust_port_n=1.5, thrust_starboard_n=-2.0, seq=3)
+
+
+def test_a_subscriber_gets_the_publishers_message_itself_and_decodes_nothing(
+        decodes: list[str]) -> None:
+    hub = MemoryHub()
+    heard: list[ThrustCommand] = []
+    rx = hub.bus(V)
+    rx.subscribe(keys.THRUST, callback=lambda _k, m: heard.append(m))
+    raw: list[RawSample] = []
+    rx.subscribe_raw(keys.THRUST.key(V), raw.append)
+    sent = thrust(7)
+    hub.bus(V).publisher(keys.THRUST).put(sent)
+    assert heard == [sent] and heard[0] is sent
+    assert decodes == []
+    assert raw[0].payload == sent.encode()  # the bytes travel all the same (a recorder's)
+    assert rx.stats.received == 1
+
+
+def test_bytes_that_carry_nothing_are_decoded_and_malformed_ones_refused(decodes: list[str]) -> None:
+    """A raw publisher's bytes (as a Zenoh sample's: nothing carried) are decoded: a new message
+    equal to what was encoded, and a malformed payload is counted and dropped."""
+    hub = MemoryHub()
+    rx = hub.bus(V)
+    heard: list[ThrustCommand] = []
+    rx.subscribe(keys.THRUST, callback=lambda _k, m: heard.append(m))
+    tx = hub.bus(V).raw_publisher(keys.THRUST.key(V))
+    sent = thrust(7)
+    tx.put(sent.encode())
+    assert heard == [sent] and heard[0] is not sent and decodes == ["ThrustCommand"]
+    tx.put(b'{"stamp_ns": 8, "thrust_port_n": "lots"}')
+    assert len(heard) == 1 and rx.stats.malformed == 1
+    assert "thrust_port_n" in rx.stats.last_error
+
+
+def test_a_carried_object_of_another_type_is_not_taken(decodes: list[str]) -> None:
+    """Only a message of the key's own type is taken as it is; anything else, the bytes decide."""
+    bus = MemoryBus(V)
+    heard: list[ThrustCommand] = []
+    bus.subscribe(keys.THRUST, callback=lambda _k, m: heard.append(m))
+    sent = thrust(7)
+    pub = bus.raw_publisher(keys.THRUST.key(V))
+    pub.put_carrying(sent.encode(), ClockTick(stamp_ns=7, lockstep=True))  # type: ignore[attr-defined]
+    assert heard == [sent] and decodes == ["ThrustCommand"]
+    pub.put_carrying(b"{not json", sent)  # type: ignore[attr-defined]
+    assert heard == [sent, sent] and decodes == ["ThrustCommand"]  # in process, trusted as sent
+
+
+def test_a_member_takes_a_bundles_answer_and_messages_as_sent(decodes: list[str]) -> None:
+    """The estimator hears the sim's bundle: its answer and the messages it lists are the sim's
+    own objects; a subscriber of one of its keys (a display) gets the sim's object too."""
+    hub = MemoryHub()
+    est = Member(hub.bus(V), "estimator", watched={keys.SIM_CLOCK.suffix}, hears=("sim",))
+    taken: list[ClockTick] = []
+    est.deliver = lambda _key, msg: (taken.append(msg), est.saw(keys.SIM_CLOCK.suffix, msg.stamp_ns))
+    display: list[ClockTick] = []
+    hub.bus(V).subscribe(keys.SIM_CLOCK, callback=lambda _k, m: display.append(m))
+    sim = Member(hub.bus(V), "sim", watched=(), subscribe=False)
+    tick = ClockTick(stamp_ns=P, lockstep=True)
+    done = sim.answer(Period(0, P), P, [(keys.SIM_CLOCK, tick)])
+    assert taken[0] is tick and display[0] is tick
+    assert est.ledger.answer("sim") is done
+    assert decodes == []
+    again = sim.repeat()  # a repeat carries its objects too
+    assert again is not None and est.ledger.answers["sim"] is again and decodes == []
+
+
+def test_a_bundle_that_carries_nothing_is_decoded_and_a_malformed_line_refused(
+        decodes: list[str]) -> None:
+    """The same bundle's bytes alone (from another process) are decoded; a line that does not
+    decode is counted and not handed on, and the answer after it is still noted."""
+    hub = MemoryHub()
+    est = Member(hub.bus(V), "estimator", watched={keys.SIM_CLOCK.suffix}, hears=("sim",))
+    taken: list[ClockTick] = []
+    est.deliver = lambda _key, msg: (taken.append(msg), est.saw(keys.SIM_CLOCK.suffix, msg.stamp_ns))
+    pub = hub.bus(V).raw_publisher(keys.lockstep_spec("sim").key(V), bundle.ENCODING)
+    tick = ClockTick(stamp_ns=P, lockstep=True)
+    answer = PeriodDone(stamp_ns=P, service="sim", episode=0, seq=1, period_ns=P,
+                        published={keys.SIM_CLOCK.suffix: [P]})
+    pub.put(bundle.encode(answer.encode(), [(keys.SIM_CLOCK.suffix, tick.encode())]))
+    assert taken == [tick] and taken[0] is not tick
+    assert est.ledger.answer("sim") == answer
+    assert sorted(decodes) == ["ClockTick", "PeriodDone"]
+    bad = answer.model_copy(update={"stamp_ns": 2 * P, "seq": 2,
+                                    "published": {keys.SIM_CLOCK.suffix: [2 * P]}})
+    malformed_before = est.bus.stats.malformed
+    pub.put(bundle.encode(bad.encode(), [(keys.SIM_CLOCK.suffix, b'{"stamp_ns":-1}')]))
+    assert taken == [tick] and est.bus.stats.malformed == malformed_before + 1
+    assert est.ledger.period == Period(0, 2 * P) and not est.ledger.complete(est.ledger.answer("sim"))
