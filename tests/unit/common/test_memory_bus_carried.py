@@ -123,3 +123,20 @@ def test_a_bundle_that_carries_nothing_is_decoded_and_a_malformed_line_refused(
     pub.put(bundle.encode(bad.encode(), [(keys.SIM_CLOCK.suffix, b'{"stamp_ns":-1}')]))
     assert taken == [tick] and est.bus.stats.malformed == malformed_before + 1
     assert est.ledger.period == Period(0, 2 * P) and not est.ledger.complete(est.ledger.answer("sim"))
+
+
+def test_a_composed_launcher_reads_the_answer_carried_not_the_bytes(decodes: list[str]) -> None:
+    """The launcher's liveness watch takes each answer's period from the answer the bundle was
+    encoded from, where the bus hands one along: no JSON is read (bytes it could not read give the
+    carried period); a resent copy is no news either way; bytes alone are still read."""
+    from seaway.tools.launch.supervisor import answer_period
+
+    answer = PeriodDone(stamp_ns=P, service="sim", episode=2, seq=1, period_ns=P, hold=True,
+                        published={})
+    carried = bundle.Carried(answer, ())
+    assert answer_period(b"not json", carried) == ((2, P), True)
+    resent = answer.model_copy(update={"resent": True})
+    assert answer_period(b"not json", bundle.Carried(resent, ())) == (None, False)
+    assert answer_period(bundle.encode(answer.encode(), [])) == ((2, P), True)
+    assert answer_period(b"not json") == (None, False)
+    assert decodes == []

@@ -40,7 +40,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO
+from typing import IO, Any
 
 from seaway.contract import bundle, keys
 from seaway.contract.messages import LOCKSTEP_SERVICES
@@ -59,11 +59,18 @@ CHAIN_RANK = {keys.lockstep_spec(s).suffix: i for i, s in enumerate(LOCKSTEP_SER
 """A lockstep answer key's place in a period's chain (sim 0, estimator 1, controller 2, recorder 3)."""
 
 
-def answer_period(payload: bytes) -> tuple[tuple[int, int] | None, bool]:
+def answer_period(payload: bytes, carried: Any = None) -> tuple[tuple[int, int] | None, bool]:
     """((episode, stamp_ns), hold) of a lockstep answer; (None, False) if it is malformed.
 
     Only the three fields needed, read as plainly as can be (each member validates the answers it
-    acts on; a malformed one is no answer here, absurd numbers included: JSON's Infinity)."""
+    acts on; a malformed one is no answer here, absurd numbers included: JSON's Infinity).
+    ``carried``: what an in-process bus handed along with the bytes (``bundle.Carried``): its
+    answer is read instead of the bytes (a composed stack's launcher decodes no bundle)."""
+    ans_carried = bundle.carried_answer(carried)
+    if ans_carried is not None:
+        if ans_carried.resent:
+            return None, False
+        return (ans_carried.episode, ans_carried.stamp_ns), ans_carried.hold
     try:
         ans = json.loads(bundle.answer_of(payload))  # a bundle's first line (seaway.contract.bundle)
         if ans.get("resent"):  # a copy of an earlier answer, for a restarted recorder: no news
@@ -181,8 +188,8 @@ class Supervisor:
         no_period = (-1, -1)
         for vessel, suffix, ring in self._rings:
             rank = CHAIN_RANK.get(suffix, -1)
-            while (payload := ring.take()) is not None:
-                period, hold = answer_period(payload) if rank >= 0 else (no_period, False)
+            while (item := ring.take_carried()) is not None:
+                period, hold = answer_period(*item) if rank >= 0 else (no_period, False)
                 if period is not None:
                     heard.append((vessel, period, rank, suffix, hold))
         heard.sort(key=lambda h: (h[0], h[1], h[2]))
