@@ -73,7 +73,6 @@ STATUS_KEY = keys.VEHICLE_STATUS
 in real time only (in lockstep the sim applies exactly the command it says it consumed); traced as
 kind ``"status"``, applied after the inputs of the same stamp."""
 
-_I9 = np.eye(NZ)
 IU, IV, IR, IX, IY, IPSI, ID1, ID2, ID3 = range(NZ)
 _H_POS = np.zeros((2, NZ))
 _H_POS[0, IX] = _H_POS[1, IY] = 1.0
@@ -186,6 +185,7 @@ class EstimatorCore:
         self._heading_timeout_ns = c.heading_timeout_s * NS_PER_S
         self._R_sog = np.eye(2) * c.sog_std_mps ** 2
         self._H_sog = np.zeros((2, NZ))  # rows refilled at each velocity update
+        self._T_body = np.eye(NZ)  # ``_body_d``'s Jacobian, its six entries refilled at each call
         self._init_force_std_n = _initial_force_std(c, vessel, self._world)
         # What a lost thruster leaves unexplained: its full thrust, and that thrust's moment.
         self._reopen_force_var = vessel.thrust_max_n ** 2
@@ -583,7 +583,7 @@ class EstimatorCore:
         self._last_nis = nis
         if not (math.isfinite(nis) and nis <= gate):  # also false for NaN
             return False
-        z[IPSI] = wrap_pi(z[IPSI])
+        z[IPSI] = wrap_pi(z.item(IPSI))
         f.z, f.P = z, P
         return True
 
@@ -594,7 +594,7 @@ class EstimatorCore:
         nis, z, P = self._updaters[1].scalar(f.z, f.P, nu, i, var)
         if not (math.isfinite(nis) and nis <= gate):
             return False
-        z[IPSI] = wrap_pi(z[IPSI])
+        z[IPSI] = wrap_pi(z.item(IPSI))
         f.z, f.P = z, P
         return True
 
@@ -780,7 +780,7 @@ class EstimatorCore:
         psi, dn, de = z[IPSI], z[ID1], z[ID2]
         c, s = math.cos(psi), math.sin(psi)
         du, dv = c * dn + s * de, -s * dn + c * de
-        T = _I9.copy()
+        T = self._T_body  # the identity but for the entries set here; used before the next call
         T[ID1, ID1], T[ID1, ID2], T[ID1, IPSI] = c, s, dv
         T[ID2, ID1], T[ID2, ID2], T[ID2, IPSI] = -s, c, -du
         return (du, dv, float(z[ID3])), T
