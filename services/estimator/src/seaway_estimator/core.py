@@ -73,8 +73,6 @@ STATUS_KEY = keys.VEHICLE_STATUS
 in real time only (in lockstep the sim applies exactly the command it says it consumed); traced as
 kind ``"status"``, applied after the inputs of the same stamp."""
 
-_I9 = np.eye(NZ)
-_UNIT_ROWS = tuple(np.eye(NZ))  # H of a measurement of one state
 IU, IV, IR, IX, IY, IPSI, ID1, ID2, ID3 = range(NZ)
 _H_POS = np.zeros((2, NZ))
 _H_POS[0, IX] = _H_POS[1, IY] = 1.0
@@ -139,6 +137,8 @@ def _finite(where: str, **values: float | None) -> None:
 
 
 def _stamp(where: str, t_ns: object) -> int:
+    if type(t_ns) is int and t_ns >= 0:  # the usual case, decided without the checks below
+        return t_ns
     if isinstance(t_ns, bool) or not isinstance(t_ns, int | np.integer):
         if isinstance(t_ns, float) and not math.isfinite(t_ns):
             raise EstimatorError(f"{where}: time {t_ns!r} is not finite; input refused")
@@ -179,6 +179,13 @@ class EstimatorCore:
             c.position_std_per_sqrt_s, c.position_std_per_sqrt_s, c.heading_std_per_sqrt_s,
             c.force_std_per_sqrt_s, c.force_std_per_sqrt_s, c.moment_std_per_sqrt_s]) ** 2
         self._max_step_ns = round(c.max_step_s * NS_PER_S)
+        # Per-configuration bounds in ns, as each comparison below computed them at every sample.
+        self._max_gap_ns = round(c.max_gap_s * NS_PER_S)
+        self._gnss_timeout_ns = c.gnss_timeout_s * NS_PER_S
+        self._heading_timeout_ns = c.heading_timeout_s * NS_PER_S
+        self._R_sog = np.eye(2) * c.sog_std_mps ** 2
+        self._H_sog = np.zeros((2, NZ))  # rows refilled at each velocity update
+        self._T_body = np.eye(NZ)  # ``_body_d``'s Jacobian, its six entries refilled at each call
         self._init_force_std_n = _initial_force_std(c, vessel, self._world)
         # What a lost thruster leaves unexplained: its full thrust, and that thrust's moment.
         self._reopen_force_var = vessel.thrust_max_n ** 2
@@ -358,7 +365,7 @@ class EstimatorCore:
         f = self.filter
         if f is None:
             return None
-        if t - f.t_ns > round(self.config.max_gap_s * NS_PER_S):
+        if t - f.t_ns > self._max_gap_ns:
             self._time_jump(t)
             return None
         if t >= f.t_ns:
@@ -392,13 +399,20 @@ class EstimatorCore:
     def body_disturbance(self) -> tuple[float, float, float] | None:
         """The disturbance estimate in the body frame now [N, N, N m]."""
         f = self.filter
-        return None if f is None else self._body_d(f.z)[0]
+        return None if f is None else self._body_d(f.z.tolist())[0]
 
     # ------------------------------------------------------------------------------------------
     # Input checks and time
     # ------------------------------------------------------------------------------------------
 
     def _check(self, t_ns: object, where: str, **values: float | None) -> int:
+        if type(t_ns) is int and t_ns >= 0:  # the usual case: no exception handling set up
+            isfinite = math.isfinite
+            for v in values.values():
+                if v is not None and not isfinite(v):
+                    break
+            else:
+                return t_ns
         try:
             t = _stamp(where, t_ns)
             _finite(where, **values)
@@ -418,7 +432,7 @@ class EstimatorCore:
         f = self.filter
         assert f is not None
         if t >= f.t_ns:
-            if t - f.t_ns > round(self.config.max_gap_s * NS_PER_S):
+            if t - f.t_ns > self._max_gap_ns:
                 self._time_jump(t)
                 return None
             self._advance(t)
@@ -437,7 +451,7 @@ class EstimatorCore:
         f = self.filter
         if f is None or t <= f.t_ns:
             return True
-        if t - f.t_ns > round(self.config.max_gap_s * NS_PER_S):
+        if t - f.t_ns > self._max_gap_ns:
             self.counters.inc("too_new")
             return False
         self._advance(t)
@@ -526,16 +540,18 @@ class EstimatorCore:
         """One substep of ``h`` [s]; why the state it reached is no vessel's (None: it is one)."""
         z, P = self._predictor.step(f.z, f.P, thrust, h)
         f.z, f.P = z, P
-        why = self._absurd(z)
+        zl = z.tolist()
+        why = self._absurd(zl)
         if why is None:
-            z[IPSI] = wrap_pi(z[IPSI])
+            z[IPSI] = wrap_pi(zl[IPSI])
         return why
 
-    def _absurd(self, z: np.ndarray) -> str | None:
-        """Why ``z`` cannot be this vessel's state (``seaway.vessel.envelope``), or None."""
-        if not np.isfinite(z).all():
+    def _absurd(self, zl: list[float]) -> str | None:
+        """Why the state ``zl`` (as floats: on 9 values numpy's per-call cost is the cost) cannot
+        be this vessel's (``seaway.vessel.envelope``), or None."""
+        if not all(map(math.isfinite, zl)):
             return "the state is not finite"
-        return self._envelope.absurd(float(z[IU]), float(z[IV]), float(z[IR]))
+        return self._envelope.absurd(zl[IU], zl[IV], zl[IR])
 
     def _diverged(self, t: int, why: str) -> None:
         """The filter went unstable (a model far from the vessel, a bad update): drop it, so that
@@ -567,7 +583,7 @@ class EstimatorCore:
         self._last_nis = nis
         if not (math.isfinite(nis) and nis <= gate):  # also false for NaN
             return False
-        z[IPSI] = wrap_pi(z[IPSI])
+        z[IPSI] = wrap_pi(z.item(IPSI))
         f.z, f.P = z, P
         return True
 
@@ -575,10 +591,10 @@ class EstimatorCore:
         """``_gated_update`` for a measurement of one state ``i`` (H a unit row, R its variance)."""
         f = self.filter
         assert f is not None
-        nis, z, P = self._updaters[1].step(f.z, f.P, nu, _UNIT_ROWS[i], var)
+        nis, z, P = self._updaters[1].scalar(f.z, f.P, nu, i, var)
         if not (math.isfinite(nis) and nis <= gate):
             return False
-        z[IPSI] = wrap_pi(z[IPSI])
+        z[IPSI] = wrap_pi(z.item(IPSI))
         f.z, f.P = z, P
         return True
 
@@ -587,7 +603,8 @@ class EstimatorCore:
         assert f is not None
         zp = self._back(f.z, delay) if delay > 0 else f.z
         nu = np.array([north - zp[IX], east - zp[IY]])
-        R = np.eye(2) * (std * std)
+        var = std * std
+        R = np.array([[var, 0.0 * var], [0.0 * var, var]])  # np.eye(2) * var, value for value
         if self._gated_update(nu, _H_POS, R, self.config.gate_gnss):
             self.counters.inc("gnss_accepted")
             f.gnss_reject_run = 0
@@ -615,10 +632,10 @@ class EstimatorCore:
         c, s = math.cos(psi), math.sin(psi)
         # h(z) = R(psi) [u, v]: the kinematic rows of the model (paper eq. 2) without current.
         nu = np.array([vn - (u * c - v * s), ve - (u * s + v * c)])
-        H = np.zeros((2, NZ))
+        H = self._H_sog  # the other entries stay zero
         H[0, IU], H[0, IV], H[0, IPSI] = c, -s, -u * s - v * c
         H[1, IU], H[1, IV], H[1, IPSI] = s, c, u * c - v * s
-        R = np.eye(2) * self.config.sog_std_mps ** 2
+        R = self._R_sog
         ok = self._gated_update(nu, H, R, self.config.gate_sog)
         if ok:
             f.sog_reject_run = 0
@@ -749,35 +766,41 @@ class EstimatorCore:
     def _update_degraded(self, t: int) -> None:
         f = self.filter
         assert f is not None
-        c = self.config
-        now = (t - f.last_gnss_ns > c.gnss_timeout_s * NS_PER_S
-               or t - f.last_heading_ns > c.heading_timeout_s * NS_PER_S)
+        now = (t - f.last_gnss_ns > self._gnss_timeout_ns
+               or t - f.last_heading_ns > self._heading_timeout_ns)
         if now and not f.degraded:
             self.counters.inc("degraded_entered")
         f.degraded = now
 
-    def _body_d(self, z: np.ndarray) -> tuple[tuple[float, float, float], np.ndarray | None]:
-        """Body-frame disturbance and the Jacobian T taking the internal covariance to it."""
+    def _body_d(self, z: list[float]) -> tuple[tuple[float, float, float], np.ndarray | None]:
+        """Body-frame disturbance and the Jacobian T taking the internal covariance to it (``z``
+        the state as floats)."""
         if not self._world:
-            return (float(z[ID1]), float(z[ID2]), float(z[ID3])), None
-        psi, dn, de = float(z[IPSI]), float(z[ID1]), float(z[ID2])
+            return (z[ID1], z[ID2], z[ID3]), None
+        psi, dn, de = z[IPSI], z[ID1], z[ID2]
         c, s = math.cos(psi), math.sin(psi)
         du, dv = c * dn + s * de, -s * dn + c * de
-        T = _I9.copy()
+        T = self._T_body  # the identity but for the entries set here; used before the next call
         T[ID1, ID1], T[ID1, ID2], T[ID1, IPSI] = c, s, dv
         T[ID2, ID1], T[ID2, ID2], T[ID2, IPSI] = -s, c, -du
         return (du, dv, float(z[ID3])), T
 
     def _estimate(self, t: int, z: np.ndarray, P: np.ndarray, degraded: bool) -> StateEstimate | None:
-        d, T = self._body_d(z)
+        # As floats: on 9 and 81 values numpy's per-call cost is the cost (the matrix products
+        # stay numpy's, whose rounding the published covariance has).
+        zl = z.tolist()
+        d, T = self._body_d(zl)
         if T is not None:
             Pout = T @ P @ T.T
             Pout = 0.5 * (Pout + Pout.T)
         else:
             Pout = P
-        pos_std = math.sqrt(max(P[IX, IX], P[IY, IY])) if np.isfinite(P[IX, IX]) else math.inf
-        finite = bool(np.isfinite(z).all() and np.isfinite(Pout).all())
-        why = ("the state is not finite" if not finite else self._absurd(z)
+        cov = Pout.ravel().tolist()
+        pxx, pyy = P.item(IX, IX), P.item(IY, IY)
+        pos_std = math.sqrt(max(pxx, pyy)) if math.isfinite(pxx) else math.inf
+        isfinite = math.isfinite
+        finite = all(map(isfinite, zl)) and all(map(isfinite, cov))
+        why = ("the state is not finite" if not finite else self._absurd(zl)
                or (f"position std {pos_std:.0f} m (over max_position_std_m "
                    f"{self.config.max_position_std_m:g} m)"
                    if pos_std > self.config.max_position_std_m else None))
@@ -787,10 +810,10 @@ class EstimatorCore:
             return None
         try:
             est = StateEstimate(
-                stamp_ns=t, u_mps=float(z[IU]), v_mps=float(z[IV]), r_radps=float(z[IR]),
-                x_m=float(z[IX]), y_m=float(z[IY]), psi_rad=wrap_pi(float(z[IPSI])),
+                stamp_ns=t, u_mps=zl[IU], v_mps=zl[IV], r_radps=zl[IR],
+                x_m=zl[IX], y_m=zl[IY], psi_rad=wrap_pi(zl[IPSI]),
                 tau_d_surge_n=d[0], tau_d_sway_n=d[1], tau_d_yaw_nm=d[2],
-                covariance=Pout.ravel().tolist(), degraded=degraded,
+                covariance=cov, degraded=degraded,
                 motion_fault=self.mismatch.kind, motion_fault_detail=self.mismatch.detail)
         except (MessageError, ValueError):
             self.counters.inc("publish_refused")

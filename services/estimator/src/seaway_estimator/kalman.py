@@ -126,6 +126,7 @@ class Updater:
         self._fn = NativeFunction(update_function(m))
         self._z, self._P, self._nu, self._H, self._R = self._fn.inputs
         self._nis, self._z_next, self._P_next = self._fn.outputs
+        self._unit = -1  # the state whose unit row H holds now (``scalar``); -1: another H
         # As matrices (column-major), filled and read with one copy each (``Predictor``).
         self._P_in = self._P.reshape(NZ, NZ, order="F")
         self._H_in = self._H.reshape(m, NZ, order="F")
@@ -141,5 +142,26 @@ class Updater:
         self._nu[:] = nu
         self._H_in[...] = H  # a 9-vector fills the one row of m = 1
         self._R_in[...] = R  # a variance fills the 1 x 1 of m = 1
+        self._unit = -1
         self._fn()
         return float(self._nis[0]), self._z_next.copy(), self._P_out.copy()
+
+    def scalar(self, z: np.ndarray, P: np.ndarray, nu: float, i: int, var: float
+               ) -> tuple[float, np.ndarray, np.ndarray]:
+        """``step`` of ``m = 1`` for a measurement of state ``i`` alone (H its unit row) with
+        variance ``var``: the same numbers, without numpy's per-call cost of filling a 9-vector
+        and a 1 x 1 (on values this small that cost is the cost)."""
+        self._z[:] = z
+        self._P_in[...] = P
+        self._nu[0] = nu
+        H = self._H
+        if self._unit != i:
+            if self._unit < 0:
+                H.fill(0.0)
+            else:
+                H[self._unit] = 0.0
+            H[i] = 1.0
+            self._unit = i
+        self._R[0] = var
+        self._fn()
+        return self._nis.item(0), self._z_next.copy(), self._P_out.copy()

@@ -155,6 +155,18 @@ def _mean(total: int, n: int) -> float:
     return total / (n << _FIXED_BITS)  # int / int: correctly rounded
 
 
+_Terms = tuple[int, int | None, int | None, bool]
+
+
+def _terms(s: FixSample) -> _Terms:
+    """What a fix adds to a window's sums (``_Window``), in units of 2**-1074: its commanded speed,
+    its surge over ground and its NIS (None: it has none), and whether it was rejected. Converted
+    once per fix, however many windows it enters and leaves."""
+    return (_fixed(s.commanded_mps),
+            None if s.surge_over_ground_mps is None else _fixed(s.surge_over_ground_mps),
+            _fixed(s.nis) if math.isfinite(s.nis) else None, s.rejected)
+
+
 class _Window:
     """The fixes of the last ``span_ns`` before the newest (inclusive), with the sums a verdict
     needs kept as fixes come and go, so that a verdict costs the same however many fixes it spans.
@@ -163,31 +175,39 @@ class _Window:
     def __init__(self, span_s: float) -> None:
         self.span_ns = round(span_s * NS_PER_S)
         self.fixes: deque[FixSample] = deque()
+        self._terms: deque[_Terms] = deque()  # each fix's ``_terms``, beside it
         self.clear()
 
     def clear(self) -> None:
         self.fixes.clear()
+        self._terms.clear()
         self.commanded = self.sog = self.nis = 0  # exact sums, units of 2**-1074 (_fixed)
         self.n_sog = self.n_nis = self.rejected = 0
 
-    def _add(self, s: FixSample, sign: int) -> None:
-        self.commanded += sign * _fixed(s.commanded_mps)
-        if s.surge_over_ground_mps is not None:
-            self.sog += sign * _fixed(s.surge_over_ground_mps)
+    def _add(self, terms: _Terms, sign: int) -> None:
+        commanded, sog, nis, rejected = terms
+        self.commanded += sign * commanded
+        if sog is not None:
+            self.sog += sign * sog
             self.n_sog += sign
-        if math.isfinite(s.nis):
-            self.nis += sign * _fixed(s.nis)
+        if nis is not None:
+            self.nis += sign * nis
             self.n_nis += sign
-        self.rejected += sign * s.rejected
+        self.rejected += sign * rejected
 
-    def push(self, s: FixSample) -> None:
-        """Add the newest fix and drop those older than ``span_ns`` before it."""
+    def push(self, s: FixSample, terms: _Terms | None = None) -> None:
+        """Add the newest fix (``terms``: its ``_terms``, if already known) and drop those older
+        than ``span_ns`` before it."""
         w = self.fixes
+        if terms is None:
+            terms = _terms(s)
         w.append(s)
-        self._add(s, 1)
+        self._terms.append(terms)
+        self._add(terms, 1)
         start = s.t_ns - self.span_ns
         while w[0].t_ns < start:
-            self._add(w.popleft(), -1)
+            w.popleft()
+            self._add(self._terms.popleft(), -1)
 
     def speeds(self) -> tuple[float, float]:
         """(commanded, measured) mean speeds [m/s]: the fixes' velocity over ground when every
@@ -256,8 +276,9 @@ class MotionMismatch:
         w = self._fast.fixes
         if w and sample.t_ns < w[-1].t_ns:
             self.reset()  # time went back: a new run
-        self._fast.push(sample)
-        self._slow.push(sample)
+        terms = _terms(sample)
+        self._fast.push(sample, terms)
+        self._slow.push(sample, terms)
         v = self.verdict()
         self.last = v
         if v is None:

@@ -172,8 +172,8 @@ class EstimatorNode(Node):
         self.log_notices()
         if est is not None:
             out.append((keys.NAV_STATE, est))
-        origin = self.core.nav_origin(t_ns)
-        if origin is not None and now_s >= self._origin_due_s:
+        origin = self.core.nav_origin(t_ns) if now_s >= self._origin_due_s else None
+        if origin is not None:  # the message made only when due: most periods have none
             out.append((keys.NAV_ORIGIN, origin))
             self._origin_due_s = now_s + 1.0 / self.core.config.origin_rate_hz
         return out

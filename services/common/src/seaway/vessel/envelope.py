@@ -37,7 +37,8 @@ class Envelope:
 
     def absurd(self, u_mps: float, v_mps: float, r_radps: float) -> str | None:
         """Why the body speeds cannot be this vessel's (None: they can). Non-finite is absurd."""
-        if not all(math.isfinite(a) for a in (u_mps, v_mps, r_radps)):
+        isfinite = math.isfinite  # no generator: this runs at every filter step
+        if not (isfinite(u_mps) and isfinite(v_mps) and isfinite(r_radps)):
             return "the state is not finite"
         speed = math.hypot(u_mps, v_mps)
         if speed > self.speed_mps:

@@ -86,16 +86,23 @@ class GeoOrigin:
         so, co = math.sin(self.lon_rad), math.cos(self.lon_rad)
         return x0, y0, z0, -sl * co, so, cl * co, -sl * so, co, cl * so, cl, sl
 
-    def to_ned(self, lat_rad: float, lon_rad: float, alt_m: float = 0.0) -> tuple[float, float, float]:
-        """Geodetic -> (north_m, east_m, down_m) relative to this origin."""
+    @functools.cached_property
+    def _to_ned(self) -> tuple[float, ...]:
+        """The origin's ECEF position and the rotation's factors, computed once per origin (each
+        product as ``to_ned`` associates it, so the result is the same to the bit)."""
         x0, y0, z0 = self._ecef0()
-        x, y, z = geodetic_to_ecef(lat_rad, lon_rad, alt_m)
-        dx, dy, dz = x - x0, y - y0, z - z0
         sl, cl = math.sin(self.lat_rad), math.cos(self.lat_rad)
         so, co = math.sin(self.lon_rad), math.cos(self.lon_rad)
-        north = -sl * co * dx - sl * so * dy + cl * dz
-        east = -so * dx + co * dy
-        down = -cl * co * dx - cl * so * dy - sl * dz
+        return x0, y0, z0, -sl * co, sl * so, cl, -so, co, -cl * co, cl * so, sl
+
+    def to_ned(self, lat_rad: float, lon_rad: float, alt_m: float = 0.0) -> tuple[float, float, float]:
+        """Geodetic -> (north_m, east_m, down_m) relative to this origin."""
+        x0, y0, z0, n_x, n_y, n_z, e_x, e_y, d_x, d_y, d_z = self._to_ned
+        x, y, z = geodetic_to_ecef(lat_rad, lon_rad, alt_m)
+        dx, dy, dz = x - x0, y - y0, z - z0
+        north = n_x * dx - n_y * dy + n_z * dz
+        east = e_x * dx + e_y * dy
+        down = d_x * dx - d_y * dy - d_z * dz
         return north, east, down
 
     def to_geodetic(self, north_m: float, east_m: float, down_m: float = 0.0) -> tuple[float, float, float]:
