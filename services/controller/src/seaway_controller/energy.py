@@ -144,7 +144,7 @@ class EnergyModel:
     t_d_max_s: float = 60.0
     # This model's turn tables by speed: the shared cache's key hashes the whole vessel (a pydantic
     # model), which cost more than the lookup itself at ~100 lookups a period.
-    _tables: dict[float, tuple[float, ...]] = field(default_factory=dict, init=False,
+    _tables: dict[float, np.ndarray] = field(default_factory=dict, init=False,
                                                     compare=False, hash=False, repr=False)
 
     @classmethod
@@ -172,14 +172,16 @@ class EnergyModel:
             return u_star
         return max(state.u_mps, MIN_SPEED_FRAC * u_star)
 
-    def _table(self, speed_mps: float) -> tuple[float, ...]:
+    def _table(self, speed_mps: float) -> np.ndarray:
+        """The turn table at this speed, as the array it is interpolated in (kept as one)."""
         key = round(speed_mps, 6)
         table = self._tables.get(key)
         if table is None:
             if len(self._tables) >= TABLES_PER_MODEL:  # the NMPC's speed is new every period
                 self._tables.clear()
-            table = self._tables[key] = _turn_table(self.vessel, self.task_power_w, key,
-                                                    self.profile_n, self.t_d_min_s, self.t_d_max_s)
+            table = self._tables[key] = np.asarray(_turn_table(
+                self.vessel, self.task_power_w, key, self.profile_n, self.t_d_min_s,
+                self.t_d_max_s))
         return table
 
     def turn_j(self, delta_psi: float, speed_mps: float) -> float:
@@ -189,7 +191,7 @@ class EnergyModel:
 
     def turn_j_many(self, delta_psi: np.ndarray, speed_mps: float) -> np.ndarray:
         """``turn_j`` of each angle in ``delta_psi`` [J]."""
-        table = np.asarray(self._table(speed_mps))
+        table = self._table(speed_mps)
         x = np.abs(np.arctan2(np.sin(delta_psi), np.cos(delta_psi))) / math.pi * (len(table) - 1)
         i = np.minimum(x.astype(int), len(table) - 2)
         f = x - i

@@ -91,7 +91,7 @@ def cruise_courses(vessel: VesselParams, task_power_w: float, speed_mps: float,
         before, beta = beta, np.where(u > 0, -np.arctan2(v, u), 0.0)
         # Every element on until the last agrees: one that agreed earlier only moves closer to
         # its fixed point (within 1e-9 rad of where cruise stops), and the arrays stay whole.
-        if np.abs(beta - before).max(initial=0.0) < 1e-9:
+        if np.maximum.reduce(np.abs(beta - before), axis=None, initial=0.0) < 1e-9:  # = .max()
             break
     t_diff = ((p.m22_kg - p.m11_kg) * u * v - yaw) / p.arm_m
     t_lo, t_hi = -p.reverse_max_n, p.thrust_max_n
