@@ -848,13 +848,11 @@ class ControllerCore:
         plan = used.plan if used is not None else reused
         fields: dict = {}
         if plan is not None and np.isfinite(plan.states).all():  # the method: no dispatch layers
-            # Plain floats in one conversion each, not column by column.
-            rows, thrusts = plan.states.tolist(), plan.thrusts_n.tolist()
-            fields = {"predicted_x_m": [row[3] for row in rows],
-                      "predicted_y_m": [row[4] for row in rows],
-                      "predicted_psi_rad": [row[5] for row in rows],
-                      "predicted_thrust_port_n": [row[0] for row in thrusts],
-                      "predicted_thrust_starboard_n": [row[1] for row in thrusts]}
+            fields = {"predicted_x_m": plan.states[:, 3].tolist(),
+                      "predicted_y_m": plan.states[:, 4].tolist(),
+                      "predicted_psi_rad": plan.states[:, 5].tolist(),
+                      "predicted_thrust_port_n": plan.thrusts_n[:, 0].tolist(),
+                      "predicted_thrust_starboard_n": plan.thrusts_n[:, 1].tolist()}
         if c is not None:
             fields.update(
                 cost_stage_j=_finite_or_none(c.stage_j), cost_dynamic_j=_finite_or_none(c.dynamic_j),
