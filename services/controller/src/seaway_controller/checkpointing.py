@@ -42,6 +42,7 @@ class Checkpoints:
         self._saved: tuple | None = None  # (mission id, leg, state, decision, hold) last written
         self._saved_at_ns: int | None = None  # when, on the service's clock
         self._writer: atomic.LatestWriter | None = None
+        self._request: tuple[object, dict] | None = None  # (request, its JSON dump): made once
 
     def durable(self) -> None:
         """Real time: write each checkpoint durably, on a thread of its own (an fsync can take a
@@ -71,8 +72,10 @@ class Checkpoints:
         due = last is None or not 0 <= now_ns - last < CHECKPOINT_PERIOD_NS
         if not force and key == self._saved and not due:
             return
+        if self._request is None or self._request[0] is not req:  # a request is never changed
+            self._request = (req, req.model_dump(mode="json"))
         cp = checkpoint.MissionCheckpoint(
-            request=req.model_dump(mode="json"), active_leg=leg, state=state,  # type: ignore[arg-type]
+            request=self._request[1], active_leg=leg, state=state,  # type: ignore[arg-type]
             energy_used_j=energy, saved_unix_ns=time.time_ns(), returning=decision.returning,
             decision=decision.decision, decided_ns=decision.decided_ns,
             decision_reason=decision.reason[:MAX_REASON_CHARS],

@@ -847,7 +847,7 @@ class ControllerCore:
         c = used.costs if used is not None else None
         plan = used.plan if used is not None else reused
         fields: dict = {}
-        if plan is not None and np.all(np.isfinite(plan.states)):
+        if plan is not None and np.isfinite(plan.states).all():  # the method: no dispatch layers
             fields = {"predicted_x_m": plan.states[:, 3].tolist(),
                       "predicted_y_m": plan.states[:, 4].tolist(),
                       "predicted_psi_rad": plan.states[:, 5].tolist(),

@@ -144,7 +144,7 @@ class EnergyModel:
     t_d_max_s: float = 60.0
     # This model's turn tables by speed: the shared cache's key hashes the whole vessel (a pydantic
     # model), which cost more than the lookup itself at ~100 lookups a period.
-    _tables: dict[float, tuple[float, ...]] = field(default_factory=dict, init=False,
+    _tables: dict[float, np.ndarray] = field(default_factory=dict, init=False,
                                                     compare=False, hash=False, repr=False)
 
     @classmethod
@@ -172,14 +172,16 @@ class EnergyModel:
             return u_star
         return max(state.u_mps, MIN_SPEED_FRAC * u_star)
 
-    def _table(self, speed_mps: float) -> tuple[float, ...]:
+    def _table(self, speed_mps: float) -> np.ndarray:
+        """The turn table at this speed, as the array it is interpolated in (kept as one)."""
         key = round(speed_mps, 6)
         table = self._tables.get(key)
         if table is None:
             if len(self._tables) >= TABLES_PER_MODEL:  # the NMPC's speed is new every period
                 self._tables.clear()
-            table = self._tables[key] = _turn_table(self.vessel, self.task_power_w, key,
-                                                    self.profile_n, self.t_d_min_s, self.t_d_max_s)
+            table = self._tables[key] = np.asarray(_turn_table(
+                self.vessel, self.task_power_w, key, self.profile_n, self.t_d_min_s,
+                self.t_d_max_s))
         return table
 
     def turn_j(self, delta_psi: float, speed_mps: float) -> float:
@@ -189,7 +191,7 @@ class EnergyModel:
 
     def turn_j_many(self, delta_psi: np.ndarray, speed_mps: float) -> np.ndarray:
         """``turn_j`` of each angle in ``delta_psi`` [J]."""
-        table = np.asarray(self._table(speed_mps))
+        table = self._table(speed_mps)
         x = np.abs(np.arctan2(np.sin(delta_psi), np.cos(delta_psi))) / math.pi * (len(table) - 1)
         i = np.minimum(x.astype(int), len(table) - 2)
         f = x - i
@@ -269,7 +271,7 @@ def predict_many(model: EnergyModel, state: StateEstimate,
         course = run(entry, nxt, course)
         entry = _entry(entry, nxt, r)
     run(pos, home, heading)
-    courses, lengths, before = (np.array(col) for col in zip(*runs, strict=True))
+    courses, lengths, before = np.array(runs).T
     turns = model.turn_j_many(courses - before, speed)
     # Row 0 undisturbed (the MPC's figure is corrected from it), then one row per disturbance.
     ground, power = model.cruise_many(courses, speed, [ZERO, *dists])
@@ -303,20 +305,24 @@ def _entry(start: tuple[float, float], target: tuple[float, float], r: float) ->
 def disturbance_sigma_points(state: StateEstimate) -> tuple[Disturbance, list[Disturbance]]:
     """The nominal disturbance and the ones a standard deviation away along each principal axis of
     the estimate's tau_d covariance (none without a covariance)."""
-    tau = np.array([state.tau_d_surge_n, state.tau_d_sway_n, state.tau_d_yaw_nm])
+    # Plain floats where numpy scalars would do the same IEEE operations at a larger cost.
+    tau = [state.tau_d_surge_n, state.tau_d_sway_n, state.tau_d_yaw_nm]
     nominal = Disturbance.from_body(tau, state.psi_rad)
     if state.covariance is None:
         return nominal, []
-    cov = np.asarray(state.covariance, dtype=float).reshape(9, 9)[6:, 6:]
+    c = state.covariance  # row-major 9 x 9; tau_d's block is rows and columns 6..8
+    cov = np.array([c[60:63], c[69:72], c[78:81]], dtype=float)
     cov = 0.5 * (cov + cov.T)
     vals, vecs = np.linalg.eigh(cov)
     out = []
-    for k in range(3):
-        if vals[k] <= 0:
+    for k, val in enumerate(vals.tolist()):
+        if val <= 0:
             continue
-        step = math.sqrt(vals[k]) * vecs[:, k]
-        out += [Disturbance.from_body(tau + step, state.psi_rad),
-                Disturbance.from_body(tau - step, state.psi_rad)]
+        step = (math.sqrt(val) * vecs[:, k]).tolist()
+        out += [Disturbance.from_body([a + b for a, b in zip(tau, step, strict=True)],
+                                      state.psi_rad),
+                Disturbance.from_body([a - b for a, b in zip(tau, step, strict=True)],
+                                      state.psi_rad)]
     return nominal, out
 
 
@@ -392,7 +398,9 @@ def no_return_point(model: EnergyModel, state: StateEstimate,
             lo = inner[-1]
         else:
             lo, hi = (inner[j - 1] if j > 0 else lo), inner[j]
-    q = at(np.array([hi]))[1][0]
+    # The point only (its margin was found above): as ``at`` places it.
+    k = max(int(np.searchsorted(seg_s0, hi, side="right")) - 1, 0)
+    q = seg_start[k] + seg_unit[k] * (hi - seg_s0[k])
     return float(q[0]), float(q[1]), float(hi)
 
 

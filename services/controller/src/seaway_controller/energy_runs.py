@@ -65,32 +65,38 @@ def cruise_courses(vessel: VesselParams, task_power_w: float, speed_mps: float,
     Arrays because the budget prices its legs under seven disturbances and ~50 runs home a period:
     one at a time, that cost more than the MPC's solve."""
     p = vessel
-    courses, fn, fe, yaw = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in
-                                                 (courses_rad, force_n, force_e, yaw_nm)))
+    # Not broadcast up front: every operation below is elementwise and broadcasts by itself (the
+    # same floats), and the crab angle has the whole shape from the first iteration on. Clips are
+    # written as maximum then minimum, which is what np.clip computes, at half its call's cost.
+    courses, fn, fe, yaw = (np.asarray(a, dtype=float) for a in
+                            (courses_rad, force_n, force_e, yaw_nm))
+    shape = np.broadcast(courses, fn, fe, yaw).shape
     lo, hi = -2 * p.reverse_max_n, 2 * p.thrust_max_n
-    beta = np.zeros(courses.shape)  # crab angle: heading - course
+    resistance_n = sliding_resistance_n(speed_mps, p)
+    friction, xu, yv = p.has_friction, p.xu_kgps, p.yv_kgps
+    t_sum = None if pay_in_thrust else np.full(shape, min(max(resistance_n, lo), hi))
+    beta = np.zeros(shape)  # crab angle: heading - course
     for _ in range(6):  # the crab angle and the forces it sees agree within 1e-6 rad in 3
         psi = courses + beta
         c, s = np.cos(psi), np.sin(psi)
         f_u = c * fn + s * fe
         if pay_in_thrust:
-            t_sum = np.clip(sliding_resistance_n(speed_mps, p) - f_u, lo, hi)
-        else:
-            t_sum = np.full(courses.shape, min(max(sliding_resistance_n(speed_mps, p), lo), hi))
-        if p.has_friction:  # the speed the surge force slides at (model.steady_surge_speed_mps)
+            t_sum = np.minimum(np.maximum(resistance_n - f_u, lo), hi)
+        if friction:  # the speed the surge force slides at (model.steady_surge_speed_mps)
             net = t_sum + f_u
-            u = np.sign(net) * np.maximum(np.abs(net) - p.friction_n, 0.0) / p.xu_kgps
+            u = np.sign(net) * np.maximum(np.abs(net) - p.friction_n, 0.0) / xu
         else:
-            u = (t_sum + f_u) / p.xu_kgps
-        v = (c * fe - s * fn) / p.yv_kgps
+            u = (t_sum + f_u) / xu
+        v = (c * fe - s * fn) / yv
         before, beta = beta, np.where(u > 0, -np.arctan2(v, u), 0.0)
         # Every element on until the last agrees: one that agreed earlier only moves closer to
         # its fixed point (within 1e-9 rad of where cruise stops), and the arrays stay whole.
-        if np.abs(beta - before).max(initial=0.0) < 1e-9:
+        if np.maximum.reduce(np.abs(beta - before), axis=None, initial=0.0) < 1e-9:  # = .max()
             break
     t_diff = ((p.m22_kg - p.m11_kg) * u * v - yaw) / p.arm_m
-    t1 = np.clip((t_sum + t_diff) / 2.0, -p.reverse_max_n, p.thrust_max_n)
-    t2 = np.clip((t_sum - t_diff) / 2.0, -p.reverse_max_n, p.thrust_max_n)
+    t_lo, t_hi = -p.reverse_max_n, p.thrust_max_n
+    t1 = np.minimum(np.maximum((t_sum + t_diff) / 2.0, t_lo), t_hi)
+    t2 = np.minimum(np.maximum((t_sum - t_diff) / 2.0, t_lo), t_hi)
     ground = np.where(u > 0, np.hypot(u, v), 0.0)
     power = p.alpha_w_per_n2 * (t1 * t1 + t2 * t2) + task_power_w
     return ground, power, t1, t2

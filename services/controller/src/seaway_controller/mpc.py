@@ -71,6 +71,9 @@ class MpcController:
     def __init__(self, ocp: Ocp, solver: NlpSolver) -> None:
         self.ocp, self.solver = ocp, solver
         self.spec, self.vessel = ocp.spec, ocp.vessel
+        # Asked every period: looked up once (``OcpSpec.is_empc`` looks the controller up).
+        self._empc = self.spec.is_empc
+        self._terminal = ocp.controller.terminal
         self.last_good: Plan | None = None
         self.capture: list[tuple[np.ndarray, ...]] | None = None  # bench: record NLP instances
 
@@ -109,13 +112,14 @@ class MpcController:
         tau = p[P_TAU:P_TAU + 3]
         for _ in range(age):
             w, lx, lg = ocp.shift(w, lx, lg, tau)
-        w = w.copy()
+        if not age:  # shifted, ``w`` is a new array already; unshifted, it is the plan's own
+            w = w.copy()
         # Whole turns: align the guess's headings with the measured one (X_1 follows X_0 closely).
         turns = round((w[ocp.x_index(1)][5] - x0[5]) / TWO_PI)
         if turns:
             for k in range(1, self.spec.horizon + 1):
                 w[ocp.x_index(k).start + 5] -= turns * TWO_PI
-        if self.spec.is_empc and leg_key != plan.leg_key:
+        if self._empc and leg_key != plan.leg_key:
             ocp.guess_times(w, p)
             lx[ocp.i_time:ocp.i_time + 2] = 0.0
             lg[-1] = ocp.terminal_multiplier_guess(w, p)
@@ -125,7 +129,7 @@ class MpcController:
         """(lam_x, lam_g) of a start without multipliers for the guess ``w``: zero, but the
         EMPC's terminal-time constraint, whose multiplier is guessed from ``w``."""
         lg = np.zeros(self.ocp.ng)
-        if self.spec.is_empc:
+        if self._empc:
             lg[-1] = self.ocp.terminal_multiplier_guess(w, p)
         return np.zeros(self.ocp.nw), lg
 
@@ -140,22 +144,25 @@ class MpcController:
         if self.capture is not None:
             self.capture.append((w0.copy(), p.copy(), lx0.copy(), lg0.copy()))
         result = self.solver.solve(w0, p, lx0, lg0)
-        plan = Plan(result, self.ocp.states(result.w, x0), self.ocp.thrusts(result.w), leg_key,
-                    now_ns)
-        return MpcOutcome(result, plan, self.evaluate(result.w, p), gate)
+        thrusts = self.ocp.thrusts(result.w)
+        plan = Plan(result, self.ocp.states(result.w, x0), thrusts, leg_key, now_ns)
+        return MpcOutcome(result, plan, self.evaluate(result.w, p, thrusts), gate)
 
     def accept(self, outcome: MpcOutcome) -> None:
         """Keep ``outcome`` as the plan to reuse and warm-start from (a good, timely solve)."""
         self.last_good = outcome.plan
 
-    def evaluate(self, w: np.ndarray, p: np.ndarray) -> Costs:
-        """The cost split of a prediction, in joules, from the same formulas as the NLP."""
+    def evaluate(self, w: np.ndarray, p: np.ndarray, thrusts_n: np.ndarray | None = None) -> Costs:
+        """The cost split of a prediction, in joules, from the same formulas as the NLP
+        (``thrusts_n``: ``Ocp.thrusts(w)`` when the caller has it already)."""
         ocp, spec, vp = self.ocp, self.spec, self.vessel
         task = float(p[P_TASK])
+        if thrusts_n is None:
+            thrusts_n = ocp.thrusts(w)
         # Python floats, not numpy scalars: the same IEEE operations, at a fraction of the cost.
-        stage = float(sum(costs.stage_cost_j(t1, t2, task, spec.dt_s, vp)
-                          for t1, t2 in ocp.thrusts(w).tolist()))
-        times, terminal = ocp.times_s(w), ocp.controller.terminal
+        stage_cost, dt_s = costs.stage_cost_j, spec.dt_s
+        stage = float(sum([stage_cost(t1, t2, task, dt_s, vp) for t1, t2 in thrusts_n.tolist()]))
+        times, terminal = ocp.times_s(w), self._terminal
         if times is None or terminal is None:  # no terminal terms (the NMPC)
             return Costs(stage, None, None, None, None, None, None)
         t_d, t_s = times

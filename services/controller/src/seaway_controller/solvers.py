@@ -353,7 +353,7 @@ class GeneratedSqpSolver:
             flag = self._fn(*self._call_args)
             elapsed = time.perf_counter() - t0
             iters, pr_inf, du_inf, failed_at = (self._stats[i] for i in range(4))
-        finite = bool(np.all(np.isfinite(self._out[0])))
+        finite = bool(np.isfinite(self._out[0]).all())  # the method: no dispatch layers
         converged = 0 <= pr_inf < self.tol_pr and 0 <= du_inf < self.tol_du
         success = flag == 0 and finite and converged
         if success:
