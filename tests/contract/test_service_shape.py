@@ -1,6 +1,7 @@
 """Every back-end service has the runtime's shape (services/common/README.md, "The runtime and a
-node's shape"): a ``node.py`` whose node the runtime drives, a ``main.py`` its console script
-runs, and no import of the lockstep protocol, which is the runtime's alone."""
+node's shape"): its pure ``core.py``, its ``config.py``, a ``node.py`` whose node the runtime
+drives, a ``main.py`` its console script runs, and no import of the lockstep protocol, which is the
+runtime's alone."""
 
 from __future__ import annotations
 
@@ -36,7 +37,8 @@ def protocol_users(package: Path) -> list[str]:
 @pytest.mark.parametrize("service", sorted(SERVICES))
 def test_a_service_is_a_node_run_by_its_main(service: str) -> None:
     package = ROOT / "services" / service / "src" / SERVICES[service]
-    assert (package / "node.py").is_file() and (package / "main.py").is_file()
+    for part in ("core.py", "config.py", "node.py", "main.py"):
+        assert (package / part).is_file(), f"{service} has no {part}"
     assert not (package / "service.py").exists(), "the loop around a core is the runtime's now"
     node_imports = imports(package / "node.py")
     assert any(m.startswith("seaway.runtime.node") or m.startswith("seaway.runtime.lockstep_clock")

@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 from seaway.contract import keys
 from seaway.contract.messages import StateEstimate
-from seaway_recorder.writer import RecordingWriter
+from seaway_recorder.core import RecordingWriter
 
 from tests.conftest import BIN, wait_for
 from tests.system.groundstation.helpers import http

@@ -17,7 +17,7 @@ from typing import Any
 import pytest
 from seaway.contract import keys
 from seaway.contract.messages import MissionStatus, StateEstimate
-from seaway_recorder.writer import RecordingWriter
+from seaway_recorder.core import RecordingWriter
 
 from tests.conftest import BIN, wait_for
 

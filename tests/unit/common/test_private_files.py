@@ -53,7 +53,7 @@ def test_open_private_is_0600_under_any_umask_also_for_an_existing_file(tmp_path
 
 
 def test_a_recording_and_its_new_folder_are_private(tmp_path, wide_umask) -> None:
-    from seaway_recorder.writer import RecordingWriter
+    from seaway_recorder.core import RecordingWriter
 
     w = RecordingWriter(tmp_path / "run" / "recording.mcap")
     path = w.open(1)

@@ -25,8 +25,8 @@ from seaway.contract.messages import (
     ThrustCommand,
 )
 from seaway_recorder import live, schemas
+from seaway_recorder.core import RecordingWriter
 from seaway_recorder.logtail import log_record, parse_line
-from seaway_recorder.writer import RecordingWriter
 
 from tests.system.foxglove.wsclient import decode_protobuf
 from tests.unit.recorder.foxglove_check import contract_validator

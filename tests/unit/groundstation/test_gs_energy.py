@@ -18,7 +18,7 @@ from seaway.runtime.memory_bus import MemoryBus, MemoryHub
 from seaway_groundstation.app import create_app
 from seaway_groundstation.fleet import Fleet
 from seaway_groundstation.settings import Settings
-from seaway_recorder.writer import RecordingWriter
+from seaway_recorder.core import RecordingWriter
 
 TOKEN = "test-token-0123456789abcdef"
 T0 = 1_700_000_000_000_000_000

@@ -30,7 +30,7 @@ from seaway_groundstation.fleet import Fleet
 from seaway_groundstation.journal import RequestJournal
 from seaway_groundstation.recordings import RecordingError, RunsFolder
 from seaway_groundstation.settings import Settings
-from seaway_recorder.writer import RecordingWriter
+from seaway_recorder.core import RecordingWriter
 
 TOKEN = "test-token-0123456789abcdef"
 AUTH = {"Authorization": f"Bearer {TOKEN}"}

@@ -14,7 +14,7 @@ from seaway.runtime.memory_bus import MemoryHub
 from seaway_groundstation.app import create_app
 from seaway_groundstation.journal import RequestJournal
 from seaway_groundstation.settings import Settings
-from seaway_recorder.writer import RecordingWriter
+from seaway_recorder.core import RecordingWriter
 
 from tests.unit.groundstation.test_gs_replay import PERIOD_NS, T0, TOKEN, V, write_run
 

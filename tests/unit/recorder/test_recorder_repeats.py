@@ -26,9 +26,9 @@ from seaway.runtime.lockstep import Member, Period
 from seaway.runtime.lockstep_replay import LockstepPacer
 from seaway.runtime.lockstep_witness import LockstepWitness
 from seaway.runtime.memory_bus import MemoryHub
+from seaway_recorder.core import RecordingWriter
 from seaway_recorder.node import KeptKeys, SampleQueue, drain
 from seaway_recorder.replay import replay
-from seaway_recorder.writer import RecordingWriter
 
 P = 100_000_000
 V = "vessel1"

@@ -14,9 +14,9 @@ from seaway.contract.messages import NavOrigin, PeriodDone, SimTruth, ThrustComm
 from seaway.recording.reader import iter_messages, open_paths, read_info
 from seaway.recording.recover import recover
 from seaway.vessel.frames import GeoOrigin
+from seaway_recorder.core import AttachmentSpec, RecordingWriter
 from seaway_recorder.node import KeptKeys, lockstep_exprs, recorded_suffixes
 from seaway_recorder.schemas import foxglove_json_schema
-from seaway_recorder.writer import AttachmentSpec, RecordingWriter
 
 from tests.unit.recorder.foxglove_check import foxglove_messages, t_ns
 

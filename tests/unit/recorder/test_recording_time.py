@@ -13,8 +13,8 @@ from seaway.contract import keys
 from seaway.contract.messages import NavOrigin, SimTruth
 from seaway.recording.timebase import RecordingTime
 from seaway.tools.launch.events import EVENTS_TOPIC
+from seaway_recorder.core import RecordingWriter
 from seaway_recorder.logtail import LogLine, LogTail, parse_line
-from seaway_recorder.writer import RecordingWriter
 
 from tests.unit.recorder.foxglove_check import foxglove_messages, t_ns
 

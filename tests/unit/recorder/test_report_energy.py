@@ -22,7 +22,7 @@ from seaway.contract.messages import (
 )
 from seaway.vessel.metrics import mission_metrics
 from seaway_recorder import attachments, budget, report
-from seaway_recorder.writer import RecordingWriter
+from seaway_recorder.core import RecordingWriter
 
 DT_NS = 100_000_000
 WPS = [(0.0, 0.0), (10.0, 0.0)]

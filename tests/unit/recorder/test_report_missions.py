@@ -27,7 +27,7 @@ from seaway.contract.messages import (
 )
 from seaway.recording import runinfo
 from seaway_recorder import attachments, missions, report
-from seaway_recorder.writer import RecordingWriter
+from seaway_recorder.core import RecordingWriter
 
 V = "vessel1"
 DT_NS = 100_000_000

@@ -15,7 +15,7 @@ from mcap.reader import make_reader
 from seaway.contract import keys
 from seaway.contract.messages import ThrustCommand
 from seaway.recording.reader import iter_messages, read_info
-from seaway_recorder.writer import RecordingWriter
+from seaway_recorder.core import RecordingWriter
 
 KEY = keys.THRUST.key("vessel1")
 ENC = "application/json"

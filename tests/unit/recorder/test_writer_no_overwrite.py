@@ -2,7 +2,7 @@
 
 from pathlib import Path
 
-from seaway_recorder.writer import free_path
+from seaway_recorder.core import free_path
 
 
 def test_free_path_keeps_existing_files_and_sorts_after_them(tmp_path: Path) -> None:

@@ -59,7 +59,7 @@ def repeat_recording(src: Path, dst: Path, target_bytes: int) -> tuple[int, int]
     each repetition after the last on the log-time clock, until ``dst`` holds ``target_bytes``;
     (repetitions, messages written)."""
     from seaway.recording import reader
-    from seaway_recorder.writer import RecordingWriter
+    from seaway_recorder.core import RecordingWriter
 
     files = reader.open_paths([src])
     msgs = [(m.log_time_ns, m.topic, m.data) for m in reader.iter_messages(files)

@@ -40,8 +40,8 @@ from seaway.contract.units import NS_PER_S
 from seaway.runtime.argtypes import positive_float, positive_int
 from seaway.runtime.zenoh_bus import ENV_CONFIG, ENV_RENDEZVOUS
 from seaway.vessel.metrics import median, percentile
+from seaway_recorder.core import RecordingWriter
 from seaway_recorder.mcapfile import McapWriter
-from seaway_recorder.writer import RecordingWriter
 
 from seaway_lab.bench import recorder_lockstep
 from seaway_lab.bench.common import BenchResult, bench_credentials, free_rendezvous

@@ -37,9 +37,9 @@ from seaway.runtime.memory_bus import MemoryHub
 from seaway.runtime.stacks import ENV_STACKS_DIR
 from seaway.runtime.zenoh_bus import ENV_CONFIG, ENV_RENDEZVOUS
 from seaway.vessel.metrics import median, percentile
+from seaway_recorder.core import RecordingWriter
 from seaway_recorder.logtail import LogTail
 from seaway_recorder.node import KeptKeys, RecorderNode, SampleQueue, Tails, lockstep_exprs
-from seaway_recorder.writer import RecordingWriter
 
 from seaway_lab.bench.common import BenchResult, free_rendezvous
 

@@ -19,7 +19,7 @@ from seaway.contract.units import NS_PER_S, s_to_ns
 from seaway.runtime.run import CONTROL_PERIOD_S
 from seaway.simkit.scenario import Scenario, SensorNoise
 from seaway.vessel.model import VesselParams
-from seaway_recorder.writer import RecordingWriter
+from seaway_recorder.core import RecordingWriter
 from seaway_sim.core import SimCore
 
 from seaway_lab.identify.manoeuvre import Manoeuvre

@@ -14,7 +14,7 @@ from seaway.contract.config import ConfigError
 from seaway.recording.runinfo import ROLES, scenario_path, vessel_path
 from seaway.simkit.scenario import Scenario, load_scenario
 
-from seaway_recorder.writer import AttachmentSpec, media_type_for
+from seaway_recorder.core import AttachmentSpec, media_type_for
 
 
 def attachment(role: str, path: Path, name: str | None = None) -> AttachmentSpec:

@@ -5,7 +5,7 @@ messages one decoded bus message gives; ``log_message`` makes a ``foxglove.Log``
 carries a ``foxglove.messages`` object from ``foxglove-sdk``, whose schema (``get_schema()``:
 ``foxglove.<Name>``, protobuf, the SDK's own file descriptor set) and encoding (``encode()``) are
 the SDK's, so no copy of a Foxglove schema is written here. ``channel_spec`` is the MCAP channel
-for one; ``payload`` its bytes. The recorder writes them to the file (``writer.py``); a live
+for one; ``payload`` its bytes. The recorder writes them to the file (``core.py``); a live
 server can log them on the same topics.
 
 Topics, per vessel ``<v>`` (frames: ``map`` is east-north-up for the 3D panel; ``<v>/ned`` the

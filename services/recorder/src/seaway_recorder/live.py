@@ -1,6 +1,6 @@
 """``seaway foxglove``: the running stack, live in Foxglove or Lichtblick (Foxglove WebSocket protocol).
 
-The same channels as a recording (``writer.py``): every bus topic of the vessel
+The same channels as a recording (``core.py``): every bus topic of the vessel
 (``seaway/<vessel>/...``, the bytes unchanged, ``json`` with its message's JSON Schema), a malformed
 sample on ``recorder/malformed``, and the derived Foxglove channels of ``derive.py`` (LocationFix,
 GeoJSON, FrameTransform, SceneUpdate on ``foxglove/<vessel>/...``: protobuf, foxglove-sdk's

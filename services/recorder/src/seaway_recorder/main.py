@@ -42,9 +42,9 @@ from seaway.vessel.frames import GeoOrigin
 
 from seaway_recorder import attachments
 from seaway_recorder.config import RecorderConfig, parse_meta
+from seaway_recorder.core import LIBRARY, RUN_METADATA, AttachmentSpec, RecordingWriter
 from seaway_recorder.logtail import FileTail, LogTail
 from seaway_recorder.node import LATE_NS, KeptKeys, RecorderNode, SampleQueue, Tails, lockstep_exprs
-from seaway_recorder.writer import LIBRARY, RUN_METADATA, AttachmentSpec, RecordingWriter
 
 log = logging.getLogger("seaway.recorder")
 

@@ -23,8 +23,8 @@ from seaway.runtime.lockstep_witness import LockstepWitness
 from seaway.runtime.node import Node
 from seaway.runtime.timeline import Timeline
 
+from seaway_recorder.core import RecordingWriter
 from seaway_recorder.logtail import FileTail, LogTail, log_record
-from seaway_recorder.writer import RecordingWriter
 
 log = logging.getLogger("seaway.recorder")
 
