@@ -35,12 +35,62 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """Tests marked ``slow`` run only with ``--slow`` (or when ``-m`` names them), so the default
     ``./test`` stays under about 15 minutes on a 2-core machine."""
+    _longest_first(config, items)
     if config.getoption("--slow") or "slow" in (config.getoption("-m") or ""):
         return
     skip = pytest.mark.skip(reason="slow: run with ./test --slow")
     for item in items:
         if "slow" in item.keywords:
             item.add_marker(skip)
+
+
+DURATIONS_KEY = "seaway/durations"
+"""Where the last runs' time per test (setup + call + teardown, seconds) is kept, in pytest's
+cache (``.pytest_cache``): the next run starts the longest files first (``_longest_first``)."""
+UNKNOWN_SYSTEM_S, UNKNOWN_OTHER_S = 10.0, 0.1
+"""What a test not yet timed on this machine is guessed to take: system tests (real processes) are
+the long ones, so a fresh clone still starts them before the unit tests."""
+
+
+def _longest_first(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Order the test files longest first (a file's tests stay together and in their order), so
+    that the xdist workers (``-n``, ``--dist worksteal`` in pyproject.toml) end together instead of
+    one running the last long file alone. Only the order changes, never what runs."""
+    cache = getattr(config, "cache", None)
+    known: dict[str, float] = (cache.get(DURATIONS_KEY, {}) if cache is not None else {}) or {}
+    per_file: dict[str, float] = {}
+    for item in items:
+        guess = UNKNOWN_SYSTEM_S if "/system/" in item.nodeid else UNKNOWN_OTHER_S
+        file = item.nodeid.split("::", 1)[0]
+        per_file[file] = per_file.get(file, 0.0) + float(known.get(item.nodeid, guess))
+    # sorted() is stable: files of equal estimate keep their collection order.
+    items[:] = sorted(items, key=lambda item: -per_file[item.nodeid.split("::", 1)[0]])
+
+
+class _Durations:
+    """Collects each test's time where the reports arrive (the xdist controller, or the only
+    process without ``-n``) and merges them into the cache at the end of the session."""
+
+    def __init__(self) -> None:
+        self.seconds: dict[str, float] = {}
+
+    def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
+        if not report.skipped:
+            self.seconds[report.nodeid] = self.seconds.get(report.nodeid, 0.0) + report.duration
+
+    @pytest.hookimpl(trylast=True)
+    def pytest_sessionfinish(self, session: pytest.Session) -> None:
+        cache = getattr(session.config, "cache", None)
+        if cache is None or not self.seconds:
+            return
+        known = cache.get(DURATIONS_KEY, {}) or {}
+        known.update({k: round(v, 3) for k, v in self.seconds.items()})
+        cache.set(DURATIONS_KEY, known)
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    if not hasattr(config, "workerinput"):  # not an xdist worker: reports arrive here
+        config.pluginmanager.register(_Durations(), "seaway-durations")
 
 
 def free_port() -> int:
