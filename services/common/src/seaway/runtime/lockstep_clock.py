@@ -356,7 +356,8 @@ class LockstepClock:
     def _passive_due(self, period: Period) -> bool:
         """Whether a passive source's bundle is due (under ``member.changed``): once the controller
         answered ``period``, the estimator had (its bundle comes on another connection), and the
-        recorder's answer to the period ``RECORDER_LAG`` before is what the next one waits for."""
+        recorder's answer to the period ``RECORDER_LAG`` before is what the next one waits for.
+        Never over a transport, where the sim has no passive sources (every bundle wakes it)."""
         ledger = self.member.ledger
         if not self.member.passive or ledger.answer("controller", period) is None:
             return False
