@@ -437,6 +437,10 @@ class Bus(abc.ABC):
     ``_close_transport``); everything typed is implemented here, once.
     """
 
+    delivers_in_put = False
+    """Whether ``put`` hands a sample to the subscribers on the publishing thread before it returns
+    (the in-memory bus), rather than the transport's own threads doing it later."""
+
     def __init__(self, vessel: str) -> None:
         self.vessel = keys.check_vessel(vessel)
         self.stats = BusStats()

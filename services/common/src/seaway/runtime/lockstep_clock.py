@@ -104,15 +104,27 @@ class LockstepClock:
         self._joined = False
         self._commands: dict[int, ThrustCommand] = {}  # stamp -> latest command with that stamp
         self._applied: int | None = None  # stamp of the command applied over the last period
+        self._progress = threading.Lock()  # one thread at a time moves the period on
+        self._at: Period | None = None  # the period published last (under ``_progress``)
+        self._stepped = False  # whether ``_at``'s command was applied (under ``_progress``)
+        self._max_periods: int | None = None
         # The controller's command comes in its bundle; a stand-in that is no member (a test's
         # responder) publishes it alone, on its key.
-        # The controller's answer moves the sim on; the estimator's, sent before it, is taken with
-        # it, and so is the recorder's for the period before, nearly always in by then (a callback
-        # and a wake-up of this loop per period saved; when it is not, the loop looks again every
-        # ``PASSIVE_POLL_S``, ``_passive_due``).
+        # Over a transport, every member's bundle is taken on the bus's thread as it arrives, and
+        # the period moves on there as soon as it can (``_on_ready``), as a member answers there:
+        # waking this loop for it cost a thread hand-over every period, and the estimator's and the
+        # recorder's bundles, taken from rings, were often not in yet when the controller's came
+        # (another connection), so the loop polled for them every ``PASSIVE_POLL_S``.
+        # In process, the controller's bundle reaches the sim inside the put that carries the chain
+        # along (the sim's own, on this loop's thread) or inside the controller's own put, whose
+        # thread must not run the chain on (it holds the controller's step): the loop moves on,
+        # taking the estimator's answer with the controller's and the recorder's for the period
+        # before, nearly always in by then (``_passive_due``).
         self.member = Member(bus, app.name, watched={keys.THRUST.suffix},
-                             passive=("estimator", RECORDER))
-        self.member.deliver = self._on_thrust  # once ``self.member`` names it (it uses it)
+                             passive=("estimator", RECORDER) if bus.delivers_in_put else ())
+        self.member.deliver = lambda _key, cmd: self._keep(cmd)  # once ``self.member`` names it
+        if not bus.delivers_in_put:
+            self.member.on_ready = self._on_ready
         bus.subscribe(keys.THRUST, callback=self._on_thrust, inline=True, bundles=False)
         bus.watch_lockstep_members(self._on_member)
         app.before_load = self.finish_episode
@@ -121,20 +133,43 @@ class LockstepClock:
     # -- bus threads --------------------------------------------------------------------------------
 
     def _on_thrust(self, _key: str, cmd: ThrustCommand) -> None:
+        """A command alone on its key (a stand-in that is no member): wakes the loop."""
+        if self._keep(cmd):
+            self._wake()
+
+    def _keep(self, cmd: ThrustCommand) -> bool:
+        """Hold a command for the period it answers; whether it was admitted."""
         # A command answers a period the sim has published; one stamped further ahead of the sim's
         # time is wrong (or a late one of an earlier episode): dropped, counted, logged once.
         if not self.member.admit(keys.THRUST.suffix, cmd.stamp_ns, self.app.time_ns(),
                                  self.period_ns):
-            return
+            return False
         with self.member.changed:
             self._commands[cmd.stamp_ns] = cmd
             if len(self._commands) > 64:  # commands for periods long gone (stale or repeated)
                 for stamp in sorted(self._commands)[:-8]:
                     del self._commands[stamp]
-            # Wake the loop. Not ``member.saw``: the sim's ledger never learns a period of its own
-            # (it does not hear its own answers), so nothing would ever prune what it noted there.
+        # Not ``member.saw``: the sim's ledger never learns a period of its own (it does not hear
+        # its own answers), so nothing would ever prune what it noted there.
+        return True
+
+    def _wake(self) -> None:
+        """Wake the loop: it looks again at the period."""
+        with self.member.changed:
             self.member.version += 1
             self.member.changed.notify_all()
+
+    def _on_ready(self) -> None:
+        """After a member's bundle was taken (on the bus's thread): apply the controller's command
+        and publish the next period here if they can be now. When another thread is moving the period
+        on (the loop, or the in-memory bus delivering inside its put), that one looks again."""
+        if not self._progress.acquire(blocking=False):
+            self._wake()
+            return
+        try:
+            self._advance(blocking=False)
+        finally:
+            self._progress.release()
 
     def _on_member(self, service: str, alive: bool) -> None:
         if alive and service in MEMBERS:
@@ -222,10 +257,13 @@ class LockstepClock:
     def period(self) -> Period:
         return Period(self.app.episode, self.app.time_ns())
 
-    def publish_period(self) -> Period:
-        """Step (a); the period it published."""
+    def publish_period(self, blocking: bool = True) -> Period | None:
+        """Step (a); the period it published (None: not ``blocking`` and the app's lock is held,
+        by a scenario load)."""
         app = self.app
-        with app.lock:
+        if not app.lock.acquire(blocking=blocking):
+            return None
+        try:
             out = app.outputs(self.period_ns)
             period = self.period
             with self.member.changed:
@@ -239,6 +277,8 @@ class LockstepClock:
                         if self._applied is not None and period.stamp_ns > 0 else {})
             self.member.answer(period, self.period_ns, out, consumed=consumed, members=members)
             return period
+        finally:
+            app.lock.release()
 
     def repeat_period(self, period: Period, why: str) -> None:
         """Step (a) again, unchanged (the same messages), for a newcomer or after a stall."""
@@ -316,9 +356,10 @@ class LockstepClock:
     def _passive_due(self, period: Period) -> bool:
         """Whether a passive source's bundle is due (under ``member.changed``): once the controller
         answered ``period``, the estimator had (its bundle comes on another connection), and the
-        recorder's answer to the period ``RECORDER_LAG`` before is what the next one waits for."""
+        recorder's answer to the period ``RECORDER_LAG`` before is what the next one waits for.
+        Never over a transport, where the sim has no passive sources (every bundle wakes it)."""
         ledger = self.member.ledger
-        if ledger.answer("controller", period) is None:
+        if not self.member.passive or ledger.answer("controller", period) is None:
             return False
         if "estimator" in self.members and ledger.answer("estimator", period) is None:
             return True
@@ -334,36 +375,116 @@ class LockstepClock:
             return "stalled: waiting for the recorder to cover every answer, or for the command"
         return f"stalled: no answer yet from {', '.join(lacking)}"
 
-    def step(self, cmd: ThrustCommand, period: Period) -> bool:
-        """Step (c); False (nothing done) if the scenario changed since step (a)."""
-        self.member.working(period)
-        with self.app.lock:
+    def step(self, cmd: ThrustCommand, period: Period, blocking: bool = True) -> bool | None:
+        """Step (c); False (nothing done) if the scenario changed since step (a), None if not
+        ``blocking`` and the app's lock is held (by a scenario load)."""
+        if not self.app.lock.acquire(blocking=blocking):
+            return None
+        try:
+            self.member.working(period)
             if self.period != period:
                 return False
             self.app.advance(cmd, self.period_ns)
             self._applied = cmd.stamp_ns
+        finally:
+            self.app.lock.release()
         if cmd.stamp_ns != period.stamp_ns:
             self.stats.stale_commands += 1
         self.stats.periods += 1
         return True
 
+    def _advance(self, blocking: bool) -> None:
+        """Move the period on as far as it can go now: apply the command of the period published
+        once it is in (c), publish the next once every member answered (a). Under ``_progress``;
+        not ``blocking`` (the bus's thread), what would wait (a scenario load holding the app's
+        lock) is left to the loop, woken for it."""
+        while not self.stop.is_set():
+            period = self._at
+            if period is None or self.app.episode != period.episode:
+                return  # the loop starts the episode
+            self.member.drain()  # the estimator's and the recorder's answers, in their rings
+            if not self._stepped:
+                with self.member.changed:
+                    cmd = self.command(period)
+                if cmd is None:
+                    return
+                stepped = self.step(cmd, period, blocking)
+                if not stepped:
+                    if stepped is None:
+                        self._wake()
+                    return
+                self._stepped = True
+            with self.member.changed:
+                done = self.answered(period)
+                due = not done and not blocking and self._passive_due(period)
+            if not done:
+                if due:  # the loop polls the rings for it
+                    self._wake()
+                return
+            if self._max_periods is not None and self.stats.periods >= self._max_periods:
+                self._wake()
+                return
+            published = self.publish_period(blocking)
+            if published is None:
+                self._wake()
+                return
+            self._at, self._stepped = published, False
+
     def run(self, max_periods: int | None = None) -> LockstepStats:
-        """Run until stopped (or ``max_periods`` commands applied).
+        """Run until stopped (or ``max_periods`` commands applied and answered).
 
         The plant steps as soon as the command is in; the next period is published once every
         member (the recorder last) has answered this one, so integrating overlaps the recorder's
-        write."""
+        write. Both happen on the thread that takes the controller's answer when they can
+        (``_on_ready``); this loop starts each episode, repeats a period for a newcomer or after a
+        stall, and looks at the passive sources while an answer from one is due."""
         log.info("lockstep: period %.3f s; members join as their health tokens appear",
                  self.period_ns / 1e9)
-        while not self.stop.is_set() and (max_periods is None or self.stats.periods < max_periods):
-            period = self.publish_period()
-            cmd = self.wait_for(period, self.command)
-            if cmd is not None and self.step(cmd, period) and self.wait_for(period, self.answered):
-                continue
-            if self.app.episode != period.episode:  # a new episode: time restarts at 0
-                self._applied = None
-                with self.member.changed:
-                    self._commands.clear()
+        self._max_periods = max_periods
+        member = self.member
+        version = -1
+        seen: tuple[Period | None, bool, int] | None = None
+        held: Period | None = None
+        stalled_since = time.monotonic()
+        while not self.stop.is_set():
+            with self._progress:
+                if self._at is None or self.app.episode != self._at.episode:
+                    if self._at is not None:  # a new episode: time restarts at 0
+                        self._applied = None
+                        with member.changed:
+                            self._commands.clear()
+                    self._at, self._stepped = self.publish_period(), False
+                self._advance(blocking=True)
+                period, stepped = self._at, self._stepped
+                assert period is not None
+                with member.changed:
+                    if (max_periods is not None and self.stats.periods >= max_periods
+                            and stepped and self.answered(period)):
+                        break
+            with member.changed:
+                if not self._joined and member.version == version:
+                    member.changed.wait(PASSIVE_POLL_S if self._passive_due(period)
+                                        else min(self.stall_s, 0.25))
+                version = member.version
+            with self._progress:
+                period = self._at
+                if (now := (period, self._stepped, self.stats.periods)) != seen:
+                    seen, stalled_since = now, time.monotonic()
+                with member.changed:
+                    joined, holding = self._joined, member.ledger.held(period)
+                if joined:
+                    self.repeat_period(period, "a member joined")
+                    stalled_since = time.monotonic()
+                elif holding:
+                    if held != period:
+                        held = period
+                        self.stats.holds += 1
+                        log.info("lockstep: holding at t = %.3f s (the controller has nothing to "
+                                 "fly)", period.stamp_ns / 1e9)
+                    stalled_since = time.monotonic()  # holding is not stalling
+                elif time.monotonic() - stalled_since >= self.stall_s:
+                    self.repeat_period(period, self._waiting_for(period))
+                    stalled_since = time.monotonic()
         log.info("lockstep ended at t = %.3f s: %d periods, %d repeats, %d holds",
                  self.app.time_ns() / 1e9, self.stats.periods, self.stats.repeats, self.stats.holds)
         return self.stats

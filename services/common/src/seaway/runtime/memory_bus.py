@@ -243,6 +243,8 @@ class MemoryHub:
 class MemoryBus(Bus):
     """A bus on a ``MemoryHub`` (a private one unless given): see the module's description."""
 
+    delivers_in_put = True
+
     def __init__(self, vessel: str = DEFAULT_VESSEL, hub: MemoryHub | None = None) -> None:
         super().__init__(vessel)
         self.hub = hub if hub is not None else MemoryHub()

@@ -74,7 +74,8 @@ class MemberSpec:
     estimator's). ``inputs``: the key suffixes handed to ``take``; ``watched``: those whose listed
     stamps must be seen before answering (default ``inputs``). ``hears``: whose bundles (default
     ``needs`` and the producers of ``inputs``); ``passive``: those of them that never move this one
-    on by themselves (taken when an active one's comes)."""
+    on by themselves (taken when an active one's comes; in process only, where a bundle is
+    delivered inside its sender's put: over a transport each bundle is taken as it arrives)."""
 
     service: str
     needs: tuple[str, ...]
@@ -215,9 +216,15 @@ class MemberDriver:
         producers = {s for s in spec.inputs if keys.spec_for_suffix(s) is not None}
         hears = spec.hears if spec.hears is not None else tuple(sorted(
             set(spec.needs) | {_bundler(s) for s in producers}))
+        # Passive sources only in process, where a bundle is delivered inside its sender's put: over
+        # a transport every bundle is taken on the bus's thread, which answers there once the
+        # period is complete (``answer_on_arrival``). A passive source's bundle came on another
+        # connection than the active one's and was often not in its ring yet when that one came:
+        # the loop then woke to look for it every ``PASSIVE_POLL_S``, and answered itself.
+        passive = spec.passive if self.bus.delivers_in_put else ()
         self.member = Member(self.bus, spec.service,
                              watched=spec.watched if spec.watched is not None else spec.inputs,
-                             inputs=spec.inputs, hears=hears, passive=spec.passive)
+                             inputs=spec.inputs, hears=hears, passive=passive)
         if self.stamps is not None:
             self.member.stamps = self.stamps
         self.member.deliver = self._deliver
