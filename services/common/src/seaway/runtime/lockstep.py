@@ -54,7 +54,7 @@ import itertools
 import logging
 import threading
 import time
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from typing import Any, Literal, NamedTuple
 
 from seaway.contract import bundle, keys
@@ -220,21 +220,8 @@ class Ledger:
         return a if (a is not None and period is not None and a.stamp_ns == period.stamp_ns
                      and a.episode == period.episode) else None
 
-    def missing(self, answer: PeriodDone) -> list[tuple[str, int]]:
-        """The (key suffix, stamp) an answer lists, on watched keys, that have not been seen."""
-        out = []
-        watched, seen_by = self.watched, self.seen
-        for listing in (answer.published, answer.consumed) if self.consumed else (answer.published,):
-            for suffix, stamps in listing.items():
-                if watched is not None and suffix not in watched:
-                    continue
-                seen = seen_by.get(suffix, _NOTHING)
-                out.extend((suffix, s) for s in stamps if s not in seen)
-        return out
-
-    def lacks(self, answer: PeriodDone) -> bool:
-        """Whether ``missing(answer)`` is not empty (found without listing it: asked for every
-        bundle, and nearly always of an answer that lacks nothing)."""
+    def _unseen(self, answer: PeriodDone) -> Iterator[tuple[str, int]]:
+        """The (key suffix, stamp) an answer lists, on watched keys, not seen yet, lazily."""
         watched, seen_by = self.watched, self.seen
         for listing in (answer.published, answer.consumed) if self.consumed else (answer.published,):
             for suffix, stamps in listing.items():
@@ -243,8 +230,16 @@ class Ledger:
                 seen = seen_by.get(suffix, _NOTHING)
                 for s in stamps:
                     if s not in seen:
-                        return True
-        return False
+                        yield suffix, s
+
+    def missing(self, answer: PeriodDone) -> list[tuple[str, int]]:
+        """The (key suffix, stamp) an answer lists, on watched keys, that have not been seen."""
+        return list(self._unseen(answer))
+
+    def lacks(self, answer: PeriodDone) -> bool:
+        """Whether ``missing(answer)`` is not empty, stopping at the first miss (asked for every
+        bundle, and nearly always of an answer that lacks nothing)."""
+        return next(self._unseen(answer), None) is not None
 
     def missing_consumed(self, answer: PeriodDone) -> list[tuple[str, int]]:
         """The (key suffix, stamp) an answer lists as consumed, on watched keys, not seen: another
