@@ -98,7 +98,10 @@ def test_more_workers_than_runs_fly_each_run_once_on_cpus_of_their_own(fake, tmp
     groups = [frozenset({0}), frozenset({1})]  # cpu_groups(min(workers, runs)): one per stack
     done, _ = _run(tmp_path, workers=3, cpus=groups, specs=specs)
     assert sorted(o.spec.key for o in done) == sorted(s.key for s in specs) and all(o.ok for o in done)
-    assert sorted(s.started_on for s in fake.made) == groups
+    # Each stack made has a CPU set of its own among the two. How many are made depends on
+    # scheduling: a fake run ends at once, so one worker may fly both before the next one starts.
+    made = [s.started_on for s in fake.made]
+    assert made and set(made) <= set(groups) and len(set(made)) == len(made), made
     with pytest.raises(ValueError, match=r"2 CPU sets for 1 workers at once"):
         _run(tmp_path, workers=1, cpus=groups, specs=specs)
 
