@@ -184,9 +184,11 @@ def test_constant_thrust_moves_the_vessel_as_the_model_predicts_then_failsafe(pr
         assert any(p == pytest.approx(10.0) and s == pytest.approx(6.0) for _, p, s in samples)
         after = [(t - last_send_wall, p, s) for t, p, s in samples if t > last_send_wall]
         zero_at = next(dt for dt, p, s in after if p == 0.0 and s == 0.0)
-        # Truth is published every 0.1 s; stamps and this clock agree to a few ms.
-        assert 0.45 <= zero_at <= 0.5 + 0.1 + 0.05, zero_at
-        assert all(p > 0 for dt, p, _ in after if dt < 0.45)
+        # Truth is published every 0.1 s; stamps and this clock agree to a few ms, but under load
+        # this process can note its last send late (after put returned), which shortens what it
+        # measures: one period of margin below, so thrust cut at once still fails.
+        assert 0.5 - 0.1 - 0.05 <= zero_at <= 0.5 + 0.1 + 0.05, zero_at
+        assert all(p > 0 for dt, p, _ in after if dt < 0.5 - 0.1 - 0.05)
         hb = mav.messages("HEARTBEAT")[-1]
         assert hb.system_status == ml.MAV_STATE_CRITICAL and hb.custom_mode == 0x03040000
         assert hb.base_mode & ml.MAV_MODE_FLAG_SAFETY_ARMED
