@@ -14,6 +14,7 @@ Skipped, saying why, only when the firmware binary is absent."""
 from __future__ import annotations
 
 import math
+import statistics
 import time
 from pathlib import Path
 
@@ -31,6 +32,17 @@ VESSEL = ["--vessel-file", "paper-boat"]  # the lake's boat: 75 N thrusters, 10 
 DETECT_S = 5.0 + 3.0 + 30.0  # window + onset, and the slow window if the cruise is slow
 TASK_POWER_W = 100.0  # a cruise just outside the 10 N dead zone: well below SIH's static friction
 STILL_MPS = 0.1  # the premise: SIH's truth says the rover does not move
+# The cruise TASK_POWER_W asks of the paper boat is about 0.65 m/s: an estimate that kept
+# dead-reckoning on the thrust would show it. Once the fault is raised the estimate follows PX4's
+# fixes, whose velocity for the still rover wanders by a few tenths: its median over AFTER_S is
+# judged, against a bound between the two.
+DEAD_RECKONED_MPS = 0.4
+AFTER_S = 2.0
+# PX4's velocity over ground for SIH's still rover wanders by up to 0.3-0.4 m/s (its EKF's noise;
+# see ../shared/sitl/px4/README.md). With the estimator's default (a real receiver's 0.05 m/s) most
+# of those fixes are gated out before the mission starts, and the held rover is then named
+# not_as_modelled instead of not_moving. The estimator is told the sensor it has.
+SIH_SOG_STD_MPS = 0.3
 
 
 @pytest.fixture
@@ -46,7 +58,10 @@ def start(procs: Procs, env: dict[str, str], tmp: Path, px4: Px4Sitl) -> None:
     cfg = tmp / "vio.toml"
     cfg.write_text(f'mavlink = "{px4.vio_url}"\nautopilot = "px4"\n')
     procs.start([str(BIN / "seaway-vehicle-io"), "--config", str(cfg), *VESSEL], env, name="vio")
-    procs.start([str(BIN / "seaway-estimator"), *VESSEL], env, name="estimator")
+    est_cfg = tmp / "estimator.toml"
+    est_cfg.write_text(f"sog_std_mps = {SIH_SOG_STD_MPS}\n")
+    procs.start([str(BIN / "seaway-estimator"), "--config", str(est_cfg), *VESSEL], env,
+                name="estimator")
     procs.start([str(BIN / "seaway-controller"), *VESSEL], env, name="controller")
 
 
@@ -55,6 +70,7 @@ def test_a_rover_held_by_friction_is_a_motion_fault_not_a_cruise(zenoh_env, proc
     status = StatusWatch(bus)
     start(procs, zenoh_env, tmp_path, px4)
     state = bus.subscribe(keys.NAV_STATE, mode="latest")
+    states = bus.subscribe(keys.NAV_STATE, mode="fifo")
     mission = bus.subscribe(keys.MISSION_STATUS, mode="fifo")
     status.wait(lambda s: s.link_ok and s.autopilot == "px4", 60, "vehicle_io's link to PX4")
     wait_for(lambda: state.latest() is not None, 60, what="nav/state")
@@ -95,8 +111,13 @@ def test_a_rover_held_by_friction_is_a_motion_fault_not_a_cruise(zenoh_env, proc
     assert took_s <= DETECT_S + 5.0
     assert "paused by the controller: motion fault not_moving" in m.reason, m.reason
     assert any(s.state == "active" for s in seen), "never flown"
-    est = state.latest()
-    assert est.motion_fault == "not_moving" and math.hypot(est.u_mps, est.v_mps) < 0.2
+    states.drain()
+    time.sleep(AFTER_S)
+    after = [e for e in states.drain() if e.motion_fault == "not_moving"]
+    assert after, "nav/state did not keep the fault"
+    after_mps = statistics.median(math.hypot(e.u_mps, e.v_mps) for e in after)
+    print(f"estimated speed over {AFTER_S} s after the pause: median {after_mps:.3f} m/s")
+    assert after_mps < DEAD_RECKONED_MPS, after[-1]
     refused = bus.request(keys.MISSION_COMMAND, MissionCommand.make(stamp_ns=time.time_ns(),
                                                                     command="resume"), timeout_s=8)
     assert not refused.accepted and "cannot resume: motion fault not_moving" in refused.reason
