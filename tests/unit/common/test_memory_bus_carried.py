@@ -33,6 +33,20 @@ def decodes(monkeypatch: pytest.MonkeyPatch) -> Iterator[list[str]]:
     yield seen
 
 
+@pytest.fixture
+def splits(monkeypatch: pytest.MonkeyPatch) -> Iterator[list[bytes]]:
+    """The bundles whose bytes were split into lines meanwhile (``bundle.split``)."""
+    seen: list[bytes] = []
+    real = bundle.split
+
+    def counting(payload: bytes) -> tuple[bytes, list[tuple[str, bytes]]]:
+        seen.append(payload)
+        return real(payload)
+
+    monkeypatch.setattr(bundle, "split", counting)
+    yield seen
+
+
 def thrust(stamp_ns: int) -> ThrustCommand:
     return ThrustCommand.make(stamp_ns=stamp_ns, thrust_port_n=1.5, thrust_starboard_n=-2.0, seq=3)
 
@@ -82,9 +96,11 @@ def test_a_carried_object_of_another_type_is_not_taken(decodes: list[str]) -> No
     assert heard == [sent, sent] and decodes == ["ThrustCommand"]  # in process, trusted as sent
 
 
-def test_a_member_takes_a_bundles_answer_and_messages_as_sent(decodes: list[str]) -> None:
+def test_a_member_takes_a_bundles_answer_and_messages_as_sent(decodes: list[str],
+                                                              splits: list[bytes]) -> None:
     """The estimator hears the sim's bundle: its answer and the messages it lists are the sim's
-    own objects; a subscriber of one of its keys (a display) gets the sim's object too."""
+    own objects, and the bundle's lines as the sim framed them (its bytes are not split again);
+    a subscriber of one of its keys (a display) gets the sim's object too."""
     hub = MemoryHub()
     est = Member(hub.bus(V), "estimator", watched={keys.SIM_CLOCK.suffix}, hears=("sim",))
     taken: list[ClockTick] = []
@@ -96,9 +112,27 @@ def test_a_member_takes_a_bundles_answer_and_messages_as_sent(decodes: list[str]
     done = sim.answer(Period(0, P), P, [(keys.SIM_CLOCK, tick)])
     assert taken[0] is tick and display[0] is tick
     assert est.ledger.answer("sim") is done
-    assert decodes == []
+    assert decodes == [] and splits == []
     again = sim.repeat()  # a repeat carries its objects too
     assert again is not None and est.ledger.answers["sim"] is again and decodes == []
+    assert splits == []
+
+
+def test_a_carried_bundle_unpacks_as_its_bytes_do(splits: list[bytes]) -> None:
+    """What a recorder writes of a bundle in process (``unpack`` with what it carries) is what it
+    writes of the same bytes from another process, and its bytes are not split."""
+    tick = ClockTick(stamp_ns=P, lockstep=True)
+    answer = PeriodDone(stamp_ns=P, service="sim", episode=0, seq=1, period_ns=P,
+                        published={keys.SIM_CLOCK.suffix: [P]})
+    payload, carried = bundle.Carried.of(answer, answer.encode(),
+                                         [(keys.SIM_CLOCK.suffix, tick.encode())], [tick])
+    key = keys.lockstep_spec("sim").key(V)
+    assert bundle.unpack(key, payload, carried) and splits == []
+    assert bundle.unpack(key, payload, carried) == bundle.unpack(key, payload)
+    assert len(splits) == 1
+    assert not bundle.is_resent(payload, carried)
+    resent = answer.model_copy(update={"resent": True})
+    assert bundle.is_resent(*bundle.Carried.of(resent, resent.encode(), [], []))
 
 
 def test_a_bundle_that_carries_nothing_is_decoded_and_a_malformed_line_refused(
@@ -133,10 +167,11 @@ def test_a_composed_launcher_reads_the_answer_carried_not_the_bytes(decodes: lis
 
     answer = PeriodDone(stamp_ns=P, service="sim", episode=2, seq=1, period_ns=P, hold=True,
                         published={})
-    carried = bundle.Carried(answer, ())
+    carried = bundle.Carried(answer, (), answer.encode(), ())
     assert answer_period(b"not json", carried) == ((2, P), True)
     resent = answer.model_copy(update={"resent": True})
-    assert answer_period(b"not json", bundle.Carried(resent, ())) == (None, False)
+    assert answer_period(b"not json", bundle.Carried(resent, (), resent.encode(), ())) == \
+        (None, False)
     assert answer_period(bundle.encode(answer.encode(), [])) == ((2, P), True)
     assert answer_period(b"not json") == (None, False)
     assert decodes == []

@@ -320,16 +320,17 @@ class RecordingWriter:
                 stats.derived += 1
         return True
 
-    def unpack(self, key: str, payload: bytes, encoding: str, receive_ns: int
-               ) -> list[tuple[str, bytes, str]]:
+    def unpack(self, key: str, payload: bytes, encoding: str, receive_ns: int,
+               carried: Any = None) -> list[tuple[str, bytes, str]]:
         """The samples one bus sample stands for, to ``write`` each: itself, or for a lockstep
         bundle (``seaway.contract.bundle``) its messages on their own keys, then its answer. A
         bundle that does not unpack (its framing, or a line of a key its member does not produce)
-        is kept whole on the error channel, and stands for nothing."""
+        is kept whole on the error channel, and stands for nothing. ``carried``: what an
+        in-process sender encoded it from (``bundle.parts``)."""
         if encoding != bundle.ENCODING:
             return [(key, payload, encoding)]
         try:
-            return bundle.unpack(key, payload)
+            return bundle.unpack(key, payload, carried)
         except MessageError as err:
             self._put_malformed(key, PeriodDone.SCHEMA, str(err), encoding, payload,
                                 self.time.wall(receive_ns), receive_ns)

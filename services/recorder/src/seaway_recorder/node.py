@@ -140,8 +140,8 @@ def drain(writer: RecordingWriter, queue: SampleQueue, limit: int | None,
     while items and (limit is None or n < limit):
         sample_key, sample, sample_encoding, t_ns, carried = items.popleft()
         n += 1
-        copy = sample_encoding == bundle.ENCODING and bundle.is_resent(sample)
-        samples = writer.unpack(sample_key, sample, sample_encoding, t_ns)
+        copy = sample_encoding == bundle.ENCODING and bundle.is_resent(sample, carried)
+        samples = writer.unpack(sample_key, sample, sample_encoding, t_ns, carried)
         answer = None  # the answer comes last, on the bundle's own key
         if witness is not None and samples and samples[-1][0] == sample_key:
             answer = witness.heard(sample_key, samples[-1][1], bundle.carried_answer(carried))

@@ -83,10 +83,21 @@ def encode(answer: bytes, lines: Iterable[tuple[str, bytes]]) -> bytes:
 
 class Carried(NamedTuple):
     """What a bundle was encoded from, handed along with its bytes on an in-process bus
-    (``seaway.runtime.bus.RawSample.carried``): its answer and its messages, in line order."""
+    (``seaway.runtime.bus.RawSample.carried``): its answer and its messages, in line order, and
+    the bytes ``encode`` joined (the answer's, and each line's key suffix and message), so that
+    nobody in the process splits the bundle's bytes again."""
 
     answer: PeriodDone
     messages: tuple[Message, ...]
+    answer_bytes: bytes
+    lines: tuple[tuple[str, bytes], ...]
+
+    @classmethod
+    def of(cls, answer: PeriodDone, answer_bytes: bytes, lines: Sequence[tuple[str, bytes]],
+           messages: Sequence[Message]) -> tuple[bytes, Carried]:
+        """(the bundle's bytes, what it carries) of an answer and its messages' lines."""
+        lines = tuple(lines)
+        return encode(answer_bytes, lines), cls(answer, tuple(messages), answer_bytes, lines)
 
 
 def carried_answer(carried: Any) -> PeriodDone | None:
@@ -94,22 +105,25 @@ def carried_answer(carried: Any) -> PeriodDone | None:
     return carried.answer if type(carried) is Carried else None
 
 
+def parts(payload: bytes, carried: Any = None) -> tuple[bytes, Sequence[tuple[str, bytes]]]:
+    """``split`` of ``payload``, or the parts ``carried`` holds if it is what the bundle was
+    encoded from (``Carried``): the same bytes, framed by ``encode`` itself."""
+    if type(carried) is Carried:
+        return carried.answer_bytes, carried.lines
+    return split(payload)
+
+
 def carried_lines(payload: bytes, carried: Any, suffixes: Iterable[str] | None = None
                   ) -> list[tuple[str, bytes, Message]] | None:
     """(key suffix, bytes, message) of ``payload``'s lines (on ``suffixes``, default all), each
     with the message it was encoded from, if ``carried`` is what the bundle was encoded from
-    (``Carried``, as many messages as lines); else None: decode the lines' bytes. The framing is
-    checked as ``split`` checks it; which keys a member may carry is the caller's to ask."""
+    (``Carried``); else None: decode the lines' bytes. Which keys a member may carry is the
+    caller's to ask."""
     if type(carried) is not Carried:
         return None
-    try:
-        _answer, lines = split(payload)
-    except MessageError:
-        return None
-    if len(lines) != len(carried.messages):
-        return None
     wanted = None if suffixes is None else frozenset(suffixes)
-    return [(suffix, data, msg) for (suffix, data), msg in zip(lines, carried.messages, strict=True)
+    return [(suffix, data, msg) for (suffix, data), msg in zip(carried.lines, carried.messages,
+                                                                strict=True)
             if wanted is None or suffix in wanted]
 
 
@@ -119,10 +133,13 @@ def answer_of(payload: bytes) -> bytes:
     return payload.split(b"\n", 1)[0]
 
 
-def is_resent(payload: bytes) -> bool:
+def is_resent(payload: bytes, carried: Any = None) -> bool:
     """Whether a bundle is a copy of an earlier one sent again for a restarted recorder
     (``PeriodDone.resent``): news to a recorder that may have missed it, to nobody else. Read off
-    the answer's bytes as ``PeriodDone.encode`` writes them, without decoding it."""
+    the answer's bytes as ``PeriodDone.encode`` writes them, without decoding it (or off the
+    answer ``carried`` holds, in process)."""
+    if type(carried) is Carried:
+        return carried.answer.resent
     return b'"resent":true' in answer_of(payload)
 
 
@@ -170,15 +187,15 @@ def service_of(key: str) -> str | None:
     return None
 
 
-def unpack(key: str, payload: bytes) -> list[tuple[str, bytes, str]]:
+def unpack(key: str, payload: bytes, carried: Any = None) -> list[tuple[str, bytes, str]]:
     """A bundle heard on ``key`` as the samples it stands for, (key, bytes, encoding): its messages
     in order, each on its own key, then the answer alone (it was sent after what it lists). What a
     recorder writes. MessageError if a line is badly framed or on a key of another member
-    (``check_line``)."""
+    (``check_line``). ``carried``: as ``parts`` takes it."""
     service = service_of(key)
     if service is None:
         raise MessageError(f"{key} is not a lockstep answer key")
-    answer, lines = split(payload)
+    answer, lines = parts(payload, carried)
     vessel_prefix = key[: -len(f"lockstep/{service}")]
     out = []
     for suffix, data in lines:

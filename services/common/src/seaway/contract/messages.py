@@ -88,7 +88,8 @@ class Message(BaseModel):
         Instances built through the constructor are already finite; this also catches ones made with
         ``model_construct`` (which skips validation). The substring test keeps the common path cheap.
         """
-        data = self.model_dump_json(exclude_none=True).encode()
+        # The serializer's bytes as they are (``model_dump_json`` is them decoded to a str).
+        data = self.__pydantic_serializer__.to_json(self, exclude_none=True)
         if b"NaN" in data or b"Infinity" in data:
             bad = _first_non_finite(self.model_dump(), "")
             if bad:

@@ -307,7 +307,7 @@ class BundleTap:
 
     def _on_bundle(self, sample: RawSample) -> None:
         routes = self._routes  # replaced, never changed in place: no lock on the receive path
-        if not routes or bundle.is_resent(sample.payload):  # a copy for a restarted recorder
+        if not routes or bundle.is_resent(sample.payload, sample.carried):  # a copy for a restarted recorder
             return
         prefix = sample.key[: sample.key.rfind("/lockstep/") + 1]
         carried = bundle.carried_lines(sample.payload, sample.carried, routes.keys())

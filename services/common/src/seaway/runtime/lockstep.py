@@ -421,14 +421,14 @@ class Member:
         ``carried``: what an in-process sender encoded it from (``RawSample.carried``)."""
         service = bundle.service_of(key)
         try:
-            raw_answer, lines = bundle.split(payload)
+            raw_answer, lines = bundle.parts(payload, carried)
         except MessageError as err:
             self.bus.stats.count_malformed(key, str(err))
             self.ratelog.warning(("malformed bundle", key), "lockstep bundle on %s dropped: %s",
                                  key, err)
             return
         answer = self.bus.decode_counted(PeriodDone, key, raw_answer, bundle.carried_answer(carried))
-        if type(carried) is bundle.Carried and len(carried.messages) == len(lines):
+        if type(carried) is bundle.Carried:
             msgs: Sequence[Any] = carried.messages
         else:
             msgs = (None,) * len(lines)
@@ -465,7 +465,7 @@ class Member:
         return {miss for a in ledger.answers.values() if Period.of(a) == ledger.period
                 for miss in ledger.missing(a)}
 
-    def _deliver(self, service: str, prefix: str, key: str, lines: list[tuple[str, bytes]],
+    def _deliver(self, service: str, prefix: str, key: str, lines: Sequence[tuple[str, bytes]],
                  msgs: Sequence[Any], only: set[tuple[str, int]] | None = None) -> None:
         """Hand a bundle's messages on this member's inputs to the service (``only``: just those
         (suffix, stamp)); ``msgs``: per line, what it was encoded from (in process), or None.
@@ -480,7 +480,8 @@ class Member:
             if batch:
                 self.saw_many(batch)
 
-    def _deliver_lines(self, service: str, prefix: str, key: str, lines: list[tuple[str, bytes]],
+    def _deliver_lines(self, service: str, prefix: str, key: str,
+                       lines: Sequence[tuple[str, bytes]],
                        msgs: Sequence[Any], only: set[tuple[str, int]] | None) -> None:
         wanted = None if only is None else {suffix for suffix, _ in only}
         for (suffix, data), carried in zip(lines, msgs, strict=True):
@@ -665,7 +666,7 @@ class Member:
 
     def _put(self, done: PeriodDone, lines: list[tuple[str, bytes]], msgs: tuple[Message, ...],
              again: bool = False) -> None:
-        self._put_bundle(bundle.encode(done.encode(), lines), bundle.Carried(done, msgs))
+        self._put_bundle(*bundle.Carried.of(done, done.encode(), lines, msgs))
         self.bus.stats.published += 1 + len(lines)
         self._keep(done, lines, msgs, again)
 
@@ -720,8 +721,7 @@ class Member:
             # be of the dead sim's later periods, which a recorder would write in the new time.
             if old_period.leads_to(last):
                 copy = old.model_copy(update={"seq": next(self._seq), "resent": True})
-                self._put_bundle(bundle.encode(copy.encode(), old_lines),
-                                 bundle.Carried(copy, old_msgs))
+                self._put_bundle(*bundle.Carried.of(copy, copy.encode(), old_lines, old_msgs))
         update: dict[str, Any] = {"seq": next(self._seq)}
         if members is not None:
             update["members"] = list(members)
