@@ -2,12 +2,14 @@
 
 The process (also ``seaway-recorder``) subscribes to the bus; Zenoh's delivery threads only append
 ``(key, bytes, encoding, receive time)`` to a bounded queue (a full queue drops the sample and counts
-it), and one writer thread drains the queue into ``RecordingWriter``. The writer flushes at least every
-``--flush-interval`` (default 50 ms: a SIGKILL loses less than 100 ms), rotates files on
-``--max-bytes`` / ``--max-seconds``, logs counts every ``--status-interval`` and, on SIGINT or SIGTERM,
-writes what is queued and finishes a fully indexed file. The last line on stdout is a JSON summary.
-It also copies the launcher's events (``--events``) and the run's log files (``--logs``) into the
-recording as they grow. Log times follow ``timebase`` (sim time on the run's epoch in lockstep).
+it), and one writer thread drains the queue into ``RecordingWriter`` (in lockstep, the thread that
+delivers a member's answer writes its period: ``node.RecorderNode.write_on_arrival``). The writer
+flushes at least every ``--flush-interval`` (default 50 ms: a SIGKILL loses less than 100 ms),
+rotates files on ``--max-bytes`` / ``--max-seconds``, logs counts every ``--status-interval`` and, on
+SIGINT or SIGTERM, writes what is queued and finishes a fully indexed file. The last line on stdout
+is a JSON summary. It also copies the launcher's events (``--events``) and the run's log files
+(``--logs``) into the recording as they grow. Log times follow ``timebase`` (sim time on the run's
+epoch in lockstep).
 """
 
 from __future__ import annotations

@@ -2,7 +2,10 @@
 threads into ``SampleQueue``), and the writer's loop that drains it into ``RecordingWriter``,
 flushes at least every ``--flush-interval``, rotates, copies the launcher's events and the run's
 logs in, and, in lockstep, answers each period once it is on disk (the runtime's
-``seaway.runtime.lockstep_witness.LockstepWitness``). ``seaway_recorder.main`` configures it.
+``seaway.runtime.lockstep_witness.LockstepWitness``). In lockstep the thread that delivers a
+member's answer writes the period itself (``RecorderNode.write_on_arrival``), as the other members
+answer on arrival: handing each period to the loop's thread cost two thread switches a period, and
+composed, the sim waited for them. ``seaway_recorder.main`` configures it.
 """
 
 from __future__ import annotations
@@ -60,6 +63,9 @@ class SampleQueue:
         self.already: set[tuple[str, bytes]] = set()
         """(key, bytes) a predecessor's recording holds (a restarted recorder): not queued again."""
         self.repeats = 0
+        self.on_wake: Callable[[], None] | None = None
+        """Called instead of waking the writer's loop (``arrived``): in lockstep, the node's
+        ``write_on_arrival``, which writes on the delivering thread."""
 
     def on_sample(self, sample: RawSample) -> None:
         # Called on the bus's delivery threads: keep it short (the bytes are already our own copy).
@@ -85,7 +91,10 @@ class SampleQueue:
             if stamp is not None:
                 self.timeline.mark("heard", stamp, sample.key.rsplit("/", 1)[1])
         if self.wake_on_any or "/lockstep/" in sample.key:
-            self.arrived.set()
+            if self.on_wake is not None:
+                self.on_wake()
+            else:
+                self.arrived.set()
 
 
 class KeptKeys:
@@ -223,6 +232,39 @@ class RecorderNode(Node):
         self.failed: OSError | None = None
         """The write that failed (disk full, file removed): the node stops, the file is finished."""
         self._stop: threading.Event | None = None
+        self._writing = threading.Lock()
+        """Held while the writer is used: by the loop (``tick``, ``finish``), or by the thread that
+        delivers a lockstep answer (``write_on_arrival``)."""
+        self._raised: BaseException | None = None
+        """What a write on a delivering thread raised: raised again in the loop, where the node's
+        runtime handles a failure."""
+        if witness is not None:
+            queue.on_wake = self.write_on_arrival
+
+    def write_on_arrival(self) -> None:
+        """In lockstep, called on the thread that delivered a sample to wake the writer for: write
+        what is queued and answer the period on that thread (composed, inside the sim's put). The
+        loop takes over, woken as before, when it is writing itself (or this thread is inside its
+        write: the answer it put completed a period, and the chain ran from there), before the
+        node has joined, and once writing has failed."""
+        if not self._joined or self.failed is not None or self._raised is not None:
+            self.queue.arrived.set()
+            return
+        if not self._writing.acquire(blocking=False):
+            self.queue.arrived.set()
+            return
+        try:
+            self._drained = drain(self.writer, self.queue, limit=DRAIN_BATCH,
+                                  witness=self.witness, kept=self.kept)
+        except OSError as err:  # finish what can be finished (``finish``)
+            self.failed = err
+            assert self._stop is not None
+            self._stop.set()
+        except Exception as err:  # not the bus's to handle: the loop raises it again
+            self._raised = err
+            self.queue.arrived.set()
+        finally:
+            self._writing.release()
 
     def attach(self, driver: Any) -> None:
         self._stop = driver.stop
@@ -233,8 +275,11 @@ class RecorderNode(Node):
             if self.witness is not None:
                 self.witness.member.join()
             print("READY", flush=True)
+        if self._raised is not None:
+            raise self._raised
         try:
-            self._write()
+            with self._writing:
+                self._write()
         except OSError as err:  # finish what can be finished (``finish``)
             self.failed = err
             assert self._stop is not None
@@ -281,9 +326,10 @@ class RecorderNode(Node):
             if self.failed is not None:
                 log.error("writing failed: %s; finishing the file", self.failed)
                 return
-            drain(self.writer, self.queue, limit=None, kept=self.kept)
-            if self.tails is not None:
-                self.tails.copy(self.writer)
+            with self._writing:  # after a write on arrival still under way
+                drain(self.writer, self.queue, limit=None, kept=self.kept)
+                if self.tails is not None:
+                    self.tails.copy(self.writer)
         except OSError as err:
             self.failed = err
             log.error("writing failed: %s; finishing the file", err)

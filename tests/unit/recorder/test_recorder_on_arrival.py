@@ -1,0 +1,103 @@
+"""A lockstep recorder writes each period on the thread that delivers it (``RecorderNode``'s
+``write_on_arrival``): composed, the period is on disk and answered before the sim's put returns,
+and the writer's loop is not woken for it.
+
+Before: every period was handed to the loop's thread (``SampleQueue.arrived``), two thread switches
+a period, and a composed sim waited for them. The real recorder parts on the in-memory bus (its
+queue, node, ``LockstepWitness``, ``RecordingWriter``, the MCAP file).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from pathlib import Path
+from types import SimpleNamespace
+
+from seaway.contract import keys
+from seaway.contract.messages import ClockTick, PeriodDone
+from seaway.recording import reader
+from seaway.recording.timebase import RecordingTime
+from seaway.runtime.lockstep import Member, Period
+from seaway.runtime.lockstep_witness import LockstepWitness
+from seaway.runtime.memory_bus import MemoryHub
+from seaway_recorder.core import RecordingWriter
+from seaway_recorder.node import KeptKeys, RecorderNode, SampleQueue
+
+P = 100_000_000
+V = "vessel1"
+EPOCH_NS = 10**18
+EXPRS = [f"seaway/{V}/**"]
+
+
+def clock(stamp_ns: int) -> ClockTick:
+    return ClockTick(stamp_ns=stamp_ns, lockstep=True, real_time_factor=0.0)
+
+
+class Recorder:
+    """A lockstep recorder node on ``hub``, joined (its first tick), its loop never run."""
+
+    def __init__(self, hub: MemoryHub, folder: Path) -> None:
+        self.writer = RecordingWriter(folder / "recording.mcap", compression="none",
+                                      time=RecordingTime(lockstep=True, epoch_ns=EPOCH_NS))
+        self.writer.open(time.time_ns())
+        self.queue = SampleQueue(10_000)
+        bus = hub.bus(V)
+        witness = LockstepWitness(bus, V, EXPRS)
+        bus.subscribe_raw(f"seaway/{V}/**", self.queue.on_sample, inline=True)
+        self.node = RecorderNode(self.writer, self.queue, flush_s=60.0, status_s=60.0,
+                                 witness=witness, kept=KeptKeys(EXPRS))
+        self.node.attach(SimpleNamespace(stop=threading.Event()))
+        self.node.tick(time.monotonic_ns(), None)  # joins; nothing heard yet
+        self.answers: list[int] = []
+        hub.bus(V).subscribe_raw(keys.LOCKSTEP_RECORDER.key(V), lambda s: self.answers.append(
+            PeriodDone.decode(s.payload).stamp_ns))
+
+
+def test_a_period_is_on_disk_and_answered_before_the_sims_put_returns(tmp_path: Path) -> None:
+    hub = MemoryHub()
+    rec = Recorder(hub, tmp_path)
+    sim = Member(hub.bus(V), "sim", watched=(), subscribe=False)
+    for k in range(4):
+        flushes = rec.writer.stats.flushes
+        sim.answer(Period(0, k * P), P, [(keys.SIM_CLOCK, clock(k * P))], members=["recorder"])
+        # Returned: the recorder answered this period, after its flush, and no loop was woken.
+        assert rec.answers[-1] == k * P
+        assert rec.writer.stats.flushes == flushes + 1
+        assert not rec.queue.arrived.is_set()
+        assert not rec.queue.items
+    rec.writer.close()
+    dec = reader.decode_vessel(reader.open_paths([tmp_path]), V, [keys.SIM_CLOCK.suffix])
+    assert [m.stamp_ns for m in dec.get(keys.SIM_CLOCK.suffix)] == [k * P for k in range(4)]
+
+
+def test_the_loop_writes_what_arrives_while_it_is_writing(tmp_path: Path) -> None:
+    """A period that arrives while the loop holds the writer (its flush, or the chain the loop's
+    own answer set off) is left to the loop, which is woken for it: nothing waits on the writer
+    and nothing is lost."""
+    hub = MemoryHub()
+    rec = Recorder(hub, tmp_path)
+    sim = Member(hub.bus(V), "sim", watched=(), subscribe=False)
+    with rec.node._writing:
+        sim.answer(Period(0, 0), P, [(keys.SIM_CLOCK, clock(0))], members=["recorder"])
+    assert rec.answers == [] and rec.queue.arrived.is_set() and rec.queue.items
+    rec.node.tick(time.monotonic_ns(), None)
+    # Written and answered; only that answer, heard on the loop's own thread, waits its turn.
+    assert rec.answers == [0]
+    assert [key for key, *_ in rec.queue.items] == [keys.LOCKSTEP_RECORDER.key(V)]
+
+
+def test_before_it_has_joined_the_loop_is_woken_as_before(tmp_path: Path) -> None:
+    hub = MemoryHub()
+    writer = RecordingWriter(tmp_path / "recording.mcap", compression="none",
+                             time=RecordingTime(lockstep=True, epoch_ns=EPOCH_NS))
+    writer.open(time.time_ns())
+    queue = SampleQueue(10_000)
+    bus = hub.bus(V)
+    node = RecorderNode(writer, queue, 60.0, 60.0, LockstepWitness(bus, V, EXPRS),
+                        kept=KeptKeys(EXPRS))
+    bus.subscribe_raw(f"seaway/{V}/**", queue.on_sample, inline=True)
+    Member(hub.bus(V), "sim", watched=(), subscribe=False).answer(
+        Period(0, 0), P, [(keys.SIM_CLOCK, clock(0))], members=["recorder"])
+    assert queue.arrived.is_set() and queue.items and writer.stats.messages == 0
+    writer.close()
