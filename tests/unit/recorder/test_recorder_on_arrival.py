@@ -15,7 +15,7 @@ from pathlib import Path
 from types import SimpleNamespace
 
 from seaway.contract import keys
-from seaway.contract.messages import ClockTick, PeriodDone
+from seaway.contract.messages import PeriodDone
 from seaway.recording import reader
 from seaway.recording.timebase import RecordingTime
 from seaway.runtime.lockstep import Member, Period
@@ -24,14 +24,7 @@ from seaway.runtime.memory_bus import MemoryHub
 from seaway_recorder.core import RecordingWriter
 from seaway_recorder.node import KeptKeys, RecorderNode, SampleQueue
 
-P = 100_000_000
-V = "vessel1"
-EPOCH_NS = 10**18
-EXPRS = [f"seaway/{V}/**"]
-
-
-def clock(stamp_ns: int) -> ClockTick:
-    return ClockTick(stamp_ns=stamp_ns, lockstep=True, real_time_factor=0.0)
+from tests.unit.recorder.test_recorder_repeats import EPOCH_NS, EXPRS, P, V, clock
 
 
 class Recorder:
@@ -100,4 +93,7 @@ def test_before_it_has_joined_the_loop_is_woken_as_before(tmp_path: Path) -> Non
     Member(hub.bus(V), "sim", watched=(), subscribe=False).answer(
         Period(0, 0), P, [(keys.SIM_CLOCK, clock(0))], members=["recorder"])
     assert queue.arrived.is_set() and queue.items and writer.stats.messages == 0
+    node.tick(time.monotonic_ns(), None)  # the loop's first tick joins, and writes it
+    assert not queue.items or all("lockstep/recorder" in key for key, *_ in queue.items)
+    assert writer.stats.messages > 0
     writer.close()
