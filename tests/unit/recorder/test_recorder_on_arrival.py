@@ -97,3 +97,19 @@ def test_before_it_has_joined_the_loop_is_woken_as_before(tmp_path: Path) -> Non
     assert not queue.items or all("lockstep/recorder" in key for key, *_ in queue.items)
     assert writer.stats.messages > 0
     writer.close()
+
+
+def test_once_stopping_a_delivery_writes_nothing(tmp_path: Path) -> None:
+    """A sample that passed the queue's check just before ``finish``: its delivery leaves it to the
+    loop (which has finished) instead of writing into a writer about to be closed."""
+    hub = MemoryHub()
+    rec = Recorder(hub, tmp_path)
+    sim = Member(hub.bus(V), "sim", watched=(), subscribe=False)
+    sim.answer(Period(0, 0), P, [(keys.SIM_CLOCK, clock(0))], members=["recorder"])
+    rec.node.finish()
+    written = rec.writer.stats.messages
+    rec.queue.items.append((keys.SIM_CLOCK.key(V), clock(P).encode(), "application/json",
+                            time.time_ns(), None))
+    rec.node.write_on_arrival()
+    assert rec.writer.stats.messages == written and rec.queue.items
+    rec.writer.close()

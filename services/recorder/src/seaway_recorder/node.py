@@ -246,8 +246,10 @@ class RecorderNode(Node):
         what is queued and answer the period on that thread (composed, inside the sim's put). The
         loop takes over, woken as before, when it is writing itself (or this thread is inside its
         write: the answer it put completed a period, and the chain ran from there), before the
-        node has joined, and once writing has failed."""
-        if not self._joined or self.failed is not None or self._raised is not None:
+        node has joined, and once writing has failed. Once stopping (``finish``), it writes
+        nothing: the loop writes what is queued, and the writer is closed after it."""
+        stopping = not self.queue.accepting
+        if not self._joined or stopping or self.failed is not None or self._raised is not None:
             self.queue.arrived.set()
             return
         if not self._writing.acquire(blocking=False):
