@@ -28,9 +28,9 @@ from tests.unit.recorder.test_recorder_repeats import EPOCH_NS, EXPRS, P, V, clo
 
 
 class Recorder:
-    """A lockstep recorder node on ``hub``, joined (its first tick), its loop never run."""
+    """A lockstep recorder node on ``hub``, its loop never run; ``joined``: after its first tick."""
 
-    def __init__(self, hub: MemoryHub, folder: Path) -> None:
+    def __init__(self, hub: MemoryHub, folder: Path, joined: bool = True) -> None:
         self.writer = RecordingWriter(folder / "recording.mcap", compression="none",
                                       time=RecordingTime(lockstep=True, epoch_ns=EPOCH_NS))
         self.writer.open(time.time_ns())
@@ -41,7 +41,8 @@ class Recorder:
         self.node = RecorderNode(self.writer, self.queue, flush_s=60.0, status_s=60.0,
                                  witness=witness, kept=KeptKeys(EXPRS))
         self.node.attach(SimpleNamespace(stop=threading.Event()))
-        self.node.tick(time.monotonic_ns(), None)  # joins; nothing heard yet
+        if joined:
+            self.node.tick(time.monotonic_ns(), None)  # nothing heard yet
         self.answers: list[int] = []
         hub.bus(V).subscribe_raw(keys.LOCKSTEP_RECORDER.key(V), lambda s: self.answers.append(
             PeriodDone.decode(s.payload).stamp_ns))
@@ -82,21 +83,13 @@ def test_the_loop_writes_what_arrives_while_it_is_writing(tmp_path: Path) -> Non
 
 def test_before_it_has_joined_the_loop_is_woken_as_before(tmp_path: Path) -> None:
     hub = MemoryHub()
-    writer = RecordingWriter(tmp_path / "recording.mcap", compression="none",
-                             time=RecordingTime(lockstep=True, epoch_ns=EPOCH_NS))
-    writer.open(time.time_ns())
-    queue = SampleQueue(10_000)
-    bus = hub.bus(V)
-    node = RecorderNode(writer, queue, 60.0, 60.0, LockstepWitness(bus, V, EXPRS),
-                        kept=KeptKeys(EXPRS))
-    bus.subscribe_raw(f"seaway/{V}/**", queue.on_sample, inline=True)
+    rec = Recorder(hub, tmp_path, joined=False)
     Member(hub.bus(V), "sim", watched=(), subscribe=False).answer(
         Period(0, 0), P, [(keys.SIM_CLOCK, clock(0))], members=["recorder"])
-    assert queue.arrived.is_set() and queue.items and writer.stats.messages == 0
-    node.tick(time.monotonic_ns(), None)  # the loop's first tick joins, and writes it
-    assert not queue.items or all("lockstep/recorder" in key for key, *_ in queue.items)
-    assert writer.stats.messages > 0
-    writer.close()
+    assert rec.queue.arrived.is_set() and rec.queue.items and rec.writer.stats.messages == 0
+    rec.node.tick(time.monotonic_ns(), None)  # the loop's first tick joins, and writes it
+    assert rec.answers == [0] and rec.writer.stats.messages > 0
+    rec.writer.close()
 
 
 def test_once_stopping_a_delivery_writes_nothing(tmp_path: Path) -> None:

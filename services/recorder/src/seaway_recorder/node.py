@@ -4,8 +4,8 @@ flushes at least every ``--flush-interval``, rotates, copies the launcher's even
 logs in, and, in lockstep, answers each period once it is on disk (the runtime's
 ``seaway.runtime.lockstep_witness.LockstepWitness``). In lockstep the thread that delivers a
 member's answer writes the period itself (``RecorderNode.write_on_arrival``), as the other members
-answer on arrival: handing each period to the loop's thread cost two thread switches a period, and
-composed, the sim waited for them. ``seaway_recorder.main`` configures it.
+answer on arrival, so that a period needs no thread switch (composed, the sim would wait for it).
+``seaway_recorder.main`` configures it.
 """
 
 from __future__ import annotations
@@ -258,10 +258,8 @@ class RecorderNode(Node):
         try:
             self._drained = drain(self.writer, self.queue, limit=DRAIN_BATCH,
                                   witness=self.witness, kept=self.kept)
-        except OSError as err:  # finish what can be finished (``finish``)
-            self.failed = err
-            assert self._stop is not None
-            self._stop.set()
+        except OSError as err:
+            self._failed(err)
         except Exception as err:  # not the bus's to handle: the loop raises it again
             self._raised = err
             self.queue.arrived.set()
@@ -282,10 +280,14 @@ class RecorderNode(Node):
         try:
             with self._writing:
                 self._write()
-        except OSError as err:  # finish what can be finished (``finish``)
-            self.failed = err
-            assert self._stop is not None
-            self._stop.set()
+        except OSError as err:
+            self._failed(err)
+
+    def _failed(self, err: OSError) -> None:
+        """A write failed: the node stops, and ``finish`` finishes what can be finished."""
+        self.failed = err
+        assert self._stop is not None
+        self._stop.set()
 
     def _write(self) -> None:
         writer, queue = self.writer, self.queue
