@@ -1,11 +1,23 @@
 # Sourced by ./run and ./test: make .venv hold exactly the locked dependencies of every package.
 # Needs only python3 (>= 3.11) with venv; fetches uv (pinned) from PyPI into .tools/ if not on PATH.
-# Never downloads a Python build: uses the python3 it finds.
+# Never downloads a Python build: uses one it finds.
 set -euo pipefail
 UV_VERSION="0.13.8"
 export UV_PYTHON_DOWNLOADS=never
-PY="${SEAWAY_PYTHON:-python3}"
-if ! "$PY" -c 'import sys; sys.exit(sys.version_info < (3, 11))' 2>/dev/null; then
+new_enough() { "$1" -c 'import sys; sys.exit(sys.version_info < (3, 11))' 2>/dev/null; }
+# The interpreter: $SEAWAY_PYTHON if set; else the distribution's /usr/bin/python3 if it is 3.11 or
+# newer; else python3 on PATH. The distribution's first because Debian and Ubuntu build theirs with
+# profile-guided and link-time optimisation, which a version manager's default build (pyenv's) has
+# not, and a lockstep mission is mostly pure Python: docs/results.md ("Timing") has the figures.
+# Always the same choice on one machine, so .venv is not made again from another interpreter.
+if [ -n "${SEAWAY_PYTHON:-}" ]; then
+    PY="$SEAWAY_PYTHON"
+elif new_enough /usr/bin/python3; then
+    PY=/usr/bin/python3
+else
+    PY=python3
+fi
+if ! new_enough "$PY"; then
     echo "Seaway needs Python >= 3.11 as '$PY' (set SEAWAY_PYTHON to another interpreter)." >&2
     exit 1
 fi
