@@ -52,3 +52,70 @@ def test_threads_allocating_at_once_stay_within_the_capped_arenas() -> None:
         counts[way] = int(done.stdout.strip())
     assert counts["cap"] <= 2, counts
     assert counts["free"] > counts["cap"], counts
+
+
+def _probe(code: str) -> str:
+    """``code`` run in a fresh interpreter (the collector is one per process); what it printed."""
+    done = subprocess.run([sys.executable, "-c", textwrap.dedent(code)], capture_output=True,
+                          text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    return done.stdout.strip()
+
+
+def test_start_up_frozen_is_out_of_the_collectors_reach_and_its_garbage_freed() -> None:
+    out = _probe("""
+        import gc, weakref
+        from seaway.runtime import memory
+        class Node: pass
+        kept = [Node() for _ in range(1000)]
+        cycle = Node(); cycle.me = cycle; dead = weakref.ref(cycle); del cycle
+        memory.freeze_start_up()
+        tracked = {id(o) for o in gc.get_objects()}
+        print(gc.get_freeze_count() >= 1000, dead() is None, any(id(k) in tracked for k in kept))
+        later = Node(); later.me = later; gone = weakref.ref(later); del later
+        gc.collect()
+        print(gone() is None)
+    """)
+    assert out.split() == ["True", "True", "False", "True"], out
+
+
+def test_a_paused_collection_resumes_when_the_last_block_closes_and_frees_cycles_after() -> None:
+    out = _probe("""
+        import gc, weakref
+        from seaway.runtime import memory
+        class Node: pass
+        with memory.collection_paused():
+            with memory.collection_paused():
+                print(gc.isenabled())
+            print(gc.isenabled())
+            cycle = Node(); cycle.me = cycle; dead = weakref.ref(cycle); del cycle
+        print(gc.isenabled())
+        gc.collect()
+        print(dead() is None)
+        gc.disable()
+        with memory.collection_paused():
+            pass
+        print(gc.isenabled())
+    """)
+    assert out.split() == ["False", "False", "True", "True", "False"], out
+
+
+@pytest.mark.parametrize("service_process", [True, False])
+def test_a_service_freezes_its_start_up_once_ready_a_test_context_does_not(
+        monkeypatch, service_process: bool) -> None:
+    import threading
+
+    from seaway.runtime.clock import WallClock
+    from seaway.runtime.memory_bus import MemoryHub
+    from seaway.runtime.run import RunDescription
+    from seaway.runtime.service import ServiceContext
+
+    frozen: list[int] = []
+    monkeypatch.setattr(memory, "freeze_start_up", lambda: frozen.append(1))
+    ctx = ServiceContext("estimator", "vessel1", MemoryHub().bus("vessel1"), WallClock(),
+                         threading.Event(), RunDescription(run_id="unit", vessel="vessel1"),
+                         agree=False, freeze_when_ready=service_process)
+    assert frozen == []
+    ctx.ready()
+    ctx.ready()  # declared once
+    assert frozen == ([1] if service_process else [])

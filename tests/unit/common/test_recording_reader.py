@@ -5,6 +5,7 @@ the same order, ties in file order and a series in name order, repeats across fi
 
 from __future__ import annotations
 
+import gc
 from pathlib import Path
 
 import pytest
@@ -92,6 +93,7 @@ def test_decode_equals_the_log_time_merge(series: list[Path], vessel: str, suffi
             for s, items in by.items()}
     assert got == want
     assert (dec.duplicates, dec.undecodable, dec.vessels) == (dups, bad, vessels)
+    assert gc.isenabled()
 
 
 def test_the_order_is_by_log_time_then_file_order(series: list[Path]) -> None:
@@ -163,6 +165,7 @@ def test_a_damaged_chunk_is_named_with_the_way_to_repair_it(tmp_path: Path) -> N
                        match=rf"recording.mcap: the chunk at byte {chunk.chunk_start_offset} is "
                              r"damaged .*seaway record recover"):
         reader.decode_vessel([path], "vessel1", [ORIGIN.suffix])
+    assert gc.isenabled()  # paused while it decoded, running again after the error
 
 
 def _fields(record: object) -> dict:

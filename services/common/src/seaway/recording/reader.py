@@ -47,6 +47,7 @@ from seaway.recording.layout import (
     U64,
 )
 from seaway.recording.recover import RECOVER_METADATA, recover, repaired_copy
+from seaway.runtime import memory
 
 
 @dataclass(frozen=True)
@@ -448,27 +449,47 @@ def decode_vessel(files: list[Path], vessel: str | None = None,
     # suffix -> [(log time, topic, bytes)] in file order, files in name order
     raw: dict[str, list[tuple[int, str, bytes]]] = {}
     specs: dict[str, KeySpec | None] = {}
-    for path in files:
-        with open(path, "rb") as fh:
-            try:
-                summary = (summaries or {}).get(path) or read_summary(fh)
-            except McapError as err:
-                raise UnreadableRecordingError(f"{path}: cannot read its summary ({err}); "
-                                               f"{RECOVER_HINT}") from None
-            topics = _wanted_topics(summary, wanted, out.vessels)
-            if topics is not None and not topics:
-                continue
-            for topic, log_ns, data in _file_messages(fh, summary, topics):
-                if topic not in specs:
-                    specs[topic] = keys.spec_for_key(topic)
-                spec = specs[topic]
-                if spec is None or spec.message is None:
+    into: dict[str, list[tuple[int, str, bytes]] | None] = {}
+    """topic -> its list in ``raw``; None: a topic not decoded (not a message, not wanted)."""
+    # Tens of thousands of messages and their bytes kept, with no cycles among them: the collector
+    # would walk them all again every few hundred (seaway.runtime.memory.collection_paused).
+    with memory.collection_paused():
+        for path in files:
+            with open(path, "rb") as fh:
+                try:
+                    summary = (summaries or {}).get(path) or read_summary(fh)
+                except McapError as err:
+                    raise UnreadableRecordingError(f"{path}: cannot read its summary ({err}); "
+                                                   f"{RECOVER_HINT}") from None
+                topics = _wanted_topics(summary, wanted, out.vessels)
+                if topics is not None and not topics:
                     continue
-                v = topic.split("/", 2)[1]
-                out.vessels.add(v)
-                if (wanted is not None and spec.suffix not in wanted) or (vessel is not None and v != vessel):
-                    continue
-                raw.setdefault(spec.suffix, []).append((log_ns, topic, data))
+                for topic, log_ns, data in _file_messages(fh, summary, topics):
+                    if topic not in into:  # where a topic's messages go, found once per topic
+                        spec = specs[topic] = keys.spec_for_key(topic)
+                        into[topic] = None
+                        if spec is not None and spec.message is not None:
+                            v = topic.split("/", 2)[1]
+                            out.vessels.add(v)
+                            if ((wanted is None or spec.suffix in wanted)
+                                    and (vessel is None or v == vessel)):
+                                into[topic] = raw.setdefault(spec.suffix, [])
+                    kept = into[topic]
+                    if kept is not None:
+                        kept.append((log_ns, topic, data))
+        into.clear()  # ``raw`` alone holds the bytes: each key's are freed once decoded
+        _decode_raw(raw, specs, len(files) > 1, out)
+    if vessel is None and len(out.vessels) > 1:
+        raise ValueError(f"the recording has several vessels ({', '.join(sorted(out.vessels))}): "
+                         "choose one with --vessel")
+    return out
+
+
+def _decode_raw(raw: dict[str, list[tuple[int, str, bytes]]], specs: dict[str, KeySpec | None],
+                several_files: bool, out: Decoded) -> None:
+    """``raw``'s messages (suffix -> [(log time, topic, bytes)]) decoded into ``out``, each key's in
+    log-time order, and taken out of ``raw``; a message met again in another file is counted in
+    ``out.duplicates``, not kept."""
     seen: set[tuple[str, int]] = set()
     for suffix in list(raw):
         items = raw.pop(suffix)  # its bytes freed once decoded: one key's at a time held twice
@@ -477,7 +498,7 @@ def decode_vessel(files: list[Path], vessel: str | None = None,
         msgs: list[Message] = []
         logs: list[int] = []
         for log_ns, topic, data in items:
-            if len(files) > 1:
+            if several_files:
                 ident = (topic, hash(data))
                 if ident in seen:
                     out.duplicates += 1
@@ -492,7 +513,3 @@ def decode_vessel(files: list[Path], vessel: str | None = None,
         if msgs:
             out.by_suffix[suffix] = msgs
             out.log_ns[suffix] = logs
-    if vessel is None and len(out.vessels) > 1:
-        raise ValueError(f"the recording has several vessels ({', '.join(sorted(out.vessels))}): "
-                         "choose one with --vessel")
-    return out

@@ -36,7 +36,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from seaway.contract.config import ConfigError
-from seaway.runtime import host, refusals
+from seaway.runtime import host, memory, refusals
 from seaway.runtime import run as runs
 from seaway.runtime.bus import Bus, RuntimeEnvError
 from seaway.runtime.clock import Clock, WallClock
@@ -213,6 +213,9 @@ class ServiceContext:
     stop: threading.Event
     run: runs.RunDescription
     agree: bool = True
+    freeze_when_ready: bool = False
+    """The process runs for this service (``run_service``): what its start-up made is frozen once
+    it is ready (``memory.freeze_start_up``). Not for a context a test makes in its own process."""
     is_ready: bool = False
     _run_answer: object = None
 
@@ -227,6 +230,8 @@ class ServiceContext:
                 self._run_answer = runs.announce(self.bus, self.run, self.name)
             self.bus.declare_alive(self.name)
             self.is_ready = True
+            if self.freeze_when_ready:
+                memory.freeze_start_up()
             log.info("%s ready on vessel %s (run %s)", self.name, self.vessel, self.run.run_id)
 
 
@@ -267,7 +272,8 @@ def run_service(name: str, args: argparse.Namespace, clock: Clock | None = None,
         raise SystemExit(2) from None
     if node is None:  # a composed node has no network to refuse anyone
         refusals.serve(bus, identity)
-    ctx = ServiceContext(name, args.vessel, bus, clock or WallClock(), stop, run, agree)
+    ctx = ServiceContext(name, args.vessel, bus, clock or WallClock(), stop, run, agree,
+                         freeze_when_ready=True)
     try:
         log.info("%s starting on vessel %s, run %s", name, args.vessel, run.run_id)
         yield ctx
