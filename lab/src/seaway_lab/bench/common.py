@@ -15,12 +15,18 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import platform
 import socket
+import sys
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
 from seaway.vessel.metrics import median
+
+INTERPRETER = f"Python {platform.python_version()}, {sys.executable}"
+"""The interpreter a bench ran on, in every result: how it was built moves the pure-Python figures
+(scripts/bootstrap.sh chooses it; docs/results.md, "Timing")."""
 
 AUTH_TARGET_RATIO = 1.1
 """Issue 15: with authentication on, within 10 % of the figures without it."""
@@ -58,7 +64,7 @@ class BenchResult:
             "figures": {f.name: f.value for f in self.figures},
             "targets": {f.name: {"target": f.target, "ok": f.ok} for f in self.figures if f.target},
             "passed": self.passed,
-            "meta": self.meta,
+            "meta": {"python": INTERPRETER, **self.meta},
             **self.sections,
         }
 
@@ -76,8 +82,7 @@ class BenchResult:
         out = [self.title, "", "  ".join(h.ljust(w) for h, w in zip(head, widths, strict=True)), line]
         out += ["  ".join(c.ljust(w) if i != 1 else c.rjust(w) for i, (c, w) in
                           enumerate(zip(r, widths, strict=True))) for r in rows]
-        if self.meta:
-            out += ["", *(f"{k}: {v}" for k, v in self.meta.items())]
+        out += ["", *(f"{k}: {v}" for k, v in {"python": INTERPRETER, **self.meta}.items())]
         return "\n".join(s.rstrip() for s in out)
 
     def dumps(self) -> str:
