@@ -9,7 +9,6 @@ the publishing thread, so a MANUAL_CONTROL is on its way when ``put`` returns.
 
 from __future__ import annotations
 
-import gc
 import socket
 import threading
 import time
@@ -58,7 +57,6 @@ def vio() -> Iterator[tuple[MemoryHub, MemoryBus, int]]:
         stop.set()
         loop.join(5.0)
         bus.close()
-        gc.unfreeze()  # attach() froze the collector's view of this (test) process; give it back
     assert not loop.is_alive()
 
 

@@ -28,7 +28,6 @@ lock is released (no thread calls into the bus while holding it).
 from __future__ import annotations
 
 import dataclasses
-import gc
 import logging
 import threading
 import time
@@ -127,11 +126,6 @@ class VehicleIoNode(Node):
             VehicleStatus: bus.publisher(keys.VEHICLE_STATUS),
             BatteryState: bus.publisher(keys.VEHICLE_BATTERY),
         }
-        # Everything allocated so far (pymavlink's dialect alone is tens of thousands of objects)
-        # lives for the whole run: move it out of the collector's reach, so that a full
-        # collection cannot pause a thrust command for milliseconds.
-        gc.collect()
-        gc.freeze()
         self._open_link()
         self._receiver = threading.Thread(target=self._receive_loop, name="mavlink-rx",
                                           daemon=True)

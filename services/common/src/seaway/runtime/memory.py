@@ -17,7 +17,9 @@ thing, before any thread starts. A C library other than glibc: nothing to do, Fa
 process holds every module, class, schema and solver it will use, tens of thousands of objects
 that live as long as it does. CPython's collector walks all of them at each full collection, which
 a lockstep period's allocations set off every few hundred periods; frozen (``gc.freeze``), they are
-never walked again. What a service makes after start-up is collected as before.
+never walked again, and a full collection cannot pause a real-time service (vehicle_io's thrust
+commands, pymavlink's dialect being tens of thousands of objects) for tens of milliseconds. What a
+service makes after start-up is collected as before.
 
 ``collection_paused`` is for code that makes many objects and keeps them, such as a recording
 decoded into messages: each few hundred objects kept set off a collection, and each collection walks
