@@ -78,3 +78,16 @@ def thrust_diagnostics(recording: Path, start_ns: int, end_ns: int, alpha_w_per_
                        "abs_v_mps": statistics.fmean(v for _, v, _ in speeds) if speeds else None,
                        "abs_r_radps": statistics.fmean(r for _, _, r in speeds) if speeds else None},
     }
+
+
+def warning_lines(run_dir: Path, services: tuple[str, ...] = ("vehicle_io", "estimator", "controller"),
+                  limit: int = 40) -> list[str]:
+    """The last ``limit`` WARNING and ERROR lines of these services' logs (``run_dir/logs``), each
+    cut to 240 characters: the mission's end, where a run that went wrong says why."""
+    lines: list[str] = []
+    for name in services:
+        path = run_dir / "logs" / f"{name}.log"
+        if path.exists():
+            lines += [line[:240] for line in path.read_text(errors="replace").splitlines()
+                      if " WARNING " in line or " ERROR " in line]
+    return lines[-limit:]

@@ -25,7 +25,7 @@ from seaway.recording import reader
 from seaway.vessel.model import load_vessel, surge_friction_n
 
 from tests.conftest import REPO, solver_built
-from tests.system.launch.flight_diagnostics import thrust_diagnostics
+from tests.system.launch.flight_diagnostics import thrust_diagnostics, warning_lines
 from tests.system.vehicle_io.px4_sitl import needs_px4
 
 pytestmark = pytest.mark.system
@@ -126,6 +126,7 @@ def test_the_lake_mission_on_px4_sitl_with_the_identified_model(tmp_path, zenoh_
     print("PX4 SITL lake solves:", json.dumps(solve["statuses"]), "thrust:", json.dumps(
         thrust_diagnostics(run_dir / "recording.mcap", metrics["start_ns"], metrics["end_ns"],
                            report["alpha_w_per_n2"])))
+    print("\n".join(warning_lines(run_dir)))
     assert metrics["completed"] and metrics["legs_completed"] == legs
     assert metrics["avg_cross_track_m"] <= MEAN_XTE_M and metrics["max_cross_track_m"] <= MAX_XTE_M
     assert solve["failures"] <= FAILED_SOLVES
