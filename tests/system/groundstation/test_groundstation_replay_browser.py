@@ -171,20 +171,25 @@ def test_a_reloaded_live_page_keeps_the_plots_history_from_the_recording(
                         cross_track_m=0.2, energy_used_j=float(i)))
                     i += 1
 
-            threading.Thread(target=publish, daemon=True).start()
-            page = browser.new_page(viewport={"width": 1400, "height": 950})
-            errors: list[str] = []
-            page.on("pageerror", lambda e: errors.append(str(e)))
-            page.goto(base)
-            page.wait_for_function("(name) => window.seaway.app.live.vessels.get(name)"
-                                   "?.series.speed.t.length > 300", arg=V, timeout=60_000)
-            got = page.evaluate("""(name) => { const v = window.seaway.app.live.vessels.get(name);
-                const s = v.series.speed;
-                return {n: s.t.length, first: s.t[0], last: s.t[s.t.length - 1],
-                        ordered: s.t.every((t, i) => i === 0 || t >= s.t[i - 1]),
-                        trail0: v.trail[0], x: v.message('state').x_m}; }""", V)
-            page.close()
-            assert _snapshot(runs / "live") == before  # read, never written
+            publisher = threading.Thread(target=publish, daemon=True)
+            publisher.start()
+            try:
+                page = browser.new_page(viewport={"width": 1400, "height": 950})
+                errors: list[str] = []
+                page.on("pageerror", lambda e: errors.append(str(e)))
+                page.goto(base)
+                page.wait_for_function("(name) => window.seaway.app.live.vessels.get(name)"
+                                       "?.series.speed.t.length > 300", arg=V, timeout=60_000)
+                got = page.evaluate("""(name) => { const v = window.seaway.app.live.vessels.get(name);
+                    const s = v.series.speed;
+                    return {n: s.t.length, first: s.t[0], last: s.t[s.t.length - 1],
+                            ordered: s.t.every((t, i) => i === 0 || t >= s.t[i - 1]),
+                            trail0: v.trail[0], x: v.message('state').x_m}; }""", V)
+                page.close()
+                assert _snapshot(runs / "live") == before  # read, never written
+            finally:  # the publisher stops before the bus it puts on is closed
+                stop.set()
+                publisher.join(5.0)
     finally:
         stop.set()
         writer.close(T0 + recorded * PERIOD_NS)
