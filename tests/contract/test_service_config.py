@@ -1,7 +1,8 @@
-"""Every back-end service is configured one way (``seaway.runtime.config``): its settings are one
-``ConfigModel`` subclass in its ``config.py``, each field described, and its ``main.py`` builds its
-command line with ``service_parser`` and reads it with ``parse_service_args``, adding no flag by
-hand, so a new service or a new option cannot slip back into flags declared beside the model."""
+"""Every service, the ground station too, is configured one way (``seaway.runtime.config``): its
+settings are one ``ConfigModel`` subclass in its ``config.py``, each field described, and its entry
+module (``main.py``; the ground station's ``service.py``) builds its command line with
+``service_parser`` and reads it with ``parse_service_args``, adding no flag by hand, so a new
+service or a new option cannot slip back into flags declared beside the model."""
 
 from __future__ import annotations
 
@@ -17,6 +18,9 @@ from seaway.runtime.config import flags_of
 from tests.contract.test_service_shape import ROOT, SERVICES
 
 HELPERS = {"service_parser", "parse_service_args"}
+CONFIGURED = {**{service: (package, "main") for service, package in SERVICES.items()},
+              "groundstation": ("seaway_groundstation", "service")}
+"""Each service: (its package, its entry module)."""
 
 
 def config_models(path: Path) -> list[str]:
@@ -45,30 +49,31 @@ def called(path: Path) -> set[str]:
             if isinstance(n, ast.Call) and isinstance(n.func, (ast.Name, ast.Attribute))}
 
 
-@pytest.mark.parametrize("service", sorted(SERVICES))
+@pytest.mark.parametrize("service", sorted(CONFIGURED))
 def test_a_service_has_one_config_model(service: str) -> None:
-    package = ROOT / "services" / service / "src" / SERVICES[service]
+    package = ROOT / "services" / service / "src" / CONFIGURED[service][0]
     assert (package / "config.py").is_file(), f"{service} has no config.py"
     models = config_models(package / "config.py")
     assert len(models) == 1, f"{service}/config.py defines {models}: one ConfigModel, its settings"
-    model = getattr(importlib.import_module(f"{SERVICES[service]}.config"), models[0])
+    model = getattr(importlib.import_module(f"{CONFIGURED[service][0]}.config"), models[0])
     assert inspect.isclass(model) and issubclass(model, ConfigModel)
     undescribed = [n for n, f in model.model_fields.items() if not (f.description or "").strip()]
     assert not undescribed, f"{model.__name__}: fields without a description: {undescribed}"
 
 
-@pytest.mark.parametrize("service", sorted(SERVICES))
+@pytest.mark.parametrize("service", sorted(CONFIGURED))
 def test_a_service_main_makes_its_flags_from_its_model(service: str) -> None:
-    main = ROOT / "services" / service / "src" / SERVICES[service] / "main.py"
+    package, entry = CONFIGURED[service]
+    main = ROOT / "services" / service / "src" / package / f"{entry}.py"
     assert called(main) >= HELPERS, f"{service}/main.py does not use {sorted(HELPERS - called(main))}"
     assert "base_parser" not in called(main), f"{service}/main.py builds a parser by hand"
     assert hand_made_flags(main) == [], f"{service}/main.py declares flags beside its model"
 
 
-@pytest.mark.parametrize("service", sorted(SERVICES))
+@pytest.mark.parametrize("service", sorted(CONFIGURED))
 def test_the_parser_holds_the_model_flags(service: str) -> None:
     """What main.py builds is the model's: every flagged field is an option of the parser."""
-    main = importlib.import_module(f"{SERVICES[service]}.main")
+    main = importlib.import_module(".".join(CONFIGURED[service]))
     build = getattr(main, "build_parser", None) or main.parser
     parser = build()
     model = parser.get_default("_config_model")

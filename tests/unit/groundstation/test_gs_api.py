@@ -152,7 +152,8 @@ def test_oversize_bodies_are_413_declared_or_chunked(hub: MemoryHub, vessel: Ves
 
 
 def test_command_rate_limit_is_429_with_retry_after(hub: MemoryHub, vessel: Vessel) -> None:
-    with client_for(hub, rate_limit_per_s=0.0, rate_limit_burst=2) as c:
+    # About one request a week once the burst is spent: the third at once is refused.
+    with client_for(hub, rate_limit_per_s=1e-6, rate_limit_burst=2) as c:
         assert [c.post("/api/vessels/v1/arm", headers=AUTH).status_code for _ in range(2)] == [200, 200]
         r = c.post("/api/vessels/v1/arm", headers=AUTH)
         assert r.status_code == 429 and int(r.headers["retry-after"]) >= 1
@@ -483,7 +484,7 @@ def test_requests_without_the_token_do_not_use_up_the_operators_rate(hub: Memory
     """One bucket per client address, counted before the token check: 5 of 10 operator commands
     were 429 after 10 requests without the token. Now those have their own bucket (401/403, then
     429), and the operator's commands all pass."""
-    with client_for(hub, rate_limit_per_s=0.0, rate_limit_burst=5) as c:
+    with client_for(hub, rate_limit_per_s=1e-6, rate_limit_burst=5) as c:  # no refill here
         anonymous = [c.post("/api/vessels/v1/arm").status_code for _ in range(6)]
         guessing = [c.post("/api/vessels/v1/arm", headers={"Authorization": "Bearer guess-0123456789"})
                     .status_code for _ in range(4)]

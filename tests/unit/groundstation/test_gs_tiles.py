@@ -6,11 +6,13 @@ from pathlib import Path
 
 import pytest
 from fastapi.testclient import TestClient
+from seaway.runtime.config import parse_service_args
 from seaway.runtime.memory_bus import MemoryHub
 from seaway.tools.launch.address import ENV_TILES
 from seaway.tools.launch.plan import tiles_for
 from seaway_groundstation.app import create_app
-from seaway_groundstation.service import parser
+from seaway_groundstation.config import GroundStationConfig
+from seaway_groundstation.service import parser, tiles_of
 from seaway_groundstation.settings import Settings
 
 from tests.unit.groundstation.mbtiles_maker import make, png
@@ -51,5 +53,7 @@ def test_the_launcher_hands_its_tiles_to_the_ground_station(tmp_path: Path,
     assert tiles_for("https://t.example/{z}/{x}/{y}.png") == "https://t.example/{z}/{x}/{y}.png"
     assert tiles_for(None) is None and tiles_for("") is None
     monkeypatch.setenv(ENV_TILES, str(path))
-    assert parser().parse_args([]).tiles == str(path)
-    assert parser().parse_args(["--tiles", "https://a/{z}/{x}/{y}"]).tiles == "https://a/{z}/{x}/{y}"
+    _, config = parse_service_args(parser(), [], GroundStationConfig)
+    assert tiles_of(config) == str(path)
+    _, config = parse_service_args(parser(), ["--tiles", "https://a/{z}/{x}/{y}"], GroundStationConfig)
+    assert tiles_of(config) == "https://a/{z}/{x}/{y}"  # the flag over the launcher's

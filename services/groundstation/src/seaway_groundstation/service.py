@@ -37,22 +37,16 @@ from pathlib import Path
 import uvicorn
 from seaway.contract.config import ConfigError
 from seaway.runtime import memory
-from seaway.runtime.argtypes import positive_float, positive_int, whole_number
-from seaway.runtime.service import base_parser, parse, resolve_run, run_service
+from seaway.runtime.config import parse_service_args, service_parser
+from seaway.runtime.service import resolve_run, run_service
 from seaway.tools.launch import address
 from seaway.tools.launch.address import ENV_TILES
 from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.model import load_vessel
 
 from seaway_groundstation.app import create_app
-from seaway_groundstation.settings import (
-    DEFAULT_HOST,
-    DEFAULT_PORT,
-    DEFAULT_RUNS_DIR,
-    ENV_TOKEN,
-    Settings,
-    new_token,
-)
+from seaway_groundstation.config import ENV_TOKEN, GroundStationConfig
+from seaway_groundstation.settings import Settings, new_token
 
 NAME = "groundstation"
 LOOPBACK = ("127.0.0.1", "::1", "localhost")
@@ -60,40 +54,15 @@ log = logging.getLogger("seaway_groundstation.service")
 
 
 def parser() -> argparse.ArgumentParser:
-    ap = base_parser(NAME, "Seaway's ground station: the HTTP/WebSocket API over the bus, for every "
-                           "vessel it hears.")
-    ap.add_argument("--host", default=DEFAULT_HOST,
-                    help=f"address to listen on (default {DEFAULT_HOST}: this machine only)")
-    ap.add_argument("--port", type=whole_number(0, 65535), default=DEFAULT_PORT,
-                    help=f"TCP port (default {DEFAULT_PORT}; 0: any free port)")
-    ap.add_argument("--port-fallback", action="store_true",
-                    help="if --port is taken, listen on any free port instead of failing (the "
-                         "address is printed and written to the address file)")
-    ap.add_argument("--token-file", default=None, metavar="FILE",
-                    help=f"read the operator token from FILE (default ${ENV_TOKEN}, else a new one "
-                         "each start)")
-    ap.add_argument("--max-body-bytes", type=positive_int, default=Settings.max_body_bytes,
-                    help="largest request body [bytes]")
-    ap.add_argument("--rate-limit-per-s", type=positive_float, default=Settings.rate_limit_per_s,
-                    help="sustained command requests per identity (the operator; each address "
-                         "without the token) [1/s]")
-    ap.add_argument("--rate-limit-burst", type=positive_int, default=Settings.rate_limit_burst,
-                    help="command requests a client may make at once")
-    ap.add_argument("--request-timeout-s", type=positive_float, default=Settings.request_timeout_s,
-                    help="how long a request waits for the vessel's reply [s]")
-    ap.add_argument("--run-dir", type=Path, default=None, metavar="DIR",
-                    help="the run folder: write groundstation/address.json (0600) and the requests "
-                         "journal there, read the launcher's mission.json")
-    ap.add_argument("--runs-dir", type=Path, default=None, metavar="DIR",
-                    help=f"where the replay view lists recordings (default: the folder holding "
-                         f"--run-dir, else {DEFAULT_RUNS_DIR}/ here)")
-    ap.add_argument("--tiles", default=os.environ.get(ENV_TILES) or None, metavar="URL|DIR|FILE",
-                    help="map tiles: a URL template with {z}/{x}/{y}, a folder <z>/<x>/<y>.png or an "
-                         f"MBTiles file (*.mbtiles) served here (default ${ENV_TILES}, else none: "
-                         "a metric grid)")
-    ap.add_argument("--max-upload-bytes", type=positive_int, default=Settings.max_upload_bytes,
-                    help="largest recording that may be uploaded for replay [bytes]")
-    return ap
+    """The command line: every service's flags and ``GroundStationConfig``'s (``--config FILE``,
+    ``--port``, ``--max-body-bytes``, ...)."""
+    return service_parser(NAME, "Seaway's ground station: the HTTP/WebSocket API over the bus, for "
+                                "every vessel it hears.", GroundStationConfig)
+
+
+def tiles_of(config: GroundStationConfig) -> str | None:
+    """The map tiles: the config's (``--tiles``), else the launcher's ``$SEAWAY_GROUNDSTATION_TILES``."""
+    return config.tiles or os.environ.get(ENV_TILES) or None
 
 
 def write_address(run_dir: Path, page_url: str, token: str) -> Path:
@@ -114,11 +83,11 @@ def vessel_alpha(model_vessel_file: str | None) -> float | None:
         return None
 
 
-def resolve_token(args: argparse.Namespace) -> str:
-    """The operator token: ``--token-file``, else ``$SEAWAY_GROUNDSTATION_TOKEN``, else a new one."""
-    if args.token_file:
+def resolve_token(token_file: Path | None) -> str:
+    """The operator token: ``token_file``, else ``$SEAWAY_GROUNDSTATION_TOKEN``, else a new one."""
+    if token_file is not None:
         try:
-            token = Path(args.token_file).expanduser().read_text(encoding="utf-8").strip()
+            token = token_file.expanduser().read_text(encoding="utf-8").strip()
         except OSError as err:
             raise SystemExit(f"seaway-groundstation: cannot read --token-file: {err}") from None
         return token
@@ -137,46 +106,44 @@ def url(host: str, port: int) -> str:
 
 def main(argv: Sequence[str] | None = None) -> int:
     memory.cap_malloc_arenas()  # first, before any thread: off the control path, long-lived
-    args = parse(parser(), argv)
-    token = resolve_token(args)
+    args, config = parse_service_args(parser(), argv, GroundStationConfig)
+    token = resolve_token(config.token_file)
     run = resolve_run(args, NAME)
     origin = run.origin
-    runs_dir = args.runs_dir or (args.run_dir.parent if args.run_dir is not None else DEFAULT_RUNS_DIR)
     try:
-        settings = Settings(
-            token=token, max_body_bytes=args.max_body_bytes, rate_limit_per_s=args.rate_limit_per_s,
-            rate_limit_burst=args.rate_limit_burst, request_timeout_s=args.request_timeout_s,
+        settings = Settings.from_config(
+            config, token=token, tiles=tiles_of(config),
             default_origin=None if origin is None else GeoOrigin.from_degrees(
                 origin.lat_deg, origin.lon_deg, origin.alt_m),
-            runs_dir=runs_dir, run_dir=args.run_dir, tiles=args.tiles,
-            max_upload_bytes=args.max_upload_bytes, control_period_s=run.control_period_s,
+            control_period_s=run.control_period_s,
             alpha_w_per_n2=vessel_alpha(run.model_vessel_file),
             model_vessel_file=run.model_vessel_file)
     except ValueError as err:
         print(f"seaway-groundstation: {err}", file=sys.stderr)
         return 2
+    host, port_wanted = config.host, config.port
     try:
-        sock = bind(args.host, args.port)
+        sock = bind(host, port_wanted)
     except OSError as err:
-        if not (args.port_fallback and args.port != 0):
-            print(f"seaway-groundstation: cannot listen on {args.host}:{args.port}: {err}", file=sys.stderr)
+        if not (config.port_fallback and port_wanted != 0):
+            print(f"seaway-groundstation: cannot listen on {host}:{port_wanted}: {err}", file=sys.stderr)
             return 2
-        log.warning("port %d is taken (%s): listening on any free port instead", args.port, err)
-        sock = bind(args.host, 0)
+        log.warning("port %d is taken (%s): listening on any free port instead", port_wanted, err)
+        sock = bind(host, 0)
     port = sock.getsockname()[1]
     with sock, run_service(NAME, args, run=run, agree=False) as ctx:
-        if args.host not in LOOPBACK:
+        if host not in LOOPBACK:
             log.warning("listening on %s: reachable from other machines; commands still need the "
-                        "operator token", args.host)
+                        "operator token", host)
 
         def ready() -> None:
-            page = url(args.host, port)
+            page = url(host, port)
             written = None
-            if args.run_dir is not None:
+            if settings.run_dir is not None:
                 try:
-                    written = write_address(args.run_dir, page, settings.token)
+                    written = write_address(settings.run_dir, page, settings.token)
                 except OSError as err:
-                    log.error("cannot write the address file in %s: %s", args.run_dir, err)
+                    log.error("cannot write the address file in %s: %s", settings.run_dir, err)
             ctx.ready()
             # A launched ground station's output is the run's log (logs/groundstation.log): the
             # token goes only into the owner-only address file then; started by hand, to the

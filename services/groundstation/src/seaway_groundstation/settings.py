@@ -1,4 +1,6 @@
-"""The ground station's settings: the operator token and the bounds on what clients may do."""
+"""The ground station's settings as ``create_app`` takes them: the configuration
+(``config.GroundStationConfig``: its defaults and bounds are defined there, once), the operator
+token, the run's facts, and the clock."""
 
 from __future__ import annotations
 
@@ -8,16 +10,19 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from pydantic import ValidationError
+from seaway.contract.config import describe_validation_error
 from seaway.runtime.run import CONTROL_PERIOD_S, DEFAULT_VESSEL_FILE
 from seaway.vessel.frames import GeoOrigin
 
+from seaway_groundstation.config import DEFAULT_RUNS_DIR, GroundStationConfig
 from seaway_groundstation.tiles import MBTiles, is_mbtiles
 
-DEFAULT_HOST = "127.0.0.1"
-DEFAULT_PORT = 8321
-ENV_TOKEN = "SEAWAY_GROUNDSTATION_TOKEN"
-DEFAULT_RUNS_DIR = Path("runs")
-"""Where recordings are listed for replay: ``runs/`` under the working directory (the launcher's)."""
+_DEFAULT = GroundStationConfig()
+CONFIGURED = ("max_body_bytes", "rate_limit_per_s", "rate_limit_burst", "request_timeout_s",
+              "stream_rate_hz", "max_stream_clients", "stale_after_s", "max_waypoints", "runs_dir",
+              "max_upload_bytes", "upload_dir", "max_uploads", "replay_rate_hz", "tiles", "run_dir")
+"""The settings that are ``GroundStationConfig``'s fields: checked against its bounds."""
 
 
 def new_token() -> str:
@@ -27,51 +32,39 @@ def new_token() -> str:
 
 @dataclass(frozen=True)
 class Settings:
-    """What ``create_app`` needs besides the bus.
-
-    Times in seconds, sizes in bytes, rates in requests (or frames) per second.
+    """What ``create_app`` needs besides the bus: ``GroundStationConfig``'s fields (described
+    there), the token, the run's facts and the clock. ``from_config`` makes it from a config.
     """
 
     token: str = field(default_factory=new_token, repr=False)
     """Operator token: ``Authorization: Bearer <token>`` on every request that moves or changes a
     vessel. Generated at start unless configured."""
-    max_body_bytes: int = 1 << 20
-    """Largest request body accepted (413 beyond)."""
-    rate_limit_per_s: float = 5.0
-    """Sustained command requests per identity (429 beyond): the operator, and each address
-    without the operator token (``guard.py``)."""
-    rate_limit_burst: int = 20
-    """Command requests a client may make at once before the sustained rate applies."""
-    request_timeout_s: float = 10.0
-    """How long a bus request waits for its reply (504 after)."""
-    stream_rate_hz: float = 20.0
-    """Most frames per second a stream client gets."""
-    max_stream_clients: int = 256
-    stale_after_s: float = 2.0
-    """A message older than this is shown as stale."""
-    max_waypoints: int = 1000
+    max_body_bytes: int = _DEFAULT.max_body_bytes
+    rate_limit_per_s: float = _DEFAULT.rate_limit_per_s
+    rate_limit_burst: int = _DEFAULT.rate_limit_burst
+    request_timeout_s: float = _DEFAULT.request_timeout_s
+    stream_rate_hz: float = _DEFAULT.stream_rate_hz
+    max_stream_clients: int = _DEFAULT.max_stream_clients
+    stale_after_s: float = _DEFAULT.stale_after_s
+    max_waypoints: int = _DEFAULT.max_waypoints
     default_origin: GeoOrigin | None = None
     """NED origin for exporting metre waypoints when a vessel has published none (the run's)."""
     scenario_dir: Path | None = None
     """Where scenarios named in a request are read (None: the checkout's deploy/scenarios)."""
     runs_dir: Path = DEFAULT_RUNS_DIR
-    """The folder whose recordings (``<run>/*.mcap``, ``*.mcap``) the replay view lists; nothing
-    outside it is ever opened, except uploads."""
-    max_upload_bytes: int = 256 << 20
-    """Largest recording that may be uploaded for replay (413 beyond)."""
-    upload_dir: Path | None = None
-    """Where uploaded recordings are kept (None: a private temporary folder, removed at exit)."""
-    max_uploads: int = 8
-    """Uploaded recordings kept at once; the oldest is removed first."""
-    replay_rate_hz: float = 20.0
-    """Frames per second of recorded time a replay is cut into (the live stream's rate)."""
-    tiles: str | None = None
+    """The folder whose recordings (``<run>/*.mcap``, ``*.mcap``) the replay view lists
+    (``GroundStationConfig.runs_folder``); nothing outside it is ever opened, except uploads."""
+    max_upload_bytes: int = _DEFAULT.max_upload_bytes
+    upload_dir: Path | None = _DEFAULT.upload_dir
+    max_uploads: int = _DEFAULT.max_uploads
+    replay_rate_hz: float = _DEFAULT.replay_rate_hz
+    tiles: str | None = _DEFAULT.tiles
     """Map tiles: a URL template with {z}, {x}, {y} (http(s)://...), a local folder laid out
     ``<z>/<x>/<y>.png``, or an MBTiles file (``*.mbtiles``, ``tiles.py``), both served at
     ``/tiles/``; None: no tiles (the map is a metric grid)."""
     model_vessel_file: str = DEFAULT_VESSEL_FILE
     """The run's vessel model file: what the mission check predicts with."""
-    run_dir: Path | None = None
+    run_dir: Path | None = _DEFAULT.run_dir
     """The run folder of the stack this ground station belongs to: it writes its requests log
     there and reads the launcher's ``mission.json`` (None: neither)."""
     control_period_s: float = CONTROL_PERIOD_S
@@ -85,10 +78,12 @@ class Settings:
     def __post_init__(self) -> None:
         if len(self.token) < 16:
             raise ValueError("the operator token must be at least 16 characters")
-        for name in ("max_body_bytes", "max_upload_bytes", "max_uploads", "stream_rate_hz",
-                     "replay_rate_hz", "stale_after_s", "request_timeout_s", "control_period_s"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        try:  # the configuration's own bounds, whoever made these settings
+            GroundStationConfig(**{name: getattr(self, name) for name in CONFIGURED})
+        except ValidationError as err:
+            raise ValueError(describe_validation_error(err, "ground station settings")) from None
+        if not self.control_period_s > 0:
+            raise ValueError(f"control_period_s must be > 0, got {self.control_period_s}")
         if self.tiles is not None and not self.tiles.startswith(("http://", "https://")) \
                 and not Path(self.tiles).is_dir() \
                 and not (is_mbtiles(self.tiles) and Path(self.tiles).is_file()):
@@ -99,6 +94,17 @@ class Settings:
             raise ValueError(f"tiles {self.tiles!r}: a URL template needs {{z}}, {{x}} and {{y}}")
         if self.tiles is not None and is_mbtiles(self.tiles):
             MBTiles(self.tiles).close()  # refused now, naming the file, if it cannot be served
+
+    @classmethod
+    def from_config(cls, config: GroundStationConfig, *, token: str, tiles: str | None = None,
+                    **run_facts: object) -> Settings:
+        """The settings of ``config``, with ``token``, ``tiles`` when the config names none (the
+        launcher's, from the environment) and the run's facts (``default_origin``,
+        ``control_period_s``, ``alpha_w_per_n2``, ``model_vessel_file``)."""
+        fields = {name: getattr(config, name) for name in CONFIGURED}
+        fields["runs_dir"] = config.runs_folder()
+        fields["tiles"] = config.tiles or tiles
+        return cls(token=token, **fields, **run_facts)  # type: ignore[arg-type]
 
     @property
     def tiles_url(self) -> str | None:
