@@ -7,6 +7,7 @@ tests never hear each other or a stack the developer is running.
 from __future__ import annotations
 
 import contextlib
+import logging
 import os
 import signal
 import socket
@@ -91,6 +92,20 @@ class _Durations:
 def pytest_configure(config: pytest.Config) -> None:
     if not hasattr(config, "workerinput"):  # not an xdist worker: reports arrive here
         config.pluginmanager.register(_Durations(), "seaway-durations")
+
+
+@pytest.fixture(autouse=True)
+def _no_root_handler_on_a_closed_capture() -> Iterator[None]:
+    """A test that runs a command's ``main`` in-process (``configure_logging``: ``basicConfig`` on
+    ``sys.stderr``, which is then pytest's capture) leaves that handler on the root logger; once the
+    capture is closed, any later record (a solver build's thread in another test) is a "Logging
+    error ... I/O operation on closed file". Handlers the test added are removed after it."""
+    root = logging.getLogger()
+    before = set(root.handlers)
+    yield
+    for h in list(root.handlers):
+        if h not in before and type(h) is logging.StreamHandler:
+            root.removeHandler(h)
 
 
 def free_port() -> int:
