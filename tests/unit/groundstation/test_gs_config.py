@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 from seaway.runtime.config import parse_service_args
 from seaway_groundstation.config import DEFAULT_RUNS_DIR, GroundStationConfig
-from seaway_groundstation.service import parser
+from seaway_groundstation.service import parser, resolve_token
 from seaway_groundstation.settings import Settings
 
 TOKEN = "t" * 32
@@ -65,3 +65,12 @@ def test_settings_made_directly_keep_the_models_bounds() -> None:
     with pytest.raises(ValueError, match="max_waypoints"):
         Settings(token=TOKEN, max_waypoints=1)
     assert Settings(token=TOKEN).replay_rate_hz == GroundStationConfig().replay_rate_hz
+
+
+def test_the_token_file_is_read_or_its_fault_named(tmp_path: Path) -> None:
+    f = tmp_path / "token"
+    f.write_text(TOKEN + "\n")
+    assert resolve_token(configured(["--token-file", str(f)]).token_file) == TOKEN
+    with pytest.raises(SystemExit) as err:
+        resolve_token(configured(["--token-file", str(tmp_path / "absent")]).token_file)
+    assert "token_file" in str(err.value.code) and "absent" in str(err.value.code)

@@ -89,7 +89,8 @@ def resolve_token(token_file: Path | None) -> str:
         try:
             token = token_file.expanduser().read_text(encoding="utf-8").strip()
         except OSError as err:
-            raise SystemExit(f"seaway-groundstation: cannot read --token-file: {err}") from None
+            raise SystemExit(f"seaway-groundstation: cannot read the token file (token_file, "
+                             f"--token-file): {err}") from None
         return token
     return os.environ.get(ENV_TOKEN, "").strip() or new_token()
 
@@ -112,7 +113,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     origin = run.origin
     try:
         settings = Settings.from_config(
-            config, token=token, tiles=tiles_of(config),
+            config.model_copy(update={"tiles": tiles_of(config)}), token=token,
             default_origin=None if origin is None else GeoOrigin.from_degrees(
                 origin.lat_deg, origin.lon_deg, origin.alt_m),
             control_period_s=run.control_period_s,

@@ -4,6 +4,7 @@ token, the run's facts, and the clock."""
 
 from __future__ import annotations
 
+import dataclasses
 import secrets
 import time
 from collections.abc import Callable
@@ -19,10 +20,6 @@ from seaway_groundstation.config import DEFAULT_RUNS_DIR, GroundStationConfig
 from seaway_groundstation.tiles import MBTiles, is_mbtiles
 
 _DEFAULT = GroundStationConfig()
-CONFIGURED = ("max_body_bytes", "rate_limit_per_s", "rate_limit_burst", "request_timeout_s",
-              "stream_rate_hz", "max_stream_clients", "stale_after_s", "max_waypoints", "runs_dir",
-              "max_upload_bytes", "upload_dir", "max_uploads", "replay_rate_hz", "tiles", "run_dir")
-"""The settings that are ``GroundStationConfig``'s fields: checked against its bounds."""
 
 
 def new_token() -> str:
@@ -96,14 +93,11 @@ class Settings:
             MBTiles(self.tiles).close()  # refused now, naming the file, if it cannot be served
 
     @classmethod
-    def from_config(cls, config: GroundStationConfig, *, token: str, tiles: str | None = None,
-                    **run_facts: object) -> Settings:
-        """The settings of ``config``, with ``token``, ``tiles`` when the config names none (the
-        launcher's, from the environment) and the run's facts (``default_origin``,
+    def from_config(cls, config: GroundStationConfig, *, token: str, **run_facts: object) -> Settings:
+        """The settings of ``config``, with ``token`` and the run's facts (``default_origin``,
         ``control_period_s``, ``alpha_w_per_n2``, ``model_vessel_file``)."""
         fields = {name: getattr(config, name) for name in CONFIGURED}
         fields["runs_dir"] = config.runs_folder()
-        fields["tiles"] = config.tiles or tiles
         return cls(token=token, **fields, **run_facts)  # type: ignore[arg-type]
 
     @property
@@ -114,3 +108,8 @@ class Settings:
         if self.tiles.startswith(("http://", "https://")):
             return self.tiles
         return "/tiles/{z}/{x}/{y}" if is_mbtiles(self.tiles) else "/tiles/{z}/{x}/{y}.png"
+
+
+CONFIGURED = tuple(f.name for f in dataclasses.fields(Settings)
+                   if f.name in GroundStationConfig.model_fields)
+"""The settings that are ``GroundStationConfig``'s fields: taken from it, checked against its bounds."""
