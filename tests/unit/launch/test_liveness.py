@@ -3,11 +3,21 @@ overdue out. No processes, no clock: every time is given."""
 
 from __future__ import annotations
 
+import collections
+import random
 import re
 
 import pytest
 from seaway.contract.config import ConfigError, parse_config
-from seaway.tools.launch.liveness import DUTIES, LOCKSTEP_WITHIN_S, Duty, Watch, duties_for
+from seaway.tools.launch.liveness import (
+    DUTIES,
+    LOCKSTEP_WITHIN_S,
+    RECENT_PERIODS,
+    Duty,
+    Watch,
+    _Recent,
+    duties_for,
+)
 from seaway.tools.launch.profile import Profile, load_profile
 
 SIM, EST, CTL, REC = "lockstep/sim", "lockstep/estimator", "lockstep/controller", "lockstep/recorder"
@@ -116,6 +126,27 @@ def test_rearming_a_restarted_process_forgets_its_old_duties() -> None:
     assert "est" not in w.overdue(5.0 + W + 1)  # the period before its start is not its debt
     w.heard(SIM, 6.0, (0, 100_000_000))  # the repeat its arrival causes
     assert "est" in w.overdue(6.0 + W + 1)
+
+
+def test_the_recent_answers_match_a_plain_window_across_restarts() -> None:
+    """``_Recent`` answers as the last ``RECENT_PERIODS`` periods walked one by one would: periods
+    that climb, repeat, and fall back (a restart, a new episode) so that the latest one is evicted."""
+    rng = random.Random(58)
+    recent, window = _Recent(), collections.deque(maxlen=RECENT_PERIODS)
+    episode, k = 0, 0
+    for _ in range(5000):
+        roll = rng.random()
+        if roll < 0.02:  # a restart: time from 0 again, in the same or a new episode
+            episode, k = episode + (roll < 0.01), 0
+        elif roll < 0.9:
+            k += 1
+        p = (episode, k * 100_000_000)
+        recent.add(p)
+        window.append(p)
+        for probe in (p, (episode, (k - 1) * 100_000_000), (episode, (k + 1) * 100_000_000),
+                      (max(0, episode - 1), k * 100_000_000), window[0]):
+            assert recent.has(probe) == (probe in window), probe
+            assert recent.has_after(probe) == any(h > probe for h in window), probe
 
 
 def test_every_listed_service_and_key_is_real_and_the_default_profiles_agree() -> None:

@@ -148,10 +148,34 @@ class _DutyState:
     open: collections.deque[_Open] = field(default_factory=collections.deque)
 
 
-@dataclass
-class _Heard:
-    period: Period
-    at_s: float
+class _Recent:
+    """The periods of the last ``RECENT_PERIODS`` answers heard on a key, with their count per
+    period and their latest: ``_met`` asks each trigger in O(1) instead of walking them all."""
+
+    def __init__(self) -> None:
+        self._order: collections.deque[Period] = collections.deque()
+        self._count: collections.Counter[Period] = collections.Counter()
+        self._latest: Period | None = None
+
+    def add(self, period: Period) -> None:
+        order, count = self._order, self._count
+        order.append(period)
+        count[period] += 1
+        if self._latest is None or period > self._latest:
+            self._latest = period
+        if len(order) > RECENT_PERIODS:
+            gone = order.popleft()
+            count[gone] -= 1
+            if not count[gone]:
+                del count[gone]
+                if gone == self._latest:  # a restart's lower periods since: the latest of those left
+                    self._latest = max(count)
+
+    def has(self, period: Period) -> bool:
+        return period in self._count
+
+    def has_after(self, period: Period) -> bool:
+        return self._latest is not None and self._latest > period
 
 
 class Watch:
@@ -164,8 +188,7 @@ class Watch:
 
     def __init__(self) -> None:
         self._armed: dict[str, list[_DutyState]] = {}
-        self._recent: dict[str, collections.deque[_Heard]] = collections.defaultdict(
-            lambda: collections.deque(maxlen=RECENT_PERIODS))
+        self._recent: dict[str, _Recent] = collections.defaultdict(_Recent)
 
     @staticmethod
     def keys_of(duties: Iterable[Duty]) -> set[str]:
@@ -193,7 +216,7 @@ class Watch:
               hold: bool = False) -> None:
         """A sample on ``suffix``; ``period`` and ``hold`` for a lockstep answer."""
         if period is not None:
-            self._recent[suffix].append(_Heard(period, now_s))
+            self._recent[suffix].add(period)
         for states in self._armed.values():
             for st in states:
                 d = st.duty
@@ -208,10 +231,10 @@ class Watch:
 
     def _met(self, d: Duty, trigger: Period) -> bool:
         """Whether answers already heard on ``d.key`` meet a trigger for ``trigger`` heard now."""
-        for h in self._recent.get(d.key, ()):
-            if (h.period > trigger) if d.moves_on else (h.period == trigger):
-                return True
-        return False
+        recent = self._recent.get(d.key)
+        if recent is None:
+            return False
+        return recent.has_after(trigger) if d.moves_on else recent.has(trigger)
 
     @staticmethod
     def _close(st: _DutyState, answer: Period) -> None:
