@@ -133,6 +133,33 @@ def test_a_controller_hold_is_waited_past_unless_the_hold_ends_the_recording() -
     assert not pacer.play(recorded_tick(2 * P_NS), lambda: None)
 
 
+def test_a_controller_that_holds_after_flying_ends_its_mission_and_the_replay_goes_on() -> None:
+    """A live controller whose mission ends before the recorded one (another controller, or a
+    replay that diverged) holds mid-recording: that is its answer, not a wait without end; in a new
+    episode a hold is again a controller waiting for its mission."""
+    hub = MemoryHub()
+    flying = {"on": True}
+    Scripted(hub, ("estimator", "controller"),
+             lambda s, _t: s == "controller" and not flying["on"])
+    pacer, stop, _bus = pacer_on(hub)
+    assert pacer.play(recorded_tick(0), lambda: None)
+    assert not pacer.ended_early
+    flying["on"] = False  # the mission is complete: every answer from now on is a hold
+    assert pacer.play(recorded_tick(P_NS), lambda: None)
+    assert pacer.play(recorded_tick(2 * P_NS), lambda: None)
+    assert pacer.ended_early and pacer.periods == 3 and pacer.holds == 0
+    # A new episode (a scenario load): its first hold waits for a mission, until stopped.
+    new_episode = PeriodDone(stamp_ns=0, service="sim", episode=1, seq=8, period_ns=P_NS,
+                             members=["estimator"])
+    timer = threading.Timer(0.3, stop.set)
+    timer.start()
+    try:
+        assert not pacer.play(new_episode, lambda: None)
+    finally:
+        timer.cancel()
+    assert pacer.holds == 1
+
+
 def test_a_member_that_joins_gets_the_period_again_and_is_waited_for() -> None:
     hub = MemoryHub()
     members = Scripted(hub, ("estimator",))

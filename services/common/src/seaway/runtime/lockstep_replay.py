@@ -11,7 +11,9 @@ answered this one, and what they skip is lost). Here the recorded answers are th
   (the recorded one named the recorded run's; the recorder covers the members an answer names);
 * the next period waits until every live member (its member token present) has answered this one,
   the recorder covering the latest answers, exactly as the sim waits (``Ledger.all_answered``); a
-  controller answering ``hold`` (no mission yet) is waited for without limit;
+  controller answering ``hold`` before it has flown in this episode (no mission yet) is waited for
+  without limit, one holding after it flew (its mission ended before the recorded one did: another
+  controller, or a replay that diverged) is an answer, and the replay goes on to the recording's end;
 * a member that joins, or a period nobody completes within ``STALL_REPEAT_S``, makes the replay send
   the period again (the same samples): the members then repeat their answers, as they do for the
   sim.
@@ -55,9 +57,13 @@ class LockstepPacer:
         self.periods = 0
         self.repeats = 0
         self.holds = 0
+        self.ended_early = False
+        """Whether the controller's mission ended before the recording's (``play``)."""
         self.ratelog = RateLimitedLog(log)  # a flood of impostor answers is counted, not echoed
         self._joined = False
         self._version = 0
+        self._flew_episode: int | None = None
+        """The episode in which the controller last answered with a command (not a hold)."""
         self._pub = bus.raw_publisher(keys.lockstep_spec("sim").key(bus.vessel), bundle.ENCODING,
                                       block=True, express=True)
         for member in MEMBERS:
@@ -75,6 +81,8 @@ class LockstepPacer:
             return
         with self.changed:
             self.ledger.on_answer(answer)
+            if answer.service == "controller" and not answer.hold:
+                self._flew_episode = answer.episode
             self._version += 1
             self.changed.notify_all()
 
@@ -101,7 +109,8 @@ class LockstepPacer:
 
         The controller's ``hold`` is waited past (its mission has not come yet), unless
         ``hold_ends``: the recording does not go on past this period (it ends, or repeats it), so
-        the hold is the mission's end."""
+        the hold is the mission's end; or unless the controller flew earlier in this episode: its
+        mission ended before the recorded one, and waiting would never end."""
         period = Period.of(answer)
 
         def send() -> None:
@@ -120,8 +129,14 @@ class LockstepPacer:
         held = False
         while not self.stop.is_set():
             with self.changed:
+                ended = hold_ends or self._flew_episode == period.episode
                 done = self.ledger.all_answered(period, self.members, answer.seq) and (
-                    hold_ends or not self.ledger.held(period))
+                    ended or not self.ledger.held(period))
+                if done and not hold_ends and self.ledger.held(period) and not self.ended_early:
+                    self.ended_early = True
+                    log.warning("lockstep replay: the controller holds at t = %.3f s after flying "
+                                "(its mission ended before the recorded one): the replay goes on "
+                                "to the recording's end", period.stamp_ns / 1e9)
                 joined, self._joined = self._joined, False
                 if not done and not joined and self._version == version:
                     self.changed.wait(min(self.stall_s, 0.25))
