@@ -48,7 +48,8 @@ from seaway.vessel.guidance import LosGains, los_thrust
 from seaway.vessel.metrics import MissionMetrics, mission_metrics
 from seaway.vessel.model import VesselParams, load_vessel
 from seaway.vessel.thrusters import output_pair
-from seaway_controller.core import ControllerConfig, ControllerCore
+from seaway_controller.config import ControllerConfig
+from seaway_controller.core import ControllerCore
 from seaway_controller.mission import validate_mission
 from seaway_controller.ocp import ControllerKind
 from seaway_estimator.core import EstimatorCore

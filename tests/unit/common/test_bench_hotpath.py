@@ -5,7 +5,7 @@ left as they were. Pure: a few seconds of paper condition #1 in process."""
 from __future__ import annotations
 
 from seaway.simkit.scenario import load_scenario
-from seaway_controller.core import ControllerCore
+from seaway_controller.core_energy import EnergyAccount
 from seaway_estimator.config import EstimatorConfig
 from seaway_estimator.core import EstimatorCore
 from seaway_lab.bench import hotpath
@@ -33,4 +33,4 @@ def test_each_period_is_split_into_the_parts_and_the_cores_are_restored() -> Non
                    - parts["period"][k]) < 1e-9
     assert {(cls, name): cls.__dict__[name] for (cls, name) in before} == before
     assert SimCore.advance is before[(SimCore, "advance")]
-    assert ControllerCore._update_budget is before[(ControllerCore, "_update_budget")]
+    assert EnergyAccount._update_budget is before[(EnergyAccount, "_update_budget")]

@@ -13,7 +13,8 @@ from seaway.contract.messages import BatteryState, MissionRequest, StateEstimate
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.model import load_vessel
 from seaway_controller.acceptance import why_not_flyable
-from seaway_controller.core import ControllerConfig, ControllerCore
+from seaway_controller.config import ControllerConfig
+from seaway_controller.core import ControllerCore
 from seaway_controller.energy import EnergyModel
 
 from tests.unit.controller.test_core import ScriptedSolver

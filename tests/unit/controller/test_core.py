@@ -7,7 +7,8 @@ import pytest
 from seaway.contract.messages import MissionCommand, MissionRequest, StateEstimate, Waypoint
 from seaway.vessel.guidance import los_thrust
 from seaway.vessel.model import load_vessel
-from seaway_controller.core import ControllerConfig, ControllerCore
+from seaway_controller.config import ControllerConfig
+from seaway_controller.core import ControllerCore
 from seaway_controller.solvers import SolveResult
 
 VP = load_vessel("paper-sim")

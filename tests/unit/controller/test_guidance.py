@@ -6,7 +6,8 @@ from __future__ import annotations
 import math
 
 from seaway.vessel.model import load_vessel
-from seaway_controller.core import ControllerConfig, ControllerCore
+from seaway_controller.config import ControllerConfig
+from seaway_controller.core import ControllerCore
 from seaway_controller.solvers import SolveResult
 from seaway_lab.closed_loop import run_closed_loop
 

@@ -15,7 +15,7 @@ from seaway.contract import keys
 from seaway.contract.messages import MissionAccepted, MissionRequest, Waypoint
 from seaway.runtime.lockstep import Period
 from seaway.vessel.frames import GeoOrigin
-from seaway_controller.core import ACCEPTED_REPUBLISH_NS
+from seaway_controller.core_requests import ACCEPTED_REPUBLISH_NS
 
 from tests.conftest import wait_for
 from tests.unit.controller.test_core import ScriptedSolver, make_core, mission, state

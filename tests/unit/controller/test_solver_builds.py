@@ -24,7 +24,8 @@ from seaway.runtime.node import Period, run_node
 from seaway.runtime.run import RunDescription
 from seaway.runtime.service import ServiceContext
 from seaway.vessel.model import load_vessel
-from seaway_controller.core import ControllerConfig, ControllerCore
+from seaway_controller.config import ControllerConfig
+from seaway_controller.core import ControllerCore
 from seaway_controller.node import ControllerNode
 from seaway_controller.ocp import Ocp, OcpSpec
 from seaway_controller.solvers import (

@@ -36,7 +36,8 @@ from seaway.simkit.scenario import load_scenario
 from seaway.vessel.metrics import median, percentile
 from seaway.vessel.model import load_vessel
 from seaway.vessel.native import cache_dir
-from seaway_controller.core import ControllerConfig, ControllerCore
+from seaway_controller.config import ControllerConfig
+from seaway_controller.core import ControllerCore
 from seaway_controller.ocp import CONTROLLER_KINDS, Ocp
 from seaway_controller.solvers import IpoptSolver
 

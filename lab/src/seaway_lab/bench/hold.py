@@ -33,7 +33,8 @@ from seaway.contract.units import NS_PER_S, s_to_ns
 from seaway.runtime.argtypes import non_negative_float, positive_float
 from seaway.simkit.scenario import AIR_DENSITY_KGPM3, load_scenario
 from seaway.vessel.model import load_vessel
-from seaway_controller.core import ControllerConfig, ControllerCore
+from seaway_controller.config import ControllerConfig
+from seaway_controller.core import ControllerCore
 from seaway_estimator.core import EstimatorCore
 from seaway_sim.core import SimCore
 

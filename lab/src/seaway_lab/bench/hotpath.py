@@ -34,7 +34,7 @@ from typing import Any
 from seaway.runtime.argtypes import positive_int
 from seaway.simkit.scenario import Scenario, load_scenario
 from seaway.vessel.metrics import median, percentile
-from seaway_controller.core import ControllerCore
+from seaway_controller.core_energy import EnergyAccount
 from seaway_controller.mpc import MpcController
 from seaway_estimator.config import EstimatorConfig
 from seaway_estimator.core import EstimatorCore
@@ -47,7 +47,7 @@ SCENARIO, CONTROLLER = "paper-c1", "cc-empc"
 MPC = "MPC solve"
 REST = "the rest"
 PARTS: dict[str, tuple[tuple[type, str], ...]] = {
-    "energy budget": ((ControllerCore, "_update_budget"), (ControllerCore, "on_battery")),
+    "energy budget": ((EnergyAccount, "_update_budget"), (EnergyAccount, "on_battery")),
     "estimator": ((EstimatorCore, "on_attitude"), (EstimatorCore, "on_gnss"),
                   (EstimatorCore, "predict_to"), (EstimatorCore, "on_thrust")),
     "simulator": ((SimCore, "advance"), (SimCore, "truth"), (SimCore, "take_samples"),

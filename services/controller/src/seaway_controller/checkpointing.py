@@ -23,7 +23,8 @@ from seaway.runtime import atomic
 from seaway.runtime.run import from_earlier_launch
 
 from seaway_controller import checkpoint
-from seaway_controller.core import BudgetDecision, ControllerCore
+from seaway_controller.core import ControllerCore
+from seaway_controller.core_energy import BudgetDecision
 
 log = logging.getLogger(__name__)
 

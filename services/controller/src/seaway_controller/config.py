@@ -4,19 +4,24 @@ Made by ``seaway.runtime.config``: the defaults below, then ``--config FILE`` (u
 errors), then a flag per field (``--solver``, ``--max-state-age-s``, ...). The vessel model, the
 control period (also the OCP's dt), the origin and the clock are the run's (``seaway.runtime.run``),
 not settings of the controller. ``seaway_controller.main`` turns this and the run into the core's
-``ControllerConfig``.
+``ControllerConfig``, defined here too: the core's own settings.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated, Literal
 
 from pydantic import Field
 from seaway.contract.config import ConfigModel
 from seaway.runtime.config import Flag
+from seaway.vessel.guidance import LosGains
 
+from seaway_controller import costs
+from seaway_controller.hold import HoldGains
 from seaway_controller.mission import MissionLimits
+from seaway_controller.ocp import ControllerKind, OcpSpec
 from seaway_controller.solvers import SOLVER_KINDS
 
 SolverChoice = Literal[SOLVER_KINDS]  # type: ignore[valid-type]  # built from the solver registry
@@ -52,3 +57,28 @@ class ControllerServiceConfig(ConfigModel):
         default=None,
         description="the operating area to enforce (.toml [area], .plan geoFence, .geojson); "
                     "default: the run's scenario's [area], else none")
+
+
+@dataclass(frozen=True)
+class ControllerConfig:
+    """The controller's settings (paper values by default: H = 10, dt = 0.1 s, n = 2)."""
+
+    horizon: int = 10
+    dt_s: float = 0.1
+    profile_n: float = 2.0
+    solver: str = "generated"
+    """'generated' (fast SQP, compiled C) or 'ipopt' (plain IPOPT, the reference)."""
+    plan_reuse_steps: int = 3
+    los_steps: int = 600
+    solve_budget_s: float | None = 0.1
+    """A solve slower than this is late and not applied (None: never late, for replayable runs)."""
+    predict_disturbance: bool = False
+    """Make every mission predict with the estimate's tau_d (beyond the paper, which predicts with
+    tau_d = 0), whatever its request says; False leaves it to each mission's ``predict_disturbance``."""
+    los: LosGains = field(default_factory=LosGains)
+    hold: HoldGains = field(default_factory=HoldGains)
+    limits: MissionLimits = field(default_factory=MissionLimits)
+    nmpc: costs.NmpcWeights = field(default_factory=costs.NmpcWeights)
+
+    def spec(self, kind: ControllerKind) -> OcpSpec:
+        return OcpSpec(kind, self.horizon, self.dt_s, self.profile_n, nmpc=self.nmpc)

@@ -495,14 +495,15 @@ class Budget:
         self.last = EnergyBudget.make(
             stamp_ns=state.stamp_ns, mission_id=self.mission_id, active_leg=active,
             returning=self.returning, energy_used_j=max(0.0, energy_used_j),
-            leg_energy_to_go_j=_finite(leg_mpc_j), energy_to_go_j=_finite(pred.to_go_j),
-            energy_to_go_low_j=_finite(min(to_go) * low_factor),
-            energy_to_go_high_j=_finite(max(to_go) * high_factor),
-            energy_to_home_j=_finite(pred.to_home_j), energy_to_home_low_j=_finite(min(to_home)),
-            energy_to_home_high_j=_finite(max(to_home)), home_x_m=self.home[0],
+            leg_energy_to_go_j=finite_or_none(leg_mpc_j), energy_to_go_j=finite_or_none(pred.to_go_j),
+            energy_to_go_low_j=finite_or_none(min(to_go) * low_factor),
+            energy_to_go_high_j=finite_or_none(max(to_go) * high_factor),
+            energy_to_home_j=finite_or_none(pred.to_home_j),
+            energy_to_home_low_j=finite_or_none(min(to_home)),
+            energy_to_home_high_j=finite_or_none(max(to_home)), home_x_m=self.home[0],
             home_y_m=self.home[1], battery_remaining_j=battery_remaining_j,
-            battery_stamp_ns=battery_stamp_ns, reserve_j=reserve_j, margin_j=_finite(margin),
-            finish_margin_j=_finite(finish_margin),
+            battery_stamp_ns=battery_stamp_ns, reserve_j=reserve_j, margin_j=finite_or_none(margin),
+            finish_margin_j=finite_or_none(finish_margin),
             no_return_x_m=None if pnr is None else pnr[0],
             no_return_y_m=None if pnr is None else pnr[1],
             no_return_along_m=None if pnr is None else pnr[2], policy=self.policy,
@@ -510,7 +511,9 @@ class Budget:
         return taken
 
 
-def _finite(v: float | None) -> float | None:
+def finite_or_none(v: float | None) -> float | None:
+    """``v``, or None when it is None, infinite or NaN: a message's optional figure (JSON has no
+    infinity, and "no figure" reads better than one that is not a number)."""
     return v if v is not None and math.isfinite(v) else None
 
 

@@ -37,8 +37,8 @@ from seaway.vessel.model import load_vessel
 
 from seaway_controller import controllers
 from seaway_controller.checkpointing import resume
-from seaway_controller.config import ControllerServiceConfig
-from seaway_controller.core import ControllerConfig, ControllerCore
+from seaway_controller.config import ControllerConfig, ControllerServiceConfig
+from seaway_controller.core import ControllerCore
 from seaway_controller.mission import MissionLimits
 from seaway_controller.node import NAME, ControllerNode
 from seaway_controller.solvers import IpoptSolver, SolverBuilds, StagedSolver

@@ -34,7 +34,7 @@ from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.model import VesselParams
 
 from seaway_controller import acceptance, controllers
-from seaway_controller.energy import ZERO, Disturbance, EnergyModel, predict
+from seaway_controller.energy import ZERO, Disturbance, EnergyModel, finite_or_none, predict
 from seaway_controller.mission import MissionError, MissionLimits, validate_mission
 
 Point = tuple[float, float]
@@ -136,10 +136,10 @@ def check_mission(req: MissionRequest, vessel: VesselParams, *, origin: GeoOrigi
     out.cruise_speed_mps = model.speed_mps(state)
     if out.cruise_speed_mps > 0:
         out.predicted_time_s = out.path_length_m / out.cruise_speed_mps
-    out.energy_mission_j = _finite(predict(model, start, wps, active, home, None, dist).to_go_j)
+    out.energy_mission_j = finite_or_none(predict(model, start, wps, active, home, None, dist).to_go_j)
     last = _at_rest(wps[-1], (2 * wps[-1][0] - wps[-2][0], 2 * wps[-1][1] - wps[-2][1]))
     out.energy_home_from_last_j = (0.0 if math.dist(wps[-1], home) <= mission.coa_radius_m else
-                                   _finite(predict(model, last, [home, home], 0, home, None,
+                                   finite_or_none(predict(model, last, [home, home], 0, home, None,
                                                    dist).to_home_j))
     out.battery_j = battery_j
     out.reserve_j = reserve_j if reserve_j is not None else (
@@ -169,10 +169,6 @@ def _at_rest(p: Point, toward: Point) -> StateEstimate:
     psi = math.atan2(toward[1] - p[1], toward[0] - p[0])
     return StateEstimate.make(stamp_ns=0, u_mps=0.0, v_mps=0.0, r_radps=0.0, x_m=p[0], y_m=p[1],
                               psi_rad=psi)
-
-
-def _finite(v: float) -> float | None:
-    return v if math.isfinite(v) else None
 
 
 def _j(v: float | None) -> str:

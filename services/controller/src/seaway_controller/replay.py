@@ -23,7 +23,8 @@ from seaway.contract.messages import (
 )
 from seaway.vessel.model import VesselParams
 
-from seaway_controller.core import ControllerConfig, ControllerCore
+from seaway_controller.config import ControllerConfig
+from seaway_controller.core import ControllerCore
 
 
 @dataclass
