@@ -13,7 +13,8 @@ from seaway.contract.units import NS_PER_S
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.metrics import rms
-from seaway_estimator.core import IX, NZ, EstimatorCore
+from seaway_estimator.core import EstimatorCore
+from seaway_estimator.kalman import IX, NZ
 from seaway_lab.closed_loop import (
     REALISTIC_NOISE,
     Run,

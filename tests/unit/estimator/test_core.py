@@ -13,7 +13,8 @@ from seaway.contract.units import NS_PER_S
 from seaway.vessel import model
 from seaway.vessel.frames import GeoOrigin, wrap_pi
 from seaway_estimator.config import EstimatorConfig
-from seaway_estimator.core import IPSI, IX, IY, NZ, EstimatorCore, EstimatorError
+from seaway_estimator.core import EstimatorCore, EstimatorError
+from seaway_estimator.kalman import IPSI, IX, IY, NZ
 
 MS = 1_000_000
 S = NS_PER_S

@@ -11,19 +11,11 @@ position and heading). ``d`` is the disturbance (the paper's tau_d), a random wa
 body-frame surge and sway forces (its ``tau_body``); ``d3`` is always the body yaw moment [N m].
 Whatever the internal frame, ``StateEstimate`` carries the body-frame values and their covariance.
 
-Prediction: the mean with ``seaway.vessel.model.rk4_step`` (the model is never re-derived here), the
-commanded thrust held (through ``seaway.vessel.thrusters.output_stage`` as vehicle I/O sends it,
-optionally the dead zone; zero while the autopilot's status says it withholds the thrust), substeps
-of at most ``max_step_s``. The covariance with ``F = I + A h + (A h)^2 / 2``, where ``A`` is the
-exact Jacobian of ``seaway.vessel.model.derivative`` (CasADi's automatic differentiation of the
-same expressions). Mean and covariance are one compiled function (``seaway_estimator.kalman``).
-
-Updates, each when it arrives and at its own rate, Joseph form and symmetrised (each one compiled
-function, ``seaway_estimator.kalman``):
-
-* GNSS position (x, y) from ``GnssFix`` lat/lon through the NED origin;
-* GNSS velocity over ground (north, east) = R(psi) [u, v];
-* heading psi (innovation wrapped to (-pi, pi]); yaw rate r.
+The core is one class in three parts, each a module: the inputs, initialisation and the published
+estimate (here); the prediction (``core_predict``: the mean with ``seaway.vessel.model.rk4_step``
+and the thrust held, the covariance with the exact Jacobian, one compiled function); the updates
+(``core_updates``: GNSS position and velocity over ground, heading, yaw rate, each when it arrives,
+Joseph form, one compiled function each).
 
 Every update is gated on its normalised innovation squared (chi-square threshold per measurement);
 a rejected sample is counted and ignored. Rejections and re-initialisations are also kept as
@@ -36,7 +28,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -58,11 +50,12 @@ from seaway.vessel.frames import GeoOrigin, wrap_pi
 from seaway.vessel.model import VesselParams
 from seaway.vessel.thrusters import apply_dead_zone, output_pair
 
-from seaway_estimator import kalman
 from seaway_estimator.config import EstimatorConfig
-from seaway_estimator.kalman import NZ, Predictor, Updater
+from seaway_estimator.core_predict import Prediction
+from seaway_estimator.core_updates import MeasurementUpdates
+from seaway_estimator.kalman import ID1, ID2, ID3, IPSI, IR, IU, IV, IX, IY, NZ, Filter, Predictor
 from seaway_estimator.mismatch import FixSample, MotionMismatch
-from seaway_estimator.notices import MAX_NOTICES, Notice
+from seaway_estimator.notices import MAX_NOTICES, Counters, Notice
 
 INPUT_KEYS: dict[str, keys.KeySpec] = {"gnss": keys.GNSS, "attitude": keys.ATTITUDE,
                                       "thrust": keys.THRUST}
@@ -72,24 +65,6 @@ STATUS_KEY = keys.VEHICLE_STATUS
 """Whether the autopilot applies the commanded thrust (``VehicleStatus.thrust_withheld``): an input
 in real time only (in lockstep the sim applies exactly the command it says it consumed); traced as
 kind ``"status"``, applied after the inputs of the same stamp."""
-
-IU, IV, IR, IX, IY, IPSI, ID1, ID2, ID3 = range(NZ)
-_H_POS = np.zeros((2, NZ))
-_H_POS[0, IX] = _H_POS[1, IY] = 1.0
-
-COUNTERS = (
-    "gnss_accepted", "gnss_rejected", "gnss_no_fix", "gnss_reinit",
-    "sog_accepted", "sog_rejected",
-    "heading_accepted", "heading_rejected", "heading_reinit",
-    "yaw_rate_accepted", "yaw_rate_rejected",
-    "thrust_received", "late_applied", "too_old", "too_new", "refused_non_finite",
-    "status_received",
-    "degraded_entered", "time_jumps", "divergence_resets", "disturbance_reopened", "resets",
-    "motion_faults", "motion_anchored", "withheld_anchored",
-    "published",
-    "publish_refused",
-)
-
 
 class EstimatorError(ValueError):
     """An input the core refuses (non-finite value, bad time); the text names what and why."""
@@ -101,33 +76,6 @@ class _Pending:
 
     fix: tuple[int, float, float, float | None, float | None, float] | None = None
     attitude: tuple[int, float, float] | None = None
-
-
-@dataclass
-class Filter:
-    """The filter's state between calls (exposed for tests and diagnostics)."""
-
-    t_ns: int
-    z: np.ndarray
-    P: np.ndarray
-    last_gnss_ns: int
-    last_heading_ns: int
-    gnss_reject_run: int = 0
-    heading_reject_run: int = 0
-    sog_reject_run: int = 0
-    yaw_rate_reject_run: int = 0
-    degraded: bool = False
-
-
-@dataclass
-class Counters:
-    values: dict[str, int] = field(default_factory=lambda: dict.fromkeys(COUNTERS, 0))
-
-    def inc(self, name: str, n: int = 1) -> None:
-        self.values[name] += n
-
-    def __getitem__(self, name: str) -> int:
-        return self.values[name]
 
 
 def _finite(where: str, **values: float | None) -> None:
@@ -161,7 +109,7 @@ def _initial_force_std(c: EstimatorConfig, p: VesselParams, world: bool) -> tupl
     return math.hypot(c.init_force_std_n, surge), math.hypot(c.init_force_std_n, sway)
 
 
-class EstimatorCore:
+class EstimatorCore(Prediction, MeasurementUpdates):
     """Messages and time in, ``StateEstimate`` out. See the module docstring for the model."""
 
     def __init__(self, config: EstimatorConfig | None = None, vessel: VesselParams | None = None,
@@ -183,16 +131,11 @@ class EstimatorCore:
         self._max_gap_ns = round(c.max_gap_s * NS_PER_S)
         self._gnss_timeout_ns = c.gnss_timeout_s * NS_PER_S
         self._heading_timeout_ns = c.heading_timeout_s * NS_PER_S
-        self._R_sog = np.eye(2) * c.sog_std_mps ** 2
-        self._H_sog = np.zeros((2, NZ))  # rows refilled at each velocity update
         self._T_body = np.eye(NZ)  # ``_body_d``'s Jacobian, its six entries refilled at each call
         self._init_force_std_n = _initial_force_std(c, vessel, self._world)
-        # What a lost thruster leaves unexplained: its full thrust, and that thrust's moment.
-        self._reopen_force_var = vessel.thrust_max_n ** 2
-        self._reopen_moment_var = (vessel.thrust_max_n * vessel.arm_m) ** 2
         self._envelope = envelope(vessel)
         self._predictor = Predictor(vessel, self._world, self._q)
-        self._updaters = {m: Updater(m) for m in (1, 2)}  # by the number of values measured
+        self._init_updates(vessel.thrust_max_n, vessel.arm_m)
         self._fixed_origin = (None if c.origin is None else GeoOrigin.from_degrees(
             c.origin.lat_deg, c.origin.lon_deg, c.origin.alt_m))
         self.counters = Counters()
@@ -204,7 +147,6 @@ class EstimatorCore:
         self._thrust_until_ns: int | None = None
         self.mismatch = MotionMismatch(c.mismatch)
         """The motion fault detector (``seaway_estimator.mismatch``), fed at each GNSS fix."""
-        self._last_nis = math.nan  # of the last gated update
         self.thrust_withheld: str | None = None
         """Why the autopilot does not apply the commanded thrust now (the last ``VehicleStatus``
         said so: disarmed, no link, another mode); None: it does, or nobody said otherwise."""
@@ -227,12 +169,17 @@ class EstimatorCore:
         Counters are kept (``resets`` counts this); the last thrust command is kept, since the
         thrusters do not stop because the estimator restarted.
         """
-        self.filter = None
-        self._pending = _Pending()
+        self._forget()
         self.mismatch.reset()
         if not keep_origin:
             self.origin = self._fixed_origin
         self.counters.inc("resets")
+
+    def _forget(self) -> None:
+        """Drop the state and what was kept to initialise it: the next position and heading
+        initialise the filter again."""
+        self.filter = None
+        self._pending = _Pending()
 
     def take_notices(self) -> list[Notice]:
         """The notices since the last call, oldest first (see ``Notice``)."""
@@ -402,7 +349,7 @@ class EstimatorCore:
         return None if f is None else self._body_d(f.z.tolist())[0]
 
     # ------------------------------------------------------------------------------------------
-    # Input checks and time
+    # Input checks
     # ------------------------------------------------------------------------------------------
 
     def _check(self, t_ns: object, where: str, **values: float | None) -> int:
@@ -426,46 +373,6 @@ class EstimatorCore:
         if c.use_reported_gnss_std and msg.horizontal_std_m is not None:
             return max(msg.horizontal_std_m, c.gnss_std_min_m)
         return c.gnss_std_m
-
-    def _to_time(self, t: int) -> float | None:
-        """Bring the filter to a measurement at ``t``: the delay to correct for [s], or None."""
-        f = self.filter
-        assert f is not None
-        if t >= f.t_ns:
-            if t - f.t_ns > self._max_gap_ns:
-                self._time_jump(t)
-                return None
-            self._advance(t)
-            return None if self.filter is None else 0.0
-        delay = (f.t_ns - t) / NS_PER_S
-        if delay > self.config.late_tolerance_s:
-            self.counters.inc("too_old")
-            return None
-        self.counters.inc("late_applied")
-        return delay
-
-    def _bring_to(self, t: int) -> bool:
-        """Integrate the filter to ``t`` for an input that changes the thrust from then on (a
-        command, a status): False, counted in ``too_new``, if ``t`` is more than ``max_gap_s``
-        ahead of the filter. A stamp at or before the filter's time changes it from now."""
-        f = self.filter
-        if f is None or t <= f.t_ns:
-            return True
-        if t - f.t_ns > self._max_gap_ns:
-            self.counters.inc("too_new")
-            return False
-        self._advance(t)
-        return True
-
-    def _time_jump(self, t: int) -> None:
-        """A gap too long to integrate: drop the state; the next measurements re-initialise."""
-        self.counters.inc("time_jumps")
-        f = self.filter
-        gap_s = (t - f.t_ns) / NS_PER_S if f is not None else 0.0
-        self._notices.append(Notice(t, "time_jump", f"a step of {gap_s:.1f} s (over max_gap_s "
-                                    f"{self.config.max_gap_s:g} s): the state is dropped"))
-        self.filter = None
-        self._pending = _Pending()
 
     # ------------------------------------------------------------------------------------------
     # Initialisation
@@ -492,272 +399,6 @@ class EstimatorCore:
         t0 = max(t_fix, t_att)
         self.filter = Filter(t_ns=t0, z=z, P=P, last_gnss_ns=t_fix, last_heading_ns=t_att)
         self._pending = _Pending()
-
-    # ------------------------------------------------------------------------------------------
-    # Model and prediction
-    # ------------------------------------------------------------------------------------------
-
-    def _deriv(self, z: list, thrust: tuple[float, float]) -> list:
-        """d/dt of the six vessel states with the disturbance in ``z[6:9]`` (shared model), floats."""
-        return kalman.derivative(z, thrust, self.p, self._world, math)
-
-    def jacobian(self, z: np.ndarray, thrust: tuple[float, float]) -> np.ndarray:
-        """A = d f / d z (9x9; the disturbance rows are zero), exact (automatic differentiation)."""
-        return self._predictor.jacobian(z, thrust)
-
-    def _commanded_at(self, t_ns: int) -> tuple[float, float]:
-        """The thrust commanded and applied by the autopilot at ``t_ns`` [N]."""
-        if (self.thrust_withheld is not None or self._thrust_until_ns is None
-                or t_ns >= self._thrust_until_ns):
-            return (0.0, 0.0)
-        return self._thrust
-
-    def _thrust_at(self, t_ns: int) -> tuple[float, float]:
-        """The thrust the prediction uses: none while the vessel is seen not to move with it."""
-        return (0.0, 0.0) if self.mismatch.kind == "not_moving" else self._commanded_at(t_ns)
-
-    def _advance(self, t: int) -> None:
-        """Integrate the filter from its time to ``t`` (later), through thrust expiry."""
-        f = self.filter
-        assert f is not None
-        while f.t_ns < t:
-            end = t
-            until = self._thrust_until_ns
-            if until is not None and f.t_ns < until < t:
-                end = until
-            thrust = self._thrust_at(f.t_ns)
-            n = -(-(end - f.t_ns) // self._max_step_ns)
-            t0 = f.t_ns
-            for k in range(n):
-                t1 = t0 + (end - t0) * (k + 1) // n
-                why = self._predict(f, thrust, (t1 - f.t_ns) / NS_PER_S)
-                f.t_ns = t1
-                if why is not None:  # integrating on would only make it worse
-                    self._diverged(t1, why)
-                    return
-
-    def _predict(self, f: Filter, thrust: tuple[float, float], h: float) -> str | None:
-        """One substep of ``h`` [s]; why the state it reached is no vessel's (None: it is one)."""
-        z, P = self._predictor.step(f.z, f.P, thrust, h)
-        f.z, f.P = z, P
-        zl = z.tolist()
-        why = self._absurd(zl)
-        if why is None:
-            z[IPSI] = wrap_pi(zl[IPSI])
-        return why
-
-    def _absurd(self, zl: list[float]) -> str | None:
-        """Why the state ``zl`` (as floats: on 9 values numpy's per-call cost is the cost) cannot
-        be this vessel's (``seaway.vessel.envelope``), or None."""
-        if not all(map(math.isfinite, zl)):
-            return "the state is not finite"
-        return self._envelope.absurd(zl[IU], zl[IV], zl[IR])
-
-    def _diverged(self, t: int, why: str) -> None:
-        """The filter went unstable (a model far from the vessel, a bad update): drop it, so that
-        the next measurements re-initialise it, rather than publish or integrate it further."""
-        self.counters.inc("divergence_resets")
-        self._notices.append(Notice(t, "divergence_reset", f"{why}: the state is dropped"))
-        self.filter = None
-        self._pending = _Pending()
-
-    def _back(self, z: np.ndarray, delay_s: float) -> np.ndarray:
-        """First-order estimate of the state ``delay_s`` earlier (for late measurements)."""
-        zl = z.tolist()
-        xd = self._deriv(zl, self._thrust_at(self.filter.t_ns if self.filter else 0))
-        out = z.copy()
-        out[:6] -= np.asarray(xd) * delay_s
-        out[IPSI] = wrap_pi(out[IPSI])
-        return out
-
-    # ------------------------------------------------------------------------------------------
-    # Updates
-    # ------------------------------------------------------------------------------------------
-
-    def _gated_update(self, nu: np.ndarray, H: np.ndarray, R: np.ndarray, gate: float) -> bool:
-        """Kalman update (``kalman.Updater``, Joseph form) with a chi-square gate on the
-        innovation; False if rejected."""
-        f = self.filter
-        assert f is not None
-        nis, z, P = self._updaters[len(nu)].step(f.z, f.P, nu, H, R)
-        self._last_nis = nis
-        if not (math.isfinite(nis) and nis <= gate):  # also false for NaN
-            return False
-        z[IPSI] = wrap_pi(z.item(IPSI))
-        f.z, f.P = z, P
-        return True
-
-    def _gated_scalar(self, nu: float, i: int, var: float, gate: float) -> bool:
-        """``_gated_update`` for a measurement of one state ``i`` (H a unit row, R its variance)."""
-        f = self.filter
-        assert f is not None
-        nis, z, P = self._updaters[1].scalar(f.z, f.P, nu, i, var)
-        if not (math.isfinite(nis) and nis <= gate):
-            return False
-        z[IPSI] = wrap_pi(z.item(IPSI))
-        f.z, f.P = z, P
-        return True
-
-    def _update_position(self, north: float, east: float, std: float, delay: float, t: int) -> None:
-        f = self.filter
-        assert f is not None
-        zp = self._back(f.z, delay) if delay > 0 else f.z
-        nu = np.array([north - zp[IX], east - zp[IY]])
-        var = std * std
-        R = np.array([[var, 0.0 * var], [0.0 * var, var]])  # np.eye(2) * var, value for value
-        if self._gated_update(nu, _H_POS, R, self.config.gate_gnss):
-            self.counters.inc("gnss_accepted")
-            f.gnss_reject_run = 0
-            f.last_gnss_ns = max(f.last_gnss_ns, t)
-            return
-        self.counters.inc("gnss_rejected")
-        f.gnss_reject_run += 1
-        off_m = math.hypot(nu[0], nu[1])
-        self._notices.append(Notice(t, "gnss_rejected", f"fix {off_m:.2f} m from the estimate "
-                                    f"(std {std:.2f} m)", f.gnss_reject_run))
-        if f.gnss_reject_run >= self.config.gnss_reject_reinit_count:
-            # Consistently far from every fix: the filter is what is wrong. Take the fix.
-            self._reinit_block((IX, IY), (north - zp[IX], east - zp[IY]), std * std)
-            self._notices.append(Notice(t, "gnss_reinit", f"position moved {off_m:.2f} m to the "
-                                        "fix", f.gnss_reject_run))
-            f.gnss_reject_run = 0
-            f.last_gnss_ns = max(f.last_gnss_ns, t)
-            self.counters.inc("gnss_reinit")
-
-    def _update_sog(self, vn: float, ve: float, delay: float) -> None:
-        f = self.filter
-        assert f is not None
-        zp = self._back(f.z, delay) if delay > 0 else f.z
-        u, v, psi = zp[IU], zp[IV], zp[IPSI]
-        c, s = math.cos(psi), math.sin(psi)
-        # h(z) = R(psi) [u, v]: the kinematic rows of the model (paper eq. 2) without current.
-        nu = np.array([vn - (u * c - v * s), ve - (u * s + v * c)])
-        H = self._H_sog  # the other entries stay zero
-        H[0, IU], H[0, IV], H[0, IPSI] = c, -s, -u * s - v * c
-        H[1, IU], H[1, IV], H[1, IPSI] = s, c, u * c - v * s
-        R = self._R_sog
-        ok = self._gated_update(nu, H, R, self.config.gate_sog)
-        if ok:
-            f.sog_reject_run = 0
-        else:
-            f.sog_reject_run += 1
-            if f.sog_reject_run >= self.config.reject_run_reopen_count:
-                # The boat does not move as the model says (a thrust lost, a tow): let the force
-                # take up what the model lacks, and the speeds follow, then try the sample again.
-                size = float(nu @ nu)
-                self._reopen(((ID1, self._reopen_force_var), (ID2, self._reopen_force_var),
-                              (IU, size), (IV, size)), "velocity over ground", f.sog_reject_run)
-                f.sog_reject_run = 0
-                ok = self._gated_update(nu, H, R, self.config.gate_sog)
-        self.counters.inc("sog_accepted" if ok else "sog_rejected")
-
-    def _update_heading(self, psi_m: float, delay: float, t: int) -> None:
-        f = self.filter
-        assert f is not None
-        zp = self._back(f.z, delay) if delay > 0 else f.z
-        innov = wrap_pi(psi_m - zp[IPSI])
-        var = self.config.heading_std_rad ** 2
-        if self._gated_scalar(innov, IPSI, var, self.config.gate_heading):
-            self.counters.inc("heading_accepted")
-            f.heading_reject_run = 0
-            f.last_heading_ns = max(f.last_heading_ns, t)
-            return
-        self.counters.inc("heading_rejected")
-        f.heading_reject_run += 1
-        self._notices.append(Notice(t, "heading_rejected", f"heading {innov:+.3f} rad from the "
-                                    "estimate", f.heading_reject_run))
-        if f.heading_reject_run >= self.config.heading_reject_reinit_count:
-            self._reinit_block((IPSI,), (innov,), var)
-            self._notices.append(Notice(t, "heading_reinit", f"heading moved {innov:+.3f} rad to "
-                                        "the measurement", f.heading_reject_run))
-            f.heading_reject_run = 0
-            f.last_heading_ns = max(f.last_heading_ns, t)
-            self.counters.inc("heading_reinit")
-
-    def _update_yaw_rate(self, r_m: float, delay: float) -> None:
-        f = self.filter
-        assert f is not None
-        zp = self._back(f.z, delay) if delay > 0 else f.z
-        nu, var = r_m - zp[IR], self.config.yaw_rate_std_radps ** 2
-        ok = self._gated_scalar(nu, IR, var, self.config.gate_yaw_rate)
-        if ok:
-            f.yaw_rate_reject_run = 0
-        else:
-            f.yaw_rate_reject_run += 1
-            if f.yaw_rate_reject_run >= self.config.reject_run_reopen_count:
-                # The boat does not turn as the model says: the same for the yaw moment. Left
-                # alone, the heading followed the model away (radians) and was re-initialised
-                # again and again.
-                self._reopen(((ID3, self._reopen_moment_var), (IR, nu * nu)), "yaw rate",
-                             f.yaw_rate_reject_run)
-                f.yaw_rate_reject_run = 0
-                ok = self._gated_scalar(nu, IR, var, self.config.gate_yaw_rate)
-        self.counters.inc("yaw_rate_accepted" if ok else "yaw_rate_rejected")
-
-    def _judge_motion(self, sample: FixSample, std: float,
-                      sog: tuple[float | None, float | None]) -> None:
-        """Feed the motion fault detector (``mismatch``); re-anchor to the measurements on it.
-
-        At the onset the state is moved to the fix (position, and speeds from its velocity over
-        ground) and the disturbance forgotten (it had taken up thrust the vessel never gave); while
-        a ``not_moving`` fault lasts the prediction stops using a thrust the vessel does not follow,
-        and while any fault lasts a fix the filter gates out moves the state to it at once, instead
-        of dead-reckoning until ``gnss_reject_reinit_count`` rejections."""
-        f = self.filter
-        event = self.mismatch.on_fix(sample)
-        if event is not None:
-            self._notices.append(Notice(event.t_ns, "motion_fault" if event.kind else
-                                        "motion_fault_cleared",
-                                        f"{event.kind}: {event.detail}" if event.kind else
-                                        event.detail))
-            if event.kind is not None:
-                self.counters.inc("motion_faults")
-                for i, std0 in zip((ID1, ID2, ID3), (*self._init_force_std_n,
-                                                     self.config.init_moment_std_nm), strict=True):
-                    if f is not None:
-                        self._reinit_block((i,), (-f.z[i],), std0 * std0)
-        onset = event is not None and event.kind is not None
-        if f is None or not (onset or (self.mismatch.kind is not None and sample.rejected)):
-            return
-        self._anchor(sample.north_m, sample.east_m, std, sog, sample.t_ns)
-        self.counters.inc("motion_anchored")
-
-    def _anchor(self, north_m: float, east_m: float, std_m: float,
-                sog: tuple[float | None, float | None], t_ns: int) -> None:
-        """Move the position (NED, m) to a fix of standard deviation ``std_m``, and the speeds to
-        its velocity over ground (``sog``, north and east, m/s) when it has one."""
-        f = self.filter
-        assert f is not None
-        self._reinit_block((IX, IY), (north_m - f.z[IX], east_m - f.z[IY]), std_m * std_m)
-        if sog[0] is not None and sog[1] is not None:
-            c, s = math.cos(f.z[IPSI]), math.sin(f.z[IPSI])
-            u, v = c * sog[0] + s * sog[1], -s * sog[0] + c * sog[1]
-            self._reinit_block((IU, IV), (u - f.z[IU], v - f.z[IV]), self.config.sog_std_mps ** 2)
-        f.gnss_reject_run = f.sog_reject_run = 0
-        f.last_gnss_ns = max(f.last_gnss_ns, t_ns)
-
-    def _reopen(self, added: tuple[tuple[int, float], ...], sensor: str, run: int) -> None:
-        """Add variance to states ``(index, variance)``: ``run`` samples of ``sensor`` in a row
-        said the model, not the sensor, is wrong."""
-        f = self.filter
-        assert f is not None
-        for i, var in added:
-            f.P[i, i] += var
-        self.counters.inc("disturbance_reopened")
-        self._notices.append(Notice(f.t_ns, "disturbance_reopened", f"{run} {sensor} samples in a "
-                                    "row disagree with the model: the disturbance's uncertainty "
-                                    "is re-opened", run))
-
-    def _reinit_block(self, idx: tuple[int, ...], shift: tuple[float, ...], var: float) -> None:
-        """Move states ``idx`` by ``shift`` and decorrelate them with variance ``var``."""
-        f = self.filter
-        assert f is not None
-        for i, d in zip(idx, shift, strict=True):
-            f.z[i] += d
-            f.P[i, :] = 0.0
-            f.P[:, i] = 0.0
-            f.P[i, i] = var
-        f.z[IPSI] = wrap_pi(f.z[IPSI])
 
     # ------------------------------------------------------------------------------------------
     # Output

@@ -25,6 +25,8 @@ makes two predictions (each with its complex-step Jacobian) and about five updat
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import casadi as ca
 import numpy as np
 from seaway.vessel import model
@@ -33,6 +35,8 @@ from seaway.vessel.native import NativeFunction, dense
 
 NZ = 9
 """Filter state size: the six vessel states and the three disturbance components."""
+IU, IV, IR, IX, IY, IPSI, ID1, ID2, ID3 = range(NZ)
+"""The index of each state in ``z``."""
 
 
 def disturbance(z: list, world: bool) -> tuple[tuple, tuple]:
@@ -165,3 +169,19 @@ class Updater:
         self._R[0] = var
         self._fn()
         return self._nis.item(0), self._z_next.copy(), self._P_out.copy()
+
+
+@dataclass
+class Filter:
+    """The filter's state between calls (exposed for tests and diagnostics)."""
+
+    t_ns: int
+    z: np.ndarray
+    P: np.ndarray
+    last_gnss_ns: int
+    last_heading_ns: int
+    gnss_reject_run: int = 0
+    heading_reject_run: int = 0
+    sog_reject_run: int = 0
+    yaw_rate_reject_run: int = 0
+    degraded: bool = False

@@ -1,10 +1,11 @@
 """What the estimator's core tells its service to log: gated-out measurements and
-re-initialisations (``EstimatorCore.take_notices``). The core stays pure (no logging, no clock);
-the service decides the lines and their rate (``seaway_estimator.node``)."""
+re-initialisations (``EstimatorCore.take_notices``), and what it counts (``Counters``). The core
+stays pure (no logging, no clock); the service decides the lines and their rate
+(``seaway_estimator.node``)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 PERSISTENT_REJECT_RUN = 5
 """Rejections in a row of one sensor from which its notices say ``persistent`` (a second of GNSS at
@@ -36,3 +37,30 @@ class Notice:
         if self.kind == "withheld_reanchor":
             return False
         return not self.kind.endswith("_rejected") or self.run >= PERSISTENT_REJECT_RUN
+
+
+COUNTERS = (
+    "gnss_accepted", "gnss_rejected", "gnss_no_fix", "gnss_reinit",
+    "sog_accepted", "sog_rejected",
+    "heading_accepted", "heading_rejected", "heading_reinit",
+    "yaw_rate_accepted", "yaw_rate_rejected",
+    "thrust_received", "late_applied", "too_old", "too_new", "refused_non_finite",
+    "status_received",
+    "degraded_entered", "time_jumps", "divergence_resets", "disturbance_reopened", "resets",
+    "motion_faults", "motion_anchored", "withheld_anchored",
+    "published",
+    "publish_refused",
+)
+
+
+@dataclass
+class Counters:
+    """How often each of ``COUNTERS`` happened since the core was made (the service's stats line)."""
+
+    values: dict[str, int] = field(default_factory=lambda: dict.fromkeys(COUNTERS, 0))
+
+    def inc(self, name: str, n: int = 1) -> None:
+        self.values[name] += n
+
+    def __getitem__(self, name: str) -> int:
+        return self.values[name]
