@@ -16,7 +16,8 @@ from seaway.contract.messages import (
     message_encoding,
 )
 from seaway.runtime.bus import Bus
-from seaway.runtime.lockstep import Member, Period
+from seaway.runtime.lockstep import Period
+from seaway.runtime.lockstep_member import Member
 from seaway.runtime.memory_bus import MemoryHub
 
 from tests.conftest import wait_for

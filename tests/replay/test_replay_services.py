@@ -25,13 +25,14 @@ from seaway.contract import keys
 from seaway.contract.messages import Attitude, GnssFix, PeriodDone, StateEstimate, ThrustCommand
 from seaway.recording.reader import iter_messages
 from seaway.runtime import run as runs
-from seaway.runtime.lockstep import Member
+from seaway.runtime.lockstep_member import Member
 from seaway.runtime.memory_bus import MemoryHub
 from seaway.runtime.node import Period, PeriodAt
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.model import load_vessel
-from seaway_controller.core import ControllerConfig, ControllerCore
+from seaway_controller.config import ControllerConfig
+from seaway_controller.core import ControllerCore
 from seaway_estimator.config import load_estimator_config
 from seaway_estimator.core import EstimatorCore
 from seaway_estimator.main import with_run

@@ -17,8 +17,9 @@ import pytest
 from seaway.contract import keys
 from seaway.contract.messages import StateEstimate, ThrustCommand
 from seaway.runtime.bus import Bus
-from seaway.runtime.lockstep import Member, Period
+from seaway.runtime.lockstep import Period
 from seaway.runtime.lockstep_clock import LockstepClock
+from seaway.runtime.lockstep_member import Member
 from seaway.runtime.node import Answer, MemberDriver, MemberSpec, Node, PeriodAt
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.model import load_vessel

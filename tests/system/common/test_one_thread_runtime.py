@@ -15,7 +15,7 @@ import textwrap
 
 import pytest
 from seaway.runtime.bus import Bus
-from seaway.runtime.lockstep import KEPT_BUNDLES
+from seaway.runtime.lockstep_member import KEPT_BUNDLES
 from seaway.runtime.zenoh_bus import ENV_RUNTIME, LOCKSTEP_RUNTIME, LOCKSTEP_TX_QUEUE
 
 from tests.conftest import wait_for

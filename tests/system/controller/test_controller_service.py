@@ -13,7 +13,8 @@ import pytest
 from seaway.contract import keys
 from seaway.contract.messages import MissionCommand, MissionRequest, PeriodDone, StateEstimate, Waypoint
 from seaway.runtime.bus import Bus
-from seaway.runtime.lockstep import Member, Period
+from seaway.runtime.lockstep import Period
+from seaway.runtime.lockstep_member import Member
 from seaway.simkit.plant import Plant
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.model import load_vessel

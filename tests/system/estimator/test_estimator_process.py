@@ -12,7 +12,8 @@ from seaway.contract import keys
 from seaway.contract.keys import NAV_RESET
 from seaway.contract.messages import NavResetRequest, ThrustCommand
 from seaway.runtime.bus import Bus
-from seaway.runtime.lockstep import Member, Period
+from seaway.runtime.lockstep import Period
+from seaway.runtime.lockstep_member import Member
 from seaway.simkit.plant import Plant
 from seaway.simkit.scenario import load_scenario
 from seaway.simkit.sensors import SensorSuite, instants_in, origin_of

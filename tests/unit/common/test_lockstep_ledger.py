@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 from seaway.contract.messages import PeriodDone
-from seaway.runtime.lockstep import Ledger, Member, Period, classify
+from seaway.runtime.lockstep import Ledger, Period, classify
+from seaway.runtime.lockstep_member import Member
 from seaway.runtime.memory_bus import MemoryHub
 
 P = 100_000_000

@@ -1,4 +1,4 @@
-"""A lockstep member's sources (``seaway.runtime.lockstep.Member``): active ones move it on as their
+"""A lockstep member's sources (``seaway.runtime.lockstep_member.Member``): active ones move it on as their
 bundles arrive, passive ones are taken with them (nothing runs for those on arrival), and a service
 that answers on the bus's thread (``on_ready``) is not woken for what it has already done. On the
 in-memory bus: pure logic, no network."""
@@ -11,7 +11,8 @@ from pathlib import Path
 from seaway.contract import bundle, keys
 from seaway.contract.messages import PeriodDone, ThrustCommand
 from seaway.runtime import timeline
-from seaway.runtime.lockstep import KEPT_BUNDLES, KEPT_PERIODS, Member, Period
+from seaway.runtime.lockstep import KEPT_PERIODS, Period
+from seaway.runtime.lockstep_member import KEPT_BUNDLES, Member
 from seaway.runtime.memory_bus import MemoryHub
 
 P = 100_000_000
@@ -145,7 +146,7 @@ def test_a_command_whose_sender_died_putting_it_is_taken_as_lost_after_a_while(c
     (the sim repeats t_1) for ``GIVE_UP_LACKING_S``, then takes that command as lost, says so, and
     can answer; before, it waited for ever and the run hung (the restarted controller waiting for
     it in turn)."""
-    from seaway.runtime.lockstep import GIVE_UP_LACKING_S
+    from seaway.runtime.lockstep_member import GIVE_UP_LACKING_S
 
     now = [0]
     hub = MemoryHub()

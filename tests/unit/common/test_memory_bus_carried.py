@@ -11,7 +11,8 @@ import pytest
 from seaway.contract import bundle, keys
 from seaway.contract.messages import ClockTick, Message, PeriodDone, ThrustCommand
 from seaway.runtime.bus import RawSample
-from seaway.runtime.lockstep import Member, Period
+from seaway.runtime.lockstep import Period
+from seaway.runtime.lockstep_member import Member
 from seaway.runtime.memory_bus import MemoryBus, MemoryHub
 
 P = 100_000_000

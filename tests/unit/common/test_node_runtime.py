@@ -11,7 +11,7 @@ from typing import Any
 from seaway.contract import keys
 from seaway.contract.messages import GnssFix, PeriodDone, StateEstimate
 from seaway.runtime.clock import WallClock
-from seaway.runtime.lockstep import Member
+from seaway.runtime.lockstep_member import Member
 from seaway.runtime.memory_bus import MemoryHub
 from seaway.runtime.node import Answer, LiveDriver, MemberDriver, MemberSpec, Node, Period, PeriodAt
 

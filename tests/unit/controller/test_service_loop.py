@@ -27,7 +27,7 @@ from seaway.contract.messages import (
 )
 from seaway.runtime.bus import TypedSubscriber
 from seaway.runtime.clock import WallClock
-from seaway.runtime.lockstep import Member
+from seaway.runtime.lockstep_member import Member
 from seaway.runtime.memory_bus import MemoryBus, MemoryHub
 from seaway.runtime.node import LiveDriver, Period, run_node
 from seaway.runtime.ratelog import RateLimitedLog

@@ -79,7 +79,7 @@ def test_lockstep_leftovers_too_far_ahead_are_dropped_at_the_period() -> None:
     """Lockstep: inputs queued before the member knew its period (at start) wait for their period;
     one stamped beyond any period to come soon would wait for ever (memory): dropped."""
     from seaway.contract.messages import PeriodDone
-    from seaway.runtime.lockstep import Member
+    from seaway.runtime.lockstep_member import Member
     from seaway.runtime.node import Period, PeriodAt
 
     hub = MemoryHub()

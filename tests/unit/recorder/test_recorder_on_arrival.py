@@ -18,7 +18,8 @@ from seaway.contract import keys
 from seaway.contract.messages import PeriodDone
 from seaway.recording import reader
 from seaway.recording.timebase import RecordingTime
-from seaway.runtime.lockstep import Member, Period
+from seaway.runtime.lockstep import Period
+from seaway.runtime.lockstep_member import Member
 from seaway.runtime.lockstep_witness import LockstepWitness
 from seaway.runtime.memory_bus import MemoryHub
 from seaway_recorder.core import RecordingWriter

@@ -17,7 +17,8 @@ from seaway.contract import keys
 from seaway.contract.messages import PeriodDone
 from seaway.recording.reader import RecordingInfo
 from seaway.runtime.bus import Bus
-from seaway.runtime.lockstep import Ledger, Member, Period
+from seaway.runtime.lockstep import Ledger, Period
+from seaway.runtime.lockstep_member import Member
 from seaway.runtime.lockstep_replay import LockstepPacer
 from seaway.runtime.memory_bus import MemoryHub
 from seaway_recorder.replay import KeyFilter, lockstep_vessel

@@ -10,8 +10,9 @@ import threading
 from seaway.contract import keys
 from seaway.contract.messages import ScenarioRequest, ThrustCommand
 from seaway.runtime import lockstep_clock as sim_lockstep
-from seaway.runtime.lockstep import Member, Period
+from seaway.runtime.lockstep import Period
 from seaway.runtime.lockstep_clock import LockstepClock
+from seaway.runtime.lockstep_member import Member
 from seaway.runtime.memory_bus import MemoryHub
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.model import load_vessel

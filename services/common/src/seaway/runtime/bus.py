@@ -497,7 +497,7 @@ class Bus(abc.ABC):
         under congestion (the publisher blocks instead). ``express``: sent at once, not batched,
         and the batch queued before it goes with it (Zenoh's ``express``).
 
-        A lockstep member publishes its period as one bundle (``seaway.runtime.lockstep.Member``),
+        A lockstep member publishes its period as one bundle (``seaway.runtime.lockstep_member.Member``),
         not through publishers of its keys."""
         if spec.kind != "topic":
             raise ValueError(f"{spec.suffix} is a {spec.kind}, not a topic")

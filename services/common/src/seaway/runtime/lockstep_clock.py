@@ -37,9 +37,9 @@ from seaway.runtime.lockstep import (
     RECORDER,
     RECORDER_LAG,
     STALL_REPEAT_S,
-    Member,
     Period,
 )
+from seaway.runtime.lockstep_member import Member
 from seaway.runtime.node import Node
 
 log = logging.getLogger("seaway.runtime.lockstep_clock")

@@ -8,7 +8,8 @@ from collections.abc import Callable, Sequence
 from seaway.contract import keys
 from seaway.contract.messages import LOCKSTEP_SERVICES, MessageError, PeriodDone
 from seaway.runtime.bus import Bus
-from seaway.runtime.lockstep import Member, Period, classify
+from seaway.runtime.lockstep import Period, classify
+from seaway.runtime.lockstep_member import Member
 
 REPEAT_MEMORY = 256
 """Payloads per key a lockstep recorder remembers, to write a repeat (the same bytes again) once. A

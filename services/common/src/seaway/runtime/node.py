@@ -52,7 +52,8 @@ from seaway.contract import keys
 from seaway.contract.messages import Message, PeriodDone, Reply
 from seaway.runtime.bus import Bus, TypedPublisher
 from seaway.runtime.clock import RateLoop
-from seaway.runtime.lockstep import Member, Period
+from seaway.runtime.lockstep import Period
+from seaway.runtime.lockstep_member import Member
 from seaway.runtime.stamps import StampGate
 
 __all__ = ["Answer", "LiveDriver", "MemberDriver", "MemberSpec", "Node", "Outputs", "Period",

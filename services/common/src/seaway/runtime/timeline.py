@@ -1,7 +1,7 @@
 """Where a lockstep period's time goes: each member's marks, on the one clock all processes share.
 
 Off unless ``$SEAWAY_LOCKSTEP_TRACE`` names a folder (``seaway bench lockstep`` sets it). Then each
-lockstep member (``seaway.runtime.lockstep.Member``) notes, per period t_k (its ``stamp_ns``):
+lockstep member (``seaway.runtime.lockstep_member.Member``) notes, per period t_k (its ``stamp_ns``):
 
 * ``arrived``: another member's bundle for t_k reached this process's Python (Zenoh's callback was
   entered; ``of`` names whose). Only for a source that moves the member on: a passive one's bundle

@@ -76,7 +76,7 @@ Why: on one thread nothing is sent while a callback runs on it, and each express
 of every link's queue until the callback returns. With the default 2, the third put of a callback
 waits for ever: a lockstep member repeating three bundles for a restarted recorder would stop, its
 health token lapse and the stack stall. A member's repeat
-sends at most ``lockstep.KEPT_BUNDLES``, plus its answer, and one intake can take two repeats."""
+sends at most ``lockstep_member.KEPT_BUNDLES``, plus its answer, and one intake can take two repeats."""
 
 
 def use_lockstep_runtime() -> None:
