@@ -15,8 +15,16 @@ from collections.abc import Iterator
 
 import pytest
 from seaway.contract import keys
-from seaway.contract.messages import ArmRequest, Reply, ScenarioRequest, StateEstimate, ThrustCommand
-from seaway.runtime.bus import RAW_ENCODING, Bus, RawSample, message_encoding
+from seaway.contract.messages import (
+    ArmRequest,
+    Reply,
+    ScenarioRequest,
+    StateEstimate,
+    ThrustCommand,
+    message_encoding,
+)
+from seaway.runtime.bus import Bus
+from seaway.runtime.bus_raw import RAW_ENCODING, RawSample
 from seaway.runtime.memory_bus import MemoryBus, MemoryHub
 from seaway.runtime.zenoh_bus import ZenohBus
 

@@ -32,7 +32,7 @@ import time
 
 from seaway.contract import keys
 from seaway.contract.messages import MissionCommand, Reply, ThrustCommand
-from seaway.runtime.bus import RawSample
+from seaway.runtime.bus_raw import RawSample
 from seaway.runtime.service import base_parser, run_service
 
 FORBIDDEN_SEQ0 = 1_000_000_000

@@ -10,7 +10,7 @@ from collections.abc import Iterator
 import pytest
 from seaway.contract import bundle, keys
 from seaway.contract.messages import ClockTick, Message, PeriodDone, ThrustCommand
-from seaway.runtime.bus import RawSample
+from seaway.runtime.bus_raw import RawSample
 from seaway.runtime.lockstep import Period
 from seaway.runtime.lockstep_member import Member
 from seaway.runtime.memory_bus import MemoryBus, MemoryHub

@@ -25,7 +25,7 @@ from seaway.contract.messages import (
     StateEstimate,
     VehicleStatus,
 )
-from seaway.runtime.bus import TypedSubscriber
+from seaway.runtime.bus_typed import TypedSubscriber
 from seaway.runtime.clock import WallClock
 from seaway.runtime.lockstep_member import Member
 from seaway.runtime.memory_bus import MemoryBus, MemoryHub

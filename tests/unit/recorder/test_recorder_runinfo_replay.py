@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 from seaway.recording import runinfo
 from seaway.recording.reader import RecordedMessage
-from seaway.runtime.bus import RawSample
+from seaway.runtime.bus_raw import RawSample
 from seaway.runtime.memory_bus import MemoryBus, MemoryHub
 from seaway_recorder import attachments
 from seaway_recorder.replay import KeyFilter, normalise, replay

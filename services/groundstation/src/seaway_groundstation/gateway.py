@@ -23,7 +23,8 @@ from typing import Any
 
 from seaway.contract import keys
 from seaway.contract.messages import Message, MessageError, Reply
-from seaway.runtime.bus import Bus, Declared
+from seaway.runtime.bus import Bus
+from seaway.runtime.bus_raw import Declared
 from seaway.runtime.stamps import StampBounds, StampGate
 
 from seaway_groundstation.fleet import Fleet, Kind

@@ -32,7 +32,7 @@ from seaway.recording.recover import recover, tail_of
 from seaway.recording.timebase import RecordingTime, parse_epoch
 from seaway.runtime import memory
 from seaway.runtime import run as runs
-from seaway.runtime.bus import REJOIN_HISTORY_S
+from seaway.runtime.bus_raw import REJOIN_HISTORY_S
 from seaway.runtime.config import parse_service_args, service_parser
 from seaway.runtime.lockstep_witness import LockstepWitness
 from seaway.runtime.node import run_node

@@ -21,7 +21,7 @@ import zenoh
 from seaway.contract import bundle, keys
 from seaway.contract.messages import LOCKSTEP_SERVICES, LogRecord, PeriodDone
 from seaway.recording.timebase import stamp_of
-from seaway.runtime.bus import RawSample
+from seaway.runtime.bus_raw import RawSample
 from seaway.runtime.lockstep_witness import LockstepWitness
 from seaway.runtime.node import Node
 from seaway.runtime.timeline import Timeline

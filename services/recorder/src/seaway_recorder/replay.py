@@ -25,10 +25,11 @@ from dataclasses import dataclass, field
 
 import zenoh
 from seaway.contract import bundle, keys
-from seaway.contract.messages import MessageError, PeriodDone
+from seaway.contract.messages import JSON_ENCODING, MessageError, PeriodDone
 from seaway.recording import reader
 from seaway.runtime.argtypes import non_negative_float, positive_float
-from seaway.runtime.bus import JSON_ENCODING, Bus, RawPublisher
+from seaway.runtime.bus import Bus
+from seaway.runtime.bus_raw import RawPublisher
 from seaway.runtime.credentials import ENV_IDENTITY
 from seaway.runtime.lockstep_replay import SIM_ANSWER_SUFFIX, LockstepPacer
 from seaway.runtime.node import Period

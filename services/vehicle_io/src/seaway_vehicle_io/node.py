@@ -49,7 +49,7 @@ from seaway.contract.messages import (
     ThrustCommand,
     VehicleStatus,
 )
-from seaway.runtime.bus import TypedPublisher
+from seaway.runtime.bus_typed import TypedPublisher
 from seaway.runtime.node import LiveDriver, Node, Outputs
 from seaway.runtime.ratelog import RateLimitedLog
 from seaway.vessel.battery import BatteryParams

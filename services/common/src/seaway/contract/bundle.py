@@ -83,7 +83,7 @@ def encode(answer: bytes, lines: Iterable[tuple[str, bytes]]) -> bytes:
 
 class Carried(NamedTuple):
     """What a bundle was encoded from, handed along with its bytes on an in-process bus
-    (``seaway.runtime.bus.RawSample.carried``): its answer and its messages, in line order, and
+    (``seaway.runtime.bus_raw.RawSample.carried``): its answer and its messages, in line order, and
     the bytes ``encode`` joined (the answer's, and each line's key suffix and message), so that
     nobody in the process splits the bundle's bytes again."""
 

@@ -16,7 +16,9 @@ from typing import Any
 
 from seaway.contract import bundle, keys
 from seaway.contract.messages import LOCKSTEP_SERVICES, Message, MessageError, PeriodDone
-from seaway.runtime.bus import Bus, RawRing, RawSample, carrying_put
+from seaway.runtime.bus import Bus
+from seaway.runtime.bus_raw import RawSample, carrying_put
+from seaway.runtime.bus_typed import RawRing
 from seaway.runtime.lockstep import (
     KEPT_PERIODS,
     PASSIVE_POLL_S,

@@ -36,8 +36,10 @@ from typing import Any
 
 import zenoh
 
+from seaway.contract.messages import JSON_ENCODING
 from seaway.runtime import host
-from seaway.runtime.bus import JSON_ENCODING, RAW_ENCODING, Bus, Declared, RawPublisher, RawReply, RawSample
+from seaway.runtime.bus import Bus
+from seaway.runtime.bus_raw import RAW_ENCODING, Declared, RawPublisher, RawReply, RawSample
 from seaway.runtime.service import DEFAULT_VESSEL
 
 log = logging.getLogger("seaway.runtime.memory_bus")

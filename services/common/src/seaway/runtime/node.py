@@ -50,7 +50,8 @@ from typing import Any, NamedTuple
 
 from seaway.contract import keys
 from seaway.contract.messages import Message, PeriodDone, Reply
-from seaway.runtime.bus import Bus, TypedPublisher
+from seaway.runtime.bus import Bus
+from seaway.runtime.bus_typed import TypedPublisher
 from seaway.runtime.clock import RateLoop
 from seaway.runtime.lockstep import Period
 from seaway.runtime.lockstep_member import Member

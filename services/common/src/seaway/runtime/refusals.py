@@ -45,7 +45,8 @@ from dataclasses import dataclass, field
 
 from seaway.contract import keys
 from seaway.contract import messages as m
-from seaway.runtime.bus import Bus, message_encoding
+from seaway.contract.messages import message_encoding
+from seaway.runtime.bus import Bus
 
 log = logging.getLogger("seaway.refusals")
 

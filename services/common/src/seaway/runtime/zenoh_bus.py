@@ -29,18 +29,11 @@ from typing import Any
 import zenoh
 import zenoh.ext
 
+from seaway.contract.messages import JSON_ENCODING
 from seaway.runtime import credentials as creds
 from seaway.runtime import stacks
-from seaway.runtime.bus import (
-    JSON_ENCODING,
-    RAW_ENCODING,
-    Bus,
-    Declared,
-    RawPublisher,
-    RawReply,
-    RawSample,
-    RuntimeEnvError,
-)
+from seaway.runtime.bus import Bus, RuntimeEnvError
+from seaway.runtime.bus_raw import RAW_ENCODING, Declared, RawPublisher, RawReply, RawSample
 
 log = logging.getLogger("seaway.runtime.bus")
 

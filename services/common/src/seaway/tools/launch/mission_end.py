@@ -44,7 +44,8 @@ from seaway.contract.messages import (
     return_mission_id,
 )
 from seaway.contract.units import NS_PER_S
-from seaway.runtime.bus import Bus, Every, Newest
+from seaway.runtime.bus import Bus
+from seaway.runtime.bus_typed import Every, Newest
 from seaway.runtime.ratelog import RateLimitedLog
 from seaway.runtime.stamps import StampBounds, StampGate
 from seaway.vessel.frames import GeoOrigin

@@ -26,7 +26,8 @@ from seaway.contract.messages import (
     StateEstimate,
     ThrustCommand,
 )
-from seaway.runtime.bus import Bus, Every, Newest
+from seaway.runtime.bus import Bus
+from seaway.runtime.bus_typed import Every, Newest
 
 DECISION_LABELS = {"warn": "LOW ENERGY", "return": "RETURNING", "hold": "HOLDING"}
 """How the status line names an energy budget's decision (``EnergyBudget.decision``, not 'none')."""

@@ -45,7 +45,8 @@ from typing import IO, Any
 from seaway.contract import bundle, keys
 from seaway.contract.messages import LOCKSTEP_SERVICES
 from seaway.runtime import cpus, host
-from seaway.runtime.bus import Bus, RawRing
+from seaway.runtime.bus import Bus
+from seaway.runtime.bus_typed import RawRing
 from seaway.runtime.credentials import ENV_IDENTITY
 from seaway.runtime.service import ENV_VESSEL
 from seaway.tools.launch.events import EVENTS_FILE, ProcessEvent
