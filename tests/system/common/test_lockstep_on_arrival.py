@@ -55,7 +55,8 @@ class Steering(Node):
 def run_member(bus: Bus, node: Node, stop: threading.Event) -> tuple[MemberDriver, threading.Thread]:
     driver = MemberDriver(bus, node)
     node.attach(driver)
-    thread = threading.Thread(target=driver.run, args=(stop, lambda: None), name="member-loop",
+    # ``ready`` joins (a service's context declares its health token after): no health here.
+    thread = threading.Thread(target=driver.run, args=(stop, lambda join: join()), name="member-loop",
                               daemon=True)
     thread.start()
     return driver, thread

@@ -14,6 +14,10 @@ from seaway.runtime.clock import WallClock
 from seaway.runtime.lockstep_member import Member
 from seaway.runtime.memory_bus import MemoryHub
 from seaway.runtime.node import Answer, LiveDriver, MemberDriver, MemberSpec, Node, Period, PeriodAt
+from seaway.runtime.run import RunDescription
+from seaway.runtime.service import ServiceContext
+
+from tests.conftest import wait_for
 
 P = 100_000_000
 V = "vessel1"
@@ -147,7 +151,7 @@ class Ctx:
         self.stop = threading.Event()
         self.ready_called = False
 
-    def ready(self) -> None:
+    def ready(self, joining: Any = None) -> None:
         self.ready_called = True
 
 
@@ -171,3 +175,34 @@ def test_period_done_of_a_node_lists_what_it_published() -> None:
     sim.answer(Period(0, 0), P, [(keys.GNSS, fix(0))])
     ans = listener.ledger.answer("estimator")
     assert isinstance(ans, PeriodDone) and ans.service == "estimator" and ans.period_ns == P
+
+
+def test_a_member_is_a_member_before_its_health_token_says_it_is_ready() -> None:
+    """A launcher starts the clock, or a replay, once the members' health tokens are up, and a
+    replay paces each period by the members it knows then: a member token that came after the
+    health token let a replay run its first periods without that member (the controller's commands
+    lost). So the member token is declared first, and the period the clock repeats for the newcomer
+    is answered."""
+    hub = MemoryHub()
+    seen: list[tuple[str, str]] = []  # (token kind, service), in the order they appeared
+    watcher = hub.bus(V)
+    watcher.watch_lockstep_members(lambda svc, alive: alive and seen.append(("member", svc)))
+    watcher.watch_health(lambda svc, alive: alive and seen.append(("health", svc)))
+    node = Estimating()
+    ctx = ServiceContext("estimator", V, hub.bus(V), WallClock(), threading.Event(),
+                         RunDescription(run_id="unit", vessel=V), agree=False)
+    driver = MemberDriver(ctx.bus, node)
+    node.attach(driver)
+    sim = Member(hub.bus(V), "sim", watched=(), subscribe=False)
+    sim.answer(Period(0, 0), P, [(keys.GNSS, fix(0))])  # the clock's first period, before it joins
+    runner = threading.Thread(target=driver.run, args=(ctx.stop, ctx.ready))
+    runner.start()
+    try:
+        wait_for(lambda: ("health", "estimator") in seen, 10, what="the health token")
+        assert seen.index(("member", "estimator")) < seen.index(("health", "estimator")), seen
+        sim.repeat()  # what the clock does for a member that joins
+        wait_for(lambda: node.answers, 10, what="the repeated period answered")
+        assert node.answers[0][0] == Period(0, 0)
+    finally:
+        ctx.stop.set()
+        runner.join(10)

@@ -29,9 +29,10 @@ from tests.unit.recorder.test_recorder_repeats import EPOCH_NS, EXPRS, P, V, clo
 
 
 class Recorder:
-    """A lockstep recorder node on ``hub``, its loop never run; ``joined``: after its first tick."""
+    """A lockstep recorder node on ``hub``, its loop never run; ``looping``: after its first tick
+    (it joined just before, as the driver makes it: ``Node.joining``)."""
 
-    def __init__(self, hub: MemoryHub, folder: Path, joined: bool = True) -> None:
+    def __init__(self, hub: MemoryHub, folder: Path, looping: bool = True) -> None:
         self.writer = RecordingWriter(folder / "recording.mcap", compression="none",
                                       time=RecordingTime(lockstep=True, epoch_ns=EPOCH_NS))
         self.writer.open(time.time_ns())
@@ -42,7 +43,8 @@ class Recorder:
         self.node = RecorderNode(self.writer, self.queue, flush_s=60.0, status_s=60.0,
                                  witness=witness, kept=KeptKeys(EXPRS))
         self.node.attach(SimpleNamespace(stop=threading.Event()))
-        if joined:
+        self.node.joining()
+        if looping:
             self.node.tick(time.monotonic_ns(), None)  # nothing heard yet
         self.answers: list[int] = []
         hub.bus(V).subscribe_raw(keys.LOCKSTEP_RECORDER.key(V), lambda s: self.answers.append(
@@ -82,13 +84,13 @@ def test_the_loop_writes_what_arrives_while_it_is_writing(tmp_path: Path) -> Non
     assert [key for key, *_ in rec.queue.items] == [keys.LOCKSTEP_RECORDER.key(V)]
 
 
-def test_before_it_has_joined_the_loop_is_woken_as_before(tmp_path: Path) -> None:
+def test_before_its_loop_has_ticked_the_loop_is_woken_as_before(tmp_path: Path) -> None:
     hub = MemoryHub()
-    rec = Recorder(hub, tmp_path, joined=False)
+    rec = Recorder(hub, tmp_path, looping=False)
     Member(hub.bus(V), "sim", watched=(), subscribe=False).answer(
         Period(0, 0), P, [(keys.SIM_CLOCK, clock(0))], members=["recorder"])
     assert rec.queue.arrived.is_set() and rec.queue.items and rec.writer.stats.messages == 0
-    rec.node.tick(time.monotonic_ns(), None)  # the loop's first tick joins, and writes it
+    rec.node.tick(time.monotonic_ns(), None)  # the loop's first tick writes it
     assert rec.answers == [0] and rec.writer.stats.messages > 0
     rec.writer.close()
 

@@ -228,7 +228,7 @@ class RecorderNode(Node):
         self._next_status = now + int(status_s * 1e9)
         self._last_messages = 0
         self._drained = 0
-        self._joined = False
+        self._looping = False  # the loop has ticked: writing on arrival may take over
         self.failed: OSError | None = None
         """The write that failed (disk full, file removed): the node stops, the file is finished."""
         self._stop: threading.Event | None = None
@@ -246,10 +246,10 @@ class RecorderNode(Node):
         what is queued and answer the period on that thread (composed, inside the sim's put). The
         loop takes over, woken as before, when it is writing itself (or this thread is inside its
         write: the answer it put completed a period, and the chain ran from there), before the
-        node has joined, and once writing has failed. Once stopping (``finish``), it writes
+        loop's first tick, and once writing has failed. Once stopping (``finish``), it writes
         nothing: the loop writes what is queued, and the writer is closed after it."""
         stopping = not self.queue.accepting
-        if not self._joined or stopping or self.failed is not None or self._raised is not None:
+        if not self._looping or stopping or self.failed is not None or self._raised is not None:
             self.queue.arrived.set()
             return
         if not self._writing.acquire(blocking=False):
@@ -269,11 +269,15 @@ class RecorderNode(Node):
     def attach(self, driver: Any) -> None:
         self._stop = driver.stop
 
+    def joining(self) -> None:
+        """A member before it is ready (``Node.joining``): the clock then repeats its period for
+        us, and waits for us from then on."""
+        if self.witness is not None:
+            self.witness.member.join()
+
     def tick(self, now_ns: int, out: Any) -> None:
-        if not self._joined:  # once healthy: the clock then repeats its period for us
-            self._joined = True
-            if self.witness is not None:
-                self.witness.member.join()
+        if not self._looping:
+            self._looping = True
             print("READY", flush=True)
         if self._raised is not None:
             raise self._raised

@@ -171,6 +171,11 @@ class Node:
     def take(self, key: str, msg: Any, now_ns: int | None) -> None:
         """An input on ``key``."""
 
+    def joining(self) -> None:
+        """Real time, just before the health token: a node that takes part in lockstep beside the
+        clock of its own (the recorder's witness) joins here, so that it is a member once it is
+        ready (``MemberDriver.run`` says why)."""
+
     def restart(self, period: Period) -> None:
         """Lockstep: a new episode starts at ``period`` (the sim restarted or loaded a scenario)."""
 
@@ -298,13 +303,21 @@ class MemberDriver:
         the loop answers what came before)."""
         self.member.on_ready = self.step
 
-    def run(self, stop: threading.Event, ready: Callable[[], None]) -> None:
-        """Join once ``ready`` declared the node's health, then answer until ``stop``."""
-        for spec in self.node.side_inputs:
-            self.bus.subscribe(spec, callback=lambda key, msg: self.node.take(key, msg, None))
-        ready()
+    def join(self) -> None:
+        """Answer from now on (``answer_on_arrival``) and declare the member token."""
         self.answer_on_arrival()
         self.member.join()
+
+    def run(self, stop: threading.Event, ready: Callable[[Callable[[], None]], None]) -> None:
+        """Join (within ``ready``, before the node's health token), then answer until ``stop``.
+
+        The member token comes first because a launcher starts the clock, or a replay, once the
+        members' health tokens are up, and a replay paces each period by the members it knows then:
+        a member that joined only after its health token would miss the periods sent before it (a
+        replay runs open loop: it does not wait for a command, as the sim does)."""
+        for spec in self.node.side_inputs:
+            self.bus.subscribe(spec, callback=lambda key, msg: self.node.take(key, msg, None))
+        ready(self.join)
         version = 0
         try:
             while not stop.is_set():
@@ -340,7 +353,7 @@ class LiveDriver:
         ctx, node = self.ctx, self.node
         for spec in (*node.live_inputs, *node.side_inputs):
             ctx.bus.subscribe(spec, callback=self._take, inline=spec in node.inline_inputs)
-        ctx.ready()
+        ctx.ready(node.joining)
         loop = self.loop
         try:
             if node.paced:

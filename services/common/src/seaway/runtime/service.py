@@ -219,15 +219,21 @@ class ServiceContext:
     is_ready: bool = False
     _run_answer: object = None
 
-    def ready(self) -> None:
-        """Check the run against the running services, then declare the health token.
+    def ready(self, joining: Callable[[], None] | None = None) -> None:
+        """Check the run against the running services, then ``joining`` (a lockstep member's join),
+        then declare the health token.
 
         Call once every subscriber and queryable is in place. A run-wide difference with a service
-        already running raises RunMismatchError (``run_service`` turns it into exit status 2).
+        already running raises RunMismatchError (``run_service`` turns it into exit status 2), before
+        anything is declared. A lockstep member joins before its health token: whoever waits for the
+        services to be ready before starting the clock (the launcher, before the sim or a replay)
+        then finds each one a member from the first period.
         """
         if not self.is_ready:
             if self.agree:
                 self._run_answer = runs.announce(self.bus, self.run, self.name)
+            if joining is not None:
+                joining()
             self.bus.declare_alive(self.name)
             self.is_ready = True
             if self.freeze_when_ready:
