@@ -1,19 +1,26 @@
-"""What a flight on firmware did with its thrust, read from its recording: printed by the SITL lake
-tests, so that a run whose energy or tracking is off says where the joules went (steady thrust,
-spikes, chatter between periods, a fallback) and whether the stamps were late or gappy.
+"""What a flight on firmware did, for the SITL tests to say when it went wrong: where its thrust
+went, read from its recording (steady thrust, spikes, chatter between periods, a fallback, late or
+gappy stamps), its services' warnings, and where a launch that did not end stood.
 
-Read with the ``mcap`` package and ``json`` directly, not our recording reader, so that a fault in
-the reader cannot hide itself here.
+The recording is read with the ``mcap`` package and ``json`` directly, not our recording reader, so
+that a fault in the reader cannot hide itself here.
 """
 
 from __future__ import annotations
 
 import json
+import os
+import signal
 import statistics
+import subprocess
 from itertools import pairwise
 from pathlib import Path
 
+import pytest
 from seaway.contract import keys
+
+STOP_WAIT_S = 60.0
+"""How long a launch interrupted for taking too long gets to stop and write its logs [s]."""
 
 
 def _q(values: list[float], frac: float) -> float:
@@ -91,3 +98,28 @@ def warning_lines(run_dir: Path, services: tuple[str, ...] = ("vehicle_io", "est
             lines += [line[:240] for line in path.read_text(errors="replace").splitlines()
                       if " WARNING " in line or " ERROR " in line]
     return lines[-limit:]
+
+
+def launch_to_end(args: list[str], run_dir: Path, env: dict[str, str], timeout_s: float
+                  ) -> subprocess.CompletedProcess[str]:
+    """``seaway launch`` (``args``, run folder ``run_dir``) to its end, as ``subprocess.run`` would.
+
+    One that has not ended after ``timeout_s`` is stopped as an operator would stop it (Ctrl-C,
+    SIGKILL after ``STOP_WAIT_S``), and the test fails saying where it stood: the last of its output
+    (its status line comes every 5 s) and its services' warnings. A bare timeout would say nothing:
+    everything the launcher printed is lost with it."""
+    proc = subprocess.Popen(args, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, start_new_session=True)
+    try:
+        out, err = proc.communicate(timeout=timeout_s)
+    except subprocess.TimeoutExpired:
+        proc.send_signal(signal.SIGINT)
+        try:
+            out, err = proc.communicate(timeout=STOP_WAIT_S)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            out, err = proc.communicate()
+        pytest.fail(f"seaway launch had not ended after {timeout_s:g} s; interrupted (exit "
+                    f"{proc.returncode}). Its output:\n{out[-6000:]}\nIts errors:\n{err[-4000:]}\n"
+                    "Its services' warnings:\n" + "\n".join(warning_lines(run_dir)))
+    return subprocess.CompletedProcess(args, proc.returncode, out, err)

@@ -23,7 +23,11 @@ from seaway.vessel.model import load_vessel
 from seaway_vehicle_io import sitl
 
 from tests.conftest import REPO, solver_built
-from tests.system.launch.flight_diagnostics import thrust_diagnostics, warning_lines
+from tests.system.launch.flight_diagnostics import (
+    launch_to_end,
+    thrust_diagnostics,
+    warning_lines,
+)
 from tests.system.vehicle_io.ardupilot_sitl import needs_sitl, sitl_instance
 
 pytestmark = pytest.mark.system
@@ -46,8 +50,8 @@ def profile_copy(name: str, tmp: Path, instance: int) -> Path:
 
 def launch(profile: Path, run_dir: Path, env: dict[str, str], timeout_s: float
            ) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([str(BIN / "seaway"), "launch", str(profile), "--run-dir", str(run_dir)],
-                          env=env, capture_output=True, text=True, timeout=timeout_s, check=False)
+    return launch_to_end([str(BIN / "seaway"), "launch", str(profile), "--run-dir", str(run_dir)],
+                         run_dir, env, timeout_s)
 
 
 def launch_on_sitl(name: str, tmp: Path, env: dict[str, str], timeout_s: float
@@ -79,7 +83,7 @@ def test_the_lake_mission_on_ardupilot_sitl_with_the_identified_model(tmp_path, 
     # guidance while the reference IPOPT was set up (12 of 313 periods "no solver yet" in CI, over
     # the bound on non-converged solves below, which is about the MPC's turns).
     solver_built("cc-empc", "ardupilot-sitl-motorboat")
-    run_dir, stdout, log = launch_on_sitl("sitl-ardupilot", tmp_path, zenoh_env, 600)
+    run_dir, stdout, log = launch_on_sitl("sitl-ardupilot", tmp_path, zenoh_env, 540)
     # The launcher waited for the EKF by asking to arm until ArduPilot agreed.
     assert re.search(r"^arm: accepted", stdout, re.M), log
     assert "mission complete" in stdout, log

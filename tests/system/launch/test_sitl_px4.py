@@ -25,7 +25,11 @@ from seaway.recording import reader
 from seaway.vessel.model import load_vessel, surge_friction_n
 
 from tests.conftest import REPO, solver_built
-from tests.system.launch.flight_diagnostics import thrust_diagnostics, warning_lines
+from tests.system.launch.flight_diagnostics import (
+    launch_to_end,
+    thrust_diagnostics,
+    warning_lines,
+)
 from tests.system.vehicle_io.px4_sitl import needs_px4
 
 pytestmark = pytest.mark.system
@@ -37,9 +41,8 @@ MEAN_XTE_M, MAX_XTE_M, FAILED_SOLVES = 0.5, 2.0, 0
 
 def launch(profile: str, run_dir: Path, env: dict[str, str], timeout_s: float
            ) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([str(BIN / "seaway"), "launch", str(PROFILES / f"{profile}.toml"),
-                           "--run-dir", str(run_dir)],
-                          env=env, capture_output=True, text=True, timeout=timeout_s, check=False)
+    return launch_to_end([str(BIN / "seaway"), "launch", str(PROFILES / f"{profile}.toml"),
+                          "--run-dir", str(run_dir)], run_dir, env, timeout_s)
 
 
 def launch_ok(profile: str, tmp: Path, env: dict[str, str], timeout_s: float
@@ -111,7 +114,7 @@ def test_identify_flies_the_manoeuvre_on_px4_sitl_and_fits_its_rover(tmp_path, i
 @pytest.mark.timeout(660)
 def test_the_lake_mission_on_px4_sitl_with_the_identified_model(tmp_path, zenoh_env) -> None:
     solver_built("cc-empc", "px4-sitl-rover")  # a normal run, not a machine's first
-    run_dir, stdout, log = launch_ok("sitl-px4", tmp_path, zenoh_env, 600)
+    run_dir, stdout, log = launch_ok("sitl-px4", tmp_path, zenoh_env, 540)
     assert re.search(r"^arm: accepted", stdout, re.M), log
     assert "mission complete" in stdout, log
     run = json.loads((run_dir / "run.json").read_text())
