@@ -32,12 +32,13 @@ VESSEL = ["--vessel-file", "paper-boat"]  # the lake's boat: 75 N thrusters, 10 
 DETECT_S = 5.0 + 3.0 + 30.0  # window + onset, and the slow window if the cruise is slow
 TASK_POWER_W = 100.0  # a cruise just outside the 10 N dead zone: well below SIH's static friction
 STILL_MPS = 0.1  # the premise: SIH's truth says the rover does not move
-# The cruise TASK_POWER_W asks of the paper boat is about 0.65 m/s: an estimate that kept
-# dead-reckoning on the thrust would show it. Once the fault is raised the estimate follows PX4's
-# fixes, whose velocity for the still rover wanders by a few tenths: its median over AFTER_S is
-# judged, against a bound between the two.
+# The cruise TASK_POWER_W asks of the paper boat is about 0.65 m/s forward: an estimate that kept
+# dead-reckoning on the thrust would show it as its surge. Once the fault is raised the estimate
+# follows PX4's fixes, whose velocity for the still rover wanders by a few tenths in any direction
+# (a median speed of 0.47 m/s over 2 s was seen once in a dozen runs). So the surge's median over
+# AFTER_S is judged, signed: a wander backwards or sideways is no cruise.
 DEAD_RECKONED_MPS = 0.4
-AFTER_S = 2.0
+AFTER_S = 4.0
 # PX4's velocity over ground for SIH's still rover wanders by up to 0.3-0.4 m/s (its EKF's noise;
 # see ../shared/sitl/px4/README.md). With the estimator's default (a real receiver's 0.05 m/s) most
 # of those fixes are gated out before the mission starts, and the held rover is then named
@@ -115,9 +116,10 @@ def test_a_rover_held_by_friction_is_a_motion_fault_not_a_cruise(zenoh_env, proc
     time.sleep(AFTER_S)
     after = [e for e in states.drain() if e.motion_fault == "not_moving"]
     assert after, "nav/state did not keep the fault"
-    after_mps = statistics.median(math.hypot(e.u_mps, e.v_mps) for e in after)
-    print(f"estimated speed over {AFTER_S} s after the pause: median {after_mps:.3f} m/s")
-    assert after_mps < DEAD_RECKONED_MPS, after[-1]
+    surge_mps = statistics.median(e.u_mps for e in after)
+    print(f"estimated surge over {AFTER_S} s after the pause: median {surge_mps:.3f} m/s (speed "
+          f"{statistics.median(math.hypot(e.u_mps, e.v_mps) for e in after):.3f} m/s)")
+    assert surge_mps < DEAD_RECKONED_MPS, after[-1]
     refused = bus.request(keys.MISSION_COMMAND, MissionCommand.make(stamp_ns=time.time_ns(),
                                                                     command="resume"), timeout_s=8)
     assert not refused.accepted and "cannot resume: motion fault not_moving" in refused.reason
