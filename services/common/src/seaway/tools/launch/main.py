@@ -115,8 +115,9 @@ def parser() -> argparse.ArgumentParser:
                          "(default: the mission's)")
     ap.add_argument("--stay", action="store_true", help="keep running after the mission completes")
     ap.add_argument("--resume-wait", type=positive_float, default=RESUME_WAIT_S, metavar="S",
-                    help="real time: how long a mission paused by a restart of vehicle_io or the sim "
-                         "may wait for the autopilot (armed) before the run ends it (default "
+                    help="real time: how long a mission paused by an interruption of the link (a "
+                         "restart of vehicle_io or the sim, a loss of the autopilot) may wait for "
+                         "the autopilot (armed) before the run ends it (default "
                          f"{RESUME_WAIT_S:g} s; seaway.tools.launch.resume)")
     ap.add_argument("--verbose", action="store_true", help="show every process's output")
     ap.add_argument("--no-report", action="store_true",
