@@ -10,12 +10,9 @@ everything else unchanged. Skipped, saying why, only where the firmware is absen
 from __future__ import annotations
 
 import json
-import os
 import re
-import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
@@ -27,13 +24,13 @@ from seaway.vessel.model import load_vessel
 from seaway_vehicle_io import sitl
 
 from tests.conftest import REPO, solver_built, wait_for
-from tests.system.hardening.stack import starts
 from tests.system.launch.flight_diagnostics import (
     launch_to_end,
     thrust_diagnostics,
     warning_lines,
 )
 from tests.system.vehicle_io.ardupilot_sitl import needs_sitl, sitl_instance
+from tests.system.vehicle_io.relay import TcpRelay
 
 pytestmark = pytest.mark.system
 BIN = Path(sys.executable).parent
@@ -157,37 +154,43 @@ def test_identify_flies_the_manoeuvre_on_ardupilot_sitl_and_fits_its_boat(tmp_pa
     assert Path(result["plot"]).stat().st_size > 10_000
 
 
-STALL_S = 5.0
-"""How long the firmware is stopped: beyond vehicle_io's heartbeat timeout (3 s, the link is lost)
-and below anything the firmware itself would notice of its own (it is stopped whole)."""
+
+DROPOUT_S = 5.0
+"""How long the link is cut: beyond vehicle_io's heartbeat timeout (3 s: the link is lost)."""
 
 
 @needs_sitl
 @pytest.mark.slow
 @pytest.mark.timeout(660)
-def test_a_stalled_firmware_pauses_the_lake_mission_and_the_launcher_resumes_it(
+def test_a_link_dropout_pauses_the_lake_mission_and_the_launcher_resumes_it(
         tmp_path, zenoh_env, procs) -> None:
-    # The firmware stopped for STALL_S (SIGSTOP: an autopilot that hangs, or a machine that starves
-    # it) mid-mission. vehicle_io loses the link, the controller pauses the mission; the firmware
-    # comes back armed in its mode, and the launcher that sent the mission resumes it. Before, the
+    # The link between vehicle_io and the firmware cut for DROPOUT_S mid-mission (a radio out of
+    # range, a loose cable; tests/system/vehicle_io/relay.py carries the bytes and drops them while
+    # faded). vehicle_io loses the link, the controller pauses the mission; the link comes back with
+    # the autopilot armed in its mode, and the launcher that sent the mission resumes it. Before, the
     # mission stayed paused for good and the launch never ended.
     solver_built("cc-empc", "ardupilot-sitl-motorboat")
     run_dir = tmp_path / "run"
-    profile = profile_copy("sitl-ardupilot", tmp_path, sitl_instance())
-    launcher = procs.start([str(BIN / "seaway"), "launch", str(profile), "--run-dir", str(run_dir)],
-                           zenoh_env, "launcher")
-    wait_for(lambda: launcher.poll() is not None or "active leg 1/3" in procs.log(launcher), 300,
-             interval_s=0.5, what="the mission on its second leg")
-    assert launcher.poll() is None, procs.log(launcher)[-3000:]
-    (firmware,) = starts(run_dir, "sitl")  # `seaway sitl` execs the firmware: the same process
-    os.kill(firmware["pid"], signal.SIGSTOP)
-    time.sleep(STALL_S)
-    os.kill(firmware["pid"], signal.SIGCONT)
+    instance = sitl_instance()
+    relay = TcpRelay(sitl.BASE_TCP_PORT + sitl.PORTS_PER_INSTANCE * instance)
+    profile = profile_copy("sitl-ardupilot", tmp_path, instance)
+    profile.write_text(profile.read_text().replace(sitl.serial0_url(instance), relay.url))
     try:
-        launcher.wait(240)
-    except subprocess.TimeoutExpired:
-        pytest.fail("the launch did not end 240 s after the stall:\n" + procs.log(launcher)[-3000:])
+        launcher = procs.start([str(BIN / "seaway"), "launch", str(profile), "--run-dir",
+                                str(run_dir)], zenoh_env, "launcher")
+        wait_for(lambda: launcher.poll() is not None or "active leg 1/3" in procs.log(launcher),
+                 300, interval_s=0.5, what="the mission on its second leg")
+        assert launcher.poll() is None, procs.log(launcher)[-3000:]
+        relay.fade(DROPOUT_S)
+        try:
+            launcher.wait(240)
+        except subprocess.TimeoutExpired:
+            pytest.fail("the launch did not end 240 s after the dropout:\n"
+                        + procs.log(launcher)[-3000:])
+    finally:
+        relay.close()
     out = procs.log(launcher)
+    assert relay.dropped > 0
     assert launcher.returncode == 0 and "mission complete" in out, out[-3000:]
     assert f"mission resumed after {resume.LOSS}" in out, out[-3000:]
     dec = reader.decode_vessel([run_dir / "recording.mcap"], None, [keys.MISSION_STATUS.suffix])
