@@ -154,7 +154,6 @@ def test_identify_flies_the_manoeuvre_on_ardupilot_sitl_and_fits_its_boat(tmp_pa
     assert Path(result["plot"]).stat().st_size > 10_000
 
 
-
 DROPOUT_S = 5.0
 """How long the link is cut: beyond vehicle_io's heartbeat timeout (3 s: the link is lost)."""
 
