@@ -168,6 +168,7 @@ def test_a_return_home_decided_before_a_restart_goes_on_as_a_return_home(tmp_pat
     from seaway.runtime.memory_bus import MemoryHub
     from seaway.runtime.run import RunDescription
     from seaway.runtime.service import ServiceContext
+    from seaway_controller.energy import SUDDEN_DECIDE_S
 
     from tests.unit.controller.test_core import DT_NS
 
@@ -180,7 +181,9 @@ def test_a_return_home_decided_before_a_restart_goes_on_as_a_return_home(tmp_pat
     svc = lockstep_node(ctx, core, path)
     assert core.handle_mission(0, mission()).accepted
     core.on_battery(BatteryState.make(stamp_ns=0, source="sim", remaining_j=1.0, reserve_j=0.5))
-    for k in range(3):
+    # Short from the start: decided once that has lasted (``SUDDEN_DECIDE_S``).
+    n = round(SUDDEN_DECIDE_S * 1e9 / DT_NS) + 1
+    for k in range(n):
         core.step(k * DT_NS, state(k, x=3.0))
     assert core.budget.returning and core.budget.decision == "return"
     svc.save_checkpoint()
@@ -192,9 +195,9 @@ def test_a_return_home_decided_before_a_restart_goes_on_as_a_return_home(tmp_pat
     assert req.mission_id == core.mission_request.mission_id and (leg, st) == (1, "active")
     b = fresh.budget
     assert (b.returning, b.decision, b.decided_ns) == (True, "return", core.budget.decided_ns)
-    fresh.on_battery(BatteryState.make(stamp_ns=3 * DT_NS, source="sim", remaining_j=1.0,
+    fresh.on_battery(BatteryState.make(stamp_ns=n * DT_NS, source="sim", remaining_j=1.0,
                                        reserve_j=0.5))
-    for k in range(3, 6):
+    for k in range(n, n + 3):
         fresh.step(k * DT_NS, state(k, x=2.5))
     last = fresh.take_budget()
     assert last is not None and last.returning and last.decision == "return"

@@ -14,6 +14,7 @@ from seaway.vessel.model import load_vessel, rk4_step
 from seaway_controller import costs
 from seaway_controller.energy import (
     MIN_SPEED_FRAC,
+    SUDDEN_DECIDE_S,
     TABLES_PER_MODEL,
     Budget,
     Disturbance,
@@ -402,10 +403,7 @@ def test_the_prediction_is_scaled_by_the_ratio_measured_on_the_files_vehicle() -
 def test_no_way_home_decides_only_once_it_has_lasted() -> None:
     """A disturbance estimate the cruise cannot beat (no finite energy home) for a second or two,
     as just after the estimator re-opens its uncertainty, is no return decision (seen on
-    ArduPilot's firmware: a lake mission returned 20 s in); lasting ``UNREACHABLE_DECIDE_S`` it
-    is."""
-    from seaway_controller.energy import UNREACHABLE_DECIDE_S
-
+    ArduPilot's firmware: a lake mission returned 20 s in); lasting ``SUDDEN_DECIDE_S`` it is."""
     b = Budget(model(), [(0.0, 0.0), (60.0, 0.0)], (0.0, 0.0), "return")
     s = 1_000_000_000
     swept = state(x=30.0, tau_d_surge_n=300.0)  # pushed north, away from home, past the cruise
@@ -413,12 +411,65 @@ def test_no_way_home_decides_only_once_it_has_lasted() -> None:
     assert b.last.energy_to_home_j is None and b.decision == "none"
     assert b.update(2 * s, swept, 1, None, 0.0, 1e6, 0, 1000.0) is None
     assert b.update(3 * s, state(x=30.0), 1, None, 0.0, 1e6, 0, 1000.0) is None  # it passed
-    assert b.unreachable_since_ns is None
+    assert b.sudden_since_ns is None
     for k in range(4, 9):  # again, from 4 s
         assert b.update(k * s, swept, 1, None, 0.0, 1e6, 0, 1000.0) is None
-    assert b.update(round((4 + UNREACHABLE_DECIDE_S) * s), swept, 1, None, 0.0, 1e6, 0,
+    assert b.update(round((4 + SUDDEN_DECIDE_S) * s), swept, 1, None, 0.0, 1e6, 0,
                     1000.0) == "return"
     assert "cannot be made good" in b.reason
-    # A finite margin at or below 0 still decides at once.
+
+
+def _home_j(at: StateEstimate) -> float:
+    """The nominal energy home from ``at`` on the tests' 60 m path, under its disturbance [J]."""
+    dist = Disturbance.from_body((at.tau_d_surge_n, at.tau_d_sway_n, at.tau_d_yaw_nm), at.psi_rad)
+    return predict(model(), at, [(0.0, 0.0), (60.0, 0.0)], 1, (0.0, 0.0), None, dist).to_home_j
+
+
+def test_one_wild_price_of_the_way_home_is_no_return_decision() -> None:
+    """A finite margin that falls past 0 from a pricing not yet near it (seen on ArduPilot's
+    firmware: one state just after the estimator re-initialised priced the way home at 303 kJ,
+    about 30 times its energy, and turned the mission into a return) decides only once every
+    pricing has found it so for ``SUDDEN_DECIDE_S``."""
+    s = 1_000_000_000
+    here = state(x=30.0)
+    reserve = 1000.0
+    ample = _home_j(here) + reserve + 50_000.0  # about 16 kJ home, 50 kJ to spare
+    wild = state(x=30.0, tau_d_surge_n=110.0)  # a push away from home: a finite way, ~8 times dearer
+    assert math.isfinite(_home_j(wild)) and _home_j(wild) > ample - reserve
+    b = Budget(model(), [(0.0, 0.0), (60.0, 0.0)], (0.0, 0.0), "return")
+    for k in range(3):
+        assert b.update(k * s, here, 1, None, 0.0, ample, 0, reserve) is None
+    assert b.update(3 * s, wild, 1, None, 0.0, ample, 0, reserve) is None  # one wild price
+    assert b.last.margin_j is not None and b.last.margin_j < 0 and b.decision == "none"
+    assert b.update(3 * s + 100_000_000, here, 1, None, 0.0, ample, 0, reserve) is None
+    assert b.sudden_since_ns is None
+    # Lasting: every pricing for SUDDEN_DECIDE_S (the budget prices every period meanwhile), it is.
+    t, start = 4 * s, 4 * s
+    while t - start < round(SUDDEN_DECIDE_S * s):
+        assert b.update(t, wild, 1, None, 0.0, ample, 0, reserve) is None
+        assert b.due(t + 100_000_000, 1)
+        t += 100_000_000
+    assert b.update(t, wild, 1, None, 0.0, ample, 0, reserve) == "return"
+    # A battery that starts the mission short is no different: its first pricing is no forecast.
     c = Budget(model(), [(0.0, 0.0), (60.0, 0.0)], (0.0, 0.0), "return")
-    assert c.update(0, state(x=30.0), 1, None, 0.0, 1000.0, 0, 1000.0) == "return"
+    assert c.update(0, here, 1, None, 0.0, 1000.0, 0, reserve) is None
+    assert c.update(round(SUDDEN_DECIDE_S * s), here, 1, None, 0.0, 1000.0, 0, reserve) == "return"
+
+
+def test_a_margin_that_falls_to_0_as_foreseen_decides_at_once() -> None:
+    """The battery drains, the margin falls towards 0, the fine pricing (every period) sees it
+    coming: the first pricing that finds it at or below 0 decides, not ``SUDDEN_DECIDE_S`` later."""
+    s = 1_000_000_000
+    here = state(x=30.0)
+    reserve = 1000.0
+    at_zero = _home_j(here) + reserve  # the battery left where the margin is 0
+    b = Budget(model(), [(0.0, 0.0), (60.0, 0.0)], (0.0, 0.0), "return")
+    fall_w = 100.0
+    t, taken = 0, None
+    while taken is None and t < 60 * s:
+        if b.due(t, 1):
+            left = at_zero + fall_w * (29.95 - t / s)  # 0 margin at 29.95 s
+            taken = b.update(t, here, 1, None, 0.0, left, 0, reserve)
+        t += 100_000_000
+    assert taken == "return"
+    assert b.decided_ns == round(30.0 * s)  # the first period at or below 0

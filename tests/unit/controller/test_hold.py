@@ -10,6 +10,7 @@ import math
 import pytest
 from seaway.contract.messages import MissionCommand, StateEstimate
 from seaway.vessel.model import propulsion_power_w
+from seaway_controller.energy import SUDDEN_DECIDE_S
 from seaway_controller.hold import hold_thrust
 from seaway_lab.bench.hold import fly_hold
 
@@ -17,6 +18,7 @@ from tests.unit.controller.test_core import DT_NS, VP, ScriptedSolver, make_core
 from tests.unit.controller.test_vehicle_pause import status as vehicle_status
 
 LAST = (5.13, 8.57)
+SUDDEN_STEPS = round(SUDDEN_DECIDE_S * 1e9 / DT_NS)  # the periods a sudden shortfall must last
 
 
 def at(k: int, x: float, y: float, tau: tuple[float, float, float] = (0.0, 0.0, 0.0),
@@ -113,7 +115,8 @@ def test_the_energy_budget_prices_the_hold_and_returns_home_when_it_must() -> No
     core.on_battery(BatteryState.make(stamp_ns=2 * DT_NS, source="sim", remaining_j=1_100.0,
                                       reserve_j=1_000.0))
     sources = []
-    for k in range(3, 40):
+    # A shortfall from the first pricing decides once it has lasted (SUDDEN_DECIDE_S).
+    for k in range(3, 40 + SUDDEN_STEPS):
         cmd, _, st = core.step(k * DT_NS, at(k, *LAST, tau=(0.5, 0.0, 0.0)))
         sources.append(cmd.source)
         if st.state == "active":
@@ -129,7 +132,8 @@ def test_the_budgets_hold_policy_stops_the_station_keeping() -> None:
     core = completed(on_low_energy="hold")
     core.on_battery(BatteryState.make(stamp_ns=2 * DT_NS, source="sim", remaining_j=1_100.0,
                                       reserve_j=1_000.0))
-    for k in range(3, 40):
+    # A shortfall from the first pricing decides once it has lasted (SUDDEN_DECIDE_S).
+    for k in range(3, 40 + SUDDEN_STEPS):
         cmd, _, st = core.step(k * DT_NS, at(k, *LAST, tau=(0.5, 0.0, 0.0)))
     assert st.state == "complete" and st.hold_x_m is None and "energy budget" in st.reason
     assert (cmd.thrust_port_n, cmd.thrust_starboard_n) == (0.0, 0.0)

@@ -93,12 +93,15 @@ states' stamps: simulated time in lockstep, so a replay prices the same periods)
 the active leg changes [ns]. An autopilot reports its battery about as often. Pricing it every
 period would put a large share of the controller's CPU on lockstep's critical path for figures
 that move a few joules a period."""
-UNREACHABLE_DECIDE_S = 5.0
-"""A way home that cannot be made good (the estimated disturbance stronger than the cruise, so no
-finite energy home) decides the policy only once every pricing has said so for this long [s]: one
-estimate of the disturbance, just after its uncertainty was re-opened, can swing past anything the
-vessel can beat for a second or two, and flying the mission's policy on it is a false return. A
-finite margin at or below 0 decides at once, as before."""
+SUDDEN_DECIDE_S = 5.0
+"""A margin at or below 0 that the budget did not see coming decides the policy only once every
+pricing has found it so for this long [s]. Two kinds: no way home at all (the estimated disturbance
+stronger than the cruise, so no finite energy home), and a finite margin that fell past 0 from a
+pricing that was not yet near it (``Budget.fine`` off). One state just after the estimator re-opened
+its uncertainty, or re-initialised after a divergence, can swing past anything the vessel can beat
+for a second or two, or price the way home at many times its energy; flying the mission's policy
+on it is a false return. A margin that fell to 0 as the fine pricing saw it coming
+(``FINE_PRICING_SECONDS``) decides at once."""
 FINE_PRICING_SECONDS = 3.0
 """Once the margin is no more than this many seconds from 0, falling at the rate it fell since the
 last pricing, the budget is priced every period until its decision [s]. A straight-line forecast
@@ -426,8 +429,10 @@ class Budget:
     priced_ns: int | None = None  # the stamp of the last pricing [ns]
     priced_margin: tuple[int, float] | None = None  # (stamp [ns], margin [J]) at the last pricing
     fine: bool = False  # priced every period: the margin is near 0 (``FINE_PRICING_SECONDS``)
+    foreseen: bool = False  # ``fine`` began at a margin still above 0: a crossing was seen coming
     controller: str = ""  # whose measured error widens the band (``band_factors``; "": not widened)
-    unreachable_since_ns: int | None = None  # pricings since then found no way home [ns]
+    below_since_ns: int | None = None  # pricings since then found the margin <= 0 [ns]
+    sudden_since_ns: int | None = None  # ... and it was not foreseen (``SUDDEN_DECIDE_S``) [ns]
 
     def due(self, now_ns: int, active: int) -> bool:
         """Whether to price the budget at the period ``now_ns`` with leg ``active`` active: the
@@ -448,9 +453,27 @@ class Budget:
         if before is not None and now_ns > before[0] and not self.fine:
             fall_j_per_s = (before[1] - margin_j) * 1e9 / (now_ns - before[0])
             self.fine = fall_j_per_s > 0 and margin_j <= FINE_PRICING_SECONDS * fall_j_per_s
+            self.foreseen = self.fine and margin_j > 0
         # No rate yet (the budget's first pricing): the next period gives one.
         self.next_ns = now_ns + 1 if self.fine or before is None else whole_ns
         self.priced_margin = (now_ns, margin_j)
+
+    def _judge_crossing(self, now_ns: int, margin_j: float, unreachable: bool) -> None:
+        """Whether the margin ``margin_j`` [J] priced at ``now_ns`` is at or below 0 without the
+        pricings before having seen it coming (``SUDDEN_DECIDE_S``): ``sudden_since_ns`` is then
+        the first pricing of that run, else None. Judged where the run begins, by ``foreseen`` as
+        the pricings before left it; a stamp before the run's start (a wall clock stepped back)
+        begins a new run. A sudden run that passes ends the pricing every period it began."""
+        if margin_j > 0:
+            if self.sudden_since_ns is not None:  # it passed: so does the pricing every period
+                self.fine = self.foreseen = False
+            self.below_since_ns = self.sudden_since_ns = None
+            return
+        if self.below_since_ns is None or now_ns < self.below_since_ns:
+            self.below_since_ns = now_ns
+            self.sudden_since_ns = None if self.foreseen and not unreachable else now_ns
+        elif unreachable and self.sudden_since_ns is None:
+            self.sudden_since_ns = now_ns
 
     def update(self, now_ns: int, state: StateEstimate, active: int, leg_mpc_j: float | None,
                energy_used_j: float, battery_remaining_j: float | None, battery_stamp_ns: int | None,
@@ -475,12 +498,9 @@ class Budget:
                 pnr = no_return_point(self.model, state, self.waypoints, active, self.home,
                                       battery_remaining_j, reserve, nominal)
             unreachable = not math.isfinite(pred.to_home_j)
-            if not unreachable:
-                self.unreachable_since_ns = None
-            elif self.unreachable_since_ns is None or now_ns < self.unreachable_since_ns:
-                self.unreachable_since_ns = now_ns
-            persisted = (not unreachable or now_ns - self.unreachable_since_ns
-                         >= round(UNREACHABLE_DECIDE_S * 1e9))
+            self._judge_crossing(now_ns, margin, unreachable)
+            persisted = (self.sudden_since_ns is None
+                         or now_ns - self.sudden_since_ns >= round(SUDDEN_DECIDE_S * 1e9))
             if margin <= 0 and persisted and self.decision == "none" and not self.returning:
                 taken = self.decision = self.policy
                 self.decided_ns = now_ns
