@@ -138,7 +138,7 @@ class ClosedLoopResult:
     trajectory: list[tuple[float, float, float, float, float]] = field(default_factory=list)
     """(t, x, y, T1, T2) per step [s, m, m, N, N]."""
     budgets: list[EnergyBudget] = field(default_factory=list)
-    """The controller's energy budget of each active period (``seaway_controller.energy``)."""
+    """The controller's energy budget of each active period (``seaway_controller.budget``)."""
     truth: list[SimTruth] = field(default_factory=list)
     """The simulator's truth at every tick."""
     metrics: MissionMetrics | None = None

@@ -30,7 +30,7 @@ from seaway.contract.messages import (
 from seaway.recording import reader
 from seaway.runtime.bus import Bus
 from seaway.vessel.model import load_vessel
-from seaway_controller.energy import BUDGET_INTERVAL_NS
+from seaway_controller.budget import BUDGET_INTERVAL_NS
 from seaway_controller.replay import replay
 
 from tests.conftest import free_port, stack_credentials, wait_for

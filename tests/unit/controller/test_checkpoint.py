@@ -168,7 +168,7 @@ def test_a_return_home_decided_before_a_restart_goes_on_as_a_return_home(tmp_pat
     from seaway.runtime.memory_bus import MemoryHub
     from seaway.runtime.run import RunDescription
     from seaway.runtime.service import ServiceContext
-    from seaway_controller.energy import SUDDEN_DECIDE_S
+    from seaway_controller.budget import SUDDEN_DECIDE_S
 
     from tests.unit.controller.test_core import DT_NS
 

@@ -1,4 +1,4 @@
-"""The energy budget's model (seaway_controller.energy): cruise, turns, predictions, the band, the
+"""The energy budget (seaway_controller.energy and .budget): cruise, turns, predictions, the band, the
 point of no return and the decision, on hand-checkable cases."""
 
 from __future__ import annotations
@@ -12,11 +12,10 @@ from seaway.contract.messages import StateEstimate
 from seaway.vessel.energy_prediction import VEHICLES_MEASURED
 from seaway.vessel.model import load_vessel, rk4_step
 from seaway_controller import costs
+from seaway_controller.budget import SUDDEN_DECIDE_S, Budget
 from seaway_controller.energy import (
     MIN_SPEED_FRAC,
-    SUDDEN_DECIDE_S,
     TABLES_PER_MODEL,
-    Budget,
     Disturbance,
     EnergyModel,
     cruise,

@@ -7,7 +7,8 @@ import pytest
 from seaway.contract.messages import StateEstimate
 from seaway.vessel.energy_prediction import MEASURED, POOR_ERROR_FRAC, band_factors, known_poor
 from seaway.vessel.model import load_vessel
-from seaway_controller.energy import Budget, EnergyModel
+from seaway_controller.budget import Budget
+from seaway_controller.energy import EnergyModel
 from seaway_lab.energy_band import samples_of
 
 BOAT = load_vessel("paper-boat")

@@ -10,7 +10,7 @@ import math
 import pytest
 from seaway.contract.messages import MissionCommand, StateEstimate
 from seaway.vessel.model import propulsion_power_w
-from seaway_controller.energy import SUDDEN_DECIDE_S
+from seaway_controller.budget import SUDDEN_DECIDE_S
 from seaway_controller.hold import hold_thrust
 from seaway_lab.bench.hold import fly_hold
 

@@ -140,7 +140,7 @@ def test_answers_each_period_holds_when_idle_and_restarts_with_the_world(control
     assert world.thrust.get(1.0).source == "cc-empc"
 
     # The energy budget is priced at the mission's first period, then once a second of the
-    # periods' clock (seaway_controller.energy.BUDGET_INTERVAL_NS).
+    # periods' clock (seaway_controller.budget.BUDGET_INTERVAL_NS).
     assert again.published[keys.MISSION_ENERGY.suffix] == [0]
 
     # One answer per period, listing what it published, in order.

@@ -7,7 +7,7 @@ battery once a second, so that its energy budget prices the point of no return a
 Each period is split into
 
 * **energy budget**: ``ControllerCore`` taking the battery's report and pricing its budget
-  (``seaway_controller.energy``, when due, and the due check when not);
+  (``seaway_controller.budget``, when due, and the due check when not);
 * **estimator**: every call into ``EstimatorCore`` (sensor samples, the command, the estimate);
 * **simulator**: every call into ``SimCore`` (the plant's RK4 and the sensors, its outputs);
 * **MPC solve**: ``MpcController.solve`` (parameters, warm start, the solver, the cost split);

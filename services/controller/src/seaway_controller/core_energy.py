@@ -3,7 +3,7 @@
 Every period, the energy of the last command over the time since (propulsion, alpha (T1^2 + T2^2),
 plus the mission's task power T^w) [J] is counted to the battery always and to the mission while it
 is active (``_account_energy``). What the battery has left is its last report less what was counted
-since (``BatteryTrack``). The mission's energy budget (``seaway_controller.energy.Budget``) prices the
+since (``BatteryTrack``). The mission's energy budget (``seaway_controller.budget.Budget``) prices the
 way to the end and the way home against it when due, and at the pricing that finds the margin at 0
 takes the mission's policy: warn, hold, or return to the cheapest of home and the rally points
 (``_update_budget``, ``_return_home``). Priced while the mission is active, paused and while the
@@ -33,7 +33,8 @@ from seaway.vessel.model import VesselParams, propulsion_power_w
 
 from seaway_controller.area_guard import AreaGuard
 from seaway_controller.battery_estimate import BatteryTrack
-from seaway_controller.energy import Budget, Disturbance, EnergyModel, finite_or_none, predict
+from seaway_controller.budget import Budget
+from seaway_controller.energy import Disturbance, EnergyModel, finite_or_none, predict
 from seaway_controller.mission import Mission, MissionManager
 from seaway_controller.mpc import MpcOutcome
 

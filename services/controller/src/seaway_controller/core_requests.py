@@ -32,9 +32,9 @@ from seaway.vessel.frames import GeoOrigin
 
 from seaway_controller import motion
 from seaway_controller.area_guard import AreaGuard
+from seaway_controller.budget import Budget
 from seaway_controller.core_energy import BudgetDecision
 from seaway_controller.core_vehicle import latched_reason, waiting_for
-from seaway_controller.energy import Budget
 from seaway_controller.mission import Mission, MissionError, MissionManager, home_ned, validate_mission
 from seaway_controller.mission_check import MissionCheck, check_mission
 from seaway_controller.mpc import MpcController

@@ -542,7 +542,7 @@ model, ``seaway.vessel.battery``)."""
 
 class EnergyBudget(Message):
     """Will it make it back: the energy to finish and to get home against the battery, at each
-    pricing of an active mission's budget (``mission/energy``; ``seaway_controller.energy``: once a
+    pricing of an active mission's budget (``mission/energy``; ``seaway_controller.budget``: once a
     second, at each new leg, and every control period once the margin is near 0).
 
     Predictions come from the controller's own model and cost at its economic cruise under the
