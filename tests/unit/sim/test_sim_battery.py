@@ -16,7 +16,8 @@ from seaway.vessel.model import load_vessel
 from seaway_sim.battery import NOMINAL_PACK, SimPack, report_due, report_due_at
 from seaway_sim.core import SimCore
 from seaway_sim.node import SimNode
-from seaway_sim.px4_autopilot import Px4Autopilot, Px4Config, battery_fields
+from seaway_sim.px4_autopilot import Px4Autopilot, Px4Config
+from seaway_sim.px4_telemetry import battery_fields
 
 PERIOD_NS = 100_000_000
 HOTEL_W = 20.0

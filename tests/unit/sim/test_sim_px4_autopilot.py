@@ -12,14 +12,8 @@ from seaway.contract.units import NS_PER_S
 from seaway.simkit.sensors import origin_of
 from seaway_sim import px4_params
 from seaway_sim.battery import NOMINAL_PACK, SimPack
-from seaway_sim.px4_autopilot import (
-    HOLD,
-    MANUAL,
-    RTL,
-    Px4Autopilot,
-    Px4Config,
-    custom_mode,
-)
+from seaway_sim.px4_autopilot import Px4Autopilot, Px4Config
+from seaway_sim.px4_wire import HOLD, MANUAL, RTL, custom_mode
 
 MS = 1_000_000
 S = NS_PER_S

@@ -8,7 +8,8 @@ import math
 
 from pymavlink.dialects.v20 import common as ml
 from seaway.contract.messages import GnssFix
-from seaway_sim.px4_autopilot import HOLD, MANUAL, RTL, Px4Autopilot, Px4Config, custom_mode
+from seaway_sim.px4_autopilot import Px4Autopilot, Px4Config
+from seaway_sim.px4_wire import HOLD, MANUAL, RTL, custom_mode
 
 from tests.unit.sim.test_sim_px4_autopilot import (
     HOME,

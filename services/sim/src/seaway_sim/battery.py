@@ -16,7 +16,7 @@ is what is under test, not a brown-out).
 
 Both of the sim's outputs come from one ``PackReading``: the lockstep ``BatteryState`` on
 ``vehicle/battery`` (``PackReading.message``) and, in real time, the PX4-like SYS_STATUS and
-BATTERY_STATUS (``px4_autopilot``), so the two never disagree. Both come at ``REPORT_HZ``.
+BATTERY_STATUS (``px4_telemetry``), so the two never disagree. Both come at ``REPORT_HZ``.
 """
 
 from __future__ import annotations
