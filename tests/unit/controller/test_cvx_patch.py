@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 from seaway.vessel.model import load_vessel
 from seaway_controller import cvx_patch
+from seaway_controller.codegen import SQP_OPTIONS
 from seaway_controller.ocp import Ocp, OcpSpec
-from seaway_controller.solvers import SQP_OPTIONS, GeneratedSqpSolver, IpoptSolver
+from seaway_controller.solvers import GeneratedSqpSolver, IpoptSolver
 
 CAPTURED = Path(__file__).parent / "data" / "cc_empc_c4_perturbed_160s.json"
 

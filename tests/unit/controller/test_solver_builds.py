@@ -24,17 +24,13 @@ from seaway.runtime.node import Period, run_node
 from seaway.runtime.run import RunDescription
 from seaway.runtime.service import ServiceContext
 from seaway.vessel.model import load_vessel
+from seaway.vessel.native import CompileInterruptedError
+from seaway_controller.codegen import SQP_OPTIONS, build_shared_object
 from seaway_controller.config import ControllerConfig
 from seaway_controller.core import ControllerCore
 from seaway_controller.node import ControllerNode
 from seaway_controller.ocp import Ocp, OcpSpec
-from seaway_controller.solvers import (
-    SQP_OPTIONS,
-    CompileInterruptedError,
-    SolverBuilds,
-    StagedSolver,
-    build_shared_object,
-)
+from seaway_controller.solver_builds import SolverBuilds, StagedSolver
 
 from tests.conftest import wait_for
 from tests.unit.controller.test_core import ScriptedSolver, mission, state
@@ -130,7 +126,7 @@ class WaitSpy(SolverBuilds):
 
 
 def test_a_missions_first_solve_waits_a_little_for_its_solver_and_only_the_first() -> None:
-    from seaway_controller.solvers import FIRST_SOLVE_WAIT_S
+    from seaway_controller.solver_builds import FIRST_SOLVE_WAIT_S
 
     ocp, args = problem()
     loading = WaitSpy(GatedBuild(), finish=True)
@@ -154,7 +150,7 @@ def test_a_reference_that_cannot_be_set_up_is_named_and_not_tried_again(caplog) 
     staged = StagedSolver(problem()[0], SolverBuilds(build), reference=reference)
     args = problem()[1]
     reference.gate.set()
-    with caplog.at_level(logging.ERROR, "seaway_controller.solvers"):
+    with caplog.at_level(logging.ERROR, "seaway_controller.solver_builds"):
         staged.solve(*args)
         wait_for(lambda: "could not be set up" in staged.solve(*args).status, 5,
                  what="the set-up to fail")
@@ -172,7 +168,7 @@ def test_a_solver_that_cannot_be_made_leaves_the_reference_flying(caplog) -> Non
     ocp, args = problem()
     staged = StagedSolver(ocp, builds, reference=lambda _ocp: reference, wait=True)
     build.release("cc-empc")
-    with caplog.at_level(logging.ERROR, "seaway_controller.solvers"):
+    with caplog.at_level(logging.ERROR, "seaway_controller.solver_builds"):
         res = staged.solve(*args)  # lockstep waits for the build, then falls back as it failed
     assert res.status.endswith("(reference IPOPT: the generated solver is unavailable)")
     assert "could not make the cc-empc solver" in caplog.text

@@ -9,15 +9,14 @@ import sys
 import numpy as np
 import pytest
 from seaway.vessel.model import load_vessel
-from seaway_controller.ocp import Ocp, OcpSpec
-from seaway_controller.solvers import (
+from seaway_controller.codegen import (
     SQP_OPTIONS,
-    GeneratedSqpSolver,
-    IpoptSolver,
     _patch_kkt_reuse,
     build_shared_object,
     patch_generated_source,
 )
+from seaway_controller.ocp import Ocp, OcpSpec
+from seaway_controller.solvers import GeneratedSqpSolver, IpoptSolver
 
 VP = load_vessel("paper-sim")
 

@@ -1,6 +1,6 @@
 """A fix to CasADi's generated eigen-clip convexification: QR steps on the right block.
 
-``eigen-clip`` (solvers.py) diagonalises each block of the Lagrangian's Hessian: Householder
+``eigen-clip`` (codegen.py) diagonalises each block of the Lagrangian's Hessian: Householder
 tridiagonalisation, then implicit symmetric QR steps with a Wilkinson shift
 (``casadi_cvx_symm_schur``). Off-diagonals below ``tol (|d_i| + |d_i+1|)`` are set to zero, and each
 step should act on the unreduced block just above the part already diagonal at the bottom (Golub

@@ -8,11 +8,11 @@ checkpointed mission to resume, and hands the node to the runtime. ``--scenario 
 flag (not through ``--run``) also starts the scenario's mission at once (batch runs without a
 launcher).
 
-Solvers (``solvers.SolverBuilds``): the service is up, and serves requests, at once. The fast
+Solvers (``solver_builds.SolverBuilds``): the service is up, and serves requests, at once. The fast
 solver a mission needs (its controller's, and no other) is made when the mission comes, on a
 thread of its own: loaded from the cache, or compiled the first time on a machine (seconds to
 minutes). Until it is ready, real time flies with the reference IPOPT (line-of-sight guidance while
-IPOPT itself is set up, on a thread too: ``solvers.StagedSolver``; each of its solves runs in the
+IPOPT itself is set up, on a thread too: ``solver_builds.StagedSolver``; each of its solves runs in the
 control loop and is stopped at the control period) and lockstep answers "hold"; the log says how
 far it got.
 """
@@ -41,7 +41,8 @@ from seaway_controller.config import ControllerConfig, ControllerServiceConfig
 from seaway_controller.core import ControllerCore
 from seaway_controller.mission import MissionLimits
 from seaway_controller.node import NAME, ControllerNode
-from seaway_controller.solvers import IpoptSolver, SolverBuilds, StagedSolver
+from seaway_controller.solver_builds import SolverBuilds, StagedSolver
+from seaway_controller.solvers import IpoptSolver
 
 log = logging.getLogger(__name__)
 

@@ -23,9 +23,9 @@ Two clocks:
   until a mission request makes the controller answer the period again (``rethink``). A new episode
   (the sim restarted or loaded a scenario) restarts a mission in progress from its first leg.
 
-Solvers (``solvers.SolverBuilds``): the fast solver a mission needs is made when the mission comes,
+Solvers (``solver_builds.SolverBuilds``): the fast solver a mission needs is made when the mission comes,
 on a thread of its own; the mission starts once it is ready, or after ``SOLVER_REPLY_WAIT_S`` (a
-compile). Until it is ready, real time flies with the reference IPOPT (``solvers.StagedSolver``)
+compile). Until it is ready, real time flies with the reference IPOPT (``solver_builds.StagedSolver``)
 and lockstep answers "hold" (simulated time waits, so the run is the one a warm start gives); the
 mission/set reply and ``MissionStatus.reason`` say so.
 
@@ -71,7 +71,7 @@ from seaway.vessel.frames import GeoOrigin
 from seaway_controller.checkpointing import Checkpoints
 from seaway_controller.core import ControllerCore
 from seaway_controller.realtime import Flying, RealTime, flying_of
-from seaway_controller.solvers import SolverBuilds
+from seaway_controller.solver_builds import SolverBuilds
 
 log = logging.getLogger(__name__)
 NAME = "controller"
