@@ -21,7 +21,7 @@ from seaway.contract.messages import (
     Waypoint,
 )
 from seaway.vessel.metrics import mission_metrics
-from seaway_recorder import attachments, budget, report
+from seaway_recorder import attachments, budget, report, report_render
 from seaway_recorder.core import RecordingWriter
 
 DT_NS = 100_000_000
@@ -156,7 +156,8 @@ def test_a_return_home_is_reported_on_both_flights(tmp_path: Path) -> None:
     # Home at 1 m/s, 21 W, ending on P0's circle (x = 1 m) at 9 s: predicted exactly.
     assert back["energy_used_j"] == pytest.approx(POWER_W * 4.0)
     assert back["prediction"]["start"]["error_pct"] == pytest.approx(0.0, abs=1e-9)
-    assert "'m': completed NO" in report.table(res) and "energy budget: return at 5.0 s" in report.table(res)
+    shown = report_render.table(res)
+    assert "'m': completed NO" in shown and "energy budget: return at 5.0 s" in shown
 
 
 # -- one energy used (issue 56 item 13) ---------------------------------------------------------
@@ -201,7 +202,7 @@ def test_the_report_gives_one_energy_used_and_the_controllers_count_as_its_check
     assert used["controller_count_j"] == pytest.approx(POWER_W * END_S)  # at the report's end
     assert used["controller_count_difference_pct"] == pytest.approx(0.0, abs=1e-6)
     assert "controller_energy_used_j" not in res["energy_budget"]
-    rows = [line for line in report.table(res).splitlines()[3:]]
+    rows = [line for line in report_render.table(res).splitlines()[3:]]
     named = [line for line in rows if "energy used" in line.lower() or "energy_used" in line]
     assert len(named) == 1 and named[0].startswith("energy used"), rows
     count = next(line for line in rows if line.strip().startswith("controller's count"))
