@@ -42,7 +42,7 @@ SUDDEN_DECIDE_S = 5.0
 """A margin at or below 0 that the budget did not see coming decides the policy only once every
 pricing has found it so for this long [s]. Two kinds: no way home at all (the estimated disturbance
 stronger than the cruise, so no finite energy home), and a finite margin that fell past 0 from a
-pricing that was not yet near it (``Budget.fine`` off). One state just after the estimator re-opened
+pricing that was not yet near it (``Budget.foreseen`` off). One state just after the estimator re-opened
 its uncertainty, or re-initialised after a divergence, can swing past anything the vessel can beat
 for a second or two, or price the way home at many times its energy; flying the mission's policy
 on it is a false return. A margin that fell to 0 as the fine pricing saw it coming
