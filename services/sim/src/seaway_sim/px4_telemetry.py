@@ -130,11 +130,12 @@ class Px4Telemetry:
     _texts: list[tuple[int, str]]
 
     def nav_mode(self) -> tuple[int, int]:
+        """The mode flown now, failsafe included (the state machine's)."""
         raise NotImplementedError
 
     def manual_control_lost(self, now_ns: int) -> bool:
+        """Whether manual control is lost at ``now_ns`` [ns since boot] (the state machine's)."""
         raise NotImplementedError
-
 
     def heartbeat(self) -> Any:
         mode = self.nav_mode()
