@@ -442,6 +442,7 @@ def test_one_wild_price_of_the_way_home_is_no_return_decision() -> None:
     assert b.last.margin_j is not None and b.last.margin_j < 0 and b.decision == "none"
     assert b.update(3 * s + 100_000_000, here, 1, None, 0.0, ample, 0, reserve) is None
     assert b.sudden_since_ns is None
+    assert not b.due(3 * s + 200_000_000, 1)  # it passed: priced once a second again
     # Lasting: every pricing for SUDDEN_DECIDE_S (the budget prices every period meanwhile), it is.
     t, start = 4 * s, 4 * s
     while t - start < round(SUDDEN_DECIDE_S * s):

@@ -76,8 +76,7 @@ class Budget:
     fine: bool = False  # priced every period: the margin is near 0 (``FINE_PRICING_SECONDS``)
     foreseen: bool = False  # ``fine`` began at a margin still above 0: a crossing was seen coming
     controller: str = ""  # whose measured error widens the band (``band_factors``; "": not widened)
-    below_since_ns: int | None = None  # pricings since then found the margin <= 0 [ns]
-    sudden_since_ns: int | None = None  # ... and it was not foreseen (``SUDDEN_DECIDE_S``) [ns]
+    sudden_since_ns: int | None = None  # pricings since then found an unforeseen margin <= 0 [ns]
 
     def due(self, now_ns: int, active: int) -> bool:
         """Whether to price the budget at the period ``now_ns`` with leg ``active`` active: the
@@ -106,18 +105,16 @@ class Budget:
     def _judge_crossing(self, now_ns: int, margin_j: float, unreachable: bool) -> None:
         """Whether the margin ``margin_j`` [J] priced at ``now_ns`` is at or below 0 without the
         pricings before having seen it coming (``SUDDEN_DECIDE_S``): ``sudden_since_ns`` is then
-        the first pricing of that run, else None. Judged where the run begins, by ``foreseen`` as
-        the pricings before left it; a stamp before the run's start (a wall clock stepped back)
-        begins a new run. A sudden run that passes ends the pricing every period it began."""
+        the first pricing of that run, else None. ``foreseen`` is set only at a margin above 0, so
+        it cannot turn on within a run; a stamp before the run's start (a wall clock stepped back)
+        begins a new one. A sudden run that passes ends the pricing every period it began."""
         if margin_j > 0:
             if self.sudden_since_ns is not None:  # it passed: so does the pricing every period
                 self.fine = self.foreseen = False
-            self.below_since_ns = self.sudden_since_ns = None
-            return
-        if self.below_since_ns is None or now_ns < self.below_since_ns:
-            self.below_since_ns = now_ns
-            self.sudden_since_ns = None if self.foreseen and not unreachable else now_ns
-        elif unreachable and self.sudden_since_ns is None:
+            self.sudden_since_ns = None
+        elif self.foreseen and not unreachable:
+            self.sudden_since_ns = None  # seen coming: decides at once
+        elif self.sudden_since_ns is None or now_ns < self.sudden_since_ns:
             self.sudden_since_ns = now_ns
 
     def update(self, now_ns: int, state: StateEstimate, active: int, leg_mpc_j: float | None,
