@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 
-NS_PER_MS = 1_000_000
+from seaway.contract.units import NS_PER_MS
 
 # PX4 custom modes (px4_custom_mode.h): main mode in bits 16-23, sub mode in bits 24-31.
 MAIN_MANUAL = 1

@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import collections
 
-NS_PER_MS = 1_000_000
+from seaway.contract.units import NS_PER_MS
 
 
 class BootTimeOffset:

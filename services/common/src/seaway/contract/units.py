@@ -10,6 +10,8 @@ from pydantic import BeforeValidator
 
 NS_PER_S = 1_000_000_000
 """Nanoseconds per second: ``stamp_ns`` and every ``*_ns`` duration are integers in these."""
+NS_PER_MS = 1_000_000
+"""Nanoseconds per millisecond (MAVLink's ``time_boot_ms`` and its timesync's milliseconds)."""
 
 
 def s_to_ns(seconds: float) -> int:
