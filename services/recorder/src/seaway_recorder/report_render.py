@@ -12,8 +12,6 @@ from seaway.contract import keys
 
 from seaway_recorder import budget
 
-TRUTH, COMMANDS, STATUS = keys.SIM_TRUTH.suffix, keys.THRUST.suffix, keys.MISSION_STATUS.suffix
-
 
 def _completed_rows(m: dict[str, Any], c: dict[str, Any]) -> list[tuple[str, str, str]]:
     """The 'completed' row, by the track the metrics are taken on; and the controller's verdict
@@ -33,8 +31,9 @@ def _controller_count_rows(used: dict[str, Any] | None) -> list[tuple[str, str, 
     """The controller's count of the energy used at the same end, as a check of the figure above."""
     if used is None or used.get("controller_count_j") is None:
         return []
+    status = keys.MISSION_STATUS.suffix
     return [("  controller's count", _f(used["controller_count_j"], "{:.2f}"),
-             f"J ({STATUS} at the same end, {_f(used['controller_count_difference_pct'], '{:+.2f}')} %;"
+             f"J ({status} at the same end, {_f(used['controller_count_difference_pct'], '{:+.2f}')} %;"
              " the status line's figure)")]
 
 
@@ -76,7 +75,7 @@ def table(res: dict[str, Any]) -> str:
     ]
     if m is None and live.get("energy_used_j") is not None:  # no integral: the controller's count
         rows.append(("energy used (controller's count)", _f(live["energy_used_j"], "{:.2f}"),
-                     f"J ({STATUS})"))
+                     f"J ({keys.MISSION_STATUS.suffix})"))
     w = max(len(r[0]) for r in rows)
     v = max(len(r[1]) for r in rows)
     head = f"Run report: {', '.join(res['files'])}\nvessel {res['vessel']}"
@@ -141,8 +140,9 @@ def plots(res: dict[str, Any], out: Path) -> list[Path]:
     written.append(_save(fig, out / "trajectory.png"))
 
     fig, ax = plt.subplots(figsize=(8, 4))
-    applied = data["thrusts"] if res["metrics"]["state_source"] == TRUTH else []
-    for label, seq in ((f"applied ({TRUTH})", applied), (f"commanded ({COMMANDS})", data["commands"])):
+    truth, commands = keys.SIM_TRUTH.suffix, keys.THRUST.suffix
+    applied = data["thrusts"] if res["metrics"]["state_source"] == truth else []
+    for label, seq in ((f"applied ({truth})", applied), (f"commanded ({commands})", data["commands"])):
         seq = [c for c in seq if t0 <= c.stamp_ns <= res["metrics"]["end_ns"]]  # the mission only
         if seq:
             t = [(c.stamp_ns - t0) / 1e9 for c in seq]
