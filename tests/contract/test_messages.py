@@ -85,6 +85,33 @@ def test_every_message_type_has_an_example() -> None:
     assert set(EXAMPLES) == set(ALL_MESSAGES)
 
 
+def test_the_package_hands_on_every_public_name_of_its_modules() -> None:
+    """A message, closed set or constant added to one of the package's modules is importable from
+    ``seaway.contract.messages``, and every module is in ``MODULES`` (so its messages in
+    ``ALL_MESSAGES``)."""
+    import ast
+    import inspect
+    import pkgutil
+
+    found = {info.name for info in pkgutil.iter_modules(m.__path__)}
+    assert found == {module.__name__.rsplit(".", 1)[1] for module in m.MODULES}
+    for module in m.MODULES:
+        own = set()  # what the module itself defines at its top level
+        for node in ast.parse(inspect.getsource(module)).body:
+            if isinstance(node, ast.ClassDef | ast.FunctionDef):
+                own.add(node.name)
+            elif isinstance(node, ast.Assign | ast.AnnAssign):
+                targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+                own |= {t.id for t in targets if isinstance(t, ast.Name)}
+        own = {name for name in own if not name.startswith("_")}
+        assert own <= set(m.__all__), f"{module.__name__}: not handed on: {sorted(own - set(m.__all__))}"
+        for name in own:
+            assert getattr(m, name) is getattr(module, name), f"{module.__name__}.{name}"
+    messages = {v for module in m.MODULES for v in vars(module).values()
+                if isinstance(v, type) and issubclass(v, m.Message) and "SCHEMA" in vars(v)}
+    assert set(ALL_MESSAGES) == messages and len(ALL_MESSAGES) == len(messages)
+
+
 @pytest.mark.parametrize("cls", ALL_MESSAGES, ids=lambda c: c.__name__)
 def test_round_trip_and_schema(cls: type[m.Message]) -> None:
     msg = cls.make(stamp_ns=T, **EXAMPLES[cls])

@@ -24,13 +24,13 @@ def _literal_values(annotation: Any) -> tuple[str, ...]:
 
 
 def _closed_sets() -> dict[str, tuple[str, ...]]:
-    """Every module-level ``Name = Literal[...]`` of the messages module, by name."""
+    """Every module-level ``Name = Literal[...]`` of the messages package, by name."""
     return {name: values for name, value in sorted(vars(messages).items())
             if (values := _literal_values(value)) and not name.startswith("_")}
 
 
 def _texts() -> dict[str, dict[str, str]]:
-    """The messages module's ``*_TEXT`` dicts: each value's words for a person."""
+    """The messages package's ``*_TEXT`` dicts: each value's words for a person."""
     return {name: value for name, value in vars(messages).items()
             if name.endswith("_TEXT") and isinstance(value, dict)}
 
@@ -44,7 +44,7 @@ def _mentions(annotation: Any, target: Any) -> bool:
 def _models() -> list[type[BaseModel]]:
     """Every message type, and every type a message nests (``AutopilotFence``, ``Waypoint``, ...)."""
     return sorted((v for v in vars(messages).values() if isinstance(v, type) and issubclass(v, BaseModel)
-                   and v.__module__ == messages.__name__ and v.model_fields),
+                   and v.__module__.startswith(f"{messages.__name__}.") and v.model_fields),
                   key=lambda m: m.__name__)
 
 
@@ -80,7 +80,7 @@ def _vehicle_io_failsafes() -> list[list[str]]:
 
 def page() -> str:
     """``docs/reference/status-values.md``."""
-    docs = constant_docs(messages)
+    docs = {name: doc for module in messages.MODULES for name, doc in constant_docs(module).items()}
     texts = _texts()
     parts = [GENERATED_NOTE, "# Status values and reasons\n\n",
              "Every closed set of names a message carries (`seaway.contract.messages`), what each "
