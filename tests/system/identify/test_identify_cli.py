@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 from seaway.vessel.model import load_vessel
-from seaway_lab.identify.fit import PARAMS
 from seaway_lab.identify.manoeuvre import Manoeuvre
+from seaway_lab.identify.parameters import PARAMS
 from seaway_lab.identify.sim_run import calm_scenario, fly_in_sim
 
 from tests.conftest import BIN, REPO

@@ -12,6 +12,7 @@ from seaway.simkit.scenario import SensorNoise
 from seaway.vessel.model import VesselParams, load_vessel
 from seaway_lab.identify import fit as ft
 from seaway_lab.identify import output
+from seaway_lab.identify import parameters as params
 from seaway_lab.identify import trace as tr
 from seaway_lab.identify.manoeuvre import Manoeuvre
 from seaway_lab.identify.sim_run import calm_scenario
@@ -47,9 +48,9 @@ def test_a_manoeuvre_refuses_a_level_that_is_not_positive() -> None:
 
 def test_produced_thrust_applies_the_dead_zone_then_the_lag() -> None:
     cmd = np.array([[5.0, -12.0], [9.99, 10.0]])
-    assert ft.produced_thrust(cmd, 10.0, 0.0, 0.1).tolist() == [[0.0, -12.0], [0.0, 10.0]]
+    assert params.produced_thrust(cmd, 10.0, 0.0, 0.1).tolist() == [[0.0, -12.0], [0.0, 10.0]]
     step = np.tile([[4.0, 0.0]], (80, 1))
-    out = ft.produced_thrust(step, 0.0, 0.5, 0.1)
+    out = params.produced_thrust(step, 0.0, 0.5, 0.1)
     # the mean over step k of 4 (1 - exp(-t/0.5)): exact for a first-order lag
     k = 9
     exact = 4.0 * (1.0 - 0.5 / 0.1 * (math.exp(-k * 0.1 / 0.5) - math.exp(-(k + 1) * 0.1 / 0.5)))
@@ -116,7 +117,7 @@ def test_a_noise_free_run_gives_back_the_vessel_and_its_dead_zone() -> None:
     t = _sim_trace(Manoeuvre(level_n=30.0), boat, SensorNoise(gnss_rate_hz=5.0, attitude_rate_hz=20.0),
                    dead_zone=True)
     res = ft.fit(t, boat.arm_m)
-    for p in ft.PARAMS:
+    for p in params.PARAMS:
         assert res.params[p].value == pytest.approx(getattr(boat, p), rel=5e-3), p
     # the ramp climbs 0.27 N per 0.1 s tick: the dead zone is found to within a couple of ticks
     assert res.dead_zone_n == pytest.approx(boat.dead_zone_n, abs=1.0)
@@ -128,12 +129,12 @@ def test_a_noise_free_run_of_a_vessel_with_friction_gives_back_its_friction() ->
     (2 N sliding, 3 N at rest, on its 10 N thrusters) gives back every term to a fraction of a
     percent; the same run fitted without them leaves residuals a hundred times larger."""
     base = load_vessel("paper-sim")
-    eps = float(ft.friction_speed_mps(np.array(2.0), np.array(3.0), np.array(base.m11_kg)))
+    eps = float(params.friction_speed_mps(np.array(2.0), np.array(3.0), np.array(base.m11_kg)))
     v = VesselParams.model_validate({**base.model_dump(), "friction_n": 2.0,
                                      "static_friction_n": 3.0, "friction_speed_mps": eps})
     t = _sim_trace(Manoeuvre(level_n=10.0), v, SensorNoise(gnss_rate_hz=5.0, attitude_rate_hz=20.0))
     res = ft.fit(t, v.arm_m, fit_dead_zone=False, fit_friction=True)
-    for p in ft.PARAMS:
+    for p in params.PARAMS:
         assert res.params[p].value == pytest.approx(getattr(v, p), rel=5e-3), p
     assert res.friction["friction_n"].value == pytest.approx(2.0, rel=5e-3)
     assert res.friction["static_friction_n"].value == pytest.approx(3.0, rel=2e-2)
@@ -202,10 +203,10 @@ def test_the_vessel_file_loads_with_the_fit_and_the_base_vessels_bounds(tmp_path
 
 def test_the_fits_parameter_vector_keeps_every_time_constant_above_the_floor() -> None:
     theta = np.array([2.0, 3.0, 0.01, 1.0, 20.0, 1.0])  # yaw time constant 0.01 s: below the floor
-    z, raised = ft.z_of(theta)
+    z, raised = params.z_of(theta)
     assert raised == ["m33_kgm2"]
-    back = ft.theta_of(z)[0]
+    back = params.theta_of(z)[0]
     assert back[[0, 1, 3, 4, 5]] == pytest.approx(theta[[0, 1, 3, 4, 5]], rel=1e-12)
-    assert back[2] / back[5] == pytest.approx(1.01 * ft.TAU_MIN_S)  # raised just above it
-    wild = ft.theta_of(np.array([[-50.0, -50.0, -50.0, 3.0, -3.0, 0.0]]))[0]
-    assert all(wild[i] / wild[i + 3] >= ft.TAU_MIN_S for i in range(3))  # any z stays above it
+    assert back[2] / back[5] == pytest.approx(1.01 * params.TAU_MIN_S)  # raised just above it
+    wild = params.theta_of(np.array([[-50.0, -50.0, -50.0, 3.0, -3.0, 0.0]]))[0]
+    assert all(wild[i] / wild[i + 3] >= params.TAU_MIN_S for i in range(3))  # any z stays above it

@@ -41,7 +41,7 @@ from seaway.simkit.scenario import SensorNoise, load_scenario
 from seaway.vessel.model import VesselParams, load_vessel
 
 from seaway_lab.identify import fit as fitmod
-from seaway_lab.identify import live_run, output, sim_run
+from seaway_lab.identify import live_run, output, parameters, sim_run
 from seaway_lab.identify import trace as tracemod
 from seaway_lab.identify.manoeuvre import Manoeuvre
 from seaway_lab.identify.trace import IdentifyError
@@ -101,9 +101,9 @@ def parser() -> argparse.ArgumentParser:
                      help="also fit surge friction (sliding and near rest: friction_n, "
                           "static_friction_n), for a plant that has it (a wheeled test rover); give "
                           "--dead-zone-n too (both explain a vessel that does not move)")
-    fit.add_argument("--friction-speed-mps", type=positive_float, default=fitmod.FRICTION_SPEED_MPS,
+    fit.add_argument("--friction-speed-mps", type=positive_float, default=parameters.FRICTION_SPEED_MPS,
                      help=f"the least speed over which the friction builds up [m/s] (default "
-                          f"{fitmod.FRICTION_SPEED_MPS}; raised to what the control period integrates)")
+                          f"{parameters.FRICTION_SPEED_MPS}; raised to what the control period integrates)")
     fit.add_argument("--fit-lag", action="store_true",
                      help="also fit a thruster time constant (it trades against m11: only when the "
                           "thrusters are known to lag)")

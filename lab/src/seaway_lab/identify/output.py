@@ -36,7 +36,7 @@ def vessel_toml(result: FitResult, base: VesselParams, name: str, source: str) -
                      + start)
     if r.friction:
         lines.append(f"friction_speed_mps = {_f(r.friction_speed_mps)}  # not fitted: the fit's least, "
-                     "or what the control period integrates (seaway_lab.identify.fit) if more")
+                     "or what the control period integrates (seaway_lab.identify.parameters) if more")
     rat = r.ratios
     lines += [
         f"arm_m = {_f(r.arm_m)}  # fixed (the vessel drawing), not fitted: the yaw data give "
