@@ -29,9 +29,10 @@ from seaway.runtime.bus_typed import TypedSubscriber
 from seaway.runtime.clock import WallClock
 from seaway.runtime.lockstep_member import Member
 from seaway.runtime.memory_bus import MemoryBus, MemoryHub
-from seaway.runtime.node import LiveDriver, Period, run_node
+from seaway.runtime.node import LiveDriver, Period
 from seaway.runtime.ratelog import RateLimitedLog
 from seaway.runtime.run import RunDescription
+from seaway.runtime.runner import run_node
 from seaway.runtime.service import ServiceContext
 from seaway_controller import checkpoint
 from seaway_controller import keeper as keeper_module

@@ -20,8 +20,9 @@ import pytest
 from seaway.contract import keys
 from seaway.runtime.clock import WallClock
 from seaway.runtime.memory_bus import MemoryHub
-from seaway.runtime.node import Period, run_node
+from seaway.runtime.node import Period
 from seaway.runtime.run import RunDescription
+from seaway.runtime.runner import run_node
 from seaway.runtime.service import ServiceContext
 from seaway.vessel.model import load_vessel
 from seaway.vessel.native import CompileInterruptedError

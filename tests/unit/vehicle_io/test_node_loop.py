@@ -19,8 +19,8 @@ from seaway.contract import keys
 from seaway.contract.messages import ArmRequest, ThrustCommand, VehicleStatus
 from seaway.runtime.clock import WallClock
 from seaway.runtime.memory_bus import MemoryBus, MemoryHub
-from seaway.runtime.node import run_node
 from seaway.runtime.run import RunDescription
+from seaway.runtime.runner import run_node
 from seaway.runtime.service import ServiceContext
 from seaway.vessel.model import load_vessel
 from seaway_lab.fake_autopilot import FakeAutopilot

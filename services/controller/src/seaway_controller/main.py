@@ -29,7 +29,7 @@ from seaway.area.files import run_area
 from seaway.area.model import AreaError
 from seaway.contract.config import ConfigError
 from seaway.runtime.config import parse_service_args, service_parser
-from seaway.runtime.node import run_node
+from seaway.runtime.runner import run_node
 from seaway.runtime.service import resolve_run, run_service
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.frames import GeoOrigin

@@ -17,8 +17,8 @@ from collections.abc import Sequence
 from seaway.contract import keys
 from seaway.contract.config import ConfigError
 from seaway.runtime.config import parse_service_args, service_parser
-from seaway.runtime.node import run_node
 from seaway.runtime.run import RunDescription
+from seaway.runtime.runner import run_node
 from seaway.runtime.service import on_signals, resolve_run, run_service
 from seaway.simkit.scenario import load_scenario
 

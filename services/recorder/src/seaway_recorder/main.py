@@ -35,8 +35,8 @@ from seaway.runtime import run as runs
 from seaway.runtime.bus_raw import REJOIN_HISTORY_S
 from seaway.runtime.config import parse_service_args, service_parser
 from seaway.runtime.lockstep_witness import LockstepWitness
-from seaway.runtime.node import run_node
 from seaway.runtime.run import RunDescription
+from seaway.runtime.runner import run_node
 from seaway.runtime.service import configure_logging, resolve_run, run_service
 from seaway.runtime.zenoh_bus import ENV_CONFIG
 from seaway.simkit.scenario import load_scenario

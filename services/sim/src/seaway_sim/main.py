@@ -26,8 +26,8 @@ from pathlib import Path
 from seaway.contract.config import ConfigError
 from seaway.mavlink.signing import KeyFileError, read_key
 from seaway.runtime.config import parse_service_args, service_parser
-from seaway.runtime.node import run_node
 from seaway.runtime.run import from_earlier_launch
+from seaway.runtime.runner import run_node
 from seaway.runtime.service import resolve_run, run_service
 from seaway.simkit.faults import ThrusterFaults
 from seaway.simkit.scenario import Scenario, load_scenario

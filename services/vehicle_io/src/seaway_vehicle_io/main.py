@@ -16,8 +16,8 @@ from collections.abc import Sequence
 from seaway.contract.config import ConfigError
 from seaway.mavlink.signing import KeyFileError
 from seaway.runtime.config import config_of, parse_service_args, service_parser
-from seaway.runtime.node import run_node
 from seaway.runtime.run import RunDescription
+from seaway.runtime.runner import run_node
 from seaway.runtime.service import resolve_run, run_service
 from seaway.simkit.scenario import load_scenario
 from seaway.vessel.battery import BatteryParams

@@ -16,7 +16,7 @@ threads, the lockstep protocol (``seaway.runtime.lockstep``) or the rate loop::
         def tick(self, now_ns, out):                  # real time: every period of the wall clock
             out.put(keys.NAV_STATE, estimate_from(self.last, now_ns))
 
-    with run_service("echo", args) as ctx:
+    with run_service("echo", args) as ctx:          # run_node: seaway.runtime.runner
         run_node(ctx, EchoNode(), period_s=0.1)      # lockstep or real time: the run says which
 
 Modes:
@@ -34,7 +34,7 @@ Modes:
   from the clock's repeat of the current period (the protocol's). ``answered`` runs after the
   bundle left (a checkpoint).
 * **lockstep clock**: the sim (``seaway_sim.node``) or a recording (``seaway replay --lockstep``),
-  ``seaway.runtime.clock_driver``.
+  ``seaway.runtime.lockstep_clock`` (``lockstep_replay`` for a recording).
 
 Composition (``seaway.runtime.host``) runs the same nodes as threads of one process over the
 in-memory bus: the drivers are the same, only the bus differs.
@@ -58,7 +58,7 @@ from seaway.runtime.lockstep_member import Member
 from seaway.runtime.stamps import StampGate
 
 __all__ = ["Answer", "LiveDriver", "MemberDriver", "MemberSpec", "Node", "Outputs", "Period",
-           "PeriodAt", "run_node"]
+           "PeriodAt"]
 
 log = logging.getLogger("seaway.runtime.node")
 
@@ -370,39 +370,3 @@ class LiveDriver:
 
     def _take(self, key: str, msg: Message) -> None:
         self.node.take(key, msg, self.ctx.clock.now_ns())
-
-
-def _clock_node() -> type:
-    from seaway.runtime.lockstep_clock import ClockNode  # it builds on this module
-
-    return ClockNode
-
-
-def run_node(ctx: Any, node: Node, period_s: float, stamps: StampGate | None = None) -> None:
-    """Run ``node`` in the mode of ``ctx``'s run (a ``ServiceContext``): in lockstep the clock (a
-    ``ClockNode``: periods of ``period_s``) or a member, else (or a node with no ``member``: of
-    the wall clock only, as vehicle_io) on the wall clock every ``period_s`` [s]; its requests
-    served in each. Returns when ``ctx.stop`` is set, after the node's ``finish``. The node is
-    attached before its requests are served (a handler may ask the driver for the time)."""
-    driver: Any
-    if ctx.run.lockstep and isinstance(node, _clock_node()):
-        from seaway.runtime.lockstep_clock import LockstepClock
-
-        driver = LockstepClock(ctx.bus, node, period_s, ctx.stop, node.stall_s)
-    elif ctx.run.lockstep and node.member is not None:
-        driver = MemberDriver(ctx.bus, node, stamps)
-    else:
-        driver = LiveDriver(ctx, node, period_s)
-    node.attach(driver)
-    for spec, handler in node.requests().items():
-        ctx.bus.queryable(spec, handler)
-    if isinstance(driver, MemberDriver):
-        driver.run(ctx.stop, ctx.ready)
-    elif isinstance(driver, LiveDriver):
-        driver.run()
-    else:
-        ctx.ready()
-        try:
-            driver.run()
-        finally:
-            node.finish()
