@@ -16,7 +16,9 @@ threads, the lockstep protocol (``seaway.runtime.lockstep``) or the rate loop::
         def tick(self, now_ns, out):                  # real time: every period of the wall clock
             out.put(keys.NAV_STATE, estimate_from(self.last, now_ns))
 
-    with run_service("echo", args) as ctx:          # run_node: seaway.runtime.runner
+    from seaway.runtime.runner import run_node       # the one entry point, above the drivers
+
+    with run_service("echo", args) as ctx:
         run_node(ctx, EchoNode(), period_s=0.1)      # lockstep or real time: the run says which
 
 Modes:
