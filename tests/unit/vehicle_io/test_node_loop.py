@@ -24,6 +24,7 @@ from seaway.runtime.runner import run_node
 from seaway.runtime.service import ServiceContext
 from seaway.vessel.model import load_vessel
 from seaway_lab.fake_autopilot import FakeAutopilot
+from seaway_vehicle_io.component_metadata import SendFileTransfer
 from seaway_vehicle_io.config import SOURCE_SYSTEM, VehicleIoConfig
 from seaway_vehicle_io.node import MAX_SLEEP_S, VehicleIoNode
 from seaway_vehicle_io.thrust import ThrusterLimits
@@ -40,7 +41,7 @@ def udp_port() -> int:
 
 
 @pytest.fixture
-def vio() -> Iterator[tuple[MemoryHub, MemoryBus, int]]:
+def vio() -> Iterator[tuple[MemoryHub, MemoryBus, int, VehicleIoNode]]:
     """vehicle_io's node run on a thread, listening for the autopilot on a free UDP port."""
     hub, port, stop = MemoryHub(), udp_port(), threading.Event()
     bus = hub.bus(VESSEL)
@@ -52,7 +53,7 @@ def vio() -> Iterator[tuple[MemoryHub, MemoryBus, int]]:
                             daemon=True)
     loop.start()
     try:
-        yield hub, bus, port
+        yield hub, bus, port, node
     finally:
         stop.set()
         loop.join(5.0)
@@ -61,7 +62,7 @@ def vio() -> Iterator[tuple[MemoryHub, MemoryBus, int]]:
 
 
 def test_requests_thrust_and_telemetry_through_the_memory_bus(vio) -> None:
-    hub, vio_bus, port = vio
+    hub, vio_bus, port, _ = vio
     operator = hub.bus(VESSEL)
     status = operator.subscribe(keys.VEHICLE_STATUS, mode="fifo")
     seen: list[VehicleStatus] = []
@@ -88,3 +89,19 @@ def test_requests_thrust_and_telemetry_through_the_memory_bus(vio) -> None:
         assert (rec.target, rec.x, rec.r, rec.src_system) == (1, 0, 0, SOURCE_SYSTEM)
         assert vio_bus.stats.malformed_by_key == {keys.THRUST.key(VESSEL): 1}
         assert vio_bus.stats.received == 1
+
+
+def test_an_output_that_cannot_be_packed_is_logged_and_the_loop_goes_on(vio) -> None:
+    """The last line of defence behind the core's own checks: a MAVLink output pymavlink cannot
+    pack (a component id past one byte) is logged and skipped; the next ones still go out and the
+    node's loop keeps running."""
+    hub, _, port, node = vio
+    operator = hub.bus(VESSEL)
+    with FakeAutopilot(("127.0.0.1", port)) as peer:
+        wait_for(lambda: node.core.link.ok or None, 15, what="the link up")
+        with node.lock:
+            assert node._send([SendFileTransfer(1, 300, b"x")]) == []  # does not raise
+        t0 = time.monotonic_ns()
+        operator.publisher(keys.THRUST).put(ThrustCommand.make(
+            stamp_ns=time.time_ns(), thrust_port_n=0.0, thrust_starboard_n=0.0, source="test"))
+        wait_for(lambda: peer.manual_controls_since(t0) or None, 2, what="MANUAL_CONTROL after it")

@@ -274,6 +274,39 @@ def test_fetch_fails_with_the_reason():
     assert bad.stage == "failed" and "not a MAVLink FTP URI" in bad.error
 
 
+@pytest.mark.parametrize("uri", ["mftp://[;comp=300]x.json", "mftp://[;comp=-1]x.json",
+                                 "mftp://[;comp=0]x.json", "mftp://[;comp=one]x.json",
+                                 "mftp://" + "e" * (cm.FTP_DATA_MAX + 1)])
+def test_an_uri_the_ftp_cannot_ask_for_fails_the_fetch_with_the_reason(uri):
+    """A component id is one byte (1..255) and OpenFileRO carries the path in one 239-byte payload:
+    anything else could not be packed into a MAVLink message, and the fetch ends there instead."""
+    fetch = cm.MetadataFetch(1, 1)
+    fetch.start(0)
+    assert fetch.on_component_metadata(uri, 0) == []
+    assert fetch.stage == "failed" and ("1..255" in fetch.error or "239" in fetch.error)
+    assert fetch.next_due_ns() is None
+    assert cm.ftp_path("mftp://[;comp=255]" + "e" * cm.FTP_DATA_MAX)[0] == 255  # the limits pass
+
+
+def test_a_long_events_path_in_the_general_metadata_fails_the_fetch_without_retries():
+    """The events URI comes from a file the autopilot serves: too long a path there ends the
+    fetch with its reason, and nothing stays due (a fetch with nothing to resend used to stay due
+    for ever, and the node's loop ticked without sleeping)."""
+    server = FakeFtpServer({"etc/general.json": general("mftp://" + "e" * 300)})
+    fetch = run_fetch(server, "mftp://etc/general.json")
+    assert fetch.stage == "failed" and "239" in fetch.error and fetch.next_due_ns() is None
+
+
+def test_a_read_with_nothing_to_resend_fails_instead_of_staying_due():
+    fetch = cm.MetadataFetch(1, 1)
+    fetch.start(0)
+    fetch.on_component_metadata("mftp://etc/general.json", 0)
+    assert fetch._read is not None
+    fetch._read._pending = None  # as a handler that failed half way would leave it
+    assert fetch.tick(cm.REPLY_TIMEOUT_NS) == [] and fetch.stage == "failed"
+    assert fetch.next_due_ns() is None
+
+
 # -- the core --------------------------------------------------------------------------------------------
 
 

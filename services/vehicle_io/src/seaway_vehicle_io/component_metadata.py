@@ -67,10 +67,17 @@ def ftp_path(uri: str) -> tuple[int | None, str]:
         end = rest.find("]")
         if end < 0:
             raise ValueError(f"unterminated [;comp=N] in {uri!r}")
-        component = int(rest[len("[;comp="):end])
+        text = rest[len("[;comp="):end]
+        component = int(text) if text.isdigit() else -1
+        if not 1 <= component <= 255:
+            raise ValueError(f"component {text!r} in {uri!r} is not a MAVLink component id (1..255)")
         rest = rest[end + 1:]
     if not rest:
         raise ValueError(f"no path in {uri!r}")
+    if len(rest.encode("utf-8")) > FTP_DATA_MAX:
+        # OpenFileRO carries the path in one FTP payload; a longer one cannot be asked for.
+        raise ValueError(f"path of {len(rest.encode('utf-8'))} bytes in {uri[:80]!r}...: MAVLink FTP "
+                         f"takes at most {FTP_DATA_MAX}")
     return component, rest
 
 
@@ -299,6 +306,8 @@ class MetadataFetch:
         again: SendRequestMessage | SendFileTransfer | None = self._last
         if self._read is not None:
             again = self._ftp(self._read.resend())
+            if again is None:  # the read holds no request (a reply it could not answer): give up
+                return self._fail(f"MAVLink FTP: nothing to send again ({self.stage} metadata)")
         return self._sent(now_ns, again, fresh=False)
 
     def next_due_ns(self) -> int | None:

@@ -266,6 +266,9 @@ class VehicleIoNode(Node):
                     self.link.send(out)
                 except LinkClosedError as err:
                     self._ratelog.warning("send", "send failed: %s", err)
+                except Exception:  # an output that cannot be packed must not end the loop
+                    self._ratelog.exception(("packing", type(out).__name__), "sending %s failed",
+                                            type(out).__name__)
         return publish
 
     def _publish(self, publish: list[Publish]) -> None:
