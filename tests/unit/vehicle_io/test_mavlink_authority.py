@@ -148,6 +148,40 @@ def test_other_system_at_the_autopilots_address_and_telemetry_from_elsewhere_are
     assert any(isinstance(o, Publish) for o in core.on_mavlink(attitude(), at(5 * MS), AUTOPILOT))
 
 
+def test_other_components_of_the_autopilots_system_do_not_speak_for_it():
+    """A gimbal (154), a smart battery (180) or a companion computer (191) behind the autopilot's
+    router share its system id and address: their position, texts, battery and ACKs are refused,
+    counted per source; the autopilot's own (component 1) still count."""
+    core = make()
+    locked(core)
+    gimbal_fix = wire(mavlink.MAVLink_global_position_int_message(
+        1000, 473977420, 85455940, 488_000, 0, 150, -50, 0, 0), compid=154)
+    critical = wire(mavlink.MAVLink_statustext_message(2, b"Battery 1 is critical"), compid=191)
+    arm_ack = wire(mavlink.MAVLink_command_ack_message(400, 0), compid=191)
+    for k, msg in enumerate([gimbal_fix, critical, arm_ack, heartbeat(compid=154)]):
+        assert core.on_mavlink(msg, at((2 + k) * MS), AUTOPILOT) == []
+    assert core.refusals.by_source == {(FOREIGN_SOURCE, (1, 154, AUTOPILOT)): 2,
+                                       (FOREIGN_SOURCE, (1, 191, AUTOPILOT)): 2}
+    assert status(core, 10 * MS).failsafe_latched is None
+    assert any(isinstance(o, Publish) for o in core.on_mavlink(attitude(), at(11 * MS), AUTOPILOT))
+
+
+def test_ftp_replies_come_from_the_component_the_metadata_uri_names():
+    """COMPONENT_METADATA may point the events file at another component ([;comp=N]): its MAVLink
+    FTP replies are taken, and nothing else from it."""
+    core = make()
+    locked(core)
+    core.events.connect(1, 1, 0)
+    assert core.events.fetch is not None
+    core.events.fetch.on_component_metadata("mftp://[;comp=100]general.json", 0)
+    ftp = wire(mavlink.MAVLink_file_transfer_protocol_message(0, SOURCE_SYSTEM, 191, [0] * 251),
+               compid=100)
+    core.on_mavlink(ftp, at(2 * MS), AUTOPILOT)
+    assert core.refusals.total == 0 and core.counts.get("FILE_TRANSFER_PROTOCOL") == 1
+    core.on_mavlink(attitude(compid=100), at(3 * MS), AUTOPILOT)
+    assert core.refusals.by_source == {(FOREIGN_SOURCE, (1, 100, AUTOPILOT)): 1}
+
+
 def test_garbage_from_elsewhere_is_a_refusal_and_from_the_autopilot_a_drop():
     core = make()
     locked(core)

@@ -163,7 +163,11 @@ class VehicleIoCore(LinkWatch, ThrustPath, TelemetryIn, AutopilotSaid, ParamRead
         if (sysid, compid) == (self.cfg.source_system, self.cfg.source_component):
             return []  # our own messages echoed back (a broadcast or a router)
         if link.ok:
-            if address != link.target_address or sysid != link.target_system:
+            if address != link.target_address or sysid != link.target_system or (
+                    compid != link.target_component and not self._ftp_peer(mtype, compid)):
+                # Another component of the autopilot's system (a gimbal, a smart battery, a
+                # companion computer behind the same router) speaks for itself, not for the
+                # vessel: its position, texts, ACKs and clock are not the autopilot's.
                 self.refusals.add(FOREIGN_SOURCE, source, 1, now.mono_ns)
                 return []
         elif mtype == "HEARTBEAT" and not self.policy.may_lock(address):
@@ -194,6 +198,13 @@ class VehicleIoCore(LinkWatch, ThrustPath, TelemetryIn, AutopilotSaid, ParamRead
         except NoDataError as err:
             self._log_limited(now, mtype, "nodata", logging.INFO, str(err))
             return []
+
+    def _ftp_peer(self, mtype: str, compid: int) -> bool:
+        """Whether ``compid`` is the component the events metadata is being read from over MAVLink
+        FTP (a COMPONENT_METADATA URI may name one other than the autopilot's)."""
+        fetch = self.events.fetch
+        return mtype == "FILE_TRANSFER_PROTOCOL" and fetch is not None \
+            and compid == fetch.target_component
 
     def on_refused_datagrams(self, tally: dict[Source, int], now: Now) -> None:
         """Count datagrams the link refused unparsed (from an address other than the locked peer;
