@@ -98,6 +98,28 @@ def test_degrees_without_an_origin_and_unreadable_toml_are_refused() -> None:
         area_spec.from_toml("x = 1\n")
 
 
+KEEP_IN = "[area.keep_in]\nvertices_m = [[-20, -20], [45, -20], [45, 40], [-20, 40]]\n"
+
+
+@pytest.mark.parametrize("text, named", [
+    (KEEP_IN + '[[keep_out]]\nname = "pier"\ncenter_m = [10.0, 0.0]\nradius_m = 3.0\n', "keep_out"),
+    ("[area]\n[keep_in]\nvertices_m = [[-20, -20], [45, -20], [45, 40], [-20, 40]]\n", "keep_in"),
+    (KEEP_IN + "[[rally]]\nposition_m = [0.0, 0.0]\n", "rally"),
+])
+def test_a_zone_written_outside_the_area_table_is_refused_not_dropped(text: str, named: str) -> None:
+    """Without the "area." prefix a zone is a top-level table nobody reads: refused by name, so a
+    keep-out the operator wrote is never silently left out of the check."""
+    with pytest.raises(AreaError) as err:
+        area_spec.from_toml(text, "lake.toml")
+    assert named in str(err.value) and "[area." in str(err.value) and "lake.toml" in str(err.value)
+    assert area_spec.from_toml(KEEP_IN).keep_in is not None  # the same file, written right, reads
+
+
+def test_an_area_table_without_a_zone_is_refused() -> None:
+    with pytest.raises(AreaError, match="keep_in"):
+        area_spec.from_toml("[area]\n")
+
+
 def test_an_area_valid_as_a_table_but_not_as_an_area_is_refused() -> None:
     table = {"keep_in": {"vertices_m": [[0, 0], [10, 10], [10, 0], [0, 10]]}}
     with pytest.raises(AreaError, match="cross"):

@@ -257,12 +257,26 @@ def to_toml(spec: AreaSpec) -> str:
     return "\n".join(lines) + "\n"
 
 
+AREA_TABLES = ("keep_in", "keep_out", "rally")
+"""The tables of an ``[area]`` (``[area.keep_in]``, ``[[area.keep_out]]``, ``[[area.rally]]``)."""
+
+
 def from_toml(text: str, where: str = "area file") -> AreaSpec:
     """Read TOML text holding an ``[area]`` table; AreaError naming what is wrong."""
     try:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
         raise AreaError(f"{where}: not valid TOML: {err}") from None
+    # A zone written without the "area." prefix ([[keep_out]], or [keep_in] after [area]) is a
+    # table of its own that nobody reads: the file would pass with the zone silently left out.
+    misplaced = [k for k in AREA_TABLES if k in doc]
+    if misplaced:
+        raise AreaError(f"{where}: {', '.join(misplaced)} at the top level, where it is not read; an "
+                        "area's zones are [area.keep_in], [[area.keep_out]] and [[area.rally]]")
     if not isinstance(doc.get("area"), dict):
         raise AreaError(f"{where}: no [area] table")
-    return parse_spec(doc["area"], f"{where} [area]")
+    spec = parse_spec(doc["area"], f"{where} [area]")
+    if spec.keep_in is None and not spec.keep_out:
+        raise AreaError(f"{where} [area]: no zone; give [area.keep_in], [[area.keep_out]] or both "
+                        "(an area file that bounds nothing is a mistake, not an area)")
+    return spec
