@@ -8,10 +8,11 @@ from __future__ import annotations
 from typing import Any
 
 from seaway_vehicle_io.autopilot_health import EST_POS_HORIZ_ABS, Health
+from seaway_vehicle_io.core import Now
 from seaway_vehicle_io.failsafe_cause import MAV_SYS_STATUS_SENSOR_BATTERY
 from seaway_vehicle_io.mav import mavlink
 
-from tests.unit.vehicle_io.test_hold_reason import AP_MODES, HEALTH, MS, S, at, status, wire
+from tests.unit.vehicle_io.test_hold_reason import AP_MODES, HEALTH, MS, WALL0, S, at, status, wire
 from tests.unit.vehicle_io.test_hold_reason import connected as _connected
 
 AHRS, GPS = mavlink.MAV_SYS_STATUS_AHRS, mavlink.MAV_SYS_STATUS_SENSOR_GPS
@@ -107,8 +108,28 @@ def test_a_reboot_ends_the_latched_battery_failsafe():
     core.on_mavlink(wire(mavlink.MAVLink_statustext_message(
         4, b"Battery 1 is low 11.00V used 500 mAh", 0, 0)), at(3 * S))
     assert status(core, 3 * S).failsafe_latched == "battery"
-    core.on_mavlink(wire(mavlink.MAVLink_system_time_message(0, 1_000)), at(4 * S))  # rebooted
-    assert status(core, 4 * S).failsafe_latched is None
+    core.on_mavlink(wire(mavlink.MAVLink_system_time_message(0, 1_000)), at(4 * S))  # rebooted?
+    assert status(core, 4 * S).failsafe_latched == "battery"  # one packet going back is not proof
+    core.on_mavlink(wire(mavlink.MAVLink_system_time_message(0, 2_000)), at(5 * S))  # its clock runs
+    assert status(core, 5 * S).failsafe_latched is None
+
+
+def test_a_wall_clock_step_keeps_the_latched_battery_failsafe():
+    """NTP stepping the companion's wall clock 5 s is not an autopilot reboot: the battery
+    failsafe ArduPilot said once stays latched, and the stamps follow the new wall time."""
+    core = connected()
+    core.on_mavlink(wire(mavlink.MAVLink_statustext_message(
+        4, b"Battery 1 is low 11.00V used 500 mAh", 0, 0)), at(2 * S))
+    step = 5 * S
+    for k in range(40):  # 4 s of 10 Hz ATTITUDE; the wall clock set 5 s ahead after 1 s
+        mono = 3 * S + k * 100 * MS
+        now = Now(WALL0 + mono + (step if k >= 10 else 0), mono)
+        out = core.on_mavlink(wire(mavlink.MAVLink_attitude_message(
+            100_000 + k * 100, 0.0, 0.0, 0.5, 0.0, 0.0, 0.1)), now)
+    assert (core.offset.steps, core.offset.resets) == (1, 0)
+    assert core.status(now).failsafe_latched == "battery"
+    (att,) = [o.message for o in out if type(o.message).__name__ == "Attitude"]
+    assert att.stamp_ns == now.wall_ns
 
 
 def test_pxs_later_causeless_failsafe_text_keeps_the_battery_it_named_before():

@@ -301,6 +301,9 @@ def test_a_reboot_without_the_link_dropping_checks_the_fence_again():
     rig.run(1.0)
     n = rig.ap.sent_types.count("SendMissionCount")
     rig.feed([wire(mavlink.MAVLink_system_time_message(WALL0 // 1000, 2_000))])  # rebooted
+    rig.run(1.0)
+    assert rig.ap.sent_types.count("SendMissionCount") == n  # not yet proven
+    rig.feed([wire(mavlink.MAVLink_system_time_message(WALL0 // 1000, 3_000))])  # it was
     assert rig.core.link.ok
     rig.run(1.0)
     assert rig.ap.sent_types.count("SendMissionCount") == n + 2

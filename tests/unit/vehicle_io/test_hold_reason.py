@@ -325,7 +325,8 @@ def test_a_reboot_without_a_link_loss_forgets_the_standing_cause():
     assert status(core, 2 * S).hold_reason == "gcs_mode_change"
     core.on_mavlink(px4_heartbeat("HOLD", armed=False), at(3 * S))
     core.on_mavlink(system_time(900, 3100 * MS), at(3100 * MS))  # its clock restarted
-    st = status(core, 3100 * MS)
+    core.on_mavlink(system_time(1900, 4100 * MS), at(4100 * MS))  # and runs on: a reboot
+    st = status(core, 4100 * MS)
     assert st.hold_reason is None and st.hold_reason_detail == "", st
 
 

@@ -60,22 +60,58 @@ def test_a_late_message_gets_its_older_stamp_and_the_ones_after_it_keep_flowing(
 
 def test_a_reboot_the_link_did_not_show_restarts_the_estimate_after_confirm_s():
     est = BootTimeOffset(window_s=10.0, confirm_s=1.0, confirm_samples=3)
-    est.update(50_000, EPOCH + 50_003 * MS)
-    new_epoch = EPOCH + 51 * S  # rebooted 1 s after that sample: every sample 50 s behind
+    for k in range(11):  # 1 s of samples: an estimate that stands
+        est.update(49_000 + 100 * k, EPOCH + (49_003 + 100 * k) * MS)
+    new_epoch = EPOCH + 51 * S  # rebooted 1 s after that: every sample 50 s behind
     stamps = [est.update(100 * k, new_epoch + (100 * k + 6) * MS) for k in range(1, 13)]
-    assert est.resets == 1
+    assert (est.resets, est.steps, est.rebases) == (1, 0, 0)
     assert est.offset_ns == new_epoch + 6 * MS
-    # Until then (1 s of samples) they were taken as late messages: old stamps, never ahead.
-    assert all(s < new_epoch for s in stamps[:10])
+    # Until then (1 s of samples) they were refused: 50 s behind the estimate, more than a window,
+    # is no late packet, and an hour-old stamp on the bus would be worse than none.
+    assert stamps[:10] == [None] * 10 and est.refused is None
     assert stamps[-1] == new_epoch + 1206 * MS
 
 
-def test_system_time_going_back_is_a_reboot_at_once():
+def test_a_wall_clock_step_is_not_a_reboot():
+    """NTP setting the clock of a board without a real-time clock: every sample lands 5 s
+    "behind" on the wall clock, but not on the monotonic one. The estimate follows the new wall
+    time, and no reboot is counted (a reboot ends the autopilot's latched failsafes)."""
+    est = BootTimeOffset(window_s=10.0, confirm_s=1.0, confirm_samples=3)
+    step = 5 * S
+    stamps = []
+    for k in range(40):  # 4 s of 10 Hz telemetry, the wall clock set 5 s ahead at 2 s
+        boot, mono = 100_000 + 100 * k, (100_000 + 100 * k + 2) * MS
+        wall = EPOCH + mono + (step if k >= 20 else 0)
+        stamps.append(est.update(boot, wall, mono))
+    assert (est.resets, est.steps, est.rebases) == (0, 1, 0)
+    assert stamps[-1] == EPOCH + step + (100_000 + 3900 + 2) * MS  # on the new wall time
+    assert None not in stamps  # 5 s behind is within a window: old stamps until confirmed
+
+
+def test_a_corrupt_first_boot_time_is_a_wrong_estimate_not_a_reboot():
+    """The first stamped message after link-up carries time_boot_ms 2^32 - 1: the estimate built
+    on it alone is what is wrong when every message after it disagrees."""
+    est = BootTimeOffset(window_s=10.0, confirm_s=1.0, confirm_samples=3)
+    assert est.update(2**32 - 1, EPOCH + 100_002 * MS) is not None
+    stamps = [est.update(100_000 + 100 * k, EPOCH + (100_002 + 100 * k) * MS) for k in range(1, 15)]
+    assert (est.resets, est.steps, est.rebases) == (0, 0, 1)
+    assert stamps[:10] == [None] * 10  # 49.7 days "behind": refused, never stamped in the past
+    assert stamps[-1] == EPOCH + (100_002 + 1400) * MS
+
+
+def test_system_time_going_back_is_a_reboot_once_the_next_runs_on_from_it():
     est = BootTimeOffset(window_s=10.0)
     est.update(50_000, EPOCH + 50_003 * MS)
-    assert not est.system_time(50_010)
-    assert not est.system_time(49_500)  # reordered by half a second: not a reboot
-    assert est.system_time(200)
+    assert not est.system_time(50_010, 50 * S)
+    assert not est.system_time(49_500, 50 * S)  # reordered by half a second: not a reboot
+    assert not est.system_time(200, 51 * S)  # going back: a reboot, or a stale packet
+    assert not est.system_time(51_010, 52 * S)  # the clock runs on where it was: stale
+    assert not est.system_time(200, 53 * S)  # the same stale packet, replayed twice
+    assert not est.system_time(200, 53 * S + 10 * MS)
+    assert not est.system_time(52_510, 53 * S + 500 * MS)  # and the live clock again
+    assert est.resets == 0 and est.offset_ns is not None
+    assert not est.system_time(1_200, 54 * S)  # going back again, and then running on from it
+    assert est.system_time(2_200, 55 * S)
     assert est.resets == 1 and est.offset_ns is None
     new_epoch = EPOCH + 60 * S
     assert est.update(300, new_epoch + 304 * MS) == new_epoch + 304 * MS

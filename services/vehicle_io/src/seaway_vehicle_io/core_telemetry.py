@@ -65,18 +65,25 @@ class TelemetryIn:
         (``timesync.BootTimeOffset``: a boot time far ahead is refused, a late one gets its older
         stamp, and only a streak of samples, never one, restarts the estimate)."""
         boot_ms = msg.time_boot_ms
-        resets, rebases = self.offset.resets, self.offset.rebases
-        stamp = self.offset.stamp(boot_ms, now.wall_ns)
-        if self.offset.resets != resets:
+        offset = self.offset
+        resets, rebases, steps = offset.resets, offset.rebases, offset.steps
+        stamp = offset.stamp(boot_ms, now.wall_ns, now.mono_ns)
+        if offset.resets != resets:
             log.warning("autopilot clock restarted (every time_boot_ms over %.1f s behind the "
                         "estimate): time offset estimated anew", self.cfg.time_confirm_s)
             self._rebooted()
-        elif self.offset.rebases != rebases:
-            log.warning("time offset was wrong (every time_boot_ms over %.1f s ahead of it): "
+        elif offset.steps != steps:
+            log.warning("the wall clock stepped (every time_boot_ms behind the estimate for %.1f s "
+                        "on the wall clock, not on the monotonic one): time offset estimated anew; "
+                        "the autopilot did not reboot", self.cfg.time_confirm_s)
+        elif offset.rebases != rebases:
+            log.warning("time offset was wrong (every time_boot_ms over %.1f s away from it): "
                         "estimated anew from those messages", self.cfg.time_confirm_s)
         if stamp is None:
             raise FieldError(msg.get_type(), "time_boot_ms", boot_ms,
-                             "jumps ahead of the autopilot's clock")
+                             f"lies over {offset.window_ns / 1e9:g} s behind the autopilot's clock "
+                             "(too late to stamp)" if offset.refused == "late"
+                             else "jumps ahead of the autopilot's clock")
         if stamp < 0:
             raise FieldError(msg.get_type(), "time_boot_ms", boot_ms, "gives a negative stamp")
         return stamp
@@ -84,12 +91,13 @@ class TelemetryIn:
     def _publish_stamped(self, msg: Any, now: Now, convert: Any) -> list[Output]:
         stamp = self._stamp(msg, now)
         message = convert(stamp)  # raises FieldError before the estimate is touched
-        self.offset.commit(msg.time_boot_ms, now.wall_ns)
+        self.offset.commit(msg.time_boot_ms, now.wall_ns, now.mono_ns)
         return [Publish(message)]
 
     def _on_system_time(self, msg: Any, now: Now) -> list[Output]:
-        """SYSTEM_TIME: the autopilot's clock now; going back means it rebooted."""
-        if self.offset.system_time(msg.time_boot_ms):
+        """SYSTEM_TIME: the autopilot's clock now; going back, and running on from there, means it
+        rebooted (``BootTimeOffset.system_time``)."""
+        if self.offset.system_time(msg.time_boot_ms, now.mono_ns):
             log.warning("autopilot rebooted (SYSTEM_TIME time_boot_ms went back to %d ms): time "
                         "offset estimated anew", msg.time_boot_ms)
             self._rebooted()
