@@ -172,6 +172,22 @@ def test_tracker_counts_lost_events_ignores_repeats_and_waits_for_its_catalog():
     assert wrap.lost == 1
 
 
+def test_a_count_restarted_by_a_reboot_is_decoded_not_taken_for_repeats():
+    """PX4 rebooted while the link was down: the tracker resumes the old count (200, to ask for
+    what the fade lost), and the new boot's EVENTs come numbered from 0. Behind the count but never
+    taken, they are a new count, not repeats: before, "Failsafe activated" at 5..9 was dropped."""
+    far = EventTracker(CATALOG)
+    far.last_sequence = 200  # EventsChannel(resume_after=200)
+    assert far.on_event(eid(133277), b"", 0x62, 5, 0) is not None and far.last_sequence == 5
+    assert far.on_event(eid(133277), b"", 0x62, 6, 1) is not None
+    near = EventTracker(CATALOG)  # the old count within MAX_MISSING of the new one
+    for seq in range(18, 21):
+        near.on_event(eid(133277), b"", 0x62, seq, seq)
+    assert near.on_event(eid(133277), b"", 0x62, 9, 30) is not None and near.last_sequence == 9
+    assert near.on_event(eid(133277), b"", 0x62, 9, 31) is None  # that one again: a repeat
+    assert near.on_event(eid(133277), b"", 0x62, 10, 32) is not None
+
+
 # -- the MAVLink FTP fetch --------------------------------------------------------------------------------
 
 

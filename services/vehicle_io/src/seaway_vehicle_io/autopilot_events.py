@@ -48,6 +48,7 @@ DENIAL_MARK = "arm_denied"  # commander_arm_denied_*: the verdict on an arm requ
 MODES_ARGUMENT = "modes"
 KEEP = 64  # decoded events remembered
 MAX_MISSING = 32
+SEEN_KEPT = 256  # sequence numbers remembered to tell a repeat from a restarted count
 """Lost events asked for again at most (a longer gap is a reboot's new count, or too old for the
 autopilot's buffer: PX4 keeps its recent events for a REQUEST_EVENT)."""
 
@@ -241,6 +242,10 @@ class EventTracker:
         self.recovered = 0  # missing events that came after all (re-sent on request)
         self.to_ask: tuple[int, int] | None = None
         """The latest gap (first, last sequence) not yet asked for (``EventsChannel``)."""
+        # The event id of each sequence number taken lately (the last SEEN_KEPT): a repeat is one
+        # of these again, while a sequence behind the count that was never taken is a new count.
+        self._seen: dict[int, int] = {}
+        self._seen_order: deque[int] = deque()
 
     def note_sequence(self, sequence: int) -> tuple[int, int] | None:
         """The autopilot's latest event is ``sequence`` (an EVENT's, or CURRENT_EVENT_SEQUENCE's):
@@ -275,9 +280,15 @@ class EventTracker:
             self.recovered += 1
         elif self.last_sequence is not None and (
                 (sequence - self.last_sequence - 1) & 0xFFFF) >= 0x8000:
-            return None  # a repeat (re-sent on request): already handled
+            if self._seen.get(sequence) == event_id:
+                return None  # a repeat (re-sent on request): already handled
+            # Behind the count, and never taken: the autopilot's count restarted (it rebooted,
+            # perhaps while the link was down and the old count was carried over).
+            self.missing.clear()
+            self.last_sequence = sequence
         else:
             self.note_sequence(sequence)
+        self._remember(sequence, event_id)
         if self.catalog is None:
             self.undecoded += 1
             return None
@@ -288,6 +299,13 @@ class EventTracker:
         elif ev.group in REPORT_GROUPS and ev.modes is not None and self.report is not None:
             self.report.failures.append(ev)
         return ev
+
+    def _remember(self, sequence: int, event_id: int) -> None:
+        if sequence not in self._seen:
+            self._seen_order.append(sequence)
+            if len(self._seen_order) > SEEN_KEPT:
+                self._seen.pop(self._seen_order.popleft(), None)
+        self._seen[sequence] = event_id
 
     def denials_since(self, mono_ns: int) -> list[str]:
         """What the autopilot said about an arm request since ``mono_ns``: its denials."""
