@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 import pytest
+from seaway import mission_files
 from seaway.contract.config import ConfigError, deploy_path
 from seaway.contract.messages import MessageError, MissionRequest, Waypoint
 from seaway.contract.missions import MissionSpec
@@ -100,3 +101,54 @@ def test_a_scenario_mission_may_ask_for_the_prediction(tmp_path: Path) -> None:
         load_scenario(_scenario_with(tmp_path, "predict_disturbence = true"))
     with pytest.raises(ConfigError, match="predict_disturbance"):
         load_scenario(_scenario_with(tmp_path, 'predict_disturbance = "often"'))
+
+
+@pytest.mark.parametrize("field, bad", [
+    ("coa_radius_m", -5.0), ("coa_radius_m", 0.0), ("coa_radius_m", 1e308), ("coa_radius_m", 10**400),
+    ("speed_hint_mps", 1e300), ("speed_hint_mps", 10**400), ("speed_hint_mps", 0.0)])
+def test_the_bus_request_bounds_what_every_sender_may_carry(field: str, bad: float) -> None:
+    """The bus contract is the last edge before the controller: r_COA in (0, 10 km], a cruise
+    hint in (0, 50] m/s, whichever file or client the request came from. An integer past a
+    float's range is a refusal naming the field, not an OverflowError."""
+    with pytest.raises(MessageError, match=field):
+        request(**{field: bad})
+
+
+def _geojson(**properties) -> dict:
+    return {"type": "Feature", "geometry": {"type": "LineString",
+                                            "coordinates": [[8.0, 47.0], [8.001, 47.001]]},
+            "properties": properties}
+
+
+@pytest.mark.parametrize("properties, named", [
+    ({"speed_hint_mps": 1e300}, "speed_hint_mps"),
+    ({"coa_radius_m": 1e308}, "coa_radius_m"),
+    ({"coa_radius_m": -5}, "coa_radius_m"),
+])
+def test_an_imported_files_hints_are_bounded_like_a_request(properties: dict, named: str) -> None:
+    path = mission_files.parse_document(_geojson(**properties))
+    params = {"task_power_w": 1.0, **({} if "coa_radius_m" in properties else {"coa_radius_m": 2.0})}
+    with pytest.raises(mission_files.PlanError, match=named):
+        mission_files.mission_request(path, params, 1)
+
+
+@pytest.mark.parametrize("properties, named", [
+    ({"mission_id": {"x": 1}}, "mission_id"), ({"predict_disturbance": "yes"}, "predict_disturbance"),
+    ({"coa_radius_m": "2"}, "coa_radius_m"), ({"task_power_w": True}, "task_power_w")])
+def test_a_geojson_hint_of_the_wrong_json_type_is_refused_not_converted(properties, named) -> None:
+    """MissionRequest would turn "yes" into True and an object into a mission id's text."""
+    with pytest.raises(mission_files.PlanError, match=named):
+        mission_files.parse_document(_geojson(**properties))
+
+
+def test_plan_numbers_past_a_floats_range_and_deep_nesting_are_plan_errors() -> None:
+    doc = mission_files.to_plan([(47.0, 8.0), (47.001, 8.0)])
+    doc["mission"]["items"][0]["params"][1] = 10**400  # the acceptance radius, in 401 digits
+    assert mission_files.parse_document(doc).hints.get("coa_radius_m") is None
+    doc["mission"]["items"][0]["params"][4] = 10**400  # a latitude
+    with pytest.raises(mission_files.PlanError, match="latitude"):
+        mission_files.parse_document(doc)
+    with pytest.raises(mission_files.PlanError, match="nested too deeply"):
+        mission_files.load_json("[" * 100_000 + "]" * 100_000)
+    with pytest.raises(mission_files.PlanError, match="not readable"):
+        mission_files.load_json('{"a": 1' + "0" * 5000 + "}")

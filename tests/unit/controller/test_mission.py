@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 
 import pytest
-from seaway.contract.messages import MissionCommand, MissionRequest, Waypoint
+from seaway.contract.messages import MessageError, MissionCommand, MissionRequest, Waypoint
 from seaway.vessel.frames import GeoOrigin
 from seaway_controller.mission import MissionError, MissionLimits, MissionManager, validate_mission
 
@@ -23,8 +23,6 @@ def cmd(c: str) -> MissionCommand:
 
 @pytest.mark.parametrize(("points", "coa", "needle"), [
     ([(0, 0)], 1.0, "at least 2 waypoints"),
-    ([(0, 0), (5, 0)], 0.0, "coa_radius_m"),
-    ([(0, 0), (5, 0)], -2.0, "coa_radius_m"),
     ([(0, 0), (5, 0), (5, 0)], 1.0, "leg 1->2 has zero length"),
     ([(0, 0), (6000, 0)], 1.0, "waypoint 1 at (6000.0, 0.0) m is 6000 m from the origin"),
     ([(0, 0), Waypoint(x_m=3.0)], 1.0, "waypoint 1: needs both x_m and y_m"),
@@ -35,6 +33,17 @@ def cmd(c: str) -> MissionCommand:
 def test_refusals_name_the_problem(points, coa, needle):
     with pytest.raises(MissionError, match=needle.replace("(", r"\(").replace(")", r"\)")):
         validate_mission(request(points, coa), ORIGIN)
+
+
+@pytest.mark.parametrize("coa", [0.0, -2.0])
+def test_a_radius_not_above_zero_is_refused_naming_it(coa):
+    """Refused by the request itself (the bus contract), and by the controller's check for a
+    request that was built without validation."""
+    with pytest.raises(MessageError, match="coa_radius_m"):
+        request([(0, 0), (5, 0)], coa)
+    unchecked = request([(0, 0), (5, 0)]).model_copy(update={"coa_radius_m": coa})
+    with pytest.raises(MissionError, match="coa_radius_m"):
+        validate_mission(unchecked, ORIGIN)
 
 
 def test_non_finite_waypoints_cannot_even_be_built():

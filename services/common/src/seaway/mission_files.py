@@ -26,7 +26,6 @@ Every refusal is a ``PlanError`` whose text names the file kind and the item at 
 from __future__ import annotations
 
 import json
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -34,15 +33,16 @@ from typing import Any, Literal
 from seaway.area.geojson import AREA_PROPERTY, geojson_features, spec_from_geojson
 from seaway.area.model import AreaError
 from seaway.area.plan import plan_sections, spec_from_plan
-from seaway.area.spec import AreaSpec, read_lat_lon
+from seaway.area.spec import AreaSpec, finite_number, read_lat_lon
+from seaway.contract.messages.requests import MAX_SPEED_HINT_MPS
 
 NAV_WAYPOINT = 16
 """MAV_CMD_NAV_WAYPOINT: the only mission item that becomes a Seaway waypoint."""
 DO_CHANGE_SPEED = 178
 """MAV_CMD_DO_CHANGE_SPEED: the speed [m/s] in ``params[1]`` (-1: no change) holds for the
 waypoints after it; read as their speed, not flown as an item."""
-MAX_SPEED_MPS = 50.0
-"""Bound on a speed a file may give [m/s] (the API's bound of a mission's speed hint)."""
+MAX_SPEED_MPS = MAX_SPEED_HINT_MPS
+"""Bound on a speed a file may give [m/s]: a mission's speed hint's, since the first becomes it."""
 MAV_CMD_NAMES: dict[int, str] = {
     16: "NAV_WAYPOINT", 17: "NAV_LOITER_UNLIM", 18: "NAV_LOITER_TURNS", 19: "NAV_LOITER_TIME",
     20: "NAV_RETURN_TO_LAUNCH", 21: "NAV_LAND", 22: "NAV_TAKEOFF", 31: "NAV_LOITER_TO_ALT",
@@ -132,6 +132,11 @@ def load_json(data: bytes | str, what: str = "mission file") -> Any:
         raise PlanError(f"{what}: not UTF-8 text ({err.reason} at byte {err.start})") from None
     except json.JSONDecodeError as err:
         raise PlanError(f"{what}: not JSON: {err.msg} at line {err.lineno} column {err.colno}") from None
+    except RecursionError:
+        raise PlanError(f"{what}: nested too deeply to read (a mission file is a few levels deep)") \
+            from None
+    except ValueError as err:  # an integer literal of more digits than Python converts
+        raise PlanError(f"{what}: not readable: {err}") from None
 
 
 def detect_format(doc: Any) -> MissionFormat:
@@ -207,9 +212,9 @@ def _plan_item(i: int, item: Any) -> tuple[float, float, float | None]:
     if not isinstance(params, list) or len(params) != 7:
         raise PlanError(f"{name}: params must be a list of 7 values, got {json.dumps(params)[:80]}")
     lat, lon = _lat_lon(params[4], params[5], name)
-    radius = params[1]
-    radius_m = float(radius) if isinstance(radius, int | float) and not isinstance(radius, bool) \
-        and math.isfinite(radius) and radius > 0 else None
+    radius_m = finite_number(params[1])
+    if radius_m is not None and radius_m <= 0:
+        radius_m = None  # QGroundControl writes 0 for "the autopilot's default"
     return lat, lon, radius_m
 
 
@@ -274,11 +279,11 @@ def _plan_speed(i: int, item: dict[str, Any], before: float | None) -> float | N
 
 
 def _speed(value: Any, where: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value) \
-            or not 0 < value <= MAX_SPEED_MPS:
+    number = finite_number(value)
+    if number is None or not 0 < number <= MAX_SPEED_MPS:
         raise PlanError(f"{where}: speed {json.dumps(value)[:40]} must be a number of m/s in "
                         f"(0, {MAX_SPEED_MPS:g}]")
-    return float(value)
+    return number
 
 
 def _speeds_or_none(speeds: list[float | None]) -> tuple[float | None, ...]:
@@ -301,9 +306,12 @@ def _area(read: Any, doc: Any) -> AreaSpec | None:
         raise PlanError(str(err)) from None
 
 
-_HINT_PROPERTIES = ("mission_id", "coa_radius_m", "task_power_w", "controller", "predict_disturbance",
-                    "speed_hint_mps")
-"""GeoJSON Feature properties read back as mission parameters (what ``to_geojson`` writes)."""
+_HINT_PROPERTIES: dict[str, tuple[type, ...]] = {
+    "mission_id": (str,), "coa_radius_m": (int, float), "task_power_w": (int, float),
+    "controller": (str,), "predict_disturbance": (bool,), "speed_hint_mps": (int, float)}
+"""GeoJSON Feature properties read back as mission parameters (what ``to_geojson`` writes), and the
+JSON types each may have (``MissionRequest`` would turn ``"yes"`` into True and ``{"x": 1}`` into
+a mission id)."""
 SPEEDS_PROPERTY = "speeds_mps"
 """A GeoJSON Feature's per-waypoint speeds [m/s]: a list, one number or null per position."""
 
@@ -391,11 +399,27 @@ def parse_geojson(doc: Any, *, skip_unsupported: bool = False,
         raise PlanError(f"geojson: type {json.dumps(kind)} is not supported; give a LineString, a "
                         "Feature with a LineString geometry, or a FeatureCollection with one")
     _check_count("geojson", points, skipped, max_waypoints)
-    hints = {k: properties[k] for k in _HINT_PROPERTIES
-             if isinstance(properties, dict) and properties.get(k) is not None}
+    hints = _geojson_hints(properties)
     speeds = _geojson_speeds(properties, len(points))
     return ImportedPath("geojson", tuple(points), tuple(skipped), _with_speed_hint(hints, speeds),
                         _area(spec_from_geojson, doc), _speeds_or_none(speeds))
+
+
+def _geojson_hints(properties: Any) -> dict[str, Any]:
+    """A Feature's mission parameters, each of its JSON type (PlanError naming one that is not);
+    their values are the ``MissionRequest``'s to bound."""
+    if not isinstance(properties, dict):
+        return {}
+    hints: dict[str, Any] = {}
+    for name, types in _HINT_PROPERTIES.items():
+        value = properties.get(name)
+        if value is None:
+            continue
+        if not isinstance(value, types) or (bool not in types and isinstance(value, bool)):
+            kind = "text" if types == (str,) else "true or false" if types == (bool,) else "a number"
+            raise PlanError(f"geojson properties.{name}: {json.dumps(value)[:40]} is not {kind}")
+        hints[name] = value
+    return hints
 
 
 def _geojson_speeds(properties: Any, n: int) -> list[float | None]:

@@ -192,11 +192,25 @@ def parse_spec(doc: Any, where: str = "area") -> AreaSpec:
         raise AreaError(describe_validation_error(err, where)) from None
 
 
+def finite_number(value: Any) -> float | None:
+    """``value`` as a float if it is a JSON number (not a bool) that is finite as a float, else
+    None. An integer literal too large for a float (``1e400`` written out in digits) is not one:
+    ``math.isfinite`` would raise on it instead of answering."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return None
+    try:
+        number = float(value)
+    except OverflowError:
+        return None
+    return number if math.isfinite(number) else None
+
+
 def read_number(value: Any, where: str) -> float:
     """A finite JSON number; AreaError naming ``where`` otherwise."""
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+    number = finite_number(value)
+    if number is None:
         raise AreaError(f"{where}: expected a finite number, got {json.dumps(value)[:40]}")
-    return float(value)
+    return number
 
 
 def read_lat_lon(pos: Any, where: str, lon_first: bool = False) -> tuple[float, float]:

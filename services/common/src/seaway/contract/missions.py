@@ -10,6 +10,7 @@ from pydantic import Field, ValidationError, model_validator
 from seaway.contract.config import ConfigModel
 from seaway.contract.messages import (
     DEFAULT_CONTROLLER,
+    MAX_COA_RADIUS_M,
     MAX_TASK_POWER_W,
     AreaBreachPolicy,
     AtRest,
@@ -37,7 +38,7 @@ class MissionSpec(ConfigModel):
     mission_id: str = Field(default="", max_length=64)
     waypoints_m: list[tuple[float, float]] | None = Field(default=None, min_length=2)
     waypoints_deg: list[tuple[LatDeg, LonDeg]] | None = Field(default=None, min_length=2)
-    coa_radius_m: float = Field(gt=0)
+    coa_radius_m: float = Field(gt=0, le=MAX_COA_RADIUS_M)
     task_power_w: Annotated[float, in_range(0, MAX_TASK_POWER_W, "W", lo_open=True)] = Field(
         gt=0, le=MAX_TASK_POWER_W, description="T^w [W], (0, 10 kW] "
         "(seaway.contract.messages.MAX_TASK_POWER_W says why)")

@@ -32,6 +32,11 @@ def in_range(lo: float, hi: float, unit: str, *, lo_open: bool = False) -> Befor
     opening = "(" if lo_open else "["
 
     def check(value: Any) -> Any:
+        if isinstance(value, int) and not isinstance(value, bool) and abs(value) > 1e300:
+            # An integer past a float's range: math.isfinite would raise OverflowError, which
+            # pydantic does not turn into a validation error (it would escape the edge).
+            raise ValueError(f"an integer of {len(str(abs(value)))} digits is outside the allowed "
+                             f"range {opening}{lo:g}, {hi:g}] {unit}")
         if isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value):
             low_ok = value > lo if lo_open else value >= lo
             if not (low_ok and value <= hi):

@@ -113,6 +113,18 @@ The lower bound is > 0: with no task power the economic controllers' best speed 
 boat would never arrive."""
 
 
+MAX_COA_RADIUS_M = 10_000.0
+"""Upper bound of a mission's circle-of-acceptance radius r_COA [m]. A small surface vessel's legs
+are metres to kilometres long and the mission check refuses an r_COA not under a fraction of the
+shortest leg anyway; 10 km bounds what a file or a request may carry before that check, so that a
+typo (or 1e308 from a plan file) is refused by name at the edge, not carried into the energy model."""
+
+MAX_SPEED_HINT_MPS = 50.0
+"""Upper bound of a mission's cruise hint [m/s] (about 97 kn): far above any small surface
+vessel's top speed, which the controller's envelope caps the hint at in any case; it bounds what
+a file or a request may carry."""
+
+
 class MissionRequest(Request):
     """A mission: ordered waypoints P_0..P_N, circle of acceptance, task power T^w, controller, and
     whether the controller predicts with the estimated disturbance."""
@@ -120,13 +132,16 @@ class MissionRequest(Request):
     SCHEMA: ClassVar[str] = "seaway.v1.MissionRequest"
     mission_id: str = Field(default="", max_length=64)
     waypoints: list[Waypoint]
-    coa_radius_m: float = Field(description="circle-of-acceptance radius r_COA [m]")
+    coa_radius_m: Annotated[float, in_range(0, MAX_COA_RADIUS_M, "m", lo_open=True)] = Field(
+        gt=0, le=MAX_COA_RADIUS_M, description="circle-of-acceptance radius r_COA [m], (0, 10 km]")
     task_power_w: Annotated[float, in_range(0, MAX_TASK_POWER_W, "W", lo_open=True)] = Field(
         gt=0, le=MAX_TASK_POWER_W, description="T^w, power of the task carried [W], (0, 10 kW]")
     controller: ControllerName = DEFAULT_CONTROLLER
     predict_disturbance: bool = Field(default=False, description="predict with the estimator's tau_d "
                                       "instead of tau_d = 0 (the paper's)")
-    speed_hint_mps: float | None = Field(default=None, gt=0, description="optional cruise hint")
+    speed_hint_mps: Annotated[float | None, in_range(0, MAX_SPEED_HINT_MPS, "m/s", lo_open=True)] = \
+        Field(default=None, gt=0, le=MAX_SPEED_HINT_MPS, description="optional cruise hint [m/s], "
+              "(0, 50]")
     on_low_energy: LowEnergyPolicy = Field(default="return", description="when the energy to get "
                                            "home plus the battery's reserve reaches what is left: "
                                            "'warn', 'return' home (default) or 'hold'")
@@ -181,13 +196,15 @@ class MissionAccepted(Message):
     mission_id: str = Field(default="", max_length=64)
     waypoints: list[Waypoint] = Field(min_length=2, description="P_0..P_N in local NED metres "
                                       "(x_m, y_m) at the published origin")
-    coa_radius_m: float = Field(gt=0, description="circle-of-acceptance radius r_COA [m]")
+    coa_radius_m: float = Field(gt=0, le=MAX_COA_RADIUS_M,
+                                description="circle-of-acceptance radius r_COA [m]")
     task_power_w: Annotated[float, in_range(0, MAX_TASK_POWER_W, "W", lo_open=True)] = Field(
         gt=0, le=MAX_TASK_POWER_W, description="T^w, power of the task carried [W], (0, 10 kW]")
     controller: ControllerName
     predict_disturbance: bool = Field(description="flown predicting with the estimator's tau_d "
                                       "(asked by the mission or the controller's flag), else tau_d = 0")
-    speed_hint_mps: float | None = Field(default=None, gt=0, description="the request's cruise hint")
+    speed_hint_mps: float | None = Field(default=None, gt=0, le=MAX_SPEED_HINT_MPS,
+                                         description="the request's cruise hint [m/s]")
     on_low_energy: LowEnergyPolicy = Field(default="return", description="the request's policy")
     home_x_m: float | None = Field(default=None, description="home, local NED north [m]: the "
                                    "request's, or P_0 (None only in recordings made before it)")
