@@ -538,3 +538,19 @@ def test_a_real_time_step_that_hangs_gets_zero_thrust_then_silence(caplog, monke
         assert thrust.drain() == [] and node.live.keeper.sent == sent
         assert any(r.levelname == "ERROR" and "stopped commanding in its place" in r.getMessage()
                    for r in caplog.records)
+
+
+def test_max_state_age_has_an_upper_bound_in_files_and_flags(capsys) -> None:
+    """An hour-old state steered (--max-state-age-s 3600 was accepted): at most 2 s now."""
+    from seaway.contract.config import ConfigError, parse_config
+    from seaway.runtime.config import parse_service_args
+    from seaway_controller.config import MAX_STATE_AGE_S, ControllerServiceConfig
+    from seaway_controller.main import build_parser
+
+    with pytest.raises(ConfigError, match=r"probe.toml.*\n  max_state_age_s: .*less than or equal to 2"):
+        parse_config({"max_state_age_s": 3600.0}, ControllerServiceConfig, "probe.toml")
+    assert parse_config({"max_state_age_s": MAX_STATE_AGE_S}, ControllerServiceConfig).max_state_age_s == 2.0
+    with pytest.raises(SystemExit):
+        parse_service_args(build_parser(), ["--max-state-age-s", "3600"])
+    assert "argument --max-state-age-s: '3600' is not a finite number above 0 and at most 2" in (
+        capsys.readouterr().err)

@@ -365,6 +365,33 @@ def test_config_rejects_unknown_fields() -> None:
     assert parse_config({"gate_gnss": 10.0}, EstimatorConfig).gate_gnss == 10.0
 
 
+NOISE_FIELDS = [n for n, f in EstimatorConfig.model_fields.items() if "std" in n and f.annotation is float]
+
+
+def _upper_bound(field: str) -> float:
+    return next(m.le for m in EstimatorConfig.model_fields[field].metadata if hasattr(m, "le"))
+
+
+@pytest.mark.parametrize("field", NOISE_FIELDS)
+def test_every_noise_setting_has_an_upper_bound_named_when_passed(field: str) -> None:
+    """1e200 overflowed building the core (sog_std_mps); 1e200-1e300 in the others gave no estimate
+    ever, silently. Past its bound each is refused naming the field and the bound."""
+    bound = _upper_bound(field)
+    with pytest.raises(ConfigError, match=rf"probe.toml.*\n  {field}: .*less than or equal to {bound:g}"):
+        parse_config({field: 1e200}, EstimatorConfig, "probe.toml")
+
+
+def test_at_the_noise_bounds_the_filter_still_estimates() -> None:
+    at_bounds = {f: _upper_bound(f) for f in NOISE_FIELDS}
+    core = EstimatorCore(FIXED.model_copy(update=at_bounds))
+    for k in range(100):
+        t = k * 100 * MS
+        core.on_gnss(fix(t, 0.1 * k, 0.0, vn=1.0, ve=0.0))
+        core.on_attitude(att(t + MS, 0.0))
+        est = core.predict_to(t + 2 * MS)
+    assert est is not None and est.x_m == pytest.approx(9.9, abs=1.0) and not est.degraded
+
+
 def test_state_indices_match_the_message_layout() -> None:
     assert (IX, IY, IPSI) == (3, 4, 5)
 

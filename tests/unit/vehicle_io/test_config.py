@@ -42,6 +42,27 @@ def test_bad_configs_name_the_field(doc, field):
         parse_config(doc, VehicleIoConfig, "test")
 
 
+@pytest.mark.parametrize(("field", "value", "bound"), [
+    ("thrust_timeout_s", 300.0, 2.0),  # the last thrust held 5 minutes after the controller went silent
+    ("thrust_timeout_s", 1e308, 2.0),  # overflowed at start
+    ("heartbeat_timeout_s", 1e308, 30.0),
+])
+def test_safety_timeouts_have_an_upper_bound(field, value, bound):
+    with pytest.raises(ConfigError, match=rf"probe.toml.*\n  {field}: .*less than or equal to {bound:g}"):
+        parse_config({field: value}, VehicleIoConfig, "probe.toml")
+    assert getattr(parse_config({field: bound}, VehicleIoConfig, "probe.toml"), field) == bound
+
+
+def test_a_too_long_thrust_timeout_flag_is_refused_naming_the_flag_and_the_bound(capsys):
+    from seaway.runtime.config import parse_service_args
+
+    with pytest.raises(SystemExit) as exit_:
+        parse_service_args(build_parser(), ["--thrust-timeout", "300"])
+    assert exit_.value.code == 2
+    assert "argument --thrust-timeout: '300' is not a finite number above 0 and at most 2" in (
+        capsys.readouterr().err)
+
+
 def test_command_line_overrides_and_url_check(tmp_path):
     args = build_parser().parse_args(["--mavlink", "udpin:0.0.0.0:14540", "--thrust-timeout", "0.5",
                                       "--vessel-file", "paper-boat"])

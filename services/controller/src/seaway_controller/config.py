@@ -26,6 +26,10 @@ from seaway_controller.solvers import SOLVER_KINDS
 
 SolverChoice = Literal[SOLVER_KINDS]  # type: ignore[valid-type]  # built from the solver registry
 
+MAX_STATE_AGE_S = 2.0
+"""The oldest state the controller may steer on [s]: at 2 m/s a 2 s old state is 4 m off, past a
+waypoint's reach."""
+
 
 class ControllerServiceConfig(ConfigModel):
     """What the controller service runs with, besides the run's facts."""
@@ -37,7 +41,10 @@ class ControllerServiceConfig(ConfigModel):
         default=False,
         description="predict with the estimator's tau_d instead of tau_d = 0 (the paper's)")
     max_state_age_s: Annotated[float, Flag()] = Field(
-        default=0.5, gt=0, description="real time: older states give zero thrust [s]")
+        default=0.5, gt=0, le=MAX_STATE_AGE_S,
+        description="real time: older states give zero thrust [s]; at most 2 s: an older state "
+                    "puts the vessel metres from where it is, and vehicle_io refuses thrust "
+                    "stamped over thrust_max_age_s (1 s by default) old anyway")
     plan_reuse_steps: Annotated[int, Flag()] = Field(
         default=3, ge=0,
         description="fallback 1: periods of failed solves flown on the last good plan")

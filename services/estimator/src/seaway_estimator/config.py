@@ -15,6 +15,7 @@ and yaw rate), so a healthy filter rejects about one good sample in 10,000.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Annotated, Literal
 
@@ -48,41 +49,58 @@ class EstimatorConfig(ConfigModel):
     origin_rate_hz: float = Field(default=1.0, gt=0, le=50, description="NavOrigin repeat rate")
     origin: Origin | None = Field(default=None, description="fixed NED origin; None: the first good GNSS fix")
     # -- measurement noise (used unless a message reports its own) ------------------------------
-    gnss_std_m: float = Field(default=0.3, gt=0, description="GNSS horizontal position std [m]")
+    gnss_std_m: float = Field(default=0.3, gt=0, le=100.0, description="GNSS horizontal position "
+                              "std [m]; at most 100 m (a fix worse than that is no fix)")
     use_reported_gnss_std: bool = Field(default=True, description="use GnssFix.horizontal_std_m "
                                         "when present (floored at gnss_std_min_m)")
-    gnss_std_min_m: float = Field(default=0.02, gt=0, description="floor of a reported GNSS "
-                                  "horizontal std [m]")
+    gnss_std_min_m: float = Field(default=0.02, gt=0, le=10.0, description="floor of a reported "
+                                  "GNSS horizontal std [m]; at most 10 m (a floor above that "
+                                  "discards what every real receiver reports)")
     min_fix_type: int = Field(default=3, ge=2, le=8, description="MAVLink GPS_FIX_TYPE accepted")
-    sog_std_mps: float = Field(default=0.05, gt=0, description="GNSS velocity over ground std "
-                               "per axis [m/s]")
-    heading_std_rad: float = Field(default=0.01745, gt=0, description="heading std [rad]")
-    yaw_rate_std_radps: float = Field(default=0.005, gt=0, description="yaw rate std [rad/s]")
+    sog_std_mps: float = Field(default=0.05, gt=0, le=5.0, description="GNSS velocity over "
+                               "ground std per axis [m/s]; at most 5 m/s (the vessels' own speed: "
+                               "beyond it the velocity says nothing)")
+    heading_std_rad: float = Field(default=0.01745, gt=0, le=math.pi, description="heading std "
+                                   "[rad]; at most pi (half a turn: any heading)")
+    yaw_rate_std_radps: float = Field(default=0.005, gt=0, le=1.0, description="yaw rate std "
+                                      "[rad/s]; at most 1 rad/s (a gyro worse than that is none)")
     # -- process noise ------------------------------------------------------------------------
-    accel_surge_std_per_sqrt_s: float = Field(default=0.02, gt=0, description="[m/s^2 sqrt(s)]")
-    accel_sway_std_per_sqrt_s: float = Field(default=0.02, gt=0, description="[m/s^2 sqrt(s)]")
-    accel_yaw_std_per_sqrt_s: float = Field(default=0.01, gt=0, description="[rad/s^2 sqrt(s)]")
-    position_std_per_sqrt_s: float = Field(default=0.005, gt=0, description="unmodelled drift "
-                                           "(e.g. current) [m/sqrt(s)]")
-    heading_std_per_sqrt_s: float = Field(default=0.001, gt=0, description="[rad/sqrt(s)]")
-    force_std_per_sqrt_s: float = Field(default=0.003, gt=0, description="disturbance force "
-                                        "random walk [N/sqrt(s)]")
-    moment_std_per_sqrt_s: float = Field(default=0.0005, gt=0, description="disturbance yaw "
-                                         "moment random walk [N m/sqrt(s)]")
+    # Upper bounds: each well past any vessel in deploy/vessels (thrust up to 200 N a thruster,
+    # speeds of a few m/s), well inside what the filter's float arithmetic carries (a std of
+    # 1e200 squared overflows building the core; 1e200-1e300 leave the filter without an estimate).
+    accel_surge_std_per_sqrt_s: float = Field(default=0.02, gt=0, le=10.0,
+                                              description="[m/s^2 sqrt(s)]; at most 10")
+    accel_sway_std_per_sqrt_s: float = Field(default=0.02, gt=0, le=10.0,
+                                             description="[m/s^2 sqrt(s)]; at most 10")
+    accel_yaw_std_per_sqrt_s: float = Field(default=0.01, gt=0, le=10.0,
+                                            description="[rad/s^2 sqrt(s)]; at most 10")
+    position_std_per_sqrt_s: float = Field(default=0.005, gt=0, le=10.0, description="unmodelled "
+                                           "drift (e.g. current) [m/sqrt(s)]; at most 10")
+    heading_std_per_sqrt_s: float = Field(default=0.001, gt=0, le=1.0,
+                                          description="[rad/sqrt(s)]; at most 1")
+    force_std_per_sqrt_s: float = Field(default=0.003, gt=0, le=100.0, description="disturbance "
+                                        "force random walk [N/sqrt(s)]; at most 100")
+    moment_std_per_sqrt_s: float = Field(default=0.0005, gt=0, le=100.0, description="disturbance "
+                                         "yaw moment random walk [N m/sqrt(s)]; at most 100")
     # -- initial uncertainty -------------------------------------------------------------------
-    init_speed_std_mps: float = Field(default=0.3, gt=0, description="u, v when no SOG [m/s]")
-    init_yaw_rate_std_radps: float = Field(default=0.05, gt=0, description="r at initialisation "
-                                           "[rad/s]")
-    init_force_std_n: float = Field(default=0.3, gt=0, description="disturbance force other than "
-                                    "a current's (wind, a towed load) [N]")
-    init_current_std_mps: float = Field(default=0.3, ge=0, description="the water current the "
-                                        "filter may start in [m/s]: the model has no current, so "
+    init_speed_std_mps: float = Field(default=0.3, gt=0, le=10.0, description="u, v when no SOG "
+                                      "[m/s]; at most 10 m/s")
+    init_yaw_rate_std_radps: float = Field(default=0.05, gt=0, le=math.pi, description="r at "
+                                           "initialisation [rad/s]; at most pi")
+    init_force_std_n: float = Field(default=0.3, gt=0, le=1000.0, description="disturbance force "
+                                    "other than a current's (wind, a towed load) [N]; at most "
+                                    "1000 N (over twice the strongest vessel's full thrust)")
+    init_current_std_mps: float = Field(default=0.3, ge=0, le=5.0, description="the water current "
+                                        "the filter may start in [m/s]: the model has no current, so "
                                         "it holds a drift c by the force D c that balances the "
-                                        "damping D (X_u, Y_v); the initial force std adds that")
-    init_moment_std_nm: float = Field(default=0.03, gt=0, description="disturbance yaw moment at "
-                                      "initialisation [N m]")
-    init_max_skew_s: float = Field(default=1.0, gt=0, description="the first fix and the first "
-                                   "heading must be this close in time to initialise")
+                                        "damping D (X_u, Y_v); the initial force std adds that. At "
+                                        "most 5 m/s, the strongest tidal races (and the scenarios' "
+                                        "bound)")
+    init_moment_std_nm: float = Field(default=0.03, gt=0, le=1000.0, description="disturbance yaw "
+                                      "moment at initialisation [N m]; at most 1000 N m")
+    init_max_skew_s: float = Field(default=1.0, gt=0, le=10.0, description="the first fix and the "
+                                   "first heading must be this close in time to initialise [s]; "
+                                   "at most 10 s (the vessel moves meanwhile)")
     # -- robustness ------------------------------------------------------------------------------
     gate_gnss: float = Field(default=CHI2_2DOF_9999, gt=0, description="chi-square, 2 dof")
     gate_sog: float = Field(default=CHI2_2DOF_9999, gt=0, description="chi-square, 2 dof")
@@ -106,8 +124,10 @@ class EstimatorConfig(ConfigModel):
                                     "first-order delay correction; older ones are refused")
     max_gap_s: float = Field(default=30.0, gt=0, description="a time step longer than this is not "
                              "integrated: the filter re-initialises from the next measurements")
-    max_position_std_m: float = Field(default=1000.0, gt=0, description="beyond this the filter "
-                                      "drops its state and re-initialises")
+    max_position_std_m: float = Field(default=1000.0, gt=0, le=100_000.0, description="beyond this "
+                                      "the filter drops its state and re-initialises [m]; at most "
+                                      "100 km (scenarios start within it of the origin; above, the "
+                                      "filter never gives up on a lost state)")
     mismatch: MismatchConfig = Field(default_factory=MismatchConfig, description="the motion fault "
                                      "detector (``seaway_estimator.mismatch``): the vessel does not "
                                      "do what the commanded thrust says")

@@ -48,6 +48,15 @@ Mission Planner and MAVProxy all speak as 255), so that a second ground station 
 Its component is MAV_COMP_ID_ONBOARD_COMPUTER (191)."""
 SOURCE_COMPONENT = 191  # MAV_COMP_ID_ONBOARD_COMPUTER
 
+# Upper bounds of the two safety timeouts: a longer one keeps the last thrust running long after
+# the controller goes silent, or reports a silent autopilot lost too late.
+MAX_THRUST_TIMEOUT_S = 2.0
+"""The thrust watchdog's longest timeout [s]: 20 control periods of 0.1 s, several times the default
+0.3 s; at a cruise speed of 2 m/s already 4 m run on the last command."""
+MAX_HEARTBEAT_TIMEOUT_S = 30.0
+"""The longest wait for an autopilot HEARTBEAT before the link counts as lost [s]: autopilots send it
+at 1 Hz, and an autopilot rebooting (3-15 s) is back within it."""
+
 
 class VehicleIoConfig(ConfigModel):
     """How vehicle_io talks to the autopilot and how it guards the thrusters."""
@@ -87,12 +96,17 @@ class VehicleIoConfig(ConfigModel):
                     "HEARTBEAT after start or after a link loss",
     )
     heartbeat_timeout_s: float = Field(
-        default=3.0, gt=0, description="no autopilot HEARTBEAT for this long = link lost [s]"
+        default=3.0, gt=0, le=MAX_HEARTBEAT_TIMEOUT_S,
+        description="no autopilot HEARTBEAT for this long = link lost [s]; at most 30 s: an "
+                    "autopilot silent for longer (a stalled autopilot, a cut cable) must be "
+                    "reported lost, and an autopilot reboot (the longest wait, 3-15 s) fits",
     )
     heartbeat_period_s: float = Field(default=1.0, gt=0, description="our HEARTBEAT period [s]")
     thrust_timeout_s: Annotated[float, Flag("--thrust-timeout", metavar="S")] = Field(
-        default=0.3, gt=0,
-        description="watchdog: no ThrustCommand received for this long -> neutral thrust [s]",
+        default=0.3, gt=0, le=MAX_THRUST_TIMEOUT_S,
+        description="watchdog: no ThrustCommand received for this long -> neutral thrust [s]; at "
+                    "most 2 s: the last thrust keeps driving the vessel for this long after the "
+                    "controller goes silent (20 of its 0.1 s periods; metres at cruise speed)",
     )
     thrust_max_age_s: float = Field(
         default=1.0, gt=0, le=10.0,
