@@ -324,3 +324,17 @@ def test_an_unreadable_area_file_is_refused_naming_it(tmp_path) -> None:
         with pytest.raises(AreaError) as err:
             files.load_area_file(tmp_path / name)
         assert named in str(err.value) and name in str(err.value)
+
+
+@pytest.mark.parametrize(("name", "text", "named"), [
+    ("bigint.toml", "[area]\nx = 1" + "0" * 5000 + "\n", "a number too long to read"),
+    ("bigint.plan", '{"fileType": "Plan", "x": 1' + "0" * 5000 + "}", "a number too long to read"),
+    ("deep.toml", "[area]\nx = " + "[" * 3000 + "]" * 3000 + "\n", "nested too deeply"),
+    ("deep.geojson", '{"x": ' + "[" * 3000 + "]" * 3000 + "}", "nested too deeply"),
+])
+def test_a_file_the_parser_chokes_on_is_refused_naming_it(tmp_path, name, text, named) -> None:
+    """A 5000-digit number (ValueError) or nesting 3000 deep (RecursionError) escaped as a
+    traceback."""
+    (tmp_path / name).write_text(text)
+    with pytest.raises(AreaError, match=rf"{name}: not a usable (TOML|JSON) document: {named}"):
+        files.load_area_file(tmp_path / name)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import pytest
 from seaway.contract.config import ConfigError, parse_config
 from seaway.tools.launch.profile import (
@@ -65,10 +67,41 @@ def test_backoff_grows_and_caps() -> None:
     assert [b.delay_s(k) for k in range(5)] == [0.5, 1.0, 2.0, 3.0, 3.0]
 
 
+def test_backoff_never_overflows_and_its_fields_are_bounded() -> None:
+    """factor ** n overflowed inside the supervisor (factor 1e200 at the third restart, the default
+    2 at restart 1025), ending the run; such a factor passed --check."""
+    assert BackoffPolicy().delay_s(5000) == 10.0
+    widest = BackoffPolicy(initial_s=0.001, factor=10.0, max_s=3600.0, max_restarts=1000)
+    assert [widest.delay_s(k) for k in (0, 1, 6, 7, 1000, 10**6)] == pytest.approx(
+        [0.001, 0.01, 1000.0, 3600.0, 3600.0, 3600.0])
+    assert BackoffPolicy(factor=1.0).delay_s(10**6) == 0.5
+    for field, value, bound in (("factor", 1e200, "10"), ("max_restarts", 5000, "1000"),
+                                ("max_s", 1e300, "3600"), ("initial_s", 1e-300, "0.001")):
+        with pytest.raises(ConfigError, match=rf"backoff\.{field}: Input should be .* {bound}$"):
+            parse_config({**prof(p("a")), "backoff": {field: value}}, Profile, "t.toml")
+
+
 def test_placeholders() -> None:
     assert substitute(["--v", "{vessel}"], {"vessel": "b1"}) == ["--v", "b1"]
+    assert substitute(["{{x}}={vessel}"], {"vessel": "b1"}) == ["{x}=b1"]  # literal braces
     with pytest.raises(ConfigError, match=r"unknown placeholder 'vesel'"):
         substitute(["{vesel}"], {"vessel": "b1"})
+
+
+@pytest.mark.parametrize(("arg", "named"), [
+    ("X={0}", r"uses unknown placeholder '0' \(a placeholder is a bare name"),  # was IndexError
+    ("X=}", r": Single '\}' encountered"),  # was ValueError
+    ("X={", r": .*a literal brace is written \{\{ or \}\}"),
+    ("X={vessel.zz}", r"uses unknown placeholder 'vessel\.zz'"),  # was AttributeError
+    ("X={vessel[9]}", r"uses unknown placeholder 'vessel\[9\]'"),  # was IndexError
+    ("X={}", r"uses unknown placeholder ''"),  # was IndexError
+    ("X={vessel!r}", r": placeholder 'vessel' has a format spec or conversion"),
+    ("X={vessel:>99}", r": placeholder 'vessel' has a format spec or conversion"),
+])
+def test_a_placeholder_that_is_not_a_bare_known_name_is_a_config_error_naming_the_argument(
+        arg: str, named: str) -> None:
+    with pytest.raises(ConfigError, match=rf"^command argument '{re.escape(arg)}' ?{named}"):
+        substitute(["--param", arg], {"vessel": "b1"})
 
 
 def test_shipped_profiles_are_valid() -> None:

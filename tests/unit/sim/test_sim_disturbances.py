@@ -11,8 +11,8 @@ import json
 import math
 
 import pytest
-from seaway.contract.config import deploy_path
-from seaway.simkit.scenario import WorldGrid, bilinear, load_scenario
+from seaway.contract.config import ConfigError, deploy_path
+from seaway.simkit.scenario import WorldGrid, bilinear, load_scenario, parse_scenario
 from seaway.vessel.model import load_vessel
 from seaway_sim.core import SimCore
 
@@ -114,3 +114,25 @@ def test_the_plant_feels_the_reported_force() -> None:
     # Over 10 ms the damping barely acts: u ~ F/m * dt (relative error ~ Xu dt / (2 m11) < 2 %).
     assert u == pytest.approx(0.0799 / p.m11_kg * 0.01, rel=0.02)
     assert v == pytest.approx(0.0003 / p.m22_kg * 0.01, rel=0.03)
+
+
+@pytest.mark.parametrize(("entry", "named"), [
+    ({"file": 5}, r"disturbances\.0\.file: 5 is not a file's path"),  # was a TypeError
+    ({"file": "latin.json"}, r"disturbances\.0\.file: .*latin\.json: not UTF-8 text \(byte 0 is 0xff\)"),
+    ({"file": "grid.json", "xs_m": [5.0, 6.0]},  # was silently replaced by the file's
+     r"disturbances\.0: xs_m given beside file 'grid\.json'"),
+    ({"file": "grid.json", "scale": [1]}, r"disturbances\.0\.scale: \[1\] is not a finite number"),
+    ({"file": "deep.json"}, r"disturbances\.0\.file: .*deep\.json: not a usable JSON document: nested"),
+])
+def test_a_bad_grid_file_entry_is_refused_naming_the_field(tmp_path, entry, named) -> None:
+    (tmp_path / "grid.json").write_text(json.dumps({"xs": [0, 1], "ys": [0, 1], "tx": [[0, 0], [0, 0]],
+                                                    "ty": [[0, 0], [0, 0]]}))
+    (tmp_path / "latin.json").write_bytes(b"\xff\xfe{}")
+    (tmp_path / "deep.json").write_text("[" * 3000 + "]" * 3000)
+    doc = {"name": "g", "seed": 1, "vessel": "paper-boat",
+           "disturbances": [{"kind": "world_grid", **entry}]}
+    with pytest.raises(ConfigError, match=rf"^probe\.toml: {named}"):
+        parse_scenario(doc, "probe.toml", tmp_path)
+    grid = parse_scenario({**doc, "disturbances": [{"kind": "world_grid", "file": "grid.json", "scale": 2}]},
+                          "probe.toml", tmp_path).disturbances[0]
+    assert isinstance(grid, WorldGrid) and grid.xs_m == [0.0, 1.0]  # the file alone is read

@@ -19,6 +19,27 @@ def test_a_file_that_is_not_utf8_is_a_config_error_naming_the_byte(tmp_path, suf
         read_document(path)
 
 
+BIG_NUMBER = "1" + "0" * 5000  # past Python's 4300-digit limit on converting a str to an int
+DEEP = 3000  # nesting past the interpreter's recursion limit
+TOO_LONG = r"a number too long to read \(Exceeds the limit \(4300 digits\)"
+
+
+@pytest.mark.parametrize(("name", "text", "named"), [
+    ("bigint.toml", f"x = {BIG_NUMBER}\n", TOO_LONG),
+    ("bigint.json", f'{{"x": {BIG_NUMBER}}}', TOO_LONG),
+    ("deep.toml", "x = " + "[" * DEEP + "]" * DEEP + "\n", "nested too deeply"),
+    ("deep.json", '{"x": ' + "[" * DEEP + "]" * DEEP + "}", "nested too deeply"),
+])
+def test_a_file_the_parser_chokes_on_is_a_config_error_naming_it(tmp_path, name, text, named) -> None:
+    """A 5000-digit number (ValueError) or arrays nested 3000 deep (RecursionError) escaped
+    read_document as a traceback."""
+    path = tmp_path / name
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=rf"{name}: not a usable (TOML|JSON) document: {named}") as err:
+        read_document(path)
+    assert "set_int_max_str_digits" not in str(err.value)  # no advice to raise the limit
+
+
 def test_a_vessel_name_that_cannot_be_a_key_exits_2_with_one_line(monkeypatch, capsys) -> None:
     def command(argv: list[str]) -> int:
         keys.check_vessel(argv[0])  # as every command's bus does with --vessel

@@ -25,13 +25,22 @@ class ConfigModel(BaseModel):
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False, frozen=True)
 
 
+MIN_ALT_M = -1000.0
+"""The lowest origin altitude [m]: below the Dead Sea's shore (-430 m) and the geoid's deepest
+dip under the ellipsoid (-106 m) together."""
+MAX_ALT_M = 9000.0
+"""The highest origin altitude [m]: above any water a vessel floats on (the highest lakes lie near
+6,400 m), and well inside MAVLink's int32 millimetres, which the simulator's GNSS messages carry."""
+
+
 class Origin(ConfigModel):
     """A geodetic origin in WGS84 degrees: the local NED frame's x = y = 0 (scenarios, runs, configs)."""
 
     lat_deg: Annotated[float, in_range(-90, 90, "deg")] = Field(default=47.0, ge=-90, le=90)
     lon_deg: Annotated[float, in_range(-180, 180, "deg")] = Field(default=8.0, ge=-180, le=180)
-    alt_m: float = 0.0
-
+    alt_m: Annotated[float, in_range(MIN_ALT_M, MAX_ALT_M, "m")] = Field(
+        default=0.0, ge=MIN_ALT_M, le=MAX_ALT_M,
+        description="altitude of the origin, the water surface [m]")
 
 
 C = TypeVar("C", bound=ConfigModel)
@@ -66,6 +75,15 @@ def read_document(path: str | Path) -> dict[str, Any]:
             return doc
     except (tomllib.TOMLDecodeError, json.JSONDecodeError) as err:
         raise ConfigError(f"{p}: not valid {p.suffix[1:].upper()}: {err}") from None
+    except ConfigError:
+        raise
+    except ValueError as err:  # an integer past Python's 4300-digit conversion limit
+        what = str(err).split(";")[0]  # not its advice to raise the limit: that is no fix for a file
+        raise ConfigError(f"{p}: not a usable {p.suffix[1:].upper()} document: a number too long "
+                          f"to read ({what})") from None
+    except RecursionError:  # arrays or tables nested about a thousand deep
+        raise ConfigError(f"{p}: not a usable {p.suffix[1:].upper()} document: nested too deeply "
+                          "(no configuration nests more than a few levels)") from None
     raise ConfigError(f"{p}: unknown file type {p.suffix!r}; use .toml or .json")
 
 

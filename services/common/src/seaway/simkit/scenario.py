@@ -140,17 +140,45 @@ Disturbance = Annotated[BodyConstant | WorldConstant | WorldGrid | Current | Win
                         Field(discriminator="kind")]
 
 
+# Bounds on the simulated sensors: physically a poor sensor at most, and inside the MAVLink fields
+# the samples end up in: past them a file would crash the sim at its first samples (a speed std
+# of 10^5 m/s over GPS_RAW_INT's uint16 cm/s, a position std of 10^7 m over its uint32 mm h_acc,
+# a yaw rate over a float32) or at its start (a rate of 10^-300 Hz: an infinite period), and
+# outages starting 10^300 times a second would hang it.
+MIN_SENSOR_RATE_HZ = 0.1
+"""The slowest GNSS or attitude rate [Hz]: one sample every 10 s (a period of whole nanoseconds)."""
+MAX_GNSS_STD_M = 100.0
+"""GNSS horizontal position std [m]: a fix worse than that is no fix."""
+MAX_SOG_STD_MPS = 5.0
+"""GNSS velocity over ground std per axis [m/s]: the speeds the vessels go."""
+MAX_HEADING_STD_RAD = math.pi
+"""Heading std [rad]: half a turn, any heading (it is wrapped)."""
+MAX_YAW_RATE_STD_RADPS = 1.0
+"""Yaw rate std [rad/s]: a gyro worse than that is none."""
+MAX_DROPOUT_RATE_PER_S = 10.0
+"""GNSS outage starts a second, on average [1/s]: the sim steps through every outage, so this bounds
+that work to about ten a simulated second; outages starting more
+often are a receiver that is off, not one dropping out."""
+MAX_DROPOUT_DURATION_S = 3600.0
+"""One GNSS outage [s]: an hour; a receiver out for longer is gone, not dropping out."""
+
+
 class SensorNoise(ConfigModel):
     """Sensor models of the simulated autopilot; std values are 1-sigma, white, seeded."""
 
-    gnss_rate_hz: float = Field(default=5.0, gt=0, le=100)
-    gnss_std_m: float = Field(default=0.0, ge=0)
-    gnss_dropout_rate_per_s: float = Field(default=0.0, ge=0, description="Poisson dropout starts")
-    gnss_dropout_duration_s: float = Field(default=0.0, ge=0)
-    heading_std_rad: float = Field(default=0.0, ge=0)
-    yaw_rate_std_radps: float = Field(default=0.0, ge=0)
-    sog_std_mps: float = Field(default=0.0, ge=0)
-    attitude_rate_hz: float = Field(default=20.0, gt=0, le=250)
+    gnss_rate_hz: float = Field(default=5.0, ge=MIN_SENSOR_RATE_HZ, le=100, description="[Hz]")
+    gnss_std_m: float = Field(default=0.0, ge=0, le=MAX_GNSS_STD_M,
+                              description="horizontal position std, north and east each [m]")
+    gnss_dropout_rate_per_s: float = Field(default=0.0, ge=0, le=MAX_DROPOUT_RATE_PER_S,
+                                           description="Poisson dropout starts [1/s]")
+    gnss_dropout_duration_s: float = Field(default=0.0, ge=0, le=MAX_DROPOUT_DURATION_S,
+                                           description="each dropout's length [s]")
+    heading_std_rad: float = Field(default=0.0, ge=0, le=MAX_HEADING_STD_RAD, description="[rad]")
+    yaw_rate_std_radps: float = Field(default=0.0, ge=0, le=MAX_YAW_RATE_STD_RADPS,
+                                      description="[rad/s]")
+    sog_std_mps: float = Field(default=0.0, ge=0, le=MAX_SOG_STD_MPS,
+                               description="velocity over ground std, north and east each [m/s]")
+    attitude_rate_hz: float = Field(default=20.0, ge=MIN_SENSOR_RATE_HZ, le=250, description="[Hz]")
 
 
 class StartPose(ConfigModel):
@@ -254,25 +282,53 @@ class Scenario(ConfigModel):
         return self.plant_vessel or self.vessel
 
 
-def _resolve_grid_files(doc: dict, base: Path) -> dict:
-    """``{kind = "world_grid", file = "x.json"}`` -> the grid inline (xs, ys, tx, ty as in shared/)."""
+GRID_FIELDS = ("xs_m", "ys_m", "north_n", "east_n")
+"""What a ``world_grid`` entry's ``file`` gives; an entry with a file may not also give them."""
+
+
+def _resolve_grid_files(doc: dict, base: Path, where: str = "scenario") -> dict:
+    """``{kind = "world_grid", file = "x.json"}`` -> the grid inline (xs, ys, tx, ty as in shared/).
+
+    ConfigError naming ``where``, the entry's field and what is allowed: a ``file`` that is not a
+    path, a file that is not UTF-8 JSON, a ``scale`` that is not a number, or grid values given
+    beside the file (which gives the whole grid)."""
     out = dict(doc)
     dists = []
-    for d in doc.get("disturbances", []) or []:
+    for i, d in enumerate(doc.get("disturbances", []) or []):
         if isinstance(d, dict) and d.get("kind") == "world_grid" and "file" in d:
+            at = f"{where}: disturbances.{i}"
+            if not isinstance(d["file"], str) or not d["file"]:
+                raise ConfigError(f"{at}.file: {d['file']!r} is not a file's path; give the grid's "
+                                  "JSON file as a string, relative to the scenario file")
+            inline = [k for k in GRID_FIELDS if k in d]
+            if inline:
+                raise ConfigError(f"{at}: {', '.join(inline)} given beside file {d['file']!r}, which "
+                                  "gives the whole grid; give either the file or the grid inline")
+            scale = d.get("scale", 1.0)
+            if isinstance(scale, bool) or not isinstance(scale, int | float) or not math.isfinite(scale):
+                raise ConfigError(f"{at}.scale: {scale!r} is not a finite number (the factor the "
+                                  "file's forces are multiplied by)")
             path = (base / d["file"]).resolve()
             try:
-                grid = json.loads(path.read_text())
-            except (OSError, json.JSONDecodeError) as err:
-                raise ConfigError(f"world_grid file {path}: {err}") from None
-            rest = {k: v for k, v in d.items() if k != "file"}
-            scale = rest.pop("scale", 1.0)
+                grid = json.loads(path.read_text(encoding="utf-8"))
+            except OSError as err:
+                raise ConfigError(f"{at}.file: {path}: cannot read: {err.strerror or err}") from None
+            except UnicodeDecodeError as err:
+                raise ConfigError(f"{at}.file: {path}: not UTF-8 text (byte {err.start} is "
+                                  f"0x{err.object[err.start]:02x}); a grid file is UTF-8 JSON") from None
+            except json.JSONDecodeError as err:
+                raise ConfigError(f"{at}.file: {path}: not valid JSON: {err}") from None
+            except (ValueError, RecursionError) as err:  # a 4300-digit number, deep nesting
+                what = ("nested too deeply" if isinstance(err, RecursionError)
+                        else f"a number too long to read ({str(err).split(';')[0]})")
+                raise ConfigError(f"{at}.file: {path}: not a usable JSON document: {what}") from None
+            rest = {k: v for k, v in d.items() if k not in ("file", "scale")}
             try:
                 d = {**rest, "xs_m": grid["xs"], "ys_m": grid["ys"],
                      "north_n": [[scale * v for v in row] for row in grid["tx"]],
                      "east_n": [[scale * v for v in row] for row in grid["ty"]]}
             except (KeyError, TypeError) as err:
-                raise ConfigError(f"world_grid file {path}: needs xs, ys, tx, ty ({err})") from None
+                raise ConfigError(f"{at}.file: {path}: needs xs, ys, tx, ty ({err})") from None
         dists.append(d)
     if "disturbances" in doc:
         out["disturbances"] = dists
@@ -283,7 +339,7 @@ def parse_scenario(doc: dict, where: str = "scenario", base: Path | None = None)
     """Validate a scenario document; grid ``file`` entries resolve relative to ``base``."""
     if not isinstance(doc, dict):
         raise ConfigError(f"{where}: a scenario must be a table/object")
-    return parse_config(_resolve_grid_files(doc, base or Path.cwd()), Scenario, where)
+    return parse_config(_resolve_grid_files(doc, base or Path.cwd(), where), Scenario, where)
 
 
 def load_scenario(name_or_path: str | Path) -> Scenario:

@@ -29,6 +29,8 @@ name, whether it is marked or not.
 
 from __future__ import annotations
 
+import math
+import string
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -80,13 +82,30 @@ class ProcessSpec(ConfigModel):
 
 
 class BackoffPolicy(ConfigModel):
-    initial_s: float = Field(default=0.5, gt=0)
-    factor: float = Field(default=2.0, ge=1)
-    max_s: float = Field(default=10.0, gt=0)
-    max_restarts: int = Field(default=10, ge=0, description="per process, then it counts as failed")
+    """How long the supervisor waits before restarting a failed process: ``initial_s``, times
+    ``factor`` at each restart, at most ``max_s``; ``max_restarts`` restarts of a process at most.
+
+    Every field is bounded, and ``delay_s`` never computes a power past ``max_s``, so that the
+    delay is a finite float for any restart count (``factor ** n`` overflows a float: the default
+    factor 2 at n = 1025)."""
+
+    initial_s: float = Field(default=0.5, ge=0.001, le=3600.0, description="the first wait [s]; at "
+                             "least 1 ms (sooner is a busy loop), at most an hour")
+    factor: float = Field(default=2.0, ge=1, le=10.0, description="each wait is this many times the "
+                          "last; at most 10 (more reaches max_s in a restart or two all the same)")
+    max_s: float = Field(default=10.0, gt=0, le=3600.0, description="the longest wait [s]; at most "
+                         "an hour (a restart later than that is one nobody waits for)")
+    max_restarts: int = Field(default=10, ge=0, le=1000, description="per process, then it counts as "
+                              "failed; at most 1000 (hours of a process failing at max_s 10 s)")
 
     def delay_s(self, restarts_so_far: int) -> float:
-        """Wait before restart number ``restarts_so_far + 1``."""
+        """Wait before restart number ``restarts_so_far + 1`` [s]."""
+        # Compared as logarithms: once initial_s * factor**n would pass max_s the power is never
+        # computed, so no restart count overflows it. Below that, factor**n < max_s / initial_s,
+        # at most 3.6e6 within the bounds.
+        grown = restarts_so_far * math.log(self.factor)
+        if grown >= math.log(self.max_s) - math.log(self.initial_s):
+            return self.max_s
         return min(self.max_s, self.initial_s * self.factor ** restarts_so_far)
 
 
@@ -276,14 +295,30 @@ def load_profile(name_or_path: str | Path) -> Profile:
 
 
 def substitute(argv: list[str], values: dict[str, str]) -> list[str]:
-    """Replace ``{name}`` placeholders; an unknown placeholder is an error, not a silent literal."""
+    """Replace ``{name}`` placeholders (``{{`` and ``}}`` are literal braces). ConfigError naming
+    the argument: an unknown placeholder is an error, not a silent literal, and so is anything else
+    in braces.
+
+    Only a bare known name is substituted: ``str.format``'s positional fields (``{0}``), attributes
+    (``{vessel.zz}``), format specs and conversions mean nothing in an argv."""
+    known = ", ".join(sorted(values))
     out = []
     for a in argv:
         try:
-            out.append(a.format(**values))
-        except KeyError as err:
-            raise ConfigError(f"command argument {a!r} uses unknown placeholder {err}; "
-                              f"known: {', '.join(sorted(values))}") from None
+            fields = [(name, spec, conversion)
+                      for _, name, spec, conversion in string.Formatter().parse(a) if name is not None]
+        except ValueError as err:  # a lone { or }
+            raise ConfigError(f"command argument {a!r}: {err}; a placeholder is a name in braces "
+                              "({vessel}), a literal brace is written {{ or }}") from None
+        for name, spec, conversion in fields:
+            if name not in values:
+                hint = "" if name.isidentifier() else " (a placeholder is a bare name in braces)"
+                raise ConfigError(f"command argument {a!r} uses unknown placeholder {name!r}{hint}; "
+                                  f"known: {known}")
+            if spec or conversion:
+                raise ConfigError(f"command argument {a!r}: placeholder {name!r} has a format spec "
+                                  "or conversion (':' or '!'); a placeholder is a bare name in braces")
+        out.append(a.format(**values))
     return out
 
 
