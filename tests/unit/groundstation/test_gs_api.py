@@ -5,10 +5,12 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+from urllib.parse import unquote
 
 import pytest
 from fastapi.testclient import TestClient
@@ -317,6 +319,78 @@ def test_export_last_mission_as_plan_and_geojson(client: TestClient, vessel: Ves
     assert client.get("/api/vessels/v1/mission/export?format=kml").status_code == 422
 
 
+@pytest.mark.parametrize("mission_id", ["\u2713 survey", "Nord \u2013 S\u00fcd", "a\r\nX-Injected: 1",
+                                        '"quoted"; x=1', "box"])
+def test_export_names_its_file_safely_whatever_the_mission_id(client: TestClient, vessel: Vessel,
+                                                              mission_id: str) -> None:
+    """The mission_id went into Content-Disposition as it was: a character outside latin-1 made
+    the header unencodable (a 500) and a CR/LF made uvicorn drop the connection. Now filename= is
+    ASCII-safe and filename*= (RFC 5987) carries the real name."""
+    body = mission(mission_id=mission_id, waypoints=[{"lat_deg": 28.18, "lon_deg": 112.94},
+                                                     {"lat_deg": 28.181, "lon_deg": 112.94}])
+    draft = client.post("/api/missions/export", json=body)
+    assert client.post("/api/vessels/v1/mission", json=body, headers=AUTH).status_code == 200
+    sent = client.get("/api/vessels/v1/mission/export?format=geojson")
+    for r, stem, ext in ((draft, "mission", "plan"), (sent, "v1", "geojson")):
+        assert r.status_code == 200, r.text
+        header = r.headers["content-disposition"]
+        assert header.isascii() and "\r" not in header and "\n" not in header, header
+        ascii_name = re.search(r'filename="([^"]*)"', header)
+        assert ascii_name and re.fullmatch(r"[A-Za-z0-9_.-]+", ascii_name.group(1)), header
+        assert ascii_name.group(1).startswith(stem + "-") and ascii_name.group(1).endswith("." + ext)
+        real = re.search(r"filename\*=UTF-8''(\S+)", header)
+        assert real and unquote(real.group(1)) == f"{stem}-{mission_id}.{ext}", header
+
+
+def test_export_refuses_metres_no_vessel_reaches(client: TestClient, vessel: Vessel) -> None:
+    """x_m = 1e9 m (25 times round the Earth) became an ordinary latitude and longitude in the
+    exported file, with a 200. Metres beyond the area's bound (MAX_RANGE_M on each axis) are now a
+    422 naming the waypoint, in every body that takes them."""
+    from seaway.area.model import MAX_RANGE_M
+
+    vessel.publish(keys.NAV_ORIGIN, NavOrigin(stamp_ns=1, lat_rad=math.radians(47.0),
+                                              lon_rad=math.radians(8.0), alt_m=0.0))
+    for far in ({"x_m": 1e9, "y_m": 0.0}, {"x_m": 0.0, "y_m": -3e7}, {"x_m": 1e308, "y_m": 0.0}):
+        body = mission(waypoints=[{"x_m": 0.0, "y_m": 0.0}, far])
+        for path in ("/api/missions/export?vessel=v1", "/api/missions/check?vessel=v1",
+                     "/api/vessels/v1/mission"):
+            r = client.post(path, json=body, headers=AUTH)
+            assert r.status_code == 422, (path, far, r.text)
+            assert any(e["loc"][:3] == ["body", "waypoints", 1] for e in r.json()["detail"]), r.text
+        r = client.post("/api/vessels/v1/home", json={"home": far}, headers=AUTH)
+        assert r.status_code == 422 and "home" in r.text
+    assert "mission/set" not in vessel.requests
+    edge = mission(waypoints=[{"x_m": 0.0, "y_m": 0.0}, {"x_m": MAX_RANGE_M, "y_m": -MAX_RANGE_M}])
+    assert client.post("/api/missions/export?vessel=v1", json=edge).status_code == 200
+
+
+def test_a_mission_known_otherwise_with_metres_too_far_does_not_export() -> None:
+    """The last mission sent or the launcher's is exported too: its metres are checked there."""
+    from seaway.contract.messages import Waypoint
+    from seaway.vessel.frames import GeoOrigin
+    from seaway_groundstation import bodies
+
+    origin = GeoOrigin.from_degrees(47.0, 8.0, 0.0)
+    near, far = Waypoint(x_m=10.0, y_m=0.0), Waypoint(x_m=0.0, y_m=1e9)
+    assert len(bodies.mission_points_deg([near, near], origin)) == 2
+    with pytest.raises(bodies.RangeError, match="waypoint 1: y_m"):
+        bodies.mission_points_deg([near, far], origin)
+
+
+def test_max_waypoints_bounds_missions_sent_checked_and_exported(hub: MemoryHub, vessel: Vessel) -> None:
+    """The setting bounded imported files only: a body took up to mission_files.MAX_WAYPOINTS
+    whatever it was set to. Now send, check and export refuse more, naming the bound."""
+    wps = [{"x_m": float(i), "y_m": float(i % 2) * 5} for i in range(11)]
+    with client_for(hub, max_waypoints=10) as c:
+        vessel.publish(keys.NAV_ORIGIN, NavOrigin(stamp_ns=1, lat_rad=0.8, lon_rad=0.14, alt_m=0.0))
+        for path in ("/api/vessels/v1/mission", "/api/missions/check", "/api/missions/export?vessel=v1"):
+            r = c.post(path, json=mission(waypoints=wps), headers=AUTH)
+            assert r.status_code == 422, (path, r.text)
+            assert "10" in r.json()["detail"] and "max_waypoints" in r.json()["detail"], r.text
+            assert c.post(path, json=mission(waypoints=wps[:10]), headers=AUTH).status_code == 200, path
+    assert [len(m.waypoints) for m in vessel.requests["mission/set"]] == [10]
+
+
 # -- simulation -------------------------------------------------------------------------------------
 
 
@@ -355,11 +429,32 @@ def test_stream_sends_the_latest_and_never_a_backlog(client: TestClient, vessel:
         assert frames < n
 
 
-def test_stream_refuses_a_bad_vessel_name(client: TestClient) -> None:
+def test_stream_refuses_a_bad_vessel_name_saying_why(client: TestClient) -> None:
+    """Closed before the handshake, the client got a bare HTTP 403 (as if it lacked authority);
+    now it is accepted, then closed with 1008 and the reason."""
     from starlette.websockets import WebSocketDisconnect
 
-    with pytest.raises(WebSocketDisconnect), client.websocket_connect("/api/stream?vessel=a/b") as ws:
+    with client.websocket_connect("/api/stream?vessel=a/b") as ws, \
+            pytest.raises(WebSocketDisconnect) as closed:
         ws.receive_json()
+    assert closed.value.code == 1008 and "a/b" in closed.value.reason
+    with client.websocket_connect("/api/stream?vessel=" + "\u00e9" * 100) as ws, \
+            pytest.raises(WebSocketDisconnect) as closed:
+        ws.receive_json()
+    assert closed.value.code == 1008 and len(closed.value.reason.encode()) <= 123
+
+
+def test_a_stream_client_past_the_bound_is_told_to_come_back_later(hub: MemoryHub,
+                                                                  vessel: Vessel) -> None:
+    from starlette.websockets import WebSocketDisconnect
+
+    vessel.publish(keys.NAV_STATE, state(0.0))
+    with client_for(hub, max_stream_clients=1) as c, c.websocket_connect("/api/stream") as first:
+        assert first.receive_json()["vessel"] == "v1"
+        with c.websocket_connect("/api/stream") as second, \
+                pytest.raises(WebSocketDisconnect) as closed:
+            second.receive_json()
+        assert closed.value.code == 1013 and "too many stream clients" in closed.value.reason
 
 
 def test_openapi_documents_every_endpoint_with_tags_and_refusals(client: TestClient) -> None:
@@ -477,6 +572,67 @@ def test_nan_or_infinity_inside_a_scenario_document_is_a_422_naming_the_field(
     assert keys.SIM_SCENARIO.suffix not in vessel.requests
     ok = client.post("/api/vessels/v1/scenario", json={"scenario": {"name": "x"}}, headers=AUTH)
     assert ok.status_code == 200  # the ground station goes on
+
+
+@pytest.mark.parametrize("depth", [80, 300, 700])
+def test_a_scenario_document_nested_too_deep_is_a_422_naming_the_limit(
+        client: TestClient, vessel: Vessel, depth: int) -> None:
+    """300 deep: the bus message could not be encoded (a 500); 700 deep: the finite-number check
+    recursed past Python's limit (a 500). Now a 422 naming where and the limit."""
+    from seaway_groundstation.bodies import MAX_DOCUMENT_DEPTH
+
+    vessel.bus.declare_alive("sim")
+    vessel.serve(keys.SIM_SCENARIO)
+    body = '{"scenario": {"a": ' + "[" * depth + "]" * depth + "}}"
+    r = client.post("/api/vessels/v1/scenario", content=body,
+                    headers={**AUTH, "Content-Type": "application/json"})
+    assert r.status_code == 422, r.text[:300]
+    (error,) = r.json()["detail"]
+    assert error["loc"] == ["body", "scenario"] and str(MAX_DOCUMENT_DEPTH) in error["msg"]
+    assert "scenario.a" in error["msg"] and len(r.content) < 4096
+    assert keys.SIM_SCENARIO.suffix not in vessel.requests
+    nested = '{"scenario": {"a": ' + "[" * 20 + "1" + "]" * 20 + "}}"  # deep, but a document's depth
+    ok = client.post("/api/vessels/v1/scenario", content=nested,
+                     headers={**AUTH, "Content-Type": "application/json"})
+    assert ok.status_code == 200, ok.text
+
+
+def test_a_mission_document_nested_too_deep_is_a_422(client: TestClient) -> None:
+    doc = '{"document": {"type": "LineString", "coordinates": ' + "[" * 300 + "]" * 300 + "}}"
+    r = client.post("/api/missions/parse", content=doc, headers={"Content-Type": "application/json"})
+    assert r.status_code == 422 and "document.coordinates" in r.text, r.text[:300]
+
+
+def test_the_document_checks_walk_without_recursion() -> None:
+    """Deeper than Python's recursion limit and with integers beyond a float's range: measured
+    and checked, not a RecursionError or an OverflowError."""
+    from seaway_groundstation.bodies import non_finite_fields, too_deep
+
+    doc: Any = [10**400, math.inf]
+    for _ in range(5000):
+        doc = [doc]
+    assert too_deep({"a": doc}, "d") is not None
+    assert too_deep({"a": [[1]], "b": {"c": 10**400}}, "d") is None
+    assert non_finite_fields({"a": doc}, "d") == ["d.a" + "[0]" * 5000 + "[1] (inf)"]
+    assert non_finite_fields({"a": [10**400, 1.5], "b": {"c": math.nan}}, "d") == ["d.b.c (nan)"]
+
+
+def test_a_request_the_bus_cannot_encode_is_a_422_not_a_500(client: TestClient, vessel: Vessel,
+                                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    """Past the body's checks (here: the depth check lifted), a request whose encoding fails
+    (PydanticSerializationError) was a 500 and a traceback; now a 422 saying it cannot be sent,
+    and nothing reaches the vessel."""
+    from seaway_groundstation import bodies
+
+    monkeypatch.setattr(bodies, "too_deep", lambda *_a, **_k: None)
+    vessel.bus.declare_alive("sim")
+    vessel.serve(keys.SIM_SCENARIO)
+    body = '{"scenario": {"a": ' + "[" * 300 + "]" * 300 + "}}"
+    r = client.post("/api/vessels/v1/scenario", content=body,
+                    headers={**AUTH, "Content-Type": "application/json"})
+    assert r.status_code == 422, r.text[:300]
+    assert "sim/scenario" in r.json()["detail"] and "encode" in r.json()["detail"]
+    assert keys.SIM_SCENARIO.suffix not in vessel.requests
 
 
 def test_requests_without_the_token_do_not_use_up_the_operators_rate(hub: MemoryHub,

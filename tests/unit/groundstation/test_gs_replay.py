@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -289,6 +290,48 @@ def test_uploads_need_the_token_are_bounded_and_must_be_mcap(client: TestClient,
     d = client.get("/api/recording", params={"id": entry["id"]}).json()
     assert d["vessels"] == [V] and d["source"] == "upload"
     assert client.get("/api/recordings").json()["recordings"][0]["id"] == entry["id"]
+
+
+def test_uploads_named_recovered_are_bounded_and_listed_like_any_other(runs: Path,
+                                                                      tmp_path: Path) -> None:
+    """The store counted only what a runs folder lists, which leaves out ``*.recovered.mcap`` (its
+    repaired copies): uploads named so were never pruned nor listed, so ``max_uploads`` did not
+    bound the disk. Now every .mcap in the upload folder is an upload."""
+    data = (write_run(tmp_path / "src", n=5) / "recording.mcap").read_bytes()
+    raw = {**AUTH, "Content-Type": "application/octet-stream"}
+    uploads = tmp_path / "uploads"
+    settings = Settings(token=TOKEN, runs_dir=runs, upload_dir=uploads, max_uploads=2,
+                        rate_limit_per_s=1e6, rate_limit_burst=1_000_000)
+    with TestClient(create_app(MemoryHub().bus("gs"), settings)) as c:
+        ids = []
+        for i in range(5):
+            r = c.post(f"/api/recordings/upload?name=x{i}.recovered.mcap", content=data, headers=raw)
+            assert r.status_code == 200, r.text
+            ids.append(r.json()["id"])
+            os.utime(uploads / ids[-1].removeprefix("upload:"), (1e9 + i, 1e9 + i))  # in order
+        assert len(list(uploads.glob("*.mcap"))) == 2
+        listed = [e["id"] for e in c.get("/api/recordings").json()["recordings"] if e["source"] == "upload"]
+        assert sorted(listed) == sorted(ids[-2:])
+        assert c.get("/api/recording", params={"id": ids[0]}).status_code == 404  # pruned
+
+
+def test_a_recording_that_does_not_read_is_refused_without_this_machines_paths(
+        runs: Path, tmp_path: Path) -> None:
+    """The 422 gave the reader's text, naming the file's absolute path (for an upload, the private
+    upload folder). Now the recording is named by its id; the log keeps the full text."""
+    garbage = b"\x89MCAP0\r\n" + b"garbage" * 10
+    (runs / "broken").mkdir(parents=True)
+    (runs / "broken" / "recording.mcap").write_bytes(garbage)
+    settings = Settings(token=TOKEN, runs_dir=runs)  # uploads: a private temporary folder
+    with TestClient(create_app(MemoryHub().bus("gs"), settings)) as c:
+        r = c.get("/api/recording", params={"id": "broken"})
+        assert r.status_code == 422 and "broken/recording.mcap" in r.json()["detail"], r.text
+        up = c.post("/api/recordings/upload?name=b.mcap", content=garbage,
+                    headers={**AUTH, "Content-Type": "application/octet-stream"})
+        assert up.status_code == 422 and "upload:" in up.json()["detail"], up.text
+        for detail in (r.json()["detail"], up.json()["detail"]):
+            assert str(tmp_path) not in detail and tempfile.gettempdir() not in detail, detail
+            assert "seaway-gs-uploads" not in detail, detail
 
 
 def test_the_page_is_served_with_every_module_it_imports(client: TestClient) -> None:

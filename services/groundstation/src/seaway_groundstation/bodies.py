@@ -9,12 +9,15 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, field_validator, model_validator
+from seaway.area.model import MAX_RANGE_M
 from seaway.contract import keys
 from seaway.contract.messages import (
     DEFAULT_CONTROLLER,
+    MAX_COA_RADIUS_M,
+    MAX_SPEED_HINT_MPS,
     MAX_TASK_POWER_W,
     AreaBreachPolicy,
     ArmRequest,
@@ -48,17 +51,57 @@ def _refuse_nulls(data: Any) -> Any:
     return data
 
 
+MAX_DOCUMENT_DEPTH = 64
+"""Deepest nesting of objects and arrays in a free-form document (a scenario, a mission file):
+real ones nest a handful of levels, while the bus's serializer gives up a few hundred deep and
+Python's recursion limit not much further (a 500 and a traceback, not an answer)."""
+
+
+def too_deep(value: Any, path: str, max_depth: int = MAX_DOCUMENT_DEPTH) -> str | None:
+    """Where in a free-form document (``path``: its name) objects and arrays nest more than
+    ``max_depth`` levels, as ``path.key[index]``; None when none does. Iterative: a document too
+    deep for recursion is measured, not a RecursionError."""
+    stack: list[tuple[Any, str, int]] = [(value, path, 0)]
+    while stack:
+        node, where, depth = stack.pop()
+        if not isinstance(node, dict | list):
+            continue
+        if depth >= max_depth:
+            return where
+        items = node.items() if isinstance(node, dict) else enumerate(node)
+        for k, v in items:
+            if isinstance(v, dict | list):
+                stack.append((v, f"{where}.{k}" if isinstance(node, dict) else f"{where}[{k}]",
+                              depth + 1))
+    return None
+
+
+def depth_message(where: str, max_depth: int = MAX_DOCUMENT_DEPTH) -> str:
+    """The refusal of a document nested too deep at ``where`` (``too_deep``'s answer; a long path
+    is cut to its start, which names the branch)."""
+    shown = where if len(where) <= 80 else where[:80] + "..."
+    return (f"{shown}: objects and arrays nested more than {max_depth} levels deep; a document "
+            f"may nest at most {max_depth} levels")
+
+
 def non_finite_fields(value: Any, path: str) -> list[str]:
     """Where in a free-form document (``path``: its name) a number is NaN or infinite, as
-    ``path.key[index]`` each; empty when every number is finite. ``allow_inf_nan=False`` checks
-    typed fields only, and Python's JSON reads NaN, Infinity and 1e400 as floats."""
-    if isinstance(value, float) and not math.isfinite(value):
-        return [f"{path} ({value!r})"]
-    if isinstance(value, dict):
-        return [p for k, v in value.items() for p in non_finite_fields(v, f"{path}.{k}")]
-    if isinstance(value, list):
-        return [p for i, v in enumerate(value) for p in non_finite_fields(v, f"{path}[{i}]")]
-    return []
+    ``path.key[index]`` each, in document order; empty when every number is finite.
+    ``allow_inf_nan=False`` checks typed fields only, and Python's JSON reads NaN, Infinity and
+    1e400 as floats. Only floats are tested: an integer is finite however large (and
+    ``math.isfinite`` raises OverflowError on one beyond a float's range). Iterative, so a deep
+    document cannot exhaust the stack (bound its depth with ``too_deep`` first all the same)."""
+    out: list[str] = []
+    stack: list[tuple[Any, str]] = [(value, path)]
+    while stack:
+        node, where = stack.pop()
+        if isinstance(node, float) and not math.isfinite(node):
+            out.append(f"{where} ({node!r})")
+        elif isinstance(node, dict):
+            stack += [(v, f"{where}.{k}") for k, v in reversed(node.items())]
+        elif isinstance(node, list):
+            stack += [(v, f"{where}[{i}]") for i, v in reversed(list(enumerate(node)))]
+    return out
 
 
 def _one_position_pair(schema: dict[str, Any]) -> None:
@@ -79,8 +122,12 @@ class WaypointIn(_Body):
 
     model_config = ConfigDict(json_schema_extra=_one_position_pair)
 
-    x_m: float | None = Field(default=None, description="north of the origin [m]")
-    y_m: float | None = Field(default=None, description="east of the origin [m]")
+    # Metres within MAX_RANGE_M of the origin, the operating area's bound: farther is no place a
+    # vessel goes in a local frame, and an export turned 1e9 m into an ordinary-looking lat/lon.
+    x_m: float | None = Field(default=None, ge=-MAX_RANGE_M, le=MAX_RANGE_M,
+                              description=f"north of the origin [m], within +-{MAX_RANGE_M:g} m of it")
+    y_m: float | None = Field(default=None, ge=-MAX_RANGE_M, le=MAX_RANGE_M,
+                              description=f"east of the origin [m], within +-{MAX_RANGE_M:g} m of it")
     lat_deg: float | None = Field(default=None, ge=-90, le=90, description="WGS84 latitude [deg]")
     lon_deg: float | None = Field(default=None, ge=-180, le=180, description="WGS84 longitude [deg]")
 
@@ -111,13 +158,15 @@ class MissionParams(_Body):
     """A mission's parameters: circle of acceptance r_COA, task power T^w, controller."""
 
     mission_id: str = Field(default="", max_length=64)
-    coa_radius_m: float = Field(gt=0, le=10_000, description="circle-of-acceptance radius r_COA [m]")
+    coa_radius_m: float = Field(gt=0, le=MAX_COA_RADIUS_M,
+                                description="circle-of-acceptance radius r_COA [m]")
     task_power_w: float = Field(gt=0, le=MAX_TASK_POWER_W, description="T^w, power of the task carried [W]")
     controller: ControllerName = Field(default=DEFAULT_CONTROLLER,
                                        description="CC-EMPC (the paper's) or a baseline")
     predict_disturbance: bool = Field(default=False, description="predict with the estimator's tau_d "
                                       "(disturbance-aware) instead of tau_d = 0 (the paper's)")
-    speed_hint_mps: float | None = Field(default=None, gt=0, le=50, description="cruise hint [m/s]")
+    speed_hint_mps: float | None = Field(default=None, gt=0, le=MAX_SPEED_HINT_MPS,
+                                         description="cruise hint [m/s]")
     join_first_leg: bool = Field(default=False, description="join P_0 -> P_1 from where the vessel "
                                  "is instead of going to P_0 first")
     at_rest: AtRest = Field(default="hold", description="after the last waypoint and on pause: "
@@ -143,11 +192,11 @@ class ImportParams(_Body):
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False, strict=False)
 
     mission_id: str | None = Field(default=None, max_length=64)
-    coa_radius_m: float | None = Field(default=None, gt=0, le=10_000, description="r_COA [m]")
+    coa_radius_m: float | None = Field(default=None, gt=0, le=MAX_COA_RADIUS_M, description="r_COA [m]")
     task_power_w: float | None = Field(default=None, gt=0, le=MAX_TASK_POWER_W, description="T^w [W]")
     controller: ControllerName | None = None
     predict_disturbance: bool | None = None
-    speed_hint_mps: float | None = Field(default=None, gt=0, le=50, description="[m/s]")
+    speed_hint_mps: float | None = Field(default=None, gt=0, le=MAX_SPEED_HINT_MPS, description="[m/s]")
     join_first_leg: bool | None = None
     at_rest: AtRest | None = None
     on_area_breach: AreaBreachPolicy | None = None
@@ -156,16 +205,28 @@ class ImportParams(_Body):
                                    "waypoints (takeoff, loiter, survey, ...) instead of refusing")
 
 
+def _shallow_document(doc: dict[str, Any]) -> dict[str, Any]:
+    """A mission file's document, refused when it nests deeper than any real one (a .plan's
+    complex items nest about ten levels) before a reader walks it."""
+    where = too_deep(doc, "document")
+    if where is not None:
+        raise ValueError(depth_message(where))
+    return doc
+
+
+MissionDocument = Annotated[dict[str, Any], AfterValidator(_shallow_document)]
+
+
 class ImportBody(ImportParams):
     """A mission file given as JSON: ``document`` is the .plan or GeoJSON object itself."""
 
-    document: dict[str, Any] = Field(description="a QGroundControl .plan or a GeoJSON object")
+    document: MissionDocument = Field(description="a QGroundControl .plan or a GeoJSON object")
 
 
 class ParseBody(_Body):
     """A mission file to read without sending it."""
 
-    document: dict[str, Any]
+    document: MissionDocument
     skip_unsupported: bool = False
 
 
@@ -223,6 +284,10 @@ class ScenarioBody(_Body):
     @field_validator("scenario")
     @classmethod
     def _finite(cls, doc: dict[str, Any] | None) -> dict[str, Any] | None:
+        # Depth first: the bus message cannot be encoded a few hundred levels down (a 500).
+        where = too_deep(doc, "scenario")
+        if where is not None:
+            raise ValueError(depth_message(where))
         bad = non_finite_fields(doc, "scenario")
         if bad:
             raise ValueError(f"{', '.join(bad[:5])}: not a finite number; a scenario's numbers "
@@ -241,8 +306,14 @@ class MissionBuildError(ValueError):
     """Parameters that do not make a valid mission; the text names the field."""
 
 
-def mission_from_body(body: MissionBody, stamp_ns: int) -> MissionRequest:
-    """The bus request for a mission body (a check's body: its mission, without ``battery_j``)."""
+def mission_from_body(body: MissionBody, stamp_ns: int,
+                      max_waypoints: int = MAX_WAYPOINTS) -> MissionRequest:
+    """The bus request for a mission body (a check's body: its mission, without ``battery_j``).
+    ``max_waypoints``: this ground station's bound (``Settings.max_waypoints``); the body's own
+    schema allows up to ``MAX_WAYPOINTS``, the most any ground station may be set to."""
+    if len(body.waypoints) > max_waypoints:
+        raise MissionBuildError(f"waypoints: {len(body.waypoints)} given, more than the "
+                                f"{max_waypoints} this ground station allows (max_waypoints)")
     return _make(stamp_ns, body.mission_id, [w.to_waypoint() for w in body.waypoints],
                  body.model_dump(exclude={"mission_id", "waypoints", "battery_j"}))
 
@@ -271,13 +342,32 @@ class ExportError(ValueError):
     """A mission that cannot be written as lat/lon (metres with no origin known)."""
 
 
+class RangeError(MissionBuildError):
+    """A position in local metres farther from the NED origin than ``MAX_RANGE_M`` on an axis:
+    no vessel reaches it, and through the origin it would become an ordinary-looking latitude and
+    longitude somewhere else on the globe. A body's waypoints are bounded by their schema; this
+    is for a mission known otherwise (the last one sent, the launcher's)."""
+
+
+def check_range(wp: Waypoint, what: str) -> None:
+    """Refuse ``wp`` (named ``what``) if it is in local metres beyond ``MAX_RANGE_M`` on an axis
+    (the operating area's and a scenario's start's bound: a flat local frame is poor beyond)."""
+    for axis, v in (("x_m", wp.x_m), ("y_m", wp.y_m)):
+        if v is not None and abs(v) > MAX_RANGE_M:
+            raise RangeError(f"{what}: {axis} {v:g} m is more than {MAX_RANGE_M:g} m from the NED "
+                             f"origin; positions in metres must lie within +-{MAX_RANGE_M:g} m of "
+                             "it on each axis (give far points as lat_deg/lon_deg)")
+
+
 def mission_points_deg(waypoints: Sequence[Waypoint], origin: GeoOrigin | None) -> list[tuple[float, float]]:
-    """Each waypoint as (lat_deg, lon_deg): degrees as given, metres through ``origin``."""
+    """Each waypoint as (lat_deg, lon_deg): degrees as given, metres through ``origin``.
+    RangeError for metres beyond ``MAX_RANGE_M`` (``check_range``), ExportError without an origin."""
     out = []
     for i, wp in enumerate(waypoints):
         if wp.lat_deg is not None and wp.lon_deg is not None:
             out.append((wp.lat_deg, wp.lon_deg))
         elif wp.x_m is not None and wp.y_m is not None:
+            check_range(wp, f"waypoint {i}")
             if origin is None:
                 raise ExportError(f"waypoint {i} is in local metres and no NED origin is known for "
                                   f"this vessel yet ({keys.NAV_ORIGIN.suffix} not received)")

@@ -27,17 +27,21 @@ MAX_ERRORS = 20
 ELLIPSIS = "..."
 
 
-def _json_safe(value: Any) -> Any:
+def _json_safe(value: Any, depth: int = 0) -> Any:
     """``value`` with every non-finite float as its text ('nan', 'inf'), which JSON cannot carry,
-    and bytes as their length (they may not be text at all)."""
+    and bytes as their length (they may not be text at all). Below ``MAX_INPUT_CHARS`` levels of
+    nesting a value is '...': its text would be cut before it anyway, and a document nested a few
+    hundred deep made this recursion (and so the 422) fail with a RecursionError."""
+    if depth > MAX_INPUT_CHARS:
+        return ELLIPSIS
     if isinstance(value, float) and not math.isfinite(value):
         return repr(value)
     if isinstance(value, bytes | bytearray):
         return f"<{len(value)} bytes>"
     if isinstance(value, dict):
-        return {str(k): _json_safe(v) for k, v in value.items()}
+        return {str(k): _json_safe(v, depth + 1) for k, v in value.items()}
     if isinstance(value, list | tuple):
-        return [_json_safe(v) for v in value]
+        return [_json_safe(v, depth + 1) for v in value]
     return value
 
 

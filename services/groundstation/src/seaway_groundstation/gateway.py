@@ -21,6 +21,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+from pydantic_core import PydanticSerializationError
 from seaway.contract import keys
 from seaway.contract.messages import Message, MessageError, Reply
 from seaway.runtime.bus import Bus
@@ -96,20 +97,36 @@ class BusLink:
         self._declared.clear()
 
 
+class UnsendableError(ValueError):
+    """A request that cannot be encoded for the bus (nothing was sent); the text says why."""
+
+
+def encode_request(spec: keys.KeySpec, request: Message) -> bytes:
+    """``request``'s wire bytes; UnsendableError when the serializer gives up on it (a free-form
+    document nested too deep, a number it cannot write) or the message refuses a non-finite
+    number, so the caller answers 422 instead of a 500 and a traceback."""
+    try:
+        return request.encode()
+    except (PydanticSerializationError, MessageError) as err:
+        raise UnsendableError(f"the {spec.suffix} request cannot be encoded for the bus: {err}") from None
+
+
 def ask(bus: Bus, spec: keys.KeySpec, request: Message, vessel: str, timeout_s: float) -> CommandReply:
     """Send ``request`` on ``spec`` of ``vessel`` and wait up to ``timeout_s`` [s] for the reply.
 
     Blocking (call it from a worker thread). The outcome says whether the service answered
     (``accepted``/``refused``), nobody did (``no_reply``), or the transport answered with an error
-    (``error_reply``, e.g. a reply refused by access control).
+    (``error_reply``, e.g. a reply refused by access control). UnsendableError, before anything is
+    sent, for a request that cannot be encoded (``encode_request``).
     """
     if spec.kind != "query" or type(request) is not spec.message:
         raise TypeError(f"{spec.suffix} does not take {type(request).__name__}")
+    payload = encode_request(spec, request)
     key = spec.key(vessel)
     outcome: Outcome = "no_reply"
     reply = Reply.refuse(time.time_ns(), f"no reply from {key} within {timeout_s:g} s "
                                          "(is the service running?)")
-    for r in bus.query_raw(key, request.encode(), timeout_s):
+    for r in bus.query_raw(key, payload, timeout_s):
         if r.error is not None:
             outcome, reply = "error_reply", Reply.refuse(time.time_ns(), f"error reply from {key}: {r.error}")
             break

@@ -217,9 +217,13 @@ class UploadStore:
             return self._folder
 
     def _files(self) -> list[Path]:
+        """Every upload held, oldest first: every ``.mcap`` here, whatever its name (``_mcaps``
+        leaves out ``*.recovered.mcap``, a runs folder's repaired copies; here those are uploads
+        named so, which escaped the listing and the ``max_uploads`` bound)."""
         if self._folder is None or not self._folder.is_dir():
             return []
-        return sorted(_mcaps(self._folder), key=lambda p: p.stat().st_mtime)
+        return sorted((p for p in self._folder.glob("*.mcap") if p.is_file()),
+                      key=lambda p: p.stat().st_mtime)
 
     def entries(self) -> list[RecordingEntry]:
         out = []
@@ -299,8 +303,9 @@ class Loaded:
         notes = list(self.detail.notes)
         if tl.complete and tl.undecodable:
             notes.append(f"{tl.undecodable} message(s) that do not decode were left out")
-        if tl.error:
-            notes.append(f"the recording could not be read to its end: {tl.error}")
+        if tl.error:  # the reader's text: no path of this machine (``Library.public_text``)
+            error = _ABS_PATH_RE.sub(lambda m: m.group(1), tl.error)
+            notes.append(f"the recording could not be read to its end: {error}")
         return self.detail.model_copy(update={
             "frame_count": len(tl.frames), "complete": tl.complete,
             "loaded_to_s": None if tl.complete else tl.loaded_to_s, "notes": notes})
@@ -333,7 +338,9 @@ class Library:
         try:
             key = (ref, *((f.name, f.stat().st_size, f.stat().st_mtime_ns) for f in files))
         except OSError as err:
-            raise RecordingError(404, f"recording {ref!r}: {err}") from None
+            log.warning("recording %r: %s", ref, err)
+            raise RecordingError(404, f"recording {ref!r}: "
+                                      f"{self.public_text(str(err), ref, where, files)}") from None
         with self._lock:
             opening = self._opening.setdefault(ref, threading.Lock())
         with opening:  # one open of a recording at a time: readers at once share it
@@ -358,6 +365,28 @@ class Library:
                     return self._cache[key]
         return self.open(ref)
 
+    def public_text(self, text: str, ref: str, where: Path, files: Sequence[Path]) -> str:
+        """``text`` (an error's) with no path of this machine in it: the recording's folder and
+        files by their names in the API (``ref``, and a file by its path in the runs folder or its
+        upload id), then any other absolute path by its last part. A client knows recordings by
+        their ids; the folders behind them (a private upload folder, a repair cache) are not its
+        business."""
+        names: dict[str, str] = {str(where): ref}
+        for f in files:
+            names[str(f)] = (UPLOAD_PREFIX + f.name if ref.startswith(UPLOAD_PREFIX)
+                             else _relative_name(f, self.runs._real_root()))
+        for path in sorted(names, key=len, reverse=True):  # a file before the folder holding it
+            text = text.replace(path, names[path])
+        return _ABS_PATH_RE.sub(lambda m: m.group(1), text)
+
+    def _unreadable(self, ref: str, where: Path, files: Sequence[Path], what: str,
+                    err: Exception) -> RecordingError:
+        """The 422 of a recording the reader refuses: the reader's text, logged in full here and
+        answered without this machine's paths (``public_text``)."""
+        log.warning("recording %r (%s) %s: %s", ref, where, what, err)
+        return RecordingError(422, f"recording {ref!r} {what}: "
+                                   f"{self.public_text(str(err), ref, where, files)}")
+
     def _load(self, ref: str, where: Path, files: list[Path], source: Literal["runs", "upload"]) -> Loaded:
         from seaway.recording import reader  # mcap is imported by the replay view alone
 
@@ -365,7 +394,7 @@ class Library:
             readable = reader.open_paths([where]) if where.is_dir() else [reader.readable(where)]
             info = reader.read_info(readable)
         except Exception as err:  # mcap raises its own errors for damaged files; say which file
-            raise RecordingError(422, f"recording {ref!r} does not read as MCAP: {err}") from None
+            raise self._unreadable(ref, where, files, "does not read as MCAP", err) from None
         vessels = sorted({t.split("/", 2)[1] for t in info.topics
                           if t.startswith(keys.ROOT + "/") and keys.spec_for_key(t) is not None})
         notes: list[str] = []
@@ -376,7 +405,7 @@ class Library:
                 dec = reader.decode_vessel(readable, v, [keys.MISSION_ACCEPTED.suffix,
                                                             keys.NAV_ORIGIN.suffix], info.summaries)
             except Exception as err:
-                raise RecordingError(422, f"recording {ref!r} does not read: {err}") from None
+                raise self._unreadable(ref, where, files, "does not read", err) from None
             accepted += [(v, m) for m in dec.get(keys.MISSION_ACCEPTED.suffix)
                          if isinstance(m, MissionAccepted)]
             recorded = dec.get(keys.NAV_ORIGIN.suffix)
@@ -400,6 +429,18 @@ class Library:
             geo={v: fv for v, o in origins.items() if (fv := geo.frame_view(o)) is not None},
             report=_report(run_folder, notes), notes=notes)
         return Loaded(detail, timeline)
+
+
+_ABS_PATH_RE = re.compile(r"(?<![\w.~])(?:~|/)[^\s'\"]*/([^\s'\"/:]+)")
+"""An absolute (or home-relative) path in an error's text; group 1 is its last part."""
+
+
+def _relative_name(path: Path, root: Path) -> str:
+    """``path`` as named under the runs folder ``root`` (its last part if it is not under it)."""
+    try:
+        return path.relative_to(root).as_posix()
+    except ValueError:
+        return path.name
 
 
 def _scenario(attachments: dict[str, bytes], notes: list[str]) -> tuple[str | None, GeoOrigin | None]:

@@ -16,7 +16,7 @@ from starlette.concurrency import run_in_threadpool
 
 from seaway_groundstation import bodies, guard
 from seaway_groundstation.fleet import Fleet
-from seaway_groundstation.gateway import BusLink, ask
+from seaway_groundstation.gateway import BusLink, UnsendableError, ask
 from seaway_groundstation.journal import RequestJournal
 from seaway_groundstation.limits import RateLimiter
 from seaway_groundstation.recordings import Library, RunsFolder, UploadStore
@@ -78,7 +78,11 @@ class GroundStation:
 
     async def send(self, spec: keys.KeySpec, msg: Message, vessel: str) -> CommandReply:
         self.known(vessel)
-        reply = await run_in_threadpool(ask, self.bus, spec, msg, vessel, self.settings.request_timeout_s)
+        try:
+            reply = await run_in_threadpool(ask, self.bus, spec, msg, vessel,
+                                            self.settings.request_timeout_s)
+        except UnsendableError as err:  # nothing was sent: the body's fault, not the vessel's
+            raise HTTPException(422, str(err)) from None
         await run_in_threadpool(self.journal.record, vessel, spec.suffix, reply.outcome, reply.reason,
                                 msg.model_dump(mode="json"))
         self.fleet.on_command(vessel, CommandNote(

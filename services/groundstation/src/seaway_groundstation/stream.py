@@ -134,7 +134,11 @@ class StreamHub:
     async def serve(self, websocket: WebSocket, vessels: frozenset[str] | None) -> None:
         """Accept ``websocket`` and stream to it until it closes."""
         if len(self._clients) >= self.max_clients:
-            await websocket.close(code=1013, reason=f"too many stream clients ({self.max_clients})")
+            # Accepted, then closed with the code and reason (try again later): a close before
+            # the handshake reaches the client as a bare HTTP 403, which says nothing of why.
+            await websocket.accept()
+            await websocket.close(code=1013, reason=f"too many stream clients ({self.max_clients}); "
+                                                    "try again later")
             return
         await websocket.accept()
         client = StreamClient(vessels)

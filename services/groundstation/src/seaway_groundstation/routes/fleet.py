@@ -83,6 +83,12 @@ def router(gs: GroundStation) -> APIRouter:
     return r
 
 
+def close_reason(text: str) -> str:
+    """``text`` cut to a WebSocket close frame's reason: at most 123 bytes of UTF-8 (a vessel
+    name given may be any text; cutting characters could leave it over the bound)."""
+    return text.encode("utf-8")[:123].decode("utf-8", "ignore")
+
+
 def stream_router(gs: GroundStation) -> APIRouter:
     """The live stream: ``/stream?vessel=NAME`` (repeatable; none: every vessel)."""
     r = APIRouter()
@@ -94,7 +100,10 @@ def stream_router(gs: GroundStation) -> APIRouter:
             try:
                 wanted = frozenset(keys.check_vessel(v) for v in vessel)
             except keys.KeyNameError as err:
-                await websocket.close(code=1008, reason=str(err)[:120])
+                # Accepted, then closed with the reason: a close before the handshake reaches
+                # the client as a bare HTTP 403, as if it lacked authority.
+                await websocket.accept()
+                await websocket.close(code=1008, reason=close_reason(str(err)))
                 return
         await gs.hub.serve(websocket, wanted)
 

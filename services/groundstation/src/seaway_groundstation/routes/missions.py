@@ -3,8 +3,11 @@ check, parse or export one without sending it, export the last one sent, start i
 pause, resume or abort the active one."""
 
 import json
+import re
 import time
+import unicodedata
 from typing import Annotated, Any, Literal
+from urllib.parse import quote
 
 from fastapi import APIRouter, HTTPException, Query, Request
 from fastapi.responses import JSONResponse, Response
@@ -49,7 +52,7 @@ def router(gs: GroundStation, command: list[Any]) -> APIRouter:
         """Waypoints in local metres or latitude/longitude; the controller validates the mission
         again and starts it from P_0 (``mission/set``)."""
         try:
-            req = bodies.mission_from_body(body, time.time_ns())
+            req = bodies.mission_from_body(body, time.time_ns(), gs.settings.max_waypoints)
         except bodies.MissionBuildError as err:
             raise HTTPException(422, str(err)) from None
         return await gs.send_mission(vessel, req)
@@ -88,7 +91,7 @@ def router(gs: GroundStation, command: list[Any]) -> APIRouter:
         if vessel is not None:
             gs.known(vessel)
         try:
-            req = bodies.mission_from_body(body, time.time_ns())
+            req = bodies.mission_from_body(body, time.time_ns(), gs.settings.max_waypoints)
         except bodies.MissionBuildError as err:
             raise HTTPException(422, str(err)) from None
         out = mission_checks.live_check(req, gs.fleet, vessel, gs.settings.clock(),
@@ -125,7 +128,9 @@ def router(gs: GroundStation, command: list[Any]) -> APIRouter:
                              "description": "a QGroundControl .plan or a GeoJSON Feature"},
                        404: error_doc("vessel never seen"),
                        409: error_doc("waypoints in metres and no NED origin known"),
-                       413: error_doc("request body over the bound")})
+                       413: error_doc("request body over the bound"),
+                       422: unprocessable_doc("not a valid mission body, or waypoints in metres "
+                                              "too far from the origin to convert")})
     async def export_draft(body: bodies.MissionBody,
                            vessel: Annotated[str | None, Query(
                                pattern=VESSEL_PATTERN,
@@ -137,7 +142,7 @@ def router(gs: GroundStation, command: list[Any]) -> APIRouter:
             gs.known(vessel)
         origin = gs.fleet.geo_origin(vessel) if vessel is not None else gs.settings.default_origin
         try:
-            req = bodies.mission_from_body(body, time.time_ns())
+            req = bodies.mission_from_body(body, time.time_ns(), gs.settings.max_waypoints)
         except bodies.MissionBuildError as err:
             raise HTTPException(422, str(err)) from None
         return _mission_file(req, origin, vessel or "mission", format)
@@ -146,7 +151,9 @@ def router(gs: GroundStation, command: list[Any]) -> APIRouter:
            responses={200: {"content": {"application/json": {}, "application/geo+json": {}},
                             "description": "a QGroundControl .plan or a GeoJSON Feature"},
                       404: error_doc("vessel never seen, or no mission sent to it from here"),
-                      409: error_doc("waypoints in metres and no NED origin known")})
+                      409: error_doc("waypoints in metres and no NED origin known"),
+                      422: unprocessable_doc("not a valid format, or the mission's waypoints in "
+                                             "metres too far from the origin to convert")})
     async def export_mission(vessel: VesselName,
                              format: Annotated[Literal["plan", "geojson"], Query()] = "plan") -> Response:
         gs.known(vessel)
@@ -186,15 +193,32 @@ def _mission_file(req: MissionRequest, origin: Any, vessel: str,
         points = bodies.mission_points_deg(req.waypoints, origin)
     except bodies.ExportError as err:
         raise HTTPException(409, str(err)) from None
+    except bodies.RangeError as err:
+        raise HTTPException(422, str(err)) from None
     if format == "plan":
         doc, media, ext = plans.to_plan(points, coa_radius_m=req.coa_radius_m,
                                         cruise_speed_mps=req.speed_hint_mps), "application/json", "plan"
     else:
         doc, media, ext = plans.to_geojson(points, bodies.mission_properties(req)), \
             "application/geo+json", "geojson"
-    name = f"{vessel}-{req.mission_id or 'mission'}".replace('"', "")
     return Response(json.dumps(doc, indent=2), media_type=media,
-                    headers={"Content-Disposition": f'attachment; filename="{name}.{ext}"'})
+                    headers={"Content-Disposition": content_disposition(
+                        f"{vessel}-{req.mission_id or 'mission'}", ext)})
+
+
+_UNSAFE_FILENAME = re.compile(r"[^A-Za-z0-9_.-]+")
+
+
+def content_disposition(stem: str, ext: str) -> str:
+    """An attachment header naming the file ``<stem>.<ext>`` that any client can read:
+    ``filename=`` keeps only ``[A-Za-z0-9_.-]`` of the stem, accents dropped ("mission" if nothing
+    is left), since a mission_id is free text (a character outside latin-1 made the header
+    unencodable, a 500, and a CR/LF made the server drop the connection); ``filename*=`` (RFC
+    5987/6266) gives the real name, UTF-8 and percent-encoded, for the clients that read it."""
+    ascii_stem = unicodedata.normalize("NFKD", stem).encode("ascii", "ignore").decode("ascii")
+    safe = _UNSAFE_FILENAME.sub("_", ascii_stem).strip("._") or "mission"  # "Süd" -> "Sud"
+    real = quote(f"{stem}.{ext}", safe="")
+    return f"attachment; filename=\"{safe}.{ext}\"; filename*=UTF-8''{real}"
 
 
 async def _read_import(request: Request, max_bytes: int) -> tuple[bodies.ImportParams, Any]:
