@@ -10,7 +10,7 @@ import jsonschema
 import pytest
 from mcap.reader import make_reader
 from seaway.contract import bundle, keys
-from seaway.contract.messages import NavOrigin, PeriodDone, SimTruth, ThrustCommand
+from seaway.contract.messages import GnssFix, NavOrigin, PeriodDone, SimTruth, ThrustCommand
 from seaway.recording.reader import iter_messages, open_paths, read_info
 from seaway.recording.recover import recover
 from seaway.vessel.frames import GeoOrigin
@@ -116,6 +116,25 @@ def test_location_fix_from_truth_needs_an_origin(tmp_path: Path) -> None:
     assert fix.longitude == pytest.approx(lon * 57.29577951308232)
     assert t_ns(fix.timestamp) == 1_000_000_000  # real time: the source's stamp, unchanged
     assert log_time == 3  # real time: the receive time
+
+
+@pytest.mark.parametrize("fix", [
+    {"stamp_ns": 2**63 - 1},  # a valid int64 stamp past 2106: a Foxglove Timestamp's uint32 seconds
+    {"stamp_ns": 1, "horizontal_std_m": 1e300},  # its variance past a float
+])
+def test_a_sample_without_a_foxglove_view_is_recorded_and_the_next_still_are(tmp_path, fix) -> None:
+    """The deriving is for the viewer; the message itself, and the ones after it, are what must
+    be kept: a view that cannot be made is counted, and the recorder goes on."""
+    w = RecordingWriter(tmp_path / "r.mcap")
+    w.open(0)
+    gnss = keys.GNSS.key(V)
+    odd = GnssFix.make(**{"stamp_ns": 0, "lat_rad": 0.8, "lon_rad": 0.1, "alt_m": 0.0, "fix_type": 3,
+                          **fix}).encode()
+    good = GnssFix.make(stamp_ns=5, lat_rad=0.8, lon_rad=0.1, alt_m=0.0, fix_type=3).encode()
+    assert w.write(gnss, odd, "application/json", 1) and w.write(gnss, good, "application/json", 2)
+    w.close(3)
+    assert (w.stats.underived, w.stats.derived) == (1, 1)
+    assert [d for t, _, d, _ in read_all(tmp_path / "r.mcap") if t == gnss] == [odd, good]
 
 
 def test_rotation_by_size_gives_whole_files_in_order(tmp_path: Path) -> None:

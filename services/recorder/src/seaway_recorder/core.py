@@ -81,6 +81,8 @@ class RecorderStats:
     malformed: int = 0
     unregistered: int = 0
     derived: int = 0
+    underived: int = 0
+    """Messages recorded whose Foxglove view could not be derived (e.g. a stamp past 2106)."""
     events: int = 0
     logs: int = 0
     dropped: int = 0
@@ -91,8 +93,8 @@ class RecorderStats:
 
     def as_metadata(self) -> dict[str, str]:
         out = {k: str(getattr(self, k)) for k in
-               ("messages", "bytes", "malformed", "unregistered", "derived", "events", "logs",
-                "dropped", "flushes")}
+               ("messages", "bytes", "malformed", "unregistered", "derived", "underived", "events",
+                "logs", "dropped", "flushes")}
         out["last_error"] = self.last_error
         return out
 
@@ -315,8 +317,18 @@ class RecordingWriter:
             self._write_episodes()
         if derives and msg is not None:
             assert self._deriver is not None
-            for d in self._deriver.feed(key, msg):
-                self._put(derive.channel_spec(d), d.payload(), log_ns, receive_ns)
+            try:
+                views = [(derive.channel_spec(d), d.payload()) for d in self._deriver.feed(key, msg)]
+            except (ValueError, OverflowError, ArithmeticError) as err:
+                # A valid message whose values a Foxglove schema cannot hold (a stamp past 2106 in
+                # a uint32 of seconds, a variance past a float): the message itself is recorded
+                # above; only its view is left out, counted, and the recorder goes on.
+                stats.underived += 1
+                self._ratelog.warning(("underived", key), "no Foxglove view of a sample on %s: %s",
+                                      key, err)
+                return True
+            for view_spec, data in views:
+                self._put(view_spec, data, log_ns, receive_ns)
                 stats.derived += 1
         return True
 
