@@ -155,6 +155,12 @@ def test_the_operator_sets_home_and_the_mission_under_way_takes_it() -> None:
     assert core.budget.home == (0.0, 8.0)
     assert core.mission_request.home == Waypoint(x_m=0.0, y_m=8.0)  # what a checkpoint keeps
     assert (core.accepted.home_x_m, core.accepted.home_y_m) == (0.0, 8.0)
+    # 'here' at a position past the mission limits (the same bound as a home given as a point).
+    far = core_with(area())
+    far.step(DT_NS, at(1, 1.0, 2.0))
+    far._last_state = far._last_state.model_copy(update={"x_m": 50_000.0})
+    refused = far.handle_home(DT_NS, here)
+    assert not refused.accepted and "max" in refused.reason and far.home != (50_000.0, 2.0)
     # Outside the keep-in area: refused, home unchanged.
     out = core.handle_home(3 * DT_NS, HomeRequest.make(stamp_ns=0, home=Waypoint(x_m=30.0, y_m=0.0)))
     assert not out.accepted and "home at north 30.0 m" in out.reason and core.home == (0.0, 8.0)

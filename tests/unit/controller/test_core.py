@@ -193,3 +193,38 @@ def test_a_state_no_vessel_could_be_in_gets_zero_thrust_and_moves_no_waypoint() 
     assert status.state == "active" and status.active_leg == 1
     cmd, record, _ = core.step(2 * DT_NS, state(2))  # a sane state: flown again
     assert record is not None and solver.calls == calls + 1
+
+
+@pytest.mark.parametrize("fields, named", [
+    ({"x_m": 1e308, "y_m": -1e308}, "position"),
+    ({"tau_d_surge_n": 1e8}, "disturbance force"),
+    ({"tau_d_yaw_nm": 1000.0}, "disturbance moment"),
+    ({"covariance": [1e308] * 81}, "covariance"),
+    ({"covariance": [-1.0] * 81}, "covariance"),
+])
+def test_a_state_past_any_frame_disturbance_or_covariance_is_refused_naming_why(fields, named):
+    """A position no local frame holds overflowed the station-keeping thrust into a NaN that was
+    kept as the last command (the hold's energy stayed NaN, every status after it failed); a
+    disturbance or covariance of 1e8 or 1e308 made the MPC or the energy band raise an unnamed
+    error every period. Each is an absurd state now: zero thrust, counted, the reason named."""
+    solver = ScriptedSolver()
+    core = make_core(solver)
+    assert core.handle_mission(0, mission()).accepted
+    core.step(0, state(0))
+    base = {"stamp_ns": DT_NS, "u_mps": 0.5, "v_mps": 0.0, "r_radps": 0.0, "x_m": 2.0, "y_m": 0.5,
+            "psi_rad": 0.3}
+    assert core._absurd(StateEstimate.make(**{**base, **fields})) is not None
+    assert named in core._absurd(StateEstimate.make(**{**base, **fields}))
+    cmd, record, status = core.step(DT_NS, StateEstimate.make(**{**base, **fields}))
+    assert cmd.source == "absurd_state" and record is None and core.absurd_states == 1
+    assert np.isfinite(status.energy_used_j)
+    cmd, record, _ = core.step(2 * DT_NS, state(2))  # a sane state: flown again
+    assert record is not None and cmd.source != "absurd_state"
+
+
+def test_a_command_that_is_not_finite_is_never_kept_as_the_last() -> None:
+    core = make_core(ScriptedSolver())
+    core._last_command = (1.0, 2.0)
+    with pytest.raises(ValueError, match="thrust_port_n"):
+        core._command(0, (float("nan"), 0.0), "test")
+    assert core._last_command == (1.0, 2.0)

@@ -43,6 +43,7 @@ import math
 from collections.abc import Callable
 
 import numpy as np
+from seaway.area.model import MAX_RANGE_M
 from seaway.contract.messages import (
     MissionRequest,
     MissionStatus,
@@ -80,6 +81,11 @@ ABSURD_STATE = "absurd_state"
 """``ThrustCommand.source`` of the zero thrust given for a state estimate no vessel could be in."""
 
 LEVEL_MPC, LEVEL_PLAN, LEVEL_LOS, LEVEL_STOP = 0, 1, 2, 3
+
+MAX_COVARIANCE_ENTRY = 1e12
+"""Largest |entry| of a state estimate's covariance the controller takes: a position std of 1000 km,
+a speed std of 10^6 m/s. Past it the filter has diverged, and the energy band's eigendecomposition
+of it fails to converge."""
 
 
 SolverFactory = Callable[[Ocp], NlpSolver]
@@ -173,7 +179,7 @@ class ControllerCore(MissionRequests, VehicleGate, EnergyAccount):
              ) -> tuple[ThrustCommand, SolveRecord | None, MissionStatus]:
         """One period: a command for ``state`` (stamped with its stamp), the solve record (None
         when no solve was needed: no mission, paused, complete, aborted) and the mission status."""
-        why = self._envelope.absurd(state.u_mps, state.v_mps, state.r_radps)
+        why = self._absurd(state)
         if why is not None:
             # No vessel moves like this: an estimator that went unstable. Planning from it threw
             # in the model's rollout and ground the solver for a second a period; nothing is
@@ -312,10 +318,31 @@ class ControllerCore(MissionRequests, VehicleGate, EnergyAccount):
                                       names[level], reason)
         self.level = level
 
+    def _absurd(self, state: StateEstimate) -> str | None:
+        """Why ``state`` can be no vessel's (None: it can be): body speeds or a disturbance past
+        the vessel's envelope, a position past any local frame, a covariance that is not one."""
+        env = self._envelope
+        why = env.absurd(state.u_mps, state.v_mps, state.r_radps)
+        if why is None:
+            why = env.absurd_disturbance(state.tau_d_surge_n, state.tau_d_sway_n, state.tau_d_yaw_nm)
+        if why is None and not (abs(state.x_m) <= MAX_RANGE_M and abs(state.y_m) <= MAX_RANGE_M):
+            why = (f"position ({state.x_m:.3g}, {state.y_m:.3g}) m is more than {MAX_RANGE_M:g} m "
+                   "from the origin, past any local frame")
+        if why is None and state.covariance is not None:
+            cov = state.covariance
+            if any(not abs(c) <= MAX_COVARIANCE_ENTRY for c in cov) or any(cov[k * 10] < 0
+                                                                           for k in range(9)):
+                why = (f"the covariance has a negative variance or an entry past "
+                       f"{MAX_COVARIANCE_ENTRY:g}")
+        return why
+
     def _command(self, stamp_ns: int, thrust: tuple[float, float], source: str) -> ThrustCommand:
+        # Built (and validated: finite) before it is kept: a NaN kept as the last command would
+        # poison the hold's energy count and every status after it.
+        cmd = ThrustCommand.make(stamp_ns=stamp_ns, thrust_port_n=thrust[0],
+                                 thrust_starboard_n=thrust[1], source=source, seq=self.seq)
         self._last_command = thrust
-        return ThrustCommand.make(stamp_ns=stamp_ns, thrust_port_n=thrust[0],
-                                  thrust_starboard_n=thrust[1], source=source, seq=self.seq)
+        return cmd
 
     def _record(self, stamp_ns: int, kind: str, out: MpcOutcome, late: bool,
                 used: MpcOutcome | None, reused) -> SolveRecord:

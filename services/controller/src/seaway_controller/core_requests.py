@@ -263,7 +263,10 @@ class MissionRequests:
             if st is None:
                 return Reply.refuse(now_ns, "home 'here' is not known: no state estimate yet; give "
                                     "a position (x_m/y_m or lat_deg/lon_deg)")
-            point = (st.x_m, st.y_m)
+            try:  # the same bound as a home given by its position
+                point = home_ned(Waypoint(x_m=st.x_m, y_m=st.y_m), self.origin, self.missions.limits)
+            except MissionError as err:
+                return Reply.refuse(now_ns, f"home 'here': {err}")
         else:
             try:
                 point = home_ned(req.home, self.origin, self.missions.limits)

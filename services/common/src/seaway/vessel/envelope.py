@@ -30,10 +30,26 @@ MAX_YAW_RATE_RADPS = 2.0 * math.pi
 
 @dataclass(frozen=True)
 class Envelope:
-    """The largest credible |u|, |v| [m/s] and |r| [rad/s] of one vessel (body frame)."""
+    """The largest credible |u|, |v| [m/s] and |r| [rad/s] of one vessel (body frame), and of the
+    disturbance tau_d acting on it: |force| [N] and |moment| [N m]."""
 
     speed_mps: float
     yaw_rate_radps: float
+    force_n: float = math.inf
+    moment_nm: float = math.inf
+
+    def absurd_disturbance(self, surge_n: float, sway_n: float, yaw_nm: float) -> str | None:
+        """Why tau_d cannot act on this vessel (None: it can). Non-finite is absurd."""
+        if not (math.isfinite(surge_n) and math.isfinite(sway_n) and math.isfinite(yaw_nm)):
+            return "the disturbance estimate is not finite"
+        force = math.hypot(surge_n, sway_n)
+        if force > self.force_n:
+            return (f"disturbance force {force:.3g} N is past the vessel's envelope "
+                    f"({self.force_n:.3g} N)")
+        if abs(yaw_nm) > self.moment_nm:
+            return (f"disturbance moment {yaw_nm:.3g} N m is past the vessel's envelope "
+                    f"({self.moment_nm:.3g} N m)")
+        return None
 
     def absurd(self, u_mps: float, v_mps: float, r_radps: float) -> str | None:
         """Why the body speeds cannot be this vessel's (None: they can). Non-finite is absurd."""
@@ -52,8 +68,11 @@ class Envelope:
 
 def envelope(p: VesselParams) -> Envelope:
     """``p``'s envelope: ``MARGIN`` times its terminal speed and yaw rate under full thrust, capped
-    by ``MAX_SPEED_MPS`` and ``MAX_YAW_RATE_RADPS``."""
+    by ``MAX_SPEED_MPS`` and ``MAX_YAW_RATE_RADPS``; a disturbance up to ``MARGIN`` times its full
+    thrust and full turning moment (a disturbance the thrusters could not answer five times over
+    leaves nothing to control; an estimate past that is a filter gone wrong)."""
     thrust_n = 2.0 * p.thrust_max_n
     speed = MARGIN * thrust_n / min(p.xu_kgps, p.yv_kgps)
     rate = MARGIN * thrust_n * p.arm_m / p.nr_kgm2ps
-    return Envelope(min(speed, MAX_SPEED_MPS), min(rate, MAX_YAW_RATE_RADPS))
+    return Envelope(min(speed, MAX_SPEED_MPS), min(rate, MAX_YAW_RATE_RADPS),
+                    MARGIN * thrust_n, MARGIN * thrust_n * p.arm_m)
