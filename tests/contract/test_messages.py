@@ -144,6 +144,16 @@ def test_non_finite_refused_naming_the_field(bad: float) -> None:
         m.SolveRecord.make(stamp_ns=T, **{**EXAMPLES[m.SolveRecord], "predicted_x_m": [0.0, bad]})
 
 
+@pytest.mark.parametrize("cls", [m.GnssFix, m.NavOrigin])
+@pytest.mark.parametrize("alt_m", [1e20, 1e300, -5000.0])
+def test_an_altitude_no_fix_reports_is_refused_naming_it(cls, alt_m: float) -> None:
+    """A first fix at 1e300 m, taken as the origin, left every later position at north = east = 0
+    (1e20 m: rounded to 8 km steps); vehicle_io's own bound on GLOBAL_POSITION_INT is the same."""
+    with pytest.raises(MessageError, match="alt_m"):
+        cls.make(**{**EXAMPLES[cls], "stamp_ns": 1, "alt_m": alt_m})
+    assert cls.make(**{**EXAMPLES[cls], "stamp_ns": 1, "alt_m": m.GNSS_ALT_MAX_M}).alt_m == 1e5
+
+
 def test_encode_refuses_non_finite_even_when_validation_was_skipped() -> None:
     sneaky = m.ThrustCommand.model_construct(stamp_ns=T, thrust_port_n=math.nan, thrust_starboard_n=1.0,
                                             source="", seq=0)

@@ -22,7 +22,15 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from seaway.contract.messages import Attitude, BatteryLevel, BatteryState, GnssFix, LocalPosition
+from seaway.contract.messages import (
+    GNSS_ALT_MAX_M,
+    GNSS_ALT_MIN_M,
+    Attitude,
+    BatteryLevel,
+    BatteryState,
+    GnssFix,
+    LocalPosition,
+)
 from seaway.vessel.battery import BatteryParams
 
 UINT16_MAX = 65535
@@ -32,7 +40,6 @@ CM_TO_M = 1e-2
 MV_TO_V = 1e-3
 
 # Physical plausibility bounds for a surface vessel (anything outside is corruption, not motion).
-ALT_MIN_M, ALT_MAX_M = -1_000.0, 100_000.0
 SPEED_MAX_MPS = 100.0
 ANGLE_TOL_RAD = 1e-3  # float32 rounding puts +-pi a hair outside [-pi, pi]
 RATE_MAX_RADPS = 40.0  # beyond a 2000 deg/s gyro's full scale
@@ -121,7 +128,7 @@ def gnss_from_global_position_int(msg: Any, stamp_ns: int, quality: GpsQuality |
     lon = _within(t, "lon", msg.lon, -180e7, 180e7)
     if lat == 0 and lon == 0:
         raise NoDataError(f"{t}: lat = lon = 0, the autopilot has no global position yet")
-    alt_m = _within(t, "alt", msg.alt, ALT_MIN_M / MM_TO_M, ALT_MAX_M / MM_TO_M) * MM_TO_M
+    alt_m = _within(t, "alt", msg.alt, GNSS_ALT_MIN_M / MM_TO_M, GNSS_ALT_MAX_M / MM_TO_M) * MM_TO_M
     vx = _within(t, "vx", msg.vx, -SPEED_MAX_MPS / CM_TO_M, SPEED_MAX_MPS / CM_TO_M) * CM_TO_M
     vy = _within(t, "vy", msg.vy, -SPEED_MAX_MPS / CM_TO_M, SPEED_MAX_MPS / CM_TO_M) * CM_TO_M
     return GnssFix.make(

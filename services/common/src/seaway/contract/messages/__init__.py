@@ -116,6 +116,8 @@ from seaway.contract.messages.requests import (
     Waypoint,
 )
 from seaway.contract.messages.sensors import (
+    GNSS_ALT_MAX_M,
+    GNSS_ALT_MIN_M,
     HOLD_REASON_TEXT,
     THRUST_APPLIED_ANYWAY,
     Attitude,
@@ -141,6 +143,8 @@ __all__ = [
     "CONTROLLER_NAMES",
     "CONTROLLER_NAME_PATTERN",
     "DEFAULT_CONTROLLER",
+    "GNSS_ALT_MAX_M",
+    "GNSS_ALT_MIN_M",
     "HOLD_REASON_TEXT",
     "JSON_ENCODING",
     "LOCKSTEP_SERVICES",

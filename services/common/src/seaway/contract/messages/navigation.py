@@ -8,6 +8,7 @@ from typing import ClassVar, Literal
 from pydantic import Field
 
 from seaway.contract.messages.base import MAX_REASON_CHARS, Message
+from seaway.contract.messages.sensors import GNSS_ALT_MAX_M, GNSS_ALT_MIN_M
 
 
 class NavOrigin(Message):
@@ -16,7 +17,8 @@ class NavOrigin(Message):
     SCHEMA: ClassVar[str] = "seaway.v1.NavOrigin"
     lat_rad: float = Field(ge=-math.pi / 2, le=math.pi / 2)
     lon_rad: float = Field(ge=-math.pi, le=math.pi)
-    alt_m: float
+    alt_m: float = Field(ge=GNSS_ALT_MIN_M, le=GNSS_ALT_MAX_M, description="the origin's altitude [m] (a "
+                         "fix's, within the same bounds)")
 
 
 MotionFaultKind = Literal["not_moving", "not_as_modelled"]

@@ -4,11 +4,17 @@ bus through vehicle_io)."""
 from __future__ import annotations
 
 import math
-from typing import ClassVar, Literal
+from typing import Annotated, ClassVar, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
 from seaway.contract.messages.base import Message
+from seaway.contract.units import in_range
+
+GNSS_ALT_MIN_M, GNSS_ALT_MAX_M = -1_000.0, 100_000.0
+"""Bounds of a fix's altitude [m]: below the Dead Sea's shore and the geoid's deepest dip together,
+above anything a receiver on a surface vessel reports. An altitude past them is corruption, and
+taken as the origin it would break the local frame (a 1e20 m origin rounds positions to 8 km)."""
 
 
 class GnssFix(Message):
@@ -17,7 +23,9 @@ class GnssFix(Message):
     SCHEMA: ClassVar[str] = "seaway.v1.GnssFix"
     lat_rad: float = Field(ge=-math.pi / 2, le=math.pi / 2, description="WGS84 latitude [rad]")
     lon_rad: float = Field(ge=-math.pi, le=math.pi, description="WGS84 longitude [rad]")
-    alt_m: float = Field(description="height above the WGS84 ellipsoid or MSL as the source says [m]")
+    alt_m: Annotated[float, in_range(GNSS_ALT_MIN_M, GNSS_ALT_MAX_M, "m")] = Field(
+        ge=GNSS_ALT_MIN_M, le=GNSS_ALT_MAX_M,
+        description="height above the WGS84 ellipsoid or MSL as the source says [m]")
     fix_type: int = Field(ge=0, le=8, description="MAVLink GPS_FIX_TYPE (0 none, 3 3D, 6 RTK fixed)")
     vel_n_mps: float | None = Field(default=None, description="velocity over ground, north [m/s]")
     vel_e_mps: float | None = Field(default=None, description="velocity over ground, east [m/s]")
