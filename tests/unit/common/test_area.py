@@ -91,6 +91,9 @@ def test_distance_to_the_boundary() -> None:
     ("fields", "named"),
     [
         ({"keep_in": {"vertices_m": [(0, 0), (10, 10), (10, 0), (0, 10)]}}, "cross"),
+        ({"keep_in": {"vertices_m": [(0, 0), (10, 0), (10, 10), (0, 10), (0, 0)]}}, "repeats vertex"),
+        ({"keep_in": {"vertices_m": [(0, 0), (10, 0), (10, 0), (0, 10)]}}, "repeats vertex"),
+        ({"keep_in": {"vertices_m": [(0, 0), (5, 5), (10, 10)]}}, "one line"),
         ({"keep_in": {"vertices_m": [(0, 0), (10, 0)]}}, "at least 3"),
         ({"keep_in": {"vertices_m": [(0, 0), (0.5, 0), (0, 0.5)]}}, "m^2"),
         (

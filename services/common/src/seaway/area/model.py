@@ -59,8 +59,19 @@ class AreaPolygon(ConfigModel):
 
     @model_validator(mode="after")
     def _simple(self) -> AreaPolygon:
-        for i, p in enumerate(self.vertices_m):
+        vs = self.vertices_m
+        for i, p in enumerate(vs):
             _check_coord(p, f"vertices_m[{i}]")
+        # Named before the crossing test, which would call either of these "edges cross".
+        for i in range(len(vs)):
+            if vs[i] == vs[i - 1]:
+                raise ValueError(
+                    f"vertices_m: vertex {i} repeats vertex {(i - 1) % len(vs)}; give each corner "
+                    "once (leave out a closed ring's last point, which repeats its first)")
+        (n0, e0), (n1, e1) = vs[0], vs[1]
+        if all(abs((n1 - n0) * (e - e0) - (e1 - e0) * (n - n0)) <= 1e-9 * (1.0 + abs(n1 - n0)
+               + abs(e1 - e0)) ** 2 for n, e in vs[2:]):
+            raise ValueError("vertices_m: every vertex lies on one line; a polygon encloses an area")
         crossing = g.self_intersection(self.vertices_m)
         if crossing is not None:
             i, j = crossing
