@@ -70,3 +70,14 @@ def test_bad_scenario_names_the_field(tmp_path: Path) -> None:
         load_scenario(p)
     with pytest.raises(ConfigError, match=r"no scenario .no-such-scenario. .deploy/scenarios/.; there"):
         load_scenario("no-such-scenario")
+
+
+def test_a_file_of_another_kind_is_named_as_such_not_as_a_missing_scenario(tmp_path: Path) -> None:
+    """``seaway mission survey.plan`` said "no scenario 'survey.plan'; ... or give a file's path",
+    although a file's path was given."""
+    plan = tmp_path / "survey.plan"
+    plan.write_text("{}")
+    with pytest.raises(ConfigError, match=r"\.toml or \.json file, not \.plan"):
+        load_scenario(plan)
+    with pytest.raises(ConfigError, match="no scenario"):
+        load_scenario("no-such-scenario")

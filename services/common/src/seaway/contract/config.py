@@ -124,6 +124,8 @@ def named_file(folder: Path, name_or_path: str | Path, what: str, shown: str) ->
     p = Path(name_or_path)
     if p.suffix in (".toml", ".json"):
         return p
+    if p.suffix and p.is_file():  # a file, of a kind this does not read (a .plan, a .geojson)
+        raise ConfigError(f"{p}: a {what} is a .toml or .json file, not {p.suffix}")
     p = folder / f"{name_or_path}.toml"
     if not p.is_file():
         names = sorted(q.stem for q in folder.glob("*.toml"))
