@@ -345,3 +345,14 @@ def test_rates_are_counted_per_message_type():
         core.on_mavlink(attitude(time_boot_ms=1000 + 50 * k), at(k * 50 * MS))
     core.tick(at(2 * S + 1 * MS))
     assert core.rates_hz["ATTITUDE"] == pytest.approx(20.0, rel=0.05)
+
+
+def test_a_duplicated_packet_is_published_once():
+    """A router loop or two radio paths deliver the same packet twice: one measurement, not two
+    (the estimator would weigh that fix double); the next message is published."""
+    core = connected()
+    packet = attitude(time_boot_ms=5000)
+    first = published(core.on_mavlink(packet, at(5 * S)), Attitude)
+    again = published(core.on_mavlink(packet, at(5 * S + MS)), Attitude)
+    nxt = published(core.on_mavlink(attitude(time_boot_ms=5050), at(5 * S + 50 * MS)), Attitude)
+    assert (len(first), len(again), len(nxt), core.duplicates) == (1, 0, 1, 1)

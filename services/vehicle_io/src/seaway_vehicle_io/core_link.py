@@ -69,6 +69,7 @@ class LinkWatch:
     texts: StatusTexts
     events: EventsChannel
     offset: BootTimeOffset
+    last_boot_ms: dict[str, int]
     commands: CommandTracker
     params: ParamCheck
     mapper: Any
@@ -205,6 +206,7 @@ class LinkWatch:
         # goes on counting its events: the gap across the outage is asked for (events_channel).
         self.events = EventsChannel(resume_after=self.events.tracker.last_sequence)
         self.offset.reset()
+        self.last_boot_ms.clear()
         self.hold = FailsafeCause()
         self.health = Health()
         self._mode_asked = None

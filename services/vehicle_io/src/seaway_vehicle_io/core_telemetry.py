@@ -59,6 +59,10 @@ class TelemetryIn:
         self.gps_quality_mono_ns = 0
         self.battery = BatteryReading()
         self.battery_said: tuple[BatteryLevel, str] | None = None  # its battery text, latched
+        self.last_boot_ms: dict[str, int] = {}
+        """The ``time_boot_ms`` of the last message of each type published: the same again is a
+        duplicated packet (a router loop, two radio paths), not a second measurement."""
+        self.duplicates = 0
 
     def _stamp(self, msg: Any, now: Now) -> int:
         """Stamp for a message with time_boot_ms, validated before it may move the estimate
@@ -89,9 +93,14 @@ class TelemetryIn:
         return stamp
 
     def _publish_stamped(self, msg: Any, now: Now, convert: Any) -> list[Output]:
+        mtype = msg.get_type()
+        if self.last_boot_ms.get(mtype) == msg.time_boot_ms:
+            self.duplicates += 1  # fused twice, one fix would weigh double in the estimate
+            return []
         stamp = self._stamp(msg, now)
         message = convert(stamp)  # raises FieldError before the estimate is touched
         self.offset.commit(msg.time_boot_ms, now.wall_ns, now.mono_ns)
+        self.last_boot_ms[mtype] = msg.time_boot_ms
         return [Publish(message)]
 
     def _on_system_time(self, msg: Any, now: Now) -> list[Output]:
@@ -108,6 +117,7 @@ class TelemetryIn:
         said before, as a link loss does. A reboot ends what it latched till reboot (ArduPilot's
         battery failsafe), and a failsafe or a mode change before it is no cause of a hold after."""
         self.battery_said = None
+        self.last_boot_ms.clear()
         self.health = Health(px4=self.health.px4)
         self.events.restart_count()
         if self.hold.cause is not None:
