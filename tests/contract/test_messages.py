@@ -154,6 +154,19 @@ def test_an_altitude_no_fix_reports_is_refused_naming_it(cls, alt_m: float) -> N
     assert cls.make(**{**EXAMPLES[cls], "stamp_ns": 1, "alt_m": m.GNSS_ALT_MAX_M}).alt_m == 1e5
 
 
+@pytest.mark.parametrize("stamp_ns", [2**63, 10**400])
+def test_a_stamp_past_int64_is_refused_naming_it(stamp_ns: int) -> None:
+    """Any JSON integer parses; a lockstep answer stamped 10^400 opened a duty the launcher
+    later divided into an OverflowError, and ended the stack."""
+    with pytest.raises(MessageError, match="stamp_ns"):
+        m.PeriodDone.make(**{**EXAMPLES[m.PeriodDone], "stamp_ns": stamp_ns})
+    with pytest.raises(MessageError, match="stamp_ns"):
+        m.ThrustCommand.decode(b'{"stamp_ns": %d, "thrust_port_n": 0, "thrust_starboard_n": 0}'
+                               % stamp_ns)
+    assert m.ThrustCommand.make(stamp_ns=m.MAX_STAMP_NS, thrust_port_n=0.0,
+                                thrust_starboard_n=0.0).stamp_ns == 2**63 - 1
+
+
 def test_encode_refuses_non_finite_even_when_validation_was_skipped() -> None:
     sneaky = m.ThrustCommand.model_construct(stamp_ns=T, thrust_port_n=math.nan, thrust_starboard_n=1.0,
                                             source="", seq=0)

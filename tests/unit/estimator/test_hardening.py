@@ -32,7 +32,7 @@ def cmd(t_ns: int, thrust_n: float = 5.0) -> ThrustCommand:
 
 
 @pytest.mark.timeout(20)
-@pytest.mark.parametrize("ahead_ns", [10**4000, 10**15, 31 * S])
+@pytest.mark.parametrize("ahead_ns", [2**62, 10**15, 31 * S])
 def test_a_thrust_command_stamped_absurdly_ahead_is_refused_at_once(ahead_ns: int) -> None:
     """Before: ``on_thrust`` integrated the filter up to the stamp (10^4000 ns: for ever, inside the
     service's lock). Now a stamp more than ``max_gap_s`` ahead of the filter is refused, counted,
@@ -50,7 +50,7 @@ def test_a_thrust_command_stamped_absurdly_ahead_is_refused_at_once(ahead_ns: in
 
 def test_a_status_stamped_absurdly_ahead_is_refused_too() -> None:
     core = started()
-    core.on_vehicle_status(status(10**4000, "disarmed"))
+    core.on_vehicle_status(status(2**62, "disarmed"))
     assert core.counters["too_new"] == 1 and core.thrust_withheld is None
     assert core.filter is not None and core.filter.t_ns == 0
 
@@ -65,7 +65,7 @@ def test_the_loop_drops_inputs_stamped_ahead_of_its_clock_before_the_core(caplog
     logged once."""
     caplog.set_level(logging.INFO, "seaway.estimator")
     loop = _loop()
-    for k, msg in enumerate([cmd(WALL + 10 * S), cmd(WALL + 10**4000), cmd(WALL + 11 * S)]):
+    for k, msg in enumerate([cmd(WALL + 10 * S), cmd(WALL + 2**62), cmd(WALL + 11 * S)]):
         loop.queue("thrust", msg, lockstep=False, now_ns=WALL + k * MS)
     loop.queue("gnss", fix(WALL - 60 * S, 0.0, 0.0), lockstep=False, now_ns=WALL)  # older than 30 s
     loop.queue("thrust", cmd(WALL - 5 * MS), lockstep=False, now_ns=WALL)  # fine
@@ -88,7 +88,7 @@ def test_lockstep_leftovers_too_far_ahead_are_dropped_at_the_period() -> None:
     loop.queue("gnss", fix(0, 0.0, 0.0))
     loop.queue("attitude", att(0, 0.0))
     loop.queue("attitude", att(50 * MS, 0.0))  # the next period's: waits
-    loop.queue("gnss", fix(10**4000, 0.0, 0.0))
+    loop.queue("gnss", fix(2**62, 0.0, 0.0))
     tick = PeriodDone(stamp_ns=0, service="sim", episode=0, seq=1, period_ns=100 * MS)
     loop.answer(PeriodAt(Period(0, 0), 100 * MS, {"sim": tick},
                          lambda suffix, stamp: member.admit(suffix, stamp, 0, 100 * MS)))

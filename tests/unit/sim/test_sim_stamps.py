@@ -33,7 +33,7 @@ def test_commands_stamped_beyond_the_next_periods_are_dropped() -> None:
     key = keys.THRUST.key("vessel1")
     ls._on_thrust(key, cmd(0))
     ls._on_thrust(key, cmd(10 * 10**9))  # +10 s
-    ls._on_thrust(key, cmd(10**4000))
+    ls._on_thrust(key, cmd(2**62))
     assert set(ls._commands) == {0}
     assert ls.member.stamps.dropped == {(keys.THRUST.suffix, "ahead"): 2}
 

@@ -57,6 +57,7 @@ from seaway.contract.messages.authority import (
 from seaway.contract.messages.base import (
     JSON_ENCODING,
     MAX_REASON_CHARS,
+    MAX_STAMP_NS,
     Message,
     MessageError,
     message_encoding,
@@ -153,6 +154,7 @@ __all__ = [
     "MAX_REASON_CHARS",
     "MAX_REFUSAL_ENTRIES",
     "MAX_SPEED_HINT_MPS",
+    "MAX_STAMP_NS",
     "MAX_TASK_POWER_W",
     "MODULES",
     "MOTION_FAULT_TEXT",

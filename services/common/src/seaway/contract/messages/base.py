@@ -42,13 +42,19 @@ def _first_non_finite(value: Any, path: str) -> str | None:
     return None
 
 
+MAX_STAMP_NS = 2**63 - 1
+"""The largest stamp a message may carry [ns]: int64's, the year 2262. A stamp past it (a JSON
+integer of any length parses) reaches no clock, and only overflows whoever divides it."""
+
+
 class Message(BaseModel):
     """Base of every bus message: immutable, finite, tolerant of unknown fields when decoded."""
 
     model_config = ConfigDict(extra="ignore", allow_inf_nan=False, frozen=True, ser_json_inf_nan="constants")
 
     SCHEMA: ClassVar[str]
-    stamp_ns: int = Field(ge=0, description="time the data is valid at [ns since epoch]")
+    stamp_ns: int = Field(ge=0, le=MAX_STAMP_NS, description="time the data is valid at [ns since "
+                          "epoch], an int64 (what MCAP's log times and every consumer hold)")
 
     @classmethod
     def make(cls, **fields: Any) -> Self:
