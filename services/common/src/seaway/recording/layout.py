@@ -1,7 +1,7 @@
 """MCAP's record layouts (mcap.dev/spec): the one place Seaway spells them.
 
 The recorder's writer (``seaway_recorder.mcapfile``) packs the records written per message and per
-chunk with these; the reader (``seaway.recording.reader``) unpacks a chunk's messages and the
+chunk with these; the reader (``seaway.recording.chunks``) unpacks a chunk's messages and the
 summary's chunk indexes with them, faster than the mcap library's record classes. Sizes in bytes,
 times in ns on the recording's timeline; every field little-endian, as the specification has it.
 """

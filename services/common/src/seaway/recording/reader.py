@@ -2,16 +2,16 @@
 
 A recording is one MCAP file or a rotated series (``recording-000.mcap``, ``-001``, ...): ``open_paths``
 takes files or folders and returns the files in order. Attachments and metadata repeat in every file
-of a series; the first copy wins.
+of a series; the first copy wins. A file that is damaged (a chunk whose bytes do not match its CRC
+or do not decompress, several recordings joined) is refused with ``UnreadableRecordingError``
+naming it and what is wrong. ``read_summary`` and ``chunked_messages`` are ``seaway.recording.chunks``'s.
 """
 
 from __future__ import annotations
 
 import heapq
 import io
-import struct
 import tempfile
-import threading
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -19,33 +19,21 @@ from typing import Any
 
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
-from mcap.opcode import Opcode
 from mcap.reader import make_reader
-from mcap.records import (
-    Attachment,
-    AttachmentIndex,
-    Channel,
-    ChunkIndex,
-    Metadata,
-    MetadataIndex,
-    Schema,
-    Statistics,
-)
+from mcap.records import Attachment, Channel, Metadata, Schema
+from mcap.records import Message as McapMessage
 from mcap.summary import Summary
 
 from seaway.contract import keys
 from seaway.contract.keys import KeySpec
 from seaway.contract.messages import Message, MessageError
-from seaway.recording.layout import (
-    CHUNK_HEAD,
-    CHUNK_INDEX_HEAD,
-    FOOTER,
-    MAGIC,
-    MESSAGE_HEAD,
-    RECORD_HEAD,
-    U32,
-    U64,
+from seaway.recording.chunks import (
+    JoinedRecordingsError,
+    chunked_messages,
+    first_damaged_chunk,
+    read_summary,
 )
+from seaway.recording.layout import MAGIC, RECORD_HEAD
 from seaway.recording.recover import RECOVER_METADATA, recover, repaired_copy
 from seaway.runtime import memory
 
@@ -91,7 +79,7 @@ def finished(path: Path) -> bool:
         return fh.read() == MCAP_MAGIC
 
 
-RECOVER_HINT = "`seaway record recover IN OUT` rebuilds what is readable of a cut file"
+RECOVER_HINT = "`seaway record recover IN OUT` rebuilds what is readable of a cut or damaged file"
 
 
 class UnreadableRecordingError(ValueError):
@@ -129,14 +117,14 @@ def readable(path: Path) -> Path:
 
 
 def open_paths(paths: Iterable[str | Path]) -> list[Path]:
-    """Files named, and every ``*.mcap`` in folders named, in name order; raises if none. A file
-    that a crash left truncated, or that is still being written, is read through a repaired copy
-    (``readable``); ``repaired`` says which were."""
+    """Files named, and every ``*.mcap`` file in folders named, in name order; raises if none. A
+    file that a crash left truncated, or that is still being written, is read through a repaired
+    copy (``readable``); ``repaired`` says which were."""
     out: list[Path] = []
     for p in map(Path, paths):
-        if p.is_dir():
+        if p.is_dir():  # a sub-folder named *.mcap is not a recording
             out += [readable(q) for q in sorted(p.glob("*.mcap"))
-                    if not q.name.endswith(".recovered.mcap")]
+                    if q.is_file() and not q.name.endswith(".recovered.mcap")]
         elif p.is_file():
             out.append(readable(p))
         else:
@@ -152,88 +140,11 @@ def repaired(info: RecordingInfo) -> list[str]:
     for name, meta in info.recovered.items():
         kept = f"{int(meta.get('messages', 0)):,} messages kept"
         why = ("the input was complete" if meta.get("complete") == "true"
-               else f"it ends early: {meta.get('reason') or 'no data-end record'}")
+               else f"not all of it was kept: {meta.get('reason') or 'no data-end record'}")
         lines.append(f"{meta.get('source', '?')} was not finished (its recorder was killed or is "
                      f"still writing): read through the repaired copy {name} ({kept}; {why}); "
                      f"{RECOVER_HINT}")
     return lines
-
-
-_SUMMARY_RECORDS: dict[int, Any] = {Opcode.SCHEMA: Schema, Opcode.CHANNEL: Channel,
-                                     Opcode.STATISTICS: Statistics,
-                                     Opcode.ATTACHMENT_INDEX: AttachmentIndex,
-                                     Opcode.METADATA_INDEX: MetadataIndex}
-"""The summary's other records, read by the mcap library's own record classes."""
-
-
-def read_summary(fh: Any) -> Summary | None:
-    """The summary section of the MCAP file ``fh`` (open for binary reading), as the mcap reader's
-    ``get_summary`` gives it; None when the file has none. McapError when it is damaged.
-
-    Why not the reader's: a lockstep recording has a chunk a period, so its summary is mostly
-    chunk indexes (18,345 for a study stack's 8 runs), and the reader parsed each field by field in
-    Python: 0.29 s a file, read twice for a report. Here a chunk index is one ``struct`` call or two;
-    the other records (schemas, channels, statistics, attachment and metadata indexes) are still
-    read by the library's classes. The layout is MCAP's (mcap.dev/spec: Footer, Chunk Index)."""
-    fh.seek(0, 2)
-    size = fh.tell()
-    tail = FOOTER.size + len(MCAP_MAGIC)
-    if size < tail + len(MCAP_MAGIC):
-        raise McapError("too short to have a footer")
-    fh.seek(size - tail)
-    op, _, summary_start, _, _ = FOOTER.unpack(fh.read(FOOTER.size))
-    if op != Opcode.FOOTER:
-        raise McapError(f"expected a footer at byte {size - tail}, found opcode {op:#x}")
-    if summary_start == 0:
-        return None
-    fh.seek(summary_start)
-    data = fh.read(size - tail - summary_start)
-    summary = Summary()
-    pos = 0
-    try:
-        while pos < len(data):
-            op, length = RECORD_HEAD.unpack_from(data, pos)
-            body, pos = pos + RECORD_HEAD.size, pos + RECORD_HEAD.size + length
-            if op == Opcode.CHUNK_INDEX:
-                summary.chunk_indexes.append(_chunk_index(data, body, pos))
-            elif (kind := _SUMMARY_RECORDS.get(op)) is not None:
-                record = kind.read(ReadDataStream(io.BytesIO(data[body:pos])))
-                if kind is Statistics:
-                    summary.statistics = record
-                elif kind is Schema:
-                    summary.schemas[record.id] = record
-                elif kind is Channel:
-                    summary.channels[record.id] = record
-                elif kind is AttachmentIndex:
-                    summary.attachment_indexes.append(record)
-                else:
-                    summary.metadata_indexes.append(record)
-    except (struct.error, UnicodeDecodeError) as err:
-        raise McapError(f"the summary's record at byte {summary_start + pos} is damaged "
-                        f"({type(err).__name__}: {err})") from None
-    return summary
-
-
-def _chunk_index(data: bytes, pos: int, end: int) -> ChunkIndex:
-    """The chunk index whose fields are ``data[pos:end]``; McapError if they do not fill it."""
-    start_ns, end_ns, offset, length, map_len = CHUNK_INDEX_HEAD.unpack_from(data, pos)
-    if map_len % 10:
-        raise McapError(f"a chunk index's map of {map_len} bytes is not whole entries of 10")
-    pos += CHUNK_INDEX_HEAD.size
-    pairs = struct.unpack_from("<" + "HQ" * (map_len // 10), data, pos)
-    pos += map_len
-    (index_len,) = U64.unpack_from(data, pos)
-    (n,) = U32.unpack_from(data, pos + 8)
-    compression = data[pos + 12:pos + 12 + n].decode()
-    compressed, uncompressed = struct.unpack_from("<QQ", data, pos + 12 + n)
-    if pos + 12 + n + 16 != end:
-        raise McapError(f"a chunk index's fields end at {pos + 12 + n + 16 - end:+d} bytes from "
-                        f"its record's end")
-    return ChunkIndex(chunk_length=length, chunk_start_offset=offset, compression=compression,
-                      compressed_size=compressed, message_end_time=end_ns,
-                      message_index_length=index_len,
-                      message_index_offsets=dict(zip(pairs[0::2], pairs[1::2], strict=True)),
-                      message_start_time=start_ns, uncompressed_size=uncompressed)
 
 
 def _indexed_record(fh: Any, offset: int, length: int, kind: Any) -> Any:
@@ -242,16 +153,29 @@ def _indexed_record(fh: Any, offset: int, length: int, kind: Any) -> Any:
     return kind.read(ReadDataStream(io.BytesIO(fh.read(length)[RECORD_HEAD.size:])))
 
 
+JOINED_HINT = ("`seaway record recover IN OUT` copies the recordings it holds into one file, one "
+               "after another")
+
+
+def summary_of(path: Path, fh: Any) -> Summary | None:
+    """``read_summary`` of the file ``path`` open as ``fh``; UnreadableRecordingError naming the
+    file, what is wrong and how to repair it where it cannot be read."""
+    try:
+        return read_summary(fh)
+    except JoinedRecordingsError as err:
+        raise UnreadableRecordingError(f"{path}: {err}; its summary describes one of them at most, "
+                                       f"so it is not read; {JOINED_HINT}") from None
+    except McapError as err:
+        raise UnreadableRecordingError(f"{path}: cannot read its summary ({type(err).__name__}: "
+                                       f"{err}); {RECOVER_HINT}") from None
+
+
 def read_info(files: list[Path]) -> RecordingInfo:
     info = RecordingInfo(files=list(files))
     starts, ends = [], []
     for f in files:
         with open(f, "rb") as fh:
-            try:
-                summary = read_summary(fh)
-            except McapError as err:
-                raise UnreadableRecordingError(f"{f}: cannot read its summary ({type(err).__name__}: "
-                                          f"{err}); {RECOVER_HINT}") from None
+            summary = summary_of(f, fh)
             if summary is None or summary.statistics is None:
                 raise UnreadableRecordingError(f"{f}: no summary (not finished?); {RECOVER_HINT}")
             info.summaries[f] = summary
@@ -276,17 +200,45 @@ def read_info(files: list[Path]) -> RecordingInfo:
     return info
 
 
-def _iter_file(path: Path, topics: list[str] | None) -> Iterator[RecordedMessage]:
+def iter_file_records(path: Path, topics: Iterable[str] | None = None, log_time_order: bool = True
+                      ) -> Iterator[tuple[Schema | None, Channel, McapMessage]]:
+    """The mcap reader's ``iter_messages`` of the file ``path``, each chunk checked against its CRC.
+    UnreadableRecordingError, naming the file, the damaged chunk (the byte it starts at) when it is
+    one, and the way to repair it, where the file cannot be read: whatever the library or its
+    decompressors raise is said so, not passed on as their own error."""
     with open(path, "rb") as fh:
-        reader = make_reader(fh)
-        for schema, channel, msg in reader.iter_messages(topics=topics, log_time_order=True):
-            yield RecordedMessage(channel.topic, msg.log_time, msg.publish_time, msg.sequence,
-                                  bytes(msg.data), schema.name if schema else "",
-                                  channel.message_encoding, dict(channel.metadata))
+        try:
+            yield from make_reader(fh, validate_crcs=True).iter_messages(
+                topics=None if topics is None else list(topics), log_time_order=log_time_order)
+        except Exception as err:  # McapError, zstd, lz4, struct, CRC (a ValueError): damage
+            raise _unreadable(path, fh, err) from None
+
+
+def _unreadable(path: Path | str, fh: Any, err: Exception) -> UnreadableRecordingError:
+    """What is wrong with the file ``path`` (open as ``fh``) whose reading raised ``err``: the first
+    damaged chunk's error where the summary indexes one, else ``err``."""
+    found: Exception | None = None
+    try:
+        summary = read_summary(fh)
+        if summary is not None:
+            found = first_damaged_chunk(fh, summary.chunk_indexes)
+    except McapError as summary_err:
+        found = summary_err
+    why = found or f"a record cannot be read ({type(err).__name__}{f': {err}' if str(err) else ''})"
+    return UnreadableRecordingError(f"{path}: {why}; {RECOVER_HINT}")
+
+
+def _iter_file(path: Path, topics: list[str] | None) -> Iterator[RecordedMessage]:
+    for schema, channel, msg in iter_file_records(path, topics):
+        yield RecordedMessage(channel.topic, msg.log_time, msg.publish_time, msg.sequence,
+                              bytes(msg.data), schema.name if schema else "",
+                              channel.message_encoding, dict(channel.metadata))
 
 
 def iter_messages(files: list[Path], topics: list[str] | None = None) -> Iterator[RecordedMessage]:
-    """Every message of the files in log-time order (merged across a rotated series)."""
+    """Every message of the files in log-time order (merged across a rotated series).
+    UnreadableRecordingError where a file is damaged (``iter_file_records``), once the messages
+    before it have been yielded."""
     streams = [_iter_file(f, topics) for f in files]
     yield from heapq.merge(*streams, key=lambda m: m.log_time_ns)
 
@@ -300,6 +252,9 @@ class Decoded:
     log_ns: dict[str, list[int]] = field(default_factory=dict)
     vessels: set[str] = field(default_factory=set)
     undecodable: int = 0
+    undecodable_by_topic: dict[str, int] = field(default_factory=dict)
+    """Of ``undecodable``, how many on each topic: what a reader of the messages should be told
+    it does not have."""
     duplicates: int = 0
     """Messages recorded twice (the same bytes on the same topic): a lockstep period repeated for a
     restarted recorder can sit in the file it left and in the one it started. Read once."""
@@ -310,6 +265,7 @@ class Decoded:
     def between(self, start_ns: int, end_ns: int | None) -> Decoded:
         """The messages logged in [start_ns, end_ns) (to the end if None)."""
         out = Decoded(vessels=set(self.vessels), undecodable=self.undecodable,
+                      undecodable_by_topic=dict(self.undecodable_by_topic),
                       duplicates=self.duplicates)
         for suffix, msgs in self.by_suffix.items():
             logs = self.log_ns[suffix]
@@ -338,98 +294,25 @@ def _wanted_topics(summary: Summary | None, wanted: set[str] | None, vessels: se
     return out
 
 
-_local = threading.local()
-
-
-def _zstd() -> Any:
-    """This thread's zstd decompressor (one per chunk cost more than the decompression; an
-    instance is not to be shared between threads, and a study reports two stacks at once)."""
-    d = getattr(_local, "zstd", None)
-    if d is None:
-        import zstandard
-
-        d = _local.zstd = zstandard.ZstdDecompressor()
-    return d
-
-
-def _decompress(compression: str, data: bytes, size: int) -> bytes:
-    if compression == "":
-        return data
-    if compression == "zstd":
-        return _zstd().decompress(data, max_output_size=size)
-    if compression == "lz4":
-        import lz4.frame
-
-        return lz4.frame.decompress(data)
-    raise McapError(f"unsupported chunk compression {compression!r}")
-
-
-def chunked_messages(fh: Any, chunk_indexes: Iterable[ChunkIndex], channel_ids: set[int]
-                     ) -> Iterator[tuple[int, int, bytes]]:
-    """(channel id, log time, data) of every message on ``channel_ids`` in the chunks the summary
-    indexes, in file order: what the mcap reader's ``iter_messages(topics, log_time_order=False)``
-    yields (it too reads only the indexed chunks), without making a record object of every message.
-
-    Why: a lockstep recorder ends a chunk every period, some 20 messages of every topic each, and
-    the mcap reader parses all of them field by field in Python to hand on the few wanted, most of
-    a report's decode. Here a chunk
-    whose index names none of ``channel_ids`` is not read, and a message on another channel is
-    skipped by its length. The layout is MCAP's (mcap.dev/spec: Chunk, Message records). A chunk
-    written without message indexes says nothing of its channels: it is read, as the reader does."""
-    for ci in sorted(chunk_indexes, key=lambda c: c.chunk_start_offset):
-        if ci.message_index_offsets and channel_ids.isdisjoint(ci.message_index_offsets):
-            continue
-        try:
-            found = _chunk_records(fh, ci, channel_ids)
-        except Exception as err:  # struct, decompression, text: a damaged chunk, said where
-            raise McapError(f"the chunk at byte {ci.chunk_start_offset} is damaged "
-                            f"({type(err).__name__}: {err})") from None
-        yield from found
-
-
-def _chunk_records(fh: Any, ci: ChunkIndex, channel_ids: set[int]) -> list[tuple[int, int, bytes]]:
-    """One chunk's messages on ``channel_ids`` (``chunked_messages``)."""
-    fh.seek(ci.chunk_start_offset)
-    rec = fh.read(ci.chunk_length)
-    op, _ = RECORD_HEAD.unpack_from(rec, 0)
-    if op != Opcode.CHUNK:
-        raise McapError(f"opcode {op:#x}, not a chunk's")
-    _, _, size, _ = CHUNK_HEAD.unpack_from(rec, RECORD_HEAD.size)
-    pos = RECORD_HEAD.size + CHUNK_HEAD.size
-    (n,) = U32.unpack_from(rec, pos)
-    compression = rec[pos + 4:pos + 4 + n].decode()
-    pos += 4 + n
-    (records_len,) = U64.unpack_from(rec, pos)
-    data = _decompress(compression, rec[pos + 8:pos + 8 + records_len], size)
-    out = []
-    pos, end = 0, len(data)
-    while pos < end:
-        op, length = RECORD_HEAD.unpack_from(data, pos)
-        body = pos + RECORD_HEAD.size
-        pos = body + length
-        if op == Opcode.MESSAGE:
-            cid, _, log_ns, _ = MESSAGE_HEAD.unpack_from(data, body)
-            if cid in channel_ids:
-                out.append((cid, log_ns, data[body + MESSAGE_HEAD.size:pos]))
-    return out
-
-
 def _file_messages(fh: Any, summary: Summary | None, topics: set[str] | None
                    ) -> Iterator[tuple[str, int, bytes]]:
     """(topic, log time, data) of the file's messages on ``topics`` (None: all), in file order.
     UnreadableRecordingError, naming the file and the way to repair it, where it is damaged."""
-    try:
-        if summary is not None and summary.chunk_indexes and topics is not None:
-            ids = {cid: ch.topic for cid, ch in summary.channels.items() if ch.topic in topics}
+    name = getattr(fh, "name", "the recording")
+    if summary is not None and summary.chunk_indexes and topics is not None:
+        ids = {cid: ch.topic for cid, ch in summary.channels.items() if ch.topic in topics}
+        try:
             for cid, log_ns, data in chunked_messages(fh, summary.chunk_indexes, set(ids)):
                 yield ids[cid], log_ns, data
-            return
-        reader = make_reader(fh)
+        except McapError as err:  # it names the chunk
+            raise UnreadableRecordingError(f"{name}: {err}; {RECOVER_HINT}") from None
+        return
+    try:
+        reader = make_reader(fh, validate_crcs=True)
         for _schema, channel, msg in reader.iter_messages(topics=topics, log_time_order=False):
             yield channel.topic, msg.log_time, bytes(msg.data)
-    except McapError as err:
-        raise UnreadableRecordingError(f"{getattr(fh, 'name', 'the recording')}: {err}; "
-                                       f"{RECOVER_HINT}") from None
+    except Exception as err:  # McapError, zstd, lz4, struct, CRC (a ValueError): damage
+        raise _unreadable(name, fh, err) from None
 
 
 def decode_vessel(files: list[Path], vessel: str | None = None,
@@ -456,11 +339,7 @@ def decode_vessel(files: list[Path], vessel: str | None = None,
     with memory.collection_paused():
         for path in files:
             with open(path, "rb") as fh:
-                try:
-                    summary = (summaries or {}).get(path) or read_summary(fh)
-                except McapError as err:
-                    raise UnreadableRecordingError(f"{path}: cannot read its summary ({err}); "
-                                                   f"{RECOVER_HINT}") from None
+                summary = (summaries or {}).get(path) or summary_of(path, fh)
                 topics = _wanted_topics(summary, wanted, out.vessels)
                 if topics is not None and not topics:
                     continue
@@ -508,6 +387,7 @@ def _decode_raw(raw: dict[str, list[tuple[int, str, bytes]]], specs: dict[str, K
                 msgs.append(message.decode(data))
             except MessageError:
                 out.undecodable += 1
+                out.undecodable_by_topic[topic] = out.undecodable_by_topic.get(topic, 0) + 1
                 continue
             logs.append(log_ns)
         if msgs:
