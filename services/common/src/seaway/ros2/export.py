@@ -110,13 +110,13 @@ class _Raw:
 
 
 def _iter_raw(files: Sequence[Path]) -> Iterator[_Raw]:
-    from mcap.reader import make_reader
+    """Every message of the files in log-time order; UnreadableRecordingError where one is
+    damaged (``reader.iter_file_records``)."""
 
     def one(path: Path) -> Iterator[_Raw]:
-        with open(path, "rb") as fh:
-            for schema, channel, msg in make_reader(fh).iter_messages(log_time_order=True):
-                yield _Raw(msg.log_time, msg.publish_time, msg.sequence, channel, schema,
-                           bytes(msg.data))
+        for schema, channel, msg in reader.iter_file_records(path):
+            yield _Raw(msg.log_time, msg.publish_time, msg.sequence, channel, schema,
+                       bytes(msg.data))
 
     yield from heapq.merge(*(one(f) for f in files), key=lambda r: r.log_time)
 
@@ -138,14 +138,28 @@ def vessel_of(info: reader.RecordingInfo, vessel_file: str | None) -> VesselPara
 def export(recording: Sequence[Path], out: Path, vessel: VesselParams | None = None,
            vessel_file: str | None = None, only_ros2: bool = False) -> ExportStats:
     """Write ``out`` (the ROS 2 bag) and, unless ``only_ros2``, ``companion_path(out)`` (the rest,
-    unchanged) from the recording's files (module docstring)."""
-    from mcap.writer import Writer
-
+    unchanged) from the recording's files (module docstring). Where the recording cannot be read
+    to its end (``reader.UnreadableRecordingError``, a damaged chunk), neither file is left: half a
+    bag would pass for the whole recording."""
     files = reader.open_paths(recording)
     info = reader.read_info(files)
     params = vessel or vessel_of(info, vessel_file)
-    stats = ExportStats(converted={}, dropped={})
     companion = None if only_ros2 else companion_path(out)
+    try:
+        return _write(files, info, params, out, companion)
+    except BaseException:
+        for written in (out, companion):
+            if written is not None:
+                written.unlink(missing_ok=True)
+        raise
+
+
+def _write(files: list[Path], info: reader.RecordingInfo, params: VesselParams, out: Path,
+           companion: Path | None) -> ExportStats:
+    """``export``'s files written."""
+    from mcap.writer import Writer
+
+    stats = ExportStats(converted={}, dropped={})
     with open(out, "wb") as fh, (open(companion, "wb") if companion else _Nothing()) as cfh:
         w = Writer(fh)
         w.start(profile=PROFILE, library="seaway export ros2")
@@ -175,16 +189,21 @@ def export(recording: Sequence[Path], out: Path, vessel: VesselParams | None = N
             _convert(raw, params, ros_channel, w, stats)
             if rest is None:
                 continue
-            if ch.id not in channels:
+            # A channel by what it is, not by its id: each file of a rotated series numbers its
+            # channels itself, and one topic's are one channel here.
+            schema_key = (None if raw.schema is None else
+                          (raw.schema.name, raw.schema.encoding, bytes(raw.schema.data)))
+            channel_key = (ch.topic, ch.message_encoding, schema_key,
+                           tuple(sorted(ch.metadata.items())))
+            if channel_key not in channels:
                 sid = 0
-                if raw.schema is not None:
-                    key = (raw.schema.name, raw.schema.encoding, raw.schema.data)
-                    if key not in schemas:
-                        schemas[key] = rest.register_schema(*key)
-                    sid = schemas[key]
-                channels[ch.id] = rest.register_channel(ch.topic, ch.message_encoding, sid,
-                                                        dict(ch.metadata))
-            rest.add_message(channels[ch.id], raw.log_time, raw.data, raw.publish_time,
+                if schema_key is not None:
+                    if schema_key not in schemas:
+                        schemas[schema_key] = rest.register_schema(*schema_key)
+                    sid = schemas[schema_key]
+                channels[channel_key] = rest.register_channel(ch.topic, ch.message_encoding, sid,
+                                                              dict(ch.metadata))
+            rest.add_message(channels[channel_key], raw.log_time, raw.data, raw.publish_time,
                              raw.sequence)
             stats.copied += 1
         w.add_metadata(BAG_METADATA_RECORD, {
@@ -251,8 +270,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         stats = export(args.recording, args.out, vessel_file=args.vessel_file,
                        only_ros2=args.only_ros2)
-    except (ConfigError, FileNotFoundError, reader.UnreadableRecordingError) as err:
+    except (ConfigError, FileNotFoundError) as err:
         print(f"seaway export ros2: {err}", file=sys.stderr)
+        return 2
+    except reader.UnreadableRecordingError as err:
+        gone = " and ".join(str(o) for o in written if not o.exists())
+        print(f"seaway export ros2: {err}" + (f"; {gone} not written (a part would pass for the "
+                                              "whole recording)" if gone else ""), file=sys.stderr)
         return 2
     assert stats.converted is not None and stats.dropped is not None
     print(f"wrote {args.out}: {sum(stats.converted.values())} ROS 2 messages (CDR) on "
