@@ -63,3 +63,13 @@ def test_a_file_that_cannot_be_rebuilt_is_a_clear_error(tmp_path: Path, capsys) 
     err = capsys.readouterr().err
     assert "junk.mcap: not finished, and nothing can be rebuilt from it" in err
     assert "Traceback" not in err
+
+
+def test_the_report_of_a_cut_file_goes_beside_it_not_into_the_repair_cache(
+        cut: Path, tmp_path: Path, monkeypatch) -> None:
+    monkeypatch.setenv(recover.ENV_REPAIR_DIR, str(tmp_path / "repairs"))
+    assert report.main([str(cut), "--no-plots"]) == 0
+    assert (cut.parent / "report" / "metrics.json").is_file()
+    assert not list((tmp_path / "repairs").glob("**/report"))
+    assert report.main([str(cut.parent), "--no-plots"]) == 0  # a run folder: its report/ too
+    assert sorted(p.name for p in cut.parent.iterdir()) == ["recording.mcap", "report"]

@@ -88,6 +88,8 @@ class ReplayStats:
     recorded_span_s: float = 0.0
     periods: int = 0
     """Lockstep: recorded periods every live member answered."""
+    error: str | None = None
+    """Why the replay stopped before the recording's end (a damaged chunk), or None."""
 
 
 def replay(messages: Iterator[reader.RecordedMessage], bus: Bus, keep: KeyFilter,
@@ -96,7 +98,9 @@ def replay(messages: Iterator[reader.RecordedMessage], bus: Bus, keep: KeyFilter
     """Publish ``messages`` (in log-time order) on ``bus``, paced by their log times (``rate``; None:
     no waiting) or, with ``pacer``, by the live lockstep members' answers to each recorded sim answer
     of ``bus.vessel`` (which the pacer sends, naming the live members); returns what was done. Bytes
-    and encodings go out as recorded: nothing else is decoded here."""
+    and encodings go out as recorded: nothing else is decoded here. A recording that cannot be read
+    to its end (``reader.UnreadableRecordingError``) ends the replay there, said in ``error``: what
+    was read before it has been published."""
     stats = ReplayStats()
     pubs: dict[str, RawPublisher] = {}
     start_wall: float | None = None
@@ -140,7 +144,7 @@ def replay(messages: Iterator[reader.RecordedMessage], bus: Bus, keep: KeyFilter
             stats.published += 1
             stats.by_topic[m.topic] = stats.by_topic.get(m.topic, 0) + 1
 
-    for m in messages:
+    for m in _readable(messages, stats):
         if stop.is_set():
             break
         if not keep(m.topic):
@@ -205,6 +209,15 @@ def replay(messages: Iterator[reader.RecordedMessage], bus: Bus, keep: KeyFilter
     for p in pubs.values():
         p.undeclare()
     return stats
+
+
+def _readable(messages: Iterator[reader.RecordedMessage], stats: ReplayStats
+              ) -> Iterator[reader.RecordedMessage]:
+    """``messages`` until one cannot be read: its error goes into ``stats.error``."""
+    try:
+        yield from messages
+    except reader.UnreadableRecordingError as err:
+        stats.error = str(err)
 
 
 def lockstep_vessel(info: reader.RecordingInfo, keep: KeyFilter) -> str:
@@ -286,7 +299,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(json.dumps({"published": stats.published, "skipped": stats.skipped, **lockstep,
                       "elapsed_s": round(stats.elapsed_s, 3),
                       "recorded_span_s": round(stats.recorded_span_s, 3),
-                      "max_late_s": round(stats.max_late_s, 4), "by_topic": stats.by_topic}), flush=True)
+                      "max_late_s": round(stats.max_late_s, 4), "by_topic": stats.by_topic,
+                      **({"error": stats.error} if stats.error else {})}), flush=True)
+    if stats.error:
+        print(f"seaway replay: stopped after {stats.published} messages "
+              f"({stats.recorded_span_s:.3f} s of the recording) were published: {stats.error}",
+              file=sys.stderr)
+        return 1
     return 0
 
 

@@ -162,7 +162,10 @@ def analyse(files: list[Path], *, scenario: str | None = None, mission_file: str
                       key=lambda m: m.stamp_ns)
     nav = sorted((m for m in dec.get(STATE) if isinstance(m, StateEstimate)), key=lambda m: m.stamp_ns)
     if state == TRUTH and not truth:
-        raise ValueError(f"no {TRUTH} in the recording")
+        bad = sum(n for t, n in dec.undecodable_by_topic.items() if t.endswith(f"/{TRUTH}"))
+        raise ValueError(f"no {TRUTH} in the recording" + (
+            f" that decodes ({bad:,} messages do not)" if bad else ""))
+    notes = undecodable_notes(info, dec, bool(truth))
     if truth and state != STATE:
         states: Sequence[Any] = truth
         thrusts: Sequence[Any] = truth
@@ -250,7 +253,9 @@ def analyse(files: list[Path], *, scenario: str | None = None, mission_file: str
         "controller_reported": live,
         "recording": {"messages": info.message_count, "topics": info.topics,
                       "duration_s": (info.end_ns - info.start_ns) / 1e9,
-                      "undecodable": dec.undecodable, "duplicates": dec.duplicates,
+                      "undecodable": dec.undecodable,
+                      "undecodable_by_topic": dict(dec.undecodable_by_topic),
+                      "duplicates": dec.duplicates, "notes": notes,
                       "recorder_summary": info.metadata.get("seaway.recorder.summary", {}),
                       "recovered": info.metadata.get("seaway.recover", {}),
                       "repaired": reader.repaired(info)},
@@ -259,6 +264,22 @@ def analyse(files: list[Path], *, scenario: str | None = None, mission_file: str
               "start_ns": met.start_ns if met is not None else None, "energy": energy},
     }
     return out
+
+
+def undecodable_notes(info: reader.RecordingInfo, dec: reader.Decoded, truth_decoded: bool
+                      ) -> list[str]:
+    """A line per topic with messages that do not decode as its key's type (they are left out of
+    every figure), and, where the truth was recorded and none of it decodes, that the states come
+    from the estimate instead."""
+    notes = [f"{topic}: {n:,} of {info.topics.get(topic, n):,} messages do not decode as its "
+             "type and are left out" for topic, n in sorted(dec.undecodable_by_topic.items())]
+    recorded = sum(n for topic, n in info.topics.items()
+                   if (spec := keys.spec_for_key(topic)) is not None and spec.suffix == TRUTH
+                   and topic in dec.undecodable_by_topic)
+    if recorded and not truth_decoded:
+        notes.append(f"{TRUTH} was recorded ({recorded:,} messages) but none decodes: positions and "
+                     f"energy come from {STATE} and {COMMANDS}")
+    return notes
 
 
 ENERGY_USED_DEFINITION = ("alpha (T1^2 + T2^2) + T^w integrated from the mission's start to its "
@@ -345,6 +366,13 @@ def _clean(v: Any) -> Any:
     return v
 
 
+def default_out(given: Sequence[str | Path]) -> Path:
+    """``report/`` beside the first recording named (in the folder named): where the user put it,
+    never where a repaired copy of it is read from (``reader.readable``)."""
+    first = Path(given[0])
+    return (first if first.is_dir() else first.parent) / "report"
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = parser().parse_args(list(sys.argv[1:] if argv is None else argv))
     try:
@@ -355,12 +383,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (ConfigError, ValueError, FileNotFoundError) as err:
         print(f"seaway report: {err}", file=sys.stderr)
         return 2
-    out = args.out or files[0].parent / "report"
+    out = args.out or default_out(args.files)
     out.mkdir(parents=True, exist_ok=True)
     doc = _clean({k: v for k, v in res.items() if k != "_"})
     (out / "metrics.json").write_text(json.dumps(doc, indent=2) + "\n")
     written = [] if args.no_plots else plots(res, out)
     if args.json:
+        for note in res["recording"]["notes"]:  # the table carries them otherwise
+            print(f"seaway report: NOTE: {note}", file=sys.stderr)
         print(json.dumps(doc))
     else:
         print(table(res))

@@ -89,6 +89,7 @@ def table(res: dict[str, Any]) -> str:
     if flown and m is not None:
         head += f"mission {flown[-1]['mission_id']!r}: {flown[-1]['fit']}\n"
     head += "".join(f"NOTE: {line}\n" for line in res["recording"]["repaired"])
+    head += "".join(f"NOTE: {line}\n" for line in res["recording"].get("notes", []))
     ep = res["episodes"]
     if ep["time_went_back"]:
         head += (f"simulated time went back {ep['time_went_back']} time(s) (a sim restart or a new "
