@@ -128,6 +128,60 @@ def test_rearming_a_restarted_process_forgets_its_old_duties() -> None:
     assert "est" in w.overdue(6.0 + W + 1)
 
 
+@pytest.mark.parametrize("ahead", [(0, 2**63 - 1), (10**6, 0), (0, 500 * 100_000_000)])
+def test_an_answer_for_a_period_the_sim_never_reaches_makes_nobody_overdue(ahead, caplog) -> None:
+    """A controller answer for a period far ahead (a stamp near the int64 end, an episode far on)
+    obliges nobody: the recorder keeps answering every period the sim reaches and stays healthy;
+    the ignored answer is named in a warning."""
+    w = lockstep_watch()
+    t = 0.0
+    for k in range(400):  # 40 s of a healthy chain, 10 periods a wall second
+        t = k * 0.1
+        period(w, t, k)
+        if k == 5:
+            w.heard(CTL, t, ahead)
+    assert w.overdue(t) == {}
+    assert w.unreached[CTL] == 2  # the recorder's duty and the sim's
+    assert "ignoring a lockstep/controller answer for period" in caplog.text
+
+
+def test_an_answer_heard_before_the_sims_answer_for_its_period_still_counts() -> None:
+    """Each key is heard on its own: the controller's answer for t_k can be taken before the sim's
+    answer that opened t_k; the recorder still owes t_k once the sim's answer is heard."""
+    w = lockstep_watch()
+    period(w, 0.0, 0)
+    w.heard(EST, 0.1, (0, 100_000_000))
+    w.heard(CTL, 0.1, (0, 100_000_000))  # the sim's t_1 not heard yet
+    w.heard(SIM, 0.2, (0, 100_000_000))
+    late = w.overdue(0.2 + W + 0.1)
+    assert set(late) == {"rec", "sim"}
+    assert "no lockstep/recorder for period 0.100 s (episode 0)" in late["rec"]
+    w.heard(REC, 40.0, (0, 100_000_000))
+    w.heard(SIM, 40.0, (0, 200_000_000))
+    assert w.overdue(40.1) == {}
+
+
+def test_the_launcher_hears_the_sim_whenever_it_watches_a_lockstep_answer() -> None:
+    assert "lockstep/sim" in Watch.keys_of(duties_for("recorder", "lockstep"))
+    assert Watch.keys_of(duties_for("estimator", "wall")) == {"nav/state"}
+
+
+def test_an_answer_outside_the_contract_is_no_answer_to_the_launcher() -> None:
+    import json
+
+    from seaway.contract import bundle
+    from seaway.tools.launch.supervisor import answer_period
+
+    def raw(**fields) -> bytes:
+        return bundle.encode(json.dumps({"service": "controller", "seq": 1, "period_ns": 10**8,
+                                         **fields}).encode(), [])
+
+    assert answer_period(raw(episode=0, stamp_ns=2**63 - 1)) == ((0, 2**63 - 1), False)
+    for bad in ({"episode": 0, "stamp_ns": 2**63}, {"episode": 0, "stamp_ns": 10**400},
+                {"episode": 0, "stamp_ns": -1}, {"episode": -1, "stamp_ns": 0}):
+        assert answer_period(raw(**bad)) == (None, False), bad
+
+
 def test_the_recent_answers_match_a_plain_window_across_restarts() -> None:
     """``_Recent`` answers as the last ``RECENT_PERIODS`` periods walked one by one would: periods
     that climb, repeat, and fall back (a restart, a new episode) so that the latest one is evicted."""

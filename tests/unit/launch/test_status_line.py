@@ -261,3 +261,39 @@ def test_a_motion_fault_is_shown_beside_the_mission_and_kept_when_the_line_is_sh
     text = line.vessel_text("v1", 7.0)
     assert "paused leg 1/3 | xte  0.05 m | MOTION FAULT not_moving | speed" in text, text
     assert "FAULT not_moving" in line.vessel_text("v1", 7.0, width=40)  # before the speed and xte
+
+
+@pytest.mark.parametrize("lockstep", [True, False])
+def test_valid_but_absurd_values_show_a_question_mark_and_never_raise(lockstep) -> None:
+    """The launcher redraws the line with no handler around it: a schema-valid but absurd value
+    (a finite 1e200 m/s, a stamp at the int64 end, 1e300 J) shows '?' where it would go."""
+    line = StatusLine(["v1"], lockstep=lockstep, commands=True)
+    line.state["v1"] = StateEstimate(stamp_ns=2**63 - 1, u_mps=1e200, v_mps=1e200, r_radps=0.0,
+                                     x_m=0.0, y_m=0.0, psi_rad=0.0)
+    line.thrust["v1"] = ThrustCommand(stamp_ns=1, thrust_port_n=1e300, thrust_starboard_n=-0.6,
+                                      source="identify")
+    text = line.vessel_text("v1", 3.0)
+    assert "speed    ? m/s" in text and "thrust ? / -0.60 N" in text
+    assert ("sim t ? s" in text) == lockstep
+    line.mission["v1"] = MissionStatus(stamp_ns=1, state="active", mission_id="box", active_leg=1,
+                                       waypoint_count=4, cross_track_m=1e300, energy_used_j=1e300)
+    line.energy["v1"] = budget(energy_to_go_j=1e300, battery_remaining_j=1e300)
+    text = line.vessel_text("v1", 4.0)
+    assert "xte ? m" in text and "used ? MJ" in text and "to finish ? MJ" in text
+    assert len(text) < 200
+
+
+def test_a_field_that_cannot_be_made_shows_a_question_mark_the_rest_stays(caplog) -> None:
+    line = StatusLine(["v1"], commands=True)
+    line.state["v1"] = state(3.0)
+    line.mission["v1"] = status()
+    line.energy["v1"] = budget()
+
+    def broken(vessel: str) -> list[Field]:
+        raise OverflowError("int too large to convert to float")
+
+    line.energy_fields = broken  # type: ignore[method-assign]
+    line.mission_fields = broken  # type: ignore[method-assign]
+    assert full(line.fields("v1", 1.0)) == ["v1", "t     1 s", "mission ?", "speed 1.00 m/s",
+                                            "energy ?"]
+    assert "cannot show its energy" in caplog.text

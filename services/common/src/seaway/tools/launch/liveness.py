@@ -23,6 +23,14 @@ A duty is one of:
 
 So simulated time that stands still because the controller has nothing to fly (it answers "hold")
 makes nobody overdue, while a member that does not answer a period its inputs reached is.
+
+A duty only counts for a period the sim has reached: its answers are the only ones that move
+simulated time, and no member can answer a period before it. A trigger for a period the sim has
+not reached yet is *parked* until the sim's answer for it is heard (the launcher hears each key on
+its own, so another member's answer can come first), and dropped, with a warning naming it, if the
+sim does not get there within the duty's time: an answer stamped for a period nobody will reach (a
+stamp far ahead, a later episode) would otherwise open a duty no healthy member can meet.
+
 ``Watch`` is the pure bookkeeping (samples and time in, overdue processes out), unit-tested; the
 supervisor feeds it from the launcher's Zenoh session.
 """
@@ -30,6 +38,7 @@ supervisor feeds it from the launcher's Zenoh session.
 from __future__ import annotations
 
 import collections
+import logging
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 
@@ -39,6 +48,10 @@ from seaway.contract import keys
 from seaway.contract.config import ConfigModel
 from seaway.contract.messages import PeriodDone
 from seaway.runtime.lockstep import STALL_REPEAT_S
+from seaway.runtime.ratelog import RateLimitedLog
+from seaway.runtime.stamps import describe_ns
+
+log = logging.getLogger(__name__)
 
 WALL_WITHIN_S = 5.0
 """A real-time stream silent this long is a hung producer: each of them publishes at 2 Hz or more,
@@ -134,6 +147,14 @@ def duties_for(service: str | None, clock: str, override: Sequence[Duty] | None 
 Period = tuple[int, int]
 """(episode, stamp_ns) of a lockstep answer: orders the periods of a run."""
 
+SIM_ANSWERS = keys.LOCKSTEP_SIM.suffix
+"""The key whose answers say which period simulated time has reached."""
+
+
+def describe_period(period: Period) -> str:
+    """A period for a person; any stamp an answer can carry (a float cannot hold every int)."""
+    return f"{describe_ns(period[1])} (episode {period[0]})"
+
 
 @dataclass
 class _Open:
@@ -146,6 +167,8 @@ class _DutyState:
     duty: Duty
     last_s: float | None = None  # a stream: when the key was last heard
     open: collections.deque[_Open] = field(default_factory=collections.deque)
+    parked: collections.deque[_Open] = field(default_factory=collections.deque)
+    """Triggers for periods the sim had not reached when they were heard (the module docstring)."""
 
 
 class _Recent:
@@ -189,15 +212,20 @@ class Watch:
     def __init__(self) -> None:
         self._armed: dict[str, list[_DutyState]] = {}
         self._recent: dict[str, _Recent] = collections.defaultdict(_Recent)
+        self._sim: Period | None = None  # the period of the sim's latest answer
+        self.unreached: collections.Counter[str] = collections.Counter()
+        """Triggers dropped per key because the sim never reached their period."""
+        self._log = RateLimitedLog(log, every_s=60.0)
 
     @staticmethod
     def keys_of(duties: Iterable[Duty]) -> set[str]:
-        """The key suffixes ``duties`` need to hear."""
+        """The key suffixes ``duties`` need to hear: with a lockstep answer among them, the sim's
+        answers too (they say which periods a duty can count for)."""
         out = set()
         for d in duties:
             out.add(d.key)
             if d.after is not None:
-                out.add(d.after)
+                out.update((d.after, SIM_ANSWERS))
         return out
 
     def arm(self, process: str, duties: Sequence[Duty], now_s: float) -> None:
@@ -217,6 +245,8 @@ class Watch:
         """A sample on ``suffix``; ``period`` and ``hold`` for a lockstep answer."""
         if period is not None:
             self._recent[suffix].add(period)
+            if suffix == SIM_ANSWERS:
+                self._sim = period  # simulated time is there (a restart: back there)
         for states in self._armed.values():
             for st in states:
                 d = st.duty
@@ -226,8 +256,54 @@ class Watch:
                     elif period is not None:
                         self._close(st, period)
                 opens = d.after == suffix and period is not None and not (d.moves_on and hold)
-                if opens and not self._met(d, period) and len(st.open) < MAX_OPEN:  # type: ignore[arg-type]
+                if not opens:
+                    continue
+                if not self._reached(period):  # type: ignore[arg-type]
+                    if len(st.parked) < MAX_OPEN:
+                        st.parked.append(_Open(period, now_s))  # type: ignore[arg-type]
+                elif not self._met(d, period) and len(st.open) < MAX_OPEN:  # type: ignore[arg-type]
                     st.open.append(_Open(period, now_s))  # type: ignore[arg-type]
+        if period is not None and suffix == SIM_ANSWERS:
+            for states in self._armed.values():
+                self._unpark(states, now_s)
+
+    def _reached(self, period: Period) -> bool:
+        """Whether the sim has answered ``period`` (or a later one of its episode, or moved on to a
+        later episode); True before its first answer is heard (nothing to judge by)."""
+        sim = self._sim
+        if sim is None:
+            return True
+        return period[1] <= sim[1] if period[0] == sim[0] else period[0] < sim[0]
+
+    def _unpark(self, states: list[_DutyState], now_s: float) -> None:
+        """After a sim answer: open the parked triggers the sim has reached, and drop those it has
+        not reached within their duty's time (their period is not one the run will get to)."""
+        for st in states:
+            if not st.parked:
+                continue
+            d = st.duty
+            keep: collections.deque[_Open] = collections.deque()
+            for o in st.parked:
+                if self._reached(o.period):
+                    if not self._met(d, o.period) and len(st.open) < MAX_OPEN:
+                        st.open.append(_Open(o.period, now_s))
+                elif now_s - o.since_s > d.within_s:
+                    self._drop_unreached(d, o, now_s)
+                else:
+                    keep.append(o)
+            st.parked = keep
+
+    def _drop_unreached(self, d: Duty, o: _Open, now_s: float) -> None:
+        assert d.after is not None
+        self.unreached[d.after] += 1
+        sim = self._sim
+        self._log.warning(
+            ("unreached", d.after),
+            "liveness: ignoring a %s answer for period %s: the sim has not reached it in %g s "
+            "(it is at %s), so nobody can owe %s for it",
+            d.after, describe_period(o.period), d.within_s,
+            "no period" if sim is None else describe_period(sim), d.key,
+            now_ns=round(now_s * 1e9))
 
     def _met(self, d: Duty, trigger: Period) -> bool:
         """Whether answers already heard on ``d.key`` meet a trigger for ``trigger`` heard now."""
@@ -262,8 +338,8 @@ class Watch:
                         break
                 elif st.open and now_s - st.open[0].since_s > d.within_s:
                     o = st.open[0]
-                    out[process] = (f"no {d.key} for period {o.period[1] / 1e9:.3f} s (episode "
-                                    f"{o.period[0]}) {now_s - o.since_s:.1f} s after {d.after} "
+                    out[process] = (f"no {d.key} for period {describe_period(o.period)} "
+                                    f"{now_s - o.since_s:.1f} s after {d.after} "
                                     f"(it must: {d.describe()})")
                     break
         return out

@@ -11,11 +11,13 @@ output is not a terminal (a pipe, a log file) each vessel's whole line is printe
 from __future__ import annotations
 
 import contextlib
+import logging
 import math
 import os
 import shutil
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TextIO
 
@@ -28,6 +30,10 @@ from seaway.contract.messages import (
 )
 from seaway.runtime.bus import Bus
 from seaway.runtime.bus_typed import Every, Newest
+from seaway.runtime.ratelog import RateLimitedLog
+
+log = logging.getLogger(__name__)
+_ratelog = RateLimitedLog(log, every_s=60.0)
 
 DECISION_LABELS = {"warn": "LOW ENERGY", "return": "RETURNING", "hold": "HOLDING"}
 """How the status line names an energy budget's decision (``EnergyBudget.decision``, not 'none')."""
@@ -41,11 +47,26 @@ SEPARATOR = " | "
 VESSEL_SEPARATOR = " || "
 """Between the vessels of a fleet on one line."""
 
+UNKNOWN = "?"
+"""What a field shows for a value it cannot show (not finite, absurdly large, or failing)."""
+MAX_SHOWN = 1e9
+"""Numbers at or beyond this magnitude are shown as ``UNKNOWN``: a status line has no room for a
+valid but absurd value's 200 digits, and no operator reads them."""
+
+
+def number(x: float | None, spec: str) -> str:
+    """``x`` formatted with ``spec``, or ``UNKNOWN`` if it is None, not finite or absurdly large."""
+    if x is None or not math.isfinite(x) or abs(x) >= MAX_SHOWN:
+        return UNKNOWN
+    return format(x, spec)
+
 
 def energy_text(j: float | None) -> str:
     """An energy for the status line, three significant figures in J, kJ or MJ ('-' for none)."""
     if j is None or not math.isfinite(j):
         return "-"
+    if abs(j) >= MAX_SHOWN * 1e6:
+        return f"{UNKNOWN} MJ"
     unit, v = next((u, j / k) for u, k in (("MJ", 1e6), ("kJ", 1e3), ("J", 1.0)) if abs(j) >= k or u == "J")
     digits = 0 if abs(v) >= 99.95 else 1 if abs(v) >= 9.995 else 2
     return f"{v:.{digits}f} {unit}"
@@ -175,33 +196,40 @@ class StatusLine:
         return fit(self.fields(vessel, t_s), width)
 
     def fields(self, vessel: str, t_s: float) -> list[Field]:
-        """The vessel's fields, in the order shown."""
-        m, s = self.mission[vessel], self.state[vessel]
+        """The vessel's fields, in the order shown.
+
+        Never raises: the messages are another process's, valid yet possibly absurd, and the
+        launcher redraws the line several times a second with no handler around it. A field that
+        cannot be made shows ``UNKNOWN`` instead (logged, at most once a minute per field)."""
+        s = self.state[vessel]
         out = [
             Field(RANK_VESSEL if len(self.vessels) > 1 else RANK_ONLY_VESSEL, vessel),
-            self.time_field(s, t_s),
+            _guarded(vessel, "time", RANK_TIME, lambda: [self.time_field(s, t_s)]),
+            *_guarded_all(vessel, "mission", RANK_MISSION, lambda: self.mission_fields(vessel)),
         ]
-        if m is not None:
-            leg = f"{m.active_leg}/{max(m.waypoint_count - 1, 0)}"
-            out.append(Field(RANK_MISSION, f"{m.state} leg {leg}", f"{m.state} {leg}"))
-            if m.cross_track_m is not None:
-                out.append(Field(RANK_XTE, f"xte {m.cross_track_m:5.2f} m", f"xte {m.cross_track_m:.1f}"))
-        elif self.commands and (c := self.thrust[vessel]) is not None:
-            out.append(
-                Field(
-                    RANK_MISSION,
-                    f"thrust {c.thrust_port_n:+.2f} / {c.thrust_starboard_n:+.2f} N ({c.source})",
-                    f"{c.thrust_port_n:+.1f}/{c.thrust_starboard_n:+.1f} N",
-                )
-            )
-        else:
-            out.append(Field(RANK_MISSION, "no mission status yet", "no status"))
         if s is not None and s.motion_fault is not None:  # the vessel does not do what it is told
             out.append(Field(RANK_DECISION, f"MOTION FAULT {s.motion_fault}", f"FAULT {s.motion_fault}"))
         if s is not None:
-            speed_mps = (s.u_mps**2 + s.v_mps**2) ** 0.5
-            out.append(Field(RANK_SPEED, f"speed {speed_mps:4.2f} m/s", f"{speed_mps:.2f} m/s"))
-        return out + self.energy_fields(vessel)
+            speed = number(math.hypot(s.u_mps, s.v_mps), ".2f")
+            out.append(Field(RANK_SPEED, f"speed {speed:>4} m/s", f"{speed} m/s"))
+        return out + _guarded_all(vessel, "energy", RANK_USED, lambda: self.energy_fields(vessel))
+
+    def mission_fields(self, vessel: str) -> list[Field]:
+        """The mission's state and cross-track error, else the thrust commanded (``commands``)."""
+        m = self.mission[vessel]
+        if m is not None:
+            leg = f"{m.active_leg}/{max(m.waypoint_count - 1, 0)}"
+            out = [Field(RANK_MISSION, f"{m.state} leg {leg}", f"{m.state} {leg}")]
+            if m.cross_track_m is not None:
+                out.append(Field(RANK_XTE, f"xte {number(m.cross_track_m, '5.2f')} m",
+                                 f"xte {number(m.cross_track_m, '.1f')}"))
+            return out
+        if self.commands and (c := self.thrust[vessel]) is not None:
+            port, stbd = c.thrust_port_n, c.thrust_starboard_n
+            return [Field(RANK_MISSION,
+                          f"thrust {number(port, '+.2f')} / {number(stbd, '+.2f')} N ({c.source})",
+                          f"{number(port, '+.1f')}/{number(stbd, '+.1f')} N")]
+        return [Field(RANK_MISSION, "no mission status yet", "no status")]
 
     def energy_fields(self, vessel: str) -> list[Field]:
         """Energy used, to finish, to home, battery vs reserve, and the decision once taken: from
@@ -256,7 +284,7 @@ class StatusLine:
             return Field(RANK_TIME, f"t {wall_s:5.0f} s", f"t {wall_s:.0f} s")
         if state is None:
             return Field(RANK_TIME, "sim t     - s", "t - s")
-        sim_s = state.stamp_ns / 1e9
+        sim_s = state.stamp_ns / 1e9  # a stamp is an int64 (MAX_STAMP_NS): a float holds it
         if self._first is None or sim_s < self._first[0]:  # the first state, or a new episode
             self._first = self._moved = (sim_s, wall_s)
         elif self._moved is None or sim_s != self._moved[0]:
@@ -266,11 +294,12 @@ class StatusLine:
         assert self._moved is not None
         d_sim, d_wall = self._moved[0] - self._first[0], self._moved[1] - self._first[1]
         if d_wall <= 0.5:
-            return Field(RANK_TIME, f"sim t {sim_s:5.0f} s", f"t {sim_s:.0f} s")
+            return Field(RANK_TIME, f"sim t {number(sim_s, '5.0f')} s", f"t {number(sim_s, '.0f')} s")
+        rate = d_sim / d_wall
         return Field(
             RANK_TIME,
-            f"sim t {sim_s:5.0f} s ({d_sim / d_wall:4.0f}x real time)",
-            f"t {sim_s:.0f} s {d_sim / d_wall:.0f}x",
+            f"sim t {number(sim_s, '5.0f')} s ({number(rate, '4.0f')}x real time)",
+            f"t {number(sim_s, '.0f')} s {number(rate, '.0f')}x",
         )
 
     def width(self) -> int:
@@ -299,6 +328,21 @@ class StatusLine:
             for v in self.vessels:
                 print(self.vessel_text(v, t_s), file=self.out, flush=True)
             self._last_print = now
+
+
+def _guarded_all(vessel: str, what: str, rank: int, make: Callable[[], list[Field]]
+                 ) -> list[Field]:
+    """``make()``, or one ``UNKNOWN`` field of ``rank`` if it raises (named in the log)."""
+    try:
+        return make()
+    except Exception:
+        _ratelog.exception((vessel, what), "status line: vessel %s: cannot show its %s; shown as %r",
+                           vessel, what, UNKNOWN)
+        return [Field(rank, f"{what} {UNKNOWN}")]
+
+
+def _guarded(vessel: str, what: str, rank: int, make: Callable[[], list[Field]]) -> Field:
+    return _guarded_all(vessel, what, rank, make)[0]
 
 
 def _used(j: float | None) -> Field:

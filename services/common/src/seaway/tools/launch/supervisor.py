@@ -64,9 +64,14 @@ def answer_period(payload: bytes, carried: Any = None) -> tuple[tuple[int, int] 
     """((episode, stamp_ns), hold) of a lockstep answer; (None, False) if it is malformed.
 
     Only the three fields needed, read as plainly as can be (each member validates the answers it
-    acts on; a malformed one is no answer here, absurd numbers included: JSON's Infinity).
+    acts on; a malformed one is no answer here, absurd numbers included: JSON's Infinity, an
+    episode below 0 or a stamp outside the contract's 0..``MAX_STAMP_NS``, which every member
+    refuses). Which periods an answer can oblige anybody to answer is the watch's to judge
+    (``liveness.Watch``: only those the sim has reached).
     ``carried``: what an in-process bus handed along with the bytes (``bundle.Carried``): its
     answer is read instead of the bytes (a composed stack's launcher decodes no bundle)."""
+    from seaway.contract.messages import MAX_STAMP_NS
+
     ans_carried = bundle.carried_answer(carried)
     if ans_carried is not None:
         if ans_carried.resent:
@@ -76,7 +81,10 @@ def answer_period(payload: bytes, carried: Any = None) -> tuple[tuple[int, int] 
         ans = json.loads(bundle.answer_of(payload))  # a bundle's first line (seaway.contract.bundle)
         if ans.get("resent"):  # a copy of an earlier answer, for a restarted recorder: no news
             return None, False
-        return (int(ans["episode"]), int(ans["stamp_ns"])), bool(ans.get("hold"))
+        episode, stamp_ns = int(ans["episode"]), int(ans["stamp_ns"])
+        if episode < 0 or not 0 <= stamp_ns <= MAX_STAMP_NS:
+            return None, False
+        return (episode, stamp_ns), bool(ans.get("hold"))
     except (ValueError, TypeError, KeyError, AttributeError, OverflowError):
         return None, False
 
