@@ -139,3 +139,71 @@ def test_a_repeat_of_a_period_not_yet_answered_logs_what_the_member_lacks(caplog
     with caplog.at_level("INFO", logger="seaway.lockstep"):
         member.on_answer("seaway/v1/lockstep/sim", tick.model_copy(update={"seq": 4}))
     assert "repeated" not in caplog.text
+
+
+def test_a_recorder_answer_after_the_period_the_sim_published_is_not_recorded() -> None:
+    ledger = Ledger(watched=None)
+    ledger.on_answer(answer("recorder", 7))
+    assert ledger.recorded(Period(0, 6 * P), published=Period(0, 7 * P))
+    assert ledger.recorded(Period(0, 7 * P), published=Period(0, 7 * P))
+    # Stamped after what the sim has published: for a period nobody has reached, not on disk.
+    assert not ledger.recorded(Period(0, 5 * P), published=Period(0, 6 * P))
+    ledger.on_answer(PeriodDone(stamp_ns=2**63 - 1, service="recorder", episode=0, seq=2,
+                                period_ns=P))
+    assert not ledger.recorded(Period(0, 5 * P), published=Period(0, 6 * P))
+
+
+def test_an_answer_far_ahead_of_the_current_period_is_refused_by_name() -> None:
+    ledger = Ledger(watched=None)
+    ledger.on_answer(answer("sim", 5))
+    assert ledger.refusal(answer("controller", 5)) is None
+    assert ledger.refusal(answer("estimator", 7)) is None  # heard before the sim's: within the lead
+    assert ledger.refusal(answer("recorder", 8)).startswith("ahead: recorder's answer for t = 0.800 s")
+    far = PeriodDone(stamp_ns=2**63 - 1, service="recorder", episode=0, seq=1, period_ns=P)
+    assert ledger.refusal(far).startswith("ahead:")
+    assert ledger.refusal(answer("recorder", 90, episode=1)) is None  # another stretch of time
+    # The sim's own ledger never hears the sim: its last published period is the reference.
+    sim_side = Ledger(watched={"ctrl/thrust"})
+    assert sim_side.refusal(far, own=answer("sim", 5)).startswith("ahead:")
+    assert sim_side.refusal(answer("controller", 5), own=answer("sim", 5)) is None
+    assert sim_side.refusal(answer("recorder", 8), own=answer("sim", 5)).startswith("ahead:")
+
+
+def test_an_answer_listing_a_stamp_after_its_own_period_is_refused_by_name() -> None:
+    ledger = Ledger(watched={"ctrl/thrust"})
+    ok = answer("sim", 1, consumed={"ctrl/thrust": [0]}, published={"sim/clock": [P]})
+    assert ledger.refusal(ok) is None
+    late = answer("sim", 1, consumed={"ctrl/thrust": [P + 10**9]})
+    assert ledger.refusal(late) == ("listing: sim's answer for t = 0.100 s (episode 0) lists in "
+                                    "consumed ctrl/thrust @ t = 1.100 s, more than 2 periods "
+                                    "after its own period")
+    far = answer("controller", 1, published={"ctrl/thrust": [2**63 - 1]})
+    assert ledger.refusal(far).startswith("listing: controller's answer")
+
+
+def test_a_member_refuses_an_absurd_listing_and_takes_the_next_sane_answer(caplog) -> None:
+    """A sim answer listing a command stamped a second after its period: the estimator could never
+    see that stamp (``see`` bounds it) and would lack it for ever; it refuses the answer, counts
+    and names it, stays responsive, and takes the sim's next sane answer."""
+    from seaway.contract import keys
+
+    hub = MemoryHub()
+    sim = Member(hub.bus("v1"), "sim", watched=(), subscribe=False)
+    est = Member(hub.bus("v1"), "estimator", watched={"ctrl/thrust"}, hears=("sim", "controller"))
+    est.deliver = lambda key, msg: est.saw(keys.THRUST.suffix, msg.stamp_ns)
+    sim.answer(Period(0, P), P, consumed={keys.THRUST.suffix: [P + 10**9]})
+    sim.repeat()
+    assert est.ledger.answer("sim") is None and est.refused == {"listing": 2}
+    assert "lockstep answer on seaway/v1/lockstep/sim refused (listing: sim's answer" in caplog.text
+    sim.answer(Period(0, P), P)
+    assert est.ledger.complete(est.ledger.answer("sim"))
+
+
+def test_a_member_gives_up_on_a_lost_command_whatever_its_stamp() -> None:
+    """Giving up marks the stamp seen even where ``see`` would refuse it (beyond the stamp bounds of
+    the current period): what is given up on is no longer waited for."""
+    ledger = Ledger(watched={"ctrl/thrust"})
+    ledger.on_answer(answer("sim", 1))
+    assert not ledger.see("ctrl/thrust", 2**62)
+    ledger.give_up("ctrl/thrust", 2**62)
+    assert ledger.has("ctrl/thrust", 2**62)

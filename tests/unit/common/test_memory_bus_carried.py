@@ -176,3 +176,32 @@ def test_a_composed_launcher_reads_the_answer_carried_not_the_bytes(decodes: lis
     assert answer_period(bundle.encode(answer.encode(), [])) == ((2, P), True)
     assert answer_period(b"not json") == (None, False)
     assert decodes == []
+
+
+def test_is_resent_agrees_with_the_decoded_answer_whatever_its_spelling() -> None:
+    """A recorder writes a copy as a copy and a typed subscriber drops only copies: what
+    ``is_resent`` says of a bundle's bytes is what decoding its answer says, for our encoder's
+    bytes and for any other valid spelling of the same answer."""
+    import json
+
+    base = {"stamp_ns": 100_000_000, "service": "sim", "episode": 0, "seq": 3,
+            "period_ns": 100_000_000}
+    tick = ClockTick(stamp_ns=P, lockstep=True, real_time_factor=0.0).encode()
+    ours = PeriodDone(**base)
+    answers = [
+        ours.encode(),
+        ours.model_copy(update={"resent": True}).encode(),
+        json.dumps({**base, "resent": True}).encode(),  # json.dumps' spacing
+        json.dumps({**base, "resent": False}).encode(),
+        json.dumps({**base, "ext": {"resent": True}}, separators=(",", ":")).encode(),
+        json.dumps({**base, "note": '"resent":true'}, separators=(",", ":")).encode(),
+        json.dumps({**base, "resent": True, "hold": False}, separators=(",", ":")).encode(),
+        json.dumps(base, separators=(",", ":")).encode()[:-1] + b',"\\u0072esent":true}',
+        json.dumps(base, separators=(",", ":")).encode()[:-1] + b',"resent":true,"resent":false}',
+        json.dumps({**base, "resent": 1}).encode(),  # a decoder takes 1 for true
+        json.dumps(base, separators=(",", ":")).encode(),  # no field: the default
+    ]
+    for raw in answers:
+        assert bundle.is_resent(bundle.encode(raw, [("sim/clock", tick)])) \
+            == PeriodDone.decode(raw).resent, raw
+    assert not bundle.is_resent(b'{"stamp_ns":-1,"resent": true}')  # no answer: no copy

@@ -218,11 +218,12 @@ def test_recover_refuses_what_is_not_mcap(tmp_path: Path) -> None:
         recover(bad, bad)
 
 
-def test_a_lockstep_bundle_unpacks_into_its_keys_and_a_bad_one_is_kept_whole_as_malformed(
+def test_a_lockstep_bundle_unpacks_into_its_keys_and_a_bad_one_is_kept_as_malformed(
         tmp_path: Path) -> None:
     """What a recorder writes of a bundle (seaway.contract.bundle): its messages on their own keys'
-    channels then its answer, bytes unchanged; one that does not unpack (framing, or a key its member
-    does not produce) whole on ``recorder/malformed``, saying why; the writer goes on."""
+    channels then its answer, bytes unchanged. One whose framing does not read goes whole to
+    ``recorder/malformed``; a line of a key its member does not produce goes there alone and the
+    rest is written, as the members take it; each says why, and the writer goes on."""
     done = PeriodDone(stamp_ns=0, service="sim", episode=0, seq=1, period_ns=100_000_000,
                       published={keys.SIM_TRUTH.suffix: [0]})
     key = keys.LOCKSTEP_SIM.key(V)
@@ -233,8 +234,11 @@ def test_a_lockstep_bundle_unpacks_into_its_keys_and_a_bad_one_is_kept_whole_as_
     assert [(k, d) for k, d, _ in parts] == [(keys.SIM_TRUTH.key(V), truth(0)), (key, done.encode())]
     for k, d, enc in parts:
         assert w.write(k, d, enc, 1_000)
-    bad = [b"{}\n[broken", bundle.encode(done.encode(), [(keys.THRUST.suffix, thrust(1))])]
-    assert [w.unpack(key, b, bundle.ENCODING, 2_000) for b in bad] == [[], []]
+    assert w.unpack(key, b"{}\n[broken", bundle.ENCODING, 2_000) == []
+    foreign = bundle.encode(done.encode(), [(keys.THRUST.suffix, thrust(1)),
+                                            (keys.SIM_TRUTH.suffix, truth(1))])
+    parts = w.unpack(key, foreign, bundle.ENCODING, 2_000)
+    assert [(k, d) for k, d, _ in parts] == [(keys.SIM_TRUTH.key(V), truth(1)), (key, done.encode())]
     assert w.unpack(keys.SIM_TRUTH.key(V), truth(1), ENC, 3_000) == [(keys.SIM_TRUTH.key(V), truth(1), ENC)]
     w.close(4_000)
     got = read_all(tmp_path / "r.mcap")
@@ -242,8 +246,52 @@ def test_a_lockstep_bundle_unpacks_into_its_keys_and_a_bad_one_is_kept_whole_as_
         (keys.SIM_TRUTH.key(V), truth(0)), (key, done.encode())]
     errors = [json.loads(d) for t, _, d, _ in got if t == "recorder/malformed"]
     assert len(errors) == 2 and w.stats.malformed == 2
-    assert "line 2" in errors[0]["error"] and "does not produce" in errors[1]["error"]
+    assert "line 2" in errors[0]["error"]
+    assert errors[1]["error"].startswith("line dropped, the rest written: lockstep bundle of sim "
+                                         "carries 'ctrl/thrust', which it does not produce")
     assert {e["key"] for e in errors} == {key}
+
+
+def test_a_foreign_line_does_not_keep_the_recorder_from_answering(tmp_path: Path) -> None:
+    """A controller bundle with a line of the sim's key beside its command: the members drop that
+    line and take the rest; the recorder writes the command, puts the line on the error channel
+    and answers the period, so the sim does not wait on it for ever."""
+    import time
+
+    from seaway.recording.timebase import RecordingTime
+    from seaway.runtime.lockstep import Period
+    from seaway.runtime.lockstep_member import Member
+    from seaway.runtime.lockstep_witness import LockstepWitness
+    from seaway.runtime.memory_bus import MemoryHub
+    from seaway_recorder.node import SampleQueue, drain
+
+    P, exprs = 100_000_000, [f"seaway/{V}/**"]
+    hub = MemoryHub()
+    w = RecordingWriter(tmp_path / "r.mcap", compression="none",
+                        time=RecordingTime(lockstep=True, epoch_ns=10**18))
+    w.open(time.time_ns())
+    queue = SampleQueue(10_000)
+    witness = LockstepWitness(hub.bus(V), V, exprs)
+    hub.bus(V).subscribe_raw(f"seaway/{V}/lockstep/*", queue.on_sample)
+    answered: list[bytes] = []
+    hub.bus(V).subscribe_raw(keys.lockstep_spec("recorder").key(V),
+                             lambda s: answered.append(s.payload))
+    sim = Member(hub.bus(V), "sim", watched=(), subscribe=False)
+    sim.answer(Period(0, 0), P, members=["controller", "recorder"])
+    drain(w, queue, None, witness, KeptKeys(exprs))
+    cmd = ThrustCommand.make(stamp_ns=0, thrust_port_n=5.0, thrust_starboard_n=5.0)
+    ans = PeriodDone(stamp_ns=0, service="controller", episode=0, seq=7, period_ns=P,
+                     published={keys.THRUST.suffix: [0]})
+    payload = bundle.encode(ans.encode(), [(keys.THRUST.suffix, cmd.encode()),
+                                           (keys.GNSS.suffix, b'{"stamp_ns":0}')])
+    hub.bus(V).raw_publisher(keys.lockstep_spec("controller").key(V), bundle.ENCODING).put(payload)
+    drain(w, queue, None, witness, KeptKeys(exprs))
+    assert len(answered) == 1 and PeriodDone.decode(answered[0]).covers["controller"] == 7
+    w.close(time.time_ns())
+    got = read_all(tmp_path / "r.mcap")
+    assert [d for t, _, d, _ in got if t == keys.THRUST.key(V)] == [cmd.encode()]
+    errors = [json.loads(d)["error"] for t, _, d, _ in got if t == "recorder/malformed"]
+    assert len(errors) == 1 and "carries 'sensors/gnss'" in errors[0]
 
 
 def test_which_keys_a_recording_keeps_is_zenohs_own_matching() -> None:

@@ -84,3 +84,30 @@ def test_the_lockstep_sim_refuses_an_absurd_demand_as_vehicle_io_does(caplog) ->
                                  thrust_starboard_n=0.0), period)
     assert app.core.truth().thrust_port_n == vessel.thrust_max_n
     assert app.refused_commands == 1
+
+
+def test_a_recorder_answer_for_a_period_not_yet_published_records_nothing(caplog) -> None:
+    """A recorder answer stamped far after the sim's period (the int64 end) would count as
+    "recorded" for every period of the episode, and a recorder dying after it would leave the sim
+    running unrecorded: the sim refuses it, naming why, and waits for a real answer."""
+    from seaway.runtime.lockstep import Period
+    from seaway.runtime.lockstep_member import Member
+
+    hub = MemoryHub()
+    sc = load_scenario("paper-c1")
+    app = SimNode(SimCore(sc, load_vessel(sc.vessel)), lockstep=True)
+    ls = LockstepClock(hub.bus("vessel1"), app, PERIOD_NS / 1e9, threading.Event())
+    ls.members = {"recorder"}
+    period = ls.publish_period()
+    rec = Member(hub.bus("vessel1"), "recorder", watched=(), subscribe=False)
+    covers = {"sim": ls.member.last_answer.seq}
+    rec.answer(Period(period.episode, 2**63 - 1), PERIOD_NS, covers=covers)
+    ls.member.drain()
+    with ls.member.changed:
+        assert not ls.answered(period)
+    assert ls.member.refused == {"ahead": 1}
+    assert "refused (ahead: recorder's answer for t = about 10^9 s" in caplog.text
+    rec.answer(period, PERIOD_NS, covers=covers)
+    ls.member.drain()
+    with ls.member.changed:
+        assert ls.answered(period)

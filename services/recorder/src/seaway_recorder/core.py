@@ -335,18 +335,26 @@ class RecordingWriter:
     def unpack(self, key: str, payload: bytes, encoding: str, receive_ns: int,
                carried: Any = None) -> list[tuple[str, bytes, str]]:
         """The samples one bus sample stands for, to ``write`` each: itself, or for a lockstep
-        bundle (``seaway.contract.bundle``) its messages on their own keys, then its answer. A
-        bundle that does not unpack (its framing, or a line of a key its member does not produce)
-        is kept whole on the error channel, and stands for nothing. ``carried``: what an
-        in-process sender encoded it from (``bundle.parts``)."""
+        bundle (``seaway.contract.bundle``) its messages on their own keys, then its answer.
+        A line of a key its member does not produce goes alone to the error channel, naming it,
+        and the rest is written: the members drop that line and take the rest, answer included,
+        so the recorder must write (and answer for) the same, or the sim waits on it for ever. A
+        bundle whose framing does not read is kept whole on the error channel and stands for
+        nothing (no member takes it either). ``carried``: what an in-process sender encoded it
+        from (``bundle.parts``)."""
         if encoding != bundle.ENCODING:
             return [(key, payload, encoding)]
+        foreign: list[tuple[str, bytes, str]] = []
         try:
-            return bundle.unpack(key, payload, carried)
+            out = bundle.unpack(key, payload, carried, foreign)
         except MessageError as err:
             self._put_malformed(key, PeriodDone.SCHEMA, str(err), encoding, payload,
                                 self.time.wall(receive_ns), receive_ns)
             return []
+        for _suffix, line, why in foreign:
+            self._put_malformed(key, PeriodDone.SCHEMA, f"line dropped, the rest written: {why}",
+                                encoding, line, self.time.wall(receive_ns), receive_ns)
+        return out
 
     def _write_episodes(self) -> None:
         """A new lockstep episode continues the timeline: say at which offset, in the file."""

@@ -76,9 +76,12 @@ def suffixes_of(service: str) -> frozenset[str]:
 
 def encode(answer: bytes, lines: Iterable[tuple[str, bytes]]) -> bytes:
     """A bundle from an answer's bytes and its messages' (key suffix, bytes), in publishing order."""
-    parts = [answer]
-    parts += [b'["' + suffix.encode() + b'",' + data + b"]" for suffix, data in lines]
-    return b"\n".join(parts)
+    return b"\n".join([answer, *(_framed(suffix, data) for suffix, data in lines)])
+
+
+def _framed(suffix: str, data: bytes) -> bytes:
+    """One message line, ``["<key suffix>",<the message's JSON>]``."""
+    return b'["' + suffix.encode() + b'",' + data + b"]"
 
 
 class Carried(NamedTuple):
@@ -133,14 +136,34 @@ def answer_of(payload: bytes) -> bytes:
     return payload.split(b"\n", 1)[0]
 
 
+_RESENT_TAIL = (b',"resent":false}', b',"resent":true}')
+"""How ``PeriodDone.encode`` ends an answer: ``resent`` is its last field, written compactly."""
+
+
 def is_resent(payload: bytes, carried: Any = None) -> bool:
     """Whether a bundle is a copy of an earlier one sent again for a restarted recorder
-    (``PeriodDone.resent``): news to a recorder that may have missed it, to nobody else. Read off
-    the answer's bytes as ``PeriodDone.encode`` writes them, without decoding it (or off the
-    answer ``carried`` holds, in process)."""
+    (``PeriodDone.resent``): news to a recorder that may have missed it, to nobody else.
+
+    Asked of every bundle a recorder or display hears, so decoding the answer for it would cost:
+    it agrees with the decoded field, read cheaply where it can be. An answer ending as
+    ``PeriodDone.encode`` ends one (``_RESENT_TAIL``) has it as its last top-level key, which is
+    the one a decoder keeps; one with no ``resent`` and no escape that could spell it has the
+    default (False). Anything else (another encoder's spacing, the word inside another field, a
+    repeated key) is decoded, as members decode it; an answer that does not decode is no copy.
+    In process, the answer ``carried`` holds is read."""
     if type(carried) is Carried:
         return carried.answer.resent
-    return b'"resent":true' in answer_of(payload)
+    line = answer_of(payload)
+    if line.endswith(_RESENT_TAIL[0]):
+        return False
+    if line.endswith(_RESENT_TAIL[1]):
+        return True
+    if b"resent" not in line and b"\\" not in line:
+        return False
+    try:
+        return PeriodDone.decode(line).resent
+    except MessageError:
+        return False
 
 
 def _line(line: bytes) -> tuple[str, bytes] | None:
@@ -187,11 +210,15 @@ def service_of(key: str) -> str | None:
     return None
 
 
-def unpack(key: str, payload: bytes, carried: Any = None) -> list[tuple[str, bytes, str]]:
+def unpack(key: str, payload: bytes, carried: Any = None,
+           foreign: list[tuple[str, bytes, str]] | None = None) -> list[tuple[str, bytes, str]]:
     """A bundle heard on ``key`` as the samples it stands for, (key, bytes, encoding): its messages
     in order, each on its own key, then the answer alone (it was sent after what it lists). What a
-    recorder writes. MessageError if a line is badly framed or on a key of another member
-    (``check_line``). ``carried``: as ``parts`` takes it."""
+    recorder writes. MessageError if a line is badly framed, or (without ``foreign``) on a key of
+    another member (``check_line``). ``foreign``: where such a line goes instead, as (key suffix,
+    the line's bytes, why), the rest unpacked as if it were not there: what a member does with it
+    (it drops the line and takes the rest), so a recorder writes what the members took.
+    ``carried``: as ``parts`` takes it."""
     service = service_of(key)
     if service is None:
         raise MessageError(f"{key} is not a lockstep answer key")
@@ -201,7 +228,13 @@ def unpack(key: str, payload: bytes, carried: Any = None) -> list[tuple[str, byt
     for suffix, data in lines:
         encoding = _LINE_ENCODINGS.get((service, suffix))
         if encoding is None:
-            spec = check_line(service, suffix)
+            try:
+                spec = check_line(service, suffix)
+            except MessageError as err:
+                if foreign is None:
+                    raise
+                foreign.append((suffix, _framed(suffix, data), str(err)))
+                continue
             encoding = _LINE_ENCODINGS[(service, suffix)] = \
                 f"{JSON_ENCODING};{spec.message.SCHEMA}"  # type: ignore[union-attr]
         out.append((vessel_prefix + suffix, data, encoding))

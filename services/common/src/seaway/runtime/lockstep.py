@@ -56,7 +56,7 @@ from typing import Literal, NamedTuple
 
 from seaway.contract import keys
 from seaway.contract.messages import LOCKSTEP_SERVICES, Message, PeriodDone
-from seaway.runtime.stamps import StampBounds
+from seaway.runtime.stamps import LOCKSTEP_AHEAD_PERIODS, StampBounds, describe_ns
 
 RECORDER_LAG = 1
 """Periods the recorder's answers may trail the sim's: the sim publishes t_{k+1} once the recorder
@@ -159,6 +159,44 @@ class Ledger:
     def has(self, suffix: str, stamp_ns: int) -> bool:
         return stamp_ns in self.seen.get(suffix, ())
 
+    def refusal(self, answer: PeriodDone, own: PeriodDone | None = None) -> str | None:
+        """Why ``answer`` cannot be taken (None: it can), named for the log: an answer that claims
+        what no member can have done would otherwise count for ever.
+
+        * ``ahead``: another member's answer for a period further ahead of the current one (the
+          sim's latest answer; ``own``: the sim's own last answer, for the sim's ledger, which
+          never hears itself) than ``LOCKSTEP_AHEAD_PERIODS``: no member answers a period before
+          the sim has published it, and such an answer would stand in for every period up to it
+          (``recorded``). One of another episode is judged by the sim's answers (``classify``).
+        * ``listing``: a stamp in ``published`` or ``consumed`` after the answer's own period by
+          more than ``LOCKSTEP_AHEAD_PERIODS``: a member publishes, and the sim applies, messages
+          of the period it answers; a later stamp could never be seen (``see`` refuses it), so a
+          member would wait on it for ever."""
+        if own is not None:
+            ref, ref_period_ns = Period.of(own), own.period_ns
+        else:
+            ref, ref_period_ns = self.period, self.period_ns
+        if answer.service != "sim" and ref is not None and answer.episode == ref.episode \
+                and answer.stamp_ns > ref.stamp_ns + LOCKSTEP_AHEAD_PERIODS * ref_period_ns:
+            return (f"ahead: {answer.service}'s answer for t = {describe_ns(answer.stamp_ns)} "
+                    f"(episode {answer.episode}) lies beyond the current period t = "
+                    f"{describe_ns(ref.stamp_ns)} by more than {LOCKSTEP_AHEAD_PERIODS} periods")
+        limit = answer.stamp_ns + LOCKSTEP_AHEAD_PERIODS * answer.period_ns
+        for name, stamps_by_key in (("published", answer.published), ("consumed", answer.consumed)):
+            for suffix, stamps in stamps_by_key.items():
+                if stamps and (latest := max(stamps)) > limit:
+                    return (f"listing: {answer.service}'s answer for t = "
+                            f"{describe_ns(answer.stamp_ns)} (episode {answer.episode}) lists in "
+                            f"{name} {suffix} @ t = {describe_ns(latest)}, more than "
+                            f"{LOCKSTEP_AHEAD_PERIODS} periods after its own period")
+        return None
+
+    def give_up(self, suffix: str, stamp_ns: int) -> None:
+        """Note a message as seen that will never come (its sender died putting it), whatever its
+        stamp: a stamp ``see`` would refuse must not be waited for either (an answer's listings are
+        bounded by ``refusal``, so this cannot fill the ledger)."""
+        self.seen.setdefault(suffix, set()).add(stamp_ns)
+
     def on_answer(self, answer: PeriodDone) -> Change | None:
         """Note an answer; for the sim's, say how its period relates to the current one."""
         self.answers[answer.service] = answer
@@ -251,12 +289,17 @@ class Ledger:
                 return False
         return True
 
-    def recorded(self, period: Period) -> bool:
+    def recorded(self, period: Period, published: Period | None = None) -> bool:
         """Whether the recorder's latest answer is for ``period`` or a later period of its episode:
         all the members' bundles up to it are on disk (it answers a period once it has written the
-        bundles of that period, and each member's come in order)."""
+        bundles of that period, and each member's come in order). ``published``: the latest period
+        the sim has published; an answer stamped after it is for a period nobody has published yet,
+        so it says nothing of what is on disk (taken as written, it would let the sim run on
+        unrecorded for the rest of the episode)."""
         a = self.answers.get(RECORDER)
-        return a is not None and a.episode == period.episode and a.stamp_ns >= period.stamp_ns
+        return (a is not None and a.episode == period.episode and a.stamp_ns >= period.stamp_ns
+                and (published is None or (a.episode == published.episode
+                                           and a.stamp_ns <= published.stamp_ns)))
 
     def held(self, period: Period) -> bool:
         """Whether the controller answered ``period`` with ``hold`` (nothing to fly): the clock waits

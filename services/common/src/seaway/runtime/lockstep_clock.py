@@ -309,7 +309,7 @@ class LockstepClock:
             return False
         if RECORDER not in self.members:
             return True
-        return ledger.recorded(self._back(period, lag))
+        return ledger.recorded(self._back(period, lag), period)
 
     def _back(self, period: Period, lag: int) -> Period:
         """The period ``lag`` periods before ``period`` (t_0 at the most): the one the recorder must
@@ -363,7 +363,8 @@ class LockstepClock:
             return False
         if "estimator" in self.members and ledger.answer("estimator", period) is None:
             return True
-        return RECORDER in self.members and not ledger.recorded(self._back(period, RECORDER_LAG))
+        return RECORDER in self.members and not ledger.recorded(self._back(period, RECORDER_LAG),
+                                                                period)
 
     def _absent(self, period: Period) -> list[str]:
         """The members that have not answered ``period``; under ``member.changed``."""

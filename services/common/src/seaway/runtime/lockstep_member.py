@@ -7,6 +7,7 @@ publishes its own answer with what it carries, and repeats it when the sim repea
 
 from __future__ import annotations
 
+import collections
 import itertools
 import logging
 import threading
@@ -27,7 +28,7 @@ from seaway.runtime.lockstep import (
     listing,
 )
 from seaway.runtime.ratelog import RateLimitedLog
-from seaway.runtime.stamps import StampBounds, StampGate
+from seaway.runtime.stamps import StampBounds, StampGate, describe_ns
 from seaway.runtime.timeline import Timeline
 
 log = logging.getLogger("seaway.lockstep")
@@ -123,6 +124,8 @@ class Member:
         self._lacking_since: dict[tuple[str, int], int] = {}
         self.given_up: list[tuple[str, int]] = []
         """(key suffix, stamp) of every command taken as lost (``GIVE_UP_LACKING_S``)."""
+        self.refused: collections.Counter[str] = collections.Counter()
+        """Answers refused, per reason (``Ledger.refusal``: 'ahead', 'listing')."""
         # One bundle taken at a time, in the order taken. Reentrant: taking one can publish a
         # repeat, and a transport that delivered it at once on this thread would come back here
         # (the in-memory bus queues it until the sample at hand has reached everybody).
@@ -307,6 +310,11 @@ class Member:
         repeat = False
         self.timeline.mark("heard", answer.stamp_ns, answer.service)
         with self.changed:
+            # The sim never hears itself: its own last answer says where time is.
+            why = self.ledger.refusal(answer, self.last_answer if self.service == "sim" else None)
+            if why is not None:
+                self._refuse(key, why)
+                return
             before = self.ledger.period
             change = self.ledger.on_answer(answer)
             if change == "restart":
@@ -325,15 +333,23 @@ class Member:
             if self.on_ready is None:  # else the service answers on this thread (``on_ready``)
                 self.changed.notify_all()
         for suffix, stamp_ns in lost:
-            log.warning("%s, lockstep t = %.3f s (episode %d): %s @ %.3f s, which the sim applied, "
+            log.warning("%s, lockstep t = %s (episode %d): %s @ %s, which the sim applied, "
                         "never came in %.0f s (its sender died putting it): taken as lost",
-                        self.service, answer.stamp_ns / 1e9, answer.episode, suffix,
-                        stamp_ns / 1e9, GIVE_UP_LACKING_S)
+                        self.service, describe_ns(answer.stamp_ns), answer.episode, suffix,
+                        describe_ns(stamp_ns), GIVE_UP_LACKING_S)
         if lacking:  # expected while members start or restart: the sim repeats for them
-            log.info("%s, lockstep t = %.3f s (episode %d), repeated: %s", self.service,
-                     answer.stamp_ns / 1e9, answer.episode, lacking)
+            log.info("%s, lockstep t = %s (episode %d), repeated: %s", self.service,
+                     describe_ns(answer.stamp_ns), answer.episode, lacking)
         if repeat:
             self.repeat()
+
+    def _refuse(self, key: str, why: str) -> None:
+        """An answer ``Ledger.refusal`` refuses: counted per reason, logged (rate-limited)."""
+        reason = why.split(":", 1)[0]
+        self.refused[reason] += 1
+        self.bus.stats.count_malformed(key, why)
+        self.ratelog.warning(("refused", reason, key), "%s: lockstep answer on %s refused (%s)",
+                             self.service, key, why)
 
     def _give_up_lacking(self, answer: PeriodDone) -> list[tuple[str, int]]:
         """At a repeat of the sim's answer: the commands it lists as applied that this member has
@@ -347,7 +363,7 @@ class Member:
         lost = [k for k, since in self._lacking_since.items()
                 if now - since >= round(GIVE_UP_LACKING_S * 1e9)]
         for suffix, stamp_ns in lost:
-            self.ledger.see(suffix, stamp_ns)
+            self.ledger.give_up(suffix, stamp_ns)
             del self._lacking_since[(suffix, stamp_ns)]
         self.given_up += lost
         return lost
@@ -370,7 +386,7 @@ class Member:
                    if s in self.hears and Period.of(a) == period and (lacks := ledger.missing(a))}
         parts = [f"no answer yet from {', '.join(absent)}"] if absent else []
         parts += [f"{s}'s answer lists, not seen: "
-                  + ", ".join(f"{suffix} @ {stamp / 1e9:.3f} s" for suffix, stamp in lacks)
+                  + ", ".join(f"{suffix} @ {describe_ns(stamp)}" for suffix, stamp in lacks)
                   for s, lacks in missing.items()]
         return "; ".join(parts)
 
