@@ -47,3 +47,15 @@ def test_a_mission_accepted_again_names_every_episode_it_flew() -> None:
     dec = recording([(30, ["paper-c1", "paper-c1"]), (50, ["paper-c1"]), (10, ["next"])])
     assert report.mission_episodes(dec, "paper-c1") == [0, 1]
     assert report.mission_episodes(dec, "next") == [2]
+
+
+def test_one_stamp_far_ahead_of_its_neighbours_starts_no_episode() -> None:
+    """A single sim/truth stamped 2^63 - 1 in the middle of a run split it in two, and the report
+    scored only the part after it (233 s and 232 J of a 330 J mission). Time going back below
+    where it stood before the spike is still a new episode."""
+    dec = recording([(30, ["paper-c1"]), (20, ["paper-c2"])])
+    dec.by_suffix[TRUTH][10] = SimTruth.model_construct(stamp_ns=2**63 - 1)
+    assert len(report.episodes(dec)) == 2
+    assert report.mission_episodes(dec, "paper-c1") == [0]
+    dec.by_suffix[TRUTH][-1] = SimTruth.model_construct(stamp_ns=2**63 - 1)  # the last one: no next
+    assert len(report.episodes(dec)) == 2

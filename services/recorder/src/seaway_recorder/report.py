@@ -118,10 +118,17 @@ def episodes(dec: reader.Decoded) -> list[tuple[int, int | None]]:
     """The recording's episodes as [start, end) log-time spans: a new one wherever simulated time
     went back (``sim/truth``): the sim restarted, or loaded a scenario (a lockstep episode)."""
     truth, logs = dec.get(TRUTH), dec.log_ns.get(TRUTH, [])
+    stamps = [t.stamp_ns for t in truth]
     starts = [0]
-    for i in range(1, len(truth)):
-        if truth[i].stamp_ns < truth[i - 1].stamp_ns:
+    last = stamps[0] if stamps else 0  # the latest stamp time went on from
+    for i in range(1, len(stamps)):
+        if stamps[i] < last:
             starts.append(logs[i])
+        elif 0 < i + 1 < len(stamps) and last <= stamps[i + 1] < stamps[i]:
+            # One stamp ahead of both neighbours, time going on after it from where it was
+            # before (a corrupted stamp): no restart follows it, and it is not where time stood.
+            continue
+        last = stamps[i]
     return [(a, b) for a, b in zip(starts, [*starts[1:], None], strict=True)]
 
 
