@@ -134,7 +134,8 @@ def test_an_imported_files_hints_are_bounded_like_a_request(properties: dict, na
 
 @pytest.mark.parametrize("properties, named", [
     ({"mission_id": {"x": 1}}, "mission_id"), ({"predict_disturbance": "yes"}, "predict_disturbance"),
-    ({"coa_radius_m": "2"}, "coa_radius_m"), ({"task_power_w": True}, "task_power_w")])
+    ({"coa_radius_m": "2"}, "coa_radius_m"), ({"task_power_w": True}, "task_power_w"),
+    ({"speed_hint_mps": float("inf")}, "speed_hint_mps")])  # what JSON's 1e400 reads as
 def test_a_geojson_hint_of_the_wrong_json_type_is_refused_not_converted(properties, named) -> None:
     """MissionRequest would turn "yes" into True and an object into a mission id's text."""
     with pytest.raises(mission_files.PlanError, match=named):

@@ -415,8 +415,11 @@ def _geojson_hints(properties: Any) -> dict[str, Any]:
         value = properties.get(name)
         if value is None:
             continue
-        if not isinstance(value, types) or (bool not in types and isinstance(value, bool)):
-            kind = "text" if types == (str,) else "true or false" if types == (bool,) else "a number"
+        number = float in types
+        if not isinstance(value, types) or (bool not in types and isinstance(value, bool)) \
+                or (number and finite_number(value) is None):
+            kind = ("text" if types == (str,) else "true or false" if types == (bool,)
+                    else "a finite number")
             raise PlanError(f"geojson properties.{name}: {json.dumps(value)[:40]} is not {kind}")
         hints[name] = value
     return hints
