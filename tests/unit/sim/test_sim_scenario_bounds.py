@@ -38,6 +38,8 @@ def lake_with(**changes) -> dict:
      "drag_area_m2", sc.MAX_DRAG_AREA_M2),
     ({"disturbances": [{"kind": "wind", "speed_mps": 3.0, "from_rad": 0.0, "gust_std_mps": 1e200}]},
      "gust_std_mps", sc.MAX_GUST_STD_MPS),
+    ({"disturbances": [{"kind": "wind", "speed_mps": 3.0, "from_rad": 0.0,
+                        "gust_direction_std_rad": 1e308}]}, "gust_direction_std_rad", math.pi),
     ({"disturbances": [{"kind": "body_constant", "yaw_nm": -50.0}]}, "yaw_nm", -sc.MAX_MOMENT_NM),
     ({"disturbances": [{"kind": "world_constant", "east_n": 1e4}]}, "east_n", sc.MAX_FORCE_N),
     ({"disturbances": [{"kind": "world_grid", "xs_m": [0, 1], "ys_m": [0, 1],

@@ -132,7 +132,9 @@ class Wind(ConfigModel):
                                 description="Cd * A, above-water [m^2]")
     gust_std_mps: float = Field(default=0.0, ge=0, le=MAX_GUST_STD_MPS,
                                 description="gust speed std [m/s]")
-    gust_direction_std_rad: float = Field(default=0.0, ge=0)
+    gust_direction_std_rad: float = Field(default=0.0, ge=0, le=math.pi,
+                                          description="gust direction std [rad]; at most half a "
+                                          "turn, any direction (a larger one wraps to the same)")
     gust_time_constant_s: float = Field(default=5.0, gt=0)
 
 
