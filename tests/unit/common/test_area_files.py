@@ -336,5 +336,5 @@ def test_a_file_the_parser_chokes_on_is_refused_naming_it(tmp_path, name, text, 
     """A 5000-digit number (ValueError) or nesting 3000 deep (RecursionError) escaped as a
     traceback."""
     (tmp_path / name).write_text(text)
-    with pytest.raises(AreaError, match=rf"{name}: not a usable (TOML|JSON) document: {named}"):
+    with pytest.raises(AreaError, match=rf"{name}: not a usable document: {named}"):
         files.load_area_file(tmp_path / name)

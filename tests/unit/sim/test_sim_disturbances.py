@@ -122,7 +122,7 @@ def test_the_plant_feels_the_reported_force() -> None:
     ({"file": "grid.json", "xs_m": [5.0, 6.0]},  # was silently replaced by the file's
      r"disturbances\.0: xs_m given beside file 'grid\.json'"),
     ({"file": "grid.json", "scale": [1]}, r"disturbances\.0\.scale: \[1\] is not a finite number"),
-    ({"file": "deep.json"}, r"disturbances\.0\.file: .*deep\.json: not a usable JSON document: nested"),
+    ({"file": "deep.json"}, r"disturbances\.0\.file: .*deep\.json: not a usable document: nested"),
 ])
 def test_a_bad_grid_file_entry_is_refused_naming_the_field(tmp_path, entry, named) -> None:
     (tmp_path / "grid.json").write_text(json.dumps({"xs": [0, 1], "ys": [0, 1], "tx": [[0, 0], [0, 0]],

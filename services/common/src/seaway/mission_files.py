@@ -33,8 +33,10 @@ from typing import Any, Literal
 from seaway.area.geojson import AREA_PROPERTY, geojson_features, spec_from_geojson
 from seaway.area.model import AreaError
 from seaway.area.plan import plan_sections, spec_from_plan
-from seaway.area.spec import AreaSpec, finite_number, read_lat_lon
+from seaway.area.spec import AreaSpec, read_lat_lon
+from seaway.contract.config import unreadable
 from seaway.contract.messages.requests import MAX_SPEED_HINT_MPS
+from seaway.contract.units import finite_number
 
 NAV_WAYPOINT = 16
 """MAV_CMD_NAV_WAYPOINT: the only mission item that becomes a Seaway waypoint."""
@@ -132,11 +134,8 @@ def load_json(data: bytes | str, what: str = "mission file") -> Any:
         raise PlanError(f"{what}: not UTF-8 text ({err.reason} at byte {err.start})") from None
     except json.JSONDecodeError as err:
         raise PlanError(f"{what}: not JSON: {err.msg} at line {err.lineno} column {err.colno}") from None
-    except RecursionError:
-        raise PlanError(f"{what}: nested too deeply to read (a mission file is a few levels deep)") \
-            from None
-    except ValueError as err:  # an integer literal of more digits than Python converts
-        raise PlanError(f"{what}: not readable: {err}") from None
+    except (ValueError, RecursionError) as err:
+        raise PlanError(f"{what}: {unreadable(err)}") from None
 
 
 def detect_format(doc: Any) -> MissionFormat:

@@ -43,6 +43,7 @@ from seaway.area.geojson import spec_from_geojson
 from seaway.area.model import AreaError, OperatingArea
 from seaway.area.plan import spec_from_plan
 from seaway.area.spec import AreaSpec, from_toml
+from seaway.contract.config import unreadable
 from seaway.vessel.frames import GeoOrigin
 
 
@@ -61,7 +62,7 @@ def load_area_file(path: str | Path) -> AreaSpec | None:
         except AreaError:
             raise
         except (ValueError, RecursionError) as err:  # what tomllib raises past its own checks
-            raise AreaError(_unreadable(p, "TOML", err)) from None
+            raise AreaError(f"{p}: {unreadable(err)}") from None
     if p.suffix not in (".plan", ".geojson", ".json"):
         raise AreaError(
             f"{p}: unknown file type {p.suffix!r}; an area is read from .toml, .plan, .geojson or .json"
@@ -71,21 +72,11 @@ def load_area_file(path: str | Path) -> AreaSpec | None:
     except json.JSONDecodeError as err:
         raise AreaError(f"{p}: not JSON: {err.msg} at line {err.lineno} column {err.colno}") from None
     except (ValueError, RecursionError) as err:
-        raise AreaError(_unreadable(p, "JSON", err)) from None
+        raise AreaError(f"{p}: {unreadable(err)}") from None
     try:
         return spec_from_plan(doc) if p.suffix == ".plan" else spec_from_geojson(doc)
     except AreaError as err:
         raise AreaError(f"{p}: {err}") from None
-
-
-def _unreadable(p: Path, kind: str, err: ValueError | RecursionError) -> str:
-    """Why a file the parser choked on cannot be read: an integer past Python's 4300-digit
-    conversion limit (ValueError) or arrays nested about a thousand deep (RecursionError), which
-    escaped as tracebacks."""
-    if isinstance(err, RecursionError):
-        return f"{p}: not a usable {kind} document: nested too deeply (an area file nests a few levels)"
-    what = str(err).split(";")[0]  # not its advice to raise the limit: that is no fix for a file
-    return f"{p}: not a usable {kind} document: a number too long to read ({what})"
 
 
 def run_area(scenario: object | None, area_file: str | Path | None,

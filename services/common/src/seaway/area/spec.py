@@ -24,6 +24,7 @@ from seaway.area.model import (
 )
 from seaway.contract.config import ConfigModel, describe_validation_error
 from seaway.contract.missions import LatDeg, LonDeg
+from seaway.contract.units import finite_number
 from seaway.vessel.frames import GeoOrigin
 
 _Coord = tuple[float, float]
@@ -190,19 +191,6 @@ def parse_spec(doc: Any, where: str = "area") -> AreaSpec:
         return AreaSpec.model_validate(doc)
     except ValidationError as err:
         raise AreaError(describe_validation_error(err, where)) from None
-
-
-def finite_number(value: Any) -> float | None:
-    """``value`` as a float if it is a JSON number (not a bool) that is finite as a float, else
-    None. An integer literal too large for a float (``1e400`` written out in digits) is not one:
-    ``math.isfinite`` would raise on it instead of answering."""
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        return None
-    try:
-        number = float(value)
-    except OverflowError:
-        return None
-    return number if math.isfinite(number) else None
 
 
 def read_number(value: Any, where: str) -> float:

@@ -55,6 +55,16 @@ def describe_validation_error(err: ValidationError, where: str) -> str:
     return "\n".join(lines)
 
 
+def unreadable(err: ValueError | RecursionError) -> str:
+    """Why a JSON or TOML text its parser raised on past its syntax checks cannot be read: an
+    integer past Python's 4300-digit conversion limit (ValueError) or arrays or tables nested
+    about a thousand deep (RecursionError). Every file reader says it this way."""
+    if isinstance(err, RecursionError):
+        return "not a usable document: nested too deeply (no file here nests more than a few levels)"
+    what = str(err).split(";")[0]  # not its advice to raise the limit: that is no fix for a file
+    return f"not a usable document: a number too long to read ({what})"
+
+
 def read_document(path: str | Path) -> dict[str, Any]:
     """Read a TOML or JSON file into a dict; errors name the file and the parse position."""
     p = Path(path)
@@ -77,13 +87,8 @@ def read_document(path: str | Path) -> dict[str, Any]:
         raise ConfigError(f"{p}: not valid {p.suffix[1:].upper()}: {err}") from None
     except ConfigError:
         raise
-    except ValueError as err:  # an integer past Python's 4300-digit conversion limit
-        what = str(err).split(";")[0]  # not its advice to raise the limit: that is no fix for a file
-        raise ConfigError(f"{p}: not a usable {p.suffix[1:].upper()} document: a number too long "
-                          f"to read ({what})") from None
-    except RecursionError:  # arrays or tables nested about a thousand deep
-        raise ConfigError(f"{p}: not a usable {p.suffix[1:].upper()} document: nested too deeply "
-                          "(no configuration nests more than a few levels)") from None
+    except (ValueError, RecursionError) as err:
+        raise ConfigError(f"{p}: {unreadable(err)}") from None
     raise ConfigError(f"{p}: unknown file type {p.suffix!r}; use .toml or .json")
 
 

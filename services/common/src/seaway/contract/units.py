@@ -24,6 +24,19 @@ def ns_to_s(nanoseconds: int) -> float:
     return nanoseconds / NS_PER_S
 
 
+def finite_number(value: Any) -> float | None:
+    """``value`` as a float if it is a JSON number (not a bool) that is finite as a float, else
+    None. An integer literal too large for a float (``1e400`` written out in digits) is not one:
+    ``math.isfinite`` would raise on it instead of answering."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return None
+    try:
+        number = float(value)
+    except OverflowError:
+        return None
+    return number if math.isfinite(number) else None
+
+
 def in_range(lo: float, hi: float, unit: str, *, lo_open: bool = False) -> BeforeValidator:
     """A pydantic check whose error names the allowed range: ``95 deg is outside the allowed range
     [-90, 90] deg`` (pydantic's own ``ge``/``le`` name only the bound crossed). Put it beside the
@@ -32,15 +45,16 @@ def in_range(lo: float, hi: float, unit: str, *, lo_open: bool = False) -> Befor
     opening = "(" if lo_open else "["
 
     def check(value: Any) -> Any:
-        if isinstance(value, int) and not isinstance(value, bool) and abs(value) > 1e300:
-            # An integer past a float's range: math.isfinite would raise OverflowError, which
-            # pydantic does not turn into a validation error (it would escape the edge).
+        if isinstance(value, int) and not isinstance(value, bool) and finite_number(value) is None:
+            # An integer past a float's range: left to the other checks, pydantic's float
+            # conversion would raise OverflowError, which it does not turn into a validation error.
             raise ValueError(f"an integer of {len(str(abs(value)))} digits is outside the allowed "
                              f"range {opening}{lo:g}, {hi:g}] {unit}")
-        if isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value):
-            low_ok = value > lo if lo_open else value >= lo
-            if not (low_ok and value <= hi):
-                raise ValueError(f"{value:g} {unit} is outside the allowed range "
+        number = finite_number(value)
+        if number is not None:
+            low_ok = number > lo if lo_open else number >= lo
+            if not (low_ok and number <= hi):
+                raise ValueError(f"{number:g} {unit} is outside the allowed range "
                                  f"{opening}{lo:g}, {hi:g}] {unit}")
         return value
 

@@ -37,8 +37,17 @@ from pydantic import Field, model_validator
 
 from seaway.area.model import AreaError, OperatingArea
 from seaway.area.spec import AreaSpec
-from seaway.contract.config import ConfigError, ConfigModel, Origin, deploy_named, parse_config, read_document
+from seaway.contract.config import (
+    ConfigError,
+    ConfigModel,
+    Origin,
+    deploy_named,
+    parse_config,
+    read_document,
+    unreadable,
+)
 from seaway.contract.missions import MissionSpec
+from seaway.contract.units import finite_number
 from seaway.simkit.faults import Fault
 from seaway.vessel.battery import BatteryParams
 from seaway.vessel.frames import GeoOrigin
@@ -307,7 +316,7 @@ def _resolve_grid_files(doc: dict, base: Path, where: str = "scenario") -> dict:
                 raise ConfigError(f"{at}: {', '.join(inline)} given beside file {d['file']!r}, which "
                                   "gives the whole grid; give either the file or the grid inline")
             scale = d.get("scale", 1.0)
-            if isinstance(scale, bool) or not isinstance(scale, int | float) or not math.isfinite(scale):
+            if finite_number(scale) is None:
                 raise ConfigError(f"{at}.scale: {scale!r} is not a finite number (the factor the "
                                   "file's forces are multiplied by)")
             path = (base / d["file"]).resolve()
@@ -320,10 +329,8 @@ def _resolve_grid_files(doc: dict, base: Path, where: str = "scenario") -> dict:
                                   f"0x{err.object[err.start]:02x}); a grid file is UTF-8 JSON") from None
             except json.JSONDecodeError as err:
                 raise ConfigError(f"{at}.file: {path}: not valid JSON: {err}") from None
-            except (ValueError, RecursionError) as err:  # a 4300-digit number, deep nesting
-                what = ("nested too deeply" if isinstance(err, RecursionError)
-                        else f"a number too long to read ({str(err).split(';')[0]})")
-                raise ConfigError(f"{at}.file: {path}: not a usable JSON document: {what}") from None
+            except (ValueError, RecursionError) as err:
+                raise ConfigError(f"{at}.file: {path}: {unreadable(err)}") from None
             rest = {k: v for k, v in d.items() if k not in ("file", "scale")}
             try:
                 d = {**rest, "xs_m": grid["xs"], "ys_m": grid["ys"],
