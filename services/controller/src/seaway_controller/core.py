@@ -329,9 +329,8 @@ class ControllerCore(MissionRequests, VehicleGate, EnergyAccount):
             why = (f"position ({state.x_m:.3g}, {state.y_m:.3g}) m is more than {MAX_RANGE_M:g} m "
                    "from the origin, past any local frame")
         if why is None and state.covariance is not None:
-            cov = state.covariance
-            if any(not abs(c) <= MAX_COVARIANCE_ENTRY for c in cov) or any(cov[k * 10] < 0
-                                                                           for k in range(9)):
+            cov = state.covariance  # row-major 9x9: its diagonal is every 10th entry
+            if not max(map(abs, cov)) <= MAX_COVARIANCE_ENTRY or min(cov[::10]) < 0:
                 why = (f"the covariance has a negative variance or an entry past "
                        f"{MAX_COVARIANCE_ENTRY:g}")
         return why
