@@ -51,6 +51,16 @@ def damage(path: Path, at: int) -> None:
     path.write_bytes(bytes(data))
 
 
+def garble_middle_chunk(path: Path) -> int:
+    """Zero 20 bytes near the end of the middle chunk's compressed data (it no longer decodes);
+    the chunk's start [bytes]."""
+    start, length = middle_chunk(path)
+    data = bytearray(path.read_bytes())
+    data[start + length - 30:start + length - 10] = bytes(20)
+    path.write_bytes(bytes(data))
+    return start
+
+
 def every_reader_refuses(path: Path, start: int) -> None:
     """The report's decode, the messages in log-time order (replay) and in file order all refuse
     ``path`` naming the chunk that starts at byte ``start``."""
@@ -84,10 +94,7 @@ def test_a_wrong_crc_on_whole_data_is_refused(tmp_path: Path) -> None:
 def test_a_chunk_that_does_not_decompress_is_the_readers_error(tmp_path: Path) -> None:
     path = tmp_path / "recording.mcap"
     write(path)
-    start, length = middle_chunk(path)
-    data = bytearray(path.read_bytes())
-    data[start + length - 30:start + length - 10] = bytes(20)  # zstd: corrupt
-    path.write_bytes(bytes(data))
+    start = garble_middle_chunk(path)
     every_reader_refuses(path, start)
 
 

@@ -13,7 +13,7 @@ from seaway.runtime.memory_bus import MemoryHub
 from seaway_recorder import replay as replay_mod
 from seaway_recorder.replay import KeyFilter, replay
 
-from tests.unit.common.test_recording_damage import TOPIC, middle_chunk, write
+from tests.unit.common.test_recording_damage import TOPIC, garble_middle_chunk, write
 from tests.unit.recorder.test_recorder_runinfo_replay import listening_bus, msg
 
 
@@ -33,10 +33,7 @@ def test_replay_of_a_damaged_file_publishes_what_comes_before_and_fails(tmp_path
                                                                        monkeypatch, capsys) -> None:
     src = tmp_path / "recording.mcap"
     data = write(src)
-    start, length = middle_chunk(src)
-    whole = bytearray(src.read_bytes())
-    whole[start + length - 30:start + length - 10] = bytes(20)  # zstd: corrupt
-    src.write_bytes(bytes(whole))
+    start = garble_middle_chunk(src)
     hub = MemoryHub()
     heard: list = []
     hub.bus().subscribe_raw("**", heard.append)

@@ -13,7 +13,7 @@ from seaway.recording import reader
 from seaway.ros2 import export
 from seaway.vessel.model import load_vessel
 
-from tests.unit.common.test_recording_damage import middle_chunk
+from tests.unit.common.test_recording_damage import garble_middle_chunk
 from tests.unit.common.test_recording_damage import write as write_origins
 
 TOPICS = ("other/a", "other/b", "other/c")
@@ -51,10 +51,7 @@ def test_a_rotated_series_keeps_each_message_on_its_topic(tmp_path: Path) -> Non
 def test_a_damaged_chunk_leaves_no_output(tmp_path: Path, capsys) -> None:
     src = tmp_path / "recording.mcap"
     write_origins(src)
-    start, length = middle_chunk(src)
-    data = bytearray(src.read_bytes())
-    data[start + length - 30:start + length - 10] = bytes(20)  # zstd: corrupt
-    src.write_bytes(bytes(data))
+    start = garble_middle_chunk(src)
     out = tmp_path / "ros2.mcap"
     with pytest.raises(reader.UnreadableRecordingError, match=rf"chunk at byte {start}"):
         export.export([src], out, vessel=load_vessel("paper-sim"))
