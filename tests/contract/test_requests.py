@@ -79,3 +79,56 @@ def test_mission_ranges_name_the_allowed_range() -> None:
     with pytest.raises(MessageError, match=r"lon_deg: Value error, 200 deg is outside"):
         m.MissionRequest.make(stamp_ns=1, **{**base, "waypoints": [
             {"lat_deg": 47, "lon_deg": 200}, {"lat_deg": 47, "lon_deg": 8}]})
+
+
+def _bound_keys(node: object, where: str = "") -> list[str]:
+    """Where a JSON Schema holds pydantic's own bound names instead of JSON Schema's keywords."""
+    found: list[str] = []
+    if isinstance(node, dict):
+        found += [f"{where}.{k}" for k in ("gt", "ge", "lt", "le") if k in node]
+        for k, v in node.items():
+            found += _bound_keys(v, f"{where}.{k}")
+    elif isinstance(node, list):
+        for i, v in enumerate(node):
+            found += _bound_keys(v, f"{where}[{i}]")
+    return found
+
+
+def test_every_schema_states_its_bounds_in_json_schema_keywords() -> None:
+    # A bound pydantic cannot translate (one that follows a validator in an Annotated) lands in the
+    # schema as "gt": 0, which no JSON Schema validator (nor the ground station's fuzz) reads: the
+    # published schema then allows what the model refuses.
+    from seaway.contract.missions import MissionSpec
+    from seaway_groundstation import bodies
+
+    models = [*m.ALL_MESSAGES, MissionSpec, bodies.MissionBody, bodies.ImportParams]
+    bad = [f"{cls.__name__}{path}" for cls in models
+           for path in _bound_keys(cls.model_json_schema())]
+    assert not bad, bad
+    # and the bounds are there: the options' schema says what their checks refuse
+    props = m.MissionRequest.model_json_schema()["properties"]
+    assert props["coa_radius_m"]["exclusiveMinimum"] == 0
+    assert props["coa_radius_m"]["maximum"] == m.MAX_COA_RADIUS_M
+    lat = MissionSpec.model_json_schema()["properties"]["waypoints_deg"]
+    assert '"minimum": -90' in json.dumps(lat) and '"maximum": 90' in json.dumps(lat)
+
+
+def test_the_mission_options_are_declared_once() -> None:
+    # What people send (a scenario's or mission file's [mission], the ground station's bodies)
+    # carries exactly the options of the bus request, with the request's bounds.
+    from seaway.contract.missions import MissionSpec
+    from seaway_groundstation import bodies
+
+    options = set(m.MISSION_OPTIONS)
+    assert options == set(m.MissionRequest.model_fields) - {"stamp_ns", "waypoints", "home"}
+    assert options <= set(MissionSpec.model_fields)
+    assert options <= set(bodies.MissionParams.model_fields)
+    assert options == set(bodies.ImportParams.model_fields) - {"skip_unsupported"}
+    for model in (MissionSpec, bodies.MissionParams, bodies.ImportParams):
+        schema = model.model_json_schema()["properties"]
+        hint = json.dumps(schema["speed_hint_mps"])
+        assert f'"maximum": {m.MAX_SPEED_HINT_MPS}' in hint, (model.__name__, hint)
+        with pytest.raises(Exception, match="outside the allowed range"):
+            model.model_validate({"coa_radius_m": m.MAX_COA_RADIUS_M * 2, "task_power_w": 1.0,
+                                  "waypoints_m": [[0, 0], [1, 0]]} if model is MissionSpec else
+                                 {"coa_radius_m": m.MAX_COA_RADIUS_M * 2, "task_power_w": 1.0})

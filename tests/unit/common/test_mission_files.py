@@ -39,7 +39,7 @@ def write(tmp: Path, text: str) -> Path:
     ("waypoints_m = [[0,0]]\ncoa_radius_m = 1\ntask_power_w = 0.49\n",
      "waypoints_m: List should have at least 2"),
     ("waypoints_m = [[0,0],[1,1]]\ncoa_radius_m = 0\ntask_power_w = 0.49\n",
-     "coa_radius_m: Input should be greater"),
+     r"coa_radius_m: .*outside the allowed range \(0, 10000\] m"),
     ("waypoints_m = [[0,0],[1,1]]\ncoa_radius_m = 1\ntask_power_w = 0.49\ncontroler = 'nmpc'\n",
      "controler: unknown field"),
     ("waypoints_m = [[0,0],[1,nan]]\ncoa_radius_m = 1\ntask_power_w = 0.49\n", "finite number"),

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 from seaway import mission_files as plans
-from seaway.contract.messages import MissionRequest, Waypoint
+from seaway.contract.messages import MISSION_OPTIONS, MissionRequest, Waypoint
 from seaway.mission_files import PlanError
 from seaway.vessel.frames import GeoOrigin
 from seaway_groundstation import bodies
@@ -222,15 +222,27 @@ def test_geojson_refusals(doc, match) -> None:
 
 
 def test_geojson_export_round_trip_carries_mission_parameters() -> None:
+    # Every option away from its default, so that one the export or the import forgot shows.
     req = MissionRequest.make(stamp_ns=1, mission_id="m1", coa_radius_m=3.0, task_power_w=20.0,
-                              controller="eo-empc", predict_disturbance=True,
+                              controller="eo-empc", predict_disturbance=True, speed_hint_mps=1.2,
+                              on_low_energy="hold", join_first_leg=True, at_rest="drift",
+                              on_area_breach="return",
                               waypoints=[Waypoint(lat_deg=47.0, lon_deg=8.0),
                                          Waypoint(lat_deg=47.001, lon_deg=8.001)])
+    assert set(plans.FILE_OPTIONS) | {"force"} == set(MISSION_OPTIONS)
     doc = plans.to_geojson(bodies.mission_points_deg(req.waypoints, None), bodies.mission_properties(req))
     assert doc["geometry"]["coordinates"] == [[8.0, 47.0], [8.001, 47.001]]
     path = plans.parse_document(json.loads(json.dumps(doc)))
     again = bodies.mission_from_import(path, bodies.ImportParams(), 2)
     assert again.model_dump(exclude={"stamp_ns"}) == req.model_dump(exclude={"stamp_ns"})
+    # force is the operator's choice when sending: an exported file never carries it
+    forced = req.model_copy(update={"force": True})
+    assert "force" not in bodies.mission_properties(forced)
+    # a policy property of the wrong JSON type is refused by name, not turned into a value
+    bad = json.loads(json.dumps(doc))
+    bad["properties"]["join_first_leg"] = "yes"
+    with pytest.raises(PlanError, match="join_first_leg"):
+        plans.parse_document(bad)
     # the request's own values beat the file's
     faster = bodies.mission_from_import(path, bodies.ImportParams(task_power_w=5.0, controller="nmpc"), 3)
     assert (faster.task_power_w, faster.controller, faster.coa_radius_m) == (5.0, "nmpc", 3.0)

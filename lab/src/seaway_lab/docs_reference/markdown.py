@@ -103,13 +103,22 @@ def default_of(name: str, prop: dict[str, Any], required: set[str]) -> str:
     return ""
 
 
+def description_of(prop: dict[str, Any]) -> str:
+    """A property's description: its own, else its one described branch's (an optional bounded
+    type declared once, ``SpeedHintMps | None``, carries its description inside the union)."""
+    if "description" in prop:
+        return str(prop["description"])
+    said = [b["description"] for b in prop.get("anyOf", []) if "description" in b]
+    return str(said[0]) if len(said) == 1 else ""
+
+
 def field_table(schema: dict[str, Any]) -> str:
     """One object's fields: name, type, default (or required), bounds, description."""
     required = set(schema.get("required", []))
     rows = []
     for name, prop in schema.get("properties", {}).items():
         rows.append([code(name), cell(type_of(prop)), default_of(name, prop, required),
-                     cell(bounds_of(prop)), cell(prop.get("description", ""))])
+                     cell(bounds_of(prop)), cell(description_of(prop))])
     if not rows:
         return "No fields.\n"
     return table(["field", "type", "default", "bounds", "description"], rows)

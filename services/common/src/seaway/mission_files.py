@@ -28,14 +28,14 @@ from __future__ import annotations
 import json
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Annotated, Any, Literal, get_args, get_origin
 
 from seaway.area.geojson import AREA_PROPERTY, geojson_features, spec_from_geojson
 from seaway.area.model import AreaError
 from seaway.area.plan import plan_sections, spec_from_plan
 from seaway.area.spec import AreaSpec, read_lat_lon
 from seaway.contract.config import unreadable
-from seaway.contract.messages.requests import MAX_SPEED_HINT_MPS
+from seaway.contract.messages.requests import MAX_SPEED_HINT_MPS, MISSION_OPTIONS, MissionOptions
 from seaway.contract.units import finite_number
 
 NAV_WAYPOINT = 16
@@ -305,12 +305,25 @@ def _area(read: Any, doc: Any) -> AreaSpec | None:
         raise PlanError(str(err)) from None
 
 
-_HINT_PROPERTIES: dict[str, tuple[type, ...]] = {
-    "mission_id": (str,), "coa_radius_m": (int, float), "task_power_w": (int, float),
-    "controller": (str,), "predict_disturbance": (bool,), "speed_hint_mps": (int, float)}
-"""GeoJSON Feature properties read back as mission parameters (what ``to_geojson`` writes), and the
-JSON types each may have (``MissionRequest`` would turn ``"yes"`` into True and ``{"x": 1}`` into
-a mission id)."""
+FILE_OPTIONS: tuple[str, ...] = tuple(o for o in MISSION_OPTIONS if o != "force")
+"""The mission options a GeoJSON mission carries as Feature properties (what ``to_geojson`` writes
+and an import reads back as hints): all but ``force``, which is the operator's choice when sending,
+never a file's."""
+
+
+def _json_types(option: str) -> tuple[type, ...]:
+    """The JSON types an option's property may have: a number, true or false, or text (a name or
+    a policy). ``MissionRequest`` would turn ``"yes"`` into True and ``{"x": 1}`` into a mission id,
+    so the type is checked before it bounds the value."""
+    annotation = MissionOptions.model_fields[option].annotation
+    kind = next((a for a in get_args(annotation) if a is not type(None)), annotation)
+    if get_origin(kind) is Annotated:  # an optional bounded number: its bounds are the request's
+        kind = get_args(kind)[0]
+    return (bool,) if kind is bool else (int, float) if kind is float else (str,)
+
+
+_HINT_PROPERTIES: dict[str, tuple[type, ...]] = {o: _json_types(o) for o in FILE_OPTIONS}
+"""GeoJSON Feature properties read back as mission options, and the JSON types each may have."""
 SPEEDS_PROPERTY = "speeds_mps"
 """A GeoJSON Feature's per-waypoint speeds [m/s]: a list, one number or null per position."""
 

@@ -15,24 +15,26 @@ from pydantic import AfterValidator, BaseModel, ConfigDict, Field, field_validat
 from seaway.area.model import MAX_RANGE_M
 from seaway.contract import keys
 from seaway.contract.messages import (
-    DEFAULT_CONTROLLER,
-    MAX_COA_RADIUS_M,
-    MAX_SPEED_HINT_MPS,
-    MAX_TASK_POWER_W,
     AreaBreachPolicy,
     ArmRequest,
     AtRest,
+    CoaRadiusM,
     ControllerName,
     HomeRequest,
+    LowEnergyPolicy,
     Message,
     MessageError,
     MissionCommand,
+    MissionId,
+    MissionOptions,
     MissionRequest,
     ModeRequest,
     ScenarioRequest,
+    SpeedHintMps,
+    TaskPowerW,
     Waypoint,
 )
-from seaway.mission_files import MAX_WAYPOINTS, ImportedPath, PlanError, mission_request
+from seaway.mission_files import FILE_OPTIONS, MAX_WAYPOINTS, ImportedPath, PlanError, mission_request
 from seaway.vessel.frames import GeoOrigin
 
 
@@ -154,27 +156,9 @@ class WaypointIn(_Body):
         return Waypoint(x_m=self.x_m, y_m=self.y_m, lat_deg=self.lat_deg, lon_deg=self.lon_deg)
 
 
-class MissionParams(_Body):
-    """A mission's parameters: circle of acceptance r_COA, task power T^w, controller."""
-
-    mission_id: str = Field(default="", max_length=64)
-    coa_radius_m: float = Field(gt=0, le=MAX_COA_RADIUS_M,
-                                description="circle-of-acceptance radius r_COA [m]")
-    task_power_w: float = Field(gt=0, le=MAX_TASK_POWER_W, description="T^w, power of the task carried [W]")
-    controller: ControllerName = Field(default=DEFAULT_CONTROLLER,
-                                       description="CC-EMPC (the paper's) or a baseline")
-    predict_disturbance: bool = Field(default=False, description="predict with the estimator's tau_d "
-                                      "(disturbance-aware) instead of tau_d = 0 (the paper's)")
-    speed_hint_mps: float | None = Field(default=None, gt=0, le=MAX_SPEED_HINT_MPS,
-                                         description="cruise hint [m/s]")
-    join_first_leg: bool = Field(default=False, description="join P_0 -> P_1 from where the vessel "
-                                 "is instead of going to P_0 first")
-    at_rest: AtRest = Field(default="hold", description="after the last waypoint and on pause: "
-                            "'hold' station or 'drift'")
-    on_area_breach: AreaBreachPolicy = Field(default="hold", description="at the operating area's "
-                                             "edge in flight: 'hold' station or 'return'")
-    force: bool = Field(default=False, description="fly it although the mission check refuses it "
-                        "on energy (the operator's explicit choice, recorded)")
+class MissionParams(MissionOptions, _Body):
+    """A mission's parameters: the ``MissionOptions`` of the bus request (circle of acceptance
+    r_COA, task power T^w, controller, policies), strict as every body here."""
 
 
 class MissionBody(MissionParams):
@@ -191,12 +175,13 @@ class ImportParams(_Body):
     # Lax: multipart form fields are text ("2.5", "true"); a JSON body is validated strictly.
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False, strict=False)
 
-    mission_id: str | None = Field(default=None, max_length=64)
-    coa_radius_m: float | None = Field(default=None, gt=0, le=MAX_COA_RADIUS_M, description="r_COA [m]")
-    task_power_w: float | None = Field(default=None, gt=0, le=MAX_TASK_POWER_W, description="T^w [W]")
+    mission_id: MissionId | None = None
+    coa_radius_m: CoaRadiusM | None = None
+    task_power_w: TaskPowerW | None = None
     controller: ControllerName | None = None
     predict_disturbance: bool | None = None
-    speed_hint_mps: float | None = Field(default=None, gt=0, le=MAX_SPEED_HINT_MPS, description="[m/s]")
+    speed_hint_mps: SpeedHintMps | None = None
+    on_low_energy: LowEnergyPolicy | None = None
     join_first_leg: bool | None = None
     at_rest: AtRest | None = None
     on_area_breach: AreaBreachPolicy | None = None
@@ -379,13 +364,10 @@ def mission_points_deg(waypoints: Sequence[Waypoint], origin: GeoOrigin | None) 
 
 
 def mission_properties(req: MissionRequest) -> dict[str, Any]:
-    """The mission's parameters as GeoJSON properties (read back as hints on import)."""
-    props: dict[str, Any] = {"mission_id": req.mission_id, "coa_radius_m": req.coa_radius_m,
-                             "task_power_w": req.task_power_w, "controller": req.controller,
-                             "predict_disturbance": req.predict_disturbance}
-    if req.speed_hint_mps is not None:
-        props["speed_hint_mps"] = req.speed_hint_mps
-    return props
+    """The mission's options as GeoJSON properties (``FILE_OPTIONS``, read back as hints on
+    import); an option the request leaves unset (None) is left out."""
+    values = {o: getattr(req, o) for o in FILE_OPTIONS}
+    return {o: v for o, v in values.items() if v is not None}
 
 
 def command_words(msg: Message) -> str:

@@ -9,55 +9,34 @@ from pydantic import Field, ValidationError, model_validator
 
 from seaway.contract.config import ConfigModel
 from seaway.contract.messages import (
-    DEFAULT_CONTROLLER,
-    MAX_COA_RADIUS_M,
-    MAX_TASK_POWER_W,
-    AreaBreachPolicy,
-    AtRest,
+    MISSION_OPTIONS,
     ControllerName,
-    LowEnergyPolicy,
     MessageError,
+    MissionOptions,
     MissionRequest,
     Waypoint,
 )
 from seaway.contract.units import in_range
 
-LatDeg = Annotated[float, in_range(-90, 90, "deg"), Field(ge=-90, le=90,
-                                                          description="WGS84 latitude [deg]")]
-LonDeg = Annotated[float, in_range(-180, 180, "deg"), Field(ge=-180, le=180,
-                                                            description="WGS84 longitude [deg]")]
+# The Field before the check: after a validator pydantic writes ``ge`` itself into the JSON Schema.
+LatDeg = Annotated[float, Field(ge=-90, le=90, description="WGS84 latitude [deg]"),
+                   in_range(-90, 90, "deg")]
+LonDeg = Annotated[float, Field(ge=-180, le=180, description="WGS84 longitude [deg]"),
+                   in_range(-180, 180, "deg")]
 
 
-class MissionSpec(ConfigModel):
+class MissionSpec(MissionOptions, ConfigModel):
     """A mission as written in a file: a scenario's ``[mission]`` table or a mission file.
 
     Waypoints are local NED metres (``waypoints_m``, [[north, east], ...]) or WGS84 degrees
-    (``waypoints_deg``, [[lat, lon], ...], converted by the controller through the published origin).
+    (``waypoints_deg``, [[lat, lon], ...], converted by the controller through the published origin);
+    the other fields are the ``MissionOptions`` a request carries.
     """
 
-    mission_id: str = Field(default="", max_length=64)
     waypoints_m: list[tuple[float, float]] | None = Field(default=None, min_length=2)
     waypoints_deg: list[tuple[LatDeg, LonDeg]] | None = Field(default=None, min_length=2)
-    coa_radius_m: float = Field(gt=0, le=MAX_COA_RADIUS_M)
-    task_power_w: Annotated[float, in_range(0, MAX_TASK_POWER_W, "W", lo_open=True)] = Field(
-        gt=0, le=MAX_TASK_POWER_W, description="T^w [W], (0, 10 kW] "
-        "(seaway.contract.messages.MAX_TASK_POWER_W says why)")
-    controller: ControllerName = DEFAULT_CONTROLLER
-    predict_disturbance: bool = Field(default=False, description="predict with the estimator's tau_d "
-                                      "instead of tau_d = 0 (the paper's)")
-    on_low_energy: LowEnergyPolicy = Field(default="return", description="when the energy to get "
-                                           "home plus the reserve reaches what the battery has "
-                                           "left: 'warn', 'return' (default) or 'hold'")
     home_m: tuple[float, float] | None = Field(default=None, description="home [north, east] in "
                                                "local NED metres; default the vessel's home")
-    join_first_leg: bool = Field(default=False, description="join P_0 -> P_1 from where the vessel "
-                                 "is instead of going to P_0 first")
-    at_rest: AtRest = Field(default="hold", description="after the last waypoint and on pause: "
-                            "'hold' station (default) or 'drift'")
-    on_area_breach: AreaBreachPolicy = Field(default="hold", description="at the operating area's "
-                                             "edge in flight: 'hold' (default) or 'return'")
-    force: bool = Field(default=False, description="fly it although the mission check refuses it "
-                        "on energy (the operator's explicit choice)")
 
     @model_validator(mode="after")
     def _one_kind_of_waypoints(self) -> MissionSpec:
@@ -84,14 +63,12 @@ class MissionSpec(ConfigModel):
                 wps = [Waypoint(lat_deg=a, lon_deg=b) for a, b in self.waypoints_deg or []]
         except ValidationError as err:  # a spec built without validation (model_construct)
             raise MessageError(f"MissionRequest.waypoints: {err.errors()[0]['msg']}") from None
-        return MissionRequest.make(
-            stamp_ns=stamp_ns, mission_id=self.mission_id or mission_id, waypoints=wps,
-            coa_radius_m=self.coa_radius_m,
-            task_power_w=self.task_power_w if task_power_w is None else task_power_w,
-            controller=controller or self.controller,
-            predict_disturbance=(self.predict_disturbance if predict_disturbance is None
-                                 else predict_disturbance),
-            on_low_energy=self.on_low_energy,
-            home=None if self.home_m is None else Waypoint(x_m=self.home_m[0], y_m=self.home_m[1]),
-            join_first_leg=self.join_first_leg, at_rest=self.at_rest,
-            on_area_breach=self.on_area_breach, force=self.force)
+        options = self.model_dump(include=set(MISSION_OPTIONS))
+        options.update(mission_id=self.mission_id or mission_id,
+                       controller=controller or self.controller)
+        if predict_disturbance is not None:
+            options["predict_disturbance"] = predict_disturbance
+        if task_power_w is not None:
+            options["task_power_w"] = task_power_w
+        home = None if self.home_m is None else Waypoint(x_m=self.home_m[0], y_m=self.home_m[1])
+        return MissionRequest.make(stamp_ns=stamp_ns, waypoints=wps, home=home, **options)

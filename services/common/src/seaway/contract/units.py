@@ -40,8 +40,10 @@ def finite_number(value: Any) -> float | None:
 def in_range(lo: float, hi: float, unit: str, *, lo_open: bool = False) -> BeforeValidator:
     """A pydantic check whose error names the allowed range: ``95 deg is outside the allowed range
     [-90, 90] deg`` (pydantic's own ``ge``/``le`` name only the bound crossed). Put it beside the
-    field's ``ge``/``le`` (or ``gt``), which stay for the JSON Schema; values that are not finite
-    numbers are left to the other checks."""
+    field's ``ge``/``le`` (or ``gt``), which stay for the JSON Schema (inside one ``Annotated``,
+    the ``Field`` first: pydantic writes bounds that follow a validator into the schema as they are,
+    ``"gt": 0``, a key JSON Schema does not know); values that are not finite numbers are left to
+    the other checks."""
     opening = "(" if lo_open else "["
 
     def check(value: Any) -> Any:

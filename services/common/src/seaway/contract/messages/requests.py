@@ -125,28 +125,39 @@ vessel's top speed, which the controller's envelope caps the hint at in any case
 a file or a request may carry."""
 
 
-class MissionRequest(Request):
-    """A mission: ordered waypoints P_0..P_N, circle of acceptance, task power T^w, controller, and
-    whether the controller predicts with the estimated disturbance."""
+MissionId = Annotated[str, Field(max_length=64, description="the mission's name, at most 64 "
+                                  "characters ('' for none)")]
+# Each bound twice on purpose: ``Field``'s for the JSON Schema (first: after a validator pydantic
+# would write ``gt`` itself into the schema), ``in_range``'s for an error that names the range.
+CoaRadiusM = Annotated[float, Field(
+    gt=0, le=MAX_COA_RADIUS_M, description="circle-of-acceptance radius r_COA [m], (0, 10 km]"),
+    in_range(0, MAX_COA_RADIUS_M, "m", lo_open=True)]
+TaskPowerW = Annotated[float, Field(
+    gt=0, le=MAX_TASK_POWER_W, description="T^w, power of the task carried [W], (0, 10 kW]"),
+    in_range(0, MAX_TASK_POWER_W, "W", lo_open=True)]
+SpeedHintMps = Annotated[float, Field(
+    gt=0, le=MAX_SPEED_HINT_MPS, description="cruise hint [m/s], (0, 50]"),
+    in_range(0, MAX_SPEED_HINT_MPS, "m/s", lo_open=True)]
 
-    SCHEMA: ClassVar[str] = "seaway.v1.MissionRequest"
-    mission_id: str = Field(default="", max_length=64)
-    waypoints: list[Waypoint]
-    coa_radius_m: Annotated[float, in_range(0, MAX_COA_RADIUS_M, "m", lo_open=True)] = Field(
-        gt=0, le=MAX_COA_RADIUS_M, description="circle-of-acceptance radius r_COA [m], (0, 10 km]")
-    task_power_w: Annotated[float, in_range(0, MAX_TASK_POWER_W, "W", lo_open=True)] = Field(
-        gt=0, le=MAX_TASK_POWER_W, description="T^w, power of the task carried [W], (0, 10 kW]")
-    controller: ControllerName = DEFAULT_CONTROLLER
+
+class MissionOptions(BaseModel):
+    """What a mission asks for beside its path and home: the one declaration of these options,
+    their bounds, defaults and meaning. A ``MissionRequest`` carries them on the bus, a scenario's
+    ``[mission]`` table or mission file (``seaway.contract.missions.MissionSpec``) and the ground
+    station's mission bodies take them from people, each with its own config on top."""
+
+    mission_id: MissionId = ""
+    coa_radius_m: CoaRadiusM
+    task_power_w: TaskPowerW
+    controller: ControllerName = Field(default=DEFAULT_CONTROLLER, description="who flies it: "
+                                       "'cc-empc' (the paper's, default), its baselines 'eo-empc' "
+                                       "and 'nmpc', or one a --controller-module registered")
     predict_disturbance: bool = Field(default=False, description="predict with the estimator's tau_d "
                                       "instead of tau_d = 0 (the paper's)")
-    speed_hint_mps: Annotated[float | None, in_range(0, MAX_SPEED_HINT_MPS, "m/s", lo_open=True)] = \
-        Field(default=None, gt=0, le=MAX_SPEED_HINT_MPS, description="optional cruise hint [m/s], "
-              "(0, 50]")
+    speed_hint_mps: SpeedHintMps | None = None
     on_low_energy: LowEnergyPolicy = Field(default="return", description="when the energy to get "
                                            "home plus the battery's reserve reaches what is left: "
                                            "'warn', 'return' home (default) or 'hold'")
-    home: Waypoint | None = Field(default=None, description="where home is; default the first "
-                                  "waypoint P_0")
     join_first_leg: bool = Field(default=False, description="join the leg P_0 -> P_1 from where the "
                                  "vessel is; by default it first goes to P_0 (into its circle of "
                                  "acceptance), as QGroundControl and ArduPilot do")
@@ -157,6 +168,21 @@ class MissionRequest(Request):
                                              "'hold' station there (default) or 'return' home")
     force: bool = Field(default=False, description="fly it although the mission check refuses it "
                         "on energy (the operator's explicit choice; recorded as MissionAccepted.forced)")
+
+
+MISSION_OPTIONS: tuple[str, ...] = tuple(MissionOptions.model_fields)
+"""The options' names, in declaration order."""
+
+
+class MissionRequest(MissionOptions, Request):
+    """A mission: ordered waypoints P_0..P_N and home, and its ``MissionOptions`` (circle of
+    acceptance, task power T^w, controller, whether it predicts with the estimated disturbance,
+    its policies)."""
+
+    SCHEMA: ClassVar[str] = "seaway.v1.MissionRequest"
+    waypoints: list[Waypoint]
+    home: Waypoint | None = Field(default=None, description="where home is; default the first "
+                                  "waypoint P_0")
 
 
 class MissionCommand(Request):
@@ -193,18 +219,15 @@ class MissionAccepted(Message):
     SCHEMA: ClassVar[str] = "seaway.v1.MissionAccepted"
     accepted_ns: int = Field(ge=0, description="when the controller accepted it, on its clock "
                              "(the stamp of the period in lockstep) [ns]")
-    mission_id: str = Field(default="", max_length=64)
+    mission_id: MissionId = ""
     waypoints: list[Waypoint] = Field(min_length=2, description="P_0..P_N in local NED metres "
                                       "(x_m, y_m) at the published origin")
-    coa_radius_m: float = Field(gt=0, le=MAX_COA_RADIUS_M,
-                                description="circle-of-acceptance radius r_COA [m]")
-    task_power_w: Annotated[float, in_range(0, MAX_TASK_POWER_W, "W", lo_open=True)] = Field(
-        gt=0, le=MAX_TASK_POWER_W, description="T^w, power of the task carried [W], (0, 10 kW]")
+    coa_radius_m: CoaRadiusM
+    task_power_w: TaskPowerW
     controller: ControllerName
     predict_disturbance: bool = Field(description="flown predicting with the estimator's tau_d "
                                       "(asked by the mission or the controller's flag), else tau_d = 0")
-    speed_hint_mps: float | None = Field(default=None, gt=0, le=MAX_SPEED_HINT_MPS,
-                                         description="the request's cruise hint [m/s]")
+    speed_hint_mps: SpeedHintMps | None = None
     on_low_energy: LowEnergyPolicy = Field(default="return", description="the request's policy")
     home_x_m: float | None = Field(default=None, description="home, local NED north [m]: the "
                                    "request's, or P_0 (None only in recordings made before it)")

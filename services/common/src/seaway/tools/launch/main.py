@@ -201,8 +201,9 @@ def _vessel_list(text: str) -> list[str]:
     return names
 
 
-MISSION_OPTIONS = ("controller", "predict_disturbance", "task_power_w")
-"""The launch options that change the mission sent (refused when no mission is sent)."""
+MISSION_OVERRIDES = ("controller", "predict_disturbance", "task_power_w")
+"""The launch options that replace a mission option of the mission sent (refused when no mission
+is sent)."""
 
 
 def run_dir_name(profile: str, scenario: str, mission: MissionRequest | None,
@@ -260,7 +261,7 @@ def _mission_request(scenario_name: str, args: argparse.Namespace | None = None
 
 def _mission_options(args: argparse.Namespace) -> list[str]:
     """The mission options given on the command line, spelled as flags."""
-    return [f"--{o.replace('_', '-')}" for o in MISSION_OPTIONS if getattr(args, o) is not None]
+    return [f"--{o.replace('_', '-')}" for o in MISSION_OVERRIDES if getattr(args, o) is not None]
 
 
 def hand_controller_modules(procs: list[Supervised], modules: list[str]) -> bool:
