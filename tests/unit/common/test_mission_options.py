@@ -144,7 +144,11 @@ def test_a_geojson_hint_of_the_wrong_json_type_is_refused_not_converted(properti
 
 def test_plan_numbers_past_a_floats_range_and_deep_nesting_are_plan_errors() -> None:
     doc = mission_files.to_plan([(47.0, 8.0), (47.001, 8.0)])
-    doc["mission"]["items"][0]["params"][1] = 10**400  # the acceptance radius, in 401 digits
+    for radius in (10**400, float("inf"), "2", True):  # 401 digits, what JSON's 1e400 reads as
+        doc["mission"]["items"][0]["params"][1] = radius
+        with pytest.raises(mission_files.PlanError, match=r"items\[0\].*acceptance radius params\[1\]"):
+            mission_files.parse_document(doc)
+    doc["mission"]["items"][0]["params"][1] = None  # QGroundControl's NaN: the default, no hint
     assert mission_files.parse_document(doc).hints.get("coa_radius_m") is None
     doc["mission"]["items"][0]["params"][4] = 10**400  # a latitude
     with pytest.raises(mission_files.PlanError, match="latitude"):

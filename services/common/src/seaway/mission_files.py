@@ -212,6 +212,9 @@ def _plan_item(i: int, item: Any) -> tuple[float, float, float | None]:
         raise PlanError(f"{name}: params must be a list of 7 values, got {json.dumps(params)[:80]}")
     lat, lon = _lat_lon(params[4], params[5], name)
     radius_m = finite_number(params[1])
+    if radius_m is None and params[1] is not None:  # null: QGroundControl's NaN, no radius given
+        raise PlanError(f"{name}: acceptance radius params[1] {json.dumps(params[1])[:40]} is not a "
+                        "finite number of metres (0 or null: the autopilot's default)")
     if radius_m is not None and radius_m <= 0:
         radius_m = None  # QGroundControl writes 0 for "the autopilot's default"
     return lat, lon, radius_m
