@@ -243,3 +243,40 @@ def test_a_damaged_summary_is_named_with_the_way_to_repair_it(tmp_path: Path) ->
             reader.read_info([path])
         with pytest.raises(reader.UnreadableRecordingError, match="seaway record recover"):
             reader.decode_vessel([path], "vessel1", [ORIGIN.suffix])
+
+
+def test_attachments_are_read_when_looked_up_not_when_listed(tmp_path: Path) -> None:
+    # A recording carries its scenario's data and configs as attachments, which can be hundreds of
+    # MB. Listing a recording (read_info) and finding its run, scenario and vessel read only the
+    # few small documents wanted: here a 40 MB attachment is never read until asked for.
+    import tracemalloc
+
+    from seaway.recording import runinfo
+
+    big = bytes(range(256)) * (40 * 4096)  # 40 MiB
+    scenario = b'name = "s"\nseed = 1\nvessel = "paper-boat"\n[origin]\nlat_deg = 47.0\nlon_deg = 8.0\n'
+    path = tmp_path / "r.mcap"
+    with open(path, "wb") as fh:
+        w = Writer(fh)
+        w.start()
+        ch = w.register_channel("seaway/v/nav/origin", "json", 0)
+        w.add_message(ch, log_time=1, data=origin(1, 0.8), publish_time=1)
+        w.add_attachment(1, 1, "scenario-data/grid.bin", "application/octet-stream", big)
+        w.add_attachment(1, 1, "scenario/s.toml", "application/toml", scenario)
+        w.finish()
+    del w
+    gc.collect()
+    tracemalloc.start()
+    try:
+        info = reader.read_info([path])
+        sc = runinfo.scenario_from_attachments(info.attachments)
+        assert runinfo.vessel_from_attachments(info.attachments) is None
+        assert runinfo.missions_from_attachments(info.attachments, None) == []
+        peak_b = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert sc is not None and sc.name == "s"
+    assert peak_b < 4 << 20, f"{peak_b / 2**20:.1f} MiB to list a recording and read its scenario"
+    assert sorted(info.attachments) == ["scenario-data/grid.bin", "scenario/s.toml"]
+    assert info.attachments.size_bytes["scenario-data/grid.bin"] == len(big)
+    assert info.attachments["scenario-data/grid.bin"] == big  # read when asked for, whole

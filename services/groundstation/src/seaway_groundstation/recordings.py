@@ -32,7 +32,7 @@ import secrets
 import shutil
 import tempfile
 import threading
-from collections.abc import AsyncIterator, Iterable, Sequence
+from collections.abc import AsyncIterator, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -443,7 +443,7 @@ def _relative_name(path: Path, root: Path) -> str:
         return path.name
 
 
-def _scenario(attachments: dict[str, bytes], notes: list[str]) -> tuple[str | None, GeoOrigin | None]:
+def _scenario(attachments: Mapping[str, bytes], notes: list[str]) -> tuple[str | None, GeoOrigin | None]:
     from seaway.recording import runinfo
 
     try:
@@ -464,7 +464,7 @@ def _journal_folders(run_folder: Path, vessels: Iterable[str]) -> list[Path]:
     return folders
 
 
-def _missions(run_folder: Path | None, attachments: dict[str, bytes],
+def _missions(run_folder: Path | None, attachments: Mapping[str, bytes],
               origins: dict[str, GeoOrigin | None], scenario_name: str | None,
               notes: list[str], accepted: Sequence[tuple[str, MissionAccepted]] = ()
               ) -> list[geo.MissionPlanView]:

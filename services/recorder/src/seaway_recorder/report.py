@@ -22,7 +22,7 @@ import bisect
 import json
 import math
 import sys
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -344,7 +344,7 @@ def _mission_json(m: runinfo.Mission | None) -> dict[str, Any] | None:
 
 
 def _candidates(scenario: str | None, scen: Any, mission_file: str | None,
-                atts: dict[str, bytes], origin: GeoOrigin | None) -> list[missions.Candidate]:
+                atts: Mapping[str, bytes], origin: GeoOrigin | None) -> list[missions.Candidate]:
     """The mission documents a report may use, in order of preference: ``--mission``, the
     ``--scenario``'s ``[mission]``, then the recording's attachments."""
     out = []

@@ -12,7 +12,7 @@ from __future__ import annotations
 import heapq
 import io
 import tempfile
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -50,10 +50,38 @@ class RecordedMessage:
     channel_metadata: dict[str, str]
 
 
+class Attachments(Mapping[str, bytes]):
+    """A recording's attachments by name (the first copy in a series), each read from its file when
+    looked up: a report or a listing reads the few small documents it needs, not every attachment
+    (a scenario's data or a configuration can be hundreds of MB)."""
+
+    def __init__(self) -> None:
+        self._where: dict[str, tuple[Path, int, int]] = {}
+        self.size_bytes: dict[str, int] = {}
+        """Each attachment's data size [bytes], from its index (nothing read)."""
+
+    def add(self, name: str, path: Path, offset: int, length: int, size_bytes: int) -> None:
+        """The attachment record at ``offset`` of ``path``, unless one of that name came first."""
+        if name not in self._where:
+            self._where[name] = (path, offset, length)
+            self.size_bytes[name] = size_bytes
+
+    def __getitem__(self, name: str) -> bytes:
+        path, offset, length = self._where[name]
+        with open(path, "rb") as fh:
+            return bytes(_indexed_record(fh, offset, length, Attachment).data)
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._where)
+
+    def __len__(self) -> int:
+        return len(self._where)
+
+
 @dataclass
 class RecordingInfo:
     files: list[Path]
-    attachments: dict[str, bytes] = field(default_factory=dict)
+    attachments: Attachments = field(default_factory=Attachments)
     metadata: dict[str, dict[str, str]] = field(default_factory=dict)
     message_count: int = 0
     start_ns: int = 0
@@ -180,8 +208,7 @@ def read_info(files: list[Path]) -> RecordingInfo:
                 raise UnreadableRecordingError(f"{f}: no summary (not finished?); {RECOVER_HINT}")
             info.summaries[f] = summary
             for ai in summary.attachment_indexes:
-                a = _indexed_record(fh, ai.offset, ai.length, Attachment)
-                info.attachments.setdefault(a.name, bytes(a.data))
+                info.attachments.add(ai.name, f, ai.offset, ai.length, ai.data_size)
             for mi in summary.metadata_indexes:
                 m = _indexed_record(fh, mi.offset, mi.length, Metadata)
                 info.metadata.setdefault(m.name, dict(m.metadata))

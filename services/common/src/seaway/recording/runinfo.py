@@ -18,6 +18,7 @@ from __future__ import annotations
 import json
 import math
 import tomllib
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -132,16 +133,20 @@ def mission_id_of(doc: dict[str, Any], default: str | None = None) -> str | None
     return str(mid) if mid else default
 
 
-def missions_from_attachments(atts: dict[str, bytes], origin: GeoOrigin | None
+def _named(atts: Mapping[str, bytes], prefix: str) -> list[str]:
+    """The attachments' names under ``prefix``, in the recording's order (names only: an
+    attachment is read when looked up, so the others are never read)."""
+    return [name for name in atts if name.startswith(prefix)]
+
+
+def missions_from_attachments(atts: Mapping[str, bytes], origin: GeoOrigin | None
                               ) -> list[tuple[Mission, str | None]]:
     """Every mission document attached (``mission/*``, then the ``scenario/*`` ``[mission]``),
     each with the id it names; documents that are not missions are left out."""
     out = []
     for prefix in ("mission/", "scenario/"):
-        for name, data in atts.items():
-            if not name.startswith(prefix):
-                continue
-            doc = _decode(name, data)
+        for name in _named(atts, prefix):
+            doc = _decode(name, atts[name])
             if prefix == "scenario/" and not doc.get("mission"):
                 continue
             try:
@@ -152,40 +157,36 @@ def missions_from_attachments(atts: dict[str, bytes], origin: GeoOrigin | None
     return out
 
 
-def scenario_from_attachments(atts: dict[str, bytes]) -> Scenario | None:
-    for name, data in atts.items():
-        if name.startswith("scenario/"):
-            doc = _decode(name, data)
-            # Grid files come along as scenario-data/ attachments; the report needs only the mission
-            # and origin, so the disturbances are dropped rather than resolved here.
-            doc = {k: v for k, v in doc.items() if k != "disturbances"}
-            return parse_scenario(doc, f"attachment {name}")
+def scenario_from_attachments(atts: Mapping[str, bytes]) -> Scenario | None:
+    for name in _named(atts, "scenario/")[:1]:
+        doc = _decode(name, atts[name])
+        # Grid files come along as scenario-data/ attachments; the report needs only the mission
+        # and origin, so the disturbances are dropped rather than resolved here.
+        doc = {k: v for k, v in doc.items() if k != "disturbances"}
+        return parse_scenario(doc, f"attachment {name}")
     return None
 
 
-def mission_from_attachments(atts: dict[str, bytes], origin: GeoOrigin | None) -> Mission | None:
-    for name, data in atts.items():
-        if name.startswith("mission/"):
-            return mission_from_document(_decode(name, data), origin, f"attachment {name}")
-    for name, data in atts.items():
-        if name.startswith("scenario/"):
-            doc = _decode(name, data)
-            if doc.get("mission"):
-                return mission_from_document(doc, origin, f"attachment {name}")
+def mission_from_attachments(atts: Mapping[str, bytes], origin: GeoOrigin | None) -> Mission | None:
+    for name in _named(atts, "mission/")[:1]:
+        return mission_from_document(_decode(name, atts[name]), origin, f"attachment {name}")
+    for name in _named(atts, "scenario/"):
+        doc = _decode(name, atts[name])
+        if doc.get("mission"):
+            return mission_from_document(doc, origin, f"attachment {name}")
     return None
 
 
-def run_from_attachments(atts: dict[str, bytes]) -> RunDescription | None:
+def run_from_attachments(atts: Mapping[str, bytes]) -> RunDescription | None:
     """The run description the recording was made under (None for recordings made before it)."""
     data = atts.get(RUN_ATTACHMENT)
     return None if data is None else parse_config(_decode(RUN_ATTACHMENT, data), RunDescription,
                                                  f"attachment {RUN_ATTACHMENT}")
 
 
-def vessel_from_attachments(atts: dict[str, bytes]) -> VesselParams | None:
-    for name, data in atts.items():
-        if name.startswith("vessel/"):
-            return parse_config(_decode(name, data), VesselParams, f"attachment {name}")
+def vessel_from_attachments(atts: Mapping[str, bytes]) -> VesselParams | None:
+    for name in _named(atts, "vessel/")[:1]:
+        return parse_config(_decode(name, atts[name]), VesselParams, f"attachment {name}")
     return None
 
 
