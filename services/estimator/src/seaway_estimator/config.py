@@ -28,6 +28,9 @@ from seaway_estimator.mismatch import MismatchConfig
 
 CHI2_2DOF_9999 = 18.42
 CHI2_1DOF_9999 = 15.14
+MAX_GNSS_STD_M = 100.0
+"""The largest horizontal standard deviation of a GNSS fix the estimator uses [m], configured or
+reported: a fix worse than that is no fix (``core_inputs.fix_problem``)."""
 
 
 class EstimatorConfig(ConfigModel):
@@ -49,10 +52,11 @@ class EstimatorConfig(ConfigModel):
     origin_rate_hz: float = Field(default=1.0, gt=0, le=50, description="NavOrigin repeat rate")
     origin: Origin | None = Field(default=None, description="fixed NED origin; None: the first good GNSS fix")
     # -- measurement noise (used unless a message reports its own) ------------------------------
-    gnss_std_m: float = Field(default=0.3, gt=0, le=100.0, description="GNSS horizontal position "
-                              "std [m]; at most 100 m (a fix worse than that is no fix)")
+    gnss_std_m: float = Field(default=0.3, gt=0, le=MAX_GNSS_STD_M, description="GNSS horizontal "
+                              "position std [m]; at most 100 m (a fix worse than that is no fix)")
     use_reported_gnss_std: bool = Field(default=True, description="use GnssFix.horizontal_std_m "
-                                        "when present (floored at gnss_std_min_m)")
+                                        "when present (floored at gnss_std_min_m; a fix reporting "
+                                        "more than 100 m is refused)")
     gnss_std_min_m: float = Field(default=0.02, gt=0, le=10.0, description="floor of a reported "
                                   "GNSS horizontal std [m]; at most 10 m (a floor above that "
                                   "discards what every real receiver reports)")

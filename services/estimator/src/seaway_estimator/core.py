@@ -18,10 +18,11 @@ and the thrust held, the covariance with the exact Jacobian, one compiled functi
 Joseph form, one compiled function each).
 
 Every update is gated on its normalised innovation squared (chi-square threshold per measurement);
-a rejected sample is counted and ignored. Rejections and re-initialisations are also kept as
-``Notice``s for the service to log (``take_notices``). Time is always passed in (``stamp_ns`` of the
-messages and ``predict_to(t_ns)``); there is no clock and no randomness, so the same inputs give the
-same outputs bit for bit.
+a rejected sample is counted and ignored. Before that, what a message says past what a receiver or
+the vessel can give, and a copy of a measurement already used, are refused (``core_inputs``).
+Refusals, rejections and re-initialisations are also kept as ``Notice``s for the service to log
+(``take_notices``). Time is always passed in (``stamp_ns`` of the messages and ``predict_to(t_ns)``);
+there is no clock and no randomness, so the same inputs give the same outputs bit for bit.
 """
 
 from __future__ import annotations
@@ -51,6 +52,15 @@ from seaway.vessel.model import VesselParams
 from seaway.vessel.thrusters import apply_dead_zone, output_pair
 
 from seaway_estimator.config import EstimatorConfig
+from seaway_estimator.core_inputs import (
+    EstimatorError,
+    RecentStamps,
+    check_finite,
+    check_stamp,
+    fix_problem,
+    sog_problem,
+    yaw_rate_problem,
+)
 from seaway_estimator.core_predict import Prediction
 from seaway_estimator.core_updates import MeasurementUpdates
 from seaway_estimator.kalman import ID1, ID2, ID3, IPSI, IR, IU, IV, IX, IY, NZ, Filter, Predictor
@@ -66,34 +76,14 @@ STATUS_KEY = keys.VEHICLE_STATUS
 in real time only (in lockstep the sim applies exactly the command it says it consumed); traced as
 kind ``"status"``, applied after the inputs of the same stamp."""
 
-class EstimatorError(ValueError):
-    """An input the core refuses (non-finite value, bad time); the text names what and why."""
-
 
 @dataclass
 class _Pending:
     """Measurements kept until the filter can initialise (a position and a heading)."""
 
     fix: tuple[int, float, float, float | None, float | None, float] | None = None
-    attitude: tuple[int, float, float] | None = None
-
-
-def _finite(where: str, **values: float | None) -> None:
-    for name, v in values.items():
-        if v is not None and not math.isfinite(v):
-            raise EstimatorError(f"{where}.{name} = {v!r} is not finite; input refused")
-
-
-def _stamp(where: str, t_ns: object) -> int:
-    if type(t_ns) is int and t_ns >= 0:  # the usual case, decided without the checks below
-        return t_ns
-    if isinstance(t_ns, bool) or not isinstance(t_ns, int | np.integer):
-        if isinstance(t_ns, float) and not math.isfinite(t_ns):
-            raise EstimatorError(f"{where}: time {t_ns!r} is not finite; input refused")
-        raise EstimatorError(f"{where}: time must be an integer number of ns, got {t_ns!r}")
-    if t_ns < 0:
-        raise EstimatorError(f"{where}: time {t_ns} ns is negative")
-    return int(t_ns)
+    attitude: tuple[int, float, float | None] | None = None
+    """(stamp, heading, yaw rate or None if it was refused)."""
 
 
 def _initial_force_std(c: EstimatorConfig, p: VesselParams, world: bool) -> tuple[float, float]:
@@ -143,6 +133,10 @@ class EstimatorCore(Prediction, MeasurementUpdates):
         self.origin: GeoOrigin | None = self._fixed_origin
         self.filter: Filter | None = None
         self._pending = _Pending()
+        late_ns = round(c.late_tolerance_s * NS_PER_S)
+        self._used = {"gnss": RecentStamps(late_ns), "attitude": RecentStamps(late_ns)}
+        """The stamps of the fixes and attitudes the filter used, while a copy could be applied
+        again (``core_inputs.RecentStamps``)."""
         self._thrust: tuple[float, float] = (0.0, 0.0)
         self._thrust_until_ns: int | None = None
         self.mismatch = MotionMismatch(c.mismatch)
@@ -180,6 +174,8 @@ class EstimatorCore(Prediction, MeasurementUpdates):
         initialise the filter again."""
         self.filter = None
         self._pending = _Pending()
+        for used in self._used.values():
+            used.clear()
 
     def take_notices(self) -> list[Notice]:
         """The notices since the last call, oldest first (see ``Notice``)."""
@@ -245,18 +241,37 @@ class EstimatorCore(Prediction, MeasurementUpdates):
         self.counters.inc("status_received")
 
     def on_gnss(self, msg: GnssFix) -> None:
-        """A GNSS fix: position (and velocity over ground when the fix has it)."""
+        """A GNSS fix: position (and velocity over ground when the fix has it).
+
+        A fix already used (a stale copy) is ignored (``duplicates``). A fix whose position is no
+        position (``core_inputs.fix_problem``: a std past ``MAX_GNSS_STD_M``, past ``MAX_RANGE_M``
+        from the origin) is refused whole (``gnss_refused``) and never becomes the origin; a
+        velocity over ground past the vessel's envelope is refused (``sog_refused``) and the
+        position kept."""
         t = self._check(msg.stamp_ns, "GnssFix", lat_rad=msg.lat_rad, lon_rad=msg.lon_rad,
                         alt_m=msg.alt_m, vel_n_mps=msg.vel_n_mps, vel_e_mps=msg.vel_e_mps,
                         horizontal_std_m=msg.horizontal_std_m)
         if msg.fix_type < self.config.min_fix_type:
             self.counters.inc("gnss_no_fix")
             return
-        if self.origin is None:
-            self.origin = GeoOrigin(msg.lat_rad, msg.lon_rad, msg.alt_m)
-        north, east, _ = self.origin.to_ned(msg.lat_rad, msg.lon_rad, msg.alt_m)
+        if self.filter is not None and t in self._used["gnss"]:
+            self.counters.inc("duplicates")
+            return
+        origin = (self.origin if self.origin is not None else
+                  GeoOrigin(msg.lat_rad, msg.lon_rad, msg.alt_m))
+        north, east, _ = origin.to_ned(msg.lat_rad, msg.lon_rad, msg.alt_m)
         std = self._gnss_std(msg)
+        why = fix_problem(north, east, std)
+        if why is not None:
+            self._refuse(t, "gnss_refused", f"GNSS fix refused: {why}")
+            return
+        self.origin = origin
         sog = (msg.vel_n_mps, msg.vel_e_mps)
+        if sog[0] is not None and sog[1] is not None:
+            why = sog_problem(sog[0], sog[1], self._envelope)
+            if why is not None:
+                self._refuse(t, "sog_refused", f"GNSS velocity refused, position kept: {why}")
+                sog = (None, None)
         if self.filter is None:
             self._pending.fix = (t, north, east, sog[0], sog[1], std)
             self._try_initialise()
@@ -264,6 +279,7 @@ class EstimatorCore(Prediction, MeasurementUpdates):
         delay = self._to_time(t)
         if delay is None:
             return
+        self._used["gnss"].add(t, self.filter.t_ns)
         if self._anchor_next_fix:
             self._anchor_next_fix = False
             off_m = math.hypot(north - self.filter.z[IX], east - self.filter.z[IY])
@@ -286,18 +302,31 @@ class EstimatorCore(Prediction, MeasurementUpdates):
             model.steady_surge_speed_mps(sum(self._commanded_at(t)), self.p)), std, sog)
 
     def on_attitude(self, msg: Attitude) -> None:
-        """Heading and yaw rate (roll and pitch are not used by a 3-DOF model)."""
+        """Heading and yaw rate (roll and pitch are not used by a 3-DOF model).
+
+        An attitude already used (a stale copy) is ignored (``duplicates``); a yaw rate past the
+        vessel's envelope is refused (``yaw_rate_refused``) and the heading kept."""
         t = self._check(msg.stamp_ns, "Attitude", yaw_rad=msg.yaw_rad,
                         yaw_rate_radps=msg.yaw_rate_radps)
+        if self.filter is not None and t in self._used["attitude"]:
+            self.counters.inc("duplicates")
+            return
+        r: float | None = msg.yaw_rate_radps
+        why = yaw_rate_problem(r, self._envelope)
+        if why is not None:
+            self._refuse(t, "yaw_rate_refused", f"yaw rate refused, heading kept: {why}")
+            r = None
         if self.filter is None:
-            self._pending.attitude = (t, msg.yaw_rad, msg.yaw_rate_radps)
+            self._pending.attitude = (t, msg.yaw_rad, r)
             self._try_initialise()
             return
         delay = self._to_time(t)
         if delay is None:
             return
+        self._used["attitude"].add(t, self.filter.t_ns)
         self._update_heading(msg.yaw_rad, delay, t)
-        self._update_yaw_rate(msg.yaw_rate_radps, delay)
+        if r is not None:
+            self._update_yaw_rate(r, delay)
 
     def predict_to(self, t_ns: int) -> StateEstimate | None:
         """The estimate at ``t_ns`` (the filter advances to it), or None before initialisation.
@@ -308,7 +337,7 @@ class EstimatorCore(Prediction, MeasurementUpdates):
         there is dropped (counted in
         ``divergence_resets``) and re-initialises from the next measurements.
         """
-        t = _stamp("predict_to", t_ns)
+        t = check_stamp("predict_to", t_ns)
         f = self.filter
         if f is None:
             return None
@@ -361,12 +390,18 @@ class EstimatorCore(Prediction, MeasurementUpdates):
             else:
                 return t_ns
         try:
-            t = _stamp(where, t_ns)
-            _finite(where, **values)
+            t = check_stamp(where, t_ns)
+            check_finite(where, **values)
         except EstimatorError:
             self.counters.inc("refused_non_finite")
             raise
         return t
+
+    def _refuse(self, t: int, kind: str, detail: str) -> None:
+        """Part of an input refused for what it says (``core_inputs``): counted under ``kind``
+        and noticed, with the value and the bound, for the service to log."""
+        self.counters.inc(kind)
+        self._notices.append(Notice(t, kind, detail))
 
     def _gnss_std(self, msg: GnssFix) -> float:
         c = self.config
@@ -392,13 +427,17 @@ class EstimatorCore(Prediction, MeasurementUpdates):
             u, v, sstd = cps * vn + sps * ve, -sps * vn + cps * ve, c.sog_std_mps
         else:
             u, v, sstd = 0.0, 0.0, c.init_speed_std_mps
+        # Without a yaw rate (refused as absurd), none yet: the prior's.
+        r, rstd = (0.0, c.init_yaw_rate_std_radps) if r is None else (r, c.yaw_rate_std_radps)
         z = np.array([u, v, r, north, east, psi, 0.0, 0.0, 0.0])
-        P = np.diag(np.array([sstd, sstd, max(c.yaw_rate_std_radps, 1e-4), gstd, gstd,
+        P = np.diag(np.array([sstd, sstd, max(rstd, 1e-4), gstd, gstd,
                               c.heading_std_rad, *self._init_force_std_n,
                               c.init_moment_std_nm]) ** 2)
         t0 = max(t_fix, t_att)
         self.filter = Filter(t_ns=t0, z=z, P=P, last_gnss_ns=t_fix, last_heading_ns=t_att)
         self._pending = _Pending()
+        self._used["gnss"].add(t_fix, t0)
+        self._used["attitude"].add(t_att, t0)
 
     # ------------------------------------------------------------------------------------------
     # Output

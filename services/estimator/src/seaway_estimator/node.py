@@ -6,8 +6,9 @@ in lockstep they come in the sim's and the controller's bundles (``lockstep/sim`
 ``nav/origin`` (NavOrigin, once fixed, then at ``origin_rate_hz`` for late joiners), in lockstep in
 its own bundle.
 
-* Real time: every 1/``publish_rate_hz`` of wall time (``tick``), the inputs that arrived are fed
-  to the core in stamp order and the state is predicted to now and published.
+* Real time: every 1/``publish_rate_hz`` of wall time (``tick``), the inputs that arrived stamped
+  up to now are fed to the core in stamp order (a later one waits for its time) and the state is
+  predicted to now and published.
 * Lockstep: the estimator answers each period t_k of the sim once the sim's bundle (the samples due
   in (t_{k-1}, t_k]) and the thrust command the sim applied (in the controller's bundle) have
   arrived (``answer``): the queued inputs stamped <= t_k are fed in stamp order, the state is
@@ -244,9 +245,14 @@ class EstimatorNode(Node):
             return Answer(self.outputs(t_ns, t_ns / 1e9))
 
     def tick(self, now_ns: int, out: Outputs) -> None:
-        """Real time: feed what arrived in stamp order, publish the state at now."""
+        """Real time: feed what arrived stamped up to now in stamp order, publish the state at now.
+
+        An input stamped after now (up to ``MAX_AHEAD_LIVE_S`` ahead: the stamp gate drops later
+        ones) waits for its time, as in lockstep: fed now, it would move the filter ahead of the
+        clock, and until the clock caught up every estimate at now and every measurement stamped
+        now would be too old (a fix 0.9 s ahead cost 0.4 s of nav/state and 16 measurements)."""
         with self.lock:
-            self.feed_pending(None)
+            self.feed_pending(now_ns)
             out.put_all(self.outputs(now_ns, time.monotonic()))
 
     def idle(self) -> None:
@@ -263,7 +269,8 @@ class EstimatorNode(Node):
 def stats_line(core: EstimatorCore, loop: EstimatorNode | None = None) -> str:
     c = core.counters.values
     keys_ = ("gnss_accepted", "gnss_rejected", "gnss_no_fix", "heading_accepted", "heading_rejected",
-             "degraded_entered", "refused_non_finite", "too_old", "too_new", "resets", "published")
+             "degraded_entered", "refused_non_finite", "gnss_refused", "sog_refused",
+             "yaw_rate_refused", "duplicates", "too_old", "too_new", "resets", "published")
     line = ", ".join(f"{k} {c[k]}" for k in keys_)
     dropped = loop.stamps.summary() if loop is not None else ""
     return line + (f"; stamps dropped: {dropped}" if dropped else "")

@@ -23,7 +23,9 @@ class Notice:
     ``gnss_reinit``, ``heading_reinit`` (the state taken from the sensor after ``run`` rejections),
     ``time_jump``, ``divergence_reset`` (the whole state dropped), ``disturbance_reopened`` (a
     run of ``run`` rejections said the model is wrong), ``withheld_reanchor`` (the state moved to
-    the first fix after the autopilot was found withholding the thrust: routine, not a warning).
+    the first fix after the autopilot was found withholding the thrust: routine, not a warning),
+    ``gnss_refused``, ``sog_refused``, ``yaw_rate_refused`` (what a message said is past what a
+    receiver or the vessel can give, ``seaway_estimator.core_inputs``: the value and the bound).
     ``detail`` says by how much."""
 
     stamp_ns: int
@@ -45,6 +47,7 @@ COUNTERS = (
     "heading_accepted", "heading_rejected", "heading_reinit",
     "yaw_rate_accepted", "yaw_rate_rejected",
     "thrust_received", "late_applied", "too_old", "too_new", "refused_non_finite",
+    "gnss_refused", "sog_refused", "yaw_rate_refused", "duplicates",
     "status_received",
     "degraded_entered", "time_jumps", "divergence_resets", "disturbance_reopened", "resets",
     "motion_faults", "motion_anchored", "withheld_anchored",
