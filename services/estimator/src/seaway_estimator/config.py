@@ -136,6 +136,10 @@ class EstimatorConfig(ConfigModel):
                                      "detector (``seaway_estimator.mismatch``): the vessel does not "
                                      "do what the commanded thrust says")
     # -- the process ---------------------------------------------------------------------------
+    state_file: Annotated[Path | None, Flag(metavar="FILE")] = Field(
+        default=None, description="keep the NED origin taken from the first fix here, and start "
+        "from it after a restart in the same run (seaway_estimator.origin_file); unused when the "
+        "run fixes the origin")
     record_inputs: Annotated[Path | None, Flag(metavar="FILE")] = Field(
         default=None, description="write every core call as JSON lines, for python -m "
                                   "seaway_estimator.replay (None: do not)")

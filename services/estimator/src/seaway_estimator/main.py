@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import math
 import signal
 import sys
 from collections.abc import Sequence
@@ -21,7 +22,9 @@ from seaway.runtime.run import RunDescription
 from seaway.runtime.runner import run_node
 from seaway.runtime.service import on_signals, resolve_run, run_service
 from seaway.simkit.scenario import load_scenario
+from seaway.vessel.frames import GeoOrigin
 
+from seaway_estimator import origin_file
 from seaway_estimator.config import CONFIG_DIR, EstimatorConfig
 from seaway_estimator.core import EstimatorCore
 from seaway_estimator.node import EstimatorNode, stats_line
@@ -61,7 +64,23 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"seaway-estimator: {err}", file=sys.stderr)
         return 2
     recorder = TraceWriter(cfg.record_inputs) if cfg.record_inputs else None
-    node = EstimatorNode(EstimatorCore(cfg), recorder)
+    core = EstimatorCore(cfg)
+    keep = None
+    if cfg.state_file is not None and core.origin is None:  # a boat's: taken from its first fix
+        state_file = cfg.state_file
+        core.origin = origin_file.load(state_file, args.run)
+        if core.origin is not None:
+            log.warning("NED origin kept from %s (before this restart): lat %.7f deg, lon %.7f "
+                        "deg", state_file, math.degrees(core.origin.lat_rad),
+                        math.degrees(core.origin.lon_rad))
+
+        def keep(origin: GeoOrigin) -> None:
+            try:
+                origin_file.save(state_file, origin)
+            except OSError as err:  # the estimate goes on; a restart would take a new origin
+                log.error("cannot keep the NED origin in %s: %s", state_file, err)
+
+    node = EstimatorNode(core, recorder, keep)
     with run_service("estimator", args, run=run) as ctx:
         on_signals((signal.SIGUSR1,), lambda _signum: node.reset_requested.set())
         log.info("estimator %s, vessel file %s", "lockstep" if run.lockstep

@@ -43,6 +43,7 @@ from seaway.contract.messages import NavResetRequest, Reply
 from seaway.runtime.node import Answer, MemberSpec, Node, Outputs, Period, PeriodAt
 from seaway.runtime.ratelog import RateLimitedLog
 from seaway.runtime.stamps import StampBounds, StampGate
+from seaway.vessel.frames import GeoOrigin
 
 from seaway_estimator.core import INPUT_KEYS, STATUS_KEY, EstimatorCore, EstimatorError
 from seaway_estimator.replay import TraceWriter
@@ -68,8 +69,12 @@ class EstimatorNode(Node):
     member = MEMBER
     live_inputs = (*INPUT_KEYS.values(), STATUS_KEY)
 
-    def __init__(self, core: EstimatorCore, recorder: TraceWriter | None = None) -> None:
+    def __init__(self, core: EstimatorCore, recorder: TraceWriter | None = None,
+                 keep_origin: Callable[[GeoOrigin], None] | None = None) -> None:
         self.core = core
+        self.keep_origin = keep_origin
+        """Called with each origin the core takes from a fix (``origin_file.save``), else None."""
+        self._kept: GeoOrigin | None = core.origin  # configured or kept already: nothing to keep
         self.lock = threading.Lock()
         self.recorder = recorder
         self.reset_requested = threading.Event()  # SIGUSR1: re-initialise, keeping the origin
@@ -171,6 +176,10 @@ class EstimatorNode(Node):
             self.ratelog.warning("publish", "cannot publish at %d: %s", t_ns, err)
             return out
         self.log_notices()
+        if self.keep_origin is not None and self.core.origin is not self._kept:
+            self._kept = self.core.origin
+            if self._kept is not None:  # taken from a fix: once a run, again after a reset
+                self.keep_origin(self._kept)
         if est is not None:
             out.append((keys.NAV_STATE, est))
         origin = self.core.nav_origin(t_ns) if now_s >= self._origin_due_s else None
