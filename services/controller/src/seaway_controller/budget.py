@@ -11,9 +11,11 @@ has reached 0, so at the period it would have acted priced every period: ``warn`
 on), ``return`` (fly home), ``hold`` (stop). Never early. A crossing the pricings did not see
 coming (the margin fell from above three seconds' worth, at the rate it fell since the last
 pricing, to 0 within one second without a leg change; no way home at all; short from the first
-pricing) acts once it has lasted ``SUDDEN_DECIDE_S``. The decision stays with the mission; its
-inputs are all on the bus (state, battery, solve record, mission), so a replay of the recording
-decides the same at the same period (``seaway_controller.replay`` is that replay).
+pricing) acts once it has lasted ``SUDDEN_DECIDE_S``. The decision stays with the mission (a
+mission it held that the operator resumes once the margin is above 0 again, after a battery swap,
+is decided afresh: ``seaway_controller.core_energy``); its inputs are all on the bus (state,
+battery, solve record, mission), so a replay of the recording decides the same at the same period
+(``seaway_controller.replay`` is that replay).
 """
 
 from __future__ import annotations

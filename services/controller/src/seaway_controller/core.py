@@ -195,6 +195,7 @@ class ControllerCore(MissionRequests, VehicleGate, EnergyAccount):
         self._last_state = state
         mm = self.missions
         mm.update(state.x_m, state.y_m)
+        self.route_seen(now_ns, state)  # a mission accepted before any state: its way from here
         self.seq += 1
         if (paused := motion.pause_on_motion_fault(mm, state)) is not None:  # seaway_controller.motion
             log.warning("mission %r %s", mm.mission.mission_id if mm.mission else "", paused)

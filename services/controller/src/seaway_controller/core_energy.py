@@ -7,7 +7,9 @@ since (``BatteryTrack``). The mission's energy budget (``seaway_controller.budge
 way to the end and the way home against it when due, and at the pricing that finds the margin at 0
 takes the mission's policy: warn, hold, or return to the cheapest of home and the rally points
 (``_update_budget``, ``_return_home``). Priced while the mission is active, paused and while the
-vessel holds station at rest after it: the battery goes on falling meanwhile.
+vessel holds station at rest after it: the battery goes on falling meanwhile. A mission the budget
+held is resumed only once the battery reaches home again, and its budget then decides afresh
+(``_budget_resume``, ``_rearm_budget``).
 """
 
 from __future__ import annotations
@@ -34,7 +36,13 @@ from seaway.vessel.model import VesselParams, propulsion_power_w
 from seaway_controller.area_guard import AreaGuard
 from seaway_controller.battery_estimate import BatteryTrack
 from seaway_controller.budget import Budget
-from seaway_controller.energy import Disturbance, EnergyModel, finite_or_none, predict
+from seaway_controller.energy import (
+    Disturbance,
+    EnergyModel,
+    disturbance_sigma_points,
+    finite_or_none,
+    predict,
+)
 from seaway_controller.mission import Mission, MissionManager
 from seaway_controller.mpc import MpcOutcome
 
@@ -97,6 +105,70 @@ class EnergyAccount:
         return (f"; it needs about {pred.to_go_j:.0f} J and the battery has {above:.0f} J above its "
                 f"reserve: the energy budget's policy '{b.policy}' acts when the way home reaches "
                 "what is left")
+
+    def _to_home_j(self, b: Budget, st: StateEstimate, home: tuple[float, float]) -> float:
+        """The energy to get ``home`` (local NED [m]) from ``st`` as the budget ``b`` prices its
+        margin (``Budget.update``: the nominal disturbance) [J]; inf: no way there."""
+        nominal, _ = disturbance_sigma_points(st)
+        return predict(b.model, st, b.waypoints, self.missions.active, home, None,
+                       nominal).to_home_j
+
+    def _home_shortfall(self, home: tuple[float, float]) -> str | None:
+        """Why the mission under way may not take ``home`` (local NED [m]) as its home: its energy
+        budget would act on it at once (policy 'return' or 'hold', not decided yet), the way
+        there from where the vessel is and the battery's reserve needing more than is left, and
+        more than the way to its home now (a nearer home is always taken). None otherwise, or
+        when it cannot be known (no state, no battery report). Priced as the budget prices it
+        (``Budget.update``: the nominal disturbance), so that a home taken does not turn the
+        mission into a return, or a stop, that nobody asked for."""
+        b, st, left = self.budget, self._last_state, self.battery_remaining_j()
+        if (b is None or st is None or left is None or b.returning or b.decision != "none"
+                or b.policy == "warn"):
+            return None
+        now_j, new_j = self._to_home_j(b, st, b.home), self._to_home_j(b, st, home)
+        reserve = self._reserve_j() or 0.0
+        if left - new_j - reserve > 0 or not new_j > now_j:
+            return None
+        def needs(j: float) -> str:
+            return f"about {j:.0f} J" if math.isfinite(j) else "more than any battery (no way " \
+                "there at the cruise under the estimated disturbance)"
+
+        action = "fly home" if b.policy == "return" else "stop"
+        return (f"the way there from where the vessel is needs {needs(new_j)} and the battery has "
+                f"{left - reserve:.0f} J above its {reserve:.0f} J reserve: the energy budget of "
+                f"mission {b.mission_id!r} (policy '{b.policy}') would {action} at once; "
+                f"give a home the battery reaches (the current one, at north {b.home[0]:.1f} m, "
+                f"east {b.home[1]:.1f} m, needs {needs(now_j)}), or abort the mission first")
+
+    def _budget_resume(self) -> str | None:
+        """Before the operator resumes the paused mission: why not, when its energy budget held
+        it (policy 'hold') and its margin, as last priced, is still at or below 0 (or not known:
+        no way home); None otherwise. Resumed, a held mission flew on with the decision taken, so
+        its budget never acted again: to the empty battery. ``MissionCommand`` has no ``force``;
+        a mission request does (``MissionRequest.force``), so flying on regardless stays the
+        operator's explicit, recorded choice."""
+        b, st, left = self.budget, self._last_state, self.battery_remaining_j()
+        if b is None or b.decision != "hold" or b.returning:
+            return None
+        margin = None  # priced now: a battery changed since the last pricing counts at once
+        if st is not None and left is not None:
+            margin = left - self._to_home_j(b, st, b.home) - (self._reserve_j() or 0.0)
+        if margin is not None and margin > 0:
+            return None
+        left = "not known" if margin is None or not math.isfinite(margin) else f"{margin:.0f} J"
+        return (f"cannot resume: the energy budget held the mission ({b.reason}) and its margin "
+                f"over the way home and the reserve is still {left}; send a mission home, or "
+                "this one again with force and on_low_energy 'warn' to fly it anyway; the mission "
+                "stays paused")
+
+    def _rearm_budget(self) -> None:
+        """The operator resumed a mission its energy budget had held, the margin above 0 again
+        (a battery changed or charged): the budget decides afresh, so that its policy acts at
+        the next crossing as at the first."""
+        b = self.budget
+        if b is not None and b.decision == "hold" and not b.returning:
+            b.decision, b.decided_ns, b.reason = "none", None, ""
+            b.sudden_since_ns, b.next_ns = None, None  # priced at the next period
 
     def _energy_model(self, mission: Mission, req: MissionRequest) -> EnergyModel:
         """What the energy budget prices ``mission`` (requested as ``req``) with."""

@@ -2,7 +2,12 @@
 
 A mission is validated (``seaway_controller.mission``), judged flyable from the latest state under
 the disturbance estimated now (``acceptance``), checked against the operating area and the battery
-(``mission_check``) and started, replacing the current one; or refused with the reason.
+(``mission_check``) and started, replacing the current one; or refused with the reason, nothing
+changed (not even the home a mission without one would have taken). A mission accepted before any
+state estimate has the way from the vessel to its route checked at the first state
+(``route_seen``). A home the mission under way cannot reach on the battery left is refused
+(``core_energy._home_shortfall``), and so is the resume of a mission its energy budget held while
+the battery is still short (``core_energy._budget_resume``).
 
 The mission accepted (``accepted_due``, ``take_accepted``): every accepted mission becomes a
 ``MissionAccepted`` (its waypoints in local NED, its controller's settings) for ``mission/accepted``,
@@ -76,6 +81,10 @@ class MissionRequests:
     _new_flight: Callable[[Mission], None]
     _new_budget: Callable[[Mission, bool], Budget]
     _shortfall: Callable[[], str]
+    _home_shortfall: Callable[[tuple[float, float]], str | None]
+    _area_stop: Callable[[int, StateEstimate, str], None]
+    _budget_resume: Callable[[], str | None]
+    _rearm_budget: Callable[[], None]
 
     def _init_requests(self) -> None:
         self.mission_request: MissionRequest | None = None
@@ -86,6 +95,9 @@ class MissionRequests:
         # Home, explicit: the operator's (a request's ``home``), else where the vessel was when
         # armed (vehicle_io) or, with no vehicle (lockstep), when the first mission was accepted.
         self.home: tuple[float, float] | None = None
+        # The current mission was accepted before any state estimate: the way from the vessel to
+        # its route is checked against the operating area at the first state (``route_seen``).
+        self._route_unseen = False
 
     def handle_mission(self, now_ns: int, req: MissionRequest, returning: bool = False,
                        check: bool = True) -> Reply:
@@ -94,7 +106,7 @@ class MissionRequests:
         new mission that cannot be flown under the disturbance estimated now is refused
         (``acceptance``); a mission resumed or restarted is not judged again."""
         st = self._last_state
-        req = self._with_home(req, st)
+        req, adopt_home = self._with_home(req, st)
         try:
             candidate = validate_mission(req, self.origin, self.missions.limits)
         except MissionError as err:
@@ -114,6 +126,9 @@ class MissionRequests:
             if why is not None:
                 log.warning("mission %r refused: %s", req.mission_id, why)
                 return Reply.refuse(now_ns, f"mission {req.mission_id!r} refused: {why}")
+        if adopt_home is not None:  # accepted: where the vessel is becomes its home (not before)
+            self.home = adopt_home
+        self._route_unseen = check and not returning and st is None
         mission = self.missions.start(req, self.origin, (st.x_m, st.y_m) if st is not None else None)
         self._new_flight(mission)
         self.mission_request = req
@@ -140,6 +155,32 @@ class MissionRequests:
                             controller=mission.controller,
                             predict_disturbance=self.predict_disturbance, state=state)
 
+    def route_seen(self, now_ns: int, state: StateEstimate) -> None:
+        """The first state after a mission accepted before any: the way from where the vessel is
+        to its route, which the check at acceptance could not see, is checked against the
+        operating area now, as a request sent now would be. Breaking it, the mission does not fly
+        it: an active one stops as at the area's edge (``_area_stop``: its ``on_area_breach``,
+        hold station here or return), a waiting or paused one is paused holding station here
+        (so it does not start by itself), the status saying why."""
+        if not self._route_unseen:
+            return
+        self._route_unseen = False
+        mm = self.missions
+        if mm.mission is None or mm.state not in ("active", "waiting", "paused"):
+            return
+        here = (state.x_m, state.y_m)
+        why = self.area.refusal(mm.mission.waypoints_m, here, mm.mission.join_first_leg)
+        if why is None:
+            return
+        why = (f"mission {mm.mission.mission_id!r} was accepted before any state estimate, and "
+               f"from where the vessel was first seen {why}")
+        if mm.state == "active":
+            self._area_stop(now_ns, state, why)  # says so in the log
+        else:
+            log.warning("%s: held", why)
+            mm.stop(f"held: {why}; send a mission whose route stays in the area from here, or "
+                    "abort it", here)
+
     def check(self, req: MissionRequest) -> MissionCheck:
         """``mission_check.check_mission`` of ``req`` against this vessel now: its latest state,
         the battery left and its reserve, the area in force, its home."""
@@ -151,16 +192,25 @@ class MissionRequests:
                              area=self.area.area, home=self.home, limits=self.missions.limits,
                              profile_n=self.config.profile_n)
 
-    def _with_home(self, req: MissionRequest, st: StateEstimate | None) -> MissionRequest:
+    def _with_home(self, req: MissionRequest, st: StateEstimate | None
+                   ) -> tuple[MissionRequest, tuple[float, float] | None]:
         """``req`` with its home explicit: its own, else the vessel's (``self.home``), else where
-        the vessel is now (which becomes the vessel's home), else P_0 (nothing known yet)."""
+        the vessel is now, else P_0 (nothing known yet); and the vessel's home to adopt if the
+        mission is accepted (where it is now, when it had none; local NED [m]), else None.
+
+        Adopted only on acceptance: a refused request changes nothing. Taken at once, a request
+        refused while the vessel was outside the area left home there, and every later mission
+        without a home of its own was refused for it."""
         if req.home is not None:
-            return req
-        if self.home is None and st is not None:
-            self.home = (st.x_m, st.y_m)
-        if self.home is None:
-            return req
-        return req.model_copy(update={"home": Waypoint(x_m=self.home[0], y_m=self.home[1])})
+            return req, None
+        home = adopt = None
+        if self.home is not None:
+            home = self.home
+        elif st is not None:
+            home = adopt = (st.x_m, st.y_m)
+        if home is None:
+            return req, None
+        return req.model_copy(update={"home": Waypoint(x_m=home[0], y_m=home[1])}), adopt
 
     @property
     def predict_disturbance(self) -> bool:
@@ -184,6 +234,18 @@ class MissionRequests:
         is only 'warn', and a fresh budget would have said 'LOW ENERGY (policy: warn)'), and, at
         rest (paused or complete), station kept at ``hold_point`` (local NED [m]) as before."""
         decision = decision or BudgetDecision()
+        # The leg is checked before the mission is taken: refused after, it left the mission set
+        # with the state 'idle', which no checkpoint can hold (each save then raised, and a real
+        # time step with it: a restart loop on the same file).
+        try:
+            candidate = validate_mission(req, self.origin, self.missions.limits)
+        except MissionError as err:
+            return Reply.refuse(now_ns, f"checkpoint's mission: {err}")
+        first = 1 if candidate.join_first_leg else 0  # 0: it was on its way to P_0
+        if not first <= active_leg < len(candidate.waypoints_m):
+            return Reply.refuse(now_ns, f"checkpoint's active leg {active_leg} is not a leg of the "
+                                        f"mission ({len(candidate.waypoints_m)} waypoints: legs "
+                                        f"{first} to {len(candidate.waypoints_m) - 1})")
         reply = self.handle_mission(now_ns, req, returning=decision.returning, check=False)
         if not reply.accepted:
             return reply
@@ -191,13 +253,6 @@ class MissionRequests:
             b = self.budget
             b.decision, b.decided_ns, b.reason = decision.decision, decision.decided_ns, decision.reason
         mm = self.missions
-        assert mm.mission is not None
-        first = 1 if mm.mission.join_first_leg else 0  # 0: it was on its way to P_0
-        if not first <= active_leg < len(mm.mission.waypoints_m):
-            mm.state = "idle"
-            self.accepted, self._accepted_pending = None, False  # not flown after all
-            return Reply.refuse(now_ns, f"checkpoint's active leg {active_leg} is not a leg of the "
-                                        f"mission ({len(mm.mission.waypoints_m)} waypoints)")
         mm.active, mm.state = active_leg, state  # type: ignore[assignment]
         if state in ("paused", "complete"):
             mm.hold_point = hold_point
@@ -257,7 +312,9 @@ class MissionRequests:
     def handle_home(self, now_ns: int, req: HomeRequest) -> Reply:
         """The operator sets the vessel's home (``mission/home``): a point, or where the vessel is
         now. It must lie in the operating area. The mission under way (not a return already flying
-        home) takes it as its home: its energy budget prices the way there from now on."""
+        home; a complete one still holding station too) takes it as its home: its energy budget
+        prices the way there from now on. Refused, nothing changed, when that budget would act on
+        it at once (``_home_shortfall``: the battery does not reach it)."""
         if req.home == "here":
             st = self._last_state
             if st is None:
@@ -275,12 +332,22 @@ class MissionRequests:
         why = self.area.home_refusal(point)
         if why is not None:
             return Reply.refuse(now_ns, why)
+        mm = self.missions
+        mission, req_now, b = mm.mission, self.mission_request, self.budget
+        returning = (b is not None and b.returning) or self._area_return
+        # A complete mission still holding station keeps its budget priced (its policy may fly
+        # home from the hold), so it takes the new home as one under way does.
+        under_way = mm.state in ("waiting", "active", "paused") or (
+            mm.state == "complete" and mm.hold_point is not None)
+        takes = mission is not None and req_now is not None and under_way and not returning
+        short = self._home_shortfall(point) if takes else None
+        if short is not None:
+            return Reply.refuse(now_ns, f"home at north {point[0]:.1f} m, east {point[1]:.1f} m "
+                                f"refused: {short}")
         self.home = point
         said = f"home set at north {point[0]:.1f} m, east {point[1]:.1f} m"
-        mission, req_now, b = self.missions.mission, self.mission_request, self.budget
-        returning = (b is not None and b.returning) or self._area_return
-        if mission is not None and req_now is not None and self.missions.state in (
-                "waiting", "active", "paused") and not returning:
+        if takes:
+            assert mission is not None and req_now is not None
             self.missions.mission = replace(mission, home_m=point)
             self.mission_request = req_now.model_copy(
                 update={"home": Waypoint(x_m=point[0], y_m=point[1])})
@@ -304,8 +371,14 @@ class MissionRequests:
         refused = motion.resume_refusal(self._last_state) if cmd.command == "resume" else None
         if refused is not None and self.missions.state == "paused":
             return Reply.refuse(now_ns, refused)
+        resuming = cmd.command == "resume" and self.missions.state == "paused"
+        refused = self._budget_resume() if resuming else None
+        if refused is not None:
+            return Reply.refuse(now_ns, refused)
         try:
             state = self.missions.command(cmd)
         except MissionError as err:
             return Reply.refuse(now_ns, str(err))
+        if resuming:
+            self._rearm_budget()
         return Reply.accept(now_ns, f"mission {state}", state=state)

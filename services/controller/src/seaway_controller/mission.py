@@ -223,6 +223,17 @@ class MissionManager:
         self.hold_point = None
         return True
 
+    def stop(self, reason: str, hold_point: Point | None) -> bool:
+        """Pause a mission that has not ended (active, waiting, or paused already) for ``reason``,
+        holding station at ``hold_point`` (local NED [m]; None: zero thrust); True if it had not
+        ended. Unlike ``hold``, a waiting mission is paused too: it must not start by itself once
+        the vehicle applies the thrust. Only ``command(resume)`` makes it active again."""
+        if self.mission is None or self.state not in ("active", "waiting", "paused"):
+            return False
+        self.state, self.reason = "paused", reason[:MAX_REASON_CHARS]
+        self.hold_point = hold_point
+        return True
+
     def restate(self, prefix: str, reason: str) -> bool:
         """Say ``reason`` for a pause the controller made whose reason starts with ``prefix`` (its
         cause became known, or changed, after the pause began); True if the reason changed."""
