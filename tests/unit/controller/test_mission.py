@@ -100,7 +100,7 @@ def test_pause_resume_abort():
         mm.command(cmd("resume"))
     assert mm.command(cmd("pause")) == "paused"
     assert mm.update(8.0, 0.0) is None  # no switching while paused
-    with pytest.raises(MissionError, match="not active"):
+    with pytest.raises(MissionError, match="cannot pause: the mission is paused"):
         mm.command(cmd("pause"))
     assert mm.command(cmd("resume")) == "active"
     assert mm.command(cmd("abort")) == "aborted"

@@ -67,3 +67,19 @@ def test_a_waiting_mission_can_be_aborted() -> None:
     assert reply.accepted and core.missions.state == "aborted"
     core.on_vehicle_status(status(T0 + 2, None))
     assert core.missions.state == "aborted"  # not started by the arming
+
+
+def test_a_waiting_mission_paused_by_the_operator_does_not_start_at_the_arming() -> None:
+    core = make_core(ScriptedSolver())
+    core.on_vehicle_status(status(T0 - 1, "disarmed"))
+    core.handle_mission(T0, mission())
+    reply = core.handle_command(T0 + 1, MissionCommand.make(stamp_ns=0, command="pause"))
+    assert reply.accepted and core.missions.state == "paused"
+    core.on_vehicle_status(status(T0 + 2, None))  # armed, applying the thrust: not started
+    _, record, st = core.step(T0 + DT_NS, state(1))
+    assert st.state == "paused" and record is None
+    # Resumed by the operator once the vehicle can fly it, it flies.
+    reply = core.handle_command(T0 + DT_NS + 1, MissionCommand.make(stamp_ns=0, command="resume"))
+    assert reply.accepted
+    _, record, st = core.step(T0 + 2 * DT_NS, state(2))
+    assert st.state == "active" and record is not None

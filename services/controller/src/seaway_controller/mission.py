@@ -261,8 +261,11 @@ class MissionManager:
 
     def _command(self, c: str) -> None:
         if c == "pause":
-            if self.state != "active":
-                raise MissionError(f"cannot pause: the mission is {self.state}, not active")
+            # A waiting mission is paused too: refused, it would start by itself at the arming
+            # the operator wanted it paused through.
+            if self.state not in ("active", "waiting"):
+                raise MissionError(f"cannot pause: the mission is {self.state}, not active or "
+                                   "waiting")
             self.state = "paused"
         elif c == "resume":
             if self.state != "paused":
