@@ -202,3 +202,34 @@ def test_the_loop_logs_a_refusal_with_a_warning_and_goes_on(caplog) -> None:
     warnings = [r for r in caplog.records if r.levelno == logging.WARNING]
     assert len(warnings) == 2 and loop.refused == 0
     assert _sane(loop.core.predict_to(100 * MS)).stamp_ns == 100 * MS
+
+
+def _position_std_m(core: EstimatorCore) -> float:
+    return math.sqrt(core.filter.P[3, 3])
+
+
+def test_a_flood_of_fixes_is_no_more_information_than_the_fastest_receiver() -> None:
+    """Each fix is taken as an independent measurement, so a sender repeating distinct fixes at
+    10 kHz made the filter sure of its position to millimetres (2 s: std 0.004 m). Samples closer
+    than a sensor's fastest rate (MAX_GNSS_RATE_HZ, MAX_ATTITUDE_RATE_HZ) allows are refused,
+    counted: a flood tells the filter about what the fastest real sensor would."""
+    from seaway.contract.messages import MAX_ATTITUDE_RATE_HZ, MAX_GNSS_RATE_HZ
+
+    def fed(gnss_hz: float, attitude_hz: float) -> EstimatorCore:
+        core = started()
+        samples = [(round(k * 1e9 / gnss_hz), "gnss") for k in range(1, round(2 * gnss_hz) + 1)]
+        samples += [(round(k * 1e9 / attitude_hz), "att") for k in range(1, round(2 * attitude_hz) + 1)]
+        for t, kind in sorted(samples):
+            if kind == "gnss":
+                core.on_gnss(fix(100 * MS + t, 0.0, 0.0))
+            else:
+                core.on_attitude(att(100 * MS + t, 0.0))
+        core.predict_to(100 * MS + 2 * S)
+        return core
+
+    fastest, flood = fed(MAX_GNSS_RATE_HZ, MAX_ATTITUDE_RATE_HZ), fed(10_000.0, 10_000.0)
+    assert fastest.counters["too_frequent"] == 0  # real sensors at their fastest: all taken
+    assert flood.counters["too_frequent"] > 30_000
+    for i in (3, 5):  # the north position's and the heading's std
+        assert math.sqrt(flood.filter.P[i, i]) > 0.8 * math.sqrt(fastest.filter.P[i, i]), i
+    assert "too_frequent" in _kinds(flood)

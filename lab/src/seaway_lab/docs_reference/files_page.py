@@ -54,10 +54,10 @@ def _files() -> list[tuple[str, str, type[BaseModel], str]]:
 
 def _scenario_limits() -> str:
     """The scenario module's MAX_* bounds, with the comment or docstring that says why."""
+    from seaway.contract.messages import sensors
     from seaway.simkit import scenario
 
-
-    docs = constant_docs(scenario)
+    docs = {**constant_docs(sensors), **constant_docs(scenario)}  # a limit the sensors define
     rows = [[code(name), code(f"{getattr(scenario, name):g}"), cell(describe(docs.get(name, "")))]
             for name in sorted(vars(scenario)) if name.startswith("MAX_")
             and isinstance(getattr(scenario, name), int | float)]

@@ -21,6 +21,7 @@ from typing import Annotated, Literal
 
 from pydantic import Field
 from seaway.contract.config import ConfigModel, Origin, load_config, named_file
+from seaway.contract.messages import MAX_GNSS_STD_M
 from seaway.runtime.config import Flag
 from seaway.runtime.run import DEFAULT_VESSEL_FILE
 
@@ -28,9 +29,6 @@ from seaway_estimator.mismatch import MismatchConfig
 
 CHI2_2DOF_9999 = 18.42
 CHI2_1DOF_9999 = 15.14
-MAX_GNSS_STD_M = 100.0
-"""The largest horizontal standard deviation of a GNSS fix the estimator uses [m], configured or
-reported: a fix worse than that is no fix (``core_inputs.fix_problem``)."""
 
 
 class EstimatorConfig(ConfigModel):

@@ -53,6 +53,8 @@ from seaway.vessel.thrusters import apply_dead_zone, output_pair
 
 from seaway_estimator.config import EstimatorConfig
 from seaway_estimator.core_inputs import (
+    ATTITUDE_SPACING_NS,
+    GNSS_SPACING_NS,
     EstimatorError,
     RecentStamps,
     check_finite,
@@ -134,7 +136,8 @@ class EstimatorCore(Prediction, MeasurementUpdates):
         self.filter: Filter | None = None
         self._pending = _Pending()
         late_ns = round(c.late_tolerance_s * NS_PER_S)
-        self._used = {"gnss": RecentStamps(late_ns), "attitude": RecentStamps(late_ns)}
+        self._used = {"gnss": RecentStamps(late_ns, GNSS_SPACING_NS),
+                      "attitude": RecentStamps(late_ns, ATTITUDE_SPACING_NS)}
         """The stamps of the fixes and attitudes the filter used, while a copy could be applied
         again (``core_inputs.RecentStamps``)."""
         self._thrust: tuple[float, float] = (0.0, 0.0)
@@ -247,7 +250,8 @@ class EstimatorCore(Prediction, MeasurementUpdates):
         position (``core_inputs.fix_problem``: a std past ``MAX_GNSS_STD_M``, past ``MAX_RANGE_M``
         from the origin) is refused whole (``gnss_refused``) and never becomes the origin; a
         velocity over ground past the vessel's envelope is refused (``sog_refused``) and the
-        position kept."""
+        position kept; a fix closer to the last one used than a receiver's fastest rate allows is
+        refused (``too_frequent``)."""
         t = self._check(msg.stamp_ns, "GnssFix", lat_rad=msg.lat_rad, lon_rad=msg.lon_rad,
                         alt_m=msg.alt_m, vel_n_mps=msg.vel_n_mps, vel_e_mps=msg.vel_e_mps,
                         horizontal_std_m=msg.horizontal_std_m)
@@ -272,6 +276,9 @@ class EstimatorCore(Prediction, MeasurementUpdates):
             if why is not None:
                 self._refuse(t, "sog_refused", f"GNSS velocity refused, position kept: {why}")
                 sog = (None, None)
+        if self.filter is not None and (why := self._used["gnss"].too_soon(t)) is not None:
+            self._refuse(t, "too_frequent", f"GNSS fix refused: {why}")  # after what it says
+            return
         if self.filter is None:
             self._pending.fix = (t, north, east, sog[0], sog[1], std)
             self._try_initialise()
@@ -305,7 +312,8 @@ class EstimatorCore(Prediction, MeasurementUpdates):
         """Heading and yaw rate (roll and pitch are not used by a 3-DOF model).
 
         An attitude already used (a stale copy) is ignored (``duplicates``); a yaw rate past the
-        vessel's envelope is refused (``yaw_rate_refused``) and the heading kept."""
+        vessel's envelope is refused (``yaw_rate_refused``) and the heading kept; one closer to the
+        last used than an autopilot streams is refused (``too_frequent``)."""
         t = self._check(msg.stamp_ns, "Attitude", yaw_rad=msg.yaw_rad,
                         yaw_rate_radps=msg.yaw_rate_radps)
         if self.filter is not None and t in self._used["attitude"]:
@@ -316,6 +324,9 @@ class EstimatorCore(Prediction, MeasurementUpdates):
         if why is not None:
             self._refuse(t, "yaw_rate_refused", f"yaw rate refused, heading kept: {why}")
             r = None
+        if self.filter is not None and (why := self._used["attitude"].too_soon(t)) is not None:
+            self._refuse(t, "too_frequent", f"attitude refused: {why}")
+            return
         if self.filter is None:
             self._pending.attitude = (t, msg.yaw_rad, r)
             self._try_initialise()

@@ -24,9 +24,8 @@ import math
 
 import numpy as np
 from seaway.area.model import MAX_RANGE_M
+from seaway.contract.messages import MAX_ATTITUDE_RATE_HZ, MAX_GNSS_RATE_HZ, MAX_GNSS_STD_M
 from seaway.vessel.envelope import Envelope
-
-from seaway_estimator.config import MAX_GNSS_STD_M
 
 
 class EstimatorError(ValueError):
@@ -85,21 +84,42 @@ def yaw_rate_problem(r_radps: float, env: Envelope) -> str | None:
     return None
 
 
+SPACING_FACTOR = 0.8
+"""A sensor's samples closer together than this over its fastest rate (``MAX_GNSS_RATE_HZ``,
+``MAX_ATTITUDE_RATE_HZ``) are a flood: a fifth below that period, so that the stamp jitter of a
+source at its fastest rate does not refuse its samples."""
+GNSS_SPACING_NS = round(SPACING_FACTOR * 1e9 / MAX_GNSS_RATE_HZ)
+ATTITUDE_SPACING_NS = round(SPACING_FACTOR * 1e9 / MAX_ATTITUDE_RATE_HZ)
+
+
 class RecentStamps:
     """The stamps [ns] of one sensor's measurements the filter used, kept while a copy could still
     be applied: a stamp more than ``window_ns`` (``late_tolerance_s``) before the filter's time is
-    refused as too old anyway, so it is forgotten."""
+    refused as too old anyway, so it is forgotten. ``too_soon``: a stamp within ``spacing_ns`` of
+    the newest used, faster than any such sensor reports."""
 
-    def __init__(self, window_ns: int) -> None:
-        self.window_ns = window_ns
+    def __init__(self, window_ns: int, spacing_ns: int) -> None:
+        self.window_ns, self.spacing_ns = window_ns, spacing_ns
         self._stamps: set[int] = set()
         self._prune_at = 64  # forget old stamps when the set reaches this size (amortised)
+        self.newest_ns: int | None = None
 
     def __contains__(self, stamp_ns: int) -> bool:
         return stamp_ns in self._stamps
 
+    def too_soon(self, stamp_ns: int) -> str | None:
+        """Why a sample stamped ``stamp_ns`` [ns] comes faster than the sensor can (None: it
+        does not): within ``spacing_ns`` of the newest one used."""
+        newest = self.newest_ns
+        if newest is None or abs(stamp_ns - newest) >= self.spacing_ns:
+            return None
+        return (f"{abs(stamp_ns - newest) / 1e6:.3g} ms from the last one used, less than "
+                f"{self.spacing_ns / 1e6:.3g} ms (faster than any such sensor reports)")
+
     def add(self, stamp_ns: int, filter_t_ns: int) -> None:
         """Note ``stamp_ns`` used with the filter at ``filter_t_ns``."""
+        if self.newest_ns is None or stamp_ns > self.newest_ns:
+            self.newest_ns = stamp_ns
         stamps = self._stamps
         stamps.add(stamp_ns)
         if len(stamps) >= self._prune_at:
@@ -110,3 +130,4 @@ class RecentStamps:
     def clear(self) -> None:
         self._stamps.clear()
         self._prune_at = 64
+        self.newest_ns = None

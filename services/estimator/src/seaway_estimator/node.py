@@ -279,7 +279,7 @@ def stats_line(core: EstimatorCore, loop: EstimatorNode | None = None) -> str:
     c = core.counters.values
     keys_ = ("gnss_accepted", "gnss_rejected", "gnss_no_fix", "heading_accepted", "heading_rejected",
              "degraded_entered", "refused_non_finite", "gnss_refused", "sog_refused",
-             "yaw_rate_refused", "duplicates", "too_old", "too_new", "resets", "published")
+             "yaw_rate_refused", "duplicates", "too_frequent", "too_old", "too_new", "resets", "published")
     line = ", ".join(f"{k} {c[k]}" for k in keys_)
     dropped = loop.stamps.summary() if loop is not None else ""
     return line + (f"; stamps dropped: {dropped}" if dropped else "")

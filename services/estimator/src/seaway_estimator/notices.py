@@ -25,7 +25,8 @@ class Notice:
     run of ``run`` rejections said the model is wrong), ``withheld_reanchor`` (the state moved to
     the first fix after the autopilot was found withholding the thrust: routine, not a warning),
     ``gnss_refused``, ``sog_refused``, ``yaw_rate_refused`` (what a message said is past what a
-    receiver or the vessel can give, ``seaway_estimator.core_inputs``: the value and the bound).
+    receiver or the vessel can give, ``seaway_estimator.core_inputs``: the value and the bound),
+    ``too_frequent`` (a sample closer to the last one used than its sensor's fastest rate allows).
     ``detail`` says by how much."""
 
     stamp_ns: int
@@ -47,7 +48,7 @@ COUNTERS = (
     "heading_accepted", "heading_rejected", "heading_reinit",
     "yaw_rate_accepted", "yaw_rate_rejected",
     "thrust_received", "late_applied", "too_old", "too_new", "refused_non_finite",
-    "gnss_refused", "sog_refused", "yaw_rate_refused", "duplicates",
+    "gnss_refused", "sog_refused", "yaw_rate_refused", "duplicates", "too_frequent",
     "status_received",
     "degraded_entered", "time_jumps", "divergence_resets", "disturbance_reopened", "resets",
     "motion_faults", "motion_anchored", "withheld_anchored",

@@ -46,6 +46,7 @@ from seaway.contract.config import (
     read_document,
     unreadable,
 )
+from seaway.contract.messages import MAX_ATTITUDE_RATE_HZ, MAX_GNSS_RATE_HZ, MAX_GNSS_STD_M
 from seaway.contract.missions import MissionSpec
 from seaway.contract.units import finite_number
 from seaway.simkit.faults import Fault
@@ -158,8 +159,6 @@ Disturbance = Annotated[BodyConstant | WorldConstant | WorldGrid | Current | Win
 # outages starting 10^300 times a second would hang it.
 MIN_SENSOR_RATE_HZ = 0.1
 """The slowest GNSS or attitude rate [Hz]: one sample every 10 s (a period of whole nanoseconds)."""
-MAX_GNSS_STD_M = 100.0
-"""GNSS horizontal position std [m]: a fix worse than that is no fix."""
 MAX_SOG_STD_MPS = 5.0
 """GNSS velocity over ground std per axis [m/s]: the speeds the vessels go."""
 MAX_HEADING_STD_RAD = math.pi
@@ -177,7 +176,8 @@ MAX_DROPOUT_DURATION_S = 3600.0
 class SensorNoise(ConfigModel):
     """Sensor models of the simulated autopilot; std values are 1-sigma, white, seeded."""
 
-    gnss_rate_hz: float = Field(default=5.0, ge=MIN_SENSOR_RATE_HZ, le=100, description="[Hz]")
+    gnss_rate_hz: float = Field(default=5.0, ge=MIN_SENSOR_RATE_HZ, le=MAX_GNSS_RATE_HZ,
+                                description="[Hz]")
     gnss_std_m: float = Field(default=0.0, ge=0, le=MAX_GNSS_STD_M,
                               description="horizontal position std, north and east each [m]")
     gnss_dropout_rate_per_s: float = Field(default=0.0, ge=0, le=MAX_DROPOUT_RATE_PER_S,
@@ -189,7 +189,8 @@ class SensorNoise(ConfigModel):
                                       description="[rad/s]")
     sog_std_mps: float = Field(default=0.0, ge=0, le=MAX_SOG_STD_MPS,
                                description="velocity over ground std, north and east each [m/s]")
-    attitude_rate_hz: float = Field(default=20.0, ge=MIN_SENSOR_RATE_HZ, le=250, description="[Hz]")
+    attitude_rate_hz: float = Field(default=20.0, ge=MIN_SENSOR_RATE_HZ, le=MAX_ATTITUDE_RATE_HZ,
+                                    description="[Hz]")
 
 
 class StartPose(ConfigModel):

@@ -15,6 +15,17 @@ GNSS_ALT_MIN_M, GNSS_ALT_MAX_M = -1_000.0, 100_000.0
 """Bounds of a fix's altitude [m]: below the Dead Sea's shore and the geoid's deepest dip together,
 above anything a receiver on a surface vessel reports. An altitude past them is corruption, and
 taken as the origin it would break the local frame (a 1e20 m origin rounds positions to 8 km)."""
+MAX_GNSS_STD_M = 100.0
+"""GNSS horizontal position std [m]: a fix worse than that is no fix (a simulated receiver is
+bounded by it, and the estimator refuses a fix that reports more)."""
+MAX_GNSS_RATE_HZ = 100.0
+"""The most fixes a second a receiver gives [Hz] (RTK receivers: 20 to 50): a simulated receiver is
+bounded by it, and a consumer may take fixes closer together than that as one sender's flood, not
+as more information (each fix taken as independent, 2 s of 10 kHz fixes of 0.3 m would make a
+filter sure of its position to 4 mm)."""
+MAX_ATTITUDE_RATE_HZ = 250.0
+"""The most attitudes a second an autopilot streams [Hz] (its attitude loop's rate): as
+``MAX_GNSS_RATE_HZ``, for headings and yaw rates."""
 
 
 class GnssFix(Message):
