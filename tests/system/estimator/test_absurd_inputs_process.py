@@ -10,11 +10,10 @@ import re
 import time
 
 import pytest
-from seaway.area.model import MAX_RANGE_M
 from seaway.contract import keys
 from seaway.contract.messages import Attitude, GnssFix
 from seaway.runtime.bus import Bus
-from seaway.vessel.frames import GeoOrigin
+from seaway.vessel.frames import MAX_RANGE_M, GeoOrigin
 
 from tests.conftest import BIN, wait_for
 from tests.system.estimator.test_estimator_process import _ready

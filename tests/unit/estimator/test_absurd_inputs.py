@@ -8,8 +8,8 @@ import logging
 import math
 
 import pytest
-from seaway.area.model import MAX_RANGE_M
 from seaway.contract.messages import StateEstimate
+from seaway.vessel.frames import MAX_RANGE_M
 from seaway_estimator.config import EstimatorConfig
 from seaway_estimator.core import EstimatorCore
 from seaway_estimator.node import EstimatorNode

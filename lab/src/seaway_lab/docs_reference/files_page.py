@@ -56,8 +56,10 @@ def _scenario_limits() -> str:
     """The scenario module's MAX_* bounds, with the comment or docstring that says why."""
     from seaway.contract.messages import sensors
     from seaway.simkit import scenario
+    from seaway.vessel import frames
 
-    docs = {**constant_docs(sensors), **constant_docs(scenario)}  # a limit the sensors define
+    # A limit defined where its name belongs (the sensors', the local frame's) says why there.
+    docs = {**constant_docs(frames), **constant_docs(sensors), **constant_docs(scenario)}
     rows = [[code(name), code(f"{getattr(scenario, name):g}"), cell(describe(docs.get(name, "")))]
             for name in sorted(vars(scenario)) if name.startswith("MAX_")
             and isinstance(getattr(scenario, name), int | float)]

@@ -43,7 +43,6 @@ import math
 from collections.abc import Callable
 
 import numpy as np
-from seaway.area.model import MAX_RANGE_M
 from seaway.contract.messages import (
     MissionRequest,
     MissionStatus,
@@ -54,7 +53,7 @@ from seaway.contract.messages import (
 from seaway.runtime.ratelog import RateLimitedLog
 from seaway.vessel import path
 from seaway.vessel.envelope import envelope
-from seaway.vessel.frames import GeoOrigin
+from seaway.vessel.frames import MAX_RANGE_M, GeoOrigin
 from seaway.vessel.guidance import los_thrust
 from seaway.vessel.model import VesselParams
 

@@ -23,9 +23,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from seaway.area.model import MAX_RANGE_M
 from seaway.contract.messages import MAX_ATTITUDE_RATE_HZ, MAX_GNSS_RATE_HZ, MAX_GNSS_STD_M
 from seaway.vessel.envelope import Envelope
+from seaway.vessel.frames import MAX_RANGE_M
 
 
 class EstimatorError(ValueError):

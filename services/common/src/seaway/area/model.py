@@ -21,6 +21,7 @@ from pydantic import Field, ValidationError, model_validator
 
 from seaway.area import geometry as g
 from seaway.contract.config import ConfigModel, describe_validation_error
+from seaway.vessel.frames import MAX_RANGE_M
 
 Point = g.Point
 
@@ -30,9 +31,6 @@ horizon stays cheap in a control period and that the fence fits an autopilot's f
 MAX_KEEP_OUT = 32
 """Keep-out polygons and circles, together."""
 MAX_RALLY_POINTS = 32
-MAX_RANGE_M = 100_000.0
-"""How far from the NED origin any coordinate may lie, each axis [m]: a flat local frame is
-already poor at 100 km (the same bound as a scenario's start)."""
 MIN_POLYGON_AREA_M2 = 1.0
 """A polygon smaller than this is a mistake (repeated or collinear vertices), not an area."""
 MAX_NAME_CHARS = 64

@@ -51,7 +51,7 @@ from seaway.contract.missions import MissionSpec
 from seaway.contract.units import finite_number
 from seaway.simkit.faults import Fault
 from seaway.vessel.battery import BatteryParams
-from seaway.vessel.frames import GeoOrigin
+from seaway.vessel.frames import MAX_RANGE_M, GeoOrigin
 from seaway.vessel.model import world_to_body
 
 AIR_DENSITY_KGPM3 = 1.225
@@ -75,9 +75,9 @@ MAX_GUST_STD_MPS = 10.0
 """Gust speed standard deviation [m/s]."""
 MAX_DRAG_AREA_M2 = 0.25
 """Above-water Cd * A [m^2]: the paper's lake scenario has 0.08."""
-MAX_START_RANGE_M = 100_000.0
-"""How far from the NED origin a run may start, each axis [m] (vehicle_io drops positions past
-10^6 m; a flat local frame is already poor at 100 km)."""
+MAX_START_RANGE_M = MAX_RANGE_M
+"""How far from the NED origin a run may start, each axis [m]: anywhere in the local frame
+(``seaway.vessel.frames.MAX_RANGE_M``)."""
 MAX_START_SPEED_MPS = 20.0
 """Start surge speed, either way [m/s]."""
 MAX_START_HEADING_RAD = 1000.0

@@ -14,6 +14,10 @@ WGS84_A_M = 6378137.0
 WGS84_F = 1.0 / 298.257223563
 WGS84_E2 = WGS84_F * (2.0 - WGS84_F)
 _TWO_PI = 2.0 * math.pi
+MAX_RANGE_M = 100_000.0
+"""How far from the NED origin any coordinate may lie, each axis [m]: a local tangent frame is
+already poor at 100 km, and a position past it is corruption (an operating area, a waypoint, a
+home, a state estimate and a fix are each bounded by it)."""
 
 
 def wrap_pi(angle_rad: float) -> float:
