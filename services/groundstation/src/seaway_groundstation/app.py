@@ -42,6 +42,7 @@ from seaway_groundstation.routes.common import API_VERSION, error_doc, unprocess
 from seaway_groundstation.routes.replay import UPLOAD_PATH
 from seaway_groundstation.settings import Settings
 from seaway_groundstation.station import GroundStation
+from seaway_groundstation.stream import TransportAbort
 
 TAGS = [
     {"name": "fleet", "description": "The vessels seen (health tokens) and their latest messages."},
@@ -91,6 +92,7 @@ def create_app(bus_like: Bus, settings: Settings | None = None,
     app.add_middleware(GZipMiddleware, minimum_size=4096)
     app.add_middleware(BodyLimit, max_bytes=settings.max_body_bytes,
                        streamed={UPLOAD_PATH: settings.max_upload_bytes})
+    app.add_middleware(TransportAbort)  # a stream client that stopped reading can be cut
     command = [Depends(guard.command_dependency(settings, gs.limiter))]
     app.include_router(fleet.router(gs), prefix="/api")
     app.include_router(missions.router(gs, command), prefix="/api")

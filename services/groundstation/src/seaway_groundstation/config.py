@@ -58,6 +58,14 @@ class GroundStationConfig(ConfigModel):
         default=20.0, gt=0, description="most frames per second a stream client gets [Hz]")
     max_stream_clients: int = Field(
         default=256, ge=1, description="stream (WebSocket) clients served at once")
+    stream_send_timeout_s: float = Field(
+        default=10.0, gt=0,
+        description="a stream client that has not taken a frame within this is dropped (closed "
+                    "with 1008 and the reason if that still goes out, else cut), freeing its place [s]")
+    max_vessels: int = Field(
+        default=64, ge=1,
+        description="vessels the ground station keeps at once; a new name beyond it is refused "
+                    "(counted, logged) unless a vessel silent and without services can be forgotten")
     stale_after_s: float = Field(
         default=2.0, gt=0, description="a message older than this is shown as stale [s]")
     max_waypoints: int = Field(

@@ -16,13 +16,19 @@ Outputs: ``view`` / ``views`` (``VesselView`` with the age of each message, for 
 ``metrics`` (the current mission's metrics so far).
 
 A vessel is known once a service other than the ground station itself declares health on it or it
-publishes a message; it stays known (and goes stale) after its services stop. Thread-safe: bus
-callbacks write from transport threads while the web server reads.
+publishes a message; it stays known (and goes stale) after its services stop. At most
+``max_vessels`` are kept: a new name beyond that takes the place of the vessel silent longest, if
+one has been silent ``forget_after_s`` with no service's health token, else it is refused (counted
+in ``refused``). Before, every name heard was kept for good: 20 000 names a publisher made up took
+150 MB, a 7 MB first frame to every stream client and a 1 s stall of the event loop per
+``GET /api/vessels``. Thread-safe: bus callbacks write from transport threads while the web server
+reads.
 """
 
 from __future__ import annotations
 
 import json
+import math
 import threading
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -55,6 +61,11 @@ HEALTH = "health"
 """The stream's pseudo-kind for a change of a vessel's services."""
 IGNORED_SERVICES = ("groundstation",)
 """Services whose health token alone does not make a vessel: the ground station's own."""
+MAX_VESSELS = 64
+"""Vessels kept at once by default (a fleet here is a few boats)."""
+FORGET_AFTER_S = 60.0
+"""How long a vessel without any service's health token must have been silent before a new name
+may take its place [s]."""
 
 
 class Entry:
@@ -90,28 +101,67 @@ class _Vessel:
 class Fleet:
     """Latest messages per vessel and kind; see the module's description."""
 
-    def __init__(self, stale_after_s: float = 2.0, default_origin: GeoOrigin | None = None) -> None:
-        if stale_after_s <= 0:
-            raise ValueError(f"stale_after_s must be > 0, got {stale_after_s}")
+    def __init__(self, stale_after_s: float = 2.0, default_origin: GeoOrigin | None = None,
+                 max_vessels: int = MAX_VESSELS, forget_after_s: float = FORGET_AFTER_S) -> None:
+        """``forget_after_s`` [s]: see the module's description."""
+        if stale_after_s <= 0 or max_vessels < 1 or forget_after_s < 0:
+            raise ValueError(f"need stale_after_s > 0, max_vessels >= 1 and forget_after_s >= 0, got "
+                             f"{stale_after_s}, {max_vessels}, {forget_after_s}")
         self.stale_after_s = stale_after_s
         self.default_origin = default_origin
         """The NED origin for a vessel that has published none (the run's)."""
+        self.max_vessels, self.forget_after_s = max_vessels, forget_after_s
+        self.refused = 0
+        """Messages and health changes dropped: their vessel was new and there was no room."""
+        self.forgotten = 0
+        """Vessels forgotten to make room for a new name (their stream clients drop their keys)."""
         self._lock = threading.Lock()
         self._vessels: dict[str, _Vessel] = {}
         self._seq = 0
 
     # -- inputs -------------------------------------------------------------------------------------
 
-    def _vessel(self, vessel: str) -> _Vessel:
+    def _vessel(self, vessel: str, now_s: float) -> _Vessel | None:
+        """The vessel's record, made if there is room (None: refused, counted); hold the lock."""
         v = self._vessels.get(vessel)
         if v is None:
+            if len(self._vessels) >= self.max_vessels and not self._forget_one(now_s):
+                self.refused += 1
+                return None
             v = self._vessels[vessel] = _Vessel()
         return v
 
-    def on_health(self, vessel: str, service: str, alive: bool, now_s: float) -> bool:
-        """A health token appeared or went away; True if the vessel's services changed."""
+    def _forget_one(self, now_s: float) -> bool:
+        """Forget the vessel silent longest if it has been for ``forget_after_s`` and no service
+        of it declares health (a live vessel is never forgotten); hold the lock."""
+        idle = [(v.heard_s if v.heard_s is not None else -math.inf, name)
+                for name, v in self._vessels.items()
+                if not (v.services - set(IGNORED_SERVICES))
+                and (v.heard_s is None or now_s - v.heard_s >= self.forget_after_s)]
+        if not idle:
+            return False
+        del self._vessels[min(idle)[1]]
+        self.forgotten += 1
+        return True
+
+    def refuse(self) -> None:
+        """Count a message or health change dropped before it reached the fleet (a vessel name
+        that is not valid)."""
         with self._lock:
-            v = self._vessel(vessel)
+            self.refused += 1
+
+    def names(self) -> set[str]:
+        """Every vessel name held (known or not yet)."""
+        with self._lock:
+            return set(self._vessels)
+
+    def on_health(self, vessel: str, service: str, alive: bool, now_s: float) -> bool:
+        """A health token appeared or went away; True if the vessel's services changed (False
+        too when the vessel was refused for want of room)."""
+        with self._lock:
+            v = self._vessel(vessel, now_s)
+            if v is None:
+                return False
             before = set(v.services)
             (v.services.add if alive else v.services.discard)(service)
             if v.services == before:
@@ -120,12 +170,15 @@ class Fleet:
             v.health_seq, v.heard_s = self._seq, now_s
             return True
 
-    def on_message(self, vessel: str, kind: Kind, msg: Message, now_s: float) -> None:
-        """The latest message of ``kind`` from ``vessel``, received at ``now_s``."""
+    def on_message(self, vessel: str, kind: Kind, msg: Message, now_s: float) -> bool:
+        """The latest message of ``kind`` from ``vessel``, received at ``now_s``; False if the
+        vessel was refused for want of room (the message is dropped)."""
         if kind not in KINDS:
             raise ValueError(f"unknown kind {kind!r}; known: {', '.join(KINDS)}")
         with self._lock:
-            v = self._vessel(vessel)
+            v = self._vessel(vessel, now_s)
+            if v is None:
+                return False
             self._seq += 1
             v.entries[kind] = Entry(msg, now_s, self._seq)
             v.heard_s = now_s
@@ -135,11 +188,14 @@ class Fleet:
                 v.track.on_thrust(msg)
             elif isinstance(msg, MissionStatus):
                 v.track.on_status(msg)
+        return True
 
     def on_command(self, vessel: str, note: CommandNote, now_s: float) -> None:
         """A request relayed to ``vessel`` and its answer: streamed to every client as ``command``."""
         with self._lock:
-            v = self._vessel(vessel)
+            v = self._vessel(vessel, now_s)
+            if v is None:
+                return
             self._seq += 1
             v.entries[COMMAND] = Entry(note, now_s, self._seq)
 
@@ -147,7 +203,9 @@ class Fleet:
         """Remember a mission of ``vessel``: sent from here (the last one, for export and start
         again) or learned elsewhere (``source``, e.g. the launcher's), by its id for the map."""
         with self._lock:
-            v = self._vessel(vessel)
+            v = self._vessels.get(vessel)  # a vessel seen (the endpoints check): never refused
+            if v is None:
+                return
             if source == "groundstation":
                 v.last_mission = request
             v.missions.pop(request.mission_id, None)
@@ -254,7 +312,8 @@ class Fleet:
 
     def views(self, now_s: float) -> FleetView:
         out = [v for v in (self.view(name, now_s) for name in self.vessels()) if v is not None]
-        return FleetView(stale_after_s=self.stale_after_s, vessels=out)
+        return FleetView(stale_after_s=self.stale_after_s, vessels=out, max_vessels=self.max_vessels,
+                         vessels_refused=self.refused, vessels_forgotten=self.forgotten)
 
     # -- the stream ---------------------------------------------------------------------------------
 

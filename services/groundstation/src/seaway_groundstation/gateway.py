@@ -9,7 +9,10 @@
   and logged (``StampGate``): real time stamps with the wall clock and lockstep from t = 0, so
   neither comes ahead of it, and one that does would pose as the newest message for good and stretch
   the mission's metrics to its stamp (one state stamped 10^9 s ahead made them walk 10^10 grid
-  points and take all the machine's memory).
+  points and take all the machine's memory). A key whose vessel is not a valid vessel name
+  (``keys.check_vessel``: the API could never address it), or a new vessel when the fleet has no
+  room (``Fleet``'s ``max_vessels``), is dropped, counted (``FleetView.vessels_refused``) and
+  logged at most once a minute.
 * ``ask`` sends one request and tells apart an answer (accepted or refused), no answer in time, and
   an error reply from the transport, which ``Bus.request`` folds into one refusal.
 """
@@ -26,6 +29,7 @@ from seaway.contract import keys
 from seaway.contract.messages import Message, MessageError, Reply
 from seaway.runtime.bus import Bus
 from seaway.runtime.bus_raw import Declared
+from seaway.runtime.ratelog import RateLimitedLog
 from seaway.runtime.stamps import StampBounds, StampGate
 
 from seaway_groundstation.fleet import Fleet, Kind
@@ -49,9 +53,15 @@ TOPICS: dict[Kind, keys.KeySpec] = {
 
 
 def vessel_of(key: str) -> str | None:
-    """``seaway/<vessel>/...`` -> ``<vessel>`` (None for a key outside Seaway's namespace)."""
+    """``seaway/<vessel>/...`` -> ``<vessel>`` (None for a key outside Seaway's namespace, or
+    whose vessel is not a valid vessel name)."""
     parts = key.split("/", 2)
-    return parts[1] if len(parts) >= 2 and parts[0] == keys.ROOT else None
+    if len(parts) < 2 or parts[0] != keys.ROOT:
+        return None
+    try:
+        return keys.check_vessel(parts[1])
+    except keys.KeyNameError:
+        return None
 
 
 class BusLink:
@@ -66,6 +76,7 @@ class BusLink:
         self.stamps = StampGate("groundstation", log, StampBounds.live())
         self.on_change = on_change or (lambda _vessel: None)
         self._declared: list[Declared] = []
+        self._refusals = RateLimitedLog(log, 60.0)
 
     def attach(self) -> None:
         """Declare the subscriptions and the health watch (call once, before serving)."""
@@ -77,16 +88,35 @@ class BusLink:
     def _on_message(self, kind: Kind) -> Callable[[str, Any], None]:
         def handle(key: str, msg: Message) -> None:
             vessel = vessel_of(key)
-            if vessel is None or not self.stamps.admit(key, msg.stamp_ns, self.wall_ns()):
+            if vessel is None:
+                self.fleet.refuse()
+                self._refused(key[:200], "its vessel name is not valid")
                 return
-            self.fleet.on_message(vessel, kind, msg, self.clock())
+            if not self.stamps.admit(key, msg.stamp_ns, self.wall_ns()):
+                return
+            if not self.fleet.on_message(vessel, kind, msg, self.clock()):
+                self._refused(key, f"no room for another vessel ({self.fleet.max_vessels} kept)")
+                return
             self.on_change(vessel)
 
         return handle
 
     def _on_health(self, vessel: str, service: str, alive: bool) -> None:
+        try:
+            keys.check_vessel(vessel)
+        except keys.KeyNameError:
+            self.fleet.refuse()
+            self._refused(f"health of {vessel[:200]!r}", "its vessel name is not valid")
+            return
+        before = self.fleet.refused
         if self.fleet.on_health(vessel, service, alive, self.clock()):
             self.on_change(vessel)
+        elif self.fleet.refused != before:
+            self._refused(f"health of {vessel!r}", f"no room for another vessel "
+                                                   f"({self.fleet.max_vessels} kept)")
+
+    def _refused(self, what: str, why: str) -> None:
+        self._refusals.warning(why, "dropped %s: %s (%d dropped so far)", what, why, self.fleet.refused)
 
     def close(self) -> None:
         for d in self._declared:

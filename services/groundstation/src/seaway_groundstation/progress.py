@@ -11,6 +11,10 @@ computed from the estimate instead of the simulator's truth:
 * energy: the thrust commands held until the next one, times alpha, plus T^w (the report's check
   figure when truth is recorded); only when the vessel's alpha is known.
 
+Only what the metrics read of each sample is kept (``PoseSample``, ``ThrustSample``): a whole
+``StateEstimate`` with its 81-number covariance (the estimator sends it at 20 Hz) took 4.2 kB, so a
+track at its ``MAX_SAMPLES`` bound held 1.5 GB per vessel; a slim sample takes ~0.15 kB.
+
 A new mission id, or the same mission started again (active after complete/aborted/idle), starts
 a new track. Samples arrive slightly out of order (a state can come before the status computed from
 it), so the last few states are kept to seed a new track with those at or after its start.
@@ -20,7 +24,7 @@ from __future__ import annotations
 
 import collections
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, NamedTuple
 
 from pydantic import BaseModel, Field
 from seaway.contract import keys
@@ -33,6 +37,22 @@ SEED_SAMPLES = 20
 """States kept from before a mission's start, to seed its track (a state arrives before the status)."""
 MAX_SAMPLES = 360_000
 """States (and as many thrusts) kept per mission: ten hours at 10 Hz; beyond, the track stops."""
+
+
+class PoseSample(NamedTuple):
+    """What the metrics read of a state estimate (``seaway.vessel.metrics.Pose``)."""
+
+    stamp_ns: int
+    x_m: float
+    y_m: float
+
+
+class ThrustSample(NamedTuple):
+    """What the metrics read of a thrust command (``seaway.vessel.metrics.Thrust``) [N]."""
+
+    stamp_ns: int
+    thrust_port_n: float
+    thrust_starboard_n: float
 
 
 class MetricsView(BaseModel):
@@ -63,11 +83,11 @@ class MissionTrack:
         self.mission_id: str | None = None
         self.state = "idle"
         self.start_ns: int | None = None
-        self.states: list[StateEstimate] = []
-        self.thrusts: list[ThrustCommand] = []
+        self.states: list[PoseSample] = []
+        self.thrusts: list[ThrustSample] = []
         self.truncated = False
-        self._recent: collections.deque[StateEstimate] = collections.deque(maxlen=SEED_SAMPLES)
-        self._recent_thrust: collections.deque[ThrustCommand] = collections.deque(maxlen=SEED_SAMPLES)
+        self._recent: collections.deque[PoseSample] = collections.deque(maxlen=SEED_SAMPLES)
+        self._recent_thrust: collections.deque[ThrustSample] = collections.deque(maxlen=SEED_SAMPLES)
 
     def copy(self) -> MissionTrack:
         """A snapshot (the sample lists copied) to compute from while samples keep arriving."""
@@ -93,14 +113,16 @@ class MissionTrack:
         self.state = msg.state
 
     def on_state(self, msg: StateEstimate) -> None:
-        self._recent.append(msg)
+        sample = PoseSample(msg.stamp_ns, msg.x_m, msg.y_m)
+        self._recent.append(sample)
         if self.tracking:
-            self._keep(self.states, msg)
+            self._keep(self.states, sample)
 
     def on_thrust(self, msg: ThrustCommand) -> None:
-        self._recent_thrust.append(msg)
+        sample = ThrustSample(msg.stamp_ns, msg.thrust_port_n, msg.thrust_starboard_n)
+        self._recent_thrust.append(sample)
         if self.tracking:
-            self._keep(self.thrusts, msg)
+            self._keep(self.thrusts, sample)
 
     def _keep(self, samples: list[Any], msg: Any) -> None:
         if samples and msg.stamp_ns < samples[-1].stamp_ns:

@@ -33,6 +33,7 @@ import sys
 import threading
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import uvicorn
 from seaway.contract.config import ConfigError
@@ -47,6 +48,7 @@ from seaway.vessel.model import load_vessel
 from seaway_groundstation.app import create_app
 from seaway_groundstation.config import ENV_TOKEN, GroundStationConfig
 from seaway_groundstation.settings import Settings, new_token
+from seaway_groundstation.stream import MAX_CLIENT_MESSAGE_BYTES
 
 NAME = "groundstation"
 LOOPBACK = ("127.0.0.1", "::1", "localhost")
@@ -105,6 +107,14 @@ def url(host: str, port: int) -> str:
     return f"http://[{host}]:{port}/" if ":" in host else f"http://{host}:{port}/"
 
 
+def server_config(app: Any, log_level: str = "info") -> uvicorn.Config:
+    """How uvicorn serves the ground station (tests serve it the same way): its WebSocket messages
+    from a client bounded to ``stream.MAX_CLIENT_MESSAGE_BYTES`` (the stream takes nothing from
+    clients; uvicorn's default is 16 MiB a message)."""
+    return uvicorn.Config(app, log_level=log_level, log_config=None, access_log=False, lifespan="on",
+                          ws="websockets-sansio", ws_max_size=MAX_CLIENT_MESSAGE_BYTES)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     memory.cap_malloc_arenas()  # first, before any thread: off the control path, long-lived
     args, config = parse_service_args(parser(), argv, GroundStationConfig)
@@ -153,8 +163,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"groundstation: {page} {where}", flush=True)
 
         app = create_app(ctx.bus, settings, on_ready=ready)
-        server = uvicorn.Server(uvicorn.Config(app, log_level=args.log_level.lower(), log_config=None,
-                                               access_log=False, lifespan="on", ws="websockets-sansio"))
+        server = uvicorn.Server(server_config(app, args.log_level.lower()))
 
         def stop_on_signal() -> None:  # ctx.stop: our own handlers (set before uvicorn's take over)
             ctx.stop.wait()

@@ -42,6 +42,8 @@ class Settings:
     request_timeout_s: float = _DEFAULT.request_timeout_s
     stream_rate_hz: float = _DEFAULT.stream_rate_hz
     max_stream_clients: int = _DEFAULT.max_stream_clients
+    stream_send_timeout_s: float = _DEFAULT.stream_send_timeout_s
+    max_vessels: int = _DEFAULT.max_vessels
     stale_after_s: float = _DEFAULT.stale_after_s
     max_waypoints: int = _DEFAULT.max_waypoints
     default_origin: GeoOrigin | None = None

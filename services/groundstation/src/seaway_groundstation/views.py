@@ -84,6 +84,13 @@ class FleetView(BaseModel):
 
     stale_after_s: float = Field(description="age beyond which a message is shown as stale [s]")
     vessels: list[VesselView]
+    max_vessels: int = Field(default=0, description="vessels the ground station keeps at once")
+    vessels_refused: int = Field(
+        default=0, description="messages and health changes dropped since start: from a vessel name "
+                               "not valid, or new when there was no room (max_vessels)")
+    vessels_forgotten: int = Field(
+        default=0, description="vessels forgotten since start (silent, no service's health token) "
+                               "to make room for a new name")
 
 
 Outcome = Literal["accepted", "refused", "no_reply", "error_reply"]
