@@ -111,7 +111,7 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
             mission_files[v] = folder / "mission.json"
             mission_files[v].write_text(mission.model_dump_json(indent=2) + "\n")
     sup = Supervisor(procs, run_dir, env, profile.backoff, default_echo, args.verbose, run.clock,
-                     placement)
+                     placement, finishes=frozenset([profile.stop_after] if profile.stop_after else []))
     stop = _stop_event(sup)
     label = {v: f"{v}: " if len(vessels) > 1 else "" for v in vessels}
     print(f"seaway launch {profile.name}: vessel{'s' if len(vessels) > 1 else ''} "

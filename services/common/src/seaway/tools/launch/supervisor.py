@@ -10,7 +10,8 @@ Linux: set by util-linux's ``setpriv --pdeathsig`` before it execs the command, 
 between fork and exec (``preexec_fn``), which in a process with Zenoh's threads could deadlock the
 child before its exec and the launcher with it (a process that never starts).
 
-A process that exits with a failure is restarted after its back-off (``restart = "on-failure"``).
+A process that exits with a failure is restarted after its back-off (``restart = "on-failure"``),
+and so is a service that exits with 0 unasked (``seaway.tools.launch.exits``).
 So is one that hangs (``liveness``): its health token gone for ``TOKEN_GRACE_S`` while it still
 runs, or overdue on what its service must publish; it is SIGKILLed (a stopped or deadlocked process
 cannot stop itself) and then restarted as a dead one. Each start, exit, hang and stop is a line of
@@ -49,6 +50,7 @@ from seaway.runtime.bus import Bus
 from seaway.runtime.bus_typed import RawRing
 from seaway.runtime.credentials import ENV_IDENTITY
 from seaway.runtime.service import ENV_VESSEL
+from seaway.tools.launch import exits
 from seaway.tools.launch.events import EVENTS_FILE, ProcessEvent
 from seaway.tools.launch.liveness import TOKEN_GRACE_S, Watch
 from seaway.tools.launch.profile import BackoffPolicy, ProcessSpec, start_order, stop_order
@@ -126,8 +128,12 @@ class Supervised:
 class Supervisor:
     def __init__(self, procs: list[Supervised], run_dir: Path, env: dict[str, str],
                  backoff: BackoffPolicy, echo: Callable[[str], None], echo_all: bool = False,
-                 clock: str = "wall", placement: dict[str, frozenset[int]] | None = None) -> None:
+                 clock: str = "wall", placement: dict[str, frozenset[int]] | None = None,
+                 finishes: frozenset[str] = frozenset()) -> None:
         self.procs = {p.spec.name: p for p in procs}
+        self.finishes = finishes
+        """The processes whose exit with code 0 is a finish (the profile's ``stop_after``); any
+        other service's is unasked and handled as a failure (``seaway.tools.launch.exits``)."""
         self.placement = placement or {}
         """CPUs of the processes of a service (``seaway.runtime.cpus.split_chain``); a process of a
         service not named keeps the launcher's."""
@@ -357,14 +363,13 @@ class Supervisor:
             self._event(sp, "exit", code=code)
             if self.stopping:
                 sp.state = "stopped"
-            elif code != 0 and sp.spec.restart == "on-failure" and sp.restarts < self.backoff.max_restarts:
-                delay = self.backoff.delay_s(sp.restarts)
-                sp.state, sp.next_start_at = "backoff", now + delay
-                self.echo(f"launcher: {sp.spec.name} exited with code {code}; restarting in {delay:.1f} s "
-                          f"(restart {sp.restarts + 1} of at most {self.backoff.max_restarts})")
-            else:
-                sp.state = "exited" if code == 0 else "failed"
-                self.echo(f"launcher: {sp.spec.name} {sp.state} (code {code})")
+                continue
+            # A failure, or a service's exit with 0 nobody asked for, is restarted (exits module).
+            then = exits.after_exit(sp.spec, code, sp.restarts, self.backoff, self.finishes)
+            sp.state = then.state
+            if then.delay_s is not None:
+                sp.next_start_at = now + then.delay_s
+            self.echo(then.line)
 
         if not self.stopping:
             self._check_hung(now)
