@@ -72,7 +72,7 @@ from seaway.runtime.service import (
     dump_stacks_on_signal,
 )
 from seaway.simkit.scenario import load_scenario
-from seaway.tools.launch import authority, recording_source
+from seaway.tools.launch import authority, recording_source, run_lock
 from seaway.tools.launch.plan import launch_vessels, profile_path, resolve_run, supervised, vessel_dir
 from seaway.tools.launch.profile import Profile, instances, load_profile, with_ros2
 from seaway.tools.launch.resume import RESUME_WAIT_S
@@ -377,6 +377,21 @@ def main(argv: list[str]) -> int:
                  if mission is not None else ""))
         return _check_mission(mission, scenario)
 
+    try:  # before anything is written for the run: one launch per run folder (run_lock)
+        lock = run_lock.take(run_dir)
+    except (run_lock.RunFolderInUseError, OSError) as err:
+        print(f"seaway launch: {err}", file=sys.stderr)
+        return 2
+    try:
+        return _locked_launch(args, profile, scenario, mission, run_dir, runs_of, procs, vessels)
+    finally:
+        lock.release()
+
+
+def _locked_launch(args: argparse.Namespace, profile: Profile, scenario: str,
+                   mission: MissionRequest | None, run_dir: Path, runs_of: dict,
+                   procs: list[Supervised], vessels: list[str]) -> int:
+    """The launch, once it holds its run folder: its credentials and rendezvous, then ``_launch``."""
     if args.composed:
         # One process, no network: nobody to authenticate, no rendezvous to hold.
         host.activate()
