@@ -42,7 +42,6 @@ from seaway_sim.node import SimNode
 from seaway_sim.px4_autopilot import COMPID, Px4Autopilot, Px4Config
 from seaway_sim.realtime import Realtime
 from seaway_sim.world import world_of
-from seaway_sim.world_bounds import check_world
 
 log = logging.getLogger("seaway_sim")
 
@@ -76,7 +75,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     try:
         scenario = load_scenario(run.scenario)
-        check_world(scenario, run.scenario)  # what the file's own validation cannot see
         vessel = load_vessel(run.plant_vessel)
         model = load_vessel(scenario.vessel)  # its limits: vehicle I/O's output stage in lockstep
         SimPack.of(scenario, vessel)  # the scenario's [battery] must fit the vessel's pack

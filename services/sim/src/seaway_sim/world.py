@@ -11,7 +11,6 @@ from seaway.simkit.scenario import Scenario, load_scenario, parse_scenario
 from seaway.vessel.model import VesselParams, load_vessel
 
 from seaway_sim.battery import SimPack
-from seaway_sim.world_bounds import check_world
 
 
 def load_world(name_or_path: str) -> tuple[Scenario, VesselParams]:
@@ -34,10 +33,9 @@ def world_of(document: dict, where: str, run: RunDescription | None
     from one: ``seaway_sim.kept``); ConfigError naming ``where`` and what is wrong.
 
     The scenario must keep the run's model (the estimator and the controller cannot change theirs),
-    its [battery] must fit the plant's pack and its disturbances together stay within what one may
-    be (``seaway_sim.world_bounds``)."""
+    and its [battery] must fit the plant's pack (its disturbances together stay within what one may
+    be: ``seaway.simkit.scenario.disturbance_sums``)."""
     scenario = parse_scenario(document, where, scenario_base())
-    check_world(scenario, where)  # before anything of it is flown or kept
     vessel = load_vessel(scenario.plant_vessel_file)
     model = load_vessel(scenario.vessel)
     if run is not None and model != load_vessel(run.model_vessel_file):

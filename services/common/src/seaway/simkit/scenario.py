@@ -121,6 +121,9 @@ class WorldGrid(ConfigModel):
             if len(table) != len(self.xs_m) or any(len(row) != len(self.ys_m) for row in table):
                 raise ValueError(f"{name} must be {len(self.xs_m)} rows of {len(self.ys_m)} values "
                                  "(one row per xs_m, one value per ys_m)")
+            if len(self.xs_m) * len(self.ys_m) > MAX_GRID_POINTS:
+                raise ValueError(f"{len(self.xs_m)} x {len(self.ys_m)} points, at most "
+                                 f"{MAX_GRID_POINTS} in all")
             if any(abs(f) > MAX_FORCE_N for row in table for f in row):
                 raise ValueError(f"{name}: every force must be within +-{MAX_FORCE_N:g} N")
         return self
@@ -150,6 +153,50 @@ class Wind(ConfigModel):
 
 Disturbance = Annotated[BodyConstant | WorldConstant | WorldGrid | Current | Wind,
                         Field(discriminator="kind")]
+
+# Disturbances of one kind add: 200 currents of 5 m/s each, each within its bound, were a valid
+# scenario, and the sim died packing a GNSS speed of 1400 m/s into MAVLink's 16 bits (200 world
+# forces of 50 N: a NaN heading at the 4th step). So the sum of each kind is held to what one entry
+# may be (the tested worst case stays the worst case), and the lists are bounded.
+MAX_DISTURBANCES = 64
+"""Entries of ``[[disturbances]]``: each is evaluated at every plant step; the shipped scenarios
+list at most two."""
+MAX_FAULTS = 1000
+"""Entries of ``[[faults]]``: each is looked at for every sample and step; the shipped scenarios
+list at most six."""
+MAX_GRID_POINTS = 1_000_000
+"""Points of one ``world_grid`` (rows x columns): held in memory and in the sim's state file."""
+GUST_SIGMAS = 3.0
+"""Gusts counted at this many standard deviations when the winds' strength is summed."""
+MAX_WIND_STRENGTH_M4PS2 = MAX_DRAG_AREA_M2 * (MAX_WIND_MPS + GUST_SIGMAS * MAX_GUST_STD_MPS) ** 2
+"""Cd*A (speed + 3 gust std)^2 [m^4/s^2] of the strongest wind allowed: the bound on all the winds
+of a scenario together (a wind's force over half the air density)."""
+
+
+def disturbance_sums(ds: list[Any]) -> list[tuple[str, float, float, str]]:
+    """(field, total over the entries, bound, unit) of each quantity that adds across ``ds``."""
+    def of(kind: type) -> list[Any]:
+        return [d for d in ds if isinstance(d, kind)]
+
+    def peak_n(table: list[list[float]]) -> float:
+        return max((abs(f) for row in table for f in row), default=0.0)
+
+    cur, body, world, grids = of(Current), of(BodyConstant), of(WorldConstant), of(WorldGrid)
+    winds = of(Wind)
+    return [
+        ("current north_mps", sum(abs(d.north_mps) for d in cur), MAX_CURRENT_MPS, "m/s"),
+        ("current east_mps", sum(abs(d.east_mps) for d in cur), MAX_CURRENT_MPS, "m/s"),
+        ("body_constant surge_n", sum(abs(d.surge_n) for d in body), MAX_FORCE_N, "N"),
+        ("body_constant sway_n", sum(abs(d.sway_n) for d in body), MAX_FORCE_N, "N"),
+        ("body_constant yaw_nm", sum(abs(d.yaw_nm) for d in body), MAX_MOMENT_NM, "N m"),
+        ("world_constant and world_grid north_n", sum(abs(d.north_n) for d in world)
+         + sum(peak_n(g.north_n) for g in grids), MAX_FORCE_N, "N"),
+        ("world_constant and world_grid east_n", sum(abs(d.east_n) for d in world)
+         + sum(peak_n(g.east_n) for g in grids), MAX_FORCE_N, "N"),
+        ("wind drag_area_m2 * (speed_mps + 3 gust_std_mps)^2",
+         sum(w.drag_area_m2 * (w.speed_mps + GUST_SIGMAS * w.gust_std_mps) ** 2 for w in winds),
+         MAX_WIND_STRENGTH_M4PS2, "m^4/s^2"),
+    ]
 
 
 # Bounds on the simulated sensors: physically a poor sensor at most, and inside the MAVLink fields
@@ -249,17 +296,27 @@ class Scenario(ConfigModel):
                                      "when it differs from the model (robustness runs); default vessel")
     start: StartPose = StartPose()
     origin: Origin = Origin()
-    disturbances: list[Disturbance] = Field(default_factory=list)
+    disturbances: list[Disturbance] = Field(default_factory=list, max_length=MAX_DISTURBANCES)
     sensors: SensorNoise = SensorNoise()
     dead_zone: bool = Field(default=False, description="apply the vessel file's thrust dead zone")
     thruster_lag: bool = Field(default=False, description="apply the vessel file's thruster lag")
     mission: MissionSpec | None = None
     battery: ScenarioBattery = ScenarioBattery()
-    faults: list[Fault] = Field(default_factory=list, description="scheduled sensor and thruster "
-                                "faults (seaway.simkit.faults)")
+    faults: list[Fault] = Field(default_factory=list, max_length=MAX_FAULTS,
+                                description="scheduled sensor and thruster faults "
+                                "(seaway.simkit.faults)")
     area: AreaSpec | None = Field(default=None, description="the operating area and rally points "
                                   "(seaway.area.spec; degrees through [origin]); the start and the "
                                   "mission's home must be inside it")
+
+    @model_validator(mode="after")
+    def _disturbances_together(self) -> Scenario:
+        over = [f"{field} adds up to {total:g} {unit} over the entries, at most {bound:g} {unit} "
+                "(what one entry may be: disturbances of one kind add)"
+                for field, total, bound, unit in disturbance_sums(self.disturbances) if total > bound]
+        if over:
+            raise ValueError("disturbances: " + "; ".join(over))
+        return self
 
     @model_validator(mode="after")
     def _area_holds_the_start(self) -> Scenario:
