@@ -265,3 +265,44 @@ def test_a_controller_restarted_at_rest_goes_on_holding_station_where_it_held(
     cmd, record, status = fresh.step(3 * DT_NS, off)
     assert record is None and status.state == at_rest
     assert cmd.thrust_port_n + cmd.thrust_starboard_n != 0.0
+
+
+def test_a_restarted_controller_keeps_the_vessels_home_with_or_without_a_mission(tmp_path: Path
+                                                                                ) -> None:
+    # The home was where the vessel was armed (or the operator's): a restarted controller hears no
+    # arming of a vessel armed already, so without the kept home a mission sent after the restart
+    # took where the vessel happened to be as home, and its low-energy return went there.
+    import threading
+
+    from seaway.contract.messages import HomeRequest, Waypoint
+    from seaway_controller.checkpointing import Checkpoints
+
+    from tests.unit.controller.test_vehicle_pause import status
+
+    path = tmp_path / "cp.json"
+    core = make_core(ScriptedSolver())
+    core.step(0, state(0, x=3.0, y=4.0))
+    core.on_vehicle_status(status(1, None))  # armed here: home (3, 4)
+    assert core.home == (3.0, 4.0)
+    Checkpoints(path).save(core, threading.Lock(), 10)  # no mission: the home alone is kept
+    assert checkpoint.load(path).request is None
+    fresh = make_core(ScriptedSolver())
+    resume(fresh, path, 20)
+    assert fresh.home == (3.0, 4.0) and fresh.progress() is None
+    fresh.step(30, state(1, x=40.0, y=0.0))  # the vessel is out on the water now
+    fresh.on_vehicle_status(status(31, None))  # its first status: armed already, no new arming
+    assert fresh.home == (3.0, 4.0)
+    assert fresh.handle_mission(40, mission()).accepted
+    assert fresh.mission_request.home == Waypoint(x_m=3.0, y_m=4.0)  # the kept home, not (40, 0)
+    # An operator's home set mid-mission is kept with the mission's progress.
+    assert fresh.handle_home(50, HomeRequest.make(stamp_ns=50, home=Waypoint(x_m=1.0, y_m=1.0))
+                             ).accepted
+    Checkpoints(path).save(fresh, threading.Lock(), 60)
+    again = make_core(ScriptedSolver())
+    resume(again, path, 70)
+    assert again.home == (1.0, 1.0) and again.progress() is not None
+    # A real arming (disarmed, then armed) still moves it.
+    again.step(80, state(2, x=9.0, y=9.0))
+    again.on_vehicle_status(status(81, "disarmed"))
+    again.on_vehicle_status(status(82, None))
+    assert again.home == (9.0, 9.0)

@@ -44,6 +44,7 @@ class Checkpoints:
         self._saved_at_ns: int | None = None  # when, on the service's clock
         self._writer: atomic.LatestWriter | None = None
         self._request: tuple[object, dict] | None = None  # (request, its JSON dump): made once
+        self._home_saved: tuple[float, float] | None = None  # the vessel's home last written
 
     def durable(self) -> None:
         """Real time: write each checkpoint durably, on a thread of its own (an fsync can take a
@@ -61,14 +62,18 @@ class Checkpoints:
         if self.path is None:
             return
         with lock:
-            progress = core.progress()
+            progress, home = core.progress(), core.home
         if progress is None:
+            if home is not None and home != self._home_saved:  # no mission: the home alone
+                self._write(checkpoint.MissionCheckpoint(
+                    saved_unix_ns=time.time_ns(), home_x_m=home[0], home_y_m=home[1]))
+                self._home_saved = home
             return
         req, leg, state, energy = progress
         with lock:
             decision = core.decision()
             hold = core.missions.hold_point
-        key = (req.mission_id, leg, state, decision, hold)
+        key = (req.mission_id, leg, state, decision, hold, home)
         last = self._saved_at_ns
         due = last is None or not 0 <= now_ns - last < CHECKPOINT_PERIOD_NS
         if not force and key == self._saved and not due:
@@ -80,16 +85,24 @@ class Checkpoints:
             energy_used_j=energy, saved_unix_ns=time.time_ns(), returning=decision.returning,
             decision=decision.decision, decided_ns=decision.decided_ns,
             decision_reason=decision.reason[:MAX_REASON_CHARS],
-            hold_x_m=None if hold is None else hold[0], hold_y_m=None if hold is None else hold[1])
+            hold_x_m=None if hold is None else hold[0], hold_y_m=None if hold is None else hold[1],
+            home_x_m=None if home is None else home[0], home_y_m=None if home is None else home[1])
+        if not self._write(cp):
+            return
+        self._saved, self._saved_at_ns, self._home_saved = key, now_ns, home
+
+    def _write(self, cp: checkpoint.MissionCheckpoint) -> bool:
+        """Write ``cp`` (on the writer's thread in real time); False if it failed (logged)."""
+        assert self.path is not None
         if self._writer is not None:
             self._writer.submit(checkpoint.encode(cp))
-        else:
-            try:
-                checkpoint.save(self.path, cp, durable=False)
-            except OSError as err:
-                self._failed(err)
-                return
-        self._saved, self._saved_at_ns = key, now_ns
+            return True
+        try:
+            checkpoint.save(self.path, cp, durable=False)
+        except OSError as err:
+            self._failed(err)
+            return False
+        return True
 
     def _failed(self, err: OSError) -> None:
         # The vessel keeps being controlled; only a restart would suffer.
@@ -104,22 +117,27 @@ class Checkpoints:
 
 def resume(core: ControllerCore, path: Path, now_ns: int, run_file: str | Path | None = None
            ) -> None:
-    """Resume the checkpointed mission, if there is one in progress and it was saved in this run
-    (not before ``run_file`` was written: ``seaway.runtime.run.from_earlier_launch``); never fatal."""
+    """Take the vessel's home back and resume the checkpointed mission, if there is one in progress,
+    when it was saved in this run (not before ``run_file`` was written:
+    ``seaway.runtime.run.from_earlier_launch``); never fatal."""
     try:
         cp = checkpoint.load(path)
         if cp is None:
             return
+        mission_id = (cp.request or {}).get("mission_id", "?")
         if from_earlier_launch(cp.saved_unix_ns, run_file):
             log.info("checkpoint %s: mission %s was saved before this run started (an earlier "
-                     "launch into this folder); starting idle", path,
-                     cp.request.get("mission_id", "?"))
+                     "launch into this folder); starting idle", path, mission_id)
             return
+        if cp.home is not None:  # no arming will be heard again: the home is the saved one
+            core.home = cp.home
+            log.warning("home kept from %s: north %.1f m, east %.1f m", path, *cp.home)
         # A finished mission is taken up again only to go on holding station at its end.
         holding = cp.state == "complete" and cp.hold_point is not None
         if cp.state not in ("waiting", "active", "paused") and not holding:
-            log.info("checkpoint %s: mission %s was %s; starting idle", path,
-                     cp.request.get("mission_id", "?"), cp.state)
+            if cp.request is not None:
+                log.info("checkpoint %s: mission %s was %s; starting idle", path, mission_id,
+                         cp.state)
             return
         req = cp.mission_request()
     except checkpoint.CheckpointError as err:

@@ -62,8 +62,11 @@ class VehicleGate:
         while the autopilot does not apply the commanded thrust, starts a waiting one once it does
         (see the module docstring). What it changed now (for a person), else None."""
         was, st = self.vehicle, self._last_state
-        if status.armed and (was is None or not was.armed) and st is not None:
-            self.home = (st.x_m, st.y_m)  # home is where the vessel was armed
+        # Home is where the vessel was armed. The first status heard (was None) is no arming seen:
+        # after a restart the vessel is armed already and its home is the one kept (checkpoint).
+        armed_now = not was.armed if was is not None else self.home is None
+        if status.armed and armed_now and st is not None:
+            self.home = (st.x_m, st.y_m)
         self.vehicle = status  # the latest, whatever its stamp says (a stamp cannot pin an old one)
         if status.stamp_ns < self._mission_start_ns:
             return None  # from before this mission: perhaps before the arming that preceded it
