@@ -199,3 +199,36 @@ def test_a_reloaded_live_page_keeps_the_plots_history_from_the_recording(
     assert got["x"] >= recorded * 0.1 - 1e-6, got
     assert not errors, errors
     procs.stop(gs, signal.SIGTERM, timeout_s=10)
+
+
+def test_a_damaged_recording_says_on_the_page_where_its_replay_stops_and_why(
+        procs, zenoh_env, tmp_path: Path, browser) -> None:
+    """A chunk with flipped bytes is met only as the frames are cut, after the page showed the
+    recording's detail: the replay stopped early with no word. The page now says which recording,
+    what is wrong and how to repair it."""
+    runs = tmp_path / "runs"
+    _record(runs / "damaged", PERIODS, finish=True)
+    path = runs / "damaged" / "recording.mcap"
+    data = bytearray(path.read_bytes())
+    for i in range(len(data) // 2, len(data) // 2 + 16):
+        data[i] ^= 0xFF
+    path.write_bytes(bytes(data))
+    gs = procs.start([str(BIN / "seaway-groundstation"), "--port", "0", "--runs-dir", str(runs)],
+                     zenoh_env, "groundstation")
+    base = wait_for(lambda: re.search(r"groundstation: (http://127\.0\.0\.1:\d+/)", procs.log(gs)),
+                    60, what="the ground station's address line").group(1)
+    page = browser.new_page(viewport={"width": 1400, "height": 950})
+    try:
+        page.goto(base + "?view=replay")
+        page.wait_for_function("document.querySelector('#recording-select option[value=damaged]')")
+        page.select_option("#recording-select", "damaged")
+        page.click("#recording-open")
+        page.wait_for_function("window.seaway.player.loadedTo === Infinity", timeout=60_000)
+        page.wait_for_function("document.getElementById('recording-info').textContent"
+                               ".includes('could not be read')", timeout=10_000)
+        info = page.evaluate("document.getElementById('recording-info').textContent")
+        assert "'damaged'" in info and "seaway record recover" in info, info
+        assert 0 < page.evaluate("window.seaway.player.frames.length") < PERIODS
+    finally:
+        page.close()
+    procs.stop(gs, signal.SIGTERM, timeout_s=10)

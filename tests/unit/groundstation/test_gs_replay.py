@@ -146,11 +146,11 @@ def test_a_timeline_answers_only_for_the_frames_it_has_cut(runs: Path) -> None:
     files = reader.open_paths([runs / "r1"])
     info = reader.read_info(files)
     tl = Timeline(files, info.summaries, info.start_ns, 20.0, 2.0)
-    assert tl.window(0.0, 10.0) == ("[]", 0, 0.0) and not tl.complete  # nothing read yet
+    assert tl.window(0.0, 10.0, 1 << 20) == (b"[]", 0, 0.0) and not tl.complete  # nothing read yet
     tl.start().wait(10.0, 30.0)
-    text, count, upto = tl.window(0.0, 10.0)
+    text, count, upto = tl.window(0.0, 10.0, 1 << 20)
     assert tl.complete and upto == 10.0 and count == len(json.loads(text)) > 40
-    assert [json.loads(f.frame) for f in tl.frames] == [json.loads(f.frame) for f in _whole_cut(files, info)]
+    assert [f["frame"] for f in json.loads(text)] == [json.loads(f.frame) for f in _whole_cut(files, info)]
 
 
 def _whole_cut(files: list[Path], info: Any) -> list[replay.ReplayFrame]:

@@ -7,14 +7,14 @@
   checked to be MCAP and to read; named ``upload:<id>-<name>.mcap``.
 * ``Library``: opens a recording with the shared reader (``seaway.recording``: series,
   crash-truncated files, duplicates), has it cut into the live stream's frames by a thread
-  of its own (``timeline.py``: the first frames at once, the rest as they are cut) and keeps the
-  last few opened (a recording still being written is opened again when it grew; its frames are
-  read from the state it was opened in). Nothing is ever written beside a recording: an
-  unfinished one is read through the reader's repaired copy in its cache.
-  Also what the page needs beside the frames: the missions flown (the controller's recorded
-  ``mission/accepted``, else the ground station's journal, the launcher's ``mission.json`` or the
-  recording's attachments) in local metres, each vessel's NED origin, and the run's
-  ``report/metrics.json`` when there is one.
+  of its own (``timeline.py``: the first frames at once, the rest as they are cut, kept on disk)
+  and keeps the ``CACHE_SIZE`` last read (a recording still being written is opened again when it
+  grew; its frames are read from the state it was opened in). Nothing is ever written beside a
+  recording: an unfinished one is read through the reader's repaired copy in its cache.
+  Also what the page needs beside the frames (``runcontext.py``): the missions flown (the
+  controller's recorded ``mission/accepted``, else the ground station's journal, the launcher's
+  ``mission.json`` or the recording's attachments) in local metres, each vessel's NED origin, and
+  the run's ``report/metrics.json`` when there is one.
 
 Every refusal is a ``RecordingError`` with the HTTP status it stands for and a text naming the
 recording and what is wrong.
@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import collections
 import contextlib
-import json
 import logging
 import os
 import re
@@ -32,7 +31,7 @@ import secrets
 import shutil
 import tempfile
 import threading
-from collections.abc import AsyncIterator, Iterable, Mapping, Sequence
+from collections.abc import AsyncIterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -40,10 +39,10 @@ from typing import Any, Literal
 from mcap.writer import MCAP0_MAGIC as MCAP_MAGIC  # an upload must start with it
 from pydantic import BaseModel, Field
 from seaway.contract import keys
-from seaway.contract.messages import MessageError, MissionAccepted, MissionRequest
+from seaway.contract.messages import MissionAccepted
 from seaway.vessel.frames import GeoOrigin
 
-from seaway_groundstation import geo, journal
+from seaway_groundstation import geo, runcontext
 from seaway_groundstation.geo import GeoFrameView, MissionPlanView
 from seaway_groundstation.timeline import Timeline
 
@@ -54,7 +53,6 @@ MAX_LISTED = 500
 """Recordings listed at most (the newest first)."""
 MAX_SCANNED_DIRS = 5000
 """Folders looked into at most when listing (a runs folder is not a whole disk)."""
-MAX_REPORT_BYTES = 256 << 10
 _REF_RE = re.compile(r"^[A-Za-z0-9_.][A-Za-z0-9_./-]{0,511}$")
 _NAME_RE = re.compile(r"[^A-Za-z0-9_.-]+")
 
@@ -297,25 +295,41 @@ class Loaded:
     detail: RecordingDetail
     timeline: Timeline
 
+    @property
+    def error(self) -> str | None:
+        """Why the frames stop before the recording's end (a damaged chunk), naming the recording
+        by its id and the way to repair it; None while none is known."""
+        err = self.timeline.error
+        if err is None:
+            return None
+        # The reader's text: no path of this machine (as ``Library.public_text``).
+        return (f"recording {self.detail.id!r} could not be read to its end: "
+                f"{_ABS_PATH_RE.sub(lambda m: m.group(1), err)}")
+
     def current(self) -> RecordingDetail:
         """The detail with the frames cut so far (and, once all are, what could not be read)."""
         tl = self.timeline
         notes = list(self.detail.notes)
         if tl.complete and tl.undecodable:
             notes.append(f"{tl.undecodable} message(s) that do not decode were left out")
-        if tl.error:  # the reader's text: no path of this machine (``Library.public_text``)
-            error = _ABS_PATH_RE.sub(lambda m: m.group(1), tl.error)
-            notes.append(f"the recording could not be read to its end: {error}")
+        if self.error:
+            notes.append(self.error)
         return self.detail.model_copy(update={
             "frame_count": len(tl.frames), "complete": tl.complete,
             "loaded_to_s": None if tl.complete else tl.loaded_to_s, "notes": notes})
 
 
+CACHE_SIZE = 4
+"""Recordings kept open at once. Each holds 16 bytes per frame in memory and its frames compressed
+on disk (``framestore.py``); a client replaying one more than this evicts the least recently read,
+which is then cut again from its start when its client asks for more."""
+
+
 class Library:
-    """The runs folder and the uploads, and the last ``cache_size`` recordings opened."""
+    """The runs folder and the uploads, and the ``cache_size`` recordings last read."""
 
     def __init__(self, runs: RunsFolder, uploads: UploadStore, rate_hz: float, stale_after_s: float,
-                 cache_size: int = 2) -> None:
+                 cache_size: int = CACHE_SIZE) -> None:
         self.runs, self.uploads = runs, uploads
         self.rate_hz, self.stale_after_s, self.cache_size = rate_hz, stale_after_s, cache_size
         self._cache: collections.OrderedDict[tuple[Any, ...], Loaded] = collections.OrderedDict()
@@ -362,6 +376,9 @@ class Library:
         with self._lock:
             for key in reversed(self._cache):
                 if key[0] == ref:
+                    # Read now: the last to be evicted. A page reads its frames here after one open,
+                    # and while an LRU of opens alone evicted the one being read.
+                    self._cache.move_to_end(key)
                     return self._cache[key]
         return self.open(ref)
 
@@ -410,7 +427,10 @@ class Library:
                          if isinstance(m, MissionAccepted)]
             recorded = dec.get(keys.NAV_ORIGIN.suffix)
             origins[v] = geo.geo_origin(recorded[-1]) if recorded else None  # type: ignore[arg-type]
-        scenario_name, scenario_origin = _scenario(info.attachments, notes)
+        # A file cut short (a crash, still being written) is read through a repaired copy: say so.
+        notes += [f"recording {ref!r}: {self.public_text(line, ref, where, files)}"
+                  for line in reader.repaired(info)]
+        scenario_name, scenario_origin = runcontext.scenario(info.attachments, notes)
         for v in vessels:
             origins[v] = origins[v] or scenario_origin
         timeline = Timeline(readable, info.summaries, info.start_ns, self.rate_hz,
@@ -424,10 +444,10 @@ class Library:
             start_ns=info.start_ns, duration_s=max(0.0, (info.end_ns - info.start_ns) / 1e9),
             message_count=info.message_count, vessels=vessels, topics=info.topics,
             frame_count=0, complete=False, loaded_to_s=0.0, rate_hz=self.rate_hz,
-            missions=_missions(run_folder, info.attachments, origins, scenario_name, notes,
+            missions=runcontext.missions(run_folder, info.attachments, origins, scenario_name, notes,
                                accepted),
             geo={v: fv for v, o in origins.items() if (fv := geo.frame_view(o)) is not None},
-            report=_report(run_folder, notes), notes=notes)
+            report=runcontext.report(run_folder, notes), notes=notes)
         return Loaded(detail, timeline)
 
 
@@ -441,88 +461,3 @@ def _relative_name(path: Path, root: Path) -> str:
         return path.relative_to(root).as_posix()
     except ValueError:
         return path.name
-
-
-def _scenario(attachments: Mapping[str, bytes], notes: list[str]) -> tuple[str | None, GeoOrigin | None]:
-    from seaway.recording import runinfo
-
-    try:
-        sc = runinfo.scenario_from_attachments(attachments)
-    except Exception as err:  # a damaged attachment only costs the scenario's origin
-        notes.append(f"the scenario attachment does not read: {err}")
-        return None, None
-    return (None, None) if sc is None else (sc.name, runinfo.scenario_origin(sc))
-
-
-def _journal_folders(run_folder: Path, vessels: Iterable[str]) -> list[Path]:
-    """Where the ground station's journal of a recording's run may be: its own folder, and for a
-    fleet's vessel (``<run>/<vessel>/``, the launcher's layout) the run folder above, where the
-    fleet's one ground station keeps it."""
-    folders = [run_folder]
-    if run_folder.name in set(vessels) and run_folder.parent != run_folder:
-        folders.append(run_folder.parent)
-    return folders
-
-
-def _missions(run_folder: Path | None, attachments: Mapping[str, bytes],
-              origins: dict[str, GeoOrigin | None], scenario_name: str | None,
-              notes: list[str], accepted: Sequence[tuple[str, MissionAccepted]] = ()
-              ) -> list[geo.MissionPlanView]:
-    """The missions flown, by id: what the controller recorded accepting (``mission/accepted``, in
-    local metres; the latest of an id sent twice), else sent from the ground station (its journal),
-    sent by the launcher (``mission.json``), else the recording's mission or scenario attachment."""
-    from seaway.recording import runinfo
-
-    any_origin = next((o for o in origins.values() if o is not None), None)
-    found: dict[str, geo.MissionPlanView] = {}
-    for _vessel, a in sorted(accepted, key=lambda va: va[1].accepted_ns, reverse=True):
-        found.setdefault(a.mission_id, geo.MissionPlanView(
-            mission_id=a.mission_id, waypoints_m=a.waypoints_m(), coa_radius_m=a.coa_radius_m,
-            task_power_w=a.task_power_w, controller=a.controller,
-            predict_disturbance=a.predict_disturbance, source="recording"))
-
-    def add(req: MissionRequest, origin: GeoOrigin | None, source: str) -> None:
-        try:
-            found.setdefault(req.mission_id, geo.mission_plan(req, origin, source))
-        except geo.NoOriginError as err:
-            notes.append(f"mission {req.mission_id!r} is not drawn: {err}")
-
-    if run_folder is not None:
-        for folder in _journal_folders(run_folder, origins):
-            for vessel, req in journal.accepted_missions(folder):
-                if folder != run_folder and vessel not in origins:
-                    continue  # the fleet's journal: another vessel's mission, not in this recording
-                add(req, origins.get(vessel) or any_origin, "groundstation")
-        launcher = run_folder / "mission.json"
-        if launcher.is_file():
-            try:
-                add(MissionRequest.decode(launcher.read_bytes()), any_origin, "launcher")
-            except (OSError, MessageError) as err:
-                notes.append(f"mission.json does not read: {err}")
-    try:
-        m = runinfo.mission_from_attachments(attachments, any_origin)
-    except Exception as err:
-        notes.append(f"the recording's mission attachment does not read: {err}")
-        m = None
-    if m is not None:
-        # The launcher names a scenario's mission after the scenario; a mission file has its own id.
-        mission_id = scenario_name or ""
-        found.setdefault(mission_id, geo.MissionPlanView(
-            mission_id=mission_id, waypoints_m=list(m.waypoints), coa_radius_m=m.coa_radius_m,
-            task_power_w=m.task_power_w, controller="", predict_disturbance=False, source="recording"))
-    return list(found.values())
-
-
-def _report(run_folder: Path | None, notes: list[str]) -> dict[str, Any] | None:
-    path = None if run_folder is None else run_folder / "report" / "metrics.json"
-    if path is None or not path.is_file():
-        return None
-    try:
-        if path.stat().st_size > MAX_REPORT_BYTES:
-            notes.append("report/metrics.json is too large to show")
-            return None
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as err:
-        notes.append(f"report/metrics.json does not read: {err}")
-        return None
-    return doc if isinstance(doc, dict) else None

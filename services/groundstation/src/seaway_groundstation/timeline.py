@@ -6,7 +6,9 @@ indexes say where each is and which channels it holds: a chunk with none of the 
 read), keeps their messages in a heap and hands on, in log-time order, every message logged before
 the next unread chunk's first log time: the order a merge of the whole recording gives, with only
 a chunk or two in memory. ``loaded_to_s`` says up to when (recorded time since the start) the
-frames are final; ``window`` answers a span with the frames that are.
+frames are final; ``window`` answers a span with the frames that are, at most ``max_bytes`` of them.
+The frames themselves are kept on disk, compressed (``framestore.py``): they are some 50 times the
+recording's size, too much to hold for the few recordings a ground station keeps open.
 
 A file written without chunk indexes is read whole through the shared reader
 (``seaway.recording.reader``) instead.
@@ -29,6 +31,7 @@ from seaway.contract.messages import Message, MessageError
 
 from seaway_groundstation import replay
 from seaway_groundstation.fleet import Kind
+from seaway_groundstation.framestore import FrameStore
 from seaway_groundstation.gateway import TOPICS
 
 log = logging.getLogger("seaway_groundstation.timeline")
@@ -56,7 +59,7 @@ def _chunked(files: list[Path], summaries: dict[Path, Summary]
              ) -> Iterator[tuple[int, str, bytes] | int]:
     """(log time, topic, data) of the shown topics' messages in log-time order; between them, an
     int: a log time before which every message has been yielded."""
-    from seaway.recording.reader import chunked_messages
+    from seaway.recording.reader import RECOVER_HINT, UnreadableRecordingError, chunked_messages
 
     # (first log time, file, chunk, its file's shown channels: id -> topic, and their ids)
     wanted: list[tuple[int, Path, Any, dict[int, str], set[int]]] = []
@@ -73,8 +76,11 @@ def _chunked(files: list[Path], summaries: dict[Path, Summary]
     try:
         for i, (_, f, ci, ids, id_set) in enumerate(wanted):
             fh = handles.get(f) or handles.setdefault(f, open(f, "rb"))  # noqa: SIM115 - closed below
-            for cid, log_ns, data in chunked_messages(fh, [ci], id_set):
-                heapq.heappush(heap, (log_ns, next(order), ids[cid], data))
+            try:
+                for cid, log_ns, data in chunked_messages(fh, [ci], id_set):
+                    heapq.heappush(heap, (log_ns, next(order), ids[cid], data))
+            except Exception as err:  # McapError, a decompressor's: say which file, and the repair
+                raise UnreadableRecordingError(f"{f}: {err}; {RECOVER_HINT}") from None
             horizon = wanted[i + 1][0] if i + 1 < len(wanted) else None
             while heap and (horizon is None or heap[0][0] < horizon):
                 log_ns, _, topic, data = heapq.heappop(heap)
@@ -103,8 +109,7 @@ class Timeline:
         self.files, self.summaries = files, summaries
         self.cutter = replay.Cutter(start_ns, rate_hz, stale_after_s, _decode)
         self.start_ns = start_ns
-        self.frames: list[replay.ReplayFrame] = []
-        self.times: list[float] = []
+        self.frames = FrameStore()
         self.loaded_to_s = 0.0
         """Frames before this recorded time [s since the start] are all cut (inf: every one)."""
         self.error: str | None = None
@@ -130,8 +135,7 @@ class Timeline:
 
     def _add(self, frames: list[replay.ReplayFrame], loaded_to_s: float | None) -> None:
         with self._cond:
-            self.frames += frames
-            self.times += [f.t_s for f in frames]
+            self.frames.append(frames)
             if loaded_to_s is not None:
                 self.loaded_to_s = max(self.loaded_to_s, loaded_to_s)
             self._cond.notify_all()
@@ -176,14 +180,12 @@ class Timeline:
         with self._cond:
             self._cond.wait_for(lambda: self.loaded_to_s >= until_s, timeout=timeout_s)
 
-    def window(self, start_s: float, end_s: float) -> tuple[str, int, float]:
-        """The final frames with ``start_s <= t_s < end_s``, as ``replay.window`` gives them, and
-        the time up to which that answer is whole (``end_s`` once the frames are cut that far)."""
+    def window(self, start_s: float, end_s: float, max_bytes: int) -> tuple[bytes, int, float]:
+        """The final frames with ``start_s <= t_s < end_s`` as a JSON array of ``{"t_s", "frame"}``,
+        how many, and the time up to which that answer is whole [s]: ``end_s`` once the frames are
+        cut that far and are no more than ``max_bytes`` [bytes] (``FrameStore.window``)."""
         with self._cond:
             upto = min(end_s, self.loaded_to_s)
-            frames, times = self.frames, self.times
-            n = len(frames)
         if upto <= start_s:
-            return "[]", 0, max(start_s, upto)
-        text, count = replay.window(frames[:n], start_s, upto, times[:n])
-        return text, count, upto
+            return b"[]", 0, max(start_s, upto)
+        return self.frames.window(start_s, upto, max_bytes)

@@ -15,6 +15,11 @@ from seaway_groundstation.station import GroundStation
 UPLOAD_PATH = "/api/recordings/upload"
 FRAMES_WAIT_S = 2.0
 """How long a frames request waits for frames not yet cut [s] before it answers with fewer."""
+MAX_FRAMES_BYTES = 4 << 20
+"""Frames' text in one answer at most [bytes] (some 2000 frames of a vessel, minutes of recorded
+time): a span asked for with more ends earlier (``loaded_to_s``), where the page takes up. An hour
+of one vessel is some 65 MB of frames; a whole recording in one body was that in the server's
+memory two or three times over, per request."""
 RecordingId = Annotated[str, Query(
     min_length=1, max_length=600, examples=["20260101-120000-sim-lake-cc-empc"],
     description="a recording's id from GET /api/recordings: its path under the runs folder, or upload:...")]
@@ -75,8 +80,8 @@ def router(gs: GroundStation, command: list[Any]) -> APIRouter:
 
     @r.get("/recording/frames", summary="A recording's frames over a span of its time",
            responses={200: {"description": "{id, start_s, end_s, loaded_to_s, complete, duration_s, "
-                                           "count, frames: [{t_s, frame}]}, each frame as the live "
-                                           "stream sends it"},
+                                           "count, error, frames: [{t_s, frame}]}, each frame as the "
+                                           "live stream sends it"},
                       404: error_doc("no such recording"), 422: unprocessable_doc("a bad name or span")})
     async def frames(id: RecordingId,
                      start_s: Annotated[float, Query(ge=0, le=1e7, description="from [s]")] = 0.0,
@@ -85,8 +90,10 @@ def router(gs: GroundStation, command: list[Any]) -> APIRouter:
         """The frames with ``start_s <= t_s < loaded_to_s`` (seconds since the recording's start),
         each exactly what the live stream would have sent then: the page feeds both to the same
         code. The frames are cut as the recording is read: the answer waits a little for them up
-        to ``end_s``, then gives those cut so far; ``loaded_to_s`` (``end_s`` once they all are)
-        says up to when it is whole, where the next request takes up."""
+        to ``end_s``, then gives those cut so far, at most ``MAX_FRAMES_BYTES`` of them;
+        ``loaded_to_s`` (``end_s`` once they all are) says up to when it is whole, where the next
+        request takes up. ``error``: why the frames stop before the recording's end (a damaged
+        chunk: the recording, what is wrong and how to repair it), else null."""
         if end_s <= start_s:
             raise HTTPException(422, f"end_s ({end_s}) must be after start_s ({start_s})")
         try:
@@ -94,10 +101,12 @@ def router(gs: GroundStation, command: list[Any]) -> APIRouter:
         except RecordingError as err:
             raise _recording_error(err) from None
         await run_in_threadpool(loaded.timeline.wait, end_s, FRAMES_WAIT_S)
-        text, count, upto = loaded.timeline.window(start_s, end_s)
+        text, count, upto = await run_in_threadpool(loaded.timeline.window, start_s, end_s,
+                                                    MAX_FRAMES_BYTES)  # read from disk
         head = json.dumps({"id": id, "start_s": start_s, "end_s": end_s, "loaded_to_s": upto,
                            "complete": loaded.timeline.complete,
-                           "duration_s": loaded.detail.duration_s, "count": count})
-        return Response(head[:-1] + ',"frames":' + text + "}", media_type="application/json")
+                           "duration_s": loaded.detail.duration_s, "count": count,
+                           "error": loaded.error})
+        return Response(head[:-1].encode() + b',"frames":' + text + b"}", media_type="application/json")
 
     return r

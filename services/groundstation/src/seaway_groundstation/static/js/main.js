@@ -842,6 +842,11 @@ async function openRecording(id) {
     if (d.vessels.length && !d.vessels.includes(app.selected)) selectVessel(d.vessels[0]);
     setTimeout(() => map.fit(), 300);
     await done;
+    // A damaged chunk is found only as the frames are cut, after the detail above was shown.
+    if (player.error && player.detail === d) {
+      setText("recording-info", `${$("recording-info").textContent} — ${player.error}`);
+      say(player.error, "error");
+    }
   } catch (err) {
     setText("recording-info", "");
     say(`Recording ${id}: ${err.message}`, "error");

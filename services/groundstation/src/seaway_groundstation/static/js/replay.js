@@ -28,6 +28,7 @@ export class Player {
     this.speed = 5;
     this.token = 0;        // bumps on every open, so a stale load stops
     this.wanted = null;    // a time asked for beyond the loaded part [s], reached once loaded
+    this.error = null;     // why the frames stop before the recording's end (a damaged chunk)
   }
 
   get duration() {
@@ -38,6 +39,7 @@ export class Player {
     const token = ++this.token;
     this.pause();
     this.detail = await get(`/api/recording?id=${encodeURIComponent(id)}`);
+    this.error = null;
     this.frames = [];
     this.loadedTo = 0;
     this.store.clear();
@@ -56,6 +58,7 @@ export class Player {
       if (token !== this.token) return false;
       for (const f of w.frames) this.frames.push(f);
       this.loadedTo = Math.max(start, w.loaded_to_s);
+      if (w.error && !this.error) this.error = w.error; // found as the recording is cut: said once
       this.onProgress?.(Math.min(1, this.loadedTo / end));
       if (!shown && this.frames.length) {
         shown = true;
