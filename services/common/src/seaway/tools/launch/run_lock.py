@@ -27,19 +27,28 @@ class RunFolderInUseError(RuntimeError):
 class RunLock:
     """The held lock of one run folder (``take``); ``release`` (or the launcher's end) lets go."""
 
-    def __init__(self, fd: int, path: Path) -> None:
-        self.fd, self.path = fd, path
+    def __init__(self, fd: int, path: Path, made_folder: bool) -> None:
+        self.fd, self.path, self.made_folder = fd, path, made_folder
 
     def release(self) -> None:
-        if self.fd >= 0:
-            with contextlib.suppress(OSError):
-                os.close(self.fd)  # the flock goes with the last descriptor
-            self.fd = -1
+        """Let go; a folder this launch made and left holding nothing but the lock (it stopped
+        before it started anything: no credentials, a bad profile) goes too, as if never made."""
+        if self.fd < 0:
+            return
+        folder = self.path.parent
+        with contextlib.suppress(OSError):
+            if self.made_folder and [p.name for p in folder.iterdir()] == [LOCK_FILE]:
+                self.path.unlink()  # while still held: nobody takes a lock on a file going away
+                folder.rmdir()
+        with contextlib.suppress(OSError):
+            os.close(self.fd)  # the flock goes with the last descriptor
+        self.fd = -1
 
 
 def take(run_dir: Path) -> RunLock:
     """Make ``run_dir`` if need be and lock it for this launch; RunFolderInUseError naming the
     launcher that has it (its pid) and what to do; OSError if the folder cannot be made."""
+    made_folder = not run_dir.exists()
     run_dir.mkdir(parents=True, exist_ok=True)
     path = run_dir / LOCK_FILE
     # O_CLOEXEC: the processes the launcher starts must not hold it past the launcher's end.
@@ -55,4 +64,4 @@ def take(run_dir: Path) -> RunLock:
             f"under runs/)") from None
     os.ftruncate(fd, 0)
     os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
-    return RunLock(fd, path)
+    return RunLock(fd, path, made_folder)
