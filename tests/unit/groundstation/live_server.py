@@ -29,6 +29,7 @@ class Served:
     port: int
     gs: GroundStation
     server: uvicorn.Server
+    app: Any
 
     @property
     def url(self) -> str:
@@ -36,8 +37,9 @@ class Served:
 
 
 @contextlib.contextmanager
-def serve(hub: MemoryHub, **settings: Any) -> Iterator[Served]:
-    app = create_app(hub.bus("gs"), Settings(token=TOKEN, **settings))
+def serve(hub: MemoryHub, token: str = TOKEN, **settings: Any) -> Iterator[Served]:
+    """The app on a loopback socket until the block ends; ``settings`` over the defaults."""
+    app = create_app(hub.bus("gs"), Settings(token=token, **settings))
     sock = socket.create_server(("127.0.0.1", 0))
     server = uvicorn.Server(server_config(app, "warning"))
     thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
@@ -47,11 +49,12 @@ def serve(hub: MemoryHub, **settings: Any) -> Iterator[Served]:
         assert time.monotonic() < deadline and thread.is_alive(), "uvicorn did not start"
         time.sleep(0.02)
     try:
-        yield Served(sock.getsockname()[1], app.state.groundstation, server)
+        yield Served(sock.getsockname()[1], app.state.groundstation, server, app)
     finally:
         server.should_exit = True
         thread.join(15)
         sock.close()
+    assert not thread.is_alive(), "uvicorn did not stop"
 
 
 def stuck_client(port: int, path: str = "/api/stream") -> socket.socket:

@@ -7,16 +7,12 @@ the schema's status codes, content types and bodies (schemathesis's default chec
 
 from __future__ import annotations
 
-import socket
-import threading
-import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
 import schemathesis
-import uvicorn
 from hypothesis import HealthCheck, settings
 from schemathesis.specs.openapi.checks import positive_data_acceptance
 from seaway.contract import keys
@@ -25,6 +21,7 @@ from seaway.runtime.memory_bus import MemoryHub
 from seaway_groundstation.app import create_app
 from seaway_groundstation.settings import Settings
 
+from tests.unit.groundstation.live_server import serve
 from tests.unit.groundstation.test_gs_replay import write_run
 
 TOKEN = "fuzz-token-0123456789abcdef"
@@ -66,25 +63,10 @@ def served(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, dict
     write_run(runs / "20260101-120000-sim-lake-cc-empc", n=30)
     hub = MemoryHub()
     _vessel(hub)
-    app = create_app(hub.bus("gs"), Settings(
-        token=TOKEN, request_timeout_s=2.0, runs_dir=runs, upload_dir=tmp / "uploads",
-        max_upload_bytes=1 << 20, rate_limit_per_s=1e6, rate_limit_burst=1_000_000, run_dir=tmp / "run"))
-    sock = socket.create_server(("127.0.0.1", 0))
-    port = sock.getsockname()[1]
-    server = uvicorn.Server(uvicorn.Config(app, log_level="warning", lifespan="on"))
-    thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
-    thread.start()
-    deadline = time.monotonic() + 30
-    while not server.started:
-        assert time.monotonic() < deadline and thread.is_alive(), "uvicorn did not start"
-        time.sleep(0.02)
-    try:
-        yield f"http://127.0.0.1:{port}", app.openapi()
-    finally:
-        server.should_exit = True
-        thread.join(10)
-        sock.close()
-    assert not thread.is_alive()
+    with serve(hub, TOKEN, request_timeout_s=2.0, runs_dir=runs, upload_dir=tmp / "uploads",
+               max_upload_bytes=1 << 20, rate_limit_per_s=1e6, rate_limit_burst=1_000_000,
+               run_dir=tmp / "run") as served:
+        yield f"http://127.0.0.1:{served.port}", served.app.openapi()
 
 
 # The schema does not depend on the bus or the settings: read it from an application made here.
