@@ -27,10 +27,12 @@ from seaway.contract.messages import EnergyBudget, EnergyDecision, LowEnergyPoli
 from seaway.vessel.energy_prediction import band_factors
 
 from seaway_controller.energy import (
+    Disturbance,
     EnergyModel,
     disturbance_sigma_points,
     finite_or_none,
     no_return_point,
+    predict,
     predict_many,
 )
 
@@ -118,6 +120,16 @@ class Budget:
             self.sudden_since_ns = None  # seen coming: decides at once
         elif self.sudden_since_ns is None or now_ns < self.sudden_since_ns:
             self.sudden_since_ns = now_ns
+
+    def to_home_j(self, state: StateEstimate, active: int,
+                  home: tuple[float, float] | None = None) -> float:
+        """The energy to get to ``home`` (local NED [m]; None: this budget's home) from ``state``,
+        under the disturbance estimated now: the nominal of ``update``'s pricing [J]; inf: no way
+        there. What a return target, a new home and a resume are judged by."""
+        dist = Disturbance.from_body((state.tau_d_surge_n, state.tau_d_sway_n, state.tau_d_yaw_nm),
+                                     state.psi_rad)
+        return predict(self.model, state, self.waypoints, active,
+                       self.home if home is None else home, None, dist).to_home_j
 
     def update(self, now_ns: int, state: StateEstimate, active: int, leg_mpc_j: float | None,
                energy_used_j: float, battery_remaining_j: float | None, battery_stamp_ns: int | None,

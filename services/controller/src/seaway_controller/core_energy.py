@@ -39,7 +39,6 @@ from seaway_controller.budget import Budget
 from seaway_controller.energy import (
     Disturbance,
     EnergyModel,
-    disturbance_sigma_points,
     finite_or_none,
     predict,
 )
@@ -106,13 +105,6 @@ class EnergyAccount:
                 f"reserve: the energy budget's policy '{b.policy}' acts when the way home reaches "
                 "what is left")
 
-    def _to_home_j(self, b: Budget, st: StateEstimate, home: tuple[float, float]) -> float:
-        """The energy to get ``home`` (local NED [m]) from ``st`` as the budget ``b`` prices its
-        margin (``Budget.update``: the nominal disturbance) [J]; inf: no way there."""
-        nominal, _ = disturbance_sigma_points(st)
-        return predict(b.model, st, b.waypoints, self.missions.active, home, None,
-                       nominal).to_home_j
-
     def _home_shortfall(self, home: tuple[float, float]) -> str | None:
         """Why the mission under way may not take ``home`` (local NED [m]) as its home: its energy
         budget would act on it at once (policy 'return' or 'hold', not decided yet), the way
@@ -125,7 +117,8 @@ class EnergyAccount:
         if (b is None or st is None or left is None or b.returning or b.decision != "none"
                 or b.policy == "warn"):
             return None
-        now_j, new_j = self._to_home_j(b, st, b.home), self._to_home_j(b, st, home)
+        active = self.missions.active
+        now_j, new_j = b.to_home_j(st, active), b.to_home_j(st, active, home)
         reserve = self._reserve_j() or 0.0
         if left - new_j - reserve > 0 or not new_j > now_j:
             return None
@@ -152,7 +145,7 @@ class EnergyAccount:
             return None
         margin = None  # priced now: a battery changed since the last pricing counts at once
         if st is not None and left is not None:
-            margin = left - self._to_home_j(b, st, b.home) - (self._reserve_j() or 0.0)
+            margin = left - b.to_home_j(st, self.missions.active) - (self._reserve_j() or 0.0)
         if margin is not None and margin > 0:
             return None
         left = "not known" if margin is None or not math.isfinite(margin) else f"{margin:.0f} J"
@@ -245,12 +238,9 @@ class EnergyAccount:
             mm.drift(f"drifting: the energy budget's policy 'hold' stopped the station keeping: "
                      f"{budget.reason}")
         elif taken == "return":  # to the cheapest to reach of home and the rally points
-            dist = Disturbance.from_body((state.tau_d_surge_n, state.tau_d_sway_n,
-                                          state.tau_d_yaw_nm), state.psi_rad)
             target = self.area.return_target(
                 (state.x_m, state.y_m), budget.home,
-                lambda p: predict(budget.model, state, budget.waypoints, mm.active, p, None,
-                                  dist).to_home_j)
+                lambda p: budget.to_home_j(state, mm.active, p))
             self._return_home(now_ns, state, target)
 
     def _return_home(self, now_ns: int, state: StateEstimate, home: tuple[float, float] | None = None,
