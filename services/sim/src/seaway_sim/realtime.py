@@ -49,7 +49,8 @@ class Realtime:
         self.publish_period_ns = round(period_s * 1e9)
         self.stop = threading.Event()
         self.boot_ns = boot_monotonic_ns
-        self._done = 0  # the rate loop's tick done last
+        self._done = 0  # the whole steps since boot the world is advanced to
+        self._started = False  # the first tick's catch-up over the set-up is no overrun
         self._receiver: threading.Thread | None = None
         self.overrun_ticks = 0
         self.keeper = keeper
@@ -82,15 +83,22 @@ class Realtime:
         self._receiver.start()
 
     def tick(self, index: int) -> None:
-        """At tick ``index`` of the rate loop (0: the first, which only starts the schedule):
-        advance the world by the steps due since the last (more than one after missed ticks) and
-        send what fell due (lock held by the caller)."""
-        ticks = index - self._done
+        """At a tick of the rate loop: advance the world to the whole steps since boot (more than
+        one after missed ticks) and send what fell due (lock held by the caller).
+
+        Counted from boot, not from the loop's ``index``: the loop starts after the set-up that
+        follows boot (a second under load), and counting its ticks left the world, its telemetry's
+        time_boot_ms and its bus stamps that far behind the autopilot's own clock (commands, the
+        loss failsafe), so a failsafe acting on time was stamped 0.17 s early. The first tick
+        catches the world up over that set-up (not an overrun)."""
+        due = self.since_boot_ns() // self.step_ns
+        ticks = due - self._done
         if ticks <= 0:
             return
-        if ticks > 1:
+        if ticks > 1 and self._started:
             self.overrun_ticks += ticks - 1
-        self._done = index
+        self._started = True
+        self._done = due
         self.advance(ticks)
 
     def advance(self, ticks: int) -> None:
