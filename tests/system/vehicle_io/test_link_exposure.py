@@ -22,8 +22,15 @@ from tests.system.vehicle_io.test_vehicle_io_system import (
 pytestmark = pytest.mark.system
 
 
-def udp_sockets(pid: int) -> set[tuple[str, int]]:
-    """(local address, port) of every IPv4 UDP socket process ``pid`` holds (from /proc)."""
+def hex_address(field: str) -> tuple[str, int]:
+    """/proc/net/udp's little-endian hex 'IP:PORT' as ('a.b.c.d', port)."""
+    hex_ip, hex_port = field.split(":")
+    return ".".join(str(int(hex_ip[i : i + 2], 16)) for i in (6, 4, 2, 0)), int(hex_port, 16)
+
+
+def udp_sockets(pid: int) -> set[tuple[str, int, tuple[str, int] | None]]:
+    """(local address, port, peer or None) of every IPv4 UDP socket process ``pid`` holds, from
+    /proc: the peer is the address a connected socket takes datagrams from, and from no other."""
     inodes = set()
     for fd in Path(f"/proc/{pid}/fd").iterdir():
         target = os.readlink(fd)
@@ -33,9 +40,9 @@ def udp_sockets(pid: int) -> set[tuple[str, int]]:
     for line in Path("/proc/net/udp").read_text().splitlines()[1:]:
         fields = line.split()
         if fields[9] in inodes:
-            hex_ip, hex_port = fields[1].split(":")
-            ip = ".".join(str(int(hex_ip[i : i + 2], 16)) for i in (6, 4, 2, 0))
-            out.add((ip, int(hex_port, 16)))
+            ip, port = hex_address(fields[1])
+            peer = hex_address(fields[2])
+            out.add((ip, port, None if peer == ("0.0.0.0", 0) else peer))
     return out
 
 
@@ -52,6 +59,15 @@ def test_the_mavlink_socket_is_on_loopback_for_a_loopback_autopilot(
     line = wait_for(lambda: re.search(r"MAVLink \S+ open on (\S+):(\d+)", procs.log(vio)), 5, what="open")
     host, local_port = line.group(1), int(line.group(2))
     assert host == bound
-    # What the kernel says the process holds: that port, on that address only.
-    assert {ip for ip, p in udp_sockets(vio.pid) if p == local_port} == {bound}
+
+    def held() -> list[tuple[str, tuple[str, int] | None]]:
+        return [(ip, peer) for ip, p, peer in udp_sockets(vio.pid) if p == local_port]
+
+    # What the kernel says the process holds on that port: a socket open to anyone on that address
+    # only, and the autopilot's own socket (``link.py``), which takes datagrams from it alone. That
+    # one opens at the receive thread's next wait after the link locked, a few ms after link_ok.
+    wait_for(lambda: any(peer for _ip, peer in held()), 5, what="the autopilot's own socket")
+    sockets = held()
+    assert {ip for ip, peer in sockets if peer is None} == {bound}
+    assert [peer for _ip, peer in sockets if peer is not None] == [("127.0.0.1", port)]
     alive(vio, procs)

@@ -260,9 +260,10 @@ def test_flood_does_not_make_the_link_look_lost(zenoh_env, procs, bus, tmp_path)
         check_window(status, truth, f"flood of {sent} datagrams")
         counted = wait_for(lambda: refused(status, "foreign_source"), 5, what="the flood counted")
         print(f"flood: {sent} sent in {duration_s} s, {counted} refused by vehicle_io")
-        # The kernel drops what the socket buffer cannot hold, how much depends on the machine;
-        # the heartbeats got through (above), so a good part of the flood was read in time.
-        assert counted >= sent // 10
+        # The kernel drops what the shared socket's buffer cannot hold, how much depends on the
+        # CPU vehicle_io gets. The heartbeats arrive on the autopilot's own socket, so the link
+        # (above) does not depend on it; what must hold is that the flood was seen.
+        assert counted >= min(sent, 1000)
         last = status.seen[-1]
         assert last.link_ok and last.rates_hz.get("HEARTBEAT", 0) > 0
     alive(vio, procs)

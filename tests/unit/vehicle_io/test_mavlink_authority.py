@@ -352,7 +352,8 @@ def test_link_refuses_other_addresses_unparsed_and_bounds_each_read(link_and_pee
         intruder.sendto(forged if k % 2 else b"\x00garbage", where)
     ap.sendto(hb.pack(mavlink.MAVLink(None, 1, 1)), where)
     reads = read_all(link, n + 1)
-    assert all(len(r.messages) + sum(r.refused.values()) <= MAX_DATAGRAMS_PER_READ for r in reads)
+    assert all(len(r.messages) <= MAX_DATAGRAMS_PER_READ for r in reads)
+    assert all(sum(r.refused.values()) <= MAX_DATAGRAMS_PER_READ for r in reads)
     assert len(reads) >= 2
     refused: dict = {}
     for r in reads:
@@ -363,6 +364,73 @@ def test_link_refuses_other_addresses_unparsed_and_bounds_each_read(link_and_pee
     assert [(m.get_type(), a) for r in reads for m, a in r.messages] == [("HEARTBEAT", address)]
     # udpin answers the locked autopilot only, no longer every address heard
     assert link.conn.clients == {address}
+
+
+def drain(link: MavlinkLink) -> list:
+    """Every read until the link has nothing more (a read that got nothing twice in a row)."""
+    reads, idle = [], 0
+    while idle < 2:
+        r = link.read_available() if link.wait_readable(0.2) else None
+        if r is None or not (r.messages or r.refused):
+            idle += 1
+        else:
+            reads.append(r)
+            idle = 0
+    return reads
+
+
+def test_a_flood_cannot_crowd_the_locked_autopilot_out_of_the_socket_buffer(link_and_peers):
+    """The receive thread kept off the CPU while a flood arrives (here: not reading at all): the
+    autopilot's datagrams are all there afterwards, in order, and the flood is counted as far as
+    the kernel kept it."""
+    flood_while_not_reading(*link_and_peers)
+
+
+def test_udpout_gives_the_autopilot_its_own_socket_too():
+    ap = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    intruder = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    for s in (ap, intruder):
+        s.bind(("127.0.0.1", 0))
+        s.settimeout(2.0)
+    link = MavlinkLink(f"udpout:127.0.0.1:{ap.getsockname()[1]}", 255, 191)
+    try:
+        host, port = link.local_address().rsplit(":", 1)
+        flood_while_not_reading(link, ap, intruder, (host, int(port)))
+    finally:
+        link.close()
+        ap.close()
+        intruder.close()
+
+
+def flood_while_not_reading(link: MavlinkLink, ap: socket.socket, intruder: socket.socket,
+                            where: tuple[str, int]) -> None:
+    tx = mavlink.MAVLink(None, 1, 1)
+    ap.sendto(mavlink.MAVLink_heartbeat_message(10, 12, 1, PX4_MANUAL, 4, 3).pack(tx), where)
+    (first,) = read_all(link, 1)
+    (_msg, address), = first.messages
+    link.lock_peer(address)
+    assert not link.wait_readable(0.0)  # opens the autopilot's own socket; nothing waiting yet
+    assert link.peer_socket_open
+    junk = b"\xfd" + bytes(40)
+    flood_n = 20_000  # far more than a 1 MiB socket buffer holds (about 1,300 such datagrams)
+    for _ in range(flood_n):
+        intruder.sendto(junk, where)
+    for seq in range(5):
+        ap.sendto(mavlink.MAVLink_heartbeat_message(10, 12, 1, PX4_MANUAL, 4, seq).pack(tx), where)
+    for _ in range(flood_n):
+        intruder.sendto(junk, where)
+    reads = drain(link)
+    got = [(m.get_type(), m.mavlink_version, a) for r in reads for m, a in r.messages]
+    assert got == [("HEARTBEAT", seq, address) for seq in range(5)]
+    refused = sum(sum(r.refused.values()) for r in reads)
+    assert 0 < refused < 2 * flood_n  # the kernel dropped the rest of the flood, only the flood
+    # The lock released (link loss): the socket closes and everyone is heard on one again.
+    link.lock_peer(None)
+    link.wait_readable(0.0)
+    assert not link.peer_socket_open
+    intruder.sendto(mavlink.MAVLink_heartbeat_message(10, 12, 1, 0, 4, 3).pack(tx), where)
+    (heard,) = read_all(link, 1)
+    assert [a for _m, a in heard.messages] == [intruder.getsockname()]
 
 
 def test_link_signs_what_it_sends(link_and_peers):

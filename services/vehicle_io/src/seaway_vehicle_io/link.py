@@ -10,12 +10,15 @@ URLs are pymavlink's: ``udpin:HOST:PORT`` (listen; we reply to whoever sent to u
 or a serial device path with ``baud``.
 
 Every message comes with the peer address it arrived from (plain data for the core's source lock).
-Once the core has locked to the autopilot (``LockPeer``), a UDP datagram from any other address is
-refused *before parsing* and only tallied by the ids its header claims: parsing costs tens of
-microseconds a datagram, a refusal about one, which is what lets the receive thread drain a flood
-as fast as a sender can produce it, so that the kernel's socket buffer does not overflow and drop
-the autopilot's datagrams with the flood's. Each read is bounded (``MAX_DATAGRAMS_PER_READ``), so a
-flood can never keep the receive thread from handing what it has to the core.
+Once the core has locked to the autopilot (``LockPeer``), the autopilot's UDP datagrams get a
+socket of their own: a second socket bound to the same local address and ``connect``-ed to the
+autopilot, which the kernel prefers for that one source. A flood to our port then fills only the
+first socket's buffer; the kernel never drops the autopilot's datagrams to make room for it, however
+long the receive thread is kept off the CPU. What reaches the first socket from any other address
+is refused *before parsing* and only tallied by the ids its header claims (a refusal costs about a
+microsecond, parsing tens), so the refusals are counted for as much of a flood as the machine can
+read. Each read takes at most ``MAX_DATAGRAMS_PER_READ`` from each socket, so a flood can never keep
+the receive thread from handing what it has to the core.
 
 Signing: our messages are packed by our own ``MAVLink`` object (``_tx``), which signs them when a
 ``SigningClock`` is given (``signing.py``: the key, link id and a timestamp that never goes back).
@@ -71,7 +74,7 @@ SERIAL_PREFIXES = ("/dev/", "COM")
 SUPPORTED_PREFIXES = ("udpin:", "udpout:", "tcp:", *SERIAL_PREFIXES)
 
 LOOPBACK, ANY_INTERFACE = "127.0.0.1", "0.0.0.0"
-MAX_DATAGRAMS_PER_READ = 256  # UDP: at most this many datagrams per read (refused ones included)
+MAX_DATAGRAMS_PER_READ = 256  # UDP: at most this many datagrams per read from each socket
 MAX_MESSAGES_PER_READ = 256  # TCP / serial: at most this many messages per read
 # Asked of the kernel for UDP (it caps this at net.core.rmem_max): room for a few milliseconds of
 # a flood while the receive thread is descheduled, so the autopilot's datagrams are not dropped.
@@ -128,6 +131,10 @@ class MavlinkLink:
         if signing is not None:
             signing.attach(self._tx)
         self.peer: Address = None  # UDP: the locked autopilot's address; None hears everyone
+        # UDP: the socket connected to ``peer`` and the address it is connected to. Opened and
+        # closed only by the receive thread (``wait_readable``), never under its select.
+        self._peer_sock: socket.socket | None = None
+        self._peer_sock_address: Address = None
         self.stream_address: Address = None  # TCP: the connected peer; serial: None
         if self.is_tcp:
             self.stream_address = _address(self.conn.port.getpeername())
@@ -138,7 +145,10 @@ class MavlinkLink:
                 log.debug("SO_RCVBUF not set", exc_info=True)
             if self.conn.port.getsockname()[1] == 0:
                 # udpout: the port the first send would pick, picked now so the log can name it,
-                # on no more interfaces than the autopilot needs (``udpout_bind_host``).
+                # on no more interfaces than the autopilot needs (``udpout_bind_host``). Shared
+                # with the autopilot's own socket (``_sync_peer_socket``), and only with sockets of
+                # this user (SO_REUSEPORT; udpin's pymavlink socket has SO_REUSEADDR already).
+                self.conn.port.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEPORT, 1)
                 self.conn.port.bind((bind_host or udpout_bind_host(self._expected_address()), 0))
         self.policy = SourcePolicy(self._expected_address())
         self.sent = 0
@@ -179,12 +189,59 @@ class MavlinkLink:
     def fileno(self) -> int:
         return self.conn.fd if self.conn.fd is not None else self.conn.port.fileno()
 
+    @property
+    def peer_socket_open(self) -> bool:
+        """The locked autopilot's datagrams arrive on a socket of their own (UDP, once locked)."""
+        return self._peer_sock is not None
+
     def wait_readable(self, timeout_s: float) -> bool:
+        """Wait until something can be read (receive thread only)."""
+        if self.is_udp:
+            self._sync_peer_socket()
+        fds = [self.fileno()]
+        if self._peer_sock is not None:
+            fds.append(self._peer_sock.fileno())
         try:
-            ready, _, _ = select.select([self.fileno()], [], [], timeout_s)
+            ready, _, _ = select.select(fds, [], [], timeout_s)
         except (OSError, ValueError) as err:  # closed under us
             raise LinkClosedError(f"{self.url}: {err}") from err
         return bool(ready)
+
+    def _sync_peer_socket(self) -> None:
+        """Give the locked peer its own connected socket, or close it once the lock is released.
+
+        The kernel delivers a datagram to the bound socket that matches it best, and a connected
+        socket matches its one source better than the unconnected one. Should the socket not open
+        (a kernel without SO_REUSEPORT, say), the peer's datagrams keep sharing the first socket:
+        correct, but a flood can then crowd them out of its buffer, which the warning says.
+        """
+        want = self.peer
+        if want == self._peer_sock_address:
+            return
+        if self._peer_sock is not None:
+            self._peer_sock.close()
+            self._peer_sock, self._peer_sock_address = None, None
+        if want is None:
+            return
+        sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        try:
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEPORT, 1)
+            sock.bind(self.conn.port.getsockname())
+            sock.connect(want)
+            sock.setblocking(False)
+            try:
+                sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RECEIVE_BUFFER_BYTES)
+            except OSError:
+                log.debug("SO_RCVBUF not set", exc_info=True)
+        except OSError as err:
+            sock.close()
+            self._peer_sock_address = want  # tried once per lock, not at every wait
+            log.warning("the autopilot at %s:%d shares the socket with every other sender (%s): a "
+                        "flood to %s can crowd its datagrams out", want[0], want[1], err,
+                        self.local_address())
+            return
+        self._peer_sock, self._peer_sock_address = sock, want
 
     def read_available(self) -> Received:
         """What has arrived, decoded, without blocking and bounded per call (see the module)."""
@@ -227,43 +284,58 @@ class MavlinkLink:
         (heartbeats included). A datagram is a unit: whatever partial frame is left at its end is
         reported as bad data and discarded, and the next datagram starts clean.
 
-        At most ``MAX_DATAGRAMS_PER_READ`` datagrams; from a locked peer's other addresses they are
-        tallied by claimed source and not parsed.
+        At most ``MAX_DATAGRAMS_PER_READ`` datagrams from each socket; from a locked peer's other
+        addresses they are tallied by claimed source and not parsed. The shared socket is read
+        first: until the peer's own socket opened, its datagrams arrived there, and they are older.
         """
-        conn, mav = self.conn, self.conn.mav
         got = Received()
         peer = self.peer
-        for _ in range(MAX_DATAGRAMS_PER_READ):
-            try:
-                data, addr = conn.port.recvfrom(mavutil.UDP_MAX_PACKET_LEN)
-            except (BlockingIOError, InterruptedError):
-                return got
-            except ConnectionRefusedError:
-                continue  # ICMP port unreachable for an earlier send (autopilot not up): harmless
-            except OSError as err:
-                raise LinkClosedError(f"{self.url}: {err}") from err
+        for data, addr in self._recv_some(self.conn.port):
             if peer is not None and addr != peer:
                 source = (*frame_ids(data), addr)
                 got.refused[source] = got.refused.get(source, 0) + 1
                 continue
-            if conn.udp_server:  # udpin: reply to whoever talks to us (pymavlink's bookkeeping)
-                if addr not in conn.clients:
-                    conn.clients = conn.clients | {addr}  # rebound: write() iterates it elsewhere
-                conn.clients_last_alive[addr] = time.time()
-            msgs = mav.parse_buffer(data) or []
-            leftover = mav.buf_len()
-            if leftover:
-                self.truncated_datagrams += 1
-                bad = bytes(mav.buf[mav.buf_index:])
-                mav.buf = bytearray()
-                mav.buf_index = 0
-                mav.expected_length = mavlink.HEADER_LEN_V1 + 2
-                msgs.append(mavlink.MAVLink_bad_data(
-                    bytearray(bad), f"{leftover} bytes of an incomplete frame at datagram end"))
-            for m in msgs:
-                conn.post_message(m)  # keeps pymavlink's per-system state coherent
-                got.messages.append((m, addr))
+            self._take_datagram(data, addr, got)
+        if self._peer_sock is not None:
+            for data, addr in self._recv_some(self._peer_sock):
+                self._take_datagram(data, addr, got)
         return got
+
+    def _recv_some(self, sock: socket.socket) -> list[tuple[bytes, Address]]:
+        """Up to ``MAX_DATAGRAMS_PER_READ`` datagrams waiting on ``sock``, without blocking."""
+        out: list[tuple[bytes, Address]] = []
+        for _ in range(MAX_DATAGRAMS_PER_READ):
+            try:
+                data, addr = sock.recvfrom(mavutil.UDP_MAX_PACKET_LEN)
+            except (BlockingIOError, InterruptedError):
+                break
+            except ConnectionRefusedError:
+                continue  # ICMP port unreachable for an earlier send (autopilot not up): harmless
+            except OSError as err:
+                raise LinkClosedError(f"{self.url}: {err}") from err
+            out.append((data, _address(addr)))
+        return out
+
+    def _take_datagram(self, data: bytes, addr: Address, got: Received) -> None:
+        """Parse one datagram from the autopilot (or from anyone, before the lock) into ``got``."""
+        conn, mav = self.conn, self.conn.mav
+        if conn.udp_server:  # udpin: reply to whoever talks to us (pymavlink's bookkeeping)
+            if addr not in conn.clients:
+                conn.clients = conn.clients | {addr}  # rebound: write() iterates it elsewhere
+            conn.clients_last_alive[addr] = time.time()
+        msgs = mav.parse_buffer(data) or []
+        leftover = mav.buf_len()
+        if leftover:
+            self.truncated_datagrams += 1
+            bad = bytes(mav.buf[mav.buf_index:])
+            mav.buf = bytearray()
+            mav.buf_index = 0
+            mav.expected_length = mavlink.HEADER_LEN_V1 + 2
+            msgs.append(mavlink.MAVLink_bad_data(
+                bytearray(bad), f"{leftover} bytes of an incomplete frame at datagram end"))
+        for m in msgs:
+            conn.post_message(m)  # keeps pymavlink's per-system state coherent
+            got.messages.append((m, addr))
 
     def send(self, out: Output) -> None:
         try:
@@ -329,6 +401,8 @@ class MavlinkLink:
             raise TypeError(f"not a MAVLink output: {out!r}")
 
     def close(self) -> None:
+        if self._peer_sock is not None:
+            self._peer_sock.close()
         try:
             self.conn.close()
         except OSError:
