@@ -115,3 +115,36 @@ def test_a_cpu_list_that_cannot_be_used_is_refused_before_anything_starts(tmp_pa
     assert "argument --cpus: CPU list '0-4096': CPU 4096 cannot be used by this process (allowed here: " \
         in out.stderr
     assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize(("max_s", "code"), [(20.0, 3), (600.0, 0)])
+def test_max_mission_s_ends_a_batch_run_whose_mission_goes_on(tmp_path, zenoh_env, max_s,
+                                                              code) -> None:
+    """paper-c1 by NMPC ends after about 35 s of simulated time: ``--max-mission-s 20`` stops the
+    run at 20 s, the sim's clock holding there however fast the composed run goes (exit 3, the
+    recording and the report of what was flown); 600 lets it complete."""
+    run_dir = tmp_path / "run"
+    out = subprocess.run([str(BIN / "seaway"), "launch", "sim-batch", "--composed", "--scenario",
+                          "paper-c1", "--controller", "nmpc", "--max-mission-s", f"{max_s:g}",
+                          "--run-dir", str(run_dir)],
+                         env=zenoh_env, capture_output=True, text=True, timeout=300, check=False)
+    log = out.stdout[-3000:] + out.stderr[-3000:]
+    assert out.returncode == code, log
+    report = json.loads((run_dir / "report" / "metrics.json").read_text())
+    metrics = report["metrics"]
+    assert metrics["completed"] is (code == 0), log
+    flown_s = (metrics["end_ns"] - metrics["start_ns"]) / 1e9
+    if code == 3:
+        assert "--max-mission-s" in out.stderr and "mission complete" not in out.stdout
+        # The clock held at t = 20.0 s: the report and the recording end there.
+        assert abs(flown_s - 20.0) < 0.15, log
+        assert "--max-mission-s 20" in out.stderr
+        assert metrics["legs_completed"] < 2
+    else:
+        assert "mission complete" in out.stdout and metrics["legs_completed"] == 2
+    # The recording was closed as after any stop: its states reach where the report ends.
+    dec = reader.decode_vessel([run_dir / "recording.mcap"], None, [keys.NAV_STATE.suffix])
+    stamps = [m.stamp_ns for m in dec.get(keys.NAV_STATE.suffix)]
+    assert stamps and max(stamps) / 1e9 >= flown_s - 0.15
+    if code == 3:
+        assert max(stamps) == 20 * 10**9

@@ -43,6 +43,8 @@ def test_mission_options_parse() -> None:
     (["--task-power-w", "nan"], "'nan': the task power must be finite"),
     (["--task-power-w", "inf"], "'inf': the task power must be finite"),
     (["--task-power-w", "two"], "'two' is not a number of watts"),
+    (["--max-mission-s", "0"], "--max-mission-s: '0' is not a finite number above 0"),
+    (["--max-mission-s", "inf"], "--max-mission-s: 'inf' is not a finite number above 0"),
 ])
 def test_bad_options_exit_2_naming_the_problem(argv, problem, capsys) -> None:
     with pytest.raises(SystemExit) as exc:
@@ -92,6 +94,8 @@ def _no_mission_scenario(tmp_path: Path) -> Path:
 @pytest.mark.parametrize(("argv", "flags", "why"), [
     (["sim-batch", "--no-mission", "--controller", "nmpc"], "--controller", "(--no-mission was given)"),
     (["boat", "--predict-disturbance"], "--predict-disturbance", "(profile boat sends no mission)"),
+    (["sim-batch", "--no-mission", "--max-mission-s", "600"], "--max-mission-s",
+     "(--no-mission was given)"),
     (["sim-batch", "--scenario", "{quiet}", "--task-power-w", "1", "--no-predict-disturbance"],
      "--predict-disturbance, --task-power-w", "quiet.toml has no [mission])"),
 ])

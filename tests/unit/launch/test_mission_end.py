@@ -167,6 +167,35 @@ def test_on_a_bus_every_vessel_must_be_over() -> None:
     assert ending.over(NOW)
 
 
+def test_mission_time_is_the_wall_clock_in_real_time_and_the_states_in_lockstep() -> None:
+    """``--max-mission-s`` (seaway.tools.launch.stack) reads ``MissionEnd.timed_out``."""
+    bus = MemoryBus("v1")
+    live = MissionEnd(["v1"], MISSION)
+    live.watch(bus)
+    assert live.timed_out(60.0) is None  # no look yet
+    live.over(NOW)
+    live.over(NOW + 59 * S)  # no state at all: the wall clock still runs
+    assert live.timed_out(60.0) is None
+    live.over(NOW + 90 * S)
+    assert live.timed_out(60.0) == 90.0
+    # Lockstep: the states' simulated time since t_0, where the clock held until the mission was
+    # there, and the limit reached at the last period the sim's clock flies to (t = 20.0 s for
+    # 20.05 s: the clock holds there).
+    batch = MissionEnd(["v1", "v2"], MISSION, period_ns=S // 10)
+    batch.watch(bus)
+    states = {v: bus.publisher(keys.NAV_STATE, vessel=v) for v in ("v1", "v2")}
+    batch.over(NOW)
+    assert batch.timed_out(20.05) is None  # no state: no simulated time yet
+    states["v1"].put(state(10.0, 20 * S))
+    states["v2"].put(state(5.0, 19_900_000_000))
+    batch.over(NOW + HOUR)  # the wall clock does not count in lockstep
+    assert batch.timed_out(20.05) is None  # v2 is one period short
+    states["v2"].put(state(5.0, 20 * S))
+    batch.over(NOW)
+    assert batch.timed_out(20.05) == 20.0
+    assert batch.timed_out(20.1) is None  # a limit of 20.1 s flies to t = 20.1 s
+
+
 class HandOffCountingBus(MemoryBus):
     """An in-memory bus that notes each subscription whose samples would go to a callback on a
     Python thread of the transport's (``inline=False``), one hand-off per sample."""

@@ -6,6 +6,7 @@ the runtime's own lockstep protocol, on the in-memory bus."""
 from __future__ import annotations
 
 import threading
+import time
 
 from seaway.contract import keys
 from seaway.contract.messages import ScenarioRequest, ThrustCommand
@@ -103,11 +104,14 @@ class Stack:
     """The sim's lockstep loop and a ``SlowMember``, past their first period (answered at once);
     with ``recorder``, a ``SlowRecorder`` too."""
 
-    def __init__(self, flying: bool = False, recorder: bool = False) -> None:
+    def __init__(self, flying: bool = False, recorder: bool = False,
+                 until_s: float | None = None) -> None:
         self.hub = MemoryHub()
         self.scenario = load_scenario("paper-c1")
         app = SimNode(SimCore(self.scenario, load_vessel(self.scenario.vessel)),
                      lockstep=True)
+        app.until_s = until_s
+        self.app = app
         self.stop, self.fast = threading.Event(), threading.Event()
         bus = self.hub.bus(VESSEL)
         bus.queryable(keys.SIM_SCENARIO, app.handle_scenario)  # run_node's, for the sim's node
@@ -244,5 +248,25 @@ def test_the_sim_runs_one_period_ahead_of_the_recorder_and_no_more() -> None:
         threading.Event().wait(0.5)  # and no further
         assert stack.member.answered[-1] == Period(0, last.stamp_ns + 2 * 100_000_000), (
             last, stack.member.answered[time_before - 1:])
+    finally:
+        stack.close()
+
+
+def test_a_time_limit_holds_the_clock_at_the_last_period_before_it() -> None:
+    """``--until-s 1.05`` with a period of 0.1 s: the world flies to t = 1.0 s and holds there, the
+    clock's answer for 1.0 s the last; a new episode flies to the limit again."""
+    stack = Stack(flying=True, recorder=True, until_s=1.05)
+    try:
+        last = Period(0, 1_000_000_000)
+        wait_for(lambda: last in stack.member.answered, 10, what="t = 1.0 s answered")
+        time.sleep(0.5)  # room for a period too many (each is answered at once)
+        assert stack.member.answered[-1] == last
+        assert stack.app.time_ns() == last.stamp_ns
+        reply = stack.restart()
+        assert reply.accepted, reply.reason
+        wait_for(lambda: Period(1, last.stamp_ns) in stack.member.answered, 10,
+                 what="the new episode's t = 1.0 s answered")
+        time.sleep(0.5)
+        assert stack.member.answered[-1] == Period(1, last.stamp_ns)
     finally:
         stack.close()

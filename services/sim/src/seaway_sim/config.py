@@ -14,6 +14,7 @@ from typing import Annotated
 
 from pydantic import Field, field_validator
 from seaway.contract.config import ConfigError, ConfigModel
+from seaway.contract.messages import MAX_STAMP_NS
 from seaway.runtime.config import Flag
 from seaway.runtime.lockstep_clock import STALL_REPEAT_S
 
@@ -51,6 +52,10 @@ class SimConfig(ConfigModel):
         default=STALL_REPEAT_S, gt=0,
         description="lockstep: wall seconds without progress after which the sim repeats its "
                     "period, a safety net [s]")
+    until_s: Annotated[float | None, Flag(metavar="S")] = Field(
+        default=None, gt=0, le=MAX_STAMP_NS / 1e9,
+        description="lockstep: fly no period past S s of simulated time; the clock holds at the "
+                    "last period at or before S (seaway launch --max-mission-s passes it)")
     mavlink: Annotated[str, Flag()] = Field(
         default=DEFAULT_ENDPOINT, min_length=1,
         description="real time: where the simulated autopilot listens")

@@ -111,6 +111,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     link = None
     if lockstep and key is not None:
         log.warning("--signing-key-file ignored: lockstep does not speak MAVLink")
+    if not lockstep and cfg.until_s is not None:
+        print(f"seaway-sim: --until-s {cfg.until_s:g}: a time limit is for the lockstep clock; in "
+              "real time the world runs on the wall clock (stop the run instead)", file=sys.stderr)
+        return 2
     if not lockstep:
         try:
             link = MavlinkLink(cfg.mavlink, cfg.sysid, COMPID, signing_key=key)
@@ -122,6 +126,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         core = SimCore(scenario, vessel, epoch_ns=0 if lockstep else time.time_ns())
         node = SimNode(core, lockstep=lockstep, run=run, model=model, state_file=cfg.state_file)
         node.stall_s = cfg.stall_repeat_s
+        node.until_s = cfg.until_s
         if stale is not None:
             log.info("--state-file %s: %s was kept before this run started (an earlier launch into "
                      "this folder): the run's %s flies", cfg.state_file, stale.name, run.scenario)

@@ -13,6 +13,11 @@ For each period t_k of the current episode, from one bus session and in this ord
   (c) apply that command for one period (``ClockNode.advance``), so the world goes to t_{k+1};
       back to (a).
 
+With a time limit (``ClockNode.until_s``, the sim's ``--until-s``), the clock does not step
+(c) past it: it holds at the last period t_k <= the limit (``last_period_ns``), as it holds for a
+controller with nothing to fly, and the launcher, seeing the states stop there, ends the run
+(``seaway launch --max-mission-s``).
+
 Without a controller among the members (a test's responder), (b) takes any command stamped >= t_k.
 A scenario load (the node's request, which calls ``before_load`` and ``after_load``) starts a new
 episode: time restarts at 0 and every member starts afresh (the estimator re-initialises, the
@@ -72,6 +77,9 @@ class ClockNode(Node):
     episode: int = 0
     stall_s: float = STALL_REPEAT_S
     """Wall seconds without progress after which the clock repeats its period (a safety net)."""
+    until_s: float | None = None
+    """Simulated seconds of an episode after which the clock flies no further period (None: no
+    limit): it holds at the last period at or before them."""
     before_load: Callable[[], str] | None = None
     after_load: Callable[[int, int], str] | None = None
 
@@ -86,6 +94,12 @@ class ClockNode(Node):
     def advance(self, cmd: ThrustCommand, period_ns: int) -> None:
         """Apply ``cmd`` over one period, to t_{k+1} (lock held)."""
         raise NotImplementedError
+
+
+def last_period_ns(until_s: float, period_ns: int) -> int:
+    """The last period t_k a clock limited to ``until_s`` [s] flies to [ns]: the last multiple of
+    the period at or before the limit (t_0 = 0 at the least)."""
+    return round(until_s * 1e9) // period_ns * period_ns
 
 
 class LockstepClock:
@@ -108,6 +122,9 @@ class LockstepClock:
         self._at: Period | None = None  # the period published last (under ``_progress``)
         self._stepped = False  # whether ``_at``'s command was applied (under ``_progress``)
         self._max_periods: int | None = None
+        # The last period flown to (``ClockNode.until_s``) [ns]; None: no limit.
+        self.last_ns = (None if app.until_s is None
+                        else last_period_ns(app.until_s, self.period_ns))
         # The controller's command comes in its bundle; a stand-in that is no member (a test's
         # responder) publishes it alone, on its key.
         # Over a transport, every member's bundle is taken on the bus's thread as it arrives, and
@@ -376,6 +393,10 @@ class LockstepClock:
             return "stalled: waiting for the recorder to cover every answer, or for the command"
         return f"stalled: no answer yet from {', '.join(lacking)}"
 
+    def at_limit(self, period: Period) -> bool:
+        """Whether ``period`` is the last the time limit lets the clock fly to."""
+        return self.last_ns is not None and period.stamp_ns >= self.last_ns
+
     def step(self, cmd: ThrustCommand, period: Period, blocking: bool = True) -> bool | None:
         """Step (c); False (nothing done) if the scenario changed since step (a), None if not
         ``blocking`` and the app's lock is held (by a scenario load)."""
@@ -405,6 +426,8 @@ class LockstepClock:
                 return  # the loop starts the episode
             self.member.drain()  # the estimator's and the recorder's answers, in their rings
             if not self._stepped:
+                if self.at_limit(period):
+                    return  # the time limit: the loop holds here (``run``)
                 with self.member.changed:
                     cmd = self.command(period)
                 if cmd is None:
@@ -476,12 +499,13 @@ class LockstepClock:
                 if joined:
                     self.repeat_period(period, "a member joined")
                     stalled_since = time.monotonic()
-                elif holding:
+                elif holding or self.at_limit(period):
                     if held != period:
                         held = period
                         self.stats.holds += 1
-                        log.info("lockstep: holding at t = %.3f s (the controller has nothing to "
-                                 "fly)", period.stamp_ns / 1e9)
+                        log.info("lockstep: holding at t = %.3f s (%s)", period.stamp_ns / 1e9,
+                                 "the controller has nothing to fly" if holding
+                                 else f"the time limit, --until-s {self.app.until_s:g}")
                     stalled_since = time.monotonic()  # holding is not stalling
                 elif time.monotonic() - stalled_since >= self.stall_s:
                     self.repeat_period(period, self._waiting_for(period))

@@ -32,8 +32,16 @@ and the run's report. A second Ctrl-C shortens each process's grace before SIGKI
 them in order and lets the recorder finish its file; one during the report skips the report (and
 says how to make it later).
 
+``--max-mission-s S`` ends a run whose mission has not ended S seconds after it was sent (simulated
+time in lockstep, the wall clock in real time): a batch run whose vessel cannot finish (a current
+stronger than its thrust, a waypoint it cannot reach) stops instead of running on. In lockstep the
+sim's clock holds at the last control period at or before S (its ``--until-s``), so the recording
+ends there however fast the run goes; in real time the launcher stops the run at its first look
+(five a second) after S. The run is stopped in order and its report made, as after Ctrl-C.
+
 Exit code: 0 after a clean stop (Ctrl-C, SIGTERM, or the mission completed with
-``stop_when_complete``); 1 when a required process failed or could not start; 2 for a bad profile.
+``stop_when_complete``); 1 when a required process failed or could not start; 2 for a bad profile
+or option; 3 when ``--max-mission-s`` ran out.
 """
 
 # The docstring above is ``seaway launch --help``. This module holds the options and everything
@@ -119,6 +127,9 @@ def parser() -> argparse.ArgumentParser:
                          "restart of vehicle_io or the sim, a loss of the autopilot) may wait for "
                          "the autopilot (armed) before the run ends it (default "
                          f"{RESUME_WAIT_S:g} s; seaway.tools.launch.resume)")
+    ap.add_argument("--max-mission-s", type=positive_float, default=None, metavar="S",
+                    help="stop the run, exit 3, when the mission has not ended S s after it was "
+                         "sent (simulated time in lockstep, wall clock in real time)")
     ap.add_argument("--verbose", action="store_true", help="show every process's output")
     ap.add_argument("--no-report", action="store_true",
                     help="skip the final report (metrics, plots) after the stop; make it later with "
@@ -264,6 +275,14 @@ def _mission_options(args: argparse.Namespace) -> list[str]:
     return [f"--{o.replace('_', '-')}" for o in MISSION_OVERRIDES if getattr(args, o) is not None]
 
 
+def hand_time_limit(procs: list[Supervised], max_mission_s: float) -> None:
+    """``--max-mission-s`` in lockstep: every sim's clock holds there (``--until-s``), so the run
+    stops where the limit says, not wherever the launcher's next look finds it."""
+    for p in procs:
+        if p.spec.service == "sim":
+            p.argv += ["--until-s", repr(max_mission_s)]
+
+
 def hand_controller_modules(procs: list[Supervised], modules: list[str]) -> bool:
     """``--controller-module``: each module added to the command of every controller process;
     False (nothing changed) when there is none."""
@@ -335,7 +354,7 @@ def main(argv: list[str]) -> int:
     except ConfigError as err:
         print(f"seaway launch: {err}", file=sys.stderr)
         return 2
-    given = _mission_options(args)
+    given = _mission_options(args) + (["--max-mission-s"] if args.max_mission_s is not None else [])
     if mission is None and given:
         why = ("--no-mission was given" if args.no_mission
                else f"profile {profile.name} sends no mission" if not profile.mission_on_start
@@ -370,6 +389,8 @@ def main(argv: list[str]) -> int:
         print(f"seaway launch: --controller-module: profile {profile.name} runs no controller",
               file=sys.stderr)
         return 2
+    if args.max_mission_s is not None and profile.clock == "lockstep":
+        hand_time_limit(procs, args.max_mission_s)
     if args.check:
         print(f"profile {profile.name}: {len(procs)} processes"
               + (f" for vessels {', '.join(vessels)}" if len(vessels) > 1 else "") + ", valid"

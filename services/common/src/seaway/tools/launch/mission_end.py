@@ -21,8 +21,12 @@ when:
   the energy budget needs no position.
 
 A status that fails is not taken: counted and logged (at most once a minute per reason), and the
-run goes on. ``VesselEnd`` is the pure judgement (messages and times in); ``MissionEnd`` reads the
-launcher's bus for every vessel. ``MissionsTaken`` says which vessels' controllers took a mission.
+run goes on. A run with ``--max-mission-s`` also ends when every vessel's mission has had that long
+(``timed_out``): in lockstep by the states' simulated time, which the sim's clock holds at the
+limit, in real time by the wall clock since the launcher's first look.
+
+``VesselEnd`` is the pure judgement (messages and times in); ``MissionEnd`` reads the launcher's bus
+for every vessel. ``MissionsTaken`` says which vessels' controllers took a mission.
 """
 
 from __future__ import annotations
@@ -46,6 +50,7 @@ from seaway.contract.messages import (
 from seaway.contract.units import NS_PER_S
 from seaway.runtime.bus import Bus
 from seaway.runtime.bus_typed import Every, Newest
+from seaway.runtime.lockstep_clock import last_period_ns
 from seaway.runtime.ratelog import RateLimitedLog
 from seaway.runtime.stamps import StampBounds, StampGate
 from seaway.vessel.frames import GeoOrigin
@@ -101,6 +106,10 @@ class VesselEnd:
     """The newest admitted look put the vessel within home's circle (plus slack)."""
     refused: dict[str, int] = field(default_factory=dict)
     """Reason -> how many "over" statuses were not taken for it."""
+    first_ref_ns: int | None = None
+    """The reference time (``reference_ns``) at the first look that had one [ns]."""
+    last_ref_ns: int | None = None
+    """The newest reference time looked at [ns]."""
     gate: StampGate = field(init=False)
     _log: RateLimitedLog = field(init=False)
 
@@ -118,6 +127,38 @@ class VesselEnd:
         if self.period_ns is None:
             return wall_ns
         return None if state is None else state.stamp_ns
+
+    def note_time(self, ref_ns: int | None) -> None:
+        """A look's reference time (``reference_ns``), for how long the mission has run."""
+        if ref_ns is None:
+            return
+        if self.first_ref_ns is None:
+            self.first_ref_ns = ref_ns
+        if self.period_ns is not None or self.last_ref_ns is None:
+            self.last_ref_ns = ref_ns  # lockstep: the newest state's time, even back at a restart
+        else:
+            self.last_ref_ns = max(self.last_ref_ns, ref_ns)
+
+    def elapsed_s(self) -> float | None:
+        """How long the mission has run [s]: in lockstep the newest state's simulated time (the
+        clock holds at t_0 until there is a mission to fly, ``seaway.runtime.lockstep``), in real
+        time the wall clock since the first look; None before any look had a reference time."""
+        if self.first_ref_ns is None or self.last_ref_ns is None:
+            return None
+        if self.period_ns is not None:
+            return self.last_ref_ns / NS_PER_S
+        return (self.last_ref_ns - self.first_ref_ns) / NS_PER_S
+
+    def timed_out(self, max_s: float) -> bool:
+        """Whether the mission has had its ``max_s`` [s]: in lockstep, reached the last period a
+        clock limited to it flies to (``last_period_ns``, where the sim's clock holds); in real
+        time, ``max_s`` of the wall clock."""
+        elapsed = self.elapsed_s()
+        if elapsed is None or self.last_ref_ns is None:
+            return False
+        if self.period_ns is not None:
+            return self.last_ref_ns >= last_period_ns(max_s, self.period_ns)
+        return elapsed >= max_s
 
     def targets(self) -> tuple[Point | None, Point | None]:
         """(last waypoint, home) of the mission sent, in NED metres (None where not known)."""
@@ -231,9 +272,18 @@ class MissionEnd:
             status, budget, state, origin = (n.get() for n in self._newest[v])
             end.on_origin(origin)  # type: ignore[arg-type]
             ref = end.reference_ns(wall_ns, state)  # type: ignore[arg-type]
+            end.note_time(ref)
             end.on_state(state, ref)  # type: ignore[arg-type]
             done = end.over(status, budget, ref) and done  # type: ignore[arg-type]
         return done
+
+    def timed_out(self, max_s: float) -> float | None:
+        """Once every vessel's mission has had its ``max_s`` [s] (``VesselEnd.timed_out``, from
+        the looks ``over`` took), the least time any has run [s]; else None."""
+        ends = list(self.vessels.values())
+        if not ends or not all(end.timed_out(max_s) for end in ends):
+            return None
+        return min(end.elapsed_s() or 0.0 for end in ends)
 
 
 ACCEPTED_BUNDLES = 1024

@@ -35,6 +35,10 @@ from seaway.tools.launch.startup_requests import _operator_requests, mission_rep
 from seaway.tools.launch.status_line import StatusLine
 from seaway.tools.launch.supervisor import Supervised, Supervisor, default_echo
 
+EXIT_MISSION_TIME = 3
+"""The launcher's exit code when ``--max-mission-s`` ran out before the mission ended (the run is
+stopped in order and its report made, as after any stop)."""
+
 
 def _required_failure(sup: Supervisor) -> str | None:
     """Notice exits now; the failure of a required process, with its log's tail, else None."""
@@ -223,9 +227,21 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
             # Completion counts only for the mission this launcher sent (and, by the access rules,
             # only from the controller), bounded and borne out by the navigation state
             # (mission_end), on every vessel: a status of some other mission stops nothing.
-            if profile.stop_when_complete and not args.stay and ending.over(time.time_ns()):
+            stops_when_over = profile.stop_when_complete and not args.stay
+            timed = args.max_mission_s is not None
+            over = (stops_when_over or timed) and ending.over(time.time_ns())
+            if stops_when_over and over:
                 status.show(time.monotonic() - t_run, final=True)
                 print("mission complete", flush=True)
+                break
+            spent = ending.timed_out(args.max_mission_s) if timed else None
+            if spent is not None:
+                status.show(time.monotonic() - t_run, final=True)
+                print(f"\nseaway launch: the mission did not end within --max-mission-s "
+                      f"{args.max_mission_s:g} s ({spent:.1f} s of "
+                      f"{'simulated' if run.lockstep else 'wall-clock'} time since it was sent); "
+                      "stopping the run", file=sys.stderr, flush=True)
+                code = EXIT_MISSION_TIME
                 break
         else:
             status.show(time.monotonic() - t_run, final=True)
