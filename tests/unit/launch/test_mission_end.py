@@ -196,6 +196,20 @@ def test_mission_time_is_the_wall_clock_in_real_time_and_the_states_in_lockstep(
     assert batch.timed_out(20.1) is None  # a limit of 20.1 s flies to t = 20.1 s
 
 
+def test_a_mission_that_ended_is_not_held_to_its_time() -> None:
+    """A profile that runs on after the mission (``sim``, ``--stay``): the limit no longer ends it."""
+    bus = MemoryBus("v1")
+    live = MissionEnd(["v1"], MISSION)
+    live.watch(bus)
+    bus.publisher(keys.NAV_STATE, vessel="v1").put(state(150.0))
+    live.over(NOW)
+    bus.publisher(keys.NAV_STATE, vessel="v1").put(state(299.0, NOW + 30 * S))
+    bus.publisher(keys.MISSION_STATUS, vessel="v1").put(status(t_ns=NOW + 30 * S))
+    assert live.over(NOW + 30 * S)
+    assert not live.over(NOW + 90 * S)  # the status is a minute old by now: not "over" again
+    assert live.timed_out(60.0) is None  # but the mission did end
+
+
 class HandOffCountingBus(MemoryBus):
     """An in-memory bus that notes each subscription whose samples would go to a callback on a
     Python thread of the transport's (``inline=False``), one hand-off per sample."""

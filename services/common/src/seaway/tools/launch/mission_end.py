@@ -251,6 +251,8 @@ class MissionEnd:
         rally: tuple[Point, ...] = (),
     ) -> None:
         self.vessels = {v: VesselEnd(v, mission, period_ns, rally=rally) for v in vessels}
+        self.ended = False
+        """``over`` has said so: the missions ended (a profile that runs on after them)."""
         self._newest: dict[
             str, tuple[Newest[MissionStatus], Newest[EnergyBudget], Newest[StateEstimate], Newest[NavOrigin]]
         ] = {}
@@ -275,13 +277,15 @@ class MissionEnd:
             end.note_time(ref)
             end.on_state(state, ref)  # type: ignore[arg-type]
             done = end.over(status, budget, ref) and done  # type: ignore[arg-type]
+        self.ended = self.ended or done
         return done
 
     def timed_out(self, max_s: float) -> float | None:
         """Once every vessel's mission has had its ``max_s`` [s] (``VesselEnd.timed_out``, from
-        the looks ``over`` took), the least time any has run [s]; else None."""
+        the looks ``over`` took) without ending, the least time any has run [s]; else None (also
+        once they ended: a profile that runs on after a mission is not held to its time)."""
         ends = list(self.vessels.values())
-        if not ends or not all(end.timed_out(max_s) for end in ends):
+        if self.ended or not ends or not all(end.timed_out(max_s) for end in ends):
             return None
         return min(end.elapsed_s() or 0.0 for end in ends)
 
