@@ -48,9 +48,12 @@ DENIAL_MARK = "arm_denied"  # commander_arm_denied_*: the verdict on an arm requ
 MODES_ARGUMENT = "modes"
 KEEP = 64  # decoded events remembered
 MAX_MISSING = 32
-SEEN_KEPT = 256  # sequence numbers remembered to tell a repeat from a restarted count
 """Lost events asked for again at most (a longer gap is a reboot's new count, or too old for the
 autopilot's buffer: PX4 keeps its recent events for a REQUEST_EVENT)."""
+SEEN_KEPT = 256  # sequence numbers remembered to tell a repeat from a restarted count
+REPORT_FAILURES_KEPT = 64
+"""Failures one arming-check report keeps (PX4 lists a few dozen checks at most): an autopilot
+that never sends the next summary must not grow the report for ever."""
 
 
 class MetadataError(ValueError):
@@ -296,7 +299,8 @@ class EventTracker:
         self.recent.append(ev)
         if ev.name.endswith(SUMMARY_SUFFIX):
             self.report = ArmingReport(mono_ns)
-        elif ev.group in REPORT_GROUPS and ev.modes is not None and self.report is not None:
+        elif (ev.group in REPORT_GROUPS and ev.modes is not None and self.report is not None
+              and len(self.report.failures) < REPORT_FAILURES_KEPT):
             self.report.failures.append(ev)
         return ev
 

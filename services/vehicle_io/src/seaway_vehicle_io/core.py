@@ -46,6 +46,7 @@ from seaway_vehicle_io.authority import (
     Source,
     SourcePolicy,
 )
+from seaway_vehicle_io.changelog import ChangeLog
 from seaway_vehicle_io.config import VehicleIoConfig
 from seaway_vehicle_io.conversions import FieldError, NoDataError
 from seaway_vehicle_io.core_link import LinkWatch
@@ -113,6 +114,12 @@ class VehicleIoCore(LinkWatch, ThrustPath, TelemetryIn, AutopilotSaid, ParamRead
         self._next_hb_ns = start.mono_ns
         self._next_status_ns = start.mono_ns
         self._ratelog = RateLimitedLog(log, LOG_EVERY_S)
+        # The autopilot's own words (STATUSTEXT, EVENT) are keyed by their text, and texts with
+        # numbers in them are ever new: a table of their own, so that they never fill the one
+        # above (256 keys) and pool a new message's drop warning with them.
+        self._said_log = RateLimitedLog(log, LOG_EVERY_S)
+        # Its mode, arming, health and hold reason changing: every change at once, not a flood.
+        self._changes = ChangeLog(log)
         # The operating area as the autopilot's own fence (None: off); fed by the loop's area
         # and origin subscriptions, driven here.
         self.fence = (FenceSync(config.fence_timeout_s, config.fence_attempts)
@@ -258,6 +265,7 @@ class VehicleIoCore(LinkWatch, ThrustPath, TelemetryIn, AutopilotSaid, ParamRead
             out.extend(rates_out)
             status_now = True
         self.refusals.flush(now.mono_ns)  # a refused source held back by the log's rate limit
+        self._changes.flush(now.mono_ns)  # the latest state change held back, with its count
         if status_now or now.mono_ns >= self._next_status_ns:
             out.extend(self._update_rates(now))
             out.append(Publish(self.status(now)))
@@ -310,6 +318,15 @@ class VehicleIoCore(LinkWatch, ThrustPath, TelemetryIn, AutopilotSaid, ParamRead
     def _log_limited(self, now: Now, mtype: str, fieldname: str, level: int, text: str) -> None:
         """Log, but at most once per (message, field) per 5 s, saying how many were suppressed."""
         self._ratelog.log((mtype, fieldname), level, "%s", text, now_ns=now.mono_ns)
+
+    def _log_said(self, now: Now, mtype: str, text: str, level: int) -> None:
+        """Log what the autopilot said (``text``), at most once per text per 5 s."""
+        self._said_log.log((mtype, text), level, "autopilot says: %s", text, now_ns=now.mono_ns)
+
+    def _log_change(self, now: Now, kind: str, level: int, text: str) -> None:
+        """Log a change of the autopilot's state (``changelog.ChangeLog``: a flapping autopilot
+        is not a flood)."""
+        self._changes.log(kind, level, text, now.mono_ns)
 
     _HANDLERS: ClassVar[dict[str, Any]] = {
         "GLOBAL_POSITION_INT": TelemetryIn._on_global_position_int,

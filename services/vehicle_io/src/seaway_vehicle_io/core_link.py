@@ -128,7 +128,7 @@ class LinkWatch:
                 and link.mode not in profile.booting_modes):
             # Still armed, so not rebooted: the autopilot changed mode while unheard (its failsafe)
             self._hold_changed(self.hold.mode_changed_unheard(
-                before[0], link.mode, (now.mono_ns - before[2]) / 1e9, now.mono_ns))
+                before[0], link.mode, (now.mono_ns - before[2]) / 1e9, now.mono_ns), now)
         log.info("autopilot link up: %s system %d component %d at %s, %s, %s (connection #%d); "
                  "locked to that source: MAVLink from any other is refused%s", profile.name,
                  link.target_system, link.target_component, address_key(address),
@@ -152,26 +152,28 @@ class LinkWatch:
         armed = bool(msg.base_mode & MAV_MODE_FLAG_SAFETY_ARMED)
         mode = link.profile.decode_mode(msg.base_mode, msg.custom_mode)
         if announce and (armed != link.armed or mode != link.mode):
-            log.info("autopilot %s, mode %s", "ARMED" if armed else "disarmed", mode)
+            self._log_change(now, "state", logging.INFO,
+                             f"autopilot {'ARMED' if armed else 'disarmed'}, mode {mode}")
         if announce and mode != link.mode:
             if mode == self._mode_asked:
                 self._mode_asked = None
             elif mode in link.profile.booting_modes:
                 # Back in its start-up mode: a reboot faster than the link timeout, nobody's mode
                 # change; the rebooted autopilot has no failsafe standing either.
-                log.warning("autopilot back in %s: it rebooted", mode)
+                self._log_change(now, "rebooted", logging.WARNING,
+                                 f"autopilot back in {mode}: it rebooted")
                 self.hold = FailsafeCause()
             elif link.mode not in link.profile.booting_modes and link.mode != "UNKNOWN":
-                self._hold_changed(self.hold.mode_changed(link.mode, mode, now.mono_ns, armed))
+                self._hold_changed(self.hold.mode_changed(link.mode, mode, now.mono_ns, armed), now)
         if (link.mode in link.profile.booting_modes and mode not in link.profile.booting_modes
                 and self.cfg.check_failsafe_params):
             # Read during start-up, some values were not final yet (measured: Rover answered
             # RC1_DZ = 0 before setting its 30 us default): read them all again now.
-            log.info("autopilot finished starting (%s -> %s): reading its parameters again",
-                     link.mode, mode)
+            self._log_change(now, "started", logging.INFO, f"autopilot finished starting "
+                             f"({link.mode} -> {mode}): reading its parameters again")
             self._start_param_check(link.profile)
         elif armed and not link.armed:
-            self._armed_now()
+            self._armed_now(now)
         link.armed, link.mode = armed, mode
         link.custom_mode = int(msg.custom_mode)
         link.last_heartbeat_mono_ns = now.mono_ns

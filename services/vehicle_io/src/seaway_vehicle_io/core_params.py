@@ -86,7 +86,7 @@ class ParamRead:
             self._finish_param_check()
         return []
 
-    def _armed_now(self) -> None:
+    def _armed_now(self, now: Now | None = None) -> None:
         """The vessel just armed (its ACK or HEARTBEAT, whichever came first): read the thrust
         mapping's parameters again before thrust matters.
 
@@ -99,7 +99,11 @@ class ParamRead:
         if (profile is None or not profile.mapping_needs_params or not self.cfg.check_failsafe_params
                 or not self.params.done):
             return
-        log.info("autopilot armed: reading its parameters again (the thrust mapping's)")
+        line = "autopilot armed: reading its parameters again (the thrust mapping's)"
+        if now is None:  # an accepted arm request: one per request, never a flood
+            log.info("%s", line)
+        else:  # a HEARTBEAT saying armed: as often as the autopilot flaps it
+            self._log_change(now, "armed", logging.INFO, line)
         self._start_param_check(profile)
 
     def _start_param_check(self, profile: Profile) -> None:

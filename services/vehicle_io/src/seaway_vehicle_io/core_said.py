@@ -53,14 +53,15 @@ class AutopilotSaid:
                               getattr(msg, "chunk_seq", 0) or 0)
         if item is not None:
             # MAV_SEVERITY <= 4 is a warning or worse (PreArm failures are 2, CRITICAL)
-            self._log_limited(now, "STATUSTEXT", item.text, logging.WARNING if item.severity <= 4
-                              else logging.INFO, f"autopilot says: {item.text}")
+            self._log_said(now, "STATUSTEXT", item.text,
+                           logging.WARNING if item.severity <= 4 else logging.INFO)
             if self.fence is not None:
                 self.fence.on_text(item.text)
-            self._hold_changed(self.hold.cleared(cleared_cause(item.text), item.text, now.mono_ns))
+            self._hold_changed(self.hold.cleared(cleared_cause(item.text), item.text, now.mono_ns),
+                               now)
             if item.severity <= WARNING_SEVERITY:
                 self._hold_changed(self.hold.said(classify_text(item.text), item.text,
-                                                  now.mono_ns))
+                                                  now.mono_ns), now)
                 level = battery_level_from_text(item.text)
                 if level is not None:
                     # Latched: ArduPilot says it once, and its battery failsafe holds till reboot.
@@ -102,12 +103,11 @@ class AutopilotSaid:
         if ev is not None and ev.level <= 6 and not ev.name.endswith("_summary"):
             # warning or worse (arming-check failures are error, 3) as a warning, notices and
             # info as info; debug and protocol chatter not at all
-            self._log_limited(now, "EVENT", ev.text, logging.WARNING if ev.level <= 4
-                              else logging.INFO, f"autopilot says: {ev.text}")
+            self._log_said(now, "EVENT", ev.text, logging.WARNING if ev.level <= 4 else logging.INFO)
         if ev is not None and self.fence is not None:
             self.fence.on_text(ev.text)
         if ev is not None and ev.level <= EVENT_WARNING_LEVEL:
-            self._hold_changed(self.hold.said(classify_text(ev.text), ev.text, now.mono_ns))
+            self._hold_changed(self.hold.said(classify_text(ev.text), ev.text, now.mono_ns), now)
         return said_asking(asks)
 
     def _on_current_event_sequence(self, msg: Any, now: Now) -> list[Output]:

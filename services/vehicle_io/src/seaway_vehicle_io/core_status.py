@@ -80,9 +80,10 @@ class StatusReport:
         problem = self.health.problem()
         if problem != self._health_said:
             if problem is not None:
-                log.warning("%s", problem)
+                self._log_change(now, "health", logging.WARNING, problem)
             elif self._health_said is not None:
-                log.info("the autopilot is healthy again (estimator, status, sensors)")
+                self._log_change(now, "health", logging.INFO,
+                                 "the autopilot is healthy again (estimator, status, sensors)")
             self._health_said = problem
         hb_age = (None if link.last_heartbeat_mono_ns is None
                   else max(0.0, (now.mono_ns - link.last_heartbeat_mono_ns) / 1e9))
@@ -116,6 +117,7 @@ class StatusReport:
             failsafe_latched_detail="" if latched is None else latched[1],
         )
 
-    def _hold_changed(self, changed: bool) -> None:
+    def _hold_changed(self, changed: bool, now: Now) -> None:
         if changed:
-            log.warning("autopilot took the vessel: %s (%s)", self.hold.cause, self.hold.detail)
+            self._log_change(now, "hold", logging.WARNING,
+                             f"autopilot took the vessel: {self.hold.cause} ({self.hold.detail})")

@@ -147,7 +147,8 @@ class TelemetryIn:
         reading = battery_from_sys_status(msg)  # refuses an absurd message before it is used
         self._hold_changed(self.hold.health(msg.onboard_control_sensors_present,
                                             msg.onboard_control_sensors_enabled,
-                                            msg.onboard_control_sensors_health, now.mono_ns))
+                                            msg.onboard_control_sensors_health, now.mono_ns),
+                           now)
         self.health.sys_status(msg.onboard_control_sensors_present,
                                msg.onboard_control_sensors_enabled,
                                msg.onboard_control_sensors_health)

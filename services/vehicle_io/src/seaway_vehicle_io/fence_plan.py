@@ -168,6 +168,7 @@ def differences(kind: str, meant: tuple[MissionItem, ...], held: list[MissionIte
               or abs(h.lon_e7 - m.lon_e7) > LATLON_TOLERANCE_E7):
             out.append(f"{kind} item {i}: at {h.lat_e7 / 1e7:.7f}, {h.lon_e7 / 1e7:.7f}, uploaded "
                        f"{m.lat_e7 / 1e7:.7f}, {m.lon_e7 / 1e7:.7f}")
-        elif m.command != RALLY_POINT and abs(h.param1 - m.param1) > RADIUS_TOLERANCE_M:
+        elif m.command != RALLY_POINT and not abs(h.param1 - m.param1) <= RADIUS_TOLERANCE_M:
+            # written so that a NaN held (a corrupt radius or vertex count) differs too
             out.append(f"{kind} item {i}: param1 {h.param1:g}, uploaded {m.param1:g}")
     return out

@@ -17,6 +17,10 @@ from dataclasses import dataclass
 
 TEXT_FIELD_LEN = 50  # STATUSTEXT.text: a shorter chunk ends its text
 KEEP = 32  # texts remembered (a refusal reads the last second or so)
+PENDING = 8
+"""Chunked texts being joined at once: an autopilot sends one text's chunks back to back, so more
+unfinished ones are texts whose last chunk was lost; the oldest is dropped (each id could otherwise
+hold its chunks until the link drops: 65535 ids, about 58 MB)."""
 
 
 @dataclass(frozen=True)
@@ -34,7 +38,7 @@ def decode_text(raw: str | bytes) -> str:
 
 
 class StatusTexts:
-    """The last ``KEEP`` complete texts, in arrival order."""
+    """The last ``KEEP`` complete texts, in arrival order, and at most ``PENDING`` being joined."""
 
     def __init__(self) -> None:
         self._texts: deque[StatusText] = deque(maxlen=KEEP)
@@ -48,7 +52,11 @@ class StatusTexts:
         if text_id == 0:
             text = part
         else:
-            parts = self._chunks.setdefault(text_id, [])
+            parts = self._chunks.get(text_id)
+            if parts is None:
+                while len(self._chunks) >= PENDING:
+                    del self._chunks[next(iter(self._chunks))]  # the oldest unfinished (insertion order)
+                parts = self._chunks[text_id] = []
             if chunk_seq != len(parts):  # a chunk lost or repeated: keep what can be read
                 parts.clear()
             parts.append(part)
