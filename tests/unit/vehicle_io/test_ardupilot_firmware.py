@@ -333,6 +333,28 @@ def test_parameters_read_while_the_autopilot_starts_are_read_again_after():
     assert core.params.done and core.mapper(0.16, 0.16).y == 211  # now compensated
 
 
+def test_an_autopilot_flapping_its_start_up_mode_does_not_flood_the_link_with_requests():
+    """INITIALISING and MANUAL alternating at 10 kHz, for 2 s: each flap restarted the read, and
+    each tick (every 2 ms here) sent the whole set again, 24 requests: 480 a second at vehicle_io's
+    tick. A read restarted in progress keeps its pace: about one set per ``param_timeout_s``; once
+    the flapping stops, the last read finishes as ever."""
+    core = make(message_rates_hz={})
+    booting = wire(mavlink.MAVLink_heartbeat_message(11, 3, 1, 16, 3, 3))  # INITIALISING
+    manual = wire(mavlink.MAVLink_heartbeat_message(11, 3, 1, 0, 3, 3))
+    per_set = len(of(core.on_mavlink(booting, at(0)), SendParamRequestRead))  # at link-up
+    assert per_set > 0
+    asked = 0
+    for i in range(20_000):  # 2 s
+        t = 2 * MS + i * 100_000
+        asked += len(of(core.on_mavlink(manual if i % 2 == 0 else booting, at(t)),
+                        SendParamRequestRead))
+        if i % 20 == 0:
+            asked += len(of(core.tick(at(t)), SendParamRequestRead))
+    assert asked <= 3 * per_set  # at most one set a second (param_timeout_s 1 s), not 1,000
+    answer_params(core, SITL_PARAMS, 3 * S)
+    assert core.params.done and core.mapper(0.16, 0.16).y == 211
+
+
 def test_the_mapping_parameters_are_read_again_when_the_vessel_arms():
     """Measured on SITL: even after INITIALISING, RC1_DZ could still read 0 (its default came with
     the first RC input); the port paddle lost 30 us and the boat turned steadily to port. Arming

@@ -39,6 +39,9 @@ class ParamCheck:
     answered_as: dict[str, str] = field(default_factory=dict)
     attempts: dict[str, int] = field(default_factory=dict)
     last_sent_mono_ns: int = 0
+    not_before_mono_ns: int = 0
+    """No requests before this (monotonic ns): a read restarted while another was in progress
+    asks no sooner than that one would have asked again (``_start_param_check``)."""
     done: bool = False
     assessment: FailsafeAssessment | None = None
 
@@ -107,17 +110,32 @@ class ParamRead:
         self._start_param_check(profile)
 
     def _start_param_check(self, profile: Profile) -> None:
-        """(Re)start the parameter read; the mapping in use stays until the new one is made."""
-        self.params = ParamCheck(
+        """(Re)start the parameter read; the mapping in use stays until the new one is made.
+
+        A read restarted while one is in progress keeps that one's pace: its requests go out no
+        sooner than the old read would have asked again. An autopilot flapping between its
+        start-up mode and another, or armed and disarmed, restarts the read at every flap; at
+        10,000 flaps a second each tick sent the whole set, 480 PARAM_REQUEST_READ a second, more
+        than a 57,600 baud radio carries beside MANUAL_CONTROL. A read that finished, the usual
+        case at the end of start-up and at arming, is no pace to keep: the new one asks at once."""
+        old = self.params
+        pc = ParamCheck(
             wanted=profile.failsafe_params if self.cfg.check_failsafe_params else (),
             alternatives=dict(profile.param_alternatives),
             done=not self.cfg.check_failsafe_params)
+        if not old.done:
+            next_ns = (old.last_sent_mono_ns + round(self.cfg.param_timeout_s * 1e9)
+                       if old.attempts else 0)
+            pc.not_before_mono_ns = max(old.not_before_mono_ns, next_ns)
+        self.params = pc
 
     def _param_requests(self, now: Now) -> list[Output]:
         pc, link = self.params, self.link
         if pc.done or not pc.wanted or not link.ok or link.target_system is None:
             return []
         if pc.attempts and now.mono_ns < pc.last_sent_mono_ns + round(self.cfg.param_timeout_s * 1e9):
+            return []
+        if now.mono_ns < pc.not_before_mono_ns:
             return []
         missing = [p for p in pc.wanted if p not in pc.values]
         exhausted = [p for p in missing if pc.attempts.get(p, 0) >= self.cfg.param_attempts]
