@@ -10,8 +10,10 @@ WGS84 latitude/longitude in degrees; Seaway's ``MissionRequest`` takes the same 
   global frame has latitude and longitude in ``params[4]`` and ``params[5]`` [deg] and its
   acceptance radius in ``params[1]`` [m]; a DO_CHANGE_SPEED (178) sets the speed of the waypoints
   after it (``params[1]`` [m/s]). Anything else (takeoff, loiter, survey ``ComplexItem`` s) is
-  refused naming the item, or skipped and listed with ``skip_unsupported``.
-  Its ``geoFence`` and ``rallyPoints`` are the operating area (``seaway.area.files``).
+  refused naming the item, or skipped and listed with ``skip_unsupported``; so is a waypoint's
+  hold time (``params[0]`` [s]), which Seaway does not fly (it passes through).
+  Its ``geoFence`` and ``rallyPoints`` are the operating area (``seaway.area.files``); its
+  ``plannedHomePosition`` is not read (the mission gives no home: the vessel's own applies).
 * GeoJSON (RFC 7946): a ``LineString`` as a bare geometry, a ``Feature`` or a
   ``FeatureCollection`` with exactly one; positions are ``[lon, lat]`` or ``[lon, lat, alt]``
   (longitude first). A Feature's ``properties`` may carry Seaway's mission parameters, which an
@@ -20,23 +22,24 @@ WGS84 latitude/longitude in degrees; Seaway's ``MissionRequest`` takes the same 
   ``keep_in``, ``keep_out`` or ``rally``
   (``seaway.area.files``).
 
-Every refusal is a ``PlanError`` whose text names the file kind and the item at fault.
+Every refusal is a ``PlanError`` whose text names the file kind and the item at fault. The text
+must be UTF-8 JSON of at most ``MAX_FILE_BYTES``, each object's keys unique.
 """
 
 from __future__ import annotations
 
-import json
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Annotated, Any, Literal, get_args, get_origin
 
+from seaway import json_files
 from seaway.area.geojson import AREA_PROPERTY, geojson_features, spec_from_geojson
 from seaway.area.model import AreaError
 from seaway.area.plan import plan_sections, spec_from_plan
 from seaway.area.spec import AreaSpec, read_lat_lon
-from seaway.contract.config import unreadable
 from seaway.contract.messages.requests import MAX_SPEED_HINT_MPS, MISSION_OPTIONS, MissionOptions
 from seaway.contract.units import finite_number
+from seaway.json_files import MAX_FILE_BYTES, shown
 
 NAV_WAYPOINT = 16
 """MAV_CMD_NAV_WAYPOINT: the only mission item that becomes a Seaway waypoint."""
@@ -55,6 +58,13 @@ MAV_CMD_NAMES: dict[int, str] = {
     2001: "IMAGE_STOP_CAPTURE", 2500: "VIDEO_START_CAPTURE", 2501: "VIDEO_STOP_CAPTURE",
 }
 """Names of the MAV_CMD values met in QGroundControl plans, for error messages."""
+_LOITER = "; the vessel neither goes to its position nor waits there"
+_SKIP_EFFECTS: dict[int, str] = {
+    17: _LOITER, 18: _LOITER, 19: _LOITER, 31: _LOITER,
+    177: "; its repeats are not flown: each waypoint once, in order",
+    179: "; the mission gives no home (the vessel's own applies)",
+}
+"""What leaving out an item of these commands changes in the mission flown, said when it is."""
 GLOBAL_FRAMES: dict[int, str] = {
     0: "GLOBAL", 3: "GLOBAL_RELATIVE_ALT", 5: "GLOBAL_INT", 6: "GLOBAL_RELATIVE_ALT_INT",
     10: "GLOBAL_TERRAIN_ALT", 11: "GLOBAL_TERRAIN_ALT_INT",
@@ -66,6 +76,9 @@ MAV_TYPE_SURFACE_BOAT = 11
 MAV_AUTOPILOT_GENERIC = 0
 MAX_WAYPOINTS = 1000
 """Default bound on the waypoints one file may give (the API passes its own)."""
+MAX_ITEMS_PER_WAYPOINT = 10
+"""Bound on a plan's mission items, per waypoint it may give: a waypoint and a few commands beside
+it (speed, camera); the skipped ones are listed, one line each, in the reply."""
 MissionFormat = Literal["plan", "geojson"]
 
 
@@ -121,21 +134,12 @@ def mission_request(path: ImportedPath, params: dict[str, Any], stamp_ns: int) -
         raise PlanError(str(err)) from None
 
 
-def load_json(data: bytes | str, what: str = "mission file") -> Any:
-    """Parse JSON text, refusing NaN/Infinity literals, with the position of a syntax error."""
-
-    def no_constants(name: str) -> float:
-        raise PlanError(f"{what}: {name} is not a number JSON allows")
-
+def load_json(data: bytes | str, what: str = "mission file", max_bytes: int = MAX_FILE_BYTES) -> Any:
+    """``seaway.json_files.load_json`` (UTF-8, bounded, strict), its refusals as PlanError."""
     try:
-        text = data.decode("utf-8-sig") if isinstance(data, bytes) else data
-        return json.loads(text, parse_constant=no_constants)
-    except UnicodeDecodeError as err:
-        raise PlanError(f"{what}: not UTF-8 text ({err.reason} at byte {err.start})") from None
-    except json.JSONDecodeError as err:
-        raise PlanError(f"{what}: not JSON: {err.msg} at line {err.lineno} column {err.colno}") from None
-    except (ValueError, RecursionError) as err:
-        raise PlanError(f"{what}: {unreadable(err)}") from None
+        return json_files.load_json(data, what, max_bytes)
+    except json_files.JsonFileError as err:
+        raise PlanError(str(err)) from None
 
 
 def detect_format(doc: Any) -> MissionFormat:
@@ -180,8 +184,9 @@ def _item_name(i: int, item: Any) -> str:
     return f"plan mission.items[{i}]" + (f" (doJumpId {jump})" if jump is not None else "")
 
 
-def _plan_item(i: int, item: Any) -> tuple[float, float, float | None]:
-    """(lat_deg, lon_deg, acceptance radius [m] or None) of one NAV_WAYPOINT SimpleItem.
+def _plan_item(i: int, item: Any) -> tuple[float, float, float | None, float]:
+    """(lat_deg, lon_deg, acceptance radius [m] or None, hold time [s]) of one NAV_WAYPOINT
+    SimpleItem.
 
     Raises PlanError naming the item when it is anything else; ``_UnsupportedError`` when it is a
     well-formed item Seaway cannot fly (a skip candidate)."""
@@ -190,34 +195,40 @@ def _plan_item(i: int, item: Any) -> tuple[float, float, float | None]:
         raise PlanError(f"{name}: expected an object, got {type(item).__name__}")
     kind = item.get("type")
     if kind == "ComplexItem":
-        raise _UnsupportedError(f"{name}: a ComplexItem ({item.get('complexItemType', 'unknown')}) is not "
-                           "supported; only SimpleItem NAV_WAYPOINT (command 16) items are")
+        sort = str(item.get("complexItemType", "unknown"))[:40]
+        raise _UnsupportedError(f"{name}: a ComplexItem ({sort}) is not supported; only SimpleItem "
+                                "NAV_WAYPOINT (command 16) items are")
     if kind != "SimpleItem":
-        raise PlanError(f"{name}: type {json.dumps(kind)} is not a QGroundControl mission item "
+        raise PlanError(f"{name}: type {shown(kind)} is not a QGroundControl mission item "
                         "(SimpleItem)")
     command = item.get("command")
     if isinstance(command, bool) or not isinstance(command, int):
-        raise PlanError(f"{name}: command {json.dumps(command)} is not a MAVLink command number")
+        raise PlanError(f"{name}: command {shown(command)} is not a MAVLink command number")
     if command != NAV_WAYPOINT:
         label = MAV_CMD_NAMES.get(command, "unknown")
         raise _UnsupportedError(f"{name}: command {command} ({label}) is not a waypoint; only NAV_WAYPOINT "
-                           "(command 16) items can be imported")
+                           f"(command 16) items can be imported{_SKIP_EFFECTS.get(command, '')}")
     frame = item.get("frame")
-    if frame not in GLOBAL_FRAMES:
+    # a list or an object here is unhashable (a TypeError, a 500 from the API); false == 0 GLOBAL
+    if isinstance(frame, bool) or not isinstance(frame, int | float) or frame not in GLOBAL_FRAMES:
         frames = ", ".join(f"{k} {v}" for k, v in GLOBAL_FRAMES.items())
-        raise PlanError(f"{name}: frame {json.dumps(frame)} has no latitude/longitude; Seaway reads "
+        raise PlanError(f"{name}: frame {shown(frame)} has no latitude/longitude; Seaway reads "
                         f"waypoints in a global frame ({frames})")
     params = item.get("params")
     if not isinstance(params, list) or len(params) != 7:
-        raise PlanError(f"{name}: params must be a list of 7 values, got {json.dumps(params)[:80]}")
+        raise PlanError(f"{name}: params must be a list of 7 values, got {shown(params, 80)}")
     lat, lon = _lat_lon(params[4], params[5], name)
     radius_m = finite_number(params[1])
     if radius_m is None and params[1] is not None:  # null: QGroundControl's NaN, no radius given
-        raise PlanError(f"{name}: acceptance radius params[1] {json.dumps(params[1])[:40]} is not a "
+        raise PlanError(f"{name}: acceptance radius params[1] {shown(params[1])} is not a "
                         "finite number of metres (0 or null: the autopilot's default)")
     if radius_m is not None and radius_m <= 0:
         radius_m = None  # QGroundControl writes 0 for "the autopilot's default"
-    return lat, lon, radius_m
+    hold_s = finite_number(params[0])
+    if (hold_s is None and params[0] is not None) or (hold_s is not None and hold_s < 0):
+        raise PlanError(f"{name}: hold time params[0] {shown(params[0])} is not a number of "
+                        "seconds >= 0 (0: pass through)")
+    return lat, lon, radius_m, hold_s or 0.0
 
 
 def parse_plan(doc: Any, *, skip_unsupported: bool = False,
@@ -232,17 +243,21 @@ def parse_plan(doc: Any, *, skip_unsupported: bool = False,
     if not isinstance(doc, dict):
         raise PlanError("plan: expected a JSON object")
     if doc.get("fileType") != "Plan":
-        raise PlanError(f"plan: fileType is {json.dumps(doc.get('fileType'))}, not \"Plan\"")
+        raise PlanError(f"plan: fileType is {shown(doc.get('fileType'))}, not \"Plan\"")
     mission = doc.get("mission")
     if not isinstance(mission, dict):
         raise PlanError("plan: no mission object")
     version = mission.get("version", PLAN_MISSION_VERSION)
     if version != PLAN_MISSION_VERSION:
-        raise PlanError(f"plan: mission version {json.dumps(version)} is not supported (QGroundControl "
+        raise PlanError(f"plan: mission version {shown(version)} is not supported (QGroundControl "
                         f"writes {PLAN_MISSION_VERSION})")
     items = mission.get("items")
     if not isinstance(items, list):
         raise PlanError("plan: mission.items must be a list")
+    if len(items) > MAX_ITEMS_PER_WAYPOINT * max_waypoints:  # before reading (and listing) each
+        raise PlanError(f"plan: {len(items)} mission items, more than the "
+                        f"{MAX_ITEMS_PER_WAYPOINT * max_waypoints} allowed ({MAX_ITEMS_PER_WAYPOINT} "
+                        f"per waypoint, at most {max_waypoints} waypoints)")
     points: list[tuple[float, float]] = []
     radii: list[float | None] = []
     speeds: list[float | None] = []
@@ -254,12 +269,14 @@ def parse_plan(doc: Any, *, skip_unsupported: bool = False,
             speed = _plan_speed(i, item, speed)
             continue
         try:
-            lat, lon, radius_m = _plan_item(i, item)
+            lat, lon, radius_m, hold_s = _plan_item(i, item)
         except _UnsupportedError as err:
-            if not skip_unsupported:
-                raise PlanError(f"{err} (import with skip_unsupported to leave such items out)") from None
-            skipped.append(str(err))
+            _skip(str(err), skip_unsupported, skipped, "to leave such items out")
             continue
+        if hold_s > 0:  # flying through it is another mission than the file's: refused, or said
+            _skip(f"{_item_name(i, item)}: hold time params[0] {hold_s:g} s is not flown; Seaway "
+                  "passes through waypoints (0: no hold)", skip_unsupported, skipped,
+                  "to fly through it")
         points.append((lat, lon))
         radii.append(radius_m)
         speeds.append(speed)
@@ -271,10 +288,20 @@ def parse_plan(doc: Any, *, skip_unsupported: bool = False,
                         _area(spec_from_plan, doc), _speeds_or_none(speeds))
 
 
+def _skip(msg: str, skip_unsupported: bool, skipped: list[str], how: str) -> None:
+    """List ``msg`` in ``skipped`` if the caller chose ``skip_unsupported``, else refuse with it."""
+    if not skip_unsupported:
+        raise PlanError(f"{msg} (import with skip_unsupported {how})") from None
+    skipped.append(msg)
+
+
 def _plan_speed(i: int, item: dict[str, Any], before: float | None) -> float | None:
     """The speed a DO_CHANGE_SPEED item sets [m/s] (``before`` for -1, "no change")."""
     params = item.get("params")
-    value = params[1] if isinstance(params, list) and len(params) == 7 else None
+    if not isinstance(params, list) or len(params) != 7:
+        raise PlanError(f"{_item_name(i, item)} (DO_CHANGE_SPEED): params must be a list of 7 "
+                        f"values, got {shown(params, 80)}")
+    value = params[1]
     if value == -1:
         return before
     return _speed(value, f"{_item_name(i, item)} (DO_CHANGE_SPEED) params[1]")
@@ -283,7 +310,7 @@ def _plan_speed(i: int, item: dict[str, Any], before: float | None) -> float | N
 def _speed(value: Any, where: str) -> float:
     number = finite_number(value)
     if number is None or not 0 < number <= MAX_SPEED_MPS:
-        raise PlanError(f"{where}: speed {json.dumps(value)[:40]} must be a number of m/s in "
+        raise PlanError(f"{where}: speed {shown(value)} must be a number of m/s in "
                         f"(0, {MAX_SPEED_MPS:g}]")
     return number
 
@@ -331,20 +358,22 @@ SPEEDS_PROPERTY = "speeds_mps"
 """A GeoJSON Feature's per-waypoint speeds [m/s]: a list, one number or null per position."""
 
 
-def _geojson_line(geometry: Any, where: str) -> list[tuple[float, float]]:
+def _geojson_line(geometry: Any, where: str, max_waypoints: int) -> list[tuple[float, float]]:
     if not isinstance(geometry, dict):
-        raise PlanError(f"{where}: expected a geometry object, got {json.dumps(geometry)[:60]}")
+        raise PlanError(f"{where}: expected a geometry object, got {shown(geometry, 60)}")
     if geometry.get("type") != "LineString":
-        raise _UnsupportedError(f"{where}: geometry type {json.dumps(geometry.get('type'))} is not a "
+        raise _UnsupportedError(f"{where}: geometry type {shown(geometry.get('type'))} is not a "
                            "LineString")
     coords = geometry.get("coordinates")
     if not isinstance(coords, list):
         raise PlanError(f"{where}: coordinates must be a list of positions")
+    if len(coords) > max_waypoints:  # before reading each
+        raise PlanError(f"geojson: {len(coords)} waypoints, more than the {max_waypoints} allowed")
     out = []
     for k, pos in enumerate(coords):
         if not isinstance(pos, list) or len(pos) not in (2, 3):
             raise PlanError(f"{where}: coordinates[{k}] must be [lon, lat] or [lon, lat, alt], got "
-                            f"{json.dumps(pos)[:60]}")
+                            f"{shown(pos, 60)}")
         lon, lat = pos[0], pos[1]  # RFC 7946: longitude first
         out.append(_lat_lon(lat, lon, f"{where} coordinates[{k}]"))
     return out
@@ -354,9 +383,10 @@ def _check_crs(doc: dict[str, Any]) -> None:
     crs = doc.get("crs")
     if crs is None:
         return
-    name = str(((crs or {}).get("properties") or {}).get("name", "")) if isinstance(crs, dict) else ""
+    props = crs.get("properties") if isinstance(crs, dict) else None  # any JSON: not only objects
+    name = str(props.get("name", "")) if isinstance(props, dict) else ""
     if not (name.endswith("CRS84") or name.endswith("4326")):
-        raise PlanError(f"geojson: crs {json.dumps(crs)[:80]} is not WGS84 longitude/latitude "
+        raise PlanError(f"geojson: crs {shown(crs, 80)} is not WGS84 longitude/latitude "
                         "(RFC 7946 positions are WGS84 degrees)")
 
 
@@ -390,30 +420,33 @@ def parse_geojson(doc: Any, *, skip_unsupported: bool = False,
             if isinstance(feature.get("properties"), dict) and AREA_PROPERTY in feature["properties"]:
                 continue  # the operating area's: read below
             gtype = geometry.get("type") if isinstance(geometry, dict) else None
-            msg = f"{where}: geometry type {json.dumps(gtype)} is not a LineString"
+            msg = f"{where}: geometry type {shown(gtype)} is not a LineString"
             if not skip_unsupported:
                 raise PlanError(f"{msg}; the collection must hold exactly one LineString (import "
                                 "with skip_unsupported to leave other features out)")
             skipped.append(msg)
         if len(lines) != 1:
+            extra = f" ({len(skipped)} skipped: {'; '.join(skipped)})"[:200] if skipped else ""
             raise PlanError(f"geojson: the FeatureCollection holds {len(lines)} LineString features "
                             f"(at {', '.join(f'features[{i}]' for i, _ in lines) or 'none'}); "
-                            "a mission is exactly one")
+                            f"a mission is exactly one{extra}")
         i, feature = lines[0]
-        points = _geojson_line(feature.get("geometry"), f"geojson features[{i}]")
+        points = _geojson_line(feature.get("geometry"), f"geojson features[{i}]", max_waypoints)
         properties = feature.get("properties")
     elif kind == "Feature":
         try:
-            points = _geojson_line(doc.get("geometry"), "geojson Feature")
+            points = _geojson_line(doc.get("geometry"), "geojson Feature", max_waypoints)
         except _UnsupportedError as err:
             raise PlanError(f"{err}; a mission is one LineString") from None
         properties = doc.get("properties")
     elif kind == "LineString":
-        points = _geojson_line(doc, "geojson LineString")
+        points = _geojson_line(doc, "geojson LineString", max_waypoints)
     else:
-        raise PlanError(f"geojson: type {json.dumps(kind)} is not supported; give a LineString, a "
+        raise PlanError(f"geojson: type {shown(kind)} is not supported; give a LineString, a "
                         "Feature with a LineString geometry, or a FeatureCollection with one")
     _check_count("geojson", points, skipped, max_waypoints)
+    if properties is not None and not isinstance(properties, dict):  # RFC 7946 3.2
+        raise PlanError(f"geojson properties: expected an object or null, got {shown(properties)}")
     hints = _geojson_hints(properties)
     speeds = _geojson_speeds(properties, len(points))
     return ImportedPath("geojson", tuple(points), tuple(skipped), _with_speed_hint(hints, speeds),
@@ -435,7 +468,7 @@ def _geojson_hints(properties: Any) -> dict[str, Any]:
                 or (number and finite_number(value) is None):
             kind = ("text" if types == (str,) else "true or false" if types == (bool,)
                     else "a finite number")
-            raise PlanError(f"geojson properties.{name}: {json.dumps(value)[:40]} is not {kind}")
+            raise PlanError(f"geojson properties.{name}: {shown(value)} is not {kind}")
         hints[name] = value
     return hints
 
@@ -447,7 +480,7 @@ def _geojson_speeds(properties: Any, n: int) -> list[float | None]:
         return []
     if not isinstance(raw, list) or len(raw) != n:
         raise PlanError(f"geojson properties.{SPEEDS_PROPERTY}: expected a list of {n} speeds [m/s] "
-                        f"or nulls, one per position, got {json.dumps(raw)[:60]}")
+                        f"or nulls, one per position, got {shown(raw, 60)}")
     return [None if v is None else _speed(v, f"geojson properties.{SPEEDS_PROPERTY}[{k}]")
             for k, v in enumerate(raw)]
 
