@@ -93,6 +93,7 @@ def test_a_qgroundcontrol_plan_is_checked_with_its_own_fence(tmp_path: Path) -> 
     assert out["verdict"] == "ok" and out["path_length_m"] == pytest.approx(62.0, abs=0.05)
     assert out["area_source"] == "scenario lake"  # no fence in the file: the scenario's area
     assert any("task_power_w" in n for n in out["notes"])
+    assert not any("own operating area" in n for n in out["notes"])
     # Its own fence, which the second leg leaves: refused naming the leg, the file as the area.
     fenced = _plan(tmp_path / "fenced.plan", square,
                    fence_m=[(-5.0, -5.0), (30.0, -5.0), (30.0, 10.0), (-5.0, 10.0)])
@@ -101,6 +102,8 @@ def test_a_qgroundcontrol_plan_is_checked_with_its_own_fence(tmp_path: Path) -> 
     out = json.loads(refused.stdout)
     assert out["verdict"] == "refused" and out["area"] == "refused"
     assert out["area_source"] == str(fenced)
+    # and says that a flight keeps to its run's area, not the file's
+    assert any("own operating area" in n for n in out["notes"])
     assert any("leaves the keep-in area" in r for r in out["reasons"])
     assert not any("task_power_w" in n for n in out["notes"])  # given on the command line
     # Unreadable: not JSON, or no waypoints: exit 2 naming the file.

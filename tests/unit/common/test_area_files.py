@@ -338,3 +338,30 @@ def test_a_file_the_parser_chokes_on_is_refused_naming_it(tmp_path, name, text, 
     (tmp_path / name).write_text(text)
     with pytest.raises(AreaError, match=rf"{name}: not a usable document: {named}"):
         files.load_area_file(tmp_path / name)
+
+
+@pytest.mark.parametrize(("name", "data", "named"), [
+    # the mission reader refused these in the same file; the area reader took them
+    ("twice.plan", b'{"fileType": "Plan", "geoFence": {}, "geoFence": {"version": 2}}',
+     "appears more than once"),
+    ("nan.geojson", b'{"type": "FeatureCollection", "features": [], "x": NaN}',
+     "NaN is not a number JSON allows"),
+    ("utf16.plan", '{"fileType": "Plan"}'.encode("utf-16"), "not UTF-8"),
+])
+def test_area_json_is_read_as_strictly_as_the_mission_in_the_same_file(tmp_path, name, data,
+                                                                      named) -> None:
+    (tmp_path / name).write_bytes(data)
+    with pytest.raises(AreaError, match=named) as err:
+        files.load_area_file(tmp_path / name)
+    assert name in str(err.value)
+
+
+def test_an_area_file_past_the_size_bound_is_refused_unread(tmp_path) -> None:
+    """Bounded like a mission file (``seaway.json_files.MAX_FILE_BYTES``): a larger file is refused
+    after that many bytes, not read whole."""
+    from seaway import json_files
+
+    path = tmp_path / "huge.geojson"
+    path.write_bytes(b" " * json_files.MAX_FILE_BYTES + b"{}")
+    with pytest.raises(AreaError, match=f"larger than the {json_files.MAX_FILE_BYTES} bytes"):
+        files.load_area_file(path)

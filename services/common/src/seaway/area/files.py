@@ -36,9 +36,9 @@ them by the file's suffix.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
+from seaway import json_files
 from seaway.area.geojson import spec_from_geojson
 from seaway.area.model import AreaError, OperatingArea
 from seaway.area.plan import spec_from_plan
@@ -53,26 +53,28 @@ def load_area_file(path: str | Path) -> AreaSpec | None:
     a .plan or GeoJSON file carries no area; AreaError naming the file and what is wrong."""
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8-sig")
-    except (OSError, UnicodeDecodeError) as err:
+        data = json_files.read_bytes(p)  # bounded: a file of gigabytes is refused, not read
+    except OSError as err:
         raise AreaError(f"{p}: cannot read: {err}") from None
+    except json_files.JsonFileError as err:
+        raise AreaError(str(err)) from None
     if p.suffix == ".toml":
         try:
-            return from_toml(text, str(p))
+            return from_toml(data.decode("utf-8-sig"), str(p))
         except AreaError:
             raise
+        except UnicodeDecodeError as err:
+            raise AreaError(f"{p}: cannot read: {err}") from None
         except (ValueError, RecursionError) as err:  # what tomllib raises past its own checks
             raise AreaError(f"{p}: {unreadable(err)}") from None
     if p.suffix not in (".plan", ".geojson", ".json"):
         raise AreaError(
             f"{p}: unknown file type {p.suffix!r}; an area is read from .toml, .plan, .geojson or .json"
         )
-    try:
-        doc = json.loads(text)
-    except json.JSONDecodeError as err:
-        raise AreaError(f"{p}: not JSON: {err.msg} at line {err.lineno} column {err.colno}") from None
-    except (ValueError, RecursionError) as err:
-        raise AreaError(f"{p}: {unreadable(err)}") from None
+    try:  # UTF-8, no NaN, no key twice: as the mission reader reads the same file
+        doc = json_files.load_json(data, str(p))
+    except json_files.JsonFileError as err:
+        raise AreaError(str(err)) from None
     try:
         return spec_from_plan(doc) if p.suffix == ".plan" else spec_from_geojson(doc)
     except AreaError as err:

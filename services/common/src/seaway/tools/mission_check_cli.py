@@ -33,7 +33,7 @@ import sys
 import time
 from pathlib import Path
 
-from seaway import mission_files
+from seaway import json_files, mission_files
 from seaway.area.files import run_area
 from seaway.area.model import AreaError
 from seaway.contract.config import ConfigError
@@ -67,10 +67,10 @@ def foreign_mission(path: Path) -> mission_files.ImportedPath | None:
     if path.suffix not in (".plan", ".geojson", ".json"):
         return None
     try:
-        doc = mission_files.load_json(path.read_bytes(), str(path))
+        doc = mission_files.load_json(json_files.read_bytes(path), str(path))
     except OSError as err:
         raise ConfigError(f"{path}: cannot read: {err.strerror}") from None
-    except mission_files.PlanError as err:
+    except (json_files.JsonFileError, mission_files.PlanError) as err:
         raise ConfigError(str(err)) from None
     if path.suffix == ".json" and not (isinstance(doc, dict) and (
             doc.get("fileType") == "Plan" or isinstance(doc.get("type"), str))):
@@ -121,6 +121,11 @@ def desk_check(what: str, battery_j: float | None = None, area_file: str | None 
             req = req.model_copy(update={"force": True})
         if area_file is None and imported.area is not None:
             area_file = what  # the file's own geoFence and rallyPoints
+            # Not what a flight keeps to: the controller enforces its run's area, and an import
+            # sends the mission only. Said, so the file's fence is not taken for that one.
+            notes.append(f"checked against the file's own operating area, not scenario "
+                         f"{against.name}'s; a flight keeps to its run's area (the scenario's "
+                         "[area], or the controller's --area), which this file does not set")
         out = check_request(req, against, battery_j, area_file)
         out["notes"] = [*notes, *out["notes"]]
         return out
