@@ -36,6 +36,7 @@ from seaway.contract.messages import (
 from seaway.runtime.bus import Bus
 from seaway.tools.launch.address import ENV_TILES
 from seaway.vessel.frames import GeoOrigin
+from seaway_groundstation.routes.missions import AREA_NOT_SENT
 
 from tests.conftest import BIN, wait_for
 from tests.system.groundstation import axe_check
@@ -220,14 +221,19 @@ def test_a_fleet_of_two_is_told_apart_guarded_and_usable_on_a_phone(procs, zenoh
 
             # Per-waypoint speed: a GeoJSON's speeds_mps in the editor, editable; the first speed is
             # sent as the mission's speed hint (the controller takes one per mission).
+            # The file also carries a keep-out circle: the page says it is not sent.
             line = [[lon0 + k * 1e-4, lat0] for k in range(3)]
-            doc = {"type": "Feature", "geometry": {"type": "LineString", "coordinates": line},
-                   "properties": {"speeds_mps": [None, 1.3, 0.9]}}
+            doc = {"type": "FeatureCollection", "features": [
+                {"type": "Feature", "geometry": {"type": "LineString", "coordinates": line},
+                 "properties": {"speeds_mps": [None, 1.3, 0.9]}},
+                {"type": "Feature", "geometry": {"type": "Point", "coordinates": [lon0, lat0 + 5e-4]},
+                 "properties": {"area": "keep_out", "radius_m": 5.0}}]}
             page.set_input_files("#import-file", files=[{
                 "name": "speeds.geojson", "mimeType": "application/json",
                 "buffer": json.dumps(doc).encode()}])
             page.wait_for_function("document.querySelectorAll('#wp-table tbody tr').length === 3",
                                    timeout=10_000)
+            assert page.locator("#messages .msg", has_text=AREA_NOT_SENT).count() == 1
             speeds = [page.locator(f"#wp-table input[aria-label^='speed {i}']").input_value()
                       for i in range(3)]
             assert speeds == ["", "1.3", "0.9"], speeds

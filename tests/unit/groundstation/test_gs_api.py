@@ -246,6 +246,27 @@ def test_import_real_plan_upload_refused_then_skipped(client: TestClient, vessel
     assert (sent.coa_radius_m, sent.controller, len(sent.waypoints)) == (3.0, "eo-empc", 4)
 
 
+def test_an_imported_plans_own_area_is_said_not_to_be_sent(client: TestClient, vessel: Vessel) -> None:
+    """The mission goes, the file's geoFence does not: the reply lists it with what was left out,
+    so nobody takes the file's fence for the one the vessel keeps to."""
+    from seaway_groundstation.routes.missions import AREA_NOT_SENT
+
+    from tests.unit.groundstation.test_gs_plans import QGC_FENCE, QGC_RALLY
+
+    plain = json.loads((DATA / "simple_square.plan").read_text())
+    fenced = {**plain, "geoFence": QGC_FENCE, "rallyPoints": QGC_RALLY}
+    body = {"coa_radius_m": 3.0, "task_power_w": 10.0, "skip_unsupported": True}
+    r = client.post("/api/vessels/v1/mission/import", headers=AUTH, json={"document": fenced, **body})
+    assert r.status_code == 200, r.text
+    assert AREA_NOT_SENT in r.json()["skipped"] and len(r.json()["skipped"]) == 2  # takeoff too
+    assert len(vessel.requests["mission/set"]) == 1
+    r = client.post("/api/vessels/v1/mission/import", headers=AUTH, json={"document": plain, **body})
+    assert r.status_code == 200 and AREA_NOT_SENT not in r.json()["skipped"]
+    # Reading it for the page's editor says so too (the page shows what a mission leaves out).
+    r = client.post("/api/missions/parse", json={"document": fenced, "skip_unsupported": True})
+    assert r.status_code == 200 and r.json()["area"] and AREA_NOT_SENT in r.json()["skipped"]
+
+
 def test_import_geojson_as_json_body_and_refusals(client: TestClient, vessel: Vessel) -> None:
     doc = json.loads((DATA / "rfc7946-example.geojson").read_text())
     r = client.post("/api/vessels/v1/mission/import", headers=AUTH,

@@ -128,7 +128,9 @@ class MissionReply(CommandReply):
 
     mission: MissionRequest
     skipped: list[str] = Field(default_factory=list,
-                               description="items of an imported file left out (skip_unsupported)")
+                               description="what of an imported file was left out: its items "
+                                           "skipped (skip_unsupported), and its operating area "
+                                           "(the vessel keeps to its run's)")
 
 
 class ParsedMission(BaseModel):
@@ -139,7 +141,10 @@ class ParsedMission(BaseModel):
     waypoints_m: list[dict[str, float]] | None = Field(
         default=None, description="[{x_m, y_m}, ...] through the NED origin of the vessel named in "
                                   "the request (None: no vessel named, or no origin known)")
-    skipped: list[str] = Field(default_factory=list)
+    skipped: list[str] = Field(default_factory=list,
+                               description="what a mission sent from the file leaves out of it: "
+                                           "its items skipped (skip_unsupported), and its "
+                                           "operating area (the vessel keeps to its run's)")
     hints: dict[str, Any] = Field(default_factory=dict,
                                   description="mission parameters the file states")
     speeds_mps: list[float | None] = Field(

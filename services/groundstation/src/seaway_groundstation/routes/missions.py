@@ -29,6 +29,16 @@ from seaway_groundstation.routes.common import (
 from seaway_groundstation.station import GroundStation
 from seaway_groundstation.views import CommandReply, MissionReply, ParsedMission
 
+AREA_NOT_SENT = ("the file's operating area (geoFence and rally points, or GeoJSON area features) "
+                 "is not sent: the vessel keeps to the area its run enforces")
+"""Listed with an import's left-out items when the file carries an area."""
+
+
+def left_out(path: plans.ImportedPath) -> list[str]:
+    """What a mission sent from the file leaves out of it: the items skipped, and its area (the
+    controller enforces its run's), said so that nobody takes the file's fence for that one."""
+    return [*path.skipped, *((AREA_NOT_SENT,) if path.area is not None else ())]
+
 _IMPORT_BODY = {
     "required": True,
     "content": {
@@ -72,7 +82,7 @@ def router(gs: GroundStation, command: list[Any]) -> APIRouter:
             req = bodies.mission_from_import(path, params, time.time_ns())
         except (plans.PlanError, bodies.MissionBuildError) as err:
             raise HTTPException(422, str(err)) from None
-        return await gs.send_mission(vessel, req, path.skipped)
+        return await gs.send_mission(vessel, req, left_out(path))
 
     @r.post("/missions/check",
             responses={404: error_doc("the vessel named is not known"),
@@ -117,7 +127,7 @@ def router(gs: GroundStation, command: list[Any]) -> APIRouter:
             raise HTTPException(422, str(err)) from None
         metres = None if vessel is None else geo.points_m(path.points_deg, gs.fleet.geo_origin(vessel))
         area = None if path.area is None else path.area.model_dump(mode="json", exclude_none=True)
-        return ParsedMission(source=path.source, skipped=list(path.skipped), hints=path.hints, area=area,
+        return ParsedMission(source=path.source, skipped=left_out(path), hints=path.hints, area=area,
                              speeds_mps=list(path.speeds_mps),
                              waypoints=[{"lat_deg": a, "lon_deg": b} for a, b in path.points_deg],
                              waypoints_m=None if metres is None else [{"x_m": x, "y_m": y}
