@@ -6,7 +6,7 @@ import json
 from pathlib import Path
 
 import pytest
-from seaway import mission_files
+from seaway import mission_export, mission_files
 from seaway.contract.config import ConfigError, deploy_path
 from seaway.contract.messages import MessageError, MissionRequest, Waypoint
 from seaway.contract.missions import MissionSpec
@@ -143,7 +143,7 @@ def test_a_geojson_hint_of_the_wrong_json_type_is_refused_not_converted(properti
 
 
 def test_plan_numbers_past_a_floats_range_and_deep_nesting_are_plan_errors() -> None:
-    doc = mission_files.to_plan([(47.0, 8.0), (47.001, 8.0)])
+    doc = mission_export.to_plan([(47.0, 8.0), (47.001, 8.0)])
     for radius in (10**400, float("inf"), "2", True):  # 401 digits, what JSON's 1e400 reads as
         doc["mission"]["items"][0]["params"][1] = radius
         with pytest.raises(mission_files.PlanError, match=r"items\[0\].*acceptance radius params\[1\]"):

@@ -9,6 +9,7 @@ import math
 from pathlib import Path
 
 import pytest
+from seaway import mission_export
 from seaway import mission_files as plans
 from seaway.contract.messages import MISSION_OPTIONS, MissionRequest, Waypoint
 from seaway.mission_files import PlanError
@@ -93,7 +94,7 @@ def test_plan_geofence_and_rally_points_are_read_not_dropped() -> None:
 def test_plan_with_geofence_and_rally_points_round_trips_through_import_and_export() -> None:
     doc = {**load("simple_square.plan"), "geoFence": QGC_FENCE, "rallyPoints": QGC_RALLY}
     path = plans.parse_plan(doc, skip_unsupported=True)
-    out = json.loads(json.dumps(plans.to_plan(path.points_deg, coa_radius_m=2.0, area=path.area)))
+    out = json.loads(json.dumps(mission_export.to_plan(path.points_deg, coa_radius_m=2.0, area=path.area)))
     assert out["geoFence"] == QGC_FENCE
     assert out["rallyPoints"]["points"] == [[47.398, 8.546, 0.0], [47.397, 8.544, 0.0]]  # at the surface
     again = plans.parse_plan(out)
@@ -103,7 +104,8 @@ def test_plan_with_geofence_and_rally_points_round_trips_through_import_and_expo
 def test_geojson_export_carries_the_area_and_reads_it_back() -> None:
     path = plans.parse_plan({**load("simple_square.plan"), "geoFence": QGC_FENCE,
                              "rallyPoints": QGC_RALLY}, skip_unsupported=True)
-    doc = json.loads(json.dumps(plans.to_geojson(path.points_deg, {"coa_radius_m": 2.0}, area=path.area)))
+    doc = json.loads(json.dumps(mission_export.to_geojson(path.points_deg, {"coa_radius_m": 2.0},
+                                                          area=path.area)))
     assert doc["type"] == "FeatureCollection"
     again = plans.parse_geojson(doc)
     assert again.area == path.area and again.points_deg == path.points_deg
@@ -119,7 +121,7 @@ def test_a_bad_plan_fence_is_refused_as_a_plan_error_naming_it() -> None:
 
 def test_plan_round_trip_keeps_points_and_acceptance_radius() -> None:
     points = [(47.3977, 8.5456), (47.3987, 8.5466), (47.3987, 8.5446)]
-    doc = plans.to_plan(points, coa_radius_m=2.5, cruise_speed_mps=1.2)
+    doc = mission_export.to_plan(points, coa_radius_m=2.5, cruise_speed_mps=1.2)
     assert doc["fileType"] == "Plan" and doc["mission"]["version"] == 2
     assert all(item["command"] == 16 and item["type"] == "SimpleItem" for item in doc["mission"]["items"])
     back = plans.parse_plan(json.loads(json.dumps(doc)))
@@ -131,7 +133,7 @@ def test_plan_round_trip_keeps_points_and_acceptance_radius() -> None:
 
 
 def _square() -> dict:
-    return plans.to_plan([(47.0, 8.0), (47.001, 8.0), (47.001, 8.001)])
+    return mission_export.to_plan([(47.0, 8.0), (47.001, 8.0), (47.001, 8.001)])
 
 
 @pytest.mark.parametrize("mutate, match", [
@@ -230,7 +232,8 @@ def test_geojson_export_round_trip_carries_mission_parameters() -> None:
                               waypoints=[Waypoint(lat_deg=47.0, lon_deg=8.0),
                                          Waypoint(lat_deg=47.001, lon_deg=8.001)])
     assert set(plans.FILE_OPTIONS) | {"force"} == set(MISSION_OPTIONS)
-    doc = plans.to_geojson(bodies.mission_points_deg(req.waypoints, None), bodies.mission_properties(req))
+    doc = mission_export.to_geojson(bodies.mission_points_deg(req.waypoints, None),
+                                    bodies.mission_properties(req))
     assert doc["geometry"]["coordinates"] == [[8.0, 47.0], [8.001, 47.001]]
     path = plans.parse_document(json.loads(json.dumps(doc)))
     again = bodies.mission_from_import(path, bodies.ImportParams(), 2)

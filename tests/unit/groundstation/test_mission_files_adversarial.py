@@ -15,6 +15,7 @@ from typing import Any
 
 import pytest
 from fastapi.testclient import TestClient
+from seaway import mission_export
 from seaway import mission_files as plans
 from seaway.contract import keys
 from seaway.contract.messages import Reply
@@ -28,7 +29,7 @@ LINE = {"type": "LineString", "coordinates": [[8.0, 47.0], [8.001, 47.0]]}
 
 def plan(points: list[tuple[float, float]] | None = None) -> dict[str, Any]:
     """A plan as QGroundControl writes it, through JSON (as a reader gets it)."""
-    doc = plans.to_plan(points or [(47.0, 8.0), (47.001, 8.0), (47.001, 8.001)], coa_radius_m=2.0)
+    doc = mission_export.to_plan(points or [(47.0, 8.0), (47.001, 8.0), (47.001, 8.001)], coa_radius_m=2.0)
     return json.loads(json.dumps(doc))
 
 

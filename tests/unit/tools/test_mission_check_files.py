@@ -9,6 +9,7 @@ import math
 from pathlib import Path
 
 import pytest
+from seaway import mission_export
 from seaway import mission_files as plans
 from seaway.simkit.scenario import load_scenario
 from seaway.tools.mission_check_cli import check_request, foreign_request
@@ -41,7 +42,8 @@ def test_a_plan_across_the_antimeridian_is_checked_the_short_way(tmp_path: Path,
     east_deg = 30.0 / (111_320.0 * math.cos(math.radians(10.0)))  # 30 m each side of the origin
     north_deg = north_m / 110_600.0
     lon_w, lon_e = 179.9999 - east_deg, 179.9999 + east_deg - 360.0  # the east one is past 180
-    doc = json.loads(json.dumps(plans.to_plan([(10.0 + north_deg, lon_w), (10.0 + north_deg, lon_e)])))
+    doc = json.loads(json.dumps(mission_export.to_plan([(10.0 + north_deg, lon_w),
+                                                         (10.0 + north_deg, lon_e)])))
     req, _ = foreign_request(tmp_path / "m.plan", plans.parse_plan(doc), scenario, None, None)
     out = check_request(req, scenario)
     assert out["path_length_m"] == pytest.approx(60.0, abs=0.5)
@@ -53,7 +55,7 @@ def test_a_plan_across_the_antimeridian_is_checked_the_short_way(tmp_path: Path,
 def test_a_plan_across_the_globe_is_refused_by_its_distance_from_the_origin(tmp_path: Path) -> None:
     (tmp_path / "dateline.toml").write_text(SCENARIO)
     scenario = load_scenario(tmp_path / "dateline.toml")
-    doc = json.loads(json.dumps(plans.to_plan([(90.0, 0.0), (-90.0, 180.0)])))
+    doc = json.loads(json.dumps(mission_export.to_plan([(90.0, 0.0), (-90.0, 180.0)])))
     req, _ = foreign_request(tmp_path / "m.plan", plans.parse_plan(doc), scenario, None, None)
     out = check_request(req, scenario)
     assert out["verdict"] == "refused" and out["path_length_m"] is None

@@ -1,5 +1,6 @@
 """Mission files from other tools: QGroundControl ``.plan`` and GeoJSON, read (the ground
-station's import, ``seaway mission check``) and written (the ground station's export).
+station's import, ``seaway mission check``); ``seaway.mission_export`` writes them (the ground
+station's export).
 
 Pure functions over parsed JSON documents (no bus, no web framework). Both formats carry a path as
 WGS84 latitude/longitude in degrees; Seaway's ``MissionRequest`` takes the same (``Waypoint.lat_deg``
@@ -33,9 +34,9 @@ from dataclasses import dataclass, field
 from typing import Annotated, Any, Literal, get_args, get_origin
 
 from seaway import json_files
-from seaway.area.geojson import AREA_PROPERTY, geojson_features, spec_from_geojson
+from seaway.area.geojson import AREA_PROPERTY, spec_from_geojson
 from seaway.area.model import AreaError
-from seaway.area.plan import plan_sections, spec_from_plan
+from seaway.area.plan import spec_from_plan
 from seaway.area.spec import AreaSpec, read_lat_lon
 from seaway.contract.messages.requests import MAX_SPEED_HINT_MPS, MISSION_OPTIONS, MissionOptions
 from seaway.contract.units import finite_number
@@ -336,9 +337,9 @@ def _area(read: Any, doc: Any) -> AreaSpec | None:
 
 
 FILE_OPTIONS: tuple[str, ...] = tuple(o for o in MISSION_OPTIONS if o != "force")
-"""The mission options a GeoJSON mission carries as Feature properties (what ``to_geojson`` writes
-and an import reads back as hints): all but ``force``, which is the operator's choice when sending,
-never a file's."""
+"""The mission options a GeoJSON mission carries as Feature properties (what
+``mission_export.to_geojson`` writes and an import reads back as hints): all but ``force``, which is
+the operator's choice when sending, never a file's."""
 
 
 def _json_types(option: str) -> tuple[type, ...]:
@@ -485,65 +486,7 @@ def _geojson_speeds(properties: Any, n: int) -> list[float | None]:
             for k, v in enumerate(raw)]
 
 
-# ---------------------------------------------------------------------------------------------
-# Writing
-# ---------------------------------------------------------------------------------------------
-
-
-def _check_points(points_deg: Sequence[tuple[float, float]]) -> None:
+def check_points(points_deg: Sequence[tuple[float, float]]) -> None:
+    """PlanError naming the first waypoint whose (lat, lon) [deg] is not a WGS84 position."""
     for i, (lat, lon) in enumerate(points_deg):
         _lat_lon(lat, lon, f"waypoint {i}")
-
-
-def to_plan(points_deg: Sequence[tuple[float, float]], *, coa_radius_m: float | None = None,
-            cruise_speed_mps: float | None = None, area: AreaSpec | None = None) -> dict[str, Any]:
-    """A QGroundControl plan (``fileType: "Plan"``, mission version 2) with one NAV_WAYPOINT per
-    point [deg], in frame GLOBAL_RELATIVE_ALT at altitude 0 m; ``coa_radius_m`` goes into each
-    item's acceptance radius (params[1]) and ``cruise_speed_mps`` into ``cruiseSpeed``; ``area``
-    (in degrees) into ``geoFence`` and ``rallyPoints``."""
-    _check_points(points_deg)
-    try:
-        fence, rally = plan_sections(area)
-    except AreaError as err:
-        raise PlanError(str(err)) from None
-    items = []
-    for i, (lat, lon) in enumerate(points_deg):
-        items.append({
-            "AMSLAltAboveTerrain": None, "Altitude": 0, "AltitudeMode": 1, "autoContinue": True,
-            "command": NAV_WAYPOINT, "doJumpId": i + 1, "frame": 3,
-            "params": [0, coa_radius_m or 0, 0, None, lat, lon, 0], "type": "SimpleItem",
-        })
-    home = [points_deg[0][0], points_deg[0][1], 0] if points_deg else [0, 0, 0]
-    return {
-        "fileType": "Plan",
-        "geoFence": fence,
-        "groundStation": "Seaway",
-        "mission": {
-            "cruiseSpeed": cruise_speed_mps or 1.0, "firmwareType": MAV_AUTOPILOT_GENERIC,
-            "globalPlanAltitudeMode": 1, "hoverSpeed": cruise_speed_mps or 1.0, "items": items,
-            "plannedHomePosition": home, "vehicleType": MAV_TYPE_SURFACE_BOAT,
-            "version": PLAN_MISSION_VERSION,
-        },
-        "rallyPoints": rally,
-        "version": 1,
-    }
-
-
-def to_geojson(points_deg: Sequence[tuple[float, float]],
-               properties: dict[str, Any] | None = None,
-               area: AreaSpec | None = None) -> dict[str, Any]:
-    """A GeoJSON Feature with one LineString of the points ([lon, lat] positions, RFC 7946) and
-    ``properties`` (Seaway writes the mission's parameters there, read back as hints). With an
-    ``area`` (in degrees): a FeatureCollection of that Feature and the area's features."""
-    _check_points(points_deg)
-    line = {
-        "type": "Feature",
-        "geometry": {"type": "LineString", "coordinates": [[lon, lat] for lat, lon in points_deg]},
-        "properties": dict(properties or {}),
-    }
-    if area is None:
-        return line
-    try:
-        return {"type": "FeatureCollection", "features": [line, *geojson_features(area)]}
-    except AreaError as err:
-        raise PlanError(str(err)) from None

@@ -12,6 +12,7 @@ from urllib.parse import quote
 from fastapi import APIRouter, HTTPException, Query, Request
 from fastapi.responses import JSONResponse, Response
 from pydantic import ValidationError
+from seaway import mission_export
 from seaway import mission_files as plans
 from seaway.contract import keys
 from seaway.contract.messages import MissionCommand, MissionRequest
@@ -206,10 +207,10 @@ def _mission_file(req: MissionRequest, origin: Any, vessel: str,
     except bodies.RangeError as err:
         raise HTTPException(422, str(err)) from None
     if format == "plan":
-        doc, media, ext = plans.to_plan(points, coa_radius_m=req.coa_radius_m,
+        doc, media, ext = mission_export.to_plan(points, coa_radius_m=req.coa_radius_m,
                                         cruise_speed_mps=req.speed_hint_mps), "application/json", "plan"
     else:
-        doc, media, ext = plans.to_geojson(points, bodies.mission_properties(req)), \
+        doc, media, ext = mission_export.to_geojson(points, bodies.mission_properties(req)), \
             "application/geo+json", "geojson"
     return Response(json.dumps(doc, indent=2), media_type=media,
                     headers={"Content-Disposition": content_disposition(
