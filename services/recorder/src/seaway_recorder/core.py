@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import json
 import logging
+import os
 import time
 from collections import Counter
 from dataclasses import dataclass, field
@@ -87,6 +88,9 @@ class RecorderStats:
     logs: int = 0
     dropped: int = 0
     flushes: int = 0
+    lost_files: int = 0
+    """Files deleted, replaced or truncated by someone else while being written: what they held
+    is gone; the recording went on in a new file."""
     files: list[str] = field(default_factory=list)
     by_topic: Counter[str] = field(default_factory=Counter)
     last_error: str = ""
@@ -94,7 +98,7 @@ class RecorderStats:
     def as_metadata(self) -> dict[str, str]:
         out = {k: str(getattr(self, k)) for k in
                ("messages", "bytes", "malformed", "unregistered", "derived", "underived", "events",
-                "logs", "dropped", "flushes")}
+                "logs", "dropped", "flushes", "lost_files")}
         out["last_error"] = self.last_error
         return out
 
@@ -123,6 +127,33 @@ class _OpenFile:
         self.sequence: list[int] = [0]
         """Messages written so far per channel id (ids count from 1)."""
         self.messages = 0
+        st = os.fstat(self.stream.fileno())
+        self.identity = (st.st_dev, st.st_ino)
+        self.moved_said = False
+
+    def lost(self) -> str:
+        """Why the file written is no longer the recording ('' if it is): deleted (or replaced by
+        a rename: its bytes go nowhere once closed), or truncated under the writer (what it
+        holds no longer reads). A file moved away is still written, where it went: '' (said once)."""
+        fd = self.stream.fileno()
+        st = os.fstat(fd)
+        if st.st_nlink == 0:
+            return "deleted or replaced by another process"
+        # Where the OS writes next (bytes still in the stream's buffer not counted): a file shorter
+        # than that was cut. Asked before the next write, which would make it as long again.
+        if st.st_size < os.lseek(fd, 0, os.SEEK_CUR):
+            return "truncated by another process"
+        if not self.moved_said:
+            try:
+                here = os.stat(self.path)
+                moved = (here.st_dev, here.st_ino) != self.identity
+            except FileNotFoundError:
+                moved = True
+            if moved:
+                self.moved_said = True
+                log.warning("%s was moved away while recording: writing on where it went (another "
+                            "file at its name is not this recording)", self.path)
+        return ""
 
     def channel(self, spec: schemas.ChannelSpec) -> int:
         cid = self.channels.get(spec.topic)
@@ -253,6 +284,24 @@ class RecordingWriter:
         if self._file is not None:
             self._file.writer.flush()
             self.stats.flushes += 1
+
+    def check_file(self, now_ns: int) -> Path | None:
+        """Before writing more: if the file being written was deleted, replaced or truncated by another
+        process (``_OpenFile.lost``), say so, count it (``lost_files``) and go on in a new file
+        (the next free name, with the attachments and run metadata again); returns its path.
+        Writing on into it would lose every later message too, silently: no write fails."""
+        f = self._file
+        if f is None:
+            return None
+        why = f.lost()
+        if not why:
+            return None
+        self.stats.lost_files += 1
+        self.stats.last_error = f"{f.path}: {why} while recording"
+        log.error("%s was %s while recording: its %d messages are lost; recording on in a new "
+                  "file", f.path, why, f.messages)
+        self._close_file(now_ns)
+        return self.open(now_ns)
 
     def close(self, now_ns: int | None = None) -> list[str]:
         """Finish the file (summary and indexes); returns every file written."""

@@ -303,6 +303,7 @@ def _drain(feed: LiveFeed, queue: SampleQueue, server: Server, limit: int) -> in
     items = queue.items
     while items and n < limit:
         key, payload, encoding, t_ns, _carried = items.popleft()
+        queue.out_bytes += len(payload)
         n += 1
         for m in feed.feed(key, payload, encoding, t_ns):
             server.log(m)

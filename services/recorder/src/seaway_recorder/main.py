@@ -160,7 +160,7 @@ def run(argv: Sequence[str]) -> int:
                              max_seconds=cfg.max_seconds, attachments=atts, metadata=meta,
                              validate=cfg.validate_samples, foxglove=cfg.foxglove,
                              default_origin=origin, time=rec_time)
-    queue = SampleQueue(cfg.queue)
+    queue = SampleQueue(cfg.queue)  # and at most node.DEFAULT_QUEUE_BYTES of payloads
     # The recorder records whatever runs (a shore recorder sees a boat launched elsewhere), so it
     # does not take part in the run agreement; its run only describes the recording.
     with run_service("recorder", args, run=run, agree=False) as ctx:
@@ -209,7 +209,7 @@ def run(argv: Sequence[str]) -> int:
             log.error("could not finish %s: %s (try 'seaway record recover')", writer.path, err)
             return 1
     summary = {"files": files, **writer.stats.as_metadata(), "by_topic": dict(writer.stats.by_topic),
-               "repeats_not_written": queue.repeats}
+               "repeats_not_written": queue.repeats, "dropped_bytes": queue.dropped_bytes}
     log.info("recorder finished: %s", writer.stats.line())
     print(f"recording finished: {', '.join(files)}", flush=True)
     print(json.dumps(summary), flush=True)

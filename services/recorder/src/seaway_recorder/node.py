@@ -42,11 +42,25 @@ LATE_NS = 500_000_000
 that long in a queue): logged at its publication time, and looked up among a predecessor's."""
 
 
-class SampleQueue:
-    """Bounded hand-over from the bus's threads to the writer; overflow is counted, never blocks."""
+DEFAULT_QUEUE_BYTES = 256 << 20
+"""Payload bytes queued between the bus and the writer before drops [bytes]: the count alone
+(``--queue``) let 200,000 samples of a megabyte each (the bus takes far larger) hold 200 GB."""
 
-    def __init__(self, capacity: int) -> None:
+
+class SampleQueue:
+    """Bounded hand-over from the bus's threads to the writer; overflow is counted, never blocks.
+
+    Bounded twice: ``capacity`` samples and ``max_bytes`` of their payloads [bytes]; a sample
+    larger than ``max_bytes`` is still taken when nothing is queued (memory stays below
+    ``max_bytes`` plus one sample). A consumer that takes items adds their payload sizes to
+    ``out_bytes`` (only it writes that; the bus's threads write ``in_bytes``)."""
+
+    def __init__(self, capacity: int, max_bytes: int = DEFAULT_QUEUE_BYTES) -> None:
         self.capacity = capacity
+        self.max_bytes = max_bytes
+        self.in_bytes = 0
+        self.out_bytes = 0
+        self.dropped_bytes = 0
         self.items: collections.deque[tuple[str, bytes, str, int, Any]] = collections.deque()
         """(key, bytes, encoding, receive time [ns], what the bytes were encoded from in process
         (``RawSample.carried``) or None)."""
@@ -77,14 +91,18 @@ class SampleQueue:
             with self._lock:
                 self.repeats += 1
             return
-        if len(self.items) >= self.capacity:
-            with self._lock:
+        size = len(sample.payload)
+        with self._lock:  # the bus may deliver on several threads: in_bytes must not lose a count
+            queued = self.in_bytes - self.out_bytes
+            if len(self.items) >= self.capacity or (queued + size > self.max_bytes and queued > 0):
                 self.dropped += 1
-            return
-        # A sample a publisher's cache gave late (to a recorder that restarted) is logged when it
-        # was published, where it belongs on the timeline.
-        self.items.append((sample.key, sample.payload, sample.encoding,
-                           sample.published_ns if late else now_ns, sample.carried))
+                self.dropped_bytes += size
+                return
+            self.in_bytes += size
+            # A sample a publisher's cache gave late (to a recorder that restarted) is logged
+            # when it was published, where it belongs on the timeline.
+            self.items.append((sample.key, sample.payload, sample.encoding,
+                               sample.published_ns if late else now_ns, sample.carried))
         if self.timeline is not None and "/lockstep/" in sample.key:
             # Its arrival, not when it is written (seaway.runtime.timeline: the recorder's "heard").
             stamp = stamp_of(sample.payload)
@@ -148,6 +166,7 @@ def drain(writer: RecordingWriter, queue: SampleQueue, limit: int | None,
     answers: list[tuple[str, PeriodDone]] = []
     while items and (limit is None or n < limit):
         sample_key, sample, sample_encoding, t_ns, carried = items.popleft()
+        queue.out_bytes += len(sample)
         n += 1
         copy = sample_encoding == bundle.ENCODING and bundle.is_resent(sample, carried)
         samples = writer.unpack(sample_key, sample, sample_encoding, t_ns, carried)
@@ -296,6 +315,9 @@ class RecorderNode(Node):
     def _write(self) -> None:
         writer, queue = self.writer, self.queue
         queue.arrived.clear()
+        if time.monotonic_ns() >= self._next_flush:
+            # Before this tick's samples go in: a file deleted or cut under us gets none of them.
+            writer.check_file(time.time_ns())
         self._drained = drain(writer, queue, limit=DRAIN_BATCH, witness=self.witness,
                               kept=self.kept)
         now = time.monotonic_ns()
