@@ -53,6 +53,23 @@ def test_a_new_lockstep_episode_continues_the_timeline() -> None:
     assert t.bus(TRUTH, 100_000_000, 2002) == E + 3_200_000_000
 
 
+def test_a_members_absurd_stamp_moves_neither_the_timeline_nor_later_episodes() -> None:
+    """A controller's message stamped 10**17 - 1 ns (3.17 years, just under the wall-clock limit)
+    was logged 3.17 years on, became the anchor for wall-timed records, and at the next sim restart
+    shifted every later message of the run by 3.17 years."""
+    t = RecordingTime(lockstep=True, epoch_ns=E, gap_ns=100_000_000)
+    w0 = 1_790_000_000_000_000_000
+    for k in range(11):  # 0 .. 1 s
+        t.bus(TRUTH, k * 100_000_000, w0 + k)
+        assert t.bus(STATE, k * 100_000_000, w0 + k) == E + k * 100_000_000  # members: as ever
+    ctrl = keys.MISSION_STATUS.key(V)
+    assert t.bus(ctrl, 10**17 - 1, w0 + 20) == E + 1_000_000_000  # at the time reached
+    assert t.bus(ctrl, 1_200_000_000, w0 + 21) == E + 1_200_000_000  # two periods ahead: its own
+    assert t.wall(w0 + 30) == E + 1_000_000_000  # wall-timed records: not 3 years on
+    assert t.bus(TRUTH, 0, w0 + 40) == E + 1_100_000_000  # a sim restart: on from the sim's end
+    assert t.new_episodes[-1]["offset_ns"] == str(E + 1_100_000_000)
+
+
 def test_sim_epoch_option() -> None:
     assert parse_epoch("2026-05-01T09:00:00Z") == int(dt.datetime(2026, 5, 1, 9, tzinfo=dt.UTC)
                                                       .timestamp()) * 10**9

@@ -30,6 +30,7 @@ import functools
 import re
 
 from seaway.contract import keys
+from seaway.runtime.stamps import LOCKSTEP_AHEAD_PERIODS
 
 TIME_METADATA = "seaway.time"
 """Metadata record: ``log_time`` (``receive`` or ``sim``), ``epoch_ns``, ``epoch_utc``,
@@ -105,6 +106,7 @@ class RecordingTime:
         """Added to a sim stamp for the current episode's log time."""
         self.episode = 0
         self._episode_max_ns = 0
+        """The newest sim stamp of the episode [ns] (only the sim's samples move it)."""
         self._last_sim: dict[str, int] = {}
         self._anchor_wall: collections.deque[int] = collections.deque(maxlen=ANCHORS)
         self._anchor_log: collections.deque[int] = collections.deque(maxlen=ANCHORS)
@@ -140,11 +142,19 @@ class RecordingTime:
             return self.wall(receive_ns)
         if copy:
             return self.offset_ns + stamp_ns
-        if _sim_produced(key):
-            last = self._last_sim.get(key)
-            if last is not None and stamp_ns < last:
-                self._new_episode()
-            self._last_sim[key] = stamp_ns
+        if not _sim_produced(key):
+            # A member's message is stamped with a period the sim has published, at most
+            # LOCKSTEP_AHEAD_PERIODS ahead of the newest sim sample heard (bundles come on
+            # different connections). A stamp beyond is no sim time (an insider's absurd stamp,
+            # 3 years ahead): logged at the time reached, and it moves neither the episode's end,
+            # which offsets every later episode, nor the anchors that place wall-timed records.
+            if stamp_ns > self._episode_max_ns + LOCKSTEP_AHEAD_PERIODS * self.gap_ns:
+                return self.wall(receive_ns)
+            return self.offset_ns + stamp_ns
+        last = self._last_sim.get(key)
+        if last is not None and stamp_ns < last:
+            self._new_episode()
+        self._last_sim[key] = stamp_ns
         self._episode_max_ns = max(self._episode_max_ns, stamp_ns)
         log_ns = self.offset_ns + stamp_ns
         if not self._anchor_log or log_ns > self._anchor_log[-1]:
