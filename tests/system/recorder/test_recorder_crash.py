@@ -105,3 +105,15 @@ def test_sigterm_finishes_a_complete_indexed_file_and_rotation_keeps_files_whole
         assert "seaway.run" in meta and "seaway.recorder.summary" in meta
     assert_contiguous(seqs)
     assert int(final["by_topic"]["seaway/crash/ctrl/thrust"]) == len(seqs)
+
+
+def test_an_out_folder_that_cannot_be_written_is_refused_naming_it(zenoh_env, tmp_path) -> None:
+    """--out under a file (a folder that cannot be made): exit 2 naming the option and the error,
+    not a traceback."""
+    blocker = tmp_path / "a-file"
+    blocker.write_text("")
+    r = subprocess.run([str(BIN / "seaway"), "record", "--out", str(blocker / "rec"),
+                        "--key-expr", "seaway/nowhere/**"], env=zenoh_env, capture_output=True,
+                       text=True, timeout=60, check=False)
+    assert r.returncode == 2, r.stdout + r.stderr
+    assert f"--out {blocker / 'rec'}" in r.stderr and "Traceback" not in r.stderr

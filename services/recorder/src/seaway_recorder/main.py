@@ -166,7 +166,12 @@ def run(argv: Sequence[str]) -> int:
     with run_service("recorder", args, run=run, agree=False) as ctx:
         started_ns = time.time_ns()
         previous = None if run.lockstep or writer.rotating else newest_recording(writer.base)
-        path = writer.open(started_ns)
+        try:
+            path = writer.open(started_ns)
+        except OSError as err:  # a folder that cannot be made or written: said, not a traceback
+            print(f"seaway record: --out {cfg.out}: cannot write a recording there: {err}",
+                  file=sys.stderr)
+            return 2
         print(f"recording {', '.join(exprs)} to {path}", flush=True)
         # In lockstep the recorder is a member: the sim does not move on until it is on disk.
         witness = None
