@@ -23,6 +23,8 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import re
+import signal
 import time
 
 from seaway.contract import keys
@@ -214,6 +216,32 @@ MALFORMED = [
     ("nav/state", b"not json at all"),
     ("ctrl/thrust", b'{"stamp_ns": -1, "thrust_port_n": 1, "thrust_starboard_n": 2}'),
 ]
+
+
+STATUS_INTERVAL_S = 0.2
+"""The recorder's --status-interval in these tests: how often it says how many it has written."""
+_WRITTEN = re.compile(r"messages ([\d,]+), bytes [\d,]+, malformed ([\d,]+)")
+
+
+def written(log: str) -> int:
+    """Messages the recorder has taken so far (written, malformed ones included), from its latest
+    status line (``RecorderStats.line``) in ``log``."""
+    found = _WRITTEN.findall(log)
+    if not found:
+        return 0
+    messages, malformed = found[-1]
+    return int(messages.replace(",", "")) + int(malformed.replace(",", ""))
+
+
+def stop_when_written(procs, rec, count: int, timeout_s: float = 30.0) -> None:
+    """SIGTERM the recorder once it has taken ``count`` messages. The publisher's last put only
+    queues its sample (Zenoh's BLOCK congestion control); on a busy machine samples were still on
+    their way when the recorder was stopped 0.3 s later, and the run lacked its end."""
+    deadline = time.monotonic() + timeout_s
+    while (got := written(procs.log(rec))) < count:  # no tests.conftest: this also runs alone
+        assert time.monotonic() < deadline, f"the recorder took {got} of {count} messages"
+        time.sleep(0.05)
+    procs.stop(rec, signal.SIGTERM, timeout_s=30)
 
 
 def steady(session, vessel: str, rate_hz: float) -> None:

@@ -30,12 +30,13 @@ def json_lines(text: str) -> list[dict]:
 def record_mission(procs, env, out: Path, malformed: int = 0, extra: list[str] = ()) -> tuple[dict, dict]:
     """Recorder + mission publisher; returns (publisher summary, recorder summary)."""
     rec = procs.start([str(BIN / "seaway"), "record", "--out", str(out), "--scenario", "paper-c1",
-                       "--meta", "test=recorder-mission", *extra], env, "recorder")
+                       "--meta", "test=recorder-mission",
+                       "--status-interval", str(mp.STATUS_INTERVAL_S), *extra], env, "recorder")
     wait_for(lambda: "READY" in procs.log(rec), 20, what="recorder ready")
     pub = procs.start([sys.executable, PUBLISHER, "--malformed", str(malformed)], env, "publisher")
     assert pub.wait(60) == 0, procs.log(pub)
     sent = json_lines(procs.log(pub))[-1]
-    procs.stop(rec, signal.SIGTERM, timeout_s=20)
+    mp.stop_when_written(procs, rec, sent["sent"] + malformed)
     assert rec.returncode == 0, procs.log(rec)
     return sent, json_lines(procs.log(rec))[-1]
 

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import json
 import math
-import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -25,14 +24,14 @@ PUBLISHER = str(Path(__file__).parent / "mission_publisher.py")
 
 def test_report_compares_the_budgets_predictions_with_the_energy_used(procs, zenoh_env, tmp_path) -> None:
     out = tmp_path / "run"
-    rec = procs.start([str(BIN / "seaway"), "record", "--out", str(out), "--scenario", "paper-c1"],
-                      zenoh_env, "recorder")
+    rec = procs.start([str(BIN / "seaway"), "record", "--out", str(out), "--scenario", "paper-c1",
+                       "--status-interval", str(mp.STATUS_INTERVAL_S)], zenoh_env, "recorder")
     wait_for(lambda: "READY" in procs.log(rec), 60, what="recorder ready")
     pub = procs.start([sys.executable, PUBLISHER, "--energy"], zenoh_env, "publisher")
     assert pub.wait(120) == 0, procs.log(pub)
-    procs.stop(rec, signal.SIGTERM, timeout_s=30)
-    assert rec.returncode == 0, procs.log(rec)
     msgs, live = mp.generate(with_energy=True)
+    mp.stop_when_written(procs, rec, len(msgs))
+    assert rec.returncode == 0, procs.log(rec)
     sent = json.loads([line for line in procs.log(pub).splitlines() if line.startswith("{")][-1])
     assert sent["sent"] == len(msgs)
 

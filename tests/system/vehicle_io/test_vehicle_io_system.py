@@ -322,7 +322,9 @@ def test_peer_watchdog_zero_thrust_within_timeout_plus_one_period(zenoh_env, pro
         pub.put(thrust(30.0, 30.0))
         rec = wait_for(lambda: next((r for r in peer.manual_controls_since(t_resume)
                                      if (r.y, r.z) == commanded), None), 1, what="resumed thrust")
-        assert (rec.arrival_mono_ns - t_resume) / 1e9 < PERIOD_S
+        # At the latest with the next tick (one period); a second one is the margin for a busy
+        # machine, where this process's own threads (the put, the peer's receive) wait their turn.
+        assert (rec.arrival_mono_ns - t_resume) / 1e9 < 2 * PERIOD_S
         status.wait(lambda s: s.failsafe is None, 2, "failsafe cleared", keep=True)
     alive(vio, procs)
 
