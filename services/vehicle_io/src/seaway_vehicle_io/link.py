@@ -34,6 +34,7 @@ import logging
 import select
 import socket
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -301,20 +302,19 @@ class MavlinkLink:
                 self._take_datagram(data, addr, got)
         return got
 
-    def _recv_some(self, sock: socket.socket) -> list[tuple[bytes, Address]]:
-        """Up to ``MAX_DATAGRAMS_PER_READ`` datagrams waiting on ``sock``, without blocking."""
-        out: list[tuple[bytes, Address]] = []
+    def _recv_some(self, sock: socket.socket) -> Iterator[tuple[bytes, Address]]:
+        """Up to ``MAX_DATAGRAMS_PER_READ`` datagrams waiting on ``sock``, without blocking. The
+        address as ``recvfrom`` gives it (IPv4: (host, port)): this is a flood's hot path."""
         for _ in range(MAX_DATAGRAMS_PER_READ):
             try:
                 data, addr = sock.recvfrom(mavutil.UDP_MAX_PACKET_LEN)
             except (BlockingIOError, InterruptedError):
-                break
+                return
             except ConnectionRefusedError:
                 continue  # ICMP port unreachable for an earlier send (autopilot not up): harmless
             except OSError as err:
                 raise LinkClosedError(f"{self.url}: {err}") from err
-            out.append((data, _address(addr)))
-        return out
+            yield data, addr
 
     def _take_datagram(self, data: bytes, addr: Address, got: Received) -> None:
         """Parse one datagram from the autopilot (or from anyone, before the lock) into ``got``."""
