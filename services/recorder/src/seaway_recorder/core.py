@@ -10,6 +10,8 @@ and ``write_event`` add the run's log lines and the launcher's events.
 
 ``flush()`` ends the chunk in progress and writes it with its message indexes;
 the recorder's loop calls it at least every flush interval, which bounds what a SIGKILL can lose.
+A disk with no room fails a ``flush``, an ``open`` or a ``close`` (``mcapfile.disk_full``) without
+changing what is on disk or in hand: each can be called again once there is room (``resume``).
 ``close()`` writes the summary (statistics, chunk/attachment/metadata indexes) so the file is fully
 indexed. Rotation (``max_bytes``, ``max_seconds``) closes a file the same way and opens the next,
 numbered one; every file carries the attachments and run metadata again, so each stands alone.
@@ -24,7 +26,7 @@ import time
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
 from seaway.contract import bundle
 from seaway.contract.messages import MessageError, PeriodDone
@@ -36,7 +38,7 @@ from seaway.vessel.frames import GeoOrigin
 
 from seaway_recorder import derive, schemas
 from seaway_recorder.logtail import LogLine
-from seaway_recorder.mcapfile import McapWriter, check_compression
+from seaway_recorder.mcapfile import AllOrNothing, McapWriter, check_compression
 
 log = logging.getLogger("seaway.recorder")
 
@@ -91,6 +93,10 @@ class RecorderStats:
     lost_files: int = 0
     """Files deleted, replaced or truncated by someone else while being written: what they held
     is gone; the recording went on in a new file."""
+    no_room: int = 0
+    """Times the disk had no room for the recording: the recorder waited for room each time."""
+    no_room_s: float = 0.0
+    """Time spent waiting for room on the disk [s]."""
     files: list[str] = field(default_factory=list)
     by_topic: Counter[str] = field(default_factory=Counter)
     last_error: str = ""
@@ -98,7 +104,8 @@ class RecorderStats:
     def as_metadata(self) -> dict[str, str]:
         out = {k: str(getattr(self, k)) for k in
                ("messages", "bytes", "malformed", "unregistered", "derived", "underived", "events",
-                "logs", "dropped", "flushes", "lost_files")}
+                "logs", "dropped", "flushes", "lost_files", "no_room")}
+        out["no_room_s"] = f"{self.no_room_s:.3f}"
         out["last_error"] = self.last_error
         return out
 
@@ -119,9 +126,16 @@ class _OpenFile:
 
     def __init__(self, path: Path, chunk_size: int, compression: str) -> None:
         self.path = path
-        self.stream: IO[bytes] = open_private(path)  # closed in close(); only the user reads it
+        # Closed in close(); only the user reads it. Unbuffered and all or nothing per write: a
+        # full disk fails a write whole, where it is made (mcapfile.AllOrNothing).
+        self.stream = AllOrNothing(open_private(path, buffering=0))
         self.writer = McapWriter(self.stream, chunk_size=chunk_size, compression=compression)
-        self.writer.start(profile=PROFILE, library=LIBRARY)
+        try:
+            self.writer.start(profile=PROFILE, library=LIBRARY)
+        except BaseException:
+            self.writer.close()
+            self.stream.close()
+            raise
         self.schemas: dict[tuple[str, bytes], int] = {}
         self.channels: dict[str, int] = {}
         self.sequence: list[int] = [0]
@@ -176,10 +190,16 @@ class _OpenFile:
     def size(self) -> int:
         return self.stream.tell()
 
-    def close(self) -> None:
-        self.writer.finish()
-        self.stream.flush()
+    def close(self, metadata: tuple[str, dict[str, str]]) -> None:
+        """Finish the file with a last ``metadata`` record; a failed finish changes nothing."""
+        self.writer.finish(metadata)
         self.stream.close()
+
+    def abandon(self) -> None:
+        """Let go of a file that could not be started: closed, and removed (it holds nothing)."""
+        self.writer.close()
+        self.stream.close()
+        self.path.unlink(missing_ok=True)
 
 
 class RecordingWriter:
@@ -216,6 +236,8 @@ class RecordingWriter:
                          else None)
         self._derived_sources = {s.suffix for s in derive.FoxgloveDeriver.SOURCES}
         self._file: _OpenFile | None = None
+        self._open_failed: OSError | None = None
+        """Why the last ``open`` failed (a full disk): ``flush`` says it again until a file opens."""
         self._file_index = 0
         self._file_opened_ns = 0
         self._channel_specs: dict[str, tuple[schemas.ChannelSpec, bool]] = {}
@@ -236,18 +258,25 @@ class RecordingWriter:
         path = self._next_path()
         if not path.parent.is_dir():  # a folder of its own (a run folder given may be shared)
             private_folder(path.parent)
-        self._file = _OpenFile(path, self.chunk_size, self.compression)
+        f = _OpenFile(path, self.chunk_size, self.compression)
+        try:
+            for a in self.attachments:
+                f.writer.add_attachment(a.create_time_ns, now_ns, a.name, a.media_type, a.data)
+            for name, data in self.metadata.items():
+                meta = dict(data)
+                if name == RUN_METADATA and self.rotating:
+                    meta["file_index"] = str(self._file_index)
+                f.writer.add_metadata(name, meta)
+            f.writer.add_metadata(TIME_METADATA, self.time.metadata())
+            f.writer.flush()
+        except BaseException as err:  # no room for its start (a full disk): no file, until ``resume``
+            f.abandon()
+            self._open_failed = err if isinstance(err, OSError) else None
+            raise
+        self._open_failed = None
+        self._file = f
         self._file_opened_ns = now_ns
         self._file_index += 1
-        for a in self.attachments:
-            self._file.writer.add_attachment(a.create_time_ns, now_ns, a.name, a.media_type, a.data)
-        for name, data in self.metadata.items():
-            meta = dict(data)
-            if name == RUN_METADATA and self.rotating:
-                meta["file_index"] = str(self._file_index - 1)
-            self._file.writer.add_metadata(name, meta)
-        self._file.writer.add_metadata(TIME_METADATA, self.time.metadata())
-        self._file.writer.flush()
         self.stats.files.append(str(path))
         log.info("recording to %s", path)
         return path
@@ -260,10 +289,10 @@ class RecordingWriter:
         f = self._file
         if f is None:
             return
+        f.writer.flush()  # the last chunk first: the summary's counts then hold whatever comes next
         summary = self.stats.as_metadata()
         summary.update({"file_messages": str(f.messages), "closed_at_ns": str(now_ns)})
-        f.writer.add_metadata(SUMMARY_METADATA, summary)
-        f.close()
+        f.close((SUMMARY_METADATA, summary))
         self._file = None
 
     def maybe_rotate(self, now_ns: int) -> Path | None:
@@ -280,10 +309,20 @@ class RecordingWriter:
         return self.open(now_ns)
 
     def flush(self) -> None:
-        """End the chunk in progress (with its message index) and hand the bytes to the OS."""
+        """End the chunk in progress (with its message index) and hand the bytes to the OS. Raises
+        while no file is open because the last could not start: nothing is on disk."""
+        if self._file is None and self._open_failed is not None:
+            raise self._open_failed
         if self._file is not None:
             self._file.writer.flush()
             self.stats.flushes += 1
+
+    def resume(self, now_ns: int) -> None:
+        """After a full disk: open the next file if none is open (its start found no room), and
+        write what is in hand. Raises as ``flush`` does while there is still no room."""
+        if self._file is None:
+            self.open(now_ns)
+        self.flush()
 
     def check_file(self, now_ns: int) -> Path | None:
         """Before writing more: if the file being written was deleted, replaced or truncated by another

@@ -17,12 +17,22 @@ for the summary in an anonymous temporary file as their record bytes, so the rec
 not grow with the number of chunks (it did by 19 MB over a 600 s soak while they were Python
 objects).
 
+A disk that fills up (``disk_full``) loses nothing already handed over: each chunk, with its message
+indexes, is one write, and every piece of the writer's state changes only once its write is done. A
+chunk that found no room stays in memory, whole, and goes out at the next ``flush`` (a chunk that
+grows past ``chunk_size`` while the disk is full is tried again at the next ``flush``, not at every
+message); ``finish`` writes the summary and footer in one write, so a file it could not finish is
+the same as before, and can be finished later. The stream must write all of a write or none of it
+(``core.AllOrNothing``): a partial write would leave bytes this writer does not know of.
+
 Units: every time is ns on the caller's timeline (MCAP's log and publish times); sizes in bytes.
 """
 
 from __future__ import annotations
 
+import errno
 import functools
+import os
 import struct
 import tempfile
 import zlib
@@ -82,6 +92,15 @@ def _chunk_index(k: int) -> struct.Struct:
     return struct.Struct(f"{CHUNK_INDEX_HEAD.format}{'HQ' * k}Q")
 
 
+DISK_FULL_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT})
+"""The errors of a disk (or a quota) with no room: they pass when room is made, unlike the others."""
+
+
+def disk_full(err: BaseException) -> bool:
+    """Whether ``err`` says there is no room on the disk (or in the user's quota) for a write."""
+    return isinstance(err, OSError) and err.errno in DISK_FULL_ERRNOS
+
+
 def check_compression(compression: str) -> str:
     """``compression`` if it is one of ``COMPRESSIONS``; else ValueError naming them."""
     if compression not in COMPRESSIONS:
@@ -98,6 +117,67 @@ def _compressor(compression: str) -> tuple[str, Callable[[bytes], bytes] | None]
     if compression == "lz4":
         return "lz4", lz4.frame.compress
     return "", None
+
+
+class AllOrNothing:
+    """A file that takes each write whole or not at all: a write the disk has no room for (or that
+    fails otherwise) is cut back off the file before the error is raised, so the file stays what the
+    writes that succeeded made it. Unbuffered: ``McapWriter`` writes a chunk at a time, and a
+    buffer would hide the error until a later write, when the bytes at fault are gone. Takes over
+    ``raw`` (a file object opened for writing, unbuffered) and closes it."""
+
+    def __init__(self, raw: IO[bytes]) -> None:
+        self._raw = raw
+        self._fd = raw.fileno()
+        self._at = os.lseek(self._fd, 0, os.SEEK_CUR)
+
+    def write(self, data: bytes) -> int:
+        view = memoryview(data)
+        at, done = self._at, 0
+        try:
+            while done < len(view):
+                done += os.write(self._fd, view[done:])
+        except BaseException:
+            if done:  # a part went out: cut it off again (a cut also frees the room it took)
+                self.cut(at)
+            raise
+        self._at = at + done
+        return done
+
+    def cut(self, at: int) -> None:
+        """Drop what was written from byte ``at`` on: the next write goes there."""
+        try:
+            os.ftruncate(self._fd, at)
+        finally:
+            os.lseek(self._fd, at, os.SEEK_SET)
+            self._at = at
+
+    def tell(self) -> int:
+        """Bytes written [bytes]: where the next write goes."""
+        return self._at
+
+    def fileno(self) -> int:
+        return self._fd
+
+    def flush(self) -> None:
+        """Nothing to do: every write went to the OS when it returned."""
+
+    def read_all(self) -> bytes:
+        """Everything written (a file opened for reading too)."""
+        out = bytearray()
+        while len(out) < self._at:
+            got = os.pread(self._fd, self._at - len(out), len(out))
+            if not got:
+                break
+            out += got
+        return bytes(out)
+
+    @property
+    def closed(self) -> bool:
+        return self._raw.closed
+
+    def close(self) -> None:
+        self._raw.close()
 
 
 def _record(write: Callable[[RecordBuilder], None]) -> bytes:
@@ -127,7 +207,7 @@ class McapWriter:
         self._parts: list[bytes] = []
         self._length = 0
         self._index: dict[int, list[int]] = {}
-        self._chunk_indexes = tempfile.TemporaryFile()  # noqa: SIM115 - closed in finish()/close()
+        self._chunk_indexes = AllOrNothing(tempfile.TemporaryFile(buffering=0))  # noqa: SIM115 - closed in finish()/close()
         self._schemas: dict[int, Schema] = {}
         self._channels: dict[int, Channel] = {}
         self._attachment_indexes: list[AttachmentIndex] = []
@@ -136,6 +216,9 @@ class McapWriter:
                                  chunk_count=0, message_count=0, message_end_time=0,
                                  message_start_time=0, metadata_count=0, schema_count=0)
         self._counts = self._stats.channel_message_counts
+        self.deferred: OSError | None = None
+        """The disk-full error that kept a chunk past ``chunk_size`` in memory (``add_message``);
+        cleared once a chunk is written. ``flush`` raises it anew if there is still no room."""
 
     def start(self, profile: str = "", library: str = "") -> None:
         self._stream.write(MAGIC)
@@ -162,8 +245,8 @@ class McapWriter:
         """A schema or channel record, into the chunk in progress (as the mcap Writer does)."""
         self._parts.append(record)
         self._length += len(record)
-        if self._length > self._chunk_size:
-            self._end_chunk()
+        if self._length > self._chunk_size and self.deferred is None:
+            self._end_chunk_if_room()
 
     def add_message(self, channel_id: int, log_time: int, data: bytes, publish_time: int,
                     sequence: int = 0) -> None:
@@ -177,38 +260,47 @@ class McapWriter:
         self._parts += (_pack_message(_MESSAGE_OPCODE, _MESSAGE_HEAD_SIZE + len(data), channel_id,
                                       sequence, log_time, publish_time), data)
         self._length = length = length + _MESSAGE_SIZE + len(data)
-        if length > self._chunk_size:
+        if length > self._chunk_size and self.deferred is None:
+            self._end_chunk_if_room()
+
+    def _end_chunk_if_room(self) -> None:
+        """End the chunk grown past its size; with the disk full, keep it (and the error) for the
+        next ``flush``: a message handed over is never refused, and never half written."""
+        try:
             self._end_chunk()
+        except OSError as err:
+            if not disk_full(err):
+                raise
+            self.deferred = err
 
     def add_attachment(self, create_time: int, log_time: int, name: str, media_type: str,
                        data: bytes) -> None:
         offset = self._stream.tell()
-        self._stats.attachment_count += 1
         attachment = Attachment(create_time=create_time, log_time=log_time, name=name,
                                 media_type=media_type, data=data)
         record = _record(attachment.write)
+        self._stream.write(record)  # first: a write that fails changes nothing here
+        self._stats.attachment_count += 1
         self._attachment_indexes.append(AttachmentIndex(
             offset=offset, length=len(record), create_time=create_time, log_time=log_time,
             data_size=len(data), name=name, media_type=media_type))
-        self._stream.write(record)
 
     def add_metadata(self, name: str, data: dict[str, str]) -> None:
         offset = self._stream.tell()
-        self._stats.metadata_count += 1
         record = _record(Metadata(name=name, metadata=data).write)
+        self._stream.write(record)  # first: a write that fails changes nothing here
+        self._stats.metadata_count += 1
         self._metadata_indexes.append(MetadataIndex(offset=offset, length=len(record), name=name))
-        self._stream.write(record)
 
     def _end_chunk(self) -> None:
         """Write the chunk in progress (if it has a message), its message indexes, and keep its
-        chunk index for the summary: each in one write."""
+        chunk index for the summary: each in one write. Nothing changes here before both writes
+        are done: if either fails (a full disk), the chunk is still the chunk in progress."""
         index = self._index
         if not index:
             return
-        stats = self._stats
-        counts = self._counts
         start_ns = end_ns = -1
-        messages = 0
+        per_channel: list[tuple[int, int]] = []
         for channel_id, pairs in index.items():
             times = pairs[0::2]
             lo, hi = min(times), max(times)
@@ -216,15 +308,7 @@ class McapWriter:
                 start_ns = lo
             if hi > end_ns:
                 end_ns = hi
-            n = len(times)
-            counts[channel_id] = counts.get(channel_id, 0) + n
-            messages += n
-        if stats.message_count == 0 or start_ns < stats.message_start_time:
-            stats.message_start_time = start_ns
-        if end_ns > stats.message_end_time:
-            stats.message_end_time = end_ns
-        stats.message_count += messages
-        stats.chunk_count += 1
+            per_channel.append((channel_id, len(times)))
         raw = b"".join(self._parts)
         data = self._compress(raw) if self._compress is not None else raw
         name = self._name
@@ -241,53 +325,87 @@ class McapWriter:
             offsets += (channel_id, at)
             at += len(record)
             out.append(record)
-        self._stream.write(b"".join(out))
         k = len(offsets) // 2
         body = _chunk_index(k).pack(start_ns, end_ns, chunk_start, chunk_length, 10 * k, *offsets,
                                     at - index_start)
-        self._chunk_indexes.write(b"".join((
+        spill = self._chunk_indexes
+        spilled_to = spill.tell()
+        spill.write(b"".join((
             RECORD_HEAD.pack(Opcode.CHUNK_INDEX, len(body) + len(self._index_tail) + 16), body,
             self._index_tail, U64.pack(len(data)), U64.pack(len(raw)))))
+        try:
+            self._stream.write(b"".join(out))
+        except BaseException:
+            spill.cut(spilled_to)  # the chunk index of a chunk not written
+            raise
+        stats, counts = self._stats, self._counts
+        messages = 0
+        for channel_id, n in per_channel:
+            counts[channel_id] = counts.get(channel_id, 0) + n
+            messages += n
+        if stats.message_count == 0 or start_ns < stats.message_start_time:
+            stats.message_start_time = start_ns
+        if end_ns > stats.message_end_time:
+            stats.message_end_time = end_ns
+        stats.message_count += messages
+        stats.chunk_count += 1
         self._parts.clear()
         self._length = 0
         self._index = {}
+        self.deferred = None
 
     def flush(self) -> None:
         """End the chunk in progress and hand everything written to the OS (no fsync)."""
         self._end_chunk()
         self._stream.flush()
 
-    def finish(self) -> None:
+    def finish(self, metadata: tuple[str, dict[str, str]] | None = None) -> None:
         """End the last chunk and write the data end, the summary (schemas, channels, statistics,
-        chunk, attachment and metadata indexes, each group with its summary offset) and the footer."""
+        chunk, attachment and metadata indexes, each group with its summary offset) and the footer.
+        ``metadata``: a last metadata record (name, map), written before the data end, as
+        ``add_metadata`` then ``finish`` would. All that follows the last chunk is one write: with no
+        room for it, the file and this writer stay as they were, and ``finish`` can be called again."""
         self._end_chunk()
         stream = self._stream
-        stream.write(_record(DataEnd(0).write))
-        summary_start = stream.tell()
-        self._chunk_indexes.seek(0)
-        groups = [
-            (Opcode.SCHEMA, b"".join(_record(r.write) for r in self._schemas.values())),
-            (Opcode.CHANNEL, b"".join(_record(r.write) for r in self._channels.values())),
-            (Opcode.STATISTICS, _record(self._stats.write)),
-            (Opcode.CHUNK_INDEX, self._chunk_indexes.read()),
-            (Opcode.ATTACHMENT_INDEX, b"".join(_record(r.write) for r in self._attachment_indexes)),
-            (Opcode.METADATA_INDEX, b"".join(_record(r.write) for r in self._metadata_indexes)),
-        ]
-        summary = bytearray()
-        offsets = []
-        for opcode, data in groups:
-            offsets.append(SummaryOffset(group_opcode=opcode, group_start=summary_start + len(summary),
-                                         group_length=len(data)))
-            summary += data
-        offset_start = summary_start + len(summary)
-        summary += b"".join(_record(o.write) for o in offsets)
-        crc = zlib.crc32(summary)
-        crc = zlib.crc32(struct.pack("<BQQQ", Opcode.FOOTER, 8 + 8 + 4, summary_start, offset_start),
-                         crc)
-        stream.write(summary)
-        stream.write(_record(Footer(summary_start=summary_start, summary_offset_start=offset_start,
-                                    summary_crc=crc).write))
-        stream.write(MAGIC)
+        stats = self._stats
+        last = b""
+        metadata_indexes = self._metadata_indexes
+        if metadata is not None:
+            last = _record(Metadata(name=metadata[0], metadata=metadata[1]).write)
+            metadata_indexes = [*metadata_indexes,
+                                MetadataIndex(offset=stream.tell(), length=len(last), name=metadata[0])]
+            stats.metadata_count += 1
+        try:
+            data_end = _record(DataEnd(0).write)
+            summary_start = stream.tell() + len(last) + len(data_end)
+            groups = [
+                (Opcode.SCHEMA, b"".join(_record(r.write) for r in self._schemas.values())),
+                (Opcode.CHANNEL, b"".join(_record(r.write) for r in self._channels.values())),
+                (Opcode.STATISTICS, _record(stats.write)),
+                (Opcode.CHUNK_INDEX, self._chunk_indexes.read_all()),
+                (Opcode.ATTACHMENT_INDEX, b"".join(_record(r.write) for r in self._attachment_indexes)),
+                (Opcode.METADATA_INDEX, b"".join(_record(r.write) for r in metadata_indexes)),
+            ]
+            summary = bytearray()
+            offsets = []
+            for opcode, data in groups:
+                offsets.append(SummaryOffset(group_opcode=opcode,
+                                             group_start=summary_start + len(summary),
+                                             group_length=len(data)))
+                summary += data
+            offset_start = summary_start + len(summary)
+            summary += b"".join(_record(o.write) for o in offsets)
+            crc = zlib.crc32(summary)
+            crc = zlib.crc32(struct.pack("<BQQQ", Opcode.FOOTER, 8 + 8 + 4, summary_start,
+                                         offset_start), crc)
+            stream.write(b"".join((last, data_end, summary, _record(Footer(
+                summary_start=summary_start, summary_offset_start=offset_start,
+                summary_crc=crc).write), MAGIC)))
+        except BaseException:
+            if metadata is not None:
+                stats.metadata_count -= 1
+            raise
+        self._metadata_indexes = metadata_indexes
         self.close()
 
     def close(self) -> None:

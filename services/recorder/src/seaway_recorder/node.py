@@ -6,6 +6,11 @@ logs in, and, in lockstep, answers each period once it is on disk (the runtime's
 member's answer writes the period itself (``RecorderNode.write_on_arrival``), as the other members
 answer on arrival, so that a period needs no thread switch (composed, the sim would wait for it).
 ``seaway_recorder.main`` configures it.
+
+A disk with no room (``mcapfile.disk_full``) does not stop the recorder: it keeps what it holds,
+takes no more from its queue, says so, and tries again every ``ROOM_RETRY_S``; once there is room
+it writes on where it stopped. Meanwhile the queue fills to its bounds and then counts its drops
+(real time); in lockstep no period is answered, so the sim waits and nothing is lost.
 """
 
 from __future__ import annotations
@@ -28,6 +33,7 @@ from seaway.runtime.timeline import Timeline
 
 from seaway_recorder.core import RecordingWriter
 from seaway_recorder.logtail import FileTail, LogTail, log_record
+from seaway_recorder.mcapfile import disk_full
 
 log = logging.getLogger("seaway.recorder")
 
@@ -36,6 +42,12 @@ DRAIN_BATCH = 2000
 IDLE_WAIT_S = 0.005
 """How long an idle recorder waits for a sample before it looks again (real time; in lockstep a
 sample wakes it at once) [s]."""
+
+ROOM_RETRY_S = 1.0
+"""How often a recorder whose disk has no room tries to write again [s]: a try that fails costs one
+chunk's write, cut off again."""
+NO_ROOM_SAY_S = 10.0
+"""How often a recorder still waiting for room says so again [s]."""
 
 LATE_NS = 500_000_000
 """A sample received this long after it was published came from a publisher's cache (or waited
@@ -249,7 +261,13 @@ class RecorderNode(Node):
         self._drained = 0
         self._looping = False  # the loop has ticked: writing on arrival may take over
         self.failed: OSError | None = None
-        """The write that failed (disk full, file removed): the node stops, the file is finished."""
+        """The write that failed (not for room: a disk gone, a folder removed): the node stops, and
+        finishes what it can."""
+        self.no_room: OSError | None = None
+        """Set while the disk has no room for the recording: the node waits for room (module doc)."""
+        self._no_room_since = 0
+        self._next_room_try = 0
+        self._next_no_room_say = 0
         self._stop: threading.Event | None = None
         self._writing = threading.Lock()
         """Held while the writer is used: by the loop (``tick``, ``finish``), or by the thread that
@@ -268,7 +286,8 @@ class RecorderNode(Node):
         loop's first tick, and once writing has failed. Once stopping (``finish``), it writes
         nothing: the loop writes what is queued, and the writer is closed after it."""
         stopping = not self.queue.accepting
-        if not self._looping or stopping or self.failed is not None or self._raised is not None:
+        if (not self._looping or stopping or self.failed is not None or self._raised is not None
+                or self.no_room is not None):
             self.queue.arrived.set()
             return
         if not self._writing.acquire(blocking=False):
@@ -279,6 +298,7 @@ class RecorderNode(Node):
                                   witness=self.witness, kept=self.kept)
         except OSError as err:
             self._failed(err)
+            self.queue.arrived.set()  # the loop waits for room, or stops
         except Exception as err:  # not the bus's to handle: the loop raises it again
             self._raised = err
             self.queue.arrived.set()
@@ -307,14 +327,56 @@ class RecorderNode(Node):
             self._failed(err)
 
     def _failed(self, err: OSError) -> None:
-        """A write failed: the node stops, and ``finish`` finishes what can be finished."""
+        """A write failed: with no room on the disk, the node waits for room (``_room_again``);
+        otherwise it stops, and ``finish`` finishes what can be finished."""
+        if disk_full(err):
+            now = time.monotonic_ns()
+            if self.no_room is None:
+                self._no_room_since = now
+                self.writer.stats.no_room += 1
+                log.error("no room on the disk for the recording (%s): %s; waiting for room, "
+                          "trying again every %g s; nothing is written meanwhile, samples are "
+                          "queued (at most %d, %d MiB) and counted as dropped beyond that",
+                          self.writer.path or self.writer.base, err, ROOM_RETRY_S,
+                          self.queue.capacity, self.queue.max_bytes >> 20)
+                self._next_no_room_say = now + int(NO_ROOM_SAY_S * 1e9)
+            self.no_room = err
+            self.writer.stats.last_error = f"no room on the disk: {err}"[:500]
+            self._next_room_try = now + int(ROOM_RETRY_S * 1e9)
+            return
         self.failed = err
         assert self._stop is not None
         self._stop.set()
 
+    def _room_again(self) -> bool:
+        """Waiting for room: try again if it is time; whether the disk took what was in hand."""
+        now = time.monotonic_ns()
+        if now < self._next_room_try:
+            return False
+        try:
+            self.writer.resume(time.time_ns())
+        except OSError as err:
+            self._failed(err)
+            if self.no_room is not None and now >= self._next_no_room_say:
+                log.error("still no room on the disk after %.0f s: %s; queue %d, dropped %d",
+                          (now - self._no_room_since) / 1e9, err, len(self.queue.items),
+                          self.queue.dropped)
+                self._next_no_room_say = now + int(NO_ROOM_SAY_S * 1e9)
+            return False
+        waited_s = (time.monotonic_ns() - self._no_room_since) / 1e9
+        self.writer.stats.no_room_s += waited_s
+        log.warning("room on the disk again after %.1f s: recording on in %s (%d samples queued, "
+                    "%d dropped so far)", waited_s, self.writer.path, len(self.queue.items),
+                    self.queue.dropped)
+        self.no_room = None
+        return True
+
     def _write(self) -> None:
         writer, queue = self.writer, self.queue
         queue.arrived.clear()
+        if self.no_room is not None and not self._room_again():
+            self._drained = 0
+            return
         if time.monotonic_ns() >= self._next_flush:
             # Before this tick's samples go in: a file deleted or cut under us gets none of them.
             writer.check_file(time.time_ns())
@@ -336,7 +398,11 @@ class RecorderNode(Node):
             self._next_status = now + int(self.status_s * 1e9)
 
     def wake_s(self) -> float:
-        """At once while samples are queued; else a little, never past the next flush."""
+        """At once while samples are queued; else a little, never past the next flush (waiting for
+        room: never past the next try)."""
+        if self.no_room is not None:
+            return min(IDLE_WAIT_S * 20,
+                       max(0.0, (self._next_room_try - time.monotonic_ns()) / 1e9))
         if self._drained:
             return 0.0
         return min(IDLE_WAIT_S, max(0.0, (self._next_flush - time.monotonic_ns()) / 1e9))
@@ -356,6 +422,13 @@ class RecorderNode(Node):
             if self.failed is not None:
                 log.error("writing failed: %s; finishing the file", self.failed)
                 return
+            if self.no_room is not None:
+                self._next_room_try = 0  # a last try
+                if not self._room_again():
+                    log.error("stopping with no room on the disk: %d queued samples are not "
+                              "written", len(self.queue.items))
+                    self.failed = self.no_room
+                    return
             with self._writing:  # after a write on arrival still under way
                 drain(self.writer, self.queue, limit=None, kept=self.kept)
                 if self.tails is not None:

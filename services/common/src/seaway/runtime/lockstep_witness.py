@@ -125,15 +125,17 @@ class LockstepWitness:
     def maybe_answer(self, flush: Callable[[], None]) -> bool:
         """Flush (``flush``: onto the disk, the OS has it) and answer if the current period is
         complete and not yet answered as it is (only an answer noted since it last looked can
-        make it so)."""
+        make it so). A ``flush`` that raises (no room on the disk) leaves the news for the next
+        look, which answers once a flush goes through."""
         if not self._news:
             return False
-        self._news = False
         ready = self.covers()
         if ready is None or ready[2] == self._covered:
+            self._news = False
             return False
         period, period_ns, covers = ready
         flush()  # on disk before we say so
+        self._news = False
         self.member.answer(period, period_ns, covers=covers)
         self._covered = covers
         return True

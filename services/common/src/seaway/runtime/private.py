@@ -30,8 +30,9 @@ def private_folder(folder: Path) -> Path:
     return folder
 
 
-def open_private(path: Path) -> IO[bytes]:
-    """``path`` opened for writing (created, or truncated), mode 0600 whatever the umask."""
+def open_private(path: Path, buffering: int = -1) -> IO[bytes]:
+    """``path`` opened for writing (created, or truncated), mode 0600 whatever the umask;
+    ``buffering`` as ``open``'s (0: unbuffered)."""
     fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, FILE_MODE)
     os.fchmod(fd, FILE_MODE)  # an existing file keeps its mode through O_CREAT
-    return os.fdopen(fd, "wb")
+    return os.fdopen(fd, "wb", buffering=buffering)
