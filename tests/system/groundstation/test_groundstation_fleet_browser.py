@@ -190,6 +190,9 @@ def test_a_fleet_of_two_is_told_apart_guarded_and_usable_on_a_phone(procs, zenoh
             found = axe_check.violations(page, axe_script)
             print("axe-core, wide:", [(v["id"], v["impact"], len(v["nodes"])) for v in found])
             assert not axe_check.serious(found), axe_check.serious(found)
+            # Nothing dropped (two vessels, room for 64): the fleet panel says nothing of it.
+            assert page.evaluate("() => window.seaway.app.fleetCounts.refused") == 0
+            assert page.locator("#fleet-notice").is_hidden()
 
             # A click on the other vessel on the map picks it.
             page.wait_for_function(f"document.querySelector('.vessel-glyph.other[data-vessel={B}]')",

@@ -1,12 +1,14 @@
 // The page: live view and replay view over the same store, map and plots.
 //
 // Live: the WebSocket stream feeds `live.store`; GET /api/vessels (every 2 s) gives what frames do
-// not carry (the mission flown in metres, the NED origin's scale, simulated or not) and tells when
-// the ground station itself is unreachable; GET .../metrics gives the paper's metrics so far.
+// not carry (the mission flown in metres, the NED origin's scale, simulated or not, what it dropped:
+// fleetnotice.js) and tells when the ground station itself is unreachable; GET .../metrics gives
+// the paper's metrics so far.
 // Replay: `Player` feeds its own store from the recording's frames at the recording's time.
 // Every command goes through `run()`, which asks for the token when needed and shows the answer.
 
 import { ApiError, CLIENT_ID, command, get, getToken, request, setToken, takeTokenFromFragment } from "./api.js";
+import { renderFleetNotice } from "./fleetnotice.js";
 import { LiveStream } from "./live.js";
 import { MapView } from "./map.js";
 import { TimePlot } from "./plot.js";
@@ -23,6 +25,7 @@ const app = {
   config: { stale_after_s: 2, controllers: ["cc-empc", "eo-empc", "nmpc"], tiles_url: null },
   live: new Store(),
   fleet: new Map(),        // vessel -> VesselView from GET /api/vessels
+  fleetCounts: null,       // {refused, forgotten, max}: what GET /api/vessels says it dropped
   metrics: null,           // MetricsView of the selected vessel, or null
   linkUp: false,
   apiUp: true,
@@ -251,10 +254,13 @@ function vesselColour(name) {
   return VESSEL_COLOURS[(i < 0 ? 0 : i) % VESSEL_COLOURS.length];
 }
 
-/** The fleet overview: one row per vessel (state, leg, battery, link); its name picks it. */
+/** The fleet overview: one row per vessel (state, leg, battery, link); its name picks it. Shown
+ *  for two vessels or more, or while the ground station says it dropped some (live only). */
 function renderFleet(t) {
   const names = vesselNames();
-  $("fleet-panel").hidden = names.length < 2;
+  const notice = renderFleetNotice($("fleet-notice"), app.mode === "live" ? app.fleetCounts : null);
+  $("fleet-panel").hidden = names.length < 2 && !notice;
+  $("fleet-table").hidden = !names.length;
   const rows = names.map((name) => {
     const o = store().vessels.get(name);
     const mission = o?.message("mission"), vehicle = o?.message("vehicle"), battery = o?.message("battery");
@@ -477,6 +483,8 @@ async function pollFleet() {
     try {
       const fleet = await get("/api/vessels");
       app.fleet = new Map(fleet.vessels.map((v) => [v.vessel, v]));
+      app.fleetCounts = { refused: fleet.vessels_refused, forgotten: fleet.vessels_forgotten,
+        max: fleet.max_vessels };
       if (!app.apiUp) stickySay("api", false);
       app.apiUp = true;
     } catch (err) {
