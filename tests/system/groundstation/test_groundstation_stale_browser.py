@@ -1,0 +1,73 @@
+"""Stale figures stay readable, in a real browser (Debian's chromium driven by Playwright): the real
+``seaway-groundstation`` process, a vessel the test plays on a real Zenoh session whose vehicle and
+mission status fall silent while its state goes on. Those panels are marked stale (their badge),
+and axe-core finds no serious or critical violation on the page: a stale value is old, not
+unreadable (a crew in sunlight reads it to judge how old).
+"""
+
+from __future__ import annotations
+
+import re
+import signal
+import threading
+
+import pytest
+from seaway.contract import keys
+from seaway.contract.messages import MissionStatus, StateEstimate, VehicleStatus
+from seaway.runtime.bus import Bus
+
+from tests.conftest import BIN, wait_for
+from tests.system.groundstation import axe_check
+from tests.system.groundstation.helpers import http
+
+pytestmark = pytest.mark.system
+VESSEL = "vessel1"
+
+
+def test_stale_panels_are_marked_and_still_pass_axe(procs, zenoh_env, browser, tmp_path) -> None:
+    try:
+        axe_script = axe_check.install()
+    except axe_check.AxeUnavailableError as err:
+        pytest.skip(str(err))
+    gs = procs.start([str(BIN / "seaway-groundstation"), "--port", "0"], zenoh_env, "groundstation")
+    base = wait_for(lambda: re.search(r"groundstation: (http://127\.0\.0\.1:\d+/) token (\S+)",
+                                      procs.log(gs)), 60, what="the ground station's address line").group(1)
+    stop = threading.Event()
+    with Bus.open(VESSEL) as bus:
+        nav = bus.publisher(keys.NAV_STATE)
+        mission = bus.publisher(keys.MISSION_STATUS)
+        vehicle = bus.publisher(keys.VEHICLE_STATUS)
+        mission.put(MissionStatus.make(stamp_ns=1, state="idle"))
+        vehicle.put(VehicleStatus.make(stamp_ns=1, autopilot="px4", link_ok=True, armed=False,
+                                       mode="HOLD"))
+
+        def publish() -> None:  # the state at 5 Hz; the two statuses once, then never again
+            k = 0
+            while not stop.wait(0.2):
+                k += 1
+                nav.put(StateEstimate.make(stamp_ns=k * 200_000_000, u_mps=0.0, v_mps=0.0,
+                                           r_radps=0.0, x_m=0.0, y_m=0.0, psi_rad=0.0))
+
+        publisher = threading.Thread(target=publish, daemon=True)
+        publisher.start()
+        try:
+            wait_for(lambda: http("GET", base + f"api/vessels/{VESSEL}")[0] == 200, 30,
+                     what="the vessel seen by the ground station")
+            page = browser.new_page(viewport={"width": 1500, "height": 1000})
+            errors: list[str] = []
+            page.on("pageerror", lambda e: errors.append(str(e)))
+            page.goto(base)
+            for panel in ("vehicle", "mission"):
+                page.wait_for_selector(f"[data-stale='{panel}']", state="visible", timeout=30_000)
+            for panel in ("vessel-panel", "progress-panel"):  # their figures shown as stale
+                page.wait_for_selector(f"#{panel} dl.is-stale", timeout=10_000)
+            page.screenshot(path=str(tmp_path / "stale.png"))
+            found = axe_check.violations(page, axe_script)
+            print("axe-core, stale panels:", [(v["id"], v["impact"], len(v["nodes"])) for v in found])
+            assert not axe_check.serious(found), axe_check.serious(found)
+            assert not errors, errors
+        finally:
+            stop.set()
+            publisher.join(5)
+    procs.stop(gs, signal.SIGTERM, timeout_s=15)
+    assert gs.returncode == 0, procs.log(gs)
