@@ -25,7 +25,8 @@ releases the lock (``LockPeer(None)``) and the next autopilot HEARTBEAT locks ag
 The core is composed of parts, each in a module of its own that owns its state: the link
 (``core_link``), the thrust path (``core_thrust``), telemetry in (``core_telemetry``), what the
 autopilot says (``core_said``), the parameter read (``core_params``), the telemetry rates
-(``core_rates``), the arm and mode requests (``core_requests``) and the status (``core_status``).
+(``core_rates``), the arm and mode requests (``core_requests``) and the status (``core_status``;
+the statuses said at once between the periodic ones are paced by ``status_pacing``).
 This class admits each message, hands it to its part, and runs the schedule (``tick``); it is the
 one entry the loop and everything else use. Its inputs and outputs are in ``core_outputs``.
 """
@@ -224,7 +225,8 @@ class VehicleIoCore(LinkWatch, ThrustPath, TelemetryIn, AutopilotSaid, ParamRead
     # ===========================================================================================
 
     def tick(self, now: Now) -> list[Output]:
-        """Do whatever is due at ``now``: link check, watchdog, streams, retries, status."""
+        """Do whatever is due at ``now``: link check, watchdog, streams, retries, status (the
+        periodic one, one to say at once, or one the pacing held back, due now)."""
         out: list[Output] = []
         status_now = self._check_link(now)
         if status_now:
@@ -266,15 +268,25 @@ class VehicleIoCore(LinkWatch, ThrustPath, TelemetryIn, AutopilotSaid, ParamRead
             status_now = True
         self.refusals.flush(now.mono_ns)  # a refused source held back by the log's rate limit
         self._changes.flush(now.mono_ns)  # the latest state change held back, with its count
+        pacer = self.status_pacer
+        if status_now or pacer.due(now.mono_ns):
+            # Said at once unless another was less than a gap ago: then held to the gap's end, when
+            # it is due here with the state as it is then (``status_pacing``: a link loss or a
+            # disarm waits at most ``MIN_STATUS_GAP_NS``).
+            status_now = pacer.may_say(now.mono_ns)
         if status_now or now.mono_ns >= self._next_status_ns:
             out.extend(self._update_rates(now))
             out.append(Publish(self.status(now)))
+            pacer.said()  # the latest state: nothing held back is left unsaid
             self._next_status_ns = now.mono_ns + self._period_status_ns
         return out
 
     def next_wake_ns(self) -> int:
         """The monotonic time at which ``tick`` next has something to do."""
         due = [self._next_hb_ns, self._next_mc_ns, self._next_status_ns]
+        held = self.status_pacer.next_due_ns()  # a status held back by the pacing
+        if held is not None:
+            due.append(held)
         wd = self.watchdog.deadline_ns()
         if wd is not None:
             due.append(wd)

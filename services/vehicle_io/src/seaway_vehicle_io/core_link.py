@@ -18,7 +18,7 @@ from seaway_vehicle_io import profile as profiles
 from seaway_vehicle_io.authority import Address, SourcePolicy, address_key
 from seaway_vehicle_io.autopilot_health import Health
 from seaway_vehicle_io.conversions import BatteryReading
-from seaway_vehicle_io.core_outputs import LockPeer, Now, Output, Publish
+from seaway_vehicle_io.core_outputs import LockPeer, Now, Output
 from seaway_vehicle_io.core_params import ParamCheck
 from seaway_vehicle_io.events_channel import EventsChannel
 from seaway_vehicle_io.failsafe_cause import FailsafeCause
@@ -109,8 +109,8 @@ class LinkWatch:
             return self._connect(msg, profile, now, address)
         self.counts["HEARTBEAT"] = self.counts.get("HEARTBEAT", 0) + 1
         self._apply_heartbeat(msg, now)
-        if self.thrust_withheld() != self._withheld:  # armed, disarmed, another mode: say so now
-            return [Publish(self.status(now))]
+        if self.thrust_withheld() != self._withheld:  # armed, disarmed, another mode: say so now,
+            return self._say_status(now)  # or at the gap's end if the autopilot flaps (pacing)
         return []
 
     def _connect(self, msg: Any, profile: Profile, now: Now, address: Address) -> list[Output]:
@@ -137,7 +137,7 @@ class LinkWatch:
         self._start_param_check(profile)
         self.mapper = None if self.cfg.check_failsafe_params else profile.mapper({})
         self.texts.clear()
-        out: list[Output] = [LockPeer(address), Publish(self.status(now))]
+        out: list[Output] = [LockPeer(address), *self._say_status(now)]
         out.extend(self._manual_control(now))  # start the stream at once (PX4 arms only with it)
         out.extend(self._param_requests(now))
         out.extend(self._request_rates(profile, now))

@@ -15,8 +15,9 @@ from seaway.contract.messages import HoldReason, ThrustWithheld, VehicleStatus
 
 from seaway_vehicle_io.autopilot_health import Health, latched_failsafe
 from seaway_vehicle_io.conversions import worse_level
-from seaway_vehicle_io.core_outputs import Now
+from seaway_vehicle_io.core_outputs import Now, Output, Publish
 from seaway_vehicle_io.failsafe_cause import FailsafeCause
+from seaway_vehicle_io.status_pacing import StatusPacer
 from seaway_vehicle_io.watchdog import FAILSAFE_THRUST_STALE
 
 if TYPE_CHECKING:
@@ -37,7 +38,8 @@ FAILSAFE_AUTOPILOT_CONFIG = "autopilot_config"
 
 class StatusReport:
     """The status part of ``VehicleIoCore``: owns the hold reason, the health, the health problem
-    last logged and the thrust-withheld reason last published."""
+    last logged, the thrust-withheld reason last published and the pacing of the statuses said at
+    once (``status_pacing``)."""
 
     # read from the other parts
     link: LinkState
@@ -57,6 +59,15 @@ class StatusReport:
         self.health = Health()  # is it fit to start a mission (autopilot_health.py)
         self._health_said: str | None = None  # the health problem last logged
         self._withheld: ThrustWithheld | None = self.thrust_withheld()  # as last published
+        # A change said at once, at most once per gap; ``tick`` says a held one at the gap's end.
+        self.status_pacer = StatusPacer()
+
+    def _say_status(self, now: Now) -> list[Output]:
+        """A change to say at once: its status, or nothing if one was said less than
+        ``MIN_STATUS_GAP_NS`` ago; then ``tick`` says it at the gap's end, as the state is then."""
+        if not self.status_pacer.may_say(now.mono_ns):
+            return []
+        return [Publish(self.status(now))]
 
     def failsafe(self, now: Now) -> str | None:
         """The failsafe to report, most serious first."""

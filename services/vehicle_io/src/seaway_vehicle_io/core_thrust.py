@@ -19,7 +19,7 @@ from seaway.runtime.ratelog import RateLimitedLog
 from seaway.runtime.stamps import STAMP_LOG_EVERY_S, StampBounds, StampGate
 from seaway.vessel.thrusters import absurd_thrust
 
-from seaway_vehicle_io.core_outputs import Now, Output, Publish, SendManualControl
+from seaway_vehicle_io.core_outputs import Now, Output, SendManualControl
 from seaway_vehicle_io.profile import ManualControlAxes
 from seaway_vehicle_io.thrust import ThrusterLimits, normalise_pair
 from seaway_vehicle_io.watchdog import ThrustWatchdog
@@ -65,7 +65,7 @@ class ThrustPath:
         event = self.watchdog.command(cmd, now.mono_ns)
         if event is not None:
             log.info("thrust commands fresh again (source %r): forwarding", cmd.source)
-            out.append(Publish(self.status(now)))
+            out.extend(self._say_status(now))
         out.extend(self._manual_control(now))
         return out
 

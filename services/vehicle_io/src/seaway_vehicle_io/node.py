@@ -10,7 +10,9 @@ Threads, and why:
   the core. It also reopens a transport that broke (TCP EOF, serial unplugged).
 * **timer** (the runtime's paced loop, on the main thread): ``tick`` calls ``core.tick``, and the
   driver sleeps until ``core.next_wake_ns`` says something is due (MANUAL_CONTROL stream, watchdog
-  deadline, heartbeat, status, retries), at most ``MAX_SLEEP_S`` (one stream period).
+  deadline, heartbeat, status, retries), at most ``MAX_SLEEP_S`` (one stream period). A call into
+  the core from another thread that makes something due sooner (a status held back by the pacing,
+  ``status_pacing``) wakes it early (``sleep``).
 * **bus callbacks** (``take``): a ThrustCommand is handled on arrival, on the transport's receive
   thread (``inline_inputs``; MANUAL_CONTROL goes out from the callback itself, which is what keeps bus-to-wire
   latency in the sub-millisecond range); arm and mode requests block their own callback thread
@@ -104,6 +106,7 @@ class VehicleIoNode(Node):
         self._publishers: dict[type, TypedPublisher] = {}
         self._receiver: threading.Thread | None = None
         self._wake_ns = 0  # monotonic
+        self._sooner = threading.Event()  # set when another thread brought _wake_ns forward
         # The autopilot's fence needs the operating area and the NED origin; nothing else does.
         self.live_inputs = (keys.THRUST,) if self.core.fence is None else (
             keys.THRUST, keys.AREA_ACTIVE, keys.NAV_ORIGIN)
@@ -148,6 +151,27 @@ class VehicleIoNode(Node):
     def wake_s(self) -> float:
         """Until the core's next due work [s] (the driver waits at most ``MAX_SLEEP_S``)."""
         return (self._wake_ns - time.monotonic_ns()) / 1e9
+
+    def sleep(self, timeout_s: float, stop: threading.Event) -> None:
+        """Wait ``timeout_s`` [s], or less if another thread brought the core's next due work
+        forward (``_wake_sooner``). ``stop`` is seen at the end of the wait: the driver's
+        ``timeout_s`` is at most ``MAX_SLEEP_S``, so that is how late a stop is seen at most."""
+        end_ns = time.monotonic_ns() + round(timeout_s * 1e9)
+        while not stop.is_set():
+            self._sooner.clear()  # before reading _wake_ns: a later set wakes the wait below
+            remaining_ns = min(end_ns, self._wake_ns) - time.monotonic_ns()
+            if remaining_ns <= 0:
+                return
+            self._sooner.wait(remaining_ns / 1e9)
+
+    def _wake_sooner(self) -> None:
+        """Called with ``self.lock`` held, after a call into the core off the timer thread: if the
+        core now has work due before the timer wakes (a status held back by the pacing, due at the
+        gap's end), wake the timer then rather than up to ``MAX_SLEEP_S`` later."""
+        wake = self.core.next_wake_ns()
+        if wake < self._wake_ns:
+            self._wake_ns = wake
+            self._sooner.set()
 
     def finish(self) -> None:
         self.stop.set()  # the receive thread and any waiting request end with it
@@ -234,6 +258,7 @@ class VehicleIoNode(Node):
                     except Exception:  # a bug for one message must not end the receive loop
                         self._ratelog.exception(("handling", msg.get_type()), "handling %s failed",
                                                 msg.get_type())
+                self._wake_sooner()  # once per batch, not per message
                 self.acks.notify_all()
             self._publish(publish)
 
@@ -291,6 +316,7 @@ class VehicleIoNode(Node):
         """
         with self.lock:
             publish = self._send(self.core.on_thrust(cmd, now()))
+            self._wake_sooner()
         self._publish(publish)
 
     def _on_area(self, area: ActiveArea) -> None:
@@ -333,7 +359,14 @@ class VehicleIoNode(Node):
                 status = None
                 if result == MAV_RESULT_ACCEPTED:
                     self.core.command_accepted(cmd.command, cmd.params, mode)
+                    # Not paced (``status_pacing``): it goes out before the reply, because the
+                    # requester acts on the status once it has the reply (the launcher asks the
+                    # controller to resume after a mode change, refused while the status says the
+                    # thrust is withheld); and its rate is the requests', one at a time, each
+                    # waiting for the autopilot's ACK: no flood the autopilot can make alone.
+                    # Saying the latest state, it also says whatever the pacing held back.
                     status = Publish(self.core.status(now()))
+                    self.core.status_pacer.said()
             if status is not None:
                 self._publish([status])
             detail = {"command": name, "attempts": attempts,
