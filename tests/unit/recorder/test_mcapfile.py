@@ -18,7 +18,8 @@ import sys
 import pytest
 from mcap.reader import make_reader
 from mcap.writer import CompressionType, Writer
-from seaway_recorder.mcapfile import COMPRESSIONS, McapWriter, disk_full
+from seaway.runtime.disk import disk_full
+from seaway_recorder.mcapfile import COMPRESSIONS, McapWriter
 
 LIBRARY_COMPRESSION = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4,
                        "none": CompressionType.NONE}
@@ -135,7 +136,7 @@ def test_a_chunk_ends_past_its_size_at_the_same_byte() -> None:
 
 class Disk(io.BytesIO):
     """A stream with ``room`` bytes left: a write it has no room for fails whole with ENOSPC, as
-    ``mcapfile.AllOrNothing`` makes a file's writes fail."""
+    ``seaway.runtime.disk.AllOrNothing`` makes a file's writes fail."""
 
     def __init__(self, room: int) -> None:
         super().__init__()
@@ -224,7 +225,7 @@ def test_a_file_write_with_no_room_is_cut_back_off_whole(tmp_path) -> None:
     script_ = f"""
 import os, resource, signal, sys
 sys.path[:0] = {sys.path!r}
-from seaway_recorder.mcapfile import AllOrNothing
+from seaway.runtime.disk import AllOrNothing
 signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
 resource.setrlimit(resource.RLIMIT_FSIZE, (1000, resource.RLIM_INFINITY))
 f = AllOrNothing(open({str(path)!r}, "wb", buffering=0))

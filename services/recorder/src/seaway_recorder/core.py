@@ -10,7 +10,7 @@ and ``write_event`` add the run's log lines and the launcher's events.
 
 ``flush()`` ends the chunk in progress and writes it with its message indexes;
 the recorder's loop calls it at least every flush interval, which bounds what a SIGKILL can lose.
-A disk with no room fails a ``flush``, an ``open`` or a ``close`` (``mcapfile.disk_full``) without
+A disk with no room fails a ``flush``, an ``open`` or a ``close`` (``seaway.runtime.disk.disk_full``) without
 changing what is on disk or in hand: each can be called again once there is room (``resume``).
 ``close()`` writes the summary (statistics, chunk/attachment/metadata indexes) so the file is fully
 indexed. Rotation (``max_bytes``, ``max_seconds``) closes a file the same way and opens the next,
@@ -31,6 +31,7 @@ from typing import Any
 from seaway.contract import bundle
 from seaway.contract.messages import MessageError, PeriodDone
 from seaway.recording.timebase import EPISODE_METADATA, TIME_METADATA, RecordingTime, stamp_of
+from seaway.runtime.disk import AllOrNothing
 from seaway.runtime.private import open_private, private_folder
 from seaway.runtime.ratelog import RateLimitedLog
 from seaway.tools.launch.events import ProcessEvent
@@ -38,7 +39,7 @@ from seaway.vessel.frames import GeoOrigin
 
 from seaway_recorder import derive, schemas
 from seaway_recorder.logtail import LogLine
-from seaway_recorder.mcapfile import AllOrNothing, McapWriter, check_compression
+from seaway_recorder.mcapfile import McapWriter, check_compression
 
 log = logging.getLogger("seaway.recorder")
 
@@ -127,7 +128,7 @@ class _OpenFile:
     def __init__(self, path: Path, chunk_size: int, compression: str) -> None:
         self.path = path
         # Closed in close(); only the user reads it. Unbuffered and all or nothing per write: a
-        # full disk fails a write whole, where it is made (mcapfile.AllOrNothing).
+        # full disk fails a write whole, where it is made (seaway.runtime.disk.AllOrNothing).
         self.stream = AllOrNothing(open_private(path, buffering=0))
         self.writer = McapWriter(self.stream, chunk_size=chunk_size, compression=compression)
         try:

@@ -23,16 +23,14 @@ chunk that found no room stays in memory, whole, and goes out at the next ``flus
 grows past ``chunk_size`` while the disk is full is tried again at the next ``flush``, not at every
 message); ``finish`` writes the summary and footer in one write, so a file it could not finish is
 the same as before, and can be finished later. The stream must write all of a write or none of it
-(``core.AllOrNothing``): a partial write would leave bytes this writer does not know of.
+(``seaway.runtime.disk.AllOrNothing``): a partial write would leave bytes this writer does not know of.
 
 Units: every time is ns on the caller's timeline (MCAP's log and publish times); sizes in bytes.
 """
 
 from __future__ import annotations
 
-import errno
 import functools
-import os
 import struct
 import tempfile
 import zlib
@@ -65,6 +63,7 @@ from seaway.recording.layout import (
     U32,
     U64,
 )
+from seaway.runtime.disk import AllOrNothing, disk_full
 
 COMPRESSIONS = ("zstd", "lz4", "none")
 """Chunk compressions: the names of the MCAP spec ("" in the file for none)."""
@@ -92,15 +91,6 @@ def _chunk_index(k: int) -> struct.Struct:
     return struct.Struct(f"{CHUNK_INDEX_HEAD.format}{'HQ' * k}Q")
 
 
-DISK_FULL_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT})
-"""The errors of a disk (or a quota) with no room: they pass when room is made, unlike the others."""
-
-
-def disk_full(err: BaseException) -> bool:
-    """Whether ``err`` says there is no room on the disk (or in the user's quota) for a write."""
-    return isinstance(err, OSError) and err.errno in DISK_FULL_ERRNOS
-
-
 def check_compression(compression: str) -> str:
     """``compression`` if it is one of ``COMPRESSIONS``; else ValueError naming them."""
     if compression not in COMPRESSIONS:
@@ -117,67 +107,6 @@ def _compressor(compression: str) -> tuple[str, Callable[[bytes], bytes] | None]
     if compression == "lz4":
         return "lz4", lz4.frame.compress
     return "", None
-
-
-class AllOrNothing:
-    """A file that takes each write whole or not at all: a write the disk has no room for (or that
-    fails otherwise) is cut back off the file before the error is raised, so the file stays what the
-    writes that succeeded made it. Unbuffered: ``McapWriter`` writes a chunk at a time, and a
-    buffer would hide the error until a later write, when the bytes at fault are gone. Takes over
-    ``raw`` (a file object opened for writing, unbuffered) and closes it."""
-
-    def __init__(self, raw: IO[bytes]) -> None:
-        self._raw = raw
-        self._fd = raw.fileno()
-        self._at = os.lseek(self._fd, 0, os.SEEK_CUR)
-
-    def write(self, data: bytes) -> int:
-        view = memoryview(data)
-        at, done = self._at, 0
-        try:
-            while done < len(view):
-                done += os.write(self._fd, view[done:])
-        except BaseException:
-            if done:  # a part went out: cut it off again (a cut also frees the room it took)
-                self.cut(at)
-            raise
-        self._at = at + done
-        return done
-
-    def cut(self, at: int) -> None:
-        """Drop what was written from byte ``at`` on: the next write goes there."""
-        try:
-            os.ftruncate(self._fd, at)
-        finally:
-            os.lseek(self._fd, at, os.SEEK_SET)
-            self._at = at
-
-    def tell(self) -> int:
-        """Bytes written [bytes]: where the next write goes."""
-        return self._at
-
-    def fileno(self) -> int:
-        return self._fd
-
-    def flush(self) -> None:
-        """Nothing to do: every write went to the OS when it returned."""
-
-    def read_all(self) -> bytes:
-        """Everything written (a file opened for reading too)."""
-        out = bytearray()
-        while len(out) < self._at:
-            got = os.pread(self._fd, self._at - len(out), len(out))
-            if not got:
-                break
-            out += got
-        return bytes(out)
-
-    @property
-    def closed(self) -> bool:
-        return self._raw.closed
-
-    def close(self) -> None:
-        self._raw.close()
 
 
 def _record(write: Callable[[RecordBuilder], None]) -> bytes:

@@ -7,7 +7,7 @@ member's answer writes the period itself (``RecorderNode.write_on_arrival``), as
 answer on arrival, so that a period needs no thread switch (composed, the sim would wait for it).
 ``seaway_recorder.main`` configures it.
 
-A disk with no room (``mcapfile.disk_full``) does not stop the recorder: it keeps what it holds,
+A disk with no room (``seaway.runtime.disk.disk_full``) does not stop the recorder: it keeps what it holds,
 takes no more from its queue, says so, and tries again every ``ROOM_RETRY_S``; once there is room
 it writes on where it stopped. Meanwhile the queue fills to its bounds and then counts its drops
 (real time); in lockstep no period is answered, so the sim waits and nothing is lost.
@@ -27,13 +27,13 @@ from seaway.contract import bundle, keys
 from seaway.contract.messages import LOCKSTEP_SERVICES, LogRecord, PeriodDone
 from seaway.recording.timebase import stamp_of
 from seaway.runtime.bus_raw import RawSample
+from seaway.runtime.disk import disk_full
 from seaway.runtime.lockstep_witness import LockstepWitness
 from seaway.runtime.node import Node
 from seaway.runtime.timeline import Timeline
 
 from seaway_recorder.core import RecordingWriter
 from seaway_recorder.logtail import FileTail, LogTail, log_record
-from seaway_recorder.mcapfile import disk_full
 
 log = logging.getLogger("seaway.recorder")
 
