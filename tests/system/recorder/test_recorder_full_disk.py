@@ -11,14 +11,11 @@ writes.
 
 from __future__ import annotations
 
-import errno
 import json
-import os
 import signal
 import subprocess
 import threading
 import time
-from collections.abc import Iterator
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -36,38 +33,10 @@ from seaway_recorder.node import KeptKeys, RecorderNode, SampleQueue
 
 from tests.conftest import BIN
 from tests.system.recorder.test_recorder_crash import assert_contiguous, read_indexed, start
+from tests.system.small_disk import fill
 from tests.unit.recorder.test_recorder_repeats import EPOCH_NS, EXPRS, P, V, clock
 
 pytestmark = pytest.mark.system
-
-
-@pytest.fixture
-def small_disk(tmp_path: Path) -> Iterator[Path]:
-    """A 2 MiB tmpfs of its own, unmounted after the test."""
-    where = tmp_path / "disk"
-    where.mkdir()
-    r = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=2m,mode=0700", "seaway-test", str(where)],
-                       capture_output=True, text=True, check=False)
-    if r.returncode != 0:
-        pytest.skip(f"cannot mount a small tmpfs here (needs root): {r.stderr.strip()}")
-    try:
-        yield where
-    finally:
-        subprocess.run(["umount", "-l", str(where)], check=False)
-
-
-def fill(disk: Path) -> Path:
-    """A file that takes every byte left on ``disk``; removing it makes the room again."""
-    filler = disk / "filler"
-    with open(filler, "wb", buffering=0) as fh:
-        for block in (1 << 16, 1 << 12, 1 << 8, 1):
-            try:
-                while True:
-                    fh.write(b"\0" * block)
-            except OSError as err:
-                assert err.errno == errno.ENOSPC, err
-    assert os.statvfs(disk).f_bavail == 0
-    return filler
 
 
 def summary_of(log_text: str) -> dict:

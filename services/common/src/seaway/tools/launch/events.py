@@ -8,9 +8,13 @@ what happened to the processes as well as what they said.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from pathlib import Path
 from typing import ClassVar, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
+
+from seaway.runtime.disk import AllOrNothing
 
 EVENTS_FILE = "events.jsonl"
 EVENTS_TOPIC = "launcher/events"
@@ -31,3 +35,43 @@ class ProcessEvent(BaseModel):
 
     def line(self) -> str:
         return self.model_dump_json(exclude_defaults=True) + "\n"
+
+
+UNWRITTEN_EVENTS_KEPT = 10_000
+"""Process events kept per events file while the disk has no room for them (a few MB at most)."""
+
+
+class EventsFiles:
+    """The events files a launcher appends to, on a disk that may fill up: ``append`` never
+    raises. A line that finds no room waits in memory (at most ``UNWRITTEN_EVENTS_KEPT`` per file,
+    the oldest then dropped and counted in ``lost``) and goes out, in order and whole, with the
+    next line that finds room. ``say`` gets a line for the launcher's terminal when a file first
+    cannot be written."""
+
+    def __init__(self, say: Callable[[str], None]) -> None:
+        self.say = say
+        self.lost = 0
+        self._unwritten: dict[Path, list[str]] = {}
+
+    def append(self, path: Path, line: str) -> bool:
+        """Append ``line`` (and every line before it still waiting) to ``path``; False if it
+        waits for room."""
+        pending = self._unwritten.setdefault(path, [])
+        pending.append(line)
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            with open(path, "ab", buffering=0) as raw:
+                AllOrNothing(raw).write("".join(pending).encode())
+        except OSError as err:
+            if len(pending) == 1:
+                self.say(f"{path}: {err}: process events wait in memory until they can be written")
+            if len(pending) > UNWRITTEN_EVENTS_KEPT:
+                self.lost += len(pending) - UNWRITTEN_EVENTS_KEPT
+                del pending[:-UNWRITTEN_EVENTS_KEPT]
+            return False
+        pending.clear()
+        return True
+
+    def waiting(self, path: Path) -> int:
+        """Lines waiting for room in ``path``."""
+        return len(self._unwritten.get(path, ()))

@@ -51,8 +51,9 @@ from seaway.runtime.bus_typed import RawRing
 from seaway.runtime.credentials import ENV_IDENTITY
 from seaway.runtime.service import ENV_VESSEL
 from seaway.tools.launch import exits
-from seaway.tools.launch.events import EVENTS_FILE, ProcessEvent
+from seaway.tools.launch.events import EVENTS_FILE, EventsFiles, ProcessEvent
 from seaway.tools.launch.liveness import TOKEN_GRACE_S, Watch
+from seaway.tools.launch.logsink import LogSink
 from seaway.tools.launch.profile import BackoffPolicy, ProcessSpec, start_order, stop_order
 
 WATCH_RING = 4096
@@ -152,6 +153,7 @@ class Supervisor:
         self.hurried = 0  # Ctrl-Cs after the first: the stop's grace is short (HURRY_GRACE_S)
         self._hurry_noted = 0
         self._events: list[dict] = []
+        self.events_out = EventsFiles(lambda line: self.echo(f"launcher: {line}"))
         # Hang detection (liveness): the duties of each process under the run's clock, what the
         # launcher hears of them, and since when each service's token has been missing.
         self.duties = {name: sp.spec.duties(clock) for name, sp in self.procs.items()}
@@ -247,10 +249,11 @@ class Supervisor:
 
     # -- starting -------------------------------------------------------------------------------
 
-    def _pump(self, name: str, stream: IO[bytes], log: IO[bytes]) -> None:
+    def _pump(self, name: str, stream: IO[bytes], log: LogSink) -> None:
+        # Reads on whatever happens to the log (``LogSink.write`` never raises): a process whose
+        # output is not read blocks once its pipe is full.
         for raw in iter(stream.readline, b""):
             log.write(raw)
-            log.flush()
             line = raw.decode(errors="replace").rstrip()
             if self.echo_all or " WARNING " in line or " ERROR " in line or "Traceback" in line:
                 self.echo(f"{name:>13} | {line}")
@@ -260,7 +263,7 @@ class Supervisor:
     def spawn(self, sp: Supervised) -> None:
         composed = host.active()
         if composed is not None:  # a node of this process (seaway.runtime.host), not a process
-            log = open(self.logs / f"{sp.spec.name}.log", "ab")  # noqa: SIM115 - closed by the pump
+            log = self._log_sink(sp.spec.name)  # closed by the pump
             log.write(f"--- start {time.strftime('%Y-%m-%dT%H:%M:%S')} (node of this process) "
                       f"{' '.join(sp.argv)}\n".encode())
             sp.popen = composed.start(sp.spec.name, sp.argv)  # type: ignore[assignment]
@@ -269,7 +272,7 @@ class Supervisor:
         exe = shutil.which(sp.argv[0], path=self.env.get("PATH"))
         if exe is None:
             raise FileNotFoundError(f"process {sp.spec.name!r}: command {sp.argv[0]!r} not found")
-        log = open(self.logs / f"{sp.spec.name}.log", "ab")  # noqa: SIM115 - closed by the pump
+        log = self._log_sink(sp.spec.name)  # closed by the pump
         log.write(f"--- start {time.strftime('%Y-%m-%dT%H:%M:%S')} {' '.join(sp.argv)}\n".encode())
         # A service is its own identity; another process (a replay) is named by the profile.
         env = {**self.env, ENV_VESSEL: sp.vessel, **sp.spec.env, "PYTHONUNBUFFERED": "1",
@@ -285,7 +288,10 @@ class Supervisor:
                 self.echo(f"launcher: {sp.spec.name} left on the launcher's CPUs: {err}")
         self._started(sp, log)
 
-    def _started(self, sp: Supervised, log: IO[bytes]) -> None:
+    def _log_sink(self, name: str) -> LogSink:
+        return LogSink(self.logs / f"{name}.log", trouble=lambda line: self.echo(f"launcher: {line}"))
+
+    def _started(self, sp: Supervised, log: LogSink) -> None:
         """What follows a start, process or node: its state, its output pumped to its log."""
         assert sp.popen is not None and sp.popen.stdout is not None
         sp.started_at = time.monotonic()
@@ -505,9 +511,7 @@ class Supervisor:
         self._events.append(data)
         for folder in (self.run_dir, sp.vessel_dir):
             if folder is not None:
-                folder.mkdir(parents=True, exist_ok=True)
-                with open(folder / EVENTS_FILE, "a") as f:
-                    f.write(ev.line())
+                self.events_out.append(folder / EVENTS_FILE, ev.line())
 
 
 def stop_signal(state: str) -> signal.Signals:
