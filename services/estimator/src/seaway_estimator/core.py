@@ -11,11 +11,12 @@ position and heading). ``d`` is the disturbance (the paper's tau_d), a random wa
 body-frame surge and sway forces (its ``tau_body``); ``d3`` is always the body yaw moment [N m].
 Whatever the internal frame, ``StateEstimate`` carries the body-frame values and their covariance.
 
-The core is one class in three parts, each a module: the inputs, initialisation and the published
-estimate (here); the prediction (``core_predict``: the mean with ``seaway.vessel.model.rk4_step``
-and the thrust held, the covariance with the exact Jacobian, one compiled function); the updates
-(``core_updates``: GNSS position and velocity over ground, heading, yaw rate, each when it arrives,
-Joseph form, one compiled function each).
+The core is one class in four parts, each a module: the inputs and initialisation (here); the
+published estimate (``core_estimate``: ``predict_to``, the checks before an estimate goes out, the
+body-frame disturbance and covariance); the prediction (``core_predict``: the mean with
+``seaway.vessel.model.rk4_step`` and the thrust held, the covariance with the exact Jacobian, one
+compiled function); the updates (``core_updates``: GNSS position and velocity over ground, heading,
+yaw rate, each when it arrives, Joseph form, one compiled function each).
 
 Every update is gated on its normalised innovation squared (chi-square threshold per measurement);
 a rejected sample is counted and ignored. Before that, what a message says past what a receiver or
@@ -38,20 +39,19 @@ from seaway.contract.messages import (
     THRUST_APPLIED_ANYWAY,
     Attitude,
     GnssFix,
-    MessageError,
     NavOrigin,
-    StateEstimate,
     ThrustCommand,
     VehicleStatus,
 )
 from seaway.contract.units import NS_PER_S
 from seaway.vessel import model
 from seaway.vessel.envelope import envelope
-from seaway.vessel.frames import GeoOrigin, wrap_pi
+from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.model import VesselParams
 from seaway.vessel.thrusters import apply_dead_zone, output_pair
 
 from seaway_estimator.config import EstimatorConfig
+from seaway_estimator.core_estimate import PublishedEstimate
 from seaway_estimator.core_inputs import (
     ATTITUDE_SPACING_NS,
     GNSS_SPACING_NS,
@@ -65,7 +65,7 @@ from seaway_estimator.core_inputs import (
 )
 from seaway_estimator.core_predict import Prediction
 from seaway_estimator.core_updates import MeasurementUpdates
-from seaway_estimator.kalman import ID1, ID2, ID3, IPSI, IR, IU, IV, IX, IY, NZ, Filter, Predictor
+from seaway_estimator.kalman import IPSI, IX, IY, NZ, Filter, Predictor
 from seaway_estimator.mismatch import FixSample, MotionMismatch
 from seaway_estimator.notices import MAX_NOTICES, Counters, Notice
 
@@ -101,7 +101,7 @@ def _initial_force_std(c: EstimatorConfig, p: VesselParams, world: bool) -> tupl
     return math.hypot(c.init_force_std_n, surge), math.hypot(c.init_force_std_n, sway)
 
 
-class EstimatorCore(Prediction, MeasurementUpdates):
+class EstimatorCore(PublishedEstimate, Prediction, MeasurementUpdates):
     """Messages and time in, ``StateEstimate`` out. See the module docstring for the model."""
 
     def __init__(self, config: EstimatorConfig | None = None, vessel: VesselParams | None = None,
@@ -339,55 +339,6 @@ class EstimatorCore(Prediction, MeasurementUpdates):
         if r is not None:
             self._update_yaw_rate(r, delay)
 
-    def predict_to(self, t_ns: int) -> StateEstimate | None:
-        """The estimate at ``t_ns`` (the filter advances to it), or None before initialisation.
-
-        A time before the filter's own (within ``late_tolerance_s``) gives a first-order
-        back-extrapolated estimate without moving the filter; further back gives None (counted).
-        Never returns a non-finite or absurd estimate (``seaway.vessel.envelope``): a filter that went
-        there is dropped (counted in
-        ``divergence_resets``) and re-initialises from the next measurements.
-        """
-        t = check_stamp("predict_to", t_ns)
-        f = self.filter
-        if f is None:
-            return None
-        if t - f.t_ns > self._max_gap_ns:
-            self._time_jump(t)
-            return None
-        if t >= f.t_ns:
-            self._advance(t)
-            if self.filter is None:  # it diverged on the way
-                return None
-            z, delay = f.z, 0.0
-        else:
-            delay = (f.t_ns - t) / NS_PER_S
-            if delay > self.config.late_tolerance_s:
-                self.counters.inc("too_old")
-                return None
-            z = self._back(f.z, delay)
-        self._update_degraded(t)
-        return self._estimate(t, z, f.P, f.degraded)
-
-    step = predict_to
-
-    def degraded_reasons(self, t_ns: int) -> list[str]:
-        """Why the estimate at ``t_ns`` is degraded (empty if it is not)."""
-        f = self.filter
-        if f is None:
-            return ["not initialised"]
-        c, out = self.config, []
-        if t_ns - f.last_gnss_ns > c.gnss_timeout_s * NS_PER_S:
-            out.append(f"no GNSS position accepted for {(t_ns - f.last_gnss_ns) / NS_PER_S:.1f} s")
-        if t_ns - f.last_heading_ns > c.heading_timeout_s * NS_PER_S:
-            out.append(f"no heading accepted for {(t_ns - f.last_heading_ns) / NS_PER_S:.1f} s")
-        return out
-
-    def body_disturbance(self) -> tuple[float, float, float] | None:
-        """The disturbance estimate in the body frame now [N, N, N m]."""
-        f = self.filter
-        return None if f is None else self._body_d(f.z.tolist())[0]
-
     # ------------------------------------------------------------------------------------------
     # Input checks
     # ------------------------------------------------------------------------------------------
@@ -449,65 +400,3 @@ class EstimatorCore(Prediction, MeasurementUpdates):
         self._pending = _Pending()
         self._used["gnss"].add(t_fix, t0)
         self._used["attitude"].add(t_att, t0)
-
-    # ------------------------------------------------------------------------------------------
-    # Output
-    # ------------------------------------------------------------------------------------------
-
-    def _update_degraded(self, t: int) -> None:
-        f = self.filter
-        assert f is not None
-        now = (t - f.last_gnss_ns > self._gnss_timeout_ns
-               or t - f.last_heading_ns > self._heading_timeout_ns)
-        if now and not f.degraded:
-            self.counters.inc("degraded_entered")
-        f.degraded = now
-
-    def _body_d(self, z: list[float]) -> tuple[tuple[float, float, float], np.ndarray | None]:
-        """Body-frame disturbance and the Jacobian T taking the internal covariance to it (``z``
-        the state as floats)."""
-        if not self._world:
-            return (z[ID1], z[ID2], z[ID3]), None
-        psi, dn, de = z[IPSI], z[ID1], z[ID2]
-        c, s = math.cos(psi), math.sin(psi)
-        du, dv = c * dn + s * de, -s * dn + c * de
-        T = self._T_body  # the identity but for the entries set here; used before the next call
-        T[ID1, ID1], T[ID1, ID2], T[ID1, IPSI] = c, s, dv
-        T[ID2, ID1], T[ID2, ID2], T[ID2, IPSI] = -s, c, -du
-        return (du, dv, float(z[ID3])), T
-
-    def _estimate(self, t: int, z: np.ndarray, P: np.ndarray, degraded: bool) -> StateEstimate | None:
-        # As floats: on 9 and 81 values numpy's per-call cost is the cost (the matrix products
-        # stay numpy's, whose rounding the published covariance has).
-        zl = z.tolist()
-        d, T = self._body_d(zl)
-        if T is not None:
-            Pout = T @ P @ T.T
-            Pout = 0.5 * (Pout + Pout.T)
-        else:
-            Pout = P
-        cov = Pout.ravel().tolist()
-        pxx, pyy = P.item(IX, IX), P.item(IY, IY)
-        pos_std = math.sqrt(max(pxx, pyy)) if math.isfinite(pxx) else math.inf
-        isfinite = math.isfinite
-        finite = all(map(isfinite, zl)) and all(map(isfinite, cov))
-        why = ("the state is not finite" if not finite else self._absurd(zl)
-               or (f"position std {pos_std:.0f} m (over max_position_std_m "
-                   f"{self.config.max_position_std_m:g} m)"
-                   if pos_std > self.config.max_position_std_m else None))
-        if why is not None:
-            self.counters.inc("publish_refused")
-            self._diverged(t, why)
-            return None
-        try:
-            est = StateEstimate(
-                stamp_ns=t, u_mps=zl[IU], v_mps=zl[IV], r_radps=zl[IR],
-                x_m=zl[IX], y_m=zl[IY], psi_rad=wrap_pi(zl[IPSI]),
-                tau_d_surge_n=d[0], tau_d_sway_n=d[1], tau_d_yaw_nm=d[2],
-                covariance=cov, degraded=degraded,
-                motion_fault=self.mismatch.kind, motion_fault_detail=self.mismatch.detail)
-        except (MessageError, ValueError):
-            self.counters.inc("publish_refused")
-            return None
-        self.counters.inc("published")
-        return est
