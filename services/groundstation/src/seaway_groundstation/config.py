@@ -19,6 +19,8 @@ from seaway.contract.config import ConfigModel
 from seaway.runtime.config import Flag
 from seaway.tools.launch.address import ENV_TILES
 
+from seaway_groundstation.fleet import FORGET_AFTER_S
+
 DEFAULT_HOST = "127.0.0.1"
 DEFAULT_PORT = 8321
 DEFAULT_RUNS_DIR = Path("runs")
@@ -66,6 +68,10 @@ class GroundStationConfig(ConfigModel):
         default=64, ge=1,
         description="vessels the ground station keeps at once; a new name beyond it is refused "
                     "(counted, logged) unless a vessel silent and without services can be forgotten")
+    forget_after_s: float = Field(
+        default=FORGET_AFTER_S, ge=0,
+        description="how long a vessel without any service's health token must have been silent "
+                    "before a new name may take its place when max_vessels are kept [s]")
     stale_after_s: float = Field(
         default=2.0, gt=0, description="a message older than this is shown as stale [s]")
     max_waypoints: int = Field(

@@ -44,6 +44,7 @@ class Settings:
     max_stream_clients: int = _DEFAULT.max_stream_clients
     stream_send_timeout_s: float = _DEFAULT.stream_send_timeout_s
     max_vessels: int = _DEFAULT.max_vessels
+    forget_after_s: float = _DEFAULT.forget_after_s
     stale_after_s: float = _DEFAULT.stale_after_s
     max_waypoints: int = _DEFAULT.max_waypoints
     default_origin: GeoOrigin | None = None

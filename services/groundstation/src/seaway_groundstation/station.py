@@ -32,7 +32,8 @@ class GroundStation:
 
     def __init__(self, bus: Bus, settings: Settings) -> None:
         self.bus, self.settings = bus, settings
-        self.fleet = Fleet(settings.stale_after_s, settings.default_origin, settings.max_vessels)
+        self.fleet = Fleet(settings.stale_after_s, settings.default_origin, settings.max_vessels,
+                           settings.forget_after_s)
         self.hub = StreamHub(self.fleet, settings.stream_rate_hz, settings.max_stream_clients,
                              settings.clock, settings.stream_send_timeout_s)
         self.link = BusLink(bus, self.fleet, settings.clock, self.hub.notify)
