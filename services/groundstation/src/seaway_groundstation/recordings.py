@@ -40,6 +40,7 @@ from mcap.writer import MCAP0_MAGIC as MCAP_MAGIC  # an upload must start with i
 from pydantic import BaseModel, Field
 from seaway.contract import keys
 from seaway.contract.messages import MissionAccepted
+from seaway.runtime.disk import disk_full
 from seaway.vessel.frames import GeoOrigin
 
 from seaway_groundstation import geo, runcontext
@@ -245,7 +246,8 @@ class UploadStore:
 
     async def save(self, filename: str, chunks: AsyncIterator[bytes]) -> tuple[str, Path]:
         """Write an upload from ``chunks``; (id, path). RecordingError: over ``max_bytes`` (413),
-        not named .mcap or not MCAP (422). The oldest uploads beyond ``max_uploads`` are removed."""
+        not named .mcap or not MCAP (422), no room on the disk (507) or another write error (500):
+        what was written of it is removed. The oldest uploads beyond ``max_uploads`` are removed."""
         stem = _NAME_RE.sub("_", Path(filename or "recording.mcap").name)[-100:].lstrip(".") or "recording"
         if not stem.endswith(".mcap"):
             raise RecordingError(422, f"upload {filename!r}: name an .mcap file (a Seaway recording)")
@@ -269,6 +271,13 @@ class UploadStore:
                 raise RecordingError(422, f"upload {filename!r} is not an MCAP file (it does not start "
                                           "with the MCAP magic bytes)")
             os.replace(part, path)
+        except OSError as err:  # what the disk says, as an answer naming it; not a traceback
+            if disk_full(err):
+                raise RecordingError(507, f"upload {filename!r}: no room for it on the ground "
+                                          f"station's disk after {size} bytes ({err}); free some "
+                                          "space there, or set upload_dir to a disk with room") from None
+            raise RecordingError(500, f"upload {filename!r}: the ground station cannot store it: "
+                                      f"{err}") from None
         finally:
             with contextlib.suppress(OSError):
                 part.unlink()

@@ -43,7 +43,8 @@ def router(gs: GroundStation, command: list[Any]) -> APIRouter:
             responses={401: error_doc("no operator token"), 403: error_doc("wrong operator token"),
                        413: error_doc("larger than the upload bound"), 415: error_doc("not a raw body"),
                        422: unprocessable_doc("not an MCAP recording that reads"),
-                       429: error_doc("too many command requests from this identity")},
+                       429: error_doc("too many command requests from this identity"),
+                       507: error_doc("no room on the ground station's disk for it")},
             openapi_extra={"requestBody": {"required": True, "content": {
                 "application/octet-stream": {"schema": {"type": "string", "format": "binary"}}}}})
     async def upload(request: Request, name: Annotated[str, Query(
