@@ -4,6 +4,7 @@ at, and everything after it kept; files joined one after another are each copied
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 from mcap.reader import make_reader
@@ -98,3 +99,20 @@ def test_a_cut_recording_followed_by_another_keeps_both_and_is_not_complete(tmp_
     kept = got[:len(got) - len(second)]
     assert got[len(kept):] == second and kept == first[:len(kept)] and 0 < len(kept) < 60
     assert res.recordings == 2 and not res.complete and f"byte {start}" in res.reason
+
+
+def test_a_file_cut_by_a_power_loss_keeps_every_chunk_before_its_tail(tmp_path: Path) -> None:
+    """After a power loss a file may end in zeros (its size grew before its data reached the disk)
+    or in junk (blocks never written): every whole chunk before is kept, the tail said, not read."""
+    src = tmp_path / "recording.mcap"
+    data = write(src)
+    start, _ = middle_chunk(src)
+    whole = src.read_bytes()[:start]  # up to the middle chunk: the chunks before it are whole
+    for name, tail in (("zeros", bytes(65536)), ("junk", os.urandom(65536))):
+        cut = tmp_path / f"{name}.mcap"
+        cut.write_bytes(whole + tail)
+        res = recover(cut, tmp_path / f"{name}-fixed.mcap")
+        got = [m.data for m in reader.iter_messages([tmp_path / f"{name}-fixed.mcap"])]
+        assert got and got == data[:len(got)], name  # nothing from the tail, nothing out of order
+        assert len(got) >= len(data) // 2 - 10, (name, len(got))
+        assert not res.complete and str(start) in res.reason, (name, res.reason)

@@ -17,6 +17,8 @@ from seaway.contract.config import ConfigModel
 from seaway.recording import runinfo
 from seaway.runtime.config import Flag
 
+from seaway_recorder.syncer import DEFAULT_SYNC_INTERVAL_S
+
 DEFAULT_FLUSH_S = 0.05
 MAX_FLUSH_INTERVAL_S = 0.1
 """The longest time between two flushes [s]: a SIGKILL loses less than twice this."""
@@ -71,6 +73,10 @@ class RecorderConfig(ConfigModel):
     flush_interval_s: Annotated[float, Flag("--flush-interval")] = Field(
         default=DEFAULT_FLUSH_S, gt=0, le=MAX_FLUSH_INTERVAL_S,
         description=f"seconds between flushes, at most {MAX_FLUSH_INTERVAL_S:g}")
+    sync_interval_s: Annotated[float, Flag("--sync-interval")] = Field(
+        default=DEFAULT_SYNC_INTERVAL_S, ge=0,
+        description="seconds between syncs of the recording to the disk (fdatasync, on a thread of "
+                    "its own): about what a power loss loses; 0: never (the OS may hold 30 s)")
     max_bytes: Annotated[int | None, Flag(parse=parse_size)] = Field(
         default=None, gt=0, description="rotate after this size (e.g. 512M)")
     max_seconds: Annotated[float | None, Flag()] = Field(

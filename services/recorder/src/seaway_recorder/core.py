@@ -191,9 +191,16 @@ class _OpenFile:
     def size(self) -> int:
         return self.stream.tell()
 
-    def close(self, metadata: tuple[str, dict[str, str]]) -> None:
-        """Finish the file with a last ``metadata`` record; a failed finish changes nothing."""
+    def close(self, metadata: tuple[str, dict[str, str]], durable: bool = False) -> None:
+        """Finish the file with a last ``metadata`` record; a failed finish changes nothing.
+        ``durable``: on the disk before it is closed (fdatasync; a failure is logged, the file is
+        whole for the OS all the same)."""
         self.writer.finish(metadata)
+        if durable:
+            try:
+                os.fdatasync(self.stream.fileno())
+            except OSError as err:
+                log.warning("could not sync %s to the disk: %s", self.path, err)
         self.stream.close()
 
     def abandon(self) -> None:
@@ -220,6 +227,7 @@ class RecordingWriter:
         foxglove: bool = True,
         default_origin: GeoOrigin | None = None,
         time: RecordingTime | None = None,
+        durable: bool = False,
     ) -> None:
         check_compression(compression)
         self.base = Path(path)
@@ -231,6 +239,8 @@ class RecordingWriter:
         self.attachments = list(attachments or [])
         self.metadata = dict(metadata or {})
         self.validate = validate
+        self.durable = durable
+        """Each file synced to the disk as it is closed (the recorder's ``--sync-interval`` on)."""
         self.stats = RecorderStats()
         self.time = time or RecordingTime.real_time()
         self._deriver = (derive.FoxgloveDeriver(default_origin, self.time.foxglove_ns) if foxglove
@@ -282,6 +292,10 @@ class RecordingWriter:
         log.info("recording to %s", path)
         return path
 
+    def fileno(self) -> int | None:
+        """The descriptor of the file being written (None: none is open), for ``syncer``."""
+        return self._file.stream.fileno() if self._file is not None else None
+
     @property
     def path(self) -> Path | None:
         return self._file.path if self._file else None
@@ -293,7 +307,7 @@ class RecordingWriter:
         f.writer.flush()  # the last chunk first: the summary's counts then hold whatever comes next
         summary = self.stats.as_metadata()
         summary.update({"file_messages": str(f.messages), "closed_at_ns": str(now_ns)})
-        f.close((SUMMARY_METADATA, summary))
+        f.close((SUMMARY_METADATA, summary), durable=self.durable)
         self._file = None
 
     def maybe_rotate(self, now_ns: int) -> Path | None:

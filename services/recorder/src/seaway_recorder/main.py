@@ -47,6 +47,7 @@ from seaway_recorder.config import RecorderConfig, parse_meta
 from seaway_recorder.core import LIBRARY, RUN_METADATA, AttachmentSpec, RecordingWriter
 from seaway_recorder.logtail import FileTail, LogTail
 from seaway_recorder.node import LATE_NS, KeptKeys, RecorderNode, SampleQueue, Tails, lockstep_exprs
+from seaway_recorder.syncer import Syncer
 
 log = logging.getLogger("seaway.recorder")
 
@@ -159,7 +160,8 @@ def run(argv: Sequence[str]) -> int:
                              compression=cfg.compression, max_bytes=cfg.max_bytes,
                              max_seconds=cfg.max_seconds, attachments=atts, metadata=meta,
                              validate=cfg.validate_samples, foxglove=cfg.foxglove,
-                             default_origin=origin, time=rec_time)
+                             default_origin=origin, time=rec_time,
+                             durable=cfg.sync_interval_s > 0)
     queue = SampleQueue(cfg.queue)  # and at most node.DEFAULT_QUEUE_BYTES of payloads
     # The recorder records whatever runs (a shore recorder sees a boat launched elsewhere), so it
     # does not take part in the run agreement; its run only describes the recording.
@@ -203,9 +205,11 @@ def run(argv: Sequence[str]) -> int:
         tails = Tails(FileTail(cfg.events) if cfg.events else None,
                       LogTail(cfg.logs) if cfg.logs else None,
                       ctx.bus.publisher(keys.LOG_LINE).put if cfg.logs else None)
+        syncer = Syncer(cfg.sync_interval_s)
         node = RecorderNode(writer, queue, cfg.flush_interval_s, cfg.status_interval_s, witness,
-                            tails, kept)
+                            tails, kept, syncer)
         run_node(ctx, node, cfg.flush_interval_s)
+        syncer.close()
         failed = node.failed is not None
         writer.count_dropped(queue.dropped - writer.stats.dropped)
         try:
@@ -214,7 +218,8 @@ def run(argv: Sequence[str]) -> int:
             log.error("could not finish %s: %s (try 'seaway record recover')", writer.path, err)
             return 1
     summary = {"files": files, **writer.stats.as_metadata(), "by_topic": dict(writer.stats.by_topic),
-               "repeats_not_written": queue.repeats, "dropped_bytes": queue.dropped_bytes}
+               "repeats_not_written": queue.repeats, "dropped_bytes": queue.dropped_bytes,
+               **syncer.figures()}
     log.info("recorder finished: %s", writer.stats.line())
     print(f"recording finished: {', '.join(files)}", flush=True)
     print(json.dumps(summary), flush=True)

@@ -34,6 +34,7 @@ from seaway.runtime.timeline import Timeline
 
 from seaway_recorder.core import RecordingWriter
 from seaway_recorder.logtail import FileTail, LogTail, log_record
+from seaway_recorder.syncer import Syncer
 
 log = logging.getLogger("seaway.recorder")
 
@@ -249,9 +250,12 @@ class RecorderNode(Node):
 
     def __init__(self, writer: RecordingWriter, queue: SampleQueue, flush_s: float,
                  status_s: float, witness: LockstepWitness | None = None,
-                 tails: Tails | None = None, kept: KeptKeys | None = None) -> None:
+                 tails: Tails | None = None, kept: KeptKeys | None = None,
+                 syncer: Syncer | None = None) -> None:
         self.writer, self.queue, self.witness, self.tails, self.kept = (
             writer, queue, witness, tails, kept)
+        self.syncer = syncer
+        """Syncs the file to the disk every ``--sync-interval``, off this loop (``syncer``)."""
         self.flush_ns = int(flush_s * 1e9)
         self.status_s = status_s
         now = time.monotonic_ns()
@@ -389,6 +393,8 @@ class RecorderNode(Node):
                 self.tails.copy(writer)
             writer.flush()
             writer.maybe_rotate(time.time_ns())
+            if self.syncer is not None:
+                self.syncer.maybe(writer.fileno(), now)
             self._next_flush = now + self.flush_ns
         if now >= self._next_status:
             rate = (writer.stats.messages - self._last_messages) / self.status_s
