@@ -44,13 +44,13 @@ def joules(text: str) -> float:
     return float(m.group(1)) * ENERGY_UNITS_J[m.group(2)]
 
 
-def start_groundstation(procs: Any, env: dict[str, str]) -> tuple[Any, str, str]:
-    """A real ``seaway-groundstation`` on an ephemeral port: (its process, its base URL, the
-    operator token), read from its address line."""
+def start_groundstation(procs: Any, env: dict[str, str], *args: str) -> tuple[Any, str, str]:
+    """A real ``seaway-groundstation`` on an ephemeral port, with ``args`` (``--config FILE``): (its
+    process, its base URL, the operator token), read from its address line."""
     from tests.conftest import BIN, wait_for
 
-    gs = procs.start([str(BIN / "seaway-groundstation"), "--port", "0", "--request-timeout-s", "10"],
-                     env, "groundstation")
+    gs = procs.start([str(BIN / "seaway-groundstation"), "--port", "0", "--request-timeout-s", "10",
+                      *args], env, "groundstation")
     line = wait_for(lambda: re.search(r"groundstation: (http://127\.0\.0\.1:\d+/) token (\S+)",
                                       procs.log(gs)), 60, what="the ground station's address line")
     return gs, line.group(1), line.group(2)

@@ -7,7 +7,6 @@ Before: the write's ``OSError`` left the request as a 500 with a traceback in th
 
 from __future__ import annotations
 
-import re
 import signal
 import urllib.error
 import urllib.request
@@ -16,7 +15,7 @@ from pathlib import Path
 import pytest
 from mcap.writer import MCAP0_MAGIC
 
-from tests.conftest import BIN, wait_for
+from tests.system.groundstation.helpers import start_groundstation
 from tests.unit.groundstation.test_gs_replay import write_run
 
 pytestmark = pytest.mark.system
@@ -37,11 +36,7 @@ def test_an_upload_that_finds_no_room_is_507_and_leaves_nothing(procs, zenoh_env
                                                                  tmp_path: Path) -> None:
     config = tmp_path / "groundstation.toml"
     config.write_text(f'upload_dir = "{small_disk}"\n')
-    gs = procs.start([str(BIN / "seaway-groundstation"), "--port", "0", "--config", str(config)],
-                     zenoh_env, "groundstation")
-    m = wait_for(lambda: re.search(r"groundstation: (http://127\.0\.0\.1:\d+/) token (\S+)",
-                                   procs.log(gs)), 60, what="the ground station's address line")
-    base, token = m.group(1), m.group(2)
+    gs, base, token = start_groundstation(procs, zenoh_env, "--config", str(config))
 
     status, body = upload(base, token, "big.mcap", MCAP0_MAGIC + b"\0" * (3 << 20))  # 3 MiB > 2 MiB
     assert status == 507, (status, body)

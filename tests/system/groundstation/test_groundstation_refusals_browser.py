@@ -24,9 +24,9 @@ from seaway.contract import keys
 from seaway.contract.messages import MissionStatus, StateEstimate, VehicleStatus
 from seaway.runtime.bus import Bus
 
-from tests.conftest import BIN, wait_for
+from tests.conftest import wait_for
 from tests.system.groundstation import axe_check
-from tests.system.groundstation.helpers import http
+from tests.system.groundstation.helpers import http, start_groundstation
 
 pytestmark = pytest.mark.system
 MAX_VESSELS = 2
@@ -48,10 +48,7 @@ def test_the_page_says_how_many_messages_the_full_ground_station_dropped(
         pytest.skip(str(err))
     config = tmp_path / "groundstation.toml"
     config.write_text(f"max_vessels = {MAX_VESSELS}\n")
-    gs = procs.start([str(BIN / "seaway-groundstation"), "--port", "0", "--config", str(config)],
-                     zenoh_env, "groundstation")
-    base = wait_for(lambda: re.search(r"groundstation: (http://127\.0\.0\.1:\d+/) token (\S+)",
-                                      procs.log(gs)), 60, what="the ground station's address line").group(1)
+    gs, base, _token = start_groundstation(procs, zenoh_env, "--config", str(config))
 
     def refused() -> int:
         status, body = http("GET", base + "api/vessels")
@@ -154,10 +151,7 @@ def test_the_page_counts_the_vessels_a_full_ground_station_forgot(procs, zenoh_e
         pytest.skip(str(err))
     config = tmp_path / "groundstation.toml"
     config.write_text("max_vessels = 1\nforget_after_s = 1.0\n")
-    gs = procs.start([str(BIN / "seaway-groundstation"), "--port", "0", "--config", str(config)],
-                     zenoh_env, "groundstation")
-    base = wait_for(lambda: re.search(r"groundstation: (http://127\.0\.0\.1:\d+/) token (\S+)",
-                                      procs.log(gs)), 60, what="the ground station's address line").group(1)
+    gs, base, _token = start_groundstation(procs, zenoh_env, "--config", str(config))
 
     def fleet() -> dict:
         status, body = http("GET", base + "api/vessels")

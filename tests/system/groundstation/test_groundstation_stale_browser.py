@@ -7,7 +7,6 @@ unreadable (a crew in sunlight reads it to judge how old).
 
 from __future__ import annotations
 
-import re
 import signal
 import threading
 
@@ -16,9 +15,9 @@ from seaway.contract import keys
 from seaway.contract.messages import MissionStatus, StateEstimate, VehicleStatus
 from seaway.runtime.bus import Bus
 
-from tests.conftest import BIN, wait_for
+from tests.conftest import wait_for
 from tests.system.groundstation import axe_check
-from tests.system.groundstation.helpers import http
+from tests.system.groundstation.helpers import http, start_groundstation
 
 pytestmark = pytest.mark.system
 VESSEL = "vessel1"
@@ -29,9 +28,7 @@ def test_stale_panels_are_marked_and_still_pass_axe(procs, zenoh_env, browser, t
         axe_script = axe_check.install()
     except axe_check.AxeUnavailableError as err:
         pytest.skip(str(err))
-    gs = procs.start([str(BIN / "seaway-groundstation"), "--port", "0"], zenoh_env, "groundstation")
-    base = wait_for(lambda: re.search(r"groundstation: (http://127\.0\.0\.1:\d+/) token (\S+)",
-                                      procs.log(gs)), 60, what="the ground station's address line").group(1)
+    gs, base, _token = start_groundstation(procs, zenoh_env)
     stop = threading.Event()
     with Bus.open(VESSEL) as bus:
         nav = bus.publisher(keys.NAV_STATE)
