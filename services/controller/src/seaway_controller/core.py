@@ -174,10 +174,13 @@ class ControllerCore(MissionRequests, VehicleGate, EnergyAccount):
 
     # -- the control period ---------------------------------------------------------------------
 
-    def step(self, now_ns: int, state: StateEstimate
+    def step(self, now_ns: int, state: StateEstimate, mono_ns: int | None = None
              ) -> tuple[ThrustCommand, SolveRecord | None, MissionStatus]:
         """One period: a command for ``state`` (stamped with its stamp), the solve record (None
-        when no solve was needed: no mission, paused, complete, aborted) and the mission status."""
+        when no solve was needed: no mission, paused, complete, aborted) and the mission status.
+        ``now_ns``: the period's time (wall clock in real time, simulated in lockstep); ``mono_ns``
+        [ns, monotonic]: real time's clock for the energy counted over the time since the last
+        step (None: ``now_ns``'s), which a stepped wall clock must not stretch."""
         why = self._absurd(state)
         if why is not None:
             # No vessel moves like this: an estimator that went unstable. Planning from it threw
@@ -190,7 +193,7 @@ class ControllerCore(MissionRequests, VehicleGate, EnergyAccount):
             return cmd, None, self._status(now_ns, self._last_state or state)
         x0 = np.array([state.u_mps, state.v_mps, state.r_radps, state.x_m, state.y_m,
                        state.psi_rad])
-        self._account_energy(now_ns)
+        self._account_energy(now_ns, mono_ns)
         self._last_state = state
         mm = self.missions
         mm.update(state.x_m, state.y_m)
@@ -261,7 +264,7 @@ class ControllerCore(MissionRequests, VehicleGate, EnergyAccount):
                                   position_only=self._area_return)
         if breach is not None:  # stop short of the area's edge: this period's command is the stop's
             self._area_stop(now_ns, state, breach)
-            cmd, _, status = self.step(now_ns, state)
+            cmd, _, status = self.step(now_ns, state, mono_ns)
             return cmd, record, status
         self._update_budget(now_ns, state, used)
         return cmd, record, self._status(now_ns, state)

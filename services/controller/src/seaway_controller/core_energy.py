@@ -2,7 +2,10 @@
 
 Every period, the energy of the last command over the time since (propulsion, alpha (T1^2 + T2^2),
 plus the mission's task power T^w) [J] is counted to the battery always and to the mission while it
-is active (``_account_energy``). What the battery has left is its last report less what was counted
+is active (``_account_energy``); the time since is measured on the clock ``step`` is given for
+intervals (real time: the monotonic clock, so that a wall clock stepped by NTP or GPS time counts
+no energy the vessel never used). What
+the battery has left is its last report less what was counted
 since (``BatteryTrack``). The mission's energy budget (``seaway_controller.budget.Budget``) prices the
 way to the end and the way home against it when due, and at the pricing that finds the margin at 0
 takes the mission's policy: warn, hold, or return to the cheapest of home and the rally points
@@ -48,6 +51,10 @@ from seaway_controller.mpc import MpcOutcome
 if TYPE_CHECKING:
     from seaway_controller.config import ControllerConfig
 
+MAX_REPORT_OFFSET_NS = 5 * 10**9
+"""A battery report stamped further than this from the last step [ns] counts nothing since it:
+reports come every second or so, stamped on the same wall clock; further apart, that clock stepped."""
+
 log = logging.getLogger("seaway_controller.core")
 
 
@@ -85,7 +92,8 @@ class EnergyAccount:
         self.budget: Budget | None = None
         self._budget_msg: EnergyBudget | None = None
         self.hold_energy_j = 0.0  # counted since the current hold began
-        self._last_step_ns: int | None = None
+        self._last_step_ns: int | None = None  # the last step's time [ns, wall in real time]
+        self._last_step_mono_ns: int | None = None  # the same step on the clock of intervals [ns]
         self._last_command = (0.0, 0.0)
 
     def _shortfall(self) -> str:
@@ -194,6 +202,10 @@ class EnergyAccount:
         last command's power over the time from that step."""
         if self._last_step_ns is None:
             return self.energy_counted_j
+        if abs(t_ns - self._last_step_ns) > MAX_REPORT_OFFSET_NS:
+            # Not a report of about now: a wall clock stepped between the step and the report's
+            # stamp (NTP, GPS time), which an hour's power would turn into a phantom 900 kJ.
+            return self.energy_counted_j
         # The same expression as _account_energy's, so that a report stamped at the next step
         # counts exactly nothing since (lockstep: the decision is bit-for-bit replayable).
         return self.energy_counted_j + self._power_w() * ((t_ns - self._last_step_ns) / 1e9)
@@ -268,19 +280,22 @@ class EnergyAccount:
             self.missions.reason = reason[:MAX_REASON_CHARS]
         return self.missions.state
 
-    def _account_energy(self, now_ns: int) -> None:
+    def _account_energy(self, now_ns: int, mono_ns: int | None = None) -> None:
         """Energy of the last command over the time since: alpha (T1^2 + T2^2) + T^w [J], to the
-        mission's count while it is active and to the battery's count always."""
+        mission's count while it is active and to the battery's count always. The time since is
+        measured on ``mono_ns`` [ns, monotonic] when given (real time), else on ``now_ns`` (lockstep:
+        simulated time, which never steps)."""
         mm = self.missions
-        if self._last_step_ns is not None:
-            dt = max(0.0, (now_ns - self._last_step_ns) / 1e9)
+        clock_ns = now_ns if mono_ns is None else mono_ns
+        if self._last_step_mono_ns is not None:
+            dt = max(0.0, (clock_ns - self._last_step_mono_ns) / 1e9)
             energy = self._power_w() * dt
             self.energy_counted_j += energy
             if mm.state == "active" and mm.mission is not None:
                 self.energy_used_j += energy
             elif self._holding is not None:
                 self.hold_energy_j += energy
-        self._last_step_ns = now_ns
+        self._last_step_ns, self._last_step_mono_ns = now_ns, clock_ns
 
     def take_budget(self) -> EnergyBudget | None:
         """The budget priced at the last step, once (None: none was, or no active mission was

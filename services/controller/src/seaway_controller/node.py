@@ -37,6 +37,7 @@ from __future__ import annotations
 import functools
 import logging
 import threading
+import time
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
@@ -236,7 +237,9 @@ class ControllerNode(Node):
             state = None  # stamped ahead of now: wrong, never acted on (seaway.runtime.stamps)
         due = live.due(state, now_ns)
         if due is not None:
-            live.run_step(functools.partial(self.step, now_ns, due),
+            # The monotonic clock with it: the energy counted over the time since the last step
+            # must not take a wall clock's step (NTP, GPS time) for hours of thrust.
+            live.run_step(functools.partial(self.step, now_ns, due, time.monotonic_ns()),
                           functools.partial(self._overrun_command, due), self.ratelog)
             return
         stale = live.stale(now_ns)
@@ -356,13 +359,14 @@ class ControllerNode(Node):
 
     # -- real time -------------------------------------------------------------------------------
 
-    def step(self, now_ns: int, state: StateEstimate) -> None:
-        """Real time: one control step for ``state``, its messages published."""
+    def step(self, now_ns: int, state: StateEstimate, mono_ns: int | None = None) -> None:
+        """Real time: one control step for ``state`` at ``now_ns`` (wall clock) and ``mono_ns``
+        (monotonic), its messages published."""
         out = self.out
         assert out is not None
         try:
             with self.lock:
-                cmd, record, status = self.core.step(now_ns, state)
+                cmd, record, status = self.core.step(now_ns, state, mono_ns)
                 budget = self.core.take_budget()
                 making = self.solver_pending()
                 self._remember_leg()
