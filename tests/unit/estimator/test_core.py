@@ -409,3 +409,31 @@ def test_the_prediction_takes_the_thrust_the_output_stage_sends_not_the_raw_dema
     assert surge_after(6.0) == surge_after(10.0) > 0.02  # sent at the dead zone's edge
     assert surge_after(4.0) == surge_after(0.0) == 0.0  # sent as nothing
     assert surge_after(12.0) > surge_after(10.0)  # outside the dead zone: the demand itself
+
+
+def test_a_clock_stepped_back_drops_the_state_and_the_next_measurements_restart_it() -> None:
+    """The times asked for go back an hour (NTP or GPS time stepping the wall clock): nothing can be
+    predicted back there, so the state is dropped at once, and measurements stamped on the stepped
+    clock re-initialise it. Before, every request was 'too old' and every measurement too: no
+    estimate until the clock came back to where the filter was, an hour later."""
+    core = EstimatorCore(FIXED)
+    core.on_gnss(fix(3600 * S, 0.0, 0.0))
+    core.on_attitude(att(3600 * S, 0.0))
+    assert core.predict_to(3610 * S) is not None
+    back = 10 * S
+    assert core.predict_to(back) is None
+    assert core.counters["time_jumps"] == 1 and not core.initialised
+    core.on_gnss(fix(back + 100 * MS, 1.0, 2.0))
+    core.on_attitude(att(back + 100 * MS, 0.3))
+    est = core.predict_to(back + 150 * MS)
+    assert est is not None and est.x_m == pytest.approx(1.0, abs=0.05)
+
+
+def test_a_request_back_within_what_a_stamp_may_lie_ahead_keeps_the_state() -> None:
+    """A fix may be stamped up to MAX_AHEAD_LIVE_S ahead of the receiver's clock, and moves the filter
+    there: a request that far back is too old (None, counted), not a stepped clock."""
+    core = started()
+    core.predict_to(10 * S)
+    core.on_gnss(fix(11 * S, 0.0, 0.0))  # the filter moves to 11 s
+    assert core.predict_to(10 * S) is None and core.counters["too_old"] >= 1
+    assert core.initialised and core.counters["time_jumps"] == 0

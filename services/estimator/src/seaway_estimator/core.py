@@ -44,6 +44,7 @@ from seaway.contract.messages import (
     VehicleStatus,
 )
 from seaway.contract.units import NS_PER_S
+from seaway.runtime.stamps import MAX_AHEAD_LIVE_S
 from seaway.vessel import model
 from seaway.vessel.envelope import envelope
 from seaway.vessel.frames import GeoOrigin
@@ -121,6 +122,10 @@ class EstimatorCore(PublishedEstimate, Prediction, MeasurementUpdates):
         self._max_step_ns = round(c.max_step_s * NS_PER_S)
         # Per-configuration bounds in ns, as each comparison below computed them at every sample.
         self._max_gap_ns = round(c.max_gap_s * NS_PER_S)
+        # A request this far behind the filter's time comes from a clock stepped back: the filter
+        # is ahead of the clock by at most a measurement's allowance (MAX_AHEAD_LIVE_S), and a
+        # late request by at most late_tolerance_s (core_estimate.predict_to).
+        self._step_back_ns = round((MAX_AHEAD_LIVE_S + c.late_tolerance_s) * NS_PER_S)
         self._gnss_timeout_ns = c.gnss_timeout_s * NS_PER_S
         self._heading_timeout_ns = c.heading_timeout_s * NS_PER_S
         self._T_body = np.eye(NZ)  # ``_body_d``'s Jacobian, its six entries refilled at each call

@@ -37,6 +37,7 @@ class PublishedEstimate:
     counters: Counters
     mismatch: MotionMismatch
     _max_gap_ns: int
+    _step_back_ns: int
     _gnss_timeout_ns: int
     _heading_timeout_ns: int
     _world: bool
@@ -52,7 +53,10 @@ class PublishedEstimate:
         """The estimate at ``t_ns`` (the filter advances to it), or None before initialisation.
 
         A time before the filter's own (within ``late_tolerance_s``) gives a first-order
-        back-extrapolated estimate without moving the filter; further back gives None (counted).
+        back-extrapolated estimate without moving the filter; further back gives None (counted);
+        further back than a measurement may lie ahead of the clock plus ``late_tolerance_s``
+        (``_step_back_ns``), the clock was stepped back: the state is dropped, as for a gap over
+        ``max_gap_s`` ahead.
         Never returns a non-finite or absurd estimate (``seaway.vessel.envelope``): a filter that went
         there is dropped (counted in
         ``divergence_resets``) and re-initialises from the next measurements.
@@ -61,7 +65,11 @@ class PublishedEstimate:
         f = self.filter
         if f is None:
             return None
-        if t - f.t_ns > self._max_gap_ns:
+        if t - f.t_ns > self._max_gap_ns or f.t_ns - t > self._step_back_ns:
+            # Too far ahead to integrate, or further back than any late request: the clock the
+            # times come from was stepped (NTP or GPS time on a computer without a real-time
+            # clock). Nothing can be predicted across it: the state is dropped, and the next
+            # measurements, stamped on the stepped clock, re-initialise it within a second or so.
             self._time_jump(t)
             return None
         if t >= f.t_ns:

@@ -1,0 +1,125 @@
+"""A wall clock stepped under a flying real-time stack, as NTP or GPS time steps a Raspberry Pi's
+clock (no real-time clock: it boots at the last saved time) while every process runs.
+
+libfaketime gives every process of ``seaway launch sim`` one wall clock, stepped by rewriting its
+timestamp file; the monotonic clock is left alone (FAKETIME_DONT_FAKE_MONOTONIC). Mid-mission, the
+wall clock steps an hour forward or back. Checked: the energy count takes no step for thrust (no
+phantom energy, no return home: ``seaway_controller.core_energy``), the estimator drops its state
+and starts again on the stepped clock either way (``seaway_estimator.core_estimate``), and thrust
+reaches the vessel again within seconds, with no process found hung or restarted.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import threading
+import time
+from pathlib import Path
+
+import pytest
+from seaway.contract import keys
+from seaway.runtime.bus import Bus
+
+from tests.conftest import wait_for
+
+pytestmark = pytest.mark.system
+# The thread-safe build: the other one, read from many threads at once (Zenoh's), now and then
+# returns the clock unstepped (245 of 230 000 reads in a test of 6 threads).
+LIBFAKETIME = Path("/usr/lib/x86_64-linux-gnu/faketime/libfaketimeMT.so.1")
+HOUR_S = 3600
+AFTER_STEP_S = 12.0  # watched after the step: the budget prices once a second
+# A generous bound on what 12 s of the lake mission draws (about 0.5 kJ/s); the step's phantom
+# energy was 900 kJ.
+MAX_DRAW_J = 30_000.0
+# Thrust back at the vessel within this after the step: the estimator starts again from the next
+# fix and heading (about 1.3 s either way); well inside the launcher's liveness bound (5 s), which
+# would restart a process that stopped publishing.
+THRUST_BACK_S = 4.0
+
+# libfaketime 0.9.10 (Debian 12, Ubuntu 24.04) breaks clock_nanosleep(CLOCK_MONOTONIC,
+# TIMER_ABSTIME) under FAKETIME_DONT_FAKE_MONOTONIC (wolfcw/libfaketime#426): Python >= 3.11's
+# time.sleep raises EINVAL. Each process waits on a monotonic Event instead (the same clock).
+SLEEP_SHIM = '''import threading, time
+def _sleep(seconds):
+    if seconds < 0:
+        raise ValueError("sleep length must be non-negative")
+    threading.Event().wait(seconds)
+time.sleep = _sleep
+'''
+
+
+class Watch:
+    """What the test hears, with its own receive times (monotonic)."""
+
+    def __init__(self, bus: Bus) -> None:
+        self.lock = threading.Lock()
+        self.budgets: list[tuple[float, object]] = []
+        self.thrust_at_vessel: list[float] = []  # receive times of sim/truth with thrust on
+        self.status = None
+        bus.subscribe(keys.MISSION_ENERGY,
+                      callback=lambda _k, m: self._add(self.budgets, (time.monotonic(), m)))
+        bus.subscribe(keys.MISSION_STATUS, callback=lambda _k, m: setattr(self, "status", m))
+        bus.subscribe(keys.SIM_TRUTH, callback=self._on_truth)
+
+    def _on_truth(self, _key: str, m) -> None:
+        if m.thrust_port_n != 0.0 or m.thrust_starboard_n != 0.0:
+            self._add(self.thrust_at_vessel, time.monotonic())
+
+    def _add(self, seq: list, item: object) -> None:
+        with self.lock:
+            seq.append(item)
+
+
+def faketime_env(env: dict[str, str], tmp: Path) -> tuple[dict[str, str], Path]:
+    shim = tmp / "faketime-shim"
+    shim.mkdir()
+    (shim / "sitecustomize.py").write_text(SLEEP_SHIM)
+    stamp = tmp / "faketime"
+    stamp.write_text("+0\n")
+    return dict(env, LD_PRELOAD=str(LIBFAKETIME), FAKETIME_TIMESTAMP_FILE=str(stamp),
+                FAKETIME_NO_CACHE="1", FAKETIME_DONT_FAKE_MONOTONIC="1",
+                PYTHONPATH=os.pathsep.join(p for p in (str(shim), env.get("PYTHONPATH")) if p)), stamp
+
+
+def step_clock(stamp: Path, offset_s: int) -> None:
+    """Every process's wall clock, ``offset_s`` off the real one, at once (an atomic rename: a
+    process never reads a half-written file)."""
+    new = stamp.with_suffix(".new")
+    new.write_text(f"{offset_s:+d}\n")
+    os.replace(new, stamp)
+
+
+@pytest.mark.skipif(not LIBFAKETIME.exists(), reason="libfaketime is not installed (apt-get install "
+                    "faketime): it steps the stack's wall clock")
+@pytest.mark.parametrize("step_s", [HOUR_S, -HOUR_S], ids=["hour-forward", "hour-back"])
+def test_a_wall_clock_step_mid_mission_neither_drains_the_battery_nor_stops_control(
+        procs, zenoh_env, tmp_path, step_s) -> None:
+    env, stamp = faketime_env(zenoh_env, tmp_path)
+    run = tmp_path / "run"
+    la = procs.launch(env, "sim", "--run-dir", str(run), "--stay", "--no-report")
+    with Bus.open("vessel1") as bus:
+        w = Watch(bus)
+        wait_for(lambda: w.budgets and w.budgets[-1][1].battery_remaining_j is not None
+                 and w.status is not None and w.status.state == "active", 120,
+                 what="the mission flying with a battery figure")
+        before = w.budgets[-1][1]
+        t_step = time.monotonic()
+        step_clock(stamp, step_s)
+        back = wait_for(lambda: next((t for t in list(w.thrust_at_vessel) if t > t_step + 0.5), None),
+                        THRUST_BACK_S, what="thrust at the vessel after the step")
+        print(f"step {step_s:+d} s: thrust on at the vessel again {back - t_step:.1f} s after it")
+        time.sleep(max(0.0, AFTER_STEP_S - (time.monotonic() - t_step)))
+        after = [m for t, m in list(w.budgets) if t > t_step]
+    assert la.poll() is None, procs.log(la)[-3000:]
+    assert after, "no mission/energy after the step"
+    assert not any(m.returning for m in after), [m.returning for m in after]
+    used = max(m.energy_used_j for m in after) - before.energy_used_j
+    drawn = before.battery_remaining_j - min(m.battery_remaining_j for m in after
+                                             if m.battery_remaining_j is not None)
+    print(f"step {step_s:+d} s: energy used {used:.0f} J, battery drawn {drawn:.0f} J in "
+          f"{AFTER_STEP_S:.0f} s")
+    assert used < MAX_DRAW_J and drawn < MAX_DRAW_J, (used, drawn)
+    procs.stop(la, timeout_s=60)
+    events = [json.loads(line) for line in (run / "events.jsonl").read_text().splitlines()]
+    assert not [e for e in events if e["event"] in ("hung", "exit")], events  # none restarted
