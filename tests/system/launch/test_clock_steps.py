@@ -13,13 +13,17 @@ from __future__ import annotations
 
 import json
 import os
+import subprocess
+import sys
 import threading
 import time
 from pathlib import Path
 
 import pytest
 from seaway.contract import keys
+from seaway.recording import reader
 from seaway.runtime.bus import Bus
+from seaway.runtime.credentials import ENV_CREDENTIALS
 
 from tests.conftest import wait_for
 
@@ -123,3 +127,36 @@ def test_a_wall_clock_step_mid_mission_neither_drains_the_battery_nor_stops_cont
     procs.stop(la, timeout_s=60)
     events = [json.loads(line) for line in (run / "events.jsonl").read_text().splitlines()]
     assert not [e for e in events if e["event"] in ("hung", "exit")], events  # none restarted
+
+
+@pytest.mark.skipif(not LIBFAKETIME.exists(), reason="libfaketime is not installed (apt-get install "
+                    "faketime): it sets the stack's wall clock back")
+def test_a_stack_whose_clock_runs_days_behind_its_credentials_starts(procs, zenoh_env,
+                                                                      tmp_path) -> None:
+    """Credentials made on the shore with the right time, a boat's stack whose clock runs two days
+    behind (no real-time clock, no network yet): it starts, every process ready, and flies. A
+    certificate valid only from the moment it was made would be "not yet valid" to every process's
+    TLS, and no process could join (``seaway.runtime.credentials.VALID_FROM``)."""
+    creds = tmp_path / "credentials"
+    made = subprocess.run([sys.executable, "-m", "seaway.tools.cli", "credentials", "create",
+                           str(creds)], env=zenoh_env, capture_output=True, text=True, timeout=60,
+                          check=False)
+    assert made.returncode == 0, made.stderr
+    env, stamp = faketime_env(zenoh_env, tmp_path)
+    step_clock(stamp, -2 * 86_400)  # before any process starts
+    env[ENV_CREDENTIALS] = str(creds)
+    run = tmp_path / "run"
+    la = procs.launch_ready(env, "sim", "--run-dir", str(run), "--stay", "--no-report",
+                            timeout_s=120)
+
+    def flying() -> bool:  # from the recording as it is written (the reader repairs a cut copy)
+        dec = reader.decode_vessel(reader.open_paths([run]), "vessel1",
+                                   [keys.MISSION_STATUS.suffix, keys.SIM_TRUTH.suffix])
+        status, truth = dec.get(keys.MISSION_STATUS.suffix), dec.get(keys.SIM_TRUTH.suffix)
+        thrusting = [m for m in truth if m.thrust_port_n or m.thrust_starboard_n]
+        # Stamped on the stack's clock: two days behind the credentials.
+        assert not truth or time.time_ns() - truth[-1].stamp_ns > 86_400 * 10**9
+        return bool(status) and status[-1].state == "active" and len(thrusting) > 20
+
+    wait_for(flying, 60, interval_s=1.0, what="the mission flying, thrust at the vessel")
+    procs.stop(la, timeout_s=60)

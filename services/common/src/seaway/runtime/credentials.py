@@ -45,6 +45,13 @@ NONE = "none"
 ACCESS_FILE = "access.json"
 CA_NAME = "seaway-stack-ca"
 DEFAULT_DAYS = 30
+VALID_FROM = dt.datetime(1970, 1, 1, tzinfo=dt.UTC)
+"""Every certificate's start of validity: the Unix epoch, not the moment it is made. A boat's
+computer often has no real-time clock: it boots at the time it last saved (or 1970) and may run for
+days behind, with no network to set it, until GPS time does. Certificates valid only from the
+moment they were made on the shore would be "not yet valid" there, and the stack could not start.
+The start of validity protects nothing for an authority whose key never leaves the machine that
+made it; the end of validity (``days``) stays."""
 
 
 class CredentialsError(ValueError):
@@ -83,7 +90,7 @@ def _issue(identity: str, ca_key: ec.EllipticCurvePrivateKey, ca_cert: x509.Cert
     now = dt.datetime.now(dt.UTC)
     cert = (x509.CertificateBuilder().subject_name(_name(identity)).issuer_name(ca_cert.subject)
             .public_key(key.public_key()).serial_number(x509.random_serial_number())
-            .not_valid_before(now - dt.timedelta(hours=1)).not_valid_after(now + dt.timedelta(days=days))
+            .not_valid_before(VALID_FROM).not_valid_after(now + dt.timedelta(days=days))
             .add_extension(x509.BasicConstraints(ca=False, path_length=None), critical=True)
             # Every process both listens and connects on loopback: it is a TLS server and client.
             # A boat router is also reached over the link by the names in ``hosts``.
@@ -106,7 +113,7 @@ def _authority(days: int) -> tuple[ec.EllipticCurvePrivateKey, x509.Certificate]
     now = dt.datetime.now(dt.UTC)
     ca_cert = (x509.CertificateBuilder().subject_name(_name(CA_NAME)).issuer_name(_name(CA_NAME))
                .public_key(ca_key.public_key()).serial_number(x509.random_serial_number())
-               .not_valid_before(now - dt.timedelta(hours=1)).not_valid_after(now + dt.timedelta(days=days))
+               .not_valid_before(VALID_FROM).not_valid_after(now + dt.timedelta(days=days))
                .add_extension(x509.BasicConstraints(ca=True, path_length=0), critical=True)
                .add_extension(x509.KeyUsage(digital_signature=False, content_commitment=False,
                                             key_encipherment=False, data_encipherment=False,
