@@ -38,6 +38,7 @@ from seaway_controller.core_energy import EnergyAccount
 from seaway_controller.mpc import MpcController
 from seaway_estimator.config import EstimatorConfig
 from seaway_estimator.core import EstimatorCore
+from seaway_estimator.core_estimate import PublishedEstimate
 from seaway_sim.core import SimCore
 
 from seaway_lab.bench.common import BenchResult
@@ -49,7 +50,7 @@ REST = "the rest"
 PARTS: dict[str, tuple[tuple[type, str], ...]] = {
     "energy budget": ((EnergyAccount, "_update_budget"), (EnergyAccount, "on_battery")),
     "estimator": ((EstimatorCore, "on_attitude"), (EstimatorCore, "on_gnss"),
-                  (EstimatorCore, "predict_to"), (EstimatorCore, "on_thrust")),
+                  (PublishedEstimate, "predict_to"), (EstimatorCore, "on_thrust")),
     "simulator": ((SimCore, "advance"), (SimCore, "truth"), (SimCore, "take_samples"),
                   (SimCore, "battery"), (SimCore, "disturbance")),
     MPC: ((MpcController, "solve"),),
