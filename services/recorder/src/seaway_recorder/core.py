@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import json
 import logging
-import os
 import time
 from collections import Counter
 from dataclasses import dataclass, field
@@ -31,39 +30,20 @@ from typing import Any
 from seaway.contract import bundle
 from seaway.contract.messages import MessageError, PeriodDone
 from seaway.recording.timebase import EPISODE_METADATA, TIME_METADATA, RecordingTime, stamp_of
-from seaway.runtime.disk import AllOrNothing
-from seaway.runtime.private import open_private, private_folder
+from seaway.runtime.private import private_folder
 from seaway.runtime.ratelog import RateLimitedLog
 from seaway.tools.launch.events import ProcessEvent
 from seaway.vessel.frames import GeoOrigin
 
 from seaway_recorder import derive, schemas
 from seaway_recorder.logtail import LogLine
-from seaway_recorder.mcapfile import McapWriter, check_compression
+from seaway_recorder.mcapfile import check_compression
+from seaway_recorder.openfile import OpenFile, free_path
 
 log = logging.getLogger("seaway.recorder")
 
-PROFILE = ""  # MCAP profile: none of the well-known ones (ros1, ros2) applies to JSON channels
-LIBRARY = "seaway-recorder/0.1.0"
 SUMMARY_METADATA = "seaway.recorder.summary"
 RUN_METADATA = "seaway.run"
-
-
-def free_path(path: Path) -> Path:
-    """``path``, or ``<stem>.restart-<k>.mcap`` with the first free k: a recorder never overwrites a
-    file. The name sorts right after ``path`` (and before the next rotated file), so reading a run
-    folder in name order stays in time order.
-
-    A recorder restarted into the same run folder (the launcher restarts a crashed one) must leave
-    the earlier, possibly truncated, recording for ``seaway record recover``.
-    """
-    if not path.exists():
-        return path
-    for k in range(1, 100_000):
-        candidate = path.with_name(f"{path.stem}.restart-{k:03d}{path.suffix}")
-        if not candidate.exists():
-            return candidate
-    raise FileExistsError(f"no free file name next to {path}")
 
 
 @dataclass(frozen=True)
@@ -122,94 +102,6 @@ def media_type_for(path: Path) -> str:
             ".csv": "text/csv"}.get(path.suffix.lower(), "application/octet-stream")
 
 
-class _OpenFile:
-    """One MCAP file being written: its writer (``mcapfile``), its stream and its channel table."""
-
-    def __init__(self, path: Path, chunk_size: int, compression: str) -> None:
-        self.path = path
-        # Closed in close(); only the user reads it. Unbuffered and all or nothing per write: a
-        # full disk fails a write whole, where it is made (seaway.runtime.disk.AllOrNothing).
-        self.stream = AllOrNothing(open_private(path, buffering=0))
-        self.writer = McapWriter(self.stream, chunk_size=chunk_size, compression=compression)
-        try:
-            self.writer.start(profile=PROFILE, library=LIBRARY)
-        except BaseException:
-            self.writer.close()
-            self.stream.close()
-            raise
-        self.schemas: dict[tuple[str, bytes], int] = {}
-        self.channels: dict[str, int] = {}
-        self.sequence: list[int] = [0]
-        """Messages written so far per channel id (ids count from 1)."""
-        self.messages = 0
-        st = os.fstat(self.stream.fileno())
-        self.identity = (st.st_dev, st.st_ino)
-        self.moved_said = False
-
-    def lost(self) -> str:
-        """Why the file written is no longer the recording ('' if it is): deleted (or replaced by
-        a rename: its bytes go nowhere once closed), or truncated under the writer (what it
-        holds no longer reads). A file moved away is still written, where it went: '' (said once)."""
-        fd = self.stream.fileno()
-        st = os.fstat(fd)
-        if st.st_nlink == 0:
-            return "deleted or replaced by another process"
-        # Where the OS writes next (bytes still in the stream's buffer not counted): a file shorter
-        # than that was cut. Asked before the next write, which would make it as long again.
-        if st.st_size < os.lseek(fd, 0, os.SEEK_CUR):
-            return "truncated by another process"
-        if not self.moved_said:
-            try:
-                here = os.stat(self.path)
-                moved = (here.st_dev, here.st_ino) != self.identity
-            except FileNotFoundError:
-                moved = True
-            if moved:
-                self.moved_said = True
-                log.warning("%s was moved away while recording: writing on where it went (another "
-                            "file at its name is not this recording)", self.path)
-        return ""
-
-    def channel(self, spec: schemas.ChannelSpec) -> int:
-        cid = self.channels.get(spec.topic)
-        if cid is not None:
-            return cid
-        schema_id = 0
-        if spec.schema_encoding:
-            sk = (spec.schema_name, spec.schema_data)
-            schema_id = self.schemas.get(sk, 0)
-            if not schema_id:
-                schema_id = self.writer.register_schema(spec.schema_name, spec.schema_encoding,
-                                                        spec.schema_data)
-                self.schemas[sk] = schema_id
-        cid = self.writer.register_channel(spec.topic, spec.message_encoding, schema_id,
-                                           dict(spec.metadata))
-        self.channels[spec.topic] = cid
-        self.sequence += [0] * (cid + 1 - len(self.sequence))
-        return cid
-
-    def size(self) -> int:
-        return self.stream.tell()
-
-    def close(self, metadata: tuple[str, dict[str, str]], durable: bool = False) -> None:
-        """Finish the file with a last ``metadata`` record; a failed finish changes nothing.
-        ``durable``: on the disk before it is closed (fdatasync; a failure is logged, the file is
-        whole for the OS all the same)."""
-        self.writer.finish(metadata)
-        if durable:
-            try:
-                os.fdatasync(self.stream.fileno())
-            except OSError as err:
-                log.warning("could not sync %s to the disk: %s", self.path, err)
-        self.stream.close()
-
-    def abandon(self) -> None:
-        """Let go of a file that could not be started: closed, and removed (it holds nothing)."""
-        self.writer.close()
-        self.stream.close()
-        self.path.unlink(missing_ok=True)
-
-
 class RecordingWriter:
     """Writes bus samples to one MCAP file, or a numbered series when rotating."""
 
@@ -246,7 +138,7 @@ class RecordingWriter:
         self._deriver = (derive.FoxgloveDeriver(default_origin, self.time.foxglove_ns) if foxglove
                          else None)
         self._derived_sources = {s.suffix for s in derive.FoxgloveDeriver.SOURCES}
-        self._file: _OpenFile | None = None
+        self._file: OpenFile | None = None
         self._open_failed: OSError | None = None
         """Why the last ``open`` failed (a full disk): ``flush`` says it again until a file opens."""
         self._file_index = 0
@@ -269,7 +161,7 @@ class RecordingWriter:
         path = self._next_path()
         if not path.parent.is_dir():  # a folder of its own (a run folder given may be shared)
             private_folder(path.parent)
-        f = _OpenFile(path, self.chunk_size, self.compression)
+        f = OpenFile(path, self.chunk_size, self.compression)
         try:
             for a in self.attachments:
                 f.writer.add_attachment(a.create_time_ns, now_ns, a.name, a.media_type, a.data)
@@ -341,7 +233,7 @@ class RecordingWriter:
 
     def check_file(self, now_ns: int) -> Path | None:
         """Before writing more: if the file being written was deleted, replaced or truncated by another
-        process (``_OpenFile.lost``), say so, count it (``lost_files``) and go on in a new file
+        process (``OpenFile.lost``), say so, count it (``lost_files``) and go on in a new file
         (the next free name, with the attachments and run metadata again); returns its path.
         Writing on into it would lose every later message too, silently: no write fails."""
         f = self._file

@@ -44,9 +44,10 @@ from seaway.vessel.frames import GeoOrigin
 
 from seaway_recorder import attachments
 from seaway_recorder.config import RecorderConfig, parse_meta
-from seaway_recorder.core import LIBRARY, RUN_METADATA, AttachmentSpec, RecordingWriter
+from seaway_recorder.core import RUN_METADATA, AttachmentSpec, RecordingWriter
 from seaway_recorder.logtail import FileTail, LogTail
 from seaway_recorder.node import LATE_NS, KeptKeys, RecorderNode, SampleQueue, Tails, lockstep_exprs
+from seaway_recorder.openfile import LIBRARY
 from seaway_recorder.syncer import Syncer
 
 log = logging.getLogger("seaway.recorder")
@@ -75,7 +76,7 @@ def parser() -> argparse.ArgumentParser:
 
 
 def newest_recording(base: Path) -> Path | None:
-    """The newest of ``base`` and its ``.restart-<k>`` siblings (``writer.free_path``) that exists:
+    """The newest of ``base`` and its ``.restart-<k>`` siblings (``openfile.free_path``) that exists:
     the recording a recorder restarted into the same run folder takes over from."""
     found = [p for p in [base, *base.parent.glob(f"{base.stem}.restart-*{base.suffix}")] if p.is_file()]
     return max(found, key=lambda p: p.stat().st_mtime_ns) if found else None
