@@ -25,7 +25,7 @@ from seaway.recording import reader
 from seaway.runtime.bus import Bus
 from seaway.runtime.credentials import ENV_CREDENTIALS
 
-from tests.conftest import wait_for
+from tests.conftest import REPO, wait_for
 
 pytestmark = pytest.mark.system
 # The thread-safe build: the other one, read from many threads at once (Zenoh's), now and then
@@ -37,9 +37,14 @@ AFTER_STEP_S = 12.0  # watched after the step: the budget prices once a second
 # energy was 900 kJ.
 MAX_DRAW_J = 30_000.0
 # Thrust back at the vessel within this after the step: the estimator starts again from the next
-# fix and heading (about 1.3 s either way); well inside the launcher's liveness bound (5 s), which
-# would restart a process that stopped publishing.
-THRUST_BACK_S = 4.0
+# fix and heading (about 1.3 s either way). That it is within the launcher's liveness bound (5 s) is
+# checked by no process being found hung; this bound only leaves room for a loaded machine.
+THRUST_BACK_S = 10.0
+RC_LOSS_S = 5.0
+"""The simulated PX4's COM_RC_LOSS_T in these runs [s] (its default is 0.5 s). libfaketime re-reads
+its timestamp file at every clock read, and on a loaded two-core machine vehicle_io was then
+starved of the CPU for half a second now and then: the simulated autopilot's radio-loss failsafe
+took the vessel and paused the mission, which is not what these tests are about."""
 
 # libfaketime 0.9.10 (Debian 12, Ubuntu 24.04) breaks clock_nanosleep(CLOCK_MONOTONIC,
 # TIMER_ABSTIME) under FAKETIME_DONT_FAKE_MONOTONIC (wolfcw/libfaketime#426): Python >= 3.11's
@@ -75,6 +80,16 @@ class Watch:
             seq.append(item)
 
 
+def tolerant_profile(tmp: Path) -> Path:
+    """The ``sim`` profile with the simulated autopilot's radio loss after ``RC_LOSS_S``."""
+    text = (REPO / "deploy" / "profiles" / "sim.toml").read_text()
+    anchor = '"--param", "NAV_RCL_ACT=1",'
+    assert text.count(anchor) == 1, "the sim profile's PX4 parameters moved"
+    profile = tmp / "sim-tolerant.toml"
+    profile.write_text(text.replace(anchor, f'{anchor} "--param", "COM_RC_LOSS_T={RC_LOSS_S:g}",'))
+    return profile
+
+
 def faketime_env(env: dict[str, str], tmp: Path) -> tuple[dict[str, str], Path]:
     shim = tmp / "faketime-shim"
     shim.mkdir()
@@ -101,7 +116,8 @@ def test_a_wall_clock_step_mid_mission_neither_drains_the_battery_nor_stops_cont
         procs, zenoh_env, tmp_path, step_s) -> None:
     env, stamp = faketime_env(zenoh_env, tmp_path)
     run = tmp_path / "run"
-    la = procs.launch(env, "sim", "--run-dir", str(run), "--stay", "--no-report")
+    la = procs.launch(env, str(tolerant_profile(tmp_path)), "--run-dir", str(run), "--stay",
+                      "--no-report")
     with Bus.open("vessel1") as bus:
         w = Watch(bus)
         wait_for(lambda: w.budgets and w.budgets[-1][1].battery_remaining_j is not None
@@ -146,8 +162,8 @@ def test_a_stack_whose_clock_runs_days_behind_its_credentials_starts(procs, zeno
     step_clock(stamp, -2 * 86_400)  # before any process starts
     env[ENV_CREDENTIALS] = str(creds)
     run = tmp_path / "run"
-    la = procs.launch_ready(env, "sim", "--run-dir", str(run), "--stay", "--no-report",
-                            timeout_s=120)
+    la = procs.launch_ready(env, str(tolerant_profile(tmp_path)), "--run-dir", str(run), "--stay",
+                            "--no-report", timeout_s=120)
 
     def flying() -> bool:  # from the recording as it is written (the reader repairs a cut copy)
         dec = reader.decode_vessel(reader.open_paths([run]), "vessel1",
@@ -158,5 +174,5 @@ def test_a_stack_whose_clock_runs_days_behind_its_credentials_starts(procs, zeno
         assert not truth or time.time_ns() - truth[-1].stamp_ns > 86_400 * 10**9
         return bool(status) and status[-1].state == "active" and len(thrusting) > 20
 
-    wait_for(flying, 60, interval_s=1.0, what="the mission flying, thrust at the vessel")
+    wait_for(flying, 90, interval_s=2.0, what="the mission flying, thrust at the vessel")
     procs.stop(la, timeout_s=60)
