@@ -219,7 +219,8 @@ class RecordingWriter:
         """End the chunk in progress (with its message index) and hand the bytes to the OS. Raises
         while no file is open because the last could not start: nothing is on disk."""
         if self._file is None and self._open_failed is not None:
-            raise self._open_failed
+            err = self._open_failed  # a new error each time: one raised again keeps every traceback
+            raise OSError(err.errno, err.strerror, err.filename)
         if self._file is not None:
             self._file.writer.flush()
             self.stats.flushes += 1

@@ -30,6 +30,7 @@ from seaway.runtime.bus_raw import RawSample
 from seaway.runtime.disk import disk_full
 from seaway.runtime.lockstep_witness import LockstepWitness
 from seaway.runtime.node import Node
+from seaway.runtime.ratelog import RateLimitedLog
 from seaway.runtime.timeline import Timeline
 
 from seaway_recorder.core import RecordingWriter
@@ -271,7 +272,7 @@ class RecorderNode(Node):
         """Set while the disk has no room for the recording: the node waits for room (module doc)."""
         self._no_room_since = 0
         self._next_room_try = 0
-        self._next_no_room_say = 0
+        self._still_no_room = RateLimitedLog(log, NO_ROOM_SAY_S)
         self._stop: threading.Event | None = None
         self._writing = threading.Lock()
         """Held while the writer is used: by the loop (``tick``, ``finish``), or by the thread that
@@ -338,12 +339,13 @@ class RecorderNode(Node):
             if self.no_room is None:
                 self._no_room_since = now
                 self.writer.stats.no_room += 1
-                log.error("no room on the disk for the recording (%s): %s; waiting for room, "
-                          "trying again every %g s; nothing is written meanwhile, samples are "
-                          "queued (at most %d, %d MiB) and counted as dropped beyond that",
-                          self.writer.path or self.writer.base, err, ROOM_RETRY_S,
-                          self.queue.capacity, self.queue.max_bytes >> 20)
-                self._next_no_room_say = now + int(NO_ROOM_SAY_S * 1e9)
+                # A key per wait: its first line always goes out, and starts the key's clock.
+                self._still_no_room.log(
+                    self._no_room_key(), logging.ERROR, "no room on the disk for the recording (%s): "
+                    "%s; waiting for room, trying again every %g s; nothing is written meanwhile, "
+                    "samples are queued (at most %d, %d MiB) and counted as dropped beyond that",
+                    self.writer.path or self.writer.base, err, ROOM_RETRY_S, self.queue.capacity,
+                    self.queue.max_bytes >> 20, now_ns=now)
             self.no_room = err
             self.writer.stats.last_error = f"no room on the disk: {err}"[:500]
             self._next_room_try = now + int(ROOM_RETRY_S * 1e9)
@@ -351,6 +353,9 @@ class RecorderNode(Node):
         self.failed = err
         assert self._stop is not None
         self._stop.set()
+
+    def _no_room_key(self) -> tuple[str, int]:
+        return ("no room", self.writer.stats.no_room)
 
     def _room_again(self) -> bool:
         """Waiting for room: try again if it is time; whether the disk took what was in hand."""
@@ -361,11 +366,11 @@ class RecorderNode(Node):
             self.writer.resume(time.time_ns())
         except OSError as err:
             self._failed(err)
-            if self.no_room is not None and now >= self._next_no_room_say:
-                log.error("still no room on the disk after %.0f s: %s; queue %d, dropped %d",
-                          (now - self._no_room_since) / 1e9, err, len(self.queue.items),
-                          self.queue.dropped)
-                self._next_no_room_say = now + int(NO_ROOM_SAY_S * 1e9)
+            if self.no_room is not None:
+                self._still_no_room.log(
+                    self._no_room_key(), logging.ERROR, "still no room on the disk after %.0f s: "
+                    "%s; queue %d, dropped %d", (now - self._no_room_since) / 1e9, err,
+                    len(self.queue.items), self.queue.dropped, now_ns=now)
             return False
         waited_s = (time.monotonic_ns() - self._no_room_since) / 1e9
         self.writer.stats.no_room_s += waited_s
