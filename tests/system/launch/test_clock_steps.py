@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import subprocess
 import sys
 import threading
@@ -175,4 +176,51 @@ def test_a_stack_whose_clock_runs_days_behind_its_credentials_starts(procs, zeno
         return bool(status) and status[-1].state == "active" and len(thrusting) > 20
 
     wait_for(flying, 90, interval_s=2.0, what="the mission flying, thrust at the vessel")
+    procs.stop(la, timeout_s=60)
+
+
+def _starts(run: Path, name: str) -> list[dict]:
+    path = run / "events.jsonl"
+    lines = path.read_text().splitlines() if path.exists() else []
+    return [e for e in map(json.loads, lines) if e["process"] == name and e["event"] == "start"]
+
+
+@pytest.mark.skipif(not LIBFAKETIME.exists(), reason="libfaketime is not installed (apt-get install "
+                    "faketime): it boots the stack at 1970")
+def test_a_stack_booted_at_1970_restarts_a_process_after_gps_time_arrives(procs, zenoh_env,
+                                                                          tmp_path) -> None:
+    """A boat with no real-time clock and no saved time boots at 1970, and the launcher makes the
+    run's own authority then. GPS time arrives, 56 years later, and only then a process dies: the
+    launcher's restart must still join the stack. With the run's certificates valid for 30 days
+    from the moment they were made, they had expired by then (in 1970), and the restarted process
+    could never open its session (``seaway.tools.launch.authority``)."""
+    env, stamp = faketime_env(zenoh_env, tmp_path)
+    env.pop(ENV_CREDENTIALS)  # the launcher makes the run's own authority, at the stack's time
+    step_clock(stamp, 86_400 - int(time.time()))  # 1970-01-02, before any process starts
+    run = tmp_path / "run"
+    la = procs.launch_ready(env, str(tolerant_profile(tmp_path)), "--run-dir", str(run), "--stay",
+                            "--no-report", timeout_s=120)
+
+    def truth() -> list:
+        """The sim's truth in the recording as it is written (the reader repairs a cut copy). The
+        simulated vessel's time runs on from its start, on the monotonic clock: it takes no step."""
+        dec = reader.decode_vessel(reader.open_paths([run]), "vessel1", [keys.SIM_TRUTH.suffix])
+        return dec.get(keys.SIM_TRUTH.suffix)
+
+    def thrust_since(stamp_ns: int) -> int:
+        return sum(1 for m in truth()
+                   if m.stamp_ns >= stamp_ns and (m.thrust_port_n or m.thrust_starboard_n))
+
+    wait_for(lambda: thrust_since(0) > 20, 90, interval_s=2.0, what="thrust at the vessel in 1970")
+    step_clock(stamp, 0)  # GPS time: the real one
+    time.sleep(2.0)
+    (ctl,) = _starts(run, "controller")
+    os.kill(ctl["pid"], signal.SIGKILL)
+    killed_ns = truth()[-1].stamp_ns
+    wait_for(lambda: len(_starts(run, "controller")) == 2, 30, what="the controller restarted")
+    # The restarted controller resumes the mission: thrust at the vessel again. The watchdog zeroes
+    # the dead one's thrust within 0.3 s, so thrust 3 s of simulated time on is the new one's.
+    wait_for(lambda: thrust_since(killed_ns + 3 * 10**9) > 20, 60, interval_s=2.0,
+             what="thrust from the restarted controller")
+    assert la.poll() is None, procs.log(la)[-3000:]
     procs.stop(la, timeout_s=60)

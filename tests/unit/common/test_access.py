@@ -140,6 +140,22 @@ def asks() -> list[str]:
         keys.run_description_key(V, "controller"), keys.refusals_key(V, "vehicle_io")]
 
 
+def test_a_certificate_past_its_end_is_refused_before_any_link_is_tried(tmp_path):
+    """TLS would refuse every link of an expired certificate, and the process would wait for a
+    stack it never joins with nothing in its log to say why: the check names the file, its end and
+    the clock, and what to do."""
+    ended = credentials.create(tmp_path / "ended", days=-1)
+    with pytest.raises(credentials.CredentialsError) as err:
+        ended.check("controller")
+    end = _cert(ended.folder / "ca.pem").not_valid_after_utc
+    assert "ca.pem" in str(err.value) and f"{end:%Y-%m-%d}" in str(err.value)
+    assert "credentials create" in str(err.value)
+    current = credentials.create(tmp_path / "current", days=1)
+    current.check("controller")  # a day left: usable
+    assert current.ends("controller") == min(_cert(current.folder / n).not_valid_after_utc
+                                             for n in ("ca.pem", "controller.pem"))
+
+
 def test_a_side_must_be_known():
     with pytest.raises(access.AccessError, match=r"side 'ship' unknown; allowed: local, boat, shore"):
         access.acl(side="ship")  # type: ignore[arg-type]

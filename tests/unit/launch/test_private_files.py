@@ -74,3 +74,43 @@ def test_a_launch_with_ros2_writes_lets_the_face_ask_the_missions_requests(folde
         assert auth.credentials.access_rules() == access.acl(profile.producers(), ros2_writes=writes)
     finally:
         auth.release()
+
+
+def test_a_runs_own_authority_has_no_end_of_validity(folder: Path) -> None:
+    """A boat that boots at 1970 makes its run's credentials then: valid for 30 days from that
+    moment, they were expired once GPS time came, and no process restarted after could join."""
+    from cryptography import x509
+    from seaway.tools.launch.profile import load_profile
+
+    auth = authority.credentials_for(load_profile("sim"), "run")
+    try:
+        assert auth.credentials is not None
+        pems = [auth.credentials.folder / "ca.pem", *auth.credentials.folder.glob("controller.pem")]
+        assert len(pems) == 2
+        for pem in pems:
+            cert = x509.load_pem_x509_certificate(pem.read_bytes())
+            assert cert.not_valid_before_utc.year == 1970, pem
+            assert cert.not_valid_after_utc == credentials.NO_END, pem
+        assert not [n for n in auth.notes if "WARNING" in n]
+    finally:
+        auth.release()
+
+
+@pytest.mark.parametrize(("days", "warned"), [(3, True), (8, False)])
+def test_a_launch_on_credentials_that_end_within_a_week_warns(folder: Path, monkeypatch, days: int,
+                                                             warned: bool) -> None:
+    """Every link closes as its certificate ends: a boat's set that ends mid-mission ends the
+    stack. The launcher says when, while there is time to make new ones."""
+    from seaway.tools.launch.profile import load_profile
+
+    given = credentials.create(folder / "boat", days=days)
+    monkeypatch.setenv(credentials.ENV_CREDENTIALS, str(given.folder))
+    auth = authority.credentials_for(load_profile("sim"), "run")
+    try:
+        warnings = [n for n in auth.notes if "WARNING" in n]
+        assert bool(warnings) is warned, auth.notes
+        if warned:  # names the end and the folder
+            end = given.ends("launcher")
+            assert f"{end:%Y-%m-%d}" in warnings[0] and str(given.folder) in warnings[0]
+    finally:
+        auth.release()

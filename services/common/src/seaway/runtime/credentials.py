@@ -14,9 +14,11 @@ A credentials folder (mode 0700, keys 0600; refused otherwise)::
     <identity>-key.pem
     access.json                  the stack's access rules (contract.access.acl), the same for everyone
 
-The launcher creates one per run (``create``) unless ``$SEAWAY_CREDENTIALS`` names one (a boat's
-long-lived set, ``seaway credentials create``). ``$SEAWAY_CREDENTIALS=none`` runs without
-authentication (benchmarks' baseline): every process on the machine may then do anything.
+The launcher creates one per run (``create`` with no end of validity: ``NO_END``) unless
+``$SEAWAY_CREDENTIALS`` names one (a boat's long-lived set, ``seaway credentials create``).
+``$SEAWAY_CREDENTIALS=none`` runs without authentication (benchmarks' baseline): every process on
+the machine may then do anything. ``Credentials.check`` refuses certificates the clock finds
+outside their validity.
 """
 
 from __future__ import annotations
@@ -52,6 +54,16 @@ days behind, with no network to set it, until GPS time does. Certificates valid 
 moment they were made on the shore would be "not yet valid" there, and the stack could not start.
 The start of validity protects nothing for an authority whose key never leaves the machine that
 made it; the end of validity (``days``) stays."""
+NO_END = dt.datetime(9999, 12, 31, 23, 59, 59, tzinfo=dt.UTC)
+"""The end of validity of a run's own authority (``create`` with ``days`` None): RFC 5280's
+"no well-defined expiration date" (section 4.1.2.5). A launcher's clock is not to be trusted on a
+boat: one that boots at 1970 makes its run's credentials then, and certificates valid for 30 days
+from that moment were expired once GPS time came; each process restarted after that could not
+join the stack. A run's authority is trusted by that run's processes only, and its folder goes
+with the run: an end of validity protects nothing there."""
+EXPIRY_WARNING_S = 7 * 86_400
+"""Credentials that end within this [s] get a warning at launch: every link of a session closes
+as its certificate ends (``close_link_on_expiration``), mid-mission too."""
 
 
 class CredentialsError(ValueError):
@@ -84,13 +96,17 @@ def _san(hosts: Iterable[str]) -> x509.SubjectAlternativeName:
     return x509.SubjectAlternativeName(names)
 
 
+def _not_after(days: int | None) -> dt.datetime:
+    """The end of validity of certificates made now for ``days`` (None: ``NO_END``)."""
+    return NO_END if days is None else dt.datetime.now(dt.UTC) + dt.timedelta(days=days)
+
+
 def _issue(identity: str, ca_key: ec.EllipticCurvePrivateKey, ca_cert: x509.Certificate,
-           days: int, hosts: Iterable[str] = ()) -> tuple[bytes, bytes]:
+           days: int | None, hosts: Iterable[str] = ()) -> tuple[bytes, bytes]:
     key = ec.generate_private_key(ec.SECP256R1())
-    now = dt.datetime.now(dt.UTC)
     cert = (x509.CertificateBuilder().subject_name(_name(identity)).issuer_name(ca_cert.subject)
             .public_key(key.public_key()).serial_number(x509.random_serial_number())
-            .not_valid_before(VALID_FROM).not_valid_after(now + dt.timedelta(days=days))
+            .not_valid_before(VALID_FROM).not_valid_after(_not_after(days))
             .add_extension(x509.BasicConstraints(ca=False, path_length=None), critical=True)
             # Every process both listens and connects on loopback: it is a TLS server and client.
             # A boat router is also reached over the link by the names in ``hosts``.
@@ -108,12 +124,11 @@ def _private_folder(folder: Path) -> Path:
     return folder
 
 
-def _authority(days: int) -> tuple[ec.EllipticCurvePrivateKey, x509.Certificate]:
+def _authority(days: int | None) -> tuple[ec.EllipticCurvePrivateKey, x509.Certificate]:
     ca_key = ec.generate_private_key(ec.SECP256R1())
-    now = dt.datetime.now(dt.UTC)
     ca_cert = (x509.CertificateBuilder().subject_name(_name(CA_NAME)).issuer_name(_name(CA_NAME))
                .public_key(ca_key.public_key()).serial_number(x509.random_serial_number())
-               .not_valid_before(VALID_FROM).not_valid_after(now + dt.timedelta(days=days))
+               .not_valid_before(VALID_FROM).not_valid_after(_not_after(days))
                .add_extension(x509.BasicConstraints(ca=True, path_length=0), critical=True)
                .add_extension(x509.KeyUsage(digital_signature=False, content_commitment=False,
                                             key_encipherment=False, data_encipherment=False,
@@ -131,7 +146,7 @@ def _write_authority(folder: Path, ca_key: ec.EllipticCurvePrivateKey, ca_cert: 
 
 
 def _populate(folder: Path, ca_key: ec.EllipticCurvePrivateKey, ca_cert: x509.Certificate,
-              names: Iterable[str], rules: dict[str, Any], days: int,
+              names: Iterable[str], rules: dict[str, Any], days: int | None,
               router_hosts: Iterable[str] = ()) -> None:
     for ident in names:
         hosts = router_hosts if ident == access.RELAY else ()
@@ -143,8 +158,9 @@ def _populate(folder: Path, ca_key: ec.EllipticCurvePrivateKey, ca_cert: x509.Ce
 
 def create(folder: Path, identities: Iterable[str] | None = None, *,
            producers: Mapping[str, str] | None = None, harness: bool = False,
-           days: int = DEFAULT_DAYS, ros2_writes: bool = False) -> Credentials:
-    """A new authority and a certificate for each identity in ``folder`` (created 0700).
+           days: int | None = DEFAULT_DAYS, ros2_writes: bool = False) -> Credentials:
+    """A new authority and a certificate for each identity in ``folder`` (created 0700), valid for
+    ``days`` from now (None: to ``NO_END``, for a run's own authority).
 
     ``producers``: the profile's producer of each key it narrows (``access.producers``);
     ``harness``: also the test harness identity, with every right; ``ros2_writes``: the ROS 2 face
@@ -223,6 +239,30 @@ class Credentials:
         if kmode & 0o077:
             raise CredentialsError(f"{f / (identity + '-key.pem')} is readable by other users "
                                    f"(mode {kmode:04o}); allowed: 0600")
+        now = dt.datetime.now(dt.UTC)
+        for name in ("ca.pem", f"{identity}.pem"):
+            start, end = self.validity(name)
+            if not start <= now <= end:
+                # Else TLS refuses every link, and the process waits for a stack it never joins,
+                # with nothing in its own log to say why.
+                raise CredentialsError(
+                    f"{f / name} is valid from {start:%Y-%m-%d %H:%M} to {end:%Y-%m-%d %H:%M} UTC, "
+                    f"and this machine's clock says {now:%Y-%m-%d %H:%M} UTC: no link would be "
+                    f"accepted. Make new credentials (`seaway credentials create {f}`), or set "
+                    "the clock if it is wrong")
+
+    def validity(self, name: str) -> tuple[dt.datetime, dt.datetime]:
+        """(start, end) of validity of the certificate ``name`` in this folder (UTC)."""
+        try:
+            cert = x509.load_pem_x509_certificate((self.folder / name).read_bytes())
+        except (OSError, ValueError) as err:
+            raise CredentialsError(f"{self.folder / name} is not a readable certificate: {err}") \
+                from None
+        return cert.not_valid_before_utc, cert.not_valid_after_utc
+
+    def ends(self, identity: str) -> dt.datetime:
+        """When the first of ``identity``'s certificate and the authority's ends (UTC)."""
+        return min(self.validity(name)[1] for name in ("ca.pem", f"{identity}.pem"))
 
     def access_rules(self) -> dict[str, Any]:
         try:

@@ -1,10 +1,10 @@
 """The launcher's side of authority: the run's credentials and its claim on the rendezvous endpoint.
 
 * ``credentials_for``: the stack's credentials: ``$SEAWAY_CREDENTIALS`` if it names a folder (a
-  boat's long-lived set; required for a profile that is one side of a deployment), else a new
-  authority for this run only, in a private folder that is
-  removed when the launcher exits; the access rules narrow each key to the process the profile
-  runs for it.
+  boat's long-lived set; required for a profile that is one side of a deployment; a warning when it
+  ends within a week), else a new authority for this run only, with no end of validity
+  (``credentials.NO_END``), in a private folder that is removed when the launcher exits; the access
+  rules narrow each key to the process the profile runs for it.
 * ``claim``: claim the rendezvous endpoint for this stack (``register`` writes its registry entry
   once the launcher's session holds the port), or refuse with the name of the stack already there
   (two stacks on one endpoint would otherwise fight over it: with different credentials neither
@@ -20,6 +20,7 @@
 from __future__ import annotations
 
 import contextlib
+import datetime as dt
 import os
 import re
 import shutil
@@ -128,6 +129,13 @@ def _zenoh_credentials(profile: Profile, run_name: str) -> Authority:
     if isinstance(given, creds.Credentials):
         given.check("launcher")
         notes = [f"credentials {given.folder}"]
+        ends = given.ends("launcher")
+        left_s = (ends - dt.datetime.now(dt.UTC)).total_seconds()
+        if left_s < creds.EXPIRY_WARNING_S:
+            notes.append(f"WARNING: these credentials end on {ends:%Y-%m-%d %H:%M} UTC (in "
+                         f"{left_s / 3600:.0f} h): then every link closes, mid-mission too, and no "
+                         f"process can join; make new ones before (`seaway credentials create "
+                         f"{given.folder}`)")
         if profile.ros2_writes() and not any(p.get("id") == access.ROS2_WRITES_POLICY for p in
                                              given.access_rules().get("policies", [])):
             notes.append("ROS 2 writes: these credentials do not let the ROS 2 face ask anything, "
@@ -141,7 +149,10 @@ def _zenoh_credentials(profile: Profile, run_name: str) -> Authority:
             f"credentials create DIR --deployment --boat-host <boat address>`, then "
             f"{creds.ENV_CREDENTIALS}=DIR/{profile.side}; docs/deployment.md)")
     folder = stacks.stacks_dir() / f"{private_name(run_name)}.credentials"
-    made = creds.create(folder, producers=profile.producers(), ros2_writes=profile.ros2_writes())
+    # No end of validity: the launcher's clock may be 1970's on a boat with no real-time clock
+    # (``creds.NO_END``).
+    made = creds.create(folder, producers=profile.producers(), ros2_writes=profile.ros2_writes(),
+                        days=None)
     return Authority(made, rendezvous, owned_folder=folder,
                      notes=[f"credentials: a new authority for this run ({folder})"])
 
