@@ -33,3 +33,11 @@ def test_failures_are_as_before() -> None:
     assert after_exit(spec(), 3, 2, BACKOFF, frozenset()).state == "failed"
     assert after_exit(spec("identify", "controller", "never"), 1, 0, BACKOFF,
                       frozenset({"identify"})).state == "failed"
+
+
+def test_a_failure_for_good_says_whether_the_run_goes_on() -> None:
+    required = after_exit(spec(), 1, 2, BACKOFF, frozenset())
+    optional = after_exit(ProcessSpec(name="rec", service="recorder", command=["x"],
+                                      required=False), 1, 2, BACKOFF, frozenset())
+    assert required.state == optional.state == "failed"
+    assert required.line != optional.line and "without" in optional.line

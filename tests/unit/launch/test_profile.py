@@ -156,3 +156,25 @@ def test_a_run_on_the_autopilots_own_sitl_has_the_identified_model_and_no_plant_
     assert run.origin is not None and run.scenario == "lake"  # SITL's home is the lake's origin
     sim = resolve_run(_launch_args(), load_profile("sim"), "lake", "r2")
     assert sim.dead_zone and sim.model_vessel_file == "paper-boat"  # our simulator keeps both
+
+
+def test_a_lockstep_member_must_be_required_in_a_lockstep_profile() -> None:
+    """The clock waits for every member each period: an optional one that failed for good would
+    hold simulated time for ever."""
+    doc = {"name": "t", "clock": "lockstep",
+           "processes": [p("sim", "sim"), p("rec", "recorder", required=False)]}
+    with pytest.raises(ConfigError, match=r"'rec'.*lockstep member"):
+        parse_config(doc, Profile, "t.toml")
+    doc["clock"] = "wall"
+    assert not parse_config(doc, Profile, "t.toml").processes[1].required
+
+
+@pytest.mark.parametrize("name", ["sim", "boat", "sitl-px4", "sitl-ardupilot", "fleet", "shore"])
+def test_a_real_time_run_does_not_end_with_its_recorder_and_a_batch_run_does(name: str) -> None:
+    """A card gone read-only must not end a boat's control loop: in real time the run goes on
+    unrecorded (and says so); in a batch run the recording is the point, and the clock waits for it."""
+    (rec,) = [x for x in load_profile(name).processes if x.service == "recorder"]
+    assert not rec.required
+    for batch in ("sim-batch", "replay"):
+        (rec,) = [x for x in load_profile(batch).processes if x.service == "recorder"]
+        assert rec.required

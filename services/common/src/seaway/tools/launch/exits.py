@@ -49,4 +49,6 @@ def after_exit(spec: ProcessSpec, code: int, restarts_so_far: int, backoff: Back
                          f"{restarts_so_far + 1} of at most {backoff.max_restarts})")
     why = ("not restarted: restart = \"never\"" if spec.restart == "never" else
            f"not restarted again: {backoff.max_restarts} restarts (backoff.max_restarts) used")
-    return AfterExit("failed", None, f"launcher: {spec.name} failed: {how}; {why}")
+    then = ("the run ends" if spec.required else
+            "the run goes on without it (the profile does not require it)")
+    return AfterExit("failed", None, f"launcher: {spec.name} failed: {how}; {why}; {then}")

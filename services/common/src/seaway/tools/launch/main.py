@@ -39,9 +39,14 @@ sim's clock holds at the last control period at or before S (its ``--until-s``),
 ends there however fast the run goes; in real time the launcher stops the run at its first look
 (five a second) after S. The run is stopped in order and its report made, as after Ctrl-C.
 
+A process the profile does not require (the ground station; in real time the recorder too: a card
+gone read-only must not end a boat's control loop) that fails for good is left out, and the run
+goes on without it: the launcher says so at once and again at the end.
+
 Exit code: 0 after a clean stop (Ctrl-C, SIGTERM, or the mission completed with
 ``stop_when_complete``); 1 when a required process failed or could not start; 2 for a bad profile
-or option; 3 when ``--max-mission-s`` ran out.
+or option; 3 when ``--max-mission-s`` ran out; 4 after an otherwise clean stop of a run that went on
+without a process that failed for good (a recording that ends early).
 """
 
 # The docstring above is ``seaway launch --help``. This module holds the options and everything

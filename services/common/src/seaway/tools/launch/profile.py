@@ -40,6 +40,7 @@ from pydantic import Field, model_validator
 from seaway.contract import access, keys
 from seaway.contract.config import ConfigError, ConfigModel, deploy_path, load_config
 from seaway.ros2.face import WRITES_FLAG
+from seaway.runtime.lockstep import MEMBERS
 from seaway.tools.launch.liveness import Duty, duties_for
 
 
@@ -157,6 +158,11 @@ class Profile(ConfigModel):
             unknown = [a for a in p.after if a not in names]
             if unknown:
                 raise ValueError(f"process {p.name!r}: 'after' names unknown {', '.join(unknown)}")
+            if self.clock == "lockstep" and not p.required and p.service in MEMBERS:
+                # The clock waits for every member each period: one that failed for good would
+                # hold simulated time for ever while the launcher waited for the run to end.
+                raise ValueError(f"process {p.name!r} is a lockstep member ({p.service}): in a "
+                                 "lockstep profile it must be required (required = true)")
         producers: dict[str, str] = {}
         registered = {s.suffix for s in keys.REGISTRY}
         for p in self.processes:

@@ -38,6 +38,10 @@ from seaway.tools.launch.supervisor import Supervised, Supervisor, default_echo
 EXIT_MISSION_TIME = 3
 """The launcher's exit code when ``--max-mission-s`` ran out before the mission ended (the run is
 stopped in order and its report made, as after any stop)."""
+EXIT_WENT_WITHOUT = 4
+"""The launcher's exit code after an otherwise clean stop of a run that went on without a process
+the profile does not require, which failed for good (``Supervisor.failed_optional``): in real time
+the recorder is one, so the recording ends early."""
 
 
 def _required_failure(sup: Supervisor) -> str | None:
@@ -266,6 +270,12 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
                 continue
             _final_report(folders[v], scenario, mission_files[v], sup, make=not args.no_report,
                           idle_vessel=None if v in flown else v)
+        without = sup.failed_optional()
+        if without:
+            print(f"seaway launch: the run went on without {', '.join(without)}, which failed for "
+                  "good (its log and the status table above say why)", file=sys.stderr, flush=True)
+            if code == 0:
+                code = EXIT_WENT_WITHOUT
     return code
 
 

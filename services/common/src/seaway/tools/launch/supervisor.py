@@ -430,6 +430,11 @@ class Supervisor:
     def failed_required(self) -> list[str]:
         return [n for n, sp in self.procs.items() if sp.spec.required and sp.state == "failed"]
 
+    def failed_optional(self) -> list[str]:
+        """The processes the profile does not require that failed for good: the run went on
+        without them."""
+        return [n for n, sp in self.procs.items() if not sp.spec.required and sp.state == "failed"]
+
     # -- stopping -------------------------------------------------------------------------------
 
     def hurry(self) -> None:
