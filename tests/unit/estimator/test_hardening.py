@@ -75,6 +75,26 @@ def test_the_loop_drops_inputs_stamped_ahead_of_its_clock_before_the_core(caplog
     assert len(warnings) == 2  # once per key and direction
 
 
+def test_inputs_queued_before_the_clock_stepped_back_are_dropped_not_fused_later() -> None:
+    """Real time: a fix stamped half a second ahead waits for its time. The wall clock then steps an
+    hour back (NTP or GPS time): kept, the fix would be fused as a current one an hour later, where
+    the boat no longer is. Dropped at the next tick, counted as ahead; what is due stays."""
+    from seaway.runtime.node import Outputs
+
+    loop = _loop()
+    loop.queue("gnss", fix(WALL + 500 * MS, 5.0, 5.0), lockstep=False, now_ns=WALL)
+    loop.queue("attitude", att(WALL + 400 * MS, 0.0), lockstep=False, now_ns=WALL)
+    assert len(loop.pending) == 2
+    stepped = WALL - 3600 * S
+    loop.queue("attitude", att(stepped - 10 * MS, 0.0), lockstep=False, now_ns=stepped)
+    out = Outputs(MemoryHub().bus("vessel1"))
+    loop.tick(stepped, out)
+    assert loop.pending == []
+    assert loop.stamps.dropped == {("sensors/gnss", "ahead"): 1, ("sensors/attitude", "ahead"): 1}
+    loop.tick(WALL + 600 * MS, out)  # the clock comes round to the old stamps: nothing is fed
+    assert loop.core.counters.values["gnss_accepted"] == 0
+
+
 def test_lockstep_leftovers_too_far_ahead_are_dropped_at_the_period() -> None:
     """Lockstep: inputs queued before the member knew its period (at start) wait for their period;
     one stamped beyond any period to come soon would wait for ever (memory): dropped."""

@@ -82,13 +82,14 @@ class EstimatorNode(Node):
         self.pending: list[tuple[int, int, int, str, Any]] = []  # (stamp, kind order, seq, kind, msg)
         self._seq = 0
         self._origin_due_s = 0.0
-        self.last_thrust_ns: int | None = None
         self.refused = 0
         self.repeats = 0
         self.last_stamp: dict[str, int] = {}  # per input kind, the newest stamp queued
         self.commands: dict[int, Any] = {}  # lockstep: commands by stamp, until a period uses one
         # Real time: a second ahead of the wall clock at most; no older than the filter can use.
-        self.stamps = StampGate("estimator", log, StampBounds.live(core.config.max_gap_s))
+        bounds = StampBounds.live(core.config.max_gap_s)
+        self.stamps = StampGate("estimator", log, bounds)
+        self._ahead_ns = bounds.ahead_ns
         self.ratelog = RateLimitedLog(log)
 
     # -- inputs ----------------------------------------------------------------------------------
@@ -138,7 +139,6 @@ class EstimatorNode(Node):
                              else "zero thrust")
             else:
                 self.core.on_thrust(msg)
-                self.last_thrust_ns = max(msg.stamp_ns, self.last_thrust_ns or 0)
         except EstimatorError as err:
             self.refused += 1
             self.ratelog.warning(("refused", kind), "refused %s input: %s", kind, err)
@@ -213,7 +213,6 @@ class EstimatorNode(Node):
             for stamp, _, _, kind, _ in self.pending:
                 self.last_stamp[kind] = max(stamp, self.last_stamp.get(kind, stamp))
             self._origin_due_s = 0.0
-            self.last_thrust_ns = None
         log.info("new lockstep episode at t = %.3f s: estimator started afresh", t_ns / 1e9)
 
     def on_reset_request(self, req: NavResetRequest) -> Reply:
@@ -261,8 +260,23 @@ class EstimatorNode(Node):
         clock, and until the clock caught up every estimate at now and every measurement stamped
         now would be too old (a fix 0.9 s ahead cost 0.4 s of nav/state and 16 measurements)."""
         with self.lock:
+            self.drop_ahead(now_ns)
             self.feed_pending(now_ns)
             out.put_all(self.outputs(now_ns, time.monotonic()))
+
+    def drop_ahead(self, now_ns: int) -> None:
+        """Real time: drop the queued inputs stamped further ahead of ``now_ns`` than the stamp gate
+        admits (counted and logged as it counts them). Each was admitted against the clock of its
+        arrival, so only a clock stepped back since (NTP or GPS time) leaves any: left queued, an
+        hour-old fix would be fused as a current one once the clock came round to its stamp."""
+        limit_ns = now_ns + self._ahead_ns
+        if not self.pending or self.pending[-1][0] <= limit_ns:
+            return
+        n = bisect.bisect_right(self.pending, (limit_ns, 99, 1 << 62))
+        ahead, self.pending = self.pending[n:], self.pending[:n]
+        for stamp, _, _, kind, _ in ahead:
+            self.stamps.admit(_SUFFIX[kind], stamp, now_ns)  # refuses it: counted and logged
+        self.last_stamp = {k: v for k, v in self.last_stamp.items() if v <= limit_ns}
 
     def idle(self) -> None:
         """At each wake of the driver: a SIGUSR1's reset, and the stats line every
