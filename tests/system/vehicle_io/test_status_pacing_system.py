@@ -131,3 +131,7 @@ def test_a_flapping_autopilot_does_not_flood_the_bus(zenoh_env, procs, bus, tmp_
     assert (final.link_ok, final.armed, final.thrust_withheld) == (True, False, "disarmed")
     alive(vio, procs)
     assert "link LOST" not in procs.log(vio)
+    # The operator is told the vehicle flaps, once a minute at most (its own logger).
+    told = [line for line in procs.log(vio).splitlines()
+            if " WARNING seaway.vehicle_io.status_pacing" in line]
+    assert len(told) == 1, told

@@ -66,6 +66,8 @@ from seaway_vehicle_io.signing import SigningClock, SigningSetup
 from seaway_vehicle_io.thrust import ThrusterLimits
 
 log = logging.getLogger("seaway.vehicle_io")
+pacing_log = logging.getLogger("seaway.vehicle_io.status_pacing")
+"""The statuses held back by the pacing (``status_pacing``): a flapping link or autopilot."""
 
 REOPEN_DELAY_S = 1.0
 OPEN_FAILURES_PER_LOG = 30
@@ -102,6 +104,8 @@ class VehicleIoNode(Node):
         self.link: MavlinkLink | None = None
         self._requests_serial = threading.Lock()  # one COMMAND_LONG in flight at a time
         self._ratelog = RateLimitedLog(log)
+        self._pacing_log = RateLimitedLog(pacing_log)
+        self._held_seen = 0  # the pacer's ``held`` when last looked at
         self._open_failures = 0
         self._publishers: dict[type, TypedPublisher] = {}
         self._receiver: threading.Thread | None = None
@@ -146,7 +150,14 @@ class VehicleIoNode(Node):
         with self.lock:
             publish = self._send(self.core.tick(now()))
             self._wake_ns = self.core.next_wake_ns()
+            held = self.core.status_pacer.held
         self._publish(publish)
+        if held != self._held_seen:
+            self._held_seen = held
+            self._pacing_log.warning("held", "the vehicle's state changed faster than one status "
+                                     "per %.0f ms: %d changes so far were said later, with the "
+                                     "latest state (a flapping link or autopilot?)",
+                                     self.core.status_pacer.gap_ns / 1e6, held)
 
     def wake_s(self) -> float:
         """Until the core's next due work [s] (the driver waits at most ``MAX_SLEEP_S``)."""
@@ -196,6 +207,9 @@ class VehicleIoNode(Node):
             if self.core.refusals.total:
                 log.info("MAVLink refused during the run: %s (busiest: %s)",
                          self.core.refusals.by_reason, self.core.refusals.summary())
+            if self.core.status_pacer.held:
+                pacing_log.info("statuses held back by the pacing during the run: %d",
+                                self.core.status_pacer.held)
 
     # -- MAVLink in --------------------------------------------------------------------------------
 
