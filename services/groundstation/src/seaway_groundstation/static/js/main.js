@@ -177,12 +177,16 @@ function render() {
     const holdWhy = vehicle?.hold_reason ? `${HOLD_REASONS[vehicle.hold_reason] || vehicle.hold_reason}`
       + (vehicle.hold_reason_detail ? `: ${vehicle.hold_reason_detail}` : "") : "";
     setText("v-failsafe", vehicle ? vehicle.failsafe || holdWhy || "none" : "–", vehicle?.failsafe || holdWhy ? "bad" : "");
-    setText("v-services", (view?.services || v?.services || []).join(", ") || "–");
+    const services = view?.services || v?.services || [];
+    setText("v-services", services.join(", ") || "–");
+    renderRecording(services);
     setText("v-last-command", app.lastCommands.get(app.selected) || "–");
     syncModeBox(vehicle);
     markStale("battery", stale("battery") && Boolean(msg("battery")));
     document.querySelector(".sim-only").hidden = !view?.simulated;
     markStale("vehicle", stale("vehicle"));
+  } else {
+    renderRecording([]);
   }
 
   renderVesselFacts(msg("battery"), vehicle, msg("gnss"), state);
@@ -244,6 +248,24 @@ function render() {
   plots.xte.draw(s?.xte, { stale: stale("mission"), cursorT: cursor, empty: "no mission yet" });
   plots.energy.draw(v?.energySeries(), { stale: stale("mission"), cursorT: cursor, empty: "no mission yet" });
   if (app.mode === "replay") updateTransport();
+}
+
+/** Health tokens that are not the vessel's own work: the ground station's and the launcher's. */
+const NOT_THE_VESSELS = new Set(["groundstation", "launcher"]);
+
+/** NOT RECORDING in the header while the selected vessel's services run (a health token besides
+ *  the ground station's and the launcher's) and none of them is the recorder: the launcher keeps a
+ *  real-time run flying when its recorder fails for good, so nothing the vessel does is recorded
+ *  until the recorder's token is back. The header's live region says it to a screen reader. */
+function renderRecording(services) {
+  const unrecorded = services.some((s) => !NOT_THE_VESSELS.has(s)) && !services.includes("recorder");
+  const el = $("recording-status");
+  const text = unrecorded ? "NOT RECORDING" : "";
+  const title = unrecorded ? `${app.selected}'s services run, but no recorder's health token is present: `
+    + "nothing it does is being written to a recording" : "";
+  if (el.textContent !== text) el.textContent = text; // only a change is said again
+  el.className = unrecorded ? "alarm-badge" : "";
+  el.title = title;
 }
 
 /** Each vessel's colour on the map and in the fleet table: by its place in the sorted names, so

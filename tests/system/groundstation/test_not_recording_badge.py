@@ -1,0 +1,103 @@
+"""NOT RECORDING on the page, in a real browser (Debian's chromium driven by Playwright): the real
+``seaway-groundstation`` process on a real Zenoh session, the test playing a vessel's estimator and
+controller (their health tokens) and, on a Zenoh session of its own as the real one has, its
+recorder.
+
+The launcher keeps a real-time run flying when its recorder fails for good, so a crew must see at a
+glance when a vessel runs unrecorded. With the recorder's token present the page shows no alarm;
+once the recorder's session is gone (its token withdrawn) an alarm saying the vessel is not recording
+shows within a few seconds, in a live region (screen readers hear it), in view without scrolling,
+at full opacity, and axe-core finds no serious or critical WCAG A/AA violation on the page; once a
+recorder declares its token again the alarm goes.
+"""
+
+from __future__ import annotations
+
+import re
+import signal
+import time
+
+import pytest
+from seaway.runtime.bus import Bus
+
+from tests.conftest import wait_for
+from tests.system.groundstation import axe_check
+from tests.system.groundstation.helpers import http, start_groundstation
+
+pytestmark = pytest.mark.system
+VESSEL = "vessel1"
+ALARM = "#recording-status"
+FEW_S = 8.0  # the page polls the fleet every 2 s; a withdrawn token reaches the station at once
+
+
+def recorder_bus() -> Bus:
+    """The recorder's own session with its health token (closing it withdraws the token)."""
+    bus = Bus.open(VESSEL)
+    bus.declare_alive("recorder")
+    return bus
+
+
+def services(base: str) -> list[str]:
+    status, view = http("GET", base + f"api/vessels/{VESSEL}")
+    return view["services"] if status == 200 else []
+
+
+def test_a_vessel_without_a_live_recorder_shows_not_recording(procs, zenoh_env, browser,
+                                                              tmp_path) -> None:
+    try:
+        axe_script = axe_check.install()
+    except axe_check.AxeUnavailableError as err:
+        pytest.skip(str(err))
+    gs, base, _token = start_groundstation(procs, zenoh_env)
+    recorder = recorder_bus()
+    try:
+        with Bus.open(VESSEL) as bus:
+            bus.declare_alive("estimator")
+            bus.declare_alive("controller")
+            wait_for(lambda: {"estimator", "controller", "recorder"} <= set(services(base)), 30,
+                     what="the vessel's three services seen by the ground station")
+            page = browser.new_page(viewport={"width": 1500, "height": 1000})
+            errors: list[str] = []
+            page.on("pageerror", lambda e: errors.append(str(e)))
+            page.goto(base)
+            alarm = page.locator(ALARM)
+            # Recorded: the page lists the recorder among the live services, and shows no alarm.
+            page.wait_for_function("() => document.getElementById('v-services').textContent"
+                                   ".includes('recorder')", timeout=30_000)
+            page.wait_for_timeout(1000)  # a render or two more: an alarm would have shown by now
+            assert alarm.is_hidden(), alarm.text_content()
+
+            # The recorder fails for good: its token goes, the estimator and controller go on.
+            recorder.close()
+            gone = time.monotonic()
+            alarm.wait_for(state="visible", timeout=FEW_S * 1000)
+            print(f"\nthe alarm showed {time.monotonic() - gone:.1f} s after the recorder's token went")
+            assert re.search(r"not\s+recording", alarm.inner_text(), re.IGNORECASE), alarm.inner_text()
+            # Said to a screen reader: the alarm is (in) a live region.
+            assert alarm.evaluate("el => Boolean(el.closest('[role=status], [role=alert], [aria-live]'))")
+            # At a glance: in the window as the page opens, not faded.
+            box = alarm.bounding_box()
+            assert box and box["y"] >= 0 and box["y"] + box["height"] <= 1000, box
+            assert alarm.evaluate("""el => {
+                for (let e = el; e; e = e.parentElement) {
+                    if (Number(getComputedStyle(e).opacity) < 1) return false;
+                }
+                return true;
+            }""")
+            assert {"estimator", "controller"} <= set(services(base))
+            page.screenshot(path=str(tmp_path / "not-recording.png"))
+            found = axe_check.violations(page, axe_script)
+            print("axe-core, not recording:", [(v["id"], v["impact"], len(v["nodes"])) for v in found])
+            assert not axe_check.serious(found), axe_check.serious(found)
+
+            # A recorder is back: the alarm goes.
+            recorder = recorder_bus()
+            back = time.monotonic()
+            alarm.wait_for(state="hidden", timeout=FEW_S * 1000)
+            print(f"the alarm went {time.monotonic() - back:.1f} s after the recorder's token came back")
+            assert "recorder" in page.locator("#v-services").inner_text()
+            assert not errors, errors
+    finally:
+        recorder.close()
+    procs.stop(gs, signal.SIGTERM, timeout_s=15)
+    assert gs.returncode == 0, procs.log(gs)
