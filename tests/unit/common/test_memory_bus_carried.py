@@ -164,7 +164,7 @@ def test_a_composed_launcher_reads_the_answer_carried_not_the_bytes(decodes: lis
     """The launcher's liveness watch takes each answer's period from the answer the bundle was
     encoded from, where the bus hands one along: no JSON is read (bytes it could not read give the
     carried period); a resent copy is no news either way; bytes alone are still read."""
-    from seaway.tools.launch.supervisor import answer_period
+    from seaway.tools.launch.liveness import answer_period
 
     answer = PeriodDone(stamp_ns=P, service="sim", episode=2, seq=1, period_ns=P, hold=True,
                         published={})

@@ -170,7 +170,7 @@ def test_an_answer_outside_the_contract_is_no_answer_to_the_launcher() -> None:
     import json
 
     from seaway.contract import bundle
-    from seaway.tools.launch.supervisor import answer_period
+    from seaway.tools.launch.liveness import answer_period
 
     def raw(**fields) -> bytes:
         return bundle.encode(json.dumps({"service": "controller", "seq": 1, "period_ns": 10**8,

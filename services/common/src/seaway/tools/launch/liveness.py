@@ -38,15 +38,17 @@ supervisor feeds it from the launcher's Zenoh session.
 from __future__ import annotations
 
 import collections
+import json
 import logging
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 from pydantic import Field, model_validator
 
-from seaway.contract import keys
+from seaway.contract import bundle, keys
 from seaway.contract.config import ConfigModel
-from seaway.contract.messages import PeriodDone
+from seaway.contract.messages import LOCKSTEP_SERVICES, PeriodDone
 from seaway.runtime.lockstep import STALL_REPEAT_S
 from seaway.runtime.ratelog import RateLimitedLog
 from seaway.runtime.stamps import describe_ns
@@ -343,3 +345,38 @@ class Watch:
                                     f"(it must: {d.describe()})")
                     break
         return out
+
+
+# -- lockstep answers as the launcher hears them ------------------------------------------------
+
+CHAIN_RANK = {keys.lockstep_spec(s).suffix: i for i, s in enumerate(LOCKSTEP_SERVICES)}
+"""A lockstep answer key's place in a period's chain (sim 0, estimator 1, controller 2, recorder 3)."""
+
+
+def answer_period(payload: bytes, carried: Any = None) -> tuple[tuple[int, int] | None, bool]:
+    """((episode, stamp_ns), hold) of a lockstep answer; (None, False) if it is malformed.
+
+    Only the three fields needed, read as plainly as can be (each member validates the answers it
+    acts on; a malformed one is no answer here, absurd numbers included: JSON's Infinity, an
+    episode below 0 or a stamp outside the contract's 0..``MAX_STAMP_NS``, which every member
+    refuses). Which periods an answer can oblige anybody to answer is the watch's to judge
+    (``liveness.Watch``: only those the sim has reached).
+    ``carried``: what an in-process bus handed along with the bytes (``bundle.Carried``): its
+    answer is read instead of the bytes (a composed stack's launcher decodes no bundle)."""
+    from seaway.contract.messages import MAX_STAMP_NS
+
+    ans_carried = bundle.carried_answer(carried)
+    if ans_carried is not None:
+        if ans_carried.resent:
+            return None, False
+        return (ans_carried.episode, ans_carried.stamp_ns), ans_carried.hold
+    try:
+        ans = json.loads(bundle.answer_of(payload))  # a bundle's first line (seaway.contract.bundle)
+        if ans.get("resent"):  # a copy of an earlier answer, for a restarted recorder: no news
+            return None, False
+        episode, stamp_ns = int(ans["episode"]), int(ans["stamp_ns"])
+        if episode < 0 or not 0 <= stamp_ns <= MAX_STAMP_NS:
+            return None, False
+        return (episode, stamp_ns), bool(ans.get("hold"))
+    except (ValueError, TypeError, KeyError, AttributeError, OverflowError):
+        return None, False

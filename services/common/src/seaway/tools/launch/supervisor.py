@@ -30,7 +30,6 @@ vessel's recorder copies into its recording.
 from __future__ import annotations
 
 import contextlib
-import json
 import os
 import shutil
 import signal
@@ -41,10 +40,9 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Any
+from typing import IO
 
-from seaway.contract import bundle, keys
-from seaway.contract.messages import LOCKSTEP_SERVICES
+from seaway.contract import keys
 from seaway.runtime import cpus, host
 from seaway.runtime.bus import Bus
 from seaway.runtime.bus_typed import RawRing
@@ -52,46 +50,13 @@ from seaway.runtime.credentials import ENV_IDENTITY
 from seaway.runtime.service import ENV_VESSEL
 from seaway.tools.launch import exits
 from seaway.tools.launch.events import EVENTS_FILE, EventsFiles, ProcessEvent
-from seaway.tools.launch.liveness import TOKEN_GRACE_S, Watch
+from seaway.tools.launch.liveness import CHAIN_RANK, TOKEN_GRACE_S, Watch, answer_period
 from seaway.tools.launch.logsink import LogSink
 from seaway.tools.launch.profile import BackoffPolicy, ProcessSpec, start_order, stop_order
 
 WATCH_RING = 4096
 """Samples held per watched key between two looks (``poll``, a few times a second): some 15 s of
 lockstep answers at 300 periods a second; past that the oldest go (a launcher busy that long)."""
-CHAIN_RANK = {keys.lockstep_spec(s).suffix: i for i, s in enumerate(LOCKSTEP_SERVICES)}
-"""A lockstep answer key's place in a period's chain (sim 0, estimator 1, controller 2, recorder 3)."""
-
-
-def answer_period(payload: bytes, carried: Any = None) -> tuple[tuple[int, int] | None, bool]:
-    """((episode, stamp_ns), hold) of a lockstep answer; (None, False) if it is malformed.
-
-    Only the three fields needed, read as plainly as can be (each member validates the answers it
-    acts on; a malformed one is no answer here, absurd numbers included: JSON's Infinity, an
-    episode below 0 or a stamp outside the contract's 0..``MAX_STAMP_NS``, which every member
-    refuses). Which periods an answer can oblige anybody to answer is the watch's to judge
-    (``liveness.Watch``: only those the sim has reached).
-    ``carried``: what an in-process bus handed along with the bytes (``bundle.Carried``): its
-    answer is read instead of the bytes (a composed stack's launcher decodes no bundle)."""
-    from seaway.contract.messages import MAX_STAMP_NS
-
-    ans_carried = bundle.carried_answer(carried)
-    if ans_carried is not None:
-        if ans_carried.resent:
-            return None, False
-        return (ans_carried.episode, ans_carried.stamp_ns), ans_carried.hold
-    try:
-        ans = json.loads(bundle.answer_of(payload))  # a bundle's first line (seaway.contract.bundle)
-        if ans.get("resent"):  # a copy of an earlier answer, for a restarted recorder: no news
-            return None, False
-        episode, stamp_ns = int(ans["episode"]), int(ans["stamp_ns"])
-        if episode < 0 or not 0 <= stamp_ns <= MAX_STAMP_NS:
-            return None, False
-        return (episode, stamp_ns), bool(ans.get("hold"))
-    except (ValueError, TypeError, KeyError, AttributeError, OverflowError):
-        return None, False
-
-
 HURRY_GRACE_S = 0.5
 """After a second Ctrl-C: how long a process (but the recorder) gets between SIGINT and SIGKILL."""
 
