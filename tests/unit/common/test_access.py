@@ -150,6 +150,9 @@ def test_a_certificate_past_its_end_is_refused_before_any_link_is_tried(tmp_path
     end = _cert(ended.folder / "ca.pem").not_valid_after_utc
     assert "ca.pem" in str(err.value) and f"{end:%Y-%m-%d}" in str(err.value)
     assert "credentials create" in str(err.value)
+    from seaway.tools import credentials_cli
+
+    assert credentials_cli.main(["show", str(ended.folder)]) == 1  # NOT USABLE
     current = credentials.create(tmp_path / "current", days=1)
     current.check("controller")  # a day left: usable
     assert current.ends("controller") == min(_cert(current.folder / n).not_valid_after_utc

@@ -96,8 +96,9 @@ def _show(folder: Path) -> int:
         if pem.name.endswith("-key.pem"):
             continue
         cert = x509.load_pem_x509_certificate(pem.read_bytes())
-        left = cert.not_valid_after_utc - dt.datetime.now(dt.UTC)
-        print(f"  {pem.stem:14s} expires {cert.not_valid_after_utc:%Y-%m-%d} ({left.days} days)")
+        left_s = (cert.not_valid_after_utc - dt.datetime.now(dt.UTC)).total_seconds()
+        left = f"{left_s // 86_400:.0f} days" if left_s >= 0 else "EXPIRED"
+        print(f"  {pem.stem:14s} expires {cert.not_valid_after_utc:%Y-%m-%d} ({left})")
     try:
         credentials.Credentials(folder).check("operator")
     except credentials.CredentialsError as err:
