@@ -29,8 +29,6 @@ vessel's recorder copies into its recording.
 
 from __future__ import annotations
 
-import contextlib
-import os
 import shutil
 import signal
 import subprocess
@@ -53,21 +51,13 @@ from seaway.tools.launch.events import EVENTS_FILE, EventsFiles, ProcessEvent
 from seaway.tools.launch.liveness import CHAIN_RANK, TOKEN_GRACE_S, Watch, answer_period
 from seaway.tools.launch.logsink import LogSink
 from seaway.tools.launch.profile import BackoffPolicy, ProcessSpec, start_order, stop_order
+from seaway.tools.launch.signals import SETPRIV, signal_group, stop_signal, with_parent_death_signal
 
 WATCH_RING = 4096
 """Samples held per watched key between two looks (``poll``, a few times a second): some 15 s of
 lockstep answers at 300 periods a second; past that the oldest go (a launcher busy that long)."""
 HURRY_GRACE_S = 0.5
 """After a second Ctrl-C: how long a process (but the recorder) gets between SIGINT and SIGKILL."""
-
-SETPRIV = shutil.which("setpriv")
-"""util-linux's setpriv (every Debian and Ubuntu has it): sets the child's parent-death signal."""
-
-
-def with_parent_death_signal(argv: list[str]) -> list[str]:
-    """``argv`` run so that it gets SIGTERM when the launcher dies (as is, without setpriv)."""
-    return [SETPRIV, "--pdeathsig", "TERM", "--", *argv] if SETPRIV else argv
-
 
 @dataclass
 class Supervised:
@@ -390,7 +380,7 @@ class Supervisor:
                     self._token_lost.pop((sp.vessel, sp.spec.service), None)
             sp.state = "hung"
             assert sp.popen is not None
-            _signal_group(sp.popen, signal.SIGKILL)
+            signal_group(sp.popen, signal.SIGKILL)
 
     def failed_required(self) -> list[str]:
         return [n for n, sp in self.procs.items() if sp.spec.required and sp.state == "failed"]
@@ -443,17 +433,17 @@ class Supervisor:
                     sp.state = "stopped"
                 continue
             sig = stop_signal(sp.state)
-            _signal_group(sp.popen, sig)
+            signal_group(sp.popen, sig)
             if not self._wait_stopped(sp):
                 self.echo(f"launcher: {spec.name} ignored {sig.name} for {self.grace_s(spec):g} s; "
                           f"SIGKILL")
-                _signal_group(sp.popen, signal.SIGKILL)
+                signal_group(sp.popen, signal.SIGKILL)
                 sp.popen.wait(5)
             sp.last_exit = sp.popen.returncode
             sp.state = "stopped"
             self._event(sp, "stopped", code=sp.last_exit)
             # Take the rest of the group too (helpers a process may have started).
-            _signal_group(sp.popen, signal.SIGKILL)
+            signal_group(sp.popen, signal.SIGKILL)
 
     # -- reporting ------------------------------------------------------------------------------
 
@@ -482,23 +472,6 @@ class Supervisor:
         for folder in (self.run_dir, sp.vessel_dir):
             if folder is not None:
                 self.events_out.append(folder / EVENTS_FILE, ev.line())
-
-
-def stop_signal(state: str) -> signal.Signals:
-    """The signal that stops a process in ``state``: SIGINT, as a Ctrl-C would; SIGTERM to a service
-    still starting. That one may still be importing, before its stop handler is in place
-    (``seaway.runtime.service.install_stop_signals``), where Python turns a SIGINT into a
-    KeyboardInterrupt traceback in its log and on the terminal; SIGTERM ends it quietly there, and
-    once the handler is in place it stops on either the same way."""
-    return signal.SIGTERM if state == "starting" else signal.SIGINT
-
-
-def _signal_group(p: subprocess.Popen, sig: int) -> None:
-    if isinstance(p, host.NodeThread):  # a node of this process: its own stop, not the group's
-        p.send_signal(sig)
-        return
-    with contextlib.suppress(ProcessLookupError, PermissionError):
-        os.killpg(p.pid, sig)
 
 
 def default_echo(line: str) -> None:
