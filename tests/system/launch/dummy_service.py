@@ -8,6 +8,8 @@
 --quiet-after S           stop publishing after S seconds, but keep running (a hung loop)
 --quiet-vessel V          with --quiet-after: only if this process's vessel is V (one of a fleet's)
 --drop-token-after S      withdraw the health token after S seconds, but keep running
+--ready-once FILE         declare the health token on the first start only (FILE marks it): a
+                          later start never does (a restart stuck before it is ready)
 --times FILE              append "<service> start|up <unix time>" to FILE when it starts and when it
                           declares its token (start-order tests)
 """
@@ -39,6 +41,7 @@ ap.add_argument("--quiet-after", type=float, default=None)
 ap.add_argument("--quiet-vessel", default=None)
 ap.add_argument("--drop-token-after", type=float, default=None)
 ap.add_argument("--times", default=None)
+ap.add_argument("--ready-once", default=None)
 args = ap.parse_args()
 if args.quiet_vessel is not None and args.quiet_vessel != args.vessel:
     args.quiet_after = None
@@ -69,6 +72,12 @@ if args.marker:
         f.write(f"{os.getpid()}\n")
 bus = Bus.open(args.vessel)
 time.sleep(args.ready_after)
+if args.ready_once:
+    if os.path.exists(args.ready_once):
+        print(f"{args.service} started again: never ready", flush=True)
+        stop.wait()
+        sys.exit(0)
+    open(args.ready_once, "w").close()
 bus.declare_alive(args.service)
 note_time("up")
 print(f"{args.service} up pid {os.getpid()}", flush=True)

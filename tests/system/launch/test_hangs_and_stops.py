@@ -1,6 +1,7 @@
 """The launcher with real processes that hang, and an impatient operator (issue 14, items 3 and 10).
 
-* A process that stops publishing what it must (its loop stuck, or the whole process SIGSTOPped)
+* A process that stops publishing what it must (its loop stuck, or the whole process SIGSTOPped),
+  or whose restart never becomes ready,
   is restarted like a dead one, with its back-off; so is one whose health token disappears while it
   still runs. Each time the launcher logs why, writes a ``hung`` event, and the recorder puts the
   event into the recording (``launcher/events``).
@@ -95,6 +96,24 @@ def test_a_process_whose_health_token_disappears_is_restarted(procs, zenoh_env, 
     wait_for(lambda: len(of(run, "est", "start")) == 2, 30, what="the stand-in restarted")
     assert procs.stop(la, signal.SIGINT, timeout_s=20) < 20
     assert la.returncode == 0, procs.log(la)
+
+
+def test_a_restarted_process_that_never_becomes_ready_is_restarted_again(procs, zenoh_env,
+                                                                        tmp_path) -> None:
+    """A service that crashed and whose restart hangs before its health token (stuck in start-up,
+    or unable to link) was left "starting" for good: the run went on without it, nothing said.
+    Now, past its ``ready_timeout_s`` from the restart, it is hung: SIGKILL, then a restart."""
+    run, once = tmp_path / "run", tmp_path / "ready-once"
+    est = ('[[processes]]\nname = "est"\nservice = "estimator"\nready_timeout_s = 3.0\n'
+           f'command = ["{sys.executable}", "{DUMMY}", "--service", "estimator", '
+           f'"--exit-after", "1", "--code", "1", "--ready-once", "{once}"]\n')
+    la = launch(procs, zenoh_env, write_profile(tmp_path, est), tmp_path)
+    hung = wait_for(lambda: of(run, "est", "hung"), 40, what="the restart found hung")[0]
+    assert "not ready" in hung["reason"], hung
+    starts = of(run, "est", "start")
+    assert len(starts) == 2 and hung["t_unix_s"] - starts[1]["t_unix_s"] >= 3.0
+    wait_for(lambda: len(of(run, "est", "start")) == 3, 30, what="restarted again")
+    assert procs.stop(la, signal.SIGINT, timeout_s=20) < 20
 
 
 def test_a_second_ctrl_c_stops_faster_in_order_and_keeps_the_recording_whole(procs, zenoh_env,

@@ -13,7 +13,8 @@ child before its exec and the launcher with it (a process that never starts).
 A process that exits with a failure is restarted after its back-off (``restart = "on-failure"``),
 and so is a service that exits with 0 unasked (``seaway.tools.launch.exits``).
 So is one that hangs (``liveness``): its health token gone for ``TOKEN_GRACE_S`` while it still
-runs, or overdue on what its service must publish; it is SIGKILLed (a stopped or deadlocked process
+runs, overdue on what its service must publish, or restarted and not ready within its
+``ready_timeout_s``; it is SIGKILLed (a stopped or deadlocked process
 cannot stop itself) and then restarted as a dead one. Each start, exit, hang and stop is a line of
 ``<run_dir>/events.jsonl``, which the recorder puts into the recording (``seaway-recorder --events``).
 
@@ -344,6 +345,15 @@ class Supervisor:
             lost = dict(self._token_lost)
             any_alive = bool(self.alive_services)
         watched = [sp for sp in ready if sp.spec.service]
+        # A restarted service that never becomes ready (stuck in its start-up, or unable to link:
+        # credentials the stack no longer accepts) was left "starting" for good, and the run went
+        # on without it, unsaid. The start's own wait (``_wait_any_ready``) covers the first start.
+        for sp in self.procs.values():
+            if (sp.state == "starting" and sp.spec.service and sp.popen is not None
+                    and sp.started_at is not None and sp.popen.poll() is None
+                    and now - sp.started_at > sp.spec.ready_timeout_s):
+                out[sp.spec.name] = (f"not ready {now - sp.started_at:.1f} s after its start "
+                                     f"(ready_timeout_s {sp.spec.ready_timeout_s:g})")
         # Every token gone at once is this launcher losing sight of the stack, not them all hanging.
         if any_alive or len(watched) < 2:
             for sp in watched:
