@@ -297,3 +297,18 @@ def test_a_field_that_cannot_be_made_shows_a_question_mark_the_rest_stays(caplog
     assert full(line.fields("v1", 1.0)) == ["v1", "t     1 s", "mission ?", "speed 1.00 m/s",
                                             "energy ?"]
     assert "cannot show its energy" in caplog.text
+
+
+def test_a_run_going_on_without_its_recorder_says_so_before_the_figures() -> None:
+    """The recorder failed for good and a real-time run flies on: the line says it is not
+    recording, ranked with the decisions, so a narrow terminal keeps it over the figures."""
+    line = StatusLine(["v1"])
+    line.state["v1"] = state(3.0)
+    line.mission["v1"] = status()
+    assert not any("RECORD" in f for f in full(line.fields("v1", 5.0)))
+    line.without = {"v1": ["recorder", "groundstation"]}
+    texts = full(line.fields("v1", 5.0))
+    assert "NOT RECORDING" in texts and "NO GROUNDSTATION" in texts
+    assert texts.index("NOT RECORDING") < texts.index(next(t for t in texts if t.startswith("speed")))
+    narrow = line.vessel_text("v1", 5.0, width=40)
+    assert "NOT REC" in narrow and "speed" not in narrow

@@ -207,6 +207,7 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
             bus, sup, vessels, mission, profile.mode_on_start, args.resume_wait)
         while not stop.wait(0.2):
             sup.poll()
+            status.without = sup.failed_optional_by_vessel()
             show_groundstations(sup, run_dir, shown)  # again after a restart: a new address
             failed = sup.failed_required()
             if failed:

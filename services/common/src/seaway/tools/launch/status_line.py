@@ -150,6 +150,9 @@ class StatusLine:
             str, tuple[Newest[MissionStatus], Newest[StateEstimate], Newest[ThrustCommand] | None]
         ] = {}
         self._budgets: dict[str, Every[EnergyBudget]] = {}
+        self.without: dict[str, list[str]] = {}
+        """Per vessel, the services the run goes on without (failed for good, not required): set
+        by the launcher (``Supervisor.failed_optional``)."""
 
     def watch(self, bus: Bus) -> None:
         """Keep the latest mission status, state and energy budget of every vessel.
@@ -207,6 +210,9 @@ class StatusLine:
             _guarded(vessel, "time", RANK_TIME, lambda: [self.time_field(s, t_s)]),
             *_guarded_all(vessel, "mission", RANK_MISSION, lambda: self.mission_fields(vessel)),
         ]
+        for service in self.without.get(vessel, ()):  # the run goes on without it: say so first
+            out.append(Field(RANK_DECISION, "NOT RECORDING", "NOT REC") if service == "recorder"
+                       else Field(RANK_DECISION, f"NO {service.upper()}", f"NO {service.upper()}"))
         if s is not None and s.motion_fault is not None:  # the vessel does not do what it is told
             out.append(Field(RANK_DECISION, f"MOTION FAULT {s.motion_fault}", f"FAULT {s.motion_fault}"))
         if s is not None:

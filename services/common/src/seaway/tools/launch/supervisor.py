@@ -400,6 +400,14 @@ class Supervisor:
         without them."""
         return [n for n, sp in self.procs.items() if not sp.spec.required and sp.state == "failed"]
 
+    def failed_optional_by_vessel(self) -> dict[str, list[str]]:
+        """``failed_optional`` per vessel, each by its service's name (else its own)."""
+        out: dict[str, list[str]] = {}
+        for name in self.failed_optional():
+            sp = self.procs[name]
+            out.setdefault(sp.vessel, []).append(sp.spec.service or name)
+        return out
+
     # -- stopping -------------------------------------------------------------------------------
 
     def hurry(self) -> None:
