@@ -177,7 +177,7 @@ function render() {
     const holdWhy = vehicle?.hold_reason ? `${HOLD_REASONS[vehicle.hold_reason] || vehicle.hold_reason}`
       + (vehicle.hold_reason_detail ? `: ${vehicle.hold_reason_detail}` : "") : "";
     setText("v-failsafe", vehicle ? vehicle.failsafe || holdWhy || "none" : "–", vehicle?.failsafe || holdWhy ? "bad" : "");
-    const services = view?.services || v?.services || [];
+    const services = liveServices(app.selected);
     setText("v-services", services.join(", ") || "–");
     renderRecording(services);
     setText("v-last-command", app.lastCommands.get(app.selected) || "–");
@@ -253,18 +253,30 @@ function render() {
 /** Health tokens that are not the vessel's own work: the ground station's and the launcher's. */
 const NOT_THE_VESSELS = new Set(["groundstation", "launcher"]);
 
-/** NOT RECORDING in the header while the selected vessel's services run (a health token besides
- *  the ground station's and the launcher's) and none of them is the recorder: the launcher keeps a
- *  real-time run flying when its recorder fails for good, so nothing the vessel does is recorded
- *  until the recorder's token is back. The header's live region says it to a screen reader. */
+/** A vessel's live health tokens (GET /api/vessels, else its live frames); none in replay. */
+function liveServices(name) {
+  if (app.mode !== "live") return [];
+  return app.fleet.get(name)?.services || store().vessels.get(name)?.services || [];
+}
+
+/** Unrecorded: the vessel's services run (a health token besides the ground station's and the
+ *  launcher's) and none of them is the recorder. The launcher keeps a real-time run flying when its
+ *  recorder fails for good, so nothing the vessel does is recorded until the recorder's token is
+ *  back. The one rule for the header's alarm and the fleet table's marks. */
+function unrecorded(services) {
+  return services.some((s) => !NOT_THE_VESSELS.has(s)) && !services.includes("recorder");
+}
+
+/** NOT RECORDING in the header while the selected vessel is unrecorded. The header's live region
+ *  says it to a screen reader. */
 function renderRecording(services) {
-  const unrecorded = services.some((s) => !NOT_THE_VESSELS.has(s)) && !services.includes("recorder");
+  const on = unrecorded(services);
   const el = $("recording-status");
-  const text = unrecorded ? "NOT RECORDING" : "";
-  const title = unrecorded ? `${app.selected}'s services run, but no recorder's health token is present: `
+  const text = on ? "NOT RECORDING" : "";
+  const title = on ? `${app.selected}'s services run, but no recorder's health token is present: `
     + "nothing it does is being written to a recording" : "";
   if (el.textContent !== text) el.textContent = text; // only a change is said again
-  el.className = unrecorded ? "alarm-badge" : "";
+  el.className = on ? "alarm-badge" : "";
   el.title = title;
 }
 
@@ -276,8 +288,9 @@ function vesselColour(name) {
   return VESSEL_COLOURS[(i < 0 ? 0 : i) % VESSEL_COLOURS.length];
 }
 
-/** The fleet overview: one row per vessel (state, leg, battery, link); its name picks it. Shown
- *  for two vessels or more, or while the ground station says it dropped some (live only). */
+/** The fleet overview: one row per vessel (state, leg, battery, link); its name picks it, and an
+ *  unrecorded vessel (the header's rule, live only) has NOT RECORDING by its name. Shown for two
+ *  vessels or more, or while the ground station says it dropped some (live only). */
 function renderFleet(t) {
   const names = vesselNames();
   const notice = renderFleetNotice($("fleet-notice"), app.mode === "live" ? app.fleetCounts : null);
@@ -289,7 +302,8 @@ function renderFleet(t) {
     const frac = battery?.remaining_frac ?? vehicle?.battery_remaining_frac;
     const legs = mission ? Math.max(mission.waypoint_count - 1, 0) : 0;
     const stale = !o || o.stale("state", t);
-    return [name, mission?.state ?? "–", mission && mission.state !== "idle" ? `${mission.active_leg} / ${legs}` : "–",
+    return [name, unrecorded(liveServices(name)), mission?.state ?? "–",
+      mission && mission.state !== "idle" ? `${mission.active_leg} / ${legs}` : "–",
       Number.isFinite(frac) ? `${(frac * 100).toFixed(0)} %` : "–",
       vehicle ? (vehicle.link_ok && !stale ? "up" : stale ? "stale" : "DOWN") : "–"];
   });
@@ -297,7 +311,7 @@ function renderFleet(t) {
   const key = JSON.stringify([rows, app.selected]);
   if (body.dataset.key === key) return;
   body.dataset.key = key;
-  body.replaceChildren(...rows.map(([name, ...cells]) => {
+  body.replaceChildren(...rows.map(([name, notRecording, ...cells]) => {
     const tr = document.createElement("tr");
     tr.dataset.vessel = name;
     if (name === app.selected) tr.className = "selected";
@@ -310,6 +324,13 @@ function renderFleet(t) {
     b.setAttribute("aria-pressed", String(name === app.selected));
     b.onclick = () => selectVessel(name);
     th.append(b);
+    if (notRecording) {
+      const mark = document.createElement("span");
+      mark.className = "alarm-badge compact not-recording";
+      mark.textContent = "NOT RECORDING";
+      mark.title = `${name}'s services run, but no recorder's health token is present`;
+      th.append(" ", mark);
+    }
     tr.append(th, ...cells.map((c) => Object.assign(document.createElement("td"), { textContent: c })));
     return tr;
   }));
