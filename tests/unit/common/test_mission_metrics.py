@@ -156,6 +156,13 @@ def test_a_span_beyond_the_grid_s_bound_is_refused_not_walked(monkeypatch) -> No
                                          r"\(2000000 samples of 0\.1 s\)"):
         mission_metrics(far, WPS, 1.0, 0.0, energy_j=[0.0] * 3, state_source="nav/state")
     assert MAX_GRID_SAMPLES == 2_000_000
+    # A wall clock stepped mid-mission (GPS time reaching a computer booted at 1970): the refusal
+    # says where the gap is, after how long.
+    stepped = [pose(0.0, 0.0, 0.5), pose(0.1, 0.1, 0.5),
+               S(stamp_ns=100_000_000 + 1_796_000_000 * 10**9, x_m=0.2, y_m=0.5)]
+    with pytest.raises(ValueError, match=r"largest gap between two of them is 1\.796e\+09 s, "
+                                         r"after 0\.1 s"):
+        mission_metrics(stepped, WPS, 1.0, 0.0, energy_j=[0.0] * 3, state_source="nav/state")
     # At the bound itself the span is walked; one sample over, refused (a smaller bound, to be quick).
     monkeypatch.setattr(metrics, "MAX_GRID_SAMPLES", 100)
     edge = [pose(0.0, 5.0, 0.5), pose(10.0, 5.2, 0.5)]  # outside the circles: every sample counts

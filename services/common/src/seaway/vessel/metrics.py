@@ -42,6 +42,9 @@ MAX_GRID_SAMPLES = 2_000_000
 """The most samples of the cross-track grid one run's metrics walk: 55.6 h at the paper's 0.1 s. A
 longer span between a run's first and last state is a wrong stamp (one state stamped 10^9 s ahead
 asked for 10^10 samples, and all the machine's memory) or a recording of many runs, and is refused."""
+CLOCK_STEP_GAP_NS = 3600 * NS_PER_S
+"""A gap between two consecutive state samples of a run longer than this [ns] (an hour: a state
+comes 10 times a second) is named in that refusal as a step of the clock they were stamped on."""
 
 # -- statistics ---------------------------------------------------------------------------------------
 
@@ -168,12 +171,19 @@ def mission_metrics(
     if period_ns <= 0:
         raise ValueError(f"sample_period_s must be > 0 (at least 1 ns), got {sample_period_s}")
     if t1 - t0 > MAX_GRID_SAMPLES * period_ns:
+        gap_ns, at = max((b - a, i) for i, (a, b) in enumerate(zip(stamps[start:last],
+                                                                  stamps[start + 1:last + 1],
+                                                                  strict=True)))
+        step = (f"; the largest gap between two of them is {gap_ns / NS_PER_S:.6g} s, after "
+                f"{(stamps[start + at] - t0) / NS_PER_S:.6g} s of the mission: the clock was "
+                "stepped then (NTP or GPS time setting a computer without a real-time clock), "
+                "which the metrics cannot bridge" if gap_ns > CLOCK_STEP_GAP_NS else "")
         raise ValueError(
             f"the state samples{f' ({state_source})' if state_source else ''} span "
             f"{duration_s:.6g} s from the mission's first to its last; at most "
             f"{MAX_GRID_SAMPLES * sample_period_s / 3600:.1f} h ({MAX_GRID_SAMPLES} samples of "
             f"{sample_period_s:g} s) are taken for one run: a stamp is wrong, or the recording "
-            f"holds more than one run")
+            f"holds more than one run{step}")
 
     # Cross-track error on the sample grid over [t0, t1).
     xte: list[float] = []
