@@ -169,3 +169,23 @@ def test_the_node_timer_wakes_when_another_thread_makes_work_due_sooner() -> Non
     sleeper.join(5.0)
     assert not sleeper.is_alive()
     assert node._wake_ns == node.core.next_wake_ns()
+
+
+def test_a_flapping_vehicle_is_worth_a_warning_and_a_change_held_now_and_then_is_not() -> None:
+    """Ten changes held back within a minute: a flapping link or autopilot. One now and then (the
+    link made, armed and the mode set within 50 ms): no news."""
+    from seaway_vehicle_io.status_pacing import FLAPPING_HELD, FLAPPING_WINDOW_NS, FlapWatch
+
+    s = 1_000_000_000
+    quiet = FlapWatch()
+    # One every 10 s for five minutes: six a minute, never ten.
+    assert [quiet.look(held, held * 10 * s) for held in range(30)] == [None] * 30
+    flapping = FlapWatch()
+    assert flapping.look(0, 0) is None  # the window starts
+    said = [flapping.look(held, held * 1_000_000) for held in range(1, 3 * FLAPPING_HELD)]
+    assert said[:FLAPPING_HELD - 1] == [None] * (FLAPPING_HELD - 1)
+    assert said[FLAPPING_HELD - 1] == FLAPPING_HELD  # the tenth within the window
+    assert flapping.look(3 * FLAPPING_HELD - 1, 3 * FLAPPING_HELD * 1_000_000) is None  # no growth
+    # A new window counts afresh.
+    assert flapping.look(100, FLAPPING_WINDOW_NS) is None
+    assert flapping.look(100 + FLAPPING_HELD - 1, FLAPPING_WINDOW_NS + s) is None

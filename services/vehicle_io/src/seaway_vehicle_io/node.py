@@ -63,6 +63,7 @@ from seaway_vehicle_io.core import LockPeer, Now, Output, Publish, SendCommandLo
 from seaway_vehicle_io.link import LinkClosedError, MavlinkLink
 from seaway_vehicle_io.mav import result_name
 from seaway_vehicle_io.signing import SigningClock, SigningSetup
+from seaway_vehicle_io.status_pacing import FlapWatch
 from seaway_vehicle_io.thrust import ThrusterLimits
 
 log = logging.getLogger("seaway.vehicle_io")
@@ -105,7 +106,7 @@ class VehicleIoNode(Node):
         self._requests_serial = threading.Lock()  # one COMMAND_LONG in flight at a time
         self._ratelog = RateLimitedLog(log)
         self._pacing_log = RateLimitedLog(pacing_log)
-        self._held_seen = 0  # the pacer's ``held`` when last looked at
+        self._flapping = FlapWatch()
         self._open_failures = 0
         self._publishers: dict[type, TypedPublisher] = {}
         self._receiver: threading.Thread | None = None
@@ -152,12 +153,12 @@ class VehicleIoNode(Node):
             self._wake_ns = self.core.next_wake_ns()
             held = self.core.status_pacer.held
         self._publish(publish)
-        if held != self._held_seen:
-            self._held_seen = held
+        flapped = self._flapping.look(held, time.monotonic_ns())
+        if flapped is not None:
             self._pacing_log.warning("held", "the vehicle's state changed faster than one status "
-                                     "per %.0f ms: %d changes so far were said later, with the "
+                                     "per %.0f ms: %d changes said later within a minute, with the "
                                      "latest state (a flapping link or autopilot?)",
-                                     self.core.status_pacer.gap_ns / 1e6, held)
+                                     self.core.status_pacer.gap_ns / 1e6, flapped)
 
     def wake_s(self) -> float:
         """Until the core's next due work [s] (the driver waits at most ``MAX_SLEEP_S``)."""

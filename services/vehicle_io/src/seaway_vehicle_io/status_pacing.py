@@ -67,3 +67,34 @@ class StatusPacer:
     def next_due_ns(self) -> int | None:
         """When the held-back status is due (None: nothing held), for the loop's wake-up."""
         return self.held_ns
+
+
+FLAPPING_HELD = 10
+"""Changes held back within ``FLAPPING_WINDOW_NS`` that make a flapping link or autopilot worth a
+warning. A normal run holds one now and then (the link made, armed and the mode set within 50 ms of
+each other): no news, and a warning for it was noise in every run's log."""
+FLAPPING_WINDOW_NS = 60_000_000_000
+"""The window ``FLAPPING_HELD`` is counted in [ns] (a minute, monotonic)."""
+
+
+class FlapWatch:
+    """Whether the pacing's count of changes held back (``StatusPacer.held``) grew by
+    ``FLAPPING_HELD`` or more within one window of ``FLAPPING_WINDOW_NS``. Pure: the count and the
+    monotonic time come in."""
+
+    def __init__(self) -> None:
+        self._start_ns: int | None = None
+        self._held_then = 0
+        self._told = 0
+
+    def look(self, held: int, mono_ns: int) -> int | None:
+        """The changes held back in the current window when that is news worth a warning (the count
+        reached ``FLAPPING_HELD`` and grew since it was last said), else None."""
+        if self._start_ns is None or mono_ns - self._start_ns >= FLAPPING_WINDOW_NS:
+            self._start_ns, self._held_then = mono_ns, held
+            return None
+        count = held - self._held_then
+        if count < FLAPPING_HELD or held == self._told:
+            return None
+        self._told = held
+        return count
