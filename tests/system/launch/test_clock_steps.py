@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -144,6 +145,12 @@ def test_a_wall_clock_step_mid_mission_neither_drains_the_battery_nor_stops_cont
     procs.stop(la, timeout_s=60)
     events = [json.loads(line) for line in (run / "events.jsonl").read_text().splitlines()]
     assert not [e for e in events if e["event"] in ("hung", "exit")], events  # none restarted
+    # The recorder says the step, once, on its own logger, with its size (the clock's offset from
+    # the monotonic one at two flushes 50 ms apart: within a second of the step).
+    said = [float(m.group(1)) for m in re.finditer(
+        r" WARNING seaway\.recorder\.clock: \D*([-+]\d+\.\d+) s", (run / "logs" / "recorder.log")
+        .read_text())]
+    assert len(said) == 1 and abs(said[0] - step_s) < 1.0, said
 
 
 @pytest.mark.skipif(not LIBFAKETIME.exists(), reason="libfaketime is not installed (apt-get install "

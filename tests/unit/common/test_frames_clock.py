@@ -88,3 +88,23 @@ def test_sim_clock_wakes_waiters_and_refuses_going_back() -> None:
     assert done == [True]
     with pytest.raises(ValueError, match="cannot go back"):
         clk.set(100)
+
+
+def test_a_step_of_the_wall_clock_is_seen_and_a_slew_is_not() -> None:
+    """NTP slews by at most 0.5 ms a second; NTP or GPS time setting a computer with no real-time
+    clock steps it: by an hour, or by 56 years after a boot at 1970."""
+    from seaway.runtime.clock import WALL_STEP_MIN_NS, WallStepWatch
+
+    s = 1_000_000_000
+    w = WallStepWatch()
+    assert w.look(86_400 * s, 5 * s) is None  # the first look: nothing to compare
+    assert [w.look(86_400 * s + k * s // 20 + k * 25_000, 5 * s + k * s // 20)  # 0.5 ms/s slew
+            for k in range(1, 200)] == [None] * 199
+    mono = 20 * s
+    assert w.look(1_796_000_000 * s, mono) == 1_796_000_000 * s - 86_400 * s - 15 * s - 199 * 25_000
+    assert w.look(1_796_000_000 * s + s // 20, mono + s // 20) is None  # on the new clock now
+    assert w.look(1_796_000_000 * s - 3600 * s, mono + s // 10) == -3600 * s - s // 10
+    # Just under the least step: none.
+    w2 = WallStepWatch()
+    w2.look(0, 0)
+    assert w2.look(WALL_STEP_MIN_NS - 1, 0) is None and w2.look(2 * WALL_STEP_MIN_NS, 0) is not None

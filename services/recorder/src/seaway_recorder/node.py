@@ -27,6 +27,7 @@ from seaway.contract import bundle, keys
 from seaway.contract.messages import LOCKSTEP_SERVICES, LogRecord, PeriodDone
 from seaway.recording.timebase import stamp_of
 from seaway.runtime.bus_raw import RawSample
+from seaway.runtime.clock import WallStepWatch
 from seaway.runtime.disk import disk_full
 from seaway.runtime.lockstep_witness import LockstepWitness
 from seaway.runtime.node import Node
@@ -38,6 +39,8 @@ from seaway_recorder.logtail import FileTail, LogTail, log_record
 from seaway_recorder.syncer import Syncer
 
 log = logging.getLogger("seaway.recorder")
+clock_log = logging.getLogger("seaway.recorder.clock")
+"""A step of the wall clock under the recording (``RecorderNode._look_at_wall_clock``)."""
 
 DRAIN_BATCH = 2000
 """Samples written at most per tick: the flush and the status line come between batches."""
@@ -273,6 +276,7 @@ class RecorderNode(Node):
         self._no_room_since = 0
         self._next_room_try = 0
         self._still_no_room = RateLimitedLog(log, NO_ROOM_SAY_S)
+        self._wall = WallStepWatch()
         self._stop: threading.Event | None = None
         self._writing = threading.Lock()
         """Held while the writer is used: by the loop (``tick``, ``finish``), or by the thread that
@@ -357,6 +361,15 @@ class RecorderNode(Node):
     def _no_room_key(self) -> tuple[str, int]:
         return ("no room", self.writer.stats.no_room)
 
+    def _look_at_wall_clock(self, mono_ns: int) -> None:
+        """Say a step of the wall clock (``WallStepWatch``, at each flush): in real time every log
+        time after it, and every service's stamps, are on the new clock (README, "A wall clock
+        stepped while recording"); its own logger, so that a test or a reader finds it."""
+        step_ns = self._wall.look(time.time_ns(), mono_ns)
+        if step_ns is not None:
+            clock_log.warning("the wall clock stepped %+.3f s (NTP or GPS time setting it): log "
+                              "times and stamps after this are on the new clock", step_ns / 1e9)
+
     def _room_again(self) -> bool:
         """Waiting for room: try again if it is time; whether the disk took what was in hand."""
         now = time.monotonic_ns()
@@ -393,6 +406,7 @@ class RecorderNode(Node):
                               kept=self.kept)
         now = time.monotonic_ns()
         if now >= self._next_flush:
+            self._look_at_wall_clock(now)
             writer.count_dropped(queue.dropped - writer.stats.dropped)
             if self.tails is not None:
                 self.tails.copy(writer)

@@ -9,6 +9,9 @@ clocks exist:
   whoever waits. In lockstep it advances only when the sim steps, so a service on a SimClock runs
   exactly as many periods as the simulation, however fast the machine.
 
+``WallStepWatch`` notices the wall clock stepped against the monotonic one (NTP or GPS time setting a
+computer without a real-time clock).
+
 ``RateLoop`` ticks at ``t0 + k * period`` (never ``last + period``, which drifts). When it falls behind
 by more than a period it skips the missed ticks (counted in ``skipped``), runs once at once (late),
 and continues on the original grid: never a burst of catch-up ticks, never a drift.
@@ -119,3 +122,24 @@ class RateLoop:
             self.tick += behind
             due = self._t0 + self.tick * self.period_ns
         return self.clock.sleep_until(due, self.stop)
+
+
+WALL_STEP_MIN_NS = 1_000_000_000
+"""A change of the wall clock against the monotonic one this large or larger between two looks is a
+step [ns] (1 s). NTP slews the clock by at most 0.5 ms a second, far below it between looks."""
+
+
+class WallStepWatch:
+    """Whether the wall clock stepped since the last look: its offset from the monotonic clock
+    changed by ``WALL_STEP_MIN_NS`` or more. Pure: both clocks' readings come in [ns]."""
+
+    def __init__(self) -> None:
+        self._offset_ns: int | None = None
+
+    def look(self, wall_ns: int, mono_ns: int) -> int | None:
+        """The step since the last look [ns] (+ forward, - back), else None."""
+        offset = wall_ns - mono_ns
+        before, self._offset_ns = self._offset_ns, offset
+        if before is None or abs(offset - before) < WALL_STEP_MIN_NS:
+            return None
+        return offset - before
