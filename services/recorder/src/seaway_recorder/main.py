@@ -188,9 +188,16 @@ def run(argv: Sequence[str]) -> int:
             # Restarted into a run folder: what the publishers' caches give back that the
             # predecessor wrote already is not written twice; the time nothing can be asked for
             # is said in the file (schemas.RESTART_SCHEMA).
-            asked_from_ns = started_ns - round(REJOIN_HISTORY_S * 1e9)
-            tail = tail_of(previous, asked_from_ns - LATE_NS)
+            tail = tail_of(previous, started_ns - round(REJOIN_HISTORY_S * 1e9) - LATE_NS)
             queue.already = tail.messages
+            # The caches are asked once subscribed, below, after the predecessor's whole file was
+            # read (about 100,000 messages a second): for the REJOIN_HISTORY_S before now, not
+            # before the start. What fell between is the gap said in the file.
+            asked_from_ns = time.time_ns() - round(REJOIN_HISTORY_S * 1e9)
+            read_s = (asked_from_ns - started_ns) / 1e9 + REJOIN_HISTORY_S
+            if read_s > 1.0:
+                log.warning("reading %s took %.1f s before recording could go on", previous.name,
+                            read_s)
             writer.write_restart({
                 "stamp_ns": started_ns, "previous_file": previous.name,
                 "previous_last_ns": tail.last_log_ns, "asked_from_ns": asked_from_ns,
