@@ -28,6 +28,7 @@ from seaway.runtime.bus import Bus
 from seaway.runtime.credentials import ENV_CREDENTIALS
 
 from tests.conftest import REPO, wait_for
+from tests.system.launch.test_hangs_and_stops import of
 
 pytestmark = pytest.mark.system
 # The thread-safe build: the other one, read from many threads at once (Zenoh's), now and then
@@ -186,12 +187,6 @@ def test_a_stack_whose_clock_runs_days_behind_its_credentials_starts(procs, zeno
     procs.stop(la, timeout_s=60)
 
 
-def _starts(run: Path, name: str) -> list[dict]:
-    path = run / "events.jsonl"
-    lines = path.read_text().splitlines() if path.exists() else []
-    return [e for e in map(json.loads, lines) if e["process"] == name and e["event"] == "start"]
-
-
 @pytest.mark.skipif(not LIBFAKETIME.exists(), reason="libfaketime is not installed (apt-get install "
                     "faketime): it boots the stack at 1970")
 def test_a_stack_booted_at_1970_restarts_a_process_after_gps_time_arrives(procs, zenoh_env,
@@ -221,10 +216,10 @@ def test_a_stack_booted_at_1970_restarts_a_process_after_gps_time_arrives(procs,
     wait_for(lambda: thrust_since(0) > 20, 90, interval_s=2.0, what="thrust at the vessel in 1970")
     step_clock(stamp, 0)  # GPS time: the real one
     time.sleep(2.0)
-    (ctl,) = _starts(run, "controller")
+    (ctl,) = of(run, "controller", "start")
     os.kill(ctl["pid"], signal.SIGKILL)
     killed_ns = truth()[-1].stamp_ns
-    wait_for(lambda: len(_starts(run, "controller")) == 2, 30, what="the controller restarted")
+    wait_for(lambda: len(of(run, "controller", "start")) == 2, 30, what="the controller restarted")
     # The restarted controller resumes the mission: thrust at the vessel again. The watchdog zeroes
     # the dead one's thrust within 0.3 s, so thrust 3 s of simulated time on is the new one's.
     wait_for(lambda: thrust_since(killed_ns + 3 * 10**9) > 20, 60, interval_s=2.0,

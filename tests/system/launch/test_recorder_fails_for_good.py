@@ -11,7 +11,6 @@ still running, its status line says NOT RECORDING, and after a clean stop it exi
 
 from __future__ import annotations
 
-import json
 import os
 import signal
 import threading
@@ -24,6 +23,7 @@ from seaway.runtime.bus import Bus
 from seaway.tools.launch.stack import EXIT_WENT_WITHOUT
 
 from tests.conftest import REPO, wait_for
+from tests.system.launch.test_hangs_and_stops import of
 
 pytestmark = pytest.mark.system
 
@@ -39,10 +39,7 @@ def one_restart_profile(tmp: Path) -> Path:
 
 
 def recorder_pids(run: Path) -> list[int]:
-    path = run / "events.jsonl"
-    lines = path.read_text().splitlines() if path.exists() else []
-    return [e["pid"] for e in map(json.loads, lines)
-            if e["process"] == "recorder" and e["event"] == "start"]
+    return [e["pid"] for e in of(run, "recorder", "start")]
 
 
 def test_a_real_time_run_flies_on_when_its_recorder_fails_for_good(procs, zenoh_env, tmp_path):
