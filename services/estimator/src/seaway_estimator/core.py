@@ -298,7 +298,8 @@ class EstimatorCore(PublishedEstimate, Prediction, MeasurementUpdates):
             self._anchor(north, east, std, sog, t)
             self.counters.inc("withheld_anchored")
             self._notices.append(Notice(t, "withheld_reanchor", f"position moved {off_m:.2f} m to "
-                                        "the fix: the thrust was withheld since an unknown moment"))
+                                        "the fix: the thrust was withheld since an unknown moment",
+                                        routine=True))
             return
         rejected = self.counters["gnss_rejected"] + self.counters["sog_rejected"]
         self._update_position(north, east, std, delay, t)

@@ -290,8 +290,11 @@ class EstimatorNode(Node):
 
 
 def stats_line(core: EstimatorCore, loop: EstimatorNode | None = None) -> str:
+    """The counters a crew reads in the log every ``STATS_PERIOD_S`` and at exit: what was used,
+    gated out, refused, and what the filter did about it (``seaway_estimator.notices``)."""
     c = core.counters.values
     keys_ = ("gnss_accepted", "gnss_rejected", "gnss_no_fix", "heading_accepted", "heading_rejected",
+             "sog_rejected", "yaw_rate_rejected", "disturbance_reopened", "motion_faults",
              "degraded_entered", "refused_non_finite", "gnss_refused", "sog_refused",
              "yaw_rate_refused", "duplicates", "too_frequent", "too_old", "too_new", "resets", "published")
     line = ", ".join(f"{k} {c[k]}" for k in keys_)

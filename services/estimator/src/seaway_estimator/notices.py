@@ -10,6 +10,13 @@ from dataclasses import dataclass, field
 PERSISTENT_REJECT_RUN = 5
 """Rejections in a row of one sensor from which its notices say ``persistent`` (a second of GNSS at
 5 Hz): one outlier is noise, a run means the sensor and the filter disagree."""
+REOPEN_REPEAT_NS = 10_000_000_000
+"""A re-opening of the disturbance (``disturbance_reopened``) within this long [ns] of the previous
+one is a warning; a lone one is routine. Measured in the lake scenario: a manoeuvre's transient (a
+pivot whose thrust reaches the water some 30 ms after its stamp) re-opens it once per turn at most,
+turns are tens of seconds apart, and the disturbance settles back within half a second; a thruster
+that loses half its thrust or more re-opens it again within 1.3 s. A loss the first re-opening takes
+up for good (20-40 %) stays routine: the disturbance carries it, and the controller compensates."""
 MAX_NOTICES = 256
 """Notices kept until taken; older ones are dropped (a caller that never takes them, such as an
 in-process study, must not grow the core)."""
@@ -22,22 +29,26 @@ class Notice:
     ``kind``: ``gnss_rejected``, ``heading_rejected`` (``run``: rejections in a row so far),
     ``gnss_reinit``, ``heading_reinit`` (the state taken from the sensor after ``run`` rejections),
     ``time_jump``, ``divergence_reset`` (the whole state dropped), ``disturbance_reopened`` (a
-    run of ``run`` rejections said the model is wrong), ``withheld_reanchor`` (the state moved to
-    the first fix after the autopilot was found withholding the thrust: routine, not a warning),
+    run of ``run`` rejections said the model is wrong: routine alone, a warning when it comes again
+    within ``REOPEN_REPEAT_NS``), ``withheld_reanchor`` (the state moved to the first fix after the
+    autopilot was found withholding the thrust: routine),
     ``gnss_refused``, ``sog_refused``, ``yaw_rate_refused`` (what a message said is past what a
     receiver or the vessel can give, ``seaway_estimator.core_inputs``: the value and the bound),
     ``too_frequent`` (a sample closer to the last one used than its sensor's fastest rate allows).
-    ``detail`` says by how much."""
+    ``detail`` says by how much. ``routine``: expected in a normal run, an info line whatever the
+    kind."""
 
     stamp_ns: int
     kind: str
     detail: str
     run: int = 0
+    routine: bool = False
 
     @property
     def persistent(self) -> bool:
-        """A run of rejections, or a re-initialisation: worth a warning, not an info line."""
-        if self.kind == "withheld_reanchor":
+        """A run of rejections, or a re-initialisation that is not routine: worth a warning, not
+        an info line."""
+        if self.routine:
             return False
         return not self.kind.endswith("_rejected") or self.run >= PERSISTENT_REJECT_RUN
 
