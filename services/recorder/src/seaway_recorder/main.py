@@ -28,7 +28,8 @@ from pathlib import Path
 from seaway.contract import keys
 from seaway.contract.config import ConfigError
 from seaway.recording import runinfo
-from seaway.recording.recover import recover, tail_of
+from seaway.recording.recover import recover
+from seaway.recording.tail import tail_of
 from seaway.recording.timebase import RecordingTime, parse_epoch
 from seaway.runtime import memory
 from seaway.runtime import run as runs
@@ -190,9 +191,9 @@ def run(argv: Sequence[str]) -> int:
             # is said in the file (schemas.RESTART_SCHEMA).
             tail = tail_of(previous, started_ns - round(REJOIN_HISTORY_S * 1e9) - LATE_NS)
             queue.already = tail.messages
-            # The caches are asked once subscribed, below, after the predecessor's whole file was
-            # read (about 100,000 messages a second): for the REJOIN_HISTORY_S before now, not
-            # before the start. What fell between is the gap said in the file.
+            # The caches are asked once subscribed, below, after the predecessor's file was read
+            # (its records walked, its last chunks opened): for the REJOIN_HISTORY_S before now,
+            # not before the start. What fell between is the gap said in the file.
             asked_from_ns = time.time_ns() - round(REJOIN_HISTORY_S * 1e9)
             read_s = (asked_from_ns - started_ns) / 1e9 + REJOIN_HISTORY_S
             if read_s > 1.0:

@@ -236,7 +236,13 @@ def chunk_records(fh: Any, ci: ChunkIndex) -> bytes:
 
 def _chunk_records(fh: Any, ci: ChunkIndex) -> bytes:
     fh.seek(ci.chunk_start_offset)
-    rec = fh.read(ci.chunk_length)
+    return chunk_body(fh.read(ci.chunk_length))
+
+
+def chunk_body(rec: bytes) -> bytes:
+    """The records of the Chunk record ``rec`` (from its opcode on), uncompressed and checked
+    against its CRC (none written: 0, not checked). Raises McapError, struct.error or a
+    decompressor's error where it is damaged (``chunk_records`` says which chunk)."""
     op, _ = RECORD_HEAD.unpack_from(rec, 0)
     if op != Opcode.CHUNK:
         raise McapError(f"opcode {op:#x}, not a chunk's")
