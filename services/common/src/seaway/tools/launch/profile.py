@@ -43,6 +43,10 @@ from seaway.ros2.face import WRITES_FLAG
 from seaway.runtime.lockstep import MEMBERS
 from seaway.tools.launch.liveness import Duty, duties_for
 
+DEFAULT_READY_TIMEOUT_S = 30.0
+"""How long a process may take from its start (or restart) to its health token [s] unless its
+profile says otherwise (``ProcessSpec.ready_timeout_s``)."""
+
 
 class ProcessSpec(ConfigModel):
     name: str = Field(pattern=r"^[a-z][a-z0-9_-]{0,31}$")
@@ -52,7 +56,7 @@ class ProcessSpec(ConfigModel):
     required: bool = True
     after: list[str] = Field(default_factory=list)
     produces: list[str] | None = Field(default=None, description="key suffixes; default: registry")
-    ready_timeout_s: float = Field(default=30.0, gt=0)
+    ready_timeout_s: float = Field(default=DEFAULT_READY_TIMEOUT_S, gt=0)
     stop_timeout_s: float = Field(default=3.0, gt=0, description="SIGINT, then SIGKILL after this")
     env: dict[str, str] = Field(default_factory=dict)
     must_publish: list[Duty] | None = Field(default=None, description="what it must keep "
