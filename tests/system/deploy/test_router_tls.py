@@ -26,6 +26,8 @@ import pytest
 import zenoh
 from seaway.contract import access, keys
 from seaway.contract.messages import Refusals
+from seaway.runtime.credentials import Credentials
+from seaway.runtime.zenoh_bus import ZenohBus
 
 from tests.conftest import Procs, free_port, wait_for
 from tests.system.deploy import deployment
@@ -66,7 +68,7 @@ def start_routers(procs: Procs, dep: Path, boat_link: str, shore_connect: str,
     them and the loopback ports of the boat's and the shore's peers, once the two routers are linked."""
     boat_local, shore_local = free_port(), free_port()
     shore = procs.start(router_cmd("--role", "shore", "--listen", f"tls/127.0.0.1:{shore_local}",
-                                   "--connect", shore_connect),
+                                   "--connect", shore_connect, "--health", "router"),
                         env=side_env(dep, "shore"), name="shore-router")
     wait_for(lambda: "up in" in Procs.log(shore), 20, what="the shore router up")
     boat = procs.start(router_cmd("--role", "boat", "--listen", f"tls/127.0.0.1:{boat_local}",
@@ -235,6 +237,40 @@ def test_the_relay_chain_carries_the_shores_rights_and_no_more(procs: Procs, dep
     stop_routers(procs, shore_router, boat_router)
     assert re.search(r"link up: .*authenticated as router", Procs.log(boat_router)), \
         "the shore router came in as identity router"
+
+
+def test_the_shore_tells_the_boats_recorder_from_its_own(procs: Procs, dep: Path, tmp_path: Path) -> None:
+    """A recorder on each side, each a real bus with its side's credentials: the shore sees the
+    boat's health/recorder and its own health/shore-recorder, and sees the boat's go while its own
+    lives on. Before, both were health/recorder: the shore's token hid the boat's death (the page's
+    NOT RECORDING waited for both)."""
+    link = free_port()
+    boat_router, shore_router, boat_port, shore_port = start_routers(
+        procs, dep, f"tls/127.0.0.1:{link}", f"tls/localhost:{link}")
+    boat_rec = ZenohBus.connect(VESSEL, deployment.client_file("boat", tmp_path, boat_port),
+                                identity="recorder", credentials=Credentials(dep / "boat"))
+    shore_rec = ZenohBus.connect(VESSEL, deployment.client_file("shore", tmp_path, shore_port),
+                                 identity="recorder", credentials=Credentials(dep / "shore"))
+    operator = session("shore", "operator", dep, f"tls/127.0.0.1:{shore_port}")
+    try:
+        assert (boat_rec.side, shore_rec.side) == ("boat", "shore")
+        boat_rec.declare_alive("recorder")
+        shore_rec.declare_alive("recorder")
+        wait_for(lambda: {"recorder", "shore-recorder", "router", "shore-router"} <= tokens(operator),
+                 20, what="both recorders' and both routers' tokens ashore")
+        boat_rec.close()
+        wait_for(lambda: "recorder" not in tokens(operator), 10, what="the boat recorder's token gone")
+        assert "shore-recorder" in tokens(operator)
+        # Nor can a shore process pass for the boat's: its own rules refuse the boat's name.
+        forged = shore_rec.session.liveliness().declare_token(keys.health_key(VESSEL, "recorder"))
+        time.sleep(1.0)
+        assert "recorder" not in tokens(operator)
+        forged.undeclare()
+    finally:
+        shore_rec.close()
+        boat_rec.close()
+        close(operator)
+    stop_routers(procs, shore_router, boat_router)
 
 
 # -- intruders at the boat's link port ---------------------------------------------------------------

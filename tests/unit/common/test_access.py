@@ -251,6 +251,32 @@ def test_the_shore_has_only_its_own_identities_and_only_its_operators_actuate():
         assert not allowed(SHORE, ident, "put", keys.THRUST.key(V)) or ident == access.RELAY, ident
 
 
+def test_a_shore_process_declares_its_health_as_the_shores_never_as_the_boats():
+    """On the shore, the boat's health/recorder arrives through the router; the shore's recorder
+    may declare only health/shore-recorder, so neither stands for the other."""
+    for ident in (i for i in access.SHORE_IDENTITIES if i != access.RELAY and i in keys.SERVICES):
+        own = keys.health_key(V, ident, "shore")
+        assert own.endswith(f"/health/shore-{ident}")
+        assert allowed(SHORE, ident, "liveliness_token", own), ident
+        boats = keys.health_key(V, ident)
+        assert not allowed(SHORE, ident, "liveliness_token", boats), ident
+        assert allowed(BOAT, ident, "liveliness_token", boats), ident  # the boat's own, on the boat
+        assert not allowed(BOAT, ident, "liveliness_token", own), ident
+        assert keys.own_service(own.rsplit("/", 1)[1], "shore") == ident
+        assert keys.own_service(boats.rsplit("/", 1)[1], "shore") is None
+        assert keys.own_service(boats.rsplit("/", 1)[1], "boat") == ident
+
+
+@pytest.mark.parametrize("side", access.SIDES)
+def test_the_rules_say_their_side(side, tmp_path):
+    assert access.side_of(access.acl(side=side)) == side
+    if side != "local":
+        credentials.create_deployment(tmp_path / "dep")
+        assert credentials.Credentials(tmp_path / "dep" / side).side == side
+    else:
+        assert credentials.create(tmp_path / "one").side == "local"
+
+
 def test_a_stack_alone_is_unchanged_by_the_sides():
     assert access.acl() == access.acl(side="local")
     assert not [s for s in RULES["subjects"] if "interfaces" in s]

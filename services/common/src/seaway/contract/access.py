@@ -13,7 +13,8 @@ Zenoh before any Seaway code sees it:
   scenario, navigation reset): only the operator identities (:data:`OPERATORS`); and, in a stack
   made with ``ros2_writes``, the ROS 2 face (identity ``ros2``) the mission's requests alone
   (:data:`ROS2_REQUESTS`: a mission, pause/resume/abort), never arming, modes or resets;
-* **declare** a health or lockstep-membership token: only the service it names;
+* **declare** a health or lockstep-membership token: only the service it names (on a shore, as
+  the shore's: ``health/shore-<service>``, ``keys.side_service``);
 * **read** (subscribe, liveliness queries, the run descriptions and refusal counts): everyone in the
   stack.
 
@@ -78,6 +79,8 @@ _CACHE = "@adv"
 """zenoh-ext's chunk under a topic's key for its publisher's cache and liveliness token (a chunk
 starting with @ is matched by no wildcard, so it is named)."""
 _READ = ["declare_subscriber", "liveliness_query", "declare_liveliness_subscriber"]
+_FROM_SHORE, _BOAT_VIA_ROUTER = "from-shore", "boat-via-router"
+"""The policies only a boat's and only a shore's rules have (``side_of`` tells the side by them)."""
 _EVERYTHING = ["put", "delete", "declare_subscriber", "query", "reply", "declare_queryable",
                "liveliness_token", "liveliness_query", "declare_liveliness_subscriber"]
 
@@ -170,9 +173,9 @@ def acl(overrides: Mapping[str, str] | None = None, *, harness: bool = False,
         policies.append({"id": ROS2_WRITES_POLICY, "rules": ["ros2-ask"], "subjects": [ROS2]})
     if side == "boat":
         # What arrives from the router came from the shore: the shore's rights, nothing more.
-        relay = _shore_rights("from-shore", "ingress")
+        relay = _shore_rights(_FROM_SHORE, "ingress")
         rules += relay
-        policies.append({"id": "from-shore", "rules": [r["id"] for r in relay], "subjects": [RELAY]})
+        policies.append({"id": _FROM_SHORE, "rules": [r["id"] for r in relay], "subjects": [RELAY]})
     elif side == "shore":
         # What arrives from the router is the boat speaking; what goes to it, only what the boat
         # accepts from the shore (so nothing it would refuse crosses the link).
@@ -180,7 +183,7 @@ def acl(overrides: Mapping[str, str] | None = None, *, harness: bool = False,
                        [f"{keys.ROOT}/**"]),
                  *_shore_rights("to-boat", "egress")]
         rules += relay
-        policies.append({"id": "boat-via-router", "rules": [r["id"] for r in relay], "subjects": [RELAY]})
+        policies.append({"id": _BOAT_VIA_ROUTER, "rules": [r["id"] for r in relay], "subjects": [RELAY]})
     for ident in identities:
         if ident == HARNESS:
             rules.append(_rule(f"all-{ident}", _EVERYTHING,
@@ -192,8 +195,9 @@ def acl(overrides: Mapping[str, str] | None = None, *, harness: bool = False,
         topics.append(_wild(f"{keys.REFUSALS}/{ident}"))
         served = [_wild(spec.suffix) for spec in mine_specs if spec.kind == "query"]
         served += [_wild(f"{keys.RUN}/{ident}"), _wild(f"{keys.REFUSALS}/{ident}")]
-        tokens = [_wild(f"{keys.HEALTH}/{ident}")] + [_wild(spec.suffix) for spec in mine_specs
-                                                       if spec.suffix.startswith("lockstep/")]
+        # A shore process's token is named as the shore's (keys.side_service), never the boat's.
+        tokens = [_wild(f"{keys.HEALTH}/{keys.side_service(ident, side)}")] + [
+            _wild(spec.suffix) for spec in mine_specs if spec.suffix.startswith("lockstep/")]
         caches = [f"{t}/{_CACHE}/**" for t in topics]
         mine = [f"pub-{ident}", f"serve-{ident}", f"alive-{ident}", f"cache-{ident}",
                 f"recall-{ident}"]
@@ -218,3 +222,12 @@ def acl(overrides: Mapping[str, str] | None = None, *, harness: bool = False,
     # A policy names subjects by id: the stack-wide policies list every identity's subject.
     return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects,
             "policies": policies}
+
+
+def side_of(rules: Mapping[str, Any]) -> Side:
+    """The side whose rules ``rules`` (an ``acl`` document) are: what a process with them declares
+    its health token as (``keys.side_service``)."""
+    ids = {p.get("id") for p in rules.get("policies", []) if isinstance(p, Mapping)}
+    if _BOAT_VIA_ROUTER in ids:
+        return "shore"
+    return "boat" if _FROM_SHORE in ids else "local"

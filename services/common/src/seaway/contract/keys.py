@@ -125,11 +125,31 @@ REFUSALS = "refusals"
 answering, and a topic published on change, ``Refusals``)."""
 
 
-def health_key(vessel: str, service: str) -> str:
-    """Liveliness token key of one service on one vessel."""
+SHORE_HEALTH_PREFIX = "shore-"
+"""A shore process's health token is ``health/shore-<service>`` (``side_service``): the shore also
+hears the boat's ``health/<service>`` through its router, and the two must not stand for each other
+(the boat's recorder dead while the shore's lives on the same key, unseen)."""
+
+
+def side_service(service: str, side: str) -> str:
+    """The name in the health token of ``service`` run on ``side`` (``seaway.contract.access.SIDES``:
+    ``local``, ``boat`` or ``shore``)."""
+    return SHORE_HEALTH_PREFIX + service if side == "shore" else service
+
+
+def own_service(token: str, side: str) -> str | None:
+    """The service a health token's name stands for when the token is ``side``'s own, else None
+    (on a shore, the boat's tokens its router brings)."""
+    if side != "shore":
+        return token
+    return token[len(SHORE_HEALTH_PREFIX):] if token.startswith(SHORE_HEALTH_PREFIX) else None
+
+
+def health_key(vessel: str, service: str, side: str = "local") -> str:
+    """Liveliness token key of one service on one vessel, run on ``side`` (``side_service``)."""
     if service not in SERVICES:
         raise KeyNameError(f"unknown service {service!r}; known: {', '.join(SERVICES)}")
-    return f"{ROOT}/{check_vessel(vessel)}/{HEALTH}/{service}"
+    return f"{ROOT}/{check_vessel(vessel)}/{HEALTH}/{side_service(service, side)}"
 
 
 def vessel_wildcard(vessel: str | None = None) -> str:

@@ -108,6 +108,9 @@ class Bus(abc.ABC):
         self.stats = BusStats()
         self.ratelog = RateLimitedLog(log)
         """The bus's repeated warnings (malformed samples and requests, failing handlers), per key."""
+        self.side = "local"
+        """Whose stack this bus is in (``seaway.contract.access.SIDES``): a shore's health tokens
+        are named as the shore's (``keys.side_service``). Set from the credentials' rules."""
         self._tokens: list[Declared] = []
         self._closed = False
         self._taps: dict[tuple[str, bool], BundleTap] = {}
@@ -273,9 +276,11 @@ class Bus(abc.ABC):
     # -- liveliness ---------------------------------------------------------------------------------
 
     def declare_alive(self, service: str, vessel: str | None = None) -> None:
-        """Declare this process's health token ``seaway/<vessel>/health/<service>`` (``vessel``:
-        another than the bus's, for a process serving several: the launcher of a fleet)."""
-        self._tokens.append(self._declare_token(keys.health_key(vessel or self.vessel, service)))
+        """Declare this process's health token ``seaway/<vessel>/health/<service>``, on a shore
+        ``health/shore-<service>`` (``vessel``: another than the bus's, for a process serving
+        several: the launcher of a fleet)."""
+        self._tokens.append(self._declare_token(keys.health_key(vessel or self.vessel, service,
+                                                                self.side)))
 
     def alive_services(self, vessel: str | None = None, timeout_s: float = 1.0) -> set[str]:
         """Services whose health token is present now."""

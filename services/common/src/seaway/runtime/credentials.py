@@ -270,6 +270,11 @@ class Credentials:
         except (OSError, ValueError) as err:
             raise CredentialsError(f"{self.folder / ACCESS_FILE} is unreadable: {err}") from None
 
+    @property
+    def side(self) -> str:
+        """``local``, ``boat`` or ``shore``: whose rules these are (``access.side_of``)."""
+        return access.side_of(self.access_rules())
+
     def zenoh_settings(self, identity: str) -> dict[str, Any]:
         """The Zenoh settings (key -> value) that make a session ``identity`` of this stack."""
         self.check(identity)

@@ -17,6 +17,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import os
@@ -276,8 +277,14 @@ class ZenohBus(Bus):
     def connect(cls, vessel: str, config_path: str | Path | None = None, identity: str | None = None,
                 credentials: creds.Credentials | str | None = None,
                 rendezvous: str | None = None) -> ZenohBus:
-        """A new session from ``config_path`` as ``identity`` (see ``load_zenoh_config``)."""
-        return cls(open_session(config_path, identity, credentials, rendezvous), vessel)
+        """A new session from ``config_path`` as ``identity`` (see ``load_zenoh_config``), on the
+        side its credentials' rules say (``Bus.side``)."""
+        bus = cls(open_session(config_path, identity, credentials, rendezvous), vessel)
+        with contextlib.suppress(creds.CredentialsError):  # none (a plain-TCP config): local
+            found = resolve_credentials(credentials, rendezvous)
+            if found is not None:
+                bus.side = found.side
+        return bus
 
     def raw_publisher(self, key: str, encoding: str = RAW_ENCODING, *, block: bool = False,
                       express: bool = False, cache: int = 0) -> RawPublisher:

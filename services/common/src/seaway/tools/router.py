@@ -117,6 +117,8 @@ class RouterSettings:
     mtls: bool = False
     access_control: bool = False
     lease_ms: int | None = None
+    side: str = "local"
+    """Whose rules its credentials hold (``Credentials.side``): how its health token is named."""
 
     def summary(self) -> str:
         parts = [f"config {self.config_path}", f"listen {', '.join(self.listen) or '-'}",
@@ -177,6 +179,7 @@ def build_config(config_path: Path, connect: list[str] | None = None, listen: li
         mtls=bool(_get(conf, "transport/link/tls/enable_mtls")),
         access_control=bool(_get(conf, "access_control/enabled")),
         lease_ms=_get(conf, "transport/link/tx/lease"),
+        side=credentials.side if credentials is not None else "local",
     )
     uses_tls = any(e.startswith("tls/") for e in settings.listen + settings.connect)
     if uses_tls and credentials is None and "root_ca_certificate" not in tls_files:
@@ -317,10 +320,11 @@ def main(argv: list[str] | None = None) -> int:
     if settings.access_control:
         refusals.serve(ZenohBus(session, args.vessel), IDENTITY)
     try:
-        if args.health:
-            token = session.liveliness().declare_token(keys.health_key(args.vessel, args.health))
+        health = keys.health_key(args.vessel, args.health, settings.side) if args.health else ""
+        if health:
+            token = session.liveliness().declare_token(health)
         log.info("router %s up in %.2f s%s", session.info.zid(), time.monotonic() - t0,
-                 f", health token {keys.health_key(args.vessel, args.health)}" if args.health else "")
+                 f", health token {health}" if health else "")
         # Not one blocking wait: a signal may land on any of Zenoh's threads, and Python runs its
         # handler only when the main thread does (a SIGINT then went unanswered, 1 stop in ~30).
         while not stop.wait(0.25):

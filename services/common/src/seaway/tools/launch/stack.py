@@ -160,9 +160,14 @@ def _launch(args: argparse.Namespace, profile: Profile, scenario: str, mission: 
     try:
         # The launcher's own token on each vessel (``seaway health`` lists it); not one of the
         # processes it supervises, so the supervisor does not hear it. A shore launcher's would be
-        # the boat's to refuse: it declares none.
-        bus.watch_fleet_health(lambda v, service, alive: service != "launcher"
-                               and sup.on_health(v, service, alive))
+        # the boat's to refuse: it declares none. On a shore, only the shore's own tokens stand
+        # for its processes (keys.own_service), never the boat's of the same service.
+        def on_token(v: str, token: str, alive: bool) -> None:
+            service = keys.own_service(token, profile.side)
+            if service is not None and service != "launcher":
+                sup.on_health(v, service, alive)
+
+        bus.watch_fleet_health(on_token)
         if profile.side != "shore":
             for v in vessels:
                 bus.declare_alive("launcher", vessel=v)
