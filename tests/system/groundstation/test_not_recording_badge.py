@@ -14,6 +14,11 @@ In a fleet the crew sees which vessels are unrecorded, not only the one picked: 
 with an estimator and a controller and only one with a recorder, the fleet table marks the other's
 row (and only it) as not recording, at full opacity, axe-core finding no serious or critical
 violation; once that vessel's recorder declares its token the mark goes.
+
+On a shore computer the page also hears the shore's own recorder and router (``health/shore-*``):
+they do not stand for the boat's. With the boat's estimator and controller and the shore's recorder,
+the alarm shows; with only the shore's own processes (the boat out of reach) it does not, since
+nothing of the vessel is seen running.
 """
 
 from __future__ import annotations
@@ -165,5 +170,37 @@ def test_the_fleet_table_marks_each_unrecorded_vessel(procs, zenoh_env, browser,
     finally:
         for r in recorders:
             r.close()
+    procs.stop(gs, signal.SIGTERM, timeout_s=15)
+    assert gs.returncode == 0, procs.log(gs)
+
+
+def test_a_shores_own_recorder_does_not_stand_for_the_boats(procs, zenoh_env, browser) -> None:
+    gs, base, _token = start_groundstation(procs, zenoh_env)
+    shore = Bus.open(VESSEL)
+    shore.side = "shore"  # as a shore process's bus is, from its credentials' rules
+    shore.declare_alive("recorder")
+    shore.declare_alive("router")
+    try:
+        with Bus.open(VESSEL) as boat:
+            boat.declare_alive("estimator")
+            boat.declare_alive("controller")
+            wait_for(lambda: {"estimator", "controller", "shore-recorder", "shore-router"}
+                     <= set(services(base)), 30, what="the boat's and the shore's tokens")
+            page = browser.new_page(viewport={"width": 1500, "height": 1000})
+            errors: list[str] = []
+            page.on("pageerror", lambda e: errors.append(str(e)))
+            page.goto(base)
+            alarm = page.locator(ALARM)
+            alarm.wait_for(state="visible", timeout=FEW_S * 1000)
+            assert re.search(r"not\s+recording", alarm.inner_text(), re.IGNORECASE)
+            assert page.evaluate(MARKED_ROWS) == [VESSEL]
+        # The boat out of reach: only the shore's own tokens are left, and no alarm.
+        wait_for(lambda: not {"estimator", "controller"} & set(services(base)), 15,
+                 what="the boat's tokens gone")
+        alarm.wait_for(state="hidden", timeout=FEW_S * 1000)
+        assert page.evaluate(MARKED_ROWS) == []
+        assert not errors, errors
+    finally:
+        shore.close()
     procs.stop(gs, signal.SIGTERM, timeout_s=15)
     assert gs.returncode == 0, procs.log(gs)

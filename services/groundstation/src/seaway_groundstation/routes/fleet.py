@@ -30,6 +30,9 @@ class PageConfig(BaseModel):
     live_recordings: list[str] = Field(
         default_factory=list, description="ids of the live run's recordings (its folder's, and its "
                                           "vessels' folders' in a fleet): the plots' history")
+    shore_health_prefix: str = Field(
+        default=keys.SHORE_HEALTH_PREFIX, description="a service whose health token starts with "
+        "this runs on the shore computer (its recorder, router, page), not on the vessel")
 
 
 def router(gs: GroundStation) -> APIRouter:

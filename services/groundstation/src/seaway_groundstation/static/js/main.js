@@ -253,18 +253,27 @@ function render() {
 /** Health tokens that are not the vessel's own work: the ground station's and the launcher's. */
 const NOT_THE_VESSELS = new Set(["groundstation", "launcher"]);
 
+/** Whether a health token stands for the vessel's own work: not the page's or the launcher's, nor
+ *  a shore computer's own process (its recorder, router, page: app.config.shore_health_prefix),
+ *  which the shore hears beside the boat's and which must not stand for them. */
+function vesselsOwn(service) {
+  const shore = app.config?.shore_health_prefix;
+  return !NOT_THE_VESSELS.has(service) && !(shore && service.startsWith(shore));
+}
+
 /** A vessel's live health tokens (GET /api/vessels, else its live frames); none in replay. */
 function liveServices(name) {
   if (app.mode !== "live") return [];
   return app.fleet.get(name)?.services || store().vessels.get(name)?.services || [];
 }
 
-/** Unrecorded: the vessel's services run (a health token besides the ground station's and the
- *  launcher's) and none of them is the recorder. The launcher keeps a real-time run flying when its
- *  recorder fails for good, so nothing the vessel does is recorded until the recorder's token is
- *  back. The one rule for the header's alarm and the fleet table's marks. */
+/** Unrecorded: the vessel's services run (vesselsOwn) and none of them is the recorder. The
+ *  launcher keeps a real-time run flying when its recorder fails for good, so nothing the vessel
+ *  does is recorded until the recorder's token is back. A shore's own recorder does not count: the
+ *  boat's recording is the whole one. The one rule for the header's alarm and the fleet table's
+ *  marks. */
 function unrecorded(services) {
-  return services.some((s) => !NOT_THE_VESSELS.has(s)) && !services.includes("recorder");
+  return services.some(vesselsOwn) && !services.includes("recorder");
 }
 
 /** NOT RECORDING in the header while the selected vessel is unrecorded. The header's live region
