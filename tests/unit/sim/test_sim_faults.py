@@ -4,6 +4,7 @@ sim's core to its sensors and plant at the scenario's time."""
 from __future__ import annotations
 
 import math
+import re
 
 import pytest
 from seaway.contract.config import ConfigError
@@ -77,6 +78,34 @@ def test_a_fault_out_of_bounds_is_refused_naming_the_field_and_what_is_allowed(f
         sc.parse_scenario(lake_doc([fault]), "probe.toml")
     text = str(err.value)
     assert "probe.toml" in text and "faults.0" in text and field in text and bound in text, text
+
+
+def _jump(time_s: float, distance_m: float, duration_s: float | None = None) -> dict:
+    out = {"kind": "position_jump", "time_s": time_s, "distance_m": distance_m, "direction_rad": 0.0}
+    return out if duration_s is None else {**out, "duration_s": duration_s}
+
+
+@pytest.mark.parametrize(("faults", "sum_m", "from_s"), [
+    ([_jump(10, 600, 5), _jump(12, 600, 5)], 1200, 12),   # two offsets overlapping from 12 s
+    ([_jump(10, 600, 5), _jump(14.9, 600)], 1200, 14.9),  # an outlier inside an offset
+    ([_jump(10, 300)] * 4, 1200, 10),                     # four outliers on one fix
+])
+def test_jumps_that_act_together_may_add_up_to_what_one_may_be(faults, sum_m, from_s) -> None:
+    """Each jump is bounded; before, any number of them acting on one fix added without bound (a
+    thousand 1 km jumps put a fix 1,000 km off, past the poles from a high origin)."""
+    with pytest.raises(ConfigError) as err:
+        sc.parse_scenario(lake_doc(faults), "probe.toml")
+    text = str(err.value)
+    assert "probe.toml" in text and "position jumps" in text, text
+    # The sum, when it first acts and the bound, as numbers with their units.
+    for figure in (f"{sum_m:g} m", f"{from_s:g} s", f"{fl.MAX_POSITION_JUMP_M:g} m"):
+        assert re.search(rf"(?<![\d.]){re.escape(figure)}\b", text), (figure, text)
+
+
+def test_jumps_apart_in_time_are_each_bounded_alone() -> None:
+    apart = [_jump(10, 600, 5), _jump(15, 600, 5), _jump(30, 900), _jump(31, 900)]
+    assert len(sc.parse_scenario(lake_doc(apart), "probe.toml").faults) == 4
+    assert fl.jump_peak(sc.parse_scenario(lake_doc(apart), "probe.toml").faults, 0.2) == (900.0, 30.0)
 
 
 def test_a_scenario_without_faults_has_none_and_the_shipped_example_parses() -> None:

@@ -22,7 +22,9 @@ as one without, in lockstep and in real time alike. Kinds (``kind = ...``):
   its speeds are zero and its pose does not change, whatever the thrust (aground, or moored).
 
 Faults of one kind that overlap combine: outages unite, jumps and biases add, factors multiply;
-a stuck thruster overrides its factor, and of two stuck values the later-starting one holds.
+a stuck thruster overrides its factor, and of two stuck values the later-starting one holds. Jumps
+that act on one fix together may add up to ``MAX_POSITION_JUMP_M`` (``jump_peak``; checked when
+the scenario is read), what one may be.
 """
 
 from __future__ import annotations
@@ -113,6 +115,24 @@ Fault = Annotated[
     GnssDropoutFault | PositionJumpFault | HeadingBiasFault | ThrusterFault | StuckThrusterFault
     | GroundingFault, Field(discriminator="kind")
 ]
+
+
+def jump_peak(faults: Sequence[object], outlier_window_s: float) -> tuple[float, float]:
+    """(the largest sum of ``position_jump`` distances acting on one fix [m], the time it first
+    acts [s]). Overlapping jumps add (``SensorFaults.position_offset_m``): a jump with a duration
+    acts over ``[time_s, time_s + duration_s)``, an outlier on the first fix at or after ``time_s``,
+    counted over ``outlier_window_s`` (the slowest GNSS period: the fix it moves may be any in it)."""
+    edges: list[tuple[float, int, float]] = []  # (time, 0 end / 1 start, distance)
+    for f in faults:
+        if isinstance(f, PositionJumpFault):
+            span = f.duration_s if f.duration_s is not None else outlier_window_s
+            edges += [(f.time_s, 1, f.distance_m), (f.time_s + span, 0, -f.distance_m)]
+    peak, at, total = 0.0, 0.0, 0.0
+    for t, _, d in sorted(edges):  # an end before a start at the same time: half-open windows
+        total += d
+        if total > peak:
+            peak, at = total, t
+    return peak, at
 
 
 def _ns(seconds: float) -> int:

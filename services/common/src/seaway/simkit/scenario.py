@@ -49,7 +49,7 @@ from seaway.contract.config import (
 from seaway.contract.messages import MAX_ATTITUDE_RATE_HZ, MAX_GNSS_RATE_HZ, MAX_GNSS_STD_M
 from seaway.contract.missions import MissionSpec
 from seaway.contract.units import finite_number
-from seaway.simkit.faults import Fault
+from seaway.simkit.faults import MAX_POSITION_JUMP_M, Fault, jump_peak
 from seaway.vessel.battery import BatteryParams
 from seaway.vessel.frames import MAX_RANGE_M, GeoOrigin
 from seaway.vessel.model import world_to_body
@@ -316,6 +316,15 @@ class Scenario(ConfigModel):
                 for field, total, bound, unit in disturbance_sums(self.disturbances) if total > bound]
         if over:
             raise ValueError("disturbances: " + "; ".join(over))
+        return self
+
+    @model_validator(mode="after")
+    def _jumps_together(self) -> Scenario:
+        peak_m, at_s = jump_peak(self.faults, 1.0 / self.sensors.gnss_rate_hz)
+        if peak_m > MAX_POSITION_JUMP_M:
+            raise ValueError(f"faults: the position jumps acting on one fix from {at_s:g} s add up "
+                             f"to {peak_m:g} m, at most {MAX_POSITION_JUMP_M:g} m (what one jump may "
+                             "be: jumps that overlap add)")
         return self
 
     @model_validator(mode="after")
