@@ -10,13 +10,14 @@ from dataclasses import dataclass, field
 PERSISTENT_REJECT_RUN = 5
 """Rejections in a row of one sensor from which its notices say ``persistent`` (a second of GNSS at
 5 Hz): one outlier is noise, a run means the sensor and the filter disagree."""
-REOPEN_REPEAT_NS = 10_000_000_000
+REOPEN_REPEAT_NS = 3_000_000_000
 """A re-opening of the disturbance (``disturbance_reopened``) within this long [ns] of the previous
-one is a warning; a lone one is routine. Measured in the lake scenario: a manoeuvre's transient (a
-pivot whose thrust reaches the water some 30 ms after its stamp) re-opens it once per turn at most,
-turns are tens of seconds apart, and the disturbance settles back within half a second; a thruster
-that loses half its thrust or more re-opens it again within 1.3 s. A loss the first re-opening takes
-up for good (20-40 %) stays routine: the disturbance carries it, and the controller compensates."""
+one is a warning; a lone one is routine. In the lake scenario a manoeuvre's transient (a pivot whose
+thrust reaches the water some 30 ms after its stamp) re-opens it once per turn at most, and the
+disturbance settles back within half a second; turns come a leg apart (18 s on the lake square at
+1 m/s; only legs under about 3 m bring two within this). A thruster that loses half its thrust or
+more re-opens it again within 0.1-1.5 s. A loss the first re-opening takes up for good (20-40 %)
+stays routine: the disturbance carries it, and the controller compensates."""
 MAX_NOTICES = 256
 """Notices kept until taken; older ones are dropped (a caller that never takes them, such as an
 in-process study, must not grow the core)."""
