@@ -11,6 +11,7 @@ Skipped, saying why, only when the firmware binary is absent.
 
 from __future__ import annotations
 
+import re
 import signal
 import subprocess
 import time
@@ -136,6 +137,14 @@ def test_link_verdict_rates_and_arming_reason(zenoh_env, procs, bus, tmp_path, p
     status.wait(lambda s: s.armed and s.mode == "MANUAL" and thrust_forwarded(s), 10,
                 "armed in MANUAL, thrust forwarded", fresh=True)
     alive(vio, procs, px4)
+    # PX4 numbers its STATUSTEXTs from 0 on each link, so its first long one comes in chunks of
+    # id 0: each text is said whole, never a 50-character piece and its tail apart. And it tags a
+    # STATUSTEXT that an EVENT says too with a tab: with its events decoded, said once, untagged.
+    said = re.findall(r"autopilot says: (.*?)(?: \(\d+ more like it[^)]*\))?$", procs.log(vio), re.M)
+    assert "Armed by external command" in said, procs.log(vio)[-3000:]
+    pieces = [t for t in said if len(t) == 50 and any(u != t and u.startswith(t) for u in said)]
+    assert pieces == [] and "Arming denied: Resolve system health failures firs" not in said, said
+    assert [t for t in said if t.endswith("\t")] == [], said
 
 
 @needs_px4

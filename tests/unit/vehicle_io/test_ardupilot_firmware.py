@@ -5,6 +5,7 @@ passed in (the system tests in tests/system/vehicle_io/test_ardupilot_sitl.py ru
 
 from __future__ import annotations
 
+import logging
 from typing import Any
 
 import numpy as np
@@ -23,7 +24,8 @@ from seaway_vehicle_io.core import (
     VehicleIoCore,
 )
 from seaway_vehicle_io.mav import mavlink
-from seaway_vehicle_io.statustext import StatusTexts, matching
+from seaway_vehicle_io.autopilot_events import EventCatalog
+from seaway_vehicle_io.statustext import ID0_HOLD_NS, StatusTexts, matching
 from seaway_vehicle_io.thrust import ThrusterLimits, normalise
 
 S = NS_PER_S
@@ -292,9 +294,9 @@ def test_statustext_matching_and_chunks():
     texts.add(6, "EKF3 IMU0 origin set", 0)
     texts.add(2, b"PreArm: EKF3 waiting for GPS config data\x00\x00", 10)
     first = "PreArm: a reason long enough to need two chunks of"
-    assert texts.add(2, first[:50], 20, text_id=7, chunk_seq=0) is None
-    joined = texts.add(2, " text", 21, text_id=7, chunk_seq=1)
-    assert joined is not None and joined.text == first[:50] + " text"
+    assert texts.add(2, first[:50], 20, text_id=7, chunk_seq=0) == []
+    (joined,) = texts.add(2, " text", 21, text_id=7, chunk_seq=1)
+    assert joined.text == first[:50] + " text"
     texts.add(2, "Arm: Gyros inconsistent", 30)
     texts.add(2, "Arm: Gyros inconsistent", 31)
     assert matching(texts.since(10), ("PreArm:", "Arm:")) == [
@@ -302,6 +304,73 @@ def test_statustext_matching_and_chunks():
         "Arm: Gyros inconsistent"]
     assert matching(texts.since(25), ("PreArm:", "Arm:")) == ["Arm: Gyros inconsistent"]
     assert matching(texts.since(0), ("Disarm:",)) == []
+
+
+PX4_DENIAL = "Arming denied: Resolve system health failures first"  # 51 characters
+TAGGED = PX4_DENIAL + "\t"  # as PX4 sends it: the tab says an EVENT says it too
+
+
+def test_px4s_first_long_text_in_chunks_of_id_0_is_joined():
+    """PX4 numbers its texts from 0 on each link, so its first text, when longer than a field,
+    comes as chunks of id 0 (the specification's "the only chunk"): it was said in two pieces,
+    "... failures firs" and "t" (PX4 1.18 SITL). Held, then joined with its continuation."""
+    texts = StatusTexts()
+    assert texts.add(2, PX4_DENIAL[:50], 10) == []
+    assert [t.text for t in texts.since(0)] == [PX4_DENIAL[:50]]  # a refusal names it at once
+    (joined,) = texts.add(2, PX4_DENIAL[50:], 11, chunk_seq=1)
+    assert joined.text == PX4_DENIAL and joined.mono_ns == 10
+    # PX4's next text has id 1: chunks as the specification has them.
+    assert texts.add(2, PX4_DENIAL[:50], 12, text_id=1) == []
+    (nxt,) = texts.add(2, PX4_DENIAL[50:], 12, text_id=1, chunk_seq=1)
+    assert nxt.text == PX4_DENIAL and [t.text for t in texts.since(0)] == [PX4_DENIAL] * 2
+
+
+def test_a_full_length_text_of_id_0_alone_is_kept_whole():
+    fifty = "x" * 50
+    texts = StatusTexts()
+    assert texts.add(4, fifty, 10) == []
+    # Another text comes: the held one is complete, said first.
+    assert [t.text for t in texts.add(6, "next", 20)] == [fifty, "next"]
+    # Nothing comes: said once its hold is over, not before.
+    assert texts.add(4, fifty, 30) == []
+    assert texts.due(30 + ID0_HOLD_NS - 1) == []
+    assert [t.text for t in texts.due(30 + ID0_HOLD_NS)] == [fifty]
+    assert texts.due(30 + 2 * ID0_HOLD_NS) == []
+    # A continuation that does not follow on (a chunk lost) is a text of its own.
+    texts.add(4, fifty, 40)
+    assert [t.text for t in texts.add(4, "tail", 41, chunk_seq=2)] == [fifty, "tail"]
+
+
+def test_core_says_px4s_first_long_text_whole_and_its_event_tag_apart(caplog):
+    """PX4's first text on a link, in chunks of id 0 ("...failures firs", then "t" and the tab):
+    said whole, without the tab. Without PX4's events decoded it is a warning; with them it is
+    what the EVENT says too, and a debug line (a ground station that decodes events hides it)."""
+    core = make(message_rates_hz={})
+    core.on_mavlink(px4_heartbeat(), at(0))
+    with caplog.at_level(logging.DEBUG, logger="seaway.vehicle_io"):
+        core.on_mavlink(statustext(TAGGED[:50], severity=4), at(10 * MS))
+        core.on_mavlink(statustext(TAGGED[50:], severity=4, seq=1), at(11 * MS))
+    (kept,) = core.texts.since(0)
+    assert (kept.text, kept.also_an_event) == (PX4_DENIAL, True)
+    said = [r for r in caplog.records if "autopilot says" in r.getMessage()]
+    assert [(r.levelno, r.getMessage().endswith(PX4_DENIAL)) for r in said] == [(logging.WARNING, True)]
+    caplog.clear()
+    core.events.tracker.catalog = EVENTS_CATALOG  # its events are decoded from now on
+    with caplog.at_level(logging.DEBUG, logger="seaway.vehicle_io"):
+        core.on_mavlink(statustext("Armed by external command\t", severity=6, text_id=3), at(S))
+        core.on_mavlink(statustext("Navigation error: no valid position", severity=4,
+                                   text_id=4), at(S))
+    said = [(r.levelno, r.getMessage()) for r in caplog.records if "autopilot says" in r.getMessage()]
+    assert said == [(logging.DEBUG, "autopilot says: Armed by external command"),
+                    (logging.WARNING, "autopilot says: Navigation error: no valid position")]
+    core.on_mavlink(statustext("x" * 50, severity=4), at(2 * S))
+    core.tick(at(2 * S + ID0_HOLD_NS))
+    assert [t.text for t in core.texts.since(2 * S)] == ["x" * 50]
+
+
+EVENTS_CATALOG = EventCatalog.from_json({"version": 2, "components": {"1": {
+    "namespace": "px4", "event_groups": {"default": {"events": {"133277": {
+        "name": "commander_arm_denied_resolve_failures", "message": PX4_DENIAL}}}}}}})
 
 
 def test_core_keeps_the_refusal_texts_sent_since_the_request():

@@ -257,6 +257,7 @@ class VehicleIoCore(LinkWatch, ThrustPath, TelemetryIn, AutopilotSaid, ParamRead
             if now.mono_ns >= self._next_mc_ns:
                 self._next_mc_ns = _next_after(self._next_mc_ns, self._period_mc_ns, now.mono_ns)
         out.extend(self._param_requests(now))
+        out.extend(self._said_texts_due(now))
         out.extend(self._fence_tick(now))
         if self.link.ok:
             sends, ended = self.events.tick(now.mono_ns)

@@ -21,7 +21,7 @@ from seaway_vehicle_io.failsafe_cause import (
     classify_text,
     cleared_cause,
 )
-from seaway_vehicle_io.statustext import StatusTexts, matching
+from seaway_vehicle_io.statustext import StatusText, StatusTexts, matching
 
 if TYPE_CHECKING:
     from seaway.contract.messages import BatteryLevel
@@ -49,25 +49,41 @@ class AutopilotSaid:
         self.events = EventsChannel()  # the events protocol (PX4's arming reasons), per connection
 
     def _on_statustext(self, msg: Any, now: Now) -> list[Output]:
-        item = self.texts.add(msg.severity, msg.text, now.mono_ns, getattr(msg, "id", 0) or 0,
-                              getattr(msg, "chunk_seq", 0) or 0)
-        if item is not None:
-            # MAV_SEVERITY <= 4 is a warning or worse (PreArm failures are 2, CRITICAL)
-            self._log_said(now, "STATUSTEXT", item.text,
-                           logging.WARNING if item.severity <= 4 else logging.INFO)
-            if self.fence is not None:
-                self.fence.on_text(item.text)
-            self._hold_changed(self.hold.cleared(cleared_cause(item.text), item.text, now.mono_ns),
-                               now)
-            if item.severity <= WARNING_SEVERITY:
-                self._hold_changed(self.hold.said(classify_text(item.text), item.text,
-                                                  now.mono_ns), now)
-                level = battery_level_from_text(item.text)
-                if level is not None:
-                    # Latched: ArduPilot says it once, and its battery failsafe holds till reboot.
-                    self.battery_said = (worse_level(level, None if self.battery_said is None
-                                                     else self.battery_said[0]) or level, item.text)
-                    return self._on_battery(BatteryReading(), now)
+        out: list[Output] = []
+        for item in self.texts.add(msg.severity, msg.text, now.mono_ns,
+                                   getattr(msg, "id", 0) or 0, getattr(msg, "chunk_seq", 0) or 0):
+            out += self._said_text(item, now)
+        return out
+
+    def _said_texts_due(self, now: Now) -> list[Output]:
+        """A held text (``StatusTexts.due``) whose continuation did not come: said now."""
+        out: list[Output] = []
+        for item in self.texts.due(now.mono_ns):
+            out += self._said_text(item, now)
+        return out
+
+    def _said_text(self, item: StatusText, now: Now) -> list[Output]:
+        """One complete text: logged, and what it says of the fence, a hold and the battery. A
+        text PX4 also says in an EVENT (``StatusText.also_an_event``) is logged at DEBUG once its
+        events are decoded: the EVENT is said, as a ground station that decodes them does."""
+        # MAV_SEVERITY <= 4 is a warning or worse (PreArm failures are 2, CRITICAL)
+        level = logging.WARNING if item.severity <= 4 else logging.INFO
+        if item.also_an_event and self.events.catalog is not None:
+            level = logging.DEBUG
+        self._log_said(now, "STATUSTEXT", item.text, level)
+        if self.fence is not None:
+            self.fence.on_text(item.text)
+        self._hold_changed(self.hold.cleared(cleared_cause(item.text), item.text, now.mono_ns),
+                           now)
+        if item.severity <= WARNING_SEVERITY:
+            self._hold_changed(self.hold.said(classify_text(item.text), item.text,
+                                              now.mono_ns), now)
+            level = battery_level_from_text(item.text)
+            if level is not None:
+                # Latched: ArduPilot says it once, and its battery failsafe holds till reboot.
+                self.battery_said = (worse_level(level, None if self.battery_said is None
+                                                 else self.battery_said[0]) or level, item.text)
+                return self._on_battery(BatteryReading(), now)
         return []
 
     def refusal_texts(self, since_mono_ns: int) -> tuple[list[str], bool]:
