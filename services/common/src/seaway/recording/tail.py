@@ -17,9 +17,9 @@ publishers' caches send again from it is written again, never lost.
 from __future__ import annotations
 
 import io
-import mmap
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import BinaryIO
 
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
@@ -32,6 +32,8 @@ from seaway.recording.layout import CHUNK_HEAD, MAGIC, MESSAGE_HEAD, RECORD_HEAD
 _KNOWN_OPCODES = frozenset(int(op) for op in Opcode)
 _CHANNEL, _MESSAGE, _CHUNK = int(Opcode.CHANNEL), int(Opcode.MESSAGE), int(Opcode.CHUNK)
 _END = frozenset((int(Opcode.DATA_END), int(Opcode.FOOTER)))
+_BUFFER = 1 << 20
+"""The read buffer [bytes]: many records' heads per system call."""
 
 
 @dataclass
@@ -54,67 +56,75 @@ class _Walk:
 
 
 def tail_of(src: Path, since_ns: int) -> Tail:
-    """``Tail`` of ``src`` from ``since_ns`` [ns, log time] on, read as far as the file is whole."""
+    """``Tail`` of ``src`` from ``since_ns`` [ns, log time] on, read as far as the file is whole.
+
+    Read through a buffer, not mapped: a file cut short while it is read gives a short read (the
+    end), where a mapping would kill the process."""
     tail = Tail()
-    with open(src, "rb") as fh:
-        size = fh.seek(0, io.SEEK_END)
-        if size <= len(MAGIC):
+    with open(src, "rb", buffering=_BUFFER) as fh:
+        if fh.read(len(MAGIC)) != MAGIC:
             return tail
-        with mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) as data:
-            if data[:len(MAGIC)] != MAGIC:
-                return tail
-            walk = _walk(data, size)
-            found: list[tuple[int, int, bytes]] = [m for m in walk.loose if m[1] >= since_ns]
-            tail.last_log_ns = max((m[1] for m in walk.loose), default=0)
-            old: list[tuple[int, int]] = []
-            for start, end, end_ns in walk.chunks:
-                if end_ns < since_ns:
-                    old.append((start, end))
-                    tail.last_log_ns = max(tail.last_log_ns, end_ns)
-                    continue
-                records = _records(data, start, end)
-                if records is None:
-                    continue  # damaged: its times are not to be trusted either
+        walk = _walk(fh, fh.seek(0, io.SEEK_END))
+        found: list[tuple[int, int, bytes]] = [m for m in walk.loose if m[1] >= since_ns]
+        tail.last_log_ns = max((m[1] for m in walk.loose), default=0)
+        old: list[tuple[int, int]] = []
+        for start, end, end_ns in walk.chunks:
+            if end_ns < since_ns:
+                old.append((start, end))
                 tail.last_log_ns = max(tail.last_log_ns, end_ns)
-                found += _scan(records, walk.topics, since_ns)
-            wanted = {cid for cid, _, _ in found} - walk.topics.keys()
-            for start, end in old:
-                if not wanted:
-                    break
-                records = _records(data, start, end)
-                if records is not None:
-                    _scan(records, walk.topics, None)
-                    wanted -= walk.topics.keys()
+                continue
+            records = _records(fh, start, end)
+            if records is None:
+                continue  # damaged: its times are not to be trusted either
+            tail.last_log_ns = max(tail.last_log_ns, end_ns)
+            found += _scan(records, walk.topics, since_ns)
+        wanted = {cid for cid, _, _ in found} - walk.topics.keys()
+        for start, end in old:
+            if not wanted:
+                break
+            records = _records(fh, start, end)
+            if records is not None:
+                _scan(records, walk.topics, None)
+                wanted -= walk.topics.keys()
     tail.messages = {(walk.topics[cid], payload) for cid, _, payload in found if cid in walk.topics}
     return tail
 
 
-def _walk(data: mmap.mmap, size: int) -> _Walk:
-    """The top-level records of ``data`` from after the magic, until the data section ends, a
-    record runs past the file's end, or an opcode is not MCAP's."""
+def _walk(fh: BinaryIO, size: int) -> _Walk:
+    """The top-level records of ``fh`` from after the magic, until the data section ends, a
+    record runs past the file's end (``size`` bytes), or an opcode is not MCAP's. Each record's
+    head is read and the rest skipped (a seek within the buffer costs no system call)."""
     out = _Walk()
     pos, head = len(MAGIC), RECORD_HEAD.size
+    fh.seek(pos)
+    read, seek, unpack = fh.read, fh.seek, RECORD_HEAD.unpack
     while pos + head <= size:
-        op, length = RECORD_HEAD.unpack_from(data, pos)
+        raw = read(head)
+        if len(raw) < head:
+            break
+        op, length = unpack(raw)
         end = pos + head + length
         if end > size or op not in _KNOWN_OPCODES or op in _END:
             break
         if op == _CHUNK:
-            if length < CHUNK_HEAD.size:
+            raw = read(CHUNK_HEAD.size)
+            if length < CHUNK_HEAD.size or len(raw) < CHUNK_HEAD.size:
                 break
-            _, end_ns, _, _ = CHUNK_HEAD.unpack_from(data, pos + head)
-            out.chunks.append((pos, end, end_ns))
+            out.chunks.append((pos, end, CHUNK_HEAD.unpack(raw)[1]))
         elif op in (_CHANNEL, _MESSAGE):  # outside a chunk (a writer without chunks)
-            out.loose += _scan(data[pos:end], out.topics, 0)
+            seek(pos)
+            out.loose += _scan(read(end - pos), out.topics, 0)
+        seek(end)
         pos = end
     return out
 
 
-def _records(data: mmap.mmap, start: int, end: int) -> bytes | None:
-    """The uncompressed records of the chunk at ``data[start:end]``, or None where it is damaged
-    (it does not decompress, its CRC differs, its head lies)."""
+def _records(fh: BinaryIO, start: int, end: int) -> bytes | None:
+    """The uncompressed records of the chunk at bytes ``[start, end)``, or None where it is
+    damaged (it does not decompress, its CRC differs, its head lies, the file ends in it)."""
+    fh.seek(start)
     try:
-        return chunk_body(data[start:end])
+        return chunk_body(fh.read(end - start))
     except Exception:  # struct, decompression, text, CRC: each a damaged chunk
         return None
 
