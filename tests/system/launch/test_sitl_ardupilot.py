@@ -112,6 +112,9 @@ def test_the_lake_mission_on_ardupilot_sitl_with_the_identified_model(tmp_path, 
     assert not [s for s in solve["statuses"] if s.startswith("no solver yet")], solve["statuses"]
     assert solve["count"] > 100 and solve["failures"] <= 0.03 * solve["count"]
     assert set(solve["fallback_levels"]) <= {"1", "2"}  # never the stop
+    # The estimator of a normal run on the firmware warns of nothing: the identified model's turns
+    # re-open its disturbance several times a turn, which is routine (INFO).
+    assert warning_lines(run_dir, ("estimator",)) == []
     # The boat was ArduPilot's: no simulator of ours in the recording, the state estimated from
     # vehicle_io's sensors, and the thrust came from CC-EMPC.
     topics = report["recording"]["topics"]

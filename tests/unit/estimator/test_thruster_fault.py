@@ -11,7 +11,6 @@ from seaway.simkit.faults import ThrusterFault
 from seaway.simkit.scenario import load_scenario
 from seaway_estimator.config import EstimatorConfig
 from seaway_estimator.core import EstimatorCore
-from seaway_estimator.notices import REOPEN_REPEAT_NS
 from seaway_lab.closed_loop import run_estimator_loop
 
 FAULT_S = 10.0
@@ -31,13 +30,7 @@ def test_a_half_lost_port_thruster_is_taken_up_by_the_disturbance_not_the_headin
     assert c["heading_reinit"] == 0 and c["gnss_reinit"] == 0 and c["heading_rejected"] == 0
     assert max(abs(s.psi_err_rad) for s in after) < math.radians(3.0)
     assert max(s.pos_err_m for s in after) < 1.5
-    assert c["disturbance_reopened"] >= 2
-    reopened = [n for n in core.take_notices() if n.kind == "disturbance_reopened"]
-    # The first re-opening alone is what a turn gives too; the one that follows within
-    # REOPEN_REPEAT_NS says the boat keeps disagreeing, and is the warning.
-    assert not reopened[0].persistent
-    assert reopened[1].persistent
-    assert reopened[1].stamp_ns - reopened[0].stamp_ns <= REOPEN_REPEAT_NS
+    assert c["disturbance_reopened"] >= 1
     # The yaw moment the weaker port side leaves: it turns the boat to starboard less than modelled.
     surge_n, _, yaw_nm = core.body_disturbance()
     assert yaw_nm < -0.3
@@ -49,6 +42,23 @@ def test_without_a_fault_nothing_is_reopened() -> None:
     core = EstimatorCore(EstimatorConfig(vessel=lake.vessel, apply_dead_zone=lake.dead_zone))
     run_estimator_loop(lake, core, 30.0, speed_mps=1.0)
     assert core.counters["disturbance_reopened"] == 0 and core.counters["yaw_rate_rejected"] == 0
+
+
+def test_a_thruster_lost_for_good_is_the_motion_faults_to_say_not_the_reopenings() -> None:
+    """Re-openings are the filter taking up what its model lacks: a turn gives them too, several
+    where the model is a rough identification (ArduPilot's SITL boat), so each is routine. A
+    thruster that gives nothing is said as a motion fault, a warning."""
+    lake = load_scenario("lake")
+    faulty = lake.model_copy(
+        update={"faults": [ThrusterFault(kind="thruster", time_s=FAULT_S, thruster="port", factor=0.0)]}
+    )
+    core = EstimatorCore(EstimatorConfig(vessel=lake.vessel, apply_dead_zone=lake.dead_zone))
+    run_estimator_loop(faulty, core, 30.0, speed_mps=1.0)
+    notices = core.take_notices()
+    reopened = [n for n in notices if n.kind == "disturbance_reopened"]
+    assert len(reopened) >= 3 and not any(n.persistent for n in reopened)
+    faults = [n for n in notices if n.kind == "motion_fault"]
+    assert faults and faults[0].persistent and faults[0].stamp_ns > FAULT_S * 1e9
 
 
 def test_a_loss_the_first_reopening_takes_up_is_routine() -> None:

@@ -28,7 +28,7 @@ from seaway.vessel.frames import wrap_pi
 
 from seaway_estimator.kalman import ID1, ID2, ID3, IPSI, IR, IU, IV, IX, IY, NZ, Updater
 from seaway_estimator.mismatch import FixSample, MotionMismatch
-from seaway_estimator.notices import REOPEN_REPEAT_NS, Notice
+from seaway_estimator.notices import Notice
 
 if TYPE_CHECKING:
     from seaway_estimator.config import EstimatorConfig
@@ -57,7 +57,6 @@ class MeasurementUpdates:
         # What a lost thruster leaves unexplained: its full thrust, and that thrust's moment.
         self._reopen_force_var = thrust_max_n ** 2
         self._reopen_moment_var = (thrust_max_n * arm_m) ** 2
-        self._last_reopen_ns: int | None = None  # filter time of the last re-opening
         self._updaters = {m: Updater(m) for m in (1, 2)}  # by the number of values measured
         self._last_nis = math.nan  # of the last gated update
 
@@ -226,22 +225,17 @@ class MeasurementUpdates:
 
     def _reopen(self, added: tuple[tuple[int, float], ...], sensor: str, run: int) -> None:
         """Add variance to states ``(index, variance)``: ``run`` samples of ``sensor`` in a row
-        said the model, not the sensor, is wrong. Routine unless the last re-opening (of either
-        sensor) was within ``REOPEN_REPEAT_NS``: then the first did not settle it."""
+        said the model, not the sensor, is wrong. Routine: a turn does it, with several in a row
+        where the model is a rough identification; a boat that keeps doing other than commanded is
+        the motion fault detector's to say (``_judge_motion``)."""
         f = self.filter
         assert f is not None
         for i, var in added:
             f.P[i, i] += var
         self.counters.inc("disturbance_reopened")
-        last, self._last_reopen_ns = self._last_reopen_ns, f.t_ns
-        since_ns = None if last is None else f.t_ns - last
-        again = since_ns is not None and 0 <= since_ns <= REOPEN_REPEAT_NS
-        detail = (f"{run} {sensor} samples in a row disagree with the model: the disturbance's "
-                  "uncertainty is re-opened")
-        if again:
-            detail += (f", again {since_ns / 1e9:.1f} s after the last time: the boat keeps doing "
-                       "other than the model says (a thruster weaker than modelled, fouling, a tow)")
-        self._notices.append(Notice(f.t_ns, "disturbance_reopened", detail, run, routine=not again))
+        self._notices.append(Notice(f.t_ns, "disturbance_reopened", f"{run} {sensor} samples in a "
+                                    "row disagree with the model: the disturbance's uncertainty "
+                                    "is re-opened", run, routine=True))
 
     def _reinit_block(self, idx: tuple[int, ...], shift: tuple[float, ...], var: float) -> None:
         """Move states ``idx`` by ``shift`` and decorrelate them with variance ``var``."""

@@ -10,14 +10,6 @@ from dataclasses import dataclass, field
 PERSISTENT_REJECT_RUN = 5
 """Rejections in a row of one sensor from which its notices say ``persistent`` (a second of GNSS at
 5 Hz): one outlier is noise, a run means the sensor and the filter disagree."""
-REOPEN_REPEAT_NS = 3_000_000_000
-"""A re-opening of the disturbance (``disturbance_reopened``) within this long [ns] of the previous
-one is a warning; a lone one is routine. In the lake scenario a manoeuvre's transient (a pivot whose
-thrust reaches the water some 30 ms after its stamp) re-opens it once per turn at most, and the
-disturbance settles back within half a second; turns come a leg apart (18 s on the lake square at
-1 m/s; only legs under about 3 m bring two within this). A thruster that loses half its thrust or
-more re-opens it again within 0.1-1.5 s. A loss the first re-opening takes up for good (20-40 %)
-stays routine: the disturbance carries it, and the controller compensates."""
 MAX_NOTICES = 256
 """Notices kept until taken; older ones are dropped (a caller that never takes them, such as an
 in-process study, must not grow the core)."""
@@ -30,9 +22,10 @@ class Notice:
     ``kind``: ``gnss_rejected``, ``heading_rejected`` (``run``: rejections in a row so far),
     ``gnss_reinit``, ``heading_reinit`` (the state taken from the sensor after ``run`` rejections),
     ``time_jump``, ``divergence_reset`` (the whole state dropped), ``disturbance_reopened`` (a
-    run of ``run`` rejections said the model is wrong: routine alone, a warning when it comes again
-    within ``REOPEN_REPEAT_NS``), ``withheld_reanchor`` (the state moved to the first fix after the
-    autopilot was found withholding the thrust: routine),
+    run of ``run`` rejections said the model is wrong: routine, the filter taking up what its model
+    lacks; a boat that does not do as commanded is the motion fault's to say),
+    ``withheld_reanchor`` (the state moved to the first fix after the autopilot was found
+    withholding the thrust: routine),
     ``gnss_refused``, ``sog_refused``, ``yaw_rate_refused`` (what a message said is past what a
     receiver or the vessel can give, ``seaway_estimator.core_inputs``: the value and the bound),
     ``too_frequent`` (a sample closer to the last one used than its sensor's fastest rate allows).
