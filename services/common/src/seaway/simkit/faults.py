@@ -135,6 +135,16 @@ def jump_peak(faults: Sequence[object], outlier_window_s: float) -> tuple[float,
     return peak, at
 
 
+def jumps_too_far(faults: Sequence[object], outlier_window_s: float) -> str | None:
+    """Why the ``position_jump`` faults acting on one fix add up past ``MAX_POSITION_JUMP_M``
+    (``jump_peak``), or None."""
+    peak_m, at_s = jump_peak(faults, outlier_window_s)
+    if peak_m <= MAX_POSITION_JUMP_M:
+        return None
+    return (f"the position jumps acting on one fix from {at_s:g} s add up to {peak_m:g} m, at most "
+            f"{MAX_POSITION_JUMP_M:g} m (what one jump may be: jumps that overlap add)")
+
+
 def _ns(seconds: float) -> int:
     return round(seconds * NS_PER_S)
 

@@ -49,7 +49,7 @@ from seaway.contract.config import (
 from seaway.contract.messages import MAX_ATTITUDE_RATE_HZ, MAX_GNSS_RATE_HZ, MAX_GNSS_STD_M
 from seaway.contract.missions import MissionSpec
 from seaway.contract.units import finite_number
-from seaway.simkit.faults import MAX_POSITION_JUMP_M, Fault, jump_peak
+from seaway.simkit.faults import Fault, jumps_too_far
 from seaway.vessel.battery import BatteryParams
 from seaway.vessel.frames import MAX_RANGE_M, GeoOrigin
 from seaway.vessel.model import world_to_body
@@ -320,11 +320,9 @@ class Scenario(ConfigModel):
 
     @model_validator(mode="after")
     def _jumps_together(self) -> Scenario:
-        peak_m, at_s = jump_peak(self.faults, 1.0 / self.sensors.gnss_rate_hz)
-        if peak_m > MAX_POSITION_JUMP_M:
-            raise ValueError(f"faults: the position jumps acting on one fix from {at_s:g} s add up "
-                             f"to {peak_m:g} m, at most {MAX_POSITION_JUMP_M:g} m (what one jump may "
-                             "be: jumps that overlap add)")
+        problem = jumps_too_far(self.faults, 1.0 / self.sensors.gnss_rate_hz)
+        if problem is not None:
+            raise ValueError(f"faults: {problem}")
         return self
 
     @model_validator(mode="after")
