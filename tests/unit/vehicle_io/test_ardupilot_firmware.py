@@ -14,6 +14,7 @@ from seaway.contract.units import NS_PER_S
 from seaway_vehicle_io import rates
 from seaway_vehicle_io.ardupilot import PROFILE as AP
 from seaway_vehicle_io.ardupilot import RcChannel
+from seaway_vehicle_io.autopilot_events import EventCatalog
 from seaway_vehicle_io.config import SOURCE_SYSTEM, VehicleIoConfig
 from seaway_vehicle_io.core import (
     Now,
@@ -24,7 +25,6 @@ from seaway_vehicle_io.core import (
     VehicleIoCore,
 )
 from seaway_vehicle_io.mav import mavlink
-from seaway_vehicle_io.autopilot_events import EventCatalog
 from seaway_vehicle_io.statustext import ID0_HOLD_NS, StatusTexts, matching
 from seaway_vehicle_io.thrust import ThrusterLimits, normalise
 
