@@ -26,6 +26,7 @@ from tests.unit.vehicle_io.test_core import (
     connected,
     global_position_int,
     heartbeat,
+    make,
     published,
     wire,
 )
@@ -122,6 +123,24 @@ def test_the_autopilots_ever_new_texts_do_not_silence_drop_warnings(caplog) -> N
     assert core.dropped == 1
     (rec,) = lines(caplog, logging.WARNING)
     assert "ATTITUDE" in rec.getMessage() and "roll" in rec.getMessage()
+
+
+def test_a_broken_frame_before_the_link_is_counted_not_warned(caplog) -> None:
+    """A stream joined mid-frame (ArduPilot SITL's TCP port gave one "Bad prefix" at every
+    connect) is counted and said at INFO; once the link is up, a broken frame is a warning."""
+    caplog.set_level(logging.INFO, LOGGER)
+    core = make(check_failsafe_params=False)
+    bad = mavlink.MAVLink_bad_data(b"\x01\x02", "Bad prefix")
+    core.on_mavlink(bad, at(0))
+    assert core.dropped == 1 and not lines(caplog, logging.WARNING)
+    assert any("BAD_DATA" in r.getMessage() for r in lines(caplog, logging.INFO))
+    core.on_mavlink(heartbeat(armed=False), at(1 * MS))
+    assert core.link.ok
+    caplog.clear()
+    core.on_mavlink(heartbeat(armed=False), at(6 * S - MS))
+    core.on_mavlink(bad, at(6 * S))  # past the 5 s the log limits a kind to one line
+    (rec,) = lines(caplog, logging.WARNING)
+    assert core.dropped == 2 and "BAD_DATA" in rec.getMessage()
 
 
 def test_an_autopilot_flapping_its_mode_is_followed_but_not_a_flood_of_lines(caplog) -> None:

@@ -151,7 +151,11 @@ class VehicleIoCore(LinkWatch, ThrustPath, TelemetryIn, AutopilotSaid, ParamRead
             if link.ok and address != link.target_address:
                 self.refusals.add(FOREIGN_SOURCE, (None, None, address), 1, now.mono_ns)
             else:
-                self._drop(now, "BAD_DATA", "frame", getattr(msg, "reason", "unparseable bytes"))
+                # Before the link is up, a broken frame is the stream joined mid-message (a serial
+                # port opened mid-frame, a firmware already talking on a TCP port): counted, not
+                # a warning. After it, it is the link corrupting frames.
+                self._drop(now, "BAD_DATA", "frame", getattr(msg, "reason", "unparseable bytes"),
+                           logging.WARNING if link.ok else logging.INFO)
             return []
         if msg.get_msgId() == mavlink.MAVLINK_MSG_ID_UNKNOWN:
             # A message our dialect does not define (PX4 1.18 sends CURRENT_MODE, AVAILABLE_MODES
@@ -323,10 +327,10 @@ class VehicleIoCore(LinkWatch, ThrustPath, TelemetryIn, AutopilotSaid, ParamRead
     # Dropping and logging
     # ===========================================================================================
 
-    def _drop(self, now: Now, mtype: str, fieldname: str, text: str) -> None:
+    def _drop(self, now: Now, mtype: str, fieldname: str, text: str,
+              level: int = logging.WARNING) -> None:
         self.dropped += 1
-        self._log_limited(now, mtype, fieldname, logging.WARNING,
-                          f"dropped {mtype} (field {fieldname}): {text}")
+        self._log_limited(now, mtype, fieldname, level, f"dropped {mtype} (field {fieldname}): {text}")
 
     def _log_limited(self, now: Now, mtype: str, fieldname: str, level: int, text: str) -> None:
         """Log, but at most once per (message, field) per 5 s, saying how many were suppressed."""
