@@ -84,8 +84,25 @@ class Watch:
             return [m for (at, m) in getattr(self, what) if at >= t]
 
     def first(self, what: str, pred, timeout_s: float, why: str, since: float = 0.0):
-        return wait_for(lambda: next((m for m in self.since(what, since) if pred(m)), None),
-                        timeout_s, interval_s=0.1, what=why)
+        try:
+            return wait_for(lambda: next((m for m in self.since(what, since) if pred(m)), None),
+                            timeout_s, interval_s=0.1, what=why)
+        except pytest.fail.Exception as err:
+            pytest.fail(f"{err}\n{self.changes(since)}")
+
+    def changes(self, since: float) -> str:
+        """Each change of the mission's state and reason, and of the vehicle's mode, arming, link,
+        withheld thrust and hold reason, since ``since``: what a failed wait needs to be read."""
+        out, seen = [], {}
+        for what, fields in (("mission", ("state", "reason")),
+                             ("vehicle", ("link_ok", "armed", "mode", "thrust_withheld",
+                                          "hold_reason"))):
+            for m in self.since(what, since):
+                now = tuple(getattr(m, f, None) for f in fields)
+                if seen.get(what) != now:
+                    seen[what] = now
+                    out.append(f"{what} {m.stamp_ns / 1e9:.3f}: {dict(zip(fields, now, strict=True))}")
+        return "\n".join(out[-40:])
 
 
 def profile_without_sitl(tmp: Path, url: str) -> Path:
