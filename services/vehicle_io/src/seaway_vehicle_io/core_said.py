@@ -67,10 +67,10 @@ class AutopilotSaid:
         text PX4 also says in an EVENT (``StatusText.also_an_event``) is logged at DEBUG once its
         events are decoded: the EVENT is said, as a ground station that decodes them does."""
         # MAV_SEVERITY <= 4 is a warning or worse (PreArm failures are 2, CRITICAL)
-        level = logging.WARNING if item.severity <= 4 else logging.INFO
+        log_level = logging.WARNING if item.severity <= 4 else logging.INFO
         if item.also_an_event and self.events.catalog is not None:
-            level = logging.DEBUG
-        self._log_said(now, "STATUSTEXT", item.text, level)
+            log_level = logging.DEBUG
+        self._log_said(now, "STATUSTEXT", item.text, log_level)
         if self.fence is not None:
             self.fence.on_text(item.text)
         self._hold_changed(self.hold.cleared(cleared_cause(item.text), item.text, now.mono_ns),
