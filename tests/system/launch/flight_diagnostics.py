@@ -100,6 +100,14 @@ def warning_lines(run_dir: Path, services: tuple[str, ...] = ("vehicle_io", "est
     return lines[-limit:]
 
 
+def own_warnings(run_dir: Path, service: str = "vehicle_io") -> list[str]:
+    """``service``'s WARNING and ERROR lines but those quoting the autopilot ("autopilot says:"):
+    what Seaway itself warned of. The firmware's own words are its business (ArduPilot says "EKF
+    failsafe cleared" at warning severity as its EKF takes GPS)."""
+    return [line for line in warning_lines(run_dir, (service,), limit=1000)
+            if "autopilot says:" not in line]
+
+
 def launch_to_end(args: list[str], run_dir: Path, env: dict[str, str], timeout_s: float
                   ) -> subprocess.CompletedProcess[str]:
     """``seaway launch`` (``args``, run folder ``run_dir``) to its end, as ``subprocess.run`` would.

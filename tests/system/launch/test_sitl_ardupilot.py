@@ -26,6 +26,7 @@ from seaway_vehicle_io import sitl
 from tests.conftest import REPO, solver_built, wait_for
 from tests.system.launch.flight_diagnostics import (
     launch_to_end,
+    own_warnings,
     thrust_diagnostics,
     warning_lines,
 )
@@ -115,6 +116,9 @@ def test_the_lake_mission_on_ardupilot_sitl_with_the_identified_model(tmp_path, 
     # The estimator of a normal run on the firmware warns of nothing: the identified model's turns
     # re-open its disturbance several times a turn, which is routine (INFO).
     assert warning_lines(run_dir, ("estimator",)) == []
+    # A normal start warns of nothing: what the autopilot lacks and refuses until it is first
+    # healthy (its EKF converging) is said at INFO and shown in the status.
+    assert own_warnings(run_dir) == []
     # The boat was ArduPilot's: no simulator of ours in the recording, the state estimated from
     # vehicle_io's sensors, and the thrust came from CC-EMPC.
     topics = report["recording"]["topics"]

@@ -27,6 +27,7 @@ from seaway.vessel.model import load_vessel, surge_friction_n
 from tests.conftest import REPO, solver_built
 from tests.system.launch.flight_diagnostics import (
     launch_to_end,
+    own_warnings,
     thrust_diagnostics,
     warning_lines,
 )
@@ -139,6 +140,9 @@ def test_the_lake_mission_on_px4_sitl_with_the_identified_model(tmp_path, zenoh_
     assert metrics["completed"] and metrics["legs_completed"] == legs
     assert metrics["avg_cross_track_m"] <= MEAN_XTE_M and metrics["max_cross_track_m"] <= MAX_XTE_M
     assert solve["failures"] <= FAILED_SOLVES
+    # A normal start warns of nothing: what the autopilot lacks and refuses until it is first
+    # healthy (its EKF converging) is said at INFO and shown in the status.
+    assert own_warnings(run_dir) == []
     assert not [s for s in solve["statuses"] if s.startswith("no solver yet")], solve["statuses"]
     # The rover was PX4's: no simulator of ours in the recording, the state estimated from
     # vehicle_io's sensors, and the thrust came from CC-EMPC.

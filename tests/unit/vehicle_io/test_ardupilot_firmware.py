@@ -343,8 +343,9 @@ def test_a_full_length_text_of_id_0_alone_is_kept_whole():
 
 def test_core_says_px4s_first_long_text_whole_and_its_event_tag_apart(caplog):
     """PX4's first text on a link, in chunks of id 0 ("...failures firs", then "t" and the tab):
-    said whole, without the tab. Without PX4's events decoded it is a warning; with them it is
-    what the EVENT says too, and a debug line (a ground station that decodes events hides it)."""
+    said whole, without the tab. Without PX4's events decoded it is an arming denial, said at INFO
+    while the autopilot starts (``test_autopilot_start``); with them it is what the EVENT says
+    too, and a debug line (a ground station that decodes events hides it)."""
     core = make(message_rates_hz={})
     core.on_mavlink(px4_heartbeat(), at(0))
     with caplog.at_level(logging.DEBUG, logger="seaway.vehicle_io"):
@@ -353,7 +354,7 @@ def test_core_says_px4s_first_long_text_whole_and_its_event_tag_apart(caplog):
     (kept,) = core.texts.since(0)
     assert (kept.text, kept.also_an_event) == (PX4_DENIAL, True)
     said = [r for r in caplog.records if "autopilot says" in r.getMessage()]
-    assert [(r.levelno, r.getMessage().endswith(PX4_DENIAL)) for r in said] == [(logging.WARNING, True)]
+    assert [(r.levelno, r.getMessage().endswith(PX4_DENIAL)) for r in said] == [(logging.INFO, True)]
     caplog.clear()
     core.events.tracker.catalog = EVENTS_CATALOG  # its events are decoded from now on
     with caplog.at_level(logging.DEBUG, logger="seaway.vehicle_io"):

@@ -127,7 +127,8 @@ def test_the_autopilots_ever_new_texts_do_not_silence_drop_warnings(caplog) -> N
 
 def test_a_broken_frame_before_the_link_is_counted_not_warned(caplog) -> None:
     """A stream joined mid-frame (ArduPilot SITL's TCP port gave one "Bad prefix" at every
-    connect) is counted and said at INFO; once the link is up, a broken frame is a warning."""
+    connect) is counted and said at INFO; once the link is up and the autopilot has started
+    (``test_autopilot_start``), a broken frame is a warning."""
     caplog.set_level(logging.INFO, LOGGER)
     core = make(check_failsafe_params=False)
     bad = mavlink.MAVLink_bad_data(b"\x01\x02", "Bad prefix")
@@ -136,6 +137,11 @@ def test_a_broken_frame_before_the_link_is_counted_not_warned(caplog) -> None:
     assert any("BAD_DATA" in r.getMessage() for r in lines(caplog, logging.INFO))
     core.on_mavlink(heartbeat(armed=False), at(1 * MS))
     assert core.link.ok
+    core.on_mavlink(wire(mavlink.MAVLink_sys_status_message(0, 0, 0, 0, 12000, 0, 100, 0, 0, 0, 0,
+                                                            0, 0)), at(2 * MS))  # healthy: started
+    core.on_mavlink(wire(mavlink.MAVLink_estimator_status_message(0, 0x7 | 16, 0, 0, 0, 0, 0, 0, 0,
+                                                                  0)), at(3 * MS))
+    core.status(at(S))  # healthy from here: started after READY_SETTLE_S
     caplog.clear()
     core.on_mavlink(heartbeat(armed=False), at(6 * S - MS))
     core.on_mavlink(bad, at(6 * S))  # past the 5 s the log limits a kind to one line

@@ -190,6 +190,7 @@ class ArduPilotProfile(Profile):
     requests_message_rates = True
     data_streams = DATA_STREAMS
     arming_refusal_prefixes = ("PreArm:", "Arm:")
+    start_check_prefixes = arming_refusal_prefixes
     mapping_needs_params = True
     booting_modes = ("INITIALISING",)
 

@@ -17,13 +17,23 @@ reports MAV_STATE_CRITICAL while a failsafe of its own is triggered. It is unhea
 What is not said is not a problem: an autopilot that sends no estimator report is judged on the
 rest. Arming checks are the autopilot's own: a disarmed vehicle is withheld as 'disarmed' first.
 
+Starting (``Health.starting``): an autopilot just booted is not healthy yet, and says so for tens of
+seconds (ArduPilot Rover SITL: 40 s from its first HEARTBEAT to an EKF using GPS; a real receiver's
+cold start takes longer), refusing to arm meanwhile. What it lacks then is the expected state of a
+start, shown in the status, not a warning. It is starting until it has first been healthy for
+``READY_SETTLE_S`` (a SYS_STATUS and its estimator's report heard, ``healthy_now``), for at most
+``START_GRACE_S`` from the link coming up (or the reboot seen) and while its own clock
+(``time_boot_ms``) says it booted less than that ago: one restarted vehicle_io meets an autopilot
+up for long, and what that one lacks is a warning at once. An absurd ``time_boot_ms`` can only end
+the start earlier.
+
 Latched (``latched_failsafe``): the failsafe the autopilot still stands in, whatever its mode, so
 that a mission is not resumed onto it: a failsafe health bit still unhealthy
 (``failsafe_cause.HEALTH_CAUSES``: ArduPilot keeps its battery bit unhealthy while
 ``AP_BattMonitor::has_failsafed()``, which holds until reboot), or its battery flag low or worse
 (BATTERY_STATUS ``charge_state``; PX4's battery warning only rises; ArduPilot's battery text, kept).
 
-Pure: no clock needed, each message replaces what it says.
+Pure: each message replaces what it says; the monotonic time [ns] is passed in.
 """
 
 from __future__ import annotations
@@ -45,6 +55,12 @@ SENSOR_NAMES_PX4 = SENSOR_NAMES_ALL | {
 
 EST_POS_HORIZ_ABS = 16  # EKF_POS_HORIZ_ABS = ESTIMATOR_POS_HORIZ_ABS: an absolute (GNSS) position
 EST_UNINITIALIZED = 1024  # EKF_UNINITIALIZED / ESTIMATOR_UNINITIALIZED
+START_GRACE_S = 120.0
+"""How long an autopilot that has not been healthy since it came up counts as starting [s]."""
+READY_SETTLE_S = 5.0
+"""Healthy this long, as sampled by each status, ends a start [s]."""
+ESTIMATOR_REPORT_WAIT_S = 10.0
+"""Healthy needs its estimator's report, unless none came within this long of it coming up [s]."""
 BAD_BATTERY_LEVELS: frozenset[BatteryLevel | None] = frozenset(
     {"low", "critical", "emergency", "failed", "unhealthy"})
 
@@ -57,8 +73,42 @@ class Health:
     system_status: int | None = None
     sensors_bad: tuple[str, ...] = ()
     estimator: str = ""  # what the estimator report lacks ('' fine, or not sent)
+    estimator_heard: bool = False  # an estimator report came
     failsafe_bits: int = 0  # HEALTH_CAUSES bits unhealthy now that were not so from the start
     _from_start: int | None = None  # those unhealthy from the first SYS_STATUS on, until healthy
+    since_mono_ns: int = 0  # the link came up, or the autopilot was seen to reboot [monotonic ns]
+    uptime_ms: int | None = None  # its time since boot, from the last message stamped with it
+    ready: bool = False  # healthy for READY_SETTLE_S at least once since ``since_mono_ns``
+    _healthy_since_ns: int | None = None  # healthy at every ``healthy_now`` since [monotonic ns]
+
+    def booted_ms(self, time_boot_ms: int) -> None:
+        """The autopilot's ``time_boot_ms`` in a message taken for true (its stamp accepted)."""
+        self.uptime_ms = int(time_boot_ms)
+
+    def healthy_now(self, now_ns: int) -> bool:
+        """Whether it is healthy now: a SYS_STATUS has told, and its estimator's report, or none
+        came within ``ESTIMATOR_REPORT_WAIT_S`` (ArduPilot starts sending EKF_STATUS_REPORT seconds
+        after its first SYS_STATUS, which says nothing of the EKF). Healthy at every call over
+        ``READY_SETTLE_S`` marks it ``ready`` (PX4 SITL: healthy for 1 s, its local position
+        unhealthy for 2 s, then healthy for good)."""
+        waited = now_ns - self.since_mono_ns >= ESTIMATOR_REPORT_WAIT_S * 1e9
+        healthy = (self._from_start is not None and (self.estimator_heard or waited)
+                   and self.problem() is None)
+        if not healthy:
+            self._healthy_since_ns = None
+        elif self._healthy_since_ns is None:
+            self._healthy_since_ns = now_ns
+        self.ready = self.ready or (self._healthy_since_ns is not None
+                                    and now_ns - self._healthy_since_ns >= READY_SETTLE_S * 1e9)
+        return healthy
+
+    def starting(self, now_ns: int) -> bool:
+        """Still starting at ``now_ns`` (the module docstring): not yet healthy since it came up,
+        which was less than ``START_GRACE_S`` ago by our clock and by its own."""
+        self.healthy_now(now_ns)
+        if self.ready or now_ns - self.since_mono_ns >= START_GRACE_S * 1e9:
+            return False
+        return self.uptime_ms is None or self.uptime_ms < START_GRACE_S * 1e3
 
     def heartbeat(self, system_status: int) -> None:
         self.system_status = int(system_status)
@@ -75,6 +125,7 @@ class Health:
 
     def estimator_flags(self, message: str, flags: int) -> None:
         """EKF_STATUS_REPORT (ArduPilot) or ESTIMATOR_STATUS (PX4) ``flags``."""
+        self.estimator_heard = True
         if flags & EST_UNINITIALIZED:
             self.estimator = f"its estimator not initialised ({message} flags 0x{flags:x})"
         elif not flags & EST_POS_HORIZ_ABS:

@@ -152,10 +152,13 @@ class VehicleIoCore(LinkWatch, ThrustPath, TelemetryIn, AutopilotSaid, ParamRead
                 self.refusals.add(FOREIGN_SOURCE, (None, None, address), 1, now.mono_ns)
             else:
                 # Before the link is up, a broken frame is the stream joined mid-message (a serial
-                # port opened mid-frame, a firmware already talking on a TCP port): counted, not
-                # a warning. After it, it is the link corrupting frames.
+                # port opened mid-frame, a firmware already talking on a TCP port), and while the
+                # autopilot starts, its ports starting (ArduPilot SITL: one a second after its
+                # first HEARTBEAT): counted, not a warning. After that, it is the link corrupting
+                # frames.
+                quiet = not link.ok or self.autopilot_starting(now)
                 self._drop(now, "BAD_DATA", "frame", getattr(msg, "reason", "unparseable bytes"),
-                           logging.WARNING if link.ok else logging.INFO)
+                           logging.INFO if quiet else logging.WARNING)
             return []
         if msg.get_msgId() == mavlink.MAVLINK_MSG_ID_UNKNOWN:
             # A message our dialect does not define (PX4 1.18 sends CURRENT_MODE, AVAILABLE_MODES

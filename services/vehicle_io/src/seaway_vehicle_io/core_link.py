@@ -65,6 +65,8 @@ class LinkWatch:
     verifier: object | None  # the signature verifier (None: signing off)
     counts: dict[str, int]
     health: Health
+    _health_said: str | None
+    _health_quiet: bool
     hold: FailsafeCause
     texts: StatusTexts
     events: EventsChannel
@@ -120,7 +122,7 @@ class LinkWatch:
         link.target_address = address
         link.profile = profile
         link.connects += 1
-        self.health = Health(px4=profile.name == "px4")
+        self.health = Health(px4=profile.name == "px4", since_mono_ns=now.mono_ns)
         self.counts["HEARTBEAT"] = self.counts.get("HEARTBEAT", 0) + 1
         self._apply_heartbeat(msg, now, announce=False)  # the line below says it all
         before, self._before_loss = self._before_loss, None
@@ -211,6 +213,7 @@ class LinkWatch:
         self.last_boot_ms.clear()
         self.hold = FailsafeCause()
         self.health = Health()
+        self._health_said, self._health_quiet = None, False  # the loss is said, not a recovery
         self._mode_asked = None
         self.gps_quality = None
         self.battery = BatteryReading()

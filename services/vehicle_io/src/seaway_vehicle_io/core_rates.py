@@ -2,12 +2,16 @@
 checking what arrives, and asking again after a reboot or a drop (the logic is in ``rates``).
 
 Receive rates are counted per message over windows of at least ``RATE_WINDOW_S`` of monotonic
-time, and reported in the status.
+time, and reported in the status. A shortfall while the autopilot is starting (``Health.starting``:
+ArduPilot streams below the rates asked, and LOCAL_POSITION_NED not at all, until its EKF has an
+origin) is said at INFO; one still standing after the start is a drop (``rates.RateWatch``: within
+``DROP_CONFIRM_S``), said as a warning.
 """
 
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 from seaway_vehicle_io import rates as telemetry_rates
@@ -34,6 +38,7 @@ class RateRequests:
     link: LinkState
     offset: BootTimeOffset
     counts: dict[str, int]
+    autopilot_starting: Callable[[Now], bool]
 
     def _init_rates(self, start: Now) -> None:
         self.rate_check: RateCheck | None = None
@@ -42,6 +47,7 @@ class RateRequests:
         self._rates_asked_resets = 0  # the reboots the time offset had seen by then
         self.rates_hz: dict[str, float] = {}
         self._rates_since_ns = start.mono_ns
+        self._rates_quiet = False  # the shortfall standing was said at INFO, the autopilot starting
 
     def _request_rates(self, profile: Profile, now: Now) -> list[Output]:
         """At connection, after a reboot and on a drop: SET_MESSAGE_INTERVAL for every message at
@@ -92,10 +98,15 @@ class RateRequests:
             how = "REQUEST_DATA_STREAM" if rc.fallback_used else "SET_MESSAGE_INTERVAL"
             if short:
                 want = {r.message: r.rate_hz for r in rc.requests}
-                log.warning("telemetry BELOW the requested rate (asked with %s): %s; the estimator "
-                            "may time out. Check the link's bandwidth and its stream-rate "
-                            "parameters (ArduPilot SRn_*/MAVn_*)", how, ", ".join(
-                                f"{m} {hz:g} Hz of {want[m]:g} Hz" for m, hz in short.items()))
+                said = ", ".join(f"{m} {hz:g} Hz of {want[m]:g} Hz" for m, hz in short.items())
+                if self.autopilot_starting(now):
+                    self._rates_quiet = True
+                    log.info("telemetry below the requested rate (asked with %s) while the "
+                             "autopilot starts: %s; a warning if it outlasts the start", how, said)
+                else:
+                    log.warning("telemetry BELOW the requested rate (asked with %s): %s; the "
+                                "estimator may time out. Check the link's bandwidth and its "
+                                "stream-rate parameters (ArduPilot SRn_*/MAVn_*)", how, said)
             else:
                 log.info("telemetry at the requested rates (Hz: %s; asked with %s)", asked, how)
             return []
@@ -115,17 +126,24 @@ class RateRequests:
             verdict = watch.window(self.counts, self._rates_since_ns, now.mono_ns)
         self.counts.clear()
         self._rates_since_ns = now.mono_ns
+        starting = self.autopilot_starting(now)
+        want = {} if watch is None else {r.message: r.rate_hz for r in watch.requests}
+        slow = ", ".join(f"{m} {hz:g} Hz of {want[m]:g} Hz"
+                         for m, hz in ({} if watch is None else watch.short or {}).items())
         if verdict == "recovered":
             self._rates_redrop_ns = None
-            log.info("telemetry back at the requested rates: warning cleared")
-        elif verdict == "drop" and watch is not None and self.link.profile is not None:
-            want = {r.message: r.rate_hz for r in watch.requests}
-            slow = ", ".join(f"{m} {hz:g} Hz of {want[m]:g} Hz" for m, hz in (watch.short or {}).items())
+            log.info("telemetry back at the requested rates%s",
+                     "" if self._rates_quiet else ": warning cleared")
+            self._rates_quiet = False
+        elif verdict == "drop" and self.link.profile is not None:
+            self._rates_quiet = starting
+            level = logging.INFO if starting else logging.WARNING
             last = self._rates_redrop_ns
             if last is None or now.mono_ns - last >= round(telemetry_rates.REREQUEST_EVERY_S * 1e9):
                 self._rates_redrop_ns = now.mono_ns
-                log.warning("telemetry DROPPED below the requested rate: %s; asking again", slow)
+                log.log(level, "telemetry DROPPED below the requested rate%s: %s; asking again",
+                        " while the autopilot starts" if starting else "", slow)
                 return self._request_rates(self.link.profile, now)
-            log.warning("telemetry below the requested rate: %s (asked again less than %g s ago)",
-                        slow, telemetry_rates.REREQUEST_EVERY_S)
+            log.log(level, "telemetry below the requested rate: %s (asked again less than %g s ago)",
+                    slow, telemetry_rates.REREQUEST_EVERY_S)
         return []

@@ -9,6 +9,7 @@ Texts are logged (rate-limited), told to the fence sync and the hold-reason trac
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from seaway_vehicle_io.conversions import BatteryReading, battery_level_from_text, worse_level
@@ -43,6 +44,7 @@ class AutopilotSaid:
     fence: FenceSync | None
     hold: FailsafeCause
     battery_said: tuple[BatteryLevel, str] | None
+    autopilot_starting: Callable[[Now], bool]
 
     def _init_said(self) -> None:
         self.texts = StatusTexts()
@@ -70,6 +72,8 @@ class AutopilotSaid:
         log_level = logging.WARNING if item.severity <= 4 else logging.INFO
         if item.also_an_event and self.events.catalog is not None:
             log_level = logging.DEBUG
+        elif log_level == logging.WARNING and self._a_start_check(item.text, now):
+            log_level = logging.INFO
         self._log_said(now, "STATUSTEXT", item.text, log_level)
         if self.fence is not None:
             self.fence.on_text(item.text)
@@ -85,6 +89,14 @@ class AutopilotSaid:
                                                  else self.battery_said[0]) or level, item.text)
                 return self._on_battery(BatteryReading(), now)
         return []
+
+    def _a_start_check(self, text: str, now: Now) -> bool:
+        """A check the autopilot fails while it starts (ArduPilot "PreArm:"/"Arm:", PX4
+        "Preflight Fail:"; ``Profile.start_check_prefixes``): its expected state until its
+        estimator has converged, said in the status, and again in a refused arm's reply."""
+        profile = self.link.profile
+        return (profile is not None and text.startswith(profile.start_check_prefixes)
+                and self.autopilot_starting(now))
 
     def refusal_texts(self, since_mono_ns: int) -> tuple[list[str], bool]:
         """Why the autopilot refused an arm sent at ``since_mono_ns``, in its own words: its

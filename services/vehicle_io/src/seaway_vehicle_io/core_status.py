@@ -58,6 +58,7 @@ class StatusReport:
         self.hold = FailsafeCause()  # why the autopilot took the vessel (failsafe_cause.py)
         self.health = Health()  # is it fit to start a mission (autopilot_health.py)
         self._health_said: str | None = None  # the health problem last logged
+        self._health_quiet = False  # that one was said at INFO, the autopilot starting
         self._withheld: ThrustWithheld | None = self.thrust_withheld()  # as last published
         # A change said at once, at most once per gap; ``tick`` says a held one at the gap's end.
         self.status_pacer = StatusPacer()
@@ -84,18 +85,42 @@ class StatusReport:
         level = worse_level(self.battery.level, None if said is None else said[0])
         return latched_failsafe(self.health.failsafe_bits, level, "" if said is None else said[1])
 
+    def _say_health(self, now: Now) -> None:
+        """Log what the autopilot lacks when that changes: at INFO while it is starting
+        (``Health.starting``: the expected state of a start, which the status shows), as a WARNING
+        after. A lack said at INFO that outlasts the start is said again, once, as a WARNING."""
+        health = self.health
+        problem = health.problem()
+        starting = health.starting(now.mono_ns)
+        overdue = self._health_quiet and problem is not None and not starting
+        if problem == self._health_said and not overdue:
+            return
+        up_s = (now.mono_ns - health.since_mono_ns) / 1e9
+        if problem is None:
+            if self._health_said is not None:
+                self._log_change(now, "health", logging.INFO, "the autopilot is healthy again "
+                                 "(estimator, status, sensors)" if not self._health_quiet else
+                                 f"the autopilot is healthy (estimator, status, sensors), {up_s:.0f} s "
+                                 "after it came up")
+        elif starting:
+            self._log_change(now, "health", logging.INFO, f"{problem} (starting: {up_s:.0f} s since "
+                             "it came up)")
+        else:
+            self._log_change(now, "health", logging.WARNING, f"{problem} ({up_s:.0f} s since it came "
+                             "up, not healthy yet)" if overdue and not health.ready else problem)
+        self._health_said = problem
+        self._health_quiet = starting and problem is not None
+
+    def autopilot_starting(self, now: Now) -> bool:
+        """Whether the autopilot is still starting (``Health.starting``): what it refuses and lacks
+        meanwhile is the expected state of a start."""
+        return self.link.ok and self.health.starting(now.mono_ns)
+
     def status(self, now: Now) -> VehicleStatus:
         link = self.link
         self._withheld = self.thrust_withheld()
         latched = self.failsafe_latched()
-        problem = self.health.problem()
-        if problem != self._health_said:
-            if problem is not None:
-                self._log_change(now, "health", logging.WARNING, problem)
-            elif self._health_said is not None:
-                self._log_change(now, "health", logging.INFO,
-                                 "the autopilot is healthy again (estimator, status, sensors)")
-            self._health_said = problem
+        self._say_health(now)
         hb_age = (None if link.last_heartbeat_mono_ns is None
                   else max(0.0, (now.mono_ns - link.last_heartbeat_mono_ns) / 1e9))
         return VehicleStatus.make(

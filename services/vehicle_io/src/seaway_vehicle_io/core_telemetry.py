@@ -75,7 +75,7 @@ class TelemetryIn:
         if offset.resets != resets:
             log.warning("autopilot clock restarted (every time_boot_ms over %.1f s behind the "
                         "estimate): time offset estimated anew", self.cfg.time_confirm_s)
-            self._rebooted()
+            self._rebooted(now)
         elif offset.steps != steps:
             log.warning("the wall clock stepped (every time_boot_ms behind the estimate for %.1f s "
                         "on the wall clock, not on the monotonic one): time offset estimated anew; "
@@ -101,6 +101,7 @@ class TelemetryIn:
         message = convert(stamp)  # raises FieldError before the estimate is touched
         self.offset.commit(msg.time_boot_ms, now.wall_ns, now.mono_ns)
         self.last_boot_ms[mtype] = msg.time_boot_ms
+        self.health.booted_ms(msg.time_boot_ms)
         return [Publish(message)]
 
     def _on_system_time(self, msg: Any, now: Now) -> list[Output]:
@@ -109,16 +110,16 @@ class TelemetryIn:
         if self.offset.system_time(msg.time_boot_ms, now.mono_ns):
             log.warning("autopilot rebooted (SYSTEM_TIME time_boot_ms went back to %d ms): time "
                         "offset estimated anew", msg.time_boot_ms)
-            self._rebooted()
+            self._rebooted(now)
         return []
 
-    def _rebooted(self) -> None:
+    def _rebooted(self, now: Now) -> None:
         """The autopilot rebooted without the link dropping (its clock went back): forget what it
         said before, as a link loss does. A reboot ends what it latched till reboot (ArduPilot's
         battery failsafe), and a failsafe or a mode change before it is no cause of a hold after."""
         self.battery_said = None
         self.last_boot_ms.clear()
-        self.health = Health(px4=self.health.px4)
+        self.health = Health(px4=self.health.px4, since_mono_ns=now.mono_ns)
         self.events.restart_count()
         if self.hold.cause is not None:
             log.info("the autopilot's hold reason (%s) ends with its reboot", self.hold.cause)

@@ -396,7 +396,10 @@ class VehicleIoNode(Node):
                 log.info("%s accepted by the autopilot", name)
                 return Reply.accept(time.time_ns(), f"{name} ACCEPTED", result=rname, **detail)
             said = f" ({'; '.join(why)})" if why else ""
-            log.warning("%s refused by the autopilot: %s%s", name, rname, said)
+            with self.lock:  # refusing while it starts is the expected answer (Health.starting)
+                starting = self.core.autopilot_starting(now())
+            log.log(logging.INFO if starting else logging.WARNING, "%s refused by the autopilot%s: "
+                    "%s%s", name, " while it starts" if starting else "", rname, said)
             if why:
                 detail["autopilot_text"] = why
             return Reply.refuse(time.time_ns(), f"{name} refused by the autopilot: {rname}{said}",

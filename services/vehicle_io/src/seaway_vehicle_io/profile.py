@@ -100,6 +100,9 @@ class Profile(ABC):
     take SET_MESSAGE_INTERVAL."""
     arming_refusal_prefixes: tuple[str, ...] = ()
     """STATUSTEXT prefixes in which the autopilot says why it refused to arm."""
+    start_check_prefixes: tuple[str, ...] = ()
+    """STATUSTEXT prefixes of the checks it fails while it starts (its estimator not converged):
+    said at INFO until it has started (``autopilot_health.Health.starting``), a warning after."""
     events_protocol: bool = False
     """The autopilot says why it refused to arm (and most else) in EVENT messages, described by
     events metadata it serves over MAVLink FTP (``events_channel.py``)."""

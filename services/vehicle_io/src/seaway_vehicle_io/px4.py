@@ -88,6 +88,10 @@ class Px4Profile(Profile):
     # PX4 1.13+ reports arming-check failures as EVENTs, not STATUSTEXT (measured on 1.18 SITL: the
     # refusal's ACK comes with no text at all).
     events_protocol = True
+    # Its health report's failures and arming denials as text as well (seen on 1.18 SITL while its
+    # EKF aligns: "Preflight Fail: no heading reference", "Arming denied: Resolve system health
+    # failures first").
+    start_check_prefixes = ("Preflight Fail:", "Arming denied:")
     # PX4 takes SET_MESSAGE_INTERVAL (MavlinkReceiver::handle_message_command_long); it has no
     # REQUEST_DATA_STREAM fallback, and needs none.
     requests_message_rates = True
