@@ -126,6 +126,7 @@ class EstimatorCore(PublishedEstimate, Prediction, MeasurementUpdates):
         # is ahead of the clock by at most a measurement's allowance (MAX_AHEAD_LIVE_S), and a
         # late request by at most late_tolerance_s (core_estimate.predict_to).
         self._step_back_ns = round((MAX_AHEAD_LIVE_S + c.late_tolerance_s) * NS_PER_S)
+        self._late_ns = round(c.late_tolerance_s * NS_PER_S)  # the motion kept for late ones
         self._gnss_timeout_ns = c.gnss_timeout_s * NS_PER_S
         self._heading_timeout_ns = c.heading_timeout_s * NS_PER_S
         self._T_body = np.eye(NZ)  # ``_body_d``'s Jacobian, its six entries refilled at each call

@@ -25,6 +25,7 @@ makes two predictions (each with its complex-step Jacobian) and about five updat
 
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass
 
 import casadi as ca
@@ -185,3 +186,7 @@ class Filter:
     sog_reject_run: int = 0
     yaw_rate_reject_run: int = 0
     degraded: bool = False
+    moved: deque[tuple[int, list[float]]] | None = None
+    """(time [ns], the motion of the six vessel states the prediction made up to it, summed), over
+    the last ``late_tolerance_s``: kept from the first late measurement on (``Prediction._back``);
+    None before."""
