@@ -143,6 +143,8 @@ def test_the_lake_mission_on_px4_sitl_with_the_identified_model(tmp_path, zenoh_
     # A normal start warns of nothing: what the autopilot lacks and refuses until it is first
     # healthy (its EKF converging) is said at INFO and shown in the status.
     assert own_warnings(run_dir) == []
+    # Nor does the estimator: the rover's fast turns are within its yaw acceleration's noise.
+    assert warning_lines(run_dir, ("estimator",)) == []
     assert not [s for s in solve["statuses"] if s.startswith("no solver yet")], solve["statuses"]
     # The rover was PX4's: no simulator of ours in the recording, the state estimated from
     # vehicle_io's sensors, and the thrust came from CC-EMPC.
