@@ -29,6 +29,7 @@ from seaway.runtime.credentials import ENV_CREDENTIALS
 
 from tests.conftest import REPO, wait_for
 from tests.system.launch.test_hangs_and_stops import of
+from tests.unit.recorder.foxglove_check import invalid_messages
 
 pytestmark = pytest.mark.system
 # The thread-safe build: the other one, read from many threads at once (Zenoh's), now and then
@@ -152,6 +153,23 @@ def test_a_wall_clock_step_mid_mission_neither_drains_the_battery_nor_stops_cont
         r" WARNING seaway\.recorder\.clock: \D*([-+]\d+\.\d+) s", (run / "logs" / "recorder.log")
         .read_text())]
     assert len(said) == 1 and abs(said[0] - step_s) < 1.0, said
+    # And it records the step, which the report bridges when forward: the mission's samples then
+    # span the minutes it flew, not the hour the clock jumped (step back: said, not bridged).
+    out = subprocess.run([str(Path(sys.executable).parent / "seaway"), "report", str(run),
+                          "--no-plots", "--json", "--out", str(tmp_path / "report")],
+                         env=zenoh_env, capture_output=True,
+                         text=True, timeout=120)
+    assert out.returncode == 0, out.stderr[-3000:]
+    doc = json.loads(out.stdout)
+    (step,) = doc["recording"]["clock_steps"]
+    assert abs(step["step_s"] - step_s) < 1.0 and step["bridged"] == (step_s > 0), step
+    met = doc["metrics"]
+    if step_s > 0:
+        assert (met["end_ns"] - met["start_ns"]) / 1e9 < 600, met
+    # The step's record validates against the schema its channel carries (jsonschema alone), as
+    # does everything else in the file.
+    checked, invalid = invalid_messages(run / "recording.mcap")
+    assert checked > 1000 and invalid == {}, {t: e[0] for t, e in invalid.items()}
 
 
 @pytest.mark.skipif(not LIBFAKETIME.exists(), reason="libfaketime is not installed (apt-get install "

@@ -389,6 +389,14 @@ class RecordingWriter:
         self._put(schemas.restart_channel(), json.dumps(record, sort_keys=True).encode(),
                   self.time.wall(log_ns), log_ns)
 
+    def write_clock_step(self, stamp_ns: int, step_ns: int) -> None:
+        """Say in the recording that the wall clock stepped by ``step_ns`` (seen at ``stamp_ns``,
+        on the new clock; ``schemas.CLOCK_STEP_SCHEMA``): what a reader bridges
+        (``clock_bridge``)."""
+        record = {"stamp_ns": stamp_ns, "step_ns": step_ns}
+        self._put(schemas.clock_step_channel(), json.dumps(record, sort_keys=True).encode(),
+                  self.time.wall(stamp_ns), stamp_ns)
+
     def _put_malformed(self, key: str, schema: str, error: str, encoding: str, payload: bytes,
                        log_time_ns: int, publish_time_ns: int) -> None:
         self.stats.malformed += 1

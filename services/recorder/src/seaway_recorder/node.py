@@ -365,10 +365,13 @@ class RecorderNode(Node):
         """Say a step of the wall clock (``WallStepWatch``, at each flush): in real time every log
         time after it, and every service's stamps, are on the new clock (README, "A wall clock
         stepped while recording"); its own logger, so that a test or a reader finds it."""
-        step_ns = self._wall.look(time.time_ns(), mono_ns)
+        wall_ns = time.time_ns()
+        step_ns = self._wall.look(wall_ns, mono_ns)
         if step_ns is not None:
             clock_log.warning("the wall clock stepped %+.3f s (NTP or GPS time setting it): log "
                               "times and stamps after this are on the new clock", step_ns / 1e9)
+            if self.witness is None:  # in lockstep the recording's times are the simulation's
+                self.writer.write_clock_step(wall_ns, step_ns)
 
     def _room_again(self) -> bool:
         """Waiting for room: try again if it is time; whether the disk took what was in hand."""

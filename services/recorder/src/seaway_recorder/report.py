@@ -47,7 +47,7 @@ from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.metrics import mission_metrics
 from seaway.vessel.model import VesselParams
 
-from seaway_recorder import budget, missions
+from seaway_recorder import budget, clock_bridge, missions
 from seaway_recorder import metrics as mx
 from seaway_recorder.report_render import plots, table
 
@@ -98,7 +98,11 @@ Read = tuple[reader.RecordingInfo, reader.Decoded]
 def read_for_report(files: list[Path], vessel: str | None = None) -> Read:
     """What ``analyse`` reads of ``files``: one decode, for as many episodes as are reported."""
     info = reader.read_info(files)
-    return info, reader.decode_vessel(files, vessel, REPORT_TOPICS, info.summaries)
+    dec = reader.decode_vessel(files, vessel, REPORT_TOPICS, info.summaries)
+    steps = clock_bridge.steps_in(files, info.topics)
+    bridged = clock_bridge.bridge(dec, steps)
+    dec.clock_steps = [(s.stamp_ns, s.step_ns, s in bridged) for s in steps]
+    return info, dec
 
 
 def mission_episodes(dec: reader.Decoded, mission_id: str) -> list[int]:
@@ -172,7 +176,7 @@ def analyse(files: list[Path], *, scenario: str | None = None, mission_file: str
         bad = sum(n for t, n in dec.undecodable_by_topic.items() if t.endswith(f"/{TRUTH}"))
         raise ValueError(f"no {TRUTH} in the recording" + (
             f" that decodes ({bad:,} messages do not)" if bad else ""))
-    notes = undecodable_notes(info, dec, bool(truth))
+    notes = undecodable_notes(info, dec, bool(truth)) + clock_step_notes(dec)
     if truth and state != STATE:
         states: Sequence[Any] = truth
         thrusts: Sequence[Any] = truth
@@ -263,6 +267,8 @@ def analyse(files: list[Path], *, scenario: str | None = None, mission_file: str
                       "undecodable": dec.undecodable,
                       "undecodable_by_topic": dict(dec.undecodable_by_topic),
                       "duplicates": dec.duplicates, "notes": notes,
+                      "clock_steps": [{"seen_ns": at, "step_s": step / 1e9, "bridged": done}
+                                      for at, step, done in dec.clock_steps],
                       "recorder_summary": info.metadata.get("seaway.recorder.summary", {}),
                       "recovered": info.metadata.get("seaway.recover", {}),
                       "repaired": reader.repaired(info)},
@@ -287,6 +293,14 @@ def undecodable_notes(info: reader.RecordingInfo, dec: reader.Decoded, truth_dec
         notes.append(f"{TRUTH} was recorded ({recorded:,} messages) but none decodes: positions and "
                      f"energy come from {STATE} and {COMMANDS}")
     return notes
+
+
+def clock_step_notes(dec: reader.Decoded) -> list[str]:
+    """A line per step of the wall clock the recorder said: bridged (forward) or not (back)."""
+    return [f"the wall clock stepped {step / 1e9:+.3f} s during the recording: "
+            + ("every time before it is moved on by the step" if done else
+               "not bridged (the times before and after a step back overlap)")
+            for _at, step, done in dec.clock_steps]
 
 
 ENERGY_USED_DEFINITION = ("alpha (T1^2 + T2^2) + T^w integrated from the mission's start to its "

@@ -285,6 +285,10 @@ class Decoded:
     duplicates: int = 0
     """Messages recorded twice (the same bytes on the same topic): a lockstep period repeated for a
     restarted recorder can sit in the file it left and in the one it started. Read once."""
+    clock_steps: list[tuple[int, int, bool]] = field(default_factory=list)
+    """(seen at [ns, the new clock], step [ns], bridged) for each step of the wall clock the
+    recorder said: a bridged one's earlier wall times were moved on by it
+    (``seaway_recorder.clock_bridge``)."""
 
     def get(self, suffix: str) -> list[Message]:
         return self.by_suffix.get(suffix, [])
@@ -293,7 +297,7 @@ class Decoded:
         """The messages logged in [start_ns, end_ns) (to the end if None)."""
         out = Decoded(vessels=set(self.vessels), undecodable=self.undecodable,
                       undecodable_by_topic=dict(self.undecodable_by_topic),
-                      duplicates=self.duplicates)
+                      duplicates=self.duplicates, clock_steps=list(self.clock_steps))
         for suffix, msgs in self.by_suffix.items():
             logs = self.log_ns[suffix]
             keep = [i for i, t in enumerate(logs) if t >= start_ns and (end_ns is None or t < end_ns)]

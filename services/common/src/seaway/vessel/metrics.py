@@ -177,7 +177,8 @@ def mission_metrics(
         step = (f"; the largest gap between two of them is {gap_ns / NS_PER_S:.6g} s, after "
                 f"{(stamps[start + at] - t0) / NS_PER_S:.6g} s of the mission: the clock was "
                 "stepped then (NTP or GPS time setting a computer without a real-time clock), "
-                "which the metrics cannot bridge" if gap_ns > CLOCK_STEP_GAP_NS else "")
+                "which the recording does not say (a recorder that records steps says each, "
+                "and the report bridges one forward)" if gap_ns > CLOCK_STEP_GAP_NS else "")
         raise ValueError(
             f"the state samples{f' ({state_source})' if state_source else ''} span "
             f"{duration_s:.6g} s from the mission's first to its last; at most "

@@ -47,6 +47,11 @@ MAX_STAMP_NS = 2**63 - 1
 integer of any length parses) reaches no clock, and only overflows whoever divides it."""
 
 
+NS_DURATION_FIELDS = frozenset({"period_ns"})
+"""Message fields in nanoseconds that are durations. Every other field named ``*_ns``, at any depth
+of a message, is a wall-clock time [ns since epoch]: what a step of that clock moves."""
+
+
 class Message(BaseModel):
     """Base of every bus message: immutable, finite, tolerant of unknown fields when decoded."""
 
