@@ -259,8 +259,10 @@ def test_the_shore_tells_the_boats_recorder_from_its_own(procs: Procs, dep: Path
         wait_for(lambda: {"recorder", "shore-recorder", "router", "shore-router"} <= tokens(operator),
                  20, what="both recorders' and both routers' tokens ashore")
         boat_rec.close()
-        wait_for(lambda: "recorder" not in tokens(operator), 10, what="the boat recorder's token gone")
-        assert "shore-recorder" in tokens(operator)
+        # One answer that holds both: a get cut short under load (its 2 s timeout) can miss either
+        # token, and a lone "recorder gone" would then say nothing of the shore's.
+        wait_for(lambda: (lambda t: "recorder" not in t and "shore-recorder" in t)(tokens(operator)),
+                 10, what="the boat recorder's token gone, the shore recorder's still there")
         # Nor can a shore process pass for the boat's: its own rules refuse the boat's name.
         forged = shore_rec.session.liveliness().declare_token(keys.health_key(VESSEL, "recorder"))
         time.sleep(1.0)
