@@ -51,6 +51,7 @@ from seaway.vessel.frames import GeoOrigin
 from seaway.vessel.model import VesselParams
 from seaway.vessel.thrusters import apply_dead_zone, output_pair
 
+from seaway_estimator.asymmetry import ThrustAsymmetry
 from seaway_estimator.config import EstimatorConfig
 from seaway_estimator.core_estimate import PublishedEstimate
 from seaway_estimator.core_inputs import (
@@ -150,6 +151,9 @@ class EstimatorCore(PublishedEstimate, Prediction, MeasurementUpdates):
         self._thrust_until_ns: int | None = None
         self.mismatch = MotionMismatch(c.mismatch)
         """The motion fault detector (``seaway_estimator.mismatch``), fed at each GNSS fix."""
+        self.asymmetry = ThrustAsymmetry(vessel.arm_m, vessel.thrust_max_n)
+        """A thruster giving less than commanded (``seaway_estimator.asymmetry``), judged at each
+        GNSS fix from the disturbance moment."""
         self.thrust_withheld: str | None = None
         """Why the autopilot does not apply the commanded thrust now (the last ``VehicleStatus``
         said so: disarmed, no link, another mode); None: it does, or nobody said otherwise."""
@@ -174,6 +178,7 @@ class EstimatorCore(PublishedEstimate, Prediction, MeasurementUpdates):
         """
         self._forget()
         self.mismatch.reset()
+        self.asymmetry = ThrustAsymmetry(self.p.arm_m, self.p.thrust_max_n)
         if not keep_origin:
             self.origin = self._fixed_origin
         self.counters.inc("resets")
@@ -314,6 +319,7 @@ class EstimatorCore(PublishedEstimate, Prediction, MeasurementUpdates):
             None if sog[0] is None or sog[1] is None else
             sog[0] * math.cos(psi) + sog[1] * math.sin(psi),
             model.steady_surge_speed_mps(sum(self._commanded_at(t)), self.p)), std, sog)
+        self._judge_asymmetry(t)
 
     def on_attitude(self, msg: Attitude) -> None:
         """Heading and yaw rate (roll and pitch are not used by a 3-DOF model).

@@ -13,7 +13,9 @@ its normalised innovation squared against a chi-square threshold per measurement
 * yaw rate r: a run of rejections re-opens the yaw moment's variance.
 
 The motion fault detector (``seaway_estimator.mismatch``) is fed at each fix; at a fault's onset the
-state is moved to the fix and the disturbance forgotten (``_judge_motion``).
+state is moved to the fix and the disturbance forgotten (``_judge_motion``). So is the thrust
+asymmetry watch (``seaway_estimator.asymmetry``: a thruster short of its command, from the
+disturbance moment it leaves; ``_judge_asymmetry``).
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ from seaway_estimator.mismatch import FixSample, MotionMismatch
 from seaway_estimator.notices import Notice
 
 if TYPE_CHECKING:
+    from seaway_estimator.asymmetry import ThrustAsymmetry
     from seaway_estimator.config import EstimatorConfig
     from seaway_estimator.kalman import Filter
     from seaway_estimator.notices import Counters
@@ -47,6 +50,10 @@ class MeasurementUpdates:
     filter: Filter | None
     counters: Counters
     mismatch: MotionMismatch
+    asymmetry: ThrustAsymmetry
+    thrust_withheld: str | None
+    body_disturbance: Callable[[], tuple[float, float, float] | None]
+    _commanded_at: Callable[[int], tuple[float, float]]
     _notices: deque[Notice]
     _init_force_std_n: tuple[float, float]
     _back: Callable[[np.ndarray, float], np.ndarray]
@@ -208,6 +215,23 @@ class MeasurementUpdates:
             return
         self._anchor(sample.north_m, sample.east_m, std, sog, sample.t_ns)
         self.counters.inc("motion_anchored")
+
+    def _judge_asymmetry(self, t_ns: int) -> None:
+        """Feed the thrust asymmetry watch (``asymmetry``) the disturbance moment and the thrust
+        commanded, while the thrust is applied and no motion fault stands (that one says more)."""
+        d = self.body_disturbance()
+        if d is None or self.thrust_withheld is not None or self.mismatch.kind is not None:
+            return
+        port_n, starboard_n = self._commanded_at(t_ns)
+        event = self.asymmetry.on_estimate(t_ns, d[2], port_n, starboard_n)
+        if event is None:
+            return
+        if event.side is not None:
+            self.counters.inc("thrust_asymmetries")
+            self._notices.append(Notice(t_ns, "thrust_asymmetry", event.detail))
+        else:
+            self._notices.append(Notice(t_ns, "thrust_asymmetry_cleared", event.detail,
+                                        routine=True))
 
     def _anchor(self, north_m: float, east_m: float, std_m: float,
                 sog: tuple[float | None, float | None], t_ns: int) -> None:

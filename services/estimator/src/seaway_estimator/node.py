@@ -295,6 +295,7 @@ def stats_line(core: EstimatorCore, loop: EstimatorNode | None = None) -> str:
     c = core.counters.values
     keys_ = ("gnss_accepted", "gnss_rejected", "gnss_no_fix", "heading_accepted", "heading_rejected",
              "sog_rejected", "yaw_rate_rejected", "disturbance_reopened", "motion_faults",
+             "thrust_asymmetries",
              "degraded_entered", "refused_non_finite", "gnss_refused", "sog_refused",
              "yaw_rate_refused", "duplicates", "too_frequent", "too_old", "too_new", "resets", "published")
     line = ", ".join(f"{k} {c[k]}" for k in keys_)

@@ -28,7 +28,9 @@ class Notice:
     withholding the thrust: routine),
     ``gnss_refused``, ``sog_refused``, ``yaw_rate_refused`` (what a message said is past what a
     receiver or the vessel can give, ``seaway_estimator.core_inputs``: the value and the bound),
-    ``too_frequent`` (a sample closer to the last one used than its sensor's fastest rate allows).
+    ``too_frequent`` (a sample closer to the last one used than its sensor's fastest rate allows),
+    ``thrust_asymmetry`` (a thruster short of its command, ``seaway_estimator.asymmetry``) and
+    ``thrust_asymmetry_cleared`` (routine).
     ``detail`` says by how much. ``routine``: expected in a normal run, an info line whatever the
     kind."""
 
@@ -56,7 +58,7 @@ COUNTERS = (
     "gnss_refused", "sog_refused", "yaw_rate_refused", "duplicates", "too_frequent",
     "status_received",
     "degraded_entered", "time_jumps", "divergence_resets", "disturbance_reopened", "resets",
-    "motion_faults", "motion_anchored", "withheld_anchored",
+    "motion_faults", "motion_anchored", "withheld_anchored", "thrust_asymmetries",
     "published",
     "publish_refused",
 )
