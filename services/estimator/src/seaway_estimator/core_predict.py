@@ -184,9 +184,8 @@ class Prediction:
         ``z`` less the motion the prediction made over those seconds (``Filter.moved``), which
         keeps the corrections made since. Before that is known (the first late measurement starts
         it), ``z`` less its derivative times ``delay_s``: a first-order extrapolation, which takes
-        a turn begun meanwhile back at today's yaw rate (PX4 SITL's rover reaches 1.3 rad/s in
-        0.3 s; at 0.15 s of delay that put its heading 0.05-0.09 rad off, and the filter rejected
-        ten headings a turn)."""
+        a turn begun meanwhile back at today's yaw rate, off by half the yaw acceleration times
+        the delay squared."""
         f = self.filter
         back_ns = round(delay_s * NS_PER_S)
         if f is not None:
