@@ -46,6 +46,9 @@ def test_a_thruster_short_of_its_command_is_said_naming_its_side(side: str, fact
     assert core.asymmetry.side == side and core.counters["thrust_asymmetries"] == 1
     assert side in notice.detail
     assert abs(core.asymmetry.fraction - (1 - factor)) <= 0.08  # 0.50 -> 0.52, 0.30 -> 0.34
+    est = core.predict_to(core.filter.t_ns)  # published with every estimate from then on
+    assert est.thrust_short_side == side
+    assert est.thrust_short_frac == pytest.approx(core.asymmetry.fraction, abs=1e-3)
 
 
 def test_a_loss_that_ends_is_cleared_as_routine() -> None:
@@ -54,6 +57,8 @@ def test_a_loss_that_ends_is_cleared_as_routine() -> None:
     kinds = [(n.kind, n.persistent) for n in said(core)]
     assert kinds == [("thrust_asymmetry", True), ("thrust_asymmetry_cleared", False)]
     assert core.asymmetry.side is None
+    est = core.predict_to(core.filter.t_ns)
+    assert est.thrust_short_side is None and est.thrust_short_frac is None
 
 
 def test_a_small_loss_is_left_to_the_disturbance() -> None:

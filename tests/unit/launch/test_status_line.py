@@ -263,6 +263,23 @@ def test_a_motion_fault_is_shown_beside_the_mission_and_kept_when_the_line_is_sh
     assert "FAULT not_moving" in line.vessel_text("v1", 7.0, width=40)  # before the speed and xte
 
 
+def test_a_thruster_short_of_its_command_is_shown_and_kept_when_the_line_is_short() -> None:
+    line = StatusLine(["v1"])
+    line.mission["v1"] = MissionStatus(stamp_ns=1, state="active", active_leg=2, waypoint_count=4,
+                                       cross_track_m=0.05)
+    line.state["v1"] = state(3.0)
+    assert "THRUSTER" not in line.vessel_text("v1", 7.0)
+    line.state["v1"] = state(3.0).model_copy(update={"thrust_short_side": "port",
+                                                     "thrust_short_frac": 0.52})
+    text = line.vessel_text("v1", 7.0)
+    assert "xte  0.05 m | PORT THRUSTER 52 % SHORT | speed" in text, text
+    assert "PORT -52%" in line.vessel_text("v1", 7.0, width=40)  # before the speed and xte
+    # A motion fault says more: it stands alone.
+    line.state["v1"] = line.state["v1"].model_copy(update={"motion_fault": "not_moving"})
+    text = line.vessel_text("v1", 7.0)
+    assert "MOTION FAULT" in text and "THRUSTER" not in text
+
+
 @pytest.mark.parametrize("lockstep", [True, False])
 def test_valid_but_absurd_values_show_a_question_mark_and_never_raise(lockstep) -> None:
     """The launcher redraws the line with no handler around it: a schema-valid but absurd value

@@ -18,8 +18,8 @@ superstructure) reads the same, and is worth the same look. Pure: times [ns] and
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
 
+from seaway.contract.messages import ThrusterSide
 from seaway.contract.units import NS_PER_S
 
 WARN_FRACTION = 0.2
@@ -29,15 +29,12 @@ HOLD_S = 10.0
 MIN_THRUST_FRACTION = 0.1
 """Of full thrust: below it a side is not judged (at rest, or idling, the moment means little)."""
 
-Side = Literal["port", "starboard"]
-
-
 @dataclass(frozen=True)
 class AsymmetryEvent:
     """A side found short (``side``, about ``fraction`` of its command), or cleared (None)."""
 
     t_ns: int
-    side: Side | None
+    side: ThrusterSide | None
     fraction: float
     detail: str
 
@@ -48,7 +45,7 @@ class ThrustAsymmetry:
     def __init__(self, arm_m: float, thrust_max_n: float) -> None:
         self.arm_m = arm_m
         self.min_thrust_n = MIN_THRUST_FRACTION * thrust_max_n
-        self.side: Side | None = None  # the side said short, until cleared
+        self.side: ThrusterSide | None = None  # the side said short, until cleared
         self.fraction = 0.0  # how much of its command it was said to give less
         self._since_ns: int | None = None  # the condition that would change ``side`` began
         self._short_n = self._commanded_n = 0.0  # summed over it: the thrust missing, commanded
@@ -58,7 +55,7 @@ class ThrustAsymmetry:
                     ) -> AsymmetryEvent | None:
         """The settled disturbance moment ``yaw_nm`` [N m, body frame] at ``t_ns``, with the
         thrust commanded then [N]; an event when what is said changes."""
-        side: Side = "port" if yaw_nm < 0.0 else "starboard"
+        side: ThrusterSide = "port" if yaw_nm < 0.0 else "starboard"
         commanded = port_n if side == "port" else starboard_n
         if commanded < self.min_thrust_n:  # at rest or idling: neither said nor cleared
             self._since_ns = None

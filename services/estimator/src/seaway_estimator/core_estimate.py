@@ -14,7 +14,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
-from seaway.contract.messages import MessageError, StateEstimate
+from seaway.contract.messages import MAX_THRUST_SHORT_FRAC, MessageError, StateEstimate
 from seaway.contract.units import NS_PER_S
 from seaway.vessel.frames import wrap_pi
 
@@ -22,6 +22,7 @@ from seaway_estimator.core_inputs import check_stamp
 from seaway_estimator.kalman import ID1, ID2, ID3, IPSI, IR, IU, IV, IX, IY
 
 if TYPE_CHECKING:
+    from seaway_estimator.asymmetry import ThrustAsymmetry
     from seaway_estimator.config import EstimatorConfig
     from seaway_estimator.kalman import Filter
     from seaway_estimator.mismatch import MotionMismatch
@@ -36,6 +37,7 @@ class PublishedEstimate:
     filter: Filter | None
     counters: Counters
     mismatch: MotionMismatch
+    asymmetry: ThrustAsymmetry
     _max_gap_ns: int
     _step_back_ns: int
     _gnss_timeout_ns: int
@@ -157,7 +159,10 @@ class PublishedEstimate:
                 x_m=zl[IX], y_m=zl[IY], psi_rad=wrap_pi(zl[IPSI]),
                 tau_d_surge_n=d[0], tau_d_sway_n=d[1], tau_d_yaw_nm=d[2],
                 covariance=cov, degraded=degraded,
-                motion_fault=self.mismatch.kind, motion_fault_detail=self.mismatch.detail)
+                motion_fault=self.mismatch.kind, motion_fault_detail=self.mismatch.detail,
+                thrust_short_side=self.asymmetry.side,
+                thrust_short_frac=None if self.asymmetry.side is None
+                else min(round(self.asymmetry.fraction, 3), MAX_THRUST_SHORT_FRAC))
         except (MessageError, ValueError):
             self.counters.inc("publish_refused")
             return None

@@ -91,10 +91,12 @@ from seaway.contract.messages.logs import (
     LogRecord,
 )
 from seaway.contract.messages.navigation import (
+    MAX_THRUST_SHORT_FRAC,
     MOTION_FAULT_TEXT,
     MotionFaultKind,
     NavOrigin,
     StateEstimate,
+    ThrusterSide,
 )
 from seaway.contract.messages.requests import (
     CONTROLLER_NAME_PATTERN,
@@ -169,6 +171,7 @@ __all__ = [
     "MAX_SPEED_HINT_MPS",
     "MAX_STAMP_NS",
     "MAX_TASK_POWER_W",
+    "MAX_THRUST_SHORT_FRAC",
     "MISSION_OPTIONS",
     "MODULES",
     "MOTION_FAULT_TEXT",
@@ -231,6 +234,7 @@ __all__ = [
     "TaskPowerW",
     "ThrustCommand",
     "ThrustWithheld",
+    "ThrusterSide",
     "VehicleStatus",
     "Waypoint",
     "area",

@@ -30,6 +30,10 @@ MOTION_FAULT_TEXT: dict[str, str] = {
                        "(a thruster stuck or lost)",
 }
 """Each ``MotionFaultKind`` for a person."""
+ThrusterSide = Literal["port", "starboard"]
+"""One of the two thrusters (port: ``thrust_port_n``, T1 of paper eq. 1)."""
+MAX_THRUST_SHORT_FRAC = 10.0
+"""The most ``StateEstimate.thrust_short_frac`` says: a thruster driving the wrong way reads over 1."""
 
 
 class StateEstimate(Message):
@@ -56,3 +60,10 @@ class StateEstimate(Message):
                                                  "no such fault")
     motion_fault_detail: str | None = Field(default=None, max_length=MAX_REASON_CHARS,
                                             description="the evidence, for a person")
+    thrust_short_side: ThrusterSide | None = Field(default=None, description="a thruster gives "
+                                                   "less than commanded, as the yaw moment the "
+                                                   "model does not explain says "
+                                                   "(``seaway_estimator.asymmetry``); None: none")
+    thrust_short_frac: float | None = Field(default=None, ge=0.0, le=MAX_THRUST_SHORT_FRAC,
+                                            description="how much less, of its command (0.5: "
+                                            "half); None with the side")

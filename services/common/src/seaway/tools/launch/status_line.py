@@ -215,6 +215,10 @@ class StatusLine:
                        else Field(RANK_DECISION, f"NO {service.upper()}", f"NO {service.upper()}"))
         if s is not None and s.motion_fault is not None:  # the vessel does not do what it is told
             out.append(Field(RANK_DECISION, f"MOTION FAULT {s.motion_fault}", f"FAULT {s.motion_fault}"))
+        elif s is not None and s.thrust_short_side is not None:  # a thruster gives less (estimator)
+            short = number(None if s.thrust_short_frac is None else 100 * s.thrust_short_frac, ".0f")
+            side = s.thrust_short_side.upper()
+            out.append(Field(RANK_DECISION, f"{side} THRUSTER {short} % SHORT", f"{side} -{short}%"))
         if s is not None:
             speed = number(math.hypot(s.u_mps, s.v_mps), ".2f")
             out.append(Field(RANK_SPEED, f"speed {speed:>4} m/s", f"{speed} m/s"))

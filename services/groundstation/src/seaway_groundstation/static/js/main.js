@@ -196,10 +196,14 @@ function render() {
   setText("p-state", mission?.state ?? "–", mission?.state === "complete" ? "good" : mission?.state === "aborted" ? "bad" : "");
   const why = mission && mission.state !== "idle" && mission.state !== "active" ? mission.reason || "" : mission?.reason || "";
   setText("p-reason", why || "–", !why ? "" : mission.state === "aborted" ? "bad" : "warn");
-  // The estimator's motion fault (StateEstimate.motion_fault): the vessel does not do what it is told.
+  // The estimator's motion fault (StateEstimate.motion_fault): the vessel does not do what it is told;
+  // else a thruster that gives less than commanded (thrust_short_side): the boat goes on, on more energy.
+  const short = state?.thrust_short_side;
+  const shortPct = Number.isFinite(state?.thrust_short_frac) ? `${Math.round(100 * state.thrust_short_frac)} % ` : "";
   setText("p-motion", !state ? "–" : state.motion_fault
     ? `FAULT ${state.motion_fault}${state.motion_fault_detail ? ` — ${state.motion_fault_detail}` : ""}`
-    : "no fault", state?.motion_fault ? "bad" : "");
+    : short ? `${short.toUpperCase()} THRUSTER ${shortPct}SHORT of its command` : "no fault",
+    state?.motion_fault ? "bad" : short ? "warn" : "");
   setText("p-id", mission?.mission_id || "–");
   setText("p-leg", mission && mission.state !== "idle" ? `${mission.active_leg} / ${legs}` : "–");
   setText("p-dist", fmt(mission?.distance_to_waypoint_m, 1, "m"));
