@@ -94,3 +94,36 @@ def test_a_motion_fault_is_named_and_pauses_the_mission(procs, tmp_path, kind) -
     log = "\n".join(p.read_text(errors="replace") for p in (run_dir / "logs").glob("estimator*.log"))
     onsets = [line for line in log.splitlines() if "estimator motion fault at" in line]
     assert len(onsets) == 1 and "WARNING" in onsets[0], onsets
+
+
+def test_a_thruster_short_of_its_command_is_said_and_the_mission_completes(procs, tmp_path) -> None:
+    """The lake with the port thruster at 60 % from 15 s (a fouled propeller): the estimator says
+    the asymmetry once at WARNING and puts it on every ``nav/state`` from then on; the motion fault
+    detector, expecting the speed of the thrust the thrusters give, raises no fault, and the
+    mission completes (before, a ``not_as_modelled`` fault paused it at 31.8 s, for good)."""
+    text = (REPO / "deploy" / "scenarios" / "lake.toml").read_text()
+    text = text.replace('name = "lake"', 'name = "lake-port-short"').replace(
+        "[mission]", f'[[faults]]\nkind = "thruster"\ntime_s = {FAULT_S}\nthruster = "port"\n'
+                     'factor = 0.6\n\n[mission]')
+    scenario = tmp_path / "lake-port-short.toml"
+    scenario.write_text(text)
+    run_dir = tmp_path / "run"
+    env = dict(os.environ, PYTHONUNBUFFERED="1",
+               SEAWAY_ZENOH_RENDEZVOUS=f"tcp/127.0.0.1:{free_port()}")
+    env.pop("SEAWAY_ZENOH_CONFIG", None)
+    launcher = procs.launch(env, "sim-batch", "--scenario", str(scenario), "--run-dir", str(run_dir))
+    assert launcher.wait(300) == 0, procs.log(launcher)[-3000:]
+    assert "mission complete" in procs.log(launcher)
+
+    dec = reader.decode_vessel(reader.open_paths([run_dir]), None, [keys.NAV_STATE.suffix])
+    states = sorted((s for s in dec.get(keys.NAV_STATE.suffix) if isinstance(s, StateEstimate)),
+                    key=lambda s: s.stamp_ns)
+    short = [s for s in states if s.thrust_short_side is not None]
+    assert short and all(s.thrust_short_side == "port" for s in short)
+    assert FAULT_S * S < short[0].stamp_ns <= (FAULT_S + 20.0) * S, short[0].stamp_ns / S
+    assert all(abs(s.thrust_short_frac - 0.4) < 0.08 for s in short), short[0].thrust_short_frac
+    assert states[-1].thrust_short_side == "port"  # still short at the end: not cleared
+    assert not [s for s in states if s.motion_fault is not None]
+    log = "\n".join(p.read_text(errors="replace") for p in (run_dir / "logs").glob("estimator*.log"))
+    said = [line for line in log.splitlines() if "estimator thrust asymmetry at" in line]
+    assert len(said) == 1 and "WARNING" in said[0] and "port" in said[0], said

@@ -51,6 +51,15 @@ class ThrustAsymmetry:
         self._short_n = self._commanded_n = 0.0  # summed over it: the thrust missing, commanded
         self._hold_ns = round(HOLD_S * NS_PER_S)
 
+    def effective(self, port_n: float, starboard_n: float) -> tuple[float, float]:
+        """The thrust the thrusters give for this command [N]: the side said short gives
+        ``fraction`` less (what the motion fault detector expects the boat to make)."""
+        if self.side == "port":
+            return port_n * max(0.0, 1.0 - self.fraction), starboard_n
+        if self.side == "starboard":
+            return port_n, starboard_n * max(0.0, 1.0 - self.fraction)
+        return port_n, starboard_n
+
     def on_estimate(self, t_ns: int, yaw_nm: float, port_n: float, starboard_n: float
                     ) -> AsymmetryEvent | None:
         """The settled disturbance moment ``yaw_nm`` [N m, body frame] at ``t_ns``, with the

@@ -318,7 +318,8 @@ class EstimatorCore(PublishedEstimate, Prediction, MeasurementUpdates):
             t, north, east, rejected, min(nis, self.config.gate_gnss),
             None if sog[0] is None or sog[1] is None else
             sog[0] * math.cos(psi) + sog[1] * math.sin(psi),
-            model.steady_surge_speed_mps(sum(self._commanded_at(t)), self.p)), std, sog)
+            model.steady_surge_speed_mps(sum(self.asymmetry.effective(*self._commanded_at(t))),
+                                         self.p)), std, sog)
         self._judge_asymmetry(t)
 
     def on_attitude(self, msg: Attitude) -> None:
