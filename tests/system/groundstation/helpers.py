@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import re
+import threading
 import time
 import urllib.error
 import urllib.request
+from collections.abc import Callable, Iterator
 from typing import Any
 
 
@@ -63,3 +66,25 @@ def pumped(page: Any, done: Any, what: str, timeout_s: float = 30.0) -> None:
     while not done():
         assert time.monotonic() < deadline, f"timed out after {timeout_s:g} s waiting for {what}"
         page.wait_for_timeout(100)
+
+
+@contextlib.contextmanager
+def playing(put: Callable[[Any], None], make: Callable[[int], Any], period_s: float = 0.2
+            ) -> Iterator[None]:
+    """Put ``make(k)`` (k = 1, 2, ...) every ``period_s`` on a thread of its own while the block
+    runs: a vessel's state at 5 Hz, say, for a page to show."""
+    stop = threading.Event()
+
+    def run() -> None:
+        k = 0
+        while not stop.wait(period_s):
+            k += 1
+            put(make(k))
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        thread.join(5)

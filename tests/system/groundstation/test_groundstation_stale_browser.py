@@ -8,7 +8,6 @@ unreadable (a crew in sunlight reads it to judge how old).
 from __future__ import annotations
 
 import signal
-import threading
 
 import pytest
 from seaway.contract import keys
@@ -17,7 +16,7 @@ from seaway.runtime.bus import Bus
 
 from tests.conftest import wait_for
 from tests.system.groundstation import axe_check
-from tests.system.groundstation.helpers import http, start_groundstation
+from tests.system.groundstation.helpers import http, playing, start_groundstation
 
 pytestmark = pytest.mark.system
 VESSEL = "vessel1"
@@ -29,25 +28,14 @@ def test_stale_panels_are_marked_and_still_pass_axe(procs, zenoh_env, browser, t
     except axe_check.AxeUnavailableError as err:
         pytest.skip(str(err))
     gs, base, _token = start_groundstation(procs, zenoh_env)
-    stop = threading.Event()
     with Bus.open(VESSEL) as bus:
-        nav = bus.publisher(keys.NAV_STATE)
-        mission = bus.publisher(keys.MISSION_STATUS)
-        vehicle = bus.publisher(keys.VEHICLE_STATUS)
-        mission.put(MissionStatus.make(stamp_ns=1, state="idle"))
-        vehicle.put(VehicleStatus.make(stamp_ns=1, autopilot="px4", link_ok=True, armed=False,
-                                       mode="HOLD"))
-
-        def publish() -> None:  # the state at 5 Hz; the two statuses once, then never again
-            k = 0
-            while not stop.wait(0.2):
-                k += 1
-                nav.put(StateEstimate.make(stamp_ns=k * 200_000_000, u_mps=0.0, v_mps=0.0,
-                                           r_radps=0.0, x_m=0.0, y_m=0.0, psi_rad=0.0))
-
-        publisher = threading.Thread(target=publish, daemon=True)
-        publisher.start()
-        try:
+        bus.publisher(keys.MISSION_STATUS).put(MissionStatus.make(stamp_ns=1, state="idle"))
+        bus.publisher(keys.VEHICLE_STATUS).put(VehicleStatus.make(
+            stamp_ns=1, autopilot="px4", link_ok=True, armed=False, mode="HOLD"))
+        # The state at 5 Hz; the two statuses once, then never again.
+        with playing(bus.publisher(keys.NAV_STATE).put, lambda k: StateEstimate.make(
+                stamp_ns=k * 200_000_000, u_mps=0.0, v_mps=0.0, r_radps=0.0, x_m=0.0, y_m=0.0,
+                psi_rad=0.0)):
             wait_for(lambda: http("GET", base + f"api/vessels/{VESSEL}")[0] == 200, 30,
                      what="the vessel seen by the ground station")
             page = browser.new_page(viewport={"width": 1500, "height": 1000})
@@ -63,8 +51,5 @@ def test_stale_panels_are_marked_and_still_pass_axe(procs, zenoh_env, browser, t
             print("axe-core, stale panels:", [(v["id"], v["impact"], len(v["nodes"])) for v in found])
             assert not axe_check.serious(found), axe_check.serious(found)
             assert not errors, errors
-        finally:
-            stop.set()
-            publisher.join(5)
     procs.stop(gs, signal.SIGTERM, timeout_s=15)
     assert gs.returncode == 0, procs.log(gs)

@@ -9,7 +9,6 @@ finds no serious or critical violation with the warning shown.
 from __future__ import annotations
 
 import signal
-import threading
 
 import pytest
 from seaway.contract import keys
@@ -18,7 +17,7 @@ from seaway.runtime.bus import Bus
 
 from tests.conftest import wait_for
 from tests.system.groundstation import axe_check
-from tests.system.groundstation.helpers import http, start_groundstation
+from tests.system.groundstation.helpers import http, playing, start_groundstation
 
 pytestmark = pytest.mark.system
 VESSEL = "vessel1"
@@ -30,23 +29,14 @@ def test_a_thruster_short_of_its_command_is_shown_as_a_warning(procs, zenoh_env,
     except axe_check.AxeUnavailableError as err:
         pytest.skip(str(err))
     gs, base, _token = start_groundstation(procs, zenoh_env)
-    stop = threading.Event()
     said: dict[str, object] = {"thrust_short_side": "starboard", "thrust_short_frac": 0.34}
     with Bus.open(VESSEL) as bus:
-        nav = bus.publisher(keys.NAV_STATE)
         bus.publisher(keys.MISSION_STATUS).put(MissionStatus.make(stamp_ns=1, state="active",
                                                                   active_leg=1, waypoint_count=4))
-
-        def publish() -> None:  # the state at 5 Hz, with what the test says now
-            k = 0
-            while not stop.wait(0.2):
-                k += 1
-                nav.put(StateEstimate.make(stamp_ns=k * 200_000_000, u_mps=1.0, v_mps=0.0,
-                                           r_radps=0.0, x_m=0.0, y_m=0.0, psi_rad=0.0, **said))
-
-        publisher = threading.Thread(target=publish, daemon=True)
-        publisher.start()
-        try:
+        # The state at 5 Hz, with what the test says now.
+        with playing(bus.publisher(keys.NAV_STATE).put, lambda k: StateEstimate.make(
+                stamp_ns=k * 200_000_000, u_mps=1.0, v_mps=0.0, r_radps=0.0, x_m=0.0, y_m=0.0,
+                psi_rad=0.0, **said)):
             wait_for(lambda: http("GET", base + f"api/vessels/{VESSEL}")[0] == 200, 30,
                      what="the vessel seen by the ground station")
             page = browser.new_page(viewport={"width": 1500, "height": 1000})
@@ -71,8 +61,5 @@ def test_a_thruster_short_of_its_command_is_shown_as_a_warning(procs, zenoh_env,
             wait_for(lambda: shows("no fault"), 10, what="neither once the estimator says neither")
             assert motion.get_attribute("class") == ""
             assert not errors, errors
-        finally:
-            stop.set()
-            publisher.join(5)
     procs.stop(gs, signal.SIGTERM, timeout_s=15)
     assert gs.returncode == 0, procs.log(gs)

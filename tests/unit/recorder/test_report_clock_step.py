@@ -15,10 +15,11 @@ from typing import Any
 
 import pytest
 from mcap.reader import make_reader
-from mcap.writer import Writer
 from seaway.contract.messages import EnergyBudget, PeriodDone, Refusals
 from seaway.recording import reader
 from seaway_recorder import clock_bridge, report, schemas
+
+from tests.unit.recorder.rewrite import rewritten
 
 GOLDEN = Path(__file__).resolve().parents[2] / "replay" / "data" / "lake-30s.mcap"
 BEHIND_NS = 1_796_000_000_000_000_000  # from 2026-12 back to 1970-01-05
@@ -30,34 +31,26 @@ def stepped(path: Path, behind_ns: int, say_step: bool, step_back: bool = False)
     the log times), with what was logged before its middle on a clock ``behind_ns`` behind (or,
     ``step_back``, what was logged from its middle on: the clock stepped back). ``say_step``: with
     the recorder's record of the step."""
-    with open(GOLDEN, "rb") as fh, open(path, "wb") as out:
-        r = make_reader(fh)
-        summary = r.get_summary()
-        start = summary.statistics.message_start_time
-        middle = (start + summary.statistics.message_end_time) // 2
-        w = Writer(out)
-        w.start()
-        sids = {k: w.register_schema(s.name, s.encoding, s.data) for k, s in summary.schemas.items()}
-        cids = {k: w.register_channel(c.topic, c.message_encoding, sids.get(c.schema_id, 0),
-                                      dict(c.metadata)) for k, c in summary.channels.items()}
-        for a in r.iter_attachments():
-            w.add_attachment(a.create_time, a.log_time, a.name, a.media_type, a.data)
-        for _, c, m in r.iter_messages(log_time_order=False):
-            on_old = (m.log_time >= middle) if step_back else (m.log_time < middle)
-            by = start - (behind_ns if on_old else 0)
-            d = json.loads(m.data)
-            clock_bridge._shift(d, 2**63, by)  # every wall time in it (lockstep: from 0)
-            w.add_message(cids[c.id], m.log_time - (behind_ns if on_old else 0),
-                          json.dumps(d).encode(), m.publish_time, m.sequence)
-        if say_step:
-            sid = w.register_schema(schemas.CLOCK_STEP_SCHEMA_NAME, "jsonschema",
-                                    json.dumps(schemas.CLOCK_STEP_SCHEMA).encode())
-            cid = w.register_channel(schemas.CLOCK_STEP_TOPIC, "json", sid, {"role": "recorder"})
-            seen = middle + 50_000_000 - (behind_ns if step_back else 0)
-            step = -behind_ns if step_back else behind_ns
-            w.add_message(cid, seen, json.dumps({"stamp_ns": seen, "step_ns": step}).encode(),
-                          seen, 0)
-        w.finish()
+    with open(GOLDEN, "rb") as fh:
+        stats = make_reader(fh).get_summary().statistics
+    start = stats.message_start_time
+    middle = (start + stats.message_end_time) // 2
+
+    def each(_c, m):
+        on_old = (m.log_time >= middle) if step_back else (m.log_time < middle)
+        d = json.loads(m.data)
+        clock_bridge._shift(d, 2**63, start - (behind_ns if on_old else 0))  # every wall time
+        return m.log_time - (behind_ns if on_old else 0), json.dumps(d).encode(), m.publish_time
+
+    def say(w) -> None:
+        sid = w.register_schema(schemas.CLOCK_STEP_SCHEMA_NAME, "jsonschema",
+                                json.dumps(schemas.CLOCK_STEP_SCHEMA).encode())
+        cid = w.register_channel(schemas.CLOCK_STEP_TOPIC, "json", sid, {"role": "recorder"})
+        seen = middle + 50_000_000 - (behind_ns if step_back else 0)
+        step = -behind_ns if step_back else behind_ns
+        w.add_message(cid, seen, json.dumps({"stamp_ns": seen, "step_ns": step}).encode(), seen, 0)
+
+    rewritten(GOLDEN, path, each, say if say_step else None)
 
 
 def done(stamp_ns: int) -> PeriodDone:

@@ -7,43 +7,36 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from mcap.reader import make_reader
-from mcap.writer import Writer
 from seaway.contract import keys
 from seaway_recorder import report
+
+from tests.unit.recorder.rewrite import rewritten
 
 GOLDEN = Path(__file__).resolve().parents[2] / "replay" / "data" / "lake-30s.mcap"
 TRUTH = keys.SIM_TRUTH.key("replay1")
 
 
-def rewritten(path: Path, spoil: int | None) -> int:
+def spoiled(path: Path, spoil: int | None) -> int:
     """The golden recording with ``spoil`` of its truth messages (None: all) replaced by JSON that
     is not a truth; how many truth messages it holds."""
     n = 0
-    with open(GOLDEN, "rb") as fh, open(path, "wb") as out:
-        r = make_reader(fh)
-        w = Writer(out)
-        w.start()
-        summary = r.get_summary()
-        sids = {k: w.register_schema(s.name, s.encoding, s.data) for k, s in summary.schemas.items()}
-        cids = {k: w.register_channel(c.topic, c.message_encoding, sids.get(c.schema_id, 0),
-                                      dict(c.metadata)) for k, c in summary.channels.items()}
-        for a in r.iter_attachments():
-            w.add_attachment(a.create_time, a.log_time, a.name, a.media_type, a.data)
-        for _, c, m in r.iter_messages(log_time_order=False):
-            data = bytes(m.data)
-            if c.topic == TRUTH:
-                if spoil is None or n < spoil:
-                    data = b'{"stamp_ns": %d, "hello": 1}' % m.log_time
-                n += 1
-            w.add_message(cids[c.id], m.log_time, data, m.publish_time, m.sequence)
-        w.finish()
+
+    def each(c, m):
+        nonlocal n
+        data = bytes(m.data)
+        if c.topic == TRUTH:
+            if spoil is None or n < spoil:
+                data = b'{"stamp_ns": %d, "hello": 1}' % m.log_time
+            n += 1
+        return m.log_time, data, m.publish_time
+
+    rewritten(GOLDEN, path, each)
     return n
 
 
 def test_truth_that_never_decodes_is_said_and_the_estimate_used(tmp_path: Path, capsys) -> None:
     path = tmp_path / "recording.mcap"
-    n = rewritten(path, None)
+    n = spoiled(path, None)
     assert report.main([str(path), "--no-plots", "--json", "--out", str(tmp_path / "r")]) == 0
     out, err = capsys.readouterr()
     doc = json.loads(out)
@@ -61,7 +54,7 @@ def test_truth_that_never_decodes_is_said_and_the_estimate_used(tmp_path: Path, 
 
 def test_a_few_undecodable_truths_are_counted_and_truth_still_used(tmp_path: Path, capsys) -> None:
     path = tmp_path / "recording.mcap"
-    rewritten(path, 3)
+    spoiled(path, 3)
     assert report.main([str(path), "--no-plots", "--json", "--out", str(tmp_path / "r")]) == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["recording"]["undecodable_by_topic"] == {TRUTH: 3}

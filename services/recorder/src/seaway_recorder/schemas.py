@@ -73,6 +73,24 @@ RESTART_SCHEMA: dict[str, Any] = {
                  "gap_unrecovered_s"],
 }
 
+CLOCK_STEP_TOPIC = "recorder/clock_step"
+CLOCK_STEP_SCHEMA_NAME = "seaway.recorder.v1.ClockStep"
+CLOCK_STEP_SCHEMA: dict[str, Any] = {
+    "$schema": "https://json-schema.org/draft/2020-12/schema",
+    "title": CLOCK_STEP_SCHEMA_NAME,
+    "description": "The wall clock of the recorder's machine stepped while it recorded in real time "
+                   "(NTP or GPS time setting a computer without a real-time clock): every wall "
+                   "time its processes gave after it is on the new clock. Seen at a flush (50 ms "
+                   "apart) as the change of the wall clock's offset from the monotonic one.",
+    "type": "object",
+    "properties": {
+        "stamp_ns": {"type": "integer", "minimum": 0,
+                     "description": "when the step was seen, on the new clock [ns since epoch]"},
+        "step_ns": {"type": "integer", "description": "the step: forward if positive [ns]"},
+    },
+    "required": ["stamp_ns", "step_ns"],
+}
+
 
 @dataclass(frozen=True)
 class ChannelSpec:
@@ -177,41 +195,24 @@ def channel_for_key(key: str, zenoh_encoding: str = "") -> ChannelSpec:
     meta.update({"registered": "true", "producer": spec.producer, "vessel": key.split("/", 2)[1]})
     return ChannelSpec(key, spec.message.SCHEMA, JSONSCHEMA,
                        foxglove_schema_text(spec.message.json_schema()), JSON, spec.message, meta)
-CLOCK_STEP_TOPIC = "recorder/clock_step"
-CLOCK_STEP_SCHEMA_NAME = "seaway.recorder.v1.ClockStep"
-CLOCK_STEP_SCHEMA: dict[str, Any] = {
-    "$schema": "https://json-schema.org/draft/2020-12/schema",
-    "title": CLOCK_STEP_SCHEMA_NAME,
-    "description": "The wall clock of the recorder's machine stepped while it recorded in real time "
-                   "(NTP or GPS time setting a computer without a real-time clock): every wall "
-                   "time its processes gave after it is on the new clock. Seen at a flush (50 ms "
-                   "apart) as the change of the wall clock's offset from the monotonic one.",
-    "type": "object",
-    "properties": {
-        "stamp_ns": {"type": "integer", "minimum": 0,
-                     "description": "when the step was seen, on the new clock [ns since epoch]"},
-        "step_ns": {"type": "integer", "description": "the step: forward if positive [ns]"},
-    },
-    "required": ["stamp_ns", "step_ns"],
-}
+
+
+def _own_channel(topic: str, name: str, schema: dict[str, Any], role: str) -> ChannelSpec:
+    """A channel of the recorder's own JSON records, with its JSON Schema."""
+    return ChannelSpec(topic, name, JSONSCHEMA, json.dumps(schema, sort_keys=True).encode(), JSON,
+                       None, {"role": role})
 
 
 def malformed_channel() -> ChannelSpec:
-    return ChannelSpec(MALFORMED_TOPIC, MALFORMED_SCHEMA_NAME, JSONSCHEMA,
-                       json.dumps(MALFORMED_SCHEMA, sort_keys=True).encode(), JSON, None,
-                       {"role": "errors"})
+    return _own_channel(MALFORMED_TOPIC, MALFORMED_SCHEMA_NAME, MALFORMED_SCHEMA, "errors")
 
 
 def restart_channel() -> ChannelSpec:
-    return ChannelSpec(RESTART_TOPIC, RESTART_SCHEMA_NAME, JSONSCHEMA,
-                       json.dumps(RESTART_SCHEMA, sort_keys=True).encode(), JSON, None,
-                       {"role": "recorder"})
+    return _own_channel(RESTART_TOPIC, RESTART_SCHEMA_NAME, RESTART_SCHEMA, "recorder")
 
 
 def clock_step_channel() -> ChannelSpec:
-    return ChannelSpec(CLOCK_STEP_TOPIC, CLOCK_STEP_SCHEMA_NAME, JSONSCHEMA,
-                       json.dumps(CLOCK_STEP_SCHEMA, sort_keys=True).encode(), JSON, None,
-                       {"role": "recorder"})
+    return _own_channel(CLOCK_STEP_TOPIC, CLOCK_STEP_SCHEMA_NAME, CLOCK_STEP_SCHEMA, "recorder")
 
 
 def events_channel() -> ChannelSpec:
