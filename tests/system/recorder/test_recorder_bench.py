@@ -23,8 +23,10 @@ def test_bench_recorder_smoke(zenoh_env) -> None:
     assert f["drops"] == 0 and doc["targets"]["drops"]["ok"] is True
     assert f["baseline_mcap_writer_msg_per_s"] > 0 and f["core_recording_writer_msg_per_s"] > 0
     assert f["recorder_mcap_writer_msg_per_s"] > 0 and f["recorder_mcap_writer_lockstep_msg_per_s"] > 0
-    # At 4,000 msg/s the per-second rates are 4,000 give or take scheduling; the 50,000 target is the CLI's.
-    assert f["recorded_rate_median_msg_per_s"] == pytest.approx(4000, rel=0.1)
+    # What the publisher offered is recorded, second by second, give or take scheduling: 4,000 msg/s
+    # asked, less on a loaded machine (3,068 with the other core busy). The 50,000 target is the CLI's.
+    assert 0 < f["publisher_rate_msg_per_s"] <= 4000 * 1.05
+    assert f["recorded_rate_median_msg_per_s"] == pytest.approx(f["publisher_rate_msg_per_s"], rel=0.1)
     # ... and a run below it says so rather than passing, and that its publisher never offered it.
     assert doc["targets"]["recorded_rate_median_msg_per_s"]["ok"] is False
     assert doc["meta"]["target_rate_offered"] is False
