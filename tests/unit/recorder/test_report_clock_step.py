@@ -123,3 +123,41 @@ def test_only_forward_steps_are_bridged_the_earliest_first() -> None:
     assert bridged == [steps[0], steps[2]]
     assert [m.stamp_ns for m in dec.get("x")] == [7 * T, 8 * T, 9 * T]
     assert dec.log_ns["x"] == [7 * T, 8 * T, 9 * T]
+
+
+@pytest.mark.parametrize("data", [
+    b"not json", b"[1, 2]", b'{"stamp_ns": 5}', b'{"stamp_ns": "5", "step_ns": 3000000000}',
+    b'{"stamp_ns": true, "step_ns": 3000000000}', b'{"stamp_ns": -1, "step_ns": 3000000000}',
+    b'{"stamp_ns": 5000000000, "step_ns": 1000}',  # under the least step the recorder says
+    b'{"stamp_ns": 5000000000, "step_ns": 6000000000}',  # the old clock before 1970
+    b'{"stamp_ns": 5000000000, "step_ns": -1180591620717411303424}',
+])
+def test_a_record_that_is_no_step_is_none(data: bytes) -> None:
+    assert clock_bridge.step_of(data) is None
+
+
+def test_records_that_are_no_step_are_counted_and_left_out(tmp_path: Path, capsys) -> None:
+    """A damaged or forged record on the channel moves nothing: the report goes on over every
+    sample, and says how many records it left out."""
+    with open(GOLDEN, "rb") as fh:
+        start = make_reader(fh).get_summary().statistics.message_start_time
+
+    def each(_c, m):
+        d = json.loads(m.data)
+        clock_bridge._shift(d, 2**63, start)
+        return m.log_time, json.dumps(d).encode(), m.publish_time
+
+    def forged(w) -> None:
+        sid = w.register_schema(schemas.CLOCK_STEP_SCHEMA_NAME, "jsonschema",
+                                json.dumps(schemas.CLOCK_STEP_SCHEMA).encode())
+        cid = w.register_channel(schemas.CLOCK_STEP_TOPIC, "json", sid, {"role": "recorder"})
+        for k, data in enumerate((b"not json", b'{"stamp_ns": 5, "step_ns": 2}',
+                                  b'{"stamp_ns": 1, "step_ns": 1180591620717411303424}')):
+            w.add_message(cid, start + k, data, start + k, k)
+
+    path = tmp_path / "forged.mcap"
+    rewritten(GOLDEN, path, each, forged)
+    doc = doc_of(path, tmp_path, capsys)
+    assert doc["recording"]["undecodable_by_topic"] == {schemas.CLOCK_STEP_TOPIC: 3}
+    assert doc["recording"]["clock_steps"] == []
+    assert doc["metrics"]["state_samples"] == 302

@@ -25,8 +25,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from seaway.contract.messages import NS_DURATION_FIELDS, Message
+from seaway.contract.messages import MAX_STAMP_NS, NS_DURATION_FIELDS, Message
 from seaway.recording import reader
+from seaway.runtime.clock import WALL_STEP_MIN_NS
 
 from seaway_recorder.schemas import CLOCK_STEP_TOPIC
 
@@ -44,18 +45,42 @@ class ClockStep:
         return self.stamp_ns - self.step_ns // 2
 
 
-def steps_in(files: Iterable[Path], topics: Mapping[str, int] | None = None) -> list[ClockStep]:
-    """The steps the recorder said in ``files``, in the order it saw them. ``topics``: the files'
-    topics as already read (``RecordingInfo.topics``); without this one, nothing is read (a
-    filtered read of a file without the channel still walks its chunks: 0.3 s for paper-c1's)."""
+def steps_in(files: Iterable[Path], topics: Mapping[str, int] | None = None
+             ) -> tuple[list[ClockStep], int]:
+    """The steps the recorder said in ``files``, in the order it saw them, and how many records
+    of the channel are no step (``step_of``: left out, counted). ``topics``: the files' topics as
+    already read (``RecordingInfo.topics``); without this one, nothing is read (a filtered read of
+    a file without the channel still walks its chunks: 0.3 s for paper-c1's)."""
     if topics is not None and CLOCK_STEP_TOPIC not in topics:
-        return []
-    steps = []
+        return [], 0
+    steps, bad = [], 0
     for path in files:
         for _schema, _channel, msg in reader.iter_file_records(path, [CLOCK_STEP_TOPIC]):
-            d = json.loads(msg.data)
-            steps.append(ClockStep(int(d["stamp_ns"]), int(d["step_ns"])))
-    return steps
+            step = step_of(msg.data)
+            if step is None:
+                bad += 1
+            else:
+                steps.append(step)
+    return steps, bad
+
+
+def step_of(data: bytes) -> ClockStep | None:
+    """A record of ``recorder/clock_step`` as a step, or None if it is none the recorder writes:
+    not JSON, integers missing, a time outside the stamps' range (0 to ``MAX_STAMP_NS``), a step
+    under ``WALL_STEP_MIN_NS``, or a forward step from before 1970 (the old clock then read
+    negative): moving times by such a thing would only corrupt them."""
+    try:
+        d = json.loads(data)
+        stamp_ns, step_ns = d["stamp_ns"], d["step_ns"]
+    except (ValueError, TypeError, KeyError):
+        return None
+    if not all(isinstance(v, int) and not isinstance(v, bool) for v in (stamp_ns, step_ns)):
+        return None
+    if not (0 <= stamp_ns <= MAX_STAMP_NS and WALL_STEP_MIN_NS <= abs(step_ns) <= MAX_STAMP_NS):
+        return None
+    if step_ns > stamp_ns:
+        return None
+    return ClockStep(stamp_ns, step_ns)
 
 
 def bridge(dec: reader.Decoded, steps: Iterable[ClockStep]) -> list[ClockStep]:

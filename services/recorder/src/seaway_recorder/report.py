@@ -99,7 +99,10 @@ def read_for_report(files: list[Path], vessel: str | None = None) -> Read:
     """What ``analyse`` reads of ``files``: one decode, for as many episodes as are reported."""
     info = reader.read_info(files)
     dec = reader.decode_vessel(files, vessel, REPORT_TOPICS, info.summaries)
-    steps = clock_bridge.steps_in(files, info.topics)
+    steps, bad = clock_bridge.steps_in(files, info.topics)
+    if bad:  # said with the other undecodable messages: left out of every figure
+        dec.undecodable += bad
+        dec.undecodable_by_topic[clock_bridge.CLOCK_STEP_TOPIC] = bad
     bridged = clock_bridge.bridge(dec, steps)
     dec.clock_steps = [(s.stamp_ns, s.step_ns, s in bridged) for s in steps]
     return info, dec
