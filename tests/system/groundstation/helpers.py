@@ -88,3 +88,17 @@ def playing(put: Callable[[Any], None], make: Callable[[int], Any], period_s: fl
     finally:
         stop.set()
         thread.join(5)
+
+
+def vessel_page(browser: Any, base: str, vessel: str) -> tuple[Any, list[str]]:
+    """The page at ``base`` once the ground station has seen ``vessel``, and the list its page
+    errors go to (a test asserts it stays empty)."""
+    from tests.conftest import wait_for
+
+    wait_for(lambda: http("GET", base + f"api/vessels/{vessel}")[0] == 200, 30,
+             what="the vessel seen by the ground station")
+    page = browser.new_page(viewport={"width": 1500, "height": 1000})
+    errors: list[str] = []
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    page.goto(base)
+    return page, errors

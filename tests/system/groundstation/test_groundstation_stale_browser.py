@@ -14,9 +14,8 @@ from seaway.contract import keys
 from seaway.contract.messages import MissionStatus, StateEstimate, VehicleStatus
 from seaway.runtime.bus import Bus
 
-from tests.conftest import wait_for
 from tests.system.groundstation import axe_check
-from tests.system.groundstation.helpers import http, playing, start_groundstation
+from tests.system.groundstation.helpers import playing, start_groundstation, vessel_page
 
 pytestmark = pytest.mark.system
 VESSEL = "vessel1"
@@ -36,12 +35,7 @@ def test_stale_panels_are_marked_and_still_pass_axe(procs, zenoh_env, browser, t
         with playing(bus.publisher(keys.NAV_STATE).put, lambda k: StateEstimate.make(
                 stamp_ns=k * 200_000_000, u_mps=0.0, v_mps=0.0, r_radps=0.0, x_m=0.0, y_m=0.0,
                 psi_rad=0.0)):
-            wait_for(lambda: http("GET", base + f"api/vessels/{VESSEL}")[0] == 200, 30,
-                     what="the vessel seen by the ground station")
-            page = browser.new_page(viewport={"width": 1500, "height": 1000})
-            errors: list[str] = []
-            page.on("pageerror", lambda e: errors.append(str(e)))
-            page.goto(base)
+            page, errors = vessel_page(browser, base, VESSEL)
             for panel in ("vehicle", "mission"):
                 page.wait_for_selector(f"[data-stale='{panel}']", state="visible", timeout=30_000)
             for panel in ("vessel-panel", "progress-panel"):  # their figures shown as stale

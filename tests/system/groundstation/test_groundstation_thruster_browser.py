@@ -17,7 +17,7 @@ from seaway.runtime.bus import Bus
 
 from tests.conftest import wait_for
 from tests.system.groundstation import axe_check
-from tests.system.groundstation.helpers import http, playing, start_groundstation
+from tests.system.groundstation.helpers import playing, start_groundstation, vessel_page
 
 pytestmark = pytest.mark.system
 VESSEL = "vessel1"
@@ -37,12 +37,7 @@ def test_a_thruster_short_of_its_command_is_shown_as_a_warning(procs, zenoh_env,
         with playing(bus.publisher(keys.NAV_STATE).put, lambda k: StateEstimate.make(
                 stamp_ns=k * 200_000_000, u_mps=1.0, v_mps=0.0, r_radps=0.0, x_m=0.0, y_m=0.0,
                 psi_rad=0.0, **said)):
-            wait_for(lambda: http("GET", base + f"api/vessels/{VESSEL}")[0] == 200, 30,
-                     what="the vessel seen by the ground station")
-            page = browser.new_page(viewport={"width": 1500, "height": 1000})
-            errors: list[str] = []
-            page.on("pageerror", lambda e: errors.append(str(e)))
-            page.goto(base)
+            page, errors = vessel_page(browser, base, VESSEL)
             motion = page.locator("#p-motion")
 
             def shows(*words: str) -> bool:
