@@ -29,6 +29,7 @@ HOLD_S = 10.0
 MIN_THRUST_FRACTION = 0.1
 """Of full thrust: below it a side is not judged (at rest, or idling, the moment means little)."""
 
+
 @dataclass(frozen=True)
 class AsymmetryEvent:
     """A side found short (``side``, about ``fraction`` of its command), or cleared (None)."""
