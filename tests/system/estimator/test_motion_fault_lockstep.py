@@ -7,6 +7,7 @@ the fault it came (sim time)."""
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import threading
@@ -97,14 +98,17 @@ def test_a_motion_fault_is_named_and_pauses_the_mission(procs, tmp_path, kind) -
 
 
 def test_a_thruster_short_of_its_command_is_said_and_the_mission_completes(procs, tmp_path) -> None:
-    """The lake with the port thruster at 60 % from 15 s (a fouled propeller): the estimator says
+    """The lake with the port thruster at 70 % from 15 s (a fouled propeller): the estimator says
     the asymmetry once at WARNING and puts it on every ``nav/state`` from then on; the motion fault
-    detector, expecting the speed of the thrust the thrusters give, raises no fault, and the
-    mission completes (before, a ``not_as_modelled`` fault paused it at 31.8 s, for good)."""
+    detector, expecting the speed of the thrust the thrusters give, raises no fault (one paused the
+    mission for good at 30, 40 and 50 % short); the filter, predicting with the loss once said,
+    keeps with the fixes through the turns (with the disturbance alone it rejected them, moved its
+    position 2.1 m, and the controller took the last waypoint on an estimate 1.9 m off the track),
+    and the mission completes on the true track."""
     text = (REPO / "deploy" / "scenarios" / "lake.toml").read_text()
     text = text.replace('name = "lake"', 'name = "lake-port-short"').replace(
         "[mission]", f'[[faults]]\nkind = "thruster"\ntime_s = {FAULT_S}\nthruster = "port"\n'
-                     'factor = 0.6\n\n[mission]')
+                     'factor = 0.7\n\n[mission]')
     scenario = tmp_path / "lake-port-short.toml"
     scenario.write_text(text)
     run_dir = tmp_path / "run"
@@ -114,6 +118,10 @@ def test_a_thruster_short_of_its_command_is_said_and_the_mission_completes(procs
     launcher = procs.launch(env, "sim-batch", "--scenario", str(scenario), "--run-dir", str(run_dir))
     assert launcher.wait(300) == 0, procs.log(launcher)[-3000:]
     assert "mission complete" in procs.log(launcher)
+    metrics = json.loads((run_dir / "report" / "metrics.json").read_text())
+    (mission,) = metrics["missions"]
+    assert mission["metrics"]["completed"] is True  # on the simulator's truth, not the estimate
+    assert mission["metrics"]["state_source"] == "sim/truth"
 
     dec = reader.decode_vessel(reader.open_paths([run_dir]), None, [keys.NAV_STATE.suffix])
     states = sorted((s for s in dec.get(keys.NAV_STATE.suffix) if isinstance(s, StateEstimate)),
@@ -121,9 +129,10 @@ def test_a_thruster_short_of_its_command_is_said_and_the_mission_completes(procs
     short = [s for s in states if s.thrust_short_side is not None]
     assert short and all(s.thrust_short_side == "port" for s in short)
     assert FAULT_S * S < short[0].stamp_ns <= (FAULT_S + 20.0) * S, short[0].stamp_ns / S
-    assert all(abs(s.thrust_short_frac - 0.4) < 0.08 for s in short), short[0].thrust_short_frac
+    assert all(abs(s.thrust_short_frac - 0.3) < 0.08 for s in short), short[0].thrust_short_frac
     assert states[-1].thrust_short_side == "port"  # still short at the end: not cleared
     assert not [s for s in states if s.motion_fault is not None]
     log = "\n".join(p.read_text(errors="replace") for p in (run_dir / "logs").glob("estimator*.log"))
-    said = [line for line in log.splitlines() if "estimator thrust asymmetry at" in line]
-    assert len(said) == 1 and "WARNING" in said[0] and "port" in said[0], said
+    warnings = [line for line in log.splitlines() if " WARNING " in line]
+    assert len(warnings) == 1, warnings  # no fix rejected in a run, no position moved to a fix
+    assert "estimator thrust asymmetry at" in warnings[0] and "port" in warnings[0], warnings

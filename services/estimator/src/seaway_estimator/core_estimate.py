@@ -43,6 +43,7 @@ class PublishedEstimate:
     _gnss_timeout_ns: int
     _heading_timeout_ns: int
     _world: bool
+    _commanded_at: Callable[[int], tuple[float, float]]
     _T_body: np.ndarray
     # the prediction's (``core_predict``)
     _advance: Callable[[int], None]
@@ -103,9 +104,20 @@ class PublishedEstimate:
         return out
 
     def body_disturbance(self) -> tuple[float, float, float] | None:
-        """The disturbance estimate in the body frame now [N, N, N m]."""
+        """What the vessel's model leaves unexplained now, body frame [N, N, N m]: the filter's
+        disturbance and a thruster loss said (``_unexplained``)."""
         f = self.filter
-        return None if f is None else self._body_d(f.z.tolist())[0]
+        return None if f is None else self._unexplained(self._body_d(f.z.tolist())[0], f.t_ns)
+
+    def _unexplained(self, d: tuple[float, float, float], t_ns: int) -> tuple[float, float, float]:
+        """The body-frame disturbance ``d`` plus what a thruster said short takes off the command
+        held at ``t_ns`` (``asymmetry.ThrustAsymmetry.loss``): the filter predicts with that loss,
+        but the paper's disturbance (what the controller plans with, eq. 1) is all the model
+        without it leaves unexplained. ``d`` itself with none said."""
+        if self.asymmetry.side is None:
+            return d
+        surge_n, yaw_nm = self.asymmetry.loss(*self._commanded_at(t_ns))
+        return d[0] + surge_n, d[1], d[2] + yaw_nm
 
 
     def _update_degraded(self, t: int) -> None:
@@ -135,6 +147,7 @@ class PublishedEstimate:
         # stay numpy's, whose rounding the published covariance has).
         zl = z.tolist()
         d, T = self._body_d(zl)
+        d = self._unexplained(d, t)
         if T is not None:
             Pout = T @ P @ T.T
             Pout = 0.5 * (Pout + Pout.T)

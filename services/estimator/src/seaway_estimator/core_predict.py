@@ -35,6 +35,7 @@ from seaway_estimator.mismatch import MotionMismatch
 from seaway_estimator.notices import Notice
 
 if TYPE_CHECKING:
+    from seaway_estimator.asymmetry import ThrustAsymmetry
     from seaway_estimator.config import EstimatorConfig
     from seaway_estimator.kalman import Filter
     from seaway_estimator.notices import Counters
@@ -49,6 +50,7 @@ class Prediction:
     filter: Filter | None
     counters: Counters
     mismatch: MotionMismatch
+    asymmetry: ThrustAsymmetry
     thrust_withheld: str | None
     _notices: deque[Notice]
     _world: bool
@@ -117,8 +119,13 @@ class Prediction:
         return self._thrust
 
     def _thrust_at(self, t_ns: int) -> tuple[float, float]:
-        """The thrust the prediction uses: none while the vessel is seen not to move with it."""
-        return (0.0, 0.0) if self.mismatch.kind == "not_moving" else self._commanded_at(t_ns)
+        """The thrust the prediction uses: none while the vessel is seen not to move with it; a
+        side said short gives that much less (``asymmetry.ThrustAsymmetry.effective``)."""
+        if self.mismatch.kind == "not_moving":
+            return (0.0, 0.0)
+        if self.asymmetry.side is None:
+            return self._commanded_at(t_ns)
+        return self.asymmetry.effective(*self._commanded_at(t_ns))
 
     def _advance(self, t: int) -> None:
         """Integrate the filter from its time to ``t`` (later), through thrust expiry."""

@@ -55,6 +55,7 @@ class MeasurementUpdates:
     body_disturbance: Callable[[], tuple[float, float, float] | None]
     _commanded_at: Callable[[int], tuple[float, float]]
     _notices: deque[Notice]
+    _world: bool
     _init_force_std_n: tuple[float, float]
     _back: Callable[[np.ndarray, float], np.ndarray]
 
@@ -223,7 +224,13 @@ class MeasurementUpdates:
         if d is None or self.thrust_withheld is not None or self.mismatch.kind is not None:
             return
         port_n, starboard_n = self._commanded_at(t_ns)
+        before = self.asymmetry.loss(port_n, starboard_n)
         event = self.asymmetry.on_estimate(t_ns, d[2], port_n, starboard_n)
+        after = self.asymmetry.loss(port_n, starboard_n)
+        if after != before:
+            # The prediction now takes off ``after``, not ``before``: the disturbance keeps the
+            # rest, so that what is unexplained (and published) stays what it was at this command.
+            self._shift_disturbance(before[0] - after[0], before[1] - after[1])
         if event is None:
             return
         if event.side is not None:
@@ -232,6 +239,22 @@ class MeasurementUpdates:
         else:
             self._notices.append(Notice(t_ns, "thrust_asymmetry_cleared", event.detail,
                                         routine=True))
+
+    def _shift_disturbance(self, surge_n: float, yaw_nm: float) -> None:
+        """Add a body-frame surge force [N] and yaw moment [N m] to the filter's disturbance (in
+        the world frame, the force rotated by the heading), each as uncertain as it is large."""
+        f = self.filter
+        assert f is not None
+        if self._world:
+            psi = float(f.z[IPSI])
+            f.z[ID1] += surge_n * math.cos(psi)
+            f.z[ID2] += surge_n * math.sin(psi)
+            f.P[ID2, ID2] += surge_n * surge_n
+        else:
+            f.z[ID1] += surge_n
+        f.P[ID1, ID1] += surge_n * surge_n
+        f.z[ID3] += yaw_nm
+        f.P[ID3, ID3] += yaw_nm * yaw_nm
 
     def _anchor(self, north_m: float, east_m: float, std_m: float,
                 sog: tuple[float | None, float | None], t_ns: int) -> None:
