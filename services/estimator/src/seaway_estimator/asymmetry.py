@@ -56,6 +56,19 @@ class _Window:
     short_n: float = 0.0
     commanded_n: float = 0.0
 
+    def add(self, t_ns: int, short_n: float, commanded_n: float, hold_ns: int) -> float | None:
+        """Add a sample; once the window spans ``hold_ns``, the fraction missing over all of it
+        (a ratio of sums: one sample in a turn, the side barely commanded, overstates), and the
+        window starts afresh."""
+        if self.since_ns is None:
+            self.since_ns, self.short_n, self.commanded_n = t_ns, 0.0, 0.0
+        self.short_n += short_n
+        self.commanded_n += commanded_n
+        if t_ns - self.since_ns < hold_ns:
+            return None
+        self.since_ns = None
+        return self.short_n / self.commanded_n
+
 
 class ThrustAsymmetry:
     """Watches the filter's disturbance yaw moment against the commanded thrust (module doc)."""
@@ -66,8 +79,7 @@ class ThrustAsymmetry:
         self.side: ThrusterSide | None = None  # the side said short, until cleared
         self.fraction = 0.0  # how much of its command it was said to give less
         self.said_fraction = 0.0  # the fraction last said (a new one is said on a large change)
-        self._since_ns: int | None = None  # the condition that would change ``side`` began
-        self._short_n = self._commanded_n = 0.0  # summed over it: the thrust missing, commanded
+        self._change = _Window()  # the condition that would change ``side``, since it began
         self._again = _Window()  # the side said short, still short: ``fraction`` measured again
         self._hold_ns = round(HOLD_S * NS_PER_S)
 
@@ -100,7 +112,7 @@ class ThrustAsymmetry:
         side: ThrusterSide = "port" if yaw_nm < 0.0 else "starboard"
         commanded = port_n if side == "port" else starboard_n
         if commanded < self.min_thrust_n:  # at rest or idling: neither said nor cleared
-            self._since_ns = self._again.since_ns = None
+            self._change.since_ns = self._again.since_ns = None
             return None
         short_n = abs(yaw_nm) / self.arm_m
         fraction = short_n / commanded
@@ -109,18 +121,13 @@ class ThrustAsymmetry:
         else:
             changing = fraction < WARN_FRACTION / 2 or side != self.side
         if not changing:
-            self._since_ns = None
+            self._change.since_ns = None
             return None if self.side is None else self._measure_again(t_ns, short_n, commanded)
         self._again.since_ns = None
-        if self._since_ns is None:
-            self._since_ns, self._short_n, self._commanded_n = t_ns, 0.0, 0.0
-        # Over the whole hold: one sample in a turn, the weaker side barely commanded, overstates.
-        self._short_n += short_n
-        self._commanded_n += commanded
-        if t_ns - self._since_ns < self._hold_ns:
+        over = self._change.add(t_ns, short_n, commanded, self._hold_ns)
+        if over is None:
             return None
-        self._since_ns = None
-        fraction = self._short_n / self._commanded_n
+        fraction = over  # over the whole hold
         if self.side is None:
             self.side, self.fraction = side, fraction
             self.said_fraction = fraction
@@ -133,15 +140,10 @@ class ThrustAsymmetry:
     def _measure_again(self, t_ns: int, short_n: float, commanded_n: float) -> AsymmetryEvent | None:
         """A sample of the side said short, still short: each ``HOLD_S`` of them measures
         ``fraction`` again; an event if it moved ``WARN_FRACTION`` or more from what was said."""
-        w = self._again
-        if w.since_ns is None:
-            w.since_ns, w.short_n, w.commanded_n = t_ns, 0.0, 0.0
-        w.short_n += short_n
-        w.commanded_n += commanded_n
-        if t_ns - w.since_ns < self._hold_ns:
+        fraction = self._again.add(t_ns, short_n, commanded_n, self._hold_ns)
+        if fraction is None:
             return None
-        w.since_ns = None
-        self.fraction = w.short_n / w.commanded_n
+        self.fraction = fraction
         if abs(self.fraction - self.said_fraction) < WARN_FRACTION:
             return None
         assert self.side is not None
