@@ -5,8 +5,12 @@ from __future__ import annotations
 import pytest
 from seaway.vessel.model import load_vessel
 from seaway.vessel.thrusters import (
+    FULL_THRUST,
     apply_dead_zone,
     compensate_dead_zone,
+    given_fractions,
+    given_pair,
+    loss_of,
     output_pair,
     output_stage,
     saturate,
@@ -65,3 +69,22 @@ def test_the_output_stage_saturates_then_compensates_with_the_vessel_files_dead_
     assert output_pair(6.0, -4.0, BOAT) == (10.0, 0.0)
     paper = load_vessel("paper-sim")  # no dead zone: only saturation
     assert output_pair(6.0, 25.0, paper) == (6.0, paper.thrust_max_n)
+
+
+def test_a_side_found_short_gives_that_much_less_of_its_command():
+    assert given_fractions(None, None) == FULL_THRUST == (1.0, 1.0)
+    assert given_fractions("port", 0.3) == pytest.approx((0.7, 1.0))
+    assert given_fractions("starboard", 0.45) == pytest.approx((1.0, 0.55))
+    assert given_fractions("port", 1.7) == (0.0, 1.0)  # at most all of it is lost
+    assert given_pair(20.0, -10.0, (0.5, 1.0)) == (10.0, -10.0)
+    assert given_pair(20.0, 12.0, FULL_THRUST) == (20.0, 12.0)
+
+
+@pytest.mark.parametrize(("side", "surge_n", "yaw_sign"), [("port", -6.0, -1.0), ("starboard", -3.6, 1.0)])
+def test_a_loss_takes_its_thrust_off_the_surge_and_turns_away_from_the_side(side, surge_n, yaw_sign):
+    """Paper eq. 1: surge T1 + T2, yaw (T1 - T2) l; a port loss turns the boat to port (negative)."""
+    arm_m = 0.3
+    surge, yaw = loss_of(20.0, 12.0, given_fractions(side, 0.3), arm_m)
+    assert surge == pytest.approx(surge_n)
+    assert yaw == pytest.approx(yaw_sign * abs(surge_n) * arm_m)
+    assert loss_of(20.0, 12.0, FULL_THRUST, arm_m) == (0.0, 0.0)

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 from seaway.contract.messages import ThrusterSide
 from seaway.contract.units import NS_PER_S
+from seaway.vessel.thrusters import given_fractions, given_pair, loss_of
 
 WARN_FRACTION = 0.2
 """Of the weaker side's commanded thrust: a moment this large (on the arm) is a thruster short."""
@@ -83,15 +84,18 @@ class ThrustAsymmetry:
         self._again = _Window()  # the side said short, still short: ``fraction`` measured again
         self._hold_ns = round(HOLD_S * NS_PER_S)
 
+    @property
+    def given(self) -> tuple[float, float]:
+        """(port, starboard): the fraction of its command each thruster gives, as said."""
+        return given_fractions(self.side, self.fraction)
+
     def effective(self, port_n: float, starboard_n: float) -> tuple[float, float]:
         """The thrust the thrusters give for this command [N]: the side said short gives
         ``fraction`` less (what the filter predicts with, and the motion fault detector expects
         the boat to make)."""
-        if self.side == "port":
-            return port_n * max(0.0, 1.0 - self.fraction), starboard_n
-        if self.side == "starboard":
-            return port_n, starboard_n * max(0.0, 1.0 - self.fraction)
-        return port_n, starboard_n
+        if self.side is None:
+            return port_n, starboard_n
+        return given_pair(port_n, starboard_n, self.given)
 
     def loss(self, port_n: float, starboard_n: float) -> tuple[float, float]:
         """What the said loss takes off this command: ``(surge_n, yaw_nm)``, body frame (zero with
@@ -99,10 +103,7 @@ class ThrustAsymmetry:
         unexplained: what the estimate publishes, and what this watch judges."""
         if self.side is None:
             return 0.0, 0.0
-        k = min(self.fraction, 1.0)
-        if self.side == "port":
-            return -k * port_n, -k * port_n * self.arm_m
-        return -k * starboard_n, k * starboard_n * self.arm_m
+        return loss_of(port_n, starboard_n, self.given, self.arm_m)
 
     def on_estimate(self, t_ns: int, yaw_nm: float, port_n: float, starboard_n: float
                     ) -> AsymmetryEvent | None:

@@ -95,3 +95,31 @@ def absurd_thrust(port_n: float, starboard_n: float, limits: ThrustBounds) -> st
                 f"x the vessel's thrust bounds -{limits.reverse_max_n:g} .. {limits.thrust_max_n:g} N)"
             )
     return None
+
+
+FULL_THRUST: tuple[float, float] = (1.0, 1.0)
+"""Each thruster giving all of its command: the (port, starboard) fractions without a loss."""
+
+
+def given_fractions(short_side: str | None, short_frac: float | None) -> tuple[float, float]:
+    """(port, starboard): the fraction of its command each thruster gives, all of it but for a
+    side found short by ``short_frac`` of its command (``StateEstimate.thrust_short_side`` and
+    ``thrust_short_frac``, from the estimator's asymmetry watch); at most all of it is lost."""
+    if short_side is None or short_frac is None:
+        return FULL_THRUST
+    given = max(0.0, 1.0 - short_frac)
+    return (given, 1.0) if short_side == "port" else (1.0, given)
+
+
+def given_pair(port_n: float, starboard_n: float, fractions: tuple[float, float]
+               ) -> tuple[float, float]:
+    """The thrust (T1 port, T2 starboard) the thrusters give for this command [N]."""
+    return port_n * fractions[0], starboard_n * fractions[1]
+
+
+def loss_of(port_n: float, starboard_n: float, fractions: tuple[float, float], arm_m: float
+            ) -> tuple[float, float]:
+    """What the thrusters giving ``fractions`` of this command take off it: ``(surge_n, yaw_nm)``
+    in the body frame (paper eq. 1: surge ``T1 + T2``, yaw ``(T1 - T2) l``, ``l = arm_m``)."""
+    port_lost, starboard_lost = port_n * (fractions[0] - 1.0), starboard_n * (fractions[1] - 1.0)
+    return port_lost + starboard_lost, (port_lost - starboard_lost) * arm_m
