@@ -193,3 +193,30 @@ def test_prediction_uses_the_disturbance_parameter():
     assert np.max(np.abs(g[:-1])) < 1e-12
     p0 = ocp.parameters(np.array(x0), PREV, ACT, True, TW)
     assert np.max(np.abs(np.asarray(ocp.constraint_fn(w, p0)).ravel()[:-1])) > 1e-6
+
+
+@pytest.mark.parametrize("kind", ["cc-empc", "eo-empc", "nmpc"])
+def test_prediction_and_price_use_the_thrust_the_thrusters_give(kind):
+    """``given`` (a thruster found short): the motion follows ``given * U`` and the energy is priced
+    on it, as the simulator's energy metric counts the thrust produced (``seaway.simkit.faults``)."""
+    ocp = Ocp(OcpSpec(kind), VP)
+    x0 = np.array([0.05, 0.0, 0.0, 1.0, 0.3, 0.05])
+    given = (0.5, 1.0)
+    p = ocp.parameters(x0, PREV, ACT, True, TW, given=given)
+    w = ocp.cold_guess(p)  # rolled out with the thrust given
+    gaps = slice(0, ocp.spec.horizon * len(x0))  # the dynamics, not the EMPCs' terminal constraint
+    assert np.max(np.abs(np.asarray(ocp.constraint_fn(w, p)).ravel()[gaps])) < 1e-12
+    full = ocp.parameters(x0, PREV, ACT, True, TW)
+    assert np.max(np.abs(np.asarray(ocp.constraint_fn(w, full)).ravel()[gaps])) > 1e-6
+    produced = w.copy()
+    for k in range(ocp.spec.horizon):
+        produced[ocp.u_index(k)] *= given
+    assert float(ocp.objective_fn(w, p)) == pytest.approx(float(ocp.objective_fn(produced, full)),
+                                                          rel=1e-12)
+    # The warm start's shift holds the last thrust and propagates what the thrusters give of it.
+    shifted, _, _ = ocp.shift(w, np.zeros(ocp.nw), np.zeros(ocp.ng), np.zeros(3), given)
+    h = ocp.spec.horizon
+    want = rk4_step(list(w[ocp.x_index(h)]), [a * b for a, b in zip(w[ocp.u_index(h - 1)], given,
+                                                                     strict=True)],
+                    ocp.spec.dt_s, VP, math)
+    np.testing.assert_allclose(shifted[ocp.x_index(h)], want, rtol=1e-12)

@@ -7,10 +7,11 @@ from pathlib import Path
 
 import pytest
 from seaway.contract.messages import StateEstimate
+from seaway.vessel.thrusters import loss_of
 from seaway_controller import checkpoint
 from seaway_controller.checkpointing import resume
 
-from tests.unit.controller.test_core import CapturingSolver, make_core, mission
+from tests.unit.controller.test_core import VP, CapturingSolver, make_core, mission
 
 TAU_D = [0.015, 0.02, 0.001]
 
@@ -74,4 +75,28 @@ def test_a_resumed_mission_keeps_predicting(tmp_path: Path) -> None:
     resume(fresh, path, 10)
     assert fresh.progress()[1:3] == (leg, "active") and fresh.predict_disturbance
     fresh.step(500_000_007, disturbed_state(500_000_007, x=4.0))
+    assert predicted_tau_d(solver) == TAU_D
+
+
+def test_a_thruster_found_short_is_planned_with_and_not_counted_twice() -> None:
+    """A ``StateEstimate`` saying a side short: the plan models it (the OCP's ``given``), and the
+    disturbance predicted with is the estimate's less the loss at the last command, which the
+    estimate's carries as unexplained and the plan now explains."""
+    solver = CapturingSolver()
+    core = make_core(solver)
+    assert core.handle_mission(0, predicting(predict_disturbance=True)).accepted
+    short = disturbed_state().model_copy(update={"thrust_short_side": "port",
+                                                 "thrust_short_frac": 0.4})
+    first = core.step(7, short)[0]
+    assert solver.params[-1][15:17].tolist() == pytest.approx([0.6, 1.0])
+    assert (first.thrust_port_n, first.thrust_starboard_n) != (0.0, 0.0)
+    core.step(100_000_007, short.model_copy(update={"stamp_ns": 100_000_007}))
+    surge_n, yaw_nm = loss_of(first.thrust_port_n, first.thrust_starboard_n, (0.6, 1.0),
+                              VP.arm_m)
+    assert predicted_tau_d(solver) == pytest.approx([TAU_D[0] - surge_n, TAU_D[1],
+                                                     TAU_D[2] - yaw_nm])
+    assert surge_n < 0.0 and yaw_nm < 0.0
+    # Without a loss said: all of the thrust given, the estimate's disturbance as it is.
+    core.step(200_000_007, disturbed_state(200_000_007))
+    assert solver.params[-1][15:17].tolist() == [1.0, 1.0]
     assert predicted_tau_d(solver) == TAU_D

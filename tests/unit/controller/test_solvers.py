@@ -198,3 +198,22 @@ def test_ipopt_with_a_time_limit_stops_there_and_says_so():
     assert IpoptSolver(ocp, time_limit_s=60.0).solve(w0, p, *z).success
     with pytest.raises(ValueError, match="time_limit_s"):
         IpoptSolver(ocp, time_limit_s=0.0)
+
+
+@pytest.mark.parametrize("kind", ["cc-empc", "eo-empc"])
+def test_a_plan_with_a_weak_port_thruster_commands_it_harder(kind):
+    """On a straight leg at the economic cruise a thruster giving half its command is commanded
+    twice the other, so that the thrust given does not turn the boat. (The NMPC runs both at the
+    bound on this leg, and the bound is what a weak thruster cannot pass.)"""
+    ocp = Ocp(OcpSpec(kind), VP)
+    x0 = np.array([0.045, 0.0, 0.0, 1.0, 0.0, 0.0])  # on the leg (0, 0) -> (8, 0), at cruise
+    z = (np.zeros(ocp.nw), np.zeros(ocp.ng))
+    ratios = {}
+    for given in ((1.0, 1.0), (0.5, 1.0)):
+        p = ocp.parameters(x0, (0.0, 0.0), (8.0, 0.0), True, 0.49, given=given)
+        res = GeneratedSqpSolver(ocp).solve(ocp.cold_guess(p), p, *z)
+        assert res.success, res.status
+        port, starboard = ocp.thrusts(res.w)[:5].mean(axis=0)
+        ratios[given] = port / starboard
+    assert ratios[(1.0, 1.0)] == pytest.approx(1.0, abs=0.1)
+    assert ratios[(0.5, 1.0)] == pytest.approx(2.0, abs=0.2)

@@ -56,6 +56,7 @@ from seaway.vessel.envelope import envelope
 from seaway.vessel.frames import MAX_RANGE_M, GeoOrigin
 from seaway.vessel.guidance import los_thrust
 from seaway.vessel.model import VesselParams
+from seaway.vessel.thrusters import FULL_THRUST, given_fractions, loss_of
 
 from seaway_controller import acceptance, motion
 from seaway_controller.area_guard import HOLD_MARGIN_M, AreaGuard
@@ -222,12 +223,12 @@ class ControllerCore(MissionRequests, VehicleGate, EnergyAccount):
         mission = mm.mission
         wp_prev, wp_act = mm.leg()
         ctrl = self.controller(mission.controller)
-        tau_d = ((state.tau_d_surge_n, state.tau_d_sway_n, state.tau_d_yaw_nm)
-                 if self.predict_disturbance else (0.0, 0.0, 0.0))
+        given = given_fractions(state.thrust_short_side, state.thrust_short_frac)
+        tau_d = self._planned_disturbance(state, given)
         plan_age = ctrl.plan_age(now_ns)
         reusable = ctrl.last_good if plan_age is not None else None
         out = ctrl.solve(now_ns, x0, wp_prev, wp_act, mission.coa_radius_m, mission.task_power_w,
-                         (self._mission_serial, mm.active), tau_d)
+                         (self._mission_serial, mm.active), tau_d, given)
         res = out.result
         budget = self.config.solve_budget_s
         late = budget is not None and res.solve_time_s > budget
@@ -337,6 +338,21 @@ class ControllerCore(MissionRequests, VehicleGate, EnergyAccount):
                 why = (f"the covariance has a negative variance or an entry past "
                        f"{MAX_COVARIANCE_ENTRY:g}")
         return why
+
+    def _planned_disturbance(self, state: StateEstimate, given: tuple[float, float]
+                             ) -> tuple[float, float, float]:
+        """The body-frame disturbance the MPC predicts with [N, N, N m]: none (the paper's), or
+        the estimate's when the mission predicts with it. That one is all the model leaves
+        unexplained, a thruster's loss included, at the command the estimator held (this
+        controller's last); the plan models a loss itself (``given``), so that part is taken
+        out rather than counted twice."""
+        if not self.predict_disturbance:
+            return 0.0, 0.0, 0.0
+        tau = (state.tau_d_surge_n, state.tau_d_sway_n, state.tau_d_yaw_nm)
+        if given == FULL_THRUST:
+            return tau
+        surge_n, yaw_nm = loss_of(*self._last_command, given, self.vessel.arm_m)
+        return tau[0] - surge_n, tau[1], tau[2] - yaw_nm
 
     def _command(self, stamp_ns: int, thrust: tuple[float, float], source: str) -> ThrustCommand:
         # Built (and validated: finite) before it is kept: a NaN kept as the last command would

@@ -18,9 +18,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from seaway.vessel.thrusters import FULL_THRUST
 
 from seaway_controller import costs
-from seaway_controller.ocp import P_ACTIVE, P_GATE, P_PREV, P_TASK, P_TAU, Ocp
+from seaway_controller.ocp import P_ACTIVE, P_GATE, P_GIVEN, P_PREV, P_TASK, P_TAU, Ocp
 from seaway_controller.solvers import NlpSolver, SolveResult
 
 TWO_PI = 2.0 * math.pi
@@ -110,8 +111,9 @@ class MpcController:
         if r.interior_point:  # IPOPT's multipliers would stall the SQP (SolveResult.interior_point)
             lx, lg = self._cold_duals(w, p)
         tau = p[P_TAU:P_TAU + 3]
+        given = (float(p[P_GIVEN]), float(p[P_GIVEN + 1]))
         for _ in range(age):
-            w, lx, lg = ocp.shift(w, lx, lg, tau)
+            w, lx, lg = ocp.shift(w, lx, lg, tau, given)
         if not age:  # shifted, ``w`` is a new array already; unshifted, it is the plan's own
             w = w.copy()
         # Whole turns: align the guess's headings with the measured one (X_1 follows X_0 closely).
@@ -135,11 +137,13 @@ class MpcController:
 
     def solve(self, now_ns: int, x0: np.ndarray, wp_prev: tuple[float, float],
               wp_active: tuple[float, float], coa_radius_m: float, task_power_w: float, leg_key: tuple,
-              tau_d: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> MpcOutcome:
-        """Solve from the measured state ``x0`` for the leg (P_{i-1}, P_i); ``leg_key`` names it."""
+              tau_d: tuple[float, float, float] = (0.0, 0.0, 0.0),
+              given: tuple[float, float] = FULL_THRUST) -> MpcOutcome:
+        """Solve from the measured state ``x0`` for the leg (P_{i-1}, P_i); ``leg_key`` names it.
+        ``given``: the fraction of its command each thruster gives (``ocp`` module docstring)."""
         x0 = np.asarray(x0, dtype=float)
         gate = self.track_gate(now_ns, x0, wp_prev, wp_active, coa_radius_m)
-        p = self.ocp.parameters(x0, wp_prev, wp_active, gate, task_power_w, tau_d)
+        p = self.ocp.parameters(x0, wp_prev, wp_active, gate, task_power_w, tau_d, given)
         w0, lx0, lg0 = self._warm_start(now_ns, x0, p, leg_key)
         if self.capture is not None:
             self.capture.append((w0.copy(), p.copy(), lx0.copy(), lg0.copy()))

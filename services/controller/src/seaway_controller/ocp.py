@@ -9,10 +9,13 @@ X_0 is the measured state, a parameter (not a variable pinned by an equality), w
 that the SQP factorises at every iteration smaller::
 
     w = [U_0, X_1, U_1, X_2, ..., U_{H-1}, X_H, (t_d/100, t_s/100 for the EMPCs)]
-    p = [x_init(6), P_{i-1}(2), P_i(2), track_gate, T^w, tau_d(3)]
-    g = [X_{k+1} - F(X_k, U_k, tau_d) for k < H (X_0 = x_init), (terminal constraint, EMPCs)]
+    p = [x_init(6), P_{i-1}(2), P_i(2), track_gate, T^w, tau_d(3), given(2)]
+    g = [X_{k+1} - F(X_k, given * U_k, tau_d) for k < H (X_0 = x_init), (terminal constraint, EMPCs)]
 
-X = [u, v, r, x, y, psi] (body speeds, NED position and heading), U = [T1 port, T2 starboard] [N].
+X = [u, v, r, x, y, psi] (body speeds, NED position and heading), U = [T1 port, T2 starboard] [N],
+the thrust commanded: the energy is priced on it, while the motion follows what the thrusters give
+(``given``, the fraction of its command each gives: 1, 1 but for a thruster the estimator found
+short, ``seaway.vessel.thrusters.given_fractions``).
 
 Scaling (solver-notes.md, trap 1), from the vessel and the mission's task power so that one NLP shape
 serves a 0.045 m/s lab model and a 1 m/s boat alike (``empc_scales``): the EMPCs optimise t/100
@@ -42,6 +45,7 @@ from seaway.contract.messages import ControllerName
 from seaway.vessel import model
 from seaway.vessel.model import NU, NX, VesselParams
 from seaway.vessel.model_casadi import rk4_discrete
+from seaway.vessel.thrusters import FULL_THRUST, given_pair
 
 from seaway_controller import controllers, costs
 
@@ -75,9 +79,9 @@ def empc_objective_scale(task_power_w: float, vessel: VesselParams) -> float:
     return 1.0 / empc_scales(task_power_w, vessel)[1]
 
 
-NP = 15
+NP = 17
 """Length of the parameter vector p (module docstring)."""
-P_X0, P_PREV, P_ACTIVE, P_GATE, P_TASK, P_TAU = 0, 6, 8, 10, 11, 12
+P_X0, P_PREV, P_ACTIVE, P_GATE, P_TASK, P_TAU, P_GIVEN = 0, 6, 8, 10, 11, 12, 15
 
 
 @dataclass(frozen=True)
@@ -212,14 +216,16 @@ class Ocp:
         x_init = p[P_X0:P_X0 + NX]
         wp_prev, wp_act = p[P_PREV:P_PREV + 2], p[P_ACTIVE:P_ACTIVE + 2]
         gate, task, tau = p[P_GATE], p[P_TASK], p[P_TAU:P_TAU + 3]
+        given = p[P_GIVEN:P_GIVEN + NU]
         xs = [x_init] + [w[self.x_index(k)] for k in range(1, s.horizon + 1)]
         us = [w[self.u_index(k)] for k in range(s.horizon)]
         ctl = self.controller
         g = []
         stage = 0
         for k in range(s.horizon):
-            g.append(xs[k + 1] - self.F(xs[k], us[k], tau))
-            stage += ctl.stage_cost(xs[k + 1], us[k], wp_act, task, s, vp, ca)
+            produced = us[k] * given
+            g.append(xs[k + 1] - self.F(xs[k], produced, tau))
+            stage += ctl.stage_cost(xs[k + 1], produced, wp_act, task, s, vp, ca)
         if ctl.terminal is not None:
             t_d = w[self.i_time] * self.time_scale_s
             t_s = w[self.i_time + 1] * self.time_scale_s
@@ -259,7 +265,8 @@ class Ocp:
     @staticmethod
     def parameters(x0: np.ndarray, wp_prev: tuple[float, float], wp_active: tuple[float, float],
                    track_gate: bool, task_power_w: float,
-                   tau_d: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> np.ndarray:
+                   tau_d: tuple[float, float, float] = (0.0, 0.0, 0.0),
+                   given: tuple[float, float] = FULL_THRUST) -> np.ndarray:
         p = np.zeros(NP)
         p[P_X0:P_X0 + NX] = x0
         p[P_PREV:P_PREV + 2] = wp_prev
@@ -267,6 +274,7 @@ class Ocp:
         p[P_GATE] = 1.0 if track_gate else 0.0
         p[P_TASK] = task_power_w
         p[P_TAU:P_TAU + 3] = tau_d
+        p[P_GIVEN:P_GIVEN + NU] = given
         return p
 
     def cruise_speed_mps(self, task_power_w: float) -> float:
@@ -284,9 +292,10 @@ class Ocp:
         x = [float(v) for v in p[P_X0:P_X0 + NX]]
         thrust = self.controller.guess_thrust(self, float(p[P_TASK]))
         tau = tuple(float(v) for v in p[P_TAU:P_TAU + 3])
+        given = given_pair(*thrust, (float(p[P_GIVEN]), float(p[P_GIVEN + 1])))
         for k in range(s.horizon):
             w[self.u_index(k)] = thrust
-            x = model.rk4_step(x, thrust, s.dt_s, vp, math, tau)
+            x = model.rk4_step(x, given, s.dt_s, vp, math, tau)
             w[self.x_index(k + 1)] = x
         if s.is_empc:
             self.guess_times(w, p)
@@ -330,12 +339,13 @@ class Ocp:
         scale = empc_objective_scale(task, self.vessel) if self.scaled else 1.0
         return -p_static * scale / u_h
 
-    def shift(self, w: np.ndarray, lam_x: np.ndarray, lam_g: np.ndarray, tau_d: np.ndarray
-              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def shift(self, w: np.ndarray, lam_x: np.ndarray, lam_g: np.ndarray, tau_d: np.ndarray,
+              given: tuple[float, float] = FULL_THRUST) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Shift primal and dual solutions one stage for the next warm start (solver-notes trap 5).
 
         Block k = [U_k, X_{k+1}] takes block k+1's values; the last control is held and the last
-        state propagated with it (multipliers kept). Times keep their values, t_s less one period.
+        state propagated with it (the thrust the thrusters give of it, ``given``; multipliers
+        kept). Times keep their values, t_s less one period.
         """
         s = self.spec
         h, st = s.horizon, self.stage
@@ -343,8 +353,10 @@ class Ocp:
         w2[: (h - 1) * st] = w[st: h * st]
         lx2[: (h - 1) * st] = lam_x[st: h * st]
         x_last = w[self.x_index(h)]
-        u_last = w[self.u_index(h - 1)]
-        w2[self.x_index(h)] = model.rk4_step(x_last.tolist(), u_last.tolist(), s.dt_s, self.vessel,
+        u_last = w[self.u_index(h - 1)].tolist()
+        if given != FULL_THRUST:
+            u_last = list(given_pair(*u_last, given))
+        w2[self.x_index(h)] = model.rk4_step(x_last.tolist(), u_last, s.dt_s, self.vessel,
                                              math, tuple(np.asarray(tau_d, dtype=float).tolist()))
         # Costates: gap k takes gap k+1's multipliers; the last gap keeps its own.
         lg2[: NX * (h - 1)] = lam_g[NX: NX * h]
