@@ -13,9 +13,10 @@ that the SQP factorises at every iteration smaller::
     g = [X_{k+1} - F(X_k, given * U_k, tau_d) for k < H (X_0 = x_init), (terminal constraint, EMPCs)]
 
 X = [u, v, r, x, y, psi] (body speeds, NED position and heading), U = [T1 port, T2 starboard] [N],
-the thrust commanded: the energy is priced on it, while the motion follows what the thrusters give
-(``given``, the fraction of its command each gives: 1, 1 but for a thruster the estimator found
-short, ``seaway.vessel.thrusters.given_fractions``).
+the thrust commanded, which the bounds limit. The motion follows, and the stage energy is priced on,
+what the thrusters give of it (``given * U``, ``given`` the fraction of its command each gives: 1, 1
+but for a thruster the estimator found short, ``seaway.vessel.thrusters.given_fractions``), as the
+simulator's energy metric counts the thrust produced.
 
 Scaling (solver-notes.md, trap 1), from the vessel and the mission's task power so that one NLP shape
 serves a 0.045 m/s lab model and a 1 m/s boat alike (``empc_scales``): the EMPCs optimise t/100
