@@ -10,6 +10,7 @@ import math
 import pytest
 from seaway.contract.messages import MissionCommand, StateEstimate
 from seaway.vessel.model import propulsion_power_w
+from seaway.vessel.thrusters import loss_of
 from seaway_controller.budget import SUDDEN_DECIDE_S
 from seaway_controller.hold import hold_thrust
 from seaway_lab.bench.hold import fly_hold
@@ -150,3 +151,22 @@ def test_abort_stops_the_hold_at_the_end() -> None:
     assert (cmd.thrust_port_n, cmd.thrust_starboard_n) == (0.0, 0.0)
     # Nothing left to stop: a second abort is refused.
     assert not core.handle_command(5 * DT_NS, MissionCommand.make(stamp_ns=0, command="abort")).accepted
+
+
+def test_a_thruster_found_short_is_asked_for_more_and_its_loss_not_held_against() -> None:
+    """The estimate says the port thruster gives 50 % of its command. Its disturbance carries that
+    loss at the last command; the hold takes it out (it would push against a loss, not against the
+    water) and asks the port thruster for twice the thrust it wants from it."""
+    plain, weak = completed(), completed()
+    assert plain._last_command == weak._last_command
+    given = (0.5, 1.0)
+    surge_n, yaw_nm = loss_of(*weak._last_command, given, VP.arm_m)
+    tau = (0.6, 0.3, 0.0)
+    cmd, _, _ = plain.step(3 * DT_NS, at(3, LAST[0] - 0.5, LAST[1], tau=tau))
+    said = at(3, LAST[0] - 0.5, LAST[1], tau=(tau[0] + surge_n, tau[1], tau[2] + yaw_nm))
+    said = said.model_copy(update={"thrust_short_side": "port", "thrust_short_frac": 0.5})
+    cmd_weak, _, st = weak.step(3 * DT_NS, said)
+    assert cmd_weak.source == "hold" and st.hold_x_m is not None
+    assert 0.0 < abs(cmd.thrust_port_n) < VP.thrust_max_n / 2
+    assert cmd_weak.thrust_port_n == pytest.approx(2.0 * cmd.thrust_port_n)
+    assert cmd_weak.thrust_starboard_n == pytest.approx(cmd.thrust_starboard_n)

@@ -56,7 +56,7 @@ from seaway.vessel.envelope import envelope
 from seaway.vessel.frames import MAX_RANGE_M, GeoOrigin
 from seaway.vessel.guidance import los_thrust
 from seaway.vessel.model import VesselParams
-from seaway.vessel.thrusters import FULL_THRUST, given_fractions, loss_of
+from seaway.vessel.thrusters import FULL_THRUST, command_for, given_fractions, loss_of
 
 from seaway_controller import acceptance, motion
 from seaway_controller.area_guard import HOLD_MARGIN_M, AreaGuard
@@ -192,6 +192,28 @@ class ControllerCore(MissionRequests, VehicleGate, EnergyAccount):
             self._ratelog.warning("absurd_state", "state estimate refused, zero thrust: %s", why)
             cmd = self._command(state.stamp_ns, (0.0, 0.0), ABSURD_STATE)
             return cmd, None, self._status(now_ns, self._last_state or state)
+        return self._period(now_ns, self._explained(state), mono_ns)
+
+    def _explained(self, state: StateEstimate) -> StateEstimate:
+        """``state`` with the loss of a thruster it says short taken out of its disturbance.
+
+        The estimate's disturbance is all that the model leaves unexplained, a thruster's loss
+        included, at the command the estimator held (this controller's last). This controller
+        flies with the loss itself: the MPC's model moves with the thrust given, and the hold and
+        the line-of-sight fallback ask the weak side for more (``command_for``). So what prices
+        the way home, accepts a mission, holds station or predicts with the disturbance sees the
+        rest, not the loss counted twice. ``state`` itself with no loss said."""
+        given = given_fractions(state.thrust_short_side, state.thrust_short_frac)
+        if given == FULL_THRUST:
+            return state
+        surge_n, yaw_nm = loss_of(*self._last_command, given, self.vessel.arm_m)
+        return state.model_copy(update={"tau_d_surge_n": state.tau_d_surge_n - surge_n,
+                                        "tau_d_yaw_nm": state.tau_d_yaw_nm - yaw_nm})
+
+    def _period(self, now_ns: int, state: StateEstimate, mono_ns: int | None
+                ) -> tuple[ThrustCommand, SolveRecord | None, MissionStatus]:
+        """``step`` for a state found sane, its disturbance without a loss the plan models."""
+        given = given_fractions(state.thrust_short_side, state.thrust_short_frac)
         x0 = np.array([state.u_mps, state.v_mps, state.r_radps, state.x_m, state.y_m,
                        state.psi_rad])
         self._account_energy(now_ns, mono_ns)
@@ -213,7 +235,8 @@ class ControllerCore(MissionRequests, VehicleGate, EnergyAccount):
                 cmd = self._command(state.stamp_ns, (0.0, 0.0), mm.state)
             else:
                 tau = (state.tau_d_surge_n, state.tau_d_sway_n, state.tau_d_yaw_nm)
-                thrust = hold_thrust(tuple(x0), point, tau, self.vessel, self.config.hold)
+                thrust = command_for(*hold_thrust(tuple(x0), point, tau, self.vessel,
+                                                  self.config.hold), given, self.vessel)
                 cmd = self._command(state.stamp_ns, thrust, "hold")
             # Held or drifting, the pack drains (the hold, the task's load, the autopilot's own
             # figure falling): the budget goes on telling the truth about it.
@@ -223,8 +246,8 @@ class ControllerCore(MissionRequests, VehicleGate, EnergyAccount):
         mission = mm.mission
         wp_prev, wp_act = mm.leg()
         ctrl = self.controller(mission.controller)
-        given = given_fractions(state.thrust_short_side, state.thrust_short_frac)
-        tau_d = self._planned_disturbance(state, given)
+        tau_d = ((state.tau_d_surge_n, state.tau_d_sway_n, state.tau_d_yaw_nm)
+                 if self.predict_disturbance else (0.0, 0.0, 0.0))
         plan_age = ctrl.plan_age(now_ns)
         reusable = ctrl.last_good if plan_age is not None else None
         out = ctrl.solve(now_ns, x0, wp_prev, wp_act, mission.coa_radius_m, mission.task_power_w,
@@ -250,8 +273,9 @@ class ControllerCore(MissionRequests, VehicleGate, EnergyAccount):
                 thrust, source = (float(row[0]), float(row[1])), "plan-reuse"
                 self._set_level(LEVEL_PLAN, reason)
             elif self.consecutive_failures <= self.config.plan_reuse_steps + self.config.los_steps:
-                thrust = los_thrust(tuple(x0), wp_prev, wp_act, self.vessel, self.config.los,
-                                    mission.speed_hint_mps)
+                thrust = command_for(*los_thrust(tuple(x0), wp_prev, wp_act, self.vessel,
+                                                 self.config.los, mission.speed_hint_mps),
+                                     given, self.vessel)
                 source = "los"
                 self._set_level(LEVEL_LOS, reason)
             else:
@@ -265,7 +289,7 @@ class ControllerCore(MissionRequests, VehicleGate, EnergyAccount):
                                   position_only=self._area_return)
         if breach is not None:  # stop short of the area's edge: this period's command is the stop's
             self._area_stop(now_ns, state, breach)
-            cmd, _, status = self.step(now_ns, state, mono_ns)
+            cmd, _, status = self._period(now_ns, state, mono_ns)
             return cmd, record, status
         self._update_budget(now_ns, state, used)
         return cmd, record, self._status(now_ns, state)
@@ -338,21 +362,6 @@ class ControllerCore(MissionRequests, VehicleGate, EnergyAccount):
                 why = (f"the covariance has a negative variance or an entry past "
                        f"{MAX_COVARIANCE_ENTRY:g}")
         return why
-
-    def _planned_disturbance(self, state: StateEstimate, given: tuple[float, float]
-                             ) -> tuple[float, float, float]:
-        """The body-frame disturbance the MPC predicts with [N, N, N m]: none (the paper's), or
-        the estimate's when the mission predicts with it. That one is all the model leaves
-        unexplained, a thruster's loss included, at the command the estimator held (this
-        controller's last); the plan models a loss itself (``given``), so that part is taken
-        out rather than counted twice."""
-        if not self.predict_disturbance:
-            return 0.0, 0.0, 0.0
-        tau = (state.tau_d_surge_n, state.tau_d_sway_n, state.tau_d_yaw_nm)
-        if given == FULL_THRUST:
-            return tau
-        surge_n, yaw_nm = loss_of(*self._last_command, given, self.vessel.arm_m)
-        return tau[0] - surge_n, tau[1], tau[2] - yaw_nm
 
     def _command(self, stamp_ns: int, thrust: tuple[float, float], source: str) -> ThrustCommand:
         # Built (and validated: finite) before it is kept: a NaN kept as the last command would

@@ -123,3 +123,15 @@ def loss_of(port_n: float, starboard_n: float, fractions: tuple[float, float], a
     in the body frame (paper eq. 1: surge ``T1 + T2``, yaw ``(T1 - T2) l``, ``l = arm_m``)."""
     port_lost, starboard_lost = port_n * (fractions[0] - 1.0), starboard_n * (fractions[1] - 1.0)
     return port_lost + starboard_lost, (port_lost - starboard_lost) * arm_m
+
+
+def command_for(port_n: float, starboard_n: float, fractions: tuple[float, float],
+                bounds: ThrustBounds) -> tuple[float, float]:
+    """The command (T1 port, T2 starboard) [N] for which thrusters giving ``fractions`` of theirs
+    give this thrust: each side's divided by its fraction and saturated (a side giving nothing is
+    asked for the thrust itself). Unchanged with ``FULL_THRUST``."""
+    if fractions == FULL_THRUST:
+        return port_n, starboard_n
+    port = port_n / fractions[0] if fractions[0] > 0.0 else port_n
+    starboard = starboard_n / fractions[1] if fractions[1] > 0.0 else starboard_n
+    return saturate(port, bounds), saturate(starboard, bounds)
