@@ -172,7 +172,7 @@ def truth_episodes(run_dir: Path) -> list[list[int]]:
 
 def assert_no_hole(stamps: list[int]) -> None:
     """Every period from 0 to the end, none missing."""
-    assert stamps[0] == 0
+    assert stamps[0] == 0, f"the recording's simulated time begins at {stamps[0] / 1e9:g} s, not 0"
     gaps = [(a, b) for a, b in itertools.pairwise(stamps) if b - a != PERIOD_NS]
     assert not gaps, f"simulated time missing from the recording: {gaps[:5]}"
 
@@ -238,9 +238,11 @@ def test_a_nav_reset_mid_mission(tmp_path, undisturbed) -> None:
                               NavResetRequest(stamp_ns=0, keep_origin=True, reason="test"), 5.0)
     assert reply.accepted, reply.reason
     stack.finish()
+    # The recording first: a mission's energy from a recording that lacks its start (seen once
+    # under load: the truth from 3.0 s only, 1956 J of 2219) would say less than where it is lost.
+    assert_no_hole(truth_episodes(stack.run_dir)[0])
     _same_energy(report(stack.run_dir), undisturbed)
     assert "re-initialised (request: test" in (stack.run_dir / "logs" / "estimator.log").read_text()
-    assert_no_hole(truth_episodes(stack.run_dir)[0])
 
 
 def zenoh_threads(pid: int) -> list[str]:
@@ -332,5 +334,5 @@ def test_a_member_stopped_mid_mission_is_found_hung_and_restarted(tmp_path, undi
     assert hung["process"] == "controller", hung
     assert [e["event"] for e in events if e["process"] == "controller"][:4] == [
         "start", "hung", "exit", "start"]
-    _same_energy(report(stack.run_dir), undisturbed)
     assert_no_hole(truth_episodes(stack.run_dir)[0])
+    _same_energy(report(stack.run_dir), undisturbed)
