@@ -192,9 +192,10 @@ class ControllerCore(MissionRequests, VehicleGate, EnergyAccount):
             self._ratelog.warning("absurd_state", "state estimate refused, zero thrust: %s", why)
             cmd = self._command(state.stamp_ns, (0.0, 0.0), ABSURD_STATE)
             return cmd, None, self._status(now_ns, self._last_state or state)
-        return self._period(now_ns, self._explained(state), mono_ns)
+        given = given_fractions(state.thrust_short_side, state.thrust_short_frac)
+        return self._period(now_ns, self._explained(state, given), mono_ns, given)
 
-    def _explained(self, state: StateEstimate) -> StateEstimate:
+    def _explained(self, state: StateEstimate, given: tuple[float, float]) -> StateEstimate:
         """``state`` with the loss of a thruster it says short taken out of its disturbance.
 
         The estimate's disturbance is all that the model leaves unexplained, a thruster's loss
@@ -202,18 +203,17 @@ class ControllerCore(MissionRequests, VehicleGate, EnergyAccount):
         flies with the loss itself: the MPC's model moves with the thrust given, and the hold and
         the line-of-sight fallback ask the weak side for more (``command_for``). So what prices
         the way home, accepts a mission, holds station or predicts with the disturbance sees the
-        rest, not the loss counted twice. ``state`` itself with no loss said."""
-        given = given_fractions(state.thrust_short_side, state.thrust_short_frac)
+        rest, not the loss counted twice. ``state`` itself with no loss said (``given``: the
+        fraction of its command each thruster gives, as ``state`` says)."""
         if given == FULL_THRUST:
             return state
         surge_n, yaw_nm = loss_of(*self._last_command, given, self.vessel.arm_m)
         return state.model_copy(update={"tau_d_surge_n": state.tau_d_surge_n - surge_n,
                                         "tau_d_yaw_nm": state.tau_d_yaw_nm - yaw_nm})
 
-    def _period(self, now_ns: int, state: StateEstimate, mono_ns: int | None
-                ) -> tuple[ThrustCommand, SolveRecord | None, MissionStatus]:
+    def _period(self, now_ns: int, state: StateEstimate, mono_ns: int | None,
+                given: tuple[float, float]) -> tuple[ThrustCommand, SolveRecord | None, MissionStatus]:
         """``step`` for a state found sane, its disturbance without a loss the plan models."""
-        given = given_fractions(state.thrust_short_side, state.thrust_short_frac)
         x0 = np.array([state.u_mps, state.v_mps, state.r_radps, state.x_m, state.y_m,
                        state.psi_rad])
         self._account_energy(now_ns, mono_ns)
@@ -289,7 +289,7 @@ class ControllerCore(MissionRequests, VehicleGate, EnergyAccount):
                                   position_only=self._area_return)
         if breach is not None:  # stop short of the area's edge: this period's command is the stop's
             self._area_stop(now_ns, state, breach)
-            cmd, _, status = self._period(now_ns, state, mono_ns)
+            cmd, _, status = self._period(now_ns, state, mono_ns, given)
             return cmd, record, status
         self._update_budget(now_ns, state, used)
         return cmd, record, self._status(now_ns, state)

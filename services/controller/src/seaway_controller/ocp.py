@@ -354,9 +354,7 @@ class Ocp:
         w2[: (h - 1) * st] = w[st: h * st]
         lx2[: (h - 1) * st] = lam_x[st: h * st]
         x_last = w[self.x_index(h)]
-        u_last = w[self.u_index(h - 1)].tolist()
-        if given != FULL_THRUST:
-            u_last = list(given_pair(*u_last, given))
+        u_last = given_pair(*w[self.u_index(h - 1)].tolist(), given)  # x 1.0 is exact
         w2[self.x_index(h)] = model.rk4_step(x_last.tolist(), u_last, s.dt_s, self.vessel,
                                              math, tuple(np.asarray(tau_d, dtype=float).tolist()))
         # Costates: gap k takes gap k+1's multipliers; the last gap keeps its own.

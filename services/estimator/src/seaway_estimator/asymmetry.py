@@ -123,7 +123,7 @@ class ThrustAsymmetry:
             changing = fraction < WARN_FRACTION / 2 or side != self.side
         if not changing:
             self._change.since_ns = None
-            return None if self.side is None else self._measure_again(t_ns, short_n, commanded)
+            return None if self.side is None else self._measure_again(t_ns, yaw_nm, commanded)
         self._again.since_ns = None
         over = self._change.add(t_ns, short_n, commanded, self._hold_ns)
         if over is None:
@@ -138,10 +138,10 @@ class ThrustAsymmetry:
                               f"again (the unexplained yaw moment below {50 * WARN_FRACTION:.0f} % "
                               f"of a side's thrust for {HOLD_S:g} s)")
 
-    def _measure_again(self, t_ns: int, short_n: float, commanded_n: float) -> AsymmetryEvent | None:
+    def _measure_again(self, t_ns: int, yaw_nm: float, commanded_n: float) -> AsymmetryEvent | None:
         """A sample of the side said short, still short: each ``HOLD_S`` of them measures
         ``fraction`` again; an event if it moved ``WARN_FRACTION`` or more from what was said."""
-        fraction = self._again.add(t_ns, short_n, commanded_n, self._hold_ns)
+        fraction = self._again.add(t_ns, abs(yaw_nm) / self.arm_m, commanded_n, self._hold_ns)
         if fraction is None:
             return None
         self.fraction = fraction
@@ -150,8 +150,7 @@ class ThrustAsymmetry:
         assert self.side is not None
         self.said_fraction = self.fraction
         return AsymmetryEvent(t_ns, self.side, self.fraction,
-                              self._says(self.side, self.fraction, -short_n * self.arm_m
-                                         if self.side == "port" else short_n * self.arm_m))
+                              self._says(self.side, self.fraction, yaw_nm))
 
     @staticmethod
     def _says(side: ThrusterSide, fraction: float, yaw_nm: float) -> str:
