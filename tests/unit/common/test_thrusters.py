@@ -92,8 +92,8 @@ def test_a_loss_takes_its_thrust_off_the_surge_and_turns_away_from_the_side(side
 
 
 def test_the_command_for_a_thrust_asks_a_weak_side_for_more_within_its_bounds():
-    assert command_for(20.0, 12.0, (0.5, 1.0), BOAT) == (40.0, 12.0)
-    assert command_for(-20.0, 12.0, (1.0, 0.8), BOAT) == (-20.0, 15.0)
+    assert command_for(20.0, 12.0, (0.5, 1.0), BOAT) == pytest.approx((40.0, 12.0))
+    assert command_for(-20.0, 12.0, (1.0, 0.8), BOAT) == pytest.approx((-20.0, 15.0))
     assert command_for(50.0, 12.0, (0.5, 1.0), BOAT) == (BOAT.thrust_max_n, 12.0)  # saturated
     assert command_for(20.0, 12.0, (0.0, 1.0), BOAT) == (20.0, 12.0)  # gives nothing: as asked
     assert command_for(500.0, 12.0, FULL_THRUST, BOAT) == (500.0, 12.0)  # no loss: untouched
